@@ -1,0 +1,109 @@
+"""Model (iii): the standard linear Cosserat chain, eq. (3), with coefficients derived from the geometry.
+
+The forces are F = -K q with the constant stiffness matrix K of the bond energy
+
+    P_bond = k_u/2 (u_k+1 - u_k)^2 + E1 b^2 (phi_k+1 - phi_k)^2
+             + k_v/2 (v_k+1 - v_k - h (phi_k + phi_k+1)/2)^2,
+
+which is the second-order expansion of the nonlinear potential (1) at rest.
+Written per particle this is eq. (3) with the coupling 4 (h^2/d^2) E2 of eq. (2)
+(the printed eq. (3) lacks the factor 4, which makes it non-symmetric; see
+``docs/errata.md``):
+
+    F_u   = k_u (u_k+1 - 2 u_k + u_k-1)
+    F_v   = k_v (v_k+1 - 2 v_k + v_k-1 - h (phi_k+1 - phi_k-1) / 2)
+    F_phi = 2 b^2 [D1 (phi_k+1 - 2 phi_k + phi_k-1) + D2 ((v_k+1 - v_k-1) / (2h) - phi_k)]
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from numba import njit
+
+from ..params import ChainParams
+from ..state import check_state
+from .base import FORCE_SIGNATURE, Model, assemble_bond_blocks, register_model
+
+
+def cosserat_coefficients(params: ChainParams) -> np.ndarray:
+    """Coefficients (k_u, k_v, h, 2 b^2 D1, 2 b^2 D2) of eqs. (2)-(3), derived from the geometry."""
+    two_b2 = 2.0 * params.b**2
+    return np.array([params.k_u, params.k_v, params.h, two_b2 * params.D1, two_b2 * params.D2])
+
+
+@njit(FORCE_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+def linear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
+    k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
+    u, v, phi = x[0], x[1], x[2]
+    for k in range(start, stop):
+        out[0, k] = k_u * (u[k + 1] - 2.0 * u[k] + u[k - 1])
+        out[1, k] = k_v * (v[k + 1] - 2.0 * v[k] + v[k - 1] - 0.5 * h * (phi[k + 1] - phi[k - 1]))
+        out[2, k] = bend * (phi[k + 1] - 2.0 * phi[k] + phi[k - 1]) + couple * (
+            (v[k + 1] - v[k - 1]) / (2.0 * h) - phi[k]
+        )
+
+
+def cosserat_forces(params: ChainParams, u: np.ndarray, v: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Right-hand side of eqs. (2)-(3) with ``angle`` standing for phi (eq. 3) or sin phi (eq. 2).
+
+    Shapes (2N+1,) each; returns (3, 2N+1) with zero clamped columns.
+    """
+    k_u, k_v, h, bend, couple = cosserat_coefficients(params)
+    out = np.zeros((3, u.size))
+    inner = slice(1, -1)
+    out[0, inner] = k_u * (u[2:] - 2 * u[1:-1] + u[:-2])
+    out[1, inner] = k_v * (v[2:] - 2 * v[1:-1] + v[:-2] - 0.5 * h * (angle[2:] - angle[:-2]))
+    out[2, inner] = bend * (angle[2:] - 2 * angle[1:-1] + angle[:-2]) + couple * ((v[2:] - v[:-2]) / (2 * h) - angle[1:-1])
+    return out
+
+
+def bond_stiffness_block(params: ChainParams) -> np.ndarray:
+    """Hessian (6, 6) of P_bond over (u_k, v_k, phi_k, u_k+1, v_k+1, phi_k+1)."""
+    g_u = np.array([-1.0, 0, 0, 1, 0, 0])
+    g_phi = np.array([0, 0, -1.0, 0, 0, 1])
+    g_shear = np.array([0, -1.0, -params.h / 2, 0, 1, -params.h / 2])
+    return (
+        params.k_u * np.outer(g_u, g_u)
+        + 2 * params.E1 * params.b**2 * np.outer(g_phi, g_phi)
+        + params.k_v * np.outer(g_shear, g_shear)
+    )
+
+
+def stiffness_matrix(params: ChainParams) -> sp.csr_matrix:
+    """The constant stiffness matrix K of eq. (3) over the free degrees of freedom (symmetric, banded)."""
+    blocks = np.broadcast_to(bond_stiffness_block(params), (params.n_particles - 1, 6, 6))
+    return assemble_bond_blocks(np.ascontiguousarray(blocks), params.n_particles)
+
+
+class LinearModel(Model):
+    """Standard linear Cosserat model (iii), eq. (3) with geometry-derived coefficients; conservative."""
+
+    name = "linear"
+    conservative = True
+    equation = "eq. (3)"
+    force_kernel = linear_forces_kernel
+
+    @staticmethod
+    def coefficients(params: ChainParams) -> np.ndarray:
+        return cosserat_coefficients(params)
+
+    def forces(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
+        u, v, phi = check_state(params, x)
+        return cosserat_forces(params, u, v, phi)
+
+    def stiffness(self, params: ChainParams, x: np.ndarray | None = None) -> sp.csr_matrix:
+        return stiffness_matrix(params)
+
+    def energy(self, params: ChainParams, x: np.ndarray) -> float:
+        u, v, phi = check_state(params, x)
+        du, dv, dphi = np.diff(u), np.diff(v), np.diff(phi)
+        shear = dv - 0.5 * params.h * (phi[:-1] + phi[1:])
+        return float(
+            0.5 * params.k_u * np.sum(du**2)
+            + params.E1 * params.b**2 * np.sum(dphi**2)
+            + 0.5 * params.k_v * np.sum(shear**2)
+        )
+
+
+LINEAR = register_model(LinearModel())

@@ -1,0 +1,170 @@
+"""Model (i): nonlinear springs on the exact corner geometry, potential (1).
+
+Every bond has four links (:mod:`cosserat_chain.geometry`); a link of stiffness E
+and rest length L0 between corner P0 of particle k and corner P1 of particle k+1
+stores P = E (L - L0)^2 / 2 with L = |P1 - P0| (eq. 1). The forces are the exact
+gradient: with the link vector D = P1 - P0 and tension T = E (1 - L0/L) D,
+particle k receives the force +T and the moment r0 x T, particle k+1 the force
+-T and the moment -r1 x T, where r0, r1 are the rotated corner vectors.
+
+The model is conservative and invariant under rigid motions of the whole chain
+(when the ends are not clamped). Its Hessian at rest equals the stiffness
+matrix K of the linear model (iii), which is how eqs. (2)-(3) are derived.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.sparse as sp
+from numba import njit
+
+from ..geometry import bond_links, particle_positions, rotate
+from ..params import ChainParams
+from ..state import check_state
+from .base import FORCE_SIGNATURE, Model, assemble_bond_blocks, register_model
+
+
+@njit(FORCE_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+def nonlinear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
+    a, b, h, E1, E2, rest1, rest2 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5], coef[6]
+    u, v, phi = x[0], x[1], x[2]
+    for k in range(start, stop):
+        out[0, k] = 0.0
+        out[1, k] = 0.0
+        out[2, k] = 0.0
+    c0 = math.cos(phi[start - 1])
+    s0 = math.sin(phi[start - 1])
+    # Bond k joins columns k and k+1; bonds start-1..stop-1 touch the columns asked for.
+    for k in range(start - 1, stop):
+        c1 = math.cos(phi[k + 1])
+        s1 = math.sin(phi[k + 1])
+        # Right-hand corners of k: A = R(a, b), B = R(a, -b).
+        ax = a * c0 - b * s0
+        ay = a * s0 + b * c0
+        bx = a * c0 + b * s0
+        by = a * s0 - b * c0
+        # Left-hand corners of k+1: C = R(-a, b), D = R(-a, -b).
+        cx = -a * c1 - b * s1
+        cy = -a * s1 + b * c1
+        dx = -a * c1 + b * s1
+        dy = -a * s1 - b * c1
+        ex = h + u[k + 1] - u[k]
+        ey = v[k + 1] - v[k]
+        # top A-C (E1), bottom B-D (E1), diagonal A-D (E2), diagonal B-C (E2)
+        lx = ex + cx - ax
+        ly = ey + cy - ay
+        t = E1 * (1.0 - rest1 / math.sqrt(lx * lx + ly * ly))
+        t_top_x = t * lx
+        t_top_y = t * ly
+        lx = ex + dx - bx
+        ly = ey + dy - by
+        t = E1 * (1.0 - rest1 / math.sqrt(lx * lx + ly * ly))
+        t_bot_x = t * lx
+        t_bot_y = t * ly
+        lx = ex + dx - ax
+        ly = ey + dy - ay
+        t = E2 * (1.0 - rest2 / math.sqrt(lx * lx + ly * ly))
+        t_d1_x = t * lx
+        t_d1_y = t * ly
+        lx = ex + cx - bx
+        ly = ey + cy - by
+        t = E2 * (1.0 - rest2 / math.sqrt(lx * lx + ly * ly))
+        t_d2_x = t * lx
+        t_d2_y = t * ly
+        fx = t_top_x + t_bot_x + t_d1_x + t_d2_x
+        fy = t_top_y + t_bot_y + t_d1_y + t_d2_y
+        if k >= start:
+            tax = t_top_x + t_d1_x
+            tay = t_top_y + t_d1_y
+            tbx = t_bot_x + t_d2_x
+            tby = t_bot_y + t_d2_y
+            out[0, k] += fx
+            out[1, k] += fy
+            out[2, k] += ax * tay - ay * tax + bx * tby - by * tbx
+        if k + 1 < stop:
+            tcx = t_top_x + t_d2_x
+            tcy = t_top_y + t_d2_y
+            tdx = t_bot_x + t_d1_x
+            tdy = t_bot_y + t_d1_y
+            out[0, k + 1] -= fx
+            out[1, k + 1] -= fy
+            out[2, k + 1] -= cx * tcy - cy * tcx + dx * tdy - dy * tdx
+        c0 = c1
+        s0 = s1
+
+
+def _links(params: ChainParams, x: np.ndarray):
+    """Per link of every bond: the link, rotated corners r0 (on k) and r1 (on k+1), link vector D."""
+    u, v, phi = x
+    centre = np.stack([particle_positions(params) + u, v])
+    for link in bond_links(params):
+        r0 = np.stack(rotate(link.left_corner, phi[:-1]))
+        r1 = np.stack(rotate(link.right_corner, phi[1:]))
+        yield link, r0, r1, centre[:, 1:] + r1 - centre[:, :-1] - r0
+
+
+def _cross(r: np.ndarray, t: np.ndarray) -> np.ndarray:
+    return r[0] * t[1] - r[1] * t[0]
+
+
+class NonlinearModel(Model):
+    """Nonlinear springs model (i), potential (1) on the exact corner geometry; conservative."""
+
+    name = "nonlinear"
+    conservative = True
+    equation = "eq. (1)"
+    force_kernel = nonlinear_forces_kernel
+
+    @staticmethod
+    def coefficients(params: ChainParams) -> np.ndarray:
+        return np.array([params.a, params.b, params.h, params.E1, params.E2, params.gap, params.d])
+
+    def energy(self, params: ChainParams, x: np.ndarray) -> float:
+        x = check_state(params, x)
+        total = 0.0
+        for link, _, _, D in _links(params, x):
+            total += 0.5 * link.stiffness * np.sum((np.hypot(D[0], D[1]) - link.rest_length) ** 2)
+        return float(total)
+
+    def forces(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
+        x = check_state(params, x)
+        out = np.zeros_like(x)
+        for link, r0, r1, D in _links(params, x):
+            T = link.stiffness * (1.0 - link.rest_length / np.hypot(D[0], D[1])) * D
+            out[:2, :-1] += T
+            out[2, :-1] += _cross(r0, T)
+            out[:2, 1:] -= T
+            out[2, 1:] -= _cross(r1, T)
+        out[:, [0, -1]] = 0.0
+        return out
+
+    def stiffness(self, params: ChainParams, x: np.ndarray) -> sp.csr_matrix:
+        """Exact Hessian of the energy over the free degrees of freedom (symmetric, banded)."""
+        x = check_state(params, x)
+        n_bonds = params.n_particles - 1
+        blocks = np.zeros((n_bonds, 6, 6))
+        for link, r0, r1, D in _links(params, x):
+            length = np.hypot(D[0], D[1])
+            e = D / length
+            ratio = link.rest_length / length
+            # d^2 P / dD^2 = E [(L0/L) e e^T + (1 - L0/L) I]
+            G = link.stiffness * (ratio[:, None, None] * np.einsum("ib,jb->bij", e, e) + (1 - ratio)[:, None, None] * np.eye(2))
+            # dD/dq over (u0, v0, phi0, u1, v1, phi1); d(R c)/dphi = (-r_y, r_x)
+            B = np.zeros((n_bonds, 2, 6))
+            B[:, 0, 0] = -1.0
+            B[:, 1, 1] = -1.0
+            B[:, :, 2] = np.stack([r0[1], -r0[0]], axis=1)
+            B[:, 0, 3] = 1.0
+            B[:, 1, 4] = 1.0
+            B[:, :, 5] = np.stack([-r1[1], r1[0]], axis=1)
+            blocks += np.einsum("bki,bkl,blj->bij", B, G, B)
+            # Curvature of the corner paths: d^2 D/dphi0^2 = r0, d^2 D/dphi1^2 = -r1.
+            T = link.stiffness * (1.0 - ratio) * D
+            blocks[:, 2, 2] += np.sum(T * r0, axis=0)
+            blocks[:, 5, 5] -= np.sum(T * r1, axis=0)
+        return assemble_bond_blocks(blocks, params.n_particles)
+
+
+NONLINEAR = register_model(NonlinearModel())

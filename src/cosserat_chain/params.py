@@ -1,0 +1,193 @@
+"""Validated parameters of the chain and the coefficients derived from its geometry.
+
+Contract
+--------
+:class:`ChainParams` holds the paper's symbols (Sections 2 and 4) and nothing else.
+Every derived quantity (diagonal length ``d``, the coefficients of eqs. (2)-(3),
+``D1`` and ``D2`` of Section 3) is a property computed from the geometry of the
+nonlinear model (i), never read from the printed equations: the printed
+coefficients disagree with each other (see ``docs/errata.md``).
+
+Linearising the four links of one bond (two horizontal ones of stiffness E1 and
+rest length h - 2a, two crossed diagonals of stiffness E2 and rest length d)
+gives the bond energy
+
+    P_bond = k_u/2 du^2 + E1 b^2 dphi^2 + k_v/2 (dv - h (phi_k + phi_k+1)/2)^2
+
+with du = u_k+1 - u_k etc., k_u = 2 (E1 + (h - 2a)^2 / d^2 E2) and
+k_v = 8 b^2 / d^2 E2. Its equations of motion are eq. (3) with the coupling
+term 4 (h^2/d^2) E2 of eq. (2), i.e. with bending coefficient
+D1 = E1 - (h^2/d^2) E2 and coupling D2 = 4 (h^2/d^2) E2.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, StrictInt, field_validator, model_validator
+
+#: Default damping rate gamma / (inertia) applied to every degree of freedom when a
+#: gamma is not given: amplitudes decay like exp(-0.05 t), so a static state is
+#: reached within a few hundred time units while the fastest modes (omega ~ 10)
+#: stay strongly underdamped, as in the paper's relaxation runs.
+DEFAULT_DAMPING_RATE = 0.1
+
+#: The paper's Section 4 parameter set (E1 = E2 = 1, h = 1, a = b = 0.2 h, seven particles).
+PAPER_DEFAULTS: dict[str, Any] = {"E1": 1.0, "E2": 1.0, "h": 1.0, "a": 0.2, "b": 0.2, "N": 3}
+
+
+class ChainParams(BaseModel):
+    """Parameters of a chain of 2N+1 rectangular particles (paper, Section 2 and Fig. 1).
+
+    Parameters
+    ----------
+    E1 : float
+        Stiffness of each of the two horizontal links of a bond (top-top and
+        bottom-bottom), > 0. Default 1 (Section 4).
+    E2 : float
+        Stiffness of each of the two crossed diagonal links, >= 0. Default 1
+        (Section 4: E2 = E1).
+    h : float
+        Distance between neighbouring particle centres, > 0. Default 1.
+    a, b : float
+        Half-width (along the chain) and half-height of a particle, 0 < a < h/2
+        (neighbours must not touch) and b > 0. Default 0.2 (Section 4: a = b = 0.2 h).
+    m : float
+        Mass of a particle, > 0. Default 1 (the paper is dimensionless and gives none).
+    j : float, optional
+        Moment of inertia, > 0. Default m (a^2 + b^2) / 3, a uniform rectangle 2a x 2b.
+    gamma_u, gamma_v, gamma_phi : float, optional
+        Viscous coefficients of eqs. (2)-(3), >= 0. Default: the damping rate
+        ``DEFAULT_DAMPING_RATE`` times m (for u, v) or j (for phi); the paper gives none.
+    N : int
+        Half the number of particles: particles are indexed -N..N, and +-N are
+        clamped (u = v = phi = 0). N = 3 is the paper's chain of seven particles.
+
+    Notes
+    -----
+    Every value must be finite. An invalid value raises ``pydantic.ValidationError``
+    (a ``ValueError``) naming the field, the value and what is allowed.
+    """
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    E1: float = Field(1.0, description="stiffness of a horizontal link (> 0)")
+    E2: float = Field(1.0, description="stiffness of a diagonal link (>= 0)")
+    h: float = Field(1.0, description="distance between particle centres (> 0)")
+    a: float = Field(0.2, description="half-width of a particle (0 < a < h/2)")
+    b: float = Field(0.2, description="half-height of a particle (> 0)")
+    m: float = Field(1.0, description="mass of a particle (> 0)")
+    j: float = Field(None, description="moment of inertia (> 0); default m (a^2 + b^2) / 3")  # type: ignore[assignment]
+    gamma_u: float = Field(None, description="viscosity of u (>= 0); default 0.1 m")  # type: ignore[assignment]
+    gamma_v: float = Field(None, description="viscosity of v (>= 0); default 0.1 m")  # type: ignore[assignment]
+    gamma_phi: float = Field(None, description="viscosity of phi (>= 0); default 0.1 j")  # type: ignore[assignment]
+    N: StrictInt = Field(3, description="particles -N..N, ends clamped (>= 1)")
+
+    @model_validator(mode="before")
+    @classmethod
+    def _fill_inertia_and_damping(cls, data: Any) -> Any:
+        # j and the gammas default to values that depend on other fields, so they are
+        # resolved here and stored: the resolved parameters describe a run completely.
+        if not isinstance(data, dict):
+            return data
+        data = dict(data)
+        fields = cls.model_fields
+        m = data.get("m", fields["m"].default)
+        a = data.get("a", fields["a"].default)
+        b = data.get("b", fields["b"].default)
+        numbers = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (m, a, b))
+        if data.get("j") is None and numbers:
+            data["j"] = m * (a * a + b * b) / 3.0
+        if numbers:
+            for name in ("gamma_u", "gamma_v"):
+                if data.get(name) is None:
+                    data[name] = DEFAULT_DAMPING_RATE * m
+        j = data.get("j")
+        if data.get("gamma_phi") is None and isinstance(j, (int, float)) and not isinstance(j, bool):
+            data["gamma_phi"] = DEFAULT_DAMPING_RATE * j
+        return data
+
+    @field_validator("E1", "h", "b", "m", "j")
+    @classmethod
+    def _positive(cls, value: float, info: Any) -> float:
+        if not value > 0:
+            raise ValueError(f"{info.field_name} must be > 0, got {value!r}")
+        return value
+
+    @field_validator("E2", "gamma_u", "gamma_v", "gamma_phi")
+    @classmethod
+    def _non_negative(cls, value: float, info: Any) -> float:
+        if not value >= 0:
+            raise ValueError(f"{info.field_name} must be >= 0, got {value!r}")
+        return value
+
+    @field_validator("N")
+    @classmethod
+    def _at_least_one(cls, value: int) -> int:
+        if value < 1:
+            raise ValueError(f"N must be an integer >= 1 (particles -N..N with clamped ends), got {value!r}")
+        return value
+
+    @model_validator(mode="after")
+    def _particles_do_not_touch(self) -> "ChainParams":
+        if not 0 < self.a < self.h / 2:
+            raise ValueError(
+                f"a must satisfy 0 < a < h/2 = {self.h / 2!r} (neighbouring particles "
+                f"would touch or overlap), got a={self.a!r}"
+            )
+        return self
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def n_particles(self) -> int:
+        """Number of particles 2N+1, clamped ends included."""
+        return 2 * self.N + 1
+
+    @property
+    def gap(self) -> float:
+        """Rest length h - 2a of a horizontal link."""
+        return self.h - 2.0 * self.a
+
+    @property
+    def d(self) -> float:
+        """Rest length of a diagonal link, sqrt((h - 2a)^2 + 4 b^2) (Fig. 1)."""
+        return math.hypot(self.gap, 2.0 * self.b)
+
+    @property
+    def k_u(self) -> float:
+        """Longitudinal bond stiffness 2 (E1 + (h-2a)^2/d^2 E2), first line of eqs. (2)-(3)."""
+        return 2.0 * (self.E1 + self.gap**2 / self.d**2 * self.E2)
+
+    @property
+    def k_v(self) -> float:
+        """Transverse bond stiffness 8 b^2/d^2 E2, second line of eqs. (2)-(3)."""
+        return 8.0 * self.b**2 / self.d**2 * self.E2
+
+    @property
+    def D1(self) -> float:
+        """Bending coefficient E1 - (h^2/d^2) E2 of eqs. (2)-(3) (Section 3 misprints it)."""
+        return self.E1 - self.h**2 / self.d**2 * self.E2
+
+    @property
+    def D2(self) -> float:
+        """Coupling coefficient 4 (h^2/d^2) E2 of eq. (2) (eq. (3) misprints it without the 4)."""
+        return 4.0 * self.h**2 / self.d**2 * self.E2
+
+    @property
+    def inertia(self) -> tuple[float, float, float]:
+        """Inertia of the rows (u, v, phi): (m, m, j)."""
+        return (self.m, self.m, self.j)
+
+    @property
+    def damping(self) -> tuple[float, float, float]:
+        """Viscous coefficients of the rows (u, v, phi)."""
+        return (self.gamma_u, self.gamma_v, self.gamma_phi)
+
+    def replace(self, **changes: Any) -> "ChainParams":
+        """Return validated parameters with some fields changed.
+
+        j and the gammas keep their current values unless changed; pass ``j=None``
+        (or ``gamma_*=None``) to have them re-derived from the new fields.
+        """
+        return ChainParams(**{**self.model_dump(), **changes})
