@@ -27,11 +27,11 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, StrictInt, field_validator, model_validator
 
-#: Default damping rate gamma / (inertia) applied to every degree of freedom when a
-#: gamma is not given: amplitudes decay like exp(-0.05 t), so a static state is
-#: reached within a few hundred time units while the fastest modes (omega ~ 10)
-#: stay strongly underdamped, as in the paper's relaxation runs.
-DEFAULT_DAMPING_RATE = 0.1
+#: Default viscous coefficient of every degree of freedom (the paper gives none). With
+#: the paper's geometry it damps the rotational modes (omega ~ 3-5, j ~ 0.027) at about
+#: 40 % of critical and the translational ones lightly, so static states are reached in
+#: tens to hundreds of time units, and a particle driven by M spins at most at M / 0.1.
+DEFAULT_DAMPING = 0.1
 
 #: The paper's Section 4 parameter set (E1 = E2 = 1, h = 1, a = b = 0.2 h, seven particles).
 PAPER_DEFAULTS: dict[str, Any] = {"E1": 1.0, "E2": 1.0, "h": 1.0, "a": 0.2, "b": 0.2, "N": 3}
@@ -57,9 +57,9 @@ class ChainParams(BaseModel):
         Mass of a particle, > 0. Default 1 (the paper is dimensionless and gives none).
     j : float, optional
         Moment of inertia, > 0. Default m (a^2 + b^2) / 3, a uniform rectangle 2a x 2b.
-    gamma_u, gamma_v, gamma_phi : float, optional
-        Viscous coefficients of eqs. (2)-(3), >= 0. Default: the damping rate
-        ``DEFAULT_DAMPING_RATE`` times m (for u, v) or j (for phi); the paper gives none.
+    gamma_u, gamma_v, gamma_phi : float
+        Viscous coefficients of eqs. (2)-(3), >= 0. Default ``DEFAULT_DAMPING`` = 0.1
+        each, a medium that resists every motion alike; the paper gives no value.
     N : int
         Half the number of particles: particles are indexed -N..N, and +-N are
         clamped (u = v = phi = 0). N = 3 is the paper's chain of seven particles.
@@ -79,33 +79,22 @@ class ChainParams(BaseModel):
     b: float = Field(0.2, description="half-height of a particle (> 0)")
     m: float = Field(1.0, description="mass of a particle (> 0)")
     j: float = Field(None, description="moment of inertia (> 0); default m (a^2 + b^2) / 3")  # type: ignore[assignment]
-    gamma_u: float = Field(None, description="viscosity of u (>= 0); default 0.1 m")  # type: ignore[assignment]
-    gamma_v: float = Field(None, description="viscosity of v (>= 0); default 0.1 m")  # type: ignore[assignment]
-    gamma_phi: float = Field(None, description="viscosity of phi (>= 0); default 0.1 j")  # type: ignore[assignment]
+    gamma_u: float = Field(DEFAULT_DAMPING, description="viscosity of u (>= 0)")
+    gamma_v: float = Field(DEFAULT_DAMPING, description="viscosity of v (>= 0)")
+    gamma_phi: float = Field(DEFAULT_DAMPING, description="viscosity of phi (>= 0)")
     N: StrictInt = Field(3, description="particles -N..N, ends clamped (>= 1)")
 
     @model_validator(mode="before")
     @classmethod
-    def _fill_inertia_and_damping(cls, data: Any) -> Any:
-        # j and the gammas default to values that depend on other fields, so they are
-        # resolved here and stored: the resolved parameters describe a run completely.
-        if not isinstance(data, dict):
+    def _fill_inertia(cls, data: Any) -> Any:
+        # j defaults to a value that depends on m, a and b; it is resolved and stored
+        # so that the resolved parameters describe a run completely.
+        if not isinstance(data, dict) or data.get("j") is not None:
             return data
-        data = dict(data)
         fields = cls.model_fields
-        m = data.get("m", fields["m"].default)
-        a = data.get("a", fields["a"].default)
-        b = data.get("b", fields["b"].default)
-        numbers = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (m, a, b))
-        if data.get("j") is None and numbers:
-            data["j"] = m * (a * a + b * b) / 3.0
-        if numbers:
-            for name in ("gamma_u", "gamma_v"):
-                if data.get(name) is None:
-                    data[name] = DEFAULT_DAMPING_RATE * m
-        j = data.get("j")
-        if data.get("gamma_phi") is None and isinstance(j, (int, float)) and not isinstance(j, bool):
-            data["gamma_phi"] = DEFAULT_DAMPING_RATE * j
+        m, a, b = (data.get(name, fields[name].default) for name in ("m", "a", "b"))
+        if all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (m, a, b)):
+            data = {**data, "j": m * (a * a + b * b) / 3.0}
         return data
 
     @field_validator("E1", "h", "b", "m", "j")
@@ -187,7 +176,7 @@ class ChainParams(BaseModel):
     def replace(self, **changes: Any) -> "ChainParams":
         """Return validated parameters with some fields changed.
 
-        j and the gammas keep their current values unless changed; pass ``j=None``
-        (or ``gamma_*=None``) to have them re-derived from the new fields.
+        j keeps its current value unless changed; pass ``j=None`` to have it
+        re-derived from the new m, a and b.
         """
         return ChainParams(**{**self.model_dump(), **changes})

@@ -107,3 +107,32 @@ class LinearModel(Model):
 
 
 LINEAR = register_model(LinearModel())
+
+
+def bloch_stiffness(params: ChainParams, q: np.ndarray) -> np.ndarray:
+    """Stiffness of the infinite chain for the wave exp(i q k), shape (len(q), 3, 3), Hermitian.
+
+    Rows and columns (u, v, phi); ``q`` is the wavenumber per particle in [0, pi].
+    """
+    k_u, k_v, h, bend, couple = cosserat_coefficients(params)
+    q = np.atleast_1d(np.asarray(q, dtype=float))
+    s2 = 4.0 * np.sin(q / 2) ** 2
+    out = np.zeros((q.size, 3, 3), dtype=complex)
+    out[:, 0, 0] = k_u * s2
+    out[:, 1, 1] = k_v * s2
+    out[:, 1, 2] = 1j * k_v * h * np.sin(q)
+    out[:, 2, 1] = -1j * couple / h * np.sin(q)
+    out[:, 2, 2] = bend * s2 + couple
+    return out
+
+
+def max_frequency(params: ChainParams) -> float:
+    """Highest angular frequency of the infinite linear chain, an upper bound for any finite clamped one.
+
+    The clamped chain's stiffness is a principal block of the infinite chain's, so
+    its frequencies lie inside the infinite chain's bands.
+    """
+    q = np.linspace(0.0, np.pi, 513)
+    scale = 1.0 / np.sqrt(np.array(params.inertia))
+    dynamical = bloch_stiffness(params, q) * scale[:, None] * scale[None, :]
+    return float(np.sqrt(np.max(np.linalg.eigvalsh(dynamical))))

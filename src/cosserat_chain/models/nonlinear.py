@@ -24,75 +24,75 @@ from ..geometry import bond_links, particle_positions, rotate
 from ..params import ChainParams
 from ..state import check_state
 from .base import FORCE_SIGNATURE, Model, assemble_bond_blocks, register_model
+from .trig import sincos
+
+
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _bond(coef, c0, s0, c1, s1, du, dv):  # pragma: no cover - compiled
+    """Force (fx, fy) and moment m0 on the left particle of a bond, moment m1 on the right one.
+
+    The right particle receives (-fx, -fy). ``c0, s0, c1, s1``: cos and sin of the
+    two angles; ``du, dv``: differences of the displacements (right minus left).
+    """
+    a, b, h, E1, E2, rest1, rest2 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5], coef[6]
+    # Right-hand corners of the left particle: A = R(a, b), B = R(a, -b).
+    ax = a * c0 - b * s0
+    ay = a * s0 + b * c0
+    bx = a * c0 + b * s0
+    by = a * s0 - b * c0
+    # Left-hand corners of the right particle: C = R(-a, b), D = R(-a, -b).
+    cx = -a * c1 - b * s1
+    cy = -a * s1 + b * c1
+    dx = -a * c1 + b * s1
+    dy = -a * s1 - b * c1
+    ex = h + du
+    ey = dv
+    # Tensions T = E (1 - L0/L) (P1 - P0): top A-C, bottom B-D (E1); diagonals A-D, B-C (E2).
+    lx = ex + cx - ax
+    ly = ey + cy - ay
+    t = E1 * (1.0 - rest1 / math.sqrt(lx * lx + ly * ly))
+    top_x = t * lx
+    top_y = t * ly
+    lx = ex + dx - bx
+    ly = ey + dy - by
+    t = E1 * (1.0 - rest1 / math.sqrt(lx * lx + ly * ly))
+    bot_x = t * lx
+    bot_y = t * ly
+    lx = ex + dx - ax
+    ly = ey + dy - ay
+    t = E2 * (1.0 - rest2 / math.sqrt(lx * lx + ly * ly))
+    ad_x = t * lx
+    ad_y = t * ly
+    lx = ex + cx - bx
+    ly = ey + cy - by
+    t = E2 * (1.0 - rest2 / math.sqrt(lx * lx + ly * ly))
+    bc_x = t * lx
+    bc_y = t * ly
+    fx = top_x + bot_x + ad_x + bc_x
+    fy = top_y + bot_y + ad_y + bc_y
+    m0 = ax * (top_y + ad_y) - ay * (top_x + ad_x) + bx * (bot_y + bc_y) - by * (bot_x + bc_x)
+    m1 = -(cx * (top_y + bc_y) - cy * (top_x + bc_x) + dx * (bot_y + ad_y) - dy * (bot_x + ad_x))
+    return fx, fy, m0, m1
 
 
 @njit(FORCE_SIGNATURE, cache=True, nogil=True, error_model="numpy")
 def nonlinear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
-    a, b, h, E1, E2, rest1, rest2 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5], coef[6]
     u, v, phi = x[0], x[1], x[2]
+    # Bond k joins columns k and k+1. Column k sums the right half of bond k-1
+    # (carried in registers) and the left half of bond k: one pass, no zeroing.
+    s0, c0 = sincos(phi[start - 1])
+    s1, c1 = sincos(phi[start])
+    fx, fy, m0, m1 = _bond(coef, c0, s0, c1, s1, u[start] - u[start - 1], v[start] - v[start - 1])
+    carry_u, carry_v, carry_m = -fx, -fy, m1
+    c0, s0 = c1, s1
     for k in range(start, stop):
-        out[0, k] = 0.0
-        out[1, k] = 0.0
-        out[2, k] = 0.0
-    c0 = math.cos(phi[start - 1])
-    s0 = math.sin(phi[start - 1])
-    # Bond k joins columns k and k+1; bonds start-1..stop-1 touch the columns asked for.
-    for k in range(start - 1, stop):
-        c1 = math.cos(phi[k + 1])
-        s1 = math.sin(phi[k + 1])
-        # Right-hand corners of k: A = R(a, b), B = R(a, -b).
-        ax = a * c0 - b * s0
-        ay = a * s0 + b * c0
-        bx = a * c0 + b * s0
-        by = a * s0 - b * c0
-        # Left-hand corners of k+1: C = R(-a, b), D = R(-a, -b).
-        cx = -a * c1 - b * s1
-        cy = -a * s1 + b * c1
-        dx = -a * c1 + b * s1
-        dy = -a * s1 - b * c1
-        ex = h + u[k + 1] - u[k]
-        ey = v[k + 1] - v[k]
-        # top A-C (E1), bottom B-D (E1), diagonal A-D (E2), diagonal B-C (E2)
-        lx = ex + cx - ax
-        ly = ey + cy - ay
-        t = E1 * (1.0 - rest1 / math.sqrt(lx * lx + ly * ly))
-        t_top_x = t * lx
-        t_top_y = t * ly
-        lx = ex + dx - bx
-        ly = ey + dy - by
-        t = E1 * (1.0 - rest1 / math.sqrt(lx * lx + ly * ly))
-        t_bot_x = t * lx
-        t_bot_y = t * ly
-        lx = ex + dx - ax
-        ly = ey + dy - ay
-        t = E2 * (1.0 - rest2 / math.sqrt(lx * lx + ly * ly))
-        t_d1_x = t * lx
-        t_d1_y = t * ly
-        lx = ex + cx - bx
-        ly = ey + cy - by
-        t = E2 * (1.0 - rest2 / math.sqrt(lx * lx + ly * ly))
-        t_d2_x = t * lx
-        t_d2_y = t * ly
-        fx = t_top_x + t_bot_x + t_d1_x + t_d2_x
-        fy = t_top_y + t_bot_y + t_d1_y + t_d2_y
-        if k >= start:
-            tax = t_top_x + t_d1_x
-            tay = t_top_y + t_d1_y
-            tbx = t_bot_x + t_d2_x
-            tby = t_bot_y + t_d2_y
-            out[0, k] += fx
-            out[1, k] += fy
-            out[2, k] += ax * tay - ay * tax + bx * tby - by * tbx
-        if k + 1 < stop:
-            tcx = t_top_x + t_d2_x
-            tcy = t_top_y + t_d2_y
-            tdx = t_bot_x + t_d1_x
-            tdy = t_bot_y + t_d1_y
-            out[0, k + 1] -= fx
-            out[1, k + 1] -= fy
-            out[2, k + 1] -= cx * tcy - cy * tcx + dx * tdy - dy * tdx
-        c0 = c1
-        s0 = s1
+        s1, c1 = sincos(phi[k + 1])
+        fx, fy, m0, m1 = _bond(coef, c0, s0, c1, s1, u[k + 1] - u[k], v[k + 1] - v[k])
+        out[0, k] = carry_u + fx
+        out[1, k] = carry_v + fy
+        out[2, k] = carry_m + m0
+        carry_u, carry_v, carry_m = -fx, -fy, m1
+        c0, s0 = c1, s1
 
 
 def _links(params: ChainParams, x: np.ndarray):

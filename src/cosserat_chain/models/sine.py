@@ -14,8 +14,6 @@ At phi = 0 it linearises to the linear model, and it supports full rotations.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import scipy.sparse as sp
 from numba import njit
@@ -24,6 +22,7 @@ from ..params import ChainParams
 from ..state import check_state, pack
 from .base import FORCE_SIGNATURE, Model, register_model
 from .linear import cosserat_coefficients, cosserat_forces, stiffness_matrix
+from .trig import sincos
 
 
 @njit(FORCE_SIGNATURE, cache=True, nogil=True, error_model="numpy")
@@ -31,10 +30,10 @@ def sine_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compile
     k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
     u, v, phi = x[0], x[1], x[2]
     # One sine per particle: carry sin(phi) of the previous and current columns.
-    s_prev = math.sin(phi[start - 1])
-    s_cur = math.sin(phi[start])
+    s_prev = sincos(phi[start - 1])[0]
+    s_cur = sincos(phi[start])[0]
     for k in range(start, stop):
-        s_next = math.sin(phi[k + 1])
+        s_next = sincos(phi[k + 1])[0]
         out[0, k] = k_u * (u[k + 1] - 2.0 * u[k] + u[k - 1])
         out[1, k] = k_v * (v[k + 1] - 2.0 * v[k] + v[k - 1] - 0.5 * h * (s_next - s_prev))
         out[2, k] = bend * (s_next - 2.0 * s_cur + s_prev) + couple * ((v[k + 1] - v[k - 1]) / (2.0 * h) - s_cur)

@@ -1,0 +1,1 @@
+"""The paper's protocols and ours, returning self-describing xarray Datasets."""

@@ -1,0 +1,83 @@
+"""Files: NetCDF results written atomically, and TOML configuration files.
+
+Contract
+--------
+:func:`write_dataset` writes an xarray Dataset to NetCDF (h5netcdf) through a
+temporary file in the same folder and an atomic rename, so that a reader never
+sees a half-written file. :func:`load_params` reads ``ChainParams`` fields from
+a TOML file (top-level keys, the paper's symbols) and names any unknown key.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import tomllib
+from pathlib import Path
+from typing import Any
+
+import xarray as xr
+
+from .params import ChainParams
+
+
+def write_dataset(dataset: xr.Dataset, path: str | Path) -> Path:
+    """Write ``dataset`` to NetCDF at ``path`` atomically; returns the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    try:
+        dataset.to_netcdf(tmp, engine="h5netcdf")
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+def read_dataset(path: str | Path) -> xr.Dataset:
+    """Load a NetCDF result written by :func:`write_dataset` into memory."""
+    with xr.open_dataset(path, engine="h5netcdf") as ds:
+        return ds.load()
+
+
+def read_config(path: str | Path) -> dict[str, Any]:
+    """Parse a TOML file into a dict.
+
+    Raises
+    ------
+    ValueError
+        If the file does not exist or is not valid TOML.
+    """
+    path = Path(path)
+    try:
+        with path.open("rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError:
+        raise ValueError(f"config file {str(path)!r} does not exist") from None
+    except tomllib.TOMLDecodeError as err:
+        raise ValueError(f"config file {str(path)!r} is not valid TOML: {err}") from None
+
+
+def params_from_mapping(mapping: dict[str, Any], source: str = "config") -> ChainParams:
+    """Validated ``ChainParams`` from a mapping of field names.
+
+    Raises
+    ------
+    ValueError
+        Naming an unknown (e.g. misspelled) key and listing the allowed ones, or
+        the field, value and rule of an invalid value.
+    """
+    allowed = list(ChainParams.model_fields)
+    unknown = [key for key in mapping if key not in allowed]
+    if unknown:
+        raise ValueError(f"unknown key(s) {unknown} in {source}; allowed keys: {', '.join(allowed)}")
+    return ChainParams(**mapping)
+
+
+def load_params(path: str | Path | None = None) -> ChainParams:
+    """``ChainParams`` from a TOML file, or the paper's defaults when ``path`` is None."""
+    if path is None:
+        return ChainParams()
+    return params_from_mapping(read_config(path), source=str(path))

@@ -1,0 +1,1 @@
+"""Numerical methods that act on any registered model: compiled integrators and their drivers."""

@@ -1,0 +1,263 @@
+"""Damped dynamics of the loaded chain with the compiled fixed-step integrators.
+
+Contract
+--------
+:func:`integrate` advances ``x' = v, M v' = F(x) + L(t) - Gamma v`` from t0 to
+t_end with a fixed step, storing every ``stride``-th state, and returns a
+:class:`Trajectory`. It calls the compiled loop in chunks of roughly a fraction
+of a second, so that progress can be reported and Ctrl-C stops the run cleanly
+between chunks with everything computed so far kept (status ``interrupted``).
+A run that blows up (a non-finite value or a runaway displacement) stops with
+status ``blew_up``, keeps the frames before it, and, with ``throw=True``, raises
+:class:`IntegrationError` carrying the partial trajectory.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..loads import Loads
+from ..models.base import Model, get_model
+from ..models.linear import max_frequency
+from ..params import ChainParams
+from ..state import check_state, zeros
+from .integrators import STATUS_BLEW_UP, Method, advance, get_method, substep_table
+
+log = logging.getLogger(__name__)
+
+#: Compiled work per chunk (particle force evaluations); about 0.1-0.5 s.
+CHUNK_WORK = 20_000_000
+#: Default time step as a fraction of 1 / omega_max (omega_max: highest linear frequency).
+DEFAULT_OMEGA_DT = 0.1
+
+ProgressCallback = Callable[[int, int], None]
+
+
+class IntegrationError(RuntimeError):
+    """A run that could not be completed; ``trajectory`` holds what was computed."""
+
+    def __init__(self, message: str, trajectory: "Trajectory"):
+        super().__init__(message)
+        self.trajectory = trajectory
+
+
+@dataclass
+class Trajectory:
+    """Stored states of a run.
+
+    Attributes
+    ----------
+    time : ndarray (n_frames,)
+    x, v : ndarray (n_frames, 3, 2N+1)
+        Configurations and velocities (rows u, v, phi).
+    load_work, dissipated : ndarray (n_frames,)
+        Work done by the loads and energy removed by viscosity since the start.
+    status : {"completed", "blew_up", "interrupted"}
+    message : str
+        Human-readable explanation of the status (how to fix a failure).
+    steps : int
+        Steps actually taken.
+    dt : float, method : str
+    """
+
+    time: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    load_work: np.ndarray
+    dissipated: np.ndarray
+    status: str
+    message: str
+    steps: int
+    dt: float
+    method: str
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "completed"
+
+
+def default_time_step(params: ChainParams) -> float:
+    """0.1 / omega_max: about 60 steps per period of the fastest linear mode."""
+    return DEFAULT_OMEGA_DT / max_frequency(params)
+
+
+def check_time_step(params: ChainParams, dt: float, method: Method) -> None:
+    """Refuse a step beyond the method's linear stability limit.
+
+    Raises
+    ------
+    ValueError
+        If dt is not finite and positive, or dt * omega_max exceeds the limit;
+        the message gives the largest stable dt.
+    """
+    if not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
+    limit = method.stability_limit / max_frequency(params)
+    if dt >= limit:
+        raise ValueError(
+            f"dt={dt!r} is beyond the stability limit of {method.name} for this chain: "
+            f"dt must be < {limit:.6g} (omega_max={max_frequency(params):.6g}); the run would blow up. "
+            f"Use a smaller step, e.g. dt={DEFAULT_OMEGA_DT / max_frequency(params):.3g}."
+        )
+
+
+def block_bounds(n_particles: int, threads: int) -> np.ndarray:
+    """Column ranges that split the free particles into ``threads`` blocks."""
+    return np.linspace(1, n_particles - 1, max(1, threads) + 1).round().astype(np.int64)
+
+
+def integrate(
+    params: ChainParams,
+    model: str | Model,
+    loads: Loads = Loads(),
+    *,
+    t_end: float,
+    dt: float | None = None,
+    t0: float = 0.0,
+    x0: np.ndarray | None = None,
+    v0: np.ndarray | None = None,
+    method: str | Method = "verlet",
+    stride: int | None = None,
+    n_frames: int | None = 201,
+    threads: int = 1,
+    max_displacement: float | None = None,
+    check_stability: bool = True,
+    progress: ProgressCallback | None = None,
+    throw: bool = False,
+) -> Trajectory:
+    """Integrate the damped, loaded chain with a compiled fixed-step method.
+
+    Parameters
+    ----------
+    params : ChainParams
+    model : str or Model
+        ``"nonlinear"``, ``"sine"``, ``"linear"`` or a registered model.
+    loads : Loads
+        Point loads (moments and forces) with their schedules.
+    t_end : float
+        Final time; the number of steps is ceil((t_end - t0) / dt).
+    dt : float, optional
+        Time step; default :func:`default_time_step`.
+    x0, v0 : ndarray (3, 2N+1), optional
+        Initial state; default rest.
+    method : {"verlet", "yoshida4"}
+    stride, n_frames : int, optional
+        Store every ``stride``-th step; if not given, ``stride`` is chosen so that
+        about ``n_frames`` states are stored (always including the first and last).
+    threads : int
+        Split every step over this many blocks of the chain (worth it from about
+        10^4 particles on).
+    max_displacement : float, optional
+        |u| or |v| beyond this is a runaway; default 100 chain lengths.
+    check_stability : bool
+        Refuse a dt beyond the linear stability limit before running.
+    progress : callable(steps_done, steps_total), optional
+    throw : bool
+        Raise :class:`IntegrationError` instead of returning a failed trajectory.
+
+    Returns
+    -------
+    Trajectory
+
+    Raises
+    ------
+    ValueError
+        For bad input (non-finite state, t_end <= t0, dt beyond the stability limit, ...).
+    """
+    model = get_model(model)
+    method = get_method(method)
+    dt = default_time_step(params) if dt is None else float(dt)
+    if check_stability:
+        check_time_step(params, dt, method)
+    elif not (math.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
+    if not (math.isfinite(t_end) and t_end > t0):
+        raise ValueError(f"t_end must be finite and > t0={t0!r}, got {t_end!r}")
+    n_steps = max(1, math.ceil((t_end - t0) / dt - 1e-9))
+    if stride is None:
+        stride = max(1, math.ceil(n_steps / max(1, (n_frames or 2) - 1)))
+    if stride < 1:
+        raise ValueError(f"stride must be >= 1, got {stride!r}")
+    n = params.n_particles
+    x = zeros(params) if x0 is None else check_state(params, x0, "x0").copy()
+    v = zeros(params) if v0 is None else check_state(params, v0, "v0").copy()
+    if max_displacement is None:
+        max_displacement = 100.0 * 2 * params.N * params.h
+    load_index, knots = loads.compiled(params)
+    coef = model.coefficients(params)
+    mass = np.array(params.inertia)
+    weights = np.array(method.weights)
+    table = substep_table(weights, dt, mass, np.array(params.damping))
+    bounds = block_bounds(n, threads)
+
+    f = np.zeros_like(x)
+    type(model).force_kernel(x, coef, f, 1, n - 1)
+    f += loads.as_array(params, t0)
+
+    n_stored = n_steps // stride + 1 + (n_steps % stride != 0)
+    frames_x = np.empty((n_stored, 3, n))
+    frames_v = np.empty((n_stored, 3, n))
+    frames_acc = np.zeros((n_stored, 2))
+    frame_steps = np.empty(n_stored, dtype=np.int64)
+    frames_x[0], frames_v[0], frame_steps[0] = x, v, 0
+    acc = np.zeros(2)
+    stored = 1
+    steps_done = 0
+    status, message = "completed", f"{n_steps} steps of {method.name} with dt={dt:g}"
+    chunk = max(stride, CHUNK_WORK // (n * method.force_evaluations) // stride * stride)
+    try:
+        while steps_done < n_steps:
+            todo = min(chunk, n_steps - steps_done)
+            code, done, written = advance(
+                type(model).force_kernel, x, v, f, coef, mass, table, weights, load_index, knots, bounds,
+                t0, dt, todo, steps_done, stride, 1024, max_displacement,
+                acc, frames_x, frames_v, frames_acc, stored,
+            )
+            first = (steps_done // stride + 1) * stride
+            frame_steps[stored : stored + written] = first + stride * np.arange(written)
+            stored += written
+            steps_done += done
+            if progress is not None:
+                progress(steps_done, n_steps)
+            if code == STATUS_BLEW_UP:
+                status = "blew_up"
+                message = (
+                    f"the run blew up at t={t0 + steps_done * dt:.6g} (step {steps_done}): a value became non-finite "
+                    f"or |u|, |v| exceeded {max_displacement:g}. Use a smaller time step than dt={dt:g} "
+                    f"(e.g. dt={dt / 4:g}); the states up to then are kept."
+                )
+                break
+    except KeyboardInterrupt:
+        status = "interrupted"
+        message = f"interrupted at t={t0 + steps_done * dt:.6g} after {steps_done} of {n_steps} steps; states up to then are kept"
+        log.warning(message)
+    if steps_done % stride != 0 and status != "blew_up":
+        # The last step is always kept, even off the stride.
+        frames_x[stored], frames_v[stored], frames_acc[stored] = x, v, acc
+        frame_steps[stored] = steps_done
+        stored += 1
+    keep = stored
+    if status == "blew_up":
+        finite = np.isfinite(frames_x[:stored]).all(axis=(1, 2)) & np.isfinite(frames_v[:stored]).all(axis=(1, 2))
+        keep = int(np.argmin(finite)) if not finite.all() else stored
+    trajectory = Trajectory(
+        time=t0 + dt * frame_steps[:keep],
+        x=frames_x[:keep],
+        v=frames_v[:keep],
+        load_work=frames_acc[:keep, 0],
+        dissipated=frames_acc[:keep, 1],
+        status=status,
+        message=message,
+        steps=steps_done,
+        dt=dt,
+        method=method.name,
+    )
+    if throw and status != "completed":
+        raise IntegrationError(message, trajectory)
+    return trajectory
