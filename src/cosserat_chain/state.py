@@ -71,7 +71,7 @@ def check_state(params: ChainParams, x: np.ndarray, name: str = "x") -> np.ndarr
         raise ValueError(f"{name} must have shape (3, 2N+1) = (3, {params.n_particles}), got {arr.shape}")
     if not np.all(np.isfinite(arr)):
         bad = np.argwhere(~np.isfinite(arr))[0]
-        raise ValueError(f"{name}[{ROWS[bad[0]]}] of particle {bad[1] - params.N} is {arr[tuple(bad)]!r}; values must be finite")
+        raise ValueError(f"{name}[{ROWS[bad[0]]}] of particle {bad[1] - params.N} is {float(arr[tuple(bad)])}; values must be finite")
     if np.any(arr[:, [0, -1]] != 0.0):
         raise ValueError(f"{name} must be zero at the clamped particles +-N={params.N}")
     return arr

@@ -105,6 +105,18 @@ def _links(params: ChainParams, x: np.ndarray):
         yield link, r0, r1, centre[:, 1:] + r1 - centre[:, :-1] - r0
 
 
+def chain_energy(params: ChainParams, x: np.ndarray) -> float:
+    """Potential (1) summed over all links for any (3, 2N+1) state, ends free or not.
+
+    Unlike :meth:`NonlinearModel.energy` it does not require clamped ends, so that
+    invariance under rigid motions of the whole chain can be checked.
+    """
+    total = 0.0
+    for link, _, _, D in _links(params, np.asarray(x, dtype=float)):
+        total += 0.5 * link.stiffness * np.sum((np.hypot(D[0], D[1]) - link.rest_length) ** 2)
+    return float(total)
+
+
 def _cross(r: np.ndarray, t: np.ndarray) -> np.ndarray:
     return r[0] * t[1] - r[1] * t[0]
 
@@ -122,11 +134,7 @@ class NonlinearModel(Model):
         return np.array([params.a, params.b, params.h, params.E1, params.E2, params.gap, params.d])
 
     def energy(self, params: ChainParams, x: np.ndarray) -> float:
-        x = check_state(params, x)
-        total = 0.0
-        for link, _, _, D in _links(params, x):
-            total += 0.5 * link.stiffness * np.sum((np.hypot(D[0], D[1]) - link.rest_length) ** 2)
-        return float(total)
+        return chain_energy(params, check_state(params, x))
 
     def forces(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         x = check_state(params, x)

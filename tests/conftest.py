@@ -1,0 +1,49 @@
+"""Shared fixtures and the tolerances of the test suite (kept in one place)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cosserat_chain import ChainParams
+
+#: Round-off level for exact identities between independent implementations.
+ROUND_OFF = 1e-12
+#: Central finite differences with step FD_STEP are accurate to about FD_STEP^2.
+FD_STEP = 1e-6
+FD_TOL = 1e-7
+
+
+def random_geometries(count: int, seed: int = 0) -> list[ChainParams]:
+    """Valid random chains: a in (0.05, 0.45) h, b in (0.05, 0.6) h, E2/E1 in (0, 3)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for _ in range(count):
+        h = rng.uniform(0.5, 2.0)
+        out.append(
+            ChainParams(
+                E1=rng.uniform(0.5, 2.0),
+                E2=rng.uniform(0.0, 3.0),
+                h=h,
+                a=rng.uniform(0.05, 0.45) * h,
+                b=rng.uniform(0.05, 0.6) * h,
+                m=rng.uniform(0.5, 2.0),
+                N=int(rng.integers(2, 6)),
+            )
+        )
+    return out
+
+
+def random_state(params: ChainParams, scale: float, seed: int = 0) -> np.ndarray:
+    """A random configuration with clamped ends; ``scale`` sets |u|, |v| (in h) and |phi|."""
+    rng = np.random.default_rng(seed)
+    x = np.zeros((3, params.n_particles))
+    x[:, 1:-1] = scale * rng.standard_normal((3, params.n_particles - 2))
+    x[:2] *= params.h
+    return x
+
+
+@pytest.fixture
+def paper() -> ChainParams:
+    """The paper's Section 4 chain (seven particles)."""
+    return ChainParams()

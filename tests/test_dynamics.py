@@ -1,0 +1,180 @@
+"""Damped dynamics: convergence orders, energy balance, relaxation, reference agreement, failures."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+
+import cosserat_chain.numerics.dynamics as dynamics
+from conftest import random_state
+from cosserat_chain import ChainParams, moment_load
+from cosserat_chain.analysis.energy import energy_budget
+from cosserat_chain.models import LINEAR
+from cosserat_chain.models.linear import max_frequency
+from cosserat_chain.numerics.adaptive import integrate_adaptive
+from cosserat_chain.numerics.dynamics import IntegrationError, integrate
+from cosserat_chain.numerics.integrators import METHODS
+from cosserat_chain.state import pack, unpack
+
+ORDER_TOL = 0.25
+UNDAMPED = ChainParams(gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
+
+
+def kicked_start(params):
+    """A state with every degree of freedom moving, so that no error term vanishes by symmetry."""
+    return random_state(params, 0.05, seed=11), random_state(params, 0.2, seed=12)
+
+
+@pytest.fixture(scope="module")
+def reference_runs():
+    params = ChainParams()
+    x0, v0 = kicked_start(params)
+    return {
+        model: integrate_adaptive(params, model, moment_load(0.15), t_end=20.0, x0=x0, v0=v0, n_frames=5, rtol=1e-13, atol=1e-15)
+        for model in ("nonlinear", "sine")
+    }
+
+
+@pytest.mark.parametrize("method", list(METHODS.values()), ids=lambda m: m.name)
+@pytest.mark.parametrize("model", ["nonlinear", "sine"])
+def test_measured_convergence_order_equals_declared(method, model, reference_runs):
+    params = ChainParams()
+    x0, v0 = kicked_start(params)
+    ref = reference_runs[model]
+    errors = []
+    for dt in (0.04, 0.02, 0.01):
+        run = integrate(params, model, moment_load(0.15), t_end=20.0, dt=dt, x0=x0, v0=v0, method=method, n_frames=5)
+        np.testing.assert_allclose(run.time, ref.time, atol=1e-9)
+        errors.append(np.max(np.abs(run.x - ref.x)))
+    orders = np.log2(np.array(errors[:-1]) / np.array(errors[1:]))
+    assert np.all(np.abs(orders - method.order) < ORDER_TOL), (errors, orders)
+
+
+def test_methods_are_symmetric_compositions_summing_to_one():
+    for method in METHODS.values():
+        assert sum(method.weights) == pytest.approx(1.0, abs=1e-15)
+        assert method.weights == tuple(reversed(method.weights))
+
+
+def test_stability_limits_from_transfer_matrix():
+    assert METHODS["verlet"].stability_limit == pytest.approx(2.0, abs=1e-9)
+    assert 1.0 < METHODS["yoshida4"].stability_limit < 2.0
+
+
+@pytest.mark.parametrize("method", list(METHODS.values()), ids=lambda m: m.name)
+def test_linear_chain_is_stable_just_below_the_limit_and_blows_up_just_above(method):
+    params = UNDAMPED
+    K = LINEAR.stiffness(params).toarray()
+    inertia = np.tile(params.inertia, params.n_particles - 2)
+    omega = np.sqrt(np.max(np.linalg.eigvals(K / inertia[:, None]).real))
+    assert omega <= max_frequency(params) * (1 + 1e-12)  # the infinite chain bounds the finite one
+    x0 = random_state(params, 0.01, seed=13)
+    limit = method.stability_limit / omega
+    below = integrate(params, "linear", t_end=3000 * limit, dt=0.98 * limit, x0=x0, method=method, n_frames=3, check_stability=False)
+    above = integrate(params, "linear", t_end=30000 * limit, dt=1.02 * limit, x0=x0, method=method, n_frames=3, check_stability=False)
+    assert below.ok and np.max(np.abs(below.x[-1])) < 1.0
+    assert above.status == "blew_up"
+
+
+@pytest.mark.parametrize("model", ["nonlinear", "linear"])
+def test_undamped_energy_error_is_bounded_without_secular_drift(model):
+    x0, v0 = kicked_start(UNDAMPED)
+    run = integrate(UNDAMPED, model, t_end=2000.0, dt=0.02, x0=x0, v0=v0, n_frames=1001)
+    assert run.steps == 100_000
+    budget = energy_budget(UNDAMPED, model, run)
+    error = np.abs(budget.balance_error)
+    energy0 = budget.kinetic[0] + budget.potential[0]
+    early, late = error[1:101].max(), error[-100:].max()
+    assert error.max() < 1e-3 * energy0
+    assert late < 2.0 * early  # bounded oscillation, not growth
+
+
+@pytest.mark.parametrize("method", list(METHODS.values()), ids=lambda m: m.name)
+@pytest.mark.parametrize("model", ["nonlinear", "linear"])
+def test_damped_energy_balance_closes_at_the_declared_order(method, model):
+    params = ChainParams()
+    x0, v0 = kicked_start(params)
+    errors = []
+    for dt in (0.04, 0.02):
+        run = integrate(params, model, moment_load(0.1), t_end=60.0, dt=dt, x0=x0, v0=v0, method=method, n_frames=61)
+        budget = energy_budget(params, model, run)
+        assert budget.dissipated[-1] > 0.01 and budget.load_work[-1] > 0.01
+        errors.append(np.max(np.abs(budget.balance_error)))
+    order = np.log2(errors[0] / errors[1])
+    assert abs(order - method.order) < ORDER_TOL, (errors, order)
+    assert errors[1] < 1e-3 * budget.dissipated[-1]
+
+
+def test_damped_linear_chain_relaxes_to_static_solution(paper):
+    f = np.zeros((3, paper.n_particles))
+    f[2, paper.N] = 0.02
+    static = unpack(spla.spsolve(LINEAR.stiffness(paper).tocsc(), pack(f)), paper.n_particles)
+    run = integrate(paper, "linear", moment_load(0.02), t_end=800.0, n_frames=2)
+    np.testing.assert_allclose(run.x[-1], static, atol=1e-9)
+    assert np.max(np.abs(run.v[-1])) < 1e-9
+
+
+@pytest.mark.parametrize("model", ["nonlinear", "sine", "linear"])
+def test_fixed_step_agrees_with_adaptive_reference(model, paper):
+    ref = integrate_adaptive(paper, model, moment_load(0.15), t_end=40.0, n_frames=9, rtol=1e-12, atol=1e-14)
+    run = integrate(paper, model, moment_load(0.15), t_end=40.0, dt=0.005, method="yoshida4", n_frames=9)
+    np.testing.assert_allclose(run.x, ref.x, atol=1e-8)
+    np.testing.assert_allclose(run.dissipated, ref.dissipated, atol=1e-9)
+    np.testing.assert_allclose(run.load_work, ref.load_work, atol=1e-9)
+
+
+def test_time_step_beyond_stability_limit_is_refused(paper):
+    with pytest.raises(ValueError, match=r"dt=0\.5 is beyond the stability limit of verlet.*dt must be < 0\.41"):
+        integrate(paper, "nonlinear", moment_load(0.1), t_end=10.0, dt=0.5)
+    with pytest.raises(ValueError, match="dt must be a finite number > 0, got nan"):
+        integrate(paper, "nonlinear", t_end=10.0, dt=float("nan"))
+    with pytest.raises(ValueError, match="t_end must be finite"):
+        integrate(paper, "nonlinear", t_end=-1.0)
+    with pytest.raises(ValueError, match=r"x0\[phi\] of particle 0 is nan"):
+        x0 = np.zeros((3, paper.n_particles))
+        x0[2, paper.N] = np.nan
+        integrate(paper, "nonlinear", t_end=1.0, x0=x0)
+
+
+def test_blow_up_stops_with_a_clear_message_and_keeps_the_frames(paper):
+    dt = 1.5 * 2.0 / max_frequency(paper)
+    run = integrate(paper, "nonlinear", moment_load(0.1), t_end=1e4, dt=dt, check_stability=False, n_frames=10001)
+    assert run.status == "blew_up"
+    assert "smaller time step" in run.message and f"dt={dt:g}" in run.message
+    assert 0 < len(run.time) and np.all(np.isfinite(run.x)) and run.steps < 1e4 / dt
+    with pytest.raises(IntegrationError) as err:
+        integrate(paper, "nonlinear", moment_load(0.1), t_end=1e4, dt=dt, check_stability=False, throw=True)
+    assert err.value.trajectory.status == "blew_up"
+
+
+def test_results_do_not_depend_on_chunking_or_threads(paper, monkeypatch):
+    params = paper.replace(N=40)
+    x0, v0 = kicked_start(params)
+    kwargs = dict(t_end=50.0, dt=0.02, x0=x0, v0=v0, n_frames=26)
+    whole = integrate(params, "nonlinear", moment_load(0.2), **kwargs)
+    monkeypatch.setattr(dynamics, "CHUNK_WORK", 81 * 7)
+    chunked = integrate(params, "nonlinear", moment_load(0.2), **kwargs)
+    threaded = integrate(params, "nonlinear", moment_load(0.2), threads=2, **kwargs)
+    np.testing.assert_array_equal(chunked.x, whole.x)
+    np.testing.assert_array_equal(chunked.time, whole.time)
+    np.testing.assert_array_equal(threaded.x, whole.x)
+    np.testing.assert_allclose(threaded.dissipated, whole.dissipated, rtol=1e-12)
+
+
+def test_stride_keeps_first_last_and_every_kth_step(paper):
+    run = integrate(paper, "linear", moment_load(0.1), t_end=1.0, dt=0.1, stride=3)
+    np.testing.assert_allclose(run.time, [0.0, 0.3, 0.6, 0.9, 1.0])
+    assert run.steps == 10 and run.x.shape == (5, 3, paper.n_particles)
+
+
+def test_ctrl_c_between_chunks_keeps_what_was_computed(paper, monkeypatch):
+    monkeypatch.setattr(dynamics, "CHUNK_WORK", 7 * 1000)
+
+    def interrupt(done, total):
+        if done >= 3000:
+            raise KeyboardInterrupt
+
+    run = integrate(paper, "nonlinear", moment_load(0.1), t_end=200.0, dt=0.02, stride=100, progress=interrupt)
+    assert run.status == "interrupted" and run.steps == 3000
+    assert run.time[-1] == pytest.approx(60.0) and np.all(np.isfinite(run.x))
