@@ -11,6 +11,7 @@
  *             row 0 the Verlet sub-step, row 1 the empty sub-step;
  *             table[s][0][r] = exp(-gamma_r h/(2 m_r)), [s][1][r] = h/(2 m_r), [s][2][r] = h.
  *   load_col, moment : a constant moment on x[2][load_col].
+ *   prepare() fills f at the initial state, as integrate() does before its first step.
  *
  * Like the package it accumulates the load work and the dissipated energy and
  * checks for a runaway state every 1024 steps; run_acc() returns them.
@@ -170,6 +171,13 @@ void run(double *x, double *v, double *f, int n, const double *coef, const doubl
     }
     last_acc[0] = work;
     last_acc[1] = dissipated;
+}
+
+/* Forces plus the moment at x (what the package computes before its first step). */
+void prepare(const double *x, double *f, int n, const double *coef, int load_col, double moment)
+{
+    forces(x, coef, f, n, 1, n - 1);
+    f[2 * n + load_col] += moment;
 }
 
 /* (load work, dissipated energy) of the last run; returns its status (1 = blew up). */

@@ -1,0 +1,66 @@
+"""The command line, run as a user would."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from cosserat_chain import ChainParams, moment_load
+from cosserat_chain.cli import app
+from cosserat_chain.io import read_dataset
+from cosserat_chain.numerics.newton import solve_equilibrium
+
+runner = CliRunner()
+
+
+def test_simulate_json_reports_params_final_state_and_energy(tmp_path):
+    out = tmp_path / "run.nc"
+    result = runner.invoke(app, ["simulate", "--model", "linear", "--moment", "0.02", "--t-end", "800", "--json", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert {"model", "params", "t_end", "dt", "steps", "final", "energy"} <= set(data)
+    assert data["params"] == ChainParams().model_dump()
+    static = solve_equilibrium(ChainParams(), "linear", moment_load(0.02))
+    np.testing.assert_allclose(data["final"]["phi"], static[2], atol=1e-9)
+    energy = data["energy"]
+    assert set(energy) == {"kinetic", "potential", "load_work", "dissipated", "balance_error"}
+    # At rest under a constant moment the load's work splits equally into potential energy and dissipation.
+    assert energy["potential"] == pytest.approx(0.5 * energy["load_work"], rel=1e-6)
+    ds = read_dataset(out)
+    assert ds.attrs["model"] == "linear" and ds.attrs["param_N"] == 3 and "cosserat_chain_version" in ds.attrs
+    assert list(ds.particle.values) == [-3, -2, -1, 0, 1, 2, 3]
+    np.testing.assert_allclose(ds.phi.isel(time=-1).values, data["final"]["phi"])
+
+
+def test_simulate_sine_has_no_potential_in_json():
+    result = runner.invoke(app, ["simulate", "--model", "sine", "--t-end", "5", "--json"])
+    assert result.exit_code == 0
+    assert json.loads(result.stdout)["energy"]["potential"] is None
+
+
+def test_unknown_config_key_is_an_error_naming_it(tmp_path):
+    config = tmp_path / "chain.toml"
+    config.write_text("E1 = 1.0\ngama_phi = 0.2\n")
+    result = runner.invoke(app, ["simulate", "--config", str(config)])
+    assert result.exit_code == 2
+    assert "gama_phi" in result.output and "allowed keys" in result.output
+
+
+def test_invalid_parameter_names_field_and_value(tmp_path):
+    config = tmp_path / "chain.toml"
+    config.write_text("a = 0.7\n")
+    result = runner.invoke(app, ["simulate", "--config", str(config)])
+    assert result.exit_code == 2 and "a must satisfy 0 < a < h/2" in result.output and "0.7" in result.output
+
+
+def test_too_large_time_step_is_refused_with_a_suggestion():
+    result = runner.invoke(app, ["simulate", "--dt", "1.0", "--t-end", "10"])
+    assert result.exit_code == 2 and "stability limit" in result.output and "smaller step" in result.output
+
+
+def test_load_on_clamped_particle_is_refused():
+    result = runner.invoke(app, ["simulate", "--particle", "3"])
+    assert result.exit_code == 2 and "clamped" in result.output
