@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from conftest import FD_STEP, FD_TOL, ROUND_OFF, random_geometries, random_state
-from cosserat_chain import ChainParams, moment_load
+from cosserat_chain import moment_load
 from cosserat_chain.models import LINEAR, NONLINEAR, SINE, available_models, get_model
 from cosserat_chain.models.nonlinear import chain_energy
 from cosserat_chain.numerics.newton import solve_equilibrium

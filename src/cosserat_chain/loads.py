@@ -176,10 +176,6 @@ class Loads(tuple):
         knot_array = np.array(knots, dtype=float).reshape(-1, 2)
         return index, np.ascontiguousarray(knot_array)
 
-    def values(self, t: float) -> np.ndarray:
-        """Load value of every point load at time ``t``, shape (n_loads,)."""
-        return np.array([load.schedule(t) for load in self], dtype=float)
-
     def as_array(self, params: ChainParams, t: float) -> np.ndarray:
         """All loads at time ``t`` as a (3, 2N+1) array of generalised forces."""
         out = np.zeros((3, params.n_particles))

@@ -33,9 +33,6 @@ from pydantic import BaseModel, ConfigDict, Field, StrictInt, field_validator, m
 #: tens to hundreds of time units, and a particle driven by M spins at most at M / 0.1.
 DEFAULT_DAMPING = 0.1
 
-#: The paper's Section 4 parameter set (E1 = E2 = 1, h = 1, a = b = 0.2 h, seven particles).
-PAPER_DEFAULTS: dict[str, Any] = {"E1": 1.0, "E2": 1.0, "h": 1.0, "a": 0.2, "b": 0.2, "N": 3}
-
 
 class ChainParams(BaseModel):
     """Parameters of a chain of 2N+1 rectangular particles (paper, Section 2 and Fig. 1).

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -75,7 +75,6 @@ class Trajectory:
     steps: int
     dt: float
     method: str
-    meta: dict = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
