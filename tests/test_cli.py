@@ -64,3 +64,15 @@ def test_too_large_time_step_is_refused_with_a_suggestion():
 def test_load_on_clamped_particle_is_refused():
     result = runner.invoke(app, ["simulate", "--particle", "3"])
     assert result.exit_code == 2 and "clamped" in result.output
+
+
+def test_write_is_atomic_and_leaves_no_temporary_files(tmp_path):
+    from cosserat_chain.experiments.simulation import simulate
+    from cosserat_chain.io import write_dataset
+
+    ds = simulate(ChainParams(), "linear", 0.01, t_end=1.0)
+    path = write_dataset(ds, tmp_path / "sub" / "a.nc")
+    write_dataset(ds, path)  # overwrite in place
+    assert sorted(p.name for p in path.parent.iterdir()) == ["a.nc"]
+    assert read_dataset(path).attrs["status"] == "completed"
+    assert float(read_dataset(path).time[-1]) == 1.0

@@ -29,6 +29,9 @@ def write_dataset(dataset: xr.Dataset, path: str | Path) -> Path:
     os.close(fd)
     try:
         dataset.to_netcdf(tmp, engine="h5netcdf")
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual permissions
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):

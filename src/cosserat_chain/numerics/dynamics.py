@@ -140,9 +140,10 @@ def integrate(
     loads : Loads
         Point loads (moments and forces) with their schedules.
     t_end : float
-        Final time; the number of steps is ceil((t_end - t0) / dt).
+        Final time, reached exactly: the run takes n = ceil((t_end - t0) / dt) steps
+        of size (t_end - t0) / n, which is at most ``dt``.
     dt : float, optional
-        Time step; default :func:`default_time_step`.
+        Largest time step; default :func:`default_time_step`.
     x0, v0 : ndarray (3, 2N+1), optional
         Initial state; default rest.
     method : {"verlet", "yoshida4"}
@@ -179,6 +180,7 @@ def integrate(
     if not (math.isfinite(t_end) and t_end > t0):
         raise ValueError(f"t_end must be finite and > t0={t0!r}, got {t_end!r}")
     n_steps = max(1, math.ceil((t_end - t0) / dt - 1e-9))
+    dt = (t_end - t0) / n_steps  # at most the requested step, and t_end is reached exactly
     if stride is None:
         stride = max(1, math.ceil(n_steps / max(1, (n_frames or 2) - 1)))
     if stride < 1:
@@ -246,7 +248,7 @@ def integrate(
         finite = np.isfinite(frames_x[:stored]).all(axis=(1, 2)) & np.isfinite(frames_v[:stored]).all(axis=(1, 2))
         keep = int(np.argmin(finite)) if not finite.all() else stored
     trajectory = Trajectory(
-        time=t0 + dt * frame_steps[:keep],
+        time=t0 + (t_end - t0) * frame_steps[:keep] / n_steps,
         x=frames_x[:keep],
         v=frames_v[:keep],
         load_work=frames_acc[:keep, 0],
