@@ -213,9 +213,3 @@ def schedule_value(knots: np.ndarray, start: int, stop: int, t: float) -> float:
     t1 = knots[hi, 0]
     return knots[lo, 1] + (knots[hi, 1] - knots[lo, 1]) * (t - t0) / (t1 - t0)
 
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def add_loads(index: np.ndarray, knots: np.ndarray, t: float, out: np.ndarray) -> None:
-    """Add every point load at time ``t`` into the generalised forces ``out`` (3, n)."""
-    for i in range(index.shape[0]):
-        out[index[i, 0], index[i, 1]] += schedule_value(knots, index[i, 2], index[i, 3], t)

@@ -35,7 +35,7 @@ from functools import cached_property
 import numpy as np
 from numba import njit, prange, types
 
-from ..loads import add_loads, schedule_value
+from ..loads import schedule_value
 from ..models.base import FORCE_KERNEL_TYPE
 
 #: Status codes returned by :func:`advance`.
@@ -181,12 +181,11 @@ def _forces_blocks(force, x, coef, f, bounds):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _evaluate(force, x, coef, f, load_index, knots, t, bounds):  # pragma: no cover - compiled
+def _forces(force, x, coef, f, bounds):  # pragma: no cover - compiled
     if bounds.size == 2:
         force(x, coef, f, bounds[0], bounds[1])
     else:
         _forces_blocks(force, x, coef, f, bounds)
-    add_loads(load_index, knots, t, f)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -275,40 +274,50 @@ def advance(
     """
     n_loads = load_index.shape[0]
     q_old = np.empty(n_loads)
-    q_new = np.empty(n_loads)
     load_old = np.empty(n_loads)
-    load_new = np.empty(n_loads)
+    _load_displacements(x, load_index, q_old)
+    _load_values(load_index, knots, t0 + step0 * dt, load_old)
+    q_new = q_old.copy()
+    load_new = load_old.copy()
     frame = frame0
     empty = weights.size
     pending = empty
+    # Countdowns instead of a modulo per step: an integer division costs as much as
+    # a small chain's kick-drift.
+    to_store = stride - step0 % stride
+    to_check = check_every
     for k in range(n_steps):
         t = t0 + (step0 + k) * dt
         for s in range(weights.size):
-            h = weights[s] * dt
-            _load_displacements(x, load_index, q_old)
-            _load_values(load_index, knots, t, load_old)
             acc[1] += _kick_drift(x, v, f, mass, table, pending, s, bounds)
-            t += h
-            _evaluate(force, x, coef, f, load_index, knots, t, bounds)
+            t += weights[s] * dt
+            _forces(force, x, coef, f, bounds)
             _load_displacements(x, load_index, q_new)
             _load_values(load_index, knots, t, load_new)
             for i in range(n_loads):
+                f[load_index[i, 0], load_index[i, 1]] += load_new[i]
                 acc[0] += 0.5 * (load_old[i] + load_new[i]) * (q_new[i] - q_old[i])
+                q_old[i] = q_new[i]
+                load_old[i] = load_new[i]
             pending = s
-        step = step0 + k + 1
-        store = step % stride == 0
+        to_store -= 1
+        to_check -= 1
+        store = to_store == 0
         last = k == n_steps - 1
         if store or last:
             acc[1] += _kick_drift(x, v, f, mass, table, pending, empty, bounds)
             pending = empty
         if store:
+            to_store = stride
             frames_x[frame] = x
             frames_v[frame] = v
             frames_acc[frame, 0] = acc[0]
             frames_acc[frame, 1] = acc[1]
             frame += 1
-        if (step % check_every == 0 or last) and _runaway(x, v, max_displacement):
-            if pending != empty:
-                acc[1] += _kick_drift(x, v, f, mass, table, pending, empty, bounds)
-            return STATUS_BLEW_UP, k + 1, frame - frame0
+        if to_check == 0 or last:
+            to_check = check_every
+            if _runaway(x, v, max_displacement):
+                if pending != empty:
+                    acc[1] += _kick_drift(x, v, f, mass, table, pending, empty, bounds)
+                return STATUS_BLEW_UP, k + 1, frame - frame0
     return STATUS_OK, n_steps, frame - frame0
