@@ -17,11 +17,46 @@
  * checks for a runaway state every 1024 steps; run_acc() returns them.
  *
  * Build: gcc -O3 -march=native -shared -fPIC -o libverlet.so verlet_nonlinear.c -lm
+ * (the benchmark's reference: libm sin/cos). With -DPOLY_SINCOS it uses the
+ * package's inline sincos polynomial instead (an optional, stronger reference).
  */
 #include <math.h>
 
 #define EMPTY 1
 #define CHECK_EVERY 1024
+
+#ifdef POLY_SINCOS
+/* The package's inline sincos (models/trig.py): Cephes polynomials after a
+ * three-part reduction by pi/2; libm beyond |angle| >= 1e6. */
+static inline void sin_cos(double angle, double *s_out, double *c_out)
+{
+    if (!(fabs(angle) < 1.0e6)) {
+        *s_out = sin(angle);
+        *c_out = cos(angle);
+        return;
+    }
+    double n = floor(angle * 0.636619772367581343076 + 0.5);
+    double r = ((angle - n * 1.57079632673412561417e00) - n * 6.07710050630396597660e-11) - n * 2.02226624879595063154e-21;
+    double z = r * r;
+    double s = r + r * z * (((((1.58962301576546568060e-10 * z + -2.50507477628578072866e-8) * z + 2.75573136213857245213e-6) * z
+                              + -1.98412698295895385996e-4) * z + 8.33333333332211858878e-3) * z + -1.66666666666666307295e-1);
+    double c = 1.0 - 0.5 * z + z * z * (((((-1.13585365213876817300e-11 * z + 2.08757008419747316778e-9) * z + -2.75573141792967388112e-7) * z
+                                          + 2.48015872888517045348e-5) * z + -1.38888888888730564116e-3) * z + 4.16666666666665929218e-2);
+    switch ((long)n & 3) {
+    case 0: *s_out = s; *c_out = c; break;
+    case 1: *s_out = c; *c_out = -s; break;
+    case 2: *s_out = -s; *c_out = -c; break;
+    default: *s_out = -c; *c_out = s; break;
+    }
+}
+#else
+/* libm sin and cos (gcc merges them into one sincos call). */
+static inline void sin_cos(double angle, double *s_out, double *c_out)
+{
+    *s_out = sin(angle);
+    *c_out = cos(angle);
+}
+#endif
 
 static double last_acc[2];
 static int last_status;
@@ -73,16 +108,16 @@ static void forces(const double *restrict x, const double *coef, double *restric
 {
     const double *u = x, *v = x + n, *phi = x + 2 * n;
     double *ou = out, *ov = out + n, *om = out + 2 * n;
-    double s0 = sin(phi[start - 1]), c0 = cos(phi[start - 1]);
-    double s1 = sin(phi[start]), c1 = cos(phi[start]);
+    double s0, c0, s1, c1;
+    sin_cos(phi[start - 1], &s0, &c0);
+    sin_cos(phi[start], &s1, &c1);
     double fx, fy, m0, m1;
     bond(coef, c0, s0, c1, s1, u[start] - u[start - 1], v[start] - v[start - 1], &fx, &fy, &m0, &m1);
     double carry_u = -fx, carry_v = -fy, carry_m = m1;
     c0 = c1;
     s0 = s1;
     for (int k = start; k < stop; k++) {
-        s1 = sin(phi[k + 1]);
-        c1 = cos(phi[k + 1]);
+        sin_cos(phi[k + 1], &s1, &c1);
         bond(coef, c0, s0, c1, s1, u[k + 1] - u[k], v[k + 1] - v[k], &fx, &fy, &m0, &m1);
         ou[k] = carry_u + fx;
         ov[k] = carry_v + fy;
