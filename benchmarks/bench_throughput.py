@@ -31,7 +31,6 @@ from __future__ import annotations
 import argparse
 import ctypes
 import json
-import math
 import os
 import platform
 import shlex
@@ -41,11 +40,11 @@ import sys
 import time
 from pathlib import Path
 
+import numba
 import numpy as np
 import scipy
 from scipy.integrate import solve_ivp
 
-import numba
 from cosserat_chain import ChainParams, get_model, moment_load
 from cosserat_chain.numerics.dynamics import default_time_step, integrate
 from cosserat_chain.numerics.integrators import substep_table
@@ -272,7 +271,7 @@ def throughput(cloop: CLoop, quick: bool, log) -> list[dict]:
         p = ChainParams(N=N)
         n = p.n_particles
         dt = default_time_step(p)
-        n_steps = max(10, int(round(work / n)))
+        n_steps = max(10, round(work / n))
         contestants = [("package", model, 1) for model in MODELS] + [("c", "nonlinear", 1)]
         if n > 5_000:  # threads pay from about 10^4 particles on
             contestants += [("package", "nonlinear", 2)]
@@ -468,8 +467,8 @@ def table(rows: list[dict], accs: list[dict]) -> str:
     lines = [
         "Throughput, particle-steps per second (medians); package = integrate(method='verlet', default dt), one thread",
         "",
-        f"{'model':9s} {'particles':>9s} {'package':>8s} {'C':>8s} {'pkg/C':>7s} {'thr=2':>8s} {'thr2/C':>7s} "
-        f"{'solve_ivp':>9s} {'pkg/ivp':>8s} {'pkg/ivp':>8s} {'pkg/C':>7s}",
+        (f"{'model':9s} {'particles':>9s} {'package':>8s} {'C':>8s} {'pkg/C':>7s} {'thr=2':>8s} {'thr2/C':>7s} "
+        f"{'solve_ivp':>9s} {'pkg/ivp':>8s} {'pkg/ivp':>8s} {'pkg/C':>7s}"),
         f"{'':9s} {'':>9s} {'p-s/s':>8s} {'p-s/s':>8s} {'':>7s} {'p-s/s':>8s} {'':>7s} {'p-s/s':>9s} {'per step':>8s} {'per time':>8s} {'best':>7s}",
     ]
     for r in rows:
@@ -492,8 +491,8 @@ def table(rows: list[dict], accs: list[dict]) -> str:
     for acc in accs:
         lines += [
             "",
-            f"Accuracy-matched, nonlinear, {acc['particles']} particles, moment {acc['moment']:g}, t=0..{acc['t_end']:g} from rest; "
-            "error = max |final u, v, phi - DOP853 rtol=1e-12|:",
+            (f"Accuracy-matched, nonlinear, {acc['particles']} particles, moment {acc['moment']:g}, t=0..{acc['t_end']:g} from rest; "
+            "error = max |final u, v, phi - DOP853 rtol=1e-12|:"),
         ]
         rk = acc["rk45"]
         lines.append(f"  RK45 rtol=1e-6 atol=1e-9  error {rk['error']:.2e}  {rk['wall_per_time_unit_s'] * 1e6:10.1f} us per time unit")
@@ -513,12 +512,12 @@ def markdown(result: dict) -> str:
     """The README tables from a saved result."""
     env = result["environment"]
     lines = [
-        f"Machine: {env['cpu']}, {env['cores']} cores; Python {env['python']}, NumPy {env['numpy']}, SciPy {env['scipy']}, "
+        (f"Machine: {env['cpu']}, {env['cores']} cores; Python {env['python']}, NumPy {env['numpy']}, SciPy {env['scipy']}, "
         f"Numba {env['numba']}, {env['gcc']}; load average at start {env['loadavg_start'][0]:.2f}; "
-        f"package at {env['git_head']}{' (src modified)' if env['git_dirty_src'] else ''}.",
+        f"package at {env['git_head']}{' (src modified)' if env['git_dirty_src'] else ''}."),
         "",
-        "| model | particles | package p-s/s | C p-s/s | package / C | package threads=2 p-s/s | threads=2 / C "
-        "| solve_ivp p-s/s | package / solve_ivp per step | per simulated time | package / C, best of reps |",
+        ("| model | particles | package p-s/s | C p-s/s | package / C | package threads=2 p-s/s | threads=2 / C "
+        "| solve_ivp p-s/s | package / solve_ivp per step | per simulated time | package / C, best of reps |"),
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in result["throughput"]:
