@@ -15,8 +15,9 @@ A :class:`PointLoad` applies a schedule to one degree of freedom (row ``u``,
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -51,24 +52,24 @@ class Schedule:
             raise ValueError(f"schedule times must be non-decreasing, got {times}")
 
     @classmethod
-    def constant(cls, value: float) -> "Schedule":
+    def constant(cls, value: float) -> Schedule:
         """The same value at all times."""
         return cls((0.0,), (value,))
 
     @classmethod
-    def step(cls, value: float, at: float = 0.0, before: float = 0.0) -> "Schedule":
+    def step(cls, value: float, at: float = 0.0, before: float = 0.0) -> Schedule:
         """``before`` until time ``at``, then ``value``."""
         return cls((at, at), (before, value))
 
     @classmethod
-    def ramp(cls, value: float, duration: float, start: float = 0.0) -> "Schedule":
+    def ramp(cls, value: float, duration: float, start: float = 0.0) -> Schedule:
         """0 until ``start``, then linear up to ``value`` over ``duration`` (> 0), then constant."""
         if not duration > 0:
             raise ValueError(f"ramp duration must be > 0, got {duration!r}")
         return cls((start, start + duration), (0.0, value))
 
     @classmethod
-    def staircase(cls, increment: float, hold: float, n_steps: int, start: float = 0.0) -> "Schedule":
+    def staircase(cls, increment: float, hold: float, n_steps: int, start: float = 0.0) -> Schedule:
         """Raise by ``increment`` every ``hold`` time units, ``n_steps`` times, the first at ``start``.
 
         This is the paper's step-wise loading (Section 4): the value is
@@ -136,10 +137,10 @@ class PointLoad:
 class Loads(tuple):
     """A tuple of :class:`PointLoad`; the empty tuple is an unloaded chain."""
 
-    def __new__(cls, items: Sequence[PointLoad] = ()) -> "Loads":
+    def __new__(cls, items: Sequence[PointLoad] = ()) -> Loads:
         return super().__new__(cls, tuple(items))
 
-    def validate(self, params: ChainParams) -> "Loads":
+    def validate(self, params: ChainParams) -> Loads:
         """Check every particle index against the chain; returns self.
 
         Raises

@@ -116,7 +116,7 @@ class ChainParams(BaseModel):
         return value
 
     @model_validator(mode="after")
-    def _particles_do_not_touch(self) -> "ChainParams":
+    def _particles_do_not_touch(self) -> ChainParams:
         if not 0 < self.a < self.h / 2:
             raise ValueError(
                 f"a must satisfy 0 < a < h/2 = {self.h / 2!r} (neighbouring particles "
@@ -170,7 +170,7 @@ class ChainParams(BaseModel):
         """Viscous coefficients of the rows (u, v, phi)."""
         return (self.gamma_u, self.gamma_v, self.gamma_phi)
 
-    def replace(self, **changes: Any) -> "ChainParams":
+    def replace(self, **changes: Any) -> ChainParams:
         """Return validated parameters with some fields changed.
 
         j keeps its current value unless changed; pass ``j=None`` to have it

@@ -16,8 +16,8 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
@@ -41,7 +41,7 @@ ProgressCallback = Callable[[int, int], None]
 class IntegrationError(RuntimeError):
     """A run that could not be completed; ``trajectory`` holds what was computed."""
 
-    def __init__(self, message: str, trajectory: "Trajectory"):
+    def __init__(self, message: str, trajectory: Trajectory):
         super().__init__(message)
         self.trajectory = trajectory
 

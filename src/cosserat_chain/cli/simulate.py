@@ -1,60 +1,26 @@
-"""Command line: ``cosserat-chain simulate ...``.
-
-Thin by design: options -> ChainParams and loads -> experiment -> NetCDF / JSON.
-"""
+"""``cosserat-chain simulate``: one damped simulation under a moment load."""
 
 from __future__ import annotations
 
 import json
-import math
-import sys
-from enum import Enum
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 import typer
-from pydantic import ValidationError
-from tqdm import tqdm
 
-from .experiments.simulation import simulate as run_simulation
-from .io import load_params, write_dataset
-from .loads import Schedule, moment_load
-
-app = typer.Typer(add_completion=False, help="Discrete Cosserat chains of finite-size particles.", no_args_is_help=True)
-
-
-class ModelName(str, Enum):
-    nonlinear = "nonlinear"
-    sine = "sine"
-    linear = "linear"
-
-
-class MethodName(str, Enum):
-    verlet = "verlet"
-    yoshida4 = "yoshida4"
-
-
-def _finite_or_none(value: float) -> float | None:
-    return float(value) if math.isfinite(value) else None
-
-
-def _fail(message: str, code: int = 2) -> None:
-    typer.secho(f"error: {message}", err=True, fg=typer.colors.RED)
-    raise typer.Exit(code)
-
-
-def _params_or_exit(config: Optional[Path]):
-    try:
-        return load_params(config)
-    except ValidationError as err:
-        _fail("invalid parameters:\n" + "\n".join(f"  {'.'.join(map(str, e['loc'])) or 'params'}: {e['msg']} (got {e.get('input')!r})" for e in err.errors()))
-    except ValueError as err:
-        _fail(str(err))
-
-
-@app.callback()
-def main() -> None:
-    """Simulate chains of rectangular particles that translate and rotate (nonlinear, sine and linear Cosserat models)."""
+from ..experiments.simulation import simulate as run_simulation
+from ..io import write_dataset
+from ..loads import Schedule, moment_load
+from .common import (
+    MethodName,
+    ModelName,
+    app,
+    bar_callback,
+    fail,
+    finite_or_none,
+    params_or_exit,
+    progress_bar,
+)
 
 
 @app.command()
@@ -62,30 +28,26 @@ def simulate(
     model: ModelName = typer.Option(ModelName.nonlinear, help="nonlinear (eq. 1), sine (eq. 2) or linear (eq. 3)."),
     moment: float = typer.Option(0.1, help="Moment M on the loaded particle."),
     t_end: float = typer.Option(300.0, "--t-end", help="Final time."),
-    dt: Optional[float] = typer.Option(None, help="Time step (default 0.1 / highest linear frequency)."),
+    dt: float | None = typer.Option(None, help="Time step (default 0.1 / highest linear frequency)."),
     particle: int = typer.Option(0, help="Loaded particle, in -N+1..N-1 (default the central one)."),
     ramp: float = typer.Option(0.0, help="Raise the moment linearly over this time (0: applied at once)."),
     method: MethodName = typer.Option(MethodName.verlet, help="verlet (order 2) or yoshida4 (order 4)."),
     frames: int = typer.Option(201, help="Number of stored states."),
     threads: int = typer.Option(1, help="Threads per step (worth it from ~10^4 particles)."),
     reference: bool = typer.Option(False, help="Use the adaptive DOP853 reference instead of the fixed step."),
-    config: Optional[Path] = typer.Option(None, help="TOML file with ChainParams fields (E1, E2, h, a, b, m, j, gamma_u, gamma_v, gamma_phi, N)."),
-    out: Optional[Path] = typer.Option(None, help="Write the trajectory to this NetCDF file."),
+    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields (E1, E2, h, a, b, m, j, gamma_u, gamma_v, gamma_phi, N)."),
+    out: Path | None = typer.Option(None, help="Write the trajectory to this NetCDF file."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Run one damped simulation of the chain under a moment load."""
-    params = _params_or_exit(config)
+    params = params_or_exit(config)
     try:
         schedule = Schedule.ramp(moment, ramp) if ramp > 0 else Schedule.constant(moment)
         loads = moment_load(schedule, particle).validate(params)
     except ValueError as err:
-        _fail(str(err))
-    bar = tqdm(total=None, unit="step", unit_scale=True, desc=f"simulate {model.value}", disable=None, file=sys.stderr)
-
-    def progress(done: int, total: int) -> None:
-        bar.total = total
-        bar.update(done - bar.n)
-
+        fail(str(err))
+    bar = progress_bar(f"simulate {model.value}", "step")
+    progress = bar_callback(bar)
     try:
         ds = run_simulation(
             params, model.value, loads, t_end=t_end, dt=dt, method=method.value, n_frames=frames,
@@ -93,7 +55,7 @@ def simulate(
         )
     except ValueError as err:
         bar.close()
-        _fail(str(err))
+        fail(str(err))
     bar.close()
     if out is not None:
         write_dataset(ds, out)
@@ -111,15 +73,15 @@ def simulate(
         raise typer.Exit(130 if status == "interrupted" else 3)
 
 
-def _summary(ds, params, model: str, t_end: float, out: Optional[Path]) -> dict[str, Any]:
+def _summary(ds, params, model: str, t_end: float, out: Path | None) -> dict[str, Any]:
     final = ds.isel(time=-1)
-    energy = {name: _finite_or_none(float(final[name])) for name in ("kinetic", "potential", "load_work", "dissipated", "balance_error")}
+    energy = {name: finite_or_none(float(final[name])) for name in ("kinetic", "potential", "load_work", "dissipated", "balance_error")}
     return {
         "model": model,
         "params": params.model_dump(),
         "t_end": t_end,
         "t_reached": float(final.time),
-        "dt": _finite_or_none(float(ds.attrs["dt"])),
+        "dt": finite_or_none(float(ds.attrs["dt"])),
         "method": ds.attrs["method"],
         "steps": int(ds.attrs["steps"]),
         "status": ds.attrs["status"],
