@@ -1,0 +1,430 @@
+"""Section 3 of the paper: long-wave continuum solutions of the linear chain under a central moment.
+
+Contract
+--------
+The closed forms here (eqs. (7), (11), (12), phi(0) and the reduced model of
+Section 3.2) depend only on :class:`~cosserat_chain.params.ChainParams`, never on
+the discrete models, so that they stay an independent check on them. Only the
+comparison helpers at the end (:func:`discrete_static`, :func:`convergence`,
+:func:`compare_profiles`) solve the discrete linear model (iii).
+
+The chain has 2N+1 particles, the moment M acts on particle 0, the ends k = +-N
+are clamped. With the origin at particle 0 and L = N h the continuum fields on
+the half chain 0 <= x <= L solve eq. (6),
+
+    v_xx - phi_x = 0,    h^2 D1 phi_xx + D2 (v_x - phi) = 0,
+
+with the boundary conditions (8) v(0) = v(L) = phi(L) = 0 and the nonlocal
+condition (10), the discrete moment balance (9) of particle 0 written with the
+continuum fields. The discrete profile is v_k = v(kh), phi_k = phi(kh) for
+k >= 0, extended by the mirror symmetry of the loaded chain: v_-k = -v_k and
+phi_-k = phi_k.
+
+D1 and D2 are the geometry-derived coefficients ``params.D1`` = E1 - (h^2/d^2) E2
+and ``params.D2`` = 4 (h^2/d^2) E2. The paper prints D1 = E1 - 2 (h^2/d^2) E2 in
+Section 3 (erratum 2 in ``docs/errata.md``); every closed form accepts ``D1=`` to
+evaluate it with another value, e.g. :func:`printed_D1`, to see what the misprint
+does.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse.linalg as spla
+
+from ..models.linear import stiffness_matrix
+from ..params import ChainParams
+from ..state import pack, unpack
+
+
+@dataclass(frozen=True)
+class _Coefficients:
+    h: float
+    L: float
+    b: float
+    D1: float
+    D2: float
+
+    @property
+    def denominator(self) -> float:
+        """h (24 h^2 D1^2 + (8 L^2 + 6 h^2) D1 D2 + L (2L - h) D2^2), common to eq. (11) and phi(0)."""
+        h, L, D1, D2 = self.h, self.L, self.D1, self.D2
+        return h * (24 * h * h * D1 * D1 + (8 * L * L + 6 * h * h) * D1 * D2 + L * (2 * L - h) * D2 * D2)
+
+
+def printed_D1(params: ChainParams) -> float:
+    """The bending coefficient as printed in Section 3, E1 - 2 (h^2/d^2) E2 (erratum 2).
+
+    The geometry gives ``params.D1`` = E1 - (h^2/d^2) E2; this value exists only to
+    show the consequences of the misprint.
+    """
+    return params.E1 - 2.0 * params.h**2 / params.d**2 * params.E2
+
+
+def reduced_E1(params: ChainParams) -> float:
+    """Stiffness E1 of the horizontal links at which D1 = 0, the reduced model of Section 3.2.
+
+    With the geometry-derived D1 this is E1 = (h/d)^2 E2 (the paper prints
+    E1 = 2 (h/d)^2 E2, erratum 2). ``params.replace(E1=reduced_E1(params))`` is
+    the reduced chain.
+    """
+    return params.h**2 / params.d**2 * params.E2
+
+
+def _coefficients(params: ChainParams, D1: float | None) -> _Coefficients:
+    if D1 is not None and not math.isfinite(D1):
+        raise ValueError(f"D1 must be a finite number or None (the geometry-derived params.D1), got {D1!r}")
+    coef = _Coefficients(params.h, params.N * params.h, params.b, params.D1 if D1 is None else float(D1), params.D2)
+    if coef.D2 <= 0:
+        raise ValueError(f"the continuum solution needs coupling D2 = 4 (h/d)^2 E2 > 0, i.e. E2 > 0; got E2={params.E2!r}")
+    if coef.denominator == 0:
+        raise ValueError(
+            f"the continuum solution (11) is singular for D1={coef.D1!r}, D2={coef.D2!r}, L=N h={coef.L!r}: "
+            "its denominator 24 h^2 D1^2 + (8 L^2 + 6 h^2) D1 D2 + L (2L - h) D2^2 vanishes"
+        )
+    return coef
+
+
+def _positions(params: ChainParams, x: np.ndarray | float) -> np.ndarray:
+    x = np.asarray(x, dtype=float)
+    length = params.N * params.h
+    if not np.all(np.isfinite(x)) or np.any(x < 0) or np.any(x > length):
+        bad = x[~(np.isfinite(x) & (x >= 0) & (x <= length))].ravel()[0]
+        raise ValueError(f"x must lie in the half chain 0 <= x <= L = N h = {length!r}, got {float(bad)!r}")
+    return x
+
+
+def _moment(moment: float) -> float:
+    if not math.isfinite(moment):
+        raise ValueError(f"moment must be finite, got {moment!r}")
+    return float(moment)
+
+
+def general_solution(
+    params: ChainParams, x: np.ndarray | float, constants: np.ndarray, *, D1: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """General solution (7) of the continuum equations (6).
+
+    v(x) = C1 x^3/6 + C2 x^2/2 + C3 x + C4,
+    phi(x) = C1 h^2 D1 / D2 + C1 x^2/2 + C2 x + C3.
+
+    Parameters
+    ----------
+    params : ChainParams
+    x : float or ndarray
+        Positions (any shape; not restricted to the half chain).
+    constants : array_like, shape (4,)
+        The integration constants (C1, C2, C3, C4).
+    D1 : float, optional
+        Bending coefficient; default the geometry-derived ``params.D1``.
+
+    Returns
+    -------
+    v, phi : ndarray
+        Same shape as ``x``.
+
+    Raises
+    ------
+    ValueError
+        If ``constants`` does not hold four finite numbers, or for E2 = 0.
+    """
+    c = np.asarray(constants, dtype=float)
+    if c.shape != (4,) or not np.all(np.isfinite(c)):
+        raise ValueError(f"constants must be four finite numbers (C1, C2, C3, C4), got {constants!r}")
+    coef = _coefficients(params, D1)
+    x = np.asarray(x, dtype=float)
+    c1, c2, c3, c4 = c
+    v = c1 * x**3 / 6 + c2 * x**2 / 2 + c3 * x + c4
+    phi = c1 * coef.h**2 * coef.D1 / coef.D2 + c1 * x**2 / 2 + c2 * x + c3
+    return v, phi
+
+
+def integration_constants(params: ChainParams, moment: float = 1.0, *, D1: float | None = None) -> np.ndarray:
+    """Constants (C1, C2, C3, C4) of eq. (7) from the conditions (8) and (10), by a linear solve.
+
+    This is the route the paper describes; :func:`solution` is its closed form (11),
+    and the two are compared in the tests.
+
+    Returns
+    -------
+    ndarray, shape (4,)
+    """
+    moment = _moment(moment)
+    coef = _coefficients(params, D1)
+    h, L, b, D1_, D2 = coef.h, coef.L, coef.b, coef.D1, coef.D2
+    alpha = h * h * D1_ / D2
+    # Rows: v(0) = 0, v(L) = 0, phi(L) = 0 (eq. 8), and eq. (10)
+    # 2 b^2 [2 D1 (phi(h) - phi(0)) + D2 (v(h)/h - phi(0))] = -M, each linear in C.
+
+    def v_row(x: float) -> np.ndarray:
+        return np.array([x**3 / 6, x**2 / 2, x, 1.0])
+
+    def phi_row(x: float) -> np.ndarray:
+        return np.array([alpha + x**2 / 2, x, 1.0, 0.0])
+
+    rows = np.array(
+        [
+            v_row(0.0),
+            v_row(L),
+            phi_row(L),
+            2 * b * b * (2 * D1_ * (phi_row(h) - phi_row(0.0)) + D2 * (v_row(h) / h - phi_row(0.0))),
+        ]
+    )
+    return np.linalg.solve(rows, np.array([0.0, 0.0, 0.0, -moment]))
+
+
+def solution(params: ChainParams, x: np.ndarray | float, moment: float = 1.0, *, D1: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Continuum solution (11) on the half chain 0 <= x <= L = N h.
+
+    v(x)   = M x (L - x) (6 h^2 D1 + L (L - x) D2) / (2 b^2 Den),
+    phi(x) = M (L - x) (12 h^2 D1 + L (L - 3x) D2) / (2 b^2 Den),
+    Den    = h (24 h^2 D1^2 + (8 L^2 + 6 h^2) D1 D2 + L (2L - h) D2^2).
+
+    Parameters
+    ----------
+    params : ChainParams
+    x : float or ndarray
+        Positions in [0, L].
+    moment : float
+        Moment M on particle 0.
+    D1 : float, optional
+        Bending coefficient; default the geometry-derived ``params.D1``.
+
+    Returns
+    -------
+    v, phi : ndarray
+        Same shape as ``x``.
+
+    Raises
+    ------
+    ValueError
+        For x outside [0, L], a non-finite moment, E2 = 0 (no coupling), or a
+        vanishing denominator (possible only with a D1 other than the derived one).
+    """
+    x = _positions(params, x)
+    moment = _moment(moment)
+    coef = _coefficients(params, D1)
+    h, L, D1_, D2 = coef.h, coef.L, coef.D1, coef.D2
+    scale = moment / (2 * coef.b**2 * coef.denominator)
+    v = scale * x * (L - x) * (6 * h * h * D1_ + L * (L - x) * D2)
+    phi = scale * (L - x) * (12 * h * h * D1_ + L * (L - 3 * x) * D2)
+    return v, phi
+
+
+def central_rotation(params: ChainParams, moment: float = 1.0, *, D1: float | None = None) -> float:
+    """Rotation phi(0) = M L (12 h^2 D1 + L^2 D2) / (2 b^2 Den) of the loaded particle (Section 3.1).
+
+    ``central_rotation(params)`` is the continuum compliance phi_0 / M.
+    """
+    moment = _moment(moment)
+    coef = _coefficients(params, D1)
+    L = coef.L
+    return moment * L * (12 * coef.h**2 * coef.D1 + L * L * coef.D2) / (2 * coef.b**2 * coef.denominator)
+
+
+def residue(params: ChainParams, moment: float = 1.0, *, D1: float | None = None) -> float:
+    """Residue (12) of the discrete eq. (5) for the sampled continuum solution, eps = h/L = 1/N.
+
+    Delta_phi = M D2^2 eps / (2 b^2 (24 eps^2 D1^2 + (8 + 6 eps^2) D1 D2 + (2 - eps) D2^2)),
+
+    the same at every interior site 0 < |k| < N, because eq. (11) is a cubic (v)
+    and a quadratic (phi), for which the only inexact difference quotient is
+    (v_k+1 - v_k-1) / 2h = v_x + h^2 v_xxx / 6. It vanishes like eps as N grows.
+    """
+    moment = _moment(moment)
+    coef = _coefficients(params, D1)
+    eps, D1_, D2 = 1.0 / params.N, coef.D1, coef.D2
+    return moment * D2 * D2 * eps / (2 * coef.b**2 * (24 * eps * eps * D1_ * D1_ + (8 + 6 * eps * eps) * D1_ * D2 + (2 - eps) * D2 * D2))
+
+
+def reduced_solution(params: ChainParams, x: np.ndarray | float, moment: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """Solution of the reduced model (D1 = 0, Section 3.2) on the half chain 0 <= x <= L.
+
+    v(x) = M x (L - x)^2 / (2 b^2 h (2L - h) D2),  phi(x) = M (L - x)(L - 3x) / (2 b^2 h (2L - h) D2),
+
+    from the polynomial (14)-(15) with v(0) = 0, 2 b^2 D2 (v(h)/h - phi(0)) + M = 0,
+    v(L) = 0, phi(L) = 0. It uses only D2, whatever ``params.D1`` is; the chain that
+    actually has D1 = 0 is ``params.replace(E1=reduced_E1(params))``.
+    """
+    x = _positions(params, x)
+    moment = _moment(moment)
+    coef = _coefficients(params, 0.0)
+    h, L = coef.h, coef.L
+    scale = moment / (2 * coef.b**2 * h * (2 * L - h) * coef.D2)
+    return scale * x * (L - x) ** 2, scale * (L - x) * (L - 3 * x)
+
+
+def sampled_state(params: ChainParams, moment: float = 1.0, *, D1: float | None = None) -> np.ndarray:
+    """The continuum solution (11) at the particles, v_k = v(|k| h) sign(k), phi_k = phi(|k| h).
+
+    Returns
+    -------
+    ndarray, shape (3, 2N+1)
+        Rows (u, v, phi) in the package's state layout; u = 0 (eq. 3 decouples it).
+    """
+    k = np.arange(-params.N, params.N + 1)
+    v, phi = solution(params, np.abs(k) * params.h, moment, D1=D1)
+    x = np.zeros((3, params.n_particles))
+    x[1] = np.sign(k) * v
+    x[2] = phi
+    return x
+
+
+def discrete_residuals(params: ChainParams, moment: float = 1.0, *, D1: float | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Left-hand sides of the discrete eqs. (4) and (5) at the sampled continuum solution.
+
+    Returns
+    -------
+    r4, r5 : ndarray, shape (2N+1,)
+        Residues at particles -N..N. The clamped ends are 0; at particle 0, where
+        the moment acts, r5 holds the residue of the moment balance (9) instead.
+        Eq. (11) makes r4 vanish identically and r5 equal to :func:`residue` at
+        every interior site.
+    """
+    coef = _coefficients(params, D1)
+    _, v, phi = sampled_state(params, moment, D1=D1)
+    h = coef.h
+    r4 = np.zeros(params.n_particles)
+    r5 = np.zeros(params.n_particles)
+    r4[1:-1] = (v[2:] - 2 * v[1:-1] + v[:-2]) / h**2 - (phi[2:] - phi[:-2]) / (2 * h)
+    r5[1:-1] = coef.D1 * (phi[2:] - 2 * phi[1:-1] + phi[:-2]) + coef.D2 * ((v[2:] - v[:-2]) / (2 * h) - phi[1:-1])
+    centre = params.N
+    r5[centre] = 2 * coef.b**2 * (2 * coef.D1 * (phi[centre + 1] - phi[centre]) + coef.D2 * (v[centre + 1] / h - phi[centre])) + moment
+    return r4, r5
+
+
+# ---------------------------------------------------------------- comparison with the discrete chain
+def discrete_static(params: ChainParams, moment: float = 1.0) -> np.ndarray:
+    """Static state (3, 2N+1) of the discrete linear model (iii) under the moment M on particle 0.
+
+    Solves K q = M e_phi0 with the model's sparse stiffness (derived coefficients).
+    """
+    moment = _moment(moment)
+    load = np.zeros((3, params.n_particles))
+    load[2, params.N] = moment
+    return unpack(spla.spsolve(stiffness_matrix(params).tocsc(), pack(load)), params.n_particles)
+
+
+@dataclass(frozen=True)
+class ConvergenceTable:
+    """Continuum against discrete compliance for a list of chain lengths.
+
+    Attributes
+    ----------
+    N : ndarray of int, shape (n,)
+    continuum : ndarray, shape (n,)
+        phi(0) / M of the continuum solution.
+    discrete : ndarray, shape (n,)
+        phi_0 / M of the discrete linear model (iii).
+    relative_error : ndarray, shape (n,)
+        |continuum - discrete| / |discrete|.
+    residue : ndarray, shape (n,)
+        Residue (12) per unit moment.
+    """
+
+    N: np.ndarray
+    continuum: np.ndarray
+    discrete: np.ndarray
+    relative_error: np.ndarray
+    residue: np.ndarray
+
+    def order(self) -> float:
+        """Observed order p of relative_error ~ N^-p, from a least-squares fit on log-log axes.
+
+        Raises
+        ------
+        ValueError
+            With fewer than two distinct N or a zero error.
+        """
+        if np.unique(self.N).size < 2 or np.any(self.relative_error <= 0):
+            raise ValueError("the order needs at least two distinct N with nonzero errors")
+        return float(-np.polyfit(np.log(self.N), np.log(self.relative_error), 1)[0])
+
+    def as_dict(self) -> dict[str, list[float]]:
+        """Columns as lists (for JSON)."""
+        return {
+            "N": [int(n) for n in self.N],
+            "continuum": self.continuum.tolist(),
+            "discrete": self.discrete.tolist(),
+            "relative_error": self.relative_error.tolist(),
+            "residue": self.residue.tolist(),
+        }
+
+
+def convergence(params: ChainParams, n_values: list[int] | np.ndarray) -> ConvergenceTable:
+    """Compliance phi_0 / M of the continuum solution and of the discrete chain for each N.
+
+    Parameters
+    ----------
+    params : ChainParams
+        Geometry and stiffnesses; its N is replaced by each of ``n_values``.
+    n_values : sequence of int
+        Half-lengths N >= 1.
+
+    Raises
+    ------
+    ValueError
+        For an empty list or an N below 1 (naming it).
+    """
+    n_values = [int(n) for n in n_values]
+    if not n_values:
+        raise ValueError("n_values must hold at least one N >= 1, got an empty list")
+    chains = [params.replace(N=n) for n in n_values]
+    continuum = np.array([central_rotation(p) for p in chains])
+    discrete = np.array([discrete_static(p)[2, p.N] for p in chains])
+    return ConvergenceTable(
+        N=np.array(n_values),
+        continuum=continuum,
+        discrete=discrete,
+        relative_error=np.abs(continuum - discrete) / np.abs(discrete),
+        residue=np.array([residue(p) for p in chains]),
+    )
+
+
+@dataclass(frozen=True)
+class ProfileComparison:
+    """Continuum solution (11) and discrete linear statics of one chain under one moment.
+
+    Attributes
+    ----------
+    k : ndarray of int, shape (2N+1,)
+        Particles -N..N.
+    x : ndarray, shape (n_fine,)
+        Fine grid over the whole chain, -L..L, in units of h (so that it shares the axis with k).
+    v, phi : ndarray, shape (n_fine,)
+        Continuum fields on ``x`` (mirror-extended).
+    sampled : ndarray, shape (3, 2N+1)
+        The continuum solution at the particles.
+    discrete : ndarray, shape (3, 2N+1)
+        The discrete static state.
+    moment : float
+    """
+
+    k: np.ndarray
+    x: np.ndarray
+    v: np.ndarray
+    phi: np.ndarray
+    sampled: np.ndarray
+    discrete: np.ndarray
+    moment: float
+
+
+def compare_profiles(params: ChainParams, moment: float = 1.0, *, n_fine: int = 401) -> ProfileComparison:
+    """Continuum and discrete profiles v_k, phi_k of the chain under the moment on particle 0."""
+    if n_fine < 2:
+        raise ValueError(f"n_fine must be >= 2, got {n_fine!r}")
+    length = params.N * params.h
+    x = np.linspace(-length, length, n_fine)
+    v, phi = solution(params, np.abs(x), moment)
+    return ProfileComparison(
+        k=np.arange(-params.N, params.N + 1),
+        x=x / params.h,
+        v=np.sign(x) * v,
+        phi=phi,
+        sampled=sampled_state(params, moment),
+        discrete=discrete_static(params, moment),
+        moment=float(moment),
+    )
