@@ -2,21 +2,30 @@
 
 Contract
 --------
-:func:`solve_equilibrium` finds x with F(x) + L = 0 for constant loads L (the
-loads' values at time ``t``), starting from ``x0`` (default rest), using the
-analytic stiffness -dF/dq of the model (banded, O(n) per iteration). It raises
-:class:`NewtonError` if the residual does not fall below the tolerance.
+:func:`solve_equilibrium` (load control) finds x with F(x) + L = 0 for constant
+loads L (the loads' values at time ``t``), starting from ``x0`` (default rest),
+using the analytic stiffness K = -dF/dq of the model (banded, O(n) per iteration).
+
+:func:`solve_rotation_controlled` (rotation control) prescribes the angle phi_0
+of the loaded particle and solves for every other degree of freedom *and* the
+moment M that holds the particle there: F(x) + M e = 0 with x[phi, particle] = phi_0.
+Its Jacobian is -K with the loaded angle's column replaced by e, which stays
+regular at the fold of the load-controlled problem (where K is singular), so it
+follows the moment-rotation characteristic M(phi_0) over a whole turn.
+
+Both raise :class:`NewtonError` if the residual does not fall below the tolerance.
 """
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..loads import Loads
 from ..models.base import Model, get_model
 from ..params import ChainParams
-from ..state import check_state, n_free, pack, unpack, zeros
+from ..state import ROW_INDEX, check_state, column, n_free, pack, unpack, zeros
 
 
 class NewtonError(RuntimeError):
@@ -63,3 +72,87 @@ def solve_equilibrium(
         step = spla.spsolve(model.stiffness(params, x).tocsc(), r)
         x = x + unpack(step, params.n_particles)
     raise NewtonError(f"Newton did not converge in {max_iter} iterations (residual {residual:.3g})", x)
+
+
+def moment_dof(params: ChainParams, particle: int = 0) -> int:
+    """Index of the angle of ``particle`` among the free degrees of freedom (:func:`~cosserat_chain.state.pack` order).
+
+    Raises
+    ------
+    ValueError
+        If ``particle`` is not a free particle (-N < particle < N).
+    """
+    col = column(params, particle)
+    if col in (0, params.n_particles - 1):
+        raise ValueError(f"particle must be a free particle in {-params.N + 1}..{params.N - 1}, got {particle!r} (+-N are clamped)")
+    return 3 * (col - 1) + ROW_INDEX["phi"]
+
+
+def rotation_controlled_jacobian(stiffness: sp.spmatrix, dof: int) -> sp.csc_matrix:
+    """d/d(q without q[dof], M) of F(q) + M e_dof: -K with column ``dof`` replaced by e_dof."""
+    jac = (-stiffness).tocsc()
+    jac = sp.hstack([jac[:, :dof], sp.csc_matrix(([1.0], ([dof], [0])), shape=(jac.shape[0], 1)), jac[:, dof + 1 :]], format="csc")
+    return jac
+
+
+def solve_rotation_controlled(
+    params: ChainParams,
+    model: str | Model,
+    phi0: float,
+    *,
+    particle: int = 0,
+    x0: np.ndarray | None = None,
+    moment0: float = 0.0,
+    tol: float = 1e-12,
+    max_iter: int = 50,
+) -> tuple[np.ndarray, float]:
+    """Equilibrium with the loaded particle's angle held at ``phi0``, and the moment that holds it.
+
+    Parameters
+    ----------
+    params : ChainParams
+    model : str or Model
+    phi0 : float
+        Prescribed angle of ``particle`` (rad; any real value, not reduced mod 2 pi).
+    particle : int
+        The loaded particle (default the central one).
+    x0 : ndarray (3, 2N+1), optional
+        Starting guess (its angle of ``particle`` is replaced by ``phi0``); default rest.
+    moment0 : float
+        Starting guess for the moment.
+    tol : float
+        Stop when max |F + M e| <= tol (1 + |M|).
+    max_iter : int
+
+    Returns
+    -------
+    x : ndarray (3, 2N+1)
+        The equilibrium, with x[phi, particle] = phi0.
+    moment : float
+        The moment M on ``particle`` that holds it (the characteristic M(phi_0)).
+
+    Raises
+    ------
+    NewtonError
+        If the residual is still above the tolerance after ``max_iter`` iterations.
+    """
+    model = get_model(model)
+    dof = moment_dof(params, particle)
+    col = column(params, particle)
+    x = zeros(params) if x0 is None else check_state(params, x0, "x0").copy()
+    x[ROW_INDEX["phi"], col] = phi0
+    moment = float(moment0)
+    residual = np.inf
+    for _ in range(max_iter):
+        r = pack(model.forces(params, x))
+        r[dof] += moment
+        residual = float(np.max(np.abs(r)))
+        if residual <= tol * (1.0 + abs(moment)):
+            return x, moment
+        step = spla.spsolve(rotation_controlled_jacobian(model.stiffness(params, x), dof), -r)
+        moment += step[dof]
+        step[dof] = 0.0
+        x = x + unpack(step, params.n_particles)
+    raise NewtonError(
+        f"rotation-controlled Newton at phi0={phi0!r} did not converge in {max_iter} iterations (residual {residual:.3g})", x
+    )

@@ -1,0 +1,360 @@
+"""Static branches under a moment load: continuation, the fold (critical moment) and the compliance.
+
+Contract
+--------
+The equilibria of the chain under a moment M on one particle form a curve
+(x(s), M(s)) in the space of configurations and loads, F(x) + M e = 0
+(eqs. (1)-(3) with the velocities zero). This module traces it three ways:
+
+* :func:`continue_in_moment`: pseudo-arclength continuation in M (Keller): the
+  arclength constraint makes the bordered Jacobian [[-K, e], [t^T]] regular at
+  folds, so the branch is followed past the critical moment, over a whole turn.
+* :func:`rotation_branch`: the angle phi_0 of the loaded particle as the parameter
+  (:func:`~cosserat_chain.numerics.newton.solve_rotation_controlled`), which gives
+  the moment-rotation characteristic M(phi_0) at chosen angles.
+* :func:`locate_fold`: the fold is where load control fails, K singular. On the
+  rotation-controlled branch this is exactly dM/dphi_0 = 0 (from K q' = M' e along
+  the branch: M' = 0 iff K q' = 0 with q' != 0), and dM/dphi_0 is an exact scalar
+  function of phi_0 (implicit function theorem, one sparse solve), so the fold
+  angle is a root of a smooth function found with Brent's method to round-off,
+  and M_c = M(phi_fold) is accurate to round-off because M is stationary there.
+
+:func:`compliance` is d phi_0 / dM at a state, (K^-1 e)_phi0; at rest it is the
+slope of every model's branch at M = 0 (they share K there).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.optimize as so
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..models.base import Model, get_model
+from ..params import ChainParams
+from ..state import ROW_INDEX, column, n_free, pack, unpack, zeros
+from .newton import NewtonError, moment_dof, rotation_controlled_jacobian, solve_rotation_controlled
+from .stability import static_stability
+
+#: Residual tolerance of the Newton solves at and around a fold: M_c is read off the
+#: converged state, so it is only as accurate as the residual (round-off is ~1e-16).
+FOLD_TOL = 1e-14
+#: Callback ``progress(done, total)`` used by the long-running functions.
+ProgressCallback = Callable[[float, float], None]
+
+
+@dataclass
+class Fold:
+    """A fold (limit point) of the static branch: the critical moment of load control.
+
+    Attributes
+    ----------
+    moment : float
+        M_c, the largest moment a static state on the branch can hold.
+    phi0 : float
+        Angle of the loaded particle at the fold (rad).
+    x : ndarray (3, 2N+1)
+        The state at the fold.
+    particle : int
+    """
+
+    moment: float
+    phi0: float
+    x: np.ndarray
+    particle: int = 0
+
+
+@dataclass
+class Branch:
+    """Points of a static branch, in the order they were traced.
+
+    Attributes
+    ----------
+    moment : ndarray (k,)
+    phi0 : ndarray (k,)
+        Angle of the loaded particle.
+    x : ndarray (k, 3, 2N+1)
+        The states.
+    stable : ndarray of bool (k,)
+    critical_eigenvalue : ndarray (k,)
+        See :class:`~cosserat_chain.numerics.stability.Stability`.
+    folds : list of Fold
+        Folds passed on the way, each located to round-off.
+    particle : int
+    """
+
+    moment: np.ndarray
+    phi0: np.ndarray
+    x: np.ndarray
+    stable: np.ndarray
+    critical_eigenvalue: np.ndarray
+    folds: list[Fold] = field(default_factory=list)
+    particle: int = 0
+
+
+def compliance(params: ChainParams, model: str | Model, *, particle: int = 0, x: np.ndarray | None = None) -> float:
+    """d phi_0 / dM at the state ``x`` (default rest): the rotation compliance (K^-1 e)_phi0.
+
+    Raises
+    ------
+    ValueError
+        If K is singular at ``x`` (a fold).
+    """
+    model = get_model(model)
+    dof = moment_dof(params, particle)
+    e = np.zeros(n_free(params))
+    e[dof] = 1.0
+    response = spla.spsolve(model.stiffness(params, zeros(params) if x is None else x).tocsc(), e)
+    if not np.all(np.isfinite(response)):
+        raise ValueError("the stiffness is singular at this state (a fold): the compliance is infinite")
+    return float(response[dof])
+
+
+def moment_slope(params: ChainParams, model: str | Model, x: np.ndarray, *, particle: int = 0) -> float:
+    """dM/dphi_0 along the rotation-controlled branch at the equilibrium ``x``.
+
+    Differentiating F(q(phi_0)) + M(phi_0) e = 0 gives J dz/dphi_0 = K[:, phi_0]
+    with J the rotation-controlled Jacobian and z the unknowns (q without phi_0, M).
+    """
+    model = get_model(model)
+    dof = moment_dof(params, particle)
+    stiffness = model.stiffness(params, x).tocsc()
+    dz = spla.spsolve(rotation_controlled_jacobian(stiffness, dof), stiffness[:, dof].toarray().ravel())
+    return float(dz[dof])
+
+
+def _assemble_branch(params, model, particle, moments, states, folds) -> Branch:
+    col = column(params, particle)
+    x = np.array(states)
+    checks = [static_stability(params, model, xi) for xi in x]
+    return Branch(
+        moment=np.array(moments, dtype=float),
+        phi0=x[:, ROW_INDEX["phi"], col].copy(),
+        x=x,
+        stable=np.array([c.stable for c in checks]),
+        critical_eigenvalue=np.array([c.critical_eigenvalue for c in checks]),
+        folds=folds,
+        particle=particle,
+    )
+
+
+def rotation_branch(
+    params: ChainParams,
+    model: str | Model,
+    phi0: np.ndarray,
+    *,
+    particle: int = 0,
+    progress: ProgressCallback | None = None,
+) -> Branch:
+    """The characteristic M(phi_0) at the angles ``phi0`` (traced in order from rest).
+
+    Parameters
+    ----------
+    phi0 : array_like (k,)
+        Angles of the loaded particle; consecutive angles should be close (a few
+        degrees) since each solve starts from the previous one.
+
+    Raises
+    ------
+    NewtonError
+        If a point cannot be solved (for example a step in phi0 that is too large).
+    """
+    model = get_model(model)
+    angles = np.asarray(phi0, dtype=float)
+    x, moment = zeros(params), 0.0
+    previous = None
+    moments, states = [], []
+    for i, angle in enumerate(angles):
+        guess_x, guess_m = x, moment
+        if previous is not None and i > 0 and angles[i - 1] != previous[2]:
+            # Secant predictor from the last two points.
+            ratio = (angle - angles[i - 1]) / (angles[i - 1] - previous[2])
+            guess_x = x + ratio * (x - previous[0])
+            guess_m = moment + ratio * (moment - previous[1])
+        new_x, new_m = solve_rotation_controlled(params, model, angle, particle=particle, x0=guess_x, moment0=guess_m)
+        previous = (x, moment, angles[i - 1] if i > 0 else 0.0)
+        x, moment = new_x, new_m
+        moments.append(moment)
+        states.append(x)
+        if progress is not None:
+            progress(i + 1, len(angles))
+    return _assemble_branch(params, model, particle, moments, states, [])
+
+
+def locate_fold(
+    params: ChainParams,
+    model: str | Model,
+    *,
+    particle: int = 0,
+    bracket: tuple[float, float] | None = None,
+    phi0_max: float = math.pi,
+    n_scan: int = 64,
+    seed: tuple[np.ndarray, float] | None = None,
+) -> Fold | None:
+    """The first fold of the branch from rest under a positive moment, to round-off.
+
+    Parameters
+    ----------
+    bracket : (float, float), optional
+        Angles phi_0 between which dM/dphi_0 changes sign (any fold, also a
+        minimum of M); by default the first maximum, found by scanning
+        (0, ``phi0_max``] in ``n_scan`` steps.
+    seed : (ndarray (3, 2N+1), float), optional
+        A nearby equilibrium and its moment to start Newton from.
+
+    Returns
+    -------
+    Fold or None
+        None if M(phi_0) has no maximum up to ``phi0_max`` (the linear model).
+    """
+    model = get_model(model)
+    cache: dict[float, tuple[np.ndarray, float]] = {0.0: (zeros(params), 0.0)}
+    if seed is not None:
+        cache[float(seed[0][ROW_INDEX["phi"], column(params, particle)])] = seed
+
+    def solve(angle: float) -> tuple[np.ndarray, float]:
+        nearest = min(cache, key=lambda a: abs(a - angle))
+        x, moment = solve_rotation_controlled(
+            params, model, angle, particle=particle, x0=cache[nearest][0], moment0=cache[nearest][1], tol=FOLD_TOL
+        )
+        cache[angle] = (x, moment)
+        return x, moment
+
+    def slope(angle: float) -> float:
+        return moment_slope(params, model, solve(angle)[0], particle=particle)
+
+    if bracket is None:
+        angles = np.linspace(0.0, phi0_max, n_scan + 1)
+        slopes = [slope(a) for a in angles]
+        sign_change = [i for i in range(n_scan) if slopes[i] > 0 >= slopes[i + 1]]
+        if not sign_change:
+            return None
+        bracket = (angles[sign_change[0]], angles[sign_change[0] + 1])
+    phi_fold = so.brentq(slope, *bracket, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+    x, moment = solve(phi_fold)
+    return Fold(moment=moment, phi0=phi_fold, x=x, particle=particle)
+
+
+def continue_in_moment(
+    params: ChainParams,
+    model: str | Model,
+    *,
+    particle: int = 0,
+    phi0_stop: float = 2 * math.pi,
+    moment_stop: float = math.inf,
+    step: float = 0.05,
+    min_step: float = 1e-6,
+    max_step: float = 0.2,
+    max_points: int = 5000,
+    tol: float = 1e-11,
+    progress: ProgressCallback | None = None,
+) -> Branch:
+    """Pseudo-arclength continuation of the static branch from rest, in the direction of increasing M.
+
+    Parameters
+    ----------
+    particle : int
+        The loaded particle.
+    phi0_stop : float
+        Stop once |phi_0| of the loaded particle reaches this (default one full turn).
+    moment_stop : float
+        Stop once |M| exceeds this (the linear model's branch is an endless line).
+    step, min_step, max_step : float
+        Arclength step in the (q, M) space: initial, smallest before giving up, largest.
+    max_points : int
+    tol : float
+        Corrector tolerance on max |F + M e|.
+    progress : callable(|phi_0|, phi0_stop), optional
+
+    Returns
+    -------
+    Branch
+        With every fold passed on the way located by :func:`locate_fold`.
+
+    Raises
+    ------
+    NewtonError
+        If the corrector fails even at ``min_step``.
+    ValueError
+        If a step size is not positive or ``min_step > max_step``.
+    """
+    if not (0 < min_step <= step <= max_step):
+        raise ValueError(f"steps must satisfy 0 < min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
+    model = get_model(model)
+    dof = moment_dof(params, particle)
+    nf = n_free(params)
+    e = sp.csc_matrix(([1.0], ([dof], [0])), shape=(nf, 1))
+    y = np.zeros(nf + 1)  # (q, M)
+    tangent = np.zeros(nf + 1)
+    tangent[-1] = 1.0
+
+    def residual(y: np.ndarray) -> np.ndarray:
+        r = pack(model.forces(params, unpack(y[:-1], params.n_particles)))
+        r[dof] += y[-1]
+        return r
+
+    def jacobian(y: np.ndarray) -> sp.csc_matrix:
+        return sp.hstack([-model.stiffness(params, unpack(y[:-1], params.n_particles)), e], format="csc")
+
+    def bordered(jac: sp.csc_matrix, row: np.ndarray) -> sp.csc_matrix:
+        return sp.vstack([jac, sp.csr_matrix(row)], format="csc")
+
+    def new_tangent(y: np.ndarray, previous: np.ndarray) -> np.ndarray:
+        rhs = np.zeros(nf + 1)
+        rhs[-1] = 1.0
+        t = spla.spsolve(bordered(jacobian(y), previous), rhs)
+        return t / np.linalg.norm(t)
+
+    tangent = new_tangent(y, tangent)
+    moments, states = [0.0], [zeros(params)]
+    ds = step
+    while len(moments) < max_points:
+        predicted = y + ds * tangent
+        z, iterations, converged = predicted.copy(), 0, False
+        while iterations < 8:
+            r = np.append(residual(z), tangent @ (z - predicted))
+            if np.max(np.abs(r)) <= tol * (1.0 + abs(z[-1])):
+                converged = True
+                break
+            z -= spla.spsolve(bordered(jacobian(z), tangent), r)
+            iterations += 1
+        if not converged or not np.all(np.isfinite(z)):
+            ds /= 2
+            if ds < min_step:
+                raise NewtonError(f"continuation stalled at M={y[-1]:.6g}: the corrector failed with step {ds * 2:.3g}", unpack(y[:-1], params.n_particles))
+            continue
+        tangent = new_tangent(z, tangent)
+        y = z
+        x = unpack(y[:-1], params.n_particles)
+        moments.append(y[-1])
+        states.append(x)
+        phi = abs(x[ROW_INDEX["phi"], column(params, particle)])
+        if progress is not None:
+            progress(min(phi, phi0_stop), phi0_stop)
+        if phi >= phi0_stop or abs(y[-1]) > moment_stop:
+            break
+        if iterations <= 2:
+            ds = min(max_step, 1.3 * ds)
+    branch = _assemble_branch(params, model, particle, moments, states, [])
+    branch.folds = _folds_on(params, model, branch)
+    return branch
+
+
+def _folds_on(params: ChainParams, model: Model, branch: Branch) -> list[Fold]:
+    """Locate every fold of a traced branch: where M stops increasing or decreasing along it."""
+    folds = []
+    dm = np.diff(branch.moment)
+    for i in np.flatnonzero(dm[:-1] * dm[1:] < 0):
+        # The extremum of M lies between points i and i + 2; on the rotation-controlled
+        # branch it is a root of dM/dphi_0 there.
+        lo, hi = sorted((branch.phi0[i], branch.phi0[i + 2]))
+        try:
+            fold = locate_fold(params, model, particle=branch.particle, bracket=(lo, hi), seed=(branch.x[i + 1], branch.moment[i + 1]))
+        except (ValueError, NewtonError):
+            continue  # an extremum of M that is not a smooth fold (a kink between two coarse points)
+        folds.append(fold)
+    return folds
