@@ -56,13 +56,18 @@ def load_steps(m_max: float, *, steps: int | None = None, dm: float | None = Non
     if steps is not None:
         if not (isinstance(steps, int) and steps >= 1):
             raise ValueError(f"steps must be an integer >= 1, got {steps!r}")
-        return m_max * np.arange(1, steps + 1) / steps
+        return _tidy(m_max * np.arange(1, steps + 1) / steps)
     if not (math.isfinite(dm) and dm > 0):
         raise ValueError(f"dm must be a finite number > 0, got {dm!r}")
     count = int(math.floor(abs(m_max) / dm * (1 + 1e-12)))
     if count < 1:
         raise ValueError(f"dm={dm!r} is larger than |m_max|={abs(m_max)!r}: no load step")
-    return math.copysign(dm, m_max) * np.arange(1, count + 1)
+    return _tidy(math.copysign(dm, m_max) * np.arange(1, count + 1))
+
+
+def _tidy(loads: np.ndarray) -> np.ndarray:
+    """Round to 14 significant digits, so that 8 x 0.025 prints as 0.2 (the loads are set values, not results)."""
+    return np.array([float(f"{m:.14g}") for m in loads])
 
 
 @dataclass

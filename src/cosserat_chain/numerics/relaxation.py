@@ -34,6 +34,8 @@ from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, zeros
 from .dynamics import default_time_step, integrate
 
+#: Longest chunk between two tests, in units of ``chunk_time``.
+MAX_CHUNKS = 16
 #: Most floats a chunk may store (frames of x and v), whatever the chain length.
 FRAME_BUDGET = 4_000_000
 
@@ -80,7 +82,7 @@ def relax(
     particle: int = 0,
     x0: np.ndarray | None = None,
     v0: np.ndarray | None = None,
-    t_max: float = 5000.0,
+    t_max: float = 20000.0,
     v_tol: float = 1e-9,
     f_tol: float = 1e-9,
     chunk_time: float = 25.0,
@@ -104,7 +106,9 @@ def relax(
     v_tol, f_tol : float
         Rest test: max |v| <= v_tol and max |F + L| <= f_tol (1 + |M|).
     chunk_time : float
-        The rest and rotation tests are made every ``chunk_time``.
+        The rest and rotation tests are made after ``chunk_time``, then after
+        chunks twice as long each time up to 16 ``chunk_time`` (a slow step near
+        the fold then costs few tests, a fast one is not run much past rest).
     window_turns : int
         Turns per window of the rotation test. Rotating states need not repeat
         after one turn (the paper's chain has states that swing back within a
@@ -146,14 +150,16 @@ def relax(
     phi_row = ROW_INDEX["phi"]
     direction = 1.0 if moment >= 0 else -1.0
     phi_start = x[phi_row, col]
-    frames = int(min(chunk_time / dt + 1, FRAME_BUDGET // (6 * params.n_particles)))
+    frames = int(min(MAX_CHUNKS * chunk_time / dt + 1, FRAME_BUDGET // (6 * params.n_particles)))
     crossing_times: list[float] = []
     crossing_phi: list[np.ndarray] = []
     elapsed = 0.0
     status, message = "not_converged", ""
     omega = np.full(params.n_particles, np.nan)
+    chunk = chunk_time
     while True:
-        span = min(chunk_time, t_max - elapsed)
+        span = min(chunk, t_max - elapsed)
+        chunk = min(2 * chunk, MAX_CHUNKS * chunk_time)
         run = integrate(params, model, loads, t0=elapsed, t_end=elapsed + span, dt=dt, x0=x, v0=v, method=method, n_frames=frames, throw=True)
         if run.status == "interrupted":
             raise KeyboardInterrupt

@@ -1,0 +1,113 @@
+"""The exact answer to Fig. 2: compliance, critical moment and the static branch over a full turn.
+
+Contract
+--------
+:func:`critical_point` computes, for one model and one loaded particle,
+
+* the compliance d phi_0 / dM at M = 0 (the same for every model: they share K at rest);
+* the fold of the branch from rest, M_c and phi_0 there, to round-off
+  (:func:`~cosserat_chain.numerics.continuation.locate_fold`); None for the linear model;
+* the branch traced by pseudo-arclength continuation over one full turn of the
+  loaded particle, with the stability of every point and the folds it passes.
+
+The result converts to a JSON-ready dict and to a self-describing xarray Dataset.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import xarray as xr
+
+from ..loads import Loads
+from ..models.base import Model, get_model
+from ..numerics.continuation import Branch, Fold, compliance, continue_in_moment, locate_fold
+from ..params import ChainParams
+from ..state import ROWS
+from .simulation import run_attributes
+
+
+@dataclass
+class CriticalResult:
+    """Statics of one model under a moment on one particle.
+
+    Attributes
+    ----------
+    fold : Fold or None
+        The first fold (None for a model without one: the linear model).
+    compliance : float
+        d phi_0 / dM at M = 0.
+    branch : Branch
+        Continuation over one turn of the loaded particle.
+    """
+
+    params: ChainParams
+    model: str
+    particle: int
+    fold: Fold | None
+    compliance: float
+    branch: Branch
+
+    @property
+    def critical_moment(self) -> float | None:
+        return None if self.fold is None else self.fold.moment
+
+    @property
+    def phi0_at_fold(self) -> float | None:
+        return None if self.fold is None else self.fold.phi0
+
+    def as_dict(self) -> dict:
+        """JSON-ready: ``M_c`` (null without a fold), ``phi0_at_fold``, ``compliance`` and the branch."""
+        return {
+            "model": self.model,
+            "particle": self.particle,
+            "M_c": self.critical_moment,
+            "phi0_at_fold": self.phi0_at_fold,
+            "compliance": self.compliance,
+            "branch": {
+                "moment": self.branch.moment.tolist(),
+                "phi0": self.branch.phi0.tolist(),
+                "stable": self.branch.stable.tolist(),
+                "critical_eigenvalue": self.branch.critical_eigenvalue.tolist(),
+                "folds": [{"moment": f.moment, "phi0": f.phi0} for f in self.branch.folds],
+            },
+        }
+
+    def to_dataset(self) -> xr.Dataset:
+        """Dataset with dims ``point`` (along the branch) and ``particle``; scalars for M_c, phi_0 at the fold, compliance."""
+        b = self.branch
+        data = {row: (("point", "particle"), b.x[:, i, :]) for i, row in enumerate(ROWS)}
+        data.update(
+            {
+                "moment": (("point",), b.moment),
+                "phi0": (("point",), b.phi0),
+                "stable": (("point",), b.stable.astype(np.int8)),
+                "critical_eigenvalue": (("point",), b.critical_eigenvalue),
+                "M_c": ((), np.nan if self.fold is None else self.fold.moment),
+                "phi0_at_fold": ((), np.nan if self.fold is None else self.fold.phi0),
+                "compliance": ((), self.compliance),
+            }
+        )
+        ds = xr.Dataset(data, coords={"point": np.arange(len(b.moment)), "particle": np.arange(-self.params.N, self.params.N + 1)})
+        ds["M_c"].attrs["long_name"] = "critical moment at the first fold (NaN: no fold)"
+        ds["stable"].attrs["long_name"] = "1 if the static state is stable"
+        ds.attrs.update(run_attributes(self.params, get_model(self.model), Loads()))
+        ds.attrs.update({"experiment": "critical_point", "loaded_particle": self.particle})
+        return ds
+
+
+def critical_point(
+    params: ChainParams,
+    model: str | Model,
+    *,
+    particle: int = 0,
+    progress: Callable[[float, float], None] | None = None,
+) -> CriticalResult:
+    """Compliance, fold and full-turn branch of ``model`` under a moment on ``particle``."""
+    model = get_model(model)
+    fold = locate_fold(params, model, particle=particle)
+    branch = continue_in_moment(params, model, particle=particle, phi0_stop=2 * math.pi, progress=progress)
+    return CriticalResult(params, model.name, particle, fold, compliance(params, model, particle=particle), branch)
