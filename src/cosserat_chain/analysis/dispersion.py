@@ -1,0 +1,338 @@
+"""Waves in the chain: dispersion of the infinite linear chain, its continuum limit, and the finite chain's modes.
+
+Contract
+--------
+*Infinite chain.* A wave exp(i (q k - omega t)) of eq. (3) (wavenumber q per
+particle, -pi <= q <= pi) has (u, v, phi) amplitudes that solve
+(B(q) - omega^2 diag(m, m, j)) a = 0 with the Bloch stiffness B(q) of
+:func:`cosserat_chain.models.linear.bloch_stiffness`. With s2 = 4 sin^2(q/2),
+u decouples, omega_L^2 = k_u s2 / m (longitudinal), and v, phi form the 2 x 2
+problem
+
+    | k_v s2 - m w^2           i k_v h sin q             |
+    | -i (couple/h) sin q      bend s2 + couple - j w^2  | = 0,
+
+bend = 2 b^2 D1, couple = 2 b^2 D2, whose two roots are the transverse-acoustic
+branch (omega -> 0 at q -> 0) and the rotational-optical branch. Its determinant
+is k_v s2^2 (bend + couple/4) = 2 b^2 E1 k_v s2^2, so the chain at rest is stable
+for every geometry. Closed-form limits: omega_L ~ q sqrt(k_u/m),
+omega_TA ~ q^2 b sqrt(2 E1/m) / h, omega_RO(0) = sqrt(couple/j); at q = pi the
+branches decouple into 2 sqrt(k_u/m), 2 sqrt(k_v/m) and sqrt(8 b^2 E1/j).
+
+*Continuum.* Eq. (6) with the inertia of eq. (3) (m v_tt = k_v h^2 (v_xx - phi_x),
+j phi_tt = 2 b^2 (h^2 D1 phi_xx + D2 (v_x - phi))) is the same problem with
+s2 -> q^2 and sin q -> q. Its acoustic branch tends to omega^2 ~ 2 b^2 D1 q^4/(m h^2):
+the long-wave equations (6) give the flexural stiffness D1 where the chain has
+E1 = D1 + D2/4, and for D1 < 0 (the paper's chain) that branch is imaginary
+(``Dispersion.omega`` is NaN there).
+
+*Finite clamped chain.* :func:`finite_modes` solves K a = omega^2 M a over the
+free degrees of freedom for the stiffness -dF/dq of any model at any state; the
+sine model's Jacobian is not symmetric there (erratum 4), so non-conservative
+models go through a general eigen solver. Viscosity is left out: these are the
+undamped frequencies.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+from scipy.optimize import minimize_scalar
+
+from ..models.base import Model, get_model
+from ..models.linear import cosserat_coefficients
+from ..params import ChainParams
+from ..state import check_state
+
+#: The three branches, in the row order of ``Dispersion.omega2``.
+BRANCHES = ("longitudinal", "transverse_acoustic", "rotational_optical")
+
+
+@dataclass(frozen=True)
+class Dispersion:
+    """Branches omega(q) of the infinite chain (discrete or continuum).
+
+    Attributes
+    ----------
+    q : ndarray, shape (n_q,)
+        Wavenumbers per particle (radians; the Brillouin zone is [-pi, pi]).
+    omega2 : ndarray, shape (3, n_q)
+        Squared angular frequencies, rows in the order of :data:`BRANCHES`; negative
+        where the continuum equations are unstable.
+    kind : str
+        ``"discrete"`` (eq. 3) or ``"continuum"`` (eq. 6).
+    """
+
+    q: np.ndarray
+    omega2: np.ndarray
+    kind: str
+
+    @property
+    def omega(self) -> np.ndarray:
+        """Angular frequencies (3, n_q); NaN where omega^2 < 0."""
+        return np.sqrt(np.where(self.omega2 >= 0, self.omega2, np.nan))
+
+
+def _wavenumbers(q: np.ndarray | float | None, n_q: int) -> np.ndarray:
+    if q is None:
+        if n_q < 2:
+            raise ValueError(f"n_q must be >= 2, got {n_q!r}")
+        return np.linspace(0.0, np.pi, n_q)
+    q = np.atleast_1d(np.asarray(q, dtype=float))
+    if q.ndim != 1 or not np.all(np.isfinite(q)):
+        raise ValueError(f"q must be a finite number or 1-D array of wavenumbers per particle, got {q!r}")
+    return q
+
+
+def _branches(params: ChainParams, s2: np.ndarray, sin2: np.ndarray, det: np.ndarray) -> np.ndarray:
+    """Roots of the u equation and of the v-phi 2 x 2 problem, without cancellation.
+
+    ``det`` is the determinant of the v-phi stiffness, passed in factored form
+    because k_v s2 (bend s2 + couple) - k_v couple sin^2 q loses all digits at small q.
+    """
+    k_u, k_v, _, bend, couple = cosserat_coefficients(params)
+    m, j = params.m, params.j
+    a = k_v * s2 / m
+    c = (bend * s2 + couple) / j
+    upper = 0.5 * (a + c) + np.sqrt(0.25 * (a - c) ** 2 + k_v * couple * sin2 / (m * j))
+    lower = np.divide(det / (m * j), upper, out=np.zeros_like(upper), where=upper != 0)
+    return np.vstack([k_u * s2 / m, lower, upper])
+
+
+def dispersion(params: ChainParams, q: np.ndarray | float | None = None, *, n_q: int = 257) -> Dispersion:
+    """Dispersion branches of the infinite linear chain, eq. (3) with derived coefficients.
+
+    Parameters
+    ----------
+    params : ChainParams
+        N is irrelevant here.
+    q : float or ndarray, optional
+        Wavenumbers per particle; default ``n_q`` points over [0, pi].
+    n_q : int
+
+    Returns
+    -------
+    Dispersion
+        With ``kind="discrete"``; the branches are sorted (acoustic below optical).
+    """
+    q = _wavenumbers(q, n_q)
+    _, k_v, _, bend, couple = cosserat_coefficients(params)
+    s2 = 4.0 * np.sin(q / 2) ** 2
+    det = k_v * s2**2 * (bend + couple / 4)
+    return Dispersion(q, _branches(params, s2, np.sin(q) ** 2, det), "discrete")
+
+
+def continuum_dispersion(params: ChainParams, q: np.ndarray | float | None = None, *, n_q: int = 257) -> Dispersion:
+    """Dispersion of the continuum equations (6) with inertia (see the module docstring).
+
+    ``q`` is the continuum wavenumber times h, so that it shares the axis with
+    :func:`dispersion`. Uses the geometry-derived D1 and D2.
+    """
+    q = _wavenumbers(q, n_q)
+    _, k_v, _, bend, _ = cosserat_coefficients(params)
+    return Dispersion(q, _branches(params, q**2, q**2, k_v * bend * q**4), "continuum")
+
+
+@dataclass(frozen=True)
+class WaveSummary:
+    """Cut-off frequencies, bands and gaps of the infinite linear chain.
+
+    Attributes
+    ----------
+    at_zero, at_pi : dict
+        Angular frequency of each branch (:data:`BRANCHES`) at q = 0 and q = pi.
+    bands : dict
+        (lowest, highest) frequency of each branch over the Brillouin zone.
+    gap : tuple of float or None
+        (top of the transverse-acoustic band, bottom of the rotational-optical band):
+        no transverse or rotational wave propagates in between. None if they overlap.
+    complete_gaps : tuple of tuples
+        Frequency intervals where no branch at all propagates (longitudinal waves
+        included, which decouple in eq. (3) and often fill ``gap``).
+    """
+
+    at_zero: dict[str, float]
+    at_pi: dict[str, float]
+    bands: dict[str, tuple[float, float]]
+    gap: tuple[float, float] | None
+    complete_gaps: tuple[tuple[float, float], ...]
+
+    def as_dict(self) -> dict[str, object]:
+        """Plain types (for JSON)."""
+        return {
+            "at_zero": dict(self.at_zero),
+            "at_pi": dict(self.at_pi),
+            "bands": {name: list(band) for name, band in self.bands.items()},
+            "gap": list(self.gap) if self.gap else None,
+            "gap_width": self.gap[1] - self.gap[0] if self.gap else 0.0,
+            "complete_gaps": [list(g) for g in self.complete_gaps],
+        }
+
+
+def _extreme(params: ChainParams, branch: int, grid: np.ndarray, values: np.ndarray, sign: float) -> float:
+    """Largest (sign=+1) or smallest (sign=-1) omega of a branch: grid search, then refined between neighbours."""
+    i = int(np.argmax(sign * values))
+    best = values[i]
+    if 0 < i < grid.size - 1:
+        result = minimize_scalar(
+            lambda q: -sign * float(dispersion(params, q).omega[branch, 0]),
+            bounds=(grid[i - 1], grid[i + 1]),
+            method="bounded",
+            options={"xatol": 1e-12},
+        )
+        best = sign * max(sign * best, -float(result.fun))
+    return float(best)
+
+
+def wave_summary(params: ChainParams, *, n_q: int = 1025) -> WaveSummary:
+    """Cut-offs at q = 0 and q = pi, band edges and gaps of the infinite linear chain.
+
+    Parameters
+    ----------
+    params : ChainParams
+    n_q : int
+        Grid over [0, pi] for locating band edges inside the zone; each is then
+        refined to about 1e-12 in q.
+    """
+    curves = dispersion(params, n_q=n_q)
+    omega = curves.omega
+    at_zero = dict(zip(BRANCHES, omega[:, 0].tolist()))
+    at_pi = dict(zip(BRANCHES, omega[:, -1].tolist()))
+    bands = {
+        name: (_extreme(params, b, curves.q, omega[b], -1.0), _extreme(params, b, curves.q, omega[b], 1.0))
+        for b, name in enumerate(BRANCHES)
+    }
+    acoustic, optical = bands["transverse_acoustic"], bands["rotational_optical"]
+    gap = (acoustic[1], optical[0]) if acoustic[1] < optical[0] else None
+    holes = []
+    reach = 0.0
+    for low, high in sorted(bands.values()):
+        if low > reach:
+            holes.append((reach, low))
+        reach = max(reach, high)
+    return WaveSummary(at_zero, at_pi, bands, gap, tuple(holes))
+
+
+def parameter_scan(params: ChainParams, field: str, values: np.ndarray | list[float]) -> dict[str, np.ndarray]:
+    """Cut-off frequencies and the band gap as functions of one parameter.
+
+    Parameters
+    ----------
+    params : ChainParams
+        The other parameters (including j, which is not re-derived when a, b or m change).
+    field : str
+        A field of :class:`ChainParams` other than N.
+    values : sequence of float
+
+    Returns
+    -------
+    dict of ndarray, each of shape (len(values),)
+        ``value``; ``<branch>_at_zero`` and ``<branch>_at_pi`` for each branch;
+        ``gap_lower``, ``gap_upper`` and ``gap_width`` (NaN, NaN, 0 where there is no gap).
+
+    Raises
+    ------
+    ValueError
+        For an unknown field, or a value the parameters do not allow (naming it).
+    """
+    allowed = [name for name in ChainParams.model_fields if name != "N"]
+    if field not in allowed:
+        raise ValueError(f"field must be one of {allowed}, got {field!r}")
+    values = np.asarray(values, dtype=float)
+    out: dict[str, list[float]] = {"value": []}
+    for value in values:
+        summary = wave_summary(params.replace(**{field: float(value)}))
+        out["value"].append(float(value))
+        for name in BRANCHES:
+            out.setdefault(f"{name}_at_zero", []).append(summary.at_zero[name])
+            out.setdefault(f"{name}_at_pi", []).append(summary.at_pi[name])
+        lower, upper = summary.gap if summary.gap else (math.nan, math.nan)
+        out.setdefault("gap_lower", []).append(lower)
+        out.setdefault("gap_upper", []).append(upper)
+        out.setdefault("gap_width", []).append(upper - lower if summary.gap else 0.0)
+    return {key: np.array(column) for key, column in out.items()}
+
+
+@dataclass(frozen=True)
+class Modes:
+    """Small oscillations of the finite clamped chain about a state.
+
+    Attributes
+    ----------
+    omega2 : ndarray, complex, shape (n,)
+        Eigenvalues omega^2 of M^-1 K, sorted by real part; real (zero imaginary
+        part) for conservative models.
+    shapes : ndarray, shape (n, 3, 2N+1)
+        Mode shapes in the state layout (zero clamped ends), normalised to
+        a^H M a = 1 with the largest component real and positive; complex only
+        when a non-conservative model has complex eigenvalues.
+    model : str
+    """
+
+    omega2: np.ndarray
+    shapes: np.ndarray
+    model: str
+
+    @property
+    def frequencies(self) -> np.ndarray:
+        """Angular frequencies sqrt(omega^2), NaN for unstable or complex eigenvalues."""
+        scale = max(float(np.max(np.abs(self.omega2))), 1.0) if self.omega2.size else 1.0
+        real = np.abs(self.omega2.imag) <= 1e-9 * scale
+        return np.where(real & (self.omega2.real >= 0), np.sqrt(np.abs(self.omega2.real)), np.nan)
+
+    @property
+    def stable(self) -> bool:
+        """Whether every eigenvalue is real and non-negative (the state is a stable equilibrium)."""
+        return bool(np.all(np.isfinite(self.frequencies)))
+
+
+def finite_modes(params: ChainParams, model: str | Model = "linear", x: np.ndarray | None = None) -> Modes:
+    """Eigenfrequencies and mode shapes of the clamped chain linearised about ``x``.
+
+    Parameters
+    ----------
+    params : ChainParams
+    model : str or Model
+        ``"linear"``, ``"sine"``, ``"nonlinear"`` or a registered model.
+    x : ndarray, shape (3, 2N+1), optional
+        State to linearise about, e.g. a static state under a load (constant loads
+        do not change the Jacobian); default rest.
+
+    Returns
+    -------
+    Modes
+
+    Raises
+    ------
+    ValueError
+        For an unknown model or a state of the wrong shape, not finite, or not clamped.
+
+    Notes
+    -----
+    Dense eigen solvers: cost O((6N)^3), fine up to N of a few hundred.
+    """
+    model = get_model(model)
+    x = np.zeros((3, params.n_particles)) if x is None else check_state(params, x)
+    stiffness = model.stiffness(params, x).toarray()
+    mass = np.tile(params.inertia, params.n_particles - 2)
+    if model.conservative:
+        eigenvalues, vectors = sla.eigh(stiffness, np.diag(mass))
+        eigenvalues = eigenvalues.astype(complex)
+    else:
+        eigenvalues, vectors = sla.eig(stiffness / mass[:, None])
+        order = np.argsort(eigenvalues.real, kind="stable")
+        eigenvalues, vectors = eigenvalues[order], vectors[:, order]
+        vectors = vectors / np.sqrt(np.einsum("ij,i,ij->j", vectors.conj(), mass, vectors).real)
+    # A deterministic sign (phase): the largest component of each mode real and positive.
+    largest = vectors[np.argmax(np.abs(vectors), axis=0), np.arange(vectors.shape[1])]
+    vectors = vectors * (np.abs(largest) / largest)
+    if model.conservative:
+        vectors = vectors.real
+    n = params.n_particles
+    shapes = np.zeros((vectors.shape[1], 3, n), dtype=vectors.dtype)
+    # Columns of ``vectors`` are in pack order: (u, v, phi) particle by particle.
+    shapes[:, :, 1:-1] = vectors.T.reshape(-1, n - 2, 3).transpose(0, 2, 1)
+    return Modes(eigenvalues, shapes, model.name)
