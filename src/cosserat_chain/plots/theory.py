@@ -1,0 +1,136 @@
+"""Figures of the continuum theory (Section 3) and of the waves in the chain.
+
+Contract
+--------
+:func:`plot_profiles` draws the continuum solution (11) against the discrete linear
+statics (v_k and phi_k), :func:`plot_convergence` the relative error of phi_0 / M
+and the residue (12) against N on log axes, :func:`plot_dispersion` the branches
+omega(q) with the transverse-rotational band gap shaded. Each takes the result
+objects of :mod:`cosserat_chain.analysis.continuum` and
+:mod:`cosserat_chain.analysis.dispersion` and an optional Axes, and returns the
+Figure; :func:`save_figure` writes PNG or SVG by the file's extension. Nothing here
+solves anything.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+
+from ..analysis.continuum import ConvergenceTable, ProfileComparison
+from ..analysis.dispersion import BRANCHES, Dispersion, WaveSummary
+
+#: Formats :func:`save_figure` writes, by file extension.
+FIGURE_FORMATS = (".png", ".svg")
+
+_BRANCH_LABELS = dict(zip(BRANCHES, ("longitudinal (u)", "transverse acoustic (v)", "rotational optical (phi)")))
+_BRANCH_COLOURS = dict(zip(BRANCHES, ("tab:green", "tab:blue", "tab:red")))
+
+
+def _figure(ax: Axes | None, ncols: int = 1) -> tuple[Figure, list[Axes]]:
+    if ax is not None:
+        return ax.figure, [ax]
+    fig = Figure(figsize=(5.0 * ncols, 3.8), layout="constrained")
+    return fig, list(np.atleast_1d(fig.subplots(1, ncols)))
+
+
+def plot_profiles(comparison: ProfileComparison, axes: tuple[Axes, Axes] | None = None) -> Figure:
+    """Continuum (lines) and discrete (markers) profiles v_k and phi_k over the particles.
+
+    Parameters
+    ----------
+    comparison : ProfileComparison
+        From :func:`cosserat_chain.analysis.continuum.compare_profiles`.
+    axes : pair of Axes, optional
+        For v and phi; default a new figure with two panels.
+    """
+    if axes is None:
+        fig, panels = _figure(None, ncols=2)
+    else:
+        panels = list(axes)
+        if len(panels) != 2:
+            raise ValueError(f"axes must be a pair (v, phi), got {len(panels)} axes")
+        fig = panels[0].figure
+    for panel, row, name in zip(panels, (1, 2), ("v", "phi")):
+        field = comparison.v if row == 1 else comparison.phi
+        panel.plot(comparison.x, field, color="tab:blue", label="continuum (11)")
+        panel.plot(comparison.k, comparison.sampled[row], "o", color="tab:blue", markerfacecolor="none", label=f"{name}(kh)")
+        panel.plot(comparison.k, comparison.discrete[row], "x", color="tab:red", label="discrete eq. (3)")
+        panel.set_xlabel("particle k")
+        panel.set_ylabel(f"{name}_k")
+        panel.axhline(0.0, color="0.7", linewidth=0.6)
+    panels[0].legend(loc="best", fontsize="small")
+    panels[0].set_title(f"M = {comparison.moment:g}", fontsize="small", loc="left")
+    return fig
+
+
+def plot_convergence(table: ConvergenceTable, ax: Axes | None = None) -> Figure:
+    """Relative error of the continuum phi_0 / M and the residue (12) against N, log-log."""
+    fig, (panel,) = _figure(ax)
+    panel.loglog(table.N, table.relative_error, "o-", label="relative error of phi_0 / M")
+    panel.loglog(table.N, table.residue, "s--", label="residue (12) per unit M")
+    if table.N.size >= 2:
+        reference = table.relative_error[0] * table.N[0] / table.N
+        panel.loglog(table.N, reference, ":", color="0.5", label="1/N")
+    panel.set_xlabel("N (chain of 2N+1 particles)")
+    panel.legend(loc="best", fontsize="small")
+    return fig
+
+
+def plot_dispersion(
+    curves: Dispersion,
+    summary: WaveSummary | None = None,
+    continuum: Dispersion | None = None,
+    ax: Axes | None = None,
+) -> Figure:
+    """Branches omega(q) over [0, pi], the band gap shaded.
+
+    Parameters
+    ----------
+    curves : Dispersion
+        The discrete branches (:func:`cosserat_chain.analysis.dispersion.dispersion`).
+    summary : WaveSummary, optional
+        Its ``gap`` (transverse-rotational) is shaded, and its ``complete_gaps`` more darkly.
+    continuum : Dispersion, optional
+        Continuum branches, drawn dashed (where real).
+    ax : Axes, optional
+    """
+    fig, (panel,) = _figure(ax)
+    for row, name in enumerate(BRANCHES):
+        panel.plot(curves.q, curves.omega[row], color=_BRANCH_COLOURS[name], label=_BRANCH_LABELS[name])
+        if continuum is not None:
+            panel.plot(continuum.q, continuum.omega[row], "--", color=_BRANCH_COLOURS[name], linewidth=0.9)
+    if continuum is not None:
+        panel.plot([], [], "--", color="0.3", linewidth=0.9, label="continuum (6)")
+    if summary is not None:
+        if summary.gap is not None:
+            panel.axhspan(*summary.gap, color="tab:orange", alpha=0.2, label="v-phi band gap")
+        for low, high in summary.complete_gaps:
+            panel.axhspan(low, high, color="tab:orange", alpha=0.45)
+    top = np.nanmax(curves.omega)
+    panel.set_xlim(0.0, np.pi)
+    panel.set_ylim(0.0, 1.08 * top)
+    panel.set_xticks([0.0, np.pi / 2, np.pi], ["0", "pi/2", "pi"])
+    panel.set_xlabel("wavenumber q per particle")
+    panel.set_ylabel("angular frequency omega")
+    panel.legend(loc="best", fontsize="small")
+    return fig
+
+
+def save_figure(fig: Figure, path: str | Path) -> Path:
+    """Write ``fig`` as PNG or SVG, chosen by the extension of ``path``.
+
+    Raises
+    ------
+    ValueError
+        For another extension, listing the allowed ones.
+    """
+    path = Path(path)
+    if path.suffix.lower() not in FIGURE_FORMATS:
+        raise ValueError(f"figure file must end in one of {', '.join(FIGURE_FORMATS)}, got {str(path)!r}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=150)
+    return path
