@@ -39,6 +39,19 @@ def write_dataset(dataset: xr.Dataset, path: str | Path) -> Path:
     return path
 
 
+def stack_models(datasets: dict[str, xr.Dataset]) -> xr.Dataset:
+    """One Dataset with a ``model`` dimension from per-model results of the same experiment.
+
+    Dimensions of different lengths (e.g. the points of each model's branch) are
+    padded with NaN; attributes that differ between models (the model's name and
+    equation) are dropped, and the names are the ``model`` coordinate.
+    """
+    if len(datasets) == 1:
+        return next(iter(datasets.values()))
+    stacked = xr.concat(list(datasets.values()), dim="model", join="outer", combine_attrs="drop_conflicts")
+    return stacked.assign_coords(model=list(datasets))
+
+
 def read_dataset(path: str | Path) -> xr.Dataset:
     """Load a NetCDF result written by :func:`write_dataset` into memory."""
     with xr.open_dataset(path, engine="h5netcdf") as ds:

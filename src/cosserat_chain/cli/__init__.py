@@ -1,7 +1,9 @@
 """Command line ``cosserat-chain``: one module per command, all registered on one Typer ``app``."""
 
 from . import (
+    draw,  # noqa: F401  (registers draw and animate)
     simulate,  # noqa: F401  (registers the command)
+    statics,  # noqa: F401  (registers sweep and critical)
     theory,  # noqa: F401  (registers the command)
     waves,  # noqa: F401  (registers the command)
 )

@@ -248,7 +248,7 @@ def continue_in_moment(
     moment_stop: float = math.inf,
     step: float = 0.05,
     min_step: float = 1e-6,
-    max_step: float = 0.2,
+    max_step: float = 0.05,
     max_points: int = 5000,
     tol: float = 1e-11,
     progress: ProgressCallback | None = None,

@@ -1,0 +1,116 @@
+"""``cosserat-chain sweep`` (the paper's relaxation protocol) and ``cosserat-chain critical`` (exact statics)."""
+
+from __future__ import annotations
+
+import json
+from enum import Enum
+from pathlib import Path
+
+import typer
+
+from ..experiments.critical import critical_point
+from ..experiments.sweep import relaxation_sweep
+from ..io import stack_models, write_dataset
+from ..numerics.newton import NewtonError
+from .common import app, bar_callback, fail, params_or_exit, progress_bar
+
+
+class ModelChoice(str, Enum):
+    nonlinear = "nonlinear"
+    sine = "sine"
+    linear = "linear"
+    all = "all"
+
+
+def _models(choice: ModelChoice) -> list[str]:
+    return ["nonlinear", "sine", "linear"] if choice is ModelChoice.all else [choice.value]
+
+
+def _save_figure(fig, path: Path) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=150)
+
+
+@app.command()
+def sweep(
+    model: ModelChoice = typer.Option(ModelChoice.all, help="Model, or all three."),
+    m_max: float = typer.Option(..., "--m-max", help="Largest moment of the upward sweep."),
+    steps: int | None = typer.Option(None, help="Number of load steps from 0 to m_max."),
+    dm: float | None = typer.Option(None, help="Load increment (instead of --steps)."),
+    down: bool = typer.Option(False, "--down", help="Then lower the load step by step to 0 (hysteresis)."),
+    particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
+    t_max: float = typer.Option(20000.0, "--t-max", help="Time cap of one load step."),
+    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
+    out: Path | None = typer.Option(None, help="Write the steps to this NetCDF file."),
+    plot: Path | None = typer.Option(None, help="Draw Fig. 2 (with the exact branches) to this PNG/SVG file."),
+    as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+) -> None:
+    """Raise the moment step by step, relaxing to rest at each step (the paper's protocol); report the onset of rotation."""
+    params = params_or_exit(config)
+    results = {}
+    interrupted = False
+    for name in _models(model):
+        bar = progress_bar(f"sweep {name}", "load")
+        try:
+            result = relaxation_sweep(
+                params, name, m_max=m_max, steps=steps, dm=dm, down=down, particle=particle, t_max=t_max, progress=bar_callback(bar)
+            )
+        except ValueError as err:
+            bar.close()
+            fail(str(err))
+        bar.close()
+        results[name] = result
+        if not result.completed:
+            interrupted = True
+            break
+    if out is not None:
+        write_dataset(stack_models({name: r.to_dataset() for name, r in results.items()}), out)
+    if plot is not None:
+        from ..plots.statics import figure2
+
+        criticals = {name: critical_point(params, name, particle=particle) for name in results}
+        _save_figure(figure2(criticals, results), plot)
+    if as_json:
+        typer.echo(json.dumps({"params": params.model_dump(), "models": {name: r.as_dict() for name, r in results.items()}}))
+    else:
+        for name, r in results.items():
+            onset = "none" if r.onset_load is None else f"{r.onset_load:g}"
+            stop = "" if not down else f", rotation stops at {'none' if r.stop_load is None else f'{r.stop_load:g}'}"
+            typer.echo(f"{name}: {len(r.moment)} load steps, onset of rotation at M = {onset}{stop}")
+    if interrupted:
+        typer.secho("interrupted: the finished load steps are kept", err=True, fg=typer.colors.YELLOW)
+        raise typer.Exit(130)
+
+
+@app.command()
+def critical(
+    model: ModelChoice = typer.Option(ModelChoice.all, help="Model, or all three."),
+    particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
+    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
+    out: Path | None = typer.Option(None, help="Write the branches to this NetCDF file."),
+    plot: Path | None = typer.Option(None, help="Draw the branches (Fig. 2 without the relaxation points) to this PNG/SVG file."),
+    as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+) -> None:
+    """Critical moment M_c and phi_0 at the fold (to round-off), compliance, and the static branch over one turn."""
+    params = params_or_exit(config)
+    results = {}
+    for name in _models(model):
+        bar = progress_bar(f"critical {name}", "rad")
+        try:
+            results[name] = critical_point(params, name, particle=particle, progress=bar_callback(bar))
+        except (ValueError, NewtonError) as err:
+            bar.close()
+            fail(str(err), code=2 if isinstance(err, ValueError) else 3)
+        bar.close()
+    if out is not None:
+        write_dataset(stack_models({name: r.to_dataset() for name, r in results.items()}), out)
+    if plot is not None:
+        from ..plots.statics import figure2
+
+        _save_figure(figure2(results), plot)
+    if as_json:
+        typer.echo(json.dumps({"params": params.model_dump(), "models": {name: r.as_dict() for name, r in results.items()}}))
+        return
+    for name, r in results.items():
+        fold = "no fold" if r.fold is None else f"M_c = {r.fold.moment:.15g} at phi_0 = {r.fold.phi0:.15g} rad"
+        typer.echo(f"{name}: {fold}; compliance dphi_0/dM = {r.compliance:.15g}")

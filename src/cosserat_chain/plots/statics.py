@@ -1,0 +1,100 @@
+"""Fig. 2 of the paper, done exactly: phi_0 against M from the relaxation protocol and from continuation.
+
+Contract
+--------
+:func:`figure2` draws two panels from results already computed:
+
+* left, phi_0 of the loaded particle against M: markers at the load steps of the
+  relaxation protocol that ended at rest (the paper's circles), a star at each
+  model's onset of rotation (the paper's stars), the continuation branches
+  (stable solid, unstable dashed) and the small-load tangent phi_0 = c M;
+* right, the full moment-rotation characteristic M(phi_0) over one turn.
+
+It never computes anything itself.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.figure import Figure
+
+from ..experiments.critical import CriticalResult
+from ..experiments.sweep import SweepResult
+
+#: One colour per model, the same in every figure.
+MODEL_COLORS = {"nonlinear": "tab:blue", "sine": "tab:orange", "linear": "tab:green"}
+MODEL_LABELS = {"nonlinear": "nonlinear (1)", "sine": "sine-Cosserat (2)", "linear": "linear Cosserat (3)"}
+
+
+def _runs(flags: np.ndarray) -> list[tuple[np.ndarray, bool]]:
+    """Split index ranges where ``flags`` is constant; each run shares its end point with the next."""
+    edges = np.flatnonzero(np.diff(flags.astype(int))) + 1
+    bounds = [0, *edges.tolist(), len(flags)]
+    return [(np.arange(lo, min(hi + 1, len(flags))), bool(flags[lo])) for lo, hi in zip(bounds[:-1], bounds[1:])]
+
+
+def _branch_lines(ax, moment, phi0, stable, color, label, swap=False):
+    for k, (idx, is_stable) in enumerate(_runs(stable)):
+        xs, ys = (phi0[idx], moment[idx]) if swap else (moment[idx], phi0[idx])
+        ax.plot(xs, ys, color=color, linestyle="-" if is_stable else "--", label=label if k == 0 else None)
+
+
+def figure2(
+    criticals: Mapping[str, CriticalResult],
+    sweeps: Mapping[str, SweepResult] | None = None,
+    *,
+    figsize: tuple[float, float] = (11.0, 4.5),
+) -> Figure:
+    """The paper's Fig. 2 (left) and the characteristic M(phi_0) over one turn (right).
+
+    Parameters
+    ----------
+    criticals : mapping model name -> CriticalResult
+        Branches, folds and compliances (:func:`~cosserat_chain.experiments.critical.critical_point`).
+    sweeps : mapping model name -> SweepResult, optional
+        Relaxation protocols (:func:`~cosserat_chain.experiments.sweep.relaxation_sweep`).
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    sweeps = sweeps or {}
+    fig, (left, right) = plt.subplots(1, 2, figsize=figsize, constrained_layout=True)
+    m_top = max([0.0, *(abs(r.critical_moment or 0.0) for r in criticals.values()), *(np.max(np.abs(s.moment)) for s in sweeps.values())])
+    m_top = 1.15 * (m_top or 0.3)
+    compliance = None
+    for name, result in criticals.items():
+        color = MODEL_COLORS.get(name, "k")
+        branch = result.branch
+        ahead = np.maximum.accumulate(np.abs(branch.phi0)) <= np.pi  # first half turn: the branch of Fig. 2
+        _branch_lines(left, branch.moment[ahead], branch.phi0[ahead], branch.stable[ahead], color, MODEL_LABELS.get(name, name))
+        _branch_lines(right, branch.moment, branch.phi0, branch.stable, color, MODEL_LABELS.get(name, name), swap=True)
+        for fold in branch.folds:
+            if abs(fold.phi0) <= np.pi:
+                left.plot(fold.moment, fold.phi0, "o", mfc="white", mec=color, ms=7)
+            right.plot(fold.phi0, fold.moment, "o", mfc="white", mec=color, ms=7)
+        compliance = result.compliance
+    for name, sweep in sweeps.items():
+        color = MODEL_COLORS.get(name, "k")
+        up = (sweep.direction == "up") & (sweep.status == "static")
+        left.plot(sweep.moment[up], sweep.phi0[up], "o", color=color, ms=4, alpha=0.8)
+        if sweep.onset_load is not None:
+            before = sweep.phi0[up][-1] if up.any() else 0.0
+            left.plot(sweep.onset_load, before, "*", color=color, ms=15, mec="k", mew=0.6)
+    if compliance is not None:
+        moments = np.array([0.0, m_top])
+        left.plot(moments, compliance * moments, ":", color="0.4", label=f"tangent $\\varphi_0 = c M$, c = {compliance:.4g}")
+    left.set(xlim=(0, m_top), ylim=(0, np.pi), xlabel="moment M", ylabel=r"$\varphi_0$ of the loaded particle (rad)")
+    left.set_title("Fig. 2: circles relaxation, stars onset, lines continuation", fontsize=10)
+    left.legend(fontsize=8, loc="upper left")
+    right.axhline(0.0, color="0.7", lw=0.8)
+    folds = [abs(r.critical_moment) for r in criticals.values() if r.critical_moment is not None]
+    if folds:
+        right.set_ylim(-1.4 * max(folds), 1.4 * max(folds))  # the linear model's line would flatten the folds
+    right.set(xlim=(0, 2 * np.pi), xlabel=r"$\varphi_0$ (rad)", ylabel="M holding the particle")
+    right.set_xticks(np.pi * np.arange(5) / 2, ["0", r"$\pi/2$", r"$\pi$", r"$3\pi/2$", r"$2\pi$"])
+    right.set_title("characteristic over one turn (dashed: unstable, open circles: folds)", fontsize=10)
+    return fig
