@@ -55,7 +55,7 @@ def test_sweep_json_reports_steps_onset_and_stop(tmp_path):
     [
         (["sweep", "--m-max", "0.3"], "exactly one of steps"),
         (["sweep", "--m-max", "0.3", "--steps", "3", "--dm", "0.1"], "exactly one of steps"),
-        (["sweep", "--m-max", "0.3", "--steps", "3", "--particle", "3"], "free particle"),
+        (["sweep", "--m-max", "0.3", "--steps", "3", "--particle", "3"], "is clamped"),
     ],
 )
 def test_sweep_bad_input_exits_2_with_a_message(args, message):

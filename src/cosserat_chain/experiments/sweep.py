@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import xarray as xr
 
-from ..loads import Loads
+from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
 from ..numerics.relaxation import relax
 from ..params import ChainParams
@@ -197,7 +197,7 @@ def relaxation_sweep(
     loads = [(m, "up") for m in up]
     if down:
         loads += [(m, "down") for m in np.append(up[-2::-1], 0.0)]
-    column(params, particle)  # validates the particle before anything runs
+    moment_load(m_max, particle).validate(params)  # a bad particle is reported before anything runs
     x, v = zeros(params), zeros(params)
     records = []
     completed = True
