@@ -1,0 +1,119 @@
+"""``cosserat-chain draw`` and ``cosserat-chain animate``: pictures of a run (paper, Figs. 1 and 3).
+
+Both read a NetCDF run written by ``simulate --out``, or, given no file, simulate
+first from ``--model/--moment/--t-end`` (and ``--config``).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import typer
+import xarray as xr
+
+from ..experiments.simulation import simulate as run_simulation
+from ..io import read_dataset
+from ..loads import moment_load
+from ..plots.chain import ANIMATION_FORMATS, FIGURE_FORMATS, frame_indices, snapshot_figure
+from ..plots.chain import animate as write_animation
+from .common import ModelName, app, bar_callback, fail, params_or_exit, progress_bar
+
+#: Stored frames of a simulation run only to be drawn: a cap that keeps memory small.
+_MAX_SIMULATED_FRAMES = 20001
+
+RUN_HELP = "NetCDF run written by `simulate --out`; without it, simulate first from --model/--moment/--t-end."
+
+
+def _load_run(run: Path | None, model: ModelName, moment: float, t_end: float, config: Path | None, n_frames: int) -> xr.Dataset:
+    if run is not None:
+        if not run.is_file():
+            fail(f"run file {str(run)!r} does not exist")
+        try:
+            return read_dataset(run)
+        except (OSError, ValueError) as err:
+            fail(f"cannot read {str(run)!r} as a NetCDF run: {err}")
+    params = params_or_exit(config)
+    if not (math.isfinite(t_end) and t_end > 0):
+        fail(f"--t-end must be > 0, got {t_end!r}")
+    bar = progress_bar(f"simulate {model.value}", "step")
+    try:
+        ds = run_simulation(
+            params, model.value, moment_load(moment).validate(params), t_end=t_end, n_frames=n_frames, progress=bar_callback(bar)
+        )
+    except ValueError as err:
+        bar.close()
+        fail(str(err))
+    bar.close()
+    if ds.attrs["status"] != "completed":
+        typer.secho(f"{ds.attrs['status']}: {ds.attrs['message']}; drawing what was computed", err=True, fg=typer.colors.YELLOW)
+    return ds
+
+
+def _check_suffix(out: Path, allowed: tuple[str, ...]) -> None:
+    if out.suffix.lower() not in allowed:
+        fail(f"unknown output format {out.suffix or '(none)'!r} of --out {str(out)!r}; allowed: {', '.join(allowed)}")
+
+
+def _parse_times(text: str) -> list[float]:
+    times = []
+    for item in text.split(","):
+        try:
+            times.append(float(item))
+        except ValueError:
+            fail(f"--times must be numbers separated by commas, got {item.strip()!r} in {text!r}")
+    return times
+
+
+@app.command()
+def draw(
+    run: Path | None = typer.Argument(None, help=RUN_HELP),
+    out: Path = typer.Option(..., "--out", help="Picture to write: .png, .svg or .pdf."),
+    times: str | None = typer.Option(None, "--times", help="Comma-separated times, one panel each (default: the last stored time)."),
+    model: ModelName = typer.Option(ModelName.nonlinear, help="Model of the simulation run when no RUN is given."),
+    moment: float = typer.Option(0.1, help="Moment on the central particle when no RUN is given."),
+    t_end: float = typer.Option(300.0, "--t-end", help="Final time of the simulation when no RUN is given."),
+    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields, when no RUN is given."),
+) -> None:
+    """Draw the chain at chosen times of a run, one panel per time (paper, Fig. 3)."""
+    _check_suffix(out, FIGURE_FORMATS)
+    ds = _load_run(run, model, moment, t_end, config, n_frames=201)
+    chosen = _parse_times(times) if times is not None else [float(ds.time[-1])]
+    try:
+        figure = snapshot_figure(None, ds, chosen, path=out)
+    except ValueError as err:
+        fail(str(err))
+    typer.echo(f"wrote {out} ({len(figure.axes)} snapshot{'s' if len(figure.axes) > 1 else ''} of {ds.attrs.get('model', 'the run')})")
+
+
+@app.command()
+def animate(
+    run: Path | None = typer.Argument(None, help=RUN_HELP),
+    out: Path = typer.Option(..., "--out", help="Animation to write: .gif, or .mp4 when imageio-ffmpeg is installed."),
+    t_start: float | None = typer.Option(None, "--t-start", help="Start of the window (default: the start of the run)."),
+    t_stop: float | None = typer.Option(None, "--t-stop", help="End of the window (default: the end of the run)."),
+    frames: int = typer.Option(200, "--frames", help="At most this many frames, evenly spread over the window."),
+    fps: float = typer.Option(20.0, "--fps", help="Frames per second."),
+    model: ModelName = typer.Option(ModelName.nonlinear, help="Model of the simulation run when no RUN is given."),
+    moment: float = typer.Option(0.1, help="Moment on the central particle when no RUN is given."),
+    t_end: float = typer.Option(300.0, "--t-end", help="Final time of the simulation when no RUN is given."),
+    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields, when no RUN is given."),
+) -> None:
+    """Animate a time window of a run as a GIF (or MP4), subsampled to at most --frames frames."""
+    _check_suffix(out, ANIMATION_FORMATS)
+    if frames < 1:
+        fail(f"--frames must be >= 1, got {frames}")
+    # A simulation run only to be animated stores enough frames for the window to hold --frames of them.
+    window = (t_stop if t_stop is not None else t_end) - (t_start if t_start is not None else 0.0)
+    stored = min(_MAX_SIMULATED_FRAMES, math.ceil(frames * t_end / window) + 1) if window > 0 else 201
+    ds = _load_run(run, model, moment, t_end, config, n_frames=max(stored, 201))
+    try:
+        count = frame_indices(ds.time.values, t_start, t_stop, frames).size
+        bar = progress_bar("animate", "frame")
+        try:
+            write_animation(None, ds, out, t_start=t_start, t_stop=t_stop, max_frames=frames, fps=fps, progress=bar_callback(bar))
+        finally:
+            bar.close()
+    except (ValueError, RuntimeError) as err:
+        fail(str(err))
+    typer.echo(f"wrote {out} ({count} frames)")
