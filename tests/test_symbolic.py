@@ -1,0 +1,121 @@
+"""The SymPy derivation from the geometry of model (i), and the errata it finds."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+import sympy as sp
+
+from conftest import ROUND_OFF, random_geometries
+from cosserat_chain.analysis.symbolic import (
+    COEFFICIENTS,
+    compare_with_paper,
+    derivation,
+    derived_bond_hessian,
+    derived_coefficients,
+    errata,
+    printed_eq3_stiffness,
+)
+from cosserat_chain.models import LINEAR, NONLINEAR, SINE
+from cosserat_chain.models.base import assemble_bond_blocks
+from cosserat_chain.models.linear import bond_stiffness_block, cosserat_coefficients
+from cosserat_chain.state import zeros
+
+ERRATA_PAGE = Path(__file__).resolve().parents[1] / "docs" / "errata.md"
+
+
+@pytest.mark.parametrize("params", random_geometries(6, seed=2))
+def test_numeric_models_use_exactly_the_derived_coefficients(params):
+    derived = derived_coefficients(params)
+    expected = np.array([derived[name] for name in COEFFICIENTS])
+    for model in (LINEAR, SINE):
+        np.testing.assert_allclose(model.coefficients(params), expected, rtol=ROUND_OFF, atol=ROUND_OFF)
+    np.testing.assert_allclose(cosserat_coefficients(params), expected, rtol=ROUND_OFF, atol=ROUND_OFF)
+    assert params.D1 == pytest.approx(derived["D1"], rel=ROUND_OFF, abs=ROUND_OFF)
+    assert params.D2 == pytest.approx(derived["D2"], rel=ROUND_OFF, abs=ROUND_OFF)
+    np.testing.assert_allclose(bond_stiffness_block(params), derived_bond_hessian(params), rtol=ROUND_OFF, atol=ROUND_OFF)
+
+
+@pytest.mark.parametrize("params", random_geometries(3, seed=5))
+def test_derived_bond_energy_is_the_second_order_expansion_of_model_i(params):
+    # The derived bond Hessian, assembled over the chain, is the nonlinear model's exact Hessian at rest.
+    blocks = np.broadcast_to(derived_bond_hessian(params), (params.n_particles - 1, 6, 6))
+    derived = assemble_bond_blocks(np.ascontiguousarray(blocks), params.n_particles).toarray()
+    exact = NONLINEAR.stiffness(params, zeros(params)).toarray()
+    np.testing.assert_allclose(derived, exact, rtol=0, atol=1e-10 * np.max(np.abs(exact)))
+
+
+def test_derived_coefficients_in_closed_form():
+    d = derivation()
+    s = d.symbols
+    E1, E2, h, b, dd, g = (s[n] for n in ("E1", "E2", "h", "b", "d", "g"))
+    expected = {
+        "k_u": 2 * (E1 + g**2 / dd**2 * E2),
+        "k_v": 8 * b**2 / dd**2 * E2,
+        "arm": h,
+        "D1": E1 - h**2 / dd**2 * E2,
+        "D2": 4 * h**2 / dd**2 * E2,
+    }
+    for name, value in expected.items():
+        assert sp.simplify(d.coefficients[name] - value) == 0, name
+    # The bond energy per bond: k_u/2 du^2 + E1 b^2 dphi^2 + k_v/2 (dv - h (phi + phi_p)/2)^2.
+    du, dv, dphi = s["u_p"] - s["u"], s["v_p"] - s["v"], s["phi_p"] - s["phi"]
+    energy = expected["k_u"] / 2 * du**2 + E1 * b**2 * dphi**2 + expected["k_v"] / 2 * (dv - h * (s["phi"] + s["phi_p"]) / 2) ** 2
+    difference = (d.bond_energy - energy).subs(dd, sp.sqrt(g**2 + 4 * b**2))
+    assert sp.simplify(difference) == 0
+
+
+def test_comparison_with_the_paper_finds_exactly_the_known_errata():
+    failing = {check.key for check in compare_with_paper() if not check.agrees}
+    assert failing == {"eq3.couple", "section3.D1", "section3.reduced_E1", "section2.kinetic", "eq2.potential"}
+    agreeing = {check.key for check in compare_with_paper() if check.agrees}
+    # Eq. (2) is right, Section 3's algebra is right given D1 and D2, the link energy is right.
+    assert {f"eq2.{name}" for name in COEFFICIENTS} <= agreeing
+    assert {"section3.D2", "section2.link_energy", "eq7", "eq11.v", "eq11.phi", "phi0", "eq12", "eq4", "reduced"} <= agreeing
+
+
+def test_eq2_is_not_conservative_and_its_curl_vanishes_only_at_phi_zero():
+    (check,) = [c for c in compare_with_paper() if c.key == "eq2.potential"]
+    phi_p, k_v, h = sp.Symbol("phi_p", real=True), sp.Symbol("k_v"), derivation().symbols["h"]
+    assert sp.simplify(check.derived - k_v * h * (1 - sp.cos(phi_p)) / 2) == 0
+    assert check.derived.subs(phi_p, 0) == 0
+
+
+def test_printed_eq3_is_not_symmetric_and_makes_the_paper_chain_unstable(paper):
+    printed = printed_eq3_stiffness(paper)
+    derived = LINEAR.stiffness(paper).toarray()
+    # The printed operator differs only in the phi equation's coupling term D2 ((v_k+1 - v_k-1)/2h - phi_k), by the factor 4.
+    rows, cols = np.nonzero(np.abs(printed - derived) > ROUND_OFF)
+    assert set(rows % 3) == {2} and set(cols % 3) == {1, 2}
+    np.testing.assert_allclose(printed[2::3, 1::3], derived[2::3, 1::3] / 4, rtol=ROUND_OFF)
+    couple = 2 * paper.b**2 * paper.D2
+    np.testing.assert_allclose(np.diag(printed - derived)[2::3], -0.75 * couple, rtol=ROUND_OFF)
+    assert np.max(np.abs(printed - printed.T)) > 0.1
+    inverse_mass = 1.0 / np.tile(paper.inertia, paper.n_particles - 2)
+    lowest = np.min(np.linalg.eigvals(inverse_mass[:, None] * printed).real)
+    assert lowest == pytest.approx(-4.66, abs=0.01)
+    assert np.min(np.linalg.eigvalsh(derived)) > 0
+
+
+def test_errata_carry_printed_derived_and_consequence_for_the_given_chain(paper):
+    listed = errata(paper)
+    assert [e.number for e in listed] == [1, 2, 3, 4, 5, 6]
+    assert all(e.printed and e.derived and e.consequence for e in listed)
+    assert [e.found_by for e in listed] == ["sympy"] * 4 + ["reading"] * 2
+    assert "-4.66" in listed[0].consequence and "exp(2.16 t)" in listed[0].consequence
+    assert "-0.9231" in listed[1].consequence and "-2.846" in listed[1].consequence
+    # Every SymPy-found erratum names the failing checks behind it, and every failing check has its erratum.
+    behind = {key for e in listed for key in e.checks}
+    assert behind == {c.key for c in compare_with_paper() if not c.agrees}
+    longer = errata(paper.replace(N=5))
+    assert "N = 5" in longer[0].consequence
+
+
+def test_errata_page_lists_the_same_errata():
+    page = ERRATA_PAGE.read_text()
+    rows = re.findall(r"^\| (\d+) \|", page, flags=re.MULTILINE)
+    assert [int(n) for n in rows] == [e.number for e in errata()]
+    assert "-4.66" in page and "exp(2.16 t)" in page and "-0.923" in page
