@@ -127,3 +127,10 @@ def test_bad_relaxation_settings_are_refused(paper):
         relax(paper, "linear", 0.1, window_turns=0)
     with pytest.raises(ValueError, match="particle must be in"):
         relaxation_sweep(paper, "linear", m_max=0.1, steps=1, particle=7)
+
+
+def test_stop_at_onset_ends_the_upward_sweep_at_the_first_rotating_step(paper):
+    full = relaxation_sweep(paper, "sine", m_max=0.3, steps=12)
+    short = relaxation_sweep(paper, "sine", m_max=0.3, steps=12, stop_at_onset=True)
+    assert short.onset_load == full.onset_load
+    assert short.moment[-1] == full.onset_load and list(short.status) == list(full.status[: len(short.moment)])

@@ -165,6 +165,7 @@ def relaxation_sweep(
     steps: int | None = None,
     dm: float | None = None,
     down: bool = False,
+    stop_at_onset: bool = False,
     particle: int = 0,
     progress: Callable[[int, int], None] | None = None,
     **relax_options,
@@ -181,6 +182,9 @@ def relaxation_sweep(
         Number of load steps or load increment (exactly one), see :func:`load_steps`.
     down : bool
         Lower the load again from the last state, down to 0.
+    stop_at_onset : bool
+        End the upward sweep at the first rotating step (when only the onset
+        load is wanted); the downward sweep, if asked for, starts there.
     particle : int
         The loaded particle (default the central one).
     progress : callable(steps_done, steps_total), optional
@@ -194,27 +198,35 @@ def relaxation_sweep(
     """
     model = get_model(model)
     up = load_steps(m_max, steps=steps, dm=dm)
-    loads = [(m, "up") for m in up]
-    if down:
-        loads += [(m, "down") for m in np.append(up[-2::-1], 0.0)]
     moment_load(m_max, particle).validate(params)  # a bad particle is reported before anything runs
-    x, v = zeros(params), zeros(params)
-    records = []
-    completed = True
-    for i, (moment, direction) in enumerate(loads):
-        try:
-            step = relax(params, model, float(moment), particle=particle, x0=x, v0=v, **relax_options)
-        except KeyboardInterrupt:
-            completed = False
-            log.warning("relaxation sweep interrupted at load %g; %d finished steps kept", moment, len(records))
-            break
-        if step.status == NOT_CONVERGED:
-            log.warning("load %g: %s", moment, step.message)
-        records.append((moment, direction, step))
-        x, v = step.x, step.v
-        if progress is not None:
-            progress(i + 1, len(loads))
-    return _result(params, model.name, particle, records, completed, {"m_max": m_max, "steps": steps, "dm": dm, "down": down, **relax_options})
+    total = 2 * len(up) if down else len(up)
+    state = {"x": zeros(params), "v": zeros(params)}
+    records: list[tuple[float, str, object]] = []
+
+    def run(moments, direction: str) -> bool:
+        """Relax at each load in turn; False if interrupted."""
+        for moment in moments:
+            try:
+                step = relax(params, model, float(moment), particle=particle, x0=state["x"], v0=state["v"], **relax_options)
+            except KeyboardInterrupt:
+                log.warning("relaxation sweep interrupted at load %g; %d finished steps kept", moment, len(records))
+                return False
+            if step.status == NOT_CONVERGED:
+                log.warning("load %g: %s", moment, step.message)
+            records.append((float(moment), direction, step))
+            state["x"], state["v"] = step.x, step.v
+            if progress is not None:
+                progress(len(records), total)
+            if direction == "up" and stop_at_onset and step.status == ROTATING:
+                break
+        return True
+
+    completed = run(up, "up")
+    if completed and down:
+        top = len(records)
+        completed = run(np.append(up[: top - 1][::-1], 0.0), "down")
+    settings = {"m_max": m_max, "steps": steps, "dm": dm, "down": down, "stop_at_onset": stop_at_onset, **relax_options}
+    return _result(params, model.name, particle, records, completed, settings)
 
 
 def _result(params, model_name, particle, records, completed, settings) -> SweepResult:

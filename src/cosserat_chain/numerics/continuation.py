@@ -192,7 +192,7 @@ def locate_fold(
     particle: int = 0,
     bracket: tuple[float, float] | None = None,
     phi0_max: float = math.pi,
-    n_scan: int = 64,
+    n_scan: int = 16,
     seed: tuple[np.ndarray, float] | None = None,
 ) -> Fold | None:
     """The first fold of the branch from rest under a positive moment, to round-off.
