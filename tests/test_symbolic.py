@@ -119,3 +119,8 @@ def test_errata_page_lists_the_same_errata():
     rows = re.findall(r"^\| (\d+) \|", page, flags=re.MULTILINE)
     assert [int(n) for n in rows] == [e.number for e in errata()]
     assert "-4.66" in page and "exp(2.16 t)" in page and "-0.923" in page
+
+
+def test_errata_for_a_chain_without_diagonals_say_the_misprints_do_not_apply(paper):
+    listed = errata(paper.replace(E2=0.0))
+    assert "E2 = 0" in listed[0].consequence and "E2 = 0" in listed[1].consequence

@@ -288,7 +288,6 @@ def _numeric(expr: Any, params: ChainParams) -> float:
         s["b"]: params.b,
         s["d"]: params.d,
         s["g"]: params.gap,
-        s["a"]: params.a,
     }
     return float(expr.subs(values))
 
@@ -571,7 +570,7 @@ def _potential_check(derived: Derivation) -> Check:
     # F_phi of particle k+1 depends on v_k through its left neighbour: shift the printed phi equation by one site.
     f_phi_next = _printed_equations("2")[2].subs({s["v_m"]: s["v"]}, simultaneous=True)
     curl = sp.cancel(sp.diff(f_v, s["phi_p"]) - sp.diff(f_phi_next, s["v"]))
-    curl = sp.factor(curl.subs(_tidy_subs()))
+    curl = sp.factor(curl.subs(_k_v_subs()))
     return Check(
         "eq2.potential",
         "eq. (2), presented as a linearisation of model (i)",
@@ -582,7 +581,7 @@ def _potential_check(derived: Derivation) -> Check:
     )
 
 
-def _tidy_subs() -> dict[Any, Any]:
+def _k_v_subs() -> dict[Any, Any]:
     """8 b^2 / d^2 E2 = k_v: lets the curl of eq. (2) read k_v h (1 - cos phi) / 2."""
     import sympy as sp
 
@@ -645,38 +644,50 @@ def errata(params: ChainParams | None = None) -> tuple[Erratum, ...]:
     lowest = eigenvalues[np.argmin(eigenvalues.real)]
     derived_lowest = float(np.min(np.linalg.eigvalsh(stiffness_matrix(params).toarray())))
     asymmetry = float(np.max(np.abs(printed_K - printed_K.T)))
-    if lowest.real < 0:
-        stability = (
-            f"M^-1 K has the eigenvalue {lowest.real:.3g}: the chain at rest is unstable, its displacements grow "
-            f"like exp({np.sqrt(-lowest.real):.3g} t) without damping"
-        )
+    if params.E2 == 0:
+        operator = "Without diagonal links (E2 = 0) the coupling vanishes and the misprint has no effect on this chain."
     else:
-        stability = f"the lowest eigenvalue of M^-1 K is {lowest.real:.3g}, so this chain happens to stay stable"
+        if lowest.real < 0:
+            stability = (
+                f"M^-1 K has the eigenvalue {lowest.real:.3g}: the chain at rest is unstable, its displacements grow "
+                f"like exp({np.sqrt(-lowest.real):.3g} t) without damping"
+            )
+        else:
+            stability = f"the lowest eigenvalue of M^-1 K is {lowest.real:.3g}, so this chain happens to stay stable"
+        operator = (
+            f"The printed stiffness matrix is not symmetric (max |K - K^T| = {asymmetry:.3g}), so no energy exists; for "
+            f"this chain (N = {params.N}) {stability}. With the factor 4 the smallest eigenvalue of K is {derived_lowest:+.3g}."
+        )
     one = Erratum(
         1,
         "eq. (3), phi equation",
         f"coupling {_fmt(checks['eq3.couple'].printed)} (i.e. (h^2/d^2) E2 inside 2 b^2 [...])",
         f"coupling {_fmt(checks['eq3.couple'].derived)} (4 (h^2/d^2) E2, as printed in eq. (2))",
-        f"The printed stiffness matrix is not symmetric (max |K - K^T| = {asymmetry:.3g}), so no energy exists; for "
-        f"this chain (N = {params.N}) {stability}. With the factor 4 the smallest eigenvalue of K is {derived_lowest:+.3g}.",
+        operator,
         "sympy",
         tuple(sorted(k for k in failing if k.startswith("eq3."))),
     )
 
     # 2: Section 3's D1.
     d1_printed = printed_D1(params)
-    discrete = float(discrete_static(params)[2, params.N])
-    try:
-        printed_compliance = f"{central_rotation(params, D1=d1_printed):.4g}"
-    except ValueError:
-        printed_compliance = "undefined (the denominator of (11) vanishes)"
+    if params.E2 > 0:
+        discrete = float(discrete_static(params)[2, params.N])
+        try:
+            printed_compliance = f"{central_rotation(params, D1=d1_printed):.4g}"
+        except ValueError:
+            printed_compliance = "undefined (the denominator of (11) vanishes)"
+        compliance = (
+            f"With the derived D1 the continuum compliance phi(0)/M of (11) is {central_rotation(params):.4g} against the "
+            f"discrete {discrete:.4g}; with the printed D1 it is {printed_compliance}. "
+        )
+    else:
+        compliance = "Without diagonal links (E2 = 0) there is no coupling and Section 3 does not apply. "
     two = Erratum(
         2,
         "Section 3.1, definition after eq. (5), and Section 3.2",
         f"D1 = {_fmt(checks['section3.D1'].printed)}; reduced model at E1 = {_fmt(checks['section3.reduced_E1'].printed)}",
         f"D1 = {_fmt(checks['section3.D1'].derived)}, the bending coefficient of eqs. (2)-(3); reduced model at E1 = {_fmt(checks['section3.reduced_E1'].derived)}",
-        f"For this chain D1 = {params.D1:.4g}, not {d1_printed:.4g}. With the derived D1 the continuum compliance phi(0)/M of (11) "
-        f"is {central_rotation(params):.4g} against the discrete {discrete:.4g}; with the printed D1 it is {printed_compliance}. "
+        f"For this chain D1 = {params.D1:.4g}, not {d1_printed:.4g}. {compliance}"
         "The large-N limit of (11) has the sign of 4 D1 + D2, which is 4 E1 > 0 with the derived D1 but 4 E1 - 4 (h/d)^2 E2 with "
         "the printed one: for E2 > (d/h)^2 E1 the printed theory turns the loaded particle against the moment.",
         "sympy",
