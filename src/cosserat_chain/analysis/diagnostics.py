@@ -1,0 +1,320 @@
+"""Streaming diagnostics of a long run: turns, extreme excursions, energy localization.
+
+Contract
+--------
+:class:`StreamingDiagnostics` is updated chunk by chunk with the frames of each
+chunk (every step of it) and keeps only per-particle summaries, never the
+frames, so a run of any length needs constant memory. Feeding one trajectory in
+chunks gives the same diagnostics as feeding it whole: maxima, turn counts and
+turn times exactly, the run averages to round-off (only the order of a sum
+changes). The state round-trips through :meth:`StreamingDiagnostics.to_variables`
+and :meth:`StreamingDiagnostics.from_variables` (a checkpoint).
+
+Definitions (theta_k = phi_k - phi_k(t_start), the unwrapped angle: phi is never
+wrapped by the integrators):
+
+* winding number: trunc(theta_k / 2 pi), the signed number of full turns made
+  (floor for theta_k >= 0; a small swing to negative angles is 0 turns, not -1);
+* turns made: the largest |winding number| reached during the run, and the time
+  at which it was last increased;
+* mean angular velocity of the loaded particle: theta / (t - t_start); and over
+  the most recent ``WINDOW_TURNS`` full turns, 2 pi k / (time of turn n - time of
+  turn n - k), the turn times interpolated linearly between steps;
+* energy of a free particle: its kinetic energy plus half the energy of each of
+  its two bonds (a bond to a clamped end counts wholly for the free particle).
+  Bond energies are exact for the nonlinear model (the four links of eq. 1) and
+  the linear model (eq. 3); the sine model (eq. 2) has no potential, so its
+  bonds are given the linear model's bond energy evaluated at (u, v, sin phi),
+  whose forces are the sine model's in the linearised rotations;
+* participation ratio of the energies e_k of the 2N-1 free particles:
+  PR = (sum e_k)^2 / sum e_k^2, between 1 (all energy on one particle) and 2N-1
+  (evenly spread), averaged over the steps with non-zero energy;
+* a particle is *rotating* if it made at least one full turn and made its latest
+  new turn in the last ``RECENT_FRACTION`` of the run; the run is ``static`` if no
+  particle rotates, ``localized_rotation`` if exactly the loaded one does, and
+  ``several_rotating`` if any other particle does.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from ..geometry import bond_links, rotate
+from ..models.base import Model, get_model
+from ..params import ChainParams
+from ..state import column
+
+TWO_PI = 2.0 * math.pi
+#: The recent angular velocity is measured over this many of the latest full turns.
+WINDOW_TURNS = 10
+#: A particle still rotates if its latest new turn lies in this last fraction of the run.
+RECENT_FRACTION = 0.25
+CLASSIFICATIONS = ("static", "localized_rotation", "several_rotating")
+
+
+def bond_energies(params: ChainParams, model: str | Model, x: np.ndarray) -> np.ndarray:
+    """Energy stored in every bond, for any number of configurations.
+
+    Parameters
+    ----------
+    params : ChainParams
+    model : {"nonlinear", "sine", "linear"} or Model
+        See the module docstring for the sine model's (linearised) bond energy.
+    x : ndarray (..., 3, 2N+1)
+
+    Returns
+    -------
+    ndarray (..., 2N)
+        Bond k joins columns k and k+1.
+
+    Raises
+    ------
+    ValueError
+        For a model without a bond energy.
+    """
+    model = get_model(model)
+    x = np.asarray(x, dtype=float)
+    u, v, phi = x[..., 0, :], x[..., 1, :], x[..., 2, :]
+    du = np.diff(u, axis=-1)
+    dv = np.diff(v, axis=-1)
+    if model.name == "nonlinear":
+        total = np.zeros(du.shape)
+        for link in bond_links(params):
+            r0x, r0y = rotate(link.left_corner, phi[..., :-1])
+            r1x, r1y = rotate(link.right_corner, phi[..., 1:])
+            length = np.hypot(params.h + du + r1x - r0x, dv + r1y - r0y)
+            total += 0.5 * link.stiffness * (length - link.rest_length) ** 2
+        return total
+    if model.name in ("linear", "sine"):
+        angle = np.sin(phi) if model.name == "sine" else phi
+        shear = dv - 0.5 * params.h * (angle[..., 1:] + angle[..., :-1])
+        return 0.5 * params.k_u * du**2 + params.E1 * params.b**2 * np.diff(angle, axis=-1) ** 2 + 0.5 * params.k_v * shear**2
+    raise ValueError(f"model must be one of ['linear', 'nonlinear', 'sine'] for bond energies, got {model.name!r}")
+
+
+def particle_energies(params: ChainParams, model: str | Model, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Energy of every free particle: kinetic plus its share of the bond energies (module docstring).
+
+    Parameters
+    ----------
+    x, v : ndarray (..., 3, 2N+1)
+        Configurations and velocities.
+
+    Returns
+    -------
+    ndarray (..., 2N-1)
+        Particles -N+1..N-1; the sum over them is the total (kinetic + bond) energy.
+    """
+    bonds = bond_energies(params, model, x)
+    inertia = np.asarray(params.inertia)[:, None]
+    energy = 0.5 * np.sum(inertia * np.asarray(v, dtype=float) ** 2, axis=-2)
+    energy[..., :-1] += 0.5 * bonds
+    energy[..., 1:] += 0.5 * bonds
+    # The clamped ends hold no energy of their own: their halves go to their free neighbours.
+    energy[..., 1] += 0.5 * bonds[..., 0]
+    energy[..., -2] += 0.5 * bonds[..., -1]
+    return energy[..., 1:-1]
+
+
+def participation_ratio(energy: np.ndarray) -> np.ndarray:
+    """(sum e)^2 / sum e^2 over the last axis; NaN where all e are zero."""
+    energy = np.asarray(energy, dtype=float)
+    squares = np.sum(energy**2, axis=-1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(squares > 0, np.sum(energy, axis=-1) ** 2 / squares, np.nan)
+
+
+class StreamingDiagnostics:
+    """Per-particle summaries of a run, updated from the frames of one chunk at a time.
+
+    Parameters
+    ----------
+    params : ChainParams
+    model : {"nonlinear", "sine", "linear"} or Model
+    particle : int
+        The loaded particle, in -N+1..N-1.
+    x0, v0 : ndarray (3, 2N+1)
+        State at the start of the run (counted as its first frame).
+    t0 : float
+        Time of the start.
+
+    Notes
+    -----
+    See the module docstring for the definitions. Attributes that are arrays
+    run over all 2N+1 particles (clamped ends included, where they stay zero).
+    """
+
+    #: Names of the array state saved by :meth:`to_variables`, all over ``particle``.
+    _PER_PARTICLE = ("angle_start", "angle", "max_abs_u", "max_abs_v", "max_abs_phi", "turns", "last_turn_time", "energy_share_sum")
+    _SCALARS = ("t_start", "time", "steps", "participation_sum", "energy_steps")
+
+    def __init__(self, params: ChainParams, model: str | Model, particle: int, x0: np.ndarray, v0: np.ndarray, t0: float = 0.0):
+        self.params = params
+        self.model = get_model(model)
+        self.particle = particle
+        self.column = column(params, particle)
+        x0 = np.asarray(x0, dtype=float)
+        n = params.n_particles
+        self.t_start = float(t0)
+        self.time = float(t0)
+        self.steps = 0
+        self.angle_start = x0[2].copy()
+        self.angle = x0[2].copy()
+        self.max_abs_u = np.abs(x0[0])
+        self.max_abs_v = np.abs(x0[1])
+        self.max_abs_phi = np.abs(x0[2])
+        self.turns = np.zeros(n, dtype=np.int64)
+        self.last_turn_time = np.full(n, np.nan)
+        #: Interpolated times of the loaded particle's latest (up to WINDOW_TURNS + 1) full turns.
+        self.turn_times = np.zeros(0)
+        self.participation_sum = 0.0
+        self.energy_share_sum = np.zeros(n)
+        self.energy_steps = 0
+        self._accumulate_energy(np.asarray(x0, dtype=float)[None], np.asarray(v0, dtype=float)[None])
+
+    # ------------------------------------------------------------------ updating
+    def update(self, time: np.ndarray, x: np.ndarray, v: np.ndarray) -> None:
+        """Take in the frames of one chunk.
+
+        Parameters
+        ----------
+        time : ndarray (F,)
+        x, v : ndarray (F, 3, 2N+1)
+            Consecutive steps; frame 0 is the state already taken in (the end of
+            the previous chunk, or the start), so only frames 1..F-1 are new.
+        """
+        time = np.asarray(time, dtype=float)
+        x = np.asarray(x, dtype=float)
+        if time.size < 2:
+            return
+        new = x[1:]
+        self.max_abs_u = np.maximum(self.max_abs_u, np.abs(new[:, 0]).max(axis=0))
+        self.max_abs_v = np.maximum(self.max_abs_v, np.abs(new[:, 1]).max(axis=0))
+        self.max_abs_phi = np.maximum(self.max_abs_phi, np.abs(new[:, 2]).max(axis=0))
+
+        theta = np.abs(x[:, 2] - self.angle_start)
+        levels = np.floor(theta / TWO_PI).astype(np.int64)
+        running = np.maximum.accumulate(np.concatenate([self.turns[None], levels[1:]]), axis=0)
+        increased = running[1:] > running[:-1]
+        turned = increased.any(axis=0)
+        last = increased.shape[0] - 1 - np.argmax(increased[::-1], axis=0)
+        self.last_turn_time = np.where(turned, time[1:][last], self.last_turn_time)
+
+        c = self.column
+        new_times = []
+        for level in range(self.turns[c] + 1, running[-1, c] + 1):
+            i = int(np.argmax(theta[:, c] >= TWO_PI * level))
+            fraction = (TWO_PI * level - theta[i - 1, c]) / (theta[i, c] - theta[i - 1, c])
+            new_times.append(time[i - 1] + fraction * (time[i] - time[i - 1]))
+        self.turn_times = np.concatenate([self.turn_times, new_times])[-(WINDOW_TURNS + 1) :]
+        self.turns = running[-1].copy()
+
+        self._accumulate_energy(new, np.asarray(v, dtype=float)[1:])
+        self.steps += time.size - 1
+        self.time = float(time[-1])
+        self.angle = x[-1, 2].copy()
+
+    def _accumulate_energy(self, x: np.ndarray, v: np.ndarray) -> None:
+        energy = particle_energies(self.params, self.model, x, v)
+        total = energy.sum(axis=-1)
+        moving = total > 0
+        if not moving.any():
+            return
+        energy, total = energy[moving], total[moving]
+        self.participation_sum += float(np.sum(total**2 / np.sum(energy**2, axis=-1)))
+        self.energy_share_sum[1:-1] += np.sum(energy / total[:, None], axis=0)
+        self.energy_steps += int(moving.sum())
+
+    # ------------------------------------------------------------------ results
+    @property
+    def unwrapped_angle(self) -> np.ndarray:
+        """theta_k = phi_k - phi_k(t_start) at the latest frame, (2N+1,)."""
+        return self.angle - self.angle_start
+
+    @property
+    def winding(self) -> np.ndarray:
+        """Signed full turns trunc(theta_k / 2 pi) at the latest frame, (2N+1,) int."""
+        return np.trunc(self.unwrapped_angle / TWO_PI).astype(np.int64)
+
+    @property
+    def turns_completed(self) -> int:
+        """Full turns made by the loaded particle."""
+        return int(self.turns[self.column])
+
+    @property
+    def mean_angular_velocity(self) -> float:
+        """theta / (t - t_start) of the loaded particle; NaN before the first step."""
+        elapsed = self.time - self.t_start
+        return float(self.unwrapped_angle[self.column] / elapsed) if elapsed > 0 else math.nan
+
+    @property
+    def recent_angular_velocity(self) -> float:
+        """Mean angular velocity over the latest (up to ``WINDOW_TURNS``) full turns; NaN before two turns."""
+        if self.turn_times.size < 2:
+            return math.nan
+        sign = 1.0 if self.unwrapped_angle[self.column] >= 0 else -1.0
+        return float(sign * TWO_PI * (self.turn_times.size - 1) / (self.turn_times[-1] - self.turn_times[0]))
+
+    @property
+    def participation_ratio(self) -> float:
+        """Participation ratio of the particle energies averaged over the steps; NaN if nothing moved."""
+        return self.participation_sum / self.energy_steps if self.energy_steps else math.nan
+
+    @property
+    def mean_energy_share(self) -> np.ndarray:
+        """Average fraction of the chain's energy on every particle, (2N+1,) (clamped ends 0)."""
+        return self.energy_share_sum / self.energy_steps if self.energy_steps else np.full(self.params.n_particles, np.nan)
+
+    @property
+    def rotating(self) -> np.ndarray:
+        """Which particles still rotate (module docstring), (2N+1,) bool."""
+        recent = self.time - RECENT_FRACTION * (self.time - self.t_start)
+        with np.errstate(invalid="ignore"):
+            return (self.turns >= 1) & (self.last_turn_time >= recent)
+
+    @property
+    def classification(self) -> str:
+        """``static``, ``localized_rotation`` or ``several_rotating`` (module docstring)."""
+        rotating = self.rotating
+        others = np.delete(rotating, self.column)
+        if others.any():
+            return "several_rotating"
+        return "localized_rotation" if rotating[self.column] else "static"
+
+    def max_over_others(self, values: np.ndarray) -> float:
+        """Largest entry of a per-particle array over the particles other than the loaded one."""
+        return float(np.max(np.delete(values, self.column)))
+
+    # ------------------------------------------------------------------ checkpoint
+    def to_variables(self) -> dict[str, Any]:
+        """The state as xarray-ready variables: name -> (dims, values); exact round trip."""
+        out: dict[str, Any] = {f"diag_{name}": (("particle",), getattr(self, name)) for name in self._PER_PARTICLE}
+        out["diag_turn_times"] = (("recent_turn",), self.turn_times)
+        for name in self._SCALARS:
+            out[f"diag_{name}"] = ((), getattr(self, name))
+        return out
+
+    @classmethod
+    def from_variables(cls, params: ChainParams, model: str | Model, particle: int, variables: Any) -> StreamingDiagnostics:
+        """Rebuild the accumulator from :meth:`to_variables` (or a Dataset holding them)."""
+        n = params.n_particles
+        zero = np.zeros((3, n))
+        diagnostics = cls(params, model, particle, zero, zero)
+
+        def value(name: str) -> np.ndarray:
+            item = variables[f"diag_{name}"]
+            return np.asarray(item[1] if isinstance(item, tuple) else item.values)
+
+        for name in cls._PER_PARTICLE:
+            array = value(name)
+            if array.shape != (n,):
+                raise ValueError(f"diag_{name} must have shape ({n},) for N={params.N}, got {array.shape}")
+            setattr(diagnostics, name, array.astype(np.int64 if name == "turns" else float))
+        diagnostics.turn_times = value("turn_times").astype(float)
+        for name in cls._SCALARS:
+            scalar = value(name).item()
+            setattr(diagnostics, name, int(scalar) if name in ("steps", "energy_steps") else float(scalar))
+        return diagnostics
