@@ -211,7 +211,9 @@ def _check_settings(path: Path, ds: xr.Dataset, expected: dict[str, Any]) -> Non
             f"(experiment={ds.attrs.get('experiment')!r}, checkpoint_format={ds.attrs.get('checkpoint_format')!r})"
         )
     saved = {f"params.{k}": v for k, v in json.loads(ds.attrs["params_json"]).items()}
-    saved.update({key: ds.attrs.get(key) for key in ("model", "moment", "particle", "dt", "method", "chunk_steps")})
+    for key in ("model", "moment", "particle", "dt", "method", "chunk_steps"):
+        value = ds.attrs.get(key)
+        saved[key] = value.item() if isinstance(value, np.generic) else value  # NetCDF gives NumPy scalars
     for key, value in expected.items():
         if saved.get(key) != value:
             raise ValueError(
