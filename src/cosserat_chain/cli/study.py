@@ -1,0 +1,69 @@
+"""``cosserat-chain study SPEC.toml``: a parameter study on Dask, saved as cells finish, resumable."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import typer
+
+from ..experiments.study import spec_from_mapping
+from ..io import read_config
+from .common import app, bar_callback, fail, progress_bar
+
+
+@app.command()
+def study(
+    spec_file: Path = typer.Argument(..., help="TOML study spec (see docs/studies.md)."),
+    out: Path | None = typer.Option(None, help="NetCDF file written as cells finish; re-running resumes from it."),
+    scheduler: str | None = typer.Option(None, help="Address of an existing Dask scheduler (default: an embedded LocalCluster)."),
+    workers: int | None = typer.Option(None, help="Worker processes of the embedded LocalCluster (default: one per core)."),
+    plot: Path | None = typer.Option(None, help="Draw maps (two swept fields) or lines (one) of the quantities to this PNG/SVG file."),
+    as_json: bool = typer.Option(False, "--json", help="Print a summary and every cell's values as one JSON object."),
+) -> None:
+    """Compute the quantities of a parameter study over every cell of its grid, one Dask task per cell."""
+    from ..study_runner import run_study
+
+    try:
+        spec = spec_from_mapping(read_config(spec_file), source=str(spec_file))
+    except ValueError as err:
+        fail(str(err))
+    if workers is not None and workers < 1:
+        fail(f"--workers must be >= 1, got {workers}")
+    bar = progress_bar("study", "cell")
+    try:
+        run = run_study(spec, out=out, scheduler=scheduler, workers=workers, progress=bar_callback(bar))
+    except ValueError as err:
+        bar.close()
+        fail(str(err))
+    bar.close()
+    if plot is not None:
+        from ..plots.study import study_figure
+
+        plot.parent.mkdir(parents=True, exist_ok=True)
+        study_figure(run.dataset).savefig(plot, dpi=150)
+    ds = run.dataset
+    if as_json:
+        cells = []
+        for index, model, fields in spec.cells():
+            where = {**dict(zip(spec.axes(), index)), "model": spec.models.index(model)}
+            values = {name: _plain(ds[name][where].values) for name in spec.quantities}
+            cells.append({"params": {k: fields[k] for k in spec.parameters}, "model": model, **values, "error": str(ds["error"][where].values) or None})
+        summary = {"cells": len(cells), "computed": run.computed, "skipped": run.skipped, "failed": run.failed, "completed": run.completed}
+        typer.echo(json.dumps({**summary, "out": str(out) if out else None, "results": cells}))
+    else:
+        typer.echo(
+            f"study: {run.computed} cells computed, {run.skipped} read back, {run.failed} failed"
+            + (f"; wrote {out}" if out else "")
+        )
+    if not run.completed:
+        typer.secho("interrupted: the finished cells are saved; run the same command again to resume", err=True, fg=typer.colors.YELLOW)
+        raise typer.Exit(130)
+
+
+def _plain(value: np.ndarray):
+    """JSON value of a cell's quantity: a number (null for NaN) or a list of them."""
+    if value.ndim == 0:
+        return None if not np.isfinite(value) else float(value)
+    return [None if not np.isfinite(v) else float(v) for v in value]

@@ -1,0 +1,260 @@
+"""Parameter studies: a validated spec, its grid of independent cells, and the computation of one cell.
+
+Contract
+--------
+A :class:`StudySpec` (usually read from TOML) lists, per swept ``ChainParams``
+field, a list of values or a linear/log range; the fixed fields; the models; the
+quantities to compute; the loads for ``mean_angular_velocity``; and the settings
+of the relaxation protocol. :meth:`StudySpec.check` reports unknown keys and
+impossible parameter combinations (e.g. overlapping particles), naming the
+offending entries, before anything runs.
+
+Every cell of the grid (one value per swept field, one model) is independent:
+:func:`compute_cell` computes its quantities with the single-run API and never
+raises; a failure is returned as the cell's error message. :func:`empty_results`
+and :func:`store_cell` build the result Dataset, whose dimensions are the swept
+fields (in spec order), ``model`` and, if asked for, ``load``.
+
+Quantities
+----------
+``M_c``, ``phi0_at_fold``
+    The fold of the static branch (:func:`~cosserat_chain.numerics.continuation.locate_fold`); NaN without one.
+``compliance``
+    d phi_0 / dM at rest.
+``onset_load``, ``stop_load``
+    The relaxation protocol up to ``sweep.m_max`` in steps of ``sweep.dm`` (and down again
+    for ``stop_load``); NaN if rotation never starts (or never stops).
+``mean_angular_velocity``
+    Per load of ``loads``: the mean angular velocity of the loaded particle after relaxing
+    from rest at that load (0 if it comes to rest, NaN if neither at rest nor steady by
+    ``sweep.t_max``).
+``band_gap``
+    Width of the gap between the transverse-acoustic and rotational-optical bands of the
+    infinite linear chain (0 if they overlap); the same for every model.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+from typing import Any, Literal
+
+import numpy as np
+import xarray as xr
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from ..analysis.dispersion import wave_summary
+from ..models.base import available_models
+from ..numerics.continuation import compliance, locate_fold
+from ..numerics.relaxation import relax
+from ..params import ChainParams
+from .sweep import relaxation_sweep
+
+QUANTITIES = ("M_c", "phi0_at_fold", "compliance", "onset_load", "stop_load", "mean_angular_velocity", "band_gap")
+Quantity = Literal["M_c", "phi0_at_fold", "compliance", "onset_load", "stop_load", "mean_angular_velocity", "band_gap"]
+
+
+class Range(BaseModel):
+    """``num`` values from ``start`` to ``stop`` (both included), evenly spaced on a linear or log scale."""
+
+    model_config = ConfigDict(extra="forbid")
+    start: float
+    stop: float
+    num: int = Field(ge=1)
+    scale: Literal["linear", "log"] = "linear"
+
+    @model_validator(mode="after")
+    def _positive_for_log(self) -> Range:
+        if self.scale == "log" and not (self.start > 0 and self.stop > 0):
+            raise ValueError(f"a log range needs start > 0 and stop > 0, got start={self.start}, stop={self.stop}")
+        return self
+
+    def values(self) -> list[float]:
+        space = np.geomspace if self.scale == "log" else np.linspace
+        return [float(v) for v in space(self.start, self.stop, self.num)]
+
+
+class SweepSettings(BaseModel):
+    """Relaxation-protocol settings for ``onset_load``, ``stop_load`` and ``mean_angular_velocity``."""
+
+    model_config = ConfigDict(extra="forbid")
+    m_max: float = Field(0.4, gt=0)
+    dm: float = Field(0.01, gt=0)
+    t_max: float = Field(20000.0, gt=0)
+    dt: float | None = Field(None, gt=0)
+
+
+class StudySpec(BaseModel):
+    """A parameter study (see the module docstring); unknown keys are errors."""
+
+    model_config = ConfigDict(extra="forbid")
+    parameters: dict[str, list[float] | Range]
+    fixed: dict[str, float] = {}
+    models: list[str] = ["nonlinear", "sine"]
+    quantities: list[Quantity]
+    loads: list[float] = []
+    sweep: SweepSettings = SweepSettings()
+    particle: int = 0
+
+    @field_validator("parameters", "fixed")
+    @classmethod
+    def _known_fields(cls, value: dict[str, Any], info) -> dict[str, Any]:
+        allowed = [name for name in ChainParams.model_fields]
+        unknown = [key for key in value if key not in allowed]
+        if unknown:
+            raise ValueError(f"unknown parameter(s) {unknown}; allowed: {', '.join(allowed)}")
+        return value
+
+    @field_validator("models")
+    @classmethod
+    def _known_models(cls, value: list[str]) -> list[str]:
+        unknown = [m for m in value if m not in available_models()]
+        if unknown or not value:
+            raise ValueError(f"unknown model(s) {unknown}; allowed: {', '.join(available_models())}")
+        return value
+
+    @model_validator(mode="after")
+    def _consistent(self) -> StudySpec:
+        if not self.parameters:
+            raise ValueError("parameters: give at least one swept field")
+        overlap = sorted(set(self.parameters) & set(self.fixed))
+        if overlap:
+            raise ValueError(f"{overlap} both swept (parameters) and fixed")
+        for name, values in self.parameters.items():
+            if isinstance(values, list) and not values:
+                raise ValueError(f"parameters.{name}: empty list")
+        if "mean_angular_velocity" in self.quantities and not self.loads:
+            raise ValueError("quantity mean_angular_velocity needs loads = [M1, M2, ...]")
+        if not self.quantities:
+            raise ValueError(f"quantities: give at least one of {', '.join(QUANTITIES)}")
+        return self
+
+    def axes(self) -> dict[str, list]:
+        """Swept field -> its values (N as integers)."""
+        out = {}
+        for name, values in self.parameters.items():
+            vals = values.values() if isinstance(values, Range) else [float(v) for v in values]
+            out[name] = [int(round(v)) for v in vals] if name == "N" else vals
+        return out
+
+    def cells(self) -> list[tuple[tuple[int, ...], str, dict[str, float]]]:
+        """Every cell: (index along each swept field, model, ChainParams fields)."""
+        axes = self.axes()
+        names = list(axes)
+        cells = []
+        for index in itertools.product(*(range(len(v)) for v in axes.values())):
+            fields = {**self.fixed, **{name: axes[name][i] for name, i in zip(names, index)}}
+            if "N" in fields:
+                fields["N"] = int(fields["N"])
+            cells.extend((index, model, fields) for model in self.models)
+        return cells
+
+    def check(self) -> None:
+        """Build every cell's parameters; raise one ValueError listing every impossible combination."""
+        problems = []
+        seen = set()
+        for index, _, fields in self.cells():
+            if index in seen:
+                continue
+            seen.add(index)
+            try:
+                params = ChainParams(**fields)
+                if self.particle and not -params.N < self.particle < params.N:
+                    raise ValueError(f"particle={self.particle} is not a free particle of a chain with N={params.N}")
+            except (ValidationError, ValueError) as err:
+                swept = ", ".join(f"{k}={fields[k]}" for k in self.parameters)
+                reason = "; ".join(e["msg"] for e in err.errors()) if isinstance(err, ValidationError) else str(err)
+                problems.append(f"cell {swept}: {reason}")
+        if problems:
+            shown = "\n  ".join(problems[:10])
+            more = f"\n  ... and {len(problems) - 10} more" if len(problems) > 10 else ""
+            raise ValueError(f"{len(problems)} impossible parameter combination(s):\n  {shown}{more}")
+
+    def to_json(self) -> str:
+        return json.dumps(self.model_dump(mode="json"), sort_keys=True)
+
+
+def spec_from_mapping(mapping: dict[str, Any], source: str = "study spec") -> StudySpec:
+    """A checked :class:`StudySpec`; every problem is reported as one ValueError naming the entries."""
+    try:
+        spec = StudySpec(**mapping)
+    except ValidationError as err:
+        lines = [f"  {'.'.join(map(str, e['loc'])) or 'spec'}: {e['msg']}" for e in err.errors()]
+        raise ValueError(f"invalid {source}:\n" + "\n".join(lines)) from None
+    spec.check()
+    return spec
+
+
+def compute_cell(fields: dict[str, float], model: str, spec_json: str) -> dict[str, Any]:
+    """The quantities of one cell; never raises (an error becomes ``{"error": message}``).
+
+    A plain, importable function of plain arguments, so that Dask can ship it to any worker.
+    """
+    spec = StudySpec(**json.loads(spec_json))
+    try:
+        return _quantities(ChainParams(**fields), model, spec)
+    except Exception as err:  # a failed cell must not stop the study: record why
+        return {"error": f"{type(err).__name__}: {err}"}
+
+
+def _quantities(params: ChainParams, model: str, spec: StudySpec) -> dict[str, Any]:
+    wanted = set(spec.quantities)
+    out: dict[str, Any] = {}
+    relax_options = {"t_max": spec.sweep.t_max, "dt": spec.sweep.dt}
+    if wanted & {"M_c", "phi0_at_fold"}:
+        fold = locate_fold(params, model, particle=spec.particle)
+        out["M_c"] = math.nan if fold is None else fold.moment
+        out["phi0_at_fold"] = math.nan if fold is None else fold.phi0
+    if "compliance" in wanted:
+        out["compliance"] = compliance(params, model, particle=spec.particle)
+    if wanted & {"onset_load", "stop_load"}:
+        sweep = relaxation_sweep(
+            params, model, m_max=spec.sweep.m_max, dm=spec.sweep.dm, down="stop_load" in wanted,
+            stop_at_onset=True, particle=spec.particle, **relax_options,
+        )
+        out["onset_load"] = math.nan if sweep.onset_load is None else sweep.onset_load
+        out["stop_load"] = math.nan if sweep.stop_load is None else sweep.stop_load
+    if "mean_angular_velocity" in wanted:
+        rates = []
+        for load in spec.loads:
+            step = relax(params, model, load, particle=spec.particle, **relax_options)
+            rates.append(float(step.angular_velocity[params.N + spec.particle]))
+        out["mean_angular_velocity"] = rates
+    if "band_gap" in wanted:
+        gap = wave_summary(params).gap
+        out["band_gap"] = 0.0 if gap is None else gap[1] - gap[0]
+    return {name: value for name, value in out.items() if name in wanted}
+
+
+def empty_results(spec: StudySpec) -> xr.Dataset:
+    """The result Dataset before any cell ran: every quantity NaN, ``done`` 0, ``error`` empty."""
+    axes = spec.axes()
+    dims = [*axes, "model"]
+    shape = [len(v) for v in axes.values()] + [len(spec.models)]
+    coords: dict[str, Any] = {**axes, "model": spec.models}
+    data: dict[str, Any] = {}
+    for name in spec.quantities:
+        if name == "mean_angular_velocity":
+            coords["load"] = spec.loads
+            data[name] = ([*dims, "load"], np.full([*shape, len(spec.loads)], np.nan))
+        else:
+            data[name] = (dims, np.full(shape, np.nan))
+    data["done"] = (dims, np.zeros(shape, dtype=np.int8))
+    data["error"] = (dims, np.full(shape, "", dtype=object))
+    ds = xr.Dataset(data, coords=coords)
+    ds["done"].attrs["long_name"] = "1 once the cell was computed (successfully or not)"
+    ds["error"].attrs["long_name"] = "error message of a failed cell (empty if it succeeded)"
+    ds.attrs["study_spec_json"] = spec.to_json()
+    return ds
+
+
+def store_cell(ds: xr.Dataset, spec: StudySpec, index: tuple[int, ...], model: str, values: dict[str, Any]) -> None:
+    """Write one cell's values (or error) into ``ds`` in place."""
+    where = {**{name: i for name, i in zip(spec.axes(), index)}, "model": spec.models.index(model)}
+    if "error" in values:
+        ds["error"][where] = values["error"]
+    else:
+        for name, value in values.items():
+            ds[name][where] = value
+    ds["done"][where] = 1

@@ -1,0 +1,134 @@
+"""Parameter studies on a real Dask LocalCluster: cells equal the single-run API, resume, failures, bad specs."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from cosserat_chain import ChainParams
+from cosserat_chain.analysis.dispersion import wave_summary
+from cosserat_chain.cli import app
+from cosserat_chain.experiments.study import spec_from_mapping
+from cosserat_chain.experiments.sweep import relaxation_sweep
+from cosserat_chain.io import read_dataset
+from cosserat_chain.numerics.continuation import compliance, locate_fold
+from cosserat_chain.study_runner import run_study
+
+distributed = pytest.importorskip("dask.distributed")
+
+SPEC = {
+    "parameters": {"a": [0.15, 0.2], "E2": {"start": 0.5, "stop": 2.0, "num": 2, "scale": "log"}},
+    "models": ["nonlinear", "sine", "linear"],
+    "quantities": ["M_c", "phi0_at_fold", "compliance", "onset_load", "band_gap"],
+    "sweep": {"m_max": 0.4, "dm": 0.05},
+}
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as local:
+        yield local
+
+
+def test_every_cell_equals_the_single_run_api(cluster, tmp_path):
+    spec = spec_from_mapping(SPEC)
+    run = run_study(spec, out=tmp_path / "study.nc", scheduler=cluster.scheduler_address)
+    assert run.completed and run.computed == 12 and run.failed == 0
+    ds = read_dataset(tmp_path / "study.nc")
+    assert list(ds.M_c.dims) == ["a", "E2", "model"]
+    np.testing.assert_allclose(ds.E2.values, [0.5, 2.0])
+    for a in (0.15, 0.2):
+        for e2 in (0.5, 2.0):
+            params = ChainParams(a=a, E2=e2)
+            gap = wave_summary(params).gap
+            for model in ("nonlinear", "sine", "linear"):
+                cell = ds.sel(a=a, E2=e2, model=model)
+                fold = locate_fold(params, model)
+                if fold is None:
+                    assert math.isnan(float(cell.M_c)) and math.isnan(float(cell.onset_load))
+                else:
+                    assert float(cell.M_c) == fold.moment and float(cell.phi0_at_fold) == fold.phi0
+                    assert float(cell.onset_load) == relaxation_sweep(params, model, m_max=0.4, dm=0.05, stop_at_onset=True).onset_load
+                assert float(cell.compliance) == compliance(params, model)
+                assert float(cell.band_gap) == (0.0 if gap is None else gap[1] - gap[0])
+                assert int(cell.done) == 1 and str(cell.error.values) == ""
+
+
+def test_a_killed_study_resumes_without_recomputing_finished_cells(cluster, tmp_path):
+    spec = spec_from_mapping({**SPEC, "quantities": ["M_c", "compliance"]})
+    out = tmp_path / "study.nc"
+
+    def kill_after_five(done, total):
+        if done >= 5:
+            raise KeyboardInterrupt
+
+    first = run_study(spec, out=out, scheduler=cluster.scheduler_address, progress=kill_after_five)
+    assert not first.completed and first.computed == 5
+    assert int(read_dataset(out).done.sum()) == 5
+    second = run_study(spec, out=out, scheduler=cluster.scheduler_address)
+    assert second.completed and second.skipped == 5 and second.computed == 12 - 5
+    full = run_study(spec, out=tmp_path / "fresh.nc", scheduler=cluster.scheduler_address)
+    np.testing.assert_array_equal(second.dataset.M_c.values, full.dataset.M_c.values)
+    again = run_study(spec, out=out, scheduler=cluster.scheduler_address)
+    assert again.computed == 0 and again.skipped == 12
+
+
+def test_a_failing_cell_is_recorded_and_the_others_complete(cluster, tmp_path):
+    # dt = 0.05 is stable for E1 = 1 but beyond the stability limit for E1 = 1000: that cell's relaxation refuses to run.
+    spec = spec_from_mapping(
+        {"parameters": {"E1": [1.0, 1000.0]}, "models": ["sine"], "quantities": ["onset_load", "compliance"], "sweep": {"m_max": 0.3, "dm": 0.1, "dt": 0.05}}
+    )
+    run = run_study(spec, out=tmp_path / "study.nc", scheduler=cluster.scheduler_address)
+    assert run.completed and run.failed == 1
+    ds = run.dataset
+    assert "stability limit" in str(ds.error.sel(E1=1000.0, model="sine").values)
+    assert str(ds.error.sel(E1=1.0, model="sine").values) == ""
+    single = relaxation_sweep(ChainParams(), "sine", m_max=0.3, dm=0.1, dt=0.05, stop_at_onset=True)
+    assert float(ds.onset_load.sel(E1=1.0, model="sine")) == single.onset_load
+
+
+def test_a_different_spec_does_not_resume_from_the_same_file(cluster, tmp_path):
+    out = tmp_path / "study.nc"
+    run_study(spec_from_mapping({**SPEC, "quantities": ["compliance"]}), out=out, scheduler=cluster.scheduler_address)
+    with pytest.raises(ValueError, match="different study spec"):
+        run_study(spec_from_mapping({**SPEC, "quantities": ["band_gap"]}), out=out, scheduler=cluster.scheduler_address)
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"parameters": {"aa": [0.1]}}, r"unknown parameter\(s\) \['aa'\]"),
+        ({"colour": "red"}, "colour"),
+        ({"models": ["cubic"]}, r"unknown model\(s\) \['cubic'\]"),
+        ({"quantities": ["speed"]}, "quantities.0"),
+        ({"quantities": ["mean_angular_velocity"]}, "needs loads"),
+        ({"parameters": {"a": [0.2, 0.6]}}, r"cell a=0.6.*a must satisfy 0 < a < h/2"),
+        ({"parameters": {"a": {"start": 0.1, "stop": 0.2, "num": 2, "scale": "log"}, "E2": {"start": 0.0, "stop": 1.0, "num": 2, "scale": "log"}}}, "log range needs start > 0"),
+        ({"fixed": {"a": 0.1}}, "both swept"),
+    ],
+)
+def test_bad_specs_are_reported_before_anything_runs(change, match):
+    with pytest.raises(ValueError, match=match):
+        spec_from_mapping({**SPEC, **change})
+
+
+def test_study_cli_with_an_embedded_cluster(tmp_path):
+    spec_file = tmp_path / "spec.toml"
+    spec_file.write_text('models = ["sine"]\nquantities = ["M_c", "compliance"]\n[parameters]\nb = [0.2, 0.3]\n')
+    out, plot = tmp_path / "study.nc", tmp_path / "lines.png"
+    result = CliRunner().invoke(app, ["study", str(spec_file), "--out", str(out), "--workers", "2", "--json", "--plot", str(plot)])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert data["computed"] == 2 and data["failed"] == 0
+    for cell in data["results"]:
+        params = ChainParams(b=cell["params"]["b"])
+        assert cell["M_c"] == pytest.approx(locate_fold(params, "sine").moment, rel=1e-12)
+    assert plot.stat().st_size > 5_000
+    bad = tmp_path / "bad.toml"
+    bad.write_text('quantities = ["M_c"]\n[parameters]\na = [0.7]\n')
+    result = CliRunner().invoke(app, ["study", str(bad)])
+    assert result.exit_code == 2 and "a=0.7" in result.output
