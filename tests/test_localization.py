@@ -202,6 +202,14 @@ def test_ctrl_c_keeps_the_work_and_resuming_gives_the_same_result(paper, tmp_pat
     np.testing.assert_array_equal(resumed.x, full.x)
 
 
+def test_a_blow_up_raises_and_asks_for_a_smaller_step(paper, monkeypatch):
+    original = localization.integrate
+    # A tiny runaway bound makes the integrator report a blow-up as soon as the chain moves.
+    monkeypatch.setattr(localization, "integrate", lambda *args, **kwargs: original(*args, **kwargs, max_displacement=1e-6))
+    with pytest.raises(dynamics.IntegrationError, match="smaller time step"):
+        localization_run(paper, "nonlinear", 0.25, turns=2, t_max=50.0)
+
+
 def test_a_checkpoint_of_other_parameters_or_settings_is_refused(paper, tmp_path):
     path = tmp_path / "c.nc"
     localization_run(paper, "sine", 0.3, turns=2, t_max=5.0, checkpoint=path)

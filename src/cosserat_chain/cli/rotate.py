@@ -77,7 +77,7 @@ def rotate(
     else:
         typer.echo(
             f"{summary['model']}, M={moment:g}: {summary['turns_completed']} turns by t={summary['t_end']:.6g}, "
-            f"mean angular velocity {summary['mean_angular_velocity']}, {summary['classification']}; "
+            f"mean angular velocity {_number(summary['mean_angular_velocity'])}, {summary['classification']}; "
             f"others: max |phi| {summary['max_abs_phi_others']:.4g}, |v| {summary['max_abs_v_others']:.4g}, "
             f"|u| {summary['max_abs_u_others']:.4g}" + (f"; wrote {out}" if out else "")
         )
@@ -86,3 +86,7 @@ def rotate(
     if result.status == "interrupted":
         typer.secho(f"interrupted: {result.message}", err=True, fg=typer.colors.YELLOW)
         raise typer.Exit(130)
+
+
+def _number(value: float | None) -> str:
+    return "n/a" if value is None else f"{value:.6g}"
