@@ -122,7 +122,7 @@ def run_study(
     if todo:
         cluster = None
         if scheduler is None:
-            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, dashboard_address=None)
+            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, dashboard_address=":0")
         client = Client(scheduler or cluster)
         spec_json = spec.to_json()
         last_save = time.monotonic()

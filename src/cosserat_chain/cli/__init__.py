@@ -5,6 +5,7 @@ from . import (
     rotate,  # noqa: F401  (registers the command)
     simulate,  # noqa: F401  (registers the command)
     statics,  # noqa: F401  (registers sweep and critical)
+    study,  # noqa: F401  (registers the command)
     theory,  # noqa: F401  (registers the command)
     waves,  # noqa: F401  (registers the command)
 )
