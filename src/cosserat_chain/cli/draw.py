@@ -15,8 +15,6 @@ import xarray as xr
 from ..experiments.simulation import simulate as run_simulation
 from ..io import read_dataset
 from ..loads import moment_load
-from ..plots.chain import ANIMATION_FORMATS, FIGURE_FORMATS, frame_indices, snapshot_figure
-from ..plots.chain import animate as write_animation
 from .common import ModelName, app, bar_callback, fail, params_or_exit, progress_bar
 
 #: Stored frames of a simulation run only to be drawn: a cap that keeps memory small.
@@ -76,6 +74,8 @@ def draw(
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields, when no RUN is given."),
 ) -> None:
     """Draw the chain at chosen times of a run, one panel per time (paper, Fig. 3)."""
+    from ..plots.chain import FIGURE_FORMATS, snapshot_figure  # matplotlib only when drawing: keeps every command quick to start
+
     _check_suffix(out, FIGURE_FORMATS)
     ds = _load_run(run, model, moment, t_end, config, n_frames=201)
     chosen = _parse_times(times) if times is not None else [float(ds.time[-1])]
@@ -100,6 +100,9 @@ def animate(
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields, when no RUN is given."),
 ) -> None:
     """Animate a time window of a run as a GIF (or MP4), subsampled to at most --frames frames."""
+    from ..plots.chain import ANIMATION_FORMATS, frame_indices
+    from ..plots.chain import animate as write_animation
+
     _check_suffix(out, ANIMATION_FORMATS)
     if frames < 1:
         fail(f"--frames must be >= 1, got {frames}")
