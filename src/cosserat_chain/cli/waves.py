@@ -8,7 +8,6 @@ from pathlib import Path
 import typer
 
 from ..analysis.dispersion import BRANCHES, continuum_dispersion, dispersion, wave_summary
-from ..plots.theory import FIGURE_FORMATS, plot_dispersion, save_figure
 from .common import app, fail, params_or_exit
 
 
@@ -21,6 +20,8 @@ def waves(
     plot: Path | None = typer.Option(None, "--plot", help="Write the dispersion curves, gap shaded, to this PNG or SVG file."),
 ) -> None:
     """Frequencies of the longitudinal, transverse-acoustic and rotational-optical branches at q = 0 and q = pi, and the band gap."""
+    from ..plots.theory import FIGURE_FORMATS, plot_dispersion, save_figure  # matplotlib only when plotting
+
     params = params_or_exit(config)
     if plot is not None and plot.suffix.lower() not in FIGURE_FORMATS:
         fail(f"--plot must end in one of {', '.join(FIGURE_FORMATS)}, got {str(plot)!r}")
