@@ -2,6 +2,7 @@
 
 from . import (
     draw,  # noqa: F401  (registers draw and animate)
+    reproduce,  # noqa: F401  (registers the command)
     rotate,  # noqa: F401  (registers the command)
     simulate,  # noqa: F401  (registers the command)
     statics,  # noqa: F401  (registers sweep and critical)

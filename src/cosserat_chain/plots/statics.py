@@ -98,3 +98,31 @@ def figure2(
     right.set_xticks(np.pi * np.arange(5) / 2, ["0", r"$\pi/2$", r"$\pi$", r"$3\pi/2$", r"$2\pi$"])
     right.set_title("characteristic over one turn (dashed: unstable, open circles: folds)", fontsize=10)
     return fig
+
+
+def hysteresis_figure(
+    sweeps: Mapping[str, SweepResult],
+    criticals: Mapping[str, CriticalResult] | None = None,
+    *,
+    figsize: tuple[float, float] = (6.5, 4.5),
+) -> Figure:
+    """The hysteresis loop: mean angular velocity of the loaded particle at each load step, up and down.
+
+    Filled markers: the upward sweep; open markers: the downward one; a dotted vertical
+    line at each model's exact static fold M_c.
+    """
+    criticals = criticals or {}
+    fig, ax = plt.subplots(figsize=figsize, constrained_layout=True)
+    for name, sweep in sweeps.items():
+        color = MODEL_COLORS.get(name, "k")
+        rate = sweep.angular_velocity[:, sweep.params.N + sweep.particle]
+        for direction, style in (("up", {"mfc": color}), ("down", {"mfc": "white"})):
+            sel = sweep.direction == direction
+            ax.plot(sweep.moment[sel], rate[sel], "o-" if direction == "up" else "s--", color=color, ms=5, mec=color,
+                    label=f"{MODEL_LABELS.get(name, name)}, load {direction}", **style)
+        if name in criticals and criticals[name].critical_moment is not None:
+            ax.axvline(criticals[name].critical_moment, color=color, ls=":", lw=1)
+    ax.set(xlabel="moment M", ylabel="mean angular velocity of the loaded particle")
+    ax.set_title("hysteresis of the onset of rotation (dotted: exact fold $M_c$)", fontsize=10)
+    ax.legend(fontsize=8)
+    return fig

@@ -1,0 +1,437 @@
+"""One command reproduces the paper: every result computed on its defaults, written as a report.
+
+Contract
+--------
+:func:`reproduce` runs the stages below in turn. Each one computes with the public
+API, writes its figures (PNG and SVG) and data (NetCDF and JSON) under the output
+folder, and returns a section of the report: text, tables and figures. A stage that
+fails becomes a section with its error, and the other stages still run. At the end,
+``index.html`` (self-contained: the figures are embedded, so it opens from disk with no
+server and no network), ``report.md`` (the same content) and ``summary.json`` (every
+number, the resolved parameters, the package version and the run time of each stage)
+are written atomically. An interrupted run leaves no half-written report.
+
+Stages: ``statics`` (Fig. 2: compliance, critical moment and fold angle per model,
+exactly and by the relaxation protocol, the hysteresis loop), ``rotation`` (Figs. 3a
+and 3b, an animation), ``localization`` (the 1500-rotation runs), ``continuum``
+(Section 3 against the discrete chain), ``waves`` (dispersion, band gap), ``errata``.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import logging
+import math
+import os
+import tempfile
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from . import __version__
+from .io import stack_models, write_dataset
+from .params import ChainParams
+
+log = logging.getLogger(__name__)
+
+MODELS = ("nonlinear", "sine", "linear")
+ROTATING = ("nonlinear", "sine")
+
+
+@dataclass(frozen=True)
+class ReproduceSettings:
+    """What the report computes; the defaults reproduce the paper (Section 4).
+
+    Attributes
+    ----------
+    m_max, dm : float
+        Relaxation protocol of Fig. 2: loads dm, 2 dm, ..., m_max, then back down.
+    rotation_moment : dict
+        Moment per rotating model for Fig. 3 and the localization run (above M_c).
+    snapshot_times : tuple of float
+        Times of the panels of Figs. 3a and 3b.
+    animation_frames : int
+    turns : int
+        Full turns of the localization run (the paper: 1500).
+    n_list : tuple of int
+        Chain half-lengths N for the continuum comparison.
+    """
+
+    m_max: float = 0.3
+    dm: float = 0.01
+    rotation_moment: dict[str, float] = field(default_factory=lambda: {"nonlinear": 0.25, "sine": 0.3})
+    snapshot_times: tuple[float, ...] = (40.0, 41.0, 42.0, 43.0)
+    animation_frames: int = 80
+    turns: int = 1500
+    n_list: tuple[int, ...] = (3, 10, 30, 100, 300, 1000)
+
+
+@dataclass
+class Section:
+    """One part of the report: paragraphs, tables (header + rows) and figures (stem -> caption)."""
+
+    title: str
+    paragraphs: list[str] = field(default_factory=list)
+    tables: list[tuple[str, list[str], list[list[Any]]]] = field(default_factory=list)
+    figures: list[tuple[str, str]] = field(default_factory=list)
+    numbers: dict[str, Any] = field(default_factory=dict)
+    error: str | None = None
+    seconds: float = 0.0
+
+
+@dataclass
+class Report:
+    """What :func:`reproduce` wrote."""
+
+    out: Path
+    sections: list[Section]
+    summary: dict[str, Any]
+
+    @property
+    def failed(self) -> list[str]:
+        return [s.title for s in self.sections if s.error]
+
+
+class _Stage:
+    def __init__(self, out: Path, params: ChainParams, settings: ReproduceSettings):
+        self.out, self.params, self.settings = out, params, settings
+        (out / "figures").mkdir(parents=True, exist_ok=True)
+        (out / "data").mkdir(parents=True, exist_ok=True)
+
+    def figure(self, fig, stem: str) -> str:
+        import matplotlib.pyplot as plt
+
+        for suffix in ("png", "svg"):
+            fig.savefig(self.out / "figures" / f"{stem}.{suffix}", dpi=130)
+        plt.close(fig)
+        return stem
+
+    def data(self, name: str, payload: Any) -> None:
+        if hasattr(payload, "to_netcdf"):
+            write_dataset(payload, self.out / "data" / f"{name}.nc")
+        else:
+            _atomic_write(self.out / "data" / f"{name}.json", json.dumps(payload, indent=1, default=_json_default))
+
+
+def _statics(stage: _Stage) -> Section:
+    from .experiments.critical import critical_point
+    from .experiments.sweep import relaxation_sweep
+    from .plots.statics import figure2, hysteresis_figure
+
+    p, s = stage.params, stage.settings
+    exact = {m: critical_point(p, m) for m in MODELS}
+    sweeps = {m: relaxation_sweep(p, m, m_max=s.m_max, dm=s.dm, down=True) for m in MODELS}
+    stage.data("critical", stack_models({m: r.to_dataset() for m, r in exact.items()}))
+    stage.data("sweep", stack_models({m: r.to_dataset() for m, r in sweeps.items()}))
+    rows, numbers = [], {}
+    for m in MODELS:
+        e, w = exact[m], sweeps[m]
+        numbers[m] = {
+            "compliance": e.compliance,
+            "M_c": e.critical_moment,
+            "phi0_at_fold": e.phi0_at_fold,
+            "onset_load": w.onset_load,
+            "stop_load": w.stop_load,
+        }
+        rows.append([m, e.compliance, e.critical_moment, e.phi0_at_fold, w.onset_load, w.stop_load])
+    stage.data("statics", numbers)
+    section = Section("Static response and the onset of rotation (Fig. 2)", numbers=numbers)
+    section.paragraphs.append(
+        f"The moment on the central particle is raised in steps of {s.dm:g} up to {s.m_max:g}, each step run to rest "
+        "(the paper's relaxation protocol, dots), then lowered again; a star marks the first step at which the particle "
+        "rotates. Lines: the exact static branches by pseudo-arclength continuation (dashed: unstable), open circles: "
+        "the folds, located to round-off. The linear model never rotates."
+    )
+    section.tables.append(
+        (
+            "Compliance, critical moment and fold angle: exact (continuation) and by the relaxation protocol",
+            ["model", "compliance dphi0/dM", "M_c exact", "phi0 at fold (rad)", "onset (relaxation)", "rotation stops (down)"],
+            rows,
+        )
+    )
+    section.figures.append((stage.figure(figure2(exact, sweeps), "fig2"), "Fig. 2: phi_0 of the loaded particle against M; right: M(phi_0) over one turn."))
+    section.figures.append(
+        (stage.figure(hysteresis_figure({m: sweeps[m] for m in ROTATING}, {m: exact[m] for m in ROTATING}), "hysteresis"),
+         "Hysteresis loop: mean angular velocity of the loaded particle at each load step, going up and coming down; "
+         "dotted: the exact static fold M_c.")
+    )
+    return section
+
+
+def _rotation(stage: _Stage) -> Section:
+    from .experiments.simulation import simulate
+    from .plots.chain import animate, snapshot_figure
+
+    p, s = stage.params, stage.settings
+    t_end = max(s.snapshot_times) + 1.0
+    section = Section("The rotating chain (Figs. 3a and 3b)")
+    for label, m in (("fig3a", "sine"), ("fig3b", "nonlinear")):
+        moment = s.rotation_moment[m]
+        run = simulate(p, m, moment, t_end=t_end, n_frames=int(t_end / 0.05) + 1)
+        stage.data(f"rotation_{m}", run)
+        section.figures.append(
+            (stage.figure(snapshot_figure(p, run, list(s.snapshot_times)), label),
+             f"Fig. {label[-2:]}: the {m} model under M = {moment:g} (above its M_c), snapshots at t = "
+             + ", ".join(f"{t:g}" for t in s.snapshot_times) + ".")
+        )
+        if m == "nonlinear":
+            animate(p, run, stage.out / "figures" / "rotation.gif", t_start=t_end - 10.0, t_stop=t_end, max_frames=s.animation_frames, fps=15)
+    section.paragraphs.append(
+        "In the sine model u decouples, so the other particles only move transversally (Fig. 3a); in the nonlinear model "
+        "every degree of freedom is coupled (Fig. 3b). Animation of the nonlinear chain: "
+        "[figures/rotation.gif](figures/rotation.gif)."
+    )
+    return section
+
+
+def _localization(stage: _Stage) -> Section:
+    from .experiments.localization import localization_run
+
+    p, s = stage.params, stage.settings
+    rows, numbers = [], {}
+    for m in ROTATING:
+        moment = s.rotation_moment[m]
+        result = localization_run(p, m, moment, turns=s.turns, t_max=100.0 * s.turns)
+        stage.data(f"localization_{m}", result.to_dataset())
+        d = result.as_dict()
+        numbers[m] = d
+        rows.append([m, moment, d["turns_completed"], d["t_end"], d["mean_angular_velocity"], d["max_abs_phi_others"], d["max_abs_v_others"], d["max_abs_u_others"], d["classification"]])
+    stage.data("localization", numbers)
+    section = Section(f"Localization: {s.turns} rotations of the central particle", numbers=numbers)
+    section.paragraphs.append(
+        f"The central particle is driven above its critical moment from rest until it has made {s.turns} full turns "
+        "(the paper's test). The other particles only oscillate: their largest excursions over the whole run are below."
+    )
+    section.tables.append(
+        ("Statistics of the localization run", ["model", "M", "turns", "t_end", "mean angular velocity", "max abs phi, others", "max abs v, others", "max abs u, others", "state"], rows)
+    )
+    return section
+
+
+def _continuum(stage: _Stage) -> Section:
+    from .analysis.continuum import compare_profiles, convergence
+    from .plots.theory import plot_convergence, plot_profiles
+
+    p, s = stage.params, stage.settings
+    table = convergence(p, list(s.n_list))
+    stage.data("continuum", table.as_dict())
+    section = Section("Continuum theory (Section 3) against the discrete chain", numbers={"table": table.as_dict(), "order": table.order()})
+    section.paragraphs.append(
+        "phi_0 / M of the long-wave solution (11) with the geometry-derived D1, D2, against the discrete linear chain (3), "
+        f"and the residue (12); the relative error falls like N^-{table.order():.2f}."
+    )
+    section.tables.append(
+        ("Continuum against discrete compliance", ["N", "continuum phi0/M", "discrete phi0/M", "relative error", "residue"],
+         [[int(n), c, d, e, r] for n, c, d, e, r in zip(table.N, table.continuum, table.discrete, table.relative_error, table.residue)])
+    )
+    section.figures.append((stage.figure(plot_profiles(compare_profiles(p)), "profiles"), "Continuum (lines) against discrete (dots) profiles v_k and phi_k."))
+    section.figures.append((stage.figure(plot_convergence(table), "convergence"), "Relative error and residue against N."))
+    return section
+
+
+def _waves(stage: _Stage) -> Section:
+    from .analysis.dispersion import continuum_dispersion, dispersion, wave_summary
+    from .plots.theory import plot_dispersion
+
+    summary = wave_summary(stage.params)
+    data = summary.as_dict()
+    stage.data("waves", data)
+    section = Section("Waves: dispersion of the infinite linear chain", numbers=data)
+    section.tables.append(
+        ("Branch frequencies", ["branch", "omega at q = 0", "omega at q = pi/h"], [[b, data["at_zero"][b], data["at_pi"][b]] for b in data["at_zero"]])
+    )
+    gap = data["gap"]
+    section.paragraphs.append(
+        "Transverse and rotational waves cannot travel for " + (f"{gap[0]:.4g} < omega < {gap[1]:.4g}." if gap else "no frequency: the bands overlap.")
+    )
+    fig = plot_dispersion(dispersion(stage.params), summary, continuum_dispersion(stage.params))
+    section.figures.append((stage.figure(fig, "dispersion"), "Dispersion curves, gap shaded; dashed: the continuum theory."))
+    return section
+
+
+def _errata(stage: _Stage) -> Section:
+    from .analysis.symbolic import errata
+
+    items = [e.as_dict() for e in errata(stage.params)]
+    stage.data("errata", items)
+    section = Section("Errata: where the printed equations disagree with the derivation", numbers={"errata": items})
+    section.tables.append(("Errata (derived with SymPy from the geometry of model (i))", ["#", "where", "printed", "derived", "consequence"],
+                           [[e["number"], e["where"], e["printed"], e["derived"], e["consequence"]] for e in items]))
+    return section
+
+
+STAGES: dict[str, Callable[[_Stage], Section]] = {
+    "statics": _statics,
+    "rotation": _rotation,
+    "localization": _localization,
+    "continuum": _continuum,
+    "waves": _waves,
+    "errata": _errata,
+}
+
+
+def reproduce(
+    out: str | Path,
+    params: ChainParams | None = None,
+    settings: ReproduceSettings | None = None,
+    *,
+    stages: list[str] | None = None,
+    progress: Callable[[str, int, int], None] | None = None,
+) -> Report:
+    """Compute every result of the paper and write the report to ``out`` (see the module docstring).
+
+    Parameters
+    ----------
+    out : path
+        Output folder (created).
+    params : ChainParams, optional
+        Default: the paper's chain.
+    settings : ReproduceSettings, optional
+    stages : list of str, optional
+        A subset of :data:`STAGES` (default all, in order).
+    progress : callable(stage_name, index, total), optional
+        Called before each stage.
+
+    Returns
+    -------
+    Report
+    """
+    params = params or ChainParams()
+    settings = settings or ReproduceSettings()
+    names = list(STAGES) if stages is None else stages
+    unknown = [n for n in names if n not in STAGES]
+    if unknown:
+        raise ValueError(f"unknown stage(s) {unknown}; allowed: {', '.join(STAGES)}")
+    out = Path(out)
+    stage = _Stage(out, params, settings)
+    sections = []
+    for i, name in enumerate(names):
+        if progress is not None:
+            progress(name, i, len(names))
+        start = time.perf_counter()
+        try:
+            section = STAGES[name](stage)
+        except Exception as err:  # a failed stage is reported in the page; the others still run
+            log.exception("stage %s failed", name)
+            section = Section(name, error=f"{type(err).__name__}: {err}\n\n{traceback.format_exc(limit=4)}")
+        section.seconds = time.perf_counter() - start
+        sections.append(section)
+    summary = {
+        "cosserat_chain_version": __version__,
+        "params": params.model_dump(),
+        "settings": asdict(settings),
+        "stages": {name: {"title": s.title, "seconds": s.seconds, "error": s.error, "numbers": s.numbers} for name, s in zip(names, sections)},
+    }
+    _atomic_write(out / "params.json", json.dumps(params.model_dump(), indent=1))
+    _atomic_write(out / "summary.json", json.dumps(summary, indent=1, default=_json_default))
+    _atomic_write(out / "report.md", _markdown(sections, params))
+    _atomic_write(out / "index.html", _html(sections, params, out))
+    return Report(out, sections, summary)
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.floating):
+        return None if not math.isfinite(value) else float(value)
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        fh.write(text)
+    os.chmod(tmp, 0o644)
+    os.replace(tmp, path)
+
+
+def format_cell(value: Any) -> str:
+    """How a table cell is printed in both renderings (numbers to 10 significant digits; None as a dash)."""
+    if value is None or (isinstance(value, float) and not math.isfinite(value)):
+        return "—"
+    if isinstance(value, bool | np.bool_):
+        return str(bool(value))
+    if isinstance(value, int | np.integer):
+        return str(int(value))
+    if isinstance(value, float | np.floating):
+        return f"{float(value):.10g}"
+    return str(value)
+
+
+def _intro(params: ChainParams) -> str:
+    return (
+        f"cosserat-chain {__version__} reproduces \"Modeling of static deformations and dynamics of localized rotation "
+        f"in a chain of finite size particles\": {params.n_particles} particles (N = {params.N}), E1 = {params.E1:g}, E2 = {params.E2:g}, h = {params.h:g}, a = {params.a:g}, b = {params.b:g}, "
+        f"m = {params.m:g}, j = {params.j:.6g}, damping gamma = ({params.gamma_u:g}, {params.gamma_v:g}, {params.gamma_phi:g}). "
+        "All numbers are in summary.json and data/; the resolved parameters in params.json."
+    )
+
+
+def _markdown(sections: list[Section], params: ChainParams) -> str:
+    lines = ["# Reproduction of the paper", "", _intro(params), "", "| stage | seconds | status |", "|---|---|---|"]
+    lines += [f"| {s.title} | {s.seconds:.1f} | {'failed' if s.error else 'ok'} |" for s in sections]
+    for s in sections:
+        lines += ["", f"## {s.title}", ""]
+        if s.error:
+            lines += ["**This stage failed:**", "", "```", s.error.strip(), "```"]
+            continue
+        for paragraph in s.paragraphs:
+            lines += [paragraph, ""]
+        for caption, header, rows in s.tables:
+            lines += [f"*{caption}*", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+            lines += ["| " + " | ".join(format_cell(v) for v in row) + " |" for row in rows]
+            lines.append("")
+        for stem, caption in s.figures:
+            lines += [f"![{caption}](figures/{stem}.png)", "", f"*{caption}* ([SVG](figures/{stem}.svg))", ""]
+    return "\n".join(lines) + "\n"
+
+
+def _html(sections: list[Section], params: ChainParams, out: Path) -> str:
+    esc = html.escape
+    parts = [
+        "<!DOCTYPE html><html><head><meta charset='utf-8'><title>cosserat-chain: reproduction of the paper</title>",
+        "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;line-height:1.45}table{border-collapse:collapse;margin:1em 0}"
+        "td,th{border:1px solid #bbb;padding:3px 8px;text-align:right}th{background:#eee}img{max-width:100%}"
+        ".error{background:#fee;border:1px solid #c00;padding:1em;white-space:pre-wrap}</style></head><body>",
+        "<h1>Reproduction of the paper</h1>",
+        f"<p>{esc(_intro(params))}</p>",
+        "<table><tr><th>stage</th><th>seconds</th><th>status</th></tr>",
+    ]
+    parts += [f"<tr><td>{esc(s.title)}</td><td>{s.seconds:.1f}</td><td>{'failed' if s.error else 'ok'}</td></tr>" for s in sections]
+    parts.append("</table>")
+    for s in sections:
+        parts.append(f"<h2>{esc(s.title)}</h2>")
+        if s.error:
+            parts.append(f"<p><b>This stage failed:</b></p><div class='error'>{esc(s.error.strip())}</div>")
+            continue
+        for paragraph in s.paragraphs:
+            text = esc(paragraph).replace("[figures/rotation.gif](figures/rotation.gif)", _embedded_gif(out / "figures" / "rotation.gif"))
+            parts.append(f"<p>{text}</p>")
+        for caption, header, rows in s.tables:
+            parts.append(f"<p><i>{esc(caption)}</i></p><table><tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr>")
+            parts += ["<tr>" + "".join(f"<td>{esc(format_cell(v))}</td>" for v in row) + "</tr>" for row in rows]
+            parts.append("</table>")
+        for stem, caption in s.figures:
+            data = base64.b64encode((out / "figures" / f"{stem}.png").read_bytes()).decode()
+            parts.append(
+                f"<figure><img alt='{esc(caption)}' src='data:image/png;base64,{data}'>"
+                f"<figcaption>{esc(caption)} (<a href='figures/{stem}.svg'>SVG</a>)</figcaption></figure>"
+            )
+    parts.append("</body></html>")
+    return "\n".join(parts)
+
+
+def _embedded_gif(path: Path) -> str:
+    if not path.exists():
+        return "(animation missing)"
+    data = base64.b64encode(path.read_bytes()).decode()
+    return f"<br><img alt='animation of the rotating chain' src='data:image/gif;base64,{data}'>"

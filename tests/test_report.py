@@ -1,0 +1,105 @@
+"""``cosserat-chain reproduce``: the report's content equals the API's numbers, every reference resolves, failures show."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+from typer.testing import CliRunner
+
+import cosserat_chain.report as report_module
+from cosserat_chain import ChainParams
+from cosserat_chain.analysis.continuum import convergence
+from cosserat_chain.cli import app
+from cosserat_chain.experiments.critical import critical_point
+from cosserat_chain.experiments.localization import localization_run
+from cosserat_chain.experiments.sweep import relaxation_sweep
+from cosserat_chain.report import ReproduceSettings, format_cell, reproduce
+
+QUICK = ReproduceSettings(dm=0.05, turns=15, n_list=(3, 10, 30), snapshot_times=(20.0, 21.0), animation_frames=10)
+
+
+@pytest.fixture(scope="module")
+def quick_report(tmp_path_factory):
+    return reproduce(tmp_path_factory.mktemp("report"), settings=QUICK)
+
+
+def markdown_tables(text: str) -> dict[str, list[list[str]]]:
+    """Caption -> rows (header first) of every table in report.md."""
+    tables, caption, rows = {}, None, []
+    for line in text.splitlines():
+        if line.startswith("*") and line.endswith("*") and not line.startswith("**"):
+            caption = line.strip("*")
+        elif line.startswith("|") and caption is not None:
+            if not line.startswith("|---"):
+                rows.append([cell.strip() for cell in line.strip("|").split("|")])
+        elif rows:
+            tables[caption], caption, rows = rows, None, []
+    return tables
+
+
+def test_every_stage_ran_and_the_summary_parses(quick_report):
+    assert quick_report.failed == []
+    summary = json.loads((quick_report.out / "summary.json").read_text())
+    assert set(summary["stages"]) == set(report_module.STAGES)
+    assert all(stage["seconds"] > 0 and stage["error"] is None for stage in summary["stages"].values())
+    assert summary["params"] == ChainParams().model_dump() == json.loads((quick_report.out / "params.json").read_text())
+    for path in (quick_report.out / "data").glob("*.json"):
+        json.loads(path.read_text())
+
+
+def test_every_figure_the_pages_reference_exists(quick_report):
+    markdown = (quick_report.out / "report.md").read_text()
+    page = (quick_report.out / "index.html").read_text()
+    linked = set(re.findall(r"\((figures/[\w.]+)\)", markdown)) | set(re.findall(r"href='(figures/[\w.]+)'", page))
+    assert {"figures/fig2.png", "figures/fig3a.svg", "figures/fig3b.png", "figures/rotation.gif", "figures/dispersion.svg"} <= linked
+    for link in linked:
+        assert (quick_report.out / link).stat().st_size > 1000, link
+    # Self-contained: pictures are embedded, nothing is fetched from a network.
+    assert "http://" not in page and "https://" not in page
+    assert page.count("src='data:image/png;base64,") == markdown.count("![")
+
+
+def test_table_numbers_equal_the_python_api(quick_report):
+    params = ChainParams()
+    tables = markdown_tables((quick_report.out / "report.md").read_text())
+    statics = next(rows for caption, rows in tables.items() if caption.startswith("Compliance, critical moment"))
+    for row in statics[1:]:
+        model = row[0]
+        exact = critical_point(params, model)
+        sweep = relaxation_sweep(params, model, m_max=QUICK.m_max, dm=QUICK.dm, down=True)
+        assert row[1:] == [format_cell(v) for v in (exact.compliance, exact.critical_moment, exact.phi0_at_fold, sweep.onset_load, sweep.stop_load)]
+    localization = tables["Statistics of the localization run"]
+    for row in localization[1:]:
+        model = row[0]
+        result = localization_run(params, model, QUICK.rotation_moment[model], turns=QUICK.turns, t_max=100.0 * QUICK.turns).as_dict()
+        assert row[2:8] == [format_cell(result[k]) for k in ("turns_completed", "t_end", "mean_angular_velocity", "max_abs_phi_others", "max_abs_v_others", "max_abs_u_others")]
+    continuum = tables["Continuum against discrete compliance"]
+    table = convergence(params, list(QUICK.n_list))
+    assert [row[3] for row in continuum[1:]] == [format_cell(e) for e in table.relative_error]
+
+
+def test_a_failing_stage_is_reported_and_the_others_still_appear(tmp_path, monkeypatch):
+    def broken(stage):
+        raise RuntimeError("the dispersion solver exploded")
+
+    monkeypatch.setitem(report_module.STAGES, "waves", broken)
+    result = reproduce(tmp_path, settings=QUICK, stages=["waves", "errata"])
+    assert result.failed == ["waves"]
+    markdown = (tmp_path / "report.md").read_text()
+    assert "the dispersion solver exploded" in markdown and "Errata" in markdown
+    assert "the dispersion solver exploded" in (tmp_path / "index.html").read_text()
+
+
+def test_reproduce_refuses_unknown_stages(tmp_path):
+    with pytest.raises(ValueError, match=r"unknown stage\(s\) \['fig9'\]"):
+        reproduce(tmp_path, stages=["fig9"])
+
+
+def test_reproduce_cli_writes_the_report(tmp_path, monkeypatch):
+    monkeypatch.setattr(report_module, "STAGES", {"errata": report_module.STAGES["errata"]})
+    result = CliRunner().invoke(app, ["reproduce", "--out", str(tmp_path), "--json"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.stdout)["stages"]["errata"]["error"] is None
+    assert (tmp_path / "index.html").exists() and (tmp_path / "report.md").exists()
