@@ -249,12 +249,19 @@ class _Batch:
         self.v = _stack_states(self.params, v0, "v0")
         requested = [None] * size if dt is None else _per_member(dt, size, "dt")
         self.dt = np.empty(size)
+        # The default step and the stability limit cost an eigenvalue scan each (about
+        # 1 ms): once per distinct (params, dt), since a grid of loads repeats one chain.
+        checked: dict[tuple[ChainParams, float | None], float] = {}
         for i, (p, step) in enumerate(zip(self.params, requested)):
-            self.dt[i] = default_time_step(p) if step is None else float(step)
-            try:
-                check_time_step(p, float(self.dt[i]), self.method)
-            except ValueError as err:
-                raise ValueError(f"member {i} (params_list[{i}]): {err}") from None
+            key = (p, step)
+            if key not in checked:
+                value = default_time_step(p) if step is None else float(step)
+                try:
+                    check_time_step(p, value, self.method)
+                except ValueError as err:
+                    raise ValueError(f"member {i} (params_list[{i}]): {err}") from None
+                checked[key] = value
+            self.dt[i] = checked[key]
         self.coef = np.ascontiguousarray([self.model.coefficients(p) for p in self.params], dtype=float)
         self.mass = np.array([p.inertia for p in self.params])
         self.gamma = np.array([p.damping for p in self.params])

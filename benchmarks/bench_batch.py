@@ -1,0 +1,179 @@
+"""Throughput of the batched loop against the single-run compiled loop, measured in the same run.
+
+Run from the repository root::
+
+    python benchmarks/bench_batch.py            # about 2 minutes on 2 cores
+    python benchmarks/bench_batch.py --quick    # fewer repetitions, smaller work (< 30 s)
+    python benchmarks/bench_batch.py --json     # also print one JSON object
+
+Two parts (see benchmarks/BATCH.md):
+
+1. Throughput in particle-steps per second (p-s/s; particles = all 2N+1 columns)
+   of ``integrate_batch`` with B members (B = 1, 16, 256; members with
+   different moments, damped Verlet, default dt) on one thread and on two,
+   against ``integrate`` on one chain (the single-run compiled loop, one thread,
+   same model, same dt), for 7 and 101 particles, nonlinear and sine models.
+   Each configuration does about the same work; the three are interleaved and
+   repeated, and medians are reported with the ratios batch / single.
+2. The relaxation step for a grid of 16 loads on the paper's chain:
+   ``relax_batch`` (one and two threads) against ``relax`` called load by load,
+   wall time of the whole grid.
+
+Results go to stdout (a table), to ``benchmarks/results/batch.json`` (or
+``batch-quick.json`` with ``--quick``) and, with ``--json``, to stdout as one
+JSON object.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shlex
+import statistics
+import sys
+import time
+from functools import partial
+from pathlib import Path
+
+import numba
+import numpy as np
+
+from cosserat_chain import ChainParams, moment_load
+from cosserat_chain.numerics.batch import integrate_batch, relax_batch
+from cosserat_chain.numerics.dynamics import default_time_step, integrate
+from cosserat_chain.numerics.relaxation import relax
+
+RESULTS = Path(__file__).resolve().parent / "results"
+MODELS = ("nonlinear", "sine")
+SIZES = (3, 50)  # N: 7 and 101 particles
+BATCHES = (1, 16, 256)
+GRID = np.linspace(0.02, 0.5, 16)  # loads of the relaxation grid: static and rotating
+
+
+def moments(batch: int) -> np.ndarray:
+    """Different loads per member (static and rotating ones), so that members really differ."""
+    return np.linspace(0.02, 0.4, batch)
+
+
+def timed(fn) -> float:
+    start = time.perf_counter()
+    fn()
+    return time.perf_counter() - start
+
+
+def throughput(quick: bool, log) -> list[dict]:
+    """Particle-steps per second of single runs and of batches, interleaved, medians."""
+    work = 2_000_000 if quick else 8_000_000  # particle-steps per measurement
+    repeats = 3 if quick else 7
+    rows = []
+    for model in MODELS:
+        for N in SIZES:
+            params = ChainParams(N=N)
+            n = params.n_particles
+            dt = default_time_step(params)
+            single_steps = work // n
+            single = partial(integrate, params, model, moment_load(0.1), t_end=single_steps * dt, dt=dt, n_frames=2)
+            for batch in BATCHES:
+                steps = max(64, work // (n * batch))
+                batched = partial(integrate_batch, [params] * batch, model, moments(batch), t_end=steps * dt, dt=dt, n_records=2)
+                runs = {f"batch_{threads}t": partial(batched, threads=threads) for threads in (1, 2)}
+                for fn in (single, *runs.values()):
+                    fn()  # compile and warm the caches
+                samples: dict[str, list[float]] = {"single": [], **{k: [] for k in runs}}
+                for _ in range(repeats):
+                    samples["single"].append(single_steps * n / timed(single))
+                    for key, fn in runs.items():
+                        samples[key].append(steps * n * batch / timed(fn))
+                row = {"model": model, "particles": n, "batch": batch, **{f"{k}_ps": statistics.median(v) for k, v in samples.items()}}
+                row["ratio_1t"] = row["batch_1t_ps"] / row["single_ps"]
+                row["ratio_2t"] = row["batch_2t_ps"] / row["single_ps"]
+                log(
+                    f"{model:9s} {n:4d} particles  B={batch:4d}  single {row['single_ps'] / 1e6:6.1f} M p-s/s  "
+                    f"batch 1 thread {row['batch_1t_ps'] / 1e6:6.1f} M ({row['ratio_1t']:.2f}x)  "
+                    f"2 threads {row['batch_2t_ps'] / 1e6:6.1f} M ({row['ratio_2t']:.2f}x)"
+                )
+                rows.append(row)
+    return rows
+
+
+def relaxation_grid(quick: bool, log) -> dict:
+    """Wall time of one relaxation step for each of 16 loads: relax load by load against relax_batch."""
+    params = ChainParams()
+    options = {"t_max": 2000.0 if quick else 5000.0}
+    members = [params] * GRID.size
+    batched = {threads: partial(relax_batch, members, "sine", GRID, threads=threads, **options) for threads in (1, 2)}
+
+    def single():
+        return [relax(params, "sine", float(m), **options) for m in GRID]
+
+    reference = [s.status for s in single()]
+    for fn in batched.values():
+        assert [s.status for s in fn()] == reference
+    samples: dict[str, list[float]] = {"single": [], "batch_1t": [], "batch_2t": []}
+    for _ in range(2 if quick else 5):
+        samples["single"].append(timed(single))
+        for threads, fn in batched.items():
+            samples[f"batch_{threads}t"].append(timed(fn))
+    out = {f"{k}_s": statistics.median(v) for k, v in samples.items()}
+    out.update(
+        {
+            "model": "sine",
+            "particles": params.n_particles,
+            "loads": GRID.tolist(),
+            "statuses": reference,
+            "speedup_1t": out["single_s"] / out["batch_1t_s"],
+            "speedup_2t": out["single_s"] / out["batch_2t_s"],
+        }
+    )
+    log(
+        f"relaxation grid of {GRID.size} loads (sine, 7 particles): relax one by one {out['single_s']:.3f} s, "
+        f"relax_batch {out['batch_1t_s']:.3f} s ({out['speedup_1t']:.2f}x), 2 threads {out['batch_2t_s']:.3f} s ({out['speedup_2t']:.2f}x)"
+    )
+    return out
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="smaller work and fewer repetitions (< 30 s)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object with all numbers at the end")
+    parser.add_argument("--output", type=Path, default=None, help="JSON file (default benchmarks/results/batch[-quick].json)")
+    args = parser.parse_args(argv)
+
+    def log(msg: str) -> None:
+        print(msg, file=sys.stderr if args.json else sys.stdout, flush=True)
+
+    numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
+    load_before = os.getloadavg()[0]
+    rows = throughput(args.quick, log)
+    grid = relaxation_grid(args.quick, log)
+    result = {
+        "command": "python benchmarks/bench_batch.py"
+        + (" " + shlex.join(argv if argv is not None else sys.argv[1:]) if (argv or sys.argv[1:]) else ""),
+        "environment": {
+            "python": platform.python_version(),
+            "numba": numba.__version__,
+            "numpy": np.__version__,
+            "cpu_count": os.cpu_count(),
+            "numba_threads": numba.get_num_threads(),
+            "load_average_before_after": [load_before, os.getloadavg()[0]],
+        },
+        "throughput": rows,
+        "relaxation_grid": grid,
+        "summary": {
+            "min_ratio_1t": min(r["ratio_1t"] for r in rows),
+            "min_ratio_2t_batch_16_up": min(r["ratio_2t"] for r in rows if r["batch"] >= 16),
+        },
+    }
+    output = args.output or RESULTS / ("batch-quick.json" if args.quick else "batch.json")
+    output.parent.mkdir(parents=True, exist_ok=True)
+    output.write_text(json.dumps(result, indent=2) + "\n")
+    log(f"written {output}")
+    if args.json:
+        print(json.dumps(result))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
