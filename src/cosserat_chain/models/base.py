@@ -41,6 +41,14 @@ FORCE_SIGNATURE = types.void(types.float64[:, ::1], types.float64[::1], types.fl
 #: The first-class function type compiled integrators take, so that one compiled
 #: (and cached) integrator serves every model.
 FORCE_KERNEL_TYPE = types.FunctionType(FORCE_SIGNATURE)
+#: Numba options of the compiled hot loops (force kernels, integrators).
+#: ``error_model="numpy"``: a division by zero gives inf or nan instead of raising,
+#: which keeps a test and a branch out of every division. ``fastmath={"contract"}``
+#: and no other flag: ``a * b + c`` may become one fused multiply-add (one rounding
+#: instead of two), as gcc compiles C by default at ``-O3 -march=native``; about
+#: +25 % on the nonlinear kernel. No reassociation (sums keep their order) and no
+#: nnan/ninf (they would delete the finiteness checks).
+KERNEL_OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": {"contract"}}
 
 
 class Model(ABC):

@@ -23,7 +23,7 @@ from numba import njit
 
 from ..params import ChainParams
 from ..state import check_state
-from .base import FORCE_SIGNATURE, Model, assemble_bond_blocks, register_model
+from .base import FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks, register_model
 
 
 def cosserat_coefficients(params: ChainParams) -> np.ndarray:
@@ -32,16 +32,14 @@ def cosserat_coefficients(params: ChainParams) -> np.ndarray:
     return np.array([params.k_u, params.k_v, params.h, two_b2 * params.D1, two_b2 * params.D2])
 
 
-@njit(FORCE_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
 def linear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
     u, v, phi = x[0], x[1], x[2]
     for k in range(start, stop):
         out[0, k] = k_u * (u[k + 1] - 2.0 * u[k] + u[k - 1])
         out[1, k] = k_v * (v[k + 1] - 2.0 * v[k] + v[k - 1] - 0.5 * h * (phi[k + 1] - phi[k - 1]))
-        out[2, k] = bend * (phi[k + 1] - 2.0 * phi[k] + phi[k - 1]) + couple * (
-            (v[k + 1] - v[k - 1]) / (2.0 * h) - phi[k]
-        )
+        out[2, k] = bend * (phi[k + 1] - 2.0 * phi[k] + phi[k - 1]) + couple * ((v[k + 1] - v[k - 1]) / (2.0 * h) - phi[k])
 
 
 def cosserat_forces(params: ChainParams, u: np.ndarray, v: np.ndarray, angle: np.ndarray) -> np.ndarray:
@@ -63,11 +61,7 @@ def bond_stiffness_block(params: ChainParams) -> np.ndarray:
     g_u = np.array([-1.0, 0, 0, 1, 0, 0])
     g_phi = np.array([0, 0, -1.0, 0, 0, 1])
     g_shear = np.array([0, -1.0, -params.h / 2, 0, 1, -params.h / 2])
-    return (
-        params.k_u * np.outer(g_u, g_u)
-        + 2 * params.E1 * params.b**2 * np.outer(g_phi, g_phi)
-        + params.k_v * np.outer(g_shear, g_shear)
-    )
+    return params.k_u * np.outer(g_u, g_u) + 2 * params.E1 * params.b**2 * np.outer(g_phi, g_phi) + params.k_v * np.outer(g_shear, g_shear)
 
 
 def stiffness_matrix(params: ChainParams) -> sp.csr_matrix:
@@ -99,11 +93,7 @@ class LinearModel(Model):
         u, v, phi = check_state(params, x)
         du, dv, dphi = np.diff(u), np.diff(v), np.diff(phi)
         shear = dv - 0.5 * params.h * (phi[:-1] + phi[1:])
-        return float(
-            0.5 * params.k_u * np.sum(du**2)
-            + params.E1 * params.b**2 * np.sum(dphi**2)
-            + 0.5 * params.k_v * np.sum(shear**2)
-        )
+        return float(0.5 * params.k_u * np.sum(du**2) + params.E1 * params.b**2 * np.sum(dphi**2) + 0.5 * params.k_v * np.sum(shear**2))
 
 
 LINEAR = register_model(LinearModel())

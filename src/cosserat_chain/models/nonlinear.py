@@ -23,11 +23,11 @@ from numba import njit
 from ..geometry import bond_links, particle_positions, rotate
 from ..params import ChainParams
 from ..state import check_state
-from .base import FORCE_SIGNATURE, Model, assemble_bond_blocks, register_model
+from .base import FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks, register_model
 from .trig import sincos
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@njit(inline="always", **KERNEL_OPTIONS)
 def _bond(coef, c0, s0, c1, s1, du, dv):  # pragma: no cover - compiled
     """Force (fx, fy) and moment m0 on the left particle of a bond, moment m1 on the right one.
 
@@ -75,24 +75,27 @@ def _bond(coef, c0, s0, c1, s1, du, dv):  # pragma: no cover - compiled
     return fx, fy, m0, m1
 
 
-@njit(FORCE_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
 def nonlinear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     u, v, phi = x[0], x[1], x[2]
-    # Bond k joins columns k and k+1. Column k sums the right half of bond k-1
-    # (carried in registers) and the left half of bond k: one pass, no zeroing.
-    s0, c0 = sincos(phi[start - 1])
-    s1, c1 = sincos(phi[start])
-    fx, fy, m0, m1 = _bond(coef, c0, s0, c1, s1, u[start] - u[start - 1], v[start] - v[start - 1])
-    carry_u, carry_v, carry_m = -fx, -fy, m1
-    c0, s0 = c1, s1
-    for k in range(start, stop):
-        s1, c1 = sincos(phi[k + 1])
-        fx, fy, m0, m1 = _bond(coef, c0, s0, c1, s1, u[k + 1] - u[k], v[k + 1] - v[k])
-        out[0, k] = carry_u + fx
-        out[1, k] = carry_v + fy
-        out[2, k] = carry_m + m0
-        carry_u, carry_v, carry_m = -fx, -fy, m1
-        c0, s0 = c1, s1
+    # Bond k-1 joins columns k-1 and k. Column k-1 sums the right half of bond k-2
+    # (carried in registers) and the left half of bond k-1: one pass, no zeroing.
+    # Every sine and every bond is computed at one place in the loop, also the halo
+    # ones: with fused multiply-adds, a second copy before the loop could round
+    # differently, and a chain split into blocks (threads) would no longer give the
+    # same forces bit for bit.
+    s0 = c0 = 0.0
+    carry_u = carry_v = carry_m = 0.0
+    for k in range(start - 1, stop + 1):
+        s1, c1 = sincos(phi[k])
+        if k >= start:
+            fx, fy, m0, m1 = _bond(coef, c0, s0, c1, s1, u[k] - u[k - 1], v[k] - v[k - 1])
+            if k > start:
+                out[0, k - 1] = carry_u + fx
+                out[1, k - 1] = carry_v + fy
+                out[2, k - 1] = carry_m + m0
+            carry_u, carry_v, carry_m = -fx, -fy, m1
+        s0, c0 = s1, c1
 
 
 def _links(params: ChainParams, x: np.ndarray):

@@ -20,12 +20,12 @@ from numba import njit
 
 from ..params import ChainParams
 from ..state import check_state, pack
-from .base import FORCE_SIGNATURE, Model, register_model
+from .base import FORCE_SIGNATURE, KERNEL_OPTIONS, Model, register_model
 from .linear import cosserat_coefficients, cosserat_forces, stiffness_matrix
 from .trig import sincos
 
 
-@njit(FORCE_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
 def sine_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
     u, v, phi = x[0], x[1], x[2]

@@ -14,6 +14,8 @@ import math
 
 from numba import njit
 
+from .base import KERNEL_OPTIONS
+
 _TWO_OVER_PI = 0.636619772367581343076
 # pi/2 = _PIO2_1 + _PIO2_2 + _PIO2_3 (fdlibm): the first two have trailing zero
 # bits, so n * _PIO2_1 and n * _PIO2_2 are exact for |n| < 2^20.
@@ -28,7 +30,7 @@ _C1, _C2, _C3 = -1.13585365213876817300e-11, 2.08757008419747316778e-9, -2.75573
 _C4, _C5, _C6 = 2.48015872888517045348e-5, -1.38888888888730564116e-3, 4.16666666666665929218e-2
 
 
-@njit(cache=True, nogil=True, error_model="numpy", inline="always")
+@njit(inline="always", **KERNEL_OPTIONS)
 def sincos(angle: float) -> tuple[float, float]:
     """(sin(angle), cos(angle)) to about 1 ulp."""
     if not abs(angle) < _REDUCTION_LIMIT:

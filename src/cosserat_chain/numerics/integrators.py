@@ -36,7 +36,12 @@ import numpy as np
 from numba import njit, prange, types
 
 from ..loads import schedule_value
-from ..models.base import FORCE_KERNEL_TYPE
+from ..models.base import FORCE_KERNEL_TYPE, KERNEL_OPTIONS
+
+# The force kernels' options without fastmath "contract": the kick-drift is inlined in
+# several places, and where fused multiply-adds go would depend on the code around each
+# copy, so threads=2 would no longer reproduce threads=1 bit for bit.
+_OPTIONS = {**KERNEL_OPTIONS, "fastmath": False}
 
 #: Status codes returned by :func:`advance`.
 STATUS_OK = 0
@@ -133,7 +138,7 @@ def substep_table(weights: np.ndarray, dt: float, mass: np.ndarray, gamma: np.nd
     return table
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(inline="always", **_OPTIONS)
 def _close_and_open(x, v, f, mass, table, close, open_, start, stop):  # pragma: no cover - compiled
     """End sub-step ``close`` and begin sub-step ``open_`` on columns start..stop-1.
 
@@ -150,22 +155,19 @@ def _close_and_open(x, v, f, mass, table, close, open_, start, stop):  # pragma:
         drift = table[open_, 2, r]
         before_close = 0.0
         before_open = 0.0
-        xr = x[r]
-        vr = v[r]
-        fr = f[r]
         for k in range(start, stop):
-            w = vr[k] + kick_close * fr[k]
+            w = v[r, k] + kick_close * f[r, k]
             before_close += w * w
             w *= e_close
             before_open += w * w
-            w = e_open * w + kick_open * fr[k]
-            vr[k] = w
-            xr[k] += drift * w
+            w = e_open * w + kick_open * f[r, k]
+            v[r, k] = w
+            x[r, k] += drift * w
         dissipated += 0.5 * mass[r] * (before_close * (1.0 - e_close * e_close) + before_open * (1.0 - e_open * e_open))
     return dissipated
 
 
-@njit(cache=True, nogil=True, error_model="numpy", parallel=True)
+@njit(parallel=True, **_OPTIONS)
 def _close_and_open_blocks(x, v, f, mass, table, close, open_, bounds):  # pragma: no cover - compiled
     n_blocks = bounds.size - 1
     parts = np.zeros(n_blocks)
@@ -174,28 +176,21 @@ def _close_and_open_blocks(x, v, f, mass, table, close, open_, bounds):  # pragm
     return parts.sum()
 
 
-@njit(cache=True, nogil=True, error_model="numpy", parallel=True)
+@njit(parallel=True, **_OPTIONS)
 def _forces_blocks(force, x, coef, f, bounds):  # pragma: no cover - compiled
     for i in prange(bounds.size - 1):
         force(x, coef, f, bounds[i], bounds[i + 1])
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _forces(force, x, coef, f, bounds):  # pragma: no cover - compiled
+@njit(inline="always", **_OPTIONS)
+def _close(x, v, f, mass, table, close, empty, bounds):  # pragma: no cover - compiled
+    """Close sub-step ``close`` without opening another (velocities at the step boundary)."""
     if bounds.size == 2:
-        force(x, coef, f, bounds[0], bounds[1])
-    else:
-        _forces_blocks(force, x, coef, f, bounds)
+        return _close_and_open(x, v, f, mass, table, close, empty, bounds[0], bounds[1])
+    return _close_and_open_blocks(x, v, f, mass, table, close, empty, bounds)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _kick_drift(x, v, f, mass, table, close, open_, bounds):  # pragma: no cover - compiled
-    if bounds.size == 2:
-        return _close_and_open(x, v, f, mass, table, close, open_, bounds[0], bounds[1])
-    return _close_and_open_blocks(x, v, f, mass, table, close, open_, bounds)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(**_OPTIONS)
 def _runaway(x, v, max_displacement):  # pragma: no cover - compiled
     """True if a value is not finite or a displacement exceeds ``max_displacement``."""
     for r in range(3):
@@ -207,23 +202,12 @@ def _runaway(x, v, max_displacement):  # pragma: no cover - compiled
     return False
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _load_displacements(x, load_index, out):  # pragma: no cover - compiled
-    for i in range(load_index.shape[0]):
-        out[i] = x[load_index[i, 0], load_index[i, 1]]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _load_values(load_index, knots, t, out):  # pragma: no cover - compiled
-    for i in range(load_index.shape[0]):
-        out[i] = schedule_value(knots, load_index[i, 2], load_index[i, 3], t)
-
-
 _F8 = types.float64
 _I8 = types.int64
 _ROWS = types.float64[:, ::1]
 _VEC = types.float64[::1]
 _FRAMES = types.float64[:, :, ::1]
+# fmt: off
 ADVANCE_SIGNATURE = types.UniTuple(_I8, 3)(
     FORCE_KERNEL_TYPE,  # force
     _ROWS, _ROWS, _ROWS,  # x, v, f
@@ -234,12 +218,13 @@ ADVANCE_SIGNATURE = types.UniTuple(_I8, 3)(
 )
 
 
-@njit(ADVANCE_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+@njit(ADVANCE_SIGNATURE, **_OPTIONS)
 def advance(
     force, x, v, f, coef, mass, table, weights, load_index, knots, bounds,
     t0, dt, n_steps, step0, stride, check_every, max_displacement,
     acc, frames_x, frames_v, frames_acc, frame0,
 ):  # pragma: no cover - compiled
+    # fmt: on
     """Advance ``n_steps`` steps in place and store every ``stride``-th state.
 
     Parameters
@@ -275,49 +260,69 @@ def advance(
     n_loads = load_index.shape[0]
     q_old = np.empty(n_loads)
     load_old = np.empty(n_loads)
-    _load_displacements(x, load_index, q_old)
-    _load_values(load_index, knots, t0 + step0 * dt, load_old)
-    q_new = q_old.copy()
-    load_new = load_old.copy()
+    for i in range(n_loads):
+        q_old[i] = x[load_index[i, 0], load_index[i, 1]]
+        load_old[i] = schedule_value(knots, load_index[i, 2], load_index[i, 3], t0 + step0 * dt)
+    # The running sums stay in registers; acc is written back before every return.
+    work = acc[0]
+    dissipated = acc[1]
     frame = frame0
-    empty = weights.size
+    n_sub = weights.size
+    empty = n_sub
     pending = empty
+    single = bounds.size == 2
+    start = bounds[0]
+    stop = bounds[-1]
     # Countdowns instead of a modulo per step: an integer division costs as much as
     # a small chain's kick-drift.
     to_store = stride - step0 % stride
     to_check = check_every
+    # The sub-step is written out here rather than in helpers: a call to a compiled
+    # helper passes every array as ~10 scalar arguments, and a helper inlined by
+    # numba adds reference-count updates on its array arguments; either costs about
+    # a third of a 7-particle step.
     for k in range(n_steps):
         t = t0 + (step0 + k) * dt
-        for s in range(weights.size):
-            acc[1] += _kick_drift(x, v, f, mass, table, pending, s, bounds)
+        for s in range(n_sub):
+            if single:
+                dissipated += _close_and_open(x, v, f, mass, table, pending, s, start, stop)
+                force(x, coef, f, start, stop)
+            else:
+                dissipated += _close_and_open_blocks(x, v, f, mass, table, pending, s, bounds)
+                _forces_blocks(force, x, coef, f, bounds)
             t += weights[s] * dt
-            _forces(force, x, coef, f, bounds)
-            _load_displacements(x, load_index, q_new)
-            _load_values(load_index, knots, t, load_new)
             for i in range(n_loads):
-                f[load_index[i, 0], load_index[i, 1]] += load_new[i]
-                acc[0] += 0.5 * (load_old[i] + load_new[i]) * (q_new[i] - q_old[i])
-                q_old[i] = q_new[i]
-                load_old[i] = load_new[i]
+                row = load_index[i, 0]
+                col = load_index[i, 1]
+                q = x[row, col]
+                load = schedule_value(knots, load_index[i, 2], load_index[i, 3], t)
+                f[row, col] += load
+                work += 0.5 * (load_old[i] + load) * (q - q_old[i])
+                q_old[i] = q
+                load_old[i] = load
             pending = s
         to_store -= 1
         to_check -= 1
         store = to_store == 0
         last = k == n_steps - 1
         if store or last:
-            acc[1] += _kick_drift(x, v, f, mass, table, pending, empty, bounds)
+            dissipated += _close(x, v, f, mass, table, pending, empty, bounds)
             pending = empty
         if store:
             to_store = stride
             frames_x[frame] = x
             frames_v[frame] = v
-            frames_acc[frame, 0] = acc[0]
-            frames_acc[frame, 1] = acc[1]
+            frames_acc[frame, 0] = work
+            frames_acc[frame, 1] = dissipated
             frame += 1
         if to_check == 0 or last:
             to_check = check_every
             if _runaway(x, v, max_displacement):
                 if pending != empty:
-                    acc[1] += _kick_drift(x, v, f, mass, table, pending, empty, bounds)
+                    dissipated += _close(x, v, f, mass, table, pending, empty, bounds)
+                acc[0] = work
+                acc[1] = dissipated
                 return STATUS_BLEW_UP, k + 1, frame - frame0
+    acc[0] = work
+    acc[1] = dissipated
     return STATUS_OK, n_steps, frame - frame0
