@@ -14,7 +14,8 @@ Two parts (see benchmarks/BATCH.md):
    against ``integrate`` on one chain (the single-run compiled loop, one thread,
    same model, same dt), for 7 and 101 particles, nonlinear and sine models.
    Each configuration does about the same work; the three are interleaved and
-   repeated, and medians are reported with the ratios batch / single.
+   repeated, and medians are reported with the ratios batch / single, in wall
+   time and per CPU-second of the process (which a busy machine distorts less).
 2. The relaxation step for a grid of 16 loads on the paper's chain:
    ``relax_batch`` (one and two threads) against ``relax`` called load by load,
    wall time of the whole grid.

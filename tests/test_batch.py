@@ -10,7 +10,7 @@ from cosserat_chain import ChainParams, moment_load
 from cosserat_chain.experiments.sweep import relaxation_sweep
 from cosserat_chain.experiments.sweep_batch import relaxation_sweeps
 from cosserat_chain.numerics.batch import integrate_batch, relax_batch
-from cosserat_chain.numerics.dynamics import default_time_step, integrate
+from cosserat_chain.numerics.dynamics import IntegrationError, default_time_step, integrate
 from cosserat_chain.numerics.relaxation import relax
 
 #: Members that differ in geometry, stiffness, inertia and damping (same N).
@@ -137,3 +137,12 @@ def test_non_finite_input_is_refused_naming_member_and_field(paper):
         integrate_batch([paper, paper], "sine", 0.1, t_end=1.0, dt=[np.nan, 0.01])
     with pytest.raises(ValueError, match=r"member 0 \(params_list\[0\]\): m_max"):
         relaxation_sweeps([paper], "sine", m_max=np.nan, steps=2)
+
+
+def test_a_member_that_runs_away_is_reported_by_name(paper):
+    x0 = np.zeros((2, 3, paper.n_particles))
+    x0[1, 0, 3] = 1e5  # far beyond the runaway bound of 100 chain lengths
+    run = integrate_batch([paper, paper], "linear", 0.1, t_end=5.0, x0=x0)
+    assert run.status == ["completed", "blew_up"]
+    with pytest.raises(IntegrationError, match=r"member 1 \(params_list\[1\], moment 0.1\) blew up"):
+        relax_batch([paper, paper], "linear", 0.1, x0=x0)

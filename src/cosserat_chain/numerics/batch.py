@@ -303,7 +303,7 @@ class _Batch:
         """The error for member b's blow-up, carrying its last state."""
         t = self.floats[b, _T0] + (self.floats[b, _T_END] - self.floats[b, _T0]) * self.ints[b, _DONE] / self.ints[b, _N_STEPS]
         message = (
-            f"member {b} (params_list[{b}], moment {self.moments[b]:g}) blew up at t={t:.6g} of its chunk: a value became "
+            f"member {b} (params_list[{b}], moment {self.floats[b, _MOMENT]:g}) blew up at t={t:.6g}: a value became "
             f"non-finite or |u|, |v| exceeded {self.floats[b, _MAX_DISPLACEMENT]:g}. Use a smaller time step than dt={self.dt[b]:g}."
         )
         trajectory = Trajectory(
