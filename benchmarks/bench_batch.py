@@ -16,6 +16,8 @@ Two parts (see benchmarks/BATCH.md):
    Each configuration does about the same work; the three are interleaved and
    repeated, and medians are reported with the ratios batch / single, in wall
    time and per CPU-second of the process (which a busy machine distorts less).
+   Before and after, the speed-up of a perfectly parallel loop on two threads
+   says how many cores the machine actually gave the run.
 2. The relaxation step for a grid of 16 loads on the paper's chain:
    ``relax_batch`` (one and two threads) against ``relax`` called load by load,
    wall time of the whole grid.
@@ -144,6 +146,34 @@ def relaxation_grid(quick: bool, log) -> dict:
     return out
 
 
+@numba.njit(cache=True)
+def _spin(n: int) -> float:
+    total = 0.0
+    for i in range(n):
+        total += (i % 7) * 1e-9
+    return total
+
+
+@numba.njit(cache=True, parallel=True)
+def _spin_two(n: int) -> np.ndarray:
+    out = np.zeros(2)
+    for g in numba.prange(2):
+        out[g] = _spin(n)
+    return out
+
+
+def free_cores(quick: bool) -> float:
+    """Speed-up of a perfectly parallel loop on two threads: how many cores the machine gave this run.
+
+    On a shared machine the two-thread ratios mean something only when this is near 2.
+    """
+    n = 50_000_000 if quick else 200_000_000
+    _spin(10), _spin_two(10)
+    one = statistics.median(timed(lambda: _spin(2 * n))[0] for _ in range(3))
+    two = statistics.median(timed(lambda: _spin_two(n))[0] for _ in range(3))
+    return one / two
+
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="smaller work and fewer repetitions (< 30 s)")
@@ -156,8 +186,12 @@ def main(argv=None) -> int:
 
     numba.set_num_threads(min(2, numba.config.NUMBA_NUM_THREADS))
     load_before = os.getloadavg()[0]
+    cores_before = free_cores(args.quick)
+    log(f"a perfectly parallel loop runs {cores_before:.2f}x faster on two threads than on one (free cores)")
     rows = throughput(args.quick, log)
     grid = relaxation_grid(args.quick, log)
+    cores_after = free_cores(args.quick)
+    log(f"... and {cores_after:.2f}x after the runs")
     result = {
         "command": "python benchmarks/bench_batch.py"
         + (" " + shlex.join(argv if argv is not None else sys.argv[1:]) if (argv or sys.argv[1:]) else ""),
@@ -168,6 +202,7 @@ def main(argv=None) -> int:
             "cpu_count": os.cpu_count(),
             "numba_threads": numba.get_num_threads(),
             "load_average_before_after": [load_before, os.getloadavg()[0]],
+            "free_cores_before_after": [cores_before, cores_after],
         },
         "throughput": rows,
         "relaxation_grid": grid,
