@@ -5,7 +5,9 @@ evaluation; two scalar libm calls took about half its time. :func:`sincos`
 reduces the angle to [-pi/4, pi/4] with a three-part pi/2 (exact for
 |phi| < 2^20 pi/2, far beyond 1500 turns) and evaluates the Cephes minimax
 polynomials, accurate to about 1 ulp; larger or non-finite angles fall back to
-libm.
+libm. Below 2^-27 in magnitude it returns (angle, 1) at once, as libm does: the
+polynomials give exactly that there, and in a long chain most angles are often
+still exactly zero.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ _PIO2_1 = 1.57079632673412561417e00
 _PIO2_2 = 6.07710050630396597660e-11
 _PIO2_3 = 2.02226624879595063154e-21
 _REDUCTION_LIMIT = 1.0e6
+_TINY = 2.0**-27
 
 _S1, _S2, _S3 = 1.58962301576546568060e-10, -2.50507477628578072866e-8, 2.75573136213857245213e-6
 _S4, _S5, _S6 = -1.98412698295895385996e-4, 8.33333333332211858878e-3, -1.66666666666666307295e-1
@@ -33,6 +36,9 @@ _C4, _C5, _C6 = 2.48015872888517045348e-5, -1.38888888888730564116e-3, 4.1666666
 @njit(inline="always", **KERNEL_OPTIONS)
 def sincos(angle: float) -> tuple[float, float]:
     """(sin(angle), cos(angle)) to about 1 ulp."""
+    if abs(angle) < _TINY:
+        # + 0.0 turns -0.0 into +0.0, as the polynomials do.
+        return angle + 0.0, 1.0
     if not abs(angle) < _REDUCTION_LIMIT:
         return math.sin(angle), math.cos(angle)
     n = math.floor(angle * _TWO_OVER_PI + 0.5)
