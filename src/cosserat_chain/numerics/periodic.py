@@ -1,0 +1,845 @@
+"""Rotating states as periodic orbits: shooting, Floquet multipliers and continuation in the moment.
+
+Contract
+--------
+Above the critical moment the loaded particle turns without end while the rest of
+the chain oscillates (Section 4). Because every model used for rotation is 2 pi
+periodic in each angle, a steady rotation is a *limit cycle*: after a period T the
+angle phi_0 of the loaded particle has advanced by 2 pi k (k turns) and every other
+coordinate and every velocity has returned,
+
+    Phi_T(y0) = y0 + 2 pi k e_phi0,                                    (P)
+
+where y = (q, q') holds the free degrees of freedom and their velocities (ordering
+of :mod:`cosserat_chain.state`) and Phi_t is the flow of the damped equations of
+motion (1)-(3) under a constant moment M on the loaded particle.
+
+* :func:`find_periodic_orbit` solves (P) by Newton's method on the shooting map.
+  The unknowns are the state on the Poincare section phi_0 = 0 (phi_0 is fixed,
+  which removes the phase freedom along the orbit) and the period T. The Jacobian
+  is exact up to the integration tolerance: the monodromy matrix dPhi_T/dy0 comes
+  from the variational equations Phi' = A(t) Phi, A = [[0, I], [M^-1 dF/dq, -M^-1 Gamma]],
+  integrated together with the state by DOP853 on a compiled right-hand side; the
+  force Jacobian dF/dq is formed inside it by central differences of the model's
+  compiled force kernel, coloured so that it costs 18 force evaluations whatever N
+  (a column's forces depend only on its two neighbours).
+* The Floquet multipliers are the eigenvalues of the monodromy matrix. One equals 1
+  (the flow direction); the orbit is stable iff all the others lie inside the unit
+  circle.
+* :func:`continue_orbit` follows the orbit in M by pseudo-arclength continuation in
+  (y0, log T, M), downwards until it ceases to exist: at a fold of limit cycles
+  (M turns back, the period stays finite) or where the period diverges (a
+  homoclinic end; at the static fold M_c it is the saddle-node on the invariant
+  circle, with T ~ (M - M_c)^(-1/2)). Using log T as the unknown keeps steps of the
+  same size while T grows without bound.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+from numba import njit, types
+from scipy.integrate._ivp import dop853_coefficients as dop853
+
+from ..loads import moment_load
+from ..models.base import FORCE_KERNEL_TYPE, Model, get_model
+from ..params import ChainParams
+from ..state import ROW_INDEX, check_state, column, n_free, pack, unpack, zeros
+from .dynamics import integrate
+
+#: Step of the central differences of the force kernel. The nonlinear model's third
+#: derivatives are large (~1e3), so truncation (step^2) meets round-off (eps / step) near
+#: 1e-6: dF/dq is then accurate to ~1e-9 against the exact stiffness (|K| ~ 8).
+FD_STEP = 1e-6
+#: Default tolerances of the shooting integrations (DOP853).
+RTOL = 1e-11
+ATOL = 1e-11
+#: Default Newton tolerance on the closure max |Phi_T(y0) - y0 - 2 pi k e_phi0|.
+CLOSURE_TOL = 1e-9
+#: Newton iterations of one continuation step before the step is halved.
+MAX_CORRECTOR_ITERATIONS = 10
+#: Newton reuses its Jacobian while each step divides the closure by at least 1 / NEWTON_RATE.
+NEWTON_RATE = 0.1
+#: Step halvings of a Newton step that makes the closure worse.
+MAX_HALVINGS = 6
+#: Most DOP853 steps over one period.
+MAX_STEPS = 10_000_000
+#: Time simulated per call while looking for a settled rotation.
+GUESS_CHUNK = 200.0
+#: The simulated rotation has settled when two consecutive spans of k turns agree to this.
+SETTLE_RTOL = 1e-3
+
+ProgressCallback = Callable[[float, float], None]
+
+_RHS_SIGNATURE = types.float64[::1](
+    FORCE_KERNEL_TYPE,
+    types.float64[::1],
+    types.float64[::1],
+    types.float64[::1],
+    types.float64[::1],
+    types.int64,
+    types.float64,
+    types.int64,
+    types.int64,
+)
+
+
+@njit(_RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+def _rhs(force, y, coef, inv_mass, damping_rate, n, moment, load_dof, ncols):  # pragma: no cover - compiled
+    nf = 3 * (n - 2)
+    x = np.zeros((3, n))
+    for c in range(1, n - 1):
+        for r in range(3):
+            x[r, c] = y[3 * (c - 1) + r]
+    f = np.zeros((3, n))
+    force(x, coef, f, 1, n - 1)
+    dy = np.empty_like(y)
+    for i in range(nf):
+        dy[i] = y[nf + i]
+        load = moment if i == load_dof else 0.0
+        dy[nf + i] = (f[(i % 3), i // 3 + 1] + load) * inv_mass[i] - damping_rate[i] * y[nf + i]
+    if ncols == 0:
+        return dy
+    # dF/dq by central differences, coloured: perturbing row r of every third column
+    # at once is exact because a column's forces read only its two neighbours.
+    jac = np.zeros((nf, nf))
+    xp = np.empty_like(x)
+    xm = np.empty_like(x)
+    fp = np.zeros((3, n))
+    fm = np.zeros((3, n))
+    for r in range(3):
+        for color in range(3):
+            xp[:] = x
+            xm[:] = x
+            for c in range(1 + color, n - 1, 3):
+                xp[r, c] += FD_STEP
+                xm[r, c] -= FD_STEP
+            force(xp, coef, fp, 1, n - 1)
+            force(xm, coef, fm, 1, n - 1)
+            for c in range(1, n - 1):
+                for p in range(max(c - 1, 1), min(c + 2, n - 1)):
+                    if (p - 1) % 3 != color:
+                        continue
+                    for rr in range(3):
+                        jac[3 * (c - 1) + rr, 3 * (p - 1) + r] = (fp[rr, c] - fm[rr, c]) / (2.0 * FD_STEP)
+    phi = y[2 * nf :].reshape((2 * nf, ncols))
+    dphi = dy[2 * nf :].reshape((2 * nf, ncols))
+    dphi[:nf] = phi[nf:]
+    accel = np.dot(jac, np.ascontiguousarray(phi[:nf]))
+    for i in range(nf):
+        for k in range(ncols):
+            dphi[nf + i, k] = accel[i, k] * inv_mass[i] - damping_rate[i] * phi[nf + i, k]
+    if ncols == 2 * nf + 1:
+        # The last column is dy/dM: the moment enters the loaded particle's equation.
+        dphi[nf + load_dof, ncols - 1] += inv_mass[load_dof]
+    return dy
+
+
+_STAGES = dop853.N_STAGES
+_A = np.ascontiguousarray(dop853.A[:_STAGES, :_STAGES])
+_B = np.ascontiguousarray(dop853.B)
+_C = np.ascontiguousarray(dop853.C[:_STAGES])
+_E3 = np.ascontiguousarray(dop853.E3)
+_E5 = np.ascontiguousarray(dop853.E5)
+
+_FLOW_SIGNATURE = types.Tuple((types.float64[::1], types.int64))(
+    FORCE_KERNEL_TYPE,
+    types.float64[::1],
+    types.float64,
+    types.float64[::1],
+    types.float64[::1],
+    types.float64[::1],
+    types.int64,
+    types.float64,
+    types.int64,
+    types.int64,
+    types.float64,
+    types.float64,
+    types.int64,
+)
+
+
+@njit(_FLOW_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+def _flow(force, y0, t_end, coef, inv_mass, damping_rate, n, moment, load_dof, ncols, rtol, atol, max_steps):  # pragma: no cover - compiled
+    # Dormand-Prince 8(5,3) with SciPy's coefficients and error norm (scipy.integrate.DOP853),
+    # the whole loop compiled: one call per period instead of one per right-hand side.
+    size = y0.size
+    k = np.zeros((_STAGES + 1, size))
+    y = y0.copy()
+    f = _rhs(force, y, coef, inv_mass, damping_rate, n, moment, load_dof, ncols)
+    t = 0.0
+    h = min(1e-3, t_end)
+    steps = 0
+    while t < t_end:
+        if steps >= max_steps:
+            return y, -1
+        accepted = False
+        rejected = False
+        while not accepted:
+            if h < 1e-14 * max(1.0, t_end):
+                return y, -2
+            step = min(h, t_end - t)
+            k[0] = f
+            for s in range(1, _STAGES):
+                stage = y.copy()
+                for r in range(s):
+                    if _A[s, r] != 0.0:
+                        stage += (step * _A[s, r]) * k[r]
+                k[s] = _rhs(force, stage, coef, inv_mass, damping_rate, n, moment, load_dof, ncols)
+            y_new = y.copy()
+            for r in range(_STAGES):
+                if _B[r] != 0.0:
+                    y_new += (step * _B[r]) * k[r]
+            f_new = _rhs(force, y_new, coef, inv_mass, damping_rate, n, moment, load_dof, ncols)
+            k[_STAGES] = f_new
+            err5 = 0.0
+            err3 = 0.0
+            for i in range(size):
+                scale = atol + max(abs(y[i]), abs(y_new[i])) * rtol
+                e5 = 0.0
+                e3 = 0.0
+                for r in range(_STAGES + 1):
+                    e5 += k[r, i] * _E5[r]
+                    e3 += k[r, i] * _E3[r]
+                err5 += (e5 / scale) ** 2
+                err3 += (e3 / scale) ** 2
+            if err5 == 0.0 and err3 == 0.0:
+                error = 0.0
+            else:
+                error = step * err5 / math.sqrt((err5 + 0.01 * err3) * size)
+            if error < 1.0:
+                factor = 10.0 if error == 0.0 else min(10.0, 0.9 * error ** (-1.0 / 8.0))
+                if rejected:
+                    factor = min(1.0, factor)
+                accepted = True
+                t = t_end if step == t_end - t else t + step
+                y = y_new
+                f = f_new
+                steps += 1
+                h = step * factor if step == h else max(h, step * factor)
+            else:
+                h = step * max(0.2, 0.9 * error ** (-1.0 / 8.0))
+                rejected = True
+    return y, steps
+
+
+class OrbitError(RuntimeError):
+    """Newton's method on the shooting map did not converge (the message says what to try)."""
+
+
+@dataclass(frozen=True)
+class _System:
+    """The equations of motion of one chain, model and moment in the layout of :func:`_rhs`."""
+
+    params: ChainParams
+    model: Model
+    moment: float
+    particle: int
+
+    @property
+    def nf(self) -> int:
+        return n_free(self.params)
+
+    @property
+    def load_dof(self) -> int:
+        return 3 * (column(self.params, self.particle) - 1) + ROW_INDEX["phi"]
+
+    def arrays(self):
+        mass = np.tile(np.array(self.params.inertia), self.params.n_particles - 2)
+        gamma = np.tile(np.array(self.params.damping), self.params.n_particles - 2)
+        return type(self.model).force_kernel, self.model.coefficients(self.params), 1.0 / mass, gamma / mass
+
+    def rhs(self, ncols: int):
+        kernel, coef, inv_mass, rate = self.arrays()
+        n, moment, dof = self.params.n_particles, float(self.moment), self.load_dof
+
+        def f(t: float, y: np.ndarray) -> np.ndarray:
+            return _rhs(kernel, y, coef, inv_mass, rate, n, moment, dof, ncols)
+
+        return f
+
+    def flow(self, y0: np.ndarray, period: float, *, rtol: float, atol: float, variations: bool):
+        """State after ``period`` and, with ``variations``, dPhi_T/dy0 (2nf, 2nf) and dPhi_T/dM (2nf,)."""
+        size = 2 * self.nf
+        ncols = size + 1 if variations else 0
+        start = np.concatenate([y0, np.hstack([np.eye(size), np.zeros((size, 1))]).ravel() if variations else []])
+        kernel, coef, inv_mass, rate = self.arrays()
+        end, steps = _flow(
+            kernel,
+            start,
+            float(period),
+            coef,
+            inv_mass,
+            rate,
+            self.params.n_particles,
+            float(self.moment),
+            self.load_dof,
+            ncols,
+            rtol,
+            atol,
+            MAX_STEPS,
+        )
+        if steps < 0:
+            reason = f"more than {MAX_STEPS} steps" if steps == -1 else "the step size fell to round-off"
+            raise OrbitError(f"integration over T={period!r} failed at M={self.moment!r}: {reason}")
+        if not variations:
+            return end[:size], None, None
+        phi = end[size:].reshape(size, ncols)
+        return end[:size], phi[:, :size], phi[:, size]
+
+    def velocity(self, y: np.ndarray) -> np.ndarray:
+        """The vector field f(y) (2nf,)."""
+        return self.rhs(0)(0.0, y)
+
+
+@dataclass
+class PeriodicOrbit:
+    """A rotating state as a limit cycle (see the module docstring, eq. (P)).
+
+    Attributes
+    ----------
+    params : ChainParams
+    model : str
+    moment : float
+        Constant moment M on the loaded particle.
+    turns : int
+        k: the loaded particle turns k times per period.
+    particle : int
+        The loaded particle.
+    period : float
+        T.
+    x, v : ndarray (3, 2N+1)
+        The state on the section phi_0 = 0 where the orbit starts.
+    multipliers : ndarray (2 n_free,) complex
+        Floquet multipliers (eigenvalues of the monodromy matrix), by decreasing modulus.
+    closure : float
+        max |Phi_T(y0) - y0 - 2 pi k e_phi0| of the converged orbit.
+    iterations : int
+        Newton iterations used.
+    """
+
+    params: ChainParams
+    model: str
+    moment: float
+    turns: int
+    particle: int
+    period: float
+    x: np.ndarray
+    v: np.ndarray
+    multipliers: np.ndarray
+    closure: float
+    iterations: int
+
+    @property
+    def mean_angular_velocity(self) -> float:
+        """2 pi k / T, signed along the moment."""
+        return math.copysign(2.0 * math.pi * self.turns / self.period, self.moment)
+
+    @property
+    def trivial_multiplier(self) -> complex:
+        """The multiplier along the flow (closest to 1); it equals 1 up to the integration error."""
+        return complex(self.multipliers[np.argmin(np.abs(self.multipliers - 1.0))])
+
+    @property
+    def nontrivial_multipliers(self) -> np.ndarray:
+        """All multipliers but the trivial one."""
+        return np.delete(self.multipliers, np.argmin(np.abs(self.multipliers - 1.0)))
+
+    @property
+    def max_multiplier(self) -> float:
+        """Largest modulus of the nontrivial multipliers."""
+        return float(np.max(np.abs(self.nontrivial_multipliers)))
+
+    @property
+    def stable(self) -> bool:
+        """Orbitally stable: every nontrivial multiplier strictly inside the unit circle."""
+        return self.max_multiplier < 1.0
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary."""
+        return {
+            "model": self.model,
+            "moment": self.moment,
+            "turns": self.turns,
+            "particle": self.particle,
+            "period": self.period,
+            "mean_angular_velocity": self.mean_angular_velocity,
+            "floquet_multipliers_abs": np.abs(self.multipliers).tolist(),
+            "trivial_multiplier": [self.trivial_multiplier.real, self.trivial_multiplier.imag],
+            "max_nontrivial_multiplier": self.max_multiplier,
+            "stable": self.stable,
+            "closure": self.closure,
+            "iterations": self.iterations,
+        }
+
+
+def _check_moment_and_turns(moment: float, turns: int) -> None:
+    if not (math.isfinite(moment) and moment != 0):
+        raise ValueError(f"moment must be finite and non-zero (a rotating state needs a load), got {moment!r}")
+    if not (isinstance(turns, int) and not isinstance(turns, bool) and turns >= 1):
+        raise ValueError(f"turns must be an integer >= 1 (turns of the loaded particle per period), got {turns!r}")
+
+
+def _to_y(x: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return np.concatenate([pack(x), pack(v)])
+
+
+def _from_y(params: ChainParams, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    nf = n_free(params)
+    return unpack(y[:nf], params.n_particles), unpack(y[nf:], params.n_particles)
+
+
+def initial_guess(
+    params: ChainParams,
+    model: str | Model,
+    moment: float,
+    *,
+    turns: int = 1,
+    particle: int = 0,
+    x0: np.ndarray | None = None,
+    v0: np.ndarray | None = None,
+    transient_turns: int = 30,
+    t_max: float = 20000.0,
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """A state on the section phi_0 = 0 and a period, from a simulation that has settled.
+
+    Integrates (fixed-step Yoshida-4) from (x0, v0) (default rest) until two consecutive
+    spans of ``turns`` turns take the same time to ``SETTLE_RTOL`` or the loaded particle
+    has made ``transient_turns + turns`` turns, and returns the state at the last crossing of
+    phi_0 = 0 mod 2 pi (phi_0 reduced to 0) and the time of the last ``turns`` turns.
+
+    Raises
+    ------
+    OrbitError
+        If the particle has not made that many turns by ``t_max`` (no rotation).
+    """
+    model = get_model(model)
+    _check_moment_and_turns(moment, turns)
+    system = _System(params, model, float(moment), particle)
+    x = zeros(params) if x0 is None else check_state(params, x0, "x0")
+    v = zeros(params) if v0 is None else check_state(params, v0, "v0")
+    dof = system.load_dof
+    col = column(params, particle)
+    loads = moment_load(float(moment), particle).validate(params)
+    sign = math.copysign(1.0, moment)
+    wanted = transient_turns + turns
+
+    times: list[float] = []
+    states: list[np.ndarray] = []
+    last_turn = math.floor(sign * x[ROW_INDEX["phi"], col] / (2 * math.pi))
+    elapsed = 0.0
+    while elapsed < t_max and len(times) < wanted + 1 and not _settled(times, turns):
+        run = integrate(
+            params, model, loads, t0=elapsed, t_end=min(elapsed + GUESS_CHUNK, t_max), x0=x, v0=v, method="yoshida4", stride=1, throw=True
+        )
+        turn = np.floor(sign * run.x[:, ROW_INDEX["phi"], col] / (2 * math.pi))
+        # The first frame past each new multiple of 2 pi along the moment (a swing back
+        # over a multiple already passed is not a new turn).
+        for i in np.flatnonzero(np.diff(turn) > 0) + 1:
+            if turn[i] > last_turn:
+                times.append(float(run.time[i]))
+                states.append(_to_y(run.x[i], run.v[i]))
+                last_turn = turn[i]
+        x, v = run.x[-1], run.v[-1]
+        elapsed = float(run.time[-1])
+    if len(times) < turns + 1:
+        raise OrbitError(
+            f"the loaded particle made {len(times)} turns by t={elapsed:g} at M={moment!r}: no rotating state reached from "
+            "this start; start above the static fold M_c, or give a guess (an orbit at a nearby moment)"
+        )
+    state = states[-1].copy()
+    state[dof] = 0.0
+    return (*_from_y(params, state), times[-1] - times[-1 - turns])
+
+
+def _settled(times: list[float], turns: int) -> bool:
+    """Whether the last two spans of ``turns`` turns took the same time to SETTLE_RTOL."""
+    if len(times) < 2 * turns + 1:
+        return False
+    last, before = times[-1] - times[-1 - turns], times[-1 - turns] - times[-1 - 2 * turns]
+    return abs(last - before) <= SETTLE_RTOL * last
+
+
+def _shooting(system: _System, turns: int, rtol: float, atol: float):
+    """The residual of (P) at (y0, T) and, with ``variations``, its derivatives.
+
+    Returns (R, dR/dy0, dR/dT, dR/dM, monodromy); the last four are None without
+    ``variations`` (a state-only integration, about ten times cheaper).
+    """
+    shift = np.zeros(2 * system.nf)
+    shift[system.load_dof] = math.copysign(2 * math.pi * turns, system.moment)
+
+    def evaluate(y0: np.ndarray, period: float, variations: bool = True):
+        end, mono, d_moment = system.flow(y0, period, rtol=rtol, atol=atol, variations=variations)
+        residual = end - y0 - shift
+        if not variations:
+            return residual, None, None, None, None
+        return residual, mono - np.eye(len(y0)), system.velocity(end), d_moment, mono
+
+    return evaluate
+
+
+def find_periodic_orbit(
+    params: ChainParams,
+    model: str | Model,
+    moment: float,
+    *,
+    turns: int = 1,
+    particle: int = 0,
+    guess: PeriodicOrbit | tuple[np.ndarray, np.ndarray, float] | None = None,
+    tol: float = CLOSURE_TOL,
+    max_iter: int = 25,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+    transient_turns: int = 30,
+) -> PeriodicOrbit:
+    """The rotating state at ``moment`` as a limit cycle, by Newton on the shooting map (P).
+
+    Parameters
+    ----------
+    params : ChainParams
+    model : str or Model
+        A model that is 2 pi periodic in the angles (``nonlinear``, ``sine``).
+    moment : float
+        Constant moment M on the loaded particle (non-zero).
+    turns : int
+        k >= 1, turns of the loaded particle per period; rotating states of the
+        paper's chain at larger loads repeat only after 2 or 3 turns.
+    particle : int
+        The loaded particle.
+    guess : PeriodicOrbit or (x (3, 2N+1), v (3, 2N+1), T), optional
+        Start of Newton's method (an orbit at a nearby moment); by default
+        :func:`initial_guess` from rest.
+    tol : float
+        Newton stops when max |Phi_T(y0) - y0 - 2 pi k e_phi0| <= tol.
+    max_iter : int
+    rtol, atol : float
+        Tolerances of the DOP853 integrations of the state and its variations.
+    transient_turns : int
+        Turns simulated before the default guess is taken.
+
+    Returns
+    -------
+    PeriodicOrbit
+
+    Raises
+    ------
+    ValueError
+        For a zero or non-finite moment, turns < 1 or a bad guess.
+    OrbitError
+        If Newton's method does not converge (try a guess from a nearby moment, another
+        ``turns``, or the rotation may be chaotic).
+    """
+    model = get_model(model)
+    _check_moment_and_turns(moment, turns)
+    for name, value in (("tol", tol), ("rtol", rtol), ("atol", atol)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    if guess is None:
+        x0, v0, period = initial_guess(params, model, moment, turns=turns, particle=particle, transient_turns=transient_turns)
+    elif isinstance(guess, PeriodicOrbit):
+        x0, v0, period = guess.x, guess.v, guess.period
+    else:
+        x0, v0, period = guess
+    if not (math.isfinite(period) and period > 0):
+        raise ValueError(f"the guessed period must be finite and > 0, got {period!r}")
+    system = _System(params, model, float(moment), particle)
+    y0 = _to_y(check_state(params, x0, "guess x"), check_state(params, v0, "guess v"))
+    y0[system.load_dof] = 0.0
+    evaluate = _shooting(system, turns, rtol, atol)
+    keep = np.arange(len(y0)) != system.load_dof
+
+    def jacobian(y0: np.ndarray, period: float):
+        residual, jac_y, jac_t, _, mono = evaluate(y0, period)
+        return residual, np.column_stack([jac_y[:, keep], jac_t]), mono
+
+    # Newton with the Jacobian reused while it still converges fast: a step costs one
+    # state-only integration, and the variational equations are integrated again only
+    # when the closure falls by less than NEWTON_RATE, or at the end for the multipliers.
+    residual, jac, mono = jacobian(y0, period)
+    norm, fresh, iterations = float(np.max(np.abs(residual))), True, 0
+    while norm > tol or mono is None:
+        if norm <= tol:
+            residual, jac, mono = jacobian(y0, period)
+            norm, fresh = float(np.max(np.abs(residual))), True
+            continue
+        if iterations >= max_iter:
+            raise OrbitError(_no_convergence(moment, turns, iterations, norm))
+        iterations += 1
+        step = np.linalg.solve(jac, -residual)
+        for _ in range(MAX_HALVINGS):
+            trial_y = y0.copy()
+            trial_y[keep] += step[:-1]
+            trial_t = period + step[-1]
+            if trial_t > 0:
+                trial = evaluate(trial_y, trial_t, False)[0]
+                trial_norm = float(np.max(np.abs(trial)))
+                if trial_norm < norm:
+                    break
+            # A rough guess far from the orbit: halve the step while it makes the closure worse.
+            step = 0.5 * step
+        else:
+            if fresh:
+                raise OrbitError(_no_convergence(moment, turns, iterations, norm))
+            residual, jac, mono = jacobian(y0, period)
+            fresh = True
+            continue
+        slow = trial_norm > NEWTON_RATE * norm
+        y0, period, residual, norm, mono = trial_y, trial_t, trial, trial_norm, None
+        if slow and trial_norm > tol:
+            residual, jac, mono = jacobian(y0, period)
+            norm, fresh = float(np.max(np.abs(residual))), True
+        else:
+            fresh = False
+    return _orbit(system, turns, y0, period, mono, norm, iterations)
+
+
+def _no_convergence(moment: float, turns: int, iterations: int, norm: float) -> str:
+    return (
+        f"Newton on the shooting map did not converge at M={moment!r} with turns={turns} "
+        f"({iterations} iterations, closure {norm:.3g}); start from an orbit at a nearby moment, try turns=2 or 3 "
+        "(states that repeat after several turns), or the rotation may not be periodic (chaotic)"
+    )
+
+
+def _orbit(system: _System, turns: int, y0: np.ndarray, period: float, mono: np.ndarray, closure: float, iterations: int) -> PeriodicOrbit:
+    x, v = _from_y(system.params, y0)
+    multipliers = sla.eigvals(mono)
+    multipliers = multipliers[np.argsort(-np.abs(multipliers), kind="stable")]
+    return PeriodicOrbit(
+        params=system.params,
+        model=system.model.name,
+        moment=float(system.moment),
+        turns=turns,
+        particle=system.particle,
+        period=float(period),
+        x=x,
+        v=v,
+        multipliers=multipliers,
+        closure=float(closure),
+        iterations=iterations,
+    )
+
+
+#: Ways a continuation ends.
+END_FOLD = "fold"
+END_INFINITE_PERIOD = "infinite_period"
+END_MOMENT_MIN = "moment_min"
+END_MAX_POINTS = "max_points"
+END_STEP_TOO_SMALL = "step_too_small"
+
+
+@dataclass
+class OrbitBranch:
+    """Periodic orbits traced in M by :func:`continue_orbit`.
+
+    Attributes
+    ----------
+    orbits : list of PeriodicOrbit
+        In the order traced (downwards in M until the end).
+    end : str
+        ``fold`` (a fold of limit cycles: M turns back, the period stays finite),
+        ``infinite_period`` (T exceeded ``period_max``: a homoclinic end),
+        ``moment_min``, ``max_points`` or ``step_too_small`` (continuation failed).
+    end_moment : float
+        Where the orbit ceases to exist: the fold's moment (a parabola through the
+        three points around the turn), or the last moment reached for the other ends.
+    message : str
+    """
+
+    orbits: list[PeriodicOrbit]
+    end: str
+    end_moment: float
+    message: str
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def moment(self) -> np.ndarray:
+        return np.array([o.moment for o in self.orbits])
+
+    @property
+    def period(self) -> np.ndarray:
+        return np.array([o.period for o in self.orbits])
+
+    @property
+    def mean_angular_velocity(self) -> np.ndarray:
+        return np.array([o.mean_angular_velocity for o in self.orbits])
+
+    @property
+    def max_multiplier(self) -> np.ndarray:
+        return np.array([o.max_multiplier for o in self.orbits])
+
+    @property
+    def stable(self) -> np.ndarray:
+        return np.array([o.stable for o in self.orbits])
+
+
+def continue_orbit(
+    orbit: PeriodicOrbit,
+    *,
+    moment_min: float = 0.0,
+    period_max: float = 2000.0,
+    step: float = 0.05,
+    min_step: float = 1e-7,
+    max_step: float = 0.5,
+    max_points: int = 400,
+    tol: float = CLOSURE_TOL,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+    progress: ProgressCallback | None = None,
+) -> OrbitBranch:
+    """Pseudo-arclength continuation of a periodic orbit towards smaller |M|, until it ceases to exist.
+
+    The unknowns are w = (y0 on the section, log T, M), the equations (P) and the
+    arclength condition t . (w - w_pred) = 0 with t the unit tangent of the branch
+    (the null vector of d(P)/dw); the bordered Jacobian is regular at a fold of
+    limit cycles, so a fold is passed and detected as a sign change of dM/ds.
+
+    Parameters
+    ----------
+    orbit : PeriodicOrbit
+        Start (from :func:`find_periodic_orbit`).
+    moment_min : float
+        Stop when |M| falls below it.
+    period_max : float
+        Stop when T exceeds it: the period diverges (homoclinic end).
+    step, min_step, max_step : float
+        Initial, smallest and largest arclength steps in (y0, log T, M).
+    max_points : int
+    tol, rtol, atol : float
+        As for :func:`find_periodic_orbit`.
+    progress : callable(points, max_points), optional
+
+    Returns
+    -------
+    OrbitBranch
+
+    Raises
+    ------
+    ValueError
+        For non-positive steps or an unordered step range.
+    """
+    for name, value in (("step", step), ("min_step", min_step), ("max_step", max_step), ("period_max", period_max)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    if not min_step <= step <= max_step:
+        raise ValueError(f"steps must satisfy min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
+    params, model = orbit.params, get_model(orbit.model)
+    sign = math.copysign(1.0, orbit.moment)
+    dof = 3 * (column(params, orbit.particle) - 1) + ROW_INDEX["phi"]
+    size = 2 * n_free(params)
+    keep = np.arange(size) != dof
+    settings = {"moment_min": moment_min, "period_max": period_max, "step": step, "max_step": max_step, "tol": tol, "rtol": rtol}
+
+    def equations(w: np.ndarray, variations: bool = True):
+        """(P) at w and, with ``variations``, its Jacobian (size, size + 1) in (y0 without phi_0, log T, M)."""
+        y0 = np.zeros(size)
+        y0[keep] = w[: size - 1]
+        period, moment = math.exp(w[size - 1]), w[size]
+        evaluate = _shooting(_System(params, model, moment, orbit.particle), orbit.turns, rtol, atol)
+        residual, jac_y, jac_t, d_moment, mono = evaluate(y0, period, variations)
+        if not variations:
+            return residual, None, None
+        return residual, np.column_stack([jac_y[:, keep], period * jac_t, d_moment]), mono
+
+    def tangent(jac: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
+        t = sla.null_space(jac)[:, -1]
+        if previous is None:
+            return t if t[-1] * sign < 0 else -t
+        return t if t @ previous > 0 else -t
+
+    def pack_w(o: PeriodicOrbit) -> np.ndarray:
+        return np.concatenate([_to_y(o.x, o.v)[keep], [math.log(o.period), o.moment]])
+
+    def make_orbit(w, mono, closure, iterations) -> PeriodicOrbit:
+        y0 = np.zeros(size)
+        y0[keep] = w[: size - 1]
+        system = _System(params, model, float(w[size]), orbit.particle)
+        return _orbit(system, orbit.turns, y0, math.exp(w[size - 1]), mono, closure, iterations)
+
+    def correct(w_pred: np.ndarray, t: np.ndarray, jac: np.ndarray):
+        """Newton on (P) and the arclength condition from the predictor; None if it fails.
+
+        Starts with the last orbit's Jacobian (state-only integrations) and integrates the
+        variational equations again when the closure falls by less than NEWTON_RATE, and
+        at the solution (for the multipliers and the next tangent).
+        """
+        bordered = np.vstack([jac, t])
+        w_new, previous, iterations, fresh = w_pred.copy(), math.inf, 0, False
+        try:
+            while True:
+                residual, jac_new, mono = equations(w_new, variations=fresh)
+                norm = float(np.max(np.abs(residual)))
+                if norm <= tol:
+                    if fresh:
+                        return w_new, jac_new, mono, norm, iterations
+                    fresh = True
+                    continue
+                if norm > previous and fresh:
+                    return None
+                if norm > NEWTON_RATE * previous and not fresh:
+                    fresh = True
+                    continue
+                if fresh:
+                    bordered = np.vstack([jac_new, t])
+                if iterations >= MAX_CORRECTOR_ITERATIONS:
+                    return None
+                previous, iterations, fresh = norm, iterations + 1, False
+                w_new = w_new + np.linalg.solve(bordered, -np.append(residual, t @ (w_new - w_pred)))
+                # A corrector that runs off to huge periods has left the branch.
+                if not np.all(np.isfinite(w_new)) or w_new[size - 1] > math.log(100 * period_max):
+                    return None
+        except OrbitError:
+            return None
+
+    orbits = [orbit]
+    w = pack_w(orbit)
+    _, jac, _ = equations(w)
+    t = tangent(jac, None)
+    h = step
+    end, message = END_MAX_POINTS, f"stopped after max_points={max_points} orbits"
+    while len(orbits) < max_points:
+        corrected = correct(w + h * t, t, jac)
+        if corrected is None:
+            h *= 0.5
+            if h < min_step:
+                end, message = END_STEP_TOO_SMALL, f"the arclength step fell below min_step={min_step:g} after M={w[size]:.10g}"
+                break
+            continue
+        w_new, jac, mono, norm, iterations = corrected
+        t_new = tangent(jac, t)
+        orbits.append(make_orbit(w_new, mono, norm, iterations))
+        if progress is not None:
+            progress(len(orbits), max_points)
+        turned = t_new[-1] * sign > 0 and t[-1] * sign < 0
+        w, t = w_new, t_new
+        h = min(max_step, h * (1.5 if iterations <= 5 else 0.7 if iterations >= 8 else 1.0))
+        if turned:
+            end = END_FOLD
+            message = "fold of limit cycles: the moment turns back with the period finite"
+            break
+        if math.exp(w[size - 1]) > period_max:
+            end = END_INFINITE_PERIOD
+            message = f"the period exceeded period_max={period_max:g}: it diverges (homoclinic end)"
+            break
+        if abs(w[size]) < moment_min:
+            end, message = END_MOMENT_MIN, f"|M| fell below moment_min={moment_min:g}"
+            break
+    end_moment = orbits[-1].moment
+    if end == END_FOLD and len(orbits) >= 3:
+        end_moment = _fold_moment(orbits[-3:], sign)
+    return OrbitBranch(orbits=orbits, end=end, end_moment=float(end_moment), message=message, settings=settings)
+
+
+def _fold_moment(last: list[PeriodicOrbit], sign: float) -> float:
+    """Extreme M of the parabola M(log T) through the three orbits around the turn."""
+    s = np.array([math.log(o.period) for o in last])
+    m = np.array([o.moment for o in last])
+    a, b, c = np.polyfit(s - s[1], m, 2)
+    extreme = c - b * b / (4 * a) if a != 0 else m[1]
+    bound = min(m) if sign > 0 else max(m)
+    return float(extreme) if sign * (extreme - bound) <= 0 else float(bound)
