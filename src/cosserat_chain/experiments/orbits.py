@@ -73,6 +73,7 @@ class OrbitResult:
                 "end": self.branch.end,
                 "end_moment": self.branch.end_moment,
                 "end_period": self.branch.orbits[-1].period,
+                "stability_lost_at": self.branch.stability_lost_at,
                 "message": self.branch.message,
                 "moment": self.branch.moment.tolist(),
                 "period": self.branch.period.tolist(),
@@ -116,7 +117,15 @@ class OrbitResult:
             }
         )
         if self.branch is not None:
-            ds.attrs.update({"end": self.branch.end, "end_moment": self.branch.end_moment, "end_message": self.branch.message})
+            lost = self.branch.stability_lost_at
+            ds.attrs.update(
+                {
+                    "end": self.branch.end,
+                    "end_moment": self.branch.end_moment,
+                    "end_message": self.branch.message,
+                    "stability_lost_at": math.nan if lost is None else lost,
+                }
+            )
         return ds
 
 

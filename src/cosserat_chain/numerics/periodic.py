@@ -677,6 +677,22 @@ class OrbitBranch:
     def stable(self) -> np.ndarray:
         return np.array([o.stable for o in self.orbits])
 
+    @property
+    def stability_lost_at(self) -> float | None:
+        """M where the orbit, stable at the start, first loses stability along the branch.
+
+        The largest nontrivial multiplier modulus is interpolated linearly in M to 1
+        between the last stable and the first unstable orbit; None if it never does.
+        Below it the rotating state seen in a simulation is no longer this orbit, so
+        with a fold below it this, not the fold, is the lower edge of the hysteresis loop.
+        """
+        stable = self.stable
+        if not stable[0] or stable.all():
+            return None
+        i = int(np.argmin(stable))
+        (m0, m1), (r0, r1) = self.moment[i - 1 : i + 1], self.max_multiplier[i - 1 : i + 1]
+        return float(m0 + (1.0 - r0) * (m1 - m0) / (r1 - r0))
+
 
 def continue_orbit(
     orbit: PeriodicOrbit,

@@ -1,0 +1,77 @@
+"""``cosserat-chain orbit``: the rotating state as a periodic orbit (period, Floquet multipliers, continuation in M)."""
+
+from __future__ import annotations
+
+import json
+from enum import Enum
+from pathlib import Path
+
+import typer
+
+from ..experiments.orbits import periodic_orbit
+from ..io import write_dataset
+from ..numerics.periodic import OrbitError
+from .common import app, bar_callback, fail, finite_or_none, params_or_exit, progress_bar
+
+
+class RotatingModel(str, Enum):
+    nonlinear = "nonlinear"
+    sine = "sine"
+
+
+@app.command()
+def orbit(
+    model: RotatingModel = typer.Option(RotatingModel.sine, help="nonlinear (eq. 1) or sine (eq. 2); the linear model does not rotate."),
+    moment: float = typer.Option(..., help="Moment M on the loaded particle (above M_c, or near an orbit)."),
+    turns: int = typer.Option(1, help="Turns of the loaded particle per period (2 or 3 for some states)."),
+    particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
+    down_to: float | None = typer.Option(
+        None, "--down-to", help="Continue the orbit down in M to here, reporting where it ceases to exist."
+    ),
+    period_max: float = typer.Option(2000.0, "--period-max", help="Continuation: a period beyond this counts as diverging."),
+    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
+    out: Path | None = typer.Option(None, help="Write the orbit (and the continuation) to this NetCDF file."),
+    plot: Path | None = typer.Option(None, help="Draw the rotation characteristic (needs --down-to) to this PNG/SVG file."),
+    as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+) -> None:
+    """Find the rotating state as a limit cycle: period, mean angular velocity, Floquet multipliers, stability."""
+    params = params_or_exit(config)
+    if plot is not None and down_to is None:
+        fail("--plot draws the continued branch: give --down-to as well")
+    bar = progress_bar(f"orbit {model.value}", "orbit")
+    try:
+        result = periodic_orbit(
+            params, model.value, moment, turns=turns, particle=particle, down_to=down_to, period_max=period_max, progress=bar_callback(bar)
+        )
+    except ValueError as err:
+        bar.close()
+        fail(str(err))
+    except OrbitError as err:
+        bar.close()
+        fail(str(err), code=3)
+    bar.close()
+    if out is not None:
+        write_dataset(result.to_dataset(), out)
+    if plot is not None:
+        from ..plots.orbits import rotation_characteristic_figure
+
+        fig = rotation_characteristic_figure(branches=[result.branch], static_fold=result.static_fold, model=model.value)
+        plot.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(plot, dpi=150)
+    if as_json:
+        typer.echo(json.dumps({"params": params.model_dump(), **result.as_dict(), "static_fold": finite_or_none(result.static_fold)}))
+        return
+    o = result.orbit
+    typer.echo(
+        f"{model.value}: M = {o.moment:g}, {o.turns} turn(s) per period T = {o.period:.10g}, mean angular velocity {o.mean_angular_velocity:.10g}"
+    )
+    typer.echo(f"Floquet multipliers |mu|: {' '.join(f'{abs(m):.4g}' for m in o.multipliers)}")
+    typer.echo(
+        f"trivial multiplier {o.trivial_multiplier.real:.12g}; largest other |mu| = {o.max_multiplier:.6g}: {'stable' if o.stable else 'unstable'}"
+    )
+    if result.branch is not None:
+        b = result.branch
+        typer.echo(f"continued to M = {b.moment[-1]:.10g} ({len(b.orbits)} orbits): {b.message}; the orbit ends at M = {b.end_moment:.10g}")
+        if b.stability_lost_at is not None:
+            typer.echo(f"the orbit loses stability at M = {b.stability_lost_at:.6g}")
+    typer.echo(f"static fold M_c = {result.static_fold:.15g}")
