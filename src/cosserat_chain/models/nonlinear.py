@@ -78,8 +78,9 @@ def _bond(coef, c0, s0, c1, s1, du, dv):  # pragma: no cover - compiled
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
 def nonlinear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     u, v, phi = x[0], x[1], x[2]
-    # Bond k-1 joins columns k-1 and k. Column k-1 sums the right half of bond k-2
-    # (carried in registers) and the left half of bond k-1: one pass, no zeroing.
+    # Iteration k computes the bond between columns k-1 and k; column k-1 gets the
+    # right half of the bond before it (carried in registers) plus the left half of
+    # this one: one pass, no zeroing.
     # Every sine and every bond is computed at one place in the loop, also the halo
     # ones: with fused multiply-adds, a second copy before the loop could round
     # differently, and a chain split into blocks (threads) would no longer give the

@@ -8,6 +8,10 @@ polynomials, accurate to about 1 ulp; larger or non-finite angles fall back to
 libm. Below 2^-27 in magnitude it returns (angle, 1) at once, as libm does: the
 polynomials give exactly that there, and in a long chain most angles are often
 still exactly zero.
+
+Numba's cache keys a compiled function on its own source file only: after an edit
+here, the cached kernels that inline :func:`sincos` (nonlinear, sine) keep the old
+code until their own files change.
 """
 
 from __future__ import annotations
