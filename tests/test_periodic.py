@@ -184,12 +184,11 @@ def test_with_strong_damping_the_orbit_ends_at_the_static_fold_with_period_like_
     assert exponent == pytest.approx(0.5, abs=0.05)
 
 
-@pytest.mark.slow
 def test_each_edge_of_the_hysteresis_loop_lies_in_the_load_step_where_the_sweep_changes_state(paper):
     # Default damping, sine model: the 1-turn orbit is stable from above M_c down to
     # 0.1731, which is 2.7e-3 from the nearest load of the sweep (dM = 0.01), and going
     # up the static state is lost at M_c = 0.20396 (4e-3 from the nearest load): both
-    # edges are well inside their steps, so the comparison is robust.
+    # edges are well inside their steps, so the comparison is robust (about 3 s).
     dm = 0.01
     sweep = relaxation_sweep(paper, "sine", m_max=0.25, dm=dm, down=True)
     fold = locate_fold(paper, "sine").moment
