@@ -14,6 +14,7 @@ from cosserat_chain.analysis.continuum import convergence
 from cosserat_chain.cli import app
 from cosserat_chain.experiments.critical import critical_point
 from cosserat_chain.experiments.localization import localization_run
+from cosserat_chain.experiments.orbits import periodic_orbit
 from cosserat_chain.experiments.sweep import relaxation_sweep
 from cosserat_chain.report import ReproduceSettings, format_cell, reproduce
 
@@ -53,7 +54,7 @@ def test_every_figure_the_pages_reference_exists(quick_report):
     markdown = (quick_report.out / "report.md").read_text()
     page = (quick_report.out / "index.html").read_text()
     linked = set(re.findall(r"\((figures/[\w.]+)\)", markdown)) | set(re.findall(r"href='(figures/[\w.]+)'", page))
-    assert {"figures/fig2.png", "figures/fig3a.svg", "figures/fig3b.png", "figures/rotation.gif", "figures/dispersion.svg"} <= linked
+    assert {"figures/fig2.png", "figures/fig3a.svg", "figures/fig3b.png", "figures/rotation.gif", "figures/dispersion.svg", "figures/rotation_characteristic.png"} <= linked
     for link in linked:
         assert (quick_report.out / link).stat().st_size > 1000, link
     # Self-contained: pictures are embedded, nothing is fetched from a network.
@@ -75,6 +76,11 @@ def test_table_numbers_equal_the_python_api(quick_report):
         model = row[0]
         result = localization_run(params, model, QUICK.rotation_moment[model], turns=QUICK.turns, t_max=100.0 * QUICK.turns).as_dict()
         assert row[2:8] == [format_cell(result[k]) for k in ("turns_completed", "t_end", "mean_angular_velocity", "max_abs_phi_others", "max_abs_v_others", "max_abs_u_others")]
+    edges = tables["Edges of the hysteresis loop: exact, and by the relaxation protocol"][1]
+    orbit = periodic_orbit(params, "sine", QUICK.orbit_moment, down_to=QUICK.orbit_down_to)
+    sine_sweep = relaxation_sweep(params, "sine", m_max=QUICK.m_max, dm=QUICK.dm, down=True)
+    expected = [orbit.static_fold, orbit.branch.stability_lost_at, orbit.branch.end_moment, orbit.branch.end, sine_sweep.onset_load, sine_sweep.stop_load]
+    assert edges[1:] == [format_cell(v) for v in expected]
     continuum = tables["Continuum against discrete compliance"]
     table = convergence(params, list(QUICK.n_list))
     assert [row[3] for row in continuum[1:]] == [format_cell(e) for e in table.relative_error]

@@ -12,7 +12,9 @@ number, the resolved parameters, the package version and the run time of each st
 are written atomically. An interrupted run leaves no half-written report.
 
 Stages: ``statics`` (Fig. 2: compliance, critical moment and fold angle per model,
-exactly and by the relaxation protocol, the hysteresis loop), ``rotation`` (Figs. 3a
+exactly and by the relaxation protocol, the hysteresis loop), ``orbits`` (rotating
+states as periodic orbits: the rotation characteristic and both edges of the
+hysteresis loop), ``rotation`` (Figs. 3a
 and 3b, an animation), ``localization`` (the 1500-rotation runs), ``continuum``
 (Section 3 against the discrete chain), ``waves`` (dispersion, band gap), ``errata``.
 """
@@ -60,6 +62,9 @@ class ReproduceSettings:
     animation_frames : int
     turns : int
         Full turns of the localization run (the paper: 1500).
+    orbit_moment, orbit_down_to : float
+        The sine model's rotating orbit is found at ``orbit_moment`` and continued down
+        towards ``orbit_down_to`` until it ceases to exist.
     n_list : tuple of int
         Chain half-lengths N for the continuum comparison.
     """
@@ -70,6 +75,8 @@ class ReproduceSettings:
     snapshot_times: tuple[float, ...] = (40.0, 41.0, 42.0, 43.0)
     animation_frames: int = 80
     turns: int = 1500
+    orbit_moment: float = 0.22
+    orbit_down_to: float = 0.1
     n_list: tuple[int, ...] = (3, 10, 30, 100, 300, 1000)
 
 
@@ -102,6 +109,8 @@ class Report:
 class _Stage:
     def __init__(self, out: Path, params: ChainParams, settings: ReproduceSettings):
         self.out, self.params, self.settings = out, params, settings
+        #: Results one stage shares with a later one (the sweeps of Fig. 2 feed the hysteresis picture).
+        self.shared: dict[str, Any] = {}
         (out / "figures").mkdir(parents=True, exist_ok=True)
         (out / "data").mkdir(parents=True, exist_ok=True)
 
@@ -128,6 +137,7 @@ def _statics(stage: _Stage) -> Section:
     p, s = stage.params, stage.settings
     exact = {m: critical_point(p, m) for m in MODELS}
     sweeps = {m: relaxation_sweep(p, m, m_max=s.m_max, dm=s.dm, down=True) for m in MODELS}
+    stage.shared.update(sweeps=sweeps, exact=exact)
     stage.data("critical", stack_models({m: r.to_dataset() for m, r in exact.items()}))
     stage.data("sweep", stack_models({m: r.to_dataset() for m, r in sweeps.items()}))
     rows, numbers = [], {}
@@ -162,6 +172,60 @@ def _statics(stage: _Stage) -> Section:
          "Hysteresis loop: mean angular velocity of the loaded particle at each load step, going up and coming down; "
          "dotted: the exact static fold M_c.")
     )
+    return section
+
+
+def _orbits(stage: _Stage) -> Section:
+    from .experiments.orbits import periodic_orbit
+    from .experiments.sweep import relaxation_sweep
+    from .numerics.continuation import locate_fold
+    from .plots.orbits import rotation_characteristic_figure
+
+    p, s = stage.params, stage.settings
+    model = "sine"
+    sweep = stage.shared.get("sweeps", {}).get(model) or relaxation_sweep(p, model, m_max=s.m_max, dm=s.dm, down=True)
+    fold = locate_fold(p, model)
+    result = periodic_orbit(p, model, s.orbit_moment, down_to=s.orbit_down_to)
+    stage.data("orbits", result.to_dataset())
+    branch = result.branch
+    numbers = {
+        "model": model,
+        "moment": s.orbit_moment,
+        "period": result.orbit.period,
+        "mean_angular_velocity": result.orbit.mean_angular_velocity,
+        "stable": bool(result.orbit.stable),
+        "orbit_end": branch.end,
+        "orbit_end_moment": branch.end_moment,
+        "stability_lost_at": branch.stability_lost_at,
+        "static_fold": fold.moment,
+        "relaxation_onset": sweep.onset_load,
+        "relaxation_stop": sweep.stop_load,
+    }
+    stage.data("orbit_summary", numbers)
+    section = Section("Rotating states as periodic orbits: the hysteresis loop", numbers=numbers)
+    section.paragraphs.append(
+        f"Above M_c the rotating state of the {model} model is a limit cycle: the loaded particle advances by one turn per "
+        "period while everything else returns. It is found by Newton's method on a shooting map and continued downwards in M. "
+        "Going up, rotation starts at the static fold M_c; coming down, it stops where the rotating orbit loses stability "
+        "(or ceases to exist): the two edges of the hysteresis loop, against the relaxation sweep's load steps."
+    )
+    section.tables.append(
+        (
+            "Edges of the hysteresis loop: exact, and by the relaxation protocol",
+            ["model", "static fold M_c", "orbit loses stability at", "orbit ends at", "how", "onset (relaxation up)", "stop (relaxation down)"],
+            [[model, fold.moment, branch.stability_lost_at, branch.end_moment, branch.end, sweep.onset_load, sweep.stop_load]],
+        )
+    )
+    section.tables.append(
+        (
+            f"Periodic orbit at M = {s.orbit_moment:g}",
+            ["period T", "mean angular velocity", "largest non-trivial Floquet multiplier", "stable"],
+            [[result.orbit.period, result.orbit.mean_angular_velocity, result.orbit.max_multiplier, bool(result.orbit.stable)]],
+        )
+    )
+    fig = rotation_characteristic_figure(branches=[branch], sweep=sweep, static_fold=fold.moment, model=model)
+    section.figures.append((stage.figure(fig, "rotation_characteristic"), "Rotation characteristic: mean angular velocity of the periodic orbit against M "
+                            "(dashed: unstable), with the relaxation sweep's steps up and down and the static fold M_c."))
     return section
 
 
@@ -269,6 +333,7 @@ def _errata(stage: _Stage) -> Section:
 
 STAGES: dict[str, Callable[[_Stage], Section]] = {
     "statics": _statics,
+    "orbits": _orbits,
     "rotation": _rotation,
     "localization": _localization,
     "continuum": _continuum,
