@@ -19,6 +19,9 @@
  * Build: gcc -O3 -march=native -shared -fPIC -o libverlet.so verlet_nonlinear.c -lm
  * (the benchmark's reference: libm sin/cos). With -DPOLY_SINCOS it uses the
  * package's inline sincos polynomial instead (an optional, stronger reference).
+ * gcc fuses a * b + c into one multiply-add wherever it can (GNU C defaults to
+ * -ffp-contract=fast); the package's force kernels do the same (numba fastmath
+ * "contract"), its kick-drift does not, so results agree to round-off, not bit for bit.
  */
 #include <math.h>
 
@@ -26,10 +29,15 @@
 #define CHECK_EVERY 1024
 
 #ifdef POLY_SINCOS
-/* The package's inline sincos (models/trig.py): Cephes polynomials after a
- * three-part reduction by pi/2; libm beyond |angle| >= 1e6. */
+/* The package's inline sincos (models/trig.py): (angle, 1) below 2^-27, Cephes
+ * polynomials after a three-part reduction by pi/2; libm beyond |angle| >= 1e6. */
 static inline void sin_cos(double angle, double *s_out, double *c_out)
 {
+    if (fabs(angle) < 0x1p-27) {
+        *s_out = angle + 0.0;
+        *c_out = 1.0;
+        return;
+    }
     if (!(fabs(angle) < 1.0e6)) {
         *s_out = sin(angle);
         *c_out = cos(angle);
