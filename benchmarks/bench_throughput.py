@@ -295,8 +295,10 @@ def throughput(cloop: CLoop, quick: bool, log) -> list[dict]:
                         # Threads that meet every step collapse when other processes share the
                         # cores (PERFORMANCE-NOTES.md); one such run can take a minute.
                         collapsed.add(c)
-                        log(f"  threads={threads} {model}: {wall:.2f} s, more than {COLLAPSE_FACTOR}x the one-thread runs; "
-                            "no more repetitions (other processes on the machine?)")
+                        log(
+                            f"  threads={threads} {model}: {wall:.2f} s, more than {COLLAPSE_FACTOR}x the one-thread runs; "
+                            "no more repetitions (other processes on the machine?)"
+                        )
                     if model == "nonlinear" and rep == 0:
                         final[("package", threads)] = tr.x[-1]
                 elif kind == "c":
@@ -467,8 +469,10 @@ def table(rows: list[dict], accs: list[dict]) -> str:
     lines = [
         "Throughput, particle-steps per second (medians); package = integrate(method='verlet', default dt), one thread",
         "",
-        (f"{'model':9s} {'particles':>9s} {'package':>8s} {'C':>8s} {'pkg/C':>7s} {'thr=2':>8s} {'thr2/C':>7s} "
-        f"{'solve_ivp':>9s} {'pkg/ivp':>8s} {'pkg/ivp':>8s} {'pkg/C':>7s}"),
+        (
+            f"{'model':9s} {'particles':>9s} {'package':>8s} {'C':>8s} {'pkg/C':>7s} {'thr=2':>8s} {'thr2/C':>7s} "
+            f"{'solve_ivp':>9s} {'pkg/ivp':>8s} {'pkg/ivp':>8s} {'pkg/C':>7s}"
+        ),
         f"{'':9s} {'':>9s} {'p-s/s':>8s} {'p-s/s':>8s} {'':>7s} {'p-s/s':>8s} {'':>7s} {'p-s/s':>9s} {'per step':>8s} {'per time':>8s} {'best':>7s}",
     ]
     for r in rows:
@@ -491,8 +495,10 @@ def table(rows: list[dict], accs: list[dict]) -> str:
     for acc in accs:
         lines += [
             "",
-            (f"Accuracy-matched, nonlinear, {acc['particles']} particles, moment {acc['moment']:g}, t=0..{acc['t_end']:g} from rest; "
-            "error = max |final u, v, phi - DOP853 rtol=1e-12|:"),
+            (
+                f"Accuracy-matched, nonlinear, {acc['particles']} particles, moment {acc['moment']:g}, t=0..{acc['t_end']:g} from rest; "
+                "error = max |final u, v, phi - DOP853 rtol=1e-12|:"
+            ),
         ]
         rk = acc["rk45"]
         lines.append(f"  RK45 rtol=1e-6 atol=1e-9  error {rk['error']:.2e}  {rk['wall_per_time_unit_s'] * 1e6:10.1f} us per time unit")
@@ -512,12 +518,16 @@ def markdown(result: dict) -> str:
     """The README tables from a saved result."""
     env = result["environment"]
     lines = [
-        (f"Machine: {env['cpu']}, {env['cores']} cores; Python {env['python']}, NumPy {env['numpy']}, SciPy {env['scipy']}, "
-        f"Numba {env['numba']}, {env['gcc']}; load average at start {env['loadavg_start'][0]:.2f}; "
-        f"package at {env['git_head']}{' (src modified)' if env['git_dirty_src'] else ''}."),
+        (
+            f"Machine: {env['cpu']}, {env['cores']} cores; Python {env['python']}, NumPy {env['numpy']}, SciPy {env['scipy']}, "
+            f"Numba {env['numba']}, {env['gcc']}; load average at start {env['loadavg_start'][0]:.2f}; "
+            f"package at {env['git_head']}{' (src modified)' if env['git_dirty_src'] else ''}."
+        ),
         "",
-        ("| model | particles | package p-s/s | C p-s/s | package / C | package threads=2 p-s/s | threads=2 / C "
-        "| solve_ivp p-s/s | package / solve_ivp per step | per simulated time | package / C, best of reps |"),
+        (
+            "| model | particles | package p-s/s | C p-s/s | package / C | package threads=2 p-s/s | threads=2 / C "
+            "| solve_ivp p-s/s | package / solve_ivp per step | per simulated time | package / C, best of reps |"
+        ),
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
     ]
     for r in result["throughput"]:
