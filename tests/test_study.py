@@ -132,3 +132,20 @@ def test_study_cli_with_an_embedded_cluster(tmp_path):
     bad.write_text('quantities = ["M_c"]\n[parameters]\na = [0.7]\n')
     result = CliRunner().invoke(app, ["study", str(bad)])
     assert result.exit_code == 2 and "a=0.7" in result.output
+
+
+def test_study_maps_show_each_quantity_and_the_regime_per_load():
+    from cosserat_chain.experiments.study import empty_results, store_cell
+    from cosserat_chain.plots.study import study_figure
+
+    spec = spec_from_mapping({"parameters": {"a": [0.1, 0.2], "b": [0.2, 0.3]}, "models": ["sine"], "quantities": ["M_c", "mean_angular_velocity"], "loads": [0.3]})
+    ds = empty_results(spec)
+    for (i, j), rate in zip([(0, 0), (0, 1), (1, 0), (1, 1)], [0.0, 1.5, float("nan"), 2.0]):
+        store_cell(ds, spec, (i, j), "sine", {"M_c": 0.1 * (i + 2 * j + 1), "mean_angular_velocity": [rate]})
+    fig = study_figure(ds)
+    panels = {ax.get_title(): ax for ax in fig.axes if ax.get_title()}
+    assert set(panels) == {"M_c (sine)", "regime at M=0.3 (sine)"}
+    m_c = panels["M_c (sine)"].collections[0].get_array()
+    np.testing.assert_allclose(np.asarray(m_c).reshape(2, 2), ds.M_c.sel(model="sine").values.T)  # rows: b, columns: a
+    regime = np.ma.filled(panels["regime at M=0.3 (sine)"].collections[0].get_array(), np.nan).reshape(2, 2).T
+    np.testing.assert_array_equal(regime, [[0.0, 1.0], [np.nan, 1.0]])

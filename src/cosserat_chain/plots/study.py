@@ -16,6 +16,9 @@ _NON_PARAMETER_DIMS = ("model", "load")
 def study_figure(ds: xr.Dataset, quantities: list[str] | None = None) -> Figure:
     """Lines over one swept field, or maps over two (one panel per quantity and model).
 
+    With ``mean_angular_velocity`` in the study, the regime at each of its loads is
+    drawn too: 1 where the loaded particle rotates, 0 where the chain comes to rest.
+
     Parameters
     ----------
     ds : xarray.Dataset
@@ -29,10 +32,10 @@ def study_figure(ds: xr.Dataset, quantities: list[str] | None = None) -> Figure:
         If the study sweeps more than two fields (select a slice first, e.g. ``ds.isel(N=0)``).
     """
     swept = [d for d in ds.dims if d not in _NON_PARAMETER_DIMS and ds.sizes[d] > 1]
-    quantities = quantities or [name for name in ds.data_vars if name not in ("done", "error") and "load" not in ds[name].dims]
     if len(swept) > 2:
         raise ValueError(f"a figure shows one or two swept fields; this study sweeps {swept}: select a slice first")
-    ds = ds.squeeze([d for d in ds.dims if d not in _NON_PARAMETER_DIMS and d not in swept])
+    ds = _with_regimes(ds.squeeze([d for d in ds.dims if d not in _NON_PARAMETER_DIMS and d not in swept]))
+    quantities = quantities or [name for name in ds.data_vars if name not in ("done", "error") and "load" not in ds[name].dims]
     models = list(ds.model.values)
     if len(swept) == 1:
         fig, axes = plt.subplots(1, len(quantities), figsize=(4.2 * len(quantities), 3.6), squeeze=False, constrained_layout=True)
@@ -55,6 +58,15 @@ def study_figure(ds: xr.Dataset, quantities: list[str] | None = None) -> Figure:
                 if _is_log(ds[dim].values):
                     setter("log")
     return fig
+
+
+def _with_regimes(ds: xr.Dataset) -> xr.Dataset:
+    """Add ``regime at M=...`` per load of ``mean_angular_velocity``: 1 rotating, 0 at rest, NaN not settled."""
+    if "mean_angular_velocity" not in ds:
+        return ds
+    rate = ds["mean_angular_velocity"]
+    regime = xr.where(np.isfinite(rate), (np.abs(rate) > 0).astype(float), np.nan)
+    return ds.assign({f"regime at M={float(load):g}": regime.sel(load=load, drop=True) for load in rate["load"].values})
 
 
 def _is_log(values: np.ndarray) -> bool:
