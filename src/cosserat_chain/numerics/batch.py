@@ -23,8 +23,9 @@ States are stacked as (B, 3, n): each member is one contiguous (3, n) block, so
 the model's own force kernel (one first-class function type, ``FORCE_SIGNATURE``)
 serves the batch and no model code is duplicated. A compiled call runs whole
 members one after the other (no Python per step); with ``threads=2`` the members
-are split into two groups of about equal work that run on the two cores without
-synchronising per step (``PERFORMANCE-NOTES.md``: threads only at coarse grain).
+are split into two runs of consecutive members of about equal work that run on the
+two cores without synchronising per step (``PERFORMANCE-NOTES.md``: threads only at
+coarse grain).
 The turns of the loaded particle are detected inside the compiled loop, into a
 fixed ring of the last ``2 window_turns + 1`` crossings per member (all the
 rotation test reads); members that have finished leave the batch.
