@@ -226,10 +226,11 @@ def relaxation_sweep(
         top = len(records)
         completed = run(np.append(up[: top - 1][::-1], 0.0), "down")
     settings = {"m_max": m_max, "steps": steps, "dm": dm, "down": down, "stop_at_onset": stop_at_onset, **relax_options}
-    return _result(params, model.name, particle, records, completed, settings)
+    return sweep_result(params, model.name, particle, records, completed, settings)
 
 
-def _result(params, model_name, particle, records, completed, settings) -> SweepResult:
+def sweep_result(params, model_name, particle, records, completed, settings) -> SweepResult:
+    """Assemble a :class:`SweepResult` from ``(moment, direction, RelaxationStep)`` records (shared with the batched sweeps)."""
     n = params.n_particles
     status = np.array([r[2].status for r in records], dtype=object)
     direction = np.array([r[1] for r in records], dtype=object)

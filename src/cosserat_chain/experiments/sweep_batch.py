@@ -30,7 +30,7 @@ from ..loads import moment_load
 from ..models.base import Model, get_model
 from ..numerics.batch import Plan, run_plans
 from ..params import ChainParams
-from .sweep import NOT_CONVERGED, ROTATING, SweepResult, _result, load_steps
+from .sweep import NOT_CONVERGED, ROTATING, SweepResult, load_steps, sweep_result
 
 log = logging.getLogger(__name__)
 
@@ -133,5 +133,5 @@ def relaxation_sweeps(
         if np.ndim(options.get("dt")) == 1:
             options["dt"] = float(options["dt"][i])
         settings = {"m_max": float(tops[i]), "steps": steps, "dm": dm, "down": down, "stop_at_onset": stop_at_onset, **options}
-        results.append(_result(params, model.name, particle, records[i], finished[i], settings))
+        results.append(sweep_result(params, model.name, particle, records[i], finished[i], settings))
     return results
