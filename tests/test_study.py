@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 
+import dask.distributed as distributed
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -17,8 +18,6 @@ from cosserat_chain.experiments.sweep import relaxation_sweep
 from cosserat_chain.io import read_dataset
 from cosserat_chain.numerics.continuation import compliance, locate_fold
 from cosserat_chain.study_runner import run_study
-
-distributed = pytest.importorskip("dask.distributed")
 
 SPEC = {
     "parameters": {"a": [0.15, 0.2], "E2": {"start": 0.5, "stop": 2.0, "num": 2, "scale": "log"}},
