@@ -2,9 +2,9 @@
 
 Contract
 --------
-:func:`write_dataset` writes an xarray Dataset to NetCDF (h5netcdf) through a
-temporary file in the same folder and an atomic rename, so that a reader never
-sees a half-written file. :func:`load_params` reads ``ChainParams`` fields from
+:func:`write_dataset` writes an xarray Dataset to NetCDF (h5netcdf), and
+:func:`write_text` a text file, through :func:`atomic_path`: a temporary file in
+the same folder and an atomic rename, so that a reader never sees a half-written file. :func:`load_params` reads ``ChainParams`` fields from
 a TOML file (top-level keys, the paper's symbols) and names any unknown key.
 """
 
@@ -13,6 +13,8 @@ from __future__ import annotations
 import os
 import tempfile
 import tomllib
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -21,22 +23,40 @@ import xarray as xr
 from .params import ChainParams
 
 
-def write_dataset(dataset: xr.Dataset, path: str | Path) -> Path:
-    """Write ``dataset`` to NetCDF at ``path`` atomically; returns the path."""
+@contextmanager
+def atomic_path(path: str | Path) -> Iterator[Path]:
+    """A temporary file beside ``path`` (same extension), renamed onto it if the block succeeds.
+
+    A reader never sees a half-written file, and an interrupted write leaves none
+    behind. The file gets the usual permissions (mkstemp creates it 0600).
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)
     try:
-        dataset.to_netcdf(tmp, engine="h5netcdf")
+        yield Path(tmp)
         umask = os.umask(0)
         os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; give the file the usual permissions
+        os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
-    return path
+
+
+def write_dataset(dataset: xr.Dataset, path: str | Path) -> Path:
+    """Write ``dataset`` to NetCDF at ``path`` atomically; returns the path."""
+    with atomic_path(path) as tmp:
+        dataset.to_netcdf(tmp, engine="h5netcdf")
+    return Path(path)
+
+
+def write_text(text: str, path: str | Path) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` atomically; returns the path."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+    return Path(path)
 
 
 def stack_models(datasets: dict[str, xr.Dataset]) -> xr.Dataset:

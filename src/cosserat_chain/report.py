@@ -26,8 +26,6 @@ import html
 import json
 import logging
 import math
-import os
-import tempfile
 import time
 import traceback
 from collections.abc import Callable
@@ -38,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from . import __version__
-from .io import stack_models, write_dataset
+from .io import stack_models, write_dataset, write_text
 from .params import ChainParams
 
 log = logging.getLogger(__name__)
@@ -126,7 +124,7 @@ class _Stage:
         if hasattr(payload, "to_netcdf"):
             write_dataset(payload, self.out / "data" / f"{name}.nc")
         else:
-            _atomic_write(self.out / "data" / f"{name}.json", json.dumps(payload, indent=1, default=_json_default))
+            write_text(json.dumps(payload, indent=1, default=_json_default), self.out / "data" / f"{name}.json")
 
 
 def _statics(stage: _Stage) -> Section:
@@ -394,10 +392,10 @@ def reproduce(
         "settings": asdict(settings),
         "stages": {name: {"title": s.title, "seconds": s.seconds, "error": s.error, "numbers": s.numbers} for name, s in zip(names, sections)},
     }
-    _atomic_write(out / "params.json", json.dumps(params.model_dump(), indent=1))
-    _atomic_write(out / "summary.json", json.dumps(summary, indent=1, default=_json_default))
-    _atomic_write(out / "report.md", _markdown(sections, params))
-    _atomic_write(out / "index.html", _html(sections, params, out))
+    write_text(json.dumps(params.model_dump(), indent=1), out / "params.json")
+    write_text(json.dumps(summary, indent=1, default=_json_default), out / "summary.json")
+    write_text(_markdown(sections, params), out / "report.md")
+    write_text(_html(sections, params, out), out / "index.html")
     return Report(out, sections, summary)
 
 
@@ -409,14 +407,6 @@ def _json_default(value: Any) -> Any:
     if isinstance(value, np.ndarray):
         return value.tolist()
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    with os.fdopen(fd, "w", encoding="utf-8") as fh:
-        fh.write(text)
-    os.chmod(tmp, 0o644)
-    os.replace(tmp, path)
 
 
 def format_cell(value: Any) -> str:

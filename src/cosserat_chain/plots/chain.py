@@ -28,10 +28,7 @@ from __future__ import annotations
 import importlib.util
 import json
 import math
-import os
-import tempfile
-from collections.abc import Callable, Iterable, Iterator, Sequence
-from contextlib import contextmanager
+from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
 import imageio.v2 as iio2
@@ -45,7 +42,7 @@ from matplotlib.patches import Patch
 from PIL import Image
 
 from ..geometry import bond_links, corner_positions, particle_positions
-from ..io import params_from_mapping
+from ..io import atomic_path, params_from_mapping
 from ..params import ChainParams
 from ..state import ROWS
 
@@ -451,26 +448,6 @@ def _time_format(times: np.ndarray) -> str:
     return f"{{:.{decimals}f}}"
 
 
-@contextmanager
-def _atomic_path(path: Path) -> Iterator[Path]:
-    """A temporary file beside ``path`` (same extension) renamed onto it on success.
-
-    An interrupted animation leaves no half-written file behind.
-    """
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
 class _FrameWriter:
     """Appends RGB frames to a GIF (Pillow) or an MP4 (imageio's FFMPEG plugin) one at a time.
 
@@ -592,7 +569,7 @@ def animate(
         artist.set_animated(True)
     figure.canvas.draw()
     background = figure.canvas.copy_from_bbox(figure.bbox)
-    with _atomic_path(path) as tmp:
+    with atomic_path(path) as tmp:
         writer = _FrameWriter(tmp, fps)
         try:
             for done, frame in enumerate(frames, start=1):
