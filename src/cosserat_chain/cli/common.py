@@ -69,6 +69,12 @@ def bar_callback(bar: tqdm):
     return progress
 
 
+def save_figure(fig, path: Path) -> None:
+    """Write a matplotlib figure to ``path`` (format from the extension), creating its folder."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=150)
+
+
 @app.callback()
 def main() -> None:
     """Simulate chains of rectangular particles that translate and rotate (nonlinear, sine and linear Cosserat models)."""

@@ -11,7 +11,7 @@ import typer
 from ..experiments.orbits import periodic_orbit
 from ..io import write_dataset
 from ..numerics.periodic import OrbitError
-from .common import app, bar_callback, fail, finite_or_none, params_or_exit, progress_bar
+from .common import app, bar_callback, fail, finite_or_none, params_or_exit, progress_bar, save_figure
 
 
 class RotatingModel(str, Enum):
@@ -56,8 +56,7 @@ def orbit(
         from ..plots.orbits import rotation_characteristic_figure
 
         fig = rotation_characteristic_figure(branches=[result.branch], static_fold=result.static_fold, model=model.value)
-        plot.parent.mkdir(parents=True, exist_ok=True)
-        fig.savefig(plot, dpi=150)
+        save_figure(fig, plot)
     if as_json:
         typer.echo(json.dumps({"params": params.model_dump(), **result.as_dict(), "static_fold": finite_or_none(result.static_fold)}))
         return

@@ -12,7 +12,7 @@ from ..experiments.critical import critical_point
 from ..experiments.sweep import relaxation_sweep
 from ..io import stack_models, write_dataset
 from ..numerics.newton import NewtonError
-from .common import app, bar_callback, fail, params_or_exit, progress_bar
+from .common import app, bar_callback, fail, params_or_exit, progress_bar, save_figure
 
 
 class ModelChoice(str, Enum):
@@ -24,11 +24,6 @@ class ModelChoice(str, Enum):
 
 def _models(choice: ModelChoice) -> list[str]:
     return ["nonlinear", "sine", "linear"] if choice is ModelChoice.all else [choice.value]
-
-
-def _save_figure(fig, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=150)
 
 
 @app.command()
@@ -69,7 +64,7 @@ def sweep(
         from ..plots.statics import figure2
 
         criticals = {name: critical_point(params, name, particle=particle) for name in results}
-        _save_figure(figure2(criticals, results), plot)
+        save_figure(figure2(criticals, results), plot)
     if as_json:
         typer.echo(json.dumps({"params": params.model_dump(), "models": {name: r.as_dict() for name, r in results.items()}}))
     else:
@@ -107,7 +102,7 @@ def critical(
     if plot is not None:
         from ..plots.statics import figure2
 
-        _save_figure(figure2(results), plot)
+        save_figure(figure2(results), plot)
     if as_json:
         typer.echo(json.dumps({"params": params.model_dump(), "models": {name: r.as_dict() for name, r in results.items()}}))
         return

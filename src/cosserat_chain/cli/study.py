@@ -10,7 +10,7 @@ import typer
 
 from ..experiments.study import spec_from_mapping
 from ..io import read_config
-from .common import app, bar_callback, fail, progress_bar
+from .common import app, bar_callback, fail, progress_bar, save_figure
 
 
 @app.command()
@@ -41,8 +41,7 @@ def study(
     if plot is not None:
         from ..plots.study import study_figure
 
-        plot.parent.mkdir(parents=True, exist_ok=True)
-        study_figure(run.dataset).savefig(plot, dpi=150)
+        save_figure(study_figure(run.dataset), plot)
     ds = run.dataset
     if as_json:
         cells = []
