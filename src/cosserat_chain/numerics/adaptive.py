@@ -1,15 +1,16 @@
-"""Adaptive, error-controlled reference runs: SciPy's DOP853 on the same compiled right-hand side.
+"""Adaptive, error-controlled reference runs: the compiled DOP853 on the chain's equations of motion.
 
 Contract
 --------
 :func:`integrate_adaptive` solves the same equations as
 :func:`cosserat_chain.numerics.dynamics.integrate` (viscosity as a force
--gamma v instead of an exact sub-step) with ``scipy.integrate.solve_ivp``. The
-state is extended by the load work W and the dissipated energy D, integrated
+-gamma v instead of an exact sub-step) with :func:`cosserat_chain.numerics.dop853.solve`,
+whose tolerances mean what they mean for ``scipy.integrate.solve_ivp(method="DOP853")``.
+The state is extended by the load work W and the dissipated energy D, integrated
 as W' = L(t) . q' and D' = gamma v^2, so the energy balance of a reference run
 is as accurate as its tolerances. It returns a :class:`Trajectory` on the
-requested output times; it is slower than the fixed-step integrators and meant
-as the reference they are checked against.
+requested output times, which are steps of the method (no interpolation); it is
+slower than the fixed-step integrators and meant as the reference they are checked against.
 """
 
 from __future__ import annotations
@@ -17,36 +18,33 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, types
-from scipy.integrate import solve_ivp
+from numba import njit
 
 from ..loads import Loads, schedule_value
-from ..models.base import FORCE_KERNEL_TYPE, Model, get_model
+from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import check_state, zeros
+from . import dop853
 from .dynamics import Trajectory
 
-_RHS_SIGNATURE = types.float64[::1](
-    FORCE_KERNEL_TYPE,
-    types.float64,
-    types.float64[::1],
-    types.float64[::1],
-    types.float64[::1],
-    types.float64[::1],
-    types.int64[:, ::1],
-    types.float64[:, ::1],
-)
+#: The only method: the name is kept for the Trajectory and for callers that passed it.
+METHOD = "DOP853"
 
 
-@njit(_RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
-def _rhs(force, t, y, coef, mass, gamma, load_index, knots):  # pragma: no cover - compiled
-    size = (y.size - 2) // 2
-    n = size // 3
+@njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+def _rhs(force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
+    # y = (x (3, n), v (3, n), W, D) flattened; rpar = (mass (3), gamma (3), knots (K, 2));
+    # ipar = (n, number of loads L, load index (L, 4)), as :meth:`Loads.compiled` lays them out.
+    n = ipar[0]
+    load_index = ipar[2 : 2 + 4 * ipar[1]].reshape((ipar[1], 4))
+    mass = rpar[0:3]
+    gamma = rpar[3:6]
+    knots = rpar[6:].reshape(((rpar.size - 6) // 2, 2))
+    size = 3 * n
     x = y[:size].reshape((3, n))
     v = y[size : 2 * size].reshape((3, n))
     f = np.zeros((3, n))
     force(x, coef, f, 1, n - 1)
-    dy = np.empty_like(y)
     work_rate = 0.0
     for i in range(load_index.shape[0]):
         row = load_index[i, 0]
@@ -65,7 +63,6 @@ def _rhs(force, t, y, coef, mass, gamma, load_index, knots):  # pragma: no cover
             dy[size + r * n + k] = 0.0
     dy[2 * size] = work_rate
     dy[2 * size + 1] = dissipation
-    return dy
 
 
 def integrate_adaptive(
@@ -80,9 +77,10 @@ def integrate_adaptive(
     n_frames: int = 201,
     rtol: float = 1e-10,
     atol: float = 1e-12,
-    method: str = "DOP853",
+    method: str = METHOD,
+    max_steps: int = dop853.MAX_STEPS,
 ) -> Trajectory:
-    """Reference run with an adaptive, error-controlled SciPy solver.
+    """Reference run with the adaptive, error-controlled DOP853.
 
     Parameters
     ----------
@@ -91,16 +89,25 @@ def integrate_adaptive(
     n_frames : int
         Number of equally spaced output times from t0 to t_end (>= 2).
     rtol, atol : float
-        Tolerances of the solver.
+        Tolerances of the solver (rtol >= 2.2e-14, atol > 0).
     method : str
-        Any explicit ``solve_ivp`` method; DOP853 (order 8) by default.
+        ``"DOP853"`` (order 8), the only one.
+    max_steps : int
+        Most attempted steps.
 
     Returns
     -------
     Trajectory
-        ``status`` is ``completed`` or ``failed`` (the solver's message is kept);
-        ``steps`` counts the solver's right-hand-side evaluations.
+        ``status`` is ``completed`` or ``failed`` (the solver's message says why and what
+        to try; the frames reached are kept); ``steps`` counts right-hand-side evaluations.
+
+    Raises
+    ------
+    ValueError
+        For another method, t_end <= t0, n_frames < 2, bad tolerances or a non-finite start.
     """
+    if method != METHOD:
+        raise ValueError(f"method must be {METHOD!r} (the compiled adaptive integrator), got {method!r}")
     model = get_model(model)
     if not (math.isfinite(t_end) and t_end > t0):
         raise ValueError(f"t_end must be finite and > t0={t0!r}, got {t_end!r}")
@@ -110,28 +117,23 @@ def integrate_adaptive(
     x = zeros(params) if x0 is None else check_state(params, x0, "x0")
     v = zeros(params) if v0 is None else check_state(params, v0, "v0")
     load_index, knots = loads.compiled(params)
-    kernel = type(model).force_kernel
-    coef = model.coefficients(params)
-    mass = np.array(params.inertia)
-    gamma = np.array(params.damping)
-
-    def rhs(t: float, y: np.ndarray) -> np.ndarray:
-        return _rhs(kernel, t, y, coef, mass, gamma, load_index, knots)
-
+    rpar = np.concatenate([params.inertia, params.damping, knots.ravel()])
+    ipar = np.concatenate([[n, len(load_index)], load_index.ravel()]).astype(np.int64)
     y0 = np.concatenate([x.ravel(), v.ravel(), [0.0, 0.0]])
     times = np.linspace(t0, t_end, n_frames)
-    sol = solve_ivp(rhs, (t0, t_end), y0, method=method, t_eval=times, rtol=rtol, atol=atol)
+    sol = dop853.solve(
+        _rhs, type(model).force_kernel, model.coefficients(params), rpar, ipar, y0, times, rtol=rtol, atol=atol, max_steps=max_steps
+    )
     size = 3 * n
-    frames = sol.y.T
     return Trajectory(
         time=sol.t,
-        x=frames[:, :size].reshape(-1, 3, n),
-        v=frames[:, size : 2 * size].reshape(-1, 3, n),
-        load_work=frames[:, -2],
-        dissipated=frames[:, -1],
+        x=sol.y[:, :size].reshape(-1, 3, n),
+        v=sol.y[:, size : 2 * size].reshape(-1, 3, n),
+        load_work=sol.y[:, -2],
+        dissipated=sol.y[:, -1],
         status="completed" if sol.success else "failed",
         message=sol.message,
-        steps=int(sol.nfev),
+        steps=sol.evaluations,
         dt=float("nan"),
-        method=method,
+        method=METHOD,
     )

@@ -19,7 +19,8 @@ motion (1)-(3) under a constant moment M on the loaded particle.
   which removes the phase freedom along the orbit) and the period T. The Jacobian
   is exact up to the integration tolerance: the monodromy matrix dPhi_T/dy0 comes
   from the variational equations Phi' = A(t) Phi, A = [[0, I], [M^-1 dF/dq, -M^-1 Gamma]],
-  integrated together with the state by DOP853 on a compiled right-hand side; the
+  integrated together with the state by the package's compiled DOP853
+  (:mod:`cosserat_chain.numerics.dop853`) on a compiled right-hand side; the
   force Jacobian dF/dq is formed inside it by central differences of the model's
   compiled force kernel, coloured so that it costs 18 force evaluations whatever N
   (a column's forces depend only on its two neighbours).
@@ -42,13 +43,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg as sla
-from numba import njit, types
-from scipy.integrate._ivp import dop853_coefficients as dop853
+from numba import njit
 
 from ..loads import moment_load
-from ..models.base import FORCE_KERNEL_TYPE, Model, get_model
+from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, n_free, pack, unpack, zeros
+from . import dop853
 from .dynamics import integrate
 
 #: Step of the central differences of the force kernel. The nonlinear model's third
@@ -66,7 +67,7 @@ MAX_CORRECTOR_ITERATIONS = 10
 NEWTON_RATE = 0.1
 #: Step halvings of a Newton step that makes the closure worse.
 MAX_HALVINGS = 6
-#: Most DOP853 steps over one period.
+#: Most DOP853 steps (accepted and rejected) over one period.
 MAX_STEPS = 10_000_000
 #: Time simulated per call while looking for a settled rotation.
 GUESS_CHUNK = 200.0
@@ -75,35 +76,30 @@ SETTLE_RTOL = 1e-3
 
 ProgressCallback = Callable[[float, float], None]
 
-_RHS_SIGNATURE = types.float64[::1](
-    FORCE_KERNEL_TYPE,
-    types.float64[::1],
-    types.float64[::1],
-    types.float64[::1],
-    types.float64[::1],
-    types.int64,
-    types.float64,
-    types.int64,
-    types.int64,
-)
 
-
-@njit(_RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
-def _rhs(force, y, coef, inv_mass, damping_rate, n, moment, load_dof, ncols):  # pragma: no cover - compiled
+@njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+def _rhs(force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
+    # Autonomous: t is not read. rpar = (M, 1/mass (nf), gamma/mass (nf)) and
+    # ipar = (n, load_dof, ncols), as _System.parameters lays them out.
+    n = ipar[0]
+    load_dof = ipar[1]
+    ncols = ipar[2]
     nf = 3 * (n - 2)
+    moment = rpar[0]
+    inv_mass = rpar[1 : 1 + nf]
+    damping_rate = rpar[1 + nf : 1 + 2 * nf]
     x = np.zeros((3, n))
     for c in range(1, n - 1):
         for r in range(3):
             x[r, c] = y[3 * (c - 1) + r]
     f = np.zeros((3, n))
     force(x, coef, f, 1, n - 1)
-    dy = np.empty_like(y)
     for i in range(nf):
         dy[i] = y[nf + i]
         load = moment if i == load_dof else 0.0
         dy[nf + i] = (f[(i % 3), i // 3 + 1] + load) * inv_mass[i] - damping_rate[i] * y[nf + i]
     if ncols == 0:
-        return dy
+        return
     # dF/dq by central differences, coloured: perturbing row r of every third column
     # at once is exact because a column's forces read only its two neighbours.
     jac = np.zeros((nf, nf))
@@ -136,95 +132,6 @@ def _rhs(force, y, coef, inv_mass, damping_rate, n, moment, load_dof, ncols):  #
     if ncols == 2 * nf + 1:
         # The last column is dy/dM: the moment enters the loaded particle's equation.
         dphi[nf + load_dof, ncols - 1] += inv_mass[load_dof]
-    return dy
-
-
-_STAGES = dop853.N_STAGES
-_A = np.ascontiguousarray(dop853.A[:_STAGES, :_STAGES])
-_B = np.ascontiguousarray(dop853.B)
-_C = np.ascontiguousarray(dop853.C[:_STAGES])
-_E3 = np.ascontiguousarray(dop853.E3)
-_E5 = np.ascontiguousarray(dop853.E5)
-
-_FLOW_SIGNATURE = types.Tuple((types.float64[::1], types.int64))(
-    FORCE_KERNEL_TYPE,
-    types.float64[::1],
-    types.float64,
-    types.float64[::1],
-    types.float64[::1],
-    types.float64[::1],
-    types.int64,
-    types.float64,
-    types.int64,
-    types.int64,
-    types.float64,
-    types.float64,
-    types.int64,
-)
-
-
-@njit(_FLOW_SIGNATURE, cache=True, nogil=True, error_model="numpy")
-def _flow(force, y0, t_end, coef, inv_mass, damping_rate, n, moment, load_dof, ncols, rtol, atol, max_steps):  # pragma: no cover - compiled
-    # Dormand-Prince 8(5,3) with SciPy's coefficients and error norm (scipy.integrate.DOP853),
-    # the whole loop compiled: one call per period instead of one per right-hand side.
-    size = y0.size
-    k = np.zeros((_STAGES + 1, size))
-    y = y0.copy()
-    f = _rhs(force, y, coef, inv_mass, damping_rate, n, moment, load_dof, ncols)
-    t = 0.0
-    h = min(1e-3, t_end)
-    steps = 0
-    while t < t_end:
-        if steps >= max_steps:
-            return y, -1
-        accepted = False
-        rejected = False
-        while not accepted:
-            if h < 1e-14 * max(1.0, t_end):
-                return y, -2
-            step = min(h, t_end - t)
-            k[0] = f
-            for s in range(1, _STAGES):
-                stage = y.copy()
-                for r in range(s):
-                    if _A[s, r] != 0.0:
-                        stage += (step * _A[s, r]) * k[r]
-                k[s] = _rhs(force, stage, coef, inv_mass, damping_rate, n, moment, load_dof, ncols)
-            y_new = y.copy()
-            for r in range(_STAGES):
-                if _B[r] != 0.0:
-                    y_new += (step * _B[r]) * k[r]
-            f_new = _rhs(force, y_new, coef, inv_mass, damping_rate, n, moment, load_dof, ncols)
-            k[_STAGES] = f_new
-            err5 = 0.0
-            err3 = 0.0
-            for i in range(size):
-                scale = atol + max(abs(y[i]), abs(y_new[i])) * rtol
-                e5 = 0.0
-                e3 = 0.0
-                for r in range(_STAGES + 1):
-                    e5 += k[r, i] * _E5[r]
-                    e3 += k[r, i] * _E3[r]
-                err5 += (e5 / scale) ** 2
-                err3 += (e3 / scale) ** 2
-            if err5 == 0.0 and err3 == 0.0:
-                error = 0.0
-            else:
-                error = step * err5 / math.sqrt((err5 + 0.01 * err3) * size)
-            if error < 1.0:
-                factor = 10.0 if error == 0.0 else min(10.0, 0.9 * error ** (-1.0 / 8.0))
-                if rejected:
-                    factor = min(1.0, factor)
-                accepted = True
-                t = t_end if step == t_end - t else t + step
-                y = y_new
-                f = f_new
-                steps += 1
-                h = step * factor if step == h else max(h, step * factor)
-            else:
-                h = step * max(0.2, 0.9 * error ** (-1.0 / 8.0))
-                rejected = True
-    return y, steps
 
 
 class OrbitError(RuntimeError):
@@ -248,17 +155,22 @@ class _System:
     def load_dof(self) -> int:
         return 3 * (column(self.params, self.particle) - 1) + ROW_INDEX["phi"]
 
-    def arrays(self):
+    def parameters(self, ncols: int):
+        """The force kernel, its coefficients, and rpar, ipar of :func:`_rhs` with ``ncols`` variational columns."""
         mass = np.tile(np.array(self.params.inertia), self.params.n_particles - 2)
         gamma = np.tile(np.array(self.params.damping), self.params.n_particles - 2)
-        return type(self.model).force_kernel, self.model.coefficients(self.params), 1.0 / mass, gamma / mass
+        rpar = np.concatenate([[self.moment], 1.0 / mass, gamma / mass])
+        ipar = np.array([self.params.n_particles, self.load_dof, ncols], dtype=np.int64)
+        return type(self.model).force_kernel, self.model.coefficients(self.params), rpar, ipar
 
     def rhs(self, ncols: int):
-        kernel, coef, inv_mass, rate = self.arrays()
-        n, moment, dof = self.params.n_particles, float(self.moment), self.load_dof
+        """The right-hand side f(t, y) with ``ncols`` variational columns, for Python callers."""
+        kernel, coef, rpar, ipar = self.parameters(ncols)
 
         def f(t: float, y: np.ndarray) -> np.ndarray:
-            return _rhs(kernel, y, coef, inv_mass, rate, n, moment, dof, ncols)
+            dy = np.empty_like(y)
+            _rhs(kernel, t, y, coef, rpar, ipar, dy)
+            return dy
 
         return f
 
@@ -267,25 +179,11 @@ class _System:
         size = 2 * self.nf
         ncols = size + 1 if variations else 0
         start = np.concatenate([y0, np.hstack([np.eye(size), np.zeros((size, 1))]).ravel() if variations else []])
-        kernel, coef, inv_mass, rate = self.arrays()
-        end, steps = _flow(
-            kernel,
-            start,
-            float(period),
-            coef,
-            inv_mass,
-            rate,
-            self.params.n_particles,
-            float(self.moment),
-            self.load_dof,
-            ncols,
-            rtol,
-            atol,
-            MAX_STEPS,
-        )
-        if steps < 0:
-            reason = f"more than {MAX_STEPS} steps" if steps == -1 else "the step size fell to round-off"
-            raise OrbitError(f"integration over T={period!r} failed at M={self.moment!r}: {reason}")
+        kernel, coef, rpar, ipar = self.parameters(ncols)
+        sol = dop853.solve(_rhs, kernel, coef, rpar, ipar, start, np.array([0.0, period]), rtol=rtol, atol=atol, max_steps=MAX_STEPS)
+        if not sol.success:
+            raise OrbitError(f"integration over T={period!r} failed at M={self.moment!r}: {sol.message}")
+        end = sol.y[-1]
         if not variations:
             return end[:size], None, None
         phi = end[size:].reshape(size, ncols)
