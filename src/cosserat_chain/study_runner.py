@@ -2,15 +2,19 @@
 
 Contract
 --------
-:func:`run_study` submits every cell of a :class:`~cosserat_chain.experiments.study.StudySpec`
-that is not yet done as one task to a ``dask.distributed`` cluster (an embedded
-``LocalCluster`` with one single-threaded worker process per core by default, or an
-existing scheduler given by its address). Results are stored in one xarray Dataset
-(see :func:`~cosserat_chain.experiments.study.empty_results`) that is written
-atomically to NetCDF every ``save_every`` seconds, at the end, and when the study is
-interrupted (Ctrl-C or a progress callback raising ``KeyboardInterrupt``). Re-running
-the same spec with the same output file resumes: finished cells are read back and
-skipped; a file written for another spec is refused.
+:func:`run_study` cuts the cells of a :class:`~cosserat_chain.experiments.study.StudySpec`
+that are not yet done into chunks of cells that share N and the model
+(:func:`chunk_cells`), and submits each chunk as one task
+(:func:`~cosserat_chain.experiments.study.compute_cells`, which batches the chunk's
+relaxations) to a ``dask.distributed`` cluster (an embedded ``LocalCluster`` with one
+single-threaded worker process per core by default, or an existing scheduler given by
+its address). Results are stored in one xarray Dataset (see
+:func:`~cosserat_chain.experiments.study.empty_results`) as chunks finish; it is
+written atomically to NetCDF when a chunk arrives at least ``save_every`` seconds
+after the last write, at the end, and when the study stops early: interrupted (Ctrl-C
+or a progress callback raising ``KeyboardInterrupt``) or by an error. Re-running the
+same spec with the same output file resumes: finished cells are read back and skipped;
+a file written for another spec (or under another time-step rule) is refused.
 
 This module sits beside :mod:`cosserat_chain.io` (it persists) and above the experiments
 (it runs them); it never computes physics itself.
@@ -19,20 +23,32 @@ This module sits beside :mod:`cosserat_chain.io` (it persists) and above the exp
 from __future__ import annotations
 
 import logging
+import math
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import xarray as xr
 
 from . import __version__
-from .experiments.study import StudySpec, compute_cell, empty_results, store_cell
+from .experiments.study import StudySpec, compute_cells, empty_results, store_cell
 from .io import read_dataset, write_dataset
 
 log = logging.getLogger(__name__)
+
+#: The default chunk size aims at this many tasks per worker, so that the workers stay
+#: busy to the end although chunks take different times.
+TASKS_PER_WORKER = 4
+#: Largest default chunk: beyond a few hundred members a batch gains no more per member,
+#: and a chunk's cells reach the file only when the whole chunk is done.
+MAX_CHUNK = 256
+
+Cell = tuple[tuple[int, ...], str, dict[str, float]]
 
 
 @dataclass
@@ -60,6 +76,42 @@ class StudyRun:
     completed: bool
 
 
+def default_chunk_size(cells: int, workers: int) -> int:
+    """Cells per task: about ``TASKS_PER_WORKER`` tasks per worker, at most ``MAX_CHUNK`` cells, at least 1."""
+    return max(1, min(MAX_CHUNK, math.ceil(cells / (TASKS_PER_WORKER * max(1, workers)))))
+
+
+def chunk_cells(cells: Sequence[Cell], size: int) -> list[list[Cell]]:
+    """The cells cut into chunks of at most ``size`` that share N and the model, in spec order.
+
+    Neighbours in spec order differ in the innermost swept field only, so a chunk's
+    cells tend to share their time step, hence one compiled loop.
+    """
+    groups: dict[tuple, list[Cell]] = {}
+    for cell in cells:
+        _, model, fields = cell
+        groups.setdefault((fields.get("N"), model), []).append(cell)
+    return [group[start : start + size] for group in groups.values() for start in range(0, len(group), size)]
+
+
+@contextmanager
+def _client(scheduler: str | None, workers: int | None) -> Iterator[tuple[Any, int]]:
+    """A Dask client of the scheduler at ``scheduler``, or of an embedded LocalCluster; and its worker count."""
+    from dask.distributed import Client, LocalCluster
+
+    cluster = None
+    if scheduler is None:
+        workers = workers or os.cpu_count() or 1
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0")
+    client = Client(scheduler or cluster)
+    try:
+        yield client, workers or sum(client.nthreads().values())
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
 def _resume(spec: StudySpec, out: Path | None) -> xr.Dataset:
     fresh = empty_results(spec)
     if out is None or not out.exists():
@@ -67,6 +119,8 @@ def _resume(spec: StudySpec, out: Path | None) -> xr.Dataset:
     previous = read_dataset(out)
     if previous.attrs.get("study_spec_json") != fresh.attrs["study_spec_json"]:
         raise ValueError(f"{out} holds the results of a different study spec; choose another --out or delete it")
+    if previous.attrs.get("time_step_rule") != fresh.attrs["time_step_rule"]:
+        raise ValueError(f"{out} was computed under another time-step rule (an earlier version); choose another --out or delete it")
     previous["error"] = previous["error"].astype(object)
     return previous
 
@@ -77,10 +131,11 @@ def run_study(
     out: str | Path | None = None,
     scheduler: str | None = None,
     workers: int | None = None,
+    chunk: int | None = None,
     save_every: float = 5.0,
     progress: Callable[[int, int], None] | None = None,
 ) -> StudyRun:
-    """Compute every cell of ``spec`` on Dask (see the module docstring).
+    """Compute every cell of ``spec`` on Dask, in chunks of cells (see the module docstring).
 
     Parameters
     ----------
@@ -92,16 +147,27 @@ def run_study(
         embedded LocalCluster.
     workers : int, optional
         Worker processes of the LocalCluster (default: one per core).
+    chunk : int, optional
+        Cells per task (cells of one N and model); default :func:`default_chunk_size`
+        of the cells to compute and the workers.
     save_every : float
-        Seconds between two writes of ``out``.
+        Least seconds between two writes of ``out`` while chunks arrive.
     progress : callable(cells_done, cells_total), optional
+        Called once at the start and after every chunk.
 
     Returns
     -------
     StudyRun
-    """
-    from dask.distributed import Client, LocalCluster, as_completed
 
+    Raises
+    ------
+    ValueError
+        For a bad spec or chunk, or an ``out`` written for another spec.
+    """
+    from dask.distributed import as_completed
+
+    if chunk is not None and not (isinstance(chunk, int) and chunk >= 1):
+        raise ValueError(f"chunk must be an integer >= 1, got {chunk!r}")
     spec.check()
     out = None if out is None else Path(out)
     ds = _resume(spec, out)
@@ -119,34 +185,31 @@ def run_study(
     if progress is not None:
         progress(skipped, total)
     computed, completed = 0, True
-    if todo:
-        cluster = None
-        if scheduler is None:
-            cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True, dashboard_address=":0")
-        client = Client(scheduler or cluster)
-        spec_json = spec.to_json()
-        last_save = time.monotonic()
-        try:
-            futures = {client.submit(compute_cell, fields, model, spec_json, pure=False): (index, model) for index, model, fields in todo}
-            try:
-                for future in as_completed(futures):
-                    index, model = futures[future]
-                    store_cell(ds, spec, index, model, future.result())
-                    computed += 1
-                    if progress is not None:
-                        progress(skipped + computed, total)
-                    if out is not None and time.monotonic() - last_save >= save_every:
-                        write_dataset(ds, out)
-                        last_save = time.monotonic()
-            except KeyboardInterrupt:
-                completed = False
-                log.warning("study interrupted after %d of %d cells; the finished cells are saved", skipped + computed, total)
-                client.cancel(list(futures))
-        finally:
-            client.close()
-            if cluster is not None:
-                cluster.close()
-    if out is not None:
-        write_dataset(ds, out)
+    try:
+        if todo:
+            with _client(scheduler, workers) as (client, worker_count):
+                spec_json = spec.to_json()
+                chunks = chunk_cells(todo, chunk or default_chunk_size(len(todo), worker_count))
+                futures = {client.submit(compute_cells, [c[2] for c in part], part[0][1], spec_json, pure=False): part for part in chunks}
+                last_save = time.monotonic()
+                try:
+                    for future in as_completed(futures):
+                        part = futures[future]
+                        for (index, model, _), values in zip(part, future.result()):
+                            store_cell(ds, spec, index, model, values)
+                        computed += len(part)
+                        if progress is not None:
+                            progress(skipped + computed, total)
+                        if out is not None and time.monotonic() - last_save >= save_every:
+                            write_dataset(ds, out)
+                            last_save = time.monotonic()
+                except KeyboardInterrupt:
+                    completed = False
+                    log.warning("study interrupted after %d of %d cells; the finished cells are saved", skipped + computed, total)
+                    client.cancel(list(futures))
+    finally:
+        # Also on an error (a lost worker, a progress callback raising): keep the chunks that arrived.
+        if out is not None:
+            write_dataset(ds, out)
     failed = int(np.sum((ds["done"].values == 1) & (ds["error"].values.astype(str) != "")))
     return StudyRun(ds, computed, skipped, failed, completed)

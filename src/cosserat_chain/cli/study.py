@@ -19,10 +19,13 @@ def study(
     out: Path | None = typer.Option(None, help="NetCDF file written as cells finish; re-running resumes from it."),
     scheduler: str | None = typer.Option(None, help="Address of an existing Dask scheduler (default: an embedded LocalCluster)."),
     workers: int | None = typer.Option(None, help="Worker processes of the embedded LocalCluster (default: one per core)."),
+    chunk: int | None = typer.Option(
+        None, help="Cells per Dask task (cells of one N and model, relaxed as one batch; default: 4 tasks per worker, at most 256 cells)."
+    ),
     plot: Path | None = typer.Option(None, help="Draw maps (two swept fields) or lines (one) of the quantities to this PNG/SVG file."),
     as_json: bool = typer.Option(False, "--json", help="Print a summary and every cell's values as one JSON object."),
 ) -> None:
-    """Compute the quantities of a parameter study over every cell of its grid, one Dask task per cell."""
+    """Compute the quantities of a parameter study over every cell of its grid, in chunks of cells per Dask task."""
     from ..study_runner import run_study
 
     try:
@@ -31,9 +34,11 @@ def study(
         fail(str(err))
     if workers is not None and workers < 1:
         fail(f"--workers must be >= 1, got {workers}")
+    if chunk is not None and chunk < 1:
+        fail(f"--chunk must be >= 1, got {chunk}")
     bar = progress_bar("study", "cell")
     try:
-        run = run_study(spec, out=out, scheduler=scheduler, workers=workers, progress=bar_callback(bar))
+        run = run_study(spec, out=out, scheduler=scheduler, workers=workers, chunk=chunk, progress=bar_callback(bar))
     except ValueError as err:
         bar.close()
         fail(str(err))
@@ -48,13 +53,19 @@ def study(
         for index, model, fields in spec.cells():
             where = {**dict(zip(spec.axes(), index)), "model": spec.models.index(model)}
             values = {name: _plain(ds[name][where].values) for name in spec.quantities}
-            cells.append({"params": {k: fields[k] for k in spec.parameters}, "model": model, **values, "error": str(ds["error"][where].values) or None})
+            cells.append(
+                {
+                    "params": {k: fields[k] for k in spec.parameters},
+                    "model": model,
+                    **values,
+                    "error": str(ds["error"][where].values) or None,
+                }
+            )
         summary = {"cells": len(cells), "computed": run.computed, "skipped": run.skipped, "failed": run.failed, "completed": run.completed}
         typer.echo(json.dumps({**summary, "out": str(out) if out else None, "results": cells}))
     else:
         typer.echo(
-            f"study: {run.computed} cells computed, {run.skipped} read back, {run.failed} failed"
-            + (f"; wrote {out}" if out else "")
+            f"study: {run.computed} cells computed, {run.skipped} read back, {run.failed} failed" + (f"; wrote {out}" if out else "")
         )
     if not run.completed:
         typer.secho("interrupted: the finished cells are saved; run the same command again to resume", err=True, fg=typer.colors.YELLOW)
