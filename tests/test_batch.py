@@ -7,11 +7,10 @@ import pytest
 
 from conftest import ROUND_OFF, random_state
 from cosserat_chain import ChainParams, moment_load
-from cosserat_chain.experiments.sweep import relaxation_sweep
-from cosserat_chain.experiments.sweep_batch import relaxation_sweeps
-from cosserat_chain.numerics.batch import integrate_batch, relax_batch
+from cosserat_chain.experiments.sweep import relaxation_sweep, relaxation_sweeps
+from cosserat_chain.numerics.batch import integrate_batch
 from cosserat_chain.numerics.dynamics import IntegrationError, default_time_step, integrate
-from cosserat_chain.numerics.relaxation import relax
+from cosserat_chain.numerics.relaxation import relax, relax_batch
 
 #: Members that differ in geometry, stiffness, inertia and damping (same N).
 MEMBERS = [

@@ -10,6 +10,7 @@ import cosserat_chain.numerics.dynamics as dynamics
 from conftest import random_state
 from cosserat_chain import ChainParams, moment_load
 from cosserat_chain.analysis.energy import energy_budget
+from cosserat_chain.loads import Loads, PointLoad, Schedule
 from cosserat_chain.models import LINEAR
 from cosserat_chain.models.linear import max_frequency
 from cosserat_chain.numerics.adaptive import integrate_adaptive
@@ -160,6 +161,30 @@ def test_results_do_not_depend_on_chunking_or_threads(paper, monkeypatch):
     np.testing.assert_array_equal(chunked.time, whole.time)
     np.testing.assert_array_equal(threaded.x, whole.x)
     np.testing.assert_allclose(threaded.dissipated, whole.dissipated, rtol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["verlet", "yoshida4"])
+def test_a_long_chain_on_two_threads_gives_the_states_of_one_bit_for_bit(method):
+    # Long enough for several blocks with halos, which meet only every few steps;
+    # loads inside blocks, in halos and on a block edge, one of them scheduled.
+    params = ChainParams(N=1500, a=0.3, E2=0.7)
+    x0, v0 = kicked_start(params)
+    loads = Loads(
+        (
+            PointLoad("phi", 0, Schedule.ramp(0.3, 5.0)),
+            PointLoad("v", 1200, Schedule.constant(0.01)),
+            PointLoad("u", -1499, Schedule.constant(0.02)),
+        )
+    )
+    kwargs = dict(t_end=12.0, x0=x0, v0=v0, n_frames=7, method=method)
+    one = integrate(params, "nonlinear", loads, **kwargs)
+    two = integrate(params, "nonlinear", loads, threads=2, **kwargs)
+    assert one.ok and two.ok
+    np.testing.assert_array_equal(two.x, one.x)
+    np.testing.assert_array_equal(two.v, one.v)
+    # The energy sums are added up in another order: equal to round-off.
+    np.testing.assert_allclose(two.load_work, one.load_work, rtol=1e-12, atol=1e-15)
+    np.testing.assert_allclose(two.dissipated, one.dissipated, rtol=1e-12, atol=1e-15)
 
 
 def test_stride_keeps_first_last_and_every_kth_step(paper):

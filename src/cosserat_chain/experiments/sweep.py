@@ -20,7 +20,7 @@ from __future__ import annotations
 import json
 import logging
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -28,9 +28,9 @@ import xarray as xr
 
 from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
-from ..numerics.relaxation import relax
+from ..numerics.relaxation import Plan, run_plans
 from ..params import ChainParams
-from ..state import ROW_INDEX, ROWS, column, zeros
+from ..state import ROW_INDEX, ROWS, column
 from .simulation import run_attributes
 
 log = logging.getLogger(__name__)
@@ -124,7 +124,9 @@ class SweepResult:
             "direction": self.direction.tolist(),
             "phi0": self.phi0.tolist(),
             "status": self.status.tolist(),
-            "mean_angular_velocity": [None if not math.isfinite(w) else w for w in self.angular_velocity[:, column(self.params, self.particle)]],
+            "mean_angular_velocity": [
+                None if not math.isfinite(w) else w for w in self.angular_velocity[:, column(self.params, self.particle)]
+            ],
             "onset_load": self.onset_load,
             "stop_load": self.stop_load,
             "completed": self.completed,
@@ -195,42 +197,120 @@ def relaxation_sweep(
     Returns
     -------
     SweepResult
+        A sweep of one member of :func:`relaxation_sweeps`.
     """
+    return relaxation_sweeps(
+        [params], model, m_max=m_max, steps=steps, dm=dm, down=down, stop_at_onset=stop_at_onset, particle=particle,
+        progress=progress, **relax_options,
+    )[0]  # fmt: skip
+
+
+def relaxation_sweeps(
+    params_list: Sequence[ChainParams],
+    model: str | Model,
+    *,
+    m_max: float | Sequence[float],
+    steps: int | None = None,
+    dm: float | None = None,
+    down: bool = False,
+    stop_at_onset: bool = False,
+    particle: int = 0,
+    threads: int = 1,
+    progress: Callable[[int, int], None] | None = None,
+    **relax_options,
+) -> list[SweepResult]:
+    """Run the relaxation protocol for every member of a batch, in lock-step.
+
+    Each member follows its own sequential sweep (loads raised step by step, each
+    step from that member's previous end state, optionally back down), and the
+    members' steps are advanced together by
+    :func:`~cosserat_chain.numerics.relaxation.run_plans`: a member whose step
+    ends starts its next load at once, one whose sweep is over leaves the batch.
+    Ctrl-C ends all sweeps; the steps each member finished are returned
+    (``completed`` False for the members that had not finished), never lost.
+
+    Parameters
+    ----------
+    params_list : sequence of ChainParams (B)
+        The members; all with the same N.
+    model : str or Model
+    m_max : float or sequence of float (B)
+        Largest moment, the same for all or one per member.
+    steps, dm, down, stop_at_onset, particle
+        As in :func:`relaxation_sweep`.
+    threads : int
+        Split the members over this many cores.
+    progress : callable(steps_done, steps_total), optional
+        Load steps finished over all members, and their total.
+    **relax_options
+        As in :func:`~cosserat_chain.numerics.relaxation.relax`; ``dt`` may give one step per member.
+
+    Returns
+    -------
+    list of SweepResult (B)
+
+    Raises
+    ------
+    ValueError
+        For bad input, naming the member and the field.
+    IntegrationError
+        If a member blows up.
+    """
+    params_list = list(params_list)
     model = get_model(model)
-    up = load_steps(m_max, steps=steps, dm=dm)
-    moment_load(m_max, particle).validate(params)  # a bad particle is reported before anything runs
-    total = 2 * len(up) if down else len(up)
-    state = {"x": zeros(params), "v": zeros(params)}
-    records: list[tuple[float, str, object]] = []
+    size = len(params_list)
+    tops = np.broadcast_to(np.asarray(m_max, dtype=float), (size,)) if np.ndim(m_max) == 0 else np.asarray(m_max, dtype=float)
+    if tops.shape != (size,):
+        raise ValueError(f"m_max must be a number or one value per member ({size}), got shape {tops.shape}")
+    ups = []
+    for i, (params, top) in enumerate(zip(params_list, tops)):
+        try:
+            ups.append(load_steps(float(top), steps=steps, dm=dm))
+            moment_load(float(top), particle).validate(params)
+        except ValueError as err:
+            raise ValueError(f"member {i} (params_list[{i}]): {err}") from None
+    totals = [2 * len(up) if down else len(up) for up in ups]
+    records: list[list[tuple[float, str, object]]] = [[] for _ in range(size)]
+    finished = [False] * size
+    done = [0]
 
-    def run(moments, direction: str) -> bool:
-        """Relax at each load in turn; False if interrupted."""
-        for moment in moments:
-            try:
-                step = relax(params, model, float(moment), particle=particle, x0=state["x"], v0=state["v"], **relax_options)
-            except KeyboardInterrupt:
-                log.warning("relaxation sweep interrupted at load %g; %d finished steps kept", moment, len(records))
-                return False
+    def plan(i: int) -> Plan:
+        def record(moment: float, direction: str, step) -> None:
             if step.status == NOT_CONVERGED:
-                log.warning("load %g: %s", moment, step.message)
-            records.append((float(moment), direction, step))
-            state["x"], state["v"] = step.x, step.v
+                log.warning("member %d, load %g: %s", i, moment, step.message)
+            records[i].append((moment, direction, step))
+            done[0] += 1
             if progress is not None:
-                progress(len(records), total)
-            if direction == "up" and stop_at_onset and step.status == ROTATING:
-                break
-        return True
+                progress(done[0], sum(totals))
 
-    completed = run(up, "up")
-    if completed and down:
-        top = len(records)
-        completed = run(np.append(up[: top - 1][::-1], 0.0), "down")
-    settings = {"m_max": m_max, "steps": steps, "dm": dm, "down": down, "stop_at_onset": stop_at_onset, **relax_options}
-    return sweep_result(params, model.name, particle, records, completed, settings)
+        for moment in ups[i]:
+            step = yield float(moment)
+            record(float(moment), "up", step)
+            if stop_at_onset and step.status == ROTATING:
+                break
+        if down:
+            top = len(records[i])
+            for moment in np.append(ups[i][: top - 1][::-1], 0.0):
+                step = yield float(moment)
+                record(float(moment), "down", step)
+        finished[i] = True
+
+    try:
+        run_plans(params_list, model, [plan(i) for i in range(size)], particle=particle, threads=threads, **relax_options)
+    except KeyboardInterrupt:
+        log.warning("relaxation sweep interrupted; %d finished steps kept", done[0])
+    results = []
+    for i, params in enumerate(params_list):
+        options = dict(relax_options)
+        if np.ndim(options.get("dt")) == 1:
+            options["dt"] = float(options["dt"][i])
+        settings = {"m_max": float(tops[i]), "steps": steps, "dm": dm, "down": down, "stop_at_onset": stop_at_onset, **options}
+        results.append(sweep_result(params, model.name, particle, records[i], finished[i], settings))
+    return results
 
 
 def sweep_result(params, model_name, particle, records, completed, settings) -> SweepResult:
-    """Assemble a :class:`SweepResult` from ``(moment, direction, RelaxationStep)`` records (shared with the batched sweeps)."""
+    """Assemble a :class:`SweepResult` from ``(moment, direction, RelaxationStep)`` records."""
     n = params.n_particles
     status = np.array([r[2].status for r in records], dtype=object)
     direction = np.array([r[1] for r in records], dtype=object)

@@ -10,7 +10,15 @@ viscosity). Every model provides
   ``kernel(x, coef, out, start, stop)``, that overwrites ``out[:, start:stop]``
   with the forces on columns start..stop-1 (1 <= start < stop <= 2N). It reads
   only columns start-1..stop, so disjoint column ranges can be computed by
-  different threads. The compiled integrators call models only through it.
+  different threads. Its loop over columns must vectorise (no branch in the loop
+  body, 0-based slices, carried values rather than recomputed neighbours).
+* ``batch_kernel``: the same forces for a batch of B chains stored batch-innermost,
+  signature :data:`BATCH_FORCE_SIGNATURE`, ``kernel(x, coef, out)`` with x and out
+  (3, 2N+1, B) and coef (c, B), one column of coefficients per member; it
+  overwrites the free columns 1..2N-1 of every member. Its innermost loop runs
+  over the members, so a batch of short chains fills the SIMD lanes. Member b's
+  forces must equal ``force_kernel`` on member b to the last bit: both call the
+  same inline per-bond (or per-particle) function.
 * ``coefficients(params)``: the flat float64 array ``coef`` the kernel reads.
 * ``forces(params, x)``: a NumPy twin of the kernel (clamped columns zero),
   tested against it.
@@ -18,13 +26,23 @@ viscosity). Every model provides
   freedom (ordering in :mod:`cosserat_chain.state`). For conservative models it
   is the Hessian of the energy, symmetric.
 * ``energy(params, x)`` (conservative models only): the potential energy.
+* ``bond_energy(params, x)``: the energy stored in every bond, for any number of
+  configurations (the diagnostics' energy localization measures); optional.
+* ``max_frequency(params)``: an upper bound for the highest angular frequency of
+  the chain linearised at rest, which sets the default time step and the
+  stability check of the fixed-step integrators. The generic one works from
+  ``stiffness``; a model with a closed-form bound overrides it.
+* ``rotates``: whether the model supports full rotations (forces 2 pi-periodic in
+  every angle), which the rotation experiments and the CLI's choices ask.
 
 Numerical methods receive a :class:`Model` and never import a concrete one;
-adding a model means one module and one :func:`register_model` call.
+adding a model means one module and one :func:`register_model` call
+(``docs/adding-a-model.md``).
 """
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from typing import ClassVar
@@ -32,6 +50,7 @@ from typing import ClassVar
 import numpy as np
 import scipy.sparse as sp
 from numba import types
+from scipy.linalg import LinAlgError, cholesky_banded
 
 from ..params import ChainParams
 from ..state import check_state
@@ -41,6 +60,9 @@ FORCE_SIGNATURE = types.void(types.float64[:, ::1], types.float64[::1], types.fl
 #: The first-class function type compiled integrators take, so that one compiled
 #: (and cached) integrator serves every model.
 FORCE_KERNEL_TYPE = types.FunctionType(FORCE_SIGNATURE)
+#: Signature of every compiled batch force kernel: (x, coef, out) -> None, batch innermost.
+BATCH_FORCE_SIGNATURE = types.void(types.float64[:, :, ::1], types.float64[:, ::1], types.float64[:, :, ::1])
+BATCH_FORCE_KERNEL_TYPE = types.FunctionType(BATCH_FORCE_SIGNATURE)
 #: Numba options of the compiled hot loops (force kernels, integrators).
 #: ``error_model="numpy"``: a division by zero gives inf or nan instead of raising,
 #: which keeps a test and a branch out of every division. ``fastmath={"contract"}``
@@ -51,6 +73,14 @@ FORCE_KERNEL_TYPE = types.FunctionType(FORCE_SIGNATURE)
 KERNEL_OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": {"contract"}}
 
 
+#: Relative asymmetry of M^-1/2 K M^-1/2 below which the generic max_frequency takes K as
+#: symmetric: a Hessian assembled from per-link terms is symmetric only to round-off.
+_SYMMETRY_RTOL = 1e-10
+#: Width of the generic max_frequency's final bracket on lambda_max, relative to the
+#: Gershgorin bound: some 34 bisection steps, far below what a time step needs.
+_BISECTION_RTOL = 1e-10
+
+
 class Model(ABC):
     """A discrete chain model (see the module docstring for the contract)."""
 
@@ -59,7 +89,15 @@ class Model(ABC):
     conservative: ClassVar[bool]
     #: Paper reference, e.g. "eq. (2)".
     equation: ClassVar[str]
+    #: Whether the model supports full rotations: its forces are 2 pi-periodic in every
+    #: angle, so a particle can turn steadily (models (i) and (ii); the linear model (iii)
+    #: only holds small angles). Rotation experiments and the CLI's choices ask it.
+    rotates: ClassVar[bool]
     force_kernel: ClassVar[Callable[..., None]]
+    batch_kernel: ClassVar[Callable[..., None]]
+    #: Largest |phi| at which the kernels are accurate: a model that evaluates sines
+    #: with :func:`.trig.sincos` sets its reduction limit; the engine stops a run beyond it.
+    max_angle: ClassVar[float] = math.inf
 
     @staticmethod
     @abstractmethod
@@ -84,6 +122,71 @@ class Model(ABC):
         """
         raise TypeError(f"the {self.name} model ({self.equation}) is not conservative: it has no potential energy")
 
+    def bond_energy(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
+        """Energy stored in every bond, for any number of configurations.
+
+        Parameters
+        ----------
+        params : ChainParams
+        x : ndarray, shape (..., 3, 2N+1)
+            Configurations, any leading shape (not checked: a whole run at once).
+
+        Returns
+        -------
+        ndarray, shape (..., 2N)
+            Bond k joins columns k and k+1.
+
+        Raises
+        ------
+        NotImplementedError
+            For a model that does not define its energy bond by bond (the
+            diagnostics then leave their energy measures NaN).
+        """
+        raise NotImplementedError(f"the {self.name} model ({self.equation}) defines no bond energy")
+
+    def max_frequency(self, params: ChainParams) -> float:
+        """Upper bound for the highest angular frequency of the clamped chain linearised at rest.
+
+        The generic bound, from :meth:`stiffness` at rest K and the inertia M: the
+        eigenvalues omega^2 of M^-1 K are those of A = M^-1/2 K M^-1/2. For a
+        symmetric K, lambda_max of A by bisection between its largest diagonal entry
+        and the Gershgorin bound (the largest absolute row sum): sigma I - A is
+        positive definite exactly when sigma > lambda_max, which a banded Cholesky
+        factorisation tells. Bonds between neighbours give A a bandwidth of at most
+        5, so each step costs O(N), with no dense matrix; the upper end of the final
+        bracket is returned, above lambda_max by at most 1e-10 of the Gershgorin
+        bound. For a non-symmetric K, the Gershgorin bound on the spectral radius.
+        A model with a closed-form bound independent of N overrides this.
+
+        Returns
+        -------
+        float
+            omega_max = sqrt(lambda_max) in 1/time units (0 if no eigenvalue is positive).
+        """
+        n = params.n_particles
+        scale = sp.diags(1.0 / np.sqrt(np.tile(params.inertia, n - 2)))
+        dynamical = (scale @ sp.csr_matrix(self.stiffness(params, np.zeros((3, n)))) @ scale).tocsr()
+        gershgorin = float(abs(dynamical).sum(axis=1).max())
+        if abs(dynamical - dynamical.T).max() > _SYMMETRY_RTOL * gershgorin:
+            return math.sqrt(gershgorin)
+        upper = sp.triu(dynamical, format="coo")
+        bandwidth = int(np.max(upper.col - upper.row, initial=0))
+        # LAPACK's upper banded storage of -A: entry [bandwidth + i - j, j] holds -A[i, j], i <= j.
+        negative = np.zeros((bandwidth + 1, dynamical.shape[0]))
+        negative[bandwidth + upper.row - upper.col, upper.col] = -upper.data
+        low, high = float(dynamical.diagonal().max()), gershgorin
+        while high - low > _BISECTION_RTOL * gershgorin:
+            middle = 0.5 * (low + high)
+            shifted = negative.copy()
+            shifted[bandwidth] += middle
+            try:
+                cholesky_banded(shifted, check_finite=False)
+            except LinAlgError:
+                low = middle
+            else:
+                high = middle
+        return math.sqrt(max(0.0, high))
+
     def compiled_forces(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         """Forces from the compiled kernel, same layout as :meth:`forces`."""
         x = check_state(params, x)
@@ -95,13 +198,58 @@ class Model(ABC):
         return f"<model {self.name!r}: {self.equation}>"
 
 
+#: Names the command line keeps for itself (``--model all``).
+RESERVED_NAMES = ("all",)
+#: Class attributes of the contract that have no default: checked at registration, so that
+#: a model lacking one fails there rather than in the middle of a run.
+_REQUIRED = ("name", "conservative", "equation", "rotates", "force_kernel", "batch_kernel")
+
 _REGISTRY: dict[str, Model] = {}
 
 
 def register_model(model: Model) -> Model:
-    """Make ``model`` available to :func:`get_model` under ``model.name``."""
+    """Make ``model`` available to :func:`get_model` (and the CLI's ``--model``) under ``model.name``.
+
+    Returns
+    -------
+    Model
+        ``model`` itself, so that a module can write ``TOY = register_model(ToyModel())``.
+
+    Raises
+    ------
+    TypeError
+        If ``model`` is not a :class:`Model` or lacks a class attribute of the contract.
+    ValueError
+        If the name is reserved (:data:`RESERVED_NAMES`) or another model holds it
+        (:func:`unregister_model` that one first).
+    """
+    if not isinstance(model, Model):
+        raise TypeError(f"model must be an instance of a Model subclass, got {type(model).__name__}")
+    missing = [attribute for attribute in _REQUIRED if not hasattr(model, attribute)]
+    if missing:
+        raise TypeError(f"{type(model).__name__} lacks the class attribute(s) {', '.join(missing)} of the model contract (models/base.py)")
+    if model.name in RESERVED_NAMES:
+        raise ValueError(f"model name {model.name!r} is reserved (the CLI's --model {model.name}); choose another name")
+    if _REGISTRY.get(model.name, model) is not model:
+        raise ValueError(
+            f"a model named {model.name!r} is already registered ({_REGISTRY[model.name]!r}); unregister_model({model.name!r}) first"
+        )
     _REGISTRY[model.name] = model
     return model
+
+
+def unregister_model(name: str) -> Model:
+    """Remove the model registered as ``name`` and return it (e.g. a model a test registered).
+
+    Raises
+    ------
+    ValueError
+        For a name that is not registered, listing the registered ones.
+    """
+    try:
+        return _REGISTRY.pop(name)
+    except KeyError:
+        raise ValueError(f"model must be one of {sorted(_REGISTRY)} to be unregistered, got {name!r}") from None
 
 
 def get_model(model: str | Model) -> Model:

@@ -23,7 +23,7 @@ from numba import njit
 
 from ..params import ChainParams
 from ..state import check_state
-from .base import FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks, register_model
+from .base import BATCH_FORCE_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks
 
 
 def cosserat_coefficients(params: ChainParams) -> np.ndarray:
@@ -32,14 +32,53 @@ def cosserat_coefficients(params: ChainParams) -> np.ndarray:
     return np.array([params.k_u, params.k_v, params.h, two_b2 * params.D1, two_b2 * params.D2])
 
 
+@njit(inline="always", **KERNEL_OPTIONS)
+def cosserat_site(k_u, k_v, h, bend, couple, u_prev, u, u_next, v_prev, v, v_next, a_prev, a, a_next):  # pragma: no cover - compiled
+    """Forces (F_u, F_v, F_phi) of eqs. (2)-(3) on one particle from its neighbours.
+
+    ``a_prev, a, a_next`` stand for the angles (eq. 3) or their sines (eq. 2);
+    ``bend`` = 2 b^2 D1, ``couple`` = 2 b^2 D2.
+    """
+    f_u = k_u * (u_next - 2.0 * u + u_prev)
+    f_v = k_v * (v_next - 2.0 * v + v_prev - 0.5 * h * (a_next - a_prev))
+    f_phi = bend * (a_next - 2.0 * a + a_prev) + couple * ((v_next - v_prev) / (2.0 * h) - a)
+    return f_u, f_v, f_phi
+
+
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
 def linear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
-    u, v, phi = x[0], x[1], x[2]
-    for k in range(start, stop):
-        out[0, k] = k_u * (u[k + 1] - 2.0 * u[k] + u[k - 1])
-        out[1, k] = k_v * (v[k + 1] - 2.0 * v[k] + v[k - 1] - 0.5 * h * (phi[k + 1] - phi[k - 1]))
-        out[2, k] = bend * (phi[k + 1] - 2.0 * phi[k] + phi[k - 1]) + couple * ((v[k + 1] - v[k - 1]) / (2.0 * h) - phi[k])
+    # 0-based slices for the three neighbours: no wrap-around arithmetic in the loop.
+    m = stop - start
+    u_prev, u, u_next = x[0, start - 1 : stop - 1], x[0, start:stop], x[0, start + 1 : stop + 1]
+    v_prev, v, v_next = x[1, start - 1 : stop - 1], x[1, start:stop], x[1, start + 1 : stop + 1]
+    p_prev, p, p_next = x[2, start - 1 : stop - 1], x[2, start:stop], x[2, start + 1 : stop + 1]
+    out_u, out_v, out_phi = out[0, start:stop], out[1, start:stop], out[2, start:stop]
+    for k in range(m):
+        out_u[k], out_v[k], out_phi[k] = cosserat_site(
+            k_u, k_v, h, bend, couple, u_prev[k], u[k], u_next[k], v_prev[k], v[k], v_next[k], p_prev[k], p[k], p_next[k]
+        )
+
+
+@njit(inline="always", **KERNEL_OPTIONS)
+def cosserat_batch(coef, x, angle, out):  # pragma: no cover - compiled
+    """Eqs. (2)-(3) for a batch (3, n, B) with ``angle`` (n, B) standing for phi or sin phi."""
+    n, size = x.shape[1], x.shape[2]
+    k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
+    for k in range(1, n - 1):
+        u_prev, u, u_next = x[0, k - 1], x[0, k], x[0, k + 1]
+        v_prev, v, v_next = x[1, k - 1], x[1, k], x[1, k + 1]
+        a_prev, a, a_next = angle[k - 1], angle[k], angle[k + 1]
+        out_u, out_v, out_phi = out[0, k], out[1, k], out[2, k]
+        for i in range(size):
+            out_u[i], out_v[i], out_phi[i] = cosserat_site(
+                k_u[i], k_v[i], h[i], bend[i], couple[i], u_prev[i], u[i], u_next[i], v_prev[i], v[i], v_next[i], a_prev[i], a[i], a_next[i]
+            )
+
+
+@njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
+def linear_batch_kernel(x, coef, out):  # pragma: no cover - compiled
+    cosserat_batch(coef, x, x[2], out)
 
 
 def cosserat_forces(params: ChainParams, u: np.ndarray, v: np.ndarray, angle: np.ndarray) -> np.ndarray:
@@ -54,6 +93,17 @@ def cosserat_forces(params: ChainParams, u: np.ndarray, v: np.ndarray, angle: np
     out[1, inner] = k_v * (v[2:] - 2 * v[1:-1] + v[:-2] - 0.5 * h * (angle[2:] - angle[:-2]))
     out[2, inner] = bend * (angle[2:] - 2 * angle[1:-1] + angle[:-2]) + couple * ((v[2:] - v[:-2]) / (2 * h) - angle[1:-1])
     return out
+
+
+def cosserat_bond_energy(params: ChainParams, u: np.ndarray, v: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """P_bond of every bond (module docstring) with ``angle`` standing for phi (eq. 3) or sin phi (eq. 2).
+
+    Shapes (..., 2N+1) each; returns (..., 2N), bond k joining columns k and k+1.
+    """
+    shear = np.diff(v, axis=-1) - 0.5 * params.h * (angle[..., 1:] + angle[..., :-1])
+    return (
+        0.5 * params.k_u * np.diff(u, axis=-1) ** 2 + params.E1 * params.b**2 * np.diff(angle, axis=-1) ** 2 + 0.5 * params.k_v * shear**2
+    )
 
 
 def bond_stiffness_block(params: ChainParams) -> np.ndarray:
@@ -76,7 +126,10 @@ class LinearModel(Model):
     name = "linear"
     conservative = True
     equation = "eq. (3)"
+    # Quadratic in phi: a model of small rotations, not periodic in them.
+    rotates = False
     force_kernel = linear_forces_kernel
+    batch_kernel = linear_batch_kernel
 
     @staticmethod
     def coefficients(params: ChainParams) -> np.ndarray:
@@ -90,13 +143,16 @@ class LinearModel(Model):
         return stiffness_matrix(params)
 
     def energy(self, params: ChainParams, x: np.ndarray) -> float:
-        u, v, phi = check_state(params, x)
-        du, dv, dphi = np.diff(u), np.diff(v), np.diff(phi)
-        shear = dv - 0.5 * params.h * (phi[:-1] + phi[1:])
-        return float(0.5 * params.k_u * np.sum(du**2) + params.E1 * params.b**2 * np.sum(dphi**2) + 0.5 * params.k_v * np.sum(shear**2))
+        return float(np.sum(self.bond_energy(params, check_state(params, x))))
 
+    def bond_energy(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
+        """P_bond of every bond (module docstring), shape (..., 2N) for x (..., 3, 2N+1)."""
+        x = np.asarray(x, dtype=float)
+        return cosserat_bond_energy(params, x[..., 0, :], x[..., 1, :], x[..., 2, :])
 
-LINEAR = register_model(LinearModel())
+    def max_frequency(self, params: ChainParams) -> float:
+        """The infinite chain's bound :func:`max_frequency` (independent of N, cheap)."""
+        return max_frequency(params)
 
 
 def bloch_stiffness(params: ChainParams, q: np.ndarray) -> np.ndarray:

@@ -23,18 +23,19 @@ from numba import njit
 from ..geometry import bond_links, particle_positions, rotate
 from ..params import ChainParams
 from ..state import check_state
-from .base import FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks, register_model
-from .trig import sincos
+from .base import BATCH_FORCE_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks
+from .linear import max_frequency
+from .trig import REDUCTION_LIMIT, sincos
 
 
 @njit(inline="always", **KERNEL_OPTIONS)
-def _bond(coef, c0, s0, c1, s1, du, dv):  # pragma: no cover - compiled
+def _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, du, dv):  # pragma: no cover - compiled
     """Force (fx, fy) and moment m0 on the left particle of a bond, moment m1 on the right one.
 
-    The right particle receives (-fx, -fy). ``c0, s0, c1, s1``: cos and sin of the
-    two angles; ``du, dv``: differences of the displacements (right minus left).
+    The right particle receives (-fx, -fy). ``a, b, h, E1, E2, rest1, rest2``: the
+    coefficients; ``c0, s0, c1, s1``: cos and sin of the two angles; ``du, dv``:
+    differences of the displacements (right minus left).
     """
-    a, b, h, E1, E2, rest1, rest2 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5], coef[6]
     # Right-hand corners of the left particle: A = R(a, b), B = R(a, -b).
     ax = a * c0 - b * s0
     ay = a * s0 + b * c0
@@ -77,26 +78,64 @@ def _bond(coef, c0, s0, c1, s1, du, dv):  # pragma: no cover - compiled
 
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
 def nonlinear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
-    u, v, phi = x[0], x[1], x[2]
-    # Iteration k computes the bond between columns k-1 and k; column k-1 gets the
-    # right half of the bond before it (carried in registers) plus the left half of
-    # this one: one pass, no zeroing.
-    # Every sine and every bond is computed at one place in the loop, also the halo
-    # ones: with fused multiply-adds, a second copy before the loop could round
-    # differently, and a chain split into blocks (threads) would no longer give the
-    # same forces bit for bit.
-    s0 = c0 = 0.0
-    carry_u = carry_v = carry_m = 0.0
-    for k in range(start - 1, stop + 1):
-        s1, c1 = sincos(phi[k])
-        if k >= start:
-            fx, fy, m0, m1 = _bond(coef, c0, s0, c1, s1, u[k] - u[k - 1], v[k] - v[k - 1])
-            if k > start:
-                out[0, k - 1] = carry_u + fx
-                out[1, k - 1] = carry_v + fy
-                out[2, k - 1] = carry_m + m0
-            carry_u, carry_v, carry_m = -fx, -fy, m1
+    a, b, h, E1, E2, rest1, rest2 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5], coef[6]
+    # Column k gets the right half of bond k-1 (-fx, -fy, m1) and the left half of
+    # bond k (fx, fy, m0). The loop computes bond k and carries fx, fy, m1 and the
+    # sine and cosine of column k+1 to the next iteration (recurrences the
+    # vectoriser recognises; it does not recognise a carried -fx, hence fx - fx_prev).
+    # Bond start-1 is peeled off rather than guarded by an `if` in the loop, and the
+    # slices make every index 0-based: either one alone keeps the loop scalar.
+    s0, c0 = sincos(x[2, start - 1])
+    s1, c1 = sincos(x[2, start])
+    fx_prev, fy_prev, _, m1_prev = _bond(
+        a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, x[0, start] - x[0, start - 1], x[1, start] - x[1, start - 1]
+    )
+    s0, c0 = s1, c1
+    u = x[0, start:]
+    v = x[1, start:]
+    phi = x[2, start:]
+    out_u = out[0, start:stop]
+    out_v = out[1, start:stop]
+    out_phi = out[2, start:stop]
+    for k in range(stop - start):
+        s1, c1 = sincos(phi[k + 1])
+        fx, fy, m0, m1 = _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, u[k + 1] - u[k], v[k + 1] - v[k])
+        out_u[k] = fx - fx_prev
+        out_v[k] = fy - fy_prev
+        out_phi[k] = m0 + m1_prev
+        fx_prev, fy_prev, m1_prev = fx, fy, m1
         s0, c0 = s1, c1
+
+
+@njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
+def nonlinear_batch_kernel(x, coef, out):  # pragma: no cover - compiled
+    n, size = x.shape[1], x.shape[2]
+    a, b, h, E1, E2, rest1, rest2 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5], coef[6]
+    # Per member: sine, cosine of the bond's left column and the carried half bond,
+    # the same arithmetic as nonlinear_forces_kernel member by member.
+    s0, c0 = np.empty(size), np.empty(size)
+    fx_prev, fy_prev, m1_prev = np.empty(size), np.empty(size), np.empty(size)
+    for i in range(size):
+        s0[i], c0[i] = sincos(x[2, 0, i])
+    for k in range(n - 1):
+        u0, u1, v0, v1, phi1 = x[0, k], x[0, k + 1], x[1, k], x[1, k + 1], x[2, k + 1]
+        if k == 0:
+            for i in range(size):
+                s1, c1 = sincos(phi1[i])
+                fx_prev[i], fy_prev[i], _, m1_prev[i] = _bond(
+                    a[i], b[i], h[i], E1[i], E2[i], rest1[i], rest2[i], c0[i], s0[i], c1, s1, u1[i] - u0[i], v1[i] - v0[i]
+                )
+                s0[i], c0[i] = s1, c1
+            continue
+        out_u, out_v, out_phi = out[0, k], out[1, k], out[2, k]
+        for i in range(size):
+            s1, c1 = sincos(phi1[i])
+            fx, fy, m0, m1 = _bond(a[i], b[i], h[i], E1[i], E2[i], rest1[i], rest2[i], c0[i], s0[i], c1, s1, u1[i] - u0[i], v1[i] - v0[i])
+            out_u[i] = fx - fx_prev[i]
+            out_v[i] = fy - fy_prev[i]
+            out_phi[i] = m0 + m1_prev[i]
+            fx_prev[i], fy_prev[i], m1_prev[i] = fx, fy, m1
+            s0[i], c0[i] = s1, c1
 
 
 def _links(params: ChainParams, x: np.ndarray):
@@ -131,7 +170,10 @@ class NonlinearModel(Model):
     name = "nonlinear"
     conservative = True
     equation = "eq. (1)"
+    rotates = True
     force_kernel = nonlinear_forces_kernel
+    batch_kernel = nonlinear_batch_kernel
+    max_angle = REDUCTION_LIMIT
 
     @staticmethod
     def coefficients(params: ChainParams) -> np.ndarray:
@@ -139,6 +181,22 @@ class NonlinearModel(Model):
 
     def energy(self, params: ChainParams, x: np.ndarray) -> float:
         return chain_energy(params, check_state(params, x))
+
+    def bond_energy(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
+        """Potential (1) of the four links of every bond, shape (..., 2N) for x (..., 3, 2N+1)."""
+        x = np.asarray(x, dtype=float)
+        du, dv, phi = np.diff(x[..., 0, :], axis=-1), np.diff(x[..., 1, :], axis=-1), x[..., 2, :]
+        total = np.zeros(du.shape)
+        for link in bond_links(params):
+            r0x, r0y = rotate(link.left_corner, phi[..., :-1])
+            r1x, r1y = rotate(link.right_corner, phi[..., 1:])
+            length = np.hypot(params.h + du + r1x - r0x, dv + r1y - r0y)
+            total += 0.5 * link.stiffness * (length - link.rest_length) ** 2
+        return total
+
+    def max_frequency(self, params: ChainParams) -> float:
+        """The infinite linear chain's bound (:func:`.linear.max_frequency`): the Hessian at rest is eq. (3)'s K."""
+        return max_frequency(params)
 
     def forces(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         x = check_state(params, x)
@@ -177,6 +235,3 @@ class NonlinearModel(Model):
             blocks[:, 2, 2] += np.sum(T * r0, axis=0)
             blocks[:, 5, 5] -= np.sum(T * r1, axis=0)
         return assemble_bond_blocks(blocks, params.n_particles)
-
-
-NONLINEAR = register_model(NonlinearModel())

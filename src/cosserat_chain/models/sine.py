@@ -20,25 +20,47 @@ from numba import njit
 
 from ..params import ChainParams
 from ..state import check_state, pack
-from .base import FORCE_SIGNATURE, KERNEL_OPTIONS, Model, register_model
-from .linear import cosserat_coefficients, cosserat_forces, stiffness_matrix
-from .trig import sincos
+from .base import BATCH_FORCE_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model
+from .linear import (
+    cosserat_batch,
+    cosserat_bond_energy,
+    cosserat_coefficients,
+    cosserat_forces,
+    cosserat_site,
+    max_frequency,
+    stiffness_matrix,
+)
+from .trig import REDUCTION_LIMIT, sincos
 
 
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
 def sine_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
-    u, v, phi = x[0], x[1], x[2]
-    # One sine per particle: carry sin(phi) of the previous and current columns.
-    s_prev = sincos(phi[start - 1])[0]
-    s_cur = sincos(phi[start])[0]
-    for k in range(start, stop):
-        s_next = sincos(phi[k + 1])[0]
-        out[0, k] = k_u * (u[k + 1] - 2.0 * u[k] + u[k - 1])
-        out[1, k] = k_v * (v[k + 1] - 2.0 * v[k] + v[k - 1] - 0.5 * h * (s_next - s_prev))
-        out[2, k] = bend * (s_next - 2.0 * s_cur + s_prev) + couple * ((v[k + 1] - v[k - 1]) / (2.0 * h) - s_cur)
+    # One sine per particle: sin(phi) of the previous and current columns are carried
+    # (recurrences the vectoriser recognises); 0-based slices as in the linear kernel.
+    s_prev = sincos(x[2, start - 1])[0]
+    s_cur = sincos(x[2, start])[0]
+    u_prev, u, u_next = x[0, start - 1 : stop - 1], x[0, start:stop], x[0, start + 1 : stop + 1]
+    v_prev, v, v_next = x[1, start - 1 : stop - 1], x[1, start:stop], x[1, start + 1 : stop + 1]
+    p_next = x[2, start + 1 : stop + 1]
+    out_u, out_v, out_phi = out[0, start:stop], out[1, start:stop], out[2, start:stop]
+    for k in range(stop - start):
+        s_next = sincos(p_next[k])[0]
+        out_u[k], out_v[k], out_phi[k] = cosserat_site(
+            k_u, k_v, h, bend, couple, u_prev[k], u[k], u_next[k], v_prev[k], v[k], v_next[k], s_prev, s_cur, s_next
+        )
         s_prev = s_cur
         s_cur = s_next
+
+
+@njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
+def sine_batch_kernel(x, coef, out):  # pragma: no cover - compiled
+    phi = x[2]
+    sines = np.empty_like(phi)
+    for k in range(phi.shape[0]):
+        for i in range(phi.shape[1]):
+            sines[k, i] = sincos(phi[k, i])[0]
+    cosserat_batch(coef, x, sines, out)
 
 
 class SineModel(Model):
@@ -47,7 +69,10 @@ class SineModel(Model):
     name = "sine"
     conservative = False
     equation = "eq. (2)"
+    rotates = True
     force_kernel = sine_forces_kernel
+    batch_kernel = sine_batch_kernel
+    max_angle = REDUCTION_LIMIT
 
     @staticmethod
     def coefficients(params: ChainParams) -> np.ndarray:
@@ -62,5 +87,16 @@ class SineModel(Model):
         chain_rule = pack(np.vstack([np.ones_like(x[:2]), np.cos(x[2:3])]))
         return (stiffness_matrix(params) @ sp.diags(chain_rule)).tocsr()
 
+    def bond_energy(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
+        """The linear model's P_bond at (u, v, sin phi), shape (..., 2N) for x (..., 3, 2N+1).
 
-SINE = register_model(SineModel())
+        Eq. (2) has no potential (module docstring); this is the energy whose
+        gradient gives its forces in linearised rotations, and it is 2 pi-periodic
+        in the angles, as the forces are.
+        """
+        x = np.asarray(x, dtype=float)
+        return cosserat_bond_energy(params, x[..., 0, :], x[..., 1, :], np.sin(x[..., 2, :]))
+
+    def max_frequency(self, params: ChainParams) -> float:
+        """The infinite linear chain's bound (:func:`.linear.max_frequency`): eq. (2) linearises to eq. (3) at rest."""
+        return max_frequency(params)

@@ -23,10 +23,10 @@ import numpy as np
 
 from ..loads import Loads
 from ..models.base import Model, get_model
-from ..models.linear import max_frequency
 from ..params import ChainParams
 from ..state import check_state
-from .integrators import STATUS_BLEW_UP, Method, advance, get_method, substep_table
+from .engine import STATUS_BLEW_UP, Blocks, Lanes
+from .integrators import Method, get_method
 
 log = logging.getLogger(__name__)
 
@@ -81,13 +81,18 @@ class Trajectory:
         return self.status == "completed"
 
 
-def default_time_step(params: ChainParams) -> float:
-    """0.1 / omega_max: about 60 steps per period of the fastest linear mode."""
-    return DEFAULT_OMEGA_DT / max_frequency(params)
+def default_time_step(params: ChainParams, model: str | Model = "nonlinear") -> float:
+    """0.1 / omega_max: about 60 steps per period of the model's fastest linear mode.
+
+    omega_max is :meth:`Model.max_frequency <cosserat_chain.models.base.Model.max_frequency>`;
+    the default model's is that of the three paper models, which share their
+    linearisation at rest (eq. 3).
+    """
+    return DEFAULT_OMEGA_DT / get_model(model).max_frequency(params)
 
 
-def check_time_step(params: ChainParams, dt: float, method: Method) -> None:
-    """Refuse a step beyond the method's linear stability limit.
+def check_time_step(params: ChainParams, dt: float, method: Method, model: str | Model = "nonlinear") -> None:
+    """Refuse a step beyond the method's linear stability limit for ``model`` (default as :func:`default_time_step`).
 
     Raises
     ------
@@ -97,18 +102,14 @@ def check_time_step(params: ChainParams, dt: float, method: Method) -> None:
     """
     if not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
-    limit = method.stability_limit / max_frequency(params)
+    omega = get_model(model).max_frequency(params)
+    limit = method.stability_limit / omega
     if dt >= limit:
         raise ValueError(
             f"dt={dt!r} is beyond the stability limit of {method.name} for this chain: "
-            f"dt must be < {limit:.6g} (omega_max={max_frequency(params):.6g}); the run would blow up. "
-            f"Use a smaller step, e.g. dt={DEFAULT_OMEGA_DT / max_frequency(params):.3g}."
+            f"dt must be < {limit:.6g} (omega_max={omega:.6g}); the run would blow up. "
+            f"Use a smaller step, e.g. dt={DEFAULT_OMEGA_DT / omega:.3g}."
         )
-
-
-def block_bounds(n_particles: int, threads: int) -> np.ndarray:
-    """Column ranges that split the free particles into ``threads`` blocks."""
-    return np.linspace(1, n_particles - 1, max(1, threads) + 1).round().astype(np.int64)
 
 
 def integrate(
@@ -192,50 +193,37 @@ def integrate(
         v0 = check_state(params, v0, "v0")
     if max_displacement is None:
         max_displacement = 100.0 * 2 * params.N * params.h
-    load_index, knots = loads.compiled(params)
-    coef = model.coefficients(params)
-    mass = np.array(params.inertia)
-    weights = np.array(method.weights)
-    table = substep_table(weights, dt, mass, np.array(params.damping))
-    bounds = block_bounds(n, threads)
-
+    loads.validate(params)
     n_stored = n_steps // stride + 1 + (n_steps % stride != 0)
     # The state evolves in the last frame slots, where it ends: two arrays fewer to
     # allocate and copy. np.zeros leaves the pages unmapped until written, so a run
     # from rest writes neither its first frame nor its start state (at 10^6
     # particles, each such (3, n) pass costs about a kick-drift).
-    frames_x = np.zeros((n_stored, 3, n))
-    frames_v = np.zeros((n_stored, 3, n))
-    x, v = frames_x[-1], frames_v[-1]
+    frames_x = np.zeros((n_stored, 3, n, 1))
+    frames_v = np.zeros((n_stored, 3, n, 1))
+    frames_acc = np.zeros((n_stored, 2, 1))
+    record = np.zeros((n_stored, 1))
+    lanes = Lanes(model, [params], method, [dt], loads, t0=[t0], max_displacement=[max_displacement])
+    lanes.x, lanes.v = frames_x[-1], frames_v[-1]
     if x0 is not None:
-        frames_x[0] = x[...] = x0
+        frames_x[0, ..., 0] = lanes.x[..., 0] = x0
     if v0 is not None:
-        frames_v[0] = v[...] = v0
-    frames_acc = np.zeros((n_stored, 2))
+        frames_v[0, ..., 0] = lanes.v[..., 0] = v0
     frame_steps = np.empty(n_stored, dtype=np.int64)
     frame_steps[0] = 0
+    lanes.evaluate_forces()
+    blocks = Blocks(lanes, threads) if threads > 1 else None
+    runner = lanes if blocks is None or len(blocks.blocks) == 1 else blocks
 
-    # np.zeros rather than zeros_like (which writes every zero) and the loads added
-    # where they act rather than as a whole array: at 10^6 particles each full pass
-    # over f costs about one step's kick-drift.
-    f = np.zeros((3, n))
-    type(model).force_kernel(x, coef, f, 1, n - 1)
-    for load, (row, col, _, _) in zip(loads, load_index):
-        f[row, col] += load.schedule(t0)
-
-    acc = np.zeros(2)
     stored = 1
     steps_done = 0
     status, message = "completed", f"{n_steps} steps of {method.name} with dt={dt:g}"
     chunk = max(stride, CHUNK_WORK // (n * method.force_evaluations) // stride * stride)
+    frames = (frames_x, frames_v, frames_acc, record)
     try:
         while steps_done < n_steps:
             todo = min(chunk, n_steps - steps_done)
-            code, done, written = advance(
-                type(model).force_kernel, x, v, f, coef, mass, table, weights, load_index, knots, bounds,
-                t0, dt, todo, steps_done, stride, 1024, max_displacement,
-                acc, frames_x, frames_v, frames_acc, stored,
-            )
+            code, done, written = runner.advance(todo, steps_done, stride, 1024, frames, stored)
             first = (steps_done // stride + 1) * stride
             frame_steps[stored : stored + written] = first + stride * np.arange(written)
             stored += written
@@ -245,18 +233,23 @@ def integrate(
             if code == STATUS_BLEW_UP:
                 status = "blew_up"
                 message = (
-                    f"the run blew up at t={t0 + steps_done * dt:.6g} (step {steps_done}): a value became non-finite "
-                    f"or |u|, |v| exceeded {max_displacement:g}. Use a smaller time step than dt={dt:g} "
-                    f"(e.g. dt={dt / 4:g}); the states up to then are kept."
+                    f"the run blew up at t={t0 + steps_done * dt:.6g} (step {steps_done}): a value became non-finite, "
+                    f"|u|, |v| exceeded {max_displacement:g} or |phi| exceeded {model.max_angle:g}. Use a smaller time step "
+                    f"than dt={dt:g} (e.g. dt={dt / 4:g}); the states up to then are kept."
                 )
                 break
     except KeyboardInterrupt:
         status = "interrupted"
         message = f"interrupted at t={t0 + steps_done * dt:.6g} after {steps_done} of {n_steps} steps; states up to then are kept"
         log.warning(message)
+    finally:
+        if blocks is not None:
+            blocks.close()
+    x, v, acc = lanes.x, lanes.v, lanes.acc
+    frames_x, frames_v, frames_acc = frames_x[..., 0], frames_v[..., 0], frames_acc[..., 0]
     if steps_done % stride != 0 and status != "blew_up":
         # The last step is always kept, even off the stride.
-        frames_x[stored], frames_v[stored], frames_acc[stored] = x, v, acc
+        frames_x[stored], frames_v[stored], frames_acc[stored] = x[..., 0], v[..., 0], acc[:, 0]
         frame_steps[stored] = steps_done
         stored += 1
     keep = stored

@@ -1,0 +1,791 @@
+"""The dynamics engine: one compiled time loop for a batch of chains (a single run is a batch of one).
+
+Contract
+--------
+For each row r in (u, v, phi) with inertia m_r (m, m, j) and viscosity gamma_r,
+
+    m_r q_r'' = F_r(q) + L_r(t) - gamma_r q_r'
+
+with F the model's internal forces and L the loads (eqs. (2)-(3)). One step of
+size dt is a symmetric composition of damped velocity-Verlet sub-steps of sizes
+c_i dt (the method's weights, :mod:`.integrators`), each
+
+    damp(h/2) . kick(h/2) . drift(h) . kick(h/2) . damp(h/2)
+
+with the exact viscous flow v <- v exp(-gamma h / (2 m)) as ``damp``. Between two
+force evaluations the closing half of one sub-step and the opening half of the
+next are one linear map of (v, f), applied as v <- A v + B f, x <- x + D v with
+A, B, D from :func:`combined_factors`.
+
+A batch is B chains of the same length stored batch-innermost, x[r, k, b]
+(rows, columns, members), each member with its own coefficients, inertia,
+damping, time step, start time and load amplitudes, all taking the same number
+of steps per call. For B = 1 the model's chain kernel runs, vectorised along
+the chain; for B > 1 its batch kernel, vectorised across the members. Member b
+of a batch computes exactly what a batch of one computes for it (the kernels
+share their per-bond code; the engine's arithmetic does not depend on B), so
+its states equal its single run's to the last bit.
+
+Along the way the loop accumulates per member the work done by the loads
+(trapezoidal in each sub-step, exact for constant loads) and the energy removed
+by each damping flow (exact for that flow), which close the energy balance
+K + P - W + D = K0 + P0 to within the integrator's error. It stores every
+``stride``-th state, and optionally follows one column's angle per member (the
+loaded particle's turns: :class:`TurnRecord`). It stops at the first check that
+finds a member out of bounds (a value not finite, |u| or |v| beyond the
+member's bound, or, for a model that evaluates sines, |phi| beyond
+:data:`~cosserat_chain.models.trig.REDUCTION_LIMIT`, where its sines lose accuracy).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, types
+
+from ..loads import schedule_value
+from ..models.base import BATCH_FORCE_KERNEL_TYPE, FORCE_KERNEL_TYPE
+from .integrators import substep_table
+
+#: Options of the compiled loop: no fastmath, so that the state arithmetic rounds
+#: the same in every copy of the loop (chain or batch, one thread or two).
+_OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy"}
+#: The kick-drift may reassociate its kinetic-energy sums (and nothing else can be
+#: reassociated in it): a strict-order sum is a reduction the vectoriser refuses.
+_KICK_OPTIONS = {**_OPTIONS, "fastmath": {"reassoc"}}
+
+#: Codes returned by the compiled loop.
+STATUS_OK = 0
+STATUS_BLEW_UP = 1
+
+# Rows of the per-member float table ``lanes``: start time, step, bounds on |u|, |v|
+# and on |phi|, and for the followed column the sense of its turns and its start angle.
+T0, DT, MAX_DISPLACEMENT, MAX_ANGLE, DIRECTION, PHI_START = range(6)
+#: Number of rows of ``lanes``.
+N_LANE_FIELDS = 6
+#: Steps between two exchanges of halos when one chain is split over threads (:class:`Blocks`).
+SUPER_STEPS = 16
+#: Blocks per thread, taken by whichever thread is free.
+BLOCKS_PER_THREAD = 4
+# Rows of the per-member int table ``lane_ints``: turns made, blown up (0 or 1).
+CROSSINGS, BLEW_UP = range(2)
+N_LANE_INTS = 2
+
+
+# --------------------------------------------------------------------------- compiled loop
+@njit(inline="always", **_OPTIONS)
+def combined_factors(table, mass, close, open_, r, b):  # pragma: no cover - compiled
+    """(A, B, D, kick_close, loss) of closing sub-step ``close`` and opening ``open_``.
+
+    v <- A v + B f and x <- x + D v are kick(close) damp(close) damp(open)
+    kick(open) drift(open); the damping flows remove 0.5 m w^2 (1 - e_c^2 e_o^2)
+    = loss w^2 of kinetic energy, w = v + kick_close f.
+    """
+    e_close = table[close, 0, r, b]
+    kick_close = table[close, 1, r, b]
+    e_open = table[open_, 0, r, b]
+    damp = e_open * e_close
+    return damp, damp * kick_close + table[open_, 1, r, b], table[open_, 2, r, b], kick_close, 0.5 * mass[r, b] * (1.0 - damp * damp)
+
+
+@njit(inline="always", **_KICK_OPTIONS)
+def _kick_drift_row(x, v, f, r, start, stop, a, bk, d, kick_close):  # pragma: no cover - compiled
+    """Row r of a chain on columns start..stop-1: the combined kick-drift; returns sum (v + kick_close f)^2.
+
+    Two-dimensional indexing, no slices: a slice is a new array whose reference
+    count is updated atomically, about 250 ns per step over the rows and sub-steps
+    of a short chain. Unsigned column indices: numba then adds no wrap-around for
+    negative indices, which (with a run-time offset) would keep the loop scalar.
+    """
+    total = 0.0
+    for k in range(np.uint64(start), np.uint64(stop)):
+        w = v[r, k] + kick_close * f[r, k]
+        total += w * w
+        w = a * v[r, k] + bk * f[r, k]
+        v[r, k] = w
+        x[r, k] += d * w
+    return total
+
+
+@njit(**_KICK_OPTIONS)
+def _kick_drift_lanes(x, v, f, a, bk, d, kick_close, total):  # pragma: no cover - compiled
+    """One row of a batch, flat (n B,): the combined kick-drift of columns 1..n-2, sums per member into ``total``."""
+    size = total.size
+    for k in range(1, x.size // size - 1):
+        xk, vk, fk = x[k * size : (k + 1) * size], v[k * size : (k + 1) * size], f[k * size : (k + 1) * size]
+        for i in range(size):
+            w = vk[i] + kick_close[i] * fk[i]
+            total[i] += w * w
+            w = a[i] * vk[i] + bk[i] * fk[i]
+            vk[i] = w
+            xk[i] += d[i] * w
+
+
+@njit(**_KICK_OPTIONS)
+def _kick_drift_chain(x, v, f, table, mass, close, open_, start, stop):  # pragma: no cover - compiled
+    """Close ``close`` and open ``open_`` on columns start..stop-1 of a chain; returns the energy removed.
+
+    Compiled with reassociation (its rows are inlined): the state updates in it have
+    nothing to reassociate (v <- A v + B f, x <- x + D v), only the energy sums do.
+    """
+    removed = 0.0
+    for r in range(3):
+        a, bk, d, kick_close, loss = combined_factors(table, mass, close, open_, r, 0)
+        removed += loss * _kick_drift_row(x, v, f, r, start, stop, a, bk, d, kick_close)
+    return removed
+
+
+@njit(inline="always", **_OPTIONS)
+def _kick_drift(x, v, f, table, mass, close, open_, columns, dissipated, scratch):  # pragma: no cover - compiled
+    """Close ``close`` and open ``open_`` on the whole batch; adds each member's loss to ``dissipated``.
+
+    ``columns`` (4,) for B = 1: advance columns [columns[0], columns[1]) and count the energy
+    removed on [columns[2], columns[3]) only (a block of a chain split over threads also
+    steps its halo). ``scratch`` (6, B) holds the members' factors and sums (B > 1).
+    """
+    size = dissipated.size
+    if size == 1:
+        start, stop, first, last = columns[0], columns[1], columns[2], columns[3]
+        if first > start:
+            _kick_drift_chain(x, v, f, table, mass, close, open_, start, first)
+        dissipated[0] += _kick_drift_chain(x, v, f, table, mass, close, open_, first, last)
+        if stop > last:
+            _kick_drift_chain(x, v, f, table, mass, close, open_, last, stop)
+    else:
+        a, bk, d, kick_close, loss, total = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4], scratch[5]
+        for r in range(3):
+            for i in range(size):
+                a[i], bk[i], d[i], kick_close[i], loss[i] = combined_factors(table, mass, close, open_, r, i)
+                total[i] = 0.0
+            _kick_drift_lanes(x[r], v[r], f[r], a, bk, d, kick_close, total)
+            for i in range(size):
+                dissipated[i] += loss[i] * total[i]
+
+
+@njit(inline="always", **_OPTIONS)
+def _forces(force, batch_force, x, coef, chain_coef, f, columns):  # pragma: no cover - compiled
+    """Internal forces of every member into f (free columns); x, f are (3, n B).
+
+    ``chain_coef`` (c,) is member 0's column of ``coef`` (c, B), for the chain kernel when B = 1,
+    which computes columns [columns[0], columns[1]).
+    """
+    size = coef.shape[1]
+    if size == 1:
+        force(x, chain_coef, f, columns[0], columns[1])
+    else:
+        n = x.shape[1] // size
+        batch_force(x.reshape((3, n, size)), coef, f.reshape((3, n, size)))
+
+
+@njit(**_OPTIONS)
+def _runaway(x, v, lanes, lane_ints):  # pragma: no cover - compiled
+    """Flag the members with a non-finite value or |u|, |v| or |phi| beyond their bounds; True if any."""
+    size = lanes.shape[1]
+    found = False
+    for r in range(3):
+        for j in range(x.shape[1]):
+            i = j % size
+            limit = lanes[MAX_DISPLACEMENT, i] if r < 2 else lanes[MAX_ANGLE, i]
+            if not (math.isfinite(v[r, j]) and abs(x[r, j]) <= limit):
+                lane_ints[BLEW_UP, i] = 1
+                found = True
+    return found
+
+
+@njit(**_OPTIONS)
+def _follow_turns(
+    x, lanes, lane_ints, col, time_step, winding_prev, time_prev, ring_time, ring_step_time, ring_phi
+):  # pragma: no cover - compiled
+    """Record the turns of column ``col`` completed since the previous step.
+
+    Turn n of member b is complete when direction (phi - phi_start) / 2 pi
+    reaches n; its time is interpolated linearly between the two steps around
+    it. The ring keeps the last C turns: their interpolated times, the time of
+    the step after each and every particle's angle at that step.
+    """
+    size = lanes.shape[1]
+    capacity = ring_time.shape[0]
+    two_pi = 2.0 * math.pi
+    for i in range(size):
+        winding = lanes[DIRECTION, i] * (x[2, col * size + i] - lanes[PHI_START, i]) / two_pi
+        crossings = lane_ints[CROSSINGS, i]
+        while winding >= crossings + 1:
+            alpha = (crossings + 1 - winding_prev[i]) / (winding - winding_prev[i])
+            slot = crossings % capacity
+            ring_time[slot, i] = time_prev[i] + alpha * (time_step[i] - time_prev[i])
+            ring_step_time[slot, i] = time_step[i]
+            for k in range(ring_phi.shape[1]):
+                ring_phi[slot, k, i] = x[2, k * size + i]
+            crossings += 1
+        lane_ints[CROSSINGS, i] = crossings
+        winding_prev[i] = winding
+        time_prev[i] = time_step[i]
+
+
+_F8 = types.float64
+_I8 = types.int64
+_STATES = types.float64[:, :, ::1]
+_TABLE = types.float64[:, ::1]
+# fmt: off
+ADVANCE_SIGNATURE = types.UniTuple(_I8, 4)(
+    FORCE_KERNEL_TYPE, BATCH_FORCE_KERNEL_TYPE,  # force, batch_force
+    _TABLE, _TABLE, _TABLE,  # x, v, f: (3, n B)
+    _TABLE, types.float64[::1], types.float64[:, :, :, ::1], _TABLE, types.float64[::1],  # coef (c, B), chain_coef (c,), table (S+1, 3, 3, B), mass (3, B), weights (S,)
+    types.int64[:, ::1], _TABLE, _TABLE,  # load_index (L, 4), knots, load_scale (L, B)
+    _TABLE, types.int64[:, ::1], types.int64[::1],  # lanes (N_LANE_FIELDS, B), lane_ints (N_LANE_INTS, B), columns (4,)
+    _I8, _I8, _I8, _I8, _I8, types.boolean,  # n_steps, step0, stride, check_every, pending, close_at_end
+    _TABLE, _STATES, _STATES, _STATES, _TABLE, _I8,  # acc (2, B), frames_x, frames_v (F, 3, n B), frames_acc (F, 2, B), record (F, B), frame0
+    _I8, _TABLE, _TABLE, _STATES,  # watch, ring_time (C, B), ring_step_time (C, B), ring_phi (C, n, B)
+)
+# fmt: on
+
+
+@njit(ADVANCE_SIGNATURE, **_OPTIONS)
+def advance(
+    force,
+    batch_force,
+    x,
+    v,
+    f,
+    coef,
+    chain_coef,
+    table,
+    mass,
+    weights,
+    load_index,
+    knots,
+    load_scale,
+    lanes,
+    lane_ints,
+    columns,
+    n_steps,
+    step0,
+    stride,
+    check_every,
+    pending,
+    close_at_end,
+    acc,
+    frames_x,
+    frames_v,
+    frames_acc,
+    record,
+    frame0,
+    watch,
+    ring_time,
+    ring_step_time,
+    ring_phi,
+):  # pragma: no cover - compiled
+    """Advance every member ``n_steps`` steps in place; store every ``stride``-th state.
+
+    Parameters
+    ----------
+    force, batch_force : the model's compiled chain and batch kernels
+    x, v : ndarray (3, n B)
+        States at global step ``step0`` (time lanes[T0] + step0 lanes[DT]), velocities at the step
+        boundary; column k of member b at index k B + b.
+    f : ndarray (3, n B)
+        Forces plus loads at those states (kept between calls: one evaluation per sub-step).
+    coef : (c, B) model coefficients; chain_coef : (c,) member 0's, for B = 1; table : (S+1, 3, 3, B) from :func:`.integrators.substep_table`;
+    mass : (3, B) inertia of the rows; weights : (S,) the method's sub-step sizes as fractions of dt
+    load_index : (L, 5) row, column, first and one-past-last knot, and whether the load's work counts (0 or 1)
+    knots : the schedules' knots (``Loads.compiled``); load_scale : (L, B) amplitude of load l on member b
+    lanes, lane_ints : per-member tables (rows T0.., CROSSINGS..); BLEW_UP is set for members found out of bounds
+    columns : (4,) for B = 1: advance columns [columns[0], columns[1]), count the dissipated energy on
+        [columns[2], columns[3]) (a block of a chain split over threads: :class:`Blocks`)
+    stride : store after every global step that is a multiple of it (and after the last if ``close_at_end``)
+    check_every : test for members out of bounds after every global step that is a multiple of it
+        (and after the last if ``close_at_end``)
+    pending : the sub-step left open by the previous call (S, the number of sub-steps, if none)
+    close_at_end : close the last step (velocities at the step boundary); False leaves it open,
+        to be continued by the next call exactly as if the run had not stopped
+    acc : (2, B) running load work and dissipated energy, updated in place
+    frames_x, frames_v : (F, 3, n B), or F = 0 to store no states; frames_acc : (F, 2, B);
+    record : (F, B) angle of column ``watch`` at every store (when watch >= 0)
+    frame0 : first slot to write
+    watch : column whose turns to follow (-1: none); ring_time, ring_step_time, ring_phi : its :class:`TurnRecord`
+
+    Returns
+    -------
+    status, steps_done, frames_written, pending
+        ``status`` is STATUS_OK or STATUS_BLEW_UP (the state is then the first one
+        found out of bounds); ``pending`` the sub-step left open (S if none).
+    """
+    size = lanes.shape[1]
+    n_loads = load_index.shape[0]
+    q_old = np.empty((n_loads, size))
+    load_old = np.empty((n_loads, size))
+    for j in range(n_loads):
+        for i in range(size):
+            q_old[j, i] = x[load_index[j, 0], load_index[j, 1] * size + i]
+            load_old[j, i] = load_scale[j, i] * schedule_value(
+                knots, load_index[j, 2], load_index[j, 3], lanes[T0, i] + step0 * lanes[DT, i]
+            )
+    work = acc[0]
+    dissipated = acc[1]
+    scratch = np.empty((6, size))
+    step_time = np.empty(size)
+    winding_prev = np.empty(size)
+    time_prev = np.empty(size)
+    if watch >= 0:
+        for i in range(size):
+            winding_prev[i] = lanes[DIRECTION, i] * (x[2, watch * size + i] - lanes[PHI_START, i]) / (2.0 * math.pi)
+            time_prev[i] = lanes[T0, i] + step0 * lanes[DT, i]
+    frame = frame0
+    keep_states = frames_x.shape[0] > 0
+    n_sub = weights.size
+    empty = n_sub
+    # Countdowns instead of a modulo per step: an integer division costs as much as
+    # a small chain's kick-drift.
+    to_store = stride - step0 % stride
+    to_check = check_every - step0 % check_every
+    for k in range(n_steps):
+        for s in range(n_sub):
+            _kick_drift(x, v, f, table, mass, pending, s, columns, dissipated, scratch)
+            _forces(force, batch_force, x, coef, chain_coef, f, columns)
+            for j in range(n_loads):
+                row = load_index[j, 0]
+                at = load_index[j, 1] * size
+                for i in range(size):
+                    # The time of sub-step s, summed as t0 + (step0 + k) dt + w_0 dt + ... + w_s dt;
+                    # in registers: a time array written every sub-step kept the compiler
+                    # from hoisting anything past it (a third of a short chain's step).
+                    t = lanes[T0, i] + (step0 + k) * lanes[DT, i]
+                    for w in range(s + 1):
+                        t += weights[w] * lanes[DT, i]
+                    q = x[row, at + i]
+                    load = load_scale[j, i] * schedule_value(knots, load_index[j, 2], load_index[j, 3], t)
+                    f[row, at + i] += load
+                    work[i] += load_index[j, 4] * (0.5 * (load_old[j, i] + load) * (q - q_old[j, i]))
+                    q_old[j, i] = q
+                    load_old[j, i] = load
+            pending = s
+        if watch >= 0:
+            for i in range(size):
+                step_time[i] = lanes[T0, i] + (step0 + k + 1) * lanes[DT, i]
+            _follow_turns(x, lanes, lane_ints, watch, step_time, winding_prev, time_prev, ring_time, ring_step_time, ring_phi)
+        to_store -= 1
+        to_check -= 1
+        store = to_store == 0
+        last = k == n_steps - 1 and close_at_end
+        if store or last:
+            _kick_drift(x, v, f, table, mass, pending, empty, columns, dissipated, scratch)
+            pending = empty
+        if store:
+            to_store = stride
+            # The caller may hand in its last frame slots as x and v; nothing to copy then.
+            if keep_states and frames_x[frame].ctypes.data != x.ctypes.data:
+                frames_x[frame] = x
+                frames_v[frame] = v
+            for i in range(size):
+                frames_acc[frame, 0, i] = work[i]
+                frames_acc[frame, 1, i] = dissipated[i]
+                if watch >= 0:
+                    record[frame, i] = x[2, watch * size + i]
+            frame += 1
+        if to_check == 0 or last:
+            to_check = check_every
+            if _runaway(x, v, lanes, lane_ints):
+                if pending != empty:
+                    _kick_drift(x, v, f, table, mass, pending, empty, columns, dissipated, scratch)
+                return STATUS_BLEW_UP, k + 1, frame - frame0, empty
+    return STATUS_OK, n_steps, frame - frame0, pending
+
+
+@dataclass
+class TurnRecord:
+    """The turns of one column per member, followed step by step in the compiled loop.
+
+    Attributes
+    ----------
+    time : ndarray (C, B)
+        Interpolated time of each of the last C completed turns (slot n mod C holds turn n+1).
+    step_time : ndarray (C, B)
+        Time of the step right after each of those turns.
+    phi : ndarray (C, 2N+1, B)
+        Every particle's angle at that step.
+    """
+
+    time: np.ndarray
+    step_time: np.ndarray
+    phi: np.ndarray
+
+    @classmethod
+    def empty(cls, capacity: int, n: int, size: int) -> TurnRecord:
+        return cls(np.zeros((capacity, size)), np.zeros((capacity, size)), np.zeros((capacity, n, size)))
+
+
+# --------------------------------------------------------------------------- Python side
+class Lanes:
+    """B members of one length and one model, laid out for :func:`advance` (batch innermost).
+
+    Parameters
+    ----------
+    model : Model
+    params : sequence of ChainParams (B), all with the same N
+    method : Method
+    dt : (B,) time steps
+    loads : Loads
+        The loads' rows, particles and schedules, shared by all members.
+    load_scale : (L, B), optional
+        Amplitude of load l on member b (default 1).
+    x0, v0 : (B, 3, 2N+1), optional
+        Start states (default rest).
+    t0 : (B,), optional
+        Start times (default 0).
+    max_displacement : (B,), optional
+        Bound on |u| and |v| (default 100 chain lengths).
+    """
+
+    def __init__(self, model, params, method, dt, loads, load_scale=None, x0=None, v0=None, t0=None, max_displacement=None):
+        self.model = model
+        self.params = list(params)
+        self.method = method
+        size = self.size = len(self.params)
+        n = self.n = self.params[0].n_particles
+        index, self.knots = loads.compiled(self.params[0])
+        # Column 4: the load's work counts (a block of a split chain also carries its neighbours' loads).
+        self.load_index = np.ascontiguousarray(np.column_stack([index, np.ones(len(index), dtype=np.int64)]))
+        self.load_scale = (
+            np.ones((len(loads), size)) if load_scale is None else np.ascontiguousarray(load_scale, dtype=float).reshape(len(loads), size)
+        )
+        self.coef = np.ascontiguousarray(np.array([model.coefficients(p) for p in self.params]).T)
+        self.mass = np.ascontiguousarray(np.array([p.inertia for p in self.params], dtype=float).T)
+        self.gamma = np.array([p.damping for p in self.params], dtype=float)
+        self.weights = np.array(method.weights, dtype=float)
+        self.lanes = np.zeros((N_LANE_FIELDS, size))
+        self.lanes[T0] = 0.0 if t0 is None else t0
+        self.lanes[MAX_DISPLACEMENT] = [100.0 * 2 * p.N * p.h for p in self.params] if max_displacement is None else max_displacement
+        self.lanes[MAX_ANGLE] = model.max_angle
+        self.lanes[DIRECTION] = 1.0
+        self.lane_ints = np.zeros((N_LANE_INTS, size), dtype=np.int64)
+        self.lanes[DT] = dt
+        self.table = np.ascontiguousarray(substep_table(self.weights, self.lanes[DT].copy(), self.mass.T, self.gamma))
+        self.columns = np.array([1, n - 1, 1, n - 1], dtype=np.int64)
+        self.pending = self.weights.size
+        self.x = np.zeros((3, n, size))
+        self.v = np.zeros((3, n, size))
+        if x0 is not None:
+            self.x[...] = np.moveaxis(np.asarray(x0, dtype=float), 0, -1)
+        if v0 is not None:
+            self.v[...] = np.moveaxis(np.asarray(v0, dtype=float), 0, -1)
+        self.f = np.zeros((3, n, size))
+        self.acc = np.zeros((2, size))
+        self.watch = -1
+        self.turns = TurnRecord.empty(1, n, size)
+
+    def follow_turns(self, col: int, capacity: int) -> None:
+        """Follow the turns of column ``col`` from the current state, keeping the last ``capacity``."""
+        self.watch = int(col)
+        self.turns = TurnRecord.empty(capacity, self.n, self.size)
+        self.restart_turns(np.arange(self.size), np.ones(self.size))
+
+    def restart_turns(self, members: np.ndarray, direction: np.ndarray) -> None:
+        """Count the turns of the given members anew from their current angles, along ``direction``."""
+        self.lanes[DIRECTION, members] = direction
+        self.lanes[PHI_START, members] = self.x[2, self.watch, members]
+        self.lane_ints[CROSSINGS, members] = 0
+
+    def evaluate_forces(self) -> None:
+        """Forces plus loads at the current states and times (before the first :meth:`advance`)."""
+        self.f[...] = 0.0
+        kind = type(self.model)
+        # The kernels directly: the compiled loop's inline dispatch, called from Python with
+        # the kernels as arguments, would be compiled anew in every process (not cacheable).
+        if self.size == 1:
+            kind.force_kernel(self._flat(self.x), self.coef[:, 0].copy(), self._flat(self.f), self.columns[0], self.columns[1])
+        else:
+            kind.batch_kernel(self.x, self.coef, self.f)
+        for j, (row, col, start, stop, _) in enumerate(self.load_index):
+            for i in range(self.size):
+                self.f[row, col, i] += self.load_scale[j, i] * _schedule(self.knots, start, stop, self.lanes[T0, i])
+
+    def advance(self, n_steps, step0=0, stride=None, check_every=1024, frames=None, frame0=0, close_at_end=True):
+        """Run the compiled loop; returns (status, steps_done, frames_written).
+
+        ``frames``: (frames_x, frames_v, frames_acc, record) to store into, or None
+        to store nothing (then ``stride`` defaults to ``n_steps``). With
+        ``close_at_end=False`` the last step stays open and the next call goes on
+        from it as if the run had not stopped.
+        """
+        if frames is None:
+            frames = self.no_frames()
+            stride = n_steps if stride is None else stride
+        frames_x, frames_v, frames_acc, record = frames
+        flat_frames = frames_x.reshape(frames_x.shape[0], 3, self.n * self.size)
+        kind = type(self.model)
+        status, done, written, self.pending = advance(
+            kind.force_kernel, kind.batch_kernel, self._flat(self.x), self._flat(self.v), self._flat(self.f), self.coef,
+            self.coef[:, 0].copy(), self.table, self.mass, self.weights,
+            self.load_index, self.knots, self.load_scale, self.lanes, self.lane_ints, self.columns,
+            int(n_steps), int(step0), int(stride), int(check_every), int(self.pending), bool(close_at_end), self.acc,
+            flat_frames, frames_v.reshape(flat_frames.shape), frames_acc, record, int(frame0),
+            self.watch, self.turns.time, self.turns.step_time, self.turns.phi,
+        )  # fmt: skip
+        return status, done, written
+
+    @staticmethod
+    def _flat(a: np.ndarray) -> np.ndarray:
+        """(3, n, B) as the (3, n B) view the compiled loop takes (no copy: the arrays are contiguous)."""
+        flat = a.reshape(3, -1)
+        assert np.shares_memory(flat, a)
+        return flat
+
+    def no_frames(self):
+        """Frame buffers for a call that stores no states (one store, at the end)."""
+        return (
+            np.zeros((0, 3, self.n, self.size)),
+            np.zeros((0, 3, self.n, self.size)),
+            np.zeros((2, 2, self.size)),
+            np.zeros((2, self.size)),
+        )
+
+    def state(self, b: int) -> tuple[np.ndarray, np.ndarray]:
+        """Copies of member b's configuration and velocities, (3, 2N+1) each."""
+        return self.x[:, :, b].copy(), self.v[:, :, b].copy()
+
+    def select(self, members: np.ndarray) -> Lanes:
+        """A new Lanes holding copies of the given members' arrays (to drop members)."""
+        members = np.asarray(members, dtype=np.int64)
+        out = object.__new__(Lanes)
+        out.__dict__.update(self.__dict__)
+        out.params = [self.params[b] for b in members]
+        out.size = members.size
+        for name in ("load_scale", "coef", "mass", "lanes", "lane_ints", "acc"):
+            setattr(out, name, np.ascontiguousarray(getattr(self, name)[:, members]))
+        out.gamma = self.gamma[members]
+        out.table = np.ascontiguousarray(self.table[..., members])
+        for name in ("x", "v", "f"):
+            setattr(out, name, np.ascontiguousarray(getattr(self, name)[..., members]))
+        out.turns = TurnRecord(*(np.ascontiguousarray(a[..., members]) for a in (self.turns.time, self.turns.step_time, self.turns.phi)))
+        return out
+
+    def segment(self, first: int, last: int, start: int, stop: int) -> Lanes:
+        """Columns [first, last) of a single chain as a chain of their own (a block and its halo).
+
+        The block advances columns first+1..last-2 (its two end columns stay as they
+        are: a clamped end or the far edge of the halo), counts the dissipated energy
+        and the loads' work on columns [start, stop) only, and carries the loads that
+        act on its columns.
+        """
+        out = object.__new__(Lanes)
+        out.__dict__.update(self.__dict__)
+        out.n = last - first
+        out.x = np.ascontiguousarray(self.x[:, first:last])
+        out.v = np.ascontiguousarray(self.v[:, first:last])
+        out.f = np.ascontiguousarray(self.f[:, first:last])
+        out.acc = np.zeros((2, 1))
+        out.columns = np.array([1, out.n - 1, start - first, stop - first], dtype=np.int64)
+        inside = (self.load_index[:, 1] >= first) & (self.load_index[:, 1] < last)
+        index = self.load_index[inside].copy()
+        index[:, 4] = (index[:, 1] >= start) & (index[:, 1] < stop)
+        index[:, 1] -= first
+        out.load_index = np.ascontiguousarray(index)
+        out.load_scale = np.ascontiguousarray(self.load_scale[inside])
+        out.turns = TurnRecord.empty(1, out.n, 1)
+        return out
+
+
+class Blocks:
+    """One long chain split into blocks with halos, on threads that meet only every few steps.
+
+    Each block is a chain of its own (:meth:`Lanes.segment`) holding its columns and
+    a halo of :attr:`halo` columns from each neighbour. A force evaluation reads one
+    column on either side, so a halo that wide keeps the block's own columns exact
+    for :data:`SUPER_STEPS` steps; then the blocks exchange their halos. Every
+    column is computed by the same kernel from the same neighbours as in the whole
+    chain, so the states equal a one-thread run's to the last bit. There are
+    several blocks per thread, taken by whichever thread is free: a core that is
+    busy with other work takes fewer (two threads that met every step were 3-10x
+    slower than one on a busy machine).
+    """
+
+    def __init__(self, lanes: Lanes, threads: int):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.lanes = lanes
+        self.halo = SUPER_STEPS * lanes.weights.size + 1
+        n = lanes.n
+        count = max(1, min(BLOCKS_PER_THREAD * threads, (n - 2) // (4 * self.halo)))
+        cuts = np.linspace(1, n - 1, count + 1).round().astype(np.int64)
+        self.spans = []
+        self.blocks = []
+        for start, stop in zip(cuts[:-1], cuts[1:]):
+            first, last = max(0, start - self.halo), min(n, stop + self.halo)
+            self.spans.append((int(first), int(last), int(start), int(stop)))
+            self.blocks.append(lanes.segment(int(first), int(last), int(start), int(stop)))
+        self.pool = ThreadPoolExecutor(max_workers=threads)
+
+    def close(self) -> None:
+        self.pool.shutdown()
+
+    def advance(self, n_steps, step0, stride, check_every, frames, frame0):
+        """As :meth:`Lanes.advance` on the whole chain (frames of states, ``record`` unused)."""
+        frames_x, frames_v, frames_acc, _ = frames
+        acc0 = self.lanes.acc.copy()
+        done = written = 0
+        while done < n_steps:
+            to_store = stride - (step0 + done) % stride
+            length = min(SUPER_STEPS, n_steps - done, to_store)
+            final = done + length == n_steps
+
+            def run(block, begin=step0 + done, length=length, final=final):
+                return block.advance(length, begin, stride, check_every, close_at_end=final)
+
+            outcomes = list(self.pool.map(run, self.blocks))
+            done += length
+            blew_up = any(code == STATUS_BLEW_UP for code, _, _ in outcomes)
+            stored = length == to_store
+            if blew_up or stored or final:
+                self._gather(acc0)
+                if stored and not blew_up:
+                    frames_x[frame0 + written] = self.lanes.x
+                    frames_v[frame0 + written] = self.lanes.v
+                    frames_acc[frame0 + written] = self.lanes.acc
+                    written += 1
+                if blew_up:
+                    self.lanes.lane_ints[BLEW_UP] = 1
+                    return STATUS_BLEW_UP, done, written
+            if not final:
+                self._exchange()
+        return STATUS_OK, done, written
+
+    def _exchange(self) -> None:
+        """Each block's halo from its neighbours' own columns."""
+        for (first, last, _, _), block in zip(self.spans, self.blocks):
+            for (o_first, _, o_start, o_stop), other in zip(self.spans, self.blocks):
+                lo, hi = max(first, o_start), min(last, o_stop)
+                if other is block or lo >= hi:
+                    continue
+                for name in ("x", "v", "f"):
+                    getattr(block, name)[:, lo - first : hi - first] = getattr(other, name)[:, lo - o_first : hi - o_first]
+
+    def _gather(self, acc0: np.ndarray) -> None:
+        """The blocks' own columns into the whole chain, and their energy sums."""
+        self.lanes.acc[...] = acc0
+        for (first, _, start, stop), block in zip(self.spans, self.blocks):
+            for name in ("x", "v", "f"):
+                getattr(self.lanes, name)[:, start:stop] = getattr(block, name)[:, start - first : stop - first]
+            self.lanes.acc += block.acc
+        self.lanes.pending = self.blocks[0].pending
+
+
+def _schedule(knots: np.ndarray, start: int, stop: int, t: float) -> float:
+    return float(schedule_value(knots, int(start), int(stop), float(t)))
+
+
+# --------------------------------------------------------------------------- members
+def check_members(params_list) -> list:
+    """The members of a batch as a list, checked: at least one, all ChainParams of the same N.
+
+    Raises
+    ------
+    ValueError
+        Naming the member that is not a ChainParams or has another N.
+    """
+    from ..params import ChainParams
+
+    params = list(params_list)
+    if not params:
+        raise ValueError("params_list must hold at least one ChainParams")
+    for i, p in enumerate(params):
+        if not isinstance(p, ChainParams):
+            raise ValueError(f"params_list[{i}] must be a ChainParams, got {type(p).__name__}")
+        if p.N != params[0].N:
+            raise ValueError(
+                f"params_list[{i}].N={p.N} differs from params_list[0].N={params[0].N}: all members of a batch must have the same chain length"
+            )
+    return params
+
+
+def per_member(values, size: int, name: str) -> np.ndarray:
+    """A scalar broadcast to the batch, or one finite value per member.
+
+    Raises
+    ------
+    ValueError
+        For a wrong shape or a value that is not finite (naming the member).
+    """
+    arr = np.asarray(values, dtype=float)
+    if arr.ndim == 0:
+        arr = np.full(size, float(arr))
+    if arr.shape != (size,):
+        raise ValueError(f"{name} must be a number or one value per member ({size}), got shape {arr.shape}")
+    bad = np.flatnonzero(~np.isfinite(arr))
+    if bad.size:
+        raise ValueError(f"{name}[{bad[0]}] (member {bad[0]}) is {arr[bad[0]]}; values must be finite")
+    return arr
+
+
+def stack_states(params: list, states, name: str) -> np.ndarray:
+    """(B, 3, n) start states: rest, one state for all members, or one per member (each checked)."""
+    from ..state import check_state
+
+    n = params[0].n_particles
+    out = np.zeros((len(params), 3, n))
+    if states is None:
+        return out
+    arr = np.asarray(states, dtype=float)
+    if arr.ndim == 2:
+        arr = np.broadcast_to(arr, (len(params), *arr.shape))
+    if arr.ndim != 3 or arr.shape[0] != len(params):
+        raise ValueError(f"{name} must have shape (3, 2N+1) or ({len(params)}, 3, 2N+1), got {np.shape(states)}")
+    for i, p in enumerate(params):
+        out[i] = check_state(p, arr[i], f"{name}[{i}]")
+    return out
+
+
+def member_steps(params: list, dt, method) -> np.ndarray:
+    """Each member's time step: the given one or its default, checked against its stability limit.
+
+    The default step and the limit cost an eigenvalue scan each (about 1 ms): once
+    per distinct (params, dt), since a grid of loads repeats one chain.
+
+    Raises
+    ------
+    ValueError
+        Naming the member whose dt is not finite or beyond its stability limit.
+    """
+    from .dynamics import check_time_step, default_time_step
+
+    size = len(params)
+    requested = [None] * size if dt is None else per_member(dt, size, "dt")
+    out = np.empty(size)
+    checked: dict = {}
+    for i, (p, step) in enumerate(zip(params, requested)):
+        key = (p, step)
+        if key not in checked:
+            value = default_time_step(p) if step is None else float(step)
+            try:
+                check_time_step(p, value, method)
+            except ValueError as err:
+                raise ValueError(f"member {i} (params_list[{i}]): {err}") from None
+            checked[key] = value
+        out[i] = checked[key]
+    return out
+
+
+def split(members: np.ndarray, parts: int) -> list[np.ndarray]:
+    """Members cut into up to ``parts`` runs of consecutive members of about equal size.
+
+    Consecutive, not dealt out in turn: each part becomes its own contiguous
+    arrays, so two threads never write to the same cache lines.
+    """
+    return [part for part in np.array_split(np.asarray(members, dtype=np.int64), max(1, min(parts, len(members)))) if part.size]
+
+
+def run_parts(work, parts: list, threads: int) -> None:
+    """Call ``work(part)`` for every part, on up to ``threads`` threads (the compiled loop releases the GIL).
+
+    Errors and Ctrl-C propagate; with threads, the parts already running finish first.
+    """
+    if threads <= 1 or len(parts) <= 1:
+        for part in parts:
+            work(part)
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=threads) as pool:
+        for future in [pool.submit(work, part) for part in parts]:
+            future.result()

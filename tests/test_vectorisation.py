@@ -1,0 +1,54 @@
+"""The hot loops compile to packed SIMD instructions (a branch or a strict-order sum in a loop body would keep them scalar).
+
+Numba disables ``inspect_asm`` for cached functions, so each kernel is compiled
+here afresh from its Python source with the options it is compiled with.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+from numba import njit
+
+from cosserat_chain.models import available_models, get_model
+from cosserat_chain.models.base import BATCH_FORCE_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS
+from cosserat_chain.numerics import engine
+
+#: A packed double-precision instruction on 256- or 512-bit registers.
+PACKED = re.compile(r"\bv\w+pd\s+[^\n]*%[yz]mm")
+
+
+def packed_instructions(dispatcher, signature, options) -> int:
+    fresh = njit(signature, **{**options, "cache": False})(dispatcher.py_func)
+    return len(PACKED.findall(fresh.inspect_asm(fresh.signatures[0])))
+
+
+@pytest.mark.parametrize("name", available_models())
+@pytest.mark.parametrize("kind", ["force_kernel", "batch_kernel"])
+def test_every_force_kernel_vectorises(name, kind):
+    kernel = getattr(type(get_model(name)), kind)
+    signature = FORCE_SIGNATURE if kind == "force_kernel" else BATCH_FORCE_SIGNATURE
+    # Each of the three models does at least a dozen packed operations per column.
+    assert packed_instructions(kernel, signature, KERNEL_OPTIONS) >= 12
+
+
+def test_the_nonlinear_kernels_take_square_roots_and_divisions_four_lanes_at_a_time():
+    kernel = type(get_model("nonlinear")).force_kernel
+    fresh = njit(FORCE_SIGNATURE, **{**KERNEL_OPTIONS, "cache": False})(kernel.py_func)
+    asm = fresh.inspect_asm(fresh.signatures[0])
+    assert re.search(r"vsqrtpd\s+[^\n]*%[yz]mm", asm) and re.search(r"vdivpd\s+[^\n]*%[yz]mm", asm)
+
+
+def test_the_kick_drift_vectorises_with_its_energy_sums():
+    options = {**engine._KICK_OPTIONS, "cache": False}
+    row = njit(**options)(engine._kick_drift_row.py_func)
+    lanes = njit(**options)(engine._kick_drift_lanes.py_func)
+
+    a = np.zeros(64)
+    rows = np.zeros((3, 64))
+    row(rows, rows.copy(), rows.copy(), 0, 1, 63, 1.0, 0.0, 0.0, 0.0)
+    lanes(a, a.copy(), a.copy(), np.ones(8), np.zeros(8), np.zeros(8), np.zeros(8), np.zeros(8))
+    for fresh in (row, lanes):
+        assert len(PACKED.findall(fresh.inspect_asm(fresh.signatures[0]))) >= 4
