@@ -22,10 +22,12 @@ wrapped by the integrators):
   turn n - k), the turn times interpolated linearly between steps;
 * energy of a free particle: its kinetic energy plus half the energy of each of
   its two bonds (a bond to a clamped end counts wholly for the free particle).
-  Bond energies are exact for the nonlinear model (the four links of eq. 1) and
-  the linear model (eq. 3); the sine model (eq. 2) has no potential, so its
-  bonds are given the linear model's bond energy evaluated at (u, v, sin phi),
-  whose forces are the sine model's in the linearised rotations;
+  Bond energies are the model's :meth:`~cosserat_chain.models.base.Model.bond_energy`:
+  exact for the nonlinear model (the four links of eq. 1) and the linear model
+  (eq. 3); the sine model (eq. 2) has no potential, so its bonds are given the
+  linear model's bond energy evaluated at (u, v, sin phi), whose forces are the
+  sine model's in the linearised rotations. For a model without bond energies the
+  energy measures below are NaN and everything else is computed;
 * participation ratio of the energies e_k of the 2N-1 free particles:
   PR = (sum e_k)^2 / sum e_k^2, between 1 (all energy on one particle) and 2N-1
   (evenly spread), averaged over the steps with non-zero energy;
@@ -37,15 +39,17 @@ wrapped by the integrators):
 
 from __future__ import annotations
 
+import logging
 import math
 from typing import Any
 
 import numpy as np
 
-from ..geometry import bond_links, rotate
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import column
+
+log = logging.getLogger(__name__)
 
 TWO_PI = 2.0 * math.pi
 #: The recent angular velocity is measured over this many of the latest full turns.
@@ -61,8 +65,9 @@ def bond_energies(params: ChainParams, model: str | Model, x: np.ndarray) -> np.
     Parameters
     ----------
     params : ChainParams
-    model : {"nonlinear", "sine", "linear"} or Model
-        See the module docstring for the sine model's (linearised) bond energy.
+    model : str or Model
+        A registered model; see the module docstring for the sine model's
+        (linearised) bond energy.
     x : ndarray (..., 3, 2N+1)
 
     Returns
@@ -72,27 +77,10 @@ def bond_energies(params: ChainParams, model: str | Model, x: np.ndarray) -> np.
 
     Raises
     ------
-    ValueError
-        For a model without a bond energy.
+    NotImplementedError
+        For a model without bond energies.
     """
-    model = get_model(model)
-    x = np.asarray(x, dtype=float)
-    u, v, phi = x[..., 0, :], x[..., 1, :], x[..., 2, :]
-    du = np.diff(u, axis=-1)
-    dv = np.diff(v, axis=-1)
-    if model.name == "nonlinear":
-        total = np.zeros(du.shape)
-        for link in bond_links(params):
-            r0x, r0y = rotate(link.left_corner, phi[..., :-1])
-            r1x, r1y = rotate(link.right_corner, phi[..., 1:])
-            length = np.hypot(params.h + du + r1x - r0x, dv + r1y - r0y)
-            total += 0.5 * link.stiffness * (length - link.rest_length) ** 2
-        return total
-    if model.name in ("linear", "sine"):
-        angle = np.sin(phi) if model.name == "sine" else phi
-        shear = dv - 0.5 * params.h * (angle[..., 1:] + angle[..., :-1])
-        return 0.5 * params.k_u * du**2 + params.E1 * params.b**2 * np.diff(angle, axis=-1) ** 2 + 0.5 * params.k_v * shear**2
-    raise ValueError(f"model must be one of ['linear', 'nonlinear', 'sine'] for bond energies, got {model.name!r}")
+    return get_model(model).bond_energy(params, np.asarray(x, dtype=float))
 
 
 def particle_energies(params: ChainParams, model: str | Model, x: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -133,7 +121,8 @@ class StreamingDiagnostics:
     Parameters
     ----------
     params : ChainParams
-    model : {"nonlinear", "sine", "linear"} or Model
+    model : str or Model
+        A registered model.
     particle : int
         The loaded particle, in -N+1..N-1.
     x0, v0 : ndarray (3, 2N+1)
@@ -145,6 +134,8 @@ class StreamingDiagnostics:
     -----
     See the module docstring for the definitions. Attributes that are arrays
     run over all 2N+1 particles (clamped ends included, where they stay zero).
+    ``has_energy`` is False for a model without bond energies, whose
+    participation ratio and energy shares stay NaN.
     """
 
     #: Names of the array state saved by :meth:`to_variables`, all over ``particle``.
@@ -173,7 +164,13 @@ class StreamingDiagnostics:
         self.participation_sum = 0.0
         self.energy_share_sum = np.zeros(n)
         self.energy_steps = 0
-        self._accumulate_energy(np.asarray(x0, dtype=float)[None], np.asarray(v0, dtype=float)[None])
+        self.has_energy = True
+        try:
+            self._accumulate_energy(np.asarray(x0, dtype=float)[None], np.asarray(v0, dtype=float)[None])
+        except NotImplementedError as err:
+            # Turns, excursions and the classification do not need energies: keep them.
+            log.info("%s; the energy localization measures are NaN", err)
+            self.has_energy = False
 
     # ------------------------------------------------------------------ updating
     def update(self, time: np.ndarray, x: np.ndarray, v: np.ndarray) -> None:
@@ -212,7 +209,8 @@ class StreamingDiagnostics:
         self.turn_times = np.concatenate([self.turn_times, new_times])[-(WINDOW_TURNS + 1) :]
         self.turns = running[-1].copy()
 
-        self._accumulate_energy(new, np.asarray(v, dtype=float)[1:])
+        if self.has_energy:
+            self._accumulate_energy(new, np.asarray(v, dtype=float)[1:])
         self.steps += time.size - 1
         self.time = float(time[-1])
         self.angle = x[-1, 2].copy()

@@ -17,15 +17,58 @@ from pydantic import ValidationError
 from tqdm import tqdm
 
 from ..io import load_params
+from ..models import available_models, get_model
 from ..params import ChainParams
 
 app = typer.Typer(add_completion=False, help="Discrete Cosserat chains of finite-size particles.", no_args_is_help=True)
 
+#: The ``--model`` value that stands for every offered model (a name the registry reserves).
+ALL_MODELS = "all"
 
-class ModelName(str, Enum):
-    nonlinear = "nonlinear"
-    sine = "sine"
-    linear = "linear"
+
+def model_names(*, rotating: bool = False) -> tuple[str, ...]:
+    """The registered models, in registration order; with ``rotating``, those that support full rotations."""
+    return tuple(name for name in available_models() if not rotating or get_model(name).rotates)
+
+
+def _offered(rotating: bool, all_models: bool) -> tuple[str, ...]:
+    names = model_names(rotating=rotating)
+    return (*names, ALL_MODELS) if all_models else names
+
+
+def model_option(default: str, description: str, *, rotating: bool = False, all_models: bool = False):
+    """A ``--model`` option over the registry (annotate the parameter ``str``).
+
+    The value is checked against the registry when the command runs, so a model
+    registered after the CLI was imported (a plugin, a test) is accepted, and a
+    wrong name gets the current list. (This Typer takes its choices only from an
+    Enum or a Literal, fixed when the function is defined; hence a parser.) The
+    help text lists the models registered when the CLI was imported.
+
+    Parameters
+    ----------
+    default : str
+    description : str
+        First sentence of the help text.
+    rotating : bool
+        Offer only the models that support full rotations (``Model.rotates``).
+    all_models : bool
+        Offer :data:`ALL_MODELS` as well, for every registered model (:func:`chosen_models`).
+    """
+
+    def parse(value: str) -> str:
+        offered = _offered(rotating, all_models)
+        if value not in offered:
+            raise typer.BadParameter(f"{value!r} is not one of {', '.join(map(repr, offered))}.")
+        return value
+
+    listing = ", ".join(name if name == ALL_MODELS else f"{name} ({get_model(name).equation})" for name in _offered(rotating, all_models))
+    return typer.Option(default, parser=parse, metavar="<model>", help=f"{description} One of: {listing}.")
+
+
+def chosen_models(choice: str) -> list[str]:
+    """The models a ``--model`` value names: every registered one for :data:`ALL_MODELS`."""
+    return list(model_names()) if choice == ALL_MODELS else [choice]
 
 
 class MethodName(str, Enum):
@@ -49,7 +92,10 @@ def params_or_exit(config: Path | None) -> ChainParams:
     try:
         return load_params(config)
     except ValidationError as err:
-        fail("invalid parameters:\n" + "\n".join(f"  {'.'.join(map(str, e['loc'])) or 'params'}: {e['msg']} (got {e.get('input')!r})" for e in err.errors()))
+        fail(
+            "invalid parameters:\n"
+            + "\n".join(f"  {'.'.join(map(str, e['loc'])) or 'params'}: {e['msg']} (got {e.get('input')!r})" for e in err.errors())
+        )
     except ValueError as err:
         fail(str(err))
 

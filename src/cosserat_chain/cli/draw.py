@@ -15,7 +15,7 @@ import xarray as xr
 from ..experiments.simulation import simulate as run_simulation
 from ..io import read_dataset
 from ..loads import moment_load
-from .common import ModelName, app, bar_callback, fail, params_or_exit, progress_bar
+from .common import app, bar_callback, fail, model_option, params_or_exit, progress_bar
 
 #: Stored frames of a simulation run only to be drawn: a cap that keeps memory small.
 _MAX_SIMULATED_FRAMES = 20001
@@ -23,7 +23,7 @@ _MAX_SIMULATED_FRAMES = 20001
 RUN_HELP = "NetCDF run written by `simulate --out`; without it, simulate first from --model/--moment/--t-end."
 
 
-def _load_run(run: Path | None, model: ModelName, moment: float, t_end: float, config: Path | None, n_frames: int) -> xr.Dataset:
+def _load_run(run: Path | None, model: str, moment: float, t_end: float, config: Path | None, n_frames: int) -> xr.Dataset:
     if run is not None:
         if not run.is_file():
             fail(f"run file {str(run)!r} does not exist")
@@ -34,11 +34,9 @@ def _load_run(run: Path | None, model: ModelName, moment: float, t_end: float, c
     params = params_or_exit(config)
     if not (math.isfinite(t_end) and t_end > 0):
         fail(f"--t-end must be > 0, got {t_end!r}")
-    bar = progress_bar(f"simulate {model.value}", "step")
+    bar = progress_bar(f"simulate {model}", "step")
     try:
-        ds = run_simulation(
-            params, model.value, moment_load(moment).validate(params), t_end=t_end, n_frames=n_frames, progress=bar_callback(bar)
-        )
+        ds = run_simulation(params, model, moment_load(moment).validate(params), t_end=t_end, n_frames=n_frames, progress=bar_callback(bar))
     except ValueError as err:
         bar.close()
         fail(str(err))
@@ -68,7 +66,7 @@ def draw(
     run: Path | None = typer.Argument(None, help=RUN_HELP),
     out: Path = typer.Option(..., "--out", help="Picture to write: .png, .svg or .pdf."),
     times: str | None = typer.Option(None, "--times", help="Comma-separated times, one panel each (default: the last stored time)."),
-    model: ModelName = typer.Option(ModelName.nonlinear, help="Model of the simulation run when no RUN is given."),
+    model: str = model_option("nonlinear", "Model of the simulation run when no RUN is given."),
     moment: float = typer.Option(0.1, help="Moment on the central particle when no RUN is given."),
     t_end: float = typer.Option(300.0, "--t-end", help="Final time of the simulation when no RUN is given."),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields, when no RUN is given."),
@@ -94,7 +92,7 @@ def animate(
     t_stop: float | None = typer.Option(None, "--t-stop", help="End of the window (default: the end of the run)."),
     frames: int = typer.Option(200, "--frames", help="At most this many frames, evenly spread over the window."),
     fps: float = typer.Option(20.0, "--fps", help="Frames per second."),
-    model: ModelName = typer.Option(ModelName.nonlinear, help="Model of the simulation run when no RUN is given."),
+    model: str = model_option("nonlinear", "Model of the simulation run when no RUN is given."),
     moment: float = typer.Option(0.1, help="Moment on the central particle when no RUN is given."),
     t_end: float = typer.Option(300.0, "--t-end", help="Final time of the simulation when no RUN is given."),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields, when no RUN is given."),

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from enum import Enum
 from pathlib import Path
 
 import typer
@@ -11,17 +10,12 @@ import typer
 from ..experiments.orbits import periodic_orbit
 from ..io import write_dataset
 from ..numerics.periodic import OrbitError
-from .common import app, bar_callback, fail, finite_or_none, params_or_exit, progress_bar, save_figure
-
-
-class RotatingModel(str, Enum):
-    nonlinear = "nonlinear"
-    sine = "sine"
+from .common import app, bar_callback, fail, finite_or_none, model_option, params_or_exit, progress_bar, save_figure
 
 
 @app.command()
 def orbit(
-    model: RotatingModel = typer.Option(RotatingModel.sine, help="nonlinear (eq. 1) or sine (eq. 2); the linear model does not rotate."),
+    model: str = model_option("sine", "A model that supports full rotations (the linear model does not).", rotating=True),
     moment: float = typer.Option(..., help="Moment M on the loaded particle (above M_c, or near an orbit)."),
     turns: int = typer.Option(1, help="Turns of the loaded particle per period (2 or 3 for some states)."),
     particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
@@ -38,10 +32,10 @@ def orbit(
     params = params_or_exit(config)
     if plot is not None and down_to is None:
         fail("--plot draws the continued branch: give --down-to as well")
-    bar = progress_bar(f"orbit {model.value}", "orbit")
+    bar = progress_bar(f"orbit {model}", "orbit")
     try:
         result = periodic_orbit(
-            params, model.value, moment, turns=turns, particle=particle, down_to=down_to, period_max=period_max, progress=bar_callback(bar)
+            params, model, moment, turns=turns, particle=particle, down_to=down_to, period_max=period_max, progress=bar_callback(bar)
         )
     except ValueError as err:
         bar.close()
@@ -55,14 +49,14 @@ def orbit(
     if plot is not None:
         from ..plots.orbits import rotation_characteristic_figure
 
-        fig = rotation_characteristic_figure(branches=[result.branch], static_fold=result.static_fold, model=model.value)
+        fig = rotation_characteristic_figure(branches=[result.branch], static_fold=result.static_fold, model=model)
         save_figure(fig, plot)
     if as_json:
         typer.echo(json.dumps({"params": params.model_dump(), **result.as_dict(), "static_fold": finite_or_none(result.static_fold)}))
         return
     o = result.orbit
     typer.echo(
-        f"{model.value}: M = {o.moment:g}, {o.turns} turn(s) per period T = {o.period:.10g}, mean angular velocity {o.mean_angular_velocity:.10g}"
+        f"{model}: M = {o.moment:g}, {o.turns} turn(s) per period T = {o.period:.10g}, mean angular velocity {o.mean_angular_velocity:.10g}"
     )
     typer.echo(f"Floquet multipliers |mu|: {' '.join(f'{abs(m):.4g}' for m in o.multipliers)}")
     typer.echo(

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from enum import Enum
 from pathlib import Path
 
 import typer
@@ -11,12 +10,7 @@ import typer
 from ..experiments.localization import localization_run
 from ..io import write_dataset
 from ..numerics.dynamics import IntegrationError
-from .common import app, bar_callback, fail, params_or_exit, progress_bar
-
-
-class RotatingModel(str, Enum):
-    nonlinear = "nonlinear"
-    sine = "sine"
+from .common import app, bar_callback, fail, model_option, params_or_exit, progress_bar
 
 
 def default_checkpoint(out: Path | None) -> Path | None:
@@ -26,7 +20,7 @@ def default_checkpoint(out: Path | None) -> Path | None:
 
 @app.command()
 def rotate(
-    model: RotatingModel = typer.Option(RotatingModel.nonlinear, help="nonlinear (eq. 1) or sine (eq. 2)."),
+    model: str = model_option("nonlinear", "A model that supports full rotations (the linear model does not).", rotating=True),
     moment: float = typer.Option(..., help="Constant moment M on the loaded particle (rotation needs M above M_c, see `critical`)."),
     turns: int = typer.Option(1500, help="Stop when the loaded particle has made this many full turns."),
     t_max: float = typer.Option(100000.0, "--t-max", help="Stop at this time if the turns are not made by then."),
@@ -47,11 +41,11 @@ def rotate(
     checkpoint = checkpoint if checkpoint is not None else default_checkpoint(out)
     if resume and checkpoint is None:
         fail("--resume needs --checkpoint or --out (whose checkpoint is OUT.checkpoint.nc)")
-    bar = progress_bar(f"rotate {model.value}", "turn")
+    bar = progress_bar(f"rotate {model}", "turn")
     try:
         result = localization_run(
             params,
-            model.value,
+            model,
             moment,
             turns=turns,
             t_max=t_max,

@@ -13,11 +13,11 @@ from ..io import write_dataset
 from ..loads import Schedule, moment_load
 from .common import (
     MethodName,
-    ModelName,
     app,
     bar_callback,
     fail,
     finite_or_none,
+    model_option,
     params_or_exit,
     progress_bar,
 )
@@ -25,7 +25,7 @@ from .common import (
 
 @app.command()
 def simulate(
-    model: ModelName = typer.Option(ModelName.nonlinear, help="nonlinear (eq. 1), sine (eq. 2) or linear (eq. 3)."),
+    model: str = model_option("nonlinear", "Model."),
     moment: float = typer.Option(0.1, help="Moment M on the loaded particle."),
     t_end: float = typer.Option(300.0, "--t-end", help="Final time."),
     dt: float | None = typer.Option(None, help="Time step (default 0.1 / highest linear frequency)."),
@@ -35,7 +35,9 @@ def simulate(
     frames: int = typer.Option(201, help="Number of stored states."),
     threads: int = typer.Option(1, help="Threads per step (worth it from ~10^4 particles)."),
     reference: bool = typer.Option(False, help="Use the adaptive DOP853 reference instead of the fixed step."),
-    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields (E1, E2, h, a, b, m, j, gamma_u, gamma_v, gamma_phi, N)."),
+    config: Path | None = typer.Option(
+        None, help="TOML file with ChainParams fields (E1, E2, h, a, b, m, j, gamma_u, gamma_v, gamma_phi, N)."
+    ),
     out: Path | None = typer.Option(None, help="Write the trajectory to this NetCDF file."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
@@ -46,12 +48,20 @@ def simulate(
         loads = moment_load(schedule, particle).validate(params)
     except ValueError as err:
         fail(str(err))
-    bar = progress_bar(f"simulate {model.value}", "step")
+    bar = progress_bar(f"simulate {model}", "step")
     progress = bar_callback(bar)
     try:
         ds = run_simulation(
-            params, model.value, loads, t_end=t_end, dt=dt, method=method.value, n_frames=frames,
-            threads=threads, reference=reference, progress=progress,
+            params,
+            model,
+            loads,
+            t_end=t_end,
+            dt=dt,
+            method=method.value,
+            n_frames=frames,
+            threads=threads,
+            reference=reference,
+            progress=progress,
         )
     except ValueError as err:
         bar.close()
@@ -61,11 +71,11 @@ def simulate(
         write_dataset(ds, out)
     status = ds.attrs["status"]
     if as_json:
-        typer.echo(json.dumps(_summary(ds, params, model.value, t_end, out)))
+        typer.echo(json.dumps(_summary(ds, params, model, t_end, out)))
     elif status == "completed":
         final = ds.isel(time=-1)
         typer.echo(
-            f"{model.value}: t={float(final.time):g}, phi_0={float(final.phi.sel(particle=particle)):.6g} rad, "
+            f"{model}: t={float(final.time):g}, phi_0={float(final.phi.sel(particle=particle)):.6g} rad, "
             f"balance error {float(final.balance_error):.3g}" + (f"; wrote {out}" if out else "")
         )
     if status != "completed":

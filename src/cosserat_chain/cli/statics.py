@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from enum import Enum
 from pathlib import Path
 
 import typer
@@ -12,23 +11,14 @@ from ..experiments.critical import critical_point
 from ..experiments.sweep import relaxation_sweep
 from ..io import stack_models, write_dataset
 from ..numerics.newton import NewtonError
-from .common import app, bar_callback, fail, params_or_exit, progress_bar, save_figure
+from .common import ALL_MODELS, app, bar_callback, chosen_models, fail, model_option, params_or_exit, progress_bar, save_figure
 
-
-class ModelChoice(str, Enum):
-    nonlinear = "nonlinear"
-    sine = "sine"
-    linear = "linear"
-    all = "all"
-
-
-def _models(choice: ModelChoice) -> list[str]:
-    return ["nonlinear", "sine", "linear"] if choice is ModelChoice.all else [choice.value]
+MODEL_HELP = "Model, or all for every registered one."
 
 
 @app.command()
 def sweep(
-    model: ModelChoice = typer.Option(ModelChoice.all, help="Model, or all three."),
+    model: str = model_option(ALL_MODELS, MODEL_HELP, all_models=True),
     m_max: float = typer.Option(..., "--m-max", help="Largest moment of the upward sweep."),
     steps: int | None = typer.Option(None, help="Number of load steps from 0 to m_max."),
     dm: float | None = typer.Option(None, help="Load increment (instead of --steps)."),
@@ -44,7 +34,7 @@ def sweep(
     params = params_or_exit(config)
     results = {}
     interrupted = False
-    for name in _models(model):
+    for name in chosen_models(model):
         bar = progress_bar(f"sweep {name}", "load")
         try:
             result = relaxation_sweep(
@@ -79,7 +69,7 @@ def sweep(
 
 @app.command()
 def critical(
-    model: ModelChoice = typer.Option(ModelChoice.all, help="Model, or all three."),
+    model: str = model_option(ALL_MODELS, MODEL_HELP, all_models=True),
     particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
     out: Path | None = typer.Option(None, help="Write the branches to this NetCDF file."),
@@ -89,7 +79,7 @@ def critical(
     """Critical moment M_c and phi_0 at the fold (to round-off), compliance, and the static branch over one turn."""
     params = params_or_exit(config)
     results = {}
-    for name in _models(model):
+    for name in chosen_models(model):
         bar = progress_bar(f"critical {name}", "rad")
         try:
             results[name] = critical_point(params, name, particle=particle, progress=bar_callback(bar))

@@ -255,7 +255,7 @@ def localization_run(
     particle : int
         Loaded particle, in -N+1..N-1.
     dt : float, optional
-        Largest time step; default :func:`~cosserat_chain.numerics.dynamics.default_time_step`,
+        Largest time step; default the model's :func:`~cosserat_chain.numerics.dynamics.default_time_step`,
         rounded down by :func:`grid_time_step`.
     method : {"verlet", "yoshida4"}
     checkpoint : path, optional
@@ -299,7 +299,7 @@ def localization_run(
         raise ValueError("resume=True needs a checkpoint file to resume from (checkpoint=None)")
     loads: Loads = moment_load(moment, particle).validate(params)
     col = column(params, particle)
-    dt = grid_time_step(default_time_step(params) if dt is None else float(dt))
+    dt = grid_time_step(default_time_step(params, model) if dt is None else float(dt))
     chunk_steps = max(1, min(round(chunk_time / dt), MAX_CHUNK_VALUES // params.n_particles))
     max_steps = max(1, math.ceil(t_max / dt - 1e-9))
     checkpoint = None if checkpoint is None else Path(checkpoint)

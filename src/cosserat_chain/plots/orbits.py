@@ -22,7 +22,7 @@ from matplotlib.figure import Figure
 from ..experiments.orbits import RotationCharacteristic
 from ..experiments.sweep import SweepResult
 from ..numerics.periodic import OrbitBranch
-from .statics import MODEL_COLORS, MODEL_LABELS
+from .statics import model_color, model_label
 
 
 def _curve(ax: Axes, moment: np.ndarray, rate: np.ndarray, stable: np.ndarray, color: str, label: str) -> None:
@@ -70,8 +70,8 @@ def rotation_characteristic_figure(
     else:
         fig = ax.figure
     name = model or (characteristic.model if characteristic is not None else sweep.model if sweep is not None else "")
-    color = MODEL_COLORS.get(name, "k")
-    label = MODEL_LABELS.get(name, name)
+    color = model_color(name)
+    label = model_label(name)
     if characteristic is not None:
         found = characteristic.found
         _curve(

@@ -23,10 +23,38 @@ from matplotlib.figure import Figure
 
 from ..experiments.critical import CriticalResult
 from ..experiments.sweep import SweepResult
+from ..models import available_models, get_model
 
-#: One colour per model, the same in every figure.
+#: The colours and legend labels of the paper's three models, the same in every figure.
+#: Any other model gets :func:`model_color` and :func:`model_label`'s fallbacks.
 MODEL_COLORS = {"nonlinear": "tab:blue", "sine": "tab:orange", "linear": "tab:green"}
 MODEL_LABELS = {"nonlinear": "nonlinear (1)", "sine": "sine-Cosserat (2)", "linear": "linear Cosserat (3)"}
+
+
+def model_color(name: str) -> str:
+    """The model's colour, the same in every figure.
+
+    The paper's models have theirs (:data:`MODEL_COLORS`); the other registered
+    models take the next colours of matplotlib's cycle in registration order, and
+    an unregistered name (a file from elsewhere) the one after them.
+    """
+    if name in MODEL_COLORS:
+        return MODEL_COLORS[name]
+    others = [other for other in available_models() if other not in MODEL_COLORS]
+    index = len(MODEL_COLORS) + (others.index(name) if name in others else len(others))
+    cycle = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    return cycle[index % len(cycle)]
+
+
+def model_label(name: str) -> str:
+    """Legend label: the paper's wording (:data:`MODEL_LABELS`), else the model's name and equation."""
+    if name in MODEL_LABELS:
+        return MODEL_LABELS[name]
+    try:
+        model = get_model(name)
+    except ValueError:
+        return name
+    return f"{model.name}, {model.equation}"
 
 
 def _runs(flags: np.ndarray) -> list[tuple[np.ndarray, bool]]:
@@ -67,18 +95,18 @@ def figure2(
     m_top = 1.15 * (m_top or 0.3)
     compliance = None
     for name, result in criticals.items():
-        color = MODEL_COLORS.get(name, "k")
+        color = model_color(name)
         branch = result.branch
         ahead = np.maximum.accumulate(np.abs(branch.phi0)) <= np.pi  # first half turn: the branch of Fig. 2
-        _branch_lines(left, branch.moment[ahead], branch.phi0[ahead], branch.stable[ahead], color, MODEL_LABELS.get(name, name))
-        _branch_lines(right, branch.moment, branch.phi0, branch.stable, color, MODEL_LABELS.get(name, name), swap=True)
+        _branch_lines(left, branch.moment[ahead], branch.phi0[ahead], branch.stable[ahead], color, model_label(name))
+        _branch_lines(right, branch.moment, branch.phi0, branch.stable, color, model_label(name), swap=True)
         for fold in branch.folds:
             if abs(fold.phi0) <= np.pi:
                 left.plot(fold.moment, fold.phi0, "o", mfc="white", mec=color, ms=7)
             right.plot(fold.phi0, fold.moment, "o", mfc="white", mec=color, ms=7)
         compliance = result.compliance
     for name, sweep in sweeps.items():
-        color = MODEL_COLORS.get(name, "k")
+        color = model_color(name)
         up = (sweep.direction == "up") & (sweep.status == "static")
         left.plot(sweep.moment[up], sweep.phi0[up], "o", color=color, ms=4, alpha=0.8)
         if sweep.onset_load is not None:
@@ -114,12 +142,20 @@ def hysteresis_figure(
     criticals = criticals or {}
     fig, ax = plt.subplots(figsize=figsize, constrained_layout=True)
     for name, sweep in sweeps.items():
-        color = MODEL_COLORS.get(name, "k")
+        color = model_color(name)
         rate = sweep.angular_velocity[:, sweep.params.N + sweep.particle]
         for direction, style in (("up", {"mfc": color}), ("down", {"mfc": "white"})):
             sel = sweep.direction == direction
-            ax.plot(sweep.moment[sel], rate[sel], "o-" if direction == "up" else "s--", color=color, ms=5, mec=color,
-                    label=f"{MODEL_LABELS.get(name, name)}, load {direction}", **style)
+            ax.plot(
+                sweep.moment[sel],
+                rate[sel],
+                "o-" if direction == "up" else "s--",
+                color=color,
+                ms=5,
+                mec=color,
+                label=f"{model_label(name)}, load {direction}",
+                **style,
+            )
         if name in criticals and criticals[name].critical_moment is not None:
             ax.axvline(criticals[name].critical_moment, color=color, ls=":", lw=1)
     ax.set(xlabel="moment M", ylabel="mean angular velocity of the loaded particle")

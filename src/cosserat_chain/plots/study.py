@@ -7,7 +7,7 @@ import numpy as np
 import xarray as xr
 from matplotlib.figure import Figure
 
-from .statics import MODEL_COLORS
+from .statics import model_color
 
 #: Swept fields are the study Dataset's dimensions other than these.
 _NON_PARAMETER_DIMS = ("model", "load")
@@ -41,13 +41,15 @@ def study_figure(ds: xr.Dataset, quantities: list[str] | None = None) -> Figure:
         fig, axes = plt.subplots(1, len(quantities), figsize=(4.2 * len(quantities), 3.6), squeeze=False, constrained_layout=True)
         for ax, name in zip(axes[0], quantities):
             for model in models:
-                ax.plot(ds[swept[0]], ds[name].sel(model=model), "o-", color=MODEL_COLORS.get(str(model)), label=str(model))
+                ax.plot(ds[swept[0]], ds[name].sel(model=model), "o-", color=model_color(str(model)), label=str(model))
             ax.set(xlabel=swept[0], title=name)
             if _is_log(ds[swept[0]].values):
                 ax.set_xscale("log")
         axes[0][0].legend(fontsize=8)
         return fig
-    fig, axes = plt.subplots(len(models), len(quantities), figsize=(4.2 * len(quantities), 3.6 * len(models)), squeeze=False, constrained_layout=True)
+    fig, axes = plt.subplots(
+        len(models), len(quantities), figsize=(4.2 * len(quantities), 3.6 * len(models)), squeeze=False, constrained_layout=True
+    )
     for row, model in zip(axes, models):
         for ax, name in zip(row, quantities):
             values = ds[name].sel(model=model).transpose(swept[1], swept[0])
@@ -74,4 +76,6 @@ def _is_log(values: np.ndarray) -> bool:
     values = np.asarray(values, dtype=float)
     if len(values) < 3 or np.any(values <= 0):
         return False
-    return bool(np.allclose(np.diff(np.log(values)), np.log(values[1] / values[0])) and not np.allclose(np.diff(values), values[1] - values[0]))
+    return bool(
+        np.allclose(np.diff(np.log(values)), np.log(values[1] / values[0])) and not np.allclose(np.diff(values), values[1] - values[0])
+    )
