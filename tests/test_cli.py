@@ -76,3 +76,18 @@ def test_write_is_atomic_and_leaves_no_temporary_files(tmp_path):
     assert sorted(p.name for p in path.parent.iterdir()) == ["a.nc"]
     assert read_dataset(path).attrs["status"] == "completed"
     assert float(read_dataset(path).time[-1]) == 1.0
+
+
+def test_every_status_has_one_exit_code_and_only_results_exit_zero():
+    from cosserat_chain.cli.common import EXIT_CODES
+    from cosserat_chain.status import Status
+
+    assert set(EXIT_CODES) == set(Status)
+    assert {s for s, code in EXIT_CODES.items() if code == 0} == {s for s in Status if s.ok}
+
+
+def test_rotate_that_reaches_its_time_limit_exits_4_and_says_how_to_go_on(tmp_path):
+    out = tmp_path / "rot.nc"
+    result = runner.invoke(app, ["rotate", "--model", "sine", "--moment", "0.3", "--turns", "50", "--t-max", "5", "--out", str(out)])
+    assert result.exit_code == 4, result.output
+    assert "time_limit" in result.output and out.exists()

@@ -19,6 +19,7 @@ from tqdm import tqdm
 from ..io import load_params
 from ..models import available_models, get_model
 from ..params import ChainParams
+from ..status import Status
 
 app = typer.Typer(add_completion=False, help="Discrete Cosserat chains of finite-size particles.", no_args_is_help=True)
 
@@ -79,6 +80,32 @@ class MethodName(str, Enum):
 def finite_or_none(value: float) -> float | None:
     """JSON has no NaN or infinity: map them to null."""
     return float(value) if math.isfinite(value) else None
+
+
+#: Exit codes of the commands, one per outcome (documented in docs/exit-codes.md): 0 a result,
+#: 2 bad input (see :func:`fail`), 3 a run that did not produce what was asked (blew up,
+#: solver failure, not converged), 4 a run stopped at its time limit (resumable),
+#: 130 interrupted (Ctrl-C; what was computed is kept).
+EXIT_CODES = {
+    Status.COMPLETED: 0,
+    Status.STATIC: 0,
+    Status.ROTATING: 0,
+    Status.BLEW_UP: 3,
+    Status.FAILED: 3,
+    Status.MAX_STEPS: 3,
+    Status.STEP_TOO_SMALL: 3,
+    Status.NOT_CONVERGED: 3,
+    Status.TIME_LIMIT: 4,
+    Status.INTERRUPTED: 130,
+}
+
+
+def exit_on(status: str, message: str) -> None:
+    """Warn on stderr and exit with the status's code unless it is a result (:data:`EXIT_CODES`)."""
+    status = Status(status)
+    if not status.ok:
+        typer.secho(f"{status}: {message}", err=True, fg=typer.colors.YELLOW)
+        raise typer.Exit(EXIT_CODES[status])
 
 
 def fail(message: str, code: int = 2) -> NoReturn:

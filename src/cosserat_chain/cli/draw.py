@@ -15,6 +15,7 @@ import xarray as xr
 from ..experiments.simulation import simulate as run_simulation
 from ..io import read_dataset
 from ..loads import moment_load
+from ..status import Status
 from .common import app, bar_callback, fail, model_option, params_or_exit, progress_bar
 
 #: Stored frames of a simulation run only to be drawn: a cap that keeps memory small.
@@ -41,7 +42,7 @@ def _load_run(run: Path | None, model: str, moment: float, t_end: float, config:
         bar.close()
         fail(str(err))
     bar.close()
-    if ds.attrs["status"] != "completed":
+    if ds.attrs["status"] != Status.COMPLETED:
         typer.secho(f"{ds.attrs['status']}: {ds.attrs['message']}; drawing what was computed", err=True, fg=typer.colors.YELLOW)
     return ds
 

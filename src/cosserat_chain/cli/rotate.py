@@ -10,7 +10,7 @@ import typer
 from ..experiments.localization import localization_run
 from ..io import write_dataset
 from ..numerics.dynamics import IntegrationError
-from .common import app, bar_callback, fail, model_option, params_or_exit, progress_bar
+from .common import app, bar_callback, exit_on, fail, model_option, params_or_exit, progress_bar
 
 
 def default_checkpoint(out: Path | None) -> Path | None:
@@ -75,11 +75,7 @@ def rotate(
             f"others: max |phi| {summary['max_abs_phi_others']:.4g}, |v| {summary['max_abs_v_others']:.4g}, "
             f"|u| {summary['max_abs_u_others']:.4g}" + (f"; wrote {out}" if out else "")
         )
-    if result.status == "time_limit":
-        typer.secho(result.message, err=True, fg=typer.colors.YELLOW)
-    if result.status == "interrupted":
-        typer.secho(f"interrupted: {result.message}", err=True, fg=typer.colors.YELLOW)
-        raise typer.Exit(130)
+    exit_on(result.status, result.message)
 
 
 def _number(value: float | None) -> str:

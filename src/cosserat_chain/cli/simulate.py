@@ -11,10 +11,12 @@ import typer
 from ..experiments.simulation import simulate as run_simulation
 from ..io import write_dataset
 from ..loads import Schedule, moment_load
+from ..status import Status
 from .common import (
     MethodName,
     app,
     bar_callback,
+    exit_on,
     fail,
     finite_or_none,
     model_option,
@@ -72,15 +74,13 @@ def simulate(
     status = ds.attrs["status"]
     if as_json:
         typer.echo(json.dumps(_summary(ds, params, model, t_end, out)))
-    elif status == "completed":
+    elif status == Status.COMPLETED:
         final = ds.isel(time=-1)
         typer.echo(
             f"{model}: t={float(final.time):g}, phi_0={float(final.phi.sel(particle=particle)):.6g} rad, "
             f"balance error {float(final.balance_error):.3g}" + (f"; wrote {out}" if out else "")
         )
-    if status != "completed":
-        typer.secho(f"{status}: {ds.attrs['message']}", err=True, fg=typer.colors.YELLOW)
-        raise typer.Exit(130 if status == "interrupted" else 3)
+    exit_on(status, ds.attrs["message"])
 
 
 def _summary(ds, params, model: str, t_end: float, out: Path | None) -> dict[str, Any]:

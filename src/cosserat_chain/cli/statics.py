@@ -11,7 +11,8 @@ from ..experiments.critical import critical_point
 from ..experiments.sweep import relaxation_sweep
 from ..io import stack_models, write_dataset
 from ..numerics.newton import NewtonError
-from .common import ALL_MODELS, app, bar_callback, chosen_models, fail, model_option, params_or_exit, progress_bar, save_figure
+from ..status import Status
+from .common import ALL_MODELS, app, bar_callback, chosen_models, exit_on, fail, model_option, params_or_exit, progress_bar, save_figure
 
 MODEL_HELP = "Model, or all for every registered one."
 
@@ -63,8 +64,7 @@ def sweep(
             stop = "" if not down else f", rotation stops at {'none' if r.stop_load is None else f'{r.stop_load:g}'}"
             typer.echo(f"{name}: {len(r.moment)} load steps, onset of rotation at M = {onset}{stop}")
     if interrupted:
-        typer.secho("interrupted: the finished load steps are kept", err=True, fg=typer.colors.YELLOW)
-        raise typer.Exit(130)
+        exit_on(Status.INTERRUPTED, "the finished load steps are kept")
 
 
 @app.command()

@@ -10,7 +10,8 @@ import typer
 
 from ..experiments.study import spec_from_mapping
 from ..io import read_config
-from .common import app, bar_callback, fail, progress_bar, save_figure
+from ..status import Status
+from .common import app, bar_callback, exit_on, fail, progress_bar, save_figure
 
 
 @app.command()
@@ -68,8 +69,7 @@ def study(
             f"study: {run.computed} cells computed, {run.skipped} read back, {run.failed} failed" + (f"; wrote {out}" if out else "")
         )
     if not run.completed:
-        typer.secho("interrupted: the finished cells are saved; run the same command again to resume", err=True, fg=typer.colors.YELLOW)
-        raise typer.Exit(130)
+        exit_on(Status.INTERRUPTED, "the finished cells are saved; run the same command again to resume")
 
 
 def _plain(value: np.ndarray):

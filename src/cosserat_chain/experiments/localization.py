@@ -51,6 +51,7 @@ from ..numerics.dynamics import IntegrationError, default_time_step, integrate
 from ..numerics.integrators import get_method
 from ..params import ChainParams
 from ..state import ROWS, column, zeros
+from ..status import Status
 from .simulation import run_attributes
 
 log = logging.getLogger(__name__)
@@ -64,7 +65,7 @@ MAX_CHUNK_VALUES = 2**18
 #: Significant bits kept in the time step (see :func:`grid_time_step`).
 GRID_BITS = 10
 #: Statuses of a result.
-STATUSES = ("completed", "time_limit", "interrupted")
+STATUSES = (Status.COMPLETED, Status.TIME_LIMIT, Status.INTERRUPTED)
 
 ProgressCallback = Callable[[int, int], None]
 
@@ -164,7 +165,7 @@ class LocalizationResult:
             "dt": self.dt,
             "method": self.method,
             "steps": self.step,
-            "status": self.status,
+            "status": str(self.status),
             "message": self.message,
             "wall_time": self.wall_time,
             "params": self.params.model_dump(),
@@ -345,7 +346,7 @@ def localization_run(
         diagnostics = StreamingDiagnostics(params, model, particle, x, v)
     # One object holds the latest consistent state, replaced by a single assignment,
     # so that Ctrl-C anywhere leaves a state that can be saved.
-    state = result(step, x, v, diagnostics, "interrupted", "", wall_before)
+    state = result(step, x, v, diagnostics, Status.INTERRUPTED, "", wall_before)
     last_write = clock.perf_counter()
     target = turns * 2.0 * math.pi
     try:
@@ -364,7 +365,7 @@ def localization_run(
                 method=method,
                 stride=1,
             )
-            if run.status == "blew_up":
+            if run.status == Status.BLEW_UP:
                 raise IntegrationError(f"localization run ({model.name}, M={moment:g}): {run.message}", run)
             frames = run.x.shape[0]
             angle = np.abs(run.x[:, 2, col] - state.diagnostics.angle_start[col])
@@ -379,11 +380,11 @@ def localization_run(
                 np.ascontiguousarray(run.x[frames - 1]),
                 np.ascontiguousarray(run.v[frames - 1]),
                 updated,
-                "interrupted",
+                Status.INTERRUPTED,
                 "",
                 wall_before,
             )
-            if run.status == "interrupted":
+            if run.status == Status.INTERRUPTED:
                 break
             if progress is not None:
                 progress(updated.turns_completed, turns)
@@ -394,9 +395,9 @@ def localization_run(
         log.warning("interrupted at t=%g; saving what was computed", state.t_end)
     final = state
     if final.diagnostics.turns_completed >= turns:
-        final.status, final.message = "completed", f"{final.diagnostics.turns_completed} full turns at t={final.t_end:.6g}"
+        final.status, final.message = Status.COMPLETED, f"{final.diagnostics.turns_completed} full turns at t={final.t_end:.6g}"
     elif final.step >= max_steps:
-        final.status = "time_limit"
+        final.status = Status.TIME_LIMIT
         final.message = (
             f"t_max={t_max:g} reached after {final.diagnostics.turns_completed} of {turns} turns; resume with a larger t_max to go on"
         )

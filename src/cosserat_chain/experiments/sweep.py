@@ -31,12 +31,13 @@ from ..models.base import Model, get_model
 from ..numerics.relaxation import Plan, run_plans
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column
+from ..status import Status
 from .simulation import run_attributes
 
 log = logging.getLogger(__name__)
 
 #: Statuses of a load step.
-STATIC, ROTATING, NOT_CONVERGED = "static", "rotating", "not_converged"
+STATIC, ROTATING, NOT_CONVERGED = Status.STATIC, Status.ROTATING, Status.NOT_CONVERGED
 
 
 def load_steps(m_max: float, *, steps: int | None = None, dm: float | None = None) -> np.ndarray:
@@ -312,7 +313,7 @@ def relaxation_sweeps(
 def sweep_result(params, model_name, particle, records, completed, settings) -> SweepResult:
     """Assemble a :class:`SweepResult` from ``(moment, direction, RelaxationStep)`` records."""
     n = params.n_particles
-    status = np.array([r[2].status for r in records], dtype=object)
+    status = np.array([str(r[2].status) for r in records], dtype=object)
     direction = np.array([r[1] for r in records], dtype=object)
     moment = np.array([r[0] for r in records], dtype=float)
     onset = next((m for m, d, s in zip(moment, direction, status) if d == "up" and s == ROTATING), None)

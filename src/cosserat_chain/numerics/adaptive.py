@@ -24,6 +24,7 @@ from ..loads import Loads, schedule_value
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import check_state, zeros
+from ..status import Status
 from . import dop853
 from .dynamics import Trajectory
 
@@ -131,7 +132,7 @@ def integrate_adaptive(
         v=sol.y[:, size : 2 * size].reshape(-1, 3, n),
         load_work=sol.y[:, -2],
         dissipated=sol.y[:, -1],
-        status="completed" if sol.success else "failed",
+        status=Status.COMPLETED if sol.success else Status.FAILED,
         message=sol.message,
         steps=sol.evaluations,
         dt=float("nan"),

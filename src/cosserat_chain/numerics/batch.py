@@ -28,6 +28,7 @@ from ..loads import moment_load
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import column
+from ..status import Status
 from .engine import BLEW_UP, STATUS_BLEW_UP, Lanes, check_members, member_steps, per_member, run_parts, split, stack_states
 from .integrators import Method, get_method
 
@@ -120,14 +121,14 @@ def integrate_batch(
     col = column(params[0], particle)
     x0 = stack_states(params, x0, "x0")
     v0 = stack_states(params, v0, "v0")
-    requested = member_steps(params, dt, method)
+    requested = member_steps(params, dt, method, model)
     n_steps = np.array([max(1, math.ceil(t_end / step - 1e-9)) for step in requested], dtype=np.int64)
     strides = np.maximum(1, np.ceil(n_steps / (n_records - 1)).astype(np.int64))
     counts = n_steps // strides + 1 + (n_steps % strides != 0)
     out_x, out_v = x0.copy(), v0.copy()
     steps = np.zeros(size, dtype=np.int64)
     record = np.full((size, int(counts.max())), np.nan)
-    status = ["completed"] * size
+    status = [Status.COMPLETED] * size
 
     def run_group(members: np.ndarray) -> None:
         """Members with the same step count, in one compiled loop until done (members that blow up leave)."""
@@ -158,7 +159,7 @@ def integrate_batch(
                 return
             bad = lanes.lane_ints[BLEW_UP] == 1
             for b in members[bad]:
-                status[b] = "blew_up"
+                status[b] = Status.BLEW_UP
                 record[b, stored:] = np.nan
             if bad.all():
                 return

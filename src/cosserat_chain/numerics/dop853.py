@@ -45,6 +45,7 @@ import numpy as np
 from numba import njit, types
 
 from ..models.base import FORCE_KERNEL_TYPE
+from ..status import Status
 
 #: Signature of every right-hand side: rhs(force, t, y, coef, rpar, ipar, dy) -> None.
 RHS_SIGNATURE = types.void(
@@ -214,7 +215,7 @@ MAX_STEPS = 10_000_000
 MIN_RTOL = 100 * np.finfo(float).eps
 
 _COMPLETED, _MAX_STEPS, _STEP_TOO_SMALL = 0, 1, 2
-_STATUS = {_COMPLETED: "completed", _MAX_STEPS: "max_steps", _STEP_TOO_SMALL: "step_too_small"}
+_STATUS = {_COMPLETED: Status.COMPLETED, _MAX_STEPS: Status.MAX_STEPS, _STEP_TOO_SMALL: Status.STEP_TOO_SMALL}
 
 _SOLVE_SIGNATURE = types.Tuple((types.int64, types.int64, types.int64, types.int64, types.float64))(
     RHS_TYPE,
@@ -374,7 +375,7 @@ class Solution:
 
     @property
     def success(self) -> bool:
-        return self.status == "completed"
+        return self.status == Status.COMPLETED
 
 
 def solve(

@@ -25,6 +25,7 @@ from ..loads import Loads
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import check_state
+from ..status import Status
 from .engine import STATUS_BLEW_UP, Blocks, Lanes
 from .integrators import Method, get_method
 
@@ -57,7 +58,8 @@ class Trajectory:
         Configurations and velocities (rows u, v, phi).
     load_work, dissipated : ndarray (n_frames,)
         Work done by the loads and energy removed by viscosity since the start.
-    status : {"completed", "blew_up", "interrupted"}
+    status : Status
+        ``completed``, ``blew_up`` or ``interrupted``.
     message : str
         Human-readable explanation of the status (how to fix a failure).
     steps : int
@@ -78,7 +80,7 @@ class Trajectory:
 
     @property
     def ok(self) -> bool:
-        return self.status == "completed"
+        return self.status == Status.COMPLETED
 
 
 def default_time_step(params: ChainParams, model: str | Model = "nonlinear") -> float:
@@ -173,9 +175,9 @@ def integrate(
     """
     model = get_model(model)
     method = get_method(method)
-    dt = default_time_step(params) if dt is None else float(dt)
+    dt = default_time_step(params, model) if dt is None else float(dt)
     if check_stability:
-        check_time_step(params, dt, method)
+        check_time_step(params, dt, method, model)
     elif not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
     if not (math.isfinite(t_end) and t_end > t0):
@@ -217,7 +219,7 @@ def integrate(
 
     stored = 1
     steps_done = 0
-    status, message = "completed", f"{n_steps} steps of {method.name} with dt={dt:g}"
+    status, message = Status.COMPLETED, f"{n_steps} steps of {method.name} with dt={dt:g}"
     chunk = max(stride, CHUNK_WORK // (n * method.force_evaluations) // stride * stride)
     frames = (frames_x, frames_v, frames_acc, record)
     try:
@@ -231,7 +233,7 @@ def integrate(
             if progress is not None:
                 progress(steps_done, n_steps)
             if code == STATUS_BLEW_UP:
-                status = "blew_up"
+                status = Status.BLEW_UP
                 message = (
                     f"the run blew up at t={t0 + steps_done * dt:.6g} (step {steps_done}): a value became non-finite, "
                     f"|u|, |v| exceeded {max_displacement:g} or |phi| exceeded {model.max_angle:g}. Use a smaller time step "
@@ -239,7 +241,7 @@ def integrate(
                 )
                 break
     except KeyboardInterrupt:
-        status = "interrupted"
+        status = Status.INTERRUPTED
         message = f"interrupted at t={t0 + steps_done * dt:.6g} after {steps_done} of {n_steps} steps; states up to then are kept"
         log.warning(message)
     finally:
@@ -247,13 +249,13 @@ def integrate(
             blocks.close()
     x, v, acc = lanes.x, lanes.v, lanes.acc
     frames_x, frames_v, frames_acc = frames_x[..., 0], frames_v[..., 0], frames_acc[..., 0]
-    if steps_done % stride != 0 and status != "blew_up":
+    if steps_done % stride != 0 and status != Status.BLEW_UP:
         # The last step is always kept, even off the stride.
         frames_x[stored], frames_v[stored], frames_acc[stored] = x[..., 0], v[..., 0], acc[:, 0]
         frame_steps[stored] = steps_done
         stored += 1
     keep = stored
-    if status == "blew_up":
+    if status == Status.BLEW_UP:
         finite = np.isfinite(frames_x[:stored]).all(axis=(1, 2)) & np.isfinite(frames_v[:stored]).all(axis=(1, 2))
         keep = int(np.argmin(finite)) if not finite.all() else stored
     trajectory = Trajectory(
@@ -268,6 +270,6 @@ def integrate(
         dt=dt,
         method=method.name,
     )
-    if throw and status != "completed":
+    if throw and status != Status.COMPLETED:
         raise IntegrationError(message, trajectory)
     return trajectory

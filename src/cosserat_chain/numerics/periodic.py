@@ -49,6 +49,7 @@ from ..loads import moment_load
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, n_free, pack, unpack, zeros
+from ..status import Status
 from . import dop853
 from .dynamics import integrate
 
@@ -528,7 +529,7 @@ END_FOLD = "fold"
 END_INFINITE_PERIOD = "infinite_period"
 END_MOMENT_MIN = "moment_min"
 END_MAX_POINTS = "max_points"
-END_STEP_TOO_SMALL = "step_too_small"
+END_STEP_TOO_SMALL = Status.STEP_TOO_SMALL
 
 
 @dataclass

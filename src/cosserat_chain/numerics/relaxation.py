@@ -46,6 +46,7 @@ from ..loads import moment_load
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import column
+from ..status import Status
 from .dynamics import IntegrationError, Trajectory
 from .engine import (
     BLEW_UP,
@@ -105,7 +106,8 @@ class RelaxationStep:
 
     Attributes
     ----------
-    status : {"static", "rotating", "not_converged"}
+    status : Status
+        ``static``, ``rotating`` or ``not_converged``.
     x, v : ndarray (3, 2N+1)
         The state at the end of the step (at rest for ``static``).
     time : float
@@ -292,7 +294,7 @@ def run_plans(
     col = column(params[0], particle)
     x0 = stack_states(params, x0, "x0")
     v0 = stack_states(params, v0, "v0")
-    requested = member_steps(params, options.dt, method)
+    requested = member_steps(params, options.dt, method, model)
     # Whole chunks: chunk_time in a whole number of steps; members with the same step share a loop.
     per_chunk = np.array([math.ceil(options.chunk_time / step - 1e-9) for step in requested], dtype=np.int64)
     steps = options.chunk_time / per_chunk
@@ -368,7 +370,7 @@ def _outcome(lanes: Lanes, lane: int, member: _Member, done: int, options: Relax
     count = int(lanes.lane_ints[CROSSINGS, lane])
     turns_record = lanes.turns
     if speed <= options.v_tol and residual <= options.f_tol * (1.0 + abs(member.moment)):
-        status, omega = "static", np.zeros(params.n_particles)
+        status, omega = Status.STATIC, np.zeros(params.n_particles)
         message = f"at rest after t={elapsed:.6g} (max|v|={speed:.2g}, residual {residual:.2g})"
     elif (
         omega := steady_rotation(
@@ -380,10 +382,10 @@ def _outcome(lanes: Lanes, lane: int, member: _Member, done: int, options: Relax
             options.omega_rtol,
         )
     ) is not None:
-        status = "rotating"
+        status = Status.ROTATING
         message = f"steady rotation after t={elapsed:.6g}: {count} turns, mean angular velocity {omega[col]:.6g}"
     elif done - member.begun >= options.chunks:
-        status, omega = "not_converged", np.full(params.n_particles, np.nan)
+        status, omega = Status.NOT_CONVERGED, np.full(params.n_particles, np.nan)
         message = (
             f"neither at rest nor rotating steadily after t_max={options.t_max:g} (max|v|={speed:.2g}, residual {residual:.2g}, "
             f"{count} turns); raise t_max or loosen v_tol/f_tol"
@@ -426,6 +428,6 @@ def _blow_up(lanes: Lanes, lane: int, b: int, moment: float, time: float) -> Int
     )
     trajectory = Trajectory(
         time=np.array([time]), x=x[None], v=v[None], load_work=np.full(1, np.nan), dissipated=np.full(1, np.nan),
-        status="blew_up", message=message, steps=0, dt=dt, method=lanes.method.name,
+        status=Status.BLEW_UP, message=message, steps=0, dt=dt, method=lanes.method.name,
     )  # fmt: skip
     return IntegrationError(message, trajectory)
