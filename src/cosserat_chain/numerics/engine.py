@@ -15,7 +15,7 @@ c_i dt (the method's weights, :mod:`.integrators`), each
 with the exact viscous flow v <- v exp(-gamma h / (2 m)) as ``damp``. Between two
 force evaluations the closing half of one sub-step and the opening half of the
 next are one linear map of (v, f), applied as v <- A v + B f, x <- x + D v with
-A, B, D from :func:`combined_factors`.
+A, B, D from :func:`pair_table`.
 
 A batch is B chains of the same length stored batch-innermost, x[r, k, b]
 (rows, columns, members), each member with its own coefficients, inertia,
@@ -74,22 +74,41 @@ CROSSINGS, BLEW_UP = range(2)
 N_LANE_INTS = 2
 
 
-# --------------------------------------------------------------------------- compiled loop
-@njit(inline="always", **_OPTIONS)
-def combined_factors(table, mass, close, open_, r, b):  # pragma: no cover - compiled
-    """(A, B, D, kick_close, loss) of closing sub-step ``close`` and opening ``open_``.
+# Rows of the factors of one (close, open) pair of sub-steps (:func:`pair_table`).
+DAMP, KICK, DRIFT, KICK_CLOSE, LOSS = range(5)
 
-    v <- A v + B f and x <- x + D v are kick(close) damp(close) damp(open)
-    kick(open) drift(open); the damping flows remove 0.5 m w^2 (1 - e_c^2 e_o^2)
-    = loss w^2 of kinetic energy, w = v + kick_close f.
+
+def pair_table(table: np.ndarray, mass: np.ndarray) -> np.ndarray:
+    """Factors of closing one sub-step and opening the next, for every pair and member.
+
+    kick(close) damp(close) damp(open) kick(open) drift(open) is v <- A v + B f,
+    x <- x + D v, with A = e_o e_c, B = A k_c + k_o, D the drift; its damping flows
+    remove 0.5 m w^2 (1 - A^2) of kinetic energy, w = v + k_c f. Computed here, once,
+    so that the compiled loop does no arithmetic on factors (with reassociation
+    allowed there, a product of factors could round differently in different copies
+    of the loop).
+
+    Parameters
+    ----------
+    table : (S+1, 3, 3, B) from :func:`.integrators.substep_table`
+    mass : (3, B) inertia of the rows
+
+    Returns
+    -------
+    ndarray (S+1, S+1, 5, 3, B)
+        [close, open, DAMP / KICK / DRIFT / KICK_CLOSE / LOSS, row, member].
     """
-    e_close = table[close, 0, r, b]
-    kick_close = table[close, 1, r, b]
-    e_open = table[open_, 0, r, b]
-    damp = e_open * e_close
-    return damp, damp * kick_close + table[open_, 1, r, b], table[open_, 2, r, b], kick_close, 0.5 * mass[r, b] * (1.0 - damp * damp)
+    damp = table[None, :, 0] * table[:, None, 0]  # [close, open]: e_open e_close
+    out = np.empty((table.shape[0], table.shape[0], 5, 3, table.shape[-1]))
+    out[:, :, DAMP] = damp
+    out[:, :, KICK] = damp * table[:, None, 1] + table[None, :, 1]
+    out[:, :, DRIFT] = table[None, :, 2]
+    out[:, :, KICK_CLOSE] = table[:, None, 1]
+    out[:, :, LOSS] = 0.5 * mass * (1.0 - damp * damp)
+    return np.ascontiguousarray(out)
 
 
+# --------------------------------------------------------------------------- compiled loop
 @njit(inline="always", **_KICK_OPTIONS)
 def _kick_drift_row(x, v, f, r, start, stop, a, bk, d, kick_close):  # pragma: no cover - compiled
     """Row r of a chain on columns start..stop-1: the combined kick-drift; returns sum (v + kick_close f)^2.
@@ -123,62 +142,57 @@ def _kick_drift_lanes(x, v, f, a, bk, d, kick_close, total):  # pragma: no cover
             xk[i] += d[i] * w
 
 
-@njit(**_KICK_OPTIONS)
-def _kick_drift_chain(x, v, f, table, mass, close, open_, start, stop):  # pragma: no cover - compiled
+@njit(inline="always", **_KICK_OPTIONS)
+def _kick_drift_chain(x, v, f, pairs, close, open_, start, stop):  # pragma: no cover - compiled
     """Close ``close`` and open ``open_`` on columns start..stop-1 of a chain; returns the energy removed.
 
-    Compiled with reassociation (its rows are inlined): the state updates in it have
-    nothing to reassociate (v <- A v + B f, x <- x + D v), only the energy sums do.
+    Inlined into the compiled loop, which is compiled with reassociation: the state
+    updates have nothing to reassociate (v <- A v + B f, x <- x + D v with factors
+    read from ``pairs``), only the energy sums do, and those vectorise.
     """
     removed = 0.0
     for r in range(3):
-        a, bk, d, kick_close, loss = combined_factors(table, mass, close, open_, r, 0)
-        removed += loss * _kick_drift_row(x, v, f, r, start, stop, a, bk, d, kick_close)
+        removed += pairs[close, open_, LOSS, r, 0] * _kick_drift_row(
+            x, v, f, r, start, stop, pairs[close, open_, DAMP, r, 0], pairs[close, open_, KICK, r, 0],
+            pairs[close, open_, DRIFT, r, 0], pairs[close, open_, KICK_CLOSE, r, 0],
+        )  # fmt: skip
     return removed
 
 
-#: The same kick-drift inlined, with strict-order sums, for spans of a chain shorter than
-#: :data:`SHORT_SPAN`: a call to a compiled function passes every array with its reference
-#: count (about 100 ns a sub-step, more than a 7-particle chain's whole kick-drift), while a
-#: long span needs the vectorised sums of the called one. The state arithmetic is the same
-#: (nothing in it to reassociate), so both give the same states to the last bit.
-_kick_drift_chain_inline = njit(inline="always", **_OPTIONS)(_kick_drift_chain.py_func)
-SHORT_SPAN = 64
+@njit(**_KICK_OPTIONS)
+def _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, total):  # pragma: no cover - compiled
+    """The kick-drift of a batch (B > 1): one pass per row over (columns, members); ``total`` (B,) scratch."""
+    size = dissipated.size
+    factors = pairs[close, open_]
+    for r in range(3):
+        total[:] = 0.0
+        _kick_drift_lanes(x[r], v[r], f[r], factors[DAMP, r], factors[KICK, r], factors[DRIFT, r], factors[KICK_CLOSE, r], total)
+        for i in range(size):
+            dissipated[i] += factors[LOSS, r, i] * total[i]
 
 
-@njit(inline="always", **_OPTIONS)
-def _kick_drift_span(x, v, f, table, mass, close, open_, start, stop):  # pragma: no cover - compiled
-    """The kick-drift of columns start..stop-1 of a chain, inlined or called by length; the energy removed."""
-    if stop - start < SHORT_SPAN:
-        return _kick_drift_chain_inline(x, v, f, table, mass, close, open_, start, stop)
-    return _kick_drift_chain(x, v, f, table, mass, close, open_, start, stop)
-
-
-@njit(inline="always", **_OPTIONS)
-def _kick_drift(x, v, f, table, mass, close, open_, columns, dissipated, scratch):  # pragma: no cover - compiled
+@njit(inline="always", **_KICK_OPTIONS)
+def _kick_drift(x, v, f, pairs, close, open_, columns, dissipated, scratch):  # pragma: no cover - compiled
     """Close ``close`` and open ``open_`` on the whole batch; adds each member's loss to ``dissipated``.
 
     ``columns`` (4,) for B = 1: advance columns [columns[0], columns[1]) and count the energy
     removed on [columns[2], columns[3]) only (a block of a chain split over threads also
-    steps its halo). ``scratch`` (6, B) holds the members' factors and sums (B > 1).
+    steps its halo). ``scratch`` (B,) holds the members' sums (B > 1). Only the single
+    chain's code is inlined here: the batch's, in the loop body, cost a short chain about
+    100 ns a step.
     """
-    size = dissipated.size
-    if size == 1:
-        start, stop, first, last = columns[0], columns[1], columns[2], columns[3]
-        if first > start:
-            _kick_drift_span(x, v, f, table, mass, close, open_, start, first)
-        dissipated[0] += _kick_drift_span(x, v, f, table, mass, close, open_, first, last)
-        if stop > last:
-            _kick_drift_span(x, v, f, table, mass, close, open_, last, stop)
-    else:
-        a, bk, d, kick_close, loss, total = scratch[0], scratch[1], scratch[2], scratch[3], scratch[4], scratch[5]
-        for r in range(3):
-            for i in range(size):
-                a[i], bk[i], d[i], kick_close[i], loss[i] = combined_factors(table, mass, close, open_, r, i)
-                total[i] = 0.0
-            _kick_drift_lanes(x[r], v[r], f[r], a, bk, d, kick_close, total)
-            for i in range(size):
-                dissipated[i] += loss[i] * total[i]
+    if dissipated.size > 1:
+        _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch)
+        return
+    start, stop, first, last = columns[0], columns[1], columns[2], columns[3]
+    if first == start and last == stop:
+        dissipated[0] += _kick_drift_chain(x, v, f, pairs, close, open_, start, stop)
+        return
+    if first > start:
+        _kick_drift_chain(x, v, f, pairs, close, open_, start, first)
+    dissipated[0] += _kick_drift_chain(x, v, f, pairs, close, open_, first, last)
+    if stop > last:
+        _kick_drift_chain(x, v, f, pairs, close, open_, last, stop)
 
 
 @njit(inline="always", **_OPTIONS)
@@ -249,7 +263,7 @@ _TABLE = types.float64[:, ::1]
 ADVANCE_SIGNATURE = types.UniTuple(_I8, 4)(
     FORCE_KERNEL_TYPE, BATCH_FORCE_KERNEL_TYPE,  # force, batch_force
     _TABLE, _TABLE, _TABLE,  # x, v, f: (3, n B)
-    _TABLE, types.float64[::1], types.float64[:, :, :, ::1], _TABLE, types.float64[::1],  # coef (c, B), chain_coef (c,), table (S+1, 3, 3, B), mass (3, B), weights (S,)
+    _TABLE, types.float64[::1], types.float64[:, :, :, :, ::1], types.float64[::1],  # coef (c, B), chain_coef (c,), pairs, weights (S,)
     types.int64[:, ::1], _TABLE, _TABLE,  # load_index (L, 4), knots, load_scale (L, B)
     _TABLE, types.int64[:, ::1], types.int64[::1],  # lanes (N_LANE_FIELDS, B), lane_ints (N_LANE_INTS, B), columns (4,)
     _I8, _I8, _I8, _I8, _I8, types.boolean,  # n_steps, step0, stride, check_every, pending, close_at_end
@@ -259,7 +273,7 @@ ADVANCE_SIGNATURE = types.UniTuple(_I8, 4)(
 # fmt: on
 
 
-@njit(ADVANCE_SIGNATURE, **_OPTIONS)
+@njit(ADVANCE_SIGNATURE, **_KICK_OPTIONS)
 def advance(
     force,
     batch_force,
@@ -268,8 +282,7 @@ def advance(
     f,
     coef,
     chain_coef,
-    table,
-    mass,
+    pairs,
     weights,
     load_index,
     knots,
@@ -304,8 +317,8 @@ def advance(
         boundary; column k of member b at index k B + b.
     f : ndarray (3, n B)
         Forces plus loads at those states (kept between calls: one evaluation per sub-step).
-    coef : (c, B) model coefficients; chain_coef : (c,) member 0's, for B = 1; table : (S+1, 3, 3, B) from :func:`.integrators.substep_table`;
-    mass : (3, B) inertia of the rows; weights : (S,) the method's sub-step sizes as fractions of dt
+    coef : (c, B) model coefficients; chain_coef : (c,) member 0's, for B = 1
+    pairs : (S+1, S+1, 5, 3, B) from :func:`pair_table`; weights : (S,) the method's sub-step sizes as fractions of dt
     load_index : (L, 5) row, column, first and one-past-last knot, and whether the load's work counts (0 or 1)
     knots : the schedules' knots (``Loads.compiled``); load_scale : (L, B) amplitude of load l on member b
     lanes, lane_ints : per-member tables (rows T0.., CROSSINGS..); BLEW_UP is set for members found out of bounds
@@ -341,7 +354,7 @@ def advance(
             )
     work = acc[0]
     dissipated = acc[1]
-    scratch = np.empty((6, size))
+    scratch = np.empty(size)
     step_time = np.empty(size)
     winding_prev = np.empty(size)
     time_prev = np.empty(size)
@@ -359,7 +372,7 @@ def advance(
     to_check = check_every - step0 % check_every
     for k in range(n_steps):
         for s in range(n_sub):
-            _kick_drift(x, v, f, table, mass, pending, s, columns, dissipated, scratch)
+            _kick_drift(x, v, f, pairs, pending, s, columns, dissipated, scratch)
             _forces(force, batch_force, x, coef, chain_coef, f, columns)
             for j in range(n_loads):
                 row = load_index[j, 0]
@@ -387,7 +400,7 @@ def advance(
         store = to_store == 0
         last = k == n_steps - 1 and close_at_end
         if store or last:
-            _kick_drift(x, v, f, table, mass, pending, empty, columns, dissipated, scratch)
+            _kick_drift(x, v, f, pairs, pending, empty, columns, dissipated, scratch)
             pending = empty
         if store:
             to_store = stride
@@ -405,7 +418,7 @@ def advance(
             to_check = check_every
             if _runaway(x, v, lanes, lane_ints):
                 if pending != empty:
-                    _kick_drift(x, v, f, table, mass, pending, empty, columns, dissipated, scratch)
+                    _kick_drift(x, v, f, pairs, pending, empty, columns, dissipated, scratch)
                 return STATUS_BLEW_UP, k + 1, frame - frame0, empty
     return STATUS_OK, n_steps, frame - frame0, pending
 
@@ -478,7 +491,7 @@ class Lanes:
         self.lanes[DIRECTION] = 1.0
         self.lane_ints = np.zeros((N_LANE_INTS, size), dtype=np.int64)
         self.lanes[DT] = dt
-        self.table = np.ascontiguousarray(substep_table(self.weights, self.lanes[DT].copy(), self.mass.T, self.gamma))
+        self.pairs = pair_table(substep_table(self.weights, self.lanes[DT].copy(), self.mass.T, self.gamma), self.mass)
         self.columns = np.array([1, n - 1, 1, n - 1], dtype=np.int64)
         self.pending = self.weights.size
         self.x = np.zeros((3, n, size))
@@ -534,7 +547,7 @@ class Lanes:
         kind = type(self.model)
         status, done, written, self.pending = advance(
             kind.force_kernel, kind.batch_kernel, self._flat(self.x), self._flat(self.v), self._flat(self.f), self.coef,
-            self.coef[:, 0].copy(), self.table, self.mass, self.weights,
+            self.coef[:, 0].copy(), self.pairs, self.weights,
             self.load_index, self.knots, self.load_scale, self.lanes, self.lane_ints, self.columns,
             int(n_steps), int(step0), int(stride), int(check_every), int(self.pending), bool(close_at_end), self.acc,
             flat_frames, frames_v.reshape(flat_frames.shape), frames_acc, record, int(frame0),
@@ -572,7 +585,7 @@ class Lanes:
         for name in ("load_scale", "coef", "mass", "lanes", "lane_ints", "acc"):
             setattr(out, name, np.ascontiguousarray(getattr(self, name)[:, members]))
         out.gamma = self.gamma[members]
-        out.table = np.ascontiguousarray(self.table[..., members])
+        out.pairs = np.ascontiguousarray(self.pairs[..., members])
         for name in ("x", "v", "f"):
             setattr(out, name, np.ascontiguousarray(getattr(self, name)[..., members]))
         out.turns = TurnRecord(*(np.ascontiguousarray(a[..., members]) for a in (self.turns.time, self.turns.step_time, self.turns.phi)))
