@@ -194,7 +194,7 @@ def moment_load(moment: float | Schedule, particle: int = 0) -> Loads:
     return Loads([PointLoad("phi", particle, schedule)])
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def schedule_value(knots: np.ndarray, start: int, stop: int, t: float) -> float:
     """Compiled twin of :meth:`Schedule.__call__` for knots[start:stop]."""
     if t < knots[start, 0]:

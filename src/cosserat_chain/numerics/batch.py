@@ -136,7 +136,7 @@ def integrate_batch(
         lanes = Lanes(
             model, [params[b] for b in members], method, t_end / n_steps[members], loads, moments[None, members], x0[members], v0[members]
         )
-        lanes.follow_turns(col, 1)
+        lanes.follow_turns(col, 0)
         lanes.evaluate_forces()
         frames_acc = np.zeros((count, 2, members.size))
         angles = np.zeros((count, members.size))

@@ -334,7 +334,8 @@ def advance(
     frames_x, frames_v : (F, 3, n B), or F = 0 to store no states; frames_acc : (F, 2, B);
     record : (F, B) angle of column ``watch`` at every store (when watch >= 0)
     frame0 : first slot to write
-    watch : column whose turns to follow (-1: none); ring_time, ring_step_time, ring_phi : its :class:`TurnRecord`
+    watch : column whose angle ``record`` keeps (-1: none) and whose turns the ring follows
+    ring_time, ring_step_time, ring_phi : its :class:`TurnRecord`; a ring of capacity 0 follows no turns
 
     Returns
     -------
@@ -377,21 +378,27 @@ def advance(
             for j in range(n_loads):
                 row = load_index[j, 0]
                 at = load_index[j, 1] * size
+                first_knot, last_knot = load_index[j, 2], load_index[j, 3]
                 for i in range(size):
-                    # The time of sub-step s, summed as t0 + (step0 + k) dt + w_0 dt + ... + w_s dt;
-                    # in registers: a time array written every sub-step kept the compiler
-                    # from hoisting anything past it (a third of a short chain's step).
-                    t = lanes[T0, i] + (step0 + k) * lanes[DT, i]
-                    for w in range(s + 1):
-                        t += weights[w] * lanes[DT, i]
+                    if last_knot - first_knot == 1:
+                        # A constant load: no time, no search (once per member and sub-step).
+                        value = knots[first_knot, 1]
+                    else:
+                        # The time of sub-step s, summed as t0 + (step0 + k) dt + w_0 dt + ... + w_s dt;
+                        # in registers: a time array written every sub-step kept the compiler
+                        # from hoisting anything past it (a third of a short chain's step).
+                        t = lanes[T0, i] + (step0 + k) * lanes[DT, i]
+                        for w in range(s + 1):
+                            t += weights[w] * lanes[DT, i]
+                        value = schedule_value(knots, first_knot, last_knot, t)
                     q = x[row, at + i]
-                    load = load_scale[j, i] * schedule_value(knots, load_index[j, 2], load_index[j, 3], t)
+                    load = load_scale[j, i] * value
                     f[row, at + i] += load
                     work[i] += load_index[j, 4] * (0.5 * (load_old[j, i] + load) * (q - q_old[j, i]))
                     q_old[j, i] = q
                     load_old[j, i] = load
             pending = s
-        if watch >= 0:
+        if watch >= 0 and ring_time.shape[0] > 0:
             for i in range(size):
                 step_time[i] = lanes[T0, i] + (step0 + k + 1) * lanes[DT, i]
             _follow_turns(x, lanes, lane_ints, watch, step_time, winding_prev, time_prev, ring_time, ring_step_time, ring_phi)
@@ -506,7 +513,10 @@ class Lanes:
         self.turns = TurnRecord.empty(1, n, size)
 
     def follow_turns(self, col: int, capacity: int) -> None:
-        """Follow the turns of column ``col`` from the current state, keeping the last ``capacity``."""
+        """Follow the turns of column ``col`` from the current state, keeping the last ``capacity``.
+
+        With ``capacity`` 0 the column's angle is only recorded at every store (``record``).
+        """
         self.watch = int(col)
         self.turns = TurnRecord.empty(capacity, self.n, self.size)
         self.restart_turns(np.arange(self.size), np.ones(self.size))
