@@ -67,6 +67,8 @@ T0, DT, MAX_DISPLACEMENT, MAX_ANGLE, DIRECTION, PHI_START = range(6)
 N_LANE_FIELDS = 6
 #: Steps between two exchanges of halos when one chain is split over threads (:class:`Blocks`).
 SUPER_STEPS = 16
+#: Columns per block of a chain's sub-step (kick-drift then forces while in cache).
+SWEEP_BLOCK = 512
 #: Blocks per thread, taken by whichever thread is free.
 BLOCKS_PER_THREAD = 4
 # Rows of the per-member int table ``lane_ints``: turns made, blown up (0 or 1).
@@ -172,6 +174,19 @@ def _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, total):  # pragm
 
 
 @njit(inline="always", **_KICK_OPTIONS)
+def _kick_drift_counted(x, v, f, pairs, close, open_, c0, c1, first, last):  # pragma: no cover - compiled
+    """The chain's kick-drift on columns c0..c1-1; returns the energy removed on [first, last) only."""
+    lo = min(max(c0, first), c1)
+    hi = max(min(c1, last), lo)
+    if lo > c0:
+        _kick_drift_chain(x, v, f, pairs, close, open_, c0, lo)
+    removed = _kick_drift_chain(x, v, f, pairs, close, open_, lo, hi)
+    if c1 > hi:
+        _kick_drift_chain(x, v, f, pairs, close, open_, hi, c1)
+    return removed
+
+
+@njit(inline="always", **_KICK_OPTIONS)
 def _kick_drift(x, v, f, pairs, close, open_, columns, dissipated, scratch):  # pragma: no cover - compiled
     """Close ``close`` and open ``open_`` on the whole batch; adds each member's loss to ``dissipated``.
 
@@ -183,31 +198,37 @@ def _kick_drift(x, v, f, pairs, close, open_, columns, dissipated, scratch):  # 
     """
     if dissipated.size > 1:
         _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch)
-        return
-    start, stop, first, last = columns[0], columns[1], columns[2], columns[3]
-    if first == start and last == stop:
-        dissipated[0] += _kick_drift_chain(x, v, f, pairs, close, open_, start, stop)
-        return
-    if first > start:
-        _kick_drift_chain(x, v, f, pairs, close, open_, start, first)
-    dissipated[0] += _kick_drift_chain(x, v, f, pairs, close, open_, first, last)
-    if stop > last:
-        _kick_drift_chain(x, v, f, pairs, close, open_, last, stop)
+    else:
+        dissipated[0] += _kick_drift_counted(x, v, f, pairs, close, open_, columns[0], columns[1], columns[2], columns[3])
 
 
-@njit(inline="always", **_OPTIONS)
-def _forces(force, batch_force, x, coef, chain_coef, f, columns):  # pragma: no cover - compiled
-    """Internal forces of every member into f (free columns); x, f are (3, n B).
+@njit(inline="always", **_KICK_OPTIONS)
+def _substep(force, batch_force, x, v, f, coef, chain_coef, pairs, close, open_, columns, dissipated, scratch):  # pragma: no cover - compiled
+    """Close ``close``, open ``open_``, then the internal forces at the new positions into f.
 
-    ``chain_coef`` (c,) is member 0's column of ``coef`` (c, B), for the chain kernel when B = 1,
-    which computes columns [columns[0], columns[1]).
+    One chain (B = 1) goes block by block: the kick-drift of :data:`SWEEP_BLOCK` columns,
+    then the forces one column behind them (a column's force needs its right neighbour
+    moved), while the block is in cache; two whole sweeps streamed x, v and f through
+    memory twice a step, which bounds a long chain. Every column is computed as in two
+    sweeps, so the states are the same to the last bit. A batch (B > 1) takes its
+    kick-drift and then its batch kernel. ``chain_coef`` (c,) is member 0's column of
+    ``coef`` (c, B).
     """
     size = coef.shape[1]
-    if size == 1:
-        force(x, chain_coef, f, columns[0], columns[1])
-    else:
+    if size > 1:
+        _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch)
         n = x.shape[1] // size
         batch_force(x.reshape((3, n, size)), coef, f.reshape((3, n, size)))
+        return
+    start, stop, first, last = columns[0], columns[1], columns[2], columns[3]
+    done = start
+    for c0 in range(start, stop, SWEEP_BLOCK):
+        c1 = min(c0 + SWEEP_BLOCK, stop)
+        dissipated[0] += _kick_drift_counted(x, v, f, pairs, close, open_, c0, c1, first, last)
+        top = stop if c1 == stop else c1 - 1
+        if top > done:
+            force(x, chain_coef, f, done, top)
+            done = top
 
 
 @njit(**_OPTIONS)
@@ -373,8 +394,7 @@ def advance(
     to_check = check_every - step0 % check_every
     for k in range(n_steps):
         for s in range(n_sub):
-            _kick_drift(x, v, f, pairs, pending, s, columns, dissipated, scratch)
-            _forces(force, batch_force, x, coef, chain_coef, f, columns)
+            _substep(force, batch_force, x, v, f, coef, chain_coef, pairs, pending, s, columns, dissipated, scratch)
             for j in range(n_loads):
                 row = load_index[j, 0]
                 at = load_index[j, 1] * size
