@@ -164,7 +164,7 @@ def test_results_do_not_depend_on_chunking_or_threads(paper, monkeypatch):
 
 
 @pytest.mark.parametrize("method", ["verlet", "yoshida4"])
-def test_a_long_chain_on_two_threads_gives_the_states_of_one_bit_for_bit(method):
+def test_a_long_chain_on_two_threads_gives_the_states_of_one_bit_for_bit(method, monkeypatch):
     # Long enough for several blocks with halos, which meet only every few steps;
     # loads inside blocks, in halos and on a block edge, one of them scheduled.
     params = ChainParams(N=1500, a=0.3, E2=0.7)
@@ -178,6 +178,8 @@ def test_a_long_chain_on_two_threads_gives_the_states_of_one_bit_for_bit(method)
     )
     kwargs = dict(t_end=12.0, x0=x0, v0=v0, n_frames=7, method=method)
     one = integrate(params, "nonlinear", loads, **kwargs)
+    # Several compiled calls (chunks) per run, each of several exchanges of halos.
+    monkeypatch.setattr(dynamics, "CHUNK_WORK", 3001 * 150)
     two = integrate(params, "nonlinear", loads, threads=2, **kwargs)
     assert one.ok and two.ok
     np.testing.assert_array_equal(two.x, one.x)

@@ -665,6 +665,8 @@ class Blocks:
         from concurrent.futures import ThreadPoolExecutor
 
         self.lanes = lanes
+        # The sums before the blocks took over; each block's own sums start at zero.
+        self.acc0 = lanes.acc.copy()
         self.halo = SUPER_STEPS * lanes.weights.size + 1
         n = lanes.n
         count = max(1, min(BLOCKS_PER_THREAD * threads, (n - 2) // (4 * self.halo)))
@@ -683,7 +685,6 @@ class Blocks:
     def advance(self, n_steps, step0, stride, check_every, frames, frame0):
         """As :meth:`Lanes.advance` on the whole chain (frames of states, ``record`` unused)."""
         frames_x, frames_v, frames_acc, _ = frames
-        acc0 = self.lanes.acc.copy()
         done = written = 0
         while done < n_steps:
             to_store = stride - (step0 + done) % stride
@@ -698,7 +699,7 @@ class Blocks:
             blew_up = any(code == STATUS_BLEW_UP for code, _, _ in outcomes)
             stored = length == to_store
             if blew_up or stored or final:
-                self._gather(acc0)
+                self._gather()
                 if stored and not blew_up:
                     frames_x[frame0 + written] = self.lanes.x
                     frames_v[frame0 + written] = self.lanes.v
@@ -721,9 +722,9 @@ class Blocks:
                 for name in ("x", "v", "f"):
                     getattr(block, name)[:, lo - first : hi - first] = getattr(other, name)[:, lo - o_first : hi - o_first]
 
-    def _gather(self, acc0: np.ndarray) -> None:
+    def _gather(self) -> None:
         """The blocks' own columns into the whole chain, and their energy sums."""
-        self.lanes.acc[...] = acc0
+        self.lanes.acc[...] = self.acc0
         for (first, _, start, stop), block in zip(self.spans, self.blocks):
             for name in ("x", "v", "f"):
                 getattr(self.lanes, name)[:, start:stop] = getattr(block, name)[:, start - first : stop - first]
