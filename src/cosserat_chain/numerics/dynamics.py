@@ -154,8 +154,10 @@ def integrate(
         Store every ``stride``-th step; if not given, ``stride`` is chosen so that
         about ``n_frames`` states are stored (always including the first and last).
     threads : int
-        Split every step over this many blocks of the chain (worth it from about
-        10^4 particles on).
+        Run the chain on this many threads as blocks with halos that meet every 16
+        steps (:class:`~cosserat_chain.numerics.engine.Blocks`; worth it from about
+        10^5 particles on, a chain too short for blocks runs on one). The states
+        equal a one-thread run's to the last bit.
     max_displacement : float, optional
         |u| or |v| beyond this is a runaway; default 100 chain lengths.
     check_stability : bool
