@@ -792,6 +792,11 @@ def stack_states(params: list, states, name: str) -> np.ndarray:
         arr = np.broadcast_to(arr, (len(params), *arr.shape))
     if arr.ndim != 3 or arr.shape[0] != len(params):
         raise ValueError(f"{name} must have shape (3, 2N+1) or ({len(params)}, 3, 2N+1), got {np.shape(states)}")
+    # The whole stack at once (member by member cost 30 ms for 1000 members); a bad one is
+    # then found and named by check_state, with its message.
+    if arr.shape[1:] == (3, n) and np.isfinite(arr).all() and not np.any(arr[:, :, [0, -1]] != 0.0):
+        out[...] = arr
+        return out
     for i, p in enumerate(params):
         out[i] = check_state(p, arr[i], f"{name}[{i}]")
     return out
