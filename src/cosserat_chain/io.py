@@ -46,7 +46,14 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
 
 
 def write_dataset(dataset: xr.Dataset, path: str | Path) -> Path:
-    """Write ``dataset`` to NetCDF at ``path`` atomically; returns the path."""
+    """Write ``dataset`` to NetCDF at ``path`` atomically; returns the path.
+
+    Attribute values that are subclasses of ``str`` (a :class:`~cosserat_chain.status.Status`)
+    are written as plain strings: h5netcdf finds no conversion for them.
+    """
+    dataset = dataset.copy()
+    for attrs in [dataset.attrs, *(variable.attrs for variable in dataset.variables.values())]:
+        attrs.update({key: str(value) for key, value in attrs.items() if isinstance(value, str) and type(value) is not str})
     with atomic_path(path) as tmp:
         dataset.to_netcdf(tmp, engine="h5netcdf")
     return Path(path)

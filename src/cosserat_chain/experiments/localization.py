@@ -165,7 +165,7 @@ class LocalizationResult:
             "dt": self.dt,
             "method": self.method,
             "steps": self.step,
-            "status": str(self.status),
+            "status": self.status,
             "message": self.message,
             "wall_time": self.wall_time,
             "params": self.params.model_dump(),

@@ -51,7 +51,7 @@ def trajectory_dataset(params: ChainParams, model: str | Model, loads: Loads, tr
             "method": trajectory.method,
             "dt": trajectory.dt,
             "steps": trajectory.steps,
-            "status": str(trajectory.status),
+            "status": trajectory.status,
             "message": trajectory.message,
         }
     )

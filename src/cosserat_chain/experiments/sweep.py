@@ -313,7 +313,7 @@ def relaxation_sweeps(
 def sweep_result(params, model_name, particle, records, completed, settings) -> SweepResult:
     """Assemble a :class:`SweepResult` from ``(moment, direction, RelaxationStep)`` records."""
     n = params.n_particles
-    status = np.array([str(r[2].status) for r in records], dtype=object)
+    status = np.array([r[2].status for r in records], dtype=object)
     direction = np.array([r[1] for r in records], dtype=object)
     moment = np.array([r[0] for r in records], dtype=float)
     onset = next((m for m, d, s in zip(moment, direction, status) if d == "up" and s == ROTATING), None)
