@@ -216,8 +216,8 @@ def integrate(
     frame_steps = np.empty(n_stored, dtype=np.int64)
     frame_steps[0] = 0
     lanes.evaluate_forces()
-    blocks = Blocks(lanes, threads) if threads > 1 else None
-    runner = lanes if blocks is None or len(blocks.blocks) == 1 else blocks
+    blocks = Blocks(lanes, threads) if threads > 1 and Blocks.count(n, threads, method.force_evaluations) > 1 else None
+    runner = lanes if blocks is None else blocks
 
     stored = 1
     steps_done = 0

@@ -203,7 +203,9 @@ def _kick_drift(x, v, f, pairs, close, open_, columns, dissipated, scratch):  # 
 
 
 @njit(inline="always", **_KICK_OPTIONS)
-def _substep(force, batch_force, x, v, f, coef, chain_coef, pairs, close, open_, columns, dissipated, scratch):  # pragma: no cover - compiled
+def _substep(
+    force, batch_force, x, v, f, coef, chain_coef, pairs, close, open_, columns, dissipated, scratch
+):  # pragma: no cover - compiled
     """Close ``close``, open ``open_``, then the internal forces at the new positions into f.
 
     One chain (B = 1) goes block by block: the kick-drift of :data:`SWEEP_BLOCK` columns,
@@ -647,6 +649,11 @@ class Lanes:
         return out
 
 
+def _halo(substeps: int) -> int:
+    """Halo columns that keep a block exact for SUPER_STEPS steps (one column per force evaluation)."""
+    return SUPER_STEPS * substeps + 1
+
+
 class Blocks:
     """One long chain split into blocks with halos, on threads that meet only every few steps.
 
@@ -667,10 +674,9 @@ class Blocks:
         self.lanes = lanes
         # The sums before the blocks took over; each block's own sums start at zero.
         self.acc0 = lanes.acc.copy()
-        self.halo = SUPER_STEPS * lanes.weights.size + 1
+        self.halo = _halo(lanes.weights.size)
         n = lanes.n
-        count = max(1, min(BLOCKS_PER_THREAD * threads, (n - 2) // (4 * self.halo)))
-        cuts = np.linspace(1, n - 1, count + 1).round().astype(np.int64)
+        cuts = np.linspace(1, n - 1, self.count(n, threads, lanes.weights.size) + 1).round().astype(np.int64)
         self.spans = []
         self.blocks = []
         for start, stop in zip(cuts[:-1], cuts[1:]):
@@ -678,6 +684,11 @@ class Blocks:
             self.spans.append((int(first), int(last), int(start), int(stop)))
             self.blocks.append(lanes.segment(int(first), int(last), int(start), int(stop)))
         self.pool = ThreadPoolExecutor(max_workers=threads)
+
+    @staticmethod
+    def count(n: int, threads: int, substeps: int) -> int:
+        """Blocks for a chain of n columns: BLOCKS_PER_THREAD per thread, each at least four halos wide."""
+        return max(1, min(BLOCKS_PER_THREAD * threads, (n - 2) // (4 * _halo(substeps))))
 
     def close(self) -> None:
         self.pool.shutdown()
