@@ -205,3 +205,9 @@ def test_ctrl_c_between_chunks_keeps_what_was_computed(paper, monkeypatch):
     run = integrate(paper, "nonlinear", moment_load(0.1), t_end=200.0, dt=0.02, stride=100, progress=interrupt)
     assert run.status == "interrupted" and run.steps == 3000
     assert run.time[-1] == pytest.approx(60.0) and np.all(np.isfinite(run.x))
+
+
+def test_the_default_step_is_inside_every_methods_stability_limit():
+    # integrate and the batches skip the stability check for the default step on this ground.
+    for method in METHODS.values():
+        assert dynamics.DEFAULT_OMEGA_DT < 0.5 * method.stability_limit

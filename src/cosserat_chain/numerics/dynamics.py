@@ -177,11 +177,15 @@ def integrate(
     """
     model = get_model(model)
     method = get_method(method)
-    dt = default_time_step(params, model) if dt is None else float(dt)
-    if check_stability:
-        check_time_step(params, dt, method, model)
+    if dt is None:
+        # omega_max dt = DEFAULT_OMEGA_DT, far inside every method's stability limit: no check
+        # (it would compute the frequency bound a second time).
+        dt = default_time_step(params, model)
+    elif check_stability:
+        check_time_step(params, float(dt), method, model)
     elif not (math.isfinite(dt) and dt > 0):
         raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
+    dt = float(dt)
     if not (math.isfinite(t_end) and t_end > t0):
         raise ValueError(f"t_end must be finite and > t0={t0!r}, got {t_end!r}")
     n_steps = max(1, math.ceil((t_end - t0) / dt - 1e-9))
