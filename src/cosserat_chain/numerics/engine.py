@@ -560,6 +560,9 @@ class Lanes:
         else:
             kind.batch_kernel(self.x, self.coef, self.f)
         for j, (row, col, start, stop, _) in enumerate(self.load_index):
+            if stop - start == 1:  # constant: one value for every member
+                self.f[row, col] += self.load_scale[j] * self.knots[start, 1]
+                continue
             for i in range(self.size):
                 self.f[row, col, i] += self.load_scale[j, i] * _schedule(self.knots, start, stop, self.lanes[T0, i])
 

@@ -310,10 +310,13 @@ def run_plans(
         for lane, b in enumerate(index):
             _next_step(lanes, lane, active, b, None, 0)
         done = 0
+        moved = True  # a member started a step under a new moment
         while active and not stop.is_set():
-            # The loaded column of a member with a new moment: forces plus loads anew
-            # (for the others this gives the same bits as the loop left there).
-            lanes.evaluate_forces()
+            if moved:
+                # The loaded column of a member with a new moment: forces plus loads anew
+                # (for the others this gives the same bits as the loop left there).
+                lanes.evaluate_forces()
+                moved = False
             code, _, _ = lanes.advance(per_chunk[index[0]], done * per_chunk[index[0]])
             done += 1
             if code == STATUS_BLEW_UP:
@@ -329,6 +332,7 @@ def run_plans(
                     member.due = min(done + member.chunk, member.begun + options.chunks)
                 else:
                     _next_step(lanes, lane, active, b, result, done)
+                    moved = True
             keep = [lane for lane, b in enumerate(index) if b in active]
             if active and len(keep) < len(index):
                 lanes = lanes.select(np.array(keep))
