@@ -7,6 +7,7 @@ import pytest
 import scipy.sparse.linalg as spla
 
 import cosserat_chain.numerics.dynamics as dynamics
+import cosserat_chain.numerics.engine as engine
 from conftest import random_state
 from cosserat_chain import ChainParams, moment_load
 from cosserat_chain.analysis.energy import energy_budget
@@ -211,3 +212,56 @@ def test_the_default_step_is_inside_every_methods_stability_limit():
     # integrate and the batches skip the stability check for the default step on this ground.
     for method in METHODS.values():
         assert dynamics.DEFAULT_OMEGA_DT < 0.5 * method.stability_limit
+
+
+@pytest.mark.parametrize("moment", [0.4, -0.4])
+def test_a_run_that_follows_turns_stops_at_the_step_completing_the_asked_turn(paper, moment):
+    loads = moment_load(moment)
+    sense = np.sign(moment)
+    whole = integrate(paper, "sine", loads, t_end=40.0, stride=1)
+    winding = sense * whole.x[:, 2, paper.N] / (2 * np.pi)
+    first = int(np.argmax(winding >= 5))
+    assert first > 0 and winding[first - 1] < 5
+    stopped = integrate(paper, "sine", loads, t_end=40.0, stride=1, turns=dynamics.TurnWatch(0, sense, stop_after=5, keep=3))
+    assert stopped.ok and stopped.steps == first and stopped.turns.made == 5
+    # The same steps as the run that went on: the states up to there agree bit for bit.
+    np.testing.assert_array_equal(stopped.x, whole.x[: first + 1])
+    np.testing.assert_array_equal(stopped.v[-1], whole.v[first])
+    # The ring keeps the latest three turns, each interpolated between the steps around it ...
+    times, made = stopped.turns.times, engine.turns_in_frames(whole.time, whole.x[:, 2, paper.N], sense, 0.0, 0)[0]
+    steps = [int(np.argmax(winding >= n)) for n in (3, 4, 5)]
+    expected = [whole.time[k - 1] + (n - winding[k - 1]) / (winding[k] - winding[k - 1]) * whole.dt for n, k in zip((3, 4, 5), steps)]
+    np.testing.assert_allclose(times, expected, rtol=1e-12)
+    np.testing.assert_allclose(stopped.turns.step_times, whole.time[steps], rtol=1e-12)
+    np.testing.assert_array_equal(stopped.turns.phi, whole.x[steps, 2])
+    # ... and the detector on stored frames finds the same turns as the one in the loop.
+    _, frame_times = engine.turns_in_frames(whole.time[: first + 1], whole.x[: first + 1, 2, paper.N], sense, 0.0, 0)
+    assert frame_times.size == 5 and made == int(np.floor(winding.max()))
+    np.testing.assert_allclose(frame_times[2:], times, rtol=1e-12)
+
+
+def test_following_turns_goes_on_counting_across_runs(paper):
+    loads = moment_load(0.4)
+    dt = 0.01  # a whole number of steps in both parts: the same steps as the whole run (to round-off:
+    # a run closes its last step, where the whole run fuses closing and opening)
+    whole = integrate(paper, "sine", loads, t_end=30.0, dt=dt, turns=dynamics.TurnWatch(0, keep=64))
+    first = integrate(paper, "sine", loads, t_end=12.0, dt=dt, turns=dynamics.TurnWatch(0, keep=64))
+    second = integrate(paper, "sine", loads, t0=12.0, t_end=30.0, dt=dt, x0=first.x[-1], v0=first.v[-1], turns=first.turns.following())
+    np.testing.assert_allclose(second.x[-1], whole.x[-1], rtol=0, atol=1e-9)
+    assert second.turns.made == whole.turns.made > first.turns.made > 0
+    np.testing.assert_allclose(np.concatenate([first.turns.times, second.turns.times]), whole.turns.times, rtol=1e-9)
+    # A swing back and forth over the start is no turn: a chain at rest after a small kick makes none.
+    _, v0 = kicked_start(paper)
+    rest = integrate(paper, "linear", Loads(), t_end=20.0, v0=v0, turns=dynamics.TurnWatch(0))
+    assert rest.turns.made == 0 and rest.turns.times.size == 0
+
+
+def test_a_turn_watch_is_checked(paper):
+    with pytest.raises(ValueError, match="direction must be 1.0 or -1.0"):
+        dynamics.TurnWatch(0, direction=2.0)
+    with pytest.raises(ValueError, match="stop_after must exceed made=3"):
+        dynamics.TurnWatch(0, made=3, stop_after=3)
+    with pytest.raises(ValueError, match="keep must be >= 1"):
+        dynamics.TurnWatch(0, keep=0)
+    with pytest.raises(ValueError, match="particle"):
+        integrate(paper, "sine", moment_load(0.4), t_end=1.0, turns=dynamics.TurnWatch(paper.N + 1))

@@ -16,7 +16,9 @@ wrapped by the integrators):
 * winding number: trunc(theta_k / 2 pi), the signed number of full turns made
   (floor for theta_k >= 0; a small swing to negative angles is 0 turns, not -1);
 * turns made: the largest |winding number| reached during the run, and the time
-  at which it was last increased;
+  at which it was last increased; for the loaded particle, the turns completed
+  along the sense of its moment (``direction``), found and timed by the engine's
+  turn detector (:func:`~cosserat_chain.numerics.engine.turns_in_frames`);
 * mean angular velocity of the loaded particle: theta / (t - t_start); and over
   the most recent ``WINDOW_TURNS`` full turns, 2 pi k / (time of turn n - time of
   turn n - k), the turn times interpolated linearly between steps;
@@ -46,6 +48,7 @@ from typing import Any
 import numpy as np
 
 from ..models.base import Model, get_model
+from ..numerics.engine import turns_in_frames
 from ..params import ChainParams
 from ..state import column
 
@@ -129,6 +132,8 @@ class StreamingDiagnostics:
         State at the start of the run (counted as its first frame).
     t0 : float
         Time of the start.
+    direction : {1.0, -1.0}
+        Sense in which the loaded particle's turns count (the sign of its moment).
 
     Notes
     -----
@@ -142,8 +147,18 @@ class StreamingDiagnostics:
     _PER_PARTICLE = ("angle_start", "angle", "max_abs_u", "max_abs_v", "max_abs_phi", "turns", "last_turn_time", "energy_share_sum")
     _SCALARS = ("t_start", "time", "steps", "participation_sum", "energy_steps")
 
-    def __init__(self, params: ChainParams, model: str | Model, particle: int, x0: np.ndarray, v0: np.ndarray, t0: float = 0.0):
+    def __init__(
+        self,
+        params: ChainParams,
+        model: str | Model,
+        particle: int,
+        x0: np.ndarray,
+        v0: np.ndarray,
+        t0: float = 0.0,
+        direction: float = 1.0,
+    ):
         self.params = params
+        self.direction = float(direction)
         self.model = get_model(model)
         self.particle = particle
         self.column = column(params, particle)
@@ -200,14 +215,12 @@ class StreamingDiagnostics:
         last = increased.shape[0] - 1 - np.argmax(increased[::-1], axis=0)
         self.last_turn_time = np.where(turned, time[1:][last], self.last_turn_time)
 
+        # The loaded particle's turn times by the engine's detector, along the sense it turns.
         c = self.column
-        new_times = []
-        for level in range(self.turns[c] + 1, running[-1, c] + 1):
-            i = int(np.argmax(theta[:, c] >= TWO_PI * level))
-            fraction = (TWO_PI * level - theta[i - 1, c]) / (theta[i, c] - theta[i - 1, c])
-            new_times.append(time[i - 1] + fraction * (time[i] - time[i - 1]))
+        made, new_times = turns_in_frames(time, x[:, 2, c], self.direction, self.angle_start[c], int(self.turns[c]))
         self.turn_times = np.concatenate([self.turn_times, new_times])[-(WINDOW_TURNS + 1) :]
         self.turns = running[-1].copy()
+        self.turns[c] = made
 
         if self.has_energy:
             self._accumulate_energy(new, np.asarray(v, dtype=float)[1:])
@@ -296,11 +309,13 @@ class StreamingDiagnostics:
         return out
 
     @classmethod
-    def from_variables(cls, params: ChainParams, model: str | Model, particle: int, variables: Any) -> StreamingDiagnostics:
+    def from_variables(
+        cls, params: ChainParams, model: str | Model, particle: int, variables: Any, direction: float = 1.0
+    ) -> StreamingDiagnostics:
         """Rebuild the accumulator from :meth:`to_variables` (or a Dataset holding them)."""
         n = params.n_particles
         zero = np.zeros((3, n))
-        diagnostics = cls(params, model, particle, zero, zero)
+        diagnostics = cls(params, model, particle, zero, zero, direction=direction)
 
         def value(name: str) -> np.ndarray:
             item = variables[f"diag_{name}"]

@@ -47,7 +47,7 @@ from ..analysis.diagnostics import StreamingDiagnostics
 from ..io import read_dataset, write_dataset
 from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
-from ..numerics.dynamics import IntegrationError, default_time_step, integrate
+from ..numerics.dynamics import IntegrationError, TurnWatch, default_time_step, integrate
 from ..numerics.integrators import get_method
 from ..params import ChainParams
 from ..state import ROWS, column, zeros
@@ -300,6 +300,7 @@ def localization_run(
         raise ValueError("resume=True needs a checkpoint file to resume from (checkpoint=None)")
     loads: Loads = moment_load(moment, particle).validate(params)
     col = column(params, particle)
+    direction = 1.0 if moment >= 0 else -1.0
     dt = grid_time_step(default_time_step(params, model) if dt is None else float(dt))
     chunk_steps = max(1, min(round(chunk_time / dt), MAX_CHUNK_VALUES // params.n_particles))
     max_steps = max(1, math.ceil(t_max / dt - 1e-9))
@@ -336,19 +337,18 @@ def localization_run(
         step = int(ds.attrs["steps"])
         x = np.ascontiguousarray(np.stack([ds[f"final_{row}"].values for row in ROWS]))
         v = np.ascontiguousarray(np.stack([ds[f"final_{row}_dot"].values for row in ROWS]))
-        diagnostics = StreamingDiagnostics.from_variables(params, model, particle, ds)
+        diagnostics = StreamingDiagnostics.from_variables(params, model, particle, ds, direction)
         wall_before = float(ds.attrs["wall_time"])
         log.info("resuming %s from step %d (t=%g)", checkpoint, step, step * dt)
     else:
         if resume:
             log.info("no checkpoint at %s yet: starting from rest", checkpoint)
         step, x, v = 0, zeros(params), zeros(params)
-        diagnostics = StreamingDiagnostics(params, model, particle, x, v)
+        diagnostics = StreamingDiagnostics(params, model, particle, x, v, direction=direction)
     # One object holds the latest consistent state, replaced by a single assignment,
     # so that Ctrl-C anywhere leaves a state that can be saved.
     state = result(step, x, v, diagnostics, Status.INTERRUPTED, "", wall_before)
     last_write = clock.perf_counter()
-    target = turns * 2.0 * math.pi
     try:
         while state.diagnostics.turns_completed < turns and state.step < max_steps:
             first = state.step
@@ -364,14 +364,12 @@ def localization_run(
                 v0=state.v,
                 method=method,
                 stride=1,
+                # Stop at the step that completes the last turn.
+                turns=TurnWatch(particle, direction, state.diagnostics.angle_start[col], state.diagnostics.turns_completed, 1, turns),
             )
             if run.status == Status.BLEW_UP:
                 raise IntegrationError(f"localization run ({model.name}, M={moment:g}): {run.message}", run)
             frames = run.x.shape[0]
-            angle = np.abs(run.x[:, 2, col] - state.diagnostics.angle_start[col])
-            reached = np.flatnonzero(angle >= target)
-            if reached.size:
-                frames = int(reached[0]) + 1
             times = (first + np.arange(frames)) * dt
             updated = _copy(state.diagnostics)
             updated.update(times, run.x[:frames], run.v[:frames])
@@ -413,4 +411,6 @@ def localization_run(
 
 def _copy(diagnostics: StreamingDiagnostics) -> StreamingDiagnostics:
     """An independent copy, so that a chunk is taken in all or not at all."""
-    return StreamingDiagnostics.from_variables(diagnostics.params, diagnostics.model, diagnostics.particle, diagnostics.to_variables())
+    return StreamingDiagnostics.from_variables(
+        diagnostics.params, diagnostics.model, diagnostics.particle, diagnostics.to_variables(), diagnostics.direction
+    )

@@ -10,6 +10,13 @@ between chunks with everything computed so far kept (status ``interrupted``).
 A run that blows up (a non-finite value or a runaway displacement) stops with
 status ``blew_up``, keeps the frames before it, and, with ``throw=True``, raises
 :class:`IntegrationError` carrying the partial trajectory.
+
+With ``turns=TurnWatch(particle, ...)`` the compiled loop follows that
+particle's turns step by step (the package's one turn detector: turn n is
+complete when direction (phi - phi_start) reaches 2 pi n, its time interpolated
+linearly between the two steps around it) and can stop at the step that
+completes a given turn; the trajectory's :class:`TurnLog` holds the latest turns
+and continues the count in the next run.
 """
 
 from __future__ import annotations
@@ -17,16 +24,16 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..loads import Loads
 from ..models.base import Model, get_model
 from ..params import ChainParams
-from ..state import check_state
+from ..state import check_state, column
 from ..status import Status
-from .engine import STATUS_BLEW_UP, Blocks, Lanes
+from .engine import CROSSINGS, STATUS_BLEW_UP, STATUS_TURNED, TURN_LIMIT, Blocks, Lanes
 from .integrators import Method, get_method
 
 log = logging.getLogger(__name__)
@@ -47,6 +54,72 @@ class IntegrationError(RuntimeError):
         self.trajectory = trajectory
 
 
+@dataclass(frozen=True)
+class TurnWatch:
+    """Which turns :func:`integrate` follows, and when it stops.
+
+    Parameters
+    ----------
+    particle : int
+        Index -N..N of the particle whose turns are counted.
+    direction : {1.0, -1.0}
+        Turns count along this sense (the sign of the driving moment).
+    phi_start : float, optional
+        Angle from which turns count; default the particle's angle at the start.
+    made : int
+        Turns already made from ``phi_start`` (a run that continues another).
+    keep : int
+        The latest turns whose times and angles are kept.
+    stop_after : int, optional
+        Stop at the step that completes this turn (counted from ``phi_start``);
+        the run then ends before t_end with status ``completed``.
+    """
+
+    particle: int
+    direction: float = 1.0
+    phi_start: float | None = None
+    made: int = 0
+    keep: int = 16
+    stop_after: int | None = None
+
+    def __post_init__(self):
+        if self.direction not in (1.0, -1.0):
+            raise ValueError(f"TurnWatch.direction must be 1.0 or -1.0, got {self.direction!r}")
+        if self.keep < 1:
+            raise ValueError(f"TurnWatch.keep must be >= 1, got {self.keep!r}")
+        if self.stop_after is not None and self.stop_after <= self.made:
+            raise ValueError(f"TurnWatch.stop_after must exceed made={self.made}, got {self.stop_after!r}")
+
+
+@dataclass
+class TurnLog:
+    """The followed particle's turns at the end of a run (:class:`TurnWatch`).
+
+    Attributes
+    ----------
+    watch : TurnWatch
+        What was followed (with ``phi_start`` filled in).
+    made : int
+        Turns made from ``phi_start`` by the end of the run.
+    times : ndarray (k,)
+        Interpolated times of the latest k <= ``keep`` turns completed in this run, oldest first.
+    step_times : ndarray (k,)
+        Times of the steps right after them.
+    phi : ndarray (k, 2N+1)
+        Every particle's angle at those steps.
+    """
+
+    watch: TurnWatch
+    made: int
+    times: np.ndarray
+    step_times: np.ndarray
+    phi: np.ndarray
+
+    def following(self, stop_after: int | None = None) -> TurnWatch:
+        """The watch that goes on counting in a run that starts where this one ended."""
+        return replace(self.watch, made=self.made, stop_after=stop_after)
+
+
 @dataclass
 class Trajectory:
     """Stored states of a run.
@@ -65,6 +138,8 @@ class Trajectory:
     steps : int
         Steps actually taken.
     dt : float, method : str
+    turns : TurnLog or None
+        The followed particle's turns (``integrate(turns=...)``).
     """
 
     time: np.ndarray
@@ -77,6 +152,7 @@ class Trajectory:
     steps: int
     dt: float
     method: str
+    turns: TurnLog | None = None
 
     @property
     def ok(self) -> bool:
@@ -132,6 +208,7 @@ def integrate(
     check_stability: bool = True,
     progress: ProgressCallback | None = None,
     throw: bool = False,
+    turns: TurnWatch | None = None,
 ) -> Trajectory:
     """Integrate the damped, loaded chain with a compiled fixed-step method.
 
@@ -165,6 +242,8 @@ def integrate(
     progress : callable(steps_done, steps_total), optional
     throw : bool
         Raise :class:`IntegrationError` instead of returning a failed trajectory.
+    turns : TurnWatch, optional
+        Follow a particle's turns (on one thread) and stop after one of them if asked.
 
     Returns
     -------
@@ -220,7 +299,16 @@ def integrate(
     frame_steps = np.empty(n_stored, dtype=np.int64)
     frame_steps[0] = 0
     lanes.evaluate_forces()
-    blocks = Blocks(lanes, threads) if threads > 1 and Blocks.count(n, threads, method.force_evaluations) > 1 else None
+    if turns is not None:
+        lanes.follow_turns(column(params, turns.particle), turns.keep)
+        phi_start = lanes.x[2, lanes.watch, 0] if turns.phi_start is None else turns.phi_start
+        turns = replace(turns, phi_start=float(phi_start))
+        lanes.restart_turns(np.array([0]), np.array([turns.direction]), turns.phi_start, turns.made)
+        if turns.stop_after is not None:
+            lanes.lane_ints[TURN_LIMIT] = turns.stop_after
+    # The blocks follow no turns: a run that follows them stays on one thread.
+    split = turns is None and threads > 1 and Blocks.count(n, threads, method.force_evaluations) > 1
+    blocks = Blocks(lanes, threads) if split else None
     runner = lanes if blocks is None else blocks
 
     stored = 1
@@ -238,6 +326,9 @@ def integrate(
             steps_done += done
             if progress is not None:
                 progress(steps_done, n_steps)
+            if code == STATUS_TURNED:
+                message = f"stopped after turn {turns.stop_after} of particle {turns.particle} at t={t0 + steps_done * dt:.6g}"
+                break
             if code == STATUS_BLEW_UP:
                 status = Status.BLEW_UP
                 message = (
@@ -275,6 +366,7 @@ def integrate(
         steps=steps_done,
         dt=dt,
         method=method.name,
+        turns=None if turns is None else TurnLog(turns, int(lanes.lane_ints[CROSSINGS, 0]), *lanes.latest_turns(0, turns.made)),
     )
     if throw and status != Status.COMPLETED:
         raise IntegrationError(message, trajectory)

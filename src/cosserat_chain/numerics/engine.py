@@ -59,6 +59,8 @@ _KICK_OPTIONS = {**_OPTIONS, "fastmath": {"reassoc"}}
 #: Codes returned by the compiled loop.
 STATUS_OK = 0
 STATUS_BLEW_UP = 1
+#: Every member has completed its TURN_LIMIT-th turn of the followed column.
+STATUS_TURNED = 2
 
 # Rows of the per-member float table ``lanes``: start time, step, bounds on |u|, |v|
 # and on |phi|, and for the followed column the sense of its turns and its start angle.
@@ -71,9 +73,12 @@ SUPER_STEPS = 16
 SWEEP_BLOCK = 512
 #: Blocks per thread, taken by whichever thread is free.
 BLOCKS_PER_THREAD = 4
-# Rows of the per-member int table ``lane_ints``: turns made, blown up (0 or 1).
-CROSSINGS, BLEW_UP = range(2)
-N_LANE_INTS = 2
+# Rows of the per-member int table ``lane_ints``: turns made, blown up (0 or 1), and the
+# turn after which the loop stops (once every member has made it).
+CROSSINGS, BLEW_UP, TURN_LIMIT = range(3)
+N_LANE_INTS = 3
+#: TURN_LIMIT of a member that may turn without end.
+NO_TURN_LIMIT = np.iinfo(np.int64).max
 
 
 # Rows of the factors of one (close, open) pair of sub-steps (:func:`pair_table`).
@@ -248,27 +253,42 @@ def _runaway(x, v, lanes, lane_ints):  # pragma: no cover - compiled
     return found
 
 
+@njit(inline="always", **_OPTIONS)
+def _winding(phi, direction, phi_start):  # pragma: no cover - compiled
+    """Turns made along ``direction`` since ``phi_start``, as a real number."""
+    return direction * (phi - phi_start) / (2.0 * math.pi)
+
+
+@njit(inline="always", **_OPTIONS)
+def _turn_time(level, winding_prev, winding, time_prev, time_now):  # pragma: no cover - compiled
+    """When the winding reached the whole number ``level``, linear between two steps."""
+    alpha = (level - winding_prev) / (winding - winding_prev)
+    return time_prev + alpha * (time_now - time_prev)
+
+
 @njit(**_OPTIONS)
 def _follow_turns(
     x, lanes, lane_ints, col, time_step, winding_prev, time_prev, ring_time, ring_step_time, ring_phi
 ):  # pragma: no cover - compiled
     """Record the turns of column ``col`` completed since the previous step.
 
-    Turn n of member b is complete when direction (phi - phi_start) / 2 pi
-    reaches n; its time is interpolated linearly between the two steps around
-    it. The ring keeps the last C turns: their interpolated times, the time of
-    the step after each and every particle's angle at that step.
+    The package's one turn detector (with :func:`turns_in_frames` for stored
+    frames): turn n of member b is complete when its winding
+    direction (phi - phi_start) / 2 pi reaches n, and its time is interpolated
+    linearly between the two steps around it; a swing back over a turn already
+    made does not count again. The ring keeps the last C turns: their
+    interpolated times, the time of the step after each and every particle's
+    angle at that step. Returns whether every member has reached its TURN_LIMIT.
     """
     size = lanes.shape[1]
+    reached = True
     capacity = ring_time.shape[0]
-    two_pi = 2.0 * math.pi
     for i in range(size):
-        winding = lanes[DIRECTION, i] * (x[2, col * size + i] - lanes[PHI_START, i]) / two_pi
+        winding = _winding(x[2, col * size + i], lanes[DIRECTION, i], lanes[PHI_START, i])
         crossings = lane_ints[CROSSINGS, i]
         while winding >= crossings + 1:
-            alpha = (crossings + 1 - winding_prev[i]) / (winding - winding_prev[i])
             slot = crossings % capacity
-            ring_time[slot, i] = time_prev[i] + alpha * (time_step[i] - time_prev[i])
+            ring_time[slot, i] = _turn_time(crossings + 1, winding_prev[i], winding, time_prev[i], time_step[i])
             ring_step_time[slot, i] = time_step[i]
             for k in range(ring_phi.shape[1]):
                 ring_phi[slot, k, i] = x[2, k * size + i]
@@ -276,6 +296,43 @@ def _follow_turns(
         lane_ints[CROSSINGS, i] = crossings
         winding_prev[i] = winding
         time_prev[i] = time_step[i]
+        reached = reached and crossings >= lane_ints[TURN_LIMIT, i]
+    return reached
+
+
+@njit(**_OPTIONS)
+def turns_in_frames(time, phi, direction, phi_start, made):  # pragma: no cover - compiled
+    """The turns completed along stored frames, by the loop's detector (:func:`_follow_turns`).
+
+    Parameters
+    ----------
+    time, phi : ndarray (F,)
+        Times and angles of one particle at consecutive stored steps.
+    direction, phi_start : float
+        Sense of the turns and the angle they count from.
+    made : int
+        Turns already made at frame 0.
+
+    Returns
+    -------
+    made : int
+        Turns made at the last frame.
+    times : ndarray
+        Interpolated times of the turns completed after frame 0, in order.
+    """
+    last = made
+    for f in range(phi.shape[0]):
+        last = max(last, math.floor(_winding(phi[f], direction, phi_start)))
+    times = np.empty(last - made)
+    crossings = made
+    winding_prev = _winding(phi[0], direction, phi_start)
+    for f in range(1, phi.shape[0]):
+        winding = _winding(phi[f], direction, phi_start)
+        while winding >= crossings + 1:
+            times[crossings - made] = _turn_time(crossings + 1, winding_prev, winding, time[f - 1], time[f])
+            crossings += 1
+        winding_prev = winding
+    return crossings, times
 
 
 _F8 = types.float64
@@ -363,8 +420,10 @@ def advance(
     Returns
     -------
     status, steps_done, frames_written, pending
-        ``status`` is STATUS_OK or STATUS_BLEW_UP (the state is then the first one
-        found out of bounds); ``pending`` the sub-step left open (S if none).
+        ``status`` is STATUS_OK, STATUS_BLEW_UP (the state is then the first one
+        found out of bounds) or STATUS_TURNED (the loop stopped, its step closed
+        but stored only if on the stride, at the step where the last member completed its TURN_LIMIT-th
+        turn); ``pending`` the sub-step left open (S if none).
     """
     size = lanes.shape[1]
     n_loads = load_index.shape[0]
@@ -384,7 +443,7 @@ def advance(
     time_prev = np.empty(size)
     if watch >= 0:
         for i in range(size):
-            winding_prev[i] = lanes[DIRECTION, i] * (x[2, watch * size + i] - lanes[PHI_START, i]) / (2.0 * math.pi)
+            winding_prev[i] = _winding(x[2, watch * size + i], lanes[DIRECTION, i], lanes[PHI_START, i])
             time_prev[i] = lanes[T0, i] + step0 * lanes[DT, i]
     frame = frame0
     keep_states = frames_x.shape[0] > 0
@@ -420,14 +479,15 @@ def advance(
                     q_old[j, i] = q
                     load_old[j, i] = load
             pending = s
+        turned = False
         if watch >= 0 and ring_time.shape[0] > 0:
             for i in range(size):
                 step_time[i] = lanes[T0, i] + (step0 + k + 1) * lanes[DT, i]
-            _follow_turns(x, lanes, lane_ints, watch, step_time, winding_prev, time_prev, ring_time, ring_step_time, ring_phi)
+            turned = _follow_turns(x, lanes, lane_ints, watch, step_time, winding_prev, time_prev, ring_time, ring_step_time, ring_phi)
         to_store -= 1
         to_check -= 1
+        last = (k == n_steps - 1 and close_at_end) or turned
         store = to_store == 0
-        last = k == n_steps - 1 and close_at_end
         if store or last:
             _kick_drift(x, v, f, pairs, pending, empty, columns, dissipated, scratch)
             pending = empty
@@ -449,6 +509,8 @@ def advance(
                 if pending != empty:
                     _kick_drift(x, v, f, pairs, pending, empty, columns, dissipated, scratch)
                 return STATUS_BLEW_UP, k + 1, frame - frame0, empty
+        if turned:
+            return STATUS_TURNED, k + 1, frame - frame0, empty
     return STATUS_OK, n_steps, frame - frame0, pending
 
 
@@ -519,6 +581,7 @@ class Lanes:
         self.lanes[MAX_ANGLE] = model.max_angle
         self.lanes[DIRECTION] = 1.0
         self.lane_ints = np.zeros((N_LANE_INTS, size), dtype=np.int64)
+        self.lane_ints[TURN_LIMIT] = NO_TURN_LIMIT
         self.lanes[DT] = dt
         self.pairs = pair_table(substep_table(self.weights, self.lanes[DT].copy(), self.mass.T, self.gamma), self.mass)
         self.columns = np.array([1, n - 1, 1, n - 1], dtype=np.int64)
@@ -543,11 +606,27 @@ class Lanes:
         self.turns = TurnRecord.empty(capacity, self.n, self.size)
         self.restart_turns(np.arange(self.size), np.ones(self.size))
 
-    def restart_turns(self, members: np.ndarray, direction: np.ndarray) -> None:
-        """Count the turns of the given members anew from their current angles, along ``direction``."""
+    def restart_turns(self, members: np.ndarray, direction: np.ndarray, phi_start=None, made=0) -> None:
+        """Count the turns of the given members anew along ``direction``.
+
+        Turn n is complete when direction (phi - phi_start) reaches 2 pi n;
+        ``phi_start`` defaults to the current angles, and ``made`` is the number of
+        turns counted already (to go on counting across runs).
+        """
         self.lanes[DIRECTION, members] = direction
-        self.lanes[PHI_START, members] = self.x[2, self.watch, members]
-        self.lane_ints[CROSSINGS, members] = 0
+        self.lanes[PHI_START, members] = self.x[2, self.watch, members] if phi_start is None else phi_start
+        self.lane_ints[CROSSINGS, members] = made
+
+    def latest_turns(self, b: int, made_before: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Member b's turns recorded since it had made ``made_before``, oldest first (at most the ring's capacity).
+
+        Returns (times, step_times, phi): interpolated turn times (k,), times of the
+        steps after them (k,) and every particle's angle at those steps (k, 2N+1).
+        """
+        count = int(self.lane_ints[CROSSINGS, b])
+        capacity = self.turns.time.shape[0]
+        slots = np.arange(max(made_before, count - capacity), count) % max(capacity, 1)
+        return self.turns.time[slots, b], self.turns.step_time[slots, b], self.turns.phi[slots, :, b].copy()
 
     def evaluate_forces(self) -> None:
         """Forces plus loads at the current states and times (before the first :meth:`advance`)."""

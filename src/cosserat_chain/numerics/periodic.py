@@ -51,7 +51,7 @@ from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, n_free, pack, unpack, zeros
 from ..status import Status
 from . import dop853
-from .dynamics import integrate
+from .dynamics import TurnWatch, integrate
 
 #: Step of the central differences of the force kernel. The nonlinear model's third
 #: derivatives are large (~1e3), so truncation (step^2) meets round-off (eps / step) near
@@ -327,30 +327,29 @@ def initial_guess(
     sign = math.copysign(1.0, moment)
     wanted = transient_turns + turns
 
+    # Turns count from the multiple of 2 pi at or behind the start, one run per turn,
+    # each stopping at the step that completes it.
+    phi = x[ROW_INDEX["phi"], col]
+    watch = TurnWatch(particle, sign, sign * 2 * math.pi * math.floor(sign * phi / (2 * math.pi)), 0, 1, 1)
     times: list[float] = []
-    states: list[np.ndarray] = []
-    last_turn = math.floor(sign * x[ROW_INDEX["phi"], col] / (2 * math.pi))
+    state = None
     elapsed = 0.0
     while elapsed < t_max and len(times) < wanted + 1 and not _settled(times, turns):
         run = integrate(
-            params, model, loads, t0=elapsed, t_end=min(elapsed + GUESS_CHUNK, t_max), x0=x, v0=v, method="yoshida4", stride=1, throw=True
-        )
-        turn = np.floor(sign * run.x[:, ROW_INDEX["phi"], col] / (2 * math.pi))
-        # The first frame past each new multiple of 2 pi along the moment (a swing back
-        # over a multiple already passed is not a new turn).
-        for i in np.flatnonzero(np.diff(turn) > 0) + 1:
-            if turn[i] > last_turn:
-                times.append(float(run.time[i]))
-                states.append(_to_y(run.x[i], run.v[i]))
-                last_turn = turn[i]
+            params, model, loads, t0=elapsed, t_end=min(elapsed + GUESS_CHUNK, t_max), x0=x, v0=v, method="yoshida4", n_frames=2,
+            throw=True, turns=watch,
+        )  # fmt: skip
         x, v = run.x[-1], run.v[-1]
         elapsed = float(run.time[-1])
+        if run.turns.made > watch.made:
+            times.append(float(run.turns.times[-1]))
+            state = _to_y(x, v)
+        watch = run.turns.following(stop_after=run.turns.made + 1)
     if len(times) < turns + 1:
         raise OrbitError(
             f"the loaded particle made {len(times)} turns by t={elapsed:g} at M={moment!r}: no rotating state reached from "
             "this start; start above the static fold M_c, or give a guess (an orbit at a nearby moment)"
         )
-    state = states[-1].copy()
     state[dof] = 0.0
     return (*_from_y(params, state), times[-1] - times[-1 - turns])
 
