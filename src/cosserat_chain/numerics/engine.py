@@ -178,64 +178,45 @@ def _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, total):  # pragm
             dissipated[i] += factors[LOSS, r, i] * total[i]
 
 
-@njit(inline="always", **_KICK_OPTIONS)
-def _kick_drift_counted(x, v, f, pairs, close, open_, c0, c1, first, last):  # pragma: no cover - compiled
-    """The chain's kick-drift on columns c0..c1-1; returns the energy removed on [first, last) only."""
-    lo = min(max(c0, first), c1)
-    hi = max(min(c1, last), lo)
-    if lo > c0:
-        _kick_drift_chain(x, v, f, pairs, close, open_, c0, lo)
-    removed = _kick_drift_chain(x, v, f, pairs, close, open_, lo, hi)
-    if c1 > hi:
-        _kick_drift_chain(x, v, f, pairs, close, open_, hi, c1)
-    return removed
+@njit(inline="always", **_OPTIONS)
+def _segment(c0, stop, first, last):  # pragma: no cover - compiled
+    """End c1 of the chain's segment that starts at column c0, and whether its energy counts (1.0 or 0.0).
+
+    Segments are at most :data:`SWEEP_BLOCK` columns and never straddle ``first``
+    or ``last``, the ends of the range whose dissipated energy counts (a block of a
+    chain split over threads does not count its halo).
+    """
+    c1 = min(c0 + SWEEP_BLOCK, stop)
+    if c0 < first:
+        c1 = min(c1, first)
+    elif c0 < last:
+        c1 = min(c1, last)
+    return c1, 1.0 if first <= c0 and c1 <= last else 0.0
 
 
-@njit(inline="always", **_KICK_OPTIONS)
+@njit(**_KICK_OPTIONS)
 def _kick_drift(x, v, f, pairs, close, open_, columns, dissipated, scratch):  # pragma: no cover - compiled
     """Close ``close`` and open ``open_`` on the whole batch; adds each member's loss to ``dissipated``.
 
     ``columns`` (4,) for B = 1: advance columns [columns[0], columns[1]) and count the energy
-    removed on [columns[2], columns[3]) only (a block of a chain split over threads also
-    steps its halo). ``scratch`` (B,) holds the members' sums (B > 1). Only the single
-    chain's code is inlined here: the batch's, in the loop body, cost a short chain about
-    100 ns a step.
+    removed on [columns[2], columns[3]) only. ``scratch`` (B,) holds the members' sums (B > 1).
+    Called only to close a step (to store it or to stop), so it is not inlined.
     """
     if dissipated.size > 1:
         _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch)
-    else:
-        dissipated[0] += _kick_drift_counted(x, v, f, pairs, close, open_, columns[0], columns[1], columns[2], columns[3])
-
-
-@njit(inline="always", **_KICK_OPTIONS)
-def _substep(
-    force, batch_force, x, v, f, coef, chain_coef, pairs, close, open_, columns, dissipated, scratch
-):  # pragma: no cover - compiled
-    """Close ``close``, open ``open_``, then the internal forces at the new positions into f.
-
-    One chain (B = 1) goes block by block: the kick-drift of :data:`SWEEP_BLOCK` columns,
-    then the forces one column behind them (a column's force needs its right neighbour
-    moved), while the block is in cache; two whole sweeps streamed x, v and f through
-    memory twice a step, which bounds a long chain. Every column is computed as in two
-    sweeps, so the states are the same to the last bit. A batch (B > 1) takes its
-    kick-drift and then its batch kernel. ``chain_coef`` (c,) is member 0's column of
-    ``coef`` (c, B).
-    """
-    size = coef.shape[1]
-    if size > 1:
-        _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch)
-        n = x.shape[1] // size
-        batch_force(x.reshape((3, n, size)), coef, f.reshape((3, n, size)))
         return
-    start, stop, first, last = columns[0], columns[1], columns[2], columns[3]
-    done = start
-    for c0 in range(start, stop, SWEEP_BLOCK):
-        c1 = min(c0 + SWEEP_BLOCK, stop)
-        dissipated[0] += _kick_drift_counted(x, v, f, pairs, close, open_, c0, c1, first, last)
-        top = stop if c1 == stop else c1 - 1
-        if top > done:
-            force(x, chain_coef, f, done, top)
-            done = top
+    c0, stop, first, last = columns[0], columns[1], columns[2], columns[3]
+    while c0 < stop:
+        c1, counted = _segment(c0, stop, first, last)
+        dissipated[0] += counted * _kick_drift_chain(x, v, f, pairs, close, open_, c0, c1)
+        c0 = c1
+
+
+@njit(**_KICK_OPTIONS)
+def _batch_substep(batch_force, x, v, f, x3, f3, coef, pairs, close, open_, dissipated, scratch):  # pragma: no cover - compiled
+    """A batch's sub-step (B > 1): its kick-drift, then the batch kernel on the (3, n, B) views x3, f3."""
+    _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch)
+    batch_force(x3, coef, f3)
 
 
 @njit(**_OPTIONS)
@@ -445,6 +426,10 @@ def advance(
         for i in range(size):
             winding_prev[i] = _winding(x[2, watch * size + i], lanes[DIRECTION, i], lanes[PHI_START, i])
             time_prev[i] = lanes[T0, i] + step0 * lanes[DT, i]
+    # The batch kernel's (3, n, B) views, made once: a reshape in the loop is an array
+    # made and freed every sub-step.
+    x3 = x.reshape((3, x.shape[1] // size, size))
+    f3 = f.reshape((3, x.shape[1] // size, size))
     frame = frame0
     keep_states = frames_x.shape[0] > 0
     n_sub = weights.size
@@ -455,7 +440,27 @@ def advance(
     to_check = check_every - step0 % check_every
     for k in range(n_steps):
         for s in range(n_sub):
-            _substep(force, batch_force, x, v, f, coef, chain_coef, pairs, pending, s, columns, dissipated, scratch)
+            if size > 1:
+                _batch_substep(batch_force, x, v, f, x3, f3, coef, pairs, pending, s, dissipated, scratch)
+            else:
+                # One chain segment by segment: the kick-drift of a segment, then the forces one
+                # column behind it (a column's force needs its right neighbour moved), while the
+                # segment is in cache; two whole sweeps streamed x, v and f through memory twice a
+                # step, which bounds a long chain. Written out here rather than in an inlined
+                # function: an inlined function that takes arrays increfs and decrefs each of them
+                # (atomic operations) around its body, unless numba can prune the pairs, and
+                # around a call of the force kernel it cannot; they cost a short chain about a
+                # third of its step.
+                done = c0 = columns[0]
+                stop, first, last = columns[1], columns[2], columns[3]
+                while c0 < stop:
+                    c1, counted = _segment(c0, stop, first, last)
+                    dissipated[0] += counted * _kick_drift_chain(x, v, f, pairs, pending, s, c0, c1)
+                    top = stop if c1 == stop else c1 - 1
+                    if top > done:
+                        force(x, chain_coef, f, done, top)
+                        done = top
+                    c0 = c1
             for j in range(n_loads):
                 row = load_index[j, 0]
                 at = load_index[j, 1] * size
