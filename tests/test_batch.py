@@ -41,6 +41,10 @@ def test_batch_members_equal_their_single_runs(model):
         np.testing.assert_allclose(batch.record_angle[i, :count], run.x[:, 2, params.N], rtol=0, atol=ROUND_OFF)
         assert np.isnan(batch.record_angle[i, count:]).all()
         assert batch.status[i] == "completed" and batch.steps[i] == run.steps and batch.dt[i] == run.dt
+        # The energy sums too (summed over the columns in another order).
+        assert batch.load_work[i] == pytest.approx(run.load_work[-1], rel=1e-12, abs=ROUND_OFF)
+        assert batch.dissipated[i] == pytest.approx(run.dissipated[-1], rel=1e-12, abs=ROUND_OFF)
+        assert batch.dissipated[i] > 0
 
 
 def test_two_threads_give_the_same_states_as_one():

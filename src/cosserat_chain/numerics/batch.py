@@ -49,6 +49,10 @@ class BatchRun:
         stride, 2 stride, ... and the last), NaN after a member's last record.
     status : list of str
         ``completed`` or ``blew_up`` per member.
+    load_work, dissipated : ndarray (B,)
+        Work done by the moment and energy removed by viscosity up to each member's
+        last step (the engine's exact sums, as :class:`~.dynamics.Trajectory` has them;
+        equal to the single run's to round-off: the batch sums its columns in another order).
     """
 
     x: np.ndarray
@@ -58,6 +62,8 @@ class BatchRun:
     record_time: np.ndarray
     record_angle: np.ndarray
     status: list[str]
+    load_work: np.ndarray
+    dissipated: np.ndarray
 
 
 def integrate_batch(
@@ -127,6 +133,7 @@ def integrate_batch(
     counts = n_steps // strides + 1 + (n_steps % strides != 0)
     out_x, out_v = x0.copy(), v0.copy()
     steps = np.zeros(size, dtype=np.int64)
+    sums = np.zeros((2, size))
     record = np.full((size, int(counts.max())), np.nan)
     status = [Status.COMPLETED] * size
 
@@ -154,6 +161,7 @@ def integrate_batch(
             stored += written
             out_x[members] = np.moveaxis(lanes.x, -1, 0)
             out_v[members] = np.moveaxis(lanes.v, -1, 0)
+            sums[:, members] = lanes.acc
             steps[members] = done
             if code != STATUS_BLEW_UP:
                 return
@@ -171,10 +179,9 @@ def integrate_batch(
 
     groups = [np.flatnonzero(n_steps == value) for value in np.unique(n_steps)]
     run_parts(run_group, [part for group in groups for part in split(group, threads)], threads)
-    record_time = np.full_like(record, np.nan)
-    for b in range(size):
-        stored_steps = np.minimum(strides[b] * np.arange(counts[b]), n_steps[b])
-        record_time[b, : counts[b]] = t_end * stored_steps / n_steps[b]
+    slot = np.arange(record.shape[1])
+    stored_steps = np.minimum(strides[:, None] * slot, n_steps[:, None])
+    record_time = np.where(slot < counts[:, None], t_end * stored_steps / n_steps[:, None], np.nan)
     return BatchRun(
         x=out_x,
         v=out_v,
@@ -183,4 +190,6 @@ def integrate_batch(
         record_time=np.where(np.isnan(record), np.nan, record_time),
         record_angle=record,
         status=status,
+        load_work=sums[0],
+        dissipated=sums[1],
     )

@@ -576,13 +576,17 @@ class Lanes:
         self.load_scale = (
             np.ones((len(loads), size)) if load_scale is None else np.ascontiguousarray(load_scale, dtype=float).reshape(len(loads), size)
         )
-        self.coef = np.ascontiguousarray(np.array([model.coefficients(p) for p in self.params]).T)
-        self.mass = np.ascontiguousarray(np.array([p.inertia for p in self.params], dtype=float).T)
-        self.gamma = np.array([p.damping for p in self.params], dtype=float)
+        # Per distinct member (a grid of loads repeats one chain a thousand times), then spread.
+        distinct: dict[int, int] = {}
+        which = np.array([distinct.setdefault(id(p), len(distinct)) for p in self.params], dtype=np.int64)
+        first = [self.params[i] for i in np.unique(which, return_index=True)[1]]
+        self.coef = np.ascontiguousarray(np.array([model.coefficients(p) for p in first], dtype=float).T[:, which])
+        self.mass = np.ascontiguousarray(np.array([p.inertia for p in first], dtype=float).T[:, which])
+        self.gamma = np.array([p.damping for p in first], dtype=float)[which]
         self.weights = np.array(method.weights, dtype=float)
         self.lanes = np.zeros((N_LANE_FIELDS, size))
         self.lanes[T0] = 0.0 if t0 is None else t0
-        self.lanes[MAX_DISPLACEMENT] = [100.0 * 2 * p.N * p.h for p in self.params] if max_displacement is None else max_displacement
+        self.lanes[MAX_DISPLACEMENT] = np.array([100.0 * 2 * p.N * p.h for p in first])[which] if max_displacement is None else max_displacement
         self.lanes[MAX_ANGLE] = model.max_angle
         self.lanes[DIRECTION] = 1.0
         self.lane_ints = np.zeros((N_LANE_INTS, size), dtype=np.int64)
@@ -918,7 +922,7 @@ def member_steps(params: list, dt, method, model) -> np.ndarray:
     out = np.empty(size)
     checked: dict = {}
     for i, (p, step) in enumerate(zip(params, requested)):
-        key = (p, step)
+        key = (id(p), step)  # the members are alive throughout: their ids are theirs (hashing a ChainParams costs 1 us)
         if key not in checked:
             if step is None:
                 # The default is far inside every method's stability limit (see integrate).
