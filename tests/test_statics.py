@@ -150,3 +150,34 @@ def test_statics_reject_a_clamped_loaded_particle(paper):
         solve_rotation_controlled(paper, "nonlinear", 0.1, particle=paper.N)
     with pytest.raises(ValueError, match="min_step <= step <= max_step"):
         continue_in_moment(paper, "linear", step=-1.0)
+
+
+@pytest.mark.parametrize("N", [1, 2, 5, 20])
+def test_banded_stability_equals_the_dense_reference_on_random_chains(N):
+    rng = np.random.default_rng(N)
+    for _ in range(3):
+        params = ChainParams(N=N, a=rng.uniform(0.1, 0.45), b=rng.uniform(0.05, 0.5), E1=rng.uniform(0.3, 3), E2=rng.uniform(0.3, 3))
+        # K(x) is the energy's Hessian at any state, equilibrium or not: rotated states
+        # of growing angle give definite and indefinite ones.
+        for angle in (0.1, 1.0, 2.5):
+            x = np.zeros((3, params.n_particles))
+            x[:, 1:-1] = angle * rng.uniform(-1, 1, (3, params.n_particles - 2)) * np.array([[0.1], [0.1], [1.0]])
+            dense = static_stability(params, "nonlinear", x, dense=True)
+            banded = static_stability(params, "nonlinear", x, dense=False)
+            assert banded.stable == dense.stable
+            assert banded.critical_eigenvalue == pytest.approx(dense.critical_eigenvalue, rel=1e-9, abs=1e-12)
+
+
+def test_rotation_controlled_newton_reaches_the_round_off_floor_of_a_long_chain():
+    from cosserat_chain.models.base import get_model
+    from cosserat_chain.numerics.newton import round_off_floor
+    from cosserat_chain.state import pack
+
+    # An absolute 1e-14 is below the round-off of these forces: the floor is what can be asked.
+    params = ChainParams(N=1000)
+    x, moment = solve_rotation_controlled(params, "nonlinear", 1.0, tol=1e-14)
+    model = get_model("nonlinear")
+    residual = pack(model.forces(params, x))
+    residual[3 * (params.N - 1) + 2] += moment
+    floor = round_off_floor(model.stiffness(params, x), x)
+    assert 1e-14 < floor < 1e-10 and np.max(np.abs(residual)) <= floor

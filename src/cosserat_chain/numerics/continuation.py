@@ -37,12 +37,16 @@ import scipy.sparse.linalg as spla
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, column, n_free, pack, unpack, zeros
-from .newton import NewtonError, moment_dof, rotation_controlled_jacobian, solve_rotation_controlled
+from .newton import NewtonError, moment_dof, rotation_controlled_jacobian, round_off_floor, solve_rotation_controlled
 from .stability import static_stability
 
 #: Residual tolerance of the Newton solves at and around a fold: M_c is read off the
-#: converged state, so it is only as accurate as the residual (round-off is ~1e-16).
+#: converged state, so it is only as accurate as the residual. Never below the round-off
+#: floor of the chain's forces (:func:`~.newton.round_off_floor`), which exceeds it from
+#: about N = 20 on.
 FOLD_TOL = 1e-14
+#: Halvings of the distance to the nearest solved angle before a fold search gives up.
+MAX_HALVINGS = 12
 #: Callback ``progress(done, total)`` used by the long-running functions.
 ProgressCallback = Callable[[float, float], None]
 
@@ -216,11 +220,19 @@ def locate_fold(
     if seed is not None:
         cache[float(seed[0][ROW_INDEX["phi"], column(params, particle)])] = seed
 
-    def solve(angle: float) -> tuple[np.ndarray, float]:
+    def solve(angle: float, depth: int = 0) -> tuple[np.ndarray, float]:
         nearest = min(cache, key=lambda a: abs(a - angle))
-        x, moment = solve_rotation_controlled(
-            params, model, angle, particle=particle, x0=cache[nearest][0], moment0=cache[nearest][1], tol=FOLD_TOL
-        )
+        try:
+            x, moment = solve_rotation_controlled(
+                params, model, angle, particle=particle, x0=cache[nearest][0], moment0=cache[nearest][1], tol=FOLD_TOL
+            )
+        except NewtonError:
+            # Too far from the nearest solved angle (a long chain's branch changes shape
+            # quickly): walk there through the midpoint.
+            if depth >= MAX_HALVINGS:
+                raise
+            solve(0.5 * (nearest + angle), depth + 1)
+            return solve(angle, depth + 1)
         cache[angle] = (x, moment)
         return x, moment
 
@@ -317,15 +329,19 @@ def continue_in_moment(
         z, iterations, converged = predicted.copy(), 0, False
         while iterations < 8:
             r = np.append(residual(z), tangent @ (z - predicted))
-            if np.max(np.abs(r)) <= tol * (1.0 + abs(z[-1])):
+            jac = jacobian(z)
+            if np.max(np.abs(r)) <= max(tol * (1.0 + abs(z[-1])), round_off_floor(jac, z[:-1])):
                 converged = True
                 break
-            z -= spla.spsolve(bordered(jacobian(z), tangent), r)
+            z -= spla.spsolve(bordered(jac, tangent), r)
             iterations += 1
         if not converged or not np.all(np.isfinite(z)):
             ds /= 2
             if ds < min_step:
-                raise NewtonError(f"continuation stalled at M={y[-1]:.6g}: the corrector failed with step {ds * 2:.3g}", unpack(y[:-1], params.n_particles))
+                raise NewtonError(
+                    f"continuation stalled at M={y[-1]:.6g}: the corrector failed with step {ds * 2:.3g}",
+                    unpack(y[:-1], params.n_particles),
+                )
             continue
         tangent = new_tangent(z, tangent)
         y = z
@@ -354,7 +370,11 @@ def _folds_on(params: ChainParams, model: Model, branch: Branch) -> list[Fold]:
         lo, hi = sorted((branch.phi0[i], branch.phi0[i + 2]))
         try:
             fold = locate_fold(params, model, particle=branch.particle, bracket=(lo, hi), seed=(branch.x[i + 1], branch.moment[i + 1]))
-        except (ValueError, NewtonError):
-            continue  # an extremum of M that is not a smooth fold (a kink between two coarse points)
+        except (ValueError, NewtonError) as err:
+            # Never a fold passed without a word: say which extremum could not be located.
+            raise NewtonError(
+                f"the extremum of M near M={branch.moment[i + 1]:.10g}, phi_0 in [{lo:.6g}, {hi:.6g}] could not be located as a fold: {err}",
+                branch.x[i + 1],
+            ) from err
         folds.append(fold)
     return folds
