@@ -129,9 +129,9 @@ def test_sine_model_stability_uses_the_damped_dynamics(paper):
     # Below the fold the damped linearisation decays; beyond it one real eigenvalue is positive.
     below, _ = solve_rotation_controlled(paper, "sine", 1.0)
     beyond, _ = solve_rotation_controlled(paper, "sine", 2.0)
-    assert static_stability(paper, "sine", below).spectral_abscissa < 0
-    assert static_stability(paper, "sine", beyond).spectral_abscissa > 0
-    assert not static_stability(paper, "sine", beyond).stable
+    assert static_stability(paper, "sine", below, dense=True).spectral_abscissa < 0
+    assert static_stability(paper, "sine", beyond, dense=True).spectral_abscissa > 0
+    assert not static_stability(paper, "sine", beyond).stable and static_stability(paper, "sine", below).stable
 
 
 def test_critical_point_result_round_trips_to_a_dataset(paper, tmp_path):
@@ -152,18 +152,19 @@ def test_statics_reject_a_clamped_loaded_particle(paper):
         continue_in_moment(paper, "linear", step=-1.0)
 
 
+@pytest.mark.parametrize("model", ["nonlinear", "sine", "linear"])
 @pytest.mark.parametrize("N", [1, 2, 5, 20])
-def test_banded_stability_equals_the_dense_reference_on_random_chains(N):
+def test_banded_stability_equals_the_dense_reference_on_random_chains(N, model):
     rng = np.random.default_rng(N)
     for _ in range(3):
         params = ChainParams(N=N, a=rng.uniform(0.1, 0.45), b=rng.uniform(0.05, 0.5), E1=rng.uniform(0.3, 3), E2=rng.uniform(0.3, 3))
-        # K(x) is the energy's Hessian at any state, equilibrium or not: rotated states
-        # of growing angle give definite and indefinite ones.
+        # K(x) is the stiffness at any state, equilibrium or not: rotated states of
+        # growing angle give definite and indefinite ones (for eq. (2): angles beyond pi/2).
         for angle in (0.1, 1.0, 2.5):
             x = np.zeros((3, params.n_particles))
             x[:, 1:-1] = angle * rng.uniform(-1, 1, (3, params.n_particles - 2)) * np.array([[0.1], [0.1], [1.0]])
-            dense = static_stability(params, "nonlinear", x, dense=True)
-            banded = static_stability(params, "nonlinear", x, dense=False)
+            dense = static_stability(params, model, x, dense=True)
+            banded = static_stability(params, model, x)
             assert banded.stable == dense.stable
             assert banded.critical_eigenvalue == pytest.approx(dense.critical_eigenvalue, rel=1e-9, abs=1e-12)
 
@@ -181,3 +182,29 @@ def test_rotation_controlled_newton_reaches_the_round_off_floor_of_a_long_chain(
     residual[3 * (params.N - 1) + 2] += moment
     floor = round_off_floor(model.stiffness(params, x), x)
     assert 1e-14 < floor < 1e-10 and np.max(np.abs(residual)) <= floor
+
+
+def test_a_branch_with_two_maxima_reports_both_with_the_stability_between():
+    # The example: a small maximum of M near phi_0 = 1.0003, a minimum just after
+    # it, and the largest maximum near 2.04. The chain snaps through at the first and
+    # rotates only above the largest.
+    params = ChainParams(N=10, a=0.3, b=0.1, E1=2.0, E2=0.3)
+    result = critical_point(params, "nonlinear")
+    first, minimum, largest = result.branch.folds[:3]
+    assert (first.maximum, minimum.maximum, largest.maximum) == (True, False, True)
+    assert first.phi0 == pytest.approx(1.0003, abs=1e-3) and largest.phi0 == pytest.approx(2.04, abs=0.01)
+    assert minimum.moment < first.moment < largest.moment
+    assert result.first_fold is first and result.fold is largest and result.critical_moment == largest.moment
+    summary = result.as_dict()
+    assert summary["snap_through"] and summary["first_fold"] == {"moment": first.moment, "phi0": first.phi0}
+    # Stable from rest to the first maximum, unstable between it and the minimum, stable
+    # again up to the largest maximum.
+    branch = result.branch
+    along = np.arange(branch.moment.size)
+    for lo, hi, stable in ((0.0, first.phi0, True), (first.phi0, minimum.phi0, False), (minimum.phi0, largest.phi0, True)):
+        inside = (branch.phi0 > lo + 1e-6) & (branch.phi0 < hi - 1e-6) & (along < np.argmax(branch.phi0 > largest.phi0))
+        assert inside.any() and np.all(branch.stable[inside] == stable), (lo, hi)
+    # Each fold, located along the arclength, is the root of dM/dphi_0 that locate_fold finds.
+    for fold in (first, minimum, largest):
+        alone = locate_fold(params, "nonlinear", bracket=(fold.phi0 - 2e-3, fold.phi0 + 2e-3), seed=(fold.x, fold.moment))
+        assert alone.moment == pytest.approx(fold.moment, abs=1e-10) and alone.phi0 == pytest.approx(fold.phi0, abs=1e-8)

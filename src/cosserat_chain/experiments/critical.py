@@ -5,10 +5,16 @@ Contract
 :func:`critical_point` computes, for one model and one loaded particle,
 
 * the compliance d phi_0 / dM at M = 0 (the same for every model: they share K at rest);
-* the fold of the branch from rest, M_c and phi_0 there, to round-off
-  (:func:`~cosserat_chain.numerics.continuation.locate_fold`); None for the linear model;
 * the branch traced by pseudo-arclength continuation over one full turn of the
-  loaded particle, with the stability of every point and the folds it passes.
+  loaded particle, with the stability of every point and every fold it passes, each
+  located to round-off (:func:`~cosserat_chain.numerics.continuation.locate_fold`);
+* M_c, the onset of rotation under a slowly rising load: the largest maximum of M
+  along the branch (no static state of the branch holds more), and the first fold,
+  where the stable branch from rest ends. A branch can have several maxima (N = 10,
+  a = 0.3, b = 0.1, E1 = 2, E2 = 0.3: a first one near phi_0 = 1.0, the largest near
+  2.04): at the first the chain snaps through to a static state further along, and
+  only above M_c does it rotate. For the paper's chain both are the same fold. None
+  for a model without a fold (the linear model).
 
 The result converts to a JSON-ready dict and to a self-describing xarray Dataset.
 """
@@ -24,7 +30,7 @@ import xarray as xr
 
 from ..loads import Loads
 from ..models.base import Model, get_model
-from ..numerics.continuation import Branch, Fold, compliance, continue_in_moment, locate_fold
+from ..numerics.continuation import Branch, Fold, compliance, continue_in_moment
 from ..params import ChainParams
 from ..state import ROWS
 from .simulation import run_attributes
@@ -37,7 +43,11 @@ class CriticalResult:
     Attributes
     ----------
     fold : Fold or None
-        The first fold (None for a model without one: the linear model).
+        The fold of M_c, the onset of rotation: the largest maximum of M along the
+        branch (None for a model without one: the linear model).
+    first_fold : Fold or None
+        The first fold along the branch from rest (where the stable branch ends; a
+        snap-through when it is not ``fold``).
     compliance : float
         d phi_0 / dM at M = 0.
     branch : Branch
@@ -50,6 +60,7 @@ class CriticalResult:
     fold: Fold | None
     compliance: float
     branch: Branch
+    first_fold: Fold | None = None
 
     @property
     def critical_moment(self) -> float | None:
@@ -60,19 +71,21 @@ class CriticalResult:
         return None if self.fold is None else self.fold.phi0
 
     def as_dict(self) -> dict:
-        """JSON-ready: ``M_c`` (null without a fold), ``phi0_at_fold``, ``compliance`` and the branch."""
+        """JSON-ready: ``M_c`` (onset of rotation; null without a fold), ``phi0_at_fold``, ``first_fold``, ``snap_through``, ``compliance`` and the branch."""
         return {
             "model": self.model,
             "particle": self.particle,
             "M_c": self.critical_moment,
             "phi0_at_fold": self.phi0_at_fold,
+            "first_fold": None if self.first_fold is None else {"moment": self.first_fold.moment, "phi0": self.first_fold.phi0},
+            "snap_through": self.first_fold is not None and self.first_fold is not self.fold,
             "compliance": self.compliance,
             "branch": {
                 "moment": self.branch.moment.tolist(),
                 "phi0": self.branch.phi0.tolist(),
                 "stable": self.branch.stable.tolist(),
                 "critical_eigenvalue": self.branch.critical_eigenvalue.tolist(),
-                "folds": [{"moment": f.moment, "phi0": f.phi0} for f in self.branch.folds],
+                "folds": [{"moment": f.moment, "phi0": f.phi0, "maximum": f.maximum} for f in self.branch.folds],
             },
         }
 
@@ -108,6 +121,9 @@ def critical_point(
 ) -> CriticalResult:
     """Compliance, fold and full-turn branch of ``model`` under a moment on ``particle``."""
     model = get_model(model)
-    fold = locate_fold(params, model, particle=particle)
     branch = continue_in_moment(params, model, particle=particle, phi0_stop=2 * math.pi, progress=progress)
-    return CriticalResult(params, model.name, particle, fold, compliance(params, model, particle=particle), branch)
+    maxima = [f for f in branch.folds if f.maximum]
+    # Under a positive moment from rest M rises first: the branch's first fold is a maximum.
+    fold = max(maxima, key=lambda f: f.moment) if maxima else None
+    first = branch.folds[0] if branch.folds else None
+    return CriticalResult(params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first)

@@ -122,6 +122,17 @@ class Model(ABC):
         """
         raise TypeError(f"the {self.name} model ({self.equation}) is not conservative: it has no potential energy")
 
+    def symmetric_similar(self, params: ChainParams, x: np.ndarray) -> sp.csr_matrix | None:
+        """A symmetric banded matrix similar to :meth:`stiffness` at ``x`` (the same eigenvalues), or None.
+
+        For a conservative model the stiffness itself (the Hessian of the energy). A
+        model whose stiffness is a symmetric positive definite matrix times a positive
+        or negative diagonal (eq. (2)) returns the symmetric similar matrix of that
+        product. The statics take stability and folds from its smallest eigenvalue in
+        O(N) (:mod:`cosserat_chain.numerics.stability`); None sends them to dense solvers.
+        """
+        return self.stiffness(params, x) if self.conservative else None
+
     def bond_energy(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         """Energy stored in every bond, for any number of configurations.
 
@@ -169,11 +180,8 @@ class Model(ABC):
         gershgorin = float(abs(dynamical).sum(axis=1).max())
         if abs(dynamical - dynamical.T).max() > _SYMMETRY_RTOL * gershgorin:
             return math.sqrt(gershgorin)
-        upper = sp.triu(dynamical, format="coo")
-        bandwidth = int(np.max(upper.col - upper.row, initial=0))
-        # LAPACK's upper banded storage of -A: entry [bandwidth + i - j, j] holds -A[i, j], i <= j.
-        negative = np.zeros((bandwidth + 1, dynamical.shape[0]))
-        negative[bandwidth + upper.row - upper.col, upper.col] = -upper.data
+        negative = upper_bands(-dynamical)
+        bandwidth = negative.shape[0] - 1
         low, high = float(dynamical.diagonal().max()), gershgorin
         while high - low > _BISECTION_RTOL * gershgorin:
             middle = 0.5 * (low + high)
@@ -196,6 +204,25 @@ class Model(ABC):
 
     def __repr__(self) -> str:
         return f"<model {self.name!r}: {self.equation}>"
+
+
+def upper_bands(matrix: sp.spmatrix) -> np.ndarray:
+    """LAPACK's upper banded storage of a symmetric sparse matrix: entry [w + i - j, j] holds M[i, j], i <= j.
+
+    w, the bandwidth, is the number of rows less one.
+    """
+    upper = sp.triu(matrix, format="coo")
+    width = int(np.max(upper.col - upper.row, initial=0))
+    bands = np.zeros((width + 1, matrix.shape[0]))
+    bands[width + upper.row - upper.col, upper.col] = upper.data
+    return bands
+
+
+def from_upper_bands(bands: np.ndarray) -> sp.csr_matrix:
+    """The upper triangle stored by :func:`upper_bands` (or a banded Cholesky factor U) as a sparse matrix."""
+    width, n = bands.shape[0] - 1, bands.shape[1]
+    offsets = list(range(width + 1))
+    return sp.diags([bands[width - d, d:] for d in offsets], offsets, shape=(n, n), format="csr")
 
 
 #: Names the command line keeps for itself (``--model all``).

@@ -14,13 +14,16 @@ At phi = 0 it linearises to the linear model, and it supports full rotations.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 import scipy.sparse as sp
 from numba import njit
+from scipy.linalg import cholesky_banded
 
 from ..params import ChainParams
 from ..state import check_state, pack
-from .base import BATCH_FORCE_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model
+from .base import BATCH_FORCE_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, from_upper_bands, upper_bands
 from .linear import (
     cosserat_batch,
     cosserat_bond_energy,
@@ -31,6 +34,12 @@ from .linear import (
     stiffness_matrix,
 )
 from .trig import REDUCTION_LIMIT, sincos
+
+
+@lru_cache(maxsize=16)
+def _linear_factor(params: ChainParams) -> sp.csr_matrix:
+    """U with U^T U the linear model's stiffness (banded Cholesky; constant per chain)."""
+    return from_upper_bands(cholesky_banded(upper_bands(stiffness_matrix(params))))
 
 
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
@@ -86,6 +95,19 @@ class SineModel(Model):
         x = check_state(params, x)
         chain_rule = pack(np.vstack([np.ones_like(x[:2]), np.cos(x[2:3])]))
         return (stiffness_matrix(params) @ sp.diags(chain_rule)).tocsr()
+
+    def symmetric_similar(self, params: ChainParams, x: np.ndarray) -> sp.csr_matrix:
+        """U C U^T, similar to the stiffness K C (K = U^T U the linear model's, C = diag(1, 1, cos phi)).
+
+        U^-T (U^T U C) U^T = U C U^T: symmetric and banded, with the eigenvalues of the
+        non-symmetric stiffness, which are therefore real. By Sylvester's law of inertia
+        it has as many negative eigenvalues as C has negative entries: the chain loses
+        stability when a particle turns beyond pi/2.
+        """
+        x = check_state(params, x)
+        chain_rule = pack(np.vstack([np.ones_like(x[:2]), np.cos(x[2:3])]))
+        factor = _linear_factor(params)
+        return (factor @ sp.diags(chain_rule) @ factor.T).tocsr()
 
     def bond_energy(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         """The linear model's P_bond at (u, v, sin phi), shape (..., 2N) for x (..., 3, 2N+1).

@@ -70,6 +70,9 @@ class Fold:
     phi0: float
     x: np.ndarray
     particle: int = 0
+    #: True at a maximum of M along the branch, False at a minimum, None if not known
+    #: (a fold located on its own by :func:`locate_fold`).
+    maximum: bool | None = None
 
 
 @dataclass
@@ -131,10 +134,11 @@ def moment_slope(params: ChainParams, model: str | Model, x: np.ndarray, *, part
     return float(dz[dof])
 
 
-def _assemble_branch(params, model, particle, moments, states, folds) -> Branch:
+def _assemble_branch(params, model, particle, moments, states, folds, checks=None) -> Branch:
+    """A Branch from its points; ``checks`` their stabilities if already computed."""
     col = column(params, particle)
     x = np.array(states)
-    checks = [static_stability(params, model, xi) for xi in x]
+    checks = [static_stability(params, model, xi) for xi in x] if checks is None else checks
     return Branch(
         moment=np.array(moments, dtype=float),
         phi0=x[:, ROW_INDEX["phi"], col].copy(),
@@ -263,6 +267,7 @@ def continue_in_moment(
     max_step: float = 0.05,
     max_points: int = 5000,
     tol: float = 1e-11,
+    refine_step: float = 2e-4,
     progress: ProgressCallback | None = None,
 ) -> Branch:
     """Pseudo-arclength continuation of the static branch from rest, in the direction of increasing M.
@@ -279,13 +284,20 @@ def continue_in_moment(
         Arclength step in the (q, M) space: initial, smallest before giving up, largest.
     max_points : int
     tol : float
-        Corrector tolerance on max |F + M e|.
+        Corrector tolerance on max |F + M e| (never below the round-off floor, :func:`~.newton.round_off_floor`).
+    refine_step : float
+        A step across which the number of negative eigenvalues of K changes is retaken
+        in steps of at most this, so that every fold shows as a turn of the tangent
+        between points (two folds within one step whose eigenvalue crossings cancel are
+        still missed).
     progress : callable(|phi_0|, phi0_stop), optional
 
     Returns
     -------
     Branch
-        With every fold passed on the way located by :func:`locate_fold`.
+        With every fold passed on the way: where the tangent's M component changes
+        sign between two points, located along the arclength to round-off (a root of
+        that component), a maximum or a minimum of M.
 
     Raises
     ------
@@ -315,27 +327,70 @@ def continue_in_moment(
     def bordered(jac: sp.csc_matrix, row: np.ndarray) -> sp.csc_matrix:
         return sp.vstack([jac, sp.csr_matrix(row)], format="csc")
 
-    def new_tangent(y: np.ndarray, previous: np.ndarray) -> np.ndarray:
+    def new_tangent(y: np.ndarray, previous: np.ndarray, jac: sp.csc_matrix | None = None) -> np.ndarray:
         rhs = np.zeros(nf + 1)
         rhs[-1] = 1.0
-        t = spla.spsolve(bordered(jacobian(y), previous), rhs)
+        t = spla.spsolve(bordered(jacobian(y) if jac is None else jac, previous), rhs)
         return t / np.linalg.norm(t)
 
-    tangent = new_tangent(y, tangent)
-    moments, states = [0.0], [zeros(params)]
-    ds = step
-    while len(moments) < max_points:
+    def correct(y: np.ndarray, tangent: np.ndarray, ds: float, tol: float) -> tuple[np.ndarray, int, sp.csc_matrix] | None:
+        """The point of the branch on the plane through y + ds tangent normal to tangent, its iterations
+        and Jacobian (None: no convergence)."""
         predicted = y + ds * tangent
-        z, iterations, converged = predicted.copy(), 0, False
-        while iterations < 8:
+        z = predicted.copy()
+        for iterations in range(8):
             r = np.append(residual(z), tangent @ (z - predicted))
             jac = jacobian(z)
             if np.max(np.abs(r)) <= max(tol * (1.0 + abs(z[-1])), round_off_floor(jac, z[:-1])):
-                converged = True
-                break
-            z -= spla.spsolve(bordered(jac, tangent), r)
-            iterations += 1
-        if not converged or not np.all(np.isfinite(z)):
+                return z, iterations, jac
+            z = z - spla.spsolve(bordered(jac, tangent), r)
+            if not np.all(np.isfinite(z)):
+                return None
+        return None
+
+    def fold_between(y: np.ndarray, tangent: np.ndarray, ds: float) -> Fold:
+        """The fold between y and its successor at arclength ds: where the tangent's M component vanishes.
+
+        Along the arclength, not in phi_0: a branch whose phi_0 turns back near a fold
+        is no function of phi_0 there.
+        """
+
+        def slope(s: float) -> float:
+            if s == 0.0:
+                return tangent[-1]
+            found = correct(y, tangent, s, FOLD_TOL)
+            if found is None:
+                raise NewtonError(
+                    f"the corrector failed at arclength {s:.3g} from M={y[-1]:.10g} while locating a fold",
+                    unpack(y[:-1], params.n_particles),
+                )
+            point, _, jac = found
+            cache[s] = point
+            return new_tangent(point, tangent, jac)[-1]
+
+        cache: dict[float, np.ndarray] = {}
+        s_fold = so.brentq(slope, 0.0, ds, xtol=1e-15 * max(1.0, ds), rtol=4 * np.finfo(float).eps)
+        point = cache.get(s_fold)
+        if point is None:
+            slope(s_fold)
+            point = cache[s_fold]
+        x = unpack(point[:-1], params.n_particles)
+        return Fold(
+            moment=float(point[-1]),
+            phi0=float(x[ROW_INDEX["phi"], column(params, particle)]),
+            x=x,
+            particle=particle,
+            maximum=bool(tangent[-1] > 0),
+        )
+
+    tangent = new_tangent(y, tangent)
+    moments, states, folds = [0.0], [zeros(params)], []
+    checks = [static_stability(params, model, states[0])]
+    index = checks[0].index
+    ds = step
+    while len(moments) < max_points:
+        found = correct(y, tangent, ds, tol)
+        if found is None:
             ds /= 2
             if ds < min_step:
                 raise NewtonError(
@@ -343,11 +398,26 @@ def continue_in_moment(
                     unpack(y[:-1], params.n_particles),
                 )
             continue
-        tangent = new_tangent(z, tangent)
+        z, iterations, jac = found
+        x = unpack(z[:-1], params.n_particles)
+        check = static_stability(params, model, x)
+        now_index = check.index
+        if now_index != index and ds > refine_step:
+            # An eigenvalue of K crosses zero within this step: a fold (or a pair of folds,
+            # a maximum and a minimum of M, that a longer step would step over) lies in it.
+            # Take it in steps of refine_step, so that the tangent's turns show between points.
+            ds = max(refine_step, ds / 8)
+            continue
+        index = now_index
+        next_tangent = new_tangent(z, tangent, jac)
+        if next_tangent[-1] * tangent[-1] < 0:
+            # M turned between the two points: a fold, located along the arc.
+            folds.append(fold_between(y, tangent, ds))
+        tangent = next_tangent
         y = z
-        x = unpack(y[:-1], params.n_particles)
         moments.append(y[-1])
         states.append(x)
+        checks.append(check)
         phi = abs(x[ROW_INDEX["phi"], column(params, particle)])
         if progress is not None:
             progress(min(phi, phi0_stop), phi0_stop)
@@ -355,26 +425,4 @@ def continue_in_moment(
             break
         if iterations <= 2:
             ds = min(max_step, 1.3 * ds)
-    branch = _assemble_branch(params, model, particle, moments, states, [])
-    branch.folds = _folds_on(params, model, branch)
-    return branch
-
-
-def _folds_on(params: ChainParams, model: Model, branch: Branch) -> list[Fold]:
-    """Locate every fold of a traced branch: where M stops increasing or decreasing along it."""
-    folds = []
-    dm = np.diff(branch.moment)
-    for i in np.flatnonzero(dm[:-1] * dm[1:] < 0):
-        # The extremum of M lies between points i and i + 2; on the rotation-controlled
-        # branch it is a root of dM/dphi_0 there.
-        lo, hi = sorted((branch.phi0[i], branch.phi0[i + 2]))
-        try:
-            fold = locate_fold(params, model, particle=branch.particle, bracket=(lo, hi), seed=(branch.x[i + 1], branch.moment[i + 1]))
-        except (ValueError, NewtonError) as err:
-            # Never a fold passed without a word: say which extremum could not be located.
-            raise NewtonError(
-                f"the extremum of M near M={branch.moment[i + 1]:.10g}, phi_0 in [{lo:.6g}, {hi:.6g}] could not be located as a fold: {err}",
-                branch.x[i + 1],
-            ) from err
-        folds.append(fold)
-    return folds
+    return _assemble_branch(params, model, particle, moments, states, folds, checks)

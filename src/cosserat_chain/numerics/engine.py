@@ -586,7 +586,9 @@ class Lanes:
         self.weights = np.array(method.weights, dtype=float)
         self.lanes = np.zeros((N_LANE_FIELDS, size))
         self.lanes[T0] = 0.0 if t0 is None else t0
-        self.lanes[MAX_DISPLACEMENT] = np.array([100.0 * 2 * p.N * p.h for p in first])[which] if max_displacement is None else max_displacement
+        self.lanes[MAX_DISPLACEMENT] = (
+            np.array([100.0 * 2 * p.N * p.h for p in first])[which] if max_displacement is None else max_displacement
+        )
         self.lanes[MAX_ANGLE] = model.max_angle
         self.lanes[DIRECTION] = 1.0
         self.lane_ints = np.zeros((N_LANE_INTS, size), dtype=np.int64)

@@ -16,13 +16,19 @@ Contract
   the eigenvalue of K nearest the imaginary axis from the right: it is the one
   that crosses zero at a fold, for every model alike.
 
-Up to :data:`DENSE_LIMIT` free degrees of freedom dense eigenvalue solvers are used
-(the reference). Beyond it, for a conservative model, nothing dense is formed: the
-critical eigenvalue is the smallest eigenvalue of the banded Hessian (LAPACK's banded
-symmetric solver, O(N)), which decides stability (with positive damping the damped
-dynamics decays iff K is positive definite); the spectral abscissa is then not
-computed (NaN). The sine model's non-symmetric K still goes through the dense
-solvers at every size: O(N^3) per state, minutes per branch from N of about 50.
+Without dense matrices (the default at every size): the critical eigenvalue is the
+smallest eigenvalue of the model's symmetric banded matrix similar to K
+(:meth:`~cosserat_chain.models.base.Model.symmetric_similar`; LAPACK's banded
+symmetric solver, O(N)), and the state is stable iff it is positive. For a
+conservative model with positive damping the damped dynamics decays iff K is
+positive definite. For eq. (2), K = S C with S the linear model's (positive
+definite) and C = diag(1, 1, cos phi): if every cos phi > 0, C M, C Gamma and C S C
+are positive definite and the energy 1/2 q'^T C M q' + 1/2 q^T C S C q of
+C M q'' + C Gamma q' + C S C q = 0 decays; a particle beyond pi/2 gives K a negative
+eigenvalue (Sylvester's law of inertia) and a growing mode (checked against the dense
+reference on random chains). The spectral abscissa is then not computed (NaN).
+``dense=True`` runs the dense reference (O(N^3)): eigenvalues of K and of the damped
+dynamics matrix A; a model without a symmetric similar matrix always takes it.
 """
 
 from __future__ import annotations
@@ -32,14 +38,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as la
-import scipy.sparse as sp
 
-from ..models.base import Model, get_model
+from ..models.base import Model, get_model, upper_bands
 from ..params import ChainParams
 from ..state import check_state
-
-#: Free degrees of freedom up to which the dense solvers run (N up to about 25).
-DENSE_LIMIT = 150
 
 
 @dataclass(frozen=True)
@@ -54,11 +56,16 @@ class Stability:
     spectral_abscissa : float
         Largest real part of the eigenvalues of the linearised damped dynamics
         (< 0: perturbations decay); NaN where the banded path decided (module docstring).
+    index : int
+        Number of eigenvalues of K with a negative real part (the Morse index for a
+        conservative model): it changes by one at every fold, also between two
+        unstable states.
     """
 
     stable: bool
     critical_eigenvalue: float
     spectral_abscissa: float
+    index: int = 0
 
 
 def damped_dynamics_matrix(params: ChainParams, stiffness: np.ndarray) -> np.ndarray:
@@ -79,38 +86,27 @@ def damped_dynamics_matrix(params: ChainParams, stiffness: np.ndarray) -> np.nda
     return a
 
 
-def static_stability(params: ChainParams, model: str | Model, x: np.ndarray, *, dense: bool | None = None) -> Stability:
+def static_stability(params: ChainParams, model: str | Model, x: np.ndarray, *, dense: bool = False) -> Stability:
     """Stability of the static state ``x`` (3, 2N+1) of ``model`` (see the module docstring).
 
     For a state with zero damping, purely oscillatory perturbations count as
-    stable (spectral abscissa at round-off level). ``dense`` forces the dense
-    (True) or the banded (False, conservative models only) path; by default dense
-    up to :data:`DENSE_LIMIT` free degrees of freedom.
+    stable (spectral abscissa at round-off level). ``dense=True`` runs the dense
+    reference instead of the banded path (module docstring).
     """
     model = get_model(model)
     x = check_state(params, x)
-    stiffness = model.stiffness(params, x)
-    scale = max(1.0, float(abs(stiffness).max())) if stiffness.nnz else 1.0
-    # Round-off of the eigenvalue solvers, relative to the fastest rate of the chain.
-    round_off = 1e-10 * scale
-    if dense if dense is not None else stiffness.shape[0] <= DENSE_LIMIT:
-        k = stiffness.toarray()
-        abscissa = float(np.max(la.eigvals(damped_dynamics_matrix(params, k)).real))
-        if model.conservative:
-            critical = float(la.eigvalsh(k)[0])
-            return Stability(critical > 0.0, critical, abscissa)
-        return Stability(abscissa < round_off, float(np.min(la.eigvals(k).real)), abscissa)
-    if not model.conservative:
-        return static_stability(params, model, x, dense=True)
-    critical = _smallest_banded(stiffness)
-    return Stability(critical > 0.0, critical, math.nan)
-
-
-def _smallest_banded(stiffness: sp.spmatrix) -> float:
-    """Smallest eigenvalue of the symmetric banded K (exact, O(n) for a chain's bandwidth)."""
-    coo = stiffness.tocoo()
-    lower = coo.row >= coo.col
-    offset = coo.row[lower] - coo.col[lower]
-    bands = np.zeros((int(offset.max(initial=0)) + 1, coo.shape[0]))
-    bands[offset, coo.col[lower]] = coo.data[lower]
-    return float(la.eig_banded(bands, lower=True, eigvals_only=True, select="i", select_range=(0, 0))[0])
+    similar = None if dense else model.symmetric_similar(params, x)
+    if similar is not None:
+        bands = upper_bands(similar)
+        critical = float(la.eig_banded(bands, eigvals_only=True, select="i", select_range=(0, 0))[0])
+        index = 0 if critical >= 0 else la.eig_banded(bands, eigvals_only=True, select="v", select_range=(-np.inf, 0.0)).size
+        return Stability(critical > 0.0, critical, math.nan, int(index))
+    k = model.stiffness(params, x).toarray()
+    abscissa = float(np.max(la.eigvals(damped_dynamics_matrix(params, k)).real))
+    if model.conservative:
+        eigenvalues = la.eigvalsh(k)
+        return Stability(bool(eigenvalues[0] > 0.0), float(eigenvalues[0]), abscissa, int(np.sum(eigenvalues < 0)))
+    # Round-off of the eigenvalue solver, relative to the fastest rate of the chain.
+    round_off = 1e-10 * max(1.0, float(np.max(np.abs(k))))
+    real = la.eigvals(k).real
+    return Stability(abscissa < round_off, float(np.min(real)), abscissa, int(np.sum(real < 0)))
