@@ -208,3 +208,21 @@ def test_a_branch_with_two_maxima_reports_both_with_the_stability_between():
     for fold in (first, minimum, largest):
         alone = locate_fold(params, "nonlinear", bracket=(fold.phi0 - 2e-3, fold.phi0 + 2e-3), seed=(fold.x, fold.moment))
         assert alone.moment == pytest.approx(fold.moment, abs=1e-10) and alone.phi0 == pytest.approx(fold.phi0, abs=1e-8)
+
+
+@pytest.mark.parametrize("N", [20, 60])
+def test_critical_on_a_longer_chain_finds_the_sine_fold_and_agrees_with_locate_fold(N):
+    # No tolerance tuned by hand: the round-off floor lets Newton converge where an
+    # absolute 1e-14 could not (from N of about 20), and the banded stability keeps it O(N).
+    params = ChainParams(N=N)
+    sine = critical_point(params, "sine")
+    rotations = linear_rotation_response(params)[2]
+    assert sine.critical_moment == pytest.approx(1.0 / np.max(np.abs(rotations)), rel=1e-10)
+    assert sine.phi0_at_fold == pytest.approx(math.pi / 2, rel=1e-10)
+    if N == 20:
+        nonlinear = critical_point(params, "nonlinear")
+        fold = nonlinear.fold
+        alone = locate_fold(params, "nonlinear", bracket=(fold.phi0 - 1e-2, fold.phi0 + 1e-2), seed=(fold.x, fold.moment))
+        assert alone.moment == pytest.approx(fold.moment, abs=1e-10) and alone.phi0 == pytest.approx(fold.phi0, abs=1e-8)
+        # On this chain the first fold is the onset of rotation: no snap-through.
+        assert nonlinear.first_fold is fold and not nonlinear.as_dict()["snap_through"]
