@@ -144,3 +144,15 @@ def test_plots_show_the_profiles_and_the_convergence(paper):
     (ax,) = fig.axes
     assert ax.get_xscale() == "log" and ax.get_yscale() == "log"
     np.testing.assert_array_equal(ax.lines[0].get_ydata(), table.relative_error)
+
+
+def test_the_discrete_compliance_is_flagged_where_the_solve_loses_its_accuracy():
+    # K's condition number grows like N^4 (the clamped chain's softest mode): at N = 10^4 it
+    # is about 1e16 and two factorisations of K disagree in the third digit, which the table
+    # says instead of reporting that as the continuum's error.
+    table = convergence(ChainParams(), [100, 200, 1000, 10_000])
+    assert table.condition[1] / table.condition[0] == pytest.approx(16, rel=0.05)
+    assert list(table.accurate) == [True, True, True, False]
+    assert table.discrete_spread[2] < 1e-6 < table.discrete_spread[3]
+    # The order is fitted over the accurate rows only: the continuum's error falls like 1/N.
+    assert table.order() == pytest.approx(1.0, abs=0.02)

@@ -10,6 +10,7 @@ import pytest
 import sympy as sp
 
 from conftest import ROUND_OFF, random_geometries
+from cosserat_chain import ChainParams
 from cosserat_chain.analysis.symbolic import (
     COEFFICIENTS,
     compare_with_paper,
@@ -85,7 +86,7 @@ def test_eq2_is_not_conservative_and_its_curl_vanishes_only_at_phi_zero():
 
 
 def test_printed_eq3_is_not_symmetric_and_makes_the_paper_chain_unstable(paper):
-    printed = printed_eq3_stiffness(paper)
+    printed = printed_eq3_stiffness(paper).toarray()
     derived = LINEAR.stiffness(paper).toarray()
     # The printed operator differs only in the phi equation's coupling term D2 ((v_k+1 - v_k-1)/2h - phi_k), by the factor 4.
     rows, cols = np.nonzero(np.abs(printed - derived) > ROUND_OFF)
@@ -98,6 +99,20 @@ def test_printed_eq3_is_not_symmetric_and_makes_the_paper_chain_unstable(paper):
     lowest = np.min(np.linalg.eigvals(inverse_mass[:, None] * printed).real)
     assert lowest == pytest.approx(-4.66, abs=0.01)
     assert np.min(np.linalg.eigvalsh(derived)) > 0
+
+
+def test_the_errata_of_a_long_chain_use_no_dense_matrix(monkeypatch):
+    # N = 1000: 5997 free degrees of freedom (a dense eigendecomposition took 70 s); the
+    # printed operator's leftmost eigenvalue by ARPACK equals the dense one at N = 100.
+    import cosserat_chain.analysis.symbolic as symbolic
+
+    matrix = printed_eq3_stiffness(ChainParams(N=100))
+    dense = np.min(np.linalg.eigvals(matrix.toarray()).real)
+    monkeypatch.setattr(symbolic, "DENSE_SPECTRUM_LIMIT", 0)
+    assert symbolic._lowest_real_eigenvalue(matrix).real == pytest.approx(dense, rel=1e-8)
+    monkeypatch.undo()
+    (one,) = [e for e in errata(ChainParams(N=1000)) if e.number == 1]
+    assert "N = 1000" in one.consequence
 
 
 def test_errata_carry_printed_derived_and_consequence_for_the_given_chain(paper):

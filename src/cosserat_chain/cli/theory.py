@@ -40,14 +40,20 @@ def theory(
     except ValueError as err:
         fail(str(err))
     listed = errata(params)
-    order = table.order() if len(set(n_values)) >= 2 and all(table.relative_error > 0) else None
+    accurate = table.accurate
+    order = table.order() if len(set(table.N[accurate])) >= 2 and all(table.relative_error[accurate] > 0) else None
     if as_json:
         typer.echo(json.dumps(_summary(params, table, order, listed)))
         return
     typer.echo(f"D1 = {params.D1:.6g} (derived; printed in Section 3: {printed_D1(params):.6g}), D2 = {params.D2:.6g}")
     typer.echo(f"{'N':>8}  {'continuum phi0/M':>17}  {'discrete phi0/M':>16}  {'rel. error':>11}  {'residue (12)':>12}")
-    for n, c, d, e, r in zip(table.N, table.continuum, table.discrete, table.relative_error, table.residue):
-        typer.echo(f"{n:>8d}  {c:>17.8g}  {d:>16.8g}  {e:>11.3e}  {r:>12.3e}")
+    for n, c, d, e, r, ok in zip(table.N, table.continuum, table.discrete, table.relative_error, table.residue, table.accurate):
+        typer.echo(f"{n:>8d}  {c:>17.8g}  {d:>16.8g}  {e:>11.3e}  {r:>12.3e}" + ("" if ok else "  (inaccurate)"))
+    for n, spread, condition in zip(table.N[~table.accurate], table.discrete_spread[~table.accurate], table.condition[~table.accurate]):
+        typer.echo(
+            f"N = {n}: the discrete value is inaccurate: two factorisations of K differ by {spread:.1e} (relative; "
+            f"K's condition number {condition:.1e}, about N^4: the clamped chain's softest mode), so its error is not the continuum's"
+        )
     if order is not None:
         typer.echo(f"observed order of the relative error: N^-{order:.3f}")
     typer.echo(f"\nerrata of the paper (docs/errata.md), evaluated for N = {params.N}:")
