@@ -336,10 +336,26 @@ def continue_in_moment(
     def bordered(jac: sp.csc_matrix, row: np.ndarray) -> sp.csc_matrix:
         return sp.vstack([jac, sp.csr_matrix(row)], format="csc")
 
+    def solve_bordered(matrix: sp.csc_matrix, rhs: np.ndarray) -> np.ndarray:
+        """Solve the banded system bordered by a dense row in O(N).
+
+        In the natural order and with diagonal pivots the fill stays in the dense last
+        row; SuperLU's default pivoting moved it up and filled the factor (0.7 s a solve
+        at N = 1000 against 4 ms). One step of refinement with the same factor recovers
+        what the diagonal pivots lose; a factorisation that fails falls back to the default.
+        """
+        try:
+            lu = spla.splu(matrix, permc_spec="NATURAL", diag_pivot_thresh=0.0)
+            out = lu.solve(rhs)
+            out = out + lu.solve(rhs - matrix @ out)
+        except RuntimeError:
+            return spla.spsolve(matrix, rhs)
+        return out if np.all(np.isfinite(out)) else spla.spsolve(matrix, rhs)
+
     def new_tangent(y: np.ndarray, previous: np.ndarray, jac: sp.csc_matrix | None = None) -> np.ndarray:
         rhs = np.zeros(nf + 1)
         rhs[-1] = 1.0
-        t = spla.spsolve(bordered(jacobian(y) if jac is None else jac, previous), rhs)
+        t = solve_bordered(bordered(jacobian(y) if jac is None else jac, previous), rhs)
         return t / np.linalg.norm(t)
 
     def correct(y: np.ndarray, tangent: np.ndarray, ds: float, tol: float) -> tuple[np.ndarray, int, sp.csc_matrix] | None:
@@ -352,7 +368,7 @@ def continue_in_moment(
             jac = jacobian(z)
             if np.max(np.abs(r)) <= max(tol * (1.0 + abs(z[-1])), round_off_floor(jac, z[:-1])):
                 return z, iterations, jac
-            z = z - spla.spsolve(bordered(jac, tangent), r)
+            z = z - solve_bordered(bordered(jac, tangent), r)
             if not np.all(np.isfinite(z)):
                 return None
         return None
