@@ -202,7 +202,6 @@ def locate_fold(
     particle: int = 0,
     bracket: tuple[float, float] | None = None,
     phi0_max: float = math.pi,
-    n_scan: int = 16,
     seed: tuple[np.ndarray, float] | None = None,
 ) -> Fold | None:
     """The first fold of the branch from rest under a positive moment, to round-off.
@@ -211,8 +210,9 @@ def locate_fold(
     ----------
     bracket : (float, float), optional
         Angles phi_0 between which dM/dphi_0 changes sign (any fold, also a
-        minimum of M); by default the first maximum, found by scanning
-        (0, ``phi0_max``] in ``n_scan`` steps.
+        minimum of M), located on the rotation-controlled branch; by default the
+        first fold of :func:`continue_in_moment` up to |phi_0| = ``phi0_max``
+        (a scan in phi_0 missed the folds of long chains, whose branch turns back in phi_0).
     seed : (ndarray (3, 2N+1), float), optional
         A nearby equilibrium and its moment to start Newton from.
 
@@ -246,12 +246,8 @@ def locate_fold(
         return moment_slope(params, model, solve(angle)[0], particle=particle)
 
     if bracket is None:
-        angles = np.linspace(0.0, phi0_max, n_scan + 1)
-        slopes = [slope(a) for a in angles]
-        sign_change = [i for i in range(n_scan) if slopes[i] > 0 >= slopes[i + 1]]
-        if not sign_change:
-            return None
-        bracket = (angles[sign_change[0]], angles[sign_change[0] + 1])
+        folds = continue_in_moment(params, model, particle=particle, phi0_stop=phi0_max).folds
+        return folds[0] if folds else None
     phi_fold = so.brentq(slope, *bracket, xtol=1e-15, rtol=4 * np.finfo(float).eps)
     x, moment = solve(phi_fold)
     return Fold(moment=moment, phi0=phi_fold, x=x, particle=particle)
