@@ -246,7 +246,7 @@ def locate_fold(
         return moment_slope(params, model, solve(angle)[0], particle=particle)
 
     if bracket is None:
-        folds = continue_in_moment(params, model, particle=particle, phi0_stop=phi0_max).folds
+        folds = continue_in_moment(params, model, particle=particle, phi0_stop=phi0_max, max_folds=1).folds
         return folds[0] if folds else None
     phi_fold = so.brentq(slope, *bracket, xtol=1e-15, rtol=4 * np.finfo(float).eps)
     x, moment = solve(phi_fold)
@@ -266,6 +266,7 @@ def continue_in_moment(
     max_points: int = 5000,
     tol: float = 1e-11,
     refine_step: float = 2e-4,
+    max_folds: int | None = None,
     progress: ProgressCallback | None = None,
 ) -> Branch:
     """Pseudo-arclength continuation of the static branch from rest, in the direction of increasing M.
@@ -292,6 +293,8 @@ def continue_in_moment(
         in steps of at most this, so that every fold shows as a turn of the tangent
         between points (two folds within one step whose eigenvalue crossings cancel are
         still missed).
+    max_folds : int, optional
+        Stop once this many folds have been passed.
     progress : callable(|phi_0|, phi0_stop), optional
 
     Returns
@@ -442,7 +445,7 @@ def continue_in_moment(
         phi = abs(x[ROW_INDEX["phi"], column(params, particle)])
         if progress is not None:
             progress(min(phi, phi0_stop), phi0_stop)
-        if phi >= phi0_stop or abs(y[-1]) > moment_stop:
+        if phi >= phi0_stop or abs(y[-1]) > moment_stop or (max_folds is not None and len(folds) >= max_folds):
             break
         if iterations <= 2:
             ds = min(max_step, 1.3 * ds)
