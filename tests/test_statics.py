@@ -226,3 +226,15 @@ def test_critical_on_a_longer_chain_finds_the_sine_fold_and_agrees_with_locate_f
         assert alone.moment == pytest.approx(fold.moment, abs=1e-10) and alone.phi0 == pytest.approx(fold.phi0, abs=1e-8)
         # On this chain the first fold is the onset of rotation: no snap-through.
         assert nonlinear.first_fold is fold and not nonlinear.as_dict()["snap_through"]
+
+
+def test_locate_fold_finds_the_fold_of_a_chain_whose_branch_turns_back_in_phi0():
+    # N = 50: after its first fold the branch turns back in phi_0, and a scan in phi_0
+    # found no sign change of dM/dphi_0 (it returned None). The continuation's fold equals
+    # the root of dM/dphi_0 on the rotation-controlled branch.
+    params = ChainParams(N=50)
+    fold = locate_fold(params, "nonlinear")
+    assert fold is not None and fold.maximum
+    alone = locate_fold(params, "nonlinear", bracket=(fold.phi0 - 1e-2, fold.phi0 + 1e-2), seed=(fold.x, fold.moment))
+    assert alone.moment == pytest.approx(fold.moment, abs=1e-10) and alone.phi0 == pytest.approx(fold.phi0, abs=1e-8)
+    assert abs(static_stability(params, "nonlinear", fold.x).critical_eigenvalue) < 1e-9  # K is singular there
