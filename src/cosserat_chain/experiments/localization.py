@@ -365,7 +365,14 @@ def localization_run(
                 method=method,
                 stride=1,
                 # Stop at the step that completes the last turn.
-                turns=TurnWatch(particle, direction, state.diagnostics.angle_start[col], state.diagnostics.turns_completed, 1, turns),
+                turns=TurnWatch(
+                    particle,
+                    direction,
+                    phi_start=state.diagnostics.angle_start[col],
+                    made=state.diagnostics.turns_completed,
+                    keep=1,
+                    stop_after=turns,
+                ),
             )
             if run.status == Status.BLEW_UP:
                 raise IntegrationError(f"localization run ({model.name}, M={moment:g}): {run.message}", run)

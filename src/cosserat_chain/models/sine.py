@@ -36,6 +36,11 @@ from .linear import (
 from .trig import REDUCTION_LIMIT, sincos
 
 
+def _chain_rule(x: np.ndarray) -> np.ndarray:
+    """The diagonal C = diag(1, 1, cos phi) over the free degrees of freedom: dF_sine/dq = dF_linear/dq C."""
+    return pack(np.vstack([np.ones_like(x[:2]), np.cos(x[2:3])]))
+
+
 @lru_cache(maxsize=16)
 def _linear_factor(params: ChainParams) -> sp.csr_matrix:
     """U with U^T U the linear model's stiffness (banded Cholesky; constant per chain)."""
@@ -93,8 +98,7 @@ class SineModel(Model):
 
     def stiffness(self, params: ChainParams, x: np.ndarray) -> sp.csr_matrix:
         x = check_state(params, x)
-        chain_rule = pack(np.vstack([np.ones_like(x[:2]), np.cos(x[2:3])]))
-        return (stiffness_matrix(params) @ sp.diags(chain_rule)).tocsr()
+        return (stiffness_matrix(params) @ sp.diags(_chain_rule(x))).tocsr()
 
     def symmetric_similar(self, params: ChainParams, x: np.ndarray) -> sp.csr_matrix:
         """U C U^T, similar to the stiffness K C (K = U^T U the linear model's, C = diag(1, 1, cos phi)).
@@ -105,9 +109,8 @@ class SineModel(Model):
         stability when a particle turns beyond pi/2.
         """
         x = check_state(params, x)
-        chain_rule = pack(np.vstack([np.ones_like(x[:2]), np.cos(x[2:3])]))
         factor = _linear_factor(params)
-        return (factor @ sp.diags(chain_rule) @ factor.T).tocsr()
+        return (factor @ sp.diags(_chain_rule(x)) @ factor.T).tocsr()
 
     def bond_energy(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         """The linear model's P_bond at (u, v, sin phi), shape (..., 2N) for x (..., 3, 2N+1).

@@ -51,7 +51,7 @@ from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, n_free, pack, unpack, zeros
 from ..status import Status
 from . import dop853
-from .dynamics import TurnWatch, integrate
+from .dynamics import TurnWatch, default_time_step, integrate
 
 #: Step of the central differences of the force kernel. The nonlinear model's third
 #: derivatives are large (~1e3), so truncation (step^2) meets round-off (eps / step) near
@@ -330,14 +330,17 @@ def initial_guess(
     # Turns count from the multiple of 2 pi at or behind the start, one run per turn,
     # each stopping at the step that completes it.
     phi = x[ROW_INDEX["phi"], col]
-    watch = TurnWatch(particle, sign, sign * 2 * math.pi * math.floor(sign * phi / (2 * math.pi)), 0, 1, 1)
+    watch = TurnWatch(particle, sign, phi_start=sign * 2 * math.pi * math.floor(sign * phi / (2 * math.pi)), keep=1, stop_after=1)
+    # The default step once (integrate would compute it again for every turn); it lies far
+    # inside the stability limit, so it needs no check either.
+    dt = default_time_step(params, model)
     times: list[float] = []
     state = None
     elapsed = 0.0
     while elapsed < t_max and len(times) < wanted + 1 and not _settled(times, turns):
         run = integrate(
-            params, model, loads, t0=elapsed, t_end=min(elapsed + GUESS_CHUNK, t_max), x0=x, v0=v, method="yoshida4", n_frames=2,
-            throw=True, turns=watch,
+            params, model, loads, t0=elapsed, t_end=min(elapsed + GUESS_CHUNK, t_max), dt=dt, check_stability=False, x0=x, v0=v,
+            method="yoshida4", n_frames=2, throw=True, turns=watch,
         )  # fmt: skip
         x, v = run.x[-1], run.v[-1]
         elapsed = float(run.time[-1])

@@ -44,7 +44,7 @@ import scipy.linalg as la
 import scipy.sparse as sp
 from numba import njit
 
-from ..models.base import Model, get_model
+from ..models.base import Model, get_model, upper_bands
 from ..params import ChainParams
 from ..state import check_state
 
@@ -121,12 +121,12 @@ def static_stability(params: ChainParams, model: str | Model, x: np.ndarray, *, 
 
 
 def _lower_rows(matrix: sp.spmatrix) -> np.ndarray:
-    """A symmetric banded matrix by rows of its lower band: out[i, d] = M[i, i - d], d = 0..w."""
-    coo = sp.tril(matrix, format="coo")
-    offset = coo.row - coo.col
-    out = np.zeros((matrix.shape[0], int(offset.max(initial=0)) + 1))
-    out[coo.row, offset] = coo.data
-    return out
+    """A symmetric banded matrix by rows of its lower band: out[i, d] = M[i, i - d] = M[i - d, i], d = 0..w.
+
+    LAPACK's upper storage (:func:`~cosserat_chain.models.base.upper_bands`) holds M[i - d, i]
+    at [w - d, i]: its rows reversed and transposed.
+    """
+    return np.ascontiguousarray(upper_bands(matrix)[::-1].T)
 
 
 @njit(cache=True, nogil=True)
