@@ -13,7 +13,7 @@ from cosserat_chain import ChainParams, moment_load
 from cosserat_chain.experiments.critical import critical_point
 from cosserat_chain.io import read_dataset, write_dataset
 from cosserat_chain.models.linear import stiffness_matrix
-from cosserat_chain.numerics.continuation import compliance, continue_in_moment, locate_fold, moment_slope, rotation_branch
+from cosserat_chain.numerics.continuation import STEP, compliance, continue_in_moment, locate_fold, moment_slope, rotation_branch
 from cosserat_chain.numerics.newton import moment_dof, solve_equilibrium, solve_rotation_controlled
 from cosserat_chain.numerics.stability import static_stability
 from cosserat_chain.state import n_free, unpack
@@ -238,3 +238,28 @@ def test_locate_fold_finds_the_fold_of_a_chain_whose_branch_turns_back_in_phi0()
     alone = locate_fold(params, "nonlinear", bracket=(fold.phi0 - 1e-2, fold.phi0 + 1e-2), seed=(fold.x, fold.moment))
     assert alone.moment == pytest.approx(fold.moment, abs=1e-10) and alone.phi0 == pytest.approx(fold.phi0, abs=1e-8)
     assert abs(static_stability(params, "nonlinear", fold.x).critical_eigenvalue) < 1e-9  # K is singular there
+
+
+@pytest.mark.parametrize(
+    "params", random_geometries(6, seed=12) + [ChainParams(N=10, a=0.3, b=0.1, E1=2.0, E2=0.3)], ids=lambda p: f"N{p.N}_a{p.a:.2f}"
+)
+def test_adaptive_steps_find_the_folds_that_short_fixed_steps_find(params):
+    # The step grows where the branch is straight; it must not pass a fold that steps
+    # a quarter of the default long, never growing, find (the last chain has a pair of
+    # folds within 0.015 rad of phi_0).
+    adaptive = continue_in_moment(params, "nonlinear", phi0_stop=math.pi)
+    short = STEP * math.sqrt(n_free(params) / 15) / 4
+    fine = continue_in_moment(params, "nonlinear", phi0_stop=math.pi, step=short, max_step=short, max_points=20000)
+    assert adaptive.stop == fine.stop and adaptive.stop in ("phi0_stop", "returned")
+    assert [f.maximum for f in adaptive.folds] == [f.maximum for f in fine.folds]
+    for a, f in zip(adaptive.folds, fine.folds, strict=True):
+        assert a.moment == pytest.approx(f.moment, abs=1e-10) and a.phi0 == pytest.approx(f.phi0, abs=1e-7)
+    assert adaptive.moment.size < fine.moment.size
+
+
+def test_a_branch_cut_short_by_its_point_budget_says_so(paper):
+    branch = continue_in_moment(paper, "nonlinear", max_points=10)
+    assert branch.stop == "max_points" and not branch.complete and branch.moment.size == 10
+    assert continue_in_moment(paper, "nonlinear", max_folds=1).stop == "max_folds"
+    result = critical_point(paper, "sine", max_points=10)
+    assert not result.complete and result.as_dict()["branch_complete"] is False

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from ..experiments.critical import critical_point
+from ..experiments.critical import MAX_POINTS, critical_point
 from ..experiments.sweep import relaxation_sweep
 from ..io import stack_models, write_dataset
 from ..numerics.newton import NewtonError
@@ -74,6 +74,7 @@ def critical(
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
     out: Path | None = typer.Option(None, help="Write the branches to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the branches (Fig. 2 without the relaxation points) to this PNG/SVG file."),
+    max_points: int = typer.Option(MAX_POINTS, min=2, help="Most points of each branch; a branch cut short exits with time_limit (3)."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Critical moment M_c and phi_0 at the fold (to round-off), compliance, and the static branch over one turn."""
@@ -82,7 +83,7 @@ def critical(
     for name in chosen_models(model):
         bar = progress_bar(f"critical {name}", "rad")
         try:
-            results[name] = critical_point(params, name, particle=particle, progress=bar_callback(bar))
+            results[name] = critical_point(params, name, particle=particle, max_points=max_points, progress=bar_callback(bar))
         except (ValueError, NewtonError) as err:
             bar.close()
             fail(str(err), code=2 if isinstance(err, ValueError) else 3)
@@ -95,9 +96,17 @@ def critical(
         save_figure(figure2(results), plot)
     if as_json:
         typer.echo(json.dumps({"params": params.model_dump(), "models": {name: r.as_dict() for name, r in results.items()}}))
-        return
-    for name, r in results.items():
-        fold = "no fold" if r.fold is None else f"M_c = {r.fold.moment:.15g} at phi_0 = {r.fold.phi0:.15g} rad (onset of rotation)"
-        if r.as_dict()["snap_through"]:
-            fold += f"; the stable branch from rest ends earlier, at M = {r.first_fold.moment:.15g}, phi_0 = {r.first_fold.phi0:.15g} rad (snap-through)"
-        typer.echo(f"{name}: {fold}; compliance dphi_0/dM = {r.compliance:.15g}; {len(r.branch.folds)} folds over the turn")
+    else:
+        for name, r in results.items():
+            fold = "no fold" if r.fold is None else f"M_c = {r.fold.moment:.15g} at phi_0 = {r.fold.phi0:.15g} rad (onset of rotation)"
+            if r.as_dict()["snap_through"]:
+                fold += f"; the stable branch from rest ends earlier, at M = {r.first_fold.moment:.15g}, phi_0 = {r.first_fold.phi0:.15g} rad (snap-through)"
+            over = "over the turn" if r.complete else f"on the traced part (incomplete: {len(r.branch.moment)} points)"
+            typer.echo(f"{name}: {fold}; compliance dphi_0/dM = {r.compliance:.15g}; {len(r.branch.folds)} folds {over}")
+    short = [name for name, r in results.items() if not r.complete]
+    if short:
+        exit_on(
+            Status.TIME_LIMIT,
+            f"the branch of {', '.join(short)} used all {max_points} points before the loaded particle turned once: "
+            "M_c is the largest maximum of the traced part (raise --max-points)",
+        )

@@ -9,7 +9,8 @@ Contract
   loaded particle, with the stability of every point and every fold it passes, each
   located to round-off (:func:`~cosserat_chain.numerics.continuation.locate_fold`);
 * M_c, the onset of rotation under a slowly rising load: the largest maximum of M
-  along the branch (no static state of the branch holds more), and the first fold,
+  along the branch (of its traced part if the point budget ran out first: ``complete``
+  is then False and the command line exits with ``time_limit``) (no static state of the branch holds more), and the first fold,
   where the stable branch from rest ends. A branch can have several maxima (N = 10,
   a = 0.3, b = 0.1, E1 = 2, E2 = 0.3: a first one near phi_0 = 1.0, the largest near
   2.04): at the first the chain snaps through to a static state further along, and
@@ -34,6 +35,9 @@ from ..numerics.continuation import Branch, Fold, compliance, continue_in_moment
 from ..params import ChainParams
 from ..state import ROWS
 from .simulation import run_attributes
+
+#: Default point budget of the full-turn branch (N = 1000: about 2600 points).
+MAX_POINTS = 5000
 
 
 @dataclass
@@ -63,6 +67,11 @@ class CriticalResult:
     first_fold: Fold | None = None
 
     @property
+    def complete(self) -> bool:
+        """Whether the branch was traced over the whole turn (else M_c is that of its traced part)."""
+        return self.branch.complete
+
+    @property
     def critical_moment(self) -> float | None:
         return None if self.fold is None else self.fold.moment
 
@@ -71,7 +80,8 @@ class CriticalResult:
         return None if self.fold is None else self.fold.phi0
 
     def as_dict(self) -> dict:
-        """JSON-ready: ``M_c`` (onset of rotation; null without a fold), ``phi0_at_fold``, ``first_fold``, ``snap_through``, ``compliance`` and the branch."""
+        """JSON-ready: ``M_c`` (onset of rotation; null without a fold), ``phi0_at_fold``, ``first_fold``, ``snap_through``,
+        ``compliance``, ``branch_complete`` and the branch."""
         return {
             "model": self.model,
             "particle": self.particle,
@@ -80,7 +90,9 @@ class CriticalResult:
             "first_fold": None if self.first_fold is None else {"moment": self.first_fold.moment, "phi0": self.first_fold.phi0},
             "snap_through": self.first_fold is not None and self.first_fold is not self.fold,
             "compliance": self.compliance,
+            "branch_complete": self.complete,
             "branch": {
+                "stop": self.branch.stop,
                 "moment": self.branch.moment.tolist(),
                 "phi0": self.branch.phi0.tolist(),
                 "stable": self.branch.stable.tolist(),
@@ -108,7 +120,14 @@ class CriticalResult:
         ds["M_c"].attrs["long_name"] = "critical moment at the first fold (NaN: no fold)"
         ds["stable"].attrs["long_name"] = "1 if the static state is stable"
         ds.attrs.update(run_attributes(self.params, get_model(self.model), Loads()))
-        ds.attrs.update({"experiment": "critical_point", "loaded_particle": self.particle})
+        ds.attrs.update(
+            {
+                "experiment": "critical_point",
+                "loaded_particle": self.particle,
+                "branch_stop": self.branch.stop,
+                "branch_complete": int(self.complete),
+            }
+        )
         return ds
 
 
@@ -117,11 +136,16 @@ def critical_point(
     model: str | Model,
     *,
     particle: int = 0,
+    max_points: int = MAX_POINTS,
     progress: Callable[[float, float], None] | None = None,
 ) -> CriticalResult:
-    """Compliance, fold and full-turn branch of ``model`` under a moment on ``particle``."""
+    """Compliance, fold and full-turn branch of ``model`` under a moment on ``particle``.
+
+    ``max_points`` bounds the branch's points (:func:`continue_in_moment`); a branch cut
+    short by it gives ``complete`` False.
+    """
     model = get_model(model)
-    branch = continue_in_moment(params, model, particle=particle, phi0_stop=2 * math.pi, progress=progress)
+    branch = continue_in_moment(params, model, particle=particle, phi0_stop=2 * math.pi, max_points=max_points, progress=progress)
     maxima = [f for f in branch.folds if f.maximum]
     # Under a positive moment from rest M rises first: the branch's first fold is a maximum.
     fold = max(maxima, key=lambda f: f.moment) if maxima else None

@@ -45,6 +45,7 @@ from __future__ import annotations
 import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from functools import lru_cache
 from typing import ClassVar
 
 import numpy as np
@@ -300,6 +301,36 @@ def available_models() -> tuple[str, ...]:
     return tuple(_REGISTRY)
 
 
+@lru_cache(maxsize=32)
+def _bond_block_pattern(n_particles: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Where each entry of the per-bond 6x6 blocks lands in the CSR data of the assembled matrix.
+
+    Returns ``keep`` (flat block entries on free degrees of freedom), ``position``
+    (their index in the CSR data, duplicates summed there), ``indices``, ``indptr``
+    and ``diagonal`` (data index of every diagonal entry). The pattern depends only on
+    the chain's length, so it is built once and every assembly is one ``bincount``.
+    """
+    n_bonds = n_particles - 1
+    cols = np.arange(n_bonds)
+    # Global free index 3 (column - 1) + row, or -1 for the clamped columns.
+    local = np.concatenate([3 * (cols[:, None] - 1) + np.arange(3), 3 * cols[:, None] + np.arange(3)], axis=1)
+    local[:, :3][cols == 0] = -1
+    local[:, 3:][cols + 1 == n_particles - 1] = -1
+    rows = np.broadcast_to(local[:, :, None], (n_bonds, 6, 6)).reshape(-1)
+    columns = np.broadcast_to(local[:, None, :], (n_bonds, 6, 6)).reshape(-1)
+    keep = np.flatnonzero((rows >= 0) & (columns >= 0))
+    size = 3 * (n_particles - 2)
+    # Sorting by (row, column) and numbering the distinct pairs gives the CSR order.
+    key = rows[keep].astype(np.int64) * size + columns[keep]
+    unique, position = np.unique(key, return_inverse=True)
+    indices = (unique % size).astype(np.int32)
+    indptr = np.searchsorted(unique // size, np.arange(size + 1)).astype(np.int32)
+    diagonal = np.searchsorted(unique, np.arange(size, dtype=np.int64) * (size + 1))
+    for array in (keep, position, indices, indptr, diagonal):
+        array.flags.writeable = False
+    return keep, position, indices, indptr, diagonal
+
+
 def assemble_bond_blocks(blocks: np.ndarray, n_particles: int, diagonal: np.ndarray | None = None) -> sp.csr_matrix:
     """Sparse matrix over the free degrees of freedom from per-bond 6x6 blocks.
 
@@ -315,19 +346,13 @@ def assemble_bond_blocks(blocks: np.ndarray, n_particles: int, diagonal: np.ndar
     Returns
     -------
     scipy.sparse.csr_matrix
-        Entries on clamped degrees of freedom are dropped.
+        Entries on clamped degrees of freedom are dropped; O(N), one ``bincount`` on a
+        cached pattern (:func:`_bond_block_pattern`).
     """
-    n_bonds = n_particles - 1
-    cols = np.arange(n_bonds)
-    # Global free index 3 (column - 1) + row, or -1 for the clamped columns.
-    local = np.concatenate([3 * (cols[:, None] - 1) + np.arange(3), 3 * cols[:, None] + np.arange(3)], axis=1)
-    local[:, :3][cols == 0] = -1
-    local[:, 3:][cols + 1 == n_particles - 1] = -1
-    rows = np.broadcast_to(local[:, :, None], blocks.shape)
-    columns = np.broadcast_to(local[:, None, :], blocks.shape)
-    keep = (rows >= 0) & (columns >= 0)
-    size = 3 * (n_particles - 2)
-    matrix = sp.coo_matrix((blocks[keep], (rows[keep], columns[keep])), shape=(size, size))
+    keep, position, indices, indptr, diagonal_at = _bond_block_pattern(n_particles)
+    data = np.bincount(position, weights=np.ascontiguousarray(blocks, dtype=float).reshape(-1)[keep], minlength=indices.size)
     if diagonal is not None:
-        matrix = matrix + sp.diags(np.ascontiguousarray(diagonal[:, 1:-1].T).reshape(-1))
-    return matrix.tocsr()
+        data[diagonal_at] += np.ascontiguousarray(diagonal[:, 1:-1].T).reshape(-1)
+    size = 3 * (n_particles - 2)
+    # Copies of the shared pattern: scipy may sort or prune a matrix's indices in place.
+    return sp.csr_matrix((data, indices.copy(), indptr.copy()), shape=(size, size))

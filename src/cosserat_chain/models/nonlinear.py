@@ -138,6 +138,50 @@ def nonlinear_batch_kernel(x, coef, out):  # pragma: no cover - compiled
             s0[i], c0[i] = s1, c1
 
 
+@njit(cache=True, nogil=True)
+def _hessian_blocks(x, h, corners, constants, blocks):  # pragma: no cover - compiled
+    """Add every link's Hessian of P = E (L - L0)^2 / 2 to its bond's 6x6 block.
+
+    ``corners[l]``: body-frame corners of link l on the left and the right particle;
+    ``constants[l]``: its E and L0. With D the link vector, e = D / L and
+    B = dD/d(u0, v0, phi0, u1, v1, phi1), the block gains B^T G B with
+    G = d^2 P / dD^2 = E [(L0/L) e e^T + (1 - L0/L) I], and the corner paths' curvature
+    (d^2 D/dphi0^2 = r0, d^2 D/dphi1^2 = -r1) adds T.r0 and -T.r1 with T = E (1 - L0/L) D.
+    """
+    jac = np.zeros((2, 6))
+    jac[0, 0] = -1.0
+    jac[1, 1] = -1.0
+    jac[0, 3] = 1.0
+    jac[1, 4] = 1.0
+    for k in range(x.shape[1] - 1):
+        c0, s0 = math.cos(x[2, k]), math.sin(x[2, k])
+        c1, s1 = math.cos(x[2, k + 1]), math.sin(x[2, k + 1])
+        for link in range(corners.shape[0]):
+            stiff, rest = constants[link, 0], constants[link, 1]
+            r0x = corners[link, 0, 0] * c0 - corners[link, 0, 1] * s0
+            r0y = corners[link, 0, 0] * s0 + corners[link, 0, 1] * c0
+            r1x = corners[link, 1, 0] * c1 - corners[link, 1, 1] * s1
+            r1y = corners[link, 1, 0] * s1 + corners[link, 1, 1] * c1
+            dx = h + x[0, k + 1] - x[0, k] + r1x - r0x
+            dy = x[1, k + 1] - x[1, k] + r1y - r0y
+            length = math.sqrt(dx * dx + dy * dy)
+            ratio = rest / length
+            ex, ey = dx / length, dy / length
+            gxx = stiff * (ratio * ex * ex + 1.0 - ratio)
+            gxy = stiff * ratio * ex * ey
+            gyy = stiff * (ratio * ey * ey + 1.0 - ratio)
+            jac[0, 2], jac[1, 2] = r0y, -r0x
+            jac[0, 5], jac[1, 5] = -r1y, r1x
+            for i in range(6):
+                gi_x = gxx * jac[0, i] + gxy * jac[1, i]
+                gi_y = gxy * jac[0, i] + gyy * jac[1, i]
+                for j in range(6):
+                    blocks[k, i, j] += gi_x * jac[0, j] + gi_y * jac[1, j]
+            tension = stiff * (1.0 - ratio)
+            blocks[k, 2, 2] += tension * (dx * r0x + dy * r0y)
+            blocks[k, 5, 5] -= tension * (dx * r1x + dy * r1y)
+
+
 def _links(params: ChainParams, x: np.ndarray):
     """Per link of every bond: the link, rotated corners r0 (on k) and r1 (on k+1), link vector D."""
     u, v, phi = x
@@ -211,27 +255,11 @@ class NonlinearModel(Model):
         return out
 
     def stiffness(self, params: ChainParams, x: np.ndarray) -> sp.csr_matrix:
-        """Exact Hessian of the energy over the free degrees of freedom (symmetric, banded)."""
+        """Exact Hessian of the energy over the free degrees of freedom (symmetric, banded; O(N), compiled)."""
         x = check_state(params, x)
-        n_bonds = params.n_particles - 1
-        blocks = np.zeros((n_bonds, 6, 6))
-        for link, r0, r1, D in _links(params, x):
-            length = np.hypot(D[0], D[1])
-            e = D / length
-            ratio = link.rest_length / length
-            # d^2 P / dD^2 = E [(L0/L) e e^T + (1 - L0/L) I]
-            G = link.stiffness * (ratio[:, None, None] * np.einsum("ib,jb->bij", e, e) + (1 - ratio)[:, None, None] * np.eye(2))
-            # dD/dq over (u0, v0, phi0, u1, v1, phi1); d(R c)/dphi = (-r_y, r_x)
-            B = np.zeros((n_bonds, 2, 6))
-            B[:, 0, 0] = -1.0
-            B[:, 1, 1] = -1.0
-            B[:, :, 2] = np.stack([r0[1], -r0[0]], axis=1)
-            B[:, 0, 3] = 1.0
-            B[:, 1, 4] = 1.0
-            B[:, :, 5] = np.stack([-r1[1], r1[0]], axis=1)
-            blocks += np.einsum("bki,bkl,blj->bij", B, G, B)
-            # Curvature of the corner paths: d^2 D/dphi0^2 = r0, d^2 D/dphi1^2 = -r1.
-            T = link.stiffness * (1.0 - ratio) * D
-            blocks[:, 2, 2] += np.sum(T * r0, axis=0)
-            blocks[:, 5, 5] -= np.sum(T * r1, axis=0)
+        links = bond_links(params)
+        corners = np.array([[link.left_corner, link.right_corner] for link in links])
+        constants = np.array([[link.stiffness, link.rest_length] for link in links])
+        blocks = np.zeros((params.n_particles - 1, 6, 6))
+        _hessian_blocks(x, params.h, corners, constants, blocks)
         return assemble_bond_blocks(blocks, params.n_particles)

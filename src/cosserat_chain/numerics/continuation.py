@@ -37,7 +37,15 @@ import scipy.sparse.linalg as spla
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, column, n_free, pack, unpack, zeros
-from .newton import NewtonError, moment_dof, rotation_controlled_jacobian, round_off_floor, solve_rotation_controlled
+from .newton import (
+    NewtonError,
+    bordered_jacobian,
+    moment_dof,
+    rotation_controlled_jacobian,
+    round_off_floor,
+    solve_rotation_controlled,
+    sparse_solve,
+)
 from .stability import static_stability
 
 #: Residual tolerance of the Newton solves at and around a fold: M_c is read off the
@@ -45,8 +53,15 @@ from .stability import static_stability
 #: floor of the chain's forces (:func:`~.newton.round_off_floor`), which exceeds it from
 #: about N = 20 on.
 FOLD_TOL = 1e-14
-#: Largest continuation step (arclength in (q, M)) on the paper's chain; see continue_in_moment.
+#: First continuation step (arclength in (q, M)) on the paper's chain; see continue_in_moment.
 STEP = 0.05
+#: Largest step, in units of the first: the step grows where the branch is straight.
+MAX_STEP_FACTOR = 20.0
+#: Largest change of the loaded particle's angle in one step (rad): resolves M(phi_0).
+PHI0_STEP = 0.1
+#: Largest turn of the tangent in one step (rad): resolves the curve in (q, M) and
+#: keeps the corrector on its branch.
+MAX_TURN = 0.2
 #: Halvings of the distance to the nearest solved angle before a fold search gives up.
 MAX_HALVINGS = 12
 #: Callback ``progress(done, total)`` used by the long-running functions.
@@ -94,6 +109,13 @@ class Branch:
     folds : list of Fold
         Folds passed on the way, each located to round-off.
     particle : int
+    stop : str
+        Why the tracing ended: "phi0_stop", "moment_stop", "max_folds" (the
+        requested end), "returned" (the branch came back through the rest state
+        before the loaded particle turned once: a closed loop, or a continuation
+        turned back at a branch point), or
+        "max_points" (the point budget ran out first: the branch is incomplete);
+        "given" for the angles of :func:`rotation_branch`.
     """
 
     moment: np.ndarray
@@ -103,6 +125,12 @@ class Branch:
     critical_eigenvalue: np.ndarray
     folds: list[Fold] = field(default_factory=list)
     particle: int = 0
+    stop: str = "given"
+
+    @property
+    def complete(self) -> bool:
+        """False if the point budget ran out before the requested end."""
+        return self.stop != "max_points"
 
 
 def compliance(params: ChainParams, model: str | Model, *, particle: int = 0, x: np.ndarray | None = None) -> float:
@@ -132,11 +160,11 @@ def moment_slope(params: ChainParams, model: str | Model, x: np.ndarray, *, part
     model = get_model(model)
     dof = moment_dof(params, particle)
     stiffness = model.stiffness(params, x).tocsc()
-    dz = spla.spsolve(rotation_controlled_jacobian(stiffness, dof), stiffness[:, dof].toarray().ravel())
+    dz = sparse_solve(rotation_controlled_jacobian(stiffness, dof), stiffness[:, dof].toarray().ravel())
     return float(dz[dof])
 
 
-def _assemble_branch(params, model, particle, moments, states, folds, checks=None) -> Branch:
+def _assemble_branch(params, model, particle, moments, states, folds, checks=None, stop="given") -> Branch:
     """A Branch from its points; ``checks`` their stabilities if already computed."""
     col = column(params, particle)
     x = np.array(states)
@@ -149,6 +177,7 @@ def _assemble_branch(params, model, particle, moments, states, folds, checks=Non
         critical_eigenvalue=np.array([c.critical_eigenvalue for c in checks]),
         folds=folds,
         particle=particle,
+        stop=stop,
     )
 
 
@@ -253,6 +282,17 @@ def locate_fold(
     return Fold(moment=moment, phi0=phi_fold, x=x, particle=particle)
 
 
+def _passes_rest(before: np.ndarray, after: np.ndarray, moment_before: float, moment_after: float) -> bool:
+    """Whether the chord between two branch points, on which M changes sign, passes the rest state.
+
+    The state where the chord crosses M = 0 lies within half the chord's length of
+    rest; every other static state without load is a finite distance away (a full
+    turn of a particle at least), far more than a step.
+    """
+    crossing = before + moment_before / (moment_before - moment_after) * (after - before)
+    return bool(np.linalg.norm(crossing) <= 0.5 * np.linalg.norm(after - before))
+
+
 def continue_in_moment(
     params: ChainParams,
     model: str | Model,
@@ -281,18 +321,23 @@ def continue_in_moment(
         Stop once |M| exceeds this (the linear model's branch is an endless line).
     step, min_step, max_step : float
         Arclength step in the (q, M) space: initial, smallest before giving up, largest.
-        ``step`` and ``max_step`` default to :data:`STEP` sqrt(n_free / 15): 0.05 for the
-        paper's chain (15 free degrees of freedom), longer for longer chains, whose
-        branch is longer in (q, M) as more particles move (N = 50: 600 points instead
-        of 1668, the same folds).
+        ``step`` defaults to :data:`STEP` sqrt(n_free / 15) (0.05 for the paper's chain,
+        15 free degrees of freedom; longer chains have longer branches in (q, M)),
+        ``max_step`` to :data:`MAX_STEP_FACTOR` times that. A step is retaken shorter
+        when the loaded particle turns by more than :data:`PHI0_STEP` or the tangent by
+        more than :data:`MAX_TURN`, and lengthened by 1.3 where both stay below half
+        of these and the corrector converges in two iterations: the points follow the
+        curvature of the branch, not its length (the sine model's branch at N = 100 is
+        long in (q, M) and straight).
     max_points : int
     tol : float
         Corrector tolerance on max |F + M e| (never below the round-off floor, :func:`~.newton.round_off_floor`).
     refine_step : float
-        A step across which the number of negative eigenvalues of K changes is retaken
-        in steps of at most this, so that every fold shows as a turn of the tangent
-        between points (two folds within one step whose eigenvalue crossings cancel are
-        still missed).
+        A step across which the number of negative eigenvalues of K changes other than
+        by the one fold the tangent shows is retaken in steps down to this, so that
+        every fold shows as a turn of the tangent between points (two folds within one
+        step whose eigenvalue crossings cancel are still missed: :data:`PHI0_STEP` and
+        :data:`MAX_TURN` keep the steps short where the branch bends).
     max_folds : int, optional
         Stop once this many folds have been passed.
     progress : callable(|phi_0|, phi0_stop), optional
@@ -302,7 +347,10 @@ def continue_in_moment(
     Branch
         With every fold passed on the way: where the tangent's M component changes
         sign between two points, located along the arclength to round-off (a root of
-        that component), a maximum or a minimum of M.
+        that component), a maximum or a minimum of M; ``stop`` says whether the
+        requested end was reached or ``max_points`` ran out (long chains: the branch
+        of N = 1000 passes 40 folds, turning back and forth in phi_0, before the
+        loaded particle completes a turn).
 
     Raises
     ------
@@ -313,61 +361,41 @@ def continue_in_moment(
     """
     default = STEP * math.sqrt(n_free(params) / 15)
     step = default if step is None else step
-    max_step = max(default, step) if max_step is None else max_step
+    max_step = max(MAX_STEP_FACTOR * default, step) if max_step is None else max_step
     if not (0 < min_step <= step <= max_step):
         raise ValueError(f"steps must satisfy 0 < min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
     model = get_model(model)
     dof = moment_dof(params, particle)
     nf = n_free(params)
-    e = sp.csc_matrix(([1.0], ([dof], [0])), shape=(nf, 1))
     y = np.zeros(nf + 1)  # (q, M)
     tangent = np.zeros(nf + 1)
     tangent[-1] = 1.0
 
     def residual(y: np.ndarray) -> np.ndarray:
-        r = pack(model.forces(params, unpack(y[:-1], params.n_particles)))
+        r = pack(model.compiled_forces(params, unpack(y[:-1], params.n_particles)))
         r[dof] += y[-1]
         return r
 
-    def jacobian(y: np.ndarray) -> sp.csc_matrix:
-        return sp.hstack([-model.stiffness(params, unpack(y[:-1], params.n_particles)), e], format="csc")
+    def stiffness(y: np.ndarray) -> sp.csr_matrix:
+        return model.stiffness(params, unpack(y[:-1], params.n_particles))
 
-    def bordered(jac: sp.csc_matrix, row: np.ndarray) -> sp.csc_matrix:
-        return sp.vstack([jac, sp.csr_matrix(row)], format="csc")
-
-    def solve_bordered(matrix: sp.csc_matrix, rhs: np.ndarray) -> np.ndarray:
-        """Solve the banded system bordered by a dense row in O(N).
-
-        In the natural order and with diagonal pivots the fill stays in the dense last
-        row; SuperLU's default pivoting moved it up and filled the factor (0.7 s a solve
-        at N = 1000 against 4 ms). One step of refinement with the same factor recovers
-        what the diagonal pivots lose; a factorisation that fails falls back to the default.
-        """
-        try:
-            lu = spla.splu(matrix, permc_spec="NATURAL", diag_pivot_thresh=0.0)
-            out = lu.solve(rhs)
-            out = out + lu.solve(rhs - matrix @ out)
-        except RuntimeError:
-            return spla.spsolve(matrix, rhs)
-        return out if np.all(np.isfinite(out)) else spla.spsolve(matrix, rhs)
-
-    def new_tangent(y: np.ndarray, previous: np.ndarray, jac: sp.csc_matrix | None = None) -> np.ndarray:
+    def new_tangent(y: np.ndarray, previous: np.ndarray, k: sp.csr_matrix | None = None) -> np.ndarray:
         rhs = np.zeros(nf + 1)
         rhs[-1] = 1.0
-        t = solve_bordered(bordered(jacobian(y) if jac is None else jac, previous), rhs)
+        t = sparse_solve(bordered_jacobian(stiffness(y) if k is None else k, dof, previous), rhs)
         return t / np.linalg.norm(t)
 
-    def correct(y: np.ndarray, tangent: np.ndarray, ds: float, tol: float) -> tuple[np.ndarray, int, sp.csc_matrix] | None:
+    def correct(y: np.ndarray, tangent: np.ndarray, ds: float, tol: float) -> tuple[np.ndarray, int, sp.csr_matrix] | None:
         """The point of the branch on the plane through y + ds tangent normal to tangent, its iterations
-        and Jacobian (None: no convergence)."""
+        and stiffness (None: no convergence)."""
         predicted = y + ds * tangent
         z = predicted.copy()
         for iterations in range(8):
             r = np.append(residual(z), tangent @ (z - predicted))
-            jac = jacobian(z)
-            if np.max(np.abs(r)) <= max(tol * (1.0 + abs(z[-1])), round_off_floor(jac, z[:-1])):
-                return z, iterations, jac
-            z = z - solve_bordered(bordered(jac, tangent), r)
+            k = stiffness(z)
+            if np.max(np.abs(r)) <= max(tol * (1.0 + abs(z[-1])), round_off_floor(k, z[:-1])):
+                return z, iterations, k
+            z = z - sparse_solve(bordered_jacobian(k, dof, tangent), r)
             if not np.all(np.isfinite(z)):
                 return None
         return None
@@ -388,9 +416,9 @@ def continue_in_moment(
                     f"the corrector failed at arclength {s:.3g} from M={y[-1]:.10g} while locating a fold",
                     unpack(y[:-1], params.n_particles),
                 )
-            point, _, jac = found
+            point, _, k = found
             cache[s] = point
-            return new_tangent(point, tangent, jac)[-1]
+            return new_tangent(point, tangent, k)[-1]
 
         cache: dict[float, np.ndarray] = {}
         s_fold = so.brentq(slope, 0.0, ds, xtol=1e-15 * max(1.0, ds), rtol=4 * np.finfo(float).eps)
@@ -411,7 +439,11 @@ def continue_in_moment(
     moments, states, folds = [0.0], [zeros(params)], []
     checks = [static_stability(params, model, states[0])]
     index = checks[0].index
-    ds = step
+    col = column(params, particle)
+    y_phi0 = 0.0
+    ds, resume = step, 0.0
+    stop = "max_points"
+    previous_moment = 0.0
     while len(moments) < max_points:
         found = correct(y, tangent, ds, tol)
         if found is None:
@@ -422,31 +454,63 @@ def continue_in_moment(
                     unpack(y[:-1], params.n_particles),
                 )
             continue
-        z, iterations, jac = found
+        z, iterations, k = found
         x = unpack(z[:-1], params.n_particles)
-        check = static_stability(params, model, x)
+        turned = abs(x[ROW_INDEX["phi"], col] - y_phi0)
+        next_tangent = new_tangent(z, tangent, k)
+        turn = math.acos(min(1.0, abs(float(next_tangent @ tangent))))
+        if (turned > PHI0_STEP or turn > MAX_TURN) and ds > min_step:
+            ds = max(min_step, ds / 2)
+            continue
+        check = static_stability(params, model, x, guess=checks[-1].critical_eigenvalue)
+        if 0.0 < check.critical_eigenvalue < 0.5 * checks[-1].critical_eigenvalue and ds > refine_step:
+            # A positive critical eigenvalue falling fast: a fold ahead, or a pair of folds
+            # (a small maximum and minimum of M) that a longer step passes with no change
+            # of the index. Approach it in shorter steps (N = 10, a = 0.3, b = 0.1,
+            # E1 = 2, E2 = 0.3 has such a pair within 0.015 rad of phi_0 near 1.0).
+            ds = max(refine_step, ds / 2)
+            continue
         now_index = check.index
-        if now_index != index and ds > refine_step:
-            # An eigenvalue of K crosses zero within this step: a fold (or a pair of folds,
-            # a maximum and a minimum of M, that a longer step would step over) lies in it.
-            # Take it in steps of refine_step, so that the tangent's turns show between points.
+        turns_back = next_tangent[-1] * tangent[-1] < 0
+        if now_index != index and ds > refine_step and (abs(now_index - index) > 1 or not turns_back):
+            # An eigenvalue of K crosses zero within this step without the one turn of M
+            # that a single fold shows: more folds (a maximum and a minimum of M that the
+            # step passes together) or a branch point lie in it. Approach the crossing in
+            # steps down to refine_step, so that each fold shows as a turn between points,
+            # then go on with the step from before.
+            resume = max(resume, ds)
             ds = max(refine_step, ds / 8)
             continue
+        if now_index != index and resume > 0.0:
+            ds, resume = resume, 0.0
         index = now_index
-        next_tangent = new_tangent(z, tangent, jac)
-        if next_tangent[-1] * tangent[-1] < 0:
+        if turns_back:
             # M turned between the two points: a fold, located along the arc.
             folds.append(fold_between(y, tangent, ds))
         tangent = next_tangent
+        previous_moment = y[-1]
         y = z
+        y_phi0 = x[ROW_INDEX["phi"], col]
         moments.append(y[-1])
         states.append(x)
         checks.append(check)
-        phi = abs(x[ROW_INDEX["phi"], column(params, particle)])
+        phi = abs(y_phi0)
         if progress is not None:
             progress(min(phi, phi0_stop), phi0_stop)
-        if phi >= phi0_stop or abs(y[-1]) > moment_stop or (max_folds is not None and len(folds) >= max_folds):
+        if y[-1] * previous_moment < 0 and len(moments) > 2 and _passes_rest(states[-2], x, previous_moment, y[-1]):
+            # Back through the rest state: going on would trace the mirrored branch
+            # (x -> -x, M -> -M) and come back here. A closed loop does this, and so does
+            # a continuation turned back at a branch point (a symmetric chain loaded at
+            # its centre loses its mirror symmetry at one: N = 4 in the tests).
+            stop = "returned"
+        elif phi >= phi0_stop:
+            stop = "phi0_stop"
+        elif abs(y[-1]) > moment_stop:
+            stop = "moment_stop"
+        elif max_folds is not None and len(folds) >= max_folds:
+            stop = "max_folds"
+        if stop != "max_points":
             break
-        if iterations <= 2:
+        if iterations <= 2 and turned < PHI0_STEP / 2 and turn < MAX_TURN / 2:
             ds = min(max_step, 1.3 * ds)
-    return _assemble_branch(params, model, particle, moments, states, folds, checks)
+    return _assemble_branch(params, model, particle, moments, states, folds, checks, stop)
