@@ -5,7 +5,9 @@ from __future__ import annotations
 import json
 import re
 
+import numpy as np
 import pytest
+import scipy.sparse.linalg as spla
 from typer.testing import CliRunner
 
 import cosserat_chain.report as report_module
@@ -16,9 +18,12 @@ from cosserat_chain.experiments.critical import critical_point
 from cosserat_chain.experiments.localization import localization_run
 from cosserat_chain.experiments.orbits import periodic_orbit
 from cosserat_chain.experiments.sweep import relaxation_sweep
+from cosserat_chain.models.linear import stiffness_matrix
+from cosserat_chain.numerics.newton import moment_dof
 from cosserat_chain.report import ReproduceSettings, format_cell, reproduce
+from cosserat_chain.state import n_free, unpack
 
-QUICK = ReproduceSettings(dm=0.05, turns=15, n_list=(3, 10, 30), snapshot_times=(20.0, 21.0), animation_frames=10)
+QUICK = ReproduceSettings(dm=0.05, turns=15, n_list=(3, 10, 30), long_n_list=(3, 10), snapshot_times=(20.0, 21.0), animation_frames=10)
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +59,14 @@ def test_every_figure_the_pages_reference_exists(quick_report):
     markdown = (quick_report.out / "report.md").read_text()
     page = (quick_report.out / "index.html").read_text()
     linked = set(re.findall(r"\((figures/[\w.]+)\)", markdown)) | set(re.findall(r"href='(figures/[\w.]+)'", page))
-    assert {"figures/fig2.png", "figures/fig3a.svg", "figures/fig3b.png", "figures/rotation.gif", "figures/dispersion.svg", "figures/rotation_characteristic.png"} <= linked
+    assert {
+        "figures/fig2.png",
+        "figures/fig3a.svg",
+        "figures/fig3b.png",
+        "figures/rotation.gif",
+        "figures/dispersion.svg",
+        "figures/rotation_characteristic.png",
+    } <= linked
     for link in linked:
         assert (quick_report.out / link).stat().st_size > 1000, link
     # Self-contained: pictures are embedded, nothing is fetched from a network.
@@ -70,20 +82,45 @@ def test_table_numbers_equal_the_python_api(quick_report):
         model = row[0]
         exact = critical_point(params, model)
         sweep = relaxation_sweep(params, model, m_max=QUICK.m_max, dm=QUICK.dm, down=True)
-        assert row[1:] == [format_cell(v) for v in (exact.compliance, exact.critical_moment, exact.phi0_at_fold, sweep.onset_load, sweep.stop_load)]
+        assert row[1:] == [
+            format_cell(v) for v in (exact.compliance, exact.critical_moment, exact.phi0_at_fold, sweep.onset_load, sweep.stop_load)
+        ]
     localization = tables["Statistics of the localization run"]
     for row in localization[1:]:
         model = row[0]
         result = localization_run(params, model, QUICK.rotation_moment[model], turns=QUICK.turns, t_max=100.0 * QUICK.turns).as_dict()
-        assert row[2:8] == [format_cell(result[k]) for k in ("turns_completed", "t_end", "mean_angular_velocity", "max_abs_phi_others", "max_abs_v_others", "max_abs_u_others")]
+        assert row[2:8] == [
+            format_cell(result[k])
+            for k in ("turns_completed", "t_end", "mean_angular_velocity", "max_abs_phi_others", "max_abs_v_others", "max_abs_u_others")
+        ]
     edges = tables["Edges of the hysteresis loop: exact, and by the relaxation protocol"][1]
     orbit = periodic_orbit(params, "sine", QUICK.orbit_moment, down_to=QUICK.orbit_down_to)
     sine_sweep = relaxation_sweep(params, "sine", m_max=QUICK.m_max, dm=QUICK.dm, down=True)
-    expected = [orbit.static_fold, orbit.branch.stability_lost_at, orbit.branch.end_moment, orbit.branch.end, sine_sweep.onset_load, sine_sweep.stop_load]
+    expected = [
+        orbit.static_fold,
+        orbit.branch.stability_lost_at,
+        orbit.branch.end_moment,
+        orbit.branch.end,
+        sine_sweep.onset_load,
+        sine_sweep.stop_load,
+    ]
     assert edges[1:] == [format_cell(v) for v in expected]
     continuum = tables["Continuum against discrete compliance"]
     table = convergence(params, list(QUICK.n_list))
     assert [row[3] for row in continuum[1:]] == [format_cell(e) for e in table.relative_error]
+    assert [row[5] for row in continuum[1:]] == [format_cell((c - d) / d) for c, d in zip(table.continuum, table.discrete)]
+    # The sine model's M_c of each chain length is 1/(largest linear rotation compliance),
+    # an independent linear solve; the nonlinear one equals the API's.
+    long = tables["M_c against N"]
+    for row in long[1:]:
+        chain = params.replace(N=int(row[1]))
+        if row[0] == "sine":
+            e = np.zeros(n_free(chain))
+            e[moment_dof(chain)] = 1.0
+            rotations = unpack(spla.spsolve(stiffness_matrix(chain).tocsc(), e), chain.n_particles)[2]
+            assert float(row[2]) == pytest.approx(1.0 / np.max(np.abs(rotations)), rel=1e-5)
+        else:
+            assert row[2] == format_cell(critical_point(chain, row[0]).critical_moment)
 
 
 def test_a_failing_stage_is_reported_and_the_others_still_appear(tmp_path, monkeypatch):

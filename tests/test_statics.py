@@ -263,3 +263,42 @@ def test_a_branch_cut_short_by_its_point_budget_says_so(paper):
     assert continue_in_moment(paper, "nonlinear", max_folds=1).stop == "max_folds"
     result = critical_point(paper, "sine", max_points=10)
     assert not result.complete and result.as_dict()["branch_complete"] is False
+
+
+@pytest.mark.parametrize("model", ROTATING_MODELS)
+def test_the_stability_guess_changes_the_cost_not_the_result(model):
+    rng = np.random.default_rng(7)
+    for N in (2, 20, 200):
+        params = ChainParams(N=N, a=rng.uniform(0.1, 0.45), b=rng.uniform(0.05, 0.5), E1=rng.uniform(0.3, 3), E2=rng.uniform(0.3, 3))
+        for angle in (0.3, 2.0):
+            x = np.zeros((3, params.n_particles))
+            x[:, 1:-1] = angle * rng.uniform(-1, 1, (3, params.n_particles - 2)) * np.array([[0.1], [0.1], [1.0]])
+            plain = static_stability(params, model, x)
+            for guess in (plain.critical_eigenvalue * 1.3, -plain.critical_eigenvalue, 0.0, 5.0):
+                guided = static_stability(params, model, x, guess=guess)
+                assert guided.index == plain.index and guided.stable == plain.stable
+                assert guided.critical_eigenvalue == pytest.approx(plain.critical_eigenvalue, rel=1e-9, abs=1e-12)
+
+
+def test_the_bordered_and_rotation_controlled_jacobians_equal_their_dense_definitions():
+    from cosserat_chain.models.base import get_model
+    from cosserat_chain.numerics.newton import bordered_jacobian, rotation_controlled_jacobian
+
+    rng = np.random.default_rng(3)
+    for params in (ChainParams(N=1), ChainParams(N=2), *random_geometries(3, seed=9)):
+        x = np.zeros((3, params.n_particles))
+        x[:, 1:-1] = rng.normal(size=(3, params.n_particles - 2))
+        for model in ("nonlinear", "sine"):
+            stiffness = get_model(model).stiffness(params, x)
+            n = stiffness.shape[0]
+            for dof in {0, n // 2, n - 1}:
+                row = rng.normal(size=n + 1)
+                dense = np.zeros((n + 1, n + 1))
+                dense[:n, :n] = -stiffness.toarray()
+                dense[dof, n] = 1.0
+                dense[n] = row
+                assert np.array_equal(bordered_jacobian(stiffness, dof, row).toarray(), dense)
+                replaced = -stiffness.toarray()
+                replaced[:, dof] = 0.0
+                replaced[dof, dof] = 1.0
+                assert np.array_equal(rotation_controlled_jacobian(stiffness, dof).toarray(), replaced)

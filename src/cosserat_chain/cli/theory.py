@@ -6,6 +6,7 @@ import json
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import typer
 
 from ..analysis.continuum import ConvergenceTable, convergence, printed_D1
@@ -46,9 +47,11 @@ def theory(
         typer.echo(json.dumps(_summary(params, table, order, listed)))
         return
     typer.echo(f"D1 = {params.D1:.6g} (derived; printed in Section 3: {printed_D1(params):.6g}), D2 = {params.D2:.6g}")
-    typer.echo(f"{'N':>8}  {'continuum phi0/M':>17}  {'discrete phi0/M':>16}  {'rel. error':>11}  {'residue (12)':>12}")
-    for n, c, d, e, r, ok in zip(table.N, table.continuum, table.discrete, table.relative_error, table.residue, table.accurate):
-        typer.echo(f"{n:>8d}  {c:>17.8g}  {d:>16.8g}  {e:>11.3e}  {r:>12.3e}" + ("" if ok else "  (inaccurate)"))
+    typer.echo(f"{'N':>8}  {'continuum phi0/M':>17}  {'discrete phi0/M':>16}  {'(c - d) / d':>11}  {'residue (12)':>12}")
+    for n, c, d, e, r, ok in zip(table.N, table.continuum, table.discrete, table.signed_error, table.residue, table.accurate):
+        typer.echo(f"{n:>8d}  {c:>17.8g}  {d:>16.8g}  {e:>+11.3e}  {r:>12.3e}" + ("" if ok else "  (inaccurate)"))
+    if np.any(np.diff(np.sign(table.signed_error[table.N > 1])) != 0):
+        typer.echo("the continuum's error changes sign along this list: its 1/N fall holds only past the last change")
     for n, spread, condition in zip(table.N[~table.accurate], table.discrete_spread[~table.accurate], table.condition[~table.accurate]):
         typer.echo(
             f"N = {n}: the discrete value is inaccurate: two factorisations of K differ by {spread:.1e} (relative; "

@@ -162,3 +162,34 @@ def hysteresis_figure(
     ax.set_title("hysteresis of the onset of rotation (dotted: exact fold $M_c$)", fontsize=10)
     ax.legend(fontsize=8)
     return fig
+
+
+def critical_against_length(results: dict[str, list]):
+    """M_c and phi_0 at the fold against N (one :class:`~cosserat_chain.experiments.critical.CriticalResult` per N and model).
+
+    The sine model's M_c falls like 1/N (it is 1/(largest rotation compliance)), so
+    its panel shows N M_c; the nonlinear model's M_c levels off.
+    """
+    import matplotlib.pyplot as plt
+
+    fig, (ax_moment, ax_angle) = plt.subplots(1, 2, figsize=(9, 3.6))
+    for name, rows in results.items():
+        rows = [r for r in rows if r.fold is not None]
+        n = np.array([r.params.N for r in rows])
+        moment = np.array([r.critical_moment for r in rows])
+        scaled = name == "sine"
+        ax_moment.semilogx(
+            n,
+            moment * n if scaled else moment,
+            "o-",
+            color=model_color(name),
+            label=f"{model_label(name)}" + (": N M_c" if scaled else ": M_c"),
+        )
+        ax_angle.semilogx(n, [r.phi0_at_fold for r in rows], "o-", color=model_color(name), label=model_label(name))
+    ax_moment.set_xlabel("N (2N+1 particles)")
+    ax_moment.set_ylabel("critical moment (units of E1 h^2)")
+    ax_moment.legend(fontsize=8)
+    ax_angle.set_xlabel("N (2N+1 particles)")
+    ax_angle.set_ylabel("phi_0 at the fold (rad)")
+    fig.tight_layout()
+    return fig
