@@ -156,3 +156,24 @@ def test_the_discrete_compliance_is_flagged_where_the_solve_loses_its_accuracy()
     assert table.discrete_spread[2] < 1e-6 < table.discrete_spread[3]
     # The order is fitted over the accurate rows only: the continuum's error falls like 1/N.
     assert table.order() == pytest.approx(1.0, abs=0.02)
+
+
+def test_the_signed_error_changes_sign_for_some_geometries_and_theory_says_so(tmp_path):
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    chain = ChainParams(a=0.3, b=0.1, E1=2.0, E2=0.3)
+    table = convergence(chain, [2, 5, 100])
+    assert np.allclose(np.abs(table.signed_error), table.relative_error, rtol=1e-14, atol=0)
+    # Below the continuum at N = 2, above it from N = 5 on: |error| ~ 1/N only past the change.
+    assert table.signed_error[0] < 0 < table.signed_error[1] and table.signed_error[2] > 0
+    paper = convergence(ChainParams(), [2, 5, 100])
+    assert np.all(paper.signed_error > 0)
+    assert convergence(ChainParams(), [1]).relative_error[0] < 1e-12  # one free particle: equal to round-off
+    config = tmp_path / "chain.toml"
+    config.write_text("a = 0.3\nb = 0.1\nE1 = 2.0\nE2 = 0.3\n")
+    changed = CliRunner().invoke(app, ["theory", "--config", str(config), "--n-list", "2,5,100"])
+    same = CliRunner().invoke(app, ["theory", "--n-list", "2,5,100"])
+    assert changed.exit_code == 0 and "changes sign" in changed.stdout
+    assert same.exit_code == 0 and "changes sign" not in same.stdout

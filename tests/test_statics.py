@@ -12,9 +12,11 @@ from conftest import ROUND_OFF, random_geometries
 from cosserat_chain import ChainParams, moment_load
 from cosserat_chain.experiments.critical import critical_point
 from cosserat_chain.io import read_dataset, write_dataset
+from cosserat_chain.models.base import get_model
 from cosserat_chain.models.linear import stiffness_matrix
 from cosserat_chain.numerics.continuation import STEP, compliance, continue_in_moment, locate_fold, moment_slope, rotation_branch
 from cosserat_chain.numerics.newton import moment_dof, solve_equilibrium, solve_rotation_controlled
+from cosserat_chain.numerics.relaxation import relax
 from cosserat_chain.numerics.stability import static_stability
 from cosserat_chain.state import n_free, unpack
 
@@ -302,3 +304,26 @@ def test_the_bordered_and_rotation_controlled_jacobians_equal_their_dense_defini
                 replaced[:, dof] = 0.0
                 replaced[dof, dof] = 1.0
                 assert np.array_equal(rotation_controlled_jacobian(stiffness, dof).toarray(), replaced)
+
+
+def test_a_snap_through_names_the_stable_state_that_the_damped_chain_reaches():
+    params = ChainParams(N=10, a=0.3, b=0.1, E1=2.0, E2=0.3)
+    result = critical_point(params, "nonlinear")
+    first, target = result.first_fold, result.snap_to
+    assert target is not None and target.moment == first.moment
+    minimum = result.branch.folds[1]
+    # Beyond the minimum of M, on the stable segment up to the largest maximum, holding the first fold's moment.
+    assert minimum.phi0 < target.phi0 < result.fold.phi0 and static_stability(params, "nonlinear", target.x).stable
+    residual = get_model("nonlinear").forces(params, target.x)
+    residual[2, params.N] += first.moment
+    assert np.max(np.abs(residual[:, 1:-1])) < 1e-10
+    # The damped dynamics pushed just past the fold come to rest there (M a little above
+    # the fold's: at the fold itself the drift away is too slow to finish).
+    # The branch is steep in phi_0 there, so compare with its state at the pushed moment.
+    pushed = first.moment * (1 + 1e-5)
+    step = relax(params, "nonlinear", pushed, x0=first.x)
+    nearby = solve_equilibrium(params, "nonlinear", moment_load(pushed), x0=target.x)
+    assert step.status == "static" and np.max(np.abs(step.x - nearby)) < 1e-6
+    assert abs(nearby[2, params.N] - target.phi0) < 0.01 < target.phi0 - first.phi0
+    assert result.as_dict()["snap_to"] == {"moment": target.moment, "phi0": target.phi0}
+    assert critical_point(ChainParams(), "nonlinear").snap_to is None  # the paper's chain: no snap-through

@@ -100,7 +100,8 @@ def critical(
         for name, r in results.items():
             fold = "no fold" if r.fold is None else f"M_c = {r.fold.moment:.15g} at phi_0 = {r.fold.phi0:.15g} rad (onset of rotation)"
             if r.as_dict()["snap_through"]:
-                fold += f"; the stable branch from rest ends earlier, at M = {r.first_fold.moment:.15g}, phi_0 = {r.first_fold.phi0:.15g} rad (snap-through)"
+                fold += f"; the stable branch from rest ends earlier, at M = {r.first_fold.moment:.15g}, phi_0 = {r.first_fold.phi0:.15g} rad (snap-through"
+                fold += ")" if r.snap_to is None else f" to the stable state at phi_0 = {r.snap_to.phi0:.15g} rad)"
             over = "over the turn" if r.complete else f"on the traced part (incomplete: {len(r.branch.moment)} points)"
             typer.echo(f"{name}: {fold}; compliance dphi_0/dM = {r.compliance:.15g}; {len(r.branch.folds)} folds {over}")
     short = [name for name, r in results.items() if not r.complete]

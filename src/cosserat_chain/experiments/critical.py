@@ -29,11 +29,13 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from ..loads import Loads
+from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
 from ..numerics.continuation import Branch, Fold, compliance, continue_in_moment
+from ..numerics.newton import solve_equilibrium
+from ..numerics.stability import static_stability
 from ..params import ChainParams
-from ..state import ROWS
+from ..state import ROW_INDEX, ROWS, column
 from .simulation import run_attributes
 
 #: Default point budget of the full-turn branch (N = 1000: about 2600 points).
@@ -52,6 +54,12 @@ class CriticalResult:
     first_fold : Fold or None
         The first fold along the branch from rest (where the stable branch ends; a
         snap-through when it is not ``fold``).
+    snap_to : Fold or None
+        At a snap-through: the first stable static state further along the branch that
+        holds the first fold's moment (``maximum`` None), where a slowly loaded chain
+        comes to rest if it jumps no further (the damped dynamics decide in general; for
+        the N = 10 example a relaxation from the fold lands on it, tested). None without
+        a snap-through or without such a state on the traced branch.
     compliance : float
         d phi_0 / dM at M = 0.
     branch : Branch
@@ -65,6 +73,7 @@ class CriticalResult:
     compliance: float
     branch: Branch
     first_fold: Fold | None = None
+    snap_to: Fold | None = None
 
     @property
     def complete(self) -> bool:
@@ -89,6 +98,7 @@ class CriticalResult:
             "phi0_at_fold": self.phi0_at_fold,
             "first_fold": None if self.first_fold is None else {"moment": self.first_fold.moment, "phi0": self.first_fold.phi0},
             "snap_through": self.first_fold is not None and self.first_fold is not self.fold,
+            "snap_to": None if self.snap_to is None else {"moment": self.snap_to.moment, "phi0": self.snap_to.phi0},
             "compliance": self.compliance,
             "branch_complete": self.complete,
             "branch": {
@@ -150,4 +160,26 @@ def critical_point(
     # Under a positive moment from rest M rises first: the branch's first fold is a maximum.
     fold = max(maxima, key=lambda f: f.moment) if maxima else None
     first = branch.folds[0] if branch.folds else None
-    return CriticalResult(params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first)
+    snap_to = _snap_target(params, model, branch, first, particle) if first is not None and first is not fold else None
+    return CriticalResult(params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first, snap_to)
+
+
+def _snap_target(params: ChainParams, model: Model, branch: Branch, first: Fold, particle: int) -> Fold | None:
+    """The first stable branch point pair beyond ``first`` that brackets its moment, solved there exactly.
+
+    Load-controlled Newton from the bracket's interpolated state converges to the
+    branch's state at that moment (K is regular on a stable segment).
+    """
+    # From rest M rises up to the first fold: the first descent of M is just past it.
+    past = np.flatnonzero(np.diff(branch.moment) < 0)
+    start = past[0] + 1 if past.size else branch.moment.size
+    for i in range(start, branch.moment.size - 1):
+        low, high = branch.moment[i] - first.moment, branch.moment[i + 1] - first.moment
+        if branch.stable[i] and branch.stable[i + 1] and low * high <= 0 and low != high:
+            weight = low / (low - high)
+            guess = branch.x[i] + weight * (branch.x[i + 1] - branch.x[i])
+            x = solve_equilibrium(params, model, moment_load(first.moment, particle), x0=guess)
+            if not static_stability(params, model, x).stable:
+                return None
+            return Fold(moment=first.moment, phi0=float(x[ROW_INDEX["phi"], column(params, particle)]), x=x, particle=particle)
+    return None

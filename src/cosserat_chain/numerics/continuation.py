@@ -463,11 +463,13 @@ def continue_in_moment(
             ds = max(min_step, ds / 2)
             continue
         check = static_stability(params, model, x, guess=checks[-1].critical_eigenvalue)
-        if 0.0 < check.critical_eigenvalue < 0.5 * checks[-1].critical_eigenvalue and ds > refine_step:
+        falling = 0.0 < check.critical_eigenvalue < 0.5 * checks[-1].critical_eigenvalue
+        if falling and checks[-1].critical_eigenvalue > 100.0 * check.resolution and ds > refine_step:
             # A positive critical eigenvalue falling fast: a fold ahead, or a pair of folds
             # (a small maximum and minimum of M) that a longer step passes with no change
             # of the index. Approach it in shorter steps (N = 10, a = 0.3, b = 0.1,
-            # E1 = 2, E2 = 0.3 has such a pair within 0.015 rad of phi_0 near 1.0).
+            # E1 = 2, E2 = 0.3 has such a pair within 0.015 rad of phi_0 near 1.0). An
+            # eigenvalue near its round-off (a long chain's softest) is noise: not a sign.
             ds = max(refine_step, ds / 2)
             continue
         now_index = check.index

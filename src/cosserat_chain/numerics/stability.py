@@ -70,12 +70,17 @@ class Stability:
         Number of eigenvalues of K with a negative real part (the Morse index for a
         conservative model): it changes by one at every fold, also between two
         unstable states.
+    resolution : float
+        Round-off of ``critical_eigenvalue``: BISECTION_RTOL times K's Gershgorin
+        radius. A long clamped chain's softest eigenvalue falls below it (it shrinks
+        like N^-4: N = 10^4), and its value is then noise.
     """
 
     stable: bool
     critical_eigenvalue: float
     spectral_abscissa: float
     index: int = 0
+    resolution: float = 0.0
 
 
 def damped_dynamics_matrix(params: ChainParams, stiffness: np.ndarray) -> np.ndarray:
@@ -113,17 +118,23 @@ def static_stability(
     if similar is not None:
         lower = _lower_rows(similar)
         index = negative_count(lower, 0.0)
-        critical = _smallest_eigenvalue(lower, similar, guess)
-        return Stability(index == 0 and critical > 0.0, critical, math.nan, index)
+        resolution = _resolution(similar)
+        critical = _smallest_eigenvalue(lower, resolution / BISECTION_RTOL, guess)
+        return Stability(index == 0 and critical > 0.0, critical, math.nan, index, resolution)
     k = model.stiffness(params, x).toarray()
     abscissa = float(np.max(la.eigvals(damped_dynamics_matrix(params, k)).real))
     if model.conservative:
         eigenvalues = la.eigvalsh(k)
-        return Stability(bool(eigenvalues[0] > 0.0), float(eigenvalues[0]), abscissa, int(np.sum(eigenvalues < 0)))
+        return Stability(bool(eigenvalues[0] > 0.0), float(eigenvalues[0]), abscissa, int(np.sum(eigenvalues < 0)), _resolution(k))
     # Round-off of the eigenvalue solver, relative to the fastest rate of the chain.
     round_off = 1e-10 * max(1.0, float(np.max(np.abs(k))))
     real = la.eigvals(k).real
-    return Stability(abscissa < round_off, float(np.min(real)), abscissa, int(np.sum(real < 0)))
+    return Stability(abscissa < round_off, float(np.min(real)), abscissa, int(np.sum(real < 0)), _resolution(k))
+
+
+def _resolution(matrix) -> float:
+    """BISECTION_RTOL times the Gershgorin radius of ``matrix`` (sparse or dense)."""
+    return BISECTION_RTOL * float(abs(matrix).sum(axis=1).max()) if matrix.shape[0] else 0.0
 
 
 def _lower_rows(matrix: sp.spmatrix) -> np.ndarray:
@@ -238,12 +249,11 @@ def _smallest_eigenvalue_compiled(lower, low, high, tolerance, guess, vector):  
     return 0.5 * (low + high)
 
 
-def _smallest_eigenvalue(lower: np.ndarray, matrix: sp.spmatrix, guess: float | None = None) -> float:
+def _smallest_eigenvalue(lower: np.ndarray, radius: float, guess: float | None = None) -> float:
     """Smallest eigenvalue to round-off of the matrix's scale, O(n) a round (:func:`_smallest_eigenvalue_compiled`)."""
-    radius = float(abs(matrix).sum(axis=1).max())
     low, high = -radius, float(lower[:, 0].min())  # Gershgorin, and lambda_min <= min diagonal
     # A fixed generic start vector: deterministic, and with a component along any
     # mode (all ones would miss an antisymmetric lowest mode and leave it to the bisection).
     vector = np.random.default_rng(0).standard_normal(lower.shape[0])
-    tolerance = BISECTION_RTOL * max(radius, 1e-300)
+    tolerance = max(BISECTION_RTOL * radius, 1e-300)
     return float(_smallest_eigenvalue_compiled(lower, low, high, tolerance, 0.0 if guess is None else float(guess), vector))
