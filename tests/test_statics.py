@@ -265,6 +265,11 @@ def test_a_branch_cut_short_by_its_point_budget_says_so(paper):
     assert continue_in_moment(paper, "nonlinear", max_folds=1).stop == "max_folds"
     result = critical_point(paper, "sine", max_points=10)
     assert not result.complete and result.as_dict()["branch_complete"] is False
+    # A long step passes M = 0 at phi_0 = pi (the sine model's forces vanish there): that
+    # is not the rest state, and the turn goes on to its minimum of M at 3 pi / 2.
+    long = critical_point(ChainParams(N=100), "sine")
+    assert long.branch.stop == "phi0_stop" and [f.maximum for f in long.branch.folds] == [True, False]
+    assert long.branch.folds[1].phi0 == pytest.approx(3 * math.pi / 2, rel=1e-9)
 
 
 @pytest.mark.parametrize("model", ROTATING_MODELS)
@@ -327,3 +332,17 @@ def test_a_snap_through_names_the_stable_state_that_the_damped_chain_reaches():
     assert abs(nearby[2, params.N] - target.phi0) < 0.01 < target.phi0 - first.phi0
     assert result.as_dict()["snap_to"] == {"moment": target.moment, "phi0": target.phi0}
     assert critical_point(ChainParams(), "nonlinear").snap_to is None  # the paper's chain: no snap-through
+
+
+def test_the_first_folds_of_a_thousand_particle_pairs_chain_need_no_tuned_tolerance():
+    # N = 1000 (2001 particles), default settings: the sine fold is 1/(largest linear
+    # rotation compliance) at phi_0 = pi/2, the nonlinear one the root of dM/dphi_0 that
+    # locate_fold finds in a bracket around it.
+    params = ChainParams(N=1000)
+    sine = continue_in_moment(params, "sine", max_folds=1)
+    rotations = linear_rotation_response(params)[2]
+    assert sine.stop == "max_folds" and sine.folds[0].moment == pytest.approx(1.0 / np.max(np.abs(rotations)), rel=1e-10)
+    assert sine.folds[0].phi0 == pytest.approx(math.pi / 2, rel=1e-10)
+    nonlinear = continue_in_moment(params, "nonlinear", max_folds=1).folds[0]
+    alone = locate_fold(params, "nonlinear", bracket=(nonlinear.phi0 - 1e-3, nonlinear.phi0 + 1e-3), seed=(nonlinear.x, nonlinear.moment))
+    assert nonlinear.maximum and alone.moment == pytest.approx(nonlinear.moment, rel=FOLD_RTOL)

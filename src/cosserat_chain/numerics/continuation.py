@@ -286,11 +286,13 @@ def _passes_rest(before: np.ndarray, after: np.ndarray, moment_before: float, mo
     """Whether the chord between two branch points, on which M changes sign, passes the rest state.
 
     The state where the chord crosses M = 0 lies within half the chord's length of
-    rest; every other static state without load is a finite distance away (a full
-    turn of a particle at least), far more than a step.
+    rest, with every angle small. Other static states without load have a particle
+    turned by pi or more (the sine model's forces vanish at phi = pi), which a long
+    chord can also pass within half its length: the angles tell them apart.
     """
     crossing = before + moment_before / (moment_before - moment_after) * (after - before)
-    return bool(np.linalg.norm(crossing) <= 0.5 * np.linalg.norm(after - before))
+    near = np.linalg.norm(crossing) <= 0.5 * np.linalg.norm(after - before)
+    return bool(near and np.max(np.abs(crossing[ROW_INDEX["phi"]]), initial=0.0) < 0.5)
 
 
 def continue_in_moment(
@@ -324,8 +326,9 @@ def continue_in_moment(
         ``step`` defaults to :data:`STEP` sqrt(n_free / 15) (0.05 for the paper's chain,
         15 free degrees of freedom; longer chains have longer branches in (q, M)),
         ``max_step`` to :data:`MAX_STEP_FACTOR` times that. A step is retaken shorter
-        when the loaded particle turns by more than :data:`PHI0_STEP` or the tangent by
-        more than :data:`MAX_TURN`, and lengthened by 1.3 where both stay below half
+        when the loaded particle turns by more than :data:`PHI0_STEP`, the tangent by
+        more than :data:`MAX_TURN`, or a positive critical eigenvalue (above its
+        round-off) falls below half its previous value, and lengthened by 1.3 where both stay below half
         of these and the corrector converges in two iterations: the points follow the
         curvature of the branch, not its length (the sine model's branch at N = 100 is
         long in (q, M) and straight).
