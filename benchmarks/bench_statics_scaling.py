@@ -11,7 +11,8 @@ Measured for the paper's geometry, nonlinear and sine models:
 * ``per_point``: the operations each continuation point repeats, at an equilibrium
   on the branch (the rotation-controlled state at phi_0 = 1): the compiled forces,
   the stiffness assembly, the banded stability (inertia and smallest eigenvalue) and
-  one bordered solve, for N = 10, 100, 1000, 10^4, with the exponent p of a fit
+  one bordered solve (the compiled banded elimination, and SuperLU on the same system
+  for comparison), for N = 10, 100, 1000, 10^4, with the exponent p of a fit
   time ~ N^p over N >= 100 (O(N) is p = 1);
 * ``first_fold``: :func:`continue_in_moment` up to its first fold (where the stable
   branch from rest ends), for the same N, except the sine model at N = 10^4: its
@@ -43,7 +44,14 @@ from cosserat_chain import ChainParams
 from cosserat_chain.experiments.critical import critical_point
 from cosserat_chain.models.base import get_model
 from cosserat_chain.numerics.continuation import continue_in_moment
-from cosserat_chain.numerics.newton import NewtonError, bordered_jacobian, moment_dof, solve_rotation_controlled, sparse_solve
+from cosserat_chain.numerics.newton import (
+    NewtonError,
+    bordered_jacobian,
+    bordered_solve,
+    moment_dof,
+    solve_rotation_controlled,
+    sparse_solve,
+)
 from cosserat_chain.numerics.stability import static_stability
 
 ROOT = Path(__file__).resolve().parent
@@ -81,7 +89,8 @@ def per_point(model: str, n: int) -> dict:
         "stiffness_s": median_time(lambda: kind.stiffness(params, x)),
         "stability_s": median_time(lambda: static_stability(params, model, x)),
         "stability_with_guess_s": median_time(lambda: static_stability(params, model, x, guess=guess)),
-        "bordered_solve_s": median_time(lambda: sparse_solve(bordered_jacobian(stiffness, dof, row), rhs)),
+        "bordered_solve_s": median_time(lambda: bordered_solve(stiffness, dof, row, rhs)),
+        "bordered_solve_superlu_s": median_time(lambda: sparse_solve(bordered_jacobian(stiffness, dof, row), rhs)),
     }
 
 

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from conftest import ROUND_OFF, random_geometries
@@ -287,9 +288,9 @@ def test_the_stability_guess_changes_the_cost_not_the_result(model):
                 assert guided.critical_eigenvalue == pytest.approx(plain.critical_eigenvalue, rel=1e-9, abs=1e-12)
 
 
-def test_the_bordered_and_rotation_controlled_jacobians_equal_their_dense_definitions():
+def test_the_bordered_and_rotation_controlled_jacobians_and_the_bordered_solve_equal_their_dense_definitions():
     from cosserat_chain.models.base import get_model
-    from cosserat_chain.numerics.newton import bordered_jacobian, rotation_controlled_jacobian
+    from cosserat_chain.numerics.newton import bordered_jacobian, bordered_solve, rotation_controlled_jacobian
 
     rng = np.random.default_rng(3)
     for params in (ChainParams(N=1), ChainParams(N=2), *random_geometries(3, seed=9)):
@@ -305,6 +306,11 @@ def test_the_bordered_and_rotation_controlled_jacobians_equal_their_dense_defini
                 dense[dof, n] = 1.0
                 dense[n] = row
                 assert np.array_equal(bordered_jacobian(stiffness, dof, row).toarray(), dense)
+                # The compiled banded elimination solves the same system as a dense LU.
+                rhs = rng.normal(size=n + 1)
+                exact = np.linalg.solve(dense, rhs)
+                bound = 1e3 * np.finfo(float).eps * np.linalg.cond(dense) * np.max(np.abs(exact))
+                assert np.max(np.abs(bordered_solve(stiffness, dof, row, rhs) - exact)) <= bound
                 replaced = -stiffness.toarray()
                 replaced[:, dof] = 0.0
                 replaced[dof, dof] = 1.0
@@ -341,8 +347,23 @@ def test_the_first_folds_of_a_thousand_particle_pairs_chain_need_no_tuned_tolera
     params = ChainParams(N=1000)
     sine = continue_in_moment(params, "sine", max_folds=1)
     rotations = linear_rotation_response(params)[2]
-    assert sine.stop == "max_folds" and sine.folds[0].moment == pytest.approx(1.0 / np.max(np.abs(rotations)), rel=1e-10)
+    # Both sides rest on solves with K, whose condition number is 5e12 here: two independent
+    # factorisations of it agree to 1.5e-7 (docs/continuum.md), so that is what can be asked.
+    assert sine.stop == "max_folds" and sine.folds[0].moment == pytest.approx(1.0 / np.max(np.abs(rotations)), rel=1e-6)
     assert sine.folds[0].phi0 == pytest.approx(math.pi / 2, rel=1e-10)
     nonlinear = continue_in_moment(params, "nonlinear", max_folds=1).folds[0]
     alone = locate_fold(params, "nonlinear", bracket=(nonlinear.phi0 - 1e-3, nonlinear.phi0 + 1e-3), seed=(nonlinear.x, nonlinear.moment))
     assert nonlinear.maximum and alone.moment == pytest.approx(nonlinear.moment, rel=FOLD_RTOL)
+
+
+def test_the_bordered_solve_falls_back_to_pivoting_at_a_zero_pivot():
+    from cosserat_chain.numerics.newton import bordered_solve
+
+    # A zero pivot in the natural order (no pivoting) falls back to SuperLU's pivoting.
+    singular_start = sp.csr_matrix(np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 1.0], [0.0, 1.0, 2.0]]))
+    row, rhs = np.array([1.0, 2.0, 3.0, 4.0]), np.array([1.0, -1.0, 2.0, 0.5])
+    dense = np.zeros((4, 4))
+    dense[:3, :3] = -singular_start.toarray()
+    dense[0, 3] = 1.0
+    dense[3] = row
+    assert np.allclose(bordered_solve(singular_start, 0, row, rhs), np.linalg.solve(dense, rhs), rtol=1e-12, atol=1e-12)

@@ -39,7 +39,7 @@ from ..params import ChainParams
 from ..state import ROW_INDEX, column, n_free, pack, unpack, zeros
 from .newton import (
     NewtonError,
-    bordered_jacobian,
+    bordered_solve,
     moment_dof,
     rotation_controlled_jacobian,
     round_off_floor,
@@ -385,7 +385,7 @@ def continue_in_moment(
     def new_tangent(y: np.ndarray, previous: np.ndarray, k: sp.csr_matrix | None = None) -> np.ndarray:
         rhs = np.zeros(nf + 1)
         rhs[-1] = 1.0
-        t = sparse_solve(bordered_jacobian(stiffness(y) if k is None else k, dof, previous), rhs)
+        t = bordered_solve(stiffness(y) if k is None else k, dof, previous, rhs)
         return t / np.linalg.norm(t)
 
     def correct(y: np.ndarray, tangent: np.ndarray, ds: float, tol: float) -> tuple[np.ndarray, int, sp.csr_matrix] | None:
@@ -398,7 +398,7 @@ def continue_in_moment(
             k = stiffness(z)
             if np.max(np.abs(r)) <= max(tol * (1.0 + abs(z[-1])), round_off_floor(k, z[:-1])):
                 return z, iterations, k
-            z = z - sparse_solve(bordered_jacobian(k, dof, tangent), r)
+            z = z - bordered_solve(k, dof, tangent, r)
             if not np.all(np.isfinite(z)):
                 return None
         return None
