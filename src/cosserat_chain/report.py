@@ -356,8 +356,8 @@ def _long_chains(stage: _Stage) -> Section:
     section.paragraphs.append(
         "The statics of the paper's geometry for longer chains (2N+1 particles, both ends clamped), each branch traced over "
         "one turn of the loaded particle. The sine model's M_c is 1/(largest rotation compliance) and falls like 1/N; the "
-        "nonlinear model's falls slowly, its fold moving to larger phi_0, because the geometric stiffening through the "
-        "transverse displacements grows with the chain (docs/statics.md has the table to N = 1000 and the cost)."
+        "nonlinear model's falls slowly and its fold moves to larger phi_0 (docs/statics.md has the table to N = 1000, "
+        "the first fold of N = 10^4 and the cost)."
     )
     rows = []
     for m, items in numbers.items():
