@@ -112,8 +112,7 @@ class Branch:
     stop : str
         Why the tracing ended: "phi0_stop", "moment_stop", "max_folds" (the
         requested end), "returned" (the branch came back through the rest state
-        before the loaded particle turned once: a closed loop, or a continuation
-        turned back at a branch point), or
+        before the loaded particle turned once, as a closed loop does), or
         "max_points" (the point budget ran out first: the branch is incomplete);
         "given" for the angles of :func:`rotation_branch`.
     """
@@ -283,7 +282,7 @@ def locate_fold(
 
 
 def _passes_rest(before: np.ndarray, after: np.ndarray, moment_before: float, moment_after: float) -> bool:
-    """Whether the chord between two branch points, on which M changes sign, passes the rest state.
+    """Whether the chord between two points of the branch, on which M changes sign, passes the rest state.
 
     The state where the chord crosses M = 0 lies within half the chord's length of
     rest, with every angle small. Other static states without load have a particle
@@ -504,9 +503,10 @@ def continue_in_moment(
             progress(min(phi, phi0_stop), phi0_stop)
         if y[-1] * previous_moment < 0 and len(moments) > 2 and _passes_rest(states[-2], x, previous_moment, y[-1]):
             # Back through the rest state: going on would trace the mirrored branch
-            # (x -> -x, M -> -M) and come back here. A closed loop does this, and so does
-            # a continuation turned back at a branch point (a symmetric chain loaded at
-            # its centre loses its mirror symmetry at one: N = 4 in the tests).
+            # (x -> -x, M -> -M) and come back here. A closed loop does this; so does the
+            # branch of one random N = 4 chain in the tests, which after its third fold
+            # comes back through its second one (the same state to 1e-14, with steps
+            # from 0.002 to the default: not a step-size artefact; not understood yet).
             stop = "returned"
         elif phi >= phi0_stop:
             stop = "phi0_stop"
