@@ -74,7 +74,7 @@ def critical(
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
     out: Path | None = typer.Option(None, help="Write the branches to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the branches (Fig. 2 without the relaxation points) to this PNG/SVG file."),
-    max_points: int = typer.Option(MAX_POINTS, min=2, help="Most points of each branch; a branch cut short exits with time_limit (3)."),
+    max_points: int = typer.Option(MAX_POINTS, min=2, help="Most points of each branch; a branch cut short exits with max_steps (3)."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Critical moment M_c and phi_0 at the fold (to round-off), compliance, and the static branch over one turn."""
@@ -104,10 +104,12 @@ def critical(
                 fold += ")" if r.snap_to is None else f" to the stable state at phi_0 = {r.snap_to.phi0:.15g} rad)"
             over = "over the turn" if r.complete else f"on the traced part (incomplete: {len(r.branch.moment)} points)"
             typer.echo(f"{name}: {fold}; compliance dphi_0/dM = {r.compliance:.15g}; {len(r.branch.folds)} folds {over}")
-    short = [name for name, r in results.items() if not r.complete]
-    if short:
-        exit_on(
-            Status.TIME_LIMIT,
-            f"the branch of {', '.join(short)} used all {max_points} points before the loaded particle turned once: "
-            "M_c is the largest maximum of the traced part (raise --max-points)",
-        )
+    for name, r in results.items():
+        if r.branch.stop == "max_points":
+            exit_on(
+                Status.MAX_STEPS,
+                f"the {name} branch used all {max_points} points before the loaded particle turned once: "
+                "M_c is the largest maximum of the traced part (raise --max-points)",
+            )
+        if r.branch.stop == "stalled":
+            exit_on(Status.STEP_TOO_SMALL, f"the {name} branch: {r.branch.message}; M_c is the largest maximum of the traced part")

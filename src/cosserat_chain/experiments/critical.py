@@ -9,9 +9,10 @@ Contract
   loaded particle, with the stability of every point and every fold it passes, each
   located to round-off (:func:`~cosserat_chain.numerics.continuation.locate_fold`);
 * M_c, the onset of rotation under a slowly rising load: the largest maximum of M
-  along the branch (of its traced part if the point budget ran out first: ``complete``
-  is then False and the command line exits with ``time_limit``) (no static state of the branch holds more), and the first fold,
-  where the stable branch from rest ends. A branch can have several maxima (N = 10,
+  along the branch (no static state of the branch holds more; of its traced part if
+  the point budget ran out or the corrector stalled first: ``complete`` is then False
+  and the command line exits with ``max_steps`` or ``step_too_small``), and the first
+  fold, where the stable branch from rest ends. A branch can have several maxima (N = 10,
   a = 0.3, b = 0.1, E1 = 2, E2 = 0.3: a first one near phi_0 = 1.0, the largest near
   2.04): at the first the chain snaps through to a static state further along, and
   only above M_c does it rotate. For the paper's chain both are the same fold. None

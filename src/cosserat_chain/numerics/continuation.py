@@ -62,6 +62,8 @@ PHI0_STEP = 0.1
 #: Largest turn of the tangent in one step (rad): resolves the curve in (q, M) and
 #: keeps the corrector on its branch.
 MAX_TURN = 0.2
+#: A corrector that moves further than this fraction of the state's size (and than the step) jumped.
+JUMP = 0.1
 #: Halvings of the distance to the nearest solved angle before a fold search gives up.
 MAX_HALVINGS = 12
 #: Callback ``progress(done, total)`` used by the long-running functions.
@@ -112,9 +114,13 @@ class Branch:
     stop : str
         Why the tracing ended: "phi0_stop", "moment_stop", "max_folds" (the
         requested end), "returned" (the branch came back through the rest state
-        before the loaded particle turned once, as a closed loop does), or
-        "max_points" (the point budget ran out first: the branch is incomplete);
+        before the loaded particle turned once, as a closed loop does),
+        "max_points" (the point budget ran out first) or "stalled" (the corrector
+        failed even at ``min_step``: a point where the branch is not smooth, such as a
+        link of zero length; ``message`` says where): the branch is then incomplete;
         "given" for the angles of :func:`rotation_branch`.
+    message : str
+        What stopped a stalled branch (empty otherwise).
     """
 
     moment: np.ndarray
@@ -125,11 +131,12 @@ class Branch:
     folds: list[Fold] = field(default_factory=list)
     particle: int = 0
     stop: str = "given"
+    message: str = ""
 
     @property
     def complete(self) -> bool:
-        """False if the point budget ran out before the requested end."""
-        return self.stop != "max_points"
+        """False if the point budget ran out or the corrector stalled before the requested end."""
+        return self.stop not in ("max_points", "stalled")
 
 
 def compliance(params: ChainParams, model: str | Model, *, particle: int = 0, x: np.ndarray | None = None) -> float:
@@ -357,7 +364,7 @@ def continue_in_moment(
     Raises
     ------
     NewtonError
-        If the corrector fails even at ``min_step``.
+        If locating a fold fails (the corrector fails next to it).
     ValueError
         If a step size is not positive or ``min_step > max_step``.
     """
@@ -396,6 +403,15 @@ def continue_in_moment(
             r = np.append(residual(z), tangent @ (z - predicted))
             k = stiffness(z)
             if np.max(np.abs(r)) <= max(tol * (1.0 + abs(z[-1])), round_off_floor(k, z[:-1])):
+                # Newton on the plane normal to the tangent can converge to a far part of
+                # the branch (or another branch) that crosses the plane: a jump, not a step
+                # (one N = 4 chain jumped by 1.6, its state's size, with steps of 0.01).
+                # A step's correction is a fraction of the step where the tangent turns by
+                # MAX_TURN at most, but an ill-conditioned corrector (the sine model next to
+                # its fold at N = 1000) moves further along the soft directions: a jump is a
+                # correction beyond the step and beyond a tenth of the state's size.
+                if np.linalg.norm(z - predicted) > max(abs(ds), JUMP * (1.0 + np.linalg.norm(y))):
+                    return None
                 return z, iterations, k
             z = z - bordered_solve(k, dof, tangent, r)
             if not np.all(np.isfinite(z)):
@@ -444,17 +460,22 @@ def continue_in_moment(
     col = column(params, particle)
     y_phi0 = 0.0
     ds, resume = step, 0.0
-    stop = "max_points"
+    stop, message = "max_points", ""
     previous_moment = 0.0
     while len(moments) < max_points:
         found = correct(y, tangent, ds, tol)
         if found is None:
             ds /= 2
             if ds < min_step:
-                raise NewtonError(
-                    f"continuation stalled at M={y[-1]:.6g}: the corrector failed with step {ds * 2:.3g}",
-                    unpack(y[:-1], params.n_particles),
+                # The branch is not smooth here (the nonlinear model's energy has a cone
+                # where a link's length vanishes: two particles' corners meet), or the
+                # corrector cannot follow it. What was traced is kept.
+                stop = "stalled"
+                message = (
+                    f"continuation stalled at M = {y[-1]:.6g}, phi_0 = {y_phi0:.6g}: the corrector failed even with step "
+                    f"{ds * 2:.3g} (a point where the branch is not smooth, e.g. a link of zero length)"
                 )
+                break
             continue
         z, iterations, k = found
         x = unpack(z[:-1], params.n_particles)
@@ -503,10 +524,7 @@ def continue_in_moment(
             progress(min(phi, phi0_stop), phi0_stop)
         if y[-1] * previous_moment < 0 and len(moments) > 2 and _passes_rest(states[-2], x, previous_moment, y[-1]):
             # Back through the rest state: going on would trace the mirrored branch
-            # (x -> -x, M -> -M) and come back here. A closed loop does this; so does the
-            # branch of one random N = 4 chain in the tests, which after its third fold
-            # comes back through its second one (the same state to 1e-14, with steps
-            # from 0.002 to the default: not a step-size artefact; not understood yet).
+            # (x -> -x, M -> -M) and come back here, as a closed loop does.
             stop = "returned"
         elif phi >= phi0_stop:
             stop = "phi0_stop"
@@ -518,4 +536,6 @@ def continue_in_moment(
             break
         if iterations <= 2 and turned < PHI0_STEP / 2 and turn < MAX_TURN / 2:
             ds = min(max_step, 1.3 * ds)
-    return _assemble_branch(params, model, particle, moments, states, folds, checks, stop)
+    branch = _assemble_branch(params, model, particle, moments, states, folds, checks, stop)
+    branch.message = message
+    return branch
