@@ -67,3 +67,13 @@ def test_sweep_bad_input_exits_2_with_a_message(args, message):
 def test_critical_refuses_a_clamped_particle():
     result = runner.invoke(app, ["critical", "--model", "sine", "--particle", "-3"])
     assert result.exit_code == 2 and "free particle" in result.output
+
+
+def test_critical_with_a_branch_cut_short_writes_it_and_exits_max_steps(tmp_path):
+    out = tmp_path / "short.nc"
+    result = runner.invoke(app, ["critical", "--model", "sine", "--max-points", "10", "--json", "--out", str(out)])
+    assert result.exit_code == 3 and "max_steps" in result.stderr and "--max-points" in result.stderr
+    summary = json.loads(result.stdout)["models"]["sine"]
+    assert summary["branch_complete"] is False and summary["branch"]["stop"] == "max_points" and len(summary["branch"]["moment"]) == 10
+    dataset = read_dataset(out)
+    assert dataset.attrs["branch_stop"] == "max_points" and dataset.sizes["point"] == 10
