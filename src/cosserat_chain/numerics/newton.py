@@ -186,7 +186,7 @@ def _bordered_banded_solve(indptr, indices, data, dof, row, rhs, refine):  # pra
         return None
     solution = np.zeros(n + 1)
     residual = rhs.copy()
-    for _ in range(refine + 1):
+    for sweep in range(refine + 1):
         y = residual.copy()
         for j in range(n):  # L y = b
             for i in range(j + 1, min(n, j + width + 1)):
@@ -199,6 +199,8 @@ def _bordered_banded_solve(indptr, indices, data, dof, row, rhs, refine):  # pra
                 total -= band[j, k - j + width] * y[k]
             y[j] = total / band[j, width]
         solution += y
+        if sweep == refine:
+            break
         # residual = rhs - B solution, with the matrix as given
         for i in range(n):
             total = rhs[i] - (solution[n] if i == dof else 0.0)
