@@ -18,7 +18,7 @@ Measured for the paper's geometry, nonlinear and sine models:
   branch from rest ends), for the same N, except the sine model at N = 10^4: its
   stiffness is the linear model's times diag(1, 1, cos phi), whose condition number
   there exceeds 1/eps (it grows like N^4, ``docs/continuum.md``); the corrector then
-  fails near the fold after about 750 s (recorded as ``not_run`` with that reason);
+  fails near the fold after about 400 s (recorded as ``not_run`` with that reason);
 * ``critical``: :func:`critical_point` over the whole turn for N up to ``--full-max``
   (default 1000): time, points, folds, whether the branch was complete, M_c and phi_0
   at the fold. The long chain's branch meanders (N = 1000 passes about 40 folds
@@ -60,7 +60,7 @@ FIGURE = ROOT.parent / "docs" / "img" / "statics_scaling.png"
 MODELS = ("nonlinear", "sine")
 SIZES = (10, 100, 1000, 10000)
 #: Why a (model, N) first fold is not run.
-NOT_RUN = {("sine", 10000): "K's condition number exceeds 1/eps: the corrector fails near the fold after about 750 s"}
+NOT_RUN = {("sine", 10000): "K's condition number exceeds 1/eps: the corrector fails near the fold after about 400 s"}
 CRITICAL_SIZES = (3, 10, 20, 50, 100, 300, 1000)
 
 
