@@ -18,11 +18,11 @@ Contract
 
 Without dense matrices (the default at every size): the critical eigenvalue is the
 smallest eigenvalue of the model's symmetric banded matrix similar to K
-(:meth:`~cosserat_chain.models.base.Model.symmetric_similar`), found by bisection on
-the number of eigenvalues below a shift (Sylvester's law of inertia: the negative
-pivots of a banded LDL^T factorisation, O(N) each; LAPACK's banded eigensolver is
-O(N^2): 0.5 s at N = 1000), and the state is stable iff it is positive; the index
-is that count at zero. For a
+(:meth:`~cosserat_chain.models.base.Model.symmetric_similar`), found by inverse
+iteration with banded LDL^T factors and certified by their inertia (Sylvester's law:
+the negative pivots count the eigenvalues below a shift, O(N) a factor; bisection on
+that count is the fallback; LAPACK's banded eigensolver is O(N^2): 0.5 s at N = 1000),
+and the state is stable iff it is positive; the index is that count at zero. For a
 conservative model with positive damping the damped dynamics decays iff K is
 positive definite. For eq. (2), K = S C with S the linear model's (positive
 definite) and C = diag(1, 1, cos phi): if every cos phi > 0, C M, C Gamma and C S C

@@ -168,7 +168,7 @@ def critical_against_length(results: dict[str, list]):
     """M_c and phi_0 at the fold against N (one :class:`~cosserat_chain.experiments.critical.CriticalResult` per N and model).
 
     The sine model's M_c falls like 1/N (it is 1/(largest rotation compliance)), so
-    its panel shows N M_c; the nonlinear model's M_c levels off.
+    its panel shows N M_c; the nonlinear model's M_c falls slowly.
     """
     import matplotlib.pyplot as plt
 
