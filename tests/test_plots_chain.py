@@ -210,7 +210,7 @@ def test_cli_draws_and_animates_a_run_file(paper, tmp_path):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["draw", "{run}", "--out", "{tmp}/a.jpg"], "unknown output format '.jpg'"),
+        (["draw", "{run}", "--out", "{tmp}/a.jpg"], "unknown format '.jpg' of --out"),
         (["animate", "{run}", "--out", "{tmp}/a.avi"], "allowed: .gif, .mp4"),
         (["draw", "{run}", "--out", "{tmp}/a.png", "--times", "1,9"], "time = 9.0 is outside the run: allowed 0 <= t <= 4"),
         (["animate", "{run}", "--out", "{tmp}/a.gif", "--t-start", "-1"], "t_start = -1.0 is outside the run"),

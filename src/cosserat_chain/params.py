@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, StrictInt, field_validator, model_validator
 
 #: Default viscous coefficient of every degree of freedom (the paper gives none). With
@@ -83,10 +84,20 @@ class ChainParams(BaseModel):
 
     @model_validator(mode="before")
     @classmethod
-    def _fill_inertia(cls, data: Any) -> Any:
+    def _numbers_and_inertia(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        # Strict on types: a NumPy scalar is a number (converted to its Python value, so
+        # that j's default and the JSON see plain numbers); a string or a boolean is not,
+        # though pydantic's lax mode would read "2" as 2.0 and true as 1.0 (a TOML typo
+        # would pass unnoticed). N must be an integer (StrictInt).
+        data = {key: value.item() if isinstance(value, np.generic) else value for key, value in data.items()}
+        for key, value in data.items():
+            if key in cls.model_fields and key != "N" and (isinstance(value, bool) or not isinstance(value, (int, float, type(None)))):
+                raise ValueError(f"{key} must be a number, got {value!r} ({type(value).__name__})")
         # j defaults to a value that depends on m, a and b; it is resolved and stored
         # so that the resolved parameters describe a run completely.
-        if not isinstance(data, dict) or data.get("j") is not None:
+        if data.get("j") is not None:
             return data
         fields = cls.model_fields
         m, a, b = (data.get(name, fields[name].default) for name in ("m", "a", "b"))
@@ -119,8 +130,7 @@ class ChainParams(BaseModel):
     def _particles_do_not_touch(self) -> ChainParams:
         if not 0 < self.a < self.h / 2:
             raise ValueError(
-                f"a must satisfy 0 < a < h/2 = {self.h / 2!r} (neighbouring particles "
-                f"would touch or overlap), got a={self.a!r}"
+                f"a must satisfy 0 < a < h/2 = {self.h / 2!r} (neighbouring particles would touch or overlap), got a={self.a!r}"
             )
         return self
 

@@ -9,7 +9,10 @@ fails becomes a section with its error, and the other stages still run. At the e
 ``index.html`` (self-contained: the figures are embedded, so it opens from disk with no
 server and no network), ``report.md`` (the same content) and ``summary.json`` (every
 number, the resolved parameters, the package version and the run time of each stage)
-are written atomically. An interrupted run leaves no half-written report.
+are written atomically. An interrupted run leaves no half-written report. Last comes
+``manifest.json``, the list of the report's files: a report written into a folder that
+holds an older one removes the older files it did not write again (and nothing else),
+so the folder holds one report, whole.
 
 Stages: ``statics`` (Fig. 2: compliance, critical moment and fold angle per model,
 exactly and by the relaxation protocol, the hysteresis loop), ``orbits`` (rotating
@@ -36,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from . import __version__
-from .io import stack_models, write_dataset, write_text
+from .io import stack_models, write_dataset, write_figure, write_text
 from .models import get_model
 from .params import ChainParams
 
@@ -111,27 +114,54 @@ class Report:
         return [s.title for s in self.sections if s.error]
 
 
+#: The list of the files a report consists of, written last: the next report into the same
+#: folder removes those of them it does not write again (a stage that is gone, a figure
+#: renamed), and nothing else (a file of the user's stays).
+MANIFEST = "manifest.json"
+
+
 class _Stage:
     def __init__(self, out: Path, params: ChainParams, settings: ReproduceSettings):
         self.out, self.params, self.settings = out, params, settings
         #: Results one stage shares with a later one (the sweeps of Fig. 2 feed the hysteresis picture).
         self.shared: dict[str, Any] = {}
+        #: Every file written, relative to ``out`` (the manifest).
+        self.written: set[str] = set()
         (out / "figures").mkdir(parents=True, exist_ok=True)
         (out / "data").mkdir(parents=True, exist_ok=True)
+
+    def path(self, relative: str) -> Path:
+        """Where the report's file ``relative`` goes, recorded in the manifest."""
+        self.written.add(relative)
+        return self.out / relative
 
     def figure(self, fig, stem: str) -> str:
         import matplotlib.pyplot as plt
 
         for suffix in ("png", "svg"):
-            fig.savefig(self.out / "figures" / f"{stem}.{suffix}", dpi=130)
+            write_figure(fig, self.path(f"figures/{stem}.{suffix}"), dpi=130)
         plt.close(fig)
         return stem
 
     def data(self, name: str, payload: Any) -> None:
         if hasattr(payload, "to_netcdf"):
-            write_dataset(payload, self.out / "data" / f"{name}.nc")
+            write_dataset(payload, self.path(f"data/{name}.nc"))
         else:
-            write_text(json.dumps(payload, indent=1, default=_json_default), self.out / "data" / f"{name}.json")
+            write_text(json.dumps(payload, indent=1, default=_json_default), self.path(f"data/{name}.json"))
+
+    def finish(self) -> None:
+        """Write the manifest of this report, after removing the files of the previous one it did not write again."""
+        manifest = self.out / MANIFEST
+        try:
+            previous = json.loads(manifest.read_text(encoding="utf-8"))["files"] if manifest.is_file() else []
+        except (OSError, ValueError, KeyError, TypeError):
+            previous = []  # not ours, or damaged: remove nothing
+        root = self.out.resolve()
+        for relative in set(map(str, previous)) - self.written:
+            stale = (self.out / relative).resolve()
+            if stale.is_relative_to(root) and stale.is_file() and not (self.out / relative).is_symlink():
+                stale.unlink()
+        write_text(json.dumps({"cosserat_chain_version": __version__, "files": sorted(self.written)}, indent=1), manifest)
 
 
 def _statics(stage: _Stage) -> Section:
@@ -272,9 +302,7 @@ def _rotation(stage: _Stage) -> Section:
             )
         )
         if m == "nonlinear":
-            animate(
-                p, run, stage.out / "figures" / "rotation.gif", t_start=t_end - 10.0, t_stop=t_end, max_frames=s.animation_frames, fps=15
-            )
+            animate(p, run, stage.path("figures/rotation.gif"), t_start=t_end - 10.0, t_stop=t_end, max_frames=s.animation_frames, fps=15)
     section.paragraphs.append(
         "In the sine model u decouples, so the other particles only move transversally (Fig. 3a); in the nonlinear model "
         "every degree of freedom is coupled (Fig. 3b). Animation of the nonlinear chain: "
@@ -522,10 +550,11 @@ def reproduce(
             name: {"title": s.title, "seconds": s.seconds, "error": s.error, "numbers": s.numbers} for name, s in zip(names, sections)
         },
     }
-    write_text(json.dumps(params.model_dump(), indent=1), out / "params.json")
-    write_text(json.dumps(summary, indent=1, default=_json_default), out / "summary.json")
-    write_text(_markdown(sections, params), out / "report.md")
-    write_text(_html(sections, params, out), out / "index.html")
+    write_text(json.dumps(params.model_dump(), indent=1), stage.path("params.json"))
+    write_text(json.dumps(summary, indent=1, default=_json_default), stage.path("summary.json"))
+    write_text(_markdown(sections, params), stage.path("report.md"))
+    write_text(_html(sections, params, out), stage.path("index.html"))
+    stage.finish()
     return Report(out, sections, summary)
 
 

@@ -18,6 +18,9 @@ class Status(StrEnum):
 
     #: The run reached its end (``t_end``, the requested turns, the solver's end time).
     COMPLETED = "completed"
+    #: The run reached its end, but its own accuracy checks failed (the energy balance,
+    #: the rotation per step): its numbers are not to be trusted; a smaller dt is needed.
+    INACCURATE = "inaccurate"
     #: A value became non-finite or left its bounds; the states before are kept.
     BLEW_UP = "blew_up"
     #: Ctrl-C; what was computed is kept.

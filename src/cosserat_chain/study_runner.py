@@ -14,7 +14,11 @@ written atomically to NetCDF when a chunk arrives at least ``save_every`` second
 after the last write, at the end, and when the study stops early: interrupted (Ctrl-C
 or a progress callback raising ``KeyboardInterrupt``) or by an error. Re-running the
 same spec with the same output file resumes: finished cells are read back and skipped;
-a file written for another spec (or under another time-step rule) is refused.
+a file written for another spec (or under another time-step rule) is refused. A
+scheduler given by its address that cannot be reached within :data:`CONNECT_TIMEOUT`
+raises :class:`ClusterError`; a cluster lost during the study (the scheduler gone, or
+no worker left for :data:`LOST_TIMEOUT` seconds) ends it with status ``failed`` and the
+finished cells saved.
 
 This module sits beside :mod:`cosserat_chain.io` (it persists) and above the experiments
 (it runs them); it never computes physics itself.
@@ -38,6 +42,7 @@ import xarray as xr
 from . import __version__
 from .experiments.study import StudySpec, compute_cells, empty_results, store_cell
 from .io import read_dataset, write_dataset
+from .status import Status
 
 log = logging.getLogger(__name__)
 
@@ -48,7 +53,19 @@ TASKS_PER_WORKER = 4
 #: and a chunk's cells reach the file only when the whole chunk is done.
 MAX_CHUNK = 256
 
+#: Seconds to reach a scheduler given by its address before giving up with a message.
+CONNECT_TIMEOUT = 10.0
+#: Seconds the study waits with no worker (or no scheduler) before it stops, saving what
+#: arrived: a cluster whose workers all died never finishes a task.
+LOST_TIMEOUT = 60.0
+#: Seconds between two looks at the cluster while waiting for the next chunk.
+POLL = 1.0
+
 Cell = tuple[tuple[int, ...], str, dict[str, float]]
+
+
+class ClusterError(RuntimeError):
+    """The Dask cluster cannot be reached, or was lost during the study."""
 
 
 @dataclass
@@ -65,15 +82,24 @@ class StudyRun:
         Cells already done in the output file.
     failed : int
         Cells (of all done ones) that recorded an error.
-    completed : bool
-        False if the study was interrupted.
+    status : Status
+        ``completed``; ``interrupted`` (Ctrl-C); ``failed`` (the cluster was lost). The
+        finished cells are saved either way, and the same call resumes.
+    message : str
+        Why it stopped early ("" if completed).
     """
 
     dataset: xr.Dataset
     computed: int
     skipped: int
     failed: int
-    completed: bool
+    status: Status = Status.COMPLETED
+    message: str = ""
+
+    @property
+    def completed(self) -> bool:
+        """Every cell is done."""
+        return self.status == Status.COMPLETED
 
 
 def default_chunk_size(cells: int, workers: int) -> int:
@@ -103,7 +129,12 @@ def _client(scheduler: str | None, workers: int | None) -> Iterator[tuple[Any, i
     if scheduler is None:
         workers = workers or os.cpu_count() or 1
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0")
-    client = Client(scheduler or cluster)
+        client = Client(cluster)
+    else:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+        except (OSError, TimeoutError, ValueError, TypeError) as err:
+            raise ClusterError(f"cannot reach the Dask scheduler at {scheduler!r} within {CONNECT_TIMEOUT:g} s: {err}") from None
     try:
         yield client, workers or sum(client.nthreads().values())
     finally:
@@ -163,9 +194,9 @@ def run_study(
     ------
     ValueError
         For a bad spec or chunk, or an ``out`` written for another spec.
+    ClusterError
+        If the scheduler at ``scheduler`` cannot be reached (within :data:`CONNECT_TIMEOUT`).
     """
-    from dask.distributed import as_completed
-
     if chunk is not None and not (isinstance(chunk, int) and chunk >= 1):
         raise ValueError(f"chunk must be an integer >= 1, got {chunk!r}")
     spec.check()
@@ -184,32 +215,77 @@ def run_study(
     total = len(cells)
     if progress is not None:
         progress(skipped, total)
-    computed, completed = 0, True
+    computed, message, status = 0, "", Status.COMPLETED
+
+    def store(part: list[Cell], values: list[dict[str, Any]]) -> None:
+        nonlocal computed
+        for (index, model, _), cell_values in zip(part, values):
+            store_cell(ds, spec, index, model, cell_values)
+        computed += len(part)
+        if progress is not None:
+            progress(skipped + computed, total)
+
     try:
         if todo:
             with _client(scheduler, workers) as (client, worker_count):
                 spec_json = spec.to_json()
                 chunks = chunk_cells(todo, chunk or default_chunk_size(len(todo), worker_count))
                 futures = {client.submit(compute_cells, [c[2] for c in part], part[0][1], spec_json, pure=False): part for part in chunks}
-                last_save = time.monotonic()
                 try:
-                    for future in as_completed(futures):
-                        part = futures[future]
-                        for (index, model, _), values in zip(part, future.result()):
-                            store_cell(ds, spec, index, model, values)
-                        computed += len(part)
-                        if progress is not None:
-                            progress(skipped + computed, total)
-                        if out is not None and time.monotonic() - last_save >= save_every:
-                            write_dataset(ds, out)
-                            last_save = time.monotonic()
+                    message = _collect(client, futures, store, lambda: write_dataset(ds, out) if out is not None else None, save_every)
+                    status = Status.FAILED if message else status
                 except KeyboardInterrupt:
-                    completed = False
-                    log.warning("study interrupted after %d of %d cells; the finished cells are saved", skipped + computed, total)
-                    client.cancel(list(futures))
+                    message, status = f"interrupted after {skipped + computed} of {total} cells", Status.INTERRUPTED
+                if message:
+                    log.warning("study stopped: %s; the finished cells are saved", message)
+                    try:
+                        client.cancel(list(futures))
+                    except Exception:  # the scheduler may be gone; nothing left to cancel then
+                        pass
     finally:
-        # Also on an error (a lost worker, a progress callback raising): keep the chunks that arrived.
+        # Also on an error (a progress callback raising, a failure of the client): keep the chunks that arrived.
         if out is not None:
             write_dataset(ds, out)
     failed = int(np.sum((ds["done"].values == 1) & (ds["error"].values.astype(str) != "")))
-    return StudyRun(ds, computed, skipped, failed, completed)
+    return StudyRun(ds, computed, skipped, failed, status, message)
+
+
+def _collect(client, futures: dict, store: Callable, save: Callable[[], None], save_every: float) -> str:
+    """Store chunks as they finish until all are in; returns "" or why it stopped (the cluster lost).
+
+    Waits at most :data:`POLL` seconds at a time, and between waits looks at the
+    cluster: without a worker (or a scheduler) for :data:`LOST_TIMEOUT` seconds, no
+    chunk can finish any more, so it stops instead of waiting forever.
+    """
+    from dask.distributed import wait
+
+    pending = set(futures)
+    last_save = lost_since = time.monotonic()
+    while pending:
+        try:
+            done, pending = wait(pending, timeout=POLL, return_when="FIRST_COMPLETED")
+        except TimeoutError:
+            done = set()
+        except Exception as err:  # the client cancels every future when it loses its scheduler
+            return f"the chunks still running were lost with the cluster ({type(err).__name__}: {str(err).splitlines()[0]})"
+        for future in done:
+            try:
+                values = future.result()
+            except Exception as err:  # a chunk lost with its scheduler or killed workers; compute_cells itself never raises
+                return f"a chunk of {len(futures[future])} cells could not be computed ({type(err).__name__}: {err})"
+            store(futures[future], values)
+            if time.monotonic() - last_save >= save_every:
+                save()
+                last_save = time.monotonic()
+        if done:
+            lost_since = time.monotonic()
+            continue
+        try:
+            alive = client.status == "running" and len(client.scheduler_info(n_workers=-1)["workers"]) > 0
+        except Exception:  # the scheduler does not answer
+            alive = False
+        if alive:
+            lost_since = time.monotonic()
+        elif time.monotonic() - lost_since > LOST_TIMEOUT:
+            return f"the cluster has had no scheduler or no worker for {LOST_TIMEOUT:g} s"
+    return ""

@@ -36,6 +36,7 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse.linalg as spla
 
+from ..memory import require
 from ..models.base import upper_bands
 from ..models.linear import stiffness_matrix
 from ..params import ChainParams
@@ -395,6 +396,10 @@ class ConvergenceTable:
         }
 
 
+#: Memory of the convergence table per degree of freedom of its longest chain (measured 1.1 kB, with a margin).
+BYTES_PER_DOF = 1500
+
+
 def convergence(params: ChainParams, n_values: list[int] | np.ndarray) -> ConvergenceTable:
     """Compliance phi_0 / M of the continuum solution and of the discrete chain for each N.
 
@@ -414,6 +419,14 @@ def convergence(params: ChainParams, n_values: list[int] | np.ndarray) -> Conver
     if not n_values:
         raise ValueError("n_values must hold at least one N >= 1, got an empty list")
     chains = [params.replace(N=n) for n in n_values]
+    largest = max(n_values)
+    # Measured: about 1.1 kB per degree of freedom at its peak (the sparse K, its LU
+    # factor and the banded Cholesky of the second check), at N = 10^5 and 4 10^5.
+    require(
+        BYTES_PER_DOF * 3 * (2 * largest + 1),
+        f"the discrete chain of N = {largest} ({3 * (2 * largest + 1)} degrees of freedom, about {BYTES_PER_DOF} bytes each)",
+        "compare shorter chains",
+    )
     continuum = np.array([central_rotation(p) for p in chains])
     discrete = np.array([discrete_static(p)[2, p.N] for p in chains])
     checks = np.array([_discrete_check(p) for p in chains]).reshape(len(chains), 2)

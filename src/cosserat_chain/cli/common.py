@@ -7,7 +7,9 @@ Each command lives in its own module of this package and registers itself on ``a
 from __future__ import annotations
 
 import math
+import os
 import sys
+import tempfile
 from enum import Enum
 from pathlib import Path
 from typing import NoReturn
@@ -16,7 +18,7 @@ import typer
 from pydantic import ValidationError
 from tqdm import tqdm
 
-from ..io import load_params
+from ..io import FIGURE_FORMATS, OutputError, check_output, load_params, write_dataset, write_figure
 from ..models import available_models, get_model
 from ..params import ChainParams
 from ..status import Status
@@ -84,10 +86,12 @@ def finite_or_none(value: float) -> float | None:
 
 #: Exit codes of the commands, one per outcome (documented in docs/exit-codes.md): 0 a result,
 #: 2 bad input (see :func:`fail`), 3 a run that did not produce what was asked (blew up,
-#: solver failure, not converged), 4 a run stopped at its time limit (resumable),
+#: solver failure, not converged, an output that could not be written), 4 a run stopped at
+#: its time limit (resumable), 5 a run that completed but failed its accuracy checks,
 #: 130 interrupted (Ctrl-C; what was computed is kept).
 EXIT_CODES = {
     Status.COMPLETED: 0,
+    Status.INACCURATE: 5,
     Status.STATIC: 0,
     Status.ROTATING: 0,
     Status.BLEW_UP: 3,
@@ -142,10 +146,93 @@ def bar_callback(bar: tqdm):
     return progress
 
 
-def save_figure(fig, path: Path) -> None:
-    """Write a matplotlib figure to ``path`` (format from the extension), creating its folder."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=150)
+def number(
+    default: float | None,
+    help: str,
+    *,
+    above: float | None = None,
+    at_least: float | None = None,
+    flags: tuple[str, ...] = (),
+):
+    """A float option that must be finite (and > ``above`` or >= ``at_least``), checked as the line is parsed.
+
+    A bad value exits with code 2 and click's "Invalid value for '--name'" message,
+    before anything is computed. (click's own ranges let NaN through: every comparison
+    with NaN is false.)
+    """
+
+    def check(value: float | None) -> float | None:
+        if value is None:
+            return value
+        if not math.isfinite(value):
+            raise typer.BadParameter(f"must be a finite number, got {value!r}")
+        if above is not None and not value > above:
+            raise typer.BadParameter(f"must be > {above:g}, got {value!r}")
+        if at_least is not None and not value >= at_least:
+            raise typer.BadParameter(f"must be >= {at_least:g}, got {value!r}")
+        return value
+
+    return typer.Option(default, *flags, callback=check, help=help)
+
+
+def outputs_or_exit(
+    outputs: dict[str, Path | None],
+    inputs: dict[str, Path | None] | None = None,
+    *,
+    formats: dict[str, tuple[str, ...]] | None = None,
+    folders: tuple[str, ...] = (),
+) -> None:
+    """Check every output of a command before it computes (:func:`cosserat_chain.io.check_output`); exit 2 naming the bad one.
+
+    Parameters
+    ----------
+    outputs : {option: path or None}
+    inputs : {option: path or None}
+        The command's input files: no output may be one of them, nor two outputs the same file.
+    formats : {option: allowed suffixes}
+        Default: :data:`FIGURE_FORMATS` for ``--plot``, any suffix otherwise.
+    folders : options whose path is a folder (``reproduce --out``)
+    """
+    formats = {"--plot": FIGURE_FORMATS, **(formats or {})}
+    given = {option: path for option, path in outputs.items() if path is not None}
+    try:
+        for option, path in given.items():
+            others = {name: other for name, other in given.items() if name != option}
+            check_output(path, option, formats=formats.get(option), inputs={**(inputs or {}), **others}, folder=option in folders)
+    except OutputError as err:
+        fail(str(err))
+
+
+def save_dataset(dataset, out: Path | None, option: str = "--out") -> None:
+    """Write a result to ``out``; if that fails now that the work is done, keep it in a fallback file and say where (exit 3).
+
+    The fallback is a file of the same name with ``.recovered`` in the working folder,
+    then in the system's temporary folder.
+    """
+    if out is None:
+        return
+    try:
+        write_dataset(dataset, out)
+        return
+    except (OSError, OutputError) as err:
+        reason = f"{err.strerror or err}" if isinstance(err, OSError) else str(err)
+    stem, suffix = Path(out).stem or "result", Path(out).suffix or ".nc"
+    for folder in (Path.cwd(), Path(tempfile.gettempdir())):
+        fallback = folder / f"{stem}.recovered-{os.getpid()}{suffix}"
+        try:
+            write_dataset(dataset, fallback)
+        except (OSError, OutputError):
+            continue
+        fail(f"could not write {option} {str(out)!r} ({reason}); the result is saved in {str(fallback)!r}", code=3)
+    fail(f"could not write {option} {str(out)!r} ({reason}), nor a fallback in the working or temporary folder: the result is lost", code=3)
+
+
+def save_figure(fig, path: Path, option: str = "--plot") -> None:
+    """Write a matplotlib figure to ``path`` (format from the extension) atomically; a failure exits 3 naming the option."""
+    try:
+        write_figure(fig, path, dpi=150)
+    except (OSError, OutputError, ValueError) as err:
+        fail(f"could not write {option} {str(path)!r}: {err}", code=3)
 
 
 @app.callback()

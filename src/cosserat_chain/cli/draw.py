@@ -13,10 +13,11 @@ import typer
 import xarray as xr
 
 from ..experiments.simulation import simulate as run_simulation
-from ..io import read_dataset
+from ..io import FIGURE_FORMATS, read_dataset
 from ..loads import moment_load
+from ..state import ROWS
 from ..status import Status
-from .common import app, bar_callback, fail, model_option, params_or_exit, progress_bar
+from .common import app, bar_callback, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar
 
 #: Stored frames of a simulation run only to be drawn: a cap that keeps memory small.
 _MAX_SIMULATED_FRAMES = 20001
@@ -24,17 +25,36 @@ _MAX_SIMULATED_FRAMES = 20001
 RUN_HELP = "NetCDF run written by `simulate --out`; without it, simulate first from --model/--moment/--t-end."
 
 
+#: The command that writes each kind of result file (its ``experiment`` attribute).
+_WRITTEN_BY = {
+    "critical_point": "critical",
+    "relaxation_sweep": "sweep",
+    "localization_run": "rotate",
+    "periodic_orbit": "orbit",
+    "rotation_characteristic": "orbit",
+}
+
+
+def _check_run(ds: xr.Dataset, run: Path) -> None:
+    """Exit naming the kind of file unless ``ds`` holds states over time (u, v, phi over time and particle)."""
+    if all(row in ds and set(ds[row].dims) == {"time", "particle"} for row in ROWS):
+        return
+    experiment = ds.attrs.get("experiment")
+    command = _WRITTEN_BY.get(experiment)
+    kind = f"the output of `cosserat-chain {command}` ({experiment})" if command else "not a run of this package"
+    own_plot = f"; `{command} --plot` draws its own figure" if command in ("critical", "sweep", "orbit") else ""
+    fail(f"RUN {str(run)!r} is {kind}, with no states over time to draw: draw and animate read the runs of `simulate --out`{own_plot}")
+
+
 def _load_run(run: Path | None, model: str, moment: float, t_end: float, config: Path | None, n_frames: int) -> xr.Dataset:
     if run is not None:
-        if not run.is_file():
-            fail(f"run file {str(run)!r} does not exist")
         try:
-            return read_dataset(run)
-        except (OSError, ValueError) as err:
-            fail(f"cannot read {str(run)!r} as a NetCDF run: {err}")
+            ds = read_dataset(run)
+        except ValueError as err:
+            fail(f"RUN: {err}")
+        _check_run(ds, run)
+        return ds
     params = params_or_exit(config)
-    if not (math.isfinite(t_end) and t_end > 0):
-        fail(f"--t-end must be > 0, got {t_end!r}")
     bar = progress_bar(f"simulate {model}", "step")
     try:
         ds = run_simulation(params, model, moment_load(moment).validate(params), t_end=t_end, n_frames=n_frames, progress=bar_callback(bar))
@@ -47,11 +67,6 @@ def _load_run(run: Path | None, model: str, moment: float, t_end: float, config:
     return ds
 
 
-def _check_suffix(out: Path, allowed: tuple[str, ...]) -> None:
-    if out.suffix.lower() not in allowed:
-        fail(f"unknown output format {out.suffix or '(none)'!r} of --out {str(out)!r}; allowed: {', '.join(allowed)}")
-
-
 def _parse_times(text: str) -> list[float]:
     times = []
     for item in text.split(","):
@@ -59,6 +74,8 @@ def _parse_times(text: str) -> list[float]:
             times.append(float(item))
         except ValueError:
             fail(f"--times must be numbers separated by commas, got {item.strip()!r} in {text!r}")
+        if not math.isfinite(times[-1]):
+            fail(f"--times must be finite times of the run, got {item.strip()!r} in {text!r}")
     return times
 
 
@@ -68,14 +85,14 @@ def draw(
     out: Path = typer.Option(..., "--out", help="Picture to write: .png, .svg or .pdf."),
     times: str | None = typer.Option(None, "--times", help="Comma-separated times, one panel each (default: the last stored time)."),
     model: str = model_option("nonlinear", "Model of the simulation run when no RUN is given."),
-    moment: float = typer.Option(0.1, help="Moment on the central particle when no RUN is given."),
-    t_end: float = typer.Option(300.0, "--t-end", help="Final time of the simulation when no RUN is given."),
+    moment: float = number(0.1, "Moment on the central particle when no RUN is given."),
+    t_end: float = number(300.0, "Final time of the simulation when no RUN is given.", above=0.0, flags=("--t-end",)),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields, when no RUN is given."),
 ) -> None:
     """Draw the chain at chosen times of a run, one panel per time (paper, Fig. 3)."""
-    from ..plots.chain import FIGURE_FORMATS, snapshot_figure  # matplotlib only when drawing: keeps every command quick to start
+    outputs_or_exit({"--out": out}, {"RUN": run, "--config": config}, formats={"--out": FIGURE_FORMATS})
+    from ..plots.chain import snapshot_figure  # matplotlib only when drawing: keeps every command quick to start
 
-    _check_suffix(out, FIGURE_FORMATS)
     ds = _load_run(run, model, moment, t_end, config, n_frames=201)
     chosen = _parse_times(times) if times is not None else [float(ds.time[-1])]
     try:
@@ -89,22 +106,24 @@ def draw(
 def animate(
     run: Path | None = typer.Argument(None, help=RUN_HELP),
     out: Path = typer.Option(..., "--out", help="Animation to write: .gif, or .mp4 when imageio-ffmpeg is installed."),
-    t_start: float | None = typer.Option(None, "--t-start", help="Start of the window (default: the start of the run)."),
-    t_stop: float | None = typer.Option(None, "--t-stop", help="End of the window (default: the end of the run)."),
-    frames: int = typer.Option(200, "--frames", help="At most this many frames, evenly spread over the window."),
-    fps: float = typer.Option(20.0, "--fps", help="Frames per second."),
+    t_start: float | None = number(None, "Start of the window (default: the start of the run).", flags=("--t-start",)),
+    t_stop: float | None = number(None, "End of the window (default: the end of the run).", flags=("--t-stop",)),
+    frames: int = typer.Option(200, "--frames", min=1, help="At most this many frames, evenly spread over the window."),
+    fps: float = number(20.0, "Frames per second.", above=0.0, flags=("--fps",)),
     model: str = model_option("nonlinear", "Model of the simulation run when no RUN is given."),
-    moment: float = typer.Option(0.1, help="Moment on the central particle when no RUN is given."),
-    t_end: float = typer.Option(300.0, "--t-end", help="Final time of the simulation when no RUN is given."),
+    moment: float = number(0.1, "Moment on the central particle when no RUN is given."),
+    t_end: float = number(300.0, "Final time of the simulation when no RUN is given.", above=0.0, flags=("--t-end",)),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields, when no RUN is given."),
 ) -> None:
     """Animate a time window of a run as a GIF (or MP4), subsampled to at most --frames frames."""
-    from ..plots.chain import ANIMATION_FORMATS, frame_indices
-    from ..plots.chain import animate as write_animation
+    from ..plots.chain import ANIMATION_FORMATS
 
-    _check_suffix(out, ANIMATION_FORMATS)
-    if frames < 1:
-        fail(f"--frames must be >= 1, got {frames}")
+    outputs_or_exit({"--out": out}, {"RUN": run, "--config": config}, formats={"--out": ANIMATION_FORMATS})
+    if t_start is not None and t_stop is not None and t_start > t_stop:
+        fail(f"--t-start {t_start:g} is after --t-stop {t_stop:g}: the window is empty")
+    from ..plots.chain import animate as write_animation
+    from ..plots.chain import frame_indices
+
     # A simulation run only to be animated stores enough frames for the window to hold --frames of them.
     window = (t_stop if t_stop is not None else t_end) - (t_start if t_start is not None else 0.0)
     stored = min(_MAX_SIMULATED_FRAMES, math.ceil(frames * t_end / window) + 1) if window > 0 else 201

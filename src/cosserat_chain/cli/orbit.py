@@ -8,30 +8,40 @@ from pathlib import Path
 import typer
 
 from ..experiments.orbits import periodic_orbit
-from ..io import write_dataset
 from ..numerics.periodic import OrbitError
-from .common import app, bar_callback, fail, finite_or_none, model_option, params_or_exit, progress_bar, save_figure
+from .common import (
+    app,
+    bar_callback,
+    fail,
+    finite_or_none,
+    model_option,
+    number,
+    outputs_or_exit,
+    params_or_exit,
+    progress_bar,
+    save_dataset,
+    save_figure,
+)
 
 
 @app.command()
 def orbit(
     model: str = model_option("sine", "A model that supports full rotations (the linear model does not).", rotating=True),
-    moment: float = typer.Option(..., help="Moment M on the loaded particle (above M_c, or near an orbit)."),
-    turns: int = typer.Option(1, help="Turns of the loaded particle per period (2 or 3 for some states)."),
+    moment: float = number(..., "Moment M on the loaded particle (above M_c, or near an orbit)."),
+    turns: int = typer.Option(1, min=1, help="Turns of the loaded particle per period (2 or 3 for some states)."),
     particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
-    down_to: float | None = typer.Option(
-        None, "--down-to", help="Continue the orbit down in M to here, reporting where it ceases to exist."
-    ),
-    period_max: float = typer.Option(2000.0, "--period-max", help="Continuation: a period beyond this counts as diverging."),
+    down_to: float | None = number(None, "Continue the orbit down in M to here, reporting where it ceases to exist.", flags=("--down-to",)),
+    period_max: float = number(2000.0, "Continuation: a period beyond this counts as diverging.", above=0.0, flags=("--period-max",)),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
     out: Path | None = typer.Option(None, help="Write the orbit (and the continuation) to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the rotation characteristic (needs --down-to) to this PNG/SVG file."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Find the rotating state as a limit cycle: period, mean angular velocity, Floquet multipliers, stability."""
-    params = params_or_exit(config)
     if plot is not None and down_to is None:
         fail("--plot draws the continued branch: give --down-to as well")
+    outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
+    params = params_or_exit(config)
     bar = progress_bar(f"orbit {model}", "orbit")
     try:
         result = periodic_orbit(
@@ -44,8 +54,7 @@ def orbit(
         bar.close()
         fail(str(err), code=3)
     bar.close()
-    if out is not None:
-        write_dataset(result.to_dataset(), out)
+    save_dataset(result.to_dataset(), out)
     if plot is not None:
         from ..plots.orbits import rotation_characteristic_figure
 

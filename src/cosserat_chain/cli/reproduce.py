@@ -7,23 +7,22 @@ from pathlib import Path
 
 import typer
 
-from .common import app, fail, params_or_exit, progress_bar
+from .common import app, outputs_or_exit, params_or_exit, progress_bar
 
 
 @app.command()
 def reproduce(
     out: Path = typer.Option(Path("results/paper"), help="Folder for index.html, report.md, figures/, data/, summary.json."),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields (default: the paper's chain)."),
-    turns: int = typer.Option(1500, help="Full turns of the localization run (the paper: 1500)."),
+    turns: int = typer.Option(1500, min=1, help="Full turns of the localization run (the paper: 1500)."),
     as_json: bool = typer.Option(False, "--json", help="Print summary.json (every number and the time of each stage)."),
 ) -> None:
     """Compute every result of the paper and write a self-contained report (index.html, report.md)."""
     from ..report import ReproduceSettings
     from ..report import reproduce as run_report
 
+    outputs_or_exit({"--out": out}, {"--config": config}, folders=("--out",))
     params = params_or_exit(config)
-    if turns < 1:
-        fail(f"--turns must be >= 1, got {turns}")
     bar = progress_bar("reproduce", "stage")
 
     def progress(name: str, done: int, total: int) -> None:

@@ -8,9 +8,8 @@ from pathlib import Path
 import typer
 
 from ..experiments.localization import localization_run
-from ..io import write_dataset
 from ..numerics.dynamics import IntegrationError
-from .common import app, bar_callback, exit_on, fail, model_option, params_or_exit, progress_bar
+from .common import app, bar_callback, exit_on, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, save_dataset
 
 
 def default_checkpoint(out: Path | None) -> Path | None:
@@ -21,26 +20,35 @@ def default_checkpoint(out: Path | None) -> Path | None:
 @app.command()
 def rotate(
     model: str = model_option("nonlinear", "A model that supports full rotations (the linear model does not).", rotating=True),
-    moment: float = typer.Option(..., help="Constant moment M on the loaded particle (rotation needs M above M_c, see `critical`)."),
-    turns: int = typer.Option(1500, help="Stop when the loaded particle has made this many full turns."),
-    t_max: float = typer.Option(100000.0, "--t-max", help="Stop at this time if the turns are not made by then."),
+    moment: float = number(..., "Constant moment M on the loaded particle (rotation needs M above M_c, see `critical`)."),
+    turns: int = typer.Option(1500, min=1, help="Stop when the loaded particle has made this many full turns."),
+    t_max: float = number(100000.0, "Stop at this time if the turns are not made by then.", above=0.0, flags=("--t-max",)),
     particle: int = typer.Option(0, help="Loaded particle, in -N+1..N-1 (default the central one)."),
-    dt: float | None = typer.Option(None, help="Time step (default 0.1 / highest linear frequency, rounded down to 10 bits)."),
+    dt: float | None = number(None, "Time step (default 0.1 / highest linear frequency, rounded down to 10 bits).", above=0.0),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
     out: Path | None = typer.Option(None, help="Write the per-particle diagnostics to this NetCDF file."),
     checkpoint: Path | None = typer.Option(None, help="Checkpoint file (default OUT.checkpoint.nc next to --out; none without --out)."),
-    checkpoint_every: float = typer.Option(60.0, "--checkpoint-every", help="Seconds of wall time between checkpoints."),
+    checkpoint_every: float = number(60.0, "Seconds of wall time between checkpoints.", at_least=0.0, flags=("--checkpoint-every",)),
     resume: bool = typer.Option(False, "--resume", help="Continue from the checkpoint (same parameters and settings)."),
+    force: bool = typer.Option(False, "--force", help="Start afresh even if the checkpoint exists (it is replaced)."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Turn one particle with a constant moment for many turns; report how localized the rotation stays.
 
     Exit status: 0 done (turns made or t_max reached), 2 bad input, 3 blow-up, 130 interrupted (saved).
     """
-    params = params_or_exit(config)
     checkpoint = checkpoint if checkpoint is not None else default_checkpoint(out)
     if resume and checkpoint is None:
         fail("--resume needs --checkpoint or --out (whose checkpoint is OUT.checkpoint.nc)")
+    if resume and force:
+        fail("--resume and --force contradict each other: --resume continues the checkpoint, --force replaces it")
+    outputs_or_exit({"--out": out, "--checkpoint": checkpoint}, {"--config": config})
+    if checkpoint is not None and checkpoint.exists() and not (resume or force):
+        fail(
+            f"the checkpoint {str(checkpoint)!r} exists (an earlier run): give --resume to continue it, "
+            "or --force to start afresh and replace it"
+        )
+    params = params_or_exit(config)
     bar = progress_bar(f"rotate {model}", "turn")
     try:
         result = localization_run(
@@ -63,8 +71,7 @@ def rotate(
         bar.close()
         fail(str(err), code=3)
     bar.close()
-    if out is not None:
-        write_dataset(result.to_dataset(), out)
+    save_dataset(result.to_dataset(), out)
     summary = result.as_dict()
     if as_json:
         typer.echo(json.dumps(summary))

@@ -9,7 +9,6 @@ from typing import Any
 import typer
 
 from ..experiments.simulation import simulate as run_simulation
-from ..io import write_dataset
 from ..loads import Schedule, moment_load
 from ..status import Status
 from .common import (
@@ -20,22 +19,25 @@ from .common import (
     fail,
     finite_or_none,
     model_option,
+    number,
+    outputs_or_exit,
     params_or_exit,
     progress_bar,
+    save_dataset,
 )
 
 
 @app.command()
 def simulate(
     model: str = model_option("nonlinear", "Model."),
-    moment: float = typer.Option(0.1, help="Moment M on the loaded particle."),
-    t_end: float = typer.Option(300.0, "--t-end", help="Final time."),
-    dt: float | None = typer.Option(None, help="Time step (default 0.1 / highest linear frequency)."),
+    moment: float = number(0.1, "Moment M on the loaded particle."),
+    t_end: float = number(300.0, "Final time.", above=0.0, flags=("--t-end",)),
+    dt: float | None = number(None, "Time step (default 0.1 / highest linear frequency).", above=0.0),
     particle: int = typer.Option(0, help="Loaded particle, in -N+1..N-1 (default the central one)."),
-    ramp: float = typer.Option(0.0, help="Raise the moment linearly over this time (0: applied at once)."),
+    ramp: float = number(0.0, "Raise the moment linearly over this time (0: applied at once).", at_least=0.0),
     method: MethodName = typer.Option(MethodName.verlet, help="verlet (order 2) or yoshida4 (order 4)."),
-    frames: int = typer.Option(201, help="Number of stored states."),
-    threads: int = typer.Option(1, help="Threads per step (worth it from ~10^4 particles)."),
+    frames: int = typer.Option(201, min=2, help="Number of stored states (>= 2: the start and the end)."),
+    threads: int = typer.Option(1, min=1, help="Threads per step (worth it from ~10^4 particles)."),
     reference: bool = typer.Option(False, help="Use the adaptive DOP853 reference instead of the fixed step."),
     config: Path | None = typer.Option(
         None, help="TOML file with ChainParams fields (E1, E2, h, a, b, m, j, gamma_u, gamma_v, gamma_phi, N)."
@@ -44,6 +46,7 @@ def simulate(
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Run one damped simulation of the chain under a moment load."""
+    outputs_or_exit({"--out": out}, {"--config": config})
     params = params_or_exit(config)
     try:
         schedule = Schedule.ramp(moment, ramp) if ramp > 0 else Schedule.constant(moment)
@@ -69,8 +72,7 @@ def simulate(
         bar.close()
         fail(str(err))
     bar.close()
-    if out is not None:
-        write_dataset(ds, out)
+    save_dataset(ds, out)
     status = ds.attrs["status"]
     if as_json:
         typer.echo(json.dumps(_summary(ds, params, model, t_end, out)))
@@ -98,5 +100,9 @@ def _summary(ds, params, model: str, t_end: float, out: Path | None) -> dict[str
         "message": ds.attrs["message"],
         "final": {row: [float(x) for x in final[row].values] for row in ("u", "v", "phi")},
         "energy": energy,
+        "accuracy": {
+            "balance_relative": finite_or_none(float(ds.attrs["balance_relative"])),
+            "rotation_per_step": finite_or_none(float(ds.attrs["rotation_per_step"])),
+        },
         "out": str(out) if out else None,
     }

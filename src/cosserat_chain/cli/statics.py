@@ -9,10 +9,24 @@ import typer
 
 from ..experiments.critical import MAX_POINTS, critical_point
 from ..experiments.sweep import relaxation_sweep
-from ..io import stack_models, write_dataset
+from ..io import stack_models
 from ..numerics.newton import NewtonError
 from ..status import Status
-from .common import ALL_MODELS, app, bar_callback, chosen_models, exit_on, fail, model_option, params_or_exit, progress_bar, save_figure
+from .common import (
+    ALL_MODELS,
+    app,
+    bar_callback,
+    chosen_models,
+    exit_on,
+    fail,
+    model_option,
+    number,
+    outputs_or_exit,
+    params_or_exit,
+    progress_bar,
+    save_dataset,
+    save_figure,
+)
 
 MODEL_HELP = "Model, or all for every registered one."
 
@@ -20,18 +34,19 @@ MODEL_HELP = "Model, or all for every registered one."
 @app.command()
 def sweep(
     model: str = model_option(ALL_MODELS, MODEL_HELP, all_models=True),
-    m_max: float = typer.Option(..., "--m-max", help="Largest moment of the upward sweep."),
-    steps: int | None = typer.Option(None, help="Number of load steps from 0 to m_max."),
-    dm: float | None = typer.Option(None, help="Load increment (instead of --steps)."),
+    m_max: float = number(..., "Largest moment of the upward sweep.", above=0.0, flags=("--m-max",)),
+    steps: int | None = typer.Option(None, min=1, help="Number of load steps from 0 to m_max."),
+    dm: float | None = number(None, "Load increment (instead of --steps).", above=0.0),
     down: bool = typer.Option(False, "--down", help="Then lower the load step by step to 0 (hysteresis)."),
     particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
-    t_max: float = typer.Option(20000.0, "--t-max", help="Time cap of one load step."),
+    t_max: float = number(20000.0, "Time cap of one load step.", above=0.0, flags=("--t-max",)),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
     out: Path | None = typer.Option(None, help="Write the steps to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw Fig. 2 (with the exact branches) to this PNG/SVG file."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Raise the moment step by step, relaxing to rest at each step (the paper's protocol); report the onset of rotation."""
+    outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     params = params_or_exit(config)
     results = {}
     interrupted = False
@@ -49,8 +64,7 @@ def sweep(
         if not result.completed:
             interrupted = True
             break
-    if out is not None:
-        write_dataset(stack_models({name: r.to_dataset() for name, r in results.items()}), out)
+    save_dataset(stack_models({name: r.to_dataset() for name, r in results.items()}), out)
     if plot is not None:
         from ..plots.statics import figure2
 
@@ -78,6 +92,7 @@ def critical(
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Critical moment M_c and phi_0 at the fold (to round-off), compliance, and the static branch over one turn."""
+    outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     params = params_or_exit(config)
     results = {}
     for name in chosen_models(model):
@@ -88,8 +103,7 @@ def critical(
             bar.close()
             fail(str(err), code=2 if isinstance(err, ValueError) else 3)
         bar.close()
-    if out is not None:
-        write_dataset(stack_models({name: r.to_dataset() for name, r in results.items()}), out)
+    save_dataset(stack_models({name: r.to_dataset() for name, r in results.items()}), out)
     if plot is not None:
         from ..plots.statics import figure2
 

@@ -10,8 +10,7 @@ import typer
 
 from ..experiments.study import spec_from_mapping
 from ..io import read_config
-from ..status import Status
-from .common import app, bar_callback, exit_on, fail, progress_bar, save_figure
+from .common import app, bar_callback, exit_on, fail, outputs_or_exit, progress_bar, save_figure
 
 
 @app.command()
@@ -19,28 +18,27 @@ def study(
     spec_file: Path = typer.Argument(..., help="TOML study spec (see docs/studies.md)."),
     out: Path | None = typer.Option(None, help="NetCDF file written as cells finish; re-running resumes from it."),
     scheduler: str | None = typer.Option(None, help="Address of an existing Dask scheduler (default: an embedded LocalCluster)."),
-    workers: int | None = typer.Option(None, help="Worker processes of the embedded LocalCluster (default: one per core)."),
+    workers: int | None = typer.Option(None, min=1, help="Worker processes of the embedded LocalCluster (default: one per core)."),
     chunk: int | None = typer.Option(
-        None, help="Cells per Dask task (cells of one N and model, relaxed as one batch; default: 4 tasks per worker, at most 256 cells)."
+        None,
+        min=1,
+        help="Cells per Dask task (cells of one N and model, relaxed as one batch; default: 4 tasks per worker, at most 256 cells).",
     ),
     plot: Path | None = typer.Option(None, help="Draw maps (two swept fields) or lines (one) of the quantities to this PNG/SVG file."),
     as_json: bool = typer.Option(False, "--json", help="Print a summary and every cell's values as one JSON object."),
 ) -> None:
     """Compute the quantities of a parameter study over every cell of its grid, in chunks of cells per Dask task."""
-    from ..study_runner import run_study
+    from ..study_runner import ClusterError, run_study
 
+    outputs_or_exit({"--out": out, "--plot": plot}, {"SPEC": spec_file})
     try:
         spec = spec_from_mapping(read_config(spec_file), source=str(spec_file))
     except ValueError as err:
         fail(str(err))
-    if workers is not None and workers < 1:
-        fail(f"--workers must be >= 1, got {workers}")
-    if chunk is not None and chunk < 1:
-        fail(f"--chunk must be >= 1, got {chunk}")
     bar = progress_bar("study", "cell")
     try:
         run = run_study(spec, out=out, scheduler=scheduler, workers=workers, chunk=chunk, progress=bar_callback(bar))
-    except ValueError as err:
+    except (ValueError, ClusterError) as err:
         bar.close()
         fail(str(err))
     bar.close()
@@ -69,7 +67,9 @@ def study(
             f"study: {run.computed} cells computed, {run.skipped} read back, {run.failed} failed" + (f"; wrote {out}" if out else "")
         )
     if not run.completed:
-        exit_on(Status.INTERRUPTED, "the finished cells are saved; run the same command again to resume")
+        exit_on(
+            run.status, f"{run.message}; the finished cells are saved" + ("" if out is None else "; run the same command again to resume")
+        )
 
 
 def _plain(value: np.ndarray):

@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 
 from ..analysis.dispersion import BRANCHES, continuum_dispersion, dispersion, wave_summary
-from .common import app, fail, params_or_exit
+from .common import app, outputs_or_exit, params_or_exit, save_figure
 
 
 @app.command()
@@ -20,13 +20,12 @@ def waves(
     plot: Path | None = typer.Option(None, "--plot", help="Write the dispersion curves, gap shaded, to this PNG or SVG file."),
 ) -> None:
     """Frequencies of the longitudinal, transverse-acoustic and rotational-optical branches at q = 0 and q = pi, and the band gap."""
-    from ..plots.theory import FIGURE_FORMATS, plot_dispersion, save_figure  # matplotlib only when plotting
-
+    outputs_or_exit({"--plot": plot}, {"--config": config})
     params = params_or_exit(config)
-    if plot is not None and plot.suffix.lower() not in FIGURE_FORMATS:
-        fail(f"--plot must end in one of {', '.join(FIGURE_FORMATS)}, got {str(plot)!r}")
     summary = wave_summary(params)
     if plot is not None:
+        from ..plots.theory import plot_dispersion  # matplotlib only when plotting
+
         save_figure(plot_dispersion(dispersion(params), summary, continuum_dispersion(params)), plot)
     if as_json:
         typer.echo(json.dumps({"params": params.model_dump(), **summary.as_dict(), "plot": str(plot) if plot else None}))

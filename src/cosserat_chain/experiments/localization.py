@@ -20,7 +20,10 @@ any step takes exactly the steps the uninterrupted run takes, and the
 compiled integrator recomputes the forces it carried. A checkpoint written for
 other parameters, model, moment, loaded particle, time step, method or chunk
 length is refused with a ValueError naming the field; ``turns`` and ``t_max``
-may change (to extend a finished run).
+may change (to extend a finished run). A checkpoint holds the SHA-256 of what a
+resumed run reads (every variable and the state attributes): one that was edited
+or damaged, truncated, or is not a checkpoint at all is refused with a ValueError
+naming the file, never trusted.
 
 Ctrl-C stops the run between or inside chunks; everything computed up to the
 last finished step is kept in the returned result (status ``interrupted``) and
@@ -31,6 +34,7 @@ smaller time step.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import math
@@ -197,7 +201,29 @@ class LocalizationResult:
         summary = {key: value for key, value in self.as_dict().items() if key not in ("winding", "rotating_particles", "params")}
         ds.attrs.update({key: ("" if value is None else value) for key, value in summary.items()})
         ds.attrs.update({"experiment": "localization_run", "checkpoint_format": CHECKPOINT_FORMAT, "chunk_steps": self.chunk_steps})
+        ds.attrs["checkpoint_sha256"] = _checksum(ds)
         return ds
+
+
+#: The attributes a resumed run reads besides its settings (those are compared one by one).
+_STATE_ATTRIBUTES = ("steps", "wall_time", "params_json", "model", "moment", "particle", "dt", "method", "chunk_steps")
+
+
+def _checksum(ds: xr.Dataset) -> str:
+    """SHA-256 of what a resumed run reads: every variable's values (dtype, shape, bytes) and the state attributes.
+
+    A checkpoint edited by hand or damaged on disk then fails its check instead of
+    being trusted (NetCDF keeps the values bit for bit, so a sound file always passes).
+    """
+    digest = hashlib.sha256()
+    for name in sorted(map(str, ds.variables)):
+        values = np.ascontiguousarray(ds[name].values)
+        digest.update(f"{name}:{values.dtype.str}:{values.shape}:".encode())
+        digest.update(values.tobytes())
+    for key in _STATE_ATTRIBUTES:
+        value = ds.attrs.get(key)
+        digest.update(f"{key}={(value.item() if isinstance(value, np.generic) else value)!r};".encode())
+    return digest.hexdigest()
 
 
 def _finite(value: float) -> float | None:
@@ -328,12 +354,20 @@ def localization_run(
 
     wall_before = 0.0
     if resume and checkpoint.exists():
-        ds = read_dataset(checkpoint)
+        try:
+            ds = read_dataset(checkpoint)
+        except ValueError as err:
+            raise ValueError(f"cannot resume from the checkpoint: {err}; start afresh without --resume (or with --force)") from None
         expected = {f"params.{k}": v for k, v in params.model_dump().items()}
         expected.update(
             {"model": model.name, "moment": moment, "particle": particle, "dt": dt, "method": method, "chunk_steps": chunk_steps}
         )
         _check_settings(checkpoint, ds, expected)
+        if ds.attrs.get("checkpoint_sha256") != _checksum(ds):
+            raise ValueError(
+                f"checkpoint {str(checkpoint)!r} was altered or damaged after it was written (its SHA-256 does not match "
+                "its contents): it is not resumed; start afresh (--force) or use another checkpoint file"
+            )
         step = int(ds.attrs["steps"])
         x = np.ascontiguousarray(np.stack([ds[f"final_{row}"].values for row in ROWS]))
         v = np.ascontiguousarray(np.stack([ds[f"final_{row}_dot"].values for row in ROWS]))

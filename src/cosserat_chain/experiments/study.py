@@ -83,7 +83,7 @@ TIME_STEP_RULE = f"sweep.dt, else 0.1 / omega_max rounded down to a power of 2^(
 class Range(BaseModel):
     """``num`` values from ``start`` to ``stop`` (both included), evenly spaced on a linear or log scale."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
     start: float
     stop: float
     num: int = Field(ge=1)
@@ -103,7 +103,7 @@ class Range(BaseModel):
 class SweepSettings(BaseModel):
     """Relaxation-protocol settings for ``onset_load``, ``stop_load`` and ``mean_angular_velocity``."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
     m_max: float = Field(0.4, gt=0)
     dm: float = Field(0.01, gt=0)
     t_max: float = Field(20000.0, gt=0)
@@ -111,9 +111,13 @@ class SweepSettings(BaseModel):
 
 
 class StudySpec(BaseModel):
-    """A parameter study (see the module docstring); unknown keys are errors."""
+    """A parameter study (see the module docstring); unknown keys are errors.
 
-    model_config = ConfigDict(extra="forbid")
+    Strict on types: numbers must be numbers (not strings or booleans) and finite, and
+    the values of N integers.
+    """
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
     parameters: dict[str, list[float] | Range]
     fixed: dict[str, float] = {}
     models: list[str] = ["nonlinear", "sine"]
@@ -149,6 +153,12 @@ class StudySpec(BaseModel):
         for name, values in self.parameters.items():
             if isinstance(values, list) and not values:
                 raise ValueError(f"parameters.{name}: empty list")
+        chain_lengths = self.parameters.get("N", [self.fixed["N"]] if "N" in self.fixed else [])
+        fractions = [
+            v for v in (chain_lengths.values() if isinstance(chain_lengths, Range) else chain_lengths) if not float(v).is_integer()
+        ]
+        if fractions:
+            raise ValueError(f"N must take integer values (particles -N..N), got {fractions}")
         if "mean_angular_velocity" in self.quantities and not self.loads:
             raise ValueError("quantity mean_angular_velocity needs loads = [M1, M2, ...]")
         if not self.quantities:

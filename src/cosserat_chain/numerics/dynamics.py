@@ -29,6 +29,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..loads import Loads
+from ..memory import FLOAT, require
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import check_state, column
@@ -190,6 +191,23 @@ def check_time_step(params: ChainParams, dt: float, method: Method, model: str |
         )
 
 
+#: Most steps of one run: beyond 2^53 the step counter and the times it gives stop being exact.
+MAX_STEPS = 2.0**53
+
+#: Arrays of the chain's size that a run holds besides its frames (forces, the lanes' tables, scratch).
+_WORKING_ARRAYS = 12
+
+
+def _require_frames(params: ChainParams, n_stored: int) -> None:
+    """Refuse a run whose stored frames (positions and velocities) and working arrays do not fit in memory."""
+    n = params.n_particles
+    require(
+        FLOAT * 3 * n * (2 * n_stored + _WORKING_ARRAYS),
+        f"{n_stored} frames x 3 rows x {n} particles (N={params.N}) x 2 (positions and velocities)",
+        "store fewer frames (n_frames, --frames) or simulate a shorter chain",
+    )
+
+
 def integrate(
     params: ChainParams,
     model: str | Model,
@@ -256,6 +274,13 @@ def integrate(
     """
     model = get_model(model)
     method = get_method(method)
+    if n_frames is not None and not (isinstance(n_frames, (int, np.integer)) and n_frames >= 2):
+        raise ValueError(f"n_frames must be an integer >= 2 (the start and the end), got {n_frames!r}")
+    if not (isinstance(threads, (int, np.integer)) and threads >= 1):
+        raise ValueError(f"threads must be an integer >= 1, got {threads!r}")
+    n = params.n_particles
+    # Before anything of the chain's size is made (the default step's eigenvalue bound is one).
+    _require_frames(params, n_frames or 2)
     if dt is None:
         # omega_max dt = DEFAULT_OMEGA_DT, far inside every method's stability limit: no check
         # (it would compute the frequency bound a second time).
@@ -267,13 +292,19 @@ def integrate(
     dt = float(dt)
     if not (math.isfinite(t_end) and t_end > t0):
         raise ValueError(f"t_end must be finite and > t0={t0!r}, got {t_end!r}")
-    n_steps = max(1, math.ceil((t_end - t0) / dt - 1e-9))
+    steps = (t_end - t0) / dt
+    if steps > MAX_STEPS:
+        raise ValueError(
+            f"the run would take {steps:.3g} steps of dt={dt:.3g} (t_end - t0 = {t_end - t0:g}), more than {MAX_STEPS:.3g}: "
+            f"the time step follows the fastest mode sqrt(stiffness / inertia), here E1={params.E1:g}, E2={params.E2:g}, "
+            f"m={params.m:g}, j={params.j:g}; the model is dimensionless, so scale them to order 1 or shorten t_end"
+        )
+    n_steps = max(1, math.ceil(steps - 1e-9))
     dt = (t_end - t0) / n_steps  # at most the requested step, and t_end is reached exactly
     if stride is None:
         stride = max(1, math.ceil(n_steps / max(1, (n_frames or 2) - 1)))
     if stride < 1:
         raise ValueError(f"stride must be >= 1, got {stride!r}")
-    n = params.n_particles
     if x0 is not None:
         x0 = check_state(params, x0, "x0")
     if v0 is not None:
@@ -282,6 +313,7 @@ def integrate(
         max_displacement = 100.0 * 2 * params.N * params.h
     loads.validate(params)
     n_stored = n_steps // stride + 1 + (n_steps % stride != 0)
+    _require_frames(params, n_stored)
     # The state evolves in the last frame slots, where it ends: two arrays fewer to
     # allocate and copy. np.zeros leaves the pages unmapped until written, so a run
     # from rest writes neither its first frame nor its start state (at 10^6

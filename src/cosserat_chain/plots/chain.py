@@ -42,12 +42,11 @@ from matplotlib.patches import Patch
 from PIL import Image
 
 from ..geometry import bond_links, corner_positions, particle_positions
-from ..io import atomic_path, params_from_mapping
+from ..io import FIGURE_FORMATS, atomic_path, params_from_mapping, write_figure
 from ..params import ChainParams
 from ..state import ROWS
 
-#: Output formats of :func:`snapshot_figure` and :func:`animate`, by file extension.
-FIGURE_FORMATS = (".png", ".svg", ".pdf")
+#: Output formats of :func:`animate`, by file extension.
 ANIMATION_FORMATS = (".gif", ".mp4")
 
 #: Corner order of :func:`cosserat_chain.geometry.corner_positions`, as signs of (a, b).
@@ -384,8 +383,7 @@ def snapshot_figure(
     if title:
         figure.suptitle(title)
     if path is not None:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        figure.savefig(path, bbox_inches="tight", pad_inches=0.05)
+        write_figure(figure, path, bbox_inches="tight", pad_inches=0.05)
     return figure
 
 

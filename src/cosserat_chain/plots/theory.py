@@ -8,13 +8,10 @@ and the residue (12) against N on log axes, :func:`plot_dispersion` the branches
 omega(q) with the transverse-rotational band gap shaded. Each takes the result
 objects of :mod:`cosserat_chain.analysis.continuum` and
 :mod:`cosserat_chain.analysis.dispersion` and an optional Axes, and returns the
-Figure; :func:`save_figure` writes PNG or SVG by the file's extension. Nothing here
-solves anything.
+Figure (:func:`cosserat_chain.io.write_figure` writes it). Nothing here solves anything.
 """
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -22,9 +19,6 @@ from matplotlib.figure import Figure
 
 from ..analysis.continuum import ConvergenceTable, ProfileComparison
 from ..analysis.dispersion import BRANCHES, Dispersion, WaveSummary
-
-#: Formats :func:`save_figure` writes, by file extension.
-FIGURE_FORMATS = (".png", ".svg")
 
 _BRANCH_LABELS = dict(zip(BRANCHES, ("longitudinal (u)", "transverse acoustic (v)", "rotational optical (phi)")))
 _BRANCH_COLOURS = dict(zip(BRANCHES, ("tab:green", "tab:blue", "tab:red")))
@@ -118,19 +112,3 @@ def plot_dispersion(
     panel.set_ylabel("angular frequency omega")
     panel.legend(loc="best", fontsize="small")
     return fig
-
-
-def save_figure(fig: Figure, path: str | Path) -> Path:
-    """Write ``fig`` as PNG or SVG, chosen by the extension of ``path``.
-
-    Raises
-    ------
-    ValueError
-        For another extension, listing the allowed ones.
-    """
-    path = Path(path)
-    if path.suffix.lower() not in FIGURE_FORMATS:
-        raise ValueError(f"figure file must end in one of {', '.join(FIGURE_FORMATS)}, got {str(path)!r}")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=150)
-    return path
