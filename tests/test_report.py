@@ -146,3 +146,30 @@ def test_reproduce_cli_writes_the_report(tmp_path, monkeypatch):
     assert result.exit_code == 0, result.output
     assert json.loads(result.stdout)["stages"]["errata"]["error"] is None
     assert (tmp_path / "index.html").exists() and (tmp_path / "report.md").exists()
+
+
+def test_a_stiffer_chain_gets_loads_above_its_own_critical_moments(tmp_path):
+    """E2 = 2 lifts the nonlinear M_c above the paper's load 0.25: the report rotates it at 1.25 M_c and says so."""
+    params = ChainParams(E2=2.0)
+    critical = critical_point(params, "nonlinear").critical_moment
+    assert critical > QUICK.rotation_moment["nonlinear"]
+    report = reproduce(tmp_path / "stiff", params, QUICK, stages=["statics", "localization"])
+    assert report.failed == []
+    statics = report.sections[0].numbers["nonlinear"]
+    assert statics["onset_load"] is not None and statics["onset_load"] > critical, "the protocol now reaches past the fold"
+    localized = report.sections[1].numbers["nonlinear"]
+    assert localized["moment"] == pytest.approx(report_module.ABOVE_CRITICAL * critical)
+    assert localized["turns_completed"] == QUICK.turns
+    text = (report.out / "report.md").read_text()
+    assert f"the configured M = {QUICK.rotation_moment['nonlinear']:g} is not above M_c for this chain" in text
+
+
+def test_reproduce_reads_its_settings_from_the_config_and_names_bad_ones(tmp_path):
+    config = tmp_path / "chain.toml"
+    config.write_text("E2 = 1.0\n[reproduce]\nturns = 0\n")
+    result = CliRunner().invoke(app, ["reproduce", "--config", str(config), "--out", str(tmp_path / "r")])
+    assert result.exit_code == 2 and "turns must be > 0" in result.output
+    config.write_text("[reproduce]\ntunrs = 3\n")
+    result = CliRunner().invoke(app, ["reproduce", "--config", str(config), "--out", str(tmp_path / "r")])
+    assert result.exit_code == 2 and "tunrs" in result.output and "allowed keys" in result.output
+    assert not (tmp_path / "r").exists()

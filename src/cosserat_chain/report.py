@@ -32,9 +32,9 @@ import math
 import time
 import traceback
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import Any, get_type_hints
 
 import numpy as np
 
@@ -59,9 +59,13 @@ class ReproduceSettings:
     Attributes
     ----------
     m_max, dm : float
-        Relaxation protocol of Fig. 2: loads dm, 2 dm, ..., m_max, then back down.
+        Relaxation protocol of Fig. 2: loads dm, 2 dm, ..., m_max, then back down. The
+        top is raised to :data:`ABOVE_CRITICAL` times the largest computed M_c when
+        ``m_max`` does not reach past it (a chain stiffer than the paper's).
     rotation_moment : dict
-        Moment per rotating model for Fig. 3 and the localization run (above M_c).
+        Moment per rotating model for Fig. 3 and the localization run (the paper's:
+        0.25 and 0.3). One that is not above the model's computed M_c is replaced by
+        :data:`ABOVE_CRITICAL` M_c, and the report says so.
     snapshot_times : tuple of float
         Times of the panels of Figs. 3a and 3b.
     animation_frames : int
@@ -69,7 +73,8 @@ class ReproduceSettings:
         Full turns of the localization run (the paper: 1500).
     orbit_moment, orbit_down_to : float
         The sine model's rotating orbit is found at ``orbit_moment`` and continued down
-        towards ``orbit_down_to`` until it ceases to exist.
+        towards ``orbit_down_to`` until it ceases to exist. An ``orbit_moment`` not
+        above the sine model's M_c is replaced by :data:`ABOVE_CRITICAL` M_c.
     n_list : tuple of int
         Chain half-lengths N for the continuum comparison.
     long_n_list : tuple of int
@@ -86,6 +91,67 @@ class ReproduceSettings:
     orbit_down_to: float = 0.1
     n_list: tuple[int, ...] = (3, 10, 30, 100, 300, 1000)
     long_n_list: tuple[int, ...] = (3, 10, 30, 100, 300)
+
+
+#: A load the report must place above a model's critical moment but is configured at or
+#: below it is replaced by this multiple of the computed M_c.
+ABOVE_CRITICAL = 1.25
+
+
+def settings_from_mapping(mapping: dict[str, Any], source: str = "[reproduce]") -> ReproduceSettings:
+    """:class:`ReproduceSettings` from a TOML table, strict on keys and types.
+
+    Raises
+    ------
+    ValueError
+        Naming an unknown key (with the allowed ones), or the key and value of one of the
+        wrong type or out of range.
+    """
+    from pydantic import TypeAdapter, ValidationError
+
+    allowed = [f.name for f in fields(ReproduceSettings)]
+    unknown = [key for key in mapping if key not in allowed]
+    if unknown:
+        raise ValueError(f"unknown key(s) {unknown} in {source}; allowed keys: {', '.join(allowed)}")
+    hints = get_type_hints(ReproduceSettings)
+    checked, errors = {}, []
+    for key, value in mapping.items():
+        try:
+            checked[key] = TypeAdapter(hints[key]).validate_python(tuple(value) if isinstance(value, list) else value, strict=True)
+        except ValidationError as err:
+            errors += [f"{'.'.join(map(str, (key, *e['loc'])))}: {e['msg']} (got {e.get('input')!r})" for e in err.errors()]
+    if errors:
+        raise ValueError(f"invalid {source}: " + "; ".join(errors))
+    settings = ReproduceSettings(**checked)
+    problems = [
+        f"{name} must be > 0, got {getattr(settings, name)!r}"
+        for name in ("m_max", "dm", "orbit_moment", "turns", "animation_frames")
+        if not (math.isfinite(getattr(settings, name)) and getattr(settings, name) > 0)
+    ]
+    problems += [
+        f"rotation_moment.{m} must be a finite number, got {v!r}" for m, v in settings.rotation_moment.items() if not math.isfinite(v)
+    ]
+    problems += [f"rotation_moment needs {m}" for m in ROTATING if m not in settings.rotation_moment]
+    problems += [
+        f"{name} must be integers N >= 1" for name in ("n_list", "long_n_list") if not all(n >= 1 for n in getattr(settings, name))
+    ]
+    if problems:
+        raise ValueError(f"invalid {source}: " + "; ".join(problems))
+    return settings
+
+
+def above_critical(configured: float, critical: float | None) -> tuple[float, str]:
+    """The load to use where a model must rotate, and how it relates to M_c, in words.
+
+    ``configured`` if it is above ``critical`` (or there is no fold), else
+    :data:`ABOVE_CRITICAL` ``critical``.
+    """
+    if critical is None or not math.isfinite(critical):
+        return configured, "the model has no static fold"
+    if configured > critical:
+        return configured, f"{configured / critical:.3g} times its M_c = {critical:.4g}"
+    load = ABOVE_CRITICAL * critical
+    return load, f"{ABOVE_CRITICAL:g} times its M_c = {critical:.4g}: the configured M = {configured:g} is not above M_c for this chain"
 
 
 @dataclass
@@ -130,6 +196,19 @@ class _Stage:
         (out / "figures").mkdir(parents=True, exist_ok=True)
         (out / "data").mkdir(parents=True, exist_ok=True)
 
+    def critical(self, model: str):
+        """The model's :class:`~cosserat_chain.experiments.critical.CriticalPoint` on this chain (computed once, shared by the stages)."""
+        from .experiments.critical import critical_point
+
+        exact = self.shared.setdefault("exact", {})
+        if model not in exact:
+            exact[model] = critical_point(self.params, model)
+        return exact[model]
+
+    def load(self, model: str, configured: float) -> tuple[float, str]:
+        """:func:`above_critical` for ``model`` on this chain."""
+        return above_critical(configured, self.critical(model).critical_moment)
+
     def path(self, relative: str) -> Path:
         """Where the report's file ``relative`` goes, recorded in the manifest."""
         self.written.add(relative)
@@ -165,14 +244,16 @@ class _Stage:
 
 
 def _statics(stage: _Stage) -> Section:
-    from .experiments.critical import critical_point
     from .experiments.sweep import relaxation_sweep
     from .plots.statics import figure2, hysteresis_figure
 
     p, s = stage.params, stage.settings
-    exact = {m: critical_point(p, m) for m in MODELS}
-    sweeps = {m: relaxation_sweep(p, m, m_max=s.m_max, dm=s.dm, down=True) for m in MODELS}
-    stage.shared.update(sweeps=sweeps, exact=exact)
+    exact = {m: stage.critical(m) for m in MODELS}
+    largest = max((e.critical_moment for e in exact.values() if e.critical_moment is not None), default=0.0)
+    # The protocol must pass every fold to show an onset: raise its top for a stiffer chain.
+    m_max = max(s.m_max, math.ceil(ABOVE_CRITICAL * largest / s.dm) * s.dm)
+    sweeps = {m: relaxation_sweep(p, m, m_max=m_max, dm=s.dm, down=True) for m in MODELS}
+    stage.shared.update(sweeps=sweeps)
     stage.data("critical", stack_models({m: r.to_dataset() for m, r in exact.items()}))
     stage.data("sweep", stack_models({m: r.to_dataset() for m, r in sweeps.items()}))
     rows, numbers = [], {}
@@ -189,7 +270,7 @@ def _statics(stage: _Stage) -> Section:
     stage.data("statics", numbers)
     section = Section("Static response and the onset of rotation (Fig. 2)", numbers=numbers)
     section.paragraphs.append(
-        f"The moment on the central particle is raised in steps of {s.dm:g} up to {s.m_max:g}, each step run to rest "
+        f"The moment on the central particle is raised in steps of {s.dm:g} up to {m_max:g}, each step run to rest "
         "(the paper's relaxation protocol, dots), then lowered again; a star marks the first step at which the particle "
         "rotates. Lines: the exact static branches by pseudo-arclength continuation (dashed: unstable), open circles: "
         "the folds, located to round-off. The linear model never rotates."
@@ -217,26 +298,26 @@ def _statics(stage: _Stage) -> Section:
 def _orbits(stage: _Stage) -> Section:
     from .experiments.orbits import periodic_orbit
     from .experiments.sweep import relaxation_sweep
-    from .numerics.continuation import locate_fold
     from .plots.orbits import rotation_characteristic_figure
 
     p, s = stage.params, stage.settings
     model = "sine"
-    sweep = stage.shared.get("sweeps", {}).get(model) or relaxation_sweep(p, model, m_max=s.m_max, dm=s.dm, down=True)
-    fold = locate_fold(p, model)
-    result = periodic_orbit(p, model, s.orbit_moment, down_to=s.orbit_down_to)
+    fold = stage.critical(model).fold
+    moment, relation = stage.load(model, s.orbit_moment)
+    sweep = stage.shared.get("sweeps", {}).get(model) or relaxation_sweep(p, model, m_max=max(s.m_max, moment), dm=s.dm, down=True)
+    result = periodic_orbit(p, model, moment, down_to=min(s.orbit_down_to, moment))
     stage.data("orbits", result.to_dataset())
     branch = result.branch
     numbers = {
         "model": model,
-        "moment": s.orbit_moment,
+        "moment": moment,
         "period": result.orbit.period,
         "mean_angular_velocity": result.orbit.mean_angular_velocity,
         "stable": bool(result.orbit.stable),
         "orbit_end": branch.end,
         "orbit_end_moment": branch.end_moment,
         "stability_lost_at": branch.stability_lost_at,
-        "static_fold": fold.moment,
+        "static_fold": None if fold is None else fold.moment,
         "relaxation_onset": sweep.onset_load,
         "relaxation_stop": sweep.stop_load,
     }
@@ -244,7 +325,8 @@ def _orbits(stage: _Stage) -> Section:
     section = Section("Rotating states as periodic orbits: the hysteresis loop", numbers=numbers)
     section.paragraphs.append(
         f"Above M_c the rotating state of the {model} model is a limit cycle: the loaded particle advances by one turn per "
-        "period while everything else returns. It is found by Newton's method on a shooting map and continued downwards in M. "
+        f"period while everything else returns. It is found at M = {moment:.4g} ({relation}) by Newton's method on a "
+        "shooting map and continued downwards in M. "
         "Going up, rotation starts at the static fold M_c; coming down, it stops where the rotating orbit loses stability "
         "(or ceases to exist): the two edges of the hysteresis loop, against the relaxation sweep's load steps."
     )
@@ -260,17 +342,17 @@ def _orbits(stage: _Stage) -> Section:
                 "onset (relaxation up)",
                 "stop (relaxation down)",
             ],
-            [[model, fold.moment, branch.stability_lost_at, branch.end_moment, branch.end, sweep.onset_load, sweep.stop_load]],
+            [[model, numbers["static_fold"], branch.stability_lost_at, branch.end_moment, branch.end, sweep.onset_load, sweep.stop_load]],
         )
     )
     section.tables.append(
         (
-            f"Periodic orbit at M = {s.orbit_moment:g}",
+            f"Periodic orbit at M = {moment:.4g}",
             ["period T", "mean angular velocity", "largest non-trivial Floquet multiplier", "stable"],
             [[result.orbit.period, result.orbit.mean_angular_velocity, result.orbit.max_multiplier, bool(result.orbit.stable)]],
         )
     )
-    fig = rotation_characteristic_figure(branches=[branch], sweep=sweep, static_fold=fold.moment, model=model)
+    fig = rotation_characteristic_figure(branches=[branch], sweep=sweep, static_fold=numbers["static_fold"], model=model)
     section.figures.append(
         (
             stage.figure(fig, "rotation_characteristic"),
@@ -290,13 +372,13 @@ def _rotation(stage: _Stage) -> Section:
     section = Section("The rotating chain (Figs. 3a and 3b)")
     # The paper's figures: Fig. 3a is the sine model, Fig. 3b (and the animation) the nonlinear one.
     for label, m in (("fig3a", "sine"), ("fig3b", "nonlinear")):
-        moment = s.rotation_moment[m]
+        moment, relation = stage.load(m, s.rotation_moment[m])
         run = simulate(p, m, moment, t_end=t_end, n_frames=int(t_end / 0.05) + 1)
         stage.data(f"rotation_{m}", run)
         section.figures.append(
             (
                 stage.figure(snapshot_figure(p, run, list(s.snapshot_times)), label),
-                f"Fig. {label[-2:]}: the {m} model under M = {moment:g} (above its M_c), snapshots at t = "
+                f"Fig. {label[-2:]}: the {m} model under M = {moment:.4g} ({relation}), snapshots at t = "
                 + ", ".join(f"{t:g}" for t in s.snapshot_times)
                 + ".",
             )
@@ -316,8 +398,9 @@ def _localization(stage: _Stage) -> Section:
 
     p, s = stage.params, stage.settings
     rows, numbers = [], {}
+    relations = {}
     for m in ROTATING:
-        moment = s.rotation_moment[m]
+        moment, relations[m] = stage.load(m, s.rotation_moment[m])
         result = localization_run(p, m, moment, turns=s.turns, t_max=100.0 * s.turns)
         stage.data(f"localization_{m}", result.to_dataset())
         d = result.as_dict()
@@ -338,8 +421,11 @@ def _localization(stage: _Stage) -> Section:
     stage.data("localization", numbers)
     section = Section(f"Localization: {s.turns} rotations of the central particle", numbers=numbers)
     section.paragraphs.append(
-        f"The central particle is driven above its critical moment from rest until it has made {s.turns} full turns "
-        "(the paper's test). The other particles only oscillate: their largest excursions over the whole run are below."
+        f"The central particle is driven from rest until it has made {s.turns} full turns (the paper's test), at "
+        + "; ".join(f"M = {numbers[m]['moment']:.4g} for the {m} model ({relations[m]})" for m in ROTATING)
+        + ". "
+        + " ".join(_localization_outcome(m, numbers[m], s.turns) for m in ROTATING)
+        + " Their largest excursions over the whole run are below."
     )
     section.tables.append(
         (
@@ -359,6 +445,16 @@ def _localization(stage: _Stage) -> Section:
         )
     )
     return section
+
+
+def _localization_outcome(model: str, result: dict[str, Any], turns: int) -> str:
+    """What the run shows for one model, in a sentence computed from its result."""
+    made = result["turns_completed"]
+    if result["classification"] == "localized_rotation":
+        return f"In the {model} model the loaded particle made {made} turns and no other particle turned: the rotation stays localized."
+    if made < turns:
+        return f"In the {model} model the loaded particle made only {made} of the {turns} turns by t = {result['t_end']:.6g} ({result['classification']})."
+    return f"In the {model} model other particles turned as well ({result['classification']}): the rotation is not localized."
 
 
 def _long_chains(stage: _Stage) -> Section:

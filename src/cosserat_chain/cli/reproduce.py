@@ -2,27 +2,49 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 from pathlib import Path
 
 import typer
 
-from .common import app, outputs_or_exit, params_or_exit, progress_bar
+from ..io import params_from_mapping, read_config
+from .common import app, fail, outputs_or_exit, params_or_exit, progress_bar
+
+#: The table of a ``--config`` file that holds the report's settings (``ReproduceSettings`` fields).
+SETTINGS_TABLE = "reproduce"
 
 
 @app.command()
 def reproduce(
     out: Path = typer.Option(Path("results/paper"), help="Folder for index.html, report.md, figures/, data/, summary.json."),
-    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields (default: the paper's chain)."),
-    turns: int = typer.Option(1500, min=1, help="Full turns of the localization run (the paper: 1500)."),
+    config: Path | None = typer.Option(
+        None,
+        help="TOML file with ChainParams fields (default: the paper's chain) and, in a [reproduce] table, the report's "
+        "settings (ReproduceSettings fields: m_max, dm, rotation_moment, turns, orbit_moment, n_list, ...).",
+    ),
+    turns: int | None = typer.Option(None, min=1, help="Full turns of the localization run (default 1500, the paper's)."),
     as_json: bool = typer.Option(False, "--json", help="Print summary.json (every number and the time of each stage)."),
 ) -> None:
     """Compute every result of the paper and write a self-contained report (index.html, report.md)."""
-    from ..report import ReproduceSettings
+    from ..report import ReproduceSettings, settings_from_mapping
     from ..report import reproduce as run_report
 
     outputs_or_exit({"--out": out}, {"--config": config}, folders=("--out",))
-    params = params_or_exit(config)
+    if config is None:
+        params, settings = params_or_exit(None), ReproduceSettings()
+    else:
+        try:
+            mapping = read_config(config)
+            table = mapping.pop(SETTINGS_TABLE, {})
+            if not isinstance(table, dict):
+                raise ValueError(f"[{SETTINGS_TABLE}] in {str(config)!r} must be a table of ReproduceSettings fields")
+            settings = settings_from_mapping(table, source=f"[{SETTINGS_TABLE}] of {str(config)!r}")
+            params = params_from_mapping(mapping, source=str(config))
+        except ValueError as err:  # pydantic's ValidationError included: it names the field and the value
+            fail(str(err))
+    if turns is not None:
+        settings = dataclasses.replace(settings, turns=turns)
     bar = progress_bar("reproduce", "stage")
 
     def progress(name: str, done: int, total: int) -> None:
@@ -31,7 +53,7 @@ def reproduce(
         bar.update(done - bar.n)
 
     try:
-        report = run_report(out, params, ReproduceSettings(turns=turns), progress=progress)
+        report = run_report(out, params, settings, progress=progress)
     finally:
         bar.close()
     if as_json:
