@@ -15,9 +15,10 @@ from cosserat_chain.loads import Loads, PointLoad, Schedule
 from cosserat_chain.models import LINEAR
 from cosserat_chain.models.linear import max_frequency
 from cosserat_chain.numerics.adaptive import integrate_adaptive
-from cosserat_chain.numerics.dynamics import IntegrationError, integrate
+from cosserat_chain.numerics.dynamics import IntegrationError, default_time_step, integrate
 from cosserat_chain.numerics.integrators import METHODS
 from cosserat_chain.state import pack, unpack
+from cosserat_chain.status import Status
 
 ORDER_TOL = 0.25
 UNDAMPED = ChainParams(gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
@@ -265,3 +266,18 @@ def test_a_turn_watch_is_checked(paper):
         dynamics.TurnWatch(0, keep=0)
     with pytest.raises(ValueError, match="particle"):
         integrate(paper, "sine", moment_load(0.4), t_end=1.0, turns=dynamics.TurnWatch(paper.N + 1))
+
+
+def test_a_blow_up_is_reported_at_its_first_bad_step_not_at_the_periodic_check():
+    """The loop checks every 1024 steps; the reported step is the first state out of bounds, found by a rerun of the chunk."""
+    params = ChainParams()
+    dt = 30 * default_time_step(params)  # far beyond the stability limit
+    run = integrate(params, "nonlinear", moment_load(0.1), t_end=2000 * dt, dt=dt, stride=1, check_stability=False)
+    assert run.status == Status.BLEW_UP and 1 < run.steps < 1024
+    assert f"step {run.steps}, the first state out of bounds" in run.message
+    assert run.time[-1] < run.steps * dt and np.isfinite(run.x).all()
+    before = integrate(params, "nonlinear", moment_load(0.1), t_end=(run.steps - 1) * dt, dt=dt, stride=1, check_stability=False)
+    assert before.status == Status.COMPLETED and before.steps == run.steps - 1
+    np.testing.assert_array_equal(before.x, run.x[: before.x.shape[0]])
+    at = integrate(params, "nonlinear", moment_load(0.1), t_end=run.steps * dt, dt=dt, stride=1, check_stability=False)
+    assert at.status == Status.BLEW_UP and at.steps == run.steps

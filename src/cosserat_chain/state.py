@@ -17,14 +17,32 @@ from __future__ import annotations
 
 import numpy as np
 
+from .memory import FLOAT, require
 from .params import ChainParams
 
 ROWS = ("u", "v", "phi")
 ROW_INDEX = {name: i for i, name in enumerate(ROWS)}
 
 
+#: Arrays of the chain's size that any computation holds (state, velocities, forces, the
+#: stiffness's bands and factors): a chain is refused by :func:`zeros`, usually the first
+#: array a computation makes, unless that many fit in the free memory.
+MIN_STATES = 40
+#: A state below this size (bytes) is made without asking how much memory is free.
+_SMALL = 1 << 26
+
+
 def zeros(params: ChainParams) -> np.ndarray:
-    """The rest configuration (or zero velocity), shape (3, 2N+1)."""
+    """The rest configuration (or zero velocity), shape (3, 2N+1).
+
+    Raises
+    ------
+    MemoryEstimateError
+        For a chain so long that :data:`MIN_STATES` of its states do not fit in the free memory.
+    """
+    nbytes = FLOAT * 3 * params.n_particles
+    if nbytes > _SMALL:
+        require(MIN_STATES * nbytes, f"{MIN_STATES} states of {params.n_particles} particles (N={params.N})", "a shorter chain")
     return np.zeros((3, params.n_particles))
 
 

@@ -28,7 +28,9 @@ from typing import Any
 
 import numpy as np
 
+from ..memory import FLOAT, require
 from ..params import ChainParams
+from ..state import n_free
 from .continuum import central_rotation, discrete_static, printed_D1
 
 #: Names of the coefficients of eqs. (2)-(3) in the order of
@@ -627,9 +629,7 @@ def _lowest_real_eigenvalue(matrix) -> complex:
     shift = -float(abs(matrix).sum(axis=1).max()) - 1.0
     # A wide Krylov space: the eigenvalues near the shift are clustered (40 vectors: 4 s at
     # N = 1000; ARPACK's default of 20 took 11 s).
-    return complex(
-        spla.eigs(matrix.tocsc(), k=1, sigma=shift, which="LM", ncv=min(matrix.shape[0] - 1, 40), return_eigenvectors=False)[0]
-    )
+    return complex(spla.eigs(matrix.tocsc(), k=1, sigma=shift, which="LM", ncv=min(matrix.shape[0] - 1, 40), return_eigenvectors=False)[0])
 
 
 def _fmt(expr: Any) -> str:
@@ -655,6 +655,8 @@ def errata(params: ChainParams | None = None) -> tuple[Erratum, ...]:
     from ..models.linear import stiffness_matrix
 
     params = ChainParams() if params is None else params
+    # The printed operator, its eigenvalues and the derived one's bands: tens of arrays of the chain's size.
+    require(60 * FLOAT * n_free(params), f"the errata's operators for N = {params.N}", "evaluate the errata on a shorter chain")
     checks = {c.key: c for c in compare_with_paper()}
     failing = {key for key, c in checks.items() if not c.agrees}
 

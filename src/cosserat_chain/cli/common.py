@@ -6,6 +6,7 @@ Each command lives in its own module of this package and registers itself on ``a
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import sys
@@ -19,11 +20,42 @@ from pydantic import ValidationError
 from tqdm import tqdm
 
 from ..io import FIGURE_FORMATS, OutputError, check_output, load_params, write_dataset, write_figure
+from ..memory import MemoryEstimateError, available, size_text
 from ..models import available_models, get_model
 from ..params import ChainParams
 from ..status import Status
 
-app = typer.Typer(add_completion=False, help="Discrete Cosserat chains of finite-size particles.", no_args_is_help=True)
+
+class _App(typer.Typer):
+    """The Typer application, whose every command turns a memory refusal or a ``MemoryError`` into a message (exit 2).
+
+    The computations estimate their large arrays before allocating them
+    (:mod:`cosserat_chain.memory`); this is the net for an allocation no estimate
+    foresaw (a chain of 10^9 particles meets one in its first array).
+    """
+
+    def command(self, *args, **kwargs):
+        register = super().command(*args, **kwargs)
+
+        def decorate(function):
+            @functools.wraps(function)
+            def guarded(*call_args, **call_kwargs):
+                try:
+                    return function(*call_args, **call_kwargs)
+                except MemoryEstimateError as err:  # an estimate refused the work before it started
+                    fail(str(err))
+                except MemoryError as err:
+                    fail(
+                        f"not enough memory: {err or 'an allocation failed'} ({size_text(available())} free); "
+                        "a shorter chain (N) or fewer stored states fit"
+                    )
+
+            return register(guarded)
+
+        return decorate
+
+
+app = _App(add_completion=False, help="Discrete Cosserat chains of finite-size particles.", no_args_is_help=True)
 
 #: The ``--model`` value that stands for every offered model (a name the registry reserves).
 ALL_MODELS = "all"

@@ -53,6 +53,7 @@ import scipy.sparse as sp
 from numba import types
 from scipy.linalg import LinAlgError, cholesky_banded
 
+from ..memory import FLOAT, require
 from ..params import ChainParams
 from ..state import check_state
 
@@ -176,6 +177,10 @@ class Model(ABC):
             omega_max = sqrt(lambda_max) in 1/time units (0 if no eigenvalue is positive).
         """
         n = params.n_particles
+        # The first computation of the chain's size in most runs (the default time step):
+        # refuse here, with the number, a chain that cannot fit (the stiffness, its bands
+        # and the factor's copies, about 50 values a degree of freedom).
+        require(50 * FLOAT * 3 * n, f"the stiffness of {n} particles (N={params.N})", "simulate a shorter chain")
         scale = sp.diags(1.0 / np.sqrt(np.tile(params.inertia, n - 2)))
         dynamical = (scale @ sp.csr_matrix(self.stiffness(params, np.zeros((3, n)))) @ scale).tocsr()
         gershgorin = float(abs(dynamical).sum(axis=1).max())

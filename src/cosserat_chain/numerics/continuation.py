@@ -34,6 +34,7 @@ import scipy.optimize as so
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..memory import FLOAT, require
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, column, n_free, pack, unpack, zeros
@@ -301,6 +302,19 @@ def _passes_rest(before: np.ndarray, after: np.ndarray, moment_before: float, mo
     return bool(near and np.max(np.abs(crossing[ROW_INDEX["phi"]]), initial=0.0) < 0.5)
 
 
+def require_branch_memory(params: ChainParams, max_points: int) -> None:
+    """Refuse a branch of ``max_points`` states that would not fit in memory (:func:`cosserat_chain.memory.require`).
+
+    Every point's state is kept (the branch's x), twice at the end (the list and its
+    array), beside the stiffness and its banded factors (about 60 values a degree of freedom).
+    """
+    require(
+        FLOAT * 3 * params.n_particles * (2 * max_points + 60),
+        f"a branch of up to {max_points} states of {params.n_particles} particles (N={params.N})",
+        "trace fewer points (max_points, --max-points) or a shorter chain",
+    )
+
+
 def continue_in_moment(
     params: ChainParams,
     model: str | Model,
@@ -374,6 +388,7 @@ def continue_in_moment(
     if not (0 < min_step <= step <= max_step):
         raise ValueError(f"steps must satisfy 0 < min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
     model = get_model(model)
+    require_branch_memory(params, max_points)
     dof = moment_dof(params, particle)
     nf = n_free(params)
     y = np.zeros(nf + 1)  # (q, M)

@@ -191,6 +191,35 @@ def check_time_step(params: ChainParams, dt: float, method: Method, model: str |
         )
 
 
+@dataclass
+class _Restart:
+    """A chain's state between two chunks (closed step), to rerun a chunk that blew up step by step."""
+
+    x: np.ndarray
+    v: np.ndarray
+    f: np.ndarray
+    acc: np.ndarray
+    lane_ints: np.ndarray
+
+    @classmethod
+    def of(cls, lanes: Lanes) -> _Restart:
+        return cls(lanes.x.copy(), lanes.v.copy(), lanes.f.copy(), lanes.acc.copy(), lanes.lane_ints.copy())
+
+    def first_bad_step(self, lanes: Lanes, step0: int, steps: int, stride: int) -> int:
+        """Steps from ``step0`` to the first state out of bounds (the loop checks only every 1024 steps).
+
+        The chunk is run again from its start with a check after every step, closing its
+        steps where the first run stored them (``stride``) but storing no state: the same
+        kernels on the same bits reach the same states, and it stops at the first bad
+        one, which is left in ``lanes``.
+        """
+        lanes.x[...], lanes.v[...], lanes.f[...], lanes.acc[...], lanes.lane_ints[...] = self.x, self.v, self.f, self.acc, self.lane_ints
+        stores = steps // stride + 2
+        scratch = (np.zeros((0, *lanes.x.shape)), np.zeros((0, *lanes.x.shape)), np.zeros((stores, 2, 1)), np.zeros((stores, 1)))
+        _, done, _ = lanes.advance(steps, step0, stride, 1, scratch, 0)
+        return done
+
+
 #: Most steps of one run: beyond 2^53 the step counter and the times it gives stop being exact.
 MAX_STEPS = 2.0**53
 
@@ -351,7 +380,11 @@ def integrate(
     try:
         while steps_done < n_steps:
             todo = min(chunk, n_steps - steps_done)
+            # The chunk's start, kept to find the first bad step of a blow-up (checked every 1024 steps).
+            start = None if blocks is not None or turns is not None else _Restart.of(lanes)
             code, done, written = runner.advance(todo, steps_done, stride, 1024, frames, stored)
+            if code == STATUS_BLEW_UP and start is not None:
+                done = start.first_bad_step(lanes, steps_done, done, stride)
             first = (steps_done // stride + 1) * stride
             frame_steps[stored : stored + written] = first + stride * np.arange(written)
             stored += written
@@ -364,7 +397,9 @@ def integrate(
             if code == STATUS_BLEW_UP:
                 status = Status.BLEW_UP
                 message = (
-                    f"the run blew up at t={t0 + steps_done * dt:.6g} (step {steps_done}): a value became non-finite, "
+                    f"the run blew up at t={t0 + steps_done * dt:.6g} (step {steps_done}"
+                    + (", the first state out of bounds" if start is not None else ", found at the periodic check")
+                    + "): a value became non-finite, "
                     f"|u|, |v| exceeded {max_displacement:g} or |phi| exceeded {model.max_angle:g}. Use a smaller time step "
                     f"than dt={dt:g} (e.g. dt={dt / 4:g}); the states up to then are kept."
                 )
@@ -385,8 +420,13 @@ def integrate(
         stored += 1
     keep = stored
     if status == Status.BLEW_UP:
-        finite = np.isfinite(frames_x[:stored]).all(axis=(1, 2)) & np.isfinite(frames_v[:stored]).all(axis=(1, 2))
-        keep = int(np.argmin(finite)) if not finite.all() else stored
+        # The frames before the first bad state (those the first pass stored past it, up to its check, go).
+        good = (
+            (frame_steps[:stored] < steps_done)
+            & np.isfinite(frames_x[:stored]).all(axis=(1, 2))
+            & np.isfinite(frames_v[:stored]).all(axis=(1, 2))
+        )
+        keep = int(np.argmin(good)) if not good.all() else stored
     trajectory = Trajectory(
         time=t0 + (t_end - t0) * frame_steps[:keep] / n_steps,
         x=frames_x[:keep],

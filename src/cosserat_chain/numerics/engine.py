@@ -46,6 +46,7 @@ import numpy as np
 from numba import njit, types
 
 from ..loads import schedule_value
+from ..memory import FLOAT, require
 from ..models.base import BATCH_FORCE_KERNEL_TYPE, FORCE_KERNEL_TYPE
 from .integrators import substep_table
 
@@ -570,6 +571,12 @@ class Lanes:
         self.method = method
         size = self.size = len(self.params)
         n = self.n = self.params[0].n_particles
+        # State, velocities, forces, the loads' and turns' tables: about 16 values a degree of freedom.
+        require(
+            16 * FLOAT * 3 * n * size,
+            f"{size} chain(s) of {n} particles (N={self.params[0].N})",
+            "fewer members or a shorter chain",
+        )
         index, self.knots = loads.compiled(self.params[0])
         # Column 4: the load's work counts (a block of a split chain also carries its neighbours' loads).
         self.load_index = np.ascontiguousarray(np.column_stack([index, np.ones(len(index), dtype=np.int64)]))
@@ -888,6 +895,10 @@ def stack_states(params: list, states, name: str) -> np.ndarray:
     from ..state import check_state
 
     n = params[0].n_particles
+    # The first array of a batch's size: the estimate of :class:`Lanes` (which follows) made here.
+    require(
+        16 * FLOAT * 3 * n * len(params), f"{len(params)} chain(s) of {n} particles (N={params[0].N})", "fewer members or a shorter chain"
+    )
     out = np.zeros((len(params), 3, n))
     if states is None:
         return out

@@ -46,6 +46,7 @@ import scipy.linalg as sla
 from numba import njit
 
 from ..loads import moment_load
+from ..memory import FLOAT, require
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, n_free, pack, unpack, zeros
@@ -189,6 +190,13 @@ class _System:
         """State after ``period`` and, with ``variations``, dPhi_T/dy0 (2nf, 2nf) and dPhi_T/dM (2nf,)."""
         size = 2 * self.nf
         ncols = size + 1 if variations else 0
+        if variations:
+            # DOP853 holds about 16 copies of its state (stages, error estimate, the step's ends).
+            require(
+                16 * FLOAT * size * (size + 2),
+                f"the monodromy flow of {size} phase-space dimensions ({self.params.n_particles} particles, N={self.params.N})",
+                "periodic orbits of a shorter chain (the monodromy matrix is dense: its memory grows like N^2)",
+            )
         start = np.concatenate([y0, np.hstack([np.eye(size), np.zeros((size, 1))]).ravel() if variations else []])
         kernel, coef, rpar, ipar = self.parameters(ncols)
         sol = dop853.solve(_rhs, kernel, coef, rpar, ipar, start, np.array([0.0, period]), rtol=rtol, atol=atol, max_steps=MAX_STEPS)
