@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import signal
 import stat
@@ -20,6 +21,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from typer.testing import CliRunner
 
 from cosserat_chain.cli import app
@@ -322,10 +325,16 @@ def test_a_run_beyond_its_accuracy_is_flagged_not_reported_completed():
     coarse = runner.invoke(app, [*argv, "--dt", f"{10 * dt!r}"])
     assert coarse.exit_code == 5, coarse.output
     summary = json.loads(coarse.stdout)
-    assert summary["status"] == "inaccurate" and "smaller time step" in summary["message"]
+    # M / gamma_phi = 3 rad per unit time: 0.62 rad per step of 10 dt; the remedy names the step that follows it.
+    assert summary["status"] == "inaccurate" and f"dt <= {0.5 / 3:.3g}" in summary["message"]
     accurate = json.loads(good.stdout)["accuracy"]
     assert accurate["balance_relative"] < 1e-3 < summary["accuracy"]["balance_relative"]
     assert summary["accuracy"]["rotation_per_step"] > 0.5 > accurate["rotation_per_step"]
+    # A load no step of this size can follow: the remedy named is the load, with the step it would need.
+    spun = runner.invoke(app, ["simulate", "--model", "sine", "--moment", "1000", "--t-end", "20", "--json"])
+    assert spun.exit_code == 5
+    message = json.loads(spun.stdout)["message"]
+    assert "M / gamma_phi = 1e+04 rad per unit time" in message and "dt <= 5e-05" in message
 
 
 def test_parameters_are_numbers_and_numpy_scalars_are_accepted():
@@ -339,3 +348,42 @@ def test_parameters_are_numbers_and_numpy_scalars_are_accepted():
     for field, value in (("E1", "2"), ("E2", True), ("h", [1.0]), ("N", 3.0)):
         with pytest.raises(ValidationError, match=field):
             ChainParams(**{field: value})
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return {"nan": "nan", "inf": "inf", "-inf": "-inf"}.get(repr(value), repr(value))
+    if isinstance(value, str):
+        return json.dumps(value, ensure_ascii=False)
+    if isinstance(value, list):
+        return "[" + ", ".join(map(_toml_value, value)) + "]"
+    return str(value)
+
+
+#: Values of every type. Magnitudes stay where a run is short, or is refused at once: a mass of
+#: 1e-28 (kg taken for the model's units) asks, rightly, for 10^15 steps, which run for years.
+_VALUES = st.one_of(
+    st.floats(1e-3, 1e3),
+    st.floats(-1e3, 0.0),
+    st.integers(-10, 40),
+    st.sampled_from([math.nan, math.inf, -math.inf, 10**12, 1e300, 1e-300, -1e300]),
+    st.booleans(),
+    st.text(max_size=5),
+    st.lists(st.floats(0, 2), max_size=2),
+)
+_KEYS = st.sampled_from(["E1", "E2", "h", "a", "b", "m", "j", "gamma_u", "gamma_v", "gamma_phi", "N", "gama_phi"])
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(config=st.dictionaries(_KEYS, _VALUES, max_size=4))
+def test_any_config_gives_a_run_or_a_clear_refusal(config, tmp_path):
+    """Random TOML configs of every type: a run (0, or 5 when flagged inaccurate) or exit 2 naming a key, never a traceback."""
+    path = tmp_path / "random.toml"
+    path.write_text("".join(f"{key} = {_toml_value(value)}\n" for key, value in config.items()))
+    result = _invoke_with_deadline(["simulate", "--model", "linear", "--t-end", "1", "--frames", "3", "--config", str(path)])
+    assert result.exception is None or isinstance(result.exception, SystemExit), f"TRACEBACK: {result.exception!r} for {config}"
+    assert result.exit_code in (0, 2, 3, 5), result.output
+    if result.exit_code == 2:
+        assert any(key in result.output for key in config) or "memory" in result.output, f"UNCLEAR: {result.output} for {config}"

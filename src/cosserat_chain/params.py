@@ -35,6 +35,12 @@ from pydantic import BaseModel, ConfigDict, Field, StrictInt, field_validator, m
 DEFAULT_DAMPING = 0.1
 
 
+#: Magnitudes a field may take: the model is dimensionless, and its coefficients multiply and
+#: square the fields (d^2 = (h - 2a)^2 + 4 b^2, E h^2 / d^2), which overflow or vanish far outside.
+MAX_MAGNITUDE = 1e100
+MIN_MAGNITUDE = 1e-100
+
+
 class ChainParams(BaseModel):
     """Parameters of a chain of 2N+1 rectangular particles (paper, Section 2 and Fig. 1).
 
@@ -64,8 +70,10 @@ class ChainParams(BaseModel):
 
     Notes
     -----
-    Every value must be finite. An invalid value raises ``pydantic.ValidationError``
-    (a ``ValueError``) naming the field, the value and what is allowed.
+    Every value must be a number (an int, a float or a NumPy scalar; not a string or a
+    boolean), finite, and 0 or between :data:`MIN_MAGNITUDE` and :data:`MAX_MAGNITUDE` in
+    magnitude. An invalid value raises ``pydantic.ValidationError`` (a ``ValueError``)
+    naming the field, the value and what is allowed.
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
@@ -93,8 +101,16 @@ class ChainParams(BaseModel):
         # would pass unnoticed). N must be an integer (StrictInt).
         data = {key: value.item() if isinstance(value, np.generic) else value for key, value in data.items()}
         for key, value in data.items():
-            if key in cls.model_fields and key != "N" and (isinstance(value, bool) or not isinstance(value, (int, float, type(None)))):
+            if key not in cls.model_fields or key == "N" or value is None:
+                continue
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise ValueError(f"{key} must be a number, got {value!r} ({type(value).__name__})")
+            if math.isfinite(value) and value != 0 and not MIN_MAGNITUDE <= abs(value) <= MAX_MAGNITUDE:
+                raise ValueError(
+                    f"{key} must lie between {MIN_MAGNITUDE:g} and {MAX_MAGNITUDE:g} in magnitude (or be 0 where allowed), got {value!r}: "
+                    "the model is dimensionless, so scale the chain to numbers of order 1 (squares and products of the "
+                    "fields must stay finite)"
+                )
         # j defaults to a value that depends on m, a and b; it is resolved and stored
         # so that the resolved parameters describe a run completely.
         if data.get("j") is not None:

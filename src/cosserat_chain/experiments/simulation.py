@@ -24,7 +24,7 @@ from ..analysis.energy import energy_budget
 from ..loads import Loads, Schedule, moment_load
 from ..models.base import Model, get_model
 from ..numerics.adaptive import integrate_adaptive
-from ..numerics.dynamics import IntegrationError, ProgressCallback, Trajectory, integrate
+from ..numerics.dynamics import IntegrationError, ProgressCallback, Trajectory, integrate, spin_hint
 from ..params import ChainParams
 from ..state import ROWS
 from ..status import Status
@@ -69,7 +69,7 @@ BALANCE_TOLERANCE = 1e-2
 ROTATION_PER_STEP = 0.5
 
 
-def _check_accuracy(ds: xr.Dataset) -> None:
+def _check_accuracy(ds: xr.Dataset, load_hint: str = "") -> None:
     """Flag a completed run ``inaccurate`` when its energy balance or its rotation per step passes its tolerance.
 
     The balance is checked for the models with an energy (not the sine model, eq. (2), whose
@@ -92,7 +92,9 @@ def _check_accuracy(ds: xr.Dataset) -> None:
         problems.append(f"a particle turns by up to {rotation:.3g} rad per step (tolerance {ROTATION_PER_STEP:g})")
     if problems:
         ds.attrs["status"] = Status.INACCURATE
-        remedy = f"use a smaller time step than dt={dt:.3g} (e.g. dt={dt / 4:.3g})" if np.isfinite(dt) else "tighten its tolerance (rtol)"
+        remedy = (load_hint[:1].lower() + load_hint[1:]) or (
+            f"use a smaller time step than dt={dt:.3g} (e.g. dt={dt / 4:.3g})" if np.isfinite(dt) else "tighten its tolerance (rtol)"
+        )
         ds.attrs["message"] = f"the run completed but is inaccurate: {'; '.join(problems)}; {remedy}"
 
 
@@ -174,7 +176,7 @@ def simulate(
             progress=progress,
         )
     dataset = trajectory_dataset(params, model, loads, trajectory)
-    _check_accuracy(dataset)
+    _check_accuracy(dataset, spin_hint(params, loads, trajectory.dt) if np.isfinite(trajectory.dt) else "")
     if throw and not trajectory.ok:
         error = IntegrationError(trajectory.message, trajectory)
         error.dataset = dataset  # type: ignore[attr-defined]

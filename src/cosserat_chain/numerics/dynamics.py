@@ -191,6 +191,35 @@ def check_time_step(params: ChainParams, dt: float, method: Method, model: str |
         )
 
 
+#: A moment that would turn its particle, at its terminal spin M / gamma_phi, by more than this
+#: many radians per step is beyond what the step can follow (about 13 steps a turn).
+MAX_SPIN_PER_STEP = 0.5
+
+
+def spin_hint(params: ChainParams, loads: Loads, dt: float) -> str:
+    """Why a run at ``dt`` cannot follow its largest moment, in words, or ``""`` if it can.
+
+    A moment M drives its particle towards the spin M / gamma_phi (the viscous torque
+    balancing it): beyond :data:`MAX_SPIN_PER_STEP` radians per step the run no longer
+    resolves the rotation, whatever else is right; without rotational damping the spin
+    grows without bound.
+    """
+    moments = [abs(v) for load in loads if load.row == "phi" for v in load.schedule.values]
+    largest = max(moments, default=0.0)
+    if largest == 0.0:
+        return ""
+    if params.gamma_phi == 0.0:
+        return f"Without rotational damping (gamma_phi = 0) the moment {largest:g} spins its particle up without bound; no time step follows it for long"
+    spin = largest / params.gamma_phi
+    if spin * dt <= MAX_SPIN_PER_STEP:
+        return ""
+    return (
+        f"The moment {largest:g} spins its particle at up to M / gamma_phi = {spin:.3g} rad per unit time, "
+        f"{spin * dt:.3g} rad per step of dt={dt:g}: it is beyond what this step can follow; a smaller load, or "
+        f"dt <= {MAX_SPIN_PER_STEP / spin:.3g}"
+    )
+
+
 @dataclass
 class _Restart:
     """A chain's state between two chunks (closed step), to rerun a chunk that blew up step by step."""
@@ -400,8 +429,9 @@ def integrate(
                     f"the run blew up at t={t0 + steps_done * dt:.6g} (step {steps_done}"
                     + (", the first state out of bounds" if start is not None else ", found at the periodic check")
                     + "): a value became non-finite, "
-                    f"|u|, |v| exceeded {max_displacement:g} or |phi| exceeded {model.max_angle:g}. Use a smaller time step "
-                    f"than dt={dt:g} (e.g. dt={dt / 4:g}); the states up to then are kept."
+                    f"|u|, |v| exceeded {max_displacement:g} or |phi| exceeded {model.max_angle:g}. "
+                    + (spin_hint(params, loads, dt) or f"Use a smaller time step than dt={dt:g} (e.g. dt={dt / 4:g})")
+                    + "; the states up to then are kept."
                 )
                 break
     except KeyboardInterrupt:
