@@ -173,3 +173,17 @@ def test_reproduce_reads_its_settings_from_the_config_and_names_bad_ones(tmp_pat
     result = CliRunner().invoke(app, ["reproduce", "--config", str(config), "--out", str(tmp_path / "r")])
     assert result.exit_code == 2 and "tunrs" in result.output and "allowed keys" in result.output
     assert not (tmp_path / "r").exists()
+
+
+def test_the_reports_sentences_carry_the_numbers_they_describe(quick_report):
+    """The hysteresis edges and the long-chain trend are written from the results, not asserted."""
+    sections = {s.title: s for s in quick_report.sections}
+    orbits = next(s for title, s in sections.items() if title.startswith("Rotating states"))
+    text = " ".join(orbits.paragraphs)
+    n = orbits.numbers
+    assert f"fold M_c = {n['static_fold']:.4g}" in text and f"ends at M = {n['orbit_end_moment']:.4g} ({n['orbit_end']})" in text
+    if n["stability_lost_at"] is not None:
+        assert f"loses stability at M = {n['stability_lost_at']:.4g}" in text
+    long = next(s for title, s in sections.items() if title.startswith("The critical moment of longer chains"))
+    sine = long.numbers["sine"]
+    assert f"N M_c goes from {sine[0]['N'] * sine[0]['M_c']:.4g} (N = {sine[0]['N']})" in " ".join(long.paragraphs)

@@ -326,9 +326,7 @@ def _orbits(stage: _Stage) -> Section:
     section.paragraphs.append(
         f"Above M_c the rotating state of the {model} model is a limit cycle: the loaded particle advances by one turn per "
         f"period while everything else returns. It is found at M = {moment:.4g} ({relation}) by Newton's method on a "
-        "shooting map and continued downwards in M. "
-        "Going up, rotation starts at the static fold M_c; coming down, it stops where the rotating orbit loses stability "
-        "(or ceases to exist): the two edges of the hysteresis loop, against the relaxation sweep's load steps."
+        "shooting map and continued downwards in M. " + _loop_edges(numbers)
     )
     section.tables.append(
         (
@@ -457,6 +455,44 @@ def _localization_outcome(model: str, result: dict[str, Any], turns: int) -> str
     return f"In the {model} model other particles turned as well ({result['classification']}): the rotation is not localized."
 
 
+def _loop_edges(numbers: dict[str, Any]) -> str:
+    """Both edges of the hysteresis loop as the orbit stage found them, in a sentence."""
+
+    def value(x: float | None) -> str:
+        return "none" if x is None or not math.isfinite(x) else f"{x:.4g}"
+
+    lost = numbers["stability_lost_at"]
+    down = (
+        f"coming down, the orbit loses stability at M = {value(lost)} and ends at M = {value(numbers['orbit_end_moment'])} ({numbers['orbit_end']})"
+        if lost is not None
+        else f"coming down, the orbit stays stable until it ends at M = {value(numbers['orbit_end_moment'])} ({numbers['orbit_end']})"
+    )
+    return (
+        f"Going up, the static branch ends at its fold M_c = {value(numbers['static_fold'])} and the relaxation protocol sees "
+        f"rotation start at M = {value(numbers['relaxation_onset'])}; {down}, and the protocol sees rotation stop at "
+        f"M = {value(numbers['relaxation_stop'])}: the two edges of the hysteresis loop."
+    )
+
+
+def _trend(model: str, items: list[dict[str, Any]]) -> str:
+    """How the model's M_c changes along the chain lengths computed, in a sentence."""
+    found = [item for item in items if item["M_c"] is not None]
+    if len(found) < 2:
+        return f"The {model} model has a fold for {len(found)} of the {len(items)} lengths."
+    first, last = found[0], found[-1]
+    scaled = [item["N"] * item["M_c"] for item in found]
+    if model == "sine":
+        spread = max(scaled) / min(scaled) - 1.0
+        return (
+            f"The sine model's M_c is 1/(largest rotation compliance); N M_c goes from {scaled[0]:.4g} (N = {first['N']}) to "
+            f"{scaled[-1]:.4g} (N = {last['N']})" + (f", within {100 * spread:.2g} %: M_c falls like 1/N." if spread < 0.1 else ".")
+        )
+    return (
+        f"The {model} model's M_c goes from {first['M_c']:.4g} (N = {first['N']}) to {last['M_c']:.4g} (N = {last['N']}), "
+        f"and phi_0 at its fold from {first['phi0_at_fold']:.3g} to {last['phi0_at_fold']:.3g} rad."
+    )
+
+
 def _long_chains(stage: _Stage) -> Section:
     from .experiments.critical import critical_point
     from .plots.statics import critical_against_length
@@ -473,10 +509,10 @@ def _long_chains(stage: _Stage) -> Section:
     stage.data("long_chains", numbers)
     section = Section("The critical moment of longer chains", numbers=numbers)
     section.paragraphs.append(
-        "The statics of the paper's geometry for longer chains (2N+1 particles, both ends clamped), each branch traced over "
-        "one turn of the loaded particle. The sine model's M_c is 1/(largest rotation compliance) and falls like 1/N; the "
-        "nonlinear model's falls slowly and its fold moves to larger phi_0 (docs/statics.md has the table to N = 1000, "
-        "the first fold of N = 10^4 and the cost)."
+        "The statics of this chain's geometry for longer chains (2N+1 particles, both ends clamped), each branch traced over "
+        "one turn of the loaded particle. "
+        + " ".join(_trend(m, items) for m, items in numbers.items())
+        + " (docs/statics.md has the paper chain's table to N = 1000, the first fold of N = 10^4 and the cost.)"
     )
     rows = []
     for m, items in numbers.items():
