@@ -18,6 +18,7 @@ from cosserat_chain.experiments.localization import grid_time_step, localization
 from cosserat_chain.io import read_dataset
 from cosserat_chain.numerics import dynamics
 from cosserat_chain.numerics.dynamics import integrate
+from cosserat_chain.status import Status
 
 runner = CliRunner()
 TWO_PI = 2 * math.pi
@@ -267,3 +268,14 @@ def test_paper_1500_rotations_stay_localized(paper, model):
     summary = result.as_dict()
     assert summary["turns_completed"] == 1500 and summary["classification"] == "localized_rotation"
     assert summary["max_abs_phi_others"] < 1.0
+
+
+def test_turns_made_faster_than_the_step_can_follow_are_flagged_inaccurate(paper):
+    """M = 100 spins the sine model's particle at about 400 rad per unit time: 8.6 rad per default step."""
+    fast = localization_run(paper, "sine", 100.0, turns=20, t_max=10.0)
+    assert fast.status == Status.INACCURATE and "rad per step" in fast.message
+    spin = fast.as_dict()["mean_angular_velocity"]
+    suggested = float(fast.message.rsplit("dt <= ", 1)[1])
+    assert suggested == pytest.approx(0.5 / spin, rel=1e-2)
+    fine = localization_run(paper, "sine", 100.0, turns=20, t_max=10.0, dt=suggested / 2)
+    assert fine.status == Status.COMPLETED and fine.as_dict()["turns_completed"] == 20

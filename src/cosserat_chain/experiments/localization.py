@@ -51,7 +51,7 @@ from ..analysis.diagnostics import StreamingDiagnostics
 from ..io import read_dataset, write_dataset
 from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
-from ..numerics.dynamics import IntegrationError, TurnWatch, default_time_step, integrate
+from ..numerics.dynamics import MAX_SPIN_PER_STEP, IntegrationError, TurnWatch, default_time_step, integrate
 from ..numerics.integrators import get_method
 from ..params import ChainParams
 from ..state import ROWS, column, zeros
@@ -68,8 +68,6 @@ DEFAULT_CHUNK_TIME = 50.0
 MAX_CHUNK_VALUES = 2**18
 #: Significant bits kept in the time step (see :func:`grid_time_step`).
 GRID_BITS = 10
-#: Statuses of a result.
-STATUSES = (Status.COMPLETED, Status.TIME_LIMIT, Status.INTERRUPTED)
 
 ProgressCallback = Callable[[int, int], None]
 
@@ -115,7 +113,9 @@ class LocalizationResult:
     x, v : ndarray (3, 2N+1)
         State at that step.
     diagnostics : StreamingDiagnostics
-    status : {"completed", "time_limit", "interrupted"}
+    status : {"completed", "inaccurate", "time_limit", "interrupted"}
+        ``inaccurate``: the turns were made, but the loaded particle turned by more than
+        :data:`~cosserat_chain.numerics.dynamics.MAX_SPIN_PER_STEP` radians per step on average.
         ``completed``: the loaded particle made the requested turns.
     message : str
     wall_time : float
@@ -433,7 +433,16 @@ def localization_run(
     except KeyboardInterrupt:
         log.warning("interrupted at t=%g; saving what was computed", state.t_end)
     final = state
-    if final.diagnostics.turns_completed >= turns:
+    spin = final.diagnostics.mean_angular_velocity
+    if final.diagnostics.turns_completed >= turns and math.isfinite(spin) and abs(spin) * dt > MAX_SPIN_PER_STEP:
+        # The turns were made, but a turn took fewer than 2 pi / MAX_SPIN_PER_STEP steps: not resolved.
+        final.status = Status.INACCURATE
+        final.message = (
+            f"{final.diagnostics.turns_completed} full turns at t={final.t_end:.6g}, but at {abs(spin) * dt:.3g} rad per step "
+            f"(mean angular velocity {spin:.4g}, dt={dt:g}; tolerance {MAX_SPIN_PER_STEP:g}): inaccurate; "
+            f"use dt <= {MAX_SPIN_PER_STEP / abs(spin):.3g}"
+        )
+    elif final.diagnostics.turns_completed >= turns:
         final.status, final.message = Status.COMPLETED, f"{final.diagnostics.turns_completed} full turns at t={final.t_end:.6g}"
     elif final.step >= max_steps:
         final.status = Status.TIME_LIMIT
