@@ -430,7 +430,8 @@ def integrate(
                     + (", the first state out of bounds" if start is not None else ", found at the periodic check")
                     + "): a value became non-finite, "
                     f"|u|, |v| exceeded {max_displacement:g} or |phi| exceeded {model.max_angle:g}. "
-                    + (spin_hint(params, loads, dt) or f"Use a smaller time step than dt={dt:g} (e.g. dt={dt / 4:g})")
+                    + f"Use a smaller time step than dt={dt:g} (e.g. dt={dt / 4:g})"
+                    + (f". {hint}" if (hint := spin_hint(params, loads, dt)) else "")
                     + "; the states up to then are kept."
                 )
                 break
