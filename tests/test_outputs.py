@@ -14,7 +14,7 @@ import pytest
 import xarray as xr
 from typer.testing import CliRunner
 
-from cosserat_chain import ChainParams
+from cosserat_chain import ChainParams, __version__
 from cosserat_chain.cli import app
 from cosserat_chain.experiments.localization import localization_run
 from cosserat_chain.experiments.study import spec_from_mapping
@@ -195,3 +195,32 @@ def test_a_study_whose_scheduler_dies_keeps_its_cells_and_resumes(tmp_path, monk
     assert 1 <= saved < 16 and saved >= run.computed
     resumed = study_runner.run_study(spec, out=out, workers=1)
     assert resumed.completed and resumed.skipped == saved and resumed.computed == 16 - saved
+
+
+def _assert_cf_described(ds: xr.Dataset, what: str) -> None:
+    for key in ("Conventions", "title", "history", "source", "references", "units_convention"):
+        assert ds.attrs.get(key), f"{what}: no {key}"
+    assert ds.attrs["Conventions"] == "CF-1.10" and "Vasiliev" in ds.attrs["references"]
+    undescribed = [str(name) for name in ds.variables if not (ds[name].attrs.get("units") and ds[name].attrs.get("long_name"))]
+    assert not undescribed, f"{what}: no units or long_name on {undescribed}"
+
+
+def test_every_file_a_command_writes_is_cf_described(tmp_path):
+    spec = tmp_path / "spec.toml"
+    spec.write_text('models = ["linear"]\nquantities = ["compliance", "band_gap"]\n[parameters]\nE2 = [0.5, 1.0]\n')
+    commands = {
+        "simulate": ["simulate", "--model", "sine", "--t-end", "2", "--frames", "5"],
+        "sweep": ["sweep", "--model", "linear", "--m-max", "0.02", "--steps", "1"],
+        "critical": ["critical", "--model", "sine"],
+        "rotate": ["rotate", "--model", "sine", "--moment", "0.3", "--turns", "1"],
+        "orbit": ["orbit", "--moment", "0.22"],
+        "study": ["study", str(spec), "--workers", "1"],
+    }
+    for name, argv in commands.items():
+        out = tmp_path / f"{name}.nc"
+        result = runner.invoke(app, [*argv, "--out", str(out)])
+        assert result.exit_code == 0, (name, result.output)
+        ds = read_dataset(out)
+        _assert_cf_described(ds, name)
+        assert f"cosserat-chain {__version__}:" in ds.attrs["history"] and ds.attrs["source"] == f"cosserat-chain {__version__}"
+    _assert_cf_described(read_dataset(tmp_path / "rotate.checkpoint.nc"), "checkpoint")

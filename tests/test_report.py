@@ -18,6 +18,7 @@ from cosserat_chain.experiments.critical import critical_point
 from cosserat_chain.experiments.localization import localization_run
 from cosserat_chain.experiments.orbits import periodic_orbit
 from cosserat_chain.experiments.sweep import relaxation_sweep
+from cosserat_chain.io import read_dataset
 from cosserat_chain.models.linear import stiffness_matrix
 from cosserat_chain.numerics.newton import moment_dof
 from cosserat_chain.report import ReproduceSettings, format_cell, reproduce
@@ -187,3 +188,12 @@ def test_the_reports_sentences_carry_the_numbers_they_describe(quick_report):
     long = next(s for title, s in sections.items() if title.startswith("The critical moment of longer chains"))
     sine = long.numbers["sine"]
     assert f"N M_c goes from {sine[0]['N'] * sine[0]['M_c']:.4g} (N = {sine[0]['N']})" in " ".join(long.paragraphs)
+
+
+def test_every_data_file_of_the_report_is_cf_described(quick_report):
+    from test_outputs import _assert_cf_described
+
+    files = sorted((quick_report.out / "data").glob("*.nc"))
+    assert len(files) >= 5
+    for path in files:
+        _assert_cf_described(read_dataset(path), path.name)

@@ -18,11 +18,14 @@ file.
 from __future__ import annotations
 
 import os
+import shlex
 import stat
+import sys
 import tempfile
 import tomllib
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -217,13 +220,149 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
             os.unlink(tmp)
 
 
+#: The paper this package reproduces, for the files' ``references`` attribute.
+REFERENCES = (
+    "Vasiliev A. A. et al., Modeling of static deformations and dynamics of localized rotation in a chain of finite "
+    "size particles; extending Vasiliev A. A. and Dmitriev S. V., Russ. Phys. J. 59, 961 (2016)"
+)
+
+#: How the dimensionless model's units read (every file's ``units_convention`` attribute).
+UNITS_CONVENTION = (
+    "The model is dimensionless and takes its units from its parameters: 'length' is the unit of h, a and b; "
+    "'mass' that of m; 'stiffness' that of E1 and E2; 'time' is sqrt(mass / stiffness) and 'energy' (also the "
+    "unit of a moment) stiffness x length^2. With the paper's chain (h = E1 = m = 1) all are 1."
+)
+
+#: Units and long name of every variable and coordinate the package writes, by name.
+VARIABLES: dict[str, tuple[str, str]] = {
+    "u": ("length", "displacement u of a particle's centre along the chain"),
+    "v": ("length", "displacement v of a particle's centre across the chain"),
+    "phi": ("rad", "rotation angle phi of a particle"),
+    "u_dot": ("length/time", "velocity du/dt"),
+    "v_dot": ("length/time", "velocity dv/dt"),
+    "phi_dot": ("rad/time", "angular velocity dphi/dt"),
+    "time": ("time", "time"),
+    "particle": ("1", "particle index k in -N..N (the ends +-N clamped)"),
+    "kinetic": ("energy", "kinetic energy K"),
+    "potential": ("energy", "potential energy P (NaN for the non-conservative sine model)"),
+    "load_work": ("energy", "work W done by the loads since the start"),
+    "dissipated": ("energy", "energy D dissipated by the viscous damping since the start"),
+    "balance_error": ("energy", "energy balance residual K + P - W + D - (K0 + P0)"),
+    "moment": ("energy", "moment M on the loaded particle"),
+    "phi0": ("rad", "rotation angle phi_0 of the loaded particle"),
+    "point": ("1", "index of a point along the branch"),
+    "stable": ("1", "1 if the state is stable, 0 if not"),
+    "critical_eigenvalue": ("stiffness", "lowest eigenvalue of the stiffness (symmetric similar of the sine model's Jacobian)"),
+    "M_c": ("energy", "critical moment M_c: onset of rotation under a slowly rising load (NaN: no fold)"),
+    "phi0_at_fold": ("rad", "phi_0 of the loaded particle at the fold M_c"),
+    "compliance": ("rad/energy", "compliance dphi_0/dM at rest"),
+    "model": ("1", "model name"),
+    "winding": ("1", "signed full turns trunc(theta / 2 pi) at the end"),
+    "turns": ("1", "full turns of the loaded particle"),
+    "unwrapped_angle": ("rad", "phi at the end minus phi at the start"),
+    "max_abs_u": ("length", "largest |u| over the run"),
+    "max_abs_v": ("length", "largest |v| over the run"),
+    "max_abs_phi": ("rad", "largest |phi| over the run"),
+    "last_turn_time": ("time", "time of the latest new full turn"),
+    "mean_energy_share": ("1", "mean fraction of the chain's energy held by the particle"),
+    "rotating": ("1", "1 if the particle still rotates at the end"),
+    "recent_turn": ("1", "index of a recent turn (the latest ones kept)"),
+    "onset_load": ("energy", "first load of the upward relaxation sweep at which the loaded particle rotates (NaN: none)"),
+    "stop_load": ("energy", "first load of the downward relaxation sweep at which rotation has stopped (NaN: none)"),
+    "mean_angular_velocity": ("rad/time", "mean angular velocity of the loaded particle"),
+    "band_gap": ("1/time", "width of the transverse-rotational band gap of the infinite linear chain (0: none)"),
+    "done": ("1", "1 once the cell was computed (successfully or not)"),
+    "error": ("1", "error message of a failed cell (empty if it succeeded)"),
+    "load": ("energy", "moment M of the relaxation"),
+    "angular_velocity": ("rad/time", "angular velocity of each particle at the end of the load step"),
+    "status": ("1", "how the load step ended (static, rotating, not_converged, ...)"),
+    "relax_time": ("time", "time the load step ran"),
+    "step": ("1", "index of the load step"),
+    "direction": ("1", "up or down: the sweep's direction at this step"),
+    "multiplier": ("1", "index of a Floquet multiplier"),
+    "multiplier_real": ("1", "real part of a Floquet multiplier"),
+    "multiplier_imag": ("1", "imaginary part of a Floquet multiplier"),
+    "branch_moment": ("energy", "moment M of the continued orbit"),
+    "branch_period": ("time", "period T of the continued orbit"),
+    "branch_mean_angular_velocity": ("rad/time", "mean angular velocity of the loaded particle on the continued orbit"),
+    "branch_max_multiplier": ("1", "largest modulus of a non-trivial Floquet multiplier on the continued orbit"),
+    "branch_stable": ("1", "1 if the continued orbit is stable"),
+    "E1": ("stiffness", "stiffness E1 of a horizontal link"),
+    "E2": ("stiffness", "stiffness E2 of a diagonal link"),
+    "h": ("length", "distance h between particle centres"),
+    "a": ("length", "half-width a of a particle"),
+    "b": ("length", "half-height b of a particle"),
+    "m": ("mass", "mass m of a particle"),
+    "j": ("mass length^2", "moment of inertia j of a particle"),
+    "gamma_u": ("mass/time", "viscous coefficient of u"),
+    "gamma_v": ("mass/time", "viscous coefficient of v"),
+    "gamma_phi": ("mass length^2/time", "viscous coefficient of phi"),
+    "N": ("1", "half the number of particles (particles -N..N)"),
+}
+
+#: Titles of the files by their ``experiment`` attribute (a simulation has none).
+TITLES = {
+    None: "Damped simulation of a discrete Cosserat chain under loads",
+    "critical_point": "Static branch, folds and critical moment of a discrete Cosserat chain",
+    "relaxation_sweep": "Relaxation protocol (the paper's Fig. 2) of a discrete Cosserat chain",
+    "localization_run": "Localized rotation of one particle of a discrete Cosserat chain",
+    "periodic_orbit": "Rotating state of a discrete Cosserat chain as a periodic orbit",
+    "rotation_characteristic": "Rotation characteristic of a discrete Cosserat chain",
+    "parameter_study": "Parameter study of a discrete Cosserat chain",
+}
+
+
+def _description(name: str) -> tuple[str, str] | None:
+    """Units and long name of a variable, from :data:`VARIABLES` (prefixed names: final_u, diag_turns)."""
+    if name in VARIABLES:
+        return VARIABLES[name]
+    for prefix, what in (("final_", "at the end of the run"), ("diag_", "state of the streaming diagnostics, for resuming")):
+        if name.startswith(prefix):
+            base = VARIABLES.get(name[len(prefix) :])
+            units = base[0] if base else "1"
+            return units, f"{base[1] if base else name[len(prefix) :].replace('_', ' ')}, {what}"
+    return None
+
+
+def describe(dataset: xr.Dataset) -> xr.Dataset:
+    """The dataset with the CF-1.10 attributes every file of the package carries (a new Dataset).
+
+    Global: ``Conventions``, ``title``, ``history`` (time, version and command line),
+    ``source``, ``references`` (the paper) and ``units_convention``. Every variable and
+    coordinate: ``units`` and ``long_name``, from :data:`VARIABLES` where the producer set none.
+    """
+    from . import __version__
+
+    dataset = dataset.copy()
+    stamp = f"{datetime.now(UTC).isoformat(timespec='seconds')} cosserat-chain {__version__}: {' '.join(map(shlex.quote, sys.argv))}"
+    previous = dataset.attrs.get("history")
+    dataset.attrs.update(
+        {
+            "Conventions": "CF-1.10",
+            "title": dataset.attrs.get("title") or TITLES.get(dataset.attrs.get("experiment"), "Result of cosserat-chain"),
+            "history": stamp if not previous else f"{previous}\n{stamp}",
+            "source": f"cosserat-chain {__version__}",
+            "references": REFERENCES,
+            "units_convention": UNITS_CONVENTION,
+        }
+    )
+    for name, variable in dataset.variables.items():
+        described = _description(str(name))
+        if described is None:
+            continue
+        units, long_name = described
+        variable.attrs.setdefault("units", units)
+        variable.attrs.setdefault("long_name", long_name)
+    return dataset
+
+
 def write_dataset(dataset: xr.Dataset, path: str | Path) -> Path:
-    """Write ``dataset`` to NetCDF at ``path`` atomically; returns the path.
+    """Write ``dataset`` to NetCDF at ``path`` atomically, CF-described (:func:`describe`); returns the path.
 
     Attribute values that are subclasses of ``str`` (a :class:`~cosserat_chain.status.Status`)
     are written as plain strings: h5netcdf finds no conversion for them.
     """
-    dataset = dataset.copy()
+    dataset = describe(dataset)
     for attrs in [dataset.attrs, *(variable.attrs for variable in dataset.variables.values())]:
         attrs.update({key: str(value) for key, value in attrs.items() if isinstance(value, str) and type(value) is not str})
     with atomic_path(path) as tmp:

@@ -357,6 +357,7 @@ def empty_results(spec: StudySpec) -> xr.Dataset:
     ds["error"].attrs["long_name"] = "error message of a failed cell (empty if it succeeded)"
     ds.attrs["study_spec_json"] = spec.to_json()
     ds.attrs["time_step_rule"] = TIME_STEP_RULE
+    ds.attrs["experiment"] = "parameter_study"
     return ds
 
 
