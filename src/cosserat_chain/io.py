@@ -17,6 +17,7 @@ file.
 
 from __future__ import annotations
 
+import json
 import os
 import shlex
 import stat
@@ -27,11 +28,15 @@ from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import xarray as xr
+import numpy as np
 
 from .params import ChainParams
+from .state import ROWS
+
+if TYPE_CHECKING:  # xarray is imported where a file is read or written: the command line starts without it
+    import xarray as xr
 
 #: Largest configuration or study spec read (bytes): a TOML file of parameters is a few
 #: hundred bytes; this bounds what a mistyped path (a log, /dev/zero) can make us read.
@@ -223,7 +228,8 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
 #: The paper this package reproduces, for the files' ``references`` attribute.
 REFERENCES = (
     "Vasiliev A. A. et al., Modeling of static deformations and dynamics of localized rotation in a chain of finite "
-    "size particles; extending Vasiliev A. A. and Dmitriev S. V., Russ. Phys. J. 59, 961 (2016)"
+    "size particles; extending Vasiliev A. A. and Dmitriev S. V., Discrete and Multifield Models of a Cosserat Chain: "
+    "One-Period and Two-Period Solutions, Russ. Phys. J. 59, 961 (2016)"
 )
 
 #: How the dimensionless model's units read (every file's ``units_convention`` attribute).
@@ -392,6 +398,8 @@ def stack_models(datasets: dict[str, xr.Dataset]) -> xr.Dataset:
     padded with NaN; attributes that differ between models (the model's name and
     equation) are dropped, and the names are the ``model`` coordinate.
     """
+    import xarray as xr
+
     if len(datasets) == 1:
         return next(iter(datasets.values()))
     stacked = xr.concat(list(datasets.values()), dim="model", join="outer", combine_attrs="drop_conflicts")
@@ -414,6 +422,8 @@ def read_dataset(path: str | Path) -> xr.Dataset:
         raise ValueError(f"{str(path)!r} does not exist") from None
     if not stat.S_ISREG(mode):
         raise ValueError(f"{str(path)!r} is {_kind(mode)}, not a NetCDF file")
+    import xarray as xr
+
     try:
         with xr.open_dataset(path, engine="h5netcdf") as ds:
             return ds.load()
@@ -472,3 +482,34 @@ def load_params(path: str | Path | None = None) -> ChainParams:
     if path is None:
         return ChainParams()
     return params_from_mapping(read_config(path), source=str(path))
+
+
+def params_of(dataset: xr.Dataset) -> ChainParams:
+    """The ``ChainParams`` stored in a result's ``params_json`` attribute.
+
+    Raises
+    ------
+    ValueError
+        If the Dataset has no ``params_json`` attribute or it holds invalid parameters.
+    """
+    if "params_json" not in dataset.attrs:
+        raise ValueError("the dataset has no params_json attribute: pass params explicitly")
+    return params_from_mapping(json.loads(dataset.attrs["params_json"]), source="params_json")
+
+
+def run_states(params: ChainParams, dataset: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
+    """Times (n,) and states (n, 3, 2N+1) of a run (``simulate --out``), particles in order -N..N.
+
+    Raises
+    ------
+    ValueError
+        If the dataset lacks u, v or phi, or has another number of particles than ``params``.
+    """
+    missing = [row for row in ROWS if row not in dataset]
+    if missing:
+        raise ValueError(f"the dataset lacks the variable(s) {missing}; a run has u, v, phi over (time, particle)")
+    dataset = dataset.sortby("particle")
+    if dataset.sizes["particle"] != params.n_particles:
+        raise ValueError(f"the dataset has {dataset.sizes['particle']} particles but params describe 2N+1 = {params.n_particles}")
+    states = np.stack([dataset[row].transpose("time", "particle").values for row in ROWS], axis=1)
+    return np.asarray(dataset["time"].values, dtype=float), states

@@ -151,10 +151,7 @@ class Loads(tuple):
         for load in self:
             column(params, load.particle)
             if abs(load.particle) == params.N:
-                raise ValueError(
-                    f"load particle {load.particle} is clamped; loads must act on particles "
-                    f"{-params.N + 1}..{params.N - 1}"
-                )
+                raise ValueError(f"load particle {load.particle} is clamped; loads must act on particles {-params.N + 1}..{params.N - 1}")
         return self
 
     def compiled(self, params: ChainParams) -> tuple[np.ndarray, np.ndarray]:
@@ -213,4 +210,3 @@ def schedule_value(knots: np.ndarray, start: int, stop: int, t: float) -> float:
     t0 = knots[lo, 0]
     t1 = knots[hi, 0]
     return knots[lo, 1] + (knots[hi, 1] - knots[lo, 1]) * (t - t0) / (t1 - t0)
-

@@ -39,7 +39,7 @@ from typing import Any, get_type_hints
 import numpy as np
 
 from . import __version__
-from .io import stack_models, write_dataset, write_figure, write_text
+from .io import REFERENCES, stack_models, write_dataset, write_figure, write_text
 from .models import get_model
 from .params import ChainParams
 
@@ -718,7 +718,8 @@ def _intro(params: ChainParams) -> str:
         f'cosserat-chain {__version__} reproduces "Modeling of static deformations and dynamics of localized rotation '
         f'in a chain of finite size particles": {params.n_particles} particles (N = {params.N}), E1 = {params.E1:g}, E2 = {params.E2:g}, h = {params.h:g}, a = {params.a:g}, b = {params.b:g}, '
         f"m = {params.m:g}, j = {params.j:.6g}, damping gamma = ({params.gamma_u:g}, {params.gamma_v:g}, {params.gamma_phi:g}). "
-        "All numbers are in summary.json and data/; the resolved parameters in params.json."
+        "All numbers are in summary.json and data/; the resolved parameters in params.json. "
+        f"Please cite: {REFERENCES}; and the package (CITATION.cff)."
     )
 
 

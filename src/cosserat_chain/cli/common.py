@@ -235,6 +235,39 @@ def outputs_or_exit(
         fail(str(err))
 
 
+#: The command that writes each kind of result file (its ``experiment`` attribute).
+_WRITTEN_BY = {
+    "critical_point": "critical",
+    "relaxation_sweep": "sweep",
+    "localization_run": "rotate",
+    "periodic_orbit": "orbit",
+    "rotation_characteristic": "orbit",
+    "parameter_study": "study",
+}
+
+
+def run_or_exit(run: Path):
+    """The run of ``simulate --out`` stored in ``run`` (an xarray Dataset); exit 2 naming what the file is otherwise.
+
+    A run holds u, v and phi over time and particle. Any other file is named: a result
+    of another command (by its ``experiment`` attribute), or not a file of this package.
+    """
+    from ..io import read_dataset
+    from ..state import ROWS
+
+    try:
+        ds = read_dataset(run)
+    except ValueError as err:
+        fail(f"RUN: {err}")
+    if all(row in ds and set(ds[row].dims) == {"time", "particle"} for row in ROWS):
+        return ds
+    experiment = ds.attrs.get("experiment")
+    command = _WRITTEN_BY.get(experiment)
+    kind = f"the output of `cosserat-chain {command}` ({experiment})" if command else "not a run of this package"
+    own_plot = f"; `{command} --plot` draws its own figure" if command in ("critical", "sweep", "orbit", "study") else ""
+    fail(f"RUN {str(run)!r} is {kind}, with no states over time: draw, animate and export read the runs of `simulate --out`{own_plot}")
+
+
 def save_dataset(dataset, out: Path | None, option: str = "--out") -> None:
     """Write a result to ``out``; if that fails now that the work is done, keep it in a fallback file and say where (exit 3).
 
@@ -267,6 +300,16 @@ def save_figure(fig, path: Path, option: str = "--plot") -> None:
         fail(f"could not write {option} {str(path)!r}: {err}", code=3)
 
 
+def _version(value: bool) -> None:
+    if value:
+        from .. import __version__
+
+        typer.echo(f"cosserat-chain {__version__}")
+        raise typer.Exit()
+
+
 @app.callback()
-def main() -> None:
+def main(
+    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version and exit."),
+) -> None:
     """Simulate chains of rectangular particles that translate and rotate (nonlinear, sine and linear Cosserat models)."""

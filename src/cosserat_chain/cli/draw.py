@@ -10,14 +10,10 @@ import math
 from pathlib import Path
 
 import typer
-import xarray as xr
 
-from ..experiments.simulation import simulate as run_simulation
-from ..io import FIGURE_FORMATS, read_dataset
-from ..loads import moment_load
-from ..state import ROWS
+from ..io import FIGURE_FORMATS
 from ..status import Status
-from .common import app, bar_callback, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar
+from .common import app, bar_callback, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, run_or_exit
 
 #: Stored frames of a simulation run only to be drawn: a cap that keeps memory small.
 _MAX_SIMULATED_FRAMES = 20001
@@ -25,35 +21,13 @@ _MAX_SIMULATED_FRAMES = 20001
 RUN_HELP = "NetCDF run written by `simulate --out`; without it, simulate first from --model/--moment/--t-end."
 
 
-#: The command that writes each kind of result file (its ``experiment`` attribute).
-_WRITTEN_BY = {
-    "critical_point": "critical",
-    "relaxation_sweep": "sweep",
-    "localization_run": "rotate",
-    "periodic_orbit": "orbit",
-    "rotation_characteristic": "orbit",
-}
+def _load_run(run: Path | None, model: str, moment: float, t_end: float, config: Path | None, n_frames: int):
+    """The run to draw: read from ``run``, or simulated (an xarray Dataset)."""
+    from ..experiments.simulation import simulate as run_simulation
+    from ..loads import moment_load
 
-
-def _check_run(ds: xr.Dataset, run: Path) -> None:
-    """Exit naming the kind of file unless ``ds`` holds states over time (u, v, phi over time and particle)."""
-    if all(row in ds and set(ds[row].dims) == {"time", "particle"} for row in ROWS):
-        return
-    experiment = ds.attrs.get("experiment")
-    command = _WRITTEN_BY.get(experiment)
-    kind = f"the output of `cosserat-chain {command}` ({experiment})" if command else "not a run of this package"
-    own_plot = f"; `{command} --plot` draws its own figure" if command in ("critical", "sweep", "orbit") else ""
-    fail(f"RUN {str(run)!r} is {kind}, with no states over time to draw: draw and animate read the runs of `simulate --out`{own_plot}")
-
-
-def _load_run(run: Path | None, model: str, moment: float, t_end: float, config: Path | None, n_frames: int) -> xr.Dataset:
     if run is not None:
-        try:
-            ds = read_dataset(run)
-        except ValueError as err:
-            fail(f"RUN: {err}")
-        _check_run(ds, run)
-        return ds
+        return run_or_exit(run)
     params = params_or_exit(config)
     bar = progress_bar(f"simulate {model}", "step")
     try:

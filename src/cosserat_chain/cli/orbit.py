@@ -7,8 +7,6 @@ from pathlib import Path
 
 import typer
 
-from ..experiments.orbits import periodic_orbit
-from ..numerics.periodic import OrbitError
 from .common import (
     app,
     bar_callback,
@@ -38,6 +36,9 @@ def orbit(
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Find the rotating state as a limit cycle: period, mean angular velocity, Floquet multipliers, stability."""
+    from ..experiments.orbits import periodic_orbit
+    from ..numerics.periodic import OrbitError
+
     if plot is not None and down_to is None:
         fail("--plot draws the continued branch: give --down-to as well")
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})

@@ -7,8 +7,6 @@ from pathlib import Path
 
 import typer
 
-from ..experiments.localization import localization_run
-from ..numerics.dynamics import IntegrationError
 from .common import app, bar_callback, exit_on, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, save_dataset
 
 
@@ -37,6 +35,9 @@ def rotate(
 
     Exit status: 0 done (turns made or t_max reached), 2 bad input, 3 blow-up, 130 interrupted (saved).
     """
+    from ..experiments.localization import localization_run
+    from ..numerics.dynamics import IntegrationError
+
     checkpoint = checkpoint if checkpoint is not None else default_checkpoint(out)
     if resume and checkpoint is None:
         fail("--resume needs --checkpoint or --out (whose checkpoint is OUT.checkpoint.nc)")

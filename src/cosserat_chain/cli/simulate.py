@@ -8,8 +8,6 @@ from typing import Any
 
 import typer
 
-from ..experiments.simulation import simulate as run_simulation
-from ..loads import Schedule, moment_load
 from ..status import Status
 from .common import (
     MethodName,
@@ -46,6 +44,9 @@ def simulate(
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Run one damped simulation of the chain under a moment load."""
+    from ..experiments.simulation import simulate as run_simulation
+    from ..loads import Schedule, moment_load
+
     outputs_or_exit({"--out": out}, {"--config": config})
     params = params_or_exit(config)
     try:

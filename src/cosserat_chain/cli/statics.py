@@ -7,10 +7,7 @@ from pathlib import Path
 
 import typer
 
-from ..experiments.critical import MAX_POINTS, critical_point
-from ..experiments.sweep import relaxation_sweep
 from ..io import stack_models
-from ..numerics.newton import NewtonError
 from ..status import Status
 from .common import (
     ALL_MODELS,
@@ -46,6 +43,9 @@ def sweep(
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Raise the moment step by step, relaxing to rest at each step (the paper's protocol); report the onset of rotation."""
+    from ..experiments.critical import critical_point
+    from ..experiments.sweep import relaxation_sweep
+
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     params = params_or_exit(config)
     results = {}
@@ -88,10 +88,16 @@ def critical(
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
     out: Path | None = typer.Option(None, help="Write the branches to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the branches (Fig. 2 without the relaxation points) to this PNG/SVG file."),
-    max_points: int = typer.Option(MAX_POINTS, min=2, help="Most points of each branch; a branch cut short exits with max_steps (3)."),
+    max_points: int | None = typer.Option(
+        None, min=2, help="Most points of each branch (default 5000); a branch cut short exits with max_steps (3)."
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Critical moment M_c and phi_0 at the fold (to round-off), compliance, and the static branch over one turn."""
+    from ..experiments.critical import MAX_POINTS, critical_point
+    from ..numerics.newton import NewtonError
+
+    max_points = MAX_POINTS if max_points is None else max_points
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     params = params_or_exit(config)
     results = {}

@@ -5,10 +5,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import typer
 
-from ..experiments.study import spec_from_mapping
 from ..io import read_config
 from .common import app, bar_callback, exit_on, fail, outputs_or_exit, progress_bar, save_figure
 
@@ -28,6 +26,7 @@ def study(
     as_json: bool = typer.Option(False, "--json", help="Print a summary and every cell's values as one JSON object."),
 ) -> None:
     """Compute the quantities of a parameter study over every cell of its grid, in chunks of cells per Dask task."""
+    from ..experiments.study import spec_from_mapping
     from ..study_runner import ClusterError, run_study
 
     outputs_or_exit({"--out": out, "--plot": plot}, {"SPEC": spec_file})
@@ -72,8 +71,10 @@ def study(
         )
 
 
-def _plain(value: np.ndarray):
+def _plain(value):
     """JSON value of a cell's quantity: a number (null for NaN) or a list of them."""
+    import numpy as np
+
     if value.ndim == 0:
         return None if not np.isfinite(value) else float(value)
     return [None if not np.isfinite(v) else float(v) for v in value]

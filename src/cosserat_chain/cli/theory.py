@@ -6,11 +6,8 @@ import json
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import typer
 
-from ..analysis.continuum import ConvergenceTable, convergence, printed_D1
-from ..analysis.symbolic import errata
 from .common import app, fail, params_or_exit
 
 
@@ -34,6 +31,11 @@ def theory(
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Continuum phi_0/M (eq. 11) against the discrete linear chain per N, the residue (12), and the paper's errata."""
+    import numpy as np
+
+    from ..analysis.continuum import convergence, printed_D1
+    from ..analysis.symbolic import errata
+
     params = params_or_exit(config)
     n_values = parse_n_list(n_list)
     try:
@@ -64,7 +66,9 @@ def theory(
         typer.echo(f"  {item.number}. {item.where}: printed {item.printed}; derived {item.derived}.\n     {item.consequence}")
 
 
-def _summary(params, table: ConvergenceTable, order: float | None, listed) -> dict[str, Any]:
+def _summary(params, table, order: float | None, listed) -> dict[str, Any]:
+    from ..analysis.continuum import printed_D1
+
     columns = table.as_dict()
     return {
         "params": params.model_dump(),

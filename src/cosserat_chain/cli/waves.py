@@ -7,7 +7,6 @@ from pathlib import Path
 
 import typer
 
-from ..analysis.dispersion import BRANCHES, continuum_dispersion, dispersion, wave_summary
 from .common import app, outputs_or_exit, params_or_exit, save_figure
 
 
@@ -20,6 +19,8 @@ def waves(
     plot: Path | None = typer.Option(None, "--plot", help="Write the dispersion curves, gap shaded, to this PNG or SVG file."),
 ) -> None:
     """Frequencies of the longitudinal, transverse-acoustic and rotational-optical branches at q = 0 and q = pi, and the band gap."""
+    from ..analysis.dispersion import BRANCHES, continuum_dispersion, dispersion, wave_summary
+
     outputs_or_exit({"--plot": plot}, {"--config": config})
     params = params_or_exit(config)
     summary = wave_summary(params)

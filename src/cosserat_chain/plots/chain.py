@@ -42,9 +42,8 @@ from matplotlib.patches import Patch
 from PIL import Image
 
 from ..geometry import bond_links, corner_positions, particle_positions
-from ..io import FIGURE_FORMATS, atomic_path, params_from_mapping, write_figure
+from ..io import FIGURE_FORMATS, atomic_path, params_of, run_states, write_figure
 from ..params import ChainParams
-from ..state import ROWS
 
 #: Output formats of :func:`animate`, by file extension.
 ANIMATION_FORMATS = (".gif", ".mp4")
@@ -278,35 +277,10 @@ def draw_chain(
 
 
 # ---------------------------------------------------------------- runs
-def params_of(dataset: xr.Dataset) -> ChainParams:
-    """The ``ChainParams`` stored in a run's ``params_json`` attribute.
-
-    Raises
-    ------
-    ValueError
-        If the Dataset has no ``params_json`` attribute or it holds invalid parameters.
-    """
-    if "params_json" not in dataset.attrs:
-        raise ValueError("the dataset has no params_json attribute: pass params explicitly")
-    return params_from_mapping(json.loads(dataset.attrs["params_json"]), source="params_json")
-
-
 def loaded_particles_of(dataset: xr.Dataset) -> tuple[int, ...]:
     """Particles that carry a moment in a run's ``loads_json`` attribute (empty if none is recorded)."""
     loads = json.loads(dataset.attrs.get("loads_json", "[]"))
     return tuple(sorted({int(load["particle"]) for load in loads if load.get("row") == "phi"}))
-
-
-def _run_states(params: ChainParams, dataset: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
-    """Times (n,) and states (n, 3, 2N+1) of a run, particles in order -N..N."""
-    missing = [row for row in ROWS if row not in dataset]
-    if missing:
-        raise ValueError(f"the dataset lacks the variable(s) {missing}; a run has u, v, phi over (time, particle)")
-    dataset = dataset.sortby("particle")
-    if dataset.sizes["particle"] != params.n_particles:
-        raise ValueError(f"the dataset has {dataset.sizes['particle']} particles but params describe 2N+1 = {params.n_particles}")
-    states = np.stack([dataset[row].transpose("time", "particle").values for row in ROWS], axis=1)
-    return np.asarray(dataset["time"].values, dtype=float), states
 
 
 def _time_range_error(name: str, value: float, times: np.ndarray) -> ValueError:
@@ -367,7 +341,7 @@ def snapshot_figure(
     if path is not None:
         path = _check_extension(path, FIGURE_FORMATS, "figure")
     params = params or params_of(dataset)
-    run_times, states = _run_states(params, dataset)
+    run_times, states = run_states(params, dataset)
     times = [float(t) for t in times]
     if not times:
         raise ValueError("times must name at least one time of the run")
@@ -542,7 +516,7 @@ def animate(
     if path.suffix.lower() == ".mp4" and not mp4_encoder_available():
         raise RuntimeError("writing MP4 needs an encoder: install imageio-ffmpeg (pip install imageio-ffmpeg), or write a .gif")
     params = params or params_of(dataset)
-    run_times, states = _run_states(params, dataset)
+    run_times, states = run_states(params, dataset)
     frames = frame_indices(run_times, t_start, t_stop, max_frames)
     particles = _loaded_particles(params, loaded_particles_of(dataset) if loaded is None else loaded)
     limits = chain_limits(params, states[frames])

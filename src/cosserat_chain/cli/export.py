@@ -1,0 +1,40 @@
+"""``cosserat-chain export RUN.nc --to {vtk,xyz,csv} --out PATH``: a run for ParaView, OVITO or a spreadsheet."""
+
+from __future__ import annotations
+
+from enum import Enum
+from pathlib import Path
+
+import typer
+
+from .common import app, fail, outputs_or_exit, run_or_exit
+
+
+class ExportFormat(str, Enum):
+    vtk = "vtk"
+    xyz = "xyz"
+    csv = "csv"
+
+
+#: The suffix of the file each format writes (``exports.FORMATS``, kept here so that the command line starts without it).
+SUFFIXES = {"vtk": ".pvd", "xyz": ".xyz", "csv": ".csv"}
+
+
+@app.command()
+def export(
+    run: Path = typer.Argument(..., help="NetCDF run written by `simulate --out`."),
+    to: ExportFormat = typer.Option(
+        ..., "--to", help="vtk: a ParaView .pvd collection of .vtu frames; xyz: extended XYZ (OVITO); csv: long format."
+    ),
+    out: Path = typer.Option(..., "--out", help="File to write: .pvd for vtk (its frames go to OUT_frames/), .xyz, .csv."),
+) -> None:
+    """Write a run in a format other tools read: VTK (ParaView), extended XYZ (OVITO) or CSV."""
+    outputs_or_exit({"--out": out}, {"RUN": run}, formats={"--out": (SUFFIXES[to.value],)})
+    ds = run_or_exit(run)
+    from ..exports import export as write_export
+
+    try:
+        write_export(ds, to.value, out)
+    except (OSError, ValueError) as err:
+        fail(f"could not export to {str(out)!r}: {err}", code=3)
+    typer.echo(f"wrote {out} ({ds.sizes['time']} frames, {to.value})")

@@ -1,0 +1,33 @@
+"""The public API and the package's entry points (issue 16, item 3)."""
+
+from __future__ import annotations
+
+import importlib
+import subprocess
+import sys
+
+import cosserat_chain
+
+
+def test_every_public_name_resolves_to_its_module_and_all_lists_them():
+    assert set(cosserat_chain.__all__) == {"__version__", *cosserat_chain._API}
+    for name, module in cosserat_chain._API.items():
+        assert getattr(cosserat_chain, name) is getattr(importlib.import_module(f"cosserat_chain.{module}"), name), name
+    assert set(cosserat_chain.__all__) <= set(dir(cosserat_chain))
+
+
+def _fresh(code: str) -> str:
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
+
+
+def test_importing_the_package_and_the_command_line_loads_no_heavy_library():
+    """numba, SciPy and xarray load when a computation needs them, not at import (start-up stays quick)."""
+    assert _fresh("import sys, cosserat_chain; print(sorted(m for m in ('numba', 'scipy', 'xarray') if m in sys.modules))") == "[]"
+    assert _fresh("import sys, cosserat_chain.cli; print('xarray' in sys.modules, 'matplotlib' in sys.modules)") == "False False"
+
+
+def test_python_dash_m_and_version():
+    out = subprocess.run([sys.executable, "-m", "cosserat_chain", "--version"], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == f"cosserat-chain {cosserat_chain.__version__}"
+    help_text = subprocess.run([sys.executable, "-m", "cosserat_chain", "--help"], capture_output=True, text=True, check=True).stdout
+    assert "simulate" in help_text and "export" in help_text and "reproduce" in help_text
