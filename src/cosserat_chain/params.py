@@ -44,7 +44,9 @@ MIN_MAGNITUDE = 1e-100
 class ChainParams(BaseModel):
     """Parameters of a chain of 2N+1 rectangular particles (paper, Section 2 and Fig. 1).
 
-    Parameters
+    Each attribute is also a keyword of the constructor: ``ChainParams(N=10, E2=0.5)``.
+
+    Attributes
     ----------
     E1 : float
         Stiffness of each of the two horizontal links of a bond (top-top and
