@@ -31,3 +31,10 @@ def test_python_dash_m_and_version():
     assert out.strip() == f"cosserat-chain {cosserat_chain.__version__}"
     help_text = subprocess.run([sys.executable, "-m", "cosserat_chain", "--help"], capture_output=True, text=True, check=True).stdout
     assert "simulate" in help_text and "export" in help_text and "reproduce" in help_text
+
+
+def test_shell_completion_script_is_offered():
+    out = subprocess.run(
+        [sys.executable, "-m", "cosserat_chain", "--show-completion", "bash"], capture_output=True, text=True, check=True
+    ).stdout
+    assert "complete" in out and "COMP_WORDS" in out

@@ -55,7 +55,7 @@ class _App(typer.Typer):
         return decorate
 
 
-app = _App(add_completion=False, help="Discrete Cosserat chains of finite-size particles.", no_args_is_help=True)
+app = _App(add_completion=True, help="Discrete Cosserat chains of finite-size particles.", no_args_is_help=True)
 
 #: The ``--model`` value that stands for every offered model (a name the registry reserves).
 ALL_MODELS = "all"
