@@ -197,3 +197,18 @@ def test_every_data_file_of_the_report_is_cf_described(quick_report):
     assert len(files) >= 5
     for path in files:
         _assert_cf_described(read_dataset(path), path.name)
+
+
+def test_the_claims_table_is_computed_from_the_stages(quick_report):
+    from cosserat_chain.report import CLAIMS_HEADER, Section, claims
+
+    rows = quick_report.summary["claims"]
+    statics = next(s for s in quick_report.sections if s.title.startswith("Static response")).numbers
+    assert [set(row) for row in rows] == [set(CLAIMS_HEADER)] * len(rows) and len(rows) == 6
+    assert f"nonlinear {statics['nonlinear']['M_c']:.4g}" in rows[1]["this package computes"]
+    assert all(row["agreement"].startswith("yes") for row in rows[:4]), rows
+    markdown = (quick_report.out / "report.md").read_text()
+    assert "## Contents" in markdown and all(row["the paper says"] in markdown for row in rows)
+    # A failed stage is named in its rows, not hidden.
+    failed = claims({"statics": Section("statics", error="boom")}, QUICK)
+    assert failed[0][1] == "stage 'statics' failed" and failed[1][1] == "stage 'localization' was not run"
