@@ -224,3 +224,17 @@ def test_every_file_a_command_writes_is_cf_described(tmp_path):
         _assert_cf_described(ds, name)
         assert f"cosserat-chain {__version__}:" in ds.attrs["history"] and ds.attrs["source"] == f"cosserat-chain {__version__}"
     _assert_cf_described(read_dataset(tmp_path / "rotate.checkpoint.nc"), "checkpoint")
+
+
+def test_a_study_on_a_cluster_without_workers_stops_with_a_message_and_saves(tmp_path, monkeypatch):
+    """Every worker gone (here: none at all): no chunk can finish, so the study stops after LOST_TIMEOUT, saying why."""
+    from dask.distributed import LocalCluster
+
+    import cosserat_chain.study_runner as study_runner
+
+    monkeypatch.setattr(study_runner, "LOST_TIMEOUT", 1.0)
+    spec = spec_from_mapping({"models": ["linear"], "quantities": ["compliance"], "parameters": {"a": [0.1, 0.2]}})
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as cluster:
+        run = study_runner.run_study(spec, out=tmp_path / "study.nc", scheduler=cluster.scheduler_address)
+    assert run.status == "failed" and "no worker" in run.message and run.computed == 0
+    assert int(read_dataset(tmp_path / "study.nc")["done"].sum()) == 0, "the (empty) result is saved, resumable"

@@ -829,7 +829,7 @@ def _html(sections: list[Section], params: ChainParams, out: Path, table: list[l
     parts = [
         "<!DOCTYPE html><html><head><meta charset='utf-8'><title>cosserat-chain: reproduction of the paper</title>",
         "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;line-height:1.45}table{border-collapse:collapse;margin:1em 0}"
-        "td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}th{background:#eee}img{max-width:100%}"
+        "td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}th{background:#eee}figure{margin:1em 0}figure img{width:100%;height:auto}"
         ".error{background:#fee;border:1px solid #c00;padding:1em;white-space:pre-wrap}</style></head><body>",
         "<h1>Reproduction of the paper</h1>",
         f"<p>{esc(_intro(params))}</p>",
