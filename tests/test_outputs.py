@@ -177,6 +177,10 @@ def test_a_study_whose_scheduler_dies_keeps_its_cells_and_resumes(tmp_path, monk
             stdout=subprocess.DEVNULL,
             stderr=subprocess.DEVNULL,
         )
+        from dask.distributed import Client
+
+        with Client(address, timeout=60) as client:  # the worker registered before the study starts
+            client.wait_for_workers(1, timeout=120)
 
         def kill_the_scheduler(done, total):
             if done > 0 and scheduler.poll() is None:
@@ -227,12 +231,12 @@ def test_every_file_a_command_writes_is_cf_described(tmp_path):
 
 
 def test_a_study_on_a_cluster_without_workers_stops_with_a_message_and_saves(tmp_path, monkeypatch):
-    """Every worker gone (here: none at all): no chunk can finish, so the study stops after LOST_TIMEOUT, saying why."""
+    """No worker comes: no chunk can finish, so the study stops after START_TIMEOUT, saying why."""
     from dask.distributed import LocalCluster
 
     import cosserat_chain.study_runner as study_runner
 
-    monkeypatch.setattr(study_runner, "LOST_TIMEOUT", 1.0)
+    monkeypatch.setattr(study_runner, "START_TIMEOUT", 1.0)
     spec = spec_from_mapping({"models": ["linear"], "quantities": ["compliance"], "parameters": {"a": [0.1, 0.2]}})
     with LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as cluster:
         run = study_runner.run_study(spec, out=tmp_path / "study.nc", scheduler=cluster.scheduler_address)

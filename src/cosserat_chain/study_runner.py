@@ -18,7 +18,8 @@ a file written for another spec (or under another time-step rule) is refused. A
 scheduler given by its address that cannot be reached within :data:`CONNECT_TIMEOUT`
 raises :class:`ClusterError`; a cluster lost during the study (the scheduler gone, or
 no worker left for :data:`LOST_TIMEOUT` seconds) ends it with status ``failed`` and the
-finished cells saved.
+finished cells saved; a cluster whose first worker does not come within
+:data:`START_TIMEOUT` likewise.
 
 This module sits beside :mod:`cosserat_chain.io` (it persists) and above the experiments
 (it runs them); it never computes physics itself.
@@ -55,9 +56,12 @@ MAX_CHUNK = 256
 
 #: Seconds to reach a scheduler given by its address before giving up with a message.
 CONNECT_TIMEOUT = 10.0
-#: Seconds the study waits with no worker (or no scheduler) before it stops, saving what
+#: Seconds the study waits with no worker (or no scheduler) left before it stops, saving what
 #: arrived: a cluster whose workers all died never finishes a task.
 LOST_TIMEOUT = 60.0
+#: Seconds the study waits for a cluster's first worker (workers queued on a batch system
+#: may take minutes to start) before it stops the same way.
+START_TIMEOUT = 600.0
 #: Seconds between two looks at the cluster while waiting for the next chunk.
 POLL = 1.0
 
@@ -254,13 +258,15 @@ def _collect(client, futures: dict, store: Callable, save: Callable[[], None], s
     """Store chunks as they finish until all are in; returns "" or why it stopped (the cluster lost).
 
     Waits at most :data:`POLL` seconds at a time, and between waits looks at the
-    cluster: without a worker (or a scheduler) for :data:`LOST_TIMEOUT` seconds, no
-    chunk can finish any more, so it stops instead of waiting forever.
+    cluster: without a worker (or a scheduler) for :data:`LOST_TIMEOUT` seconds after
+    it had one (:data:`START_TIMEOUT` while its first worker has not come), no chunk can
+    finish any more, so it stops instead of waiting forever.
     """
     from dask.distributed import wait
 
     pending = set(futures)
     last_save = lost_since = time.monotonic()
+    seen_a_worker = False
     while pending:
         try:
             done, pending = wait(pending, timeout=POLL, return_when="FIRST_COMPLETED")
@@ -284,8 +290,10 @@ def _collect(client, futures: dict, store: Callable, save: Callable[[], None], s
             alive = client.status == "running" and len(client.scheduler_info(n_workers=-1)["workers"]) > 0
         except Exception:  # the scheduler does not answer
             alive = False
+        seen_a_worker = seen_a_worker or alive
+        limit = LOST_TIMEOUT if seen_a_worker else START_TIMEOUT
         if alive:
             lost_since = time.monotonic()
-        elif time.monotonic() - lost_since > LOST_TIMEOUT:
-            return f"the cluster has had no scheduler or no worker for {LOST_TIMEOUT:g} s"
+        elif time.monotonic() - lost_since > limit:
+            return f"the cluster has had no scheduler or no worker for {limit:g} s"
     return ""
