@@ -91,3 +91,23 @@ def test_rotate_that_reaches_its_time_limit_exits_4_and_says_how_to_go_on(tmp_pa
     result = runner.invoke(app, ["rotate", "--model", "sine", "--moment", "0.3", "--turns", "50", "--t-max", "5", "--out", str(out)])
     assert result.exit_code == 4, result.output
     assert "time_limit" in result.output and out.exists()
+
+
+def test_progress_bars_show_whole_counts_and_reach_100_percent():
+    import io
+
+    from tqdm import tqdm
+
+    from cosserat_chain.cli.common import bar_callback
+
+    counted = tqdm(total=None, file=io.StringIO())
+    progress = bar_callback(counted)
+    progress(3, 10)
+    progress(10, 10)
+    assert (counted.n, counted.total) == (10, 10)
+    angle = tqdm(total=None, unit="rad", file=io.StringIO())
+    progress = bar_callback(angle)
+    progress(1.234, 2 * np.pi)
+    assert (angle.n, angle.total, angle.unit) == (19, 100, "%")
+    progress(2 * np.pi, 2 * np.pi)
+    assert angle.n == 100

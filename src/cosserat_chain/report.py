@@ -29,6 +29,7 @@ import html
 import json
 import logging
 import math
+import re
 import time
 import traceback
 from collections.abc import Callable
@@ -283,7 +284,11 @@ def _statics(stage: _Stage) -> Section:
         )
     )
     section.figures.append(
-        (stage.figure(figure2(exact, sweeps), "fig2"), "Fig. 2: phi_0 of the loaded particle against M; right: M(phi_0) over one turn.")
+        (
+            stage.figure(figure2(exact, sweeps), "fig2"),
+            "Fig. 2: phi_0 of the loaded particle against M (small circles: relaxation steps; stars: onset of rotation; lines: "
+            "exact branches, dashed where unstable; open circles: folds); right: M(phi_0) over one turn.",
+        )
     )
     section.figures.append(
         (
@@ -355,7 +360,8 @@ def _orbits(stage: _Stage) -> Section:
         (
             stage.figure(fig, "rotation_characteristic"),
             "Rotation characteristic: mean angular velocity of the periodic orbit against M "
-            "(dashed: unstable), with the relaxation sweep's steps up and down and the static fold M_c.",
+            "(dashed: unstable), with the relaxation sweep's steps up and down, the static fold M_c (dotted), where the "
+            "orbit loses stability (dashed line) and where it ends (cross).",
         )
     )
     return section
@@ -373,11 +379,12 @@ def _rotation(stage: _Stage) -> Section:
         moment, relation = stage.load(m, s.rotation_moment[m])
         run = simulate(p, m, moment, t_end=t_end, n_frames=int(t_end / 0.05) + 1)
         stage.data(f"rotation_{m}", run)
+        shown = [float(run.time.sel(time=t, method="nearest")) for t in s.snapshot_times]  # the stored frames drawn
         section.figures.append(
             (
                 stage.figure(snapshot_figure(p, run, list(s.snapshot_times)), label),
                 f"Fig. {label[-2:]}: the {m} model under M = {moment:.4g} ({relation}), snapshots at t = "
-                + ", ".join(f"{t:g}" for t in s.snapshot_times)
+                + ", ".join(f"{t:.6g}" for t in shown)
                 + ".",
             )
         )
@@ -385,8 +392,8 @@ def _rotation(stage: _Stage) -> Section:
             animate(p, run, stage.path("figures/rotation.gif"), t_start=t_end - 10.0, t_stop=t_end, max_frames=s.animation_frames, fps=15)
     section.paragraphs.append(
         "In the sine model u decouples, so the other particles only move transversally (Fig. 3a); in the nonlinear model "
-        "every degree of freedom is coupled (Fig. 3b). Animation of the nonlinear chain: "
-        "[figures/rotation.gif](figures/rotation.gif)."
+        "every degree of freedom is coupled (Fig. 3b). Animation of the nonlinear chain over the last 10 time units "
+        "(the loaded particle in colour, the links as lines): [figures/rotation.gif](figures/rotation.gif)."
     )
     return section
 
@@ -569,7 +576,10 @@ def _continuum(stage: _Stage) -> Section:
         )
     )
     section.figures.append(
-        (stage.figure(plot_profiles(compare_profiles(p)), "profiles"), "Continuum (lines) against discrete (dots) profiles v_k and phi_k.")
+        (
+            stage.figure(plot_profiles(compare_profiles(p)), "profiles"),
+            "Continuum solution (lines, open circles at the particles) against the discrete chain (crosses): profiles v_k and phi_k.",
+        )
     )
     section.figures.append((stage.figure(plot_convergence(table), "convergence"), "Relative error and residue against N."))
     return section
@@ -600,6 +610,14 @@ def _waves(stage: _Stage) -> Section:
     return section
 
 
+def readable(formula: str) -> str:
+    """A SymPy string as a reader writes it: ``2*E2*b**2*h**2/d**2`` -> ``2 E2 b² h² / d²``."""
+    superscripts = str.maketrans("0123456789", "⁰¹²³⁴⁵⁶⁷⁸⁹")
+    text = re.sub(r"(?:\*\*|\^)(\d+)", lambda m: m.group(1).translate(superscripts), formula)
+    text = re.sub(r"(?<=\S)\*(?=\S)", " ", text)
+    return re.sub(r"(?<=[\w)²³⁴'])/(?=[\w(])", " / ", text)
+
+
 def _errata(stage: _Stage) -> Section:
     from .analysis.symbolic import errata
 
@@ -610,7 +628,7 @@ def _errata(stage: _Stage) -> Section:
         (
             "Errata (derived with SymPy from the geometry of model (i))",
             ["#", "where", "printed", "derived", "consequence"],
-            [[e["number"], e["where"], e["printed"], e["derived"], e["consequence"]] for e in items],
+            [[e["number"], e["where"], readable(e["printed"]), readable(e["derived"]), readable(e["consequence"])] for e in items],
         )
     )
     return section

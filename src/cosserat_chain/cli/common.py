@@ -169,11 +169,20 @@ def progress_bar(desc: str, unit: str) -> tqdm:
 
 
 def bar_callback(bar: tqdm):
-    """Turn a bar into the library's ``progress(done, total)`` callback."""
+    """Turn a bar into the library's ``progress(done, total)`` callback.
+
+    Whole counts (steps, loads, turns) are shown as they are; a quantity that is not a
+    count (the loaded particle's angle along a branch, in radians) as a whole percentage,
+    so that the bar never shows fractions and reaches 100 % when the work is done.
+    """
 
     def progress(done: float, total: float) -> None:
-        bar.total = total
-        bar.update(done - bar.n)
+        if float(done).is_integer() and float(total).is_integer():
+            bar.total = int(total)
+            bar.update(int(done) - bar.n)
+            return
+        bar.unit, bar.unit_scale, bar.total = "%", False, 100
+        bar.update(min(100, int(100 * done / total)) - bar.n if total > 0 else 0)
 
     return progress
 

@@ -102,6 +102,11 @@ def rotation_characteristic_figure(
             mew=2,
             label=f"orbit ends ({branch.end}) at M = {branch.end_moment:.4g}",
         )
+        if branch.stability_lost_at is not None:
+            # The lower edge of the hysteresis loop: below it the rotating state is not observed.
+            ax.axvline(
+                branch.stability_lost_at, color=color, ls="--", lw=1, label=f"orbit loses stability at M = {branch.stability_lost_at:.4g}"
+            )
     if static_fold is not None and np.isfinite(static_fold):
         ax.plot([0.0, static_fold], [0.0, 0.0], color=color, lw=2.5, alpha=0.6, label="static states")
         ax.axvline(static_fold, color=color, ls=":", lw=1, label=f"static fold $M_c$ = {static_fold:.4g}")
