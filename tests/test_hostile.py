@@ -43,6 +43,7 @@ COMPUTE = {
     "reproduce": "cosserat_chain.report.reproduce",
     "theory": "cosserat_chain.analysis.continuum.convergence",
     "export": "cosserat_chain.exports.export",
+    "models": "cosserat_chain.models.base.available_models",
 }
 
 SPEC = """\
@@ -180,6 +181,7 @@ CASES = [
     _case("export-format-unknown", "export {run} --to stl --out {tmp}/run.stl", "--to"),
     _case("export-missing", "export {tmp}/none.nc --to csv --out {tmp}/x.csv", "none.nc"),
     _case("export-critical-output", "export {critical_nc} --to csv --out {tmp}/x.csv", "critical"),
+    _case("models-unknown-option", "models --bogus", "--bogus"),
     # 7. files from elsewhere
     _case("draw-rotate-output", "draw {rotate_nc} --out {tmp}/x.png", "rotate", early=False),
     _case("draw-critical-output", "draw {critical_nc} --out {tmp}/x.png", "critical", early=False),

@@ -3,6 +3,7 @@
 from . import (
     draw,  # noqa: F401  (registers draw and animate)
     export,  # noqa: F401  (registers the command)
+    models,  # noqa: F401  (registers the command)
     orbit,  # noqa: F401  (registers the command)
     reproduce,  # noqa: F401  (registers the command)
     rotate,  # noqa: F401  (registers the command)

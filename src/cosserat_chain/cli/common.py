@@ -21,7 +21,6 @@ from tqdm import tqdm
 
 from ..io import FIGURE_FORMATS, OutputError, check_output, load_params, write_dataset, write_figure
 from ..memory import MemoryEstimateError, available, size_text
-from ..models import available_models, get_model
 from ..params import ChainParams
 from ..status import Status
 
@@ -63,6 +62,8 @@ ALL_MODELS = "all"
 
 def model_names(*, rotating: bool = False) -> tuple[str, ...]:
     """The registered models, in registration order; with ``rotating``, those that support full rotations."""
+    from ..models import available_models, get_model  # the compiled kernels load here, not when the CLI starts
+
     return tuple(name for name in available_models() if not rotating or get_model(name).rotates)
 
 
@@ -78,7 +79,9 @@ def model_option(default: str, description: str, *, rotating: bool = False, all_
     registered after the CLI was imported (a plugin, a test) is accepted, and a
     wrong name gets the current list. (This Typer takes its choices only from an
     Enum or a Literal, fixed when the function is defined; hence a parser.) The
-    help text lists the models registered when the CLI was imported.
+    help text points to ``cosserat-chain models`` instead of listing them: listing
+    them would load every model's compiled kernels whenever the command line starts,
+    ``--help`` included.
 
     Parameters
     ----------
@@ -97,8 +100,11 @@ def model_option(default: str, description: str, *, rotating: bool = False, all_
             raise typer.BadParameter(f"{value!r} is not one of {', '.join(map(repr, offered))}.")
         return value
 
-    listing = ", ".join(name if name == ALL_MODELS else f"{name} ({get_model(name).equation})" for name in _offered(rotating, all_models))
-    return typer.Option(default, parser=parse, metavar="<model>", help=f"{description} One of: {listing}.")
+    which = "a registered model that supports full rotations" if rotating else "a registered model"
+    also = f", or {ALL_MODELS} for every one" if all_models else ""
+    return typer.Option(
+        default, parser=parse, metavar="<model>", help=f"{description} The name of {which}{also} (`cosserat-chain models` lists them)."
+    )
 
 
 def chosen_models(choice: str) -> list[str]:
