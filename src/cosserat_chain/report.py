@@ -181,6 +181,9 @@ class Report:
         return [s.title for s in self.sections if s.error]
 
 
+#: Width (inches) of every figure of the report.
+FIGURE_WIDTH = 10.0
+
 #: The list of the files a report consists of, written last: the next report into the same
 #: folder removes those of them it does not write again (a stage that is gone, a figure
 #: renamed), and nothing else (a file of the user's stays).
@@ -218,6 +221,11 @@ class _Stage:
     def figure(self, fig, stem: str) -> str:
         import matplotlib.pyplot as plt
 
+        # Every figure of the report at the same width (a single panel grows to it, its text
+        # keeping its size), so that the page shows them alike at any window width.
+        width, height = fig.get_size_inches()
+        if width < FIGURE_WIDTH:
+            fig.set_size_inches(FIGURE_WIDTH, max(height, min(height * FIGURE_WIDTH / width, 0.6 * FIGURE_WIDTH)))
         for suffix in ("png", "svg"):
             write_figure(fig, self.path(f"figures/{stem}.{suffix}"), dpi=130)
         plt.close(fig)
@@ -789,7 +797,8 @@ def _json_default(value: Any) -> Any:
 
 
 def format_cell(value: Any) -> str:
-    """How a table cell is printed in both renderings (numbers to 10 significant digits; None as a dash)."""
+    """How a table cell is printed in both renderings: numbers to 6 significant digits (every digit is in
+    summary.json and data/), None as a dash."""
     if value is None or (isinstance(value, float) and not math.isfinite(value)):
         return "—"
     if isinstance(value, bool | np.bool_):
@@ -797,7 +806,7 @@ def format_cell(value: Any) -> str:
     if isinstance(value, int | np.integer):
         return str(int(value))
     if isinstance(value, float | np.floating):
-        return f"{float(value):.10g}"
+        return f"{float(value):.6g}"
     return str(value)
 
 
@@ -847,7 +856,8 @@ def _html(sections: list[Section], params: ChainParams, out: Path, table: list[l
     parts = [
         "<!DOCTYPE html><html><head><meta charset='utf-8'><title>cosserat-chain: reproduction of the paper</title>",
         "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;line-height:1.45}table{border-collapse:collapse;margin:1em 0}"
-        "td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}th{background:#eee}figure{margin:1em 0}figure img{width:100%;height:auto}"
+        "td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}th{background:#eee}figure{margin:1em 0}figure img{max-width:100%;height:auto}"
+        "table{display:block;overflow-x:auto;max-width:100%}"
         ".error{background:#fee;border:1px solid #c00;padding:1em;white-space:pre-wrap}</style></head><body>",
         "<h1>Reproduction of the paper</h1>",
         f"<p>{esc(_intro(params))}</p>",

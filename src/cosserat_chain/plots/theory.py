@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
+from matplotlib.ticker import NullFormatter
 
 from ..analysis.continuum import ConvergenceTable, ProfileComparison
 from ..analysis.dispersion import BRANCHES, Dispersion, WaveSummary
@@ -70,6 +71,10 @@ def plot_convergence(table: ConvergenceTable, ax: Axes | None = None) -> Figure:
         reference = table.relative_error[0] * table.N[0] / table.N
         panel.loglog(table.N, reference, ":", color="0.5", label="1/N")
     panel.set_xlabel("N (chain of 2N+1 particles)")
+    # Ticks at the computed N only: over less than a decade matplotlib labels the minor
+    # ticks as well (3 x 10^0, 4 x 10^0, ...), and they overlap.
+    panel.set_xticks(table.N, [str(int(n)) for n in table.N])
+    panel.xaxis.set_minor_formatter(NullFormatter())
     panel.legend(loc="best", fontsize="small")
     return fig
 
