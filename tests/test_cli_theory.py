@@ -31,7 +31,7 @@ def test_theory_json_reports_compliances_errors_residues_and_errata():
     errors = [row["relative_error"] for row in data["rows"]]
     assert errors == sorted(errors, reverse=True) and 0.9 < data["order"] < 1.05
     assert data["D1"] == pytest.approx(ChainParams().D1) and data["printed_D1"] == pytest.approx(1 - 2 / 0.52)
-    assert [e["number"] for e in data["errata"]] == [1, 2, 3, 4, 5, 6]
+    assert [e["number"] for e in data["errata"]] == list(range(1, 11))
     assert all({"where", "printed", "derived", "consequence"} <= set(e) for e in data["errata"])
 
 

@@ -11,6 +11,7 @@ import sympy as sp
 
 from conftest import ROUND_OFF, random_geometries
 from cosserat_chain import ChainParams
+from cosserat_chain.analysis.continuum import printed_D1
 from cosserat_chain.analysis.symbolic import (
     COEFFICIENTS,
     compare_with_paper,
@@ -117,9 +118,9 @@ def test_the_errata_of_a_long_chain_use_no_dense_matrix(monkeypatch):
 
 def test_errata_carry_printed_derived_and_consequence_for_the_given_chain(paper):
     listed = errata(paper)
-    assert [e.number for e in listed] == [1, 2, 3, 4, 5, 6]
+    assert [e.number for e in listed] == list(range(1, 11))
     assert all(e.printed and e.derived and e.consequence for e in listed)
-    assert [e.found_by for e in listed] == ["sympy"] * 4 + ["reading"] * 2
+    assert [e.found_by for e in listed] == ["sympy"] * 4 + ["reading"] * 2 + ["computed"] + ["reading"] * 3
     assert "-4.66" in listed[0].consequence and "exp(2.16 t)" in listed[0].consequence
     assert "-0.9231" in listed[1].consequence and "-2.846" in listed[1].consequence
     # Every SymPy-found erratum names the failing checks behind it, and every failing check has its erratum.
@@ -139,3 +140,23 @@ def test_errata_page_lists_the_same_errata():
 def test_errata_for_a_chain_without_diagonals_say_the_misprints_do_not_apply(paper):
     listed = errata(paper.replace(E2=0.0))
     assert "E2 = 0" in listed[0].consequence and "E2 = 0" in listed[1].consequence
+
+
+def test_the_chain_with_sections_printed_D1_is_unstable_at_rest(paper):
+    """Erratum 7, against a dense eigensolve of the same operator built independently (energy Hessian by hand)."""
+    from cosserat_chain.models.linear import stiffness_matrix
+
+    for chain in (paper, paper.replace(N=10)):
+        n = chain.n_particles
+        stiffness = stiffness_matrix(chain).toarray()
+        # Section 3's phi equation (5), times 2 b^2, carries h^2 D1 (phi_k+1 - 2 phi_k + phi_k-1) / h^2.
+        delta = printed_D1(chain) - chain.D1
+        for col in range(1, n - 1):
+            i = 3 * (col - 1) + 2
+            stiffness[i, i] += delta * 2 * chain.b**2 * 2
+            for other in (col - 1, col + 1):
+                if 1 <= other <= n - 2:
+                    stiffness[i, 3 * (other - 1) + 2] -= delta * 2 * chain.b**2
+        lowest = np.linalg.eigvals(stiffness / np.tile(chain.inertia, n - 2)[:, None]).real.min()
+        seventh = errata(chain)[6]
+        assert lowest < 0 and f"eigenvalue {lowest:.3g}" in seventh.consequence

@@ -106,7 +106,8 @@ class Erratum:
         Number in ``docs/errata.md``.
     where, printed, derived, consequence : str
     found_by : str
-        ``"sympy"`` for errata that :func:`compare_with_paper` detects, ``"reading"``
+        ``"sympy"`` for errata that :func:`compare_with_paper` detects, ``"computed"``
+        for a consequence found numerically (the printed D1's discrete chain), ``"reading"``
         for slips in the text that no derivation can detect.
     checks : tuple of str
         Keys of the failing :class:`Check` entries behind the erratum.
@@ -761,4 +762,67 @@ def errata(params: ChainParams | None = None) -> tuple[Erratum, ...]:
         "Typographical.",
         "reading",
     )
-    return (one, two, three, four, five, six)
+    # 7: the discrete chain of eqs. (4)-(5) with the printed D1. D1 multiplies the phi
+    # Laplacian 2 b^2 (phi_k+1 - 2 phi_k + phi_k-1) of eq. (5): the derived chain's stiffness
+    # with that term changed by (printed - derived) D1.
+    shift = d1_printed - params.D1
+    n = params.n_particles
+    phi = 3 * np.arange(n - 2) + 2  # the phi rows of the free degrees of freedom (state.pack order)
+    bending = sparse.csr_matrix((n_free(params), n_free(params)))
+    if n > 3:
+        bending = sparse.coo_matrix(
+            (np.concatenate([np.full(n - 2, 2.0), np.full(2 * (n - 3), -1.0)]) * 2 * params.b**2,
+             (np.concatenate([phi, phi[:-1], phi[1:]]), np.concatenate([phi, phi[1:], phi[:-1]]))),
+            shape=bending.shape,
+        ).tocsr()  # fmt: skip
+    else:
+        bending = sparse.coo_matrix(([4 * params.b**2], ([phi[0]], [phi[0]])), shape=bending.shape).tocsr()
+    with_printed = _lowest_real_eigenvalue(sparse.diags(inverse_mass) @ (stiffness_matrix(params) + shift * bending)).real
+    if params.E2 == 0:
+        printed_chain = "Without diagonal links (E2 = 0) the printed and the derived D1 agree."
+    elif with_printed < 0:
+        printed_chain = (
+            f"For this chain (N = {params.N}) M^-1 K of that chain has the eigenvalue {with_printed:.3g}: the discrete chain "
+            "of Section 3 is itself unstable at rest, not only its continuum limit wrong."
+        )
+    else:
+        printed_chain = (
+            f"For this chain (N = {params.N}) the lowest eigenvalue of M^-1 K of that chain is {with_printed:.3g}: it stays stable."
+        )
+    seven = Erratum(
+        7,
+        "Section 3.1, eqs. (4)-(5) with the printed D1",
+        f"the discrete steady-state equations (4)-(5) with D1 = {_fmt(checks['section3.D1'].printed)}",
+        f"D1 = {_fmt(checks['section3.D1'].derived)}: with it eqs. (4)-(5) are the v, phi part of eq. (3) at rest",
+        printed_chain,
+        "computed",
+    )
+    eight = Erratum(
+        8,
+        "Section 4, the relaxation protocol",
+        '"At each step we solved the set of dynamic equations (1-3)"',
+        "(1) is the potential of a link, not an equation of motion: the dynamic equations are model (1)'s equations of "
+        "motion (not printed), (2) and (3)",
+        "Reference slip.",
+        "reading",
+    )
+    nine = Erratum(
+        9,
+        "Abstract, last sentences",
+        '"... the model containing nonlinear sine-dependence of the angle of rotation is observed. It is not described by the '
+        'linear model (iii)."',
+        'the sentence "It is not described by the linear model (iii)." appears twice; the second time after a sentence '
+        "whose end is missing",
+        "Editorial: the abstract repeats itself.",
+        "reading",
+    )
+    ten = Erratum(
+        10,
+        "Section 3.1, after eq. (12)",
+        '"The boundary conditions v_0 = 0, v_N = 0, phi_N = 0 of the discrete model (9) are automatically satisfied"',
+        "(9) is the equation of the central particle; the conditions are the symmetry v_0 = 0 and the clamped end "
+        "v_N = phi_N = 0, the discrete form of (8)",
+        "Reference slip.",
+        "reading",
+    )
+    return (one, two, three, four, five, six, seven, eight, nine, ten)
