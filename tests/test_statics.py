@@ -405,3 +405,22 @@ def test_a_chord_through_rest_is_told_from_one_through_a_half_turn():
     before[2, params.N], after[2, params.N] = -0.2, 6.5
     assert np.linalg.norm(0.5 * (before + after)) <= 0.5 * np.linalg.norm(after - before)
     assert not _passes_rest(before, after, 0.3, -0.3)
+
+
+def test_statics_figures_plot_the_dimensionless_moment_M_over_E1_h2():
+    """Fig. 2 for a chain with E1 = 2 and h = 1.5: the fold sits at M_c / (E1 h^2) on an axis that says so."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from cosserat_chain.plots.statics import critical_against_length, figure2
+
+    chain = ChainParams(E1=2.0, h=1.5, a=0.3, b=0.3)
+    result = critical_point(chain, "sine")
+    assert result.as_dict()["M_c_dimensionless"] == pytest.approx(result.critical_moment / (2.0 * 1.5**2), rel=1e-15)
+    left, right = figure2({"sine": result}).axes
+    assert "E_1 h^2" in left.get_xlabel() and "E_1 h^2" in right.get_ylabel()
+    fold = result.fold
+    markers = [line for line in right.lines if line.get_marker() == "o"]
+    assert any(np.isclose(line.get_ydata()[0], fold.moment / chain.moment_scale, rtol=1e-12) for line in markers)
+    (moment_axis, _) = critical_against_length({"sine": [result]}).axes
+    assert moment_axis.lines[0].get_ydata()[0] == pytest.approx(chain.N * result.critical_moment / chain.moment_scale)

@@ -189,6 +189,11 @@ class ChainParams(BaseModel):
         return 4.0 * self.h**2 / self.d**2 * self.E2
 
     @property
+    def moment_scale(self) -> float:
+        """E1 h^2, the unit of the dimensionless moment M / (E1 h^2) of Fig. 2 (a link's stiffness times a length squared)."""
+        return self.E1 * self.h**2
+
+    @property
     def inertia(self) -> tuple[float, float, float]:
         """Inertia of the rows (u, v, phi): (m, m, j)."""
         return (self.m, self.m, self.j)

@@ -91,11 +91,15 @@ class CriticalResult:
 
     def as_dict(self) -> dict:
         """JSON-ready: ``M_c`` (onset of rotation; null without a fold), ``phi0_at_fold``, ``first_fold``, ``snap_through``,
-        ``compliance``, ``branch_complete`` and the branch."""
+        ``compliance``, ``branch_complete`` and the branch. Moments are in the parameters' units; ``moment_scale``
+        (E1 h^2) is the unit of the paper's dimensionless moment, ``M_c_dimensionless`` = M_c / (E1 h^2)."""
+        scale = self.params.moment_scale
         return {
             "model": self.model,
             "particle": self.particle,
             "M_c": self.critical_moment,
+            "moment_scale": scale,
+            "M_c_dimensionless": None if self.critical_moment is None else self.critical_moment / scale,
             "phi0_at_fold": self.phi0_at_fold,
             "first_fold": None if self.first_fold is None else {"moment": self.first_fold.moment, "phi0": self.first_fold.phi0},
             "snap_through": self.first_fold is not None and self.first_fold is not self.fold,

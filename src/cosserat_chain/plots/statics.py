@@ -64,6 +64,10 @@ def _runs(flags: np.ndarray) -> list[tuple[np.ndarray, bool]]:
     return [(np.arange(lo, min(hi + 1, len(flags))), bool(flags[lo])) for lo, hi in zip(bounds[:-1], bounds[1:])]
 
 
+#: The moment axis of every statics figure: M in units of E1 h^2, the paper's dimensionless moment.
+MOMENT_LABEL = r"moment $M / (E_1 h^2)$"
+
+
 def _branch_lines(ax, moment, phi0, stable, color, label, swap=False):
     for k, (idx, is_stable) in enumerate(_runs(stable)):
         xs, ys = (phi0[idx], moment[idx]) if swap else (moment[idx], phi0[idx])
@@ -90,39 +94,41 @@ def figure2(
     matplotlib.figure.Figure
     """
     sweeps = sweeps or {}
+    # Moments in units of E1 h^2 (the paper's "dimensionless moment"): chains of other h or E1 compare on one axis.
+    scale = next(iter([*criticals.values(), *sweeps.values()])).params.moment_scale if (criticals or sweeps) else 1.0
     fig, (left, right) = plt.subplots(1, 2, figsize=figsize, constrained_layout=True)
     m_top = max([0.0, *(abs(r.critical_moment or 0.0) for r in criticals.values()), *(np.max(np.abs(s.moment)) for s in sweeps.values())])
-    m_top = 1.15 * (m_top or 0.3)
+    m_top = 1.15 * (m_top or 0.3) / scale
     compliance = None
     for name, result in criticals.items():
         color = model_color(name)
         branch = result.branch
         ahead = np.maximum.accumulate(np.abs(branch.phi0)) <= np.pi  # first half turn: the branch of Fig. 2
-        _branch_lines(left, branch.moment[ahead], branch.phi0[ahead], branch.stable[ahead], color, model_label(name))
-        _branch_lines(right, branch.moment, branch.phi0, branch.stable, color, model_label(name), swap=True)
+        _branch_lines(left, branch.moment[ahead] / scale, branch.phi0[ahead], branch.stable[ahead], color, model_label(name))
+        _branch_lines(right, branch.moment / scale, branch.phi0, branch.stable, color, model_label(name), swap=True)
         for fold in branch.folds:
             if abs(fold.phi0) <= np.pi:
-                left.plot(fold.moment, fold.phi0, "o", mfc="white", mec=color, ms=7)
-            right.plot(fold.phi0, fold.moment, "o", mfc="white", mec=color, ms=7)
+                left.plot(fold.moment / scale, fold.phi0, "o", mfc="white", mec=color, ms=7)
+            right.plot(fold.phi0, fold.moment / scale, "o", mfc="white", mec=color, ms=7)
         compliance = result.compliance
     for name, sweep in sweeps.items():
         color = model_color(name)
         up = (sweep.direction == "up") & (sweep.status == "static")
-        left.plot(sweep.moment[up], sweep.phi0[up], "o", color=color, ms=4, alpha=0.8)
+        left.plot(sweep.moment[up] / scale, sweep.phi0[up], "o", color=color, ms=4, alpha=0.8)
         if sweep.onset_load is not None:
             before = sweep.phi0[up][-1] if up.any() else 0.0
-            left.plot(sweep.onset_load, before, "*", color=color, ms=15, mec="k", mew=0.6)
+            left.plot(sweep.onset_load / scale, before, "*", color=color, ms=15, mec="k", mew=0.6)
     if compliance is not None:
         moments = np.array([0.0, m_top])
-        left.plot(moments, compliance * moments, ":", color="0.4", label=f"tangent $\\varphi_0 = c M$, c = {compliance:.4g}")
-    left.set(xlim=(0, m_top), ylim=(0, np.pi), xlabel="moment M", ylabel=r"$\varphi_0$ of the loaded particle (rad)")
+        left.plot(moments, compliance * scale * moments, ":", color="0.4", label=f"tangent $\\varphi_0 = c M$, c = {compliance:.4g}")
+    left.set(xlim=(0, m_top), ylim=(0, np.pi), xlabel=MOMENT_LABEL, ylabel=r"$\varphi_0$ of the loaded particle (rad)")
     left.set_title("Fig. 2: circles relaxation, stars onset, lines continuation", fontsize=10)
     left.legend(fontsize=8, loc="upper left")
     right.axhline(0.0, color="0.7", lw=0.8)
-    folds = [abs(r.critical_moment) for r in criticals.values() if r.critical_moment is not None]
+    folds = [abs(r.critical_moment) / scale for r in criticals.values() if r.critical_moment is not None]
     if folds:
         right.set_ylim(-1.4 * max(folds), 1.4 * max(folds))  # the linear model's line would flatten the folds
-    right.set(xlim=(0, 2 * np.pi), xlabel=r"$\varphi_0$ (rad)", ylabel="M holding the particle")
+    right.set(xlim=(0, 2 * np.pi), xlabel=r"$\varphi_0$ (rad)", ylabel=r"$M / (E_1 h^2)$ holding the particle")
     right.set_xticks(np.pi * np.arange(5) / 2, ["0", r"$\pi/2$", r"$\pi$", r"$3\pi/2$", r"$2\pi$"])
     right.set_title("characteristic over one turn (dashed: unstable, open circles: folds)", fontsize=10)
     return fig
@@ -143,11 +149,12 @@ def hysteresis_figure(
     fig, ax = plt.subplots(figsize=figsize, constrained_layout=True)
     for name, sweep in sweeps.items():
         color = model_color(name)
+        scale = sweep.params.moment_scale
         rate = sweep.angular_velocity[:, sweep.params.N + sweep.particle]
         for direction, style in (("up", {"mfc": color}), ("down", {"mfc": "white"})):
             sel = sweep.direction == direction
             ax.plot(
-                sweep.moment[sel],
+                sweep.moment[sel] / scale,
                 rate[sel],
                 "o-" if direction == "up" else "s--",
                 color=color,
@@ -157,8 +164,8 @@ def hysteresis_figure(
                 **style,
             )
         if name in criticals and criticals[name].critical_moment is not None:
-            ax.axvline(criticals[name].critical_moment, color=color, ls=":", lw=1)
-    ax.set(xlabel="moment M", ylabel="mean angular velocity of the loaded particle")
+            ax.axvline(criticals[name].critical_moment / scale, color=color, ls=":", lw=1)
+    ax.set(xlabel=MOMENT_LABEL, ylabel="mean angular velocity of the loaded particle")
     ax.set_title("hysteresis of the onset of rotation (dotted: exact fold $M_c$)", fontsize=10)
     ax.legend(fontsize=8)
     return fig
@@ -176,7 +183,7 @@ def critical_against_length(results: dict[str, list]):
     for name, rows in results.items():
         rows = [r for r in rows if r.fold is not None]
         n = np.array([r.params.N for r in rows])
-        moment = np.array([r.critical_moment for r in rows])
+        moment = np.array([r.critical_moment / r.params.moment_scale for r in rows])
         scaled = name == "sine"
         ax_moment.semilogx(
             n,
@@ -187,7 +194,7 @@ def critical_against_length(results: dict[str, list]):
         )
         ax_angle.semilogx(n, [r.phi0_at_fold for r in rows], "o-", color=model_color(name), label=model_label(name))
     ax_moment.set_xlabel("N (2N+1 particles)")
-    ax_moment.set_ylabel("critical moment (units of E1 h^2)")
+    ax_moment.set_ylabel(r"critical moment $M_c / (E_1 h^2)$")
     ax_moment.legend(fontsize=8)
     ax_angle.set_xlabel("N (2N+1 particles)")
     ax_angle.set_ylabel("phi_0 at the fold (rad)")
