@@ -7,17 +7,11 @@ from pathlib import Path
 
 import typer
 
+from ..exports import FORMATS
 from .common import app, fail, outputs_or_exit, run_or_exit
 
-
-class ExportFormat(str, Enum):
-    vtk = "vtk"
-    xyz = "xyz"
-    csv = "csv"
-
-
-#: The suffix of the file each format writes (``exports.FORMATS``, kept here so that the command line starts without it).
-SUFFIXES = {"vtk": ".pvd", "xyz": ".xyz", "csv": ".csv"}
+#: The ``--to`` choices: the formats of :data:`cosserat_chain.exports.FORMATS` (a light import: NumPy and the geometry).
+ExportFormat = Enum("ExportFormat", {name: name for name in FORMATS}, type=str)
 
 
 @app.command()
@@ -29,7 +23,7 @@ def export(
     out: Path = typer.Option(..., "--out", help="File to write: .pvd for vtk (its frames go to OUT_frames/), .xyz, .csv."),
 ) -> None:
     """Write a run in a format other tools read: VTK (ParaView), extended XYZ (OVITO) or CSV."""
-    outputs_or_exit({"--out": out}, {"RUN": run}, formats={"--out": (SUFFIXES[to.value],)})
+    outputs_or_exit({"--out": out}, {"RUN": run}, formats={"--out": (FORMATS[to.value],)})
     ds = run_or_exit(run)
     from ..exports import export as write_export
 

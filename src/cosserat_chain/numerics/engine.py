@@ -571,12 +571,7 @@ class Lanes:
         self.method = method
         size = self.size = len(self.params)
         n = self.n = self.params[0].n_particles
-        # State, velocities, forces, the loads' and turns' tables: about 16 values a degree of freedom.
-        require(
-            16 * FLOAT * 3 * n * size,
-            f"{size} chain(s) of {n} particles (N={self.params[0].N})",
-            "fewer members or a shorter chain",
-        )
+        require_batch_memory(self.params)
         index, self.knots = loads.compiled(self.params[0])
         # Column 4: the load's work counts (a block of a split chain also carries its neighbours' loads).
         self.load_index = np.ascontiguousarray(np.column_stack([index, np.ones(len(index), dtype=np.int64)]))
@@ -890,15 +885,21 @@ def per_member(values, size: int, name: str) -> np.ndarray:
     return arr
 
 
+def require_batch_memory(params: list) -> None:
+    """Refuse a batch whose arrays do not fit in memory: state, velocities, forces and the
+    loads' and turns' tables, about 16 values a degree of freedom (:func:`cosserat_chain.memory.require`)."""
+    n = params[0].n_particles
+    require(
+        16 * FLOAT * 3 * n * len(params), f"{len(params)} chain(s) of {n} particles (N={params[0].N})", "fewer members or a shorter chain"
+    )
+
+
 def stack_states(params: list, states, name: str) -> np.ndarray:
     """(B, 3, n) start states: rest, one state for all members, or one per member (each checked)."""
     from ..state import check_state
 
     n = params[0].n_particles
-    # The first array of a batch's size: the estimate of :class:`Lanes` (which follows) made here.
-    require(
-        16 * FLOAT * 3 * n * len(params), f"{len(params)} chain(s) of {n} particles (N={params[0].N})", "fewer members or a shorter chain"
-    )
+    require_batch_memory(params)  # the first array of a batch's size, made before its Lanes
     out = np.zeros((len(params), 3, n))
     if states is None:
         return out
