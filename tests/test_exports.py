@@ -36,7 +36,9 @@ def _states(ds):
 
 def test_vtk_collection_reads_back_with_meshio_as_the_runs_corners_and_links(run, tmp_path):
     params, ds, _ = run
-    pvd = export(ds, "vtk", tmp_path / "run.pvd")
+    calls = []
+    pvd = export(ds, "vtk", tmp_path / "run.pvd", progress=lambda done, total: calls.append((done, total)))
+    assert calls == [(k, ds.sizes["time"]) for k in range(1, ds.sizes["time"] + 1)], "progress counts every frame up to the last"
     entries = ElementTree.parse(pvd).getroot().findall("./Collection/DataSet")
     assert [float(e.get("timestep")) for e in entries] == list(ds.time.values)
     states = _states(ds)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import shutil
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -85,8 +86,11 @@ def link_segments(params: ChainParams, x: np.ndarray) -> tuple[np.ndarray, np.nd
     return segments, kind, stretch
 
 
-def to_vtk(dataset: xr.Dataset, path: str | Path) -> Path:
-    """Write the run as a ParaView collection ``path`` (.pvd) of per-frame .vtu grids; returns the path."""
+def to_vtk(dataset: xr.Dataset, path: str | Path, progress: Callable[[int, int], None] | None = None) -> Path:
+    """Write the run as a ParaView collection ``path`` (.pvd) of per-frame .vtu grids; returns the path.
+
+    ``progress(frames_written, frames)`` is called after every frame (one file each: the slow format).
+    """
     import meshio
 
     params, times, states, velocities = _frames(dataset)
@@ -109,6 +113,8 @@ def to_vtk(dataset: xr.Dataset, path: str | Path) -> Path:
             name = f"frame_{f:05d}.vtu"
             meshio.write(staging / name, meshio.Mesh(points, [("quad", quads), ("line", segments)], cell_data=cell_data))
             entries.append(f'    <DataSet timestep="{float(t)!r}" group="" part="0" file="{folder.name}/{name}"/>')
+            if progress is not None:
+                progress(f + 1, len(times))
         # The frames replace the folder whole, then the index is written: a reader of the
         # index never finds frames of another run.
         if folder.is_symlink() or folder.is_file():
@@ -166,8 +172,8 @@ def to_csv(dataset: xr.Dataset, path: str | Path) -> Path:
     return Path(path)
 
 
-def export(dataset: xr.Dataset, to: str, path: str | Path) -> Path:
-    """Write the run in format ``to`` (one of :data:`FORMATS`) to ``path``.
+def export(dataset: xr.Dataset, to: str, path: str | Path, progress: Callable[[int, int], None] | None = None) -> Path:
+    """Write the run in format ``to`` (one of :data:`FORMATS`) to ``path``; ``progress`` follows the VTK frames.
 
     Raises
     ------
@@ -177,4 +183,4 @@ def export(dataset: xr.Dataset, to: str, path: str | Path) -> Path:
     writers = {"vtk": to_vtk, "xyz": to_xyz, "csv": to_csv}
     if to not in writers:
         raise ValueError(f"unknown export format {to!r}; allowed: {', '.join(writers)}")
-    return writers[to](dataset, path)
+    return to_vtk(dataset, path, progress) if to == "vtk" else writers[to](dataset, path)

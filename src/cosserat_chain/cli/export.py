@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 
 from ..exports import FORMATS
-from .common import app, fail, outputs_or_exit, run_or_exit
+from .common import app, bar_callback, fail, outputs_or_exit, progress_bar, run_or_exit
 
 #: The ``--to`` choices: the formats of :data:`cosserat_chain.exports.FORMATS` (a light import: NumPy and the geometry).
 ExportFormat = Enum("ExportFormat", {name: name for name in FORMATS}, type=str)
@@ -27,8 +27,11 @@ def export(
     ds = run_or_exit(run)
     from ..exports import export as write_export
 
+    bar = progress_bar(f"export {to.value}", "frame")
     try:
-        write_export(ds, to.value, out)
+        write_export(ds, to.value, out, progress=bar_callback(bar))
     except (OSError, ValueError) as err:
+        bar.close()
         fail(f"could not export to {str(out)!r}: {err}", code=3)
+    bar.close()
     typer.echo(f"wrote {out} ({ds.sizes['time']} frames, {to.value})")
