@@ -260,6 +260,68 @@ def reduced_solution(params: ChainParams, x: np.ndarray | float, moment: float =
     return scale * x * (L - x) ** 2, scale * (L - x) * (L - 3 * x)
 
 
+def reduced_family(params: ChainParams, x: np.ndarray | float, moment: float = 1.0, *, alpha: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """More solutions of the reduced model (D1 = 0, Section 3.2): the paper's cubic plus alpha w(x).
+
+    v(x) = v_3(x) + alpha w(x),  phi(x) = v_x(x),  w(x) = x (L - x)^2 (x + (L - h)^2 / (2L - h)),
+
+    with v_3 the cubic of :func:`reduced_solution`. The reduced equations
+    v_xx - phi_x = 0, v_x - phi = 0 hold for every v with phi = v_x (eq. (13)), and w
+    meets the four conditions of Section 3.2 with M = 0: w(0) = w(L) = w_x(L) = 0 and
+    w(h)/h - w_x(0) = 0. So every alpha meets them all, while the loaded particle turns by
+    phi(0) = phi_3(0) + alpha L^2 (L - h)^2 / (2L - h) (:func:`reduced_family_rotation`):
+    for N >= 2 the reduced continuum model does not determine the central rotation. Up to
+    a factor, w is the only quartic that meets the four conditions with M = 0 (tested with
+    SymPy). The quartic alpha x^2 (L - x)^2, which vanishes with its slope at both ends,
+    does not do: it breaks the nonlocal condition by 2 b^2 D2 alpha h (L - h)^2 and leaves
+    phi(0) unchanged (``docs/continuum.md``).
+
+    Parameters
+    ----------
+    params : ChainParams
+        Only h, b, N and D2 enter, whatever ``params.D1`` is (as in :func:`reduced_solution`).
+    x : float or ndarray
+        Positions in [0, L].
+    moment : float
+        Moment M on particle 0.
+    alpha : float
+        Coefficient of w, in units of v / length^4.
+
+    Returns
+    -------
+    v, phi : ndarray
+        Same shape as ``x``.
+
+    Raises
+    ------
+    ValueError
+        For x outside [0, L], a non-finite moment or alpha, or E2 = 0.
+    """
+    if not math.isfinite(alpha):
+        raise ValueError(f"alpha must be finite, got {alpha!r}")
+    v, phi = reduced_solution(params, x, moment)
+    x = np.asarray(x, dtype=float)
+    h, L = params.h, params.N * params.h
+    shift = (L - h) ** 2 / (2 * L - h)
+    w = x * (L - x) ** 2 * (x + shift)
+    w_x = (L - x) ** 2 * (x + shift) - 2 * x * (L - x) * (x + shift) + x * (L - x) ** 2
+    return v + alpha * w, phi + alpha * w_x
+
+
+def reduced_family_rotation(params: ChainParams, moment: float = 1.0, *, alpha: float = 0.0) -> float:
+    """phi(0) = M L^2 / (2 b^2 h (2L - h) D2) + alpha L^2 (L - h)^2 / (2L - h) of :func:`reduced_family`.
+
+    alpha = 0 is the paper's reduced solution of Section 3.2; every other alpha meets the
+    same equations and conditions with another central rotation, except for N = 1 (L = h),
+    where alpha drops out.
+    """
+    if not math.isfinite(alpha):
+        raise ValueError(f"alpha must be finite, got {alpha!r}")
+    coef = _coefficients(params, 0.0)
+    h, L = coef.h, coef.L
+    return _moment(moment) * L * L / (2 * coef.b**2 * h * (2 * L - h) * coef.D2) + alpha * L * L * (L - h) ** 2 / (2 * L - h)
+
+
 def sampled_state(params: ChainParams, moment: float = 1.0, *, D1: float | None = None) -> np.ndarray:
     """The continuum solution (11) at the particles, v_k = v(|k| h) sign(k), phi_k = phi(|k| h).
 
@@ -458,6 +520,98 @@ def _discrete_check(params: ChainParams) -> tuple[float, float]:
         lowest = 1.0 / np.linalg.norm(vector)
     highest = float(abs(stiffness).sum(axis=1).max())
     return float(solution[2, params.N]), highest / lowest
+
+
+@dataclass(frozen=True)
+class ReducedChain:
+    """The discrete reduced chain (eq. (3) with D1 = 0): positive definite, so its statics are unique.
+
+    Attributes
+    ----------
+    params : ChainParams
+        The chain with E1 = :func:`reduced_E1`, whose geometry-derived D1 vanishes.
+    positive_definite : bool
+        Whether K has a Cholesky factor (LAPACK's banded Cholesky), i.e. is positive definite.
+    lowest_eigenvalue : float
+        K's eigenvalue closest to 0 (shift-invert Lanczos about 0): the smallest one when
+        ``positive_definite``.
+    compliance : float
+        phi_0 / M of the static state under a moment on particle 0 (SuperLU), unique when
+        ``positive_definite``.
+    continuum_compliance : float
+        phi(0) / M of the paper's reduced solution (Section 3.2, alpha = 0 in :func:`reduced_family`).
+    family_slope : float
+        d phi(0) / d alpha of :func:`reduced_family`, L^2 (L - h)^2 / (2L - h): the continuum's
+        freedom, which the discrete chain does not have.
+    """
+
+    params: ChainParams
+    positive_definite: bool
+    lowest_eigenvalue: float
+    compliance: float
+    continuum_compliance: float
+    family_slope: float
+
+    @property
+    def matching_alpha(self) -> float | None:
+        """The alpha of :func:`reduced_family` whose phi(0) equals the discrete chain's (None for N = 1, where none can)."""
+        if self.family_slope == 0:
+            return None
+        return (self.compliance - self.continuum_compliance) / self.family_slope
+
+    def as_dict(self) -> dict[str, float | bool | None]:
+        """Plain numbers (for JSON), with the reduced E1 and ``matching_alpha``."""
+        return {
+            "E1": self.params.E1,
+            "positive_definite": self.positive_definite,
+            "lowest_eigenvalue": self.lowest_eigenvalue,
+            "compliance": self.compliance,
+            "continuum_compliance": self.continuum_compliance,
+            "family_slope": self.family_slope,
+            "matching_alpha": self.matching_alpha,
+        }
+
+
+def reduced_discrete(params: ChainParams) -> ReducedChain:
+    """The discrete reduced chain of ``params``' geometry: K's definiteness and its unique static state.
+
+    The discrete chain keeps the bending energy E1 b^2 (phi_k+1 - phi_k)^2 of each bond:
+    D1 = E1 - (h/d)^2 E2 = 0 cancels it only against the coupling's own phi Laplacian in
+    eq. (5). With E1 > 0 and E2 > 0 the energy of eq. (3) vanishes only at rest with the
+    ends clamped, so K is positive definite and K q = M e_phi0 has one solution, unlike
+    the reduced continuum model (:func:`reduced_family`).
+
+    Raises
+    ------
+    ValueError
+        For E2 = 0 (then E1 = 0 too: no chain), or a chain too large for memory.
+    """
+    if not params.E2 > 0:
+        raise ValueError(f"the reduced chain needs E2 > 0 (its E1 = (h/d)^2 E2 must be > 0); got E2={params.E2!r}")
+    require(
+        BYTES_PER_DOF * 3 * params.n_particles,
+        f"the reduced chain of N = {params.N} ({3 * params.n_particles} degrees of freedom, about {BYTES_PER_DOF} bytes each)",
+        "use a shorter chain",
+    )
+    reduced = params.replace(E1=reduced_E1(params))
+    stiffness = stiffness_matrix(reduced)
+    try:
+        la.cholesky_banded(upper_bands(stiffness))
+        positive_definite = True
+    except la.LinAlgError:
+        positive_definite = False
+    # Shift-invert about 0 finds the eigenvalue nearest 0 in a few iterations at any N
+    # (the clamped chain's softest mode is far below the rest of the spectrum).
+    lowest = spla.eigsh(stiffness.tocsc(), k=1, sigma=0.0, which="LM", return_eigenvectors=False)[0]
+    h, L = reduced.h, reduced.N * reduced.h
+    return ReducedChain(
+        params=reduced,
+        positive_definite=positive_definite,
+        lowest_eigenvalue=float(lowest),
+        compliance=float(discrete_static(reduced)[2, reduced.N]),
+        continuum_compliance=reduced_family_rotation(reduced),
+        family_slope=L * L * (L - h) ** 2 / (2 * L - h),
+    )
 
 
 @dataclass(frozen=True)
