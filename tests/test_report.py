@@ -204,7 +204,7 @@ def test_the_claims_table_is_computed_from_the_stages(quick_report):
 
     rows = quick_report.summary["claims"]
     statics = next(s for s in quick_report.sections if s.title.startswith("Static response")).numbers
-    assert [set(row) for row in rows] == [set(CLAIMS_HEADER)] * len(rows) and len(rows) == 6
+    assert [set(row) for row in rows] == [set(CLAIMS_HEADER)] * len(rows) and len(rows) == 8
     assert f"nonlinear {statics['nonlinear']['M_c']:.4g}" in rows[1]["this package computes"]
     assert all(row["agreement"].startswith("yes") for row in rows[:4]), rows
     markdown = (quick_report.out / "report.md").read_text()

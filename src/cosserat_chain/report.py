@@ -80,6 +80,12 @@ class ReproduceSettings:
         Chain half-lengths N for the continuum comparison.
     long_n_list : tuple of int
         Chain half-lengths N of the critical moment against the chain's length.
+    reading : str or None
+        Which reading of Section 4's "a finite 1D chain consists of seven particles" sets
+        the chain's N (:data:`READINGS`): ``"clamped-ends-among-seven"`` (N = 3, the
+        package's default chain) or ``"seven-between-walls"`` (N = 4: seven free particles
+        and two clamped ones). None: the chain's own N. The statics stage computes both
+        readings whichever is chosen.
     """
 
     m_max: float = 0.3
@@ -92,6 +98,42 @@ class ReproduceSettings:
     orbit_down_to: float = 0.1
     n_list: tuple[int, ...] = (3, 10, 30, 100, 300, 1000)
     long_n_list: tuple[int, ...] = (3, 10, 30, 100, 300)
+    reading: str | None = None
+
+
+#: The two readings of Section 4's "seven particles" and the N of each. The paper's chain has
+#: "2N+1 particles with fixed particles at the boundaries": seven with the two clamped ends
+#: among them (N = 3), or seven free particles between two clamped ones, the walls (N = 4).
+READINGS = {"clamped-ends-among-seven": 3, "seven-between-walls": 4}
+
+
+def reading_error(reading: object) -> str | None:
+    """Why ``reading`` is not one of :data:`READINGS` (naming the field, the value and the allowed ones), or None."""
+    if reading is None or reading in READINGS:
+        return None
+    allowed = ", ".join(f"{name!r} (N = {n})" for name, n in READINGS.items())
+    return f"reading must be one of {allowed}, got {reading!r}"
+
+
+def chain_for_reading(settings: ReproduceSettings, params: ChainParams | None = None) -> ChainParams:
+    """The chain the report computes: ``params`` (default the paper's), with the N of ``settings.reading``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown reading, or a ``params`` whose N is not the reading's.
+    """
+    error = reading_error(settings.reading)
+    if error:
+        raise ValueError(error)
+    if settings.reading is None:
+        return params or ChainParams()
+    n = READINGS[settings.reading]
+    if params is None:
+        return ChainParams(N=n)
+    if params.N != n:
+        raise ValueError(f"the chain's N = {params.N} contradicts reading = {settings.reading!r} (N = {n}); give one of them")
+    return params
 
 
 #: A load the report must place above a model's critical moment but is configured at or
@@ -136,6 +178,7 @@ def settings_from_mapping(mapping: dict[str, Any], source: str = "[reproduce]") 
     problems += [
         f"{name} must be integers N >= 1" for name in ("n_list", "long_n_list") if not all(n >= 1 for n in getattr(settings, name))
     ]
+    problems += [error for error in [reading_error(settings.reading)] if error]
     if problems:
         raise ValueError(f"invalid {source}: " + "; ".join(problems))
     return settings
@@ -291,6 +334,18 @@ def _statics(stage: _Stage) -> Section:
             rows,
         )
     )
+    seven = _seven_particles(stage)
+    numbers["seven_particles"] = seven
+    section.paragraphs.append(_readings_sentence(seven))
+    section.tables.append(
+        (
+            "The paper's seven particles, both readings (this chain's geometry): exact statics",
+            ["reading", "N", "particles (free)", "compliance dphi0/dM", *(f"M_c {m}" for m in ROTATING),
+             *(f"phi0 at fold {m} (rad)" for m in ROTATING), "this report"],
+            [[name, r["N"], f"{2 * r['N'] + 1} ({2 * r['N'] - 1})", r["compliance"], *(r["M_c"][m] for m in ROTATING),
+              *(r["phi0_at_fold"][m] for m in ROTATING), name == seven["used"]] for name, r in seven["readings"].items()],
+        )
+    )  # fmt: skip
     section.figures.append(
         (
             stage.figure(figure2(exact, sweeps), "fig2"),
@@ -306,6 +361,61 @@ def _statics(stage: _Stage) -> Section:
         )
     )
     return section
+
+
+def _seven_particles(stage: _Stage) -> dict[str, Any]:
+    """Exact statics of both readings of "seven particles" (:data:`READINGS`) with this chain's geometry.
+
+    The rotating models' M_c and fold angle, and the compliance at rest (every model's),
+    for N = 3 and N = 4; the chain's own N reuses the statics already computed.
+    """
+    from .experiments.critical import critical_point
+
+    readings = {}
+    for name, n in READINGS.items():
+        chain = stage.params.replace(N=n)
+        exact = {m: stage.critical(m) if n == stage.params.N else critical_point(chain, m) for m in ROTATING}
+        readings[name] = {
+            "N": n,
+            "compliance": exact[ROTATING[0]].compliance,
+            "M_c": {m: exact[m].critical_moment for m in ROTATING},
+            "phi0_at_fold": {m: exact[m].phi0_at_fold for m in ROTATING},
+        }
+    first, second = readings.values()
+    change = {
+        m: None if first["M_c"][m] is None or second["M_c"][m] is None else second["M_c"][m] / first["M_c"][m] - 1.0 for m in ROTATING
+    }
+    used = next((name for name, n in READINGS.items() if n == stage.params.N), None)
+    return {
+        "readings": readings,
+        "M_c_change": change,
+        "compliance_change": second["compliance"] / first["compliance"] - 1.0,
+        "N": stage.params.N,
+        "used": used,
+    }
+
+
+def _readings_sentence(seven: dict[str, Any]) -> str:
+    """What the choice between the two readings of "seven particles" changes, in a sentence computed from them."""
+    (first, a), (second, b) = seven["readings"].items()
+    changes = ", ".join(f"{m} {100 * c:+.3g} %" for m, c in seven["M_c_change"].items() if c is not None)
+    order = {name: sorted(ROTATING, key=lambda m: r["M_c"][m] or math.inf) for name, r in seven["readings"].items()}
+    flips = (
+        f"; the model that starts to rotate first changes ({order[first][0]} for N = {a['N']}, {order[second][0]} for N = {b['N']})"
+        if order[first][0] != order[second][0]
+        else ""
+    )
+    used = (
+        f"This report's chain is the reading {seven['used']!r}"
+        if seven["used"]
+        else f"This report's chain has N = {seven['N']}, neither reading"
+    )
+    return (
+        f'Section 4\'s "seven particles" reads two ways: seven with the clamped ends among them ({first}, N = {a["N"]}) or seven '
+        f"free particles between clamped walls ({second}, N = {b['N']}). From N = {a['N']} to N = {b['N']} the compliance at rest "
+        f"changes by {100 * seven['compliance_change']:+.3g} % and M_c by {changes}{flips}. {used}; the setting reading = "
+        '"..." of [reproduce] selects one.'
+    )
 
 
 def _orbits(stage: _Stage) -> Section:
@@ -554,13 +664,18 @@ def _long_chains(stage: _Stage) -> Section:
 
 
 def _continuum(stage: _Stage) -> Section:
-    from .analysis.continuum import compare_profiles, convergence
+    from .analysis.continuum import compare_profiles, convergence, reduced_discrete
     from .plots.theory import plot_convergence, plot_profiles
 
     p, s = stage.params, stage.settings
     table = convergence(p, list(s.n_list))
+    reduced = reduced_discrete(p).as_dict()
     stage.data("continuum", table.as_dict())
-    section = Section("Continuum theory (Section 3) against the discrete chain", numbers={"table": table.as_dict(), "order": table.order()})
+    stage.data("reduced", reduced)
+    section = Section(
+        "Continuum theory (Section 3) against the discrete chain",
+        numbers={"table": table.as_dict(), "order": table.order(), "reduced": reduced},
+    )
     section.paragraphs.append(
         "phi_0 / M of the long-wave solution (11) with the geometry-derived D1, D2, against the discrete linear chain (3), "
         f"and the residue (12); the relative error falls like N^-{table.order():.2f}. "
@@ -590,7 +705,38 @@ def _continuum(stage: _Stage) -> Section:
         )
     )
     section.figures.append((stage.figure(plot_convergence(table), "convergence"), "Relative error and residue against N."))
+    section.paragraphs.append(_reduced_sentence(reduced))
+    section.tables.append(
+        (
+            "The reduced model (D1 = 0, Section 3.2): continuum family against the discrete chain",
+            ["E1 of the reduced chain", "K positive definite", "lowest eigenvalue of K", "discrete phi0/M",
+             "continuum phi(0)/M (the paper's cubic)", "d phi(0) / d alpha", "alpha matching the chain"],
+            [[reduced["E1"], reduced["positive_definite"], reduced["lowest_eigenvalue"], reduced["compliance"],
+              reduced["continuum_compliance"], reduced["family_slope"], reduced["matching_alpha"]]],
+        )
+    )  # fmt: skip
     return section
+
+
+def _reduced_sentence(reduced: dict[str, Any]) -> str:
+    """The reduced model's continuum arbitrariness against the discrete chain's uniqueness, in a sentence from the numbers."""
+    continuum = (
+        "the four conditions fix phi(0) only for N = 1"
+        if reduced["family_slope"] == 0
+        else f"phi(0)/M = {reduced['continuum_compliance']:.4g} + {reduced['family_slope']:.4g} alpha takes any value"
+    )
+    discrete = (
+        f"positive definite (lowest eigenvalue {reduced['lowest_eigenvalue']:.4g}), so its static state is unique: "
+        f"phi_0/M = {reduced['compliance']:.4g}"
+        if reduced["positive_definite"]
+        else "not positive definite"
+    )
+    return (
+        "The reduced model (D1 = 0) as a continuum is arbitrary, as Section 3.2 says, beyond the paper's cubic as well: "
+        "v = v_3 + alpha x (L - x)^2 (x + (L - h)^2 / (2L - h)) meets its equations and all four conditions for every alpha, "
+        f"and {continuum}. The discrete reduced chain (E1 = {reduced['E1']:.4g}, so that D1 = 0) keeps its bending "
+        f"energy E1 b^2 (phi_k+1 - phi_k)^2; its stiffness K is {discrete}."
+    )
 
 
 def _waves(stage: _Stage) -> Section:
@@ -669,7 +815,7 @@ def reproduce(
     out : path
         Output folder (created).
     params : ChainParams, optional
-        Default: the paper's chain.
+        Default: the paper's chain, with the N of ``settings.reading`` if it names one.
     settings : ReproduceSettings, optional
     stages : list of str, optional
         A subset of :data:`STAGES` (default all, in order).
@@ -679,9 +825,14 @@ def reproduce(
     Returns
     -------
     Report
+
+    Raises
+    ------
+    ValueError
+        For an unknown stage or reading, or a ``params`` whose N contradicts ``settings.reading``.
     """
-    params = params or ChainParams()
     settings = settings or ReproduceSettings()
+    params = chain_for_reading(settings, params)
     names = list(STAGES) if stages is None else stages
     unknown = [n for n in names if n not in STAGES]
     if unknown:
@@ -783,6 +934,31 @@ def claims(results: dict[str, Section], settings: ReproduceSettings) -> list[lis
     else:
         rows.append([claim, f"{len(errata['errata'])} printed coefficients or statements disagree with the derivation from model (1)",
                      "no: see the errata (the package uses the derived ones)"])  # fmt: skip
+    claim = 'Section 4: "In our simulations a finite 1D chain consists of seven particles"'
+    if statics is None:
+        missing("statics", claim)
+    else:
+        seven = statics["seven_particles"]
+        computed = "; ".join(
+            f"{name} (N = {r['N']}): compliance {number(r['compliance'])}, M_c " + ", ".join(f"{m} {number(r['M_c'][m])}" for m in ROTATING)
+            for name, r in seven["readings"].items()
+        )
+        changes = ", ".join(f"{m} {number(100 * c, 3)} %" for m, c in seven["M_c_change"].items() if c is not None)
+        used = f"this report uses {seven['used']!r}" if seven["used"] else f"this report's chain (N = {seven['N']}) is neither"
+        rows.append([claim, f"{computed}; M_c changes by {changes}",
+                     f"ambiguous: both readings computed, {used} (reading in [reproduce] selects one)"])  # fmt: skip
+    claim = "Section 3.2: the reduced model (D1 = 0) exhibits some arbitrariness; with the cubic (14) the four conditions give its solution"
+    if continuum is None:
+        missing("continuum", claim)
+    else:
+        reduced = continuum["reduced"]
+        rows.append([claim, f"continuum: v + alpha x (L - x)^2 (x + (L - h)^2/(2L - h)) meets all four for every alpha, "
+                            f"phi(0)/M = {number(reduced['continuum_compliance'])} + {number(reduced['family_slope'])} alpha; "
+                            f"discrete reduced chain (E1 = {number(reduced['E1'])}): lowest eigenvalue of K "
+                            f"{number(reduced['lowest_eigenvalue'])}, phi_0/M = {number(reduced['compliance'])}",
+                     ("yes for the continuum, beyond the cubic too (phi(0) is not determined); the discrete chain's K is positive "
+                      "definite: one static state" if reduced["positive_definite"] else "no: the discrete reduced chain's K is not "
+                      "positive definite")])  # fmt: skip
     return rows
 
 

@@ -9,7 +9,7 @@ from pathlib import Path
 import typer
 
 from ..io import params_from_mapping, read_config
-from .common import app, fail, outputs_or_exit, params_or_exit, progress_bar
+from .common import app, fail, outputs_or_exit, progress_bar
 
 #: The table of a ``--config`` file that holds the report's settings (``ReproduceSettings`` fields).
 SETTINGS_TABLE = "reproduce"
@@ -21,28 +21,43 @@ def reproduce(
     config: Path | None = typer.Option(
         None,
         help="TOML file with ChainParams fields (default: the paper's chain) and, in a [reproduce] table, the report's "
-        "settings (ReproduceSettings fields: m_max, dm, rotation_moment, turns, orbit_moment, n_list, ...).",
+        "settings (ReproduceSettings fields: m_max, dm, rotation_moment, turns, orbit_moment, n_list, reading, ...).",
     ),
     turns: int | None = typer.Option(None, min=1, help="Full turns of the localization run (default 1500, the paper's)."),
+    reading: str | None = typer.Option(
+        None,
+        help="Which reading of the paper's 'seven particles' sets N: clamped-ends-among-seven (N = 3, the default chain) or "
+        "seven-between-walls (N = 4); overrides the [reproduce] table's reading. The report computes both.",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print summary.json (every number and the time of each stage)."),
 ) -> None:
     """Compute every result of the paper and write a self-contained report (index.html, report.md)."""
-    from ..report import ReproduceSettings, settings_from_mapping
+    from ..report import READINGS, ReproduceSettings, chain_for_reading, reading_error, settings_from_mapping
     from ..report import reproduce as run_report
 
     outputs_or_exit({"--out": out}, {"--config": config}, folders=("--out",))
-    if config is None:
-        params, settings = params_or_exit(None), ReproduceSettings()
-    else:
+    error = reading_error(reading)
+    if error:
+        fail(f"--{error}")
+    mapping, settings = {}, ReproduceSettings()
+    if config is not None:
         try:
             mapping = read_config(config)
             table = mapping.pop(SETTINGS_TABLE, {})
             if not isinstance(table, dict):
                 raise ValueError(f"[{SETTINGS_TABLE}] in {str(config)!r} must be a table of ReproduceSettings fields")
             settings = settings_from_mapping(table, source=f"[{SETTINGS_TABLE}] of {str(config)!r}")
-            params = params_from_mapping(mapping, source=str(config))
         except ValueError as err:  # pydantic's ValidationError included: it names the field and the value
             fail(str(err))
+    if reading is not None:
+        settings = dataclasses.replace(settings, reading=reading)
+    # A reading fills in N where the config gives none, and must agree with one it gives.
+    if settings.reading is not None and "N" not in mapping:
+        mapping["N"] = READINGS[settings.reading]
+    try:
+        params = chain_for_reading(settings, params_from_mapping(mapping, source=str(config)))
+    except ValueError as err:  # pydantic's ValidationError included
+        fail(str(err))
     if turns is not None:
         settings = dataclasses.replace(settings, turns=turns)
     bar = progress_bar("reproduce", "stage")
