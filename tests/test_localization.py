@@ -103,7 +103,8 @@ def test_winding_is_the_full_turns_of_the_unwrapped_angle():
     assert d.mean_angular_velocity == pytest.approx(2.0, rel=ROUND_OFF)
     # Particle 1 (column 3) turned once but stopped long before the last quarter: not rotating.
     assert list(d.rotating) == [False, False, True, False, False]
-    assert d.classification == "localized_rotation"
+    # No other particle rotates, but the one that turned once went far: not a small oscillation.
+    assert d.large_motion == ("phi",) and d.classification == "rotation_with_large_motion"
 
 
 def test_classification_several_rotating_and_static():
@@ -117,16 +118,74 @@ def test_classification_several_rotating_and_static():
     assert diag.StreamingDiagnostics(params, "linear", 0, x[0], x[0]).classification == "static"
 
 
+def _frames(params, others, time=np.linspace(0.0, 10.0, 201)):
+    """Stored frames: the loaded particle turns at speed 2, every other free particle oscillates with the
+    amplitudes ``others`` (row -> amplitude, u and v in the units of h as they are stored)."""
+    x = np.zeros((time.size, 3, params.n_particles))
+    c = params.N
+    for row, amplitude in others.items():
+        x[:, row, 1:-1] = amplitude * np.sin(3.0 * time)[:, None]
+    x[:, 2, c] = 2.0 * time
+    x[:, :2, c] = 0.0
+    return time, x
+
+
 @pytest.mark.parametrize("model", ["nonlinear", "sine"])
-def test_localized_rotation_above_the_critical_moment(paper, model):
+@pytest.mark.parametrize(("row", "name"), [(0, "u_over_h"), (1, "v_over_h"), (2, "phi")])
+def test_the_classification_compares_every_amplitude_of_the_others_with_its_threshold(model, row, name):
+    """Just below every threshold: localized; one amplitude just above: large motion, naming it. With h = 2,
+    |u| and |v| count in units of h (a classifier comparing |v| itself would call 0.15 large)."""
+    params = ChainParams(N=2, h=2.0, a=0.4, b=0.4)
+    below = {0: 0.99 * diag.SMALL_DISPLACEMENT * params.h, 1: 0.99 * diag.SMALL_DISPLACEMENT * params.h, 2: 0.99 * diag.SMALL_ANGLE}
+    time, x = _frames(params, below)
+    d = diag.StreamingDiagnostics(params, model, 0, x[0], x[0])
+    d.update(time, x, np.zeros_like(x))
+    assert d.turns_completed == 3 and d.large_motion == () and d.classification == "localized_rotation"
+    assert d.amplitudes_of_others[name] == pytest.approx(0.99 * diag.THRESHOLDS[name], rel=1e-3)
+    above = {**below, row: 1.02 * below[row] / 0.99}
+    time, x = _frames(params, above)
+    d = diag.StreamingDiagnostics(params, model, 0, x[0], x[0])
+    d.update(time, x, np.zeros_like(x))
+    assert d.large_motion == (name,) and d.classification == "rotation_with_large_motion"
+    # Only a model linear in the row leaves its range of validity: the sine model in u and v, the nonlinear never.
+    assert d.outside_validity == ((name,) if model == "sine" and name != "phi" else ())
+
+
+def test_the_models_linear_rows_come_from_their_stiffness():
+    for params in (ChainParams(), ChainParams(N=5, h=2.0, a=0.5, b=0.3, E2=0.4)):
+        assert diag.linear_rows(params, "nonlinear") == ()
+        assert diag.linear_rows(params, "sine") == ("u_over_h", "v_over_h")
+        assert diag.linear_rows(params, "linear") == ("u_over_h", "v_over_h", "phi")
+
+
+def test_the_thresholds_are_where_the_quadratic_term_is_a_tenth_of_the_linear_one():
+    """The reasons the constants' docstrings give, evaluated exactly: a corner turned by SMALL_ANGLE, a link of
+    length h whose ends move apart transversally by twice SMALL_DISPLACEMENT h."""
+    tolerance = diag.LINEARISATION_TOLERANCE
+    phi, r = diag.SMALL_ANGLE, np.array([0.2, 0.3])
+    rotated = np.array([[math.cos(phi), -math.sin(phi)], [math.sin(phi), math.cos(phi)]]) @ r
+    linear = phi * np.array([-r[1], r[0]])
+    assert np.linalg.norm(rotated - r - linear) / np.linalg.norm(linear) == pytest.approx(tolerance, rel=0.02)
+    delta = 2 * diag.SMALL_DISPLACEMENT  # link length 1 (= h)
+    assert (math.hypot(1.0, delta) - 1.0) / delta == pytest.approx(tolerance, rel=0.02)
+
+
+@pytest.mark.parametrize("model", ["nonlinear", "sine"])
+def test_above_the_critical_moment_only_the_loaded_particle_turns_but_the_others_move_far(paper, model):
     result = localization_run(paper, model, ABOVE[model], turns=25, t_max=1000.0)
     summary = result.as_dict()
     assert summary["status"] == "completed" and summary["turns_completed"] == 25
-    assert summary["classification"] == "localized_rotation"
     assert summary["winding"] == {"-3": 0, "-2": 0, "-1": 0, "0": 25, "1": 0, "2": 0, "3": 0}
     assert summary["max_abs_phi_others"] < 1.0 and summary["max_abs_v_others"] < 1.0
-    if model == "sine":  # eq. (2) is linear in u, which nothing drives
+    # Beyond the small-motion thresholds (the others reach 0.33-0.48 rad and 0.34-0.70 h):
+    # the rotation is localized, the others' motion is not small.
+    assert summary["thresholds"] == {"phi": diag.SMALL_ANGLE, "u_over_h": diag.SMALL_DISPLACEMENT, "v_over_h": diag.SMALL_DISPLACEMENT}
+    assert summary["classification"] == "rotation_with_large_motion"
+    if model == "sine":  # eq. (2) is linear in u, which nothing drives; v leaves the range of a model linear in it
         assert summary["max_abs_u_others"] == 0.0
+        assert summary["large_motion"] == ["phi", "v_over_h"] and summary["outside_model_validity"] == ["v_over_h"]
+    else:  # the nonlinear model holds at any amplitude
+        assert summary["large_motion"] == ["phi", "u_over_h", "v_over_h"] and summary["outside_model_validity"] == []
     # The run stops at the step that completes the last turn, so omega t_end = 2 pi turns to one step.
     omega = summary["mean_angular_velocity"]
     assert abs(omega * summary["t_end"] - TWO_PI * 25) <= abs(result.v[2, 3]) * result.dt + ROUND_OFF
@@ -239,7 +298,13 @@ def test_result_file_is_self_describing(paper, tmp_path):
     ds = localization_run(paper, "nonlinear", 0.25, turns=3, t_max=100.0).to_dataset()
     assert list(ds.particle.values) == list(range(-3, 4))
     assert ds.attrs["model"] == "nonlinear" and ds.attrs["param_E1"] == 1.0 and "cosserat_chain_version" in ds.attrs
-    assert ds.attrs["classification"] == "localized_rotation" and int(ds.winding.sel(particle=0)) == 3
+    assert int(ds.winding.sel(particle=0)) == 3
+    # The classification's thresholds travel with it (NetCDF attributes hold numbers and strings).
+    summary = localization_run(paper, "nonlinear", 0.25, turns=3, t_max=100.0).as_dict()
+    assert ds.attrs["classification"] == summary["classification"]
+    assert ds.attrs["threshold_phi"] == diag.SMALL_ANGLE and ds.attrs["threshold_v_over_h"] == diag.SMALL_DISPLACEMENT
+    assert ds.attrs["large_motion"] == ",".join(summary["large_motion"])
+    assert ds.attrs["max_abs_v_others_over_h"] == pytest.approx(float(ds.max_abs_v.drop_sel(particle=0).max()) / paper.h, rel=ROUND_OFF)
 
 
 def test_cli_rotate_json_and_resume(tmp_path):
@@ -251,7 +316,11 @@ def test_cli_rotate_json_and_resume(tmp_path):
     required = {"model", "moment", "turns_completed", "mean_angular_velocity", "max_abs_phi_others", "max_abs_v_others",
                 "max_abs_u_others", "classification", "t_end"}  # fmt: skip
     assert required <= set(data)
-    assert data["turns_completed"] == 8 and data["classification"] == "localized_rotation"
+    assert data["turns_completed"] == 8 and data["classification"] == "rotation_with_large_motion"
+    assert data["thresholds"] == {"phi": diag.SMALL_ANGLE, "u_over_h": diag.SMALL_DISPLACEMENT, "v_over_h": diag.SMALL_DISPLACEMENT}
+    assert data["outside_model_validity"] == ["v_over_h"] and data["max_abs_v_others_over_h"] > diag.SMALL_DISPLACEMENT
+    text = runner.invoke(app, ["rotate", "--model", "sine", "--moment", "0.3", "--turns", "8"])
+    assert text.exit_code == 0 and f"|u|, |v| <= {diag.SMALL_DISPLACEMENT:g} h" in text.stdout and "v_over_h" in text.stdout
     assert (tmp_path / "rot.checkpoint.nc").exists() and read_dataset(out).attrs["turns_completed"] == 8
     more = runner.invoke(app, [*args[:6], "12", *args[7:], "--resume"])
     assert more.exit_code == 0, more.output
@@ -262,11 +331,12 @@ def test_cli_rotate_json_and_resume(tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("model", ["nonlinear", "sine"])
-def test_paper_1500_rotations_stay_localized(paper, model):
+def test_paper_1500_rotations_turn_no_other_particle(paper, model):
     # The paper's test run (end of Section 4); numbers in docs/localization.md.
     result = localization_run(paper, model, ABOVE[model], turns=1500, t_max=1e5)
     summary = result.as_dict()
-    assert summary["turns_completed"] == 1500 and summary["classification"] == "localized_rotation"
+    assert summary["turns_completed"] == 1500 and summary["classification"] == "rotation_with_large_motion"
+    assert summary["winding"] == {str(k): 1500 if k == 0 else 0 for k in range(-3, 4)}
     assert summary["max_abs_phi_others"] < 1.0
 
 

@@ -34,9 +34,21 @@ wrapped by the integrators):
   PR = (sum e_k)^2 / sum e_k^2, between 1 (all energy on one particle) and 2N-1
   (evenly spread), averaged over the steps with non-zero energy;
 * a particle is *rotating* if it made at least one full turn and made its latest
-  new turn in the last ``RECENT_FRACTION`` of the run; the run is ``static`` if no
-  particle rotates, ``localized_rotation`` if exactly the loaded one does, and
-  ``several_rotating`` if any other particle does.
+  new turn in the last ``RECENT_FRACTION`` of the run;
+* the *amplitudes of the others*: the largest |phi| (rad), |u| / h and |v| / h over the
+  steps and over the particles other than the loaded one, each against its threshold
+  in :data:`THRESHOLDS` (:data:`SMALL_ANGLE`, :data:`SMALL_DISPLACEMENT`): the paper's
+  "other particles performed small oscillations only" (end of Section 4) is two claims,
+  that no other particle turns and that the others' motion is small;
+* the run is ``static`` if no particle rotates, ``several_rotating`` if a particle other
+  than the loaded one does, and if exactly the loaded one does, ``localized_rotation``
+  when every amplitude of the others is within its threshold and
+  ``rotation_with_large_motion`` when one is not (``large_motion`` names them);
+* the model's *range of validity*: a model whose forces are linear in u and v (the sine
+  model (2) and the linear model (3); found from the model's stiffness, which is then
+  independent of u and v, :func:`linear_rows`) describes displacements up to
+  :data:`SMALL_DISPLACEMENT` h only, and one linear in phi (the linear model) angles up
+  to :data:`SMALL_ANGLE`; ``outside_validity`` names what went beyond, over every particle.
 """
 
 from __future__ import annotations
@@ -59,7 +71,52 @@ TWO_PI = 2.0 * math.pi
 WINDOW_TURNS = 10
 #: A particle still rotates if its latest new turn lies in this last fraction of the run.
 RECENT_FRACTION = 0.25
-CLASSIFICATIONS = ("static", "localized_rotation", "several_rotating")
+CLASSIFICATIONS = ("static", "localized_rotation", "rotation_with_large_motion", "several_rotating")
+#: Largest ratio of the first neglected (quadratic) term to the kept linear one at which a
+#: motion counts as small: the linear models (2)-(3) keep only the linear terms in the
+#: displacements (eq. (2)) or in the displacements and angles (eq. (3)).
+LINEARISATION_TOLERANCE = 0.1
+#: Largest |phi| (rad) of a small rotation: a corner r of a particle turned by phi moves by
+#: phi J r - phi^2 r / 2 + O(phi^3), the quadratic term phi / 2 of the linear one, which is
+#: LINEARISATION_TOLERANCE at 0.2 rad (sin phi = phi to phi^2 / 6 = 0.7 % there).
+SMALL_ANGLE = 2.0 * LINEARISATION_TOLERANCE
+#: Largest |u| / h and |v| / h of a small displacement: a link of length l whose ends move
+#: apart by Delta (at most twice the particles' largest displacement) changes its length by
+#: Delta_parallel + Delta_perp^2 / (2 l) + ..., the quadratic term Delta / (2 l) of the linear
+#: one, which is LINEARISATION_TOLERANCE for links about h long at displacements of 0.1 h.
+SMALL_DISPLACEMENT = LINEARISATION_TOLERANCE
+#: The thresholds of the others' amplitudes, by name: phi in rad, u and v in units of h.
+THRESHOLDS = {"phi": SMALL_ANGLE, "u_over_h": SMALL_DISPLACEMENT, "v_over_h": SMALL_DISPLACEMENT}
+#: Rows of the state (u, v, phi) named as in THRESHOLDS.
+_AMPLITUDE_ROWS = {"u_over_h": 0, "v_over_h": 1, "phi": 2}
+#: Size of the probe displacements and angles of linear_rows (a moderate state, not rest).
+_PROBE = 0.3
+#: Relative change of the stiffness below which linear_rows takes it as unchanged (round-off).
+_LINEAR_RTOL = 1e-12
+
+
+def linear_rows(params: ChainParams, model: str | Model) -> tuple[str, ...]:
+    """The rows of the state (``"u_over_h"``, ``"v_over_h"``, ``"phi"``) in which the model's forces are linear.
+
+    A model is linear in a row if its stiffness -dF/dq does not change when that row alone
+    is displaced from rest (by a fixed pseudo-random state of size 0.3 h or 0.3 rad): the
+    sine model (2) in u and v (its stiffness is K diag(1, 1, cos phi)), the linear model (3)
+    in all three, the nonlinear model (1) in none. Computed, so that any registered model
+    is judged by its forces, not by its name.
+    """
+    model = get_model(model)
+    rest = model.stiffness(params, np.zeros((3, params.n_particles))).tocsr()
+    scale = abs(rest).max()
+    probe = _PROBE * np.sin(np.arange(1, params.n_particles + 1) * 1.7)  # deterministic, no symmetry
+    probe[[0, -1]] = 0.0  # the clamped ends stay at rest
+    rows = []
+    for name, row in _AMPLITUDE_ROWS.items():
+        x = np.zeros((3, params.n_particles))
+        x[row] = probe * (params.h if row < 2 else 1.0)
+        change = abs(model.stiffness(params, x).tocsr() - rest).max()
+        if change <= _LINEAR_RTOL * scale:
+            rows.append(name)
+    return tuple(rows)
 
 
 def bond_energies(params: ChainParams, model: str | Model, x: np.ndarray) -> np.ndarray:
@@ -287,13 +344,39 @@ class StreamingDiagnostics:
             return (self.turns >= 1) & (self.last_turn_time >= recent)
 
     @property
+    def amplitudes_of_others(self) -> dict[str, float]:
+        """Largest |phi| (rad), |u| / h and |v| / h over the steps and the particles other than the loaded one."""
+        h = self.params.h
+        return {
+            "phi": self.max_over_others(self.max_abs_phi),
+            "u_over_h": self.max_over_others(self.max_abs_u) / h,
+            "v_over_h": self.max_over_others(self.max_abs_v) / h,
+        }
+
+    @property
+    def large_motion(self) -> tuple[str, ...]:
+        """The amplitudes of the others beyond their :data:`THRESHOLDS` (names as there)."""
+        return tuple(name for name, value in self.amplitudes_of_others.items() if value > THRESHOLDS[name])
+
+    @property
+    def outside_validity(self) -> tuple[str, ...]:
+        """The rows in which the model is linear (:func:`linear_rows`) whose largest amplitude over every
+        particle went beyond its threshold: where the model left its own range of validity."""
+        h = self.params.h
+        largest = {"phi": float(np.max(self.max_abs_phi)), "u_over_h": float(np.max(self.max_abs_u)) / h,
+                   "v_over_h": float(np.max(self.max_abs_v)) / h}  # fmt: skip
+        return tuple(name for name in linear_rows(self.params, self.model) if largest[name] > THRESHOLDS[name])
+
+    @property
     def classification(self) -> str:
-        """``static``, ``localized_rotation`` or ``several_rotating`` (module docstring)."""
+        """``static``, ``localized_rotation``, ``rotation_with_large_motion`` or ``several_rotating`` (module docstring)."""
         rotating = self.rotating
         others = np.delete(rotating, self.column)
         if others.any():
             return "several_rotating"
-        return "localized_rotation" if rotating[self.column] else "static"
+        if not rotating[self.column]:
+            return "static"
+        return "rotation_with_large_motion" if self.large_motion else "localized_rotation"
 
     def max_over_others(self, values: np.ndarray) -> float:
         """Largest entry of a per-particle array over the particles other than the loaded one."""

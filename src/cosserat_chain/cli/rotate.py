@@ -33,6 +33,9 @@ def rotate(
 ) -> None:
     """Turn one particle with a constant moment for many turns; report how localized the rotation stays.
 
+    The classification compares the other particles' largest |phi|, |u| / h and |v| / h with the
+    thresholds of a small motion; --json gives them as ``thresholds``.
+
     Exit status: 0 done (turns made or t_max reached), 2 bad input, 3 blow-up, 130 interrupted (saved).
     """
     from ..experiments.localization import localization_run
@@ -77,11 +80,16 @@ def rotate(
     if as_json:
         typer.echo(json.dumps(summary))
     else:
+        limits = summary["thresholds"]
+        outside = summary["outside_model_validity"]
         typer.echo(
             f"{summary['model']}, M={moment:g}: {summary['turns_completed']} turns by t={summary['t_end']:.6g}, "
             f"mean angular velocity {_number(summary['mean_angular_velocity'])}, {summary['classification']}; "
-            f"others: max |phi| {summary['max_abs_phi_others']:.4g}, |v| {summary['max_abs_v_others']:.4g}, "
-            f"|u| {summary['max_abs_u_others']:.4g}" + (f"; wrote {out}" if out else "")
+            f"others: max |phi| {summary['max_abs_phi_others']:.4g} rad, |v| {summary['max_abs_v_others_over_h']:.4g} h, "
+            f"|u| {summary['max_abs_u_others_over_h']:.4g} h (small: |phi| <= {limits['phi']:g} rad, |u|, |v| <= "
+            f"{limits['v_over_h']:g} h)"
+            + (f"; outside the {summary['model']} model's linear range: {', '.join(outside)}" if outside else "")
+            + (f"; wrote {out}" if out else "")
         )
     exit_on(result.status, result.message)
 

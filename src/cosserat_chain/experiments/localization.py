@@ -47,7 +47,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from ..analysis.diagnostics import StreamingDiagnostics
+from ..analysis.diagnostics import THRESHOLDS, StreamingDiagnostics
 from ..io import read_dataset, write_dataset
 from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
@@ -145,9 +145,17 @@ class LocalizationResult:
         return self.step * self.dt
 
     def as_dict(self) -> dict[str, Any]:
-        """JSON-ready summary: the keys of issue 5 (``model`` ... ``t_end``) first, then extras."""
+        """JSON-ready summary: the keys of issue 5 (``model`` ... ``t_end``) first, then extras.
+
+        ``max_abs_u_others`` and ``max_abs_v_others`` are in the units of h, ``..._over_h``
+        divided by h; ``thresholds`` are those of the classification
+        (:data:`~cosserat_chain.analysis.diagnostics.THRESHOLDS`: ``phi`` in rad, the
+        others in units of h), ``large_motion`` the amplitudes of the others beyond them,
+        ``outside_model_validity`` the rows in which the model is linear and went beyond them.
+        """
         d = self.diagnostics
         n = self.params.N
+        amplitudes = d.amplitudes_of_others
         return {
             "model": self.model,
             "moment": self.moment,
@@ -158,6 +166,11 @@ class LocalizationResult:
             "max_abs_u_others": d.max_over_others(d.max_abs_u),
             "classification": d.classification,
             "t_end": self.t_end,
+            "max_abs_u_others_over_h": amplitudes["u_over_h"],
+            "max_abs_v_others_over_h": amplitudes["v_over_h"],
+            "thresholds": dict(THRESHOLDS),
+            "large_motion": list(d.large_motion),
+            "outside_model_validity": list(d.outside_validity),
             "recent_angular_velocity": _finite(d.recent_angular_velocity),
             "participation_ratio": _finite(d.participation_ratio),
             "loaded_energy_share": _finite(float(d.mean_energy_share[d.column])),
@@ -184,8 +197,8 @@ class LocalizationResult:
             "winding": (("particle",), d.winding, {"long_name": "signed full turns trunc(theta / 2 pi) at t_end"}),
             "turns": (("particle",), d.turns, {"long_name": "largest number of full turns reached"}),
             "unwrapped_angle": (("particle",), d.unwrapped_angle, {"long_name": "phi(t_end) - phi(0)", "units": "rad"}),
-            "max_abs_u": (("particle",), d.max_abs_u, {"long_name": "max over the steps of |u|", "units": "h"}),
-            "max_abs_v": (("particle",), d.max_abs_v, {"long_name": "max over the steps of |v|", "units": "h"}),
+            "max_abs_u": (("particle",), d.max_abs_u, {"long_name": "max over the steps of |u|", "units": "those of h"}),
+            "max_abs_v": (("particle",), d.max_abs_v, {"long_name": "max over the steps of |v|", "units": "those of h"}),
             "max_abs_phi": (("particle",), d.max_abs_phi, {"long_name": "max over the steps of |phi|", "units": "rad"}),
             "last_turn_time": (("particle",), d.last_turn_time, {"long_name": "time of the latest new full turn"}),
             "mean_energy_share": (("particle",), d.mean_energy_share, {"long_name": "mean fraction of the chain's energy"}),
@@ -198,7 +211,11 @@ class LocalizationResult:
             data[name] = (dims, values, {"long_name": "streaming-diagnostics state (for resuming)"})
         ds = xr.Dataset(data, coords={"particle": np.arange(-self.params.N, self.params.N + 1)})
         ds.attrs.update(run_attributes(self.params, model, moment_load(self.moment, self.particle)))
-        summary = {key: value for key, value in self.as_dict().items() if key not in ("winding", "rotating_particles", "params")}
+        summary = self.as_dict()
+        # NetCDF attributes hold numbers and strings: the thresholds one by one, the lists joined.
+        summary.update({f"threshold_{name}": value for name, value in summary.pop("thresholds").items()})
+        summary.update({key: ",".join(summary[key]) for key in ("large_motion", "outside_model_validity")})
+        summary = {key: value for key, value in summary.items() if key not in ("winding", "rotating_particles", "params")}
         ds.attrs.update({key: ("" if value is None else value) for key, value in summary.items()})
         ds.attrs.update({"experiment": "localization_run", "checkpoint_format": CHECKPOINT_FORMAT, "chunk_steps": self.chunk_steps})
         ds.attrs["checkpoint_sha256"] = _checksum(ds)
