@@ -15,11 +15,13 @@ holds an older one removes the older files it did not write again (and nothing e
 so the folder holds one report, whole.
 
 Stages: ``statics`` (Fig. 2: compliance, critical moment and fold angle per model,
-exactly and by the relaxation protocol, the hysteresis loop), ``orbits`` (rotating
+exactly and by the relaxation protocol, the hysteresis loop, and both readings of the
+paper's "seven particles", :data:`READINGS`), ``orbits`` (rotating
 states as periodic orbits: the rotation characteristic and both edges of the
 hysteresis loop), ``rotation`` (Figs. 3a
 and 3b, an animation), ``localization`` (the 1500-rotation runs), ``continuum``
-(Section 3 against the discrete chain), ``waves`` (dispersion, band gap), ``errata``.
+(Section 3 against the discrete chain, and the reduced model's continuum family against
+the discrete reduced chain), ``waves`` (dispersion, band gap), ``errata``.
 """
 
 from __future__ import annotations
