@@ -12,6 +12,7 @@ from typer.testing import CliRunner
 
 import cosserat_chain.report as report_module
 from cosserat_chain import ChainParams
+from cosserat_chain.analysis.agreement import agreement_range, static_deviation
 from cosserat_chain.analysis.continuum import convergence
 from cosserat_chain.cli import app
 from cosserat_chain.experiments.critical import critical_point
@@ -90,9 +91,22 @@ def test_table_numbers_equal_the_python_api(quick_report):
     for row in localization[1:]:
         model = row[0]
         result = localization_run(params, model, QUICK.rotation_moment[model], turns=QUICK.turns, t_max=100.0 * QUICK.turns).as_dict()
-        assert row[2:8] == [
-            format_cell(result[k])
-            for k in ("turns_completed", "t_end", "mean_angular_velocity", "max_abs_phi_others", "max_abs_v_others", "max_abs_u_others")
+        keys = (
+            "turns_completed",
+            "t_end",
+            "mean_angular_velocity",
+            "max_abs_phi_others",
+            "max_abs_v_others_over_h",
+            "max_abs_u_others_over_h",
+        )
+        assert row[2:8] == [format_cell(result[k]) for k in keys]
+        assert row[8:] == [", ".join(result["outside_model_validity"]) or "—", result["classification"]]
+    agreement = next(rows for caption, rows in tables.items() if caption.startswith("How far the models agree"))
+    for row in agreement[1:]:
+        # The stage reuses the critical branch; traced afresh here.
+        edge = agreement_range(params, row[0], tolerance=report_module.AGREEMENT_TOLERANCE)
+        assert row[1:6] == [format_cell(v) for v in (edge.moment, edge.phi0_linear, edge.phi0, edge.bound)] + [
+            format_cell(float(static_deviation(params, row[0], [report_module.AGREEMENT_ANGLE])[0]))
         ]
     edges = tables["Edges of the hysteresis loop: exact, and by the relaxation protocol"][1]
     orbit = periodic_orbit(params, "sine", QUICK.orbit_moment, down_to=QUICK.orbit_down_to)
@@ -204,9 +218,16 @@ def test_the_claims_table_is_computed_from_the_stages(quick_report):
 
     rows = quick_report.summary["claims"]
     statics = next(s for s in quick_report.sections if s.title.startswith("Static response")).numbers
-    assert [set(row) for row in rows] == [set(CLAIMS_HEADER)] * len(rows) and len(rows) == 8
-    assert f"nonlinear {statics['nonlinear']['M_c']:.4g}" in rows[1]["this package computes"]
-    assert all(row["agreement"].startswith("yes") for row in rows[:4]), rows
+    assert [set(row) for row in rows] == [set(CLAIMS_HEADER)] * len(rows) and len(rows) == 10
+    assert f"nonlinear {statics['nonlinear']['M_c']:.4g}" in rows[3]["this package computes"]
+    assert all(row["agreement"].startswith("yes") for row in rows[:5]), rows
+    # Small loads: the range of agreement, and the paper's remark on the sine model's error failing at N = 1.
+    ranges = statics["agreement"]["ranges"]
+    assert f"up to M = {ranges['nonlinear']['moment']:.4g} (nonlinear)" in rows[1]["this package computes"]
+    assert rows[2]["agreement"].startswith("yes (this chain); no (N = 1)")
+    # Localization: no other particle turns, but the others' motion is beyond the small-motion thresholds.
+    assert rows[5]["agreement"].startswith(f"partly: over {QUICK.turns} turns no other particle turned")
+    assert "|phi| <= 0.2 rad, |u|, |v| <= 0.1 h" in rows[5]["agreement"] and "sine (|v|/h)" in rows[5]["agreement"]
     markdown = (quick_report.out / "report.md").read_text()
     assert "## Contents" in markdown and all(row["the paper says"] in markdown for row in rows)
     # A failed stage is named in its rows, not hidden.
