@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from cosserat_chain import ChainParams
+from cosserat_chain.state import fixed_mask
 
 #: Round-off level for exact identities between independent implementations.
 ROUND_OFF = 1e-12
@@ -35,10 +36,12 @@ def random_geometries(count: int, seed: int = 0) -> list[ChainParams]:
 
 
 def random_state(params: ChainParams, scale: float, seed: int = 0) -> np.ndarray:
-    """A random configuration with clamped ends; ``scale`` sets |u|, |v| (in h) and |phi|."""
+    """A random configuration, zero where the ends hold it; ``scale`` sets |u|, |v| (in h) and |phi|."""
     rng = np.random.default_rng(seed)
     x = np.zeros((3, params.n_particles))
     x[:, 1:-1] = scale * rng.standard_normal((3, params.n_particles - 2))
+    ends = scale * rng.standard_normal((3, 2))
+    x[:, [0, -1]] = np.where(fixed_mask(params)[:, [0, -1]], 0.0, ends)
     x[:2] *= params.h
     return x
 

@@ -34,10 +34,9 @@ def test_python_dash_m_and_version():
 
 
 def test_shell_completion_script_is_offered():
-    out = subprocess.run(
-        [sys.executable, "-m", "cosserat_chain", "--show-completion", "bash"], capture_output=True, text=True, check=True
-    ).stdout
-    assert "complete" in out and "COMP_WORDS" in out
+    result = subprocess.run([sys.executable, "-m", "cosserat_chain", "--show-completion", "bash"], capture_output=True, text=True)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "complete" in result.stdout and "COMP_WORDS" in result.stdout
 
 
 def test_models_command_lists_the_registry():

@@ -55,7 +55,7 @@ def test_sweep_json_reports_steps_onset_and_stop(tmp_path):
     [
         (["sweep", "--m-max", "0.3"], "exactly one of steps"),
         (["sweep", "--m-max", "0.3", "--steps", "3", "--dm", "0.1"], "exactly one of steps"),
-        (["sweep", "--m-max", "0.3", "--steps", "3", "--particle", "3"], "is clamped"),
+        (["sweep", "--m-max", "0.3", "--steps", "3", "--particle", "3"], "end is clamped"),
     ],
 )
 def test_sweep_bad_input_exits_2_with_a_message(args, message):
@@ -66,7 +66,7 @@ def test_sweep_bad_input_exits_2_with_a_message(args, message):
 
 def test_critical_refuses_a_clamped_particle():
     result = runner.invoke(app, ["critical", "--model", "sine", "--particle", "-3"])
-    assert result.exit_code == 2 and "free particle" in result.output
+    assert result.exit_code == 2 and "is held fixed by the left end (clamped)" in result.output
 
 
 def test_critical_with_a_branch_cut_short_writes_it_and_exits_max_steps(tmp_path):

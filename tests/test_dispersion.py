@@ -191,7 +191,7 @@ def test_mode_shapes_solve_the_eigen_problem_about_a_nonlinear_static_state(pape
     modes = finite_modes(paper, "nonlinear", x)
     K = NONLINEAR.stiffness(paper, x).toarray()
     mass = np.tile(paper.inertia, paper.n_particles - 2)
-    vectors = np.stack([pack(shape) for shape in modes.shapes], axis=1)
+    vectors = np.stack([pack(paper, shape) for shape in modes.shapes], axis=1)
     np.testing.assert_allclose(K @ vectors, mass[:, None] * vectors * modes.omega2.real[None, :], atol=1e-10)
     np.testing.assert_allclose(vectors.T @ (mass[:, None] * vectors), np.eye(vectors.shape[1]), atol=1e-10)
     assert np.all(modes.shapes[:, :, [0, -1]] == 0)

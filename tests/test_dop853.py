@@ -25,7 +25,7 @@ TREES_PER_ORDER = (1, 1, 2, 4, 9, 20, 48, 115)
 
 
 @njit(FORCE_SIGNATURE)
-def no_force(x, coef, out, start, stop):  # pragma: no cover - compiled
+def no_force(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
     """The force kernel handed to right-hand sides that have no chain."""
 
 

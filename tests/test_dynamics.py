@@ -112,7 +112,7 @@ def test_damped_energy_balance_closes_at_the_declared_order(method, model):
 def test_damped_linear_chain_relaxes_to_static_solution(paper):
     f = np.zeros((3, paper.n_particles))
     f[2, paper.N] = 0.02
-    static = unpack(spla.spsolve(LINEAR.stiffness(paper).tocsc(), pack(f)), paper.n_particles)
+    static = unpack(paper, spla.spsolve(LINEAR.stiffness(paper).tocsc(), pack(paper, f)))
     run = integrate(paper, "linear", moment_load(0.02), t_end=800.0, n_frames=2)
     np.testing.assert_allclose(run.x[-1], static, atol=1e-9)
     assert np.max(np.abs(run.v[-1])) < 1e-9

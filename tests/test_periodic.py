@@ -43,7 +43,7 @@ def test_variational_force_jacobian_equals_minus_stiffness(paper, model):
     x, v = random_state(paper, 0.3, seed=2), random_state(paper, 1.0, seed=3)
     system = _System(paper, m, 0.2, 0)
     nf = n_free(paper)
-    y = np.concatenate([pack(x), pack(v), np.hstack([np.eye(2 * nf), np.zeros((2 * nf, 1))]).ravel()])
+    y = np.concatenate([pack(paper, x), pack(paper, v), np.hstack([np.eye(2 * nf), np.zeros((2 * nf, 1))]).ravel()])
     dphi = system.rhs(2 * nf + 1)(0.0, y)[2 * nf :].reshape(2 * nf, 2 * nf + 1)
     inv_mass = np.tile(1.0 / np.array(paper.inertia), paper.n_particles - 2)
     expected = -m.stiffness(paper, x).toarray() * inv_mass[:, None]

@@ -45,7 +45,7 @@ def test_numeric_models_use_exactly_the_derived_coefficients(params):
 def test_derived_bond_energy_is_the_second_order_expansion_of_model_i(params):
     # The derived bond Hessian, assembled over the chain, is the nonlinear model's exact Hessian at rest.
     blocks = np.broadcast_to(derived_bond_hessian(params), (params.n_particles - 1, 6, 6))
-    derived = assemble_bond_blocks(np.ascontiguousarray(blocks), params.n_particles).toarray()
+    derived = assemble_bond_blocks(np.ascontiguousarray(blocks), params).toarray()
     exact = NONLINEAR.stiffness(params, zeros(params)).toarray()
     np.testing.assert_allclose(derived, exact, rtol=0, atol=1e-10 * np.max(np.abs(exact)))
 

@@ -49,6 +49,6 @@ def test_the_kick_drift_vectorises_with_its_energy_sums():
     a = np.zeros(64)
     rows = np.zeros((3, 64))
     row(rows, rows.copy(), rows.copy(), 0, 1, 63, 1.0, 0.0, 0.0, 0.0)
-    lanes(a, a.copy(), a.copy(), np.ones(8), np.zeros(8), np.zeros(8), np.zeros(8), np.zeros(8))
+    lanes(a, a.copy(), a.copy(), np.ones(8), np.zeros(8), np.zeros(8), np.zeros(8), np.zeros(8), 1, a.size // 8 - 1)
     for fresh in (row, lanes):
         assert len(PACKED.findall(fresh.inspect_asm(fresh.signatures[0]))) >= 4

@@ -18,6 +18,7 @@ file.
 from __future__ import annotations
 
 import json
+import math
 import os
 import shlex
 import stat
@@ -37,6 +38,8 @@ from .state import ROWS
 
 if TYPE_CHECKING:  # xarray is imported where a file is read or written: the command line starts without it
     import xarray as xr
+
+    from .loads import Loads
 
 #: Largest configuration or study spec read (bytes): a TOML file of parameters is a few
 #: hundred bytes; this bounds what a mistyped path (a log, /dev/zero) can make us read.
@@ -366,11 +369,14 @@ def write_dataset(dataset: xr.Dataset, path: str | Path) -> Path:
     """Write ``dataset`` to NetCDF at ``path`` atomically, CF-described (:func:`describe`); returns the path.
 
     Attribute values that are subclasses of ``str`` (a :class:`~cosserat_chain.status.Status`)
-    are written as plain strings: h5netcdf finds no conversion for them.
+    are written as plain strings: h5netcdf finds no conversion for them. Booleans (such as
+    ``param_periodic``) are written as 0 or 1: NetCDF has no boolean type (``params_json``
+    keeps them as booleans).
     """
     dataset = describe(dataset)
     for attrs in [dataset.attrs, *(variable.attrs for variable in dataset.variables.values())]:
         attrs.update({key: str(value) for key, value in attrs.items() if isinstance(value, str) and type(value) is not str})
+        attrs.update({key: int(value) for key, value in attrs.items() if isinstance(value, (bool, np.bool_))})
     with atomic_path(path) as tmp:
         dataset.to_netcdf(tmp, engine="h5netcdf")
     return Path(path)
@@ -477,11 +483,35 @@ def params_from_mapping(mapping: dict[str, Any], source: str = "config") -> Chai
     return ChainParams(**mapping)
 
 
+#: The table of a config file that holds loads (``[[loads]]``, :func:`cosserat_chain.loads.load_from_table`).
+LOADS_TABLE = "loads"
+
+
 def load_params(path: str | Path | None = None) -> ChainParams:
-    """``ChainParams`` from a TOML file, or the paper's defaults when ``path`` is None."""
+    """``ChainParams`` from a TOML file, or the paper's defaults when ``path`` is None.
+
+    A ``[[loads]]`` array in the file is not a parameter: :func:`load_config` reads both.
+    """
+    return load_config(path)[0]
+
+
+def load_config(path: str | Path | None = None) -> tuple[ChainParams, Loads]:
+    """``ChainParams`` and the ``[[loads]]`` of a TOML file (the paper's chain and no loads when ``path`` is None).
+
+    Raises
+    ------
+    ValueError
+        For a bad parameter or load, naming the key, the value and what is allowed (a
+        load on a degree of freedom the chain's ends hold included).
+    """
+    from .loads import Loads, loads_from_tables
+
     if path is None:
-        return ChainParams()
-    return params_from_mapping(read_config(path), source=str(path))
+        return ChainParams(), Loads()
+    mapping = read_config(path)
+    tables = mapping.pop(LOADS_TABLE, [])
+    params = params_from_mapping(mapping, source=str(path))
+    return params, loads_from_tables(tables, source=f"[[{LOADS_TABLE}]] of {str(path)!r}").validate(params)
 
 
 def params_of(dataset: xr.Dataset) -> ChainParams:
@@ -495,6 +525,38 @@ def params_of(dataset: xr.Dataset) -> ChainParams:
     if "params_json" not in dataset.attrs:
         raise ValueError("the dataset has no params_json attribute: pass params explicitly")
     return params_from_mapping(json.loads(dataset.attrs["params_json"]), source="params_json")
+
+
+def run_frame(dataset: xr.Dataset, at: float | None = None) -> tuple[ChainParams, Loads, float, np.ndarray, np.ndarray]:
+    """The chain, the loads and one stored frame (time, positions, velocities) of a run, to start another from.
+
+    ``at`` picks the stored frame nearest that time (default the last); the run's own
+    parameters and loads come with it, so that a run started there continues its time
+    axis and its loads' schedules.
+
+    Raises
+    ------
+    ValueError
+        If the dataset is not a run with velocities (``simulate --out``), or ``at`` lies
+        outside its time axis.
+    """
+    from .loads import Loads
+
+    params = params_of(dataset)
+    times, states = run_states(params, dataset)
+    missing = [f"{row}_dot" for row in ROWS if f"{row}_dot" not in dataset]
+    if missing:
+        raise ValueError(f"the dataset lacks the velocities {missing}: start from a run written by simulate --out")
+    if at is None:
+        frame = times.size - 1
+    else:
+        if not (math.isfinite(at) and times[0] <= at <= times[-1]):
+            raise ValueError(f"--at must lie within the run's times {times[0]:g}..{times[-1]:g}, got {at!r}")
+        frame = int(np.argmin(np.abs(times - at)))
+    ordered = dataset.sortby("particle").isel(time=frame)
+    velocities = np.stack([np.asarray(ordered[f"{row}_dot"].values, dtype=float) for row in ROWS])
+    loads = Loads.from_list(json.loads(dataset.attrs.get("loads_json", "[]")))
+    return params, loads.validate(params), float(times[frame]), np.ascontiguousarray(states[frame]), velocities
 
 
 def run_states(params: ChainParams, dataset: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:

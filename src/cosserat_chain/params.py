@@ -26,7 +26,7 @@ import math
 from typing import Any
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, StrictInt, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictBool, StrictInt, field_validator, model_validator
 
 #: Default viscous coefficient of every degree of freedom (the paper gives none). With
 #: the paper's geometry it damps the rotational modes (omega ~ 3-5, j ~ 0.027) at about
@@ -35,10 +35,23 @@ from pydantic import BaseModel, ConfigDict, Field, StrictInt, field_validator, m
 DEFAULT_DAMPING = 0.1
 
 
+#: What an end particle may be: ``"clamped"`` (u = v = phi = 0), ``"pinned"`` (u = v = 0,
+#: phi free: a hinge) or ``"free"`` (no condition).
+END_KINDS = ("clamped", "pinned", "free")
+#: The ends of a ring (``periodic=True``), set by the ring itself: it has none.
+RING = "ring"
+#: Degrees of freedom (rows u, v, phi) each kind of end holds fixed.
+FIXED_ROWS = {"clamped": (0, 1, 2), "pinned": (0, 1), "free": (), RING: ()}
+
+
 #: Magnitudes a field may take: the model is dimensionless, and its coefficients multiply and
 #: square the fields (d^2 = (h - 2a)^2 + 4 b^2, E h^2 / d^2), which overflow or vanish far outside.
 MAX_MAGNITUDE = 1e100
 MIN_MAGNITUDE = 1e-100
+
+
+#: Fields that are not numbers (checked by their own validators).
+_NOT_NUMBERS = ("N", "left_end", "right_end", "periodic")
 
 
 class ChainParams(BaseModel):
@@ -67,8 +80,16 @@ class ChainParams(BaseModel):
         Viscous coefficients of eqs. (2)-(3), >= 0. Default ``DEFAULT_DAMPING`` = 0.1
         each, a medium that resists every motion alike; the paper gives no value.
     N : int
-        Half the number of particles: particles are indexed -N..N, and +-N are
-        clamped (u = v = phi = 0). N = 3 is the paper's chain of seven particles.
+        Half the number of particles: particles are indexed -N..N. N = 3 is the
+        paper's chain of seven particles (the ends +-N among them, clamped).
+    left_end, right_end : {"clamped", "pinned", "free"}
+        Condition on particle -N and on particle N: ``"clamped"`` (default, the
+        paper's: u = v = phi = 0), ``"pinned"`` (u = v = 0, phi free) or ``"free"``.
+    periodic : bool
+        A ring: particle N is bonded to particle -N as to a neighbour h further on
+        (the infinite chain with period (2N+1) h). Every particle is then free;
+        ``left_end`` and ``right_end`` must be left out (they become ``"ring"``).
+        Default False.
 
     Notes
     -----
@@ -90,7 +111,10 @@ class ChainParams(BaseModel):
     gamma_u: float = Field(DEFAULT_DAMPING, description="viscosity of u (>= 0)")
     gamma_v: float = Field(DEFAULT_DAMPING, description="viscosity of v (>= 0)")
     gamma_phi: float = Field(DEFAULT_DAMPING, description="viscosity of phi (>= 0)")
-    N: StrictInt = Field(3, description="particles -N..N, ends clamped (>= 1)")
+    N: StrictInt = Field(3, description="particles -N..N (>= 1)")
+    left_end: str = Field("clamped", description="particle -N: clamped, pinned or free")
+    right_end: str = Field("clamped", description="particle N: clamped, pinned or free")
+    periodic: StrictBool = Field(False, description="a ring: particle N bonded to particle -N")
 
     @model_validator(mode="before")
     @classmethod
@@ -103,7 +127,7 @@ class ChainParams(BaseModel):
         # would pass unnoticed). N must be an integer (StrictInt).
         data = {key: value.item() if isinstance(value, np.generic) else value for key, value in data.items()}
         for key, value in data.items():
-            if key not in cls.model_fields or key == "N" or value is None:
+            if key not in cls.model_fields or key in _NOT_NUMBERS or value is None:
                 continue
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise ValueError(f"{key} must be a number, got {value!r} ({type(value).__name__})")
@@ -141,8 +165,24 @@ class ChainParams(BaseModel):
     @classmethod
     def _at_least_one(cls, value: int) -> int:
         if value < 1:
-            raise ValueError(f"N must be an integer >= 1 (particles -N..N with clamped ends), got {value!r}")
+            raise ValueError(f"N must be an integer >= 1 (particles -N..N), got {value!r}")
         return value
+
+    @model_validator(mode="before")
+    @classmethod
+    def _ends(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        periodic = data.get("periodic", False)
+        ring = periodic is True or (isinstance(periodic, np.bool_) and bool(periodic))
+        given = {name: data[name] for name in ("left_end", "right_end") if name in data}
+        for name, value in given.items():
+            if ring and value != RING:
+                raise ValueError(f"periodic=True (a ring) has no ends: leave {name} out, got {name}={value!r}")
+            if not ring and value not in END_KINDS:
+                extra = " ('ring' only with periodic = true)" if value == RING else ""
+                raise ValueError(f"{name} must be one of {', '.join(map(repr, END_KINDS))}, got {value!r}{extra}")
+        return {**data, "left_end": RING, "right_end": RING} if ring else data
 
     @model_validator(mode="after")
     def _particles_do_not_touch(self) -> ChainParams:
@@ -155,8 +195,45 @@ class ChainParams(BaseModel):
     # ------------------------------------------------------------------ derived
     @property
     def n_particles(self) -> int:
-        """Number of particles 2N+1, clamped ends included."""
+        """Number of particles 2N+1, end particles included."""
         return 2 * self.N + 1
+
+    @property
+    def ends(self) -> tuple[str, str]:
+        """Kinds of the two ends (left, right); ``("ring", "ring")`` for a ring, whose particles all move."""
+        return (self.left_end, self.right_end)
+
+    @property
+    def clamped(self) -> bool:
+        """Whether both ends are clamped (the paper's chain; the continuum solutions of Section 3 need it)."""
+        return not self.periodic and self.left_end == self.right_end == "clamped"
+
+    @property
+    def n_bonds(self) -> int:
+        """Number of bonds: 2N between neighbours, one more for a ring (particle N to particle -N)."""
+        return self.n_particles if self.periodic else self.n_particles - 1
+
+    @property
+    def rigid_modes(self) -> int:
+        """Rigid motions the ends leave free, the zero modes of the chain at rest.
+
+        3 for free ends (two translations and the rotation), 1 for a pinned end with a
+        free one (the rotation about the pin), 2 for a ring (the translations along and
+        across it; a rigid rotation does not repeat round it), 0 when a clamped end or
+        two pinned ones hold the chain. The statics need 0.
+        """
+        if self.periodic:
+            return 2
+        ends = sorted((self.left_end, self.right_end))
+        return {("free", "free"): 3, ("free", "pinned"): 1}.get(tuple(ends), 0)
+
+    def describe_ends(self) -> str:
+        """The ends in words, for messages and titles: "clamped ends", "a ring", "left pinned, right free"."""
+        if self.periodic:
+            return "a ring"
+        if self.left_end == self.right_end:
+            return f"{self.left_end} ends"
+        return f"left {self.left_end}, right {self.right_end}"
 
     @property
     def gap(self) -> float:
@@ -207,6 +284,13 @@ class ChainParams(BaseModel):
         """Return validated parameters with some fields changed.
 
         j keeps its current value unless changed; pass ``j=None`` to have it
-        re-derived from the new m, a and b.
+        re-derived from the new m, a and b. Making a chain a ring (``periodic=True``) or
+        an open chain again resets the ends that are not given.
         """
-        return ChainParams(**{**self.model_dump(), **changes})
+        data = {**self.model_dump(), **changes}
+        if changes.get("periodic", self.periodic) != self.periodic:
+            # Into or out of a ring: the ends not given anew follow (a ring's, or clamped).
+            for name in ("left_end", "right_end"):
+                if name not in changes:
+                    data.pop(name)
+        return ChainParams(**data)

@@ -45,6 +45,7 @@ from . import __version__
 from .io import REFERENCES, stack_models, write_dataset, write_figure, write_text
 from .models import get_model
 from .params import ChainParams
+from .state import require_clamped
 
 log = logging.getLogger(__name__)
 
@@ -123,11 +124,15 @@ def chain_for_reading(settings: ReproduceSettings, params: ChainParams | None = 
     Raises
     ------
     ValueError
-        For an unknown reading, or a ``params`` whose N is not the reading's.
+        For an unknown reading, a ``params`` whose N is not the reading's, or one whose
+        ends are not both clamped.
     """
     error = reading_error(settings.reading)
     if error:
         raise ValueError(error)
+    if params is not None:
+        # The report reproduces the paper, whose chain and continuum solutions are clamped.
+        require_clamped(params, "the paper's reproduction (reproduce)")
     if settings.reading is None:
         return params or ChainParams()
     n = READINGS[settings.reading]

@@ -40,7 +40,7 @@ from ..memory import require
 from ..models.base import upper_bands
 from ..models.linear import stiffness_matrix
 from ..params import ChainParams
-from ..state import pack, unpack
+from ..state import pack, require_clamped, unpack
 
 
 @dataclass(frozen=True)
@@ -78,6 +78,8 @@ def reduced_E1(params: ChainParams) -> float:
 
 
 def _coefficients(params: ChainParams, D1: float | None) -> _Coefficients:
+    # Section 3's solutions meet the clamped ends' conditions u = v = phi = 0 at x = +-L.
+    require_clamped(params, "the continuum solution of Section 3")
     if D1 is not None and not math.isfinite(D1):
         raise ValueError(f"D1 must be a finite number or None (the geometry-derived params.D1), got {D1!r}")
     coef = _Coefficients(params.h, params.N * params.h, params.b, params.D1 if D1 is None else float(D1), params.D2)
@@ -367,10 +369,11 @@ def discrete_static(params: ChainParams, moment: float = 1.0) -> np.ndarray:
 
     Solves K q = M e_phi0 with the model's sparse stiffness (derived coefficients).
     """
+    require_clamped(params, "the continuum comparison of Section 3")
     moment = _moment(moment)
     load = np.zeros((3, params.n_particles))
     load[2, params.N] = moment
-    return unpack(spla.spsolve(stiffness_matrix(params).tocsc(), pack(load)), params.n_particles)
+    return unpack(params, spla.spsolve(stiffness_matrix(params).tocsc(), pack(params, load)))
 
 
 #: A discrete compliance whose two factorisations differ by more than this is flagged inaccurate.
@@ -510,7 +513,7 @@ def _discrete_check(params: ChainParams) -> tuple[float, float]:
     load = np.zeros((3, params.n_particles))
     load[2, params.N] = 1.0
     factor = la.cholesky_banded(bands)
-    solution = unpack(la.cho_solve_banded((factor, False), pack(load)), params.n_particles)
+    solution = unpack(params, la.cho_solve_banded((factor, False), pack(params, load)))
     # The smallest eigenvalue by inverse iteration with the factor (O(N) a step; LAPACK's
     # banded eigensolver is O(N^2): 73 s at N = 10^4), the largest bounded by Gershgorin.
     vector = np.random.default_rng(0).standard_normal(bands.shape[1])
@@ -586,6 +589,7 @@ def reduced_discrete(params: ChainParams) -> ReducedChain:
     ValueError
         For E2 = 0 (then E1 = 0 too: no chain), or a chain too large for memory.
     """
+    require_clamped(params, "the discrete reduced chain of Section 3.2")
     if not params.E2 > 0:
         raise ValueError(f"the reduced chain needs E2 > 0 (its E1 = (h/d)^2 E2 must be > 0); got E2={params.E2!r}")
     require(

@@ -62,7 +62,7 @@ import numpy as np
 from ..models.base import Model, get_model
 from ..numerics.engine import turns_in_frames
 from ..params import ChainParams
-from ..state import column
+from ..state import column, zero_held
 
 log = logging.getLogger(__name__)
 
@@ -108,11 +108,11 @@ def linear_rows(params: ChainParams, model: str | Model) -> tuple[str, ...]:
     rest = model.stiffness(params, np.zeros((3, params.n_particles))).tocsr()
     scale = abs(rest).max()
     probe = _PROBE * np.sin(np.arange(1, params.n_particles + 1) * 1.7)  # deterministic, no symmetry
-    probe[[0, -1]] = 0.0  # the clamped ends stay at rest
     rows = []
     for name, row in _AMPLITUDE_ROWS.items():
         x = np.zeros((3, params.n_particles))
         x[row] = probe * (params.h if row < 2 else 1.0)
+        zero_held(params, x)  # what the ends hold stays at rest
         change = abs(model.stiffness(params, x).tocsr() - rest).max()
         if change <= _LINEAR_RTOL * scale:
             rows.append(name)
@@ -132,8 +132,8 @@ def bond_energies(params: ChainParams, model: str | Model, x: np.ndarray) -> np.
 
     Returns
     -------
-    ndarray (..., 2N)
-        Bond k joins columns k and k+1.
+    ndarray (..., n_bonds)
+        Bond k joins columns k and k+1 (a ring's closing bond, last, joins 2N and 0).
 
     Raises
     ------
@@ -144,7 +144,7 @@ def bond_energies(params: ChainParams, model: str | Model, x: np.ndarray) -> np.
 
 
 def particle_energies(params: ChainParams, model: str | Model, x: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Energy of every free particle: kinetic plus its share of the bond energies (module docstring).
+    """Energy of every particle: kinetic plus its share of the bond energies (module docstring).
 
     Parameters
     ----------
@@ -153,18 +153,23 @@ def particle_energies(params: ChainParams, model: str | Model, x: np.ndarray, v:
 
     Returns
     -------
-    ndarray (..., 2N-1)
-        Particles -N+1..N-1; the sum over them is the total (kinetic + bond) energy.
+    ndarray (..., 2N+1)
+        Particles -N..N; the sum over them is the total (kinetic + bond) energy. A
+        clamped end holds none: its halves of its bond go to its free neighbour.
     """
     bonds = bond_energies(params, model, x)
     inertia = np.asarray(params.inertia)[:, None]
     energy = 0.5 * np.sum(inertia * np.asarray(v, dtype=float) ** 2, axis=-2)
-    energy[..., :-1] += 0.5 * bonds
-    energy[..., 1:] += 0.5 * bonds
-    # The clamped ends hold no energy of their own: their halves go to their free neighbours.
-    energy[..., 1] += 0.5 * bonds[..., 0]
-    energy[..., -2] += 0.5 * bonds[..., -1]
-    return energy[..., 1:-1]
+    n = params.n_particles
+    energy[..., : bonds.shape[-1]] += 0.5 * bonds
+    energy[..., 1:] += 0.5 * bonds[..., : n - 1]
+    if params.periodic:
+        energy[..., 0] += 0.5 * bonds[..., -1]
+    for end, (col, neighbour) in zip(params.ends, ((0, 1), (n - 1, n - 2))):
+        if end == "clamped":
+            energy[..., neighbour] += energy[..., col]
+            energy[..., col] = 0.0
+    return energy
 
 
 def participation_ratio(energy: np.ndarray) -> np.ndarray:
@@ -293,7 +298,7 @@ class StreamingDiagnostics:
             return
         energy, total = energy[moving], total[moving]
         self.participation_sum += float(np.sum(total**2 / np.sum(energy**2, axis=-1)))
-        self.energy_share_sum[1:-1] += np.sum(energy / total[:, None], axis=0)
+        self.energy_share_sum += np.sum(energy / total[:, None], axis=0)
         self.energy_steps += int(moving.sum())
 
     # ------------------------------------------------------------------ results

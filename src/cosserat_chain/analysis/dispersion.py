@@ -45,7 +45,7 @@ from scipy.optimize import minimize_scalar
 from ..models.base import Model, get_model
 from ..models.linear import cosserat_coefficients
 from ..params import ChainParams
-from ..state import check_state
+from ..state import check_state, free_index, per_dof
 
 #: The three branches, in the row order of ``Dispersion.omega2``.
 BRANCHES = ("longitudinal", "transverse_acoustic", "rotational_optical")
@@ -290,7 +290,7 @@ class Modes:
 
 
 def finite_modes(params: ChainParams, model: str | Model = "linear", x: np.ndarray | None = None) -> Modes:
-    """Eigenfrequencies and mode shapes of the clamped chain linearised about ``x``.
+    """Eigenfrequencies and mode shapes of the chain (any ends, or a ring) linearised about ``x``.
 
     Parameters
     ----------
@@ -308,16 +308,19 @@ def finite_modes(params: ChainParams, model: str | Model = "linear", x: np.ndarr
     Raises
     ------
     ValueError
-        For an unknown model or a state of the wrong shape, not finite, or not clamped.
+        For an unknown model or a state of the wrong shape, not finite, or not zero where
+        the ends hold it.
 
     Notes
     -----
-    Dense eigen solvers: cost O((6N)^3), fine up to N of a few hundred.
+    Dense eigen solvers: cost O((6N)^3), fine up to N of a few hundred. A chain that can
+    move rigidly (``ChainParams.rigid_modes``: free ends, a ring) has that many zero
+    frequencies, its rigid motions.
     """
     model = get_model(model)
     x = np.zeros((3, params.n_particles)) if x is None else check_state(params, x)
     stiffness = model.stiffness(params, x).toarray()
-    mass = np.tile(params.inertia, params.n_particles - 2)
+    mass = per_dof(params, params.inertia)
     if model.conservative:
         eigenvalues, vectors = sla.eigh(stiffness, np.diag(mass))
         eigenvalues = eigenvalues.astype(complex)
@@ -331,8 +334,8 @@ def finite_modes(params: ChainParams, model: str | Model = "linear", x: np.ndarr
     vectors = vectors * (np.abs(largest) / largest)
     if model.conservative:
         vectors = vectors.real
-    n = params.n_particles
-    shapes = np.zeros((vectors.shape[1], 3, n), dtype=vectors.dtype)
-    # Columns of ``vectors`` are in pack order: (u, v, phi) particle by particle.
-    shapes[:, :, 1:-1] = vectors.T.reshape(-1, n - 2, 3).transpose(0, 2, 1)
+    # Columns of ``vectors`` are in pack order (:func:`~cosserat_chain.state.free_index`).
+    flat = np.zeros((vectors.shape[1], 3 * params.n_particles), dtype=vectors.dtype)
+    flat[:, free_index(params)] = vectors.T
+    shapes = np.ascontiguousarray(flat.reshape(-1, params.n_particles, 3).transpose(0, 2, 1))
     return Modes(eigenvalues, shapes, model.name)

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..memory import FLOAT, require
 from ..params import ChainParams
-from ..state import n_free
+from ..state import n_free, per_dof, require_clamped
 from .continuum import central_rotation, discrete_static, printed_D1
 
 #: Names of the coefficients of eqs. (2)-(3) in the order of
@@ -602,6 +602,8 @@ def printed_eq3_stiffness(params: ChainParams):
     import scipy.sparse as sparse
     import sympy as sp
 
+    # The paper's chain: its errata are about the clamped chain's operator.
+    require_clamped(params, "the printed operator of eq. (3)")
     s = _symbols()
     forces = _printed_equations("3")
     neighbours = [[s[r + sfx] for r in ("u", "v", "phi")] for sfx in ("_m", "", "_p")]
@@ -668,7 +670,7 @@ def errata(params: ChainParams | None = None) -> tuple[Erratum, ...]:
     from ..models.base import upper_bands
 
     printed_K = printed_eq3_stiffness(params)
-    inverse_mass = 1.0 / np.tile(params.inertia, params.n_particles - 2)
+    inverse_mass = 1.0 / per_dof(params, params.inertia)
     lowest = _lowest_real_eigenvalue(sparse.diags(inverse_mass) @ printed_K)
     derived_lowest = float(la.eig_banded(upper_bands(stiffness_matrix(params)), eigvals_only=True, select="i", select_range=(0, 0))[0])
     asymmetry = float(abs(printed_K - printed_K.T).max())

@@ -13,16 +13,19 @@ import sys
 import tempfile
 from enum import Enum
 from pathlib import Path
-from typing import NoReturn
+from typing import TYPE_CHECKING, NoReturn
 
 import typer
 from pydantic import ValidationError
 from tqdm import tqdm
 
-from ..io import FIGURE_FORMATS, OutputError, check_output, load_params, write_dataset, write_figure
+from ..io import FIGURE_FORMATS, OutputError, check_output, load_config, write_dataset, write_figure
 from ..memory import MemoryEstimateError, available, size_text
 from ..params import ChainParams
 from ..status import Status
+
+if TYPE_CHECKING:  # loads import numba: the command line imports them where a command needs them
+    from ..loads import Loads
 
 
 class _App(typer.Typer):
@@ -158,8 +161,19 @@ def fail(message: str, code: int = 2) -> NoReturn:
 
 def params_or_exit(config: Path | None) -> ChainParams:
     """Read the TOML config (or the paper's defaults); a bad field exits with its name and value."""
+    return config_or_exit(config)[0]
+
+
+def config_or_exit(config: Path | None, load: list[str] | None = None) -> tuple[ChainParams, Loads]:
+    """The chain and the loads of the TOML config (its ``[[loads]]``) and of ``--load ROW:PARTICLE=VALUE`` options.
+
+    A bad field or load exits with its name and value (code 2).
+    """
+    from ..loads import Loads, parse_load
+
     try:
-        return load_params(config)
+        params, loads = load_config(config)
+        return params, Loads([*loads, *(parse_load(text) for text in load or ())]).validate(params)
     except ValidationError as err:
         fail(
             "invalid parameters:\n"

@@ -13,13 +13,13 @@ from .common import (
     MethodName,
     app,
     bar_callback,
+    config_or_exit,
     exit_on,
     fail,
     finite_or_none,
     model_option,
     number,
     outputs_or_exit,
-    params_or_exit,
     progress_bar,
     save_dataset,
 )
@@ -28,8 +28,10 @@ from .common import (
 @app.command()
 def simulate(
     model: str = model_option("nonlinear", "Model."),
-    moment: float = number(0.1, "Moment M on the loaded particle."),
-    t_end: float = number(300.0, "Final time.", above=0.0, flags=("--t-end",)),
+    moment: float | None = number(
+        None, "Moment M on the loaded particle (default 0.1 unless the config's [[loads]] or --load give the loads)."
+    ),
+    t_end: float = number(300.0, "Final time (on the run's time axis with --x0).", above=0.0, flags=("--t-end",)),
     dt: float | None = number(None, "Time step (default 0.1 / highest linear frequency).", above=0.0),
     particle: int = typer.Option(0, help="Loaded particle, in -N+1..N-1 (default the central one)."),
     ramp: float = number(0.0, "Raise the moment linearly over this time (0: applied at once).", at_least=0.0),
@@ -37,21 +39,47 @@ def simulate(
     frames: int = typer.Option(201, min=2, help="Number of stored states (>= 2: the start and the end)."),
     threads: int = typer.Option(1, min=1, help="Threads per step (worth it from ~10^4 particles)."),
     reference: bool = typer.Option(False, help="Use the adaptive DOP853 reference instead of the fixed step."),
-    config: Path | None = typer.Option(
-        None, help="TOML file with ChainParams fields (E1, E2, h, a, b, m, j, gamma_u, gamma_v, gamma_phi, N)."
+    load: list[str] | None = typer.Option(
+        None, "--load", help="A constant load ROW:PARTICLE=VALUE (ROW u, v or phi; e.g. v:-2=0.01); repeatable."
     ),
+    config: Path | None = typer.Option(
+        None,
+        help="TOML file with ChainParams fields (E1, E2, h, a, b, m, j, gamma_u, gamma_v, gamma_phi, N, left_end, right_end, "
+        "periodic) and [[loads]] tables (row, particle, value or kind: step, ramp, staircase, harmonic, knots).",
+    ),
+    x0: Path | None = typer.Option(
+        None, "--x0", help="Start from a stored frame of this run (simulate --out): its chain, positions, velocities, time and loads."
+    ),
+    at: float | None = number(None, "With --x0: the stored frame nearest this time (default the last)."),
     out: Path | None = typer.Option(None, help="Write the trajectory to this NetCDF file."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
-    """Run one damped simulation of the chain under a moment load."""
+    """Run one damped simulation of the chain under loads (a moment on one particle by default)."""
     from ..experiments.simulation import simulate as run_simulation
-    from ..loads import Schedule, moment_load
+    from ..loads import Loads, Schedule, moment_load
 
-    outputs_or_exit({"--out": out}, {"--config": config})
-    params = params_or_exit(config)
+    outputs_or_exit({"--out": out}, {"--config": config, "--x0": x0})
+    if at is not None and x0 is None:
+        fail("--at picks a frame of the run given by --x0; give --x0 RUN.nc")
+    params, loads = config_or_exit(config, load)
+    t0, start, velocities = 0.0, None, None
+    if x0 is not None:
+        # The run's chain, frame and loads; loads given here (config, --load, --moment) replace its loads.
+        run_params, run_loads, t0, start, velocities = _frame_or_exit(x0, at)
+        if config is not None and params != run_params:
+            fail(f"--config describes another chain than the run {str(x0)!r}: leave --config out to go on with the run's chain")
+        params = run_params
+        if not loads and moment is None:
+            loads = run_loads
+        if not t_end > t0:
+            fail(f"--t-end {t_end:g} must be after the start frame's time {t0:g} (the run's time axis goes on)")
+    # --moment is the shorthand for a moment on --particle: the paper's 0.1 when no other load is given.
+    if moment is None and not loads:
+        moment = 0.1
     try:
-        schedule = Schedule.ramp(moment, ramp) if ramp > 0 else Schedule.constant(moment)
-        loads = moment_load(schedule, particle).validate(params)
+        if moment is not None:
+            schedule = Schedule.ramp(moment, ramp) if ramp > 0 else Schedule.constant(moment)
+            loads = Loads([*moment_load(schedule, particle), *loads]).validate(params)
     except ValueError as err:
         fail(str(err))
     bar = progress_bar(f"simulate {model}", "step")
@@ -62,6 +90,9 @@ def simulate(
             model,
             loads,
             t_end=t_end,
+            t0=t0,
+            x0=start,
+            v0=velocities,
             dt=dt,
             method=method.value,
             n_frames=frames,
@@ -73,6 +104,8 @@ def simulate(
         bar.close()
         fail(str(err))
     bar.close()
+    if x0 is not None:
+        ds.attrs["started_from"] = f"{x0} at t = {t0!r}"
     save_dataset(ds, out)
     status = ds.attrs["status"]
     if as_json:
@@ -86,6 +119,16 @@ def simulate(
     exit_on(status, ds.attrs["message"])
 
 
+def _frame_or_exit(path: Path, at: float | None):
+    """The chain, loads, time, positions and velocities of a stored frame, or exit 2 saying why not."""
+    from ..io import read_dataset, run_frame
+
+    try:
+        return run_frame(read_dataset(path), at)
+    except ValueError as err:
+        fail(f"--x0 {str(path)!r}: {err}")
+
+
 def _summary(ds, params, model: str, t_end: float, out: Path | None) -> dict[str, Any]:
     final = ds.isel(time=-1)
     energy = {name: finite_or_none(float(final[name])) for name in ("kinetic", "potential", "load_work", "dissipated", "balance_error")}
@@ -97,6 +140,7 @@ def _summary(ds, params, model: str, t_end: float, out: Path | None) -> dict[str
         "dt": finite_or_none(float(ds.attrs["dt"])),
         "method": ds.attrs["method"],
         "steps": int(ds.attrs["steps"]),
+        "loads": json.loads(ds.attrs["loads_json"]),
         "status": ds.attrs["status"],
         "message": ds.attrs["message"],
         "final": {row: [float(x) for x in final[row].values] for row in ("u", "v", "phi")},

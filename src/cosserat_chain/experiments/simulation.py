@@ -119,6 +119,7 @@ def simulate(
     loads: Loads | float | Schedule = 0.0,
     *,
     t_end: float,
+    t0: float = 0.0,
     dt: float | None = None,
     method: str = "verlet",
     n_frames: int = 201,
@@ -139,8 +140,9 @@ def simulate(
     model : {"nonlinear", "sine", "linear"} or Model
     loads : Loads, float or Schedule
         A number or a schedule is a moment on the central particle.
-    t_end, dt, method, n_frames, stride, x0, v0, threads, progress
-        See :func:`cosserat_chain.numerics.dynamics.integrate`.
+    t_end, t0, dt, method, n_frames, stride, x0, v0, threads, progress
+        See :func:`cosserat_chain.numerics.dynamics.integrate`; a run that goes on from a
+        stored frame takes that frame's time as ``t0`` (:func:`cosserat_chain.io.run_frame`).
     reference : bool
         Use the adaptive DOP853 reference (:func:`integrate_adaptive`) with
         tolerance ``rtol`` instead of the fixed-step integrator.
@@ -159,13 +161,16 @@ def simulate(
     if not isinstance(loads, Loads):
         loads = moment_load(loads)
     if reference:
-        trajectory = integrate_adaptive(params, model, loads, t_end=t_end, x0=x0, v0=v0, n_frames=n_frames, rtol=rtol, atol=rtol * 1e-2)
+        trajectory = integrate_adaptive(
+            params, model, loads, t_end=t_end, t0=t0, x0=x0, v0=v0, n_frames=n_frames, rtol=rtol, atol=rtol * 1e-2
+        )
     else:
         trajectory = integrate(
             params,
             model,
             loads,
             t_end=t_end,
+            t0=t0,
             dt=dt,
             method=method,
             n_frames=n_frames,

@@ -7,21 +7,26 @@ on the particles (the right-hand sides of eqs. (2)-(3) without loads and
 viscosity). Every model provides
 
 * ``force_kernel``: a compiled function with signature :data:`FORCE_SIGNATURE`,
-  ``kernel(x, coef, out, start, stop)``, that overwrites ``out[:, start:stop]``
-  with the forces on columns start..stop-1 (1 <= start < stop <= 2N). It reads
-  only columns start-1..stop, so disjoint column ranges can be computed by
-  different threads. Its loop over columns must vectorise (no branch in the loop
-  body, 0-based slices, carried values rather than recomputed neighbours).
+  ``kernel(x, coef, out, start, stop, ring)``, that overwrites ``out[:, start:stop]``
+  with the forces on columns start..stop-1 (0 <= start < stop <= 2N+1). Column 0
+  has a bond on its right only and column 2N on its left only, unless ``ring``:
+  then column 2N is bonded to column 0 as to a neighbour h further on. It reads
+  only columns start-1..stop (wrapping round for a ring), so disjoint column
+  ranges can be computed by different threads. Its loop over columns must
+  vectorise (no branch in the loop body, 0-based slices, carried values rather
+  than recomputed neighbours); the two end columns are handled outside the loop.
+  The kernel does not know which degrees of freedom the ends hold fixed: the
+  engine zeroes their forces (:func:`cosserat_chain.state.held`).
 * ``batch_kernel``: the same forces for a batch of B chains stored batch-innermost,
-  signature :data:`BATCH_FORCE_SIGNATURE`, ``kernel(x, coef, out)`` with x and out
-  (3, 2N+1, B) and coef (c, B), one column of coefficients per member; it
-  overwrites the free columns 1..2N-1 of every member. Its innermost loop runs
-  over the members, so a batch of short chains fills the SIMD lanes. Member b's
-  forces must equal ``force_kernel`` on member b to the last bit: both call the
+  signature :data:`BATCH_FORCE_SIGNATURE`, ``kernel(x, coef, out, start, stop, ring)``
+  with x and out (3, 2N+1, B) and coef (c, B), one column of coefficients per
+  member; it overwrites columns start..stop-1 of every member. Its innermost loop
+  runs over the members, so a batch of short chains fills the SIMD lanes. Member
+  b's forces must equal ``force_kernel`` on member b to the last bit: both call the
   same inline per-bond (or per-particle) function.
 * ``coefficients(params)``: the flat float64 array ``coef`` the kernel reads.
-* ``forces(params, x)``: a NumPy twin of the kernel (clamped columns zero),
-  tested against it.
+* ``forces(params, x)``: a NumPy twin of the kernel (zero at the degrees of
+  freedom the ends hold fixed), tested against it.
 * ``stiffness(params, x)``: the sparse matrix -dF/dq over the free degrees of
   freedom (ordering in :mod:`cosserat_chain.state`). For conservative models it
   is the Hessian of the energy, symmetric.
@@ -55,15 +60,17 @@ from scipy.linalg import LinAlgError, cholesky_banded
 
 from ..memory import FLOAT, require
 from ..params import ChainParams
-from ..state import check_state
+from ..state import _free, check_state, force_columns, pack, per_dof, zero_held
 
-#: Signature of every compiled force kernel: (x, coef, out, start, stop) -> None.
-FORCE_SIGNATURE = types.void(types.float64[:, ::1], types.float64[::1], types.float64[:, ::1], types.int64, types.int64)
+#: Signature of every compiled force kernel: (x, coef, out, start, stop, ring) -> None.
+FORCE_SIGNATURE = types.void(types.float64[:, ::1], types.float64[::1], types.float64[:, ::1], types.int64, types.int64, types.boolean)
 #: The first-class function type compiled integrators take, so that one compiled
 #: (and cached) integrator serves every model.
 FORCE_KERNEL_TYPE = types.FunctionType(FORCE_SIGNATURE)
-#: Signature of every compiled batch force kernel: (x, coef, out) -> None, batch innermost.
-BATCH_FORCE_SIGNATURE = types.void(types.float64[:, :, ::1], types.float64[:, ::1], types.float64[:, :, ::1])
+#: Signature of every compiled batch force kernel: (x, coef, out, start, stop, ring) -> None, batch innermost.
+BATCH_FORCE_SIGNATURE = types.void(
+    types.float64[:, :, ::1], types.float64[:, ::1], types.float64[:, :, ::1], types.int64, types.int64, types.boolean
+)
 BATCH_FORCE_KERNEL_TYPE = types.FunctionType(BATCH_FORCE_SIGNATURE)
 #: Numba options of the compiled hot loops (force kernels, integrators).
 #: ``error_model="numpy"``: a division by zero gives inf or nan instead of raising,
@@ -181,7 +188,7 @@ class Model(ABC):
         # refuse here, with the number, a chain that cannot fit (the stiffness, its bands
         # and the factor's copies, about 50 values a degree of freedom).
         require(50 * FLOAT * 3 * n, f"the stiffness of {n} particles (N={params.N})", "simulate a shorter chain")
-        scale = sp.diags(1.0 / np.sqrt(np.tile(params.inertia, n - 2)))
+        scale = sp.diags(1.0 / np.sqrt(per_dof(params, params.inertia)))
         dynamical = (scale @ sp.csr_matrix(self.stiffness(params, np.zeros((3, n)))) @ scale).tocsr()
         gershgorin = float(abs(dynamical).sum(axis=1).max())
         if abs(dynamical - dynamical.T).max() > _SYMMETRY_RTOL * gershgorin:
@@ -205,7 +212,9 @@ class Model(ABC):
         """Forces from the compiled kernel, same layout as :meth:`forces`."""
         x = check_state(params, x)
         out = np.zeros_like(x)
-        type(self).force_kernel(x, self.coefficients(params), out, 1, x.shape[1] - 1)
+        start, stop = force_columns(params)
+        type(self).force_kernel(x, self.coefficients(params), out, start, stop, params.periodic)
+        zero_held(params, out)
         return out
 
     def __repr__(self) -> str:
@@ -307,24 +316,26 @@ def available_models() -> tuple[str, ...]:
 
 
 @lru_cache(maxsize=32)
-def _bond_block_pattern(n_particles: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _bond_block_pattern(n_particles: int, left: str, right: str, ring: bool) -> tuple[np.ndarray, ...]:
     """Where each entry of the per-bond 6x6 blocks lands in the CSR data of the assembled matrix.
 
     Returns ``keep`` (flat block entries on free degrees of freedom), ``position``
     (their index in the CSR data, duplicates summed there), ``indices``, ``indptr``
     and ``diagonal`` (data index of every diagonal entry). The pattern depends only on
-    the chain's length, so it is built once and every assembly is one ``bincount``.
+    the chain's length and ends, so it is built once and every assembly is one ``bincount``.
     """
-    n_bonds = n_particles - 1
+    n_bonds = n_particles if ring else n_particles - 1
+    free = _free(n_particles, left, right)
+    # Matrix index of every degree of freedom (3 column + row), -1 where an end holds it fixed.
+    number = np.full(3 * n_particles, -1, dtype=np.int64)
+    number[free] = np.arange(free.size)
     cols = np.arange(n_bonds)
-    # Global free index 3 (column - 1) + row, or -1 for the clamped columns.
-    local = np.concatenate([3 * (cols[:, None] - 1) + np.arange(3), 3 * cols[:, None] + np.arange(3)], axis=1)
-    local[:, :3][cols == 0] = -1
-    local[:, 3:][cols + 1 == n_particles - 1] = -1
+    dofs = np.concatenate([3 * cols[:, None] + np.arange(3), 3 * ((cols[:, None] + 1) % n_particles) + np.arange(3)], axis=1)
+    local = number[dofs]
     rows = np.broadcast_to(local[:, :, None], (n_bonds, 6, 6)).reshape(-1)
     columns = np.broadcast_to(local[:, None, :], (n_bonds, 6, 6)).reshape(-1)
     keep = np.flatnonzero((rows >= 0) & (columns >= 0))
-    size = 3 * (n_particles - 2)
+    size = free.size
     # Sorting by (row, column) and numbering the distinct pairs gives the CSR order.
     key = rows[keep].astype(np.int64) * size + columns[keep]
     unique, position = np.unique(key, return_inverse=True)
@@ -336,28 +347,30 @@ def _bond_block_pattern(n_particles: int) -> tuple[np.ndarray, np.ndarray, np.nd
     return keep, position, indices, indptr, diagonal
 
 
-def assemble_bond_blocks(blocks: np.ndarray, n_particles: int, diagonal: np.ndarray | None = None) -> sp.csr_matrix:
+def assemble_bond_blocks(blocks: np.ndarray, params: ChainParams, diagonal: np.ndarray | None = None) -> sp.csr_matrix:
     """Sparse matrix over the free degrees of freedom from per-bond 6x6 blocks.
 
     Parameters
     ----------
-    blocks : ndarray, shape (n_particles - 1, 6, 6)
-        Block of bond k (particles k, k+1 as array columns) over
-        (u_k, v_k, phi_k, u_k+1, v_k+1, phi_k+1).
-    n_particles : int
-    diagonal : ndarray, shape (3, n_particles), optional
+    blocks : ndarray, shape (n_bonds, 6, 6)
+        Block of bond k (array columns k and k+1, or 2N and 0 for a ring's closing bond)
+        over (u_k, v_k, phi_k, u_k+1, v_k+1, phi_k+1).
+    params : ChainParams
+        The chain: its length and its ends.
+    diagonal : ndarray, shape (3, 2N+1), optional
         Extra per-degree-of-freedom diagonal terms.
 
     Returns
     -------
     scipy.sparse.csr_matrix
-        Entries on clamped degrees of freedom are dropped; O(N), one ``bincount`` on a
-        cached pattern (:func:`_bond_block_pattern`).
+        Entries on degrees of freedom the ends hold fixed are dropped; O(N), one
+        ``bincount`` on a cached pattern (:func:`_bond_block_pattern`).
     """
-    keep, position, indices, indptr, diagonal_at = _bond_block_pattern(n_particles)
+    left, right = params.ends
+    keep, position, indices, indptr, diagonal_at = _bond_block_pattern(params.n_particles, left, right, params.periodic)
     data = np.bincount(position, weights=np.ascontiguousarray(blocks, dtype=float).reshape(-1)[keep], minlength=indices.size)
     if diagonal is not None:
-        data[diagonal_at] += np.ascontiguousarray(diagonal[:, 1:-1].T).reshape(-1)
-    size = 3 * (n_particles - 2)
+        data[diagonal_at] += pack(params, diagonal)
+    size = indptr.size - 1
     # Copies of the shared pattern: scipy may sort or prune a matrix's indices in place.
     return sp.csr_matrix((data, indices.copy(), indptr.copy()), shape=(size, size))

@@ -22,7 +22,7 @@ import scipy.sparse as sp
 from numba import njit
 
 from ..params import ChainParams
-from ..state import check_state
+from ..state import bonded, check_state, scatter_bonds, zero_held
 from .base import BATCH_FORCE_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks
 
 
@@ -45,27 +45,69 @@ def cosserat_site(k_u, k_v, h, bend, couple, u_prev, u, u_next, v_prev, v, v_nex
     return f_u, f_v, f_phi
 
 
-@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def linear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
-    k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
-    # 0-based slices for the three neighbours: no wrap-around arithmetic in the loop.
-    m = stop - start
-    u_prev, u, u_next = x[0, start - 1 : stop - 1], x[0, start:stop], x[0, start + 1 : stop + 1]
-    v_prev, v, v_next = x[1, start - 1 : stop - 1], x[1, start:stop], x[1, start + 1 : stop + 1]
-    p_prev, p, p_next = x[2, start - 1 : stop - 1], x[2, start:stop], x[2, start + 1 : stop + 1]
-    out_u, out_v, out_phi = out[0, start:stop], out[1, start:stop], out[2, start:stop]
-    for k in range(m):
-        out_u[k], out_v[k], out_phi[k] = cosserat_site(
-            k_u, k_v, h, bend, couple, u_prev[k], u[k], u_next[k], v_prev[k], v[k], v_next[k], p_prev[k], p[k], p_next[k]
-        )
+@njit(inline="always", **KERNEL_OPTIONS)
+def cosserat_bond(k_u, k_v, h, bend, couple, du, dv, a0, a1):  # pragma: no cover - compiled
+    """One bond's forces: (F_u, F_v) on its left particle (the right one gets minus them), F_phi on each.
+
+    The gradient of P_bond (module docstring), with 2 E1 b^2 = bend + couple / 4 and
+    k_v h / 2 = couple / (2 h); the forces of an end particle, which has one bond.
+    """
+    shear = dv - 0.5 * h * (a0 + a1)
+    twist = (bend + 0.25 * couple) * (a1 - a0)
+    lever = couple / (2.0 * h) * shear
+    return k_u * du, k_v * shear, twist + lever, lever - twist
 
 
 @njit(inline="always", **KERNEL_OPTIONS)
-def cosserat_batch(coef, x, angle, out):  # pragma: no cover - compiled
-    """Eqs. (2)-(3) for a batch (3, n, B) with ``angle`` (n, B) standing for phi or sin phi."""
+def cosserat_end(
+    k_u, k_v, h, bend, couple, u_prev, u, u_next, v_prev, v, v_next, a_prev, a, a_next, side, ring
+):  # pragma: no cover - compiled
+    """Forces on an end column: eqs. (2)-(3) with both neighbours for a ring, else its one bond's.
+
+    ``side`` 0 for column 0 (its bond on the right: the ``next`` values), 1 for the
+    last column (its bond on the left: the ``prev`` values).
+    """
+    if ring:
+        return cosserat_site(k_u, k_v, h, bend, couple, u_prev, u, u_next, v_prev, v, v_next, a_prev, a, a_next)
+    if side == 0:
+        f_u, f_v, f_phi, _ = cosserat_bond(k_u, k_v, h, bend, couple, u_next - u, v_next - v, a, a_next)
+        return f_u, f_v, f_phi
+    f_u, f_v, _, f_phi = cosserat_bond(k_u, k_v, h, bend, couple, u - u_prev, v - v_prev, a_prev, a)
+    return -f_u, -f_v, f_phi
+
+
+@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
+def linear_forces_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
+    k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
+    n = x.shape[1]
+    # The interior columns by eq. (3), the end columns (no neighbour on one side, or
+    # the ring's wrapped one) outside the loop. 0-based slices for the three
+    # neighbours: no wrap-around arithmetic in the loop.
+    lo, hi = max(start, 1), min(stop, n - 1)
+    if lo < hi:
+        u_prev, u, u_next = x[0, lo - 1 : hi - 1], x[0, lo:hi], x[0, lo + 1 : hi + 1]
+        v_prev, v, v_next = x[1, lo - 1 : hi - 1], x[1, lo:hi], x[1, lo + 1 : hi + 1]
+        p_prev, p, p_next = x[2, lo - 1 : hi - 1], x[2, lo:hi], x[2, lo + 1 : hi + 1]
+        out_u, out_v, out_phi = out[0, lo:hi], out[1, lo:hi], out[2, lo:hi]
+        for k in range(hi - lo):
+            out_u[k], out_v[k], out_phi[k] = cosserat_site(
+                k_u, k_v, h, bend, couple, u_prev[k], u[k], u_next[k], v_prev[k], v[k], v_next[k], p_prev[k], p[k], p_next[k]
+            )
+    for side in range(2):
+        c = 0 if side == 0 else n - 1
+        if (side == 0 and start == 0) or (side == 1 and stop == n):
+            i, j = (c - 1) % n, (c + 1) % n
+            out[0, c], out[1, c], out[2, c] = cosserat_end(
+                k_u, k_v, h, bend, couple, x[0, i], x[0, c], x[0, j], x[1, i], x[1, c], x[1, j], x[2, i], x[2, c], x[2, j], side, ring
+            )
+
+
+@njit(inline="always", **KERNEL_OPTIONS)
+def cosserat_batch(coef, x, angle, out, start, stop, ring):  # pragma: no cover - compiled
+    """Eqs. (2)-(3) for a batch (3, n, B) on columns [start, stop), ``angle`` (n, B) standing for phi or sin phi."""
     n, size = x.shape[1], x.shape[2]
     k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
-    for k in range(1, n - 1):
+    for k in range(max(start, 1), min(stop, n - 1)):
         u_prev, u, u_next = x[0, k - 1], x[0, k], x[0, k + 1]
         v_prev, v, v_next = x[1, k - 1], x[1, k], x[1, k + 1]
         a_prev, a, a_next = angle[k - 1], angle[k], angle[k + 1]
@@ -74,32 +116,47 @@ def cosserat_batch(coef, x, angle, out):  # pragma: no cover - compiled
             out_u[i], out_v[i], out_phi[i] = cosserat_site(
                 k_u[i], k_v[i], h[i], bend[i], couple[i], u_prev[i], u[i], u_next[i], v_prev[i], v[i], v_next[i], a_prev[i], a[i], a_next[i]
             )
+    for side in range(2):
+        c = 0 if side == 0 else n - 1
+        if (side == 0 and start == 0) or (side == 1 and stop == n):
+            p, q = (c - 1) % n, (c + 1) % n
+            for i in range(size):
+                out[0, c, i], out[1, c, i], out[2, c, i] = cosserat_end(
+                    k_u[i], k_v[i], h[i], bend[i], couple[i], x[0, p, i], x[0, c, i], x[0, q, i], x[1, p, i], x[1, c, i], x[1, q, i],
+                    angle[p, i], angle[c, i], angle[q, i], side, ring,
+                )  # fmt: skip
 
 
 @njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def linear_batch_kernel(x, coef, out):  # pragma: no cover - compiled
-    cosserat_batch(coef, x, x[2], out)
+def linear_batch_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
+    cosserat_batch(coef, x, x[2], out, start, stop, ring)
 
 
 def cosserat_forces(params: ChainParams, u: np.ndarray, v: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """Right-hand side of eqs. (2)-(3) with ``angle`` standing for phi (eq. 3) or sin phi (eq. 2).
 
-    Shapes (2N+1,) each; returns (3, 2N+1) with zero clamped columns.
+    Shapes (2N+1,) each; returns (3, 2N+1), bond by bond (:func:`cosserat_bond`), zero
+    at the degrees of freedom the ends hold fixed.
     """
     k_u, k_v, h, bend, couple = cosserat_coefficients(params)
-    out = np.zeros((3, u.size))
-    inner = slice(1, -1)
-    out[0, inner] = k_u * (u[2:] - 2 * u[1:-1] + u[:-2])
-    out[1, inner] = k_v * (v[2:] - 2 * v[1:-1] + v[:-2] - 0.5 * h * (angle[2:] - angle[:-2]))
-    out[2, inner] = bend * (angle[2:] - 2 * angle[1:-1] + angle[:-2]) + couple * ((v[2:] - v[:-2]) / (2 * h) - angle[1:-1])
-    return out
+    u, v, angle = bonded(params, np.stack([u, v, angle]))
+    du, dv = np.diff(u), np.diff(v)
+    shear = dv - 0.5 * h * (angle[1:] + angle[:-1])
+    twist = (bend + 0.25 * couple) * np.diff(angle)
+    lever = couple / (2.0 * h) * shear
+    left = np.stack([k_u * du, k_v * shear, twist + lever])
+    right = np.stack([-k_u * du, -k_v * shear, lever - twist])
+    out = scatter_bonds(params, left, right)
+    return zero_held(params, out)
 
 
 def cosserat_bond_energy(params: ChainParams, u: np.ndarray, v: np.ndarray, angle: np.ndarray) -> np.ndarray:
     """P_bond of every bond (module docstring) with ``angle`` standing for phi (eq. 3) or sin phi (eq. 2).
 
-    Shapes (..., 2N+1) each; returns (..., 2N), bond k joining columns k and k+1.
+    Shapes (..., 2N+1) each; returns (..., n_bonds), bond k joining columns k and k+1
+    (a ring's closing bond last).
     """
+    u, v, angle = (bonded(params, a) for a in (u, v, angle))
     shear = np.diff(v, axis=-1) - 0.5 * params.h * (angle[..., 1:] + angle[..., :-1])
     return (
         0.5 * params.k_u * np.diff(u, axis=-1) ** 2 + params.E1 * params.b**2 * np.diff(angle, axis=-1) ** 2 + 0.5 * params.k_v * shear**2
@@ -115,9 +172,9 @@ def bond_stiffness_block(params: ChainParams) -> np.ndarray:
 
 
 def stiffness_matrix(params: ChainParams) -> sp.csr_matrix:
-    """The constant stiffness matrix K of eq. (3) over the free degrees of freedom (symmetric, banded)."""
-    blocks = np.broadcast_to(bond_stiffness_block(params), (params.n_particles - 1, 6, 6))
-    return assemble_bond_blocks(np.ascontiguousarray(blocks), params.n_particles)
+    """The constant stiffness matrix K of eq. (3) over the free degrees of freedom (symmetric; banded for an open chain)."""
+    blocks = np.broadcast_to(bond_stiffness_block(params), (params.n_bonds, 6, 6))
+    return assemble_bond_blocks(np.ascontiguousarray(blocks), params)
 
 
 class LinearModel(Model):
@@ -146,7 +203,7 @@ class LinearModel(Model):
         return float(np.sum(self.bond_energy(params, check_state(params, x))))
 
     def bond_energy(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
-        """P_bond of every bond (module docstring), shape (..., 2N) for x (..., 3, 2N+1)."""
+        """P_bond of every bond (module docstring), shape (..., n_bonds) for x (..., 3, 2N+1)."""
         x = np.asarray(x, dtype=float)
         return cosserat_bond_energy(params, x[..., 0, :], x[..., 1, :], x[..., 2, :])
 

@@ -20,9 +20,9 @@ import numpy as np
 import scipy.sparse as sp
 from numba import njit
 
-from ..geometry import bond_links, particle_positions, rotate
+from ..geometry import bond_links, rotate
 from ..params import ChainParams
-from ..state import check_state
+from ..state import bonded, check_state, scatter_bonds, zero_held
 from .base import BATCH_FORCE_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks
 from .linear import max_frequency
 from .trig import REDUCTION_LIMIT, sincos
@@ -76,28 +76,39 @@ def _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, du, dv):  # pragma: no 
     return fx, fy, m0, m1
 
 
+@njit(inline="always", **KERNEL_OPTIONS)
+def _bond_between(x, i, j, a, b, h, E1, E2, rest1, rest2):  # pragma: no cover - compiled
+    """:func:`_bond` between columns i (left) and j (right) of a chain, computing their sines (the end columns)."""
+    s0, c0 = sincos(x[2, i])
+    s1, c1 = sincos(x[2, j])
+    return _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, x[0, j] - x[0, i], x[1, j] - x[1, i])
+
+
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def nonlinear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
+def nonlinear_forces_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
     a, b, h, E1, E2, rest1, rest2 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5], coef[6]
+    n = x.shape[1]
     # Column k gets the right half of bond k-1 (-fx, -fy, m1) and the left half of
     # bond k (fx, fy, m0). The loop computes bond k and carries fx, fy, m1 and the
     # sine and cosine of column k+1 to the next iteration (recurrences the
     # vectoriser recognises; it does not recognise a carried -fx, hence fx - fx_prev).
-    # Bond start-1 is peeled off rather than guarded by an `if` in the loop, and the
-    # slices make every index 0-based: either one alone keeps the loop scalar.
-    s0, c0 = sincos(x[2, start - 1])
-    s1, c1 = sincos(x[2, start])
-    fx_prev, fy_prev, _, m1_prev = _bond(
-        a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, x[0, start] - x[0, start - 1], x[1, start] - x[1, start - 1]
-    )
-    s0, c0 = s1, c1
+    # The bond into column start is peeled off (none for the free first column of an
+    # open chain; the closing bond from column n-1 for a ring), and so is the last
+    # column's bond out (none, or the ring's closing bond), rather than guarded by an
+    # `if` in the loop; the slices make every index 0-based: either one alone keeps the
+    # loop scalar.
+    fx_prev = fy_prev = m1_prev = 0.0
+    if start > 0 or ring:
+        fx_prev, fy_prev, _, m1_prev = _bond_between(x, (start - 1) % n, start, a, b, h, E1, E2, rest1, rest2)
+    s0, c0 = sincos(x[2, start])
+    top = min(stop, n - 1)
     u = x[0, start:]
     v = x[1, start:]
     phi = x[2, start:]
-    out_u = out[0, start:stop]
-    out_v = out[1, start:stop]
-    out_phi = out[2, start:stop]
-    for k in range(stop - start):
+    out_u = out[0, start:top]
+    out_v = out[1, start:top]
+    out_phi = out[2, start:top]
+    for k in range(top - start):
         s1, c1 = sincos(phi[k + 1])
         fx, fy, m0, m1 = _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, u[k + 1] - u[k], v[k + 1] - v[k])
         out_u[k] = fx - fx_prev
@@ -105,28 +116,36 @@ def nonlinear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - co
         out_phi[k] = m0 + m1_prev
         fx_prev, fy_prev, m1_prev = fx, fy, m1
         s0, c0 = s1, c1
+    if stop == n:
+        fx = fy = m0 = 0.0
+        if ring:
+            fx, fy, m0, _ = _bond_between(x, n - 1, 0, a, b, h, E1, E2, rest1, rest2)
+        out[0, n - 1] = fx - fx_prev
+        out[1, n - 1] = fy - fy_prev
+        out[2, n - 1] = m0 + m1_prev
 
 
 @njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def nonlinear_batch_kernel(x, coef, out):  # pragma: no cover - compiled
+def nonlinear_batch_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
     n, size = x.shape[1], x.shape[2]
     a, b, h, E1, E2, rest1, rest2 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5], coef[6]
     # Per member: sine, cosine of the bond's left column and the carried half bond,
     # the same arithmetic as nonlinear_forces_kernel member by member.
     s0, c0 = np.empty(size), np.empty(size)
-    fx_prev, fy_prev, m1_prev = np.empty(size), np.empty(size), np.empty(size)
+    fx_prev, fy_prev, m1_prev = np.zeros(size), np.zeros(size), np.zeros(size)
+    if start > 0 or ring:
+        left = (start - 1) % n
+        for i in range(size):
+            s, c = sincos(x[2, left, i])
+            s1, c1 = sincos(x[2, start, i])
+            fx_prev[i], fy_prev[i], _, m1_prev[i] = _bond(
+                a[i], b[i], h[i], E1[i], E2[i], rest1[i], rest2[i], c, s, c1, s1,
+                x[0, start, i] - x[0, left, i], x[1, start, i] - x[1, left, i],
+            )  # fmt: skip
     for i in range(size):
-        s0[i], c0[i] = sincos(x[2, 0, i])
-    for k in range(n - 1):
+        s0[i], c0[i] = sincos(x[2, start, i])
+    for k in range(start, min(stop, n - 1)):
         u0, u1, v0, v1, phi1 = x[0, k], x[0, k + 1], x[1, k], x[1, k + 1], x[2, k + 1]
-        if k == 0:
-            for i in range(size):
-                s1, c1 = sincos(phi1[i])
-                fx_prev[i], fy_prev[i], _, m1_prev[i] = _bond(
-                    a[i], b[i], h[i], E1[i], E2[i], rest1[i], rest2[i], c0[i], s0[i], c1, s1, u1[i] - u0[i], v1[i] - v0[i]
-                )
-                s0[i], c0[i] = s1, c1
-            continue
         out_u, out_v, out_phi = out[0, k], out[1, k], out[2, k]
         for i in range(size):
             s1, c1 = sincos(phi1[i])
@@ -136,6 +155,18 @@ def nonlinear_batch_kernel(x, coef, out):  # pragma: no cover - compiled
             out_phi[i] = m0 + m1_prev[i]
             fx_prev[i], fy_prev[i], m1_prev[i] = fx, fy, m1
             s0[i], c0[i] = s1, c1
+    if stop == n:
+        for i in range(size):
+            fx = fy = m0 = 0.0
+            if ring:
+                s1, c1 = sincos(x[2, 0, i])
+                fx, fy, m0, _ = _bond(
+                    a[i], b[i], h[i], E1[i], E2[i], rest1[i], rest2[i], c0[i], s0[i], c1, s1,
+                    x[0, 0, i] - x[0, n - 1, i], x[1, 0, i] - x[1, n - 1, i],
+                )  # fmt: skip
+            out[0, n - 1, i] = fx - fx_prev[i]
+            out[1, n - 1, i] = fy - fy_prev[i]
+            out[2, n - 1, i] = m0 + m1_prev[i]
 
 
 @njit(cache=True, nogil=True)
@@ -183,9 +214,9 @@ def _hessian_blocks(x, h, corners, constants, blocks):  # pragma: no cover - com
 
 
 def _links(params: ChainParams, x: np.ndarray):
-    """Per link of every bond: the link, rotated corners r0 (on k) and r1 (on k+1), link vector D."""
-    u, v, phi = x
-    centre = np.stack([particle_positions(params) + u, v])
+    """Per link of every bond (a ring's closing bond last): the link, rotated corners r0 (left) and r1 (right), link vector D."""
+    u, v, phi = bonded(params, x)
+    centre = np.stack([params.h * np.arange(-params.N, -params.N + u.size, dtype=float) + u, v])
     for link in bond_links(params):
         r0 = np.stack(rotate(link.left_corner, phi[:-1]))
         r1 = np.stack(rotate(link.right_corner, phi[1:]))
@@ -193,10 +224,10 @@ def _links(params: ChainParams, x: np.ndarray):
 
 
 def chain_energy(params: ChainParams, x: np.ndarray) -> float:
-    """Potential (1) summed over all links for any (3, 2N+1) state, ends free or not.
+    """Potential (1) summed over all links for any (3, 2N+1) state, whatever its ends hold.
 
-    Unlike :meth:`NonlinearModel.energy` it does not require clamped ends, so that
-    invariance under rigid motions of the whole chain can be checked.
+    Unlike :meth:`NonlinearModel.energy` it does not check the state against the ends,
+    so that invariance under rigid motions of the whole chain can be checked.
     """
     total = 0.0
     for link, _, _, D in _links(params, np.asarray(x, dtype=float)):
@@ -227,8 +258,8 @@ class NonlinearModel(Model):
         return chain_energy(params, check_state(params, x))
 
     def bond_energy(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
-        """Potential (1) of the four links of every bond, shape (..., 2N) for x (..., 3, 2N+1)."""
-        x = np.asarray(x, dtype=float)
+        """Potential (1) of the four links of every bond, shape (..., n_bonds) for x (..., 3, 2N+1)."""
+        x = bonded(params, x)
         du, dv, phi = np.diff(x[..., 0, :], axis=-1), np.diff(x[..., 1, :], axis=-1), x[..., 2, :]
         total = np.zeros(du.shape)
         for link in bond_links(params):
@@ -244,15 +275,16 @@ class NonlinearModel(Model):
 
     def forces(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         x = check_state(params, x)
-        out = np.zeros_like(x)
+        left = np.zeros((3, params.n_bonds))
+        right = np.zeros((3, params.n_bonds))
         for link, r0, r1, D in _links(params, x):
             T = link.stiffness * (1.0 - link.rest_length / np.hypot(D[0], D[1])) * D
-            out[:2, :-1] += T
-            out[2, :-1] += _cross(r0, T)
-            out[:2, 1:] -= T
-            out[2, 1:] -= _cross(r1, T)
-        out[:, [0, -1]] = 0.0
-        return out
+            left[:2] += T
+            left[2] += _cross(r0, T)
+            right[:2] -= T
+            right[2] -= _cross(r1, T)
+        out = scatter_bonds(params, left, right)
+        return zero_held(params, out)
 
     def stiffness(self, params: ChainParams, x: np.ndarray) -> sp.csr_matrix:
         """Exact Hessian of the energy over the free degrees of freedom (symmetric, banded; O(N), compiled)."""
@@ -260,6 +292,6 @@ class NonlinearModel(Model):
         links = bond_links(params)
         corners = np.array([[link.left_corner, link.right_corner] for link in links])
         constants = np.array([[link.stiffness, link.rest_length] for link in links])
-        blocks = np.zeros((params.n_particles - 1, 6, 6))
-        _hessian_blocks(x, params.h, corners, constants, blocks)
-        return assemble_bond_blocks(blocks, params.n_particles)
+        blocks = np.zeros((params.n_bonds, 6, 6))
+        _hessian_blocks(np.ascontiguousarray(bonded(params, x)), params.h, corners, constants, blocks)
+        return assemble_bond_blocks(blocks, params)

@@ -28,6 +28,7 @@ from .linear import (
     cosserat_batch,
     cosserat_bond_energy,
     cosserat_coefficients,
+    cosserat_end,
     cosserat_forces,
     cosserat_site,
     max_frequency,
@@ -36,9 +37,9 @@ from .linear import (
 from .trig import REDUCTION_LIMIT, sincos
 
 
-def _chain_rule(x: np.ndarray) -> np.ndarray:
+def _chain_rule(params: ChainParams, x: np.ndarray) -> np.ndarray:
     """The diagonal C = diag(1, 1, cos phi) over the free degrees of freedom: dF_sine/dq = dF_linear/dq C."""
-    return pack(np.vstack([np.ones_like(x[:2]), np.cos(x[2:3])]))
+    return pack(params, np.vstack([np.ones_like(x[:2]), np.cos(x[2:3])]))
 
 
 @lru_cache(maxsize=16)
@@ -48,33 +49,46 @@ def _linear_factor(params: ChainParams) -> sp.csr_matrix:
 
 
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def sine_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
+def sine_forces_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
     k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
-    # One sine per particle: sin(phi) of the previous and current columns are carried
-    # (recurrences the vectoriser recognises); 0-based slices as in the linear kernel.
-    s_prev = sincos(x[2, start - 1])[0]
-    s_cur = sincos(x[2, start])[0]
-    u_prev, u, u_next = x[0, start - 1 : stop - 1], x[0, start:stop], x[0, start + 1 : stop + 1]
-    v_prev, v, v_next = x[1, start - 1 : stop - 1], x[1, start:stop], x[1, start + 1 : stop + 1]
-    p_next = x[2, start + 1 : stop + 1]
-    out_u, out_v, out_phi = out[0, start:stop], out[1, start:stop], out[2, start:stop]
-    for k in range(stop - start):
-        s_next = sincos(p_next[k])[0]
-        out_u[k], out_v[k], out_phi[k] = cosserat_site(
-            k_u, k_v, h, bend, couple, u_prev[k], u[k], u_next[k], v_prev[k], v[k], v_next[k], s_prev, s_cur, s_next
-        )
-        s_prev = s_cur
-        s_cur = s_next
+    n = x.shape[1]
+    # The interior columns in a loop, the end columns (one bond, or the ring's wrapped
+    # neighbour) outside it. One sine per particle: sin(phi) of the previous and current
+    # columns are carried (recurrences the vectoriser recognises); 0-based slices as
+    # in the linear kernel.
+    lo, hi = max(start, 1), min(stop, n - 1)
+    if lo < hi:
+        s_prev = sincos(x[2, lo - 1])[0]
+        s_cur = sincos(x[2, lo])[0]
+        u_prev, u, u_next = x[0, lo - 1 : hi - 1], x[0, lo:hi], x[0, lo + 1 : hi + 1]
+        v_prev, v, v_next = x[1, lo - 1 : hi - 1], x[1, lo:hi], x[1, lo + 1 : hi + 1]
+        p_next = x[2, lo + 1 : hi + 1]
+        out_u, out_v, out_phi = out[0, lo:hi], out[1, lo:hi], out[2, lo:hi]
+        for k in range(hi - lo):
+            s_next = sincos(p_next[k])[0]
+            out_u[k], out_v[k], out_phi[k] = cosserat_site(
+                k_u, k_v, h, bend, couple, u_prev[k], u[k], u_next[k], v_prev[k], v[k], v_next[k], s_prev, s_cur, s_next
+            )
+            s_prev = s_cur
+            s_cur = s_next
+    for side in range(2):
+        c = 0 if side == 0 else n - 1
+        if (side == 0 and start == 0) or (side == 1 and stop == n):
+            i, j = (c - 1) % n, (c + 1) % n
+            out[0, c], out[1, c], out[2, c] = cosserat_end(
+                k_u, k_v, h, bend, couple, x[0, i], x[0, c], x[0, j], x[1, i], x[1, c], x[1, j],
+                sincos(x[2, i])[0], sincos(x[2, c])[0], sincos(x[2, j])[0], side, ring,
+            )  # fmt: skip
 
 
 @njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def sine_batch_kernel(x, coef, out):  # pragma: no cover - compiled
+def sine_batch_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
     phi = x[2]
     sines = np.empty_like(phi)
     for k in range(phi.shape[0]):
         for i in range(phi.shape[1]):
             sines[k, i] = sincos(phi[k, i])[0]
-    cosserat_batch(coef, x, sines, out)
+    cosserat_batch(coef, x, sines, out, start, stop, ring)
 
 
 class SineModel(Model):
@@ -98,9 +112,9 @@ class SineModel(Model):
 
     def stiffness(self, params: ChainParams, x: np.ndarray) -> sp.csr_matrix:
         x = check_state(params, x)
-        return (stiffness_matrix(params) @ sp.diags(_chain_rule(x))).tocsr()
+        return (stiffness_matrix(params) @ sp.diags(_chain_rule(params, x))).tocsr()
 
-    def symmetric_similar(self, params: ChainParams, x: np.ndarray) -> sp.csr_matrix:
+    def symmetric_similar(self, params: ChainParams, x: np.ndarray) -> sp.csr_matrix | None:
         """U C U^T, similar to the stiffness K C (K = U^T U the linear model's, C = diag(1, 1, cos phi)).
 
         U^-T (U^T U C) U^T = U C U^T: symmetric and banded, with the eigenvalues of the
@@ -109,8 +123,12 @@ class SineModel(Model):
         stability when a particle turns beyond pi/2.
         """
         x = check_state(params, x)
+        if params.periodic or params.rigid_modes:
+            # The linear stiffness is then singular (rigid motions) or not banded (the
+            # ring's corner blocks): no banded factor, and the dense solvers take over.
+            return None
         factor = _linear_factor(params)
-        return (factor @ sp.diags(_chain_rule(x)) @ factor.T).tocsr()
+        return (factor @ sp.diags(_chain_rule(params, x)) @ factor.T).tocsr()
 
     def bond_energy(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         """The linear model's P_bond at (u, v, sin phi), shape (..., 2N) for x (..., 3, 2N+1).

@@ -23,7 +23,7 @@ from numba import njit
 from ..loads import Loads, schedule_value
 from ..models.base import Model, get_model
 from ..params import ChainParams
-from ..state import check_state, zeros
+from ..state import check_state, force_columns, zero_held, zeros
 from ..status import Status
 from . import dop853
 from .dynamics import Trajectory
@@ -34,18 +34,21 @@ METHOD = "DOP853"
 
 @njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
 def _rhs(force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
-    # y = (x (3, n), v (3, n), W, D) flattened; rpar = (mass (3), gamma (3), knots (K, 2));
-    # ipar = (n, number of loads L, load index (L, 4)), as :meth:`Loads.compiled` lays them out.
+    # y = (x (3, n), v (3, n), W, D) flattened; rpar = (mass (3), gamma (3), free (3 n): 1.0 where
+    # the ends leave the degree of freedom free, knots (K, 2)); ipar = (n, number of loads L,
+    # start, stop, ring, load index (L, 4)), as :meth:`Loads.compiled` lays it out.
     n = ipar[0]
-    load_index = ipar[2 : 2 + 4 * ipar[1]].reshape((ipar[1], 4))
+    start, stop, ring = ipar[2], ipar[3], ipar[4] != 0
+    load_index = ipar[5 : 5 + 4 * ipar[1]].reshape((ipar[1], 4))
     mass = rpar[0:3]
     gamma = rpar[3:6]
-    knots = rpar[6:].reshape(((rpar.size - 6) // 2, 2))
     size = 3 * n
+    free = rpar[6 : 6 + size].reshape((3, n))
+    knots = rpar[6 + size :].reshape(((rpar.size - 6 - size) // 2, 2))
     x = y[:size].reshape((3, n))
     v = y[size : 2 * size].reshape((3, n))
     f = np.zeros((3, n))
-    force(x, coef, f, 1, n - 1)
+    force(x, coef, f, start, stop, ring)
     work_rate = 0.0
     for i in range(load_index.shape[0]):
         row = load_index[i, 0]
@@ -55,13 +58,10 @@ def _rhs(force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
         work_rate += value * v[row, col]
     dissipation = 0.0
     for r in range(3):
-        for k in range(1, n - 1):
-            dy[r * n + k] = v[r, k]
-            dy[size + r * n + k] = (f[r, k] - gamma[r] * v[r, k]) / mass[r]
-            dissipation += gamma[r] * v[r, k] * v[r, k]
-        for k in (0, n - 1):
-            dy[r * n + k] = 0.0
-            dy[size + r * n + k] = 0.0
+        for k in range(n):
+            dy[r * n + k] = free[r, k] * v[r, k]
+            dy[size + r * n + k] = free[r, k] * (f[r, k] - gamma[r] * v[r, k]) / mass[r]
+            dissipation += free[r, k] * gamma[r] * v[r, k] * v[r, k]
     dy[2 * size] = work_rate
     dy[2 * size + 1] = dissipation
 
@@ -118,8 +118,9 @@ def integrate_adaptive(
     x = zeros(params) if x0 is None else check_state(params, x0, "x0")
     v = zeros(params) if v0 is None else check_state(params, v0, "v0")
     load_index, knots = loads.compiled(params)
-    rpar = np.concatenate([params.inertia, params.damping, knots.ravel()])
-    ipar = np.concatenate([[n, len(load_index)], load_index.ravel()]).astype(np.int64)
+    free = zero_held(params, np.ones((3, n))).ravel()
+    rpar = np.concatenate([params.inertia, params.damping, free, knots.ravel()])
+    ipar = np.concatenate([[n, len(load_index), *force_columns(params), int(params.periodic)], load_index.ravel()]).astype(np.int64)
     y0 = np.concatenate([x.ravel(), v.ravel(), [0.0, 0.0]])
     times = np.linspace(t0, t_end, n_frames)
     sol = dop853.solve(

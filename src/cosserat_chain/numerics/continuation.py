@@ -396,12 +396,12 @@ def continue_in_moment(
     tangent[-1] = 1.0
 
     def residual(y: np.ndarray) -> np.ndarray:
-        r = pack(model.compiled_forces(params, unpack(y[:-1], params.n_particles)))
+        r = pack(params, model.compiled_forces(params, unpack(params, y[:-1])))
         r[dof] += y[-1]
         return r
 
     def stiffness(y: np.ndarray) -> sp.csr_matrix:
-        return model.stiffness(params, unpack(y[:-1], params.n_particles))
+        return model.stiffness(params, unpack(params, y[:-1]))
 
     def new_tangent(y: np.ndarray, previous: np.ndarray, k: sp.csr_matrix | None = None) -> np.ndarray:
         rhs = np.zeros(nf + 1)
@@ -447,7 +447,7 @@ def continue_in_moment(
             if found is None:
                 raise NewtonError(
                     f"the corrector failed at arclength {s:.3g} from M={y[-1]:.10g} while locating a fold",
-                    unpack(y[:-1], params.n_particles),
+                    unpack(params, y[:-1]),
                 )
             point, _, k = found
             cache[s] = point
@@ -459,7 +459,7 @@ def continue_in_moment(
         if point is None:
             slope(s_fold)
             point = cache[s_fold]
-        x = unpack(point[:-1], params.n_particles)
+        x = unpack(params, point[:-1])
         return Fold(
             moment=float(point[-1]),
             phi0=float(x[ROW_INDEX["phi"], column(params, particle)]),
@@ -493,7 +493,7 @@ def continue_in_moment(
                 break
             continue
         z, iterations, k = found
-        x = unpack(z[:-1], params.n_particles)
+        x = unpack(params, z[:-1])
         turned = abs(x[ROW_INDEX["phi"], col] - y_phi0)
         next_tangent = new_tangent(z, tangent, k)
         turn = math.acos(min(1.0, abs(float(next_tangent @ tangent))))

@@ -204,7 +204,7 @@ def spin_hint(params: ChainParams, loads: Loads, dt: float) -> str:
     resolves the rotation, whatever else is right; without rotational damping the spin
     grows without bound.
     """
-    moments = [abs(v) for load in loads if load.row == "phi" for v in load.schedule.values]
+    moments = [load.schedule.bound() for load in loads if load.row == "phi"]
     largest = max(moments, default=0.0)
     if largest == 0.0:
         return ""
@@ -396,8 +396,9 @@ def integrate(
         lanes.restart_turns(np.array([0]), np.array([turns.direction]), turns.phi_start, turns.made)
         if turns.stop_after is not None:
             lanes.lane_ints[TURN_LIMIT] = turns.stop_after
-    # The blocks follow no turns: a run that follows them stays on one thread.
-    split = turns is None and threads > 1 and Blocks.count(n, threads, method.force_evaluations) > 1
+    # The blocks follow no turns: a run that follows them stays on one thread; so does a
+    # ring, whose two ends are neighbours (its blocks would need a halo across the seam).
+    split = turns is None and not params.periodic and threads > 1 and Blocks.count(n, threads, method.force_evaluations) > 1
     blocks = Blocks(lanes, threads) if split else None
     runner = lanes if blocks is None else blocks
 

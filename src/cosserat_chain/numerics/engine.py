@@ -48,6 +48,7 @@ from numba import njit, types
 from ..loads import schedule_value
 from ..memory import FLOAT, require
 from ..models.base import BATCH_FORCE_KERNEL_TYPE, FORCE_KERNEL_TYPE
+from ..state import force_columns, held
 from .integrators import substep_table
 
 #: Options of the compiled loop: no fastmath, so that the state arithmetic rounds
@@ -137,10 +138,10 @@ def _kick_drift_row(x, v, f, r, start, stop, a, bk, d, kick_close):  # pragma: n
 
 
 @njit(**_KICK_OPTIONS)
-def _kick_drift_lanes(x, v, f, a, bk, d, kick_close, total):  # pragma: no cover - compiled
-    """One row of a batch, flat (n B,): the combined kick-drift of columns 1..n-2, sums per member into ``total``."""
+def _kick_drift_lanes(x, v, f, a, bk, d, kick_close, total, start, stop):  # pragma: no cover - compiled
+    """One row of a batch, flat (n B,): the combined kick-drift of columns start..stop-1, sums per member into ``total``."""
     size = total.size
-    for k in range(1, x.size // size - 1):
+    for k in range(start, stop):
         xk, vk, fk = x[k * size : (k + 1) * size], v[k * size : (k + 1) * size], f[k * size : (k + 1) * size]
         for i in range(size):
             w = vk[i] + kick_close[i] * fk[i]
@@ -168,13 +169,15 @@ def _kick_drift_chain(x, v, f, pairs, close, open_, start, stop):  # pragma: no 
 
 
 @njit(**_KICK_OPTIONS)
-def _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, total):  # pragma: no cover - compiled
-    """The kick-drift of a batch (B > 1): one pass per row over (columns, members); ``total`` (B,) scratch."""
+def _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, total, start, stop):  # pragma: no cover - compiled
+    """The kick-drift of a batch (B > 1) on columns [start, stop): one pass per row over (columns, members); ``total`` (B,) scratch."""
     size = dissipated.size
     factors = pairs[close, open_]
     for r in range(3):
         total[:] = 0.0
-        _kick_drift_lanes(x[r], v[r], f[r], factors[DAMP, r], factors[KICK, r], factors[DRIFT, r], factors[KICK_CLOSE, r], total)
+        _kick_drift_lanes(
+            x[r], v[r], f[r], factors[DAMP, r], factors[KICK, r], factors[DRIFT, r], factors[KICK_CLOSE, r], total, start, stop
+        )
         for i in range(size):
             dissipated[i] += factors[LOSS, r, i] * total[i]
 
@@ -204,7 +207,7 @@ def _kick_drift(x, v, f, pairs, close, open_, columns, dissipated, scratch):  # 
     Called only to close a step (to store it or to stop), so it is not inlined.
     """
     if dissipated.size > 1:
-        _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch)
+        _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch, columns[0], columns[1])
         return
     c0, stop, first, last = columns[0], columns[1], columns[2], columns[3]
     while c0 < stop:
@@ -214,10 +217,25 @@ def _kick_drift(x, v, f, pairs, close, open_, columns, dissipated, scratch):  # 
 
 
 @njit(**_KICK_OPTIONS)
-def _batch_substep(batch_force, x, v, f, x3, f3, coef, pairs, close, open_, dissipated, scratch):  # pragma: no cover - compiled
-    """A batch's sub-step (B > 1): its kick-drift, then the batch kernel on the (3, n, B) views x3, f3."""
-    _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch)
-    batch_force(x3, coef, f3)
+def _batch_substep(
+    batch_force, x, v, f, x3, f3, coef, pairs, close, open_, dissipated, scratch, start, stop, ring
+):  # pragma: no cover - compiled
+    """A batch's sub-step (B > 1) on columns [start, stop): its kick-drift, then the batch kernel on the (3, n, B) views x3, f3."""
+    _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch, start, stop)
+    batch_force(x3, coef, f3, start, stop, ring)
+
+
+@njit(inline="always", **_OPTIONS)
+def _hold(f, fixed, size):  # pragma: no cover - compiled
+    """Zero the forces on the degrees of freedom the ends hold fixed (rows ``fixed[j, 0]`` of columns ``fixed[j, 1]``).
+
+    With zero force and zero velocity a degree of freedom stays where it is: the
+    pinned ends' u and v. (A clamped end's column is not advanced at all.)
+    """
+    for j in range(fixed.shape[0]):
+        at = fixed[j, 1] * size
+        for i in range(size):
+            f[fixed[j, 0], at + i] = 0.0
 
 
 @njit(**_OPTIONS)
@@ -328,6 +346,7 @@ ADVANCE_SIGNATURE = types.UniTuple(_I8, 4)(
     _TABLE, types.float64[::1], types.float64[:, :, :, :, ::1], types.float64[::1],  # coef (c, B), chain_coef (c,), pairs, weights (S,)
     types.int64[:, ::1], _TABLE, _TABLE,  # load_index (L, 4), knots, load_scale (L, B)
     _TABLE, types.int64[:, ::1], types.int64[::1],  # lanes (N_LANE_FIELDS, B), lane_ints (N_LANE_INTS, B), columns (4,)
+    types.boolean, types.int64[:, ::1],  # ring, fixed (H, 2)
     _I8, _I8, _I8, _I8, _I8, types.boolean,  # n_steps, step0, stride, check_every, pending, close_at_end
     _TABLE, _STATES, _STATES, _STATES, _TABLE, _I8,  # acc (2, B), frames_x, frames_v (F, 3, n B), frames_acc (F, 2, B), record (F, B), frame0
     _I8, _TABLE, _TABLE, _STATES,  # watch, ring_time (C, B), ring_step_time (C, B), ring_phi (C, n, B)
@@ -352,6 +371,8 @@ def advance(
     lanes,
     lane_ints,
     columns,
+    ring,
+    fixed,
     n_steps,
     step0,
     stride,
@@ -384,8 +405,10 @@ def advance(
     load_index : (L, 5) row, column, first and one-past-last knot, and whether the load's work counts (0 or 1)
     knots : the schedules' knots (``Loads.compiled``); load_scale : (L, B) amplitude of load l on member b
     lanes, lane_ints : per-member tables (rows T0.., CROSSINGS..); BLEW_UP is set for members found out of bounds
-    columns : (4,) for B = 1: advance columns [columns[0], columns[1]), count the dissipated energy on
-        [columns[2], columns[3]) (a block of a chain split over threads: :class:`Blocks`)
+    columns : (4,) advance columns [columns[0], columns[1]) (all, less a clamped end's); for B = 1 count
+        the dissipated energy on [columns[2], columns[3]) (a block of a chain split over threads: :class:`Blocks`)
+    ring : whether the last column is bonded to the first (``ChainParams.periodic``)
+    fixed : (H, 2) row and column of every degree of freedom a pinned end holds (:func:`_hold`)
     stride : store after every global step that is a multiple of it (and after the last if ``close_at_end``)
     check_every : test for members out of bounds after every global step that is a multiple of it
         (and after the last if ``close_at_end``)
@@ -442,7 +465,7 @@ def advance(
     for k in range(n_steps):
         for s in range(n_sub):
             if size > 1:
-                _batch_substep(batch_force, x, v, f, x3, f3, coef, pairs, pending, s, dissipated, scratch)
+                _batch_substep(batch_force, x, v, f, x3, f3, coef, pairs, pending, s, dissipated, scratch, columns[0], columns[1], ring)
             else:
                 # One chain segment by segment: the kick-drift of a segment, then the forces one
                 # column behind it (a column's force needs its right neighbour moved), while the
@@ -451,17 +474,21 @@ def advance(
                 # function: an inlined function that takes arrays increfs and decrefs each of them
                 # (atomic operations) around its body, unless numba can prune the pairs, and
                 # around a call of the force kernel it cannot; they cost a short chain about a
-                # third of its step.
-                done = c0 = columns[0]
+                # third of its step. A ring's first column needs its left neighbour, the last
+                # column, moved: its force comes after the sweep.
+                c0 = columns[0]
+                done = c0 + 1 if ring else c0
                 stop, first, last = columns[1], columns[2], columns[3]
                 while c0 < stop:
                     c1, counted = _segment(c0, stop, first, last)
                     dissipated[0] += counted * _kick_drift_chain(x, v, f, pairs, pending, s, c0, c1)
                     top = stop if c1 == stop else c1 - 1
                     if top > done:
-                        force(x, chain_coef, f, done, top)
+                        force(x, chain_coef, f, done, top, ring)
                         done = top
                     c0 = c1
+                if ring:
+                    force(x, chain_coef, f, 0, 1, ring)
             for j in range(n_loads):
                 row = load_index[j, 0]
                 at = load_index[j, 1] * size
@@ -484,6 +511,7 @@ def advance(
                     work[i] += load_index[j, 4] * (0.5 * (load_old[j, i] + load) * (q - q_old[j, i]))
                     q_old[j, i] = q
                     load_old[j, i] = load
+            _hold(f, fixed, size)
             pending = s
         turned = False
         if watch >= 0 and ring_time.shape[0] > 0:
@@ -597,7 +625,10 @@ class Lanes:
         self.lane_ints[TURN_LIMIT] = NO_TURN_LIMIT
         self.lanes[DT] = dt
         self.pairs = pair_table(substep_table(self.weights, self.lanes[DT].copy(), self.mass.T, self.gamma), self.mass)
-        self.columns = np.array([1, n - 1, 1, n - 1], dtype=np.int64)
+        start, stop = force_columns(self.params[0])
+        self.columns = np.array([start, stop, start, stop], dtype=np.int64)
+        self.ring = bool(self.params[0].periodic)
+        self.fixed = held_dofs(self.params[0])
         self.pending = self.weights.size
         self.x = np.zeros((3, n, size))
         self.v = np.zeros((3, n, size))
@@ -648,15 +679,16 @@ class Lanes:
         # The kernels directly: the compiled loop's inline dispatch, called from Python with
         # the kernels as arguments, would be compiled anew in every process (not cacheable).
         if self.size == 1:
-            kind.force_kernel(self._flat(self.x), self.coef[:, 0].copy(), self._flat(self.f), self.columns[0], self.columns[1])
+            kind.force_kernel(self._flat(self.x), self.coef[:, 0].copy(), self._flat(self.f), self.columns[0], self.columns[1], self.ring)
         else:
-            kind.batch_kernel(self.x, self.coef, self.f)
+            kind.batch_kernel(self.x, self.coef, self.f, self.columns[0], self.columns[1], self.ring)
         for j, (row, col, start, stop, _) in enumerate(self.load_index):
             if stop - start == 1:  # constant: one value for every member
                 self.f[row, col] += self.load_scale[j] * self.knots[start, 1]
                 continue
             for i in range(self.size):
                 self.f[row, col, i] += self.load_scale[j, i] * _schedule(self.knots, start, stop, self.lanes[T0, i])
+        self.f[self.fixed[:, 0], self.fixed[:, 1]] = 0.0
 
     def advance(self, n_steps, step0=0, stride=None, check_every=1024, frames=None, frame0=0, close_at_end=True):
         """Run the compiled loop; returns (status, steps_done, frames_written).
@@ -675,7 +707,7 @@ class Lanes:
         status, done, written, self.pending = advance(
             kind.force_kernel, kind.batch_kernel, self._flat(self.x), self._flat(self.v), self._flat(self.f), self.coef,
             self.coef[:, 0].copy(), self.pairs, self.weights,
-            self.load_index, self.knots, self.load_scale, self.lanes, self.lane_ints, self.columns,
+            self.load_index, self.knots, self.load_scale, self.lanes, self.lane_ints, self.columns, self.ring, self.fixed,
             int(n_steps), int(step0), int(stride), int(check_every), int(self.pending), bool(close_at_end), self.acc,
             flat_frames, frames_v.reshape(flat_frames.shape), frames_acc, record, int(frame0),
             self.watch, self.turns.time, self.turns.step_time, self.turns.phi,
@@ -721,10 +753,11 @@ class Lanes:
     def segment(self, first: int, last: int, start: int, stop: int) -> Lanes:
         """Columns [first, last) of a single chain as a chain of their own (a block and its halo).
 
-        The block advances columns first+1..last-2 (its two end columns stay as they
-        are: a clamped end or the far edge of the halo), counts the dissipated energy
-        and the loads' work on columns [start, stop) only, and carries the loads that
-        act on its columns.
+        The block advances columns first+1..last-2, and its end column where that is
+        the chain's own moving end (the far edge of a halo, or a clamped end, stays as
+        it is), counts the dissipated energy and the loads' work on columns
+        [start, stop) only, and carries the loads and the pinned degrees of freedom of
+        its columns.
         """
         out = object.__new__(Lanes)
         out.__dict__.update(self.__dict__)
@@ -733,7 +766,11 @@ class Lanes:
         out.v = np.ascontiguousarray(self.v[:, first:last])
         out.f = np.ascontiguousarray(self.f[:, first:last])
         out.acc = np.zeros((2, 1))
-        out.columns = np.array([1, out.n - 1, start - first, stop - first], dtype=np.int64)
+        low = 0 if first == 0 and self.columns[0] == 0 else 1
+        high = out.n if last == self.n and self.columns[1] == self.n else out.n - 1
+        out.columns = np.array([low, high, start - first, stop - first], dtype=np.int64)
+        pinned_here = (self.fixed[:, 1] >= first) & (self.fixed[:, 1] < last)
+        out.fixed = np.ascontiguousarray(self.fixed[pinned_here] - np.array([0, first]))
         inside = (self.load_index[:, 1] >= first) & (self.load_index[:, 1] < last)
         index = self.load_index[inside].copy()
         index[:, 4] = (index[:, 1] >= start) & (index[:, 1] < stop)
@@ -771,7 +808,7 @@ class Blocks:
         self.acc0 = lanes.acc.copy()
         self.halo = _halo(lanes.weights.size)
         n = lanes.n
-        cuts = np.linspace(1, n - 1, self.count(n, threads, lanes.weights.size) + 1).round().astype(np.int64)
+        cuts = np.linspace(lanes.columns[0], lanes.columns[1], self.count(n, threads, lanes.weights.size) + 1).round().astype(np.int64)
         self.spans = []
         self.blocks = []
         for start, stop in zip(cuts[:-1], cuts[1:]):
@@ -838,13 +875,20 @@ class Blocks:
         self.lanes.pending = self.blocks[0].pending
 
 
+def held_dofs(params) -> np.ndarray:
+    """(H, 2) row and column of every degree of freedom a pinned end holds; a clamped end's column is not advanced at all."""
+    start, stop = force_columns(params)
+    pairs = [(row, col) for row, col in held(params) if start <= col < stop]
+    return np.array(pairs, dtype=np.int64).reshape(-1, 2)
+
+
 def _schedule(knots: np.ndarray, start: int, stop: int, t: float) -> float:
     return float(schedule_value(knots, int(start), int(stop), float(t)))
 
 
 # --------------------------------------------------------------------------- members
 def check_members(params_list) -> list:
-    """The members of a batch as a list, checked: at least one, all ChainParams of the same N.
+    """The members of a batch as a list, checked: at least one, all ChainParams of the same N and ends.
 
     Raises
     ------
@@ -862,6 +906,11 @@ def check_members(params_list) -> list:
         if p.N != params[0].N:
             raise ValueError(
                 f"params_list[{i}].N={p.N} differs from params_list[0].N={params[0].N}: all members of a batch must have the same chain length"
+            )
+        if (p.left_end, p.right_end, p.periodic) != (params[0].left_end, params[0].right_end, params[0].periodic):
+            raise ValueError(
+                f"params_list[{i}] has {p.describe_ends()} but params_list[0] has {params[0].describe_ends()}: "
+                "all members of a batch must have the same ends"
             )
     return params
 
@@ -910,7 +959,7 @@ def stack_states(params: list, states, name: str) -> np.ndarray:
         raise ValueError(f"{name} must have shape (3, 2N+1) or ({len(params)}, 3, 2N+1), got {np.shape(states)}")
     # The whole stack at once (member by member cost 30 ms for 1000 members); a bad one is
     # then found and named by check_state, with its message.
-    if arr.shape[1:] == (3, n) and np.isfinite(arr).all() and not np.any(arr[:, :, [0, -1]] != 0.0):
+    if arr.shape[1:] == (3, n) and np.isfinite(arr).all() and not any(np.any(arr[:, row, col] != 0.0) for row, col in held(params[0])):
         out[...] = arr
         return out
     for i, p in enumerate(params):

@@ -30,7 +30,7 @@ from numba import njit
 from ..loads import Loads
 from ..models.base import Model, get_model
 from ..params import ChainParams
-from ..state import ROW_INDEX, check_state, column, n_free, pack, unpack, zeros
+from ..state import ROW_INDEX, check_state, column, dof, n_free, pack, require_held, unpack, zeros
 
 
 class NewtonError(RuntimeError):
@@ -83,20 +83,23 @@ def solve_equilibrium(
     ------
     NewtonError
         If the residual is still above the tolerance after ``max_iter`` iterations.
+    ValueError
+        For a chain that can move rigidly (:func:`~cosserat_chain.state.require_held`).
     """
     model = get_model(model)
+    require_held(params)
     x = zeros(params) if x0 is None else check_state(params, x0, "x0").copy()
     load = loads.as_array(params, t)
     scale = 1.0 + np.max(np.abs(load))
     residual = np.inf
     for _ in range(max_iter):
-        r = pack(model.compiled_forces(params, x) + load)
+        r = pack(params, model.compiled_forces(params, x) + load)
         residual = float(np.max(np.abs(r))) if n_free(params) else 0.0
         stiffness = model.stiffness(params, x)
         if residual <= max(tol * scale, round_off_floor(stiffness, x)):
             return x
         step = sparse_solve(stiffness, r)
-        x = x + unpack(step, params.n_particles)
+        x = x + unpack(params, step)
     raise NewtonError(f"Newton did not converge in {max_iter} iterations (residual {residual:.3g})", x)
 
 
@@ -106,12 +109,11 @@ def moment_dof(params: ChainParams, particle: int = 0) -> int:
     Raises
     ------
     ValueError
-        If ``particle`` is not a free particle (-N < particle < N).
+        If ``particle`` is outside the chain or its angle is held by a clamped end, or if
+        the chain can move rigidly (:func:`~cosserat_chain.state.require_held`).
     """
-    col = column(params, particle)
-    if col in (0, params.n_particles - 1):
-        raise ValueError(f"particle must be a free particle in {-params.N + 1}..{params.N - 1}, got {particle!r} (+-N are clamped)")
-    return 3 * (col - 1) + ROW_INDEX["phi"]
+    require_held(params)
+    return dof(params, "phi", particle)
 
 
 def rotation_controlled_jacobian(stiffness: sp.spmatrix, dof: int) -> sp.csc_matrix:
@@ -298,7 +300,7 @@ def solve_rotation_controlled(
     moment = float(moment0)
     residual = first = np.inf
     for _ in range(max_iter):
-        r = pack(model.compiled_forces(params, x))
+        r = pack(params, model.compiled_forces(params, x))
         r[dof] += moment
         residual = float(np.max(np.abs(r)))
         first = min(first, residual)
@@ -310,7 +312,7 @@ def solve_rotation_controlled(
         step = sparse_solve(rotation_controlled_jacobian(stiffness, dof), -r)
         moment += step[dof]
         step[dof] = 0.0
-        x = x + unpack(step, params.n_particles)
+        x = x + unpack(params, step)
     raise NewtonError(
         f"rotation-controlled Newton at phi0={float(phi0)!r} did not converge in {max_iter} iterations (residual {residual:.3g}); "
         "start nearer (a solved neighbouring angle as x0)",

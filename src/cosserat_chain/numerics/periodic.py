@@ -49,10 +49,11 @@ from ..loads import moment_load
 from ..memory import FLOAT, require
 from ..models.base import Model, get_model
 from ..params import ChainParams
-from ..state import ROW_INDEX, check_state, column, n_free, pack, unpack, zeros
+from ..state import ROW_INDEX, check_state, column, n_free, pack, per_dof, require_clamped, unpack, zeros
 from ..status import Status
 from . import dop853
 from .dynamics import TurnWatch, default_time_step, integrate
+from .newton import moment_dof
 
 #: Step of the central differences of the force kernel. The nonlinear model's third
 #: derivatives are large (~1e3), so truncation (step^2) meets round-off (eps / step) near
@@ -95,7 +96,7 @@ def _rhs(force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
         for r in range(3):
             x[r, c] = y[3 * (c - 1) + r]
     f = np.zeros((3, n))
-    force(x, coef, f, 1, n - 1)
+    force(x, coef, f, 1, n - 1, False)
     for i in range(nf):
         dy[i] = y[nf + i]
         load = moment if i == load_dof else 0.0
@@ -116,8 +117,8 @@ def _rhs(force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
             for c in range(1 + color, n - 1, 3):
                 xp[r, c] += FD_STEP
                 xm[r, c] -= FD_STEP
-            force(xp, coef, fp, 1, n - 1)
-            force(xm, coef, fm, 1, n - 1)
+            force(xp, coef, fp, 1, n - 1, False)
+            force(xm, coef, fm, 1, n - 1, False)
             for c in range(1, n - 1):
                 for p in range(max(c - 1, 1), min(c + 2, n - 1)):
                     if (p - 1) % 3 != color:
@@ -159,18 +160,22 @@ class _System:
     moment: float
     particle: int
 
+    def __post_init__(self) -> None:
+        # The compiled right-hand side lays out the clamped chain's free degrees of freedom.
+        require_clamped(self.params, "the periodic-orbit solver")
+
     @property
     def nf(self) -> int:
         return n_free(self.params)
 
     @property
     def load_dof(self) -> int:
-        return 3 * (column(self.params, self.particle) - 1) + ROW_INDEX["phi"]
+        return moment_dof(self.params, self.particle)
 
     def parameters(self, ncols: int):
         """The force kernel, its coefficients, and rpar, ipar of :func:`_rhs` with ``ncols`` variational columns."""
-        mass = np.tile(np.array(self.params.inertia), self.params.n_particles - 2)
-        gamma = np.tile(np.array(self.params.damping), self.params.n_particles - 2)
+        mass = per_dof(self.params, self.params.inertia)
+        gamma = per_dof(self.params, self.params.damping)
         rpar = np.concatenate([[self.moment], 1.0 / mass, gamma / mass])
         ipar = np.array([self.params.n_particles, self.load_dof, ncols], dtype=np.int64)
         return type(self.model).force_kernel, self.model.coefficients(self.params), rpar, ipar
@@ -301,13 +306,13 @@ def _check_moment_and_turns(moment: float, turns: int) -> None:
         raise ValueError(f"turns must be an integer >= 1 (turns of the loaded particle per period), got {turns!r}")
 
 
-def _to_y(x: np.ndarray, v: np.ndarray) -> np.ndarray:
-    return np.concatenate([pack(x), pack(v)])
+def _to_y(params: ChainParams, x: np.ndarray, v: np.ndarray) -> np.ndarray:
+    return np.concatenate([pack(params, x), pack(params, v)])
 
 
 def _from_y(params: ChainParams, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     nf = n_free(params)
-    return unpack(y[:nf], params.n_particles), unpack(y[nf:], params.n_particles)
+    return unpack(params, y[:nf]), unpack(params, y[nf:])
 
 
 def initial_guess(
@@ -364,7 +369,7 @@ def initial_guess(
         elapsed = float(run.time[-1])
         if run.turns.made > watch.made:
             times.append(float(run.turns.times[-1]))
-            state = _to_y(x, v)
+            state = _to_y(params, x, v)
         watch = run.turns.following(stop_after=run.turns.made + 1)
     if len(times) < turns + 1:
         raise OrbitError(
@@ -467,7 +472,7 @@ def find_periodic_orbit(
     if not (math.isfinite(period) and period > 0):
         raise ValueError(f"the guessed period must be finite and > 0, got {period!r}")
     system = _System(params, model, float(moment), particle)
-    y0 = _to_y(check_state(params, x0, "guess x"), check_state(params, v0, "guess v"))
+    y0 = _to_y(params, check_state(params, x0, "guess x"), check_state(params, v0, "guess v"))
     y0[system.load_dof] = 0.0
     evaluate = _shooting(system, turns, rtol, atol)
     keep = np.arange(len(y0)) != system.load_dof
@@ -665,7 +670,7 @@ def continue_orbit(
         raise ValueError(f"steps must satisfy min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
     params, model = orbit.params, get_model(orbit.model)
     sign = math.copysign(1.0, orbit.moment)
-    dof = 3 * (column(params, orbit.particle) - 1) + ROW_INDEX["phi"]
+    dof = moment_dof(params, orbit.particle)
     size = 2 * n_free(params)
     keep = np.arange(size) != dof
     settings = {"moment_min": moment_min, "period_max": period_max, "step": step, "max_step": max_step, "tol": tol, "rtol": rtol}
@@ -688,7 +693,7 @@ def continue_orbit(
         return t if t @ previous > 0 else -t
 
     def pack_w(o: PeriodicOrbit) -> np.ndarray:
-        return np.concatenate([_to_y(o.x, o.v)[keep], [math.log(o.period), o.moment]])
+        return np.concatenate([_to_y(params, o.x, o.v)[keep], [math.log(o.period), o.moment]])
 
     def make_orbit(w, mono, closure, iterations) -> PeriodicOrbit:
         y0 = np.zeros(size)

@@ -45,7 +45,7 @@ import numpy as np
 from ..loads import moment_load
 from ..models.base import Model, get_model
 from ..params import ChainParams
-from ..state import column
+from ..state import column, zero_held
 from ..status import Status
 from .dynamics import IntegrationError, Trajectory
 from .engine import (
@@ -369,7 +369,7 @@ def _outcome(lanes: Lanes, lane: int, member: _Member, done: int, options: Relax
     elapsed = (done - member.begun) * options.chunk_time
     x, v = lanes.state(lane)
     load = moment_load(member.moment, particle).as_array(params, 0.0)
-    residual = float(np.max(np.abs((lanes.model.forces(params, x) + load)[:, 1:-1])))
+    residual = float(np.max(np.abs(zero_held(params, lanes.model.forces(params, x) + load))))
     speed = float(np.max(np.abs(v)))
     count = int(lanes.lane_ints[CROSSINGS, lane])
     turns_record = lanes.turns

@@ -46,7 +46,7 @@ from numba import njit
 
 from ..models.base import Model, get_model, upper_bands
 from ..params import ChainParams
-from ..state import check_state
+from ..state import check_state, per_dof
 
 #: Relative width (to the Gershgorin radius) at which the bisection for the smallest eigenvalue stops.
 BISECTION_RTOL = 1e-14
@@ -92,8 +92,8 @@ def damped_dynamics_matrix(params: ChainParams, stiffness: np.ndarray) -> np.nda
         K = -dF/dq at the state (dense).
     """
     n_free = stiffness.shape[0]
-    inertia = np.tile(np.asarray(params.inertia), n_free // 3)
-    damping = np.tile(np.asarray(params.damping), n_free // 3)
+    inertia = per_dof(params, params.inertia)
+    damping = per_dof(params, params.damping)
     a = np.zeros((2 * n_free, 2 * n_free))
     a[:n_free, n_free:] = np.eye(n_free)
     a[n_free:, :n_free] = -stiffness / inertia[:, None]
@@ -114,7 +114,8 @@ def static_stability(
     """
     model = get_model(model)
     x = check_state(params, x)
-    similar = None if dense else model.symmetric_similar(params, x)
+    # A ring's matrices have corner blocks (not banded): the dense path, at the sizes a ring's statics reach.
+    similar = None if dense or params.periodic else model.symmetric_similar(params, x)
     if similar is not None:
         lower = _lower_rows(similar)
         index = negative_count(lower, 0.0)

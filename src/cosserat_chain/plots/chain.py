@@ -5,7 +5,7 @@ Contract
 :func:`draw_chain` draws one state: every particle as its 2a x 2b rectangle at its
 position and angle, the four links of every bond (horizontal links solid, diagonal
 links dashed), the centres joined by a line, a tick from every centre along the
-particle's body x-axis (its rotation), the clamped ends hatched and the loaded
+particle's body x-axis (its rotation), clamped ends hatched, pinned ends with a hinge, and the loaded
 particle filled in colour. :func:`snapshot_figure` stacks one such panel per
 requested time (Fig. 3a/3b) with limits shared by all panels, and :func:`animate`
 writes a GIF (or an MP4 when an encoder is installed) of a time window of a run,
@@ -19,7 +19,7 @@ runs are the Datasets of :func:`cosserat_chain.experiments.simulation.simulate`
 only, and the angle is reduced before the corners are computed.
 
 Artists carry a ``gid`` so that they can be found again: ``particles``,
-``clamped``, ``links_horizontal``, ``links_diagonal``, ``centre_line``,
+``clamped``, ``pinned``, ``links_horizontal``, ``links_diagonal``, ``centre_line``,
 ``orientation``. Nothing here solves anything.
 """
 
@@ -142,7 +142,9 @@ class _ChainArtists:
     def __init__(self, ax: Axes, params: ChainParams, x: np.ndarray, loaded: Sequence[int]) -> None:
         self.params = params
         n = params.n_particles
-        clamped = [0, n - 1]
+        columns = {"left": 0, "right": n - 1}
+        clamped = [columns[side] for side, end in zip(columns, params.ends) if end == "clamped"]
+        self._pinned_columns = [columns[side] for side, end in zip(columns, params.ends) if end == "pinned"]
         faces = [_PARTICLE_COLOUR] * n
         for k in clamped:
             faces[k] = _CLAMPED_COLOUR
@@ -157,9 +159,21 @@ class _ChainArtists:
         self.particles = PolyCollection([], facecolors=faces, edgecolors="black", linewidths=0.8, zorder=2, gid="particles")
         # The clamped particles get a hatched overlay of their own: a hatch applies to a whole collection.
         self.clamped = PolyCollection(
-            [], facecolors="none", edgecolors="black", hatch="////", linewidths=0.8, zorder=2.5, gid="clamped", label="clamped"
+            [],
+            facecolors="none",
+            edgecolors="black",
+            hatch="////",
+            linewidths=0.8,
+            zorder=2.5,
+            gid="clamped",
+            label="clamped" if clamped else "_nolegend_",
         )
         self.orientation = LineCollection([], colors="black", linewidths=1.0, zorder=3.5, gid="orientation")
+        # A pinned end: a hinge at its centre (u = v = 0, the particle turns about it).
+        (self.pinned,) = ax.plot(
+            [], [], linestyle="none", marker="o", markersize=7, markerfacecolor="white", markeredgecolor="black", zorder=4,
+            gid="pinned", label="pinned" if self._pinned_columns else "_nolegend_",
+        )  # fmt: skip
         for artist in (self.links_horizontal, self.links_diagonal, self.particles, self.clamped, self.orientation):
             ax.add_collection(artist, autolim=False)
         (self.centre_line,) = ax.plot([], [], color="black", linewidth=0.8, marker="o", markersize=2.5, zorder=3, gid="centre_line")
@@ -169,7 +183,7 @@ class _ChainArtists:
     @property
     def moving(self) -> tuple:
         """The artists that change from one state to the next."""
-        return (self.links_horizontal, self.links_diagonal, self.particles, self.clamped, self.orientation, self.centre_line)
+        return (self.links_horizontal, self.links_diagonal, self.particles, self.clamped, self.orientation, self.centre_line, self.pinned)
 
     def update(self, x: np.ndarray) -> None:
         x = wrapped(np.asarray(x, dtype=float))
@@ -182,6 +196,7 @@ class _ChainArtists:
         self.orientation.set_segments(list(_orientation_ticks(self.params, x)))
         centres = _centres(self.params, x)
         self.centre_line.set_data(centres[:, 0], centres[:, 1])
+        self.pinned.set_data(centres[self._pinned_columns, 0], centres[self._pinned_columns, 1])
 
 
 def _loaded_particles(params: ChainParams, loaded: int | Iterable[int] | None) -> tuple[int, ...]:
