@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib
+import os
 import subprocess
 import sys
 
@@ -34,7 +35,11 @@ def test_python_dash_m_and_version():
 
 
 def test_shell_completion_script_is_offered():
-    result = subprocess.run([sys.executable, "-m", "cosserat_chain", "--show-completion", "bash"], capture_output=True, text=True)
+    # The shell named, not detected: typer detects it from the process tree, which a test
+    # runner started outside a shell lacks ("Shell  not supported"); with detection off,
+    # --show-completion takes the shell's name.
+    env = {**os.environ, "_TYPER_COMPLETE_TEST_DISABLE_SHELL_DETECTION": "1"}
+    result = subprocess.run([sys.executable, "-m", "cosserat_chain", "--show-completion", "bash"], capture_output=True, text=True, env=env)
     assert result.returncode == 0, result.stderr[-2000:]
     assert "complete" in result.stdout and "COMP_WORDS" in result.stdout
 

@@ -38,7 +38,9 @@ def test_critical_json_gives_the_fold_and_compliance_of_every_model(tmp_path):
 
 def test_sweep_json_reports_steps_onset_and_stop(tmp_path):
     out, plot = tmp_path / "sweep.nc", tmp_path / "fig2.png"
-    result = runner.invoke(app, ["sweep", "--model", "sine", "--m-max", "0.3", "--steps", "6", "--down", "--json", "--out", str(out), "--plot", str(plot)])
+    result = runner.invoke(
+        app, ["sweep", "--model", "sine", "--m-max", "0.3", "--steps", "6", "--down", "--json", "--out", str(out), "--plot", str(plot)]
+    )
     assert result.exit_code == 0, result.output
     sine = json.loads(result.stdout)["models"]["sine"]
     assert sine["loads"][:6] == pytest.approx([0.05, 0.1, 0.15, 0.2, 0.25, 0.3])

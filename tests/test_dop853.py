@@ -25,19 +25,19 @@ TREES_PER_ORDER = (1, 1, 2, 4, 9, 20, 48, 115)
 
 
 @njit(FORCE_SIGNATURE)
-def no_force(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
+def no_force(x, coef, out, start, stop):  # pragma: no cover - compiled
     """The force kernel handed to right-hand sides that have no chain."""
 
 
 @njit(dop853.RHS_SIGNATURE)
-def oscillator(force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
+def oscillator(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
     omega, zeta = rpar[0], rpar[1]
     dy[0] = y[1]
     dy[1] = -omega * omega * y[0] - 2.0 * zeta * omega * y[1]
 
 
 @njit(dop853.RHS_SIGNATURE)
-def riccati(force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
+def riccati(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
     # y' = y^2 from y(0) = 1: y = 1 / (1 - t) blows up at t = 1.
     dy[0] = y[0] * y[0]
 

@@ -135,3 +135,39 @@ def test_the_linear_model_superposes_several_loads_exactly():
     runs = [integrate(params, "linear", loads, t_end=40.0, dt=0.01, n_frames=5) for loads in (a, b, Loads([*a, *b]))]
     np.testing.assert_allclose(runs[2].x, runs[0].x + runs[1].x, rtol=0, atol=1e-13)
     assert sp.issparse(LINEAR.stiffness(params))
+
+
+def test_relaxation_under_a_moment_and_a_constant_force_comes_to_the_static_state_of_both():
+    from cosserat_chain.experiments.sweep import relaxation_sweep
+    from cosserat_chain.numerics.newton import solve_equilibrium
+    from cosserat_chain.numerics.relaxation import relax
+
+    params = random_geometries(1, seed=23)[0].replace(N=3, right_end="free")
+    push = Loads([PointLoad("u", 3, Schedule.constant(-0.02)), PointLoad("v", 2, Schedule.constant(0.005))])
+    step = relax(params, "nonlinear", 0.03, loads=push)
+    assert step.status == "static"
+    static = solve_equilibrium(params, "nonlinear", Loads([PointLoad("phi", 0, Schedule.constant(0.03)), *push]))
+    np.testing.assert_allclose(step.x, static, atol=1e-7)
+    sweep = relaxation_sweep(params, "nonlinear", m_max=0.03, steps=1, loads=push)
+    np.testing.assert_allclose(sweep.x[-1], static, atol=1e-7)
+    assert sweep.as_dict()["extra_loads"] == push.to_list()
+    assert json.loads(sweep.to_dataset().attrs["loads_json"]) == push.to_list()
+    with pytest.raises(ValueError, match="needs constant extra loads .* on v of particle 2"):
+        relax(params, "nonlinear", 0.03, loads=Loads([PointLoad("v", 2, Schedule.harmonic(0.01, 0.1))]))
+
+
+def test_sweep_and_rotate_take_load_options(tmp_path):
+    result = runner.invoke(app, ["sweep", "--model", "sine", "--m-max", "0.05", "--steps", "1", "--load", "v:1=0.001", "--json"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.output)["models"]["sine"]["extra_loads"] == [{"row": "v", "particle": 1, "times": [0.0], "values": [0.001]}]
+    result = runner.invoke(app, ["sweep", "--m-max", "0.05", "--steps", "1", "--load", "v:1=0.001", "--plot", str(tmp_path / "f.png")])
+    assert result.exit_code == 2 and "--plot" in result.output
+    out = tmp_path / "r.nc"
+    args = ["rotate", "--moment", "0.3", "--turns", "1", "--out", str(out), "--checkpoint-every", "0"]
+    result = runner.invoke(app, [*args, "--load", "u:1=0.001", "--json"])
+    assert result.exit_code == 0, result.output
+    from cosserat_chain.io import read_dataset
+
+    assert [(d["row"], d["particle"]) for d in json.loads(read_dataset(out).attrs["loads_json"])] == [("phi", 0), ("u", 1)]
+    result = runner.invoke(app, [*args, "--turns", "2", "--resume", "--load", "u:1=0.002"])
+    assert result.exit_code == 2 and "loads_json" in result.output

@@ -46,8 +46,7 @@ def _springs(k_u, k_v, k_phi, u_prev, u, u_next, v_prev, v, v_next, p_prev, p, p
 
 
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def toy_forces_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
-    # Clamped chains only (the tests give it no other): columns 1..2N-1, no ring.
+def toy_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     k_u, k_v, k_phi = coef[0], coef[1], coef[2]
     u_prev, u, u_next = x[0, start - 1 : stop - 1], x[0, start:stop], x[0, start + 1 : stop + 1]
     v_prev, v, v_next = x[1, start - 1 : stop - 1], x[1, start:stop], x[1, start + 1 : stop + 1]
@@ -60,10 +59,10 @@ def toy_forces_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - co
 
 
 @njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def toy_batch_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
-    size = x.shape[2]
+def toy_batch_kernel(x, coef, out):  # pragma: no cover - compiled
+    n, size = x.shape[1], x.shape[2]
     k_u, k_v, k_phi = coef[0], coef[1], coef[2]
-    for k in range(start, stop):
+    for k in range(1, n - 1):
         u_prev, u, u_next = x[0, k - 1], x[0, k], x[0, k + 1]
         v_prev, v, v_next = x[1, k - 1], x[1, k], x[1, k + 1]
         p_prev, p, p_next = x[2, k - 1], x[2, k], x[2, k + 1]
@@ -202,10 +201,10 @@ def test_compiled_kernels_are_the_numpy_forces_and_the_batch_kernel_is_bitwise_t
     batch_x[:, 1:-1] = rng.standard_normal((3, PARAMS.n_particles - 2, len(members)))
     coef = np.ascontiguousarray(np.array([TOY.coefficients(p) for p in members]).T)
     batch_out = np.zeros_like(batch_x)
-    toy_batch_kernel(batch_x, coef, batch_out, 1, PARAMS.n_particles - 1, False)
+    toy_batch_kernel(batch_x, coef, batch_out)
     for b in range(len(members)):
         single = np.zeros((3, PARAMS.n_particles))
-        toy_forces_kernel(np.ascontiguousarray(batch_x[..., b]), np.ascontiguousarray(coef[:, b]), single, 1, PARAMS.n_particles - 1, False)
+        toy_forces_kernel(np.ascontiguousarray(batch_x[..., b]), np.ascontiguousarray(coef[:, b]), single, 1, PARAMS.n_particles - 1)
         assert np.array_equal(batch_out[..., b], single)
 
 

@@ -8,6 +8,7 @@ import pytest
 from conftest import FD_STEP, FD_TOL, ROUND_OFF, random_geometries, random_state
 from cosserat_chain import moment_load
 from cosserat_chain.models import LINEAR, NONLINEAR, SINE, available_models, get_model
+from cosserat_chain.models.base import no_ends
 from cosserat_chain.models.nonlinear import chain_energy
 from cosserat_chain.numerics.newton import solve_equilibrium
 from cosserat_chain.state import fixed_mask, force_columns, pack, unpack
@@ -90,9 +91,14 @@ def test_kernel_on_column_blocks_equals_whole_chain(model, ends):
     x = random_state(params, 0.5, seed=6)
     whole = model.compiled_forces(params, x)
     pieces = np.zeros_like(x)
+    coef = model.coefficients(params)
+    for start, stop in [(1, 4), (4, 5), (5, 12), (12, params.n_particles - 1)]:
+        type(model).force_kernel(x, coef, pieces, start, stop)
     first, last = force_columns(params)
-    for start, stop in [(first, 4), (4, 5), (5, 12), (12, last)]:
-        type(model).force_kernel(x, model.coefficients(params), pieces, start, stop, params.periodic)
+    if params.clamped:
+        assert model.ends_kernel(params) is no_ends
+    else:
+        type(model).end_kernel(x, coef, pieces, first == 0, last == params.n_particles, params.periodic)
     pieces[fixed_mask(params)] = 0.0
     np.testing.assert_array_equal(pieces, whole)
 

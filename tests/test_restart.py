@@ -38,10 +38,14 @@ def test_a_run_started_from_a_stored_frame_equals_the_uninterrupted_run_bit_for_
 def test_simulate_x0_goes_on_from_a_run_on_its_time_axis_with_its_loads(tmp_path):
     first, second = tmp_path / "first.nc", tmp_path / "second.nc"
     config = tmp_path / "c.toml"
-    config.write_text('N = 2\nright_end = "free"\n[[loads]]\nrow = "v"\nparticle = 2\nkind = "harmonic"\namplitude = 0.01\nfrequency = 0.25\n')
+    config.write_text(
+        'N = 2\nright_end = "free"\n[[loads]]\nrow = "v"\nparticle = 2\nkind = "harmonic"\namplitude = 0.01\nfrequency = 0.25\n'
+    )
     common = ["--dt", str(DT), "--frames", "5", "--moment", "0.05"]
     assert runner.invoke(app, ["simulate", "--config", str(config), "--t-end", "64", "--out", str(first), *common]).exit_code == 0
-    result = runner.invoke(app, ["simulate", "--x0", str(first), "--at", "32", "--t-end", "64", "--dt", str(DT), "--frames", "3", "--out", str(second)])
+    result = runner.invoke(
+        app, ["simulate", "--x0", str(first), "--at", "32", "--t-end", "64", "--dt", str(DT), "--frames", "3", "--out", str(second)]
+    )
     assert result.exit_code == 0, result.output
     a, b = read_dataset(first), read_dataset(second)
     assert b.attrs["loads_json"] == a.attrs["loads_json"] and b.attrs["params_json"] == a.attrs["params_json"]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from .common import app, bar_callback, exit_on, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, save_dataset
+from .common import app, bar_callback, config_or_exit, exit_on, fail, model_option, number, outputs_or_exit, progress_bar, save_dataset
 
 
 def default_checkpoint(out: Path | None) -> Path | None:
@@ -23,7 +23,10 @@ def rotate(
     t_max: float = number(100000.0, "Stop at this time if the turns are not made by then.", above=0.0, flags=("--t-max",)),
     particle: int = typer.Option(0, help="Loaded particle, in -N+1..N-1 (default the central one)."),
     dt: float | None = number(None, "Time step (default 0.1 / highest linear frequency, rounded down to 10 bits).", above=0.0),
-    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
+    load: list[str] | None = typer.Option(
+        None, "--load", help="A constant load ROW:PARTICLE=VALUE acting throughout besides the moment; repeatable."
+    ),
+    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields and [[loads]] tables (acting throughout)."),
     out: Path | None = typer.Option(None, help="Write the per-particle diagnostics to this NetCDF file."),
     checkpoint: Path | None = typer.Option(None, help="Checkpoint file (default OUT.checkpoint.nc next to --out; none without --out)."),
     checkpoint_every: float = number(60.0, "Seconds of wall time between checkpoints.", at_least=0.0, flags=("--checkpoint-every",)),
@@ -52,7 +55,7 @@ def rotate(
             f"the checkpoint {str(checkpoint)!r} exists (an earlier run): give --resume to continue it, "
             "or --force to start afresh and replace it"
         )
-    params = params_or_exit(config)
+    params, extra = config_or_exit(config, load)
     bar = progress_bar(f"rotate {model}", "turn")
     try:
         result = localization_run(
@@ -67,6 +70,7 @@ def rotate(
             checkpoint_every=checkpoint_every,
             resume=resume,
             progress=bar_callback(bar),
+            loads=extra,
         )
     except ValueError as err:
         bar.close()

@@ -14,6 +14,7 @@ from .common import (
     app,
     bar_callback,
     chosen_models,
+    config_or_exit,
     exit_on,
     fail,
     model_option,
@@ -37,7 +38,12 @@ def sweep(
     down: bool = typer.Option(False, "--down", help="Then lower the load step by step to 0 (hysteresis)."),
     particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
     t_max: float = number(20000.0, "Time cap of one load step.", above=0.0, flags=("--t-max",)),
-    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
+    load: list[str] | None = typer.Option(
+        None, "--load", help="A constant load ROW:PARTICLE=VALUE acting throughout besides the stepped moment; repeatable."
+    ),
+    config: Path | None = typer.Option(
+        None, help="TOML file with ChainParams fields and [[loads]] tables (constant loads acting throughout)."
+    ),
     out: Path | None = typer.Option(None, help="Write the steps to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw Fig. 2 (with the exact branches) to this PNG/SVG file."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
@@ -47,15 +53,18 @@ def sweep(
     from ..experiments.sweep import relaxation_sweep
 
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
-    params = params_or_exit(config)
+    params, extra = config_or_exit(config, load)
+    if extra and plot is not None:
+        fail("--plot draws the exact static branches, which hold the moment alone: leave out --plot or the extra loads")
     results = {}
     interrupted = False
     for name in chosen_models(model):
         bar = progress_bar(f"sweep {name}", "load")
         try:
             result = relaxation_sweep(
-                params, name, m_max=m_max, steps=steps, dm=dm, down=down, particle=particle, t_max=t_max, progress=bar_callback(bar)
-            )
+                params, name, m_max=m_max, steps=steps, dm=dm, down=down, particle=particle, t_max=t_max,
+                progress=bar_callback(bar), loads=extra,
+            )  # fmt: skip
         except ValueError as err:
             bar.close()
             fail(str(err))

@@ -40,7 +40,7 @@ import logging
 import math
 import time as clock
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -60,8 +60,9 @@ from .simulation import run_attributes
 
 log = logging.getLogger(__name__)
 
-#: Version of the checkpoint layout; a checkpoint of another version is refused.
-CHECKPOINT_FORMAT = 1
+#: Version of the checkpoint layout; a checkpoint of another version is refused (2: the loads
+#: besides the moment are part of what a resumed run must share).
+CHECKPOINT_FORMAT = 2
 #: Default simulated time per chunk (about 2400 steps of the paper's chain).
 DEFAULT_CHUNK_TIME = 50.0
 #: A chunk stores at most this many particle-steps, so its frames stay a few MB for any chain.
@@ -138,6 +139,8 @@ class LocalizationResult:
     status: str
     message: str
     wall_time: float
+    #: Loads besides the moment, acting throughout (``localization_run(loads=...)``).
+    extra_loads: Loads = field(default_factory=Loads)
 
     @property
     def t_end(self) -> float:
@@ -210,7 +213,7 @@ class LocalizationResult:
         for name, (dims, values) in d.to_variables().items():
             data[name] = (dims, values, {"long_name": "streaming-diagnostics state (for resuming)"})
         ds = xr.Dataset(data, coords={"particle": np.arange(-self.params.N, self.params.N + 1)})
-        ds.attrs.update(run_attributes(self.params, model, moment_load(self.moment, self.particle)))
+        ds.attrs.update(run_attributes(self.params, model, Loads([*moment_load(self.moment, self.particle), *self.extra_loads])))
         summary = self.as_dict()
         # NetCDF attributes hold numbers and strings: the thresholds one by one, the lists joined.
         summary.update({f"threshold_{name}": value for name, value in summary.pop("thresholds").items()})
@@ -223,7 +226,7 @@ class LocalizationResult:
 
 
 #: The attributes a resumed run reads besides its settings (those are compared one by one).
-_STATE_ATTRIBUTES = ("steps", "wall_time", "params_json", "model", "moment", "particle", "dt", "method", "chunk_steps")
+_STATE_ATTRIBUTES = ("steps", "wall_time", "params_json", "model", "moment", "particle", "dt", "method", "chunk_steps", "loads_json")
 
 
 def _checksum(ds: xr.Dataset) -> str:
@@ -255,7 +258,7 @@ def _check_settings(path: Path, ds: xr.Dataset, expected: dict[str, Any]) -> Non
             f"(experiment={ds.attrs.get('experiment')!r}, checkpoint_format={ds.attrs.get('checkpoint_format')!r})"
         )
     saved = {f"params.{k}": v for k, v in json.loads(ds.attrs["params_json"]).items()}
-    for key in ("model", "moment", "particle", "dt", "method", "chunk_steps"):
+    for key in ("model", "moment", "particle", "dt", "method", "chunk_steps", "loads_json"):
         value = ds.attrs.get(key)
         saved[key] = value.item() if isinstance(value, np.generic) else value  # NetCDF gives NumPy scalars
     for key, value in expected.items():
@@ -281,6 +284,7 @@ def localization_run(
     resume: bool = False,
     progress: ProgressCallback | None = None,
     chunk_time: float = DEFAULT_CHUNK_TIME,
+    loads: Loads | None = None,
 ) -> LocalizationResult:
     """Turn one particle with a constant moment until it has made ``turns`` full turns (module docstring).
 
@@ -298,6 +302,9 @@ def localization_run(
         Stop at the first step at or after this time (> 0).
     particle : int
         Loaded particle, in -N+1..N-1.
+    loads : Loads, optional
+        Loads besides the moment, acting throughout (a force along the chain, a drive);
+        part of what a resumed run must share with its checkpoint.
     dt : float, optional
         Largest time step; default the model's :func:`~cosserat_chain.numerics.dynamics.default_time_step`,
         rounded down by :func:`grid_time_step`.
@@ -341,7 +348,8 @@ def localization_run(
         raise ValueError(f"chunk_time must be a finite number > 0, got {chunk_time!r}")
     if resume and checkpoint is None:
         raise ValueError("resume=True needs a checkpoint file to resume from (checkpoint=None)")
-    loads: Loads = moment_load(moment, particle).validate(params)
+    extra = Loads(loads or ())
+    loads = Loads([*moment_load(moment, particle), *extra]).validate(params)
     col = column(params, particle)
     direction = 1.0 if moment >= 0 else -1.0
     dt = grid_time_step(default_time_step(params, model) if dt is None else float(dt))
@@ -367,6 +375,7 @@ def localization_run(
             status,
             message,
             wall_before + clock.perf_counter() - started,
+            extra,
         )
 
     wall_before = 0.0
@@ -377,8 +386,9 @@ def localization_run(
             raise ValueError(f"cannot resume from the checkpoint: {err}; start afresh without --resume (or with --force)") from None
         expected = {f"params.{k}": v for k, v in params.model_dump().items()}
         expected.update(
-            {"model": model.name, "moment": moment, "particle": particle, "dt": dt, "method": method, "chunk_steps": chunk_steps}
-        )
+            {"model": model.name, "moment": moment, "particle": particle, "dt": dt, "method": method, "chunk_steps": chunk_steps,
+             "loads_json": json.dumps(loads.to_list())}
+        )  # fmt: skip
         _check_settings(checkpoint, ds, expected)
         if ds.attrs.get("checkpoint_sha256") != _checksum(ds):
             raise ValueError(

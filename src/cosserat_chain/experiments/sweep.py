@@ -21,7 +21,7 @@ import json
 import logging
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import xarray as xr
@@ -110,6 +110,8 @@ class SweepResult:
     stop_load: float | None
     completed: bool
     settings: dict = field(default_factory=dict)
+    #: Constant loads that acted throughout besides the stepped moment (``loads=`` of the sweep).
+    loads: Loads = field(default_factory=Loads)
 
     @property
     def phi0(self) -> np.ndarray:
@@ -131,6 +133,7 @@ class SweepResult:
             "onset_load": self.onset_load,
             "stop_load": self.stop_load,
             "completed": self.completed,
+            "extra_loads": self.loads.to_list(),
         }
 
     def to_dataset(self) -> xr.Dataset:
@@ -148,7 +151,8 @@ class SweepResult:
         ds = ds.assign_coords(moment=("step", self.moment), direction=("step", self.direction.astype(str)))
         ds["onset_load"].attrs["long_name"] = "first load of the upward sweep at which the loaded particle rotates (NaN: none)"
         ds["stop_load"].attrs["long_name"] = "first load of the downward sweep at which rotation has stopped (NaN: none)"
-        ds.attrs.update(run_attributes(self.params, get_model(self.model), Loads()))
+        # loads_json: the loads besides the stepped moment, which the moment coordinate gives.
+        ds.attrs.update(run_attributes(self.params, get_model(self.model), self.loads))
         ds.attrs.update(
             {
                 "experiment": "relaxation_sweep",
@@ -303,10 +307,11 @@ def relaxation_sweeps(
     results = []
     for i, params in enumerate(params_list):
         options = dict(relax_options)
+        extra = Loads(options.pop("loads", None) or ())
         if np.ndim(options.get("dt")) == 1:
             options["dt"] = float(options["dt"][i])
         settings = {"m_max": float(tops[i]), "steps": steps, "dm": dm, "down": down, "stop_at_onset": stop_at_onset, **options}
-        results.append(sweep_result(params, model.name, particle, records[i], finished[i], settings))
+        results.append(replace(sweep_result(params, model.name, particle, records[i], finished[i], settings), loads=extra))
     return results
 
 

@@ -7,23 +7,29 @@ on the particles (the right-hand sides of eqs. (2)-(3) without loads and
 viscosity). Every model provides
 
 * ``force_kernel``: a compiled function with signature :data:`FORCE_SIGNATURE`,
-  ``kernel(x, coef, out, start, stop, ring)``, that overwrites ``out[:, start:stop]``
-  with the forces on columns start..stop-1 (0 <= start < stop <= 2N+1). Column 0
-  has a bond on its right only and column 2N on its left only, unless ``ring``:
-  then column 2N is bonded to column 0 as to a neighbour h further on. It reads
-  only columns start-1..stop (wrapping round for a ring), so disjoint column
-  ranges can be computed by different threads. Its loop over columns must
-  vectorise (no branch in the loop body, 0-based slices, carried values rather
-  than recomputed neighbours); the two end columns are handled outside the loop.
-  The kernel does not know which degrees of freedom the ends hold fixed: the
-  engine zeroes their forces (:func:`cosserat_chain.state.held`).
-* ``batch_kernel``: the same forces for a batch of B chains stored batch-innermost,
-  signature :data:`BATCH_FORCE_SIGNATURE`, ``kernel(x, coef, out, start, stop, ring)``
+  ``kernel(x, coef, out, start, stop)``, that overwrites ``out[:, start:stop]``
+  with the forces on the interior columns start..stop-1 (1 <= start < stop <= 2N),
+  each with a neighbour on either side. It reads only columns start-1..stop, so
+  disjoint column ranges can be computed by different threads. Its loop over
+  columns must vectorise (no branch in the loop body, 0-based slices, carried
+  values rather than recomputed neighbours).
+* ``end_kernel`` (optional: a model without it runs clamped chains only):
+  signature :data:`END_SIGNATURE`, ``kernel(x, coef, out, first, last, ring)``,
+  overwrites the forces on column 0 (if ``first``) and column 2N (if ``last``).
+  Column 0 has a bond on its right only and column 2N on its left only, unless
+  ``ring``: then column 2N is bonded to column 0 as to a neighbour h further on.
+  A kernel of its own, not a branch of ``force_kernel``: end code in the chain
+  kernel, even never run, cost the paper's clamped chain 10 % of its step.
+  Neither kernel knows which degrees of freedom the ends hold fixed: the engine
+  zeroes their forces (:func:`cosserat_chain.state.held`).
+* ``batch_kernel``: the interior forces for a batch of B chains stored
+  batch-innermost, signature :data:`BATCH_FORCE_SIGNATURE`, ``kernel(x, coef, out)``
   with x and out (3, 2N+1, B) and coef (c, B), one column of coefficients per
-  member; it overwrites columns start..stop-1 of every member. Its innermost loop
-  runs over the members, so a batch of short chains fills the SIMD lanes. Member
-  b's forces must equal ``force_kernel`` on member b to the last bit: both call the
-  same inline per-bond (or per-particle) function.
+  member; it overwrites columns 1..2N-1 of every member. Its innermost loop runs
+  over the members, so a batch of short chains fills the SIMD lanes. Member b's
+  forces must equal ``force_kernel`` on member b to the last bit: both call the
+  same inline per-bond (or per-particle) function. (A batch's end columns come from
+  ``end_kernel``, member by member: the same code, so the same bits.)
 * ``coefficients(params)``: the flat float64 array ``coef`` the kernel reads.
 * ``forces(params, x)``: a NumPy twin of the kernel (zero at the degrees of
   freedom the ends hold fixed), tested against it.
@@ -55,22 +61,23 @@ from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
-from numba import types
+from numba import njit, types
 from scipy.linalg import LinAlgError, cholesky_banded
 
 from ..memory import FLOAT, require
 from ..params import ChainParams
 from ..state import _free, check_state, force_columns, pack, per_dof, zero_held
 
-#: Signature of every compiled force kernel: (x, coef, out, start, stop, ring) -> None.
-FORCE_SIGNATURE = types.void(types.float64[:, ::1], types.float64[::1], types.float64[:, ::1], types.int64, types.int64, types.boolean)
+#: Signature of every compiled force kernel: (x, coef, out, start, stop) -> None.
+FORCE_SIGNATURE = types.void(types.float64[:, ::1], types.float64[::1], types.float64[:, ::1], types.int64, types.int64)
+#: Signature of the end kernels: (x, coef, out, first, last, ring) -> None.
+END_SIGNATURE = types.void(types.float64[:, ::1], types.float64[::1], types.float64[:, ::1], types.boolean, types.boolean, types.boolean)
+END_KERNEL_TYPE = types.FunctionType(END_SIGNATURE)
 #: The first-class function type compiled integrators take, so that one compiled
 #: (and cached) integrator serves every model.
 FORCE_KERNEL_TYPE = types.FunctionType(FORCE_SIGNATURE)
-#: Signature of every compiled batch force kernel: (x, coef, out, start, stop, ring) -> None, batch innermost.
-BATCH_FORCE_SIGNATURE = types.void(
-    types.float64[:, :, ::1], types.float64[:, ::1], types.float64[:, :, ::1], types.int64, types.int64, types.boolean
-)
+#: Signature of every compiled batch force kernel: (x, coef, out) -> None, batch innermost.
+BATCH_FORCE_SIGNATURE = types.void(types.float64[:, :, ::1], types.float64[:, ::1], types.float64[:, :, ::1])
 BATCH_FORCE_KERNEL_TYPE = types.FunctionType(BATCH_FORCE_SIGNATURE)
 #: Numba options of the compiled hot loops (force kernels, integrators).
 #: ``error_model="numpy"``: a division by zero gives inf or nan instead of raising,
@@ -103,6 +110,8 @@ class Model(ABC):
     #: only holds small angles). Rotation experiments and the CLI's choices ask it.
     rotates: ClassVar[bool]
     force_kernel: ClassVar[Callable[..., None]]
+    #: The forces on the end columns (module docstring); None: clamped chains only.
+    end_kernel: ClassVar[Callable[..., None] | None] = None
     batch_kernel: ClassVar[Callable[..., None]]
     #: Largest |phi| at which the kernels are accurate: a model that evaluates sines
     #: with :func:`.trig.sincos` sets its reduction limit; the engine stops a run beyond it.
@@ -175,7 +184,8 @@ class Model(ABC):
         factorisation tells. Bonds between neighbours give A a bandwidth of at most
         5, so each step costs O(N), with no dense matrix; the upper end of the final
         bracket is returned, above lambda_max by at most 1e-10 of the Gershgorin
-        bound. For a non-symmetric K, the Gershgorin bound on the spectral radius.
+        bound. For a non-symmetric K, and for a ring (whose K is not banded), the
+        Gershgorin bound on the spectral radius.
         A model with a closed-form bound independent of N overrides this.
 
         Returns
@@ -191,7 +201,8 @@ class Model(ABC):
         scale = sp.diags(1.0 / np.sqrt(per_dof(params, params.inertia)))
         dynamical = (scale @ sp.csr_matrix(self.stiffness(params, np.zeros((3, n)))) @ scale).tocsr()
         gershgorin = float(abs(dynamical).sum(axis=1).max())
-        if abs(dynamical - dynamical.T).max() > _SYMMETRY_RTOL * gershgorin:
+        # A ring's corner blocks would make the band as wide as the chain: its Gershgorin bound instead.
+        if params.periodic or abs(dynamical - dynamical.T).max() > _SYMMETRY_RTOL * gershgorin:
             return math.sqrt(gershgorin)
         negative = upper_bands(-dynamical)
         bandwidth = negative.shape[0] - 1
@@ -212,13 +223,35 @@ class Model(ABC):
         """Forces from the compiled kernel, same layout as :meth:`forces`."""
         x = check_state(params, x)
         out = np.zeros_like(x)
+        coef = self.coefficients(params)
+        type(self).force_kernel(x, coef, out, 1, x.shape[1] - 1)
         start, stop = force_columns(params)
-        type(self).force_kernel(x, self.coefficients(params), out, start, stop, params.periodic)
+        if start == 0 or stop == x.shape[1]:
+            self.ends_kernel(params)(x, coef, out, start == 0, stop == x.shape[1], params.periodic)
         zero_held(params, out)
         return out
 
+    def ends_kernel(self, params: ChainParams) -> Callable[..., None]:
+        """The end kernel for ``params`` (a compiled no-op for a clamped chain).
+
+        Raises
+        ------
+        ValueError
+            For a chain with other ends and a model that has no ``end_kernel``.
+        """
+        if params.clamped:
+            return no_ends
+        if type(self).end_kernel is None:
+            raise ValueError(f"the {self.name} model has no end_kernel: it runs clamped chains only, got {params.describe_ends()}")
+        return type(self).end_kernel
+
     def __repr__(self) -> str:
         return f"<model {self.name!r}: {self.equation}>"
+
+
+@njit(END_SIGNATURE, cache=True, nogil=True)
+def no_ends(x, coef, out, first, last, ring):  # pragma: no cover - compiled
+    """The end kernel of a clamped chain: its end columns do not move."""
 
 
 def upper_bands(matrix: sp.spmatrix) -> np.ndarray:

@@ -23,7 +23,7 @@ from numba import njit
 
 from ..params import ChainParams
 from ..state import bonded, check_state, scatter_bonds, zero_held
-from .base import BATCH_FORCE_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks
+from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks
 
 
 def cosserat_coefficients(params: ChainParams) -> np.ndarray:
@@ -77,37 +77,39 @@ def cosserat_end(
 
 
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def linear_forces_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
+def linear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
+    # 0-based slices for the three neighbours: no wrap-around arithmetic in the loop.
+    m = stop - start
+    u_prev, u, u_next = x[0, start - 1 : stop - 1], x[0, start:stop], x[0, start + 1 : stop + 1]
+    v_prev, v, v_next = x[1, start - 1 : stop - 1], x[1, start:stop], x[1, start + 1 : stop + 1]
+    p_prev, p, p_next = x[2, start - 1 : stop - 1], x[2, start:stop], x[2, start + 1 : stop + 1]
+    out_u, out_v, out_phi = out[0, start:stop], out[1, start:stop], out[2, start:stop]
+    for k in range(m):
+        out_u[k], out_v[k], out_phi[k] = cosserat_site(
+            k_u, k_v, h, bend, couple, u_prev[k], u[k], u_next[k], v_prev[k], v[k], v_next[k], p_prev[k], p[k], p_next[k]
+        )
+
+
+@njit(END_SIGNATURE, **KERNEL_OPTIONS)
+def linear_end_kernel(x, coef, out, first, last, ring):  # pragma: no cover - compiled
     n = x.shape[1]
-    # The interior columns by eq. (3), the end columns (no neighbour on one side, or
-    # the ring's wrapped one) outside the loop. 0-based slices for the three
-    # neighbours: no wrap-around arithmetic in the loop.
-    lo, hi = max(start, 1), min(stop, n - 1)
-    if lo < hi:
-        u_prev, u, u_next = x[0, lo - 1 : hi - 1], x[0, lo:hi], x[0, lo + 1 : hi + 1]
-        v_prev, v, v_next = x[1, lo - 1 : hi - 1], x[1, lo:hi], x[1, lo + 1 : hi + 1]
-        p_prev, p, p_next = x[2, lo - 1 : hi - 1], x[2, lo:hi], x[2, lo + 1 : hi + 1]
-        out_u, out_v, out_phi = out[0, lo:hi], out[1, lo:hi], out[2, lo:hi]
-        for k in range(hi - lo):
-            out_u[k], out_v[k], out_phi[k] = cosserat_site(
-                k_u, k_v, h, bend, couple, u_prev[k], u[k], u_next[k], v_prev[k], v[k], v_next[k], p_prev[k], p[k], p_next[k]
-            )
     for side in range(2):
-        c = 0 if side == 0 else n - 1
-        if (side == 0 and start == 0) or (side == 1 and stop == n):
+        if (side == 0 and first) or (side == 1 and last):
+            c = 0 if side == 0 else n - 1
             i, j = (c - 1) % n, (c + 1) % n
             out[0, c], out[1, c], out[2, c] = cosserat_end(
-                k_u, k_v, h, bend, couple, x[0, i], x[0, c], x[0, j], x[1, i], x[1, c], x[1, j], x[2, i], x[2, c], x[2, j], side, ring
-            )
+                coef[0], coef[1], coef[2], coef[3], coef[4], x[0, i], x[0, c], x[0, j], x[1, i], x[1, c], x[1, j],
+                x[2, i], x[2, c], x[2, j], side, ring,
+            )  # fmt: skip
 
 
 @njit(inline="always", **KERNEL_OPTIONS)
-def cosserat_batch(coef, x, angle, out, start, stop, ring):  # pragma: no cover - compiled
-    """Eqs. (2)-(3) for a batch (3, n, B) on columns [start, stop), ``angle`` (n, B) standing for phi or sin phi."""
+def cosserat_batch(coef, x, angle, out):  # pragma: no cover - compiled
+    """Eqs. (2)-(3) for a batch (3, n, B) with ``angle`` (n, B) standing for phi or sin phi."""
     n, size = x.shape[1], x.shape[2]
     k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
-    for k in range(max(start, 1), min(stop, n - 1)):
+    for k in range(1, n - 1):
         u_prev, u, u_next = x[0, k - 1], x[0, k], x[0, k + 1]
         v_prev, v, v_next = x[1, k - 1], x[1, k], x[1, k + 1]
         a_prev, a, a_next = angle[k - 1], angle[k], angle[k + 1]
@@ -116,20 +118,11 @@ def cosserat_batch(coef, x, angle, out, start, stop, ring):  # pragma: no cover 
             out_u[i], out_v[i], out_phi[i] = cosserat_site(
                 k_u[i], k_v[i], h[i], bend[i], couple[i], u_prev[i], u[i], u_next[i], v_prev[i], v[i], v_next[i], a_prev[i], a[i], a_next[i]
             )
-    for side in range(2):
-        c = 0 if side == 0 else n - 1
-        if (side == 0 and start == 0) or (side == 1 and stop == n):
-            p, q = (c - 1) % n, (c + 1) % n
-            for i in range(size):
-                out[0, c, i], out[1, c, i], out[2, c, i] = cosserat_end(
-                    k_u[i], k_v[i], h[i], bend[i], couple[i], x[0, p, i], x[0, c, i], x[0, q, i], x[1, p, i], x[1, c, i], x[1, q, i],
-                    angle[p, i], angle[c, i], angle[q, i], side, ring,
-                )  # fmt: skip
 
 
 @njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def linear_batch_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
-    cosserat_batch(coef, x, x[2], out, start, stop, ring)
+def linear_batch_kernel(x, coef, out):  # pragma: no cover - compiled
+    cosserat_batch(coef, x, x[2], out)
 
 
 def cosserat_forces(params: ChainParams, u: np.ndarray, v: np.ndarray, angle: np.ndarray) -> np.ndarray:
@@ -186,6 +179,7 @@ class LinearModel(Model):
     # Quadratic in phi: a model of small rotations, not periodic in them.
     rotates = False
     force_kernel = linear_forces_kernel
+    end_kernel = linear_end_kernel
     batch_kernel = linear_batch_kernel
 
     @staticmethod

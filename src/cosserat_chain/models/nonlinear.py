@@ -23,7 +23,7 @@ from numba import njit
 from ..geometry import bond_links, rotate
 from ..params import ChainParams
 from ..state import bonded, check_state, scatter_bonds, zero_held
-from .base import BATCH_FORCE_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks
+from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks
 from .linear import max_frequency
 from .trig import REDUCTION_LIMIT, sincos
 
@@ -76,39 +76,28 @@ def _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, du, dv):  # pragma: no 
     return fx, fy, m0, m1
 
 
-@njit(inline="always", **KERNEL_OPTIONS)
-def _bond_between(x, i, j, a, b, h, E1, E2, rest1, rest2):  # pragma: no cover - compiled
-    """:func:`_bond` between columns i (left) and j (right) of a chain, computing their sines (the end columns)."""
-    s0, c0 = sincos(x[2, i])
-    s1, c1 = sincos(x[2, j])
-    return _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, x[0, j] - x[0, i], x[1, j] - x[1, i])
-
-
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def nonlinear_forces_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
+def nonlinear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     a, b, h, E1, E2, rest1, rest2 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5], coef[6]
-    n = x.shape[1]
     # Column k gets the right half of bond k-1 (-fx, -fy, m1) and the left half of
     # bond k (fx, fy, m0). The loop computes bond k and carries fx, fy, m1 and the
     # sine and cosine of column k+1 to the next iteration (recurrences the
     # vectoriser recognises; it does not recognise a carried -fx, hence fx - fx_prev).
-    # The bond into column start is peeled off (none for the free first column of an
-    # open chain; the closing bond from column n-1 for a ring), and so is the last
-    # column's bond out (none, or the ring's closing bond), rather than guarded by an
-    # `if` in the loop; the slices make every index 0-based: either one alone keeps the
-    # loop scalar.
-    fx_prev = fy_prev = m1_prev = 0.0
-    if start > 0 or ring:
-        fx_prev, fy_prev, _, m1_prev = _bond_between(x, (start - 1) % n, start, a, b, h, E1, E2, rest1, rest2)
-    s0, c0 = sincos(x[2, start])
-    top = min(stop, n - 1)
+    # Bond start-1 is peeled off rather than guarded by an `if` in the loop, and the
+    # slices make every index 0-based: either one alone keeps the loop scalar.
+    s0, c0 = sincos(x[2, start - 1])
+    s1, c1 = sincos(x[2, start])
+    fx_prev, fy_prev, _, m1_prev = _bond(
+        a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, x[0, start] - x[0, start - 1], x[1, start] - x[1, start - 1]
+    )
+    s0, c0 = s1, c1
     u = x[0, start:]
     v = x[1, start:]
     phi = x[2, start:]
-    out_u = out[0, start:top]
-    out_v = out[1, start:top]
-    out_phi = out[2, start:top]
-    for k in range(top - start):
+    out_u = out[0, start:stop]
+    out_v = out[1, start:stop]
+    out_phi = out[2, start:stop]
+    for k in range(stop - start):
         s1, c1 = sincos(phi[k + 1])
         fx, fy, m0, m1 = _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, u[k + 1] - u[k], v[k + 1] - v[k])
         out_u[k] = fx - fx_prev
@@ -116,36 +105,57 @@ def nonlinear_forces_kernel(x, coef, out, start, stop, ring):  # pragma: no cove
         out_phi[k] = m0 + m1_prev
         fx_prev, fy_prev, m1_prev = fx, fy, m1
         s0, c0 = s1, c1
-    if stop == n:
-        fx = fy = m0 = 0.0
-        if ring:
-            fx, fy, m0, _ = _bond_between(x, n - 1, 0, a, b, h, E1, E2, rest1, rest2)
-        out[0, n - 1] = fx - fx_prev
-        out[1, n - 1] = fy - fy_prev
-        out[2, n - 1] = m0 + m1_prev
+
+
+@njit(END_SIGNATURE, **KERNEL_OPTIONS)
+def nonlinear_end_kernel(x, coef, out, first, last, ring):  # pragma: no cover - compiled
+    a, b, h, E1, E2, rest1, rest2 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5], coef[6]
+    n = x.shape[1]
+    # Column 0 has bond 0 on its right, column n-1 bond n-2 on its left; a ring's closing
+    # bond joins column n-1 (left) to column 0 (right), a neighbour h further on.
+    closing_x = closing_y = closing_m0 = closing_m1 = 0.0
+    if ring:
+        s0, c0 = sincos(x[2, n - 1])
+        s1, c1 = sincos(x[2, 0])
+        closing_x, closing_y, closing_m0, closing_m1 = _bond(
+            a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, x[0, 0] - x[0, n - 1], x[1, 0] - x[1, n - 1]
+        )
+    if first:
+        s0, c0 = sincos(x[2, 0])
+        s1, c1 = sincos(x[2, 1])
+        fx, fy, m0, _ = _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, x[0, 1] - x[0, 0], x[1, 1] - x[1, 0])
+        out[0, 0] = fx - closing_x
+        out[1, 0] = fy - closing_y
+        out[2, 0] = m0 + closing_m1
+    if last:
+        s0, c0 = sincos(x[2, n - 2])
+        s1, c1 = sincos(x[2, n - 1])
+        fx, fy, _, m1 = _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, x[0, n - 1] - x[0, n - 2], x[1, n - 1] - x[1, n - 2])
+        out[0, n - 1] = closing_x - fx
+        out[1, n - 1] = closing_y - fy
+        out[2, n - 1] = closing_m0 + m1
 
 
 @njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def nonlinear_batch_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
+def nonlinear_batch_kernel(x, coef, out):  # pragma: no cover - compiled
     n, size = x.shape[1], x.shape[2]
     a, b, h, E1, E2, rest1, rest2 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5], coef[6]
     # Per member: sine, cosine of the bond's left column and the carried half bond,
     # the same arithmetic as nonlinear_forces_kernel member by member.
     s0, c0 = np.empty(size), np.empty(size)
-    fx_prev, fy_prev, m1_prev = np.zeros(size), np.zeros(size), np.zeros(size)
-    if start > 0 or ring:
-        left = (start - 1) % n
-        for i in range(size):
-            s, c = sincos(x[2, left, i])
-            s1, c1 = sincos(x[2, start, i])
-            fx_prev[i], fy_prev[i], _, m1_prev[i] = _bond(
-                a[i], b[i], h[i], E1[i], E2[i], rest1[i], rest2[i], c, s, c1, s1,
-                x[0, start, i] - x[0, left, i], x[1, start, i] - x[1, left, i],
-            )  # fmt: skip
+    fx_prev, fy_prev, m1_prev = np.empty(size), np.empty(size), np.empty(size)
     for i in range(size):
-        s0[i], c0[i] = sincos(x[2, start, i])
-    for k in range(start, min(stop, n - 1)):
+        s0[i], c0[i] = sincos(x[2, 0, i])
+    for k in range(n - 1):
         u0, u1, v0, v1, phi1 = x[0, k], x[0, k + 1], x[1, k], x[1, k + 1], x[2, k + 1]
+        if k == 0:
+            for i in range(size):
+                s1, c1 = sincos(phi1[i])
+                fx_prev[i], fy_prev[i], _, m1_prev[i] = _bond(
+                    a[i], b[i], h[i], E1[i], E2[i], rest1[i], rest2[i], c0[i], s0[i], c1, s1, u1[i] - u0[i], v1[i] - v0[i]
+                )
+                s0[i], c0[i] = s1, c1
+            continue
         out_u, out_v, out_phi = out[0, k], out[1, k], out[2, k]
         for i in range(size):
             s1, c1 = sincos(phi1[i])
@@ -155,18 +165,6 @@ def nonlinear_batch_kernel(x, coef, out, start, stop, ring):  # pragma: no cover
             out_phi[i] = m0 + m1_prev[i]
             fx_prev[i], fy_prev[i], m1_prev[i] = fx, fy, m1
             s0[i], c0[i] = s1, c1
-    if stop == n:
-        for i in range(size):
-            fx = fy = m0 = 0.0
-            if ring:
-                s1, c1 = sincos(x[2, 0, i])
-                fx, fy, m0, _ = _bond(
-                    a[i], b[i], h[i], E1[i], E2[i], rest1[i], rest2[i], c0[i], s0[i], c1, s1,
-                    x[0, 0, i] - x[0, n - 1, i], x[1, 0, i] - x[1, n - 1, i],
-                )  # fmt: skip
-            out[0, n - 1, i] = fx - fx_prev[i]
-            out[1, n - 1, i] = fy - fy_prev[i]
-            out[2, n - 1, i] = m0 + m1_prev[i]
 
 
 @njit(cache=True, nogil=True)
@@ -247,6 +245,7 @@ class NonlinearModel(Model):
     equation = "eq. (1)"
     rotates = True
     force_kernel = nonlinear_forces_kernel
+    end_kernel = nonlinear_end_kernel
     batch_kernel = nonlinear_batch_kernel
     max_angle = REDUCTION_LIMIT
 

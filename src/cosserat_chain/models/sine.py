@@ -23,7 +23,7 @@ from scipy.linalg import cholesky_banded
 
 from ..params import ChainParams
 from ..state import check_state, pack
-from .base import BATCH_FORCE_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, from_upper_bands, upper_bands
+from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, from_upper_bands, upper_bands
 from .linear import (
     cosserat_batch,
     cosserat_bond_energy,
@@ -49,46 +49,46 @@ def _linear_factor(params: ChainParams) -> sp.csr_matrix:
 
 
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def sine_forces_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
+def sine_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
+    # One sine per particle: sin(phi) of the previous and current columns are carried
+    # (recurrences the vectoriser recognises); 0-based slices as in the linear kernel.
+    s_prev = sincos(x[2, start - 1])[0]
+    s_cur = sincos(x[2, start])[0]
+    u_prev, u, u_next = x[0, start - 1 : stop - 1], x[0, start:stop], x[0, start + 1 : stop + 1]
+    v_prev, v, v_next = x[1, start - 1 : stop - 1], x[1, start:stop], x[1, start + 1 : stop + 1]
+    p_next = x[2, start + 1 : stop + 1]
+    out_u, out_v, out_phi = out[0, start:stop], out[1, start:stop], out[2, start:stop]
+    for k in range(stop - start):
+        s_next = sincos(p_next[k])[0]
+        out_u[k], out_v[k], out_phi[k] = cosserat_site(
+            k_u, k_v, h, bend, couple, u_prev[k], u[k], u_next[k], v_prev[k], v[k], v_next[k], s_prev, s_cur, s_next
+        )
+        s_prev = s_cur
+        s_cur = s_next
+
+
+@njit(END_SIGNATURE, **KERNEL_OPTIONS)
+def sine_end_kernel(x, coef, out, first, last, ring):  # pragma: no cover - compiled
     n = x.shape[1]
-    # The interior columns in a loop, the end columns (one bond, or the ring's wrapped
-    # neighbour) outside it. One sine per particle: sin(phi) of the previous and current
-    # columns are carried (recurrences the vectoriser recognises); 0-based slices as
-    # in the linear kernel.
-    lo, hi = max(start, 1), min(stop, n - 1)
-    if lo < hi:
-        s_prev = sincos(x[2, lo - 1])[0]
-        s_cur = sincos(x[2, lo])[0]
-        u_prev, u, u_next = x[0, lo - 1 : hi - 1], x[0, lo:hi], x[0, lo + 1 : hi + 1]
-        v_prev, v, v_next = x[1, lo - 1 : hi - 1], x[1, lo:hi], x[1, lo + 1 : hi + 1]
-        p_next = x[2, lo + 1 : hi + 1]
-        out_u, out_v, out_phi = out[0, lo:hi], out[1, lo:hi], out[2, lo:hi]
-        for k in range(hi - lo):
-            s_next = sincos(p_next[k])[0]
-            out_u[k], out_v[k], out_phi[k] = cosserat_site(
-                k_u, k_v, h, bend, couple, u_prev[k], u[k], u_next[k], v_prev[k], v[k], v_next[k], s_prev, s_cur, s_next
-            )
-            s_prev = s_cur
-            s_cur = s_next
     for side in range(2):
-        c = 0 if side == 0 else n - 1
-        if (side == 0 and start == 0) or (side == 1 and stop == n):
+        if (side == 0 and first) or (side == 1 and last):
+            c = 0 if side == 0 else n - 1
             i, j = (c - 1) % n, (c + 1) % n
             out[0, c], out[1, c], out[2, c] = cosserat_end(
-                k_u, k_v, h, bend, couple, x[0, i], x[0, c], x[0, j], x[1, i], x[1, c], x[1, j],
+                coef[0], coef[1], coef[2], coef[3], coef[4], x[0, i], x[0, c], x[0, j], x[1, i], x[1, c], x[1, j],
                 sincos(x[2, i])[0], sincos(x[2, c])[0], sincos(x[2, j])[0], side, ring,
             )  # fmt: skip
 
 
 @njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
-def sine_batch_kernel(x, coef, out, start, stop, ring):  # pragma: no cover - compiled
+def sine_batch_kernel(x, coef, out):  # pragma: no cover - compiled
     phi = x[2]
     sines = np.empty_like(phi)
     for k in range(phi.shape[0]):
         for i in range(phi.shape[1]):
             sines[k, i] = sincos(phi[k, i])[0]
-    cosserat_batch(coef, x, sines, out, start, stop, ring)
+    cosserat_batch(coef, x, sines, out)
 
 
 class SineModel(Model):
@@ -99,6 +99,7 @@ class SineModel(Model):
     equation = "eq. (2)"
     rotates = True
     force_kernel = sine_forces_kernel
+    end_kernel = sine_end_kernel
     batch_kernel = sine_batch_kernel
     max_angle = REDUCTION_LIMIT
 

@@ -33,7 +33,7 @@ METHOD = "DOP853"
 
 
 @njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
-def _rhs(force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
+def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
     # y = (x (3, n), v (3, n), W, D) flattened; rpar = (mass (3), gamma (3), free (3 n): 1.0 where
     # the ends leave the degree of freedom free, knots (K, 2)); ipar = (n, number of loads L,
     # start, stop, ring, load index (L, 4)), as :meth:`Loads.compiled` lays it out.
@@ -48,7 +48,9 @@ def _rhs(force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
     x = y[:size].reshape((3, n))
     v = y[size : 2 * size].reshape((3, n))
     f = np.zeros((3, n))
-    force(x, coef, f, start, stop, ring)
+    force(x, coef, f, 1, n - 1)
+    if start == 0 or stop == n:
+        end_force(x, coef, f, start == 0, stop == n, ring)
     work_rate = 0.0
     for i in range(load_index.shape[0]):
         row = load_index[i, 0]
@@ -124,7 +126,17 @@ def integrate_adaptive(
     y0 = np.concatenate([x.ravel(), v.ravel(), [0.0, 0.0]])
     times = np.linspace(t0, t_end, n_frames)
     sol = dop853.solve(
-        _rhs, type(model).force_kernel, model.coefficients(params), rpar, ipar, y0, times, rtol=rtol, atol=atol, max_steps=max_steps
+        _rhs,
+        type(model).force_kernel,
+        model.coefficients(params),
+        rpar,
+        ipar,
+        y0,
+        times,
+        rtol=rtol,
+        atol=atol,
+        max_steps=max_steps,
+        end_force=model.ends_kernel(params),
     )
     size = 3 * n
     return Trajectory(

@@ -6,9 +6,9 @@ Contract
 ``times``. The right-hand side is a compiled function of the one signature
 :data:`RHS_SIGNATURE`,
 
-    rhs(force, t, y, coef, rpar, ipar, dy) -> None, overwriting every entry of dy with f(t, y),
+    rhs(force, end_force, t, y, coef, rpar, ipar, dy) -> None, overwriting every entry of dy with f(t, y),
 
-where ``force`` (a model's force kernel) and ``coef`` (its coefficients) are passed through
+where ``force`` and ``end_force`` (a model's force and end kernels) and ``coef`` (its coefficients) are passed through
 untouched for the chain's forces, and ``rpar`` (float64) and ``ipar`` (int64) are flat vectors
 holding whatever else the right-hand side reads, as RPAR and IPAR of Hairer's ``dop853.f``.
 Because right-hand sides and kernels are first-class functions, one compiled and cached
@@ -44,12 +44,13 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, types
 
-from ..models.base import FORCE_KERNEL_TYPE
+from ..models.base import END_KERNEL_TYPE, FORCE_KERNEL_TYPE, no_ends
 from ..status import Status
 
-#: Signature of every right-hand side: rhs(force, t, y, coef, rpar, ipar, dy) -> None.
+#: Signature of every right-hand side: rhs(force, end_force, t, y, coef, rpar, ipar, dy) -> None.
 RHS_SIGNATURE = types.void(
     FORCE_KERNEL_TYPE,
+    END_KERNEL_TYPE,
     types.float64,
     types.float64[::1],
     types.float64[::1],
@@ -220,6 +221,7 @@ _STATUS = {_COMPLETED: Status.COMPLETED, _MAX_STEPS: Status.MAX_STEPS, _STEP_TOO
 _SOLVE_SIGNATURE = types.Tuple((types.int64, types.int64, types.int64, types.int64, types.float64))(
     RHS_TYPE,
     FORCE_KERNEL_TYPE,
+    END_KERNEL_TYPE,
     types.float64[::1],
     types.float64[::1],
     types.int64[::1],
@@ -240,7 +242,7 @@ def _rms(v, y, rtol, atol):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _initial_step(rhs, force, coef, rpar, ipar, t0, y0, f0, interval, rtol, atol, y1, f1):  # pragma: no cover - compiled
+def _initial_step(rhs, force, end_force, coef, rpar, ipar, t0, y0, f0, interval, rtol, atol, y1, f1):  # pragma: no cover - compiled
     # scipy.integrate._ivp.common.select_initial_step (Hairer's algorithm, Sec. II.4), order 7.
     d0 = _rms(y0, y0, rtol, atol)
     d1 = _rms(f0, y0, rtol, atol)
@@ -248,7 +250,7 @@ def _initial_step(rhs, force, coef, rpar, ipar, t0, y0, f0, interval, rtol, atol
     h0 = min(h0, interval)
     for i in range(y0.size):
         y1[i] = y0[i] + h0 * f0[i]
-    rhs(force, t0 + h0, y1, coef, rpar, ipar, f1)
+    rhs(force, end_force, t0 + h0, y1, coef, rpar, ipar, f1)
     for i in range(y0.size):
         f1[i] -= f0[i]
     d2 = _rms(f1, y0, rtol, atol) / h0
@@ -260,7 +262,7 @@ def _initial_step(rhs, force, coef, rpar, ipar, t0, y0, f0, interval, rtol, atol
 
 
 @njit(_SOLVE_SIGNATURE, cache=True, nogil=True, error_model="numpy")
-def _solve(rhs, force, coef, rpar, ipar, times, rtol, atol, max_steps, out):  # pragma: no cover - compiled
+def _solve(rhs, force, end_force, coef, rpar, ipar, times, rtol, atol, max_steps, out):  # pragma: no cover - compiled
     # out[0] holds y0 on entry and out[1:frames] the outputs on return, with
     # (status, frames, accepted steps, right-hand-side evaluations, t reached).
     size = out.shape[1]
@@ -269,8 +271,8 @@ def _solve(rhs, force, coef, rpar, ipar, times, rtol, atol, max_steps, out):  # 
     stage = np.empty(size)
     y_new = np.empty(size)
     t = times[0]
-    rhs(force, t, y, coef, rpar, ipar, k[0])
-    h_abs = _initial_step(rhs, force, coef, rpar, ipar, t, y, k[0], times[-1] - t, rtol, atol, stage, y_new)
+    rhs(force, end_force, t, y, coef, rpar, ipar, k[0])
+    h_abs = _initial_step(rhs, force, end_force, coef, rpar, ipar, t, y, k[0], times[-1] - t, rtol, atol, stage, y_new)
     evaluations = 2
     accepted = 0
     attempts = 0
@@ -298,7 +300,7 @@ def _solve(rhs, force, coef, rpar, ipar, times, rtol, atol, max_steps, out):  # 
                             stage[i] += A[s, r] * k[r, i]
                 for i in range(size):
                     stage[i] = y[i] + h * stage[i]
-                rhs(force, t + C[s] * h, stage, coef, rpar, ipar, k[s])
+                rhs(force, end_force, t + C[s] * h, stage, coef, rpar, ipar, k[s])
             evaluations += N_STAGES - 1
             y_new[:] = 0.0
             for r in range(N_STAGES):
@@ -336,7 +338,7 @@ def _solve(rhs, force, coef, rpar, ipar, times, rtol, atol, max_steps, out):  # 
         accepted += 1
         t = t_new
         y[:] = y_new
-        rhs(force, t, y, coef, rpar, ipar, k[0])
+        rhs(force, end_force, t, y, coef, rpar, ipar, k[0])
         evaluations += 1
         if t == target:
             out[frame] = y
@@ -390,6 +392,7 @@ def solve(
     rtol: float,
     atol: float,
     max_steps: int = MAX_STEPS,
+    end_force=no_ends,
 ) -> Solution:
     """Integrate y' = rhs(t, y) by DOP853 from ``times[0]``, with the states at ``times``.
 
@@ -398,6 +401,8 @@ def solve(
     rhs : compiled function of signature :data:`RHS_SIGNATURE`
     force : compiled force kernel (:data:`~cosserat_chain.models.base.FORCE_SIGNATURE`)
         Passed through to ``rhs`` with ``coef``; a right-hand side without a chain ignores it.
+    end_force : compiled end kernel (:data:`~cosserat_chain.models.base.END_SIGNATURE`), optional
+        Passed through to ``rhs`` likewise (default the clamped chain's no-op).
     coef : ndarray (c,) float64
     rpar : ndarray (p,) float64
     ipar : ndarray (q,) int64
@@ -443,7 +448,9 @@ def solve(
     coef = np.ascontiguousarray(coef, dtype=float)
     rpar = np.ascontiguousarray(rpar, dtype=float)
     ipar = np.ascontiguousarray(ipar, dtype=np.int64)
-    code, frames, steps, evaluations, t = _solve(rhs, force, coef, rpar, ipar, times, float(rtol), float(atol), int(max_steps), out)
+    code, frames, steps, evaluations, t = _solve(
+        rhs, force, end_force, coef, rpar, ipar, times, float(rtol), float(atol), int(max_steps), out
+    )
     if code == _COMPLETED:
         message = f"reached t={t:.10g} in {steps} steps"
     elif code == _MAX_STEPS:

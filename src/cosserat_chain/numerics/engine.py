@@ -22,9 +22,10 @@ A batch is B chains of the same length stored batch-innermost, x[r, k, b]
 damping, time step, start time and load amplitudes, all taking the same number
 of steps per call. For B = 1 the model's chain kernel runs, vectorised along
 the chain; for B > 1 its batch kernel, vectorised across the members. Member b
-of a batch computes exactly what a batch of one computes for it (the kernels
-share their per-bond code; the engine's arithmetic does not depend on B), so
-its states equal its single run's to the last bit.
+of a batch gets the forces a batch of one computes for it to the last bit (the
+kernels share their per-bond code, the end columns run the very end kernel), and
+its states equal its single run's to round-off: the batch's kick-drift loop is
+compiled apart from the chain's, and the compiler may round the two differently.
 
 Along the way the loop accumulates per member the work done by the loads
 (trapezoidal in each sub-step, exact for constant loads) and the energy removed
@@ -47,7 +48,7 @@ from numba import njit, types
 
 from ..loads import schedule_value
 from ..memory import FLOAT, require
-from ..models.base import BATCH_FORCE_KERNEL_TYPE, FORCE_KERNEL_TYPE
+from ..models.base import BATCH_FORCE_KERNEL_TYPE, END_KERNEL_TYPE, FORCE_KERNEL_TYPE
 from ..state import force_columns, held
 from .integrators import substep_table
 
@@ -216,26 +217,46 @@ def _kick_drift(x, v, f, pairs, close, open_, columns, dissipated, scratch):  # 
         c0 = c1
 
 
+# The four columns of a member the end kernel reads (0, 1, n-2, n-1), and its forces there.
+_ENDS_SIGNATURE = types.void(
+    END_KERNEL_TYPE, types.float64[:, :, ::1], types.float64[:, :, ::1], types.float64[:, ::1], types.boolean, types.boolean,
+    types.boolean, types.float64[:, ::1], types.float64[:, ::1], types.float64[::1],
+)  # fmt: skip
+
+
+@njit(_ENDS_SIGNATURE, **_OPTIONS)
+def batch_ends(end_force, x3, f3, coef, first, last, ring, sx, sf, sc):  # pragma: no cover - compiled
+    """The end columns of every member of a batch (3, n, B) by the model's end kernel, member by member.
+
+    Each member's columns 0, 1, n-2 and n-1 are copied into the (3, 4) scratch ``sx`` (a
+    chain of four columns whose ends and ring seam are the member's), so that the very
+    code of a single run computes them: the same bits. ``sc`` (c,) holds the member's
+    coefficients, ``sf`` (3, 4) the forces.
+    """
+    n = x3.shape[1]
+    for i in range(x3.shape[2]):
+        for r in range(3):
+            sx[r, 0] = x3[r, 0, i]
+            sx[r, 1] = x3[r, 1, i]
+            sx[r, 2] = x3[r, n - 2, i]
+            sx[r, 3] = x3[r, n - 1, i]
+        for c in range(coef.shape[0]):
+            sc[c] = coef[c, i]
+        end_force(sx, sc, sf, first, last, ring)
+        for r in range(3):
+            if first:
+                f3[r, 0, i] = sf[r, 0]
+            if last:
+                f3[r, n - 1, i] = sf[r, 3]
+
+
 @njit(**_KICK_OPTIONS)
 def _batch_substep(
-    batch_force, x, v, f, x3, f3, coef, pairs, close, open_, dissipated, scratch, start, stop, ring
+    batch_force, x, v, f, x3, f3, coef, pairs, close, open_, dissipated, scratch, start, stop
 ):  # pragma: no cover - compiled
     """A batch's sub-step (B > 1) on columns [start, stop): its kick-drift, then the batch kernel on the (3, n, B) views x3, f3."""
     _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch, start, stop)
-    batch_force(x3, coef, f3, start, stop, ring)
-
-
-@njit(inline="always", **_OPTIONS)
-def _hold(f, fixed, size):  # pragma: no cover - compiled
-    """Zero the forces on the degrees of freedom the ends hold fixed (rows ``fixed[j, 0]`` of columns ``fixed[j, 1]``).
-
-    With zero force and zero velocity a degree of freedom stays where it is: the
-    pinned ends' u and v. (A clamped end's column is not advanced at all.)
-    """
-    for j in range(fixed.shape[0]):
-        at = fixed[j, 1] * size
-        for i in range(size):
-            f[fixed[j, 0], at + i] = 0.0
+    batch_force(x3, coef, f3)
 
 
 @njit(**_OPTIONS)
@@ -341,7 +362,7 @@ _STATES = types.float64[:, :, ::1]
 _TABLE = types.float64[:, ::1]
 # fmt: off
 ADVANCE_SIGNATURE = types.UniTuple(_I8, 4)(
-    FORCE_KERNEL_TYPE, BATCH_FORCE_KERNEL_TYPE,  # force, batch_force
+    FORCE_KERNEL_TYPE, END_KERNEL_TYPE, BATCH_FORCE_KERNEL_TYPE,  # force, end_force, batch_force
     _TABLE, _TABLE, _TABLE,  # x, v, f: (3, n B)
     _TABLE, types.float64[::1], types.float64[:, :, :, :, ::1], types.float64[::1],  # coef (c, B), chain_coef (c,), pairs, weights (S,)
     types.int64[:, ::1], _TABLE, _TABLE,  # load_index (L, 4), knots, load_scale (L, B)
@@ -357,6 +378,7 @@ ADVANCE_SIGNATURE = types.UniTuple(_I8, 4)(
 @njit(ADVANCE_SIGNATURE, **_KICK_OPTIONS)
 def advance(
     force,
+    end_force,
     batch_force,
     x,
     v,
@@ -394,7 +416,7 @@ def advance(
 
     Parameters
     ----------
-    force, batch_force : the model's compiled chain and batch kernels
+    force, end_force, batch_force : the model's compiled chain, end and batch kernels
     x, v : ndarray (3, n B)
         States at global step ``step0`` (time lanes[T0] + step0 lanes[DT]), velocities at the step
         boundary; column k of member b at index k B + b.
@@ -408,7 +430,8 @@ def advance(
     columns : (4,) advance columns [columns[0], columns[1]) (all, less a clamped end's); for B = 1 count
         the dissipated energy on [columns[2], columns[3]) (a block of a chain split over threads: :class:`Blocks`)
     ring : whether the last column is bonded to the first (``ChainParams.periodic``)
-    fixed : (H, 2) row and column of every degree of freedom a pinned end holds (:func:`_hold`)
+    fixed : (H, 2) row and column of every degree of freedom a pinned end holds: their forces are
+        zeroed after every evaluation, so that with zero velocity they stay where they are
     stride : store after every global step that is a multiple of it (and after the last if ``close_at_end``)
     check_every : test for members out of bounds after every global step that is a multiple of it
         (and after the last if ``close_at_end``)
@@ -456,6 +479,11 @@ def advance(
     f3 = f.reshape((3, x.shape[1] // size, size))
     frame = frame0
     keep_states = frames_x.shape[0] > 0
+    n_chain = x.shape[1] // size
+    ends = columns[0] == 0 or columns[1] == n_chain
+    end_x = np.empty((3, 4))
+    end_f = np.empty((3, 4))
+    end_coef = np.empty(coef.shape[0])
     n_sub = weights.size
     empty = n_sub
     # Countdowns instead of a modulo per step: an integer division costs as much as
@@ -465,7 +493,9 @@ def advance(
     for k in range(n_steps):
         for s in range(n_sub):
             if size > 1:
-                _batch_substep(batch_force, x, v, f, x3, f3, coef, pairs, pending, s, dissipated, scratch, columns[0], columns[1], ring)
+                _batch_substep(batch_force, x, v, f, x3, f3, coef, pairs, pending, s, dissipated, scratch, columns[0], columns[1])
+                if ends:
+                    batch_ends(end_force, x3, f3, coef, columns[0] == 0, columns[1] == n_chain, ring, end_x, end_f, end_coef)
             else:
                 # One chain segment by segment: the kick-drift of a segment, then the forces one
                 # column behind it (a column's force needs its right neighbour moved), while the
@@ -474,21 +504,21 @@ def advance(
                 # function: an inlined function that takes arrays increfs and decrefs each of them
                 # (atomic operations) around its body, unless numba can prune the pairs, and
                 # around a call of the force kernel it cannot; they cost a short chain about a
-                # third of its step. A ring's first column needs its left neighbour, the last
-                # column, moved: its force comes after the sweep.
+                # third of its step. The chain kernel takes the interior columns; the end kernel
+                # the moving end columns (a free or pinned end, a ring's seam) once all have moved.
                 c0 = columns[0]
-                done = c0 + 1 if ring else c0
+                done = max(c0, 1)
                 stop, first, last = columns[1], columns[2], columns[3]
                 while c0 < stop:
                     c1, counted = _segment(c0, stop, first, last)
                     dissipated[0] += counted * _kick_drift_chain(x, v, f, pairs, pending, s, c0, c1)
-                    top = stop if c1 == stop else c1 - 1
+                    top = min(stop if c1 == stop else c1 - 1, n_chain - 1)
                     if top > done:
-                        force(x, chain_coef, f, done, top, ring)
+                        force(x, chain_coef, f, done, top)
                         done = top
                     c0 = c1
-                if ring:
-                    force(x, chain_coef, f, 0, 1, ring)
+                if ends:
+                    end_force(x, chain_coef, f, columns[0] == 0, stop == n_chain, ring)
             for j in range(n_loads):
                 row = load_index[j, 0]
                 at = load_index[j, 1] * size
@@ -511,7 +541,12 @@ def advance(
                     work[i] += load_index[j, 4] * (0.5 * (load_old[j, i] + load) * (q - q_old[j, i]))
                     q_old[j, i] = q
                     load_old[j, i] = load
-            _hold(f, fixed, size)
+            # The pinned ends' u and v: zero force (with zero velocity they stay put). Written out: an inlined function that
+            # takes arrays costs atomic reference counts (see the chain's sub-step above).
+            for j in range(fixed.shape[0]):
+                at = fixed[j, 1] * size
+                for i in range(size):
+                    f[fixed[j, 0], at + i] = 0.0
             pending = s
         turned = False
         if watch >= 0 and ring_time.shape[0] > 0:
@@ -628,6 +663,7 @@ class Lanes:
         start, stop = force_columns(self.params[0])
         self.columns = np.array([start, stop, start, stop], dtype=np.int64)
         self.ring = bool(self.params[0].periodic)
+        self.end_kernel = model.ends_kernel(self.params[0])
         self.fixed = held_dofs(self.params[0])
         self.pending = self.weights.size
         self.x = np.zeros((3, n, size))
@@ -679,9 +715,17 @@ class Lanes:
         # The kernels directly: the compiled loop's inline dispatch, called from Python with
         # the kernels as arguments, would be compiled anew in every process (not cacheable).
         if self.size == 1:
-            kind.force_kernel(self._flat(self.x), self.coef[:, 0].copy(), self._flat(self.f), self.columns[0], self.columns[1], self.ring)
+            x, coef, f = self._flat(self.x), self.coef[:, 0].copy(), self._flat(self.f)
+            kind.force_kernel(x, coef, f, max(1, self.columns[0]), min(self.columns[1], self.n - 1))
+            if self.columns[0] == 0 or self.columns[1] == self.n:
+                self.end_kernel(x, coef, f, self.columns[0] == 0, self.columns[1] == self.n, self.ring)
         else:
-            kind.batch_kernel(self.x, self.coef, self.f, self.columns[0], self.columns[1], self.ring)
+            kind.batch_kernel(self.x, self.coef, self.f)
+            if self.columns[0] == 0 or self.columns[1] == self.n:
+                batch_ends(
+                    self.end_kernel, self.x, self.f, self.coef, self.columns[0] == 0, self.columns[1] == self.n, self.ring,
+                    np.empty((3, 4)), np.empty((3, 4)), np.empty(self.coef.shape[0]),
+                )  # fmt: skip
         for j, (row, col, start, stop, _) in enumerate(self.load_index):
             if stop - start == 1:  # constant: one value for every member
                 self.f[row, col] += self.load_scale[j] * self.knots[start, 1]
@@ -705,7 +749,7 @@ class Lanes:
         flat_frames = frames_x.reshape(frames_x.shape[0], 3, self.n * self.size)
         kind = type(self.model)
         status, done, written, self.pending = advance(
-            kind.force_kernel, kind.batch_kernel, self._flat(self.x), self._flat(self.v), self._flat(self.f), self.coef,
+            kind.force_kernel, self.end_kernel, kind.batch_kernel, self._flat(self.x), self._flat(self.v), self._flat(self.f), self.coef,
             self.coef[:, 0].copy(), self.pairs, self.weights,
             self.load_index, self.knots, self.load_scale, self.lanes, self.lane_ints, self.columns, self.ring, self.fixed,
             int(n_steps), int(step0), int(stride), int(check_every), int(self.pending), bool(close_at_end), self.acc,

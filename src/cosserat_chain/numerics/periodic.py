@@ -47,7 +47,7 @@ from numba import njit
 
 from ..loads import moment_load
 from ..memory import FLOAT, require
-from ..models.base import Model, get_model
+from ..models.base import Model, get_model, no_ends
 from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, n_free, pack, per_dof, require_clamped, unpack, zeros
 from ..status import Status
@@ -81,7 +81,7 @@ ProgressCallback = Callable[[float, float], None]
 
 
 @njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
-def _rhs(force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
+def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
     # Autonomous: t is not read. rpar = (M, 1/mass (nf), gamma/mass (nf)) and
     # ipar = (n, load_dof, ncols), as _System.parameters lays them out.
     n = ipar[0]
@@ -96,7 +96,7 @@ def _rhs(force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
         for r in range(3):
             x[r, c] = y[3 * (c - 1) + r]
     f = np.zeros((3, n))
-    force(x, coef, f, 1, n - 1, False)
+    force(x, coef, f, 1, n - 1)
     for i in range(nf):
         dy[i] = y[nf + i]
         load = moment if i == load_dof else 0.0
@@ -117,8 +117,8 @@ def _rhs(force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
             for c in range(1 + color, n - 1, 3):
                 xp[r, c] += FD_STEP
                 xm[r, c] -= FD_STEP
-            force(xp, coef, fp, 1, n - 1, False)
-            force(xm, coef, fm, 1, n - 1, False)
+            force(xp, coef, fp, 1, n - 1)
+            force(xm, coef, fm, 1, n - 1)
             for c in range(1, n - 1):
                 for p in range(max(c - 1, 1), min(c + 2, n - 1)):
                     if (p - 1) % 3 != color:
@@ -186,7 +186,7 @@ class _System:
 
         def f(t: float, y: np.ndarray) -> np.ndarray:
             dy = np.empty_like(y)
-            _rhs(kernel, t, y, coef, rpar, ipar, dy)
+            _rhs(kernel, no_ends, t, y, coef, rpar, ipar, dy)
             return dy
 
         return f

@@ -42,7 +42,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..loads import moment_load
+from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import column, zero_held
@@ -168,7 +168,8 @@ def relax(
         would never fire), ``omega_rtol`` (agreement of the two windows' rates,
         default 0.05: a chaotic rotation fluctuates by a few percent over 12 turns),
         ``dt`` (default :func:`~cosserat_chain.numerics.dynamics.default_time_step`),
-        ``method`` ("verlet" or "yoshida4").
+        ``method`` ("verlet" or "yoshida4"), and ``loads`` (constant loads besides the
+        moment, acting throughout: :func:`run_plans`).
 
     Returns
     -------
@@ -265,6 +266,7 @@ def run_plans(
     x0: np.ndarray | None = None,
     v0: np.ndarray | None = None,
     threads: int = 1,
+    loads: Loads | None = None,
     **settings,
 ) -> None:
     """Run each member's sequence of relaxation steps, all members in lock-step chunks.
@@ -273,12 +275,15 @@ def run_plans(
     :class:`RelaxationStep` of relaxing under it (from the member's current
     state: ``x0``/``v0`` at first, then the previous step's end state), and so
     on until it returns. A member whose step ends starts its next one at once;
-    one that returns leaves the batch. Arguments as in :func:`relax_batch`.
+    one that returns leaves the batch. ``loads``: constant loads that act
+    throughout, besides the stepped moment (a force along the chain, say); the
+    rest test then asks F + M e + loads = 0. Other arguments as in :func:`relax_batch`.
 
     Raises
     ------
     ValueError
-        For bad input (see :func:`relax_batch`), or a plan's moment that is not finite.
+        For bad input (see :func:`relax_batch`), a plan's moment that is not finite, or
+        a load in ``loads`` that is not constant (no static state holds under it).
     IntegrationError
         If a member blows up (the message names it).
     KeyboardInterrupt
@@ -290,7 +295,14 @@ def run_plans(
         raise ValueError(f"plans must hold one plan per member ({len(params)}), got {len(plans)}")
     model = get_model(model)
     method = get_method(options.method)
-    loads = moment_load(1.0, particle).validate(params[0])
+    extra = Loads() if loads is None else Loads(loads)
+    changing = [f"{load.row} of particle {load.particle}" for load in extra if not load.schedule.is_constant]
+    if changing:
+        raise ValueError(
+            f"the relaxation protocol needs constant extra loads (a static state under a load that changes does not exist), "
+            f"got a schedule on {', '.join(changing)}; use simulate for loads that change"
+        )
+    loads = Loads([*moment_load(1.0, particle), *extra]).validate(params[0])
     col = column(params[0], particle)
     x0 = stack_states(params, x0, "x0")
     v0 = stack_states(params, v0, "v0")
@@ -302,7 +314,14 @@ def run_plans(
 
     def run_group(members: np.ndarray) -> None:
         lanes = Lanes(
-            model, [params[b] for b in members], method, steps[members], loads, np.zeros((1, members.size)), x0[members], v0[members]
+            model,
+            [params[b] for b in members],
+            method,
+            steps[members],
+            loads,
+            np.vstack([np.zeros((1, members.size)), np.ones((len(extra), members.size))]),
+            x0[members],
+            v0[members],
         )
         lanes.follow_turns(col, 2 * options.window_turns + 1)
         active = {int(b): _Member(plans[b]) for b in members}
@@ -326,7 +345,7 @@ def run_plans(
                 member = active.get(b)
                 if member is None or member.due != done:
                     continue
-                result = _outcome(lanes, lane, member, done, options, particle)
+                result = _outcome(lanes, lane, member, done, options, particle, extra)
                 if result is None:
                     member.chunk = min(2 * member.chunk, MAX_CHUNKS)
                     member.due = min(done + member.chunk, member.begun + options.chunks)
@@ -362,13 +381,15 @@ def _next_step(lanes: Lanes, lane: int, active: dict, b: int, result: Relaxation
     lanes.restart_turns(np.array([lane]), np.array([1.0 if member.moment >= 0 else -1.0]))
 
 
-def _outcome(lanes: Lanes, lane: int, member: _Member, done: int, options: RelaxSettings, particle: int) -> RelaxationStep | None:
+def _outcome(
+    lanes: Lanes, lane: int, member: _Member, done: int, options: RelaxSettings, particle: int, extra: Loads
+) -> RelaxationStep | None:
     """The tests at the end of a chunk: the finished step, or None to go on."""
     params = lanes.params[lane]
     col = column(params, particle)
     elapsed = (done - member.begun) * options.chunk_time
     x, v = lanes.state(lane)
-    load = moment_load(member.moment, particle).as_array(params, 0.0)
+    load = moment_load(member.moment, particle).as_array(params, 0.0) + extra.as_array(params, 0.0)
     residual = float(np.max(np.abs(zero_held(params, lanes.model.forces(params, x) + load))))
     speed = float(np.max(np.abs(v)))
     count = int(lanes.lane_ints[CROSSINGS, lane])
