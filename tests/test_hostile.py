@@ -44,6 +44,7 @@ COMPUTE = {
     "theory": "cosserat_chain.analysis.continuum.convergence",
     "export": "cosserat_chain.exports.export",
     "models": "cosserat_chain.models.base.available_models",
+    "diagram": "cosserat_chain.experiments.diagram.state_diagram",
 }
 
 SPEC = """\
@@ -136,6 +137,11 @@ CASES = [
     _case("simulate-x0-not-a-run", f"simulate {FAST} --x0 {{binary}}", "--x0"),
     _case("simulate-x0-is-out", f"simulate {FAST} --x0 {{run_png}} --out {{run_png}}", "--out", "--x0"),
     _case("simulate-at-without-x0", f"simulate {FAST} --at 3", "--at", "--x0"),
+    _case("diagram-out-dir", "diagram --vary E2 --values 1 --out {adir}", "--out", "{adir}"),
+    _case("diagram-plot-format", "diagram --vary E2 --values 1 --plot {tmp}/d.bmp", "--plot", ".bmp"),
+    _case("diagram-values-garbage", "diagram --vary E2 --values 1,,x", "--values"),
+    _case("diagram-vary-unknown", "diagram --vary E3 --values 1", "E3", "field must be one of"),
+    _case("diagram-values-nan", "diagram --vary E2 --values nan", "finite"),
     _case("simulate-frames-0", f"simulate {FAST} --frames 0", "--frames"),
     _case("simulate-frames-negative", f"simulate {FAST} --frames -5", "--frames"),
     _case("simulate-frames-huge", f"simulate {FAST} --frames 1000000000000", "--frames", early=False),

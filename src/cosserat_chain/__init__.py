@@ -48,6 +48,7 @@ _API = {
     "critical_point": "experiments.critical",
     "continue_in_moment": "numerics.continuation",
     "locate_fold": "numerics.continuation",
+    "continue_fold": "numerics.fold_curve",
     "compliance": "numerics.continuation",
     "static_stability": "numerics.stability",
     # rotating states
@@ -92,6 +93,7 @@ __all__ = [
     "load_params",
     "localization_run",
     "locate_fold",
+    "continue_fold",
     "moment_load",
     "periodic_orbit",
     "read_dataset",
@@ -141,6 +143,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs, which do not run __getattr__
     from .numerics.batch import integrate_batch
     from .numerics.continuation import compliance, continue_in_moment, locate_fold
     from .numerics.dynamics import integrate
+    from .numerics.fold_curve import continue_fold
     from .numerics.newton import solve_equilibrium
     from .numerics.relaxation import relax, relax_batch
     from .numerics.stability import static_stability

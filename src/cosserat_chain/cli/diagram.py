@@ -1,0 +1,80 @@
+"""``cosserat-chain diagram``: both edges of the hysteresis loop against one parameter of the chain."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+
+from .common import app, bar_callback, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, save_dataset, save_figure
+
+
+def _values(values: str | None, span: str | None) -> list[float]:
+    """The values of --values V1,V2,... or --range START:STOP:NUM (exactly one of them)."""
+    import numpy as np
+
+    if (values is None) == (span is None):
+        fail("give the values of --vary as --values V1,V2,... or as --range START:STOP:NUM (one of them)")
+    try:
+        if values is not None:
+            out = [float(v) for v in values.split(",") if v.strip()]
+        else:
+            start, stop, num = span.split(":")
+            count = int(num)
+            if count < 1:
+                raise ValueError
+            out = list(np.linspace(float(start), float(stop), count))
+    except ValueError:
+        fail(f"--values must read V1,V2,... and --range START:STOP:NUM (NUM >= 1), got {values or span!r}")
+    if not out or not all(np.isfinite(out)):
+        fail(f"the values of --vary must be finite numbers, got {values or span!r}")
+    return out
+
+
+@app.command()
+def diagram(
+    model: str = model_option("sine", "A model that supports full rotations.", rotating=True),
+    vary: str = typer.Option(..., "--vary", help="The field of the chain to vary: E1, E2, h, a, b (or m, j, a gamma)."),
+    values: str | None = typer.Option(None, "--values", help="Its values, V1,V2,... (in the order to follow them)."),
+    span: str | None = typer.Option(None, "--range", help="Its values as START:STOP:NUM, evenly spaced."),
+    turns: int = typer.Option(3, min=1, help="The rotating orbit followed: the first stable one with 1..TURNS turns a period."),
+    period_max: float = number(
+        100.0, "A period beyond this counts as diverging (homoclinic or SNIC end).", above=0.0, flags=("--period-max",)
+    ),
+    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields (the other fields of the chain)."),
+    out: Path | None = typer.Option(None, help="Write the rows to this NetCDF file."),
+    plot: Path | None = typer.Option(None, help="Draw the phase diagram in (parameter, M) to this PNG/SVG file."),
+    as_json: bool = typer.Option(False, "--json", help="Print the rows as one JSON object."),
+) -> None:
+    """For each value: M_c (rotation starts, rising load), where rotation stops (falling load), how, and whether the loop is open."""
+    from ..experiments.diagram import state_diagram
+    from ..numerics.fold_curve import FIELDS
+
+    if vary not in FIELDS:
+        fail(f"--vary: field must be one of {', '.join(FIELDS)} (a number of the chain), got {vary!r}")
+    outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
+    params = params_or_exit(config)
+    chosen = _values(values, span)
+    bar = progress_bar(f"diagram {model}", "value")
+    try:
+        result = state_diagram(params, model, vary, chosen, turns=turns, period_max=period_max, progress=bar_callback(bar))
+    except ValueError as err:
+        bar.close()
+        fail(str(err))
+    bar.close()
+    save_dataset(result.to_dataset(), out)
+    if plot is not None:
+        from ..plots.diagram import diagram_figure
+
+        save_figure(diagram_figure(result), plot)
+    if as_json:
+        typer.echo(json.dumps({"params": params.model_dump(), **result.as_dict()}))
+        return
+    if result.independent:
+        typer.echo(f"(the statics do not read {vary}: M_c is the same at every value)")
+    typer.echo(f"{vary:>12} {'M_c':>12} {'stops':>12}  end              hysteresis")
+    for row in result.rows:
+        fold = "none" if row.static_fold is None else f"{row.static_fold:.6g}"
+        stops = "none" if row.rotation_stops is None else f"{row.rotation_stops:.6g}"
+        typer.echo(f"{row.value:>12.6g} {fold:>12} {stops:>12}  {row.end:<16} {row.hysteresis}")

@@ -1,0 +1,266 @@
+"""The map of static and rotating states against one parameter: both edges of the hysteresis loop.
+
+Contract
+--------
+For each value of one field of the chain, :func:`state_diagram` gives
+
+* ``static_fold``: M_c, where the static branch from rest ends (the upper edge of the
+  loop: a slowly rising load makes the particle rotate above it), followed through the
+  values by continuation of the fold itself (:func:`~cosserat_chain.numerics.fold_curve.continue_fold`);
+* ``rotation_stops``: where a slowly falling load stops the rotation (the lower edge):
+  the rotating state, found as a periodic orbit just above M_c and continued down in M
+  (:func:`~cosserat_chain.numerics.periodic.continue_orbit`), ceases to be stable or
+  ceases to exist there;
+* ``end``: how it stops, from the orbit's Floquet multipliers and the continuation's end:
+  ``fold_of_cycles`` (a real multiplier through +1 and M turning back: the stable orbit
+  meets an unstable one), ``period_doubling`` (a real multiplier through -1), ``torus``
+  (a complex pair through the unit circle), ``homoclinic`` (the period grows without
+  bound below M_c) or ``snic`` (the period grows without bound at M_c itself: a
+  saddle-node on the invariant circle, no hysteresis), ``not_found`` when no rotating
+  orbit was found or the continuation failed (``message`` says why);
+* ``hysteresis``: whether the loop is open, rotation_stops < M_c: between the two edges the
+  particle can rest or rotate.
+
+A diverging period is told apart by its growth over the last orbits before ``period_max``:
+like (M - M_c)^(-1/2) at a SNIC (T^-2 extrapolated to zero lands on M_c), like -log(M - M_h)
+at a homoclinic end (M_h from the best fit). Limits: one rotating orbit is followed, the
+first stable one with 1, 2, ... ``turns`` turns a period just above M_c (``not_found`` if
+none is: the rotation there may be modulated, as the sine chain's at M = 0.22); coexisting
+orbits and irregular rotation are not searched.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..models.base import get_model
+from ..numerics.fold_curve import continue_fold
+from ..numerics.periodic import OrbitError, continue_orbit, find_periodic_orbit
+from ..params import ChainParams
+
+if TYPE_CHECKING:
+    import xarray as xr
+
+#: How the rotation can stop going down (module docstring).
+ENDS = ("fold_of_cycles", "period_doubling", "torus", "homoclinic", "snic", "not_found")
+#: The rotating orbit is first sought at this multiple of M_c, above the static fold.
+START_FACTOR = 1.1
+#: A diverging period whose end extrapolates this close to M_c (relative) ends at the static
+#: fold: a SNIC (measured: 2e-5 for the paper's sine chain with gamma_phi = 0.5).
+SNIC_RTOL = 1e-3
+#: Orbits near a diverging period that the end's extrapolations use.
+TAIL = 6
+#: Default period beyond which the period counts as diverging (each orbit near it costs an
+#: integration of that length with its monodromy: 300 took 280 s for the sine chain's SNIC).
+PERIOD_MAX = 100.0
+#: An imaginary part of the leading multiplier above this (relative to its modulus) is a complex pair.
+COMPLEX_RTOL = 1e-6
+
+
+@dataclass
+class DiagramRow:
+    """One value of the varied field (module docstring for the fields)."""
+
+    value: float
+    static_fold: float | None
+    phi0_at_fold: float | None
+    rotation_stops: float | None
+    end: str
+    hysteresis: bool | None
+    message: str = ""
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "value": self.value,
+            "static_fold": self.static_fold,
+            "phi0_at_fold": self.phi0_at_fold,
+            "rotation_stops": self.rotation_stops,
+            "end": self.end,
+            "hysteresis": self.hysteresis,
+            "message": self.message,
+        }
+
+
+@dataclass
+class StateDiagram:
+    """Rows of :func:`state_diagram`, one per value of ``field``."""
+
+    params: ChainParams
+    model: str
+    field: str
+    turns: int
+    rows: list[DiagramRow] = field(default_factory=list)
+    independent: bool = False
+
+    def as_dict(self) -> dict[str, Any]:
+        """The ``diagram --json`` object."""
+        return {
+            "model": self.model,
+            "parameter": self.field,
+            "turns": self.turns,
+            "static_fold_independent_of_parameter": self.independent,
+            "rows": [row.as_dict() for row in self.rows],
+        }
+
+    def to_dataset(self) -> xr.Dataset:
+        """Dataset over ``value`` with the parameters and the model in the attributes."""
+        import xarray as xr
+
+        from ..loads import Loads
+        from .simulation import run_attributes
+
+        def column(name):
+            return np.array([np.nan if getattr(row, name) is None else float(getattr(row, name)) for row in self.rows])
+
+        ds = xr.Dataset(
+            {
+                "static_fold": (("value",), column("static_fold"), {"long_name": "M_c, the end of the static branch from rest"}),
+                "phi0_at_fold": (("value",), column("phi0_at_fold"), {"units": "rad", "long_name": "phi_0 at the static fold"}),
+                "rotation_stops": (("value",), column("rotation_stops"), {"long_name": "moment at which a falling load stops the rotation"}),
+                "end": (("value",), np.array([row.end for row in self.rows], dtype=str), {"long_name": "how the rotation stops"}),
+                "hysteresis": (("value",), np.array([-1 if row.hysteresis is None else int(row.hysteresis) for row in self.rows], dtype=np.int8),
+                               {"long_name": "1: open loop (rotation_stops < static_fold), 0: closed, -1: unknown"}),
+            },
+            coords={"value": ("value", np.array([row.value for row in self.rows]), {"long_name": self.field})},
+        )  # fmt: skip
+        ds.attrs.update(run_attributes(self.params, get_model(self.model), Loads()))
+        ds.attrs.update({"experiment": "state_diagram", "parameter": self.field, "turns": self.turns,
+                         "static_fold_independent_of_parameter": int(self.independent)})  # fmt: skip
+        return ds
+
+
+def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle: int, period_max: float) -> tuple[float | None, str, str]:
+    """(rotation_stops, end, message) for one chain whose static fold is ``moment_c``."""
+    start = START_FACTOR * moment_c
+    orbit, tried = None, []
+    for k in range(1, turns + 1):
+        try:
+            candidate = find_periodic_orbit(chain, model, start, turns=k, particle=particle)
+        except OrbitError:
+            tried.append(f"{k} turn(s): none found")
+            continue
+        if candidate.stable:
+            orbit = candidate
+            break
+        tried.append(f"{k} turn(s): unstable (largest multiplier {candidate.max_multiplier:.4g})")
+    if orbit is None:
+        return (
+            None,
+            "not_found",
+            (
+                f"no stable periodic orbit at M = {start:.6g} with 1 to {turns} turns a period ({'; '.join(tried)}): "
+                "the rotation there may be modulated or irregular (simulate or rotate show it)"
+            ),
+        )
+    branch = continue_orbit(orbit, moment_min=0.0, period_max=period_max)
+    lost = branch.stability_lost_at
+    if lost is not None:
+        first_unstable = next(o for o in branch.orbits if not o.stable)
+        leading = first_unstable.nontrivial_multipliers[np.argmax(np.abs(first_unstable.nontrivial_multipliers))]
+        if abs(leading.imag) > COMPLEX_RTOL * abs(leading):
+            end = "torus"
+        elif leading.real < 0:
+            end = "period_doubling"
+        else:
+            end = "fold_of_cycles"
+        return float(lost), end, f"the orbit loses stability at M = {lost:.6g} (leading multiplier {leading:.4g})"
+    if branch.end == "fold":
+        return float(branch.end_moment), "fold_of_cycles", branch.message
+    if branch.end == "infinite_period":
+        return _diverging(branch.moment[-TAIL:], branch.period[-TAIL:], moment_c)
+    return None, "not_found", f"the orbit's continuation ended by {branch.end}: {branch.message}"
+
+
+def _diverging(moment: np.ndarray, period: np.ndarray, moment_c: float) -> tuple[float, str, str]:
+    """Where and how a diverging period ends: SNIC at M_c, or homoclinic below it.
+
+    At a SNIC T ~ (M - M_c)^(-1/2), so T^-2 is linear in M and vanishes at M_c; at a
+    homoclinic end T ~ -log(M - M_h) / lambda. The first is tested by the linear
+    extrapolation of T^-2; otherwise M_h is where the fit of T against log(M - M_h) is best.
+    """
+    import scipy.optimize as so
+
+    # T^-2 = c (M - M_c) (1 + O(M - M_c)): a quadratic through the last orbits, its root
+    # nearest them (a straight line extrapolated to 7e-4 of M_c from periods up to 100).
+    roots = np.roots(np.polyfit(moment, period**-2.0, 2))
+    real = roots[np.abs(roots.imag) <= 1e-12 * np.abs(roots)].real
+    at = float(real[np.argmin(np.abs(real - moment[-1]))]) if real.size else math.inf
+    if abs(at - moment_c) <= SNIC_RTOL * abs(moment_c):
+        return float(moment_c), "snic", f"the period diverges like (M - M_c)^(-1/2) at M_c = {moment_c:.6g} (T^-2 extrapolates to {at:.6g})"
+    span = float(np.ptp(moment))
+    nearest = float(np.min(np.abs(moment)))
+
+    def misfit(m_h: float) -> float:
+        logs = np.log(np.abs(moment) - m_h)
+        return float(np.sum((period - np.polyval(np.polyfit(logs, period, 1), logs)) ** 2))
+
+    best = so.minimize_scalar(misfit, bounds=(nearest - 20.0 * span, nearest - 1e-9 * max(span, 1e-12)), method="bounded")
+    m_h = float(np.sign(moment[-1]) * best.x)
+    return m_h, "homoclinic", f"the period diverges like -log(M - M_h) at M_h = {m_h:.6g} (fitted to the last {moment.size} orbits)"
+
+
+def state_diagram(
+    params: ChainParams,
+    model: str,
+    field_name: str,
+    values: Sequence[float],
+    *,
+    turns: int = 3,
+    particle: int = 0,
+    period_max: float = PERIOD_MAX,
+    progress: Callable[[float, float], None] | None = None,
+) -> StateDiagram:
+    """Both edges of the hysteresis loop at each value of ``field_name`` (module docstring).
+
+    Parameters
+    ----------
+    params : ChainParams
+    model : {"nonlinear", "sine"}
+    field_name : str
+        A number of the chain (:data:`~cosserat_chain.numerics.fold_curve.FIELDS`).
+    values : sequence of float
+        In the order to follow the fold through them.
+    turns : int
+        The rotating orbit followed is the first stable one with 1, 2, ... ``turns`` turns
+        of the loaded particle a period (rotating states of the paper's chain can repeat
+        only after 2 or 3).
+    period_max : float
+        A period beyond this is a diverging one (homoclinic or SNIC end).
+    progress : callable(done, total), optional
+
+    Raises
+    ------
+    ValueError
+        For bad input (the field, a value, a model that does not rotate, a chain that
+        can move rigidly), or a first value without a static fold.
+    """
+    model = get_model(model)
+    if not model.rotates:
+        raise ValueError(f"the {model.name} model does not rotate ({model.equation}): the diagram needs nonlinear or sine")
+    if not (isinstance(turns, int) and not isinstance(turns, bool) and turns >= 1):
+        raise ValueError(f"turns must be an integer >= 1, got {turns!r}")
+    if not (math.isfinite(period_max) and period_max > 0):
+        raise ValueError(f"period_max must be a finite number > 0, got {period_max!r}")
+    curve = continue_fold(params, model, field_name, values)
+    diagram = StateDiagram(params=params, model=model.name, field=field_name, turns=turns, independent=curve.independent)
+    total = len(values)
+    for index, value in enumerate(np.asarray(values, dtype=float)):
+        if progress is not None:
+            progress(index, total)
+        reached = np.flatnonzero(curve.values == value)
+        if reached.size == 0:
+            diagram.rows.append(DiagramRow(float(value), None, None, None, "not_found", None, curve.message))
+            continue
+        moment_c = float(curve.moment[reached[0]])
+        chain = params.replace(**{field_name: float(value)})
+        stops, end, message = _lower_edge(chain, model, moment_c, turns, particle, period_max)
+        hysteresis = None if stops is None else bool(stops < moment_c * (1.0 - SNIC_RTOL))
+        diagram.rows.append(DiagramRow(float(value), moment_c, float(curve.phi0[reached[0]]), stops, end, hysteresis, message))
+    if progress is not None:
+        progress(total, total)
+    return diagram
