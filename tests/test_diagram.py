@@ -95,3 +95,18 @@ def test_the_command_prints_rows_writes_the_file_and_draws_the_phase_diagram(tmp
 def test_bad_options_are_refused(args, message):
     result = runner.invoke(app, ["diagram", *args])
     assert result.exit_code == 2 and message in result.output, result.output
+
+
+def test_each_row_reads_its_moments_in_its_own_E1_h2_on_the_json_and_the_plot():
+    """Varying h changes the unit E1 h^2 from row to row: the dimensionless edges and the plot use each row's."""
+    from cosserat_chain.plots.diagram import diagram_figure
+
+    params = ChainParams(E1=2.0)
+    diagram = state_diagram(params, "nonlinear", "h", [1.0, 1.3], turns=1)
+    for row, data in zip(diagram.rows, diagram.as_dict()["rows"]):
+        chain = params.replace(h=row.value)
+        assert data["moment_scale"] == pytest.approx(2.0 * row.value**2, rel=1e-15)
+        assert data["static_fold_dimensionless"] == pytest.approx(locate_fold(chain, "nonlinear").moment / chain.moment_scale, rel=1e-9)
+    curve = next(line for line in diagram_figure(diagram).axes[0].lines if line.get_label().startswith("M_c"))
+    assert np.allclose(curve.get_ydata(), [r["static_fold_dimensionless"] for r in diagram.as_dict()["rows"]], rtol=1e-15)
+    assert "E1 h^2" in diagram_figure(diagram).axes[0].get_ylabel()

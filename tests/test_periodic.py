@@ -195,3 +195,22 @@ def test_each_edge_of_the_hysteresis_loop_lies_in_the_load_step_where_the_sweep_
     assert sweep.onset_load - dm < fold <= sweep.onset_load
     branch = continue_orbit(find_periodic_orbit(paper, "sine", 0.22), moment_min=0.1)
     assert sweep.stop_load < branch.stability_lost_at <= sweep.stop_load + dm
+
+
+def test_the_rotation_characteristic_is_drawn_against_the_dimensionless_moment():
+    """A chain with E1 = 2 and h = 1.5: the orbits and the static fold sit at M / (E1 h^2) on an axis that says so."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from cosserat_chain.plots.orbits import rotation_characteristic_figure
+
+    chain = ChainParams(E1=2.0, h=1.5, a=0.3, b=0.3)
+    fold = locate_fold(chain, "sine").moment
+    result = rotation_characteristic(chain, "sine", [1.2 * fold])
+    assert result.found.all() and result.as_dict()["moment_scale"] == pytest.approx(4.5, rel=1e-15)
+    ax = rotation_characteristic_figure(result).axes[0]
+    assert "E_1 h^2" in ax.get_xlabel()
+    orbit_line = next(line for line in ax.lines if "periodic orbits" in str(line.get_label()))
+    assert orbit_line.get_xdata()[0] == pytest.approx(1.2 * fold / 4.5, rel=1e-12)
+    fold_line = next(line for line in ax.lines if "static fold" in str(line.get_label()))
+    assert fold_line.get_xdata()[0] == pytest.approx(fold / 4.5, rel=1e-12)

@@ -218,7 +218,7 @@ def test_the_claims_table_is_computed_from_the_stages(quick_report):
 
     rows = quick_report.summary["claims"]
     statics = next(s for s in quick_report.sections if s.title.startswith("Static response")).numbers
-    assert [set(row) for row in rows] == [set(CLAIMS_HEADER)] * len(rows) and len(rows) == 10
+    assert [set(row) for row in rows] == [set(CLAIMS_HEADER)] * len(rows) and len(rows) == 11
     assert f"nonlinear {statics['nonlinear']['M_c']:.4g}" in rows[3]["this package computes"]
     assert all(row["agreement"].startswith("yes") for row in rows[:5]), rows
     # Small loads: the range of agreement, and the paper's remark on the sine model's error failing at N = 1.
@@ -228,6 +228,9 @@ def test_the_claims_table_is_computed_from_the_stages(quick_report):
     # Localization: no other particle turns, but the others' motion is beyond the small-motion thresholds.
     assert rows[5]["agreement"].startswith(f"partly: over {QUICK.turns} turns no other particle turned")
     assert "|phi| <= 0.2 rad, |u|, |v| <= 0.1 h" in rows[5]["agreement"] and "sine (|v|/h)" in rows[5]["agreement"]
+    # Fig. 2's unit: the M_c of each rotating model divided by this chain's E1 h^2.
+    assert f"E1 h^2 = {statics['moment_scale']:.4g} here" in rows[10]["this package computes"]
+    assert statics["sine"]["M_c_dimensionless"] == pytest.approx(statics["sine"]["M_c"] / statics["moment_scale"], rel=1e-15)
     markdown = (quick_report.out / "report.md").read_text()
     assert "## Contents" in markdown and all(row["the paper says"] in markdown for row in rows)
     # A failed stage is named in its rows, not hidden.

@@ -321,11 +321,13 @@ def _statics(stage: _Stage) -> Section:
         numbers[m] = {
             "compliance": e.compliance,
             "M_c": e.critical_moment,
+            "M_c_dimensionless": None if e.critical_moment is None else e.critical_moment / p.moment_scale,
             "phi0_at_fold": e.phi0_at_fold,
             "onset_load": w.onset_load,
             "stop_load": w.stop_load,
         }
         rows.append([m, e.compliance, e.critical_moment, e.phi0_at_fold, w.onset_load, w.stop_load])
+    numbers["moment_scale"] = p.moment_scale
     stage.data("statics", numbers)
     section = Section("Static response and the onset of rotation (Fig. 2)", numbers=numbers)
     section.paragraphs.append(
@@ -1074,6 +1076,15 @@ def claims(results: dict[str, Section], settings: ReproduceSettings) -> list[lis
                      ("yes for the continuum, beyond the cubic too (phi(0) is not determined); the discrete chain's K is positive "
                       "definite: one static state" if reduced["positive_definite"] else "no: the discrete reduced chain's K is not "
                       "positive definite")])  # fmt: skip
+    claim = 'Fig. 2: the applied moment is plotted as a "dimensionless moment"'
+    if statics is None:
+        missing("statics", claim)
+    else:
+        rows.append([claim, f"M / (E1 h^2) on every moment axis and as M_c_dimensionless in the JSON; E1 h^2 = "
+                            f"{number(statics['moment_scale'])} here: M_c / (E1 h^2) = "
+                            + ", ".join(f"{m} {number(statics[m]['M_c_dimensionless'])}" for m in ROTATING),
+                     "the paper does not name its unit; E1 h^2 (a link's stiffness times the spacing squared) makes chains "
+                     "of other E1 or h comparable, and equals 1 for the paper's chain"])  # fmt: skip
     return rows
 
 

@@ -19,7 +19,10 @@ For each value of one field of the chain, :func:`state_diagram` gives
   saddle-node on the invariant circle, no hysteresis), ``not_found`` when no rotating
   orbit was found or the continuation failed (``message`` says why);
 * ``hysteresis``: whether the loop is open, rotation_stops < M_c: between the two edges the
-  particle can rest or rotate.
+  particle can rest or rotate;
+* ``moment_scale``: E1 h^2 of that row's chain, and both edges divided by it
+  (``..._dimensionless``), the paper's dimensionless moment of Fig. 2 (the varied field
+  may be E1 or h, so the unit is per row).
 
 A diverging period is told apart by its growth over the last orbits before ``period_max``:
 like (M - M_c)^(-1/2) at a SNIC (T^-2 extrapolated to zero lands on M_c), like -log(M - M_h)
@@ -73,6 +76,11 @@ class DiagramRow:
     end: str
     hysteresis: bool | None
     message: str = ""
+    moment_scale: float = 1.0
+
+    def dimensionless(self, moment: float | None) -> float | None:
+        """``moment`` in units of this row's E1 h^2 (the paper's dimensionless moment; E1 or h may be the varied field)."""
+        return None if moment is None else moment / self.moment_scale
 
     def as_dict(self) -> dict[str, Any]:
         return {
@@ -83,6 +91,9 @@ class DiagramRow:
             "end": self.end,
             "hysteresis": self.hysteresis,
             "message": self.message,
+            "moment_scale": self.moment_scale,
+            "static_fold_dimensionless": self.dimensionless(self.static_fold),
+            "rotation_stops_dimensionless": self.dimensionless(self.rotation_stops),
         }
 
 
@@ -125,6 +136,7 @@ class StateDiagram:
                 "end": (("value",), np.array([row.end for row in self.rows], dtype=str), {"long_name": "how the rotation stops"}),
                 "hysteresis": (("value",), np.array([-1 if row.hysteresis is None else int(row.hysteresis) for row in self.rows], dtype=np.int8),
                                {"long_name": "1: open loop (rotation_stops < static_fold), 0: closed, -1: unknown"}),
+                "moment_scale": (("value",), column("moment_scale"), {"long_name": "E1 h^2, the unit of the dimensionless moment M / (E1 h^2)"}),
             },
             coords={"value": ("value", np.array([row.value for row in self.rows]), {"long_name": self.field})},
         )  # fmt: skip
@@ -253,14 +265,16 @@ def state_diagram(
         if progress is not None:
             progress(index, total)
         reached = np.flatnonzero(curve.values == value)
+        chain = params.replace(**{field_name: float(value)})
         if reached.size == 0:
-            diagram.rows.append(DiagramRow(float(value), None, None, None, "not_found", None, curve.message))
+            diagram.rows.append(DiagramRow(float(value), None, None, None, "not_found", None, curve.message, chain.moment_scale))
             continue
         moment_c = float(curve.moment[reached[0]])
-        chain = params.replace(**{field_name: float(value)})
         stops, end, message = _lower_edge(chain, model, moment_c, turns, particle, period_max)
         hysteresis = None if stops is None else bool(stops < moment_c * (1.0 - SNIC_RTOL))
-        diagram.rows.append(DiagramRow(float(value), moment_c, float(curve.phi0[reached[0]]), stops, end, hysteresis, message))
+        diagram.rows.append(
+            DiagramRow(float(value), moment_c, float(curve.phi0[reached[0]]), stops, end, hysteresis, message, chain.moment_scale)
+        )
     if progress is not None:
         progress(total, total)
     return diagram

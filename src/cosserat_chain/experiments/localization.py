@@ -169,6 +169,7 @@ class LocalizationResult:
             "max_abs_u_others": d.max_over_others(d.max_abs_u),
             "classification": d.classification,
             "t_end": self.t_end,
+            "moment_scale": self.params.moment_scale,
             "max_abs_u_others_over_h": amplitudes["u_over_h"],
             "max_abs_v_others_over_h": amplitudes["v_over_h"],
             "thresholds": dict(THRESHOLDS),

@@ -66,7 +66,7 @@ class OrbitResult:
     settings: dict = field(default_factory=dict)
 
     def as_dict(self) -> dict:
-        """JSON-ready summary: the orbit, M_c and, with a continuation, where the orbit ends."""
+        """JSON-ready summary: the orbit, M_c and, with a continuation, where the orbit ends. Moments in the parameters' units; ``moment_scale`` = E1 h^2 divides them into the paper's dimensionless moment (Fig. 2)."""
         out = {**self.orbit.as_dict(), "static_fold": _none_if_nan(self.static_fold)}
         if self.branch is not None:
             out["continuation"] = {
@@ -216,12 +216,13 @@ class RotationCharacteristic:
         return np.isfinite(self.period)
 
     def as_dict(self) -> dict:
-        """JSON-ready table (null where no orbit was found)."""
+        """JSON-ready table (null where no orbit was found). Moments in the parameters' units; ``moment_scale`` = E1 h^2 divides them into the paper's dimensionless moment (Fig. 2)."""
         return {
             "model": self.model,
             "turns": self.turns,
             "particle": self.particle,
             "moment": self.moment.tolist(),
+            "moment_scale": self.params.moment_scale,
             "period": [_none_if_nan(x) for x in self.period],
             "mean_angular_velocity": [_none_if_nan(x) for x in self.mean_angular_velocity],
             "max_nontrivial_multiplier": [_none_if_nan(x) for x in self.max_multiplier],

@@ -119,11 +119,12 @@ class SweepResult:
         return self.x[:, ROW_INDEX["phi"], column(self.params, self.particle)]
 
     def as_dict(self) -> dict:
-        """JSON-ready summary: loads, phi0, status per step, onset and stop loads."""
+        """JSON-ready summary: loads, phi0, status per step, onset and stop loads. Moments in the parameters' units; ``moment_scale`` = E1 h^2 divides them into the paper's dimensionless moment (Fig. 2)."""
         return {
             "model": self.model,
             "particle": self.particle,
             "loads": self.moment.tolist(),
+            "moment_scale": self.params.moment_scale,
             "direction": self.direction.tolist(),
             "phi0": self.phi0.tolist(),
             "status": self.status.tolist(),

@@ -282,10 +282,11 @@ class PeriodicOrbit:
         return self.max_multiplier < 1.0
 
     def as_dict(self) -> dict:
-        """JSON-ready summary."""
+        """JSON-ready summary. Moments in the parameters' units; ``moment_scale`` = E1 h^2 divides them into the paper's dimensionless moment (Fig. 2)."""
         return {
             "model": self.model,
             "moment": self.moment,
+            "moment_scale": self.params.moment_scale,
             "turns": self.turns,
             "particle": self.particle,
             "period": self.period,

@@ -20,7 +20,8 @@ def diagram_figure(diagram) -> Figure:
     values = np.array([row.value for row in diagram.rows])
     fold = np.array([np.nan if row.static_fold is None else row.static_fold for row in diagram.rows])
     stops = np.array([np.nan if row.rotation_stops is None else row.rotation_stops for row in diagram.rows])
-    scale = diagram.params.moment_scale
+    # Each row in its own E1 h^2: the varied field may be E1 or h.
+    scale = np.array([row.moment_scale for row in diagram.rows])
     fold, stops = fold / scale, stops / scale
     fig, ax = plt.subplots(figsize=(7.0, 4.5), constrained_layout=True)
     top = 1.25 * np.nanmax(fold) if np.isfinite(fold).any() else 1.0
@@ -34,7 +35,14 @@ def diagram_figure(diagram) -> Figure:
     ax.plot(values, stops, "k--", marker="s", markersize=3, label="rotation stops (falling load)")
     for row, value in zip(diagram.rows, values):
         if row.rotation_stops is not None:
-            ax.annotate(row.end, (value, row.rotation_stops / scale), textcoords="offset points", xytext=(0, -12), ha="center", fontsize=7)
+            ax.annotate(
+                row.end,
+                (value, row.dimensionless(row.rotation_stops)),
+                textcoords="offset points",
+                xytext=(0, -12),
+                ha="center",
+                fontsize=7,
+            )
     missing = values[~known]
     if missing.size:
         ax.plot(missing, np.zeros_like(missing), "rx", label="an edge not found")

@@ -22,7 +22,7 @@ from matplotlib.figure import Figure
 from ..experiments.orbits import RotationCharacteristic
 from ..experiments.sweep import SweepResult
 from ..numerics.periodic import OrbitBranch
-from .statics import model_color, model_label
+from .statics import MOMENT_LABEL, model_color, model_label
 
 
 def _curve(ax: Axes, moment: np.ndarray, rate: np.ndarray, stable: np.ndarray, color: str, label: str) -> None:
@@ -56,7 +56,8 @@ def rotation_characteristic_figure(
     sweep : SweepResult, optional
         Relaxation sweep up and down (:func:`~cosserat_chain.experiments.sweep.relaxation_sweep`).
     static_fold : float, optional
-        M_c; by default the characteristic's.
+        M_c; by default the characteristic's. Every moment is drawn in units of E1 h^2 of the
+        first chain given (characteristic, branches, sweep), the paper's dimensionless moment.
     model : str, optional
         Name for colours and labels; by default the characteristic's or the sweep's.
     ax : matplotlib Axes, optional
@@ -70,13 +71,20 @@ def rotation_characteristic_figure(
     else:
         fig = ax.figure
     name = model or (characteristic.model if characteristic is not None else sweep.model if sweep is not None else "")
+    # Moments in units of E1 h^2 (the paper's dimensionless moment), as on every statics figure.
+    chains = [
+        *([characteristic.params] if characteristic is not None else []),
+        *(branch.orbits[0].params for branch in branches),
+        *([sweep.params] if sweep is not None else []),
+    ]
+    scale = chains[0].moment_scale if chains else 1.0
     color = model_color(name)
     label = model_label(name)
     if characteristic is not None:
         found = characteristic.found
         _curve(
             ax,
-            characteristic.moment[found],
+            characteristic.moment[found] / scale,
             characteristic.mean_angular_velocity[found],
             characteristic.stable[found],
             color,
@@ -87,35 +95,35 @@ def rotation_characteristic_figure(
     for branch in branches:
         _curve(
             ax,
-            branch.moment,
+            branch.moment / scale,
             branch.mean_angular_velocity,
             branch.stable,
             color,
             None if characteristic is not None else f"{label}: periodic orbits",
         )
         ax.plot(
-            branch.end_moment,
+            branch.end_moment / scale,
             branch.mean_angular_velocity[-1],
             "x",
             color=color,
             ms=9,
             mew=2,
-            label=f"orbit ends ({branch.end}) at M = {branch.end_moment:.4g}",
+            label=f"orbit ends ({branch.end}) at M / (E1 h^2) = {branch.end_moment / scale:.4g}",
         )
         if branch.stability_lost_at is not None:
             # The lower edge of the hysteresis loop: below it the rotating state is not observed.
-            ax.axvline(
-                branch.stability_lost_at, color=color, ls="--", lw=1, label=f"orbit loses stability at M = {branch.stability_lost_at:.4g}"
-            )
+            lost = branch.stability_lost_at / scale
+            ax.axvline(lost, color=color, ls="--", lw=1, label=f"orbit loses stability at M / (E1 h^2) = {lost:.4g}")
     if static_fold is not None and np.isfinite(static_fold):
-        ax.plot([0.0, static_fold], [0.0, 0.0], color=color, lw=2.5, alpha=0.6, label="static states")
-        ax.axvline(static_fold, color=color, ls=":", lw=1, label=f"static fold $M_c$ = {static_fold:.4g}")
+        fold = static_fold / scale
+        ax.plot([0.0, fold], [0.0, 0.0], color=color, lw=2.5, alpha=0.6, label="static states")
+        ax.axvline(fold, color=color, ls=":", lw=1, label=f"static fold $M_c / (E_1 h^2)$ = {fold:.4g}")
     if sweep is not None:
         rate = sweep.angular_velocity[:, sweep.params.N + sweep.particle]
         for direction, style in (("up", {"mfc": color}), ("down", {"mfc": "white"})):
             sel = (sweep.direction == direction) & np.isfinite(rate)
             ax.plot(
-                sweep.moment[sel],
+                sweep.moment[sel] / scale,
                 rate[sel],
                 "o" if direction == "up" else "s",
                 color=color,
@@ -125,7 +133,7 @@ def rotation_characteristic_figure(
                 label=f"relaxation sweep, load {direction}",
                 **style,
             )
-    ax.set(xlabel="moment M", ylabel="mean angular velocity of the loaded particle")
+    ax.set(xlabel=MOMENT_LABEL, ylabel="mean angular velocity of the loaded particle")
     ax.set_title("rotation characteristic (dashed: unstable orbits)", fontsize=10)
     ax.legend(fontsize=8)
     return fig
