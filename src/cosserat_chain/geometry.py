@@ -31,18 +31,23 @@ class Link:
     name: str
     left_corner: tuple[float, float]
     right_corner: tuple[float, float]
-    stiffness: float
+    stiffness: float | np.ndarray
     rest_length: float
 
 
 def bond_links(params: ChainParams) -> tuple[Link, ...]:
-    """The four links between particle k (left) and k+1 (right), in the table's order."""
+    """The four links between particle k (left) and k+1 (right), in the table's order.
+
+    A link's ``stiffness`` is a float, or for a chain graded in its bonds an array
+    (n_bonds,): that link's stiffness in every bond.
+    """
     a, b = params.a, params.b
+    E1, E2 = params.bond_stiffness if params.graded_stiffness else (params.E1, params.E2)
     return (
-        Link("top", (a, b), (-a, b), params.E1, params.gap),
-        Link("bottom", (a, -b), (-a, -b), params.E1, params.gap),
-        Link("diagonal_1", (a, b), (-a, -b), params.E2, params.d),
-        Link("diagonal_2", (a, -b), (-a, b), params.E2, params.d),
+        Link("top", (a, b), (-a, b), E1, params.gap),
+        Link("bottom", (a, -b), (-a, -b), E1, params.gap),
+        Link("diagonal_1", (a, b), (-a, -b), E2, params.d),
+        Link("diagonal_2", (a, -b), (-a, b), E2, params.d),
     )
 
 

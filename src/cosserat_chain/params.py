@@ -50,8 +50,12 @@ MAX_MAGNITUDE = 1e100
 MIN_MAGNITUDE = 1e-100
 
 
+#: Per-bond factors of the link stiffnesses and per-particle factors of the inertia (a graded
+#: or disordered chain); None is the uniform chain.
+BOND_FACTORS = ("E1_factors", "E2_factors")
+PARTICLE_FACTORS = ("m_factors", "j_factors")
 #: Fields that are not numbers (checked by their own validators).
-_NOT_NUMBERS = ("N", "left_end", "right_end", "periodic")
+_NOT_NUMBERS = ("N", "left_end", "right_end", "periodic", *BOND_FACTORS, *PARTICLE_FACTORS)
 
 
 class ChainParams(BaseModel):
@@ -90,6 +94,17 @@ class ChainParams(BaseModel):
         (the infinite chain with period (2N+1) h). Every particle is then free;
         ``left_end`` and ``right_end`` must be left out (they become ``"ring"``).
         Default False.
+    E1_factors, E2_factors : tuple of float, optional
+        A graded or disordered chain: bond k (joining particles k - N and k - N + 1,
+        a ring's closing bond last) has links of stiffness E1 E1_factors[k] and
+        E2 E2_factors[k]; one factor per bond (:attr:`n_bonds`: 2N, or 2N+1 for a
+        ring), each > 0 (E2's >= 0). Default None: every bond alike.
+    m_factors, j_factors : tuple of float, optional
+        Particle k - N has mass m m_factors[k] and moment of inertia j j_factors[k];
+        2N+1 factors each, > 0. Default None: every particle alike.
+        (:func:`disordered` draws them from a seed.) Factors all alike are folded into
+        the scalar they multiply (``E1_factors`` all 2 is ``E1`` doubled), so that such a
+        chain is the uniform chain itself.
 
     Notes
     -----
@@ -115,6 +130,10 @@ class ChainParams(BaseModel):
     left_end: str = Field("clamped", description="particle -N: clamped, pinned or free")
     right_end: str = Field("clamped", description="particle N: clamped, pinned or free")
     periodic: StrictBool = Field(False, description="a ring: particle N bonded to particle -N")
+    E1_factors: tuple[float, ...] | None = Field(None, description="per-bond factors of E1 (n_bonds values > 0)")
+    E2_factors: tuple[float, ...] | None = Field(None, description="per-bond factors of E2 (n_bonds values >= 0)")
+    m_factors: tuple[float, ...] | None = Field(None, description="per-particle factors of m (2N+1 values > 0)")
+    j_factors: tuple[float, ...] | None = Field(None, description="per-particle factors of j (2N+1 values > 0)")
 
     @model_validator(mode="before")
     @classmethod
@@ -183,6 +202,61 @@ class ChainParams(BaseModel):
                 extra = " ('ring' only with periodic = true)" if value == RING else ""
                 raise ValueError(f"{name} must be one of {', '.join(map(repr, END_KINDS))}, got {value!r}{extra}")
         return {**data, "left_end": RING, "right_end": RING} if ring else data
+
+    @model_validator(mode="before")
+    @classmethod
+    def _factor_lists(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        out = dict(data)
+        for name in (*BOND_FACTORS, *PARTICLE_FACTORS):
+            value = data.get(name)
+            if value is None:
+                continue
+            if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__len__"):
+                raise ValueError(
+                    f"{name} must be a list of numbers (one per {'bond' if name in BOND_FACTORS else 'particle'}), got {value!r}"
+                )
+            items = [item.item() if isinstance(item, np.generic) else item for item in np.asarray(value, dtype=object).ravel()]
+            lowest = 0.0 if name == "E2_factors" else None
+            for index, item in enumerate(items):
+                if isinstance(item, bool) or not isinstance(item, (int, float)) or not math.isfinite(item):
+                    raise ValueError(f"{name}[{index}] must be a finite number, got {item!r}")
+                if not (item >= 0 if lowest == 0.0 else item > 0) or abs(item) > MAX_MAGNITUDE or 0 < abs(item) < MIN_MAGNITUDE:
+                    allowed = ">= 0" if lowest == 0.0 else "> 0"
+                    raise ValueError(
+                        f"{name}[{index}] must be {allowed} (and between {MIN_MAGNITUDE:g} and {MAX_MAGNITUDE:g}), got {item!r}"
+                    )
+            out[name] = tuple(float(item) for item in items)
+        # Factors all alike are no grading: they fold into the scalar (E1_factors all c is the
+        # chain with E1 c), so that such a chain is the uniform one, to the last bit, in every
+        # kernel and every result. j's default is resolved from the unscaled m first.
+        fields = cls.model_fields
+        N, periodic = data.get("N", fields["N"].default), data.get("periodic", False) is True
+        if isinstance(N, int) and not isinstance(N, bool) and N >= 1:
+            # The lengths first: factors all alike fold away below, and must fit the chain too.
+            for name in (*BOND_FACTORS, *PARTICLE_FACTORS):
+                count = 2 * N + 1 if name in PARTICLE_FACTORS or periodic else 2 * N
+                what = "particles" if name in PARTICLE_FACTORS else "bonds"
+                if out.get(name) is not None and len(out[name]) != count:
+                    raise ValueError(
+                        f"{name} must have one value for each of the chain's {count} {what} (N={N}{', a ring' if periodic else ''}), "
+                        f"got {len(out[name])}"
+                    )
+        for name, scalar in (("E1_factors", "E1"), ("E2_factors", "E2"), ("m_factors", "m"), ("j_factors", "j")):
+            factors = out.get(name)
+            if factors is None or len(set(factors)) > 1 or not factors:
+                continue
+            if scalar == "m" and out.get("j") is None:
+                m, a, b = (out.get(key, fields[key].default) for key in ("m", "a", "b"))
+                out["j"] = m * (a * a + b * b) / 3.0
+            base = out.get(scalar)
+            if scalar == "j" and base is None:
+                m, a, b = (data.get(key, fields[key].default) for key in ("m", "a", "b"))
+                base = m * (a * a + b * b) / 3.0
+            out[scalar] = (fields[scalar].default if base is None else base) * factors[0]
+            out[name] = None
+        return out
 
     @model_validator(mode="after")
     def _particles_do_not_touch(self) -> ChainParams:
@@ -276,6 +350,37 @@ class ChainParams(BaseModel):
         return (self.m, self.m, self.j)
 
     @property
+    def graded_stiffness(self) -> bool:
+        """Whether the bonds differ (``E1_factors`` or ``E2_factors`` given)."""
+        return self.E1_factors is not None or self.E2_factors is not None
+
+    @property
+    def graded_inertia(self) -> bool:
+        """Whether the particles' inertia differs (``m_factors`` or ``j_factors`` given)."""
+        return self.m_factors is not None or self.j_factors is not None
+
+    @property
+    def graded(self) -> bool:
+        """Whether the chain is graded or disordered in its bonds or its particles."""
+        return self.graded_stiffness or self.graded_inertia
+
+    @property
+    def bond_stiffness(self) -> tuple[np.ndarray, np.ndarray]:
+        """(E1, E2) of every bond, arrays (n_bonds,): the scalars times their factors (the scalars repeated if none)."""
+        return tuple(  # type: ignore[return-value]
+            np.full(self.n_bonds, value) if factors is None else value * np.asarray(factors)
+            for value, factors in ((self.E1, self.E1_factors), (self.E2, self.E2_factors))
+        )
+
+    @property
+    def particle_inertia(self) -> np.ndarray:
+        """Inertia of every degree of freedom, (3, 2N+1): rows m, m, j times the particles' factors."""
+        n = self.n_particles
+        mass = np.full(n, self.m) if self.m_factors is None else self.m * np.asarray(self.m_factors)
+        turn = np.full(n, self.j) if self.j_factors is None else self.j * np.asarray(self.j_factors)
+        return np.stack([mass, mass, turn])
+
+    @property
     def damping(self) -> tuple[float, float, float]:
         """Viscous coefficients of the rows (u, v, phi)."""
         return (self.gamma_u, self.gamma_v, self.gamma_phi)
@@ -288,9 +393,55 @@ class ChainParams(BaseModel):
         an open chain again resets the ends that are not given.
         """
         data = {**self.model_dump(), **changes}
+        sized = {"N", "periodic"} & set(changes)
+        graded = [name for name in (*BOND_FACTORS, *PARTICLE_FACTORS) if data.get(name) is not None and name not in changes]
+        if sized and graded and (changes.get("N", self.N), changes.get("periodic", self.periodic)) != (self.N, self.periodic):
+            raise ValueError(
+                f"changing {' and '.join(sorted(sized))} changes the number of bonds and particles: give {', '.join(graded)} "
+                "anew (or None) with it"
+            )
         if changes.get("periodic", self.periodic) != self.periodic:
             # Into or out of a ring: the ends not given anew follow (a ring's, or clamped).
             for name in ("left_end", "right_end"):
                 if name not in changes:
                     data.pop(name)
         return ChainParams(**data)
+
+
+#: Fields :func:`disordered` may vary, with the factors they draw.
+DISORDER_FIELDS = {"E1": "E1_factors", "E2": "E2_factors", "m": "m_factors", "j": "j_factors"}
+
+
+def disordered(params: ChainParams, seed: int, spread: float, fields: tuple[str, ...] = ("E1", "E2")) -> ChainParams:
+    """``params`` with independent factors 1 + spread U(-1, 1) on every bond's E1, E2 or every particle's m, j.
+
+    Parameters
+    ----------
+    params : ChainParams
+        The uniform chain (its existing factors of the named fields are replaced).
+    seed : int
+        Seed of NumPy's default generator: the same seed gives the same chain.
+    spread : float
+        Relative spread, 0 <= spread < 1 (factors stay > 0).
+    fields : tuple of str
+        Any of "E1", "E2" (per bond) and "m", "j" (per particle), drawn in that order.
+
+    Raises
+    ------
+    ValueError
+        For a spread outside [0, 1), an unknown field or a seed that is not an integer.
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    if isinstance(spread, bool) or not isinstance(spread, (int, float)) or not 0.0 <= spread < 1.0:
+        raise ValueError(f"spread must be a number with 0 <= spread < 1 (the factors must stay > 0), got {spread!r}")
+    unknown = [name for name in fields if name not in DISORDER_FIELDS]
+    if unknown or not fields:
+        raise ValueError(f"fields must be a non-empty selection of {', '.join(DISORDER_FIELDS)}, got {list(fields)!r}")
+    rng = np.random.default_rng(int(seed))
+    changes = {}
+    for name in DISORDER_FIELDS:
+        if name in fields:
+            count = params.n_bonds if name in ("E1", "E2") else params.n_particles
+            changes[DISORDER_FIELDS[name]] = tuple(1.0 + spread * rng.uniform(-1.0, 1.0, count))
+    return params.replace(**changes)

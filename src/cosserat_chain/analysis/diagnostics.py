@@ -158,7 +158,7 @@ def particle_energies(params: ChainParams, model: str | Model, x: np.ndarray, v:
         clamped end holds none: its halves of its bond go to its free neighbour.
     """
     bonds = bond_energies(params, model, x)
-    inertia = np.asarray(params.inertia)[:, None]
+    inertia = params.particle_inertia
     energy = 0.5 * np.sum(inertia * np.asarray(v, dtype=float) ** 2, axis=-2)
     n = params.n_particles
     energy[..., : bonds.shape[-1]] += 0.5 * bonds

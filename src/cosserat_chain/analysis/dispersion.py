@@ -45,7 +45,7 @@ from scipy.optimize import minimize_scalar
 from ..models.base import Model, get_model
 from ..models.linear import cosserat_coefficients
 from ..params import ChainParams
-from ..state import check_state, free_index, per_dof
+from ..state import check_state, free_index, pack
 
 #: The three branches, in the row order of ``Dispersion.omega2``.
 BRANCHES = ("longitudinal", "transverse_acoustic", "rotational_optical")
@@ -320,7 +320,7 @@ def finite_modes(params: ChainParams, model: str | Model = "linear", x: np.ndarr
     model = get_model(model)
     x = np.zeros((3, params.n_particles)) if x is None else check_state(params, x)
     stiffness = model.stiffness(params, x).toarray()
-    mass = per_dof(params, params.inertia)
+    mass = pack(params, params.particle_inertia)
     if model.conservative:
         eigenvalues, vectors = sla.eigh(stiffness, np.diag(mass))
         eigenvalues = eigenvalues.astype(complex)

@@ -48,7 +48,7 @@ class EnergyBudget:
 
 def kinetic_energy(params: ChainParams, v: np.ndarray) -> np.ndarray:
     """1/2 sum m_r v_r^2 for velocities of shape (..., 3, 2N+1)."""
-    inertia = np.asarray(params.inertia)[:, None]
+    inertia = params.particle_inertia
     return 0.5 * np.sum(inertia * np.asarray(v) ** 2, axis=(-2, -1))
 
 

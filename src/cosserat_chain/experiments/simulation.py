@@ -100,7 +100,8 @@ def _check_accuracy(ds: xr.Dataset, load_hint: str = "") -> None:
 
 def run_attributes(params: ChainParams, model: Model, loads: Loads) -> dict[str, Any]:
     """Attributes that make a result file self-describing: parameters, model, loads, version."""
-    attrs: dict[str, Any] = {f"param_{name}": value for name, value in params.model_dump().items()}
+    # Fields left at None (a uniform chain's factors) have no attribute: NetCDF stores no None.
+    attrs: dict[str, Any] = {f"param_{name}": value for name, value in params.model_dump().items() if value is not None}
     attrs.update(
         {
             "params_json": json.dumps(params.model_dump()),

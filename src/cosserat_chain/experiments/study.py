@@ -5,7 +5,10 @@ Contract
 A :class:`StudySpec` (usually read from TOML) lists, per swept ``ChainParams``
 field, a list of values or a linear/log range; the fixed fields; the models; the
 quantities to compute; the loads for ``mean_angular_velocity``; and the settings
-of the relaxation protocol. :meth:`StudySpec.check` reports unknown keys and
+of the relaxation protocol; and the extra loads that act on every cell besides the
+moment (``[[loads]]`` tables, :func:`~cosserat_chain.loads.load_from_table`: they share the
+key ``loads`` with the moments of ``mean_angular_velocity``, a number being a moment and a
+table a load). :meth:`StudySpec.check` reports unknown keys and
 impossible parameter combinations (e.g. overlapping particles), naming the
 offending entries, before anything runs.
 
@@ -45,6 +48,19 @@ Quantities
 ``band_gap``
     Width of the gap between the transverse-acoustic and rotational-optical bands of the
     infinite linear chain (0 if they overlap); the same for every model.
+
+Extra loads
+-----------
+Constant loads (``[[loads]]`` tables without ``kind``, or of a constant kind) act
+throughout, besides the stepped or held moment, in every relaxation of the relaxation
+quantities (``loads=`` of :func:`~cosserat_chain.experiments.sweep.relaxation_sweeps` and
+:func:`~cosserat_chain.numerics.relaxation.relax_batch`). The static quantities (``M_c``,
+``phi0_at_fold``, ``compliance``) follow the branch under the moment alone, so a spec with
+extra loads and any of them is refused, naming them; ``band_gap`` is a property of the
+infinite unloaded chain, which the loads do not enter. A load that changes in time is
+refused (no static state holds under it), and so is one on a degree of freedom a cell's
+ends hold fixed. The loads are in the spec's JSON (which the Dask workers receive) and in
+the results' ``loads_json`` attribute.
 """
 
 from __future__ import annotations
@@ -58,9 +74,10 @@ from typing import Any, Literal
 
 import numpy as np
 import xarray as xr
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_serializer, model_validator
 
 from ..analysis.dispersion import wave_summary
+from ..loads import Loads, load_from_table, loads_from_tables
 from ..models.base import available_models
 from ..numerics.continuation import compliance, locate_fold
 from ..numerics.dynamics import default_time_step
@@ -74,6 +91,8 @@ QUANTITIES = ("M_c", "phi0_at_fold", "compliance", "onset_load", "stop_load", "m
 Quantity = Literal["M_c", "phi0_at_fold", "compliance", "onset_load", "stop_load", "mean_angular_velocity", "band_gap"]
 #: The quantities computed by relaxing the dynamics (batched over a chunk of cells).
 RELAXATION_QUANTITIES = ("onset_load", "stop_load", "mean_angular_velocity")
+#: The quantities of the static branch under the moment alone: they take no extra loads.
+STATIC_QUANTITIES = ("M_c", "phi0_at_fold", "compliance")
 #: Default time steps are rounded down to a power of 2 ** (1 / STEPS_PER_OCTAVE) (see the module docstring).
 STEPS_PER_OCTAVE = 8
 #: How a cell's time step is chosen; stored in the results, so that a file written under another rule is not resumed.
@@ -123,8 +142,45 @@ class StudySpec(BaseModel):
     models: list[str] = ["nonlinear", "sine"]
     quantities: list[Quantity]
     loads: list[float] = []
+    #: The ``[[loads]]`` tables among ``loads`` (extra loads on every cell); serialized back into ``loads``.
+    extra_loads: list[dict[str, Any]] = []
     sweep: SweepSettings = SweepSettings()
     particle: int = 0
+
+    @model_validator(mode="before")
+    @classmethod
+    def _split_loads(cls, data: Any) -> Any:
+        """Numbers of ``loads`` are moments of mean_angular_velocity, its tables constant extra loads."""
+        if not isinstance(data, dict):
+            return data
+        if "extra_loads" in data:
+            raise ValueError("unknown key extra_loads: give the loads acting on every cell as tables in loads ([[loads]] in TOML)")
+        entries = data.get("loads")
+        if not isinstance(entries, list) or not any(isinstance(entry, dict) for entry in entries):
+            return data
+        for i, entry in enumerate(entries):
+            if isinstance(entry, dict):
+                load = load_from_table(entry, f"loads[{i}]")
+                if not load.schedule.is_constant:
+                    raise ValueError(
+                        f"loads[{i}] (kind {entry.get('kind')!r}) changes in time: the loads of a study act on its "
+                        "relaxations, which need constant loads (no static state holds under a load that changes)"
+                    )
+        return {
+            **data,
+            "loads": [entry for entry in entries if not isinstance(entry, dict)],
+            "extra_loads": [entry for entry in entries if isinstance(entry, dict)],
+        }
+
+    @model_serializer(mode="wrap")
+    def _merge_loads(self, handler) -> dict[str, Any]:
+        # One key, as in the TOML: moments first, then the tables. Without tables the dump is that of
+        # a spec from before extra loads existed, so that its files still resume.
+        data = handler(self)
+        tables = data.pop("extra_loads", [])
+        if tables:
+            data["loads"] = [*data["loads"], *tables]
+        return data
 
     @field_validator("parameters", "fixed")
     @classmethod
@@ -163,7 +219,19 @@ class StudySpec(BaseModel):
             raise ValueError("quantity mean_angular_velocity needs loads = [M1, M2, ...]")
         if not self.quantities:
             raise ValueError(f"quantities: give at least one of {', '.join(QUANTITIES)}")
+        static = [name for name in self.quantities if name in STATIC_QUANTITIES]
+        if self.extra_loads and static:
+            raise ValueError(
+                f"quantit{'y' if len(static) == 1 else 'ies'} {', '.join(static)} take{'s' if len(static) == 1 else ''} "
+                "no extra loads: the static branch is followed under the moment alone; leave "
+                f"{'it' if len(static) == 1 else 'them'} out of quantities, or the load tables out of loads "
+                "(extra loads act on onset_load, stop_load and mean_angular_velocity)"
+            )
         return self
+
+    def extra(self) -> Loads:
+        """The extra loads acting on every cell (the tables of ``loads``)."""
+        return loads_from_tables(self.extra_loads)
 
     def axes(self) -> dict[str, list]:
         """Swept field -> its values (N as integers)."""
@@ -189,6 +257,7 @@ class StudySpec(BaseModel):
         """Build every cell's parameters; raise one ValueError listing every impossible combination."""
         problems = []
         seen = set()
+        extra = self.extra()
         for index, _, fields in self.cells():
             if index in seen:
                 continue
@@ -197,6 +266,7 @@ class StudySpec(BaseModel):
                 params = ChainParams(**fields)
                 if self.particle and not -params.N < self.particle < params.N:
                     raise ValueError(f"particle={self.particle} is not a free particle of a chain with N={params.N}")
+                extra.validate(params)
             except (ValidationError, ValueError) as err:
                 swept = ", ".join(f"{k}={fields[k]}" for k in self.parameters)
                 reason = "; ".join(e["msg"] for e in err.errors()) if isinstance(err, ValidationError) else str(err)
@@ -260,7 +330,7 @@ def compute_cells(cells: Sequence[dict[str, float]], model: str, spec_json: str)
         computed one by one, so that only the failing cell records an error. Ctrl-C
         (``KeyboardInterrupt``) is not caught.
     """
-    spec = StudySpec(**json.loads(spec_json))
+    spec = StudySpec(**json.loads(spec_json))  # the extra loads come with it, as tables of loads
     results: list[dict[str, Any]] = []
     live: list[tuple[int, ChainParams]] = []
     for i, fields in enumerate(cells):
@@ -310,12 +380,13 @@ def _relaxation_quantities_or_errors(params_list: list[ChainParams], model: str,
 def _relaxation_quantities(params_list: list[ChainParams], model: str, spec: StudySpec) -> list[dict[str, Any]]:
     """The relaxation quantities of every member, all members in one batch per quantity."""
     wanted = set(spec.quantities)
+    extra = spec.extra()
     steps = [cell_time_step(params, model, spec) for params in params_list]
     out: list[dict[str, Any]] = [{} for _ in params_list]
     if wanted & {"onset_load", "stop_load"}:
         sweeps = relaxation_sweeps(
             params_list, model, m_max=spec.sweep.m_max, dm=spec.sweep.dm, down="stop_load" in wanted, stop_at_onset=True,
-            particle=spec.particle, t_max=spec.sweep.t_max, dt=steps,
+            particle=spec.particle, t_max=spec.sweep.t_max, dt=steps, loads=extra,
         )  # fmt: skip
         if not all(sweep.completed for sweep in sweeps):
             # relaxation_sweeps returns the steps finished before Ctrl-C; a cell must not record a partial sweep.
@@ -328,7 +399,7 @@ def _relaxation_quantities(params_list: list[ChainParams], model: str, spec: Stu
         members = [params for params in params_list for _ in spec.loads]
         ends = relax_batch(
             members, model, [load for _ in params_list for load in spec.loads], particle=spec.particle, t_max=spec.sweep.t_max,
-            dt=[step for step in steps for _ in spec.loads],
+            dt=[step for step in steps for _ in spec.loads], loads=extra,
         )  # fmt: skip
         for i, (values, params) in enumerate(zip(out, params_list)):
             values["mean_angular_velocity"] = [
@@ -356,6 +427,8 @@ def empty_results(spec: StudySpec) -> xr.Dataset:
     ds["done"].attrs["long_name"] = "1 once the cell was computed (successfully or not)"
     ds["error"].attrs["long_name"] = "error message of a failed cell (empty if it succeeded)"
     ds.attrs["study_spec_json"] = spec.to_json()
+    # The extra loads on every cell, as every run stores its loads (Loads.to_list); also in study_spec_json.
+    ds.attrs["loads_json"] = json.dumps(spec.extra().to_list())
     ds.attrs["time_step_rule"] = TIME_STEP_RULE
     ds.attrs["experiment"] = "parameter_study"
     return ds

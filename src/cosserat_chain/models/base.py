@@ -30,6 +30,13 @@ viscosity). Every model provides
   forces must equal ``force_kernel`` on member b to the last bit: both call the
   same inline per-bond (or per-particle) function. (A batch's end columns come from
   ``end_kernel``, member by member: the same code, so the same bits.)
+* ``graded_kernel`` (optional: a model without it runs uniform chains only): the
+  interior forces of a chain whose bonds differ (``ChainParams.E1_factors``,
+  ``E2_factors``), signature :data:`FORCE_SIGNATURE`, reading the per-bond
+  coefficients that ``coefficients`` appends for such a chain. A kernel of its
+  own, so that the uniform chain's loop reads no per-bond array; ``end_kernel``
+  reads either layout (the end columns are not the hot loop). A graded chain runs
+  as a batch of one (:func:`cosserat_chain.numerics.engine.split`).
 * ``coefficients(params)``: the flat float64 array ``coef`` the kernel reads.
 * ``forces(params, x)``: a NumPy twin of the kernel (zero at the degrees of
   freedom the ends hold fixed), tested against it.
@@ -66,7 +73,7 @@ from scipy.linalg import LinAlgError, cholesky_banded
 
 from ..memory import FLOAT, require
 from ..params import ChainParams
-from ..state import _free, check_state, force_columns, pack, per_dof, zero_held
+from ..state import _free, check_state, force_columns, pack, zero_held
 
 #: Signature of every compiled force kernel: (x, coef, out, start, stop) -> None.
 FORCE_SIGNATURE = types.void(types.float64[:, ::1], types.float64[::1], types.float64[:, ::1], types.int64, types.int64)
@@ -113,6 +120,8 @@ class Model(ABC):
     #: The forces on the end columns (module docstring); None: clamped chains only.
     end_kernel: ClassVar[Callable[..., None] | None] = None
     batch_kernel: ClassVar[Callable[..., None]]
+    #: The interior forces of a chain graded in its bonds (module docstring); None: uniform chains only.
+    graded_kernel: ClassVar[Callable[..., None] | None] = None
     #: Largest |phi| at which the kernels are accurate: a model that evaluates sines
     #: with :func:`.trig.sincos` sets its reduction limit; the engine stops a run beyond it.
     max_angle: ClassVar[float] = math.inf
@@ -198,7 +207,7 @@ class Model(ABC):
         # refuse here, with the number, a chain that cannot fit (the stiffness, its bands
         # and the factor's copies, about 50 values a degree of freedom).
         require(50 * FLOAT * 3 * n, f"the stiffness of {n} particles (N={params.N})", "simulate a shorter chain")
-        scale = sp.diags(1.0 / np.sqrt(per_dof(params, params.inertia)))
+        scale = sp.diags(1.0 / np.sqrt(pack(params, params.particle_inertia)))
         dynamical = (scale @ sp.csr_matrix(self.stiffness(params, np.zeros((3, n)))) @ scale).tocsr()
         gershgorin = float(abs(dynamical).sum(axis=1).max())
         # A ring's corner blocks would make the band as wide as the chain: its Gershgorin bound instead.
@@ -224,12 +233,31 @@ class Model(ABC):
         x = check_state(params, x)
         out = np.zeros_like(x)
         coef = self.coefficients(params)
-        type(self).force_kernel(x, coef, out, 1, x.shape[1] - 1)
+        force, ends = self.chain_kernels(params)
+        force(x, coef, out, 1, x.shape[1] - 1)
         start, stop = force_columns(params)
         if start == 0 or stop == x.shape[1]:
-            self.ends_kernel(params)(x, coef, out, start == 0, stop == x.shape[1], params.periodic)
+            ends(x, coef, out, start == 0, stop == x.shape[1], params.periodic)
         zero_held(params, out)
         return out
+
+    def chain_kernels(self, params: ChainParams) -> tuple[Callable[..., None], Callable[..., None]]:
+        """The (interior, end) kernels a single run of ``params`` takes with ``coefficients(params)``.
+
+        Raises
+        ------
+        ValueError
+            For a chain graded in its bonds and a model without ``graded_kernel``, or
+            other ends and a model without ``end_kernel``.
+        """
+        ends = self.ends_kernel(params)
+        if not params.graded_stiffness:
+            return type(self).force_kernel, ends
+        if type(self).graded_kernel is None:
+            raise ValueError(
+                f"the {self.name} model has no graded_kernel: it runs chains whose bonds are alike only (E1_factors, E2_factors)"
+            )
+        return type(self).graded_kernel, ends
 
     def ends_kernel(self, params: ChainParams) -> Callable[..., None]:
         """The end kernel for ``params`` (a compiled no-op for a clamped chain).

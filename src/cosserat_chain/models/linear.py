@@ -24,12 +24,35 @@ from numba import njit
 from ..params import ChainParams
 from ..state import bonded, check_state, scatter_bonds, zero_held
 from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks
+from .trig import sincos
 
 
 def cosserat_coefficients(params: ChainParams) -> np.ndarray:
     """Coefficients (k_u, k_v, h, 2 b^2 D1, 2 b^2 D2) of eqs. (2)-(3), derived from the geometry."""
     two_b2 = 2.0 * params.b**2
     return np.array([params.k_u, params.k_v, params.h, two_b2 * params.D1, two_b2 * params.D2])
+
+
+#: Length of a uniform chain's coefficients (k_u, k_v, h, bend, couple); a graded chain's append
+#: k_u, k_v, bend and couple of every bond, in that order (:func:`chain_coefficients`).
+GRADED_OFFSET = 5
+
+
+def bond_coefficients(params: ChainParams) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(k_u, k_v, 2 b^2 D1, 2 b^2 D2) of every bond, arrays (n_bonds,): the coefficients of
+    :func:`cosserat_coefficients` with the bond's own E1 and E2 (linear in them)."""
+    E1, E2 = params.bond_stiffness
+    d2 = params.d**2
+    two_b2 = 2.0 * params.b**2
+    k_u = 2.0 * (E1 + params.gap**2 / d2 * E2)
+    k_v = 8.0 * params.b**2 / d2 * E2
+    return k_u, k_v, two_b2 * (E1 - params.h**2 / d2 * E2), two_b2 * (4.0 * params.h**2 / d2 * E2)
+
+
+def chain_coefficients(params: ChainParams) -> np.ndarray:
+    """The kernels' ``coef``: :func:`cosserat_coefficients`, and for a chain graded in its bonds every bond's after them."""
+    uniform = cosserat_coefficients(params)
+    return np.concatenate([uniform, *bond_coefficients(params)]) if params.graded_stiffness else uniform
 
 
 @njit(inline="always", **KERNEL_OPTIONS)
@@ -76,6 +99,88 @@ def cosserat_end(
     return -f_u, -f_v, f_phi
 
 
+@njit(inline="always", **KERNEL_OPTIONS)
+def cosserat_graded(x, coef, out, start, stop, sine):  # pragma: no cover - compiled
+    """Eqs. (2)-(3) on columns start..stop-1 bond by bond, each bond with its own coefficients.
+
+    ``sine``: a constant of the caller, the angles enter as sin phi (eq. 2) or phi
+    (eq. 3). Bond k's (k_u, k_v, bend, couple) come from the coefficients' tail
+    (:func:`chain_coefficients`), sliced from bond start-1 so that every index is
+    0-based; the bond's forces are carried to the next column, as in the nonlinear kernel.
+    """
+    h = coef[2]
+    n_bonds = (coef.size - GRADED_OFFSET) // 4
+    first = GRADED_OFFSET + start - 1
+    k_u = coef[first : GRADED_OFFSET + n_bonds]
+    k_v = coef[first + n_bonds : GRADED_OFFSET + 2 * n_bonds]
+    bend = coef[first + 2 * n_bonds : GRADED_OFFSET + 3 * n_bonds]
+    couple = coef[first + 3 * n_bonds :]
+    u, v, phi = x[0, start - 1 :], x[1, start - 1 :], x[2, start - 1 :]
+    a0 = sincos(phi[0])[0] if sine else phi[0]
+    a1 = sincos(phi[1])[0] if sine else phi[1]
+    fu_prev, fv_prev, _, p_prev = cosserat_bond(k_u[0], k_v[0], h, bend[0], couple[0], u[1] - u[0], v[1] - v[0], a0, a1)
+    a0 = a1
+    out_u, out_v, out_phi = out[0, start:stop], out[1, start:stop], out[2, start:stop]
+    for k in range(stop - start):
+        a1 = sincos(phi[k + 2])[0] if sine else phi[k + 2]
+        fu, fv, p0, p1 = cosserat_bond(
+            k_u[k + 1], k_v[k + 1], h, bend[k + 1], couple[k + 1], u[k + 2] - u[k + 1], v[k + 2] - v[k + 1], a0, a1
+        )
+        out_u[k] = fu - fu_prev
+        out_v[k] = fv - fv_prev
+        out_phi[k] = p0 + p_prev
+        fu_prev, fv_prev, p_prev = fu, fv, p1
+        a0 = a1
+
+
+@njit(inline="always", **KERNEL_OPTIONS)
+def cosserat_end_columns(x, coef, out, first, last, ring, sine):  # pragma: no cover - compiled
+    """The end columns of eqs. (2)-(3) (``sine`` as in :func:`cosserat_graded`), for either layout of ``coef``.
+
+    A uniform chain's by :func:`cosserat_end` (a ring's seam by the interior formula, so
+    its bits are the interior's); a graded chain's from its one or two bonds, each with
+    its own coefficients (a ring's closing bond n-1 joins column n-1 to column 0).
+    """
+    n = x.shape[1]
+    graded = coef.size > GRADED_OFFSET
+    n_bonds = (coef.size - GRADED_OFFSET) // 4
+    for side in range(2):
+        if not ((side == 0 and first) or (side == 1 and last)):
+            continue
+        c = 0 if side == 0 else n - 1
+        i, j = (c - 1) % n, (c + 1) % n
+        a_i = sincos(x[2, i])[0] if sine else x[2, i]
+        a_c = sincos(x[2, c])[0] if sine else x[2, c]
+        a_j = sincos(x[2, j])[0] if sine else x[2, j]
+        if not graded:
+            out[0, c], out[1, c], out[2, c] = cosserat_end(
+                coef[0], coef[1], coef[2], coef[3], coef[4], x[0, i], x[0, c], x[0, j], x[1, i], x[1, c], x[1, j],
+                a_i, a_c, a_j, side, ring,
+            )  # fmt: skip
+            continue
+        f_u = f_v = f_phi = 0.0
+        if ring or side == 0:  # the bond on the right: c to j (bond c, or the closing bond n-1 from the last column)
+            b = c
+            fu, fv, p0, _ = cosserat_bond(
+                coef[GRADED_OFFSET + b], coef[GRADED_OFFSET + n_bonds + b], coef[2], coef[GRADED_OFFSET + 2 * n_bonds + b],
+                coef[GRADED_OFFSET + 3 * n_bonds + b], x[0, j] - x[0, c], x[1, j] - x[1, c], a_c, a_j,
+            )  # fmt: skip
+            f_u, f_v, f_phi = fu, fv, p0
+        if ring or side == 1:  # the bond on the left: i to c (bond i)
+            b = i
+            fu, fv, _, p1 = cosserat_bond(
+                coef[GRADED_OFFSET + b], coef[GRADED_OFFSET + n_bonds + b], coef[2], coef[GRADED_OFFSET + 2 * n_bonds + b],
+                coef[GRADED_OFFSET + 3 * n_bonds + b], x[0, c] - x[0, i], x[1, c] - x[1, i], a_i, a_c,
+            )  # fmt: skip
+            f_u, f_v, f_phi = f_u - fu, f_v - fv, f_phi + p1
+        out[0, c], out[1, c], out[2, c] = f_u, f_v, f_phi
+
+
+@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
+def linear_graded_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
+    cosserat_graded(x, coef, out, start, stop, False)
+
+
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
 def linear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     k_u, k_v, h, bend, couple = coef[0], coef[1], coef[2], coef[3], coef[4]
@@ -93,15 +198,7 @@ def linear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compi
 
 @njit(END_SIGNATURE, **KERNEL_OPTIONS)
 def linear_end_kernel(x, coef, out, first, last, ring):  # pragma: no cover - compiled
-    n = x.shape[1]
-    for side in range(2):
-        if (side == 0 and first) or (side == 1 and last):
-            c = 0 if side == 0 else n - 1
-            i, j = (c - 1) % n, (c + 1) % n
-            out[0, c], out[1, c], out[2, c] = cosserat_end(
-                coef[0], coef[1], coef[2], coef[3], coef[4], x[0, i], x[0, c], x[0, j], x[1, i], x[1, c], x[1, j],
-                x[2, i], x[2, c], x[2, j], side, ring,
-            )  # fmt: skip
+    cosserat_end_columns(x, coef, out, first, last, ring, False)
 
 
 @njit(inline="always", **KERNEL_OPTIONS)
@@ -131,7 +228,8 @@ def cosserat_forces(params: ChainParams, u: np.ndarray, v: np.ndarray, angle: np
     Shapes (2N+1,) each; returns (3, 2N+1), bond by bond (:func:`cosserat_bond`), zero
     at the degrees of freedom the ends hold fixed.
     """
-    k_u, k_v, h, bend, couple = cosserat_coefficients(params)
+    k_u, k_v, bend, couple = bond_coefficients(params)
+    h = params.h
     u, v, angle = bonded(params, np.stack([u, v, angle]))
     du, dv = np.diff(u), np.diff(v)
     shear = dv - 0.5 * h * (angle[1:] + angle[:-1])
@@ -151,23 +249,28 @@ def cosserat_bond_energy(params: ChainParams, u: np.ndarray, v: np.ndarray, angl
     """
     u, v, angle = (bonded(params, a) for a in (u, v, angle))
     shear = np.diff(v, axis=-1) - 0.5 * params.h * (angle[..., 1:] + angle[..., :-1])
-    return (
-        0.5 * params.k_u * np.diff(u, axis=-1) ** 2 + params.E1 * params.b**2 * np.diff(angle, axis=-1) ** 2 + 0.5 * params.k_v * shear**2
-    )
+    k_u, k_v, _, _ = bond_coefficients(params)
+    E1 = params.bond_stiffness[0]
+    return 0.5 * k_u * np.diff(u, axis=-1) ** 2 + E1 * params.b**2 * np.diff(angle, axis=-1) ** 2 + 0.5 * k_v * shear**2
 
 
-def bond_stiffness_block(params: ChainParams) -> np.ndarray:
-    """Hessian (6, 6) of P_bond over (u_k, v_k, phi_k, u_k+1, v_k+1, phi_k+1)."""
+def bond_stiffness_blocks(params: ChainParams) -> np.ndarray:
+    """Hessian (n_bonds, 6, 6) of every bond's P_bond over (u_k, v_k, phi_k, u_k+1, v_k+1, phi_k+1)."""
     g_u = np.array([-1.0, 0, 0, 1, 0, 0])
     g_phi = np.array([0, 0, -1.0, 0, 0, 1])
     g_shear = np.array([0, -1.0, -params.h / 2, 0, 1, -params.h / 2])
-    return params.k_u * np.outer(g_u, g_u) + 2 * params.E1 * params.b**2 * np.outer(g_phi, g_phi) + params.k_v * np.outer(g_shear, g_shear)
+    k_u, k_v, _, _ = bond_coefficients(params)
+    E1 = params.bond_stiffness[0]
+    return (
+        k_u[:, None, None] * np.outer(g_u, g_u)
+        + (2 * E1 * params.b**2)[:, None, None] * np.outer(g_phi, g_phi)
+        + k_v[:, None, None] * np.outer(g_shear, g_shear)
+    )
 
 
 def stiffness_matrix(params: ChainParams) -> sp.csr_matrix:
     """The constant stiffness matrix K of eq. (3) over the free degrees of freedom (symmetric; banded for an open chain)."""
-    blocks = np.broadcast_to(bond_stiffness_block(params), (params.n_bonds, 6, 6))
-    return assemble_bond_blocks(np.ascontiguousarray(blocks), params)
+    return assemble_bond_blocks(np.ascontiguousarray(bond_stiffness_blocks(params)), params)
 
 
 class LinearModel(Model):
@@ -181,10 +284,11 @@ class LinearModel(Model):
     force_kernel = linear_forces_kernel
     end_kernel = linear_end_kernel
     batch_kernel = linear_batch_kernel
+    graded_kernel = linear_graded_kernel
 
     @staticmethod
     def coefficients(params: ChainParams) -> np.ndarray:
-        return cosserat_coefficients(params)
+        return chain_coefficients(params)
 
     def forces(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         u, v, phi = check_state(params, x)
@@ -202,8 +306,8 @@ class LinearModel(Model):
         return cosserat_bond_energy(params, x[..., 0, :], x[..., 1, :], x[..., 2, :])
 
     def max_frequency(self, params: ChainParams) -> float:
-        """The infinite chain's bound :func:`max_frequency` (independent of N, cheap)."""
-        return max_frequency(params)
+        """The infinite chain's bound :func:`max_frequency` (independent of N, cheap); a graded chain's generic one."""
+        return super().max_frequency(params) if params.graded else max_frequency(params)
 
 
 def bloch_stiffness(params: ChainParams, q: np.ndarray) -> np.ndarray:

@@ -27,6 +27,10 @@ from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_
 from .linear import max_frequency
 from .trig import REDUCTION_LIMIT, sincos
 
+#: Length of a uniform chain's coefficients (a, b, h, E1, E2, h - 2a, d); a graded chain's
+#: append E1 of every bond, then E2 of every bond.
+GRADED_OFFSET = 7
+
 
 @njit(inline="always", **KERNEL_OPTIONS)
 def _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, du, dv):  # pragma: no cover - compiled
@@ -107,20 +111,62 @@ def nonlinear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - co
         s0, c0 = s1, c1
 
 
+@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
+def nonlinear_graded_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
+    a, b, h, rest1, rest2 = coef[0], coef[1], coef[2], coef[5], coef[6]
+    # nonlinear_forces_kernel with bond k's E1 and E2 read from the coefficients' tail
+    # (GRADED_OFFSET: E1 of every bond, then E2), sliced from bond start-1 so that
+    # every index stays 0-based.
+    n_bonds = (coef.size - GRADED_OFFSET) // 2
+    E1 = coef[GRADED_OFFSET + start - 1 : GRADED_OFFSET + n_bonds]
+    E2 = coef[GRADED_OFFSET + n_bonds + start - 1 :]
+    s0, c0 = sincos(x[2, start - 1])
+    s1, c1 = sincos(x[2, start])
+    fx_prev, fy_prev, _, m1_prev = _bond(
+        a, b, h, E1[0], E2[0], rest1, rest2, c0, s0, c1, s1, x[0, start] - x[0, start - 1], x[1, start] - x[1, start - 1]
+    )
+    s0, c0 = s1, c1
+    u = x[0, start:]
+    v = x[1, start:]
+    phi = x[2, start:]
+    out_u = out[0, start:stop]
+    out_v = out[1, start:stop]
+    out_phi = out[2, start:stop]
+    for k in range(stop - start):
+        s1, c1 = sincos(phi[k + 1])
+        fx, fy, m0, m1 = _bond(a, b, h, E1[k + 1], E2[k + 1], rest1, rest2, c0, s0, c1, s1, u[k + 1] - u[k], v[k + 1] - v[k])
+        out_u[k] = fx - fx_prev
+        out_v[k] = fy - fy_prev
+        out_phi[k] = m0 + m1_prev
+        fx_prev, fy_prev, m1_prev = fx, fy, m1
+        s0, c0 = s1, c1
+
+
+@njit(inline="always", **KERNEL_OPTIONS)
+def _link_stiffness(coef, bond):  # pragma: no cover - compiled
+    """(E1, E2) of a bond: the scalars of a uniform chain's coefficients, or the bond's own of a graded chain's."""
+    if coef.size == GRADED_OFFSET:
+        return coef[3], coef[4]
+    n_bonds = (coef.size - GRADED_OFFSET) // 2
+    return coef[GRADED_OFFSET + bond], coef[GRADED_OFFSET + n_bonds + bond]
+
+
 @njit(END_SIGNATURE, **KERNEL_OPTIONS)
 def nonlinear_end_kernel(x, coef, out, first, last, ring):  # pragma: no cover - compiled
-    a, b, h, E1, E2, rest1, rest2 = coef[0], coef[1], coef[2], coef[3], coef[4], coef[5], coef[6]
+    a, b, h, rest1, rest2 = coef[0], coef[1], coef[2], coef[5], coef[6]
     n = x.shape[1]
     # Column 0 has bond 0 on its right, column n-1 bond n-2 on its left; a ring's closing
-    # bond joins column n-1 (left) to column 0 (right), a neighbour h further on.
+    # bond n-1 joins column n-1 (left) to column 0 (right), a neighbour h further on.
     closing_x = closing_y = closing_m0 = closing_m1 = 0.0
     if ring:
+        E1, E2 = _link_stiffness(coef, n - 1)
         s0, c0 = sincos(x[2, n - 1])
         s1, c1 = sincos(x[2, 0])
         closing_x, closing_y, closing_m0, closing_m1 = _bond(
             a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, x[0, 0] - x[0, n - 1], x[1, 0] - x[1, n - 1]
         )
     if first:
+        E1, E2 = _link_stiffness(coef, 0)
         s0, c0 = sincos(x[2, 0])
         s1, c1 = sincos(x[2, 1])
         fx, fy, m0, _ = _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, x[0, 1] - x[0, 0], x[1, 1] - x[1, 0])
@@ -128,6 +174,7 @@ def nonlinear_end_kernel(x, coef, out, first, last, ring):  # pragma: no cover -
         out[1, 0] = fy - closing_y
         out[2, 0] = m0 + closing_m1
     if last:
+        E1, E2 = _link_stiffness(coef, n - 2)
         s0, c0 = sincos(x[2, n - 2])
         s1, c1 = sincos(x[2, n - 1])
         fx, fy, _, m1 = _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, x[0, n - 1] - x[0, n - 2], x[1, n - 1] - x[1, n - 2])
@@ -172,7 +219,7 @@ def _hessian_blocks(x, h, corners, constants, blocks):  # pragma: no cover - com
     """Add every link's Hessian of P = E (L - L0)^2 / 2 to its bond's 6x6 block.
 
     ``corners[l]``: body-frame corners of link l on the left and the right particle;
-    ``constants[l]``: its E and L0. With D the link vector, e = D / L and
+    ``constants[k, l]``: its E in bond k and its L0. With D the link vector, e = D / L and
     B = dD/d(u0, v0, phi0, u1, v1, phi1), the block gains B^T G B with
     G = d^2 P / dD^2 = E [(L0/L) e e^T + (1 - L0/L) I], and the corner paths' curvature
     (d^2 D/dphi0^2 = r0, d^2 D/dphi1^2 = -r1) adds T.r0 and -T.r1 with T = E (1 - L0/L) D.
@@ -186,7 +233,7 @@ def _hessian_blocks(x, h, corners, constants, blocks):  # pragma: no cover - com
         c0, s0 = math.cos(x[2, k]), math.sin(x[2, k])
         c1, s1 = math.cos(x[2, k + 1]), math.sin(x[2, k + 1])
         for link in range(corners.shape[0]):
-            stiff, rest = constants[link, 0], constants[link, 1]
+            stiff, rest = constants[k, link, 0], constants[k, link, 1]
             r0x = corners[link, 0, 0] * c0 - corners[link, 0, 1] * s0
             r0y = corners[link, 0, 0] * s0 + corners[link, 0, 1] * c0
             r1x = corners[link, 1, 0] * c1 - corners[link, 1, 1] * s1
@@ -229,7 +276,7 @@ def chain_energy(params: ChainParams, x: np.ndarray) -> float:
     """
     total = 0.0
     for link, _, _, D in _links(params, np.asarray(x, dtype=float)):
-        total += 0.5 * link.stiffness * np.sum((np.hypot(D[0], D[1]) - link.rest_length) ** 2)
+        total += np.sum(0.5 * link.stiffness * (np.hypot(D[0], D[1]) - link.rest_length) ** 2)
     return float(total)
 
 
@@ -247,11 +294,13 @@ class NonlinearModel(Model):
     force_kernel = nonlinear_forces_kernel
     end_kernel = nonlinear_end_kernel
     batch_kernel = nonlinear_batch_kernel
+    graded_kernel = nonlinear_graded_kernel
     max_angle = REDUCTION_LIMIT
 
     @staticmethod
     def coefficients(params: ChainParams) -> np.ndarray:
-        return np.array([params.a, params.b, params.h, params.E1, params.E2, params.gap, params.d])
+        uniform = np.array([params.a, params.b, params.h, params.E1, params.E2, params.gap, params.d])
+        return np.concatenate([uniform, *params.bond_stiffness]) if params.graded_stiffness else uniform
 
     def energy(self, params: ChainParams, x: np.ndarray) -> float:
         return chain_energy(params, check_state(params, x))
@@ -269,8 +318,10 @@ class NonlinearModel(Model):
         return total
 
     def max_frequency(self, params: ChainParams) -> float:
-        """The infinite linear chain's bound (:func:`.linear.max_frequency`): the Hessian at rest is eq. (3)'s K."""
-        return max_frequency(params)
+        """The infinite linear chain's bound (:func:`.linear.max_frequency`): the Hessian at rest is eq. (3)'s K.
+
+        A graded chain has no such closed form: the generic bound from the stiffness at rest."""
+        return super().max_frequency(params) if params.graded else max_frequency(params)
 
     def forces(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         x = check_state(params, x)
@@ -290,7 +341,11 @@ class NonlinearModel(Model):
         x = check_state(params, x)
         links = bond_links(params)
         corners = np.array([[link.left_corner, link.right_corner] for link in links])
-        constants = np.array([[link.stiffness, link.rest_length] for link in links])
+        # Per bond and link: its stiffness (the bonds of a graded chain differ) and rest length.
+        constants = np.empty((params.n_bonds, len(links), 2))
+        for index, link in enumerate(links):
+            constants[:, index, 0] = link.stiffness
+            constants[:, index, 1] = link.rest_length
         blocks = np.zeros((params.n_bonds, 6, 6))
         _hessian_blocks(np.ascontiguousarray(bonded(params, x)), params.h, corners, constants, blocks)
         return assemble_bond_blocks(blocks, params)

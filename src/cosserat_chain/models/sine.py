@@ -25,11 +25,12 @@ from ..params import ChainParams
 from ..state import check_state, pack
 from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, from_upper_bands, upper_bands
 from .linear import (
+    chain_coefficients,
     cosserat_batch,
     cosserat_bond_energy,
-    cosserat_coefficients,
-    cosserat_end,
+    cosserat_end_columns,
     cosserat_forces,
+    cosserat_graded,
     cosserat_site,
     max_frequency,
     stiffness_matrix,
@@ -70,15 +71,12 @@ def sine_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compile
 
 @njit(END_SIGNATURE, **KERNEL_OPTIONS)
 def sine_end_kernel(x, coef, out, first, last, ring):  # pragma: no cover - compiled
-    n = x.shape[1]
-    for side in range(2):
-        if (side == 0 and first) or (side == 1 and last):
-            c = 0 if side == 0 else n - 1
-            i, j = (c - 1) % n, (c + 1) % n
-            out[0, c], out[1, c], out[2, c] = cosserat_end(
-                coef[0], coef[1], coef[2], coef[3], coef[4], x[0, i], x[0, c], x[0, j], x[1, i], x[1, c], x[1, j],
-                sincos(x[2, i])[0], sincos(x[2, c])[0], sincos(x[2, j])[0], side, ring,
-            )  # fmt: skip
+    cosserat_end_columns(x, coef, out, first, last, ring, True)
+
+
+@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
+def sine_graded_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
+    cosserat_graded(x, coef, out, start, stop, True)
 
 
 @njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
@@ -101,11 +99,12 @@ class SineModel(Model):
     force_kernel = sine_forces_kernel
     end_kernel = sine_end_kernel
     batch_kernel = sine_batch_kernel
+    graded_kernel = sine_graded_kernel
     max_angle = REDUCTION_LIMIT
 
     @staticmethod
     def coefficients(params: ChainParams) -> np.ndarray:
-        return cosserat_coefficients(params)
+        return chain_coefficients(params)
 
     def forces(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         u, v, phi = check_state(params, x)
@@ -142,5 +141,7 @@ class SineModel(Model):
         return cosserat_bond_energy(params, x[..., 0, :], x[..., 1, :], np.sin(x[..., 2, :]))
 
     def max_frequency(self, params: ChainParams) -> float:
-        """The infinite linear chain's bound (:func:`.linear.max_frequency`): eq. (2) linearises to eq. (3) at rest."""
-        return max_frequency(params)
+        """The infinite linear chain's bound (:func:`.linear.max_frequency`): eq. (2) linearises to eq. (3) at rest.
+
+        A graded chain has no such closed form: the generic bound from the stiffness at rest."""
+        return super().max_frequency(params) if params.graded else max_frequency(params)

@@ -34,17 +34,18 @@ METHOD = "DOP853"
 
 @njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
 def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
-    # y = (x (3, n), v (3, n), W, D) flattened; rpar = (mass (3), gamma (3), free (3 n): 1.0 where
-    # the ends leave the degree of freedom free, knots (K, 2)); ipar = (n, number of loads L,
-    # start, stop, ring, load index (L, 4)), as :meth:`Loads.compiled` lays it out.
+    # y = (x (3, n), v (3, n), W, D) flattened; rpar = (gamma (3), inertia (3 n) of every degree of
+    # freedom (a graded chain's particles differ), free (3 n): 1.0 where the ends leave the degree
+    # of freedom free, knots (K, 2)); ipar = (n, number of loads L, start, stop, ring, load index
+    # (L, 4)), as :meth:`Loads.compiled` lays it out.
     n = ipar[0]
     start, stop, ring = ipar[2], ipar[3], ipar[4] != 0
     load_index = ipar[5 : 5 + 4 * ipar[1]].reshape((ipar[1], 4))
-    mass = rpar[0:3]
-    gamma = rpar[3:6]
     size = 3 * n
-    free = rpar[6 : 6 + size].reshape((3, n))
-    knots = rpar[6 + size :].reshape(((rpar.size - 6 - size) // 2, 2))
+    gamma = rpar[0:3]
+    mass = rpar[3 : 3 + size].reshape((3, n))
+    free = rpar[3 + size : 3 + 2 * size].reshape((3, n))
+    knots = rpar[3 + 2 * size :].reshape(((rpar.size - 3 - 2 * size) // 2, 2))
     x = y[:size].reshape((3, n))
     v = y[size : 2 * size].reshape((3, n))
     f = np.zeros((3, n))
@@ -62,7 +63,7 @@ def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - co
     for r in range(3):
         for k in range(n):
             dy[r * n + k] = free[r, k] * v[r, k]
-            dy[size + r * n + k] = free[r, k] * (f[r, k] - gamma[r] * v[r, k]) / mass[r]
+            dy[size + r * n + k] = free[r, k] * (f[r, k] - gamma[r] * v[r, k]) / mass[r, k]
             dissipation += free[r, k] * gamma[r] * v[r, k] * v[r, k]
     dy[2 * size] = work_rate
     dy[2 * size + 1] = dissipation
@@ -121,13 +122,14 @@ def integrate_adaptive(
     v = zeros(params) if v0 is None else check_state(params, v0, "v0")
     load_index, knots = loads.compiled(params)
     free = zero_held(params, np.ones((3, n))).ravel()
-    rpar = np.concatenate([params.inertia, params.damping, free, knots.ravel()])
+    rpar = np.concatenate([params.damping, params.particle_inertia.ravel(), free, knots.ravel()])
     ipar = np.concatenate([[n, len(load_index), *force_columns(params), int(params.periodic)], load_index.ravel()]).astype(np.int64)
     y0 = np.concatenate([x.ravel(), v.ravel(), [0.0, 0.0]])
     times = np.linspace(t0, t_end, n_frames)
+    force, ends = model.chain_kernels(params)
     sol = dop853.solve(
         _rhs,
-        type(model).force_kernel,
+        force,
         model.coefficients(params),
         rpar,
         ipar,
@@ -136,7 +138,7 @@ def integrate_adaptive(
         rtol=rtol,
         atol=atol,
         max_steps=max_steps,
-        end_force=model.ends_kernel(params),
+        end_force=ends,
     )
     size = 3 * n
     return Trajectory(

@@ -180,7 +180,7 @@ def integrate_batch(
                 return
 
     groups = [np.flatnonzero(n_steps == value) for value in np.unique(n_steps)]
-    run_parts(run_group, [part for group in groups for part in split(group, threads)], threads)
+    run_parts(run_group, [part for group in groups for part in split(group, threads, params)], threads)
     slot = np.arange(record.shape[1])
     stored_steps = np.minimum(strides[:, None] * slot, n_steps[:, None])
     record_time = np.where(slot < counts[:, None], t_end * stored_steps / n_steps[:, None], np.nan)

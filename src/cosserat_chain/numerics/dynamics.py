@@ -398,7 +398,15 @@ def integrate(
             lanes.lane_ints[TURN_LIMIT] = turns.stop_after
     # The blocks follow no turns: a run that follows them stays on one thread; so does a
     # ring, whose two ends are neighbours (its blocks would need a halo across the seam).
-    split = turns is None and not params.periodic and threads > 1 and Blocks.count(n, threads, method.force_evaluations) > 1
+    # A graded chain on one thread: a block is a chain of its own, numbered from its first
+    # column, while the graded coefficients are numbered along the whole chain.
+    split = (
+        turns is None
+        and not params.periodic
+        and not params.graded
+        and threads > 1
+        and Blocks.count(n, threads, method.force_evaluations) > 1
+    )
     blocks = Blocks(lanes, threads) if split else None
     runner = lanes if blocks is None else blocks
 

@@ -138,6 +138,19 @@ def _kick_drift_row(x, v, f, r, start, stop, a, bk, d, kick_close):  # pragma: n
     return total
 
 
+@njit(inline="always", **_KICK_OPTIONS)
+def _kick_drift_row_columns(x, v, f, r, start, stop, pairs, close, open_):  # pragma: no cover - compiled
+    """:func:`_kick_drift_row` with the factors of every column (pairs (.., 3, n)); returns the energy removed."""
+    removed = 0.0
+    for k in range(np.uint64(start), np.uint64(stop)):
+        w = v[r, k] + pairs[close, open_, KICK_CLOSE, r, k] * f[r, k]
+        removed += pairs[close, open_, LOSS, r, k] * w * w
+        w = pairs[close, open_, DAMP, r, k] * v[r, k] + pairs[close, open_, KICK, r, k] * f[r, k]
+        v[r, k] = w
+        x[r, k] += pairs[close, open_, DRIFT, r, k] * w
+    return removed
+
+
 @njit(**_KICK_OPTIONS)
 def _kick_drift_lanes(x, v, f, a, bk, d, kick_close, total, start, stop):  # pragma: no cover - compiled
     """One row of a batch, flat (n B,): the combined kick-drift of columns start..stop-1, sums per member into ``total``."""
@@ -166,6 +179,16 @@ def _kick_drift_chain(x, v, f, pairs, close, open_, start, stop):  # pragma: no 
             x, v, f, r, start, stop, pairs[close, open_, DAMP, r, 0], pairs[close, open_, KICK, r, 0],
             pairs[close, open_, DRIFT, r, 0], pairs[close, open_, KICK_CLOSE, r, 0],
         )  # fmt: skip
+    return removed
+
+
+@njit(**_KICK_OPTIONS)
+def _kick_drift_columns(x, v, f, pairs, close, open_, start, stop):  # pragma: no cover - compiled
+    """:func:`_kick_drift_chain` of a chain graded in its inertia: the factors of every column
+    (pairs (.., 3, n)). Not inlined: the uniform chain's loop must not carry its code."""
+    removed = 0.0
+    for r in range(3):
+        removed += _kick_drift_row_columns(x, v, f, r, start, stop, pairs, close, open_)
     return removed
 
 
@@ -213,7 +236,10 @@ def _kick_drift(x, v, f, pairs, close, open_, columns, dissipated, scratch):  # 
     c0, stop, first, last = columns[0], columns[1], columns[2], columns[3]
     while c0 < stop:
         c1, counted = _segment(c0, stop, first, last)
-        dissipated[0] += counted * _kick_drift_chain(x, v, f, pairs, close, open_, c0, c1)
+        if pairs.shape[4] > 1:
+            dissipated[0] += counted * _kick_drift_columns(x, v, f, pairs, close, open_, c0, c1)
+        else:
+            dissipated[0] += counted * _kick_drift_chain(x, v, f, pairs, close, open_, c0, c1)
         c0 = c1
 
 
@@ -486,6 +512,8 @@ def advance(
     end_coef = np.empty(coef.shape[0])
     n_sub = weights.size
     empty = n_sub
+    # A single chain graded in its inertia: its kick-drift factors are per column.
+    by_column = size == 1 and pairs.shape[4] > 1
     # Countdowns instead of a modulo per step: an integer division costs as much as
     # a small chain's kick-drift.
     to_store = stride - step0 % stride
@@ -511,7 +539,10 @@ def advance(
                 stop, first, last = columns[1], columns[2], columns[3]
                 while c0 < stop:
                     c1, counted = _segment(c0, stop, first, last)
-                    dissipated[0] += counted * _kick_drift_chain(x, v, f, pairs, pending, s, c0, c1)
+                    if by_column:
+                        dissipated[0] += counted * _kick_drift_columns(x, v, f, pairs, pending, s, c0, c1)
+                    else:
+                        dissipated[0] += counted * _kick_drift_chain(x, v, f, pairs, pending, s, c0, c1)
                     top = min(stop if c1 == stop else c1 - 1, n_chain - 1)
                     if top > done:
                         force(x, chain_coef, f, done, top)
@@ -645,10 +676,13 @@ class Lanes:
         distinct: dict[int, int] = {}
         which = np.array([distinct.setdefault(id(p), len(distinct)) for p in self.params], dtype=np.int64)
         first = [self.params[i] for i in np.unique(which, return_index=True)[1]]
+        if size > 1 and any(p.graded for p in first):
+            raise ValueError("a graded chain runs as a batch of one (engine.split gives it its own part)")
         self.coef = np.ascontiguousarray(np.array([model.coefficients(p) for p in first], dtype=float).T[:, which])
         self.mass = np.ascontiguousarray(np.array([p.inertia for p in first], dtype=float).T[:, which])
         self.gamma = np.array([p.damping for p in first], dtype=float)[which]
         self.weights = np.array(method.weights, dtype=float)
+        self.force_kernel, self.end_kernel = model.chain_kernels(self.params[0])
         self.lanes = np.zeros((N_LANE_FIELDS, size))
         self.lanes[T0] = 0.0 if t0 is None else t0
         self.lanes[MAX_DISPLACEMENT] = (
@@ -659,11 +693,16 @@ class Lanes:
         self.lane_ints = np.zeros((N_LANE_INTS, size), dtype=np.int64)
         self.lane_ints[TURN_LIMIT] = NO_TURN_LIMIT
         self.lanes[DT] = dt
-        self.pairs = pair_table(substep_table(self.weights, self.lanes[DT].copy(), self.mass.T, self.gamma), self.mass)
+        if self.params[0].graded_inertia:
+            # Factors per column (the kick-drift reads them so when the last axis is the chain's).
+            columns = self.params[0].particle_inertia
+            table = substep_table(self.weights, np.full(n, self.lanes[DT, 0]), columns.T, np.repeat(self.gamma, n, axis=0))
+            self.pairs = pair_table(table, columns)
+        else:
+            self.pairs = pair_table(substep_table(self.weights, self.lanes[DT].copy(), self.mass.T, self.gamma), self.mass)
         start, stop = force_columns(self.params[0])
         self.columns = np.array([start, stop, start, stop], dtype=np.int64)
         self.ring = bool(self.params[0].periodic)
-        self.end_kernel = model.ends_kernel(self.params[0])
         self.fixed = held_dofs(self.params[0])
         self.pending = self.weights.size
         self.x = np.zeros((3, n, size))
@@ -716,7 +755,7 @@ class Lanes:
         # the kernels as arguments, would be compiled anew in every process (not cacheable).
         if self.size == 1:
             x, coef, f = self._flat(self.x), self.coef[:, 0].copy(), self._flat(self.f)
-            kind.force_kernel(x, coef, f, max(1, self.columns[0]), min(self.columns[1], self.n - 1))
+            self.force_kernel(x, coef, f, max(1, self.columns[0]), min(self.columns[1], self.n - 1))
             if self.columns[0] == 0 or self.columns[1] == self.n:
                 self.end_kernel(x, coef, f, self.columns[0] == 0, self.columns[1] == self.n, self.ring)
         else:
@@ -749,7 +788,7 @@ class Lanes:
         flat_frames = frames_x.reshape(frames_x.shape[0], 3, self.n * self.size)
         kind = type(self.model)
         status, done, written, self.pending = advance(
-            kind.force_kernel, self.end_kernel, kind.batch_kernel, self._flat(self.x), self._flat(self.v), self._flat(self.f), self.coef,
+            self.force_kernel, self.end_kernel, kind.batch_kernel, self._flat(self.x), self._flat(self.v), self._flat(self.f), self.coef,
             self.coef[:, 0].copy(), self.pairs, self.weights,
             self.load_index, self.knots, self.load_scale, self.lanes, self.lane_ints, self.columns, self.ring, self.fixed,
             int(n_steps), int(step0), int(stride), int(check_every), int(self.pending), bool(close_at_end), self.acc,
@@ -1045,12 +1084,17 @@ def member_steps(params: list, dt, method, model) -> np.ndarray:
     return out
 
 
-def split(members: np.ndarray, parts: int) -> list[np.ndarray]:
+def split(members: np.ndarray, parts: int, params: list | None = None) -> list[np.ndarray]:
     """Members cut into up to ``parts`` runs of consecutive members of about equal size.
 
     Consecutive, not dealt out in turn: each part becomes its own contiguous
-    arrays, so two threads never write to the same cache lines.
+    arrays, so two threads never write to the same cache lines. Graded members of
+    ``params`` (per-bond stiffness or per-particle inertia) are parts of one: the
+    batch kernels and the batch kick-drift read one value of each coefficient per
+    member, a graded chain runs the chain kernel (:meth:`Lanes.__init__`).
     """
+    if params is not None and any(params[b].graded for b in members):
+        return [np.array([b], dtype=np.int64) for b in members]
     return [part for part in np.array_split(np.asarray(members, dtype=np.int64), max(1, min(parts, len(members)))) if part.size]
 
 

@@ -174,11 +174,11 @@ class _System:
 
     def parameters(self, ncols: int):
         """The force kernel, its coefficients, and rpar, ipar of :func:`_rhs` with ``ncols`` variational columns."""
-        mass = per_dof(self.params, self.params.inertia)
+        mass = pack(self.params, self.params.particle_inertia)
         gamma = per_dof(self.params, self.params.damping)
         rpar = np.concatenate([[self.moment], 1.0 / mass, gamma / mass])
         ipar = np.array([self.params.n_particles, self.load_dof, ncols], dtype=np.int64)
-        return type(self.model).force_kernel, self.model.coefficients(self.params), rpar, ipar
+        return self.model.chain_kernels(self.params)[0], self.model.coefficients(self.params), rpar, ipar
 
     def rhs(self, ncols: int):
         """The right-hand side f(t, y) with ``ncols`` variational columns, for Python callers."""

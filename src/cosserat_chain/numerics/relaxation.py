@@ -359,7 +359,7 @@ def run_plans(
 
     groups = [np.flatnonzero(per_chunk == value) for value in np.unique(per_chunk)]
     try:
-        run_parts(run_group, [part for group in groups for part in split(group, threads)], threads)
+        run_parts(run_group, [part for group in groups for part in split(group, threads, params)], threads)
     except KeyboardInterrupt:
         stop.set()
         raise
