@@ -827,7 +827,8 @@ class Lanes:
         for name in ("load_scale", "coef", "mass", "lanes", "lane_ints", "acc"):
             setattr(out, name, np.ascontiguousarray(getattr(self, name)[:, members]))
         out.gamma = self.gamma[members]
-        out.pairs = np.ascontiguousarray(self.pairs[..., members])
+        # A graded chain's factors are per column, not per member (a batch of one: nothing to select).
+        out.pairs = self.pairs if self.params[0].graded_inertia else np.ascontiguousarray(self.pairs[..., members])
         for name in ("x", "v", "f"):
             setattr(out, name, np.ascontiguousarray(getattr(self, name)[..., members]))
         out.turns = TurnRecord(*(np.ascontiguousarray(a[..., members]) for a in (self.turns.time, self.turns.step_time, self.turns.phi)))
