@@ -16,6 +16,7 @@ from cosserat_chain.cli import app
 from cosserat_chain.experiments.study import cell_time_step, spec_from_mapping
 from cosserat_chain.experiments.sweep import relaxation_sweep
 from cosserat_chain.io import read_dataset, write_dataset
+from cosserat_chain.loads import Loads, PointLoad, Schedule
 from cosserat_chain.numerics.continuation import compliance, locate_fold
 from cosserat_chain.numerics.relaxation import relax
 from cosserat_chain.study_runner import chunk_cells, default_chunk_size, run_study
@@ -197,11 +198,60 @@ def test_a_different_spec_does_not_resume_from_the_same_file(cluster, tmp_path):
             "log range needs start > 0",
         ),
         ({"fixed": {"a": 0.1}}, "both swept"),
+        (
+            {"loads": [{"row": "phi", "particle": 1, "value": 0.1}]},
+            "quantities M_c, phi0_at_fold, compliance take no extra loads",
+        ),
+        (
+            {"quantities": ["onset_load"], "loads": [{"row": "v", "particle": -3, "value": 0.01}]},
+            "load on v of particle -3: the left end is clamped and holds v fixed",
+        ),
+        (
+            {"quantities": ["onset_load"], "loads": [{"row": "phi", "particle": 1, "kind": "ramp", "value": 0.1, "duration": 5.0}]},
+            r"loads\[0\] \(kind 'ramp'\) changes in time",
+        ),
+        ({"quantities": ["onset_load"], "loads": [{"row": "w", "particle": 1, "value": 0.1}]}, r"loads\[0\]\.row must be one of"),
     ],
 )
 def test_bad_specs_are_reported_before_anything_runs(change, match):
     with pytest.raises(ValueError, match=match):
         spec_from_mapping({**SPEC, **change})
+
+
+#: Relaxation quantities under an extra constant moment on particle 1 besides the stepped one on particle 0.
+LOADED = {
+    "parameters": {"a": [0.15, 0.2]},
+    "models": ["sine"],
+    "quantities": ["onset_load", "stop_load", "mean_angular_velocity"],
+    "loads": [0.2, {"row": "phi", "particle": 1, "value": 0.1}],
+    "sweep": {"m_max": 0.4, "dm": 0.05, "t_max": 2000.0},
+}
+
+
+def test_a_cell_under_extra_loads_equals_the_single_runs_under_the_same_loads(cluster, tmp_path):
+    spec = spec_from_mapping(LOADED)
+    assert spec.loads == [0.2]  # the number stays a moment of mean_angular_velocity, the table is an extra load
+    extra = Loads([PointLoad("phi", 1, Schedule.constant(0.1))])
+    assert spec.extra() == extra
+    # chunk=2: both cells in one batch on a worker, which receives the loads in the spec's JSON.
+    run = run_study(spec, out=tmp_path / "study.nc", scheduler=cluster.scheduler_address, chunk=2)
+    assert run.completed and run.computed == 2 and run.failed == 0
+    ds = read_dataset(tmp_path / "study.nc")
+    assert json.loads(ds.attrs["loads_json"]) == extra.to_list()
+    assert spec_from_mapping(json.loads(ds.attrs["study_spec_json"])).extra() == extra
+    moved = False
+    for a in (0.15, 0.2):
+        chain = ChainParams(a=a)
+        cell = ds.sel(a=a, model="sine")
+        dt = cell_time_step(chain, "sine", spec)
+        options = {"m_max": 0.4, "dm": 0.05, "down": True, "stop_at_onset": True, "t_max": 2000.0, "dt": dt}
+        sweep = relaxation_sweep(chain, "sine", **options, loads=extra)
+        assert (float(cell.onset_load), float(cell.stop_load)) == (sweep.onset_load, sweep.stop_load)
+        rate = relax(chain, "sine", 0.2, t_max=2000.0, dt=dt, loads=extra).angular_velocity[chain.N]
+        assert float(cell.mean_angular_velocity.sel(load=0.2)) == rate
+        unloaded = relaxation_sweep(chain, "sine", **options)
+        moved |= unloaded.onset_load != sweep.onset_load
+    assert moved  # the extra moment brings the onset forward: a study that dropped it would fail above
 
 
 def test_study_cli_with_an_embedded_cluster(tmp_path):
@@ -224,6 +274,31 @@ def test_study_cli_with_an_embedded_cluster(tmp_path):
     assert result.exit_code == 2 and "a=0.7" in result.output
     result = CliRunner().invoke(app, ["study", str(spec_file), "--chunk", "0"])
     assert result.exit_code == 2 and "Invalid value for '--chunk'" in result.output
+
+
+def test_study_cli_takes_load_tables_and_load_options(tmp_path):
+    spec_file = tmp_path / "loaded.toml"
+    spec_file.write_text(
+        'models = ["sine"]\nquantities = ["onset_load"]\n[parameters]\na = [0.2]\n[sweep]\nm_max = 0.4\ndm = 0.05\nt_max = 2000.0\n'
+        '[[loads]]\nrow = "phi"\nparticle = 1\nvalue = 0.05\n'
+    )
+    result = CliRunner().invoke(app, ["study", str(spec_file), "--load", "phi:-1=0.05", "--workers", "1", "--json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    extra = Loads([PointLoad("phi", 1, Schedule.constant(0.05)), PointLoad("phi", -1, Schedule.constant(0.05))])
+    assert data["extra_loads"] == extra.to_list()
+    chain = ChainParams(a=0.2)
+    dt = cell_time_step(chain, "sine", spec_from_mapping({"parameters": {"a": [0.2]}, "models": ["sine"], "quantities": ["onset_load"]}))
+    sweep = relaxation_sweep(chain, "sine", m_max=0.4, dm=0.05, stop_at_onset=True, t_max=2000.0, dt=dt, loads=extra)
+    assert data["results"][0]["onset_load"] == sweep.onset_load
+    statics = tmp_path / "statics.toml"
+    statics.write_text('quantities = ["M_c", "onset_load"]\n[parameters]\na = [0.2]\n')
+    result = CliRunner().invoke(app, ["study", str(statics), "--load", "phi:1=0.05"])
+    assert result.exit_code == 2 and "quantity M_c takes no extra loads" in result.output
+    result = CliRunner().invoke(app, ["study", str(spec_file), "--load", "u:3=0.05"])
+    assert result.exit_code == 2 and "load on u of particle 3" in result.output
+    result = CliRunner().invoke(app, ["study", str(spec_file), "--load", "phi=0.05"])
+    assert result.exit_code == 2 and "ROW:PARTICLE=VALUE" in result.output
 
 
 def test_study_maps_show_each_quantity_and_the_regime_per_load():

@@ -157,6 +157,8 @@ def _resume(spec: StudySpec, out: Path | None) -> xr.Dataset:
     if previous.attrs.get("time_step_rule") != fresh.attrs["time_step_rule"]:
         raise ValueError(f"{out} was computed under another time-step rule (an earlier version); choose another --out or delete it")
     previous["error"] = previous["error"].astype(object)
+    # A file of an earlier version lacks attributes added since (loads_json): the same spec implies their values.
+    previous.attrs.update({key: value for key, value in fresh.attrs.items() if key not in previous.attrs})
     return previous
 
 

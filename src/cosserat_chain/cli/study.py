@@ -22,16 +22,28 @@ def study(
         min=1,
         help="Cells per Dask task (cells of one N and model, relaxed as one batch; default: 4 tasks per worker, at most 256 cells).",
     ),
+    load: list[str] | None = typer.Option(
+        None,
+        "--load",
+        help="A constant load ROW:PARTICLE=VALUE acting on every cell besides the moment (relaxation quantities); repeatable.",
+    ),
     plot: Path | None = typer.Option(None, help="Draw maps (two swept fields) or lines (one) of the quantities to this PNG/SVG file."),
     as_json: bool = typer.Option(False, "--json", help="Print a summary and every cell's values as one JSON object."),
 ) -> None:
     """Compute the quantities of a parameter study over every cell of its grid, in chunks of cells per Dask task."""
     from ..experiments.study import spec_from_mapping
+    from ..loads import parse_load
     from ..study_runner import ClusterError, run_study
 
     outputs_or_exit({"--out": out, "--plot": plot}, {"SPEC": spec_file})
     try:
-        spec = spec_from_mapping(read_config(spec_file), source=str(spec_file))
+        mapping = read_config(spec_file)
+        if load:
+            # --load adds tables to the spec's loads (its numbers stay the moments of mean_angular_velocity).
+            tables = [{"row": p.row, "particle": p.particle, "value": p.schedule.values[0]} for p in map(parse_load, load)]
+            entries = mapping.get("loads", [])
+            mapping["loads"] = [*entries, *tables] if isinstance(entries, list) else entries
+        spec = spec_from_mapping(mapping, source=str(spec_file))
     except ValueError as err:
         fail(str(err))
     bar = progress_bar("study", "cell")
@@ -60,7 +72,8 @@ def study(
                 }
             )
         summary = {"cells": len(cells), "computed": run.computed, "skipped": run.skipped, "failed": run.failed, "completed": run.completed}
-        typer.echo(json.dumps({**summary, "out": str(out) if out else None, "results": cells}))
+        extra = {"extra_loads": spec.extra().to_list()}
+        typer.echo(json.dumps({**summary, **extra, "out": str(out) if out else None, "results": cells}))
     else:
         typer.echo(
             f"study: {run.computed} cells computed, {run.skipped} read back, {run.failed} failed" + (f"; wrote {out}" if out else "")
