@@ -312,6 +312,7 @@ VARIABLES: dict[str, tuple[str, str]] = {
 #: Titles of the files by their ``experiment`` attribute (a simulation has none).
 TITLES = {
     None: "Damped simulation of a discrete Cosserat chain under loads",
+    "simulation_checkpoint": "Checkpoint of a damped simulation of a discrete Cosserat chain (simulate --checkpoint-every)",
     "critical_point": "Static branch, folds and critical moment of a discrete Cosserat chain",
     "relaxation_sweep": "Relaxation protocol (the paper's Fig. 2) of a discrete Cosserat chain",
     "localization_run": "Localized rotation of one particle of a discrete Cosserat chain",

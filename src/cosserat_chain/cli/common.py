@@ -264,6 +264,52 @@ def outputs_or_exit(
         fail(str(err))
 
 
+def default_checkpoint(out: Path | None) -> Path | None:
+    """OUT.checkpoint.nc next to ``--out``, or no checkpoint without ``--out``."""
+    return None if out is None else out.with_name(f"{out.stem}.checkpoint.nc")
+
+
+def checkpoint_or_exit(
+    checkpoint: Path | None,
+    out: Path | None,
+    *,
+    resume: bool,
+    force: bool,
+    inputs: dict[str, Path | None] | None = None,
+    needed_by: str | None = None,
+) -> Path | None:
+    """The checkpoint file of a command with ``--checkpoint``, ``--resume`` and ``--force``, its outputs checked; or exit 2 saying why not.
+
+    The file is ``--checkpoint`` or :func:`default_checkpoint` of ``--out``. ``--out`` and
+    the checkpoint are checked as outputs (:func:`outputs_or_exit`) before any work, and an
+    existing checkpoint is replaced only with ``--force`` (or continued with ``--resume``):
+    it may hold hours of an earlier run.
+
+    Parameters
+    ----------
+    checkpoint, out : path or None
+    resume, force : bool
+    inputs : {option: path or None}
+        The command's input files (no output may be one of them).
+    needed_by : str, optional
+        The option that asks for a checkpoint (``--checkpoint-every``): without a file it is
+        refused like ``--resume``.
+    """
+    checkpoint = checkpoint if checkpoint is not None else default_checkpoint(out)
+    asking = "--resume" if resume else needed_by
+    if asking is not None and checkpoint is None:
+        fail(f"{asking} needs --checkpoint or --out (whose checkpoint is OUT.checkpoint.nc)")
+    if resume and force:
+        fail("--resume and --force contradict each other: --resume continues the checkpoint, --force replaces it")
+    outputs_or_exit({"--out": out, "--checkpoint": checkpoint}, inputs)
+    if checkpoint is not None and checkpoint.exists() and not (resume or force):
+        fail(
+            f"the checkpoint {str(checkpoint)!r} exists (an earlier run): give --resume to continue it, "
+            "or --force to start afresh and replace it"
+        )
+    return checkpoint
+
+
 #: The command that writes each kind of result file (its ``experiment`` attribute).
 _WRITTEN_BY = {
     "critical_point": "critical",

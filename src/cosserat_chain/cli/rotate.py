@@ -7,12 +7,18 @@ from pathlib import Path
 
 import typer
 
-from .common import app, bar_callback, config_or_exit, exit_on, fail, model_option, number, outputs_or_exit, progress_bar, save_dataset
-
-
-def default_checkpoint(out: Path | None) -> Path | None:
-    """OUT.checkpoint.nc next to ``--out``, or no checkpoint without ``--out``."""
-    return None if out is None else out.with_name(f"{out.stem}.checkpoint.nc")
+from .common import (
+    app,
+    bar_callback,
+    checkpoint_or_exit,
+    config_or_exit,
+    exit_on,
+    fail,
+    model_option,
+    number,
+    progress_bar,
+    save_dataset,
+)
 
 
 @app.command()
@@ -44,17 +50,7 @@ def rotate(
     from ..experiments.localization import localization_run
     from ..numerics.dynamics import IntegrationError
 
-    checkpoint = checkpoint if checkpoint is not None else default_checkpoint(out)
-    if resume and checkpoint is None:
-        fail("--resume needs --checkpoint or --out (whose checkpoint is OUT.checkpoint.nc)")
-    if resume and force:
-        fail("--resume and --force contradict each other: --resume continues the checkpoint, --force replaces it")
-    outputs_or_exit({"--out": out, "--checkpoint": checkpoint}, {"--config": config})
-    if checkpoint is not None and checkpoint.exists() and not (resume or force):
-        fail(
-            f"the checkpoint {str(checkpoint)!r} exists (an earlier run): give --resume to continue it, "
-            "or --force to start afresh and replace it"
-        )
+    checkpoint = checkpoint_or_exit(checkpoint, out, resume=resume, force=force, inputs={"--config": config})
     params, extra = config_or_exit(config, load)
     bar = progress_bar(f"rotate {model}", "turn")
     try:

@@ -34,7 +34,6 @@ smaller time step.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import logging
 import math
@@ -48,7 +47,6 @@ import numpy as np
 import xarray as xr
 
 from ..analysis.diagnostics import THRESHOLDS, StreamingDiagnostics
-from ..io import read_dataset, write_dataset
 from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
 from ..numerics.dynamics import MAX_SPIN_PER_STEP, IntegrationError, TurnWatch, default_time_step, integrate
@@ -56,6 +54,7 @@ from ..numerics.integrators import get_method
 from ..params import ChainParams
 from ..state import ROWS, column, zeros
 from ..status import Status
+from .checkpoint import CheckpointClock, open_checkpoint, params_settings, seal
 from .simulation import run_attributes
 
 log = logging.getLogger(__name__)
@@ -221,53 +220,16 @@ class LocalizationResult:
         summary.update({key: ",".join(summary[key]) for key in ("large_motion", "outside_model_validity")})
         summary = {key: value for key, value in summary.items() if key not in ("winding", "rotating_particles", "params")}
         ds.attrs.update({key: ("" if value is None else value) for key, value in summary.items()})
-        ds.attrs.update({"experiment": "localization_run", "checkpoint_format": CHECKPOINT_FORMAT, "chunk_steps": self.chunk_steps})
-        ds.attrs["checkpoint_sha256"] = _checksum(ds)
-        return ds
+        ds.attrs["chunk_steps"] = self.chunk_steps
+        return seal(ds, "localization_run", CHECKPOINT_FORMAT, _STATE_ATTRIBUTES)
 
 
 #: The attributes a resumed run reads besides its settings (those are compared one by one).
 _STATE_ATTRIBUTES = ("steps", "wall_time", "params_json", "model", "moment", "particle", "dt", "method", "chunk_steps", "loads_json")
 
 
-def _checksum(ds: xr.Dataset) -> str:
-    """SHA-256 of what a resumed run reads: every variable's values (dtype, shape, bytes) and the state attributes.
-
-    A checkpoint edited by hand or damaged on disk then fails its check instead of
-    being trusted (NetCDF keeps the values bit for bit, so a sound file always passes).
-    """
-    digest = hashlib.sha256()
-    for name in sorted(map(str, ds.variables)):
-        values = np.ascontiguousarray(ds[name].values)
-        digest.update(f"{name}:{values.dtype.str}:{values.shape}:".encode())
-        digest.update(values.tobytes())
-    for key in _STATE_ATTRIBUTES:
-        value = ds.attrs.get(key)
-        digest.update(f"{key}={(value.item() if isinstance(value, np.generic) else value)!r};".encode())
-    return digest.hexdigest()
-
-
 def _finite(value: float) -> float | None:
     return float(value) if math.isfinite(value) else None
-
-
-def _check_settings(path: Path, ds: xr.Dataset, expected: dict[str, Any]) -> None:
-    """Refuse a checkpoint whose parameters or settings differ from this run's, naming the field."""
-    if ds.attrs.get("experiment") != "localization_run" or ds.attrs.get("checkpoint_format") != CHECKPOINT_FORMAT:
-        raise ValueError(
-            f"{str(path)!r} is not a localization-run checkpoint of format {CHECKPOINT_FORMAT} "
-            f"(experiment={ds.attrs.get('experiment')!r}, checkpoint_format={ds.attrs.get('checkpoint_format')!r})"
-        )
-    saved = {f"params.{k}": v for k, v in json.loads(ds.attrs["params_json"]).items()}
-    for key in ("model", "moment", "particle", "dt", "method", "chunk_steps", "loads_json"):
-        value = ds.attrs.get(key)
-        saved[key] = value.item() if isinstance(value, np.generic) else value  # NetCDF gives NumPy scalars
-    for key, value in expected.items():
-        if saved.get(key) != value:
-            raise ValueError(
-                f"checkpoint {str(path)!r} was written for {key}={saved.get(key)!r}, but this run has {key}={value!r}; "
-                "resume with the same settings or use another checkpoint file"
-            )
 
 
 def localization_run(
@@ -343,8 +305,7 @@ def localization_run(
         raise ValueError(f"turns must be an integer >= 1, got {turns!r}")
     if not (math.isfinite(t_max) and t_max > 0):
         raise ValueError(f"t_max must be a finite number > 0, got {t_max!r}")
-    if not (math.isfinite(checkpoint_every) and checkpoint_every >= 0):
-        raise ValueError(f"checkpoint_every must be a finite number of seconds >= 0, got {checkpoint_every!r}")
+    pacing = CheckpointClock(checkpoint, checkpoint_every)
     if not (math.isfinite(chunk_time) and chunk_time > 0):
         raise ValueError(f"chunk_time must be a finite number > 0, got {chunk_time!r}")
     if resume and checkpoint is None:
@@ -381,21 +342,12 @@ def localization_run(
 
     wall_before = 0.0
     if resume and checkpoint.exists():
-        try:
-            ds = read_dataset(checkpoint)
-        except ValueError as err:
-            raise ValueError(f"cannot resume from the checkpoint: {err}; start afresh without --resume (or with --force)") from None
-        expected = {f"params.{k}": v for k, v in params.model_dump().items()}
+        expected = params_settings(params)
         expected.update(
             {"model": model.name, "moment": moment, "particle": particle, "dt": dt, "method": method, "chunk_steps": chunk_steps,
              "loads_json": json.dumps(loads.to_list())}
         )  # fmt: skip
-        _check_settings(checkpoint, ds, expected)
-        if ds.attrs.get("checkpoint_sha256") != _checksum(ds):
-            raise ValueError(
-                f"checkpoint {str(checkpoint)!r} was altered or damaged after it was written (its SHA-256 does not match "
-                "its contents): it is not resumed; start afresh (--force) or use another checkpoint file"
-            )
+        ds = open_checkpoint(checkpoint, "localization_run", CHECKPOINT_FORMAT, expected, _STATE_ATTRIBUTES, kind="localization-run")
         step = int(ds.attrs["steps"])
         x = np.ascontiguousarray(np.stack([ds[f"final_{row}"].values for row in ROWS]))
         v = np.ascontiguousarray(np.stack([ds[f"final_{row}_dot"].values for row in ROWS]))
@@ -410,7 +362,6 @@ def localization_run(
     # One object holds the latest consistent state, replaced by a single assignment,
     # so that Ctrl-C anywhere leaves a state that can be saved.
     state = result(step, x, v, diagnostics, Status.INTERRUPTED, "", wall_before)
-    last_write = clock.perf_counter()
     try:
         while state.diagnostics.turns_completed < turns and state.step < max_steps:
             first = state.step
@@ -455,9 +406,8 @@ def localization_run(
                 break
             if progress is not None:
                 progress(updated.turns_completed, turns)
-            if checkpoint is not None and clock.perf_counter() - last_write >= checkpoint_every:
-                write_dataset(state.to_dataset(), checkpoint)
-                last_write = clock.perf_counter()
+            if pacing.due:
+                pacing.write(state.to_dataset())
     except KeyboardInterrupt:
         log.warning("interrupted at t=%g; saving what was computed", state.t_end)
     final = state
@@ -483,7 +433,7 @@ def localization_run(
         )
     final.wall_time = wall_before + clock.perf_counter() - started
     if checkpoint is not None:
-        write_dataset(final.to_dataset(), checkpoint)
+        pacing.write(final.to_dataset())
     return final
 
 

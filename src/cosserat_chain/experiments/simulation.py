@@ -8,12 +8,30 @@ adaptive reference) and returns a Dataset with dimensions ``time`` and
 phi_dot``; the energies ``kinetic, potential, load_work, dissipated,
 balance_error`` over time; and in the attributes every parameter, the model,
 the loads, the method, dt, the status of the run and the package version.
+
+Checkpoints. With ``checkpoint=PATH`` the fixed-step run writes, every
+``checkpoint_every`` seconds of wall time (checked between the integrator's chunks
+of steps), when it ends, on Ctrl-C and when an error stops it, a checkpoint
+holding its state at the latest chunk boundary (x, v, the forces and the energy
+sums), its step count, the frames stored so far and its settings, parameters and
+loads, atomically (:mod:`cosserat_chain.experiments.checkpoint`, the mechanism the
+localization run uses too). ``resume=True`` goes on from it
+(:class:`~cosserat_chain.numerics.dynamics.RunState`) and returns bitwise the
+Dataset of the uninterrupted run: every variable and the time axis (with another
+``threads`` than the checkpoint's, the states bitwise and the energy sums to round-off). A checkpoint
+written for other parameters, model, loads, method, dt, t0, t_end, n_frames or
+stride, or from another start state, is refused with a ValueError naming what
+differs; one that was edited, damaged or is not a simulation checkpoint too.
+The checkpoint is kept when the run completes (as ``rotate`` keeps its own): resuming
+it again gives the result without computing.
 """
 
 from __future__ import annotations
 
 import json
+import logging
 import math
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -24,10 +42,24 @@ from ..analysis.energy import energy_budget
 from ..loads import Loads, Schedule, moment_load
 from ..models.base import Model, get_model
 from ..numerics.adaptive import integrate_adaptive
-from ..numerics.dynamics import IntegrationError, ProgressCallback, Trajectory, integrate, spin_hint
+from ..numerics.dynamics import IntegrationError, ProgressCallback, RunState, Trajectory, default_time_step, integrate, spin_hint
+from ..numerics.integrators import get_method
 from ..params import ChainParams
 from ..state import ROWS
 from ..status import Status
+from .checkpoint import CheckpointClock, open_checkpoint, params_settings, seal
+
+log = logging.getLogger(__name__)
+
+#: Version of the simulation checkpoint's layout; a checkpoint of another version is refused.
+CHECKPOINT_FORMAT = 1
+#: The ``experiment`` attribute of a simulation checkpoint (a simulation's result has none).
+CHECKPOINT_EXPERIMENT = "simulation_checkpoint"
+#: The attributes a resumed run reads: its settings (compared one by one) and the run's state.
+_STATE_ATTRIBUTES = (
+    "params_json", "model", "loads_json", "method", "dt", "t0", "t_end", "n_frames", "stride",
+    "steps", "n_steps", "stride_steps", "chunk_steps", "effective_dt",
+)  # fmt: skip
 
 
 def trajectory_dataset(params: ChainParams, model: str | Model, loads: Loads, trajectory: Trajectory) -> xr.Dataset:
@@ -132,6 +164,9 @@ def simulate(
     rtol: float = 1e-10,
     progress: ProgressCallback | None = None,
     throw: bool = False,
+    checkpoint: str | Path | None = None,
+    checkpoint_every: float = 60.0,
+    resume: bool = False,
 ) -> xr.Dataset:
     """Simulate the damped chain under loads and return the trajectory as a Dataset.
 
@@ -150,6 +185,14 @@ def simulate(
     throw : bool
         Raise :class:`IntegrationError` (with the partial Dataset as ``dataset``)
         if the run does not complete.
+    checkpoint : path, optional
+        NetCDF checkpoint file of the fixed-step run (module docstring), written atomically;
+        not with ``reference``.
+    checkpoint_every : float
+        Seconds of wall time between checkpoints (>= 0; 0: after every chunk).
+    resume : bool
+        Go on from ``checkpoint`` (with the settings it was written for, ``x0`` and ``v0``
+        included); if the file does not exist yet the run starts afresh.
 
     Returns
     -------
@@ -157,11 +200,27 @@ def simulate(
         Its ``status`` attribute is ``completed``, ``inaccurate`` (completed, but its energy
         balance or its rotation per step is beyond :data:`BALANCE_TOLERANCE` or
         :data:`ROTATION_PER_STEP`), ``blew_up``, ``interrupted`` or ``failed``.
+
+    Raises
+    ------
+    ValueError
+        For bad input, or a checkpoint that is not this run's (naming what differs).
     """
     model = get_model(model)
     if not isinstance(loads, Loads):
         loads = moment_load(loads)
-    if reference:
+    if checkpoint is not None or resume:
+        if reference:
+            raise ValueError(
+                "checkpoints follow the fixed-step integrator's steps: the adaptive reference (reference=True, --reference) "
+                "has none; leave out the checkpoint or the reference"
+            )
+        trajectory = _checkpointed_run(
+            params, model, loads, checkpoint, checkpoint_every, resume,
+            t_end=t_end, t0=t0, dt=dt, method=method, n_frames=n_frames, stride=stride,
+            x0=x0, v0=v0, threads=threads, progress=progress,
+        )  # fmt: skip
+    elif reference:
         trajectory = integrate_adaptive(
             params, model, loads, t_end=t_end, t0=t0, x0=x0, v0=v0, n_frames=n_frames, rtol=rtol, atol=rtol * 1e-2
         )
@@ -183,8 +242,160 @@ def simulate(
         )
     dataset = trajectory_dataset(params, model, loads, trajectory)
     _check_accuracy(dataset, spin_hint(params, loads, trajectory.dt) if np.isfinite(trajectory.dt) else "")
+    if checkpoint is not None and trajectory.status == Status.INTERRUPTED:
+        dataset.attrs["message"] += f"; resume from the checkpoint {str(checkpoint)!r}"
     if throw and not trajectory.ok:
         error = IntegrationError(trajectory.message, trajectory)
         error.dataset = dataset  # type: ignore[attr-defined]
         raise error
     return dataset
+
+
+def _checkpointed_run(
+    params: ChainParams,
+    model: Model,
+    loads: Loads,
+    checkpoint: str | Path | None,
+    checkpoint_every: float,
+    resume: bool,
+    *,
+    t_end: float,
+    t0: float,
+    dt: float | None,
+    method: str,
+    n_frames: int,
+    stride: int | None,
+    x0: np.ndarray | None,
+    v0: np.ndarray | None,
+    threads: int,
+    progress: ProgressCallback | None,
+) -> Trajectory:
+    """:func:`integrate` with a checkpoint written on its clock, at the end and on the way out of an error (module docstring)."""
+    if resume and checkpoint is None:
+        raise ValueError("resume=True needs a checkpoint file to resume from (checkpoint=None)")
+    pacing = CheckpointClock(checkpoint, checkpoint_every)
+    path = Path(checkpoint)
+    settings = params_settings(params)
+    settings.update(
+        {
+            "model": model.name,
+            "loads_json": json.dumps(loads.to_list()),
+            "method": get_method(method).name,
+            # The step as asked (the default resolved): with t0 and t_end it fixes the run's steps.
+            "dt": default_time_step(params, model) if dt is None else float(dt),
+            "t0": float(t0),
+            "t_end": float(t_end),
+            "n_frames": int(n_frames),
+            "stride": 0 if stride is None else int(stride),  # 0: chosen from n_frames
+        }
+    )
+    start = None
+    if resume and path.exists():
+        ds = open_checkpoint(path, CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT, settings, _STATE_ATTRIBUTES, kind="simulation")
+        start = _run_state(ds)
+        _check_start(path, start, params, x0, v0)
+        x0 = v0 = None  # the checkpoint's first frame is the start state
+        log.info("resuming %s from step %d of %d", path, start.steps, start.n_steps)
+    elif resume:
+        log.info("no checkpoint at %s yet: starting afresh", path)
+    # The latest state at a chunk boundary, replaced by one assignment: what Ctrl-C or an error leaves.
+    latest = start
+
+    def keep(state: RunState) -> None:
+        nonlocal latest
+        latest = state
+        if pacing.due:
+            pacing.write(_checkpoint_dataset(state, params, model, loads, settings))
+
+    try:
+        trajectory = integrate(
+            params, model, loads, t_end=t_end, t0=t0, dt=dt, method=method, n_frames=n_frames, stride=stride,
+            x0=x0, v0=v0, threads=threads, progress=progress, resume=start, on_chunk=keep,
+        )  # fmt: skip
+    except BaseException:
+        if latest is not None:
+            try:
+                pacing.write(_checkpoint_dataset(latest, params, model, loads, settings))
+                log.warning("the run stopped with an error; the checkpoint %s holds step %d", path, latest.steps)
+            except Exception:  # the error that stopped the run is the one to report
+                log.exception("could not write the checkpoint %s", path)
+        raise
+    # integrate hands over a state at the start, so there is always one; after a blow-up it is the last good one.
+    pacing.write(_checkpoint_dataset(latest, params, model, loads, settings))
+    return trajectory
+
+
+def _checkpoint_dataset(state: RunState, params: ChainParams, model: Model, loads: Loads, settings: dict[str, Any]) -> xr.Dataset:
+    """The checkpoint of a run at ``state``: its frames so far (a readable partial run), its state and its settings."""
+    particle = np.arange(-params.N, params.N + 1)
+    data: dict[str, Any] = {}
+    for i, row in enumerate(ROWS):
+        data[row] = (("time", "particle"), state.frames_x[:, i, :])
+        data[f"{row}_dot"] = (("time", "particle"), state.frames_v[:, i, :])
+        data[f"final_{row}"] = (("particle",), state.x[i])
+        data[f"final_{row}_dot"] = (("particle",), state.v[i])
+        unit = "energy" if row == "phi" else "energy/length"  # a moment on phi, a force on u and v
+        data[f"final_force_{row}"] = (("particle",), state.f[i], {"long_name": f"force plus load on {row} at the state", "units": unit})
+    data["load_work"] = (("time",), state.frames_acc[:, 0])
+    data["dissipated"] = (("time",), state.frames_acc[:, 1])
+    data["final_load_work"] = ((), state.acc[0])
+    data["final_dissipated"] = ((), state.acc[1])
+    data["frame_step"] = (("time",), state.frame_steps, {"long_name": "step of the stored frame", "units": "1"})
+    data["split_sums"] = (
+        ("split_sum", "energy_sum"),
+        state.split_acc,
+        {"long_name": "load work and dissipated energy: at the split over threads, then per block (none on one thread)", "units": "energy"},
+    )
+    # The times as integrate computes them (informative: a resumed run counts steps).
+    times = state.t0 + (settings["t_end"] - state.t0) * state.frame_steps / state.n_steps
+    ds = xr.Dataset(data, coords={"time": times, "particle": particle})
+    ds.attrs.update(run_attributes(params, model, loads))
+    ds.attrs.update({key: value for key, value in settings.items() if not key.startswith("params.")})
+    ds.attrs.update(
+        {
+            "steps": state.steps,
+            "n_steps": state.n_steps,
+            "stride_steps": state.stride,
+            "chunk_steps": state.chunk,
+            "effective_dt": state.dt,
+        }
+    )
+    return seal(ds, CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT, _STATE_ATTRIBUTES)
+
+
+def _run_state(ds: xr.Dataset) -> RunState:
+    """The :class:`RunState` a checkpoint holds (its settings already checked)."""
+    attrs = ds.attrs
+
+    def rows(template: str) -> np.ndarray:
+        return np.ascontiguousarray(np.stack([ds[template.format(row)].values for row in ROWS], axis=-2))
+
+    return RunState(
+        steps=int(attrs["steps"]),
+        n_steps=int(attrs["n_steps"]),
+        stride=int(attrs["stride_steps"]),
+        chunk=int(attrs["chunk_steps"]),
+        t0=float(attrs["t0"]),
+        dt=float(attrs["effective_dt"]),
+        method=str(attrs["method"]),
+        x=rows("final_{}"),
+        v=rows("final_{}_dot"),
+        f=rows("final_force_{}"),
+        acc=np.array([float(ds["final_load_work"]), float(ds["final_dissipated"])]),
+        frame_steps=np.asarray(ds["frame_step"].values, dtype=np.int64),
+        frames_x=rows("{}"),
+        frames_v=rows("{}_dot"),
+        frames_acc=np.ascontiguousarray(np.stack([ds["load_work"].values, ds["dissipated"].values], axis=-1)),
+        split_acc=np.ascontiguousarray(ds["split_sums"].values.reshape(-1, 2)),
+    )
+
+
+def _check_start(path: Path, state: RunState, params: ChainParams, x0: np.ndarray | None, v0: np.ndarray | None) -> None:
+    """Refuse a checkpoint that started from another state than this run's ``x0``, ``v0`` (rest when not given)."""
+    for name, given, saved in (("x0", x0, state.frames_x[0]), ("v0", v0, state.frames_v[0])):
+        expected = np.zeros((3, params.n_particles)) if given is None else np.asarray(given, dtype=float)
+        if not np.array_equal(saved, expected):
+            raise ValueError(
+                f"checkpoint {str(path)!r} was written for a run from another start state ({name} differs): "
+                "resume with the same start (--x0 and --at) or use another checkpoint file"
+            )

@@ -17,6 +17,12 @@ complete when direction (phi - phi_start) reaches 2 pi n, its time interpolated
 linearly between the two steps around it) and can stop at the step that
 completes a given turn; the trajectory's :class:`TurnLog` holds the latest turns
 and continues the count in the next run.
+
+A run can be continued where it stopped: ``integrate(on_chunk=...)`` hands a
+:class:`RunState` to the caller at the start and after every chunk, and
+``integrate(resume=state)`` goes on from it with the chunks, forces and energy
+sums the uninterrupted run had, so that the result equals that run's to the last
+bit (the experiments' checkpoints store it: :mod:`cosserat_chain.experiments.simulation`).
 """
 
 from __future__ import annotations
@@ -24,7 +30,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -34,7 +40,7 @@ from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import check_state, column
 from ..status import Status
-from .engine import CROSSINGS, STATUS_BLEW_UP, STATUS_TURNED, TURN_LIMIT, Blocks, Lanes
+from .engine import CROSSINGS, STATUS_BLEW_UP, STATUS_OK, STATUS_TURNED, TURN_LIMIT, Blocks, Lanes
 from .integrators import Method, get_method
 
 log = logging.getLogger(__name__)
@@ -158,6 +164,96 @@ class Trajectory:
     @property
     def ok(self) -> bool:
         return self.status == Status.COMPLETED
+
+
+@dataclass(frozen=True)
+class RunState:
+    """A fixed-step run at a chunk boundary: what :func:`integrate` needs to go on as if it had not stopped.
+
+    The forces and the energy sums are carried rather than recomputed: a force
+    evaluated anew at the restart would take its loads at ``t0 + steps dt``,
+    which may differ in the last bit from the time the run summed sub-step by
+    sub-step, and the chunk length is carried because where a chunk closes its
+    last step changes the rounding of the steps around it.
+
+    Attributes
+    ----------
+    steps : int
+        Steps taken; the state is at ``t0 + steps * dt``.
+    n_steps, stride, chunk : int
+        Steps of the whole run, steps between stored frames, steps per chunk.
+    t0, dt : float
+        Start time and (effective) time step of the whole run.
+    method : str
+    x, v, f : ndarray (3, 2N+1)
+        Configuration, velocities and forces plus loads at that step (copies).
+    acc : ndarray (2,)
+        Load work and dissipated energy since the start.
+    frame_steps : ndarray (k,) of int
+        Steps of the frames stored so far (the first is 0).
+    frames_x, frames_v : ndarray (k, 3, 2N+1)
+    frames_acc : ndarray (k, 2)
+        The frames stored so far and their energy sums (views that the run never writes again).
+    split_acc : ndarray (b + 1, 2)
+        A run split over threads into b blocks: the sums when the blocks took over, then each
+        block's own (``acc`` is their total; summed in another order they would differ in the
+        last bits). Empty (0, 2) for a run on one thread. A run resumed on as many blocks goes
+        on with them; on another number its states are still bitwise the same, its energy
+        sums equal to round-off.
+    """
+
+    steps: int
+    n_steps: int
+    stride: int
+    chunk: int
+    t0: float
+    dt: float
+    method: str
+    x: np.ndarray
+    v: np.ndarray
+    f: np.ndarray
+    acc: np.ndarray
+    frame_steps: np.ndarray
+    frames_x: np.ndarray
+    frames_v: np.ndarray
+    frames_acc: np.ndarray
+    split_acc: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+
+    def check(self, params: ChainParams, n_steps: int, stride: int, t0: float, dt: float, method: str) -> None:
+        """Refuse a state that is not of this run (its steps, frames, time axis, method or chain).
+
+        Raises
+        ------
+        ValueError
+            Naming the first thing that differs.
+        """
+        for name, mine, theirs in (
+            ("n_steps", self.n_steps, n_steps),
+            ("stride", self.stride, stride),
+            ("t0", self.t0, t0),
+            ("dt", self.dt, dt),
+            ("method", self.method, method),
+        ):
+            if mine != theirs:
+                raise ValueError(f"the run state to resume is of a run with {name}={mine!r}, but this run has {name}={theirs!r}")
+        k = self.frame_steps.shape[0]
+        shape = (3, params.n_particles)
+        if not (0 <= self.steps <= n_steps and self.chunk >= stride and self.chunk % stride == 0):
+            raise ValueError(f"the run state to resume has steps={self.steps}, chunk={self.chunk}: not a chunk boundary of this run")
+        if not (1 <= k <= n_steps // stride + 2 and self.frame_steps[0] == 0 and self.frame_steps[-1] <= self.steps):
+            raise ValueError(f"the run state to resume has {k} frames up to step {self.frame_steps[-1]}: not this run's")
+        for name, array, expected in (
+            ("x", self.x, shape),
+            ("v", self.v, shape),
+            ("f", self.f, shape),
+            ("acc", self.acc, (2,)),
+            ("frames_x", self.frames_x, (k, *shape)),
+            ("frames_v", self.frames_v, (k, *shape)),
+            ("frames_acc", self.frames_acc, (k, 2)),
+            ("split_acc", self.split_acc, (self.split_acc.shape[0], 2)),
+        ):
+            if np.shape(array) != expected:
+                raise ValueError(f"the run state's {name} has the shape {np.shape(array)}, this run needs {expected}")
 
 
 def default_time_step(params: ChainParams, model: str | Model = "nonlinear") -> float:
@@ -285,6 +381,8 @@ def integrate(
     progress: ProgressCallback | None = None,
     throw: bool = False,
     turns: TurnWatch | None = None,
+    resume: RunState | None = None,
+    on_chunk: Callable[[RunState], None] | None = None,
 ) -> Trajectory:
     """Integrate the damped, loaded chain with a compiled fixed-step method.
 
@@ -320,6 +418,15 @@ def integrate(
         Raise :class:`IntegrationError` instead of returning a failed trajectory.
     turns : TurnWatch, optional
         Follow a particle's turns (on one thread) and stop after one of them if asked.
+    resume : RunState, optional
+        Go on from this state of the same run (the same chain, loads, t0, t_end, dt,
+        method and frames; ``x0`` and ``v0`` are then not given): the result equals the
+        uninterrupted run's to the last bit. Not with ``turns``.
+    on_chunk : callable(RunState), optional
+        Called with the run's state at the start and after every chunk that ended
+        normally (not after a blow-up), before ``progress``; the state stays valid
+        after the call, so the latest one received is what an interrupted run can be
+        resumed from. Not with ``turns``.
 
     Returns
     -------
@@ -367,6 +474,12 @@ def integrate(
         x0 = check_state(params, x0, "x0")
     if v0 is not None:
         v0 = check_state(params, v0, "v0")
+    if turns is not None and (resume is not None or on_chunk is not None):
+        raise ValueError("resume and on_chunk do not follow turns: the turn count is not part of a RunState")
+    if resume is not None:
+        if x0 is not None or v0 is not None:
+            raise ValueError("resume holds the run's start state: give no x0 or v0 with it")
+        resume.check(params, n_steps, stride, t0, dt, method.name)
     if max_displacement is None:
         max_displacement = 100.0 * 2 * params.N * params.h
     loads.validate(params)
@@ -388,7 +501,18 @@ def integrate(
         frames_v[0, ..., 0] = lanes.v[..., 0] = v0
     frame_steps = np.empty(n_stored, dtype=np.int64)
     frame_steps[0] = 0
-    lanes.evaluate_forces()
+    stored = 1
+    steps_done = 0
+    if resume is None:
+        lanes.evaluate_forces()
+    else:
+        # Before the blocks are made: they copy the chain's state and energy sums.
+        stored, steps_done = resume.frame_steps.shape[0], resume.steps
+        frame_steps[:stored] = resume.frame_steps
+        frames_x[:stored, ..., 0], frames_v[:stored, ..., 0], frames_acc[:stored, :, 0] = (
+            resume.frames_x, resume.frames_v, resume.frames_acc
+        )  # fmt: skip
+        lanes.x[..., 0], lanes.v[..., 0], lanes.f[..., 0], lanes.acc[:, 0] = resume.x, resume.v, resume.f, resume.acc
     if turns is not None:
         lanes.follow_turns(column(params, turns.particle), turns.keep)
         phi_start = lanes.x[2, lanes.watch, 0] if turns.phi_start is None else turns.phi_start
@@ -408,14 +532,27 @@ def integrate(
         and Blocks.count(n, threads, method.force_evaluations) > 1
     )
     blocks = Blocks(lanes, threads) if split else None
+    if blocks is not None and resume is not None and resume.split_acc.shape[0] == len(blocks.blocks) + 1:
+        blocks.acc0[:, 0] = resume.split_acc[0]
+        for block, sums in zip(blocks.blocks, resume.split_acc[1:]):
+            block.acc[:, 0] = sums
     runner = lanes if blocks is None else blocks
 
-    stored = 1
-    steps_done = 0
     status, message = Status.COMPLETED, f"{n_steps} steps of {method.name} with dt={dt:g}"
-    chunk = max(stride, CHUNK_WORK // (n * method.force_evaluations) // stride * stride)
+    chunk = max(stride, CHUNK_WORK // (n * method.force_evaluations) // stride * stride) if resume is None else resume.chunk
     frames = (frames_x, frames_v, frames_acc, record)
+
+    def run_state() -> RunState:
+        return RunState(
+            steps_done, n_steps, stride, chunk, t0, dt, method.name,
+            lanes.x[..., 0].copy(), lanes.v[..., 0].copy(), lanes.f[..., 0].copy(), lanes.acc[:, 0].copy(),
+            frame_steps[:stored].copy(), frames_x[:stored, ..., 0], frames_v[:stored, ..., 0], frames_acc[:stored, :, 0],
+            np.zeros((0, 2)) if blocks is None else np.array([blocks.acc0[:, 0], *(block.acc[:, 0] for block in blocks.blocks)]),
+        )  # fmt: skip
+
     try:
+        if on_chunk is not None:
+            on_chunk(run_state())
         while steps_done < n_steps:
             todo = min(chunk, n_steps - steps_done)
             # The chunk's start, kept to find the first bad step of a blow-up (checked every 1024 steps).
@@ -427,6 +564,8 @@ def integrate(
             frame_steps[stored : stored + written] = first + stride * np.arange(written)
             stored += written
             steps_done += done
+            if on_chunk is not None and code == STATUS_OK:
+                on_chunk(run_state())
             if progress is not None:
                 progress(steps_done, n_steps)
             if code == STATUS_TURNED:

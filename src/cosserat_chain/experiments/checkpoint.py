@@ -1,0 +1,165 @@
+"""Checkpoints of long runs, the one mechanism that ``rotate`` and ``simulate`` share.
+
+Contract
+--------
+A checkpoint is a NetCDF Dataset written atomically (:func:`cosserat_chain.io.write_dataset`:
+a temporary file beside the target, then a rename; never onto a folder, a FIFO or a device).
+:func:`seal` marks it with its experiment, its layout version and the SHA-256 of what a
+resumed run reads (every variable and the named state attributes); :func:`open_checkpoint`
+reads it back and refuses, with a ValueError naming the file and the reason, one that is
+unreadable, of another experiment or version, written for other settings (naming the first
+field that differs, ``params.E2`` for a parameter) or altered after it was written.
+:class:`CheckpointClock` says when the next write is due (every so many seconds of wall time).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time as clock
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from ..io import read_dataset, write_dataset
+
+
+def checksum(ds: xr.Dataset, state_attributes: Iterable[str]) -> str:
+    """SHA-256 of what a resumed run reads: every variable's values (dtype, shape, bytes) and the state attributes.
+
+    A checkpoint edited by hand or damaged on disk then fails its check instead of
+    being trusted (NetCDF keeps the values bit for bit, so a sound file always passes).
+    """
+    digest = hashlib.sha256()
+    for name in sorted(map(str, ds.variables)):
+        values = np.ascontiguousarray(ds[name].values)
+        digest.update(f"{name}:{values.dtype.str}:{values.shape}:".encode())
+        digest.update(values.tobytes())
+    for key in state_attributes:
+        digest.update(f"{key}={_plain(ds.attrs.get(key))!r};".encode())
+    return digest.hexdigest()
+
+
+def seal(ds: xr.Dataset, experiment: str, version: int, state_attributes: Iterable[str]) -> xr.Dataset:
+    """Mark ``ds`` (in place) as a checkpoint of ``experiment`` in layout ``version``, with its checksum; returns it."""
+    ds.attrs.update({"experiment": experiment, "checkpoint_format": version})
+    ds.attrs["checkpoint_sha256"] = checksum(ds, state_attributes)
+    return ds
+
+
+def params_settings(params: Any) -> dict[str, Any]:
+    """A chain's parameters as settings to compare, ``params.<field>``, as the checkpoint's ``params_json`` gives them back.
+
+    Through JSON, so that a graded chain's factors (tuples) compare with the lists JSON returns.
+    """
+    return {f"params.{key}": value for key, value in json.loads(json.dumps(params.model_dump())).items()}
+
+
+def saved_settings(ds: xr.Dataset, keys: Iterable[str]) -> dict[str, Any]:
+    """The settings a checkpoint was written for: ``params.<field>`` from ``params_json``, the others from the attributes."""
+    params = json.loads(ds.attrs.get("params_json", "{}"))
+    return {key: params.get(key[len("params.") :]) if key.startswith("params.") else _plain(ds.attrs.get(key)) for key in keys}
+
+
+def open_checkpoint(
+    path: str | Path,
+    experiment: str,
+    version: int,
+    expected: Mapping[str, Any],
+    state_attributes: Iterable[str],
+    *,
+    kind: str,
+) -> xr.Dataset:
+    """Read the checkpoint at ``path`` for a run with the settings ``expected``, or refuse it.
+
+    Parameters
+    ----------
+    path : path
+    experiment : str
+        The ``experiment`` attribute the checkpoint must carry.
+    version : int
+        Its layout version (``checkpoint_format``).
+    expected : mapping
+        This run's settings by name: ``params.<field>`` for a parameter, otherwise an
+        attribute of the checkpoint; compared for equality, in order.
+    state_attributes : iterable of str
+        The attributes its checksum covers (as given to :func:`seal`).
+    kind : str
+        What the checkpoint is, for the messages (``"localization-run"``).
+
+    Raises
+    ------
+    ValueError
+        If the file cannot be read, is not such a checkpoint, was written for other
+        settings (naming the first that differs, both values) or was altered after it
+        was written.
+    """
+    path = Path(path)
+    try:
+        ds = read_dataset(path)
+    except ValueError as err:
+        raise ValueError(f"cannot resume from the checkpoint: {err}; start afresh without --resume (or with --force)") from None
+    if ds.attrs.get("experiment") != experiment or _plain(ds.attrs.get("checkpoint_format")) != version:
+        raise ValueError(
+            f"{str(path)!r} is not a {kind} checkpoint of format {version} "
+            f"(experiment={ds.attrs.get('experiment')!r}, checkpoint_format={ds.attrs.get('checkpoint_format')!r})"
+        )
+    saved = saved_settings(ds, expected)
+    for key, value in expected.items():
+        if saved[key] != value:
+            raise ValueError(
+                f"checkpoint {str(path)!r} was written for {key}={saved[key]!r}, but this run has {key}={value!r}; "
+                "resume with the same settings or use another checkpoint file"
+            )
+    if ds.attrs.get("checkpoint_sha256") != checksum(ds, state_attributes):
+        raise ValueError(
+            f"checkpoint {str(path)!r} was altered or damaged after it was written (its SHA-256 does not match "
+            "its contents): it is not resumed; start afresh (--force) or use another checkpoint file"
+        )
+    return ds
+
+
+class CheckpointClock:
+    """A checkpoint file written every ``every`` seconds of wall time (0: whenever asked), or none.
+
+    Parameters
+    ----------
+    path : path or None
+        The file; None for a run without a checkpoint (never due, nothing written).
+    every : float
+        Seconds of wall time between writes (finite, >= 0); the first is due that long after
+        the clock is made.
+
+    Raises
+    ------
+    ValueError
+        If ``every`` is not a finite number >= 0 (with or without a file: a script's typo is
+        refused before it matters).
+    """
+
+    def __init__(self, path: str | Path | None, every: float):
+        if not (isinstance(every, (int, float)) and math.isfinite(every) and every >= 0):
+            raise ValueError(f"checkpoint_every must be a finite number of seconds >= 0, got {every!r}")
+        self.path = None if path is None else Path(path)
+        self.every = float(every)
+        self.last = clock.perf_counter()
+
+    @property
+    def due(self) -> bool:
+        """Whether there is a file and ``every`` seconds have passed since the last write."""
+        return self.path is not None and clock.perf_counter() - self.last >= self.every
+
+    def write(self, ds: xr.Dataset) -> None:
+        """Write ``ds`` to the file atomically (if there is one) and restart the clock."""
+        if self.path is not None:
+            write_dataset(ds, self.path)
+        self.last = clock.perf_counter()
+
+
+def _plain(value: Any) -> Any:
+    """A NumPy scalar (as NetCDF gives attributes back) as the Python number it was written from."""
+    return value.item() if isinstance(value, np.generic) else value
