@@ -213,6 +213,49 @@ def test_the_static_state_balances_the_forces_and_the_damped_run_comes_to_it(kin
     np.testing.assert_allclose(run.x[-1], static, atol=1e-7)
 
 
+def test_a_cantilevers_stable_branch_ends_at_a_branch_point_where_the_rotation_starts():
+    """Paper's geometry, right end free, nonlinear model: K turns singular (three eigenvalues at
+    once) at M = 0.08198 while M still rises; the chain rotates just above it, below the fold."""
+    from cosserat_chain.experiments.critical import critical_point
+    from cosserat_chain.numerics.relaxation import relax
+    from cosserat_chain.numerics.stability import static_stability
+
+    params = ChainParams(**ENDS["clamped-free"])
+    result = critical_point(params, "nonlinear")
+    point = result.branch_point
+    assert result.onset == "branch_point" and result.critical_moment == point.moment
+    assert point.index_before == 0 and point.index_after > 0
+    assert point.moment < result.fold.moment - 1e-3  # the fold lies higher, on the unstable part
+    # K is singular there: its smallest eigenvalue vanishes to round-off of its scale.
+    assert abs(static_stability(params, "nonlinear", point.x).critical_eigenvalue) < 1e-9
+    # ... and M is still rising through it, the traced points on both sides stable and unstable.
+    i = point.after_point
+    assert result.branch.moment[i] < point.moment < result.branch.moment[i + 2]
+    assert result.branch.stable[i] and not result.branch.stable[i + 1]
+    # The protocol: at rest just below, rotating just above (below the fold's moment).
+    below = solve_equilibrium(params, "nonlinear", moment_load(0.99 * point.moment), x0=result.branch.x[i])
+    step = relax(params, "nonlinear", 0.998 * point.moment, x0=below)
+    assert step.status.value == "static" and abs(step.x[2, params.N] - point.phi0) < 0.1
+    assert relax(params, "nonlinear", 1.002 * point.moment, x0=step.x).status.value == "rotating"
+    as_json = result.as_dict()
+    assert as_json["M_c"] == point.moment and as_json["onset"] == "branch_point" and not as_json["snap_through"]
+    assert as_json["largest_fold"]["moment"] == result.fold.moment and len(as_json["branch_points"]) == 1
+
+
+@pytest.mark.parametrize(
+    "params", [ChainParams(**ENDS["clamped-free"])] + [g.replace(N=n, **ENDS["clamped-free"]) for g, n in zip(GEOMETRIES, (1, 3))]
+)
+def test_a_cantilevers_sine_fold_is_the_reciprocal_of_its_compliance(params):
+    """The sine model's fold is 1 / (rotation compliance); the cantilever's branch passes a fold
+    at which the corrector converges only linearly (it failed there before)."""
+    from cosserat_chain.experiments.critical import critical_point
+
+    result = critical_point(params, "sine")
+    assert result.onset == "fold" and result.complete
+    assert result.critical_moment * result.compliance == pytest.approx(1.0, rel=1e-10)
+    assert [fold.maximum for fold in result.branch.folds][:2] == [True, False]
+
+
 def test_statics_refuse_a_chain_that_can_move_rigidly():
     for kind in ("free", "pinned-free", "ring"):
         with pytest.raises(ValueError, match="can move rigidly .* the statics need a clamped end or two pinned ones"):

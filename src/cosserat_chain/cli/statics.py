@@ -128,6 +128,14 @@ def critical(
     else:
         for name, r in results.items():
             fold = "no fold" if r.fold is None else f"M_c = {r.fold.moment:.15g} at phi_0 = {r.fold.phi0:.15g} rad (onset of rotation)"
+            if r.branch_point is not None:
+                q = r.branch_point
+                fold = (
+                    f"M_c = {q.moment:.15g} at phi_0 = {q.phi0:.15g} rad (onset of rotation: the stable branch from rest "
+                    f"ends at a branch point, K singular with M still rising; the branch's largest fold, "
+                    + ("none" if r.fold is None else f"M = {r.fold.moment:.15g} at phi_0 = {r.fold.phi0:.15g} rad")
+                    + ", lies on its unstable part)"
+                )
             if r.as_dict()["snap_through"]:
                 fold += f"; the stable branch from rest ends earlier, at M = {r.first_fold.moment:.15g}, phi_0 = {r.first_fold.phi0:.15g} rad (snap-through"
                 fold += ")" if r.snap_to is None else f" to the stable state at phi_0 = {r.snap_to.phi0:.15g} rad)"

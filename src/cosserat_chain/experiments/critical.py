@@ -17,6 +17,12 @@ Contract
   2.04): at the first the chain snaps through to a static state further along, and
   only above M_c does it rotate. For the paper's chain both are the same fold. None
   for a model without a fold (the linear model).
+* where the stable branch from rest ends at a branch point instead (K turns singular
+  while M still rises: the cantilever of the paper's geometry, nonlinear model, at
+  M = 0.08198 before its fold at 0.08375), M_c is that branch point's moment
+  (``onset`` "branch_point"): the chain leaves the branch there, and for the cantilever
+  a relaxation just above it rotates (tested); a stable crossing branch would carry
+  it further, which the statics do not trace (the relaxation protocol decides).
 
 The result converts to a JSON-ready dict and to a self-describing xarray Dataset.
 """
@@ -32,7 +38,7 @@ import xarray as xr
 
 from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
-from ..numerics.continuation import Branch, Fold, compliance, continue_in_moment
+from ..numerics.continuation import Branch, BranchPoint, Fold, compliance, continue_in_moment
 from ..numerics.newton import solve_equilibrium
 from ..numerics.stability import static_stability
 from ..params import ChainParams
@@ -65,6 +71,9 @@ class CriticalResult:
         d phi_0 / dM at M = 0.
     branch : Branch
         Continuation over one turn of the loaded particle.
+    branch_point : BranchPoint or None
+        The branch point where the stable branch from rest ends, if it ends at one
+        (before any fold); M_c is then its moment.
     """
 
     params: ChainParams
@@ -75,6 +84,7 @@ class CriticalResult:
     branch: Branch
     first_fold: Fold | None = None
     snap_to: Fold | None = None
+    branch_point: BranchPoint | None = None
 
     @property
     def complete(self) -> bool:
@@ -82,17 +92,34 @@ class CriticalResult:
         return self.branch.complete
 
     @property
+    def onset(self) -> str | None:
+        """What ends the stable branch from rest and starts the rotation: "fold", "branch_point" or None."""
+        if self.branch_point is not None:
+            return "branch_point"
+        return None if self.fold is None else "fold"
+
+    @property
     def critical_moment(self) -> float | None:
+        """M_c, the onset of rotation under a slowly rising load (module docstring)."""
+        if self.branch_point is not None:
+            return self.branch_point.moment
         return None if self.fold is None else self.fold.moment
+
+    @property
+    def phi0_at_onset(self) -> float | None:
+        if self.branch_point is not None:
+            return self.branch_point.phi0
+        return self.phi0_at_fold
 
     @property
     def phi0_at_fold(self) -> float | None:
         return None if self.fold is None else self.fold.phi0
 
     def as_dict(self) -> dict:
-        """JSON-ready: ``M_c`` (onset of rotation; null without a fold), ``phi0_at_fold``, ``first_fold``, ``snap_through``,
-        ``compliance``, ``branch_complete`` and the branch. Moments are in the parameters' units; ``moment_scale``
-        (E1 h^2) is the unit of the paper's dimensionless moment, ``M_c_dimensionless`` = M_c / (E1 h^2)."""
+        """JSON-ready: ``M_c`` (onset of rotation; null without a fold), ``onset`` ("fold" or "branch_point"),
+        ``phi0_at_onset``, ``phi0_at_fold`` (the largest maximum's), ``largest_fold``, ``first_fold``, ``snap_through``,
+        ``branch_points``, ``compliance``, ``branch_complete`` and the branch. Moments are in the parameters' units;
+        ``moment_scale`` (E1 h^2) is the unit of the paper's dimensionless moment, ``M_c_dimensionless`` = M_c / (E1 h^2)."""
         scale = self.params.moment_scale
         return {
             "model": self.model,
@@ -100,10 +127,17 @@ class CriticalResult:
             "M_c": self.critical_moment,
             "moment_scale": scale,
             "M_c_dimensionless": None if self.critical_moment is None else self.critical_moment / scale,
+            "onset": self.onset,
+            "phi0_at_onset": self.phi0_at_onset,
             "phi0_at_fold": self.phi0_at_fold,
+            "largest_fold": None if self.fold is None else {"moment": self.fold.moment, "phi0": self.fold.phi0},
             "first_fold": None if self.first_fold is None else {"moment": self.first_fold.moment, "phi0": self.first_fold.phi0},
-            "snap_through": self.first_fold is not None and self.first_fold is not self.fold,
+            "snap_through": self.branch_point is None and self.first_fold is not None and self.first_fold is not self.fold,
             "snap_to": None if self.snap_to is None else {"moment": self.snap_to.moment, "phi0": self.snap_to.phi0},
+            "branch_points": [
+                {"moment": q.moment, "phi0": q.phi0, "index_before": q.index_before, "index_after": q.index_after}
+                for q in self.branch.branch_points
+            ],
             "compliance": self.compliance,
             "branch_complete": self.complete,
             "branch": {
@@ -126,13 +160,14 @@ class CriticalResult:
                 "phi0": (("point",), b.phi0),
                 "stable": (("point",), b.stable.astype(np.int8)),
                 "critical_eigenvalue": (("point",), b.critical_eigenvalue),
-                "M_c": ((), np.nan if self.fold is None else self.fold.moment),
+                "M_c": ((), np.nan if self.critical_moment is None else self.critical_moment),
                 "phi0_at_fold": ((), np.nan if self.fold is None else self.fold.phi0),
                 "compliance": ((), self.compliance),
             }
         )
         ds = xr.Dataset(data, coords={"point": np.arange(len(b.moment)), "particle": np.arange(-self.params.N, self.params.N + 1)})
-        ds["M_c"].attrs["long_name"] = "critical moment at the first fold (NaN: no fold)"
+        ds["M_c"].attrs["long_name"] = "critical moment, the onset of rotation (NaN: no fold)"
+        ds["M_c"].attrs["onset"] = str(self.onset)
         ds["stable"].attrs["long_name"] = "1 if the static state is stable"
         ds.attrs.update(run_attributes(self.params, get_model(self.model), Loads()))
         ds.attrs.update(
@@ -165,6 +200,13 @@ def critical_point(
     # Under a positive moment from rest M rises first: the branch's first fold is a maximum.
     fold = max(maxima, key=lambda f: f.moment) if maxima else None
     first = branch.folds[0] if branch.folds else None
+    lost = np.flatnonzero(~branch.stable)
+    ends_at = [q for q in branch.branch_points if lost.size and q.after_point == lost[0] - 1]
+    if ends_at:
+        # The stable branch ends at a branch point, not at a fold: the chain leaves it there.
+        return CriticalResult(
+            params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first, None, ends_at[0]
+        )
     snap_to = _snap_target(params, model, branch, first, particle) if first is not None and first is not fold else None
     return CriticalResult(params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first, snap_to)
 

@@ -54,6 +54,8 @@ from .stability import static_stability
 #: floor of the chain's forces (:func:`~.newton.round_off_floor`), which exceeds it from
 #: about N = 20 on.
 FOLD_TOL = 1e-14
+#: Most corrector iterations while locating a fold (linear convergence at a fold that is not simple).
+FOLD_ITERATIONS = 60
 #: First continuation step (arclength in (q, M)) on the paper's chain; see continue_in_moment.
 STEP = 0.05
 #: Largest step, in units of the first: the step grows where the branch is straight.
@@ -95,6 +97,37 @@ class Fold:
     maximum: bool | None = None
 
 
+@dataclass(frozen=True)
+class BranchPoint:
+    """A point of the static branch where K turns singular without a fold: another branch crosses it.
+
+    The number of negative eigenvalues of K changes while M goes on rising or falling
+    (a cantilever's free half under the nonlinear model, N = 3: at M = 0.0820,
+    phi_0 = 4.23, before the fold at 0.0837). The branch traced on through it has
+    changed its stability there; which state a chain pushed past it reaches, the
+    crossing branch or a jump, the dynamics decide.
+
+    Attributes
+    ----------
+    moment, phi0 : float
+        Where the smallest eigenvalue of K vanishes, located along the arclength.
+    x : ndarray (3, 2N+1)
+    particle : int
+    index_before, index_after : int
+        Negative eigenvalues of K on either side (in the direction of tracing).
+    after_point : int
+        The branch point lies between the traced points ``after_point`` and ``after_point + 1``.
+    """
+
+    moment: float
+    phi0: float
+    x: np.ndarray
+    particle: int
+    index_before: int
+    index_after: int
+    after_point: int
+
+
 @dataclass
 class Branch:
     """Points of a static branch, in the order they were traced.
@@ -111,6 +144,8 @@ class Branch:
         See :class:`~cosserat_chain.numerics.stability.Stability`.
     folds : list of Fold
         Folds passed on the way, each located to round-off.
+    branch_points : list of BranchPoint
+        Changes of stability without a fold, in the order passed.
     particle : int
     stop : str
         Why the tracing ended: "phi0_stop", "moment_stop", "max_folds" (the
@@ -133,6 +168,7 @@ class Branch:
     particle: int = 0
     stop: str = "given"
     message: str = ""
+    branch_points: list[BranchPoint] = field(default_factory=list)
 
     @property
     def complete(self) -> bool:
@@ -409,12 +445,14 @@ def continue_in_moment(
         t = bordered_solve(stiffness(y) if k is None else k, dof, previous, rhs)
         return t / np.linalg.norm(t)
 
-    def correct(y: np.ndarray, tangent: np.ndarray, ds: float, tol: float) -> tuple[np.ndarray, int, sp.csr_matrix] | None:
+    def correct(
+        y: np.ndarray, tangent: np.ndarray, ds: float, tol: float, max_iter: int = 8
+    ) -> tuple[np.ndarray, int, sp.csr_matrix] | None:
         """The point of the branch on the plane through y + ds tangent normal to tangent, its iterations
         and stiffness (None: no convergence)."""
         predicted = y + ds * tangent
         z = predicted.copy()
-        for iterations in range(8):
+        for iterations in range(max_iter):
             r = np.append(residual(z), tangent @ (z - predicted))
             k = stiffness(z)
             if np.max(np.abs(r)) <= max(tol * (1.0 + abs(z[-1])), round_off_floor(k, z[:-1])):
@@ -443,7 +481,10 @@ def continue_in_moment(
         def slope(s: float) -> float:
             if s == 0.0:
                 return tangent[-1]
-            found = correct(y, tangent, s, FOLD_TOL)
+            # More iterations than a step takes: at a fold that is not simple (a cantilever's
+            # free half turned to 3 pi / 2 under the sine model, where the bordered Jacobian
+            # is singular) Newton converges only linearly, halving the error each time.
+            found = correct(y, tangent, s, FOLD_TOL, FOLD_ITERATIONS)
             if found is None:
                 raise NewtonError(
                     f"the corrector failed at arclength {s:.3g} from M={y[-1]:.10g} while locating a fold",
@@ -468,8 +509,34 @@ def continue_in_moment(
             maximum=bool(tangent[-1] > 0),
         )
 
+    def branch_point_between(y: np.ndarray, tangent: np.ndarray, ds: float, before: int, after: int) -> BranchPoint:
+        """Where the smallest eigenvalue of K vanishes between y and its successor at arclength ds (no fold between)."""
+
+        def smallest(s: float) -> float:
+            found = correct(y, tangent, s, FOLD_TOL, FOLD_ITERATIONS) if s > 0.0 else (y, 0, None)
+            if found is None:
+                raise NewtonError(
+                    f"the corrector failed at arclength {s:.3g} from M={y[-1]:.10g} while locating a branch point",
+                    unpack(params, y[:-1]),
+                )
+            cache[s] = found[0]
+            return static_stability(params, model, unpack(params, found[0][:-1])).critical_eigenvalue
+
+        cache: dict[float, np.ndarray] = {}
+        low, high = smallest(0.0), smallest(ds)
+        # The crossing eigenvalue is the smallest one only where the other side is stable;
+        # between two unstable states (no sign change of the smallest) the step's end is kept.
+        s_point = so.brentq(smallest, 0.0, ds, xtol=1e-13 * max(1.0, ds)) if low * high < 0 else ds
+        point = cache.get(s_point)
+        if point is None:
+            smallest(s_point)
+            point = cache[s_point]
+        x = unpack(params, point[:-1])
+        phi0 = float(x[ROW_INDEX["phi"], column(params, particle)])
+        return BranchPoint(float(point[-1]), phi0, x, particle, before, after, len(moments) - 1)
+
     tangent = new_tangent(y, tangent)
-    moments, states, folds = [0.0], [zeros(params)], []
+    moments, states, folds, branch_points = [0.0], [zeros(params)], [], []
     checks = [static_stability(params, model, states[0])]
     index = checks[0].index
     col = column(params, particle)
@@ -523,10 +590,15 @@ def continue_in_moment(
             continue
         if now_index != index and resume > 0.0:
             ds, resume = resume, 0.0
-        index = now_index
         if turns_back:
             # M turned between the two points: a fold, located along the arc.
             folds.append(fold_between(y, tangent, ds))
+        elif now_index != index and (model.conservative or (now_index - index) % 2):
+            # Eigenvalues of K through zero at the shortest step without a turn of M: K
+            # singular off a fold, a branch point. (A non-symmetric K's complex pair
+            # crossing changes the count by two and leaves K regular.)
+            branch_points.append(branch_point_between(y, tangent, ds, index, now_index))
+        index = now_index
         tangent = next_tangent
         previous_moment = y[-1]
         y = z
@@ -553,4 +625,5 @@ def continue_in_moment(
             ds = min(max_step, 1.3 * ds)
     branch = _assemble_branch(params, model, particle, moments, states, folds, checks, stop)
     branch.message = message
+    branch.branch_points = branch_points
     return branch
