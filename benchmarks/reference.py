@@ -161,11 +161,50 @@ def forces_columns(x, coef, f, work, c0, c1):  # pragma: no cover - compiled
 
 
 @njit(**FORCE_OPTIONS)
+def forces_columns_graded(x, coef, f, work, c0, c1):  # pragma: no cover - compiled
+    """:func:`forces_columns` of a chain graded in its bonds: E1 and E2 of bond k at coef[7 + k], coef[7 + nb + k].
+
+    The coefficient layout of ``NonlinearModel.coefficients`` for graded chains; a
+    function of its own so that the uniform reference keeps its two scalar stiffnesses.
+    """
+    a, b, h, rest1, rest2 = coef[0], coef[1], coef[2], coef[5], coef[6]
+    nb = np.uint64((coef.size - 7) // 2)
+    one = np.uint64(1)
+    lo = np.uint64(c0)
+    first = lo - one
+    m = np.uint64(c1) - first
+    e1 = np.uint64(7) + first
+    e2 = e1 + nb
+    for i in range(m + one):
+        s, c = sincos(x[2, first + i])
+        work[0, i] = s
+        work[1, i] = c
+    for i in range(m):
+        k = first + i
+        fx, fy, m0, m1 = bond(
+            a, b, h, coef[e1 + i], coef[e2 + i], rest1, rest2, work[1, i], work[0, i], work[1, i + one], work[0, i + one],
+            x[0, k + one] - x[0, k], x[1, k + one] - x[1, k],
+        )  # fmt: skip
+        work[2, i] = fx
+        work[3, i] = fy
+        work[4, i] = m0
+        work[5, i] = m1
+    for i in range(m - one):
+        f[0, lo + i] = work[2, i + one] - work[2, i]
+        f[1, lo + i] = work[3, i + one] - work[3, i]
+        f[2, lo + i] = work[5, i] + work[4, i + one]
+
+
+@njit(**FORCE_OPTIONS)
 def forces_single(x, coef, f, work):  # pragma: no cover - compiled
-    """Forces on the free columns 1..n-2 of x (3, n) into f, block by block."""
+    """Forces on the free columns 1..n-2 of x (3, n) into f, block by block (a graded chain's: coef longer than 7)."""
     n = x.shape[1]
+    graded = coef.size > 7
     for c0 in range(1, n - 1, BLOCK):
-        forces_columns(x, coef, f, work, c0, min(c0 + BLOCK, n - 1))
+        if graded:
+            forces_columns_graded(x, coef, f, work, c0, min(c0 + BLOCK, n - 1))
+        else:
+            forces_columns(x, coef, f, work, c0, min(c0 + BLOCK, n - 1))
 
 
 @njit(**SUM_OPTIONS)
@@ -246,12 +285,16 @@ def run_single(x, v, coef, mass, table, n_steps, col, moment, max_displacement, 
     energy : accumulate (load work, dissipated energy) into ``acc`` (2,)
     fused : one sweep per step (kick-drift of a block, then the forces behind it)
         instead of a kick-drift pass and a force pass; less memory traffic on long chains.
+        Uniform chains only.
 
     Returns
     -------
     int
-        0, or 1 if a value became non-finite or out of range (then the run stops).
+        0, or 1 if a value became non-finite or out of range (then the run stops), or
+        2 (nothing done) for ``fused`` with a graded chain's coefficients.
     """
+    if fused and coef.size > 7:
+        return 2
     n = x.shape[1]
     f = np.zeros((3, n))
     work = np.empty((6, BLOCK + 2))

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import random_geometries
 from cosserat_chain import ChainParams, moment_load
 from cosserat_chain.analysis.energy import kinetic_energy, potential_energy
 from cosserat_chain.models import get_model
@@ -117,3 +118,91 @@ def test_disordered_is_reproducible_and_checks_its_input():
         disordered(ChainParams(), 1, 0.1, ("E3",))
     with pytest.raises(ValueError, match="give E1_factors"):
         a.replace(N=4)
+
+
+# --------------------------------------------------------------------------- statics and modes
+GRADED = [disordered(g.replace(N=n), seed, 0.4, ("E1", "E2", "m", "j")) for seed, (g, n) in enumerate(zip(random_geometries(3, seed=31), (1, 3, 6)))]
+
+
+@pytest.mark.parametrize("params", GRADED, ids=lambda p: f"N{p.N}")
+def test_a_graded_static_state_is_the_minimum_of_the_links_energy(params):
+    """Newton on the compiled graded kernel against a minimiser of the NumPy link-by-link energy (1)."""
+    from scipy.optimize import minimize
+
+    from cosserat_chain.models.nonlinear import chain_energy
+    from cosserat_chain.numerics.newton import solve_equilibrium
+    from cosserat_chain.state import pack, unpack
+
+    moment = 0.1 * params.E1 * params.h**2
+    static = solve_equilibrium(params, "nonlinear", moment_load(moment, 0))
+    phi0 = (2, params.N)
+
+    def work(q):
+        x = unpack(params, q)
+        return chain_energy(params, x) - moment * x[phi0]
+
+    found = minimize(work, np.zeros(pack(params, static).size), method="BFGS", options={"gtol": 1e-11})
+    np.testing.assert_allclose(unpack(params, found.x), static, atol=2e-5 * max(1.0, np.abs(static).max()))
+
+
+@pytest.mark.parametrize("params", GRADED[1:], ids=lambda p: f"N{p.N}")
+def test_a_graded_chains_folds_agree_between_methods_and_the_sine_fold_is_one_over_the_compliance(params):
+    from cosserat_chain.experiments.critical import critical_point
+    from cosserat_chain.numerics.continuation import locate_fold
+
+    nonlinear = critical_point(params, "nonlinear")
+    first = locate_fold(params, "nonlinear")
+    assert nonlinear.complete and nonlinear.branch.folds[0].moment == pytest.approx(first.moment, rel=1e-10)
+    sine = critical_point(params, "sine")
+    assert sine.critical_moment * sine.compliance == pytest.approx(1.0, rel=1e-10)
+    # The grading moves the fold: the uniform chain of the same geometry has another one.
+    uniform = params.model_copy(update={"E1_factors": None, "E2_factors": None, "m_factors": None, "j_factors": None})
+    assert abs(locate_fold(uniform, "nonlinear").moment - first.moment) > 1e-4
+
+
+@pytest.mark.parametrize("params", GRADED[1:], ids=lambda p: f"N{p.N}")
+def test_a_graded_chain_started_in_its_lowest_mode_oscillates_at_that_modes_frequency(params):
+    """The engine's per-column inertia against the modes' generalised eigenproblem K a = omega^2 M a."""
+    from cosserat_chain.analysis.dispersion import finite_modes
+
+    params = params.replace(gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
+    modes = finite_modes(params, "linear")
+    omega = float(np.sqrt(modes.omega2[0].real))
+    period = 2 * np.pi / omega
+    shape = modes.shapes[0]
+    run = integrate(params, "linear", moment_load(0.0), x0=1e-3 * shape, t_end=3 * period, dt=period / 4000, n_frames=3 * 400 + 1)
+    inertia = params.particle_inertia
+    amplitude = np.einsum("kij,ij,ij->k", run.x, inertia, shape) * 1e3
+    np.testing.assert_allclose(amplitude, np.cos(omega * run.time), atol=1e-5)
+
+
+def test_a_disorder_table_in_a_config_draws_the_chain_of_its_seed(tmp_path):
+    from cosserat_chain.io import load_config
+
+    path = tmp_path / "disordered.toml"
+    path.write_text('N = 5\nE2 = 0.5\n\n[disorder]\nseed = 4\nspread = 0.25\nfields = ["E1", "m"]\n')
+    params, _ = load_config(path)
+    assert params == disordered(ChainParams(N=5, E2=0.5), 4, 0.25, ("E1", "m"))
+    assert params.E2_factors is None and params.j_factors is None
+
+
+@pytest.mark.parametrize(
+    ("table", "message"),
+    [
+        ("[disorder]\nseed = 1\n", r"missing key\(s\) \['spread'\]"),
+        ("[disorder]\nseed = 1\nspread = 0.1\nsprad = 2\n", r"unknown key\(s\) \['sprad'\]"),
+        ("[disorder]\nseed = 1\nspread = 1.5\n", "spread must be a number with 0 <= spread < 1"),
+        ("[disorder]\nseed = -1\nspread = 0.1\n", "seed must be an integer >= 0"),
+        ('[disorder]\nseed = 1\nspread = 0.1\nfields = "E1"\n', "fields must be a list"),
+        ('[disorder]\nseed = 1\nspread = 0.1\nfields = ["E3"]\n', "fields must be a non-empty selection"),
+        ("disorder = 3\n", "must be a table"),
+        ("E1_factors = [1, 1, 1, 1, 1, 2]\n[disorder]\nseed = 1\nspread = 0.1\n", "also gives \\(E1_factors\\)"),
+    ],
+)
+def test_a_bad_disorder_table_is_refused_naming_the_key(tmp_path, table, message):
+    from cosserat_chain.io import load_config
+
+    path = tmp_path / "bad.toml"
+    path.write_text("N = 3\n" + table)
+    with pytest.raises(ValueError, match=r"\[disorder\] of .*bad.toml.*" + message):
+        load_config(path)

@@ -52,3 +52,19 @@ def test_the_kick_drift_vectorises_with_its_energy_sums():
     lanes(a, a.copy(), a.copy(), np.ones(8), np.zeros(8), np.zeros(8), np.zeros(8), np.zeros(8), 1, a.size // 8 - 1)
     for fresh in (row, lanes):
         assert len(PACKED.findall(fresh.inspect_asm(fresh.signatures[0]))) >= 4
+
+
+@pytest.mark.parametrize("name", available_models())
+def test_every_graded_kernel_vectorises(name):
+    """The per-bond coefficients (a graded chain, issue 14) keep the interior loop packed."""
+    kernel = type(get_model(name)).graded_kernel
+    assert packed_instructions(kernel, FORCE_SIGNATURE, KERNEL_OPTIONS) >= 12
+
+
+def test_the_per_column_kick_drift_of_graded_inertia_vectorises():
+    options = {**engine._KICK_OPTIONS, "cache": False}
+    columns = njit(**options)(engine._kick_drift_columns.py_func)
+    rows = np.zeros((3, 64))
+    pairs = np.ones((2, 2, 5, 3, 64))
+    columns(rows, rows.copy(), rows.copy(), pairs, 0, 1, 1, 63)
+    assert len(PACKED.findall(columns.inspect_asm(columns.signatures[0]))) >= 4

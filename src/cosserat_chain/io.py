@@ -486,6 +486,39 @@ def params_from_mapping(mapping: dict[str, Any], source: str = "config") -> Chai
 
 #: The table of a config file that holds loads (``[[loads]]``, :func:`cosserat_chain.loads.load_from_table`).
 LOADS_TABLE = "loads"
+#: The table of a config file that draws a disordered chain (:func:`cosserat_chain.params.disordered`).
+DISORDER_TABLE = "disorder"
+
+
+def disorder_from_table(params: ChainParams, table: Any, source: str) -> ChainParams:
+    """``params`` made disordered by a ``[disorder]`` table: ``seed``, ``spread`` and optionally ``fields``.
+
+    Raises
+    ------
+    ValueError
+        Naming the source and the key: a table that is not one, an unknown or missing key,
+        a bad value (:func:`~cosserat_chain.params.disordered`'s rules), or a field whose
+        factors the file also gives by hand (``E1_factors`` and ``fields`` with "E1").
+    """
+    from .params import DISORDER_FIELDS, disordered
+
+    where = f"[{DISORDER_TABLE}] of {source}"
+    if not isinstance(table, dict):
+        raise ValueError(f"{where} must be a table with keys seed, spread and optionally fields, got {table!r}")
+    unknown = [key for key in table if key not in ("seed", "spread", "fields")]
+    missing = [key for key in ("seed", "spread") if key not in table]
+    if unknown or missing:
+        raise ValueError(f"{where}: " + (f"unknown key(s) {unknown}" if unknown else f"missing key(s) {missing}") + "; its keys are seed, spread and fields")
+    fields = table.get("fields", ["E1", "E2"])
+    if isinstance(fields, str) or not isinstance(fields, list):
+        raise ValueError(f"{where}: fields must be a list of {', '.join(DISORDER_FIELDS)}, got {fields!r}")
+    given = [DISORDER_FIELDS[f] for f in fields if f in DISORDER_FIELDS and getattr(params, DISORDER_FIELDS[f]) is not None]
+    if given:
+        raise ValueError(f"{where} draws factors that the file also gives ({', '.join(given)}): give one or the other")
+    try:
+        return disordered(params, table["seed"], table["spread"], tuple(fields))
+    except ValueError as err:
+        raise ValueError(f"{where}: {err}") from None
 
 
 def load_params(path: str | Path | None = None) -> ChainParams:
@@ -499,6 +532,9 @@ def load_params(path: str | Path | None = None) -> ChainParams:
 def load_config(path: str | Path | None = None) -> tuple[ChainParams, Loads]:
     """``ChainParams`` and the ``[[loads]]`` of a TOML file (the paper's chain and no loads when ``path`` is None).
 
+    A ``[disorder]`` table (``seed``, ``spread``, ``fields``) draws the chain's factors:
+    :func:`disorder_from_table`.
+
     Raises
     ------
     ValueError
@@ -511,7 +547,10 @@ def load_config(path: str | Path | None = None) -> tuple[ChainParams, Loads]:
         return ChainParams(), Loads()
     mapping = read_config(path)
     tables = mapping.pop(LOADS_TABLE, [])
+    disorder = mapping.pop(DISORDER_TABLE, None)
     params = params_from_mapping(mapping, source=str(path))
+    if disorder is not None:
+        params = disorder_from_table(params, disorder, repr(str(path)))
     return params, loads_from_tables(tables, source=f"[[{LOADS_TABLE}]] of {str(path)!r}").validate(params)
 
 
