@@ -9,6 +9,7 @@ from . import (
     reproduce,  # noqa: F401  (registers the command)
     rotate,  # noqa: F401  (registers the command)
     simulate,  # noqa: F401  (registers the command)
+    states,  # noqa: F401  (registers the command)
     statics,  # noqa: F401  (registers sweep and critical)
     study,  # noqa: F401  (registers the command)
     theory,  # noqa: F401  (registers the command)

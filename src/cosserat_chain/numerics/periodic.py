@@ -281,6 +281,24 @@ class PeriodicOrbit:
         """Orbitally stable: every nontrivial multiplier strictly inside the unit circle."""
         return self.max_multiplier < 1.0
 
+    def trajectory(self, times: np.ndarray, *, rtol: float = RTOL, atol: float = ATOL) -> tuple[np.ndarray, np.ndarray]:
+        """The states along the orbit at ``times`` (k,) > 0 after its start (x, v), by the shooting's DOP853.
+
+        Returns
+        -------
+        x, v : ndarray (k, 3, 2N+1)
+            Unwrapped: phi_0 has advanced by 2 pi k at ``times = period`` (eq. (P)).
+        """
+        times = np.asarray(times, dtype=float)
+        system = _System(self.params, get_model(self.model), self.moment, self.particle)
+        kernel, coef, rpar, ipar = system.parameters(0)
+        start = _to_y(self.params, self.x, self.v)
+        sol = dop853.solve(_rhs, kernel, coef, rpar, ipar, start, np.concatenate([[0.0], times]), rtol=rtol, atol=atol, max_steps=MAX_STEPS)
+        if not sol.success:
+            raise OrbitError(f"integration along the orbit failed at M={self.moment!r}: {sol.message}")
+        states = [_from_y(self.params, y) for y in sol.y[1:]]
+        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
     def as_dict(self) -> dict:
         """JSON-ready summary. Moments in the parameters' units; ``moment_scale`` = E1 h^2 divides them into the paper's dimensionless moment (Fig. 2)."""
         return {

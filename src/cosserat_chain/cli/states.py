@@ -1,0 +1,95 @@
+"""``cosserat-chain states``: the coexisting static states, rotating orbits and irregular rotations at one moment."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+
+from ..status import Status
+from .common import EXIT_CODES, app, bar_callback, config_or_exit, exit_on, fail, model_option, number, progress_bar
+
+
+@app.command()
+def states(
+    model: str = model_option("sine", "The model (the linear one has one static state and no orbit)."),
+    moment: float = number(..., "Constant moment M on the loaded particle."),
+    particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
+    turns: int = typer.Option(3, help="Shoot for orbits of 1..TURNS turns a period; long runs look for repetition after up to 2 TURNS."),
+    random_starts: int = typer.Option(8, "--random-starts", help="Long runs from this many seeded random states."),
+    seed: int = typer.Option(0, help="Seed of the random starts and of the static states' perturbations."),
+    t_long: float = number(5000.0, "Length of each long run (its second half is analysed).", above=0.0, flags=("--t-long",)),
+    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
+    as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+) -> None:
+    """List the states at one moment, each with its stability, and say which one the protocol from rest reaches.
+
+    Static states on the branch from rest over one full turn (residual, stability); periodic
+    orbits from shooting and from long runs (turns, period, mean rate, Floquet stability);
+    irregular rotation (rates over windows of whole turns); what each start's run reached.
+
+    Exit status: 0 done, 2 bad input, 3 a run blew up.
+    """
+    from ..experiments.coexisting import states_at
+    from ..numerics.dynamics import IntegrationError
+
+    if turns < 1:
+        fail(f"--turns must be an integer >= 1 (turns of the loaded particle per period), got {turns!r}")
+    if random_starts < 0:
+        fail(f"--random-starts must be an integer >= 0, got {random_starts!r}")
+    params, loads = config_or_exit(config)
+    if len(loads):
+        fail("--config: states takes no [[loads]] tables (the moment is the only load)")
+    bar = progress_bar(f"states {model}", "start")
+    try:
+        result = states_at(
+            params, model, moment, particle=particle, turns=tuple(range(1, turns + 1)), random_starts=random_starts, seed=seed,
+            t_long=t_long, progress=bar_callback(bar),
+        )  # fmt: skip
+    except ValueError as err:
+        bar.close()
+        message = str(err)
+        fail(f"--particle: {message}" if "particle" in message else message)
+    except IntegrationError as err:
+        bar.close()
+        fail(str(err), code=EXIT_CODES[Status.BLEW_UP])
+    bar.close()
+    if as_json:
+        typer.echo(json.dumps({"params": params.model_dump(), **result.as_dict()}))
+    else:
+        _print(result)
+    exit_on(result.status, "")
+
+
+def _print(result) -> None:
+    typer.echo(f"{result.model}, M = {result.moment:g}:")
+    if not result.static:
+        typer.echo("  no static state on the branch from rest over one full turn")
+    for i, s in enumerate(result.static):
+        where = "" if s.on_branch else " (off the traced branch)"
+        typer.echo(
+            f"  static {i}: phi_0 = {s.phi0:.10g}, residual {s.residual:.2g}, "
+            f"{'stable' if s.stability.stable else f'unstable (index {s.stability.index})'}{where}"
+        )
+    for i, f in enumerate(result.orbits):
+        o = f.orbit
+        typer.echo(
+            f"  orbit {i}: {o.turns} turn(s) per period T = {o.period:.10g}, mean rate {o.mean_angular_velocity:.10g}, "
+            f"largest other |mu| {o.max_multiplier:.4g}: {'stable' if o.stable else 'unstable'} (found from {len(f.found_from)} start(s))"
+        )
+    for i, r in enumerate(result.irregular):
+        typer.echo(
+            f"  irregular {i}: rate {r.rate_mean:.6g} (windows of {r.window_turns} turns: {r.rate_min:.6g} to {r.rate_max:.6g}), "
+            f"no repetition after 1..{r.max_turns} turns"
+        )
+    rest = result.from_rest
+    reached = rest.reached if rest.index is None else f"{rest.reached} {rest.index}"
+    typer.echo(
+        f"  from rest: the relaxation step ends {result.relaxation['status']} (t = {result.relaxation['time']:g}) and settles on {reached}"
+    )
+    counts: dict[str, int] = {}
+    for run in result.runs:
+        key = run.reached if run.index is None else f"{run.reached} {run.index}"
+        counts[key] = counts.get(key, 0) + 1
+    typer.echo("  long runs reached: " + ", ".join(f"{key} ({n})" for key, n in counts.items()))
