@@ -39,6 +39,7 @@ _API = {
     "integrate_adaptive": "numerics.adaptive",
     "relax": "numerics.relaxation",
     "relax_batch": "numerics.relaxation",
+    "disordered": "params",
     "relaxation_sweep": "experiments.sweep",
     "relaxation_sweeps": "experiments.sweep",
     "localization_run": "experiments.localization",
@@ -51,8 +52,9 @@ _API = {
     "continue_fold": "numerics.fold_curve",
     "compliance": "numerics.continuation",
     "static_stability": "numerics.stability",
-    # rotating states
+    # rotating states and the map of states
     "periodic_orbit": "experiments.orbits",
+    "state_diagram": "experiments.diagram",
     # theory and waves
     "convergence": "analysis.continuum",
     "dispersion": "analysis.dispersion",
@@ -83,6 +85,7 @@ __all__ = [
     "continue_in_moment",
     "convergence",
     "critical_point",
+    "disordered",
     "dispersion",
     "energy_budget",
     "finite_modes",
@@ -107,6 +110,7 @@ __all__ = [
     "simulate",
     "solve_equilibrium",
     "spec_from_mapping",
+    "state_diagram",
     "static_stability",
     "wave_summary",
     "write_dataset",
@@ -131,6 +135,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs, which do not run __getattr__
     from .analysis.dispersion import dispersion, finite_modes, wave_summary
     from .analysis.energy import energy_budget
     from .experiments.critical import critical_point
+    from .experiments.diagram import state_diagram
     from .experiments.localization import localization_run
     from .experiments.orbits import periodic_orbit
     from .experiments.simulation import simulate
@@ -147,7 +152,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs, which do not run __getattr__
     from .numerics.newton import solve_equilibrium
     from .numerics.relaxation import relax, relax_batch
     from .numerics.stability import static_stability
-    from .params import ChainParams
+    from .params import ChainParams, disordered
     from .report import ReproduceSettings, reproduce
     from .status import Status
     from .study_runner import run_study
