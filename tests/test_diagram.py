@@ -81,6 +81,13 @@ def test_the_command_prints_rows_writes_the_file_and_draws_the_phase_diagram(tmp
     assert ds.attrs["experiment"] == "state_diagram" and list(ds["end"].values) == [r["end"] for r in data["rows"]]
 
 
+def test_a_range_gives_the_decimal_values_without_linspace_noise():
+    from cosserat_chain.cli.diagram import _values
+
+    assert _values(None, "0.05:0.3:6") == [0.05, 0.1, 0.15, 0.2, 0.25, 0.3]
+    assert _values(None, "1:1:1") == [1.0] and _values("0.1,0.3", None) == [0.1, 0.3]
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [

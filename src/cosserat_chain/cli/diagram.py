@@ -24,7 +24,9 @@ def _values(values: str | None, span: str | None) -> list[float]:
             count = int(num)
             if count < 1:
                 raise ValueError
-            out = list(np.linspace(float(start), float(stop), count))
+            # Rounded to 12 significant digits: linspace's 0.15000000000000002 would be the
+            # row's value in the JSON and the file; the rounding moves a value by 1e-12 at most.
+            out = [float(f"{v:.12g}") for v in np.linspace(float(start), float(stop), count)]
     except ValueError:
         fail(f"--values must read V1,V2,... and --range START:STOP:NUM (NUM >= 1), got {values or span!r}")
     if not out or not all(np.isfinite(out)):
