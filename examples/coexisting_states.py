@@ -86,3 +86,20 @@ print(
     f"from rest: relaxation {result.relaxation['status']} at t = {result.relaxation['time']:g}, settles on {result.from_rest.reached} {result.from_rest.index}"
 )
 print("runs:", ", ".join(f"{r.start} -> {r.reached} {r.index}" for r in result.runs))
+
+if not args.quick:
+    # Basins: random starts of growing size (angles, displacements, velocities), each run to t = 3000.
+    one_turn = next(f.orbit for f in result.orbits if f.orbit.turns == 1)
+    for scale in (0.3, 1.0, 3.0):
+        fast = 0
+        for seed in range(12):
+            rng = np.random.default_rng(seed)
+            x0, v0 = np.zeros((3, params.n_particles)), np.zeros((3, params.n_particles))
+            x0[:, 1:-1] = 0.3 * scale * rng.standard_normal((3, params.n_particles - 2))
+            x0[phi_row, 1:-1] = min(1.0, scale) * rng.uniform(-math.pi, math.pi, params.n_particles - 2)
+            v0[:, 1:-1] = scale * rng.standard_normal((3, params.n_particles - 2))
+            run = integrate(params, model, moment_load(moment), t_end=3000.0, n_frames=2, method="yoshida4", x0=x0, v0=v0,
+                            turns=TurnWatch(0, 1.0, keep=64))  # fmt: skip
+            times = run.turns.times
+            fast += 2 * math.pi * 40 / (times[-1] - times[-41]) > 1.5 * one_turn.mean_angular_velocity
+        print(f"random starts of size {scale:g}: {fast} of 12 reach the 2-turn orbit, the others the 1-turn one")

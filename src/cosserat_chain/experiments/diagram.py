@@ -28,8 +28,10 @@ A diverging period is told apart by its growth over the last orbits before ``per
 like (M - M_c)^(-1/2) at a SNIC (T^-2 extrapolated to zero lands on M_c), like -log(M - M_h)
 at a homoclinic end (M_h from the best fit). Limits: one rotating orbit is followed, the
 first stable one with 1, 2, ... ``turns`` turns a period just above M_c (``not_found`` if
-none is: the rotation there may be modulated, as the sine chain's at M = 0.22); coexisting
-orbits and irregular rotation are not searched.
+none is: the rotation there may be irregular, as the nonlinear chain's at the default
+damping); coexisting orbits and irregular rotation are not searched here
+(:func:`~cosserat_chain.experiments.coexisting.states_at` lists them at one moment: the sine
+chain at M = 0.22 has a stable 2-turn orbit beside the 1-turn one a run from rest reaches).
 """
 
 from __future__ import annotations
