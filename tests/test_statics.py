@@ -424,3 +424,37 @@ def test_statics_figures_plot_the_dimensionless_moment_M_over_E1_h2():
     assert any(np.isclose(line.get_ydata()[0], fold.moment / chain.moment_scale, rtol=1e-12) for line in markers)
     (moment_axis, _) = critical_against_length({"sine": [result]}).axes
     assert moment_axis.lines[0].get_ydata()[0] == pytest.approx(chain.N * result.critical_moment / chain.moment_scale)
+
+
+def test_a_continuation_point_assembles_the_stiffness_once_per_solve_and_counts_the_index_only_when_unstable(monkeypatch):
+    # The O(N) cost of a point is a fixed number of banded passes: one assembly of K per
+    # corrector iteration and per converged point (whose stability reuses it), one bordered
+    # solve each, and the inertia count at zero only where the smallest eigenvalue is not
+    # certified positive (its own factor otherwise comes free with the eigenvalue).
+    from cosserat_chain.models.base import Model
+    from cosserat_chain.models.nonlinear import NonlinearModel
+    from cosserat_chain.numerics import continuation, stability
+
+    calls = {"stiffness": 0, "similar": 0, "solve": 0, "count": 0}
+
+    def counted(name, function):
+        def wrapper(*args, **kwargs):
+            calls[name] += 1
+            return function(*args, **kwargs)
+
+        return wrapper
+
+    monkeypatch.setattr(NonlinearModel, "stiffness", counted("stiffness", NonlinearModel.stiffness))
+    monkeypatch.setattr(Model, "symmetric_similar", counted("similar", Model.symmetric_similar))
+    monkeypatch.setattr(continuation, "bordered_solve", counted("solve", continuation.bordered_solve))
+    monkeypatch.setattr(stability, "negative_count", counted("count", stability.negative_count))
+    model = get_model("nonlinear")
+    for params in (ChainParams(N=10), ChainParams(N=100)):
+        calls.update(dict.fromkeys(calls, 0))
+        branch = continue_in_moment(params, model, max_folds=1)
+        points = branch.moment.size
+        # The rest state's stability assembles its own (no corrector ran there); nothing else does.
+        assert calls["similar"] == 1 and calls["stiffness"] <= calls["solve"] + 1
+        assert calls["solve"] <= 8 * points  # a few Newton iterations and the tangent a point
+        assert calls["count"] <= np.count_nonzero(~branch.stable) + 2
+        assert branch.folds and branch.folds[0].maximum

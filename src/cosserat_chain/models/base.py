@@ -416,6 +416,19 @@ def _bond_block_pattern(n_particles: int, left: str, right: str, ring: bool) -> 
     return keep, position, indices, indptr, diagonal
 
 
+@njit(cache=True, nogil=True)
+def _scatter_add(values, keep, position, out):  # pragma: no cover - compiled
+    """out[position[t]] += values[keep[t]] in the order of t.
+
+    The sums of ``np.bincount(position, values[keep])``, added in the same order (the
+    same bits), without its gathered copy and its weights' conversion: the assembly of
+    the stiffness took half its time in them (0.3 ms at N = 1000, where a continuation
+    assembles some 13000 stiffnesses over a turn).
+    """
+    for t in range(keep.size):
+        out[position[t]] += values[keep[t]]
+
+
 def assemble_bond_blocks(blocks: np.ndarray, params: ChainParams, diagonal: np.ndarray | None = None) -> sp.csr_matrix:
     """Sparse matrix over the free degrees of freedom from per-bond 6x6 blocks.
 
@@ -433,11 +446,12 @@ def assemble_bond_blocks(blocks: np.ndarray, params: ChainParams, diagonal: np.n
     -------
     scipy.sparse.csr_matrix
         Entries on degrees of freedom the ends hold fixed are dropped; O(N), one
-        ``bincount`` on a cached pattern (:func:`_bond_block_pattern`).
+        compiled scatter on a cached pattern (:func:`_bond_block_pattern`, :func:`_scatter_add`).
     """
     left, right = params.ends
     keep, position, indices, indptr, diagonal_at = _bond_block_pattern(params.n_particles, left, right, params.periodic)
-    data = np.bincount(position, weights=np.ascontiguousarray(blocks, dtype=float).reshape(-1)[keep], minlength=indices.size)
+    data = np.zeros(indices.size)
+    _scatter_add(np.ascontiguousarray(blocks, dtype=float).reshape(-1), keep, position, data)
     if diagonal is not None:
         data[diagonal_at] += pack(params, diagonal)
     size = indptr.size - 1

@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import scipy.linalg as la
@@ -47,6 +48,7 @@ from numba import njit
 from ..models.base import Model, get_model, upper_bands
 from ..params import ChainParams
 from ..state import check_state, per_dof
+from .newton import infinity_norm
 
 #: Relative width (to the Gershgorin radius) at which the bisection for the smallest eigenvalue stops.
 BISECTION_RTOL = 1e-14
@@ -102,7 +104,13 @@ def damped_dynamics_matrix(params: ChainParams, stiffness: np.ndarray) -> np.nda
 
 
 def static_stability(
-    params: ChainParams, model: str | Model, x: np.ndarray, *, dense: bool = False, guess: float | None = None
+    params: ChainParams,
+    model: str | Model,
+    x: np.ndarray,
+    *,
+    dense: bool = False,
+    guess: float | None = None,
+    similar: sp.spmatrix | None = None,
 ) -> Stability:
     """Stability of the static state ``x`` (3, 2N+1) of ``model`` (see the module docstring).
 
@@ -111,16 +119,30 @@ def static_stability(
     reference instead of the banded path (module docstring). ``guess``: a nearby
     value of the critical eigenvalue (the previous point's along a branch), where the
     banded search starts; it changes the cost, not the result.
+
+    ``similar``: :meth:`~cosserat_chain.models.base.Model.symmetric_similar` at ``x``
+    if the caller has it already (a conservative model's stiffness, which a continuation
+    assembles at every point anyway: a second assembly was a fifth of the cost of a
+    point at N = 1000); it changes the cost, not the result. Ignored with ``dense``
+    and for a ring.
+
+    The index costs no factor of its own where the smallest eigenvalue is certified
+    positive above its round-off (the certificate is a factor at a shift below it with
+    no negative pivot, so K itself has none): only an unstable or marginal state pays
+    the count at zero.
     """
     model = get_model(model)
     x = check_state(params, x)
     # A ring's matrices have corner blocks (not banded): the dense path, at the sizes a ring's statics reach.
-    similar = None if dense or params.periodic else model.symmetric_similar(params, x)
+    if dense or params.periodic:
+        similar = None
+    elif similar is None:
+        similar = model.symmetric_similar(params, x)
     if similar is not None:
         lower = _lower_rows(similar)
-        index = negative_count(lower, 0.0)
         resolution = _resolution(similar)
-        critical = _smallest_eigenvalue(lower, resolution / BISECTION_RTOL, guess)
+        critical, bound = _smallest_eigenvalue(lower, resolution / BISECTION_RTOL, guess)
+        index = 0 if bound > resolution else negative_count(lower, 0.0)
         return Stability(index == 0 and critical > 0.0, critical, math.nan, index, resolution)
     k = model.stiffness(params, x).toarray()
     abscissa = float(np.max(la.eigvals(damped_dynamics_matrix(params, k)).real))
@@ -135,16 +157,41 @@ def static_stability(
 
 def _resolution(matrix) -> float:
     """BISECTION_RTOL times the Gershgorin radius of ``matrix`` (sparse or dense)."""
+    if sp.issparse(matrix):
+        return BISECTION_RTOL * infinity_norm(matrix)
     return BISECTION_RTOL * float(abs(matrix).sum(axis=1).max()) if matrix.shape[0] else 0.0
 
 
 def _lower_rows(matrix: sp.spmatrix) -> np.ndarray:
     """A symmetric banded matrix by rows of its lower band: out[i, d] = M[i, i - d] = M[i - d, i], d = 0..w.
 
-    LAPACK's upper storage (:func:`~cosserat_chain.models.base.upper_bands`) holds M[i - d, i]
-    at [w - d, i]: its rows reversed and transposed.
+    Read from the upper triangle, as LAPACK's upper storage
+    (:func:`~cosserat_chain.models.base.upper_bands`) holds it (M[i - d, i] at [w - d, i]):
+    a Hessian summed link by link is symmetric only to round-off, and either triangle
+    gives the same inertia. A CSR matrix goes through one compiled pass over its
+    entries (:func:`_csr_lower_rows`; ``sp.triu`` and the COO scatter cost 0.7 ms at
+    N = 1000, once a point of a branch).
     """
+    if sp.issparse(matrix) and matrix.format == "csr":
+        return _csr_lower_rows(matrix.indptr, matrix.indices, np.asarray(matrix.data, dtype=float))
     return np.ascontiguousarray(upper_bands(matrix)[::-1].T)
+
+
+@njit(cache=True, nogil=True)
+def _csr_lower_rows(indptr, indices, data):  # pragma: no cover - compiled
+    """:func:`_lower_rows` of a CSR matrix: out[j, j - i] = M[i, j] for every stored entry with j >= i."""
+    n = indptr.size - 1
+    width = 0
+    for i in range(n):
+        for p in range(indptr[i], indptr[i + 1]):
+            width = max(width, indices[p] - i)
+    out = np.zeros((n, width + 1))
+    for i in range(n):
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            if j >= i:
+                out[j, j - i] = data[p]
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -219,6 +266,9 @@ def _smallest_eigenvalue_compiled(lower, low, high, tolerance, guess, vector):  
     growing distances (a chain's critical eigenvalue is small: a few factors settle it),
     then to the middle of the bracket, so the result is never worse than bisection
     (about 50 factors).
+
+    Returns the eigenvalue and a lower bound of it: ``low`` is the Gershgorin bound or
+    a shift whose factor has no negative pivot.
     """
     factor = np.zeros(lower.shape)
     pivots = np.zeros(lower.shape[0])
@@ -243,18 +293,28 @@ def _smallest_eigenvalue_compiled(lower, low, high, tolerance, guess, vector):  
                 previous, decrease = quotient, previous - quotient
             if high - low > tolerance:
                 if _factor(lower, high - tolerance, factor, pivots) == 0:
-                    return high
+                    return high, max(low, high - tolerance)
                 high -= tolerance
         distance = max(4.0 * distance, 1e-6 * width)
         shift = 0.5 * (low + high) if below_found else max(0.5 * (low + high), high - distance)
-    return 0.5 * (low + high)
+    return 0.5 * (low + high), low
 
 
-def _smallest_eigenvalue(lower: np.ndarray, radius: float, guess: float | None = None) -> float:
-    """Smallest eigenvalue to round-off of the matrix's scale, O(n) a round (:func:`_smallest_eigenvalue_compiled`)."""
+@lru_cache(maxsize=8)
+def _start_vector(n: int) -> np.ndarray:
+    """The fixed start vector of inverse iteration, drawn once a size (a draw cost 0.1 ms at N = 1000, once a point)."""
+    vector = np.random.default_rng(0).standard_normal(n)
+    vector.flags.writeable = False
+    return vector
+
+
+def _smallest_eigenvalue(lower: np.ndarray, radius: float, guess: float | None = None) -> tuple[float, float]:
+    """Smallest eigenvalue to round-off of the matrix's scale, O(n) a round (:func:`_smallest_eigenvalue_compiled`),
+    and a lower bound of it certified by a factor without negative pivots (-``radius`` if none was)."""
     low, high = -radius, float(lower[:, 0].min())  # Gershgorin, and lambda_min <= min diagonal
     # A fixed generic start vector: deterministic, and with a component along any
     # mode (all ones would miss an antisymmetric lowest mode and leave it to the bisection).
-    vector = np.random.default_rng(0).standard_normal(lower.shape[0])
+    vector = _start_vector(lower.shape[0]).copy()  # the compiled search overwrites it
     tolerance = max(BISECTION_RTOL * radius, 1e-300)
-    return float(_smallest_eigenvalue_compiled(lower, low, high, tolerance, 0.0 if guess is None else float(guess), vector))
+    value, bound = _smallest_eigenvalue_compiled(lower, low, high, tolerance, 0.0 if guess is None else float(guess), vector)
+    return float(value), float(bound)
