@@ -59,7 +59,7 @@ from ..numerics.periodic import OrbitError, PeriodicOrbit, find_periodic_orbit, 
 from ..numerics.relaxation import relax
 from ..numerics.stability import Stability, static_stability
 from ..params import ChainParams
-from ..state import ROW_INDEX, column, fixed_mask, pack, zeros
+from ..state import ROW_INDEX, column, fixed_mask, pack, require_held, zeros
 from ..status import Status
 
 ProgressCallback = Callable[[float, float], None]
@@ -515,7 +515,7 @@ def states_at(
     Parameters
     ----------
     params : ChainParams
-        A clamped chain (the orbits' shooting lays out the clamped chain's degrees of freedom).
+        A chain held against rigid motion (a clamped end or two pinned ones): its static states are traced.
     model : str or Model
         A model that does not rotate (linear) gets its one static state and no orbit.
     moment : float
@@ -544,8 +544,8 @@ def states_at(
     ------
     ValueError
         For a non-finite moment, an unknown start, turns < 1, a non-positive t_long,
-        perturbation, or window, a negative random_starts, or a chain that is not clamped
-        (rotating models).
+        perturbation, or window, a negative random_starts, or a chain that can move
+        rigidly (:func:`~cosserat_chain.state.require_held`).
     """
     model = get_model(model)
     if not (isinstance(moment, int | float) and math.isfinite(moment)):
@@ -564,10 +564,8 @@ def states_at(
     if not (isinstance(random_starts, int) and random_starts >= 0):
         raise ValueError(f"random_starts must be an integer >= 0, got {random_starts!r}")
     column(params, particle)
-    if model.rotates:
-        from ..state import require_clamped
-
-        require_clamped(params, "the search for coexisting states (periodic orbits)")
+    # The static states on the branch from rest need the chain held against rigid motion.
+    require_held(params)
     settings = {"starts": list(starts), "turns": list(turns), "random_starts": random_starts, "seed": seed,
                 "perturbation": perturbation, "t_long": t_long, "window_turns": window_turns}  # fmt: skip
     catalogue = _Catalogue(_static_states(params, model, moment, particle))

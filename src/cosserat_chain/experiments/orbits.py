@@ -38,6 +38,9 @@ ProgressCallback = Callable[[float, float], None]
 
 
 def _static_fold(params: ChainParams, model: Model, particle: int) -> float:
+    if params.rigid_modes:
+        # A chain that can spin about a pin has no static state under a moment: no fold (NaN).
+        return math.nan
     fold = locate_fold(params, model, particle=particle)
     return math.nan if fold is None else float(fold.moment)
 
@@ -57,7 +60,7 @@ class OrbitResult:
     branch : OrbitBranch or None
         The continuation (with ``down_to``).
     static_fold : float
-        M_c of the static branch (NaN if it has none).
+        M_c of the static branch (NaN if it has none, as a chain that spins about a pin has no static state).
     """
 
     orbit: PeriodicOrbit

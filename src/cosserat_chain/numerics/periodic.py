@@ -47,13 +47,13 @@ from numba import njit
 
 from ..loads import moment_load
 from ..memory import FLOAT, require
-from ..models.base import Model, get_model, no_ends
+from ..models.base import Model, get_model
 from ..params import ChainParams
-from ..state import ROW_INDEX, check_state, column, n_free, pack, per_dof, require_clamped, unpack, zeros
+from ..state import ROW_INDEX, check_state, column, force_columns, free_index, held, n_free, pack, per_dof, unpack, zeros
+from ..state import dof as free_dof
 from ..status import Status
 from . import dop853
 from .dynamics import TurnWatch, default_time_step, integrate
-from .newton import moment_dof
 
 #: Step of the central differences of the force kernel. The nonlinear model's third
 #: derivatives are large (~1e3), so truncation (step^2) meets round-off (eps / step) near
@@ -74,6 +74,8 @@ MAX_HALVINGS = 6
 MAX_STEPS = 10_000_000
 #: Time simulated per call while looking for a settled rotation.
 GUESS_CHUNK = 200.0
+#: Longest simulation from rest for the default guess.
+GUESS_T_MAX = 20000.0
 #: The simulated rotation has settled when two consecutive spans of k turns agree to this.
 SETTLE_RTOL = 1e-3
 
@@ -82,29 +84,40 @@ ProgressCallback = Callable[[float, float], None]
 
 @njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
 def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
-    # Autonomous: t is not read. rpar = (M, 1/mass (nf), gamma/mass (nf)) and
-    # ipar = (n, load_dof, ncols), as _System.parameters lays them out.
+    # Autonomous: t is not read. rpar = (M, 1/mass (nf), gamma/mass (nf)) and ipar = (n,
+    # load_dof, ncols, nf, start, stop, position (nf), first (n + 1), lookup (3 n)), as
+    # _System.parameters lays them out: [start, stop) the columns that move, position[i] =
+    # 3 column + row of free degree of freedom i, first[c] the free degrees of freedom
+    # before column c, lookup[3 column + row] the free index (-1 where an end holds it).
     n = ipar[0]
     load_dof = ipar[1]
     ncols = ipar[2]
-    nf = 3 * (n - 2)
+    nf = ipar[3]
+    start = ipar[4]
+    stop = ipar[5]
+    position = ipar[6 : 6 + nf]
+    first = ipar[6 + nf : 7 + nf + n]
+    lookup = ipar[7 + nf + n : 7 + nf + 4 * n]
+    ends = start == 0 or stop == n
     moment = rpar[0]
     inv_mass = rpar[1 : 1 + nf]
     damping_rate = rpar[1 + nf : 1 + 2 * nf]
     x = np.zeros((3, n))
-    for c in range(1, n - 1):
-        for r in range(3):
-            x[r, c] = y[3 * (c - 1) + r]
+    for i in range(nf):
+        x[position[i] % 3, position[i] // 3] = y[i]
     f = np.zeros((3, n))
     force(x, coef, f, 1, n - 1)
+    if ends:
+        end_force(x, coef, f, start == 0, stop == n, False)
     for i in range(nf):
         dy[i] = y[nf + i]
         load = moment if i == load_dof else 0.0
-        dy[nf + i] = (f[(i % 3), i // 3 + 1] + load) * inv_mass[i] - damping_rate[i] * y[nf + i]
+        dy[nf + i] = (f[position[i] % 3, position[i] // 3] + load) * inv_mass[i] - damping_rate[i] * y[nf + i]
     if ncols == 0:
         return
-    # dF/dq by central differences, coloured: perturbing row r of every third column
-    # at once is exact because a column's forces read only its two neighbours.
+    # dF/dq by central differences, coloured: perturbing row r of every third moving column
+    # at once is exact because a column's forces read only its two neighbours (an end
+    # column's only its one).
     jac = np.zeros((nf, nf))
     xp = np.empty_like(x)
     xm = np.empty_like(x)
@@ -114,30 +127,38 @@ def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - co
         for color in range(3):
             xp[:] = x
             xm[:] = x
-            for c in range(1 + color, n - 1, 3):
-                xp[r, c] += FD_STEP
-                xm[r, c] -= FD_STEP
+            for c in range(start + color, stop, 3):
+                if lookup[3 * c + r] >= 0:
+                    xp[r, c] += FD_STEP
+                    xm[r, c] -= FD_STEP
             force(xp, coef, fp, 1, n - 1)
             force(xm, coef, fm, 1, n - 1)
-            for c in range(1, n - 1):
-                for p in range(max(c - 1, 1), min(c + 2, n - 1)):
-                    if (p - 1) % 3 != color:
+            if ends:
+                end_force(xp, coef, fp, start == 0, stop == n, False)
+                end_force(xm, coef, fm, start == 0, stop == n, False)
+            for c in range(start, stop):
+                for p in range(max(c - 1, start), min(c + 2, stop)):
+                    j = lookup[3 * p + r]
+                    if (p - start) % 3 != color or j < 0:
                         continue
                     for rr in range(3):
-                        jac[3 * (c - 1) + rr, 3 * (p - 1) + r] = (fp[rr, c] - fm[rr, c]) / (2.0 * FD_STEP)
+                        i = lookup[3 * c + rr]
+                        if i >= 0:
+                            jac[i, j] = (fp[rr, c] - fm[rr, c]) / (2.0 * FD_STEP)
     phi = y[2 * nf :].reshape((2 * nf, ncols))
     dphi = dy[2 * nf :].reshape((2 * nf, ncols))
     dphi[:nf] = phi[nf:]
     # dF/dq is block tridiagonal: row i reads only the columns of its particle and its two
-    # neighbours, so the product costs O(nf ncols), not the O(nf^2 ncols) of a dense one
-    # (N = 20: 40 s an orbit with np.dot).
+    # neighbours (free indices first[c - 1] to first[c + 2]: 0 to 3 each, as the ends hold
+    # them), so the product costs O(nf ncols), not the O(nf^2 ncols) of a dense one (N = 20:
+    # 40 s an orbit with np.dot).
     for i in range(nf):
         out = dphi[nf + i]
         velocity = phi[nf + i]
         for k in range(ncols):
             out[k] = -damping_rate[i] * velocity[k]
-        block = i // 3
-        for j in range(max(0, 3 * (block - 1)), min(nf, 3 * (block + 2))):
+        c = position[i] // 3
+        for j in range(first[max(c - 1, 0)], first[min(c + 2, n)]):
             weight = jac[i, j] * inv_mass[i]
             column = phi[j]
             for k in range(ncols):
@@ -145,6 +166,41 @@ def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - co
     if ncols == 2 * nf + 1:
         # The last column is dy/dM: the moment enters the loaded particle's equation.
         dphi[nf + load_dof, ncols - 1] += inv_mass[load_dof]
+
+
+def require_orbit_ends(params: ChainParams) -> None:
+    """Refuse the chains the shooting cannot take: a ring, and a chain free to translate.
+
+    Any open chain held against translation works: clamped, pinned and free ends in any
+    combination but free-free. A pinned end with a free one may spin about the pin (the
+    nonlinear chain then turns as a whole: every angle winds, :attr:`PeriodicOrbit.particle_turns`).
+
+    Raises
+    ------
+    ValueError
+        For ``periodic = True`` or two free ends, naming why.
+    """
+    if params.periodic:
+        raise ValueError(
+            "the periodic-orbit solver needs an open chain (left_end, right_end), got a ring: its closing bond couples "
+            "particle N to particle -N, so the force Jacobian is not block tridiagonal and the shooting's coloured "
+            "differences and band product do not hold"
+        )
+    if params.left_end == params.right_end == "free":
+        raise ValueError(
+            "the periodic-orbit solver needs a chain held against translation, got free ends: every orbit then comes with "
+            "the copies translated by any distance (two more Floquet multipliers equal 1), so the shooting's Newton system "
+            "is singular; pin or clamp one end (left_end, right_end)"
+        )
+
+
+def _layout(params: ChainParams) -> np.ndarray:
+    """The tail of :func:`_rhs`'s ipar: position (nf), first (n + 1) and lookup (3 n) of the free degrees of freedom."""
+    position = free_index(params)
+    lookup = np.full(3 * params.n_particles, -1, dtype=np.int64)
+    lookup[position] = np.arange(position.size)
+    first = np.searchsorted(position, 3 * np.arange(params.n_particles + 1))
+    return np.concatenate([position, first, lookup])
 
 
 class OrbitError(RuntimeError):
@@ -161,8 +217,7 @@ class _System:
     particle: int
 
     def __post_init__(self) -> None:
-        # The compiled right-hand side lays out the clamped chain's free degrees of freedom.
-        require_clamped(self.params, "the periodic-orbit solver")
+        require_orbit_ends(self.params)
 
     @property
     def nf(self) -> int:
@@ -170,23 +225,25 @@ class _System:
 
     @property
     def load_dof(self) -> int:
-        return moment_dof(self.params, self.particle)
+        return free_dof(self.params, "phi", self.particle)
 
     def parameters(self, ncols: int):
-        """The force kernel, its coefficients, and rpar, ipar of :func:`_rhs` with ``ncols`` variational columns."""
+        """The force and end kernels, their coefficients, and rpar, ipar of :func:`_rhs` with ``ncols`` variational columns."""
         mass = pack(self.params, self.params.particle_inertia)
         gamma = per_dof(self.params, self.params.damping)
         rpar = np.concatenate([[self.moment], 1.0 / mass, gamma / mass])
-        ipar = np.array([self.params.n_particles, self.load_dof, ncols], dtype=np.int64)
-        return self.model.chain_kernels(self.params)[0], self.model.coefficients(self.params), rpar, ipar
+        head = [self.params.n_particles, self.load_dof, ncols, self.nf, *force_columns(self.params)]
+        ipar = np.concatenate([head, _layout(self.params)]).astype(np.int64)
+        kernel, ends = self.model.chain_kernels(self.params)
+        return kernel, ends, self.model.coefficients(self.params), rpar, ipar
 
     def rhs(self, ncols: int):
         """The right-hand side f(t, y) with ``ncols`` variational columns, for Python callers."""
-        kernel, coef, rpar, ipar = self.parameters(ncols)
+        kernel, ends, coef, rpar, ipar = self.parameters(ncols)
 
         def f(t: float, y: np.ndarray) -> np.ndarray:
             dy = np.empty_like(y)
-            _rhs(kernel, no_ends, t, y, coef, rpar, ipar, dy)
+            _rhs(kernel, ends, t, y, coef, rpar, ipar, dy)
             return dy
 
         return f
@@ -203,8 +260,10 @@ class _System:
                 "periodic orbits of a shorter chain (the monodromy matrix is dense: its memory grows like N^2)",
             )
         start = np.concatenate([y0, np.hstack([np.eye(size), np.zeros((size, 1))]).ravel() if variations else []])
-        kernel, coef, rpar, ipar = self.parameters(ncols)
-        sol = dop853.solve(_rhs, kernel, coef, rpar, ipar, start, np.array([0.0, period]), rtol=rtol, atol=atol, max_steps=MAX_STEPS)
+        kernel, ends, coef, rpar, ipar = self.parameters(ncols)
+        sol = dop853.solve(
+            _rhs, kernel, coef, rpar, ipar, start, np.array([0.0, period]), rtol=rtol, atol=atol, max_steps=MAX_STEPS, end_force=ends
+        )
         if not sol.success:
             raise OrbitError(f"integration over T={period!r} failed at M={self.moment!r}: {sol.message}")
         end = sol.y[-1]
@@ -242,6 +301,10 @@ class PeriodicOrbit:
         max |Phi_T(y0) - y0 - 2 pi k e_phi0| of the converged orbit.
     iterations : int
         Newton iterations used.
+    particle_turns : ndarray (2N+1,) int
+        Signed turns of every particle's angle per period (the loaded particle's is
+        +-``turns``; others wind when the whole chain spins about a pin). Default: the
+        loaded particle's alone.
     """
 
     params: ChainParams
@@ -255,6 +318,11 @@ class PeriodicOrbit:
     multipliers: np.ndarray
     closure: float
     iterations: int
+    particle_turns: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        if self.particle_turns is None:
+            self.particle_turns = _loaded_turns(self.params, self.particle, self.turns, self.moment)
 
     @property
     def mean_angular_velocity(self) -> float:
@@ -291,9 +359,11 @@ class PeriodicOrbit:
         """
         times = np.asarray(times, dtype=float)
         system = _System(self.params, get_model(self.model), self.moment, self.particle)
-        kernel, coef, rpar, ipar = system.parameters(0)
+        kernel, ends, coef, rpar, ipar = system.parameters(0)
         start = _to_y(self.params, self.x, self.v)
-        sol = dop853.solve(_rhs, kernel, coef, rpar, ipar, start, np.concatenate([[0.0], times]), rtol=rtol, atol=atol, max_steps=MAX_STEPS)
+        sol = dop853.solve(
+            _rhs, kernel, coef, rpar, ipar, start, np.concatenate([[0.0], times]), rtol=rtol, atol=atol, max_steps=MAX_STEPS, end_force=ends
+        )
         if not sol.success:
             raise OrbitError(f"integration along the orbit failed at M={self.moment!r}: {sol.message}")
         states = [_from_y(self.params, y) for y in sol.y[1:]]
@@ -307,6 +377,7 @@ class PeriodicOrbit:
             "moment_scale": self.params.moment_scale,
             "turns": self.turns,
             "particle": self.particle,
+            "particle_turns": [int(k) for k in self.particle_turns],
             "period": self.period,
             "mean_angular_velocity": self.mean_angular_velocity,
             "floquet_multipliers_abs": np.abs(self.multipliers).tolist(),
@@ -323,6 +394,27 @@ def _check_moment_and_turns(moment: float, turns: int) -> None:
         raise ValueError(f"moment must be finite and non-zero (a rotating state needs a load), got {moment!r}")
     if not (isinstance(turns, int) and not isinstance(turns, bool) and turns >= 1):
         raise ValueError(f"turns must be an integer >= 1 (turns of the loaded particle per period), got {turns!r}")
+
+
+def _loaded_turns(params: ChainParams, particle: int, turns: int, moment: float) -> np.ndarray:
+    """Turns per period of every particle when the loaded one alone winds: +-turns there, 0 elsewhere."""
+    out = np.zeros(params.n_particles, dtype=np.int64)
+    out[column(params, particle)] = int(math.copysign(turns, moment))
+    return out
+
+
+def _check_particle_turns(params: ChainParams, particle: int, turns: int, moment: float, particle_turns) -> np.ndarray:
+    out = np.asarray(particle_turns)
+    expected = int(math.copysign(turns, moment))
+    if out.shape != (params.n_particles,) or out.dtype.kind not in "iu" or out[column(params, particle)] != expected:
+        raise ValueError(
+            f"particle_turns must be {params.n_particles} integers (turns per period of every particle) with "
+            f"{expected} at the loaded particle {particle}, got {particle_turns!r}"
+        )
+    held_phi = [c for row, c in held(params) if row == ROW_INDEX["phi"]]
+    if np.any(out[held_phi] != 0):
+        raise ValueError(f"particle_turns must be 0 where an end holds the angle (clamped), got {particle_turns!r}")
+    return out.astype(np.int64)
 
 
 def _to_y(params: ChainParams, x: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -344,7 +436,7 @@ def initial_guess(
     x0: np.ndarray | None = None,
     v0: np.ndarray | None = None,
     transient_turns: int = 30,
-    t_max: float = 20000.0,
+    t_max: float = GUESS_T_MAX,
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """A state on the section phi_0 = 0 and a period, from a simulation that has settled.
 
@@ -357,6 +449,27 @@ def initial_guess(
     ------
     OrbitError
         If the particle has not made that many turns by ``t_max`` (no rotation).
+    """
+    return _settled_guess(
+        params, model, moment, turns=turns, particle=particle, x0=x0, v0=v0, transient_turns=transient_turns, t_max=t_max
+    )[:3]
+
+
+def _settled_guess(
+    params: ChainParams,
+    model: str | Model,
+    moment: float,
+    *,
+    turns: int,
+    particle: int,
+    x0: np.ndarray | None,
+    v0: np.ndarray | None,
+    transient_turns: int,
+    t_max: float,
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """:func:`initial_guess` and the turns every particle made over the last ``turns`` turns (PeriodicOrbit.particle_turns).
+
+    The angles of the other particles that wound are reduced to (-pi, pi] on the section.
     """
     model = get_model(model)
     _check_moment_and_turns(moment, turns)
@@ -377,6 +490,7 @@ def initial_guess(
     # inside the stability limit, so it needs no check either.
     dt = default_time_step(params, model)
     times: list[float] = []
+    angles: list[np.ndarray] = []
     state = None
     elapsed = 0.0
     while elapsed < t_max and len(times) < wanted + 1 and not _settled(times, turns):
@@ -388,6 +502,7 @@ def initial_guess(
         elapsed = float(run.time[-1])
         if run.turns.made > watch.made:
             times.append(float(run.turns.times[-1]))
+            angles.append(x[ROW_INDEX["phi"]].copy())
             state = _to_y(params, x, v)
         watch = run.turns.following(stop_after=run.turns.made + 1)
     if len(times) < turns + 1:
@@ -396,7 +511,14 @@ def initial_guess(
             "this start; start above the static fold M_c, or give a guess (an orbit at a nearby moment)"
         )
     state[dof] = 0.0
-    return (*_from_y(params, state), times[-1] - times[-1 - turns])
+    x, v = _from_y(params, state)
+    # Whole turns of every angle over the last span (a chain that spins about a pin winds as a whole).
+    particle_turns = np.rint((angles[-1] - angles[-1 - turns]) / (2 * math.pi)).astype(np.int64)
+    particle_turns[col] = int(math.copysign(turns, moment))
+    for c in np.flatnonzero(particle_turns):
+        if c != col:
+            x[ROW_INDEX["phi"], c] -= 2 * math.pi * round(x[ROW_INDEX["phi"], c] / (2 * math.pi))
+    return x, v, times[-1] - times[-1 - turns], particle_turns
 
 
 def _settled(times: list[float], turns: int) -> bool:
@@ -407,14 +529,17 @@ def _settled(times: list[float], turns: int) -> bool:
     return abs(last - before) <= SETTLE_RTOL * last
 
 
-def _shooting(system: _System, turns: int, rtol: float, atol: float):
+def _shooting(system: _System, particle_turns: np.ndarray, rtol: float, atol: float):
     """The residual of (P) at (y0, T) and, with ``variations``, its derivatives.
 
-    Returns (R, dR/dy0, dR/dT, dR/dM, monodromy); the last four are None without
-    ``variations`` (a state-only integration, about ten times cheaper).
+    ``particle_turns`` (2N+1,): turns per period of every particle's angle (eq. (P) with
+    2 pi times them on every angle). Returns (R, dR/dy0, dR/dT, dR/dM, monodromy); the
+    last four are None without ``variations`` (a state-only integration, about ten times cheaper).
     """
     shift = np.zeros(2 * system.nf)
-    shift[system.load_dof] = math.copysign(2 * math.pi * turns, system.moment)
+    angles = zeros(system.params)
+    angles[ROW_INDEX["phi"]] = particle_turns
+    shift[: system.nf] = 2 * math.pi * pack(system.params, angles)
 
     def evaluate(y0: np.ndarray, period: float, variations: bool = True):
         end, mono, d_moment = system.flow(y0, period, rtol=rtol, atol=atol, variations=variations)
@@ -433,7 +558,7 @@ def find_periodic_orbit(
     *,
     turns: int = 1,
     particle: int = 0,
-    guess: PeriodicOrbit | tuple[np.ndarray, np.ndarray, float] | None = None,
+    guess: PeriodicOrbit | tuple | None = None,
     tol: float = CLOSURE_TOL,
     max_iter: int = 25,
     rtol: float = RTOL,
@@ -454,9 +579,12 @@ def find_periodic_orbit(
         paper's chain at larger loads repeat only after 2 or 3 turns.
     particle : int
         The loaded particle.
-    guess : PeriodicOrbit or (x (3, 2N+1), v (3, 2N+1), T), optional
+    guess : PeriodicOrbit or (x (3, 2N+1), v (3, 2N+1), T[, particle_turns (2N+1,)]), optional
         Start of Newton's method (an orbit at a nearby moment); by default
-        :func:`initial_guess` from rest.
+        :func:`initial_guess` from rest, which also counts the turns every particle
+        makes a period (the whole chain winds when it spins about a pin). A tuple
+        without ``particle_turns``, or an orbit with other turns, winds the loaded
+        particle alone.
     tol : float
         Newton stops when max |Phi_T(y0) - y0 - 2 pi k e_phi0| <= tol.
     max_iter : int
@@ -472,7 +600,8 @@ def find_periodic_orbit(
     Raises
     ------
     ValueError
-        For a zero or non-finite moment, turns < 1 or a bad guess.
+        For a zero or non-finite moment, turns < 1 or a bad guess, and for a ring or a
+        chain with two free ends (:func:`require_orbit_ends` says why).
     OrbitError
         If Newton's method does not converge (try a guess from a nearby moment, another
         ``turns``, or the rotation may be chaotic).
@@ -482,10 +611,19 @@ def find_periodic_orbit(
     for name, value in (("tol", tol), ("rtol", rtol), ("atol", atol)):
         if not (math.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    require_orbit_ends(params)
+    particle_turns = _loaded_turns(params, particle, turns, moment)
     if guess is None:
-        x0, v0, period = initial_guess(params, model, moment, turns=turns, particle=particle, transient_turns=transient_turns)
+        x0, v0, period, particle_turns = _settled_guess(
+            params, model, moment, turns=turns, particle=particle, x0=None, v0=None, transient_turns=transient_turns, t_max=GUESS_T_MAX
+        )
     elif isinstance(guess, PeriodicOrbit):
         x0, v0, period = guess.x, guess.v, guess.period
+        if guess.particle_turns[column(params, particle)] == particle_turns[column(params, particle)]:
+            particle_turns = guess.particle_turns
+    elif len(guess) == 4:
+        x0, v0, period = guess[:3]
+        particle_turns = _check_particle_turns(params, particle, turns, moment, guess[3])
     else:
         x0, v0, period = guess
     if not (math.isfinite(period) and period > 0):
@@ -493,7 +631,7 @@ def find_periodic_orbit(
     system = _System(params, model, float(moment), particle)
     y0 = _to_y(params, check_state(params, x0, "guess x"), check_state(params, v0, "guess v"))
     y0[system.load_dof] = 0.0
-    evaluate = _shooting(system, turns, rtol, atol)
+    evaluate = _shooting(system, particle_turns, rtol, atol)
     keep = np.arange(len(y0)) != system.load_dof
 
     def jacobian(y0: np.ndarray, period: float):
@@ -538,7 +676,7 @@ def find_periodic_orbit(
             norm, fresh = float(np.max(np.abs(residual))), True
         else:
             fresh = False
-    return _orbit(system, turns, y0, period, mono, norm, iterations)
+    return _orbit(system, turns, y0, period, mono, norm, iterations, particle_turns)
 
 
 def _no_convergence(moment: float, turns: int, iterations: int, norm: float) -> str:
@@ -549,7 +687,16 @@ def _no_convergence(moment: float, turns: int, iterations: int, norm: float) -> 
     )
 
 
-def _orbit(system: _System, turns: int, y0: np.ndarray, period: float, mono: np.ndarray, closure: float, iterations: int) -> PeriodicOrbit:
+def _orbit(
+    system: _System,
+    turns: int,
+    y0: np.ndarray,
+    period: float,
+    mono: np.ndarray,
+    closure: float,
+    iterations: int,
+    particle_turns: np.ndarray,
+) -> PeriodicOrbit:
     x, v = _from_y(system.params, y0)
     multipliers = sla.eigvals(mono)
     multipliers = multipliers[np.argsort(-np.abs(multipliers), kind="stable")]
@@ -565,6 +712,7 @@ def _orbit(system: _System, turns: int, y0: np.ndarray, period: float, mono: np.
         multipliers=multipliers,
         closure=float(closure),
         iterations=iterations,
+        particle_turns=particle_turns,
     )
 
 
@@ -689,7 +837,7 @@ def continue_orbit(
         raise ValueError(f"steps must satisfy min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
     params, model = orbit.params, get_model(orbit.model)
     sign = math.copysign(1.0, orbit.moment)
-    dof = moment_dof(params, orbit.particle)
+    dof = _System(params, model, orbit.moment, orbit.particle).load_dof
     size = 2 * n_free(params)
     keep = np.arange(size) != dof
     settings = {"moment_min": moment_min, "period_max": period_max, "step": step, "max_step": max_step, "tol": tol, "rtol": rtol}
@@ -699,7 +847,7 @@ def continue_orbit(
         y0 = np.zeros(size)
         y0[keep] = w[: size - 1]
         period, moment = math.exp(w[size - 1]), w[size]
-        evaluate = _shooting(_System(params, model, moment, orbit.particle), orbit.turns, rtol, atol)
+        evaluate = _shooting(_System(params, model, moment, orbit.particle), orbit.particle_turns, rtol, atol)
         residual, jac_y, jac_t, d_moment, mono = evaluate(y0, period, variations)
         if not variations:
             return residual, None, None
@@ -718,7 +866,7 @@ def continue_orbit(
         y0 = np.zeros(size)
         y0[keep] = w[: size - 1]
         system = _System(params, model, float(w[size]), orbit.particle)
-        return _orbit(system, orbit.turns, y0, math.exp(w[size - 1]), mono, closure, iterations)
+        return _orbit(system, orbit.turns, y0, math.exp(w[size - 1]), mono, closure, iterations, orbit.particle_turns)
 
     def correct(w_pred: np.ndarray, t: np.ndarray, jac: np.ndarray):
         """Newton on (P) and the arclength condition from the predictor; None if it fails.
