@@ -25,7 +25,15 @@ from cosserat_chain.numerics.newton import moment_dof
 from cosserat_chain.report import ReproduceSettings, format_cell, reproduce
 from cosserat_chain.state import n_free, unpack
 
-QUICK = ReproduceSettings(dm=0.05, turns=15, n_list=(3, 10, 30), long_n_list=(3, 10), snapshot_times=(20.0, 21.0), animation_frames=10)
+QUICK = ReproduceSettings(
+    dm=0.05,
+    turns=15,
+    n_list=(3, 10, 30),
+    long_n_list=(3, 10),
+    snapshot_times=(20.0, 21.0),
+    animation_frames=10,
+    diagram_damping={"sine": (0.2, 0.5), "nonlinear": ()},
+)
 
 
 @pytest.fixture(scope="module")
@@ -236,3 +244,25 @@ def test_the_claims_table_is_computed_from_the_stages(quick_report):
     # A failed stage is named in its rows, not hidden.
     failed = claims({"statics": Section("statics", error="boom")}, QUICK)
     assert failed[0][1] == "stage 'statics' failed" and failed[1][1] == "stage 'localization' was not run"
+
+
+def test_the_state_map_shows_both_edges_against_the_damping(quick_report):
+    """The sine chain's loop closes at a SNIC at gamma_phi = 0.5 and is open at 0.2 (a fold of cycles below M_c)."""
+    section = next(s for s in quick_report.sections if s.title.startswith("The map of static and rotating states"))
+    assert section.error is None
+    rows = {row["value"]: row for row in section.numbers["sine"]}
+    assert rows[0.5]["end"] == "snic" and rows[0.5]["hysteresis"] is False
+    assert rows[0.5]["rotation_stops"] == pytest.approx(rows[0.5]["static_fold"], rel=1e-10)
+    assert rows[0.2]["hysteresis"] is True and rows[0.2]["rotation_stops"] < rows[0.2]["static_fold"]
+    assert "nonlinear" not in section.numbers  # QUICK leaves it out with an empty tuple
+    assert (quick_report.out / "figures" / "state_diagram_sine.png").stat().st_size > 0
+
+
+def test_the_diagram_damping_setting_is_checked():
+    from cosserat_chain.report import settings_from_mapping
+
+    assert settings_from_mapping({"diagram_damping": {"sine": [0.1, 0.3]}}).diagram_damping == {"sine": (0.1, 0.3)}
+    with pytest.raises(ValueError, match="diagram_damping: unknown model 'linear'"):
+        settings_from_mapping({"diagram_damping": {"linear": [0.1]}})
+    with pytest.raises(ValueError, match="diagram_damping.sine must hold finite numbers > 0"):
+        settings_from_mapping({"diagram_damping": {"sine": [0.1, -1.0]}})

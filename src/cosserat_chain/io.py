@@ -319,6 +319,7 @@ TITLES = {
     "periodic_orbit": "Rotating state of a discrete Cosserat chain as a periodic orbit",
     "rotation_characteristic": "Rotation characteristic of a discrete Cosserat chain",
     "parameter_study": "Parameter study of a discrete Cosserat chain",
+    "state_diagram": "Both edges of the hysteresis loop of a discrete Cosserat chain against one of its parameters",
 }
 
 
@@ -358,6 +359,10 @@ def describe(dataset: xr.Dataset) -> xr.Dataset:
     )
     for name, variable in dataset.variables.items():
         described = _description(str(name))
+        if name == "value" and dataset.attrs.get("parameter") in VARIABLES:
+            # A state diagram's coordinate: the values of the field it varies.
+            units, what = VARIABLES[dataset.attrs["parameter"]]
+            described = units, f"the varied field {dataset.attrs['parameter']}: {what}"
         if described is None:
             continue
         units, long_name = described
@@ -508,7 +513,11 @@ def disorder_from_table(params: ChainParams, table: Any, source: str) -> ChainPa
     unknown = [key for key in table if key not in ("seed", "spread", "fields")]
     missing = [key for key in ("seed", "spread") if key not in table]
     if unknown or missing:
-        raise ValueError(f"{where}: " + (f"unknown key(s) {unknown}" if unknown else f"missing key(s) {missing}") + "; its keys are seed, spread and fields")
+        raise ValueError(
+            f"{where}: "
+            + (f"unknown key(s) {unknown}" if unknown else f"missing key(s) {missing}")
+            + "; its keys are seed, spread and fields"
+        )
     fields = table.get("fields", ["E1", "E2"])
     if isinstance(fields, str) or not isinstance(fields, list):
         raise ValueError(f"{where}: fields must be a list of {', '.join(DISORDER_FIELDS)}, got {fields!r}")

@@ -18,7 +18,8 @@ Stages: ``statics`` (Fig. 2: compliance, critical moment and fold angle per mode
 exactly and by the relaxation protocol, the hysteresis loop, and both readings of the
 paper's "seven particles", :data:`READINGS`), ``orbits`` (rotating
 states as periodic orbits: the rotation characteristic and both edges of the
-hysteresis loop), ``rotation`` (Figs. 3a
+hysteresis loop), ``state_map`` (the phase diagram against gamma_phi for both rotating
+models, :attr:`ReproduceSettings.diagram_damping`), ``rotation`` (Figs. 3a
 and 3b, an animation), ``localization`` (the 1500-rotation runs), ``continuum``
 (Section 3 against the discrete chain, and the reduced model's continuum family against
 the discrete reduced chain), ``waves`` (dispersion, band gap), ``errata``.
@@ -83,6 +84,11 @@ class ReproduceSettings:
         Chain half-lengths N for the continuum comparison.
     long_n_list : tuple of int
         Chain half-lengths N of the critical moment against the chain's length.
+    diagram_damping : dict
+        Per rotating model, the values of gamma_phi of the state diagram (both edges of
+        the hysteresis loop, :func:`~cosserat_chain.experiments.diagram.state_diagram`).
+        The nonlinear model's rows cost minutes each (its SNIC at gamma_phi = 0.5 took
+        15 minutes), so its default is one value; an empty tuple leaves a model out.
     reading : str or None
         Which reading of Section 4's "a finite 1D chain consists of seven particles" sets
         the chain's N (:data:`READINGS`): ``"clamped-ends-among-seven"`` (N = 3, the
@@ -101,6 +107,9 @@ class ReproduceSettings:
     orbit_down_to: float = 0.1
     n_list: tuple[int, ...] = (3, 10, 30, 100, 300, 1000)
     long_n_list: tuple[int, ...] = (3, 10, 30, 100, 300)
+    diagram_damping: dict[str, tuple[float, ...]] = field(
+        default_factory=lambda: {"sine": (0.05, 0.1, 0.15, 0.2, 0.3, 0.5), "nonlinear": (0.2,)}
+    )
     reading: str | None = None
 
 
@@ -167,6 +176,9 @@ def settings_from_mapping(mapping: dict[str, Any], source: str = "[reproduce]") 
     checked, errors = {}, []
     for key, value in mapping.items():
         try:
+            if isinstance(value, dict):
+                # A table of lists (diagram_damping): TOML arrays are lists, the settings hold tuples.
+                value = {k: tuple(v) if isinstance(v, list) else v for k, v in value.items()}
             checked[key] = TypeAdapter(hints[key]).validate_python(tuple(value) if isinstance(value, list) else value, strict=True)
         except ValidationError as err:
             errors += [f"{'.'.join(map(str, (key, *e['loc'])))}: {e['msg']} (got {e.get('input')!r})" for e in err.errors()]
@@ -184,6 +196,16 @@ def settings_from_mapping(mapping: dict[str, Any], source: str = "[reproduce]") 
     problems += [f"rotation_moment needs {m}" for m in ROTATING if m not in settings.rotation_moment]
     problems += [
         f"{name} must be integers N >= 1" for name in ("n_list", "long_n_list") if not all(n >= 1 for n in getattr(settings, name))
+    ]
+    problems += [
+        f"diagram_damping: unknown model {m!r} (the rotating ones: {', '.join(ROTATING)})"
+        for m in settings.diagram_damping
+        if m not in ROTATING
+    ]
+    problems += [
+        f"diagram_damping.{m} must hold finite numbers > 0, got {list(v)!r}"
+        for m, v in settings.diagram_damping.items()
+        if not all(math.isfinite(x) and x > 0 for x in v)
     ]
     problems += [error for error in [reading_error(settings.reading)] if error]
     if problems:
@@ -545,6 +567,49 @@ def _orbits(stage: _Stage) -> Section:
     return section
 
 
+def _state_map(stage: _Stage) -> Section:
+    """Issue 13: the phase diagram in (gamma_phi, M) of the paper's chain for both rotating models."""
+    from .experiments.diagram import state_diagram
+    from .plots.diagram import diagram_figure
+
+    p, s = stage.params, stage.settings
+    section = Section("The map of static and rotating states against the damping")
+    section.paragraphs.append(
+        "For each value of the rotational damping gamma_phi: the static fold M_c (the onset of rotation under a rising "
+        "load; it does not depend on the damping) and where a falling load stops the stable periodic rotation, and how: "
+        "at a fold of cycles, a period doubling or a torus (a Floquet multiplier leaving the unit circle), at a homoclinic "
+        "orbit, or at a saddle-node on the invariant circle (snic: the loop closes, no hysteresis). Between the two edges "
+        "the chain rests or rotates depending on its history."
+    )
+    rows, numbers = [], {}
+    for model in ROTATING:
+        values = s.diagram_damping.get(model, ())
+        if not values:
+            continue
+        result = state_diagram(p, model, "gamma_phi", list(values))
+        stage.data(f"diagram_{model}", result.to_dataset())
+        numbers[model] = result.as_dict()["rows"]
+        for row in result.rows:
+            rows.append([model, row.value, row.static_fold, row.rotation_stops, row.end, row.hysteresis])
+        section.figures.append(
+            (
+                stage.figure(diagram_figure(result), f"state_diagram_{model}"),
+                f"{model} model: static (blue), static or rotating (hysteresis, orange) and rotating (red) in "
+                "(gamma_phi, M / (E1 h^2)); solid: M_c, dashed: where the rotation stops, labelled with how.",
+            )
+        )
+    section.numbers = numbers
+    stage.data("state_diagram", numbers)
+    section.tables.append(
+        (
+            "Both edges of the hysteresis loop against gamma_phi",
+            ["model", "gamma_phi", "M_c", "rotation stops at", "how", "hysteresis"],
+            rows,
+        )
+    )
+    return section
+
+
 def _rotation(stage: _Stage) -> Section:
     from .experiments.simulation import simulate
     from .plots.chain import animate, snapshot_figure
@@ -876,6 +941,7 @@ STAGES: dict[str, Callable[[_Stage], Section]] = {
     "statics": _statics,
     "long_chains": _long_chains,
     "orbits": _orbits,
+    "state_map": _state_map,
     "rotation": _rotation,
     "localization": _localization,
     "continuum": _continuum,

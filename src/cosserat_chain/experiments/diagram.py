@@ -132,15 +132,16 @@ class StateDiagram:
 
         ds = xr.Dataset(
             {
-                "static_fold": (("value",), column("static_fold"), {"long_name": "M_c, the end of the static branch from rest"}),
+                "static_fold": (("value",), column("static_fold"), {"units": "energy", "long_name": "M_c, the end of the static branch from rest"}),
                 "phi0_at_fold": (("value",), column("phi0_at_fold"), {"units": "rad", "long_name": "phi_0 at the static fold"}),
-                "rotation_stops": (("value",), column("rotation_stops"), {"long_name": "moment at which a falling load stops the rotation"}),
-                "end": (("value",), np.array([row.end for row in self.rows], dtype=str), {"long_name": "how the rotation stops"}),
+                "rotation_stops": (("value",), column("rotation_stops"), {"units": "energy", "long_name": "moment at which a falling load stops the rotation"}),
+                "end": (("value",), np.array([row.end for row in self.rows], dtype=str), {"units": "1", "long_name": "how the rotation stops"}),
                 "hysteresis": (("value",), np.array([-1 if row.hysteresis is None else int(row.hysteresis) for row in self.rows], dtype=np.int8),
-                               {"long_name": "1: open loop (rotation_stops < static_fold), 0: closed, -1: unknown"}),
-                "moment_scale": (("value",), column("moment_scale"), {"long_name": "E1 h^2, the unit of the dimensionless moment M / (E1 h^2)"}),
+                               {"units": "1", "long_name": "1: open loop (rotation_stops < static_fold), 0: closed, -1: unknown"}),
+                "moment_scale": (("value",), column("moment_scale"), {"units": "energy", "long_name": "E1 h^2, the unit of the dimensionless moment M / (E1 h^2)"}),
             },
-            coords={"value": ("value", np.array([row.value for row in self.rows]), {"long_name": self.field})},
+            # The value's units are the varied field's: io.describe reads them from the attribute "parameter".
+            coords={"value": ("value", np.array([row.value for row in self.rows]))},
         )  # fmt: skip
         ds.attrs.update(run_attributes(self.params, get_model(self.model), Loads()))
         ds.attrs.update({"experiment": "state_diagram", "parameter": self.field, "turns": self.turns,
