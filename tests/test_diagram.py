@@ -117,3 +117,72 @@ def test_each_row_reads_its_moments_in_its_own_E1_h2_on_the_json_and_the_plot():
     curve = next(line for line in diagram_figure(diagram).axes[0].lines if line.get_label().startswith("M_c"))
     assert np.allclose(curve.get_ydata(), [r["static_fold_dimensionless"] for r in diagram.as_dict()["rows"]], rtol=1e-15)
     assert "E1 h^2" in diagram_figure(diagram).axes[0].get_ylabel()
+
+
+# --------------------------------------------------------------------------- N = 1: a damped, driven pendulum
+def pendulum_homoclinic(j: float, gamma: float, c: float) -> float:
+    """M_h of j phi'' + gamma phi' + c sin(phi) = M by bisection on the saddle's unstable manifold.
+
+    Independent of the package: from the saddle phi_s = pi - arcsin(M / c), along its
+    unstable direction, the trajectory either reaches the next saddle phi_s + 2 pi (M above
+    M_h: rotation survives) or turns back (below).
+    """
+    from scipy.integrate import solve_ivp
+
+    def rotates(moment: float) -> bool:
+        saddle = np.pi - np.arcsin(moment / c)
+        rate = (-gamma + np.sqrt(gamma**2 - 4 * j * c * np.cos(saddle))) / (2 * j)
+        eps = 1e-9
+
+        def back(t, y):
+            return y[1]
+
+        def over(t, y):
+            return y[0] - saddle - 2 * np.pi
+
+        back.terminal = over.terminal = True
+        back.direction, over.direction = -1, 1
+        run = solve_ivp(
+            lambda t, y: [y[1], (moment - gamma * y[1] - c * np.sin(y[0])) / j],
+            (0.0, 200.0), [saddle + eps, rate * eps], events=(back, over), rtol=1e-12, atol=1e-14,
+        )  # fmt: skip
+        return run.t_events[1].size > 0
+
+    low, high = 0.0, c * (1 - 1e-12)
+    while high - low > 1e-12 * c:
+        middle = 0.5 * (low + high)
+        low, high = (low, middle) if rotates(middle) else (middle, high)
+    return 0.5 * (low + high)
+
+
+@pytest.mark.parametrize("gamma", [0.02, 0.05])
+def test_the_one_particle_sine_chain_stops_rotating_at_the_pendulums_homoclinic_orbit(gamma):
+    """N = 1: the sine model is j phi'' + gamma_phi phi' + M_c sin(phi) = M (u and v decouple). A weakly
+    damped pendulum's rotation ends at a homoclinic orbit, where its period grows only like -log(M - M_h)
+    (T = 4 at M - M_h = 1e-8): found from that growth, not a period cap. Against the bisection above, and
+    against Melnikov's small-damping asymptotics M_h = (4 / pi) gamma sqrt(M_c / j) (1 - k alpha^2),
+    alpha = gamma / sqrt(j M_c), whose first correction k lies near 0.245 (measured)."""
+    params = ChainParams(N=1, gamma_phi=gamma)
+    row = state_diagram(params, "sine", "gamma_phi", [gamma]).rows[0]
+    c = row.static_fold
+    assert row.end == "homoclinic" and row.hysteresis is True
+    assert row.rotation_stops == pytest.approx(pendulum_homoclinic(params.j, gamma, c), rel=2e-4)
+    alpha = gamma / np.sqrt(params.j * c)
+    melnikov = 4 / np.pi * gamma * np.sqrt(c / params.j)
+    assert 0.2 * alpha**2 < 1 - row.rotation_stops / melnikov < 0.3 * alpha**2
+
+
+def test_the_strongly_damped_pendulum_closes_its_loop_at_a_snic():
+    """Above alpha = gamma / sqrt(j M_c) of about 1.19 the pendulum's homoclinic orbit has met the static
+    fold: the rotation ends at M_c with a period diverging like (M - M_c)^(-1/2), no hysteresis."""
+    params = ChainParams(N=1, gamma_phi=0.2)  # alpha = 1.79
+    row = state_diagram(params, "sine", "gamma_phi", [0.2]).rows[0]
+    assert row.end == "snic" and row.hysteresis is False and row.rotation_stops == row.static_fold
+
+
+def test_an_orbit_losing_stability_above_the_static_fold_leaves_the_loop_unknown():
+    """Above M_c no static state exists, so the rotation cannot stop there: the sine chain at
+    gamma_phi = 0.3 period-doubles at 0.2105 > M_c and the row says the loop is not known."""
+    row = state_diagram(ChainParams(), "sine", "gamma_phi", [0.3]).rows[0]
+    assert row.end == "period_doubling" and row.rotation_stops > row.static_fold
+    assert row.hysteresis is None and "not followed" in row.message

@@ -19,7 +19,8 @@ For each value of one field of the chain, :func:`state_diagram` gives
   saddle-node on the invariant circle, no hysteresis), ``not_found`` when no rotating
   orbit was found or the continuation failed (``message`` says why);
 * ``hysteresis``: whether the loop is open, rotation_stops < M_c: between the two edges the
-  particle can rest or rotate;
+  particle can rest or rotate; None (unknown) where the followed orbit loses stability above
+  M_c (no static state exists there: the rotation goes on in a state not followed);
 * ``moment_scale``: E1 h^2 of that row's chain, and both edges divided by it
   (``..._dimensionless``), the paper's dimensionless moment of Fig. 2 (the varied field
   may be E1 or h, so the unit is per row).
@@ -60,6 +61,11 @@ START_FACTOR = 1.1
 SNIC_RTOL = 1e-3
 #: Orbits near a diverging period that the end's extrapolations use.
 TAIL = 6
+#: Orbits of a continuation that crept to a halt that tell a homoclinic approach (:func:`_approach`).
+APPROACH_POINTS = 12
+#: A homoclinic M_h fitted further below the last orbit's M than this (relative) is an
+#: extrapolation too far to report (the weakly damped pendulum's: 1.2e-4 at gamma_phi = 0.01).
+APPROACH_RTOL = 1e-3
 #: Default period beyond which the period counts as diverging (each orbit near it costs an
 #: integration of that length with its monodromy: 300 took 280 s for the sine chain's SNIC).
 PERIOD_MAX = 100.0
@@ -188,7 +194,38 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
         return float(branch.end_moment), "fold_of_cycles", branch.message
     if branch.end == "infinite_period":
         return _diverging(branch.moment[-TAIL:], branch.period[-TAIL:], moment_c)
+    tail = _approach(np.asarray(branch.moment), np.asarray(branch.period)) if branch.end in ("step_too_small", "max_points") else None
+    if tail is not None:
+        # The continuation crawled to a halt with the period still growing: near a homoclinic
+        # orbit T grows only like -log(M - M_h) / lambda (the weakly damped pendulum: T = 4.03
+        # at M - M_h = 1e-8), so no period cap is ever reached; the growth locates M_h.
+        stops, end, message = _diverging(*tail, moment_c)
+        last = abs(float(branch.moment[-1]))
+        # The rotation exists down to the last orbit: M_h lies between the fit and it.
+        if end == "snic" or 0.0 <= last - abs(stops) <= APPROACH_RTOL * last:
+            return stops, end, f"{message}; the continuation stopped by {branch.end} at M = {branch.moment[-1]:.10g}, the bound above M_h"
     return None, "not_found", f"the orbit's continuation ended by {branch.end}: {branch.message}"
+
+
+def _approach(moment: np.ndarray, period: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+    """The branch's last orbits if they approach a limit moment with a growing period, else None.
+
+    Taken: the last APPROACH_POINTS orbits of distinct M. An approach: |M| falls and T
+    rises from each to the next, ever faster against M (|dT/dM| larger over the second
+    half of them than over the first), as -log(M - M_h) does; :func:`_diverging` then fits
+    M_h, which is kept only within APPROACH_RTOL of the last orbit's M below it.
+    """
+    distinct = np.flatnonzero(np.abs(np.diff(moment)) > 1e-14 * np.abs(moment[1:])) + 1
+    keep = distinct[-APPROACH_POINTS:]
+    if keep.size < APPROACH_POINTS:
+        return None
+    m, t = np.abs(moment[keep]), period[keep]
+    half = APPROACH_POINTS // 2
+    slope_first = (t[half - 1] - t[0]) / (m[0] - m[half - 1])
+    slope_last = (t[-1] - t[half]) / (m[half] - m[-1])
+    if not (np.all(np.diff(m) < 0) and np.all(np.diff(t) > 0) and slope_last > slope_first):
+        return None
+    return moment[keep], t
 
 
 def _diverging(moment: np.ndarray, period: np.ndarray, moment_c: float) -> tuple[float, str, str]:
@@ -202,8 +239,11 @@ def _diverging(moment: np.ndarray, period: np.ndarray, moment_c: float) -> tuple
 
     # T^-2 = c (M - M_c) (1 + O(M - M_c)): a quadratic through the last orbits, its root
     # nearest them (a straight line extrapolated to 7e-4 of M_c from periods up to 100).
-    roots = np.roots(np.polyfit(moment, period**-2.0, 2))
-    real = roots[np.abs(roots.imag) <= 1e-12 * np.abs(roots)].real
+    # In M centred on the last orbit and scaled by the spread (a tail that crept to a halt
+    # spans 1e-10: polyfit in M itself would be ill-conditioned).
+    width = float(np.ptp(moment)) or 1.0
+    roots = np.roots(np.polyfit((moment - moment[-1]) / width, period**-2.0, 2))
+    real = roots[np.abs(roots.imag) <= 1e-12 * np.abs(roots)].real * width + moment[-1]
     at = float(real[np.argmin(np.abs(real - moment[-1]))]) if real.size else math.inf
     if abs(at - moment_c) <= SNIC_RTOL * abs(moment_c):
         return float(moment_c), "snic", f"the period diverges like (M - M_c)^(-1/2) at M_c = {moment_c:.6g} (T^-2 extrapolates to {at:.6g})"
@@ -275,6 +315,14 @@ def state_diagram(
         moment_c = float(curve.moment[reached[0]])
         stops, end, message = _lower_edge(chain, model, moment_c, turns, particle, period_max)
         hysteresis = None if stops is None else bool(stops < moment_c * (1.0 - SNIC_RTOL))
+        if stops is not None and stops > moment_c * (1.0 + SNIC_RTOL):
+            # Above M_c no static state exists: the chain rotates on in a state not followed here
+            # (the sine chain at gamma_phi = 0.3: a period doubling at 0.2105 > M_c = 0.2040).
+            hysteresis = None
+            message += (
+                f"; this is above M_c = {moment_c:.6g}, where no static state exists: the rotation goes on in another "
+                "state (not followed), so where it stops and whether the loop is open are not known"
+            )
         diagram.rows.append(
             DiagramRow(float(value), moment_c, float(curve.phi0[reached[0]]), stops, end, hysteresis, message, chain.moment_scale)
         )
