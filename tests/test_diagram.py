@@ -186,3 +186,29 @@ def test_an_orbit_losing_stability_above_the_static_fold_leaves_the_loop_unknown
     row = state_diagram(ChainParams(), "sine", "gamma_phi", [0.3]).rows[0]
     assert row.end == "period_doubling" and row.rotation_stops > row.static_fold
     assert row.hysteresis is None and "not followed" in row.message
+
+
+def test_the_snic_point_extrapolates_the_closing_gap_linearly_in_its_square_root():
+    """Synthetic rows with (M_c - M_h) / M_c = (2 - p)^2 / 16 exactly: the point is p* = 2."""
+    from cosserat_chain.experiments.diagram import DiagramRow, StateDiagram
+
+    def row(p, end):
+        stops = 1.0 - (2.0 - p) ** 2 / 16 if end == "homoclinic" else 1.0
+        return DiagramRow(p, 1.0, 1.0, stops, end, end == "homoclinic")
+
+    diagram = StateDiagram(ChainParams(), "sine", "gamma_phi", 3, [row(1.0, "homoclinic"), row(1.5, "homoclinic"), row(2.5, "snic")])
+    assert diagram.snic_point["value"] == pytest.approx(2.0, rel=1e-12)
+    assert diagram.snic_point["between"] == [1.5, 2.5]
+    diagram.rows[-1] = row(1.8, "snic")  # the extrapolated point would lie beyond the SNIC row
+    assert diagram.snic_point is None
+
+
+@pytest.mark.slow
+def test_the_pendulums_homoclinic_end_meets_the_static_fold_at_the_known_damping():
+    """N = 1: alpha* = gamma_phi / sqrt(j M_c) where the homoclinic end becomes a SNIC, 1.1925 in the
+    literature for phi'' + alpha phi' + sin(phi) = beta."""
+    params = ChainParams(N=1)
+    scale = np.sqrt(params.j * locate_fold(params, "sine").moment)
+    diagram = state_diagram(params, "sine", "gamma_phi", [1.1 * scale, 1.15 * scale, 1.25 * scale])
+    assert [row.end for row in diagram.rows] == ["homoclinic", "homoclinic", "snic"]
+    assert diagram.snic_point["value"] / scale == pytest.approx(1.1925, rel=3e-3)

@@ -80,3 +80,6 @@ def diagram(
         fold = "none" if row.static_fold is None else f"{row.static_fold:.6g}"
         stops = "none" if row.rotation_stops is None else f"{row.rotation_stops:.6g}"
         typer.echo(f"{row.value:>12.6g} {fold:>12} {stops:>12}  {row.end:<16} {row.hysteresis}")
+    if result.snic_point is not None:
+        point = result.snic_point
+        typer.echo(f"the homoclinic end meets M_c (a SNIC from there on) at {vary} = {point['value']:.6g}, between {point['between']}")
