@@ -45,6 +45,7 @@ COMPUTE = {
     "export": "cosserat_chain.exports.export",
     "models": "cosserat_chain.models.base.available_models",
     "diagram": "cosserat_chain.experiments.diagram.state_diagram",
+    "states": "cosserat_chain.experiments.coexisting.states_at",
 }
 
 SPEC = """\
@@ -142,6 +143,14 @@ CASES = [
     _case("diagram-values-garbage", "diagram --vary E2 --values 1,,x", "--values"),
     _case("diagram-vary-unknown", "diagram --vary E3 --values 1", "E3", "field must be one of"),
     _case("diagram-values-nan", "diagram --vary E2 --values nan", "finite"),
+    _case("states-moment-nan", "states --moment nan", "--moment", "finite"),
+    _case("states-random-starts-negative", "states --moment 0.22 --random-starts -1", "--random-starts", "-1"),
+    _case("states-turns-zero", "states --moment 0.22 --turns 0", "--turns"),
+    _case("states-particle-outside", "states --moment 0.22 --particle 9", "--particle", "9", early=False),
+    _case("states-config-missing", "states --moment 0.22 --config {tmp}/none.toml", "none.toml"),
+    _case("simulate-checkpoint-exists", f"simulate {FAST} --checkpoint {{garbage_nc}}", "{garbage_nc}", "--resume", "--force"),
+    _case("simulate-resume-and-force", f"simulate {FAST} --out {{new_nc}} --resume --force", "--resume", "--force"),
+    _case("simulate-checkpoint-is-config", f"simulate {FAST} --config {{config}} --checkpoint {{config}}", "--checkpoint", "--config"),
     _case("simulate-frames-0", f"simulate {FAST} --frames 0", "--frames"),
     _case("simulate-frames-negative", f"simulate {FAST} --frames -5", "--frames"),
     _case("simulate-frames-huge", f"simulate {FAST} --frames 1000000000000", "--frames", early=False),
