@@ -188,19 +188,6 @@ def test_pinned_free_sine_chain_turns_its_loaded_particle_at_m_over_gamma():
     assert np.all(x[:, :2, 0] == 0.0)
 
 
-@pytest.mark.slow
-def test_pinned_free_nonlinear_chain_spins_as_a_whole():
-    # The nonlinear chain turns rigidly about its pin: every angle winds once a period.
-    params = ChainParams(left_end="pinned", right_end="free")
-    o = find_periodic_orbit(params, "nonlinear", 0.3)
-    assert o.closure <= CLOSURE_TOL and o.stable
-    assert list(o.particle_turns) == [1] * params.n_particles
-    run = integrate(
-        params, "nonlinear", moment_load(0.3), t_end=60 * o.period, method="yoshida4", n_frames=2, turns=TurnWatch(0, 1.0, keep=2)
-    )
-    assert (run.turns.times[-1] - run.turns.times[0]) / o.period == pytest.approx(1.0, rel=PERIOD_RTOL)
-
-
 def test_a_ring_is_refused_naming_why():
     with pytest.raises(ValueError, match="needs an open chain .* got a ring: .* not block tridiagonal"):
         find_periodic_orbit(ChainParams(periodic=True), "sine", 0.3)
