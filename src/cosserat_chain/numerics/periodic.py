@@ -12,7 +12,10 @@ coordinate and every velocity has returned,
 
 where y = (q, q') holds the free degrees of freedom and their velocities (ordering
 of :mod:`cosserat_chain.state`) and Phi_t is the flow of the damped equations of
-motion (1)-(3) under a constant moment M on the loaded particle.
+motion (1)-(3) under a constant moment M on the loaded particle. Any open chain held
+against translation works (clamped, pinned and free ends, not two free ones, not a
+ring): other angles may wind too (a cantilever's free arm, a chain spinning about its
+pin), and (P) then shifts each by 2 pi times its turns (:attr:`PeriodicOrbit.particle_turns`).
 
 * :func:`find_periodic_orbit` solves (P) by Newton's method on the shooting map.
   The unknowns are the state on the Poincare section phi_0 = 0 (phi_0 is fixed,
