@@ -197,7 +197,7 @@ class Model(ABC):
         Gershgorin bound on the spectral radius.
         A model with a closed-form bound independent of N overrides this.
 
-        The bound is kept per model class and chain (the 64 latest): a chain of 10^4
+        The bound is kept per model and chain (the 64 latest): a chain of 10^4
         particles takes some 30 banded factorisations, 70 ms, which repeated runs of the
         same chain (a benchmark, a sweep of loads) would otherwise pay every time.
 
@@ -206,7 +206,7 @@ class Model(ABC):
         float
             omega_max = sqrt(lambda_max) in 1/time units (0 if no eigenvalue is positive).
         """
-        return _generic_max_frequency(type(self), params)
+        return _cached_max_frequency(self, params)
 
     def _generic_max_frequency(self, params: ChainParams) -> float:
         """The computation of :meth:`max_frequency` (uncached)."""
@@ -460,6 +460,6 @@ def assemble_bond_blocks(blocks: np.ndarray, params: ChainParams, diagonal: np.n
 
 
 @lru_cache(maxsize=64)
-def _generic_max_frequency(kind: type[Model], params: ChainParams) -> float:
-    """:meth:`Model.max_frequency` cached by model class and (hashable, frozen) parameters."""
-    return kind._generic_max_frequency(kind(), params)
+def _cached_max_frequency(model: Model, params: ChainParams) -> float:
+    """:meth:`Model.max_frequency` cached by model (the registry's instance) and (hashable, frozen) parameters."""
+    return model._generic_max_frequency(params)
