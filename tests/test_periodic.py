@@ -214,3 +214,15 @@ def test_the_rotation_characteristic_is_drawn_against_the_dimensionless_moment()
     assert orbit_line.get_xdata()[0] == pytest.approx(1.2 * fold / 4.5, rel=1e-12)
     fold_line = next(line for line in ax.lines if "static fold" in str(line.get_label()))
     assert fold_line.get_xdata()[0] == pytest.approx(fold / 4.5, rel=1e-12)
+
+
+def test_orbit_without_turns_takes_the_first_stable_of_one_two_and_three_turns():
+    """The paper's sine chain at M = 0.3 has no 1-turn orbit (Newton diverges) but a stable 3-turn one."""
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    result = CliRunner().invoke(app, ["orbit", "--model", "sine", "--moment", "0.3", "--json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    assert data["turns"] == 3 and data["stable"] is True

@@ -26,7 +26,11 @@ from .common import (
 def orbit(
     model: str = model_option("sine", "A model that supports full rotations (the linear model does not).", rotating=True),
     moment: float = number(..., "Moment M on the loaded particle (above M_c, or near an orbit)."),
-    turns: int = typer.Option(1, min=1, help="Turns of the loaded particle per period (2 or 3 for some states)."),
+    turns: int | None = typer.Option(
+        None,
+        min=1,
+        help="Turns of the loaded particle per period (default: the first of 1, 2, 3 whose orbit is stable, else the first found).",
+    ),
     particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
     down_to: float | None = number(None, "Continue the orbit down in M to here, reporting where it ceases to exist.", flags=("--down-to",)),
     period_max: float = number(2000.0, "Continuation: a period beyond this counts as diverging.", above=0.0, flags=("--period-max",)),
@@ -45,6 +49,8 @@ def orbit(
     params = params_or_exit(config)
     bar = progress_bar(f"orbit {model}", "orbit")
     try:
+        if turns is None:
+            turns = _turns_to_follow(params, model, moment, particle)
         result = periodic_orbit(
             params, model, moment, turns=turns, particle=particle, down_to=down_to, period_max=period_max, progress=bar_callback(bar)
         )
@@ -78,3 +84,31 @@ def orbit(
         if b.stability_lost_at is not None:
             typer.echo(f"the orbit loses stability at M = {b.stability_lost_at:.6g}")
     typer.echo(f"static fold M_c = {result.static_fold:.15g}")
+
+
+#: The turns per period tried when --turns is not given (states of the paper's chain repeat after up to 3).
+AUTO_TURNS = (1, 2, 3)
+
+
+def _turns_to_follow(params, model: str, moment: float, particle: int) -> int:
+    """The first of :data:`AUTO_TURNS` whose orbit is stable, else the first with an orbit.
+
+    Raises the last :class:`~cosserat_chain.numerics.periodic.OrbitError` when none converges
+    (its message suggests what to try).
+    """
+    from ..experiments.orbits import periodic_orbit
+    from ..numerics.periodic import OrbitError
+
+    found, error = None, None
+    for k in AUTO_TURNS:
+        try:
+            orbit = periodic_orbit(params, model, moment, turns=k, particle=particle).orbit
+        except OrbitError as err:
+            error = err
+            continue
+        if orbit.stable:
+            return k
+        found = k if found is None else found
+    if found is None:
+        raise error
+    return found
