@@ -428,9 +428,10 @@ def test_statics_figures_plot_the_dimensionless_moment_M_over_E1_h2():
 
 def test_a_continuation_point_assembles_the_stiffness_once_per_solve_and_counts_the_index_only_when_unstable(monkeypatch):
     # The O(N) cost of a point is a fixed number of banded passes: one assembly of K per
-    # corrector iteration and per converged point (whose stability reuses it), one bordered
-    # solve each, and the inertia count at zero only where the smallest eigenvalue is not
-    # certified positive (its own factor otherwise comes free with the eigenvalue).
+    # converged point (whose tangent and stability reuse it) and per Newton iteration that
+    # factors anew, one banded factor each (the chord iterations reuse the last one), and
+    # the inertia count at zero only where the smallest eigenvalue is not certified
+    # positive (its own factor otherwise comes free with the eigenvalue).
     from cosserat_chain.models.base import Model
     from cosserat_chain.models.nonlinear import NonlinearModel
     from cosserat_chain.numerics import continuation, stability
@@ -446,7 +447,7 @@ def test_a_continuation_point_assembles_the_stiffness_once_per_solve_and_counts_
 
     monkeypatch.setattr(NonlinearModel, "stiffness", counted("stiffness", NonlinearModel.stiffness))
     monkeypatch.setattr(Model, "symmetric_similar", counted("similar", Model.symmetric_similar))
-    monkeypatch.setattr(continuation, "bordered_solve", counted("solve", continuation.bordered_solve))
+    monkeypatch.setattr(continuation, "BorderedFactor", counted("solve", continuation.BorderedFactor))
     monkeypatch.setattr(stability, "negative_count", counted("count", stability.negative_count))
     model = get_model("nonlinear")
     for params in (ChainParams(N=10), ChainParams(N=100)):
@@ -456,5 +457,8 @@ def test_a_continuation_point_assembles_the_stiffness_once_per_solve_and_counts_
         # The rest state's stability assembles its own (no corrector ran there); nothing else does.
         assert calls["similar"] == 1 and calls["stiffness"] <= calls["solve"] + 1
         assert calls["solve"] <= 8 * points  # a few Newton iterations and the tangent a point
-        assert calls["count"] <= np.count_nonzero(~branch.stable) + 2
+        assert calls["stiffness"] <= 3 * points  # the chord iterations assemble nothing
+        # Unstable states only: the traced ones, and the ends of steps from a stable point
+        # across the fold, retaken shorter (halved down to refine_step, 2e-4: some 12 times).
+        assert calls["count"] <= np.count_nonzero(~branch.stable) + 2 + 12
         assert branch.folds and branch.folds[0].maximum

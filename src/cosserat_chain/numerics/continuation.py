@@ -39,8 +39,9 @@ from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, column, n_free, pack, unpack, zeros
 from .newton import (
+    BorderedFactor,
     NewtonError,
-    bordered_solve,
+    infinity_norm,
     moment_dof,
     rotation_controlled_jacobian,
     round_off_floor,
@@ -67,6 +68,13 @@ PHI0_STEP = 0.1
 MAX_TURN = 0.2
 #: A corrector that moves further than this fraction of the state's size (and than the step) jumped.
 JUMP = 0.1
+#: Most iterations of a continuation step's corrector that reuses factors of the Jacobian (then full Newton takes over).
+CHORD_ITERATIONS = 16
+#: That corrector factors the Jacobian anew at an iterate whose residual shrank by less than this.
+CHORD_CONTRACTION = 0.25
+#: A fold's or branch point's corrector whose residual stops falling within this many times the
+#: round-off floor (:func:`~.newton.round_off_floor`, an estimate) has converged to round-off.
+STALL = 100.0
 #: Halvings of the distance to the nearest solved angle before a fold search gives up.
 MAX_HALVINGS = 12
 #: Callback ``progress(done, total)`` used by the long-running functions.
@@ -384,8 +392,9 @@ def continue_in_moment(
         ``max_step`` to :data:`MAX_STEP_FACTOR` times that. A step is retaken shorter
         when the loaded particle turns by more than :data:`PHI0_STEP`, the tangent by
         more than :data:`MAX_TURN`, or a positive critical eigenvalue (above its
-        round-off) falls below half its previous value, and lengthened by 1.3 where both stay below half
-        of these and the corrector converges in two iterations: the points follow the
+        round-off) falls below half its previous value or through zero, and lengthened by
+        1.3 where both stay below half of these and the corrector factors the Jacobian at
+        most once (:data:`CHORD_CONTRACTION`; full Newton: two iterations): the points follow the
         curvature of the branch, not its length (the sine model's branch at N = 100 is
         long in (q, M) and straight).
     max_points : int
@@ -420,18 +429,21 @@ def continue_in_moment(
 
     Notes
     -----
-    Cost: every point is a fixed number of O(N) banded passes, one assembly of K and one
-    bordered solve per corrector iteration (two or three) and per tangent. The stability
-    of a point of a conservative model takes the K its corrector assembled at the
-    converged state (``static_stability(similar=...)``) instead of assembling it again,
-    and pays the inertia count at zero only where the smallest eigenvalue is not
-    certified positive; the round-off floor's norm of K is one compiled pass. Together
-    with the compiled assembly (:func:`~cosserat_chain.models.base.assemble_bond_blocks`)
-    this took the full turn of N = 1000 (2581 points, 40 folds) from 38 s to about 24 s
-    of CPU on one core (``benchmarks/bench_critical.py --scaling``). What is left is
-    about a third each: the bordered solves (0.6 ms each at N = 1000), the Hessian blocks
-    with their scatter (0.4 ms), and the certified smallest eigenvalue (1.7 ms a point).
-    The number of points grows with the folds of the branch, not with N itself.
+    Cost: every point is a fixed number of O(N) banded passes. The tangent at a point is
+    solved with a banded factor of K there (:class:`~.newton.BorderedFactor`), and the
+    next step's corrector iterates with that factor (chord iterations: a residual and an
+    O(N w) solve each) while each shrinks the residual by :data:`CHORD_CONTRACTION`,
+    assembling and factoring K anew only where it does not: 3.4 assemblies and factors a
+    point at N = 1000 (the searches for the 40 folds and 20 branch points and the retaken
+    steps included), against 4.7 with full Newton in every corrector. The
+    stability of a point of a conservative model takes the K assembled at the converged
+    state (``static_stability(similar=...)``), starts its inverse iteration from the
+    previous point's eigenvector, and pays the inertia count at zero only where the
+    smallest eigenvalue is not certified positive. The full turn of N = 1000 (40 folds)
+    took 34 s, then 22 s, now about 14 s of CPU on one core (``benchmarks/bench_critical.py
+    --scaling``). The folds and branch points are located with full Newton (the bordered
+    Jacobian is singular at a branch point, where a full step is halved while it raises
+    the residual). The number of points grows with the folds of the branch, not with N itself.
     """
     default = STEP * math.sqrt(n_free(params) / 15)
     step = default if step is None else step
@@ -454,18 +466,23 @@ def continue_in_moment(
     def stiffness(y: np.ndarray) -> sp.csr_matrix:
         return model.stiffness(params, unpack(params, y[:-1]))
 
-    def new_tangent(y: np.ndarray, previous: np.ndarray, k: sp.csr_matrix | None = None) -> np.ndarray:
+    def new_tangent(y: np.ndarray, previous: np.ndarray, k: sp.csr_matrix | None = None) -> tuple[np.ndarray, BorderedFactor]:
+        """The unit tangent at y oriented along ``previous``, and the factor of K(y) that solved for it."""
         rhs = np.zeros(nf + 1)
         rhs[-1] = 1.0
-        t = bordered_solve(stiffness(y) if k is None else k, dof, previous, rhs)
-        return t / np.linalg.norm(t)
+        factor = BorderedFactor(stiffness(y) if k is None else k, dof)
+        t = factor.solve(previous, rhs)
+        return t / np.linalg.norm(t), factor
 
     # A conservative model's symmetric matrix is its stiffness (Model.symmetric_similar):
     # the stability of a point then reuses the stiffness its corrector assembled.
     reuse_stiffness = model.conservative and type(model).symmetric_similar is Model.symmetric_similar
 
+    # Inverse iteration at a point starts from the previous point's lowest eigenvector.
+    eigenvector = np.zeros(nf)
+
     def stability(x: np.ndarray, k: sp.csr_matrix | None, guess: float | None = None):
-        return static_stability(params, model, x, guess=guess, similar=k if reuse_stiffness else None)
+        return static_stability(params, model, x, guess=guess, similar=k if reuse_stiffness else None, start=eigenvector)
 
     def correct(
         y: np.ndarray, tangent: np.ndarray, ds: float, tol: float, max_iter: int = 8
@@ -474,10 +491,18 @@ def continue_in_moment(
         and stiffness (None: no convergence)."""
         predicted = y + ds * tangent
         z = predicted.copy()
+        previous = math.inf
         for iterations in range(max_iter):
             r = np.append(residual(z), tangent @ (z - predicted))
             k = stiffness(z)
-            if np.max(np.abs(r)) <= max(tol * (1.0 + abs(z[-1])), round_off_floor(k, z[:-1])):
+            floor = round_off_floor(k, z[:-1])
+            size = np.max(np.abs(r))
+            # Locating a fold or a branch point (more iterations than a step), a residual
+            # that no longer falls within STALL times the floor is the round-off itself (one
+            # random chain's branch point stalled at four, another at twelve times the floor).
+            stalled = max_iter > 8 and size <= STALL * floor and size > 0.5 * previous
+            previous = size
+            if size <= max(tol * (1.0 + abs(z[-1])), floor) or stalled:
                 # Newton on the plane normal to the tangent can converge to a far part of
                 # the branch (or another branch) that crosses the plane: a jump, not a step
                 # (one N = 4 chain jumped by 1.6, its state's size, with steps of 0.01).
@@ -488,7 +513,54 @@ def continue_in_moment(
                 if np.linalg.norm(z - predicted) > max(abs(ds), JUMP * (1.0 + np.linalg.norm(y))):
                     return None
                 return z, iterations, k
-            z = z - bordered_solve(k, dof, tangent, r)
+            update = BorderedFactor(k, dof).solve(tangent, r)
+            if max_iter > 8:
+                # Locating a fold or branch point (more iterations than a step): the bordered
+                # Jacobian is nearly singular there, and a full Newton step from a point
+                # already close can throw the iterate off the branch (a cantilever's branch
+                # point, N = 3: from a residual of 1e-10 to 2e-3, then a jump). Halve the
+                # step while it raises the residual above where it was and above STALL times
+                # the round-off floor (near the floor the residual is noise).
+                bound = max(size, STALL * floor)
+                for _ in range(MAX_HALVINGS * 4):
+                    trial = z - update
+                    if np.max(np.abs(np.append(residual(trial), tangent @ (trial - predicted)))) <= bound:
+                        break
+                    update = 0.5 * update
+            z = z - update
+            if not np.all(np.isfinite(z)):
+                return None
+        return None
+
+    def correct_chord(
+        y: np.ndarray, tangent: np.ndarray, ds: float, tol: float, factor: BorderedFactor, norm: float
+    ) -> tuple[np.ndarray, int, sp.csr_matrix] | None:
+        """:func:`correct` reusing a factor of the Jacobian while it contracts (``factor`` at y, ``norm`` its ||K||_inf).
+
+        Newton with the Jacobian kept (a chord iteration: one residual and one O(n w) solve
+        instead of an assembly of K and an O(n w^2) elimination) while each iteration
+        shrinks the residual by :data:`CHORD_CONTRACTION` at least, and factored anew at
+        the iterate otherwise (a long chain's soft modes make the chord contract slowly).
+        Returns as :func:`correct`, the iterations counting the factors (one per full Newton
+        iteration). The round-off floor takes K's norm at the last factor.
+        """
+        predicted = y + ds * tangent
+        z = predicted.copy()
+        previous = math.inf
+        factors = 0
+        for _ in range(CHORD_ITERATIONS):
+            r = np.append(residual(z), tangent @ (z - predicted))
+            size = np.max(np.abs(r))
+            if size <= max(tol * (1.0 + abs(z[-1])), round_off_floor(None, z[:-1], norm=norm)):
+                if np.linalg.norm(z - predicted) > max(abs(ds), JUMP * (1.0 + np.linalg.norm(y))):
+                    return None  # a jump (see correct)
+                return z, factors, stiffness(z)
+            if not size < CHORD_CONTRACTION * previous:
+                k = stiffness(z)
+                factor, norm = BorderedFactor(k, dof), infinity_norm(k)
+                factors += 1
+            previous = size
+            z = z - factor.solve(tangent, r, refine=0)
             if not np.all(np.isfinite(z)):
                 return None
         return None
@@ -517,7 +589,7 @@ def continue_in_moment(
                 )
             point, _, k = found
             cache[s] = point
-            return new_tangent(point, tangent, k)[-1]
+            return new_tangent(point, tangent, k)[0][-1]
 
         cache: dict[float, np.ndarray] = {}
         s_fold = so.brentq(slope, 0.0, ds, xtol=1e-15 * max(1.0, ds), rtol=4 * np.finfo(float).eps)
@@ -560,7 +632,8 @@ def continue_in_moment(
         phi0 = float(x[ROW_INDEX["phi"], column(params, particle)])
         return BranchPoint(float(point[-1]), phi0, x, particle, before, after, len(moments) - 1)
 
-    tangent = new_tangent(y, tangent)
+    tangent, factor = new_tangent(y, tangent)
+    norm = infinity_norm(factor.stiffness)
     moments, states, folds, branch_points = [0.0], [zeros(params)], [], []
     checks = [stability(states[0], None)]
     index = checks[0].index
@@ -570,7 +643,10 @@ def continue_in_moment(
     stop, message = "max_points", ""
     previous_moment = 0.0
     while len(moments) < max_points:
-        found = correct(y, tangent, ds, tol)
+        found = correct_chord(y, tangent, ds, tol, factor, norm)
+        chord = found is not None
+        if found is None:
+            found = correct(y, tangent, ds, tol)
         if found is None:
             ds /= 2
             if ds < min_step:
@@ -587,15 +663,15 @@ def continue_in_moment(
         z, iterations, k = found
         x = unpack(params, z[:-1])
         turned = abs(x[ROW_INDEX["phi"], col] - y_phi0)
-        next_tangent = new_tangent(z, tangent, k)
+        next_tangent, next_factor = new_tangent(z, tangent, k)
         turn = math.acos(min(1.0, abs(float(next_tangent @ tangent))))
         if (turned > PHI0_STEP or turn > MAX_TURN) and ds > min_step:
             ds = max(min_step, ds / 2)
             continue
         check = stability(x, k, checks[-1].critical_eigenvalue)
-        falling = 0.0 < check.critical_eigenvalue < 0.5 * checks[-1].critical_eigenvalue
+        falling = check.critical_eigenvalue < 0.5 * checks[-1].critical_eigenvalue
         if falling and checks[-1].critical_eigenvalue > 100.0 * check.resolution and ds > refine_step:
-            # A positive critical eigenvalue falling fast: a fold ahead, or a pair of folds
+            # A positive critical eigenvalue falling fast (or through zero): a fold ahead, or a pair of folds
             # (a small maximum and minimum of M) that a longer step passes with no change
             # of the index. Approach it in shorter steps (N = 10, a = 0.3, b = 0.1,
             # E1 = 2, E2 = 0.3 has such a pair within 0.015 rad of phi_0 near 1.0). An
@@ -613,18 +689,19 @@ def continue_in_moment(
             resume = max(resume, ds)
             ds = max(refine_step, ds / 8)
             continue
+        taken = ds  # the step from y to z (the step below may resume a longer one)
         if now_index != index and resume > 0.0:
             ds, resume = resume, 0.0
         if turns_back:
             # M turned between the two points: a fold, located along the arc.
-            folds.append(fold_between(y, tangent, ds))
+            folds.append(fold_between(y, tangent, taken))
         elif now_index != index and (model.conservative or (now_index - index) % 2):
             # Eigenvalues of K through zero at the shortest step without a turn of M: K
             # singular off a fold, a branch point. (A non-symmetric K's complex pair
             # crossing changes the count by two and leaves K regular.)
-            branch_points.append(branch_point_between(y, tangent, ds, index, now_index))
+            branch_points.append(branch_point_between(y, tangent, taken, index, now_index))
         index = now_index
-        tangent = next_tangent
+        tangent, factor, norm = next_tangent, next_factor, infinity_norm(k)
         previous_moment = y[-1]
         y = z
         y_phi0 = x[ROW_INDEX["phi"], col]
@@ -646,7 +723,8 @@ def continue_in_moment(
             stop = "max_folds"
         if stop != "max_points":
             break
-        if iterations <= 2 and turned < PHI0_STEP / 2 and turn < MAX_TURN / 2:
+        # A step grows where its corrector needed at most one new factor (full Newton: two iterations).
+        if iterations <= (1 if chord else 2) and turned < PHI0_STEP / 2 and turn < MAX_TURN / 2:
             ds = min(max_step, 1.3 * ds)
     branch = _assemble_branch(params, model, particle, moments, states, folds, checks, stop)
     branch.message = message

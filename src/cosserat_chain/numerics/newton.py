@@ -47,7 +47,7 @@ DIVERGED = 1e6
 ROUND_OFF_FACTOR = 1.0
 
 
-def round_off_floor(stiffness: sp.spmatrix, x: np.ndarray) -> float:
+def round_off_floor(stiffness: sp.spmatrix | None, x: np.ndarray, *, norm: float | None = None) -> float:
     """The smallest residual max |F + L| that can be asked of a state x: eps ||K||_inf max(1, |x|_inf) (2N+1).
 
     ``x`` is a state (3, 2N+1) or its free degrees of freedom packed (3 (2N-1),).
@@ -55,9 +55,10 @@ def round_off_floor(stiffness: sp.spmatrix, x: np.ndarray) -> float:
     The forces of a chain are evaluated to about eps times the stiffness times the
     size of the state per particle, and the residual's round-off grows about linearly
     with the number of particles (measured: 2e-14 at N = 20, 1.3e-12 at N = 1000 on the
-    paper's chain); this bound lies 5-10 times above those.
+    paper's chain); this bound lies 5-10 times above those. ``norm``: ||K||_inf if known
+    (``stiffness`` is then not read).
     """
-    norm = infinity_norm(stiffness)
+    norm = infinity_norm(stiffness) if norm is None else norm
     return ROUND_OFF_FACTOR * np.finfo(float).eps * norm * max(1.0, float(np.max(np.abs(x)))) * (x.size / 3 + 2)
 
 
@@ -171,13 +172,14 @@ def bordered_jacobian(stiffness: sp.spmatrix, dof: int, row: np.ndarray) -> sp.c
 
 
 @njit(cache=True, nogil=True)
-def _bordered_banded_solve(indptr, indices, data, dof, row, rhs, refine):  # pragma: no cover - compiled
-    """Solve [[-K, e_dof], [row^T]] x = rhs for a banded K given as CSR; None on a zero pivot.
+def _band_factor(indptr, indices, data):  # pragma: no cover - compiled
+    """LU without pivoting of -K for a banded K given as CSR, on band storage; (band, original, ok).
 
-    Gaussian elimination without pivoting, like SuperLU in the natural order with
-    diagonal pivots (:func:`sparse_solve`), but on band storage: the fill stays in the
-    band, in the last column and in the last row, O(n w^2) with w K's half-bandwidth.
-    ``refine`` steps of iterative refinement with the same factor follow.
+    ``band[i, j - i + w]`` holds U on and above the diagonal and L's multipliers below
+    it, ``original`` -K as given (for refinement); ``ok`` is False on a zero pivot.
+    Gaussian elimination in the natural order with diagonal pivots, like SuperLU with
+    ``diag_pivot_thresh=0`` (:func:`sparse_solve`): the fill stays in the band,
+    O(n w^2) with w K's half-bandwidth.
     """
     n = indptr.size - 1
     width = 0
@@ -189,14 +191,10 @@ def _bordered_banded_solve(indptr, indices, data, dof, row, rhs, refine):  # pra
         for p in range(indptr[i], indptr[i + 1]):
             band[i, indices[p] - i + width] = -data[p]
     original = band.copy()
-    last_column = np.zeros(n)
-    last_column[dof] = 1.0
-    last_row = row[:n].copy()
-    corner = row[n]
     for j in range(n):
         pivot = band[j, width]
         if pivot == 0.0:
-            return None
+            return band, original, False
         top = min(n, j + width + 1)
         for i in range(j + 1, top):
             factor = band[i, j - i + width] / pivot
@@ -204,14 +202,51 @@ def _bordered_banded_solve(indptr, indices, data, dof, row, rhs, refine):  # pra
             if factor != 0.0:
                 for k in range(j + 1, top):
                     band[i, k - i + width] -= factor * band[j, k - j + width]
+    return band, original, True
+
+
+@njit(cache=True, nogil=True)
+def _band_column(band, dof):  # pragma: no cover - compiled
+    """L^-1 e_dof with -K's band LU (:func:`_band_factor`): the eliminated last column of the bordered matrix."""
+    n = band.shape[0]
+    width = (band.shape[1] - 1) // 2
+    last_column = np.zeros(n)
+    last_column[dof] = 1.0
+    for j in range(n):
+        for i in range(j + 1, min(n, j + width + 1)):
+            factor = band[i, j - i + width]
+            if factor != 0.0:
                 last_column[i] -= factor * last_column[j]
-        factor = last_row[j] / pivot
+    return last_column
+
+
+@njit(cache=True, nogil=True)
+def _band_row(band, last_column, row):  # pragma: no cover - compiled
+    """The eliminated last row (U^T l = row) and corner (row[n] - l . L^-1 e_dof) of the bordered matrix."""
+    n = band.shape[0]
+    width = (band.shape[1] - 1) // 2
+    last_row = row[:n].copy()
+    corner = row[n]
+    for j in range(n):
+        factor = last_row[j] / band[j, width]
         last_row[j] = factor
-        for k in range(j + 1, top):
+        for k in range(j + 1, min(n, j + width + 1)):
             last_row[k] -= factor * band[j, k - j + width]
         corner -= factor * last_column[j]
-    if corner == 0.0:
-        return None
+    return last_row, corner
+
+
+@njit(cache=True, nogil=True)
+def _band_border_solve(band, original, last_column, last_row, corner, dof, row, rhs, refine):  # pragma: no cover - compiled
+    """Solve [[-K, e_dof], [row^T]] x = rhs with -K's band LU (:func:`_band_factor`) and its border.
+
+    The border (:func:`_band_column`, :func:`_band_row`) costs O(n w) on top of the
+    factor; together they are the elimination of the whole bordered matrix without
+    pivoting, in the same order of operations. ``refine`` steps of iterative
+    refinement with the same factor follow.
+    """
+    n = band.shape[0]
+    width = (band.shape[1] - 1) // 2
     solution = np.zeros(n + 1)
     residual = rhs.copy()
     for sweep in range(refine + 1):
@@ -242,22 +277,53 @@ def _bordered_banded_solve(indptr, indices, data, dof, row, rhs, refine):  # pra
     return solution
 
 
+class BorderedFactor:
+    """The factor of -K for solving [[-K, e_dof], [row^T]] x = rhs with any border row, O(N) a solve.
+
+    The O(n w^2) elimination of the band is done once (:func:`_band_factor`); each
+    :meth:`solve` adds its row's border in O(n w) (:func:`_band_border_solve`), one step
+    of refinement, and falls back to :func:`sparse_solve` of :func:`bordered_jacobian`
+    at a zero pivot or a non-finite result. The continuation's tangent at a point and
+    the chord corrector of the next step share one factor this way.
+    """
+
+    def __init__(self, stiffness: sp.spmatrix, dof: int):
+        k = stiffness if sp.issparse(stiffness) and stiffness.format == "csr" else sp.csr_matrix(stiffness)
+        self.stiffness, self.dof = k, dof
+        # The CSR arrays go in as they are (int32 indices compile their own specialisation).
+        self._band, self._original, self._ok = _band_factor(k.indptr, k.indices, np.asarray(k.data, dtype=float))
+        self._column = _band_column(self._band, dof) if self._ok else None
+        self._row: tuple[np.ndarray, np.ndarray, float] | None = None  # the last border row and its elimination
+
+    def solve(self, row: np.ndarray, rhs: np.ndarray, *, refine: int = 1) -> np.ndarray:
+        """x with [[-K, e_dof], [row^T]] x = rhs; ``row`` and ``rhs`` of length n_free + 1.
+
+        ``refine``: steps of iterative refinement (a chord corrector's inexact steps need none).
+        The last row's elimination is kept for the next solve with the same row.
+        """
+        out = None
+        row = np.asarray(row, float)
+        if self._ok:
+            if self._row is None or not (self._row[0] is row or np.array_equal(self._row[0], row)):
+                self._row = (row.copy(), *_band_row(self._band, self._column, row))
+            _, last_row, corner = self._row
+            if corner != 0.0:
+                out = _band_border_solve(
+                    self._band, self._original, self._column, last_row, corner, self.dof, row, np.asarray(rhs, float), refine
+                )
+        if out is None or not np.all(np.isfinite(out)):
+            return sparse_solve(bordered_jacobian(self.stiffness, self.dof, row), rhs)
+        return out
+
+
 def bordered_solve(stiffness: sp.spmatrix, dof: int, row: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """Solve the pseudo-arclength system [[-K, e_dof], [row^T]] x = rhs in O(N).
 
-    Compiled banded elimination with one step of refinement (:func:`_bordered_banded_solve`:
+    Compiled banded elimination with one step of refinement (:class:`BorderedFactor`:
     0.6 ms at N = 1000 against 6.9 ms for SuperLU on the same elimination); a zero pivot or
     a non-finite result falls back to :func:`sparse_solve` of :func:`bordered_jacobian`.
     """
-    k = stiffness if sp.issparse(stiffness) and stiffness.format == "csr" else sp.csr_matrix(stiffness)
-    # The CSR arrays go in as they are (int32 indices compile their own specialisation),
-    # without int64 copies: a turn of a long chain runs some 12000 of these solves.
-    out = _bordered_banded_solve(
-        k.indptr, k.indices, np.asarray(k.data, dtype=float), dof, np.asarray(row, float), np.asarray(rhs, float), 1
-    )
-    if out is None or not np.all(np.isfinite(out)):
-        return sparse_solve(bordered_jacobian(stiffness, dof, row), rhs)
-    return out
+    return BorderedFactor(stiffness, dof).solve(row, rhs)
 
 
 def sparse_solve(matrix: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:

@@ -111,6 +111,7 @@ def static_stability(
     dense: bool = False,
     guess: float | None = None,
     similar: sp.spmatrix | None = None,
+    start: np.ndarray | None = None,
 ) -> Stability:
     """Stability of the static state ``x`` (3, 2N+1) of ``model`` (see the module docstring).
 
@@ -125,6 +126,13 @@ def static_stability(
     assembles at every point anyway: a second assembly was a fifth of the cost of a
     point at N = 1000); it changes the cost, not the result. Ignored with ``dense``
     and for a ring.
+
+    ``start``: a work vector of length n_free where inverse iteration starts and which
+    it leaves holding its last iterate, the approximate lowest eigenvector (a
+    continuation passes the same one from point to point: the previous point's
+    eigenvector is a close start, and a point took about a third of the factors it took
+    from a fixed random vector at N = 1000); it changes the cost, not the result
+    beyond the round-off of the certified eigenvalue. Ignored on the dense path.
 
     The index costs no factor of its own where the smallest eigenvalue is certified
     positive above its round-off (the certificate is a factor at a shift below it with
@@ -141,7 +149,7 @@ def static_stability(
     if similar is not None:
         lower = _lower_rows(similar)
         resolution = _resolution(similar)
-        critical, bound = _smallest_eigenvalue(lower, resolution / BISECTION_RTOL, guess)
+        critical, bound = _smallest_eigenvalue(lower, resolution / BISECTION_RTOL, guess, start)
         index = 0 if bound > resolution else negative_count(lower, 0.0)
         return Stability(index == 0 and critical > 0.0, critical, math.nan, index, resolution)
     k = model.stiffness(params, x).toarray()
@@ -308,13 +316,26 @@ def _start_vector(n: int) -> np.ndarray:
     return vector
 
 
-def _smallest_eigenvalue(lower: np.ndarray, radius: float, guess: float | None = None) -> tuple[float, float]:
+def _smallest_eigenvalue(
+    lower: np.ndarray, radius: float, guess: float | None = None, start: np.ndarray | None = None
+) -> tuple[float, float]:
     """Smallest eigenvalue to round-off of the matrix's scale, O(n) a round (:func:`_smallest_eigenvalue_compiled`),
-    and a lower bound of it certified by a factor without negative pivots (-``radius`` if none was)."""
+    and a lower bound of it certified by a factor without negative pivots (-``radius`` if none was).
+
+    ``start``: see :func:`static_stability` (overwritten with the last iterate)."""
     low, high = -radius, float(lower[:, 0].min())  # Gershgorin, and lambda_min <= min diagonal
     # A fixed generic start vector: deterministic, and with a component along any
     # mode (all ones would miss an antisymmetric lowest mode and leave it to the bisection).
-    vector = _start_vector(lower.shape[0]).copy()  # the compiled search overwrites it
+    # A given start that is not a usable vector (zero, or not finite after a factor
+    # with a nudged zero pivot) is reset to it.
+    if start is None:
+        vector = _start_vector(lower.shape[0]).copy()  # the compiled search overwrites it
+    else:
+        if start.shape != (lower.shape[0],):
+            raise ValueError(f"start has shape {start.shape}, expected ({lower.shape[0]},)")
+        vector = start
+        if not 0.0 < float(np.linalg.norm(vector)) < math.inf:
+            vector[:] = _start_vector(lower.shape[0])
     tolerance = max(BISECTION_RTOL * radius, 1e-300)
     value, bound = _smallest_eigenvalue_compiled(lower, low, high, tolerance, 0.0 if guess is None else float(guess), vector)
     return float(value), float(bound)
