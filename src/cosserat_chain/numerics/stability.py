@@ -130,8 +130,8 @@ def static_stability(
     ``start``: a work vector of length n_free where inverse iteration starts and which
     it leaves holding its last iterate, the approximate lowest eigenvector (a
     continuation passes the same one from point to point: the previous point's
-    eigenvector is a close start, and a point took about a third of the factors it took
-    from a fixed random vector at N = 1000); it changes the cost, not the result
+    eigenvector is a close start: 1.1 ms a point instead of 2.0 ms from the fixed random
+    vector over the turn of N = 1000); it changes the cost, not the result
     beyond the round-off of the certified eigenvalue. Ignored on the dense path.
 
     The index costs no factor of its own where the smallest eigenvalue is certified
