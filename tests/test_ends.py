@@ -256,6 +256,24 @@ def test_a_cantilevers_sine_fold_is_the_reciprocal_of_its_compliance(params):
     assert [fold.maximum for fold in result.branch.folds][:2] == [True, False]
 
 
+@pytest.mark.parametrize(("index", "kind"), [(3, "clamped-free"), (4, "clamped-free"), (7, "clamped-free"), (5, "pinned")])
+def test_branch_points_where_the_corrector_stalls_are_bracketed_not_fatal(index, kind):
+    """Random chains whose branch-point search stalled next to a singular K (NewtonError before):
+    the branch completes, each branch point solved for or bracketed within a short arclength,
+    and a solved one has a vanishing smallest eigenvalue."""
+    from cosserat_chain.experiments.critical import critical_point
+    from cosserat_chain.numerics.stability import static_stability
+
+    params = random_geometries(10)[index].replace(**ENDS[kind])
+    result = critical_point(params, "nonlinear")
+    assert result.complete and result.branch.branch_points
+    for point in result.branch.branch_points:
+        assert point.located or 0.0 < point.bracket <= 1e-3
+        if point.located and point.index_before == 0:
+            eigenvalue = static_stability(params, "nonlinear", point.x).critical_eigenvalue
+            assert abs(eigenvalue) < 1e-8 * max(1.0, params.E1, params.E2)
+
+
 def test_statics_refuse_a_chain_that_can_move_rigidly():
     for kind in ("free", "pinned-free", "ring"):
         with pytest.raises(ValueError, match="can move rigidly .* the statics need a clamped end or two pinned ones"):

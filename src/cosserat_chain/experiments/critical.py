@@ -135,7 +135,14 @@ class CriticalResult:
             "snap_through": self.branch_point is None and self.first_fold is not None and self.first_fold is not self.fold,
             "snap_to": None if self.snap_to is None else {"moment": self.snap_to.moment, "phi0": self.snap_to.phi0},
             "branch_points": [
-                {"moment": q.moment, "phi0": q.phi0, "index_before": q.index_before, "index_after": q.index_after}
+                {
+                    "moment": q.moment,
+                    "phi0": q.phi0,
+                    "index_before": q.index_before,
+                    "index_after": q.index_after,
+                    "located": q.located,
+                    "bracket": q.bracket,
+                }
                 for q in self.branch.branch_points
             ],
             "compliance": self.compliance,

@@ -125,6 +125,12 @@ class BranchPoint:
         Negative eigenvalues of K on either side (in the direction of tracing).
     after_point : int
         The branch point lies between the traced points ``after_point`` and ``after_point + 1``.
+    located : bool
+        Whether it was solved for (the smallest eigenvalue's root along the arclength); False
+        where the corrector failed next to it or both sides are unstable: it is then a solved
+        point within ``bracket`` of arclength of it.
+    bracket : float
+        That arclength (0 for a located point).
     """
 
     moment: float
@@ -134,6 +140,8 @@ class BranchPoint:
     index_before: int
     index_after: int
     after_point: int
+    located: bool = True
+    bracket: float = 0.0
 
 
 @dataclass
@@ -607,7 +615,14 @@ def continue_in_moment(
         )
 
     def branch_point_between(y: np.ndarray, tangent: np.ndarray, ds: float, before: int, after: int) -> BranchPoint:
-        """Where the smallest eigenvalue of K vanishes between y and its successor at arclength ds (no fold between)."""
+        """Where the smallest eigenvalue of K vanishes between y and its successor at arclength ds (no fold between).
+
+        Where the corrector fails inside the step (K singular there makes its Newton
+        iterations stall on some chains: clamped-free random geometries), the point is
+        the solved one of the tightest sign change found so far, with ``located`` False
+        and ``bracket`` the arclength it is known within, rather than no result at all.
+        """
+        evaluated: dict[float, tuple[np.ndarray, float]] = {}
 
         def smallest(s: float) -> float:
             found = correct(y, tangent, s, FOLD_TOL, FOLD_ITERATIONS) if s > 0.0 else (y, 0, None)
@@ -616,21 +631,28 @@ def continue_in_moment(
                     f"the corrector failed at arclength {s:.3g} from M={y[-1]:.10g} while locating a branch point",
                     unpack(params, y[:-1]),
                 )
-            cache[s] = found[0]
-            return stability(unpack(params, found[0][:-1]), found[2]).critical_eigenvalue
+            value = stability(unpack(params, found[0][:-1]), found[2]).critical_eigenvalue
+            evaluated[s] = (found[0], value)
+            return value
 
-        cache: dict[float, np.ndarray] = {}
-        low, high = smallest(0.0), smallest(ds)
-        # The crossing eigenvalue is the smallest one only where the other side is stable;
-        # between two unstable states (no sign change of the smallest) the step's end is kept.
-        s_point = so.brentq(smallest, 0.0, ds, xtol=1e-13 * max(1.0, ds)) if low * high < 0 else ds
-        point = cache.get(s_point)
-        if point is None:
-            smallest(s_point)
-            point = cache[s_point]
+        low = smallest(0.0)
+        try:
+            high = smallest(ds)
+            # The crossing eigenvalue is the smallest one only where the other side is stable;
+            # between two unstable states (no sign change of the smallest) the step's end is kept.
+            s_point = so.brentq(smallest, 0.0, ds, xtol=1e-13 * max(1.0, ds)) if low * high < 0 else ds
+            if s_point not in evaluated:
+                smallest(s_point)
+            point, located, bracket = evaluated[s_point][0], low * high < 0, 0.0 if low * high < 0 else ds
+        except NewtonError:
+            keys = sorted(evaluated)
+            pairs = [(b - a, a, b) for a, b in zip(keys, keys[1:]) if evaluated[a][1] * evaluated[b][1] <= 0]
+            width, a, b = min(pairs) if pairs else (ds, keys[-1], keys[-1])
+            s_point = a if abs(evaluated[a][1]) <= abs(evaluated[b][1]) else b
+            point, located, bracket = evaluated[s_point][0], False, width
         x = unpack(params, point[:-1])
         phi0 = float(x[ROW_INDEX["phi"], column(params, particle)])
-        return BranchPoint(float(point[-1]), phi0, x, particle, before, after, len(moments) - 1)
+        return BranchPoint(float(point[-1]), phi0, x, particle, before, after, len(moments) - 1, located, bracket)
 
     tangent, factor = new_tangent(y, tangent)
     norm = infinity_norm(factor.stiffness)
