@@ -93,7 +93,7 @@ def test_table_numbers_equal_the_python_api(quick_report):
         exact = critical_point(params, model)
         sweep = relaxation_sweep(params, model, m_max=QUICK.m_max, dm=QUICK.dm, down=True)
         assert row[1:] == [
-            format_cell(v) for v in (exact.compliance, exact.critical_moment, exact.phi0_at_fold, sweep.onset_load, sweep.stop_load)
+            format_cell(v) for v in (exact.compliance, exact.critical_moment, exact.phi0_at_onset, sweep.onset_load, sweep.stop_load)
         ]
     localization = tables["Statistics of the localization run"]
     for row in localization[1:]:

@@ -345,10 +345,12 @@ def _statics(stage: _Stage) -> Section:
             "M_c": e.critical_moment,
             "M_c_dimensionless": None if e.critical_moment is None else e.critical_moment / p.moment_scale,
             "phi0_at_fold": e.phi0_at_fold,
+            "onset": e.onset,
+            "phi0_at_onset": e.phi0_at_onset,
             "onset_load": w.onset_load,
             "stop_load": w.stop_load,
         }
-        rows.append([m, e.compliance, e.critical_moment, e.phi0_at_fold, w.onset_load, w.stop_load])
+        rows.append([m, e.compliance, e.critical_moment, e.phi0_at_onset, w.onset_load, w.stop_load])
     numbers["moment_scale"] = p.moment_scale
     stage.data("statics", numbers)
     section = Section("Static response and the onset of rotation (Fig. 2)", numbers=numbers)
@@ -361,7 +363,7 @@ def _statics(stage: _Stage) -> Section:
     section.tables.append(
         (
             "Compliance, critical moment and fold angle: exact (continuation) and by the relaxation protocol",
-            ["model", "compliance dphi0/dM", "M_c exact", "phi0 at fold (rad)", "onset (relaxation)", "rotation stops (down)"],
+            ["model", "compliance dphi0/dM", "M_c exact", "phi0 at M_c (rad)", "onset (relaxation)", "rotation stops (down)"],
             rows,
         )
     )
@@ -507,7 +509,7 @@ def _orbits(stage: _Stage) -> Section:
 
     p, s = stage.params, stage.settings
     model = "sine"
-    fold = stage.critical(model).fold
+    critical = stage.critical(model)
     moment, relation = stage.load(model, s.orbit_moment)
     sweep = stage.shared.get("sweeps", {}).get(model) or relaxation_sweep(p, model, m_max=max(s.m_max, moment), dm=s.dm, down=True)
     result = periodic_orbit(p, model, moment, down_to=min(s.orbit_down_to, moment))
@@ -522,7 +524,7 @@ def _orbits(stage: _Stage) -> Section:
         "orbit_end": branch.end,
         "orbit_end_moment": branch.end_moment,
         "stability_lost_at": branch.stability_lost_at,
-        "static_fold": None if fold is None else fold.moment,
+        "static_fold": critical.critical_moment,
         "relaxation_onset": sweep.onset_load,
         "relaxation_stop": sweep.stop_load,
     }
