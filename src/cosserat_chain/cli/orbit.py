@@ -49,11 +49,14 @@ def orbit(
     params = params_or_exit(config)
     bar = progress_bar(f"orbit {model}", "orbit")
     try:
+        result = None
         if turns is None:
-            turns = _turns_to_follow(params, model, moment, particle)
-        result = periodic_orbit(
-            params, model, moment, turns=turns, particle=particle, down_to=down_to, period_max=period_max, progress=bar_callback(bar)
-        )
+            turns, result = _turns_to_follow(params, model, moment, particle)
+        if result is None or down_to is not None:
+            # The search found the orbit without its continuation: computed again only to continue it.
+            result = periodic_orbit(
+                params, model, moment, turns=turns, particle=particle, down_to=down_to, period_max=period_max, progress=bar_callback(bar)
+            )
     except ValueError as err:
         bar.close()
         fail(str(err))
@@ -90,8 +93,8 @@ def orbit(
 AUTO_TURNS = (1, 2, 3)
 
 
-def _turns_to_follow(params, model: str, moment: float, particle: int) -> int:
-    """The first of :data:`AUTO_TURNS` whose orbit is stable, else the first with an orbit.
+def _turns_to_follow(params, model: str, moment: float, particle: int):
+    """(k, its result) for the first k of :data:`AUTO_TURNS` whose orbit is stable, else the first with an orbit.
 
     Raises the last :class:`~cosserat_chain.numerics.periodic.OrbitError` when none converges
     (its message suggests what to try).
@@ -102,13 +105,13 @@ def _turns_to_follow(params, model: str, moment: float, particle: int) -> int:
     found, error = None, None
     for k in AUTO_TURNS:
         try:
-            orbit = periodic_orbit(params, model, moment, turns=k, particle=particle).orbit
+            result = periodic_orbit(params, model, moment, turns=k, particle=particle)
         except OrbitError as err:
             error = err
             continue
-        if orbit.stable:
-            return k
-        found = k if found is None else found
+        if result.orbit.stable:
+            return k, result
+        found = (k, result) if found is None else found
     if found is None:
         raise error
     return found
