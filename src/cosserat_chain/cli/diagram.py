@@ -44,6 +44,11 @@ def diagram(
     period_max: float = number(
         100.0, "A period beyond this counts as diverging (homoclinic or SNIC end).", above=0.0, flags=("--period-max",)
     ),
+    follow: bool = typer.Option(
+        False,
+        "--follow",
+        help="Follow each fold of cycles, period doubling or torus end from the value before (the lower edge's curve in (M, value)).",
+    ),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields (the other fields of the chain)."),
     out: Path | None = typer.Option(None, help="Write the rows to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the phase diagram in (parameter, M) to this PNG/SVG file."),
@@ -60,7 +65,7 @@ def diagram(
     chosen = _values(values, span)
     bar = progress_bar(f"diagram {model}", "value")
     try:
-        result = state_diagram(params, model, vary, chosen, turns=turns, period_max=period_max, progress=bar_callback(bar))
+        result = state_diagram(params, model, vary, chosen, turns=turns, period_max=period_max, follow=follow, progress=bar_callback(bar))
     except ValueError as err:
         bar.close()
         fail(str(err))
@@ -75,11 +80,11 @@ def diagram(
         return
     if result.independent:
         typer.echo(f"(the statics do not read {vary}: M_c is the same at every value)")
-    typer.echo(f"{vary:>12} {'M_c':>12} {'stops':>12}  end              hysteresis")
+    typer.echo(f"{vary:>12} {'M_c':>12} {'stops':>12}  end              hysteresis  found")
     for row in result.rows:
         fold = "none" if row.static_fold is None else f"{row.static_fold:.6g}"
         stops = "none" if row.rotation_stops is None else f"{row.rotation_stops:.6g}"
-        typer.echo(f"{row.value:>12.6g} {fold:>12} {stops:>12}  {row.end:<16} {row.hysteresis}")
+        typer.echo(f"{row.value:>12.6g} {fold:>12} {stops:>12}  {row.end:<16} {str(row.hysteresis):<11} {row.method}")
     if result.snic_point is not None:
         point = result.snic_point
         typer.echo(f"the homoclinic end meets M_c (a SNIC from there on) at {vary} = {point['value']:.6g}, between {point['between']}")

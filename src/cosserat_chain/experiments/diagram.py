@@ -18,6 +18,13 @@ For each value of one field of the chain, :func:`state_diagram` gives
   bound below M_c) or ``snic`` (the period grows without bound at M_c itself: a
   saddle-node on the invariant circle, no hysteresis), ``not_found`` when no rotating
   orbit was found or the continuation failed (``message`` says why);
+* ``method``: how ``rotation_stops`` was found: ``located`` (a fold of cycles, period
+  doubling or torus first bracketed by the one-parameter continuation, then solved exactly
+  by Newton on the augmented shooting system of
+  :mod:`~cosserat_chain.numerics.cycle_curve` at that value), ``followed`` (with
+  ``follow``: the same system continued from the value before, the curve of the lower edge
+  in (M, p)), ``one_parameter`` (read from the continuation alone: homoclinic and SNIC ends,
+  or where Newton on the augmented system did not converge, ``message`` says);
 * ``hysteresis``: whether the loop is open, rotation_stops < M_c: between the two edges the
   particle can rest or rotate; None (unknown) where the followed orbit loses stability above
   M_c (no static state exists there: the rotation goes on in a state not followed);
@@ -45,8 +52,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..models.base import get_model
+from ..numerics.cycle_curve import KINDS, continue_cycle_end, locate_cycle_end
 from ..numerics.fold_curve import continue_fold
-from ..numerics.periodic import OrbitError, continue_orbit, find_periodic_orbit
+from ..numerics.periodic import OrbitError, PeriodicOrbit, continue_orbit, find_periodic_orbit
 from ..params import ChainParams
 
 if TYPE_CHECKING:
@@ -85,6 +93,7 @@ class DiagramRow:
     hysteresis: bool | None
     message: str = ""
     moment_scale: float = 1.0
+    method: str = "one_parameter"
 
     def dimensionless(self, moment: float | None) -> float | None:
         """``moment`` in units of this row's E1 h^2 (the paper's dimensionless moment; E1 or h may be the varied field)."""
@@ -100,6 +109,7 @@ class DiagramRow:
             "hysteresis": self.hysteresis,
             "message": self.message,
             "moment_scale": self.moment_scale,
+            "method": self.method,
             "static_fold_dimensionless": self.dimensionless(self.static_fold),
             "rotation_stops_dimensionless": self.dimensionless(self.rotation_stops),
         }
@@ -173,6 +183,8 @@ class StateDiagram:
                 "end": (("value",), np.array([row.end for row in self.rows], dtype=str), {"units": "1", "long_name": "how the rotation stops"}),
                 "hysteresis": (("value",), np.array([-1 if row.hysteresis is None else int(row.hysteresis) for row in self.rows], dtype=np.int8),
                                {"units": "1", "long_name": "1: open loop (rotation_stops < static_fold), 0: closed, -1: unknown"}),
+                "method": (("value",), np.array([row.method for row in self.rows], dtype=str),
+                           {"units": "1", "long_name": "how rotation_stops was found: followed, located or one_parameter"}),
                 "moment_scale": (("value",), column("moment_scale"), {"units": "energy", "long_name": "E1 h^2, the unit of the dimensionless moment M / (E1 h^2)"}),
             },
             # The value's units are the varied field's: io.describe reads them from the attribute "parameter".
@@ -184,8 +196,21 @@ class StateDiagram:
         return ds
 
 
-def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle: int, period_max: float) -> tuple[float | None, str, str]:
-    """(rotation_stops, end, message) for one chain whose static fold is ``moment_c``."""
+@dataclass
+class _Edge:
+    """Where one chain's rotation stops (:class:`DiagramRow`'s fields) and the orbit next to it that a
+    curve of that end starts from (None where the end cannot be followed)."""
+
+    stops: float | None
+    end: str
+    message: str
+    orbit: PeriodicOrbit | None = None
+    method: str = "one_parameter"
+
+
+def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle: int, period_max: float) -> _Edge:
+    """The lower edge of one chain by one-parameter continuation in M, located exactly by the augmented
+    shooting system where it is a fold of cycles, a period doubling or a torus."""
     start = START_FACTOR * moment_c
     orbit, tried = None, []
     for k in range(1, turns + 1):
@@ -199,7 +224,7 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
             break
         tried.append(f"{k} turn(s): unstable (largest multiplier {candidate.max_multiplier:.4g})")
     if orbit is None:
-        return (
+        return _Edge(
             None,
             "not_found",
             (
@@ -210,7 +235,8 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
     branch = continue_orbit(orbit, moment_min=0.0, period_max=period_max)
     lost = branch.stability_lost_at
     if lost is not None:
-        first_unstable = next(o for o in branch.orbits if not o.stable)
+        index = int(np.argmin(branch.stable))
+        first_unstable = branch.orbits[index]
         leading = first_unstable.nontrivial_multipliers[np.argmax(np.abs(first_unstable.nontrivial_multipliers))]
         if abs(leading.imag) > COMPLEX_RTOL * abs(leading):
             end = "torus"
@@ -218,11 +244,14 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
             end = "period_doubling"
         else:
             end = "fold_of_cycles"
-        return float(lost), end, f"the orbit loses stability at M = {lost:.6g} (leading multiplier {leading:.4g})"
+        around = branch.orbits[index - 1 : index + 1]
+        message = f"the orbit loses stability at M = {lost:.6g} (leading multiplier {leading:.4g}, interpolated)"
+        return _located(_Edge(float(lost), end, message), around)
     if branch.end == "fold":
-        return float(branch.end_moment), "fold_of_cycles", branch.message
+        around = sorted(branch.orbits[-3:], key=lambda o: abs(o.moment - branch.end_moment))
+        return _located(_Edge(float(branch.end_moment), "fold_of_cycles", branch.message), around)
     if branch.end == "infinite_period":
-        return _diverging(branch.moment[-TAIL:], branch.period[-TAIL:], moment_c)
+        return _Edge(*_diverging(branch.moment[-TAIL:], branch.period[-TAIL:], moment_c))
     tail = _approach(np.asarray(branch.moment), np.asarray(branch.period)) if branch.end in ("step_too_small", "max_points") else None
     if tail is not None:
         # The continuation crawled to a halt with the period still growing: near a homoclinic
@@ -232,8 +261,24 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
         last = abs(float(branch.moment[-1]))
         # The rotation exists down to the last orbit: M_h lies between the fit and it.
         if end == "snic" or 0.0 <= last - abs(stops) <= APPROACH_RTOL * last:
-            return stops, end, f"{message}; the continuation stopped by {branch.end} at M = {branch.moment[-1]:.10g}, the bound above M_h"
-    return None, "not_found", f"the orbit's continuation ended by {branch.end}: {branch.message}"
+            return _Edge(
+                stops, end, f"{message}; the continuation stopped by {branch.end} at M = {branch.moment[-1]:.10g}, the bound above M_h"
+            )
+    return _Edge(None, "not_found", f"the orbit's continuation ended by {branch.end}: {branch.message}")
+
+
+def _located(edge: _Edge, around: Sequence[PeriodicOrbit]) -> _Edge:
+    """``edge`` with its moment from Newton on the augmented shooting system at its own chain, from the
+    orbits ``around`` it (the one-parameter estimate interpolates the multipliers between two orbits: 3e-5
+    off for the paper's chain's period doubling at gamma_phi = 0.12); unchanged, saying so, where that fails."""
+    try:
+        edge.orbit = locate_cycle_end(around, edge.end)
+    except ValueError as err:
+        edge.message += f"; not located exactly ({err})"
+        return edge
+    edge.stops, edge.method = float(edge.orbit.moment), "located"
+    edge.message += f"; located at M = {edge.stops:.8g} by the augmented shooting system"
+    return edge
 
 
 def _approach(moment: np.ndarray, period: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
@@ -288,6 +333,22 @@ def _diverging(moment: np.ndarray, period: np.ndarray, moment_c: float) -> tuple
     return m_h, "homoclinic", f"the period diverges like -log(M - M_h) at M_h = {m_h:.6g} (fitted to the last {moment.size} orbits)"
 
 
+def _followed(previous: tuple[float, _Edge] | None, field_name: str, value: float) -> _Edge | None:
+    """The previous row's end followed to ``value`` (None where it cannot be; an edge without an orbit, whose
+    message says why, where the curve stopped: the row is then computed on its own)."""
+    if previous is None or previous[1].orbit is None or previous[1].end not in KINDS:
+        return None
+    before, edge = previous
+    try:
+        curve = continue_cycle_end(edge.orbit, edge.end, field_name, [before, value])
+    except ValueError as err:
+        return _Edge(None, "not_found", f"the {edge.end} end was not followed from {field_name} = {before:g} ({err})")
+    if not curve.complete:
+        return _Edge(None, "not_found", curve.message)
+    message = f"the {edge.end} end followed from {field_name} = {before:g} by the augmented shooting system"
+    return _Edge(float(curve.moment[-1]), edge.end, message, curve.orbits[-1], "followed")
+
+
 def state_diagram(
     params: ChainParams,
     model: str,
@@ -297,6 +358,7 @@ def state_diagram(
     turns: int = 3,
     particle: int = 0,
     period_max: float = PERIOD_MAX,
+    follow: bool = False,
     progress: Callable[[float, float], None] | None = None,
 ) -> StateDiagram:
     """Both edges of the hysteresis loop at each value of ``field_name`` (module docstring).
@@ -315,6 +377,11 @@ def state_diagram(
         only after 2 or 3).
     period_max : float
         A period beyond this is a diverging one (homoclinic or SNIC end).
+    follow : bool
+        Follow each end from the value before by the augmented shooting system
+        (:func:`~cosserat_chain.numerics.cycle_curve.continue_cycle_end`), the curve of the
+        lower edge in (M, p); False computes every row on its own by one-parameter
+        continuation in M (each then located exactly).
     progress : callable(done, total), optional
 
     Raises
@@ -333,6 +400,7 @@ def state_diagram(
     curve = continue_fold(params, model, field_name, values)
     diagram = StateDiagram(params=params, model=model.name, field=field_name, turns=turns, independent=curve.independent)
     total = len(values)
+    previous: tuple[float, _Edge] | None = None
     for index, value in enumerate(np.asarray(values, dtype=float)):
         if progress is not None:
             progress(index, total)
@@ -340,9 +408,16 @@ def state_diagram(
         chain = params.replace(**{field_name: float(value)})
         if reached.size == 0:
             diagram.rows.append(DiagramRow(float(value), None, None, None, "not_found", None, curve.message, chain.moment_scale))
+            previous = None
             continue
         moment_c = float(curve.moment[reached[0]])
-        stops, end, message = _lower_edge(chain, model, moment_c, turns, particle, period_max)
+        edge = _followed(previous, field_name, float(value)) if follow else None
+        if edge is None or edge.orbit is None:
+            note = "" if edge is None else edge.message + "; "
+            edge = _lower_edge(chain, model, moment_c, turns, particle, period_max)
+            edge.message = note + edge.message
+        previous = (float(value), edge)
+        stops, message = edge.stops, edge.message
         hysteresis = None if stops is None else bool(stops < moment_c * (1.0 - SNIC_RTOL))
         if stops is not None and stops > moment_c * (1.0 + SNIC_RTOL):
             # Above M_c no static state exists: the chain rotates on in a state not followed here
@@ -353,8 +428,9 @@ def state_diagram(
                 "state (not followed), so where it stops and whether the loop is open are not known"
             )
         diagram.rows.append(
-            DiagramRow(float(value), moment_c, float(curve.phi0[reached[0]]), stops, end, hysteresis, message, chain.moment_scale)
-        )
+            DiagramRow(float(value), moment_c, float(curve.phi0[reached[0]]), stops, edge.end, hysteresis, message,
+                       chain.moment_scale, edge.method)
+        )  # fmt: skip
     if progress is not None:
         progress(total, total)
     return diagram

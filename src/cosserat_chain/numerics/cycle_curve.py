@@ -1,0 +1,506 @@
+"""The end of a rotating state followed in a second parameter: the lower edge of the hysteresis loop in (M, p).
+
+Contract
+--------
+A rotating orbit (:mod:`~cosserat_chain.numerics.periodic`, eq. (P)) followed down in M
+stops being the state a slowly falling load keeps at one of a few kinds of points (the
+``end`` of :mod:`cosserat_chain.experiments.diagram`); three of them are regular points of an
+augmented system. Each is a curve in the plane of the
+moment M and a field p of the chain, and :func:`continue_cycle_end` follows it through
+values of p by Newton's method on an *augmented shooting system* at each value, started
+from the point at the value before (extrapolated along the curve from the two before it):
+
+* ``fold_of_cycles``: (P) and g = 0, g the bordered test function of the shooting
+  Jacobian A = d(P)/d(y0, log T): [[A, b], [c^T, 0]] [v; g] = [0; 1], zero exactly where A is
+  singular (the minimally augmented system of MatCont and BifurcationKit.jl; b and c are A's
+  singular vectors of its smallest singular value at the point before, which keeps the
+  bordered matrix regular). At a fold the multiplier at +1 is double (beside the trivial
+  one) and not a smooth function of the unknowns, so it cannot serve as g there.
+* ``period_doubling``: (P) and the same bordered function of monodromy + I, singular where a
+  multiplier equals -1. (The multiplier itself is no good test function there: in the
+  paper's chain it has just split off a complex pair on the negative real axis, and a
+  small change of the unknowns joins them again.)
+* ``torus``: (P) and |mu|^2 - 1 = 0, mu the complex multiplier (positive imaginary part)
+  nearest the one at the point before (a Neimark-Sacker bifurcation of the cycle; a simple
+  pair is a smooth function of the unknowns).
+The unknowns are z = (y0 without phi_0, log T, M). The
+Jacobian R_z of (P) is exact (the monodromy matrix and the flow's derivative in M). The test
+function's gradient is needed only along two directions: the minimum-norm correction of
+(P) and the null vector of R_z (the orbit branch's tangent in M); every Newton step of (P)
+is one of them plus a multiple of the other, and the multiple is fixed by the linearised
+g = 0. Both derivatives are one-sided differences, two more monodromy integrations an
+iteration instead of the size of z.
+
+Each point is checked to be the lower edge it claims to be: every other nontrivial
+multiplier inside the unit circle (by :data:`EDGE_MARGIN`). Where one is not, another
+multiplier has left the circle first (the edge changes kind between two values) and the
+curve stops there, saying so; so it does where Newton fails from the previous point even
+on halved parameter steps (the curve turns back in p, or ends: at a codimension-two point
+such as the 1:2 resonance where the paper's chain's torus end turns into a period doubling,
+between E2 = 1.12 and 1.2).
+
+Not followed: a homoclinic end. Approximating the homoclinic orbit by an orbit of fixed
+long period (AUTO-07p's way) needs collocation or multiple shooting: with single shooting the
+orbit's passage near the saddle makes Newton fail at the first step in p (the pendulum at
+gamma_phi = 0.02: a step of 0.5 % from an orbit 1e-4 above M_h, and a change of 3 % in the
+period), so :mod:`~cosserat_chain.experiments.diagram` reads each value's homoclinic end
+from its own one-parameter continuation.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.linalg as sla
+from pydantic import ValidationError
+
+from ..models.base import get_model
+from ..params import ChainParams
+from ..state import n_free
+from .fold_curve import FIELDS
+from .periodic import ATOL, CLOSURE_TOL, RTOL, OrbitError, PeriodicOrbit, _orbit, _shooting, _System, _to_y
+
+#: Kinds of end that can be followed (:mod:`~cosserat_chain.experiments.diagram`'s ends that are
+#: regular points of an augmented system; a SNIC lies on the static fold, followed by
+#: :func:`~.fold_curve.continue_fold`; a homoclinic end: module docstring).
+KINDS = ("fold_of_cycles", "period_doubling", "torus")
+#: Kinds whose test function is bordered (a matrix singular at the end); the torus's is its multiplier's modulus.
+BORDERED = ("fold_of_cycles", "period_doubling")
+#: Newton iterations per value before its parameter step is halved.
+MAX_ITERATIONS = 12
+#: Halvings of a parameter step (in all, towards one value) before the curve is declared ended there.
+MAX_HALVINGS = 10
+#: Newton gives up when two iterations do not divide max(|R|, |g|) by 1 / CONTRACTION.
+CONTRACTION = 0.5
+#: Halvings of one Newton step that makes the residual or the test function larger.
+NEWTON_HALVINGS = 4
+#: Newton stops when the test function is this small (a multiplier's distance from the
+#: circle; the bordered function of a fold is of the order of A's smallest singular value).
+TEST_TOL = 1e-9
+#: One-sided difference step of the test function's directional derivatives (the unknowns are O(1)).
+DIFFERENCE_STEP = 1e-6
+#: Largest change of the state (in h or rad) from the predictor: a longer Newton step has
+#: jumped to another orbit rather than followed this one, and the parameter step is halved.
+JUMP = 0.3
+#: The other nontrivial multipliers of a point on the edge lie inside |mu| < 1 - EDGE_MARGIN.
+EDGE_MARGIN = 1e-6
+#: An imaginary part above this (relative to the modulus) makes a multiplier complex.
+COMPLEX_RTOL = 1e-6
+
+
+@dataclass
+class CycleEndCurve:
+    """The lower edge of one kind followed through the values of one field.
+
+    Attributes
+    ----------
+    kind : str
+        One of :data:`KINDS`.
+    field : str
+    values : ndarray (k,)
+        The values reached, in the order asked (k <= the number asked when the curve stopped).
+    moment, period : ndarray (k,)
+        Where the rotating orbit ends at each value, and its period there.
+    orbits : list of PeriodicOrbit
+        The orbit at the edge for each value (its multipliers include the critical one(s)).
+    iterations : ndarray (k,)
+    complete : bool
+        False if the curve could not be followed to the last value; ``message`` says where and why.
+    message : str
+    """
+
+    kind: str
+    field: str
+    values: np.ndarray
+    moment: np.ndarray
+    period: np.ndarray
+    orbits: list[PeriodicOrbit]
+    iterations: np.ndarray
+    complete: bool = True
+    message: str = ""
+
+    def as_dict(self) -> dict:
+        """JSON-ready rows, one per value reached."""
+        return {
+            "kind": self.kind,
+            "field": self.field,
+            "complete": self.complete,
+            "message": self.message,
+            "rows": [
+                {"value": float(v), "moment": float(m), "period": float(t), "iterations": int(i)}
+                for v, m, t, i in zip(self.values, self.moment, self.period, self.iterations)
+            ],
+        }
+
+
+@dataclass
+class _Point:
+    """(P), its Jacobian R_z, the monodromy and the test function at one z."""
+
+    residual: np.ndarray
+    jac: np.ndarray
+    mono: np.ndarray
+    g: float
+    followed: object
+    step: np.ndarray | None = None
+
+    @property
+    def norm(self) -> float:
+        return float(np.max(np.abs(self.residual)))
+
+    @property
+    def merit(self) -> float:
+        return max(self.norm, abs(self.g))
+
+
+@dataclass
+class _Augmented:
+    """(P) and the test function of one kind for a chain, in the unknowns z (module docstring)."""
+
+    kind: str
+    orbit: PeriodicOrbit
+    tol: float
+    rtol: float
+    atol: float
+    reference: object = field(default=None)  # b, c of the fold; the critical multiplier otherwise
+
+    def __post_init__(self) -> None:
+        self.size = 2 * n_free(self.orbit.params)
+        self.dof = _System(self.orbit.params, get_model(self.orbit.model), self.orbit.moment, self.orbit.particle).load_dof
+        self.keep = np.arange(self.size) != self.dof
+
+    def pack(self, orbit: PeriodicOrbit) -> np.ndarray:
+        return np.concatenate([_to_y(orbit.params, orbit.x, orbit.v)[self.keep], [math.log(orbit.period), orbit.moment]])
+
+    def split(self, z: np.ndarray) -> tuple[np.ndarray, float, float]:
+        y0 = np.zeros(self.size)
+        y0[self.keep] = z[: self.size - 1]
+        return y0, math.exp(z[self.size - 1]), float(z[-1])
+
+    def evaluate(self, chain: ChainParams, z: np.ndarray):
+        """(R, R_z, monodromy, A) at z: (P), its Jacobian in z, and the shooting Jacobian in (y0, log T)."""
+        y0, period, moment = self.split(z)
+        if not (np.all(np.isfinite(z)) and 1e-3 * self.orbit.period < period < 1e3 * self.orbit.period):
+            # A Newton step that left the orbit (a period a thousand times off): refused, the step is halved.
+            raise OrbitError(f"the period {period:.6g} is far from the orbit's {self.orbit.period:.6g}")
+        system = _System(chain, get_model(self.orbit.model), moment, self.orbit.particle)
+        residual, jac_y, jac_t, d_moment, mono = _shooting(system, self.orbit.particle_turns, self.rtol, self.atol)(y0, period)
+        shooting = np.column_stack([jac_y[:, self.keep], period * jac_t])
+        return residual, np.column_stack([shooting, d_moment]), mono, shooting
+
+    def bordered(self, mono: np.ndarray, shooting: np.ndarray) -> np.ndarray:
+        """The matrix that is singular at a ``fold_of_cycles`` (A) or a ``period_doubling`` (monodromy + I)."""
+        return shooting if self.kind == "fold_of_cycles" else mono + np.eye(mono.shape[0])
+
+    def test(self, mono: np.ndarray, shooting: np.ndarray | None) -> tuple[float, object]:
+        """The test function g and what it followed (the torus's multiplier; the borders b, c otherwise)."""
+        if self.kind == "torus":
+            mu = _critical(sla.eigvals(mono), self.kind, self.reference)
+            return abs(mu) ** 2 - 1.0, mu
+        b, c = self.reference
+        matrix = self.bordered(mono, shooting)
+        bordered = np.block([[matrix, b[:, None]], [c[None, :], np.zeros((1, 1))]])
+        rhs = np.zeros(matrix.shape[0] + 1)
+        rhs[-1] = 1.0
+        return float(np.linalg.solve(bordered, rhs)[-1]), self.reference
+
+    def solve(self, chain: ChainParams, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, int] | None:
+        """Newton on the augmented system from z for ``chain``: (z, monodromy, closure, iterations), or None.
+
+        A step that makes max(|R|, |g|) larger, or leads where g is not defined (the followed
+        multiplier has met another one and left the real axis), is halved. A failed solve
+        leaves what is followed as it was (its iterates may have tracked another multiplier).
+        """
+        saved = self.reference
+        solved = self._newton(chain, z)
+        if solved is None:
+            self.reference = saved
+        return solved
+
+    def _newton(self, chain: ChainParams, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, int] | None:
+        if self.kind in BORDERED and self.reference is None:
+            try:
+                _, _, mono, shooting = self.evaluate(chain, z)
+            except OrbitError:
+                return None
+            self.reference = _singular_vectors(self.bordered(mono, shooting))
+        current = self._point(chain, z)
+        if current is None:
+            return None
+        merits = []
+        for iteration in range(MAX_ITERATIONS + 1):
+            merits.append(current.merit)
+            if len(merits) > 2 and merits[-1] > CONTRACTION * merits[-3]:
+                return None  # not converging: cheaper to halve the parameter step than to go on
+            if current.norm <= self.tol and abs(current.g) <= TEST_TOL:
+                if self.kind in BORDERED:
+                    # Borders for the next value: the singular vectors at this point.
+                    self.reference = _singular_vectors(self.bordered(current.mono, current.jac[:, :-1]))
+                return z, current.mono, current.norm, iteration
+            step = self._newton_step(chain, z, current)
+            if iteration == MAX_ITERATIONS or step is None:
+                return None
+            # A step is taken when it makes max(|R|, |g|) smaller or, as Deuflhard's natural
+            # monotonicity test, the Newton step after it shorter (residual and test function
+            # have unrelated scales, so neither measures progress alone); otherwise it is halved.
+            length, fraction = float(np.linalg.norm(step)), 1.0
+            for _ in range(NEWTON_HALVINGS + 1):
+                trial = self._point(chain, z + fraction * step)
+                if trial is not None:
+                    if trial.merit < current.merit:
+                        break
+                    after = self._newton_step(chain, z + fraction * step, trial)
+                    if after is not None and np.linalg.norm(after) <= (1.0 - fraction / 4.0) * length:
+                        break
+                fraction /= 2.0
+            else:
+                return None
+            z, current = z + fraction * step, trial
+            self.reference = current.followed if self.kind == "torus" else self.reference
+        return None
+
+    def _newton_step(self, chain: ChainParams, z: np.ndarray, point: _Point) -> np.ndarray | None:
+        """The Newton step at ``point`` (kept on it), or None where it is not defined."""
+        if point.step is None:
+            if self.kind == "torus":
+                self.reference = point.followed
+            try:
+                point.step = self._step(chain, z, point.residual, point.jac, point.g)
+            except (OrbitError, np.linalg.LinAlgError):
+                return None
+        return point.step if np.all(np.isfinite(point.step)) else None
+
+    def _point(self, chain: ChainParams, z: np.ndarray) -> _Point | None:
+        """(P) and g at z, or None where they are not defined (the integration fails, no multiplier to follow)."""
+        try:
+            residual, jac, mono, shooting = self.evaluate(chain, z)
+            g, followed = self.test(mono, shooting)
+        except (OrbitError, np.linalg.LinAlgError):
+            return None
+        return _Point(residual, jac, mono, g, followed)
+
+    def _step(self, chain: ChainParams, z: np.ndarray, residual: np.ndarray, jac: np.ndarray, g: float) -> np.ndarray:
+        """The Newton step of (P) and g = 0: the minimum-norm correction of (P) plus the multiple of its null vector that zeroes the linearised g."""
+        u, s, vt = np.linalg.svd(jac)
+        correction = vt[: s.size].T @ ((u.T @ -residual) / s)
+        tangent = vt[-1]
+
+        def slope(direction: np.ndarray) -> float:
+            trial = z + DIFFERENCE_STEP * direction
+            _, _, mono, shooting = self.evaluate(chain, trial)
+            return (self.test(mono, shooting)[0] - g) / DIFFERENCE_STEP
+
+        size = float(np.linalg.norm(correction))
+        along_correction = slope(correction / size) * size if size > 1e-14 else 0.0
+        along_tangent = slope(tangent)
+        if along_tangent == 0.0:
+            raise np.linalg.LinAlgError("the test function does not change along the orbit branch: the end is not a regular point")
+        return correction - (g + along_correction) / along_tangent * tangent
+
+
+def _singular_vectors(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The left and right singular vectors of the smallest singular value: the borders of a bordered test function."""
+    u, _, vt = np.linalg.svd(matrix)
+    return u[:, -1].copy(), vt[-1].copy()
+
+
+def continue_cycle_end(
+    orbit: PeriodicOrbit,
+    kind: str,
+    field_name: str,
+    values: Sequence[float],
+    *,
+    tol: float = CLOSURE_TOL,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+    progress: Callable[[float, float], None] | None = None,
+) -> CycleEndCurve:
+    """Follow the end of a rotating orbit of one ``kind`` through ``values`` of ``field_name`` (module docstring).
+
+    Parameters
+    ----------
+    orbit : PeriodicOrbit
+        An orbit near the end at the first value (for the chain of ``orbit.params`` with
+        ``field_name`` set to ``values[0]``): one of :func:`~.periodic.continue_orbit`'s
+        orbits next to where it turns or loses stability.
+    kind : str
+        One of :data:`KINDS`.
+    field_name : str
+        A number of the chain (:data:`~.fold_curve.FIELDS`).
+    values : sequence of float
+        In the order to follow them; the first is solved from ``orbit`` (which locates the end
+        there to Newton's tolerance), each next one from the point before.
+    tol, rtol, atol : float
+        Newton's closure tolerance and the DOP853 tolerances (:func:`~.periodic.find_periodic_orbit`).
+    progress : callable(done, total), optional
+
+    Returns
+    -------
+    CycleEndCurve
+        ``complete`` False, with the message, where the curve stopped before the last value.
+
+    Raises
+    ------
+    ValueError
+        For an unknown kind or field, values that are not finite, a value that makes no
+        admissible chain, or a first value Newton cannot reach from ``orbit``.
+    """
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
+    if field_name not in FIELDS:
+        raise ValueError(f"field must be one of {', '.join(FIELDS)} (a number of the chain), got {field_name!r}")
+    values = np.asarray(values, dtype=float).ravel()
+    if values.size == 0 or not np.all(np.isfinite(values)):
+        raise ValueError(f"values of {field_name} must be one or more finite numbers, got {values!r}")
+    augmented = _Augmented(kind, orbit, tol, rtol, atol)
+
+    def chain_at(value: float) -> ChainParams:
+        try:
+            return orbit.params.replace(**{field_name: value})
+        except ValidationError as err:
+            reasons = "; ".join(error["msg"].removeprefix("Value error, ") for error in err.errors())
+            raise ValueError(f"{field_name} = {value:g} is not an admissible chain: {reasons}") from None
+
+    def point(value: float, z: np.ndarray):
+        """The end at ``value`` from the guess z, checked to be the lower edge; (entry, reason) or (None, reason)."""
+        chain = chain_at(value)
+        solved = augmented.solve(chain, z)
+        if solved is None:
+            return None, "Newton did not converge"
+        z_new, mono, closure, iterations = solved
+        if np.max(np.abs(z_new[: augmented.size - 1] - z[: augmented.size - 1])) > JUMP:
+            return None, "Newton jumped to another orbit"
+        y0, period, moment = augmented.split(z_new)
+        system = _System(chain, get_model(orbit.model), moment, orbit.particle)
+        found = _orbit(system, orbit.turns, y0, period, mono, closure, iterations, orbit.particle_turns)
+        others = _other_multipliers(found, kind)
+        if others.size and float(np.max(np.abs(others))) >= 1.0 - EDGE_MARGIN:
+            return None, (
+                f"another Floquet multiplier is outside the unit circle there (|mu| = {float(np.max(np.abs(others))):.6g}): "
+                "the rotating state is lost before this end, the edge changes kind"
+            )
+        return (value, z_new, found, iterations), ""
+
+    first, reason = point(float(values[0]), augmented.pack(orbit))
+    if first is None:
+        raise ValueError(
+            f"the {kind} end could not be located at {field_name} = {values[0]:g} from the orbit at M = {orbit.moment:.6g}: {reason}"
+        )
+    found = [first]
+    complete, message = True, ""
+    for index, target in enumerate(values[1:], start=1):
+        if progress is not None:
+            progress(index, values.size)
+        start, step, reached, failures = found[-1][0], float(target) - found[-1][0], False, 0
+        while failures <= MAX_HALVINGS:
+            value = float(target) if abs(step) >= abs(float(target) - start) else start + step
+            guess = found[-1][1]
+            if len(found) >= 2 and found[-2][0] != found[-1][0]:
+                # Secant predictor along the curve: the end moves smoothly with the parameter.
+                guess = guess + (value - found[-1][0]) / (found[-1][0] - found[-2][0]) * (guess - found[-2][1])
+            entry, reason = point(value, guess)
+            if entry is None:
+                failures, step = failures + 1, step / 2.0
+                continue
+            found.append(entry)
+            if value == float(target):
+                reached = True
+                break
+            # Each step reached lets the next one grow again (the residual's sensitivity to p
+            # can be large: 135 per unit of E2 for the paper's chain's torus end).
+            start, step = value, 2.0 * step
+        if not reached:
+            complete = False
+            message = (
+                f"the {kind} end could not be followed beyond {field_name} = {found[-1][0]:.6g} towards {float(target):.6g} "
+                f"({reason}): the curve turns back in {field_name}, ends (a codimension-two point), or the edge changes kind"
+            )
+            break
+    if progress is not None:
+        progress(values.size, values.size)
+    asked = [entry for entry in found if np.any(entry[0] == values)]
+    return CycleEndCurve(
+        kind=kind,
+        field=field_name,
+        values=np.array([e[0] for e in asked]),
+        moment=np.array([e[2].moment for e in asked]),
+        period=np.array([e[2].period for e in asked]),
+        orbits=[e[2] for e in asked],
+        iterations=np.array([e[3] for e in asked]),
+        complete=complete,
+        message=message,
+    )
+
+
+def _critical(multipliers: np.ndarray, kind: str, reference: complex | None) -> complex:
+    """The multiplier a ``period_doubling`` or ``torus`` end follows: the real negative one (the complex one
+    with a positive imaginary part) nearest ``reference``, or, without one, nearest the unit circle."""
+    complex_ = np.abs(multipliers.imag) > COMPLEX_RTOL * np.abs(multipliers)
+    if kind == "period_doubling":
+        candidates = multipliers[~complex_ & (multipliers.real < 0)]
+    else:
+        candidates = multipliers[complex_ & (multipliers.imag > 0)]
+    if candidates.size == 0:
+        raise OrbitError(f"no {'real negative' if kind == 'period_doubling' else 'complex'} Floquet multiplier to follow")
+    distance = np.abs(np.abs(candidates) - 1.0) if reference is None else np.abs(candidates - reference)
+    return complex(candidates[np.argmin(distance)])
+
+
+def locate_cycle_end(orbits: Sequence[PeriodicOrbit], kind: str, **options) -> PeriodicOrbit:
+    """The end of one ``kind`` between ``orbits`` of one chain, to Newton's tolerance.
+
+    Newton starts from, in turn: for a loss of stability, the orbit interpolated between the
+    first two where their largest multiplier's modulus crosses 1 (much nearer the end than
+    either: from the orbits themselves Newton can fail, the paper's chain's torus from an orbit
+    2e-4 below it); then each orbit as given.
+
+    Parameters
+    ----------
+    orbits : sequence of PeriodicOrbit
+        Orbits of one branch around the end (:func:`~.periodic.continue_orbit`'s): the last
+        stable and the first unstable one for ``period_doubling`` and ``torus``, those
+        around the turn for ``fold_of_cycles``.
+    kind : str
+        One of :data:`KINDS`.
+    **options
+        As for :func:`continue_cycle_end`, whose first point this is.
+
+    Returns
+    -------
+    PeriodicOrbit
+        The orbit at the end (its multipliers include the critical one(s) on the circle).
+
+    Raises
+    ------
+    ValueError
+        Where Newton converges from none of the starts (the message gives each reason).
+    """
+    starts = list(orbits)
+    if kind != "fold_of_cycles" and len(starts) >= 2 and starts[0].max_multiplier != starts[1].max_multiplier:
+        a, b = starts[:2]
+        w = min(1.0, max(0.0, (1.0 - a.max_multiplier) / (b.max_multiplier - a.max_multiplier)))
+        between = {name: getattr(a, name) + w * (getattr(b, name) - getattr(a, name)) for name in ("x", "v", "period", "moment")}
+        starts.insert(0, dataclasses.replace(a, **between))
+    field_name = FIELDS[0]  # any field: its one value is the chain's own
+    reasons = []
+    for start in starts:
+        try:
+            return continue_cycle_end(start, kind, field_name, [getattr(start.params, field_name)], **options).orbits[0]
+        except ValueError as err:
+            reasons.append(str(err))
+    raise ValueError("; ".join(reasons))
+
+
+def _other_multipliers(orbit: PeriodicOrbit, kind: str) -> np.ndarray:
+    """The nontrivial multipliers but the critical one(s) of ``kind``, which lie on the unit circle at the end."""
+    rest = orbit.nontrivial_multipliers
+    if kind == "fold_of_cycles":
+        critical = [int(np.argmin(np.abs(rest - 1.0)))]
+    else:
+        mu = _critical(rest, kind, None)
+        critical = [int(np.argmin(np.abs(rest - mu))), int(np.argmin(np.abs(rest - np.conj(mu))))]
+    return np.delete(rest, sorted(set(critical)))
