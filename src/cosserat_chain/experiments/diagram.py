@@ -6,7 +6,9 @@ For each value of one field of the chain, :func:`state_diagram` gives
 
 * ``static_fold``: M_c, where the static branch from rest ends (the upper edge of the
   loop: a slowly rising load makes the particle rotate above it), followed through the
-  values by continuation of the fold itself (:func:`~cosserat_chain.numerics.fold_curve.continue_fold`);
+  values by continuation of the fold itself (:func:`~cosserat_chain.numerics.fold_curve.continue_fold`),
+  or the branch point where the stable branch ends before its fold (a cantilever under the
+  nonlinear model; ``message`` says so; as ``critical``'s M_c);
 * ``rotation_stops``: where a slowly falling load stops the rotation (the lower edge):
   the rotating state, found as a periodic orbit just above M_c and continued down in M
   (:func:`~cosserat_chain.numerics.periodic.continue_orbit`), ceases to be stable or
@@ -52,6 +54,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..models.base import get_model
+from ..numerics.continuation import continue_in_moment
 from ..numerics.cycle_curve import KINDS, continue_cycle_end, locate_cycle_end
 from ..numerics.fold_curve import continue_fold
 from ..numerics.periodic import OrbitError, PeriodicOrbit, continue_orbit, find_periodic_orbit
@@ -69,6 +72,8 @@ START_FACTOR = 1.1
 SNIC_RTOL = 1e-3
 #: Orbits near a diverging period that the end's extrapolations use.
 TAIL = 6
+#: Fewest orbits a diverging period is read from (the quadratic fit of T^-2 needs more than three).
+MIN_TAIL = 4
 #: Orbits of a continuation that crept to a halt that tell a homoclinic approach (:func:`_approach`).
 APPROACH_POINTS = 12
 #: A homoclinic M_h fitted further below the last orbit's M than this (relative) is an
@@ -251,6 +256,16 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
         around = sorted(branch.orbits[-3:], key=lambda o: abs(o.moment - branch.end_moment))
         return _located(_Edge(float(branch.end_moment), "fold_of_cycles", branch.message), around)
     if branch.end == "infinite_period":
+        if len(branch.orbits) < MIN_TAIL:
+            return _Edge(
+                None,
+                "not_found",
+                (
+                    f"the period exceeded period_max = {period_max:g} within {len(branch.orbits)} orbits of the start at "
+                    f"M = {start:.6g} (periods {', '.join(f'{t:.4g}' for t in branch.period)}): too few to tell how it "
+                    "diverges (try a larger period_max)"
+                ),
+            )
         return _Edge(*_diverging(branch.moment[-TAIL:], branch.period[-TAIL:], moment_c))
     tail = _approach(np.asarray(branch.moment), np.asarray(branch.period)) if branch.end in ("step_too_small", "max_points") else None
     if tail is not None:
@@ -333,6 +348,23 @@ def _diverging(moment: np.ndarray, period: np.ndarray, moment_c: float) -> tuple
     return m_h, "homoclinic", f"the period diverges like -log(M - M_h) at M_h = {m_h:.6g} (fitted to the last {moment.size} orbits)"
 
 
+def _static_onset(chain: ChainParams, model, particle: int, fold: float, phi0: float) -> tuple[float, float, str]:
+    """(M_c, phi_0 there, a note): the fold, unless the stable branch from rest ends before it at a branch
+    point (K singular while M still rises: the nonlinear cantilever's at M = 0.08198, phi_0 = 4.23, before its
+    fold at 0.08375), where the chain leaves the branch and M_c is the branch point's (as ``critical``'s)."""
+    branch = continue_in_moment(chain, model, particle=particle, phi0_stop=phi0 + 0.01)
+    lost = np.flatnonzero(~branch.stable)
+    ends_at = [point for point in branch.branch_points if lost.size and point.after_point == lost[0] - 1 and point.moment < fold]
+    if not ends_at:
+        return fold, phi0, ""
+    point = ends_at[0]
+    note = (
+        f"the stable branch from rest ends at a branch point at M = {point.moment:.6g} (phi_0 = {point.phi0:.4g}), "
+        f"before the fold at {fold:.6g}: M_c is the branch point's; "
+    )
+    return float(point.moment), float(point.phi0), note
+
+
 def _followed(previous: tuple[float, _Edge] | None, field_name: str, value: float) -> _Edge | None:
     """The previous row's end followed to ``value`` (None where it cannot be; an edge without an orbit, whose
     message says why, where the curve stopped: the row is then computed on its own)."""
@@ -410,12 +442,13 @@ def state_diagram(
             diagram.rows.append(DiagramRow(float(value), None, None, None, "not_found", None, curve.message, chain.moment_scale))
             previous = None
             continue
-        moment_c = float(curve.moment[reached[0]])
+        moment_c, phi0_c, onset = _static_onset(chain, model, particle, float(curve.moment[reached[0]]), float(curve.phi0[reached[0]]))
         edge = _followed(previous, field_name, float(value)) if follow else None
         if edge is None or edge.orbit is None:
             note = "" if edge is None else edge.message + "; "
             edge = _lower_edge(chain, model, moment_c, turns, particle, period_max)
             edge.message = note + edge.message
+        edge.message = onset + edge.message
         previous = (float(value), edge)
         stops, message = edge.stops, edge.message
         hysteresis = None if stops is None else bool(stops < moment_c * (1.0 - SNIC_RTOL))
@@ -428,7 +461,7 @@ def state_diagram(
                 "state (not followed), so where it stops and whether the loop is open are not known"
             )
         diagram.rows.append(
-            DiagramRow(float(value), moment_c, float(curve.phi0[reached[0]]), stops, edge.end, hysteresis, message,
+            DiagramRow(float(value), moment_c, phi0_c, stops, edge.end, hysteresis, message,
                        chain.moment_scale, edge.method)
         )  # fmt: skip
     if progress is not None:
