@@ -40,7 +40,7 @@ def test_the_sine_chains_loop_is_open_and_its_lower_edge_is_where_the_orbit_lose
     for row in diagram.rows:
         chain = params.replace(gamma_phi=row.value)
         assert row.static_fold == pytest.approx(locate_fold(chain, "sine").moment, abs=1e-10)
-        assert row.end in ("torus", "period_doubling") and row.hysteresis is True
+        assert row.end in ("torus", "period_doubling") and row.hysteresis is True and row.rotation_starts == "jump"
         assert 0.16 < row.rotation_stops < row.static_fold
         # Stable just above the edge (Newton in short steps down from 1.1 M_c, on its own), and
         # the package's branch orbits below it unstable, their leading multiplier as named.
@@ -54,7 +54,7 @@ def test_the_sine_chains_loop_is_open_and_its_lower_edge_is_where_the_orbit_lose
 
 def test_where_no_stable_periodic_orbit_exists_above_the_fold_the_row_says_so():
     row = state_diagram(ChainParams(), "nonlinear", "E2", [1.0], turns=2).rows[0]
-    assert row.end == "not_found" and row.rotation_stops is None and row.hysteresis is None
+    assert row.end == "not_found" and row.rotation_stops is None and row.hysteresis is None and row.rotation_starts is None
     assert "no stable periodic orbit" in row.message and "modulated" in row.message
     assert row.static_fold == pytest.approx(locate_fold(ChainParams(), "nonlinear").moment, abs=1e-12)
 
@@ -80,6 +80,8 @@ def test_the_command_prints_rows_writes_the_file_and_draws_the_phase_diagram(tmp
 
     ds = read_dataset(out)
     assert ds.attrs["experiment"] == "state_diagram" and list(ds["end"].values) == [r["end"] for r in data["rows"]]
+    assert list(ds["method"].values) == [r["method"] for r in data["rows"]] == ["located", "located"]
+    assert list(ds["rotation_starts"].values) == [r["rotation_starts"] for r in data["rows"]] == ["jump", "jump"]
 
 
 def test_a_range_gives_the_decimal_values_without_linspace_noise():
@@ -179,6 +181,7 @@ def test_the_strongly_damped_pendulum_closes_its_loop_at_a_snic():
     params = ChainParams(N=1, gamma_phi=0.2)  # alpha = 1.79
     row = state_diagram(params, "sine", "gamma_phi", [0.2]).rows[0]
     assert row.end == "snic" and row.hysteresis is False and row.rotation_stops == row.static_fold
+    assert row.rotation_starts == "snic" and row.as_dict()["rotation_starts"] == "snic"
 
 
 def test_an_orbit_losing_stability_above_the_static_fold_leaves_the_loop_unknown():

@@ -20,6 +20,9 @@ For each value of one field of the chain, :func:`state_diagram` gives
   bound below M_c) or ``snic`` (the period grows without bound at M_c itself: a
   saddle-node on the invariant circle, no hysteresis), ``not_found`` when no rotating
   orbit was found or the continuation failed (``message`` says why);
+* ``rotation_starts``: how a slowly rising load starts the rotation at M_c: ``snic`` (the
+  orbit is born on the static fold with an infinitely long period), ``jump`` (onto a rotating
+  state that exists there already: the loop is open), None where the lower edge is unknown;
 * ``method``: how ``rotation_stops`` was found: ``located`` (a fold of cycles, period
   doubling or torus first bracketed by the one-parameter continuation, then solved exactly
   by Newton on the augmented shooting system of
@@ -100,6 +103,15 @@ class DiagramRow:
     moment_scale: float = 1.0
     method: str = "one_parameter"
 
+    @property
+    def rotation_starts(self) -> str | None:
+        """How a slowly rising load starts the rotation at M_c: ``snic`` (with an infinitely long period,
+        the orbit born on the static fold), ``jump`` (onto a rotating state that already exists there: the
+        loop is open), None where the lower edge is not known."""
+        if self.end == "snic":
+            return "snic"
+        return "jump" if self.hysteresis else None
+
     def dimensionless(self, moment: float | None) -> float | None:
         """``moment`` in units of this row's E1 h^2 (the paper's dimensionless moment; E1 or h may be the varied field)."""
         return None if moment is None else moment / self.moment_scale
@@ -112,6 +124,7 @@ class DiagramRow:
             "rotation_stops": self.rotation_stops,
             "end": self.end,
             "hysteresis": self.hysteresis,
+            "rotation_starts": self.rotation_starts,
             "message": self.message,
             "moment_scale": self.moment_scale,
             "method": self.method,
@@ -188,6 +201,8 @@ class StateDiagram:
                 "end": (("value",), np.array([row.end for row in self.rows], dtype=str), {"units": "1", "long_name": "how the rotation stops"}),
                 "hysteresis": (("value",), np.array([-1 if row.hysteresis is None else int(row.hysteresis) for row in self.rows], dtype=np.int8),
                                {"units": "1", "long_name": "1: open loop (rotation_stops < static_fold), 0: closed, -1: unknown"}),
+                "rotation_starts": (("value",), np.array([row.rotation_starts or "unknown" for row in self.rows], dtype=str),
+                                    {"units": "1", "long_name": "how a rising load starts the rotation at M_c: snic, jump or unknown"}),
                 "method": (("value",), np.array([row.method for row in self.rows], dtype=str),
                            {"units": "1", "long_name": "how rotation_stops was found: followed, located or one_parameter"}),
                 "moment_scale": (("value",), column("moment_scale"), {"units": "energy", "long_name": "E1 h^2, the unit of the dimensionless moment M / (E1 h^2)"}),
