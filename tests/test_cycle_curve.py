@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import random_geometries
 from cosserat_chain import ChainParams
 from cosserat_chain.experiments.coexisting import states_at
 from cosserat_chain.experiments.diagram import state_diagram
@@ -139,3 +140,21 @@ def test_bad_input_is_refused_with_the_field_and_the_value(kind, field, values, 
         curve = continue_cycle_end(orbit, kind, field, values)
         assert curve is None  # pragma: no cover - the call raises
     assert set(KINDS) == {"fold_of_cycles", "period_doubling", "torus"}
+
+
+@pytest.mark.parametrize("index", [2, 5, 6])
+def test_ends_of_random_chains_followed_in_E2_cross_the_circle_where_they_say(index):
+    """Random admissible chains (N = 4, 5) whose rotation ends at a torus or a period doubling (as the
+    diagram finds it at the chain's own E2): followed 5 % up in E2, the end agrees with orbits found on
+    their own around it, as for the paper's chain. (Chain 5's orbit is unstable in a window, M = 0.649
+    to 0.640, between stable orbits: its edge is the window's top.)"""
+    params = random_geometries(8, seed=3)[index]
+    kind = state_diagram(params, "sine", "E2", [params.E2]).rows[0].end
+    assert kind in ("torus", "period_doubling")
+    values = [params.E2, 1.05 * params.E2]
+    curve = continue_cycle_end(orbit_near_loss(params, kind), kind, "E2", values)
+    assert curve.complete
+    for value, moment, orbit in zip(curve.values, curve.moment, curve.orbits):
+        chain = params.replace(E2=float(value))
+        assert abs(abs(critical(orbit, kind)) - 1.0) < 1e-5
+        assert moment == pytest.approx(crossing_by_natural_continuation(chain, orbit, moment, kind), rel=1e-6)

@@ -20,9 +20,10 @@ from the point at the value before (extrapolated along the curve from the two be
   multiplier equals -1. (The multiplier itself is no good test function there: in the
   paper's chain it has just split off a complex pair on the negative real axis, and a
   small change of the unknowns joins them again.)
-* ``torus``: (P) and |mu|^2 - 1 = 0, mu the complex multiplier (positive imaginary part)
-  nearest the one at the point before (a Neimark-Sacker bifurcation of the cycle; a simple
-  pair is a smooth function of the unknowns).
+* ``torus``: (P) and |mu|^2 - 1 = 0, mu a complex multiplier: at the start the largest
+  (at the edge every other one lies inside), then the one nearest it at the iterate or point
+  before (a Neimark-Sacker bifurcation of the cycle; a simple pair is a smooth function of
+  the unknowns).
 The unknowns are z = (y0 without phi_0, log T, M). The
 Jacobian R_z of (P) is exact (the monodromy matrix and the flow's derivative in M). The test
 function's gradient is needed only along two directions: the minimum-norm correction of
@@ -32,7 +33,9 @@ g = 0. Both derivatives are one-sided differences, two more monodromy integratio
 iteration instead of the size of z.
 
 Each point is checked to be the lower edge it claims to be: every other nontrivial
-multiplier inside the unit circle (by :data:`EDGE_MARGIN`). Where one is not, another
+multiplier inside the unit circle (by :data:`EDGE_MARGIN`), and the critical one outside
+it a short step down the orbit branch (where it re-enters the circle as M falls, the orbit
+regains stability there: no edge). Where one is not, another
 multiplier has left the circle first (the edge changes kind between two values) and the
 curve stops there, saying so; so it does where Newton fails from the previous point even
 on halved parameter steps (the curve turns back in p, or ends: at a codimension-two point
@@ -88,6 +91,8 @@ DIFFERENCE_STEP = 1e-6
 JUMP = 0.3
 #: The other nontrivial multipliers of a point on the edge lie inside |mu| < 1 - EDGE_MARGIN.
 EDGE_MARGIN = 1e-6
+#: Step along the orbit branch (in the unknowns) at which the critical multiplier is checked to lie outside the circle.
+CROSSING_STEP = 1e-4
 #: An imaginary part above this (relative to the modulus) makes a multiplier complex.
 COMPLEX_RTOL = 1e-6
 
@@ -145,7 +150,7 @@ class _Point:
     jac: np.ndarray
     mono: np.ndarray
     g: float
-    followed: object
+    pair: complex | None
     step: np.ndarray | None = None
 
     @property
@@ -166,7 +171,8 @@ class _Augmented:
     tol: float
     rtol: float
     atol: float
-    reference: object = field(default=None)  # b, c of the fold; the critical multiplier otherwise
+    borders: tuple[np.ndarray, np.ndarray] | None = field(default=None)  # b, c of a bordered test function
+    pair: complex | None = field(default=None)  # the torus's critical multiplier at the last point
 
     def __post_init__(self) -> None:
         self.size = 2 * n_free(self.orbit.params)
@@ -183,10 +189,10 @@ class _Augmented:
 
     def evaluate(self, chain: ChainParams, z: np.ndarray):
         """(R, R_z, monodromy, A) at z: (P), its Jacobian in z, and the shooting Jacobian in (y0, log T)."""
-        y0, period, moment = self.split(z)
-        if not (np.all(np.isfinite(z)) and 1e-3 * self.orbit.period < period < 1e3 * self.orbit.period):
+        if not (np.all(np.isfinite(z)) and abs(z[self.size - 1] - math.log(self.orbit.period)) < math.log(1e3)):
             # A Newton step that left the orbit (a period a thousand times off): refused, the step is halved.
-            raise OrbitError(f"the period {period:.6g} is far from the orbit's {self.orbit.period:.6g}")
+            raise OrbitError(f"the period exp({z[self.size - 1]:.6g}) is far from the orbit's {self.orbit.period:.6g}")
+        y0, period, moment = self.split(z)
         system = _System(chain, get_model(self.orbit.model), moment, self.orbit.particle)
         residual, jac_y, jac_t, d_moment, mono = _shooting(system, self.orbit.particle_turns, self.rtol, self.atol)(y0, period)
         shooting = np.column_stack([jac_y[:, self.keep], period * jac_t])
@@ -196,39 +202,39 @@ class _Augmented:
         """The matrix that is singular at a ``fold_of_cycles`` (A) or a ``period_doubling`` (monodromy + I)."""
         return shooting if self.kind == "fold_of_cycles" else mono + np.eye(mono.shape[0])
 
-    def test(self, mono: np.ndarray, shooting: np.ndarray | None) -> tuple[float, object]:
-        """The test function g and what it followed (the torus's multiplier; the borders b, c otherwise)."""
+    def test(self, mono: np.ndarray, shooting: np.ndarray) -> float:
+        """The test function g (module docstring)."""
         if self.kind == "torus":
-            mu = _critical(sla.eigvals(mono), self.kind, self.reference)
-            return abs(mu) ** 2 - 1.0, mu
-        b, c = self.reference
+            return abs(_critical(sla.eigvals(mono), self.kind, self.pair)) ** 2 - 1.0
+        b, c = self.borders
         matrix = self.bordered(mono, shooting)
         bordered = np.block([[matrix, b[:, None]], [c[None, :], np.zeros((1, 1))]])
         rhs = np.zeros(matrix.shape[0] + 1)
         rhs[-1] = 1.0
-        return float(np.linalg.solve(bordered, rhs)[-1]), self.reference
+        return float(np.linalg.solve(bordered, rhs)[-1])
 
     def solve(self, chain: ChainParams, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, int] | None:
         """Newton on the augmented system from z for ``chain``: (z, monodromy, closure, iterations), or None.
 
-        A step that makes max(|R|, |g|) larger, or leads where g is not defined (the followed
-        multiplier has met another one and left the real axis), is halved. A failed solve
-        leaves what is followed as it was (its iterates may have tracked another multiplier).
+        A step that makes neither max(|R|, |g|) nor the next Newton step smaller, or leads
+        where g is not defined (no complex multiplier left), is halved. A failed solve keeps
+        the borders it started with.
         """
-        saved = self.reference
+        saved = self.borders, self.pair
         solved = self._newton(chain, z)
         if solved is None:
-            self.reference = saved
+            self.borders, self.pair = saved
         return solved
 
     def _newton(self, chain: ChainParams, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, int] | None:
-        if self.kind in BORDERED and self.reference is None:
+        if self.kind in BORDERED and self.borders is None:
             try:
                 _, _, mono, shooting = self.evaluate(chain, z)
             except OrbitError:
                 return None
-            self.reference = _singular_vectors(self.bordered(mono, shooting))
+            self.borders = _singular_vectors(self.bordered(mono, shooting))
         current = self._point(chain, z)
+        self.pair = current.pair if current is not None else self.pair
         if current is None:
             return None
         merits = []
@@ -239,7 +245,7 @@ class _Augmented:
             if current.norm <= self.tol and abs(current.g) <= TEST_TOL:
                 if self.kind in BORDERED:
                     # Borders for the next value: the singular vectors at this point.
-                    self.reference = _singular_vectors(self.bordered(current.mono, current.jac[:, :-1]))
+                    self.borders = _singular_vectors(self.bordered(current.mono, current.jac[:, :-1]))
                 return z, current.mono, current.norm, iteration
             step = self._newton_step(chain, z, current)
             if iteration == MAX_ITERATIONS or step is None:
@@ -260,28 +266,40 @@ class _Augmented:
             else:
                 return None
             z, current = z + fraction * step, trial
-            self.reference = current.followed if self.kind == "torus" else self.reference
+            # The torus's pair is followed from iterate to iterate (nearest the last one).
+            self.pair = current.pair
         return None
 
     def _newton_step(self, chain: ChainParams, z: np.ndarray, point: _Point) -> np.ndarray | None:
         """The Newton step at ``point`` (kept on it), or None where it is not defined."""
         if point.step is None:
-            if self.kind == "torus":
-                self.reference = point.followed
             try:
                 point.step = self._step(chain, z, point.residual, point.jac, point.g)
             except (OrbitError, np.linalg.LinAlgError):
                 return None
         return point.step if np.all(np.isfinite(point.step)) else None
 
+    def leaves_circle(self, chain: ChainParams, z: np.ndarray, orbit: PeriodicOrbit) -> bool:
+        """Whether the critical multiplier of the end at z lies outside the circle a step down the orbit branch
+        (the orbit loses stability as M falls there, not regains it)."""
+        target = _critical(orbit.nontrivial_multipliers, self.kind, self.pair)
+        _, jac, _, _ = self.evaluate(chain, z)
+        tangent = np.linalg.svd(jac)[2][-1]
+        # Along the branch's tangent towards smaller |M| (to first order on the branch).
+        tangent *= -math.copysign(1.0, tangent[-1] * z[-1])
+        mono = self.evaluate(chain, z + CROSSING_STEP * tangent)[2]
+        multipliers = sla.eigvals(mono)
+        return bool(abs(multipliers[np.argmin(np.abs(multipliers - target))]) > 1.0)
+
     def _point(self, chain: ChainParams, z: np.ndarray) -> _Point | None:
         """(P) and g at z, or None where they are not defined (the integration fails, no multiplier to follow)."""
         try:
             residual, jac, mono, shooting = self.evaluate(chain, z)
-            g, followed = self.test(mono, shooting)
+            g = self.test(mono, shooting)
+            pair = _critical(sla.eigvals(mono), self.kind, self.pair) if self.kind == "torus" else None
         except (OrbitError, np.linalg.LinAlgError):
             return None
-        return _Point(residual, jac, mono, g, followed)
+        return _Point(residual, jac, mono, g, pair)
 
     def _step(self, chain: ChainParams, z: np.ndarray, residual: np.ndarray, jac: np.ndarray, g: float) -> np.ndarray:
         """The Newton step of (P) and g = 0: the minimum-norm correction of (P) plus the multiple of its null vector that zeroes the linearised g."""
@@ -292,7 +310,7 @@ class _Augmented:
         def slope(direction: np.ndarray) -> float:
             trial = z + DIFFERENCE_STEP * direction
             _, _, mono, shooting = self.evaluate(chain, trial)
-            return (self.test(mono, shooting)[0] - g) / DIFFERENCE_STEP
+            return (self.test(mono, shooting) - g) / DIFFERENCE_STEP
 
         size = float(np.linalg.norm(correction))
         along_correction = slope(correction / size) * size if size > 1e-14 else 0.0
@@ -383,6 +401,8 @@ def continue_cycle_end(
                 f"another Floquet multiplier is outside the unit circle there (|mu| = {float(np.max(np.abs(others))):.6g}): "
                 "the rotating state is lost before this end, the edge changes kind"
             )
+        if kind != "fold_of_cycles" and not augmented.leaves_circle(chain, z_new, found):
+            return None, "the critical multiplier enters the unit circle as M falls there: the orbit regains stability, no lower edge"
         return (value, z_new, found, iterations), ""
 
     first, reason = point(float(values[0]), augmented.pack(orbit))
@@ -436,18 +456,28 @@ def continue_cycle_end(
     )
 
 
-def _critical(multipliers: np.ndarray, kind: str, reference: complex | None) -> complex:
-    """The multiplier a ``period_doubling`` or ``torus`` end follows: the real negative one (the complex one
-    with a positive imaginary part) nearest ``reference``, or, without one, nearest the unit circle."""
+def _critical(multipliers: np.ndarray, kind: str, pair: complex | None) -> complex:
+    """The multiplier on the circle at a ``period_doubling`` end (the real negative one nearest -1) or a
+    ``torus`` end (the complex one, positive imaginary part, nearest ``pair``: the one followed; without
+    it the largest).
+
+    At a torus end every other multiplier lies inside the circle, so the crossing pair starts as
+    the largest; nearness to the circle does not tell it: with damping nearly proportional to the
+    inertia the multipliers crowd onto one circle (a random N = 4 chain's pairs at 0.9975 and 0.9686
+    swap places before the second crosses), so the pair is then followed by nearness in the plane.
+    """
     complex_ = np.abs(multipliers.imag) > COMPLEX_RTOL * np.abs(multipliers)
     if kind == "period_doubling":
         candidates = multipliers[~complex_ & (multipliers.real < 0)]
     else:
         candidates = multipliers[complex_ & (multipliers.imag > 0)]
     if candidates.size == 0:
-        raise OrbitError(f"no {'real negative' if kind == 'period_doubling' else 'complex'} Floquet multiplier to follow")
-    distance = np.abs(np.abs(candidates) - 1.0) if reference is None else np.abs(candidates - reference)
-    return complex(candidates[np.argmin(distance)])
+        raise OrbitError(f"no {'real negative' if kind == 'period_doubling' else 'complex'} Floquet multiplier")
+    if kind == "period_doubling":
+        return complex(candidates[np.argmin(np.abs(candidates + 1.0))])
+    if pair is None:
+        return complex(candidates[np.argmax(np.abs(candidates))])
+    return complex(candidates[np.argmin(np.abs(candidates - pair))])
 
 
 def locate_cycle_end(orbits: Sequence[PeriodicOrbit], kind: str, **options) -> PeriodicOrbit:

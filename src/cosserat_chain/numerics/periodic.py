@@ -69,6 +69,12 @@ ATOL = 1e-11
 CLOSURE_TOL = 1e-9
 #: Newton iterations of one continuation step before the step is halved.
 MAX_CORRECTOR_ITERATIONS = 10
+#: Farthest a Floquet multiplier near the unit circle may move in the complex plane over one
+#: continuation step (:func:`continue_orbit` retakes a longer one shorter, so that no window of
+#: instability hides between two stable orbits).
+MAX_MULTIPLIER_MOTION = 0.1
+#: Multipliers whose modulus lies in this range at either end of a step count as near the circle.
+MULTIPLIER_WATCH = (0.9, 1.2)
 #: Newton reuses its Jacobian while each step divides the closure by at least 1 / NEWTON_RATE.
 NEWTON_RATE = 0.1
 #: Step halvings of a Newton step that makes the closure worse.
@@ -809,7 +815,11 @@ def continue_orbit(
     The unknowns are w = (y0 on the section, log T, M), the equations (P) and the
     arclength condition t . (w - w_pred) = 0 with t the unit tangent of the branch
     (the null vector of d(P)/dw); the bordered Jacobian is regular at a fold of
-    limit cycles, so a fold is passed and detected as a sign change of dM/ds.
+    limit cycles, so a fold is passed and detected as a sign change of dM/ds. A step over
+    which a multiplier near the unit circle (:data:`MULTIPLIER_WATCH`) moves farther than
+    :data:`MAX_MULTIPLIER_MOTION` in the complex plane is retaken shorter, so that a loss of
+    stability between two stable orbits is not stepped over (a window can still hide where
+    the multipliers move less than that across it).
 
     Parameters
     ----------
@@ -923,8 +933,16 @@ def continue_orbit(
                 break
             continue
         w_new, jac, mono, norm, iterations = corrected
+        candidate = make_orbit(w_new, mono, norm, iterations)
+        if _multiplier_motion(orbits[-1].multipliers, candidate.multipliers) > MAX_MULTIPLIER_MOTION and h > min_step:
+            # A step over which a multiplier near the unit circle moves this far can hide a
+            # window of instability between two stable orbits (one random N = 4 chain's pair
+            # rose above 1 and came back between M = 0.677 and 0.620, the largest modulus
+            # there 0.975 and 0.982): retaken shorter.
+            h = max(min_step, 0.5 * h)
+            continue
         t_new = tangent(jac, t)
-        orbits.append(make_orbit(w_new, mono, norm, iterations))
+        orbits.append(candidate)
         if progress is not None:
             progress(len(orbits), max_points)
         turned = t_new[-1] * sign > 0 and t[-1] * sign < 0
@@ -945,6 +963,18 @@ def continue_orbit(
     if end == END_FOLD and len(orbits) >= 3:
         end_moment = _fold_moment(orbits[-3:], sign)
     return OrbitBranch(orbits=orbits, end=end, end_moment=float(end_moment), message=message, settings=settings)
+
+
+def _multiplier_motion(before: np.ndarray, after: np.ndarray) -> float:
+    """How far the multipliers near the unit circle moved from ``before`` to ``after``: the largest distance
+    in the matching of the two sets that minimises the total distance (eigenvalues carry no labels)."""
+    import scipy.optimize as so
+
+    distance = np.abs(before[:, None] - after[None, :])
+    rows, cols = so.linear_sum_assignment(distance)
+    low, high = MULTIPLIER_WATCH
+    near = ((np.abs(before[rows]) >= low) | (np.abs(after[cols]) >= low)) & (np.abs(before[rows]) <= high) & (np.abs(after[cols]) <= high)
+    return float(np.max(distance[rows, cols][near], initial=0.0))
 
 
 def _fold_moment(last: list[PeriodicOrbit], sign: float) -> float:
