@@ -10,9 +10,9 @@ viscosity). Every model provides
   ``kernel(x, coef, out, start, stop)``, that overwrites ``out[:, start:stop]``
   with the forces on the interior columns start..stop-1 (1 <= start < stop <= 2N),
   each with a neighbour on either side. It reads only columns start-1..stop, so
-  disjoint column ranges can be computed by different threads. Its loop over
-  columns must vectorise (no branch in the loop body, 0-based slices, carried
-  values rather than recomputed neighbours).
+  disjoint column ranges can be computed by different threads. Its loops over
+  columns must vectorise (no branch in a loop body, 0-based slices, each bond
+  computed once: carried to the next column or kept in scratch, :func:`stack_floats`).
 * ``end_kernel`` (optional: a model without it runs clamped chains only):
   signature :data:`END_SIGNATURE`, ``kernel(x, coef, out, first, last, ring)``,
   overwrites the forces on column 0 (if ``first``) and column 2N (if ``last``).
@@ -68,7 +68,9 @@ from typing import ClassVar
 
 import numpy as np
 import scipy.sparse as sp
+from llvmlite import ir
 from numba import njit, types
+from numba.extending import intrinsic
 from scipy.linalg import LinAlgError, cholesky_banded
 
 from ..memory import FLOAT, require
@@ -94,6 +96,31 @@ BATCH_FORCE_KERNEL_TYPE = types.FunctionType(BATCH_FORCE_SIGNATURE)
 #: +25 % on the nonlinear kernel. No reassociation (sums keep their order) and no
 #: nnan/ninf (they would delete the finiteness checks).
 KERNEL_OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": {"contract"}}
+#: float64 lanes of the widest SIMD registers (AVX-512) a kernel's vector loop fills: a loop
+#: whose trip count is a multiple of it leaves nothing to its scalar remainder loop.
+LANES = 8
+
+
+@intrinsic
+def stack_floats(typingctx, size):  # pragma: no cover - compiled
+    """Pointer to ``size`` (a literal) float64 on the calling compiled function's stack, 64-byte aligned, not initialised.
+
+    A kernel's scratch (``numba.carray(stack_floats(n), shape)``): ``np.empty``
+    would allocate from the heap on every call, and scratch among the kernel's arguments
+    would change :data:`FORCE_SIGNATURE`. The values live until the function returns.
+    """
+    if not isinstance(size, types.IntegerLiteral):
+        return None
+    slots = ir.ArrayType(ir.DoubleType(), size.literal_value)
+
+    def codegen(context, builder, signature, args):
+        # In the entry block, as every alloca: it then takes its stack once per call, not per loop turn.
+        with builder.goto_entry_block():
+            slot = builder.alloca(slots)
+        slot.align = 64
+        return builder.bitcast(slot, ir.DoubleType().as_pointer())
+
+    return types.CPointer(types.float64)(size), codegen
 
 
 #: Relative asymmetry of M^-1/2 K M^-1/2 below which the generic max_frequency takes K as
