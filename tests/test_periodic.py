@@ -227,3 +227,12 @@ def test_orbit_without_turns_takes_the_first_stable_of_one_two_and_three_turns()
     assert result.exit_code == 0, result.output
     data = json.loads(result.output)
     assert data["turns"] == 3 and data["stable"] is True
+
+
+def test_a_continuation_asked_to_stop_at_the_first_unstable_orbit_stops_there_with_the_same_loss():
+    orbit = find_periodic_orbit(ChainParams(), "sine", 0.22)
+    full = continue_orbit(orbit)
+    short = continue_orbit(orbit, until_unstable=True)
+    assert short.end == "unstable" and not short.orbits[-1].stable and all(o.stable for o in short.orbits[:-1])
+    assert len(short.orbits) < len(full.orbits)
+    assert short.stability_lost_at == full.stability_lost_at  # the same steps up to there

@@ -252,7 +252,7 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
                 "the rotation there may be modulated or irregular (simulate or rotate show it)"
             ),
         )
-    branch = continue_orbit(orbit, moment_min=0.0, period_max=period_max)
+    branch = continue_orbit(orbit, moment_min=0.0, period_max=period_max, until_unstable=True)
     lost = branch.stability_lost_at
     if lost is not None:
         index = int(np.argmin(branch.stable))
