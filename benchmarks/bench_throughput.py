@@ -183,10 +183,12 @@ def verify(crefs: harness.CReferences, log) -> dict:
 
 
 # ----------------------------------------------------------------------------- part 1: one thread
-def single_thread(crefs: harness.CReferences, quick: bool, log) -> list[dict]:
+def single_thread(crefs: harness.CReferences, quick: bool, log, only: set[int] | None = None) -> list[dict]:
     rows = []
     for N, work, rounds in plan(quick)["sizes"]:
         n = 2 * N + 1
+        if only is not None and n not in only:
+            continue
         n_steps = max(10, round(work / n))
         chain = Chain(N, n_steps)
         contenders = chain.contenders(crefs)
@@ -457,6 +459,10 @@ def main(argv=None) -> int:
     )  # fmt: skip
     parser.add_argument("--output", type=Path, default=None, help="JSON file (default benchmarks/results/throughput[-quick].json)")
     parser.add_argument("--markdown", type=Path, metavar="JSON", help="only print the README tables of a saved result")
+    parser.add_argument(
+        "--sizes", default=None, metavar="N1,N2",
+        help="only these chain sizes (particles, of the plan's: 7,101,10001,1000001), each in this process after the others' warm-up",
+    )  # fmt: skip
     args = parser.parse_args(argv)
     if args.markdown:
         print(markdown(json.loads(args.markdown.read_text())))
@@ -477,14 +483,15 @@ def main(argv=None) -> int:
             Chain(600, 10).numba(energy, fused)
     log(f"warm-up (numba compile / cache load): {time.perf_counter() - warm:.1f} s")
     check = verify(crefs, log)
-    rows = single_thread(crefs, args.quick, log)
+    only = None if args.sizes is None else {int(size) for size in args.sizes.split(",")}
+    rows = single_thread(crefs, args.quick, log, only)
     wait_idle = args.wait_idle if args.wait_idle is not None else (0.0 if args.quick else 60.0)
     th = None if args.no_threads else threads(args.quick, wait_idle, log)
     env["loadavg_end"] = list(os.getloadavg())
     result = {
         "benchmark": "bench_throughput",
         "quick": args.quick,
-        "command": "python benchmarks/bench_throughput.py" + (" --quick" if args.quick else ""),
+        "command": "python benchmarks/bench_throughput.py" + (" --quick" if args.quick else "") + (f" --sizes {args.sizes}" if args.sizes else ""),
         "environment": env,
         "c_commands": crefs.commands,
         "moment": MOMENT,
