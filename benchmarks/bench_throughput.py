@@ -491,7 +491,9 @@ def main(argv=None) -> int:
     result = {
         "benchmark": "bench_throughput",
         "quick": args.quick,
-        "command": "python benchmarks/bench_throughput.py" + (" --quick" if args.quick else "") + (f" --sizes {args.sizes}" if args.sizes else ""),
+        "command": "python benchmarks/bench_throughput.py"
+        + (" --quick" if args.quick else "")
+        + (f" --sizes {args.sizes}" if args.sizes else ""),
         "environment": env,
         "c_commands": crefs.commands,
         "moment": MOMENT,
