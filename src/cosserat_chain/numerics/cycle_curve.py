@@ -38,9 +38,9 @@ it a short step down the orbit branch (where it re-enters the circle as M falls,
 regains stability there: no edge). Where one is not, another
 multiplier has left the circle first (the edge changes kind between two values) and the
 curve stops there, saying so; so it does where Newton fails from the previous point even
-on halved parameter steps (the curve turns back in p, or ends: at a codimension-two point
-such as the 1:2 resonance where the paper's chain's torus end turns into a period doubling,
-between E2 = 1.12 and 1.2).
+on halved parameter steps (the curve turns back in p, or ends at a codimension-two point:
+the paper's chain's torus end cannot be followed beyond E2 = 1.12 and is a period doubling at
+1.2; where the two meet was not located).
 
 Not followed: a homoclinic end. Approximating the homoclinic orbit by an orbit of fixed
 long period (AUTO-07p's way) needs collocation or multiple shooting: with single shooting the
