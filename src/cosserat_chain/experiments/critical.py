@@ -207,12 +207,10 @@ def critical_point(
     # Under a positive moment from rest M rises first: the branch's first fold is a maximum.
     fold = max(maxima, key=lambda f: f.moment) if maxima else None
     first = branch.folds[0] if branch.folds else None
-    lost = np.flatnonzero(~branch.stable)
-    ends_at = [q for q in branch.branch_points if lost.size and q.after_point == lost[0] - 1]
-    if ends_at:
+    if branch.stable_end is not None:
         # The stable branch ends at a branch point, not at a fold: the chain leaves it there.
         return CriticalResult(
-            params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first, None, ends_at[0]
+            params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first, None, branch.stable_end
         )
     snap_to = _snap_target(params, model, branch, first, particle) if first is not None and first is not fold else None
     return CriticalResult(params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first, snap_to)

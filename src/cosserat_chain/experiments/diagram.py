@@ -367,12 +367,9 @@ def _static_onset(chain: ChainParams, model, particle: int, fold: float, phi0: f
     """(M_c, phi_0 there, a note): the fold, unless the stable branch from rest ends before it at a branch
     point (K singular while M still rises: the nonlinear cantilever's at M = 0.08198, phi_0 = 4.23, before its
     fold at 0.08375), where the chain leaves the branch and M_c is the branch point's (as ``critical``'s)."""
-    branch = continue_in_moment(chain, model, particle=particle, phi0_stop=phi0 + 0.01)
-    lost = np.flatnonzero(~branch.stable)
-    ends_at = [point for point in branch.branch_points if lost.size and point.after_point == lost[0] - 1 and point.moment < fold]
-    if not ends_at:
+    point = continue_in_moment(chain, model, particle=particle, phi0_stop=phi0 + 0.01).stable_end
+    if point is None or point.moment >= fold:
         return fold, phi0, ""
-    point = ends_at[0]
     note = (
         f"the stable branch from rest ends at a branch point at M = {point.moment:.6g} (phi_0 = {point.phi0:.4g}), "
         f"before the fold at {fold:.6g}: M_c is the branch point's; "

@@ -191,6 +191,13 @@ class Branch:
         """False if the point budget ran out or the corrector stalled before the requested end."""
         return self.stop not in ("max_points", "stalled")
 
+    @property
+    def stable_end(self) -> BranchPoint | None:
+        """The branch point where the stable branch from rest ends (between the last stable point and
+        the first unstable one), or None where it ends otherwise (at a fold) or never."""
+        lost = np.flatnonzero(~self.stable)
+        return next((q for q in self.branch_points if lost.size and q.after_point == lost[0] - 1), None)
+
 
 def compliance(params: ChainParams, model: str | Model, *, particle: int = 0, x: np.ndarray | None = None) -> float:
     """d phi_0 / dM at the state ``x`` (default rest): the rotation compliance (K^-1 e)_phi0.

@@ -59,12 +59,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg as sla
-from pydantic import ValidationError
 
 from ..models.base import get_model
 from ..params import ChainParams
 from ..state import n_free
-from .fold_curve import FIELDS
+from .fold_curve import FIELDS, chain_with, field_values
 from .periodic import ATOL, CLOSURE_TOL, RTOL, OrbitError, PeriodicOrbit, _orbit, _shooting, _System, _to_y
 
 #: Kinds of end that can be followed (:mod:`~cosserat_chain.experiments.diagram`'s ends that are
@@ -202,16 +201,17 @@ class _Augmented:
         """The matrix that is singular at a ``fold_of_cycles`` (A) or a ``period_doubling`` (monodromy + I)."""
         return shooting if self.kind == "fold_of_cycles" else mono + np.eye(mono.shape[0])
 
-    def test(self, mono: np.ndarray, shooting: np.ndarray) -> float:
-        """The test function g (module docstring)."""
+    def test(self, mono: np.ndarray, shooting: np.ndarray) -> tuple[float, complex | None]:
+        """The test function g (module docstring) and, for a torus, the pair it was taken from."""
         if self.kind == "torus":
-            return abs(_critical(sla.eigvals(mono), self.kind, self.pair)) ** 2 - 1.0
+            pair = _critical(sla.eigvals(mono), self.kind, self.pair)
+            return abs(pair) ** 2 - 1.0, pair
         b, c = self.borders
         matrix = self.bordered(mono, shooting)
         bordered = np.block([[matrix, b[:, None]], [c[None, :], np.zeros((1, 1))]])
         rhs = np.zeros(matrix.shape[0] + 1)
         rhs[-1] = 1.0
-        return float(np.linalg.solve(bordered, rhs)[-1])
+        return float(np.linalg.solve(bordered, rhs)[-1]), None
 
     def solve(self, chain: ChainParams, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, int] | None:
         """Newton on the augmented system from z for ``chain``: (z, monodromy, closure, iterations), or None.
@@ -234,9 +234,9 @@ class _Augmented:
                 return None
             self.borders = _singular_vectors(self.bordered(mono, shooting))
         current = self._point(chain, z)
-        self.pair = current.pair if current is not None else self.pair
         if current is None:
             return None
+        self.pair = current.pair
         merits = []
         for iteration in range(MAX_ITERATIONS + 1):
             merits.append(current.merit)
@@ -295,8 +295,7 @@ class _Augmented:
         """(P) and g at z, or None where they are not defined (the integration fails, no multiplier to follow)."""
         try:
             residual, jac, mono, shooting = self.evaluate(chain, z)
-            g = self.test(mono, shooting)
-            pair = _critical(sla.eigvals(mono), self.kind, self.pair) if self.kind == "torus" else None
+            g, pair = self.test(mono, shooting)
         except (OrbitError, np.linalg.LinAlgError):
             return None
         return _Point(residual, jac, mono, g, pair)
@@ -310,7 +309,7 @@ class _Augmented:
         def slope(direction: np.ndarray) -> float:
             trial = z + DIFFERENCE_STEP * direction
             _, _, mono, shooting = self.evaluate(chain, trial)
-            return (self.test(mono, shooting) - g) / DIFFERENCE_STEP
+            return (self.test(mono, shooting)[0] - g) / DIFFERENCE_STEP
 
         size = float(np.linalg.norm(correction))
         along_correction = slope(correction / size) * size if size > 1e-14 else 0.0
@@ -369,23 +368,12 @@ def continue_cycle_end(
     """
     if kind not in KINDS:
         raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
-    if field_name not in FIELDS:
-        raise ValueError(f"field must be one of {', '.join(FIELDS)} (a number of the chain), got {field_name!r}")
-    values = np.asarray(values, dtype=float).ravel()
-    if values.size == 0 or not np.all(np.isfinite(values)):
-        raise ValueError(f"values of {field_name} must be one or more finite numbers, got {values!r}")
+    values = field_values(field_name, values)
     augmented = _Augmented(kind, orbit, tol, rtol, atol)
-
-    def chain_at(value: float) -> ChainParams:
-        try:
-            return orbit.params.replace(**{field_name: value})
-        except ValidationError as err:
-            reasons = "; ".join(error["msg"].removeprefix("Value error, ") for error in err.errors())
-            raise ValueError(f"{field_name} = {value:g} is not an admissible chain: {reasons}") from None
 
     def point(value: float, z: np.ndarray):
         """The end at ``value`` from the guess z, checked to be the lower edge; (entry, reason) or (None, reason)."""
-        chain = chain_at(value)
+        chain = chain_with(orbit.params, field_name, value)
         solved = augmented.solve(chain, z)
         if solved is None:
             return None, "Newton did not converge"

@@ -111,13 +111,23 @@ class FoldCurve:
         }
 
 
-def _values(field_name: str, values: Sequence[float]) -> np.ndarray:
+def field_values(field_name: str, values: Sequence[float]) -> np.ndarray:
+    """``values`` as a flat float array; ValueError for a field not in :data:`FIELDS` or values not one or more finite numbers."""
     if field_name not in FIELDS:
         raise ValueError(f"field must be one of {', '.join(FIELDS)} (a number of the chain), got {field_name!r}")
     out = np.asarray(values, dtype=float).ravel()
     if out.size == 0 or not np.all(np.isfinite(out)):
         raise ValueError(f"values of {field_name} must be one or more finite numbers, got {values!r}")
     return out
+
+
+def chain_with(params: ChainParams, field_name: str, value: float) -> ChainParams:
+    """``params`` with ``field_name`` set to ``value``; ValueError naming the field and the value if that chain is not admissible."""
+    try:
+        return params.replace(**{field_name: value})
+    except ValidationError as err:
+        reasons = "; ".join(error["msg"].removeprefix("Value error, ") for error in err.errors())
+        raise ValueError(f"{field_name} = {value:g} is not an admissible chain: {reasons}") from None
 
 
 def _null_vector(stiffness: sp.spmatrix) -> np.ndarray:
@@ -201,7 +211,7 @@ def continue_fold(
         value whose branch has no fold (the linear model).
     """
     model = get_model(model)
-    values = _values(field_name, values)
+    values = field_values(field_name, values)
     independent = field_name in STATIC_INDEPENDENT
     chain = params.replace(**{field_name: float(values[0])})
     require_held(chain)
@@ -229,11 +239,7 @@ def continue_fold(
                 # Secant predictor along the curve: the fold moves smoothly with the parameter.
                 ratio = (value - guess[0]) / (guess[0] - found[-2][0])
                 guess = (value, *(g + ratio * (g - h) for g, h in zip(guess[1:4], found[-2][1:4])), 0)
-            try:
-                chain = params.replace(**{field_name: value})
-            except ValidationError as err:
-                reasons = "; ".join(error["msg"].removeprefix("Value error, ") for error in err.errors())
-                raise ValueError(f"{field_name} = {value:g} is not an admissible chain: {reasons}") from None
+            chain = chain_with(params, field_name, value)
             solved = _newton(model, chain, dof, guess[1], guess[2], guess[3], normal)
             if solved is not None and np.max(np.abs(solved[0] - guess[1])) > JUMP:
                 solved = None  # a jump to another fold, not this one followed
