@@ -449,6 +449,13 @@ def test_a_continuation_point_assembles_the_stiffness_once_per_solve_and_counts_
     monkeypatch.setattr(Model, "symmetric_similar", counted("similar", Model.symmetric_similar))
     monkeypatch.setattr(continuation, "BorderedFactor", counted("solve", continuation.BorderedFactor))
     monkeypatch.setattr(stability, "negative_count", counted("count", stability.negative_count))
+    brentq = continuation.so.brentq
+
+    def counted_search(function, *args, **kwargs):
+        return brentq(counted("located", function), *args, **kwargs)
+
+    calls["located"] = 0
+    monkeypatch.setattr(continuation.so, "brentq", counted_search)
     model = get_model("nonlinear")
     for params in (ChainParams(N=10), ChainParams(N=100)):
         calls.update(dict.fromkeys(calls, 0))
@@ -457,8 +464,13 @@ def test_a_continuation_point_assembles_the_stiffness_once_per_solve_and_counts_
         # The rest state's stability assembles its own (no corrector ran there); nothing else does.
         assert calls["similar"] == 1 and calls["stiffness"] <= calls["solve"] + 1
         assert calls["solve"] <= 8 * points  # a few Newton iterations and the tangent a point
-        assert calls["stiffness"] <= 3 * points  # the chord iterations assemble nothing
+        # The chord iterations assemble nothing; locating the fold is a full Newton solve (a few
+        # assemblies) and a tangent at each point of its search.
+        assert calls["stiffness"] <= 3 * points + 8 * calls["located"]
         # Unstable states only: the traced ones, and the ends of steps from a stable point
-        # across the fold, retaken shorter (halved down to refine_step, 2e-4: some 12 times).
-        assert calls["count"] <= np.count_nonzero(~branch.stable) + 2 + 12
+        # across the fold or a crossing, retaken shorter (each halved, from the longest step
+        # down to refine_step, 2e-4; twice: the falling eigenvalue's and the crossing's).
+        longest = continuation.MAX_STEP_FACTOR * continuation.STEP * np.sqrt(3 * (2 * params.N - 1) / 15)
+        halvings = int(np.ceil(np.log2(longest / 2e-4)))
+        assert calls["count"] <= np.count_nonzero(~branch.stable) + 2 + 2 * halvings, calls
         assert branch.folds and branch.folds[0].maximum

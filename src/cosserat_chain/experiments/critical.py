@@ -220,15 +220,19 @@ def _snap_target(params: ChainParams, model: Model, branch: Branch, first: Fold,
     """The first stable branch point pair beyond ``first`` that brackets its moment, solved there exactly.
 
     Load-controlled Newton from the bracket's interpolated state converges to the
-    branch's state at that moment (K is regular on a stable segment).
+    branch's state at that moment (K is regular on a stable segment). A bracket whose
+    first point is still unstable holds the minimum of M where the stable segment
+    begins (a long step after it can pass the moment at once): Newton starts from its
+    stable end.
     """
-    # From rest M rises up to the first fold: the first descent of M is just past it.
-    past = np.flatnonzero(np.diff(branch.moment) < 0)
-    start = past[0] + 1 if past.size else branch.moment.size
+    # The stable branch from rest ends at the first fold: the first unstable point is just past it
+    # (M need not descend between two points: one step can pass the fold's minimum too).
+    past = np.flatnonzero(~branch.stable)
+    start = past[0] if past.size else branch.moment.size
     for i in range(start, branch.moment.size - 1):
         low, high = branch.moment[i] - first.moment, branch.moment[i + 1] - first.moment
-        if branch.stable[i] and branch.stable[i + 1] and low * high <= 0 and low != high:
-            weight = low / (low - high)
+        if branch.stable[i + 1] and low * high <= 0 and low != high:
+            weight = low / (low - high) if branch.stable[i] else 1.0
             guess = branch.x[i] + weight * (branch.x[i + 1] - branch.x[i])
             x = solve_equilibrium(params, model, moment_load(first.moment, particle), x0=guess)
             if not static_stability(params, model, x).stable:

@@ -607,7 +607,7 @@ def continue_in_moment(
             return new_tangent(point, tangent, k)[0][-1]
 
         cache: dict[float, np.ndarray] = {}
-        s_fold = so.brentq(slope, 0.0, ds, xtol=1e-15 * max(1.0, ds), rtol=4 * np.finfo(float).eps)
+        s_fold = so.brentq(slope, 0.0, ds, xtol=1e-10 * ds, rtol=1e-10)
         point = cache.get(s_fold)
         if point is None:
             slope(s_fold)
@@ -668,7 +668,7 @@ def continue_in_moment(
     index = checks[0].index
     col = column(params, particle)
     y_phi0 = 0.0
-    ds, resume = step, 0.0
+    ds, resume, crossing = step, 0.0, 0.0
     stop, message = "max_points", ""
     previous_moment = 0.0
     while len(moments) < max_points:
@@ -705,6 +705,8 @@ def continue_in_moment(
             # of the index. Approach it in shorter steps (N = 10, a = 0.3, b = 0.1,
             # E1 = 2, E2 = 0.3 has such a pair within 0.015 rad of phi_0 near 1.0). An
             # eigenvalue near its round-off (a long chain's softest) is noise: not a sign.
+            # The step from before comes back once the crossing is passed (below).
+            resume = max(resume, ds)
             ds = max(refine_step, ds / 2)
             continue
         now_index = check.index
@@ -714,13 +716,25 @@ def continue_in_moment(
             # that a single fold shows: more folds (a maximum and a minimum of M that the
             # step passes together) or a branch point lie in it. Approach the crossing in
             # steps down to refine_step, so that each fold shows as a turn between points,
-            # then go on with the step from before.
-            resume = max(resume, ds)
-            ds = max(refine_step, ds / 8)
+            # then go on with the step from before. The crossing lies within ``crossing`` of
+            # y: the steps bisect towards it (steps of 1/8 that then grew by 1.3 a point took
+            # 40 points a crossing at N = 1000).
+            resume, crossing = max(resume, ds), ds
+            ds = max(refine_step, ds / 2)
             continue
         taken = ds  # the step from y to z (the step below may resume a longer one)
-        if now_index != index and resume > 0.0:
-            ds, resume = resume, 0.0
+        rising = 0.0 < checks[-1].critical_eigenvalue < check.critical_eigenvalue
+        if resume > 0.0 and (now_index != index or rising):
+            # The refined crossing is passed (the index changed), or the critical eigenvalue
+            # turned back up before zero: the step from before the refinement resumes
+            # (growing back by 1.3 a point took 30 points after each of the 60 folds and
+            # branch points of N = 1000; where it is too long, the turn limits halve it).
+            ds, resume, crossing = resume, 0.0, 0.0
+        elif crossing > 0.0:
+            # Short of a crossing known to lie ahead: half the rest of the way, or, where the
+            # arclength's estimate of it is spent without a crossing, on with the step from before.
+            crossing -= taken
+            ds, resume, crossing = (max(refine_step, crossing / 2), resume, crossing) if crossing > 0.0 else (resume, 0.0, 0.0)
         if turns_back:
             # M turned between the two points: a fold, located along the arc.
             folds.append(fold_between(y, tangent, taken))
@@ -753,7 +767,7 @@ def continue_in_moment(
         if stop != "max_points":
             break
         # A step grows where its corrector needed at most one new factor (full Newton: two iterations).
-        if iterations <= (1 if chord else 2) and turned < PHI0_STEP / 2 and turn < MAX_TURN / 2:
+        if crossing == 0.0 and iterations <= (1 if chord else 2) and turned < PHI0_STEP / 2 and turn < MAX_TURN / 2:
             ds = min(max_step, 1.3 * ds)
     branch = _assemble_branch(params, model, particle, moments, states, folds, checks, stop)
     branch.message = message
