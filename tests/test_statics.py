@@ -474,3 +474,15 @@ def test_a_continuation_point_assembles_the_stiffness_once_per_solve_and_counts_
         halvings = int(np.ceil(np.log2(longest / 2e-4)))
         assert calls["count"] <= np.count_nonzero(~branch.stable) + 2 + 2 * halvings, calls
         assert branch.folds and branch.folds[0].maximum
+
+
+def test_an_eigenvalue_within_its_round_off_keeps_the_decided_stability_along_a_branch():
+    # A clamped-free chain of N = 1000: its free arm's softest eigenvalue (N^-4, 6e-14) lies
+    # below the resolution of the critical eigenvalue (1.4e-13) and comes out at -6e-15 at
+    # some points. Its sign is noise: the branch keeps the stability decided at rest.
+    params = ChainParams(N=1000, left_end="clamped", right_end="free")
+    branch = continue_in_moment(params, "nonlinear", max_points=60)
+    resolution = static_stability(params, "nonlinear", branch.x[0]).resolution
+    assert np.all(np.abs(branch.critical_eigenvalue) <= resolution)
+    assert np.any(branch.critical_eigenvalue < 0)  # the noise the rule is for
+    assert branch.stable.all() and not branch.branch_points

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.optimize as so
@@ -411,7 +411,8 @@ def continue_in_moment(
         1.3 where both stay below half of these and the corrector factors the Jacobian at
         most once (:data:`CHORD_CONTRACTION`; full Newton: two iterations): the points follow the
         curvature of the branch, not its length (the sine model's branch at N = 100 is
-        long in (q, M) and straight).
+        long in (q, M) and straight). A step shortened on the way to a crossing of an
+        eigenvalue comes back once the crossing is passed.
     max_points : int
     tol : float
         Corrector tolerance on max |F + M e| (never below the round-off floor, :func:`~.newton.round_off_floor`).
@@ -420,7 +421,8 @@ def continue_in_moment(
         by the one fold the tangent shows is retaken in steps down to this, so that
         every fold shows as a turn of the tangent between points (two folds within one
         step whose eigenvalue crossings cancel are still missed: :data:`PHI0_STEP` and
-        :data:`MAX_TURN` keep the steps short where the branch bends).
+        :data:`MAX_TURN` keep the steps short where the branch bends). The crossing is
+        approached by halving the distance to it.
     max_folds : int, optional
         Stop once this many folds have been passed.
     progress : callable(|phi_0|, phi0_stop), optional
@@ -448,15 +450,16 @@ def continue_in_moment(
     solved with a banded factor of K there (:class:`~.newton.BorderedFactor`), and the
     next step's corrector iterates with that factor (chord iterations: a residual and an
     O(N w) solve each) while each shrinks the residual by :data:`CHORD_CONTRACTION`,
-    assembling and factoring K anew only where it does not: 3.4 assemblies and factors a
+    assembling and factoring K anew only where it does not: about 3 assemblies and factors a
     point at N = 1000 (the searches for the 40 folds and 20 branch points and the retaken
     steps included), against 4.7 with full Newton in every corrector. The
     stability of a point of a conservative model takes the K assembled at the converged
     state (``static_stability(similar=...)``), starts its inverse iteration from the
     previous point's eigenvector, and pays the inertia count at zero only where the
     smallest eigenvalue is not certified positive. The full turn of N = 1000 (40 folds)
-    took 34 s, then 22 s, now about 14 s of CPU on one core (``benchmarks/bench_critical.py
-    --scaling``). The folds and branch points are located with full Newton (the bordered
+    took 34 s, then 22 s, 16 s, now about 12 s of CPU on one core (``benchmarks/bench_critical.py
+    --scaling``). A point whose critical eigenvalue lies within its round-off
+    (``Stability.resolution``) keeps the index and stability last decided. The folds and branch points are located with full Newton (the bordered
     Jacobian is singular at a branch point, where a full step is halved while it raises
     the residual). The number of points grows with the folds of the branch, not with N itself.
     """
@@ -607,7 +610,7 @@ def continue_in_moment(
             return new_tangent(point, tangent, k)[0][-1]
 
         cache: dict[float, np.ndarray] = {}
-        s_fold = so.brentq(slope, 0.0, ds, xtol=1e-10 * ds, rtol=1e-10)
+        s_fold = so.brentq(slope, 0.0, ds, xtol=1e-15 * max(1.0, ds), rtol=4 * np.finfo(float).eps)
         point = cache.get(s_fold)
         if point is None:
             slope(s_fold)
@@ -698,6 +701,14 @@ def continue_in_moment(
             ds = max(min_step, ds / 2)
             continue
         check = stability(x, k, checks[-1].critical_eigenvalue)
+        if abs(check.critical_eigenvalue) <= check.resolution:
+            # An eigenvalue within its round-off (Stability.resolution) has no sign: the
+            # stability and index it gives are noise, and the branch keeps the index last
+            # decided (a clamped-free chain of N = 1000 has its softest eigenvalue at 6e-14,
+            # below its resolution 1.4e-13, computed at -6e-15 at every third point: those
+            # were "unstable", and the stable branch from rest ended at its first point).
+            # A real crossing shows at the next point whose eigenvalue is decided.
+            check = replace(check, index=index, stable=index == 0)
         falling = check.critical_eigenvalue < 0.5 * checks[-1].critical_eigenvalue
         if falling and checks[-1].critical_eigenvalue > 100.0 * check.resolution and ds > refine_step:
             # A positive critical eigenvalue falling fast (or through zero): a fold ahead, or a pair of folds
