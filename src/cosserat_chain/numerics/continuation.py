@@ -457,9 +457,10 @@ def continue_in_moment(
     state (``static_stability(similar=...)``), starts its inverse iteration from the
     previous point's eigenvector, and pays the inertia count at zero only where the
     smallest eigenvalue is not certified positive. The full turn of N = 1000 (40 folds)
-    took 34 s, then 22 s, 16 s, now about 12 s of CPU on one core (``benchmarks/bench_critical.py
-    --scaling``). A point whose critical eigenvalue lies within its round-off
-    (``Stability.resolution``) keeps the index and stability last decided. The folds and branch points are located with full Newton (the bordered
+    took 34 s, then 22 s, 16 s, and now 14-20 s of CPU on one core with the path it takes
+    at its branch points (``benchmarks/bench_critical.py --scaling``). A point whose
+    critical eigenvalue lies within its round-off (``Stability.resolution``) keeps the
+    index and stability last decided. The folds and branch points are located with full Newton (the bordered
     Jacobian is singular at a branch point, where a full step is halved while it raises
     the residual). The number of points grows with the folds of the branch, not with N itself.
     """
@@ -728,8 +729,8 @@ def continue_in_moment(
             # step passes together) or a branch point lie in it. Approach the crossing in
             # steps down to refine_step, so that each fold shows as a turn between points,
             # then go on with the step from before. The crossing lies within ``crossing`` of
-            # y: the steps bisect towards it (steps of 1/8 that then grew by 1.3 a point took
-            # 40 points a crossing at N = 1000).
+            # y: the steps bisect towards it (steps of 1/8 that then grew by 1.3 a point
+            # approached it in many short accepted steps).
             resume, crossing = max(resume, ds), ds
             ds = max(refine_step, ds / 2)
             continue
