@@ -187,6 +187,27 @@ def test_rotation_controlled_newton_reaches_the_round_off_floor_of_a_long_chain(
     assert 1e-14 < floor < 1e-10 and np.max(np.abs(residual)) <= floor
 
 
+@pytest.mark.slow
+def test_the_long_turn_takes_the_same_path_whatever_the_steps():
+    # N = 1000 passes 40 folds over the turn. Its corrector once jumped by 1.2 with a step of
+    # 0.19 (a correction within a tenth of the state's size was allowed) onto a closed loop
+    # of the branch, went round it twice and left it where round-off decided: the folds
+    # after the jump changed with the steps. A jump is now a correction beyond the step and
+    # beyond JUMP of the state's size, and the default steps and steps 0.8 as long pass the same folds.
+    from cosserat_chain.numerics.continuation import MAX_STEP_FACTOR
+
+    params = ChainParams(N=1000)
+    default = STEP * math.sqrt(n_free(params) / 15)
+    branches = [continue_in_moment(params, "nonlinear", step=f * default, max_step=f * MAX_STEP_FACTOR * default) for f in (1.0, 0.8)]
+    assert all(b.complete for b in branches) and len(branches[0].folds) == len(branches[1].folds) >= 40
+    for one, other in zip(*(b.folds for b in branches)):
+        assert one.maximum == other.maximum and one.moment == pytest.approx(other.moment, rel=1e-9, abs=1e-12)
+        assert one.phi0 == pytest.approx(other.phi0, abs=1e-6)
+    states = np.array([f.x.ravel() for f in branches[0].folds])
+    apart = np.max(np.abs(states[:, None] - states[None]), axis=2) + np.eye(len(states))
+    assert apart.min() > 1e-3  # no fold passed twice: no loop gone round again
+
+
 def test_a_branch_with_two_maxima_reports_both_with_the_stability_between():
     # The example: a small maximum of M near phi_0 = 1.0003, a minimum just after
     # it, and the largest maximum near 2.04. The chain snaps through at the first and

@@ -67,7 +67,11 @@ PHI0_STEP = 0.1
 #: keeps the corrector on its branch.
 MAX_TURN = 0.2
 #: A corrector that moves further than this fraction of the state's size (and than the step) jumped.
-JUMP = 0.1
+#: The paper's chain of N = 1000 jumped by 0.0067 of its state's size (1.2 with a step of 0.19)
+#: with a tenth allowed, onto a closed loop of the branch it then went round twice.
+JUMP = 1e-3
+#: The same, for steps shorter than ``refine_step`` of :func:`continue_in_moment` (next to a singular point).
+JUMP_SINGULAR = 0.1
 #: Most iterations of a continuation step's corrector that reuses factors of the Jacobian (then full Newton takes over).
 CHORD_ITERATIONS = 16
 #: That corrector factors the Jacobian anew at an iterate whose residual shrank by less than this.
@@ -503,6 +507,22 @@ def continue_in_moment(
     def stability(x: np.ndarray, k: sp.csr_matrix | None, guess: float | None = None):
         return static_stability(params, model, x, guess=guess, similar=k if reuse_stiffness else None, start=eigenvector)
 
+    def jumped(y: np.ndarray, predicted: np.ndarray, z: np.ndarray, ds: float) -> bool:
+        """Whether the corrector's point z of the step ds from y lies on another part of the branch (or another branch).
+
+        Newton on the plane normal to the tangent can converge to a far part of the branch
+        that crosses the plane: a jump, not a step (one N = 4 chain jumped by 1.6, its
+        state's size, with steps of 0.01). A step's correction is a fraction of the step
+        where the tangent turns by MAX_TURN at most, but an ill-conditioned corrector moves
+        further along the soft directions (the sine model next to its fold at N = 1000: 7
+        times the step, 1e-7 of the state's size): a jump is a correction beyond the step
+        and beyond :data:`JUMP` of the state's size. Steps shorter than ``refine_step``
+        (next to a singular point of the branch, where the corrector moves along the kernel
+        of the bordered Jacobian: a cantilever's branch points) allow :data:`JUMP_SINGULAR`.
+        """
+        fraction = JUMP if abs(ds) >= refine_step else JUMP_SINGULAR
+        return bool(np.linalg.norm(z - predicted) > max(abs(ds), fraction * (1.0 + np.linalg.norm(y))))
+
     def correct(
         y: np.ndarray, tangent: np.ndarray, ds: float, tol: float, max_iter: int = 8
     ) -> tuple[np.ndarray, int, sp.csr_matrix] | None:
@@ -522,14 +542,7 @@ def continue_in_moment(
             stalled = max_iter > 8 and size <= STALL * floor and size > 0.5 * previous
             previous = size
             if size <= max(tol * (1.0 + abs(z[-1])), floor) or stalled:
-                # Newton on the plane normal to the tangent can converge to a far part of
-                # the branch (or another branch) that crosses the plane: a jump, not a step
-                # (one N = 4 chain jumped by 1.6, its state's size, with steps of 0.01).
-                # A step's correction is a fraction of the step where the tangent turns by
-                # MAX_TURN at most, but an ill-conditioned corrector (the sine model next to
-                # its fold at N = 1000) moves further along the soft directions: a jump is a
-                # correction beyond the step and beyond a tenth of the state's size.
-                if np.linalg.norm(z - predicted) > max(abs(ds), JUMP * (1.0 + np.linalg.norm(y))):
+                if jumped(y, predicted, z, ds):
                     return None
                 return z, iterations, k
             update = BorderedFactor(k, dof).solve(tangent, r)
@@ -571,8 +584,8 @@ def continue_in_moment(
             r = np.append(residual(z), tangent @ (z - predicted))
             size = np.max(np.abs(r))
             if size <= max(tol * (1.0 + abs(z[-1])), round_off_floor(None, z[:-1], norm=norm)):
-                if np.linalg.norm(z - predicted) > max(abs(ds), JUMP * (1.0 + np.linalg.norm(y))):
-                    return None  # a jump (see correct)
+                if jumped(y, predicted, z, ds):
+                    return None
                 return z, factors, stiffness(z)
             if not size < CHORD_CONTRACTION * previous:
                 k = stiffness(z)
