@@ -200,9 +200,10 @@ def test_the_long_turn_takes_the_same_path_whatever_the_steps():
     default = STEP * math.sqrt(n_free(params) / 15)
     branches = [continue_in_moment(params, "nonlinear", step=f * default, max_step=f * MAX_STEP_FACTOR * default) for f in (1.0, 0.8)]
     assert all(b.complete for b in branches) and len(branches[0].folds) == len(branches[1].folds) >= 40
+    # K's condition number is 5e12 here: most folds agree to 1e-12, the worst to 2e-9 (M) and 5e-9 (phi_0).
     for one, other in zip(*(b.folds for b in branches)):
-        assert one.maximum == other.maximum and one.moment == pytest.approx(other.moment, rel=1e-9, abs=1e-12)
-        assert one.phi0 == pytest.approx(other.phi0, abs=1e-6)
+        assert one.maximum == other.maximum and one.moment == pytest.approx(other.moment, rel=2e-8)
+        assert one.phi0 == pytest.approx(other.phi0, abs=1e-7)
     states = np.array([f.x.ravel() for f in branches[0].folds])
     apart = np.max(np.abs(states[:, None] - states[None]), axis=2) + np.eye(len(states))
     assert apart.min() > 1e-3  # no fold passed twice: no loop gone round again

@@ -47,7 +47,7 @@ from numba import njit
 
 from ..models.base import Model, get_model, upper_bands
 from ..params import ChainParams
-from ..state import check_state, per_dof
+from ..state import BANDWIDTH, check_state, per_dof
 from .newton import infinity_norm
 
 #: Relative width (to the Gershgorin radius) at which the bisection for the smallest eigenvalue stops.
@@ -171,59 +171,75 @@ def _resolution(matrix) -> float:
 
 
 def _lower_rows(matrix: sp.spmatrix) -> np.ndarray:
-    """A symmetric banded matrix by rows of its lower band: out[i, d] = M[i, i - d] = M[i - d, i], d = 0..w.
+    """A symmetric banded matrix by rows of its lower band, padded: out[B + i, d] = M[i, i - d] = M[i - d, i], d = 0..B.
 
-    Read from the upper triangle, as LAPACK's upper storage
-    (:func:`~cosserat_chain.models.base.upper_bands`) holds it (M[i - d, i] at [w - d, i]):
-    a Hessian summed link by link is symmetric only to round-off, and either triangle
-    gives the same inertia. A CSR matrix goes through one compiled pass over its
-    entries (:func:`_csr_lower_rows`; ``sp.triu`` and the COO scatter cost 0.7 ms at
-    N = 1000, once a point of a branch).
+    B is :data:`~cosserat_chain.state.BANDWIDTH`; the B rows before the first and after
+    the last are zero (the compiled loops then have the band's constant length: they
+    unroll, 3x faster than with the width read at run time). Read from the upper
+    triangle, as LAPACK's upper storage (:func:`~cosserat_chain.models.base.upper_bands`)
+    holds it (M[i - d, i] at [w - d, i]): a Hessian summed link by link is symmetric only
+    to round-off, and either triangle gives the same inertia. A CSR matrix goes through
+    one compiled pass over its entries (:func:`_csr_lower_rows`; ``sp.triu`` and the COO
+    scatter cost 0.7 ms at N = 1000, once a point of a branch).
+
+    Raises
+    ------
+    ValueError
+        If the matrix is wider than the band (a ring's corner blocks).
     """
     if sp.issparse(matrix) and matrix.format == "csr":
-        return _csr_lower_rows(matrix.indptr, matrix.indices, np.asarray(matrix.data, dtype=float))
-    return np.ascontiguousarray(upper_bands(matrix)[::-1].T)
-
-
-@njit(cache=True, nogil=True)
-def _csr_lower_rows(indptr, indices, data):  # pragma: no cover - compiled
-    """:func:`_lower_rows` of a CSR matrix: out[j, j - i] = M[i, j] for every stored entry with j >= i."""
-    n = indptr.size - 1
-    width = 0
-    for i in range(n):
-        for p in range(indptr[i], indptr[i + 1]):
-            width = max(width, indices[p] - i)
-    out = np.zeros((n, width + 1))
-    for i in range(n):
-        for p in range(indptr[i], indptr[i + 1]):
-            j = indices[p]
-            if j >= i:
-                out[j, j - i] = data[p]
+        out, width = _csr_lower_rows(matrix.indptr, matrix.indices, np.asarray(matrix.data, dtype=float))
+    else:
+        bands = upper_bands(matrix)
+        width = bands.shape[0] - 1
+        out = np.zeros((matrix.shape[0] + 2 * BANDWIDTH, BANDWIDTH + 1))
+        if width <= BANDWIDTH:
+            out[BANDWIDTH : matrix.shape[0] + BANDWIDTH, : width + 1] = bands[::-1].T
+    if width > BANDWIDTH:
+        raise ValueError(f"the matrix has half-bandwidth {width}, more than the chain's {BANDWIDTH}")
     return out
 
 
 @njit(cache=True, nogil=True)
+def _csr_lower_rows(indptr, indices, data):  # pragma: no cover - compiled
+    """:func:`_lower_rows` of a CSR matrix (out[B + j, j - i] = M[i, j] for every stored entry with j >= i) and its width."""
+    n = indptr.size - 1
+    out = np.zeros((n + 2 * BANDWIDTH, BANDWIDTH + 1))
+    width = 0
+    for i in range(n):
+        for p in range(indptr[i], indptr[i + 1]):
+            j = indices[p]
+            if j >= i:
+                if j - i > BANDWIDTH:
+                    width = max(width, j - i)
+                else:
+                    out[BANDWIDTH + j, j - i] = data[p]
+    return out, width
+
+
+@njit(cache=True, nogil=True)
 def _factor(lower, shift, factor, pivots):  # pragma: no cover - compiled
-    """LDL^T of M - shift I without pivoting into ``factor`` (factor[i, d] = L[i, i - d]) and ``pivots``.
+    """LDL^T of M - shift I without pivoting into ``factor`` (factor[r, d] = L[i, i - d], r = B + i) and ``pivots``.
 
     Returns the number of negative pivots: by Sylvester's law of inertia the number
     of eigenvalues below ``shift``, in O(n w^2) (a zero pivot is nudged by the round-off).
+    ``lower`` is padded (:func:`_lower_rows`): the padding's rows factor as the identity.
     """
-    n, width = lower.shape[0], lower.shape[1] - 1
+    rows = lower.shape[0]
     tiny = 1e-300
     count = 0
-    for i in range(n):
-        for d in range(width, 0, -1):
+    for r in range(BANDWIDTH):
+        pivots[r] = 1.0
+        pivots[rows - 1 - r] = 1.0
+    for i in range(BANDWIDTH, rows - BANDWIDTH):
+        for d in range(BANDWIDTH, 0, -1):
             j = i - d
-            if j < 0:
-                factor[i, d] = 0.0
-                continue
             total = lower[i, d]
-            for k in range(max(0, i - width), j):
+            for k in range(i - BANDWIDTH, j):
                 total -= factor[i, i - k] * pivots[k] * factor[j, j - k]
             factor[i, d] = total / pivots[j]
         total = lower[i, 0] - shift
-        for k in range(max(0, i - width), i):
+        for k in range(i - BANDWIDTH, i):
             total -= factor[i, i - k] * factor[i, i - k] * pivots[k]
         pivots[i] = total if total != 0.0 else tiny
         if total < 0.0:
@@ -238,23 +254,32 @@ def negative_count(lower: np.ndarray, shift: float) -> int:  # pragma: no cover 
 
 
 @njit(cache=True, nogil=True)
-def _inverse_step(factor, pivots, shift, vector, previous):  # pragma: no cover - compiled
+def _inverse_step(factor, pivots, shift, vector, previous, work):  # pragma: no cover - compiled
     """One step of inverse iteration, ``vector`` <- (L D L^T)^-1 vector normalised; returns its Rayleigh quotient.
 
     With A = L D L^T = M - shift I and y = A^-1 x, the quotient of y is
     shift + x^T y / y^T y: no cancellation, unlike y^T M y, whose round-off (n eps |M|)
-    exceeds a long chain's critical eigenvalue.
+    exceeds a long chain's critical eigenvalue. ``work``: as long as the factor has
+    rows, zero outside the chain's rows (as the factor's padding), where the solves run.
+    Each substitution subtracts the term of the unknown just solved last: only one
+    multiply-add a row waits for it (half the time of the natural order).
     """
-    n, width = factor.shape[0], factor.shape[1] - 1
+    n = vector.size
     previous[:] = vector
-    for i in range(n):  # L y = b
-        for d in range(1, min(width, i) + 1):
-            vector[i] -= factor[i, d] * vector[i - d]
-    for i in range(n):
-        vector[i] /= pivots[i]
-    for i in range(n - 1, -1, -1):  # L^T z = y
-        for d in range(1, min(width, n - 1 - i) + 1):
-            vector[i] -= factor[i + d, d] * vector[i + d]
+    work[BANDWIDTH : n + BANDWIDTH] = vector
+    for i in range(BANDWIDTH, n + BANDWIDTH):  # L y = b
+        total = work[i]
+        for d in range(BANDWIDTH, 1, -1):
+            total -= factor[i, d] * work[i - d]
+        work[i] = total - factor[i, 1] * work[i - 1]
+    for i in range(BANDWIDTH, n + BANDWIDTH):
+        work[i] /= pivots[i]
+    for i in range(n + BANDWIDTH - 1, BANDWIDTH - 1, -1):  # L^T z = y
+        total = work[i]
+        for d in range(BANDWIDTH, 1, -1):
+            total -= factor[i + d, d] * work[i + d]
+        work[i] = total - factor[i + 1, 1] * work[i + 1]
+    vector[:] = work[BANDWIDTH : n + BANDWIDTH]
     square = np.sum(vector * vector)
     quotient = shift + np.sum(previous * vector) / square
     vector /= math.sqrt(square)
@@ -280,7 +305,8 @@ def _smallest_eigenvalue_compiled(lower, low, high, tolerance, guess, vector):  
     """
     factor = np.zeros(lower.shape)
     pivots = np.zeros(lower.shape[0])
-    previous_vector = np.zeros(lower.shape[0])
+    previous_vector = np.zeros(vector.size)
+    work = np.zeros(lower.shape[0])
     distance = max(0.05 * abs(guess), tolerance)
     shift = guess - distance if low < guess - distance < high else 0.5 * (low + high)
     width = high - low
@@ -293,7 +319,7 @@ def _smallest_eigenvalue_compiled(lower, low, high, tolerance, guess, vector):  
             below_found = True
             previous, decrease = math.inf, math.inf
             for _ in range(INVERSE_STEPS):
-                quotient = _inverse_step(factor, pivots, shift, vector, previous_vector)
+                quotient = _inverse_step(factor, pivots, shift, vector, previous_vector, work)
                 high = min(high, quotient)
                 # Converged, or converging too slowly for this shift (a closer one is cheaper).
                 if previous - quotient <= tolerance or previous - quotient > 0.5 * decrease:
@@ -323,19 +349,20 @@ def _smallest_eigenvalue(
     and a lower bound of it certified by a factor without negative pivots (-``radius`` if none was).
 
     ``start``: see :func:`static_stability` (overwritten with the last iterate)."""
-    low, high = -radius, float(lower[:, 0].min())  # Gershgorin, and lambda_min <= min diagonal
+    n = lower.shape[0] - 2 * BANDWIDTH  # the rows of the chain (lower is padded)
+    low, high = -radius, float(lower[BANDWIDTH : n + BANDWIDTH, 0].min())  # Gershgorin, and lambda_min <= min diagonal
     # A fixed generic start vector: deterministic, and with a component along any
     # mode (all ones would miss an antisymmetric lowest mode and leave it to the bisection).
     # A given start that is not a usable vector (zero, or not finite after a factor
     # with a nudged zero pivot) is reset to it.
     if start is None:
-        vector = _start_vector(lower.shape[0]).copy()  # the compiled search overwrites it
+        vector = _start_vector(n).copy()  # the compiled search overwrites it
     else:
-        if start.shape != (lower.shape[0],):
-            raise ValueError(f"start has shape {start.shape}, expected ({lower.shape[0]},)")
+        if start.shape != (n,):
+            raise ValueError(f"start has shape {start.shape}, expected ({n},)")
         vector = start
         if not 0.0 < float(np.linalg.norm(vector)) < math.inf:
-            vector[:] = _start_vector(lower.shape[0])
+            vector[:] = _start_vector(n)
     tolerance = max(BISECTION_RTOL * radius, 1e-300)
     value, bound = _smallest_eigenvalue_compiled(lower, low, high, tolerance, 0.0 if guess is None else float(guess), vector)
     return float(value), float(bound)
