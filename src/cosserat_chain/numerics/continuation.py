@@ -454,15 +454,17 @@ def continue_in_moment(
     solved with a banded factor of K there (:class:`~.newton.BorderedFactor`), and the
     next step's corrector iterates with that factor (chord iterations: a residual and an
     O(N w) solve each) while each shrinks the residual by :data:`CHORD_CONTRACTION`,
-    assembling and factoring K anew only where it does not: about 3 assemblies and factors a
-    point at N = 1000 (the searches for the 40 folds and 20 branch points and the retaken
-    steps included), against 4.7 with full Newton in every corrector. The
+    assembling and factoring K anew only where it does not, from a start bent along the
+    branch's curvature: about 2.9 assemblies and factors a point at N = 1000 (the searches
+    for the 40 folds and 20 branch points and the retaken steps included), against 4.7
+    with full Newton in every corrector. The
     stability of a point of a conservative model takes the K assembled at the converged
     state (``static_stability(similar=...)``), starts its inverse iteration from the
     previous point's eigenvector, and pays the inertia count at zero only where the
     smallest eigenvalue is not certified positive. The full turn of N = 1000 (40 folds)
-    took 34 s, then 22 s, 16 s, and now 14-20 s of CPU on one core with the path it takes
-    at its branch points (``benchmarks/bench_critical.py --scaling``). A point whose
+    took 34 s, then 22 s, 16 s, and now about 8 s of CPU on one core
+    (``benchmarks/bench_critical.py --scaling``; the band kernels take the chain's
+    constant bandwidth). A point whose
     critical eigenvalue lies within its round-off (``Stability.resolution``) keeps the
     index and stability last decided. The folds and branch points are located with full Newton (the bordered
     Jacobian is singular at a branch point, where a full step is halved while it raises
@@ -604,16 +606,22 @@ def continue_in_moment(
                 return None
         return None
 
-    def fold_between(y: np.ndarray, tangent: np.ndarray, ds: float) -> Fold:
-        """The fold between y and its successor at arclength ds: where the tangent's M component vanishes.
+    def fold_between(y: np.ndarray, tangent: np.ndarray, ds: float, end: np.ndarray, end_slope: float) -> Fold:
+        """The fold between y and its successor ``end`` at arclength ds: where the tangent's M component vanishes.
 
         Along the arclength, not in phi_0: a branch whose phi_0 turns back near a fold
-        is no function of phi_0 there.
+        is no function of phi_0 there. The bracket's ends are the two points whose
+        tangents showed the turn (``end_slope`` the M component at ``end``): solved anew at
+        ds to the fold's tolerance, a fold within round-off of the end had the slope's
+        sign of the start there (N = 10^4), and there was no bracket.
         """
 
         def slope(s: float) -> float:
             if s == 0.0:
                 return tangent[-1]
+            if s == ds:
+                cache[s] = end
+                return end_slope
             # More iterations than a step takes: at a fold that is not simple (a cantilever's
             # free half turned to 3 pi / 2 under the sine model, where the bordered Jacobian
             # is singular) Newton converges only linearly, halving the error each time.
@@ -773,7 +781,7 @@ def continue_in_moment(
             ds, resume, crossing = (max(refine_step, crossing / 2), resume, crossing) if crossing > 0.0 else (resume, 0.0, 0.0)
         if turns_back:
             # M turned between the two points: a fold, located along the arc.
-            folds.append(fold_between(y, tangent, taken))
+            folds.append(fold_between(y, tangent, taken, z, next_tangent[-1]))
         elif now_index != index and (model.conservative or (now_index - index) % 2):
             # Eigenvalues of K through zero at the shortest step without a turn of M: K
             # singular off a fold, a branch point. (A non-symmetric K's complex pair
