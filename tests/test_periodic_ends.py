@@ -24,7 +24,9 @@ REFERENCE_CLOSURE_TOL = 1e-7
 #: Period of the orbit against the turns of a long damped run (yoshida4, a quarter of the default dt).
 PERIOD_RTOL = 1e-4
 #: Multipliers against a central-difference monodromy (clusters of equal modulus compared by their mean).
-MULTIPLIER_TOL = 1e-6
+#: The difference's own error: the random sine cantilever's trivial multiplier came out 2.4e-7 and
+#: 1.4e-6 from 1 for two starts of its orbit that differ at round-off (their multipliers agree to 1e-8).
+MULTIPLIER_TOL = 2e-6
 #: Strong enough damping that the rotation just above M_c is a stable one-turn orbit for every case below.
 DAMPED = {"gamma_u": 0.5, "gamma_v": 0.5, "gamma_phi": 0.5}
 GEOMETRY = random_geometries(1, seed=0)[0]  # N = 4
