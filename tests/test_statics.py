@@ -508,3 +508,26 @@ def test_an_eigenvalue_within_its_round_off_keeps_the_decided_stability_along_a_
     assert np.all(np.abs(branch.critical_eigenvalue) <= resolution)
     assert np.any(branch.critical_eigenvalue < 0)  # the noise the rule is for
     assert branch.stable.all() and not branch.branch_points
+
+
+def test_a_matrix_wider_than_the_chains_band_is_refused_by_the_band_kernels_and_solved_without_them():
+    # The compiled band kernels take the chain's half-bandwidth (5) as a constant: a wider
+    # matrix (a ring's corner blocks) is no band for them. The stability's lower band says so by
+    # name; the bordered factor falls back to the sparse solve and still solves it exactly.
+    from cosserat_chain.numerics.newton import BorderedFactor, bordered_jacobian
+    from cosserat_chain.numerics.stability import _lower_rows
+    from cosserat_chain.state import BANDWIDTH
+
+    rng = np.random.default_rng(3)
+    n = 20
+    wide = sp.diags(
+        [np.full(n, 10.0), np.full(n - BANDWIDTH - 1, 0.5), np.full(n - BANDWIDTH - 1, 0.5)], [0, BANDWIDTH + 1, -BANDWIDTH - 1]
+    ).tocsr()
+    for matrix in (wide, wide.toarray()):
+        with pytest.raises(ValueError, match=f"half-bandwidth {BANDWIDTH + 1}, more than the chain's {BANDWIDTH}"):
+            _lower_rows(matrix)
+    row, rhs = rng.standard_normal(n + 1), rng.standard_normal(n + 1)
+    solution = BorderedFactor(wide, 4).solve(row, rhs)
+    assert np.max(np.abs(bordered_jacobian(wide, 4, row) @ solution - rhs)) < 1e-12
+    banded = sp.diags([np.full(n, 10.0), np.full(n - BANDWIDTH, 0.5), np.full(n - BANDWIDTH, 0.5)], [0, BANDWIDTH, -BANDWIDTH]).tocsr()
+    assert BorderedFactor(banded, 4)._ok and not BorderedFactor(wide, 4)._ok

@@ -28,11 +28,11 @@ from .memory import FLOAT, require
 from .params import FIXED_ROWS, ChainParams
 
 ROWS = ("u", "v", "phi")
+ROW_INDEX = {name: i for i, name in enumerate(ROWS)}
 #: Half-bandwidth of every open chain's matrices in the free-dof order above: a bond couples
 #: two neighbours' six degrees of freedom, at most five apart. The compiled band kernels
 #: (``numerics.newton``, ``numerics.stability``) take it as a constant.
 BANDWIDTH = 5
-ROW_INDEX = {name: i for i, name in enumerate(ROWS)}
 
 
 #: Arrays of the chain's size that any computation holds (state, velocities, forces, the
