@@ -453,7 +453,8 @@ def test_a_continuation_point_assembles_the_stiffness_once_per_solve_and_counts_
     # converged point (whose tangent and stability reuse it) and per Newton iteration that
     # factors anew, one banded factor each (the chord iterations reuse the last one), and
     # the inertia count at zero only where the smallest eigenvalue is not certified
-    # positive (its own factor otherwise comes free with the eigenvalue).
+    # positive (its own factor otherwise comes free with the eigenvalue). An assembly is
+    # either storage of K (CSR or band): each is counted.
     from cosserat_chain.models.base import Model
     from cosserat_chain.models.nonlinear import NonlinearModel
     from cosserat_chain.numerics import continuation, stability
@@ -468,6 +469,7 @@ def test_a_continuation_point_assembles_the_stiffness_once_per_solve_and_counts_
         return wrapper
 
     monkeypatch.setattr(NonlinearModel, "stiffness", counted("stiffness", NonlinearModel.stiffness))
+    monkeypatch.setattr(NonlinearModel, "stiffness_band", counted("stiffness", NonlinearModel.stiffness_band))
     monkeypatch.setattr(Model, "symmetric_similar", counted("similar", Model.symmetric_similar))
     monkeypatch.setattr(continuation, "BorderedFactor", counted("solve", continuation.BorderedFactor))
     monkeypatch.setattr(stability, "negative_count", counted("count", stability.negative_count))

@@ -182,16 +182,28 @@ def require_held(params: ChainParams) -> None:
         )
 
 
+@lru_cache(maxsize=8)
+def _free_in_rows(n_particles: int, left: str, right: str) -> np.ndarray:
+    # The same degrees of freedom as _free, as positions in x.ravel() of a C-contiguous x (3, 2N+1):
+    # pack and unpack then take and put in one pass, with no transposed copy of x between.
+    index = _free(n_particles, left, right)
+    out = index % 3 * n_particles + index // 3
+    out.flags.writeable = False
+    return out
+
+
 def pack(params: ChainParams, x: np.ndarray) -> np.ndarray:
     """Free degrees of freedom of ``x`` (3, 2N+1) as a vector of length n_free, in matrix order."""
-    return np.asarray(x, dtype=float).T.ravel()[free_index(params)]
+    left, right = params.ends
+    return np.ascontiguousarray(x, dtype=float).reshape(-1)[_free_in_rows(params.n_particles, left, right)]
 
 
 def unpack(params: ChainParams, q: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`pack`: a (3, 2N+1) array, zero at the fixed degrees of freedom."""
-    flat = np.zeros(3 * params.n_particles)
-    flat[free_index(params)] = np.asarray(q, dtype=float)
-    return np.ascontiguousarray(flat.reshape(params.n_particles, 3).T)
+    """Inverse of :func:`pack`: a C-contiguous (3, 2N+1) array, zero at the fixed degrees of freedom."""
+    left, right = params.ends
+    out = np.zeros((3, params.n_particles))
+    out.reshape(-1)[_free_in_rows(params.n_particles, left, right)] = np.asarray(q, dtype=float)
+    return out
 
 
 def bonded(params: ChainParams, x: np.ndarray) -> np.ndarray:

@@ -73,9 +73,10 @@ from numba import njit, types
 from numba.extending import intrinsic
 from scipy.linalg import LinAlgError, cholesky_banded
 
+from ..band import BandMatrix
 from ..memory import FLOAT, require
 from ..params import ChainParams
-from ..state import _free, check_state, force_columns, pack, zero_held
+from ..state import BANDWIDTH, _free, check_state, force_columns, n_free, pack, unpack, zero_held
 
 #: Signature of every compiled force kernel: (x, coef, out, start, stop) -> None.
 FORCE_SIGNATURE = types.void(types.float64[:, ::1], types.float64[::1], types.float64[:, ::1], types.int64, types.int64)
@@ -165,6 +166,19 @@ class Model(ABC):
     @abstractmethod
     def stiffness(self, params: ChainParams, x: np.ndarray) -> sp.csr_matrix:
         """-dF/dq over the free degrees of freedom at ``x``, shape (3(2N-1), 3(2N-1))."""
+
+    def stiffness_band(self, params: ChainParams, x: np.ndarray) -> BandMatrix:
+        """:meth:`stiffness` in band storage (:class:`~cosserat_chain.band.BandMatrix`), for the O(N) statics.
+
+        By default the band of :meth:`stiffness`; a model that has its bonds' sums
+        overrides it with :func:`assemble_bond_sums` (no CSR matrix between).
+
+        Raises
+        ------
+        ValueError
+            For a ring (its matrices are not banded).
+        """
+        return BandMatrix.from_sparse(self.stiffness(params, x))
 
     def energy(self, params: ChainParams, x: np.ndarray) -> float:
         """Potential energy at ``x``.
@@ -265,7 +279,20 @@ class Model(ABC):
 
     def compiled_forces(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         """Forces from the compiled kernel, same layout as :meth:`forces`."""
-        x = check_state(params, x)
+        return self._kernel_forces(params, check_state(params, x))
+
+    def packed_forces(self, params: ChainParams, q: np.ndarray) -> np.ndarray:
+        """``pack(compiled_forces(unpack(q)))``: the forces on the free degrees of freedom ``q`` (length n_free).
+
+        The state is built here from a vector, so it is not validated again (the
+        continuation's corrector evaluates this some seven times a point: the check was
+        a quarter of a residual's cost at N = 1000); a non-finite ``q`` gives non-finite
+        forces, which the caller's convergence test rejects.
+        """
+        return pack(params, self._kernel_forces(params, unpack(params, q)))
+
+    def _kernel_forces(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
+        """:meth:`compiled_forces` of a valid C-contiguous state."""
         out = np.zeros_like(x)
         coef = self.coefficients(params)
         force, ends = self.chain_kernels(params)
@@ -482,6 +509,96 @@ def assemble_bond_blocks(blocks: np.ndarray, params: ChainParams, diagonal: np.n
     if diagonal is not None:
         data[diagonal_at] += pack(params, diagonal)
     size = indptr.size - 1
+    # Copies of the shared pattern: scipy may sort or prune a matrix's indices in place.
+    return sp.csr_matrix((data, indices.copy(), indptr.copy()), shape=(size, size))
+
+
+#: The ten numbers that make a bond's 6x6 Hessian block when its energy depends on the
+#: translations only through their difference (every model here): with
+#: P(u1 - u0, v1 - v0, phi0, phi1), the translations' 2x2 blocks are +-S (S = d^2P/dD^2,
+#: "uu", "uv", "vv"), the couplings of a translation with phi_0 or phi_1 are +- their
+#: d^2P/dD dphi ("u_phi0" = d^2P/du1 dphi0, ...; minus on the left particle's rows), and the
+#: rotations' three entries stand alone.
+BOND_SUMS = ("uu", "uv", "vv", "u_phi0", "v_phi0", "u_phi1", "v_phi1", "phi0_phi0", "phi1_phi1", "phi0_phi1")
+
+
+def _bond_sum_entries() -> tuple[np.ndarray, np.ndarray]:
+    """For each entry (a, b) of a bond's block: which of :data:`BOND_SUMS` it is and its sign (6x6 each)."""
+    which, sign = np.zeros((6, 6), dtype=np.int64), np.zeros((6, 6))
+    for i, sign_i in ((0, -1.0), (3, 1.0)):  # the left particle's translations, the right one's
+        for j, sign_j in ((0, -1.0), (3, 1.0)):
+            for a, b, name in ((0, 0, "uu"), (0, 1, "uv"), (1, 0, "uv"), (1, 1, "vv")):
+                which[i + a, j + b], sign[i + a, j + b] = BOND_SUMS.index(name), sign_i * sign_j
+        for a, row in ((0, "u"), (1, "v")):
+            for rotation, name in ((2, f"{row}_phi0"), (5, f"{row}_phi1")):
+                which[i + a, rotation] = which[rotation, i + a] = BOND_SUMS.index(name)
+                sign[i + a, rotation] = sign[rotation, i + a] = sign_i
+    for a, b, name in ((2, 2, "phi0_phi0"), (5, 5, "phi1_phi1"), (2, 5, "phi0_phi1"), (5, 2, "phi0_phi1")):
+        which[a, b], sign[a, b] = BOND_SUMS.index(name), 1.0
+    return which, sign
+
+
+@lru_cache(maxsize=32)
+def _bond_sum_pattern(n_particles: int, left: str, right: str, ring: bool, band: bool) -> tuple[np.ndarray, ...]:
+    """:func:`_bond_block_pattern` read from the bonds' sums: (source, sign, position) of every kept entry.
+
+    ``source`` indexes the flattened sums (10, n_bonds), ``sign`` is +-1, ``position`` the
+    entry's index in the CSR data or, with ``band``, in the flattened
+    :class:`~cosserat_chain.band.BandMatrix` storage. The entries keep the block pattern's
+    order, so that every matrix entry sums its terms in the same order as from the blocks.
+    """
+    keep, position, indices, indptr, _ = _bond_block_pattern(n_particles, left, right, ring)
+    n_bonds = n_particles if ring else n_particles - 1
+    which, sign = _bond_sum_entries()
+    bond, entry = np.divmod(keep, 36)
+    source = which.reshape(-1)[entry] * n_bonds + bond
+    if band:
+        rows = np.repeat(np.arange(indptr.size - 1), np.diff(indptr))[position]
+        position = (BANDWIDTH + rows) * (2 * BANDWIDTH + 1) + BANDWIDTH + indices[position] - rows
+    out = (source, sign.reshape(-1)[entry], position)
+    for array in out:
+        array.flags.writeable = False
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _scatter_signed(values, source, sign, position, out):  # pragma: no cover - compiled
+    """out[position[t]] += sign[t] values[source[t]] in the order of t (:func:`_scatter_add` of signed sums)."""
+    for t in range(source.size):
+        out[position[t]] += sign[t] * values[source[t]]
+
+
+def assemble_bond_sums(sums: np.ndarray, params: ChainParams, *, band: bool = False) -> sp.csr_matrix | BandMatrix:
+    """The matrix over the free degrees of freedom from every bond's :data:`BOND_SUMS`, O(N).
+
+    Parameters
+    ----------
+    sums : ndarray, shape (10, n_bonds)
+        Bond k's sums in the order of :data:`BOND_SUMS`.
+    params : ChainParams
+    band : bool
+        Return :class:`~cosserat_chain.band.BandMatrix` storage instead of CSR (the same
+        values, bit for bit: both sum each entry's terms in the same order), for the O(N)
+        statics, with no CSR matrix between.
+
+    Raises
+    ------
+    ValueError
+        With ``band`` for a ring, whose closing bond lies outside the band.
+    """
+    if band and params.periodic:
+        raise ValueError("a ring's matrices are not banded (its closing bond couples the first and the last particle)")
+    left, right = params.ends
+    source, sign, position = _bond_sum_pattern(params.n_particles, left, right, params.periodic, band)
+    values = np.ascontiguousarray(sums, dtype=float).reshape(-1)
+    size = n_free(params)
+    if band:
+        data = np.zeros((size + 2 * BANDWIDTH, 2 * BANDWIDTH + 1))
+        _scatter_signed(values, source, sign, position, data.reshape(-1))
+        return BandMatrix(data)
+    _, _, indices, indptr, _ = _bond_block_pattern(params.n_particles, left, right, params.periodic)
+    data = np.zeros(indices.size)
+    _scatter_signed(values, source, sign, position, data)
     # Copies of the shared pattern: scipy may sort or prune a matrix's indices in place.
     return sp.csr_matrix((data, indices.copy(), indptr.copy()), shape=(size, size))
 

@@ -31,13 +31,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.optimize as so
-import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..band import BandMatrix
 from ..memory import FLOAT, require
 from ..models.base import Model, get_model
 from ..params import ChainParams
-from ..state import ROW_INDEX, column, n_free, pack, unpack, zeros
+from ..state import ROW_INDEX, column, n_free, unpack, zeros
 from .newton import (
     BorderedFactor,
     NewtonError,
@@ -484,14 +484,14 @@ def continue_in_moment(
     tangent[-1] = 1.0
 
     def residual(y: np.ndarray) -> np.ndarray:
-        r = pack(params, model.compiled_forces(params, unpack(params, y[:-1])))
+        r = model.packed_forces(params, y[:-1])
         r[dof] += y[-1]
         return r
 
-    def stiffness(y: np.ndarray) -> sp.csr_matrix:
-        return model.stiffness(params, unpack(params, y[:-1]))
+    def stiffness(y: np.ndarray) -> BandMatrix:
+        return model.stiffness_band(params, unpack(params, y[:-1]))
 
-    def new_tangent(y: np.ndarray, previous: np.ndarray, k: sp.csr_matrix | None = None) -> tuple[np.ndarray, BorderedFactor]:
+    def new_tangent(y: np.ndarray, previous: np.ndarray, k: BandMatrix | None = None) -> tuple[np.ndarray, BorderedFactor]:
         """The unit tangent at y oriented along ``previous``, and the factor of K(y) that solved for it."""
         rhs = np.zeros(nf + 1)
         rhs[-1] = 1.0
@@ -506,7 +506,7 @@ def continue_in_moment(
     # Inverse iteration at a point starts from the previous point's lowest eigenvector.
     eigenvector = np.zeros(nf)
 
-    def stability(x: np.ndarray, k: sp.csr_matrix | None, guess: float | None = None):
+    def stability(x: np.ndarray, k: BandMatrix | None, guess: float | None = None):
         return static_stability(params, model, x, guess=guess, similar=k if reuse_stiffness else None, start=eigenvector)
 
     def jumped(y: np.ndarray, predicted: np.ndarray, z: np.ndarray, ds: float) -> bool:
@@ -525,9 +525,7 @@ def continue_in_moment(
         fraction = JUMP if abs(ds) >= refine_step else JUMP_SINGULAR
         return bool(np.linalg.norm(z - predicted) > max(abs(ds), fraction * (1.0 + np.linalg.norm(y))))
 
-    def correct(
-        y: np.ndarray, tangent: np.ndarray, ds: float, tol: float, max_iter: int = 8
-    ) -> tuple[np.ndarray, int, sp.csr_matrix] | None:
+    def correct(y: np.ndarray, tangent: np.ndarray, ds: float, tol: float, max_iter: int = 8) -> tuple[np.ndarray, int, BandMatrix] | None:
         """The point of the branch on the plane through y + ds tangent normal to tangent, its iterations
         and stiffness (None: no convergence)."""
         predicted = y + ds * tangent
@@ -568,7 +566,7 @@ def continue_in_moment(
 
     def correct_chord(
         y: np.ndarray, tangent: np.ndarray, ds: float, tol: float, factor: BorderedFactor, norm: float, bend: np.ndarray
-    ) -> tuple[np.ndarray, int, sp.csr_matrix] | None:
+    ) -> tuple[np.ndarray, int, BandMatrix] | None:
         """:func:`correct` reusing a factor of the Jacobian while it contracts (``factor`` at y, ``norm`` its ||K||_inf).
 
         Newton with the Jacobian kept (a chord iteration: one residual and one O(n w) solve

@@ -76,6 +76,9 @@ BORDERED = ("fold_of_cycles", "period_doubling")
 MAX_ITERATIONS = 12
 #: Halvings of a parameter step (in all, towards one value) before the curve is declared ended there.
 MAX_HALVINGS = 10
+#: The secant predictor's longest extrapolation, in units of the spacing of the two points it uses
+#: (a step grows at most twofold after a success).
+MAX_EXTRAPOLATION = 4.0
 #: Newton gives up when two iterations do not divide max(|R|, |g|) by 1 / CONTRACTION.
 CONTRACTION = 0.5
 #: Halvings of one Newton step that makes the residual or the test function larger.
@@ -405,11 +408,17 @@ def continue_cycle_end(
             progress(index, values.size)
         start, step, reached, failures = found[-1][0], float(target) - found[-1][0], False, 0
         while failures <= MAX_HALVINGS:
-            value = float(target) if abs(step) >= abs(float(target) - start) else start + step
+            # A step that ends within round-off of the target ends on it (0.85 + 0.05 is not 0.9).
+            close = abs(float(target) - start - step) <= 1e-9 * abs(step)
+            value = float(target) if close or abs(step) >= abs(float(target) - start) else start + step
             guess = found[-1][1]
             if len(found) >= 2 and found[-2][0] != found[-1][0]:
                 # Secant predictor along the curve: the end moves smoothly with the parameter.
-                guess = guess + (value - found[-1][0]) / (found[-1][0] - found[-2][0]) * (guess - found[-2][1])
+                # It extrapolates at most MAX_EXTRAPOLATION times the last spacing: beyond, the
+                # last point is the better guess.
+                ratio = (value - found[-1][0]) / (found[-1][0] - found[-2][0])
+                if abs(ratio) <= MAX_EXTRAPOLATION:
+                    guess = guess + ratio * (guess - found[-2][1])
             entry, reason = point(value, guess)
             if entry is None:
                 failures, step = failures + 1, step / 2.0

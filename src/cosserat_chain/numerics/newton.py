@@ -27,6 +27,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numba import njit
 
+from ..band import BandMatrix
 from ..loads import Loads
 from ..models.base import Model, get_model
 from ..params import ChainParams
@@ -47,7 +48,7 @@ DIVERGED = 1e6
 ROUND_OFF_FACTOR = 1.0
 
 
-def round_off_floor(stiffness: sp.spmatrix | None, x: np.ndarray, *, norm: float | None = None) -> float:
+def round_off_floor(stiffness: sp.spmatrix | BandMatrix | None, x: np.ndarray, *, norm: float | None = None) -> float:
     """The smallest residual max |F + L| that can be asked of a state x: eps ||K||_inf max(1, |x|_inf) (2N+1).
 
     ``x`` is a state (3, 2N+1) or its free degrees of freedom packed (3 (2N-1),).
@@ -62,13 +63,16 @@ def round_off_floor(stiffness: sp.spmatrix | None, x: np.ndarray, *, norm: float
     return ROUND_OFF_FACTOR * np.finfo(float).eps * norm * max(1.0, float(np.max(np.abs(x)))) * (x.size / 3 + 2)
 
 
-def infinity_norm(matrix: sp.spmatrix) -> float:
-    """max_i sum_j |A_ij| of a sparse matrix (0 for an empty one), O(nnz).
+def infinity_norm(matrix: sp.spmatrix | BandMatrix) -> float:
+    """max_i sum_j |A_ij| of a sparse or banded matrix (0 for an empty one), O(nnz).
 
     A compiled loop over a CSR matrix's data (:func:`_csr_infinity_norm`): scipy's
     ``abs(A).sum(axis=1).max()`` builds two temporaries and cost 0.25 ms at N = 1000,
-    and the continuation asks it at every corrector iteration.
+    and the continuation asks it at every corrector iteration. A
+    :class:`~cosserat_chain.band.BandMatrix` keeps its norm once computed.
     """
+    if isinstance(matrix, BandMatrix):
+        return matrix.infinity_norm
     if not matrix.shape[0]:
         return 0.0
     if sp.issparse(matrix) and matrix.format == "csr":
@@ -172,30 +176,24 @@ def bordered_jacobian(stiffness: sp.spmatrix, dof: int, row: np.ndarray) -> sp.c
 
 
 @njit(cache=True, nogil=True)
-def _band_factor(indptr, indices, data):  # pragma: no cover - compiled
-    """LU without pivoting of -K for a banded K given as CSR, on band storage; (band, original, inverse, ok).
+def _band_factor(stiffness):  # pragma: no cover - compiled
+    """LU without pivoting of -K for K in band storage (:class:`~cosserat_chain.band.BandMatrix`); (band, original, inverse, ok).
 
     ``band[i, j - i + BANDWIDTH]`` holds U on and above the diagonal and L's multipliers
     below it, ``inverse`` the reciprocals of U's diagonal (the solves multiply: a division
     on the substitutions' chain of dependences took half their time), ``original`` -K as
-    given (for refinement); ``ok`` is False on a zero pivot or an entry outside the band
-    (a ring's corner blocks). Gaussian elimination in the natural order with diagonal
-    pivots, like SuperLU with ``diag_pivot_thresh=0`` (:func:`sparse_solve`): the fill
-    stays in the band, O(n w^2). The storage has :data:`~cosserat_chain.state.BANDWIDTH`
-    zero rows after the last, so that every loop has the band's constant length (no bound
-    tests: the compiled loops unroll, 3x faster than with the width read at run time; the
-    zeros only add zeros).
+    given (for refinement); ``ok`` is False on a zero pivot. Gaussian elimination in the
+    natural order with diagonal pivots, like SuperLU with ``diag_pivot_thresh=0``
+    (:func:`sparse_solve`): the fill stays in the band, O(n w^2). The storage has
+    :data:`~cosserat_chain.state.BANDWIDTH` zero rows after the last (those of K's
+    storage), so that every loop has the band's constant length (no bound tests: the
+    compiled loops unroll, 3x faster than with the width read at run time; the zeros only
+    add zeros).
     """
-    n = indptr.size - 1
-    band = np.zeros((n + BANDWIDTH, 2 * BANDWIDTH + 1))  # band[i, j - i + BANDWIDTH] = A[i, j]
+    n = stiffness.shape[0] - 2 * BANDWIDTH
+    original = -stiffness[BANDWIDTH:, :]
+    band = original.copy()
     inverse = np.zeros(n)
-    for i in range(n):
-        for p in range(indptr[i], indptr[i + 1]):
-            offset = indices[p] - i
-            if offset > BANDWIDTH or offset < -BANDWIDTH:
-                return band, band, inverse, False
-            band[i, offset + BANDWIDTH] = -data[p]
-    original = band.copy()
     for j in range(n):
         pivot = band[j, BANDWIDTH]
         if pivot == 0.0:
@@ -295,11 +293,16 @@ class BorderedFactor:
     the chord corrector of the next step share one factor this way.
     """
 
-    def __init__(self, stiffness: sp.spmatrix, dof: int):
-        k = stiffness if sp.issparse(stiffness) and stiffness.format == "csr" else sp.csr_matrix(stiffness)
-        self.stiffness, self.dof = k, dof
-        # The CSR arrays go in as they are (int32 indices compile their own specialisation).
-        self._band, self._original, self._inverse, self._ok = _band_factor(k.indptr, k.indices, np.asarray(k.data, dtype=float))
+    def __init__(self, stiffness: sp.spmatrix | BandMatrix, dof: int):
+        if not isinstance(stiffness, BandMatrix) and not (sp.issparse(stiffness) and stiffness.format == "csr"):
+            stiffness = sp.csr_matrix(stiffness)
+        self.stiffness, self.dof = stiffness, dof
+        try:
+            band = stiffness if isinstance(stiffness, BandMatrix) else BandMatrix.from_sparse(stiffness)
+        except ValueError:  # wider than the band (a ring's corner blocks): the sparse solver
+            self._ok = False
+        else:
+            self._band, self._original, self._inverse, self._ok = _band_factor(band.data)
         self._column = _band_column(self._band, dof) if self._ok else None
         self._row: tuple[np.ndarray, np.ndarray, float] | None = None  # the last border row and its elimination
 
@@ -329,7 +332,8 @@ class BorderedFactor:
                     refine,
                 )
         if out is None or not np.all(np.isfinite(out)):
-            return sparse_solve(bordered_jacobian(self.stiffness, self.dof, row), rhs)
+            k = self.stiffness.tocsr() if isinstance(self.stiffness, BandMatrix) else self.stiffness
+            return sparse_solve(bordered_jacobian(k, self.dof, row), rhs)
         return out
 
 

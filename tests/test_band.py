@@ -1,0 +1,111 @@
+"""Band storage of the statics' matrices: its round trips, its refusals, and the models' banded stiffness."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from conftest import random_geometries, random_state
+from cosserat_chain import ChainParams
+from cosserat_chain.band import BandMatrix
+from cosserat_chain.models.base import BOND_SUMS, assemble_bond_blocks, assemble_bond_sums, get_model
+from cosserat_chain.models.nonlinear import _hessian
+from cosserat_chain.state import BANDWIDTH, n_free, pack, unpack
+
+
+def _random_band(n: int, seed: int) -> sp.csr_matrix:
+    rng = np.random.default_rng(seed)
+    offsets = [k for k in range(-BANDWIDTH, BANDWIDTH + 1) if abs(k) < n]
+    return sp.diags([rng.standard_normal(n - abs(k)) for k in offsets], offsets, shape=(n, n), format="csr")
+
+
+@pytest.mark.parametrize("n", [1, 2, 6, 11, 40])
+def test_a_banded_matrix_round_trips_through_band_storage_and_keeps_its_norm_and_upper_triangle(n):
+    matrix = _random_band(n, seed=n)
+    band = BandMatrix.from_sparse(matrix)
+    dense = matrix.toarray()
+    assert band.shape == (n, n) and band.data.shape == (n + 2 * BANDWIDTH, 2 * BANDWIDTH + 1)
+    assert np.array_equal(band.toarray(), dense) and np.array_equal(band.tocsr().toarray(), dense)
+    assert np.array_equal(BandMatrix.from_sparse(dense).data, band.data)  # dense input, same storage
+    assert band.infinity_norm == pytest.approx(np.abs(dense).sum(axis=1).max(), rel=1e-15)
+    # The padding is zero; the upper rows hold M[j - d, j] at [B + j, d].
+    assert not band.data[:BANDWIDTH].any() and not band.data[n + BANDWIDTH :].any()
+    upper = band.upper_rows()
+    for j in range(n):
+        for d in range(BANDWIDTH + 1):
+            assert upper[BANDWIDTH + j, d] == (dense[j - d, j] if j >= d else 0.0)
+
+
+def test_a_matrix_wider_than_the_band_and_malformed_storage_are_refused_by_name():
+    n = 20
+    wide = sp.diags([np.ones(n), np.full(n - BANDWIDTH - 2, 0.5)], [0, -BANDWIDTH - 2], format="csr")
+    with pytest.raises(ValueError, match=f"half-bandwidth {BANDWIDTH + 2}, more than the chain's {BANDWIDTH}"):
+        BandMatrix.from_sparse(wide)
+    with pytest.raises(ValueError, match=r"band data must have shape \(n \+ 10, 11\), got \(12, 7\)"):
+        BandMatrix(np.zeros((12, 7)))
+
+
+def _ends(N: int) -> list[ChainParams]:
+    return [
+        ChainParams(N=N),
+        ChainParams(N=N, left_end="pinned", right_end="pinned"),
+        ChainParams(N=N, left_end="clamped", right_end="free"),
+        ChainParams(N=N, left_end="free", right_end="pinned"),
+    ]
+
+
+@pytest.mark.parametrize("params", [*_ends(1), *_ends(3), *_ends(30), *random_geometries(4, seed=11)], ids=repr)
+def test_the_banded_stiffness_equals_the_sparse_one_bit_for_bit_at_random_states(params):
+    x = random_state(params, 0.3, seed=params.N)
+    for name in ("nonlinear", "sine", "linear"):
+        model = get_model(name)
+        band = model.stiffness_band(params, x)
+        assert isinstance(band, BandMatrix) and band.shape == (n_free(params),) * 2
+        assert np.array_equal(band.toarray(), model.stiffness(params, x).toarray()), name
+
+
+def test_bond_sums_assemble_what_their_six_by_six_blocks_assemble():
+    # Each bond's block from its ten sums by the rule of BOND_SUMS (translations +-S, their
+    # couplings to a rotation signed by the particle, the rotations alone), assembled by
+    # the independent block path: the same matrix, banded or CSR, on every kind of end.
+    rng = np.random.default_rng(5)
+    for params in (*_ends(4), ChainParams(N=4, periodic=True)):
+        n_bonds = params.n_bonds
+        sums = rng.standard_normal((len(BOND_SUMS), n_bonds))
+        s = dict(zip(BOND_SUMS, sums))
+        blocks = np.zeros((n_bonds, 6, 6))
+        S = np.array([[s["uu"], s["uv"]], [s["uv"], s["vv"]]]).transpose(2, 0, 1)
+        for i, si in ((0, -1.0), (3, 1.0)):
+            for j, sj in ((0, -1.0), (3, 1.0)):
+                blocks[:, i : i + 2, j : j + 2] = si * sj * S
+            for a, row in ((0, "u"), (1, "v")):
+                for rotation, phi in ((2, "phi0"), (5, "phi1")):
+                    blocks[:, i + a, rotation] = blocks[:, rotation, i + a] = si * s[f"{row}_{phi}"]
+        blocks[:, 2, 2], blocks[:, 5, 5] = s["phi0_phi0"], s["phi1_phi1"]
+        blocks[:, 2, 5] = blocks[:, 5, 2] = s["phi0_phi1"]
+        expected = assemble_bond_blocks(blocks, params).toarray()
+        assert np.allclose(assemble_bond_sums(sums, params).toarray(), expected, rtol=0, atol=1e-14)
+        if params.periodic:
+            with pytest.raises(ValueError, match="a ring's matrices are not banded"):
+                assemble_bond_sums(sums, params, band=True)
+        else:
+            assert np.array_equal(assemble_bond_sums(sums, params, band=True).toarray(), assemble_bond_sums(sums, params).toarray())
+
+
+def test_the_nonlinear_hessian_sums_are_the_second_differences_of_the_energy():
+    # An independent check of the compiled sums: the stiffness from them against central
+    # differences of the forces, on a random geometry far from rest.
+    model = get_model("nonlinear")
+    params = ChainParams(**{**random_geometries(1, seed=21)[0].model_dump(), "N": 6})
+    x = random_state(params, 0.4, seed=2)
+    assert _hessian(params, x).shape == (len(BOND_SUMS), params.n_bonds)
+    k = model.stiffness_band(params, x).toarray()
+    q, step = pack(params, x), 1e-6
+    columns = []
+    for i in range(q.size):
+        e = np.zeros(q.size)
+        e[i] = step
+        plus, minus = model.forces(params, unpack(params, q + e)), model.forces(params, unpack(params, q - e))
+        columns.append(-(pack(params, plus) - pack(params, minus)) / (2 * step))
+    assert np.allclose(k, np.array(columns).T, rtol=0, atol=1e-7 * np.abs(k).max())
