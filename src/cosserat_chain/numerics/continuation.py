@@ -462,9 +462,10 @@ def continue_in_moment(
     state (``static_stability(similar=...)``), starts its inverse iteration from the
     previous point's eigenvector, and pays the inertia count at zero only where the
     smallest eigenvalue is not certified positive. The full turn of N = 1000 (40 folds)
-    took 34 s, then 22 s, 16 s, and now about 8 s of CPU on one core
+    took 34 s, then 22 s, 16 s, 8 s, and now 0.7 times that, of CPU on one core
     (``benchmarks/bench_critical.py --scaling``; the band kernels take the chain's
-    constant bandwidth). A point whose
+    constant bandwidth, and K goes from the bonds' sums straight into band storage,
+    :meth:`~cosserat_chain.models.base.Model.stiffness_band`). A point whose
     critical eigenvalue lies within its round-off (``Stability.resolution``) keeps the
     index and stability last decided. The folds and branch points are located with full Newton (the bordered
     Jacobian is singular at a branch point, where a full step is halved while it raises
