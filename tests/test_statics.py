@@ -533,3 +533,32 @@ def test_a_matrix_wider_than_the_chains_band_is_refused_by_the_band_kernels_and_
     assert np.max(np.abs(bordered_jacobian(wide, 4, row) @ solution - rhs)) < 1e-12
     banded = sp.diags([np.full(n, 10.0), np.full(n - BANDWIDTH, 0.5), np.full(n - BANDWIDTH, 0.5)], [0, BANDWIDTH, -BANDWIDTH]).tocsr()
     assert BorderedFactor(banded, 4)._ok and not BorderedFactor(wide, 4)._ok
+
+
+@pytest.mark.parametrize(
+    "chain",
+    [
+        dict(N=20, right_end="pinned"),  # the paper's geometry, clamped-pinned
+        dict(N=25, a=0.10518722914678214, b=0.3652158378015968, E1=2.109973577076706, E2=1.5859087091011652, left_end="pinned"),
+    ],
+)
+def test_a_turn_of_m_without_one_crossing_is_refined_and_the_turn_is_mirror_symmetric(chain):
+    # Each chain once took a step across a fold of M with the same index at both ends
+    # (N = 20: 1 and 1 across a minimum where short steps find 1 before it and 2 after):
+    # the fold's corrector found no point between them and critical raised NewtonError. A
+    # turn of M without exactly one crossing now refines the step like a crossing
+    # without a turn, and the index changes by one at every fold. Mirrored about the chain's axis (v, phi -> -v, -phi) the
+    # branch maps onto itself with M -> -M and phi_0 -> 2 pi - phi_0 (angles mod 2 pi): the
+    # folds of the second half of the turn, traced and located on their own, are those of
+    # the first half mirrored.
+    result = critical_point(ChainParams(**chain), "nonlinear")
+    branch = result.branch
+    assert result.complete and branch.stop == "phi0_stop"
+    folds = np.array([(f.moment, f.phi0) for f in branch.folds])
+    assert len(folds) >= 8 and len(folds) % 2 == 0
+    mirrored = np.column_stack([-folds[:, 0], 2 * math.pi - folds[:, 1]])
+    distance = np.max(np.abs(folds[:, None, :] - mirrored[None, :, :]), axis=2)
+    assert np.all(distance.min(axis=1) < 1e-8), distance.min(axis=1)
+    # Maxima and minima of M alternate along the branch.
+    maxima = np.array([f.maximum for f in branch.folds])
+    assert np.all(maxima[1:] != maxima[:-1])

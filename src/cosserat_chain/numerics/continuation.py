@@ -754,10 +754,15 @@ def continue_in_moment(
             continue
         now_index = check.index
         turns_back = next_tangent[-1] * tangent[-1] < 0
-        if now_index != index and ds > refine_step and (abs(now_index - index) > 1 or not turns_back):
+        unmatched = abs(now_index - index) != 1 if turns_back else now_index != index
+        if unmatched and ds > refine_step:
             # An eigenvalue of K crosses zero within this step without the one turn of M
-            # that a single fold shows: more folds (a maximum and a minimum of M that the
-            # step passes together) or a branch point lie in it. Approach the crossing in
+            # that a single fold shows, or M turns without the one crossing a simple fold
+            # has: more folds (a maximum and a minimum of M that the step passes together)
+            # or a branch point lie in it, or the corrector landed off the branch traced (the
+            # paper's geometry with N = 20, clamped-pinned: a step of 0.05 across a minimum
+            # of M, index 1 at both ends where short steps find 1 before the fold and 2
+            # after it, and the fold's corrector found no point between). Approach the crossing in
             # steps down to refine_step, so that each fold shows as a turn between points,
             # then go on with the step from before. The crossing lies within ``crossing`` of
             # y: the steps bisect towards it (steps of 1/8 that then grew by 1.3 a point
