@@ -29,7 +29,8 @@ the ratios package / best reference. Then ``threads=2`` against ``threads=1`` on
 started by the benchmark (wall time: what a second thread is for).
 
 Results go to ``benchmarks/results/throughput.json`` (``throughput-quick.json`` with
-``--quick``); the README tables are printed at the end.
+``--quick``, ``throughput-partial.json`` with ``--sizes`` or ``--no-threads``); the README
+tables are printed at the end.
 """
 
 from __future__ import annotations
@@ -457,7 +458,7 @@ def main(argv=None) -> int:
         "--wait-idle", type=float, default=None, metavar="SECONDS",
         help="before the threads measurement, wait up to this long for two free cores (default 60, 0 with --quick)",
     )  # fmt: skip
-    parser.add_argument("--output", type=Path, default=None, help="JSON file (default benchmarks/results/throughput[-quick].json)")
+    parser.add_argument("--output", type=Path, default=None, help="JSON file (default benchmarks/results/throughput[-quick|-partial].json)")
     parser.add_argument("--markdown", type=Path, metavar="JSON", help="only print the README tables of a saved result")
     parser.add_argument(
         "--sizes", default=None, metavar="N1,N2",
@@ -507,9 +508,14 @@ def main(argv=None) -> int:
     log("")
     log(markdown(result))
     log(f"\ntotal {result['total_wall_s']:.0f} s")
-    output = args.output or RESULTS / ("throughput-quick.json" if args.quick else "throughput.json")
+    # A run of part of the plan (--sizes, --no-threads) goes to a file of its own: it
+    # overwrote the full run's before.
+    default = "throughput-quick.json" if args.quick else "throughput-partial.json" if args.sizes or args.no_threads else "throughput.json"
+    output = args.output or RESULTS / default
     output.parent.mkdir(parents=True, exist_ok=True)
-    output.write_text(json.dumps(result, indent=1) + "\n")
+    partial = output.with_name(output.name + ".part")
+    partial.write_text(json.dumps(result, indent=1) + "\n")
+    partial.replace(output)  # whole or not at all
     log(f"wrote {output}")
     if args.json:
         print(json.dumps(result))
