@@ -680,7 +680,10 @@ def _lowest_real_eigenvalue(matrix) -> complex:
     shift = -float(abs(matrix).sum(axis=1).max()) - 1.0
     symmetric = _diagonal_similar_symmetric(matrix)
     if symmetric is not None:
-        return complex(smallest_eigenvalue(symmetric)[0])
+        try:
+            return complex(smallest_eigenvalue(symmetric)[0])
+        except ValueError:  # wider than the chain's band: not a chain's operator
+            pass
     # A wide Krylov space: the eigenvalues near the shift are clustered (40 vectors: 4 s at
     # N = 1000; ARPACK's default of 20 took 11 s).
     return complex(spla.eigs(matrix.tocsc(), k=1, sigma=shift, which="LM", ncv=min(matrix.shape[0] - 1, 40), return_eigenvectors=False)[0])
