@@ -632,9 +632,9 @@ def _diagonal_similar_symmetric(matrix):
 
     a = sparse.csr_matrix(matrix, dtype=float)
     a.eliminate_zeros()
-    if (a != 0).astype(np.int8).nnz != ((a != 0) + (a != 0).T).nnz:
-        return None  # a one-sided entry: no diagonal similarity makes it symmetric
     pattern = (a != 0).astype(np.int8)
+    if pattern.nnz != (pattern + pattern.T).nnz:
+        return None  # a one-sided entry: no diagonal similarity makes it symmetric
     n_components, labels = csgraph.connected_components(pattern, directed=False)
     log_d2 = np.zeros(a.shape[0])
     for component in range(n_components):
