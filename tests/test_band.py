@@ -21,7 +21,7 @@ def _random_band(n: int, seed: int) -> sp.csr_matrix:
 
 
 @pytest.mark.parametrize("n", [1, 2, 6, 11, 40])
-def test_a_banded_matrix_round_trips_through_band_storage_and_keeps_its_norm_and_upper_triangle(n):
+def test_a_banded_matrix_round_trips_through_band_storage_and_keeps_its_norm_and_storage_layout(n):
     matrix = _random_band(n, seed=n)
     band = BandMatrix.from_sparse(matrix)
     dense = matrix.toarray()
@@ -29,12 +29,11 @@ def test_a_banded_matrix_round_trips_through_band_storage_and_keeps_its_norm_and
     assert np.array_equal(band.toarray(), dense) and np.array_equal(band.tocsr().toarray(), dense)
     assert np.array_equal(BandMatrix.from_sparse(dense).data, band.data)  # dense input, same storage
     assert band.infinity_norm == pytest.approx(np.abs(dense).sum(axis=1).max(), rel=1e-15)
-    # The padding is zero; the upper rows hold M[j - d, j] at [B + j, d].
+    # The padding is zero; row B + i holds M[i, i + d] at column B + d.
     assert not band.data[:BANDWIDTH].any() and not band.data[n + BANDWIDTH :].any()
-    upper = band.upper_rows()
-    for j in range(n):
-        for d in range(BANDWIDTH + 1):
-            assert upper[BANDWIDTH + j, d] == (dense[j - d, j] if j >= d else 0.0)
+    for i in range(n):
+        for d in range(-BANDWIDTH, BANDWIDTH + 1):
+            assert band.data[BANDWIDTH + i, BANDWIDTH + d] == (dense[i, i + d] if 0 <= i + d < n else 0.0)
 
 
 def test_a_matrix_wider_than_the_band_and_malformed_storage_are_refused_by_name():
@@ -109,3 +108,60 @@ def test_the_nonlinear_hessian_sums_are_the_second_differences_of_the_energy():
         plus, minus = model.forces(params, unpack(params, q + e)), model.forces(params, unpack(params, q - e))
         columns.append(-(pack(params, plus) - pack(params, minus)) / (2 * step))
     assert np.allclose(k, np.array(columns).T, rtol=0, atol=1e-7 * np.abs(k).max())
+
+
+def _dense_lu_without_pivoting(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The textbook Doolittle elimination (unit lower L, upper U) of a dense matrix, as a reference."""
+    n = a.shape[0]
+    lower, upper = np.eye(n), a.astype(float).copy()
+    for j in range(n):
+        for i in range(j + 1, n):
+            lower[i, j] = upper[i, j] / upper[j, j]
+            upper[i, j:] -= lower[i, j] * upper[j, j:]
+    return lower, upper
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 6, 11, 40])
+def test_the_band_lu_is_the_dense_elimination_of_minus_k_and_its_pivots_count_the_negative_eigenvalues(n):
+    # The row-by-row elimination has a branch for the first B rows and one for the rest;
+    # n = 1 ... 40 covers both and their seam. A symmetric matrix with a shifted diagonal
+    # is indefinite: its pivots' signs are its inertia (Sylvester), which the continuation
+    # takes for the index instead of a factor of its own.
+    from cosserat_chain.numerics.newton import BorderedFactor
+
+    rng = np.random.default_rng(n)
+    for shift in (0.0, 1.5, 4.0):
+        upper = sp.triu(_random_band(n, seed=10 * n + int(shift)))
+        symmetric = (upper + upper.T + sp.eye(n) * (6.0 - 2 * shift)).tocsr()
+        factor = BorderedFactor(BandMatrix.from_sparse(symmetric), dof=n - 1)
+        lower, up = _dense_lu_without_pivoting(-symmetric.toarray())
+        band = factor._band
+        for i in range(n):
+            for j in range(max(0, i - BANDWIDTH), min(n, i + BANDWIDTH + 1)):
+                expected = lower[i, j] if j < i else up[i, j]
+                assert band[i, BANDWIDTH + j - i] == pytest.approx(expected, rel=1e-12, abs=1e-12)
+        assert np.allclose(factor._inverse, 1.0 / np.diag(up), rtol=1e-12)
+        assert factor.negative_eigenvalues == np.count_nonzero(np.linalg.eigvalsh(symmetric.toarray()) < 0)
+        # A system solved with the factor, refined, is solved to round-off.
+        row, rhs = rng.standard_normal(n + 1), rng.standard_normal(n + 1)
+        dense = np.zeros((n + 1, n + 1))
+        dense[:n, :n], dense[n - 1, n], dense[n] = -symmetric.toarray(), 1.0, row
+        assert np.allclose(factor.solve(row, rhs), np.linalg.solve(dense, rhs), rtol=1e-9, atol=1e-9)
+
+
+@pytest.mark.parametrize("params", [ChainParams(N=1), ChainParams(N=4, right_end="free"), *random_geometries(3, seed=21)], ids=str)
+def test_the_tangent_factors_inertia_is_the_dense_index_of_the_stiffness_at_random_states(params):
+    from cosserat_chain.numerics.newton import BorderedFactor, moment_dof
+    from cosserat_chain.numerics.stability import static_stability
+
+    model = get_model("nonlinear")
+    for seed, scale in enumerate((0.05, 0.5, 2.0)):
+        x = random_state(params, scale, seed)
+        k = model.stiffness_band(params, x)
+        counted = BorderedFactor(k, moment_dof(params, 0)).negative_eigenvalues
+        dense = static_stability(params, model, x, dense=True)
+        assert counted == dense.index
+        # Given to the banded stability, the count is its index (and changes nothing else).
+        given = static_stability(params, model, x, similar=k, index=counted)
+        assert given == static_stability(params, model, x, similar=k)
+    assert BorderedFactor(sp.eye(12, format="csr") + sp.eye(12, k=7, format="csr"), 0).negative_eigenvalues is None

@@ -517,7 +517,7 @@ def test_a_matrix_wider_than_the_chains_band_is_refused_by_the_band_kernels_and_
     # matrix (a ring's corner blocks) is no band for them. The stability's lower band says so by
     # name; the bordered factor falls back to the sparse solve and still solves it exactly.
     from cosserat_chain.numerics.newton import BorderedFactor, bordered_jacobian
-    from cosserat_chain.numerics.stability import _lower_rows
+    from cosserat_chain.numerics.stability import _band_storage
     from cosserat_chain.state import BANDWIDTH
 
     rng = np.random.default_rng(3)
@@ -527,7 +527,7 @@ def test_a_matrix_wider_than_the_chains_band_is_refused_by_the_band_kernels_and_
     ).tocsr()
     for matrix in (wide, wide.toarray()):
         with pytest.raises(ValueError, match=f"half-bandwidth {BANDWIDTH + 1}, more than the chain's {BANDWIDTH}"):
-            _lower_rows(matrix)
+            _band_storage(matrix)
     row, rhs = rng.standard_normal(n + 1), rng.standard_normal(n + 1)
     solution = BorderedFactor(wide, 4).solve(row, rhs)
     assert np.max(np.abs(bordered_jacobian(wide, 4, row) @ solution - rhs)) < 1e-12

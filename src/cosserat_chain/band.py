@@ -66,19 +66,6 @@ class BandMatrix:
         """max_i sum_j |M_ij| (the rows' entries summed in the order of their columns, as over CSR)."""
         return float(_band_infinity_norm(self.data)) if self.shape[0] else 0.0
 
-    def upper_rows(self) -> np.ndarray:
-        """The upper triangle by columns, padded: out[B + j, d] = M[j - d, j], d = 0..B, shape (n + 2B, B + 1).
-
-        The storage of :mod:`~cosserat_chain.numerics.stability`'s LDL^T (a Hessian summed
-        link by link is symmetric only to round-off: one triangle is read, as LAPACK's
-        upper storage reads it).
-        """
-        n, b = self.shape[0], BANDWIDTH
-        out = np.zeros((n + 2 * b, b + 1))
-        for d in range(b + 1):
-            out[b : n + b, d] = self.data[b - d : n + b - d, b + d]
-        return out
-
     def tocsr(self) -> sp.csr_matrix:
         """The matrix as CSR, its explicit zeros dropped."""
         n, b = self.shape[0], BANDWIDTH

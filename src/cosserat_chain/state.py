@@ -193,16 +193,39 @@ def _free_in_rows(n_particles: int, left: str, right: str) -> np.ndarray:
 
 
 def pack(params: ChainParams, x: np.ndarray) -> np.ndarray:
-    """Free degrees of freedom of ``x`` (3, 2N+1) as a vector of length n_free, in matrix order."""
+    """Free degrees of freedom of ``x`` (3, 2N+1) as a vector of length n_free, in matrix order.
+
+    Raises
+    ------
+    ValueError
+        If ``x`` does not have 3 (2N+1) entries.
+    """
     left, right = params.ends
-    return np.ascontiguousarray(x, dtype=float).reshape(-1)[_free_in_rows(params.n_particles, left, right)]
+    flat = np.ascontiguousarray(x, dtype=float).reshape(-1)
+    if flat.size != 3 * params.n_particles:
+        raise ValueError(f"x has {flat.size} entries, a state of this chain has shape (3, {params.n_particles})")
+    from .packing import take  # compiled; imported here, so that importing state loads no numba
+
+    return take(flat, _free_in_rows(params.n_particles, left, right))
 
 
 def unpack(params: ChainParams, q: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`pack`: a C-contiguous (3, 2N+1) array, zero at the fixed degrees of freedom."""
+    """Inverse of :func:`pack`: a C-contiguous (3, 2N+1) array, zero at the fixed degrees of freedom.
+
+    Raises
+    ------
+    ValueError
+        If ``q`` does not have n_free entries.
+    """
     left, right = params.ends
+    index = _free_in_rows(params.n_particles, left, right)
+    q = np.ascontiguousarray(q, dtype=float).reshape(-1)
+    if q.size != index.size:
+        raise ValueError(f"q has {q.size} entries, this chain has {index.size} free degrees of freedom")
+    from .packing import put
+
     out = np.zeros((3, params.n_particles))
-    out.reshape(-1)[_free_in_rows(params.n_particles, left, right)] = np.asarray(q, dtype=float)
+    put(out.reshape(-1), index, q)
     return out
 
 

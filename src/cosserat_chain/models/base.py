@@ -289,10 +289,11 @@ class Model(ABC):
         a quarter of a residual's cost at N = 1000); a non-finite ``q`` gives non-finite
         forces, which the caller's convergence test rejects.
         """
-        return pack(params, self._kernel_forces(params, unpack(params, q)))
+        return pack(params, self._kernel_forces(params, unpack(params, q), held=False))
 
-    def _kernel_forces(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
-        """:meth:`compiled_forces` of a valid C-contiguous state."""
+    def _kernel_forces(self, params: ChainParams, x: np.ndarray, *, held: bool = True) -> np.ndarray:
+        """:meth:`compiled_forces` of a valid C-contiguous state (``held=False``: the held
+        degrees of freedom's entries left as computed, for :func:`~cosserat_chain.state.pack` to drop)."""
         out = np.zeros_like(x)
         coef = self.coefficients(params)
         force, ends = self.chain_kernels(params)
@@ -300,7 +301,8 @@ class Model(ABC):
         start, stop = force_columns(params)
         if start == 0 or stop == x.shape[1]:
             ends(x, coef, out, start == 0, stop == x.shape[1], params.periodic)
-        zero_held(params, out)
+        if held:
+            zero_held(params, out)
         return out
 
     def chain_kernels(self, params: ChainParams) -> tuple[Callable[..., None], Callable[..., None]]:

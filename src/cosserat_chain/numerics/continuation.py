@@ -66,6 +66,10 @@ PHI0_STEP = 0.1
 #: Largest turn of the tangent in one step (rad): resolves the curve in (q, M) and
 #: keeps the corrector on its branch.
 MAX_TURN = 0.2
+#: A step is sized for this fraction of PHI0_STEP and MAX_TURN, from the turns of the step before.
+STEP_TARGET = 0.85
+#: Most growth of the step from one point to the next.
+STEP_GROWTH = 1.3
 #: A corrector that moves further than this fraction of the state's size (and than the step) jumped.
 #: The paper's chain of N = 1000 jumped by 0.0067 of its state's size (1.2 with a step of 0.19)
 #: with a tenth allowed, onto a closed loop of the branch it then went round twice.
@@ -411,10 +415,11 @@ def continue_in_moment(
         ``max_step`` to :data:`MAX_STEP_FACTOR` times that. A step is retaken shorter
         when the loaded particle turns by more than :data:`PHI0_STEP`, the tangent by
         more than :data:`MAX_TURN`, or a positive critical eigenvalue (above its
-        round-off) falls below half its previous value or through zero, and lengthened by
-        1.3 where both stay below half of these and the corrector factors the Jacobian at
-        most once (:data:`CHORD_CONTRACTION`; full Newton: two iterations): the points follow the
-        curvature of the branch, not its length (the sine model's branch at N = 100 is
+        round-off) falls below half its previous value or through zero. The next step is
+        sized for :data:`STEP_TARGET` of both turn limits at the rates of the step just
+        taken, at most :data:`STEP_GROWTH` times longer, and no longer where the corrector
+        factored the Jacobian more than once (:data:`CHORD_CONTRACTION`; full Newton: two
+        iterations): the points follow the curvature of the branch, not its length (the sine model's branch at N = 100 is
         long in (q, M) and straight). A step shortened on the way to a crossing of an
         eigenvalue comes back once the crossing is passed.
     max_points : int
@@ -460,12 +465,11 @@ def continue_in_moment(
     with full Newton in every corrector. The
     stability of a point of a conservative model takes the K assembled at the converged
     state (``static_stability(similar=...)``), starts its inverse iteration from the
-    previous point's eigenvector, and pays the inertia count at zero only where the
-    smallest eigenvalue is not certified positive. The full turn of N = 1000 (40 folds)
-    took 34 s, then 22 s, 16 s, 8 s, and now 0.7 times that, of CPU on one core
-    (``benchmarks/bench_critical.py --scaling``; the band kernels take the chain's
-    constant bandwidth, and K goes from the bonds' sums straight into band storage,
-    :meth:`~cosserat_chain.models.base.Model.stiffness_band`). A point whose
+    previous point's eigenvector, and takes its index from the inertia of the tangent's
+    factor of that K (:attr:`~.newton.BorderedFactor.negative_eigenvalues`): no factor of
+    its own for the count. The full turn of N = 1000 (40 folds) takes about 4.5 s of CPU
+    on one core (``benchmarks/bench_critical.py --scaling``; ``docs/statics.md`` has the
+    history and what a point costs). A point whose
     critical eigenvalue lies within its round-off (``Stability.resolution``) keeps the
     index and stability last decided. The folds and branch points are located with full Newton (the bordered
     Jacobian is singular at a branch point, where a full step is halved while it raises
@@ -507,8 +511,12 @@ def continue_in_moment(
     # Inverse iteration at a point starts from the previous point's lowest eigenvector.
     eigenvector = np.zeros(nf)
 
-    def stability(x: np.ndarray, k: BandMatrix | None, guess: float | None = None):
-        return static_stability(params, model, x, guess=guess, similar=k if reuse_stiffness else None, start=eigenvector)
+    def stability(x: np.ndarray, k: BandMatrix | None, guess: float | None = None, factor: BorderedFactor | None = None):
+        """The stability of x (``factor``: the tangent's factor of K there, whose inertia is the index)."""
+        if not reuse_stiffness:
+            return static_stability(params, model, x, guess=guess, start=eigenvector)
+        index = None if factor is None else factor.negative_eigenvalues
+        return static_stability(params, model, x, guess=guess, similar=k, start=eigenvector, index=index)
 
     def jumped(y: np.ndarray, predicted: np.ndarray, z: np.ndarray, ds: float) -> bool:
         """Whether the corrector's point z of the step ds from y lies on another part of the branch (or another branch).
@@ -732,7 +740,7 @@ def continue_in_moment(
         if (turned > PHI0_STEP or turn > MAX_TURN) and ds > min_step:
             ds = max(min_step, ds / 2)
             continue
-        check = stability(x, k, checks[-1].critical_eigenvalue)
+        check = stability(x, k, checks[-1].critical_eigenvalue, next_factor)
         if abs(check.critical_eigenvalue) <= check.resolution:
             # An eigenvalue within its round-off (Stability.resolution) has no sign: the
             # stability and index it gives are noise, and the branch keeps the index last
@@ -817,9 +825,16 @@ def continue_in_moment(
             stop = "max_folds"
         if stop != "max_points":
             break
-        # A step grows where its corrector needed at most one new factor (full Newton: two iterations).
-        if crossing == 0.0 and iterations <= (1 if chord else 2) and turned < PHI0_STEP / 2 and turn < MAX_TURN / 2:
-            ds = min(max_step, 1.3 * ds)
+        if crossing == 0.0:
+            # The next step is sized for STEP_TARGET of the turn limits at the rate of this one
+            # (growing the step by 1.3 where both turns stayed below half their limits, and
+            # keeping it otherwise, left the loaded particle turning 0.065 rad a step on average:
+            # 2080 points for the turn of N = 1000 where this takes 1726). It grows only where
+            # its corrector needed at most one new factor (full Newton: two iterations).
+            grow = min(STEP_GROWTH, STEP_TARGET * PHI0_STEP / max(turned, 1e-300), STEP_TARGET * MAX_TURN / max(turn, 1e-300))
+            if iterations > (1 if chord else 2):
+                grow = min(grow, 1.0)
+            ds = min(max_step, max(min_step, max(0.5, grow) * ds))
     branch = _assemble_branch(params, model, particle, moments, states, folds, checks, stop)
     branch.message = message
     branch.branch_points = branch_points

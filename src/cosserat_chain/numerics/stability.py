@@ -113,6 +113,7 @@ def static_stability(
     guess: float | None = None,
     similar: sp.spmatrix | BandMatrix | None = None,
     start: np.ndarray | None = None,
+    index: int | None = None,
 ) -> Stability:
     """Stability of the static state ``x`` (3, 2N+1) of ``model`` (see the module docstring).
 
@@ -138,20 +139,29 @@ def static_stability(
     The index costs no factor of its own where the smallest eigenvalue is certified
     positive above its round-off (the certificate is a factor at a shift below it with
     no negative pivot, so K itself has none): only an unstable or marginal state pays
-    the count at zero.
+    the count at zero, and not even that where the caller gives ``index``, the
+    number of negative eigenvalues of ``similar`` it has counted from a factor of that
+    matrix at zero (a continuation's tangent solve factors the stiffness at every point:
+    :attr:`~.newton.BorderedFactor.negative_eigenvalues`). A factor in another order of
+    operations could count differently only where a pivot lies within round-off of zero.
+    Ignored without ``similar``.
     """
     model = get_model(model)
     x = check_state(params, x)
     # A ring's matrices have corner blocks (not banded): the dense path, at the sizes a ring's statics reach.
     if dense or params.periodic:
         similar = None
-    elif similar is None:
+    counted = index if similar is not None else None  # a count of the caller's matrix only
+    if similar is None and not (dense or params.periodic):
         similar = model.symmetric_similar(params, x)
     if similar is not None:
-        lower = _lower_rows(similar)
+        band = _band_storage(similar)
         resolution = _resolution(similar)
-        critical, bound = _smallest_eigenvalue(lower, resolution / BISECTION_RTOL, guess, start)
-        index = 0 if bound > resolution else negative_count(lower, 0.0)
+        critical, bound = _smallest_eigenvalue(band, resolution / BISECTION_RTOL, guess, start)
+        if bound > resolution:
+            index = 0
+        else:
+            index = negative_count(band, 0.0) if counted is None else counted
         return Stability(index == 0 and critical > 0.0, critical, math.nan, index, resolution)
     k = model.stiffness(params, x).toarray()
     abscissa = float(np.max(la.eigvals(damped_dynamics_matrix(params, k)).real))
@@ -177,9 +187,9 @@ def smallest_eigenvalue(matrix: sp.spmatrix | BandMatrix) -> tuple[float, float]
     ValueError
         If the matrix is wider than the band.
     """
-    lower = _lower_rows(matrix)
+    band = _band_storage(matrix)
     resolution = _resolution(matrix)
-    value, _ = _smallest_eigenvalue(lower, resolution / BISECTION_RTOL)
+    value, _ = _smallest_eigenvalue(band, resolution / BISECTION_RTOL)
     return value, resolution
 
 
@@ -190,40 +200,37 @@ def _resolution(matrix) -> float:
     return BISECTION_RTOL * float(abs(matrix).sum(axis=1).max()) if matrix.shape[0] else 0.0
 
 
-def _lower_rows(matrix: sp.spmatrix | BandMatrix) -> np.ndarray:
-    """A symmetric banded matrix by rows of its lower band, padded: out[B + i, d] = M[i, i - d] = M[i - d, i], d = 0..B.
+def _band_storage(matrix: sp.spmatrix | BandMatrix) -> np.ndarray:
+    """The padded band storage (:class:`~cosserat_chain.band.BandMatrix`) the compiled LDL^T reads.
 
-    B is :data:`~cosserat_chain.state.BANDWIDTH`; the B rows before the first and after
-    the last are zero (the compiled loops then have the band's constant length: they
-    unroll, 3x faster than with the width read at run time). Read from the upper
-    triangle (:meth:`~cosserat_chain.band.BandMatrix.upper_rows`), as LAPACK's upper
-    storage holds it: a Hessian summed link by link is symmetric only to round-off, and
-    either triangle gives the same inertia. A sparse matrix goes through its band
-    (``sp.triu`` and the COO scatter cost 0.7 ms at N = 1000, once a point of a branch).
+    Its upper triangle is read (a Hessian summed link by link is symmetric only to round-off:
+    one triangle is read, as LAPACK's upper storage reads it, and either gives the same
+    inertia), in place: a copy by rows of the lower band cost 55 us at N = 1000, once a point
+    of a branch. A sparse matrix goes through its band.
 
     Raises
     ------
     ValueError
         If the matrix is wider than the band (a ring's corner blocks).
     """
-    band = matrix if isinstance(matrix, BandMatrix) else BandMatrix.from_sparse(matrix)
-    return band.upper_rows()
+    return (matrix if isinstance(matrix, BandMatrix) else BandMatrix.from_sparse(matrix)).data
 
 
 @njit(cache=True, nogil=True)
-def _factor(lower, shift, factor, inverse):  # pragma: no cover - compiled
+def _factor(band, shift, factor, inverse):  # pragma: no cover - compiled
     """LDL^T of M - shift I without pivoting into ``factor`` (factor[r, d] = L[i, i - d], r = B + i) and ``inverse`` (1 / D).
 
     Returns the number of negative pivots: by Sylvester's law of inertia the number
     of eigenvalues below ``shift``, in O(n w^2) (a zero pivot is nudged by the round-off).
-    ``lower`` is padded (:func:`_lower_rows`): the padding's rows factor as the identity.
+    ``band`` is the padded storage (:func:`_band_storage`) and M[i, i - d] is read from its
+    upper triangle, M[i - d, i] = band[r - d, B + d]; the padding's rows factor as the identity.
 
     A row's entries are formed as w_d = L[i, i - d] D[i - d] first, each from the ones
     before it, and L's entry is w_d times the reciprocal pivot: the chain of dependences
     along a row holds multiply-adds only, where it held a division per entry (the factor
     0.106 -> 0.086 ms at N = 1000); the one division a row is off that chain.
     """
-    rows = lower.shape[0]
+    rows = band.shape[0]
     tiny = 1e-300
     count = 0
     w = np.zeros(BANDWIDTH + 1)
@@ -233,12 +240,12 @@ def _factor(lower, shift, factor, inverse):  # pragma: no cover - compiled
     for i in range(BANDWIDTH, rows - BANDWIDTH):
         for d in range(BANDWIDTH, 0, -1):
             j = i - d
-            total = lower[i, d]
+            total = band[j, BANDWIDTH + d]
             for e in range(BANDWIDTH, d, -1):  # k = i - e < j: w_e L[j, k]
                 total -= w[e] * factor[j, e - d]
             w[d] = total
             factor[i, d] = total * inverse[j]
-        total = lower[i, 0] - shift
+        total = band[i, BANDWIDTH] - shift
         for d in range(BANDWIDTH, 0, -1):
             total -= w[d] * factor[i, d]
         if total < 0.0:
@@ -248,47 +255,58 @@ def _factor(lower, shift, factor, inverse):  # pragma: no cover - compiled
 
 
 @njit(cache=True, nogil=True)
-def negative_count(lower: np.ndarray, shift: float) -> int:  # pragma: no cover - compiled
-    """Number of eigenvalues below ``shift`` of the symmetric banded matrix ``lower`` (:func:`_lower_rows`)."""
-    return _factor(lower, shift, np.zeros(lower.shape), np.zeros(lower.shape[0]))
+def negative_count(band: np.ndarray, shift: float) -> int:  # pragma: no cover - compiled
+    """Number of eigenvalues below ``shift`` of the symmetric matrix in padded band storage ``band`` (:func:`_band_storage`)."""
+    return _factor(band, shift, np.zeros((band.shape[0], BANDWIDTH + 1)), np.zeros(band.shape[0]))
 
 
 @njit(cache=True, nogil=True)
-def _inverse_step(factor, inverse, shift, vector, previous, work):  # pragma: no cover - compiled
+def _inverse_step(factor, inverse, shift, vector, work):  # pragma: no cover - compiled
     """One step of inverse iteration, ``vector`` <- (L D L^T)^-1 vector normalised; returns its Rayleigh quotient.
 
     With A = L D L^T = M - shift I and y = A^-1 x, the quotient of y is
     shift + x^T y / y^T y: no cancellation, unlike y^T M y, whose round-off (n eps |M|)
-    exceeds a long chain's critical eigenvalue. ``work``: as long as the factor has
-    rows, zero outside the chain's rows (as the factor's padding), where the solves run.
-    Each substitution subtracts the term of the unknown just solved last: only one
-    multiply-add a row waits for it (half the time of the natural order).
+    exceeds a long chain's critical eigenvalue. ``work``: as long as the factor has rows.
+    Each substitution carries the last B unknowns solved in registers
+    (B = :data:`~cosserat_chain.state.BANDWIDTH` = 5) and subtracts the term of the one
+    solved last at the end: only one multiply-add a row waits for it, and nothing waits on
+    a store and its reload (the step 80 -> 27 us at N = 1000). The back substitution
+    forms x^T y and y^T y as it goes, in four partial sums each.
     """
     n = vector.size
-    previous[:] = vector
-    work[BANDWIDTH : n + BANDWIDTH] = vector
-    for i in range(BANDWIDTH, n + BANDWIDTH):  # L y = b
-        total = work[i]
-        for d in range(BANDWIDTH, 1, -1):
-            total -= factor[i, d] * work[i - d]
-        work[i] = total - factor[i, 1] * work[i - 1]
-    for i in range(BANDWIDTH, n + BANDWIDTH):
-        work[i] *= inverse[i]
-    for i in range(n + BANDWIDTH - 1, BANDWIDTH - 1, -1):  # L^T z = y
-        total = work[i]
-        for d in range(BANDWIDTH, 1, -1):
-            total -= factor[i + d, d] * work[i + d]
-        work[i] = total - factor[i + 1, 1] * work[i + 1]
-    vector[:] = work[BANDWIDTH : n + BANDWIDTH]
-    square = np.sum(vector * vector)
-    quotient = shift + np.sum(previous * vector) / square
-    vector /= math.sqrt(square)
+    w1 = w2 = w3 = w4 = w5 = 0.0
+    for i in range(n):  # L y = b, then D^-1
+        r = i + BANDWIDTH
+        total = vector[i] - factor[r, 5] * w5
+        total -= factor[r, 4] * w4
+        total -= factor[r, 3] * w3
+        total -= factor[r, 2] * w2
+        total -= factor[r, 1] * w1
+        work[r] = total * inverse[r]
+        w5, w4, w3, w2, w1 = w4, w3, w2, w1, total
+    w1 = w2 = w3 = w4 = w5 = 0.0
+    cross = np.zeros(4)
+    square = np.zeros(4)
+    for i in range(n - 1, -1, -1):  # L^T z = y
+        r = i + BANDWIDTH
+        total = work[r] - factor[r + 5, 5] * w5
+        total -= factor[r + 4, 4] * w4
+        total -= factor[r + 3, 3] * w3
+        total -= factor[r + 2, 2] * w2
+        total -= factor[r + 1, 1] * w1
+        cross[i % 4] += vector[i] * total
+        square[i % 4] += total * total
+        vector[i] = total
+        w5, w4, w3, w2, w1 = w4, w3, w2, w1, total
+    size = (square[0] + square[1]) + (square[2] + square[3])
+    quotient = shift + ((cross[0] + cross[1]) + (cross[2] + cross[3])) / size
+    vector /= math.sqrt(size)
     return quotient
 
 
 @njit(cache=True, nogil=True)
-def _smallest_eigenvalue_compiled(lower, low, high, tolerance, guess, vector):  # pragma: no cover - compiled
-    """The smallest eigenvalue of ``lower`` in [low, high] to ``tolerance``: inverse iteration certified by the inertia.
+def _smallest_eigenvalue_compiled(band, low, high, tolerance, guess, vector):  # pragma: no cover - compiled
+    """The smallest eigenvalue of ``band`` in [low, high] to ``tolerance``: inverse iteration certified by the inertia.
 
     Below the smallest eigenvalue lambda_min, M - shift I is positive definite: its
     LDL^T is stable and inverse iteration with it converges to the lowest eigenvector
@@ -303,30 +321,29 @@ def _smallest_eigenvalue_compiled(lower, low, high, tolerance, guess, vector):  
     Returns the eigenvalue and a lower bound of it: ``low`` is the Gershgorin bound or
     a shift whose factor has no negative pivot.
     """
-    factor = np.zeros(lower.shape)
-    inverse = np.zeros(lower.shape[0])
-    previous_vector = np.zeros(vector.size)
-    work = np.zeros(lower.shape[0])
+    factor = np.zeros((band.shape[0], BANDWIDTH + 1))
+    inverse = np.zeros(band.shape[0])
+    work = np.zeros(band.shape[0])
     distance = max(0.05 * abs(guess), tolerance)
     shift = guess - distance if low < guess - distance < high else 0.5 * (low + high)
     width = high - low
     below_found = False
     while high - low > tolerance:
-        if _factor(lower, shift, factor, inverse) > 0:
+        if _factor(band, shift, factor, inverse) > 0:
             high = shift
         else:
             low = shift
             below_found = True
             previous, decrease = math.inf, math.inf
             for _ in range(INVERSE_STEPS):
-                quotient = _inverse_step(factor, inverse, shift, vector, previous_vector, work)
+                quotient = _inverse_step(factor, inverse, shift, vector, work)
                 high = min(high, quotient)
                 # Converged, or converging too slowly for this shift (a closer one is cheaper).
                 if previous - quotient <= tolerance or previous - quotient > 0.5 * decrease:
                     break
                 previous, decrease = quotient, previous - quotient
             if high - low > tolerance:
-                if _factor(lower, high - tolerance, factor, inverse) == 0:
+                if _factor(band, high - tolerance, factor, inverse) == 0:
                     return high, max(low, high - tolerance)
                 high -= tolerance
         distance = max(4.0 * distance, 1e-6 * width)
@@ -343,14 +360,14 @@ def _start_vector(n: int) -> np.ndarray:
 
 
 def _smallest_eigenvalue(
-    lower: np.ndarray, radius: float, guess: float | None = None, start: np.ndarray | None = None
+    band: np.ndarray, radius: float, guess: float | None = None, start: np.ndarray | None = None
 ) -> tuple[float, float]:
     """Smallest eigenvalue to round-off of the matrix's scale, O(n) a round (:func:`_smallest_eigenvalue_compiled`),
     and a lower bound of it certified by a factor without negative pivots (-``radius`` if none was).
 
     ``start``: see :func:`static_stability` (overwritten with the last iterate)."""
-    n = lower.shape[0] - 2 * BANDWIDTH  # the rows of the chain (lower is padded)
-    low, high = -radius, float(lower[BANDWIDTH : n + BANDWIDTH, 0].min())  # Gershgorin, and lambda_min <= min diagonal
+    n = band.shape[0] - 2 * BANDWIDTH  # the rows of the chain (the storage is padded)
+    low, high = -radius, float(band[BANDWIDTH : n + BANDWIDTH, BANDWIDTH].min())  # Gershgorin, and lambda_min <= min diagonal
     # A fixed generic start vector: deterministic, and with a component along any
     # mode (all ones would miss an antisymmetric lowest mode and leave it to the bisection).
     # A given start that is not a usable vector (zero, or not finite after a factor
@@ -364,5 +381,5 @@ def _smallest_eigenvalue(
         if not 0.0 < float(np.linalg.norm(vector)) < math.inf:
             vector[:] = _start_vector(n)
     tolerance = max(BISECTION_RTOL * radius, 1e-300)
-    value, bound = _smallest_eigenvalue_compiled(lower, low, high, tolerance, 0.0 if guess is None else float(guess), vector)
+    value, bound = _smallest_eigenvalue_compiled(band, low, high, tolerance, 0.0 if guess is None else float(guess), vector)
     return float(value), float(bound)
