@@ -562,3 +562,19 @@ def test_a_turn_of_m_without_one_crossing_is_refined_and_the_turn_is_mirror_symm
     # Maxima and minima of M alternate along the branch.
     maxima = np.array([f.maximum for f in branch.folds])
     assert np.all(maxima[1:] != maxima[:-1])
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 1001])
+def test_the_continuations_dot_product_and_norm_agree_with_an_exact_sum(n):
+    # Compiled on the calling thread (OpenBLAS's ddot threads long vectors); eight partial
+    # sums and a tail: every length modulo 8 and the empty vector.
+    import math
+
+    from cosserat_chain.numerics.newton import dot, euclidean_norm
+
+    rng = np.random.default_rng(n)
+    a, b = rng.standard_normal(n), rng.standard_normal(n)
+    exact = math.fsum(a * b)
+    assert abs(dot(a, b) - exact) <= 4 * n * np.finfo(float).eps * np.sum(np.abs(a * b))
+    assert euclidean_norm(a) == pytest.approx(math.sqrt(math.fsum(a * a)), rel=1e-14, abs=0.0)
+    assert dot(a, a) >= 0.0 and (n > 0 or dot(a, b) == 0.0)

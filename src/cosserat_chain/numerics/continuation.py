@@ -41,6 +41,8 @@ from ..state import ROW_INDEX, column, n_free, unpack, zeros
 from .newton import (
     BorderedFactor,
     NewtonError,
+    dot,
+    euclidean_norm,
     infinity_norm,
     moment_dof,
     rotation_controlled_jacobian,
@@ -80,6 +82,8 @@ JUMP_SINGULAR = 0.1
 CHORD_ITERATIONS = 16
 #: That corrector factors the Jacobian anew at an iterate whose residual shrank by less than this.
 CHORD_CONTRACTION = 0.25
+#: ... and gives up where a step with a fresh factor raises the residual above this many times its first.
+CHORD_DIVERGED = 100.0
 #: A fold's or branch point's corrector whose residual stops falling within this many times the
 #: round-off floor (:func:`~.newton.round_off_floor`, an estimate) has converged to round-off.
 STALL = 100.0
@@ -502,7 +506,7 @@ def continue_in_moment(
         rhs[-1] = 1.0
         factor = BorderedFactor(stiffness(y) if k is None else k, dof)
         t = factor.solve(previous, rhs)
-        return t / np.linalg.norm(t), factor
+        return t / euclidean_norm(t), factor
 
     # A conservative model's symmetric matrix is its stiffness (Model.symmetric_similar):
     # the stability of a point then reuses the stiffness its corrector assembled.
@@ -532,7 +536,7 @@ def continue_in_moment(
         of the bordered Jacobian: a cantilever's branch points) allow :data:`JUMP_SINGULAR`.
         """
         fraction = JUMP if abs(ds) >= refine_step else JUMP_SINGULAR
-        return bool(np.linalg.norm(z - predicted) > max(abs(ds), fraction * (1.0 + np.linalg.norm(y))))
+        return bool(euclidean_norm(z - predicted) > max(abs(ds), fraction * (1.0 + euclidean_norm(y))))
 
     def correct(y: np.ndarray, tangent: np.ndarray, ds: float, tol: float, max_iter: int = 8) -> tuple[np.ndarray, int, BandMatrix] | None:
         """The point of the branch on the plane through y + ds tangent normal to tangent, its iterations
@@ -541,7 +545,7 @@ def continue_in_moment(
         z = predicted.copy()
         previous = math.inf
         for iterations in range(max_iter):
-            r = np.append(residual(z), tangent @ (z - predicted))
+            r = np.append(residual(z), dot(tangent, z - predicted))
             k = stiffness(z)
             floor = round_off_floor(k, z[:-1])
             size = np.max(np.abs(r))
@@ -565,7 +569,7 @@ def continue_in_moment(
                 bound = max(size, STALL * floor)
                 for _ in range(MAX_HALVINGS * 4):
                     trial = z - update
-                    if np.max(np.abs(np.append(residual(trial), tangent @ (trial - predicted)))) <= bound:
+                    if np.max(np.abs(np.append(residual(trial), dot(tangent, trial - predicted)))) <= bound:
                         break
                     update = 0.5 * update
             z = z - update
@@ -596,14 +600,28 @@ def continue_in_moment(
         z = predicted + (0.5 * ds * ds) * bend
         previous = math.inf
         factors = 0
+        fresh = False
+        first = None
         for _ in range(CHORD_ITERATIONS):
-            r = np.append(residual(z), tangent @ (z - predicted))
+            r = np.append(residual(z), dot(tangent, z - predicted))
             size = np.max(np.abs(r))
             if size <= max(tol * (1.0 + abs(z[-1])), round_off_floor(None, z[:-1], norm=norm)):
                 if jumped(y, predicted, z, ds):
                     return None
                 return z, factors, stiffness(z)
-            if not size < CHORD_CONTRACTION * previous:
+            first = size if first is None else first
+            if fresh and size > CHORD_DIVERGED * first:
+                # A Newton step with a fresh factor that raised the residual far above the
+                # start's: the iterate left Newton's basin (the bent start on the long steps of
+                # N = 10^4, where this corrector went on refactoring a diverging iterate, to
+                # residuals of 1e5-1e9, for all its iterations in 192 of its first 318 steps:
+                # twice the time of the turn). Full Newton from the plain predictor takes over.
+                # Not at the first rise: an iterate that rises a little and comes back is on
+                # its way (N = 20, clamped-pinned, whose full Newton from the predictor went
+                # back along the branch).
+                return None
+            fresh = not size < CHORD_CONTRACTION * previous
+            if fresh:
                 k = stiffness(z)
                 factor, norm = BorderedFactor(k, dof), infinity_norm(k)
                 factors += 1
@@ -736,7 +754,7 @@ def continue_in_moment(
         x = unpack(params, z[:-1])
         turned = abs(x[ROW_INDEX["phi"], col] - y_phi0)
         next_tangent, next_factor = new_tangent(z, tangent, k)
-        turn = math.acos(min(1.0, abs(float(next_tangent @ tangent))))
+        turn = math.acos(min(1.0, abs(dot(next_tangent, tangent))))
         if (turned > PHI0_STEP or turn > MAX_TURN) and ds > min_step:
             ds = max(min_step, ds / 2)
             continue
@@ -802,7 +820,7 @@ def continue_in_moment(
         index = now_index
         # The tangent's turn per arclength, normal to the new tangent: the next corrector's bent start.
         bend = (next_tangent - tangent) / taken
-        bend -= (bend @ next_tangent) * next_tangent
+        bend -= dot(bend, next_tangent) * next_tangent
         tangent, factor, norm = next_tangent, next_factor, infinity_norm(k)
         previous_moment = y[-1]
         y = z

@@ -49,7 +49,7 @@ from ..band import BandMatrix
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import BANDWIDTH, check_state, per_dof
-from .newton import infinity_norm
+from .newton import euclidean_norm, infinity_norm
 
 #: Relative width (to the Gershgorin radius) at which the bisection for the smallest eigenvalue stops.
 BISECTION_RTOL = 1e-14
@@ -378,7 +378,7 @@ def _smallest_eigenvalue(
         if start.shape != (n,):
             raise ValueError(f"start has shape {start.shape}, expected ({n},)")
         vector = start
-        if not 0.0 < float(np.linalg.norm(vector)) < math.inf:
+        if not 0.0 < euclidean_norm(vector) < math.inf:
             vector[:] = _start_vector(n)
     tolerance = max(BISECTION_RTOL * radius, 1e-300)
     value, bound = _smallest_eigenvalue_compiled(band, low, high, tolerance, 0.0 if guess is None else float(guess), vector)
