@@ -847,7 +847,7 @@ def continue_in_moment(
             # The next step is sized for STEP_TARGET of the turn limits at the rate of this one
             # (growing the step by 1.3 where both turns stayed below half their limits, and
             # keeping it otherwise, left the loaded particle turning 0.065 rad a step on average:
-            # 2080 points for the turn of N = 1000 where this takes 1726). It grows only where
+            # 2080 points for the turn of N = 1000 where this takes 1709). It grows only where
             # its corrector needed at most one new factor (full Newton: two iterations).
             grow = min(STEP_GROWTH, STEP_TARGET * PHI0_STEP / max(turned, 1e-300), STEP_TARGET * MAX_TURN / max(turn, 1e-300))
             if iterations > (1 if chord else 2):
