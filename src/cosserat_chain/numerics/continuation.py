@@ -78,6 +78,9 @@ STEP_GROWTH = 1.3
 JUMP = 1e-3
 #: The same, for steps shorter than ``refine_step`` of :func:`continue_in_moment` (next to a singular point).
 JUMP_SINGULAR = 0.1
+#: A corrector that moves further than this many steps jumped, whatever the state's size
+#: (the largest correction that was not a jump: 7 steps, the sine model next to its fold at N = 1000).
+JUMP_STEPS = 20.0
 #: Most iterations of a continuation step's corrector that reuses factors of the Jacobian (then full Newton takes over).
 CHORD_ITERATIONS = 16
 #: That corrector factors the Jacobian anew at an iterate whose residual shrank by less than this.
@@ -531,12 +534,16 @@ def continue_in_moment(
         where the tangent turns by MAX_TURN at most, but an ill-conditioned corrector moves
         further along the soft directions (the sine model next to its fold at N = 1000: 7
         times the step, 1e-7 of the state's size): a jump is a correction beyond the step
-        and beyond :data:`JUMP` of the state's size. Steps shorter than ``refine_step``
+        and beyond :data:`JUMP` of the state's size or :data:`JUMP_STEPS` steps, whichever
+        is less (a long chain's state is large: at N = 10^4, 1e-3 of it is 1.25, and
+        corrections of 100 steps passed where the branch winds near M = 0). Steps shorter than ``refine_step``
         (next to a singular point of the branch, where the corrector moves along the kernel
         of the bordered Jacobian: a cantilever's branch points) allow :data:`JUMP_SINGULAR`.
         """
-        fraction = JUMP if abs(ds) >= refine_step else JUMP_SINGULAR
-        return bool(euclidean_norm(z - predicted) > max(abs(ds), fraction * (1.0 + euclidean_norm(y))))
+        size = euclidean_norm(z - predicted)
+        if abs(ds) < refine_step:
+            return bool(size > max(abs(ds), JUMP_SINGULAR * (1.0 + euclidean_norm(y))))
+        return bool(size > max(abs(ds), min(JUMP * (1.0 + euclidean_norm(y)), JUMP_STEPS * abs(ds))))
 
     def correct(y: np.ndarray, tangent: np.ndarray, ds: float, tol: float, max_iter: int = 8) -> tuple[np.ndarray, int, BandMatrix] | None:
         """The point of the branch on the plane through y + ds tangent normal to tangent, its iterations
