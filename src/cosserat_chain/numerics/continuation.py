@@ -467,9 +467,10 @@ def continue_in_moment(
     next step's corrector iterates with that factor (chord iterations: a residual and an
     O(N w) solve each) while each shrinks the residual by :data:`CHORD_CONTRACTION`,
     assembling and factoring K anew only where it does not, from a start bent along the
-    branch's curvature: about 2.9 assemblies and factors a point at N = 1000 (the searches
-    for the 40 folds and 20 branch points and the retaken steps included), against 4.7
-    with full Newton in every corrector. The
+    branch's curvature: about 3.1 assemblies and factors a point at N = 1000 (the searches
+    for the 40 folds and 20 branch points and the retaken steps included; 2.9 on the
+    shorter steps before :data:`STEP_TARGET`, where full Newton in every corrector took
+    4.7). The
     stability of a point of a conservative model takes the K assembled at the converged
     state (``static_stability(similar=...)``), starts its inverse iteration from the
     previous point's eigenvector, and takes its index from the inertia of the tangent's
