@@ -31,7 +31,8 @@ ROWS = ("u", "v", "phi")
 ROW_INDEX = {name: i for i, name in enumerate(ROWS)}
 #: Half-bandwidth of every open chain's matrices in the free-dof order above: a bond couples
 #: two neighbours' six degrees of freedom, at most five apart. The compiled band kernels
-#: (``numerics.newton``, ``numerics.stability``) take it as a constant.
+#: (``numerics.newton``, ``numerics.stability``) take it as a constant; their substitutions
+#: carry the last five unknowns in five registers, so they are written for this value.
 BANDWIDTH = 5
 
 
