@@ -268,6 +268,23 @@ def test_a_turn_watch_is_checked(paper):
         integrate(paper, "sine", moment_load(0.4), t_end=1.0, turns=dynamics.TurnWatch(paper.N + 1))
 
 
+def test_a_blow_up_in_a_later_chunk_is_found_at_the_same_step(monkeypatch):
+    """The rerun of a chunk that blew up starts from the frame stored at the chunk's start,
+    with the forces and sums saved there: under a ramp (forces that depend on the time), on a
+    stride of 5, it finds the step and states of a run in one chunk."""
+    params = ChainParams(N=4, a=0.3, E2=0.7)
+    dt = 25 * default_time_step(params)  # beyond the stability limit: it grows for some 40 steps
+    loads = Loads((PointLoad("phi", 0, Schedule.ramp(0.3, 50 * dt)),))
+    kwargs = dict(t_end=2000 * dt, dt=dt, stride=5, check_stability=False)
+    whole = integrate(params, "nonlinear", loads, **kwargs)
+    monkeypatch.setattr(dynamics, "CHUNK_WORK", params.n_particles * 10)  # chunks of two strides
+    chunked = integrate(params, "nonlinear", loads, **kwargs)
+    assert whole.status == chunked.status == Status.BLEW_UP and 30 < whole.steps < 1024
+    assert chunked.steps == whole.steps and chunked.message == whole.message
+    np.testing.assert_array_equal(chunked.x, whole.x)
+    np.testing.assert_array_equal(chunked.dissipated, whole.dissipated)
+
+
 def test_a_blow_up_is_reported_at_its_first_bad_step_not_at_the_periodic_check():
     """The loop checks every 1024 steps; the reported step is the first state out of bounds, found by a rerun of the chunk."""
     params = ChainParams()

@@ -44,13 +44,13 @@ def test_the_nonlinear_kernels_take_square_roots_and_divisions_four_lanes_at_a_t
 def test_the_kick_drift_vectorises_with_its_energy_sums():
     options = {**engine._KICK_OPTIONS, "cache": False}
     row = njit(**options)(engine._kick_drift_row.py_func)
-    lanes = njit(**options)(engine._kick_drift_lanes.py_func)
+    batch = njit(**options)(engine._kick_drift_batch.py_func)
 
-    a = np.zeros(64)
     rows = np.zeros((3, 64))
     row(rows, rows.copy(), rows.copy(), 0, 1, 63, 1.0, 0.0, 0.0, 0.0)
-    lanes(a, a.copy(), a.copy(), np.ones(8), np.zeros(8), np.zeros(8), np.zeros(8), np.zeros(8), 1, a.size // 8 - 1)
-    for fresh in (row, lanes):
+    # A batch of 8 members of 8 columns, flat (3, 8 x 8), with its (S+1, S+1, 5, 3, B) factors.
+    batch(rows, rows.copy(), rows.copy(), np.ones((2, 2, 5, 3, 8)), 0, 1, np.zeros(8), np.zeros(8), 1, 7)
+    for fresh in (row, batch):
         assert len(PACKED.findall(fresh.inspect_asm(fresh.signatures[0]))) >= 4
 
 

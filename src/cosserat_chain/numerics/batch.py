@@ -130,7 +130,7 @@ def integrate_batch(
     x0 = stack_states(params, x0, "x0")
     v0 = stack_states(params, v0, "v0")
     requested = member_steps(params, dt, method, model)
-    n_steps = np.array([max(1, math.ceil(t_end / step - 1e-9)) for step in requested], dtype=np.int64)
+    n_steps = np.maximum(1, np.ceil(t_end / requested - 1e-9)).astype(np.int64)
     strides = np.maximum(1, np.ceil(n_steps / (n_records - 1)).astype(np.int64))
     counts = n_steps // strides + 1 + (n_steps % strides != 0)
     out_x, out_v = x0.copy(), v0.copy()
