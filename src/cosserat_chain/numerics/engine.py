@@ -48,7 +48,7 @@ from numba import njit, types
 
 from ..loads import schedule_value
 from ..memory import FLOAT, require
-from ..models.base import BATCH_FORCE_KERNEL_TYPE, END_KERNEL_TYPE, FORCE_KERNEL_TYPE
+from ..models.base import BATCH_FORCE_KERNEL_TYPE, END_KERNEL_TYPE, FORCE_KERNEL_TYPE, LANES
 from ..state import force_columns, held
 from .integrators import substep_table
 
@@ -178,6 +178,17 @@ def _kick_drift_columns(x, v, f, pairs, close, open_, start, stop):  # pragma: n
     return removed
 
 
+@njit(inline="always", **_KICK_OPTIONS)
+def _kick_drift_members(x, v, f, pairs, c, o, r, at, total, first, last):  # pragma: no cover - compiled
+    """Row r of members first..last-1 of a batch's column at offset ``at``: the combined kick-drift; sums (v + kick_close f)^2 into ``total``."""
+    for i in range(first, last):
+        w = v[r, at + i] + pairs[c, o, KICK_CLOSE, r, i] * f[r, at + i]
+        total[i] += w * w
+        w = pairs[c, o, DAMP, r, i] * v[r, at + i] + pairs[c, o, KICK, r, i] * f[r, at + i]
+        v[r, at + i] = w
+        x[r, at + i] += pairs[c, o, DRIFT, r, i] * w
+
+
 @njit(**_KICK_OPTIONS)
 def _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, total, start, stop):  # pragma: no cover - compiled
     """The kick-drift of a batch (B > 1) on columns [start, stop): one pass per row over (columns, members); ``total`` (B,) scratch.
@@ -185,21 +196,19 @@ def _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, total, start, st
     Indexed in two and five dimensions, without slices: a slice is an array whose reference
     count is updated atomically, and one per row and column (x, v, f and the factors) cost a
     batch of 1000 members of 7 particles about 5 % of its step. Unsigned indices: numba then
-    adds no wrap-around for negative ones.
+    adds no wrap-around for negative ones. The members in whole turns of LANES and then one
+    masked turn, as in the batch force kernels (a remainder loop takes its members one at a
+    time; 16 members of 101 particles: 6.5 -> 4.7 ns a particle).
     """
     size = np.uint64(dissipated.size)
+    whole = size - size % np.uint64(LANES)
     c, o = np.uint64(close), np.uint64(open_)
     for r in range(3):
         for i in range(size):
             total[i] = 0.0
         for k in range(np.uint64(start), np.uint64(stop)):
-            at = k * size
-            for i in range(size):
-                w = v[r, at + i] + pairs[c, o, KICK_CLOSE, r, i] * f[r, at + i]
-                total[i] += w * w
-                w = pairs[c, o, DAMP, r, i] * v[r, at + i] + pairs[c, o, KICK, r, i] * f[r, at + i]
-                v[r, at + i] = w
-                x[r, at + i] += pairs[c, o, DRIFT, r, i] * w
+            _kick_drift_members(x, v, f, pairs, c, o, r, k * size, total, np.uint64(0), whole)
+            _kick_drift_members(x, v, f, pairs, c, o, r, k * size, total, whole, size)
         for i in range(size):
             dissipated[i] += pairs[c, o, LOSS, r, i] * total[i]
 
@@ -1117,11 +1126,12 @@ def split(members: np.ndarray, parts: int, params: list | None = None) -> list[n
     batch kernels and the batch kick-drift read one value of each coefficient per
     member, a graded chain runs the chain kernel (:meth:`Lanes.__init__`).
     """
+    members = np.asarray(members, dtype=np.int64)
     if params is not None and any(p.graded for p in distinct([params[b] for b in members])[1]):
-        return [np.array([b], dtype=np.int64) for b in members if params[b].graded] + [
-            part for part in split(np.array([b for b in members if not params[b].graded], dtype=np.int64), parts)
-        ]
-    return [part for part in np.array_split(np.asarray(members, dtype=np.int64), max(1, min(parts, len(members)))) if part.size]
+        return [np.array([b], dtype=np.int64) for b in members if params[b].graded] + split(
+            np.array([b for b in members if not params[b].graded], dtype=np.int64), parts
+        )
+    return [part for part in np.array_split(members, max(1, min(parts, members.size))) if part.size]
 
 
 def run_parts(work, parts: list, threads: int) -> None:
