@@ -191,6 +191,46 @@ def test_a_long_chain_on_two_threads_gives_the_states_of_one_bit_for_bit(method,
     np.testing.assert_allclose(two.dissipated, one.dissipated, rtol=1e-12, atol=1e-15)
 
 
+@pytest.mark.parametrize("model", ["nonlinear", "sine", "linear"])
+def test_a_chain_too_long_for_the_cache_runs_as_blocks_on_one_thread_with_the_same_bits(model, monkeypatch):
+    # The thresholds scaled down (2^18 and 2^15 columns in earnest), so that a chain of 3001
+    # columns splits: 10 blocks on one thread and on two, on pinned ends, with loads.
+    params = ChainParams(N=1500, a=0.27, b=0.12, E1=1.3, E2=0.6, left_end="pinned", right_end="free")
+    x0, v0 = kicked_start(params)
+    loads = Loads((PointLoad("phi", 0, Schedule.ramp(0.3, 5.0)), PointLoad("v", 700, Schedule.constant(0.01))))
+    kwargs = dict(t_end=6.0, x0=x0, v0=v0, n_frames=5)
+    whole = integrate(params, model, loads, **kwargs)
+    monkeypatch.setattr(engine, "SPLIT_COLUMNS", 3000)
+    monkeypatch.setattr(engine, "CACHE_COLUMNS", 300)
+    assert engine.Blocks.count(params.n_particles, 1, 1) == engine.Blocks.count(params.n_particles, 2, 1) == 10
+    one = integrate(params, model, loads, **kwargs)
+    two = integrate(params, model, loads, threads=2, **kwargs)
+    assert whole.ok and one.ok and two.ok
+    np.testing.assert_array_equal(one.x, whole.x)
+    np.testing.assert_array_equal(one.v, whole.v)
+    np.testing.assert_allclose(one.dissipated, whole.dissipated, rtol=1e-12, atol=1e-15)
+    assert not np.array_equal(one.dissipated, whole.dissipated)  # summed block by block: it did split
+    # Split alike on one thread and on two: the sums too are the same bits.
+    for name in ("x", "v", "load_work", "dissipated"):
+        np.testing.assert_array_equal(getattr(two, name), getattr(one, name))
+
+
+def test_a_blow_up_in_blocks_is_reported_at_its_first_bad_step(monkeypatch):
+    """A chain split into blocks that blows up: the chunk is rerun unsplit and stops at the same first bad state."""
+    params = ChainParams(N=400)
+    dt = 30 * default_time_step(params)  # far beyond the stability limit
+    kwargs = dict(t_end=2000 * dt, dt=dt, stride=1, check_stability=False)
+    whole = integrate(params, "nonlinear", moment_load(0.1), **kwargs)
+    monkeypatch.setattr(engine, "SPLIT_COLUMNS", 800)
+    monkeypatch.setattr(engine, "CACHE_COLUMNS", 200)
+    assert engine.Blocks.count(params.n_particles, 1, 1) == 4
+    split = integrate(params, "nonlinear", moment_load(0.1), **kwargs)
+    assert whole.status == split.status == Status.BLEW_UP and 1 < split.steps < 1024
+    assert split.steps == whole.steps and split.message == whole.message
+    assert f"step {split.steps}, the first state out of bounds" in split.message
+    np.testing.assert_array_equal(split.x, whole.x)
+
+
 def test_stride_keeps_first_last_and_every_kth_step(paper):
     run = integrate(paper, "linear", moment_load(0.1), t_end=1.0, dt=0.1, stride=3)
     np.testing.assert_allclose(run.time, [0.0, 0.3, 0.6, 0.9, 1.0])

@@ -121,7 +121,10 @@ def test_disordered_is_reproducible_and_checks_its_input():
 
 
 # --------------------------------------------------------------------------- statics and modes
-GRADED = [disordered(g.replace(N=n), seed, 0.4, ("E1", "E2", "m", "j")) for seed, (g, n) in enumerate(zip(random_geometries(3, seed=31), (1, 3, 6)))]
+GRADED = [
+    disordered(g.replace(N=n), seed, 0.4, ("E1", "E2", "m", "j"))
+    for seed, (g, n) in enumerate(zip(random_geometries(3, seed=31), (1, 3, 6)))
+]
 
 
 @pytest.mark.parametrize("params", GRADED, ids=lambda p: f"N{p.N}")

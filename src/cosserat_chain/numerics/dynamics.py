@@ -199,9 +199,9 @@ class RunState:
     frames_acc : ndarray (k, 2)
         The frames stored so far and their energy sums (views that the run never writes again).
     split_acc : ndarray (b + 1, 2)
-        A run split over threads into b blocks: the sums when the blocks took over, then each
-        block's own (``acc`` is their total; summed in another order they would differ in the
-        last bits). Empty (0, 2) for a run on one thread. A run resumed on as many blocks goes
+        A run split into b blocks (on threads, or a chain too long for the cache): the sums when
+        the blocks took over, then each block's own (``acc`` is their total; summed in another
+        order they would differ in the last bits). Empty (0, 2) for a run not split. A run resumed on as many blocks goes
         on with them; on another number its states are still bitwise the same, its energy
         sums equal to round-off.
     """
@@ -335,6 +335,7 @@ class _Restart:
     lane_ints: np.ndarray
     x: np.ndarray | None = None
     v: np.ndarray | None = None
+    pending: int = 0
 
     @classmethod
     def like(cls, lanes: Lanes) -> _Restart:
@@ -345,7 +346,8 @@ class _Restart:
         np.copyto(self.f, lanes.f)
         np.copyto(self.acc, lanes.acc)
         np.copyto(self.lane_ints, lanes.lane_ints)
-        self.x, self.v = x, v
+        # Closed at a chunk's start; after a blow-up in blocks it is their first block's, which may be open.
+        self.x, self.v, self.pending = x, v, lanes.pending
         return self
 
     def first_bad_step(self, lanes: Lanes, step0: int, steps: int, stride: int) -> int:
@@ -357,6 +359,7 @@ class _Restart:
         one, which is left in ``lanes``.
         """
         lanes.x[...], lanes.v[...], lanes.f[...], lanes.acc[...], lanes.lane_ints[...] = self.x, self.v, self.f, self.acc, self.lane_ints
+        lanes.pending = self.pending
         stores = steps // stride + 2
         scratch = (np.zeros((0, *lanes.x.shape)), np.zeros((0, *lanes.x.shape)), np.zeros((stores, 2, 1)), np.zeros((stores, 1)))
         _, done, _ = lanes.advance(steps, step0, stride, 1, scratch, 0)
@@ -426,7 +429,8 @@ def integrate(
         Run the chain on this many threads as blocks with halos that meet every 16
         steps (:class:`~cosserat_chain.numerics.engine.Blocks`; worth it from about
         10^5 particles on, a chain too short for blocks runs on one). The states
-        equal a one-thread run's to the last bit.
+        equal a one-thread run's to the last bit. From 2^18 particles on the chain
+        runs as blocks that fit in the cache on one thread too.
     max_displacement : float, optional
         |u| or |v| beyond this is a runaway; default 100 chain lengths.
     check_stability : bool
@@ -542,13 +546,7 @@ def integrate(
     # ring, whose two ends are neighbours (its blocks would need a halo across the seam).
     # A graded chain on one thread: a block is a chain of its own, numbered from its first
     # column, while the graded coefficients are numbered along the whole chain.
-    split = (
-        turns is None
-        and not params.periodic
-        and not params.graded
-        and threads > 1
-        and Blocks.count(n, threads, method.force_evaluations) > 1
-    )
+    split = turns is None and not params.periodic and not params.graded and Blocks.count(n, threads, method.force_evaluations) > 1
     blocks = Blocks(lanes, threads) if split else None
     if blocks is not None and resume is not None and resume.split_acc.shape[0] == len(blocks.blocks) + 1:
         blocks.acc0[:, 0] = resume.split_acc[0]
@@ -568,7 +566,8 @@ def integrate(
             np.zeros((0, 2)) if blocks is None else np.array([blocks.acc0[:, 0], *(block.acc[:, 0] for block in blocks.blocks)]),
         )  # fmt: skip
 
-    restart = None if blocks is not None or turns is not None else _Restart.like(lanes)
+    # A chunk of blocks that blew up is rerun whole, unsplit, from its start: the same bits.
+    restart = None if turns is not None else _Restart.like(lanes)
     try:
         if on_chunk is not None:
             on_chunk(run_state())

@@ -70,12 +70,20 @@ STATUS_TURNED = 2
 T0, DT, MAX_DISPLACEMENT, MAX_ANGLE, DIRECTION, PHI_START = range(6)
 #: Number of rows of ``lanes``.
 N_LANE_FIELDS = 6
-#: Steps between two exchanges of halos when one chain is split over threads (:class:`Blocks`).
+#: Steps between two exchanges of halos when one chain is split into blocks (:class:`Blocks`).
 SUPER_STEPS = 16
 #: Columns per block of a chain's sub-step (kick-drift then forces while in cache).
 SWEEP_BLOCK = 512
 #: Blocks per thread, taken by whichever thread is free.
 BLOCKS_PER_THREAD = 4
+#: From this many columns on, a chain runs as blocks even on one thread: its x, v and f
+#: (72 bytes a column, 19 MB here) no longer stay in the cache from one step to the next,
+#: and a block of :data:`CACHE_COLUMNS` takes its SUPER_STEPS steps from the cache
+#: instead of streaming the chain through memory every step (10^6 particles, one thread:
+#: 1.2x; 10^5, whose 7 MB stay in the cache: 0.9x, so not there).
+SPLIT_COLUMNS = 2**18
+#: Columns per block of such a chain (x, v, f of a block: 2.4 MB; 2^14 to 2^16 measured alike).
+CACHE_COLUMNS = 2**15
 # Rows of the per-member int table ``lane_ints``: turns made, blown up (0 or 1), and the
 # turn after which the loop stops (once every member has made it).
 CROSSINGS, BLEW_UP, TURN_LIMIT = range(3)
@@ -886,17 +894,20 @@ def _halo(substeps: int) -> int:
 
 
 class Blocks:
-    """One long chain split into blocks with halos, on threads that meet only every few steps.
+    """One long chain split into blocks with halos that meet only every few steps, on one thread or several.
 
     Each block is a chain of its own (:meth:`Lanes.segment`) holding its columns and
     a halo of :attr:`halo` columns from each neighbour. A force evaluation reads one
     column on either side, so a halo that wide keeps the block's own columns exact
     for :data:`SUPER_STEPS` steps; then the blocks exchange their halos. Every
     column is computed by the same kernel from the same neighbours as in the whole
-    chain, so the states equal a one-thread run's to the last bit. There are
-    several blocks per thread, taken by whichever thread is free: a core that is
-    busy with other work takes fewer (two threads that met every step were 3-10x
-    slower than one on a busy machine).
+    chain, so the states equal an unsplit run's to the last bit (the energy sums,
+    added block by block, to round-off). On several threads there are several
+    blocks per thread, taken by whichever thread is free: a core that is busy with
+    other work takes fewer (two threads that met every step were 3-10x slower than
+    one on a busy machine). A chain of :data:`SPLIT_COLUMNS` or more is split into
+    blocks of about :data:`CACHE_COLUMNS` on any number of threads, one included
+    (run in the calling thread): each block then takes its steps in the cache.
     """
 
     def __init__(self, lanes: Lanes, threads: int):
@@ -908,21 +919,34 @@ class Blocks:
         self.halo = _halo(lanes.weights.size)
         n = lanes.n
         cuts = np.linspace(lanes.columns[0], lanes.columns[1], self.count(n, threads, lanes.weights.size) + 1).round().astype(np.int64)
-        self.spans = []
-        self.blocks = []
-        for start, stop in zip(cuts[:-1], cuts[1:]):
-            first, last = max(0, start - self.halo), min(n, stop + self.halo)
-            self.spans.append((int(first), int(last), int(start), int(stop)))
-            self.blocks.append(lanes.segment(int(first), int(last), int(start), int(stop)))
-        self.pool = ThreadPoolExecutor(max_workers=threads)
+        self.spans = [
+            (int(max(0, start - self.halo)), int(min(n, stop + self.halo)), int(start), int(stop))
+            for start, stop in zip(cuts[:-1], cuts[1:])
+        ]
+        self.pool = ThreadPoolExecutor(max_workers=threads) if threads > 1 else None
+        # Copied out on the threads (numpy copies without the GIL): done in turn, the copies
+        # and gathers of a 10^6-particle chain were a tenth of a two-thread call of 100 steps.
+        self.blocks = self._each(lambda span: lanes.segment(*span), self.spans)
+
+    def _each(self, work, items) -> list:
+        """``work`` of every item, on the threads (in the calling thread if there are none)."""
+        return list(map(work, items) if self.pool is None else self.pool.map(work, items))
 
     @staticmethod
     def count(n: int, threads: int, substeps: int) -> int:
-        """Blocks for a chain of n columns: BLOCKS_PER_THREAD per thread, each at least four halos wide."""
-        return max(1, min(BLOCKS_PER_THREAD * threads, (n - 2) // (4 * _halo(substeps))))
+        """Blocks for a chain of n columns, each at least four halos wide (1: not split).
+
+        BLOCKS_PER_THREAD per thread on several threads; for a chain of
+        SPLIT_COLUMNS or more, at least one per CACHE_COLUMNS columns on any number
+        (then one and two threads split alike, and their sums agree to the bit too).
+        """
+        in_cache = n // CACHE_COLUMNS if n >= SPLIT_COLUMNS else 1
+        per_thread = BLOCKS_PER_THREAD * threads if threads > 1 else 1
+        return max(1, min(max(per_thread, in_cache), (n - 2) // (4 * _halo(substeps))))
 
     def close(self) -> None:
-        self.pool.shutdown()
+        if self.pool is not None:
+            self.pool.shutdown()
 
     def advance(self, n_steps, step0, stride, check_every, frames, frame0):
         """As :meth:`Lanes.advance` on the whole chain (frames of states, ``record`` unused)."""
@@ -936,15 +960,17 @@ class Blocks:
             def run(block, begin=step0 + done, length=length, final=final):
                 return block.advance(length, begin, stride, check_every, close_at_end=final)
 
-            outcomes = list(self.pool.map(run, self.blocks))
+            outcomes = self._each(run, self.blocks)
             done += length
             blew_up = any(code == STATUS_BLEW_UP for code, _, _ in outcomes)
             stored = length == to_store
             if blew_up or stored or final:
                 self._gather()
                 if stored and not blew_up:
-                    frames_x[frame0 + written] = self.lanes.x
-                    frames_v[frame0 + written] = self.lanes.v
+                    # (The last frame is the chain's own state: nothing to copy.)
+                    if not np.may_share_memory(frames_x[frame0 + written], self.lanes.x):
+                        frames_x[frame0 + written] = self.lanes.x
+                        frames_v[frame0 + written] = self.lanes.v
                     frames_acc[frame0 + written] = self.lanes.acc
                     written += 1
                 if blew_up:
@@ -955,21 +981,27 @@ class Blocks:
         return STATUS_OK, done, written
 
     def _exchange(self) -> None:
-        """Each block's halo from its neighbours' own columns."""
-        for (first, last, _, _), block in zip(self.spans, self.blocks):
-            for (o_first, _, o_start, o_stop), other in zip(self.spans, self.blocks):
-                lo, hi = max(first, o_start), min(last, o_stop)
-                if other is block or lo >= hi:
+        """Each block's halo from its neighbours' own columns (a halo is narrower than a block: only the two next to it)."""
+        for i, ((first, last, _, _), block) in enumerate(zip(self.spans, self.blocks)):
+            for j in (i - 1, i + 1):
+                if not 0 <= j < len(self.blocks):
                     continue
+                (o_first, _, o_start, o_stop), other = self.spans[j], self.blocks[j]
+                lo, hi = max(first, o_start), min(last, o_stop)
                 for name in ("x", "v", "f"):
                     getattr(block, name)[:, lo - first : hi - first] = getattr(other, name)[:, lo - o_first : hi - o_first]
 
     def _gather(self) -> None:
-        """The blocks' own columns into the whole chain, and their energy sums."""
-        self.lanes.acc[...] = self.acc0
-        for (first, _, start, stop), block in zip(self.spans, self.blocks):
+        """The blocks' own columns into the whole chain, and their energy sums (added in the blocks' order)."""
+
+        def own_columns(item):
+            (first, _, start, stop), block = item
             for name in ("x", "v", "f"):
                 getattr(self.lanes, name)[:, start:stop] = getattr(block, name)[:, start - first : stop - first]
+
+        self._each(own_columns, zip(self.spans, self.blocks))
+        self.lanes.acc[...] = self.acc0
+        for block in self.blocks:
             self.lanes.acc += block.acc
         self.lanes.pending = self.blocks[0].pending
 
