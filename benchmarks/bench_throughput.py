@@ -17,6 +17,9 @@ steps for every contender of a size, contenders interleaved round by round:
   whole call;
 * ``numba``, ``numba_fused``, ``numba_no_sums``: ``reference.run_single`` (two passes per
   step; one fused sweep per step; without the energy sums);
+* ``numba_blocked``: ``reference.run_single_blocked``, the two-pass step with temporal
+  blocking (blocks of 2^15 columns taking 64 steps from the cache), from 4 * 2^15 particles
+  on (the package splits a chain as long into blocks in the same way);
 * ``c_vec``, ``c_vec_no_sums``: ``c/verlet_vectorised.c`` built now with
   ``harness.VECTOR_CFLAGS``;
 * ``c_same``: ``c/verlet_nonlinear.c``, the package's loop copied line by line (libm
@@ -57,7 +60,7 @@ RESULTS = HERE / "results"
 MOMENT = 0.05
 #: The vectorised references that compute what the package computes (the energy sums included):
 #: the target's denominator is the fastest of them.
-WITH_SUMS = ("numba", "numba_fused", "c_vec")
+WITH_SUMS = ("numba", "numba_fused", "numba_blocked", "c_vec")
 #: Every reference (also those without the energy sums, and the scalar same-arithmetic loop).
 ALL_REFERENCES = (*WITH_SUMS, "numba_no_sums", "c_vec_no_sums", "c_same")
 #: The target of issue 11: package >= 0.9x the best vectorised reference at these sizes.
@@ -118,6 +121,14 @@ class Chain:
         assert status == 0, "numba reference: state out of range"
         return x, v, acc if energy else None
 
+    def numba_blocked(self, width: int = reference.CACHE_WIDTH, super_steps: int = reference.SUPER_STEPS):
+        x, v, acc = self.x0.copy(), self.v0.copy(), np.zeros(2)
+        status = reference.run_single_blocked(
+            x, v, self.coef, self.mass, self.table, self.n_steps, self.col, MOMENT, self.max_displacement, True, acc, width, super_steps
+        )  # fmt: skip
+        assert status == 0, "blocked numba reference: state out of range"
+        return x, v, acc
+
     def c_vec(self, crefs: harness.CReferences, energy: bool = True, n_steps: int | None = None):
         x, v, acc = self.x0.copy(), self.v0.copy(), np.zeros(2)
         status = crefs.vec_single(
@@ -139,12 +150,15 @@ class Chain:
             "numba": lambda: self.numba(True, False),
             "numba_fused": lambda: self.numba(True, True),
             "numba_no_sums": lambda: self.numba(False, False),
+            "numba_blocked": self.numba_blocked,
             "c_vec": lambda: self.c_vec(crefs, True),
             "c_vec_no_sums": lambda: self.c_vec(crefs, False),
             "c_same": lambda: self.c_same(crefs),
         }
         if self.n <= reference.BLOCK + 2:  # one block: the fused sweep is the two-pass step
             del out["numba_fused"]
+        if self.n < 4 * reference.CACHE_WIDTH:  # a chain that stays in the cache gains nothing from blocks
+            del out["numba_blocked"]
         return out
 
 
@@ -169,6 +183,8 @@ def verify(crefs: harness.CReferences, log) -> dict:
             "numba": chain.numba(True, False),
             "numba_fused": chain.numba(True, True),
             "numba_no_sums": chain.numba(False, False),
+            # Blocks narrow enough to split these chains (several blocks, super-steps and a shorter last one).
+            "numba_blocked": chain.numba_blocked(width=max(8, chain.n // 7), super_steps=max(1, min(16, chain.n // 40))),
             "c_vec": chain.c_vec(crefs, True),
             "c_vec_no_sums": chain.c_vec(crefs, False),
         }
@@ -347,6 +363,7 @@ NAMES = {
     "numba": "numba ref",
     "numba_fused": "numba ref, fused sweep",
     "numba_no_sums": "numba ref, no energy sums",
+    "numba_blocked": "numba ref, blocks in the cache",
     "c_vec": "C vectorised",
     "c_vec_no_sums": "C vectorised, no energy sums",
     "c_same": "C same arithmetic",

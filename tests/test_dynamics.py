@@ -217,12 +217,12 @@ def test_a_chain_too_long_for_the_cache_runs_as_blocks_on_one_thread_with_the_sa
 
 def test_a_blow_up_in_blocks_is_reported_at_its_first_bad_step(monkeypatch):
     """A chain split into blocks that blows up: the chunk is rerun unsplit and stops at the same first bad state."""
-    params = ChainParams(N=400)
+    params = ChainParams(N=600)
     dt = 30 * default_time_step(params)  # far beyond the stability limit
     kwargs = dict(t_end=2000 * dt, dt=dt, stride=1, check_stability=False)
     whole = integrate(params, "nonlinear", moment_load(0.1), **kwargs)
-    monkeypatch.setattr(engine, "SPLIT_COLUMNS", 800)
-    monkeypatch.setattr(engine, "CACHE_COLUMNS", 200)
+    monkeypatch.setattr(engine, "SPLIT_COLUMNS", 1200)
+    monkeypatch.setattr(engine, "CACHE_COLUMNS", 300)
     assert engine.Blocks.count(params.n_particles, 1, 1) == 4
     split = integrate(params, "nonlinear", moment_load(0.1), **kwargs)
     assert whole.status == split.status == Status.BLEW_UP and 1 < split.steps < 1024

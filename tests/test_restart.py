@@ -141,9 +141,9 @@ def test_a_run_resumed_from_its_checkpoint_equals_the_uninterrupted_run_bit_for_
 
 
 def test_a_run_split_over_two_threads_resumes_bitwise_on_two_and_its_states_on_one(tmp_path, monkeypatch):
-    # 201 particles: two blocks (a chain of seven runs on one thread whatever --threads says).
-    monkeypatch.setattr(dynamics, "CHUNK_WORK", 201 * 100)
-    params = ChainParams(N=100)
+    # 601 particles: two blocks (a chain of seven runs on one thread whatever --threads says).
+    monkeypatch.setattr(dynamics, "CHUNK_WORK", 601 * 100)
+    params = ChainParams(N=300)
     run = dict(t_end=10.0, dt=ODD_DT, n_frames=11)
     whole = simulate(params, "nonlinear", LOADS, threads=2, **run)
     path = tmp_path / "c.nc"

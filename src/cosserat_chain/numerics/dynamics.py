@@ -325,25 +325,36 @@ class _Restart:
     """A chain's state between two chunks (closed step), to rerun a chunk that blew up step by step.
 
     The positions and velocities are those of the frame stored at the chunk's start (a chunk
-    is a whole number of strides), so only the forces and the sums are copied, into buffers
-    made once a run: a fresh copy of the whole state every chunk page-faulted its memory anew
-    (at 10^6 particles 5-70 ms a chunk, about as much as the chunk's 20 steps' closing work).
+    is a whole number of strides), so only the forces and the sums are kept. At the start of
+    a fresh run the forces are evaluated again when needed (:meth:`Lanes.evaluate_forces` on
+    the same state at the same time gives the same bits); later they are copied into a
+    buffer made once a run, when first needed: a fresh copy every chunk page-faulted its
+    memory anew (at 10^6 particles 5-70 ms a chunk, about as much as the chunk's 20 steps'
+    closing work), and a run of one chunk copies nothing.
     """
 
-    f: np.ndarray
     acc: np.ndarray
     lane_ints: np.ndarray
+    f: np.ndarray | None = None
     x: np.ndarray | None = None
     v: np.ndarray | None = None
     pending: int = 0
+    evaluate: bool = False
 
     @classmethod
     def like(cls, lanes: Lanes) -> _Restart:
-        return cls(np.empty_like(lanes.f), np.empty_like(lanes.acc), np.empty_like(lanes.lane_ints))
+        return cls(np.empty_like(lanes.acc), np.empty_like(lanes.lane_ints))
 
-    def save(self, lanes: Lanes, x: np.ndarray, v: np.ndarray) -> _Restart:
-        """Keep ``lanes``' forces and sums at the start of a chunk whose state is the stored frame (x, v)."""
-        np.copyto(self.f, lanes.f)
+    def save(self, lanes: Lanes, x: np.ndarray, v: np.ndarray, fresh: bool = False) -> _Restart:
+        """Keep ``lanes``' forces and sums at the start of a chunk whose state is the stored frame (x, v).
+
+        ``fresh``: the chunk is a fresh run's first, whose forces :meth:`Lanes.evaluate_forces` gave.
+        """
+        self.evaluate = fresh
+        if not fresh:
+            if self.f is None:
+                self.f = np.empty_like(lanes.f)
+            np.copyto(self.f, lanes.f)
         np.copyto(self.acc, lanes.acc)
         np.copyto(self.lane_ints, lanes.lane_ints)
         # Closed at a chunk's start; after a blow-up in blocks it is their first block's, which may be open.
@@ -358,7 +369,11 @@ class _Restart:
         kernels on the same bits reach the same states, and it stops at the first bad
         one, which is left in ``lanes``.
         """
-        lanes.x[...], lanes.v[...], lanes.f[...], lanes.acc[...], lanes.lane_ints[...] = self.x, self.v, self.f, self.acc, self.lane_ints
+        lanes.x[...], lanes.v[...], lanes.acc[...], lanes.lane_ints[...] = self.x, self.v, self.acc, self.lane_ints
+        if self.evaluate:
+            lanes.evaluate_forces()
+        else:
+            lanes.f[...] = self.f
         lanes.pending = self.pending
         stores = steps // stride + 2
         scratch = (np.zeros((0, *lanes.x.shape)), np.zeros((0, *lanes.x.shape)), np.zeros((stores, 2, 1)), np.zeros((stores, 1)))
@@ -426,7 +441,7 @@ def integrate(
         Store every ``stride``-th step; if not given, ``stride`` is chosen so that
         about ``n_frames`` states are stored (always including the first and last).
     threads : int
-        Run the chain on this many threads as blocks with halos that meet every 16
+        Run the chain on this many threads as blocks with halos that meet every 64
         steps (:class:`~cosserat_chain.numerics.engine.Blocks`; worth it from about
         10^5 particles on, a chain too short for blocks runs on one). The states
         equal a one-thread run's to the last bit. From 2^18 particles on the chain
@@ -576,7 +591,11 @@ def integrate(
             # The chunk's start, kept to find the first bad step of a blow-up (checked every 1024 steps):
             # the last frame stored (chunks are whole strides, so every chunk starts on one).
             assert frame_steps[stored - 1] == steps_done, "a chunk starts at a stored frame"
-            start = None if restart is None else restart.save(lanes, frames_x[stored - 1], frames_v[stored - 1])
+            start = (
+                None
+                if restart is None
+                else restart.save(lanes, frames_x[stored - 1], frames_v[stored - 1], fresh=steps_done == 0 and resume is None)
+            )
             code, done, written = runner.advance(todo, steps_done, stride, 1024, frames, stored)
             if code == STATUS_BLEW_UP and start is not None:
                 done = start.first_bad_step(lanes, steps_done, done, stride)
