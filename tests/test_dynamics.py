@@ -194,7 +194,7 @@ def test_a_long_chain_on_two_threads_gives_the_states_of_one_bit_for_bit(method,
 @pytest.mark.parametrize("model", ["nonlinear", "sine", "linear"])
 def test_a_chain_too_long_for_the_cache_runs_as_blocks_on_one_thread_with_the_same_bits(model, monkeypatch):
     # The thresholds scaled down (2^18 and 2^15 columns in earnest), so that a chain of 3001
-    # columns splits: 10 blocks on one thread and on two, on pinned ends, with loads.
+    # columns splits: 10 blocks on one thread and on two, a pinned and a free end, with loads.
     params = ChainParams(N=1500, a=0.27, b=0.12, E1=1.3, E2=0.6, left_end="pinned", right_end="free")
     x0, v0 = kicked_start(params)
     loads = Loads((PointLoad("phi", 0, Schedule.ramp(0.3, 5.0)), PointLoad("v", 700, Schedule.constant(0.01))))
