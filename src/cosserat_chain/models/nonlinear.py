@@ -110,9 +110,9 @@ def _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, du, dv):  # pragma: no 
 #: that stay in the L1 cache.
 BLOCK = 519
 _WIDTH = BLOCK + 2
-#: Members per block of the batch kernel: five rows of scratch on the stack (10 KB).
+#: Members per block of the batch kernel: seven rows of scratch on the stack (14 KB).
 _MEMBERS = 256
-_MEMBER_TRIG = 2 * _MEMBERS
+_MEMBER_TRIG = 4 * _MEMBERS
 _MEMBER_CARRIED = 3 * _MEMBERS
 #: Values of the scratch for the sines and cosines (2, _WIDTH) and for the bonds (4, _WIDTH).
 _TRIG_SIZE = 2 * _WIDTH
@@ -255,60 +255,79 @@ def nonlinear_end_kernel(x, coef, out, first, last, ring):  # pragma: no cover -
 
 
 @njit(inline="always", **KERNEL_OPTIONS)
+def _batch_sines(x, k, at, trig, row, first, last):  # pragma: no cover - compiled
+    """sin and cos of column k's angle, members at+first..at+last-1, into rows ``row`` and ``row + 1`` of ``trig``."""
+    one = np.uint64(1)
+    for i in range(first, last):
+        s, c = sincos(x[2, k, at + i])
+        trig[row, i] = s
+        trig[row + one, i] = c
+
+
+@njit(inline="always", **KERNEL_OPTIONS)
 def _batch_start(coef, x, at, trig, carried, first, last):  # pragma: no cover - compiled
-    """Bond 0 (columns 0, 1) of members at+first..at+last-1: it starts the carried half bond."""
+    """Bond 0 (columns 0, 1; their sines in rows 0-1 and 2-3 of ``trig``) of members at+first..at+last-1: it starts the carried half bond."""
     one = np.uint64(1)
     zero = np.uint64(0)
     for i in range(first, last):
         j = at + i
-        s0, c0 = sincos(x[2, zero, j])
-        s1, c1 = sincos(x[2, one, j])
         fx, fy, _, m1 = _bond(
             coef[0, j], coef[1, j], coef[2, j], coef[3, j], coef[4, j], coef[5, j], coef[6, j],
-            c0, s0, c1, s1, x[0, one, j] - x[0, zero, j], x[1, one, j] - x[1, zero, j],
+            trig[1, i], trig[0, i], trig[3, i], trig[2, i], x[0, one, j] - x[0, zero, j], x[1, one, j] - x[1, zero, j],
         )  # fmt: skip
         carried[0, i], carried[1, i], carried[2, i] = fx, fy, m1
-        trig[0, i], trig[1, i] = s1, c1
 
 
 @njit(inline="always", **KERNEL_OPTIONS)
-def _batch_column(coef, x, out, k, at, trig, carried, first, last):  # pragma: no cover - compiled
-    """Column k's forces for members at+first..at+last-1: bond k (columns k, k+1) less the carried bond k-1."""
+def _batch_column(coef, x, out, k, at, trig, here, right, carried, first, last):  # pragma: no cover - compiled
+    """Column k's forces for members at+first..at+last-1: bond k (columns k, k+1, their sines from rows ``here``
+    and ``right`` of ``trig``) less the carried bond k-1."""
     k1 = k + np.uint64(1)
+    one = np.uint64(1)
     for i in range(first, last):
         j = at + i
-        s1, c1 = sincos(x[2, k1, j])
         fx, fy, m0, m1 = _bond(
             coef[0, j], coef[1, j], coef[2, j], coef[3, j], coef[4, j], coef[5, j], coef[6, j],
-            trig[1, i], trig[0, i], c1, s1, x[0, k1, j] - x[0, k, j], x[1, k1, j] - x[1, k, j],
+            trig[here + one, i], trig[here, i], trig[right + one, i], trig[right, i], x[0, k1, j] - x[0, k, j], x[1, k1, j] - x[1, k, j],
         )  # fmt: skip
         out[0, k, j] = fx - carried[0, i]
         out[1, k, j] = fy - carried[1, i]
         out[2, k, j] = m0 + carried[2, i]
         carried[0, i], carried[1, i], carried[2, i] = fx, fy, m1
-        trig[0, i], trig[1, i] = s1, c1
 
 
 @njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
 def nonlinear_batch_kernel(x, coef, out):  # pragma: no cover - compiled
     n, size = np.uint64(x.shape[1]), np.uint64(x.shape[2])
-    # Per member: sine, cosine of the bond's left column and the carried half bond, the same
-    # arithmetic as nonlinear_forces_kernel member by member, in scratch on the stack (blocks
-    # of _MEMBERS). The members in whole turns of LANES and then one masked turn (as the chain
-    # kernel's columns, where a remainder loop took its values one at a time); bond 0 in a loop
-    # of its own (a branch in the loop kept it scalar); indexed in three dimensions, unsigned,
-    # without the eight row slices per column (each an atomic reference count). 16 members of
-    # 101 particles: 32 -> 5.5 ns a particle; 1000 of 7: 5.2 -> 4.5.
-    trig = carray(stack_floats(_MEMBER_TRIG), (2, _MEMBERS))
+    zero, one, two = np.uint64(0), np.uint64(1), np.uint64(2)
+    # Per member: the sines of two columns (rows 0-1 and 2-3 of trig, taking turns as the
+    # bond's left and right column) and the carried half bond, the same arithmetic as
+    # nonlinear_forces_kernel member by member, in scratch on the stack (blocks of
+    # _MEMBERS). Each column's sines in a loop of their own before the bonds that read them
+    # (in the bond's loop they cost a fifth more time: 1000 members of 7 particles 5.1 ->
+    # 4.2 ns a particle, of 101 particles 6.2 -> 4.8, as the reference's sines pass does).
+    # The members in whole turns of LANES and then one masked turn (as the chain kernel's
+    # columns, where a remainder loop took its values one at a time); bond 0 in a loop of
+    # its own (a branch in the loop kept it scalar); indexed in three dimensions, unsigned,
+    # without row slices (each an atomic reference count).
+    trig = carray(stack_floats(_MEMBER_TRIG), (4, _MEMBERS))
     carried = carray(stack_floats(_MEMBER_CARRIED), (3, _MEMBERS))
-    for at in range(np.uint64(0), size, np.uint64(_MEMBERS)):
+    for at in range(zero, size, np.uint64(_MEMBERS)):
         count = min(at + np.uint64(_MEMBERS), size) - at
         whole = _whole_turns(count)
-        _batch_start(coef, x, at, trig, carried, np.uint64(0), whole)
+        for k in range(two):
+            _batch_sines(x, k, at, trig, two * k, zero, whole)
+            _batch_sines(x, k, at, trig, two * k, whole, count)
+        _batch_start(coef, x, at, trig, carried, zero, whole)
         _batch_start(coef, x, at, trig, carried, whole, count)
-        for k in range(np.uint64(1), n - np.uint64(1)):
-            _batch_column(coef, x, out, k, at, trig, carried, np.uint64(0), whole)
-            _batch_column(coef, x, out, k, at, trig, carried, whole, count)
+        here = two
+        for k in range(one, n - one):
+            right = two - here
+            _batch_sines(x, k + one, at, trig, right, zero, whole)
+            _batch_sines(x, k + one, at, trig, right, whole, count)
+            _batch_column(coef, x, out, k, at, trig, here, right, carried, zero, whole)
+            _batch_column(coef, x, out, k, at, trig, here, right, carried, whole, count)
+            here = right
 
 
 #: Bonds per block of the Hessian kernel: the block's sums and angles stay in the L1 cache (31 KB).

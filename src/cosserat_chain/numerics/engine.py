@@ -1142,6 +1142,8 @@ def distinct(params: list) -> tuple[np.ndarray, list]:
     A grid of loads repeats one ChainParams a thousand times: what depends only on the
     chain is worked out once per distinct member and spread (``values[which]``).
     """
+    if all(p is params[0] for p in params):  # the usual grid: 25 us for 1000 members, the unique below 60
+        return np.zeros(len(params), dtype=np.int64), params[:1]
     # Vectorised over the ids (a dictionary member by member cost 0.5 ms for 1000 members).
     ids = np.fromiter(map(id, params), dtype=np.uint64, count=len(params))
     _, first_index, inverse = np.unique(ids, return_index=True, return_inverse=True)
