@@ -485,8 +485,9 @@ def test_a_continuation_point_assembles_the_stiffness_once_per_solve_and_counts_
         calls.update(dict.fromkeys(calls, 0))
         branch = continue_in_moment(params, model, max_folds=1)
         points = branch.moment.size
-        # The rest state's stability assembles its own (no corrector ran there); nothing else does.
-        assert calls["similar"] == 1 and calls["stiffness"] <= calls["solve"] + 1
+        # The rest state's stability assembles its own (no corrector ran there), and so does the
+        # response at rest that sizes the largest step; nothing else does.
+        assert calls["similar"] == 1 and calls["stiffness"] <= calls["solve"] + 2
         assert calls["solve"] <= 8 * points  # a few Newton iterations and the tangent a point
         # The chord iterations assemble nothing; locating the fold is a full Newton solve (a few
         # assemblies) and a tangent at each point of its search.
@@ -494,7 +495,7 @@ def test_a_continuation_point_assembles_the_stiffness_once_per_solve_and_counts_
         # Unstable states only: the traced ones, and the ends of steps from a stable point
         # across the fold or a crossing, retaken shorter (each halved, from the longest step
         # down to refine_step, 2e-4; twice: the falling eigenvalue's and the crossing's).
-        longest = continuation.MAX_STEP_FACTOR * continuation.STEP * np.sqrt(3 * (2 * params.N - 1) / 15)
+        longest = continuation.largest_step(params, model, 0)
         halvings = int(np.ceil(np.log2(longest / 2e-4)))
         assert calls["count"] <= np.count_nonzero(~branch.stable) + 2 + 2 * halvings, calls
         assert branch.folds and branch.folds[0].maximum
@@ -578,3 +579,29 @@ def test_the_continuations_dot_product_and_norm_agree_with_an_exact_sum(n):
     assert abs(dot(a, b) - exact) <= 4 * n * np.finfo(float).eps * np.sum(np.abs(a * b))
     assert euclidean_norm(a) == pytest.approx(math.sqrt(math.fsum(a * a)), rel=1e-14, abs=0.0)
     assert dot(a, a) >= 0.0 and (n > 0 or dot(a, b) == 0.0)
+
+
+def test_the_largest_step_follows_the_branchs_length_per_radian_so_the_points_do_not_grow_with_N():
+    # The sine model's u and v grow like N^2 M: with the largest step capped at 20 first
+    # steps, every step of its turn hit the cap (N = 1000: 1015 points, N = 3000: 2782, and
+    # N = 10^4 crawled). The cap is the arclength over which phi_0 turns by 2 PHI0_STEP along
+    # the tangent at rest (here from a dense solve), so the turn limits size the steps.
+    from cosserat_chain.numerics import continuation
+
+    model = get_model("sine")
+    params = ChainParams(N=100)
+    e = np.zeros(n_free(params))
+    e[moment_dof(params, 0)] = 1.0
+    response = np.linalg.solve(stiffness_matrix(params).toarray(), e)
+    per_radian = np.linalg.norm(response) / response[moment_dof(params, 0)]
+    assert continuation.largest_step(params, model, 0) == pytest.approx(2 * continuation.PHI0_STEP * per_radian, rel=1e-10)
+    assert continuation.largest_step(ChainParams(), model, 0) == continuation.MAX_STEP_FACTOR * STEP  # short chains: as before
+    points = {}
+    for N in (100, 1000):
+        params = ChainParams(N=N)
+        branch = continue_in_moment(params, model)
+        points[N] = branch.moment.size
+        assert branch.stop == "phi0_stop"
+        assert [f.phi0 for f in branch.folds] == pytest.approx([math.pi / 2, 3 * math.pi / 2], abs=1e-8)
+        assert branch.folds[0].moment == pytest.approx(1 / compliance(params, "linear"), rel=1e-8)
+    assert points[1000] < 1.5 * points[100], points

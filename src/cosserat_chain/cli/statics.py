@@ -140,6 +140,9 @@ def critical(
                 fold += f"; the stable branch from rest ends earlier, at M = {r.first_fold.moment:.15g}, phi_0 = {r.first_fold.phi0:.15g} rad (snap-through"
                 fold += ")" if r.snap_to is None else f" to the stable state at phi_0 = {r.snap_to.phi0:.15g} rad)"
             over = "over the turn" if r.complete else f"on the traced part (incomplete: {len(r.branch.moment)} points)"
+            if r.confirmation != "once":
+                confirmed = sum(bool(f.confirmed) for f in r.branch.folds)
+                over += f", {confirmed} of them confirmed by a second trace with other steps"
             typer.echo(f"{name}: {fold}; compliance dphi_0/dM = {r.compliance:.15g}; {len(r.branch.folds)} folds {over}")
     for name, r in results.items():
         if r.branch.stop == "max_points":
@@ -150,3 +153,9 @@ def critical(
             )
         if r.branch.stop == "stalled":
             exit_on(Status.STEP_TOO_SMALL, f"the {name} branch: {r.branch.message}; M_c is the largest maximum of the traced part")
+        if not r.accurate:
+            exit_on(
+                Status.INACCURATE,
+                f"the {name} branch: K is near singular at rest and the fold of M_c or the first fold was not passed by a second "
+                f"trace with other steps ({r.confirmation}): the folds are within round-off of the chain's stiffness",
+            )

@@ -24,6 +24,16 @@ Contract
   a relaxation just above it rotates (tested); a stable crossing branch would carry
   it further, which the statics do not trace (the relaxation protocol decides).
 
+Where K's softest eigenvalue at rest lies within :data:`CONFIRM_MARGIN` times its
+round-off (a long clamped chain: its bending mode's eigenvalue falls like N^-4, within
+ten times its round-off from N of about 2000 on the paper's geometry), the branch is traced
+a second time with steps :data:`CONFIRM_STEP` times as long, and every fold is
+``confirmed`` where that trace passes the same fold (:func:`confirm_folds`). A fold that
+only one trace passes is an artefact of round-off (N = 10^4: eleven small folds near
+phi_0 = 2 pi, within 4e-5 of M = 0, differ in number and place between two traces,
+while the first fold agrees to 6e-12): ``accurate`` is False where the onset's fold or
+the first fold is not confirmed, and the command line then exits with ``inaccurate``.
+
 The result converts to a JSON-ready dict and to a self-describing xarray Dataset.
 """
 
@@ -31,22 +41,34 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import xarray as xr
 
 from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
-from ..numerics.continuation import Branch, BranchPoint, Fold, compliance, continue_in_moment
-from ..numerics.newton import solve_equilibrium
-from ..numerics.stability import static_stability
+from ..numerics.continuation import Branch, BranchPoint, Fold, compliance, continue_in_moment, default_step
+from ..numerics.newton import NewtonError, solve_equilibrium
+from ..numerics.stability import smallest_eigenvalue, static_stability
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column
 from .simulation import run_attributes
 
 #: Default point budget of the full-turn branch (N = 1000: about 2600 points).
 MAX_POINTS = 5000
+#: The branch is traced twice where K's softest eigenvalue at rest is below this many times its
+#: round-off (the paper's geometry: 18.5 at N = 1000, 1.17 at N = 2000, below 1 from N = 3000).
+CONFIRM_MARGIN = 10.0
+#: The second trace's first step, relative to the first trace's (steps that follow other points).
+CONFIRM_STEP = 0.8
+#: Two traces pass the same fold where their moments agree to this, relative to the largest |M|
+#: of the branch (N = 10^4: the first fold to 1e-10 of it, the folds of round-off by 1e-4;
+#: N = 1000: all 40 folds to 1e-9) ...
+CONFIRM_MOMENT_RTOL = 1e-8
+#: ... and their angles phi_0 to this (rad; a simple fold's phi_0 is known to about the square root
+#: of its moment's round-off: 3e-7 at N = 10^4).
+CONFIRM_PHI0_ATOL = 1e-5
 
 
 @dataclass
@@ -85,11 +107,20 @@ class CriticalResult:
     first_fold: Fold | None = None
     snap_to: Fold | None = None
     branch_point: BranchPoint | None = None
+    #: How the folds were checked: "once" (K resolved at rest: one trace), "twice" (a
+    #: second trace, each fold's ``confirmed`` says whether it passed it too), or why the
+    #: second trace failed (every fold then unconfirmed).
+    confirmation: str = "once"
 
     @property
     def complete(self) -> bool:
         """Whether the branch was traced over the whole turn (else M_c is that of its traced part)."""
         return self.branch.complete
+
+    @property
+    def accurate(self) -> bool:
+        """False where the fold of M_c or the first fold is not confirmed by the second trace (module docstring)."""
+        return all(f is None or f.confirmed is not False for f in (self.fold, self.first_fold))
 
     @property
     def onset(self) -> str | None:
@@ -118,9 +149,22 @@ class CriticalResult:
     def as_dict(self) -> dict:
         """JSON-ready: ``M_c`` (onset of rotation; null without a fold), ``onset`` ("fold" or "branch_point"),
         ``phi0_at_onset``, ``phi0_at_fold`` (the largest maximum's), ``largest_fold``, ``first_fold``, ``snap_through``,
-        ``branch_points``, ``compliance``, ``branch_complete`` and the branch. Moments are in the parameters' units;
-        ``moment_scale`` (E1 h^2) is the unit of the paper's dimensionless moment, ``M_c_dimensionless`` = M_c / (E1 h^2)."""
+        ``branch_points``, ``compliance``, ``branch_complete``, ``folds`` (every fold in order: moment, phi_0, maximum,
+        the index of K before and after it, ``confirmed``), ``confirmation``, ``accurate`` and the branch. Moments are in
+        the parameters' units; ``moment_scale`` (E1 h^2) is the unit of the paper's dimensionless moment,
+        ``M_c_dimensionless`` = M_c / (E1 h^2)."""
         scale = self.params.moment_scale
+        folds = [
+            {
+                "moment": f.moment,
+                "phi0": f.phi0,
+                "maximum": f.maximum,
+                "index_before": f.index_before,
+                "index_after": f.index_after,
+                "confirmed": f.confirmed,
+            }
+            for f in self.branch.folds
+        ]
         return {
             "model": self.model,
             "particle": self.particle,
@@ -147,13 +191,16 @@ class CriticalResult:
             ],
             "compliance": self.compliance,
             "branch_complete": self.complete,
+            "folds": folds,
+            "confirmation": self.confirmation,
+            "accurate": self.accurate,
             "branch": {
                 "stop": self.branch.stop,
                 "moment": self.branch.moment.tolist(),
                 "phi0": self.branch.phi0.tolist(),
                 "stable": self.branch.stable.tolist(),
                 "critical_eigenvalue": self.branch.critical_eigenvalue.tolist(),
-                "folds": [{"moment": f.moment, "phi0": f.phi0, "maximum": f.maximum} for f in self.branch.folds],
+                "folds": folds,
             },
         }
 
@@ -183,6 +230,8 @@ class CriticalResult:
                 "loaded_particle": self.particle,
                 "branch_stop": self.branch.stop,
                 "branch_complete": int(self.complete),
+                "fold_confirmation": self.confirmation,
+                "accurate": int(self.accurate),
             }
         )
         return ds
@@ -199,10 +248,26 @@ def critical_point(
     """Compliance, fold and full-turn branch of ``model`` under a moment on ``particle``.
 
     ``max_points`` bounds the branch's points (:func:`continue_in_moment`); a branch cut
-    short by it gives ``complete`` False.
+    short by it gives ``complete`` False. Where K is near singular at rest the branch is
+    traced twice and the folds confirmed (module docstring); ``progress`` then runs to
+    twice the turn.
     """
     model = get_model(model)
-    branch = continue_in_moment(params, model, particle=particle, phi0_stop=2 * math.pi, max_points=max_points, progress=progress)
+    turn = 2 * math.pi
+    twice = model.rotates and near_singular_at_rest(params, model)
+    parts = 2 if twice else 1
+    branch = continue_in_moment(params, model, particle=particle, phi0_stop=turn, max_points=max_points, progress=_part(progress, 0, parts))
+    confirmation = "once"
+    if twice and branch.folds:
+        try:
+            check = continue_in_moment(
+                params, model, particle=particle, phi0_stop=turn, max_points=max_points,
+                step=CONFIRM_STEP * default_step(params), progress=_part(progress, 1, parts),
+            )  # fmt: skip
+            confirmation = "twice"
+        except NewtonError as err:
+            check, confirmation = None, f"the second trace failed: {err}"
+        branch.folds = confirm_folds(branch, [] if check is None else check.folds)
     maxima = [f for f in branch.folds if f.maximum]
     # Under a positive moment from rest M rises first: the branch's first fold is a maximum.
     fold = max(maxima, key=lambda f: f.moment) if maxima else None
@@ -210,10 +275,48 @@ def critical_point(
     if branch.stable_end is not None:
         # The stable branch ends at a branch point, not at a fold: the chain leaves it there.
         return CriticalResult(
-            params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first, None, branch.stable_end
-        )
+            params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first, None, branch.stable_end,
+            confirmation,
+        )  # fmt: skip
     snap_to = _snap_target(params, model, branch, first, particle) if first is not None and first is not fold else None
-    return CriticalResult(params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first, snap_to)
+    return CriticalResult(
+        params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first, snap_to, None, confirmation
+    )
+
+
+def near_singular_at_rest(params: ChainParams, model: Model) -> bool:
+    """Whether K's softest eigenvalue at rest lies below :data:`CONFIRM_MARGIN` times its round-off (never for a ring or a
+    model without a banded similar, whose statics run dense, at small N)."""
+    similar = None if params.periodic else model.symmetric_similar(params, np.zeros((3, params.n_particles)))
+    if similar is None:  # the dense statics of a model without a banded similar
+        return False
+    value, resolution = smallest_eigenvalue(similar)
+    return value < CONFIRM_MARGIN * resolution
+
+
+def confirm_folds(branch: Branch, others: list[Fold]) -> list[Fold]:
+    """``branch``'s folds, each ``confirmed`` where ``others`` holds a fold of the same kind (maximum or minimum) within
+    :data:`CONFIRM_MOMENT_RTOL` times the branch's largest |M| in moment and :data:`CONFIRM_PHI0_ATOL` in phi_0."""
+    scale = float(np.max(np.abs(branch.moment)))
+    return [
+        replace(
+            f,
+            confirmed=any(
+                g.maximum == f.maximum
+                and abs(g.moment - f.moment) <= CONFIRM_MOMENT_RTOL * scale
+                and abs(g.phi0 - f.phi0) <= CONFIRM_PHI0_ATOL
+                for g in others
+            ),
+        )
+        for f in branch.folds
+    ]
+
+
+def _part(progress: Callable[[float, float], None] | None, done: int, parts: int) -> Callable[[float, float], None] | None:
+    """``progress`` of trace ``done`` of ``parts`` on one scale (the second trace's turn after the first's)."""
+    if progress is None:
+        return None
+    return lambda value, total: progress(done * total + value, parts * total)
 
 
 def _snap_target(params: ChainParams, model: Model, branch: Branch, first: Fold, particle: int) -> Fold | None:

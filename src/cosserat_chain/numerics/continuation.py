@@ -118,6 +118,15 @@ class Fold:
     #: True at a maximum of M along the branch, False at a minimum, None if not known
     #: (a fold located on its own by :func:`locate_fold`).
     maximum: bool | None = None
+    #: Negative eigenvalues of K just before and just after the fold along the branch
+    #: (they differ by one: the change of stability; 0 is stable), None for a fold
+    #: located on its own.
+    index_before: int | None = None
+    index_after: int | None = None
+    #: Whether a second trace of the branch with other steps passed the same fold
+    #: (:func:`~cosserat_chain.experiments.critical.critical_point` traces twice where K's
+    #: softest eigenvalue is near its round-off); None where it was traced once.
+    confirmed: bool | None = None
 
 
 @dataclass(frozen=True)
@@ -222,14 +231,41 @@ def compliance(params: ChainParams, model: str | Model, *, particle: int = 0, x:
     ValueError
         If K is singular at ``x`` (a fold).
     """
+    return float(moment_response(params, model, particle=particle, x=x)[moment_dof(params, particle)])
+
+
+def moment_response(params: ChainParams, model: str | Model, *, particle: int = 0, x: np.ndarray | None = None) -> np.ndarray:
+    """K^-1 e at the state ``x`` (default rest): every free degree of freedom's response to a unit moment on ``particle``.
+
+    Raises
+    ------
+    ValueError
+        If K is singular at ``x`` (a fold).
+    """
     model = get_model(model)
-    dof = moment_dof(params, particle)
     e = np.zeros(n_free(params))
-    e[dof] = 1.0
+    e[moment_dof(params, particle)] = 1.0
     response = spla.spsolve(model.stiffness(params, zeros(params) if x is None else x).tocsc(), e)
     if not np.all(np.isfinite(response)):
         raise ValueError("the stiffness is singular at this state (a fold): the compliance is infinite")
-    return float(response[dof])
+    return response
+
+
+def largest_step(params: ChainParams, model: Model, particle: int) -> float:
+    """The default ``max_step`` of :func:`continue_in_moment`: :data:`MAX_STEP_FACTOR` times the first step, or the
+    arclength along the branch's tangent at rest over which the loaded particle turns by 2 :data:`PHI0_STEP`, if longer.
+
+    The branch's length per radian of phi_0 grows with N faster than the first step: the sine model's
+    u and v are linear in the load, like N^2 times M (N = 3000: 23000 per radian; a first step of 1.7).
+    Capped at 20 first steps, its full turn took 2782 points at N = 3000 and every one at the cap, and
+    N = 10^4 crawled at 4e-4 rad a point; the turn limits, not the cap, then size the steps.
+    """
+    try:
+        response = moment_response(params, model, particle=particle)
+    except ValueError:
+        return MAX_STEP_FACTOR * default_step(params)
+    per_radian = float(np.linalg.norm(response)) / abs(float(response[moment_dof(params, particle)]))
+    return max(MAX_STEP_FACTOR * default_step(params), 2 * PHI0_STEP * per_radian)
 
 
 def moment_slope(params: ChainParams, model: str | Model, x: np.ndarray, *, particle: int = 0) -> float:
@@ -389,6 +425,11 @@ def require_branch_memory(params: ChainParams, max_points: int) -> None:
     )
 
 
+def default_step(params: ChainParams) -> float:
+    """The first arclength step of :func:`continue_in_moment`: :data:`STEP` sqrt(n_free / 15) (0.05 for the paper's chain)."""
+    return STEP * math.sqrt(n_free(params) / 15)
+
+
 def continue_in_moment(
     params: ChainParams,
     model: str | Model,
@@ -419,7 +460,9 @@ def continue_in_moment(
         Arclength step in the (q, M) space: initial, smallest before giving up, largest.
         ``step`` defaults to :data:`STEP` sqrt(n_free / 15) (0.05 for the paper's chain,
         15 free degrees of freedom; longer chains have longer branches in (q, M)),
-        ``max_step`` to :data:`MAX_STEP_FACTOR` times that. A step is retaken shorter
+        ``max_step`` to :data:`MAX_STEP_FACTOR` times that or, where longer, the arclength over which the
+        loaded particle turns by 2 :data:`PHI0_STEP` along the branch's tangent at rest
+        (:func:`largest_step`: long chains). A step is retaken shorter
         when the loaded particle turns by more than :data:`PHI0_STEP`, the tangent by
         more than :data:`MAX_TURN`, or a positive critical eigenvalue (above its
         round-off) falls below half its previous value or through zero. The next step is
@@ -483,12 +526,12 @@ def continue_in_moment(
     Jacobian is singular at a branch point, where a full step is halved while it raises
     the residual). The number of points grows with the folds of the branch, not with N itself.
     """
-    default = STEP * math.sqrt(n_free(params) / 15)
+    model = get_model(model)
+    default = default_step(params)
     step = default if step is None else step
-    max_step = max(MAX_STEP_FACTOR * default, step) if max_step is None else max_step
+    max_step = max(largest_step(params, model, particle), step) if max_step is None else max_step
     if not (0 < min_step <= step <= max_step):
         raise ValueError(f"steps must satisfy 0 < min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
-    model = get_model(model)
     require_branch_memory(params, max_points)
     dof = moment_dof(params, particle)
     nf = n_free(params)
@@ -639,8 +682,10 @@ def continue_in_moment(
                 return None
         return None
 
-    def fold_between(y: np.ndarray, tangent: np.ndarray, ds: float, end: np.ndarray, end_slope: float) -> Fold:
+    def fold_between(y: np.ndarray, tangent: np.ndarray, ds: float, end: np.ndarray, end_slope: float, before: int, after: int) -> Fold:
         """The fold between y and its successor ``end`` at arclength ds: where the tangent's M component vanishes.
+
+        ``before``, ``after``: the index of K at y and at ``end``.
 
         Along the arclength, not in phi_0: a branch whose phi_0 turns back near a fold
         is no function of phi_0 there. The bracket's ends are the two points whose
@@ -687,6 +732,8 @@ def continue_in_moment(
             x=x,
             particle=particle,
             maximum=bool(tangent[-1] > 0),
+            index_before=before,
+            index_after=after,
         )
 
     def branch_point_between(y: np.ndarray, tangent: np.ndarray, ds: float, before: int, after: int) -> BranchPoint:
@@ -819,7 +866,7 @@ def continue_in_moment(
             ds, resume, crossing = (max(refine_step, crossing / 2), resume, crossing) if crossing > 0.0 else (resume, 0.0, 0.0)
         if turns_back:
             # M turned between the two points: a fold, located along the arc.
-            folds.append(fold_between(y, tangent, taken, z, next_tangent[-1]))
+            folds.append(fold_between(y, tangent, taken, z, next_tangent[-1], index, now_index))
         elif now_index != index and (model.conservative or (now_index - index) % 2):
             # Eigenvalues of K through zero at the shortest step without a turn of M: K
             # singular off a fold, a branch point. (A non-symmetric K's complex pair
