@@ -15,14 +15,15 @@ Measured for the paper's geometry, nonlinear and sine models:
   for comparison), for N = 10, 100, 1000, 10^4, with the exponent p of a fit
   time ~ N^p over N >= 100 (O(N) is p = 1);
 * ``first_fold``: :func:`continue_in_moment` up to its first fold (where the stable
-  branch from rest ends), for the same N, except the sine model at N = 10^4: its
-  stiffness is the linear model's times diag(1, 1, cos phi), whose condition number
-  there exceeds 1/eps (it grows like N^4, ``docs/continuum.md``); the corrector then
-  fails near the fold after about 400 s (recorded as ``not_run`` with that reason);
+  branch from rest ends), for the same N (the sine model at N = 10^4 too: K's
+  condition number there exceeds 1/eps, and its fold is off by a few 1e-6, which
+  ``critical`` flags; ``M_c_exact`` = 1/compliance, the compliance refined in extended
+  precision, gives the error);
 * ``critical``: :func:`critical_point` over the whole turn for N up to ``--full-max``
   (default 1000): time, points, folds, whether the branch was complete, M_c and phi_0
-  at the fold. The long chain's branch meanders (N = 1000 passes about 40 folds
-  before the loaded particle has turned once), so its time grows faster than N.
+  at the fold, ``accurate`` and ``confirmation`` (a second trace from N of about 1500).
+  The long chain's branch meanders (N = 1000 passes about 40 folds before the loaded
+  particle has turned once), so its time grows faster than N.
 
 Results go to ``benchmarks/results/statics_scaling.json`` and the figure to
 ``docs/img/statics_scaling.png``.
@@ -43,7 +44,7 @@ import numpy as np
 from cosserat_chain import ChainParams
 from cosserat_chain.experiments.critical import critical_point
 from cosserat_chain.models.base import get_model
-from cosserat_chain.numerics.continuation import continue_in_moment
+from cosserat_chain.numerics.continuation import compliance, continue_in_moment
 from cosserat_chain.numerics.newton import (
     NewtonError,
     bordered_jacobian,
@@ -59,8 +60,6 @@ RESULTS = ROOT / "results"
 FIGURE = ROOT.parent / "docs" / "img" / "statics_scaling.png"
 MODELS = ("nonlinear", "sine")
 SIZES = (10, 100, 1000, 10000)
-#: Why a (model, N) first fold is not run.
-NOT_RUN = {("sine", 10000): "K's condition number exceeds 1/eps: the corrector fails near the fold after about 400 s"}
 CRITICAL_SIZES = (3, 10, 20, 50, 100, 300, 1000)
 
 
@@ -106,14 +105,17 @@ def first_fold(model: str, n: int) -> dict:
         branch = continue_in_moment(ChainParams(N=n), model, max_folds=1)
     except NewtonError as err:
         return {"N": n, "seconds": time.process_time() - start, "error": str(err)}
+    seconds = time.process_time() - start
     fold = branch.folds[0] if branch.folds else None
     return {
         "N": n,
-        "seconds": time.process_time() - start,
+        "seconds": seconds,
         "points": int(branch.moment.size),
         "moment": None if fold is None else fold.moment,
         "phi0": None if fold is None else fold.phi0,
         "stop": branch.stop,
+        # The sine model's fold is 1/(the rotation compliance) exactly: its error, from the refined compliance.
+        "M_c_exact": 1.0 / compliance(ChainParams(N=n), model) if model == "sine" else None,
     }
 
 
@@ -130,6 +132,9 @@ def full_turn(model: str, n: int) -> dict:
         "M_c": result.critical_moment,
         "phi0_at_fold": result.phi0_at_fold,
         "first_fold": result.as_dict()["first_fold"],
+        "accurate": result.accurate,
+        "confirmation": result.confirmation,
+        "compliance": result.compliance,
     }
 
 
@@ -186,9 +191,6 @@ def main() -> None:
         print(model, "per point", json.dumps(data["per_point"][model]), "exponents", data["exponents"][model], file=log, flush=True)
         data["first_fold"][model] = []
         for n in fold_sizes:
-            if (model, n) in NOT_RUN:
-                data["first_fold"][model].append({"N": n, "not_run": NOT_RUN[model, n]})
-                continue
             data["first_fold"][model].append(first_fold(model, n))
             print(model, "first fold", data["first_fold"][model][-1], file=log, flush=True)
         data["critical"][model] = []

@@ -44,6 +44,7 @@ def test_a_short_chain_is_traced_once_and_its_folds_are_not_marked():
     summary = result.as_dict()
     assert summary["folds"][0] == {
         "moment": first.moment, "phi0": first.phi0, "maximum": True, "index_before": 0, "index_after": 1, "confirmed": None,
+        "discrepancy": None,
     }  # fmt: skip
     assert summary["accurate"] is True and summary["confirmation"] == "once"
 
@@ -56,6 +57,7 @@ def test_a_second_trace_with_other_steps_passes_the_same_folds(monkeypatch):
     result = critical_point(TWO_MAXIMA, "nonlinear", progress=lambda done, total: seen.append((done, total)))
     assert result.confirmation == "twice" and result.accurate
     assert [f.confirmed for f in result.branch.folds] == [True] * len(result.branch.folds)
+    assert max(f.discrepancy for f in result.branch.folds) < 1e-10
     # Confirming changes nothing else: the same folds as a single trace (the first trace is the same).
     assert [(f.moment, f.phi0) for f in result.branch.folds] == [(f.moment, f.phi0) for f in once.branch.folds]
     assert result.critical_moment == once.critical_moment and result.first_fold.confirmed
@@ -98,6 +100,7 @@ def test_an_onset_fold_the_second_trace_does_not_pass_makes_the_result_inaccurat
     result = critical_point(ChainParams(), "nonlinear")
     assert result.confirmation == "twice"
     assert result.fold.confirmed is False and not result.accurate
+    assert result.fold.discrepancy == pytest.approx(1e-6, rel=1e-6)
     assert result.to_dataset().attrs["accurate"] == 0
 
 
@@ -108,7 +111,7 @@ def test_critical_exits_inaccurate_and_still_prints_and_writes_an_unconfirmed_fo
     assert result.exit_code == EXIT_CODES[Status.INACCURATE] == 5, result.output
     summary = json.loads(result.stdout.splitlines()[0])["models"]["nonlinear"]
     assert summary["accurate"] is False and summary["folds"][0]["confirmed"] is False
-    assert "second trace" in result.output and out.exists()
+    assert "second trace" in result.output and "differ by up to 1e-06" in result.output and out.exists()
 
 
 def test_a_failed_second_trace_leaves_the_folds_unconfirmed_and_says_why(monkeypatch):
@@ -123,7 +126,8 @@ def test_a_failed_second_trace_leaves_the_folds_unconfirmed_and_says_why(monkeyp
     monkeypatch.setattr(critical, "continue_in_moment", traced)
     result = critical_point(ChainParams(), "sine")
     assert result.confirmation.startswith("the second trace failed: the corrector failed")
-    assert not result.accurate and all(f.confirmed is False for f in result.branch.folds)
+    assert not result.accurate and all(f.confirmed is False and f.discrepancy == math.inf for f in result.branch.folds)
+    assert result.as_dict()["folds"][0]["discrepancy"] is None  # JSON has no inf
 
 
 def test_a_chain_is_traced_twice_where_its_softest_eigenvalue_at_rest_nears_its_round_off():

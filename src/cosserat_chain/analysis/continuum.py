@@ -39,6 +39,7 @@ import scipy.sparse.linalg as spla
 from ..memory import require
 from ..models.base import upper_bands
 from ..models.linear import stiffness_matrix
+from ..numerics.refinement import refined_solve
 from ..params import ChainParams
 from ..state import pack, require_clamped, unpack
 
@@ -367,13 +368,15 @@ def discrete_residuals(params: ChainParams, moment: float = 1.0, *, D1: float | 
 def discrete_static(params: ChainParams, moment: float = 1.0) -> np.ndarray:
     """Static state (3, 2N+1) of the discrete linear model (iii) under the moment M on particle 0.
 
-    Solves K q = M e_phi0 with the model's sparse stiffness (derived coefficients).
+    Solves K q = M e_phi0 with the model's sparse stiffness (derived coefficients), refined
+    with residuals in extended precision (:func:`~cosserat_chain.numerics.refinement.refined_solve`:
+    K's condition number is about 4e16 at N = 10^4).
     """
     require_clamped(params, "the continuum comparison of Section 3")
     moment = _moment(moment)
     load = np.zeros((3, params.n_particles))
     load[2, params.N] = moment
-    return unpack(params, spla.spsolve(stiffness_matrix(params).tocsc(), pack(params, load)))
+    return unpack(params, refined_solve(stiffness_matrix(params), pack(params, load)).x)
 
 
 #: A discrete compliance whose two factorisations differ by more than this is flagged inaccurate.
@@ -399,10 +402,12 @@ class ConvergenceTable:
         Residue (12) per unit moment.
     discrete_spread : ndarray, shape (n,)
         Relative difference of phi_0 / M between two independent factorisations of K
-        (SuperLU and LAPACK's banded Cholesky): an estimate of the discrete value's own
-        error. It grows with K's condition number (about N^4: the clamped chain's softest
-        mode); beyond :data:`ACCURATE` the discrete value, and the relative error, are
-        not to be trusted (the paper's chain: 1.5e-7 at N = 1000, 4e-3 at N = 10^4).
+        (SuperLU and LAPACK's banded Cholesky), each refined with residuals in extended
+        precision: an estimate of the discrete value's own error. It grows with K's
+        condition number (about N^4: the clamped chain's softest mode); beyond
+        :data:`ACCURATE` the discrete value, and the relative error, are not to be trusted
+        (the paper's chain, refined: 2e-12 at N = 1000, 1e-9 at N = 10^4; the two
+        unrefined solves differed by 1.5e-7 and 4e-3).
     condition : ndarray, shape (n,)
         Condition number of K: its Gershgorin bound over its smallest eigenvalue (inverse
         iteration), within a factor of about two of the 2-norm one.
@@ -507,13 +512,13 @@ def convergence(params: ChainParams, n_values: list[int] | np.ndarray) -> Conver
 
 
 def _discrete_check(params: ChainParams) -> tuple[float, float]:
-    """phi_0 / M from LAPACK's banded Cholesky (independent of SuperLU) and K's condition number."""
+    """phi_0 / M from LAPACK's banded Cholesky (independent of SuperLU), refined as :func:`discrete_static`, and K's condition number."""
     stiffness = stiffness_matrix(params)
     bands = upper_bands(stiffness)
     load = np.zeros((3, params.n_particles))
     load[2, params.N] = 1.0
     factor = la.cholesky_banded(bands)
-    solution = unpack(params, la.cho_solve_banded((factor, False), pack(params, load)))
+    solution = unpack(params, refined_solve(stiffness, pack(params, load), lambda r: la.cho_solve_banded((factor, False), r)).x)
     # The smallest eigenvalue by inverse iteration with the factor (O(N) a step; LAPACK's
     # banded eigensolver is O(N^2): 73 s at N = 10^4), the largest bounded by Gershgorin.
     vector = np.random.default_rng(0).standard_normal(bands.shape[1])

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import typer
@@ -154,8 +155,11 @@ def critical(
         if r.branch.stop == "stalled":
             exit_on(Status.STEP_TOO_SMALL, f"the {name} branch: {r.branch.message}; M_c is the largest maximum of the traced part")
         if not r.accurate:
+            spread = max((f.discrepancy for f in (r.fold, r.first_fold) if f is not None and f.discrepancy is not None), default=math.inf)
             exit_on(
                 Status.INACCURATE,
-                f"the {name} branch: K is near singular at rest and the fold of M_c or the first fold was not passed by a second "
-                f"trace with other steps ({r.confirmation}): the folds are within round-off of the chain's stiffness",
+                f"the {name} branch: K is near singular at rest (a long chain: its condition number grows like N^4) and a second "
+                f"trace with other steps did not pass the fold of M_c or the first fold to round-off ({r.confirmation}; "
+                + ("no such fold in it" if not math.isfinite(spread) else f"its moments differ by up to {spread:.2g}")
+                + "): M_c is known only to that",
             )

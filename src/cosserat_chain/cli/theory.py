@@ -56,7 +56,7 @@ def theory(
         typer.echo("the continuum's error changes sign along this list: its 1/N fall holds only past the last change")
     for n, spread, condition in zip(table.N[~table.accurate], table.discrete_spread[~table.accurate], table.condition[~table.accurate]):
         typer.echo(
-            f"N = {n}: the discrete value is inaccurate: two factorisations of K differ by {spread:.1e} (relative; "
+            f"N = {n}: the discrete value is inaccurate: two factorisations of K, each refined in extended precision, differ by {spread:.1e} (relative; "
             f"K's condition number {condition:.1e}, about N^4: the clamped chain's softest mode), so its error is not the continuum's"
         )
     if order is not None:

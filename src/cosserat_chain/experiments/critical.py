@@ -48,7 +48,15 @@ import xarray as xr
 
 from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
-from ..numerics.continuation import Branch, BranchPoint, Fold, compliance, continue_in_moment, default_step
+from ..numerics.continuation import (
+    Branch,
+    BranchPoint,
+    Fold,
+    compliance,
+    continue_in_moment,
+    default_step,
+    require_branch_memory,
+)
 from ..numerics.newton import NewtonError, solve_equilibrium
 from ..numerics.stability import smallest_eigenvalue, static_stability
 from ..params import ChainParams
@@ -162,6 +170,7 @@ class CriticalResult:
                 "index_before": f.index_before,
                 "index_after": f.index_after,
                 "confirmed": f.confirmed,
+                "discrepancy": None if f.discrepancy is None or not math.isfinite(f.discrepancy) else f.discrepancy,
             }
             for f in self.branch.folds
         ]
@@ -254,6 +263,7 @@ def critical_point(
     """
     model = get_model(model)
     turn = 2 * math.pi
+    require_branch_memory(params, max_points)  # before the stiffness at rest that decides on a second trace
     twice = model.rotates and near_singular_at_rest(params, model)
     parts = 2 if twice else 1
     branch = continue_in_moment(params, model, particle=particle, phi0_stop=turn, max_points=max_points, progress=_part(progress, 0, parts))
@@ -296,20 +306,16 @@ def near_singular_at_rest(params: ChainParams, model: Model) -> bool:
 
 def confirm_folds(branch: Branch, others: list[Fold]) -> list[Fold]:
     """``branch``'s folds, each ``confirmed`` where ``others`` holds a fold of the same kind (maximum or minimum) within
-    :data:`CONFIRM_MOMENT_RTOL` times the branch's largest |M| in moment and :data:`CONFIRM_PHI0_ATOL` in phi_0."""
+    :data:`CONFIRM_MOMENT_RTOL` times the branch's largest |M| in moment and :data:`CONFIRM_PHI0_ATOL` in phi_0, and with
+    its ``discrepancy``: the moment difference to the nearest fold of the same kind in ``others``."""
     scale = float(np.max(np.abs(branch.moment)))
-    return [
-        replace(
-            f,
-            confirmed=any(
-                g.maximum == f.maximum
-                and abs(g.moment - f.moment) <= CONFIRM_MOMENT_RTOL * scale
-                and abs(g.phi0 - f.phi0) <= CONFIRM_PHI0_ATOL
-                for g in others
-            ),
-        )
-        for f in branch.folds
-    ]
+    out = []
+    for f in branch.folds:
+        kin = [g for g in others if g.maximum == f.maximum]
+        confirmed = any(abs(g.moment - f.moment) <= CONFIRM_MOMENT_RTOL * scale and abs(g.phi0 - f.phi0) <= CONFIRM_PHI0_ATOL for g in kin)
+        discrepancy = min((abs(g.moment - f.moment) for g in kin), default=math.inf)
+        out.append(replace(f, confirmed=confirmed, discrepancy=discrepancy))
+    return out
 
 
 def _part(progress: Callable[[float, float], None] | None, done: int, parts: int) -> Callable[[float, float], None] | None:
