@@ -26,7 +26,7 @@ Contract
 
 Where K's softest eigenvalue at rest lies within :data:`CONFIRM_MARGIN` times its
 round-off (a long clamped chain: its bending mode's eigenvalue falls like N^-4, within
-ten times its round-off from N of about 2000 on the paper's geometry), the branch is traced
+ten times its round-off from N of about 1500 on the paper's geometry), the branch is traced
 a second time with steps :data:`CONFIRM_STEP` times as long, and every fold is
 ``confirmed`` where that trace passes the same fold (:func:`confirm_folds`). A fold that
 only one trace passes is an artefact of round-off (N = 10^4: eleven small folds near
@@ -158,7 +158,7 @@ class CriticalResult:
         """JSON-ready: ``M_c`` (onset of rotation; null without a fold), ``onset`` ("fold" or "branch_point"),
         ``phi0_at_onset``, ``phi0_at_fold`` (the largest maximum's), ``largest_fold``, ``first_fold``, ``snap_through``,
         ``branch_points``, ``compliance``, ``branch_complete``, ``folds`` (every fold in order: moment, phi_0, maximum,
-        the index of K before and after it, ``confirmed``), ``confirmation``, ``accurate`` and the branch. Moments are in
+        the index of K before and after it, ``confirmed``, ``discrepancy``), ``confirmation``, ``accurate`` and the branch. Moments are in
         the parameters' units; ``moment_scale`` (E1 h^2) is the unit of the paper's dimensionless moment,
         ``M_c_dimensionless`` = M_c / (E1 h^2)."""
         scale = self.params.moment_scale

@@ -272,8 +272,10 @@ def largest_step(params: ChainParams, model: Model, particle: int) -> float:
         response = moment_response(params, model, particle=particle)
     except ValueError:
         return MAX_STEP_FACTOR * default_step(params)
-    per_radian = float(np.linalg.norm(response)) / abs(float(response[moment_dof(params, particle)]))
-    return max(MAX_STEP_FACTOR * default_step(params), 2 * PHI0_STEP * per_radian)
+    turn = abs(float(response[moment_dof(params, particle)]))
+    if not turn > 0.0:  # no rotation at rest: the first step's scale
+        return MAX_STEP_FACTOR * default_step(params)
+    return max(MAX_STEP_FACTOR * default_step(params), 2 * PHI0_STEP * float(np.linalg.norm(response)) / turn)
 
 
 def moment_slope(params: ChainParams, model: str | Model, x: np.ndarray, *, particle: int = 0) -> float:
