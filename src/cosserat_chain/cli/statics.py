@@ -104,7 +104,7 @@ def critical(
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
     """Critical moment M_c and phi_0 at the fold (to round-off), compliance, and the static branch over one turn."""
-    from ..experiments.critical import MAX_POINTS, critical_point
+    from ..experiments.critical import CONFIRM_MOMENT_RTOL, MAX_POINTS, critical_point
     from ..numerics.newton import NewtonError
 
     max_points = MAX_POINTS if max_points is None else max_points
@@ -159,7 +159,8 @@ def critical(
             exit_on(
                 Status.INACCURATE,
                 f"the {name} branch: K is near singular at rest (a long chain: its condition number grows like N^4) and a second "
-                f"trace with other steps did not pass the fold of M_c or the first fold to round-off ({r.confirmation}; "
+                f"trace with other steps did not pass the fold of M_c or the first fold within {CONFIRM_MOMENT_RTOL:g} of the "
+                f"branch's largest moment ({r.confirmation}; "
                 + ("no such fold in it" if not math.isfinite(spread) else f"its moments differ by up to {spread:.2g}")
                 + "): M_c is known only to that",
             )
