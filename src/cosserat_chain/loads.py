@@ -103,7 +103,11 @@ class Schedule:
 
     @classmethod
     def harmonic(cls, amplitude: float, frequency: float, phase: float = 0.0, offset: float = 0.0) -> Schedule:
-        """``offset + amplitude * sin(2 pi frequency t + phase)`` (``frequency`` in cycles per unit time)."""
+        """``offset + amplitude * sin(2 pi frequency t + phase)`` (``frequency`` in cycles per unit time).
+
+        :attr:`~cosserat_chain.analysis.dispersion.Modes.frequencies` are angular: to drive a
+        mode of angular frequency omega, pass ``frequency = omega / (2 pi)``.
+        """
         return cls((0.0,), (offset,), amplitude, frequency, phase)
 
     @property

@@ -278,7 +278,11 @@ class Modes:
 
     @property
     def frequencies(self) -> np.ndarray:
-        """Angular frequencies sqrt(omega^2), NaN for unstable or complex eigenvalues."""
+        """Angular frequencies sqrt(omega^2) (radians per unit time), NaN for unstable or complex eigenvalues.
+
+        :meth:`~cosserat_chain.loads.Schedule.harmonic` takes cycles per unit time: drive a
+        mode with ``frequency = omega / (2 pi)``.
+        """
         scale = max(float(np.max(np.abs(self.omega2))), 1.0) if self.omega2.size else 1.0
         real = np.abs(self.omega2.imag) <= 1e-9 * scale
         return np.where(real & (self.omega2.real >= 0), np.sqrt(np.abs(self.omega2.real)), np.nan)

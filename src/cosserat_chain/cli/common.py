@@ -57,7 +57,8 @@ class _App(typer.Typer):
         return decorate
 
 
-app = _App(add_completion=True, help="Discrete Cosserat chains of finite-size particles.", no_args_is_help=True)
+# No Rich markup in the help: it would take the TOML tables "[[loads]]" and "[reproduce]" for style tags and drop them.
+app = _App(add_completion=True, help="Discrete Cosserat chains of finite-size particles.", no_args_is_help=True, rich_markup_mode=None)
 
 #: The ``--model`` value that stands for every offered model (a name the registry reserves).
 ALL_MODELS = "all"

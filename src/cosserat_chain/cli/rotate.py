@@ -26,7 +26,7 @@ def rotate(
     model: str = model_option("nonlinear", "A model that supports full rotations (the linear model does not).", rotating=True),
     moment: float = number(..., "Constant moment M on the loaded particle (rotation needs M above M_c, see `critical`)."),
     turns: int = typer.Option(1500, min=1, help="Stop when the loaded particle has made this many full turns."),
-    t_max: float = number(100000.0, "Stop at this time if the turns are not made by then.", above=0.0, flags=("--t-max",)),
+    t_max: float = number(100000.0, "Stop at this time if the turns are not made by then (exit 4; --resume with a larger --t-max goes on).", above=0.0, flags=("--t-max",)),
     particle: int = typer.Option(0, help="Loaded particle, in -N+1..N-1 (default the central one)."),
     dt: float | None = number(None, "Time step (default 0.1 / highest linear frequency, rounded down to 10 bits).", above=0.0),
     load: list[str] | None = typer.Option(
@@ -45,7 +45,8 @@ def rotate(
     The classification compares the other particles' largest |phi|, |u| / h and |v| / h with the
     thresholds of a small motion; --json gives them as ``thresholds``.
 
-    Exit status: 0 done (turns made or t_max reached), 2 bad input, 3 blow-up, 130 interrupted (saved).
+    Exit status: 0 the turns made, 2 bad input, 3 blow-up, 4 --t-max reached first (saved; --resume with a larger
+    --t-max goes on), 5 inaccurate (a smaller --dt is needed), 130 interrupted (saved).
     """
     from ..experiments.localization import localization_run
     from ..numerics.dynamics import IntegrationError
