@@ -885,3 +885,163 @@ def errata(params: ChainParams | None = None) -> tuple[Erratum, ...]:
         "reading",
     )
     return (one, two, three, four, five, six, seven, eight, nine, ten)
+
+
+# --------------------------------------------------------------------------- the Timoshenko beam
+@dataclass(frozen=True)
+class TimoshenkoDerivation:
+    """The chain's Timoshenko beam derived from the linear bond energy (:mod:`cosserat_chain.analysis.timoshenko`).
+
+    Attributes
+    ----------
+    density : Expr
+        The bond energy over h in the bond's strains ``epsilon`` = du/h, ``kappa`` = dphi/h and
+        ``gamma`` = dv/h - (phi_k + phi_k+1)/2, exactly: EI/2 kappa^2 + GA/2 gamma^2 + EA/2 epsilon^2.
+    strain_corrections : tuple of 3 Expr
+        Those strains of smooth fields sampled at the bond's ends, less the beam's strains
+        u_x, phi_x, v_x - phi at its centre: O(h^2) each (h^2 u_xxx/24, h^2 phi_xxx/24,
+        h^2 (v_xxx/24 - phi_xx/8)).
+    stiffness : dict
+        ``EI``, ``GA``, ``EA`` read off ``density`` (in E1, E2, h, b, d, g).
+    claimed : dict
+        The same three as stated in the module: 2 E1 b^2 h, k_v h, k_u h; each equal to the derived one.
+    bond_shear : Expr
+        The shear strain dv/h - (phi_k + phi_k+1)/2 of one bond of the exact beam (shear
+        compliance ``c``, bending stiffness ``EI``, shear force ``Q``), which is
+        Q (c + h^2/(12 EI)).
+    bond_moment_is_midpoint : bool
+        Whether the bond's EI dphi/h is the beam's bending moment at the bond's centre.
+    paper_bending : bool
+        Whether 2 b^2 D1 = EI/h - GA h/4, with the derived D1: the paper's coefficient is the
+        beam's bending less a quarter of its shear moved from the bond's centre to the particle.
+    central_compliance : Expr
+        phi(0)/M of the clamped-clamped beam of length 2L under a moment at its centre, solved
+        from its general solution (symbols ``L``, ``EI``, ``c``).
+    error_coefficients : dict
+        Leading relative error of the loaded particle's compliance against the chain (the
+        beam with c = 1/GA - h^2/(12 EI), exact at the particles): ``"timoshenko"``, the
+        coefficient of 1/N^2 (3/4), and ``"paper"``, that of 1/N for eq. (11) (in D1, D2, E1).
+    """
+
+    density: Any
+    strain_corrections: tuple[Any, ...]
+    stiffness: dict[str, Any]
+    claimed: dict[str, Any]
+    bond_shear: Any
+    bond_moment_is_midpoint: bool
+    paper_bending: bool
+    central_compliance: Any
+    error_coefficients: dict[str, Any]
+
+    @property
+    def agrees(self) -> bool:
+        """Whether every claim holds: EI, GA, EA, the bond's shear and moment, and the paper's D1."""
+        return all(_equal(self.stiffness[k], self.claimed[k]) for k in self.stiffness) and self.bond_moment_is_midpoint and self.paper_bending
+
+
+@functools.cache
+def timoshenko_derivation() -> TimoshenkoDerivation:
+    """Derive the chain's Timoshenko beam with SymPy (cached; a few seconds on first call).
+
+    The bond energy of :func:`derivation`, written in the bond's three strains, is exactly h
+    times a Timoshenko density (no strain coupled to another); smooth fields sampled at the
+    bond's ends have those strains to O(h^2) (Taylor series about the bond's centre), so the
+    beam is the chain's long-wave limit, with errors O(h^2) where eq. (6), whose shear is
+    taken at the particle, keeps an O(h) one.
+    """
+    import sympy as sp
+
+    derived = derivation()
+    s = derived.symbols
+    E1, h, b = (s[n] for n in ("E1", "h", "b"))
+    # Step 1, exact: the bond energy in the bond's strains du/h, dphi/h, dv/h - (phi_k + phi_k+1)/2.
+    axial, bending, shear = sp.symbols("epsilon kappa gamma", real=True)
+    strains = {
+        s["u_p"]: s["u"] + h * axial,
+        s["phi_p"]: s["phi"] + h * bending,
+        s["v_p"]: s["v"] + h * (shear + s["phi"] + h * bending / 2),
+    }
+    density = sp.expand(derived.bond_energy.subs(strains, simultaneous=True) / h)
+    stiffness = {
+        "EI": _tidy(2 * density.coeff(bending, 2)),
+        "GA": _tidy(2 * density.coeff(shear, 2)),
+        "EA": _tidy(2 * density.coeff(axial, 2)),
+    }
+    leftover = density - sum(stiffness[k] / 2 * e**2 for k, e in (("EI", bending), ("GA", shear), ("EA", axial)))
+    if _eliminate_d(leftover) != 0:
+        raise ArithmeticError(f"the bond energy is not a sum of squares of its three strains: {density}")
+    # Step 2: smooth fields about the bond's centre give those strains to O(h^2).
+    x = sp.Symbol("x", real=True)
+    u_f, v_f, phi_f = (sp.Function(name)(x) for name in ("u", "v", "phi"))
+
+    def ends(f: Any) -> tuple[Any, Any]:
+        series = [sp.diff(f, x, n) * (h / 2) ** n / sp.factorial(n) for n in range(4)]
+        return sum((-1) ** n * t for n, t in enumerate(series)), sum(series)
+
+    (u0, u1), (v0, v1), (p0, p1) = ends(u_f), ends(v_f), ends(phi_f)
+    bond_strains = ((u1 - u0) / h, (p1 - p0) / h, (v1 - v0) / h - (p0 + p1) / 2)
+    centre = (sp.diff(u_f, x), sp.diff(phi_f, x), sp.diff(v_f, x) - phi_f)
+    corrections = tuple(sp.expand(bs - c) for bs, c in zip(bond_strains, centre))
+    if any(sp.expand(corr.subs(h, 0)) != 0 or sp.expand(sp.diff(corr, h).subs(h, 0)) != 0 for corr in corrections):
+        raise ArithmeticError(f"the bond's strains differ from the beam's at O(h): {corrections}")
+    coefficients = derived.coefficients
+    claimed = {"EI": 2 * E1 * b**2 * h, "GA": coefficients["k_v"] * h, "EA": coefficients["k_u"] * h}
+    paper_bending = _equal(2 * b**2 * coefficients["D1"], stiffness["EI"] / h - stiffness["GA"] * h / 4)
+
+    # One bond of the exact beam: Q constant, m = EI phi_x linear, v_x = phi + c Q.
+    EI, c, Q, m0, phi0, v0, L, M = sp.symbols("EI c Q m0 phi0 v0 L M", real=True)
+    phi = phi0 + (m0 * x - Q * x**2 / 2) / EI
+    v = v0 + sp.integrate(phi + c * Q, (x, 0, x))
+    bond_shear = sp.factor(sp.expand((v.subs(x, h) - v0) / h - (phi0 + phi.subs(x, h)) / 2))
+    midpoint = sp.expand(EI * (phi.subs(x, h) - phi0) / h - (m0 - Q * h / 2)) == 0
+
+    # The clamped-clamped beam under a central moment, from its general solution on each half.
+    C = sp.symbols("C1:9")
+
+    def general(k: int) -> tuple[Any, Any]:
+        c1, c2, c3, c4 = C[4 * k : 4 * k + 4]
+        return c1 * x**3 / 6 + c2 * x**2 / 2 + c3 * x + c4, c1 * x**2 / 2 + c2 * x + c3 + c * EI * c1
+
+    (v_left, phi_left), (v_right, phi_right) = general(0), general(1)
+
+    def moment(f: Any) -> Any:
+        return EI * sp.diff(f, x)
+
+    def force(f: Any) -> Any:
+        return -sp.diff(moment(f), x)
+
+    conditions = [
+        v_left.subs(x, -L),
+        phi_left.subs(x, -L),
+        v_right.subs(x, L),
+        phi_right.subs(x, L),
+        (v_right - v_left).subs(x, 0),
+        (phi_right - phi_left).subs(x, 0),
+        (moment(phi_right) - moment(phi_left)).subs(x, 0) + M,
+        (force(phi_right) - force(phi_left)).subs(x, 0),
+    ]
+    solved = sp.solve(conditions, C, dict=True)[0]
+    central = sp.factor(phi_right.subs(solved).subs(x, 0) / M)
+
+    # Leading errors in 1/N against the chain, the beam with c* = 1/GA - h^2/(12 EI) (L = N h).
+    n_inv, GA, D1, D2 = sp.symbols("n_inv GA D1 D2", positive=True)
+    chain = central.subs(c, 1 / GA - h**2 / (12 * EI)).subs(L, h / n_inv)
+    beam = central.subs(c, 1 / GA).subs(L, h / n_inv)
+    timoshenko = sp.limit(sp.cancel((beam - chain) / chain) / n_inv**2, n_inv, 0)
+    Lh = h / n_inv
+    den = h * (24 * h**2 * D1**2 + (8 * Lh**2 + 6 * h**2) * D1 * D2 + Lh * (2 * Lh - h) * D2**2)
+    paper = Lh * (12 * h**2 * D1 + Lh**2 * D2) / (2 * b**2 * den)
+    # In the paper's variables: EI = 2 b^2 h E1 = 2 b^2 h (D1 + D2/4), GA = 2 b^2 D2 / h.
+    in_d = {EI: 2 * b**2 * h * (D1 + D2 / 4), GA: 2 * b**2 * D2 / h}
+    paper_error = sp.factor(sp.limit(sp.cancel((paper - chain.subs(in_d)) / chain.subs(in_d)) / n_inv, n_inv, 0))
+    return TimoshenkoDerivation(
+        density=density,
+        strain_corrections=corrections,
+        stiffness=stiffness,
+        claimed={k: _tidy(v) for k, v in claimed.items()},
+        bond_shear=bond_shear,
+        bond_moment_is_midpoint=midpoint,
+        paper_bending=paper_bending,
+        central_compliance=central,
+        error_coefficients={"timoshenko": timoshenko, "paper": paper_error},
+    )
