@@ -269,6 +269,8 @@ class _Stage:
         self.shared: dict[str, Any] = {}
         #: Every file written, relative to ``out`` (the manifest).
         self.written: set[str] = set()
+        #: How far the running stage is, for :func:`reproduce`'s ``progress`` (set by it).
+        self.progress: Callable[[str], None] = lambda detail: None
         (out / "figures").mkdir(parents=True, exist_ok=True)
         (out / "data").mkdir(parents=True, exist_ok=True)
 
@@ -280,6 +282,18 @@ class _Stage:
         if model not in exact:
             exact[model] = critical_point(self.params, model)
         return exact[model]
+
+    def within(self, what: str, unit: str) -> Callable[[float, float], None]:
+        """A library ``progress(done, total)`` callback that reports ``what`` of the running stage: whole counts
+        of ``unit`` as such, a quantity that is not a count as a whole percentage."""
+
+        def progress(done: float, total: float) -> None:
+            if float(done).is_integer() and float(total).is_integer():
+                self.progress(f"{what} {int(done)}/{int(total)} {unit}")
+            elif total > 0:
+                self.progress(f"{what} {min(100, int(100 * done / total))} %")
+
+        return progress
 
     def load(self, model: str, configured: float) -> tuple[float, str]:
         """:func:`above_critical` for ``model`` on this chain."""
@@ -333,7 +347,7 @@ def _statics(stage: _Stage) -> Section:
     largest = max((e.critical_moment for e in exact.values() if e.critical_moment is not None), default=0.0)
     # The protocol must pass every fold to show an onset: raise its top for a stiffer chain.
     m_max = max(s.m_max, math.ceil(ABOVE_CRITICAL * largest / s.dm) * s.dm)
-    sweeps = {m: relaxation_sweep(p, m, m_max=m_max, dm=s.dm, down=True) for m in MODELS}
+    sweeps = {m: relaxation_sweep(p, m, m_max=m_max, dm=s.dm, down=True, progress=stage.within(f"{m} sweep", "loads")) for m in MODELS}
     stage.shared.update(sweeps=sweeps)
     stage.data("critical", stack_models({m: r.to_dataset() for m, r in exact.items()}))
     stage.data("sweep", stack_models({m: r.to_dataset() for m, r in sweeps.items()}))
@@ -512,7 +526,7 @@ def _orbits(stage: _Stage) -> Section:
     critical = stage.critical(model)
     moment, relation = stage.load(model, s.orbit_moment)
     sweep = stage.shared.get("sweeps", {}).get(model) or relaxation_sweep(p, model, m_max=max(s.m_max, moment), dm=s.dm, down=True)
-    result = periodic_orbit(p, model, moment, down_to=min(s.orbit_down_to, moment))
+    result = periodic_orbit(p, model, moment, down_to=min(s.orbit_down_to, moment), progress=stage.within("continuation", "orbits"))
     stage.data("orbits", result.to_dataset())
     branch = result.branch
     numbers = {
@@ -588,7 +602,7 @@ def _state_map(stage: _Stage) -> Section:
         values = s.diagram_damping.get(model, ())
         if not values:
             continue
-        result = state_diagram(p, model, "gamma_phi", list(values))
+        result = state_diagram(p, model, "gamma_phi", list(values), progress=stage.within(model, "values"))
         stage.data(f"diagram_{model}", result.to_dataset())
         numbers[model] = result.as_dict()["rows"]
         for row in result.rows:
@@ -651,7 +665,7 @@ def _localization(stage: _Stage) -> Section:
     relations = {}
     for m in ROTATING:
         moment, relations[m] = stage.load(m, s.rotation_moment[m])
-        result = localization_run(p, m, moment, turns=s.turns, t_max=100.0 * s.turns)
+        result = localization_run(p, m, moment, turns=s.turns, t_max=100.0 * s.turns, progress=stage.within(m, "turns"))
         stage.data(f"localization_{m}", result.to_dataset())
         d = result.as_dict()
         numbers[m] = d
@@ -971,8 +985,10 @@ def reproduce(
     settings : ReproduceSettings, optional
     stages : list of str, optional
         A subset of :data:`STAGES` (default all, in order).
-    progress : callable(stage_name, index, total), optional
-        Called before each stage.
+    progress : callable(name, done, total), optional
+        How far the report is, in whole stages: called before each stage with its name and
+        the number of stages done, during a long stage with ``"stage: detail"`` (``"state_map:
+        sine 2/6 values"``) and the same count, and at the end with ``("done", total, total)``.
 
     Returns
     -------
@@ -995,6 +1011,7 @@ def reproduce(
     for i, name in enumerate(names):
         if progress is not None:
             progress(name, i, len(names))
+            stage.progress = lambda detail, name=name, i=i: progress(f"{name}: {detail}", i, len(names))
         start = time.perf_counter()
         try:
             section = STAGES[name](stage)
@@ -1003,6 +1020,8 @@ def reproduce(
             section = Section(name, error=f"{type(err).__name__}: {err}\n\n{traceback.format_exc(limit=4)}")
         section.seconds = time.perf_counter() - start
         sections.append(section)
+    if progress is not None:
+        progress("done", len(names), len(names))
     table = claims(dict(zip(names, sections)), settings)
     summary = {
         "claims": [dict(zip(CLAIMS_HEADER, row)) for row in table],

@@ -184,9 +184,61 @@ def config_or_exit(config: Path | None, load: list[str] | None = None) -> tuple[
         fail(str(err))
 
 
-def progress_bar(desc: str, unit: str) -> tqdm:
-    """A tqdm bar on stderr, shown only on a terminal (``disable=None``)."""
-    return tqdm(total=None, unit=unit, unit_scale=True, desc=desc, disable=None, file=sys.stderr)
+class ProgressBar(tqdm):
+    """A tqdm bar of whole counts that ends at 100 % when the work is done, or says why it stopped.
+
+    A command ends it with :meth:`finish` once its computation has returned; a bar closed
+    while an exception is raised (a bad input found late, Ctrl-C, an error) is marked
+    ``stopped`` with the exception's name, its count left where the work stopped.
+    """
+
+    _ended = False
+
+    def finish(self, status: str | None = None, note: str = "") -> None:
+        """Close the bar after the computation returned with ``status`` (None: a result).
+
+        A result ends at 100 %: the work there was is the count reached, where the work
+        ended before its nominal total (a continuation that ended at a fold before its cap
+        of points, a sweep that stopped at the onset); ``note`` says why, shown beside the
+        count. Any other :class:`~cosserat_chain.status.Status` (``blew_up``,
+        ``time_limit``, ``interrupted``, ...) leaves the count where the work stopped and
+        shows ``stopped: STATUS``.
+        """
+        if not self.disable:
+            if status is not None and not Status(status).ok:
+                self.set_postfix_str(f"stopped: {Status(status)}" + (f" ({note})" if note else ""), refresh=False)
+            else:
+                if self.unit == "%":
+                    self.update(100 - self.n)
+                else:
+                    # The count reached is all the work there was (a bar never updated ran one piece of work).
+                    self.update(1 if self.n == 0 else 0)
+                    self.total = self.n
+                if note:
+                    self.set_postfix_str(note, refresh=False)
+        self._ended = True
+        self.close()
+
+    def close(self) -> None:
+        self._stopped_by(sys.exc_info()[0])
+        super().close()
+
+    def _stopped_by(self, error: type[BaseException] | None) -> None:
+        if not self._ended and not self.disable and error is not None:
+            self.set_postfix_str(f"stopped: {error.__name__}", refresh=False)
+        self._ended = True
+
+    def __exit__(self, exc_type, exc_value, traceback) -> None:
+        if exc_type is None:
+            self.finish()
+        else:
+            self._stopped_by(exc_type)
+            self.close()
+
+
+def progress_bar(desc: str, unit: str) -> ProgressBar:
+    """A :class:`ProgressBar` on stderr, shown only on a terminal (``disable=None``), counting whole ``unit``s."""
+    return ProgressBar(total=None, unit=unit, unit_scale=False, desc=desc, disable=None, file=sys.stderr)
 
 
 def bar_callback(bar: tqdm):
@@ -194,16 +246,19 @@ def bar_callback(bar: tqdm):
 
     Whole counts (steps, loads, turns) are shown as they are; a quantity that is not a
     count (the loaded particle's angle along a branch, in radians) as a whole percentage,
-    so that the bar never shows fractions and reaches 100 % when the work is done.
+    so that the bar never shows fractions; :meth:`ProgressBar.finish` takes either to
+    100 % when the work is done.
     """
 
     def progress(done: float, total: float) -> None:
-        if float(done).is_integer() and float(total).is_integer():
+        if bar.disable:
+            return
+        if bar.unit != "%" and float(done).is_integer() and float(total).is_integer():
             bar.total = int(total)
             bar.update(int(done) - bar.n)
             return
-        bar.unit, bar.unit_scale, bar.total = "%", False, 100
-        bar.update(min(100, int(100 * done / total)) - bar.n if total > 0 else 0)
+        bar.unit, bar.total = "%", 100
+        bar.update(max(0, min(100, int(100 * done / total))) - bar.n if total > 0 else 0)
 
     return progress
 

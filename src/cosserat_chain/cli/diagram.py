@@ -69,7 +69,7 @@ def diagram(
     except ValueError as err:
         bar.close()
         fail(str(err))
-    bar.close()
+    bar.finish()
     save_dataset(result.to_dataset(), out)
     if plot is not None:
         from ..plots.diagram import diagram_figure

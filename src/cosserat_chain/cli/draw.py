@@ -35,7 +35,7 @@ def _load_run(run: Path | None, model: str, moment: float, t_end: float, config:
     except ValueError as err:
         bar.close()
         fail(str(err))
-    bar.close()
+    bar.finish(ds.attrs["status"])
     if ds.attrs["status"] != Status.COMPLETED:
         typer.secho(f"{ds.attrs['status']}: {ds.attrs['message']}; drawing what was computed", err=True, fg=typer.colors.YELLOW)
     return ds
@@ -104,11 +104,8 @@ def animate(
     ds = _load_run(run, model, moment, t_end, config, n_frames=max(stored, 201))
     try:
         count = frame_indices(ds.time.values, t_start, t_stop, frames).size
-        bar = progress_bar("animate", "frame")
-        try:
+        with progress_bar("animate", "frame") as bar:
             write_animation(None, ds, out, t_start=t_start, t_stop=t_stop, max_frames=frames, fps=fps, progress=bar_callback(bar))
-        finally:
-            bar.close()
     except (ValueError, RuntimeError) as err:
         fail(str(err))
     typer.echo(f"wrote {out} ({count} frames)")

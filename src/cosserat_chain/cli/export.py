@@ -33,5 +33,5 @@ def export(
     except (OSError, ValueError) as err:
         bar.close()
         fail(f"could not export to {str(out)!r}: {err}", code=3)
-    bar.close()
+    bar.finish()
     typer.echo(f"wrote {out} ({ds.sizes['time']} frames, {to.value})")

@@ -63,7 +63,7 @@ def orbit(
     except OrbitError as err:
         bar.close()
         fail(str(err), code=3)
-    bar.close()
+    bar.finish(note=f"the branch ended: {result.branch.end}" if result.branch is not None else "")
     save_dataset(result.to_dataset(), out)
     if plot is not None:
         from ..plots.orbits import rotation_characteristic_figure

@@ -64,8 +64,9 @@ def reproduce(
 
     def progress(name: str, done: int, total: int) -> None:
         bar.total = total
-        bar.set_postfix_str(name)
+        bar.set_postfix_str(name, refresh=False)
         bar.update(done - bar.n)
+        bar.refresh()
 
     try:
         report = run_report(out, params, settings, progress=progress)

@@ -75,7 +75,7 @@ def rotate(
     except IntegrationError as err:
         bar.close()
         fail(str(err), code=3)
-    bar.close()
+    bar.finish(result.status)
     save_dataset(result.to_dataset(), out)
     summary = result.as_dict()
     if as_json:

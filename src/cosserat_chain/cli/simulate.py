@@ -145,7 +145,7 @@ def simulate(
     except ValueError as err:
         bar.close()
         fail(str(err))
-    bar.close()
+    bar.finish(ds.attrs["status"])
     if x0 is not None:
         ds.attrs["started_from"] = f"{x0} at t = {t0!r}"
     save_dataset(ds, out)

@@ -54,7 +54,7 @@ def states(
     except IntegrationError as err:
         bar.close()
         fail(str(err), code=EXIT_CODES[Status.BLEW_UP])
-    bar.close()
+    bar.finish()
     if as_json:
         typer.echo(json.dumps({"params": params.model_dump(), **result.as_dict()}))
     else:

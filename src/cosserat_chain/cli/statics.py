@@ -69,7 +69,7 @@ def sweep(
         except ValueError as err:
             bar.close()
             fail(str(err))
-        bar.close()
+        bar.finish(None if result.completed else Status.INTERRUPTED)
         results[name] = result
         if not result.completed:
             interrupted = True
@@ -89,6 +89,13 @@ def sweep(
             typer.echo(f"{name}: {len(r.moment)} load steps, onset of rotation at M = {onset}{stop}")
     if interrupted:
         exit_on(Status.INTERRUPTED, "the finished load steps are kept")
+    for name, r in results.items():
+        unsettled = sum(1 for status in r.status if status == Status.NOT_CONVERGED)
+        if unsettled:
+            message = f"{name}: {unsettled} of {len(r.status)} load steps neither came to rest nor rotated steadily within --t-max {t_max:g}"
+            if unsettled == len(r.status):
+                exit_on(Status.NOT_CONVERGED, f"no load step converged ({message}); raise --t-max")
+            typer.secho(f"warning: {message}; their status is not_converged", err=True, fg=typer.colors.YELLOW)
 
 
 @app.command()
@@ -118,7 +125,7 @@ def critical(
         except (ValueError, NewtonError) as err:
             bar.close()
             fail(str(err), code=2 if isinstance(err, ValueError) else 3)
-        bar.close()
+        bar.finish()
     save_dataset(stack_models({name: r.to_dataset() for name, r in results.items()}), out)
     if plot is not None:
         from ..plots.statics import figure2

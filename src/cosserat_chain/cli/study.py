@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from ..io import read_config
+from ..status import Status
 from .common import app, bar_callback, exit_on, fail, outputs_or_exit, progress_bar, save_figure
 
 
@@ -28,6 +29,11 @@ def study(
         help="A constant load ROW:PARTICLE=VALUE acting on every cell besides the moment (relaxation quantities); repeatable.",
     ),
     plot: Path | None = typer.Option(None, help="Draw maps (two swept fields) or lines (one) of the quantities to this PNG/SVG file."),
+    dashboard: bool = typer.Option(
+        False,
+        "--dashboard",
+        help="Serve the embedded cluster's Dask dashboard on 127.0.0.1 and print its address (default: no dashboard).",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print a summary and every cell's values as one JSON object."),
 ) -> None:
     """Compute the quantities of a parameter study over every cell of its grid, in chunks of cells per Dask task."""
@@ -48,11 +54,14 @@ def study(
         fail(str(err))
     bar = progress_bar("study", "cell")
     try:
-        run = run_study(spec, out=out, scheduler=scheduler, workers=workers, chunk=chunk, progress=bar_callback(bar))
+        run = run_study(
+            spec, out=out, scheduler=scheduler, workers=workers, chunk=chunk, progress=bar_callback(bar),
+            dashboard=(lambda address: typer.echo(f"Dask dashboard: {address}", err=True)) if dashboard else None,
+        )  # fmt: skip
     except (ValueError, ClusterError) as err:
         bar.close()
         fail(str(err))
-    bar.close()
+    bar.finish(run.status)
     if plot is not None:
         from ..plots.study import study_figure
 
@@ -82,6 +91,13 @@ def study(
         exit_on(
             run.status, f"{run.message}; the finished cells are saved" + ("" if out is None else "; run the same command again to resume")
         )
+    if run.failed:
+        done = run.computed + run.skipped
+        first = next(str(e) for e in ds["error"].values.ravel() if str(e))
+        message = f"{run.failed} of {done} cells failed (their error is in the file and the JSON; the first: {first})"
+        if run.failed == done:
+            exit_on(Status.FAILED, f"no cell succeeded: {message}")
+        typer.secho(f"warning: {message}", err=True, fg=typer.colors.YELLOW)
 
 
 def _plain(value):
