@@ -164,3 +164,43 @@ def test_bad_loads_and_positions_are_refused_naming_them():
         loaded_particle(4, 2.0)
     with pytest.raises(ValueError, match="load must be one of"):
         convergence(params, [4], load="torque")
+
+
+def test_theory_cli_prints_the_beam_beside_eq11_and_writes_json_figure_and_netcdf(tmp_path):
+    import json
+
+    import xarray as xr
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    figure, table = tmp_path / "errors.png", tmp_path / "beam.nc"
+    result = CliRunner().invoke(app, ["theory", "--n-list", "10,40,160", "--json", "--plot", str(figure), "--out", str(table)])
+    assert result.exit_code == 0, result.output
+    beam = json.loads(result.stdout)["timoshenko"]
+    library = convergence(ChainParams(), [10, 40, 160])
+    assert beam["timoshenko"] == pytest.approx(list(library.timoshenko), rel=ROUND_OFF)
+    assert beam["discrete"] == pytest.approx(list(library.discrete), rel=1e-10)
+    assert beam["timoshenko_order"] == pytest.approx(2.0, abs=0.05) and beam["paper_order"] == pytest.approx(1.0, abs=0.1)
+    assert beam["EI"] == pytest.approx(2 * 0.2**2) and figure.read_bytes().startswith(b"\x89PNG")
+    with xr.open_dataset(table) as written:
+        np.testing.assert_allclose(written["timoshenko_error"], library.timoshenko_error, rtol=1e-9)
+        assert json.loads(written.attrs["params_json"])["E1"] == 1.0 and written.attrs["model"] == "linear"
+    text = CliRunner().invoke(app, ["theory", "--n-list", "10,40"])
+    assert "Timoshenko beam of the chain" in text.stdout and "measured order of Timoshenko's error" in text.stdout
+
+
+def test_theory_cli_takes_other_ends_and_loads_and_refuses_bad_ones_naming_the_option(tmp_path):
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    config = tmp_path / "cantilever.toml"
+    config.write_text('right_end = "free"\n')
+    runner = CliRunner()
+    result = runner.invoke(app, ["theory", "--config", str(config), "--at", "1", "--load", "force", "--n-list", "10,20"])
+    assert result.exit_code == 0, result.output
+    assert "eq. (11) is the paper's chain only" in result.stdout
+    for args, words in ((["--at", "0.5", "--n-list", "3"], "--at"), (["--load", "torque"], "--load")):
+        bad = runner.invoke(app, ["theory", *args])
+        assert bad.exit_code == 2 and words in bad.output

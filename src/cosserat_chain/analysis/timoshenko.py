@@ -373,6 +373,42 @@ class BeamConvergence:
         resolved = self._resolved(error) & np.isfinite(error)
         return _fit_order(self.N[resolved], error[resolved])
 
+    def to_dataset(self, params: ChainParams):
+        """The table as an xarray Dataset over ``N``, with the chain's parameters, model and version in its attributes."""
+        import json
+
+        import xarray as xr
+
+        from .. import __version__
+
+        names = {
+            "discrete": "compliance of the loaded particle, discrete linear chain (iii)",
+            "timoshenko": "compliance of the loaded particle, Timoshenko beam (shear compliance 1/GA)",
+            "nodal": "compliance of the loaded particle, beam with shear compliance 1/GA - h^2/(12 EI)",
+            "paper": "compliance phi(0)/M of the paper's eq. (11) (NaN where it does not apply)",
+            "timoshenko_error": "(timoshenko - discrete) / discrete",
+            "paper_error": "(paper - discrete) / discrete",
+            "discrete_error": "estimated relative error of the discrete compliance",
+        }
+        data = {name: ("N", np.asarray(getattr(self, name), dtype=float), {"long_name": text, "units": "1"}) for name, text in names.items()}
+        data["particle"] = ("N", self.particle, {"long_name": "loaded particle", "units": "1"})
+        dataset = xr.Dataset(data, coords={"N": ("N", self.N, {"long_name": "half-length of the chain (2N+1 particles)", "units": "1"})})
+        orders = {f"{which}_order": self.order(which) for which in ("timoshenko", "paper")}
+        dataset.attrs.update(
+            {
+                "title": "Timoshenko beam and eq. (11) against the discrete linear chain",
+                "experiment": "beam_convergence",
+                "load": self.load,
+                "params_json": json.dumps(params.model_dump()),
+                "model": "linear",
+                "model_equation": "eq. (3)",
+                "cosserat_chain_version": __version__,
+                **{key: np.nan if value is None else value for key, value in orders.items()},
+                **{f"beam_{key}": value for key, value in beam_stiffness(params).as_dict().items()},
+            }
+        )
+        return dataset
+
     def as_dict(self) -> dict[str, object]:
         """Columns as lists and the two orders (for JSON); NaN becomes None."""
 

@@ -8,7 +8,7 @@ from typing import Any
 
 import typer
 
-from .common import app, fail, params_or_exit
+from .common import app, fail, outputs_or_exit, params_or_exit, save_dataset, save_figure
 
 
 def parse_n_list(text: str) -> list[int]:
@@ -25,30 +25,83 @@ def parse_n_list(text: str) -> list[int]:
 @app.command()
 def theory(
     config: Path | None = typer.Option(
-        None, help="TOML file with ChainParams fields (E1, E2, h, a, b, m, j, gamma_u, gamma_v, gamma_phi, N)."
+        None, help="TOML file with ChainParams fields (E1, E2, h, a, b, m, j, gamma_u, gamma_v, gamma_phi, N, left_end, right_end)."
     ),
     n_list: str = typer.Option("3,10,100", "--n-list", help="Chain half-lengths N to compare (2N+1 particles), comma-separated."),
+    at: float = typer.Option(
+        0.0, "--at", help="Position x0/L of the loaded particle in [-1, 1] (0: the centre, 1: the right end); at N must be an integer for every N."
+    ),
+    load: str = typer.Option("moment", "--load", help="Load on that particle: 'moment' (compliance phi/M) or 'force' (transverse, v/F)."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+    plot: Path | None = typer.Option(None, "--plot", help="Write the errors of the Timoshenko beam and eq. (11) against N to this PNG or SVG file."),
+    out: Path | None = typer.Option(None, "--out", help="Write the Timoshenko table to this NetCDF file."),
 ) -> None:
-    """Continuum phi_0/M (eq. 11) against the discrete linear chain per N, the residue (12), and the paper's errata."""
+    """The chain's continua against the discrete linear chain per N: the Timoshenko beam (order 2), eq. (11) (order 1), and the errata.
+
+    Eq. (11) is the paper's (both ends clamped, a moment on particle 0); the Timoshenko beam
+    takes any ends that hold the chain and any loaded particle.
+    """
     import numpy as np
 
     from ..analysis.continuum import convergence, printed_D1
     from ..analysis.symbolic import errata
+    from ..analysis.timoshenko import LOADS, beam_stiffness, loaded_particle
+    from ..analysis.timoshenko import convergence as beam_convergence
 
+    outputs_or_exit({"--plot": plot, "--out": out}, {"--config": config})
     params = params_or_exit(config)
     n_values = parse_n_list(n_list)
+    if load not in LOADS:
+        fail(f"--load must be one of {', '.join(LOADS)}, got {load!r}")
     try:
-        table = convergence(params, n_values)
+        for n in n_values:
+            loaded_particle(n, at)
+    except ValueError as err:
+        fail(f"--at {at!r}: {err}")
+    paper_applies = params.clamped and at == 0.0 and load == "moment"
+    try:
+        beam = beam_convergence(params, n_values, at=at, load=load)
+        stiffness = beam_stiffness(params)
+        table = convergence(params, n_values) if paper_applies else None
     except ValueError as err:
         fail(str(err))
-    listed = errata(params)
-    accurate = table.accurate
-    order = table.order() if len(set(table.N[accurate])) >= 2 and all(table.relative_error[accurate] > 0) else None
+    waves = _long_waves(params)
+    if out is not None:
+        save_dataset(beam.to_dataset(params), out)
+    if plot is not None:
+        from ..plots.theory import plot_beam_convergence  # matplotlib only when plotting
+
+        save_figure(plot_beam_convergence(beam), plot)
+    # The errata are about the paper's chain: a chain with other ends gets them for its clamped twin.
+    paper_chain = params if params.clamped else params.replace(left_end="clamped", right_end="clamped")
+    listed = errata(paper_chain)
+    order = None
+    if table is not None:
+        accurate = table.accurate
+        order = table.order() if len(set(table.N[accurate])) >= 2 and all(table.relative_error[accurate] > 0) else None
     if as_json:
-        typer.echo(json.dumps(_summary(params, table, order, listed)))
+        summary = _summary(params, table, order, listed)
+        summary["timoshenko"] = {**stiffness.as_dict(), **beam.as_dict(), "at": at, "waves": waves}
+        summary.update({"plot": str(plot) if plot else None, "out": str(out) if out else None})
+        typer.echo(json.dumps(summary))
         return
     typer.echo(f"D1 = {params.D1:.6g} (derived; printed in Section 3: {printed_D1(params):.6g}), D2 = {params.D2:.6g}")
+    if table is not None:
+        _print_paper(table, order)
+    else:
+        typer.echo(f"eq. (11) is the paper's chain only (both ends clamped, a moment on particle 0); this one has {params.describe_ends()}, --at {at:g}, --load {load}")
+    _print_beam(params, stiffness, beam, waves)
+    typer.echo(f"\nerrata of the paper (docs/errata.md), evaluated for N = {params.N}{'' if params.clamped else ' with both ends clamped'}:")
+    for item in listed:
+        typer.echo(f"  {item.number}. {item.where}: printed {item.printed}; derived {item.derived}.\n     {item.consequence}")
+    for path in (plot, out):
+        if path is not None:
+            typer.echo(f"wrote {path}")
+
+
+def _print_paper(table, order: float | None) -> None:
+    import numpy as np
+
     typer.echo(f"{'N':>8}  {'continuum phi0/M':>17}  {'discrete phi0/M':>16}  {'(c - d) / d':>11}  {'residue (12)':>12}")
     for n, c, d, e, r, ok in zip(table.N, table.continuum, table.discrete, table.signed_error, table.residue, table.accurate):
         typer.echo(f"{n:>8d}  {c:>17.8g}  {d:>16.8g}  {e:>+11.3e}  {r:>12.3e}" + ("" if ok else "  (inaccurate)"))
@@ -61,15 +114,54 @@ def theory(
         )
     if order is not None:
         typer.echo(f"observed order of the relative error: N^-{order:.3f}")
-    typer.echo(f"\nerrata of the paper (docs/errata.md), evaluated for N = {params.N}:")
-    for item in listed:
-        typer.echo(f"  {item.number}. {item.where}: printed {item.printed}; derived {item.derived}.\n     {item.consequence}")
+
+
+def _print_beam(params, stiffness, beam, waves: dict[str, Any]) -> None:
+    typer.echo(
+        f"\nTimoshenko beam of the chain (bond-centred shear): EI = 2 E1 b^2 h = {stiffness.EI:.6g}, GA = k_v h = {stiffness.GA:.6g}, "
+        f"EA = k_u h = {stiffness.EA:.6g}\n  the chain is, at its particles, the beam with shear compliance 1/GA - h^2/(12 EI) = "
+        f"{stiffness.nodal_shear_compliance:.6g} (1/GA = {stiffness.shear_compliance:.6g})"
+    )
+    what = "phi/M" if beam.load == "moment" else "v/F"
+    typer.echo(
+        f"{'N':>8}  {'particle':>8}  {'discrete ' + what:>16}  {'Timoshenko':>16}  {'(T - d) / d':>11}  {'eq. (11)':>16}  {'(11 - d) / d':>12}  {'discrete error':>14}"
+    )
+    for n, k, d, t, et, p, ep, de in zip(
+        beam.N, beam.particle, beam.discrete, beam.timoshenko, beam.timoshenko_error, beam.paper, beam.paper_error, beam.discrete_error
+    ):
+        paper = f"{p:>16.10g}  {ep:>+12.3e}" if p == p else f"{'n/a':>16}  {'n/a':>12}"
+        typer.echo(f"{n:>8d}  {k:>8d}  {d:>16.10g}  {t:>16.10g}  {et:>+11.3e}  {paper}  {de:>14.1e}")
+    for which, label in (("timoshenko", "Timoshenko"), ("paper", "eq. (11)")):
+        order = beam.order(which)
+        if order is not None:
+            typer.echo(f"measured order of {label}'s error: N^-{order:.3f}")
+        elif which == "timoshenko":
+            typer.echo(f"{label}'s error is not above the discrete value's own at two N (it is exact where shear takes no part)")
+    typer.echo(
+        f"long waves (q = {waves['q']:g} per particle): the Timoshenko branches are within {max(waves['timoshenko_error']):.1e} of the chain's "
+        f"(order q^2); eq. (6)'s acoustic omega^2 is {waves['paper_acoustic_ratio']:.4g} times the chain's (D1/E1: its bending is D1, the chain's E1)"
+    )
+
+
+def _long_waves(params) -> dict[str, Any]:
+    """The continua's branches against the chain's at one long wave, q = 0.05 per particle."""
+    from ..analysis.dispersion import continuum_dispersion, dispersion
+    from ..analysis.timoshenko import timoshenko_dispersion
+
+    q = 0.05
+    chain, beam = dispersion(params, q).omega2[:, 0], timoshenko_dispersion(params, q).omega2[:, 0]
+    paper = continuum_dispersion(params, q).omega2[:, 0]
+    return {
+        "q": q,
+        "timoshenko_error": [float(abs(b / c - 1.0) / 2) for b, c in zip(beam, chain)],
+        "paper_acoustic_ratio": float(paper[1] / chain[1]),
+    }
 
 
 def _summary(params, table, order: float | None, listed) -> dict[str, Any]:
     from ..analysis.continuum import printed_D1
 
-    columns = table.as_dict()
+    columns = table.as_dict() if table is not None else {}
     return {
         "params": params.model_dump(),
         "D1": params.D1,

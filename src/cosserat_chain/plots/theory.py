@@ -4,7 +4,8 @@ Contract
 --------
 :func:`plot_profiles` draws the continuum solution (11) against the discrete linear
 statics (v_k and phi_k), :func:`plot_convergence` the relative error of phi_0 / M
-and the residue (12) against N on log axes, :func:`plot_dispersion` the branches
+and the residue (12) against N on log axes, :func:`plot_beam_convergence` the errors of
+the Timoshenko beam and of eq. (11) against N, :func:`plot_dispersion` the branches
 omega(q) with the transverse-rotational band gap shaded. Each takes the result
 objects of :mod:`cosserat_chain.analysis.continuum` and
 :mod:`cosserat_chain.analysis.dispersion` and an optional Axes, and returns the
@@ -20,6 +21,7 @@ from matplotlib.ticker import NullFormatter
 
 from ..analysis.continuum import ConvergenceTable, ProfileComparison
 from ..analysis.dispersion import BRANCHES, Dispersion, WaveSummary
+from ..analysis.timoshenko import BeamConvergence
 
 _BRANCH_LABELS = dict(zip(BRANCHES, ("longitudinal (u)", "transverse acoustic (v)", "rotational optical (phi)")))
 _BRANCH_COLOURS = dict(zip(BRANCHES, ("tab:green", "tab:blue", "tab:red")))
@@ -73,6 +75,34 @@ def plot_convergence(table: ConvergenceTable, ax: Axes | None = None) -> Figure:
     panel.set_xlabel("N (chain of 2N+1 particles)")
     # Ticks at the computed N only: over less than a decade matplotlib labels the minor
     # ticks as well (3 x 10^0, 4 x 10^0, ...), and they overlap.
+    panel.set_xticks(table.N, [str(int(n)) for n in table.N])
+    panel.xaxis.set_minor_formatter(NullFormatter())
+    panel.legend(loc="best", fontsize="small")
+    return fig
+
+
+def plot_beam_convergence(table: BeamConvergence, ax: Axes | None = None) -> Figure:
+    """|relative error| of the loaded particle's compliance against N, log-log: the Timoshenko beam, eq. (11), and the discrete value's own.
+
+    Guides 1/N and 1/N^2 (dotted) start a factor 3 below the first point of eq. (11) and of the beam. Errors
+    that are not above the discrete value's own (the beam is exact for some loads) are not drawn.
+    """
+    fig, (panel,) = _figure(ax)
+    floor = np.maximum(table.discrete_error, np.finfo(float).eps)
+    for error, style, label, power in (
+        (table.timoshenko_error, "o-", "Timoshenko beam", 2),
+        (table.paper_error, "s-", "eq. (11)", 1),
+    ):
+        shown = np.isfinite(error) & (np.abs(error) > floor)
+        if not shown.any():
+            continue
+        n, value = table.N[shown], np.abs(error[shown])
+        (line,) = panel.loglog(n, value, style, label=label)
+        if n.size >= 2:
+            panel.loglog(n, value[0] / 3 * (n[0] / n) ** power, ":", color=line.get_color(), label=f"1/N^{power}" if power > 1 else "1/N")
+    panel.loglog(table.N, floor, "x", color="0.5", label="discrete value's own error")
+    panel.set_xlabel("N (chain of 2N+1 particles)")
+    panel.set_ylabel(f"|relative error| of the compliance ({table.load})")
     panel.set_xticks(table.N, [str(int(n)) for n in table.N])
     panel.xaxis.set_minor_formatter(NullFormatter())
     panel.legend(loc="best", fontsize="small")
