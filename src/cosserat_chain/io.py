@@ -3,13 +3,18 @@
 Contract
 --------
 :func:`write_dataset` writes an xarray Dataset to NetCDF (h5netcdf), :func:`write_text`
-a text file and :func:`write_figure` a matplotlib figure, through :func:`atomic_path`:
-a temporary file in the same folder and an atomic rename, so that a reader never sees a
-half-written file. Nothing that is not a regular file is ever replaced: a target that
-is a folder, a FIFO or a device is refused (:class:`OutputError`), and a symbolic link is
-written through (its target is replaced, the link stays). :func:`check_output` runs the
-same checks, and a probe of the folder's writability, before any work is done, so a
-command refuses a bad ``--out`` before it computes. :func:`load_params` reads
+a text file and :func:`write_figure` a matplotlib figure: each is made in memory, then
+written by :func:`write_bytes` into a temporary file in the same folder (its space
+reserved first) and renamed onto the target, so that a reader never sees a half-written
+file and a full disk is an OSError, never a crash. Nothing that is not a regular file is
+ever replaced: a folder, a FIFO or a device is refused (:class:`OutputError`); a symbolic
+link is written through only where it and its folder belong to the caller or root; a
+replaced file keeps its mode and owner. One process writes an output at a time: its
+advisory lock (:func:`output_lock`) refuses a second. :func:`write_fallback` keeps a
+result that could not be written where asked, under a name no other user can predict.
+:func:`check_output` runs the same checks, and a probe of the folder's writability,
+before any work is done, so a command refuses a bad ``--out`` before it computes.
+:func:`load_params` reads
 ``ChainParams`` fields from a TOML file (top-level keys, the paper's symbols) and names
 any unknown key; :func:`read_config` reads at most :data:`MAX_CONFIG_BYTES` from a regular
 file.
@@ -17,9 +22,12 @@ file.
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import json
 import math
 import os
+import pwd
 import shlex
 import stat
 import sys
@@ -28,6 +36,7 @@ import tomllib
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from datetime import UTC, datetime
+from io import BytesIO
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -71,23 +80,97 @@ def _kind(mode: int) -> str:
     return "not a regular file"
 
 
+def _trusted(uid: int) -> bool:
+    """Whether ``uid`` is the caller or root: the only owners whose links are followed and whose files are replaced in shared folders."""
+    return uid in (os.geteuid(), 0)
+
+
+def _owner(uid: int) -> str:
+    """A user in words: name and uid."""
+    try:
+        return f"{pwd.getpwuid(uid).pw_name} (uid {uid})"
+    except KeyError:
+        return f"uid {uid}"
+
+
+def _shared(info: os.stat_result) -> bool:
+    """Whether a folder lets every user create entries in it (world-writable, as /tmp)."""
+    return bool(info.st_mode & stat.S_IWOTH)
+
+
+def _check_link(link: Path, info: os.stat_result, label: str, path: Path) -> None:
+    """Refuse to follow ``link`` unless it and the folder holding it belong to the caller (or root) and no other user can swap it.
+
+    The test is made here, in user space, because a write resolves the link before it
+    renames onto the target: the kernel's protected-symlinks setting never sees it.
+    """
+    folder = os.stat(link.parent)
+    swappable = _shared(folder) and not folder.st_mode & stat.S_ISVTX
+    if _trusted(info.st_uid) and _trusted(folder.st_uid) and not swappable:
+        return
+    where = f"the shared folder {str(link.parent)!r}" if _shared(folder) else f"{str(link.parent)!r} of {_owner(folder.st_uid)}"
+    raise OutputError(
+        f"{label} {str(path)!r}: {str(link)!r} is a symbolic link of {_owner(info.st_uid)} in {where}: refusing to write "
+        "through a link another user controls; give the path it points to if that is the file meant"
+    )
+
+
+#: Most symbolic links followed in one path, the kernel's limit: a loop of links is refused.
+_MAX_LINKS = 40
+
+
+def _resolve(path: Path, label: str) -> Path:
+    """``path`` made absolute with its symbolic links followed, as the kernel does, through trusted links only (:func:`_check_link`)."""
+    parts = list(path.parts) if path.is_absolute() else [*Path.cwd().parts, *path.parts]
+    current, rest, followed = Path(parts[0]), parts[1:], 0
+    while rest:
+        part = rest.pop(0)
+        if part == "..":
+            current = current.parent
+            continue
+        candidate = current / part
+        try:
+            info = os.lstat(candidate)
+        except OSError:  # missing (created by the write) or under a file (refused by the caller)
+            return Path(os.path.normpath(candidate.joinpath(*rest)))
+        if not stat.S_ISLNK(info.st_mode):
+            current = candidate
+            continue
+        _check_link(candidate, info, label, path)
+        followed += 1
+        if followed > _MAX_LINKS:
+            raise OutputError(f"{label} {str(path)!r}: more than {_MAX_LINKS} symbolic links (a loop of links?)")
+        link = Path(os.readlink(candidate))
+        if link.is_absolute():
+            current = Path(link.anchor)
+        rest = [*(link.parts[1:] if link.is_absolute() else link.parts), *rest]
+    return current
+
+
 def _target(path: Path, label: str) -> Path:
-    """Where a write to ``path`` lands: through symbolic links, and only onto a regular file or nothing."""
+    """Where a write to ``path`` lands: through trusted symbolic links, and only onto a regular file the caller may replace, or nothing."""
     if str(path) == "":
         raise OutputError(f"{label} is empty: give a file name")
-    target = Path(os.path.realpath(path))
+    target = _resolve(path, label)
     try:
-        mode = target.stat().st_mode
+        info = os.lstat(target)
     except FileNotFoundError:
         return target
     except NotADirectoryError:
         raise OutputError(f"{label} {str(path)!r}: {str(_existing_folder(target.parent, label, path))!r} is not a folder") from None
     except OSError as err:
         raise OutputError(f"{label} {str(path)!r} cannot be examined: {err.strerror}") from None
-    if stat.S_ISDIR(mode):
+    if stat.S_ISDIR(info.st_mode):
         raise OutputError(f"{label} {str(path)!r} is a folder: give a file name inside it")
-    if not stat.S_ISREG(mode):
-        raise OutputError(f"{label} {str(path)!r} exists and is {_kind(mode)}, not a regular file: refusing to replace it")
+    if not stat.S_ISREG(info.st_mode):
+        raise OutputError(f"{label} {str(path)!r} exists and is {_kind(info.st_mode)}, not a regular file: refusing to replace it")
+    if not _trusted(info.st_uid):
+        folder = os.stat(target.parent)
+        if _shared(folder) and folder.st_mode & stat.S_ISVTX:
+            raise OutputError(
+                f"{label} {str(path)!r} is a file of {_owner(info.st_uid)} in the shared folder {str(target.parent)!r}: "
+                "refusing to replace another user's file there; choose another name"
+            )
     return target
 
 
@@ -140,7 +223,9 @@ def check_output(
         Naming the option and the path: an empty path, an unknown format, a folder
         where a file is expected (or the reverse), a target that exists and is not a
         regular file (a FIFO, a device), a path under a regular file, a place where
-        nothing can be written, or one of the command's inputs.
+        nothing can be written, one of the command's inputs, a symbolic link another
+        user controls (naming the link and its owner) or another user's file in a
+        shared folder.
     """
     path = Path(path)
     if str(path) == "":
@@ -148,7 +233,7 @@ def check_output(
     if formats is not None and path.suffix.lower() not in formats:
         raise OutputError(f"unknown format {path.suffix or '(none)'!r} of {option} {str(path)!r}; allowed: {', '.join(formats)}")
     if folder:
-        target = Path(os.path.realpath(path))
+        target = _resolve(path, option)
         if target.exists() and not target.is_dir():
             raise OutputError(f"{option} {str(path)!r} exists and is not a folder")
         _probe_writable(_existing_folder(target, option, path), option, path)
@@ -162,7 +247,7 @@ def check_output(
 
 
 def _remove_stale(target: Path) -> None:
-    """Remove temporary files left beside ``target`` by writers that were killed (their process is gone)."""
+    """Remove the caller's temporary files left beside ``target`` by writers that were killed (their process is gone)."""
     prefix = f".{target.name}{_TMP_MARK}"
     try:
         entries = list(target.parent.iterdir())
@@ -176,7 +261,8 @@ def _remove_stale(target: Path) -> None:
         if not pid.isdigit() or _alive(int(pid)):
             continue
         try:
-            if stat.S_ISREG(entry.lstat().st_mode):
+            info = entry.lstat()
+            if stat.S_ISREG(info.st_mode) and info.st_uid == os.geteuid():
                 entry.unlink()
         except OSError:
             pass
@@ -192,40 +278,268 @@ def _alive(pid: int) -> bool:
     return True
 
 
+class _Held:
+    """A lock file this process holds (open, ``flock``-ed), and how many writers of this process use it."""
+
+    def __init__(self, fd: int):
+        self.fd, self.count = fd, 1
+
+
+#: The lock files this process holds, by path: a writer nested in a command that holds its output's lock shares it.
+_HELD: dict[str, _Held] = {}
+
+
+def _lock_path(target: Path) -> Path:
+    return target.with_name(f".{target.name}.lock")
+
+
+def _holder(fd: int) -> str:
+    """The process named in a held lock file, with its command line where it can be read."""
+    try:
+        pid = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
+    except OSError:
+        pid = ""
+    if not pid.isdigit():
+        return "another process"
+    try:
+        command = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace").strip()
+    except OSError:
+        command = ""
+    return f"process {pid}" + (f" ({command[:160]})" if command else "")
+
+
+def _acquire(target: Path, label: str, path: Path) -> str:
+    """Take the lock of ``target`` (a file ``.NAME.lock`` beside it, ``flock``-ed and holding this process's id); returns its key.
+
+    Raises
+    ------
+    OutputError
+        If another process holds it (naming that process), or the lock file cannot be
+        made or is not one this process may use (a link, a file of another user).
+    """
+    lock = _lock_path(target)
+    key = str(lock)
+    if key in _HELD:
+        _HELD[key].count += 1
+        return key
+    try:
+        lock.parent.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):
+        raise OutputError(f"{label} {str(path)!r}: {str(_existing_folder(lock.parent, label, path))!r} is not a folder") from None
+    except OSError as err:
+        raise OutputError(f"{label} {str(path)!r}: cannot make the folder {str(lock.parent)!r} ({err.strerror})") from None
+    while True:
+        try:
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o666)
+        except OSError as err:
+            raise OutputError(f"{label} {str(path)!r}: cannot open its lock file {str(lock)!r} ({err.strerror})") from None
+        info = os.fstat(fd)
+        if not stat.S_ISREG(info.st_mode) or info.st_uid != os.geteuid() or info.st_nlink != 1:
+            os.close(fd)
+            raise OutputError(
+                f"{label} {str(path)!r}: its lock file {str(lock)!r} is not a plain file of this user (it belongs to "
+                f"{_owner(info.st_uid)}): if no run is writing {str(path)!r}, remove it"
+            )
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = _holder(fd)
+            os.close(fd)
+            raise OutputError(
+                f"{label} {str(path)!r} is being written by {holder}: wait for it to finish or choose another file"
+            ) from None
+        try:
+            now = os.lstat(lock)
+        except FileNotFoundError:
+            now = None
+        if now is not None and (now.st_dev, now.st_ino) == (info.st_dev, info.st_ino):
+            break
+        os.close(fd)  # its last holder removed the file between our open and our lock: take the new one
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    _HELD[key] = _Held(fd)
+    return key
+
+
+def _release(key: str) -> None:
+    """Give back one use of a lock; the last removes the lock file (still the one locked) and unlocks it."""
+    held = _HELD[key]
+    held.count -= 1
+    if held.count:
+        return
+    del _HELD[key]
+    try:
+        info, now = os.fstat(held.fd), os.lstat(key)
+        if (now.st_dev, now.st_ino) == (info.st_dev, info.st_ino):
+            os.unlink(key)
+    except OSError:
+        pass
+    os.close(held.fd)
+
+
+@contextmanager
+def output_lock(path: str | Path, label: str = "output") -> Iterator[Path]:
+    """Hold the advisory lock of the output ``path`` for the block; yields where the output lands.
+
+    The lock is ``fcntl.flock`` on ``.NAME.lock`` beside the output (the folder is made if
+    missing), holding this process's id: the kernel releases it when its process ends,
+    however it ends, so a lock left by a killed run never blocks the next. Within one
+    process the lock is shared (a write inside a command that holds it goes on).
+
+    Raises
+    ------
+    OutputError
+        If another process holds the lock (naming its id and command line), or
+        ``path`` is refused as :func:`check_output` refuses it.
+    """
+    path = Path(path)
+    target = _target(path, label)
+    key = _acquire(target, label, path)
+    try:
+        yield target
+    finally:
+        _release(key)
+
+
+def _umask() -> int:
+    """The process's umask, read without changing it where Linux tells it (another thread may be creating files)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("Umask:"):
+                return int(line.split()[1], 8)
+    except (OSError, ValueError, IndexError):
+        pass
+    umask = os.umask(0o022)
+    os.umask(umask)
+    return umask
+
+
+def _settle(fd: int, target: Path) -> None:
+    """Give the new file the owner and mode of the file it replaces (a new file: 0666 less the umask), then flush it to the disk."""
+    try:
+        old = os.lstat(target)
+    except FileNotFoundError:
+        old = None
+    if old is not None and stat.S_ISREG(old.st_mode):
+        if (old.st_uid, old.st_gid) != (os.geteuid(), os.getegid()):
+            try:
+                os.fchown(fd, old.st_uid, old.st_gid)
+            except PermissionError:  # not root: keep at least the group where the caller is in it
+                try:
+                    os.fchown(fd, -1, old.st_gid)
+                except PermissionError:
+                    pass
+        os.fchmod(fd, stat.S_IMODE(old.st_mode) & 0o777)
+    else:
+        os.fchmod(fd, 0o666 & ~_umask())
+    os.fsync(fd)
+
+
+@contextmanager
+def _replacing(path: str | Path) -> Iterator[tuple[int, Path]]:
+    """A new temporary file beside ``path`` (its descriptor and name), renamed onto the target if the block succeeds.
+
+    The output's lock is held throughout (:func:`output_lock`).
+    """
+    with output_lock(path) as target:
+        _remove_stale(target)
+        fd, name = tempfile.mkstemp(prefix=f".{target.name}{_TMP_MARK}{os.getpid()}-", suffix=target.suffix, dir=target.parent)
+        tmp = Path(name)
+        ours = os.fstat(fd)
+        try:
+            yield fd, tmp
+            _settle(fd, target)
+            # The name must still be our file, and the target a regular file or nothing (not a FIFO made meanwhile).
+            now = os.lstat(tmp)
+            if (now.st_dev, now.st_ino) != (ours.st_dev, ours.st_ino):
+                raise OutputError(f"output {str(path)!r}: its temporary file {name!r} was replaced while it was written")
+            _target(target, "output")
+            os.replace(tmp, target)
+        finally:
+            os.close(fd)
+            try:
+                now = os.lstat(tmp)
+                if (now.st_dev, now.st_ino) == (ours.st_dev, ours.st_ino):
+                    tmp.unlink()
+            except OSError:
+                pass
+
+
 @contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
     """A temporary file beside ``path`` (same extension), renamed onto it if the block succeeds.
 
     A reader never sees a half-written file, and an interrupted write leaves none
-    behind (a killed one is removed by the next write to the same place). The file
-    gets the usual permissions (mkstemp creates it 0600). A symbolic link is written
-    through: its target is replaced and the link kept. Missing folders are created.
+    behind (a killed one is removed by the next write to the same place). The output's
+    advisory lock is held while it is written (:func:`output_lock`). A replaced file keeps
+    its mode and owner; a new one gets 0666 less the umask. A symbolic link is written
+    through (its target replaced, the link kept) only where the link and its folder are
+    the caller's or root's. Missing folders are created.
 
     Raises
     ------
     OutputError
         If ``path`` is empty, a folder, or exists and is not a regular file (a FIFO, a device):
-        such a target is never replaced.
+        such a target is never replaced; a link another user controls; another user's file in
+        a shared folder; an output another process is writing.
     """
-    target = _target(Path(path), "output")
+    with _replacing(path) as (_, tmp):
+        yield tmp
+
+
+def _write_all(fd: int, data: bytes | memoryview) -> None:
+    """Write ``data`` at the start of ``fd``, its space reserved first: a full disk or quota raises OSError before a byte is written."""
+    view = memoryview(data).cast("B")
     try:
-        target.parent.mkdir(parents=True, exist_ok=True)
-    except (FileExistsError, NotADirectoryError):
-        raise OutputError(f"output {str(path)!r}: {str(_existing_folder(target.parent, 'output', Path(path)))!r} is not a folder") from None
-    _remove_stale(target)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}{_TMP_MARK}{os.getpid()}-", suffix=target.suffix, dir=target.parent)
+        os.posix_fallocate(fd, 0, max(len(view), 1))
+    except OSError as err:
+        if err.errno not in (errno.EOPNOTSUPP, errno.EINVAL, errno.ENOSYS):
+            raise
+    except AttributeError:  # no posix_fallocate on this system: the writes below raise instead
+        pass
+    written = 0
+    while written < len(view):
+        written += os.pwrite(fd, view[written:], written)
+    os.ftruncate(fd, len(view))
+
+
+def write_bytes(data: bytes | memoryview, path: str | Path) -> Path:
+    """Write ``data`` to ``path`` atomically (:func:`atomic_path`); returns the path.
+
+    Raises
+    ------
+    OSError
+        If the disk is full, a quota is exceeded or the device fails: the target is untouched.
+    OutputError
+        As :func:`atomic_path`.
+    """
+    with _replacing(path) as (fd, _):
+        _write_all(fd, data)
+    return Path(path)
+
+
+def write_fallback(data: bytes | memoryview, folder: str | Path, stem: str, suffix: str) -> Path:
+    """Write ``data`` to a new file ``STEM.recovered-XXXXXXXX.SUFFIX`` in ``folder``; returns its path.
+
+    The name's random part is chosen by :func:`tempfile.mkstemp`, which creates the file
+    (``O_CREAT | O_EXCL``, mode 0600): no other user can predict the name or have a link
+    waiting at it, and nobody else can read the result in a shared folder.
+
+    Raises
+    ------
+    OSError
+        If the file cannot be made or written (it is then removed).
+    """
+    fd, name = tempfile.mkstemp(prefix=f"{stem}.recovered-", suffix=suffix, dir=folder)
+    try:
+        _write_all(fd, data)
+        os.fsync(fd)
+    except BaseException:
+        os.close(fd)
+        os.unlink(name)
+        raise
     os.close(fd)
-    try:
-        yield Path(tmp)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)
-        # The target may have become something else while we wrote (a FIFO made meanwhile).
-        _target(target, "output")
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    return Path(name)
 
 
 #: The paper this package reproduces, for the files' ``references`` attribute.
@@ -235,28 +549,46 @@ REFERENCES = (
     "One-Period and Two-Period Solutions, Russ. Phys. J. 59, 961 (2016)"
 )
 
+#: What 1 of each base quantity is. The model is dimensionless: it takes its units from its parameters.
+SCALES = {
+    "length": "the unit of the parameters h, a and b",
+    "mass": "the unit of the parameter m",
+    "stiffness": "the unit of the parameters E1 and E2",
+    "time": "sqrt(mass / stiffness), the unit of sqrt(m / E1)",
+    "energy": "stiffness x length^2, the unit of E1 h^2 and of a moment",
+}
+
 #: How the dimensionless model's units read (every file's ``units_convention`` attribute).
 UNITS_CONVENTION = (
-    "The model is dimensionless and takes its units from its parameters: 'length' is the unit of h, a and b; "
-    "'mass' that of m; 'stiffness' that of E1 and E2; 'time' is sqrt(mass / stiffness) and 'energy' (also the "
-    "unit of a moment) stiffness x length^2. With the paper's chain (h = E1 = m = 1) all are 1."
+    "Every quantity is a number (units '1', angles 'rad'): the model is dimensionless and takes its units from its "
+    "parameters. A variable's 'scale' attribute names the quantity it measures in them: "
+    + "; ".join(f"{base}, {meaning}" for base, meaning in SCALES.items())
+    + ". With the paper's chain (h = E1 = m = 1) lengths are in units of h, times in units of sqrt(m / E1) and "
+    "energies and moments in units of E1 h^2."
 )
 
-#: Units and long name of every variable and coordinate the package writes, by name.
+#: Quantity and long name of every variable and coordinate the package writes, by name. The
+#: quantity is a product of the base quantities of :data:`SCALES` (and rad), "1" for a pure
+#: number; :func:`cf_attributes` turns it into CF units and a ``scale``.
 VARIABLES: dict[str, tuple[str, str]] = {
     "u": ("length", "displacement u of a particle's centre along the chain"),
     "v": ("length", "displacement v of a particle's centre across the chain"),
     "phi": ("rad", "rotation angle phi of a particle"),
-    "u_dot": ("length/time", "velocity du/dt"),
-    "v_dot": ("length/time", "velocity dv/dt"),
-    "phi_dot": ("rad/time", "angular velocity dphi/dt"),
+    "u_dot": ("length / time", "velocity du/dt"),
+    "v_dot": ("length / time", "velocity dv/dt"),
+    "phi_dot": ("rad / time", "angular velocity dphi/dt"),
+    "force_u": ("energy / length", "force plus load on u"),
+    "force_v": ("energy / length", "force plus load on v"),
+    "force_phi": ("energy", "moment plus load on phi"),
     "time": ("time", "time"),
-    "particle": ("1", "particle index k in -N..N (the ends +-N clamped)"),
+    "particle": ("1", "particle index k in -N..N"),
     "kinetic": ("energy", "kinetic energy K"),
-    "potential": ("energy", "potential energy P (NaN for the non-conservative sine model)"),
+    "potential": ("energy", "potential energy P"),
     "load_work": ("energy", "work W done by the loads since the start"),
     "dissipated": ("energy", "energy D dissipated by the viscous damping since the start"),
     "balance_error": ("energy", "energy balance residual K + P - W + D - (K0 + P0)"),
+    "frame_step": ("1", "step of the stored frame"),
+    "split_sums": ("energy", "load work and dissipated energy: at the split over threads, then per block (none on one thread)"),
     "moment": ("energy", "moment M on the loaded particle"),
     "phi0": ("rad", "rotation angle phi_0 of the loaded particle"),
     "point": ("1", "index of a point along the branch"),
@@ -264,7 +596,7 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "critical_eigenvalue": ("stiffness", "lowest eigenvalue of the stiffness (symmetric similar of the sine model's Jacobian)"),
     "M_c": ("energy", "critical moment M_c: onset of rotation under a slowly rising load (NaN: no fold)"),
     "phi0_at_fold": ("rad", "phi_0 of the loaded particle at the fold M_c"),
-    "compliance": ("rad/energy", "compliance dphi_0/dM at rest"),
+    "compliance": ("rad / energy", "compliance dphi_0/dM at rest"),
     "model": ("1", "model name"),
     "winding": ("1", "signed full turns trunc(theta / 2 pi) at the end"),
     "turns": ("1", "full turns of the loaded particle"),
@@ -276,14 +608,24 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "mean_energy_share": ("1", "mean fraction of the chain's energy held by the particle"),
     "rotating": ("1", "1 if the particle still rotates at the end"),
     "recent_turn": ("1", "index of a recent turn (the latest ones kept)"),
+    "angle_start": ("rad", "phi at the start of the diagnostics"),
+    "angle": ("rad", "phi at the latest frame"),
+    "energy_share_sum": ("1", "sum over the frames of the particle's share of the chain's energy"),
+    "turn_times": ("time", "times of the latest turns of the loaded particle"),
+    "t_start": ("time", "time at the start of the diagnostics"),
+    "steps": ("1", "steps taken"),
+    "participation_sum": ("1", "sum over the frames of the energy participation number"),
+    "energy_steps": ("1", "frames summed in the energy shares"),
     "onset_load": ("energy", "first load of the upward relaxation sweep at which the loaded particle rotates (NaN: none)"),
     "stop_load": ("energy", "first load of the downward relaxation sweep at which rotation has stopped (NaN: none)"),
-    "mean_angular_velocity": ("rad/time", "mean angular velocity of the loaded particle"),
-    "band_gap": ("1/time", "width of the transverse-rotational band gap of the infinite linear chain (0: none)"),
+    "mean_angular_velocity": ("rad / time", "mean angular velocity of the loaded particle"),
+    "period": ("time", "period T of the periodic orbit"),
+    "max_multiplier": ("1", "largest modulus of a non-trivial Floquet multiplier"),
+    "band_gap": ("1 / time", "width of the transverse-rotational band gap of the infinite linear chain (0: none)"),
     "done": ("1", "1 once the cell was computed (successfully or not)"),
     "error": ("1", "error message of a failed cell (empty if it succeeded)"),
     "load": ("energy", "moment M of the relaxation"),
-    "angular_velocity": ("rad/time", "angular velocity of each particle at the end of the load step"),
+    "angular_velocity": ("rad / time", "angular velocity of each particle at the end of the load step"),
     "status": ("1", "how the load step ended (static, rotating, not_converged, ...)"),
     "relax_time": ("time", "time the load step ran"),
     "step": ("1", "index of the load step"),
@@ -293,9 +635,16 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "multiplier_imag": ("1", "imaginary part of a Floquet multiplier"),
     "branch_moment": ("energy", "moment M of the continued orbit"),
     "branch_period": ("time", "period T of the continued orbit"),
-    "branch_mean_angular_velocity": ("rad/time", "mean angular velocity of the loaded particle on the continued orbit"),
+    "branch_mean_angular_velocity": ("rad / time", "mean angular velocity of the loaded particle on the continued orbit"),
     "branch_max_multiplier": ("1", "largest modulus of a non-trivial Floquet multiplier on the continued orbit"),
     "branch_stable": ("1", "1 if the continued orbit is stable"),
+    "static_fold": ("energy", "M_c, the end of the static branch from rest"),
+    "rotation_stops": ("energy", "moment at which a falling load stops the rotation"),
+    "end": ("1", "how the rotation stops"),
+    "hysteresis": ("1", "1: open loop (rotation_stops < static_fold), 0: closed, -1: unknown"),
+    "rotation_starts": ("1", "how a rising load starts the rotation at M_c: snic, jump or unknown"),
+    "method": ("1", "how rotation_stops was found: followed, located or one_parameter"),
+    "moment_scale": ("energy", "E1 h^2, the unit of the dimensionless moment M / (E1 h^2)"),
     "E1": ("stiffness", "stiffness E1 of a horizontal link"),
     "E2": ("stiffness", "stiffness E2 of a diagonal link"),
     "h": ("length", "distance h between particle centres"),
@@ -303,9 +652,9 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "b": ("length", "half-height b of a particle"),
     "m": ("mass", "mass m of a particle"),
     "j": ("mass length^2", "moment of inertia j of a particle"),
-    "gamma_u": ("mass/time", "viscous coefficient of u"),
-    "gamma_v": ("mass/time", "viscous coefficient of v"),
-    "gamma_phi": ("mass length^2/time", "viscous coefficient of phi"),
+    "gamma_u": ("mass / time", "viscous coefficient of u"),
+    "gamma_v": ("mass / time", "viscous coefficient of v"),
+    "gamma_phi": ("mass length^2 / time", "viscous coefficient of phi"),
     "N": ("1", "half the number of particles (particles -N..N)"),
 }
 
@@ -322,30 +671,89 @@ TITLES = {
     "state_diagram": "Both edges of the hysteresis loop of a discrete Cosserat chain against one of its parameters",
 }
 
+#: Prefixes of variables that hold a quantity of :data:`VARIABLES` at one moment, and what they add to its long name.
+_PREFIXES = {"final_": "at the end of the run", "diag_": "state of the streaming diagnostics, for resuming"}
 
-def _description(name: str) -> tuple[str, str] | None:
-    """Units and long name of a variable, from :data:`VARIABLES` (prefixed names: final_u, diag_turns)."""
+
+def cf_attributes(quantity: str, long_name: str) -> dict[str, str]:
+    """CF attributes of a variable measuring ``quantity`` (a product of :data:`SCALES`' base quantities, rad or 1).
+
+    The units are UDUNITS strings: "rad" where the quantity is an angle or an angle per
+    something (the other factors are numbers), "1" otherwise; the ``scale`` attribute says
+    what 1 of the quantity is, with the meaning of each base quantity in it.
+
+    Raises
+    ------
+    ValueError
+        If ``quantity`` names a factor that is none of the base quantities, rad or 1.
+    """
+    factors = [word for word in quantity.replace("/", " ").replace("^2", " ").split() if word != "1"]
+    unknown = [word for word in factors if word != "rad" and word not in SCALES]
+    if unknown:
+        raise ValueError(f"quantity {quantity!r} has the factor(s) {unknown}; allowed: rad, 1, {', '.join(SCALES)}")
+    attrs = {"units": "rad" if quantity.split()[0] == "rad" else "1", "long_name": long_name}
+    bases = [base for base in SCALES if base in factors]
+    if bases:
+        attrs["scale"] = f"{quantity}, where " + "; ".join(f"{base} is {SCALES[base]}" for base in bases)
+    return attrs
+
+
+def _describe_variable(name: str, dataset: xr.Dataset) -> tuple[str, str] | None:
+    """Quantity and long name of a variable of ``dataset``: by name, prefix (final_u, diag_angle) or, for a diagram's values, its field.
+
+    The long names that depend on the file say what holds for it: the particle index
+    names the chain's ends, and the potential says NaN only for the non-conservative sine model.
+    """
+    if name == "value" and dataset.attrs.get("parameter") in VARIABLES:
+        quantity, what = VARIABLES[dataset.attrs["parameter"]]
+        return quantity, f"the varied field {dataset.attrs['parameter']}: {what}"
+    if name == "particle" and "params_json" in dataset.attrs:
+        try:
+            ends = params_of(dataset).describe_ends()
+        except ValueError:
+            return VARIABLES[name]
+        return "1", f"{VARIABLES[name][1]} ({ends})"
+    if name == "potential" and "sine" in _models(dataset):
+        return "energy", f"{VARIABLES[name][1]} (NaN for the non-conservative sine model)"
     if name in VARIABLES:
         return VARIABLES[name]
-    for prefix, what in (("final_", "at the end of the run"), ("diag_", "state of the streaming diagnostics, for resuming")):
-        if name.startswith(prefix):
-            base = VARIABLES.get(name[len(prefix) :])
-            units = base[0] if base else "1"
-            return units, f"{base[1] if base else name[len(prefix) :].replace('_', ' ')}, {what}"
+    for prefix, what in _PREFIXES.items():
+        if name.startswith(prefix) and name[len(prefix) :] in VARIABLES:
+            quantity, base = VARIABLES[name[len(prefix) :]]
+            return quantity, f"{base}, {what}"
     return None
+
+
+def _models(dataset: xr.Dataset) -> list[str]:
+    """The models of a result: its ``model`` attribute, or the ``model`` coordinate of results stacked by model."""
+    if "model" in dataset.coords:
+        return [str(name) for name in np.atleast_1d(dataset["model"].values)]
+    return [str(dataset.attrs.get("model", ""))]
+
+
+def _command() -> str:
+    """The command line of this process, its program named without the folder it lies in (no machine paths in files)."""
+    program = Path(sys.argv[0]).name if sys.argv and sys.argv[0] else "python"
+    if program == "__main__.py":
+        program = f"python -m {Path(sys.argv[0]).parent.name}"
+    return " ".join([program, *map(shlex.quote, sys.argv[1:])])
 
 
 def describe(dataset: xr.Dataset) -> xr.Dataset:
     """The dataset with the CF-1.10 attributes every file of the package carries (a new Dataset).
 
-    Global: ``Conventions``, ``title``, ``history`` (time, version and command line),
-    ``source``, ``references`` (the paper) and ``units_convention``. Every variable and
-    coordinate: ``units`` and ``long_name``, from :data:`VARIABLES` where the producer set none.
+    Global: ``Conventions``, ``title``, ``history`` (time, version and the command, its
+    program named without its folder), ``source``, ``references`` (the paper) and
+    ``units_convention``. Every variable and coordinate of :data:`VARIABLES` (also with a
+    ``final_`` or ``diag_`` prefix): ``units`` ("1" or "rad") and ``scale``
+    (:func:`cf_attributes`), which replace any the producer set, and a ``long_name`` where
+    the producer set none. Coordinates get no fill value (CF forbids one); text is
+    written as character arrays.
     """
     from . import __version__
 
     dataset = dataset.copy()
-    stamp = f"{datetime.now(UTC).isoformat(timespec='seconds')} cosserat-chain {__version__}: {' '.join(map(shlex.quote, sys.argv))}"
+    stamp = f"{datetime.now(UTC).isoformat(timespec='seconds')} cosserat-chain {__version__}: {_command()}"
     previous = dataset.attrs.get("history")
     dataset.attrs.update(
         {
@@ -358,49 +766,57 @@ def describe(dataset: xr.Dataset) -> xr.Dataset:
         }
     )
     for name, variable in dataset.variables.items():
-        described = _description(str(name))
-        if name == "value" and dataset.attrs.get("parameter") in VARIABLES:
-            # A state diagram's coordinate: the values of the field it varies.
-            units, what = VARIABLES[dataset.attrs["parameter"]]
-            described = units, f"the varied field {dataset.attrs['parameter']}: {what}"
-        if described is None:
-            continue
-        units, long_name = described
-        variable.attrs.setdefault("units", units)
-        variable.attrs.setdefault("long_name", long_name)
+        described = _describe_variable(str(name), dataset)
+        if described is not None:
+            attrs = cf_attributes(*described)
+            variable.attrs.pop("scale", None)
+            variable.attrs.update({key: value for key, value in attrs.items() if key != "long_name"})
+            variable.attrs.setdefault("long_name", attrs["long_name"])
+        if name in dataset.coords:
+            variable.encoding["_FillValue"] = None
+        if variable.dtype.kind in "US" or (variable.dtype.kind == "O" and all(isinstance(x, str) for x in variable.values.flat)):
+            # Character arrays, which every CF version and reader knows (the netCDF-4 string type is CF-1.9's).
+            variable.encoding["dtype"] = "S1"
     return dataset
 
 
-def write_dataset(dataset: xr.Dataset, path: str | Path) -> Path:
-    """Write ``dataset`` to NetCDF at ``path`` atomically, CF-described (:func:`describe`); returns the path.
+def netcdf_image(dataset: xr.Dataset) -> memoryview:
+    """The bytes of the NetCDF file :func:`write_dataset` writes for ``dataset``, made in memory.
 
-    Attribute values that are subclasses of ``str`` (a :class:`~cosserat_chain.status.Status`)
-    are written as plain strings: h5netcdf finds no conversion for them. Booleans (such as
-    ``param_periodic``) are written as 0 or 1: NetCDF has no boolean type (``params_json``
-    keeps them as booleans).
+    The HDF5 library aborts the process when a write to a full disk fails under it, so
+    it never writes to a disk here: the file is made in memory and written by
+    :func:`write_bytes`, whose failures are Python errors. Attribute values that are
+    subclasses of ``str`` (a :class:`~cosserat_chain.status.Status`) are written as plain
+    strings: h5netcdf finds no conversion for them. Booleans (such as ``param_periodic``)
+    are written as 0 or 1: NetCDF has no boolean type (``params_json`` keeps them as booleans).
     """
     dataset = describe(dataset)
     for attrs in [dataset.attrs, *(variable.attrs for variable in dataset.variables.values())]:
         attrs.update({key: str(value) for key, value in attrs.items() if isinstance(value, str) and type(value) is not str})
         attrs.update({key: int(value) for key, value in attrs.items() if isinstance(value, (bool, np.bool_))})
-    with atomic_path(path) as tmp:
-        dataset.to_netcdf(tmp, engine="h5netcdf")
-    return Path(path)
+    return dataset.to_netcdf(engine="h5netcdf")
+
+
+def write_dataset(dataset: xr.Dataset, path: str | Path) -> Path:
+    """Write ``dataset`` to NetCDF at ``path`` atomically, CF-described (:func:`describe`); returns the path.
+
+    The file is made in memory (:func:`netcdf_image`) and written by :func:`write_bytes`:
+    a full disk, a quota or an I/O error raises OSError and leaves the target as it was.
+    """
+    return write_bytes(netcdf_image(dataset), path)
 
 
 def write_text(text: str, path: str | Path) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` atomically; returns the path."""
-    with atomic_path(path) as tmp:
-        tmp.write_text(text, encoding="utf-8")
-    return Path(path)
+    """Write ``text`` (UTF-8) to ``path`` atomically (:func:`write_bytes`); returns the path."""
+    return write_bytes(text.encode("utf-8"), path)
 
 
 def write_figure(figure: Any, path: str | Path, **savefig: Any) -> Path:
-    """Write a matplotlib figure to ``path`` atomically, in the format its suffix names; returns the path."""
+    """Write a matplotlib figure to ``path`` atomically (:func:`write_bytes`), in the format its suffix names; returns the path."""
     path = Path(path)
-    with atomic_path(path) as tmp:
-        figure.savefig(tmp, format=path.suffix.lstrip(".").lower() or None, **savefig)
-    return path
+    buffer = BytesIO()
+    figure.savefig(buffer, format=path.suffix.lstrip(".").lower() or None, **savefig)
+    return write_bytes(buffer.getbuffer(), path)
 
 
 def stack_models(datasets: dict[str, xr.Dataset]) -> xr.Dataset:
