@@ -28,7 +28,6 @@ the discrete reduced chain), ``waves`` (dispersion, band gap), ``errata``.
 from __future__ import annotations
 
 import base64
-import html
 import json
 import logging
 import math
@@ -1240,49 +1239,101 @@ def _markdown(sections: list[Section], params: ChainParams, table: list[list[str
     return "\n".join(lines) + "\n"
 
 
+#: The page: a viewport for phones, figures and the animation no wider than the window, wide tables
+#: scrolling inside themselves. Jinja2 escapes every value (autoescape); ``embedded`` holds the
+#: figures as data URIs, so the page opens from disk with no server.
+PAGE = """<!DOCTYPE html>
+<html lang='en'>
+<head>
+<meta charset='utf-8'>
+<meta name='viewport' content='width=device-width, initial-scale=1'>
+<title>cosserat-chain: reproduction of the paper</title>
+<style>
+body { font-family: sans-serif; max-width: 1100px; margin: 2em auto; padding: 0 1em; line-height: 1.45; }
+img { max-width: 100%; height: auto; }
+figure { margin: 1em 0; }
+table { border-collapse: collapse; margin: 1em 0; display: block; overflow-x: auto; max-width: 100%; }
+td, th { border: 1px solid #bbb; padding: 3px 8px; text-align: left; }
+th { background: #eee; }
+.error { background: #fee; border: 1px solid #c00; padding: 1em; white-space: pre-wrap; overflow-x: auto; }
+</style>
+</head>
+<body>
+<h1>Reproduction of the paper</h1>
+<p>{{ intro }}</p>
+<h2>Contents</h2>
+<ol>
+{%- for s in sections %}
+<li><a href='#{{ s.anchor }}'>{{ s.title }}</a></li>
+{%- endfor %}
+</ol>
+<h2>The paper's claims</h2>
+<table>
+<tr>{% for h in claims_header %}<th>{{ h }}</th>{% endfor %}</tr>
+{%- for row in claims %}
+<tr>{% for cell in row %}<td>{{ cell }}</td>{% endfor %}</tr>
+{%- endfor %}
+</table>
+<table>
+<tr><th>stage</th><th>seconds</th><th>status</th></tr>
+{%- for s in sections %}
+<tr><td>{{ s.title }}</td><td>{{ "%.1f" | format(s.seconds) }}</td><td>{{ "failed" if s.error else "ok" }}</td></tr>
+{%- endfor %}
+</table>
+{%- for s in sections %}
+<h2 id='{{ s.anchor }}'>{{ s.title }}</h2>
+{%- if s.error %}
+<p><b>This stage failed:</b></p>
+<div class='error'>{{ s.error }}</div>
+{%- else %}
+{%- for paragraph in s.paragraphs %}
+<p>{{ paragraph.text }}{% if paragraph.animation %}<br><img alt='animation of the rotating chain' src='data:image/gif;base64,{{ paragraph.animation }}'>{% endif %}</p>
+{%- endfor %}
+{%- for table in s.tables %}
+<p><i>{{ table.caption }}</i></p>
+<table>
+<tr>{% for h in table.header %}<th>{{ h }}</th>{% endfor %}</tr>
+{%- for row in table.rows %}
+<tr>{% for cell in row %}<td>{{ cell }}</td>{% endfor %}</tr>
+{%- endfor %}
+</table>
+{%- endfor %}
+{%- for figure in s.figures %}
+<figure><img alt='{{ figure.caption }}' src='data:image/png;base64,{{ figure.png }}'><figcaption>{{ figure.caption }} (<a href='figures/{{ figure.stem }}.svg'>SVG</a>)</figcaption></figure>
+{%- endfor %}
+{%- endif %}
+{%- endfor %}
+</body>
+</html>
+"""
+
+#: Where a paragraph names the animation, the page shows it.
+ANIMATION_LINK = "[figures/rotation.gif](figures/rotation.gif)"
+
+
 def _html(sections: list[Section], params: ChainParams, out: Path, table: list[list[str]]) -> str:
-    esc = html.escape
-    parts = [
-        "<!DOCTYPE html><html><head><meta charset='utf-8'><title>cosserat-chain: reproduction of the paper</title>",
-        "<style>body{font-family:sans-serif;max-width:1100px;margin:2em auto;line-height:1.45}table{border-collapse:collapse;margin:1em 0}"
-        "td,th{border:1px solid #bbb;padding:3px 8px;text-align:left}th{background:#eee}figure{margin:1em 0}figure img{max-width:100%;height:auto}"
-        "table{display:block;overflow-x:auto;max-width:100%}"
-        ".error{background:#fee;border:1px solid #c00;padding:1em;white-space:pre-wrap}</style></head><body>",
-        "<h1>Reproduction of the paper</h1>",
-        f"<p>{esc(_intro(params))}</p>",
-        "<h2>Contents</h2><ol>",
-        *(f"<li><a href='#{_anchor(i)}'>{esc(s.title)}</a></li>" for i, s in enumerate(sections)),
-        "</ol><h2>The paper's claims</h2><table><tr>" + "".join(f"<th>{esc(h)}</th>" for h in CLAIMS_HEADER) + "</tr>",
-        *("<tr>" + "".join(f"<td>{esc(cell)}</td>" for cell in row) + "</tr>" for row in table),
-        "</table>",
-        "<table><tr><th>stage</th><th>seconds</th><th>status</th></tr>",
+    import jinja2
+
+    def embedded(path: Path) -> str | None:
+        return base64.b64encode(path.read_bytes()).decode() if path.exists() else None
+
+    def paragraph(text: str) -> dict[str, Any]:
+        if ANIMATION_LINK not in text:
+            return {"text": text, "animation": None}
+        animation = embedded(out / "figures" / "rotation.gif")
+        return {"text": text.replace(ANIMATION_LINK, "figures/rotation.gif" if animation else "(animation missing)"), "animation": animation}
+
+    pages = [
+        {
+            "anchor": _anchor(i),
+            "title": s.title,
+            "seconds": s.seconds,
+            "error": s.error.strip() if s.error else None,
+            "paragraphs": [paragraph(text) for text in s.paragraphs],
+            "tables": [{"caption": c, "header": h, "rows": [[format_cell(v) for v in row] for row in rows]} for c, h, rows in s.tables],
+            "figures": [{"stem": stem, "caption": c, "png": embedded(out / "figures" / f"{stem}.png")} for stem, c in s.figures],
+        }
+        for i, s in enumerate(sections)
     ]
-    parts += [f"<tr><td>{esc(s.title)}</td><td>{s.seconds:.1f}</td><td>{'failed' if s.error else 'ok'}</td></tr>" for s in sections]
-    parts.append("</table>")
-    for i, s in enumerate(sections):
-        parts.append(f"<h2 id='{_anchor(i)}'>{esc(s.title)}</h2>")
-        if s.error:
-            parts.append(f"<p><b>This stage failed:</b></p><div class='error'>{esc(s.error.strip())}</div>")
-            continue
-        for paragraph in s.paragraphs:
-            text = esc(paragraph).replace("[figures/rotation.gif](figures/rotation.gif)", _embedded_gif(out / "figures" / "rotation.gif"))
-            parts.append(f"<p>{text}</p>")
-        for caption, header, rows in s.tables:
-            parts.append(f"<p><i>{esc(caption)}</i></p><table><tr>" + "".join(f"<th>{esc(h)}</th>" for h in header) + "</tr>")
-            parts += ["<tr>" + "".join(f"<td>{esc(format_cell(v))}</td>" for v in row) + "</tr>" for row in rows]
-            parts.append("</table>")
-        for stem, caption in s.figures:
-            data = base64.b64encode((out / "figures" / f"{stem}.png").read_bytes()).decode()
-            parts.append(
-                f"<figure><img alt='{esc(caption)}' src='data:image/png;base64,{data}'>"
-                f"<figcaption>{esc(caption)} (<a href='figures/{stem}.svg'>SVG</a>)</figcaption></figure>"
-            )
-    parts.append("</body></html>")
-    return "\n".join(parts)
-
-
-def _embedded_gif(path: Path) -> str:
-    if not path.exists():
-        return "(animation missing)"
-    data = base64.b64encode(path.read_bytes()).decode()
-    return f"<br><img alt='animation of the rotating chain' src='data:image/gif;base64,{data}'>"
+    template = jinja2.Environment(autoescape=True, undefined=jinja2.StrictUndefined).from_string(PAGE)
+    return template.render(intro=_intro(params), sections=pages, claims_header=CLAIMS_HEADER, claims=table)

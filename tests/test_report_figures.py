@@ -1,0 +1,198 @@
+"""Every figure of the report draws the numbers of its stage's JSON, and the page fits any window (issue 43, item 4).
+
+The report's figures are caught as its stages make them (before they become pictures),
+and their artists' data are compared with the JSON files the same stages wrote under
+``data/``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import re
+
+import numpy as np
+import pytest
+
+import cosserat_chain.report as report_module
+from cosserat_chain.experiments.diagram import DiagramRow, StateDiagram
+from cosserat_chain.params import ChainParams
+from cosserat_chain.plots.diagram import REGIONS, diagram_figure
+from cosserat_chain.report import ReproduceSettings, reproduce
+
+RTOL = 1e-12
+
+SETTINGS = ReproduceSettings(
+    dm=0.05,
+    long_n_list=(3, 10),
+    diagram_damping={"sine": (0.2, 0.5), "nonlinear": ()},
+)
+
+
+@pytest.fixture(scope="module")
+def drawn(tmp_path_factory):
+    """(report, {stem: Figure}) of the stages whose figures plot the statics and the hysteresis loop."""
+    figures = {}
+    keep = report_module._Stage.figure
+
+    def figure(self, fig, stem):
+        figures[stem] = fig
+        return keep(self, fig, stem)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(report_module._Stage, "figure", figure)
+        report = reproduce(tmp_path_factory.mktemp("report"), settings=SETTINGS, stages=["statics", "orbits", "state_map", "long_chains"])
+    assert report.failed == []
+    return report, figures
+
+
+def data(report, name: str):
+    return json.loads((report.out / "data" / f"{name}.json").read_text())
+
+
+def points(ax) -> np.ndarray:
+    """Every (x, y) point of the axes' lines, shape (n, 2)."""
+    pairs = [np.column_stack([np.atleast_1d(line.get_xdata()), np.atleast_1d(line.get_ydata())]) for line in ax.lines]
+    return np.concatenate(pairs).astype(float)
+
+
+def has_point(ax, x: float, y: float | None = None) -> bool:
+    xy = points(ax)
+    near_x = np.isclose(xy[:, 0], x, rtol=RTOL, atol=0.0)
+    return bool(near_x.any() if y is None else (near_x & np.isclose(xy[:, 1], y, rtol=RTOL, atol=0.0)).any())
+
+
+def vertical_lines(ax) -> list[float]:
+    return [float(line.get_xdata()[0]) for line in ax.lines if len(set(np.atleast_1d(line.get_xdata()).tolist())) == 1]
+
+
+def region_span(ax, gid: str, value: float) -> tuple[float, float] | None:
+    """Lowest and highest M that the region ``gid`` covers at ``value`` of the varied field, or None."""
+    spans = []
+    for patch in ax.patches:  # one value: bars
+        if patch.get_gid() == gid and patch.get_x() <= value <= patch.get_x() + patch.get_width():
+            spans.append((patch.get_y(), patch.get_y() + patch.get_height()))
+    for collection in ax.collections:  # several values: areas between them
+        if collection.get_gid() == gid:
+            for path in collection.get_paths():
+                at = path.vertices[np.isclose(path.vertices[:, 0], value)]
+                if at.size:
+                    spans.append((at[:, 1].min(), at[:, 1].max()))
+    if not spans:
+        return None
+    return min(s[0] for s in spans), max(s[1] for s in spans)
+
+
+def line(ax, gid: str):
+    return next(line for line in ax.lines if line.get_gid() == gid)
+
+
+def check_regions(ax, rows: list[dict]) -> None:
+    """The diagram's regions at each row agree with the row's edges (dimensionless) as the JSON gives them."""
+    for row in rows:
+        value, fold, stops = row["value"], row["static_fold_dimensionless"], row["rotation_stops_dimensionless"]
+        static, loop, rotating = (region_span(ax, name, value) for name in ("static", "hysteresis", "rotating"))
+        # No static state exists above M_c: the static region ends at M_c or where the rotation stops, the lower.
+        assert static == pytest.approx((0.0, min(fold, stops)), rel=RTOL)
+        assert rotating[0] == pytest.approx(fold, rel=RTOL)
+        if row["hysteresis"]:
+            assert loop == pytest.approx((stops, fold), rel=RTOL)
+        else:
+            assert loop is None or loop[1] - loop[0] == 0.0
+
+
+def test_the_state_diagram_draws_the_edges_and_regions_of_its_json(drawn):
+    report, figures = drawn
+    rows = data(report, "state_diagram")["sine"]
+    ax = figures["state_diagram_sine"].axes[0]
+    assert line(ax, "static_fold").get_ydata().tolist() == pytest.approx([r["static_fold_dimensionless"] for r in rows], rel=RTOL)
+    assert line(ax, "rotation_stops").get_ydata().tolist() == pytest.approx([r["rotation_stops_dimensionless"] for r in rows], rel=RTOL)
+    assert line(ax, "static_fold").get_xdata().tolist() == [r["value"] for r in rows]
+    check_regions(ax, rows)
+
+
+def diagram(rows: list[tuple[float, float, float, str, bool | None]]) -> StateDiagram:
+    return StateDiagram(
+        ChainParams(),
+        "sine",
+        "gamma_phi",
+        1,
+        [DiagramRow(value, fold, 1.5, stops, end, loop) for value, fold, stops, end, loop in rows],
+    )
+
+
+def as_json(result: StateDiagram) -> list[dict]:
+    return json.loads(json.dumps(result.as_dict()["rows"]))
+
+
+def test_a_diagram_of_one_value_draws_its_regions_as_a_bar_and_its_edges_as_points():
+    """The nonlinear state diagram of the report has one damping value: an area between values would be empty."""
+    one = diagram([(0.2, 0.1975, 0.15, "torus", True)])
+    ax = diagram_figure(one).axes[0]
+    for name in REGIONS:
+        span = region_span(ax, name, 0.2)
+        assert span is not None and span[1] > span[0], name
+    assert line(ax, "static_fold").get_marker() != "None" and has_point(ax, 0.2, 0.1975) and has_point(ax, 0.2, 0.15)
+    check_regions(ax, as_json(one))
+
+
+def test_no_static_region_above_the_critical_moment_where_the_rotation_stops_above_it():
+    """Where the followed orbit loses stability above M_c (hysteresis unknown), no static state exists between M_c and it."""
+    rows = [(0.05, 0.204, 0.23, "torus", None), (0.1, 0.204, 0.17, "torus", True), (0.5, 0.204, 0.204, "snic", False)]
+    for result in (diagram(rows), diagram(rows[:1])):
+        ax = diagram_figure(result).axes[0]
+        check_regions(ax, as_json(result))
+        assert region_span(ax, "static", 0.05)[1] == pytest.approx(0.204, rel=RTOL)
+
+
+def test_figure_2_marks_the_folds_and_onsets_of_its_json(drawn):
+    report, figures = drawn
+    numbers = data(report, "statics")
+    left = figures["fig2"].axes[0]
+    for model in ("nonlinear", "sine"):
+        item = numbers[model]
+        assert has_point(left, item["M_c_dimensionless"], item["phi0_at_fold"]), model
+        assert has_point(left, item["onset_load"] / numbers["moment_scale"]), model
+    hysteresis = figures["hysteresis"].axes[0]
+    for model in ("nonlinear", "sine"):
+        assert any(np.isclose(x, numbers[model]["M_c_dimensionless"], rtol=RTOL) for x in vertical_lines(hysteresis)), model
+
+
+def test_the_rotation_characteristic_draws_the_edges_of_its_json(drawn):
+    report, figures = drawn
+    numbers = data(report, "orbit_summary")
+    ax = figures["rotation_characteristic"].axes[0]
+    verticals = vertical_lines(ax)
+    for key in ("static_fold", "stability_lost_at"):
+        assert any(np.isclose(x, numbers[key], rtol=RTOL) for x in verticals), key
+    assert has_point(ax, numbers["orbit_end_moment"]) and has_point(ax, numbers["moment"], numbers["mean_angular_velocity"])
+
+
+def test_the_critical_moment_against_length_draws_its_json(drawn):
+    report, figures = drawn
+    numbers = data(report, "long_chains")
+    moment_axes = figures["critical_vs_N"].axes[0]
+    for model, rows in numbers.items():
+        for row in rows:
+            shown = row["M_c"] * (row["N"] if model == "sine" else 1)
+            assert has_point(moment_axes, row["N"], shown), (model, row["N"])
+
+
+def test_the_page_fits_a_narrow_window(drawn):
+    report, _ = drawn
+    page = (report.out / "index.html").read_text()
+    assert re.search(r"<meta name='viewport' content='width=device-width, initial-scale=1'>", page)
+    assert re.search(r"img \{ max-width: 100%; height: auto; \}", page)  # every image, the animation's too
+    assert page.count("<figure>") == sum(1 for line in (report.out / "report.md").read_text().splitlines() if line.startswith("!["))
+
+
+def test_the_page_escapes_what_it_shows(tmp_path, monkeypatch):
+    """Text of a stage reaches the page as text, never as markup."""
+
+    def hostile(stage):
+        return report_module.Section("a <b>bold</b> & 'quoted' title", paragraphs=["x < y & <script>alert(1)</script>"])
+
+    monkeypatch.setitem(report_module.STAGES, "waves", hostile)
+    reproduce(tmp_path, settings=dataclasses.replace(SETTINGS), stages=["waves"])
+    page = (tmp_path / "index.html").read_text()
+    assert "<script>" not in page and "&lt;script&gt;" in page and "a &lt;b&gt;bold&lt;/b&gt; &amp;" in page
