@@ -150,8 +150,9 @@ class Model(ABC):
     batch_kernel: ClassVar[Callable[..., None]]
     #: The interior forces of a chain graded in its bonds (module docstring); None: uniform chains only.
     graded_kernel: ClassVar[Callable[..., None] | None] = None
-    #: Largest |phi| at which the kernels are accurate: a model that evaluates sines
-    #: with :func:`.trig.sincos` sets its reduction limit; the engine stops a run beyond it.
+    #: Largest |phi| at which the kernels of a model that does not rotate are accurate; the
+    #: engine stops a run beyond it. A rotating model needs none: the engine keeps its angles
+    #: below :data:`.trig.WRAP_ANGLE` by whole turns (``numerics.engine``).
     max_angle: ClassVar[float] = math.inf
 
     @staticmethod

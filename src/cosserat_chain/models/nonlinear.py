@@ -37,7 +37,7 @@ from .base import (
     stack_floats,
 )
 from .linear import max_frequency
-from .trig import REDUCTION_LIMIT, sincos
+from .trig import sincos
 
 #: Length of a uniform chain's coefficients (a, b, h, E1, E2, h - 2a, d); a graded chain's
 #: append E1 of every bond, then E2 of every bond.
@@ -495,7 +495,6 @@ class NonlinearModel(Model):
     end_kernel = nonlinear_end_kernel
     batch_kernel = nonlinear_batch_kernel
     graded_kernel = nonlinear_graded_kernel
-    max_angle = REDUCTION_LIMIT
 
     @staticmethod
     def coefficients(params: ChainParams) -> np.ndarray:

@@ -35,7 +35,7 @@ from .linear import (
     max_frequency,
     stiffness_matrix,
 )
-from .trig import REDUCTION_LIMIT, sincos
+from .trig import sincos
 
 
 def _chain_rule(params: ChainParams, x: np.ndarray) -> np.ndarray:
@@ -100,7 +100,6 @@ class SineModel(Model):
     end_kernel = sine_end_kernel
     batch_kernel = sine_batch_kernel
     graded_kernel = sine_graded_kernel
-    max_angle = REDUCTION_LIMIT
 
     @staticmethod
     def coefficients(params: ChainParams) -> np.ndarray:

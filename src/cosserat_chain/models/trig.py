@@ -10,9 +10,12 @@ and a sign factor, not by branches, so a loop over particles (or over the member
 of a batch) compiles to packed SIMD instructions.
 
 Beyond :data:`REDUCTION_LIMIT` the reduction loses bits gradually (about
-|phi| 2^-53 absolute error); non-finite angles give NaN. Neither is tested here:
-the engine checks the angles against the limit with its runaway test, outside the
-hot loop (``numerics.engine``).
+|phi| 2^-53 absolute error); non-finite angles give NaN. Neither reaches the
+kernels: the engine keeps every angle of a rotating model as whole turns plus an
+angle below :data:`WRAP_ANGLE` (``numerics.engine``), reducing it by whole turns
+with :data:`TWO_PI_1` + :data:`TWO_PI_2` + :data:`TWO_PI_3` outside the hot loop,
+and :func:`split_turns` does so for a start state at any angle up to
+:data:`MAX_START_ANGLE`, exactly.
 
 Numba's cache keys a compiled function on its own source file only: after an edit
 here, the cached kernels that inline :func:`sincos` (nonlinear, sine) keep the old
@@ -22,7 +25,9 @@ code until their own files change.
 from __future__ import annotations
 
 import math
+from fractions import Fraction
 
+import numpy as np
 from numba import njit
 
 from .base import KERNEL_OPTIONS
@@ -35,6 +40,36 @@ _PIO2_2 = 6.07710050630396597660e-11
 _PIO2_3 = 2.02226624879595063154e-21
 #: Largest |angle| for which the reduction is exact (2^20 quarter turns, rounded down).
 REDUCTION_LIMIT = 1.0e6
+# 2 pi = TWO_PI_1 + TWO_PI_2 + TWO_PI_3: four times the parts of pi/2, with the same trailing
+# zero bits, so that k TWO_PI_1 and k TWO_PI_2 are exact for |k| < 2^20 turns.
+#: First part of 2 pi (33 bits).
+TWO_PI_1 = 4.0 * _PIO2_1
+#: Second part of 2 pi (33 bits).
+TWO_PI_2 = 4.0 * _PIO2_2
+#: Third part of 2 pi.
+TWO_PI_3 = 4.0 * _PIO2_3
+#: A rotating model's angles are kept below this (rad) by whole turns, so that a double
+#: resolves them as finely at every winding as in a run of ten turns (spacing 1.4e-14 rad).
+WRAP_ANGLE = 64.0
+#: Largest |angle| of a start state (rad): beyond 2^53 doubles are more than a radian apart,
+#: and an angle says nothing about where in its turn a particle is.
+MAX_START_ANGLE = 2.0**53
+# 2 pi to 256 bits (pi from Machin's formula, digits of 1/5 and 1/239), for :func:`split_turns`.
+_SCALE = 2**256
+
+
+def _arctan_inverse(x: int) -> int:
+    """arctan(1/x) * _SCALE, to the last bit or so (Taylor series in integers)."""
+    total, term, n, sign = 0, _SCALE // x, 1, 1
+    while term:
+        total += sign * (term // n)
+        term //= x * x
+        n += 2
+        sign = -sign
+    return total
+
+
+_TWO_PI_SCALED = 2 * 4 * (4 * _arctan_inverse(5) - _arctan_inverse(239))
 
 _S1, _S2, _S3 = 1.58962301576546568060e-10, -2.50507477628578072866e-8, 2.75573136213857245213e-6
 _S4, _S5, _S6 = -1.98412698295895385996e-4, 8.33333333332211858878e-3, -1.66666666666666307295e-1
@@ -56,3 +91,50 @@ def sincos(angle: float) -> tuple[float, float]:
     odd = (quadrant & 1) != 0
     sign = 1.0 - (quadrant & 2)
     return (c if odd else s) * sign, (-s if odd else c) * sign
+
+
+def split_turns(angles, name: str = "phi") -> tuple[np.ndarray, np.ndarray]:
+    """Angles as (reduced, turns): angle = reduced + 2 pi turns, |reduced| <= pi, for |angle| > WRAP_ANGLE.
+
+    Angles up to :data:`WRAP_ANGLE` are kept as they are, with 0 turns. The others are
+    reduced exactly (2 pi to 256 bits in rational arithmetic, then one rounding), so that
+    a start at 2 pi 10^7 + a continues as a start at a would.
+
+    Parameters
+    ----------
+    angles : array_like of float
+    name : str
+        What the angles are, for the error message.
+
+    Returns
+    -------
+    reduced : ndarray of float, turns : ndarray of int64
+        Both of the shape of ``angles``.
+
+    Raises
+    ------
+    ValueError
+        For an angle that is not finite or beyond :data:`MAX_START_ANGLE`, naming it.
+    """
+    reduced = np.array(angles, dtype=float)
+    turns = np.zeros(reduced.shape, dtype=np.int64)
+    flat, flat_turns = reduced.reshape(-1), turns.reshape(-1)
+    for i in np.flatnonzero(~(np.abs(flat) <= WRAP_ANGLE)):
+        angle = float(flat[i])
+        if not abs(angle) <= MAX_START_ANGLE:
+            where = np.unravel_index(i, reduced.shape) if reduced.ndim else ()
+            raise ValueError(
+                f"{name}{list(map(int, where)) if where else ''} is {angle!r}: angles must be finite and within "
+                f"+-{MAX_START_ANGLE:.4g} rad (2^53; beyond it doubles are more than a radian apart)"
+            )
+        exact = Fraction(angle)
+        k = round(exact * _SCALE / _TWO_PI_SCALED)
+        flat[i] = float(exact - Fraction(k * _TWO_PI_SCALED, _SCALE))
+        flat_turns[i] = k
+    return reduced, turns
+
+
+def join_turns(reduced, turns) -> np.ndarray:
+    """reduced + 2 pi turns as doubles (rounded once, but for 2^-86 |turns|): the unwrapped angle."""
+    turns = np.asarray(turns)
+    return (np.asarray(reduced, dtype=float) + turns * TWO_PI_2) + turns * TWO_PI_1

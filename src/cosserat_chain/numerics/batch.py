@@ -149,19 +149,20 @@ def integrate_batch(
         lanes.evaluate_forces()
         frames_acc = np.zeros((count, 2, members.size))
         angles = np.zeros((count, members.size))
-        angles[0] = record[members, 0] = lanes.x[2, col]
+        angles[0] = record[members, 0] = lanes.unwrapped_angles()[col]
         done, stored = 0, 1
         while True:
             no_states = np.zeros((0, 3, lanes.n, lanes.size))
-            frames = (no_states, no_states, frames_acc, angles)
+            frames = (no_states, no_states, frames_acc, angles, np.zeros((0, lanes.n, lanes.size), dtype=np.int64))
             code, taken, written = lanes.advance(total - done, done, stride, frames=frames, frame0=stored)
             done += taken
             if done % stride != 0 and code != STATUS_BLEW_UP:
-                angles[stored + written] = lanes.x[2, col]
+                angles[stored + written] = lanes.unwrapped_angles()[col]
                 written += 1
             record[members, stored : stored + written] = angles[stored : stored + written].T
             stored += written
             out_x[members] = np.moveaxis(lanes.x, -1, 0)
+            out_x[members, 2] = lanes.unwrapped_angles().T
             out_v[members] = np.moveaxis(lanes.v, -1, 0)
             sums[:, members] = lanes.acc
             steps[members] = done

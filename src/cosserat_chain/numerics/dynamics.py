@@ -7,9 +7,15 @@ t_end with a fixed step, storing every ``stride``-th state, and returns a
 :class:`Trajectory`. It calls the compiled loop in chunks of roughly a fraction
 of a second, so that progress can be reported and Ctrl-C stops the run cleanly
 between chunks with everything computed so far kept (status ``interrupted``).
-A run that blows up (a non-finite value or a runaway displacement) stops with
-status ``blew_up``, keeps the frames before it, and, with ``throw=True``, raises
-:class:`IntegrationError` carrying the partial trajectory.
+A run that blows up (a non-finite value, a runaway displacement or a particle
+turning by thousands of turns a step) stops with status ``blew_up``, keeps the
+frames before it, and, with ``throw=True``, raises :class:`IntegrationError`
+carrying the partial trajectory; its message says which value ran away and what to change.
+
+Angles never overflow: the engine keeps a rotating model's angles as whole turns
+plus an angle below 64 rad (:mod:`.engine`), so a run 10^7 turns from the start
+is as accurate as one of ten. The trajectory's ``x[:, 2]`` is the unwrapped angle
+as a double; ``reduced_phi`` and ``winding`` hold it without a bit lost.
 
 With ``turns=TurnWatch(particle, ...)`` the compiled loop follows that
 particle's turns step by step (the package's one turn detector: turn n is
@@ -37,6 +43,7 @@ import numpy as np
 from ..loads import Loads
 from ..memory import FLOAT, require
 from ..models.base import Model, get_model
+from ..models.trig import join_turns
 from ..params import ChainParams
 from ..state import check_state, column
 from ..status import Status
@@ -151,6 +158,11 @@ class Trajectory:
     dt : float, method : str
     turns : TurnLog or None
         The followed particle's turns (``integrate(turns=...)``).
+    winding : ndarray (n_frames, 2N+1) of int64, or None
+        Whole turns of every angle (None where the run did not record them).
+    reduced_phi : ndarray (n_frames, 2N+1), or None
+        The angles less their whole turns: phi = reduced_phi + 2 pi winding exactly, of
+        which ``x[:, 2]`` is the nearest double (the same bits while the winding is 0).
     """
 
     time: np.ndarray
@@ -164,6 +176,8 @@ class Trajectory:
     dt: float
     method: str
     turns: TurnLog | None = None
+    winding: np.ndarray | None = None
+    reduced_phi: np.ndarray | None = None
 
     @property
     def ok(self) -> bool:
@@ -190,7 +204,8 @@ class RunState:
         Start time and (effective) time step of the whole run.
     method : str
     x, v, f : ndarray (3, 2N+1)
-        Configuration, velocities and forces plus loads at that step (copies).
+        Configuration (angles less their whole turns, as the engine keeps them), velocities
+        and forces plus loads at that step (copies).
     acc : ndarray (2,)
         Load work and dissipated energy since the start.
     frame_steps : ndarray (k,) of int
@@ -204,7 +219,19 @@ class RunState:
         order they would differ in the last bits). Empty (0, 2) for a run not split. A run resumed on as many blocks goes
         on with them; on another number its states are still bitwise the same, its energy
         sums equal to round-off.
+    winding : ndarray (2N+1,) of int64, optional
+        Whole turns of the angles of ``x`` (None: none).
+    frames_winding : ndarray (k, 2N+1) of int64, optional
+        Whole turns of the frames' angles (None: none).
     """
+
+    def windings(self) -> tuple[np.ndarray, np.ndarray]:
+        """(winding, frames_winding), zeros where not given."""
+        k, n = self.frames_x.shape[0], self.x.shape[-1]
+        winding = np.zeros(n, dtype=np.int64) if self.winding is None else self.winding
+        frames = np.zeros((k, n), dtype=np.int64) if self.frames_winding is None else self.frames_winding
+        return winding, frames
+
 
     steps: int
     n_steps: int
@@ -222,6 +249,8 @@ class RunState:
     frames_v: np.ndarray
     frames_acc: np.ndarray
     split_acc: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    winding: np.ndarray | None = None
+    frames_winding: np.ndarray | None = None
 
     def check(self, params: ChainParams, n_steps: int, stride: int, t0: float, dt: float, method: str) -> None:
         """Refuse a state that is not of this run (its steps, frames, time axis, method or chain).
@@ -255,6 +284,8 @@ class RunState:
             ("frames_v", self.frames_v, (k, *shape)),
             ("frames_acc", self.frames_acc, (k, 2)),
             ("split_acc", self.split_acc, (self.split_acc.shape[0], 2)),
+            ("winding", self.windings()[0], (params.n_particles,)),
+            ("frames_winding", self.windings()[1], (k, params.n_particles)),
         ):
             if np.shape(array) != expected:
                 raise ValueError(f"the run state's {name} has the shape {np.shape(array)}, this run needs {expected}")
@@ -338,6 +369,7 @@ class _Restart:
     f: np.ndarray | None = None
     x: np.ndarray | None = None
     v: np.ndarray | None = None
+    winding: np.ndarray | None = None
     pending: int = 0
     evaluate: bool = False
 
@@ -345,8 +377,8 @@ class _Restart:
     def like(cls, lanes: Lanes) -> _Restart:
         return cls(np.empty_like(lanes.acc), np.empty_like(lanes.lane_ints))
 
-    def save(self, lanes: Lanes, x: np.ndarray, v: np.ndarray, fresh: bool = False) -> _Restart:
-        """Keep ``lanes``' forces and sums at the start of a chunk whose state is the stored frame (x, v).
+    def save(self, lanes: Lanes, x: np.ndarray, v: np.ndarray, winding: np.ndarray, fresh: bool = False) -> _Restart:
+        """Keep ``lanes``' forces and sums at the start of a chunk whose state is the stored frame (x, v, winding).
 
         ``fresh``: the chunk is a fresh run's first, whose forces :meth:`Lanes.evaluate_forces` gave.
         """
@@ -358,7 +390,7 @@ class _Restart:
         np.copyto(self.acc, lanes.acc)
         np.copyto(self.lane_ints, lanes.lane_ints)
         # Closed at a chunk's start; after a blow-up in blocks it is their first block's, which may be open.
-        self.x, self.v, self.pending = x, v, lanes.pending
+        self.x, self.v, self.winding, self.pending = x, v, winding, lanes.pending
         return self
 
     def first_bad_step(self, lanes: Lanes, step0: int, steps: int, stride: int) -> int:
@@ -370,13 +402,22 @@ class _Restart:
         one, which is left in ``lanes``.
         """
         lanes.x[...], lanes.v[...], lanes.acc[...], lanes.lane_ints[...] = self.x, self.v, self.acc, self.lane_ints
+        lanes.winding[...] = self.winding
         if self.evaluate:
+            # The start state as given: split into turns as the run's start was.
+            lanes.reduce_angles()
             lanes.evaluate_forces()
         else:
             lanes.f[...] = self.f
         lanes.pending = self.pending
         stores = steps // stride + 2
-        scratch = (np.zeros((0, *lanes.x.shape)), np.zeros((0, *lanes.x.shape)), np.zeros((stores, 2, 1)), np.zeros((stores, 1)))
+        scratch = (
+            np.zeros((0, *lanes.x.shape)),
+            np.zeros((0, *lanes.x.shape)),
+            np.zeros((stores, 2, 1)),
+            np.zeros((stores, 1)),
+            np.zeros((0, *lanes.winding.shape), dtype=np.int64),
+        )
         _, done, _ = lanes.advance(steps, step0, stride, 1, scratch, 0)
         return done
 
@@ -392,7 +433,7 @@ def _require_frames(params: ChainParams, n_stored: int) -> None:
     """Refuse a run whose stored frames (positions and velocities) and working arrays do not fit in memory."""
     n = params.n_particles
     require(
-        FLOAT * 3 * n * (2 * n_stored + _WORKING_ARRAYS),
+        FLOAT * 3 * n * (2 * n_stored + _WORKING_ARRAYS) + np.dtype(np.int64).itemsize * n * n_stored,
         f"{n_stored} frames x 3 rows x {n} particles (N={params.N}) x 2 (positions and velocities)",
         "store fewer frames (n_frames, --frames) or simulate a shorter chain",
     )
@@ -530,10 +571,14 @@ def integrate(
     frames_v = np.zeros((n_stored, 3, n, 1))
     frames_acc = np.zeros((n_stored, 2, 1))
     record = np.zeros((n_stored, 1))
+    frames_winding = np.zeros((n_stored, n, 1), dtype=np.int64)
     lanes = Lanes(model, [params], method, [dt], loads, t0=[t0], max_displacement=[max_displacement])
-    lanes.x, lanes.v = frames_x[-1], frames_v[-1]
+    lanes.x, lanes.v, lanes.winding = frames_x[-1], frames_v[-1], frames_winding[-1]
     if x0 is not None:
+        # Frame 0 keeps the start as given (winding 0); the state its turns and the rest.
         frames_x[0, ..., 0] = lanes.x[..., 0] = x0
+        if resume is None:
+            lanes.reduce_angles("x0")
     if v0 is not None:
         frames_v[0, ..., 0] = lanes.v[..., 0] = v0
     frame_steps = np.empty(n_stored, dtype=np.int64)
@@ -550,11 +595,13 @@ def integrate(
             resume.frames_x, resume.frames_v, resume.frames_acc
         )  # fmt: skip
         lanes.x[..., 0], lanes.v[..., 0], lanes.f[..., 0], lanes.acc[:, 0] = resume.x, resume.v, resume.f, resume.acc
+        lanes.winding[:, 0], frames_winding[:stored, :, 0] = resume.windings()
     if turns is not None:
         lanes.follow_turns(column(params, turns.particle), turns.keep)
-        phi_start = lanes.x[2, lanes.watch, 0] if turns.phi_start is None else turns.phi_start
-        turns = replace(turns, phi_start=float(phi_start))
+        # The current angle by default: from its turns and the rest as they are, not through a double.
         lanes.restart_turns(np.array([0]), np.array([turns.direction]), turns.phi_start, turns.made)
+        phi_start = lanes.unwrapped_angles()[lanes.watch, 0] if turns.phi_start is None else turns.phi_start
+        turns = replace(turns, phi_start=float(phi_start))
         if turns.stop_after is not None:
             lanes.lane_ints[TURN_LIMIT] = turns.stop_after
     # The blocks follow no turns: a run that follows them stays on one thread; so does a
@@ -571,7 +618,7 @@ def integrate(
 
     status, message = Status.COMPLETED, f"{n_steps} steps of {method.name} with dt={dt:g}"
     chunk = max(stride, CHUNK_WORK // (n * method.force_evaluations) // stride * stride) if resume is None else resume.chunk
-    frames = (frames_x, frames_v, frames_acc, record)
+    frames = (frames_x, frames_v, frames_acc, record, frames_winding)
 
     def run_state() -> RunState:
         return RunState(
@@ -579,6 +626,7 @@ def integrate(
             lanes.x[..., 0].copy(), lanes.v[..., 0].copy(), lanes.f[..., 0].copy(), lanes.acc[:, 0].copy(),
             frame_steps[:stored].copy(), frames_x[:stored, ..., 0], frames_v[:stored, ..., 0], frames_acc[:stored, :, 0],
             np.zeros((0, 2)) if blocks is None else np.array([blocks.acc0[:, 0], *(block.acc[:, 0] for block in blocks.blocks)]),
+            lanes.winding[:, 0].copy(), frames_winding[:stored, :, 0],
         )  # fmt: skip
 
     # A chunk of blocks that blew up is rerun whole, unsplit, from its start: the same bits.
@@ -594,7 +642,9 @@ def integrate(
             start = (
                 None
                 if restart is None
-                else restart.save(lanes, frames_x[stored - 1], frames_v[stored - 1], fresh=steps_done == 0 and resume is None)
+                else restart.save(
+                    lanes, frames_x[stored - 1], frames_v[stored - 1], frames_winding[stored - 1], fresh=steps_done == 0 and resume is None
+                )
             )
             code, done, written = runner.advance(todo, steps_done, stride, 1024, frames, stored)
             if code == STATUS_BLEW_UP and start is not None:
@@ -612,12 +662,11 @@ def integrate(
                 break
             if code == STATUS_BLEW_UP:
                 status = Status.BLEW_UP
+                cause, remedy = lanes.runaway(0)
                 message = (
                     f"the run blew up at t={t0 + steps_done * dt:.6g} (step {steps_done}"
                     + (", the first state out of bounds" if start is not None else ", found at the periodic check")
-                    + "): a value became non-finite, "
-                    f"|u|, |v| exceeded {max_displacement:g} or |phi| exceeded {model.max_angle:g}. "
-                    + f"Use a smaller time step than dt={dt:g} (e.g. dt={dt / 4:g})"
+                    + f"): {cause or 'a value ran out of bounds'}. {remedy[:1].upper() + remedy[1:]}"
                     + (f". {hint}" if (hint := spin_hint(params, loads, dt)) else "")
                     + "; the states up to then are kept."
                 )
@@ -631,9 +680,11 @@ def integrate(
             blocks.close()
     x, v, acc = lanes.x, lanes.v, lanes.acc
     frames_x, frames_v, frames_acc = frames_x[..., 0], frames_v[..., 0], frames_acc[..., 0]
+    frames_winding = frames_winding[..., 0]
     if steps_done % stride != 0 and status != Status.BLEW_UP:
         # The last step is always kept, even off the stride.
         frames_x[stored], frames_v[stored], frames_acc[stored] = x[..., 0], v[..., 0], acc[:, 0]
+        frames_winding[stored] = lanes.winding[:, 0]
         frame_steps[stored] = steps_done
         stored += 1
     keep = stored
@@ -645,9 +696,14 @@ def integrate(
             & np.isfinite(frames_v[:stored]).all(axis=(1, 2))
         )
         keep = int(np.argmin(good)) if not good.all() else stored
+    winding, reduced_phi, x = frames_winding[:keep], frames_x[:keep, 2], frames_x[:keep]
+    if winding.any():
+        # A copy: the frames are a RunState's too (with the angles as the engine keeps them).
+        x = x.copy()
+        x[:, 2] = join_turns(reduced_phi, winding)
     trajectory = Trajectory(
         time=t0 + (t_end - t0) * frame_steps[:keep] / n_steps,
-        x=frames_x[:keep],
+        x=x,
         v=frames_v[:keep],
         load_work=frames_acc[:keep, 0],
         dissipated=frames_acc[:keep, 1],
@@ -657,6 +713,8 @@ def integrate(
         dt=dt,
         method=method.name,
         turns=None if turns is None else TurnLog(turns, int(lanes.lane_ints[CROSSINGS, 0]), *lanes.latest_turns(0, turns.made)),
+        winding=winding,
+        reduced_phi=reduced_phi,
     )
     if throw and status != Status.COMPLETED:
         raise IntegrationError(message, trajectory)

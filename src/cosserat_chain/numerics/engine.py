@@ -34,8 +34,22 @@ K + P - W + D = K0 + P0 to within the integrator's error. It stores every
 ``stride``-th state, and optionally follows one column's angle per member (the
 loaded particle's turns: :class:`TurnRecord`). It stops at the first check that
 finds a member out of bounds (a value not finite, |u| or |v| beyond the
-member's bound, or, for a model that evaluates sines, |phi| beyond
-:data:`~cosserat_chain.models.trig.REDUCTION_LIMIT`, where its sines lose accuracy).
+member's bound, a particle turning by more than :data:`MAX_ROTATION_PER_STEP` in
+one step, or |phi| beyond the model's ``max_angle`` for a model that does not rotate).
+
+Angles
+------
+A rotating model's forces are 2 pi-periodic in every angle, so its angles are kept
+as whole turns (``winding``, int64, exact) plus an angle phi of at most
+:data:`~cosserat_chain.models.trig.WRAP_ANGLE` (64 rad): every :data:`WRAP_EVERY`
+steps (global step numbers, so that a run split into calls wraps where the whole run
+does) each |phi| beyond it loses its whole turns to ``winding`` (Cody-Waite, three
+parts of 2 pi, exact), outside the hot loop. The kernels thus see angles below some
+70 rad at any winding, and a double resolves them to 1.4e-14 rad, as in a run of ten
+turns: a run of 10^7 turns is as accurate as one of ten. An angle never wrapped
+(|phi| <= 64 throughout) keeps its bits exactly. What leaves the engine (stored
+frames' ``record``, the turns' angles, :meth:`Lanes.state`) is the unwrapped angle
+phi + 2 pi winding as a double; stored frames keep phi and ``winding`` apart.
 """
 
 from __future__ import annotations
@@ -49,6 +63,7 @@ from numba import njit, types
 from ..loads import schedule_value
 from ..memory import FLOAT, require
 from ..models.base import BATCH_FORCE_KERNEL_TYPE, END_KERNEL_TYPE, FORCE_KERNEL_TYPE, LANES
+from ..models.trig import TWO_PI_1, TWO_PI_2, TWO_PI_3, WRAP_ANGLE, join_turns, split_turns
 from ..state import force_columns, held
 from .integrators import substep_table
 
@@ -66,10 +81,21 @@ STATUS_BLEW_UP = 1
 STATUS_TURNED = 2
 
 # Rows of the per-member float table ``lanes``: start time, step, bounds on |u|, |v|
-# and on |phi|, and for the followed column the sense of its turns and its start angle.
-T0, DT, MAX_DISPLACEMENT, MAX_ANGLE, DIRECTION, PHI_START = range(6)
+# and on |phi| (a model that does not rotate), for the followed column the sense of its
+# turns and its start angle (less its whole turns, TURNS_START), the |phi| beyond which
+# angles lose whole turns to the winding (infinite: never) and the bound on |phi'|.
+T0, DT, MAX_DISPLACEMENT, MAX_ANGLE, DIRECTION, PHI_START, WRAP_LIMIT, MAX_SPIN = range(8)
 #: Number of rows of ``lanes``.
-N_LANE_FIELDS = 6
+N_LANE_FIELDS = 8
+#: Steps between two reductions of the angles by whole turns (a pass over the angles
+#: every so many steps: nothing measurable, and the angles stay below WRAP_ANGLE plus
+#: what a particle turns in so many steps).
+WRAP_EVERY = 64
+#: Largest rotation of a particle in one step (rad) before a run counts as blown up: some
+#: 1300 turns a step, which no step resolves; below it angles stay within the exact range
+#: of the reduction (2^20 turns) between two reductions. A rotation beyond 0.5 rad a step
+#: is already inaccurate (``experiments.simulation``), but not a blow-up.
+MAX_ROTATION_PER_STEP = 8192.0
 #: Steps between two exchanges of halos when one chain is split into blocks (:class:`Blocks`):
 #: the blocks meet once per so many steps, and a block in the cache takes them all from it
 #: (10^6 particles, one thread: 64 steps 10 % faster than 16).
@@ -86,10 +112,11 @@ BLOCKS_PER_THREAD = 4
 SPLIT_COLUMNS = 2**18
 #: Columns per block of such a chain (x, v, f of a block: 2.4 MB; 2^14 to 2^16 measured alike).
 CACHE_COLUMNS = 2**15
-# Rows of the per-member int table ``lane_ints``: turns made, blown up (0 or 1), and the
-# turn after which the loop stops (once every member has made it).
-CROSSINGS, BLEW_UP, TURN_LIMIT = range(3)
-N_LANE_INTS = 3
+# Rows of the per-member int table ``lane_ints``: turns made, blown up (0 or 1), the
+# turn after which the loop stops (once every member has made it), and the whole turns
+# of the followed column's start angle.
+CROSSINGS, BLEW_UP, TURN_LIMIT, TURNS_START = range(4)
+N_LANE_INTS = 4
 #: TURN_LIMIT of a member that may turn without end.
 NO_TURN_LIMIT = np.iinfo(np.int64).max
 
@@ -304,23 +331,50 @@ def _batch_substep(
 
 @njit(**_OPTIONS)
 def _runaway(x, v, lanes, lane_ints):  # pragma: no cover - compiled
-    """Flag the members with a non-finite value or |u|, |v| or |phi| beyond their bounds; True if any."""
+    """Flag the members with a value not finite, |u| or |v| beyond their bound, or |phi'| or |phi| beyond theirs; True if any."""
     size = lanes.shape[1]
     found = False
     for r in range(3):
         for j in range(x.shape[1]):
             i = j % size
             limit = lanes[MAX_DISPLACEMENT, i] if r < 2 else lanes[MAX_ANGLE, i]
-            if not (math.isfinite(v[r, j]) and abs(x[r, j]) <= limit):
+            rate = math.inf if r < 2 else lanes[MAX_SPIN, i]
+            if not (math.isfinite(x[r, j]) and abs(x[r, j]) <= limit and abs(v[r, j]) <= rate):
                 lane_ints[BLEW_UP, i] = 1
                 found = True
     return found
 
 
+@njit(**_OPTIONS)
+def _wrap(x, winding, lanes):  # pragma: no cover - compiled
+    """Move the whole turns of every |phi| beyond its member's WRAP_LIMIT into ``winding``; True if any moved.
+
+    Not inlined, and compiled without fastmath: the reduction's three subtractions must
+    round in this order (n TWO_PI_1 and n TWO_PI_2 are exact, |n| < 2^20) wherever it runs.
+    An angle within the limit takes n = 0 and keeps its bits.
+    """
+    size = lanes.shape[1]
+    moved = False
+    for j in range(x.shape[1]):
+        phi = x[2, j]
+        n = math.floor(phi * (1.0 / (2.0 * math.pi)) + 0.5) if math.isfinite(phi) and abs(phi) > lanes[WRAP_LIMIT, j % size] else 0.0
+        if n != 0.0:
+            x[2, j] = ((phi - n * TWO_PI_1) - n * TWO_PI_2) - n * TWO_PI_3
+            winding[j] += np.int64(n)
+            moved = True
+    return moved
+
+
 @njit(inline="always", **_OPTIONS)
-def _winding(phi, direction, phi_start):  # pragma: no cover - compiled
-    """Turns made along ``direction`` since ``phi_start``, as a real number."""
-    return direction * (phi - phi_start) / (2.0 * math.pi)
+def _unwrapped(phi, turns):  # pragma: no cover - compiled
+    """phi + 2 pi turns as a double (:func:`~cosserat_chain.models.trig.join_turns`); phi itself for 0 turns."""
+    return (phi + turns * TWO_PI_2) + turns * TWO_PI_1
+
+
+@njit(inline="always", **_OPTIONS)
+def _winding(phi, turns, direction, phi_start, turns_start):  # pragma: no cover - compiled
+    """Turns made along ``direction`` since (phi_start, turns_start) by (phi, turns), as a real number."""
+    return direction * ((phi - phi_start) / (2.0 * math.pi) + (turns - turns_start))
 
 
 @njit(inline="always", **_OPTIONS)
@@ -332,7 +386,7 @@ def _turn_time(level, winding_prev, winding, time_prev, time_now):  # pragma: no
 
 @njit(**_OPTIONS)
 def _follow_turns(
-    x, lanes, lane_ints, col, time_step, winding_prev, time_prev, ring_time, ring_step_time, ring_phi
+    x, winding, lanes, lane_ints, col, time_step, winding_prev, time_prev, ring_time, ring_step_time, ring_phi
 ):  # pragma: no cover - compiled
     """Record the turns of column ``col`` completed since the previous step.
 
@@ -342,23 +396,24 @@ def _follow_turns(
     linearly between the two steps around it; a swing back over a turn already
     made does not count again. The ring keeps the last C turns: their
     interpolated times, the time of the step after each and every particle's
-    angle at that step. Returns whether every member has reached its TURN_LIMIT.
+    (unwrapped) angle at that step. Returns whether every member has reached its TURN_LIMIT.
     """
     size = lanes.shape[1]
     reached = True
     capacity = ring_time.shape[0]
     for i in range(size):
-        winding = _winding(x[2, col * size + i], lanes[DIRECTION, i], lanes[PHI_START, i])
+        at = col * size + i
+        made = _winding(x[2, at], winding[at], lanes[DIRECTION, i], lanes[PHI_START, i], lane_ints[TURNS_START, i])
         crossings = lane_ints[CROSSINGS, i]
-        while winding >= crossings + 1:
+        while made >= crossings + 1:
             slot = crossings % capacity
-            ring_time[slot, i] = _turn_time(crossings + 1, winding_prev[i], winding, time_prev[i], time_step[i])
+            ring_time[slot, i] = _turn_time(crossings + 1, winding_prev[i], made, time_prev[i], time_step[i])
             ring_step_time[slot, i] = time_step[i]
             for k in range(ring_phi.shape[1]):
-                ring_phi[slot, k, i] = x[2, k * size + i]
+                ring_phi[slot, k, i] = _unwrapped(x[2, k * size + i], winding[k * size + i])
             crossings += 1
         lane_ints[CROSSINGS, i] = crossings
-        winding_prev[i] = winding
+        winding_prev[i] = made
         time_prev[i] = time_step[i]
         reached = reached and crossings >= lane_ints[TURN_LIMIT, i]
     return reached
@@ -386,12 +441,12 @@ def turns_in_frames(time, phi, direction, phi_start, made):  # pragma: no cover 
     """
     last = made
     for f in range(phi.shape[0]):
-        last = max(last, math.floor(_winding(phi[f], direction, phi_start)))
+        last = max(last, math.floor(_winding(phi[f], 0, direction, phi_start, 0)))
     times = np.empty(last - made)
     crossings = made
-    winding_prev = _winding(phi[0], direction, phi_start)
+    winding_prev = _winding(phi[0], 0, direction, phi_start, 0)
     for f in range(1, phi.shape[0]):
-        winding = _winding(phi[f], direction, phi_start)
+        winding = _winding(phi[f], 0, direction, phi_start, 0)
         while winding >= crossings + 1:
             times[crossings - made] = _turn_time(crossings + 1, winding_prev, winding, time[f - 1], time[f])
             crossings += 1
@@ -406,13 +461,13 @@ _TABLE = types.float64[:, ::1]
 # fmt: off
 ADVANCE_SIGNATURE = types.UniTuple(_I8, 4)(
     FORCE_KERNEL_TYPE, END_KERNEL_TYPE, BATCH_FORCE_KERNEL_TYPE,  # force, end_force, batch_force
-    _TABLE, _TABLE, _TABLE,  # x, v, f: (3, n B)
+    _TABLE, _TABLE, _TABLE, types.int64[::1],  # x, v, f: (3, n B); winding (n B)
     _TABLE, types.float64[::1], types.float64[:, :, :, :, ::1], types.float64[::1],  # coef (c, B), chain_coef (c,), pairs, weights (S,)
     types.int64[:, ::1], _TABLE, _TABLE,  # load_index (L, 4), knots, load_scale (L, B)
     _TABLE, types.int64[:, ::1], types.int64[::1],  # lanes (N_LANE_FIELDS, B), lane_ints (N_LANE_INTS, B), columns (4,)
     types.boolean, types.int64[:, ::1],  # ring, fixed (H, 2)
     _I8, _I8, _I8, _I8, _I8, types.boolean,  # n_steps, step0, stride, check_every, pending, close_at_end
-    _TABLE, _STATES, _STATES, _STATES, _TABLE, _I8,  # acc (2, B), frames_x, frames_v (F, 3, n B), frames_acc (F, 2, B), record (F, B), frame0
+    _TABLE, _STATES, _STATES, _STATES, _TABLE, types.int64[:, ::1], _I8,  # acc (2, B), frames_x, frames_v (F, 3, n B), frames_acc (F, 2, B), record (F, B), frames_winding (F, n B), frame0
     _I8, _TABLE, _TABLE, _STATES,  # watch, ring_time (C, B), ring_step_time (C, B), ring_phi (C, n, B)
 )
 # fmt: on
@@ -426,6 +481,7 @@ def advance(
     x,
     v,
     f,
+    winding,
     coef,
     chain_coef,
     pairs,
@@ -449,6 +505,7 @@ def advance(
     frames_v,
     frames_acc,
     record,
+    frames_winding,
     frame0,
     watch,
     ring_time,
@@ -465,6 +522,9 @@ def advance(
         boundary; column k of member b at index k B + b.
     f : ndarray (3, n B)
         Forces plus loads at those states (kept between calls: one evaluation per sub-step).
+    winding : ndarray (n B) of int64
+        Whole turns of every angle (the angle is x[2] + 2 pi winding); updated every
+        :data:`WRAP_EVERY` global steps where |x[2]| passes lanes[WRAP_LIMIT].
     coef : (c, B) model coefficients; chain_coef : (c,) member 0's, for B = 1
     pairs : (S+1, S+1, 5, 3, B) from :func:`pair_table`; weights : (S,) the method's sub-step sizes as fractions of dt
     load_index : (L, 5) row, column, first and one-past-last knot, and whether the load's work counts (0 or 1)
@@ -483,7 +543,8 @@ def advance(
         to be continued by the next call exactly as if the run had not stopped
     acc : (2, B) running load work and dissipated energy, updated in place
     frames_x, frames_v : (F, 3, n B), or F = 0 to store no states; frames_acc : (F, 2, B);
-    record : (F, B) angle of column ``watch`` at every store (when watch >= 0)
+    record : (F, B) unwrapped angle of column ``watch`` at every store (when watch >= 0)
+    frames_winding : (F, n B), the winding at every store (F = 0 with frames_x)
     frame0 : first slot to write
     watch : column whose angle ``record`` keeps (-1: none) and whose turns the ring follows
     ring_time, ring_step_time, ring_phi : its :class:`TurnRecord`; a ring of capacity 0 follows no turns
@@ -514,7 +575,8 @@ def advance(
     time_prev = np.empty(size)
     if watch >= 0:
         for i in range(size):
-            winding_prev[i] = _winding(x[2, watch * size + i], lanes[DIRECTION, i], lanes[PHI_START, i])
+            at = watch * size + i
+            winding_prev[i] = _winding(x[2, at], winding[at], lanes[DIRECTION, i], lanes[PHI_START, i], lane_ints[TURNS_START, i])
             time_prev[i] = lanes[T0, i] + step0 * lanes[DT, i]
     # The batch kernel's (3, n, B) views, made once: a reshape in the loop is an array
     # made and freed every sub-step.
@@ -535,6 +597,7 @@ def advance(
     # a small chain's kick-drift.
     to_store = stride - step0 % stride
     to_check = check_every - step0 % check_every
+    to_wrap = WRAP_EVERY - step0 % WRAP_EVERY
     for k in range(n_steps):
         for s in range(n_sub):
             if size > 1:
@@ -606,11 +669,21 @@ def advance(
                 for i in range(size):
                     f[fixed[j, 0], at + i] = 0.0
             pending = s
+        to_wrap -= 1
+        if to_wrap == 0:
+            to_wrap = WRAP_EVERY
+            if _wrap(x, winding, lanes):
+                # The loads' work counts q - q_old: their angles' old values lose the same turns.
+                for j in range(n_loads):
+                    for i in range(size):
+                        q_old[j, i] = x[load_index[j, 0], load_index[j, 1] * size + i]
         turned = False
         if watch >= 0 and ring_time.shape[0] > 0:
             for i in range(size):
                 step_time[i] = lanes[T0, i] + (step0 + k + 1) * lanes[DT, i]
-            turned = _follow_turns(x, lanes, lane_ints, watch, step_time, winding_prev, time_prev, ring_time, ring_step_time, ring_phi)
+            turned = _follow_turns(
+                x, winding, lanes, lane_ints, watch, step_time, winding_prev, time_prev, ring_time, ring_step_time, ring_phi
+            )
         to_store -= 1
         to_check -= 1
         last = (k == n_steps - 1 and close_at_end) or turned
@@ -624,11 +697,13 @@ def advance(
             if keep_states and frames_x[frame].ctypes.data != x.ctypes.data:
                 frames_x[frame] = x
                 frames_v[frame] = v
+            if keep_states and frames_winding[frame].ctypes.data != winding.ctypes.data:
+                frames_winding[frame] = winding
             for i in range(size):
                 frames_acc[frame, 0, i] = work[i]
                 frames_acc[frame, 1, i] = dissipated[i]
                 if watch >= 0:
-                    record[frame, i] = x[2, watch * size + i]
+                    record[frame, i] = _unwrapped(x[2, watch * size + i], winding[watch * size + i])
             frame += 1
         if to_check == 0 or last:
             to_check = check_every
@@ -679,7 +754,8 @@ class Lanes:
     load_scale : (L, B), optional
         Amplitude of load l on member b (default 1).
     x0, v0 : (B, 3, 2N+1), optional
-        Start states (default rest).
+        Start states (default rest); a rotating model's start angles beyond
+        WRAP_ANGLE are split into whole turns and the rest (:meth:`reduce_angles`).
     t0 : (B,), optional
         Start times (default 0).
     max_displacement : (B,), optional
@@ -713,11 +789,15 @@ class Lanes:
         self.lanes[MAX_DISPLACEMENT] = (
             np.array([100.0 * 2 * p.N * p.h for p in first])[which] if max_displacement is None else max_displacement
         )
-        self.lanes[MAX_ANGLE] = model.max_angle
+        # A rotating model's angles are wrapped (module docstring): no bound on them; the
+        # others' (the linear model's) are neither wrapped nor bounded but by their own max_angle.
+        self.lanes[MAX_ANGLE] = math.inf if model.rotates else model.max_angle
+        self.lanes[WRAP_LIMIT] = WRAP_ANGLE if model.rotates else math.inf
         self.lanes[DIRECTION] = 1.0
         self.lane_ints = np.zeros((N_LANE_INTS, size), dtype=np.int64)
         self.lane_ints[TURN_LIMIT] = NO_TURN_LIMIT
         self.lanes[DT] = dt
+        self.lanes[MAX_SPIN] = MAX_ROTATION_PER_STEP / self.lanes[DT]
         if self.params[0].graded_inertia:
             # Factors per column (the kick-drift reads them so when the last axis is the chain's).
             columns = self.params[0].particle_inertia
@@ -736,10 +816,41 @@ class Lanes:
             self.x[...] = np.moveaxis(np.asarray(x0, dtype=float), 0, -1)
         if v0 is not None:
             self.v[...] = np.moveaxis(np.asarray(v0, dtype=float), 0, -1)
+        self.winding = np.zeros((n, size), dtype=np.int64)
+        if x0 is not None:
+            self.reduce_angles("x0")
         self.f = np.zeros((3, n, size))
         self.acc = np.zeros((2, size))
         self.watch = -1
         self.turns = TurnRecord.empty(1, n, size)
+
+    def reduce_angles(self, name: str = "x0") -> None:
+        """Split a rotating model's angles beyond WRAP_ANGLE into whole turns (``winding``) and the rest, exactly.
+
+        For a start state (the loop wraps its angles itself): the same state always gives
+        the same bits, so a run from phi + 2 pi k continues as a run from phi would.
+
+        Raises
+        ------
+        ValueError
+            For an angle beyond :data:`~cosserat_chain.models.trig.MAX_START_ANGLE` (naming ``name``).
+        """
+        if not self.model.rotates:
+            return
+        big = np.abs(self.x[2]) > WRAP_ANGLE
+        if not big.any():
+            return
+        where = np.nonzero(big)
+        for k, b in zip(*where):
+            # Particle index (-N..N) and member, for the message.
+            label = f"{name}[{b}] phi of particle {k - self.n // 2}" if self.size > 1 else f"{name} phi of particle {k - self.n // 2}"
+            reduced, turns = split_turns(self.x[2, k, b], label)
+            self.x[2, k, b] = reduced
+            self.winding[k, b] += turns
+
+    def unwrapped_angles(self) -> np.ndarray:
+        """(n, B) every angle as phi + 2 pi winding (a double: exact while the winding is 0)."""
+        return join_turns(self.x[2], self.winding) if self.winding.any() else self.x[2].copy()
 
     def follow_turns(self, col: int, capacity: int) -> None:
         """Follow the turns of column ``col`` from the current state, keeping the last ``capacity``.
@@ -754,11 +865,17 @@ class Lanes:
         """Count the turns of the given members anew along ``direction``.
 
         Turn n is complete when direction (phi - phi_start) reaches 2 pi n;
-        ``phi_start`` defaults to the current angles, and ``made`` is the number of
+        ``phi_start`` (unwrapped) defaults to the current angles, and ``made`` is the number of
         turns counted already (to go on counting across runs).
         """
         self.lanes[DIRECTION, members] = direction
-        self.lanes[PHI_START, members] = self.x[2, self.watch, members] if phi_start is None else phi_start
+        if phi_start is None:
+            self.lanes[PHI_START, members] = self.x[2, self.watch, members]
+            self.lane_ints[TURNS_START, members] = self.winding[self.watch, members]
+        else:
+            reduced, turns = split_turns(np.broadcast_to(np.asarray(phi_start, dtype=float), np.shape(members)), "phi_start")
+            self.lanes[PHI_START, members] = reduced
+            self.lane_ints[TURNS_START, members] = turns
         self.lane_ints[CROSSINGS, members] = made
 
     def latest_turns(self, b: int, made_before: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -801,7 +918,7 @@ class Lanes:
     def advance(self, n_steps, step0=0, stride=None, check_every=1024, frames=None, frame0=0, close_at_end=True):
         """Run the compiled loop; returns (status, steps_done, frames_written).
 
-        ``frames``: (frames_x, frames_v, frames_acc, record) to store into, or None
+        ``frames``: (frames_x, frames_v, frames_acc, record, frames_winding) to store into, or None
         to store nothing (then ``stride`` defaults to ``n_steps``). With
         ``close_at_end=False`` the last step stays open and the next call goes on
         from it as if the run had not stopped.
@@ -809,15 +926,18 @@ class Lanes:
         if frames is None:
             frames = self.no_frames()
             stride = n_steps if stride is None else stride
-        frames_x, frames_v, frames_acc, record = frames
+        frames_x, frames_v, frames_acc, record, frames_winding = frames
         flat_frames = frames_x.reshape(frames_x.shape[0], 3, self.n * self.size)
         kind = type(self.model)
+        winding = self.winding.reshape(-1)
+        assert np.shares_memory(winding, self.winding)
         status, done, written, self.pending = advance(
-            self.force_kernel, self.end_kernel, kind.batch_kernel, self._flat(self.x), self._flat(self.v), self._flat(self.f), self.coef,
-            self.coef[:, 0].copy(), self.pairs, self.weights,
+            self.force_kernel, self.end_kernel, kind.batch_kernel, self._flat(self.x), self._flat(self.v), self._flat(self.f), winding,
+            self.coef, self.coef[:, 0].copy(), self.pairs, self.weights,
             self.load_index, self.knots, self.load_scale, self.lanes, self.lane_ints, self.columns, self.ring, self.fixed,
             int(n_steps), int(step0), int(stride), int(check_every), int(self.pending), bool(close_at_end), self.acc,
-            flat_frames, frames_v.reshape(flat_frames.shape), frames_acc, record, int(frame0),
+            flat_frames, frames_v.reshape(flat_frames.shape), frames_acc, record,
+            frames_winding.reshape(frames_winding.shape[0], self.n * self.size), int(frame0),
             self.watch, self.turns.time, self.turns.step_time, self.turns.phi,
         )  # fmt: skip
         return status, done, written
@@ -836,11 +956,58 @@ class Lanes:
             np.zeros((0, 3, self.n, self.size)),
             np.zeros((2, 2, self.size)),
             np.zeros((2, self.size)),
+            np.zeros((0, self.n, self.size), dtype=np.int64),
         )
 
     def state(self, b: int) -> tuple[np.ndarray, np.ndarray]:
-        """Copies of member b's configuration and velocities, (3, 2N+1) each."""
-        return self.x[:, :, b].copy(), self.v[:, :, b].copy()
+        """Copies of member b's configuration (angles unwrapped: :meth:`unwrapped_angles`) and velocities, (3, 2N+1) each."""
+        x = self.x[:, :, b].copy()
+        if self.winding[:, b].any():
+            x[2] = join_turns(x[2], self.winding[:, b])
+        return x, self.v[:, :, b].copy()
+
+    def runaway(self, b: int) -> tuple[str, str]:
+        """Why member b is out of bounds, and what to do, in words (after a blow-up; empty if it is not).
+
+        Returns
+        -------
+        (cause, remedy) : str, str
+            e.g. ("u of particle 3 became non-finite", "use a smaller time step ...").
+        """
+        x, v, dt = self.x[:, :, b], self.v[:, :, b], float(self.lanes[DT, b])
+        half = self.n // 2
+        smaller = f"use a smaller time step than dt={dt:g} (e.g. dt={dt / 4:g}), or smaller loads"
+        for r, row in enumerate(("u", "v", "phi")):
+            for name, values in ((row, x[r]), (f"{row}'", v[r])):
+                bad = np.flatnonzero(~np.isfinite(values))
+                if bad.size:
+                    return f"{name} of particle {bad[0] - half} became non-finite", smaller
+        bound = self.lanes[MAX_DISPLACEMENT, b]
+        for r, row in enumerate(("u", "v")):
+            far = np.flatnonzero(np.abs(x[r]) > bound)
+            if far.size:
+                return (
+                    f"|{row}| of particle {far[0] - half} reached {abs(x[r, far[0]]):.3g}, beyond the bound {bound:g} (100 chain "
+                    "lengths unless max_displacement was given)",
+                    "a net force that pulls the chain away without end travels so far (raise max_displacement if it is meant "
+                    f"to); otherwise the state diverged: {smaller}",
+                )
+        fast = np.flatnonzero(np.abs(v[2]) > self.lanes[MAX_SPIN, b])
+        if fast.size:
+            return (
+                f"particle {fast[0] - half} turned by {abs(v[2, fast[0]]) * dt:.3g} rad in one step, beyond "
+                f"{MAX_ROTATION_PER_STEP:g} (some 1300 turns)",
+                f"a moment that spins a particle so fast (without rotational damping, gamma_phi = 0, it spins up without end) "
+                f"is beyond any step near dt={dt:g}: a smaller moment, damping or step",
+            )
+        wide = np.flatnonzero(np.abs(x[2]) > self.lanes[MAX_ANGLE, b])
+        if wide.size:
+            return (
+                f"|phi| of particle {wide[0] - half} reached {abs(x[2, wide[0]]):.3g}, beyond the model's max_angle "
+                f"{self.lanes[MAX_ANGLE, b]:g}",
+                "the model is accurate only below its max_angle: a model that rotates (nonlinear or sine)",
+            )
+        return "", ""
 
     def select(self, members: np.ndarray) -> Lanes:
         """A new Lanes holding copies of the given members' arrays (to drop members)."""
@@ -854,7 +1021,7 @@ class Lanes:
         out.gamma = self.gamma[members]
         # A graded chain's factors are per column, not per member (a batch of one: nothing to select).
         out.pairs = self.pairs if self.params[0].graded_inertia else np.ascontiguousarray(self.pairs[..., members])
-        for name in ("x", "v", "f"):
+        for name in ("x", "v", "f", "winding"):
             setattr(out, name, np.ascontiguousarray(getattr(self, name)[..., members]))
         out.turns = TurnRecord(*(np.ascontiguousarray(a[..., members]) for a in (self.turns.time, self.turns.step_time, self.turns.phi)))
         return out
@@ -874,6 +1041,7 @@ class Lanes:
         out.x = np.ascontiguousarray(self.x[:, first:last])
         out.v = np.ascontiguousarray(self.v[:, first:last])
         out.f = np.ascontiguousarray(self.f[:, first:last])
+        out.winding = np.ascontiguousarray(self.winding[first:last])
         out.acc = np.zeros((2, 1))
         low = 0 if first == 0 and self.columns[0] == 0 else 1
         high = out.n if last == self.n and self.columns[1] == self.n else out.n - 1
@@ -952,7 +1120,7 @@ class Blocks:
 
     def advance(self, n_steps, step0, stride, check_every, frames, frame0):
         """As :meth:`Lanes.advance` on the whole chain (frames of states, ``record`` unused)."""
-        frames_x, frames_v, frames_acc, _ = frames
+        frames_x, frames_v, frames_acc, _, frames_winding = frames
         done = written = 0
         while done < n_steps:
             to_store = stride - (step0 + done) % stride
@@ -973,6 +1141,8 @@ class Blocks:
                     if not np.may_share_memory(frames_x[frame0 + written], self.lanes.x):
                         frames_x[frame0 + written] = self.lanes.x
                         frames_v[frame0 + written] = self.lanes.v
+                    if not np.may_share_memory(frames_winding[frame0 + written], self.lanes.winding):
+                        frames_winding[frame0 + written] = self.lanes.winding
                     frames_acc[frame0 + written] = self.lanes.acc
                     written += 1
                 if blew_up:
@@ -992,6 +1162,7 @@ class Blocks:
                 lo, hi = max(first, o_start), min(last, o_stop)
                 for name in ("x", "v", "f"):
                     getattr(block, name)[:, lo - first : hi - first] = getattr(other, name)[:, lo - o_first : hi - o_first]
+                block.winding[lo - first : hi - first] = other.winding[lo - o_first : hi - o_first]
 
     def _gather(self) -> None:
         """The blocks' own columns into the whole chain, and their energy sums (added in the blocks' order)."""
@@ -1000,6 +1171,7 @@ class Blocks:
             (first, _, start, stop), block = item
             for name in ("x", "v", "f"):
                 getattr(self.lanes, name)[:, start:stop] = getattr(block, name)[:, start - first : stop - first]
+            self.lanes.winding[start:stop] = block.winding[start - first : stop - first]
 
         self._each(own_columns, zip(self.spans, self.blocks))
         self.lanes.acc[...] = self.acc0

@@ -447,10 +447,8 @@ def _blow_up(lanes: Lanes, lane: int, b: int, moment: float, time: float) -> Int
     """The error for member b's blow-up, carrying its state."""
     x, v = lanes.state(lane)
     dt = float(lanes.lanes[DT, lane])
-    message = (
-        f"member {b} (params_list[{b}], moment {moment:g}) blew up by t={time:.6g}: a value became non-finite or "
-        f"|u|, |v| or |phi| exceeded its bound. Use a smaller time step than dt={dt:g}."
-    )
+    cause, remedy = lanes.runaway(lane)
+    message = f"member {b} (params_list[{b}], moment {moment:g}) blew up by t={time:.6g}: {cause or 'a value ran out of bounds'}; {remedy}."
     trajectory = Trajectory(
         time=np.array([time]), x=x[None], v=v[None], load_work=np.full(1, np.nan), dissipated=np.full(1, np.nan),
         status=Status.BLEW_UP, message=message, steps=0, dt=dt, method=lanes.method.name,
