@@ -42,7 +42,7 @@ import xarray as xr
 
 from . import __version__
 from .experiments.study import StudySpec, compute_cells, empty_results, store_cell
-from .io import read_dataset, write_dataset
+from .io import OutputError, read_dataset, write_dataset
 from .status import Status
 
 log = logging.getLogger(__name__)
@@ -91,6 +91,9 @@ class StudyRun:
         finished cells are saved either way, and the same call resumes.
     message : str
         Why it stopped early ("" if completed).
+    unsaved : str
+        Why ``out`` could not be written at the end (a full disk; "" if it was): the
+        dataset holds the cells, for the caller to keep elsewhere.
     """
 
     dataset: xr.Dataset
@@ -99,6 +102,7 @@ class StudyRun:
     failed: int
     status: Status = Status.COMPLETED
     message: str = ""
+    unsaved: str = ""
 
     @property
     def completed(self) -> bool:
@@ -222,6 +226,7 @@ def run_study(
     if progress is not None:
         progress(skipped, total)
     computed, message, status = 0, "", Status.COMPLETED
+    unsaved = ""
 
     def store(part: list[Cell], values: list[dict[str, Any]]) -> None:
         nonlocal computed
@@ -238,7 +243,7 @@ def run_study(
                 chunks = chunk_cells(todo, chunk or default_chunk_size(len(todo), worker_count))
                 futures = {client.submit(compute_cells, [c[2] for c in part], part[0][1], spec_json, pure=False): part for part in chunks}
                 try:
-                    message = _collect(client, futures, store, lambda: write_dataset(ds, out) if out is not None else None, save_every)
+                    message = _collect(client, futures, store, lambda: _save(ds, out) if out is not None else None, save_every)
                     status = Status.FAILED if message else status
                 except KeyboardInterrupt:
                     message, status = f"interrupted after {skipped + computed} of {total} cells", Status.INTERRUPTED
@@ -251,9 +256,20 @@ def run_study(
     finally:
         # Also on an error (a progress callback raising, a failure of the client): keep the chunks that arrived.
         if out is not None:
-            write_dataset(ds, out)
+            unsaved = _save(ds, out)
     failed = int(np.sum((ds["done"].values == 1) & (ds["error"].values.astype(str) != "")))
-    return StudyRun(ds, computed, skipped, failed, status, message)
+    return StudyRun(ds, computed, skipped, failed, status, message, unsaved)
+
+
+def _save(ds: xr.Dataset, out: Path) -> str:
+    """Write the study's file; returns "" or why it failed (logged): a full disk must not stop the study nor lose its cells."""
+    try:
+        write_dataset(ds, out)
+    except (OSError, OutputError) as err:
+        reason = f"{err.strerror or err}" if isinstance(err, OSError) else str(err)
+        log.warning("could not write %s (%s); the cells are kept in memory", out, reason)
+        return reason
+    return ""
 
 
 def _collect(client, futures: dict, store: Callable, save: Callable[[], None], save_every: float) -> str:

@@ -7,8 +7,8 @@ Each command lives in its own module of this package and registers itself on ``a
 from __future__ import annotations
 
 import functools
+from contextlib import ExitStack
 import math
-import os
 import sys
 import tempfile
 from enum import Enum
@@ -19,7 +19,7 @@ import typer
 from pydantic import ValidationError
 from tqdm import tqdm
 
-from ..io import FIGURE_FORMATS, OutputError, check_output, load_config, write_dataset, write_figure
+from ..io import FIGURE_FORMATS, OutputError, check_output, load_config, netcdf_image, output_lock, write_bytes, write_fallback, write_figure
 from ..memory import MemoryEstimateError, available, size_text
 from ..params import ChainParams
 from ..status import Status
@@ -51,6 +51,8 @@ class _App(typer.Typer):
                         f"not enough memory: {err or 'an allocation failed'} ({size_text(available())} free); "
                         "a shorter chain (N) or fewer stored states fit"
                     )
+                finally:
+                    _LOCKS.close()  # the outputs' locks of this command (a test runs many commands in one process)
 
             return register(guarded)
 
@@ -59,6 +61,9 @@ class _App(typer.Typer):
 
 # No Rich markup in the help: it would take the TOML tables "[[loads]]" and "[reproduce]" for style tags and drop them.
 app = _App(add_completion=True, help="Discrete Cosserat chains of finite-size particles.", no_args_is_help=True, rich_markup_mode=None)
+
+#: The locks of the running command's outputs (:func:`outputs_or_exit`), released when it returns.
+_LOCKS = ExitStack()
 
 #: The ``--model`` value that stands for every offered model (a name the registry reserves).
 ALL_MODELS = "all"
@@ -299,7 +304,11 @@ def outputs_or_exit(
     formats: dict[str, tuple[str, ...]] | None = None,
     folders: tuple[str, ...] = (),
 ) -> None:
-    """Check every output of a command before it computes (:func:`cosserat_chain.io.check_output`); exit 2 naming the bad one.
+    """Check every output of a command and take its lock before the command computes; exit 2 naming the bad one.
+
+    Each output is checked by :func:`cosserat_chain.io.check_output`, then locked
+    (:func:`cosserat_chain.io.output_lock`) until the command returns: a second run
+    writing the same file is refused here, naming the process that writes it.
 
     Parameters
     ----------
@@ -316,6 +325,8 @@ def outputs_or_exit(
         for option, path in given.items():
             others = {name: other for name, other in given.items() if name != option}
             check_output(path, option, formats=formats.get(option), inputs={**(inputs or {}), **others}, folder=option in folders)
+        for option, path in given.items():
+            _LOCKS.enter_context(output_lock(path, option))
     except OutputError as err:
         fail(str(err))
 
@@ -402,22 +413,23 @@ def run_or_exit(run: Path):
 def save_dataset(dataset, out: Path | None, option: str = "--out") -> None:
     """Write a result to ``out``; if that fails now that the work is done, keep it in a fallback file and say where (exit 3).
 
-    The fallback is a file of the same name with ``.recovered`` in the working folder,
-    then in the system's temporary folder.
+    The fallback is a new file ``STEM.recovered-XXXXXXXX.nc`` (a random part no other user
+    can predict, mode 0600: :func:`cosserat_chain.io.write_fallback`) in the working
+    folder, else in the system's temporary folder.
     """
     if out is None:
         return
+    image = netcdf_image(dataset)
     try:
-        write_dataset(dataset, out)
+        write_bytes(image, out)
         return
     except (OSError, OutputError) as err:
         reason = f"{err.strerror or err}" if isinstance(err, OSError) else str(err)
     stem, suffix = Path(out).stem or "result", Path(out).suffix or ".nc"
     for folder in (Path.cwd(), Path(tempfile.gettempdir())):
-        fallback = folder / f"{stem}.recovered-{os.getpid()}{suffix}"
         try:
-            write_dataset(dataset, fallback)
-        except (OSError, OutputError):
+            fallback = write_fallback(image, folder, stem, suffix)
+        except OSError:
             continue
         fail(f"could not write {option} {str(out)!r} ({reason}); the result is saved in {str(fallback)!r}", code=3)
     fail(f"could not write {option} {str(out)!r} ({reason}), nor a fallback in the working or temporary folder: the result is lost", code=3)

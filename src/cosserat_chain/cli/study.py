@@ -9,7 +9,7 @@ import typer
 
 from ..io import read_config
 from ..status import Status
-from .common import app, bar_callback, exit_on, fail, outputs_or_exit, progress_bar, save_figure
+from .common import app, bar_callback, exit_on, fail, outputs_or_exit, progress_bar, save_dataset, save_figure
 
 
 @app.command()
@@ -62,6 +62,8 @@ def study(
         bar.close()
         fail(str(err))
     bar.finish(run.status)
+    if run.unsaved:  # the file could not be written (a full disk): try again, else keep the cells in a fallback file (exit 3)
+        save_dataset(run.dataset, out)
     if plot is not None:
         from ..plots.study import study_figure
 

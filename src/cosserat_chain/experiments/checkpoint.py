@@ -9,13 +9,16 @@ resumed run reads (every variable and the named state attributes); :func:`open_c
 reads it back and refuses, with a ValueError naming the file and the reason, one that is
 unreadable, of another experiment or version, written for other settings (naming the first
 field that differs, ``params.E2`` for a parameter) or altered after it was written.
-:class:`CheckpointClock` says when the next write is due (every so many seconds of wall time).
+:class:`CheckpointClock` says when the next write is due (every so many seconds of wall time);
+a write that fails (a full disk) is logged and the run goes on: the checkpoint is a safety
+net, and the run's result is still saved (or kept in a fallback file) at the end.
 """
 
 from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import math
 import time as clock
 from collections.abc import Iterable, Mapping
@@ -25,7 +28,9 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from ..io import read_dataset, write_dataset
+from ..io import OutputError, read_dataset, write_dataset
+
+log = logging.getLogger(__name__)
 
 
 def checksum(ds: xr.Dataset, state_attributes: Iterable[str]) -> str:
@@ -147,6 +152,8 @@ class CheckpointClock:
         self.path = None if path is None else Path(path)
         self.every = float(every)
         self.last = clock.perf_counter()
+        #: Why the latest write failed ("" if it succeeded or none was made).
+        self.error = ""
 
     @property
     def due(self) -> bool:
@@ -154,9 +161,19 @@ class CheckpointClock:
         return self.path is not None and clock.perf_counter() - self.last >= self.every
 
     def write(self, ds: xr.Dataset) -> None:
-        """Write ``ds`` to the file atomically (if there is one) and restart the clock."""
+        """Write ``ds`` to the file atomically (if there is one) and restart the clock.
+
+        A write that fails (a full disk, a quota, an I/O error, the file refused) leaves the
+        previous checkpoint as it was, is logged, and its reason kept in :attr:`error`; the
+        next one is tried when due.
+        """
         if self.path is not None:
-            write_dataset(ds, self.path)
+            try:
+                write_dataset(ds, self.path)
+                self.error = ""
+            except (OSError, OutputError) as err:
+                self.error = f"{err.strerror or err}" if isinstance(err, OSError) else str(err)
+                log.warning("could not write the checkpoint %s (%s); the run goes on", self.path, self.error)
         self.last = clock.perf_counter()
 
 
