@@ -574,6 +574,8 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "u": ("length", "displacement u of a particle's centre along the chain"),
     "v": ("length", "displacement v of a particle's centre across the chain"),
     "phi": ("rad", "rotation angle phi of a particle"),
+    "phi_winding": ("1", "whole turns of phi"),
+    "phi_reduced": ("rad", "phi less its whole turns"),
     "u_dot": ("length / time", "velocity du/dt"),
     "v_dot": ("length / time", "velocity dv/dt"),
     "phi_dot": ("rad / time", "angular velocity dphi/dt"),
@@ -693,7 +695,9 @@ def cf_attributes(quantity: str, long_name: str) -> dict[str, str]:
         raise ValueError(f"quantity {quantity!r} has the factor(s) {unknown}; allowed: rad, 1, {', '.join(SCALES)}")
     attrs = {"units": "rad" if quantity.split()[0] == "rad" else "1", "long_name": long_name}
     bases = [base for base in SCALES if base in factors]
-    if bases:
+    if quantity in SCALES:
+        attrs["scale"] = f"{quantity}: {SCALES[quantity]}"
+    elif bases:
         attrs["scale"] = f"{quantity}, where " + "; ".join(f"{base} is {SCALES[base]}" for base in bases)
     return attrs
 
@@ -733,9 +737,11 @@ def _models(dataset: xr.Dataset) -> list[str]:
 
 def _command() -> str:
     """The command line of this process, its program named without the folder it lies in (no machine paths in files)."""
-    program = Path(sys.argv[0]).name if sys.argv and sys.argv[0] else "python"
+    program = Path(sys.argv[0]).name if sys.argv else ""
     if program == "__main__.py":
         program = f"python -m {Path(sys.argv[0]).parent.name}"
+    elif program in ("", "-", "-c"):
+        program = "python"
     return " ".join([program, *map(shlex.quote, sys.argv[1:])])
 
 

@@ -195,17 +195,17 @@ class StateDiagram:
 
         ds = xr.Dataset(
             {
-                "static_fold": (("value",), column("static_fold"), {"units": "energy", "long_name": "M_c, the end of the static branch from rest"}),
-                "phi0_at_fold": (("value",), column("phi0_at_fold"), {"units": "rad", "long_name": "phi_0 at the static fold"}),
-                "rotation_stops": (("value",), column("rotation_stops"), {"units": "energy", "long_name": "moment at which a falling load stops the rotation"}),
-                "end": (("value",), np.array([row.end for row in self.rows], dtype=str), {"units": "1", "long_name": "how the rotation stops"}),
+                "static_fold": (("value",), column("static_fold"), {"long_name": "M_c, the end of the static branch from rest"}),
+                "phi0_at_fold": (("value",), column("phi0_at_fold"), {"long_name": "phi_0 at the static fold"}),
+                "rotation_stops": (("value",), column("rotation_stops"), {"long_name": "moment at which a falling load stops the rotation"}),
+                "end": (("value",), np.array([row.end for row in self.rows], dtype=str), {"long_name": "how the rotation stops"}),
                 "hysteresis": (("value",), np.array([-1 if row.hysteresis is None else int(row.hysteresis) for row in self.rows], dtype=np.int8),
-                               {"units": "1", "long_name": "1: open loop (rotation_stops < static_fold), 0: closed, -1: unknown"}),
+                               {"long_name": "1: open loop (rotation_stops < static_fold), 0: closed, -1: unknown"}),
                 "rotation_starts": (("value",), np.array([row.rotation_starts or "unknown" for row in self.rows], dtype=str),
-                                    {"units": "1", "long_name": "how a rising load starts the rotation at M_c: snic, jump or unknown"}),
+                                    {"long_name": "how a rising load starts the rotation at M_c: snic, jump or unknown"}),
                 "method": (("value",), np.array([row.method for row in self.rows], dtype=str),
-                           {"units": "1", "long_name": "how rotation_stops was found: followed, located or one_parameter"}),
-                "moment_scale": (("value",), column("moment_scale"), {"units": "energy", "long_name": "E1 h^2, the unit of the dimensionless moment M / (E1 h^2)"}),
+                           {"long_name": "how rotation_stops was found: followed, located or one_parameter"}),
+                "moment_scale": (("value",), column("moment_scale"), {"long_name": "E1 h^2, the unit of the dimensionless moment M / (E1 h^2)"}),
             },
             # The value's units are the varied field's: io.describe reads them from the attribute "parameter".
             coords={"value": ("value", np.array([row.value for row in self.rows]))},

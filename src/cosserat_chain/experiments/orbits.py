@@ -244,7 +244,7 @@ class RotationCharacteristic:
             },
             coords={"point": np.arange(len(self.moment)), "moment": ("point", self.moment)},
         )
-        ds["mean_angular_velocity"].attrs.update({"units": "rad/time", "long_name": "2 pi k / T of the periodic orbit (NaN: none found)"})
+        ds["mean_angular_velocity"].attrs["long_name"] = "2 pi k / T of the periodic orbit (NaN: none found)"
         ds.attrs.update(run_attributes(self.params, get_model(self.model), moment_load(0.0, self.particle)))
         ds.attrs.update(
             {

@@ -74,10 +74,6 @@ def trajectory_dataset(params: ChainParams, model: str | Model, loads: Loads, tr
     for name, values in budget.as_dict().items():
         data[name] = (("time",), values)
     ds = xr.Dataset(data, coords={"time": trajectory.time, "particle": particle})
-    units = {"u": "h", "v": "h", "phi": "rad", "u_dot": "h/time", "v_dot": "h/time", "phi_dot": "rad/time"}
-    for name, unit in units.items():
-        ds[name].attrs["units"] = unit
-    ds["potential"].attrs["long_name"] = "potential energy (NaN for the non-conservative sine model)"
     ds["balance_error"].attrs["long_name"] = "K + P - W + D - (K0 + P0)"
     ds.attrs.update(run_attributes(params, model, loads))
     ds.attrs.update(
@@ -334,17 +330,16 @@ def _checkpoint_dataset(state: RunState, params: ChainParams, model: Model, load
         data[f"{row}_dot"] = (("time", "particle"), state.frames_v[:, i, :])
         data[f"final_{row}"] = (("particle",), state.x[i])
         data[f"final_{row}_dot"] = (("particle",), state.v[i])
-        unit = "energy" if row == "phi" else "energy/length"  # a moment on phi, a force on u and v
-        data[f"final_force_{row}"] = (("particle",), state.f[i], {"long_name": f"force plus load on {row} at the state", "units": unit})
+        data[f"final_force_{row}"] = (("particle",), state.f[i], {"long_name": f"force plus load on {row} at the state"})
     data["load_work"] = (("time",), state.frames_acc[:, 0])
     data["dissipated"] = (("time",), state.frames_acc[:, 1])
     data["final_load_work"] = ((), state.acc[0])
     data["final_dissipated"] = ((), state.acc[1])
-    data["frame_step"] = (("time",), state.frame_steps, {"long_name": "step of the stored frame", "units": "1"})
+    data["frame_step"] = (("time",), state.frame_steps, {"long_name": "step of the stored frame"})
     data["split_sums"] = (
         ("split_sum", "energy_sum"),
         state.split_acc,
-        {"long_name": "load work and dissipated energy: at the split over threads, then per block (none on one thread)", "units": "energy"},
+        {"long_name": "load work and dissipated energy: at the split over threads, then per block (none on one thread)"},
     )
     # The times as integrate computes them (informative: a resumed run counts steps).
     times = state.t0 + (settings["t_end"] - state.t0) * state.frame_steps / state.n_steps
