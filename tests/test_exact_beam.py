@@ -105,3 +105,26 @@ def test_one_bond_state_is_the_whole_chains():
 def test_bad_input_is_refused_naming_it(call, words):
     with pytest.raises(ValueError, match=words):
         call()
+
+
+def test_theory_cli_bends_the_cantilever_and_reports_orders_in_json_and_netcdf(tmp_path):
+    import json
+
+    import xarray as xr
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    out = tmp_path / "continua.nc"
+    runner = CliRunner()
+    result = runner.invoke(app, ["theory", "--n-list", "10,20,40", "--bend-angle", "3.0", "--json", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    bending = json.loads(result.stdout)["exact_beam"]
+    library = bending_convergence(ChainParams(right_end="free"), [10, 20, 40], angle=3.0)
+    assert bending["moment_error"] == pytest.approx(list(library.moment_error), rel=1e-9)
+    assert bending["moment_order"] == pytest.approx(2.0, abs=0.05)
+    with xr.open_dataset(out) as written:
+        np.testing.assert_allclose(written["bending_tip_error"], library.tip_error, rtol=1e-9)
+        assert "timoshenko_error" in written and written.attrs["bending_angle"] == 3.0
+    bad = runner.invoke(app, ["theory", "--bend-angle", "7"])
+    assert bad.exit_code == 2 and "--bend-angle" in bad.output

@@ -235,6 +235,27 @@ class BendingConvergence:
             return None
         return float(-np.polyfit(np.log(self.N[keep]), np.log(error[keep]), 1)[0])
 
+    def to_dataset(self):
+        """The table as an xarray Dataset over ``N`` (variables ``bending_*``), to merge with the Timoshenko table's."""
+        import xarray as xr
+
+        columns = {
+            "bending_chain_moment": (self.chain_moment, "end moment holding the end angle, model (i)"),
+            "bending_beam_moment": (self.beam_moment, "end moment holding the end angle, exact beam (angle EI / 2L)"),
+            "bending_moment_error": (self.moment_error, "(beam - chain) / chain of the end moment"),
+            "bending_tip_error": (self.tip_error, "distance of the chain's free end from the beam's, over 2L"),
+            "bending_direct_spread": (self.direct_spread, "whole chain's moment against the per-bond one, relative"),
+        }
+        data = {name: ("N", values, {"long_name": text, "units": "1"}) for name, (values, text) in columns.items()}
+        dataset = xr.Dataset(data, coords={"N": ("N", self.N)})
+        dataset.attrs.update(
+            {
+                "bending_angle": self.angle,
+                **{f"bending_{which}_order": np.nan if self.order(which) is None else self.order(which) for which in ("moment", "tip")},
+            }
+        )
+        return dataset
+
     def as_dict(self) -> dict[str, object]:
         """Columns as lists and both orders (for JSON); NaN becomes None."""
 

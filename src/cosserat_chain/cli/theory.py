@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 from typing import Any
 
@@ -32,9 +33,15 @@ def theory(
         0.0, "--at", help="Position x0/L of the loaded particle in [-1, 1] (0: the centre, 1: the right end); at N must be an integer for every N."
     ),
     load: str = typer.Option("moment", "--load", help="Load on that particle: 'moment' (compliance phi/M) or 'force' (transverse, v/F)."),
+    bend_angle: float | None = typer.Option(
+        None,
+        "--bend-angle",
+        help="Also bend the chain's cantilever (clamped left, free right) by an end moment until its free end turns by this angle "
+        "(rad, in (0, 2 pi]; 6.2832 closes it into a ring): model (i) against the geometrically exact beam's circle.",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
-    plot: Path | None = typer.Option(None, "--plot", help="Write the errors of the Timoshenko beam and eq. (11) against N to this PNG or SVG file."),
-    out: Path | None = typer.Option(None, "--out", help="Write the Timoshenko table to this NetCDF file."),
+    plot: Path | None = typer.Option(None, "--plot", help="Write the errors of the continua against N to this PNG or SVG file."),
+    out: Path | None = typer.Option(None, "--out", help="Write the tables to this NetCDF file (variables over N)."),
 ) -> None:
     """The chain's continua against the discrete linear chain per N: the Timoshenko beam (order 2), eq. (11) (order 1), and the errata.
 
@@ -65,13 +72,28 @@ def theory(
         table = convergence(params, n_values) if paper_applies else None
     except ValueError as err:
         fail(str(err))
+    bending = None
+    if bend_angle is not None:
+        from ..analysis.exact_beam import bending_convergence
+
+        if not (math.isfinite(bend_angle) and 0 < bend_angle <= 2 * math.pi):
+            fail(f"--bend-angle must lie in (0, 2 pi] (rad), got {bend_angle!r}")
+        try:
+            bending = bending_convergence(params.replace(left_end="clamped", right_end="free"), n_values, angle=bend_angle)
+        except (ValueError, ArithmeticError) as err:
+            fail(f"--bend-angle {bend_angle!r}: {err}")
     waves = _long_waves(params)
     if out is not None:
-        save_dataset(beam.to_dataset(params), out)
+        dataset = beam.to_dataset(params)
+        if bending is not None:
+            extra = bending.to_dataset()
+            dataset = dataset.merge(extra)
+            dataset.attrs.update(extra.attrs)  # merge keeps the first dataset's attributes only
+        save_dataset(dataset, out)
     if plot is not None:
-        from ..plots.theory import plot_beam_convergence  # matplotlib only when plotting
+        from ..plots.theory import plot_continua  # matplotlib only when plotting
 
-        save_figure(plot_beam_convergence(beam), plot)
+        save_figure(plot_continua(beam, bending), plot)
     # The errata are about the paper's chain: a chain with other ends gets them for its clamped twin.
     paper_chain = params if params.clamped else params.replace(left_end="clamped", right_end="clamped")
     listed = errata(paper_chain)
@@ -82,6 +104,7 @@ def theory(
     if as_json:
         summary = _summary(params, table, order, listed)
         summary["timoshenko"] = {**stiffness.as_dict(), **beam.as_dict(), "at": at, "waves": waves}
+        summary["exact_beam"] = None if bending is None else bending.as_dict()
         summary.update({"plot": str(plot) if plot else None, "out": str(out) if out else None})
         typer.echo(json.dumps(summary))
         return
@@ -91,6 +114,8 @@ def theory(
     else:
         typer.echo(f"eq. (11) is the paper's chain only (both ends clamped, a moment on particle 0); this one has {params.describe_ends()}, --at {at:g}, --load {load}")
     _print_beam(params, stiffness, beam, waves)
+    if bending is not None:
+        _print_bending(bending)
     typer.echo(f"\nerrata of the paper (docs/errata.md), evaluated for N = {params.N}{'' if params.clamped else ' with both ends clamped'}:")
     for item in listed:
         typer.echo(f"  {item.number}. {item.where}: printed {item.printed}; derived {item.derived}.\n     {item.consequence}")
@@ -141,6 +166,19 @@ def _print_beam(params, stiffness, beam, waves: dict[str, Any]) -> None:
         f"long waves (q = {waves['q']:g} per particle): the Timoshenko branches are within {max(waves['timoshenko_error']):.1e} of the chain's "
         f"(order q^2); eq. (6)'s acoustic omega^2 is {waves['paper_acoustic_ratio']:.4g} times the chain's (D1/E1: its bending is D1, the chain's E1)"
     )
+
+
+def _print_bending(bending) -> None:
+    typer.echo(
+        f"\nlarge bending: model (i)'s cantilever, its free end turned by {bending.angle:.6g} rad by an end moment, against the "
+        "geometrically exact beam's circle (curvature M/EI)"
+    )
+    typer.echo(f"{'N':>8}  {'chain M':>14}  {'beam M':>14}  {'(b - c) / c':>11}  {'tip error / 2L':>14}  {'whole chain vs bond':>19}")
+    for n, c, b, e, t, spread in zip(bending.N, bending.chain_moment, bending.beam_moment, bending.moment_error, bending.tip_error, bending.direct_spread):
+        typer.echo(f"{n:>8d}  {c:>14.8g}  {b:>14.8g}  {e:>+11.3e}  {t:>14.3e}  {spread:>19.1e}")
+    for which in ("moment", "tip"):
+        order = bending.order(which)
+        typer.echo(f"measured order of the {which} error: " + (f"N^-{order:.3f}" if order is not None else "none (zero to round-off)"))
 
 
 def _long_waves(params) -> dict[str, Any]:

@@ -21,6 +21,7 @@ from matplotlib.ticker import NullFormatter
 
 from ..analysis.continuum import ConvergenceTable, ProfileComparison
 from ..analysis.dispersion import BRANCHES, Dispersion, WaveSummary
+from ..analysis.exact_beam import BendingConvergence
 from ..analysis.timoshenko import BeamConvergence
 
 _BRANCH_LABELS = dict(zip(BRANCHES, ("longitudinal (u)", "transverse acoustic (v)", "rotational optical (phi)")))
@@ -106,6 +107,35 @@ def plot_beam_convergence(table: BeamConvergence, ax: Axes | None = None) -> Fig
     panel.set_xticks(table.N, [str(int(n)) for n in table.N])
     panel.xaxis.set_minor_formatter(NullFormatter())
     panel.legend(loc="best", fontsize="small")
+    return fig
+
+
+def plot_bending(table: BendingConvergence, ax: Axes | None = None) -> Figure:
+    """Errors of the exact beam's circle against model (i) bent by an end moment: the moment and the tip, against N, log-log."""
+    fig, (panel,) = _figure(ax)
+    for error, style, label in ((np.abs(table.moment_error), "o-", "end moment"), (table.tip_error, "s-", "tip position / 2L")):
+        shown = error > 1e-13
+        if shown.sum() >= 1:
+            panel.loglog(table.N[shown], error[shown], style, label=label)
+    n = table.N
+    reference = np.abs(table.moment_error[0])
+    if n.size >= 2 and reference > 0:
+        panel.loglog(n, reference / 3 * (n[0] / n) ** 2, ":", color="0.5", label="1/N^2")
+    panel.set_xlabel("N (chain of 2N+1 particles)")
+    panel.set_ylabel("|relative error| of the beam")
+    panel.set_title(f"cantilever, end turned by {table.angle:.3g} rad", fontsize="small", loc="left")
+    panel.set_xticks(n, [str(int(v)) for v in n])
+    panel.xaxis.set_minor_formatter(NullFormatter())
+    panel.legend(loc="best", fontsize="small")
+    return fig
+
+
+def plot_continua(table: BeamConvergence, bending: BendingConvergence | None = None) -> Figure:
+    """:func:`plot_beam_convergence` and, given the bending table, :func:`plot_bending` beside it."""
+    fig, panels = _figure(None, ncols=1 if bending is None else 2)
+    plot_beam_convergence(table, panels[0])
+    if bending is not None:
+        plot_bending(bending, panels[1])
     return fig
 
 
