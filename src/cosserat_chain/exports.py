@@ -20,12 +20,17 @@ coordinates (particle k's centre at (k h + u_k, v_k)):
   velocities and the centre's x, y.
 
 Every file is written atomically (:func:`~cosserat_chain.io.atomic_path`); the frames of a
-VTK collection go to their own folder, replaced whole.
+VTK collection go to their own folder, replaced whole, marked as the package's by the file
+:data:`FRAMES_MARKER` that lists them: a folder without it (the user's), or one holding files
+it does not list, is refused, never removed.
 """
 
 from __future__ import annotations
 
+import json
+import os
 import shutil
+import stat
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -34,7 +39,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .geometry import bond_links, corner_positions, particle_positions
-from .io import atomic_path, params_of, run_states, write_text
+from .io import OutputError, atomic_path, new_mode, params_of, run_states, write_text
 from .params import ChainParams
 from .state import ROWS
 
@@ -86,19 +91,77 @@ def link_segments(params: ChainParams, x: np.ndarray) -> tuple[np.ndarray, np.nd
     return segments, kind, stretch
 
 
+#: The file that marks a frames folder as this package's, listing its frames: only such a
+#: folder is ever replaced, and only the files it lists are removed with it.
+FRAMES_MARKER = ".cosserat-chain-frames.json"
+
+
+def frames_folder(path: str | Path) -> Path:
+    """The folder of the frames of the ParaView collection ``path`` (``PATH_frames``), checked before any work.
+
+    Raises
+    ------
+    OutputError
+        If something that is not a frames folder of this package is in the way: a file, a
+        link, a folder without the marker file :data:`FRAMES_MARKER` (the user's), or one
+        holding files its marker does not list (named).
+    """
+    path = Path(path)
+    folder = path.with_name(f"{path.stem}_frames")
+    _frames_written(folder)
+    return folder
+
+
+def _frames_written(folder: Path) -> list[str] | None:
+    """The frames of the package's frames folder ``folder`` (None if there is no folder); refuses anything else in the way."""
+    try:
+        info = os.lstat(folder)
+    except FileNotFoundError:
+        return None
+    if not stat.S_ISDIR(info.st_mode):
+        raise OutputError(f"{str(folder)!r} exists and is not a folder of frames: refusing to replace it")
+    try:
+        marker = folder / FRAMES_MARKER
+        listed = json.loads(marker.read_text(encoding="utf-8"))["frames"] if stat.S_ISREG(os.lstat(marker).st_mode) else None
+        entries = os.listdir(folder)
+    except (OSError, ValueError, KeyError, TypeError):
+        listed = None
+    if not isinstance(listed, list) or not all(isinstance(name, str) for name in listed):
+        raise OutputError(
+            f"{str(folder)!r} exists and was not written by cosserat-chain (it has no {FRAMES_MARKER}): "
+            "refusing to replace it; move it or choose another --out"
+        )
+    foreign = sorted(
+        name for name in entries if name != FRAMES_MARKER and (name not in listed or not stat.S_ISREG(os.lstat(folder / name).st_mode))
+    )
+    if foreign:
+        raise OutputError(
+            f"{str(folder)!r} holds files cosserat-chain did not write ({', '.join(foreign[:5])}{', ...' if len(foreign) > 5 else ''}): "
+            "refusing to replace it; move them or choose another --out"
+        )
+    return listed
+
+
 def to_vtk(dataset: xr.Dataset, path: str | Path, progress: Callable[[int, int], None] | None = None) -> Path:
     """Write the run as a ParaView collection ``path`` (.pvd) of per-frame .vtu grids; returns the path.
 
     ``progress(frames_written, frames)`` is called after every frame (one file each: the slow format).
+    The frames go to the folder :func:`frames_folder`, which replaces an earlier one of this
+    package's whole and keeps its mode (a new one gets 0777 less the umask).
+
+    Raises
+    ------
+    OutputError
+        Before any work, if something other than this package's frames folder is in the way.
     """
     import meshio
 
-    params, times, states, velocities = _frames(dataset)
     path = Path(path)
-    folder = path.with_name(f"{path.stem}_frames")
+    folder = frames_folder(path)
+    params, times, states, velocities = _frames(dataset)
     staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=path.parent))
     try:
-        entries = []
+        entries, names = [], []
         for f, (t, x, v) in enumerate(zip(times, states, velocities)):
             corners = corner_positions(params, x).reshape(-1, 2)
             points = np.column_stack([corners, np.zeros(len(corners))])
@@ -112,16 +175,12 @@ def to_vtk(dataset: xr.Dataset, path: str | Path, progress: Callable[[int, int],
             cell_data["link_stretch"] = [np.full(len(quads), np.nan), stretch]
             name = f"frame_{f:05d}.vtu"
             meshio.write(staging / name, meshio.Mesh(points, [("quad", quads), ("line", segments)], cell_data=cell_data))
+            names.append(name)
             entries.append(f'    <DataSet timestep="{float(t)!r}" group="" part="0" file="{folder.name}/{name}"/>')
             if progress is not None:
                 progress(f + 1, len(times))
-        # The frames replace the folder whole, then the index is written: a reader of the
-        # index never finds frames of another run.
-        if folder.is_symlink() or folder.is_file():
-            raise ValueError(f"{str(folder)!r} exists and is not a folder of frames: refusing to replace it")
-        if folder.exists():
-            shutil.rmtree(folder)
-        staging.rename(folder)
+        (staging / FRAMES_MARKER).write_text(json.dumps({"written_by": "cosserat-chain", "frames": names}), encoding="utf-8")
+        _swap_frames(staging, folder)
     finally:
         if staging.exists():
             shutil.rmtree(staging)
@@ -132,6 +191,35 @@ def to_vtk(dataset: xr.Dataset, path: str | Path, progress: Callable[[int, int],
     )
     write_text(index, path)
     return path
+
+
+def _swap_frames(staging: Path, folder: Path) -> None:
+    """Put the new frames folder ``staging`` in the place of ``folder``; the old one (checked again: ours) loses only its frames.
+
+    The frames replace the folder whole, then the index is written: a reader of the
+    index never finds frames of another run.
+    """
+    previous = _frames_written(folder)
+    if previous is None:
+        os.chmod(staging, new_mode(folder=True))
+        staging.rename(folder)
+        return
+    info = os.stat(folder)
+    os.chmod(staging, stat.S_IMODE(info.st_mode))
+    if (info.st_uid, info.st_gid) != (os.geteuid(), os.getegid()):
+        try:
+            os.chown(staging, info.st_uid, info.st_gid)
+        except PermissionError:
+            pass
+    old = Path(tempfile.mkdtemp(prefix=f".{folder.name}.old.", dir=folder.parent))
+    folder.rename(old)  # onto the empty folder just made: the name is ours and unpredictable
+    staging.rename(folder)
+    for name in [*previous, FRAMES_MARKER]:
+        try:
+            (old / name).unlink()
+        except FileNotFoundError:
+            pass
+    old.rmdir()
 
 
 def to_xyz(dataset: xr.Dataset, path: str | Path) -> Path:

@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import errno
 import fcntl
+import errno
+import fcntl
 import json
 import math
 import os
@@ -401,6 +403,11 @@ def output_lock(path: str | Path, label: str = "output") -> Iterator[Path]:
         _release(key)
 
 
+def new_mode(folder: bool = False) -> int:
+    """The mode of a new file (0666) or folder (0777) less the process's umask, as ``open`` and ``mkdir`` give them."""
+    return (0o777 if folder else 0o666) & ~_umask()
+
+
 def _umask() -> int:
     """The process's umask, read without changing it where Linux tells it (another thread may be creating files)."""
     try:
@@ -431,7 +438,7 @@ def _settle(fd: int, target: Path) -> None:
                     pass
         os.fchmod(fd, stat.S_IMODE(old.st_mode) & 0o777)
     else:
-        os.fchmod(fd, 0o666 & ~_umask())
+        os.fchmod(fd, new_mode())
     os.fsync(fd)
 
 

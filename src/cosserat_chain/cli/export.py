@@ -24,6 +24,14 @@ def export(
 ) -> None:
     """Write a run in a format other tools read: VTK (ParaView), extended XYZ (OVITO) or CSV."""
     outputs_or_exit({"--out": out}, {"RUN": run}, formats={"--out": (FORMATS[to.value],)})
+    if to.value == "vtk":
+        from ..exports import frames_folder
+        from ..io import OutputError
+
+        try:
+            frames_folder(out)  # a folder of the user's in the way is refused before any work
+        except OutputError as err:
+            fail(f"--out {str(out)!r}: {err}")
     ds = run_or_exit(run)
     from ..exports import export as write_export
 
