@@ -57,25 +57,27 @@ def diagram_figure(diagram) -> Figure:
     (hysteresis: which depends on the load's history); above M_c it rotates (no static
     state exists there, also where the followed orbit stops above M_c). Values where an
     edge is unknown are left out of the regions and marked on the axis. The regions are
-    :func:`diagram_regions`; with one value they are drawn as a bar at it, with several as
-    areas between the values. Every region's artists carry its name as ``gid``, the two
-    edges' lines ``static_fold`` and ``rotation_stops``.
+    :func:`diagram_regions`: a region present at consecutive values is an area between them,
+    one present at a value alone (or a diagram of one value) a bar at it, since an area
+    would be empty there. Every region's artists carry its name as ``gid``, the two edges'
+    lines ``static_fold`` and ``rotation_stops``.
     """
     regions = diagram_regions(diagram)
     values, top = regions["value"], float(regions["top"])
     fig, ax = plt.subplots(figsize=(7.0, 4.5), constrained_layout=True)
+    for name, (color, label) in REGIONS.items():
+        low, high = regions[name]
+        drawn = np.isfinite(low) & np.isfinite(high)
+        for run in _runs(drawn):
+            if run.size > 1:
+                ax.fill_between(values[run], low[run], high[run], color=color, label=label, gid=name)
+            else:
+                # A region at one value only (or a single value): an area between values would be empty there.
+                ax.bar(values[run], high[run] - low[run], bottom=low[run], width=_bar_width(values, run[0]), color=color, label=label, gid=name)
+            label = None
     if values.size == 1:
-        # One value: an area between values would be empty, so each region is a bar at it.
-        width = 0.2 * abs(values[0]) if values[0] != 0 else 0.2
-        for name, (color, label) in REGIONS.items():
-            low, high = regions[name][:, 0]
-            if np.isfinite(low) and np.isfinite(high):
-                ax.bar(values, [high - low], bottom=[low], width=width, color=color, label=label, gid=name)
+        width = _bar_width(values, 0)
         ax.set_xlim(values[0] - 2 * width, values[0] + 2 * width)
-    else:
-        for name, (color, label) in REGIONS.items():
-            low, high = regions[name]
-            ax.fill_between(values, low, high, color=color, label=label, gid=name)
     ax.plot(values, regions["static_fold"], "k-", marker="o", markersize=5, label="M_c (static fold)", gid="static_fold")
     ax.plot(values, regions["rotation_stops"], "k--", marker="s", markersize=5, label="rotation stops (falling load)", gid="rotation_stops")
     for row, value, stops in zip(diagram.rows, values, regions["rotation_stops"]):
@@ -90,3 +92,18 @@ def diagram_figure(diagram) -> Figure:
     ax.set_title(f"{diagram.model} model: static and rotating states ({diagram.params.describe_ends()}, N = {diagram.params.N})")
     ax.legend(fontsize="small", loc="upper left")
     return fig
+
+
+def _runs(flags: np.ndarray) -> list[np.ndarray]:
+    """Indices of each run of consecutive True values of ``flags``."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], flags.astype(int), [0]])))
+    return [np.arange(start, stop) for start, stop in zip(edges[::2], edges[1::2])]
+
+
+def _bar_width(values: np.ndarray, index: int) -> float:
+    """Width of a region drawn at ``values[index]`` alone: half the distance to its nearest neighbour."""
+    gaps = np.abs(np.delete(values, index) - values[index])
+    gaps = gaps[gaps > 0]
+    if gaps.size:
+        return 0.5 * float(gaps.min())
+    return 0.2 * abs(float(values[index])) if values[index] != 0 else 0.2
