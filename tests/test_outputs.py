@@ -137,13 +137,17 @@ def test_rotate_refuses_to_overwrite_a_checkpoint_without_resume_or_force(tmp_pa
 
 
 def test_reproduce_replaces_its_own_older_files_and_keeps_the_users(tmp_path):
-    from cosserat_chain.report import MANIFEST, reproduce
+    import hashlib
+
+    from cosserat_chain.report import MANIFEST, MANIFEST_MARKER, reproduce
 
     out = tmp_path / "paper"
     (out / "figures").mkdir(parents=True)
     (out / "figures" / "old_stage.png").write_bytes(b"an older report's figure")
     (out / "notes.txt").write_text("the user's own file")
-    (out / MANIFEST).write_text(json.dumps({"files": ["figures/old_stage.png", "../outside.txt"]}))
+    sha = {name: hashlib.sha256(text).hexdigest() for name, text in {"old": b"an older report's figure", "outside": b"not in the folder: never removed"}.items()}
+    files = {"figures/old_stage.png": sha["old"], "../outside.txt": sha["outside"]}
+    (out / MANIFEST).write_text(json.dumps({"written_by": MANIFEST_MARKER, "files": files}))
     (tmp_path / "outside.txt").write_text("not in the folder: never removed")
     reproduce(out, stages=["errata"])
     listed = json.loads((out / MANIFEST).read_text())["files"]
@@ -153,8 +157,18 @@ def test_reproduce_replaces_its_own_older_files_and_keeps_the_users(tmp_path):
     assert (out / "notes.txt").exists() and (tmp_path / "outside.txt").exists()
 
 
-def test_a_study_whose_scheduler_dies_keeps_its_cells_and_resumes(tmp_path, monkeypatch):
-    """A real scheduler and worker in their own processes; the scheduler is killed after the first chunk arrives."""
+@pytest.fixture
+def cpu_taken():
+    """Every core kept busy by another process for the test's duration: the load under which saving once waited on a dead scheduler's lock."""
+    spinners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(os.cpu_count() or 1)]
+    yield
+    for spinner in spinners:
+        spinner.kill()
+        spinner.wait()
+
+
+def test_a_study_whose_scheduler_dies_keeps_its_cells_and_resumes(tmp_path, monkeypatch, cpu_taken):
+    """A real scheduler and worker in their own processes; the scheduler is killed after the first chunk arrives, on a loaded machine."""
     import cosserat_chain.study_runner as study_runner
 
     monkeypatch.setattr(study_runner, "LOST_TIMEOUT", 2.0)

@@ -15,8 +15,9 @@ after the last write, at the end, and when the study stops early: interrupted (C
 or a progress callback raising ``KeyboardInterrupt``) or by an error. Re-running the
 same spec with the same output file resumes: finished cells are read back and skipped;
 a file written for another spec (or under another time-step rule) is refused. A
-scheduler given by its address that cannot be reached within :data:`CONNECT_TIMEOUT`
-raises :class:`ClusterError`; a cluster lost during the study (the scheduler gone, or
+scheduler given by its address that does not answer as one within :data:`CONNECT_TIMEOUT`
+(refused, silent or speaking another protocol) raises :class:`ClusterError`; the
+embedded cluster listens on 127.0.0.1 only and serves no dashboard unless asked; a cluster lost during the study (the scheduler gone, or
 no worker left for :data:`LOST_TIMEOUT` seconds) ends it with status ``failed`` and the
 finished cells saved; a cluster whose first worker does not come within
 :data:`START_TIMEOUT` likewise.
@@ -64,6 +65,9 @@ LOST_TIMEOUT = 60.0
 START_TIMEOUT = 600.0
 #: Seconds between two looks at the cluster while waiting for the next chunk.
 POLL = 1.0
+#: The only interface the embedded cluster listens on: a study's tasks and parameters are
+#: not for the network.
+LOOPBACK = "127.0.0.1"
 
 Cell = tuple[tuple[int, ...], str, dict[str, float]]
 
@@ -128,19 +132,77 @@ def chunk_cells(cells: Sequence[Cell], size: int) -> list[list[Cell]]:
     return [group[start : start + size] for group in groups.values() for start in range(0, len(group), size)]
 
 
+def _reach(address: str) -> None:
+    """Ask the scheduler at ``address`` who it is, within :data:`CONNECT_TIMEOUT` seconds in all.
+
+    ``dask.distributed.Client`` bounds the TCP connection by its timeout, but not the wait
+    for the first answer: a port that accepts and never answers (a firewall, a stopped
+    process, another service) held it for minutes. This probe is bounded as a whole and
+    also refuses a port that answers but not as a Dask scheduler. It runs its own event
+    loop in a thread of its own, so that it works from inside a running loop (Jupyter).
+    """
+    import asyncio
+    from concurrent.futures import ThreadPoolExecutor
+
+    from distributed.comm import connect
+
+    async def identity() -> Any:
+        comm = await connect(address, timeout=CONNECT_TIMEOUT)
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    def ask() -> Any:
+        return asyncio.run(asyncio.wait_for(identity(), CONNECT_TIMEOUT))
+
+    with ThreadPoolExecutor(1) as pool:
+        try:
+            answer = pool.submit(ask).result()
+        except TimeoutError:
+            raise ClusterError(
+                f"no Dask scheduler answered at {address!r} within {CONNECT_TIMEOUT:g} s (nothing listens there, "
+                "or something accepts the connection and stays silent); check the address and that the scheduler runs"
+            ) from None
+        except (OSError, ValueError) as err:  # refused, closed, unresolvable, or a malformed address
+            reason = str(err).splitlines()[0] if str(err) else type(err).__name__
+            raise ClusterError(f"cannot reach the Dask scheduler at {address!r}: {reason}") from None
+        except Exception:  # bytes that are not Dask's protocol (they may even decode to absurd frame sizes)
+            answer = None
+    if not (isinstance(answer, dict) and answer.get("type") == "Scheduler"):
+        raise ClusterError(f"{address!r} answered, but not as a Dask scheduler: check the address and port")
+
+
 @contextmanager
-def _client(scheduler: str | None, workers: int | None) -> Iterator[tuple[Any, int]]:
-    """A Dask client of the scheduler at ``scheduler``, or of an embedded LocalCluster; and its worker count."""
+def _client(scheduler: str | None, workers: int | None, dashboard: Callable[[str], None] | None) -> Iterator[tuple[Any, int]]:
+    """A Dask client of the scheduler at ``scheduler``, or of an embedded LocalCluster; and its worker count.
+
+    The embedded cluster's scheduler, workers and nannies listen on 127.0.0.1 only, and
+    it serves a dashboard (also on 127.0.0.1, its address handed to ``dashboard``) only
+    when asked. The client is not made Dask's default: xarray would otherwise guard the
+    study's own file writes with a lock held by the scheduler, and a study whose scheduler
+    died could not save its cells.
+    """
     from dask.distributed import Client, LocalCluster
 
     cluster = None
     if scheduler is None:
         workers = workers or os.cpu_count() or 1
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0")
-        client = Client(cluster)
+        cluster = LocalCluster(
+            n_workers=workers,
+            threads_per_worker=1,
+            processes=True,
+            host=LOOPBACK,
+            dashboard_address=f"{LOOPBACK}:0" if dashboard is not None else None,
+        )
+        client = Client(cluster, set_as_default=False)
+        if dashboard is not None:
+            dashboard(cluster.dashboard_link)
     else:
+        _reach(scheduler)
         try:
-            client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT, set_as_default=False)
         except (OSError, TimeoutError, ValueError, TypeError) as err:
             raise ClusterError(f"cannot reach the Dask scheduler at {scheduler!r} within {CONNECT_TIMEOUT:g} s: {err}") from None
     try:
@@ -175,6 +237,7 @@ def run_study(
     chunk: int | None = None,
     save_every: float = 5.0,
     progress: Callable[[int, int], None] | None = None,
+    dashboard: Callable[[str], None] | None = None,
 ) -> StudyRun:
     """Compute every cell of ``spec`` on Dask, in chunks of cells (see the module docstring).
 
@@ -195,6 +258,9 @@ def run_study(
         Least seconds between two writes of ``out`` while chunks arrive.
     progress : callable(cells_done, cells_total), optional
         Called once at the start and after every chunk.
+    dashboard : callable(address), optional
+        Serve the embedded cluster's Dask dashboard (on 127.0.0.1) and call this with its
+        address once the cluster is up; default no dashboard. Ignored with ``scheduler``.
 
     Returns
     -------
@@ -205,7 +271,8 @@ def run_study(
     ValueError
         For a bad spec or chunk, or an ``out`` written for another spec.
     ClusterError
-        If the scheduler at ``scheduler`` cannot be reached (within :data:`CONNECT_TIMEOUT`).
+        If the scheduler at ``scheduler`` does not answer as a Dask scheduler within
+        :data:`CONNECT_TIMEOUT` (refused, silent, or speaking another protocol).
     """
     if chunk is not None and not (isinstance(chunk, int) and chunk >= 1):
         raise ValueError(f"chunk must be an integer >= 1, got {chunk!r}")
@@ -238,7 +305,7 @@ def run_study(
 
     try:
         if todo:
-            with _client(scheduler, workers) as (client, worker_count):
+            with _client(scheduler, workers, dashboard) as (client, worker_count):
                 spec_json = spec.to_json()
                 chunks = chunk_cells(todo, chunk or default_chunk_size(len(todo), worker_count))
                 futures = {client.submit(compute_cells, [c[2] for c in part], part[0][1], spec_json, pure=False): part for part in chunks}
@@ -255,7 +322,8 @@ def run_study(
                         pass
     finally:
         # Also on an error (a progress callback raising, a failure of the client): keep the chunks that arrived.
-        if out is not None:
+        # Nothing new (a scheduler that could not be reached, every cell read back): the file stays as it was.
+        if out is not None and computed:
             unsaved = _save(ds, out)
     failed = int(np.sum((ds["done"].values == 1) & (ds["error"].values.astype(str) != "")))
     return StudyRun(ds, computed, skipped, failed, status, message, unsaved)
@@ -287,7 +355,8 @@ def _collect(client, futures: dict, store: Callable, save: Callable[[], None], s
     seen_a_worker = False
     while pending:
         try:
-            done, pending = wait(pending, timeout=POLL, return_when="FIRST_COMPLETED")
+            with client.as_current():  # ``wait`` asks for the current client; the saves below must not see it
+                done, pending = wait(pending, timeout=POLL, return_when="FIRST_COMPLETED")
         except TimeoutError:
             done = set()
         except Exception as err:  # the client cancels every future when it loses its scheduler
