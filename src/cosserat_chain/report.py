@@ -10,9 +10,11 @@ fails becomes a section with its error, and the other stages still run. At the e
 server and no network), ``report.md`` (the same content) and ``summary.json`` (every
 number, the resolved parameters, the package version and the run time of each stage)
 are written atomically. An interrupted run leaves no half-written report. Last comes
-``manifest.json``, the list of the report's files: a report written into a folder that
-holds an older one removes the older files it did not write again (and nothing else),
-so the folder holds one report, whole.
+``manifest.json``, the list of the report's files with their SHA-256 and the package's
+marker: a report written into a folder that holds an older one removes the older files
+it did not write again, and only those still as the package wrote them (never a file of
+the user's, nor one a manifest it did not write lists), so the folder holds one report,
+whole.
 
 Stages: ``statics`` (Fig. 2: compliance, critical moment and fold angle per model,
 exactly and by the relaxation protocol, the hysteresis loop, and both readings of the
@@ -28,10 +30,12 @@ the discrete reduced chain), ``waves`` (dispersion, band gap), ``errata``.
 from __future__ import annotations
 
 import base64
+import hashlib
 import json
 import logging
 import math
 import re
+import stat
 import time
 import traceback
 from collections.abc import Callable
@@ -42,7 +46,7 @@ from typing import Any, get_type_hints
 import numpy as np
 
 from . import __version__
-from .io import REFERENCES, stack_models, write_dataset, write_figure, write_text
+from .io import REFERENCES, OutputError, stack_models, write_dataset, write_figure, write_text
 from .models import get_model
 from .params import ChainParams
 from .state import require_clamped
@@ -323,18 +327,91 @@ class _Stage:
             write_text(json.dumps(payload, indent=1, default=_json_default), self.path(f"data/{name}.json"))
 
     def finish(self) -> None:
-        """Write the manifest of this report, after removing the files of the previous one it did not write again."""
+        """Write the manifest of this report, after removing the files of the previous one it did not write again.
+
+        A file is removed only where the previous manifest carries this package's marker
+        (:data:`MANIFEST_MARKER`) and the file still holds what that manifest's SHA-256
+        says the package wrote, reached without a symbolic link: a manifest the package
+        never wrote, or a file changed since, removes nothing.
+        """
         manifest = self.out / MANIFEST
-        try:
-            previous = json.loads(manifest.read_text(encoding="utf-8"))["files"] if manifest.is_file() else []
-        except (OSError, ValueError, KeyError, TypeError):
-            previous = []  # not ours, or damaged: remove nothing
-        root = self.out.resolve()
-        for relative in set(map(str, previous)) - self.written:
-            stale = (self.out / relative).resolve()
-            if stale.is_relative_to(root) and stale.is_file() and not (self.out / relative).is_symlink():
+        for relative, digest in _manifest_files(manifest).items():
+            if relative in self.written:
+                continue
+            stale = _own_file(self.out, relative)
+            if stale is not None and _sha256(stale) == digest:
                 stale.unlink()
-        write_text(json.dumps({"cosserat_chain_version": __version__, "files": sorted(self.written)}, indent=1), manifest)
+        files = {relative: _sha256(self.out / relative) for relative in sorted(self.written)}
+        record = {"written_by": MANIFEST_MARKER, "cosserat_chain_version": __version__, "files": files}
+        write_text(json.dumps(record, indent=1), manifest)
+
+
+#: The mark of a manifest this package wrote.
+MANIFEST_MARKER = "cosserat-chain reproduce"
+
+
+def _manifest_files(manifest: Path) -> dict[str, str]:
+    """The files and SHA-256 a previous manifest of this package lists; none for a manifest it did not write or cannot read."""
+    try:
+        record = json.loads(manifest.read_text(encoding="utf-8")) if manifest.is_file() and not manifest.is_symlink() else {}
+    except (OSError, ValueError):
+        return {}
+    files = record.get("files") if isinstance(record, dict) and record.get("written_by") == MANIFEST_MARKER else None
+    if not isinstance(files, dict):
+        return {}
+    return {str(name): digest for name, digest in files.items() if isinstance(digest, str)}
+
+
+def _own_file(out: Path, relative: str) -> Path | None:
+    """``out / relative`` if it is a regular file under ``out`` reached through no link (no ``..``, not absolute); else None."""
+    parts = Path(relative).parts
+    if not parts or Path(relative).is_absolute() or any(part in ("..", "") for part in parts):
+        return None
+    path = out
+    for part in parts:
+        path = path / part
+        try:
+            mode = path.lstat().st_mode
+        except OSError:
+            return None
+        if stat.S_ISLNK(mode):
+            return None
+    return path if stat.S_ISREG(mode) else None
+
+
+#: What the report writes at the top of its folder, and whether each is a folder.
+_LAYOUT = {"figures": True, "data": True, "index.html": False, "report.md": False, "summary.json": False, "params.json": False, MANIFEST: False}
+
+
+def check_folder(out: str | Path) -> None:
+    """Refuse, before any work, a report folder where a file of the report is a folder or one of its folders is not one.
+
+    Raises
+    ------
+    OutputError
+        Naming the path in the way and what the report writes there.
+    """
+    for name, folder in _LAYOUT.items():
+        path = Path(out) / name
+        try:
+            mode = path.stat().st_mode
+        except FileNotFoundError:
+            continue
+        except OSError as err:
+            raise OutputError(f"--out {str(out)!r}: {str(path)!r} cannot be examined ({err.strerror})") from None
+        if folder and not stat.S_ISDIR(mode):
+            raise OutputError(f"--out {str(out)!r}: {str(path)!r} is not a folder, and the report writes its {name} there: move it")
+        if not folder and not stat.S_ISREG(mode):
+            raise OutputError(f"--out {str(out)!r}: {str(path)!r} is not a regular file, and the report writes its {name} there: move it")
+
+
+def _sha256(path: Path) -> str:
+    """SHA-256 of a file's content (hex)."""
+    digest = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def _statics(stage: _Stage) -> Section:

@@ -32,10 +32,15 @@ def reproduce(
     as_json: bool = typer.Option(False, "--json", help="Print summary.json (every number and the time of each stage)."),
 ) -> None:
     """Compute every result of the paper and write a self-contained report (index.html, report.md)."""
-    from ..report import READINGS, ReproduceSettings, chain_for_reading, reading_error, settings_from_mapping
+    from ..io import OutputError
+    from ..report import READINGS, ReproduceSettings, chain_for_reading, check_folder, reading_error, settings_from_mapping
     from ..report import reproduce as run_report
 
     outputs_or_exit({"--out": out}, {"--config": config}, folders=("--out",))
+    try:
+        check_folder(out)
+    except OutputError as err:
+        fail(str(err))
     error = reading_error(reading)
     if error:
         fail(f"--{error}")
@@ -70,6 +75,9 @@ def reproduce(
 
     try:
         report = run_report(out, params, settings, progress=progress)
+    except (OSError, OutputError) as err:  # a full disk: the stages' files written so far stay
+        reason = f"{err.strerror}: {err.filename}" if isinstance(err, OSError) and err.filename else str(err)
+        fail(f"could not write the report in {str(out)!r} ({reason}); the files written before stay", code=3)
     finally:
         bar.close()
     if as_json:
