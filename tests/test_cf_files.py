@@ -1,0 +1,210 @@
+"""Every kind of NetCDF file the package writes passes two CF checkers and reads back with units.
+
+One small file of each kind (a run, its checkpoint, the statics, a sweep, a localization run
+and its checkpoint, an orbit with its continuation, a rotation characteristic, a study, a state
+diagram and the report's stacked data files) is checked by IOOS compliance-checker
+(``cf:1.10``) and by cfchecks, and read back through cf-xarray's unit registry with
+pint-xarray.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+import xarray as xr
+from typer.testing import CliRunner
+
+from cosserat_chain import ChainParams, simulate
+from cosserat_chain.cli import app
+from cosserat_chain.experiments.critical import critical_point
+from cosserat_chain.experiments.orbits import rotation_characteristic
+from cosserat_chain.experiments.study import compute_cell, empty_results, spec_from_mapping, store_cell
+from cosserat_chain.experiments.sweep import relaxation_sweep
+from cosserat_chain.io import SCALES, VARIABLES, cf_attributes, describe, read_dataset, stack_models, write_dataset
+
+runner = CliRunner()
+
+#: compliance-checker's §5.1 test asks every dimension named "time" for standard_name "time",
+#: which CF gives only to a time with a calendar epoch ("s since ..."): the model's time is a
+#: number (units "1", its scale sqrt(m / E1)), so the one message it must leave is this one.
+DIMENSIONLESS_TIME = "Coordinate variable 'time' should have standard_name='time', found: 'None'"
+
+#: cfchecks 4.1 (the newest on PyPI) knows CF up to 1.8 and checks by those rules: it calls
+#: a CF-1.10 file not CF. Allowed only while the installed cfchecks knows no CF-1.10.
+UNKNOWN_VERSION = "(2.6.1): This netCDF file does not appear to contain CF Convention data."
+
+
+def _cli(tmp: Path, name: str, *argv: str) -> Path:
+    out = tmp / f"{name}.nc"
+    result = runner.invoke(app, [*argv, "--out", str(out)])
+    assert result.exit_code == 0, (name, result.output)
+    return out
+
+
+def _write(tmp: Path, name: str, dataset: xr.Dataset) -> Path:
+    return write_dataset(dataset, tmp / f"{name}.nc")
+
+
+def _study(tmp: Path) -> Path:
+    spec = spec_from_mapping({"models": ["linear"], "quantities": ["compliance", "band_gap"], "parameters": {"E2": [0.5, 1.0]}})
+    ds = empty_results(spec)
+    store_cell(ds, spec, (0,), "linear", compute_cell({"E2": 0.5}, "linear", spec.to_json()))
+    store_cell(ds, spec, (1,), "linear", {"error": "a failed cell keeps its message"})
+    return _write(tmp, "study", ds)
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory) -> dict[str, Path]:
+    """One small file of every kind the package writes, by kind."""
+    tmp = tmp_path_factory.mktemp("cf")
+    paper = ChainParams()
+    out = {
+        "simulate": _cli(tmp, "simulate", "simulate", "--model", "sine", "--t-end", "1", "--frames", "3"),
+        "simulate_pinned_free": _write(
+            tmp, "pinned_free", simulate(ChainParams(left_end="pinned", right_end="free"), "nonlinear", 0.01, t_end=0.5, n_frames=3)
+        ),
+        "critical": _write(tmp, "critical", critical_point(paper, "sine").to_dataset()),
+        "sweep": _write(tmp, "sweep", relaxation_sweep(paper, "linear", m_max=0.02, dm=0.02).to_dataset()),
+        "localization": _cli(tmp, "rotate", "rotate", "--model", "sine", "--moment", "0.3", "--turns", "1"),
+        "orbit": _cli(tmp, "orbit", "orbit", "--moment", "0.22", "--down-to", "0.21"),
+        "rotation_characteristic": _write(tmp, "characteristic", rotation_characteristic(paper, "sine", [0.22, 0.21]).to_dataset()),
+        "study": _study(tmp),
+        "state_diagram": _cli(tmp, "diagram", "diagram", "--vary", "E2", "--values", "1.0"),
+        "report_critical": _write(tmp, "report_critical", stack_models({m: critical_point(paper, m).to_dataset() for m in ("sine", "linear")})),
+        "report_sweep": _write(
+            tmp, "report_sweep", stack_models({m: relaxation_sweep(paper, m, m_max=0.02, dm=0.01).to_dataset() for m in ("sine", "linear")})
+        ),
+    }
+    checkpoint = tmp / "run.checkpoint.nc"
+    _cli(tmp, "checkpointed", "simulate", "--t-end", "1", "--frames", "3", "--checkpoint-every", "0.5", "--checkpoint", str(checkpoint))
+    out["checkpoint"] = checkpoint
+    out["localization_checkpoint"] = tmp / "rotate.checkpoint.nc"
+    return out
+
+
+KINDS = [
+    "simulate", "simulate_pinned_free", "checkpoint", "critical", "sweep", "localization", "localization_checkpoint", "orbit",
+    "rotation_characteristic", "study", "state_diagram", "report_critical", "report_sweep",
+]  # fmt: skip
+
+
+def _compliance_errors(path: Path, tmp: Path) -> list[str]:
+    """The messages of compliance-checker's high-priority (error) results on ``path`` for cf:1.10."""
+    pytest.importorskip("compliance_checker", reason="compliance-checker is not installed (pip install -e .[test])")
+    from compliance_checker.runner import CheckSuite, ComplianceChecker
+
+    CheckSuite.load_all_available_checkers()
+    report = tmp / "report.json"
+    ComplianceChecker.run_checker(str(path), ["cf:1.10"], 0, "normal", output_filename=str(report), output_format="json")
+    results = json.loads(report.read_text())["cf:1.10"]
+    return [message for result in results["high_priorities"] for message in result["msgs"]]
+
+
+def _cfchecks(tmp: Path):
+    """cfchecks' checker and its newest CF version, with the standard names compliance-checker ships (no network)."""
+    try:
+        from cfchecker.cfchecks import CFChecker, CFVersion, cfVersions
+    except (ImportError, OSError) as err:  # cfunits raises OSError where the udunits2 C library is missing
+        pytest.skip(f"cfchecks cannot be imported ({err}): pip install cfchecker and apt-get install libudunits2-0")
+    pytest.importorskip("compliance_checker", reason="cfchecks reads the standard name table compliance-checker ships")
+    import compliance_checker
+
+    # The files use no area types and no region names: empty tables stand for the ones cfchecks downloads.
+    tables = {}
+    for name, root in (("area", "standard_area_type_table"), ("region", "standardized_region_list")):
+        tables[name] = tmp / f"{name}.xml"
+        tables[name].write_text(f'<?xml version="1.0"?>\n<{root}><version_number>1</version_number><date>2025-01-01</date></{root}>\n')
+    names = Path(compliance_checker.__file__).parent / "data" / "cf-standard-name-table.xml"
+    checker = CFChecker(cfStandardNamesXML=str(names), cfAreaTypesXML=str(tables["area"]), cfRegionNamesXML=str(tables["region"]), silent=True)
+    return checker, max(cfVersions) >= CFVersion((1, 10))
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_compliance_checker_finds_no_error_in_a_file_of_each_kind(files, kind, tmp_path):
+    errors = _compliance_errors(files[kind], tmp_path)
+    assert [message for message in errors if message != DIMENSIONLESS_TIME] == [], kind
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_cfchecks_finds_no_error_in_a_file_of_each_kind(files, kind, tmp_path):
+    checker, knows_cf_1_10 = _cfchecks(tmp_path)
+    results = checker.checker(str(files[kind]))
+    errors = [*results["global"]["FATAL"], *results["global"]["ERROR"]]
+    errors += [f"{name}: {message}" for name, found in results["variables"].items() for message in found["FATAL"] + found["ERROR"]]
+    if not knows_cf_1_10:
+        errors = [message for message in errors if message != UNKNOWN_VERSION]
+    assert errors == [], kind
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_every_file_reads_back_with_units_that_pint_parses(files, kind):
+    cf_xarray_units = pytest.importorskip("cf_xarray.units", reason="cf-xarray is not installed (pip install -e .[test])")
+    pytest.importorskip("pint_xarray", reason="pint-xarray is not installed (pip install -e .[test])")
+    ds = xr.open_dataset(files[kind], engine="h5netcdf")
+    quantified = ds.pint.quantify(unit_registry=cf_xarray_units.units)
+    units = {name: quantified[name].data.units for name in ("u", "u_dot", "phi", "phi_dot", "time", "moment") if name in quantified.variables}
+    for name, unit in units.items():
+        # Displacements were read as hours when their units said "h": now they are numbers, angles radians.
+        assert unit == (cf_xarray_units.units.radian if name.startswith("phi") else cf_xarray_units.units.dimensionless), (kind, name, unit)
+    described = [str(name) for name in ds.variables if name in VARIABLES]
+    assert described and all(ds[name].attrs["units"] in ("1", "rad") for name in described), kind
+    assert ds.cf.axes.get("T", ["time"]) == ["time"]
+
+
+def test_a_quantity_keeps_its_units_and_scale_in_every_file(files):
+    seen: dict[str, tuple[str, str | None]] = {}
+    for kind in KINDS:
+        ds = xr.open_dataset(files[kind], engine="h5netcdf")
+        for name in ds.variables:
+            attrs = (ds[name].attrs["units"], ds[name].attrs.get("scale"))
+            assert seen.setdefault(str(name), attrs) == attrs, (kind, name, attrs, seen[str(name)])
+    assert seen["u"] == ("1", "length: " + SCALES["length"])
+    assert seen["time"] == ("1", "time: " + SCALES["time"])
+    assert seen["phi_dot"][0] == "rad" and "time is sqrt(mass / stiffness)" in seen["phi_dot"][1]
+    assert seen["particle"] == ("1", None)
+
+
+def test_coordinates_have_no_fill_value_and_text_is_characters(files):
+    with h5py.File(files["study"]) as f:
+        for name in ("E2", "model"):
+            assert "_FillValue" not in f[name].attrs, name
+        assert f["error"].dtype.kind == "S" and f["error"].dtype.itemsize == 1, "a character array, not the string type"
+    with h5py.File(files["simulate"]) as f:
+        assert "_FillValue" not in f["time"].attrs and "_FillValue" not in f["particle"].attrs
+    study = read_dataset(files["study"])
+    assert study["error"].values.tolist() == [[""], ["a failed cell keeps its message"]]
+    assert study["model"].values.tolist() == ["linear"]
+
+
+def test_long_names_are_true_for_the_file_at_hand(files):
+    pinned_free = read_dataset(files["simulate_pinned_free"])
+    assert pinned_free["particle"].attrs["long_name"] == "particle index k in -N..N (left pinned, right free)"
+    assert pinned_free["potential"].attrs["long_name"] == "potential energy P", "no sine caveat on a nonlinear run"
+    assert np.isfinite(pinned_free["potential"].values).all()
+    sine = read_dataset(files["simulate"])
+    assert sine["particle"].attrs["long_name"] == "particle index k in -N..N (clamped ends)"
+    assert "NaN for the non-conservative sine model" in sine["potential"].attrs["long_name"]
+    assert read_dataset(files["state_diagram"])["value"].attrs["long_name"].startswith("the varied field E2")
+
+
+def test_history_names_the_command_without_the_folder_it_lies_in(monkeypatch):
+    run = simulate(ChainParams(), "linear", 0.01, t_end=0.2, n_frames=2)
+    monkeypatch.setattr(sys, "argv", ["/home/someone/.venv/bin/cosserat-chain", "simulate", "--out", "run one.nc"])
+    history = describe(run).attrs["history"]
+    assert history.endswith(": cosserat-chain simulate --out 'run one.nc'") and "/home/someone" not in history
+    monkeypatch.setattr(sys, "argv", ["/home/someone/src/cosserat_chain/__main__.py", "simulate"])
+    assert describe(run).attrs["history"].endswith(": python -m cosserat_chain simulate")
+    twice = describe(describe(run))
+    assert twice.attrs["history"].count("\n") == 1 and twice["u"].attrs == describe(run)["u"].attrs, "describing again adds a line only"
+
+
+def test_a_quantity_with_a_factor_that_is_no_base_quantity_is_refused():
+    with pytest.raises(ValueError, match=r"quantity 'furlong / time' has the factor\(s\) \['furlong'\]; allowed: rad, 1, length"):
+        cf_attributes("furlong / time", "speed")
+    assert cf_attributes("rad / energy", "compliance")["units"] == "rad"
+    assert cf_attributes("1 / time", "band gap") == {"units": "1", "long_name": "band gap", "scale": "1 / time, where time is " + SCALES["time"]}
