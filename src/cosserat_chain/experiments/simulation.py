@@ -71,6 +71,10 @@ def trajectory_dataset(params: ChainParams, model: str | Model, loads: Loads, tr
     for i, row in enumerate(ROWS):
         data[row] = (("time", "particle"), trajectory.x[:, i, :])
         data[f"{row}_dot"] = (("time", "particle"), trajectory.v[:, i, :])
+    if trajectory.winding is not None and trajectory.winding.any():
+        # phi as a double loses bits beyond some turns: the whole turns and the rest keep them all.
+        data["phi_winding"] = (("time", "particle"), trajectory.winding, {"long_name": "whole turns of the angle"})
+        data["phi_reduced"] = (("time", "particle"), trajectory.reduced_phi, {"long_name": "the angle less its whole turns: phi = phi_reduced + 2 pi phi_winding"})
     for name, values in budget.as_dict().items():
         data[name] = (("time",), values)
     ds = xr.Dataset(data, coords={"time": trajectory.time, "particle": particle})
@@ -341,6 +345,10 @@ def _checkpoint_dataset(state: RunState, params: ChainParams, model: Model, load
         state.split_acc,
         {"long_name": "load work and dissipated energy: at the split over threads, then per block (none on one thread)"},
     )
+    # The angles as the engine keeps them: phi less its whole turns, and the turns (exact at any winding).
+    winding, frames_winding = state.windings()
+    data["phi_winding"] = (("time", "particle"), frames_winding, {"long_name": "whole turns of phi: the angle is phi + 2 pi phi_winding"})
+    data["final_phi_winding"] = (("particle",), winding, {"long_name": "whole turns of final_phi"})
     # The times as integrate computes them (informative: a resumed run counts steps).
     times = state.t0 + (settings["t_end"] - state.t0) * state.frame_steps / state.n_steps
     ds = xr.Dataset(data, coords={"time": times, "particle": particle})
@@ -382,6 +390,9 @@ def _run_state(ds: xr.Dataset) -> RunState:
         frames_v=rows("{}_dot"),
         frames_acc=np.ascontiguousarray(np.stack([ds["load_work"].values, ds["dissipated"].values], axis=-1)),
         split_acc=np.ascontiguousarray(ds["split_sums"].values.reshape(-1, 2)),
+        # (None in a checkpoint written before the angles had whole turns: none then.)
+        winding=np.asarray(ds["final_phi_winding"].values, dtype=np.int64) if "final_phi_winding" in ds else None,
+        frames_winding=np.ascontiguousarray(ds["phi_winding"].values, dtype=np.int64) if "phi_winding" in ds else None,
     )
 
 

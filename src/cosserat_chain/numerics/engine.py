@@ -1041,7 +1041,7 @@ class Lanes:
         out.x = np.ascontiguousarray(self.x[:, first:last])
         out.v = np.ascontiguousarray(self.v[:, first:last])
         out.f = np.ascontiguousarray(self.f[:, first:last])
-        out.winding = np.ascontiguousarray(self.winding[first:last])
+        out.winding = self.winding[first:last].copy()  # (a slice of rows is contiguous: ascontiguousarray would not copy)
         out.acc = np.zeros((2, 1))
         low = 0 if first == 0 and self.columns[0] == 0 else 1
         high = out.n if last == self.n and self.columns[1] == self.n else out.n - 1
