@@ -23,6 +23,7 @@ and the number of particles: an absolute 1e-14 is out of reach from about N = 20
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -121,6 +122,101 @@ def euclidean_norm(a: np.ndarray) -> float:
     return math.sqrt(dot(a, a))
 
 
+class BranchEndError(NewtonError):
+    """The stable branch from rest ends before the requested load: no state a slowly rising load reaches holds it.
+
+    ``x`` is the last state followed (at ``load_factor`` times the load), ``index`` the
+    number of negative eigenvalues of K there.
+    """
+
+    def __init__(self, message: str, x: np.ndarray, load_factor: float):
+        super().__init__(message, x)
+        self.load_factor = load_factor
+
+
+class Equilibrium(np.ndarray):
+    """A static state (3, 2N+1) that says how it was found and how stable it is (:func:`solve_equilibrium`).
+
+    An array like any state (``x[2, N]`` is phi_0), with the attributes
+
+    stability : Stability
+        :func:`~cosserat_chain.numerics.stability.static_stability` of the state: ``index``
+        (negative eigenvalues of K) and K's verdict.
+    from_rest : bool
+        True where the state was followed from rest as the load rose from zero (the state a
+        slowly loaded chain reaches); False where Newton started from a given ``x0``, whose
+        answer may lie on any branch.
+    load_steps : int
+        Load steps of that following (0 from a given start).
+
+    and, computed when first asked (an eigenvalue problem of twice the size: seconds at N = 100),
+    ``dynamic``, the damped dynamics' verdict for a non-conservative model. Arrays computed from
+    it (sums, copies, slices) are plain: the attributes describe this state only.
+    """
+
+    stability = None
+    from_rest = False
+    load_steps = 0
+    _system = None
+    _dynamic = None
+
+    def __new__(cls, x: np.ndarray, system: tuple[ChainParams, Model], stability, from_rest: bool, load_steps: int):
+        out = np.asarray(x, dtype=float).view(cls)
+        out._system, out.stability, out.from_rest, out.load_steps = system, stability, from_rest, load_steps
+        return out
+
+    def __array_finalize__(self, obj) -> None:
+        """Views keep the class defaults (no verdict): a slice is not the state that was classified."""
+
+    def __array_wrap__(self, array, context=None, return_scalar=False):
+        """Results of ufuncs are plain arrays (a perturbed state is not the classified one)."""
+        out = np.asarray(array).view(np.ndarray)
+        return out[()] if return_scalar else out
+
+    def __reduce__(self):
+        """Pickled (multiprocessing, Dask) as the plain state."""
+        return np.asarray(self).view(np.ndarray).__reduce__()
+
+    @property
+    def index(self) -> int:
+        """Negative eigenvalues of K at the state (0: a minimum of the energy for a conservative model)."""
+        return self.stability.index
+
+    @property
+    def dynamic(self):
+        """:func:`~cosserat_chain.numerics.stability.dynamic_stability` of the state for a non-conservative model
+        (eq. (2): K's inertia is not its dynamics' stability), None for a conservative one; computed once, when asked."""
+        params, model = self._system
+        if model.conservative:
+            return None
+        if self._dynamic is None:
+            from .stability import dynamic_stability  # see _classified
+
+            self._dynamic = dynamic_stability(params, model, np.asarray(self))
+        return self._dynamic
+
+    @property
+    def stable(self) -> bool:
+        """Stable: K positive definite (for eq. (2) this implies decaying dynamics, :mod:`.stability`); where it is
+        not, a non-conservative model's dynamics decide (:attr:`dynamic`)."""
+        if self.stability.stable or self._system[1].conservative:
+            return self.stability.stable
+        return self.dynamic.stable
+
+
+#: Largest change of any particle's angle in one load step of :func:`solve_equilibrium` (rad),
+#: predicted along the branch's tangent: the tangent resolves the branch over such a step.
+LOAD_PHI_STEP = 0.1
+#: A load step whose Newton correction exceeds this fraction of its predicted move left the branch.
+LOAD_CORRECTION = 0.5
+#: Smallest load step (a fraction of the load) before the branch is declared ended.
+MIN_LOAD_STEP = 1e-9
+#: Most load steps of one following.
+MAX_LOAD_STEPS = 20000
+#: Newton iterations of one load step.
+STEP_ITERATIONS = 8
+
+
 def solve_equilibrium(
     params: ChainParams,
     model: str | Model,
@@ -130,37 +226,139 @@ def solve_equilibrium(
     t: float = 0.0,
     tol: float = 1e-12,
     max_iter: int = 50,
-) -> np.ndarray:
-    """Static state (3, 2N+1) under the loads at time ``t``.
+) -> Equilibrium:
+    """The static state (3, 2N+1) under the loads at time ``t``: by default the one a slowly rising load reaches.
+
+    Without ``x0`` the state is followed from rest as the loads rise from zero to their value
+    (F(x) + lambda L = 0, lambda from 0 to 1): each load step predicts along the branch's tangent
+    dx/dlambda = K^-1 L (no angle turning by more than :data:`LOAD_PHI_STEP`), corrects by Newton,
+    and is taken only where the correction stays below :data:`LOAD_CORRECTION` of the predicted
+    move and the number of negative eigenvalues of K is the rest state's; otherwise it is
+    halved. Newton from rest with full steps, as before, converged from N of about 10-20 on to
+    far-away wound states (N = 30, M = 0.1: phi_0 = 90.9 rad with 35 negative eigenvalues where
+    the branch from rest has phi_0 = 0.951, stable). Where the stable branch ends first (K turns
+    singular: a fold, beyond which M cannot rise, or a branch point) a :class:`BranchEndError`
+    says at which fraction of the load.
+
+    With ``x0``, Newton's method starts there (full steps): the answer may lie on any branch, and says so (``from_rest`` False).
 
     Parameters
     ----------
+    params : ChainParams
+    model : str or Model
+    loads : Loads
+        Constant in the solve: their values at ``t``.
+    x0 : ndarray (3, 2N+1), optional
+        A start of the caller's own.
+    t : float
     tol : float
         Stop when max |F + L| <= max(tol (1 + max |L|), :func:`round_off_floor`).
     max_iter : int
+        Newton iterations from ``x0`` (each load step takes :data:`STEP_ITERATIONS` at most).
+
+    Returns
+    -------
+    Equilibrium
+        The state, an array (3, 2N+1) with its stability (``index``, ``stable``; the damped
+        dynamics' verdict ``dynamic`` for a non-conservative model) and ``from_rest``.
 
     Raises
     ------
+    BranchEndError
+        Without ``x0``: the stable branch from rest ends before the load (its ``load_factor``).
     NewtonError
-        If the residual is still above the tolerance after ``max_iter`` iterations.
+        If the residual is still above the tolerance after ``max_iter`` iterations (from ``x0``).
     ValueError
-        For a chain that can move rigidly (:func:`~cosserat_chain.state.require_held`).
+        For a chain that can move rigidly (:func:`~cosserat_chain.state.require_held`), or an ``x0`` of the wrong shape.
     """
     model = get_model(model)
     require_held(params)
-    x = zeros(params) if x0 is None else check_state(params, x0, "x0").copy()
     load = loads.as_array(params, t)
+    if x0 is not None:
+        x = _newton(params, model, check_state(params, x0, "x0").copy(), load, tol, max_iter)
+        if x is None:
+            raise NewtonError(f"Newton from x0 did not converge in {max_iter} iterations", check_state(params, x0, "x0"))
+        return _classified(params, model, x, from_rest=False, load_steps=0)
+    return _follow_from_rest(params, model, load, tol)
+
+
+def _newton(params: ChainParams, model: Model, x: np.ndarray, load: np.ndarray, tol: float, max_iter: int) -> np.ndarray | None:
+    """Newton's method for F(x) + load = 0 from ``x`` with full steps; None if it does not converge."""
     scale = 1.0 + np.max(np.abs(load))
-    residual = np.inf
     for _ in range(max_iter):
         r = pack(params, model.compiled_forces(params, x) + load)
         residual = float(np.max(np.abs(r))) if n_free(params) else 0.0
+        if not np.isfinite(residual):
+            return None
         stiffness = model.stiffness(params, x)
         if residual <= max(tol * scale, round_off_floor(stiffness, x)):
             return x
-        step = sparse_solve(stiffness, r)
-        x = x + unpack(params, step)
-    raise NewtonError(f"Newton did not converge in {max_iter} iterations (residual {residual:.3g})", x)
+        x = x + unpack(params, sparse_solve(stiffness, r))
+    return None
+
+
+def _classified(params: ChainParams, model: Model, x: np.ndarray, *, from_rest: bool, load_steps: int, stability=None) -> Equilibrium:
+    """``x`` with its stability (:class:`Equilibrium`)."""
+    # The stability floor builds on this module's norms: imported here, where a state is classified.
+    from .stability import static_stability
+
+    stability = static_stability(params, model, x) if stability is None else stability
+    return Equilibrium(x, (params, model), stability, from_rest, load_steps)
+
+
+def _follow_from_rest(params: ChainParams, model: Model, load: np.ndarray, tol: float) -> Equilibrium:
+    """The state on the branch from rest at ``load`` (:func:`solve_equilibrium` without a start)."""
+    from .stability import static_stability
+
+    x = zeros(params)
+    check = static_stability(params, model, x)
+    lam, steps = 0.0, 0
+    target = pack(params, load)
+    phi = ROW_INDEX["phi"]
+
+    def tangent_at(x: np.ndarray) -> np.ndarray:
+        return unpack(params, sparse_solve(model.stiffness(params, x), target))
+
+    def largest_step(tangent: np.ndarray) -> float:
+        """The load step over which the tangent turns no angle by more than LOAD_PHI_STEP (1 for a model of small rotations)."""
+        if not model.rotates:
+            return 1.0
+        turn = float(np.max(np.abs(tangent[phi])))
+        return LOAD_PHI_STEP / turn if turn > 0.0 else 1.0
+
+    tangent = tangent_at(x)
+    step = min(1.0, largest_step(tangent))
+    while lam < 1.0:
+        if steps >= MAX_LOAD_STEPS or step < MIN_LOAD_STEP:
+            reason = (
+                f"{MAX_LOAD_STEPS} load steps" if steps >= MAX_LOAD_STEPS else "a load step below "
+                f"{MIN_LOAD_STEP:g} of the load"
+            )
+            raise BranchEndError(
+                f"no state on the stable branch from rest holds this load: the branch ends at {lam:.10g} of it "
+                f"(K turns singular there: a fold or a branch point; {reason}), where a slowly loaded chain leaves it "
+                "(critical_point gives M_c); give x0 to solve from a start of your own",
+                x,
+                lam,
+            )
+        size = min(step, 1.0 - lam)
+        predicted = x + size * tangent
+        found = _newton(params, model, predicted.copy(), (lam + size) * load, tol, STEP_ITERATIONS)
+        if found is not None:
+            moved = float(np.linalg.norm(predicted - x))
+            corrected = float(np.linalg.norm(found - predicted))
+            trial = static_stability(params, model, found, guess=check.critical_eigenvalue) if corrected <= LOAD_CORRECTION * moved else None
+            if trial is not None and abs(trial.critical_eigenvalue) <= trial.resolution:
+                # An eigenvalue within its round-off has no sign (a long clamped chain's softest): the index stays.
+                trial = replace(trial, index=check.index, stable=check.stable)
+            if trial is not None and trial.index == check.index:
+                x, check, lam = found, trial, (1.0 if size == 1.0 - lam else lam + size)
+                steps += 1
+                tangent = tangent_at(x)
+                step = min(2.0 * size, largest_step(tangent))
+                continue
+        step = 0.5 * size
+    return _classified(params, model, x, from_rest=True, load_steps=steps, stability=check)
 
 
 def moment_dof(params: ChainParams, particle: int = 0) -> int:
