@@ -26,7 +26,8 @@ import errno
 import fcntl
 import errno
 import fcntl
-import json
+import errno
+import fcntl
 import math
 import os
 import pwd
@@ -357,8 +358,11 @@ def _acquire(target: Path, label: str, path: Path) -> str:
         if now is not None and (now.st_dev, now.st_ino) == (info.st_dev, info.st_ino):
             break
         os.close(fd)  # its last holder removed the file between our open and our lock: take the new one
-    os.ftruncate(fd, 0)
-    os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    try:
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+    except OSError:  # a full disk: the lock holds all the same, only a refused run cannot name this process
+        pass
     _HELD[key] = _Held(fd)
     return key
 
@@ -380,8 +384,8 @@ def _release(key: str) -> None:
 
 
 @contextmanager
-def output_lock(path: str | Path, label: str = "output") -> Iterator[Path]:
-    """Hold the advisory lock of the output ``path`` for the block; yields where the output lands.
+def output_lock(path: str | Path, label: str = "output", *, folder: bool = False) -> Iterator[Path]:
+    """Hold the advisory lock of the output ``path`` (a file, or with ``folder`` a folder) for the block; yields where it lands.
 
     The lock is ``fcntl.flock`` on ``.NAME.lock`` beside the output (the folder is made if
     missing), holding this process's id: the kernel releases it when its process ends,
@@ -395,7 +399,7 @@ def output_lock(path: str | Path, label: str = "output") -> Iterator[Path]:
         ``path`` is refused as :func:`check_output` refuses it.
     """
     path = Path(path)
-    target = _target(path, label)
+    target = _resolve(path, label) if folder else _target(path, label)
     key = _acquire(target, label, path)
     try:
         yield target

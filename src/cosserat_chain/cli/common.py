@@ -326,7 +326,7 @@ def outputs_or_exit(
             others = {name: other for name, other in given.items() if name != option}
             check_output(path, option, formats=formats.get(option), inputs={**(inputs or {}), **others}, folder=option in folders)
         for option, path in given.items():
-            _LOCKS.enter_context(output_lock(path, option))
+            _LOCKS.enter_context(output_lock(path, option, folder=option in folders))
     except OutputError as err:
         fail(str(err))
 
