@@ -1,0 +1,352 @@
+"""A particle's full rotation against its neighbours: model (i) with the centres held, its bond potential and quasi-continuum.
+
+Contract
+--------
+With every centre held at (k h, 0), model (i) is a lattice of angles with the energy
+sum_k V(phi_k, phi_k+1), V the potential (1) of one bond's four links (:func:`bond_potential`,
+exact, 2 pi-periodic in each angle and symmetric, V(a, b) = V(b, a), by the bond's two mirror
+symmetries). Expanded about the bond's mean angle, V(p - d/2, p + d/2) = W(p) + kappa(p) d^2/2
++ O(d^4) with
+
+    W(p) = V(p, p)                                 (both neighbours turned together),
+    kappa(p) = (V_11 - V_12)(p, p) / 2             (the cost of their difference),
+
+so a slowly varying phi has the quasi-continuum energy integral of W(phi)/h + h kappa(phi) phi_x^2/2:
+a sine-Gordon-like equation with the exact potential W in place of a cosine. Its 2 pi front (a
+kink from phi = 0 to 2 pi) has the energy integral_0^2pi sqrt(2 W kappa) dphi, the largest slope
+phi_x = max sqrt(2 W / kappa) / h, so the width 2 pi / max sqrt(2 W / kappa) particles, and tails
+of length sqrt(kappa(0) / W''(0)) particles; at rest W''(0) = k_v h^2 and kappa(0) = 2 E1 b^2,
+whose ratio is EI / (GA h^2) = E1 d^2 / (4 E2 h^2): a smooth front needs weak diagonals.
+
+:func:`discrete_front` minimises the lattice's energy with its ends held at 0 and 2 pi (the front
+centred on a particle and on a bond: the two stationary fronts, whose energies differ by the
+Peierls barrier; V being 2 pi-periodic, a narrow front slips into one bond, where it costs
+nothing); :func:`turn_barrier` is the energy barrier of one particle turning once, past
+fixed neighbours (2 max V(0, phi)) and past relaxing ones (the constrained minimum over the others
+at each angle of the turning particle, maximised along the turn).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..geometry import bond_links, rotate
+from ..params import ChainParams
+
+#: Step of the central differences of V (rad): error about 1e-8 of kappa and W''.
+DIFFERENCE_STEP = 1e-4
+#: Points of the angle grids (Fourier content, front energy, barrier scans).
+GRID = 256
+
+
+def _require_uniform(params: ChainParams) -> None:
+    if params.graded_stiffness:
+        raise ValueError("the bond potential needs a uniform chain: leave E1_factors and E2_factors out")
+
+
+def _links_energy(params: ChainParams, phi0: np.ndarray, phi1: np.ndarray, gradient: bool):
+    energy = np.zeros(np.broadcast(phi0, phi1).shape)
+    d0 = np.zeros_like(energy)
+    d1 = np.zeros_like(energy)
+    for link in bond_links(params):
+        r0x, r0y = rotate(link.left_corner, phi0)
+        r1x, r1y = rotate(link.right_corner, phi1)
+        dx, dy = params.h + r1x - r0x, r1y - r0y
+        length = np.hypot(dx, dy)
+        stretch = length - link.rest_length
+        energy = energy + 0.5 * link.stiffness * stretch**2
+        if gradient:
+            # d(length)/d(phi) = D . dD/dphi / length, with d(R r)/dphi = (-(R r)_y, (R r)_x).
+            scale = link.stiffness * stretch / np.where(length > 0, length, 1.0)
+            d0 = d0 + scale * (dx * r0y - dy * r0x)
+            d1 = d1 + scale * (-dx * r1y + dy * r1x)
+    return energy, d0, d1
+
+
+def bond_potential(params: ChainParams, phi0: np.ndarray | float, phi1: np.ndarray | float) -> np.ndarray:
+    """V(phi0, phi1): the potential (1) of one bond's four links with both centres held at rest (exact).
+
+    Parameters
+    ----------
+    params : ChainParams
+        A uniform chain (its N and ends play no part).
+    phi0, phi1 : float or ndarray
+        Angles of the left and right particle (broadcast together).
+
+    Returns
+    -------
+    ndarray
+        The broadcast shape.
+    """
+    _require_uniform(params)
+    return _links_energy(params, np.asarray(phi0, dtype=float), np.asarray(phi1, dtype=float), False)[0]
+
+
+def fourier_content(params: ChainParams, *, grid: int = GRID, count: int = 8) -> list[tuple[int, int, float]]:
+    """The largest Fourier coefficients of V: ``count`` entries (m, n, |c_mn|), V = sum c_mn exp(i (m phi0 + n phi1)).
+
+    From the FFT of V on a ``grid`` x ``grid`` lattice of angles; (m, n) and (-m, -n) are one
+    entry (V is real), listed with m > 0, or m = 0 and n >= 0, largest first (the mean, (0, 0), included).
+    """
+    _require_uniform(params)
+    angles = 2 * np.pi * np.arange(grid) / grid
+    values = bond_potential(params, angles[:, None], angles[None, :])
+    coefficients = np.fft.fft2(values) / grid**2
+    frequencies = np.fft.fftfreq(grid, 1.0 / grid).astype(int)
+    entries = []
+    for i, m in enumerate(frequencies):
+        for j, n in enumerate(frequencies):
+            if m > 0 or (m == 0 and n >= 0):
+                entries.append((int(m), int(n), float(abs(coefficients[i, j]) * (1 if (m, n) == (0, 0) else 2))))
+    entries.sort(key=lambda item: -item[2])
+    return entries[:count]
+
+
+@dataclass(frozen=True)
+class QuasiContinuum:
+    """The quasi-continuum of the held lattice: W, kappa on a grid of angles, and its 2 pi front.
+
+    Attributes
+    ----------
+    phi : ndarray, shape (GRID + 1,)
+        Angles 0..2 pi.
+    W, kappa : ndarray, same shape
+        V(p, p) and (V_11 - V_12)(p, p)/2 (module docstring).
+    front_energy : float
+        integral_0^2pi sqrt(2 W kappa) dphi; NaN where kappa < 0 somewhere (no front).
+    width : float
+        2 pi / max sqrt(2 W / kappa), in particles: the front's width at its steepest.
+    tail : float
+        sqrt(kappa(0) / W''(0)), in particles: the length over which the front's tails decay.
+    """
+
+    phi: np.ndarray
+    W: np.ndarray
+    kappa: np.ndarray
+    front_energy: float
+    width: float
+    tail: float
+
+    def as_dict(self) -> dict[str, float | None]:
+        """The front's numbers (for JSON), NaN as None."""
+        return {
+            key: (float(value) if math.isfinite(value) else None)
+            for key, value in (("front_energy", self.front_energy), ("width", self.width), ("tail", self.tail))
+        }
+
+
+def quasi_continuum(params: ChainParams, *, grid: int = GRID) -> QuasiContinuum:
+    """W, kappa and the quasi-continuum's 2 pi front (module docstring)."""
+    _require_uniform(params)
+    step = DIFFERENCE_STEP
+    phi = np.linspace(0.0, 2 * np.pi, grid + 1)
+
+    def V(a, b):
+        return bond_potential(params, a, b)
+
+    W = V(phi, phi)
+    v11 = (V(phi + step, phi) - 2 * W + V(phi - step, phi)) / step**2
+    v12 = (V(phi + step, phi + step) - V(phi + step, phi - step) - V(phi - step, phi + step) + V(phi - step, phi - step)) / (4 * step**2)
+    kappa = (v11 - v12) / 2
+    w2 = (V(np.array(step), np.array(step)) - 2 * V(np.array(0.0), np.array(0.0)) + V(np.array(-step), np.array(-step))) / step**2
+    if np.any(kappa <= 0):
+        energy = width = math.nan
+    else:
+        density = np.sqrt(2 * np.maximum(W, 0.0) * kappa)
+        energy = float(np.trapezoid(density, phi))
+        width = float(2 * np.pi / np.max(np.sqrt(2 * np.maximum(W, 0.0) / kappa)))
+    tail = float(np.sqrt(kappa[0] / w2)) if kappa[0] > 0 and w2 > 0 else math.nan
+    return QuasiContinuum(phi, W, kappa, energy, width, tail)
+
+
+# ---------------------------------------------------------------------------- the discrete lattice
+def lattice_energy(params: ChainParams, phi: np.ndarray) -> tuple[float, np.ndarray]:
+    """sum_k V(phi_k, phi_k+1) of a held chain with angles ``phi`` (n,), and its gradient (n,)."""
+    phi = np.asarray(phi, dtype=float)
+    energy, d0, d1 = _links_energy(params, phi[:-1], phi[1:], True)
+    gradient = np.zeros_like(phi)
+    gradient[:-1] += d0
+    gradient[1:] += d1
+    return float(energy.sum()), gradient
+
+
+def _minimise(params: ChainParams, phi: np.ndarray, free: np.ndarray) -> tuple[float, np.ndarray]:
+    from scipy.optimize import minimize
+
+    def objective(values: np.ndarray) -> tuple[float, np.ndarray]:
+        trial = phi.copy()
+        trial[free] = values
+        energy, gradient = lattice_energy(params, trial)
+        return energy, gradient[free]
+
+    result = minimize(objective, phi[free], jac=True, method="L-BFGS-B", options={"ftol": 1e-15, "gtol": 1e-11, "maxiter": 20000})
+    out = phi.copy()
+    out[free] = result.x
+    return float(result.fun), out
+
+
+@dataclass(frozen=True)
+class DiscreteFront:
+    """The held lattice's 2 pi fronts: centred on a particle and on a bond.
+
+    Attributes
+    ----------
+    phi_site, phi_bond : ndarray, shape (2 n + 1,) and (2 n + 2,)
+        The minimised angles, ends held at 0 and 2 pi.
+    energy_site, energy_bond : float
+        Their energies.
+    width : float
+        2 pi / the largest angle difference between neighbours, in particles, of the lower one.
+
+    Notes
+    -----
+    V is 2 pi-periodic in each angle, so a front squeezed into one bond (neighbours 2 pi apart)
+    costs nothing: a narrow front does not stay, it slips into that state or into one particle
+    turned half-way (energy the single-particle barrier). ``smooth`` says whether the front stayed
+    spread, a local minimum of its own.
+    """
+
+    phi_site: np.ndarray
+    phi_bond: np.ndarray
+    energy_site: float
+    energy_bond: float
+    width: float
+
+    @property
+    def smooth(self) -> bool:
+        """Whether the lower front is spread: no two neighbours differ by pi/2 or more."""
+        lower = self.phi_site if self.energy_site <= self.energy_bond else self.phi_bond
+        return bool(np.max(np.abs(np.diff(lower))) < np.pi / 2)
+
+    @property
+    def energy(self) -> float:
+        """The front's energy: the lower of the two."""
+        return min(self.energy_site, self.energy_bond)
+
+    @property
+    def peierls_barrier(self) -> float:
+        """|energy_site - energy_bond|: what it costs the front to move by half a particle."""
+        return abs(self.energy_site - self.energy_bond)
+
+    def as_dict(self) -> dict[str, float | bool]:
+        """The front's numbers (for JSON)."""
+        return {
+            "smooth": self.smooth,
+            "energy": self.energy,
+            "energy_site": self.energy_site,
+            "energy_bond": self.energy_bond,
+            "peierls_barrier": self.peierls_barrier,
+            "width": self.width,
+        }
+
+
+def discrete_front(params: ChainParams, *, half_length: int = 30) -> DiscreteFront:
+    """Minimise the held lattice with its ends at 0 and 2 pi, from fronts centred on a particle and on a bond.
+
+    Parameters
+    ----------
+    params : ChainParams
+        A uniform chain (its N and ends play no part).
+    half_length : int
+        Particles on each side of the front's centre (>= 2); the tails must fit in it.
+
+    Raises
+    ------
+    ValueError
+        For half_length < 2 or a graded chain.
+    """
+    _require_uniform(params)
+    if half_length < 2:
+        raise ValueError(f"half_length must be >= 2 (particles on each side of the front), got {half_length!r}")
+    qc = quasi_continuum(params)
+    scale = qc.width / 4 if math.isfinite(qc.width) and qc.width > 0.5 else 0.5
+    results = []
+    for offset in (0.0, 0.5):
+        positions = np.arange(-half_length, half_length + 1 + (1 if offset else 0)) - offset
+        start = 4 * np.arctan(np.exp(positions / scale))  # a sine-Gordon kink, 0 to 2 pi
+        start[0], start[-1] = 0.0, 2 * np.pi
+        free = np.zeros(start.size, dtype=bool)
+        free[1:-1] = True
+        if offset == 0.0:  # the centre particle at pi keeps the front centred on it
+            free[half_length] = False
+            start[half_length] = np.pi
+            energy, phi = _minimise(params, start, free)
+            free[half_length] = True
+        energy, phi = _minimise(params, start if offset else phi, free)
+        results.append((energy, phi))
+    (energy_site, phi_site), (energy_bond, phi_bond) = results
+    lower = phi_site if energy_site <= energy_bond else phi_bond
+    return DiscreteFront(phi_site, phi_bond, energy_site, energy_bond, float(2 * np.pi / np.max(np.abs(np.diff(lower)))))
+
+
+@dataclass(frozen=True)
+class TurnBarrier:
+    """The energy barrier of one particle turning once against its neighbours.
+
+    Attributes
+    ----------
+    fixed : float
+        With the neighbours held at 0: 2 max V(0, phi).
+    relaxed : float
+        With the other particles of a held lattice relaxing (each end held at 0): the largest,
+        over the turning particle's angle, of the minimum over the others.
+    angle_fixed, angle_relaxed : float
+        The turning particle's angle at the two barriers.
+    """
+
+    fixed: float
+    relaxed: float
+    angle_fixed: float
+    angle_relaxed: float
+
+    def as_dict(self) -> dict[str, float]:
+        """The barriers and their angles (for JSON)."""
+        return {"fixed": self.fixed, "relaxed": self.relaxed, "angle_fixed": self.angle_fixed, "angle_relaxed": self.angle_relaxed}
+
+
+def turn_barrier(params: ChainParams, *, half_length: int = 10, points: int = 64) -> TurnBarrier:
+    """Barriers of one particle turning past fixed and past relaxing neighbours (module docstring).
+
+    The relaxed barrier scans the turning particle's angle over ``points`` values in [0, 2 pi],
+    each minimisation started from the last, and refines the largest by a bounded scalar search.
+    """
+    from scipy.optimize import minimize_scalar
+
+    _require_uniform(params)
+    if half_length < 1 or points < 8:
+        raise ValueError(f"half_length must be >= 1 and points >= 8, got half_length={half_length!r}, points={points!r}")
+    grid = np.linspace(0.0, 2 * np.pi, GRID + 1)
+    single = 2 * bond_potential(params, 0.0, grid)
+    top = int(np.argmax(single))
+    fine = minimize_scalar(lambda a: -2 * float(bond_potential(params, 0.0, a)), bounds=(grid[max(top - 1, 0)], grid[min(top + 1, GRID)]), method="bounded")
+    fixed, angle_fixed = -float(fine.fun), float(fine.x)
+
+    phi = np.zeros(2 * half_length + 1)
+    free = np.ones(phi.size, dtype=bool)
+    free[[0, half_length, -1]] = False
+    cache: dict[float, tuple[float, np.ndarray]] = {}
+
+    def constrained(angle: float, start: np.ndarray) -> tuple[float, np.ndarray]:
+        trial = start.copy()
+        trial[half_length] = angle
+        result = _minimise(params, trial, free)
+        cache[angle] = result
+        return result
+
+    energies = []
+    state = phi
+    for angle in np.linspace(0.0, 2 * np.pi, points):
+        energy, state = constrained(float(angle), state)
+        energies.append(energy)
+    best = int(np.argmax(energies))
+    angles = np.linspace(0.0, 2 * np.pi, points)
+    start = cache[float(angles[best])][1]
+    fine = minimize_scalar(
+        lambda a: -constrained(float(a), start)[0], bounds=(angles[max(best - 1, 0)], angles[min(best + 1, points - 1)]), method="bounded"
+    )
+    relaxed = max(-float(fine.fun), float(energies[best]))
+    angle_relaxed = float(fine.x) if -float(fine.fun) >= energies[best] else float(angles[best])
+    return TurnBarrier(fixed, relaxed, angle_fixed, angle_relaxed)

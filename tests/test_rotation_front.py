@@ -1,0 +1,90 @@
+"""A particle's full rotation: model (i)'s held bond potential, its quasi-continuum front and the discrete lattice's."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import ROUND_OFF, random_geometries
+from cosserat_chain import ChainParams
+from cosserat_chain.analysis.rotation_front import (
+    bond_potential,
+    discrete_front,
+    fourier_content,
+    lattice_energy,
+    quasi_continuum,
+    turn_barrier,
+)
+from cosserat_chain.models import NONLINEAR
+
+#: Tall, thin particles with weak diagonals: a front about 12 particles wide.
+WIDE = ChainParams(a=0.05, b=0.6, E2=0.001)
+
+
+@pytest.mark.parametrize("params", random_geometries(4, seed=21))
+def test_bond_potential_is_model_i_bond_energy_with_centres_held_periodic_and_symmetric(params):
+    rng = np.random.default_rng(1)
+    angles = rng.uniform(-7, 7, size=(20, 2))
+    states = np.zeros((20, 3, 3))
+    states[:, 2, :2] = angles
+    direct = NONLINEAR.bond_energy(params.replace(N=1), states)[:, 0]
+    np.testing.assert_allclose(bond_potential(params, angles[:, 0], angles[:, 1]), direct, rtol=ROUND_OFF, atol=ROUND_OFF)
+    a, b = angles.T
+    np.testing.assert_allclose(bond_potential(params, b, a), direct, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(bond_potential(params, a + 2 * np.pi, b - 4 * np.pi), direct, rtol=1e-10, atol=1e-12)
+
+
+def test_lattice_gradient_is_the_energys():
+    phi = np.array([0.0, 0.4, 1.3, 2.0, 4.1, 6.0])
+    _, gradient = lattice_energy(WIDE, phi)
+    step = 1e-6
+    numeric = [(lattice_energy(WIDE, phi + step * e)[0] - lattice_energy(WIDE, phi - step * e)[0]) / (2 * step) for e in np.eye(phi.size)]
+    np.testing.assert_allclose(gradient, numeric, atol=1e-8)
+
+
+@pytest.mark.parametrize("params", random_geometries(3, seed=4))
+def test_quasi_continuum_at_rest_is_the_linear_chains_bending_and_shear(params):
+    qc = quasi_continuum(params)
+    assert qc.kappa[0] == pytest.approx(2 * params.E1 * params.b**2, rel=1e-6)
+    assert qc.tail == pytest.approx(np.sqrt(params.E1 * params.d**2 / (4 * params.E2 * params.h**2)), rel=1e-5)
+
+
+def test_fourier_content_is_symmetric_and_holds_all_of_v_by_parseval():
+    grid = 64
+    entries = fourier_content(ChainParams(), grid=grid, count=grid * grid)
+    magnitude = {(m, n): c for m, n, c in entries}
+    assert magnitude[(0, 1)] == pytest.approx(magnitude[(1, 0)], rel=1e-12)
+    assert entries[0][2] >= entries[1][2] >= entries[-1][2]
+    angles = 2 * np.pi * np.arange(grid) / grid
+    mean_square = np.mean(bond_potential(ChainParams(), angles[:, None], angles[None, :]) ** 2)
+    # Each listed pair (m, n), (-m, -n) holds 2 |c_mn|: its share of the mean square is half its square.
+    parseval = magnitude[(0, 0)] ** 2 + sum(c**2 / 2 for key, c in magnitude.items() if key != (0, 0))
+    assert parseval == pytest.approx(mean_square, rel=1e-9)
+
+
+def test_wide_front_of_the_lattice_matches_the_quasi_continuum():
+    qc = quasi_continuum(WIDE)
+    front = discrete_front(WIDE, half_length=60)
+    assert front.smooth
+    assert front.energy == pytest.approx(qc.front_energy, rel=0.01)
+    assert front.width == pytest.approx(qc.width, rel=0.1)
+    assert front.peierls_barrier < 1e-3 * front.energy
+
+
+def test_narrow_front_slips_into_one_bond_and_a_particle_half_turned_costs_the_single_particle_barrier():
+    params = ChainParams()
+    front = discrete_front(params, half_length=10)
+    assert not front.smooth and front.energy < 1e-12
+    barrier = turn_barrier(params, half_length=6, points=32)
+    grid = np.linspace(0, 2 * np.pi, 20001)
+    assert barrier.fixed == pytest.approx(2 * bond_potential(params, 0.0, grid).max(), rel=1e-7)
+    assert barrier.relaxed <= barrier.fixed + 1e-9
+    assert front.energy_site == pytest.approx(barrier.relaxed, rel=1e-6)
+
+
+def test_bad_input_is_refused():
+    graded = ChainParams(N=1, E1_factors=(1.0, 2.0))
+    with pytest.raises(ValueError, match="E1_factors"):
+        bond_potential(graded, 0.0, 0.0)
+    with pytest.raises(ValueError, match="half_length"):
+        discrete_front(ChainParams(), half_length=1)
