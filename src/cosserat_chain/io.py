@@ -24,10 +24,6 @@ from __future__ import annotations
 
 import errno
 import fcntl
-import errno
-import fcntl
-import errno
-import fcntl
 import math
 import os
 import pwd
@@ -45,6 +41,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .inputs import check_finite, check_run, params_from_mapping, stored_params
 from .params import ChainParams
 from .state import ROWS
 
@@ -872,7 +869,9 @@ def read_dataset(path: str | Path) -> xr.Dataset:
     try:
         with xr.open_dataset(path, engine="h5netcdf") as ds:
             return ds.load()
-    except (OSError, ValueError, KeyError, TypeError) as err:  # h5py and xarray say "truncated", "not HDF5", ... in their own words
+    except MemoryError:
+        raise
+    except Exception as err:  # noqa: BLE001 - a damaged file makes h5py and xarray fail in any of their errors (OSError, KeyError, RuntimeError, ...)
         raise ValueError(f"{str(path)!r} is not a readable NetCDF file written by this package ({type(err).__name__}: {err})") from None
 
 
@@ -906,22 +905,6 @@ def read_config(path: str | Path) -> dict[str, Any]:
         raise ValueError(f"config file {str(path)!r} is not valid TOML: {err}") from None
 
 
-def params_from_mapping(mapping: dict[str, Any], source: str = "config") -> ChainParams:
-    """Validated ``ChainParams`` from a mapping of field names.
-
-    Raises
-    ------
-    ValueError
-        Naming an unknown (e.g. misspelled) key and listing the allowed ones, or
-        the field, value and rule of an invalid value.
-    """
-    allowed = list(ChainParams.model_fields)
-    unknown = [key for key in mapping if key not in allowed]
-    if unknown:
-        raise ValueError(f"unknown key(s) {unknown} in {source}; allowed keys: {', '.join(allowed)}")
-    return ChainParams(**mapping)
-
-
 #: The table of a config file that holds loads (``[[loads]]``, :func:`cosserat_chain.loads.load_from_table`).
 LOADS_TABLE = "loads"
 #: The table of a config file that draws a disordered chain (:func:`cosserat_chain.params.disordered`).
@@ -952,7 +935,7 @@ def disorder_from_table(params: ChainParams, table: Any, source: str) -> ChainPa
             + "; its keys are seed, spread and fields"
         )
     fields = table.get("fields", ["E1", "E2"])
-    if isinstance(fields, str) or not isinstance(fields, list):
+    if not isinstance(fields, list) or not all(isinstance(field, str) for field in fields):
         raise ValueError(f"{where}: fields must be a list of {', '.join(DISORDER_FIELDS)}, got {fields!r}")
     given = [DISORDER_FIELDS[f] for f in fields if f in DISORDER_FIELDS and getattr(params, DISORDER_FIELDS[f]) is not None]
     if given:
@@ -1004,12 +987,12 @@ def params_of(dataset: xr.Dataset) -> ChainParams:
     ValueError
         If the Dataset has no ``params_json`` attribute or it holds invalid parameters.
     """
-    if "params_json" not in dataset.attrs:
-        raise ValueError("the dataset has no params_json attribute: pass params explicitly")
-    return params_from_mapping(json.loads(dataset.attrs["params_json"]), source="params_json")
+    return stored_params(dataset.attrs, "the dataset")
 
 
-def run_frame(dataset: xr.Dataset, at: float | None = None) -> tuple[ChainParams, Loads, float, np.ndarray, np.ndarray]:
+def run_frame(
+    dataset: xr.Dataset, at: float | None = None, *, source: str = "the dataset"
+) -> tuple[ChainParams, Loads, float, np.ndarray, np.ndarray]:
     """The chain, the loads and one stored frame (time, positions, velocities) of a run, to start another from.
 
     ``at`` picks the stored frame nearest that time (default the last); the run's own
@@ -1019,16 +1002,11 @@ def run_frame(dataset: xr.Dataset, at: float | None = None) -> tuple[ChainParams
     Raises
     ------
     ValueError
-        If the dataset is not a run with velocities (``simulate --out``), or ``at`` lies
-        outside its time axis.
+        Naming ``source``, if the dataset is not a sound run with velocities (``simulate --out``;
+        :func:`cosserat_chain.inputs.check_run`), or ``at`` lies outside its time axis.
     """
-    from .loads import Loads
-
-    params = params_of(dataset)
+    params, loads = check_run(dataset, source, velocities=True)
     times, states = run_states(params, dataset)
-    missing = [f"{row}_dot" for row in ROWS if f"{row}_dot" not in dataset]
-    if missing:
-        raise ValueError(f"the dataset lacks the velocities {missing}: start from a run written by simulate --out")
     if at is None:
         frame = times.size - 1
     else:
@@ -1037,8 +1015,7 @@ def run_frame(dataset: xr.Dataset, at: float | None = None) -> tuple[ChainParams
         frame = int(np.argmin(np.abs(times - at)))
     ordered = dataset.sortby("particle").isel(time=frame)
     velocities = np.stack([np.asarray(ordered[f"{row}_dot"].values, dtype=float) for row in ROWS])
-    loads = Loads.from_list(json.loads(dataset.attrs.get("loads_json", "[]")))
-    return params, loads.validate(params), float(times[frame]), np.ascontiguousarray(states[frame]), velocities
+    return params, loads, float(times[frame]), np.ascontiguousarray(states[frame]), velocities
 
 
 def run_states(params: ChainParams, dataset: xr.Dataset) -> tuple[np.ndarray, np.ndarray]:
@@ -1047,11 +1024,10 @@ def run_states(params: ChainParams, dataset: xr.Dataset) -> tuple[np.ndarray, np
     Raises
     ------
     ValueError
-        If the dataset lacks u, v or phi, or has another number of particles than ``params``.
+        If the dataset lacks u, v or phi over (time, particle), holds a value there that is not
+        a finite number, or has another number of particles than ``params``.
     """
-    missing = [row for row in ROWS if row not in dataset]
-    if missing:
-        raise ValueError(f"the dataset lacks the variable(s) {missing}; a run has u, v, phi over (time, particle)")
+    check_finite(dataset, ROWS, "the dataset", dims=("time", "particle"))
     dataset = dataset.sortby("particle")
     if dataset.sizes["particle"] != params.n_particles:
         raise ValueError(f"the dataset has {dataset.sizes['particle']} particles but params describe 2N+1 = {params.n_particles}")

@@ -26,6 +26,23 @@ from .params import ChainParams
 from .state import ROW_INDEX, column, held
 
 
+#: Most knots of one schedule: a million knots (some 100 MB as Python numbers and the compiled
+#: table) is far beyond any loading protocol, and a staircase of 10^8 steps would take gigabytes.
+MAX_KNOTS = 1_000_000
+
+#: Bytes one knot takes, as two Python floats in the schedule's tuples and a row of the compiled table.
+_KNOT_BYTES = 2 * (24 + 8) + 16
+
+
+def _check_knots(count: int, where: str) -> None:
+    """Refuse a schedule of more than :data:`MAX_KNOTS` knots before it is built, with the memory it would take."""
+    if count > MAX_KNOTS:
+        raise ValueError(
+            f"{where} asks for a schedule of {count:.3g} knots (about {count * _KNOT_BYTES / 2**30:.3g} GiB), "
+            f"more than {MAX_KNOTS:,}: a loading protocol of fewer steps, or a ramp, describes it"
+        )
+
+
 @dataclass(frozen=True)
 class Schedule:
     """Piecewise-linear schedule of a load in time.
@@ -46,6 +63,7 @@ class Schedule:
     phase: float = 0.0
 
     def __post_init__(self) -> None:
+        _check_knots(len(self.times), "a schedule")
         times = tuple(float(t) for t in self.times)
         values = tuple(float(v) for v in self.values)
         object.__setattr__(self, "times", times)
@@ -93,6 +111,7 @@ class Schedule:
             raise ValueError(f"staircase hold time must be > 0, got {hold!r}")
         if n_steps < 1:
             raise ValueError(f"staircase needs n_steps >= 1, got {n_steps!r}")
+        _check_knots(2 * n_steps, "staircase n_steps")
         times: list[float] = []
         values: list[float] = []
         for i in range(n_steps):
@@ -171,7 +190,7 @@ class PointLoad:
     schedule: Schedule
 
     def __post_init__(self) -> None:
-        if self.row not in ROW_INDEX:
+        if not isinstance(self.row, str) or self.row not in ROW_INDEX:
             raise ValueError(f"load row must be one of {tuple(ROW_INDEX)}, got {self.row!r}")
 
     def to_dict(self) -> dict[str, Any]:
@@ -246,9 +265,14 @@ class Loads(tuple):
             raise ValueError(f"{source} must be a list of loads, got {items!r}")
         loads = []
         for i, item in enumerate(items):
+            if not isinstance(item, dict):
+                raise ValueError(f"{source}[{i}] is not a load (an object with row, particle, times, values), got {item!r}")
             try:
                 schedule = {key: item[key] for key in ("times", "values", "amplitude", "frequency", "phase") if key in item}
-                loads.append(PointLoad(item["row"], int(item["particle"]), Schedule(**schedule)))
+                particle = item["particle"]
+                if isinstance(particle, bool) or not isinstance(particle, int):
+                    raise ValueError(f"particle must be an integer, got {particle!r}")
+                loads.append(PointLoad(item["row"], particle, Schedule(**schedule)))
             except (KeyError, TypeError, ValueError) as err:
                 raise ValueError(f"{source}[{i}] is not a load (row, particle, times, values): {err}") from None
         return cls(loads)
@@ -295,7 +319,7 @@ def load_from_table(table: Any, where: str = "loads[0]") -> PointLoad:
     if not isinstance(table, dict):
         raise ValueError(f"{where} must be a table (row, particle, value or kind), got {table!r}")
     kind = table.get("kind", "constant")
-    if kind not in SCHEDULE_KINDS:
+    if not isinstance(kind, str) or kind not in SCHEDULE_KINDS:
         raise ValueError(f"{where}.kind must be one of {', '.join(map(repr, SCHEDULE_KINDS))}, got {kind!r}")
     required, optional = SCHEDULE_KINDS[kind]
     allowed = ("row", "particle", "kind", *required, *optional)
@@ -306,7 +330,7 @@ def load_from_table(table: Any, where: str = "loads[0]") -> PointLoad:
     if missing:
         raise ValueError(f"{where} (kind {kind!r}) lacks {', '.join(missing)}")
     row, particle = table["row"], table["particle"]
-    if row not in ROW_INDEX:
+    if not isinstance(row, str) or row not in ROW_INDEX:
         raise ValueError(f"{where}.row must be one of {', '.join(map(repr, ROW_INDEX))}, got {row!r}")
     if isinstance(particle, bool) or not isinstance(particle, int):
         raise ValueError(f"{where}.particle must be an integer (a particle in -N..N), got {particle!r}")
@@ -322,6 +346,7 @@ def load_from_table(table: Any, where: str = "loads[0]") -> PointLoad:
             if not float(fields["n_steps"]).is_integer():
                 raise ValueError(f"{where}.n_steps must be an integer >= 1, got {table['n_steps']!r}")
             fields["n_steps"] = int(fields["n_steps"])
+            _check_knots(2 * fields["n_steps"], f"{where}.n_steps")
     try:
         schedule = Schedule(**fields) if kind == "knots" else getattr(Schedule, kind)(**fields)
     except ValueError as err:

@@ -213,11 +213,12 @@ class ChainParams(BaseModel):
             value = data.get(name)
             if value is None:
                 continue
-            if isinstance(value, (str, bytes, dict)) or not hasattr(value, "__len__"):
+            # A flat sequence only: a nested list (a table of factors) or a set has no bond order.
+            if not (isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray) and value.ndim == 1)):
                 raise ValueError(
                     f"{name} must be a list of numbers (one per {'bond' if name in BOND_FACTORS else 'particle'}), got {value!r}"
                 )
-            items = [item.item() if isinstance(item, np.generic) else item for item in np.asarray(value, dtype=object).ravel()]
+            items = [item.item() if isinstance(item, np.generic) else item for item in value]
             lowest = 0.0 if name == "E2_factors" else None
             for index, item in enumerate(items):
                 if isinstance(item, bool) or not isinstance(item, (int, float)) or not math.isfinite(item):

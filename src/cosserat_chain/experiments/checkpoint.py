@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from ..inputs import InputFileError, check_counts, check_finite
 from ..io import OutputError, read_dataset, write_dataset
 
 log = logging.getLogger(__name__)
@@ -78,6 +79,9 @@ def open_checkpoint(
     state_attributes: Iterable[str],
     *,
     kind: str,
+    counts: Iterable[str] = ("steps",),
+    total: str | None = None,
+    state_variables: Iterable[str] = (),
 ) -> xr.Dataset:
     """Read the checkpoint at ``path`` for a run with the settings ``expected``, or refuse it.
 
@@ -95,13 +99,20 @@ def open_checkpoint(
         The attributes its checksum covers (as given to :func:`seal`).
     kind : str
         What the checkpoint is, for the messages (``"localization-run"``).
+    counts : iterable of str
+        Attributes that are step counts: whole numbers >= 0 (:func:`cosserat_chain.inputs.check_counts`).
+    total : str, optional
+        The count that ``steps`` may not pass (the run's number of steps).
+    state_variables : iterable of str
+        Variables the resumed run reads: present, real and finite.
 
     Raises
     ------
     ValueError
         If the file cannot be read, is not such a checkpoint, was written for other
-        settings (naming the first that differs, both values) or was altered after it
-        was written.
+        settings (naming the first that differs, both values), was altered after it
+        was written, or holds step counts or a state no run could have written (a
+        checkpoint edited and sealed again: "from step -5").
     """
     path = Path(path)
     try:
@@ -113,9 +124,16 @@ def open_checkpoint(
             f"{str(path)!r} is not a {kind} checkpoint of format {version} "
             f"(experiment={ds.attrs.get('experiment')!r}, checkpoint_format={ds.attrs.get('checkpoint_format')!r})"
         )
-    saved = saved_settings(ds, expected)
+    try:
+        saved = saved_settings(ds, expected)
+    except (ValueError, TypeError, AttributeError) as err:  # params_json that is not a JSON object
+        raise ValueError(f"{str(path)!r} is not a readable {kind} checkpoint: its params_json is damaged ({err})") from None
     for key, value in expected.items():
-        if saved[key] != value:
+        try:
+            differs = bool(saved[key] != value)
+        except (ValueError, TypeError):  # an attribute edited into an array compares element-wise
+            differs = True
+        if differs:
             raise ValueError(
                 f"checkpoint {str(path)!r} was written for {key}={saved[key]!r}, but this run has {key}={value!r}; "
                 "resume with the same settings or use another checkpoint file"
@@ -125,6 +143,11 @@ def open_checkpoint(
             f"checkpoint {str(path)!r} was altered or damaged after it was written (its SHA-256 does not match "
             "its contents): it is not resumed; start afresh (--force) or use another checkpoint file"
         )
+    try:
+        check_counts(ds.attrs, counts, f"checkpoint {str(path)!r}", total=total)
+        check_finite(ds, state_variables, f"checkpoint {str(path)!r}")
+    except InputFileError as err:
+        raise ValueError(f"{err}: no run writes such a checkpoint; start afresh (--force) or use another checkpoint file") from None
     return ds
 
 

@@ -60,6 +60,11 @@ _STATE_ATTRIBUTES = (
     "params_json", "model", "loads_json", "method", "dt", "t0", "t_end", "n_frames", "stride",
     "steps", "n_steps", "stride_steps", "chunk_steps", "effective_dt",
 )  # fmt: skip
+#: The variables a resumed run reads: its frames so far and its state (real and finite in a checkpoint).
+_STATE_VARIABLES = (
+    *ROWS, *(f"{row}_dot" for row in ROWS), *(f"final_{row}" for row in ROWS), *(f"final_{row}_dot" for row in ROWS),
+    *(f"final_force_{row}" for row in ROWS), "load_work", "dissipated", "final_load_work", "final_dissipated", "frame_step",
+)  # fmt: skip
 
 
 def trajectory_dataset(params: ChainParams, model: str | Model, loads: Loads, trajectory: Trajectory) -> xr.Dataset:
@@ -291,8 +296,12 @@ def _checkpointed_run(
     )
     start = None
     if resume and path.exists():
-        ds = open_checkpoint(path, CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT, settings, _STATE_ATTRIBUTES, kind="simulation")
+        ds = open_checkpoint(
+            path, CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT, settings, _STATE_ATTRIBUTES, kind="simulation",
+            counts=("steps", "n_steps", "stride_steps", "chunk_steps"), total="n_steps", state_variables=_STATE_VARIABLES,
+        )  # fmt: skip
         start = _run_state(ds)
+        _check_frames(path, start)
         _check_start(path, start, params, x0, v0)
         x0 = v0 = None  # the checkpoint's first frame is the start state
         log.info("resuming %s from step %d of %d", path, start.steps, start.n_steps)
@@ -394,6 +403,23 @@ def _run_state(ds: xr.Dataset) -> RunState:
         winding=np.asarray(ds["final_phi_winding"].values, dtype=np.int64) if "final_phi_winding" in ds else None,
         frames_winding=np.ascontiguousarray(ds["phi_winding"].values, dtype=np.int64) if "phi_winding" in ds else None,
     )
+
+
+def _check_frames(path: Path, state: RunState) -> None:
+    """Refuse a checkpoint whose stored frames are not every stride-th step up to its step count (frames cut or added).
+
+    A resumed run appends its frames to these: with some missing it would end with fewer
+    frames than asked and still look complete.
+    """
+    expected = list(range(0, state.steps + 1, max(1, state.stride)))
+    allowed = [expected]
+    if state.steps == state.n_steps and expected[-1] != state.n_steps:
+        allowed.append([*expected, state.n_steps])  # a finished run's last step, stored whatever the stride
+    if state.frame_steps.tolist() not in allowed:
+        raise ValueError(
+            f"checkpoint {str(path)!r} holds {state.frame_steps.size} frames, but a run at step {state.steps} with a frame "
+            f"every {state.stride} steps has stored {len(expected)}: it is not resumed; start afresh (--force) or use another checkpoint file"
+        )
 
 
 def _check_start(path: Path, state: RunState, params: ChainParams, x0: np.ndarray | None, v0: np.ndarray | None) -> None:
