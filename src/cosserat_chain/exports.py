@@ -13,9 +13,10 @@ coordinates (particle k's centre at (k h + u_k, v_k)):
   and their velocities as cell data of the quadrilaterals and the link's kind and
   stretch L - L0 as cell data of the lines. The grids are written by meshio; the
   collection is the small XML index ParaView reads.
-- :func:`to_xyz`: extended XYZ, one block per frame: the particle count, a comment line
-  with ``Time=`` and the ``Properties`` of the columns, then one line per particle
-  (``species`` P, ``pos`` x y 0, ``phi``, ``particle``).
+- :func:`to_xyz`: extended XYZ written by ASE, one block per frame, for OVITO and ASE: the
+  cell and its origin around the chain, the time, and per particle a neutral species with
+  the particle's mass, the centre, velocities, the orientation as a quaternion, the
+  rectangle's half-sizes (``aspherical_shape``), the angular velocity, phi and the index.
 - :func:`to_csv`: long format, one row per (time, particle): u, v, phi, their
   velocities and the centre's x, y.
 
@@ -32,9 +33,9 @@ import os
 import shutil
 import stat
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -222,16 +223,65 @@ def _swap_frames(staging: Path, folder: Path) -> None:
     old.rmdir()
 
 
+#: Half-thickness of a particle in the XYZ export, in units of its smaller half-size: the
+#: chain is planar, and OVITO draws a box or an ellipsoid, so the rectangle gets a thin third axis.
+XYZ_THICKNESS = 0.1
+
+
+def xyz_frames(dataset: xr.Dataset) -> Iterator[Any]:
+    """The run's frames as ASE ``Atoms`` for extended XYZ, one per stored time (see :func:`to_xyz`).
+
+    Raises
+    ------
+    ValueError
+        If the dataset is not a run with velocities (``simulate --out``).
+    """
+    import ase
+
+    params, times, states, velocities = _frames(dataset)
+    n = params.n_particles
+    corners = np.stack([corner_positions(params, x).reshape(-1, 2) for x in states])
+    half_thickness = XYZ_THICKNESS * min(params.a, params.b)
+    # One cell for every frame, a margin of h/2 around every corner the run reaches.
+    low = np.append(corners.min(axis=(0, 1)) - params.h / 2, -2.0 * half_thickness)
+    size = np.append(corners.max(axis=(0, 1)) + params.h / 2, 2.0 * half_thickness) - low
+    shape = np.tile([params.a, params.b, half_thickness], (n, 1))
+    masses = params.particle_inertia[0]
+    for t, x, v in zip(times, states, velocities):
+        atoms = ase.Atoms(symbols=["X"] * n, positions=np.column_stack([centres(params, x), np.zeros(n)]), cell=np.diag(size), pbc=False)
+        # The mass twice: ASE reads "masses" (get_masses), OVITO "mass" (its Mass property).
+        atoms.set_masses(masses)
+        atoms.new_array("mass", masses.copy())
+        atoms.new_array("velo", np.column_stack([v[0], v[1], np.zeros(n)]))
+        # The rotation by phi about z as a unit quaternion in OVITO's order (x, y, z, w).
+        atoms.new_array("orientation", np.column_stack([np.zeros(n), np.zeros(n), np.sin(x[2] / 2), np.cos(x[2] / 2)]))
+        atoms.new_array("aspherical_shape", shape)
+        atoms.new_array("omega", np.column_stack([np.zeros(n), np.zeros(n), v[2]]))
+        atoms.new_array("phi", x[2].copy())
+        atoms.new_array("particle", np.arange(-params.N, params.N + 1))
+        atoms.info.update({"Time": float(t), "Origin": low})
+        yield atoms
+
+
 def to_xyz(dataset: xr.Dataset, path: str | Path) -> Path:
-    """Write the run as extended XYZ (one block per frame, particle centres and angles); returns the path."""
-    params, times, states, _ = _frames(dataset)
-    particle = np.arange(-params.N, params.N + 1)
-    lattice = f'Lattice="{params.h * (params.n_particles + 1)!r} 0 0 0 {4 * params.b + params.h!r} 0 0 0 1" pbc="F F F"'
+    """Write the run as extended XYZ through ASE's writer, one block per frame; returns the path.
+
+    Each block's comment line holds the cell (``Lattice``, with its ``Origin`` so that it
+    encloses the chain in every frame), ``Time`` and the columns: the species ``X`` (ASE's
+    dummy element: no chemical element, so no element's mass) with the particle's mass
+    (``masses``, which ASE reads, and ``mass``, which OVITO reads), the centre ``pos``
+    (x, y, 0), the velocity ``velo`` (du/dt, dv/dt, 0), the rotation as a unit quaternion
+    ``orientation`` (0, 0, sin(phi/2), cos(phi/2)), the half-sizes ``aspherical_shape`` (a,
+    b and a thin :data:`XYZ_THICKNESS` of the smaller), the angular velocity ``omega`` (0,
+    0, dphi/dt), ``phi`` and the index ``particle``: the names OVITO maps to its Mass,
+    Velocity, Orientation, Aspherical Shape and Angular Velocity. ASE writes the numbers
+    with 8 decimals: the file is for drawing, NetCDF and CSV keep every bit.
+    """
+    from ase.io.extxyz import write_extxyz
+
+    frames = xyz_frames(dataset)
     with atomic_path(path) as tmp, tmp.open("w", encoding="utf-8") as out:
-        for t, x in zip(times, states):
-            out.write(f"{params.n_particles}\n{lattice} Time={float(t)!r} Properties=species:S:1:pos:R:3:phi:R:1:particle:I:1\n")
-            for (cx, cy), phi, k in zip(centres(params, x), x[2], particle):
-                out.write(f"P {float(cx)!r} {float(cy)!r} 0.0 {float(phi)!r} {int(k)}\n")
+        write_extxyz(out, frames)
     return Path(path)
 
 
