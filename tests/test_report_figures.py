@@ -31,7 +31,7 @@ SETTINGS = ReproduceSettings(
 
 @pytest.fixture(scope="module")
 def drawn(tmp_path_factory):
-    """(report, {stem: Figure}) of the stages whose figures plot the statics and the hysteresis loop."""
+    """(report, {stem: Figure}) of the stages whose figures plot numbers of their JSON."""
     figures = {}
     keep = report_module._Stage.figure
 
@@ -41,7 +41,7 @@ def drawn(tmp_path_factory):
 
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(report_module._Stage, "figure", figure)
-        report = reproduce(tmp_path_factory.mktemp("report"), settings=SETTINGS, stages=["statics", "orbits", "state_map", "long_chains"])
+        report = reproduce(tmp_path_factory.mktemp("report"), settings=SETTINGS, stages=["statics", "orbits", "state_map", "long_chains", "continuum", "waves"])
     assert report.failed == []
     return report, figures
 
@@ -56,10 +56,10 @@ def points(ax) -> np.ndarray:
     return np.concatenate(pairs).astype(float)
 
 
-def has_point(ax, x: float, y: float | None = None) -> bool:
+def has_point(ax, x: float, y: float | None = None, rtol: float = RTOL) -> bool:
     xy = points(ax)
-    near_x = np.isclose(xy[:, 0], x, rtol=RTOL, atol=0.0)
-    return bool(near_x.any() if y is None else (near_x & np.isclose(xy[:, 1], y, rtol=RTOL, atol=0.0)).any())
+    near_x = np.isclose(xy[:, 0], x, rtol=rtol, atol=0.0)
+    return bool(near_x.any() if y is None else (near_x & np.isclose(xy[:, 1], y, rtol=rtol, atol=1e-12)).any())
 
 
 def vertical_lines(ax) -> list[float]:
@@ -180,6 +180,26 @@ def test_the_critical_moment_against_length_draws_its_json(drawn):
         for row in rows:
             shown = row["M_c"] * (row["N"] if model == "sine" else 1)
             assert has_point(moment_axes, row["N"], shown), (model, row["N"])
+
+
+def test_the_continuum_convergence_draws_the_errors_of_its_json(drawn):
+    report, figures = drawn
+    numbers = data(report, "continuum")
+    ax = figures["convergence"].axes[0]
+    for n, error, residue in zip(numbers["N"], numbers["relative_error"], numbers["residue"]):
+        assert has_point(ax, n, error) and has_point(ax, n, residue), n
+
+
+def test_the_dispersion_figure_draws_the_band_edges_and_the_gap_of_its_json(drawn):
+    report, figures = drawn
+    numbers = data(report, "waves")
+    ax = figures["dispersion"].axes[0]
+    for branch in numbers["at_zero"]:
+        # The curves are sampled on their own grid of q, the JSON's edges solved at q = 0 and pi.
+        assert has_point(ax, 0.0, numbers["at_zero"][branch], rtol=1e-9), branch
+        assert has_point(ax, np.pi, numbers["at_pi"][branch], rtol=1e-9), branch
+    spans = [(patch.get_y(), patch.get_y() + patch.get_height()) for patch in ax.patches]
+    assert any(np.allclose(span, numbers["gap"], rtol=RTOL) for span in spans), spans
 
 
 def test_the_page_fits_a_narrow_window(drawn):
