@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import pickle
 
@@ -10,7 +11,9 @@ import pytest
 
 from conftest import random_geometries
 from cosserat_chain import ChainParams, moment_load
-from cosserat_chain.numerics.continuation import continue_in_moment
+from cosserat_chain.analysis.continuum import discrete_static
+from cosserat_chain.experiments.critical import critical_point
+from cosserat_chain.numerics.continuation import compliance, continue_in_moment
 from cosserat_chain.numerics.newton import BranchEndError, Equilibrium, solve_equilibrium
 
 #: Agreement of two solves of one static state, relative to the state's size.
@@ -84,3 +87,90 @@ def test_equilibrium_is_an_array_whose_derived_arrays_are_plain():
     assert type(pickle.loads(pickle.dumps(x))) is np.ndarray
     assert x.dynamic is None  # a conservative model: K's verdict is the dynamics'
     assert math.isfinite(x.stability.critical_eigenvalue)
+
+
+# ---------------------------------------------------------------- the cantilever's branch point beyond one turn
+@functools.lru_cache
+def _bond_branch_point(params: ChainParams) -> tuple[float, float]:
+    """(M, theta) where one bond of the nonlinear model under a pure moment loses its transverse stiffness.
+
+    Independent of the package's kernels: the bond's energy written out with SymPy. In the bond's
+    bisector frame the particles sit at (-+s/2, -+w/2) turned by -+theta/2; under a pure moment the
+    force vanishes (dW/ds = 0 at w = 0, the state symmetric about the bisector) and the branch point
+    is where the antisymmetric (transverse) stiffness d2W/dw2 vanishes; M = dW/dtheta there.
+    """
+    sy = pytest.importorskip("sympy")
+    import scipy.optimize as so
+
+    a, b, h, E1, E2 = params.a, params.b, params.h, params.E1, params.E2
+    gap, d = h - 2 * a, math.hypot(h - 2 * a, 2 * b)
+    s, w, t = sy.symbols("s w t", real=True)
+
+    def corner(c, angle):
+        return sy.Matrix([c[0] * sy.cos(angle) - c[1] * sy.sin(angle), c[0] * sy.sin(angle) + c[1] * sy.cos(angle)])
+
+    left, right = sy.Matrix([-s / 2, -w / 2]), sy.Matrix([s / 2, w / 2])
+    links = [((a, b), (-a, b), E1, gap), ((a, -b), (-a, -b), E1, gap), ((a, b), (-a, -b), E2, d), ((a, -b), (-a, b), E2, d)]
+    energy = 0
+    for c0, c1, stiffness, rest in links:
+        link = right + corner(c1, t / 2) - left - corner(c0, -t / 2)
+        energy += stiffness * (sy.sqrt(link.dot(link)) - rest) ** 2 / 2
+    force = sy.lambdify((s, t), sy.diff(energy, s).subs(w, 0))
+    transverse = sy.lambdify((s, t), sy.diff(energy, w, 2).subs(w, 0))
+    moment = sy.lambdify((s, t), sy.diff(energy, t).subs(w, 0))
+    root = so.fsolve(lambda z: [force(*z), transverse(*z)], [h, 1.4], xtol=1e-12)
+    assert abs(force(*root)) < 1e-12 and abs(transverse(*root)) < 1e-12
+    return float(moment(*root)), float(root[1])
+
+
+@pytest.mark.parametrize("n", [1, 2, 5, 6])
+def test_cantilever_ends_at_the_branch_point_of_one_bond_for_every_n(n):
+    """Every clamped-side bond carries the pure moment: the branch point is at one bond's moment, phi_0 = N theta.
+
+    N >= 5 stay stable beyond one turn: before, critical stopped at phi_0 = 2 pi with no M_c and branch_complete.
+    """
+    params = ChainParams(N=n, right_end="free")
+    moment, theta = _bond_branch_point(ChainParams())  # the paper's bond: the ends do not enter
+    result = critical_point(params, "nonlinear")
+    assert result.onset == "branch_point" and result.end == "branch_point" and result.complete
+    assert result.critical_moment == pytest.approx(moment, rel=2e-8)
+    assert result.phi0_at_onset == pytest.approx(n * theta, rel=2e-8)
+
+
+def test_a_branch_still_stable_at_the_budget_is_not_complete():
+    result = critical_point(ChainParams(N=8, right_end="free"), "nonlinear", turns=1)
+    assert result.end == "budget" and not result.complete and result.critical_moment is None
+    with pytest.raises(ValueError, match="turns"):
+        critical_point(ChainParams(), "nonlinear", turns=0.5)
+
+
+# ---------------------------------------------------------------- a particle other than the loaded one turns first
+WEAK_PIN = dict(N=1, h=1.0, a=0.45, b=0.1, E1=0.5, E2=1.5, right_end="pinned")
+
+
+def test_a_pinned_end_that_turns_first_names_itself_and_stops_the_trace():
+    """Before: 208 folds, the point budget spent (exit 3), a spurious snap-through."""
+    params = ChainParams(**WEAK_PIN)
+    result = critical_point(params, "sine")
+    angles = solve_equilibrium(params, "linear", moment_load(1.0))[2]  # eq. (2): sin phi = M c
+    assert np.argmax(np.abs(angles)) == 2 * params.N  # the pinned end has the largest compliance
+    assert result.onset_particle == params.N and result.end == "fold" and result.complete
+    assert result.critical_moment == pytest.approx(1.0 / np.max(np.abs(angles)), rel=1e-13)
+    assert result.critical_moment < 1.0 / result.compliance  # M_c is not 1 / the loaded particle's compliance here
+    assert result.branch.stop == "wound" and f"particle {params.N}" in result.branch.message
+    assert len(result.branch.folds) <= 4 and not result.as_dict()["snap_through"]
+
+
+def test_the_sine_fold_is_the_closed_form_on_random_chains():
+    for params in random_geometries(3, seed=11):
+        result = critical_point(params, "sine")
+        angles = solve_equilibrium(params, "linear", moment_load(1.0))[2]
+        assert result.critical_moment == pytest.approx(1.0 / np.max(np.abs(angles)), rel=1e-12)
+        assert result.fold.discrepancy < 1e-9 and result.accurate
+
+
+def test_critical_and_the_linear_solve_give_one_compliance():
+    params = ChainParams(N=200)
+    expected = discrete_static(params)[2, params.N]
+    for model in ("nonlinear", "sine", "linear"):
+        assert compliance(params, model) == expected

@@ -52,19 +52,22 @@ from ..numerics.continuation import (
     Branch,
     BranchPoint,
     Fold,
-    compliance,
     continue_in_moment,
     default_step,
+    moment_response,
     require_branch_memory,
 )
-from ..numerics.newton import NewtonError, solve_equilibrium
+from ..numerics.newton import NewtonError, moment_dof, solve_equilibrium
 from ..numerics.stability import smallest_eigenvalue, static_stability
 from ..params import ChainParams
-from ..state import ROW_INDEX, ROWS, column
+from ..state import ROW_INDEX, ROWS, column, unpack
 from .simulation import run_attributes
 
 #: Default point budget of the full-turn branch (N = 1000: about 2600 points).
 MAX_POINTS = 5000
+#: Default budget in turns of the loaded particle for a branch from rest that stays stable
+#: beyond its first turn (a cantilever of the paper's geometry: 1.41 N rad, N <= 71 within 16 turns).
+TURNS = 16
 #: The branch is traced twice where K's softest eigenvalue at rest is below this many times its
 #: round-off (the paper's geometry: 18.5 at N = 1000, 1.17 at N = 2000, below 1 from N = 3000).
 CONFIRM_MARGIN = 10.0
@@ -119,14 +122,38 @@ class CriticalResult:
     snap_to: Fold | None = None
     branch_point: BranchPoint | None = None
     #: How the folds were checked: "once" (K resolved at rest: one trace), "twice" (a
-    #: second trace, each fold's ``confirmed`` says whether it passed it too), or why the
+    #: second trace, each fold's ``confirmed`` says whether it passed it too), "closed form"
+    #: (eq. (2): every fold at M = +-1 / max_j |c_j|, module docstring), or why the
     #: second trace failed (every fold then unconfirmed).
     confirmation: str = "once"
+    #: The budget in turns of the loaded particle (None for a model that does not rotate: one turn).
+    turns: float | None = None
+    #: The particle (-N..N) that starts to rotate at the onset (the mode of the fold or branch
+    #: point that ends the stable branch from rest; for eq. (2) the one of largest |c_j|).
+    onset_particle: int | None = None
+
+    @property
+    def budget_reached(self) -> bool:
+        """Whether the branch from rest was still stable when the loaded particle had turned ``turns`` times."""
+        return self.turns is not None and self.branch.stop == "phi0_stop" and bool(np.all(self.branch.stable))
 
     @property
     def complete(self) -> bool:
-        """Whether the branch was traced over the whole turn (else M_c is that of its traced part)."""
-        return self.branch.complete
+        """Whether the branch was traced to its requested end: over a turn and to where the stable branch from rest ends
+        (else M_c is that of its traced part, or unknown where the stable branch reached the budget in turns)."""
+        return self.branch.complete and not self.budget_reached
+
+    @property
+    def end(self) -> str | None:
+        """How the stable branch from rest ends: "branch_point", "fold", or where it was not seen to end "budget"
+        (``turns`` reached), "max_points" or "stalled" (the trace cut short); None for a model that never loses it (linear)."""
+        if self.branch_point is not None:
+            return "branch_point"
+        if self.first_fold is not None:
+            return "fold"
+        if self.branch.stop in ("max_points", "stalled"):
+            return self.branch.stop
+        return "budget" if self.budget_reached else None
 
     @property
     def accurate(self) -> bool:
@@ -160,7 +187,8 @@ class CriticalResult:
     def as_dict(self) -> dict:
         """JSON-ready: ``M_c`` (onset of rotation; null without a fold), ``onset`` ("fold" or "branch_point"),
         ``phi0_at_onset``, ``phi0_at_fold`` (the largest maximum's), ``largest_fold``, ``first_fold``, ``snap_through``,
-        ``branch_points``, ``compliance``, ``branch_complete``, ``folds`` (every fold in order: moment, phi_0, maximum,
+        ``branch_points``, ``compliance``, ``branch_complete``, ``end`` (how the stable branch from rest ends),
+        ``onset_particle``, ``turns`` (the budget), ``folds`` (every fold in order: moment, phi_0, maximum,
         the index of K before and after it, ``confirmed``, ``discrepancy``), ``confirmation``, ``accurate`` and the branch. Moments are in
         the parameters' units; ``moment_scale`` (E1 h^2) is the unit of the paper's dimensionless moment,
         ``M_c_dimensionless`` = M_c / (E1 h^2)."""
@@ -184,6 +212,9 @@ class CriticalResult:
             "moment_scale": scale,
             "M_c_dimensionless": None if self.critical_moment is None else self.critical_moment / scale,
             "onset": self.onset,
+            "onset_particle": self.onset_particle,
+            "end": self.end,
+            "turns": self.turns,
             "phi0_at_onset": self.phi0_at_onset,
             "phi0_at_fold": self.phi0_at_fold,
             "largest_fold": None if self.fold is None else {"moment": self.fold.moment, "phi0": self.fold.phi0},
@@ -208,6 +239,7 @@ class CriticalResult:
             "accurate": self.accurate,
             "branch": {
                 "stop": self.branch.stop,
+                "message": self.branch.message,
                 "moment": self.branch.moment.tolist(),
                 "phi0": self.branch.phi0.tolist(),
                 "stable": self.branch.stable.tolist(),
@@ -242,6 +274,8 @@ class CriticalResult:
                 "loaded_particle": self.particle,
                 "branch_stop": self.branch.stop,
                 "branch_complete": int(self.complete),
+                "end": str(self.end),
+                "onset_particle": "none" if self.onset_particle is None else self.onset_particle,
                 "fold_confirmation": self.confirmation,
                 "accurate": int(self.accurate),
             }
@@ -255,46 +289,92 @@ def critical_point(
     *,
     particle: int = 0,
     max_points: int = MAX_POINTS,
+    turns: float = TURNS,
     progress: Callable[[float, float], None] | None = None,
 ) -> CriticalResult:
-    """Compliance, fold and full-turn branch of ``model`` under a moment on ``particle``.
+    """Compliance, fold and branch of ``model`` under a moment on ``particle``.
 
-    ``max_points`` bounds the branch's points (:func:`continue_in_moment`); a branch cut
-    short by it gives ``complete`` False. Where K is near singular at rest the branch is
-    traced twice and the folds confirmed (module docstring); ``progress`` then runs to
-    twice the turn.
+    The branch is traced over one turn of the loaded particle and on, while it stays
+    stable, to where the stable branch from rest ends, within ``turns`` turns (a model that
+    does not rotate: one turn). ``max_points`` bounds the branch's points
+    (:func:`continue_in_moment`); a branch cut short by it, or still stable after ``turns``,
+    gives ``complete`` False. Where K is near singular at rest the branch is traced twice and
+    the folds confirmed (module docstring); ``progress`` then runs to twice the turn.
+
+    Raises
+    ------
+    ValueError
+        For ``turns`` below 1 or not finite (and from the continuation: a chain that can move rigidly, memory).
     """
     model = get_model(model)
+    if not (isinstance(turns, int | float) and math.isfinite(turns) and turns >= 1):
+        raise ValueError(f"turns must be a finite number >= 1 (the budget in turns of the loaded particle), got {turns!r}")
     turn = 2 * math.pi
+    budget = turn * turns if model.rotates else turn
+    until = turn if model.rotates else None
     require_branch_memory(params, max_points)  # before the stiffness at rest that decides on a second trace
-    twice = model.rotates and near_singular_at_rest(params, model)
+    closed = model.name == "sine"
+    twice = model.rotates and not closed and near_singular_at_rest(params, model)
     parts = 2 if twice else 1
-    branch = continue_in_moment(params, model, particle=particle, phi0_stop=turn, max_points=max_points, progress=_part(progress, 0, parts))
+    trace = dict(particle=particle, phi0_stop=budget, phi0_until_unstable=until, max_points=max_points)
+    branch = continue_in_moment(params, model, **trace, progress=_part(progress, 0, parts))
     confirmation = "once"
-    if twice and branch.folds:
+    response = moment_response(params, model, particle=particle)
+    angles = unpack(params, response)[ROW_INDEX["phi"]]
+    onset_particle = None
+    if closed:
+        branch.folds, onset_particle = _sine_folds(params, branch, angles, particle), int(np.argmax(np.abs(angles))) - params.N
+        confirmation = "closed form"
+    elif twice and branch.folds:
         try:
-            check = continue_in_moment(
-                params, model, particle=particle, phi0_stop=turn, max_points=max_points,
-                step=CONFIRM_STEP * default_step(params), progress=_part(progress, 1, parts),
-            )  # fmt: skip
+            check = continue_in_moment(params, model, **trace, step=CONFIRM_STEP * default_step(params), progress=_part(progress, 1, parts))
             confirmation = "twice"
         except NewtonError as err:
             check, confirmation = None, f"the second trace failed: {err}"
         branch.folds = confirm_folds(branch, [] if check is None else check.folds)
-    maxima = [f for f in branch.folds if f.maximum]
-    # Under a positive moment from rest M rises first: the branch's first fold is a maximum.
-    fold = max(maxima, key=lambda f: f.moment) if maxima else None
     first = branch.folds[0] if branch.folds else None
-    if branch.stable_end is not None:
+    scale = float(np.max(np.abs(branch.moment)))
+    # Under a positive moment from rest M rises first: the branch's first fold is a maximum. A later
+    # maximum is M_c only where it holds more than the first by more than the folds' confirmation
+    # tolerance: maxima equal to round-off (a wound particle repeating one fold) are one M_c.
+    higher = [f for f in branch.folds if f.maximum and first is not None and f.moment > first.moment + CONFIRM_MOMENT_RTOL * scale]
+    fold = max(higher, key=lambda f: f.moment) if higher else (first if first is not None and first.maximum else None)
+    compliance = float(response[moment_dof(params, particle)])
+    end = branch.stable_end
+    if end is not None:
         # The stable branch ends at a branch point, not at a fold: the chain leaves it there.
+        onset_particle = end.mode_particle if onset_particle is None else onset_particle
         return CriticalResult(
-            params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first, None, branch.stable_end,
-            confirmation,
+            params, model.name, particle, fold, compliance, branch, first, None, end, confirmation, turns if model.rotates else None,
+            onset_particle,
         )  # fmt: skip
+    if onset_particle is None and first is not None:
+        onset_particle = first.mode_particle
     snap_to = _snap_target(params, model, branch, first, particle) if first is not None and first is not fold else None
     return CriticalResult(
-        params, model.name, particle, fold, compliance(params, model, particle=particle), branch, first, snap_to, None, confirmation
-    )
+        params, model.name, particle, fold, compliance, branch, first, snap_to, None, confirmation, turns if model.rotates else None,
+        onset_particle,
+    )  # fmt: skip
+
+
+def _sine_folds(params: ChainParams, branch: Branch, angles: np.ndarray, particle: int) -> list[Fold]:
+    """The traced folds of eq. (2) at their exact moments, +-1 / max_j |c_j|, ``confirmed`` by that closed form.
+
+    Eq. (2)'s forces are the linear model's at (u, v, sin phi), so the static states under M are
+    (u, v, sin phi) = M c with c = K^-1 e (``angles``: c's angle components, refined), and a fold is
+    where a particle passes phi = +-pi/2: only the particle j of largest |c_j| can (no |sin phi| exceeds
+    1), at |M| = 1 / |c_j|. The first fold lies on the branch from rest, phi_0 = arcsin(c_0 / |c_j|)
+    there. Traced, the folds' moments carry the continuation's round-off (N = 10^4: 3.6e-6 from this);
+    ``discrepancy`` keeps it.
+    """
+    exact = 1.0 / float(np.max(np.abs(angles)))
+    ratio = float(angles[column(params, particle)]) * exact
+    out = []
+    for i, f in enumerate(branch.folds):
+        moment = math.copysign(exact, f.moment)
+        phi0 = math.asin(max(-1.0, min(1.0, ratio))) if i == 0 else f.phi0
+        out.append(replace(f, moment=moment, phi0=phi0, confirmed=True, discrepancy=abs(f.moment - moment)))
+    return out
 
 
 def near_singular_at_rest(params: ChainParams, model: Model) -> bool:

@@ -92,6 +92,8 @@ CHORD_DIVERGED = 100.0
 STALL = 100.0
 #: Halvings of the distance to the nearest solved angle before a fold search gives up.
 MAX_HALVINGS = 12
+#: A model's K at rest is the linear model's where they agree to this, relative to its norm (:func:`moment_response`).
+REST_RTOL = 1e-12
 #: Callback ``progress(done, total)`` used by the long-running functions.
 ProgressCallback = Callable[[float, float], None]
 
@@ -130,6 +132,10 @@ class Fold:
     #: |M| difference to the second trace's nearest fold of the same kind (inf where it has none;
     #: None where the branch was traced once): how well the two traces agree on M.
     discrepancy: float | None = None
+    #: The particle (-N..N) whose angle the fold's mode (K's null vector: the branch's tangent
+    #: there) turns most: the one that starts to rotate where a slowly loaded chain leaves the
+    #: branch at this fold. None for a fold located on its own.
+    mode_particle: int | None = None
 
 
 @dataclass(frozen=True)
@@ -152,6 +158,8 @@ class BranchPoint:
         Negative eigenvalues of K on either side (in the direction of tracing).
     after_point : int
         The branch point lies between the traced points ``after_point`` and ``after_point + 1``.
+    mode_particle : int or None
+        The particle (-N..N) whose angle K's softest eigenvector there turns most (None where not computed).
     located : bool
         Whether it was solved for (the smallest eigenvalue's root along the arclength); False
         where the corrector failed next to it or both sides are unstable: it is then a solved
@@ -169,6 +177,7 @@ class BranchPoint:
     after_point: int
     located: bool = True
     bracket: float = 0.0
+    mode_particle: int | None = None
 
 
 @dataclass
@@ -193,13 +202,16 @@ class Branch:
     stop : str
         Why the tracing ended: "phi0_stop", "moment_stop", "max_folds" (the
         requested end), "returned" (the branch came back through the rest state
-        before the loaded particle turned once, as a closed loop does),
+        before the loaded particle turned once, as a closed loop does), "wound"
+        (a particle other than the loaded one turned a full turn further than it:
+        the chain rotates there, and the branch repeats its folds as that particle
+        winds on; ``message`` names it),
         "max_points" (the point budget ran out first) or "stalled" (the corrector
         failed even at ``min_step``: a point where the branch is not smooth, such as a
         link of zero length; ``message`` says where): the branch is then incomplete;
         "given" for the angles of :func:`rotation_branch`.
     message : str
-        What stopped a stalled branch (empty otherwise).
+        What stopped a stalled or wound branch (empty otherwise).
     """
 
     moment: np.ndarray
@@ -242,8 +254,15 @@ def moment_response(params: ChainParams, model: str | Model, *, particle: int = 
 
     Refined with residuals in extended precision (:func:`~.refinement.refined_solve`): K's
     condition number grows like N^4, and at N = 10^4 a double-precision solve's compliance
-    was 1.2 % off (15434.5 for the paper's chain, 15625.000 refined; the rounding of K's
-    entries leaves 4e-8 of it uncertain, :mod:`.refinement`).
+    was 1.2 % off (15434.5 for the paper's chain, 15625.000 refined).
+
+    At rest every model of the package has the linear model's K (eq. (3) is derived as the
+    Hessian at rest), and that one is assembled from the derived coefficients, one rounding
+    an entry: it is solved wherever the model's own K at rest equals it to round-off. The
+    nonlinear model's Hessian, summed link by link, rounds its entries otherwise, and at
+    N = 10^4 its compliance was 4.2e-8 off the exact one where the linear K's is 7e-11 off
+    (:func:`~cosserat_chain.analysis.continuum.discrete_static` solves the same matrix: ``theory``
+    and ``critical`` give one compliance). A model whose K at rest differs (a user's model) is solved with its own.
 
     Raises
     ------
@@ -253,8 +272,15 @@ def moment_response(params: ChainParams, model: str | Model, *, particle: int = 
     model = get_model(model)
     e = np.zeros(n_free(params))
     e[moment_dof(params, particle)] = 1.0
+    if x is None:
+        stiffness = model.stiffness(params, zeros(params)).tocsr()
+        linear = get_model("linear").stiffness(params).tocsr()
+        if model.name != "linear" and infinity_norm(stiffness - linear) <= REST_RTOL * infinity_norm(linear):
+            stiffness = linear
+    else:
+        stiffness = model.stiffness(params, x)
     try:
-        return refined_solve(model.stiffness(params, zeros(params) if x is None else x), e).x
+        return refined_solve(stiffness, e).x
     except ValueError:
         raise ValueError("the stiffness is singular at this state (a fold): the compliance is infinite") from None
 
@@ -409,6 +435,11 @@ def locate_fold(
     return Fold(moment=moment, phi0=phi_fold, x=x, particle=particle)
 
 
+def _turning_particle(params: ChainParams, mode: np.ndarray) -> int:
+    """The particle (-N..N) whose angle a mode (3, 2N+1) turns most."""
+    return int(np.argmax(np.abs(mode[ROW_INDEX["phi"]]))) - params.N
+
+
 def _passes_rest(before: np.ndarray, after: np.ndarray, moment_before: float, moment_after: float) -> bool:
     """Whether the chord between two points of the branch, on which M changes sign, passes the rest state.
 
@@ -446,6 +477,7 @@ def continue_in_moment(
     *,
     particle: int = 0,
     phi0_stop: float = 2 * math.pi,
+    phi0_until_unstable: float | None = None,
     moment_stop: float = math.inf,
     step: float | None = None,
     min_step: float = 1e-6,
@@ -464,6 +496,10 @@ def continue_in_moment(
         The loaded particle.
     phi0_stop : float
         Stop once |phi_0| of the loaded particle reaches this (default one full turn).
+    phi0_until_unstable : float, optional
+        With it, ``phi0_stop`` is a budget: the tracing stops ("phi0_stop") already once |phi_0|
+        has reached this and some traced point is unstable, the stable branch from rest having
+        ended (a cantilever's stays stable for N times 1.41 rad of phi_0 on the paper's geometry).
     moment_stop : float
         Stop once |M| exceeds this (the linear model's branch is an endless line).
     step, min_step, max_step : float
@@ -494,14 +530,16 @@ def continue_in_moment(
         approached by halving the distance to it.
     max_folds : int, optional
         Stop once this many folds have been passed.
-    progress : callable(|phi_0|, phi0_stop), optional
+    progress : callable(|phi_0|, total), optional
+        ``total`` is ``phi0_until_unstable`` until |phi_0| passes it, then ``phi0_stop``.
 
     Returns
     -------
     Branch
         With every fold passed on the way: where the tangent's M component changes
         sign between two points, located along the arclength to round-off (a root of
-        that component), a maximum or a minimum of M; ``stop`` says whether the
+        that component), a maximum or a minimum of M, with the particle its mode turns
+        most (``mode_particle``); ``stop`` says whether the
         requested end was reached or ``max_points`` ran out (long chains: the branch
         of N = 1000 passes 40 folds, turning back and forth in phi_0, before the
         loaded particle completes a turn).
@@ -736,6 +774,8 @@ def continue_in_moment(
             slope(s_fold)
             point = cache[s_fold]
         x = unpack(params, point[:-1])
+        # At a fold the branch's tangent is K's null vector (its M component vanishes): the mode that turns.
+        mode = unpack(params, new_tangent(point, tangent)[0][:-1])
         return Fold(
             moment=float(point[-1]),
             phi0=float(x[ROW_INDEX["phi"], column(params, particle)]),
@@ -744,6 +784,7 @@ def continue_in_moment(
             maximum=bool(tangent[-1] > 0),
             index_before=before,
             index_after=after,
+            mode_particle=_turning_particle(params, mode),
         )
 
     def branch_point_between(y: np.ndarray, tangent: np.ndarray, ds: float, before: int, after: int) -> BranchPoint:
@@ -784,7 +825,11 @@ def continue_in_moment(
             point, located, bracket = evaluated[s_point][0], False, width
         x = unpack(params, point[:-1])
         phi0 = float(x[ROW_INDEX["phi"], column(params, particle)])
-        return BranchPoint(float(point[-1]), phi0, x, particle, before, after, len(moments) - 1, located, bracket)
+        mode = eigenvector.copy()
+        static_stability(params, model, x, start=mode)  # leaves K's softest eigenvector (of its symmetric similar) in ``mode``
+        return BranchPoint(
+            float(point[-1]), phi0, x, particle, before, after, len(moments) - 1, located, bracket, _turning_particle(params, unpack(params, mode))
+        )
 
     tangent, factor = new_tangent(y, tangent)
     norm = infinity_norm(factor.stiffness)
@@ -795,6 +840,7 @@ def continue_in_moment(
     y_phi0 = 0.0
     ds, resume, crossing = step, 0.0, 0.0
     stop, message = "max_points", ""
+    lost = False  # whether a traced point is unstable: the stable branch from rest has ended
     previous_moment = 0.0
     bend = np.zeros(nf + 1)
     while len(moments) < max_points:
@@ -893,19 +939,34 @@ def continue_in_moment(
         moments.append(y[-1])
         states.append(x)
         checks.append(check)
+        lost = lost or not check.stable
         phi = abs(y_phi0)
+        angles = np.abs(x[ROW_INDEX["phi"]])
+        lead = int(np.argmax(angles))
         if progress is not None:
-            progress(min(phi, phi0_stop), phi0_stop)
+            total = phi0_until_unstable if phi0_until_unstable is not None and phi < phi0_until_unstable else phi0_stop
+            progress(min(phi, total), total)
         if y[-1] * previous_moment < 0 and len(moments) > 2 and _passes_rest(states[-2], x, previous_moment, y[-1]):
             # Back through the rest state: going on would trace the mirrored branch
             # (x -> -x, M -> -M) and come back here, as a closed loop does.
             stop = "returned"
-        elif phi >= phi0_stop:
+        elif phi >= phi0_stop or (phi0_until_unstable is not None and phi >= phi0_until_unstable and lost):
             stop = "phi0_stop"
         elif abs(y[-1]) > moment_stop:
             stop = "moment_stop"
         elif max_folds is not None and len(folds) >= max_folds:
             stop = "max_folds"
+        elif angles[lead] - phi >= 2 * math.pi:
+            # Another particle has turned a full turn further than the loaded one (a pinned end
+            # that turns first: clamped-pinned N = 1, h = 1, a = 0.45, b = 0.1, E1 = 0.5, E2 = 1.5,
+            # sine model): it winds on while phi_0 stays bounded, M repeating its folds (208 in
+            # 5000 points before), and phi0_stop would never come.
+            stop = "wound"
+            message = (
+                f"particle {lead - params.N} turned by {angles[lead]:.6g} rad, a full turn more than the loaded particle "
+                f"{particle} (phi_0 = {y_phi0:.6g}): the chain rotates at particle {lead - params.N}, and the branch beyond "
+                "repeats its folds as it winds on"
+            )
         if stop != "max_points":
             break
         if crossing == 0.0:
