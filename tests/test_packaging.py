@@ -53,7 +53,9 @@ def fresh(dist, tmp_path_factory) -> Path:
     python = env / "bin" / "python"
     site = run([python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], cwd=env.parent).stdout.strip()
     # The running environment's packages (the dependencies), after the fresh site-packages on sys.path.
-    Path(site, "dependencies.pth").write_text("\n".join(dict.fromkeys([sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]])) + "\n")
+    Path(site, "dependencies.pth").write_text(
+        "\n".join(dict.fromkeys([sysconfig.get_paths()["purelib"], sysconfig.get_paths()["platlib"]])) + "\n"
+    )
     run([python, "-m", "pip", "install", "--quiet", "--no-deps", "--no-index", next(dist.glob("*.whl"))], cwd=env.parent)
     return env
 
@@ -82,7 +84,15 @@ def test_the_wheel_declares_the_projects_metadata_and_holds_only_the_package(dis
 
 def test_the_sdist_carries_what_a_researcher_reads_and_cites(dist):
     names = {n.split("/", 1)[1] for n in tarfile.open(next(dist.glob("*.tar.gz"))).getnames() if "/" in n}
-    assert {"README.md", "LICENSE", "CHANGELOG.md", "CITATION.cff", "pyproject.toml", "docs/releasing.md", "src/cosserat_chain/cli/common.py"} <= names
+    assert {
+        "README.md",
+        "LICENSE",
+        "CHANGELOG.md",
+        "CITATION.cff",
+        "pyproject.toml",
+        "docs/releasing.md",
+        "src/cosserat_chain/cli/common.py",
+    } <= names
     assert not [n for n in names if "__pycache__" in n or n.endswith(".nc")]
 
 

@@ -7,7 +7,6 @@ and their artists' data are compared with the JSON files the same stages wrote u
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import re
 
@@ -41,7 +40,11 @@ def drawn(tmp_path_factory):
 
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(report_module._Stage, "figure", figure)
-        report = reproduce(tmp_path_factory.mktemp("report"), settings=SETTINGS, stages=["statics", "orbits", "state_map", "long_chains", "continuum", "waves"])
+        report = reproduce(
+            tmp_path_factory.mktemp("report"),
+            settings=SETTINGS,
+            stages=["statics", "orbits", "state_map", "long_chains", "continuum", "waves"],
+        )
     assert report.failed == []
     return report, figures
 
@@ -217,6 +220,6 @@ def test_the_page_escapes_what_it_shows(tmp_path, monkeypatch):
         return report_module.Section("a <b>bold</b> & 'quoted' title", paragraphs=["x < y & <script>alert(1)</script>"])
 
     monkeypatch.setitem(report_module.STAGES, "waves", hostile)
-    reproduce(tmp_path, settings=dataclasses.replace(SETTINGS), stages=["waves"])
+    reproduce(tmp_path, settings=SETTINGS, stages=["waves"])
     page = (tmp_path / "index.html").read_text()
     assert "<script>" not in page and "&lt;script&gt;" in page and "a &lt;b&gt;bold&lt;/b&gt; &amp;" in page

@@ -1398,7 +1398,8 @@ def _html(sections: list[Section], params: ChainParams, out: Path, table: list[l
         if ANIMATION_LINK not in text:
             return {"text": text, "animation": None}
         animation = embedded(out / "figures" / "rotation.gif")
-        return {"text": text.replace(ANIMATION_LINK, "figures/rotation.gif" if animation else "(animation missing)"), "animation": animation}
+        shown = "figures/rotation.gif" if animation else "(animation missing)"
+        return {"text": text.replace(ANIMATION_LINK, shown), "animation": animation}
 
     pages = [
         {

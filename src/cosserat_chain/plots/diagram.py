@@ -73,7 +73,9 @@ def diagram_figure(diagram) -> Figure:
                 ax.fill_between(values[run], low[run], high[run], color=color, label=label, gid=name)
             else:
                 # A region at one value only (or a single value): an area between values would be empty there.
-                ax.bar(values[run], high[run] - low[run], bottom=low[run], width=_bar_width(values, run[0]), color=color, label=label, gid=name)
+                ax.bar(
+                    values[run], high[run] - low[run], bottom=low[run], width=_bar_width(values, run[0]), color=color, label=label, gid=name
+                )
             label = None
     if values.size == 1:
         width = _bar_width(values, 0)
