@@ -81,15 +81,15 @@ def test_a_result_whose_write_fails_after_the_work_is_kept_in_a_fallback(tmp_pat
     """The write fails only once the run is done (the disk filled meanwhile): the run is saved beside, and the command says where."""
     import cosserat_chain.cli.common as common
 
-    real = common.write_dataset
+    real = common.write_bytes
     out = tmp_path / "out" / "run.nc"
 
-    def full_disk(dataset, path):
+    def full_disk(data, path):
         if path == out:
             raise OSError(28, "No space left on device")
-        return real(dataset, path)
+        return real(data, path)
 
-    monkeypatch.setattr(common, "write_dataset", full_disk)
+    monkeypatch.setattr(common, "write_bytes", full_disk)
     monkeypatch.chdir(tmp_path)
     result = runner.invoke(app, ["simulate", "--model", "linear", "--t-end", "2", "--frames", "5", "--out", str(out)])
     assert result.exit_code == 3 and "No space left on device" in result.output
