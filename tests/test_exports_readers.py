@@ -85,7 +85,9 @@ def test_extended_xyz_loads_in_ovito_as_boxes_with_mass_velocity_and_orientation
         np.testing.assert_allclose(particles.velocities[:, :2], v[:2].T, atol=XYZ_DECIMALS)
         np.testing.assert_allclose(particles["Angular Velocity"][:, 2], v[2], atol=XYZ_DECIMALS)
         orientation = particles["Orientation"][...]  # OVITO's order x, y, z, w, kept in single precision
-        np.testing.assert_allclose(_wrapped(2 * np.arctan2(orientation[:, 2], orientation[:, 3]) - x[2]), 0.0, atol=4 * np.finfo(np.float32).eps)
+        np.testing.assert_allclose(
+            _wrapped(2 * np.arctan2(orientation[:, 2], orientation[:, 3]) - x[2]), 0.0, atol=4 * np.finfo(np.float32).eps
+        )
         np.testing.assert_allclose(particles["Aspherical Shape"][:, :2], [[params.a, params.b]] * params.n_particles)
         cell = np.asarray(data.cell[...])
         corners = corner_positions(params, x).reshape(-1, 2)

@@ -666,6 +666,18 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "gamma_v": ("mass / time", "viscous coefficient of v"),
     "gamma_phi": ("mass length^2 / time", "viscous coefficient of phi"),
     "N": ("1", "half the number of particles (particles -N..N)"),
+    "discrete": ("rad / energy", "compliance of the loaded particle, discrete linear chain (iii)"),
+    "timoshenko": ("rad / energy", "compliance of the loaded particle, Timoshenko beam"),
+    "nodal": ("rad / energy", "compliance of the loaded particle, beam with the nodal shear compliance"),
+    "paper": ("rad / energy", "compliance phi(0)/M of the paper's eq. (11)"),
+    "timoshenko_error": ("1", "(timoshenko - discrete) / discrete"),
+    "paper_error": ("1", "(paper - discrete) / discrete"),
+    "discrete_error": ("1", "estimated relative error of the discrete compliance"),
+    "bending_chain_moment": ("energy", "end moment holding the end angle, model (i)"),
+    "bending_beam_moment": ("energy", "end moment holding the end angle, exact beam"),
+    "bending_moment_error": ("1", "(beam - chain) / chain of the end moment"),
+    "bending_tip_error": ("1", "distance of the chain's free end from the beam's, over 2L"),
+    "bending_direct_spread": ("1", "whole chain's moment against the per-bond one, relative"),
 }
 
 #: Titles of the files by their ``experiment`` attribute (a simulation has none).
@@ -680,6 +692,9 @@ TITLES = {
     "parameter_study": "Parameter study of a discrete Cosserat chain",
     "state_diagram": "Both edges of the hysteresis loop of a discrete Cosserat chain against one of its parameters",
 }
+
+#: The compliances of a beam convergence table: phi/M under a moment (as :data:`VARIABLES` says), v/F under a force.
+_COMPLIANCES = ("discrete", "timoshenko", "nodal", "paper")
 
 #: Prefixes of variables that hold a quantity of :data:`VARIABLES` at one moment, and what they add to its long name.
 _PREFIXES = {"final_": "at the end of the run", "diag_": "state of the streaming diagnostics, for resuming"}
@@ -714,7 +729,8 @@ def _describe_variable(name: str, dataset: xr.Dataset) -> tuple[str, str] | None
     """Quantity and long name of a variable of ``dataset``: by name, prefix (final_u, diag_angle) or, for a diagram's values, its field.
 
     The long names that depend on the file say what holds for it: the particle index
-    names the chain's ends, and the potential says NaN only for the non-conservative sine model.
+    names the chain's ends, and the potential says NaN only for the non-conservative sine
+    model; a beam table's compliances are phi/M or v/F as its load is a moment or a force.
     """
     if name == "value" and dataset.attrs.get("parameter") in VARIABLES:
         quantity, what = VARIABLES[dataset.attrs["parameter"]]
@@ -727,6 +743,8 @@ def _describe_variable(name: str, dataset: xr.Dataset) -> tuple[str, str] | None
         return "1", f"{VARIABLES[name][1]} ({ends})"
     if name == "potential" and "sine" in _models(dataset):
         return "energy", f"{VARIABLES[name][1]} (NaN for the non-conservative sine model)"
+    if name in _COMPLIANCES and dataset.attrs.get("load") == "force":
+        return "length^2 / energy", VARIABLES[name][1].replace("compliance", "compliance v/F", 1)
     if name in VARIABLES:
         return VARIABLES[name]
     for prefix, what in _PREFIXES.items():
@@ -871,7 +889,7 @@ def read_dataset(path: str | Path) -> xr.Dataset:
             return ds.load()
     except MemoryError:
         raise
-    except Exception as err:  # noqa: BLE001 - a damaged file makes h5py and xarray fail in any of their errors (OSError, KeyError, RuntimeError, ...)
+    except Exception as err:  # noqa: BLE001 - a damaged file fails in any of h5py's and xarray's errors (KeyError, RuntimeError, ...)
         raise ValueError(f"{str(path)!r} is not a readable NetCDF file written by this package ({type(err).__name__}: {err})") from None
 
 

@@ -246,7 +246,7 @@ class BendingConvergence:
             "bending_tip_error": (self.tip_error, "distance of the chain's free end from the beam's, over 2L"),
             "bending_direct_spread": (self.direct_spread, "whole chain's moment against the per-bond one, relative"),
         }
-        data = {name: ("N", values, {"long_name": text, "units": "1"}) for name, (values, text) in columns.items()}
+        data = {name: ("N", values, {"long_name": text}) for name, (values, text) in columns.items()}
         dataset = xr.Dataset(data, coords={"N": ("N", self.N)})
         dataset.attrs.update(
             {

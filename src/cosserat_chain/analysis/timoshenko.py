@@ -390,9 +390,9 @@ class BeamConvergence:
             "paper_error": "(paper - discrete) / discrete",
             "discrete_error": "estimated relative error of the discrete compliance",
         }
-        data = {name: ("N", np.asarray(getattr(self, name), dtype=float), {"long_name": text, "units": "1"}) for name, text in names.items()}
-        data["particle"] = ("N", self.particle, {"long_name": "loaded particle", "units": "1"})
-        dataset = xr.Dataset(data, coords={"N": ("N", self.N, {"long_name": "half-length of the chain (2N+1 particles)", "units": "1"})})
+        data = {name: ("N", np.asarray(getattr(self, name), dtype=float), {"long_name": text}) for name, text in names.items()}
+        data["particle"] = ("N", self.particle, {"long_name": "loaded particle"})
+        dataset = xr.Dataset(data, coords={"N": ("N", self.N, {"long_name": "half-length of the chain (2N+1 particles)"})})
         orders = {f"{which}_order": self.order(which) for which in ("timoshenko", "paper")}
         dataset.attrs.update(
             {
