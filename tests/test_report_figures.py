@@ -22,6 +22,8 @@ from cosserat_chain.report import ReproduceSettings, reproduce
 RTOL = 1e-12
 
 SETTINGS = ReproduceSettings(
+    snapshot_times=(20.0, 21.0),
+    animation_frames=5,
     dm=0.05,
     long_n_list=(3, 10),
     diagram_damping={"sine": (0.2, 0.5), "nonlinear": ()},
@@ -43,7 +45,7 @@ def drawn(tmp_path_factory):
         report = reproduce(
             tmp_path_factory.mktemp("report"),
             settings=SETTINGS,
-            stages=["statics", "orbits", "state_map", "long_chains", "continuum", "waves"],
+            stages=["statics", "orbits", "state_map", "rotation", "long_chains", "continuum", "waves"],
         )
     assert report.failed == []
     return report, figures
@@ -203,6 +205,22 @@ def test_the_dispersion_figure_draws_the_band_edges_and_the_gap_of_its_json(draw
         assert has_point(ax, np.pi, numbers["at_pi"][branch], rtol=1e-9), branch
     spans = [(patch.get_y(), patch.get_y() + patch.get_height()) for patch in ax.patches]
     assert any(np.allclose(span, numbers["gap"], rtol=RTOL) for span in spans), spans
+
+
+@pytest.mark.parametrize("stem, model", [("fig3a", "sine"), ("fig3b", "nonlinear")])
+def test_figure_3_draws_the_chain_of_its_run_at_the_stored_frames(drawn, stem, model):
+    from cosserat_chain.io import read_dataset
+
+    report, figures = drawn
+    run = read_dataset(report.out / "data" / f"rotation_{model}.nc")
+    panels = [ax for ax in figures[stem].axes if ax.get_title().startswith("t = ")]
+    assert len(panels) == len(SETTINGS.snapshot_times)
+    for ax, t in zip(panels, SETTINGS.snapshot_times):
+        frame = run.sel(time=t, method="nearest")
+        assert ax.get_title() == f"t = {float(frame.time):g}"
+        centres = line(ax, "centre_line")
+        assert centres.get_xdata() == pytest.approx(frame.particle.values * run.attrs["param_h"] + frame.u.values, rel=RTOL, abs=1e-15)
+        assert centres.get_ydata() == pytest.approx(frame.v.values, rel=RTOL, abs=1e-15)
 
 
 def test_the_page_fits_a_narrow_window(drawn):
