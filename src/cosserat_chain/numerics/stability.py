@@ -32,23 +32,45 @@ eigenvalue (Sylvester's law of inertia) and a growing mode (checked against the 
 reference on random chains). The spectral abscissa is then not computed (NaN).
 ``dense=True`` runs the dense reference (O(N^3)): eigenvalues of K and of the damped
 dynamics matrix A; a model without a symmetric similar matrix always takes it.
+
+:func:`dynamic_stability` decides from the eigenvalues of the damped first-order system
+themselves, for every model, and reports K's inertia beside them as what it is (the
+*stiffness index*). With mass-scaled unknowns y = M^(1/2) q, w = M^(1/2) q' the system
+d/dt (x, p) = (M^-1 p, F(x) - Gamma M^-1 p) linearised about x is
+
+    d/dt (y, w) = A (y, w),   A = [[0, I], [-M^(-1/2) K M^(-1/2), -Gamma M^-1]],
+
+similar to its Jacobian [[0, M^-1], [-K, -Gamma M^-1]] in (x, p) (the same eigenvalues,
+better balanced: j is 40 times smaller than m in the paper's chain). The unstable
+eigenvalues are counted without a dense matrix through the Cayley transform
+C = (A - s I)^-1 (A + s I), s > 0, which maps the right half plane to |mu| > 1 and the
+imaginary axis to the unit circle: ARPACK's largest |mu| (each product one banded
+solve, (A - s I) reduced to the n x n banded K~ + s (Gamma M^-1 + s I) by its Schur
+complement) find every eigenvalue right of the axis once one eigenvalue they return lies
+inside the circle (the number asked for doubles until then). For a conservative model
+with positive damping their number equals K's negative count (a theorem the tests
+check); for eq. (2) it does not: the sine chain's unstable branch at N = 2 has one real
+and one complex pair of unstable eigenvalues where K has one negative eigenvalue, the
+pair crossing the axis at two Hopf points (:mod:`cosserat_chain.numerics.hopf`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
+import scipy.sparse.linalg as sla
 from numba import njit
 
 from ..band import BandMatrix
 from ..models.base import Model, get_model
 from ..params import ChainParams
-from ..state import BANDWIDTH, check_state, per_dof
+from ..state import BANDWIDTH, check_state, pack, per_dof
 from .newton import euclidean_norm, infinity_norm
 
 #: Relative width (to the Gershgorin radius) at which the bisection for the smallest eigenvalue stops.
@@ -95,7 +117,7 @@ def damped_dynamics_matrix(params: ChainParams, stiffness: np.ndarray) -> np.nda
         K = -dF/dq at the state (dense).
     """
     n_free = stiffness.shape[0]
-    inertia = per_dof(params, params.inertia)
+    inertia = pack(params, params.particle_inertia)
     damping = per_dof(params, params.damping)
     a = np.zeros((2 * n_free, 2 * n_free))
     a[:n_free, n_free:] = np.eye(n_free)
@@ -383,3 +405,304 @@ def _smallest_eigenvalue(
     tolerance = max(BISECTION_RTOL * radius, 1e-300)
     value, bound = _smallest_eigenvalue_compiled(band, low, high, tolerance, 0.0 if guess is None else float(guess), vector)
     return float(value), float(bound)
+
+
+#: Eigenvalues of the damped dynamics with a real part above this times the scale of A
+#: (:func:`dynamic_stability`: the larger of sqrt(|K~|) and Gamma M^-1) count as unstable.
+DYNAMIC_RTOL = 1e-10
+#: Rightmost eigenvalues :func:`dynamic_stability` reports by default.
+RIGHTMOST = 6
+#: Largest first-order system (2 n_free unknowns) that ``method="auto"`` solves densely.
+DENSE_LIMIT = 400
+#: Most eigenvalues nearest the axis the sparse path of :func:`dynamic_stability` asks ARPACK for.
+NEAREST_LIMIT = 64
+#: The dynamics methods :func:`dynamic_stability` takes.
+DYNAMIC_METHODS = ("auto", "dense", "sparse")
+
+
+@dataclass(frozen=True)
+class DynamicStability:
+    """Stability of a static state from the eigenvalues of the damped dynamics (:func:`dynamic_stability`).
+
+    Attributes
+    ----------
+    stable : bool
+        Dynamically stable: no eigenvalue of the damped first-order system has a real
+        part above ``tolerance`` (an eigenvalue on the axis within it, a rigid mode's
+        zero or an undamped oscillation, counts as neutral, not unstable).
+    unstable_eigenvalues : int
+        Eigenvalues with a real part above ``tolerance``, a complex pair counted twice.
+    unstable_real, unstable_pairs : int
+        Of those, the real ones and the complex-conjugate pairs
+        (``unstable_real + 2 unstable_pairs == unstable_eigenvalues``).
+    rightmost : tuple of complex
+        Eigenvalues by decreasing real part, every unstable one first and then the
+        nearest the axis that were found (exactly the rightmost on the dense path).
+    spectral_abscissa : float
+        The largest real part: exact where the state is unstable or ``method`` is
+        ``"dense"``; otherwise that of the stable eigenvalues found nearest the axis.
+    stiffness_index : int
+        Eigenvalues of K = -dF/dq with a negative real part (K's inertia: the Morse
+        index of a conservative model). It is not a count of unstable eigenvalues of
+        the dynamics, except for a conservative model with positive damping.
+    tolerance : float
+        The real part above which an eigenvalue counts as unstable.
+    method : str
+        ``"dense"`` or ``"sparse"`` (module docstring).
+    """
+
+    stable: bool
+    unstable_eigenvalues: int
+    unstable_real: int
+    unstable_pairs: int
+    rightmost: tuple[complex, ...]
+    spectral_abscissa: float
+    stiffness_index: int
+    tolerance: float
+    method: str
+
+    def as_dict(self) -> dict[str, object]:
+        """Plain types for JSON (complex eigenvalues as [real, imag] pairs)."""
+        return {
+            "dynamically_stable": self.stable,
+            "unstable_eigenvalues": self.unstable_eigenvalues,
+            "unstable_real": self.unstable_real,
+            "unstable_pairs": self.unstable_pairs,
+            "rightmost": [[z.real, z.imag] for z in self.rightmost],
+            "spectral_abscissa": self.spectral_abscissa,
+            "stiffness_index": self.stiffness_index,
+            "tolerance": self.tolerance,
+            "method": self.method,
+        }
+
+    def describe(self) -> str:
+        """One phrase: "dynamically stable" or "unstable eigenvalues: 3 (1 real, 1 complex pair)", with the stiffness index."""
+        index = f"stiffness index {self.stiffness_index}"
+        if self.stable:
+            return f"dynamically stable ({index})"
+        pairs = f"{self.unstable_pairs} complex pair{'s' if self.unstable_pairs != 1 else ''}"
+        return f"unstable eigenvalues: {self.unstable_eigenvalues} ({self.unstable_real} real, {pairs}; {index})"
+
+
+def dynamic_stability(
+    params: ChainParams,
+    model: str | Model,
+    x: np.ndarray,
+    *,
+    method: str = "auto",
+    rightmost: int = RIGHTMOST,
+) -> DynamicStability:
+    """Stability of the static state ``x`` (3, 2N+1) from the eigenvalues of the damped dynamics (module docstring).
+
+    Parameters
+    ----------
+    params : ChainParams
+        Any chain (free ends: the rigid modes' zero eigenvalues are neutral).
+    model : str or Model
+        Any model; eq. (2)'s stiffness is not symmetric, and its verdict differs from K's inertia.
+    x : ndarray, shape (3, 2N+1)
+        The state (an equilibrium under a constant load: the load does not enter the Jacobian).
+    method : {"auto", "dense", "sparse"}
+        ``"dense"``: LAPACK's eigenvalues of A (O(n^3)); ``"sparse"``: the unstable eigenvalues
+        counted by the argument principle and the eigenvalues nearest the axis by
+        shift-invert, both with banded factors (O(n) each); ``"auto"``: dense up to
+        :data:`DENSE_LIMIT` unknowns. A ring, or a system too small for ARPACK
+        (2 n_free <= 2 ``rightmost`` + 4), is solved densely.
+    rightmost : int
+        How many eigenvalues to report besides the unstable ones (at least 1).
+
+    Returns
+    -------
+    DynamicStability
+
+    Raises
+    ------
+    ValueError
+        For a state of the wrong shape or not finite, an unknown ``method`` or
+        ``rightmost`` below 1.
+    """
+    model = get_model(model)
+    x = check_state(params, x)
+    if method not in DYNAMIC_METHODS:
+        raise ValueError(f"method must be one of {', '.join(DYNAMIC_METHODS)}, got {method!r}")
+    if not (isinstance(rightmost, int) and not isinstance(rightmost, bool) and rightmost >= 1):
+        raise ValueError(f"rightmost must be an integer >= 1 (eigenvalues reported), got {rightmost!r}")
+    stiffness = model.stiffness(params, x).tocsr()
+    n = stiffness.shape[0]
+    root = 1.0 / np.sqrt(pack(params, params.particle_inertia))
+    scaled = sp.csr_matrix(sp.diags(root) @ stiffness @ sp.diags(root))
+    rate = per_dof(params, params.damping) * root**2  # Gamma M^-1
+    norm = float(abs(scaled).sum(axis=1).max()) if n else 0.0
+    tolerance = DYNAMIC_RTOL * max(math.sqrt(norm), float(rate.max(initial=0.0)), 1e-300)
+    if method == "auto":
+        method = "dense" if 2 * n <= DENSE_LIMIT else "sparse"
+    if params.periodic or 2 * n <= 2 * rightmost + 4:
+        method = "dense"
+    index = _stiffness_index(params, model, x, stiffness)
+    if method == "dense":
+        a = np.zeros((2 * n, 2 * n))
+        a[:n, n:] = np.eye(n)
+        a[n:, :n] = -scaled.toarray()
+        a[n:, n:] = -np.diag(rate)
+        eigenvalues = la.eigvals(a)
+        return _verdict(eigenvalues, tolerance, rightmost, index, method, int(np.sum(eigenvalues.real > tolerance)))
+    count = _unstable_count(scaled, rate, tolerance)
+    eigenvalues = tolerance + _nearest_axis(_shifted_solver(scaled, rate, tolerance), 2 * n, count, rightmost)
+    return _verdict(eigenvalues, tolerance, rightmost, index, method, count)
+
+
+def _verdict(eigenvalues: np.ndarray, tolerance: float, rightmost: int, index: int, method: str, count: int) -> DynamicStability:
+    """The :class:`DynamicStability` of ``count`` unstable eigenvalues and those found (all, or the nearest the axis)."""
+    eigenvalues = eigenvalues[np.argsort(-eigenvalues.real, kind="stable")]
+    unstable = eigenvalues[eigenvalues.real > tolerance]
+    # A real eigenvalue's imaginary part is round-off of its size or less; the pairs found
+    # are exact, and any unstable eigenvalue not found (far from the axis, the sparse
+    # path) is counted with the pairs where the parity asks for it.
+    real = int(np.sum(np.abs(unstable.imag) <= max(tolerance, 1e-8 * float(np.max(np.abs(unstable), initial=0.0)))))
+    real += (count - unstable.size) % 2 if count > unstable.size else 0
+    shown = tuple(complex(z) for z in eigenvalues[: unstable.size + rightmost])
+    abscissa = float(eigenvalues[0].real) if eigenvalues.size else -math.inf
+    return DynamicStability(count == 0, count, real, (count - real) // 2, shown, abscissa, int(index), tolerance, method)
+
+
+def _shifted_solver(scaled: sp.spmatrix, rate: np.ndarray, shift: float) -> Callable[[np.ndarray], np.ndarray]:
+    """x -> (A - s I)^-1 x for A = [[0, I], [-K~, -R]] (R = Gamma M^-1 diagonal), by one banded LU of n x n.
+
+    From -s y + w = a and -K~ y - (R + s) w = b: w = a + s y and
+    (K~ + s (R + s)) y = -b - (R + s) a.
+    """
+    n = scaled.shape[0]
+    lu = sla.splu(sp.csc_matrix(scaled + sp.diags(shift * (rate + shift))), permc_spec="NATURAL")
+    damped = rate + shift
+
+    def solve(vector: np.ndarray) -> np.ndarray:
+        a, b = vector[:n], vector[n:]
+        y = lu.solve(-b - damped * a)
+        return np.concatenate([y, a + shift * y])
+
+    return solve
+
+
+def _pencil_band(scaled: sp.spmatrix) -> tuple[np.ndarray, int]:
+    """K~ in LAPACK's general band storage (rows 2w + i - j, w sub- and superdiagonals, w rows of fill), and w."""
+    coo = sp.coo_matrix(scaled)
+    width = int(np.max(np.abs(coo.row - coo.col), initial=0))
+    band = np.zeros((3 * width + 1, scaled.shape[0]), dtype=complex)
+    np.add.at(band, (2 * width + coo.row - coo.col, coo.col), coo.data)
+    return band, width
+
+
+def _phase(band: np.ndarray, width: int, rate: np.ndarray, z: complex) -> float:
+    """arg det(K~ + z R + z^2 I) = arg det(A - z I) (not reduced mod 2 pi), from one banded LU (O(n w^2))."""
+    shifted = band.copy()
+    shifted[2 * width] += z * rate + z * z
+    lu, pivots, info = la.lapack.zgbtrf(shifted, width, width)
+    if info > 0:  # z is an eigenvalue: the phase next to it (the caller's steps resolve the jump)
+        return _phase(band, width, rate, z + 1e-12 * max(abs(z), 1e-300) * 1j)
+    swaps = int(np.count_nonzero(pivots != np.arange(pivots.size)))
+    return float(np.sum(np.angle(lu[2 * width]))) + math.pi * swaps
+
+
+def _wrap_angle(angle: float) -> float:
+    """``angle`` reduced to (-pi, pi]."""
+    return angle - 2.0 * math.pi * math.ceil((angle - math.pi) / (2.0 * math.pi))
+
+
+def _unstable_count(scaled: sp.spmatrix, rate: np.ndarray, tolerance: float) -> int:
+    """Eigenvalues of A with a real part above ``tolerance``, by the argument principle, O(n) a point.
+
+    det(A - z I) = det(K~ + z R + z^2 I) winds round zero once for each eigenvalue inside
+    a closed curve. The curve: the line Re z = tolerance and a half circle right of it of
+    radius 4 rho, rho = (r + sqrt(r^2 + 4 |K~|)) / 2 bounding every |lambda| (from
+    lambda^2 + lambda y*Ry + y*K~y = 0, |y| = 1). A is real, so the upper half of the curve
+    turns the phase by pi per eigenvalue. On the circle the phase of det(I + R/z + K~/z^2)
+    (that of z^(2n) taken out) turns slowly; down the line every eigenvalue left of it turns
+    the phase by up to pi, and the steps follow it: a step that turns the phase by more than
+    :data:`PHASE_STEP` is halved, one that turns it by less grows by half. Two eigenvalues
+    within one step and nearer the line than its length could hide each other's turn: the
+    first step is the damping's rate over 8, eigenvalues of the damped chain lie about half
+    their rate left of the line, and the steps shrink towards the real axis, where the slow
+    overdamped modes lie (within 1e-7 of zero at N = 100).
+    """
+    band, width = _pencil_band(scaled)
+    n = scaled.shape[0]
+    r = float(rate.max(initial=0.0))
+    size = abs(scaled)
+    norm = math.sqrt(float(size.sum(axis=0).max()) * float(size.sum(axis=1).max())) if n else 0.0
+    radius = 4.0 * (r + math.sqrt(r * r + 4.0 * norm)) / 2.0 + tolerance
+
+    def arc(theta: float) -> float:
+        z = tolerance + radius * complex(math.cos(theta), math.sin(theta))
+        return _phase(band, width, rate, z) - 2 * n * math.atan2(z.imag, z.real)
+
+    def line(y: float) -> float:
+        return _phase(band, width, rate, complex(tolerance, y))
+
+    start = complex(tolerance + radius, 0.0)
+    corner = complex(tolerance, radius)
+    # The arc from the real axis to the line, then the line down to the real axis.
+    total = _follow_phase(arc, 0.0, 0.5 * math.pi, 0.5 * math.pi / 64)
+    total += 2 * n * (math.atan2(corner.imag, corner.real) - math.atan2(start.imag, start.real))
+    damped = rate[rate > 0]
+    first = 0.125 * float(damped.min()) if damped.size else radius / 4096
+    total += _follow_phase(line, radius, 0.0, -min(first, radius / 64), floor=tolerance * 1e-3)
+    return int(round(total / math.pi))
+
+
+#: Largest turn of the phase of det(A - z I) over one step of :func:`_unstable_count`.
+PHASE_STEP = 0.25 * math.pi
+
+
+def _follow_phase(phase, begin: float, end: float, step: float, floor: float = 0.0) -> float:
+    """The phase's total turn from ``begin`` to ``end`` (a real parameter), in steps that turn it by less than PHASE_STEP.
+
+    Steps grow by half after each accepted one and halve on a larger turn; near ``end``
+    they are kept below the distance left (geometric towards it, down to ``floor``).
+    """
+    here, value, total = begin, phase(begin), 0.0
+    direction = 1.0 if end > begin else -1.0
+    while direction * (end - here) > 0.0:
+        left = abs(end - here)
+        length = min(abs(step), left if left <= floor else max(0.5 * left, floor))
+        there = end if length >= left else here + direction * length
+        after = phase(there)
+        turn = _wrap_angle(after - value)
+        if abs(turn) > PHASE_STEP and length > 4.0 * np.finfo(float).eps * max(abs(here), 1.0):
+            step = 0.5 * length
+            continue
+        total += turn
+        here, value, step = there, after, 1.5 * length
+    return total
+
+
+def _nearest_axis(solve, size: int, count: int, rightmost: int) -> np.ndarray:
+    """Eigenvalues nearest the shift of ``solve`` (just right of the axis), enough to hold ``count`` unstable ones if they are near.
+
+    Shift-invert: ARPACK's largest 1 / (lambda - s) converge fast, clusters of slow modes
+    included. The number asked for doubles while fewer than ``count`` of those found are
+    unstable, up to :data:`NEAREST_LIMIT` (unstable eigenvalues far from the axis among
+    many stable ones nearer it are then not all listed; their number is still exact).
+    """
+    inverse = sla.LinearOperator((size, size), matvec=solve, dtype=float)
+    start = np.random.default_rng(0).standard_normal(size)
+    wanted = min(count + rightmost + 2, size - 2)
+    while True:
+        nu = sla.eigs(inverse, k=wanted, which="LM", v0=start, tol=1e-12, return_eigenvectors=False, maxiter=100 * size)
+        eigenvalues = 1.0 / nu
+        if int(np.sum(eigenvalues.real > 0.0)) >= count or wanted >= min(NEAREST_LIMIT, size - 2):
+            return eigenvalues
+        wanted = min(2 * wanted, NEAREST_LIMIT, size - 2)
+
+
+def _stiffness_index(params: ChainParams, model: Model, x: np.ndarray, stiffness: sp.spmatrix) -> int:
+    """Eigenvalues of K with a negative real part: the inertia of its symmetric similar matrix where it has one, banded."""
+    similar = None if params.periodic else model.symmetric_similar(params, x)
+    if similar is not None:
+        return int(negative_count(_band_storage(similar), 0.0))
+    if stiffness.shape[0] <= DENSE_LIMIT:
+        return int(np.sum(la.eigvals(stiffness.toarray()).real < 0.0))
+    # Re lambda(K) < 0 iff Re lambda(-K) > 0: the Cayley count, with A = -K.
+    scale = float(abs(stiffness).sum(axis=1).max())
+    lu = sla.splu(sp.csc_matrix(-stiffness - scale * sp.identity(stiffness.shape[0])))
+    values = _right_of_axis(lu.solve, stiffness.shape[0], scale, DYNAMIC_RTOL * scale, 1)
+    return int(np.sum(values.real > DYNAMIC_RTOL * scale))
