@@ -695,14 +695,12 @@ def _nearest_axis(solve, size: int, count: int, rightmost: int) -> np.ndarray:
 
 
 def _stiffness_index(params: ChainParams, model: Model, x: np.ndarray, stiffness: sp.spmatrix) -> int:
-    """Eigenvalues of K with a negative real part: the inertia of its symmetric similar matrix where it has one, banded."""
-    similar = None if params.periodic else model.symmetric_similar(params, x)
+    """Eigenvalues of K with a real part below minus its round-off (:func:`_resolution`; a rigid mode's zero is not
+    negative): the inertia of its symmetric similar matrix where it has one (banded, or dense for a ring), else
+    the dense eigenvalues of K (a registered model without one)."""
+    similar = model.symmetric_similar(params, x)
+    if similar is not None and not params.periodic:
+        return int(negative_count(_band_storage(similar), -_resolution(similar)))
     if similar is not None:
-        return int(negative_count(_band_storage(similar), 0.0))
-    if stiffness.shape[0] <= DENSE_LIMIT:
-        return int(np.sum(la.eigvals(stiffness.toarray()).real < 0.0))
-    # Re lambda(K) < 0 iff Re lambda(-K) > 0: the Cayley count, with A = -K.
-    scale = float(abs(stiffness).sum(axis=1).max())
-    lu = sla.splu(sp.csc_matrix(-stiffness - scale * sp.identity(stiffness.shape[0])))
-    values = _right_of_axis(lu.solve, stiffness.shape[0], scale, DYNAMIC_RTOL * scale, 1)
-    return int(np.sum(values.real > DYNAMIC_RTOL * scale))
+        return int(np.sum(la.eigvalsh(similar.toarray()) < -_resolution(similar)))
+    return int(np.sum(la.eigvals(stiffness.toarray()).real < -_resolution(stiffness)))
