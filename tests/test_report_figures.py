@@ -241,3 +241,17 @@ def test_the_page_escapes_what_it_shows(tmp_path, monkeypatch):
     reproduce(tmp_path, settings=SETTINGS, stages=["waves"])
     page = (tmp_path / "index.html").read_text()
     assert "<script>" not in page and "&lt;script&gt;" in page and "a &lt;b&gt;bold&lt;/b&gt; &amp;" in page
+
+
+def test_a_study_of_one_cell_draws_its_values_as_points():
+    from cosserat_chain.experiments.study import empty_results, spec_from_mapping, store_cell
+    from cosserat_chain.plots.study import study_figure
+
+    spec = spec_from_mapping({"parameters": {"a": [0.1]}, "models": ["sine", "nonlinear"], "quantities": ["M_c"]})
+    ds = empty_results(spec)
+    for model, value in (("sine", 0.204), ("nonlinear", 0.1975)):
+        store_cell(ds, spec, (0,), model, {"M_c": value})
+    (ax,) = study_figure(ds).axes
+    drawn = {line.get_label(): line for line in ax.lines}
+    for model, value in (("sine", 0.204), ("nonlinear", 0.1975)):
+        assert drawn[model].get_marker() not in ("None", "", None) and has_point(ax, 0.1, value), model

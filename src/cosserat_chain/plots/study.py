@@ -14,7 +14,8 @@ _NON_PARAMETER_DIMS = ("model", "load")
 
 
 def study_figure(ds: xr.Dataset, quantities: list[str] | None = None) -> Figure:
-    """Lines over one swept field, or maps over two (one panel per quantity and model).
+    """Lines over one swept field, or maps over two (one panel per quantity and model); a study of one
+    cell as points.
 
     With ``mean_angular_velocity`` in the study, the regime at each of its loads is
     drawn too: 1 where the loaded particle rotates, 0 where the chain comes to rest.
@@ -34,6 +35,9 @@ def study_figure(ds: xr.Dataset, quantities: list[str] | None = None) -> Figure:
     swept = [d for d in ds.dims if d not in _NON_PARAMETER_DIMS and ds.sizes[d] > 1]
     if len(swept) > 2:
         raise ValueError(f"a figure shows one or two swept fields; this study sweeps {swept}: select a slice first")
+    if not swept:
+        # One cell: its values as points (markers) at the first field's one value, not an empty map.
+        swept = [d for d in ds.dims if d not in _NON_PARAMETER_DIMS][:1]
     ds = _with_regimes(ds.squeeze([d for d in ds.dims if d not in _NON_PARAMETER_DIMS and d not in swept]))
     quantities = quantities or [name for name in ds.data_vars if name not in ("done", "error") and "load" not in ds[name].dims]
     models = list(ds.model.values)
