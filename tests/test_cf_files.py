@@ -214,6 +214,9 @@ def test_long_names_are_true_for_the_file_at_hand(files):
     assert sine["particle"].attrs["long_name"] == "particle index k in -N..N (clamped ends)"
     assert "NaN for the non-conservative sine model" in sine["potential"].attrs["long_name"]
     assert read_dataset(files["state_diagram"])["value"].attrs["long_name"].startswith("the varied field E2")
+    assert "sine model" in read_dataset(files["critical"])["critical_eigenvalue"].attrs["long_name"]
+    linear = describe(critical_point(ChainParams(), "linear").to_dataset())
+    assert linear["critical_eigenvalue"].attrs["long_name"] == "lowest eigenvalue of the stiffness matrix"
 
 
 def test_history_names_the_command_without_the_folder_it_lies_in(monkeypatch):

@@ -603,7 +603,7 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "phi0": ("rad", "rotation angle phi_0 of the loaded particle"),
     "point": ("1", "index of a point along the branch"),
     "stable": ("1", "1 if the state is stable, 0 if not"),
-    "critical_eigenvalue": ("stiffness", "lowest eigenvalue of the stiffness (symmetric similar of the sine model's Jacobian)"),
+    "critical_eigenvalue": ("stiffness", "lowest eigenvalue of the stiffness matrix"),
     "M_c": ("energy", "critical moment M_c: onset of rotation under a slowly rising load (NaN: no fold)"),
     "phi0_at_fold": ("rad", "phi_0 of the loaded particle at the fold M_c"),
     "compliance": ("rad / energy", "compliance dphi_0/dM at rest"),
@@ -729,8 +729,9 @@ def _describe_variable(name: str, dataset: xr.Dataset) -> tuple[str, str] | None
     """Quantity and long name of a variable of ``dataset``: by name, prefix (final_u, diag_angle) or, for a diagram's values, its field.
 
     The long names that depend on the file say what holds for it: the particle index
-    names the chain's ends, and the potential says NaN only for the non-conservative sine
-    model; a beam table's compliances are phi/M or v/F as its load is a moment or a force.
+    names the chain's ends, the potential says NaN (and the lowest eigenvalue what matrix
+    it is of) only for the non-conservative sine model, and a beam table's compliances are
+    phi/M or v/F as its load is a moment or a force.
     """
     if name == "value" and dataset.attrs.get("parameter") in VARIABLES:
         quantity, what = VARIABLES[dataset.attrs["parameter"]]
@@ -743,6 +744,8 @@ def _describe_variable(name: str, dataset: xr.Dataset) -> tuple[str, str] | None
         return "1", f"{VARIABLES[name][1]} ({ends})"
     if name == "potential" and "sine" in _models(dataset):
         return "energy", f"{VARIABLES[name][1]} (NaN for the non-conservative sine model)"
+    if name == "critical_eigenvalue" and "sine" in _models(dataset):
+        return "stiffness", f"{VARIABLES[name][1]} (for the sine model: of the symmetric matrix similar to its Jacobian)"
     if name in _COMPLIANCES and dataset.attrs.get("load") == "force":
         return "length^2 / energy", VARIABLES[name][1].replace("compliance", "compliance v/F", 1)
     if name in VARIABLES:
