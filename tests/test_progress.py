@@ -163,6 +163,13 @@ def test_simulate_counts_whole_steps_to_100_percent(tmp_path):
     assert percent == 100 and done == total and done.isdigit() and int(done) > 100
 
 
+def test_animate_counts_its_frames_to_100_percent(tmp_path):
+    code, screen = on_terminal(cli("animate", "--t-end", "20", "--frames", "5", "--out", "a.gif"), tmp_path)
+    assert code == 0
+    assert counts(last_bar(screen, "animate"))[1:] == ("5", "5") and counts(last_bar(screen, "animate"))[0] == 100
+    assert counts(last_bar(screen, "simulate nonlinear"))[0] == 100
+
+
 def test_rotate_at_its_time_limit_says_it_stopped_there(tmp_path):
     code, screen = on_terminal(cli("rotate", "--moment", "0.3", "--turns", "100", "--t-max", "5"), tmp_path)
     assert code == 4
@@ -201,3 +208,5 @@ def test_reproduce_on_a_terminal_ends_at_100_percent(tmp_path):
     assert code == 0
     percent, done, total = counts(last_bar(screen, "reproduce"))
     assert percent == 100 and done == total == "9"
+    # While the state diagram computes, the bar says how far it is.
+    assert re.search(r"state_map: sine \d+/1 values", screen)
