@@ -26,11 +26,22 @@ the long-wave equations (6) give the flexural stiffness D1 where the chain has
 E1 = D1 + D2/4, and for D1 < 0 (the paper's chain) that branch is imaginary
 (``Dispersion.omega`` is NaN there).
 
-*Finite clamped chain.* :func:`finite_modes` solves K a = omega^2 M a over the
+*Finite chain.* :func:`finite_modes` solves K a = omega^2 M a over the
 free degrees of freedom for the stiffness -dF/dq of any model at any state; the
 sine model's Jacobian is not symmetric there (erratum 4), so non-conservative
 models go through a general eigen solver. Viscosity is left out: these are the
 undamped frequencies.
+
+*Rigid modes.* A chain its ends do not hold moves rigidly
+(:attr:`~cosserat_chain.params.ChainParams.rigid_modes`): free ends translate in u
+and v and rotate, a pinned end with a free one rotates about the pin, a ring
+translates. :func:`rigid_motions` builds these infinitesimal motions about the state
+(a rotation by theta moves particle k by theta (-(v_k - v_c), (k - c) h + u_k - u_c)
+about the pin or the middle particle c, and turns every particle by theta); those K
+annihilates to round-off (:data:`RIGID_RTOL`: every one of them for every model at
+rest, checked by the tests) are split off exactly: their omega^2 is 0, not the
++-1e-15 of round-off, whose negative half made NaN frequencies and "unstable"
+chains at rest, and the elastic modes are solved on the complement.
 """
 
 from __future__ import annotations
@@ -45,8 +56,10 @@ from scipy.optimize import minimize_scalar
 from ..models.base import Model, get_model
 from ..models.linear import cosserat_coefficients
 from ..params import ChainParams
-from ..state import check_state, free_index, pack
+from ..state import ROW_INDEX, check_state, free_index, pack, zeros
 
+#: A rigid motion r with |K r| <= RIGID_RTOL |K| |r| (infinity norms) is a zero mode of the chain.
+RIGID_RTOL = 1e-12
 #: The three branches, in the row order of ``Dispersion.omega2``.
 BRANCHES = ("longitudinal", "transverse_acoustic", "rotational_optical")
 
@@ -263,18 +276,21 @@ class Modes:
     Attributes
     ----------
     omega2 : ndarray, complex, shape (n,)
-        Eigenvalues omega^2 of M^-1 K, sorted by real part; real (zero imaginary
-        part) for conservative models.
+        Eigenvalues omega^2 of M^-1 K: the ``rigid`` rigid modes' zeros first, then the
+        others sorted by real part; real (zero imaginary part) for conservative models.
     shapes : ndarray, shape (n, 3, 2N+1)
         Mode shapes in the state layout (zero clamped ends), normalised to
         a^H M a = 1 with the largest component real and positive; complex only
         when a non-conservative model has complex eigenvalues.
     model : str
+    rigid : int
+        Rigid modes split off (:func:`rigid_motions`): the first ``rigid`` entries, omega^2 = 0 exactly.
     """
 
     omega2: np.ndarray
     shapes: np.ndarray
     model: str
+    rigid: int = 0
 
     @property
     def frequencies(self) -> np.ndarray:
@@ -291,6 +307,42 @@ class Modes:
     def stable(self) -> bool:
         """Whether every eigenvalue is real and non-negative (the state is a stable equilibrium)."""
         return bool(np.all(np.isfinite(self.frequencies)))
+
+
+def rigid_motions(params: ChainParams, x: np.ndarray | None = None) -> np.ndarray:
+    """The infinitesimal rigid motions the chain's ends leave free, about the state ``x`` (default rest).
+
+    Parameters
+    ----------
+    params : ChainParams
+    x : ndarray, shape (3, 2N+1), optional
+
+    Returns
+    -------
+    ndarray, shape (params.rigid_modes, n_free)
+        In matrix order (:func:`~cosserat_chain.state.pack`): the u and v translations
+        (free ends, a ring), then the rotation (free ends: about the middle particle; a
+        pinned end with a free one: about the pin). Not normalised.
+    """
+    x = np.zeros((3, params.n_particles)) if x is None else check_state(params, x)
+    if params.rigid_modes == 0:
+        return np.zeros((0, len(free_index(params))))
+    motions = []
+    if params.periodic or params.ends == ("free", "free"):
+        for row in ("u", "v"):
+            shift = zeros(params)
+            shift[ROW_INDEX[row]] = 1.0
+            motions.append(shift)
+    if not params.periodic:
+        centre = 0 if params.left_end == "pinned" else params.n_particles - 1 if params.right_end == "pinned" else params.N
+        k = np.arange(params.n_particles)
+        u, v = x[ROW_INDEX["u"]], x[ROW_INDEX["v"]]
+        turn = zeros(params)
+        turn[ROW_INDEX["u"]] = -(v - v[centre])
+        turn[ROW_INDEX["v"]] = (k - centre) * params.h + u - u[centre]
+        turn[ROW_INDEX["phi"]] = 1.0
+        motions.append(turn)
+    return np.array([pack(params, m) for m in motions])
 
 
 def finite_modes(params: ChainParams, model: str | Model = "linear", x: np.ndarray | None = None) -> Modes:
@@ -319,20 +371,41 @@ def finite_modes(params: ChainParams, model: str | Model = "linear", x: np.ndarr
     -----
     Dense eigen solvers: cost O((6N)^3), fine up to N of a few hundred. A chain that can
     move rigidly (``ChainParams.rigid_modes``: free ends, a ring) has that many zero
-    frequencies, its rigid motions.
+    frequencies, its rigid motions (:func:`rigid_motions`), given omega^2 = 0 exactly and
+    listed first (``Modes.rigid``) where K annihilates them.
     """
     model = get_model(model)
     x = np.zeros((3, params.n_particles)) if x is None else check_state(params, x)
     stiffness = model.stiffness(params, x).toarray()
     mass = pack(params, params.particle_inertia)
-    if model.conservative:
-        eigenvalues, vectors = sla.eigh(stiffness, np.diag(mass))
-        eigenvalues = eigenvalues.astype(complex)
+    root = 1.0 / np.sqrt(mass)
+    scaled = stiffness * root[:, None] * root[None, :]  # M^-1/2 K M^-1/2, similar to M^-1 K
+    motions = rigid_motions(params, x)
+    scale = max(float(np.max(np.abs(stiffness))), np.finfo(float).tiny)
+    zero = [r for r in motions if np.max(np.abs(stiffness @ r)) <= RIGID_RTOL * scale * np.max(np.abs(r))]
+    # An orthonormal basis [Q_r, P] of the mass-scaled space, Q_r spanning the rigid modes:
+    # S Q_r = 0, so S = [[0, X], [0, Y]] in it and the elastic modes are Y's.
+    n_rigid = len(zero)
+    if n_rigid:
+        basis, _ = sla.qr((np.array(zero) / root[None, :]).T)
     else:
-        eigenvalues, vectors = sla.eig(stiffness / mass[:, None])
-        order = np.argsort(eigenvalues.real, kind="stable")
-        eigenvalues, vectors = eigenvalues[order], vectors[:, order]
-        vectors = vectors / np.sqrt(np.einsum("ij,i,ij->j", vectors.conj(), mass, vectors).real)
+        basis = np.eye(mass.size)
+    rigid_basis, complement = basis[:, :n_rigid], basis[:, n_rigid:]
+    reduced = complement.T @ scaled @ complement
+    if model.conservative:
+        elastic, z = sla.eigh(0.5 * (reduced + reduced.T))
+        elastic = elastic.astype(complex)
+        mixed = np.zeros((n_rigid, z.shape[1]))
+    else:
+        elastic, z = sla.eig(reduced)
+        order = np.argsort(elastic.real, kind="stable")
+        elastic, z = elastic[order], z[:, order]
+        coupling = rigid_basis.T @ scaled @ complement
+        # The rigid part of an elastic mode: X z / mu (none where mu is zero).
+        mixed = np.divide(coupling @ z, elastic, out=np.zeros((n_rigid, z.shape[1]), dtype=complex), where=elastic != 0)
+    eigenvalues = np.concatenate([np.zeros(n_rigid, dtype=complex), elastic])
+    vectors = root[:, None] * np.hstack([rigid_basis, rigid_basis @ mixed + complement @ z])
+    vectors = vectors / np.sqrt(np.einsum("ij,i,ij->j", vectors.conj(), mass, vectors).real)
     # A deterministic sign (phase): the largest component of each mode real and positive.
     largest = vectors[np.argmax(np.abs(vectors), axis=0), np.arange(vectors.shape[1])]
     vectors = vectors * (np.abs(largest) / largest)
@@ -342,4 +415,4 @@ def finite_modes(params: ChainParams, model: str | Model = "linear", x: np.ndarr
     flat = np.zeros((vectors.shape[1], 3 * params.n_particles), dtype=vectors.dtype)
     flat[:, free_index(params)] = vectors.T
     shapes = np.ascontiguousarray(flat.reshape(-1, params.n_particles, 3).transpose(0, 2, 1))
-    return Modes(eigenvalues, shapes, model.name)
+    return Modes(eigenvalues, shapes, model.name, n_rigid)
