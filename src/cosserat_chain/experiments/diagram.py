@@ -228,9 +228,10 @@ class _Edge:
     method: str = "one_parameter"
 
 
-def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle: int, period_max: float) -> _Edge:
+def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle: int, period_max: float, field_name: str) -> _Edge:
     """The lower edge of one chain by one-parameter continuation in M, located exactly by the augmented
-    shooting system where it is a fold of cycles, a period doubling or a torus."""
+    shooting system where it is a fold of cycles, a period doubling or a torus (``field_name``: the
+    varied field, which the messages name)."""
     start = START_FACTOR * moment_c
     orbit, tried = None, []
     for k in range(1, turns + 1):
@@ -266,10 +267,10 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
             end = "fold_of_cycles"
         around = branch.orbits[index - 1 : index + 1]
         message = f"the orbit loses stability at M = {lost:.6g} (leading multiplier {leading:.4g}, interpolated)"
-        return _located(_Edge(float(lost), end, message), around)
+        return _located(_Edge(float(lost), end, message), around, field_name)
     if branch.end == "fold":
         around = sorted(branch.orbits[-3:], key=lambda o: abs(o.moment - branch.end_moment))
-        return _located(_Edge(float(branch.end_moment), "fold_of_cycles", branch.message), around)
+        return _located(_Edge(float(branch.end_moment), "fold_of_cycles", branch.message), around, field_name)
     if branch.end == "infinite_period":
         if len(branch.orbits) < MIN_TAIL:
             return _Edge(
@@ -297,12 +298,12 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
     return _Edge(None, "not_found", f"the orbit's continuation ended by {branch.end}: {branch.message}")
 
 
-def _located(edge: _Edge, around: Sequence[PeriodicOrbit]) -> _Edge:
+def _located(edge: _Edge, around: Sequence[PeriodicOrbit], field_name: str) -> _Edge:
     """``edge`` with its moment from Newton on the augmented shooting system at its own chain, from the
     orbits ``around`` it (the one-parameter estimate interpolates the multipliers between two orbits: 3e-5
     off for the paper's chain's period doubling at gamma_phi = 0.12); unchanged, saying so, where that fails."""
     try:
-        edge.orbit = locate_cycle_end(around, edge.end)
+        edge.orbit = locate_cycle_end(around, edge.end, field_name=field_name)
     except ValueError as err:
         edge.message += f"; not located exactly ({err})"
         return edge
@@ -458,7 +459,7 @@ def state_diagram(
         edge = _followed(previous, field_name, float(value)) if follow else None
         if edge is None or edge.orbit is None:
             note = "" if edge is None else edge.message + "; "
-            edge = _lower_edge(chain, model, moment_c, turns, particle, period_max)
+            edge = _lower_edge(chain, model, moment_c, turns, particle, period_max, field_name)
             edge.message = note + edge.message
         edge.message = onset + edge.message
         previous = (float(value), edge)

@@ -477,7 +477,7 @@ def _critical(multipliers: np.ndarray, kind: str, pair: complex | None) -> compl
     return complex(candidates[np.argmin(np.abs(candidates - pair))])
 
 
-def locate_cycle_end(orbits: Sequence[PeriodicOrbit], kind: str, **options) -> PeriodicOrbit:
+def locate_cycle_end(orbits: Sequence[PeriodicOrbit], kind: str, *, field_name: str | None = None, **options) -> PeriodicOrbit:
     """The end of one ``kind`` between ``orbits`` of one chain, to Newton's tolerance.
 
     Newton starts from, in turn: for a loss of stability, the orbit interpolated between the
@@ -493,6 +493,8 @@ def locate_cycle_end(orbits: Sequence[PeriodicOrbit], kind: str, **options) -> P
         around the turn for ``fold_of_cycles``.
     kind : str
         One of :data:`KINDS`.
+    field_name : str, optional
+        The field a caller varies (its messages name it); default the first of :data:`FIELDS`.
     **options
         As for :func:`continue_cycle_end`, whose first point this is.
 
@@ -512,7 +514,7 @@ def locate_cycle_end(orbits: Sequence[PeriodicOrbit], kind: str, **options) -> P
         w = min(1.0, max(0.0, (1.0 - a.max_multiplier) / (b.max_multiplier - a.max_multiplier)))
         between = {name: getattr(a, name) + w * (getattr(b, name) - getattr(a, name)) for name in ("x", "v", "period", "moment")}
         starts.insert(0, dataclasses.replace(a, **between))
-    field_name = FIELDS[0]  # any field: its one value is the chain's own
+    field_name = FIELDS[0] if field_name is None else field_name  # any field: its one value is the chain's own
     reasons = []
     for start in starts:
         try:
