@@ -274,3 +274,11 @@ def test_new_files_and_frames_folders_follow_the_umask(run_file):
     assert stat.S_IMODE(run_file.with_name("new.txt").stat().st_mode) == 0o640
     assert stat.S_IMODE(run_file.with_suffix(".pvd").stat().st_mode) == 0o640
     assert stat.S_IMODE(run_file.with_name("run_frames").stat().st_mode) == 0o750
+
+
+def test_a_run_refused_after_its_outputs_were_locked_leaves_no_folder_behind(tmp_path):
+    config = tmp_path / "bad.toml"
+    config.write_text("E1 = -1\n")
+    result = runner.invoke(app, [*TINY, "--config", str(config), "--out", str(tmp_path / "new" / "sub" / "run.nc")])
+    assert result.exit_code == 2 and "E1" in result.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.toml"]

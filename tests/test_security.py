@@ -178,3 +178,11 @@ def test_another_users_temporary_files_are_never_removed(machine):
     as_nobody(lambda: theirs.write_bytes(b"nobody's"))
     assert runner.invoke(app, [*TINY, "--out", str(shared / "run.nc")]).exit_code == 0
     assert theirs.read_bytes() == b"nobody's"
+
+
+def test_a_report_folder_that_is_another_users_link_is_refused(machine):
+    _, shared, secret = machine
+    as_nobody(lambda: os.symlink(secret.parent, shared / "rep"))
+    result = runner.invoke(app, ["reproduce", "--out", str(shared / "rep")])
+    assert result.exit_code == 2 and "nobody" in result.output
+    assert sorted(p.name for p in secret.parent.iterdir()) == ["important.conf"] and _untouched(secret)

@@ -279,10 +279,19 @@ def _alive(pid: int) -> bool:
 
 
 class _Held:
-    """A lock file this process holds (open, ``flock``-ed), and how many writers of this process use it."""
+    """A lock file this process holds (open, ``flock``-ed), how many writers of this process use it, and the folders made for it."""
 
-    def __init__(self, fd: int):
-        self.fd, self.count = fd, 1
+    def __init__(self, fd: int, made: list[Path]):
+        self.fd, self.count, self.made = fd, 1, made
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    """Remove the folders a lock made (deepest first) that nothing was written into: a refused run leaves no trace."""
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:
+            return
 
 
 #: The lock files this process holds, by path: a writer nested in a command that holds its output's lock shares it.
@@ -322,12 +331,24 @@ def _acquire(target: Path, label: str, path: Path) -> str:
     if key in _HELD:
         _HELD[key].count += 1
         return key
+    made = [folder for folder in [lock.parent, *lock.parent.parents] if not folder.exists()]
     try:
         lock.parent.mkdir(parents=True, exist_ok=True)
     except (FileExistsError, NotADirectoryError):
         raise OutputError(f"{label} {str(path)!r}: {str(_existing_folder(lock.parent, label, path))!r} is not a folder") from None
     except OSError as err:
         raise OutputError(f"{label} {str(path)!r}: cannot make the folder {str(lock.parent)!r} ({err.strerror})") from None
+    try:
+        fd = _lock_file(lock, label, path)
+    except BaseException:
+        _remove_empty(made)
+        raise
+    _HELD[key] = _Held(fd, made)
+    return key
+
+
+def _lock_file(lock: Path, label: str, path: Path) -> int:
+    """Open, check and ``flock`` the lock file ``lock``, writing this process's id into it; returns its descriptor."""
     while True:
         try:
             fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o666)
@@ -360,8 +381,7 @@ def _acquire(target: Path, label: str, path: Path) -> str:
         os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
     except OSError:  # a full disk: the lock holds all the same, only a refused run cannot name this process
         pass
-    _HELD[key] = _Held(fd)
-    return key
+    return fd
 
 
 def _release(key: str) -> None:
@@ -378,6 +398,7 @@ def _release(key: str) -> None:
     except OSError:
         pass
     os.close(held.fd)
+    _remove_empty(held.made)
 
 
 @contextmanager
