@@ -69,6 +69,9 @@ def test_wide_front_of_the_lattice_matches_the_quasi_continuum():
     assert front.energy == pytest.approx(qc.front_energy, rel=0.01)
     assert front.width == pytest.approx(qc.width, rel=0.1)
     assert front.peierls_barrier < 1e-3 * front.energy
+    # Turning one particle drags its neighbours along: far below the fixed-neighbour barrier.
+    barrier = turn_barrier(WIDE, half_length=10, points=24)
+    assert barrier.relaxed < 0.8 * barrier.fixed
 
 
 def test_narrow_front_slips_into_one_bond_and_a_particle_half_turned_costs_the_single_particle_barrier():
@@ -82,9 +85,34 @@ def test_narrow_front_slips_into_one_bond_and_a_particle_half_turned_costs_the_s
     assert front.energy_site == pytest.approx(barrier.relaxed, rel=1e-6)
 
 
+def test_theory_cli_front_reports_the_wide_front_in_json(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    config = tmp_path / "wide.toml"
+    config.write_text("a = 0.05\nb = 0.6\nE2 = 0.001\n")
+    result = CliRunner().invoke(app, ["theory", "--config", str(config), "--n-list", "4,8", "--front", "--json"])
+    assert result.exit_code == 0, result.output
+    rotation = json.loads(result.stdout)["rotation"]
+    assert rotation["discrete_front"]["smooth"] and rotation["quasi_continuum"]["front_energy"] == pytest.approx(quasi_continuum(WIDE).front_energy)
+    assert rotation["barrier"]["relaxed"] <= rotation["barrier"]["fixed"]
+
+
 def test_bad_input_is_refused():
     graded = ChainParams(N=1, E1_factors=(1.0, 2.0))
     with pytest.raises(ValueError, match="E1_factors"):
         bond_potential(graded, 0.0, 0.0)
     with pytest.raises(ValueError, match="half_length"):
         discrete_front(ChainParams(), half_length=1)
+
+
+def test_lattice_hessian_is_the_gradients_derivative():
+    from cosserat_chain.analysis.rotation_front import lattice_hessian
+
+    phi = np.array([0.0, 0.4, 1.3, 2.0, 4.1, 6.0])
+    step = 1e-6
+    numeric = np.array([(lattice_energy(WIDE, phi + step * e)[1] - lattice_energy(WIDE, phi - step * e)[1]) / (2 * step) for e in np.eye(phi.size)])
+    np.testing.assert_allclose(lattice_hessian(WIDE, phi), numeric, atol=1e-8)

@@ -47,23 +47,41 @@ def _require_uniform(params: ChainParams) -> None:
         raise ValueError("the bond potential needs a uniform chain: leave E1_factors and E2_factors out")
 
 
-def _links_energy(params: ChainParams, phi0: np.ndarray, phi1: np.ndarray, gradient: bool):
-    energy = np.zeros(np.broadcast(phi0, phi1).shape)
-    d0 = np.zeros_like(energy)
-    d1 = np.zeros_like(energy)
+def _links_energy(params: ChainParams, phi0: np.ndarray, phi1: np.ndarray, order: int):
+    """V and, for ``order`` >= 1, its first derivatives (V_0, V_1), for ``order`` 2 also (V_00, V_01, V_11).
+
+    Per link, D = (h, 0) + R(phi1) r1 - R(phi0) r0 and its length l = |D|: D_0 = -J R0 r0,
+    D_1 = J R1 r1 (J the quarter turn), D_00 = R0 r0, D_11 = -R1 r1, D_01 = 0;
+    l_i = D . D_i / l and l_ij = (D_i . D_j + D . D_ij) / l - l_i l_j / l; the link stores
+    E (l - l0)^2 / 2.
+    """
+    shape = np.broadcast(phi0, phi1).shape
+    out = [np.zeros(shape) for _ in range(6)]
     for link in bond_links(params):
-        r0x, r0y = rotate(link.left_corner, phi0)
-        r1x, r1y = rotate(link.right_corner, phi1)
-        dx, dy = params.h + r1x - r0x, r1y - r0y
-        length = np.hypot(dx, dy)
+        p0 = np.stack(rotate(link.left_corner, phi0))
+        p1 = np.stack(rotate(link.right_corner, phi1))
+        D = np.stack([params.h + p1[0] - p0[0], p1[1] - p0[1]])
+        length = np.hypot(D[0], D[1])
         stretch = length - link.rest_length
-        energy = energy + 0.5 * link.stiffness * stretch**2
-        if gradient:
-            # d(length)/d(phi) = D . dD/dphi / length, with d(R r)/dphi = (-(R r)_y, (R r)_x).
-            scale = link.stiffness * stretch / np.where(length > 0, length, 1.0)
-            d0 = d0 + scale * (dx * r0y - dy * r0x)
-            d1 = d1 + scale * (-dx * r1y + dy * r1x)
-    return energy, d0, d1
+        out[0] = out[0] + 0.5 * link.stiffness * stretch**2
+        if order < 1:
+            continue
+        safe = np.where(length > 0, length, 1.0)
+        d0 = np.stack([p0[1], -p0[0]])  # -J R0 r0
+        d1 = np.stack([-p1[1], p1[0]])  # J R1 r1
+        l0 = (D * d0).sum(axis=0) / safe
+        l1 = (D * d1).sum(axis=0) / safe
+        out[1] = out[1] + link.stiffness * stretch * l0
+        out[2] = out[2] + link.stiffness * stretch * l1
+        if order < 2:
+            continue
+        l00 = ((d0 * d0).sum(axis=0) + (D * p0).sum(axis=0)) / safe - l0 * l0 / safe
+        l01 = (d0 * d1).sum(axis=0) / safe - l0 * l1 / safe
+        l11 = ((d1 * d1).sum(axis=0) - (D * p1).sum(axis=0)) / safe - l1 * l1 / safe
+        out[3] = out[3] + link.stiffness * (l0 * l0 + stretch * l00)
+        out[4] = out[4] + link.stiffness * (l0 * l1 + stretch * l01)
+        out[5] = out[5] + link.stiffness * (l1 * l1 + stretch * l11)
+    return out[: (1, 3, 6)[order]]
 
 
 def bond_potential(params: ChainParams, phi0: np.ndarray | float, phi1: np.ndarray | float) -> np.ndarray:
@@ -82,7 +100,7 @@ def bond_potential(params: ChainParams, phi0: np.ndarray | float, phi1: np.ndarr
         The broadcast shape.
     """
     _require_uniform(params)
-    return _links_energy(params, np.asarray(phi0, dtype=float), np.asarray(phi1, dtype=float), False)[0]
+    return _links_energy(params, np.asarray(phi0, dtype=float), np.asarray(phi1, dtype=float), 0)[0]
 
 
 def fourier_content(params: ChainParams, *, grid: int = GRID, count: int = 8) -> list[tuple[int, int, float]]:
@@ -166,26 +184,44 @@ def quasi_continuum(params: ChainParams, *, grid: int = GRID) -> QuasiContinuum:
 def lattice_energy(params: ChainParams, phi: np.ndarray) -> tuple[float, np.ndarray]:
     """sum_k V(phi_k, phi_k+1) of a held chain with angles ``phi`` (n,), and its gradient (n,)."""
     phi = np.asarray(phi, dtype=float)
-    energy, d0, d1 = _links_energy(params, phi[:-1], phi[1:], True)
+    energy, d0, d1 = _links_energy(params, phi[:-1], phi[1:], 1)
     gradient = np.zeros_like(phi)
     gradient[:-1] += d0
     gradient[1:] += d1
     return float(energy.sum()), gradient
 
 
+def lattice_hessian(params: ChainParams, phi: np.ndarray) -> np.ndarray:
+    """The Hessian (n, n) of :func:`lattice_energy` (tridiagonal, stored dense)."""
+    phi = np.asarray(phi, dtype=float)
+    _, _, _, h00, h01, h11 = _links_energy(params, phi[:-1], phi[1:], 2)
+    hessian = np.zeros((phi.size, phi.size))
+    index = np.arange(phi.size - 1)
+    hessian[index, index] += h00
+    hessian[index + 1, index + 1] += h11
+    hessian[index, index + 1] = h01
+    hessian[index + 1, index] = h01
+    return hessian
+
+
 def _minimise(params: ChainParams, phi: np.ndarray, free: np.ndarray) -> tuple[float, np.ndarray]:
+    """Minimise over the ``free`` angles by a trust-region Newton method (exact Hessian; safe where it is indefinite)."""
     from scipy.optimize import minimize
 
-    def objective(values: np.ndarray) -> tuple[float, np.ndarray]:
+    def full(values: np.ndarray) -> np.ndarray:
         trial = phi.copy()
         trial[free] = values
-        energy, gradient = lattice_energy(params, trial)
+        return trial
+
+    def objective(values: np.ndarray) -> tuple[float, np.ndarray]:
+        energy, gradient = lattice_energy(params, full(values))
         return energy, gradient[free]
 
-    result = minimize(objective, phi[free], jac=True, method="L-BFGS-B", options={"ftol": 1e-15, "gtol": 1e-11, "maxiter": 20000})
-    out = phi.copy()
-    out[free] = result.x
-    return float(result.fun), out
+    def hessian(values: np.ndarray) -> np.ndarray:
+        return lattice_hessian(params, full(values))[np.ix_(free, free)]
+
+    result = minimize(objective, phi[free], jac=True, hess=hessian, method="trust-exact", options={"gtol": 1e-10, "maxiter": 2000})
+    return float(result.fun), full(result.x)
 
 
 @dataclass(frozen=True)
@@ -292,7 +328,9 @@ class TurnBarrier:
         With the neighbours held at 0: 2 max V(0, phi).
     relaxed : float
         With the other particles of a held lattice relaxing (each end held at 0): the largest,
-        over the turning particle's angle, of the minimum over the others.
+        over the turning particle's angle, of the minimum over the others (the lower of the
+        minima reached from the last angle and from rest): the top of the rotation-controlled
+        path, an upper bound of the saddle's energy, and at most ``fixed``.
     angle_fixed, angle_relaxed : float
         The turning particle's angle at the two barriers.
     """
@@ -327,25 +365,29 @@ def turn_barrier(params: ChainParams, *, half_length: int = 10, points: int = 64
     phi = np.zeros(2 * half_length + 1)
     free = np.ones(phi.size, dtype=bool)
     free[[0, half_length, -1]] = False
-    cache: dict[float, tuple[float, np.ndarray]] = {}
 
     def constrained(angle: float, start: np.ndarray) -> tuple[float, np.ndarray]:
-        trial = start.copy()
-        trial[half_length] = angle
-        result = _minimise(params, trial, free)
-        cache[angle] = result
-        return result
+        # The lower of two local minima: the one followed from the last angle (the neighbours
+        # dragged along) and the one from the others at rest (the neighbours left behind).
+        candidates = []
+        for guess in (start, phi):
+            trial = guess.copy()
+            trial[half_length] = angle
+            candidates.append(_minimise(params, trial, free))
+        return min(candidates, key=lambda item: item[0])
 
-    energies = []
+    angles = np.linspace(0.0, 2 * np.pi, points)
+    energies, states = [], []
     state = phi
-    for angle in np.linspace(0.0, 2 * np.pi, points):
+    for angle in angles:
         energy, state = constrained(float(angle), state)
         energies.append(energy)
+        states.append(state)
     best = int(np.argmax(energies))
-    angles = np.linspace(0.0, 2 * np.pi, points)
-    start = cache[float(angles[best])][1]
+    start = states[best]
     fine = minimize_scalar(
-        lambda a: -constrained(float(a), start)[0], bounds=(angles[max(best - 1, 0)], angles[min(best + 1, points - 1)]), method="bounded"
+        lambda a: -constrained(float(a), start)[0], bounds=(angles[max(best - 1, 0)], angles[min(best + 1, points - 1)]), method="bounded",
+        options={"xatol": 1e-6},
     )
     relaxed = max(-float(fine.fun), float(energies[best]))
     angle_relaxed = float(fine.x) if -float(fine.fun) >= energies[best] else float(angles[best])

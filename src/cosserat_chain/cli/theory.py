@@ -39,6 +39,12 @@ def theory(
         help="Also bend the chain's cantilever (clamped left, free right) by an end moment until its free end turns by this angle "
         "(rad, in (0, 2 pi]; 6.2832 closes it into a ring): model (i) against the geometrically exact beam's circle.",
     ),
+    front: bool = typer.Option(
+        False,
+        "--front",
+        help="Also turn particles fully with the centres held: model (i)'s bond potential (Fourier content), the quasi-continuum's "
+        "2 pi front against the discrete lattice's, and the barrier of one particle turning once.",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
     plot: Path | None = typer.Option(None, "--plot", help="Write the errors of the continua against N to this PNG or SVG file."),
     out: Path | None = typer.Option(None, "--out", help="Write the tables to this NetCDF file (variables over N)."),
@@ -83,6 +89,7 @@ def theory(
         except (ValueError, ArithmeticError) as err:
             fail(f"--bend-angle {bend_angle!r}: {err}")
     waves = _long_waves(params)
+    rotation = _rotation(params) if front else None
     if out is not None:
         dataset = beam.to_dataset(params)
         if bending is not None:
@@ -105,6 +112,7 @@ def theory(
         summary = _summary(params, table, order, listed)
         summary["timoshenko"] = {**stiffness.as_dict(), **beam.as_dict(), "at": at, "waves": waves}
         summary["exact_beam"] = None if bending is None else bending.as_dict()
+        summary["rotation"] = rotation
         summary.update({"plot": str(plot) if plot else None, "out": str(out) if out else None})
         typer.echo(json.dumps(summary))
         return
@@ -116,6 +124,8 @@ def theory(
     _print_beam(params, stiffness, beam, waves)
     if bending is not None:
         _print_bending(bending)
+    if rotation is not None:
+        _print_rotation(rotation)
     typer.echo(f"\nerrata of the paper (docs/errata.md), evaluated for N = {params.N}{'' if params.clamped else ' with both ends clamped'}:")
     for item in listed:
         typer.echo(f"  {item.number}. {item.where}: printed {item.printed}; derived {item.derived}.\n     {item.consequence}")
@@ -179,6 +189,46 @@ def _print_bending(bending) -> None:
     for which in ("moment", "tip"):
         order = bending.order(which)
         typer.echo(f"measured order of the {which} error: " + (f"N^-{order:.3f}" if order is not None else "none (zero to round-off)"))
+
+
+def _rotation(params) -> dict[str, Any]:
+    """The held lattice's numbers (:mod:`cosserat_chain.analysis.rotation_front`), as plain data."""
+    from ..analysis.rotation_front import discrete_front, fourier_content, quasi_continuum, turn_barrier
+
+    qc = quasi_continuum(params)
+    half_length = int(min(max(30, 6 * (qc.tail if qc.tail == qc.tail else 0)), 200))
+    return {
+        "fourier": [{"m": m, "n": n, "amplitude": c} for m, n, c in fourier_content(params, count=6)],
+        "quasi_continuum": qc.as_dict(),
+        "discrete_front": {**discrete_front(params, half_length=half_length).as_dict(), "half_length": half_length},
+        "barrier": {**turn_barrier(params, half_length=min(half_length, 30), points=32).as_dict(), "half_length": min(half_length, 30)},
+    }
+
+
+def _print_rotation(rotation: dict[str, Any]) -> None:
+    qc, front, barrier = rotation["quasi_continuum"], rotation["discrete_front"], rotation["barrier"]
+    terms = ", ".join(f"({t['m']},{t['n']}) {t['amplitude']:.4g}" for t in rotation["fourier"])
+    typer.echo(f"\nfull rotation, centres held: bond potential V(phi_k, phi_k+1) of model (i); largest Fourier terms (m,n) amplitude: {terms}")
+
+    def number(value: float | None, fmt: str) -> str:
+        return "none" if value is None else format(value, fmt)
+
+    typer.echo(
+        f"  quasi-continuum 2 pi front: energy {number(qc['front_energy'], '.6g')}, width {number(qc['width'], '.3g')} particles, "
+        f"tails {number(qc['tail'], '.3g')} particles" + ("" if qc["front_energy"] is not None else " (kappa < 0 at some angle: no front)")
+    )
+    if front["smooth"]:
+        typer.echo(
+            f"  discrete front: energy {front['energy']:.6g}, width {front['width']:.3g} particles, Peierls barrier {front['peierls_barrier']:.3g}"
+        )
+    else:
+        typer.echo(
+            "  discrete front: none; it slips into one bond (neighbours 2 pi apart, no energy) or one particle half-turned "
+            f"(energy {front['energy_site']:.6g}): a localized rotation no smooth continuum describes"
+        )
+    typer.echo(
+        f"  barrier of one particle turning once: {barrier['fixed']:.6g} past fixed neighbours, {barrier['relaxed']:.6g} with the others relaxing"
+    )
 
 
 def _long_waves(params) -> dict[str, Any]:
