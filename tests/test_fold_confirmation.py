@@ -124,7 +124,7 @@ def test_a_failed_second_trace_leaves_the_folds_unconfirmed_and_says_why(monkeyp
         return original(params, model, **kwargs)
 
     monkeypatch.setattr(critical, "continue_in_moment", traced)
-    result = critical_point(ChainParams(), "sine")
+    result = critical_point(ChainParams(), "nonlinear")  # eq. (2)'s folds are confirmed by their closed form, not traced twice
     assert result.confirmation.startswith("the second trace failed: the corrector failed")
     assert not result.accurate and all(f.confirmed is False and f.discrepancy == math.inf for f in result.branch.folds)
     assert result.as_dict()["folds"][0]["discrepancy"] is None  # JSON has no inf

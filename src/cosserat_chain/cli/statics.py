@@ -108,20 +108,28 @@ def critical(
     max_points: int | None = typer.Option(
         None, min=2, help="Most points of each branch (default 5000); a branch cut short exits with max_steps (3)."
     ),
+    turns: float | None = number(
+        None, "Budget in turns of the loaded particle for a branch that stays stable past one turn (default 16); reached, "
+        "it exits with max_steps (3).", at_least=1.0,
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
-    """Critical moment M_c and phi_0 at the fold (to round-off), compliance, and the static branch over one turn."""
-    from ..experiments.critical import CONFIRM_MOMENT_RTOL, MAX_POINTS, critical_point
+    """Critical moment M_c and phi_0 at the fold (to round-off), compliance, and the static branch over one turn and on to
+    where its stable part from rest ends."""
+    from ..experiments.critical import CONFIRM_MOMENT_RTOL, MAX_POINTS, TURNS, critical_point
     from ..numerics.newton import NewtonError
 
     max_points = MAX_POINTS if max_points is None else max_points
+    turns = TURNS if turns is None else turns
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     params = params_or_exit(config)
     results = {}
     for name in chosen_models(model):
         bar = progress_bar(f"critical {name}", "rad")
         try:
-            results[name] = critical_point(params, name, particle=particle, max_points=max_points, progress=bar_callback(bar))
+            results[name] = critical_point(
+                params, name, particle=particle, max_points=max_points, turns=turns, progress=bar_callback(bar)
+            )
         except (ValueError, NewtonError) as err:
             bar.close()
             fail(str(err), code=2 if isinstance(err, ValueError) else 3)
@@ -147,12 +155,24 @@ def critical(
             if r.as_dict()["snap_through"]:
                 fold += f"; the stable branch from rest ends earlier, at M = {r.first_fold.moment:.15g}, phi_0 = {r.first_fold.phi0:.15g} rad (snap-through"
                 fold += ")" if r.snap_to is None else f" to the stable state at phi_0 = {r.snap_to.phi0:.15g} rad)"
-            over = "over the turn" if r.complete else f"on the traced part (incomplete: {len(r.branch.moment)} points)"
-            if r.confirmation != "once":
+            if r.onset_particle is not None and r.onset_particle != r.particle:
+                fold += f"; particle {r.onset_particle}, not the loaded one, turns first there"
+            over = f"to phi_0 = {r.branch.phi0[-1]:.6g} rad" if r.complete else f"on the traced part (incomplete: {len(r.branch.moment)} points)"
+            if r.branch.stop == "wound":
+                over += f" (the trace stopped: {r.branch.message})"
+            if r.confirmation == "closed form":
+                over += ", each at eq. (2)'s closed form M = +-1 / max_j |dphi_j/dM|"
+            elif r.confirmation != "once":
                 confirmed = sum(bool(f.confirmed) for f in r.branch.folds)
                 over += f", {confirmed} of them confirmed by a second trace with other steps"
             typer.echo(f"{name}: {fold}; compliance dphi_0/dM = {r.compliance:.15g}; {len(r.branch.folds)} folds {over}")
     for name, r in results.items():
+        if r.budget_reached:
+            exit_on(
+                Status.MAX_STEPS,
+                f"the {name} branch from rest is still stable after {turns:g} turns of the loaded particle (phi_0 = "
+                f"{r.branch.phi0[-1]:.6g}): its end, and M_c, lie beyond (raise --turns)",
+            )
         if r.branch.stop == "max_points":
             exit_on(
                 Status.MAX_STEPS,

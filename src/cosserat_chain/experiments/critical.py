@@ -343,7 +343,9 @@ def critical_point(
     end = branch.stable_end
     if end is not None:
         # The stable branch ends at a branch point, not at a fold: the chain leaves it there.
-        onset_particle = end.mode_particle if onset_particle is None else onset_particle
+        if onset_particle is None and abs(end.index_after - end.index_before) == 1:
+            # Several eigenvalues through zero together (a cantilever's bonds, all alike) name no one particle.
+            onset_particle = end.mode_particle
         return CriticalResult(
             params, model.name, particle, fold, compliance, branch, first, None, end, confirmation, turns if model.rotates else None,
             onset_particle,
@@ -367,12 +369,15 @@ def _sine_folds(params: ChainParams, branch: Branch, angles: np.ndarray, particl
     there. Traced, the folds' moments carry the continuation's round-off (N = 10^4: 3.6e-6 from this);
     ``discrepancy`` keeps it.
     """
-    exact = 1.0 / float(np.max(np.abs(angles)))
-    ratio = float(angles[column(params, particle)]) * exact
+    turning = int(np.argmax(np.abs(angles)))
+    exact = 1.0 / abs(float(angles[turning]))
+    loaded = column(params, particle)
+    # asin near 1 loses half the digits of its argument's round-off: the turning particle's own angle is pi/2.
+    first = math.copysign(math.pi / 2, angles[loaded]) if turning == loaded else math.asin(float(angles[loaded]) * exact)
     out = []
     for i, f in enumerate(branch.folds):
         moment = math.copysign(exact, f.moment)
-        phi0 = math.asin(max(-1.0, min(1.0, ratio))) if i == 0 else f.phi0
+        phi0 = first if i == 0 else f.phi0
         out.append(replace(f, moment=moment, phi0=phi0, confirmed=True, discrepancy=abs(f.moment - moment)))
     return out
 

@@ -531,7 +531,7 @@ def continue_in_moment(
     max_folds : int, optional
         Stop once this many folds have been passed.
     progress : callable(|phi_0|, total), optional
-        ``total`` is ``phi0_until_unstable`` until |phi_0| passes it, then ``phi0_stop``.
+        ``total`` is ``phi0_until_unstable`` until |phi_0| passes it on a stable branch, then ``phi0_stop``.
 
     Returns
     -------
@@ -944,7 +944,7 @@ def continue_in_moment(
         angles = np.abs(x[ROW_INDEX["phi"]])
         lead = int(np.argmax(angles))
         if progress is not None:
-            total = phi0_until_unstable if phi0_until_unstable is not None and phi < phi0_until_unstable else phi0_stop
+            total = phi0_until_unstable if phi0_until_unstable is not None and (phi < phi0_until_unstable or lost) else phi0_stop
             progress(min(phi, total), total)
         if y[-1] * previous_moment < 0 and len(moments) > 2 and _passes_rest(states[-2], x, previous_moment, y[-1]):
             # Back through the rest state: going on would trace the mirrored branch
