@@ -80,7 +80,7 @@ def stored_params(attrs: Mapping[str, Any], source: str) -> ChainParams:
         Naming the source: no such attribute, not JSON, not an object, or invalid parameters.
     """
     try:
-        return params_from_mapping(_json_attribute(attrs, "params_json", source), source=f"params_json of {source}")
+        return params_from_mapping(_json_attribute(attrs, "params_json", source), source="params_json")
     except InputFileError:
         raise
     except ValueError as err:  # pydantic's ValidationError too
@@ -98,7 +98,7 @@ def stored_loads(attrs: Mapping[str, Any], params: ChainParams, source: str) -> 
     from .loads import Loads
 
     try:
-        return Loads.from_list(_json_attribute(attrs, "loads_json", source, "[]"), source=f"loads_json of {source}").validate(params)
+        return Loads.from_list(_json_attribute(attrs, "loads_json", source, "[]"), source="loads_json").validate(params)
     except InputFileError:
         raise
     except ValueError as err:

@@ -222,6 +222,14 @@ def _resume(spec: StudySpec, out: Path | None) -> xr.Dataset:
         raise ValueError(f"{out} holds the results of a different study spec; choose another --out or delete it")
     if previous.attrs.get("time_step_rule") != fresh.attrs["time_step_rule"]:
         raise ValueError(f"{out} was computed under another time-step rule (an earlier version); choose another --out or delete it")
+    for name, variable in fresh.variables.items():  # a file edited or damaged under the same spec: never half-trusted
+        stored = previous.variables.get(name)
+        if stored is None or stored.dims != variable.dims or stored.shape != variable.shape:
+            raise ValueError(
+                f"{out} lacks the variable {name!r} over {variable.dims} of this study's results; choose another --out or delete it"
+            )
+    if not np.isin(previous["done"].values, (0, 1)).all():
+        raise ValueError(f"{out}: its variable 'done' holds values other than 0 and 1; choose another --out or delete it")
     previous["error"] = previous["error"].astype(object)
     # A file of an earlier version lacks attributes added since (loads_json): the same spec implies their values.
     previous.attrs.update({key: value for key, value in fresh.attrs.items() if key not in previous.attrs})

@@ -166,8 +166,18 @@ def fail(message: str, code: int = 2) -> NoReturn:
 
 
 def params_or_exit(config: Path | None) -> ChainParams:
-    """Read the TOML config (or the paper's defaults); a bad field exits with its name and value."""
-    return config_or_exit(config)[0]
+    """Read the TOML config (or the paper's defaults); a bad field exits with its name and value.
+
+    The commands that read only the chain take no loads from the file: a config with
+    ``[[loads]]`` tables is refused (exit 2) rather than answered for another load than it says.
+    """
+    params, loads = config_or_exit(config)
+    if len(loads):
+        fail(
+            f"--config {str(config)!r} has {len(loads)} [[loads]] table(s), which this command does not use (it reads the "
+            "chain only; its load is its own --moment): leave them out of the file, or run simulate, rotate or sweep, which apply them"
+        )
+    return params
 
 
 def config_or_exit(config: Path | None, load: list[str] | None = None) -> tuple[ChainParams, Loads]:
@@ -241,6 +251,67 @@ class ProgressBar(tqdm):
             self.close()
 
 
+#: Most particle-steps (particles x time steps) a command starts: some 10^5 s, more than a day, at the
+#: engine's best speed of about 10^9 particle-steps a second on one core. Beyond it a run is refused
+#: before it starts, with its estimate: such a run is a mistyped step, moment or count, not a plan.
+MAX_WORK = 1e14
+
+#: Most radians the spinning particle may turn in one step at its terminal spin M / gamma_phi: half a
+#: turn, beyond which no turn can be told from its reverse (the turn count itself aliases).
+MAX_TURN_PER_STEP = math.pi
+
+#: Chains up to this many particles get their default time step computed for the checks before a
+#: run; a longer one meets the run's own memory estimate first (the step's bound is O(N) work).
+_CHECKED_PARTICLES = 10**6
+
+
+def step_for_checks(params: ChainParams, model: str, dt: float | None) -> float | None:
+    """The time step a run will take, ``dt`` or the model's default; None for a chain too long to check cheaply."""
+    if dt is not None:
+        return float(dt)
+    if params.n_particles > _CHECKED_PARTICLES:
+        return None
+    from ..numerics.dynamics import default_time_step
+
+    return default_time_step(params, model)
+
+
+def work_or_exit(steps: float, particles: int, what: str, remedy: str) -> None:
+    """Refuse (exit 2), before it starts, work of more than :data:`MAX_WORK` particle-steps, with the estimate.
+
+    Parameters
+    ----------
+    steps : float
+        Time steps the work takes at least (all runs together).
+    particles : int
+        Particles of the chain.
+    what : str
+        How the estimate is made, e.g. ``"1e+09 starts x 2.4e+05 steps"``.
+    remedy : str
+        What to change.
+    """
+    work = steps * particles
+    if not work <= MAX_WORK:  # also NaN
+        fail(
+            f"this would take at least {work:.3g} particle-steps ({what}, x {particles} particles), some "
+            f"{work / 1e9 / 86400:.3g} days at 10^9 particle-steps a second; at most {MAX_WORK:.0e} are started: {remedy}"
+        )
+
+
+def spin_or_exit(params: ChainParams, moment: float, dt: float | None, option: str = "--moment", *, dt_option: bool = True) -> None:
+    """Refuse (exit 2) a moment whose terminal spin |M| / gamma_phi turns its particle by more than half a turn a step of ``dt``."""
+    if dt is None or params.gamma_phi == 0.0 or moment == 0.0:
+        return
+    spin = abs(moment) / params.gamma_phi
+    if spin * dt > MAX_TURN_PER_STEP:
+        fail(
+            f"{option} {moment:g} spins its particle at up to |M| / gamma_phi = {spin:.3g} rad per unit time, {spin * dt:.3g} rad "
+            f"per step of dt={dt:.3g}: more than half a turn a step, which no run can follow (its turns cannot be counted); "
+            f"a moment below {MAX_TURN_PER_STEP * params.gamma_phi / dt:.3g}"
+            + (f", or --dt <= {MAX_TURN_PER_STEP / spin:.3g}" if dt_option else "")
+        )
+
+
 def progress_bar(desc: str, unit: str) -> ProgressBar:
     """A :class:`ProgressBar` on stderr, shown only on a terminal (``disable=None``), counting whole ``unit``s."""
     return ProgressBar(total=None, unit=unit, unit_scale=False, desc=desc, disable=None, file=sys.stderr)
@@ -274,9 +345,10 @@ def number(
     *,
     above: float | None = None,
     at_least: float | None = None,
+    at_most: float | None = None,
     flags: tuple[str, ...] = (),
 ):
-    """A float option that must be finite (and > ``above`` or >= ``at_least``), checked as the line is parsed.
+    """A float option that must be finite (and > ``above`` or >= ``at_least``, <= ``at_most``), checked as the line is parsed.
 
     A bad value exits with code 2 and click's "Invalid value for '--name'" message,
     before anything is computed. (click's own ranges let NaN through: every comparison
@@ -292,6 +364,8 @@ def number(
             raise typer.BadParameter(f"must be > {above:g}, got {value!r}")
         if at_least is not None and not value >= at_least:
             raise typer.BadParameter(f"must be >= {at_least:g}, got {value!r}")
+        if at_most is not None and not value <= at_most:
+            raise typer.BadParameter(f"must be <= {at_most:g}, got {value!r}")
         return value
 
     return typer.Option(default, *flags, callback=check, help=help)
@@ -388,12 +462,15 @@ _WRITTEN_BY = {
 }
 
 
-def run_or_exit(run: Path):
+def run_or_exit(run: Path, *, velocities: bool = False):
     """The run of ``simulate --out`` stored in ``run`` (an xarray Dataset); exit 2 naming what the file is otherwise.
 
-    A run holds u, v and phi over time and particle. Any other file is named: a result
+    A run holds u, v and phi over time and particle (and their velocities where
+    ``velocities``), checked field by field (:func:`cosserat_chain.inputs.check_run`): a
+    damaged or edited run is named with what is wrong. Any other file is named: a result
     of another command (by its ``experiment`` attribute), or not a file of this package.
     """
+    from ..inputs import check_run
     from ..io import read_dataset
     from ..state import ROWS
 
@@ -401,7 +478,11 @@ def run_or_exit(run: Path):
         ds = read_dataset(run)
     except ValueError as err:
         fail(f"RUN: {err}")
-    if all(row in ds and set(ds[row].dims) == {"time", "particle"} for row in ROWS):
+    if any(row in ds.variables and set(ds.variables[row].dims) == {"time", "particle"} for row in ROWS):
+        try:
+            check_run(ds, f"RUN {str(run)!r}", velocities=velocities)
+        except ValueError as err:
+            fail(str(err))
         return ds
     experiment = ds.attrs.get("experiment")
     command = _WRITTEN_BY.get(experiment)

@@ -32,7 +32,7 @@ def export(
             frames_folder(out)  # a folder of the user's in the way is refused before any work
         except OutputError as err:
             fail(f"--out {str(out)!r}: {err}")
-    ds = run_or_exit(run)
+    ds = run_or_exit(run, velocities=True)
     from ..exports import export as write_export
 
     bar = progress_bar(f"export {to.value}", "frame")

@@ -19,6 +19,8 @@ from .common import (
     progress_bar,
     save_dataset,
     save_figure,
+    spin_or_exit,
+    step_for_checks,
 )
 
 
@@ -41,12 +43,14 @@ def orbit(
 ) -> None:
     """Find the rotating state as a limit cycle: period, mean angular velocity, Floquet multipliers, stability."""
     from ..experiments.orbits import periodic_orbit
+    from ..numerics.dynamics import IntegrationError
     from ..numerics.periodic import OrbitError
 
     if plot is not None and down_to is None:
         fail("--plot draws the continued branch: give --down-to as well")
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     params = params_or_exit(config)
+    spin_or_exit(params, moment, step_for_checks(params, model, None), dt_option=False)
     bar = progress_bar(f"orbit {model}", "orbit")
     try:
         result = None
@@ -60,7 +64,7 @@ def orbit(
     except ValueError as err:
         bar.close()
         fail(str(err))
-    except OrbitError as err:
+    except (OrbitError, IntegrationError) as err:
         bar.close()
         fail(str(err), code=3)
     bar.finish(note=f"the branch ended: {result.branch.end}" if result.branch is not None else "")

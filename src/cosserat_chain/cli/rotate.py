@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import typer
@@ -18,6 +19,9 @@ from .common import (
     number,
     progress_bar,
     save_dataset,
+    spin_or_exit,
+    step_for_checks,
+    work_or_exit,
 )
 
 
@@ -53,6 +57,17 @@ def rotate(
 
     checkpoint = checkpoint_or_exit(checkpoint, out, resume=resume, force=force, inputs={"--config": config})
     params, extra = config_or_exit(config, load)
+    step = step_for_checks(params, model, dt)
+    if step is not None:
+        spin_or_exit(params, moment, step)
+        # The turns take at least theta gamma_phi / |M| (the spin stays below |M| / gamma_phi) and
+        # sqrt(2 j theta / |M|) (the spin-up from rest), whatever the chain does.
+        drive = abs(moment) + sum(l.schedule.bound() for l in extra if l.row == "phi" and l.particle == particle)
+        theta = 2 * math.pi * turns
+        inertia = params.j * min(params.j_factors or (1.0,))
+        least = min(t_max, max(theta * params.gamma_phi / drive, math.sqrt(2 * inertia * theta / drive))) if drive else t_max
+        what = f"{least:.3g} time units of turning at dt={step:.3g}"
+        work_or_exit(least / step, params.n_particles, what, "a larger --dt, fewer --turns or a smaller --t-max")
     bar = progress_bar(f"rotate {model}", "turn")
     try:
         result = localization_run(

@@ -166,7 +166,7 @@ def _frame_or_exit(path: Path, at: float | None):
     from ..io import read_dataset, run_frame
 
     try:
-        return run_frame(read_dataset(path), at)
+        return run_frame(read_dataset(path), at, source=repr(str(path)))
     except ValueError as err:
         fail(f"--x0 {str(path)!r}: {err}")
 

@@ -3,12 +3,26 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import typer
 
 from ..status import Status
-from .common import EXIT_CODES, app, bar_callback, config_or_exit, exit_on, fail, model_option, number, progress_bar
+from .common import (
+    EXIT_CODES,
+    app,
+    bar_callback,
+    config_or_exit,
+    exit_on,
+    fail,
+    model_option,
+    number,
+    progress_bar,
+    spin_or_exit,
+    step_for_checks,
+    work_or_exit,
+)
 
 
 @app.command()
@@ -41,6 +55,15 @@ def states(
     params, loads = config_or_exit(config)
     if len(loads):
         fail("--config: states takes no [[loads]] tables (the moment is the only load)")
+    step = step_for_checks(params, model, None)
+    if step is not None:
+        spin_or_exit(params, moment, step, dt_option=False)
+        # The long runs, and the shots for orbits of k = 1..TURNS turns, each at least k turns long
+        # (2 pi k gamma_phi / |M| at the spin's bound |M| / gamma_phi).
+        shots = math.pi * turns * (turns + 1) * params.gamma_phi / abs(moment) if moment else 0.0
+        what = f"{random_starts} long runs of {t_long:g} and shots over {shots:.3g} time units at dt={step:.3g}"
+        remedy = "fewer --random-starts or --turns, or a shorter --t-long"
+        work_or_exit((random_starts * t_long + shots) / step, params.n_particles, what, remedy)
     bar = progress_bar(f"states {model}", "start")
     try:
         result = states_at(
