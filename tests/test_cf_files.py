@@ -80,8 +80,11 @@ def files(tmp_path_factory) -> dict[str, Path]:
         "report_critical": _write(
             tmp, "report_critical", stack_models({m: critical_point(paper, m).to_dataset() for m in ("sine", "linear")})
         ),
+        # Sweeps of different lengths, as the report's: stacking pads their text with NaN.
         "report_sweep": _write(
-            tmp, "report_sweep", stack_models({m: relaxation_sweep(paper, m, m_max=0.02, dm=0.01).to_dataset() for m in ("sine", "linear")})
+            tmp,
+            "report_sweep",
+            stack_models({m: relaxation_sweep(paper, m, m_max=top, dm=0.01).to_dataset() for m, top in (("sine", 0.03), ("linear", 0.02))}),
         ),
     }
     # theory --out: the beam table merged with the bending table, as the command merges them.
@@ -200,6 +203,9 @@ def test_coordinates_have_no_fill_value_and_text_is_characters(files):
         assert f["error"].dtype.kind == "S" and f["error"].dtype.itemsize == 1, "a character array, not the string type"
     with h5py.File(files["simulate"]) as f:
         assert "_FillValue" not in f["time"].attrs and "_FillValue" not in f["particle"].attrs
+    stacked = read_dataset(files["report_sweep"])
+    assert stacked["status"].sel(model="linear").values.tolist() == ["static", "static", ""], "a gap is an empty string"
+    assert stacked["direction"].dims == ("model", "step") and "direction" in stacked.data_vars, "no label of two dimensions"
     study = read_dataset(files["study"])
     assert study["error"].values.tolist() == [[""], ["a failed cell keeps its message"]]
     assert study["model"].values.tolist() == ["linear"]

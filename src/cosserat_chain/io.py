@@ -804,7 +804,8 @@ def describe(dataset: xr.Dataset) -> xr.Dataset:
     ``final_`` or ``diag_`` prefix): ``units`` ("1" or "rad") and ``scale``
     (:func:`cf_attributes`), which replace any the producer set, and a ``long_name`` where
     the producer set none. Coordinates get no fill value (CF forbids one); text is
-    written as character arrays.
+    written as character arrays, and a text coordinate of more than one dimension (results
+    stacked by :func:`stack_models`) as a data variable, since a CF label has one.
     """
     from . import __version__
 
@@ -821,6 +822,9 @@ def describe(dataset: xr.Dataset) -> xr.Dataset:
             "units_convention": UNITS_CONVENTION,
         }
     )
+    # A label (a text coordinate) has one dimension in CF: one of stacked results becomes a variable.
+    labels = [name for name in dataset.coords if name not in dataset.indexes and dataset[name].ndim > 1 and dataset[name].dtype.kind in "USO"]
+    dataset = dataset.reset_coords(labels)
     for name, variable in dataset.variables.items():
         described = _describe_variable(str(name), dataset)
         if described is not None:
@@ -830,10 +834,23 @@ def describe(dataset: xr.Dataset) -> xr.Dataset:
             variable.attrs.setdefault("long_name", attrs["long_name"])
         if name in dataset.coords:
             variable.encoding["_FillValue"] = None
-        if variable.dtype.kind in "US" or (variable.dtype.kind == "O" and all(isinstance(x, str) for x in variable.values.flat)):
+        if variable.dtype.kind in "US" or (name not in dataset.indexes and _text(variable)):
             # Character arrays, which every CF version and reader knows (the netCDF-4 string type is CF-1.9's).
             variable.encoding["dtype"] = "S1"
     return dataset
+
+
+def _text(variable: xr.Variable) -> bool:
+    """Whether an object array is text, its gaps (NaN or None, where results of different lengths were stacked) made empty strings."""
+    if variable.dtype.kind != "O":
+        return False
+    flat = variable.values.ravel()
+    text = np.array([isinstance(x, str) for x in flat], dtype=bool)
+    gaps = np.array([x is None or (isinstance(x, float) and math.isnan(x)) for x in flat], dtype=bool)
+    if not text.any() or not np.all(text | gaps):
+        return False
+    variable.values = np.where(gaps, "", flat).astype(object).reshape(variable.shape)
+    return True
 
 
 def netcdf_image(dataset: xr.Dataset) -> memoryview:
