@@ -11,8 +11,7 @@ regular: a Hopf point, which K's inertia cannot see. For a conservative model wi
 damping there is none (the unstable count equals K's negative count at every state); the
 sine model (eq. 2) has them: its unstable branch at N = 2 (paper's geometry) gains an unstable
 pair at phi_0 = 1.658 (M = 0.2894) and loses it at phi_0 = 2.438 (M = 0.1880), where K keeps one
-negative eigenvalue
-(and the mirror pair at 2 pi - phi_0, M -> -M).
+negative eigenvalue (and the mirror pair at 2 pi - phi_0, M -> -M).
 
 :func:`hopf_points` detects them as a change of the number of unstable complex pairs between
 two traced points with the same stiffness index, and locates each on the rotation-controlled

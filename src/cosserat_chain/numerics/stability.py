@@ -618,11 +618,13 @@ def _unstable_count(scaled: sp.spmatrix, rate: np.ndarray, tolerance: float) -> 
     turns the phase by pi per eigenvalue. On the circle the phase of det(I + R/z + K~/z^2)
     (that of z^(2n) taken out) turns slowly; down the line every eigenvalue left of it turns
     the phase by up to pi, and the steps follow it: a step that turns the phase by more than
-    :data:`PHASE_STEP` is halved, one that turns it by less grows by half. Two eigenvalues
-    within one step and nearer the line than its length could hide each other's turn: the
-    first step is the damping's rate over 8, eigenvalues of the damped chain lie about half
-    their rate left of the line, and the steps shrink towards the real axis, where the slow
-    overdamped modes lie (within 1e-7 of zero at N = 100).
+    :data:`PHASE_STEP` is halved, one that turns it by less grows by half. Eigenvalues within
+    one step and nearer the line than its length could hide each other's turns: the steps are
+    at most a quarter of the least damping rate r_min, since a complex eigenvalue of a
+    conservative damped chain lies at least r_min / 2 left of the axis (Re lambda =
+    -y*Ry / 2 for its eigenvector y), and they shrink towards the real axis, where the slow
+    overdamped modes lie (within 1e-7 of zero at N = 100). The cost is O(n) a point and
+    O(rho / r_min) points.
     """
     band, width = _pencil_band(scaled)
     n = scaled.shape[0]
@@ -644,8 +646,8 @@ def _unstable_count(scaled: sp.spmatrix, rate: np.ndarray, tolerance: float) -> 
     total = _follow_phase(arc, 0.0, 0.5 * math.pi, 0.5 * math.pi / 64)
     total += 2 * n * (math.atan2(corner.imag, corner.real) - math.atan2(start.imag, start.real))
     damped = rate[rate > 0]
-    first = 0.125 * float(damped.min()) if damped.size else radius / 4096
-    total += _follow_phase(line, radius, 0.0, -min(first, radius / 64), floor=tolerance * 1e-3)
+    largest = min(0.25 * float(damped.min()) if damped.size else radius / 4096, radius / 64)
+    total += _follow_phase(line, radius, 0.0, largest, floor=tolerance * 1e-3, largest=largest)
     return int(round(total / math.pi))
 
 
@@ -653,11 +655,13 @@ def _unstable_count(scaled: sp.spmatrix, rate: np.ndarray, tolerance: float) -> 
 PHASE_STEP = 0.25 * math.pi
 
 
-def _follow_phase(phase, begin: float, end: float, step: float, floor: float = 0.0) -> float:
+def _follow_phase(phase, begin: float, end: float, step: float, floor: float = 0.0, largest: float = math.inf) -> float:
     """The phase's total turn from ``begin`` to ``end`` (a real parameter), in steps that turn it by less than PHASE_STEP.
 
-    Steps grow by half after each accepted one and halve on a larger turn; near ``end``
-    they are kept below the distance left (geometric towards it, down to ``floor``).
+    Steps grow by half after each accepted one, up to ``largest``, and halve on a larger
+    turn; near ``end`` they are kept below half the distance left (geometric towards it,
+    down to ``floor``). Growing by half, a step turns the phase by at most about 1.5 times
+    the last one's unless its rate jumps sevenfold, so a turn of 2 pi is never taken for none.
     """
     here, value, total = begin, phase(begin), 0.0
     direction = 1.0 if end > begin else -1.0
@@ -671,7 +675,7 @@ def _follow_phase(phase, begin: float, end: float, step: float, floor: float = 0
             step = 0.5 * length
             continue
         total += turn
-        here, value, step = there, after, 1.5 * length
+        here, value, step = there, after, min(1.5 * length, largest)
     return total
 
 

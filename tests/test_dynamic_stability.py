@@ -1,0 +1,134 @@
+"""Dynamic stability of static states from the damped first-order system, and Hopf points (issue 45, item 4).
+
+Checked against a theorem (conservative K with positive damping: the unstable count is K's
+negative count), against LAPACK's dense eigenvalues, against the determinant's parity, and
+at the sine model's Hopf points by the eigenvalues on either side and the branch's symmetry.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cosserat_chain.numerics.continuation import continue_in_moment
+from cosserat_chain.numerics.hopf import crossing_part, hopf_points
+from cosserat_chain.numerics.newton import solve_rotation_controlled
+from cosserat_chain.numerics.stability import dynamic_stability
+from cosserat_chain.params import ChainParams
+from cosserat_chain.state import zeros
+
+#: Paper's geometry at N = 2: the sine model's Hopf points (phi_0, M), located once by this package
+#: and checked here by the eigenvalues on either side.
+HOPF_PHI0 = (1.6575078516528, 2.4380368033649)
+
+
+@pytest.fixture(scope="module")
+def sine_branch():
+    params = ChainParams(N=2)
+    return params, continue_in_moment(params, "sine", phi0_stop=2 * math.pi)
+
+
+@pytest.fixture(scope="module")
+def hopf(sine_branch):
+    params, branch = sine_branch
+    return hopf_points(params, "sine", branch)
+
+
+@pytest.mark.parametrize("gammas", [(0.1, 0.1, 0.1), (0.02, 0.5, 0.003)])
+def test_conservative_models_unstable_count_equals_the_stiffness_index(gammas):
+    # With positive damping and symmetric K, x is stable iff K > 0, and the damped dynamics
+    # has exactly as many unstable eigenvalues as K has negative ones (all real).
+    params = ChainParams(N=3, gamma_u=gammas[0], gamma_v=gammas[1], gamma_phi=gammas[2])
+    branch = continue_in_moment(params, "nonlinear", phi0_stop=2 * math.pi)
+    indices = set()
+    for x in branch.x[::4]:
+        s = dynamic_stability(params, "nonlinear", x)
+        assert s.unstable_eigenvalues == s.stiffness_index and s.unstable_pairs == 0
+        assert s.stable == (s.stiffness_index == 0)
+        indices.add(s.stiffness_index)
+    assert indices == {0, 1}  # both kinds of state were met
+    linear = dynamic_stability(params, "linear", branch.x[len(branch.x) // 2])
+    assert linear.stable and linear.stiffness_index == 0 and linear.unstable_eigenvalues == 0
+
+
+def test_sine_unstable_branch_has_more_unstable_eigenvalues_than_stiffness_index(sine_branch):
+    params, _ = sine_branch
+    x, _ = solve_rotation_controlled(params, "sine", 2.0, tol=1e-13)
+    s = dynamic_stability(params, "sine", x)
+    assert (s.stiffness_index, s.unstable_eigenvalues, s.unstable_real, s.unstable_pairs) == (1, 3, 1, 1)
+    assert not s.stable and s.describe() == "unstable eigenvalues: 3 (1 real, 1 complex pair; stiffness index 1)"
+
+
+def test_sine_hopf_points_at_n2_are_located_and_mirror_each_other(hopf):
+    assert len(hopf) == 4 and all(h.located for h in hopf)
+    assert [h.unstable_before for h in hopf] == [1, 3, 1, 3] and [h.unstable_after for h in hopf] == [3, 1, 3, 1]
+    assert all(h.stiffness_index == 1 for h in hopf)
+    np.testing.assert_allclose([h.phi0 for h in hopf[:2]], HOPF_PHI0, atol=1e-9)
+    # phi -> 2 pi - phi, M -> -M maps eq. (2)'s branch to itself (cos phi is even about pi).
+    for first, mirror in zip(hopf[:2], hopf[::-1][:2]):
+        assert first.phi0 + mirror.phi0 == pytest.approx(2 * math.pi, abs=1e-9)
+        assert first.moment == pytest.approx(-mirror.moment, abs=1e-10)
+        assert first.frequency == pytest.approx(mirror.frequency, rel=1e-8)
+
+
+def test_the_crossing_pair_is_on_the_axis_at_a_hopf_point_and_off_it_either_side(sine_branch, hopf):
+    params, _ = sine_branch
+    for h in hopf[:2]:
+        at = dynamic_stability(params, "sine", h.x)
+        real, frequency = crossing_part(at)
+        assert abs(real) < 1e-9 and frequency == pytest.approx(h.frequency)
+        counts = []
+        for offset in (-1e-3, 1e-3):
+            x, _ = solve_rotation_controlled(params, "sine", h.phi0 + offset, x0=h.x, moment0=h.moment, tol=1e-13)
+            counts.append(dynamic_stability(params, "sine", x).unstable_eigenvalues)
+        assert counts == [h.unstable_before, h.unstable_after]
+
+
+def test_sparse_path_equals_dense_eigenvalues_at_small_n(sine_branch):
+    params, branch = sine_branch
+    for x in branch.x[::5]:
+        dense = dynamic_stability(params, "sine", x, method="dense")
+        sparse = dynamic_stability(params, "sine", x, method="sparse")
+        assert (sparse.method, dense.method) == ("sparse", "dense")
+        assert sparse.unstable_eigenvalues == dense.unstable_eigenvalues
+        assert sparse.unstable_pairs == dense.unstable_pairs and sparse.stiffness_index == dense.stiffness_index
+        # The eigenvalues the sparse path lists (nearest the axis) are eigenvalues of the dense one.
+        for z in sparse.rightmost:
+            assert np.min(np.abs(np.array(dense.rightmost + _all(params, x)) - z)) < 1e-8 * max(1.0, abs(z))
+
+
+def _all(params, x):
+    return tuple(dynamic_stability(params, "sine", x, method="dense", rightmost=200).rightmost)
+
+
+@pytest.mark.parametrize("model", ["sine", "nonlinear"])
+def test_sparse_count_matches_dense_on_a_longer_chain(model):
+    params = ChainParams(N=12, a=0.3, b=0.12)
+    branch = continue_in_moment(params, model, phi0_stop=3.5)
+    for x in branch.x[:: max(1, len(branch.x) // 6)]:
+        dense = dynamic_stability(params, model, x, method="dense")
+        sparse = dynamic_stability(params, model, x, method="sparse")
+        assert sparse.unstable_eigenvalues == dense.unstable_eigenvalues
+        # det(A) = det(K~) (A's eigenvalues come in conjugate pairs): the parity of the
+        # unstable count is that of K's negative count.
+        assert (sparse.unstable_eigenvalues - sparse.stiffness_index) % 2 == 0
+
+
+@pytest.mark.parametrize("method", ["dense", "sparse"])
+def test_a_free_chain_at_rest_is_dynamically_stable_its_rigid_modes_neutral(method):
+    params = ChainParams(N=8, left_end="free", right_end="free")
+    for model in ("linear", "sine", "nonlinear"):
+        s = dynamic_stability(params, model, zeros(params), method=method)
+        assert s.stable and s.stiffness_index == 0 and s.unstable_eigenvalues == 0
+
+
+def test_bad_input_names_the_argument():
+    params = ChainParams(N=2)
+    with pytest.raises(ValueError, match="method must be one of auto, dense, sparse, got 'lapack'"):
+        dynamic_stability(params, "sine", zeros(params), method="lapack")
+    with pytest.raises(ValueError, match="rightmost must be an integer >= 1"):
+        dynamic_stability(params, "sine", zeros(params), rightmost=0)
+    with pytest.raises(ValueError, match="shape"):
+        dynamic_stability(params, "sine", np.zeros((3, 4)))
