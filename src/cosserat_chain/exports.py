@@ -240,11 +240,12 @@ def xyz_frames(dataset: xr.Dataset) -> Iterator[Any]:
 
     params, times, states, velocities = _frames(dataset)
     n = params.n_particles
-    corners = np.stack([corner_positions(params, x).reshape(-1, 2) for x in states])
-    half_thickness = XYZ_THICKNESS * min(params.a, params.b)
     # One cell for every frame, a margin of h/2 around every corner the run reaches.
-    low = np.append(corners.min(axis=(0, 1)) - params.h / 2, -2.0 * half_thickness)
-    size = np.append(corners.max(axis=(0, 1)) + params.h / 2, 2.0 * half_thickness) - low
+    corners = (corner_positions(params, x).reshape(-1, 2) for x in states)
+    bounds = np.array([(c.min(axis=0), c.max(axis=0)) for c in corners])  # (frames, low/high, x/y)
+    half_thickness = XYZ_THICKNESS * min(params.a, params.b)
+    low = np.append(bounds[:, 0].min(axis=0) - params.h / 2, -2.0 * half_thickness)
+    size = np.append(bounds[:, 1].max(axis=0) + params.h / 2, 2.0 * half_thickness) - low
     shape = np.tile([params.a, params.b, half_thickness], (n, 1))
     masses = params.particle_inertia[0]
     for t, x, v in zip(times, states, velocities):
