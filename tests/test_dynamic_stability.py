@@ -132,3 +132,16 @@ def test_bad_input_names_the_argument():
         dynamic_stability(params, "sine", zeros(params), rightmost=0)
     with pytest.raises(ValueError, match="shape"):
         dynamic_stability(params, "sine", np.zeros((3, 4)))
+
+
+def test_states_reports_the_stiffness_index_and_the_unstable_eigenvalues_each_by_its_name():
+    from cosserat_chain.experiments.coexisting import _static_states
+    from cosserat_chain.models.base import get_model
+
+    params = ChainParams(N=2)
+    static, hopf = _static_states(params, get_model("sine"), 0.25, 0)
+    saddle = max(static, key=lambda s: s.phi0).as_dict()
+    assert 1.658 < saddle["phi0"] < 2.438  # between the two Hopf points of positive M
+    assert saddle["stiffness_index"] == 1 and saddle["unstable_eigenvalues"] == 3 and saddle["unstable_pairs"] == 1
+    assert saddle["stable"] is saddle["dynamically_stable"] is False and "index" not in saddle
+    assert len(hopf) == 4

@@ -39,7 +39,9 @@ def states(
 ) -> None:
     """List the states at one moment, each with its stability, and say which one the protocol from rest reaches.
 
-    Static states on the branch from rest over one full turn (residual, stability); periodic
+    Static states on the branch from rest over one full turn (residual; the damped dynamics' verdict,
+    "dynamically stable" or its unstable eigenvalues, beside K's inertia, the stiffness index) and the
+    branch's Hopf points; periodic
     orbits from shooting and from long runs (turns, period, mean rate, Floquet stability);
     irregular rotation (rates over windows of whole turns); what each start's run reached.
 
@@ -91,9 +93,12 @@ def _print(result) -> None:
         typer.echo("  no static state on the branch from rest over one full turn")
     for i, s in enumerate(result.static):
         where = "" if s.on_branch else " (off the traced branch)"
+        typer.echo(f"  static {i}: phi_0 = {s.phi0:.10g}, residual {s.residual:.2g}, {s.dynamics.describe()}{where}")
+    for h in result.hopf:
+        where = "" if h.located else f" (not located: between traced points {h.after_point} and {h.after_point + 1})"
         typer.echo(
-            f"  static {i}: phi_0 = {s.phi0:.10g}, residual {s.residual:.2g}, "
-            f"{'stable' if s.stability.stable else f'unstable (index {s.stability.index})'}{where}"
+            f"  Hopf point of the branch: M = {h.moment:.10g}, phi_0 = {h.phi0:.10g}, omega = {h.frequency:.6g}, "
+            f"unstable eigenvalues {h.unstable_before} -> {h.unstable_after} at stiffness index {h.stiffness_index}{where}"
         )
     for i, f in enumerate(result.orbits):
         o = f.orbit

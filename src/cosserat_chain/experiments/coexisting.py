@@ -13,9 +13,16 @@ chain can end in more than one state, and which one depends on where it starts.
   crossing of M between two traced points is solved by Newton (load control,
   :func:`~cosserat_chain.numerics.newton.solve_equilibrium`, from the interpolated
   state; rotation control and Brent in phi_0 where that fails), with its residual
-  and its stability (:func:`~cosserat_chain.numerics.stability.static_stability`).
+  and its stability: K's inertia, the *stiffness index*
+  (:func:`~cosserat_chain.numerics.stability.static_stability`), and the verdict of the
+  damped dynamics, its unstable eigenvalues
+  (:func:`~cosserat_chain.numerics.stability.dynamic_stability`): for eq. (2) they differ
+  (the sine chain's unstable branch at N = 2 has stiffness index 1 and three unstable
+  eigenvalues between its Hopf points).
   A static state that a long run reaches off that branch is added (``on_branch``
   false).
+* ``hopf``: the Hopf points of that branch
+  (:func:`~cosserat_chain.numerics.hopf.hopf_points`; a conservative model has none).
 * ``orbits``: periodic orbits, eq. (P) of :mod:`cosserat_chain.numerics.periodic`,
   found by shooting (:func:`~cosserat_chain.numerics.periodic.find_periodic_orbit`)
   with k = 1, 2, 3 (``turns``) turns a period from rest, and from the end of every
@@ -54,10 +61,11 @@ from ..loads import moment_load
 from ..models.base import Model, get_model
 from ..numerics.continuation import continue_in_moment
 from ..numerics.dynamics import TurnWatch, integrate
+from ..numerics.hopf import HopfPoint, hopf_points
 from ..numerics.newton import NewtonError, moment_dof, solve_equilibrium, solve_rotation_controlled
 from ..numerics.periodic import OrbitError, PeriodicOrbit, find_periodic_orbit, initial_guess
 from ..numerics.relaxation import relax
-from ..numerics.stability import Stability, static_stability
+from ..numerics.stability import DynamicStability, Stability, dynamic_stability, static_stability
 from ..params import ChainParams
 from ..state import ROW_INDEX, column, fixed_mask, pack, require_held, zeros
 from ..status import Status
@@ -102,6 +110,10 @@ class StaticState:
     residual : float
         max |F(x) + M e| over the free degrees of freedom.
     stability : Stability
+        From K: its critical eigenvalue and inertia (``index``, the stiffness index).
+    dynamics : DynamicStability
+        From the eigenvalues of the damped dynamics: the verdict (``stable`` and the JSON's
+        ``stable`` are this one's) and the unstable eigenvalues.
     on_branch : bool
         On the traced full-turn branch from rest (False: reached by a long run off it).
     found_from : list of str
@@ -112,17 +124,28 @@ class StaticState:
     phi0: float
     residual: float
     stability: Stability
+    dynamics: DynamicStability
     on_branch: bool = True
     found_from: list[str] = field(default_factory=list)
 
+    @property
+    def stable(self) -> bool:
+        """Dynamically stable (the damped dynamics' verdict)."""
+        return self.dynamics.stable
+
     def as_dict(self) -> dict[str, Any]:
-        s = self.stability
+        d = self.dynamics
         return {
             "phi0": self.phi0,
             "residual": self.residual,
-            "stable": s.stable,
-            "critical_eigenvalue": s.critical_eigenvalue,
-            "index": s.index,
+            "stable": d.stable,
+            "dynamically_stable": d.stable,
+            "unstable_eigenvalues": d.unstable_eigenvalues,
+            "unstable_real": d.unstable_real,
+            "unstable_pairs": d.unstable_pairs,
+            "unstable": [[z.real, z.imag] for z in d.rightmost[: d.unstable_eigenvalues]],
+            "stiffness_index": self.stability.index,
+            "critical_eigenvalue": self.stability.critical_eigenvalue,
             "on_branch": self.on_branch,
             "found_from": self.found_from,
         }
@@ -219,11 +242,12 @@ class CoexistingStates:
     relaxation: dict[str, Any]
     settings: dict[str, Any] = field(default_factory=dict)
     status: Status = Status.COMPLETED
+    hopf: list[HopfPoint] = field(default_factory=list)
 
     @property
     def stable_states(self) -> int:
-        """Stable static states plus stable orbits: the attractors found besides irregular rotation."""
-        return sum(s.stability.stable for s in self.static) + sum(o.orbit.stable for o in self.orbits)
+        """Dynamically stable static states plus stable orbits: the attractors found besides irregular rotation."""
+        return sum(s.stable for s in self.static) + sum(o.orbit.stable for o in self.orbits)
 
     def as_dict(self) -> dict[str, Any]:
         """JSON-ready summary. Moments in the parameters' units; ``moment_scale`` = E1 h^2 divides them into the paper's dimensionless moment (Fig. 2)."""
@@ -233,6 +257,7 @@ class CoexistingStates:
             "moment_scale": self.params.moment_scale,
             "particle": self.particle,
             "static": [s.as_dict() for s in self.static],
+            "hopf_points": [h.as_dict() for h in self.hopf],
             "orbits": [o.as_dict() for o in self.orbits],
             "irregular": [r.as_dict() for r in self.irregular],
             "runs": [r.as_dict() for r in self.runs],
@@ -267,14 +292,18 @@ def _residual(params: ChainParams, model: Model, x: np.ndarray, moment: float, p
     return float(np.max(np.abs(r))) if r.size else 0.0
 
 
-def _static_states(params: ChainParams, model: Model, moment: float, particle: int) -> list[StaticState]:
-    """The static states at ``moment`` on the branch from rest (over one full turn for a rotating model)."""
+def _static_states(params: ChainParams, model: Model, moment: float, particle: int) -> tuple[list[StaticState], list[HopfPoint]]:
+    """The static states at ``moment`` on the branch from rest (over one full turn for a rotating model), and the
+    branch's Hopf points (none for a conservative model: with damping its unstable eigenvalues are K's negative ones)."""
     col = column(params, particle)
+    hopf: list[HopfPoint] = []
     if not model.rotates:
         x = solve_equilibrium(params, model, moment_load(moment, particle))
         states = [x]
     else:
         branch = continue_in_moment(params, model, particle=particle, phi0_stop=2 * math.pi)
+        if not model.conservative:
+            hopf = hopf_points(params, model, branch)
         states = []
         m = branch.moment - moment
         for i in range(len(m) - 1):
@@ -290,12 +319,10 @@ def _static_states(params: ChainParams, model: Model, moment: float, particle: i
     for x in states:
         if any(_distance(x, s.x) < STATE_ATOL for s in out):
             continue
-        out.append(
-            StaticState(
-                x, float(x[ROW_INDEX["phi"], col]), _residual(params, model, x, moment, particle), static_stability(params, model, x)
-            )
-        )
-    return out
+        residual = _residual(params, model, x, moment, particle)
+        checks = static_stability(params, model, x), dynamic_stability(params, model, x)
+        out.append(StaticState(x, float(x[ROW_INDEX["phi"], col]), residual, *checks))
+    return out, hopf
 
 
 def _solve_crossing(params: ChainParams, model: Model, moment: float, particle: int, branch, i: int) -> np.ndarray:
@@ -387,7 +414,8 @@ class _Catalogue:
         x = _wrapped(x) if model.rotates else x
         phi0 = float(x[ROW_INDEX["phi"], column(params, particle)])
         residual = _residual(params, model, x, moment, particle)
-        self.static.append(StaticState(x, phi0, residual, static_stability(params, model, x), on_branch=False, found_from=[start]))
+        checks = static_stability(params, model, x), dynamic_stability(params, model, x)
+        self.static.append(StaticState(x, phi0, residual, *checks, on_branch=False, found_from=[start]))
         return len(self.static) - 1
 
     def add_orbit(self, orbit: PeriodicOrbit, start: str) -> int:
@@ -568,7 +596,8 @@ def states_at(
     require_held(params)
     settings = {"starts": list(starts), "turns": list(turns), "random_starts": random_starts, "seed": seed,
                 "perturbation": perturbation, "t_long": t_long, "window_turns": window_turns}  # fmt: skip
-    catalogue = _Catalogue(_static_states(params, model, moment, particle))
+    static, hopf = _static_states(params, model, moment, particle)
+    catalogue = _Catalogue(static)
     rng = np.random.default_rng(seed)
     plan: list[tuple[str, np.ndarray, np.ndarray]] = []
     if model.rotates:
@@ -632,4 +661,5 @@ def states_at(
         from_rest=from_rest,
         relaxation=relaxation,
         settings=settings,
+        hopf=hopf,
     )
