@@ -89,6 +89,16 @@ def test_simulate_on_a_full_disk_keeps_the_run_in_an_unpredictable_fallback_and_
     assert not (full_folder / "run.nc").exists() and _leftovers(full_folder) == []
 
 
+def test_rotate_on_a_full_disk_goes_on_past_its_checkpoints_and_keeps_the_result(full_folder, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    out = full_folder / "rot.nc"
+    result = runner.invoke(app, ["rotate", "--turns", "2", "--moment", "1", "--checkpoint-every", "0", "--out", str(out)])
+    assert result.exit_code == 3, result.output
+    (fallback,) = tmp_path.glob("rot.recovered-*.nc")
+    assert str(fallback) in result.output and int(read_dataset(fallback).attrs["turns_completed"]) >= 2
+    assert sorted(p.name for p in full_folder.iterdir()) == []
+
+
 def test_a_failed_checkpoint_write_keeps_the_previous_one_and_the_run_goes_on(full_folder):
     path = full_folder / "run.checkpoint.nc"
     path.write_bytes(b"the previous checkpoint")
