@@ -204,3 +204,12 @@ def test_theory_cli_takes_other_ends_and_loads_and_refuses_bad_ones_naming_the_o
     for args, words in ((["--at", "0.5", "--n-list", "3"], "--at"), (["--load", "torque"], "--load")):
         bad = runner.invoke(app, ["theory", *args])
         assert bad.exit_code == 2 and words in bad.output
+
+
+def test_orders_hold_past_the_shear_length_and_the_error_stays_below_three_quarters_over_n_squared():
+    weak = ChainParams(a=0.05, b=0.6, E2=0.001)
+    assert beam_stiffness(weak).shear_length == pytest.approx(np.sqrt(weak.E1 * weak.d**2 / (4 * weak.E2)), rel=1e-12)
+    table = convergence(weak, [10, 30, 100, 300, 1000, 3000])
+    assert table.order("timoshenko") < 1.0  # errors grow below the shear length (24 h) ...
+    assert table.order("timoshenko", since=300) == pytest.approx(2.0, abs=0.1)  # ... and fall like 1/N^2 past it
+    assert np.all(table.timoshenko_error > 0) and np.all(table.timoshenko_error <= 0.75 / table.N**2)

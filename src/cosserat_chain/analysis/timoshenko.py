@@ -86,6 +86,11 @@ class BeamStiffness:
         return 1.0 / self.GA
 
     @property
+    def shear_length(self) -> float:
+        """sqrt(EI/GA): below it shear dominates the beam's compliance, beyond it bending does."""
+        return math.sqrt(self.EI / self.GA)
+
+    @property
     def nodal_shear_compliance(self) -> float:
         """1/GA - h^2/(12 EI): the beam with this shear compliance is the chain at its particles (module docstring).
 
@@ -104,6 +109,7 @@ class BeamStiffness:
             "rotary": self.rotary,
             "shear_compliance": self.shear_compliance,
             "nodal_shear_compliance": self.nodal_shear_compliance,
+            "shear_length": self.shear_length,
         }
 
 
@@ -361,16 +367,19 @@ class BeamConvergence:
     def _resolved(self, error: np.ndarray) -> np.ndarray:
         return np.abs(error) > RESOLVED * np.maximum(self.discrete_error, np.finfo(float).eps)
 
-    def order(self, which: str = "timoshenko") -> float | None:
+    def order(self, which: str = "timoshenko", *, since: int = 1) -> float | None:
         """Observed order p of |error| ~ N^-p of ``"timoshenko"`` or ``"paper"``, over the rows where the error is resolved.
 
+        ``since``: fit only the rows with N >= since. The fall ~ N^-p holds once the chain is
+        long against the shear length sqrt(EI/GA) (:attr:`BeamStiffness.shear_length`);
+        before that both errors can grow with N (weak diagonals).
         None where fewer than two rows resolve it (the beam is exact for this load, or
         eq. (11) does not apply).
         """
         if which not in ("timoshenko", "paper"):
             raise ValueError(f"which must be 'timoshenko' or 'paper', got {which!r}")
         error = self.timoshenko_error if which == "timoshenko" else self.paper_error
-        resolved = self._resolved(error) & np.isfinite(error)
+        resolved = self._resolved(error) & np.isfinite(error) & (self.N >= since)
         return _fit_order(self.N[resolved], error[resolved])
 
     def to_dataset(self, params: ChainParams):

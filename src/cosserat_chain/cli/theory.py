@@ -155,7 +155,8 @@ def _print_beam(params, stiffness, beam, waves: dict[str, Any]) -> None:
     typer.echo(
         f"\nTimoshenko beam of the chain (bond-centred shear): EI = 2 E1 b^2 h = {stiffness.EI:.6g}, GA = k_v h = {stiffness.GA:.6g}, "
         f"EA = k_u h = {stiffness.EA:.6g}\n  the chain is, at its particles, the beam with shear compliance 1/GA - h^2/(12 EI) = "
-        f"{stiffness.nodal_shear_compliance:.6g} (1/GA = {stiffness.shear_compliance:.6g})"
+        f"{stiffness.nodal_shear_compliance:.6g} (1/GA = {stiffness.shear_compliance:.6g}); shear length sqrt(EI/GA) = "
+        f"{stiffness.shear_length:.4g} (the errors fall like 1/N^2 and 1/N once N h is well past it)"
     )
     what = "phi/M" if beam.load == "moment" else "v/F"
     typer.echo(
