@@ -125,6 +125,15 @@ def test_a_study_on_a_full_disk_keeps_its_cells_in_a_fallback_and_exits_3(full_f
     assert not (full_folder / "study.nc").exists() and _leftovers(full_folder) == []
 
 
+def test_reproduce_on_a_full_disk_exits_3_naming_the_file(full_folder, monkeypatch):
+    import cosserat_chain.report as report
+
+    monkeypatch.setattr(report, "STAGES", {"errata": report.STAGES["errata"]})
+    result = runner.invoke(app, ["reproduce", "--out", str(full_folder / "rep")])
+    assert result.exit_code == 3 and "No space left" in result.output and str(full_folder / "rep") in result.output
+    assert not (full_folder / "rep" / "manifest.json").exists()
+
+
 def _mount_tmpfs(folder: Path, size: str) -> bool:
     if os.geteuid() != 0:
         return False
