@@ -174,3 +174,34 @@ def test_critical_and_the_linear_solve_give_one_compliance():
     expected = discrete_static(params)[2, params.N]
     for model in ("nonlinear", "sine", "linear"):
         assert compliance(params, model) == expected
+
+
+def test_an_unstable_sine_state_takes_the_dynamics_verdict():
+    params = ChainParams()
+    branch = continue_in_moment(params, "sine", phi0_stop=3.0)
+    i = int(np.flatnonzero(~branch.stable)[0]) + 1  # past the fold: a particle beyond pi/2
+    x = solve_equilibrium(params, "sine", moment_load(branch.moment[i]), x0=branch.x[i])
+    assert x.index == 1 and x.dynamic is not None and not x.dynamic.stable and not x.stable
+
+
+# ---------------------------------------------------------------- one compliance, and eq. (2)'s M_c, at N = 10^4
+@pytest.mark.slow
+def test_critical_and_theory_give_the_exact_compliance_at_n_10000():
+    """Before: critical's compliance (the nonlinear Hessian's) 4.2e-8 off the exact one, theory's 6.9e-11."""
+    from cosserat_chain.analysis.timoshenko import clamped_central_compliance
+
+    params = ChainParams(N=10**4)
+    exact = clamped_central_compliance(params, nodal=True)
+    value = compliance(params, "nonlinear")
+    assert value == discrete_static(params)[2, params.N]
+    assert abs(value / exact - 1) < 1e-9
+
+
+@pytest.mark.slow
+def test_the_sine_critical_moment_at_n_10000_is_accurate():
+    """Before: flagged inaccurate (exit 5), the traced folds 3.6e-6 from 1 / compliance."""
+    params = ChainParams(N=10**4)
+    result = critical_point(params, "sine")
+    assert result.accurate and result.complete and result.confirmation == "closed form"
+    assert result.critical_moment == pytest.approx(1.0 / result.compliance, rel=1e-14)
+    assert result.onset_particle == 0 and result.phi0_at_onset == pytest.approx(math.pi / 2, rel=1e-15)
