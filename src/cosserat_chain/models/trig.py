@@ -12,7 +12,7 @@ of a batch) compiles to packed SIMD instructions.
 Beyond :data:`REDUCTION_LIMIT` the reduction loses bits gradually (about
 |phi| 2^-53 absolute error); non-finite angles give NaN. Neither reaches the
 kernels: the engine keeps every angle of a rotating model as whole turns plus an
-angle below :data:`WRAP_ANGLE` (``numerics.engine``), reducing it by whole turns
+angle near :data:`WRAP_ANGLE` or below (``numerics.engine``), reducing it by whole turns
 with :data:`TWO_PI_1` + :data:`TWO_PI_2` + :data:`TWO_PI_3` outside the hot loop,
 and :func:`split_turns` does so for a start state at any angle up to
 :data:`MAX_START_ANGLE`, exactly.
@@ -48,8 +48,8 @@ TWO_PI_1 = 4.0 * _PIO2_1
 TWO_PI_2 = 4.0 * _PIO2_2
 #: Third part of 2 pi.
 TWO_PI_3 = 4.0 * _PIO2_3
-#: A rotating model's angles are kept below this (rad) by whole turns, so that a double
-#: resolves them as finely at every winding as in a run of ten turns (spacing 1.4e-14 rad).
+#: A rotating model's angles beyond this (rad) lose their whole turns (``numerics.engine``),
+#: so that a double resolves them as finely at every winding as in a run of ten turns.
 WRAP_ANGLE = 64.0
 #: Largest |angle| of a start state (rad): beyond 2^53 doubles are more than a radian apart,
 #: and an angle says nothing about where in its turn a particle is.

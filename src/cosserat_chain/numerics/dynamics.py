@@ -13,7 +13,7 @@ frames before it, and, with ``throw=True``, raises :class:`IntegrationError`
 carrying the partial trajectory; its message says which value ran away and what to change.
 
 Angles never overflow: the engine keeps a rotating model's angles as whole turns
-plus an angle below 64 rad (:mod:`.engine`), so a run 10^7 turns from the start
+plus an angle near 64 rad or below (:mod:`.engine`), so a run 10^7 turns from the start
 is as accurate as one of ten. The trajectory's ``x[:, 2]`` is the unwrapped angle
 as a double; ``reduced_phi`` and ``winding`` hold it without a bit lost.
 

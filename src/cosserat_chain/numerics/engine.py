@@ -40,14 +40,15 @@ one step, or |phi| beyond the model's ``max_angle`` for a model that does not ro
 Angles
 ------
 A rotating model's forces are 2 pi-periodic in every angle, so its angles are kept
-as whole turns (``winding``, int64, exact) plus an angle phi of at most
-:data:`~cosserat_chain.models.trig.WRAP_ANGLE` (64 rad): every :data:`WRAP_EVERY`
-steps (global step numbers, so that a run split into calls wraps where the whole run
-does) each |phi| beyond it loses its whole turns to ``winding`` (Cody-Waite, three
-parts of 2 pi, exact), outside the hot loop. The kernels thus see angles below some
-70 rad at any winding, and a double resolves them to 1.4e-14 rad, as in a run of ten
-turns: a run of 10^7 turns is as accurate as one of ten. An angle never wrapped
-(|phi| <= 64 throughout) keeps its bits exactly. What leaves the engine (stored
+as whole turns (``winding``, int64, exact) plus an angle phi near
+:data:`~cosserat_chain.models.trig.WRAP_ANGLE` (64 rad) or below: every
+:data:`WRAP_EVERY` steps (global step numbers, so that a run split into calls wraps
+where the whole run does) each |phi| beyond it loses its whole turns to ``winding``
+(Cody-Waite, three parts of 2 pi, exact), with the out-of-bounds check, outside the
+step loop. The kernels thus see angles below about 100 rad at any winding (at the
+paper's spin), and a double resolves them to 1.4e-14 rad, as in a run of ten turns:
+a run of 10^7 turns is as accurate as one of ten. An angle never wrapped (|phi| <= 64
+throughout) keeps its bits exactly. What leaves the engine (stored
 frames' ``record``, the turns' angles, :meth:`Lanes.state`) is the unwrapped angle
 phi + 2 pi winding as a double; stored frames keep phi and ``winding`` apart.
 """
@@ -87,10 +88,12 @@ STATUS_TURNED = 2
 T0, DT, MAX_DISPLACEMENT, MAX_ANGLE, DIRECTION, PHI_START, WRAP_LIMIT, MAX_SPIN = range(8)
 #: Number of rows of ``lanes``.
 N_LANE_FIELDS = 8
-#: Steps between two reductions of the angles by whole turns (a pass over the angles
-#: every so many steps: nothing measurable, and the angles stay below WRAP_ANGLE plus
-#: what a particle turns in so many steps).
-WRAP_EVERY = 64
+#: Steps between two reductions of the angles by whole turns, done at the out-of-bounds
+#: checks that fall on global multiples of it (callers check every 1024 steps, or every
+#: step; a ``check_every`` must divide it): no work in the step loop (a pass every 64
+#: steps cost the 7-particle chain 2-3 %), and the angles stay below WRAP_ANGLE plus what
+#: a particle turns in so many steps (30 rad at the paper's spin, 0.03 rad a step).
+WRAP_EVERY = 1024
 #: Largest rotation of a particle in one step (rad) before a run counts as blown up: some
 #: 1300 turns a step, which no step resolves; below it angles stay within the exact range
 #: of the reduction (2^20 turns) between two reductions. A rotation beyond 0.5 rad a step
@@ -346,19 +349,18 @@ def _runaway(x, v, lanes, lane_ints):  # pragma: no cover - compiled
 
 
 @njit(**_OPTIONS)
-def _wrap(x, winding, lanes):  # pragma: no cover - compiled
-    """Move the whole turns of every |phi| beyond its member's WRAP_LIMIT into ``winding``; True if any moved.
+def _wrap(x, winding, limit):  # pragma: no cover - compiled
+    """Move the whole turns of every |phi| beyond ``limit`` (the model's WRAP_LIMIT) into ``winding``; True if any moved.
 
     Not inlined, and compiled without fastmath: the reduction's three subtractions must
     round in this order (n TWO_PI_1 and n TWO_PI_2 are exact, |n| < 2^20) wherever it runs.
-    An angle within the limit takes n = 0 and keeps its bits.
+    An angle within the limit keeps its bits.
     """
-    size = lanes.shape[1]
     moved = False
     for j in range(x.shape[1]):
         phi = x[2, j]
-        n = math.floor(phi * (1.0 / (2.0 * math.pi)) + 0.5) if math.isfinite(phi) and abs(phi) > lanes[WRAP_LIMIT, j % size] else 0.0
-        if n != 0.0:
+        if abs(phi) > limit and math.isfinite(phi):
+            n = math.floor(phi * (1.0 / (2.0 * math.pi)) + 0.5)
             x[2, j] = ((phi - n * TWO_PI_1) - n * TWO_PI_2) - n * TWO_PI_3
             winding[j] += np.int64(n)
             moved = True
@@ -524,7 +526,7 @@ def advance(
         Forces plus loads at those states (kept between calls: one evaluation per sub-step).
     winding : ndarray (n B) of int64
         Whole turns of every angle (the angle is x[2] + 2 pi winding); updated every
-        :data:`WRAP_EVERY` global steps where |x[2]| passes lanes[WRAP_LIMIT].
+        :data:`WRAP_EVERY` global steps (with the check there) where |x[2]| passes lanes[WRAP_LIMIT].
     coef : (c, B) model coefficients; chain_coef : (c,) member 0's, for B = 1
     pairs : (S+1, S+1, 5, 3, B) from :func:`pair_table`; weights : (S,) the method's sub-step sizes as fractions of dt
     load_index : (L, 5) row, column, first and one-past-last knot, and whether the load's work counts (0 or 1)
@@ -537,7 +539,7 @@ def advance(
         zeroed after every evaluation, so that with zero velocity they stay where they are
     stride : store after every global step that is a multiple of it (and after the last if ``close_at_end``)
     check_every : test for members out of bounds after every global step that is a multiple of it
-        (and after the last if ``close_at_end``)
+        (and after the last if ``close_at_end``); it divides WRAP_EVERY
     pending : the sub-step left open by the previous call (S, the number of sub-steps, if none)
     close_at_end : close the last step (velocities at the step boundary); False leaves it open,
         to be continued by the next call exactly as if the run had not stopped
@@ -597,7 +599,7 @@ def advance(
     # a small chain's kick-drift.
     to_store = stride - step0 % stride
     to_check = check_every - step0 % check_every
-    to_wrap = WRAP_EVERY - step0 % WRAP_EVERY
+    wrap_limit = lanes[WRAP_LIMIT, 0]  # the model's: the same for every member
     for k in range(n_steps):
         for s in range(n_sub):
             if size > 1:
@@ -669,14 +671,6 @@ def advance(
                 for i in range(size):
                     f[fixed[j, 0], at + i] = 0.0
             pending = s
-        to_wrap -= 1
-        if to_wrap == 0:
-            to_wrap = WRAP_EVERY
-            if _wrap(x, winding, lanes):
-                # The loads' work counts q - q_old: their angles' old values lose the same turns.
-                for j in range(n_loads):
-                    for i in range(size):
-                        q_old[j, i] = x[load_index[j, 0], load_index[j, 1] * size + i]
         turned = False
         if watch >= 0 and ring_time.shape[0] > 0:
             for i in range(size):
@@ -711,6 +705,19 @@ def advance(
                 if pending != empty:
                     _kick_drift(x, v, f, pairs, pending, empty, columns, dissipated, scratch)
                 return STATUS_BLEW_UP, k + 1, frame - frame0, empty
+            # At the checks on global multiples of WRAP_EVERY only: a run split into calls, or
+            # rerun with a check after every step, wraps where the whole run does.
+            if (step0 + k + 1) % WRAP_EVERY == 0 and _wrap(x, winding, wrap_limit):
+                # The loads' work counts q - q_old: their angles' old values lose the same turns.
+                for j in range(n_loads):
+                    for i in range(size):
+                        q_old[j, i] = x[load_index[j, 0], load_index[j, 1] * size + i]
+                if watch >= 0:
+                    for i in range(size):
+                        at = watch * size + i
+                        winding_prev[i] = _winding(
+                            x[2, at], winding[at], lanes[DIRECTION, i], lanes[PHI_START, i], lane_ints[TURNS_START, i]
+                        )
         if turned:
             return STATUS_TURNED, k + 1, frame - frame0, empty
     return STATUS_OK, n_steps, frame - frame0, pending
