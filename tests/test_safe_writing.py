@@ -130,7 +130,7 @@ def test_reproduce_on_a_full_disk_exits_3_naming_the_file(full_folder, monkeypat
 
     monkeypatch.setattr(report, "STAGES", {"errata": report.STAGES["errata"]})
     result = runner.invoke(app, ["reproduce", "--out", str(full_folder / "rep")])
-    assert result.exit_code == 3 and "No space left" in result.output and str(full_folder / "rep") in result.output
+    assert result.exit_code == 3 and "No space left" in result.output and str(full_folder / "rep" / "params.json") in result.output
     assert not (full_folder / "rep" / "manifest.json").exists()
 
 

@@ -543,7 +543,10 @@ def write_bytes(data: bytes | memoryview, path: str | Path) -> Path:
         As :func:`atomic_path`.
     """
     with _replacing(path) as (fd, _):
-        _write_all(fd, data)
+        try:
+            _write_all(fd, data)
+        except OSError as err:  # named after the target, not the descriptor, for the messages
+            raise OSError(err.errno, err.strerror, str(path)) from None
     return Path(path)
 
 
