@@ -97,7 +97,9 @@ def test_theory_cli_front_reports_the_wide_front_in_json(tmp_path):
     result = CliRunner().invoke(app, ["theory", "--config", str(config), "--n-list", "4,8", "--front", "--json"])
     assert result.exit_code == 0, result.output
     rotation = json.loads(result.stdout)["rotation"]
-    assert rotation["discrete_front"]["smooth"] and rotation["quasi_continuum"]["front_energy"] == pytest.approx(quasi_continuum(WIDE).front_energy)
+    assert rotation["discrete_front"]["smooth"] and rotation["quasi_continuum"]["front_energy"] == pytest.approx(
+        quasi_continuum(WIDE).front_energy
+    )
     assert rotation["barrier"]["relaxed"] <= rotation["barrier"]["fixed"]
 
 
@@ -114,5 +116,7 @@ def test_lattice_hessian_is_the_gradients_derivative():
 
     phi = np.array([0.0, 0.4, 1.3, 2.0, 4.1, 6.0])
     step = 1e-6
-    numeric = np.array([(lattice_energy(WIDE, phi + step * e)[1] - lattice_energy(WIDE, phi - step * e)[1]) / (2 * step) for e in np.eye(phi.size)])
+    numeric = np.array(
+        [(lattice_energy(WIDE, phi + step * e)[1] - lattice_energy(WIDE, phi - step * e)[1]) / (2 * step) for e in np.eye(phi.size)]
+    )
     np.testing.assert_allclose(lattice_hessian(WIDE, phi), numeric, atol=1e-8)

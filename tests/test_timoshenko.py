@@ -26,7 +26,11 @@ from cosserat_chain.analysis.timoshenko import (
 )
 
 #: Every pair of ends whose chain cannot move rigidly (the statics' condition).
-HELD_ENDS = [pair for pair in itertools.product(("clamped", "pinned", "free"), repeat=2) if pair not in (("free", "free"), ("pinned", "free"), ("free", "pinned"))]
+HELD_ENDS = [
+    pair
+    for pair in itertools.product(("clamped", "pinned", "free"), repeat=2)
+    if pair not in (("free", "free"), ("pinned", "free"), ("free", "pinned"))
+]
 
 
 def test_sympy_derives_ei_ga_ea_from_the_bond_energy_and_the_paper_d1_from_them():

@@ -160,9 +160,7 @@ def cantilever(
 
         result = solve_bvp(_rates(stiffness, (fx, fy)), ends, s, guess, tol=BVP_TOL, max_nodes=MAX_NODES)
         if not result.success:
-            raise ValueError(
-                f"the exact beam's BVP did not converge at load step {step} of {steps} ({result.message}): take more steps"
-            )
+            raise ValueError(f"the exact beam's BVP did not converge at load step {step} of {steps} ({result.message}): take more steps")
         s, guess = result.x, result.y
     return BeamSolution(s, guess[0], guess[1], guess[2], guess[3], (float(force[0]), float(force[1])), float(end_moment))
 

@@ -359,7 +359,9 @@ def turn_barrier(params: ChainParams, *, half_length: int = 10, points: int = 64
     grid = np.linspace(0.0, 2 * np.pi, GRID + 1)
     single = 2 * bond_potential(params, 0.0, grid)
     top = int(np.argmax(single))
-    fine = minimize_scalar(lambda a: -2 * float(bond_potential(params, 0.0, a)), bounds=(grid[max(top - 1, 0)], grid[min(top + 1, GRID)]), method="bounded")
+    fine = minimize_scalar(
+        lambda a: -2 * float(bond_potential(params, 0.0, a)), bounds=(grid[max(top - 1, 0)], grid[min(top + 1, GRID)]), method="bounded"
+    )
     fixed, angle_fixed = -float(fine.fun), float(fine.x)
 
     phi = np.zeros(2 * half_length + 1)
@@ -386,7 +388,9 @@ def turn_barrier(params: ChainParams, *, half_length: int = 10, points: int = 64
     best = int(np.argmax(energies))
     start = states[best]
     fine = minimize_scalar(
-        lambda a: -constrained(float(a), start)[0], bounds=(angles[max(best - 1, 0)], angles[min(best + 1, points - 1)]), method="bounded",
+        lambda a: -constrained(float(a), start)[0],
+        bounds=(angles[max(best - 1, 0)], angles[min(best + 1, points - 1)]),
+        method="bounded",
         options={"xatol": 1e-6},
     )
     relaxed = max(-float(fine.fun), float(energies[best]))

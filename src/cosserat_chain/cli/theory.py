@@ -30,7 +30,9 @@ def theory(
     ),
     n_list: str = typer.Option("3,10,100", "--n-list", help="Chain half-lengths N to compare (2N+1 particles), comma-separated."),
     at: float = typer.Option(
-        0.0, "--at", help="Position x0/L of the loaded particle in [-1, 1] (0: the centre, 1: the right end); at N must be an integer for every N."
+        0.0,
+        "--at",
+        help="Position x0/L of the loaded particle in [-1, 1] (0: the centre, 1: the right end); at N must be an integer for every N.",
     ),
     load: str = typer.Option("moment", "--load", help="Load on that particle: 'moment' (compliance phi/M) or 'force' (transverse, v/F)."),
     bend_angle: float | None = typer.Option(
@@ -54,7 +56,6 @@ def theory(
     Eq. (11) is the paper's (both ends clamped, a moment on particle 0); the Timoshenko beam
     takes any ends that hold the chain and any loaded particle.
     """
-    import numpy as np
 
     from ..analysis.continuum import convergence, printed_D1
     from ..analysis.symbolic import errata
@@ -120,13 +121,17 @@ def theory(
     if table is not None:
         _print_paper(table, order)
     else:
-        typer.echo(f"eq. (11) is the paper's chain only (both ends clamped, a moment on particle 0); this one has {params.describe_ends()}, --at {at:g}, --load {load}")
+        typer.echo(
+            f"eq. (11) is the paper's chain only (both ends clamped, a moment on particle 0); this one has {params.describe_ends()}, --at {at:g}, --load {load}"
+        )
     _print_beam(params, stiffness, beam, waves)
     if bending is not None:
         _print_bending(bending)
     if rotation is not None:
         _print_rotation(rotation)
-    typer.echo(f"\nerrata of the paper (docs/errata.md), evaluated for N = {params.N}{'' if params.clamped else ' with both ends clamped'}:")
+    typer.echo(
+        f"\nerrata of the paper (docs/errata.md), evaluated for N = {params.N}{'' if params.clamped else ' with both ends clamped'}:"
+    )
     for item in listed:
         typer.echo(f"  {item.number}. {item.where}: printed {item.printed}; derived {item.derived}.\n     {item.consequence}")
     for path in (plot, out):
@@ -185,7 +190,9 @@ def _print_bending(bending) -> None:
         "geometrically exact beam's circle (curvature M/EI)"
     )
     typer.echo(f"{'N':>8}  {'chain M':>14}  {'beam M':>14}  {'(b - c) / c':>11}  {'tip error / 2L':>14}  {'whole chain vs bond':>19}")
-    for n, c, b, e, t, spread in zip(bending.N, bending.chain_moment, bending.beam_moment, bending.moment_error, bending.tip_error, bending.direct_spread):
+    for n, c, b, e, t, spread in zip(
+        bending.N, bending.chain_moment, bending.beam_moment, bending.moment_error, bending.tip_error, bending.direct_spread
+    ):
         typer.echo(f"{n:>8d}  {c:>14.8g}  {b:>14.8g}  {e:>+11.3e}  {t:>14.3e}  {spread:>19.1e}")
     for which in ("moment", "tip"):
         order = bending.order(which)
@@ -209,7 +216,9 @@ def _rotation(params) -> dict[str, Any]:
 def _print_rotation(rotation: dict[str, Any]) -> None:
     qc, front, barrier = rotation["quasi_continuum"], rotation["discrete_front"], rotation["barrier"]
     terms = ", ".join(f"({t['m']},{t['n']}) {t['amplitude']:.4g}" for t in rotation["fourier"])
-    typer.echo(f"\nfull rotation, centres held: bond potential V(phi_k, phi_k+1) of model (i); largest Fourier terms (m,n) amplitude: {terms}")
+    typer.echo(
+        f"\nfull rotation, centres held: bond potential V(phi_k, phi_k+1) of model (i); largest Fourier terms (m,n) amplitude: {terms}"
+    )
 
     def number(value: float | None, fmt: str) -> str:
         return "none" if value is None else format(value, fmt)
