@@ -128,3 +128,32 @@ def test_theory_cli_bends_the_cantilever_and_reports_orders_in_json_and_netcdf(t
         assert "timoshenko_error" in written and written.attrs["bending_angle"] == 3.0
     bad = runner.invoke(app, ["theory", "--bend-angle", "7"])
     assert bad.exit_code == 2 and "--bend-angle" in bad.output
+
+
+@pytest.mark.parametrize("params", [ChainParams(), *random_geometries(1, seed=12)])
+def test_model_i_under_an_end_force_tends_to_the_exact_beams_elastica_with_order_2(params):
+    from cosserat_chain.analysis.exact_beam import elastica_convergence
+
+    table = elastica_convergence(params.replace(right_end="free"), [10, 20, 40, 80], load=2.0)
+    assert table.beam_angle[-1] > 0.5  # a large deflection: the free end turned by about 45 degrees
+    assert table.order("angle") == pytest.approx(2.0, abs=0.1)
+    # The tip's error may change sign at small N (the random geometry's does near N = 10): its last halving.
+    assert table.tip_error[-2] / table.tip_error[-1] == pytest.approx(4.0, rel=0.1)
+
+
+def test_theory_cli_elastica_matches_the_library_and_refuses_a_bad_load():
+    import json
+
+    from typer.testing import CliRunner
+
+    from cosserat_chain.analysis.exact_beam import elastica_convergence
+    from cosserat_chain.cli import app
+
+    runner = CliRunner()
+    result = runner.invoke(app, ["theory", "--n-list", "5,10", "--elastica", "1.5", "--json"])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)["elastica"]
+    library = elastica_convergence(ChainParams(right_end="free"), [5, 10], load=1.5)
+    assert data["angle_error"] == pytest.approx(list(library.angle_error), rel=1e-8)
+    bad = runner.invoke(app, ["theory", "--elastica", "-1"])
+    assert bad.exit_code == 2 and "--elastica" in bad.output

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..params import ChainParams
+from ..state import zero_held
 from .timoshenko import BeamStiffness, beam_stiffness
 
 #: Relative tolerance of the BVP solves (solve_bvp's residual measure).
@@ -74,11 +75,14 @@ class BeamSolution:
     end_moment: float
 
     def at_particles(self, params: ChainParams) -> np.ndarray:
-        """The state (3, 2N+1) of the chain sampled from the beam: u = x - k h, v = y, phi = theta at s = (k + N) h."""
+        """The state (3, 2N+1) of the chain sampled from the beam: u = x - k h, v = y, phi = theta at s = (k + N) h.
+
+        The clamped end's values, zero to the BVP's tolerance, are set to zero.
+        """
         k = np.arange(-params.N, params.N + 1)
         s = (k + params.N) * params.h
         x, y, theta = (np.interp(s, self.s, f) for f in (self.x, self.y, self.theta))
-        return np.array([x - k * params.h, y, theta])
+        return zero_held(params, np.array([x - k * params.h, y, theta]))
 
 
 def _rates(stiffness: BeamStiffness, force: tuple[float, float]):
@@ -351,4 +355,108 @@ def bending_convergence(params: ChainParams, n_values: list[int] | np.ndarray, *
         length=np.array(lengths),
         direct_moment=np.array(direct_moments),
         direct_tip=np.array(direct_tips),
+    )
+
+
+@dataclass(frozen=True)
+class ElasticaConvergence:
+    """Model (i)'s cantilever under a transverse dead force at its free end, against the exact beam (the elastica with stretch and shear).
+
+    Attributes
+    ----------
+    load : float
+        The load parameter F (2L)^2 / EI, the same for every N.
+    N : ndarray of int, shape (n,)
+    chain_tip, beam_tip : ndarray, shape (n, 2)
+        The free end's position (x, y).
+    chain_angle, beam_angle : ndarray, shape (n,)
+        The free end's angle.
+    length : ndarray, shape (n,)
+        2 N h.
+    """
+
+    load: float
+    N: np.ndarray
+    chain_tip: np.ndarray
+    beam_tip: np.ndarray
+    chain_angle: np.ndarray
+    beam_angle: np.ndarray
+    length: np.ndarray
+
+    @property
+    def tip_error(self) -> np.ndarray:
+        """|chain tip - beam tip| over the length 2L."""
+        return np.hypot(*(self.chain_tip - self.beam_tip).T) / self.length
+
+    @property
+    def angle_error(self) -> np.ndarray:
+        """(beam - chain) / chain of the free end's angle."""
+        return (self.beam_angle - self.chain_angle) / self.chain_angle
+
+    def order(self, which: str = "tip") -> float | None:
+        """Measured order p of |error| ~ N^-p of ``"tip"`` or ``"angle"``."""
+        if which not in ("tip", "angle"):
+            raise ValueError(f"which must be 'tip' or 'angle', got {which!r}")
+        error = np.abs(self.tip_error if which == "tip" else self.angle_error)
+        keep = error > 1e-13
+        if np.unique(self.N[keep]).size < 2:
+            return None
+        return float(-np.polyfit(np.log(self.N[keep]), np.log(error[keep]), 1)[0])
+
+    def as_dict(self) -> dict[str, object]:
+        """Columns as lists and both orders (for JSON)."""
+        return {
+            "load": self.load,
+            "N": [int(n) for n in self.N],
+            "chain_tip": self.chain_tip.tolist(),
+            "beam_tip": self.beam_tip.tolist(),
+            "tip_error": self.tip_error.tolist(),
+            "chain_angle": self.chain_angle.tolist(),
+            "beam_angle": self.beam_angle.tolist(),
+            "angle_error": self.angle_error.tolist(),
+            "tip_order": self.order("tip"),
+            "angle_order": self.order("angle"),
+        }
+
+
+def elastica_convergence(
+    params: ChainParams, n_values: list[int] | np.ndarray, *, load: float = 2.0, steps: int = 4
+) -> ElasticaConvergence:
+    """Model (i) against the exact beam under a transverse dead force F = load EI / (2L)^2 at the free end, for each N.
+
+    The beam by :func:`cantilever` (``steps`` load steps); model (i) by Newton's method
+    (:func:`cosserat_chain.numerics.newton.solve_equilibrium`) started on the beam sampled at the particles.
+
+    Raises
+    ------
+    ValueError
+        For another kind of ends, an empty list or N < 1, or a load that is not finite and > 0.
+    """
+    from ..loads import Loads, Schedule
+    from ..loads import PointLoad as ChainLoad
+    from ..numerics.newton import solve_equilibrium
+
+    _require_cantilever(params, "the elastica")
+    if not (math.isfinite(load) and load > 0):
+        raise ValueError(f"load (F (2L)^2 / EI) must be finite and > 0, got {load!r}")
+    n_values = [int(n) for n in n_values]
+    if not n_values or min(n_values) < 1:
+        raise ValueError(f"n_values must hold integers N >= 1, got {n_values!r}")
+    rows = []
+    for n in n_values:
+        chain = params.replace(N=n)
+        length = 2 * n * chain.h
+        force = load * beam_stiffness(chain).EI / length**2
+        beam = cantilever(chain, force=(0.0, force), steps=steps)
+        state = solve_equilibrium(chain, "nonlinear", Loads([ChainLoad("v", n, Schedule.constant(force))]), x0=beam.at_particles(chain))
+        rows.append(((n * chain.h + state[0, -1], state[1, -1]), (beam.x[-1], beam.y[-1]), state[2, -1], beam.theta[-1], length))
+    tips, beam_tips, angles, beam_angles, lengths = zip(*rows)
+    return ElasticaConvergence(
+        load=float(load),
+        N=np.array(n_values),
+        chain_tip=np.array(tips),
+        beam_tip=np.array(beam_tips),
+        chain_angle=np.array(angles),
+        beam_angle=np.array(beam_angles),
+        length=np.array(lengths),
     )

@@ -41,6 +41,12 @@ def theory(
         help="Also bend the chain's cantilever (clamped left, free right) by an end moment until its free end turns by this angle "
         "(rad, in (0, 2 pi]; 6.2832 closes it into a ring): model (i) against the geometrically exact beam's circle.",
     ),
+    elastica: float | None = typer.Option(
+        None,
+        "--elastica",
+        help="Also load the chain's cantilever with a transverse dead force F = ELASTICA EI / (2L)^2 at its free end (2: about "
+        "45 degrees): model (i) against the exact beam's elastica.",
+    ),
     front: bool = typer.Option(
         False,
         "--front",
@@ -89,6 +95,16 @@ def theory(
             bending = bending_convergence(params.replace(left_end="clamped", right_end="free"), n_values, angle=bend_angle)
         except (ValueError, ArithmeticError) as err:
             fail(f"--bend-angle {bend_angle!r}: {err}")
+    large_force = None
+    if elastica is not None:
+        from ..analysis.exact_beam import elastica_convergence
+
+        if not (math.isfinite(elastica) and elastica > 0):
+            fail(f"--elastica must be a finite number > 0 (F (2L)^2 / EI), got {elastica!r}")
+        try:
+            large_force = elastica_convergence(params.replace(left_end="clamped", right_end="free"), n_values, load=elastica)
+        except (ValueError, ArithmeticError) as err:
+            fail(f"--elastica {elastica!r}: {err}")
     waves = _long_waves(params)
     rotation = _rotation(params) if front else None
     if out is not None:
@@ -114,6 +130,7 @@ def theory(
         summary["timoshenko"] = {**stiffness.as_dict(), **beam.as_dict(), "at": at, "waves": waves}
         summary["exact_beam"] = None if bending is None else bending.as_dict()
         summary["rotation"] = rotation
+        summary["elastica"] = None if large_force is None else large_force.as_dict()
         summary.update({"plot": str(plot) if plot else None, "out": str(out) if out else None})
         typer.echo(json.dumps(summary))
         return
@@ -127,6 +144,8 @@ def theory(
     _print_beam(params, stiffness, beam, waves)
     if bending is not None:
         _print_bending(bending)
+    if large_force is not None:
+        _print_elastica(large_force)
     if rotation is not None:
         _print_rotation(rotation)
     typer.echo(
@@ -197,6 +216,19 @@ def _print_bending(bending) -> None:
     for which in ("moment", "tip"):
         order = bending.order(which)
         typer.echo(f"measured order of the {which} error: " + (f"N^-{order:.3f}" if order is not None else "none (zero to round-off)"))
+
+
+def _print_elastica(table) -> None:
+    typer.echo(
+        f"\nelastica: model (i)'s cantilever under a transverse dead force F (2L)^2 / EI = {table.load:g} at its free end, against the "
+        "exact beam (solve_bvp)"
+    )
+    typer.echo(f"{'N':>8}  {'chain tip angle':>15}  {'beam tip angle':>14}  {'(b - c) / c':>11}  {'tip error / 2L':>14}")
+    for n, c, b, e, t in zip(table.N, table.chain_angle, table.beam_angle, table.angle_error, table.tip_error):
+        typer.echo(f"{n:>8d}  {c:>15.8g}  {b:>14.8g}  {e:>+11.3e}  {t:>14.3e}")
+    for which in ("angle", "tip"):
+        order = table.order(which)
+        typer.echo(f"measured order of the {which} error: " + (f"N^-{order:.3f}" if order is not None else "none"))
 
 
 def _rotation(params) -> dict[str, Any]:
