@@ -258,6 +258,22 @@ def test_a_second_run_on_the_same_output_is_refused_before_it_computes_naming_th
     assert _leftovers(tmp_path) == []
 
 
+@pytest.mark.parametrize("command", ["study", "rotate", "reproduce"])
+def test_every_command_is_refused_on_an_output_another_run_writes(tmp_path, command):
+    spec = tmp_path / "spec.toml"
+    spec.write_text('models = ["linear"]\nquantities = ["compliance"]\n[parameters]\na = [0.1, 0.2]\n')
+    out = tmp_path / ("rep" if command == "reproduce" else "same.nc")
+    args = {"study": ["study", str(spec), "--workers", "1"], "rotate": ["rotate", "--turns", "1", "--moment", "1"], "reproduce": ["reproduce"]}[command]
+    holder = _hold_lock(out)
+    try:
+        result = runner.invoke(app, [*args, "--out", str(out)])
+    finally:
+        holder.kill()
+        holder.wait()
+    assert result.exit_code == 2 and f"process {holder.pid}" in result.output, result.output
+    assert not out.exists()
+
+
 def test_a_stale_lock_file_of_a_dead_run_does_not_block(tmp_path):
     out = tmp_path / "run.nc"
     (tmp_path / ".run.nc.lock").write_text("999999999\n")  # no process holds it
