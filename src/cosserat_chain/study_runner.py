@@ -301,7 +301,7 @@ def run_study(
     if progress is not None:
         progress(skipped, total)
     computed, message, status = 0, "", Status.COMPLETED
-    unsaved = ""
+    unsaved, reached = "", False
 
     def store(part: list[Cell], values: list[dict[str, Any]]) -> None:
         nonlocal computed
@@ -314,6 +314,7 @@ def run_study(
     try:
         if todo:
             with _client(scheduler, workers, dashboard) as (client, worker_count):
+                reached = True
                 spec_json = spec.to_json()
                 chunks = chunk_cells(todo, chunk or default_chunk_size(len(todo), worker_count))
                 futures = {client.submit(compute_cells, [c[2] for c in part], part[0][1], spec_json, pure=False): part for part in chunks}
@@ -330,8 +331,8 @@ def run_study(
                         pass
     finally:
         # Also on an error (a progress callback raising, a failure of the client): keep the chunks that arrived.
-        # Nothing new (a scheduler that could not be reached, every cell read back): the file stays as it was.
-        if out is not None and computed:
+        # A scheduler that could not be reached, or every cell read back: nothing ran, the file stays as it was.
+        if out is not None and (computed or reached):
             unsaved = _save(ds, out)
     failed = int(np.sum((ds["done"].values == 1) & (ds["error"].values.astype(str) != "")))
     return StudyRun(ds, computed, skipped, failed, status, message, unsaved)
