@@ -546,7 +546,11 @@ def dynamic_stability(
         a[n:, n:] = -np.diag(rate)
         eigenvalues = la.eigvals(a)
         return _verdict(eigenvalues, tolerance, rightmost, index, method, int(np.sum(eigenvalues.real > tolerance)))
-    count = _unstable_count(scaled, rate, tolerance)
+    # The chain at rest as the reference of the count (module docstring), where its K is symmetric.
+    rest = model.stiffness(params, np.zeros_like(x)).tocsr()
+    symmetric = abs(rest - rest.T).max() <= 1e-12 * abs(rest).max() if rest.nnz else False
+    reference = sp.csr_matrix(sp.diags(root) @ rest @ sp.diags(root)) if symmetric else None
+    count = _unstable_count(scaled, rate, tolerance, reference)
     eigenvalues = tolerance + _nearest_axis(_shifted_solver(scaled, rate, tolerance), 2 * n, count, rightmost)
     return _verdict(eigenvalues, tolerance, rightmost, index, method, count)
 
@@ -584,23 +588,66 @@ def _shifted_solver(scaled: sp.spmatrix, rate: np.ndarray, shift: float) -> Call
 
 
 def _pencil_band(scaled: sp.spmatrix) -> tuple[np.ndarray, int]:
-    """K~ in LAPACK's general band storage (rows 2w + i - j, w sub- and superdiagonals, w rows of fill), and w."""
+    """K~ in LAPACK's general band storage by columns (band[j, 2w + i - j] = K~[i, j]; w rows of fill first), and w."""
     coo = sp.coo_matrix(scaled)
     width = int(np.max(np.abs(coo.row - coo.col), initial=0))
-    band = np.zeros((3 * width + 1, scaled.shape[0]), dtype=complex)
-    np.add.at(band, (2 * width + coo.row - coo.col, coo.col), coo.data)
+    band = np.zeros((scaled.shape[0], 3 * width + 1), dtype=complex)
+    np.add.at(band, (coo.col, 2 * width + coo.row - coo.col), coo.data)
     return band, width
 
 
 def _phase(band: np.ndarray, width: int, rate: np.ndarray, z: complex) -> float:
     """arg det(K~ + z R + z^2 I) = arg det(A - z I) (not reduced mod 2 pi), from one banded LU (O(n w^2))."""
-    shifted = band.copy()
-    shifted[2 * width] += z * rate + z * z
-    lu, pivots, info = la.lapack.zgbtrf(shifted, width, width)
-    if info > 0:  # z is an eigenvalue: the phase next to it (the caller's steps resolve the jump)
+    value = _band_phase(band, width, rate, complex(z), np.empty_like(band))
+    if math.isnan(value):  # z is an eigenvalue: the phase next to it (the caller's steps resolve the jump)
         return _phase(band, width, rate, z + 1e-12 * max(abs(z), 1e-300) * 1j)
-    swaps = int(np.count_nonzero(pivots != np.arange(pivots.size)))
-    return float(np.sum(np.angle(lu[2 * width]))) + math.pi * swaps
+    return value
+
+
+@njit(cache=True, nogil=True)
+def _band_phase(band, width, rate, z, work):  # pragma: no cover - compiled
+    """arg det(B + diag(z rate + z^2)) for B in band storage by columns ``band`` (:func:`_pencil_band`).
+
+    LAPACK's unblocked banded LU with partial pivoting (xGBTF2, its pivot chosen by
+    |Re| + |Im| as izamax does) in ``work``: the sum of the pivots' arguments, plus pi a row
+    interchange; NaN at a zero pivot. Compiled, each column's band contiguous: zgbtrf through
+    SciPy cost 4.8 ms at n = 6000, w = 4 (its blocking does not pay at this width), and the
+    argument principle takes thousands of them.
+    """
+    n = band.shape[0]
+    kl = ku = width
+    kv = kl + ku
+    work[:, :] = band
+    for c in range(n):
+        work[c, kv] += z * rate[c] + z * z
+    total = 0.0
+    last = 0
+    for j in range(n):
+        km = min(kl, n - 1 - j)
+        jp = 0
+        best = abs(work[j, kv].real) + abs(work[j, kv].imag)
+        for i in range(1, km + 1):
+            size = abs(work[j, kv + i].real) + abs(work[j, kv + i].imag)
+            if size > best:
+                best, jp = size, i
+        if best == 0.0:
+            return math.nan
+        last = max(last, min(j + ku + jp, n - 1))
+        if jp != 0:
+            total += math.pi
+            for c in range(j, last + 1):
+                upper, lower = kv + j - c, kv + j + jp - c
+                work[c, upper], work[c, lower] = work[c, lower], work[c, upper]
+        pivot = work[j, kv]
+        total += math.atan2(pivot.imag, pivot.real)
+        inverse = 1.0 / pivot
+        for i in range(1, km + 1):
+            work[j, kv + i] *= inverse
+        for c in range(j + 1, last + 1):
+            above = work[c, kv + j - c]
+            for i in range(1, km + 1):
+                work[c, kv + j + i - c] -= work[j, kv + i] * above
+    return total
 
 
 def _wrap_angle(angle: float) -> float:
@@ -608,43 +655,60 @@ def _wrap_angle(angle: float) -> float:
     return angle - 2.0 * math.pi * math.ceil((angle - math.pi) / (2.0 * math.pi))
 
 
-def _unstable_count(scaled: sp.spmatrix, rate: np.ndarray, tolerance: float) -> int:
+def _unstable_count(scaled: sp.spmatrix, rate: np.ndarray, tolerance: float, reference: sp.spmatrix | None = None) -> int:
     """Eigenvalues of A with a real part above ``tolerance``, by the argument principle, O(n) a point.
 
     det(A - z I) = det(K~ + z R + z^2 I) winds round zero once for each eigenvalue inside
     a closed curve. The curve: the line Re z = tolerance and a half circle right of it of
     radius 4 rho, rho = (r + sqrt(r^2 + 4 |K~|)) / 2 bounding every |lambda| (from
     lambda^2 + lambda y*Ry + y*K~y = 0, |y| = 1). A is real, so the upper half of the curve
-    turns the phase by pi per eigenvalue. On the circle the phase of det(I + R/z + K~/z^2)
-    (that of z^(2n) taken out) turns slowly; down the line every eigenvalue left of it turns
-    the phase by up to pi, and the steps follow it: a step that turns the phase by more than
-    :data:`PHASE_STEP` is halved, one that turns it by less grows by half. Eigenvalues within
-    one step and nearer the line than its length could hide each other's turns: the steps are
-    at most a quarter of the least damping rate r_min, since a complex eigenvalue of a
-    conservative damped chain lies at least r_min / 2 left of the axis (Re lambda =
-    -y*Ry / 2 for its eigenvector y), and they shrink towards the real axis, where the slow
-    overdamped modes lie (within 1e-7 of zero at N = 100). The cost is O(n) a point and
-    O(rho / r_min) points.
+    turns the phase by pi per eigenvalue.
+
+    ``reference``: a symmetric positive semi-definite K~_0 (the chain at rest), whose damped
+    dynamics has no eigenvalue right of the line (K~_0 symmetric and R >= 0: no growing mode);
+    the phase followed is then that of det(K~ + z R + z^2 I) / det(K~_0 + z R + z^2 I), which
+    winds once per eigenvalue of A inside the curve less one per eigenvalue of the reference:
+    the eigenvalues the state shares with rest (those of the chain far from where it is
+    deformed) cancel, and the phase turns slowly.
+
+    The phase is followed in steps that turn it by less than :data:`PHASE_STEP` (halved on a
+    larger turn, grown by half otherwise). Eigenvalues within one step and nearer the line than
+    its length could hide each other's turns: the steps are at most a quarter of the least
+    damping rate r_min, since a complex eigenvalue of a conservative damped chain lies at least
+    r_min / 2 left of the axis (Re lambda = -y*Ry / 2 for its eigenvector y), and they shrink
+    geometrically towards the real axis, where the slow overdamped modes lie (within 1e-7 of
+    zero at N = 100). The cost is two banded LUs a point, O(rho / r_min) points.
     """
     band, width = _pencil_band(scaled)
+    base = None if reference is None else _pencil_band(reference)[0]
+    if base is not None and base.shape != band.shape:
+        base = None
     n = scaled.shape[0]
     r = float(rate.max(initial=0.0))
     size = abs(scaled)
     norm = math.sqrt(float(size.sum(axis=0).max()) * float(size.sum(axis=1).max())) if n else 0.0
     radius = 4.0 * (r + math.sqrt(r * r + 4.0 * norm)) / 2.0 + tolerance
 
+    def phase(z: complex) -> float:
+        if base is None:
+            return _phase(band, width, rate, z)
+        return _phase(band, width, rate, z) - _phase(base, width, rate, z)
+
+    # Without a reference the phase of z^(2n) is taken out on the circle, where it dominates.
+    power = 0 if base is not None else 2 * n
+
     def arc(theta: float) -> float:
         z = tolerance + radius * complex(math.cos(theta), math.sin(theta))
-        return _phase(band, width, rate, z) - 2 * n * math.atan2(z.imag, z.real)
+        return phase(z) - power * math.atan2(z.imag, z.real)
 
     def line(y: float) -> float:
-        return _phase(band, width, rate, complex(tolerance, y))
+        return phase(complex(tolerance, y))
 
     start = complex(tolerance + radius, 0.0)
     corner = complex(tolerance, radius)
     # The arc from the real axis to the line, then the line down to the real axis.
     total = _follow_phase(arc, 0.0, 0.5 * math.pi, 0.5 * math.pi / 64)
-    total += 2 * n * (math.atan2(corner.imag, corner.real) - math.atan2(start.imag, start.real))
+    total += power * (math.atan2(corner.imag, corner.real) - math.atan2(start.imag, start.real))
     damped = rate[rate > 0]
     largest = min(0.25 * float(damped.min()) if damped.size else radius / 4096, radius / 64)
     total += _follow_phase(line, radius, 0.0, largest, floor=tolerance * 1e-3, largest=largest)
