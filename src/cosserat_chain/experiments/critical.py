@@ -6,8 +6,15 @@ Contract
 
 * the compliance d phi_0 / dM at M = 0 (the same for every model: they share K at rest);
 * the branch traced by pseudo-arclength continuation over one full turn of the
-  loaded particle, with the stability of every point and every fold it passes, each
-  located to round-off (:func:`~cosserat_chain.numerics.continuation.locate_fold`);
+  loaded particle, and on while it stays stable to where the stable branch from rest
+  ends, within a budget of ``turns`` turns (a cantilever's branch point lies at
+  phi_0 = 1.41 N on the paper's geometry), with the stability of every point and every
+  fold it passes, each located to round-off
+  (:func:`~cosserat_chain.numerics.continuation.locate_fold`); ``end`` says how the stable
+  branch ends ("fold", "branch_point", or "budget" where it was still stable: not
+  ``complete``), ``onset_particle`` which particle turns there (a pinned end can turn
+  before the loaded particle; the trace stops once another particle has wound a full
+  turn ahead of it, Branch.stop "wound");
 * M_c, the onset of rotation under a slowly rising load: the largest maximum of M
   along the branch (no static state of the branch holds more; of its traced part if
   the point budget ran out or the corrector stalled first: ``complete`` is then False
@@ -33,6 +40,14 @@ only one trace passes is an artefact of round-off (N = 10^4: eleven small folds 
 phi_0 = 2 pi, within 4e-5 of M = 0, differ in number and place between two traces,
 while the first fold agrees to 6e-12): ``accurate`` is False where the onset's fold or
 the first fold is not confirmed, and the command line then exits with ``inaccurate``.
+
+Eq. (2)'s folds are known in closed form: its static states are (u, v, sin phi) = M c with
+c = K^-1 e at rest, so every fold lies at M = +-1 / max_j |c_j|, where the particle of largest
+|c_j| passes pi/2. ``critical_point`` takes them there (``confirmation`` "closed form"; one
+trace, however near singular K is), with the compliance of the linear model's K at rest, which
+every model shares, refined in extended precision
+(:func:`~cosserat_chain.numerics.continuation.moment_response`): at N = 10^4 M_c to round-off
+where the traced folds were 3.6e-6 off and flagged.
 
 The result converts to a JSON-ready dict and to a self-describing xarray Dataset.
 """

@@ -3,8 +3,11 @@
 Contract
 --------
 :func:`solve_equilibrium` (load control) finds x with F(x) + L = 0 for constant
-loads L (the loads' values at time ``t``), starting from ``x0`` (default rest),
-using the analytic stiffness K = -dF/dq of the model (banded, O(n) per iteration).
+loads L (the loads' values at time ``t``), using the analytic stiffness K = -dF/dq of
+the model (banded, O(n) per iteration): by default the state on the branch from rest
+that a slowly rising load reaches, followed as the load rises from zero (or
+:class:`BranchEndError` where that branch ends first), else Newton from a given ``x0``;
+the answer is an :class:`Equilibrium`, the state with its stability.
 
 :func:`solve_rotation_controlled` (rotation control) prescribes the angle phi_0
 of the loaded particle and solves for every other degree of freedom *and* the
