@@ -256,6 +256,9 @@ class Report:
         return [s.title for s in self.sections if s.error]
 
 
+#: Chain lengths of the report's answer to the open problem (the orders need three past the shear length).
+WHICH_CONTINUUM_N = (10, 30, 100, 300, 1000)
+
 #: Width (inches) of every figure of the report.
 FIGURE_WIDTH = 10.0
 
@@ -959,6 +962,30 @@ def _continuum(stage: _Stage) -> Section:
     return section
 
 
+def _which_continuum(stage: _Stage) -> Section:
+    """The paper's open problem (its introduction): which continuum describes small deformations, large bending, a full rotation."""
+    from .analysis.which_continuum import answer
+    from .plots.theory import plot_continua
+
+    result = answer(stage.params, n_values=WHICH_CONTINUUM_N)
+    numbers = result.as_dict()
+    stage.data("which_continuum", numbers)
+    section = Section("Which continuum? The paper's open problem answered in numbers", numbers=numbers)
+    section.paragraphs.extend(result.lines())
+    section.paragraphs.append(
+        "Each number is computed against the discrete chain of this report's geometry; docs/which-continuum.md derives the "
+        "three levels and maps where each stops being valid over the geometry."
+    )
+    section.figures.append(
+        (
+            stage.figure(plot_continua(result.beam, result.bending), "which_continuum"),
+            "Left: compliance error of the Timoshenko beam and of eq. (11) against the discrete chain, against N. "
+            "Right: model (i)'s cantilever bent by an end moment against the exact beam's circle.",
+        )
+    )
+    return section
+
+
 def _reduced_sentence(reduced: dict[str, Any]) -> str:
     """The reduced model's continuum arbitrariness against the discrete chain's uniqueness, in a sentence from the numbers."""
     continuum = (
@@ -1037,6 +1064,7 @@ STAGES: dict[str, Callable[[_Stage], Section]] = {
     "rotation": _rotation,
     "localization": _localization,
     "continuum": _continuum,
+    "which_continuum": _which_continuum,
     "waves": _waves,
     "errata": _errata,
 }
