@@ -86,6 +86,8 @@ def test_equilibrium_is_an_array_whose_derived_arrays_are_plain():
     assert type(x + 0.0) is np.ndarray
     assert type(pickle.loads(pickle.dumps(x))) is np.ndarray
     assert x.dynamic is None  # a conservative model: K's verdict is the dynamics'
+    with pytest.raises(AttributeError, match="copy or slice"):
+        x.copy().stable
     assert math.isfinite(x.stability.critical_eigenvalue)
 
 

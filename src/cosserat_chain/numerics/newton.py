@@ -180,16 +180,23 @@ class Equilibrium(np.ndarray):
         """Pickled (multiprocessing, Dask) as the plain state."""
         return np.asarray(self).view(np.ndarray).__reduce__()
 
+    def _classified(self) -> tuple[ChainParams, Model]:
+        """The chain and model this state was classified for; AttributeError on a copy or slice (no verdict)."""
+        if self._system is None:
+            raise AttributeError("a copy or slice of an Equilibrium carries no stability: ask the solved state itself")
+        return self._system
+
     @property
     def index(self) -> int:
         """Negative eigenvalues of K at the state (0: a minimum of the energy for a conservative model)."""
+        self._classified()
         return self.stability.index
 
     @property
     def dynamic(self):
         """:func:`~cosserat_chain.numerics.stability.dynamic_stability` of the state for a non-conservative model
         (eq. (2): K's inertia is not its dynamics' stability), None for a conservative one; computed once, when asked."""
-        params, model = self._system
+        params, model = self._classified()
         if model.conservative:
             return None
         if self._dynamic is None:
@@ -202,7 +209,8 @@ class Equilibrium(np.ndarray):
     def stable(self) -> bool:
         """Stable: K positive definite (for eq. (2) this implies decaying dynamics, :mod:`.stability`); where it is
         not, a non-conservative model's dynamics decide (:attr:`dynamic`)."""
-        if self.stability.stable or self._system[1].conservative:
+        conservative = self._classified()[1].conservative
+        if self.stability.stable or conservative:
             return self.stability.stable
         return self.dynamic.stable
 
