@@ -94,7 +94,9 @@ def _print(result) -> None:
     for i, s in enumerate(result.static):
         where = "" if s.on_branch else " (off the traced branch)"
         typer.echo(f"  static {i}: phi_0 = {s.phi0:.10g}, residual {s.residual:.2g}, {s.dynamics.describe()}{where}")
-    for h in result.hopf:
+    if result.hopf is None:
+        typer.echo("  Hopf points of the branch: not searched (a chain beyond the dense limit: numerics.hopf.hopf_points searches it)")
+    for h in result.hopf or []:
         where = "" if h.located else f" (not located: between traced points {h.after_point} and {h.after_point + 1})"
         typer.echo(
             f"  Hopf point of the branch: M = {h.moment:.10g}, phi_0 = {h.phi0:.10g}, omega = {h.frequency:.6g}, "

@@ -22,7 +22,10 @@ chain can end in more than one state, and which one depends on where it starts.
   A static state that a long run reaches off that branch is added (``on_branch``
   false).
 * ``hopf``: the Hopf points of that branch
-  (:func:`~cosserat_chain.numerics.hopf.hopf_points`; a conservative model has none).
+  (:func:`~cosserat_chain.numerics.hopf.hopf_points`; a conservative model has none), searched
+  where the damped dynamics' eigenvalues are dense (:data:`~cosserat_chain.numerics.stability.DENSE_LIMIT`:
+  N up to about 33 with clamped ends; the search takes them at every traced point) and None
+  beyond, where ``hopf_points`` can be called on the branch directly.
 * ``orbits``: periodic orbits, eq. (P) of :mod:`cosserat_chain.numerics.periodic`,
   found by shooting (:func:`~cosserat_chain.numerics.periodic.find_periodic_orbit`)
   with k = 1, 2, 3 (``turns``) turns a period from rest, and from the end of every
@@ -65,9 +68,9 @@ from ..numerics.hopf import HopfPoint, hopf_points
 from ..numerics.newton import NewtonError, moment_dof, solve_equilibrium, solve_rotation_controlled
 from ..numerics.periodic import OrbitError, PeriodicOrbit, find_periodic_orbit, initial_guess
 from ..numerics.relaxation import relax
-from ..numerics.stability import DynamicStability, Stability, dynamic_stability, static_stability
+from ..numerics.stability import DENSE_LIMIT, DynamicStability, Stability, dynamic_stability, static_stability
 from ..params import ChainParams
-from ..state import ROW_INDEX, column, fixed_mask, pack, require_held, zeros
+from ..state import ROW_INDEX, column, fixed_mask, n_free, pack, require_held, zeros
 from ..status import Status
 
 ProgressCallback = Callable[[float, float], None]
@@ -242,7 +245,7 @@ class CoexistingStates:
     relaxation: dict[str, Any]
     settings: dict[str, Any] = field(default_factory=dict)
     status: Status = Status.COMPLETED
-    hopf: list[HopfPoint] = field(default_factory=list)
+    hopf: list[HopfPoint] | None = field(default_factory=list)
 
     @property
     def stable_states(self) -> int:
@@ -257,7 +260,7 @@ class CoexistingStates:
             "moment_scale": self.params.moment_scale,
             "particle": self.particle,
             "static": [s.as_dict() for s in self.static],
-            "hopf_points": [h.as_dict() for h in self.hopf],
+            "hopf_points": None if self.hopf is None else [h.as_dict() for h in self.hopf],
             "orbits": [o.as_dict() for o in self.orbits],
             "irregular": [r.as_dict() for r in self.irregular],
             "runs": [r.as_dict() for r in self.runs],
@@ -292,18 +295,19 @@ def _residual(params: ChainParams, model: Model, x: np.ndarray, moment: float, p
     return float(np.max(np.abs(r))) if r.size else 0.0
 
 
-def _static_states(params: ChainParams, model: Model, moment: float, particle: int) -> tuple[list[StaticState], list[HopfPoint]]:
+def _static_states(params: ChainParams, model: Model, moment: float, particle: int) -> tuple[list[StaticState], list[HopfPoint] | None]:
     """The static states at ``moment`` on the branch from rest (over one full turn for a rotating model), and the
-    branch's Hopf points (none for a conservative model: with damping its unstable eigenvalues are K's negative ones)."""
+    branch's Hopf points (none for a conservative model: with damping its unstable eigenvalues are K's negative ones;
+    None where not searched, beyond the dense limit: module docstring)."""
     col = column(params, particle)
-    hopf: list[HopfPoint] = []
+    hopf: list[HopfPoint] | None = []
     if not model.rotates:
         x = solve_equilibrium(params, model, moment_load(moment, particle))
         states = [x]
     else:
         branch = continue_in_moment(params, model, particle=particle, phi0_stop=2 * math.pi)
         if not model.conservative:
-            hopf = hopf_points(params, model, branch)
+            hopf = hopf_points(params, model, branch) if 2 * n_free(params) <= DENSE_LIMIT else None
         states = []
         m = branch.moment - moment
         for i in range(len(m) - 1):
