@@ -165,3 +165,43 @@ def test_argument_principle_counts_with_and_without_the_rest_reference_and_with_
         scaled = sp.csr_matrix(root @ get_model(model).stiffness(params, x) @ root)
         assert _unstable_count(scaled, rate, dense.tolerance) == dense.unstable_eigenvalues
         assert _unstable_count(scaled, rate, dense.tolerance, sp.csr_matrix(rest)) == dense.unstable_eigenvalues
+
+
+def _pair_run(params, x, moment, pair):
+    """The growth over one period 2 pi / omega of a damped run from x nudged along the eigenvector of ``pair``."""
+    import scipy.linalg as la
+
+    from cosserat_chain.loads import moment_load
+    from cosserat_chain.models.base import get_model
+    from cosserat_chain.numerics.dynamics import integrate
+    from cosserat_chain.state import pack, per_dof, unpack
+
+    model = get_model("sine")
+    stiffness = model.stiffness(params, x).toarray()
+    mass = pack(params, params.particle_inertia)
+    n = mass.size
+    a = np.zeros((2 * n, 2 * n))
+    a[:n, n:] = np.diag(1.0 / mass)
+    a[n:, :n] = -stiffness
+    a[n:, n:] = -np.diag(per_dof(params, params.damping) / mass)
+    values, vectors = la.eig(a)
+    k = int(np.argmin(np.abs(values - pair)))
+    vector = 1e-6 * vectors[:, k] / np.max(np.abs(vectors[:n, k]))
+    period = 2 * math.pi / abs(pair.imag)
+    run = integrate(params, model, moment_load(moment, 0), t_end=period, dt=period / 4000, method="yoshida4", n_frames=2,
+                    x0=x + unpack(params, vector[:n].real), v0=unpack(params, vector[n:].real / mass))  # fmt: skip
+    return np.linalg.norm(pack(params, run.x[-1]) - pack(params, x)) / np.linalg.norm(vector[:n].real), period
+
+
+def test_a_damped_run_along_the_crossing_pair_neither_grows_nor_decays_at_the_hopf_point(sine_branch, hopf):
+    # An independent check by the package's integrator: nudged along the pair's eigenvector, the
+    # chain comes back to the same deviation after one period at the Hopf point, and grows by
+    # exp(Re lambda T) between the Hopf points (the real unstable mode is not excited in one period).
+    params, _ = sine_branch
+    h = hopf[0]
+    growth, _ = _pair_run(params, h.x, h.moment, complex(0.0, h.frequency))
+    assert growth == pytest.approx(1.0, abs=1e-4)
+    x, moment = solve_rotation_controlled(params, "sine", 2.0, tol=1e-14)
+    real, frequency = crossing_part(dynamic_stability(params, "sine", x))
+    growth, period = _pair_run(params, x, moment, complex(real, frequency))
+    assert real > 0.02 and growth == pytest.approx(math.exp(real * period), rel=3e-3)
