@@ -537,7 +537,12 @@ def dynamic_stability(
     scaled = sp.csr_matrix(sp.diags(root) @ stiffness @ sp.diags(root))
     rate = per_dof(params, params.damping) * root**2  # Gamma M^-1
     norm = float(abs(scaled).sum(axis=1).max()) if n else 0.0
-    tolerance = DYNAMIC_RTOL * max(math.sqrt(norm), float(rate.max(initial=0.0)), 1e-300)
+    scale = max(math.sqrt(norm), float(rate.max(initial=0.0)), 1e-300)
+    tolerance = DYNAMIC_RTOL * scale
+    if params.rigid_modes and not np.all(rate > 0):
+        # An undamped rigid mode is a Jordan block at zero (a drift q = a + b t): its computed
+        # eigenvalues scatter by sqrt(eps |A|), 2e-8 for a free chain, and are neutral.
+        tolerance = math.sqrt(np.finfo(float).eps) * scale
     if method == "auto":
         method = "dense" if 2 * n <= DENSE_LIMIT else "sparse"
     if params.periodic or 2 * n <= 2 * rightmost + 4:
@@ -560,7 +565,10 @@ def dynamic_stability(
         symmetric = abs(rest - rest.T).max() <= 1e-12 * abs(rest).max() if rest.nnz else False
         reference = sp.csr_matrix(sp.diags(root) @ rest @ sp.diags(root)) if symmetric else None
         count = _unstable_count(scaled, rate, tolerance, reference)
-    eigenvalues = tolerance + _nearest_axis(_shifted_solver(scaled, rate, tolerance), 2 * n, count, rightmost)
+    # Shift-invert just right of the axis, far enough for K~ + s (R + s I) to be regular where
+    # K~ is singular (rigid modes) and R has zeros.
+    shift = max(tolerance, 1e-5 * scale)
+    eigenvalues = shift + _nearest_axis(_shifted_solver(scaled, rate, shift), 2 * n, count, rightmost)
     return _verdict(eigenvalues, tolerance, rightmost, index, method, count)
 
 
@@ -764,7 +772,10 @@ def _nearest_axis(solve, size: int, count: int, rightmost: int) -> np.ndarray:
     start = np.random.default_rng(0).standard_normal(size)
     wanted = min(count + rightmost + 2, size - 2)
     while True:
-        nu = sla.eigs(inverse, k=wanted, which="LM", v0=start, tol=1e-12, return_eigenvectors=False, maxiter=100 * size)
+        try:
+            nu = sla.eigs(inverse, k=wanted, which="LM", v0=start, tol=1e-12, return_eigenvectors=False, maxiter=100 * size)
+        except sla.ArpackNoConvergence as err:  # the converged ones (the count does not depend on them)
+            nu = err.eigenvalues
         eigenvalues = 1.0 / nu
         if int(np.sum(eigenvalues.real > 0.0)) >= count or wanted >= min(NEAREST_LIMIT, size - 2):
             return eigenvalues
