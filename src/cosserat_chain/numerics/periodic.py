@@ -94,8 +94,8 @@ ProgressCallback = Callable[[float, float], None]
 @njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
 def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
     # Autonomous: t is not read. rpar = (M, 1/mass (nf), gamma/mass (nf)) and ipar = (n,
-    # load_dof, ncols, nf, start, stop, row (nf), col (nf), first (n + 1), lookup (3 n)), as
-    # _System.parameters lays them out: [start, stop) the columns that move, (row[i], col[i])
+    # load_dof, ncols, nf, start, stop, row (nf), col (nf), first (n + 1), lookup (3 n)[, 1 for
+    # the Hamiltonian unfolding of _UndampedSystem]), as _System.parameters lays them out: [start, stop) the columns that move, (row[i], col[i])
     # the place of free degree of freedom i in x (no division in the loops: 30 % on the
     # state-only flow of the paper's chain), first[c] the free degrees of freedom before
     # column c, lookup[3 column + row] the free index (-1 where an end holds it).
@@ -175,8 +175,14 @@ def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - co
             for k in range(ncols):
                 out[k] += weight * column[k]
     if ncols == 2 * nf + 1:
-        # The last column is dy/dM: the moment enters the loaded particle's equation.
-        dphi[nf + load_dof, ncols - 1] += inv_mass[load_dof]
+        if ipar.size > 7 + 2 * nf + 4 * n:
+            # The last column is dy/deps of the Hamiltonian unfolding (a uniform damping rate
+            # eps on every velocity, ipar's extra entry): d(-eps v)/deps = -v.
+            for i in range(nf):
+                dphi[nf + i, ncols - 1] -= y[nf + i]
+        else:
+            # The last column is dy/dM: the moment enters the loaded particle's equation.
+            dphi[nf + load_dof, ncols - 1] += inv_mass[load_dof]
 
 
 def require_orbit_ends(params: ChainParams) -> None:
@@ -996,3 +1002,290 @@ def _fold_moment(last: list[PeriodicOrbit], sign: float) -> float:
     extreme = c - b * b / (4 * a) if a != 0 else m[1]
     bound = min(m) if sign > 0 else max(m)
     return float(extreme) if sign * (extreme - bound) <= 0 else float(bound)
+
+
+#: Largest |mu| - 1 of a nontrivial multiplier of a Hamiltonian orbit that still counts as on the
+#: unit circle: the monodromy is accurate to about 1e-9, and a colliding pair splits like its root.
+HAMILTONIAN_CIRCLE_TOL = 1e-6
+
+
+def require_undamped(params: ChainParams) -> None:
+    """Refuse a damped chain for the Hamiltonian orbits (their energy must be conserved).
+
+    Raises
+    ------
+    ValueError
+        Naming every non-zero viscosity.
+    """
+    damped = [f"{name}={value!r}" for name, value in zip(("gamma_u", "gamma_v", "gamma_phi"), params.damping) if value != 0]
+    if damped:
+        raise ValueError(
+            f"Hamiltonian orbits need an undamped chain (gamma_u = gamma_v = gamma_phi = 0), got {', '.join(damped)}; "
+            "set them to 0 (params.replace(gamma_u=0, gamma_v=0, gamma_phi=0))"
+        )
+
+
+@dataclass(frozen=True)
+class _UndampedSystem(_System):
+    """The undamped, unloaded chain with the unfolding damping rate ``eps`` on every velocity.
+
+    The field f + eps g, g = (0, -v), dissipates energy at the rate eps sum m v^2, so a
+    periodic orbit of it has eps = 0; as an unknown eps makes the shooting's Newton system
+    regular although the Hamiltonian flow has a second multiplier at +1 (the family).
+    """
+
+    eps: float = 0.0
+
+    def parameters(self, ncols: int):
+        kernel, ends, coef, rpar, ipar = super().parameters(ncols)
+        rpar[1 + self.nf :] = self.eps
+        return kernel, ends, coef, rpar, np.append(ipar, 1)
+
+
+@dataclass
+class HamiltonianOrbit(PeriodicOrbit):
+    """A periodic orbit of the undamped, unloaded chain with a prescribed frequency (:func:`find_hamiltonian_orbit`).
+
+    ``moment`` is 0; the loaded particle of :class:`PeriodicOrbit` is the rotating one.
+
+    Attributes
+    ----------
+    unfolding : float
+        The unfolding parameter eps at the solution: 0 up to the Newton tolerance.
+    energy : float or None
+        Total energy (kinetic + potential) on the section; None for a model without a
+        potential (the sine model, eq. (2)).
+    """
+
+    unfolding: float = 0.0
+    energy: float | None = None
+
+    @property
+    def omega(self) -> float:
+        """Omega = 2 pi k / T, the rotating particle's mean angular velocity."""
+        return 2.0 * math.pi * self.turns / self.period
+
+    @property
+    def mean_angular_velocity(self) -> float:
+        return self.omega
+
+    @property
+    def nontrivial_multipliers(self) -> np.ndarray:
+        """All multipliers but the Hamiltonian pair at +1 (the flow and the family)."""
+        closest = np.argsort(np.abs(self.multipliers - 1.0), kind="stable")[:2]
+        return np.delete(self.multipliers, closest)
+
+    @property
+    def stable(self) -> bool:
+        """Linearly stable: every nontrivial multiplier on the unit circle (to :data:`HAMILTONIAN_CIRCLE_TOL`)."""
+        return self.max_multiplier <= 1.0 + HAMILTONIAN_CIRCLE_TOL
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary (:meth:`PeriodicOrbit.as_dict` with omega, the unfolding and the energy)."""
+        out = super().as_dict()
+        out.update({"omega": self.omega, "unfolding": self.unfolding, "energy": self.energy})
+        return out
+
+
+def hamiltonian_energy(params: ChainParams, model: str | Model, x: np.ndarray, v: np.ndarray) -> float | None:
+    """Kinetic plus potential energy of the state (x, v) (3, 2N+1); None for a non-conservative model."""
+    model = get_model(model)
+    if not model.conservative:
+        return None
+    inertia = pack(params, params.particle_inertia)
+    return float(0.5 * np.sum(inertia * pack(params, v) ** 2) + model.energy(params, x))
+
+
+def find_hamiltonian_orbit(
+    params: ChainParams,
+    model: str | Model,
+    omega: float,
+    guess: PeriodicOrbit | tuple,
+    *,
+    turns: int = 1,
+    particle: int = 0,
+    tol: float = CLOSURE_TOL,
+    max_iter: int = 25,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+) -> HamiltonianOrbit:
+    """The undamped rotating orbit with frequency ``omega``, by Newton on the unfolded shooting map.
+
+    With gamma = 0 and no load the multiplier +1 is double (the flow direction, and the
+    family of orbits through it), so (P) with T unknown is singular. Here T = 2 pi k / Omega
+    is prescribed and the unknowns are the state on the section phi_particle = 0 (the phase
+    condition) and the unfolding eps of :class:`_UndampedSystem`:
+
+        Phi_T^eps(y0) - y0 - 2 pi k e_phi = 0,   Jacobian [(dPhi_T/dy0 - I) without the
+        phi column, dPhi_T/deps],
+
+    integrated with the shooting's DOP853 and variational equations (:func:`_shooting`).
+
+    Parameters
+    ----------
+    params : ChainParams
+        Undamped (:func:`require_undamped`), held against translation (:func:`require_orbit_ends`).
+    model : str or Model
+        A model 2 pi periodic in the angles (``nonlinear``, ``sine``).
+    omega : float
+        Omega > 0, the rotating particle's mean angular velocity.
+    guess : PeriodicOrbit or (x (3, 2N+1), v (3, 2N+1))
+        Start of Newton's method (a nearby orbit, or an anti-continuum state).
+    turns : int
+        k >= 1, turns of the rotating particle per period.
+    particle : int
+        The rotating particle.
+    tol : float
+        Newton stops when max |Phi_T(y0) - y0 - 2 pi k e_phi| <= tol.
+    max_iter : int
+    rtol, atol : float
+        Tolerances of the DOP853 integrations.
+
+    Returns
+    -------
+    HamiltonianOrbit
+
+    Raises
+    ------
+    ValueError
+        For a non-positive or non-finite omega, turns < 1, a damped chain or ends the shooting cannot take.
+    OrbitError
+        If Newton's method does not converge.
+    """
+    model = get_model(model)
+    if not (isinstance(omega, (int, float)) and math.isfinite(omega) and omega > 0):
+        raise ValueError(f"omega must be a finite number > 0 (the rotating particle's mean angular velocity), got {omega!r}")
+    _check_moment_and_turns(1.0, turns)
+    for name, value in (("tol", tol), ("rtol", rtol), ("atol", atol)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    require_orbit_ends(params)
+    require_undamped(params)
+    if isinstance(guess, PeriodicOrbit):
+        x0, v0 = guess.x, guess.v
+    else:
+        x0, v0 = guess
+    period = 2.0 * math.pi * turns / float(omega)
+    particle_turns = _loaded_turns(params, particle, turns, 1.0)
+    dof = _System(params, model, 0.0, particle).load_dof
+    y0 = _to_y(params, check_state(params, x0, "guess x"), check_state(params, v0, "guess v"))
+    y0[dof] = 0.0
+    keep = np.arange(len(y0)) != dof
+
+    def evaluate(y: np.ndarray, eps: float, variations: bool):
+        system = _UndampedSystem(params, model, 0.0, particle, eps)
+        residual, jac_y, _, d_eps, mono = _shooting(system, particle_turns, rtol, atol)(y, period, variations)
+        return residual, (None if jac_y is None else np.column_stack([jac_y[:, keep], d_eps])), mono
+
+    eps = 0.0
+    residual, jac, mono = evaluate(y0, eps, True)
+    norm, iterations = float(np.max(np.abs(residual))), 0
+    while norm > tol:
+        if iterations >= max_iter:
+            raise OrbitError(_no_hamiltonian_convergence(omega, turns, iterations, norm))
+        iterations += 1
+        step = np.linalg.solve(jac, -residual)
+        for _ in range(MAX_HALVINGS):
+            trial_y = y0.copy()
+            trial_y[keep] += step[:-1]
+            trial_eps = eps + step[-1]
+            trial = evaluate(trial_y, trial_eps, False)[0]
+            trial_norm = float(np.max(np.abs(trial)))
+            if trial_norm < norm or trial_norm <= tol:
+                break
+            step = 0.5 * step
+        else:
+            raise OrbitError(_no_hamiltonian_convergence(omega, turns, iterations, norm))
+        y0, eps = trial_y, trial_eps
+        residual, jac, mono = evaluate(y0, eps, True)
+        norm = float(np.max(np.abs(residual)))
+    base = _orbit(_System(params, model, 0.0, particle), turns, y0, period, mono, norm, iterations, particle_turns)
+    fields = {name: getattr(base, name) for name in PeriodicOrbit.__dataclass_fields__}
+    return HamiltonianOrbit(**fields, unfolding=float(eps), energy=hamiltonian_energy(params, model, base.x, base.v))
+
+
+def _no_hamiltonian_convergence(omega: float, turns: int, iterations: int, norm: float) -> str:
+    return (
+        f"Newton on the unfolded shooting map did not converge at omega={omega!r} with turns={turns} "
+        f"({iterations} iterations, closure {norm:.3g}); start from an orbit at a nearby frequency (smaller continuation "
+        "steps), or the family may end here (a resonance with a band, or a fold in the frequency)"
+    )
+
+
+@dataclass
+class HamiltonianFamily:
+    """Undamped rotating orbits followed in the frequency by :func:`continue_in_frequency`.
+
+    Attributes
+    ----------
+    orbits : list of HamiltonianOrbit
+        In the order traced.
+    requested : ndarray
+        The frequencies asked for; the family may end before the last (``complete`` False).
+    message : str
+        Why the family ended (empty when every frequency was reached).
+    """
+
+    orbits: list[HamiltonianOrbit]
+    requested: np.ndarray
+    message: str = ""
+
+    @property
+    def complete(self) -> bool:
+        return len(self.orbits) == len(self.requested)
+
+    @property
+    def omega(self) -> np.ndarray:
+        return np.array([o.omega for o in self.orbits])
+
+    @property
+    def energy(self) -> np.ndarray:
+        return np.array([math.nan if o.energy is None else o.energy for o in self.orbits])
+
+    @property
+    def max_multiplier(self) -> np.ndarray:
+        return np.array([o.max_multiplier for o in self.orbits])
+
+    @property
+    def stable(self) -> np.ndarray:
+        return np.array([o.stable for o in self.orbits], dtype=bool)
+
+
+def continue_in_frequency(
+    orbit: HamiltonianOrbit,
+    omegas: np.ndarray | list[float],
+    *,
+    tol: float = CLOSURE_TOL,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+    progress: ProgressCallback | None = None,
+) -> HamiltonianFamily:
+    """Follow a Hamiltonian orbit through the frequencies ``omegas`` (the first is the orbit's own or near it).
+
+    Each orbit starts Newton from the secant through the two before it (the previous
+    orbit for the second); the family ends at the first frequency where Newton fails.
+
+    Returns
+    -------
+    HamiltonianFamily
+    """
+    omegas = np.asarray(omegas, dtype=float)
+    params, model = orbit.params, orbit.model
+    orbits: list[HamiltonianOrbit] = []
+    message = ""
+    guess: PeriodicOrbit | tuple = orbit
+    for i, omega in enumerate(omegas):
+        if len(orbits) >= 2:
+            a, b = orbits[-2], orbits[-1]
+            r = (omega - b.omega) / (b.omega - a.omega)
+            guess = (b.x + r * (b.x - a.x), b.v + r * (b.v - a.v))
+        try:
+            found = find_hamiltonian_orbit(params, model, float(omega), guess, turns=orbit.turns, particle=orbit.particle, tol=tol, rtol=rtol, atol=atol)
+        except OrbitError as err:
+            message = f"the family ends before omega={omega:.10g}: {err}"
+            break
+        orbits.append(found)
+        guess = found
+        if progress is not None:
+            progress(i + 1, len(omegas))
+    return HamiltonianFamily(orbits=orbits, requested=omegas, message=message)
