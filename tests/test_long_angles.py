@@ -192,3 +192,24 @@ def test_a_blow_up_message_names_the_value_that_ran_away():
     assert unstable.status == "blew_up" and "of particle" in unstable.message and "smaller time step than dt=5" in unstable.message
     bounded = integrate(params, "nonlinear", t_end=50.0, x0=x0, v0=v0, max_displacement=1e-3, n_frames=3)
     assert bounded.status == "blew_up" and "beyond the bound 0.001" in bounded.message and "max_displacement" in bounded.message
+
+
+def test_a_run_goes_on_from_the_turns_and_the_rest_without_a_bit_lost():
+    """x0 with the reduced angles and winding0 start the next run exactly where the last one ended."""
+    params = ChainParams(N=3)
+    x0, v0 = _start(params, {3: 2 * math.pi * TURNS})
+    first = integrate(params, "nonlinear", moment_load(2.0, 0), t_end=30.0, x0=x0, v0=v0, n_frames=3, throw=True)
+    start = first.x[-1].copy()
+    start[2] = first.reduced_phi[-1]
+    more = integrate(
+        params, "nonlinear", moment_load(2.0, 0), t0=30.0, t_end=40.0, x0=start, v0=first.v[-1], winding0=first.winding[-1], n_frames=3
+    )
+    assert np.array_equal(more.x[0], first.x[-1]) and np.array_equal(more.winding[0], first.winding[-1])
+    assert np.array_equal(more.reduced_phi[0], first.reduced_phi[-1])
+    assert more.x[-1, 2, 3] > more.x[0, 2, 3] + 100  # it went on turning
+    with pytest.raises(ValueError, match=r"winding0 of particle 1 is 0\.5; whole numbers"):
+        integrate(params, "nonlinear", t_end=1.0, winding0=[0, 0, 0, 0, 0.5, 0, 0])
+    with pytest.raises(ValueError, match="linear model does not rotate"):
+        integrate(params, "linear", t_end=1.0, winding0=[0, 0, 0, 1, 0, 0, 0])
+    with pytest.raises(ValueError, match="particle -3 is 2, but its end holds phi fixed"):
+        integrate(params, "nonlinear", t_end=1.0, winding0=[2, 0, 0, 0, 0, 0, 0])

@@ -45,7 +45,7 @@ from ..memory import FLOAT, require
 from ..models.base import Model, get_model
 from ..models.trig import join_turns
 from ..params import ChainParams
-from ..state import check_state, column
+from ..state import check_state, column, held
 from ..status import Status
 from .engine import CROSSINGS, STATUS_BLEW_UP, STATUS_OK, STATUS_TURNED, TURN_LIMIT, Blocks, Lanes
 from .integrators import Method, get_method
@@ -439,6 +439,30 @@ def _require_frames(params: ChainParams, n_stored: int) -> None:
     )
 
 
+def _check_winding(params: ChainParams, winding0, model: Model) -> np.ndarray:
+    """winding0 as int64 (2N+1,), checked: whole numbers, none for a model that does not rotate or at a held angle.
+
+    Raises
+    ------
+    ValueError
+        Naming the particle and the value that is not allowed.
+    """
+    arr = np.asarray(winding0)
+    if arr.shape != (params.n_particles,):
+        raise ValueError(f"winding0 must have shape (2N+1,) = ({params.n_particles},), got {arr.shape}")
+    whole = np.asarray(arr, dtype=float)
+    bad = np.flatnonzero(~(np.isfinite(whole) & (whole == np.round(whole)) & (np.abs(whole) < 2.0**62)))
+    if bad.size:
+        raise ValueError(f"winding0 of particle {bad[0] - params.N} is {arr[bad[0]].item()!r}; whole numbers of turns below 2^62 are allowed")
+    turns = whole.astype(np.int64)
+    if turns.any() and not model.rotates:
+        raise ValueError(f"winding0 gives whole turns, but the {model.name} model does not rotate (its forces are not periodic in phi)")
+    for row, col in held(params):
+        if row == 2 and turns[col]:
+            raise ValueError(f"winding0 of particle {col - params.N} is {turns[col]}, but its end holds phi fixed: it must be 0")
+    return turns
+
+
 def integrate(
     params: ChainParams,
     model: str | Model,
@@ -449,6 +473,7 @@ def integrate(
     t0: float = 0.0,
     x0: np.ndarray | None = None,
     v0: np.ndarray | None = None,
+    winding0: np.ndarray | None = None,
     method: str | Method = "verlet",
     stride: int | None = None,
     n_frames: int | None = 201,
@@ -477,6 +502,11 @@ def integrate(
         Largest time step; default :func:`default_time_step`.
     x0, v0 : ndarray (3, 2N+1), optional
         Initial state; default rest.
+    winding0 : ndarray (2N+1,) of int, optional
+        Whole turns to add to x0's angles: the start is x0[2] + 2 pi winding0 exactly. To go on
+        from a run without a bit lost at any winding: ``x0`` with ``run.reduced_phi[-1]`` as its
+        angles and ``winding0=run.winding[-1]`` (``x0=run.x[-1]`` alone rounds the angles to
+        doubles of their size).
     method : {"verlet", "yoshida4"}
     stride, n_frames : int, optional
         Store every ``stride``-th step; if not given, ``stride`` is chosen so that
@@ -550,13 +580,15 @@ def integrate(
         raise ValueError(f"stride must be >= 1, got {stride!r}")
     if x0 is not None:
         x0 = check_state(params, x0, "x0")
+    if winding0 is not None:
+        winding0 = _check_winding(params, winding0, model)
     if v0 is not None:
         v0 = check_state(params, v0, "v0")
     if turns is not None and (resume is not None or on_chunk is not None):
         raise ValueError("resume and on_chunk do not follow turns: the turn count is not part of a RunState")
     if resume is not None:
-        if x0 is not None or v0 is not None:
-            raise ValueError("resume holds the run's start state: give no x0 or v0 with it")
+        if x0 is not None or v0 is not None or winding0 is not None:
+            raise ValueError("resume holds the run's start state: give no x0, v0 or winding0 with it")
         resume.check(params, n_steps, stride, t0, dt, method.name)
     if max_displacement is None:
         max_displacement = 100.0 * 2 * params.N * params.h
@@ -575,10 +607,12 @@ def integrate(
     lanes = Lanes(model, [params], method, [dt], loads, t0=[t0], max_displacement=[max_displacement])
     lanes.x, lanes.v, lanes.winding = frames_x[-1], frames_v[-1], frames_winding[-1]
     if x0 is not None:
-        # Frame 0 keeps the start as given (winding 0); the state its turns and the rest.
+        # Frame 0 keeps the start as given (with winding0); the state splits off whole turns beyond 64 rad.
         frames_x[0, ..., 0] = lanes.x[..., 0] = x0
-        if resume is None:
-            lanes.reduce_angles("x0")
+    if winding0 is not None:
+        frames_winding[0, :, 0] = lanes.winding[:, 0] = winding0
+    if resume is None:
+        lanes.reduce_angles("x0")
     if v0 is not None:
         frames_v[0, ..., 0] = lanes.v[..., 0] = v0
     frame_steps = np.empty(n_stored, dtype=np.int64)
