@@ -1,6 +1,7 @@
 """Command line ``cosserat-chain``: one module per command, all registered on one Typer ``app``."""
 
 from . import (
+    breathers,  # noqa: F401  (registers the command)
     diagram,  # noqa: F401  (registers the command)
     draw,  # noqa: F401  (registers draw and animate)
     export,  # noqa: F401  (registers the command)

@@ -1280,7 +1280,9 @@ def continue_in_frequency(
             r = (omega - b.omega) / (b.omega - a.omega)
             guess = (b.x + r * (b.x - a.x), b.v + r * (b.v - a.v))
         try:
-            found = find_hamiltonian_orbit(params, model, float(omega), guess, turns=orbit.turns, particle=orbit.particle, tol=tol, rtol=rtol, atol=atol)
+            found = find_hamiltonian_orbit(
+                params, model, float(omega), guess, turns=orbit.turns, particle=orbit.particle, tol=tol, rtol=rtol, atol=atol
+            )
         except OrbitError as err:
             message = f"the family ends before omega={omega:.10g}: {err}"
             break

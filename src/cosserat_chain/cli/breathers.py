@@ -1,0 +1,67 @@
+"""``cosserat-chain breathers``: one-site roto-breathers of the undamped chain, followed in the frequency."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import typer
+
+from .common import app, bar_callback, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, save_dataset, save_figure
+
+
+@app.command()
+def breathers(
+    model: str = model_option("sine", "A model that supports full rotations (the linear model does not).", rotating=True),
+    omega: float = number(..., "Frequency Omega of the rotating particle (its mean angular velocity) to start from.", above=0.0),
+    to: float | None = number(None, "Follow the family in Omega to here (default: the start alone).", above=0.0),
+    steps: int = typer.Option(11, min=2, help="Frequencies from --omega to --to, both included."),
+    turns: int = typer.Option(1, min=1, help="Turns of the rotating particle per period (T = 2 pi turns / Omega)."),
+    particle: int = typer.Option(0, help="The rotating particle (default the central one)."),
+    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields; its viscosities are set to 0 (undamped)."),
+    out: Path | None = typer.Option(None, help="Write the family to this NetCDF file."),
+    plot: Path | None = typer.Option(None, help="Draw the family against the bands' harmonics to this PNG/SVG file."),
+    as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+) -> None:
+    """Roto-breathers: one particle rotating, the rest oscillating, undamped; Newton from the anti-continuum limit, Floquet multipliers, resonances with the bands."""
+    import numpy as np
+
+    from ..experiments.breathers import roto_breather_family
+    from ..numerics.periodic import OrbitError
+
+    outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
+    params = params_or_exit(config).replace(gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
+    omegas = np.array([omega]) if to is None else np.linspace(omega, to, steps)
+    bar = progress_bar(f"breathers {model}", "orbit")
+    try:
+        result = roto_breather_family(params, model, omegas, turns=turns, particle=particle, progress=bar_callback(bar))
+    except ValueError as err:
+        bar.close()
+        fail(str(err))
+    except OrbitError as err:
+        bar.close()
+        fail(str(err), code=3)
+    family = result.family
+    bar.finish(note="" if family.complete else "the family ended early")
+    save_dataset(result.to_dataset(), out)
+    if plot is not None:
+        from ..plots.breathers import breather_family_figure
+
+        save_figure(breather_family_figure(result), plot)
+    summary = result.as_dict()
+    if as_json:
+        typer.echo(json.dumps({"params": params.model_dump(), **summary}))
+        return
+    typer.echo(f"{model}: {len(family.orbits)} of {len(omegas)} roto-breathers, {turns} turn(s) per period, particle {particle}")
+    typer.echo(f"{'omega':>10}  {'energy':>12}  {'rotor rate':>11}  {'tail':>10}  {'max |mu|':>10}  stable  harmonics in a band")
+    for i, o in enumerate(family.orbits):
+        energy = "-" if o.energy is None else f"{o.energy:.8g}"
+        inside = ", ".join(f"{h['harmonic']}x in {h['band']}" for h in summary["resonant_harmonics"][i]) or "none"
+        typer.echo(
+            f"{o.omega:>10.6g}  {energy:>12}  {summary['rotor_velocity'][i]:>11.6g}  {summary['tail_amplitude'][i]:>10.3g}  "
+            f"{o.max_multiplier:>10.6g}  {'yes' if o.stable else 'no':>6}  {inside}"
+        )
+    for r in result.resonances:
+        typer.echo(f"resonance: {r.harmonic} x Omega = {r.edge_frequency:.6g} ({r.band} band {r.edge}) at Omega = {r.omega:.6g}")
+    if not family.complete:
+        typer.echo(family.message)

@@ -1,0 +1,373 @@
+"""Roto-breathers: undamped periodic orbits in which one particle rotates and the rest oscillate.
+
+Contract
+--------
+With gamma = 0 and no load, a chain whose particle ``particle`` turns k times per
+period T = 2 pi k / Omega while the others oscillate about rest is a Hamiltonian
+periodic orbit (:func:`~cosserat_chain.numerics.periodic.find_hamiltonian_orbit`).
+
+* :func:`rotor_potential` and :func:`anti_continuum_state` give the anti-continuum
+  limit: the rotating particle alone, its neighbours held at rest, is a one-degree-of-freedom
+  rotor in the on-site potential V(phi) of its bonds (a pendulum, -c cos phi, for the sine
+  model), whose rotation with mean rate Omega has the energy E solving
+  T(E) = int_0^{2 pi} sqrt(J / (2 (E - V))) dphi = 2 pi / Omega. Its state (phi = 0,
+  phi' = sqrt(2 (E - V(0)) / J), every other particle at rest) starts Newton.
+* :func:`roto_breather_family` corrects it by Newton at the first frequency and follows
+  the family in Omega (:func:`~cosserat_chain.numerics.periodic.continue_in_frequency`),
+  with the Floquet multipliers of every orbit.
+* :func:`resonances` gives the frequencies Omega = edge / n at which the n-th harmonic of
+  the rotation meets a band edge of the linear chain
+  (:func:`~cosserat_chain.analysis.dispersion.wave_summary`), and
+  :func:`harmonics_in_bands` the harmonics n Omega that fall inside a band: a roto-breather
+  is non-resonant (localised, long-lived) only where none does.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+import xarray as xr
+from scipy.optimize import brentq
+
+from ..analysis.dispersion import BRANCHES, wave_summary
+from ..loads import moment_load
+from ..models.base import Model, get_model
+from ..numerics.periodic import HamiltonianFamily, continue_in_frequency, find_hamiltonian_orbit, require_undamped
+from ..params import ChainParams
+from ..state import ROW_INDEX, ROWS, column, zeros
+from .simulation import run_attributes
+
+ProgressCallback = Callable[[float, float], None]
+
+#: Points of the torque's Fourier series in :func:`rotor_potential` (the on-site potential is smooth).
+POTENTIAL_POINTS = 256
+#: Quadrature points of the rotor's period integral.
+PERIOD_POINTS = 4096
+#: Highest harmonic n of the rotation compared with the bands.
+MAX_HARMONIC = 6
+#: Times per period at which the tail's amplitude is sampled.
+TAIL_SAMPLES = 32
+
+
+def _rotor_forces(params: ChainParams, model: Model, particle: int) -> np.ndarray:
+    """Forces (POTENTIAL_POINTS, 3, 2N+1) with ``particle`` turned to 2 pi i / POTENTIAL_POINTS, every other at rest."""
+    col = column(params, particle)
+    out = []
+    for phi in 2 * math.pi * np.arange(POTENTIAL_POINTS) / POTENTIAL_POINTS:
+        x = zeros(params)
+        x[ROW_INDEX["phi"], col] = phi
+        out.append(model.forces(params, x))
+    return np.array(out)
+
+
+def rotor_potential(params: ChainParams, model: str | Model, particle: int = 0) -> Callable[[np.ndarray], np.ndarray]:
+    """The on-site potential V(phi) of ``particle`` turned alone, every other particle at rest (V(0) = 0).
+
+    From the torque -dV/dphi of the model's forces, sampled at :data:`POTENTIAL_POINTS`
+    angles and integrated as a Fourier series (the torque is 2 pi periodic with zero mean
+    for every rotating model).
+
+    Returns
+    -------
+    callable(phi ndarray) -> ndarray
+    """
+    torque = _rotor_forces(params, get_model(model), particle)[:, ROW_INDEX["phi"], column(params, particle)]
+    coef = np.fft.rfft(torque) / POTENTIAL_POINTS
+    wave = np.arange(1, coef.size)
+
+    def potential(phi: np.ndarray) -> np.ndarray:
+        phi = np.asarray(phi, dtype=float)
+        # V = -int torque: each harmonic c_n e^{i n phi} integrates to c_n e^{i n phi} / (i n).
+        terms = (coef[1:, None] / (1j * wave[:, None])) * (np.exp(1j * np.outer(wave, phi.ravel())) - 1.0)
+        return -2.0 * np.real(terms.sum(axis=0)).reshape(phi.shape)
+
+    return potential
+
+
+def coupled_bands(params: ChainParams, model: str | Model, particle: int = 0) -> tuple[str, ...]:
+    """The bands the rotation drives: all but the longitudinal one where the rotor exerts no force along u.
+
+    In the sine model u decouples (eq. (2) is linear in u and the angles enter only the
+    v and phi equations), so its longitudinal band cannot resonate with the rotation.
+    """
+    forces = _rotor_forces(params, get_model(model), particle)
+    drives_u = bool(np.any(forces[:, ROW_INDEX["u"], :] != 0.0))
+    return tuple(name for name in BRANCHES if name != "longitudinal" or drives_u)
+
+
+def rotor_period(potential: Callable[[np.ndarray], np.ndarray], inertia: float, energy: float) -> float:
+    """Time of one turn of the rotor J phi'' = -V'(phi) at energy E > max V (trapezoid: spectral for a periodic integrand)."""
+    phi = 2 * math.pi * np.arange(PERIOD_POINTS) / PERIOD_POINTS
+    return float(np.mean(np.sqrt(inertia / (2.0 * (energy - potential(phi))))) * 2 * math.pi)
+
+
+def anti_continuum_state(
+    params: ChainParams, model: str | Model, omega: float, *, particle: int = 0
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """The anti-continuum limit at frequency ``omega``: the rotor alone in its on-site potential.
+
+    Returns
+    -------
+    x, v : ndarray (3, 2N+1)
+        Every particle at rest but ``particle``, at phi = 0 with phi' = sqrt(2 E / J).
+    energy : float
+        The rotor's energy E: its turn takes 2 pi / omega.
+
+    Raises
+    ------
+    ValueError
+        For omega not finite and > 0.
+    """
+    if not (math.isfinite(omega) and omega > 0):
+        raise ValueError(f"omega must be a finite number > 0, got {omega!r}")
+    potential = rotor_potential(params, model, particle)
+    col = column(params, particle)
+    inertia = float(params.particle_inertia[ROW_INDEX["phi"], col])
+    top = float(np.max(potential(2 * math.pi * np.arange(PERIOD_POINTS) / PERIOD_POINTS)))
+    target = 2 * math.pi / omega
+    low = top + 1e-12 * max(1.0, abs(top))
+    high = max(2 * low, 1.0)
+    while rotor_period(potential, inertia, high) > target:
+        high *= 4.0
+    if rotor_period(potential, inertia, low) < target:
+        # Slower than the rotor can turn just above its barrier: the slowest rotation.
+        energy = low
+    else:
+        energy = brentq(lambda e: rotor_period(potential, inertia, e) - target, low, high, xtol=1e-14, rtol=1e-14)
+    x, v = zeros(params), zeros(params)
+    v[ROW_INDEX["phi"], col] = math.sqrt(2.0 * energy / inertia)
+    return x, v, float(energy)
+
+
+@dataclass(frozen=True)
+class Resonance:
+    """A harmonic of the rotation meeting a band edge: n Omega = edge."""
+
+    omega: float
+    harmonic: int
+    band: str
+    edge: str
+    edge_frequency: float
+
+    def as_dict(self) -> dict:
+        return {"omega": self.omega, "harmonic": self.harmonic, "band": self.band, "edge": self.edge, "edge_frequency": self.edge_frequency}
+
+
+def resonances(
+    params: ChainParams, low: float, high: float, *, bands: tuple[str, ...] = BRANCHES, max_harmonic: int = MAX_HARMONIC
+) -> list[Resonance]:
+    """The frequencies Omega in [low, high] where n Omega (n = 1..max_harmonic) meets an edge of ``bands``, sorted by Omega.
+
+    The bands are those of the infinite linear chain, eq. (3) (:func:`wave_summary`), to
+    which every model linearises at rest.
+    """
+    out = []
+    for band, (bottom, top) in wave_summary(params).bands.items():
+        if band not in bands:
+            continue
+        for edge, frequency in (("bottom", bottom), ("top", top)):
+            if frequency <= 0:
+                continue
+            for n in range(1, max_harmonic + 1):
+                if low <= frequency / n <= high:
+                    out.append(Resonance(frequency / n, n, band, edge, frequency))
+    return sorted(out, key=lambda r: r.omega)
+
+
+def harmonics_in_bands(
+    params: ChainParams, omega: float, *, bands: tuple[str, ...] = BRANCHES, max_harmonic: int = MAX_HARMONIC
+) -> list[tuple[int, str]]:
+    """The (n, band) with n ``omega`` inside one of ``bands`` (n = 1..max_harmonic): the resonant harmonics."""
+    edges = wave_summary(params).bands
+    return [(n, band) for n in range(1, max_harmonic + 1) for band in bands if edges[band][0] <= n * omega <= edges[band][1]]
+
+
+def combination_resonances(
+    params: ChainParams, omega: float, *, bands: tuple[str, ...] = BRANCHES, max_harmonic: int = MAX_HARMONIC
+) -> list[tuple[int, str, str]]:
+    """The (n, band A, band B) with w_A + w_B = n ``omega`` for some w_A, w_B in the bands (A = B included).
+
+    The rotation modulates the chain's stiffness with period T = 2 pi k / Omega: a pair of
+    phonons whose frequencies add up to a harmonic of Omega is parametrically excited (its
+    Floquet multipliers, exp(+-i w T), collide off the unit circle), so these are the
+    frequencies where a roto-breather of a long chain may be unstable even with every
+    harmonic in a gap.
+    """
+    edges = wave_summary(params).bands
+    out = []
+    for n in range(1, max_harmonic + 1):
+        for i, a in enumerate(bands):
+            for b in bands[i:]:
+                if edges[a][0] + edges[b][0] <= n * omega <= edges[a][1] + edges[b][1]:
+                    out.append((n, a, b))
+    return out
+
+
+@dataclass
+class BreatherFamily:
+    """A family of one-site roto-breathers followed in Omega, with the band picture beside it.
+
+    Attributes
+    ----------
+    family : HamiltonianFamily
+    anti_continuum_energy : float
+        The rotor's energy at the first frequency (the anti-continuum start).
+    bands : tuple of str
+        The bands the rotation drives (:func:`coupled_bands`).
+    resonances : list of Resonance
+        Edges of those bands met by a harmonic within the requested frequencies.
+    settings : dict
+    """
+
+    family: HamiltonianFamily
+    anti_continuum_energy: float
+    bands: tuple[str, ...]
+    resonances: list[Resonance]
+    settings: dict = field(default_factory=dict)
+
+    def resonant_harmonics(self) -> list[list[tuple[int, str]]]:
+        """For every orbit, the harmonics n Omega inside a driven band."""
+        return [harmonics_in_bands(o.params, o.omega, bands=self.bands) for o in self.family.orbits]
+
+    def combination_resonances(self) -> list[list[tuple[int, str, str]]]:
+        """For every orbit, the phonon pairs of driven bands with w_A + w_B = n Omega (:func:`combination_resonances`)."""
+        return [combination_resonances(o.params, o.omega, bands=self.bands) for o in self.family.orbits]
+
+    def localization(self) -> np.ndarray:
+        """Per orbit, the largest |u|, |v|, |phi| of the non-rotating particles over the period (the tail's amplitude).
+
+        Sampled at :data:`TAIL_SAMPLES` times: on the section itself a symmetric orbit has
+        every coordinate at 0 (the time reversal (q, q') -> (-q, q') of the models).
+        """
+        out = []
+        for o in self.family.orbits:
+            col = column(o.params, o.particle)
+            x, _ = o.trajectory(o.period * np.arange(1, TAIL_SAMPLES + 1) / TAIL_SAMPLES)
+            others = np.delete(x, col, axis=2)
+            out.append(float(np.max(np.abs(others), initial=0.0)))
+        return np.array(out)
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary of the family."""
+        orbits = self.family.orbits
+        return {
+            "model": self.settings.get("model"),
+            "turns": self.settings.get("turns"),
+            "particle": self.settings.get("particle"),
+            "requested_omega": self.family.requested.tolist(),
+            "complete": self.family.complete,
+            "message": self.family.message,
+            "anti_continuum_energy": self.anti_continuum_energy,
+            "omega": self.family.omega.tolist(),
+            "period": [o.period for o in orbits],
+            "energy": [o.energy for o in orbits],
+            "rotor_velocity": [float(o.v[ROW_INDEX["phi"], column(o.params, o.particle)]) for o in orbits],
+            "tail_amplitude": self.localization().tolist(),
+            "max_multiplier": self.family.max_multiplier.tolist(),
+            "stable": self.family.stable.tolist(),
+            "unfolding": [o.unfolding for o in orbits],
+            "closure": [o.closure for o in orbits],
+            "bands": list(self.bands),
+            "resonant_harmonics": [[{"harmonic": n, "band": b} for n, b in h] for h in self.resonant_harmonics()],
+            "combination_resonances": [[{"harmonic": n, "bands": [a, b]} for n, a, b in h] for h in self.combination_resonances()],
+            "resonances": [r.as_dict() for r in self.resonances],
+        }
+
+    def to_dataset(self) -> xr.Dataset:
+        """Dataset with dims ``point`` (the family), ``particle`` and ``multiplier``; parameters in the attributes."""
+        orbits = self.family.orbits
+        if not orbits:
+            raise ValueError("the family holds no orbit: nothing to write")
+        params = orbits[0].params
+        data = {
+            "omega": (("point",), self.family.omega),
+            "period": (("point",), np.array([o.period for o in orbits])),
+            "energy": (("point",), self.family.energy),
+            "max_multiplier": (("point",), self.family.max_multiplier),
+            "stable": (("point",), self.family.stable.astype(np.int8)),
+            "tail_amplitude": (("point",), self.localization()),
+            "multiplier_real": (("point", "multiplier"), np.array([o.multipliers.real for o in orbits])),
+            "multiplier_imag": (("point", "multiplier"), np.array([o.multipliers.imag for o in orbits])),
+        }
+        for i, row in enumerate(ROWS):
+            data[row] = (("point", "particle"), np.array([o.x[i] for o in orbits]))
+            data[f"{row}_dot"] = (("point", "particle"), np.array([o.v[i] for o in orbits]))
+        coords = {
+            "point": np.arange(len(orbits)),
+            "particle": np.arange(-params.N, params.N + 1),
+            "multiplier": np.arange(orbits[0].multipliers.size),
+        }
+        ds = xr.Dataset(data, coords=coords)
+        ds.attrs.update(run_attributes(params, get_model(orbits[0].model), moment_load(0.0, orbits[0].particle)))
+        ds.attrs.update(
+            {
+                "experiment": "roto_breathers",
+                "turns": orbits[0].turns,
+                "rotating_particle": orbits[0].particle,
+                "complete": int(self.family.complete),
+                "message": self.family.message,
+                "bands": ", ".join(self.bands),
+                "resonances_json": json.dumps([r.as_dict() for r in self.resonances]),
+                "settings_json": json.dumps({k: v for k, v in self.settings.items() if k != "params"}),
+            }
+        )
+        return ds
+
+
+def roto_breather_family(
+    params: ChainParams,
+    model: str | Model,
+    omegas: np.ndarray | list[float],
+    *,
+    turns: int = 1,
+    particle: int = 0,
+    progress: ProgressCallback | None = None,
+) -> BreatherFamily:
+    """One-site roto-breathers at the frequencies ``omegas``, from the anti-continuum limit at the first.
+
+    Parameters
+    ----------
+    params : ChainParams
+        Undamped (gamma_u = gamma_v = gamma_phi = 0).
+    model : str or Model
+        ``sine`` or ``nonlinear``.
+    omegas : sequence of float
+        Frequencies Omega > 0 of the rotating particle (mean angular velocity), in the order followed.
+    turns : int
+        k: the rotating particle's turns per period (T = 2 pi k / Omega).
+    particle : int
+        The rotating particle.
+    progress : callable(done, total), optional
+
+    Returns
+    -------
+    BreatherFamily
+
+    Raises
+    ------
+    ValueError
+        For a damped chain, an empty or non-positive ``omegas``.
+    OrbitError
+        If Newton fails at the first frequency (no roto-breather found from the anti-continuum start).
+    """
+    model = get_model(model)
+    require_undamped(params)
+    omegas = np.asarray(omegas, dtype=float)
+    if omegas.ndim != 1 or omegas.size == 0 or not np.all(np.isfinite(omegas)) or np.any(omegas <= 0):
+        raise ValueError(f"omegas must be one or more finite frequencies > 0, got {omegas.tolist()!r}")
+    x, v, energy = anti_continuum_state(params, model, float(omegas[0]), particle=particle)
+    first = find_hamiltonian_orbit(params, model, float(omegas[0]), (x, v), turns=turns, particle=particle)
+    family = continue_in_frequency(first, omegas, progress=progress)
+    settings = {"model": model.name, "turns": turns, "particle": particle, "params": params.model_dump()}
+    bands = coupled_bands(params, model, particle)
+    return BreatherFamily(
+        family=family,
+        anti_continuum_energy=energy,
+        bands=bands,
+        resonances=resonances(params, float(omegas.min()), float(omegas.max()), bands=bands),
+        settings=settings,
+    )

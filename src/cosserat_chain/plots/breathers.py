@@ -1,0 +1,76 @@
+"""A roto-breather family against the bands: tail amplitude and stability versus the frequency Omega.
+
+Contract
+--------
+:func:`breather_family_figure` draws, from a computed
+:class:`~cosserat_chain.experiments.breathers.BreatherFamily`, the amplitude of the
+non-rotating particles (the tail) and the largest Floquet multiplier modulus against
+Omega (stable orbits filled, unstable open), with the frequency windows where a harmonic
+n Omega lies in a driven band shaded and the resonances n Omega = band edge as dotted
+lines. It never computes anything itself.
+"""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
+
+from ..analysis.dispersion import wave_summary
+from ..experiments.breathers import BreatherFamily
+
+#: One colour per band of :data:`~cosserat_chain.analysis.dispersion.BRANCHES`.
+BAND_COLORS = {"longitudinal": "tab:green", "transverse_acoustic": "tab:blue", "rotational_optical": "tab:red"}
+
+
+def breather_family_figure(result: BreatherFamily) -> Figure:
+    """Tail amplitude and max |mu| against Omega, the bands' harmonic windows shaded.
+
+    Parameters
+    ----------
+    result : BreatherFamily
+        With at least one orbit.
+
+    Returns
+    -------
+    Figure
+    """
+    family = result.family
+    omega = family.omega
+    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(6.4, 5.6))
+    stable = family.stable
+    top.plot(omega, result.localization(), color="k", lw=1)
+    bottom.plot(omega, family.max_multiplier, color="k", lw=1)
+    bottom.scatter(omega[stable], family.max_multiplier[stable], color="k", s=12, label="stable")
+    bottom.scatter(omega[~stable], family.max_multiplier[~stable], facecolor="none", edgecolor="k", s=12, label="unstable")
+    low, high = (float(omega.min()), float(omega.max())) if omega.size else (0.0, 1.0)
+    span = max(high - low, 1e-3)
+    bands = wave_summary(family.orbits[0].params).bands if family.orbits else {}
+    for band in result.bands:
+        bottom_edge, top_edge = bands.get(band, (0.0, 0.0))
+        for n in range(1, 7):
+            a, b = bottom_edge / n, top_edge / n
+            if b >= low - 0.05 * span and a <= high + 0.05 * span:
+                for ax in (top, bottom):
+                    ax.axvspan(max(a, low - 0.05 * span), min(b, high + 0.05 * span), color=BAND_COLORS[band], alpha=0.12, lw=0)
+                top.text(
+                    0.5 * (max(a, low) + min(b, high)),
+                    1.0,
+                    f"{n}Ω",
+                    transform=top.get_xaxis_transform(),
+                    ha="center",
+                    va="bottom",
+                    fontsize=7,
+                )
+    for r in result.resonances:
+        for ax in (top, bottom):
+            ax.axvline(r.omega, color=BAND_COLORS[r.band], ls=":", lw=0.8)
+    for band in result.bands:
+        bottom.plot([], [], color=BAND_COLORS[band], alpha=0.4, lw=6, label=f"n Ω in {band.replace('_', ' ')}")
+    top.set_ylabel("tail amplitude (max |q| off the rotor)")
+    bottom.set_ylabel("max nontrivial |μ|")
+    bottom.set_yscale("log")
+    bottom.set_xlabel("Ω (mean angular velocity of the rotor)")
+    bottom.legend(fontsize=7)
+    top.set_xlim(low - 0.05 * span, high + 0.05 * span)
+    fig.tight_layout()
+    return fig
