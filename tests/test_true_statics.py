@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import json
 import math
 import pickle
 
@@ -207,3 +208,24 @@ def test_the_sine_critical_moment_at_n_10000_is_accurate():
     assert result.accurate and result.complete and result.confirmation == "closed form"
     assert result.critical_moment == pytest.approx(1.0 / result.compliance, rel=1e-14)
     assert result.onset_particle == 0 and result.phi0_at_onset == pytest.approx(math.pi / 2, rel=1e-15)
+
+
+def test_critical_command_names_the_turning_particle_and_exits_3_at_the_budget(tmp_path):
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    runner = CliRunner()
+    pin = tmp_path / "pin.toml"
+    pin.write_text("".join(f"{k} = {v!r}\n".replace("'", '"') for k, v in WEAK_PIN.items()))
+    result = runner.invoke(app, ["critical", "--model", "sine", "--config", str(pin), "--json"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout)["models"]["sine"]
+    assert summary["onset_particle"] == 1 and summary["end"] == "fold" and not summary["snap_through"]
+    assert summary["branch"]["stop"] == "wound" and "particle 1" in summary["branch"]["message"]
+    cantilever = tmp_path / "cantilever.toml"
+    cantilever.write_text('N = 8\nright_end = "free"\n')
+    result = runner.invoke(app, ["critical", "--model", "nonlinear", "--config", str(cantilever), "--turns", "1"])
+    assert result.exit_code == 3 and "still stable after 1 turns" in result.output and "--turns" in result.output
+    result = runner.invoke(app, ["critical", "--turns", "0.5"])
+    assert result.exit_code == 2 and "--turns" in result.output
