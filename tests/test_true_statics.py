@@ -88,7 +88,7 @@ def test_equilibrium_is_an_array_whose_derived_arrays_are_plain():
     assert type(pickle.loads(pickle.dumps(x))) is np.ndarray
     assert x.dynamic is None  # a conservative model: K's verdict is the dynamics'
     with pytest.raises(AttributeError, match="copy or slice"):
-        x.copy().stable
+        _ = x.copy().stable
     assert math.isfinite(x.stability.critical_eigenvalue)
 
 

@@ -109,8 +109,10 @@ def critical(
         None, min=2, help="Most points of each branch (default 5000); a branch cut short exits with max_steps (3)."
     ),
     turns: float | None = number(
-        None, "Budget in turns of the loaded particle for a branch that stays stable past one turn (default 16); reached, "
-        "it exits with max_steps (3).", at_least=1.0,
+        None,
+        "Budget in turns of the loaded particle for a branch that stays stable past one turn (default 16); reached, "
+        "it exits with max_steps (3).",
+        at_least=1.0,
     ),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
 ) -> None:
@@ -127,9 +129,7 @@ def critical(
     for name in chosen_models(model):
         bar = progress_bar(f"critical {name}", "rad")
         try:
-            results[name] = critical_point(
-                params, name, particle=particle, max_points=max_points, turns=turns, progress=bar_callback(bar)
-            )
+            results[name] = critical_point(params, name, particle=particle, max_points=max_points, turns=turns, progress=bar_callback(bar))
         except (ValueError, NewtonError) as err:
             bar.close()
             fail(str(err), code=2 if isinstance(err, ValueError) else 3)
@@ -157,7 +157,11 @@ def critical(
                 fold += ")" if r.snap_to is None else f" to the stable state at phi_0 = {r.snap_to.phi0:.15g} rad)"
             if r.onset_particle is not None and r.onset_particle != r.particle:
                 fold += f"; particle {r.onset_particle}, not the loaded one, turns first there"
-            over = f"to phi_0 = {r.branch.phi0[-1]:.6g} rad" if r.complete else f"on the traced part (incomplete: {len(r.branch.moment)} points)"
+            over = (
+                f"to phi_0 = {r.branch.phi0[-1]:.6g} rad"
+                if r.complete
+                else f"on the traced part (incomplete: {len(r.branch.moment)} points)"
+            )
             if r.branch.stop == "wound":
                 over += f" (the trace stopped: {r.branch.message})"
             if r.confirmation == "closed form":

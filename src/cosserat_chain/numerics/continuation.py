@@ -828,7 +828,16 @@ def continue_in_moment(
         mode = eigenvector.copy()
         static_stability(params, model, x, start=mode)  # leaves K's softest eigenvector (of its symmetric similar) in ``mode``
         return BranchPoint(
-            float(point[-1]), phi0, x, particle, before, after, len(moments) - 1, located, bracket, _turning_particle(params, unpack(params, mode))
+            float(point[-1]),
+            phi0,
+            x,
+            particle,
+            before,
+            after,
+            len(moments) - 1,
+            located,
+            bracket,
+            _turning_particle(params, unpack(params, mode)),
         )
 
     tangent, factor = new_tangent(y, tangent)

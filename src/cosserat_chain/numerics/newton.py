@@ -341,10 +341,7 @@ def _follow_from_rest(params: ChainParams, model: Model, load: np.ndarray, tol: 
     step = min(1.0, largest_step(tangent))
     while lam < 1.0:
         if steps >= MAX_LOAD_STEPS or step < MIN_LOAD_STEP:
-            reason = (
-                f"{MAX_LOAD_STEPS} load steps" if steps >= MAX_LOAD_STEPS else "a load step below "
-                f"{MIN_LOAD_STEP:g} of the load"
-            )
+            reason = f"{MAX_LOAD_STEPS} load steps" if steps >= MAX_LOAD_STEPS else f"a load step below {MIN_LOAD_STEP:g} of the load"
             raise BranchEndError(
                 f"no state on the stable branch from rest holds this load: the branch ends at {lam:.10g} of it "
                 f"(K turns singular there: a fold or a branch point; {reason}), where a slowly loaded chain leaves it "
@@ -358,7 +355,9 @@ def _follow_from_rest(params: ChainParams, model: Model, load: np.ndarray, tol: 
         if found is not None:
             moved = float(np.linalg.norm(predicted - x))
             corrected = float(np.linalg.norm(found - predicted))
-            trial = static_stability(params, model, found, guess=check.critical_eigenvalue) if corrected <= LOAD_CORRECTION * moved else None
+            trial = (
+                static_stability(params, model, found, guess=check.critical_eigenvalue) if corrected <= LOAD_CORRECTION * moved else None
+            )
             if trial is not None and abs(trial.critical_eigenvalue) <= trial.resolution:
                 # An eigenvalue within its round-off has no sign (a long clamped chain's softest): the index stays.
                 trial = replace(trial, index=check.index, stable=check.stable)
