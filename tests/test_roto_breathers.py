@@ -218,3 +218,16 @@ def test_a_stable_roto_breather_survives_1000_periods_of_a_direct_run():
     shift[PHI, 1] = 2 * math.pi * periods
     assert np.max(np.abs(run.x[-1] - orbit.x - shift)) < 1e-5
     assert np.max(np.abs(run.v[-1] - orbit.v)) < 1e-4
+
+
+@pytest.mark.slow
+def test_sine_roto_breathers_gain_stability_where_the_combination_resonance_ends():
+    """Omega = w_TA,top + w_RO,top (1.569 + 4.804 = 6.373): below it a phonon pair is parametrically excited."""
+    params = undamped(N=10)
+    edge = sum(band[1] for band in (wave_summary(params).bands["transverse_acoustic"], wave_summary(params).bands["rotational_optical"]))
+    assert edge == pytest.approx(6.373, abs=1e-3)
+    below, above = (roto_breather_family(params, "sine", [w]).family.orbits[0] for w in (6.2, 6.4))
+    assert not below.stable and np.max(np.abs(below.nontrivial_multipliers.imag)) > 0.1  # a complex quadruplet off the circle
+    pair = below.nontrivial_multipliers[np.argmax(np.abs(below.nontrivial_multipliers))]
+    assert np.min(np.abs(below.multipliers - 1 / np.conj(pair))) < 1e-6  # ... with its symplectic partner
+    assert above.stable
