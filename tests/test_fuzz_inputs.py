@@ -84,6 +84,22 @@ def test_any_loads_and_disorder_tables_give_a_chain_or_a_named_refusal(loads, di
     assert isinstance(params, ChainParams) and len(got) <= len(loads)
 
 
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(loads=st.lists(_LOAD_TABLE, max_size=2), disorder=_DISORDER)
+def test_simulate_given_any_config_tables_runs_or_exits_2(loads, disorder, tmp_path):
+    """The command line over the same tables: a run (0, or 3/5 for a load the step cannot follow) or exit 2 naming the file."""
+    path = tmp_path / "fuzz.toml"
+    path.write_text(_config(loads, disorder))
+    out = tmp_path / "out.nc"
+    argv = ["simulate", "--model", "linear", "--t-end", "0.5", "--frames", "2", "--config", str(path), "--out", str(out)]
+    result = runner.invoke(app, argv)
+    assert result.exception is None or isinstance(result.exception, SystemExit), f"TRACEBACK: {result.exception!r}"
+    assert result.exit_code in (0, 2, 3, 5), result.output
+    if result.exit_code == 2:
+        assert "fuzz.toml" in result.output or "loads" in result.output or "disorder" in result.output, result.output
+    assert {p.name for p in tmp_path.iterdir()} <= {"fuzz.toml", "out.nc"}
+
+
 @pytest.fixture(scope="module")
 def run_bytes(tmp_path_factory) -> bytes:
     """A short run with its velocities, as ``simulate --out`` writes it."""

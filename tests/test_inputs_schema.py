@@ -8,6 +8,7 @@ Each test reproduces a case of the issue's corpus that gave a traceback, a hang 
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -287,3 +288,23 @@ def test_the_work_estimate_is_a_lower_bound_that_a_real_rotation_meets():
     params = ChainParams()
     least = max(2 * 2 * np.pi * params.gamma_phi / 0.3, np.sqrt(2 * params.j * 2 * 2 * np.pi / 0.3))
     assert summary["turns_completed"] == 2 and summary["t_end"] >= least
+
+
+@pytest.mark.parametrize("failure, named", [("hang", "did not finish within 0.5 s"), ("crash", "crashed the HDF5 reader (signal 11)")])
+def test_a_file_that_hangs_or_crashes_the_hdf5_reader_is_refused(run_file, monkeypatch, failure, named):
+    """HDF5 loops for ever in C on some damaged dimension lists (a byte flip found by fuzzing): a child opens the structure first."""
+    import os
+    import signal
+    import time
+
+    import cosserat_chain.io as io
+
+    def misbehave(*args, **kwargs):
+        if failure == "hang":
+            time.sleep(60)
+        os.kill(os.getpid(), signal.SIGSEGV)
+
+    monkeypatch.setattr(io, "READ_PROBE_SECONDS", 0.5)
+    monkeypatch.setattr(xr, "open_dataset", misbehave)
+    with pytest.raises(ValueError, match=f"run.nc.*{re.escape(named)}"):
+        read_dataset(run_file)
