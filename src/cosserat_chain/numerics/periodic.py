@@ -1189,7 +1189,12 @@ def find_hamiltonian_orbit(
             trial_y = y0.copy()
             trial_y[keep] += step[:-1]
             trial_eps = eps + step[-1]
-            trial = evaluate(trial_y, trial_eps, False)[0]
+            try:
+                trial = evaluate(trial_y, trial_eps, False)[0]
+            except OrbitError:
+                # A step far off the orbit can make the flow run away before T: halved as a worse closure.
+                step = 0.5 * step
+                continue
             trial_norm = float(np.max(np.abs(trial)))
             if trial_norm < norm or trial_norm <= tol:
                 break
