@@ -46,6 +46,7 @@ COMPUTE = {
     "models": "cosserat_chain.models.base.available_models",
     "diagram": "cosserat_chain.experiments.diagram.state_diagram",
     "states": "cosserat_chain.experiments.coexisting.states_at",
+    "breathers": "cosserat_chain.experiments.breathers.roto_breather_family",
 }
 
 SPEC = """\
@@ -184,6 +185,10 @@ CASES = [
     _case("orbit-moment-nan", "orbit --moment nan", "--moment"),
     _case("orbit-period-max-negative", "orbit --moment 0.3 --down-to 0.2 --period-max -1", "--period-max"),
     _case("orbit-down-to-nan", "orbit --moment 0.3 --down-to nan", "--down-to"),
+    _case("breathers-omega-nan", "breathers --omega nan", "--omega"),
+    _case("breathers-steps-1", "breathers --omega 6 --to 5 --steps 1", "--steps"),
+    _case("breathers-out-dir", "breathers --omega 6 --out {adir}", "{adir}", "folder"),
+    _case("breathers-plot-format", "breathers --omega 6 --plot {tmp}/fig.xyz", ".xyz", "--plot"),
     _case("study-workers-0", "study {spec} --workers 0", "--workers"),
     _case("study-chunk-0", "study {spec} --chunk 0", "--chunk"),
     _case("study-n-fraction", "study {spec_n_fraction}", "N", "2.5"),

@@ -189,15 +189,33 @@ def test_cli_breathers_json_and_netcdf(tmp_path):
     config.write_text("N = 1\n")  # its default viscosities are set to 0 by the command
     out = tmp_path / "family.nc"
     result = runner.invoke(
-        app, ["breathers", "--config", str(config), "--omega", "6", "--to", "5.6", "--steps", "3", "--json", "--out", str(out)]
+        app,
+        [
+            "breathers",
+            "--config",
+            str(config),
+            "--omega",
+            "6",
+            "--to",
+            "5.6",
+            "--steps",
+            "3",
+            "--json",
+            "--out",
+            str(out),
+            "--plot",
+            str(tmp_path / "family.png"),
+        ],
     )
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)
     assert data["omega"] == pytest.approx([6.0, 5.8, 5.6])
-    assert all(data["stable"]) and data["complete"]
+    assert all(data["stable"]) and data["complete"] and (tmp_path / "family.png").stat().st_size > 0
     with xr.open_dataset(out) as ds:
         assert ds.attrs["experiment"] == "roto_breathers" and ds.sizes["point"] == 3
         assert float(ds["omega"][0]) == pytest.approx(6.0)
+        undescribed = [str(name) for name in ds.variables if not (ds[name].attrs.get("units") and ds[name].attrs.get("long_name"))]
+        assert not undescribed
 
 
 def test_cli_breathers_refuses_a_bad_frequency():

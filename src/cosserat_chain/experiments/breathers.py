@@ -302,6 +302,10 @@ class BreatherFamily:
             "multiplier": np.arange(orbits[0].multipliers.size),
         }
         ds = xr.Dataset(data, coords=coords)
+        # Variables the shared CF table (io.VARIABLES) does not describe.
+        ds["omega"].attrs.update(units="rad", long_name="mean angular velocity Omega = 2 pi k / T of the rotating particle")
+        ds["energy"].attrs.update(units="1", long_name="total energy of the orbit (NaN: the model has no energy)")
+        ds["tail_amplitude"].attrs.update(units="1", long_name="largest |u|, |v|, |phi| of the non-rotating particles over a period")
         ds.attrs.update(run_attributes(params, get_model(orbits[0].model), moment_load(0.0, orbits[0].particle)))
         ds.attrs.update(
             {
