@@ -230,3 +230,50 @@ def test_commands_given_a_damaged_run_exit_2_or_3_and_change_nothing_else(run_by
         assert "run.nc" in result.output, result.output
     after = _digests(folder)
     assert {path: digest for path, digest in after.items() if path != str(out)} == before
+
+
+@pytest.fixture(scope="module")
+def checkpoint_bytes(tmp_path_factory) -> bytes:
+    """The checkpoint of a finished short simulation."""
+    path = tmp_path_factory.mktemp("fuzz") / "run.checkpoint.nc"
+    simulate(ChainParams(), "linear", moment_load(0.1), t_end=1.0, n_frames=5, checkpoint=path, checkpoint_every=0.0)
+    return path.read_bytes()
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    damage=st.one_of(
+        st.tuples(st.just("cut"), st.floats(0, 0.99)),
+        st.tuples(st.just("flip"), st.floats(0, 1, exclude_max=True)),
+        st.tuples(st.just("drop"), st.sampled_from(["phi", "final_phi_dot", "frame_step", "final_load_work", "split_sums", "time"])),
+        st.tuples(st.just("count"), st.sampled_from(["steps", "n_steps", "stride_steps", "chunk_steps"])),
+    ),
+    value=st.one_of(st.integers(-10, 10**6), st.floats(allow_nan=True), st.text(max_size=3)),
+)
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_a_damaged_or_resealed_checkpoint_resumes_or_is_refused(checkpoint_bytes, damage, value, tmp_path):
+    """A checkpoint cut, flipped, or edited and sealed again: the resumed run is the run asked for, or a ValueError."""
+    from cosserat_chain.experiments.checkpoint import seal
+    from cosserat_chain.experiments.simulation import CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT, _STATE_ATTRIBUTES
+
+    path = tmp_path / "run.checkpoint.nc"
+    kind, what = damage
+    data = bytearray(checkpoint_bytes)
+    if kind == "cut":
+        path.write_bytes(bytes(data[: int(what * len(data))]))
+    elif kind == "flip":
+        data[int(what * len(data))] ^= 0xFF
+        path.write_bytes(bytes(data))
+    else:
+        path.write_bytes(checkpoint_bytes)
+        ds = xr.load_dataset(path, engine="h5netcdf")
+        ds = ds.drop_vars(what) if kind == "drop" else ds.assign_attrs({what: value})
+        seal(ds, CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT, _STATE_ATTRIBUTES).to_netcdf(path, engine="h5netcdf")
+    try:
+        # No checkpoint written on the way: a chunk of one step (chunk_steps = 1) would write one a step.
+        ds = simulate(
+            ChainParams(), "linear", moment_load(0.1), t_end=1.0, n_frames=5, checkpoint=path, checkpoint_every=3600.0, resume=True
+        )
+    except ValueError:  # exit 2, the message naming what differs (checked case by case in test_inputs_schema)
+        return
+    assert ds.sizes["time"] == 5 and float(ds.time[-1]) == 1.0

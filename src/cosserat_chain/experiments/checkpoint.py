@@ -82,6 +82,7 @@ def open_checkpoint(
     counts: Iterable[str] = ("steps",),
     total: str | None = None,
     state_variables: Iterable[str] = (),
+    variables: Iterable[str] = (),
 ) -> xr.Dataset:
     """Read the checkpoint at ``path`` for a run with the settings ``expected``, or refuse it.
 
@@ -104,7 +105,9 @@ def open_checkpoint(
     total : str, optional
         The count that ``steps`` may not pass (the run's number of steps).
     state_variables : iterable of str
-        Variables the resumed run reads: present, real and finite.
+        Variables of the state the resumed run reads: present, real and finite.
+    variables : iterable of str
+        Other variables it reads: present (their values may be NaN, as a time not reached yet).
 
     Raises
     ------
@@ -146,6 +149,9 @@ def open_checkpoint(
     try:
         check_counts(ds.attrs, counts, f"checkpoint {str(path)!r}", total=total)
         check_finite(ds, state_variables, f"checkpoint {str(path)!r}")
+        missing = [name for name in variables if name not in ds.variables]
+        if missing:
+            raise InputFileError(f"checkpoint {str(path)!r} lacks the variable(s) {missing}")
     except InputFileError as err:
         raise ValueError(f"{err}: no run writes such a checkpoint; start afresh (--force) or use another checkpoint file") from None
     return ds

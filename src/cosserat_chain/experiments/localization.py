@@ -347,7 +347,11 @@ def localization_run(
             {"model": model.name, "moment": moment, "particle": particle, "dt": dt, "method": method, "chunk_steps": chunk_steps,
              "loads_json": json.dumps(loads.to_list())}
         )  # fmt: skip
-        ds = open_checkpoint(checkpoint, "localization_run", CHECKPOINT_FORMAT, expected, _STATE_ATTRIBUTES, kind="localization-run")
+        diagnostics = (*StreamingDiagnostics._PER_PARTICLE, "turn_times", *StreamingDiagnostics._SCALARS)
+        ds = open_checkpoint(
+            checkpoint, "localization_run", CHECKPOINT_FORMAT, expected, _STATE_ATTRIBUTES, kind="localization-run",
+            state_variables=[f"final_{row}{rate}" for row in ROWS for rate in ("", "_dot")], variables=[f"diag_{n}" for n in diagnostics],
+        )  # fmt: skip
         step = int(ds.attrs["steps"])
         x = np.ascontiguousarray(np.stack([ds[f"final_{row}"].values for row in ROWS]))
         v = np.ascontiguousarray(np.stack([ds[f"final_{row}_dot"].values for row in ROWS]))

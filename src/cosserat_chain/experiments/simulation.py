@@ -64,6 +64,7 @@ _STATE_ATTRIBUTES = (
 _STATE_VARIABLES = (
     *ROWS, *(f"{row}_dot" for row in ROWS), *(f"final_{row}" for row in ROWS), *(f"final_{row}_dot" for row in ROWS),
     *(f"final_force_{row}" for row in ROWS), "load_work", "dissipated", "final_load_work", "final_dissipated", "frame_step",
+    "split_sums",
 )  # fmt: skip
 
 
@@ -418,7 +419,8 @@ def _check_frames(path: Path, state: RunState) -> None:
     if state.frame_steps.tolist() not in allowed:
         raise ValueError(
             f"checkpoint {str(path)!r} holds {state.frame_steps.size} frames, but a run at step {state.steps} with a frame "
-            f"every {state.stride} steps has stored {len(expected)}: it is not resumed; start afresh (--force) or use another checkpoint file"
+            f"every {state.stride} steps has stored {len(expected)}: it is not resumed; start afresh (--force) "
+            "or use another checkpoint file"
         )
 
 
