@@ -1269,6 +1269,7 @@ def continue_in_frequency(
 
     Each orbit starts Newton from the secant through the two before it (the previous
     orbit for the second); the family ends at the first frequency where Newton fails.
+    A first frequency equal to the orbit's own takes the orbit as it is.
 
     Returns
     -------
@@ -1280,6 +1281,11 @@ def continue_in_frequency(
     message = ""
     guess: PeriodicOrbit | tuple = orbit
     for i, omega in enumerate(omegas):
+        if i == 0 and math.isclose(omega, orbit.omega, rel_tol=1e-14):
+            orbits.append(orbit)
+            if progress is not None:
+                progress(1, len(omegas))
+            continue
         if len(orbits) >= 2:
             a, b = orbits[-2], orbits[-1]
             r = (omega - b.omega) / (b.omega - a.omega)
