@@ -308,3 +308,21 @@ def test_a_file_that_hangs_or_crashes_the_hdf5_reader_is_refused(run_file, monke
     monkeypatch.setattr(xr, "open_dataset", misbehave)
     with pytest.raises(ValueError, match=f"run.nc.*{re.escape(named)}"):
         read_dataset(run_file)
+
+
+def test_a_rotation_checkpoint_sealed_again_without_its_state_is_refused(tmp_path):
+    from cosserat_chain.experiments.localization import _STATE_ATTRIBUTES as ROTATE_ATTRIBUTES
+    from cosserat_chain.experiments.localization import CHECKPOINT_FORMAT as ROTATE_FORMAT
+
+    out = tmp_path / "rot.nc"
+    argv = ["rotate", "--model", "sine", "--moment", "0.3", "--turns", "2", "--out", str(out), "--checkpoint-every", "0"]
+    assert runner.invoke(app, argv).exit_code == 0
+    checkpoint = tmp_path / "rot.checkpoint.nc"
+    for drop, named in (("final_phi", "final_phi"), ("diag_turn_times", "diag_turn_times")):
+        ds = xr.load_dataset(checkpoint, engine="h5netcdf").drop_vars(drop)
+        edited = tmp_path / f"edited-{drop}.nc"
+        seal(ds, "localization_run", ROTATE_FORMAT, ROTATE_ATTRIBUTES).to_netcdf(edited, engine="h5netcdf")
+        resumed = ["rotate", "--model", "sine", "--moment", "0.3", "--turns", "3", "--checkpoint", str(edited), "--resume"]
+        result = runner.invoke(app, resumed)
+        _no_traceback(result)
+        assert result.exit_code == 2 and named in result.output and edited.name in result.output, result.output
