@@ -270,12 +270,16 @@ def test_commands_that_ignore_loads_refuse_a_config_with_loads(loads_config, tmp
          "particle-steps"),
         (["orbit", "--moment", "1e300"], "cosserat_chain.experiments.orbits.periodic_orbit", "half a turn a step"),
         (["animate", "--fps", "1e-300", "--out", "{tmp}/a.gif"], "cosserat_chain.experiments.simulation.simulate", "--fps"),
+        (["simulate", "--dt", "1e-12", "--t-end", "300"], "cosserat_chain.experiments.simulation.simulate", "24.3 days"),
+        (["simulate", "--t-end", "1", "--config", "{stiff}"], "cosserat_chain.experiments.simulation.simulate", "fastest mode"),
     ],
-    ids=["rotate-dt", "rotate-moment", "states-starts", "states-turns", "orbit-moment", "animate-fps"],
+    ids=["rotate-dt", "rotate-moment", "states-starts", "states-turns", "orbit-moment", "animate-fps", "simulate-dt", "simulate-stiff"],
 )  # fmt: skip
 def test_absurd_work_is_refused_with_its_estimate_before_it_starts(tmp_path, monkeypatch, argv, compute, named):
     _forbid(monkeypatch, compute)
-    result = runner.invoke(app, [a.format(tmp=tmp_path) for a in argv])
+    stiff = tmp_path / "stiff.toml"
+    stiff.write_text("E1 = 1e100\n")  # the default step, 3e-52, follows it
+    result = runner.invoke(app, [a.format(tmp=tmp_path, stiff=stiff) for a in argv])
     _no_traceback(result)
     assert result.exit_code == 2 and named in result.output, result.output
 

@@ -265,6 +265,10 @@ MAX_TURN_PER_STEP = math.pi
 _CHECKED_PARTICLES = 10**6
 
 
+#: The remedy for too many steps at the default step: it follows the chain's fastest mode.
+LARGER_STEP = "a chain of numbers of order 1 (the default step follows the fastest mode sqrt(stiffness / inertia): E1, E2, m, j)"
+
+
 def step_for_checks(params: ChainParams, model: str, dt: float | None) -> float | None:
     """The time step a run will take, ``dt`` or the model's default; None for a chain too long to check cheaply."""
     if dt is not None:

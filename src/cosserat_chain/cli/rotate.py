@@ -9,6 +9,7 @@ from pathlib import Path
 import typer
 
 from .common import (
+    LARGER_STEP,
     app,
     bar_callback,
     checkpoint_or_exit,
@@ -67,7 +68,8 @@ def rotate(
         inertia = params.j * min(params.j_factors or (1.0,))
         least = min(t_max, max(theta * params.gamma_phi / drive, math.sqrt(2 * inertia * theta / drive))) if drive else t_max
         what = f"{least:.3g} time units of turning at dt={step:.3g}"
-        work_or_exit(least / step, params.n_particles, what, "a larger --dt, fewer --turns or a smaller --t-max")
+        larger = "a larger --dt" if dt is not None else LARGER_STEP
+        work_or_exit(least / step, params.n_particles, what, f"fewer --turns, a smaller --t-max, or {larger}")
     bar = progress_bar(f"rotate {model}", "turn")
     try:
         result = localization_run(

@@ -10,6 +10,7 @@ import typer
 
 from ..status import Status
 from .common import (
+    LARGER_STEP,
     MethodName,
     app,
     bar_callback,
@@ -23,6 +24,8 @@ from .common import (
     outputs_or_exit,
     progress_bar,
     save_dataset,
+    step_for_checks,
+    work_or_exit,
 )
 
 
@@ -121,6 +124,11 @@ def simulate(
             loads = Loads([*moment_load(schedule, particle), *loads]).validate(params)
     except ValueError as err:
         fail(str(err))
+    step = None if reference else step_for_checks(params, model, dt)
+    if step is not None:
+        span = f"{t_end - t0:g} time units at dt={step:.3g}"
+        larger = "a larger --dt" if dt is not None else LARGER_STEP
+        work_or_exit((t_end - t0) / step, params.n_particles, span, f"a shorter --t-end, or {larger}")
     bar = progress_bar(f"simulate {model}", "step")
     progress = bar_callback(bar)
     try:
