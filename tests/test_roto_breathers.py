@@ -249,3 +249,23 @@ def test_sine_roto_breathers_gain_stability_where_the_combination_resonance_ends
     pair = below.nontrivial_multipliers[np.argmax(np.abs(below.nontrivial_multipliers))]
     assert np.min(np.abs(below.multipliers - 1 / np.conj(pair))) < 1e-6  # ... with its symplectic partner
     assert above.stable
+
+
+@pytest.mark.parametrize("direction", [1, -1], ids=["co-rotating", "counter-rotating"])
+def test_two_site_roto_breathers_keep_the_chains_symmetry(direction):
+    """Rotors at -1 and +1: turning together, the orbit is invariant under the half-turn of the chain
+    (n -> -n, u, v -> -u, -v); turning against each other, under its mirror (n -> -n, u, phi -> -u, -phi)."""
+    params = undamped(N=2)
+    result = roto_breather_family(params, "nonlinear", [6.5], particle=-1, partners={1: direction})
+    o = result.family.orbits[0]
+    assert list(o.particle_turns) == [0, 1, 0, direction, 0]
+    sign = np.array([-1.0, -1.0, 1.0])[:, None] if direction == 1 else np.array([-1.0, 1.0, -1.0])[:, None]
+    assert np.max(np.abs(o.x - sign * o.x[:, ::-1])) < 1e-8
+    assert np.max(np.abs(o.v - sign * o.v[:, ::-1])) < 1e-7
+    x, _ = o.trajectory(np.array([o.period]))
+    assert x[0, PHI, 3] - o.x[PHI, 3] == pytest.approx(2 * math.pi * direction, abs=1e-8)
+
+
+def test_cli_counter_needs_a_partner():
+    result = runner.invoke(app, ["breathers", "--omega", "6", "--counter"])
+    assert result.exit_code == 2 and "--partner" in result.output

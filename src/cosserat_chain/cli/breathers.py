@@ -18,6 +18,8 @@ def breathers(
     steps: int = typer.Option(11, min=2, help="Frequencies from --omega to --to, both included."),
     turns: int = typer.Option(1, min=1, help="Turns of the rotating particle per period (T = 2 pi turns / Omega)."),
     particle: int = typer.Option(0, help="The rotating particle (default the central one)."),
+    partner: int | None = typer.Option(None, help="A second rotor (a two-site roto-breather), turning as often as the first."),
+    counter: bool = typer.Option(False, "--counter", help="The partner turns against the first rotor (default: with it)."),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields; its viscosities are set to 0 (undamped)."),
     out: Path | None = typer.Option(None, help="Write the family to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the family against the bands' harmonics to this PNG/SVG file."),
@@ -29,12 +31,15 @@ def breathers(
     from ..experiments.breathers import roto_breather_family
     from ..numerics.periodic import OrbitError
 
+    if counter and partner is None:
+        fail("--counter sets the partner's direction: give --partner as well")
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     params = params_or_exit(config).replace(gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
     omegas = np.array([omega]) if to is None else np.linspace(omega, to, steps)
     bar = progress_bar(f"breathers {model}", "orbit")
     try:
-        result = roto_breather_family(params, model, omegas, turns=turns, particle=particle, progress=bar_callback(bar))
+        partners = None if partner is None else {partner: -turns if counter else turns}
+        result = roto_breather_family(params, model, omegas, turns=turns, particle=particle, partners=partners, progress=bar_callback(bar))
     except ValueError as err:
         bar.close()
         fail(str(err))
@@ -52,7 +57,8 @@ def breathers(
     if as_json:
         typer.echo(json.dumps({"params": params.model_dump(), **summary}))
         return
-    typer.echo(f"{model}: {len(family.orbits)} of {len(omegas)} roto-breathers, {turns} turn(s) per period, particle {particle}")
+    also = "" if partner is None else f" and {partner} ({'against' if counter else 'with'} it)"
+    typer.echo(f"{model}: {len(family.orbits)} of {len(omegas)} roto-breathers, {turns} turn(s) per period, particle {particle}{also}")
     typer.echo(f"{'omega':>10}  {'energy':>12}  {'rotor rate':>11}  {'tail':>10}  {'max |mu|':>10}  stable  harmonics in a band")
     for i, o in enumerate(family.orbits):
         energy = "-" if o.energy is None else f"{o.energy:.8g}"

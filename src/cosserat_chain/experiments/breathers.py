@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -238,16 +238,15 @@ class BreatherFamily:
         return [combination_resonances(o.params, o.omega, bands=self.bands) for o in self.family.orbits]
 
     def localization(self) -> np.ndarray:
-        """Per orbit, the largest |u|, |v|, |phi| of the non-rotating particles over the period (the tail's amplitude).
+        """Per orbit, the largest |u|, |v|, |phi| of the particles that do not turn, over the period (the tail's amplitude).
 
         Sampled at :data:`TAIL_SAMPLES` times: on the section itself a symmetric orbit has
         every coordinate at 0 (the time reversal (q, q') -> (-q, q') of the models).
         """
         out = []
         for o in self.family.orbits:
-            col = column(o.params, o.particle)
             x, _ = o.trajectory(o.period * np.arange(1, TAIL_SAMPLES + 1) / TAIL_SAMPLES)
-            others = np.delete(x, col, axis=2)
+            others = np.delete(x, np.flatnonzero(o.particle_turns), axis=2)
             out.append(float(np.max(np.abs(others), initial=0.0)))
         return np.array(out)
 
@@ -258,6 +257,7 @@ class BreatherFamily:
             "model": self.settings.get("model"),
             "turns": self.settings.get("turns"),
             "particle": self.settings.get("particle"),
+            "partners": {str(k): t for k, t in (self.settings.get("partners") or {}).items()},
             "requested_omega": self.family.requested.tolist(),
             "complete": self.family.complete,
             "message": self.family.message,
@@ -329,6 +329,7 @@ def roto_breather_family(
     *,
     turns: int = 1,
     particle: int = 0,
+    partners: Mapping[int, int] | None = None,
     progress: ProgressCallback | None = None,
 ) -> BreatherFamily:
     """One-site roto-breathers at the frequencies ``omegas``, from the anti-continuum limit at the first.
@@ -344,7 +345,11 @@ def roto_breather_family(
     turns : int
         k: the rotating particle's turns per period (T = 2 pi k / Omega).
     particle : int
-        The rotating particle.
+        The rotating particle (its angle is 0 on the section).
+    partners : {particle: signed turns}, optional
+        Other rotors of a multi-site roto-breather and their turns per period: ``{1: turns}``
+        turns particle 1 with it, ``{1: -turns}`` against it. Each starts as its own
+        anti-continuum rotor at phi = 0.
     progress : callable(done, total), optional
 
     Returns
@@ -363,10 +368,24 @@ def roto_breather_family(
     omegas = np.asarray(omegas, dtype=float)
     if omegas.ndim != 1 or omegas.size == 0 or not np.all(np.isfinite(omegas)) or np.any(omegas <= 0):
         raise ValueError(f"omegas must be one or more finite frequencies > 0, got {omegas.tolist()!r}")
+    partners = dict(partners or {})
     x, v, energy = anti_continuum_state(params, model, float(omegas[0]), particle=particle)
-    first = find_hamiltonian_orbit(params, model, float(omegas[0]), (x, v), turns=turns, particle=particle)
+    particle_turns = np.zeros(params.n_particles, dtype=np.int64)
+    particle_turns[column(params, particle)] = turns
+    for other, other_turns in partners.items():
+        if other == particle or not isinstance(other_turns, int) or isinstance(other_turns, bool) or other_turns == 0:
+            raise ValueError(
+                f"partners must map particles other than the rotating one ({particle}) to non-zero integer turns, "
+                f"got {other!r}: {other_turns!r}"
+            )
+        rate = float(omegas[0]) * abs(other_turns) / turns
+        v[ROW_INDEX["phi"], column(params, other)] = math.copysign(
+            anti_continuum_state(params, model, rate, particle=other)[1][ROW_INDEX["phi"], column(params, other)], other_turns
+        )
+        particle_turns[column(params, other)] = other_turns
+    first = find_hamiltonian_orbit(params, model, float(omegas[0]), (x, v), turns=turns, particle=particle, particle_turns=particle_turns)
     family = continue_in_frequency(first, omegas, progress=progress)
-    settings = {"model": model.name, "turns": turns, "particle": particle, "params": params.model_dump()}
+    settings = {"model": model.name, "turns": turns, "particle": particle, "partners": partners, "params": params.model_dump()}
     bands = coupled_bands(params, model, particle)
     return BreatherFamily(
         family=family,

@@ -1104,6 +1104,7 @@ def find_hamiltonian_orbit(
     *,
     turns: int = 1,
     particle: int = 0,
+    particle_turns: np.ndarray | None = None,
     tol: float = CLOSURE_TOL,
     max_iter: int = 25,
     rtol: float = RTOL,
@@ -1134,7 +1135,11 @@ def find_hamiltonian_orbit(
     turns : int
         k >= 1, turns of the rotating particle per period.
     particle : int
-        The rotating particle.
+        The rotating particle: its angle is 0 on the section.
+    particle_turns : ndarray (2N+1,) int, optional
+        Signed turns per period of every particle, ``turns`` at ``particle``: other rotors
+        (a multi-site roto-breather, +-k for rotors turning with or against it). Default:
+        ``particle`` alone turns (or the guess's, for a :class:`PeriodicOrbit` guess).
     tol : float
         Newton stops when max |Phi_T(y0) - y0 - 2 pi k e_phi| <= tol.
     max_iter : int
@@ -1161,12 +1166,17 @@ def find_hamiltonian_orbit(
             raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
     require_orbit_ends(params)
     require_undamped(params)
+    if particle_turns is not None:
+        particle_turns = _check_particle_turns(params, particle, turns, 1.0, particle_turns)
+    elif isinstance(guess, PeriodicOrbit) and guess.particle_turns[column(params, particle)] == turns:
+        particle_turns = guess.particle_turns
+    else:
+        particle_turns = _loaded_turns(params, particle, turns, 1.0)
     if isinstance(guess, PeriodicOrbit):
         x0, v0 = guess.x, guess.v
     else:
         x0, v0 = guess
     period = 2.0 * math.pi * turns / float(omega)
-    particle_turns = _loaded_turns(params, particle, turns, 1.0)
     dof = _System(params, model, 0.0, particle).load_dof
     y0 = _to_y(params, check_state(params, x0, "guess x"), check_state(params, v0, "guess v"))
     y0[dof] = 0.0
@@ -1292,7 +1302,16 @@ def continue_in_frequency(
             guess = (b.x + r * (b.x - a.x), b.v + r * (b.v - a.v))
         try:
             found = find_hamiltonian_orbit(
-                params, model, float(omega), guess, turns=orbit.turns, particle=orbit.particle, tol=tol, rtol=rtol, atol=atol
+                params,
+                model,
+                float(omega),
+                guess,
+                turns=orbit.turns,
+                particle=orbit.particle,
+                particle_turns=orbit.particle_turns,
+                tol=tol,
+                rtol=rtol,
+                atol=atol,
             )
         except OrbitError as err:
             message = f"the family ends before omega={omega:.10g}: {err}"
