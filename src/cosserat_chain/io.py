@@ -958,11 +958,16 @@ def _probe_structure(path: Path) -> str | None:
 def read_dataset(path: str | Path) -> xr.Dataset:
     """Load a NetCDF result written by :func:`write_dataset` into memory.
 
+    The file's structure is opened first in a forked child (:data:`READ_PROBE_SECONDS`), so
+    that a damaged file on which the HDF5 library hangs or crashes is refused instead.
+    What the file holds is checked by its reader (:func:`cosserat_chain.inputs.check_run`
+    for a run).
+
     Raises
     ------
     ValueError
         Naming the path, if it does not exist, is not a regular file, or is not a
-        readable NetCDF-4 file (truncated, another format).
+        readable NetCDF-4 file (truncated, damaged, another format).
     """
     path = Path(path)
     try:
