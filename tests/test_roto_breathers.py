@@ -19,6 +19,7 @@ from cosserat_chain.experiments.breathers import (
     anti_continuum_state,
     coupled_bands,
     harmonics_in_bands,
+    lifetime,
     resonances,
     roto_breather_family,
 )
@@ -269,3 +270,18 @@ def test_two_site_roto_breathers_keep_the_chains_symmetry(direction):
 def test_cli_counter_needs_a_partner():
     result = runner.invoke(app, ["breathers", "--omega", "6", "--counter"])
     assert result.exit_code == 2 and "--partner" in result.output
+
+
+def test_a_perturbed_unstable_orbit_leaves_at_the_rate_of_its_largest_multiplier():
+    """A direct run (Yoshida-4, independent of the monodromy) grows by |mu_max| a period."""
+    params = undamped(N=2)
+    unstable = roto_breather_family(params, "nonlinear", [5.0]).family.orbits[0]
+    stable = roto_breather_family(params, "nonlinear", [6.5]).family.orbits[0]
+    assert not unstable.stable and stable.stable
+    life = lifetime(unstable, perturbation=1e-8, threshold=1e-2, max_periods=40)
+    assert life.growth_per_period == pytest.approx(unstable.max_multiplier, rel=0.05)
+    expected = math.log(1e6) / math.log(unstable.max_multiplier)
+    assert abs(life.periods - expected) <= 2
+    assert lifetime(stable, perturbation=1e-8, threshold=1e-2, max_periods=40).periods is None
+    with pytest.raises(ValueError, match="perturbation"):
+        lifetime(stable, perturbation=1.0, threshold=1e-2)

@@ -20,6 +20,9 @@ def breathers(
     particle: int = typer.Option(0, help="The rotating particle (default the central one)."),
     partner: int | None = typer.Option(None, help="A second rotor (a two-site roto-breather), turning as often as the first."),
     counter: bool = typer.Option(False, "--counter", help="The partner turns against the first rotor (default: with it)."),
+    lifetimes: int = typer.Option(
+        0, min=0, help="Run each orbit, its velocities perturbed by 1e-8, for up to this many periods: its lifetime (0: none)."
+    ),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields; its viscosities are set to 0 (undamped)."),
     out: Path | None = typer.Option(None, help="Write the family to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the family against the bands' harmonics to this PNG/SVG file."),
@@ -28,7 +31,7 @@ def breathers(
     """Roto-breathers: one particle rotating, the rest oscillating, undamped; Newton from the anti-continuum limit, Floquet multipliers, resonances with the bands."""
     import numpy as np
 
-    from ..experiments.breathers import roto_breather_family
+    from ..experiments.breathers import lifetime, roto_breather_family
     from ..numerics.periodic import OrbitError
 
     if counter and partner is None:
@@ -48,12 +51,15 @@ def breathers(
         fail(str(err), code=3)
     family = result.family
     bar.finish(note="" if family.complete else "the family ended early")
+    lives = [lifetime(o, max_periods=lifetimes).as_dict() for o in family.orbits] if lifetimes else None
     save_dataset(result.to_dataset(), out)
     if plot is not None:
         from ..plots.breathers import breather_family_figure
 
         save_figure(breather_family_figure(result), plot)
     summary = result.as_dict()
+    if lives is not None:
+        summary["lifetimes"] = lives
     if as_json:
         typer.echo(json.dumps({"params": params.model_dump(), **summary}))
         return
@@ -67,6 +73,9 @@ def breathers(
             f"{o.omega:>10.6g}  {energy:>12}  {summary['rotor_velocity'][i]:>11.6g}  {summary['tail_amplitude'][i]:>10.3g}  "
             f"{o.max_multiplier:>10.6g}  {'yes' if o.stable else 'no':>6}  {inside}"
         )
+        if lives is not None:
+            life = lives[i]["lifetime_periods"]
+            typer.echo(f"{'':>10}  lifetime: {'beyond ' + str(lifetimes) if life is None else life} periods")
     for r in result.resonances:
         typer.echo(f"resonance: {r.harmonic} x Omega = {r.edge_frequency:.6g} ({r.band} band {r.edge}) at Omega = {r.omega:.6g}")
     if not family.complete:
