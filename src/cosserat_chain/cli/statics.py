@@ -29,6 +29,10 @@ from .common import (
 
 MODEL_HELP = "Model, or all for every registered one."
 
+#: Most load steps a sweep starts (up and down together): the paper's protocol takes about a
+#: hundred, and each step relaxes for up to --t-max.
+MAX_LOAD_STEPS = 100_000
+
 
 @app.command()
 def sweep(
@@ -54,6 +58,13 @@ def sweep(
     from ..experiments.sweep import relaxation_sweep
 
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
+    count = steps if steps is not None else math.ceil(m_max / dm) if dm is not None else None
+    if count is not None and count * (2 if down else 1) > MAX_LOAD_STEPS:
+        asked = "--steps" if steps is not None else f"--m-max / --dm = {m_max:g} / {dm:g}"
+        fail(
+            f"{asked} asks for {count:.3g} load steps, each relaxed for up to --t-max {t_max:g}: more than {MAX_LOAD_STEPS:,} "
+            "(the paper's protocol takes about a hundred); fewer steps or a larger --dm"
+        )
     params, extra = config_or_exit(config, load)
     if extra and plot is not None:
         fail("--plot draws the exact static branches, which hold the moment alone: leave out --plot or the extra loads")
