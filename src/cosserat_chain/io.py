@@ -23,6 +23,7 @@ file.
 from __future__ import annotations
 
 import errno
+import faulthandler
 import fcntl
 import gc
 import math
@@ -934,6 +935,7 @@ def _probe_structure(path: Path) -> str | None:
         code = 1
         try:
             os.dup2(os.open(os.devnull, os.O_WRONLY), 2)  # h5netcdf's destructors complain on damaged files
+            faulthandler.disable()  # a crash here is the parent's finding, not a report to print
             with xr.open_dataset(path, engine="h5netcdf"):
                 code = 0
         finally:
