@@ -213,7 +213,7 @@ def combination_resonances(
 
 @dataclass
 class BreatherFamily:
-    """A family of one-site roto-breathers followed in Omega, with the band picture beside it.
+    """A family of roto-breathers (one rotor, or several with ``partners``) followed in Omega, with the band picture beside it.
 
     Attributes
     ----------
@@ -232,6 +232,7 @@ class BreatherFamily:
     bands: tuple[str, ...]
     resonances: list[Resonance]
     settings: dict = field(default_factory=dict)
+    _tail: np.ndarray | None = field(default=None, init=False, repr=False)
 
     def resonant_harmonics(self) -> list[list[tuple[int, str]]]:
         """For every orbit, the harmonics n Omega inside a driven band."""
@@ -244,15 +245,18 @@ class BreatherFamily:
     def localization(self) -> np.ndarray:
         """Per orbit, the largest |u|, |v|, |phi| of the particles that do not turn, over the period (the tail's amplitude).
 
-        Sampled at :data:`TAIL_SAMPLES` times: on the section itself a symmetric orbit has
-        every coordinate at 0 (the time reversal (q, q') -> (-q, q') of the models).
+        Sampled at :data:`TAIL_SAMPLES` times: on the section itself the sine model's orbits have
+        every coordinate at 0 (its forces are odd, so (q, q') -> (-q, q') reverses time).
         """
-        out = []
-        for o in self.family.orbits:
-            x, _ = o.trajectory(o.period * np.arange(1, TAIL_SAMPLES + 1) / TAIL_SAMPLES)
-            others = np.delete(x, np.flatnonzero(o.particle_turns), axis=2)
-            out.append(float(np.max(np.abs(others), initial=0.0)))
-        return np.array(out)
+        if self._tail is None:
+            # Computed once: it integrates every orbit again.
+            out = []
+            for o in self.family.orbits:
+                x, _ = o.trajectory(o.period * np.arange(1, TAIL_SAMPLES + 1) / TAIL_SAMPLES)
+                others = np.delete(x, np.flatnonzero(o.particle_turns), axis=2)
+                out.append(float(np.max(np.abs(others), initial=0.0)))
+            self._tail = np.array(out)
+        return self._tail
 
     def as_dict(self) -> dict:
         """JSON-ready summary of the family."""
