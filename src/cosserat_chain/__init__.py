@@ -52,6 +52,8 @@ _API = {
     "continue_fold": "numerics.fold_curve",
     "compliance": "numerics.continuation",
     "static_stability": "numerics.stability",
+    "dynamic_stability": "numerics.stability",
+    "hopf_points": "numerics.hopf",
     # rotating states and the map of states
     "periodic_orbit": "experiments.orbits",
     "state_diagram": "experiments.diagram",
@@ -112,6 +114,8 @@ __all__ = [
     "spec_from_mapping",
     "state_diagram",
     "static_stability",
+    "dynamic_stability",
+    "hopf_points",
     "wave_summary",
     "write_dataset",
 ]
@@ -151,7 +155,8 @@ if TYPE_CHECKING:  # for type checkers and IDEs, which do not run __getattr__
     from .numerics.fold_curve import continue_fold
     from .numerics.newton import solve_equilibrium
     from .numerics.relaxation import relax, relax_batch
-    from .numerics.stability import static_stability
+    from .numerics.hopf import hopf_points
+    from .numerics.stability import dynamic_stability, static_stability
     from .params import ChainParams, disordered
     from .report import ReproduceSettings, reproduce
     from .status import Status
