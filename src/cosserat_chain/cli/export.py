@@ -1,4 +1,4 @@
-"""``cosserat-chain export RUN.nc --to {vtk,xyz,csv} --out PATH``: a run for ParaView, OVITO or a spreadsheet."""
+"""``cosserat-chain export RUN.nc --to {vtk,xyz,csv} --out PATH``: a run for ParaView, OVITO, ASE or a spreadsheet."""
 
 from __future__ import annotations
 
@@ -18,11 +18,11 @@ ExportFormat = Enum("ExportFormat", {name: name for name in FORMATS}, type=str)
 def export(
     run: Path = typer.Argument(..., help="NetCDF run written by `simulate --out`."),
     to: ExportFormat = typer.Option(
-        ..., "--to", help="vtk: a ParaView .pvd collection of .vtu frames; xyz: extended XYZ (OVITO); csv: long format."
+        ..., "--to", help="vtk: a ParaView .pvd collection of .vtu frames; xyz: extended XYZ for OVITO and ASE (boxes with orientation, mass, velocities; see docs/files.md); csv: long format."
     ),
     out: Path = typer.Option(..., "--out", help="File to write: .pvd for vtk (its frames go to OUT_frames/), .xyz, .csv."),
 ) -> None:
-    """Write a run in a format other tools read: VTK (ParaView), extended XYZ (OVITO) or CSV."""
+    """Write a run in a format other tools read: VTK (ParaView, meshio), extended XYZ (OVITO, ASE) or CSV."""
     outputs_or_exit({"--out": out}, {"RUN": run}, formats={"--out": (FORMATS[to.value],)})
     if to.value == "vtk":
         from ..exports import frames_folder
