@@ -52,7 +52,8 @@ def breathers(
     family = result.family
     bar.finish(note="" if family.complete else "the family ended early")
     lives = [lifetime(o, max_periods=lifetimes).as_dict() for o in family.orbits] if lifetimes else None
-    save_dataset(result.to_dataset(), out)
+    if out is not None:  # the Dataset (and xarray) only for a file: --json alone starts quickly
+        save_dataset(result.to_dataset(), out)
     if plot is not None:
         from ..plots.breathers import breather_family_figure
 

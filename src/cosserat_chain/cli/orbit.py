@@ -68,7 +68,8 @@ def orbit(
         bar.close()
         fail(str(err), code=3)
     bar.finish(note=f"the branch ended: {result.branch.end}" if result.branch is not None else "")
-    save_dataset(result.to_dataset(), out)
+    if out is not None:  # the Dataset (and xarray) only for a file: --json alone starts quickly
+        save_dataset(result.to_dataset(), out)
     if plot is not None:
         from ..plots.orbits import rotation_characteristic_figure
 

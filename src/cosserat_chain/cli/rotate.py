@@ -93,7 +93,8 @@ def rotate(
         bar.close()
         fail(str(err), code=3)
     bar.finish(result.status)
-    save_dataset(result.to_dataset(), out)
+    if out is not None:  # the Dataset (and xarray) only for a file: --json alone starts quickly
+        save_dataset(result.to_dataset(), out)
     summary = result.as_dict()
     if as_json:
         typer.echo(json.dumps(summary))

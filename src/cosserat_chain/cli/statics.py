@@ -85,7 +85,8 @@ def sweep(
         if not result.completed:
             interrupted = True
             break
-    save_dataset(stack_models({name: r.to_dataset() for name, r in results.items()}), out)
+    if out is not None:  # the Dataset (and xarray) only for a file: --json alone starts quickly
+        save_dataset(stack_models({name: r.to_dataset() for name, r in results.items()}), out)
     if plot is not None:
         from ..plots.statics import figure2
 
@@ -145,7 +146,8 @@ def critical(
             bar.close()
             fail(str(err), code=2 if isinstance(err, ValueError) else 3)
         bar.finish()
-    save_dataset(stack_models({name: r.to_dataset() for name, r in results.items()}), out)
+    if out is not None:  # the Dataset (and xarray) only for a file: --json alone starts quickly
+        save_dataset(stack_models({name: r.to_dataset() for name, r in results.items()}), out)
     if plot is not None:
         from ..plots.statics import figure2
 

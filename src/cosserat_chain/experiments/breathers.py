@@ -31,9 +31,9 @@ import json
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 from scipy.optimize import brentq
 
 from ..analysis.dispersion import BRANCHES, wave_summary
@@ -44,6 +44,9 @@ from ..numerics.periodic import HamiltonianFamily, HamiltonianOrbit, continue_in
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column, n_free, unpack, zeros
 from .simulation import run_attributes
+
+if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
+    import xarray as xr
 
 ProgressCallback = Callable[[float, float], None]
 
@@ -287,6 +290,8 @@ class BreatherFamily:
 
     def to_dataset(self) -> xr.Dataset:
         """Dataset with dims ``point`` (the family), ``particle`` and ``multiplier``; parameters in the attributes."""
+        import xarray as xr
+
         orbits = self.family.orbits
         if not orbits:
             raise ValueError("the family holds no orbit: nothing to write")

@@ -23,13 +23,15 @@ import math
 import time as clock
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import xarray as xr
 
 from ..inputs import InputFileError, check_counts, check_finite
 from ..io import OutputError, read_dataset, write_dataset
+
+if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
+    import xarray as xr
 
 log = logging.getLogger(__name__)
 

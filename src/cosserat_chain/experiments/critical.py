@@ -57,9 +57,9 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 
 from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
@@ -77,6 +77,9 @@ from ..numerics.stability import smallest_eigenvalue, static_stability
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column, unpack
 from .simulation import run_attributes
+
+if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
+    import xarray as xr
 
 #: Default point budget of the full-turn branch (N = 1000: about 2600 points).
 MAX_POINTS = 5000
@@ -265,6 +268,8 @@ class CriticalResult:
 
     def to_dataset(self) -> xr.Dataset:
         """Dataset with dims ``point`` (along the branch) and ``particle``; scalars for M_c, phi_0 at the fold, compliance."""
+        import xarray as xr
+
         b = self.branch
         data = {row: (("point", "particle"), b.x[:, i, :]) for i, row in enumerate(ROWS)}
         data.update(

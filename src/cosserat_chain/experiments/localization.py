@@ -41,10 +41,9 @@ import time as clock
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import xarray as xr
 
 from ..analysis.diagnostics import THRESHOLDS, StreamingDiagnostics
 from ..loads import Loads, moment_load
@@ -56,6 +55,9 @@ from ..state import ROWS, column, zeros
 from ..status import Status
 from .checkpoint import CheckpointClock, open_checkpoint, params_settings, seal
 from .simulation import run_attributes
+
+if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
+    import xarray as xr
 
 log = logging.getLogger(__name__)
 
@@ -194,6 +196,8 @@ class LocalizationResult:
     def to_dataset(self) -> xr.Dataset:
         """Self-describing Dataset: per-particle diagnostics over ``particle``, the final state, and in
         the attributes the parameters, model, version, settings and summary (also a checkpoint)."""
+        import xarray as xr
+
         d = self.diagnostics
         model = get_model(self.model)
         data: dict[str, Any] = {

@@ -22,9 +22,9 @@ import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 
 from ..loads import moment_load
 from ..models.base import Model, get_model
@@ -33,6 +33,9 @@ from ..numerics.periodic import OrbitBranch, OrbitError, PeriodicOrbit, continue
 from ..params import ChainParams
 from ..state import ROWS
 from .simulation import run_attributes
+
+if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
+    import xarray as xr
 
 ProgressCallback = Callable[[float, float], None]
 
@@ -88,6 +91,8 @@ class OrbitResult:
     def to_dataset(self) -> xr.Dataset:
         """Dataset with the start state (dims ``particle``), the multipliers and, with a
         continuation, the branch (dim ``point``)."""
+        import xarray as xr
+
         o = self.orbit
         particle = np.arange(-o.params.N, o.params.N + 1)
         data = {row: (("particle",), o.x[i]) for i, row in enumerate(ROWS)}
@@ -235,6 +240,8 @@ class RotationCharacteristic:
 
     def to_dataset(self) -> xr.Dataset:
         """Dataset with dimension ``point`` and the parameters in the attributes."""
+        import xarray as xr
+
         ds = xr.Dataset(
             {
                 "period": (("point",), self.period),

@@ -32,10 +32,9 @@ import json
 import logging
 import math
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import xarray as xr
 
 from .. import __version__
 from ..analysis.energy import energy_budget
@@ -48,6 +47,9 @@ from ..params import ChainParams
 from ..state import ROWS
 from ..status import Status
 from .checkpoint import CheckpointClock, open_checkpoint, params_settings, seal
+
+if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
+    import xarray as xr
 
 log = logging.getLogger(__name__)
 
@@ -70,6 +72,8 @@ _STATE_VARIABLES = (
 
 def trajectory_dataset(params: ChainParams, model: str | Model, loads: Loads, trajectory: Trajectory) -> xr.Dataset:
     """Dataset of a trajectory with its energy budget and full metadata (see the module docstring)."""
+    import xarray as xr
+
     model = get_model(model)
     budget = energy_budget(params, model, trajectory)
     particle = np.arange(-params.N, params.N + 1)
@@ -337,6 +341,8 @@ def _checkpointed_run(
 
 def _checkpoint_dataset(state: RunState, params: ChainParams, model: Model, loads: Loads, settings: dict[str, Any]) -> xr.Dataset:
     """The checkpoint of a run at ``state``: its frames so far (a readable partial run), its state and its settings."""
+    import xarray as xr
+
     particle = np.arange(-params.N, params.N + 1)
     data: dict[str, Any] = {}
     for i, row in enumerate(ROWS):

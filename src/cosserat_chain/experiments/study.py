@@ -70,10 +70,9 @@ import json
 import logging
 import math
 from collections.abc import Sequence
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
-import xarray as xr
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_serializer, model_validator
 
 from ..analysis.dispersion import wave_summary
@@ -84,6 +83,9 @@ from ..numerics.dynamics import default_time_step
 from ..numerics.relaxation import relax_batch
 from ..params import ChainParams
 from .sweep import relaxation_sweeps
+
+if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
+    import xarray as xr
 
 log = logging.getLogger(__name__)
 
@@ -410,6 +412,8 @@ def _relaxation_quantities(params_list: list[ChainParams], model: str, spec: Stu
 
 def empty_results(spec: StudySpec) -> xr.Dataset:
     """The result Dataset before any cell ran: every quantity NaN, ``done`` 0, ``error`` empty."""
+    import xarray as xr
+
     axes = spec.axes()
     dims = [*axes, "model"]
     shape = [len(v) for v in axes.values()] + [len(spec.models)]

@@ -22,9 +22,9 @@ import logging
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
-import xarray as xr
 
 from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
@@ -33,6 +33,9 @@ from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column
 from ..status import Status
 from .simulation import run_attributes
+
+if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
+    import xarray as xr
 
 log = logging.getLogger(__name__)
 
@@ -139,6 +142,8 @@ class SweepResult:
 
     def to_dataset(self) -> xr.Dataset:
         """Self-describing Dataset with dims ``step`` and ``particle`` (-N..N)."""
+        import xarray as xr
+
         particle = np.arange(-self.params.N, self.params.N + 1)
         data = {row: (("step", "particle"), self.x[:, i, :]) for i, row in enumerate(ROWS)}
         data["angular_velocity"] = (("step", "particle"), self.angular_velocity)

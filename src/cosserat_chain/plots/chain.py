@@ -30,10 +30,10 @@ import json
 import math
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import imageio.v2 as iio2
 import numpy as np
-import xarray as xr
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.collections import LineCollection, PolyCollection
@@ -44,6 +44,9 @@ from PIL import Image
 from ..geometry import bond_links, corner_positions, particle_positions
 from ..io import FIGURE_FORMATS, atomic_path, params_of, run_states, write_figure
 from ..params import ChainParams
+
+if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
+    import xarray as xr
 
 #: Output formats of :func:`animate`, by file extension.
 ANIMATION_FORMATS = (".gif", ".mp4")

@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import matplotlib.pyplot as plt
 import numpy as np
-import xarray as xr
 from matplotlib.figure import Figure
 
 from .statics import model_color
+
+if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
+    import xarray as xr
 
 #: Swept fields are the study Dataset's dimensions other than these.
 _NON_PARAMETER_DIMS = ("model", "load")
@@ -68,6 +72,8 @@ def study_figure(ds: xr.Dataset, quantities: list[str] | None = None) -> Figure:
 
 def _with_regimes(ds: xr.Dataset) -> xr.Dataset:
     """Add ``regime at M=...`` per load of ``mean_angular_velocity``: 1 rotating, 0 at rest, NaN not settled."""
+    import xarray as xr
+
     if "mean_angular_velocity" not in ds:
         return ds
     rate = ds["mean_angular_velocity"]
