@@ -183,6 +183,7 @@ def critical(
                 confirmed = sum(bool(f.confirmed) for f in r.branch.folds)
                 over += f", {confirmed} of them confirmed by a second trace with other steps"
             typer.echo(f"{name}: {fold}; compliance dphi_0/dM = {r.compliance:.15g}; {len(r.branch.folds)} folds {over}")
+            typer.echo(f"  {_stability_line(r)}")
     for name, r in results.items():
         if r.budget_reached:
             exit_on(
@@ -208,3 +209,21 @@ def critical(
                 + ("no such fold in it" if not math.isfinite(spread) else f"its moments differ by up to {spread:.2g}")
                 + "): M_c is known only to that",
             )
+
+
+def _stability_line(r) -> str:
+    """The dynamic verdict of the branch from rest up to M_c and the branch's Hopf points, each named for what it is."""
+    verdict = r.dynamically_stable_to_onset
+    rest = {True: "dynamically stable", False: "has unstable eigenvalues", None: "dynamic verdict not computed"}[verdict]
+    upto = "up to M_c" if r.critical_moment is not None else "over the traced turn"
+    line = f"branch from rest {upto}: {rest} (verdict from {r.dynamics_from}: {r.dynamics_note})"
+    if r.hopf is None:
+        return line + "; Hopf points of the branch: not searched (beyond the dense limit: numerics.hopf.hopf_points searches it)"
+    if r.hopf_search == "searched":
+        points = "; ".join(
+            f"M = {h.moment:.10g} at phi_0 = {h.phi0:.10g} rad, omega = {h.frequency:.6g}, unstable eigenvalues "
+            f"{h.unstable_before} -> {h.unstable_after} (stiffness index {h.stiffness_index})" + ("" if h.located else ", not located")
+            for h in r.hopf
+        )
+        line += f"; Hopf points of the traced branch: {len(r.hopf)}" + (f": {points}" if r.hopf else "")
+    return line + "; index before/after of folds: stiffness index (K's negative eigenvalues)"

@@ -49,6 +49,28 @@ every model shares, refined in extended precision
 (:func:`~cosserat_chain.numerics.continuation.moment_response`): at N = 10^4 M_c to round-off
 where the traced folds were 3.6e-6 off and flagged.
 
+Stability is reported as two things. K's inertia, the *stiffness index* (its negative
+eigenvalues: ``stable`` along the branch, ``index_before`` / ``index_after`` of folds and branch
+points), is what decides the folds; the *dynamic verdict* comes from the eigenvalues of the
+damped first-order system (:func:`~cosserat_chain.numerics.stability.dynamic_stability`), its
+*unstable eigenvalues*. ``dynamics_from`` says where the verdict comes from:
+
+* "stiffness index": a conservative model (nonlinear, linear) with positive damping, whose
+  unstable eigenvalues are K's negative ones (a theorem the stability tests check against the
+  dense eigenvalues): the verdict is K's inertia, not recomputed, and the branch has no Hopf point;
+* "eigenvalues": any other model (the sine model, eq. (2)) where the first-order system is
+  dense (:data:`~cosserat_chain.numerics.stability.DENSE_LIMIT`, the limit ``states`` uses):
+  its eigenvalues at every traced point, and the branch's Hopf points
+  (:func:`~cosserat_chain.numerics.hopf.hopf_points`; N = 2, paper's geometry: phi_0 = 1.6575 and
+  2.4380 on the unstable branch, where K keeps one negative eigenvalue and the dynamics have three
+  unstable eigenvalues between them);
+* "eq. (2) theorem": the sine model beyond the dense limit. On its branch from rest up to M_c every
+  |phi_j| < pi/2 (closed form above), and K = K_lin D with D = diag(1, 1, cos phi_j) positive:
+  multiplied by D the linearised dynamics are D M q'' + D Gamma q' + D K_lin D q = 0, symmetric
+  with positive mass and stiffness and non-negative damping, hence dynamically stable. The
+  verdict there is that theorem's; Hopf points are not searched (``hopf`` None: call
+  ``hopf_points`` on the branch directly).
+
 The result converts to a JSON-ready dict and to a self-describing xarray Dataset.
 """
 
@@ -81,6 +103,9 @@ from .simulation import run_attributes
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
     import xarray as xr
 
+    from ..numerics.hopf import HopfPoint
+    from ..numerics.stability import DynamicStability
+
 #: Default point budget of the full-turn branch (N = 1000: about 2600 points).
 MAX_POINTS = 5000
 #: Default budget in turns of the loaded particle for a branch from rest that stays stable
@@ -101,6 +126,32 @@ CONFIRM_MOMENT_RTOL = 1e-7
 #: ... and their angles phi_0 to this (rad; a simple fold's phi_0 is known to about the square root
 #: of its moment's round-off: 3e-7 at N = 10^4).
 CONFIRM_PHI0_ATOL = 1e-5
+
+#: What ``index_before`` / ``index_after`` and ``stable`` along the branch count (the JSON's ``index_meaning``).
+INDEX_MEANING = (
+    "index_before, index_after and the branch's stable: the stiffness index, K's negative eigenvalues (K's inertia), "
+    "not the unstable eigenvalues of the damped dynamics; those are under dynamics"
+)
+#: The output's sentence on where the dynamic verdict comes from, by ``dynamics_from`` (module docstring).
+DYNAMICS_NOTES = {
+    "stiffness index": (
+        "the dynamic verdict is K's inertia: for a conservative model with positive damping the damped dynamics' unstable "
+        "eigenvalues are K's negative ones (a theorem), so they are not recomputed; no Hopf points"
+    ),
+    "eigenvalues": (
+        "the dynamic verdict from the damped dynamics' eigenvalues at every traced point; Hopf points searched on the "
+        "traced branch"
+    ),
+    "eq. (2) theorem": (
+        "beyond the dense limit: on the branch from rest up to M_c every |phi_j| < pi/2, and eq. (2)'s linearised dynamics "
+        "times diag(1, 1, cos phi_j) are a symmetric damped system with positive stiffness: dynamically stable (a theorem, "
+        "not computed); Hopf points not searched (numerics.hopf.hopf_points searches the branch)"
+    ),
+    "not computed": (
+        "beyond the dense limit the dynamic verdict is not computed (numerics.stability.dynamic_stability gives it "
+        "point by point); Hopf points not searched"
+    ),
+}
 
 
 @dataclass
@@ -149,6 +200,42 @@ class CriticalResult:
     #: The particle (-N..N) that starts to rotate at the onset (the mode of the fold or branch
     #: point that ends the stable branch from rest; for eq. (2) the one of largest |c_j|).
     onset_particle: int | None = None
+    #: Where the dynamic verdict comes from: "stiffness index", "eigenvalues", "eq. (2) theorem" or
+    #: "not computed" (module docstring).
+    dynamics_from: str = "stiffness index"
+    #: The damped dynamics' verdict at every point of the branch (``dynamics_from`` "eigenvalues"), else None.
+    dynamics: list[DynamicStability] | None = None
+    #: The Hopf points of the traced branch ([] for a conservative model with positive damping; None: not searched).
+    hopf: list[HopfPoint] | None = None
+
+    @property
+    def rest_segment(self) -> int:
+        """Points of the branch from rest up to the end of its stable part (K's inertia): the first ``rest_segment``."""
+        unstable = np.flatnonzero(~self.branch.stable)
+        return int(unstable[0]) if unstable.size else len(self.branch.stable)
+
+    @property
+    def dynamically_stable_to_onset(self) -> bool | None:
+        """The damped dynamics' verdict on the branch from rest up to M_c (where its stable part ends): True where every
+        point of it is dynamically stable (by the verdict ``dynamics_from`` names), None where not computed."""
+        if self.dynamics_from in ("stiffness index", "eq. (2) theorem"):
+            return self.rest_segment > 0 if self.dynamics_from == "stiffness index" else True
+        if self.dynamics is None:
+            return None
+        return all(d.stable for d in self.dynamics[: self.rest_segment])
+
+    @property
+    def hopf_search(self) -> str:
+        """How the Hopf points were sought: "searched" (``hopf`` lists what was found on the traced branch), "none by the theorem" (a conservative model
+        with positive damping) or "not searched" (beyond the dense limit: ``hopf`` None)."""
+        if self.hopf is None:
+            return "not searched"
+        return "none by the theorem" if self.dynamics_from == "stiffness index" else "searched"
+
+    @property
+    def dynamics_note(self) -> str:
+        """One sentence: where the dynamic verdict comes from (module docstring)."""
+        return DYNAMICS_NOTES[self.dynamics_from]
 
     @property
     def budget_reached(self) -> bool:
@@ -255,6 +342,14 @@ class CriticalResult:
             "folds": folds,
             "confirmation": self.confirmation,
             "accurate": self.accurate,
+            "index_meaning": INDEX_MEANING,
+            "dynamics": {
+                "verdict_from": self.dynamics_from,
+                "note": self.dynamics_note,
+                "stable_from_rest_to_onset": self.dynamically_stable_to_onset,
+                "hopf_search": self.hopf_search,
+            },
+            "hopf_points": None if self.hopf is None else [h.as_dict() for h in self.hopf],
             "branch": {
                 "stop": self.branch.stop,
                 "message": self.branch.message,
@@ -263,6 +358,10 @@ class CriticalResult:
                 "stable": self.branch.stable.tolist(),
                 "critical_eigenvalue": self.branch.critical_eigenvalue.tolist(),
                 "folds": folds,
+                "stiffness_index": None if self.dynamics is None else [d.stiffness_index for d in self.dynamics],
+                "dynamically_stable": None if self.dynamics is None else [d.stable for d in self.dynamics],
+                "unstable_eigenvalues": None if self.dynamics is None else [d.unstable_eigenvalues for d in self.dynamics],
+                "unstable_pairs": None if self.dynamics is None else [d.unstable_pairs for d in self.dynamics],
             },
         }
 
@@ -283,10 +382,13 @@ class CriticalResult:
                 "compliance": ((), self.compliance),
             }
         )
-        ds = xr.Dataset(data, coords={"point": np.arange(len(b.moment)), "particle": np.arange(-self.params.N, self.params.N + 1)})
+        data.update(self._dynamics_variables())
+        coords = {"point": np.arange(len(b.moment)), "particle": np.arange(-self.params.N, self.params.N + 1)}
+        ds = xr.Dataset(data, coords={**coords, "hopf": np.arange(len(self.hopf or []))})
         ds["M_c"].attrs["long_name"] = "critical moment, the onset of rotation (NaN: no fold)"
         ds["M_c"].attrs["onset"] = str(self.onset)
-        ds["stable"].attrs["long_name"] = "1 if the static state is stable"
+        ds["stable"].attrs["long_name"] = "1 if the static state is stable by K's inertia (stiffness index 0)"
+        ds["dynamically_stable"].attrs["verdict_from"] = self.dynamics_from
         ds.attrs.update(run_attributes(self.params, get_model(self.model), Loads()))
         ds.attrs.update(
             {
@@ -298,9 +400,40 @@ class CriticalResult:
                 "onset_particle": "none" if self.onset_particle is None else self.onset_particle,
                 "fold_confirmation": self.confirmation,
                 "accurate": int(self.accurate),
+                "dynamics_from": self.dynamics_from,
+                "dynamics_note": self.dynamics_note,
+                "dynamically_stable_to_onset": "unknown" if self.dynamically_stable_to_onset is None else int(self.dynamically_stable_to_onset),
+                "hopf_search": self.hopf_search,
             }
         )
         return ds
+
+    def _dynamics_variables(self) -> dict[str, tuple]:
+        """The dynamic verdict along the branch (-1 where not computed; K's inertia where it is the verdict by the theorem)
+        and the Hopf points (dimension ``hopf``; none where not searched: the attribute ``hopf_search`` says which)."""
+        k = len(self.branch.moment)
+        if self.dynamics is not None:
+            stable = np.array([d.stable for d in self.dynamics], dtype=np.int8)
+            unstable = np.array([d.unstable_eigenvalues for d in self.dynamics], dtype=np.int32)
+            pairs = np.array([d.unstable_pairs for d in self.dynamics], dtype=np.int32)
+            index = np.array([d.stiffness_index for d in self.dynamics], dtype=np.int32)
+        else:
+            theorem = self.dynamics_from == "stiffness index"
+            stable = self.branch.stable.astype(np.int8) if theorem else np.full(k, -1, dtype=np.int8)
+            if self.dynamics_from == "eq. (2) theorem":
+                stable[: self.rest_segment] = 1
+            unstable = pairs = index = np.full(k, -1, dtype=np.int32)
+        hopf = self.hopf or []
+        return {
+            "dynamically_stable": (("point",), stable),
+            "unstable_eigenvalues": (("point",), unstable),
+            "unstable_pairs": (("point",), pairs),
+            "stiffness_index": (("point",), index),
+            "hopf_moment": (("hopf",), np.array([h.moment for h in hopf], dtype=float)),
+            "hopf_phi0": (("hopf",), np.array([h.phi0 for h in hopf], dtype=float)),
+            "hopf_frequency": (("hopf",), np.array([h.frequency for h in hopf], dtype=float)),
+            "hopf_located": (("hopf",), np.array([h.located for h in hopf], dtype=np.int8)),
+        }
 
 
 def critical_point(
@@ -368,15 +501,29 @@ def critical_point(
             onset_particle = end.mode_particle
         return CriticalResult(
             params, model.name, particle, fold, compliance, branch, first, None, end, confirmation, turns if model.rotates else None,
-            onset_particle,
+            onset_particle, *_dynamics(params, model, branch),
         )  # fmt: skip
     if onset_particle is None and first is not None:
         onset_particle = first.mode_particle
     snap_to = _snap_target(params, model, branch, first, particle) if first is not None and first is not fold else None
     return CriticalResult(
         params, model.name, particle, fold, compliance, branch, first, snap_to, None, confirmation, turns if model.rotates else None,
-        onset_particle,
+        onset_particle, *_dynamics(params, model, branch),
     )  # fmt: skip
+
+
+def _dynamics(params: ChainParams, model: Model, branch: Branch) -> tuple[str, list[DynamicStability] | None, list[HopfPoint] | None]:
+    """``dynamics_from``, the dynamic verdict at every point and the Hopf points of ``branch`` (module docstring)."""
+    from ..numerics.hopf import hopf_points
+    from ..numerics.stability import DENSE_LIMIT, dynamic_stability
+    from ..state import n_free
+
+    if model.conservative and all(g > 0 for g in params.damping):
+        return "stiffness index", None, []
+    if 2 * n_free(params) <= DENSE_LIMIT:
+        checks = [dynamic_stability(params, model, x) for x in branch.x]
+        return "eigenvalues", checks, hopf_points(params, model, branch, checks=checks)
+    return ("eq. (2) theorem" if model.name == "sine" else "not computed"), None, None
 
 
 def _sine_folds(params: ChainParams, branch: Branch, angles: np.ndarray, particle: int) -> list[Fold]:
