@@ -148,3 +148,14 @@ def test_sine_beyond_the_dense_limit_takes_the_theorem_and_does_not_search(tmp_p
     ds = r.to_dataset()
     assert ds.attrs["hopf_search"] == "not searched" and ds.sizes["hopf"] == 0
     assert set(ds["dynamically_stable"].values[:rest]) == {1} and set(ds["dynamically_stable"].values[rest:]) <= {-1}
+
+
+def test_dynamics_false_skips_only_what_costs():
+    params = ChainParams(N=2)
+    sine = critical_point(params, "sine", dynamics=False)
+    assert sine.dynamics_from == "not computed" and sine.hopf is None and sine.dynamically_stable_to_onset is None
+    assert sine.as_dict()["dynamics"]["hopf_search"] == "not searched"
+    assert set(sine.to_dataset()["dynamically_stable"].values) == {-1}
+    # The folds are those of the full result; a conservative model keeps its verdict by the theorem.
+    assert sine.critical_moment == critical_point(params, "sine").critical_moment
+    assert critical_point(params, "nonlinear", dynamics=False).dynamics_from == "stiffness index"

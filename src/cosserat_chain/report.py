@@ -511,7 +511,7 @@ def _seven_particles(stage: _Stage) -> dict[str, Any]:
     readings = {}
     for name, n in READINGS.items():
         chain = stage.params.replace(N=n)
-        exact = {m: stage.critical(m) if n == stage.params.N else critical_point(chain, m) for m in ROTATING}
+        exact = {m: stage.critical(m) if n == stage.params.N else critical_point(chain, m, dynamics=False) for m in ROTATING}
         readings[name] = {
             "N": n,
             "compliance": exact[ROTATING[0]].compliance,
@@ -867,7 +867,7 @@ def _long_chains(stage: _Stage) -> Section:
     from .plots.statics import critical_against_length
 
     p, s = stage.params, stage.settings
-    results = {m: [critical_point(p.replace(N=n), m) for n in s.long_n_list] for m in ROTATING}
+    results = {m: [critical_point(p.replace(N=n), m, dynamics=False) for n in s.long_n_list] for m in ROTATING}
 
     def summary(result) -> dict:
         whole = result.as_dict()

@@ -90,7 +90,7 @@ def sweep(
     if plot is not None:
         from ..plots.statics import figure2
 
-        criticals = {name: critical_point(params, name, particle=particle) for name in results}
+        criticals = {name: critical_point(params, name, particle=particle, dynamics=False) for name in results}
         save_figure(figure2(criticals, results), plot)
     if as_json:
         typer.echo(json.dumps({"params": params.model_dump(), "models": {name: r.as_dict() for name, r in results.items()}}))

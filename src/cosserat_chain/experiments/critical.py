@@ -148,8 +148,8 @@ DYNAMICS_NOTES = {
         "not computed); Hopf points not searched (numerics.hopf.hopf_points searches the branch)"
     ),
     "not computed": (
-        "beyond the dense limit the dynamic verdict is not computed (numerics.stability.dynamic_stability gives it "
-        "point by point); Hopf points not searched"
+        "the dynamic verdict is not computed (asked not to, or beyond the dense limit for a model without a theorem: "
+        "numerics.stability.dynamic_stability gives it point by point); Hopf points not searched"
     ),
 }
 
@@ -444,6 +444,7 @@ def critical_point(
     max_points: int = MAX_POINTS,
     turns: float = TURNS,
     progress: Callable[[float, float], None] | None = None,
+    dynamics: bool = True,
 ) -> CriticalResult:
     """Compliance, fold and branch of ``model`` under a moment on ``particle``.
 
@@ -452,7 +453,11 @@ def critical_point(
     does not rotate: one turn). ``max_points`` bounds the branch's points
     (:func:`continue_in_moment`); a branch cut short by it, or still stable after ``turns``,
     gives ``complete`` False. Where K is near singular at rest the branch is traced twice and
-    the folds confirmed (module docstring); ``progress`` then runs to twice the turn.
+    the folds confirmed (module docstring); ``progress`` then runs to twice the turn. ``dynamics``
+    False skips the damped dynamics' eigenvalues along the branch of a model that is not
+    conservative (dense, O(n^3) a point: 40 s for the sine model at N = 33) where only the folds
+    are wanted: ``dynamics_from`` is then "not computed" (a conservative model's verdict, K's
+    inertia by the theorem, costs nothing and is given).
 
     Raises
     ------
@@ -501,25 +506,30 @@ def critical_point(
             onset_particle = end.mode_particle
         return CriticalResult(
             params, model.name, particle, fold, compliance, branch, first, None, end, confirmation, turns if model.rotates else None,
-            onset_particle, *_dynamics(params, model, branch),
+            onset_particle, *_dynamics(params, model, branch, dynamics),
         )  # fmt: skip
     if onset_particle is None and first is not None:
         onset_particle = first.mode_particle
     snap_to = _snap_target(params, model, branch, first, particle) if first is not None and first is not fold else None
     return CriticalResult(
         params, model.name, particle, fold, compliance, branch, first, snap_to, None, confirmation, turns if model.rotates else None,
-        onset_particle, *_dynamics(params, model, branch),
+        onset_particle, *_dynamics(params, model, branch, dynamics),
     )  # fmt: skip
 
 
-def _dynamics(params: ChainParams, model: Model, branch: Branch) -> tuple[str, list[DynamicStability] | None, list[HopfPoint] | None]:
-    """``dynamics_from``, the dynamic verdict at every point and the Hopf points of ``branch`` (module docstring)."""
+def _dynamics(
+    params: ChainParams, model: Model, branch: Branch, compute: bool = True
+) -> tuple[str, list[DynamicStability] | None, list[HopfPoint] | None]:
+    """``dynamics_from``, the dynamic verdict at every point and the Hopf points of ``branch`` (module docstring;
+    ``compute`` False: only the theorems' verdicts, which cost nothing)."""
     from ..numerics.hopf import hopf_points
     from ..numerics.stability import DENSE_LIMIT, dynamic_stability
     from ..state import n_free
 
     if model.conservative and all(g > 0 for g in params.damping):
         return "stiffness index", None, []
+    if not compute:
+        return "not computed", None, None
     if 2 * n_free(params) <= DENSE_LIMIT:
         checks = [dynamic_stability(params, model, x) for x in branch.x]
         return "eigenvalues", checks, hopf_points(params, model, branch, checks=checks)
