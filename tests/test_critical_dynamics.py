@@ -159,3 +159,18 @@ def test_dynamics_false_skips_only_what_costs():
     # The folds are those of the full result; a conservative model keeps its verdict by the theorem.
     assert sine.critical_moment == critical_point(params, "sine").critical_moment
     assert critical_point(params, "nonlinear", dynamics=False).dynamics_from == "stiffness index"
+
+
+def test_the_eq2_theorem_rests_on_k_sine_equal_to_k_linear_times_diag_cos_phi():
+    """K = K_lin diag(1, 1, cos phi) at any state: the identity the "eq. (2) theorem" verdict uses."""
+    from cosserat_chain.models.base import get_model
+    from cosserat_chain.state import pack, unpack
+
+    params = ChainParams(N=3)
+    rng = np.random.default_rng(45)
+    x = unpack(params, rng.normal(size=pack(params, np.zeros((3, params.n_particles))).size))
+    sine = get_model("sine").stiffness(params, x).toarray()
+    linear = get_model("linear").stiffness(params, x).toarray()
+    ones = np.ones(params.n_particles)
+    scale = pack(params, np.vstack([ones, ones, np.cos(x[2])]))
+    np.testing.assert_allclose(sine, linear * scale[None, :], atol=1e-13 * np.abs(sine).max())
