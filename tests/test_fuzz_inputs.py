@@ -254,7 +254,7 @@ def checkpoint_bytes(tmp_path_factory) -> bytes:
 def test_a_damaged_or_resealed_checkpoint_resumes_or_is_refused(checkpoint_bytes, damage, value, tmp_path):
     """A checkpoint cut, flipped, or edited and sealed again: the resumed run is the run asked for, or a ValueError."""
     from cosserat_chain.experiments.checkpoint import seal
-    from cosserat_chain.experiments.simulation import CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT, _STATE_ATTRIBUTES
+    from cosserat_chain.experiments.simulation import _STATE_ATTRIBUTES, CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT
 
     path = tmp_path / "run.checkpoint.nc"
     kind, what = damage

@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 from cosserat_chain import ChainParams
 from cosserat_chain.cli import app
 from cosserat_chain.experiments.checkpoint import seal
-from cosserat_chain.experiments.simulation import CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT, _STATE_ATTRIBUTES, simulate
+from cosserat_chain.experiments.simulation import _STATE_ATTRIBUTES, CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT, simulate
 from cosserat_chain.inputs import InputFileError, check_counts, check_run, params_from_mapping
 from cosserat_chain.io import load_config, read_dataset, run_frame, write_dataset
 from cosserat_chain.loads import MAX_KNOTS, Loads, Schedule, load_from_table, loads_from_tables, moment_load

@@ -5,12 +5,11 @@ from __future__ import annotations
 import json
 
 import numpy as np
-from conftest import random_geometries
 
 import cosserat_chain.report as report_module
+from conftest import random_geometries
 from cosserat_chain.analysis.continuum import convergence
 from cosserat_chain.report import reproduce
-
 from test_report import QUICK
 
 

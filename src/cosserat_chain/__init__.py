@@ -153,9 +153,9 @@ if TYPE_CHECKING:  # for type checkers and IDEs, which do not run __getattr__
     from .numerics.continuation import compliance, continue_in_moment, locate_fold
     from .numerics.dynamics import integrate
     from .numerics.fold_curve import continue_fold
+    from .numerics.hopf import hopf_points
     from .numerics.newton import solve_equilibrium
     from .numerics.relaxation import relax, relax_batch
-    from .numerics.hopf import hopf_points
     from .numerics.stability import dynamic_stability, static_stability
     from .params import ChainParams, disordered
     from .report import ReproduceSettings, reproduce

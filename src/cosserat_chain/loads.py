@@ -25,7 +25,6 @@ from numba import njit
 from .params import ChainParams
 from .state import ROW_INDEX, column, held
 
-
 #: Most knots of one schedule: a million knots (some 100 MB as Python numbers and the compiled
 #: table) is far beyond any loading protocol, and a staircase of 10^8 steps would take gigabytes.
 MAX_KNOTS = 1_000_000

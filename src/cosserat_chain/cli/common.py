@@ -7,10 +7,10 @@ Each command lives in its own module of this package and registers itself on ``a
 from __future__ import annotations
 
 import functools
-from contextlib import ExitStack
 import math
 import sys
 import tempfile
+from contextlib import ExitStack
 from enum import Enum
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
@@ -19,7 +19,17 @@ import typer
 from pydantic import ValidationError
 from tqdm import tqdm
 
-from ..io import FIGURE_FORMATS, OutputError, check_output, load_config, netcdf_image, output_lock, write_bytes, write_fallback, write_figure
+from ..io import (
+    FIGURE_FORMATS,
+    OutputError,
+    check_output,
+    load_config,
+    netcdf_image,
+    output_lock,
+    write_bytes,
+    write_fallback,
+    write_figure,
+)
 from ..memory import MemoryEstimateError, available, size_text
 from ..params import ChainParams
 from ..status import Status

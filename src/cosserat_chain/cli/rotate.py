@@ -63,7 +63,7 @@ def rotate(
         spin_or_exit(params, moment, step)
         # The turns take at least theta gamma_phi / |M| (the spin stays below |M| / gamma_phi) and
         # sqrt(2 j theta / |M|) (the spin-up from rest), whatever the chain does.
-        drive = abs(moment) + sum(l.schedule.bound() for l in extra if l.row == "phi" and l.particle == particle)
+        drive = abs(moment) + sum(load.schedule.bound() for load in extra if load.row == "phi" and load.particle == particle)
         theta = 2 * math.pi * turns
         inertia = params.j * min(params.j_factors or (1.0,))
         least = min(t_max, max(theta * params.gamma_phi / drive, math.sqrt(2 * inertia * theta / drive))) if drive else t_max
