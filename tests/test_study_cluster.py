@@ -98,7 +98,7 @@ def _free_port() -> int:
 
 @pytest.mark.parametrize("behaviour", ["silent", "garbage", "refused"])
 def test_a_scheduler_that_does_not_answer_as_dask_fails_within_the_timeout(behaviour, monkeypatch):
-    monkeypatch.setattr(study_runner, "CONNECT_TIMEOUT", 1.0)
+    monkeypatch.setattr(study_runner, "CONNECT_TIMEOUT", 2.0)
     outcome: list[BaseException | None] = []
 
     def attempt(address):
@@ -115,12 +115,12 @@ def test_a_scheduler_that_does_not_answer_as_dask_fails_within_the_timeout(behav
     with context as address:
         worker = threading.Thread(target=attempt, args=(address,), daemon=True)
         worker.start()
-        # a hang, not a slow refusal, is what this bounds: the timeout is 1 s
+        # a hang, not a slow refusal, is what this bounds: the timeout is 2 s
         worker.join(60)
     assert not worker.is_alive(), f"run_study still waits on a {behaviour} scheduler after 60 s"
     assert isinstance(outcome[0], study_runner.ClusterError), outcome
     assert address in str(outcome[0])
-    expected = {"silent": "within 1 s", "garbage": "not as a Dask scheduler", "refused": "cannot reach"}[behaviour]
+    expected = {"silent": "within 2 s", "garbage": "not as a Dask scheduler", "refused": "cannot reach"}[behaviour]
     assert expected in str(outcome[0])
 
 

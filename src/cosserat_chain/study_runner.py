@@ -147,7 +147,9 @@ def _reach(address: str) -> None:
     from distributed.comm import connect
 
     async def identity() -> Any:
-        comm = await connect(address, timeout=CONNECT_TIMEOUT)
+        # Half the time for the connection, so that a refused port (distributed retries until its
+        # timeout) is told apart from one that accepts and stays silent.
+        comm = await connect(address, timeout=CONNECT_TIMEOUT / 2)
         try:
             await comm.write({"op": "identity", "reply": True})
             return await comm.read()
