@@ -24,6 +24,7 @@ code until their own files change.
 
 from __future__ import annotations
 
+import functools
 import math
 from fractions import Fraction
 
@@ -54,22 +55,18 @@ WRAP_ANGLE = 64.0
 #: Largest |angle| of a start state (rad): beyond 2^53 doubles are more than a radian apart,
 #: and an angle says nothing about where in its turn a particle is.
 MAX_START_ANGLE = 2.0**53
-# 2 pi to 256 bits (pi from Machin's formula, digits of 1/5 and 1/239), for :func:`split_turns`.
+#: 2 pi is carried to this many bits by :func:`split_turns` (a double's 53 bits, the 53 of the
+#: largest start angle, and a wide margin).
 _SCALE = 2**256
 
 
-def _arctan_inverse(x: int) -> int:
-    """arctan(1/x) * _SCALE, to the last bit or so (Taylor series in integers)."""
-    total, term, n, sign = 0, _SCALE // x, 1, 1
-    while term:
-        total += sign * (term // n)
-        term //= x * x
-        n += 2
-        sign = -sign
-    return total
+@functools.cache
+def _two_pi_scaled() -> int:
+    """2 pi * _SCALE rounded down to an integer (mpmath, which SymPy brings; imported only when a start angle needs it)."""
+    import mpmath
 
-
-_TWO_PI_SCALED = 2 * 4 * (4 * _arctan_inverse(5) - _arctan_inverse(239))
+    with mpmath.workprec(320):
+        return int(mpmath.floor(2 * mpmath.pi * _SCALE))
 
 _S1, _S2, _S3 = 1.58962301576546568060e-10, -2.50507477628578072866e-8, 2.75573136213857245213e-6
 _S4, _S5, _S6 = -1.98412698295895385996e-4, 8.33333333332211858878e-3, -1.66666666666666307295e-1
@@ -128,8 +125,9 @@ def split_turns(angles, name: str = "phi") -> tuple[np.ndarray, np.ndarray]:
                 f"+-{MAX_START_ANGLE:.4g} rad (2^53; beyond it doubles are more than a radian apart)"
             )
         exact = Fraction(angle)
-        k = round(exact * _SCALE / _TWO_PI_SCALED)
-        flat[i] = float(exact - Fraction(k * _TWO_PI_SCALED, _SCALE))
+        two_pi = _two_pi_scaled()
+        k = round(exact * _SCALE / two_pi)
+        flat[i] = float(exact - Fraction(k * two_pi, _SCALE))
         flat_turns[i] = k
     return reduced, turns
 
