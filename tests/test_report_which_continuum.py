@@ -6,9 +6,9 @@ import json
 
 import numpy as np
 
-import cosserat_chain.report as report_module
 from conftest import random_geometries
 from cosserat_chain.analysis.continuum import convergence
+from cosserat_chain.analysis.which_continuum import DEFAULT_N
 from cosserat_chain.report import reproduce
 from test_report import QUICK
 
@@ -21,7 +21,7 @@ def test_the_report_states_the_orders_of_both_continua_from_its_own_data(tmp_pat
     data = json.loads((tmp_path / "data" / "which_continuum.json").read_text())
     beam = data["timoshenko"]
     n = np.array(beam["N"])
-    assert list(n) == list(report_module.WHICH_CONTINUUM_N)
+    assert list(n) == list(DEFAULT_N)
     # the discrete compliances are the package's exact clamped solve (Section 3's comparison), chain by chain
     table = convergence(params, n)
     np.testing.assert_allclose(beam["discrete"], table.discrete, rtol=1e-9)

@@ -256,9 +256,6 @@ class Report:
         return [s.title for s in self.sections if s.error]
 
 
-#: Chain lengths of the report's answer to the open problem (the orders need three past the shear length).
-WHICH_CONTINUUM_N = (10, 30, 100, 300, 1000)
-
 #: Width (inches) of every figure of the report.
 FIGURE_WIDTH = 10.0
 
@@ -967,7 +964,7 @@ def _which_continuum(stage: _Stage) -> Section:
     from .analysis.which_continuum import answer
     from .plots.theory import plot_continua
 
-    result = answer(stage.params, n_values=WHICH_CONTINUUM_N)
+    result = answer(stage.params)
     numbers = result.as_dict()
     stage.data("which_continuum", numbers)
     section = Section("Which continuum? The paper's open problem answered in numbers", numbers=numbers)

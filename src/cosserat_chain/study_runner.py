@@ -16,10 +16,10 @@ or a progress callback raising ``KeyboardInterrupt``) or by an error. Re-running
 same spec with the same output file resumes: finished cells are read back and skipped;
 a file written for another spec (or under another time-step rule) is refused. A
 scheduler given by its address that does not answer as one within :data:`CONNECT_TIMEOUT`
-(refused, silent or speaking another protocol) raises :class:`ClusterError`; the
-embedded cluster listens on 127.0.0.1 only and serves no dashboard unless asked; a cluster lost during the study (the scheduler gone, or
-no worker left for :data:`LOST_TIMEOUT` seconds) ends it with status ``failed`` and the
-finished cells saved; a cluster whose first worker does not come within
+(refused, silent or speaking another protocol) raises :class:`ClusterError`. The
+embedded cluster listens on 127.0.0.1 only and serves no dashboard unless asked. A
+cluster lost during the study (the scheduler gone, or no worker left for
+:data:`LOST_TIMEOUT` seconds) ends it with status ``failed`` and the finished cells saved; a cluster whose first worker does not come within
 :data:`START_TIMEOUT` likewise.
 
 This module sits beside :mod:`cosserat_chain.io` (it persists) and above the experiments
