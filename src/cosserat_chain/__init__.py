@@ -13,13 +13,9 @@ the compiled kernels, SciPy and xarray load only when something needs them.
 from __future__ import annotations
 
 import importlib
-from importlib.metadata import PackageNotFoundError, version
 from typing import TYPE_CHECKING, Any
 
-try:
-    __version__ = version("cosserat-chain")
-except PackageNotFoundError:  # running from a source tree that was not installed
-    __version__ = "0+unknown"
+from ._version import __version__
 
 #: Public name -> the module that defines it.
 _API = {

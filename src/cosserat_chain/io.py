@@ -826,7 +826,7 @@ def describe(dataset: xr.Dataset) -> xr.Dataset:
     written as character arrays, and a text coordinate of more than one dimension (results
     stacked by :func:`stack_models`) as a data variable, since a CF label has one.
     """
-    from . import __version__
+    from ._version import __version__
 
     dataset = dataset.copy()
     stamp = f"{datetime.now(UTC).isoformat(timespec='seconds')} cosserat-chain {__version__}: {_command()}"

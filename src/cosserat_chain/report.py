@@ -45,7 +45,7 @@ from typing import Any, get_type_hints
 
 import numpy as np
 
-from . import __version__
+from ._version import __version__
 from .io import REFERENCES, OutputError, stack_models, write_dataset, write_figure, write_text
 from .models import get_model
 from .params import ChainParams

@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from . import __version__
+from ._version import __version__
 from .experiments.study import StudySpec, compute_cells, empty_results, store_cell
 from .io import OutputError, read_dataset, write_dataset
 from .status import Status

@@ -388,7 +388,7 @@ class BeamConvergence:
 
         import xarray as xr
 
-        from .. import __version__
+        from .._version import __version__
 
         names = {
             "discrete": "compliance of the loaded particle, discrete linear chain (iii)",

@@ -540,7 +540,7 @@ def save_figure(fig, path: Path, option: str = "--plot") -> None:
 
 def _version(value: bool) -> None:
     if value:
-        from .. import __version__
+        from .._version import __version__
 
         typer.echo(f"cosserat-chain {__version__}")
         raise typer.Exit()

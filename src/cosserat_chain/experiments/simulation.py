@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .. import __version__
+from .._version import __version__
 from ..analysis.energy import energy_budget
 from ..loads import Loads, Schedule, moment_load
 from ..models.base import Model, get_model
