@@ -16,7 +16,7 @@ from cosserat_chain.models import LINEAR
 from cosserat_chain.models.linear import max_frequency
 from cosserat_chain.numerics.adaptive import integrate_adaptive
 from cosserat_chain.numerics.dynamics import IntegrationError, default_time_step, integrate
-from cosserat_chain.numerics.integrators import METHODS
+from cosserat_chain.numerics.integrators import DEFAULT_OMEGA_DT, METHODS
 from cosserat_chain.state import pack, unpack
 from cosserat_chain.status import Status
 
@@ -252,7 +252,7 @@ def test_ctrl_c_between_chunks_keeps_what_was_computed(paper, monkeypatch):
 def test_the_default_step_is_inside_every_methods_stability_limit():
     # integrate and the batches skip the stability check for the default step on this ground.
     for method in METHODS.values():
-        assert dynamics.DEFAULT_OMEGA_DT < 0.5 * method.stability_limit
+        assert DEFAULT_OMEGA_DT < 0.5 * method.stability_limit
 
 
 @pytest.mark.parametrize("moment", [0.4, -0.4])

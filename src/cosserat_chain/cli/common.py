@@ -285,7 +285,7 @@ def step_for_checks(params: ChainParams, model: str, dt: float | None) -> float 
         return float(dt)
     if params.n_particles > _CHECKED_PARTICLES:
         return None
-    from ..numerics.dynamics import default_time_step
+    from ..numerics.integrators import default_time_step
 
     return default_time_step(params, model)
 

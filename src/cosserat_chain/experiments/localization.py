@@ -48,8 +48,8 @@ import numpy as np
 from ..analysis.diagnostics import THRESHOLDS, StreamingDiagnostics
 from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
-from ..numerics.dynamics import MAX_SPIN_PER_STEP, IntegrationError, TurnWatch, default_time_step, integrate
-from ..numerics.integrators import get_method
+from ..numerics.dynamics import IntegrationError, TurnWatch, integrate
+from ..numerics.integrators import MAX_SPIN_PER_STEP, default_time_step, get_method
 from ..params import ChainParams
 from ..state import ROWS, column, zeros
 from ..status import Status
@@ -117,7 +117,7 @@ class LocalizationResult:
     diagnostics : StreamingDiagnostics
     status : {"completed", "inaccurate", "time_limit", "interrupted"}
         ``inaccurate``: the turns were made, but the loaded particle turned by more than
-        :data:`~cosserat_chain.numerics.dynamics.MAX_SPIN_PER_STEP` radians per step on average.
+        :data:`~cosserat_chain.numerics.integrators.MAX_SPIN_PER_STEP` radians per step on average.
         ``completed``: the loaded particle made the requested turns.
     message : str
     wall_time : float
@@ -273,7 +273,7 @@ def localization_run(
         Loads besides the moment, acting throughout (a force along the chain, a drive);
         part of what a resumed run must share with its checkpoint.
     dt : float, optional
-        Largest time step; default the model's :func:`~cosserat_chain.numerics.dynamics.default_time_step`,
+        Largest time step; default the model's :func:`~cosserat_chain.numerics.integrators.default_time_step`,
         rounded down by :func:`grid_time_step`.
     method : {"verlet", "yoshida4"}
     checkpoint : path, optional

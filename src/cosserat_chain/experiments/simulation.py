@@ -41,8 +41,8 @@ from ..analysis.energy import energy_budget
 from ..loads import Loads, Schedule, moment_load
 from ..models.base import Model, get_model
 from ..numerics.adaptive import integrate_adaptive
-from ..numerics.dynamics import IntegrationError, ProgressCallback, RunState, Trajectory, default_time_step, integrate, spin_hint
-from ..numerics.integrators import get_method
+from ..numerics.dynamics import IntegrationError, ProgressCallback, RunState, Trajectory, integrate
+from ..numerics.integrators import default_time_step, get_method, spin_hint
 from ..params import ChainParams
 from ..state import ROWS
 from ..status import Status

@@ -79,7 +79,7 @@ from ..analysis.dispersion import wave_summary
 from ..loads import Loads, load_from_table, loads_from_tables
 from ..models.base import available_models
 from ..numerics.continuation import compliance, locate_fold
-from ..numerics.dynamics import default_time_step
+from ..numerics.integrators import default_time_step
 from ..numerics.relaxation import relax_batch
 from ..params import ChainParams
 from .sweep import relaxation_sweeps

@@ -48,7 +48,7 @@ from ..params import ChainParams
 from ..state import check_state, column, held
 from ..status import Status
 from .engine import CROSSINGS, STATUS_BLEW_UP, STATUS_OK, STATUS_TURNED, TURN_LIMIT, Blocks, Lanes
-from .integrators import Method, get_method
+from .integrators import Method, check_time_step, default_time_step, get_method, spin_hint
 
 log = logging.getLogger(__name__)
 
@@ -58,8 +58,6 @@ log = logging.getLogger(__name__)
 #: 1.5 steps' worth of work at 10^6 particles, 7 % of a chunk of 2 * 10^7 (20 steps), 1.5 % of
 #: one of 10^8.
 CHUNK_WORK = 100_000_000
-#: Default time step as a fraction of 1 / omega_max (omega_max: highest linear frequency).
-DEFAULT_OMEGA_DT = 0.1
 
 ProgressCallback = Callable[[int, int], None]
 
@@ -289,66 +287,6 @@ class RunState:
         ):
             if np.shape(array) != expected:
                 raise ValueError(f"the run state's {name} has the shape {np.shape(array)}, this run needs {expected}")
-
-
-def default_time_step(params: ChainParams, model: str | Model = "nonlinear") -> float:
-    """0.1 / omega_max: about 60 steps per period of the model's fastest linear mode.
-
-    omega_max is :meth:`Model.max_frequency <cosserat_chain.models.base.Model.max_frequency>`;
-    the default model's is that of the three paper models, which share their
-    linearisation at rest (eq. 3).
-    """
-    return DEFAULT_OMEGA_DT / get_model(model).max_frequency(params)
-
-
-def check_time_step(params: ChainParams, dt: float, method: Method, model: str | Model = "nonlinear") -> None:
-    """Refuse a step beyond the method's linear stability limit for ``model`` (default as :func:`default_time_step`).
-
-    Raises
-    ------
-    ValueError
-        If dt is not finite and positive, or dt * omega_max exceeds the limit;
-        the message gives the largest stable dt.
-    """
-    if not (math.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be a finite number > 0, got {dt!r}")
-    omega = get_model(model).max_frequency(params)
-    limit = method.stability_limit / omega
-    if dt >= limit:
-        raise ValueError(
-            f"dt={dt!r} is beyond the stability limit of {method.name} for this chain: "
-            f"dt must be < {limit:.6g} (omega_max={omega:.6g}); the run would blow up. "
-            f"Use a smaller step, e.g. dt={DEFAULT_OMEGA_DT / omega:.3g}."
-        )
-
-
-#: A moment that would turn its particle, at its terminal spin M / gamma_phi, by more than this
-#: many radians per step is beyond what the step can follow (about 13 steps a turn).
-MAX_SPIN_PER_STEP = 0.5
-
-
-def spin_hint(params: ChainParams, loads: Loads, dt: float) -> str:
-    """Why a run at ``dt`` cannot follow its largest moment, in words, or ``""`` if it can.
-
-    A moment M drives its particle towards the spin M / gamma_phi (the viscous torque
-    balancing it): beyond :data:`MAX_SPIN_PER_STEP` radians per step the run no longer
-    resolves the rotation, whatever else is right; without rotational damping the spin
-    grows without bound.
-    """
-    moments = [load.schedule.bound() for load in loads if load.row == "phi"]
-    largest = max(moments, default=0.0)
-    if largest == 0.0:
-        return ""
-    if params.gamma_phi == 0.0:
-        return f"Without rotational damping (gamma_phi = 0) the moment {largest:g} spins its particle up without bound; no time step follows it for long"
-    spin = largest / params.gamma_phi
-    if spin * dt <= MAX_SPIN_PER_STEP:
-        return ""
-    return (
-        f"The moment {largest:g} spins its particle at up to M / gamma_phi = {spin:.3g} rad per unit time, "
-        f"{spin * dt:.3g} rad per step of dt={dt:g}: it is beyond what this step can follow; a smaller load, or "
-        f"dt <= {MAX_SPIN_PER_STEP / spin:.3g}"
-    )
 
 
 @dataclass

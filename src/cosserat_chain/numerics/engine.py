@@ -66,7 +66,7 @@ from ..memory import FLOAT, require
 from ..models.base import BATCH_FORCE_KERNEL_TYPE, END_KERNEL_TYPE, FORCE_KERNEL_TYPE, LANES
 from ..models.trig import TWO_PI_1, TWO_PI_2, TWO_PI_3, WRAP_ANGLE, join_turns, split_turns
 from ..state import force_columns, held
-from .integrators import substep_table
+from .integrators import check_time_step, default_time_step, substep_table
 
 #: Options of the compiled loop: no fastmath, so that the state arithmetic rounds
 #: the same in every copy of the loop (chain or batch, one thread or two).
@@ -1293,8 +1293,6 @@ def member_steps(params: list, dt, method, model) -> np.ndarray:
     ValueError
         Naming the member whose dt is not finite or beyond its stability limit.
     """
-    from .dynamics import check_time_step, default_time_step
-
     size = len(params)
     if dt is None:
         # The default is far inside every method's stability limit (see integrate): one per distinct member.

@@ -56,7 +56,8 @@ from ..state import ROW_INDEX, check_state, column, force_columns, free_index, h
 from ..state import dof as free_dof
 from ..status import Status
 from . import dop853
-from .dynamics import TurnWatch, default_time_step, integrate
+from .dynamics import TurnWatch, integrate
+from .integrators import default_time_step
 
 #: Step of the central differences of the force kernel. The nonlinear model's third
 #: derivatives are large (~1e3), so truncation (step^2) meets round-off (eps / step) near

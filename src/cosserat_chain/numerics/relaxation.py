@@ -167,7 +167,7 @@ def relax(
         chain can repeat only after 2 or 3 turns, or be chaotic, so a one-turn test
         would never fire), ``omega_rtol`` (agreement of the two windows' rates,
         default 0.05: a chaotic rotation fluctuates by a few percent over 12 turns),
-        ``dt`` (default :func:`~cosserat_chain.numerics.dynamics.default_time_step`),
+        ``dt`` (default :func:`~cosserat_chain.numerics.integrators.default_time_step`),
         ``method`` ("verlet" or "yoshida4"), and ``loads`` (constant loads besides the
         moment, acting throughout: :func:`run_plans`).
 
