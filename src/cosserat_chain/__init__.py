@@ -67,11 +67,13 @@ _API = {
     "reproduce": "report",
     "ReproduceSettings": "report",
     "Status": "status",
+    "CosseratChainError": "errors",
 }
 
 #: The same names as :data:`_API` (a literal list, for linters; a test keeps the two equal).
 __all__ = [
     "ChainParams",
+    "CosseratChainError",
     "Loads",
     "PointLoad",
     "ReproduceSettings",
@@ -134,6 +136,7 @@ if TYPE_CHECKING:  # for type checkers and IDEs, which do not run __getattr__
     from .analysis.continuum import convergence
     from .analysis.dispersion import dispersion, finite_modes, wave_summary
     from .analysis.energy import energy_budget
+    from .errors import CosseratChainError
     from .experiments.critical import critical_point
     from .experiments.diagram import state_diagram
     from .experiments.localization import localization_run

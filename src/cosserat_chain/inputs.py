@@ -30,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .errors import CosseratChainError
 from .params import ChainParams
 from .state import ROWS
 
@@ -37,7 +38,7 @@ if TYPE_CHECKING:  # loads import numba: the command line imports them where a c
     from .loads import Loads
 
 
-class InputFileError(ValueError):
+class InputFileError(CosseratChainError, ValueError):
     """A file given as an input that is not what the command reads (named, with what is wrong)."""
 
 

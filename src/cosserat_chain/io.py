@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .errors import CosseratChainError
 from .inputs import check_finite, check_run, params_from_mapping, stored_params
 from .params import ChainParams
 from .state import ROWS
@@ -66,7 +67,7 @@ FIGURE_FORMATS = (".png", ".svg", ".pdf")
 _TMP_MARK = ".tmp"
 
 
-class OutputError(ValueError):
+class OutputError(CosseratChainError, ValueError):
     """An output path that cannot or must not be written (named with its option in the message)."""
 
 

@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import psutil
 
+from .errors import CosseratChainError
+
 #: Bytes of one float64.
 FLOAT = 8
 
@@ -22,7 +24,7 @@ FLOAT = 8
 USABLE = 0.8
 
 
-class MemoryEstimateError(ValueError):
+class MemoryEstimateError(CosseratChainError, ValueError):
     """A computation would need more memory than this machine has free."""
 
 

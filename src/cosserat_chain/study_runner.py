@@ -42,6 +42,7 @@ import numpy as np
 import xarray as xr
 
 from ._version import __version__
+from .errors import CosseratChainError
 from .experiments.study import StudySpec, compute_cells, empty_results, store_cell
 from .io import OutputError, read_dataset, write_dataset
 from .status import Status
@@ -72,7 +73,7 @@ LOOPBACK = "127.0.0.1"
 Cell = tuple[tuple[int, ...], str, dict[str, float]]
 
 
-class ClusterError(RuntimeError):
+class ClusterError(CosseratChainError, RuntimeError):
     """The Dask cluster cannot be reached, or was lost during the study."""
 
 

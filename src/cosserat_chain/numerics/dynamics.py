@@ -40,6 +40,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..errors import CosseratChainError
 from ..loads import Loads
 from ..memory import FLOAT, require
 from ..models.base import Model, get_model
@@ -62,7 +63,7 @@ CHUNK_WORK = 100_000_000
 ProgressCallback = Callable[[int, int], None]
 
 
-class IntegrationError(RuntimeError):
+class IntegrationError(CosseratChainError, RuntimeError):
     """A run that could not be completed; ``trajectory`` holds what was computed."""
 
     def __init__(self, message: str, trajectory: Trajectory):

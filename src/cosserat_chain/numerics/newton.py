@@ -34,13 +34,14 @@ import scipy.sparse.linalg as spla
 from numba import njit
 
 from ..band import BandMatrix
+from ..errors import CosseratChainError
 from ..loads import Loads
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import BANDWIDTH, ROW_INDEX, check_state, column, dof, n_free, pack, require_held, unpack, zeros
 
 
-class NewtonError(RuntimeError):
+class NewtonError(CosseratChainError, RuntimeError):
     """Newton's method did not converge; ``x`` is the last iterate."""
 
     def __init__(self, message: str, x: np.ndarray):

@@ -48,6 +48,7 @@ import numpy as np
 import scipy.linalg as sla
 from numba import njit
 
+from ..errors import CosseratChainError
 from ..loads import moment_load
 from ..memory import FLOAT, require
 from ..models.base import Model, get_model
@@ -221,7 +222,7 @@ def _layout(params: ChainParams) -> np.ndarray:
     return np.concatenate([position % 3, position // 3, first, lookup])
 
 
-class OrbitError(RuntimeError):
+class OrbitError(CosseratChainError, RuntimeError):
     """Newton's method on the shooting map did not converge (the message says what to try)."""
 
 
