@@ -456,100 +456,80 @@ def turns_in_frames(time, phi, direction, phi_start, made):  # pragma: no cover 
     return crossings, times
 
 
-_F8 = types.float64
 _I8 = types.int64
 _STATES = types.float64[:, :, ::1]
 _TABLE = types.float64[:, ::1]
-# fmt: off
-ADVANCE_SIGNATURE = types.UniTuple(_I8, 4)(
-    FORCE_KERNEL_TYPE, END_KERNEL_TYPE, BATCH_FORCE_KERNEL_TYPE,  # force, end_force, batch_force
-    _TABLE, _TABLE, _TABLE, types.int64[::1],  # x, v, f: (3, n B); winding (n B)
-    _TABLE, types.float64[::1], types.float64[:, :, :, :, ::1], types.float64[::1],  # coef (c, B), chain_coef (c,), pairs, weights (S,)
-    types.int64[:, ::1], _TABLE, _TABLE,  # load_index (L, 4), knots, load_scale (L, B)
-    _TABLE, types.int64[:, ::1], types.int64[::1],  # lanes (N_LANE_FIELDS, B), lane_ints (N_LANE_INTS, B), columns (4,)
-    types.boolean, types.int64[:, ::1],  # ring, fixed (H, 2)
-    _I8, _I8, _I8, _I8, _I8, types.boolean,  # n_steps, step0, stride, check_every, pending, close_at_end
-    _TABLE, _STATES, _STATES, _STATES, _TABLE, types.int64[:, ::1], _I8,  # acc (2, B), frames_x, frames_v (F, 3, n B), frames_acc (F, 2, B), record (F, B), frames_winding (F, n B), frame0
-    _I8, _TABLE, _TABLE, _STATES,  # watch, ring_time (C, B), ring_step_time (C, B), ring_phi (C, n, B)
-)
-# fmt: on
+_INTS = types.int64[:, ::1]
+# The compiled loop's arguments in the groups :class:`Lanes` keeps them in (each named in
+# :func:`advance`'s docstring): nine tuples instead of 35 positional arguments.
+#: The model's chain, end and batch kernels.
+KERNELS = types.Tuple((FORCE_KERNEL_TYPE, END_KERNEL_TYPE, BATCH_FORCE_KERNEL_TYPE))
+#: x, v, f (3, n B), winding (n B), acc (2, B).
+STATE = types.Tuple((_TABLE, _TABLE, _TABLE, types.int64[::1], _TABLE))
+#: coef (c, B), chain_coef (c,), pairs (S+1, S+1, 5, 3, B), weights (S,).
+FACTORS = types.Tuple((_TABLE, types.float64[::1], types.float64[:, :, :, :, ::1], types.float64[::1]))
+#: load_index (L, 5), knots, load_scale (L, B).
+LOADS = types.Tuple((_INTS, _TABLE, _TABLE))
+#: lanes (N_LANE_FIELDS, B), lane_ints (N_LANE_INTS, B).
+MEMBERS = types.Tuple((_TABLE, _INTS))
+#: columns (4,), ring, fixed (H, 2).
+LAYOUT = types.Tuple((types.int64[::1], types.boolean, _INTS))
+#: n_steps, step0, stride, check_every, pending, close_at_end, frame0.
+RUN = types.Tuple((_I8, _I8, _I8, _I8, _I8, types.boolean, _I8))
+#: frames_x, frames_v (F, 3, n B), frames_acc (F, 2, B), record (F, B), frames_winding (F, n B).
+FRAMES = types.Tuple((_STATES, _STATES, _STATES, _TABLE, _INTS))
+#: watch, and the :class:`TurnRecord`'s time (C, B), step_time (C, B), phi (C, n, B).
+TURNS = types.Tuple((_I8, _TABLE, _TABLE, _STATES))
+ADVANCE_SIGNATURE = types.UniTuple(_I8, 4)(KERNELS, STATE, FACTORS, LOADS, MEMBERS, LAYOUT, RUN, FRAMES, TURNS)
 
 
 @njit(ADVANCE_SIGNATURE, **_KICK_OPTIONS)
-def advance(
-    force,
-    end_force,
-    batch_force,
-    x,
-    v,
-    f,
-    winding,
-    coef,
-    chain_coef,
-    pairs,
-    weights,
-    load_index,
-    knots,
-    load_scale,
-    lanes,
-    lane_ints,
-    columns,
-    ring,
-    fixed,
-    n_steps,
-    step0,
-    stride,
-    check_every,
-    pending,
-    close_at_end,
-    acc,
-    frames_x,
-    frames_v,
-    frames_acc,
-    record,
-    frames_winding,
-    frame0,
-    watch,
-    ring_time,
-    ring_step_time,
-    ring_phi,
-):  # pragma: no cover - compiled
+def advance(kernels, state, factors, loads, members, layout, run, frames, turns):  # pragma: no cover - compiled
     """Advance every member ``n_steps`` steps in place; store every ``stride``-th state.
 
     Parameters
     ----------
-    force, end_force, batch_force : the model's compiled chain, end and batch kernels
-    x, v : ndarray (3, n B)
-        States at global step ``step0`` (time lanes[T0] + step0 lanes[DT]), velocities at the step
-        boundary; column k of member b at index k B + b.
-    f : ndarray (3, n B)
-        Forces plus loads at those states (kept between calls: one evaluation per sub-step).
-    winding : ndarray (n B) of int64
-        Whole turns of every angle (the angle is x[2] + 2 pi winding); updated every
-        :data:`WRAP_EVERY` global steps (with the check there) where |x[2]| passes lanes[WRAP_LIMIT].
-    coef : (c, B) model coefficients; chain_coef : (c,) member 0's, for B = 1
-    pairs : (S+1, S+1, 5, 3, B) from :func:`pair_table`; weights : (S,) the method's sub-step sizes as fractions of dt
-    load_index : (L, 5) row, column, first and one-past-last knot, and whether the load's work counts (0 or 1)
-    knots : the schedules' knots (``Loads.compiled``); load_scale : (L, B) amplitude of load l on member b
-    lanes, lane_ints : per-member tables (rows T0.., CROSSINGS..); BLEW_UP is set for members found out of bounds
-    columns : (4,) advance columns [columns[0], columns[1]) (all, less a clamped end's); for B = 1 count
-        the dissipated energy on [columns[2], columns[3]) (a block of a chain split over threads: :class:`Blocks`)
-    ring : whether the last column is bonded to the first (``ChainParams.periodic``)
-    fixed : (H, 2) row and column of every degree of freedom a pinned end holds: their forces are
-        zeroed after every evaluation, so that with zero velocity they stay where they are
-    stride : store after every global step that is a multiple of it (and after the last if ``close_at_end``)
-    check_every : test for members out of bounds after every global step that is a multiple of it
-        (and after the last if ``close_at_end``); it divides WRAP_EVERY
-    pending : the sub-step left open by the previous call (S, the number of sub-steps, if none)
-    close_at_end : close the last step (velocities at the step boundary); False leaves it open,
-        to be continued by the next call exactly as if the run had not stopped
-    acc : (2, B) running load work and dissipated energy, updated in place
-    frames_x, frames_v : (F, 3, n B), or F = 0 to store no states; frames_acc : (F, 2, B);
-    record : (F, B) unwrapped angle of column ``watch`` at every store (when watch >= 0)
-    frames_winding : (F, n B), the winding at every store (F = 0 with frames_x)
-    frame0 : first slot to write
-    watch : column whose angle ``record`` keeps (-1: none) and whose turns the ring follows
-    ring_time, ring_step_time, ring_phi : its :class:`TurnRecord`; a ring of capacity 0 follows no turns
+    kernels : (force, end_force, batch_force)
+        The model's compiled chain, end and batch kernels.
+    state : (x, v, f, winding, acc), updated in place
+        x, v (3, n B): states at global step ``step0`` (time lanes[T0] + step0 lanes[DT]),
+        velocities at the step boundary; column k of member b at index k B + b. f (3, n B):
+        forces plus loads at those states (kept between calls: one evaluation per sub-step).
+        winding (n B) of int64: whole turns of every angle (the angle is x[2] + 2 pi winding),
+        updated every :data:`WRAP_EVERY` global steps (with the check there) where |x[2]| passes
+        lanes[WRAP_LIMIT]. acc (2, B): running load work and dissipated energy.
+    factors : (coef, chain_coef, pairs, weights)
+        coef (c, B) model coefficients; chain_coef (c,) member 0's, for B = 1; pairs
+        (S+1, S+1, 5, 3, B) from :func:`pair_table`; weights (S,) the method's sub-step sizes
+        as fractions of dt.
+    loads : (load_index, knots, load_scale)
+        load_index (L, 5): row, column, first and one-past-last knot, and whether the load's
+        work counts (0 or 1); knots: the schedules' knots (``Loads.compiled``); load_scale
+        (L, B): amplitude of load l on member b.
+    members : (lanes, lane_ints)
+        Per-member tables (rows T0.., CROSSINGS..); BLEW_UP is set for members found out of bounds.
+    layout : (columns, ring, fixed)
+        columns (4,): advance columns [columns[0], columns[1]) (all, less a clamped end's); for
+        B = 1 count the dissipated energy on [columns[2], columns[3]) (a block of a chain split
+        over threads: :class:`Blocks`). ring: whether the last column is bonded to the first
+        (``ChainParams.periodic``). fixed (H, 2): row and column of every degree of freedom a
+        pinned end holds: their forces are zeroed after every evaluation, so that with zero
+        velocity they stay where they are.
+    run : (n_steps, step0, stride, check_every, pending, close_at_end, frame0)
+        stride: store after every global step that is a multiple of it (and after the last if
+        ``close_at_end``); check_every: test for members out of bounds after every global step
+        that is a multiple of it (and after the last if ``close_at_end``), a divisor of
+        WRAP_EVERY; pending: the sub-step left open by the previous call (S, the number of
+        sub-steps, if none); close_at_end: close the last step (velocities at the step
+        boundary), False leaves it open, to be continued by the next call exactly as if the
+        run had not stopped; frame0: first slot of ``frames`` to write.
+    frames : (frames_x, frames_v, frames_acc, record, frames_winding)
+        frames_x, frames_v (F, 3, n B), or F = 0 to store no states; frames_acc (F, 2, B);
+        record (F, B): unwrapped angle of column ``watch`` at every store (when watch >= 0);
+        frames_winding (F, n B): the winding at every store (F = 0 with frames_x).
+    turns : (watch, ring_time, ring_step_time, ring_phi)
+        The column whose angle ``record`` keeps (-1: none) and whose turns the ring follows,
+        and its :class:`TurnRecord`; a ring of capacity 0 follows no turns.
 
     Returns
     -------
@@ -559,6 +539,15 @@ def advance(
         but stored only if on the stride, at the step where the last member completed its TURN_LIMIT-th
         turn); ``pending`` the sub-step left open (S if none).
     """
+    force, end_force, batch_force = kernels
+    x, v, f, winding, acc = state
+    coef, chain_coef, pairs, weights = factors
+    load_index, knots, load_scale = loads
+    lanes, lane_ints = members
+    columns, ring, fixed = layout
+    n_steps, step0, stride, check_every, pending, close_at_end, frame0 = run
+    frames_x, frames_v, frames_acc, record, frames_winding = frames
+    watch, ring_time, ring_step_time, ring_phi = turns
     size = lanes.shape[1]
     n_loads = load_index.shape[0]
     q_old = np.empty((n_loads, size))
@@ -935,18 +924,21 @@ class Lanes:
             stride = n_steps if stride is None else stride
         frames_x, frames_v, frames_acc, record, frames_winding = frames
         flat_frames = frames_x.reshape(frames_x.shape[0], 3, self.n * self.size)
+        flat_winding = frames_winding.reshape(frames_winding.shape[0], self.n * self.size)
         kind = type(self.model)
         winding = self.winding.reshape(-1)
         assert np.shares_memory(winding, self.winding)
         status, done, written, self.pending = advance(
-            self.force_kernel, self.end_kernel, kind.batch_kernel, self._flat(self.x), self._flat(self.v), self._flat(self.f), winding,
-            self.coef, self.coef[:, 0].copy(), self.pairs, self.weights,
-            self.load_index, self.knots, self.load_scale, self.lanes, self.lane_ints, self.columns, self.ring, self.fixed,
-            int(n_steps), int(step0), int(stride), int(check_every), int(self.pending), bool(close_at_end), self.acc,
-            flat_frames, frames_v.reshape(flat_frames.shape), frames_acc, record,
-            frames_winding.reshape(frames_winding.shape[0], self.n * self.size), int(frame0),
-            self.watch, self.turns.time, self.turns.step_time, self.turns.phi,
-        )  # fmt: skip
+            (self.force_kernel, self.end_kernel, kind.batch_kernel),
+            (self._flat(self.x), self._flat(self.v), self._flat(self.f), winding, self.acc),
+            (self.coef, self.coef[:, 0].copy(), self.pairs, self.weights),
+            (self.load_index, self.knots, self.load_scale),
+            (self.lanes, self.lane_ints),
+            (self.columns, self.ring, self.fixed),
+            (int(n_steps), int(step0), int(stride), int(check_every), int(self.pending), bool(close_at_end), int(frame0)),
+            (flat_frames, frames_v.reshape(flat_frames.shape), frames_acc, record, flat_winding),
+            (self.watch, self.turns.time, self.turns.step_time, self.turns.phi),
+        )
         return status, done, written
 
     @staticmethod
