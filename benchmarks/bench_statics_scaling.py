@@ -43,16 +43,10 @@ import numpy as np
 
 from cosserat_chain import ChainParams
 from cosserat_chain.experiments.critical import critical_point
+from cosserat_chain.linalg import bordered_jacobian, bordered_solve, sparse_solve
 from cosserat_chain.models.base import get_model
 from cosserat_chain.numerics.continuation import compliance, continue_in_moment
-from cosserat_chain.numerics.newton import (
-    NewtonError,
-    bordered_jacobian,
-    bordered_solve,
-    moment_dof,
-    solve_rotation_controlled,
-    sparse_solve,
-)
+from cosserat_chain.numerics.newton import NewtonError, moment_dof, solve_rotation_controlled
 from cosserat_chain.numerics.stability import static_stability
 
 ROOT = Path(__file__).resolve().parent

@@ -8,10 +8,10 @@ import scipy.sparse as sp
 
 from conftest import random_geometries, random_state
 from cosserat_chain import ChainParams
-from cosserat_chain.band import BandMatrix
+from cosserat_chain.linalg import BANDWIDTH, BandMatrix
 from cosserat_chain.models.base import BOND_SUMS, assemble_bond_blocks, assemble_bond_sums, get_model
 from cosserat_chain.models.nonlinear import _hessian
-from cosserat_chain.state import BANDWIDTH, n_free, pack, unpack
+from cosserat_chain.state import n_free, pack, unpack
 
 
 def _random_band(n: int, seed: int) -> sp.csr_matrix:
@@ -127,7 +127,7 @@ def test_the_band_lu_is_the_dense_elimination_of_minus_k_and_its_pivots_count_th
     # n = 1 ... 40 covers both and their seam. A symmetric matrix with a shifted diagonal
     # is indefinite: its pivots' signs are its inertia (Sylvester), which the continuation
     # takes for the index instead of a factor of its own.
-    from cosserat_chain.numerics.newton import BorderedFactor
+    from cosserat_chain.linalg import BorderedFactor
 
     rng = np.random.default_rng(n)
     for shift in (0.0, 1.5, 4.0):
@@ -151,7 +151,8 @@ def test_the_band_lu_is_the_dense_elimination_of_minus_k_and_its_pivots_count_th
 
 @pytest.mark.parametrize("params", [ChainParams(N=1), ChainParams(N=4, right_end="free"), *random_geometries(3, seed=21)], ids=str)
 def test_the_tangent_factors_inertia_is_the_dense_index_of_the_stiffness_at_random_states(params):
-    from cosserat_chain.numerics.newton import BorderedFactor, moment_dof
+    from cosserat_chain.linalg import BorderedFactor
+    from cosserat_chain.numerics.newton import moment_dof
     from cosserat_chain.numerics.stability import static_stability
 
     model = get_model("nonlinear")

@@ -154,8 +154,8 @@ def test_states_reports_the_stiffness_index_and_the_unstable_eigenvalues_each_by
 def test_argument_principle_counts_with_and_without_the_rest_reference_and_with_uneven_damping(model):
     import scipy.sparse as sp
 
+    from cosserat_chain.linalg.pencil import unstable_count
     from cosserat_chain.models.base import get_model
-    from cosserat_chain.numerics.stability import _unstable_count
     from cosserat_chain.state import pack, per_dof
 
     params = ChainParams(N=6, gamma_u=0.02, gamma_v=0.5, gamma_phi=0.003)
@@ -166,8 +166,8 @@ def test_argument_principle_counts_with_and_without_the_rest_reference_and_with_
         x, _ = solve_rotation_controlled(params, model, phi0, tol=1e-13)
         dense = dynamic_stability(params, model, x, method="dense")
         scaled = sp.csr_matrix(root @ get_model(model).stiffness(params, x) @ root)
-        assert _unstable_count(scaled, rate, dense.tolerance) == dense.unstable_eigenvalues
-        assert _unstable_count(scaled, rate, dense.tolerance, sp.csr_matrix(rest)) == dense.unstable_eigenvalues
+        assert unstable_count(scaled, rate, dense.tolerance) == dense.unstable_eigenvalues
+        assert unstable_count(scaled, rate, dense.tolerance, sp.csr_matrix(rest)) == dense.unstable_eigenvalues
 
 
 def _pair_run(params, x, moment, pair):

@@ -21,8 +21,8 @@ from cosserat_chain.cli import app
 from cosserat_chain.cli.common import EXIT_CODES
 from cosserat_chain.experiments import critical
 from cosserat_chain.experiments.critical import CONFIRM_MOMENT_RTOL, CONFIRM_PHI0_ATOL, confirm_folds, critical_point
+from cosserat_chain.linalg import smallest_eigenvalue
 from cosserat_chain.models.base import get_model
-from cosserat_chain.numerics.stability import smallest_eigenvalue
 from cosserat_chain.status import Status
 
 runner = CliRunner()

@@ -1,4 +1,4 @@
-"""Solves refined with residuals in extended precision (``numerics.refinement``)."""
+"""Solves refined with residuals in extended precision (``linalg.refinement``)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from cosserat_chain.numerics.refinement import refined_solve
+from cosserat_chain.linalg import refined_solve
 
 
 def biharmonic(n: int) -> sp.csr_matrix:

@@ -332,8 +332,8 @@ def test_the_stability_guess_changes_the_cost_not_the_result(model):
 
 
 def test_the_bordered_and_rotation_controlled_jacobians_and_the_bordered_solve_equal_their_dense_definitions():
+    from cosserat_chain.linalg import bordered_jacobian, bordered_solve, rotation_controlled_jacobian
     from cosserat_chain.models.base import get_model
-    from cosserat_chain.numerics.newton import bordered_jacobian, bordered_solve, rotation_controlled_jacobian
 
     rng = np.random.default_rng(3)
     for params in (ChainParams(N=1), ChainParams(N=2), *random_geometries(3, seed=9)):
@@ -400,7 +400,7 @@ def test_the_first_folds_of_a_thousand_particle_pairs_chain_need_no_tuned_tolera
 
 
 def test_the_bordered_solve_falls_back_to_pivoting_at_a_zero_pivot():
-    from cosserat_chain.numerics.newton import bordered_solve
+    from cosserat_chain.linalg import bordered_solve
 
     # A zero pivot in the natural order (no pivoting) falls back to SuperLU's pivoting.
     singular_start = sp.csr_matrix(np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 1.0], [0.0, 1.0, 2.0]]))
@@ -517,9 +517,7 @@ def test_a_matrix_wider_than_the_chains_band_is_refused_by_the_band_kernels_and_
     # The compiled band kernels take the chain's half-bandwidth (5) as a constant: a wider
     # matrix (a ring's corner blocks) is no band for them. The stability's lower band says so by
     # name; the bordered factor falls back to the sparse solve and still solves it exactly.
-    from cosserat_chain.numerics.newton import BorderedFactor, bordered_jacobian
-    from cosserat_chain.numerics.stability import _band_storage
-    from cosserat_chain.state import BANDWIDTH
+    from cosserat_chain.linalg import BANDWIDTH, BorderedFactor, band_storage, bordered_jacobian
 
     rng = np.random.default_rng(3)
     n = 20
@@ -528,7 +526,7 @@ def test_a_matrix_wider_than_the_chains_band_is_refused_by_the_band_kernels_and_
     ).tocsr()
     for matrix in (wide, wide.toarray()):
         with pytest.raises(ValueError, match=f"half-bandwidth {BANDWIDTH + 1}, more than the chain's {BANDWIDTH}"):
-            _band_storage(matrix)
+            band_storage(matrix)
     row, rhs = rng.standard_normal(n + 1), rng.standard_normal(n + 1)
     solution = BorderedFactor(wide, 4).solve(row, rhs)
     assert np.max(np.abs(bordered_jacobian(wide, 4, row) @ solution - rhs)) < 1e-12
@@ -571,7 +569,7 @@ def test_the_continuations_dot_product_and_norm_agree_with_an_exact_sum(n):
     # sums and a tail: every length modulo 8 and the empty vector.
     import math
 
-    from cosserat_chain.numerics.newton import dot, euclidean_norm
+    from cosserat_chain.linalg import dot, euclidean_norm
 
     rng = np.random.default_rng(n)
     a, b = rng.standard_normal(n), rng.standard_normal(n)

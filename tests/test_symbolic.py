@@ -105,12 +105,12 @@ def test_printed_eq3_is_not_symmetric_and_makes_the_paper_chain_unstable(paper):
 def test_the_errata_of_a_long_chain_use_no_dense_matrix(monkeypatch):
     # N = 1000: 5997 free degrees of freedom (a dense eigendecomposition took 70 s); the
     # printed operator's leftmost eigenvalue by ARPACK equals the dense one at N = 100.
-    import cosserat_chain.analysis.symbolic as symbolic
+    from cosserat_chain.linalg import eigen
 
     matrix = printed_eq3_stiffness(ChainParams(N=100))
     dense = np.min(np.linalg.eigvals(matrix.toarray()).real)
-    monkeypatch.setattr(symbolic, "DENSE_SPECTRUM_LIMIT", 0)
-    assert symbolic._lowest_real_eigenvalue(matrix).real == pytest.approx(dense, rel=1e-8)
+    monkeypatch.setattr(eigen, "DENSE_SPECTRUM_LIMIT", 0)
+    assert eigen.lowest_real_eigenvalue(matrix).real == pytest.approx(dense, rel=1e-8)
     monkeypatch.undo()
     (one,) = [e for e in errata(ChainParams(N=1000)) if e.number == 1]
     assert "N = 1000" in one.consequence
@@ -123,24 +123,24 @@ def test_the_printed_operator_has_a_symmetric_diagonal_similar_with_its_spectrum
     # ratio of the wrong sign has no such similar and takes ARPACK.
     import scipy.sparse as sparse
 
-    import cosserat_chain.analysis.symbolic as symbolic
+    from cosserat_chain.linalg import eigen
     from cosserat_chain.state import per_dof
 
     for params in (ChainParams(N=30), ChainParams(N=12, a=0.31, b=0.12, E1=1.7, E2=0.4, m=2.0)):
         matrix = sparse.diags(1.0 / per_dof(params, params.inertia)) @ printed_eq3_stiffness(params)
-        similar = symbolic._diagonal_similar_symmetric(matrix)
+        similar = eigen.diagonal_similar_symmetric(matrix)
         assert similar is not None
         np.testing.assert_allclose(np.linalg.eigvalsh(similar.toarray()), np.sort(np.linalg.eigvals(matrix.toarray()).real), atol=1e-10)
     one_sided = sparse.csr_matrix(np.triu(np.random.default_rng(3).uniform(0.5, 2.0, (40, 40))))
-    assert symbolic._diagonal_similar_symmetric(one_sided) is None
+    assert eigen.diagonal_similar_symmetric(one_sided) is None
     # Symmetrisable but wider than the chain's band: the same eigenvalue from ARPACK.
     d = np.random.default_rng(4).uniform(0.5, 2.0, 700)
     base = sparse.random(700, 700, density=0.01, random_state=5)
     symmetric = base + base.T + 10 * sparse.eye(700)
     wide = sparse.csr_matrix(sparse.diags(d) @ symmetric @ sparse.diags(1 / d))
-    assert symbolic._lowest_real_eigenvalue(wide).real == pytest.approx(np.linalg.eigvalsh(symmetric.toarray()).min(), abs=1e-8)
+    assert eigen.lowest_real_eigenvalue(wide).real == pytest.approx(np.linalg.eigvalsh(symmetric.toarray()).min(), abs=1e-8)
     opposite = sparse.csr_matrix(np.array([[2.0, 1.0, 0.0], [-1.0, 2.0, 1.0], [0.0, 1.0, 2.0]]))
-    assert symbolic._diagonal_similar_symmetric(opposite) is None  # a_ij a_ji < 0: complex eigenvalues possible
+    assert eigen.diagonal_similar_symmetric(opposite) is None  # a_ij a_ji < 0: complex eigenvalues possible
 
 
 def test_the_errata_of_a_ten_thousand_particle_pairs_chain_take_banded_eigenvalues():

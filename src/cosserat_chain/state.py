@@ -14,8 +14,9 @@ Matrices (stiffness, Hessian, Jacobian) act on the *free* degrees of freedom,
 ordered particle by particle and (u, v, phi) within a particle, skipping the
 fixed ones: for the paper's clamped chain (u, v, phi) of particle -N+1, then of
 -N+2, ... This ordering makes every matrix of an open chain banded (bandwidth 5:
-a bond couples two neighbours' six degrees of freedom); a ring's bond between
-particles N and -N adds corner blocks.
+a bond couples two neighbours' six degrees of freedom), within the band storage of
+the linear-algebra floor (:data:`cosserat_chain.linalg.BANDWIDTH`); a ring's bond
+between particles N and -N adds corner blocks.
 """
 
 from __future__ import annotations
@@ -29,11 +30,6 @@ from .params import FIXED_ROWS, ChainParams
 
 ROWS = ("u", "v", "phi")
 ROW_INDEX = {name: i for i, name in enumerate(ROWS)}
-#: Half-bandwidth of every open chain's matrices in the free-dof order above: a bond couples
-#: two neighbours' six degrees of freedom, at most five apart. The compiled band kernels
-#: (``numerics.newton``, ``numerics.stability``) take it as a constant; their substitutions
-#: carry the last five unknowns in five registers, so they are written for this value.
-BANDWIDTH = 5
 
 
 #: Arrays of the chain's size that any computation holds (state, velocities, forces, the

@@ -36,10 +36,9 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse.linalg as spla
 
+from ..linalg import refined_solve, upper_bands
 from ..memory import require
-from ..models.base import upper_bands
 from ..models.linear import stiffness_matrix
-from ..numerics.refinement import refined_solve
 from ..params import ChainParams
 from ..state import pack, require_clamped, unpack
 
@@ -369,7 +368,7 @@ def discrete_static(params: ChainParams, moment: float = 1.0) -> np.ndarray:
     """Static state (3, 2N+1) of the discrete linear model (iii) under the moment M on particle 0.
 
     Solves K q = M e_phi0 with the model's sparse stiffness (derived coefficients), refined
-    with residuals in extended precision (:func:`~cosserat_chain.numerics.refinement.refined_solve`:
+    with residuals in extended precision (:func:`~cosserat_chain.linalg.refined_solve`:
     K's condition number is about 4e16 at N = 10^4).
     """
     require_clamped(params, "the continuum comparison of Section 3")

@@ -613,82 +613,6 @@ def printed_eq3_stiffness(params: ChainParams):
     return sum(sparse.kron(sparse.eye(n, k=offset), block) for offset, block in zip((-1, 0, 1), blocks)).tocsr()
 
 
-#: Free degrees of freedom up to which the printed operator's spectrum is computed densely.
-DENSE_SPECTRUM_LIMIT = 600
-
-
-def _diagonal_similar_symmetric(matrix):
-    """D A D^-1, symmetric, for a diagonal D > 0, or None where no such D exists.
-
-    A similarity with a diagonal D makes A symmetric iff every pair of entries has
-    a_ji / a_ij = d_i^2 / d_j^2 > 0 and these ratios are consistent round every cycle of
-    its graph. The printed eq. (3) times M^-1 is such a matrix (its phi rows couple to v
-    with a quarter of what the v rows couple to phi), and its symmetric similar has the
-    same, real, spectrum. log d^2 is built along a breadth-first tree of each connected
-    component, and the result is checked entry by entry (None if it is not symmetric).
-    """
-    import scipy.sparse as sparse
-    from scipy.sparse import csgraph
-
-    a = sparse.csr_matrix(matrix, dtype=float)
-    a.eliminate_zeros()
-    pattern = (a != 0).astype(np.int8)
-    if pattern.nnz != (pattern + pattern.T).nnz:
-        return None  # a one-sided entry: no diagonal similarity makes it symmetric
-    n_components, labels = csgraph.connected_components(pattern, directed=False)
-    log_d2 = np.zeros(a.shape[0])
-    for component in range(n_components):
-        root = int(np.flatnonzero(labels == component)[0])
-        order, parent = csgraph.breadth_first_order(pattern, root, directed=False)
-        children = order[1:]
-        # d_k^2 / d_parent^2 = a_parent,k / a_k,parent
-        forward = np.asarray(a[parent[children], children]).ravel()
-        backward = np.asarray(a[children, parent[children]]).ravel()
-        if np.any(forward * backward <= 0):
-            return None
-        step = np.log(forward / backward)
-        for k, w in zip(children, step):
-            log_d2[k] = log_d2[parent[k]] + w
-    d = np.exp(0.5 * log_d2)
-    similar = sparse.diags(d) @ a @ sparse.diags(1.0 / d)
-    scale = float(abs(similar).max())
-    if abs(similar - similar.T).max() > 1e-12 * scale:
-        return None
-    return (0.5 * (similar + similar.T)).tocsc()
-
-
-def _lowest_real_eigenvalue(matrix) -> complex:
-    """The eigenvalue of a sparse matrix with the smallest real part.
-
-    Dense up to :data:`DENSE_SPECTRUM_LIMIT`. Beyond, where a diagonal similarity makes the
-    matrix symmetric (:func:`_diagonal_similar_symmetric`; the printed eq. (3) is such a
-    matrix), the banded smallest eigenvalue of the symmetric similar
-    (:func:`~cosserat_chain.numerics.stability.smallest_eigenvalue`: LDL^T inertia, O(N)
-    a factor); otherwise ARPACK's eigenvalue nearest the Gershgorin lower bound of the
-    real parts (shift-invert), which is the leftmost one unless a complex pair lies as
-    near. The printed operator's lowest eigenvalue is the edge of a band of its spectrum
-    (-5.3077 at N = 1000 and 2000): Krylov iterations slowed with N (ARPACK 2.8 s at
-    N = 1000, 20 s at 2000; Lanczos on the symmetric similar 7.5 s and 67 s).
-    """
-    import scipy.sparse.linalg as spla
-
-    from ..numerics.stability import smallest_eigenvalue
-
-    if matrix.shape[0] <= DENSE_SPECTRUM_LIMIT:
-        eigenvalues = np.linalg.eigvals(matrix.toarray())
-        return complex(eigenvalues[np.argmin(eigenvalues.real)])
-    shift = -float(abs(matrix).sum(axis=1).max()) - 1.0
-    symmetric = _diagonal_similar_symmetric(matrix)
-    if symmetric is not None:
-        try:
-            return complex(smallest_eigenvalue(symmetric)[0])
-        except ValueError:  # wider than the chain's band: not a chain's operator
-            pass
-    # A wide Krylov space: the eigenvalues near the shift are clustered (40 vectors: 4 s at
-    # N = 1000; ARPACK's default of 20 took 11 s).
-    return complex(spla.eigs(matrix.tocsc(), k=1, sigma=shift, which="LM", ncv=min(matrix.shape[0] - 1, 40), return_eigenvectors=False)[0])
-
-
 def _fmt(expr: Any) -> str:
     import sympy as sp
 
@@ -709,8 +633,8 @@ def errata(params: ChainParams | None = None) -> tuple[Erratum, ...]:
         Numbers 1-4 are found by :func:`compare_with_paper` (each lists its failing
         checks); 5 and 6 are slips in the text.
     """
+    from ..linalg import lowest_real_eigenvalue, smallest_eigenvalue
     from ..models.linear import stiffness_matrix
-    from ..numerics.stability import smallest_eigenvalue
 
     params = ChainParams() if params is None else params
     # The printed operator, its eigenvalues and the derived one's bands: tens of arrays of the chain's size.
@@ -723,7 +647,7 @@ def errata(params: ChainParams | None = None) -> tuple[Erratum, ...]:
 
     printed_K = printed_eq3_stiffness(params)
     inverse_mass = 1.0 / per_dof(params, params.inertia)
-    lowest = _lowest_real_eigenvalue(sparse.diags(inverse_mass) @ printed_K)
+    lowest = lowest_real_eigenvalue(sparse.diags(inverse_mass) @ printed_K)
     # O(N) (LAPACK's banded eigensolver is O(N^2): 36 s at N = 10^4).
     derived_lowest, derived_resolution = smallest_eigenvalue(stiffness_matrix(params))
     asymmetry = float(abs(printed_K - printed_K.T).max())
@@ -836,7 +760,7 @@ def errata(params: ChainParams | None = None) -> tuple[Erratum, ...]:
         ).tocsr()  # fmt: skip
     else:
         bending = sparse.coo_matrix(([4 * params.b**2], ([phi[0]], [phi[0]])), shape=bending.shape).tocsr()
-    with_printed = _lowest_real_eigenvalue(sparse.diags(inverse_mass) @ (stiffness_matrix(params) + shift * bending)).real
+    with_printed = lowest_real_eigenvalue(sparse.diags(inverse_mass) @ (stiffness_matrix(params) + shift * bending)).real
     if params.E2 == 0:
         printed_chain = "Without diagonal links (E2 = 0) the printed and the derived D1 agree."
     elif with_printed < 0:

@@ -42,9 +42,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..linalg import Refined, refined_solve
 from ..memory import require
 from ..models.linear import stiffness_matrix
-from ..numerics.refinement import Refined, refined_solve
 from ..params import ChainParams
 from ..state import dof, pack, require_held, unpack
 from .dispersion import Dispersion, _wavenumbers
@@ -278,7 +278,7 @@ def discrete_static(params: ChainParams, load: PointLoad) -> tuple[np.ndarray, R
     """Static state (3, 2N+1) of the discrete linear chain (iii) under ``load``, and the refined solve behind it.
 
     Solves K q = f with the model's sparse stiffness, refined with residuals in extended
-    precision (:func:`~cosserat_chain.numerics.refinement.refined_solve`), whose
+    precision (:func:`~cosserat_chain.linalg.refined_solve`), whose
     ``relative_error(i)`` estimates the error of free degree of freedom i.
 
     Raises

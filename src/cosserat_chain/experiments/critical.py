@@ -83,6 +83,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..linalg import smallest_eigenvalue
 from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
 from ..numerics.continuation import (
@@ -95,7 +96,7 @@ from ..numerics.continuation import (
     require_branch_memory,
 )
 from ..numerics.newton import NewtonError, moment_dof, solve_equilibrium
-from ..numerics.stability import smallest_eigenvalue, static_stability
+from ..numerics.stability import static_stability
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column, unpack
 from .simulation import run_attributes

@@ -71,12 +71,12 @@ import scipy.sparse as sp
 from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
-from scipy.linalg import LinAlgError, cholesky_banded
 
-from ..band import BandMatrix
+from ..linalg import BANDWIDTH, BandMatrix, largest_eigenvalue_bound
+from ..linalg.band import scatter_add, scatter_signed
 from ..memory import FLOAT, require
 from ..params import ChainParams
-from ..state import BANDWIDTH, _free, check_state, force_columns, n_free, pack, unpack, zero_held
+from ..state import _free, check_state, force_columns, n_free, pack, unpack, zero_held
 
 #: Signature of every compiled force kernel: (x, coef, out, start, stop) -> None.
 FORCE_SIGNATURE = types.void(types.float64[:, ::1], types.float64[::1], types.float64[:, ::1], types.int64, types.int64)
@@ -169,7 +169,7 @@ class Model(ABC):
         """-dF/dq over the free degrees of freedom at ``x``, shape (3(2N-1), 3(2N-1))."""
 
     def stiffness_band(self, params: ChainParams, x: np.ndarray) -> BandMatrix:
-        """:meth:`stiffness` in band storage (:class:`~cosserat_chain.band.BandMatrix`), for the O(N) statics.
+        """:meth:`stiffness` in band storage (:class:`~cosserat_chain.linalg.BandMatrix`), for the O(N) statics.
 
         By default the band of :meth:`stiffness`; a model that has its bonds' sums
         overrides it with :func:`assemble_bond_sums` (no CSR matrix between).
@@ -263,20 +263,7 @@ class Model(ABC):
         # A ring's corner blocks would make the band as wide as the chain: its Gershgorin bound instead.
         if params.periodic or abs(dynamical - dynamical.T).max() > _SYMMETRY_RTOL * gershgorin:
             return math.sqrt(gershgorin)
-        negative = upper_bands(-dynamical)
-        bandwidth = negative.shape[0] - 1
-        low, high = float(dynamical.diagonal().max()), gershgorin
-        while high - low > _BISECTION_RTOL * gershgorin:
-            middle = 0.5 * (low + high)
-            shifted = negative.copy()
-            shifted[bandwidth] += middle
-            try:
-                cholesky_banded(shifted, check_finite=False)
-            except LinAlgError:
-                low = middle
-            else:
-                high = middle
-        return math.sqrt(max(0.0, high))
+        return math.sqrt(max(0.0, largest_eigenvalue_bound(dynamical, _BISECTION_RTOL)))
 
     def compiled_forces(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         """Forces from the compiled kernel, same layout as :meth:`forces`."""
@@ -345,25 +332,6 @@ class Model(ABC):
 @njit(END_SIGNATURE, cache=True, nogil=True)
 def no_ends(x, coef, out, first, last, ring):  # pragma: no cover - compiled
     """The end kernel of a clamped chain: its end columns do not move."""
-
-
-def upper_bands(matrix: sp.spmatrix) -> np.ndarray:
-    """LAPACK's upper banded storage of a symmetric sparse matrix: entry [w + i - j, j] holds M[i, j], i <= j.
-
-    w, the bandwidth, is the number of rows less one.
-    """
-    upper = sp.triu(matrix, format="coo")
-    width = int(np.max(upper.col - upper.row, initial=0))
-    bands = np.zeros((width + 1, matrix.shape[0]))
-    bands[width + upper.row - upper.col, upper.col] = upper.data
-    return bands
-
-
-def from_upper_bands(bands: np.ndarray) -> sp.csr_matrix:
-    """The upper triangle stored by :func:`upper_bands` (or a banded Cholesky factor U) as a sparse matrix."""
-    width, n = bands.shape[0] - 1, bands.shape[1]
-    offsets = list(range(width + 1))
-    return sp.diags([bands[width - d, d:] for d in offsets], offsets, shape=(n, n), format="csr")
 
 
 #: Names the command line keeps for itself (``--model all``).
@@ -473,19 +441,6 @@ def _bond_block_pattern(n_particles: int, left: str, right: str, ring: bool) -> 
     return keep, position, indices, indptr, diagonal
 
 
-@njit(cache=True, nogil=True)
-def _scatter_add(values, keep, position, out):  # pragma: no cover - compiled
-    """out[position[t]] += values[keep[t]] in the order of t.
-
-    The sums of ``np.bincount(position, values[keep])``, added in the same order (the
-    same bits), without its gathered copy and its weights' conversion: the assembly of
-    the stiffness took half its time in them (0.3 ms at N = 1000, where a continuation
-    assembles some 13000 stiffnesses over a turn).
-    """
-    for t in range(keep.size):
-        out[position[t]] += values[keep[t]]
-
-
 def assemble_bond_blocks(blocks: np.ndarray, params: ChainParams, diagonal: np.ndarray | None = None) -> sp.csr_matrix:
     """Sparse matrix over the free degrees of freedom from per-bond 6x6 blocks.
 
@@ -503,12 +458,12 @@ def assemble_bond_blocks(blocks: np.ndarray, params: ChainParams, diagonal: np.n
     -------
     scipy.sparse.csr_matrix
         Entries on degrees of freedom the ends hold fixed are dropped; O(N), one
-        compiled scatter on a cached pattern (:func:`_bond_block_pattern`, :func:`_scatter_add`).
+        compiled scatter on a cached pattern (:func:`_bond_block_pattern`, :func:`~cosserat_chain.linalg.band.scatter_add`).
     """
     left, right = params.ends
     keep, position, indices, indptr, diagonal_at = _bond_block_pattern(params.n_particles, left, right, params.periodic)
     data = np.zeros(indices.size)
-    _scatter_add(np.ascontiguousarray(blocks, dtype=float).reshape(-1), keep, position, data)
+    scatter_add(np.ascontiguousarray(blocks, dtype=float).reshape(-1), keep, position, data)
     if diagonal is not None:
         data[diagonal_at] += pack(params, diagonal)
     size = indptr.size - 1
@@ -547,7 +502,7 @@ def _bond_sum_pattern(n_particles: int, left: str, right: str, ring: bool, band:
 
     ``source`` indexes the flattened sums (10, n_bonds), ``sign`` is +-1, ``position`` the
     entry's index in the CSR data or, with ``band``, in the flattened
-    :class:`~cosserat_chain.band.BandMatrix` storage. The entries keep the block pattern's
+    :class:`~cosserat_chain.linalg.BandMatrix` storage. The entries keep the block pattern's
     order, so that every matrix entry sums its terms in the same order as from the blocks.
     """
     keep, position, indices, indptr, _ = _bond_block_pattern(n_particles, left, right, ring)
@@ -564,13 +519,6 @@ def _bond_sum_pattern(n_particles: int, left: str, right: str, ring: bool, band:
     return out
 
 
-@njit(cache=True, nogil=True)
-def _scatter_signed(values, source, sign, position, out):  # pragma: no cover - compiled
-    """out[position[t]] += sign[t] values[source[t]] in the order of t (:func:`_scatter_add` of signed sums)."""
-    for t in range(source.size):
-        out[position[t]] += sign[t] * values[source[t]]
-
-
 def assemble_bond_sums(sums: np.ndarray, params: ChainParams, *, band: bool = False) -> sp.csr_matrix | BandMatrix:
     """The matrix over the free degrees of freedom from every bond's :data:`BOND_SUMS`, O(N).
 
@@ -580,7 +528,7 @@ def assemble_bond_sums(sums: np.ndarray, params: ChainParams, *, band: bool = Fa
         Bond k's sums in the order of :data:`BOND_SUMS`.
     params : ChainParams
     band : bool
-        Return :class:`~cosserat_chain.band.BandMatrix` storage instead of CSR (the same
+        Return :class:`~cosserat_chain.linalg.BandMatrix` storage instead of CSR (the same
         values, bit for bit: both sum each entry's terms in the same order), for the O(N)
         statics, with no CSR matrix between.
 
@@ -597,11 +545,11 @@ def assemble_bond_sums(sums: np.ndarray, params: ChainParams, *, band: bool = Fa
     size = n_free(params)
     if band:
         data = np.zeros((size + 2 * BANDWIDTH, 2 * BANDWIDTH + 1))
-        _scatter_signed(values, source, sign, position, data.reshape(-1))
+        scatter_signed(values, source, sign, position, data.reshape(-1))
         return BandMatrix(data)
     _, _, indices, indptr, _ = _bond_block_pattern(params.n_particles, left, right, params.periodic)
     data = np.zeros(indices.size)
-    _scatter_signed(values, source, sign, position, data)
+    scatter_signed(values, source, sign, position, data)
     # Copies of the shared pattern: scipy may sort or prune a matrix's indices in place.
     return sp.csr_matrix((data, indices.copy(), indptr.copy()), shape=(size, size))
 

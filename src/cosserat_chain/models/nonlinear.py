@@ -21,8 +21,8 @@ import numpy as np
 import scipy.sparse as sp
 from numba import carray, njit
 
-from ..band import BandMatrix
 from ..geometry import bond_links, rotate
+from ..linalg import BandMatrix
 from ..params import ChainParams
 from ..state import bonded, check_state, scatter_bonds, zero_held
 from .base import (

@@ -21,9 +21,10 @@ import scipy.sparse as sp
 from numba import njit
 from scipy.linalg import cholesky_banded
 
+from ..linalg import from_upper_bands, upper_bands
 from ..params import ChainParams
 from ..state import check_state, pack
-from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, from_upper_bands, upper_bands
+from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model
 from .linear import (
     chain_coefficients,
     cosserat_batch,

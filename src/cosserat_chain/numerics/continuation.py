@@ -32,24 +32,21 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 import scipy.optimize as so
 
-from ..band import BandMatrix
+from ..linalg import (
+    BandMatrix,
+    BorderedFactor,
+    dot,
+    euclidean_norm,
+    infinity_norm,
+    refined_solve,
+    rotation_controlled_jacobian,
+    sparse_solve,
+)
 from ..memory import FLOAT, require
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, column, n_free, unpack, zeros
-from .newton import (
-    BorderedFactor,
-    NewtonError,
-    dot,
-    euclidean_norm,
-    infinity_norm,
-    moment_dof,
-    rotation_controlled_jacobian,
-    round_off_floor,
-    solve_rotation_controlled,
-    sparse_solve,
-)
-from .refinement import refined_solve
+from .newton import NewtonError, moment_dof, round_off_floor, solve_rotation_controlled
 from .stability import static_stability
 
 #: Residual tolerance of the Newton solves at and around a fold: M_c is read off the
@@ -252,7 +249,7 @@ def compliance(params: ChainParams, model: str | Model, *, particle: int = 0, x:
 def moment_response(params: ChainParams, model: str | Model, *, particle: int = 0, x: np.ndarray | None = None) -> np.ndarray:
     """K^-1 e at the state ``x`` (default rest): every free degree of freedom's response to a unit moment on ``particle``.
 
-    Refined with residuals in extended precision (:func:`~.refinement.refined_solve`): K's
+    Refined with residuals in extended precision (:func:`~cosserat_chain.linalg.refined_solve`): K's
     condition number grows like N^4, and at N = 10^4 a double-precision solve's compliance
     was 1.2 % off (15434.5 for the paper's chain, 15625.000 refined).
 
@@ -554,7 +551,7 @@ def continue_in_moment(
     Notes
     -----
     Cost: every point is a fixed number of O(N) banded passes. The tangent at a point is
-    solved with a banded factor of K there (:class:`~.newton.BorderedFactor`), and the
+    solved with a banded factor of K there (:class:`~cosserat_chain.linalg.BorderedFactor`), and the
     next step's corrector iterates with that factor (chord iterations: a residual and an
     O(N w) solve each) while each shrinks the residual by :data:`CHORD_CONTRACTION`,
     assembling and factoring K anew only where it does not, from a start bent along the
@@ -565,7 +562,7 @@ def continue_in_moment(
     stability of a point of a conservative model takes the K assembled at the converged
     state (``static_stability(similar=...)``), starts its inverse iteration from the
     previous point's eigenvector, and takes its index from the inertia of the tangent's
-    factor of that K (:attr:`~.newton.BorderedFactor.negative_eigenvalues`): no factor of
+    factor of that K (:attr:`~cosserat_chain.linalg.BorderedFactor.negative_eigenvalues`): no factor of
     its own for the count. The full turn of N = 1000 (40 folds) takes about 4.5 s of CPU
     on one core (``benchmarks/bench_critical.py --scaling``; ``docs/statics.md`` has the
     history and what a point costs). A point whose

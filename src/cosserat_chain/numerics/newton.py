@@ -14,7 +14,8 @@ of the loaded particle and solves for every other degree of freedom *and* the
 moment M that holds the particle there: F(x) + M e = 0 with x[phi, particle] = phi_0.
 Its Jacobian is -K with the loaded angle's column replaced by e, which stays
 regular at the fold of the load-controlled problem (where K is singular), so it
-follows the moment-rotation characteristic M(phi_0) over a whole turn.
+follows the moment-rotation characteristic M(phi_0) over a whole turn (its solves:
+:mod:`cosserat_chain.linalg.bordered`).
 
 Both raise :class:`NewtonError` if the residual does not fall below the tolerance.
 The tolerance is relative to the problem's scale: a requested ``tol`` (times 1 + the
@@ -25,20 +26,17 @@ and the number of particles: an absolute 1e-14 is out of reach from about N = 20
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
-from numba import njit
 
-from ..band import BandMatrix
 from ..errors import CosseratChainError
+from ..linalg import BandMatrix, infinity_norm, rotation_controlled_jacobian, sparse_solve
 from ..loads import Loads
 from ..models.base import Model, get_model
 from ..params import ChainParams
-from ..state import BANDWIDTH, ROW_INDEX, check_state, column, dof, n_free, pack, require_held, unpack, zeros
+from ..state import ROW_INDEX, check_state, column, dof, n_free, pack, require_held, unpack, zeros
 
 
 class NewtonError(CosseratChainError, RuntimeError):
@@ -68,62 +66,6 @@ def round_off_floor(stiffness: sp.spmatrix | BandMatrix | None, x: np.ndarray, *
     """
     norm = infinity_norm(stiffness) if norm is None else norm
     return ROUND_OFF_FACTOR * np.finfo(float).eps * norm * max(1.0, float(np.max(np.abs(x)))) * (x.size / 3 + 2)
-
-
-def infinity_norm(matrix: sp.spmatrix | BandMatrix) -> float:
-    """max_i sum_j |A_ij| of a sparse or banded matrix (0 for an empty one), O(nnz).
-
-    A compiled loop over a CSR matrix's data (:func:`_csr_infinity_norm`): scipy's
-    ``abs(A).sum(axis=1).max()`` builds two temporaries and cost 0.25 ms at N = 1000,
-    and the continuation asks it at every corrector iteration. A
-    :class:`~cosserat_chain.band.BandMatrix` keeps its norm once computed.
-    """
-    if isinstance(matrix, BandMatrix):
-        return matrix.infinity_norm
-    if not matrix.shape[0]:
-        return 0.0
-    if sp.issparse(matrix) and matrix.format == "csr":
-        return float(_csr_infinity_norm(matrix.indptr, np.asarray(matrix.data, dtype=float)))
-    return float(abs(matrix).sum(axis=1).max())
-
-
-@njit(cache=True, nogil=True)
-def _csr_infinity_norm(indptr, data):  # pragma: no cover - compiled
-    """The largest absolute row sum of a CSR matrix given by its ``indptr`` and ``data``."""
-    largest = 0.0
-    for i in range(indptr.size - 1):
-        total = 0.0
-        for p in range(indptr[i], indptr[i + 1]):
-            total += abs(data[p])
-        largest = max(largest, total)
-    return largest
-
-
-@njit(cache=True, nogil=True)
-def dot(a: np.ndarray, b: np.ndarray) -> float:  # pragma: no cover - compiled
-    """a^T b of two vectors, compiled, on this thread, in eight partial sums.
-
-    OpenBLAS's ddot (NumPy's ``a @ b`` and ``np.linalg.norm``) runs on several threads
-    from about 10^4 entries on: the continuation's few dot products a corrector iteration
-    then woke a second thread that spun between them, doubling the CPU time of the
-    statics of N = 10^4 and slowing its wall time by 15 %. Eight partial sums keep the
-    additions off one chain of dependences (and the order fixed on every machine).
-    """
-    partial = np.zeros(8)
-    n = a.size
-    head = n - n % 8
-    for i in range(0, head, 8):
-        for j in range(8):
-            partial[j] += a[i + j] * b[i + j]
-    total = ((partial[0] + partial[1]) + (partial[2] + partial[3])) + ((partial[4] + partial[5]) + (partial[6] + partial[7]))
-    for i in range(head, n):
-        total += a[i] * b[i]
-    return total
-
-
-def euclidean_norm(a: np.ndarray) -> float:
-    """The Euclidean norm of a vector with :func:`dot` (on this thread)."""
-    return math.sqrt(dot(a, a))
 
 
 class BranchEndError(NewtonError):
@@ -383,267 +325,6 @@ def moment_dof(params: ChainParams, particle: int = 0) -> int:
     """
     require_held(params)
     return dof(params, "phi", particle)
-
-
-def rotation_controlled_jacobian(stiffness: sp.spmatrix, dof: int) -> sp.csc_matrix:
-    """d/d(q without q[dof], M) of F(q) + M e_dof: -K with column ``dof`` replaced by e_dof (O(nnz))."""
-    jac = (-stiffness).tocsc()
-    first, last = jac.indptr[dof], jac.indptr[dof + 1]
-    data = np.concatenate([jac.data[:first], [1.0], jac.data[last:]])
-    indices = np.concatenate([jac.indices[:first], [dof], jac.indices[last:]]).astype(jac.indices.dtype)
-    indptr = jac.indptr.copy()
-    indptr[dof + 1 :] -= last - first - 1
-    return sp.csc_matrix((data, indices, indptr), shape=jac.shape)
-
-
-def bordered_jacobian(stiffness: sp.spmatrix, dof: int, row: np.ndarray) -> sp.csc_matrix:
-    """The pseudo-arclength matrix [[-K, e_dof], [row^T]] of the unknowns (q, M), square, O(nnz).
-
-    Every column of -K gains its entry of the dense last row at its end (row index
-    n, the largest), and the last column holds e_dof and row[n].
-    """
-    jac = (-stiffness).tocsc()
-    jac.sort_indices()
-    n = jac.shape[0]
-    data = np.insert(jac.data, jac.indptr[1:], row[:n])
-    indices = np.insert(jac.indices, jac.indptr[1:], n)
-    indptr = np.concatenate([jac.indptr + np.arange(n + 1), [jac.indptr[-1] + n + 2]])
-    data = np.concatenate([data, [1.0, row[n]]])
-    indices = np.concatenate([indices, [dof, n]])
-    return sp.csc_matrix((data, indices.astype(np.int32), indptr.astype(np.int32)), shape=(n + 1, n + 1))
-
-
-@njit(cache=True, nogil=True)
-def _band_factor(stiffness):  # pragma: no cover - compiled
-    """LU without pivoting of -K for K in band storage (:class:`~cosserat_chain.band.BandMatrix`); (band, inverse, ok).
-
-    ``band[i, j - i + BANDWIDTH]`` holds U on and above the diagonal and L's multipliers
-    below it, ``inverse`` the reciprocals of U's diagonal (the solves multiply: a division
-    on the substitutions' chain of dependences took half their time); ``ok`` is False on
-    a zero pivot. Gaussian elimination in the natural order with diagonal pivots, like
-    SuperLU with ``diag_pivot_thresh=0`` (:func:`sparse_solve`): the fill stays in the
-    band, O(n w^2). The storage has :data:`~cosserat_chain.state.BANDWIDTH` zero rows
-    after the last (as K's storage has), read by :func:`_band_column`.
-
-    Row by row (Doolittle): entry (r, c) is -K[r, c] minus L[r, j] U[j, c] over the pivots
-    j before both, in increasing j, as the right-looking elimination subtracted them (the
-    same factor bit for bit), each row's terms read from rows already final. The sums have
-    the band's constant lengths outside the first B rows (the loops unroll), and -K is
-    read from K's storage as it goes: the copy of -K and the second copy to eliminate in
-    were half the factor's time (133 -> 67 us at N = 1000).
-    """
-    n = stiffness.shape[0] - 2 * BANDWIDTH
-    band = np.empty((n + BANDWIDTH, 2 * BANDWIDTH + 1))
-    band[n:, :] = 0.0
-    inverse = np.zeros(n)
-    for r in range(n):
-        k = r + BANDWIDTH  # K's row in its storage
-        if r >= BANDWIDTH:
-            for o in range(-BANDWIDTH, 0):  # L[r, r + o], from the B + o pivots before column r + o
-                total = -stiffness[k, BANDWIDTH + o]
-                for m in range(BANDWIDTH + o):
-                    total -= band[r, m] * band[r - BANDWIDTH + m, 2 * BANDWIDTH + o - m]
-                band[r, BANDWIDTH + o] = total * inverse[r + o]
-            for o in range(BANDWIDTH + 1):  # U[r, r + o], from the B - o pivots before row r
-                total = -stiffness[k, BANDWIDTH + o]
-                for m in range(BANDWIDTH - o):
-                    total -= band[r, o + m] * band[r + o - BANDWIDTH + m, 2 * BANDWIDTH - m]
-                band[r, BANDWIDTH + o] = total
-        else:  # the first rows: the pivots before are fewer than the band
-            for o in range(-BANDWIDTH, BANDWIDTH + 1):
-                c = r + o
-                if c < 0:
-                    band[r, BANDWIDTH + o] = 0.0
-                    continue
-                total = -stiffness[k, BANDWIDTH + o]
-                for j in range(max(max(r, c) - BANDWIDTH, 0), min(r, c)):
-                    total -= band[r, BANDWIDTH + j - r] * band[j, BANDWIDTH + c - j]
-                band[r, BANDWIDTH + o] = total * inverse[c] if o < 0 else total
-        pivot = band[r, BANDWIDTH]
-        if pivot == 0.0:
-            return band, inverse, False
-        inverse[r] = 1.0 / pivot
-    return band, inverse, True
-
-
-@njit(cache=True, nogil=True)
-def _band_column(band, dof):  # pragma: no cover - compiled
-    """L^-1 e_dof with -K's band LU (:func:`_band_factor`): the eliminated last column of the bordered matrix."""
-    n = band.shape[0] - BANDWIDTH
-    last_column = np.zeros(n + BANDWIDTH)
-    last_column[dof] = 1.0
-    for j in range(dof, n):  # zero above dof
-        for i in range(1, BANDWIDTH + 1):
-            last_column[j + i] -= band[j + i, BANDWIDTH - i] * last_column[j]
-    return last_column
-
-
-@njit(cache=True, nogil=True)
-def _band_row(band, inverse, last_column, row):  # pragma: no cover - compiled
-    """The eliminated last row (U^T l = row) and corner (row[n] - l . L^-1 e_dof) of the bordered matrix."""
-    n = band.shape[0] - BANDWIDTH
-    last_row = np.zeros(n + BANDWIDTH)
-    last_row[:n] = row[:n]
-    corner = row[n]
-    for j in range(n):
-        factor = last_row[j] * inverse[j]
-        last_row[j] = factor
-        for t in range(1, BANDWIDTH + 1):
-            last_row[j + t] -= factor * band[j, BANDWIDTH + t]
-        corner -= factor * last_column[j]
-    return last_row, corner
-
-
-@njit(cache=True, nogil=True)
-def _band_border_solve(band, inverse, stiffness, last_column, last_row, corner, dof, row, rhs, refine):  # pragma: no cover - compiled
-    """Solve [[-K, e_dof], [row^T]] x = rhs with -K's band LU (:func:`_band_factor`) and its border.
-
-    The border (:func:`_band_column`, :func:`_band_row`) costs O(n w) on top of the
-    factor; together they are the elimination of the whole bordered matrix without
-    pivoting. ``refine`` steps of iterative refinement with the same factor follow. Both
-    substitutions go row by row and carry the last B unknowns solved in registers
-    (B = :data:`~cosserat_chain.state.BANDWIDTH` = 5), subtracting the term of the one
-    solved last at the end: only one multiply-add a row waits for it, and none waits on a
-    store and its reload (a solve 52 -> 37 us at N = 1000). The forward one adds its terms
-    in the order of the column sweep it replaced, so the solution is the same bit for bit.
-    """
-    n = band.shape[0] - BANDWIDTH
-    solution = np.zeros(n + 1)
-    residual = rhs.copy()
-    y = np.zeros(n)
-    padded = np.zeros(n + 2 * BANDWIDTH if refine else 0)  # the solution with BANDWIDTH zeros either side
-    for sweep in range(refine + 1):
-        border = residual[n]
-        y1 = y2 = y3 = y4 = y5 = 0.0
-        for i in range(n):  # L y = b
-            total = residual[i] - band[i, 0] * y5
-            total -= band[i, 1] * y4
-            total -= band[i, 2] * y3
-            total -= band[i, 3] * y2
-            total -= band[i, 4] * y1
-            y[i] = total
-            border -= last_row[i] * total
-            y5, y4, y3, y2, y1 = y4, y3, y2, y1, total
-        border /= corner
-        x1 = x2 = x3 = x4 = x5 = 0.0
-        for j in range(n - 1, -1, -1):  # U x = y
-            total = y[j] - last_column[j] * border - band[j, 10] * x5
-            total -= band[j, 9] * x4
-            total -= band[j, 8] * x3
-            total -= band[j, 7] * x2
-            value = (total - band[j, 6] * x1) * inverse[j]
-            solution[j] += value
-            x5, x4, x3, x2, x1 = x4, x3, x2, x1, value
-        solution[n] += border
-        if sweep == refine:
-            break
-        # residual = rhs - B solution, with the matrix as given (``stiffness``: K's storage)
-        padded[BANDWIDTH : n + BANDWIDTH] = solution[:n]
-        for i in range(n):
-            total = rhs[i] - (solution[n] if i == dof else 0.0)
-            for t in range(2 * BANDWIDTH + 1):
-                total += stiffness[i + BANDWIDTH, t] * padded[i + t]
-            residual[i] = total
-        total = rhs[n] - row[n] * solution[n]
-        for k in range(n):
-            total -= row[k] * solution[k]
-        residual[n] = total
-    return solution
-
-
-class BorderedFactor:
-    """The factor of -K for solving [[-K, e_dof], [row^T]] x = rhs with any border row, O(N) a solve.
-
-    The O(n w^2) elimination of the band is done once (:func:`_band_factor`); each
-    :meth:`solve` adds its row's border in O(n w) (:func:`_band_border_solve`), one step
-    of refinement, and falls back to :func:`sparse_solve` of :func:`bordered_jacobian`
-    at a zero pivot or a non-finite result. The continuation's tangent at a point and
-    the chord corrector of the next step share one factor this way.
-    """
-
-    def __init__(self, stiffness: sp.spmatrix | BandMatrix, dof: int):
-        if not isinstance(stiffness, BandMatrix) and not (sp.issparse(stiffness) and stiffness.format == "csr"):
-            stiffness = sp.csr_matrix(stiffness)
-        self.stiffness, self.dof = stiffness, dof
-        try:
-            band = stiffness if isinstance(stiffness, BandMatrix) else BandMatrix.from_sparse(stiffness)
-        except ValueError:  # wider than the band (a ring's corner blocks): the sparse solver
-            self._ok = False
-        else:
-            self._stiffness_data = band.data
-            self._band, self._inverse, self._ok = _band_factor(band.data)
-        self._column = _band_column(self._band, dof) if self._ok else None
-        self._row: tuple[np.ndarray, np.ndarray, float] | None = None  # the last border row and its elimination
-
-    @property
-    def negative_eigenvalues(self) -> int | None:
-        """The number of negative eigenvalues of a symmetric K, from the inertia of its factor; None without one.
-
-        The LU of -K without pivoting is -K = L U with U = -D L^T for K = L D L^T, so
-        (Sylvester's law of inertia) K has as many negative eigenvalues as U has positive
-        pivots: free where the factor is made anyway (a continuation's tangent). Meaningless
-        for a non-symmetric K.
-        """
-        return int(np.count_nonzero(self._inverse > 0.0)) if self._ok else None
-
-    def solve(self, row: np.ndarray, rhs: np.ndarray, *, refine: int = 1) -> np.ndarray:
-        """x with [[-K, e_dof], [row^T]] x = rhs; ``row`` and ``rhs`` of length n_free + 1.
-
-        ``refine``: steps of iterative refinement (a chord corrector's inexact steps need none).
-        The last row's elimination is kept for the next solve with the same row.
-        """
-        out = None
-        row = np.asarray(row, float)
-        if self._ok:
-            if self._row is None or not (self._row[0] is row or np.array_equal(self._row[0], row)):
-                self._row = (row.copy(), *_band_row(self._band, self._inverse, self._column, row))
-            _, last_row, corner = self._row
-            if corner != 0.0:
-                out = _band_border_solve(
-                    self._band,
-                    self._inverse,
-                    self._stiffness_data,
-                    self._column,
-                    last_row,
-                    corner,
-                    self.dof,
-                    row,
-                    np.asarray(rhs, float),
-                    refine,
-                )
-        if out is None or not np.all(np.isfinite(out)):
-            k = self.stiffness.tocsr() if isinstance(self.stiffness, BandMatrix) else self.stiffness
-            return sparse_solve(bordered_jacobian(k, self.dof, row), rhs)
-        return out
-
-
-def bordered_solve(stiffness: sp.spmatrix, dof: int, row: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """Solve the pseudo-arclength system [[-K, e_dof], [row^T]] x = rhs in O(N).
-
-    Compiled banded elimination with one step of refinement (:class:`BorderedFactor`:
-    0.6 ms at N = 1000 against 6.9 ms for SuperLU on the same elimination); a zero pivot or
-    a non-finite result falls back to :func:`sparse_solve` of :func:`bordered_jacobian`.
-    """
-    return BorderedFactor(stiffness, dof).solve(row, rhs)
-
-
-def sparse_solve(matrix: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
-    """Solve a banded system, or one bordered by a dense last row and column, in O(N).
-
-    In the natural order and with diagonal pivots the fill stays in the band and the
-    dense last row; SuperLU's default pivoting moved it up and filled the factor (0.7 s
-    a bordered solve at N = 1000 against 4 ms). One step of refinement with the same
-    factor recovers what the diagonal pivots lose; a factorisation that fails (a zero
-    pivot) or gives a non-finite result falls back to the default pivoting.
-    """
-    matrix = sp.csc_matrix(matrix)
-    try:
-        lu = spla.splu(matrix, permc_spec="NATURAL", diag_pivot_thresh=0.0)
-        out = lu.solve(rhs)
-        out = out + lu.solve(rhs - matrix @ out)
-    except RuntimeError:
-        return spla.spsolve(matrix, rhs)
-    return out if np.all(np.isfinite(out)) else spla.spsolve(matrix, rhs)
 
 
 def solve_rotation_controlled(

@@ -49,37 +49,25 @@ eigenvalues where K has one negative eigenvalue, the pair crossing the axis at t
 points (:mod:`cosserat_chain.numerics.hopf`).
 
 Without a dense matrix (``method="sparse"``) the unstable eigenvalues are counted by the
-argument principle (:func:`_unstable_count`): the phase of det(A - z I) = det(K~ + z R + z^2 I),
-one banded LU a point, followed round a curve enclosing the right half plane's part of the
-spectrum; the eigenvalues nearest the axis are found by shift-invert (ARPACK, each product
-one banded solve: (A - s I) reduces to the n x n banded K~ + s (R + s I) by its Schur
-complement). Cayley transforms with ARPACK's largest |mu| were tried first and did not
-converge at N = 100: the slow overdamped modes crowd the unit circle.
+argument principle and the eigenvalues nearest the axis are found by shift-invert, both on
+the banded pencil K~ + z R + z^2 I, O(n) a point (:mod:`cosserat_chain.linalg.pencil`).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
-import scipy.sparse.linalg as sla
-from numba import njit
 
-from ..band import BandMatrix
+from ..linalg import BandMatrix, band_storage, eigenvalue_resolution, negative_count
+from ..linalg.eigen import BISECTION_RTOL, smallest_band_eigenvalue
+from ..linalg.pencil import nearest_axis, shifted_solver, unstable_count
 from ..models.base import Model, get_model
 from ..params import ChainParams
-from ..state import BANDWIDTH, check_state, pack, per_dof
-from .newton import euclidean_norm, infinity_norm
-
-#: Relative width (to the Gershgorin radius) at which the bisection for the smallest eigenvalue stops.
-BISECTION_RTOL = 1e-14
-#: Inverse-iteration steps with one factor before the shift moves (each an O(n w) solve).
-INVERSE_STEPS = 12
+from ..state import check_state, pack, per_dof
 
 
 @dataclass(frozen=True)
@@ -99,7 +87,7 @@ class Stability:
         conservative model): it changes by one at every fold, also between two
         unstable states.
     resolution : float
-        Round-off of ``critical_eigenvalue``: BISECTION_RTOL times K's Gershgorin
+        Round-off of ``critical_eigenvalue``: :data:`~cosserat_chain.linalg.eigen.BISECTION_RTOL` times K's Gershgorin
         radius. A long clamped chain's softest eigenvalue falls below it (it shrinks
         like N^-4: N = 10^4), and its value is then noise.
     """
@@ -167,7 +155,7 @@ def static_stability(
     the count at zero, and not even that where the caller gives ``index``, the
     number of negative eigenvalues of ``similar`` it has counted from a factor of that
     matrix at zero (a continuation's tangent solve factors the stiffness at every point:
-    :attr:`~.newton.BorderedFactor.negative_eigenvalues`). A factor in another order of
+    :attr:`~cosserat_chain.linalg.BorderedFactor.negative_eigenvalues`). A factor in another order of
     operations could count differently only where a pivot lies within round-off of zero.
     Ignored without ``similar``.
     """
@@ -180,9 +168,9 @@ def static_stability(
     if similar is None and not (dense or params.periodic):
         similar = model.symmetric_similar(params, x)
     if similar is not None:
-        band = _band_storage(similar)
-        resolution = _resolution(similar)
-        critical, bound = _smallest_eigenvalue(band, resolution / BISECTION_RTOL, guess, start)
+        band = band_storage(similar)
+        resolution = eigenvalue_resolution(similar)
+        critical, bound = smallest_band_eigenvalue(band, resolution / BISECTION_RTOL, guess, start)
         if bound > resolution:
             index = 0
         else:
@@ -192,222 +180,13 @@ def static_stability(
     abscissa = float(np.max(la.eigvals(damped_dynamics_matrix(params, k)).real))
     if model.conservative:
         eigenvalues = la.eigvalsh(k)
-        return Stability(bool(eigenvalues[0] > 0.0), float(eigenvalues[0]), abscissa, int(np.sum(eigenvalues < 0)), _resolution(k))
+        return Stability(
+            bool(eigenvalues[0] > 0.0), float(eigenvalues[0]), abscissa, int(np.sum(eigenvalues < 0)), eigenvalue_resolution(k)
+        )
     # Round-off of the eigenvalue solver, relative to the fastest rate of the chain.
     round_off = 1e-10 * max(1.0, float(np.max(np.abs(k))))
     real = la.eigvals(k).real
-    return Stability(abscissa < round_off, float(np.min(real)), abscissa, int(np.sum(real < 0)), _resolution(k))
-
-
-def smallest_eigenvalue(matrix: sp.spmatrix | BandMatrix) -> tuple[float, float]:
-    """The smallest eigenvalue of a symmetric matrix within the chain's band, and its round-off, O(n) a factor.
-
-    Inverse iteration certified by the inertia of banded LDL^T factors, with bisection
-    on that count as the fallback (:func:`_smallest_eigenvalue`): where the lowest
-    eigenvalues crowd (the edge of a band of a long chain's spectrum), Krylov methods
-    slow down with n and this does not.
-
-    Raises
-    ------
-    ValueError
-        If the matrix is wider than the band.
-    """
-    band = _band_storage(matrix)
-    resolution = _resolution(matrix)
-    value, _ = _smallest_eigenvalue(band, resolution / BISECTION_RTOL)
-    return value, resolution
-
-
-def _resolution(matrix) -> float:
-    """BISECTION_RTOL times the Gershgorin radius of ``matrix`` (sparse, banded or dense)."""
-    if sp.issparse(matrix) or isinstance(matrix, BandMatrix):
-        return BISECTION_RTOL * infinity_norm(matrix)
-    return BISECTION_RTOL * float(abs(matrix).sum(axis=1).max()) if matrix.shape[0] else 0.0
-
-
-def _band_storage(matrix: sp.spmatrix | BandMatrix) -> np.ndarray:
-    """The padded band storage (:class:`~cosserat_chain.band.BandMatrix`) the compiled LDL^T reads.
-
-    Its upper triangle is read (a Hessian summed link by link is symmetric only to round-off:
-    one triangle is read, as LAPACK's upper storage reads it, and either gives the same
-    inertia), in place: a copy by rows of the lower band cost 55 us at N = 1000, once a point
-    of a branch. A sparse matrix goes through its band.
-
-    Raises
-    ------
-    ValueError
-        If the matrix is wider than the band (a ring's corner blocks).
-    """
-    return (matrix if isinstance(matrix, BandMatrix) else BandMatrix.from_sparse(matrix)).data
-
-
-@njit(cache=True, nogil=True)
-def _factor(band, shift, factor, inverse):  # pragma: no cover - compiled
-    """LDL^T of M - shift I without pivoting into ``factor`` (factor[r, d] = L[i, i - d], r = B + i) and ``inverse`` (1 / D).
-
-    Returns the number of negative pivots: by Sylvester's law of inertia the number
-    of eigenvalues below ``shift``, in O(n w^2) (a zero pivot is nudged by the round-off).
-    ``band`` is the padded storage (:func:`_band_storage`) and M[i, i - d] is read from its
-    upper triangle, M[i - d, i] = band[r - d, B + d]; the padding's rows factor as the identity.
-
-    A row's entries are formed as w_d = L[i, i - d] D[i - d] first, each from the ones
-    before it, and L's entry is w_d times the reciprocal pivot: the chain of dependences
-    along a row holds multiply-adds only, where it held a division per entry (the factor
-    0.106 -> 0.086 ms at N = 1000); the one division a row is off that chain.
-    """
-    rows = band.shape[0]
-    tiny = 1e-300
-    count = 0
-    w = np.zeros(BANDWIDTH + 1)
-    for r in range(BANDWIDTH):
-        inverse[r] = 1.0
-        inverse[rows - 1 - r] = 1.0
-    for i in range(BANDWIDTH, rows - BANDWIDTH):
-        for d in range(BANDWIDTH, 0, -1):
-            j = i - d
-            total = band[j, BANDWIDTH + d]
-            for e in range(BANDWIDTH, d, -1):  # k = i - e < j: w_e L[j, k]
-                total -= w[e] * factor[j, e - d]
-            w[d] = total
-            factor[i, d] = total * inverse[j]
-        total = band[i, BANDWIDTH] - shift
-        for d in range(BANDWIDTH, 0, -1):
-            total -= w[d] * factor[i, d]
-        if total < 0.0:
-            count += 1
-        inverse[i] = 1.0 / (total if total != 0.0 else tiny)
-    return count
-
-
-@njit(cache=True, nogil=True)
-def negative_count(band: np.ndarray, shift: float) -> int:  # pragma: no cover - compiled
-    """Number of eigenvalues below ``shift`` of the symmetric matrix in padded band storage ``band`` (:func:`_band_storage`)."""
-    return _factor(band, shift, np.zeros((band.shape[0], BANDWIDTH + 1)), np.zeros(band.shape[0]))
-
-
-@njit(cache=True, nogil=True)
-def _inverse_step(factor, inverse, shift, vector, work):  # pragma: no cover - compiled
-    """One step of inverse iteration, ``vector`` <- (L D L^T)^-1 vector normalised; returns its Rayleigh quotient.
-
-    With A = L D L^T = M - shift I and y = A^-1 x, the quotient of y is
-    shift + x^T y / y^T y: no cancellation, unlike y^T M y, whose round-off (n eps |M|)
-    exceeds a long chain's critical eigenvalue. ``work``: as long as the factor has rows.
-    Each substitution carries the last B unknowns solved in registers
-    (B = :data:`~cosserat_chain.state.BANDWIDTH` = 5) and subtracts the term of the one
-    solved last at the end: only one multiply-add a row waits for it, and nothing waits on
-    a store and its reload (the step 80 -> 27 us at N = 1000). The back substitution
-    forms x^T y and y^T y as it goes, in four partial sums each.
-    """
-    n = vector.size
-    w1 = w2 = w3 = w4 = w5 = 0.0
-    for i in range(n):  # L y = b, then D^-1
-        r = i + BANDWIDTH
-        total = vector[i] - factor[r, 5] * w5
-        total -= factor[r, 4] * w4
-        total -= factor[r, 3] * w3
-        total -= factor[r, 2] * w2
-        total -= factor[r, 1] * w1
-        work[r] = total * inverse[r]
-        w5, w4, w3, w2, w1 = w4, w3, w2, w1, total
-    w1 = w2 = w3 = w4 = w5 = 0.0
-    cross = np.zeros(4)
-    square = np.zeros(4)
-    for i in range(n - 1, -1, -1):  # L^T z = y
-        r = i + BANDWIDTH
-        total = work[r] - factor[r + 5, 5] * w5
-        total -= factor[r + 4, 4] * w4
-        total -= factor[r + 3, 3] * w3
-        total -= factor[r + 2, 2] * w2
-        total -= factor[r + 1, 1] * w1
-        cross[i % 4] += vector[i] * total
-        square[i % 4] += total * total
-        vector[i] = total
-        w5, w4, w3, w2, w1 = w4, w3, w2, w1, total
-    size = (square[0] + square[1]) + (square[2] + square[3])
-    quotient = shift + ((cross[0] + cross[1]) + (cross[2] + cross[3])) / size
-    vector /= math.sqrt(size)
-    return quotient
-
-
-@njit(cache=True, nogil=True)
-def _smallest_eigenvalue_compiled(band, low, high, tolerance, guess, vector):  # pragma: no cover - compiled
-    """The smallest eigenvalue of ``band`` in [low, high] to ``tolerance``: inverse iteration certified by the inertia.
-
-    Below the smallest eigenvalue lambda_min, M - shift I is positive definite: its
-    LDL^T is stable and inverse iteration with it converges to the lowest eigenvector
-    at the rate (lambda_1 - shift) / (lambda_2 - shift), each step a cheap banded solve
-    with the same factor. The Rayleigh quotient rho is an upper bound of lambda_min, and
-    no eigenvalue below rho - tolerance (a count of zero) certifies it. The first shift
-    is just below ``guess``; while eigenvalues lie below the shift it moves down by
-    growing distances (a chain's critical eigenvalue is small: a few factors settle it),
-    then to the middle of the bracket, so the result is never worse than bisection
-    (about 50 factors).
-
-    Returns the eigenvalue and a lower bound of it: ``low`` is the Gershgorin bound or
-    a shift whose factor has no negative pivot.
-    """
-    factor = np.zeros((band.shape[0], BANDWIDTH + 1))
-    inverse = np.zeros(band.shape[0])
-    work = np.zeros(band.shape[0])
-    distance = max(0.05 * abs(guess), tolerance)
-    shift = guess - distance if low < guess - distance < high else 0.5 * (low + high)
-    width = high - low
-    below_found = False
-    while high - low > tolerance:
-        if _factor(band, shift, factor, inverse) > 0:
-            high = shift
-        else:
-            low = shift
-            below_found = True
-            previous, decrease = math.inf, math.inf
-            for _ in range(INVERSE_STEPS):
-                quotient = _inverse_step(factor, inverse, shift, vector, work)
-                high = min(high, quotient)
-                # Converged, or converging too slowly for this shift (a closer one is cheaper).
-                if previous - quotient <= tolerance or previous - quotient > 0.5 * decrease:
-                    break
-                previous, decrease = quotient, previous - quotient
-            if high - low > tolerance:
-                if _factor(band, high - tolerance, factor, inverse) == 0:
-                    return high, max(low, high - tolerance)
-                high -= tolerance
-        distance = max(4.0 * distance, 1e-6 * width)
-        shift = 0.5 * (low + high) if below_found else max(0.5 * (low + high), high - distance)
-    return 0.5 * (low + high), low
-
-
-@lru_cache(maxsize=8)
-def _start_vector(n: int) -> np.ndarray:
-    """The fixed start vector of inverse iteration, drawn once a size (a draw cost 0.1 ms at N = 1000, once a point)."""
-    vector = np.random.default_rng(0).standard_normal(n)
-    vector.flags.writeable = False
-    return vector
-
-
-def _smallest_eigenvalue(
-    band: np.ndarray, radius: float, guess: float | None = None, start: np.ndarray | None = None
-) -> tuple[float, float]:
-    """Smallest eigenvalue to round-off of the matrix's scale, O(n) a round (:func:`_smallest_eigenvalue_compiled`),
-    and a lower bound of it certified by a factor without negative pivots (-``radius`` if none was).
-
-    ``start``: see :func:`static_stability` (overwritten with the last iterate)."""
-    n = band.shape[0] - 2 * BANDWIDTH  # the rows of the chain (the storage is padded)
-    low, high = -radius, float(band[BANDWIDTH : n + BANDWIDTH, BANDWIDTH].min())  # Gershgorin, and lambda_min <= min diagonal
-    # A fixed generic start vector: deterministic, and with a component along any
-    # mode (all ones would miss an antisymmetric lowest mode and leave it to the bisection).
-    # A given start that is not a usable vector (zero, or not finite after a factor
-    # with a nudged zero pivot) is reset to it.
-    if start is None:
-        vector = _start_vector(n).copy()  # the compiled search overwrites it
-    else:
-        if start.shape != (n,):
-            raise ValueError(f"start has shape {start.shape}, expected ({n},)")
-        vector = start
-        if not 0.0 < euclidean_norm(vector) < math.inf:
-            vector[:] = _start_vector(n)
-    tolerance = max(BISECTION_RTOL * radius, 1e-300)
-    value, bound = _smallest_eigenvalue_compiled(band, low, high, tolerance, 0.0 if guess is None else float(guess), vector)
-    return float(value), float(bound)
+    return Stability(abscissa < round_off, float(np.min(real)), abscissa, int(np.sum(real < 0)), eigenvalue_resolution(k))
 
 
 #: Eigenvalues of the damped dynamics with a real part above this times the scale of A
@@ -417,8 +196,6 @@ DYNAMIC_RTOL = 1e-10
 RIGHTMOST = 6
 #: Largest first-order system (2 n_free unknowns) that ``method="auto"`` solves densely.
 DENSE_LIMIT = 400
-#: Most eigenvalues nearest the axis the sparse path of :func:`dynamic_stability` asks ARPACK for.
-NEAREST_LIMIT = 64
 #: The dynamics methods :func:`dynamic_stability` takes.
 DYNAMIC_METHODS = ("auto", "dense", "sparse")
 
@@ -560,15 +337,15 @@ def dynamic_stability(
         # tests check this theorem against the dense eigenvalues); no count needed.
         count = index
     else:
-        # The chain at rest as the reference of the count (:func:`_unstable_count`), where its K is symmetric.
+        # The chain at rest as the reference of the count (:func:`unstable_count`), where its K is symmetric.
         rest = model.stiffness(params, np.zeros_like(x)).tocsr()
         symmetric = abs(rest - rest.T).max() <= 1e-12 * abs(rest).max() if rest.nnz else False
         reference = sp.csr_matrix(sp.diags(root) @ rest @ sp.diags(root)) if symmetric else None
-        count = _unstable_count(scaled, rate, tolerance, reference)
+        count = unstable_count(scaled, rate, tolerance, reference)
     # Shift-invert just right of the axis, far enough for K~ + s (R + s I) to be regular where
     # K~ is singular (rigid modes) and R has zeros.
     shift = max(tolerance, 1e-5 * scale)
-    eigenvalues = shift + _nearest_axis(_shifted_solver(scaled, rate, shift), 2 * n, count, rightmost)
+    eigenvalues = shift + nearest_axis(shifted_solver(scaled, rate, shift), 2 * n, count, rightmost)
     return _verdict(eigenvalues, tolerance, rightmost, index, method, count)
 
 
@@ -586,209 +363,13 @@ def _verdict(eigenvalues: np.ndarray, tolerance: float, rightmost: int, index: i
     return DynamicStability(count == 0, count, real, (count - real) // 2, shown, abscissa, int(index), tolerance, method)
 
 
-def _shifted_solver(scaled: sp.spmatrix, rate: np.ndarray, shift: float) -> Callable[[np.ndarray], np.ndarray]:
-    """x -> (A - s I)^-1 x for A = [[0, I], [-K~, -R]] (R = Gamma M^-1 diagonal), by one banded LU of n x n.
-
-    From -s y + w = a and -K~ y - (R + s) w = b: w = a + s y and
-    (K~ + s (R + s)) y = -b - (R + s) a.
-    """
-    n = scaled.shape[0]
-    lu = sla.splu(sp.csc_matrix(scaled + sp.diags(shift * (rate + shift))), permc_spec="NATURAL")
-    damped = rate + shift
-
-    def solve(vector: np.ndarray) -> np.ndarray:
-        a, b = vector[:n], vector[n:]
-        y = lu.solve(-b - damped * a)
-        return np.concatenate([y, a + shift * y])
-
-    return solve
-
-
-def _pencil_band(scaled: sp.spmatrix) -> tuple[np.ndarray, int]:
-    """K~ in LAPACK's general band storage by columns (band[j, 2w + i - j] = K~[i, j]; w rows of fill first), and w."""
-    coo = sp.coo_matrix(scaled)
-    width = int(np.max(np.abs(coo.row - coo.col), initial=0))
-    band = np.zeros((scaled.shape[0], 3 * width + 1), dtype=complex)
-    np.add.at(band, (coo.col, 2 * width + coo.row - coo.col), coo.data)
-    return band, width
-
-
-def _phase(band: np.ndarray, width: int, rate: np.ndarray, z: complex) -> float:
-    """arg det(K~ + z R + z^2 I) = arg det(A - z I) (not reduced mod 2 pi), from one banded LU (O(n w^2))."""
-    value = _band_phase(band, width, rate, complex(z), np.empty_like(band))
-    if math.isnan(value):  # z is an eigenvalue: the phase next to it (the caller's steps resolve the jump)
-        return _phase(band, width, rate, z + 1e-12 * max(abs(z), 1e-300) * 1j)
-    return value
-
-
-@njit(cache=True, nogil=True)
-def _band_phase(band, width, rate, z, work):  # pragma: no cover - compiled
-    """arg det(B + diag(z rate + z^2)) for B in band storage by columns ``band`` (:func:`_pencil_band`).
-
-    LAPACK's unblocked banded LU with partial pivoting (xGBTF2, its pivot chosen by
-    |Re| + |Im| as izamax does) in ``work``: the sum of the pivots' arguments, plus pi a row
-    interchange; NaN at a zero pivot. Compiled, each column's band contiguous: zgbtrf through
-    SciPy cost 4.8 ms at n = 6000, w = 4 (its blocking does not pay at this width), and the
-    argument principle takes thousands of them.
-    """
-    n = band.shape[0]
-    kl = ku = width
-    kv = kl + ku
-    work[:, :] = band
-    for c in range(n):
-        work[c, kv] += z * rate[c] + z * z
-    total = 0.0
-    last = 0
-    for j in range(n):
-        km = min(kl, n - 1 - j)
-        jp = 0
-        best = abs(work[j, kv].real) + abs(work[j, kv].imag)
-        for i in range(1, km + 1):
-            size = abs(work[j, kv + i].real) + abs(work[j, kv + i].imag)
-            if size > best:
-                best, jp = size, i
-        if best == 0.0:
-            return math.nan
-        last = max(last, min(j + ku + jp, n - 1))
-        if jp != 0:
-            total += math.pi
-            for c in range(j, last + 1):
-                upper, lower = kv + j - c, kv + j + jp - c
-                work[c, upper], work[c, lower] = work[c, lower], work[c, upper]
-        pivot = work[j, kv]
-        total += math.atan2(pivot.imag, pivot.real)
-        inverse = 1.0 / pivot
-        for i in range(1, km + 1):
-            work[j, kv + i] *= inverse
-        for c in range(j + 1, last + 1):
-            above = work[c, kv + j - c]
-            for i in range(1, km + 1):
-                work[c, kv + j + i - c] -= work[j, kv + i] * above
-    return total
-
-
-def _wrap_angle(angle: float) -> float:
-    """``angle`` reduced to (-pi, pi]."""
-    return angle - 2.0 * math.pi * math.ceil((angle - math.pi) / (2.0 * math.pi))
-
-
-def _unstable_count(scaled: sp.spmatrix, rate: np.ndarray, tolerance: float, reference: sp.spmatrix | None = None) -> int:
-    """Eigenvalues of A with a real part above ``tolerance``, by the argument principle, O(n) a point.
-
-    det(A - z I) = det(K~ + z R + z^2 I) winds round zero once for each eigenvalue inside
-    a closed curve. The curve: the line Re z = tolerance and a half circle right of it of
-    radius 4 rho, rho = (r + sqrt(r^2 + 4 |K~|)) / 2 bounding every |lambda| (from
-    lambda^2 + lambda y*Ry + y*K~y = 0, |y| = 1). A is real, so the upper half of the curve
-    turns the phase by pi per eigenvalue.
-
-    ``reference``: a symmetric positive semi-definite K~_0 (the chain at rest), whose damped
-    dynamics has no eigenvalue right of the line (K~_0 symmetric and R >= 0: no growing mode);
-    the phase followed is then that of det(K~ + z R + z^2 I) / det(K~_0 + z R + z^2 I), which
-    winds once per eigenvalue of A inside the curve less one per eigenvalue of the reference:
-    the eigenvalues the state shares with rest (those of the chain far from where it is
-    deformed) cancel, and the phase turns slowly.
-
-    The phase is followed in steps that turn it by less than :data:`PHASE_STEP` (halved on a
-    larger turn, grown by half otherwise). Eigenvalues within one step and nearer the line than
-    its length could hide each other's turns: the steps are at most a quarter of the least
-    damping rate r_min, since a complex eigenvalue of a conservative damped chain lies at least
-    r_min / 2 left of the axis (Re lambda = -y*Ry / 2 for its eigenvector y), and they shrink
-    geometrically towards the real axis, where the slow overdamped modes lie (within 1e-7 of
-    zero at N = 100). The cost is two banded LUs a point, O(rho / r_min) points.
-    """
-    band, width = _pencil_band(scaled)
-    base = None if reference is None else _pencil_band(reference)[0]
-    if base is not None and base.shape != band.shape:
-        base = None
-    n = scaled.shape[0]
-    r = float(rate.max(initial=0.0))
-    size = abs(scaled)
-    norm = math.sqrt(float(size.sum(axis=0).max()) * float(size.sum(axis=1).max())) if n else 0.0
-    radius = 4.0 * (r + math.sqrt(r * r + 4.0 * norm)) / 2.0 + tolerance
-
-    def phase(z: complex) -> float:
-        if base is None:
-            return _phase(band, width, rate, z)
-        return _phase(band, width, rate, z) - _phase(base, width, rate, z)
-
-    # Without a reference the phase of z^(2n) is taken out on the circle, where it dominates.
-    power = 0 if base is not None else 2 * n
-
-    def arc(theta: float) -> float:
-        z = tolerance + radius * complex(math.cos(theta), math.sin(theta))
-        return phase(z) - power * math.atan2(z.imag, z.real)
-
-    def line(y: float) -> float:
-        return phase(complex(tolerance, y))
-
-    start = complex(tolerance + radius, 0.0)
-    corner = complex(tolerance, radius)
-    # The arc from the real axis to the line, then the line down to the real axis.
-    total = _follow_phase(arc, 0.0, 0.5 * math.pi, 0.5 * math.pi / 64)
-    total += power * (math.atan2(corner.imag, corner.real) - math.atan2(start.imag, start.real))
-    damped = rate[rate > 0]
-    largest = min(0.25 * float(damped.min()) if damped.size else radius / 4096, radius / 64)
-    total += _follow_phase(line, radius, 0.0, largest, floor=tolerance * 1e-3, largest=largest)
-    return int(round(total / math.pi))
-
-
-#: Largest turn of the phase of det(A - z I) over one step of :func:`_unstable_count`.
-PHASE_STEP = 0.25 * math.pi
-
-
-def _follow_phase(phase, begin: float, end: float, step: float, floor: float = 0.0, largest: float = math.inf) -> float:
-    """The phase's total turn from ``begin`` to ``end`` (a real parameter), in steps that turn it by less than PHASE_STEP.
-
-    Steps grow by half after each accepted one, up to ``largest``, and halve on a larger
-    turn; near ``end`` they are kept below half the distance left (geometric towards it,
-    down to ``floor``). Growing by half, a step turns the phase by at most about 1.5 times
-    the last one's unless its rate jumps sevenfold, so a turn of 2 pi is never taken for none.
-    """
-    here, value, total = begin, phase(begin), 0.0
-    direction = 1.0 if end > begin else -1.0
-    while direction * (end - here) > 0.0:
-        left = abs(end - here)
-        length = min(abs(step), left if left <= floor else max(0.5 * left, floor))
-        there = end if length >= left else here + direction * length
-        after = phase(there)
-        turn = _wrap_angle(after - value)
-        if abs(turn) > PHASE_STEP and length > 4.0 * np.finfo(float).eps * max(abs(here), 1.0):
-            step = 0.5 * length
-            continue
-        total += turn
-        here, value, step = there, after, min(1.5 * length, largest)
-    return total
-
-
-def _nearest_axis(solve, size: int, count: int, rightmost: int) -> np.ndarray:
-    """Eigenvalues nearest the shift of ``solve`` (just right of the axis), enough to hold ``count`` unstable ones if they are near.
-
-    Shift-invert: ARPACK's largest 1 / (lambda - s) converge fast, clusters of slow modes
-    included. The number asked for doubles while fewer than ``count`` of those found are
-    unstable, up to :data:`NEAREST_LIMIT` (unstable eigenvalues far from the axis among
-    many stable ones nearer it are then not all listed; their number is still exact).
-    """
-    inverse = sla.LinearOperator((size, size), matvec=solve, dtype=float)
-    start = np.random.default_rng(0).standard_normal(size)
-    wanted = min(count + rightmost + 2, size - 2)
-    while True:
-        try:
-            nu = sla.eigs(inverse, k=wanted, which="LM", v0=start, tol=1e-12, return_eigenvectors=False, maxiter=100 * size)
-        except sla.ArpackNoConvergence as err:  # the converged ones (the count does not depend on them)
-            nu = err.eigenvalues
-        eigenvalues = 1.0 / nu
-        if int(np.sum(eigenvalues.real > 0.0)) >= count or wanted >= min(NEAREST_LIMIT, size - 2):
-            return eigenvalues
-        wanted = min(2 * wanted, NEAREST_LIMIT, size - 2)
-
-
 def _stiffness_index(params: ChainParams, model: Model, x: np.ndarray, stiffness: sp.spmatrix) -> int:
     """Eigenvalues of K with a real part below minus its round-off (:func:`_resolution`; a rigid mode's zero is not
     negative): the inertia of its symmetric similar matrix where it has one (banded, or dense for a ring), else
     the dense eigenvalues of K (a registered model without one)."""
     similar = model.symmetric_similar(params, x)
     if similar is not None and not params.periodic:
-        return int(negative_count(_band_storage(similar), -_resolution(similar)))
+        return int(negative_count(band_storage(similar), -eigenvalue_resolution(similar)))
     if similar is not None:
-        return int(np.sum(la.eigvalsh(similar.toarray()) < -_resolution(similar)))
-    return int(np.sum(la.eigvals(stiffness.toarray()).real < -_resolution(stiffness)))
+        return int(np.sum(la.eigvalsh(similar.toarray()) < -eigenvalue_resolution(similar)))
+    return int(np.sum(la.eigvals(stiffness.toarray()).real < -eigenvalue_resolution(stiffness)))

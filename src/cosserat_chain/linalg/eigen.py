@@ -1,0 +1,284 @@
+"""Extreme eigenvalues of a chain's symmetric band matrices, in O(n) a factor, certified by their inertia.
+
+Contract
+--------
+:func:`smallest_eigenvalue` (and :func:`smallest_band_eigenvalue`, on the storage, with a
+guess and a warm start) finds the smallest eigenvalue of a symmetric matrix within the band
+(:mod:`.band`) by inverse iteration with banded LDL^T factors, certified by their inertia
+(Sylvester's law: the negative pivots of a factor of M - s I count the eigenvalues below s);
+bisection on that count is the fallback. Where the lowest eigenvalues crowd (the edge of a
+band of a long chain's spectrum) Krylov methods slow down with n and this does not; LAPACK's
+banded eigensolver is O(n^2) (0.5 s at N = 1000). :func:`eigenvalue_resolution` is the
+round-off of the result.
+
+:func:`largest_eigenvalue_bound` brackets the largest eigenvalue of a symmetric banded
+matrix of any bandwidth by bisection with LAPACK's banded Cholesky.
+:func:`lowest_real_eigenvalue` is the eigenvalue of smallest real part of any sparse matrix,
+through its symmetric similar (:func:`diagonal_similar_symmetric`) where a diagonal
+similarity gives one.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+from numba import njit
+from scipy.linalg import LinAlgError, cholesky_banded
+from scipy.sparse import csgraph
+
+from .band import BANDWIDTH, BandMatrix, band_storage, ldlt, upper_bands
+from .norms import euclidean_norm, infinity_norm
+
+#: Relative width (to the Gershgorin radius) at which the bisection for the smallest eigenvalue stops.
+BISECTION_RTOL = 1e-14
+#: Inverse-iteration steps with one factor before the shift moves (each an O(n w) solve).
+INVERSE_STEPS = 12
+
+
+def smallest_eigenvalue(matrix: sp.spmatrix | BandMatrix) -> tuple[float, float]:
+    """The smallest eigenvalue of a symmetric matrix within the band (:mod:`.band`), and its round-off, O(n) a factor.
+
+    Inverse iteration certified by the inertia of banded LDL^T factors, with bisection
+    on that count as the fallback (:func:`smallest_band_eigenvalue`): where the lowest
+    eigenvalues crowd (the edge of a band of a long chain's spectrum), Krylov methods
+    slow down with n and this does not.
+
+    Raises
+    ------
+    ValueError
+        If the matrix is wider than the band.
+    """
+    band = band_storage(matrix)
+    resolution = eigenvalue_resolution(matrix)
+    value, _ = smallest_band_eigenvalue(band, resolution / BISECTION_RTOL)
+    return value, resolution
+
+
+def eigenvalue_resolution(matrix) -> float:
+    """BISECTION_RTOL times the Gershgorin radius of ``matrix`` (sparse, banded or dense)."""
+    if sp.issparse(matrix) or isinstance(matrix, BandMatrix):
+        return BISECTION_RTOL * infinity_norm(matrix)
+    return BISECTION_RTOL * float(abs(matrix).sum(axis=1).max()) if matrix.shape[0] else 0.0
+
+
+@njit(cache=True, nogil=True)
+def _inverse_step(factor, inverse, shift, vector, work):  # pragma: no cover - compiled
+    """One step of inverse iteration, ``vector`` <- (L D L^T)^-1 vector normalised; returns its Rayleigh quotient.
+
+    With A = L D L^T = M - shift I and y = A^-1 x, the quotient of y is
+    shift + x^T y / y^T y: no cancellation, unlike y^T M y, whose round-off (n eps |M|)
+    exceeds a long chain's critical eigenvalue. ``work``: as long as the factor has rows.
+    Each substitution carries the last B unknowns solved in registers
+    (B = :data:`~.band.BANDWIDTH` = 5) and subtracts the term of the one
+    solved last at the end: only one multiply-add a row waits for it, and nothing waits on
+    a store and its reload (the step 80 -> 27 us at N = 1000). The back substitution
+    forms x^T y and y^T y as it goes, in four partial sums each.
+    """
+    n = vector.size
+    w1 = w2 = w3 = w4 = w5 = 0.0
+    for i in range(n):  # L y = b, then D^-1
+        r = i + BANDWIDTH
+        total = vector[i] - factor[r, 5] * w5
+        total -= factor[r, 4] * w4
+        total -= factor[r, 3] * w3
+        total -= factor[r, 2] * w2
+        total -= factor[r, 1] * w1
+        work[r] = total * inverse[r]
+        w5, w4, w3, w2, w1 = w4, w3, w2, w1, total
+    w1 = w2 = w3 = w4 = w5 = 0.0
+    cross = np.zeros(4)
+    square = np.zeros(4)
+    for i in range(n - 1, -1, -1):  # L^T z = y
+        r = i + BANDWIDTH
+        total = work[r] - factor[r + 5, 5] * w5
+        total -= factor[r + 4, 4] * w4
+        total -= factor[r + 3, 3] * w3
+        total -= factor[r + 2, 2] * w2
+        total -= factor[r + 1, 1] * w1
+        cross[i % 4] += vector[i] * total
+        square[i % 4] += total * total
+        vector[i] = total
+        w5, w4, w3, w2, w1 = w4, w3, w2, w1, total
+    size = (square[0] + square[1]) + (square[2] + square[3])
+    quotient = shift + ((cross[0] + cross[1]) + (cross[2] + cross[3])) / size
+    vector /= math.sqrt(size)
+    return quotient
+
+
+@njit(cache=True, nogil=True)
+def _smallest_eigenvalue_compiled(band, low, high, tolerance, guess, vector):  # pragma: no cover - compiled
+    """The smallest eigenvalue of ``band`` in [low, high] to ``tolerance``: inverse iteration certified by the inertia.
+
+    Below the smallest eigenvalue lambda_min, M - shift I is positive definite: its
+    LDL^T is stable and inverse iteration with it converges to the lowest eigenvector
+    at the rate (lambda_1 - shift) / (lambda_2 - shift), each step a cheap banded solve
+    with the same factor. The Rayleigh quotient rho is an upper bound of lambda_min, and
+    no eigenvalue below rho - tolerance (a count of zero) certifies it. The first shift
+    is just below ``guess``; while eigenvalues lie below the shift it moves down by
+    growing distances (a chain's critical eigenvalue is small: a few factors settle it),
+    then to the middle of the bracket, so the result is never worse than bisection
+    (about 50 factors).
+
+    Returns the eigenvalue and a lower bound of it: ``low`` is the Gershgorin bound or
+    a shift whose factor has no negative pivot.
+    """
+    factor = np.zeros((band.shape[0], BANDWIDTH + 1))
+    inverse = np.zeros(band.shape[0])
+    work = np.zeros(band.shape[0])
+    distance = max(0.05 * abs(guess), tolerance)
+    shift = guess - distance if low < guess - distance < high else 0.5 * (low + high)
+    width = high - low
+    below_found = False
+    while high - low > tolerance:
+        if ldlt(band, shift, factor, inverse) > 0:
+            high = shift
+        else:
+            low = shift
+            below_found = True
+            previous, decrease = math.inf, math.inf
+            for _ in range(INVERSE_STEPS):
+                quotient = _inverse_step(factor, inverse, shift, vector, work)
+                high = min(high, quotient)
+                # Converged, or converging too slowly for this shift (a closer one is cheaper).
+                if previous - quotient <= tolerance or previous - quotient > 0.5 * decrease:
+                    break
+                previous, decrease = quotient, previous - quotient
+            if high - low > tolerance:
+                if ldlt(band, high - tolerance, factor, inverse) == 0:
+                    return high, max(low, high - tolerance)
+                high -= tolerance
+        distance = max(4.0 * distance, 1e-6 * width)
+        shift = 0.5 * (low + high) if below_found else max(0.5 * (low + high), high - distance)
+    return 0.5 * (low + high), low
+
+
+@lru_cache(maxsize=8)
+def _start_vector(n: int) -> np.ndarray:
+    """The fixed start vector of inverse iteration, drawn once a size (a draw cost 0.1 ms at N = 1000, once a point)."""
+    vector = np.random.default_rng(0).standard_normal(n)
+    vector.flags.writeable = False
+    return vector
+
+
+def smallest_band_eigenvalue(
+    band: np.ndarray, radius: float, guess: float | None = None, start: np.ndarray | None = None
+) -> tuple[float, float]:
+    """Smallest eigenvalue to round-off of the matrix's scale, O(n) a round (:func:`_smallest_eigenvalue_compiled`),
+    and a lower bound of it certified by a factor without negative pivots (-``radius`` if none was).
+
+    ``start``: see :func:`~cosserat_chain.numerics.stability.static_stability` (overwritten with the last iterate)."""
+    n = band.shape[0] - 2 * BANDWIDTH  # the rows of the chain (the storage is padded)
+    low, high = -radius, float(band[BANDWIDTH : n + BANDWIDTH, BANDWIDTH].min())  # Gershgorin, and lambda_min <= min diagonal
+    # A fixed generic start vector: deterministic, and with a component along any
+    # mode (all ones would miss an antisymmetric lowest mode and leave it to the bisection).
+    # A given start that is not a usable vector (zero, or not finite after a factor
+    # with a nudged zero pivot) is reset to it.
+    if start is None:
+        vector = _start_vector(n).copy()  # the compiled search overwrites it
+    else:
+        if start.shape != (n,):
+            raise ValueError(f"start has shape {start.shape}, expected ({n},)")
+        vector = start
+        if not 0.0 < euclidean_norm(vector) < math.inf:
+            vector[:] = _start_vector(n)
+    tolerance = max(BISECTION_RTOL * radius, 1e-300)
+    value, bound = _smallest_eigenvalue_compiled(band, low, high, tolerance, 0.0 if guess is None else float(guess), vector)
+    return float(value), float(bound)
+
+
+def largest_eigenvalue_bound(matrix: sp.spmatrix, rtol: float) -> float:
+    """An upper bound of the largest eigenvalue of a symmetric sparse banded matrix, within ``rtol`` times its Gershgorin bound.
+
+    Bisection between its largest diagonal entry and the Gershgorin bound (the largest
+    absolute row sum): sigma I - M is positive definite exactly when sigma > lambda_max,
+    which a banded Cholesky factorisation (LAPACK's) tells, O(n w^2) a step with no dense
+    matrix; the upper end of the final bracket is returned.
+    """
+    gershgorin = float(abs(matrix).sum(axis=1).max())
+    negative = upper_bands(-matrix)
+    bandwidth = negative.shape[0] - 1
+    low, high = float(matrix.diagonal().max()), gershgorin
+    while high - low > rtol * gershgorin:
+        middle = 0.5 * (low + high)
+        shifted = negative.copy()
+        shifted[bandwidth] += middle
+        try:
+            cholesky_banded(shifted, check_finite=False)
+        except LinAlgError:
+            low = middle
+        else:
+            high = middle
+    return high
+
+
+#: Size up to which :func:`lowest_real_eigenvalue` computes the whole spectrum densely.
+DENSE_SPECTRUM_LIMIT = 600
+
+
+def diagonal_similar_symmetric(matrix: sp.spmatrix) -> sp.csc_matrix | None:
+    """D A D^-1, symmetric, for a diagonal D > 0, or None where no such D exists.
+
+    A similarity with a diagonal D makes A symmetric iff every pair of entries has
+    a_ji / a_ij = d_i^2 / d_j^2 > 0 and these ratios are consistent round every cycle of
+    its graph. The printed eq. (3) times M^-1 is such a matrix (its phi rows couple to v
+    with a quarter of what the v rows couple to phi), and its symmetric similar has the
+    same, real, spectrum. log d^2 is built along a breadth-first tree of each connected
+    component, and the result is checked entry by entry (None if it is not symmetric).
+    The result is CSC, symmetrised (the mean of it and its transpose).
+    """
+    a = sp.csr_matrix(matrix, dtype=float)
+    a.eliminate_zeros()
+    pattern = (a != 0).astype(np.int8)
+    if pattern.nnz != (pattern + pattern.T).nnz:
+        return None  # a one-sided entry: no diagonal similarity makes it symmetric
+    n_components, labels = csgraph.connected_components(pattern, directed=False)
+    log_d2 = np.zeros(a.shape[0])
+    for component in range(n_components):
+        root = int(np.flatnonzero(labels == component)[0])
+        order, parent = csgraph.breadth_first_order(pattern, root, directed=False)
+        children = order[1:]
+        # d_k^2 / d_parent^2 = a_parent,k / a_k,parent
+        forward = np.asarray(a[parent[children], children]).ravel()
+        backward = np.asarray(a[children, parent[children]]).ravel()
+        if np.any(forward * backward <= 0):
+            return None
+        step = np.log(forward / backward)
+        for k, w in zip(children, step):
+            log_d2[k] = log_d2[parent[k]] + w
+    d = np.exp(0.5 * log_d2)
+    similar = sp.diags(d) @ a @ sp.diags(1.0 / d)
+    scale = float(abs(similar).max())
+    if abs(similar - similar.T).max() > 1e-12 * scale:
+        return None
+    return (0.5 * (similar + similar.T)).tocsc()
+
+
+def lowest_real_eigenvalue(matrix: sp.spmatrix) -> complex:
+    """The eigenvalue of a sparse matrix with the smallest real part.
+
+    Dense up to :data:`DENSE_SPECTRUM_LIMIT`. Beyond, where a diagonal similarity makes the
+    matrix symmetric (:func:`diagonal_similar_symmetric`; the printed eq. (3) is such a
+    matrix), the banded smallest eigenvalue of the symmetric similar
+    (:func:`smallest_eigenvalue`: LDL^T inertia, O(N) a factor); otherwise ARPACK's eigenvalue nearest the Gershgorin lower bound of the
+    real parts (shift-invert), which is the leftmost one unless a complex pair lies as
+    near. The printed operator's lowest eigenvalue is the edge of a band of its spectrum
+    (-5.3077 at N = 1000 and 2000): Krylov iterations slowed with N (ARPACK 2.8 s at
+    N = 1000, 20 s at 2000; Lanczos on the symmetric similar 7.5 s and 67 s).
+    """
+    if matrix.shape[0] <= DENSE_SPECTRUM_LIMIT:
+        eigenvalues = np.linalg.eigvals(matrix.toarray())
+        return complex(eigenvalues[np.argmin(eigenvalues.real)])
+    shift = -float(abs(matrix).sum(axis=1).max()) - 1.0
+    symmetric = diagonal_similar_symmetric(matrix)
+    if symmetric is not None:
+        try:
+            return complex(smallest_eigenvalue(symmetric)[0])
+        except ValueError:  # wider than the band
+            pass
+    # A wide Krylov space: the eigenvalues near the shift are clustered (40 vectors: 4 s at
+    # N = 1000; ARPACK's default of 20 took 11 s).
+    return complex(spla.eigs(matrix.tocsc(), k=1, sigma=shift, which="LM", ncv=min(matrix.shape[0] - 1, 40), return_eigenvectors=False)[0])
