@@ -1,0 +1,487 @@
+"""One continuation kit: a Newton corrector and a pseudo-arclength driver for any branch.
+
+Contract
+--------
+A branch is the solution set of n equations in n + 1 unknowns, R(w) = 0, w = (u, lambda),
+with lambda the continued parameter last. A :class:`ContinuationProblem` supplies R and
+its Jacobian (dense or sparse, n x (n + 1)); :func:`continuation` follows the branch by
+pseudo-arclength, as AUTO-07p and BifurcationKit.jl do:
+
+* **predictor**: w_pred = w + ds t, with t the unit tangent, the null vector of dR/dw,
+  oriented along the previous one (so a fold is passed, and seen as a sign change of
+  t's lambda component);
+* **corrector**: :func:`newton` on (R(w), t . (w - w_pred)) = 0. It reports one of the
+  named outcomes of :class:`Corrector` (converged, diverged, stalled, not finite), in the
+  manner of diffrax's root finders, so every caller reads the same reasons;
+* **step control**: the step grows after an easy correction and shrinks after a hard
+  one; a failed correction or a step the problem's monitor refuses (a quantity that
+  moved farther than its declared budget, such as a Floquet multiplier near the unit
+  circle) is retaken at half the step;
+* **events**: every test function the problem declares (``fold`` built in: t's lambda
+  component, and ``branch_point``: the sign of det [dR/dw; t]) is watched for a sign change
+  between consecutive points; the change is located by the secant method on the
+  arclength from the earlier point, each trial corrected onto the branch;
+* **ends**: :class:`BranchEnd` is the one vocabulary of why a branch stopped, with a
+  message that says what to do.
+
+The problem keeps whatever it needs between points (a phase condition's reference
+orbit, a monodromy matrix) through :meth:`ContinuationProblem.accept`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from enum import StrEnum
+from typing import Any, Protocol
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..errors import CosseratChainError
+
+#: Corrector iterations before a step is retaken shorter.
+MAX_ITERATIONS = 10
+#: Two corrector iterations in a row whose max |R| exceeds this times the smallest so far have
+#: diverged (one is forgiven: near a nearly singular Jacobian, a kink's translation mode,
+#: round-off can throw one step off before Newton converges).
+DIVERGENCE = 1.0
+#: Step growth after a correction in at most EASY iterations, and shrinking after HARD or more.
+EASY, HARD = 3, 7
+GROW, SHRINK = 1.5, 0.7
+#: Secant iterations that locate an event, and the arclength accuracy asked of them.
+EVENT_ITERATIONS = 30
+EVENT_TOL = 1e-10
+
+
+class BranchEnd(StrEnum):
+    """Why a branch ended (the one vocabulary of every continuation)."""
+
+    #: The parameter turned back (a fold); the branch goes on beyond it, unstable on one side.
+    FOLD = "fold"
+    #: Two branches cross here; :func:`branch_directions` gives the other one.
+    BRANCH_POINT = "branch_point"
+    #: The period of an orbit exceeded its bound: it diverges (a homoclinic or SNIC end).
+    INFINITE_PERIOD = "infinite_period"
+    #: The parameter left the range asked for.
+    PARAMETER_LIMIT = "parameter_limit"
+    #: The number of points asked for was reached; the branch goes on.
+    MAX_POINTS = "max_points"
+    #: No step down to ``min_step`` could be corrected: a singularity the problem cannot pass.
+    STEP_TOO_SMALL = "step_too_small"
+    #: Stopped at the first point where stability was lost, as asked.
+    UNSTABLE = "unstable"
+    #: Stopped, as asked, at a period doubling (a Floquet multiplier through -1).
+    PERIOD_DOUBLING = "period_doubling"
+    #: Stopped, as asked, at a torus (Neimark-Sacker) point (a complex pair of multipliers through the unit circle).
+    TORUS = "torus"
+    #: Stopped, as asked, at a Hopf point (a complex pair of eigenvalues through the imaginary axis).
+    HOPF = "hopf"
+
+    @property
+    def advice(self) -> str:
+        """What to do about this end."""
+        return _ADVICE[self]
+
+
+_ADVICE = {
+    BranchEnd.FOLD: "continue past it with stop_at_fold=False to follow the other side",
+    BranchEnd.BRANCH_POINT: "switch branches with branch_directions() at the located point",
+    BranchEnd.INFINITE_PERIOD: "raise period_max to follow the period further (its fitted end is given)",
+    BranchEnd.PARAMETER_LIMIT: "widen the parameter range to go on",
+    BranchEnd.MAX_POINTS: "raise max_points to go on",
+    BranchEnd.STEP_TOO_SMALL: "try a smaller min_step or tighter integration tolerances; the branch may be singular there",
+    BranchEnd.UNSTABLE: "pass until_unstable=False to follow the unstable part",
+    BranchEnd.PERIOD_DOUBLING: "continue the period-doubled orbit (turns doubled, period doubled) from the located point",
+    BranchEnd.TORUS: "the orbit goes on, unstable, beyond it: leave torus out of stop_at to follow it",
+    BranchEnd.HOPF: "a family of periodic orbits is born here: start one from the located eigenvector",
+}
+
+
+class Corrector(StrEnum):
+    """Outcome of one Newton correction."""
+
+    CONVERGED = "converged"
+    DIVERGED = "diverged"
+    STALLED = "stalled"
+    NOT_FINITE = "not_finite"
+
+
+@dataclass
+class Evaluation:
+    """R(w), and with a Jacobian request dR/dw (n, n + 1) and whatever the problem computed beside (``data``)."""
+
+    residual: np.ndarray
+    jacobian: Any = None
+    data: Any = None
+
+
+@dataclass
+class Correction:
+    """Result of :func:`newton`."""
+
+    status: Corrector
+    w: np.ndarray
+    evaluation: Evaluation | None
+    norm: float
+    iterations: int
+
+    @property
+    def converged(self) -> bool:
+        return self.status == Corrector.CONVERGED
+
+
+class ContinuationProblem(Protocol):
+    """What a branch is: its equations, tests, monitors and stops.
+
+    ``tol`` is the corrector's tolerance on max |R|.
+    """
+
+    tol: float
+
+    def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
+        """R(w) and, with ``jacobian``, dR/dw."""
+
+    def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> Any:
+        """The point the branch stores at a corrected w (an orbit, an equilibrium)."""
+
+    def accept(self, previous: Any, candidate: Any) -> bool:
+        """Whether the step from ``previous`` to ``candidate`` kept within the monitors' budgets."""
+
+    def tests(self, point: Any) -> dict[str, float]:
+        """Test functions whose sign changes are events, beside the built-in fold and branch point."""
+
+    def stop(self, point: Any) -> tuple[BranchEnd, str] | None:
+        """Whether the branch ends at this point, why and with which message."""
+
+    def confirm(self, kind: str, point: Any) -> bool:
+        """Whether a located event of this kind is real at ``point`` (a fold of cycles has a second
+        multiplier at +1, a torus a pair on the unit circle); a sign change that is not is dropped."""
+
+
+def _solve(matrix, rhs: np.ndarray) -> np.ndarray:
+    if sp.issparse(matrix):
+        return spla.spsolve(sp.csc_matrix(matrix), rhs)
+    return np.linalg.solve(matrix, rhs)
+
+
+def _bordered(jacobian, row: np.ndarray):
+    if sp.issparse(jacobian):
+        return sp.vstack([jacobian, sp.csr_matrix(row[None, :])], format="csc")
+    return np.vstack([jacobian, row])
+
+
+def _sign_det(matrix) -> float:
+    """Sign of the determinant (0 for a singular matrix)."""
+    if sp.issparse(matrix):
+        try:
+            lu = spla.splu(sp.csc_matrix(matrix))
+        except RuntimeError:
+            return 0.0
+        diag = lu.U.diagonal()
+        sign = np.prod(np.sign(diag))
+        # splu permutes rows (perm_r) and columns (perm_c): each permutation's parity multiplies the sign.
+        return float(sign * _parity(lu.perm_r) * _parity(lu.perm_c))
+    sign, _ = np.linalg.slogdet(matrix)
+    return float(np.real(sign))
+
+
+def _parity(perm: np.ndarray) -> int:
+    seen = np.zeros(len(perm), dtype=bool)
+    parity = 1
+    for i in range(len(perm)):
+        if not seen[i]:
+            j, length = i, 0
+            while not seen[j]:
+                seen[j] = True
+                j = perm[j]
+                length += 1
+            if length % 2 == 0:
+                parity = -parity
+    return parity
+
+
+def newton(
+    evaluate: Callable[[np.ndarray, bool], Evaluation],
+    w0: np.ndarray,
+    *,
+    tol: float,
+    max_iterations: int = MAX_ITERATIONS,
+    border: tuple[np.ndarray, np.ndarray] | None = None,
+    keep: np.ndarray | None = None,
+) -> Correction:
+    """Newton's method on R(w) = 0, the one corrector of the package's continuations.
+
+    Parameters
+    ----------
+    evaluate : callable(w, jacobian) -> Evaluation
+    w0 : ndarray
+        Start.
+    tol : float
+        Converged when max |R| <= tol (the residual at the returned w; the Jacobian there is fresh).
+    max_iterations : int
+        Stalled after this many iterations.
+    border : (t, w_pred), optional
+        Adds the arclength condition t . (w - w_pred) = 0 (R has one unknown more than
+        equations); without it R is square, or only the unknowns ``keep`` (a boolean mask)
+        move.
+    keep : ndarray of bool, optional
+
+    Returns
+    -------
+    Correction
+        Its status names the test that ended it: converged, diverged (two iterations in a
+        row that did not reduce max |R| below its smallest value), stalled
+        (``max_iterations``) or not finite.
+    """
+    w = np.array(w0, dtype=float)
+    best, grace = math.inf, True
+    for iteration in range(max_iterations + 1):
+        try:
+            ev = evaluate(w, True)
+        except (ArithmeticError, np.linalg.LinAlgError, EvaluationFailed):
+            return Correction(Corrector.NOT_FINITE, w, None, math.inf, iteration)
+        residual = np.asarray(ev.residual, dtype=float)
+        norm = float(np.max(np.abs(residual))) if residual.size else 0.0
+        if not math.isfinite(norm):
+            return Correction(Corrector.NOT_FINITE, w, ev, norm, iteration)
+        if norm <= tol:
+            return Correction(Corrector.CONVERGED, w, ev, norm, iteration)
+        if norm > DIVERGENCE * best:
+            # One growing iteration is forgiven: near a nearly singular Jacobian round-off can
+            # throw one step off, and the next recovers.
+            if not grace:
+                return Correction(Corrector.DIVERGED, w, ev, norm, iteration)
+            grace = False
+        elif norm < best:
+            best, grace = norm, True
+        if iteration == max_iterations:
+            break
+        try:
+            if border is not None:
+                t, w_pred = border
+                step = _solve(_bordered(ev.jacobian, t), -np.append(residual, t @ (w - w_pred)))
+                w = w + step
+            elif keep is not None:
+                jac = ev.jacobian[:, keep] if not sp.issparse(ev.jacobian) else sp.csc_matrix(ev.jacobian)[:, np.flatnonzero(keep)]
+                w = w.copy()
+                w[keep] += _solve(jac, -residual)
+            else:
+                w = w + _solve(ev.jacobian, -residual)
+        except (np.linalg.LinAlgError, RuntimeError):
+            return Correction(Corrector.NOT_FINITE, w, ev, norm, iteration)
+        if not np.all(np.isfinite(w)):
+            return Correction(Corrector.NOT_FINITE, w, ev, norm, iteration)
+    return Correction(Corrector.STALLED, w, ev, norm, max_iterations)
+
+
+class EvaluationFailed(CosseratChainError, RuntimeError):
+    """What a problem raises when R cannot be evaluated at a trial w (an integration that failed);
+    the corrector then reports ``not_finite``."""
+
+
+def tangent(jacobian, previous: np.ndarray | None = None, *, direction: float = 1.0) -> np.ndarray:
+    """Unit null vector of dR/dw (n, n + 1), oriented along ``previous`` (or with sign(t[-1]) = direction)."""
+    if previous is not None:
+        t = _solve(_bordered(jacobian, previous), np.append(np.zeros(jacobian.shape[0]), 1.0))
+    elif sp.issparse(jacobian):
+        seed = np.zeros(jacobian.shape[1])
+        seed[-1] = 1.0
+        t = _solve(_bordered(jacobian, seed), np.append(np.zeros(jacobian.shape[0]), 1.0))
+    else:
+        t = sla.null_space(np.asarray(jacobian, dtype=float))[:, -1]
+    t = t / np.linalg.norm(t)
+    reference = previous @ t if previous is not None else t[-1] * direction
+    return -t if reference < 0 else t
+
+
+def branch_directions(jacobian: np.ndarray, along: np.ndarray) -> np.ndarray:
+    """At a branch point, the unit direction of the other branch: in the two-dimensional null
+    space of dR/dw (dense), the direction orthogonal to the branch's own tangent ``along``."""
+    _, _, vh = np.linalg.svd(np.asarray(jacobian, dtype=float))
+    null = vh[-2:].T
+    other = null - np.outer(along, along @ null)
+    best = other[:, np.argmax(np.linalg.norm(other, axis=0))]
+    return best / np.linalg.norm(best)
+
+
+@dataclass
+class Event:
+    """A located zero of a test function between two points."""
+
+    kind: str
+    point: Any
+    parameter: float
+    index: int  # the event lies between points[index - 1] and points[index]
+    tangent: np.ndarray | None = None
+    located: bool = True
+
+
+@dataclass
+class Continuation:
+    """A traced branch: its points, located events, and why it ended."""
+
+    points: list = field(default_factory=list)
+    events: list[Event] = field(default_factory=list)
+    end: BranchEnd = BranchEnd.MAX_POINTS
+    message: str = ""
+    tangents: list[np.ndarray] = field(default_factory=list)
+
+
+def continuation(
+    problem: ContinuationProblem,
+    w0: np.ndarray,
+    *,
+    step: float,
+    min_step: float,
+    max_step: float,
+    max_points: int,
+    direction: float = 1.0,
+    tangent0: np.ndarray | None = None,
+    stop_at: tuple[str, ...] = (),
+    progress: Callable[[int, int], None] | None = None,
+) -> Continuation:
+    """Follow the branch of ``problem`` from a point w0 on it (pseudo-arclength).
+
+    Parameters
+    ----------
+    problem : ContinuationProblem
+    w0 : ndarray (n + 1,)
+        A point on the branch (corrected here with lambda fixed).
+    step, min_step, max_step : float
+        Initial, smallest and largest arclength steps.
+    max_points : int
+    direction : float
+        +1 to start towards larger lambda, -1 towards smaller (ignored with ``tangent0``).
+    tangent0 : ndarray, optional
+        Starting direction (e.g. from :func:`branch_directions`, to switch branches).
+    stop_at : tuple of str
+        Event kinds that end the branch once located: values of :class:`BranchEnd`
+        (``"fold"``, ``"branch_point"``, ``"period_doubling"``, ``"torus"``, ``"hopf"``).
+    progress : callable(points, max_points), optional
+
+    Returns
+    -------
+    Continuation
+    """
+    for name, value in (("step", step), ("min_step", min_step), ("max_step", max_step)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    if not min_step <= step <= max_step:
+        raise ValueError(f"steps must satisfy min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
+    if not (isinstance(max_points, int) and max_points >= 1):
+        raise ValueError(f"max_points must be an integer >= 1, got {max_points!r}")
+    unknown = [kind for kind in stop_at if kind not in BranchEnd._value2member_map_]
+    if unknown:
+        raise ValueError(f"stop_at: unknown event kinds {unknown}; allowed: fold, branch_point, period_doubling, torus, hopf")
+    keep = np.ones(len(w0), dtype=bool)
+    keep[-1] = False
+    start = newton(problem.evaluate, w0, tol=problem.tol, keep=keep)
+    if not start.converged:
+        raise StartError(f"the start is not on the branch: the corrector {start.status} with max|R| = {start.norm:.3g}")
+    w = start.w
+    ev = start.evaluation
+    t = (
+        tangent(ev.jacobian, None, direction=direction)
+        if tangent0 is None
+        else np.asarray(tangent0, dtype=float) / np.linalg.norm(tangent0)
+    )
+    if tangent0 is not None:
+        t = tangent(ev.jacobian, t)
+    point = problem.point(w, ev, start.iterations)
+    result = Continuation(points=[point], tangents=[t])
+    if progress is not None:
+        progress(1, max_points)
+    tests = _all_tests(problem, point, ev.jacobian, t)
+    h = step
+    while len(result.points) < max_points:
+        corrected = newton(problem.evaluate, w + h * t, tol=problem.tol, border=(t, w + h * t))
+        candidate = problem.point(corrected.w, corrected.evaluation, corrected.iterations) if corrected.converged else None
+        if candidate is None or (h > min_step and not problem.accept(result.points[-1], candidate)):
+            if h <= min_step:
+                result.end = BranchEnd.STEP_TOO_SMALL
+                result.message = (
+                    f"no step down to min_step={min_step:g} could be corrected after lambda = {w[-1]:.10g}: "
+                    + BranchEnd.STEP_TOO_SMALL.advice
+                )
+                break
+            h = max(min_step, 0.5 * h)
+            continue
+        t_new = tangent(corrected.evaluation.jacobian, t)
+        new_tests = _all_tests(problem, candidate, corrected.evaluation.jacobian, t_new)
+        result.points.append(candidate)
+        result.tangents.append(t_new)
+        if progress is not None:
+            progress(len(result.points), max_points)
+        ended = None
+        for kind in new_tests:
+            if kind in tests and tests[kind] * new_tests[kind] < 0:
+                event = _locate(problem, kind, w, t, h, tests[kind], new_tests[kind], len(result.points) - 1, candidate)
+                if event.located and not problem.confirm(kind, event.point):
+                    continue
+                result.events.append(event)
+                if kind in stop_at and ended is None:
+                    ended = kind
+        w, t, tests = corrected.w, t_new, new_tests
+        h = min(max_step, h * (GROW if corrected.iterations <= EASY else SHRINK if corrected.iterations >= HARD else 1.0))
+        if ended is not None:
+            result.end = BranchEnd(ended)
+            result.message = f"{ended.replace('_', ' ')} located at lambda = {result.events[-1].parameter:.12g}: {result.end.advice}"
+            break
+        stop = problem.stop(candidate)
+        if stop is not None:
+            result.end, result.message = stop
+            break
+    else:
+        result.message = f"stopped after max_points={max_points} points: " + BranchEnd.MAX_POINTS.advice
+    return result
+
+
+class StartError(CosseratChainError, ValueError):
+    """The start of a continuation is not on its branch."""
+
+
+def _all_tests(problem: ContinuationProblem, point, jacobian, t: np.ndarray) -> dict[str, float]:
+    tests = {"fold": float(t[-1]), "branch_point": _sign_det(_bordered(jacobian, t))}
+    tests.update(problem.tests(point))
+    return tests
+
+
+def _locate(problem, kind: str, w: np.ndarray, t: np.ndarray, h: float, before: float, after: float, index: int, fallback) -> Event:
+    """Zero of test ``kind`` on the arclength in (0, h) from w along t, by the secant (Illinois) method;
+    the branch point's test is a sign only, so it is bisected."""
+    low, high, f_low, f_high = 0.0, h, before, after
+    best = None
+    side = 0
+    for _ in range(EVENT_ITERATIONS):
+        if kind == "branch_point":
+            s = 0.5 * (low + high)
+        else:
+            s = high - f_high * (high - low) / (f_high - f_low)
+            if not (low < s < high):
+                s = 0.5 * (low + high)
+        corrected = newton(problem.evaluate, w + s * t, tol=problem.tol, border=(t, w + s * t))
+        if not corrected.converged:
+            break
+        point = problem.point(corrected.w, corrected.evaluation, corrected.iterations)
+        t_s = tangent(corrected.evaluation.jacobian, t)
+        value = _all_tests(problem, point, corrected.evaluation.jacobian, t_s)[kind]
+        best = (point, corrected.w[-1], t_s)
+        if value == 0 or (high - low) < EVENT_TOL * max(1.0, h):
+            break
+        if value * f_low < 0:
+            high, f_high = s, value
+            if side == -1:
+                f_low *= 0.5
+            side = -1
+        else:
+            low, f_low = s, value
+            if side == 1:
+                f_high *= 0.5
+            side = 1
+    if best is None:
+        return Event(kind, fallback, float(np.nan), index, None, located=False)
+    return Event(kind, best[0], float(best[1]), index, best[2])

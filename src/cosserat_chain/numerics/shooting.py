@@ -1,0 +1,564 @@
+"""Periodic orbits of any system: shooting, Floquet multipliers, and continuation in any parameter.
+
+Contract
+--------
+For a :class:`~cosserat_chain.systems.base.System` M q'' = F(q; p) - C q' with state
+y = (q, q') (2n), a periodic orbit of period T that turns k_i times in each angle i is a
+solution of
+
+    Phi_T(y0) - y0 - 2 pi k = 0,        f(y_ref) . (y0 - y_ref) = 0,          (O)
+
+where Phi_t is the flow, k (2n,) holds the turns on the angle coordinates (zero on the
+velocities and the other coordinates), and the second equation (a Poincare plane through
+a reference point y_ref, normal to the flow there) fixes the phase. Unlike a section on one
+coordinate, the plane is transversal wherever the reference orbit is, however a particle
+backs up during a turn, so a continuation cannot stop at a section's false fold.
+
+* :func:`flow` integrates the flow with its variational equations (the monodromy
+  dPhi_T/dy0 and dPhi_T/dp of any named parameter p), by the package's compiled DOP853
+  on a compiled system (:class:`~cosserat_chain.systems.base.FlowKernels`), otherwise by
+  SciPy's DOP853 on the system's Python forces.
+* :func:`find_orbit` solves (O) by Newton (:func:`cosserat_chain.numerics.kit.newton`)
+  in (y0, T); the Floquet multipliers are the eigenvalues of the monodromy.
+* :func:`continue_orbits` follows the orbit in any parameter with the one
+  pseudo-arclength driver (:func:`cosserat_chain.numerics.kit.continuation`), in
+  (y0, log T, p); it locates folds of cycles (confirmed by a second multiplier at +1),
+  period doublings (a multiplier at -1), tori (a complex pair on the unit circle) and
+  branch points, and ends where the period diverges, with the end fitted from the
+  period's growth and the fit's spread given as its uncertainty.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import CosseratChainError
+from ..systems.base import System
+from . import dop853
+from .kit import BranchEnd, Continuation, Evaluation, EvaluationFailed, continuation, newton
+
+#: Tolerances of the shooting integrations.
+RTOL = 1e-11
+ATOL = 1e-11
+#: Newton tolerance on max |R| of (O).
+CLOSURE_TOL = 1e-9
+#: Most DOP853 steps over one period.
+MAX_STEPS = 10_000_000
+#: A multiplier within this of +1, -1 or the unit circle confirms a located fold, period doubling or torus.
+CONFIRM_TOL = 1e-3
+
+
+class OrbitNotFound(CosseratChainError, RuntimeError):
+    """Newton's method on (O) did not converge."""
+
+
+def flow(
+    system: System, y0: np.ndarray, period: float, *, variations: bool, parameter: str | None = None, rtol: float = RTOL, atol: float = ATOL
+):
+    """y(T) from y0 and, with ``variations``, the monodromy dy(T)/dy0 (2n, 2n) and dy(T)/dp (2n,).
+
+    Raises
+    ------
+    EvaluationFailed
+        If the integration cannot finish (a blow-up, or more than MAX_STEPS steps).
+    """
+    n = system.size
+    size = 2 * n
+    ncols = size + 1 if variations else 0
+    kernels = system.flow_kernels()
+    inverse = 1.0 / system.mass()
+    rate = system.damping() * inverse
+    if parameter is not None and variations:
+        d_inverse, d_rate = system.parameter_mass_damping(parameter)
+    else:
+        d_inverse = d_rate = np.zeros(n)
+    start = np.asarray(y0, dtype=float)
+    if variations:
+        start = np.concatenate([start, np.hstack([np.eye(size), np.zeros((size, 1))]).ravel()])
+    if kernels is not None:
+        index = kernels.parameter_index[parameter] if (parameter is not None and variations) else -1
+        ipar = np.array([*kernels.head, ncols, index], dtype=np.int64)
+        rpar = np.concatenate([inverse, rate, d_inverse, d_rate])
+        from ..models.base import no_ends
+
+        sol = dop853.solve(
+            kernels.rhs,
+            _no_force,
+            kernels.coef,
+            rpar,
+            ipar,
+            start,
+            np.array([0.0, period]),
+            rtol=rtol,
+            atol=atol,
+            max_steps=MAX_STEPS,
+            end_force=no_ends,
+        )
+        if not sol.success:
+            raise EvaluationFailed(f"the flow of {system.name} over T={period:.10g} failed: {sol.message}")
+        end = sol.y[-1]
+    else:
+        end = _scipy_flow(system, start, period, variations, parameter, inverse, rate, d_inverse, d_rate, rtol, atol)
+    if not variations:
+        return end[:size], None, None
+    cols = end[size:].reshape(size, ncols)
+    return end[:size], cols[:, :size], cols[:, size]
+
+
+def _scipy_flow(system, start, period, variations, parameter, inverse, rate, d_inverse, d_rate, rtol, atol):
+    from scipy.integrate import solve_ivp
+
+    n = system.size
+
+    def field(t, z):
+        q, v = z[:n], z[n : 2 * n]
+        f = system.forces(q)
+        out = np.empty_like(z)
+        out[:n] = v
+        out[n : 2 * n] = inverse * f - rate * v
+        if variations:
+            cols = z[2 * n :].reshape(2 * n, 2 * n + 1)
+            d = np.empty_like(cols)
+            d[:n] = cols[n:]
+            d[n:] = inverse[:, None] * (system.force_jacobian(q) @ cols[:n]) - rate[:, None] * cols[n:]
+            if parameter is not None:
+                d[n:, -1] += inverse * system.parameter_forces(q, parameter) + d_inverse * f - d_rate * v
+            out[2 * n :] = d.ravel()
+        return out
+
+    sol = solve_ivp(field, (0.0, period), start, method="DOP853", rtol=rtol, atol=atol)
+    if not sol.success or not np.all(np.isfinite(sol.y[:, -1])):
+        raise EvaluationFailed(f"the flow of {system.name} over T={period:.10g} failed: {sol.message}")
+    return sol.y[:, -1]
+
+
+def _no_force_impl(x, coef, out, start, stop):  # pragma: no cover - compiled
+    pass
+
+
+def _compiled_no_force():
+    from numba import njit
+
+    from ..models.base import FORCE_SIGNATURE
+
+    return njit(FORCE_SIGNATURE, cache=True, nogil=True)(_no_force_impl)
+
+
+_no_force = _compiled_no_force()
+
+
+def turns_vector(system: System, turns: Mapping[str | int, int] | np.ndarray | None) -> np.ndarray:
+    """The turns per period of every coordinate (n,) from a mapping name-or-index -> k, checked against the angles."""
+    k = np.zeros(system.size)
+    if turns is None:
+        return k
+    if isinstance(turns, Mapping):
+        names = system.coordinates
+        for key, value in turns.items():
+            i = names.index(key) if isinstance(key, str) and key in names else key
+            if not (isinstance(i, int | np.integer) and 0 <= i < system.size):
+                raise ValueError(f"turns: {key!r} is not a coordinate of {system.name} (coordinates {', '.join(names)})")
+            k[i] = value
+    else:
+        k = np.asarray(turns, dtype=float)
+        if k.shape != (system.size,):
+            raise ValueError(f"turns must have shape ({system.size},), got {k.shape}")
+    if np.any(k != np.round(k)):
+        raise ValueError(f"turns must be whole numbers, got {k}")
+    bad = np.flatnonzero((k != 0) & ~system.angles)
+    if bad.size:
+        raise ValueError(f"turns on {system.coordinates[bad[0]]!r}, which is not an angle of {system.name}: only angles can turn")
+    return k
+
+
+@dataclass
+class Orbit:
+    """A periodic orbit of a system: its start y0 = (q0, v0) on the phase plane, period, turns and Floquet multipliers."""
+
+    system: System
+    y0: np.ndarray
+    period: float
+    turns: np.ndarray
+    multipliers: np.ndarray
+    closure: float
+    iterations: int
+    monodromy: np.ndarray = field(repr=False)
+
+    @property
+    def q0(self) -> np.ndarray:
+        return self.y0[: self.system.size]
+
+    @property
+    def v0(self) -> np.ndarray:
+        return self.y0[self.system.size :]
+
+    def parameter(self, name: str) -> float:
+        return self.system.parameter(name)
+
+    @property
+    def nontrivial_multipliers(self) -> np.ndarray:
+        """The multipliers without the one closest to +1 (the flow direction)."""
+        i = int(np.argmin(np.abs(self.multipliers - 1.0)))
+        return np.delete(self.multipliers, i)
+
+    @property
+    def max_multiplier(self) -> float:
+        return float(np.max(np.abs(self.nontrivial_multipliers), initial=0.0))
+
+    @property
+    def stable(self) -> bool:
+        return self.max_multiplier < 1.0
+
+    def trajectory(self, times: np.ndarray, *, rtol: float = RTOL, atol: float = ATOL) -> np.ndarray:
+        """States y (len(times), 2n) along the orbit at ``times`` (from 0)."""
+        times = np.asarray(times, dtype=float)
+        out = [self.y0.copy()]
+        y = self.y0
+        for a, b in zip(times[:-1], times[1:], strict=True):
+            y = flow(self.system, y, b - a, variations=False, rtol=rtol, atol=atol)[0] if b > a else y
+            out.append(y)
+        return np.array(out)
+
+    def as_dict(self) -> dict:
+        return {
+            **self.system.describe(),
+            "period": self.period,
+            "turns": self.turns.tolist(),
+            "q0": self.q0.tolist(),
+            "v0": self.v0.tolist(),
+            "multipliers_abs": np.abs(self.multipliers).tolist(),
+            "max_multiplier": self.max_multiplier,
+            "stable": self.stable,
+            "closure": self.closure,
+        }
+
+
+class _Shooting:
+    """Equations (O) of one system, turns and reference point, with the parameter ``name`` unknown (or fixed)."""
+
+    def __init__(self, system: System, turns: np.ndarray, reference: np.ndarray, name: str | None, tol: float, rtol: float, atol: float):
+        self.system, self.name, self.tol, self.rtol, self.atol = system, name, tol, rtol, atol
+        n = system.size
+        self.shift = np.concatenate([2 * math.pi * turns, np.zeros(n)])
+        self.turns = turns
+        self.set_reference(reference)
+
+    def set_reference(self, reference: np.ndarray) -> None:
+        self.reference = np.array(reference, dtype=float)
+        self.normal = self.system.vector_field(self.reference)
+
+    def at(self, w: np.ndarray) -> System:
+        return self.system if self.name is None else self.system.with_parameters(**{self.name: float(w[-1])})
+
+    def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
+        size = 2 * self.system.size
+        y0, log_period = w[:size], w[size]
+        if not (math.isfinite(log_period) and log_period < 50):
+            raise EvaluationFailed(f"log T = {log_period!r} out of range")
+        period = math.exp(log_period)
+        system = self.at(w)
+        end, mono, d_param = flow(
+            system, y0, period, variations=jacobian, parameter=self.name if jacobian else None, rtol=self.rtol, atol=self.atol
+        )
+        residual = np.append(end - y0 - self.shift, self.normal @ (y0 - self.reference))
+        if not jacobian:
+            return Evaluation(residual)
+        cols = [mono - np.eye(size), (period * system.vector_field(end))[:, None]]
+        if self.name is not None:
+            cols.append(d_param[:, None])
+        top = np.hstack(cols)
+        bottom = np.concatenate([self.normal, np.zeros(top.shape[1] - size)])
+        return Evaluation(residual, np.vstack([top, bottom]), mono)
+
+    def orbit(self, w: np.ndarray, ev: Evaluation, iterations: int) -> Orbit:
+        size = 2 * self.system.size
+        return Orbit(
+            system=self.at(w),
+            y0=w[:size].copy(),
+            period=math.exp(w[size]),
+            turns=self.turns,
+            multipliers=np.linalg.eigvals(ev.data),
+            closure=float(np.max(np.abs(ev.residual[:-1]))),
+            iterations=iterations,
+            monodromy=ev.data,
+        )
+
+
+def find_orbit(
+    system: System,
+    guess: tuple[np.ndarray, float] | Orbit,
+    *,
+    turns: Mapping[str | int, int] | np.ndarray | None = None,
+    tol: float = CLOSURE_TOL,
+    max_iterations: int = 25,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+) -> Orbit:
+    """The periodic orbit near ``guess``, by Newton on (O).
+
+    Parameters
+    ----------
+    system : System
+    guess : (y0 (2n,), T) or Orbit
+        A state on or near the orbit and its period (e.g. from :func:`settled_guess`).
+    turns : mapping coordinate (name or index) -> k, or (n,) array
+        Turns per period of the angles (a rotation); none for an oscillation.
+    tol : float
+        Newton stops when max |R| <= tol.
+
+    Raises
+    ------
+    OrbitNotFound
+        If Newton does not converge (a guess from a nearby parameter or a settled simulation helps).
+    """
+    if isinstance(guess, Orbit):
+        y0, period, k = guess.y0, guess.period, guess.turns if turns is None else turns_vector(system, turns)
+    else:
+        y0, period = guess
+        k = turns_vector(system, turns)
+    y0 = np.asarray(y0, dtype=float)
+    if y0.shape != (2 * system.size,) or not np.all(np.isfinite(y0)):
+        raise ValueError(f"the guessed state must be 2n = {2 * system.size} finite numbers, got shape {y0.shape}")
+    if not (math.isfinite(period) and period > 0):
+        raise ValueError(f"the guessed period must be finite and > 0, got {period!r}")
+    shooting = _Shooting(system, k, y0, None, tol, rtol, atol)
+    corrected = newton(shooting.evaluate, np.append(y0, math.log(period)), tol=tol, max_iterations=max_iterations)
+    if not corrected.converged:
+        raise OrbitNotFound(
+            f"Newton on the periodic orbit of {system.name} {corrected.status} after {corrected.iterations} iterations "
+            f"(max|R| = {corrected.norm:.3g}); start from a settled simulation (settled_guess) or a nearby parameter's orbit"
+        )
+    return shooting.orbit(corrected.w, corrected.evaluation, corrected.iterations)
+
+
+def settled_guess(
+    system: System,
+    y0: np.ndarray,
+    *,
+    coordinate: str | int,
+    turns: int = 1,
+    transient: float = 200.0,
+    window: float = 200.0,
+    samples: int = 4000,
+) -> tuple[np.ndarray, float]:
+    """A start for :func:`find_orbit` from a simulation: after ``transient``, the state where
+    ``coordinate`` crosses a multiple of 2 pi and the time it takes to gain 2 pi ``turns`` more.
+
+    Raises
+    ------
+    OrbitNotFound
+        If the coordinate does not turn ``turns`` times within ``window``.
+    """
+    i = system.coordinates.index(coordinate) if isinstance(coordinate, str) else int(coordinate)
+    y = flow(system, np.asarray(y0, dtype=float), transient, variations=False)[0]
+    times = np.linspace(0.0, window, samples)
+    states = [y]
+    for dt in np.diff(times):
+        states.append(flow(system, states[-1], dt, variations=False, rtol=1e-10, atol=1e-10)[0])
+    angle = np.array(states)[:, i]
+    level = np.floor(angle / (2 * math.pi))
+    crossings = np.flatnonzero(np.diff(level) != 0)
+    if crossings.size < turns + 1:
+        raise OrbitNotFound(
+            f"{system.coordinates[i]} did not turn {turns} times in a window of {window:g} after a transient of {transient:g}"
+        )
+    a, b = crossings[0], crossings[turns]
+    start = states[a + 1].copy()
+    # Whole turns are dropped from the angles: the orbit is the same, the numbers small.
+    angles = np.flatnonzero(system.angles)
+    start[angles] -= 2 * math.pi * np.floor(start[angles] / (2 * math.pi))
+    return start, float(times[b + 1] - times[a + 1])
+
+
+@dataclass
+class OrbitBranch:
+    """Orbits continued in one parameter, with their located events and how the branch ended."""
+
+    parameter: str
+    orbits: list[Orbit]
+    events: list
+    end: BranchEnd
+    message: str
+    end_value: float | None = None
+    end_uncertainty: float | None = None
+
+    @property
+    def values(self) -> np.ndarray:
+        return np.array([o.parameter(self.parameter) for o in self.orbits])
+
+    @property
+    def periods(self) -> np.ndarray:
+        return np.array([o.period for o in self.orbits])
+
+    def as_dict(self) -> dict:
+        return {
+            "parameter": self.parameter,
+            "values": self.values.tolist(),
+            "periods": self.periods.tolist(),
+            "max_multiplier": [o.max_multiplier for o in self.orbits],
+            "events": [{"kind": e.kind, "value": e.parameter, "period": e.point.period if e.located else None} for e in self.events],
+            "end": str(self.end),
+            "message": self.message,
+            "end_value": self.end_value,
+            "end_uncertainty": self.end_uncertainty,
+        }
+
+
+class _OrbitProblem:
+    """(O) with the parameter unknown, for :func:`cosserat_chain.numerics.kit.continuation`."""
+
+    def __init__(self, shooting: _Shooting, period_max: float, limits: tuple[float, float], until_unstable: bool, start_stable: bool):
+        self.shooting, self.tol = shooting, shooting.tol
+        self.period_max, self.limits, self.until_unstable, self.start_stable = period_max, limits, until_unstable, start_stable
+
+    def evaluate(self, w, jacobian):
+        return self.shooting.evaluate(w, jacobian)
+
+    def point(self, w, ev, iterations) -> Orbit:
+        return self.shooting.orbit(w, ev, iterations)
+
+    def accept(self, previous: Orbit, candidate: Orbit) -> bool:
+        # The next phase plane passes through the orbit just found.
+        self.shooting.set_reference(candidate.y0)
+        return True
+
+    def tests(self, orbit: Orbit) -> dict[str, float]:
+        mu = orbit.nontrivial_multipliers
+        complex_pairs = mu[np.imag(mu) > 1e-9]
+        return {
+            "period_doubling": float(np.real(np.prod(mu + 1.0))),
+            "torus": float(np.prod(np.abs(complex_pairs) - 1.0)) if complex_pairs.size else 1.0,
+            "stability": 1.0 if orbit.stable else -1.0,
+        }
+
+    def confirm(self, kind: str, orbit: Orbit) -> bool:
+        mu = orbit.nontrivial_multipliers
+        if kind == "fold":
+            return bool(np.min(np.abs(mu - 1.0), initial=math.inf) < CONFIRM_TOL**0.5)
+        if kind == "period_doubling":
+            return bool(np.min(np.abs(mu + 1.0), initial=math.inf) < CONFIRM_TOL)
+        if kind == "torus":
+            pairs = mu[np.abs(np.imag(mu)) > 1e-6]
+            return bool(np.min(np.abs(np.abs(pairs) - 1.0), initial=math.inf) < CONFIRM_TOL)
+        return True
+
+    def stop(self, orbit: Orbit):
+        value = orbit.parameter(self.shooting.name)
+        if orbit.period > self.period_max:
+            return (
+                BranchEnd.INFINITE_PERIOD,
+                f"the period exceeded period_max={self.period_max:g} at {self.shooting.name} = {value:.12g}: it diverges",
+            )
+        if not self.limits[0] <= value <= self.limits[1]:
+            return BranchEnd.PARAMETER_LIMIT, f"{self.shooting.name} = {value:.12g} left [{self.limits[0]:g}, {self.limits[1]:g}]"
+        if self.until_unstable and self.start_stable and not orbit.stable:
+            return BranchEnd.UNSTABLE, f"stability lost near {self.shooting.name} = {value:.12g}"
+        return None
+
+
+def continue_orbits(
+    orbit: Orbit,
+    parameter: str,
+    *,
+    direction: float = -1.0,
+    limits: tuple[float, float] = (-math.inf, math.inf),
+    period_max: float = 1000.0,
+    step: float = 0.05,
+    min_step: float = 1e-6,
+    max_step: float = 0.5,
+    max_points: int = 300,
+    stop_at: tuple[str, ...] = ("fold",),
+    until_unstable: bool = False,
+    tol: float = CLOSURE_TOL,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+    progress: Callable[[int, int], None] | None = None,
+) -> OrbitBranch:
+    """Follow ``orbit`` in the named ``parameter`` (pseudo-arclength in (y0, log T, p)).
+
+    Parameters
+    ----------
+    orbit : Orbit
+        Start (from :func:`find_orbit`).
+    parameter : str
+        Any parameter of the orbit's system.
+    direction : float
+        Start towards smaller (-1) or larger (+1) values.
+    limits : (float, float)
+        Stop when the parameter leaves this range.
+    period_max : float
+        Stop when the period exceeds it; the end is then fitted from the period's growth.
+    stop_at : tuple of str
+        Events that end the branch (``fold``, ``period_doubling``, ``torus``, ``branch_point``).
+
+    Returns
+    -------
+    OrbitBranch
+        Events located on the way are confirmed by their multipliers (a fold of cycles needs a
+        second multiplier at +1, a period doubling one at -1, a torus a complex pair on the circle).
+    """
+    system = orbit.system
+    system.parameter(parameter)
+    shooting = _Shooting(system, orbit.turns, orbit.y0, parameter, tol, rtol, atol)
+    problem = _OrbitProblem(shooting, period_max, limits, until_unstable, orbit.stable)
+    w0 = np.concatenate([orbit.y0, [math.log(orbit.period), system.parameter(parameter)]])
+    traced: Continuation = continuation(
+        problem,
+        w0,
+        step=step,
+        min_step=min_step,
+        max_step=max_step,
+        max_points=max_points,
+        direction=direction,
+        stop_at=stop_at,
+        progress=progress,
+    )
+    branch = OrbitBranch(parameter, traced.points, traced.events, traced.end, traced.message)
+    growing = len(branch.orbits) >= 4 and branch.periods[-1] > 2 * min(branch.periods)
+    if traced.end == BranchEnd.INFINITE_PERIOD or (traced.end == BranchEnd.STEP_TOO_SMALL and growing):
+        branch.end_value, branch.end_uncertainty = _fitted_end(branch)
+        if branch.end_value is not None:
+            branch.message += (
+                f"; the period grows like a homoclinic end's: fitted end {parameter} = {branch.end_value:.10g} "
+                f"+- {branch.end_uncertainty:.2g} (a fit of p = p* + c exp(-s T), not a computed point)"
+            )
+    return branch
+
+
+def _fitted_end(branch: OrbitBranch) -> tuple[float | None, float | None]:
+    """Where the period diverges, from the last orbits: p = p* + c exp(-s T) (a homoclinic end)
+    fitted through three orbits spread over the last span of periods, against the same fit over
+    half that span as its uncertainty."""
+    values, periods = branch.values, branch.periods
+    if len(values) < 4:
+        return None, None
+
+    def spread(span: float) -> tuple[np.ndarray, np.ndarray]:
+        picks = [int(np.argmin(np.abs(periods - (periods[-1] - f * span)))) for f in (1.0, 0.5, 0.0)]
+        return values[picks], periods[picks]
+
+    def fit(v: np.ndarray, t: np.ndarray) -> float:
+        from scipy.optimize import brentq
+
+        t = t - t[0]
+        ratio = (v[2] - v[1]) / (v[1] - v[0])
+
+        def mismatch(rate: float) -> float:
+            e = np.exp(-rate * t)
+            return (e[2] - e[1]) / (e[1] - e[0]) - ratio
+
+        try:
+            rate = brentq(mismatch, 1e-9, 50.0 / max(t[2], 1e-12))
+        except ValueError:
+            return float(v[2])
+        e = np.exp(-rate * t)
+        scale = (v[2] - v[1]) / (e[2] - e[1])
+        return float(v[2] - scale * e[2])
+
+    span = min(6.0, 0.5 * (periods[-1] - np.min(periods)))
+    wide, narrow = fit(*spread(span)), fit(*spread(0.5 * span))
+    return wide, abs(wide - narrow)
