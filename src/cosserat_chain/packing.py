@@ -1,8 +1,8 @@
 """Compiled take and put by index: the kernels of :func:`~cosserat_chain.state.pack` and :func:`~cosserat_chain.state.unpack`.
 
 A module of their own, so that importing :mod:`~cosserat_chain.state` (the command line
-does, to start quickly) loads no numba. NumPy's fancy indexing cost 9 us (take) and
-15 us (put) at N = 1000, and a continuation packs and unpacks some seven times a point.
+does, to start quickly) loads no numba. Compiled, because NumPy's fancy indexing is slower (benchmarks/TIMINGS.md)
+and a continuation packs and unpacks some seven times a point.
 """
 
 from __future__ import annotations

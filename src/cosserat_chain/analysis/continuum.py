@@ -519,7 +519,7 @@ def _discrete_check(params: ChainParams) -> tuple[float, float]:
     factor = la.cholesky_banded(bands)
     solution = unpack(params, refined_solve(stiffness, pack(params, load), lambda r: la.cho_solve_banded((factor, False), r)).x)
     # The smallest eigenvalue by inverse iteration with the factor (O(N) a step; LAPACK's
-    # banded eigensolver is O(N^2): 73 s at N = 10^4), the largest bounded by Gershgorin.
+    # banded eigensolver is O(N^2): benchmarks/TIMINGS.md), the largest bounded by Gershgorin.
     vector = np.random.default_rng(0).standard_normal(bands.shape[1])
     lowest = math.inf
     for _ in range(CONDITION_ITERATIONS):

@@ -648,7 +648,7 @@ def errata(params: ChainParams | None = None) -> tuple[Erratum, ...]:
     printed_K = printed_eq3_stiffness(params)
     inverse_mass = 1.0 / per_dof(params, params.inertia)
     lowest = lowest_real_eigenvalue(sparse.diags(inverse_mass) @ printed_K)
-    # O(N) (LAPACK's banded eigensolver is O(N^2): 36 s at N = 10^4).
+    # O(N) (LAPACK's banded eigensolver is O(N^2): benchmarks/TIMINGS.md).
     derived_lowest, derived_resolution = smallest_eigenvalue(stiffness_matrix(params))
     asymmetry = float(abs(printed_K - printed_K.T).max())
     # A long chain's softest eigenvalue (N^-4) falls below its round-off: its digits are then noise.

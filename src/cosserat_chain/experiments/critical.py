@@ -456,7 +456,7 @@ def critical_point(
     gives ``complete`` False. Where K is near singular at rest the branch is traced twice and
     the folds confirmed (module docstring); ``progress`` then runs to twice the turn. ``dynamics``
     False skips the damped dynamics' eigenvalues along the branch of a model that is not
-    conservative (dense, O(n^3) a point: 40-55 s for the sine model at N = 33 on 2 cores) where only the folds
+    conservative (dense, O(n^3) a point: benchmarks/TIMINGS.md) where only the folds
     are wanted: ``dynamics_from`` is then "not computed" (a conservative model's verdict, K's
     inertia by the theorem, costs nothing and is given).
 

@@ -83,7 +83,7 @@ APPROACH_POINTS = 12
 #: extrapolation too far to report (the weakly damped pendulum's: 1.2e-4 at gamma_phi = 0.01).
 APPROACH_RTOL = 1e-3
 #: Default period beyond which the period counts as diverging (each orbit near it costs an
-#: integration of that length with its monodromy: 300 took 280 s for the sine chain's SNIC).
+#: integration of that length with its monodromy: benchmarks/TIMINGS.md).
 PERIOD_MAX = 100.0
 #: An imaginary part of the leading multiplier above this (relative to its modulus) is a complex pair.
 COMPLEX_RTOL = 1e-6

@@ -128,8 +128,8 @@ def band_storage(matrix: sp.spmatrix | BandMatrix) -> np.ndarray:
 
     Its upper triangle is read (a Hessian summed link by link is symmetric only to round-off:
     one triangle is read, as LAPACK's upper storage reads it, and either gives the same
-    inertia), in place: a copy by rows of the lower band cost 55 us at N = 1000, once a point
-    of a branch. A sparse matrix goes through its band.
+    inertia), in place: no copy by rows of the lower band once a point of a branch
+    (benchmarks/TIMINGS.md). A sparse matrix goes through its band.
 
     Raises
     ------
@@ -156,7 +156,7 @@ def negated_lu(stiffness):  # pragma: no cover - compiled
     same factor bit for bit), each row's terms read from rows already final. The sums have
     the band's constant lengths outside the first B rows (the loops unroll), and -K is
     read from K's storage as it goes: the copy of -K and the second copy to eliminate in
-    were half the factor's time (133 -> 67 us at N = 1000).
+    were half the factor's time (benchmarks/TIMINGS.md).
     """
     n = stiffness.shape[0] - 2 * BANDWIDTH
     band = np.empty((n + BANDWIDTH, 2 * BANDWIDTH + 1))
@@ -203,8 +203,8 @@ def ldlt(band, shift, factor, inverse):  # pragma: no cover - compiled
 
     A row's entries are formed as w_d = L[i, i - d] D[i - d] first, each from the ones
     before it, and L's entry is w_d times the reciprocal pivot: the chain of dependences
-    along a row holds multiply-adds only, where it held a division per entry (the factor
-    0.106 -> 0.086 ms at N = 1000); the one division a row is off that chain.
+    along a row holds multiply-adds only, where it held a division per entry (benchmarks/TIMINGS.md);
+    the one division a row is off that chain.
     """
     rows = band.shape[0]
     tiny = 1e-300
@@ -261,8 +261,8 @@ def scatter_add(values, keep, position, out):  # pragma: no cover - compiled
 
     The sums of ``np.bincount(position, values[keep])``, added in the same order (the
     same bits), without its gathered copy and its weights' conversion: the assembly of
-    the stiffness took half its time in them (0.3 ms at N = 1000, where a continuation
-    assembles some 13000 stiffnesses over a turn).
+    the stiffness took half its time in them, and a continuation assembles some 13000
+    stiffnesses over a turn (benchmarks/TIMINGS.md).
     """
     for t in range(keep.size):
         out[position[t]] += values[keep[t]]

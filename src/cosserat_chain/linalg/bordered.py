@@ -94,7 +94,7 @@ def _band_border_solve(band, inverse, stiffness, last_column, last_row, corner, 
     substitutions go row by row and carry the last B unknowns solved in registers
     (B = :data:`~.band.BANDWIDTH` = 5), subtracting the term of the one
     solved last at the end: only one multiply-add a row waits for it, and none waits on a
-    store and its reload (a solve 52 -> 37 us at N = 1000). The forward one adds its terms
+    store and its reload (timings: benchmarks/TIMINGS.md). The forward one adds its terms
     in the order of the column sweep it replaced, so the solution is the same bit for bit.
     """
     n = band.shape[0] - BANDWIDTH
@@ -210,8 +210,8 @@ class BorderedFactor:
 def bordered_solve(stiffness: sp.spmatrix, dof: int, row: np.ndarray, rhs: np.ndarray) -> np.ndarray:
     """Solve the pseudo-arclength system [[-K, e_dof], [row^T]] x = rhs in O(N).
 
-    Compiled banded elimination with one step of refinement (:class:`BorderedFactor`:
-    0.6 ms at N = 1000 against 6.9 ms for SuperLU on the same elimination); a zero pivot or
+    Compiled banded elimination with one step of refinement (:class:`BorderedFactor`, quicker
+    than SuperLU on the same elimination: benchmarks/TIMINGS.md); a zero pivot or
     a non-finite result falls back to :func:`sparse_solve` of :func:`bordered_jacobian`.
     """
     return BorderedFactor(stiffness, dof).solve(row, rhs)
@@ -221,8 +221,7 @@ def sparse_solve(matrix: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
     """Solve a banded system, or one bordered by a dense last row and column, in O(N).
 
     In the natural order and with diagonal pivots the fill stays in the band and the
-    dense last row; SuperLU's default pivoting moved it up and filled the factor (0.7 s
-    a bordered solve at N = 1000 against 4 ms). One step of refinement with the same
+    dense last row; SuperLU's default pivoting moved it up and filled the factor (benchmarks/TIMINGS.md). One step of refinement with the same
     factor recovers what the diagonal pivots lose; a factorisation that fails (a zero
     pivot) or gives a non-finite result falls back to the default pivoting.
     """

@@ -8,7 +8,7 @@ guess and a warm start) finds the smallest eigenvalue of a symmetric matrix with
 (Sylvester's law: the negative pivots of a factor of M - s I count the eigenvalues below s);
 bisection on that count is the fallback. Where the lowest eigenvalues crowd (the edge of a
 band of a long chain's spectrum) Krylov methods slow down with n and this does not; LAPACK's
-banded eigensolver is O(n^2) (0.5 s at N = 1000). :func:`eigenvalue_resolution` is the
+banded eigensolver is O(n^2) (benchmarks/TIMINGS.md). :func:`eigenvalue_resolution` is the
 round-off of the result.
 
 :func:`largest_eigenvalue_bound` brackets the largest eigenvalue of a symmetric banded
@@ -75,7 +75,7 @@ def _inverse_step(factor, inverse, shift, vector, work):  # pragma: no cover - c
     Each substitution carries the last B unknowns solved in registers
     (B = :data:`~.band.BANDWIDTH` = 5) and subtracts the term of the one
     solved last at the end: only one multiply-add a row waits for it, and nothing waits on
-    a store and its reload (the step 80 -> 27 us at N = 1000). The back substitution
+    a store and its reload (benchmarks/TIMINGS.md). The back substitution
     forms x^T y and y^T y as it goes, in four partial sums each.
     """
     n = vector.size
@@ -158,7 +158,7 @@ def _smallest_eigenvalue_compiled(band, low, high, tolerance, guess, vector):  #
 
 @lru_cache(maxsize=8)
 def _start_vector(n: int) -> np.ndarray:
-    """The fixed start vector of inverse iteration, drawn once a size (a draw cost 0.1 ms at N = 1000, once a point)."""
+    """The fixed start vector of inverse iteration, drawn once a size, not once a point (benchmarks/TIMINGS.md)."""
     vector = np.random.default_rng(0).standard_normal(n)
     vector.flags.writeable = False
     return vector
@@ -266,8 +266,8 @@ def lowest_real_eigenvalue(matrix: sp.spmatrix) -> complex:
     (:func:`smallest_eigenvalue`: LDL^T inertia, O(N) a factor); otherwise ARPACK's eigenvalue nearest the Gershgorin lower bound of the
     real parts (shift-invert), which is the leftmost one unless a complex pair lies as
     near. The printed operator's lowest eigenvalue is the edge of a band of its spectrum
-    (-5.3077 at N = 1000 and 2000): Krylov iterations slowed with N (ARPACK 2.8 s at
-    N = 1000, 20 s at 2000; Lanczos on the symmetric similar 7.5 s and 67 s).
+    (-5.3077 at N = 1000 and 2000): Krylov iterations slow down with N, ARPACK's and
+    Lanczos's on the symmetric similar alike (benchmarks/TIMINGS.md).
     """
     if matrix.shape[0] <= DENSE_SPECTRUM_LIMIT:
         eigenvalues = np.linalg.eigvals(matrix.toarray())
@@ -279,6 +279,6 @@ def lowest_real_eigenvalue(matrix: sp.spmatrix) -> complex:
             return complex(smallest_eigenvalue(symmetric)[0])
         except ValueError:  # wider than the band
             pass
-    # A wide Krylov space: the eigenvalues near the shift are clustered (40 vectors: 4 s at
-    # N = 1000; ARPACK's default of 20 took 11 s).
+    # A wide Krylov space: the eigenvalues near the shift are clustered, and 40 vectors
+    # converge in fewer restarts than ARPACK's default of 20 (benchmarks/TIMINGS.md).
     return complex(spla.eigs(matrix.tocsc(), k=1, sigma=shift, which="LM", ncv=min(matrix.shape[0] - 1, 40), return_eigenvectors=False)[0])

@@ -22,8 +22,8 @@ def infinity_norm(matrix: sp.spmatrix | BandMatrix) -> float:
     """max_i sum_j |A_ij| of a sparse or banded matrix (0 for an empty one), O(nnz).
 
     A compiled loop over a CSR matrix's data (:func:`_csr_infinity_norm`): scipy's
-    ``abs(A).sum(axis=1).max()`` builds two temporaries and cost 0.25 ms at N = 1000,
-    and the continuation asks it at every corrector iteration. A
+    ``abs(A).sum(axis=1).max()`` builds two temporaries (benchmarks/TIMINGS.md), and the continuation
+    asks it at every corrector iteration. A
     :class:`~.band.BandMatrix` keeps its norm once computed.
     """
     if isinstance(matrix, BandMatrix):

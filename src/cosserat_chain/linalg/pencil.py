@@ -71,9 +71,9 @@ def _band_phase(band, width, rate, z, work):  # pragma: no cover - compiled
 
     LAPACK's unblocked banded LU with partial pivoting (xGBTF2, its pivot chosen by
     |Re| + |Im| as izamax does) in ``work``: the sum of the pivots' arguments, plus pi a row
-    interchange; NaN at a zero pivot. Compiled, each column's band contiguous: zgbtrf through
-    SciPy cost 4.8 ms at n = 6000, w = 4 (its blocking does not pay at this width), and the
-    argument principle takes thousands of them.
+    interchange; NaN at a zero pivot. Compiled, each column's band contiguous: the blocking of zgbtrf through
+    SciPy does not pay at this width (benchmarks/TIMINGS.md), and the argument principle takes
+    thousands of them.
     """
     n = band.shape[0]
     kl = ku = width

@@ -12,7 +12,7 @@ its condition number is about 4e16 at N = 10^4, beyond 1/eps. Two double-precisi
 factorisations of K (SuperLU, LAPACK's banded Cholesky) then disagree in the third digit of
 the compliance phi_0 / M (15434.5 and 15377.4 for the paper's chain at N = 10^4). Refined,
 both give 15625.0001 to 1e-9 after about 12 steps (each an O(N) solve with the factor and
-an O(N) residual: 0.2 s). What remains is the problem's own: K's entries are rounded to
+an O(N) residual). What remains is the problem's own: K's entries are rounded to
 double, and the three models' K at rest (equal in exact arithmetic, assembled each its own
 way) give compliances that differ by 2e-10 at N = 1000 and 4e-8 at N = 10^4.
 

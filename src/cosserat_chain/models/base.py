@@ -93,8 +93,8 @@ BATCH_FORCE_KERNEL_TYPE = types.FunctionType(BATCH_FORCE_SIGNATURE)
 #: ``error_model="numpy"``: a division by zero gives inf or nan instead of raising,
 #: which keeps a test and a branch out of every division. ``fastmath={"contract"}``
 #: and no other flag: ``a * b + c`` may become one fused multiply-add (one rounding
-#: instead of two), as gcc compiles C by default at ``-O3 -march=native``; about
-#: +25 % on the nonlinear kernel. No reassociation (sums keep their order) and no
+#: instead of two), as gcc compiles C by default at ``-O3 -march=native``
+#: (the gain on the nonlinear kernel: benchmarks/TIMINGS.md). No reassociation (sums keep their order) and no
 #: nnan/ninf (they would delete the finiteness checks).
 KERNEL_OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy", "fastmath": {"contract"}}
 #: float64 lanes of the widest SIMD registers (AVX-512) a kernel's vector loop fills: a loop
@@ -240,7 +240,7 @@ class Model(ABC):
         A model with a closed-form bound independent of N overrides this.
 
         The bound is kept per model and chain (the 64 latest): a chain of 10^4
-        particles takes some 30 banded factorisations, 70 ms, which repeated runs of the
+        particles takes some 30 banded factorisations (benchmarks/TIMINGS.md), which repeated runs of the
         same chain (a benchmark, a sweep of loads) would otherwise pay every time.
 
         Returns

@@ -335,9 +335,8 @@ def max_frequency(params: ChainParams) -> float:
 
     The clamped chain's stiffness is a principal block of the infinite chain's, so
     its frequencies lie inside the infinite chain's bands. Kept per chain (the 64
-    latest, as :meth:`.base.Model.max_frequency`): 513 eigenvalue problems, about
-    0.4 ms, which every run would pay again for its time step's stability check (a
-    tenth of a 10^4-step run of the 101-particle chain).
+    latest, as :meth:`.base.Model.max_frequency`): 513 eigenvalue problems, which every
+    run would pay again for its time step's stability check (benchmarks/TIMINGS.md).
     """
     q = np.linspace(0.0, np.pi, 513)
     scale = 1.0 / np.sqrt(np.array(params.inertia))

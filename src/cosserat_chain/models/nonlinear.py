@@ -383,7 +383,7 @@ def _hessian_sums(x, h, corners, rests, stiffness, sums):  # pragma: no cover - 
     sums (:data:`~.base.BOND_SUMS`) determine the bond's 6x6 block
     (:func:`~.base.assemble_bond_sums`), so the 36 entries are never written.
 
-    Written for SIMD across bonds (8 bonds a turn: 0.13 -> 0.02 ms at N = 1000): the four
+    Written for SIMD across bonds (8 bonds a turn; timings: benchmarks/TIMINGS.md): the four
     links are spelled out, the block's sines, cosines and sums share one scratch array at
     offsets fixed at compile time and the indices are unsigned (each alone kept the loop
     scalar: the vectoriser could not bound the pointers of ten output rows, or of numba's

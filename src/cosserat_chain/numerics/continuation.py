@@ -563,9 +563,9 @@ def continue_in_moment(
     state (``static_stability(similar=...)``), starts its inverse iteration from the
     previous point's eigenvector, and takes its index from the inertia of the tangent's
     factor of that K (:attr:`~cosserat_chain.linalg.BorderedFactor.negative_eigenvalues`): no factor of
-    its own for the count. The full turn of N = 1000 (40 folds) takes about 4.5 s of CPU
-    on one core (``benchmarks/bench_critical.py --scaling``; ``docs/statics.md`` has the
-    history and what a point costs). A point whose
+    its own for the count. The cost of the full turn against N is measured by
+    ``benchmarks/bench_critical.py --scaling`` (``docs/statics.md`` has the history and
+    what a point costs; benchmarks/TIMINGS.md). A point whose
     critical eigenvalue lies within its round-off (``Stability.resolution``) keeps the
     index and stability last decided. The folds and branch points are located with full Newton (the bordered
     Jacobian is singular at a branch point, where a full step is halved while it raises

@@ -299,8 +299,8 @@ class _Restart:
     a fresh run the forces are evaluated again when needed (:meth:`Lanes.evaluate_forces` on
     the same state at the same time gives the same bits); later they are copied into a
     buffer made once a run, when first needed: a fresh copy every chunk page-faulted its
-    memory anew (at 10^6 particles 5-70 ms a chunk, about as much as the chunk's 20 steps'
-    closing work), and a run of one chunk copies nothing.
+    memory anew, at 10^6 particles about as much as the chunk's closing work (benchmarks/TIMINGS.md),
+    and a run of one chunk copies nothing.
     """
 
     acc: np.ndarray

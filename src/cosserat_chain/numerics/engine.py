@@ -101,7 +101,7 @@ WRAP_EVERY = 1024
 MAX_ROTATION_PER_STEP = 8192.0
 #: Steps between two exchanges of halos when one chain is split into blocks (:class:`Blocks`):
 #: the blocks meet once per so many steps, and a block in the cache takes them all from it
-#: (10^6 particles, one thread: 64 steps 10 % faster than 16).
+#: (64 against 16: benchmarks/TIMINGS.md).
 SUPER_STEPS = 64
 #: Columns per block of a chain's sub-step (kick-drift then forces while in cache).
 SWEEP_BLOCK = 512
@@ -110,8 +110,8 @@ BLOCKS_PER_THREAD = 4
 #: From this many columns on, a chain runs as blocks even on one thread: its x, v and f
 #: (72 bytes a column, 19 MB here) no longer stay in the cache from one step to the next,
 #: and a block of :data:`CACHE_COLUMNS` takes its SUPER_STEPS steps from the cache
-#: instead of streaming the chain through memory every step (10^6 particles, one thread:
-#: 1.2x; 10^5, whose 7 MB stay in the cache: 0.9x, so not there).
+#: instead of streaming the chain through memory every step (a gain at 10^6 particles, a
+#: loss at 10^5, whose 7 MB stay in the cache: benchmarks/TIMINGS.md).
 SPLIT_COLUMNS = 2**18
 #: Columns per block of such a chain (x, v, f of a block: 2.4 MB; 2^14 to 2^16 measured alike).
 CACHE_COLUMNS = 2**15
@@ -1073,8 +1073,8 @@ class Blocks:
     chain, so the states equal an unsplit run's to the last bit (the energy sums,
     added block by block, to round-off). On several threads there are several
     blocks per thread, taken by whichever thread is free: a core that is busy with
-    other work takes fewer (two threads that met every step were 3-10x slower than
-    one on a busy machine). A chain of :data:`SPLIT_COLUMNS` or more is split into
+    other work takes fewer (two threads that met every step were slower than one on a
+    busy machine: benchmarks/TIMINGS.md). A chain of :data:`SPLIT_COLUMNS` or more is split into
     blocks of about :data:`CACHE_COLUMNS` on any number of threads, one included
     (run in the calling thread): each block then takes its steps in the cache.
     """
@@ -1264,7 +1264,7 @@ def stack_states(params: list, states, name: str) -> np.ndarray:
         arr = np.broadcast_to(arr, (len(params), *arr.shape))
     if arr.ndim != 3 or arr.shape[0] != len(params):
         raise ValueError(f"{name} must have shape (3, 2N+1) or ({len(params)}, 3, 2N+1), got {np.shape(states)}")
-    # The whole stack at once (member by member cost 30 ms for 1000 members); a bad one is
+    # The whole stack at once (member by member was slow: benchmarks/TIMINGS.md); a bad one is
     # then found and named by check_state, with its message.
     if arr.shape[1:] == (3, n) and np.isfinite(arr).all() and not any(np.any(arr[:, row, col] != 0.0) for row, col in held(params[0])):
         out[...] = arr
@@ -1277,7 +1277,7 @@ def stack_states(params: list, states, name: str) -> np.ndarray:
 def member_steps(params: list, dt, method, model) -> np.ndarray:
     """Each member's time step: the given one or its default, checked against its stability limit.
 
-    The default step and the limit cost an eigenvalue scan each (about 1 ms): once
+    The default step and the limit cost an eigenvalue scan each: once
     per distinct (params, dt), since a grid of loads repeats one chain.
 
     Raises
@@ -1294,7 +1294,7 @@ def member_steps(params: list, dt, method, model) -> np.ndarray:
     out = np.empty(size)
     checked: dict = {}
     for i, (p, step) in enumerate(zip(params, requested.tolist())):
-        key = (id(p), step)  # the members are alive throughout: their ids are theirs (hashing a ChainParams costs 1 us)
+        key = (id(p), step)  # the members are alive throughout: their ids are theirs (and cheaper than hashing a ChainParams)
         if key not in checked:
             try:
                 check_time_step(p, step, method, model)
@@ -1311,9 +1311,9 @@ def distinct(params: list) -> tuple[np.ndarray, list]:
     A grid of loads repeats one ChainParams a thousand times: what depends only on the
     chain is worked out once per distinct member and spread (``values[which]``).
     """
-    if all(p is params[0] for p in params):  # the usual grid: 25 us for 1000 members, the unique below 60
+    if all(p is params[0] for p in params):  # the usual grid, quicker than the unique below (benchmarks/TIMINGS.md)
         return np.zeros(len(params), dtype=np.int64), params[:1]
-    # Vectorised over the ids (a dictionary member by member cost 0.5 ms for 1000 members).
+    # Vectorised over the ids (a dictionary member by member was slower: benchmarks/TIMINGS.md).
     ids = np.fromiter(map(id, params), dtype=np.uint64, count=len(params))
     _, first_index, inverse = np.unique(ids, return_index=True, return_inverse=True)
     order = np.argsort(first_index)

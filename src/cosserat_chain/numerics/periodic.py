@@ -98,8 +98,7 @@ def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - co
     # Autonomous: t is not read. rpar = (M, 1/mass (nf), gamma/mass (nf)) and ipar = (n,
     # load_dof, ncols, nf, start, stop, row (nf), col (nf), first (n + 1), lookup (3 n)[, 1 for
     # the Hamiltonian unfolding of _UndampedSystem]), as _System.parameters lays them out: [start, stop) the columns that move, (row[i], col[i])
-    # the place of free degree of freedom i in x (no division in the loops: 30 % on the
-    # state-only flow of the paper's chain), first[c] the free degrees of freedom before
+    # the place of free degree of freedom i in x (no division in the loops: benchmarks/TIMINGS.md), first[c] the free degrees of freedom before
     # column c, lookup[3 column + row] the free index (-1 where an end holds it).
     n = ipar[0]
     load_dof = ipar[1]
@@ -163,8 +162,7 @@ def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - co
     dphi[:nf] = phi[nf:]
     # dF/dq is block tridiagonal: row i reads only the columns of its particle and its two
     # neighbours (free indices first[c - 1] to first[c + 2]: 0 to 3 each, as the ends hold
-    # them), so the product costs O(nf ncols), not the O(nf^2 ncols) of a dense one (N = 20:
-    # 40 s an orbit with np.dot).
+    # them), so the product costs O(nf ncols), not the O(nf^2 ncols) of a dense one (benchmarks/TIMINGS.md).
     for i in range(nf):
         out = dphi[nf + i]
         velocity = phi[nf + i]
@@ -845,9 +843,8 @@ def continue_orbit(
     max_points : int
     until_unstable : bool
         Stop at the first unstable orbit after stable ones: where the stability is lost is
-        then known (:attr:`OrbitBranch.stability_lost_at`) and the rest of the branch is not
-        traced (the nonlinear chain at gamma_phi = 0.2 took 20 more orbits, 4 s each, from
-        its period doubling down to its fold).
+        then known (:attr:`OrbitBranch.stability_lost_at`) and the rest of the branch, down
+        to its fold, is not traced (benchmarks/TIMINGS.md).
     tol, rtol, atol : float
         As for :func:`find_periodic_orbit`.
     progress : callable(points, max_points), optional

@@ -21,7 +21,7 @@ smallest eigenvalue of the model's symmetric banded matrix similar to K
 (:meth:`~cosserat_chain.models.base.Model.symmetric_similar`), found by inverse
 iteration with banded LDL^T factors and certified by their inertia (Sylvester's law:
 the negative pivots count the eigenvalues below a shift, O(N) a factor; bisection on
-that count is the fallback; LAPACK's banded eigensolver is O(N^2): 0.5 s at N = 1000),
+that count is the fallback; LAPACK's banded eigensolver is O(N^2): benchmarks/TIMINGS.md),
 and the state is stable iff it is positive; the index is that count at zero. For a
 conservative model with positive damping the damped dynamics decays iff K is
 positive definite. For eq. (2), K = S C with S the linear model's (positive
@@ -145,8 +145,8 @@ def static_stability(
     ``start``: a work vector of length n_free where inverse iteration starts and which
     it leaves holding its last iterate, the approximate lowest eigenvector (a
     continuation passes the same one from point to point: the previous point's
-    eigenvector is a close start: 1.1 ms a point instead of 2.0 ms from the fixed random
-    vector over the turn of N = 1000); it changes the cost, not the result
+    eigenvector is a close start, quicker than the fixed random vector: benchmarks/TIMINGS.md);
+    it changes the cost, not the result
     beyond the round-off of the certified eigenvalue. Ignored on the dense path.
 
     The index costs no factor of its own where the smallest eigenvalue is certified
