@@ -22,12 +22,23 @@ from .common import (
     spin_or_exit,
     step_for_checks,
 )
+from .systems import (
+    chain_only_or_exit,
+    orbit_on_system,
+    set_option,
+    start_option,
+    system_only_or_exit,
+    system_option,
+    vary_option,
+    velocity_option,
+)
 
 
 @app.command()
 def orbit(
+    ctx: typer.Context,
     model: str = model_option("sine", "A model that supports full rotations (the linear model does not).", rotating=True),
-    moment: float = number(..., "Moment M on the loaded particle (above M_c, or near an orbit)."),
+    moment: float | None = number(None, "Moment M on the loaded particle (above M_c, or near an orbit; required without --system)."),
     turns: int | None = typer.Option(
         None,
         min=1,
@@ -40,8 +51,28 @@ def orbit(
     out: Path | None = typer.Option(None, help="Write the orbit (and the continuation) to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the rotation characteristic (needs --down-to) to this PNG/SVG file."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+    system: str | None = system_option(),
+    sets: list[str] | None = set_option(),
+    vary: str | None = vary_option("from its value down, or towards --down-to"),
+    turn: list[str] | None = typer.Option(
+        None, "--turn", metavar="COORDINATE=K", help="With --system: turns of an angle per period; repeatable (default every angle once)."
+    ),
+    start: str | None = start_option("the coordinates the settling run starts from (default 0)"),
+    velocity: str | None = velocity_option("default: the drive at the start over the damping, on the angles"),
 ) -> None:
-    """Find the rotating state as a limit cycle: period, mean angular velocity, Floquet multipliers, stability."""
+    """Find the rotating state as a limit cycle: period, mean angular velocity, Floquet multipliers, stability.
+
+    With --system: a rotation of the system (from a settled run, then shooting), and with --vary its continuation.
+    """
+    if system is not None:
+        chain_only_or_exit(ctx, ("config", "as_json", "out", "down_to", "period_max", "sets", "vary", "turn", "start", "velocity"))
+        return orbit_on_system(
+            system, config=config, sets=sets, vary=vary, turns=turn, down_to=down_to, period_max=period_max, start=start,
+            velocity=velocity, out=out, as_json=as_json,
+        )  # fmt: skip
+    system_only_or_exit(ctx, ("sets", "vary", "turn", "start", "velocity"))
+    if moment is None:
+        fail("--moment is required: the moment M on the loaded particle (or give --system REF for a system's orbit)")
     from ..experiments.orbits import periodic_orbit
     from ..numerics.dynamics import IntegrationError
     from ..numerics.periodic import OrbitError

@@ -27,10 +27,12 @@ from .common import (
     step_for_checks,
     work_or_exit,
 )
+from .systems import chain_only_or_exit, set_option, simulate_on_system, start_option, system_only_or_exit, system_option, velocity_option
 
 
 @app.command()
 def simulate(
+    ctx: typer.Context,
     model: str = model_option("nonlinear", "Model."),
     moment: float | None = number(
         None, "Moment M on the loaded particle (default 0.1 unless the config's [[loads]] or --load give the loads)."
@@ -71,8 +73,14 @@ def simulate(
     ),
     force: bool = typer.Option(False, "--force", help="Start afresh even if the checkpoint exists (it is replaced)."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+    system: str | None = system_option(),
+    sets: list[str] | None = set_option(),
+    start: str | None = start_option("the start's coordinates (default 0)"),
+    velocity: str | None = velocity_option("default 0"),
 ) -> None:
     """Run one damped simulation of the chain under loads (a moment on one particle by default).
+
+    With --system: the system's flow from --start and --velocity (DOP853), FRAMES states to --out.
 
     With --checkpoint-every S (or --checkpoint FILE) the fixed-step run keeps a checkpoint,
     OUT.checkpoint.nc by default: its state, step count, frames so far, settings, parameters
@@ -84,6 +92,12 @@ def simulate(
 
     Exit status: 0 done, 2 bad input, 3 blow-up, 5 inaccurate, 130 interrupted (saved).
     """
+    if system is not None:
+        chain_only_or_exit(ctx, ("config", "as_json", "out", "t_end", "frames", "sets", "start", "velocity"))
+        return simulate_on_system(
+            system, config=config, sets=sets, t_end=t_end, frames=frames, start=start, velocity=velocity, out=out, as_json=as_json
+        )
+    system_only_or_exit(ctx, ("sets", "start", "velocity"))
     from ..experiments.simulation import simulate as run_simulation
     from ..loads import Loads, Schedule, moment_load
 

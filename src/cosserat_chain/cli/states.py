@@ -23,12 +23,14 @@ from .common import (
     step_for_checks,
     work_or_exit,
 )
+from .systems import chain_only_or_exit, set_option, start_option, states_on_system, system_only_or_exit, system_option
 
 
 @app.command()
 def states(
+    ctx: typer.Context,
     model: str = model_option("sine", "The model (the linear one has one static state and no orbit)."),
-    moment: float = number(..., "Constant moment M on the loaded particle."),
+    moment: float | None = number(None, "Constant moment M on the loaded particle (required without --system)."),
     particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
     turns: int = typer.Option(3, help="Shoot for orbits of 1..TURNS turns a period; long runs look for repetition after up to 2 TURNS."),
     random_starts: int = typer.Option(8, "--random-starts", help="Long runs from this many seeded random states."),
@@ -36,6 +38,9 @@ def states(
     t_long: float = number(5000.0, "Length of each long run (its second half is analysed).", above=0.0, flags=("--t-long",)),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+    system: str | None = system_option(),
+    sets: list[str] | None = set_option(),
+    start: list[str] | None = start_option("a start of Newton, repeatable (default q = 0 and q = pi on every angle)"),
 ) -> None:
     """List the states at one moment, each with its stability, and say which one the protocol from rest reaches.
 
@@ -45,8 +50,16 @@ def states(
     orbits from shooting and from long runs (turns, period, mean rate, Floquet stability);
     irregular rotation (rates over windows of whole turns); what each start's run reached.
 
+    With --system: the system's equilibria by Newton from each --start, with their stability.
+
     Exit status: 0 done, 2 bad input, 3 a run blew up.
     """
+    if system is not None:
+        chain_only_or_exit(ctx, ("config", "as_json", "sets", "start"))
+        return states_on_system(system, config=config, sets=sets, starts=start, as_json=as_json)
+    system_only_or_exit(ctx, ("sets", "start"))
+    if moment is None:
+        fail("--moment is required: the constant moment M on the loaded particle (or give --system REF for a system's states)")
     from ..experiments.coexisting import states_at
     from ..numerics.dynamics import IntegrationError
 

@@ -26,6 +26,7 @@ from .common import (
     save_dataset,
     save_figure,
 )
+from .systems import chain_only_or_exit, critical_on_system, set_option, start_option, system_only_or_exit, system_option, vary_option
 
 MODEL_HELP = "Model, or all for every registered one."
 
@@ -112,6 +113,7 @@ def sweep(
 
 @app.command()
 def critical(
+    ctx: typer.Context,
     model: str = model_option(ALL_MODELS, MODEL_HELP, all_models=True),
     particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
@@ -127,9 +129,22 @@ def critical(
         at_least=1.0,
     ),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+    system: str | None = system_option(),
+    sets: list[str] | None = set_option(),
+    vary: str | None = vary_option("upwards from its value; --down for downwards"),
+    start: str | None = start_option("where Newton starts for the first equilibrium (default 0)"),
+    down: bool = typer.Option(False, "--down", help="With --system: continue towards smaller values of --vary."),
 ) -> None:
     """Critical moment M_c and phi_0 at the fold (to round-off), compliance, and the static branch over one turn and on to
-    where its stable part from rest ends."""
+    where its stable part from rest ends.
+
+    With --system: the equilibrium from --start continued in --vary to its first fold."""
+    if system is not None:
+        chain_only_or_exit(ctx, ("config", "as_json", "max_points", "sets", "vary", "start", "down"))
+        return critical_on_system(
+            system, config=config, sets=sets, vary=vary, start=start, down=down, max_points=max_points, as_json=as_json
+        )
+    system_only_or_exit(ctx, ("sets", "vary", "start", "down"))
     from ..experiments.critical import CONFIRM_MOMENT_RTOL, MAX_POINTS, TURNS, critical_point
     from ..numerics.newton import NewtonError
 

@@ -1,0 +1,565 @@
+"""The commands on a user's system: ``states``, ``critical``, ``orbit`` and ``simulate`` with ``--system REF``.
+
+A command given ``--system`` runs on a :class:`~cosserat_chain.systems.base.System` (a
+built-in example, ``module:function`` or ``file.py:function``, built with the config's
+``[system]`` table and ``--set NAME=VALUE``) through :mod:`cosserat_chain.numerics.equilibria`
+and :mod:`cosserat_chain.numerics.shooting`; without it the command runs on the chain as
+before. The chain's own options (``--model``, ``--moment``, ...) and the system's
+(``--set``, ``--vary``, ...) exclude each other: either kind given with the other command
+form exits 2 naming it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from ..status import Status
+from .common import EXIT_CODES, bar_callback, exit_on, fail, outputs_or_exit, progress_bar, save_dataset
+
+#: The table of a config file that holds the system's arguments.
+SYSTEM_TABLE = "system"
+
+SYSTEM_HELP = (
+    "Run on this system instead of the chain: a built-in (pen, josephson_array, frenkel_kontorova, takeno_peyrard), "
+    "package.module:function or path/to/file.py:function returning a System; its arguments from the config's [system] "
+    "table and --set (see docs/system-commands.md)."
+)
+
+
+def system_option():
+    """``--system REF``."""
+    return typer.Option(None, "--system", metavar="REF", help=SYSTEM_HELP)
+
+
+def set_option():
+    """``--set NAME=VALUE``, repeatable."""
+    return typer.Option(
+        None,
+        "--set",
+        metavar="NAME=VALUE",
+        help="With --system: an argument of the system's function (a parameter, sites, boundary); repeatable.",
+    )
+
+
+def vary_option(what: str):
+    """``--vary NAME`` of a system (the chain's diagram has its own)."""
+    return typer.Option(None, "--vary", metavar="NAME", help=f"With --system: the parameter to continue in ({what}).")
+
+
+def start_option(what: str):
+    """``--start Q``: a state of the system's coordinates."""
+    return typer.Option(
+        None,
+        "--start",
+        metavar="Q",
+        help=f"With --system: {what}, as Q1,Q2,... (one value per coordinate, or one for all; pi, -pi/2, 2*pi allowed).",
+    )
+
+
+def velocity_option(what: str):
+    """``--velocity V``: the velocities of a start."""
+    return typer.Option(None, "--velocity", metavar="V", help=f"With --system: the start's velocities, V1,V2,... or one for all ({what}).")
+
+
+# -- which options belong to which form ------------------------------------------------------
+
+
+def _given(ctx: typer.Context) -> list[tuple[str, str]]:
+    """(name, option as spelled) of each option of the running command given on the line or from the environment."""
+    spelled = {p.name: p.opts[0] for p in ctx.command.params}
+    return [
+        (name, spelled.get(name, name))
+        for name in ctx.params
+        if getattr(ctx.get_parameter_source(name), "name", None) in ("COMMANDLINE", "ENVIRONMENT")
+    ]
+
+
+def chain_only_or_exit(ctx: typer.Context, allowed: tuple[str, ...]) -> None:
+    """With ``--system``: exit 2 naming every option given that only the chain form reads (those not in ``allowed``)."""
+    extra = [opt for name, opt in _given(ctx) if name not in (*allowed, "system")]
+    if extra:
+        fail(
+            f"{', '.join(extra)} belong(s) to the chain, not to --system: leave {'it' if len(extra) == 1 else 'them'} out "
+            "(a system's arguments go in the config's [system] table or --set NAME=VALUE)"
+        )
+
+
+def system_only_or_exit(ctx: typer.Context, names: tuple[str, ...]) -> None:
+    """Without ``--system``: exit 2 naming every one of the system's options (``names``) that was given."""
+    given = [opt for name, opt in _given(ctx) if name in names]
+    if given:
+        fail(f"{', '.join(given)} need(s) --system REF (a system of your own or a built-in); the chain takes --model and its own options")
+
+
+# -- the system ------------------------------------------------------------------------------
+
+_INTEGER = re.compile(r"[+-]?\d+")
+
+
+def _argument(text: str) -> Any:
+    """A --set value: an integer, a number, else the text (``boundary=periodic``)."""
+    if _INTEGER.fullmatch(text.strip()):
+        return int(text)
+    try:
+        return float(text)
+    except ValueError:
+        return text.strip()
+
+
+def system_or_exit(reference: str, config: Path | None, sets: list[str] | None):
+    """The system ``reference`` names, built with the config's ``[system]`` table and ``--set``; exit 2 saying what is wrong."""
+    from ..io import read_config
+    from ..systems import SystemDefinitionError, load_system
+
+    arguments: dict[str, Any] = {}
+    if config is not None:
+        try:
+            mapping = read_config(config)
+        except ValueError as err:
+            fail(str(err))
+        other = sorted(set(mapping) - {SYSTEM_TABLE})
+        if other:
+            fail(
+                f"--config {str(config)!r} with --system is read for its [{SYSTEM_TABLE}] table only, and has {', '.join(map(repr, other))} "
+                f"besides: put the system's arguments under [{SYSTEM_TABLE}] (the chain's fields belong to the chain's commands)"
+            )
+        table = mapping.get(SYSTEM_TABLE, {})
+        if not isinstance(table, dict):
+            fail(f"--config {str(config)!r}: [{SYSTEM_TABLE}] must be a table of the system's arguments, got {table!r}")
+        arguments.update(table)
+    for text in sets or ():
+        name, sep, value = text.partition("=")
+        if not sep or not name.strip().isidentifier() or not value.strip():
+            fail(f"--set must read NAME=VALUE (e.g. --set I=0.4), got {text!r}")
+        arguments[name.strip()] = _argument(value)
+    try:
+        return load_system(reference, arguments)
+    except SystemDefinitionError as err:
+        fail(str(err))
+    except Exception as err:  # the user's function: any failure is reported as bad input, with its kind
+        fail(f"--system {reference}: building the system failed: {type(err).__name__}: {err}")
+
+
+_PI = re.compile(r"([+-]?)(\d*\.?\d*(?:[eE][+-]?\d+)?)\*?pi(?:/(\d*\.?\d+))?")
+
+
+def _number(text: str, option: str) -> float:
+    text = text.strip().replace(" ", "")
+    match = _PI.fullmatch(text)
+    try:
+        if match:
+            sign, factor, divisor = match.groups()
+            value = (float(factor) if factor else 1.0) * math.pi / (float(divisor) if divisor else 1.0)
+            return -value if sign == "-" else value
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        fail(f"{option}: {text!r} is not a finite number (numbers, pi, -pi/2 or 2*pi are read)")
+    return value
+
+
+def state_or_exit(system, text: str | None, option: str, default=None):
+    """(n,) values of ``--start``/``--velocity`` (one for all coordinates, or one each), or ``default`` when not given."""
+    import numpy as np
+
+    if text is None:
+        return np.zeros(system.size) if default is None else np.asarray(default, dtype=float)
+    values = [_number(part, option) for part in text.split(",")]
+    if len(values) == 1:
+        values = values * system.size
+    if len(values) != system.size:
+        fail(f"{option} needs one value or {system.size} ({', '.join(system.coordinates)}), got {len(values)}: {text!r}")
+    return np.array(values)
+
+
+def _parameter_or_exit(system, name: str, option: str = "--vary") -> float:
+    from ..systems import SystemDefinitionError
+
+    try:
+        return system.parameter(name)
+    except SystemDefinitionError as err:
+        fail(f"{option}: {err}")
+
+
+def _angles_mod(system, q):
+    import numpy as np
+
+    q = np.array(q, dtype=float)
+    q[system.angles] = np.mod(q[system.angles] + math.pi, 2 * math.pi) - math.pi
+    return q
+
+
+def _echo_json(payload: dict) -> None:
+    typer.echo(json.dumps(payload, default=_plain))
+
+
+def _plain(value):
+    import numpy as np
+
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, complex):
+        return [value.real, value.imag]
+    return str(value)
+
+
+# -- states ----------------------------------------------------------------------------------
+
+
+def states_on_system(reference: str, *, config: Path | None, sets: list[str] | None, starts: list[str] | None, as_json: bool) -> None:
+    """Equilibria of the system by Newton from each start (default q = 0 and q = pi on every angle), with their stability."""
+    import numpy as np
+
+    from ..numerics.equilibria import EquilibriumNotFound, find_equilibrium
+
+    system = system_or_exit(reference, config, sets)
+    if starts:
+        guesses = [state_or_exit(system, text, "--start") for text in starts]
+    else:
+        guesses = [np.zeros(system.size), np.where(system.angles, math.pi, 0.0)]
+    found, failed = [], []
+    bar = progress_bar(f"states {system.name}", "start")
+    progress = bar_callback(bar)
+    for i, q0 in enumerate(guesses):
+        try:
+            point = find_equilibrium(system, q0)
+        except EquilibriumNotFound as err:
+            failed.append({"start": q0.tolist(), "message": str(err)})
+        else:
+            q = _angles_mod(system, point.q)
+            same = next((f for f in found if np.max(np.abs(_angles_mod(system, f["q"] - q)), initial=0.0) < 1e-7), None)
+            if same is None:
+                growth = None if point.eigenvalues is None else float(np.max(point.eigenvalues.real))
+                found.append(
+                    {
+                        "q": q,
+                        "stable": point.stable,
+                        "index": point.index,
+                        "residual": point.residual,
+                        "growth_rate": growth,
+                        "starts": [q0.tolist()],
+                    }
+                )
+            else:
+                same["starts"].append(q0.tolist())
+        progress(i + 1, len(guesses))
+    bar.finish()
+    if as_json:
+        _echo_json({**system.describe(), "reference": reference, "equilibria": found, "failed_starts": failed})
+    else:
+        typer.echo(f"{system.name} ({_parameters_text(system)}): {len(found)} equilibri{'um' if len(found) == 1 else 'a'}")
+        for i, e in enumerate(found):
+            verdict = "stability not computed" if e["stable"] is None else ("stable" if e["stable"] else f"unstable, index {e['index']}")
+            rate = "" if e["growth_rate"] is None else f", largest Re(lambda) {e['growth_rate']:.6g}"
+            q = ", ".join(f"{name} = {value:.10g}" for name, value in zip(system.coordinates, e["q"], strict=True))
+            typer.echo(f"  {i}: {q}: {verdict}{rate}; residual {e['residual']:.2g}")
+        for f in failed:
+            typer.echo(f"  from {f['start']}: {f['message']}")
+    if not found:
+        exit_on(Status.NOT_CONVERGED, "Newton converged from no start: give --start nearer an equilibrium")
+
+
+def _parameters_text(system) -> str:
+    return ", ".join(f"{name} = {value:g}" for name, value in system.parameters.items())
+
+
+# -- critical --------------------------------------------------------------------------------
+
+
+def critical_on_system(
+    reference: str,
+    *,
+    config: Path | None,
+    sets: list[str] | None,
+    vary: str | None,
+    start: str | None,
+    down: bool,
+    max_points: int | None,
+    as_json: bool,
+) -> None:
+    """The first fold of the equilibrium from ``start`` (default q = 0) continued in ``vary``."""
+    from ..numerics.equilibria import EquilibriumNotFound, continue_equilibria, find_equilibrium
+    from ..numerics.kit import BranchEnd
+
+    if vary is None:
+        fail("critical --system needs --vary NAME: the parameter to continue the equilibrium in until its fold")
+    system = system_or_exit(reference, config, sets)
+    value = _parameter_or_exit(system, vary)
+    bar = progress_bar(f"critical {system.name}", "point")
+    try:
+        first = find_equilibrium(system, state_or_exit(system, start, "--start"))
+        branch = continue_equilibria(
+            first, vary, direction=-1.0 if down else 1.0, max_points=500 if max_points is None else max_points, progress=bar_callback(bar)
+        )
+    except EquilibriumNotFound as err:
+        bar.close()
+        fail(str(err), code=EXIT_CODES[Status.NOT_CONVERGED])
+    bar.finish(note=f"the branch ended: {branch.end}")
+    folds = [e for e in branch.events if e.kind == "fold" and e.located]
+    fold = folds[0] if folds else None
+    result = {
+        **system.describe(),
+        "reference": reference,
+        "vary": vary,
+        "start_value": value,
+        "start": first.q.tolist(),
+        "start_stable": first.stable,
+        "fold": None if fold is None else {"value": fold.parameter, "q": fold.point.q.tolist()},
+        "branch": branch.as_dict(),
+    }
+    if as_json:
+        _echo_json(result)
+    elif fold is not None:
+        q = ", ".join(f"{name} = {x:.10g}" for name, x in zip(system.coordinates, fold.point.q, strict=True))
+        typer.echo(f"{system.name}: fold at {vary} = {fold.parameter:.15g} ({q}), from {vary} = {value:g}; {len(branch.points)} points")
+    else:
+        typer.echo(f"{system.name}: no fold in {vary} from {value:g}: {branch.message}")
+    if fold is None and branch.end in (BranchEnd.MAX_POINTS, BranchEnd.STEP_TOO_SMALL):
+        status = Status.MAX_STEPS if branch.end == BranchEnd.MAX_POINTS else Status.STEP_TOO_SMALL
+        exit_on(status, branch.message)
+
+
+# -- orbit -----------------------------------------------------------------------------------
+
+
+def _turns_or_exit(system, turns: list[str] | None) -> dict[str, int]:
+    """{coordinate: k} of ``--turn NAME=K``; default every angle once (the in-phase rotation)."""
+    if not turns:
+        angles = [name for name, is_angle in zip(system.coordinates, system.angles, strict=True) if is_angle]
+        if not angles:
+            fail(f"{system.name} has no angle coordinate: orbit --system follows rotations, which turn an angle")
+        return dict.fromkeys(angles, 1)
+    out = {}
+    for text in turns:
+        name, sep, k = text.partition("=")
+        name = name.strip()
+        if not sep or not _INTEGER.fullmatch(k.strip()):
+            fail(f"--turn must read COORDINATE=K with K a whole number (e.g. --turn phi_0=1), got {text!r}")
+        if name not in system.coordinates:
+            fail(f"--turn: {name!r} is not a coordinate of {system.name}; its coordinates are {', '.join(system.coordinates)}")
+        out[name] = int(k)
+    if not any(out.values()):
+        fail("--turn: at least one angle must turn (K != 0) for a rotation")
+    return out
+
+
+def orbit_on_system(
+    reference: str,
+    *,
+    config: Path | None,
+    sets: list[str] | None,
+    vary: str | None,
+    turns: list[str] | None,
+    down_to: float | None,
+    period_max: float,
+    start: str | None,
+    velocity: str | None,
+    out: Path | None,
+    as_json: bool,
+) -> None:
+    """A rotating orbit of the system from a settled simulation, and with ``--vary`` its continuation."""
+    import numpy as np
+
+    from ..numerics.kit import EvaluationFailed
+    from ..numerics.shooting import OrbitNotFound, continue_orbits, find_orbit, settled_guess
+
+    if down_to is not None and vary is None:
+        fail("--down-to needs --vary NAME: the parameter to continue the orbit in")
+    outputs_or_exit({"--out": out}, {"--config": config})
+    system = system_or_exit(reference, config, sets)
+    value = _parameter_or_exit(system, vary) if vary is not None else None
+    k = _turns_or_exit(system, turns)
+    q0 = state_or_exit(system, start, "--start")
+    forces, damping = system.forces(q0), system.damping()
+    # Default start speed: where the drive at q0 meets the damping (the terminal spin I / eps of a driven pendulum).
+    drift = np.where(system.angles & (damping > 0), forces / np.where(damping > 0, damping, 1.0), 0.0)
+    v0 = state_or_exit(system, velocity, "--velocity", default=drift)
+    first = next(name for name, turn in k.items() if turn)
+    bar = progress_bar(f"orbit {system.name}", "orbit")
+    branch = None
+    try:
+        try:
+            guess = settled_guess(system, np.concatenate([q0, v0]), coordinate=first, turns=abs(k[first]))
+        except OrbitNotFound as err:
+            raise OrbitNotFound(f"{err}: start it turning with --velocity (or another --start), or check the drive") from None
+        orbit = find_orbit(system, guess, turns=k)
+        if vary is not None:
+            direction = -1.0 if down_to is None or down_to < value else 1.0
+            limits = (-math.inf, math.inf) if down_to is None else (min(down_to, value), max(down_to, value))
+            branch = continue_orbits(orbit, vary, direction=direction, limits=limits, period_max=period_max, progress=bar_callback(bar))
+    except ValueError as err:
+        bar.close()
+        fail(str(err))
+    except (OrbitNotFound, EvaluationFailed) as err:
+        bar.close()
+        fail(str(err), code=EXIT_CODES[Status.NOT_CONVERGED])
+    bar.finish(note="" if branch is None else f"the branch ended: {branch.end}")
+    if out is not None:
+        save_dataset(_orbit_dataset(system, reference, orbit, branch), out)
+    result = {**orbit.as_dict(), "reference": reference, "multipliers": [[m.real, m.imag] for m in orbit.multipliers]}
+    if branch is not None:
+        result["branch"] = branch.as_dict()
+    if as_json:
+        _echo_json(result)
+        return
+    turned = ", ".join(f"{name} {turn:+d}" for name, turn in k.items() if turn)
+    typer.echo(f"{system.name} ({_parameters_text(system)}): period T = {orbit.period:.12g}, turns {turned}")
+    typer.echo(f"Floquet multipliers |mu|: {' '.join(f'{abs(m):.6g}' for m in orbit.multipliers)}")
+    typer.echo(f"largest other |mu| = {orbit.max_multiplier:.6g}: {'stable' if orbit.stable else 'unstable'}; closure {orbit.closure:.2g}")
+    if branch is not None:
+        for e in branch.events:
+            where = f"{vary} = {e.parameter:.12g}" if e.located else "not located"
+            typer.echo(f"  {e.kind} at {where}")
+        end = "" if branch.end_value is None else f"; fitted end {vary} = {branch.end_value:.10g} +- {branch.end_uncertainty:.2g}"
+        typer.echo(f"continued to {vary} = {branch.values[-1]:.12g} ({len(branch.orbits)} orbits): {branch.end}: {branch.message}{end}")
+
+
+def _orbit_dataset(system, reference: str, orbit, branch):
+    """The orbit (and branch) as a Dataset: start state over the system's coordinates, multipliers, the branch's points."""
+    import numpy as np
+    import xarray as xr
+
+    ds = xr.Dataset(
+        {
+            "q0": ("coordinate", orbit.q0),
+            "v0": ("coordinate", orbit.v0),
+            "turns": ("coordinate", orbit.turns),
+            "multiplier_real": ("multiplier", np.real(orbit.multipliers)),
+            "multiplier_imag": ("multiplier", np.imag(orbit.multipliers)),
+        },
+        coords={"coordinate": list(system.coordinates)},
+    )
+    ds["q0"].attrs["long_name"] = "start of the orbit on its phase plane: coordinates"
+    ds["v0"].attrs["long_name"] = "start of the orbit on its phase plane: velocities"
+    ds["turns"].attrs["long_name"] = "turns of each coordinate per period"
+    if branch is not None:
+        ds["branch_value"] = ("point", branch.values)
+        ds["branch_value"].attrs["long_name"] = f"the continued parameter {branch.parameter}"
+        ds["branch_period"] = ("point", branch.periods)
+        ds["branch_max_multiplier"] = ("point", np.array([o.max_multiplier for o in branch.orbits]))
+        ds.attrs.update(
+            {
+                "varied": branch.parameter,
+                "branch_end": str(branch.end),
+                "branch_message": branch.message,
+                "events_json": json.dumps(branch.as_dict()["events"]),
+            }
+        )
+    ds.attrs.update(_system_attributes(system, reference))
+    ds.attrs.update(
+        {
+            "experiment": "system_orbit",
+            "title": f"Periodic orbit of the system {system.name}",
+            "period": orbit.period,
+            "max_multiplier": orbit.max_multiplier,
+            "stable": int(orbit.stable),
+            "closure": orbit.closure,
+        }
+    )
+    return ds
+
+
+def _system_attributes(system, reference: str) -> dict[str, Any]:
+    """Attributes that make a file of a system self-describing: the reference, name, parameters, version."""
+    from .._version import __version__
+
+    attrs: dict[str, Any] = {f"param_{name}": value for name, value in system.parameters.items()}
+    attrs.update(
+        {
+            "system": system.name,
+            "system_reference": reference,
+            "system_json": json.dumps(system.describe()),
+            "angles": ",".join(name for name, a in zip(system.coordinates, system.angles, strict=True) if a),
+            "cosserat_chain_version": __version__,
+        }
+    )
+    return attrs
+
+
+# -- simulate --------------------------------------------------------------------------------
+
+
+def simulate_on_system(
+    reference: str,
+    *,
+    config: Path | None,
+    sets: list[str] | None,
+    t_end: float,
+    frames: int,
+    start: str | None,
+    velocity: str | None,
+    out: Path | None,
+    as_json: bool,
+) -> None:
+    """Integrate the system's flow from (start, velocity) to ``t_end``, storing ``frames`` states (DOP853, frame to frame)."""
+    import numpy as np
+    import xarray as xr
+
+    from ..numerics.kit import EvaluationFailed
+    from ..numerics.shooting import flow
+
+    outputs_or_exit({"--out": out}, {"--config": config})
+    system = system_or_exit(reference, config, sets)
+    y = np.concatenate([state_or_exit(system, start, "--start"), state_or_exit(system, velocity, "--velocity")])
+    times = np.linspace(0.0, t_end, frames)
+    states = [y]
+    status, message = Status.COMPLETED, f"reached t = {t_end:g}"
+    bar = progress_bar(f"simulate {system.name}", "frame")
+    progress = bar_callback(bar)
+    try:
+        for i, dt in enumerate(np.diff(times)):
+            states.append(flow(system, states[-1], float(dt), variations=False)[0])
+            progress(i + 2, frames)
+    except EvaluationFailed as err:
+        status, message = Status.BLEW_UP, f"{err}; the frames before t = {times[len(states) - 1]:g} are kept"
+    except KeyboardInterrupt:
+        status, message = Status.INTERRUPTED, f"interrupted; the frames to t = {times[len(states) - 1]:g} are kept"
+    bar.finish(status)
+    n = system.size
+    y = np.array(states)
+    ds = xr.Dataset(
+        {"q": (("time", "coordinate"), y[:, :n]), "velocity": (("time", "coordinate"), y[:, n:])},
+        coords={"time": times[: len(states)], "coordinate": list(system.coordinates)},
+    )
+    ds["q"].attrs["long_name"] = "generalized coordinates"
+    ds["velocity"].attrs["long_name"] = "generalized velocities dq/dt"
+    if system.energy(y[0, :n]) is not None:
+        mass = system.mass()
+        ds["potential_energy"] = ("time", np.array([system.energy(row[:n]) for row in y]))
+        ds["kinetic_energy"] = ("time", 0.5 * np.sum(mass * y[:, n:] ** 2, axis=1))
+    ds.attrs.update(_system_attributes(system, reference))
+    ds.attrs.update(
+        {
+            "experiment": "system_simulation",
+            "title": f"Damped simulation of the system {system.name}",
+            "status": str(status),
+            "message": message,
+        }
+    )
+    save_dataset(ds, out)
+    if as_json:
+        _echo_json(
+            {
+                **system.describe(),
+                "reference": reference,
+                "t_end": t_end,
+                "t_reached": float(ds.time[-1]),
+                "status": str(status),
+                "message": message,
+                "final": {"q": y[-1, :n].tolist(), "velocity": y[-1, n:].tolist()},
+                "out": str(out) if out else None,
+            }
+        )
+    elif status == Status.COMPLETED:
+        final = ", ".join(f"{name} = {x:.6g}" for name, x in zip(system.coordinates, y[-1, :n], strict=True))
+        typer.echo(f"{system.name}: t = {t_end:g}, {final}" + (f"; wrote {out}" if out else ""))
+    exit_on(status, message)
