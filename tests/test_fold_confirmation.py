@@ -1,9 +1,9 @@
-"""Folds of a long chain confirmed by a second trace of the branch (``critical_point``).
+"""Folds of a long chain confirmed by a re-solve near each fold (``critical_point``).
 
 Where K's softest eigenvalue at rest is near its round-off (a long clamped chain), a fold
-that only one trace passes is round-off, not the branch's: each fold says whether a
-second trace with other steps passed it too, and ``critical`` exits ``inaccurate`` where
-the onset's fold is not confirmed.
+the trace passes may be round-off, not the branch's: each fold that decides M_c says whether
+a re-solve on the rotation-controlled branch found it too, and ``critical`` exits
+``inaccurate`` where the onset's fold is not confirmed.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from cosserat_chain import ChainParams
 from cosserat_chain.cli import app
 from cosserat_chain.cli.common import EXIT_CODES
 from cosserat_chain.experiments import critical
-from cosserat_chain.experiments.critical import CONFIRM_MOMENT_RTOL, CONFIRM_PHI0_ATOL, confirm_folds, critical_point
+from cosserat_chain.experiments.critical import CONFIRM_MOMENT_RTOL, CONFIRM_PHI0_ATOL, confirm_folds, critical_point, resolve_fold
 from cosserat_chain.linalg import smallest_eigenvalue
 from cosserat_chain.models.base import get_model
 from cosserat_chain.status import Status
@@ -49,22 +49,40 @@ def test_a_short_chain_is_traced_once_and_its_folds_are_not_marked():
     assert summary["accurate"] is True and summary["confirmation"] == "once"
 
 
-def test_a_second_trace_with_other_steps_passes_the_same_folds(monkeypatch):
-    # Every chain traced twice: the branch's real folds are passed by both traces.
+def test_the_folds_that_decide_m_c_are_found_again_by_their_re_solve(monkeypatch):
+    # Every chain re-solved: the first fold and the larger maximum after it (M_c) are found again.
     monkeypatch.setattr(critical, "CONFIRM_MARGIN", math.inf)
     once = critical_point(TWO_MAXIMA, "nonlinear", max_points=5000)
     seen = []
     result = critical_point(TWO_MAXIMA, "nonlinear", progress=lambda done, total: seen.append((done, total)))
-    assert result.confirmation == "twice" and result.accurate
-    assert [f.confirmed for f in result.branch.folds] == [True] * len(result.branch.folds)
-    assert max(f.discrepancy for f in result.branch.folds) < 1e-10
-    # Confirming changes nothing else: the same folds as a single trace (the first trace is the same).
+    assert result.confirmation == "re-solved" and result.accurate
+    deciding = [f for f in result.branch.folds if f.confirmed is not None]
+    assert deciding == [result.first_fold, result.fold] and result.fold is not result.first_fold
+    assert all(f.confirmed for f in deciding) and max(f.discrepancy for f in deciding) < 1e-10
+    # The other folds (the minimum between the maxima, the mirrored ones) are not re-solved.
+    assert all(f.confirmed is None and f.discrepancy is None for f in result.branch.folds if f not in deciding)
+    # Confirming changes nothing else: the same folds as a single trace (the trace is the same).
     assert [(f.moment, f.phi0) for f in result.branch.folds] == [(f.moment, f.phi0) for f in once.branch.folds]
-    assert result.critical_moment == once.critical_moment and result.first_fold.confirmed
-    # The progress runs over both traces on one scale, to its end.
+    assert result.critical_moment == once.critical_moment
+    # One trace: the progress runs over one turn, to its end.
     totals = {total for _, total in seen}
-    assert totals == {4 * math.pi} and max(done for done, _ in seen) == pytest.approx(4 * math.pi)
+    assert totals == {2 * math.pi} and max(done for done, _ in seen) == pytest.approx(2 * math.pi)
     assert all(b >= a for (a, _), (b, _) in zip(seen, seen[1:]))
+
+
+def test_the_re_solve_finds_a_fold_where_m_is_stationary_and_no_fold_elsewhere_on_the_branch():
+    # The re-solve's root of dM/dphi_0 is the traced fold's; a point of the branch where M still
+    # rises, dressed up as a fold, has no root of dM/dphi_0 within the tolerance: not found.
+    branch = critical_point(TWO_MAXIMA, "nonlinear").branch
+    first = branch.folds[0]
+    found = resolve_fold(TWO_MAXIMA, get_model("nonlinear"), first)
+    assert found is not None and found.maximum
+    assert abs(found.moment - first.moment) < 1e-12 and abs(found.phi0 - first.phi0) < 1e-8
+    rising = int(np.argmax(branch.phi0 > 0.5 * first.phi0))
+    fake = replace(first, moment=float(branch.moment[rising]), phi0=float(branch.phi0[rising]), x=branch.x[rising])
+    assert resolve_fold(TWO_MAXIMA, get_model("nonlinear"), fake) is None
+    # A maximum is not a minimum: the same fold asked for as a minimum is not found.
+    assert resolve_fold(TWO_MAXIMA, get_model("nonlinear"), replace(first, maximum=False)) is None
 
 
 def test_confirm_folds_matches_kind_moment_and_angle_within_the_tolerances():
@@ -81,56 +99,51 @@ def test_confirm_folds_matches_kind_moment_and_angle_within_the_tolerances():
     assert confirm_folds(branch, [near])[0].x is first.x and confirm_folds(branch, [near])[0].index_after == first.index_after
 
 
-def _second_trace_moved(monkeypatch, shift: float = 1e-6):
-    """Every chain traced twice, and the second trace's folds moved by ``shift`` in M (as round-off's folds move)."""
+def _re_solve_moved(monkeypatch, shift: float = 1e-6):
+    """Every chain re-solved, and the re-solved folds moved by ``shift`` in M (as round-off's folds move)."""
     monkeypatch.setattr(critical, "CONFIRM_MARGIN", math.inf)
-    original = critical.continue_in_moment
+    original = critical.resolve_fold
 
-    def traced(params, model, **kwargs):
-        branch = original(params, model, **kwargs)
-        if kwargs.get("step") is not None:
-            branch.folds = [replace(f, moment=f.moment + shift) for f in branch.folds]
-        return branch
+    def moved(*args, **kwargs):
+        found = original(*args, **kwargs)
+        return None if found is None else replace(found, moment=found.moment + shift)
 
-    monkeypatch.setattr(critical, "continue_in_moment", traced)
+    monkeypatch.setattr(critical, "resolve_fold", moved)
 
 
-def test_an_onset_fold_the_second_trace_does_not_pass_makes_the_result_inaccurate(monkeypatch):
-    _second_trace_moved(monkeypatch)
+def test_an_onset_fold_the_re_solve_does_not_find_makes_the_result_inaccurate(monkeypatch):
+    _re_solve_moved(monkeypatch)
     result = critical_point(ChainParams(), "nonlinear")
-    assert result.confirmation == "twice"
+    assert result.confirmation == "re-solved"
     assert result.fold.confirmed is False and not result.accurate
     assert result.fold.discrepancy == pytest.approx(1e-6, rel=1e-6)
     assert result.to_dataset().attrs["accurate"] == 0
 
 
 def test_critical_exits_inaccurate_and_still_prints_and_writes_an_unconfirmed_fold(monkeypatch, tmp_path):
-    _second_trace_moved(monkeypatch)
+    _re_solve_moved(monkeypatch)
     out = tmp_path / "critical.nc"
     result = runner.invoke(app, ["critical", "--model", "nonlinear", "--json", "--out", str(out)])
     assert result.exit_code == EXIT_CODES[Status.INACCURATE] == 5, result.output
     summary = json.loads(result.stdout.splitlines()[0])["models"]["nonlinear"]
     assert summary["accurate"] is False and summary["folds"][0]["confirmed"] is False
-    assert "second trace" in result.output and "differ by up to 1e-06" in result.output and out.exists()
+    assert "re-solve" in result.output and "differ by up to 1e-06" in result.output and out.exists()
 
 
-def test_a_failed_second_trace_leaves_the_folds_unconfirmed_and_says_why(monkeypatch):
+def test_a_failed_re_solve_leaves_the_fold_unconfirmed(monkeypatch):
     monkeypatch.setattr(critical, "CONFIRM_MARGIN", math.inf)
-    original = critical.continue_in_moment
 
-    def traced(params, model, **kwargs):
-        if kwargs.get("step") is not None:
-            raise critical.NewtonError("the corrector failed at arclength 0.1 from M=0.05", None)
-        return original(params, model, **kwargs)
+    def failing(*args, **kwargs):
+        raise critical.NewtonError("not converged", None)
 
-    monkeypatch.setattr(critical, "continue_in_moment", traced)
-    result = critical_point(ChainParams(), "nonlinear")  # eq. (2)'s folds are confirmed by their closed form, not traced twice
-    assert result.confirmation.startswith("the second trace failed: the corrector failed")
-    assert not result.accurate and all(f.confirmed is False and f.discrepancy == math.inf for f in result.branch.folds)
+    monkeypatch.setattr(critical, "solve_rotation_controlled", failing)
+    result = critical_point(ChainParams(), "nonlinear")  # eq. (2)'s folds are confirmed by their closed form, not re-solved
+    assert result.confirmation == "re-solved" and not result.accurate
+    assert result.first_fold.confirmed is False and result.first_fold.discrepancy == math.inf
     assert result.as_dict()["folds"][0]["discrepancy"] is None  # JSON has no inf
 
 
-def test_a_chain_is_traced_twice_where_its_softest_eigenvalue_at_rest_nears_its_round_off():
+def test_folds_are_re_solved_where_the_softest_eigenvalue_at_rest_nears_its_round_off():
     # The paper's geometry: K's softest eigenvalue (its bending mode, ~N^-4) over its
     # round-off is 18.5 at N = 1000 and 1.2 at N = 2000 (docs/statics.md).
     for N, expected in ((3, False), (1000, False), (2000, True)):
@@ -138,14 +151,14 @@ def test_a_chain_is_traced_twice_where_its_softest_eigenvalue_at_rest_nears_its_
         value, resolution = smallest_eigenvalue(get_model("nonlinear").symmetric_similar(params, np.zeros((3, params.n_particles))))
         assert critical.near_singular_at_rest(params, get_model("nonlinear")) is expected
         assert (value < critical.CONFIRM_MARGIN * resolution) is expected
-    # A ring and a model without a banded similar run the dense statics at small N: never twice.
+    # A ring and a model without a banded similar run the dense statics at small N: never re-solved.
     assert not critical.near_singular_at_rest(ChainParams(N=3, periodic=True), get_model("nonlinear"))
 
 
 @pytest.mark.slow
-def test_the_first_fold_of_a_long_chain_is_confirmed_by_the_second_trace():
-    # N = 1500: K's softest eigenvalue at rest within ten times its round-off, so the branch
-    # is traced twice; its first fold is the branch's, passed by both traces.
+def test_the_first_fold_of_a_long_chain_is_confirmed_by_its_re_solve():
+    # N = 1500: K's softest eigenvalue at rest within ten times its round-off, so the folds that
+    # decide M_c are re-solved; the first fold is the branch's, found again.
     result = critical_point(ChainParams(N=1500), "nonlinear")
-    assert result.confirmation == "twice" and result.accurate
+    assert result.confirmation == "re-solved" and result.accurate
     assert result.first_fold.confirmed and result.fold.confirmed

@@ -145,7 +145,7 @@ def critical(
             system, config=config, sets=sets, vary=vary, start=start, down=down, max_points=max_points, as_json=as_json
         )
     system_only_or_exit(ctx, ("sets", "vary", "start", "down"))
-    from ..experiments.critical import CONFIRM_MOMENT_RTOL, MAX_POINTS, TURNS, critical_point
+    from ..experiments.critical import CONFIRM_MOMENT_RTOL, CONFIRM_PHI0_ATOL, MAX_POINTS, TURNS, critical_point
     from ..numerics.newton import NewtonError
 
     max_points = MAX_POINTS if max_points is None else max_points
@@ -194,9 +194,9 @@ def critical(
                 over += f" (the trace stopped: {r.branch.message})"
             if r.confirmation == "closed form":
                 over += ", each at eq. (2)'s closed form M = +-1 / max_j |dphi_j/dM|"
-            elif r.confirmation != "once":
-                confirmed = sum(bool(f.confirmed) for f in r.branch.folds)
-                over += f", {confirmed} of them confirmed by a second trace with other steps"
+            elif r.confirmation == "re-solved":
+                checked = [f.confirmed for f in r.branch.folds if f.confirmed is not None]
+                over += f", {sum(checked)} of the {len(checked)} that decide M_c confirmed by a re-solve on the rotation-controlled branch"
             typer.echo(f"{name}: {fold}; compliance dphi_0/dM = {r.compliance:.15g}; {len(r.branch.folds)} folds {over}")
             typer.echo(f"  {_stability_line(r)}")
     for name, r in results.items():
@@ -218,10 +218,10 @@ def critical(
             spread = max((f.discrepancy for f in (r.fold, r.first_fold) if f is not None and f.discrepancy is not None), default=math.inf)
             exit_on(
                 Status.INACCURATE,
-                f"the {name} branch: K is near singular at rest (a long chain: its condition number grows like N^4) and a second "
-                f"trace with other steps did not pass the fold of M_c or the first fold within {CONFIRM_MOMENT_RTOL:g} of the "
-                f"branch's largest moment ({r.confirmation}; "
-                + ("no such fold in it" if not math.isfinite(spread) else f"its moments differ by up to {spread:.2g}")
+                f"the {name} branch: K is near singular at rest (a long chain: its condition number grows like N^4) and a re-solve "
+                f"on the rotation-controlled branch did not find the fold of M_c or the first fold within {CONFIRM_MOMENT_RTOL:g} "
+                f"of the branch's largest moment and {CONFIRM_PHI0_ATOL:g} rad of its phi_0 ("
+                + ("no such fold there" if not math.isfinite(spread) else f"the moments differ by up to {spread:.2g}")
                 + "): M_c is known only to that",
             )
 

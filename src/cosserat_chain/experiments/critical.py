@@ -33,13 +33,17 @@ Contract
 
 Where K's softest eigenvalue at rest lies within :data:`CONFIRM_MARGIN` times its
 round-off (a long clamped chain: its bending mode's eigenvalue falls like N^-4, within
-ten times its round-off from N of about 1500 on the paper's geometry), the branch is traced
-a second time with steps :data:`CONFIRM_STEP` times as long, and every fold is
-``confirmed`` where that trace passes the same fold (:func:`confirm_folds`). A fold that
-only one trace passes is an artefact of round-off (N = 10^4: eleven small folds near
-phi_0 = 2 pi, within 4e-5 of M = 0, differ in number and place between two traces,
-while the first fold agrees to 6e-12): ``accurate`` is False where the onset's fold or
-the first fold is not confirmed, and the command line then exits with ``inaccurate``.
+ten times its round-off from N of about 1500 on the paper's geometry), the folds that decide
+M_c (the first fold and every maximum that holds more) are re-solved by another method
+(:func:`resolve_fold`): on the rotation-controlled branch, from the traced fold's state, as the
+root of dM/dphi_0 within :data:`CONFIRM_PHI0_ATOL` of its angle, and each is ``confirmed``
+where that root is a maximum or minimum of M as the traced fold is, at the same moment
+(:func:`confirm_folds`). A re-solve costs a few sparse solves near the fold, not a second trace of
+the branch. The other folds are not re-solved (``confirmed`` None). A fold the re-solve does not
+find is an artefact of round-off (N = 10^4: eleven small folds near phi_0 = 2 pi, within 4e-5 of
+M = 0, where dM/dphi_0 has no root of the kind traced, while the first fold agrees to 1e-14):
+``accurate`` is False where the onset's fold or the first fold is not confirmed, and the command
+line then exits with ``inaccurate``.
 
 Eq. (2)'s folds are known in closed form: its static states are (u, v, sin phi) = M c with
 c = K^-1 e at rest, so every fold lies at M = +-1 / max_j |c_j|, where the particle of largest
@@ -82,20 +86,22 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
+import scipy.optimize as so
 
 from ..linalg import smallest_eigenvalue
 from ..loads import Loads, moment_load
 from ..models.base import Model, get_model
 from ..numerics.continuation import (
+    FOLD_TOL,
     Branch,
     BranchPoint,
     Fold,
     continue_in_moment,
-    default_step,
     moment_response,
+    moment_slope,
     require_branch_memory,
 )
-from ..numerics.newton import NewtonError, moment_dof, solve_equilibrium
+from ..numerics.newton import NewtonError, moment_dof, solve_equilibrium, solve_rotation_controlled
 from ..numerics.stability import static_stability
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column, unpack
@@ -112,21 +118,24 @@ MAX_POINTS = 5000
 #: Default budget in turns of the loaded particle for a branch from rest that stays stable
 #: beyond its first turn (a cantilever of the paper's geometry: 1.41 N rad, N <= 71 within 16 turns).
 TURNS = 16
-#: The branch is traced twice where K's softest eigenvalue at rest is below this many times its
-#: round-off (the paper's geometry: 18.5 at N = 1000, 1.17 at N = 2000, below 1 from N = 3000).
+#: The folds that decide M_c are re-solved where K's softest eigenvalue at rest is below this many
+#: times its round-off (the paper's geometry: 18.5 at N = 1000, 1.17 at N = 2000, below 1 from N = 3000).
 CONFIRM_MARGIN = 10.0
-#: The second trace's first step, relative to the first trace's (steps that follow other points).
-CONFIRM_STEP = 0.8
-#: Two traces pass the same fold where their moments agree to this, relative to the largest |M|
-#: of the branch: M_c to seven digits. Measured, relative to it: the nonlinear model's folds of
-#: N = 1000 to 1e-9, its first fold at N = 10^4 to 1e-10 and two random chains' to 1e-8, the sine
-#: model's folds of N = 2000 (pinned ends, clamped-pinned) and of a cantilever of N = 1000 to
-#: 1-3e-8; flagged: the folds of round-off of N = 10^4 (7e-5 and more) and the sine model's folds
-#: at N = 10^4 (5.7e-7 and 1.4e-6, the latter 3.6e-6 from 1/compliance) ...
+#: A traced fold and its re-solve are the same fold where their moments agree to this, relative to
+#: the largest |M| of the branch: M_c to seven digits (two traces with other steps agreed on the
+#: nonlinear model's folds of N = 1000 to 1e-9, its first fold at N = 10^4 to 1e-10 and two random
+#: chains' to 1e-8, where the folds of round-off of N = 10^4 differed by 7e-5 and more) ...
 CONFIRM_MOMENT_RTOL = 1e-7
 #: ... and their angles phi_0 to this (rad; a simple fold's phi_0 is known to about the square root
-#: of its moment's round-off: 3e-7 at N = 10^4).
+#: of its moment's round-off: 3e-7 at N = 10^4). The re-solve looks for the root of dM/dphi_0 within it.
 CONFIRM_PHI0_ATOL = 1e-5
+#: The re-solve's root of dM/dphi_0 to this (rad): M is stationary there, so M is then known to
+#: round-off, and a tighter root costs more solves for nothing.
+CONFIRM_PHI0_XTOL = 1e-10
+#: Most Newton iterations of a re-solve's rotation-controlled solve from the nearest solved angle
+#: (it starts within CONFIRM_PHI0_ATOL of a solved state: a few iterations, where more signal a
+#: branch the rotation control does not follow there).
+CONFIRM_ITERATIONS = 12
 
 #: What ``index_before`` / ``index_after`` and ``stable`` along the branch count (the JSON's ``index_meaning``).
 INDEX_MEANING = (
@@ -191,10 +200,9 @@ class CriticalResult:
     first_fold: Fold | None = None
     snap_to: Fold | None = None
     branch_point: BranchPoint | None = None
-    #: How the folds were checked: "once" (K resolved at rest: one trace), "twice" (a
-    #: second trace, each fold's ``confirmed`` says whether it passed it too), "closed form"
-    #: (eq. (2): every fold at M = +-1 / max_j |c_j|, module docstring), or why the
-    #: second trace failed (every fold then unconfirmed).
+    #: How the folds were checked: "once" (K resolved at rest: the trace alone), "re-solved" (the
+    #: folds that decide M_c re-solved, each one's ``confirmed`` says whether the re-solve found it
+    #: too), or "closed form" (eq. (2): every fold at M = +-1 / max_j |c_j|, module docstring).
     confirmation: str = "once"
     #: The budget in turns of the loaded particle (None for a model that does not rotate: one turn).
     turns: float | None = None
@@ -263,7 +271,7 @@ class CriticalResult:
 
     @property
     def accurate(self) -> bool:
-        """False where the fold of M_c or the first fold is not confirmed by the second trace (module docstring)."""
+        """False where the fold of M_c or the first fold is not confirmed by its re-solve (module docstring)."""
         return all(f is None or f.confirmed is not False for f in (self.fold, self.first_fold))
 
     @property
@@ -453,8 +461,8 @@ def critical_point(
     stable, to where the stable branch from rest ends, within ``turns`` turns (a model that
     does not rotate: one turn). ``max_points`` bounds the branch's points
     (:func:`continue_in_moment`); a branch cut short by it, or still stable after ``turns``,
-    gives ``complete`` False. Where K is near singular at rest the branch is traced twice and
-    the folds confirmed (module docstring); ``progress`` then runs to twice the turn. ``dynamics``
+    gives ``complete`` False. Where K is near singular at rest the folds that decide M_c are
+    re-solved and confirmed (module docstring). ``dynamics``
     False skips the damped dynamics' eigenvalues along the branch of a model that is not
     conservative (dense, O(n^3) a point: benchmarks/TIMINGS.md) where only the folds
     are wanted: ``dynamics_from`` is then "not computed" (a conservative model's verdict, K's
@@ -471,12 +479,10 @@ def critical_point(
     turn = 2 * math.pi
     budget = turn * turns if model.rotates else turn
     until = turn if model.rotates else None
-    require_branch_memory(params, max_points)  # before the stiffness at rest that decides on a second trace
+    require_branch_memory(params, max_points)
     closed = model.name == "sine"
-    twice = model.rotates and not closed and near_singular_at_rest(params, model)
-    parts = 2 if twice else 1
     trace = dict(particle=particle, phi0_stop=budget, phi0_until_unstable=until, max_points=max_points)
-    branch = continue_in_moment(params, model, **trace, progress=_part(progress, 0, parts))
+    branch = continue_in_moment(params, model, **trace, progress=progress)
     confirmation = "once"
     response = moment_response(params, model, particle=particle)
     angles = unpack(params, response)[ROW_INDEX["phi"]]
@@ -484,19 +490,14 @@ def critical_point(
     if closed:
         branch.folds, onset_particle = _sine_folds(params, branch, angles, particle), int(np.argmax(np.abs(angles))) - params.N
         confirmation = "closed form"
-    elif twice and branch.folds:
-        try:
-            check = continue_in_moment(params, model, **trace, step=CONFIRM_STEP * default_step(params), progress=_part(progress, 1, parts))
-            confirmation = "twice"
-        except NewtonError as err:
-            check, confirmation = None, f"the second trace failed: {err}"
-        branch.folds = confirm_folds(branch, [] if check is None else check.folds)
+    elif model.rotates and branch.folds and near_singular_at_rest(params, model):
+        deciding = _deciding_folds(branch)
+        resolved = [resolve_fold(params, model, branch.folds[i], particle=particle) for i in deciding]
+        checked = confirm_folds(branch, [g for g in resolved if g is not None])
+        branch.folds = [checked[i] if i in deciding else f for i, f in enumerate(branch.folds)]
+        confirmation = "re-solved"
     first = branch.folds[0] if branch.folds else None
-    scale = float(np.max(np.abs(branch.moment)))
-    # Under a positive moment from rest M rises first: the branch's first fold is a maximum. A later
-    # maximum is M_c only where it holds more than the first by more than the folds' confirmation
-    # tolerance: maxima equal to round-off (a wound particle repeating one fold) are one M_c.
-    higher = [f for f in branch.folds if f.maximum and first is not None and f.moment > first.moment + CONFIRM_MOMENT_RTOL * scale]
+    higher = [branch.folds[i] for i in _deciding_folds(branch)[1:]]
     fold = max(higher, key=lambda f: f.moment) if higher else (first if first is not None and first.maximum else None)
     compliance = float(response[moment_dof(params, particle)])
     end = branch.stable_end
@@ -571,9 +572,9 @@ def near_singular_at_rest(params: ChainParams, model: Model) -> bool:
 
 
 def confirm_folds(branch: Branch, others: list[Fold]) -> list[Fold]:
-    """``branch``'s folds, each ``confirmed`` where ``others`` holds a fold of the same kind (maximum or minimum) within
-    :data:`CONFIRM_MOMENT_RTOL` times the branch's largest |M| in moment and :data:`CONFIRM_PHI0_ATOL` in phi_0, and with
-    its ``discrepancy``: the moment difference to the nearest fold of the same kind in ``others``."""
+    """``branch``'s folds, each ``confirmed`` where ``others`` (re-solved folds) holds a fold of the same kind (maximum or
+    minimum) within :data:`CONFIRM_MOMENT_RTOL` times the branch's largest |M| in moment and :data:`CONFIRM_PHI0_ATOL` in
+    phi_0, and with its ``discrepancy``: the moment difference to the nearest fold of the same kind in ``others``."""
     scale = float(np.max(np.abs(branch.moment)))
     out = []
     for f in branch.folds:
@@ -584,11 +585,64 @@ def confirm_folds(branch: Branch, others: list[Fold]) -> list[Fold]:
     return out
 
 
-def _part(progress: Callable[[float, float], None] | None, done: int, parts: int) -> Callable[[float, float], None] | None:
-    """``progress`` of trace ``done`` of ``parts`` on one scale (the second trace's turn after the first's)."""
-    if progress is None:
+def _deciding_folds(branch: Branch) -> list[int]:
+    """Indices of the folds that decide M_c: the first fold, then every maximum holding more than it.
+
+    Under a positive moment from rest M rises first: the branch's first fold is a maximum. A later
+    maximum is M_c only where it holds more than the first by more than the folds' confirmation
+    tolerance: maxima equal to round-off (a wound particle repeating one fold) are one M_c.
+    """
+    if not branch.folds:
+        return []
+    first = branch.folds[0]
+    above = first.moment + CONFIRM_MOMENT_RTOL * float(np.max(np.abs(branch.moment)))
+    return [0] + [i for i, f in enumerate(branch.folds) if i > 0 and f.maximum and f.moment > above]
+
+
+def resolve_fold(params: ChainParams, model: Model, fold: Fold, *, particle: int = 0) -> Fold | None:
+    """``fold`` re-solved on the rotation-controlled branch: the root of dM/dphi_0 within :data:`CONFIRM_PHI0_ATOL` of its angle.
+
+    Another parametrisation and other linear algebra than the trace's (the angle phi_0 held,
+    :func:`~cosserat_chain.numerics.newton.solve_rotation_controlled`, and the exact slope
+    :func:`~cosserat_chain.numerics.continuation.moment_slope`, sparse solves of the
+    rotation-controlled Jacobian, which stays regular at a fold): the states at phi_0 -+
+    :data:`CONFIRM_PHI0_ATOL` are solved from the traced fold's, and a maximum of M along the
+    branch is one of M(phi_0) wherever phi_0 runs one way through it, so dM/dphi_0 falls through
+    zero there (rises, at a minimum). Its root, to :data:`CONFIRM_PHI0_XTOL` (Brent's method), is
+    the re-solved fold.
+
+    Returns
+    -------
+    Fold or None
+        The re-solved fold (``maximum`` the traced fold's), or None where dM/dphi_0 does not change
+        sign as that kind of fold does within the bracket, or a solve there fails: no such fold
+        within :data:`CONFIRM_PHI0_ATOL` of the traced one.
+    """
+    cache = {fold.phi0: (fold.x, fold.moment)}
+
+    def solve(angle: float) -> tuple[np.ndarray, float]:
+        if angle not in cache:
+            nearest = min(cache, key=lambda a: abs(a - angle))
+            cache[angle] = solve_rotation_controlled(
+                params, model, angle, particle=particle, x0=cache[nearest][0], moment0=cache[nearest][1], tol=FOLD_TOL,
+                max_iter=CONFIRM_ITERATIONS,
+            )  # fmt: skip
+        return cache[angle]
+
+    def slope(angle: float) -> float:
+        return moment_slope(params, model, solve(angle)[0], particle=particle)
+
+    low, high = fold.phi0 - CONFIRM_PHI0_ATOL, fold.phi0 + CONFIRM_PHI0_ATOL
+    try:
+        before, after = slope(low), slope(high)
+        sign = 1.0 if fold.maximum else -1.0
+        if not (sign * before > 0.0 > sign * after):
+            return None
+        root = so.brentq(slope, low, high, xtol=CONFIRM_PHI0_XTOL, rtol=4 * np.finfo(float).eps)
+        x, moment = solve(root)
+    except (NewtonError, ValueError):
         return None
-    return lambda value, total: progress(done * total + value, parts * total)
+    return replace(fold, moment=float(moment), phi0=float(root), x=x)
 
 
 def _snap_target(params: ChainParams, model: Model, branch: Branch, first: Fold, particle: int) -> Fold | None:

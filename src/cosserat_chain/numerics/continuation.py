@@ -122,12 +122,12 @@ class Fold:
     #: located on its own.
     index_before: int | None = None
     index_after: int | None = None
-    #: Whether a second trace of the branch with other steps passed the same fold
-    #: (:func:`~cosserat_chain.experiments.critical.critical_point` traces twice where K's
-    #: softest eigenvalue is near its round-off); None where it was traced once.
+    #: Whether a re-solve near the fold found it too
+    #: (:func:`~cosserat_chain.experiments.critical.critical_point` re-solves the folds that decide
+    #: M_c where K's softest eigenvalue is near its round-off); None where it was not re-solved.
     confirmed: bool | None = None
-    #: |M| difference to the second trace's nearest fold of the same kind (inf where it has none;
-    #: None where the branch was traced once): how well the two traces agree on M.
+    #: |M| difference to the re-solved fold of the same kind (inf where the re-solve found none;
+    #: None where it was not re-solved): how well the two agree on M.
     discrepancy: float | None = None
     #: The particle (-N..N) whose angle the fold's mode (K's null vector: the branch's tangent
     #: there) turns most: the one that starts to rotate where a slowly loaded chain leaves the
