@@ -419,8 +419,7 @@ def orbit_on_system(
         for e in branch.events:
             where = f"{vary} = {e.parameter:.12g}" if e.located else "not located"
             typer.echo(f"  {e.kind} at {where}")
-        end = "" if branch.end_value is None else f"; fitted end {vary} = {branch.end_value:.10g} +- {branch.end_uncertainty:.2g}"
-        typer.echo(f"continued to {vary} = {branch.values[-1]:.12g} ({len(branch.orbits)} orbits): {branch.end}: {branch.message}{end}")
+        typer.echo(f"continued to {vary} = {branch.values[-1]:.12g} ({len(branch.orbits)} orbits): {branch.end}: {branch.message}")
 
 
 def _orbit_dataset(system, reference: str, orbit, branch):
