@@ -50,7 +50,9 @@ def _bond(a, b, h, E1, E2, rest1, rest2, c0, s0, c1, s1, du, dv):  # pragma: no 
 
     The right particle receives (-fx, -fy). ``a, b, h, E1, E2, rest1, rest2``: the
     coefficients; ``c0, s0, c1, s1``: cos and sin of the two angles; ``du, dv``:
-    differences of the displacements (right minus left).
+    differences of the displacements (right minus left). IEEE square roots and divisions:
+    reciprocal square roots by estimate and Newton steps measured no faster in numba
+    (``benchmarks/bench_engine_rsqrt.py``).
     """
     # Right-hand corners of the left particle: A = R(a, b), B = R(a, -b).
     ax = a * c0 - b * s0
