@@ -257,7 +257,7 @@ class _Shooting:
     def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
         size = 2 * self.system.size
         y0, log_period = w[:size], w[size]
-        if not (math.isfinite(log_period) and log_period < 50):
+        if not (math.isfinite(log_period) and -50 < log_period < 50):
             raise EvaluationFailed(f"log T = {log_period!r} out of range")
         period = math.exp(log_period)
         system = self.at(w)
