@@ -165,7 +165,7 @@ class System(abc.ABC):
 
     def force_jacobian(self, q: np.ndarray) -> sp.csr_matrix:
         """dF/dq (n, n), by central differences unless a subclass gives it exactly."""
-        _warn_once(type(self))
+        self._warn_approximate()
         q = np.asarray(q, dtype=float)
         columns = []
         for i in range(self.size):
@@ -178,7 +178,7 @@ class System(abc.ABC):
 
     def parameter_forces(self, q: np.ndarray, name: str) -> np.ndarray:
         """dF/dp for parameter ``name`` (n,), by central differences unless a subclass gives it exactly."""
-        _warn_once(type(self))
+        self._warn_approximate()
         value = self.parameter(name)
         step = FD_STEP * max(1.0, abs(value))
         plus = self.with_parameters(**{name: value + step}).forces(q)
@@ -208,20 +208,17 @@ class System(abc.ABC):
         """
         return None
 
+    def _warn_approximate(self) -> None:
+        # Once per system (its copies by with_parameters share the flag), not once per evaluation.
+        if not self.__dict__.get("_warned_approximate"):
+            self._warned_approximate = True
+            warnings.warn(
+                f"{self.name} ({type(self).__name__}) gives no Jacobian: finite differences stand in (about 1e-9 accurate, "
+                "n force evaluations each); write the system as a LatticeSystem or override force_jacobian for exact ones",
+                ApproximateJacobianWarning,
+                stacklevel=3,
+            )
+
     def describe(self) -> dict:
         """Name, coordinates and parameters, for the attributes of result files and JSON."""
         return {"system": self.name, "coordinates": list(self.coordinates), "parameters": self.parameters}
-
-
-_WARNED: set[type] = set()
-
-
-def _warn_once(cls: type) -> None:
-    if cls not in _WARNED:
-        _WARNED.add(cls)
-        warnings.warn(
-            f"{cls.__name__} gives no Jacobian: finite differences stand in (about 1e-9 accurate, n force "
-            "evaluations each); write the system as a LatticeSystem or override force_jacobian for exact ones",
-            ApproximateJacobianWarning,
-            stacklevel=3,
-        )
