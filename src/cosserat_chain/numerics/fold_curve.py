@@ -11,8 +11,8 @@ null vector w of the stiffness K = -dF/dq with
 extended system with which AUTO-07p continues limit points (its "LP continuation").
 :func:`continue_fold` starts from the first fold of the branch from rest at the first
 value (:func:`~.continuation.locate_fold`) and follows it through the values in turn:
-each value's Newton starts from the previous fold, extrapolated along the curve from
-the two before it. Its Jacobian
+each value's Newton (the kit's corrector, :func:`~.kit.newton`) starts from the previous
+fold, extrapolated along the curve from the two before it. Its Jacobian
 
     [[ -K,        e,  0  ],
      [ D(K w)/dq, 0,  K  ],
@@ -45,6 +45,7 @@ from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, column, pack, require_held, unpack
 from .continuation import locate_fold
+from .kit import Evaluation, newton
 from .newton import moment_dof, round_off_floor
 
 #: Fields along which the fold can be continued (the chain's numbers; N is a whole number).
@@ -147,30 +148,37 @@ def _along(model: Model, params: ChainParams, x: np.ndarray, w: np.ndarray) -> s
 
 
 def _newton(model, params, dof, q, moment, w, normal) -> tuple[np.ndarray, float, np.ndarray, int] | None:
-    """Solve the extended system for ``params`` from (q, M, w); None if Newton does not converge."""
+    """Solve the extended system for ``params`` from (q, M, w) by the kit's corrector; None if it does not converge."""
     nf = q.size
     e = sp.csr_matrix((np.ones(1), ([dof], [0])), shape=(nf, 1))
-    for iteration in range(MAX_ITERATIONS + 1):
+
+    def evaluate(z: np.ndarray, jacobian: bool) -> Evaluation:
+        q, moment, w = z[:nf], z[nf], z[nf + 1 :]
         x = unpack(params, q)
         k = model.stiffness(params, x).tocsr()
         force = pack(params, model.compiled_forces(params, x))
         force[dof] += moment
         residual = np.concatenate([force, k @ w, [normal @ w - 1.0]])
-        floor = round_off_floor(k, q)
-        if np.max(np.abs(residual[:nf])) <= max(TOL * (1.0 + abs(moment)), floor) and np.max(np.abs(residual[nf:])) <= TOL * max(
-            1.0, float(np.max(np.abs(w)))
-        ) * float(abs(k).sum(axis=1).max()):
-            return q, moment, w, iteration
-        if iteration == MAX_ITERATIONS:
-            return None
-        jacobian = sp.bmat(
-            [[-k, e, None], [_along(model, params, x, w), None, k], [None, None, sp.csr_matrix(normal[None, :])]], format="csc"
-        )
-        step = spla.spsolve(jacobian, -residual)
-        if not np.all(np.isfinite(step)):
-            return None
-        q, moment, w = q + step[:nf], moment + float(step[nf]), w + step[nf + 1 :]
-    return None
+
+        def matrix() -> sp.csc_matrix:
+            along = _along(model, params, x, w)
+            return sp.bmat([[-k, e, None], [along, None, k], [None, None, sp.csr_matrix(normal[None, :])]], format="csc")
+
+        return Evaluation(residual, matrix, data=(k, z))
+
+    def converged(evaluation: Evaluation, norm: float) -> bool:
+        # The forces to their round-off floor, K w relative to the size of K and of w.
+        k, z = evaluation.data
+        residual = evaluation.residual
+        return np.max(np.abs(residual[:nf])) <= max(TOL * (1.0 + abs(z[nf])), round_off_floor(k, z[:nf])) and np.max(
+            np.abs(residual[nf:])
+        ) <= TOL * max(1.0, float(np.max(np.abs(z[nf + 1 :])))) * float(abs(k).sum(axis=1).max())
+
+    corrected = newton(evaluate, np.concatenate([q, [moment], w]), converged=converged, max_iterations=MAX_ITERATIONS, divergence=None)
+    if not corrected.converged:
+        return None
+    z = corrected.w
+    return z[:nf].copy(), float(z[nf]), z[nf + 1 :].copy(), corrected.iterations
 
 
 def continue_fold(

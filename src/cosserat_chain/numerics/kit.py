@@ -88,7 +88,7 @@ class BranchEnd(StrEnum):
 
 
 _ADVICE = {
-    BranchEnd.FOLD: "continue past it with stop_at_fold=False to follow the other side",
+    BranchEnd.FOLD: "leave fold out of stop_at to follow the other side",
     BranchEnd.BRANCH_POINT: "switch branches with branch_directions() at the located point",
     BranchEnd.INFINITE_PERIOD: "raise period_max to follow the period further (its fitted end is given)",
     BranchEnd.PARAMETER_LIMIT: "widen the parameter range to go on",
@@ -112,11 +112,21 @@ class Corrector(StrEnum):
 
 @dataclass
 class Evaluation:
-    """R(w), and with a Jacobian request dR/dw (n, n + 1) and whatever the problem computed beside (``data``)."""
+    """R(w), and with a Jacobian request dR/dw (n, n + 1) and whatever the problem computed beside (``data``).
+
+    The Jacobian may be given as a callable, computed only when a step needs it (not at the
+    solution of a :func:`newton` that only stores the point): :meth:`matrix` computes it once.
+    """
 
     residual: np.ndarray
     jacobian: Any = None
     data: Any = None
+
+    def matrix(self):
+        """dR/dw, computed now if it was given as a callable."""
+        if callable(self.jacobian):
+            self.jacobian = self.jacobian()
+        return self.jacobian
 
 
 @dataclass
@@ -204,87 +214,178 @@ def _parity(perm: np.ndarray) -> int:
     return parity
 
 
-def newton(
-    evaluate: Callable[[np.ndarray, bool], Evaluation],
-    w0: np.ndarray,
-    *,
-    tol: float,
-    max_iterations: int = MAX_ITERATIONS,
-    border: tuple[np.ndarray, np.ndarray] | None = None,
-    keep: np.ndarray | None = None,
-) -> Correction:
-    """Newton's method on R(w) = 0, the one corrector of the package's continuations.
-
-    Parameters
-    ----------
-    evaluate : callable(w, jacobian) -> Evaluation
-    w0 : ndarray
-        Start.
-    tol : float
-        Converged when max |R| <= tol (the residual at the returned w; the Jacobian there is fresh).
-    max_iterations : int
-        Stalled after this many iterations.
-    border : (t, w_pred), optional
-        Adds the arclength condition t . (w - w_pred) = 0 (R has one unknown more than
-        equations); without it R is square, or only the unknowns ``keep`` (a boolean mask)
-        move.
-    keep : ndarray of bool, optional
-
-    Returns
-    -------
-    Correction
-        Its status names the test that ended it: converged, diverged (two iterations in a
-        row that did not reduce max |R| below its smallest value), stalled
-        (``max_iterations``) or not finite.
-    """
-    w = np.array(w0, dtype=float)
-    best, grace = math.inf, True
-    for iteration in range(max_iterations + 1):
-        try:
-            ev = evaluate(w, True)
-        except (ArithmeticError, np.linalg.LinAlgError, EvaluationFailed):
-            return Correction(Corrector.NOT_FINITE, w, None, math.inf, iteration)
-        residual = np.asarray(ev.residual, dtype=float)
-        norm = float(np.max(np.abs(residual))) if residual.size else 0.0
-        if not math.isfinite(norm):
-            return Correction(Corrector.NOT_FINITE, w, ev, norm, iteration)
-        if norm <= tol:
-            return Correction(Corrector.CONVERGED, w, ev, norm, iteration)
-        if norm > DIVERGENCE * best:
-            # One growing iteration is forgiven: near a nearly singular Jacobian round-off can
-            # throw one step off, and the next recovers.
-            if not grace:
-                return Correction(Corrector.DIVERGED, w, ev, norm, iteration)
-            grace = False
-        elif norm < best:
-            best, grace = norm, True
-        if iteration == max_iterations:
-            break
-        try:
-            if border is not None:
-                t, w_pred = border
-                step = _solve(_bordered(ev.jacobian, t), -np.append(residual, t @ (w - w_pred)))
-                w = w + step
-            elif keep is not None:
-                jac = ev.jacobian[:, keep] if not sp.issparse(ev.jacobian) else sp.csc_matrix(ev.jacobian)[:, np.flatnonzero(keep)]
-                w = w.copy()
-                w[keep] += _solve(jac, -residual)
-            else:
-                w = w + _solve(ev.jacobian, -residual)
-        except (np.linalg.LinAlgError, RuntimeError):
-            return Correction(Corrector.NOT_FINITE, w, ev, norm, iteration)
-        if not np.all(np.isfinite(w)):
-            return Correction(Corrector.NOT_FINITE, w, ev, norm, iteration)
-    return Correction(Corrector.STALLED, w, ev, norm, max_iterations)
-
-
 class EvaluationFailed(CosseratChainError, RuntimeError):
     """What a problem raises when R cannot be evaluated at a trial w (an integration that failed);
     the corrector then reports ``not_finite``."""
 
 
-def tangent(jacobian, previous: np.ndarray | None = None, *, direction: float = 1.0) -> np.ndarray:
-    """Unit null vector of dR/dw (n, n + 1), oriented along ``previous`` (or with sign(t[-1]) = direction)."""
+_EVALUATION_ERRORS = (ArithmeticError, np.linalg.LinAlgError, EvaluationFailed)
+
+
+def newton(
+    evaluate: Callable[[np.ndarray, bool], Evaluation],
+    w0: np.ndarray,
+    *,
+    tol: float | None = None,
+    converged: Callable[[Evaluation, float], bool] | None = None,
+    max_iterations: int = MAX_ITERATIONS,
+    border: tuple[np.ndarray, np.ndarray] | None = None,
+    keep: np.ndarray | None = None,
+    divergence: float | None = DIVERGENCE,
+    forgive: int = 1,
+    chord: float | None = None,
+    jacobian0: Any = None,
+    damping: int = 0,
+) -> Correction:
+    """Newton's method on R(w) = 0, the one corrector of the package's continuations and orbit searches.
+
+    Parameters
+    ----------
+    evaluate : callable(w, jacobian) -> Evaluation
+        With ``jacobian`` False only the residual is needed (a chord iteration, a damped trial):
+        a problem for which it is cheaper (a state-only integration) computes only that.
+    w0 : ndarray
+        Start.
+    tol : float, optional
+        Converged when max |R| <= tol (the residual at the returned w; the Jacobian there is fresh).
+    converged : callable(evaluation, max|R|) -> bool, optional
+        The convergence test instead of ``tol`` (one tolerance per block of equations).
+    max_iterations : int
+        Stalled after this many steps.
+    border : (t, w_pred), optional
+        Adds the arclength condition t . (w - w_pred) = 0 (R has one unknown more than
+        equations); without it R is square, or only the unknowns ``keep`` (a boolean mask)
+        move.
+    keep : ndarray of bool, optional
+    divergence : float or None
+        A fresh evaluation whose max |R| exceeds ``divergence`` times the smallest max |R| a
+        step was taken from has grown; more than ``forgive`` such in a row have diverged.
+        None: no divergence test (a damped Newton never grows).
+    forgive : int
+        Growing iterations forgiven in a row: near a nearly singular Jacobian (a kink's
+        translation mode) round-off can throw one step off before Newton converges.
+    chord : float, optional
+        Chord iterations: the Jacobian is kept while each step divides max |R| by at least
+        1 / ``chord``, and computed again (at the current w) when one does not, and at the
+        solution. Each kept step then costs one residual, which pays where the Jacobian
+        costs many (variational equations of an orbit).
+    jacobian0 : matrix, optional
+        With ``chord``, the Jacobian the first step uses (the previous point's).
+    damping : int
+        Halvings of a step that does not reduce max |R| (each trial evaluated without the
+        Jacobian; a trial that cannot be evaluated counts as not reducing). When none of
+        them does, a kept Jacobian is computed again at w; a fresh one has diverged.
+
+    Returns
+    -------
+    Correction
+        Its status names the test that ended it: converged, diverged (max |R| grew beyond
+        ``divergence``, or no damped step reduced it), stalled (``max_iterations``) or not finite.
+    """
+    if (tol is None) == (converged is None):
+        raise ValueError("newton needs exactly one of tol (max |R| <= tol) and converged (a test)")
+    if converged is None:
+        converged = lambda evaluation, norm: norm <= tol  # noqa: E731
+    w = np.array(w0, dtype=float)
+    matrix = jacobian0 if chord is not None else None
+    fresh = matrix is None
+    best, grace, last, steps = math.inf, forgive, math.inf, 0
+    pending = None
+    while True:
+        if pending is None:
+            try:
+                ev = evaluate(w, fresh)
+            except _EVALUATION_ERRORS:
+                return Correction(Corrector.NOT_FINITE, w, None, math.inf, steps)
+        else:
+            ev, pending = pending, None
+        residual = np.asarray(ev.residual, dtype=float)
+        norm = float(np.max(np.abs(residual))) if residual.size else 0.0
+        if not math.isfinite(norm):
+            return Correction(Corrector.NOT_FINITE, w, ev, norm, steps)
+        if converged(ev, norm):
+            if fresh:
+                return Correction(Corrector.CONVERGED, w, ev, norm, steps)
+            fresh = True  # the solution's own Jacobian, for the caller's tangent and multipliers
+            continue
+        if not fresh and norm > chord * last:
+            fresh = True  # the kept Jacobian converges too slowly now
+            continue
+        if fresh and divergence is not None and norm > divergence * best:
+            if grace == 0:
+                return Correction(Corrector.DIVERGED, w, ev, norm, steps)
+            grace -= 1
+        elif norm < best:
+            best, grace = norm, forgive
+        if steps == max_iterations:
+            return Correction(Corrector.STALLED, w, ev, norm, steps)
+        if fresh:
+            matrix = ev.matrix()
+        steps += 1
+        try:
+            direction = _direction(matrix, residual, w, border, keep)
+        except (np.linalg.LinAlgError, RuntimeError):
+            return Correction(Corrector.NOT_FINITE, w, ev, norm, steps - 1)
+        if damping:
+            for _ in range(damping):
+                trial = _advance(w, direction, keep)
+                try:
+                    pending = evaluate(trial, False)
+                    trial_norm = float(np.max(np.abs(pending.residual)))
+                except _EVALUATION_ERRORS:
+                    pending, trial_norm = None, math.inf
+                if trial_norm < norm:
+                    break
+                # A rough start far from the solution: halve the step while it makes max |R| worse.
+                direction = 0.5 * direction
+            else:
+                pending = None
+                if fresh:
+                    return Correction(Corrector.DIVERGED, w, ev, norm, steps)
+                fresh = True
+                continue
+            w = trial
+            if chord is None:
+                pending = None  # the next step's Jacobian, fresh at the new w
+        else:
+            w = _advance(w, direction, keep)
+        fresh, last = chord is None, norm
+        if not np.all(np.isfinite(w)):
+            return Correction(Corrector.NOT_FINITE, w, ev, norm, steps - 1)
+
+
+def _direction(matrix, residual: np.ndarray, w: np.ndarray, border, keep) -> np.ndarray:
+    """The Newton step: of all unknowns with the arclength border, of the ``keep`` unknowns, or of a square R."""
+    if border is not None:
+        t, w_pred = border
+        return _solve(_bordered(matrix, t), -np.append(residual, t @ (w - w_pred)))
+    if keep is not None:
+        jac = matrix[:, keep] if not sp.issparse(matrix) else sp.csc_matrix(matrix)[:, np.flatnonzero(keep)]
+        return _solve(jac, -residual)
+    return _solve(matrix, -residual)
+
+
+def _advance(w: np.ndarray, direction: np.ndarray, keep) -> np.ndarray:
+    if keep is None:
+        return w + direction
+    out = w.copy()
+    out[keep] += direction
+    return out
+
+
+def tangent(jacobian, previous: np.ndarray | None = None, *, direction: float = 1.0, method: str = "bordered") -> np.ndarray:
+    """Unit null vector of dR/dw (n, n + 1), oriented along ``previous`` (or with sign(t[-1]) = direction).
+
+    ``method`` ``"bordered"`` solves [dR/dw; previous] t = e (one LU, sparse or dense);
+    ``"svd"`` takes the last right singular vector of a dense dR/dw (the most accurate
+    where dR/dw is small and dense, as a monodromy's).
+    """
+    if method not in ("bordered", "svd"):
+        raise ValueError(f"method must be 'bordered' or 'svd', got {method!r}")
+    if method == "svd":
+        t = sla.null_space(np.asarray(jacobian, dtype=float))[:, -1]
+        reference = previous @ t if previous is not None else t[-1] * direction
+        return -t if reference < 0 else t
     if previous is not None:
         t = _solve(_bordered(jacobian, previous), np.append(np.zeros(jacobian.shape[0]), 1.0))
     elif sp.issparse(jacobian):
@@ -343,6 +444,12 @@ def continuation(
     tangent0: np.ndarray | None = None,
     stop_at: tuple[str, ...] = (),
     progress: Callable[[int, int], None] | None = None,
+    corrector: dict | None = None,
+    easy: int = EASY,
+    hard: int = HARD,
+    locate: bool = True,
+    tangent_method: str = "bordered",
+    first: Any = None,
 ) -> Continuation:
     """Follow the branch of ``problem`` from a point w0 on it (pseudo-arclength).
 
@@ -362,6 +469,22 @@ def continuation(
         Event kinds that end the branch once located: values of :class:`BranchEnd`
         (``"fold"``, ``"branch_point"``, ``"period_doubling"``, ``"torus"``, ``"hopf"``).
     progress : callable(points, max_points), optional
+    corrector : dict, optional
+        Options of :func:`newton` for the corrections (``max_iterations``, ``divergence``,
+        ``forgive``, ``chord``, ``damping``); with ``chord`` each correction starts with the
+        Jacobian of the last corrected point.
+    easy, hard : int
+        The step grows (x GROW) after a correction of at most ``easy`` iterations and
+        shrinks (x SHRINK) after one of ``hard`` or more.
+    locate : bool
+        Locate events by the secant method (each trial a correction); False reports them at
+        the point after the sign change, unlocated (``Event.located`` False), where a
+        problem locates them more cheaply itself (a fold of cycles by a parabola).
+    tangent_method : str
+        ``"bordered"`` or ``"svd"`` (:func:`tangent`).
+    first : optional
+        The point the problem stores at w0, when the caller has it already; used if w0
+        needs no correction.
 
     Returns
     -------
@@ -384,22 +507,30 @@ def continuation(
         raise StartError(f"the start is not on the branch: the corrector {start.status} with max|R| = {start.norm:.3g}")
     w = start.w
     ev = start.evaluation
+    jacobian = ev.matrix()
     t = (
-        tangent(ev.jacobian, None, direction=direction)
+        tangent(jacobian, None, direction=direction, method=tangent_method)
         if tangent0 is None
         else np.asarray(tangent0, dtype=float) / np.linalg.norm(tangent0)
     )
     if tangent0 is not None:
-        t = tangent(ev.jacobian, t)
-    point = problem.point(w, ev, start.iterations)
+        t = tangent(jacobian, t, method=tangent_method)
+    point = first if first is not None and start.iterations == 0 else problem.point(w, ev, start.iterations)
     result = Continuation(points=[point], tangents=[t])
     if progress is not None:
         progress(1, max_points)
-    tests = _all_tests(problem, point, ev.jacobian, t)
+    tests = _all_tests(problem, point, jacobian, t)
+    options = dict(corrector or {})
     h = step
     while len(result.points) < max_points:
-        corrected = newton(problem.evaluate, w + h * t, tol=problem.tol, border=(t, w + h * t))
-        candidate = problem.point(corrected.w, corrected.evaluation, corrected.iterations) if corrected.converged else None
+        if options.get("chord") is not None:
+            options["jacobian0"] = jacobian
+        corrected = newton(problem.evaluate, w + h * t, tol=problem.tol, border=(t, w + h * t), **options)
+        candidate = None
+        if corrected.converged:
+            # The latest Jacobian computed, the next chord iterations' start even where the monitor refuses the point.
+            jacobian = corrected.evaluation.matrix()
+            candidate = problem.point(corrected.w, corrected.evaluation, corrected.iterations)
         if candidate is None or (h > min_step and not problem.accept(result.points[-1], candidate)):
             if h <= min_step:
                 result.end = BranchEnd.STEP_TOO_SMALL
@@ -410,8 +541,8 @@ def continuation(
                 break
             h = max(min_step, 0.5 * h)
             continue
-        t_new = tangent(corrected.evaluation.jacobian, t)
-        new_tests = _all_tests(problem, candidate, corrected.evaluation.jacobian, t_new)
+        t_new = tangent(jacobian, t, method=tangent_method)
+        new_tests = _all_tests(problem, candidate, jacobian, t_new)
         result.points.append(candidate)
         result.tangents.append(t_new)
         if progress is not None:
@@ -419,17 +550,23 @@ def continuation(
         ended = None
         for kind in new_tests:
             if kind in tests and tests[kind] * new_tests[kind] < 0:
-                event = _locate(problem, kind, w, t, h, tests[kind], new_tests[kind], len(result.points) - 1, candidate)
+                if locate:
+                    event = _locate(
+                        problem, kind, w, t, h, tests[kind], new_tests[kind], len(result.points) - 1, candidate, options, tangent_method
+                    )
+                else:
+                    event = Event(kind, candidate, float(corrected.w[-1]), len(result.points) - 1, t_new, located=False)
                 if event.located and not problem.confirm(kind, event.point):
                     continue
                 result.events.append(event)
                 if kind in stop_at and ended is None:
                     ended = kind
         w, t, tests = corrected.w, t_new, new_tests
-        h = min(max_step, h * (GROW if corrected.iterations <= EASY else SHRINK if corrected.iterations >= HARD else 1.0))
+        h = min(max_step, h * (GROW if corrected.iterations <= easy else SHRINK if corrected.iterations >= hard else 1.0))
         if ended is not None:
             result.end = BranchEnd(ended)
-            result.message = f"{ended.replace('_', ' ')} located at lambda = {result.events[-1].parameter:.12g}: {result.end.advice}"
+            where = "located at" if result.events[-1].located else "passed before"
+            result.message = f"{ended.replace('_', ' ')} {where} lambda = {result.events[-1].parameter:.12g}: {result.end.advice}"
             break
         stop = problem.stop(candidate)
         if stop is not None:
@@ -450,7 +587,9 @@ def _all_tests(problem: ContinuationProblem, point, jacobian, t: np.ndarray) -> 
     return tests
 
 
-def _locate(problem, kind: str, w: np.ndarray, t: np.ndarray, h: float, before: float, after: float, index: int, fallback) -> Event:
+def _locate(
+    problem, kind: str, w: np.ndarray, t: np.ndarray, h: float, before: float, after: float, index: int, fallback, options, method: str
+) -> Event:
     """Zero of test ``kind`` on the arclength in (0, h) from w along t, by the secant (Illinois) method;
     the branch point's test is a sign only, so it is bisected."""
     low, high, f_low, f_high = 0.0, h, before, after
@@ -463,12 +602,12 @@ def _locate(problem, kind: str, w: np.ndarray, t: np.ndarray, h: float, before: 
             s = high - f_high * (high - low) / (f_high - f_low)
             if not (low < s < high):
                 s = 0.5 * (low + high)
-        corrected = newton(problem.evaluate, w + s * t, tol=problem.tol, border=(t, w + s * t))
+        corrected = newton(problem.evaluate, w + s * t, tol=problem.tol, border=(t, w + s * t), **options)
         if not corrected.converged:
             break
         point = problem.point(corrected.w, corrected.evaluation, corrected.iterations)
-        t_s = tangent(corrected.evaluation.jacobian, t)
-        value = _all_tests(problem, point, corrected.evaluation.jacobian, t_s)[kind]
+        t_s = tangent(corrected.evaluation.matrix(), t, method=method)
+        value = _all_tests(problem, point, corrected.evaluation.matrix(), t_s)[kind]
         best = (point, corrected.w[-1], t_s)
         if value == 0 or (high - low) < EVENT_TOL * max(1.0, h):
             break
