@@ -343,3 +343,21 @@ def test_systems_load_by_name_module_or_file(tmp_path):
     system = load_system(f"{user}:rotors", {"sites": 5, "K": 2.0})
     assert system.name == "rotors" and system.size == 5
     np.testing.assert_allclose(system.forces(np.full(5, 0.5)), -2.0 * np.sin(0.5))
+
+
+def test_in_phase_pen_orbits_equal_the_sine_chain_N1_in_pendulum_units(pen_orbit):
+    """With clamped neighbours the loaded particle of the N = 1 sine chain (eq. (2)) is one pendulum,
+    j phi'' + gamma_phi phi' + K sin phi = M with K = 4 b^2 (E1 + h^2 E2 / d^2): in the time sqrt(j / K) it is
+    the in-phase pen orbit at I = M / K, eps = gamma_phi / sqrt(j K). The chain's own shooting agrees."""
+    from cosserat_chain.numerics.periodic import find_periodic_orbit
+    from cosserat_chain.state import zeros
+
+    params = ChainParams(N=1, a=0.17, b=0.23, E1=1.3, E2=0.8)
+    d2 = (params.h - 2 * params.a) ** 2 + 4 * params.b**2
+    stiffness = 4 * params.b**2 * (params.E1 + params.h**2 * params.E2 / d2)
+    params = params.replace(gamma_phi=0.1 * math.sqrt(params.j * stiffness))
+    unit = math.sqrt(params.j / stiffness)
+    x, v = zeros(params), zeros(params)
+    v[2, 1] = pen_orbit.v0[0] / unit
+    chain = find_periodic_orbit(params, "sine", 0.4 * stiffness, guess=(x, v, pen_orbit.period * unit))
+    assert chain.period / unit == pytest.approx(pen_orbit.period, abs=1e-9)
