@@ -631,6 +631,8 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "moment": ("energy", "moment M on the loaded particle"),
     "phi0": ("rad", "rotation angle phi_0 of the loaded particle"),
     "point": ("1", "index of a point along the branch"),
+    "state": ("1", "index of a kept state of a thinned branch (a long chain's: every 2^j-th point)"),
+    "state_point": ("1", "the point along the branch whose state a kept state is"),
     "stable": ("1", "1 if the state is stable, 0 if not"),
     "critical_eigenvalue": ("stiffness", "lowest eigenvalue of the stiffness matrix"),
     "dynamically_stable": (

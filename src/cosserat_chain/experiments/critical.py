@@ -90,6 +90,7 @@ import scipy.optimize as so
 
 from ..linalg import smallest_eigenvalue
 from ..loads import Loads, moment_load
+from ..memory import FLOAT
 from ..models.base import Model, get_model
 from ..numerics.continuation import (
     FOLD_TOL,
@@ -115,6 +116,11 @@ if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: comman
 
 #: Default point budget of the full-turn branch (N = 1000: about 2600 points).
 MAX_POINTS = 5000
+#: Bytes of the branch's states kept (``Branch.x``): every point's state up to N of about 10^4 at the
+#: default point budget's usual use, and a thinned set on longer chains (every 2^j-th point,
+#: ``Branch.state_points``; :func:`~cosserat_chain.numerics.continuation.continue_in_moment`'s
+#: ``max_states``), so that the branch's memory grows with N, not with N times its points.
+STATE_BYTES = 2**30
 #: Default budget in turns of the loaded particle for a branch from rest that stays stable
 #: beyond its first turn (a cantilever of the paper's geometry: 1.41 N rad, N <= 71 within 16 turns).
 TURNS = 16
@@ -379,7 +385,9 @@ class CriticalResult:
         import xarray as xr
 
         b = self.branch
-        data = {row: (("point", "particle"), b.x[:, i, :]) for i, row in enumerate(ROWS)}
+        # A thinned branch keeps the states of some points only: dimension ``state``, its points in ``state_point``.
+        dims = ("point", "particle") if b.state_points is None else ("state", "particle")
+        data = {row: (dims, b.x[:, i, :]) for i, row in enumerate(ROWS)}
         data.update(
             {
                 "moment": (("point",), b.moment),
@@ -393,6 +401,8 @@ class CriticalResult:
         )
         data.update(self._dynamics_variables())
         coords = {"point": np.arange(len(b.moment)), "particle": np.arange(-self.params.N, self.params.N + 1)}
+        if b.state_points is not None:
+            coords["state_point"] = ("state", b.state_points)
         ds = xr.Dataset(data, coords={**coords, "hopf": np.arange(len(self.hopf or []))})
         ds["M_c"].attrs["long_name"] = "critical moment, the onset of rotation (NaN: no fold)"
         ds["M_c"].attrs["onset"] = str(self.onset)
@@ -408,6 +418,7 @@ class CriticalResult:
                 "end": str(self.end),
                 "onset_particle": "none" if self.onset_particle is None else self.onset_particle,
                 "fold_confirmation": self.confirmation,
+                "states_kept": "every point" if b.state_points is None else "the points in state_point",
                 "accurate": int(self.accurate),
                 "dynamics_from": self.dynamics_from,
                 "dynamics_note": self.dynamics_note,
@@ -479,9 +490,10 @@ def critical_point(
     turn = 2 * math.pi
     budget = turn * turns if model.rotates else turn
     until = turn if model.rotates else None
-    require_branch_memory(params, max_points)
+    states = max_states(params)
+    require_branch_memory(params, max_points, states)
     closed = model.name == "sine"
-    trace = dict(particle=particle, phi0_stop=budget, phi0_until_unstable=until, max_points=max_points)
+    trace = dict(particle=particle, phi0_stop=budget, phi0_until_unstable=until, max_points=max_points, max_states=states)
     branch = continue_in_moment(params, model, **trace, progress=progress)
     confirmation = "once"
     response = moment_response(params, model, particle=particle)
@@ -519,6 +531,11 @@ def critical_point(
     )  # fmt: skip
 
 
+def max_states(params: ChainParams) -> int:
+    """The most states of the branch :func:`critical_point` keeps: :data:`STATE_BYTES` of them, at least two."""
+    return max(2, STATE_BYTES // (FLOAT * 3 * params.n_particles))
+
+
 def _dynamics(
     params: ChainParams, model: Model, branch: Branch, compute: bool = True
 ) -> tuple[str, list[DynamicStability] | None, list[HopfPoint] | None]:
@@ -532,7 +549,7 @@ def _dynamics(
         return "stiffness index", None, []
     if not compute:
         return "not computed", None, None
-    if 2 * n_free(params) <= DENSE_LIMIT:
+    if 2 * n_free(params) <= DENSE_LIMIT and branch.state_points is None:
         checks = [dynamic_stability(params, model, x) for x in branch.x]
         return "eigenvalues", checks, hopf_points(params, model, branch, checks=checks)
     return ("eq. (2) theorem" if model.name == "sine" else "not computed"), None, None
@@ -645,6 +662,27 @@ def resolve_fold(params: ChainParams, model: Model, fold: Fold, *, particle: int
     return replace(fold, moment=float(moment), phi0=float(root), x=x)
 
 
+def _state_at(params: ChainParams, model: Model, branch: Branch, point: int) -> np.ndarray:
+    """The state of the branch's ``point``: kept, or, on a thinned branch, solved anew point by point from the kept
+    state before it, each at the traced angle phi_0 (rotation control, from the point before's state).
+
+    Raises
+    ------
+    NewtonError
+        Where a solve fails or lands off the traced branch (its moment not the traced one).
+    """
+    if branch.state_points is None:
+        return branch.x[point]
+    kept = int(np.searchsorted(branch.state_points, point, side="right")) - 1
+    x, moment = branch.x[kept], float(branch.moment[branch.state_points[kept]])
+    scale = float(np.max(np.abs(branch.moment)))
+    for j in range(int(branch.state_points[kept]) + 1, point + 1):
+        x, moment = solve_rotation_controlled(params, model, float(branch.phi0[j]), particle=branch.particle, x0=x, moment0=moment)
+        if abs(moment - branch.moment[j]) > CONFIRM_MOMENT_RTOL * scale:
+            raise NewtonError(f"the state of point {j} solved anew holds M = {moment:.10g}, not the traced {branch.moment[j]:.10g}", x)
+    return x
+
+
 def _snap_target(params: ChainParams, model: Model, branch: Branch, first: Fold, particle: int) -> Fold | None:
     """The first stable branch point pair beyond ``first`` that brackets its moment, solved there exactly.
 
@@ -662,7 +700,11 @@ def _snap_target(params: ChainParams, model: Model, branch: Branch, first: Fold,
         low, high = branch.moment[i] - first.moment, branch.moment[i + 1] - first.moment
         if branch.stable[i + 1] and low * high <= 0 and low != high:
             weight = low / (low - high) if branch.stable[i] else 1.0
-            guess = branch.x[i] + weight * (branch.x[i + 1] - branch.x[i])
+            try:
+                start, end = _state_at(params, model, branch, i), _state_at(params, model, branch, i + 1)
+            except NewtonError:
+                return None
+            guess = start + weight * (end - start)
             x = solve_equilibrium(params, model, moment_load(first.moment, particle), x0=guess)
             if not static_stability(params, model, x).stable:
                 return None

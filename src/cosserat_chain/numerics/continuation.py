@@ -186,7 +186,7 @@ class Branch:
     moment : ndarray (k,)
     phi0 : ndarray (k,)
         Angle of the loaded particle.
-    x : ndarray (k, 3, 2N+1)
+    x : ndarray (k, 3, 2N+1), or (j, 3, 2N+1) with ``state_points``
         The states.
     stable : ndarray of bool (k,)
     critical_eigenvalue : ndarray (k,)
@@ -209,6 +209,9 @@ class Branch:
         "given" for the angles of :func:`rotation_branch`.
     message : str
         What stopped a stalled or wound branch (empty otherwise).
+    state_points : ndarray of int (j,) or None
+        The points whose states ``x`` holds, where a trace kept only some
+        (``max_states`` of :func:`continue_in_moment`); None where ``x`` holds every point's.
     """
 
     moment: np.ndarray
@@ -221,6 +224,7 @@ class Branch:
     stop: str = "given"
     message: str = ""
     branch_points: list[BranchPoint] = field(default_factory=list)
+    state_points: np.ndarray | None = None
 
     @property
     def complete(self) -> bool:
@@ -314,14 +318,15 @@ def moment_slope(params: ChainParams, model: str | Model, x: np.ndarray, *, part
     return float(dz[dof])
 
 
-def _assemble_branch(params, model, particle, moments, states, folds, checks=None, stop="given") -> Branch:
-    """A Branch from its points; ``checks`` their stabilities if already computed."""
+def _assemble_branch(params, model, particle, moments, states, folds, checks=None, stop="given", phi0=None) -> Branch:
+    """A Branch from its points; ``checks`` their stabilities if already computed, ``phi0`` their angles where
+    ``states`` holds only some of them."""
     col = column(params, particle)
     x = np.array(states)
     checks = [static_stability(params, model, xi) for xi in x] if checks is None else checks
     return Branch(
         moment=np.array(moments, dtype=float),
-        phi0=x[:, ROW_INDEX["phi"], col].copy(),
+        phi0=x[:, ROW_INDEX["phi"], col].copy() if phi0 is None else np.array(phi0, dtype=float),
         x=x,
         stable=np.array([c.stable for c in checks]),
         critical_eigenvalue=np.array([c.critical_eigenvalue for c in checks]),
@@ -450,15 +455,23 @@ def _passes_rest(before: np.ndarray, after: np.ndarray, moment_before: float, mo
     return bool(near and np.max(np.abs(crossing[ROW_INDEX["phi"]]), initial=0.0) < 0.5)
 
 
-def require_branch_memory(params: ChainParams, max_points: int) -> None:
-    """Refuse a branch of ``max_points`` states that would not fit in memory (:func:`cosserat_chain.memory.require`).
+def branch_memory(params: ChainParams, max_points: int, max_states: int | None = None) -> int:
+    """Bytes a branch of up to ``max_points`` points needs, keeping at most ``max_states`` states (None: every one).
 
-    Every point's state is kept (the branch's x), twice at the end (the list and its
-    array), beside the stiffness and its banded factors (about 60 values a degree of freedom).
+    The kept states (the branch's x) are held twice at the end (the list and its array), beside
+    the stiffness and its banded factors (about 60 values a degree of freedom) and, for every point,
+    its moment, angle and stability (about 40 values: the per-point record, not the state).
     """
+    states = max_points if max_states is None else min(max_points, max_states)
+    return FLOAT * (3 * params.n_particles * (2 * states + 60) + 40 * max_points)
+
+
+def require_branch_memory(params: ChainParams, max_points: int, max_states: int | None = None) -> None:
+    """Refuse a branch that would not fit in memory (:func:`branch_memory`, :func:`cosserat_chain.memory.require`)."""
+    states = max_points if max_states is None else min(max_points, max_states)
     require(
-        FLOAT * 3 * params.n_particles * (2 * max_points + 60),
-        f"a branch of up to {max_points} states of {params.n_particles} particles (N={params.N})",
+        branch_memory(params, max_points, max_states),
+        f"a branch of up to {max_points} points keeping {states} states of {params.n_particles} particles (N={params.N})",
         "trace fewer points (max_points, --max-points) or a shorter chain",
     )
 
@@ -484,6 +497,7 @@ def continue_in_moment(
     refine_step: float = 2e-4,
     max_folds: int | None = None,
     progress: ProgressCallback | None = None,
+    max_states: int | None = None,
 ) -> Branch:
     """Pseudo-arclength continuation of the static branch from rest, in the direction of increasing M.
 
@@ -529,6 +543,12 @@ def continue_in_moment(
         Stop once this many folds have been passed.
     progress : callable(|phi_0|, total), optional
         ``total`` is ``phi0_until_unstable`` until |phi_0| passes it on a stable branch, then ``phi0_stop``.
+    max_states : int, optional
+        Keep at most this many states (at least 2; default every point's): a longer trace keeps the
+        states of every 2^j-th point from rest, j the smallest that fits (``Branch.state_points``),
+        halving the kept ones each time they overflow, so that the memory of a long chain's branch
+        is bounded whatever the points (:func:`branch_memory`). Every point's moment, angle and
+        stability are kept, and the folds and branch points keep their own states.
 
     Returns
     -------
@@ -577,7 +597,9 @@ def continue_in_moment(
     max_step = max(largest_step(params, model, particle), step) if max_step is None else max_step
     if not (0 < min_step <= step <= max_step):
         raise ValueError(f"steps must satisfy 0 < min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
-    require_branch_memory(params, max_points)
+    if max_states is not None and max_states < 2:
+        raise ValueError(f"max_states must be at least 2 (the states kept of the branch), got {max_states!r}")
+    require_branch_memory(params, max_points, max_states)
     dof = moment_dof(params, particle)
     nf = n_free(params)
     y = np.zeros(nf + 1)  # (q, M)
@@ -840,6 +862,7 @@ def continue_in_moment(
     tangent, factor = new_tangent(y, tangent)
     norm = infinity_norm(factor.stiffness)
     moments, states, folds, branch_points = [0.0], [zeros(params)], [], []
+    angles_traced, kept, stride, previous_state = [0.0], [0], 1, states[0]
     checks = [stability(states[0], None)]
     index = checks[0].index
     col = column(params, particle)
@@ -943,7 +966,13 @@ def continue_in_moment(
         y = z
         y_phi0 = x[ROW_INDEX["phi"], col]
         moments.append(y[-1])
-        states.append(x)
+        angles_traced.append(y_phi0)
+        if (len(moments) - 1) % stride == 0:
+            kept.append(len(moments) - 1)
+            states.append(x)
+            if max_states is not None and len(states) > max_states:
+                # Every other kept state goes: the points kept stay evenly spaced from rest.
+                kept, states, stride = kept[::2], states[::2], 2 * stride
         checks.append(check)
         lost = lost or not check.stable
         phi = abs(y_phi0)
@@ -952,7 +981,7 @@ def continue_in_moment(
         if progress is not None:
             total = phi0_until_unstable if phi0_until_unstable is not None and (phi < phi0_until_unstable or lost) else phi0_stop
             progress(min(phi, total), total)
-        if y[-1] * previous_moment < 0 and len(moments) > 2 and _passes_rest(states[-2], x, previous_moment, y[-1]):
+        if y[-1] * previous_moment < 0 and len(moments) > 2 and _passes_rest(previous_state, x, previous_moment, y[-1]):
             # Back through the rest state: going on would trace the mirrored branch
             # (x -> -x, M -> -M) and come back here, as a closed loop does.
             stop = "returned"
@@ -973,6 +1002,7 @@ def continue_in_moment(
                 f"{particle} (phi_0 = {y_phi0:.6g}): the chain rotates at particle {lead - params.N}, and the branch beyond "
                 "repeats its folds as it winds on"
             )
+        previous_state = x
         if stop != "max_points":
             break
         if crossing == 0.0:
@@ -985,7 +1015,8 @@ def continue_in_moment(
             if iterations > (1 if chord else 2):
                 grow = min(grow, 1.0)
             ds = min(max_step, max(min_step, max(0.5, grow) * ds))
-    branch = _assemble_branch(params, model, particle, moments, states, folds, checks, stop)
+    branch = _assemble_branch(params, model, particle, moments, states, folds, checks, stop, angles_traced)
+    branch.state_points = None if stride == 1 else np.array(kept)
     branch.message = message
     branch.branch_points = branch_points
     return branch

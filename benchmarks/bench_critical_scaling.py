@@ -1,0 +1,117 @@
+"""``critical`` against N for both models: CPU time, peak memory and the fitted exponent.
+
+Run from the repository root::
+
+    python benchmarks/bench_critical_scaling.py              # N = 10, 100, 1000, 10^4, both models
+    python benchmarks/bench_critical_scaling.py --large      # and N = 10^5 (minutes, a few GiB)
+    python benchmarks/bench_critical_scaling.py --sizes 10 100 --models sine
+
+Each (model, N) runs :func:`~cosserat_chain.experiments.critical.critical_point` as
+``cosserat-chain critical`` does, in a fresh process (so that its peak memory, ``ru_maxrss``,
+is that run's alone, and the compiled kernels come from the on-disk cache after a first
+small warm-up call). Reported per row: the CPU time of the call (``time.process_time``: what
+a busy neighbour on the other core does not change), wall time, peak resident memory of the
+process, the branch's points and folds, the states kept (a long chain's branch keeps a
+thinned set: ``critical.STATE_BYTES``), M_c, how the folds were confirmed and whether the
+result is ``accurate``; then, per model, the exponent of CPU time against N fitted by least
+squares on log-log axes over N >= 100 (below, start-up costs dominate) with the free
+memory and the load average at the start, which the numbers depend on. Results go to
+``benchmarks/results/critical_scaling_models.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+RESULTS = Path(__file__).resolve().parent / "results" / "critical_scaling_models.json"
+MODELS = ("nonlinear", "sine")
+SIZES = (10, 100, 1000, 10_000)
+LARGE = 100_000
+
+#: The child: one critical_point, timed, with its peak memory, printed as one JSON line.
+CHILD = """
+import json, resource, sys, time
+from cosserat_chain import ChainParams
+from cosserat_chain.experiments.critical import critical_point
+
+model, n = sys.argv[1], int(sys.argv[2])
+critical_point(ChainParams(N=3), model, dynamics=False)  # compiled kernels loaded before the clock starts
+cpu, wall = time.process_time(), time.perf_counter()
+result = critical_point(ChainParams(N=n), model)
+cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+branch = result.branch
+print(json.dumps({
+    "model": model, "N": n, "cpu_seconds": cpu, "wall_seconds": wall,
+    "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+    "points": int(branch.moment.size), "folds": len(branch.folds),
+    "states_kept": int(branch.x.shape[0]), "stop": branch.stop, "complete": result.complete,
+    "M_c": result.critical_moment, "confirmation": result.confirmation, "accurate": result.accurate,
+}))
+"""
+
+
+def run(model: str, n: int, timeout: float) -> dict:
+    """One (model, N) row from a fresh process."""
+    done = subprocess.run([sys.executable, "-c", CHILD, model, str(n)], capture_output=True, text=True, timeout=timeout)
+    if done.returncode != 0:
+        return {"model": model, "N": n, "error": done.stderr.strip().splitlines()[-1] if done.stderr.strip() else str(done.returncode)}
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def exponent(rows: list[dict]) -> float | None:
+    """Least-squares slope of log(CPU time) against log(N) over the rows with N >= 100."""
+    fit = [(r["N"], r["cpu_seconds"]) for r in rows if "cpu_seconds" in r and r["N"] >= 100]
+    if len(fit) < 2:
+        return None
+    n, t = np.log([f[0] for f in fit]), np.log([f[1] for f in fit])
+    return float(np.polyfit(n, t, 1)[0])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=list(SIZES), help="chain lengths N")
+    parser.add_argument("--large", action="store_true", help=f"also N = {LARGE}")
+    parser.add_argument("--models", nargs="+", default=list(MODELS), choices=MODELS)
+    parser.add_argument("--timeout", type=float, default=3600.0, help="seconds one run may take")
+    args = parser.parse_args()
+    sizes = sorted(set(args.sizes) | ({LARGE} if args.large else set()))
+    import psutil
+
+    env = {
+        "machine": platform.platform(),
+        "python": platform.python_version(),
+        "cpus": os.cpu_count(),
+        "load_average_at_start": os.getloadavg(),
+        "free_memory_gib_at_start": psutil.virtual_memory().available / 2**30,
+    }
+    rows = []
+    print(f"{'model':>9} {'N':>7} {'CPU s':>8} {'wall s':>8} {'peak MiB':>9} {'points':>6} {'folds':>5} {'states':>6} {'M_c':>14}  confirmation")
+    for model in args.models:
+        for n in sizes:
+            row = run(model, n, args.timeout)
+            rows.append(row)
+            if "error" in row:
+                print(f"{model:>9} {n:>7} failed: {row['error']}")
+                continue
+            flag = "" if row["accurate"] else " (not accurate)"
+            print(
+                f"{model:>9} {n:>7} {row['cpu_seconds']:8.2f} {row['wall_seconds']:8.2f} {row['peak_rss_mib']:9.0f} {row['points']:6d} "
+                f"{row['folds']:5d} {row['states_kept']:6d} {row['M_c']:14.9g}  {row['confirmation']}{flag}"
+            )
+    fits = {model: exponent([r for r in rows if r["model"] == model]) for model in args.models}
+    for model, slope in fits.items():
+        print(f"{model}: CPU time ~ N^{slope:.2f} over N >= 100" if slope is not None else f"{model}: too few rows to fit")
+    RESULTS.parent.mkdir(exist_ok=True)
+    RESULTS.write_text(json.dumps({**env, "rows": rows, "cpu_exponent": fits}, indent=2) + "\n")
+
+
+if __name__ == "__main__":
+    main()
