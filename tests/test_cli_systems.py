@@ -91,6 +91,23 @@ def test_critical_of_a_josephson_array_is_the_fold_at_unit_current():
     assert text.exit_code == 0 and "fold at I = 1" in text.stdout
 
 
+@pytest.mark.slow
+def test_diagram_of_the_pen_demo_has_the_folds_and_the_homoclinic_end(tmp_path):
+    """Rotation starts where the equilibrium folds, I = 1 at any damping; the in-phase rotation (a single damped
+    pendulum's) ends at its homoclinic orbit, I = 4 eps / pi to first order in eps (Melnikov), below: the loop is open."""
+    import xarray as xr
+
+    out = tmp_path / "loop.nc"
+    result = ok_json("diagram", "--system", "pen", "--vary", "eps", "--values", "0.05", "--drive", "I", "--out", str(out))
+    (row,) = result["rows"]
+    assert row["starts"] == pytest.approx(1.0, abs=1e-8)
+    assert row["stops"] == pytest.approx(4 * 0.05 / math.pi, rel=5e-3)
+    assert row["open"] is True
+    with xr.open_dataset(out) as ds:
+        assert ds.attrs["drive"] == "I" and ds.attrs["varied"] == "eps"
+        assert float(ds.stops[0]) == row["stops"]
+
+
 def test_a_users_file_with_parameters_from_the_config(tmp_path):
     """A file with a function returning a LatticeSystem, its arguments in the config's [system] table and --set."""
     source = tmp_path / "mine.py"
@@ -145,6 +162,10 @@ def test_simulate_writes_the_systems_coordinates(tmp_path):
         (["orbit", "--system", "pen", "--moment", "0.3"], ["--moment", "belong"]),
         (["critical", "--vary", "I"], ["--vary", "need", "--system"]),
         (["orbit"], ["--moment is required"]),
+        (["diagram", "--system", "pen", "--vary", "eps", "--values", "0.1"], ["--drive"]),
+        (["diagram", "--system", "pen", "--vary", "I", "--values", "0.1", "--drive", "I"], ["--drive", "different"]),
+        (["diagram", "--system", "pen", "--vary", "eps", "--values", "0.1", "--drive", "I", "--follow"], ["--follow", "belong"]),
+        (["diagram", "--vary", "E1", "--values", "1", "--drive", "I"], ["--drive", "need", "--system"]),
     ],
 )
 def test_bad_references_and_options_exit_2_with_a_message(args, words):

@@ -8,6 +8,7 @@ from pathlib import Path
 import typer
 
 from .common import app, bar_callback, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, save_dataset, save_figure
+from .systems import chain_only_or_exit, diagram_on_system, set_option, start_option, system_only_or_exit, system_option
 
 
 def _values(values: str | None, span: str | None) -> list[float]:
@@ -36,8 +37,11 @@ def _values(values: str | None, span: str | None) -> list[float]:
 
 @app.command()
 def diagram(
+    ctx: typer.Context,
     model: str = model_option("sine", "A model that supports full rotations.", rotating=True),
-    vary: str = typer.Option(..., "--vary", help="The field of the chain to vary: E1, E2, h, a, b (or m, j, a gamma)."),
+    vary: str = typer.Option(
+        ..., "--vary", help="The field of the chain to vary: E1, E2, h, a, b (or m, j, a gamma); with --system, a parameter of the system."
+    ),
     values: str | None = typer.Option(None, "--values", help="Its values, V1,V2,... (in the order to follow them)."),
     span: str | None = typer.Option(None, "--range", help="Its values as START:STOP:NUM, evenly spaced."),
     turns: int = typer.Option(3, min=1, help="The rotating orbit followed: the first stable one with 1..TURNS turns a period."),
@@ -53,8 +57,26 @@ def diagram(
     out: Path | None = typer.Option(None, help="Write the rows to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the phase diagram in (parameter, M) to this PNG/SVG file."),
     as_json: bool = typer.Option(False, "--json", help="Print the rows as one JSON object."),
+    system: str | None = system_option(),
+    sets: list[str] | None = set_option(),
+    drive: str | None = typer.Option(
+        None, "--drive", metavar="NAME", help="With --system: the parameter whose rise starts the rotation (the chain's moment)."
+    ),
+    turn: list[str] | None = typer.Option(
+        None, "--turn", metavar="COORDINATE=K", help="With --system: turns of an angle per period; repeatable (default every angle once)."
+    ),
+    start: str | None = start_option("where Newton starts for the equilibrium (default 0)"),
 ) -> None:
-    """For each value: M_c (rotation starts, rising load), where rotation stops (falling load), how, and whether the loop is open."""
+    """For each value: M_c (rotation starts, rising load), where rotation stops (falling load), how, and whether the loop is open.
+
+    With --system: the same edges in the system's --drive, at each value of its parameter --vary."""
+    if system is not None:
+        chain_only_or_exit(ctx, ("vary", "values", "span", "period_max", "config", "out", "as_json", "sets", "drive", "turn", "start"))
+        return diagram_on_system(
+            system, config=config, sets=sets, vary=vary, values=_values(values, span), drive=drive, turns=turn,
+            period_max=period_max, start=start, out=out, as_json=as_json,
+        )  # fmt: skip
+    system_only_or_exit(ctx, ("sets", "drive", "turn", "start"))
     from ..experiments.diagram import state_diagram
     from ..numerics.fold_curve import FIELDS
 

@@ -562,3 +562,125 @@ def simulate_on_system(
         final = ", ".join(f"{name} = {x:.6g}" for name, x in zip(system.coordinates, y[-1, :n], strict=True))
         typer.echo(f"{system.name}: t = {t_end:g}, {final}" + (f"; wrote {out}" if out else ""))
     exit_on(status, message)
+
+
+# -- diagram ---------------------------------------------------------------------------------
+
+#: Where the rotation is first sought: this fraction of the fold's size beyond the fold (no equilibrium is left there).
+BEYOND_FOLD = 0.1
+
+
+def diagram_on_system(
+    reference: str,
+    *,
+    config: Path | None,
+    sets: list[str] | None,
+    vary: str,
+    values: list[float],
+    drive: str | None,
+    turns: list[str] | None,
+    period_max: float,
+    start: str | None,
+    out: Path | None,
+    as_json: bool,
+) -> None:
+    """Both edges of the hysteresis loop in ``drive`` at each value of ``vary``: where the equilibrium from ``start``
+    folds (rotation starts, rising drive) and where the rotation continued down in the drive ends."""
+    if drive is None:
+        fail("diagram --system needs --drive NAME: the parameter whose rise starts the rotation (the chain's moment), e.g. --drive I")
+    if drive == vary:
+        fail(f"--drive and --vary must be different parameters, got {drive!r} for both")
+    outputs_or_exit({"--out": out}, {"--config": config})
+    system = system_or_exit(reference, config, sets)
+    _parameter_or_exit(system, vary)
+    _parameter_or_exit(system, drive, "--drive")
+    k = _turns_or_exit(system, turns)
+    q0 = state_or_exit(system, start, "--start")
+    rows = []
+    bar = progress_bar(f"diagram {system.name}", "value")
+    progress = bar_callback(bar)
+    for i, value in enumerate(values):
+        rows.append(_diagram_row(system.with_parameters(**{vary: value}), vary, value, drive, k, q0, period_max))
+        progress(i + 1, len(values))
+    bar.finish()
+    if out is not None:
+        save_dataset(_diagram_dataset(system, reference, vary, drive, rows), out)
+    if as_json:
+        _echo_json({**system.describe(), "reference": reference, "vary": vary, "drive": drive, "rows": rows})
+    else:
+        typer.echo(f"{system.name}: the loop in {drive} against {vary}")
+        typer.echo(f"{vary:>12} {'starts':>14} {'stops':>14}  {'end':<16} open")
+        for row in rows:
+            onset = "none" if row["starts"] is None else f"{row['starts']:.10g}"
+            stops = "none" if row["stops"] is None else f"{row['stops']:.10g}"
+            typer.echo(f"{row['value']:>12.6g} {onset:>14} {stops:>14}  {row['end'] or 'failed':<16} {row['open']}")
+            if row["end"] is None:
+                typer.echo(f"  {row['message']}")
+    if any(row["end"] is None for row in rows):
+        exit_on(Status.NOT_CONVERGED, "some values have no edge of the loop (their messages say why)")
+
+
+def _diagram_row(system, vary: str, value: float, drive: str, turns: dict[str, int], q0, period_max: float) -> dict[str, Any]:
+    """One value's row: the equilibrium's first fold in ``drive`` and the end of the rotation followed down from beyond it."""
+    import numpy as np
+
+    from ..numerics.equilibria import EquilibriumNotFound, continue_equilibria, find_equilibrium
+    from ..numerics.kit import EvaluationFailed
+    from ..numerics.shooting import OrbitNotFound, continue_orbits, find_orbit, settled_guess
+
+    row: dict[str, Any] = {"value": value, "starts": None, "stops": None, "stops_uncertainty": None, "end": None, "open": None}
+    try:
+        statics = continue_equilibria(find_equilibrium(system, q0), drive, direction=1.0)
+    except EquilibriumNotFound as err:
+        return {**row, "message": str(err)}
+    folds = statics.folds()
+    if not folds:
+        return {**row, "message": f"the equilibrium has no fold in {drive}: {statics.message}"}
+    onset = folds[0]
+    row["starts"] = onset
+    beyond = system.with_parameters(**{drive: onset + BEYOND_FOLD * max(abs(onset), 1e-3)})
+    forces, damping = beyond.forces(q0), beyond.damping()
+    drift = np.where(beyond.angles & (damping > 0), forces / np.where(damping > 0, damping, 1.0), 0.0)
+    first = next(name for name, k in turns.items() if k)
+    try:
+        guess = settled_guess(beyond, np.concatenate([q0, drift]), coordinate=first, turns=abs(turns[first]))
+        branch = continue_orbits(find_orbit(beyond, guess, turns=turns), drive, direction=-1.0, period_max=period_max)
+    except (OrbitNotFound, EvaluationFailed, ValueError) as err:
+        return {**row, "message": f"no rotation followed from {drive} = {beyond.parameter(drive):.6g}: {err}"}
+    stops = branch.end_value if branch.end_value is not None else float(branch.values[-1])
+    return {
+        **row,
+        "stops": stops,
+        "stops_uncertainty": branch.end_uncertainty,
+        "end": str(branch.end),
+        "open": bool(stops < onset - 1e-6 * max(1.0, abs(onset))),
+        "events": branch.as_dict()["events"],
+        "message": branch.message,
+    }
+
+
+def _diagram_dataset(system, reference: str, vary: str, drive: str, rows: list[dict]):
+    import numpy as np
+    import xarray as xr
+
+    def column(key):
+        return np.array([np.nan if row[key] is None else float(row[key]) for row in rows])
+
+    ds = xr.Dataset(
+        {
+            "starts": ("value", column("starts")),
+            "stops": ("value", column("stops")),
+            "stops_uncertainty": ("value", column("stops_uncertainty")),
+            "open": ("value", np.array([bool(row["open"]) for row in rows])),
+            "end": ("value", np.array([row["end"] or "failed" for row in rows], dtype=object)),
+        },
+        coords={"value": [row["value"] for row in rows]},
+    )
+    ds["value"].attrs["long_name"] = f"the varied parameter {vary}"
+    ds["starts"].attrs["long_name"] = f"{drive} where the equilibrium folds (rotation starts, rising {drive})"
+    ds["stops"].attrs["long_name"] = f"{drive} where the rotation ends (falling {drive}; NaN: not found)"
+    ds.attrs.update(_system_attributes(system, reference))
+    ds.attrs.update(
+        {"experiment": "system_diagram", "title": f"Hysteresis loop of the system {system.name}", "varied": vary, "drive": drive}
+    )
+    return ds
