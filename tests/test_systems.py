@@ -361,3 +361,32 @@ def test_in_phase_pen_orbits_equal_the_sine_chain_N1_in_pendulum_units(pen_orbit
     v[2, 1] = pen_orbit.v0[0] / unit
     chain = find_periodic_orbit(params, "sine", 0.4 * stiffness, guess=(x, v, pen_orbit.period * unit))
     assert chain.period / unit == pytest.approx(pen_orbit.period, abs=1e-9)
+
+
+def test_a_takeno_peyrard_rotobreather_from_the_anti_continuum_limit_is_an_orbit_of_the_undamped_chain():
+    """Conservative orbits by the unfolding: at C = 0 one rotor turns with the closed-form energy of the
+    rotating pendulum of that period; continued in C its orbits close under the undamped flow itself."""
+    from scipy.integrate import quad
+
+    n, energy = 7, 3.0
+    period = 2 * quad(lambda p: 1 / math.sqrt(2 * (energy - 1 + math.cos(p))), 0, math.pi, epsabs=1e-13, epsrel=1e-13)[0]
+    system = takeno_peyrard(n, C=0.0)
+    y0 = np.zeros(2 * n)
+    y0[n + 3] = math.sqrt(2 * energy)
+    orbit = shooting.find_orbit(system, (y0 + 1e-3, period), turns={"phi_3": 1}, unfold="gamma")
+    assert abs(orbit.unfolding) < 1e-10
+    assert orbit.period == period
+    rotor = 0.5 * orbit.v0[3] ** 2 + 1 - math.cos(orbit.q0[3])
+    assert rotor == pytest.approx(energy, abs=1e-9)
+    assert np.max(np.abs(np.abs(orbit.nontrivial_multipliers) - 1)) < 1e-6
+    family = shooting.continue_orbits(orbit, "C", direction=1, limits=(0.0, 0.15), stop_at=(), step=0.02, max_step=0.05)
+    assert family.end == "parameter_limit" and family.values[-2] > 0.1
+    shift = np.zeros(2 * n)
+    shift[3] = 2 * math.pi
+    for member in family.orbits[1::3]:
+        undamped = member.system.with_parameters(gamma=0.0)
+        end = shooting.flow(undamped, member.y0, member.period, variations=False)[0]
+        assert np.max(np.abs(end - member.y0 - shift)) < 1e-8
+        assert abs(member.unfolding) < 1e-10
+    with pytest.raises(ValueError, match="needs an orbit found with unfold"):
+        shooting.continue_orbits(shooting.find_orbit(pen(), (np.array([0, 0, 4.2, 4.2]), 1.57), turns={"phi_0": 1, "phi_1": 1}), "period")

@@ -50,6 +50,9 @@ CLOSURE_TOL = 1e-9
 MAX_STEPS = 10_000_000
 #: A multiplier within this of +1, -1 or the unit circle confirms a located fold, period doubling or torus.
 CONFIRM_TOL = 1e-3
+#: Largest |mu| - 1 of a conservative orbit's multiplier that still counts as on the unit circle: the
+#: monodromy is accurate to about 1e-9, and a colliding pair splits like the square root of that.
+CIRCLE_TOL = 1e-6
 
 
 class OrbitNotFound(CosseratChainError, RuntimeError):
@@ -187,6 +190,13 @@ class Orbit:
     closure: float
     iterations: int
     monodromy: np.ndarray = field(repr=False)
+    #: The damping parameter that unfolded a conservative orbit (None for a dissipative one).
+    unfold: str | None = None
+
+    @property
+    def unfolding(self) -> float | None:
+        """The unfolding parameter's value at the orbit: zero to the closure's accuracy (None without one)."""
+        return None if self.unfold is None else self.system.parameter(self.unfold)
 
     @property
     def q0(self) -> np.ndarray:
@@ -201,9 +211,12 @@ class Orbit:
 
     @property
     def nontrivial_multipliers(self) -> np.ndarray:
-        """The multipliers without the one closest to +1 (the flow direction)."""
-        i = int(np.argmin(np.abs(self.multipliers - 1.0)))
-        return np.delete(self.multipliers, i)
+        """The multipliers without the one closest to +1 (the flow direction), and for a conservative
+        orbit without the second one there (the energy's)."""
+        mu = self.multipliers
+        for _ in range(1 if self.unfold is None else 2):
+            mu = np.delete(mu, int(np.argmin(np.abs(mu - 1.0))))
+        return mu
 
     @property
     def max_multiplier(self) -> float:
@@ -211,7 +224,8 @@ class Orbit:
 
     @property
     def stable(self) -> bool:
-        return self.max_multiplier < 1.0
+        """All nontrivial multipliers inside the unit circle (on it, within CIRCLE_TOL, for a conservative orbit)."""
+        return self.max_multiplier < (1.0 if self.unfold is None else 1.0 + CIRCLE_TOL)
 
     def trajectory(self, times: np.ndarray, *, rtol: float = RTOL, atol: float = ATOL) -> np.ndarray:
         """States y (len(times), 2n) along the orbit at ``times`` (from 0)."""
@@ -237,11 +251,25 @@ class Orbit:
         }
 
 
-class _Shooting:
-    """Equations (O) of one system, turns and reference point, with the parameter ``name`` unknown (or fixed)."""
+#: The name under which the period is an unknown or the continued variable (as log T).
+PERIOD = "period"
 
-    def __init__(self, system: System, turns: np.ndarray, reference: np.ndarray, name: str | None, tol: float, rtol: float, atol: float):
-        self.system, self.name, self.tol, self.rtol, self.atol = system, name, tol, rtol, atol
+
+class _Shooting:
+    """Equations (O) of one system, turns and phase plane, in the unknowns w = (y0, *unknowns).
+
+    Each entry of ``unknowns`` is :data:`PERIOD` (w holds log T) or a parameter of the system.
+    The period is an unknown of a dissipative orbit. A conservative system's orbits come in
+    families along which the period varies, and each is found at a fixed period with an
+    unfolding parameter unknown instead: a damping that makes every orbit but the undamped
+    one lose energy, so Newton returns it at zero (Munoz-Almaraz et al., Physica D 181, 2003).
+    """
+
+    def __init__(self, system: System, turns: np.ndarray, reference: np.ndarray, period: float, unknowns: tuple[str, ...], tol, rtol, atol):
+        self.system, self.period, self.unknowns, self.tol, self.rtol, self.atol = system, period, unknowns, tol, rtol, atol
+        for name in unknowns:
+            if name != PERIOD:
+                system.parameter(name)
         n = system.size
         self.shift = np.concatenate([2 * math.pi * turns, np.zeros(n)])
         self.turns = turns
@@ -251,35 +279,47 @@ class _Shooting:
         self.reference = np.array(reference, dtype=float)
         self.normal = self.system.vector_field(self.reference)
 
-    def at(self, w: np.ndarray) -> System:
-        return self.system if self.name is None else self.system.with_parameters(**{self.name: float(w[-1])})
+    def pack(self, orbit: Orbit) -> np.ndarray:
+        extra = [math.log(orbit.period) if u == PERIOD else orbit.system.parameter(u) for u in self.unknowns]
+        return np.concatenate([orbit.y0, extra])
+
+    def split(self, w: np.ndarray) -> tuple[np.ndarray, float, System]:
+        size = 2 * self.system.size
+        period, values = self.period, {}
+        for i, name in enumerate(self.unknowns):
+            if name == PERIOD:
+                if not (math.isfinite(w[size + i]) and -50 < w[size + i] < 50):
+                    raise EvaluationFailed(f"log T = {w[size + i]!r} out of range")
+                period = math.exp(w[size + i])
+            else:
+                values[name] = float(w[size + i])
+        return w[:size], period, self.system.with_parameters(**values) if values else self.system
 
     def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
         size = 2 * self.system.size
-        y0, log_period = w[:size], w[size]
-        if not (math.isfinite(log_period) and -50 < log_period < 50):
-            raise EvaluationFailed(f"log T = {log_period!r} out of range")
-        period = math.exp(log_period)
-        system = self.at(w)
-        end, mono, d_param = flow(
-            system, y0, period, variations=jacobian, parameter=self.name if jacobian else None, rtol=self.rtol, atol=self.atol
-        )
+        y0, period, system = self.split(w)
+        names = [u for u in self.unknowns if u != PERIOD]
+        first = names[0] if (jacobian and names) else None
+        end, mono, d_first = flow(system, y0, period, variations=jacobian, parameter=first, rtol=self.rtol, atol=self.atol)
         residual = np.append(end - y0 - self.shift, self.normal @ (y0 - self.reference))
         if not jacobian:
             return Evaluation(residual)
-        cols = [mono - np.eye(size), (period * system.vector_field(end))[:, None]]
-        if self.name is not None:
-            cols.append(d_param[:, None])
+        derivative = {first: d_first} if first else {}
+        for name in names[1:]:
+            derivative[name] = flow(system, y0, period, variations=True, parameter=name, rtol=self.rtol, atol=self.atol)[2]
+        cols = [mono - np.eye(size)]
+        for name in self.unknowns:
+            cols.append((period * system.vector_field(end))[:, None] if name == PERIOD else derivative[name][:, None])
         top = np.hstack(cols)
         bottom = np.concatenate([self.normal, np.zeros(top.shape[1] - size)])
         return Evaluation(residual, np.vstack([top, bottom]), mono)
 
     def orbit(self, w: np.ndarray, ev: Evaluation, iterations: int) -> Orbit:
-        size = 2 * self.system.size
+        y0, period, system = self.split(w)
         return Orbit(
-            system=self.at(w),
-            y0=w[:size].copy(),
-            period=math.exp(w[size]),
+            system=system,
+            y0=y0.copy(),
+            period=period,
             turns=self.turns,
             multipliers=np.linalg.eigvals(ev.data),
             closure=float(np.max(np.abs(ev.residual[:-1]))),
@@ -297,6 +337,7 @@ def find_orbit(
     max_iterations: int = 25,
     rtol: float = RTOL,
     atol: float = ATOL,
+    unfold: str | None = None,
 ) -> Orbit:
     """The periodic orbit near ``guess``, by Newton on (O).
 
@@ -309,6 +350,10 @@ def find_orbit(
         Turns per period of the angles (a rotation); none for an oscillation.
     tol : float
         Newton stops when max |R| <= tol.
+    unfold : str, optional
+        For a conservative system (no damping at the orbit): the period is kept at the guess's and
+        this damping parameter is the unknown instead (the unfolding of :class:`_Shooting`); it is
+        returned at zero to the closure's accuracy, and :attr:`Orbit.unfolding` says how near.
 
     Raises
     ------
@@ -325,14 +370,18 @@ def find_orbit(
         raise ValueError(f"the guessed state must be 2n = {2 * system.size} finite numbers, got shape {y0.shape}")
     if not (math.isfinite(period) and period > 0):
         raise ValueError(f"the guessed period must be finite and > 0, got {period!r}")
-    shooting = _Shooting(system, k, y0, None, tol, rtol, atol)
-    corrected = newton(shooting.evaluate, np.append(y0, math.log(period)), tol=tol, max_iterations=max_iterations)
+    unknowns = (PERIOD,) if unfold is None else (unfold,)
+    shooting = _Shooting(system, k, y0, period, unknowns, tol, rtol, atol)
+    start = np.append(y0, math.log(period) if unfold is None else system.parameter(unfold))
+    corrected = newton(shooting.evaluate, start, tol=tol, max_iterations=max_iterations)
     if not corrected.converged:
         raise OrbitNotFound(
             f"Newton on the periodic orbit of {system.name} {corrected.status} after {corrected.iterations} iterations "
             f"(max|R| = {corrected.norm:.3g}); start from a settled simulation (settled_guess) or a nearby parameter's orbit"
         )
-    return shooting.orbit(corrected.w, corrected.evaluation, corrected.iterations)
+    orbit = shooting.orbit(corrected.w, corrected.evaluation, corrected.iterations)
+    orbit.unfold = unfold
+    return orbit
 
 
 def settled_guess(
@@ -388,7 +437,7 @@ class OrbitBranch:
 
     @property
     def values(self) -> np.ndarray:
-        return np.array([o.parameter(self.parameter) for o in self.orbits])
+        return np.array([o.period if self.parameter == PERIOD else o.parameter(self.parameter) for o in self.orbits])
 
     @property
     def periods(self) -> np.ndarray:
@@ -411,15 +460,25 @@ class OrbitBranch:
 class _OrbitProblem:
     """(O) with the parameter unknown, for :func:`cosserat_chain.numerics.kit.continuation`."""
 
-    def __init__(self, shooting: _Shooting, period_max: float, limits: tuple[float, float], until_unstable: bool, start_stable: bool):
-        self.shooting, self.tol = shooting, shooting.tol
+    def __init__(
+        self,
+        shooting: _Shooting,
+        period_max: float,
+        limits: tuple[float, float],
+        until_unstable: bool,
+        start_stable: bool,
+        unfold: str | None,
+    ):
+        self.shooting, self.tol, self.unfold = shooting, shooting.tol, unfold
         self.period_max, self.limits, self.until_unstable, self.start_stable = period_max, limits, until_unstable, start_stable
 
     def evaluate(self, w, jacobian):
         return self.shooting.evaluate(w, jacobian)
 
     def point(self, w, ev, iterations) -> Orbit:
-        return self.shooting.orbit(w, ev, iterations)
+        orbit = self.shooting.orbit(w, ev, iterations)
+        orbit.unfold = self.unfold
+        return orbit
 
     def accept(self, previous: Orbit, candidate: Orbit) -> bool:
         # The next phase plane passes through the orbit just found.
@@ -427,6 +486,9 @@ class _OrbitProblem:
         return True
 
     def tests(self, orbit: Orbit) -> dict[str, float]:
+        if orbit.unfold is not None:
+            # A conservative orbit's multipliers lie on the circle up to round-off: only leaving it counts.
+            return {"stability": 1.0 if orbit.stable else -1.0}
         mu = orbit.nontrivial_multipliers
         complex_pairs = mu[np.imag(mu) > 1e-9]
         return {
@@ -447,16 +509,17 @@ class _OrbitProblem:
         return True
 
     def stop(self, orbit: Orbit):
-        value = orbit.parameter(self.shooting.name)
+        name = self.shooting.unknowns[-1]
+        value = orbit.period if name == PERIOD else orbit.parameter(name)
         if orbit.period > self.period_max:
             return (
                 BranchEnd.INFINITE_PERIOD,
-                f"the period exceeded period_max={self.period_max:g} at {self.shooting.name} = {value:.12g}: it diverges",
+                f"the period exceeded period_max={self.period_max:g} at {name} = {value:.12g}: it diverges",
             )
         if not self.limits[0] <= value <= self.limits[1]:
-            return BranchEnd.PARAMETER_LIMIT, f"{self.shooting.name} = {value:.12g} left [{self.limits[0]:g}, {self.limits[1]:g}]"
+            return BranchEnd.PARAMETER_LIMIT, f"{name} = {value:.12g} left [{self.limits[0]:g}, {self.limits[1]:g}]"
         if self.until_unstable and self.start_stable and not orbit.stable:
-            return BranchEnd.UNSTABLE, f"stability lost near {self.shooting.name} = {value:.12g}"
+            return BranchEnd.UNSTABLE, f"stability lost near {name} = {value:.12g}"
         return None
 
 
@@ -485,11 +548,12 @@ def continue_orbits(
     orbit : Orbit
         Start (from :func:`find_orbit`).
     parameter : str
-        Any parameter of the orbit's system.
+        Any parameter of the orbit's system, or ``"period"`` (a family of a conservative system
+        in its period, with ``unfold``).
     direction : float
         Start towards smaller (-1) or larger (+1) values.
     limits : (float, float)
-        Stop when the parameter leaves this range.
+        Stop when the parameter (or the period) leaves this range.
     period_max : float
         Stop when the period exceeds it; the end is then fitted from the period's growth.
     stop_at : tuple of str
@@ -502,10 +566,15 @@ def continue_orbits(
         second multiplier at +1, a period doubling one at -1, a torus a complex pair on the circle).
     """
     system = orbit.system
-    system.parameter(parameter)
-    shooting = _Shooting(system, orbit.turns, orbit.y0, parameter, tol, rtol, atol)
-    problem = _OrbitProblem(shooting, period_max, limits, until_unstable, orbit.stable)
-    w0 = np.concatenate([orbit.y0, [math.log(orbit.period), system.parameter(parameter)]])
+    unfold = getattr(orbit, "unfold", None)
+    if parameter == PERIOD and unfold is None:
+        raise ValueError("continuing in the period needs an orbit found with unfold= (a conservative family)")
+    if parameter != PERIOD:
+        system.parameter(parameter)
+    unknowns = (PERIOD if unfold is None else unfold, parameter)
+    shooting = _Shooting(system, orbit.turns, orbit.y0, orbit.period, unknowns, tol, rtol, atol)
+    problem = _OrbitProblem(shooting, period_max, limits, until_unstable, orbit.stable, unfold)
+    w0 = shooting.pack(orbit)
     traced: Continuation = continuation(
         problem,
         w0,

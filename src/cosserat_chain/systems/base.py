@@ -115,7 +115,7 @@ class System(abc.ABC):
 
     @abc.abstractmethod
     def damping(self) -> np.ndarray:
-        """Diagonal of C (n,), >= 0."""
+        """Diagonal of C (n,): >= 0 for a passive system (a negative one feeds energy)."""
 
     # -- what the base class gives --------------------------------------------------------
 

@@ -74,7 +74,7 @@ class LatticeSystem(System):
     site_force : mapping dof -> str or sympy.Expr, optional
         Non-conservative generalized force on each site's degree of freedom.
     mass, damping : number, str, or mapping dof -> number or str
-        Diagonal inertia (> 0) and viscous damping (>= 0) per degree of freedom, in the parameters.
+        Diagonal inertia (> 0) and viscous damping per degree of freedom, in the parameters.
     boundary : {"free", "periodic", "fixed"}
     parameters : mapping name -> float
         Every parameter the formulas use, with its value.
@@ -175,12 +175,9 @@ class LatticeSystem(System):
         return np.tile(values, self.sites)
 
     def damping(self) -> np.ndarray:
-        values = self._spec.per_dof(self._spec.damping, self._parameters)
-        if np.any(values < 0):
-            raise SystemDefinitionError(
-                f"the damping of every degree of freedom must be >= 0, got {dict(zip(self.dofs, values, strict=True))}"
-            )
-        return np.tile(values, self.sites)
+        # Any sign: a negative damping feeds energy (an active element), and the unfolding of a
+        # conservative orbit (numerics.shooting) passes through zero.
+        return np.tile(self._spec.per_dof(self._spec.damping, self._parameters), self.sites)
 
     def parameter_mass_damping(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         self._check_name(name)
