@@ -609,11 +609,12 @@ def diagram_on_system(
         _echo_json({**system.describe(), "reference": reference, "vary": vary, "drive": drive, "rows": rows})
     else:
         typer.echo(f"{system.name}: the loop in {drive} against {vary}")
-        typer.echo(f"{vary:>12} {'starts':>14} {'stops':>14}  {'end':<16} open")
+        typer.echo(f"{vary:>12} {'starts':>14} {'stops':>14}  {'end':<32} open")
         for row in rows:
             onset = "none" if row["starts"] is None else f"{row['starts']:.10g}"
             stops = "none" if row["stops"] is None else f"{row['stops']:.10g}"
-            typer.echo(f"{row['value']:>12.6g} {onset:>14} {stops:>14}  {row['end'] or 'failed':<16} {row['open']}")
+            end = (row["end"] or "failed") + (", fitted from T" if row["fitted"] else "")
+            typer.echo(f"{row['value']:>12.6g} {onset:>14} {stops:>14}  {end:<32} {row['open']}")
             if row["end"] is None:
                 typer.echo(f"  {row['message']}")
     if any(row["end"] is None for row in rows):
@@ -628,7 +629,15 @@ def _diagram_row(system, vary: str, value: float, drive: str, turns: dict[str, i
     from ..numerics.kit import EvaluationFailed
     from ..numerics.shooting import OrbitNotFound, continue_orbits, find_orbit, settled_guess
 
-    row: dict[str, Any] = {"value": value, "starts": None, "stops": None, "stops_uncertainty": None, "end": None, "open": None}
+    row: dict[str, Any] = {
+        "value": value,
+        "starts": None,
+        "stops": None,
+        "stops_uncertainty": None,
+        "end": None,
+        "fitted": False,
+        "open": None,
+    }
     try:
         statics = continue_equilibria(find_equilibrium(system, q0), drive, direction=1.0)
     except EquilibriumNotFound as err:
@@ -653,6 +662,7 @@ def _diagram_row(system, vary: str, value: float, drive: str, turns: dict[str, i
         "stops": stops,
         "stops_uncertainty": branch.end_uncertainty,
         "end": str(branch.end),
+        "fitted": branch.end_value is not None,
         "open": bool(stops < onset - 1e-6 * max(1.0, abs(onset))),
         "events": branch.as_dict()["events"],
         "message": branch.message,
