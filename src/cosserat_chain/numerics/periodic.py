@@ -59,6 +59,7 @@ from ..status import Status
 from . import dop853
 from .dynamics import TurnWatch, integrate
 from .integrators import default_time_step
+from .kit import BranchEnd, Evaluation, EvaluationFailed, continuation, newton
 
 #: Step of the central differences of the force kernel. The nonlinear model's third
 #: derivatives are large (~1e3), so truncation (step^2) meets round-off (eps / step) near
@@ -79,6 +80,8 @@ MAX_MULTIPLIER_MOTION = 0.1
 MULTIPLIER_WATCH = (0.9, 1.2)
 #: Newton reuses its Jacobian while each step divides the closure by at least 1 / NEWTON_RATE.
 NEWTON_RATE = 0.1
+#: The continuation's step grows after a correction in at most EASY_ITERATIONS, shrinks after HARD_ITERATIONS or more.
+EASY_ITERATIONS, HARD_ITERATIONS = 5, 8
 #: Step halvings of a Newton step that makes the closure worse.
 MAX_HALVINGS = 6
 #: Most DOP853 steps (accepted and rejected) over one period.
@@ -651,49 +654,26 @@ def find_periodic_orbit(
     evaluate = _shooting(system, particle_turns, rtol, atol)
     keep = np.arange(len(y0)) != system.load_dof
 
-    def jacobian(y0: np.ndarray, period: float):
-        residual, jac_y, jac_t, _, mono = evaluate(y0, period)
-        return residual, np.column_stack([jac_y[:, keep], jac_t]), mono
+    def closure(w: np.ndarray, jacobian: bool) -> Evaluation:
+        """(P) at w = (y0 without phi_0, T) and, with ``jacobian``, its Jacobian and the monodromy (``data``)."""
+        if not w[-1] > 0:
+            raise EvaluationFailed(f"the period must stay > 0, got {w[-1]!r}")
+        y = np.zeros(len(keep))
+        y[keep] = w[:-1]
+        residual, jac_y, jac_t, _, mono = evaluate(y, w[-1], jacobian)
+        return Evaluation(residual, None if jac_y is None else np.column_stack([jac_y[:, keep], jac_t]), mono)
 
-    # Newton with the Jacobian reused while it still converges fast: a step costs one
+    # Newton with the Jacobian reused while it still converges fast (chord): a step costs one
     # state-only integration, and the variational equations are integrated again only
-    # when the closure falls by less than NEWTON_RATE, or at the end for the multipliers.
-    residual, jac, mono = jacobian(y0, period)
-    norm, fresh, iterations = float(np.max(np.abs(residual))), True, 0
-    while norm > tol or mono is None:
-        if norm <= tol:
-            residual, jac, mono = jacobian(y0, period)
-            norm, fresh = float(np.max(np.abs(residual))), True
-            continue
-        if iterations >= max_iter:
-            raise OrbitError(_no_convergence(moment, turns, iterations, norm))
-        iterations += 1
-        step = np.linalg.solve(jac, -residual)
-        for _ in range(MAX_HALVINGS):
-            trial_y = y0.copy()
-            trial_y[keep] += step[:-1]
-            trial_t = period + step[-1]
-            if trial_t > 0:
-                trial = evaluate(trial_y, trial_t, False)[0]
-                trial_norm = float(np.max(np.abs(trial)))
-                if trial_norm < norm:
-                    break
-            # A rough guess far from the orbit: halve the step while it makes the closure worse.
-            step = 0.5 * step
-        else:
-            if fresh:
-                raise OrbitError(_no_convergence(moment, turns, iterations, norm))
-            residual, jac, mono = jacobian(y0, period)
-            fresh = True
-            continue
-        slow = trial_norm > NEWTON_RATE * norm
-        y0, period, residual, norm, mono = trial_y, trial_t, trial, trial_norm, None
-        if slow and trial_norm > tol:
-            residual, jac, mono = jacobian(y0, period)
-            norm, fresh = float(np.max(np.abs(residual))), True
-        else:
-            fresh = False
-    return _orbit(system, turns, y0, period, mono, norm, iterations, particle_turns)
+    # when the closure falls by less than NEWTON_RATE, or at the end for the multipliers;
+    # a step that makes the closure worse is halved (a rough guess far from the orbit).
+    solved = newton(
+        closure, np.append(y0[keep], period), tol=tol, max_iterations=max_iter, divergence=None, chord=NEWTON_RATE, damping=MAX_HALVINGS
+    )
+    if not solved.converged:
+        raise OrbitError(_no_convergence(moment, turns, solved.iterations, solved.norm))
+    y0[keep] = solved.w[:-1]
+    return _orbit(system, turns, y0, solved.w[-1], solved.evaluation.data, solved.norm, solved.iterations, particle_turns)
 
 
 def _no_convergence(moment: float, turns: int, iterations: int, norm: float) -> str:
@@ -824,7 +804,9 @@ def continue_orbit(
     The unknowns are w = (y0 on the section, log T, M), the equations (P) and the
     arclength condition t . (w - w_pred) = 0 with t the unit tangent of the branch
     (the null vector of d(P)/dw); the bordered Jacobian is regular at a fold of
-    limit cycles, so a fold is passed and detected as a sign change of dM/ds. A step over
+    limit cycles, so a fold is passed and detected as a sign change of dM/ds (the kit's
+    driver, :func:`~.kit.continuation`, with its corrector in chord iterations:
+    :data:`NEWTON_RATE`). A step over
     which a multiplier near the unit circle (:data:`MULTIPLIER_WATCH`) moves farther than
     :data:`MAX_MULTIPLIER_MOTION` in the complex plane is retaken shorter, so that a loss of
     stability between two stable orbits is not stepped over (a window can still hide where
@@ -866,119 +848,114 @@ def continue_orbit(
     params, model = orbit.params, get_model(orbit.model)
     sign = math.copysign(1.0, orbit.moment)
     dof = _System(params, model, orbit.moment, orbit.particle).load_dof
-    size = 2 * n_free(params)
-    keep = np.arange(size) != dof
+    keep = np.arange(2 * n_free(params)) != dof
     settings = {"moment_min": moment_min, "period_max": period_max, "step": step, "max_step": max_step, "tol": tol, "rtol": rtol}
-
-    def equations(w: np.ndarray, variations: bool = True):
-        """(P) at w and, with ``variations``, its Jacobian (size, size + 1) in (y0 without phi_0, log T, M)."""
-        y0 = np.zeros(size)
-        y0[keep] = w[: size - 1]
-        period, moment = math.exp(w[size - 1]), w[size]
-        evaluate = _shooting(_System(params, model, moment, orbit.particle), orbit.particle_turns, rtol, atol)
-        residual, jac_y, jac_t, d_moment, mono = evaluate(y0, period, variations)
-        if not variations:
-            return residual, None, None
-        return residual, np.column_stack([jac_y[:, keep], period * jac_t, d_moment]), mono
-
-    def tangent(jac: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
-        t = sla.null_space(jac)[:, -1]
-        if previous is None:
-            return t if t[-1] * sign < 0 else -t
-        return t if t @ previous > 0 else -t
-
-    def pack_w(o: PeriodicOrbit) -> np.ndarray:
-        return np.concatenate([_to_y(params, o.x, o.v)[keep], [math.log(o.period), o.moment]])
-
-    def make_orbit(w, mono, closure, iterations) -> PeriodicOrbit:
-        y0 = np.zeros(size)
-        y0[keep] = w[: size - 1]
-        system = _System(params, model, float(w[size]), orbit.particle)
-        return _orbit(system, orbit.turns, y0, math.exp(w[size - 1]), mono, closure, iterations, orbit.particle_turns)
-
-    def correct(w_pred: np.ndarray, t: np.ndarray, jac: np.ndarray):
-        """Newton on (P) and the arclength condition from the predictor; None if it fails.
-
-        Starts with the last orbit's Jacobian (state-only integrations) and integrates the
-        variational equations again when the closure falls by less than NEWTON_RATE, and
-        at the solution (for the multipliers and the next tangent).
-        """
-        bordered = np.vstack([jac, t])
-        w_new, previous, iterations, fresh = w_pred.copy(), math.inf, 0, False
-        try:
-            while True:
-                residual, jac_new, mono = equations(w_new, variations=fresh)
-                norm = float(np.max(np.abs(residual)))
-                if norm <= tol:
-                    if fresh:
-                        return w_new, jac_new, mono, norm, iterations
-                    fresh = True
-                    continue
-                if norm > previous and fresh:
-                    return None
-                if norm > NEWTON_RATE * previous and not fresh:
-                    fresh = True
-                    continue
-                if fresh:
-                    bordered = np.vstack([jac_new, t])
-                if iterations >= MAX_CORRECTOR_ITERATIONS:
-                    return None
-                previous, iterations, fresh = norm, iterations + 1, False
-                w_new = w_new + np.linalg.solve(bordered, -np.append(residual, t @ (w_new - w_pred)))
-                # A corrector that runs off to huge periods has left the branch.
-                if not np.all(np.isfinite(w_new)) or w_new[size - 1] > math.log(100 * period_max):
-                    return None
-        except OrbitError:
-            return None
-
-    orbits = [orbit]
-    w = pack_w(orbit)
-    _, jac, _ = equations(w)
-    t = tangent(jac, None)
-    h = step
-    end, message = END_MAX_POINTS, f"stopped after max_points={max_points} orbits"
-    while len(orbits) < max_points:
-        corrected = correct(w + h * t, t, jac)
-        if corrected is None:
-            h *= 0.5
-            if h < min_step:
-                end, message = END_STEP_TOO_SMALL, f"the arclength step fell below min_step={min_step:g} after M={w[size]:.10g}"
-                break
-            continue
-        w_new, jac, mono, norm, iterations = corrected
-        candidate = make_orbit(w_new, mono, norm, iterations)
-        if _multiplier_motion(orbits[-1].multipliers, candidate.multipliers) > MAX_MULTIPLIER_MOTION and h > min_step:
-            # A step over which a multiplier near the unit circle moves this far can hide a
-            # window of instability between two stable orbits (one random N = 4 chain's pair
-            # rose above 1 and came back between M = 0.677 and 0.620, the largest modulus
-            # there 0.975 and 0.982): retaken shorter.
-            h = max(min_step, 0.5 * h)
-            continue
-        t_new = tangent(jac, t)
-        orbits.append(candidate)
-        if progress is not None:
-            progress(len(orbits), max_points)
-        turned = t_new[-1] * sign > 0 and t[-1] * sign < 0
-        w, t = w_new, t_new
-        h = min(max_step, h * (1.5 if iterations <= 5 else 0.7 if iterations >= 8 else 1.0))
-        if turned:
-            end = END_FOLD
-            message = "fold of limit cycles: the moment turns back with the period finite"
-            break
-        if math.exp(w[size - 1]) > period_max:
-            end = END_INFINITE_PERIOD
-            message = f"the period exceeded period_max={period_max:g}: it diverges (homoclinic end)"
-            break
-        if abs(w[size]) < moment_min:
-            end, message = END_MOMENT_MIN, f"|M| fell below moment_min={moment_min:g}"
-            break
-        if until_unstable and orbits[0].stable and not candidate.stable:
-            end, message = END_UNSTABLE, f"stopped at the first unstable orbit, M = {candidate.moment:.10g}"
-            break
+    problem = _OrbitBranchProblem(orbit, model, keep, tol, rtol, atol, moment_min, period_max, until_unstable)
+    w0 = np.concatenate([_to_y(params, orbit.x, orbit.v)[keep], [math.log(orbit.period), orbit.moment]])
+    traced = continuation(
+        problem,
+        w0,
+        step=step,
+        min_step=min_step,
+        max_step=max_step,
+        max_points=max_points,
+        direction=-sign,
+        stop_at=(BranchEnd.FOLD,),
+        progress=progress,
+        corrector={"max_iterations": MAX_CORRECTOR_ITERATIONS, "chord": NEWTON_RATE, "forgive": 0},
+        easy=EASY_ITERATIONS,
+        hard=HARD_ITERATIONS,
+        locate=False,  # the fold's moment is the parabola through the last three orbits (_fold_moment)
+        tangent_method="svd",
+        first=orbit,
+    )
+    orbits = traced.points
+    end, message = _ORBIT_ENDS[traced.end], traced.message
+    if traced.end == BranchEnd.FOLD:
+        message = "fold of limit cycles: the moment turns back with the period finite"
+    elif traced.end == BranchEnd.MAX_POINTS:
+        message = f"stopped after max_points={max_points} orbits"
+    elif traced.end == BranchEnd.STEP_TOO_SMALL:
+        message = f"the arclength step fell below min_step={min_step:g} after M={orbits[-1].moment:.10g}"
     end_moment = orbits[-1].moment
     if end == END_FOLD and len(orbits) >= 3:
         end_moment = _fold_moment(orbits[-3:], sign)
     return OrbitBranch(orbits=orbits, end=end, end_moment=float(end_moment), message=message, settings=settings)
+
+
+#: The kit's ends as :class:`OrbitBranch` names them.
+_ORBIT_ENDS = {
+    BranchEnd.FOLD: END_FOLD,
+    BranchEnd.INFINITE_PERIOD: END_INFINITE_PERIOD,
+    BranchEnd.PARAMETER_LIMIT: END_MOMENT_MIN,
+    BranchEnd.MAX_POINTS: END_MAX_POINTS,
+    BranchEnd.STEP_TOO_SMALL: END_STEP_TOO_SMALL,
+    BranchEnd.UNSTABLE: END_UNSTABLE,
+}
+
+
+@dataclass
+class _OrbitBranchProblem:
+    """(P) with M unknown for :func:`~.kit.continuation`: w = (y0 on the section, log T, M)."""
+
+    start: PeriodicOrbit
+    model: Model
+    keep: np.ndarray
+    tol: float
+    rtol: float
+    atol: float
+    moment_min: float
+    period_max: float
+    until_unstable: bool
+
+    def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
+        """(P) at w and, with ``jacobian``, its Jacobian (size, size + 1) in (y0 without phi_0, log T, M)."""
+        size = len(self.keep)
+        if w[size - 1] > math.log(100 * self.period_max):
+            raise EvaluationFailed("the period ran off to 100 period_max: the corrector has left the branch")
+        y0 = np.zeros(size)
+        y0[self.keep] = w[: size - 1]
+        period, moment = math.exp(w[size - 1]), w[size]
+        system = _System(self.start.params, self.model, moment, self.start.particle)
+        try:
+            residual, jac_y, jac_t, d_moment, mono = _shooting(system, self.start.particle_turns, self.rtol, self.atol)(
+                y0, period, jacobian
+            )
+        except OrbitError as err:
+            raise EvaluationFailed(str(err)) from err
+        if not jacobian:
+            return Evaluation(residual)
+        return Evaluation(residual, np.column_stack([jac_y[:, self.keep], period * jac_t, d_moment]), mono)
+
+    def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> PeriodicOrbit:
+        size = len(self.keep)
+        y0 = np.zeros(size)
+        y0[self.keep] = w[: size - 1]
+        system = _System(self.start.params, self.model, float(w[size]), self.start.particle)
+        closure = float(np.max(np.abs(evaluation.residual)))
+        return _orbit(system, self.start.turns, y0, math.exp(w[size - 1]), evaluation.data, closure, iterations, self.start.particle_turns)
+
+    def accept(self, previous: PeriodicOrbit, candidate: PeriodicOrbit) -> bool:
+        # A step over which a multiplier near the unit circle moves this far can hide a
+        # window of instability between two stable orbits (one random N = 4 chain's pair
+        # rose above 1 and came back between M = 0.677 and 0.620, the largest modulus
+        # there 0.975 and 0.982): retaken shorter.
+        return _multiplier_motion(previous.multipliers, candidate.multipliers) <= MAX_MULTIPLIER_MOTION
+
+    def tests(self, point: PeriodicOrbit) -> dict[str, float]:
+        return {}
+
+    def stop(self, point: PeriodicOrbit) -> tuple[BranchEnd, str] | None:
+        if point.period > self.period_max:
+            return BranchEnd.INFINITE_PERIOD, f"the period exceeded period_max={self.period_max:g}: it diverges (homoclinic end)"
+        if abs(point.moment) < self.moment_min:
+            return BranchEnd.PARAMETER_LIMIT, f"|M| fell below moment_min={self.moment_min:g}"
+        if self.until_unstable and self.start.stable and not point.stable:
+            return BranchEnd.UNSTABLE, f"stopped at the first unstable orbit, M = {point.moment:.10g}"
+        return None
+
+    def confirm(self, kind: str, point: PeriodicOrbit) -> bool:
+        return True
 
 
 def _multiplier_motion(before: np.ndarray, after: np.ndarray) -> float:
@@ -1181,38 +1158,24 @@ def find_hamiltonian_orbit(
     y0[dof] = 0.0
     keep = np.arange(len(y0)) != dof
 
-    def evaluate(y: np.ndarray, eps: float, variations: bool):
-        system = _UndampedSystem(params, model, 0.0, particle, eps)
-        residual, jac_y, _, d_eps, mono = _shooting(system, particle_turns, rtol, atol)(y, period, variations)
-        return residual, (None if jac_y is None else np.column_stack([jac_y[:, keep], d_eps])), mono
+    def closure(w: np.ndarray, jacobian: bool) -> Evaluation:
+        """The unfolded (P) at w = (y0 without phi_particle, eps) and, with ``jacobian``, its Jacobian and the monodromy."""
+        y = np.zeros(len(keep))
+        y[keep] = w[:-1]
+        system = _UndampedSystem(params, model, 0.0, particle, w[-1])
+        try:
+            residual, jac_y, _, d_eps, mono = _shooting(system, particle_turns, rtol, atol)(y, period, jacobian)
+        except OrbitError as err:
+            # A step far off the orbit can make the flow run away before T: halved as a worse closure.
+            raise EvaluationFailed(str(err)) from err
+        return Evaluation(residual, None if jac_y is None else np.column_stack([jac_y[:, keep], d_eps]), mono)
 
-    eps = 0.0
-    residual, jac, mono = evaluate(y0, eps, True)
-    norm, iterations = float(np.max(np.abs(residual))), 0
-    while norm > tol:
-        if iterations >= max_iter:
-            raise OrbitError(_no_hamiltonian_convergence(omega, turns, iterations, norm))
-        iterations += 1
-        step = np.linalg.solve(jac, -residual)
-        for _ in range(MAX_HALVINGS):
-            trial_y = y0.copy()
-            trial_y[keep] += step[:-1]
-            trial_eps = eps + step[-1]
-            try:
-                trial = evaluate(trial_y, trial_eps, False)[0]
-            except OrbitError:
-                # A step far off the orbit can make the flow run away before T: halved as a worse closure.
-                step = 0.5 * step
-                continue
-            trial_norm = float(np.max(np.abs(trial)))
-            if trial_norm < norm or trial_norm <= tol:
-                break
-            step = 0.5 * step
-        else:
-            raise OrbitError(_no_hamiltonian_convergence(omega, turns, iterations, norm))
-        y0, eps = trial_y, trial_eps
-        residual, jac, mono = evaluate(y0, eps, True)
-        norm = float(np.max(np.abs(residual)))
+    # Newton with a fresh Jacobian every step, halved while it makes the closure worse.
+    solved = newton(closure, np.append(y0[keep], 0.0), tol=tol, max_iterations=max_iter, divergence=None, damping=MAX_HALVINGS)
+    if not solved.converged:
+        raise OrbitError(_no_hamiltonian_convergence(omega, turns, solved.iterations, solved.norm))
+    y0[keep] = solved.w[:-1]
+    eps, mono, norm, iterations = solved.w[-1], solved.evaluation.data, solved.norm, solved.iterations
     base = _orbit(_System(params, model, 0.0, particle), turns, y0, period, mono, norm, iterations, particle_turns)
     fields = {name: getattr(base, name) for name in PeriodicOrbit.__dataclass_fields__}
     return HamiltonianOrbit(**fields, unfolding=float(eps), energy=hamiltonian_energy(params, model, base.x, base.v))
