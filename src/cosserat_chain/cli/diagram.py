@@ -53,7 +53,7 @@ def diagram(
         "--follow",
         help="Follow each fold of cycles, period doubling or torus end from the value before (the lower edge's curve in (M, value)).",
     ),
-    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields (the other fields of the chain)."),
+    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields (the other fields of the chain; with --system: its [system] table)."),
     out: Path | None = typer.Option(None, help="Write the rows to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the phase diagram in (parameter, M) to this PNG/SVG file."),
     as_json: bool = typer.Option(False, "--json", help="Print the rows as one JSON object."),

@@ -51,7 +51,8 @@ def simulate(
     config: Path | None = typer.Option(
         None,
         help="TOML file with ChainParams fields (E1, E2, h, a, b, m, j, gamma_u, gamma_v, gamma_phi, N, left_end, right_end, "
-        "periodic) and [[loads]] tables (row, particle, value or kind: step, ramp, staircase, harmonic, knots).",
+        "periodic) and [[loads]] tables (row, particle, value or kind: step, ramp, staircase, harmonic, knots); with --system, "
+        "the system's [system] table.",
     ),
     x0: Path | None = typer.Option(
         None, "--x0", help="Start from a stored frame of this run (simulate --out): its chain, positions, velocities, time and loads."

@@ -36,7 +36,7 @@ def states(
     random_starts: int = typer.Option(8, "--random-starts", help="Long runs from this many seeded random states."),
     seed: int = typer.Option(0, help="Seed of the random starts and of the static states' perturbations."),
     t_long: float = number(5000.0, "Length of each long run (its second half is analysed).", above=0.0, flags=("--t-long",)),
-    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
+    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields (with --system: the system's [system] table)."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
     system: str | None = system_option(),
     sets: list[str] | None = set_option(),

@@ -116,7 +116,7 @@ def critical(
     ctx: typer.Context,
     model: str = model_option(ALL_MODELS, MODEL_HELP, all_models=True),
     particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
-    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields."),
+    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields (with --system: the system's [system] table)."),
     out: Path | None = typer.Option(None, help="Write the branches to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the branches (Fig. 2 without the relaxation points) to this PNG/SVG file."),
     max_points: int | None = typer.Option(
