@@ -185,6 +185,13 @@ def test_a_user_function_that_returns_no_system_or_fails_exits_2(tmp_path):
         assert word in result.output
 
 
+def test_an_orbit_that_is_not_there_exits_3_saying_what_to_try():
+    """An undriven array (I = 0) settles at rest: no rotation to shoot from; the message points to --velocity."""
+    result = invoke("orbit", "--system", "josephson_array", "--set", "sites=3")
+    assert result.exit_code == 3, result.output
+    assert "did not turn" in result.output and "--velocity" in result.output
+
+
 def test_a_config_with_chain_fields_is_refused_with_system(tmp_path):
     config = tmp_path / "chain.toml"
     config.write_text("N = 3\n[system]\nI = 0.3\n")
