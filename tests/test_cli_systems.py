@@ -192,6 +192,17 @@ def test_an_orbit_that_is_not_there_exits_3_saying_what_to_try():
     assert "did not turn" in result.output and "--velocity" in result.output
 
 
+@pytest.mark.parametrize(
+    ("table", "named"), [('I = "strong"', "'I'"), ("I = [1, 2]", "'I'"), ("alpha = { a = 1 }", "'alpha'"), ("I = nan", "finite")]
+)
+def test_system_tables_of_the_wrong_type_exit_2_naming_the_argument(tmp_path, table, named):
+    config = tmp_path / "bad.toml"
+    config.write_text(f"[system]\nsites = 3\n{table}\n")
+    result = invoke("states", "--system", "josephson_array", "--config", str(config))
+    assert result.exit_code == 2, result.output
+    assert named in result.output and "Traceback" not in result.output
+
+
 def test_a_config_with_chain_fields_is_refused_with_system(tmp_path):
     config = tmp_path / "chain.toml"
     config.write_text("N = 3\n[system]\nI = 0.3\n")
