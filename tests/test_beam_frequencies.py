@@ -79,3 +79,25 @@ def test_bad_input_is_refused_naming_it():
         frequency_convergence(ChainParams(), [])
     with pytest.raises(ValueError, match="more flexural modes"):
         chain_frequencies(ChainParams(N=2), 20)
+
+
+def test_theory_cli_frequencies_json_is_the_librarys_and_bad_counts_exit_2(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    config = tmp_path / "chain.toml"
+    config.write_text('a = 0.3\nb = 0.4\nE2 = 0.5\nright_end = "free"\n')
+    result = CliRunner().invoke(app, ["theory", "--config", str(config), "--n-list", "10,20", "--frequencies", "2", "--json"])
+    assert result.exit_code == 0, result.output
+    modes = json.loads(result.stdout)["frequencies"]
+    params = ChainParams(a=0.3, b=0.4, E2=0.5, right_end="free", N=20)
+    np.testing.assert_allclose(modes["flexural"]["chain"][1], chain_frequencies(params, 2), rtol=1e-12)
+    np.testing.assert_allclose(modes["axial"]["timoshenko"][1], beam_frequencies(params, 2, "axial"), rtol=1e-12)
+    assert len(modes["flexural"]["timoshenko_order"]) == 2
+    printed = CliRunner().invoke(app, ["theory", "--config", str(config), "--n-list", "10,20", "--frequencies", "1"])
+    assert printed.exit_code == 0 and "measured orders of Timoshenko's errors" in printed.output
+    bad = CliRunner().invoke(app, ["theory", "--n-list", "10", "--frequencies", "0"])
+    assert bad.exit_code == 2 and "--frequencies" in bad.output

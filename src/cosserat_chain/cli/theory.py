@@ -53,6 +53,12 @@ def theory(
         help="Also turn particles fully with the centres held: model (i)'s bond potential (Fourier content), the quasi-continuum's "
         "2 pi front against the discrete lattice's, and the barrier of one particle turning once.",
     ),
+    frequencies: int | None = typer.Option(
+        None,
+        "--frequencies",
+        help="Also compare this many of the finite chain's lowest flexural and axial frequencies, with its ends, against its Timoshenko "
+        "beam's (order 2) and eq. (6)'s, per N.",
+    ),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
     plot: Path | None = typer.Option(None, "--plot", help="Write the errors of the continua against N to this PNG or SVG file."),
     out: Path | None = typer.Option(None, "--out", help="Write the tables to this NetCDF file (variables over N)."),
@@ -105,6 +111,16 @@ def theory(
             large_force = elastica_convergence(params.replace(left_end="clamped", right_end="free"), n_values, load=elastica)
         except (ValueError, ArithmeticError) as err:
             fail(f"--elastica {elastica!r}: {err}")
+    modes = None
+    if frequencies is not None:
+        from ..analysis.beam_frequencies import FAMILIES, frequency_convergence
+
+        if frequencies < 1:
+            fail(f"--frequencies must be an integer >= 1 (modes per family), got {frequencies!r}")
+        try:
+            modes = {family: frequency_convergence(params, n_values, count=frequencies, family=family) for family in FAMILIES}
+        except ValueError as err:
+            fail(f"--frequencies {frequencies!r}: {err}")
     waves = _long_waves(params)
     rotation = _rotation(params) if front else None
     if out is not None:
@@ -130,6 +146,7 @@ def theory(
         summary["timoshenko"] = {**stiffness.as_dict(), **beam.as_dict(), "at": at, "waves": waves}
         summary["exact_beam"] = None if bending is None else bending.as_dict()
         summary["rotation"] = rotation
+        summary["frequencies"] = None if modes is None else {family: table.as_dict() for family, table in modes.items()}
         summary["elastica"] = None if large_force is None else large_force.as_dict()
         summary.update({"plot": str(plot) if plot else None, "out": str(out) if out else None})
         typer.echo(json.dumps(summary))
@@ -146,6 +163,8 @@ def theory(
         _print_bending(bending)
     if large_force is not None:
         _print_elastica(large_force)
+    if modes is not None:
+        _print_frequencies(params, modes)
     if rotation is not None:
         _print_rotation(rotation)
     typer.echo(
@@ -229,6 +248,24 @@ def _print_elastica(table) -> None:
     for which in ("angle", "tip"):
         order = table.order(which)
         typer.echo(f"measured order of the {which} error: " + (f"N^-{order:.3f}" if order is not None else "none"))
+
+
+def _print_frequencies(params, modes) -> None:
+    typer.echo(
+        f"\nfirst natural frequencies (rad per unit time), {params.describe_ends()}: the discrete linear chain against its Timoshenko "
+        "beam (T) and eq. (6) (the same beam with bending 2 b^2 D1 h; none where D1 <= 0)"
+    )
+    for family, table in modes.items():
+        typer.echo(f"{family}:")
+        typer.echo(f"{'N':>8}  {'mode':>4}  {'chain':>16}  {'(T - d) / d':>11}  {'(6 - d) / d':>11}")
+        for row, n in enumerate(table.N):
+            for mode in range(table.chain.shape[1]):
+                paper = table.paper_error[row, mode]
+                paper_text = f"{paper:>+11.3e}" if paper == paper else f"{'none':>11}"
+                typer.echo(f"{n:>8d}  {mode + 1:>4d}  {table.chain[row, mode]:>16.10g}  {table.timoshenko_error[row, mode]:>+11.3e}  {paper_text}")
+        for label, which in (("Timoshenko", "timoshenko"), ("eq. (6)", "paper")):
+            orders = ", ".join("n/a" if order is None else f"{order:.3f}" for order in table.orders(which))
+            typer.echo(f"  measured orders of {label}'s errors, mode by mode: {orders}")
 
 
 def _rotation(params) -> dict[str, Any]:
