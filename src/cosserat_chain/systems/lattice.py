@@ -373,6 +373,18 @@ def gather(q, site, x):
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def bond_at(q, b, nsites, boundary, coef, xl, xr, fb, kb, dpb, index, mode):
+    # Bond b's terms, and index[a] the coordinate of its local entry a (-1 on a phantom site).
+    left, right = bond_ends(b, nsites, boundary)
+    gather(q, left, xl)
+    gather(q, right, xr)
+    bond_terms(xl, xr, coef, fb, kb, dpb, mode)
+    for d in range(ND):
+        index[d] = left * ND + d if left >= 0 else -1
+        index[ND + d] = right * ND + d if right >= 0 else -1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def accumulate(q, coef, nsites, boundary, out, jq, ncols, cols_q, cols_off, dpar, mode):
     # Forces into out; with mode >= 1 also J @ columns (jq (n, ncols) += dF/dq cols_q), with
     # mode >= 2 dF/dp into dpar (n, NP). cols_q holds the q-rows of the variational columns at
@@ -404,13 +416,7 @@ def accumulate(q, coef, nsites, boundary, out, jq, ncols, cols_q, cols_off, dpar
     dpb = np.zeros((2 * ND, NP))
     index = np.empty(2 * ND, dtype=np.int64)
     for b in range(bonds(nsites, boundary)):
-        left, right = bond_ends(b, nsites, boundary)
-        gather(q, left, xl)
-        gather(q, right, xr)
-        bond_terms(xl, xr, coef, fb, kb, dpb, mode)
-        for d in range(ND):
-            index[d] = left * ND + d if left >= 0 else -1
-            index[ND + d] = right * ND + d if right >= 0 else -1
+        bond_at(q, b, nsites, boundary, coef, xl, xr, fb, kb, dpb, index, mode)
         for a in range(2 * ND):
             r = index[a]
             if r < 0:
@@ -467,13 +473,7 @@ def jacobian(q, coef, nsites, boundary, rows, cols, vals):
     dpb = np.zeros((2 * ND, NP))
     index = np.empty(2 * ND, dtype=np.int64)
     for b in range(bonds(nsites, boundary)):
-        left, right = bond_ends(b, nsites, boundary)
-        gather(q, left, xl)
-        gather(q, right, xr)
-        bond_terms(xl, xr, coef, fb, kb, dpb, 1)
-        for d in range(ND):
-            index[d] = left * ND + d if left >= 0 else -1
-            index[ND + d] = right * ND + d if right >= 0 else -1
+        bond_at(q, b, nsites, boundary, coef, xl, xr, fb, kb, dpb, index, 1)
         for a in range(2 * ND):
             for e in range(2 * ND):
                 if index[a] >= 0 and index[e] >= 0:
