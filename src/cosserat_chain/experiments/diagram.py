@@ -446,6 +446,9 @@ def state_diagram(
     diagram = StateDiagram(params=params, model=model.name, field=field_name, turns=turns, independent=curve.independent)
     total = len(values)
     previous: tuple[float, _Edge] | None = None
+    # Along a field the statics do not read (curve.independent: damping, mass, inertia) every row's branch
+    # from rest is the same, so where it ends is computed once.
+    onset: tuple[float, float, str] | None = None
     for index, value in enumerate(np.asarray(values, dtype=float)):
         if progress is not None:
             progress(index, total)
@@ -455,13 +458,15 @@ def state_diagram(
             diagram.rows.append(DiagramRow(float(value), None, None, None, "not_found", None, curve.message, chain.moment_scale))
             previous = None
             continue
-        moment_c, phi0_c, onset = _static_onset(chain, model, particle, float(curve.moment[reached[0]]), float(curve.phi0[reached[0]]))
+        if onset is None or not curve.independent:
+            onset = _static_onset(chain, model, particle, float(curve.moment[reached[0]]), float(curve.phi0[reached[0]]))
+        moment_c, phi0_c, branch_note = onset
         edge = _followed(previous, field_name, float(value)) if follow else None
         if edge is None or edge.orbit is None:
             note = "" if edge is None else edge.message + "; "
             edge = _lower_edge(chain, model, moment_c, turns, particle, period_max, field_name)
             edge.message = note + edge.message
-        edge.message = onset + edge.message
+        edge.message = branch_note + edge.message
         previous = (float(value), edge)
         stops, message = edge.stops, edge.message
         hysteresis = None if stops is None else bool(stops < moment_c * (1.0 - SNIC_RTOL))
