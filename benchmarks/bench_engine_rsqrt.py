@@ -34,7 +34,10 @@ the vectoriser runs before the inliner, so that the ``rsqrt14`` variant's vector
 inlined (in the default setting they stay calls, one per 8 lanes, and the registers spill
 around them). Accuracy: each variant's rest * (1 / sqrt(q)) against the IEEE quotient in
 ulps on random q over the range a moving chain sees, and its forces against the IEEE
-kernel's on random states of several chains (max |dF| / max |F|).
+kernel's on random states of several chains (max |dF| / max |F|). Last, whole steps: ``integrate``
+as ``bench_throughput.py`` times the package, with the ``ieee``, ``f32_series`` and ``rsqrt14``
+kernels each as a model of its own (the package's engine and loop), against the package's own
+nonlinear model, interleaved, M particle-steps per thread CPU-second.
 
 Results go to ``benchmarks/results/engine_rsqrt.json`` (``engine_rsqrt-quick.json`` with
 ``--quick``); the markdown table is printed at the end.
@@ -333,6 +336,56 @@ def timings(kernels: dict, rounds: int, log) -> dict:
     return out
 
 
+#: The variants timed in whole steps: the reference and the fastest of the portable and the hardware estimates.
+STEP_VARIANTS = ("ieee", "f32_series", "rsqrt14")
+
+
+def step_timings(kernels: dict, rounds: int, log) -> dict:
+    """Whole damped Verlet steps, ``integrate`` as bench_throughput.py times the package, with each variant's kernel.
+
+    Each variant runs as a model of its own (the nonlinear model with that ``force_kernel``),
+    so the engine, its loop and its cached code are the package's; ``package`` is the
+    package's own nonlinear model (the IEEE kernel, compiled into the package's cache).
+    """
+    from cosserat_chain import moment_load
+    from cosserat_chain.models import NonlinearModel, register_model, unregister_model
+    from cosserat_chain.numerics.dynamics import integrate
+    from cosserat_chain.numerics.integrators import default_time_step
+
+    names = {"package": "nonlinear"}
+    for name in STEP_VARIANTS:
+        if name in kernels:
+            model = type(f"Bench_{name}", (NonlinearModel,), {"name": f"bench_{name}", "force_kernel": kernels[name]})()
+            names[name] = register_model(model).name
+    out = {}
+    try:
+        for n in SIZES:
+            p = ChainParams(N=(n - 1) // 2)
+            dt = default_time_step(p)
+            steps = max(300, int(1e7 / n))
+            x0, v0 = harness.moving_state(p)
+
+            def run(model, p=p, dt=dt, steps=steps, x0=x0, v0=v0):
+                return integrate(p, model, moment_load(0.05, 0), t_end=steps * dt, dt=dt, x0=x0, v0=v0, n_frames=2, threads=1)
+
+            contenders = {name: (lambda model=model: run(model)) for name, model in names.items()}
+            for call in contenders.values():
+                call()
+            samples = harness.interleaved(contenders, rounds)
+            rate = {name: [n * steps / s["thread_s"] / 1e6 for s in runs] for name, runs in samples.items()}
+            row = {}
+            for name, values in rate.items():
+                ratios = [v / b for b, v in zip(rate["ieee"], values)]
+                row[name] = {"M_particle_steps_per_cpu_s": harness.spread(values), "speed_vs_ieee": harness.spread(ratios)}
+            out[str(n)] = row
+            log(f"  steps, {n} particles: " + ", ".join(f"{k} {v['speed_vs_ieee']['median']:.3f}x" for k, v in row.items()))
+    finally:
+        for name, model in names.items():
+            if name != "package":
+                unregister_model(model)
+    return out
+
+
 def measure(rounds: int, log) -> dict:
     kernels = {name: kernel_with(fn) for name, fn in VARIANTS.items()}
     return {
@@ -340,6 +393,7 @@ def measure(rounds: int, log) -> dict:
         "code": {name: packed_counts(k) for name, k in kernels.items()},
         "accuracy": accuracy(kernels),
         "timings": timings(kernels, rounds, log),
+        "steps": step_timings(kernels, max(5, rounds * 3 // 5), log),
     }
 
 
@@ -365,6 +419,24 @@ def markdown(result: dict) -> str:
                 f"| {setting} | {name} | " + " | ".join(cells) + f" | {acc['quotient_ulps_max']:.1f} | {acc['forces_max_relative']:.1e} | "
                 f"{code['vsqrtpd']} / {code['vdivpd']} / {code['vrsqrt']} / {code['calls']} |"
             )
+    lines += [
+        "",
+        "Whole steps (`integrate`, damped Verlet, one thread), each variant's kernel as a model of its own; M particle-steps per "
+        "thread CPU-second and speed against the `ieee` model, median (per-round range):",
+        "",
+        "| numba setting | variant | " + " | ".join(f"{n} particles" for n in SIZES) + " |",
+        "|---|---|" + "---:|" * len(SIZES),
+    ]
+    for setting, part in result["runs"].items():
+        for name in part.get("steps", {}).get(str(SIZES[0]), {}):
+            cells = []
+            for n in SIZES:
+                row = part["steps"][str(n)][name]
+                ratio = row["speed_vs_ieee"]
+                cells.append(
+                    f"{row['M_particle_steps_per_cpu_s']['median']:.1f}, {ratio['median']:.2f}x ({ratio['min']:.2f}-{ratio['max']:.2f})"
+                )
+            lines.append(f"| {setting} | {name} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
 
