@@ -461,7 +461,7 @@ _STATES = types.float64[:, :, ::1]
 _TABLE = types.float64[:, ::1]
 _INTS = types.int64[:, ::1]
 # The compiled loop's arguments in the groups :class:`Lanes` keeps them in (each named in
-# :func:`advance`'s docstring): nine tuples instead of 35 positional arguments.
+# :func:`advance`'s docstring): nine tuples instead of 36 positional arguments.
 #: The model's chain, end and batch kernels.
 KERNELS = types.Tuple((FORCE_KERNEL_TYPE, END_KERNEL_TYPE, BATCH_FORCE_KERNEL_TYPE))
 #: x, v, f (3, n B), winding (n B), acc (2, B).
