@@ -8,10 +8,12 @@ from pathlib import Path
 import typer
 
 from .common import app, bar_callback, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, save_dataset, save_figure
+from .systems import chain_only_or_exit, set_option, system_only_or_exit, system_option
 
 
 @app.command()
 def breathers(
+    ctx: typer.Context,
     model: str = model_option("sine", "A model that supports full rotations (the linear model does not).", rotating=True),
     omega: float = number(..., "Frequency Omega of the rotating particle (its mean angular velocity) to start from.", above=0.0),
     to: float | None = number(None, "Follow the family in Omega to here (default: the start alone).", above=0.0),
@@ -27,8 +29,25 @@ def breathers(
     out: Path | None = typer.Option(None, help="Write the family to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the family against the bands' harmonics to this PNG/SVG file."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+    system: str | None = system_option(),
+    sets: list[str] | None = set_option(),
+    coupling: str = typer.Option(
+        "C", "--coupling", metavar="NAME", help="With --system: the coupling, continued from 0 (the anti-continuum limit) to its value."
+    ),
 ) -> None:
-    """Roto-breathers: one particle rotating, the rest oscillating, undamped; Newton from the anti-continuum limit, Floquet multipliers, resonances with the bands."""
+    """Roto-breathers: one particle rotating, the rest oscillating, undamped; Newton from the anti-continuum limit, Floquet multipliers, resonances with the bands.
+
+    With --system: the system's family (its angles counted from the central one by --particle and --partner), continued in --coupling from 0, then in the frequency to --to.
+    """
+    if system is not None:
+        from .system_breathers import breathers_on_system
+
+        chain_only_or_exit(ctx, ("omega", "to", "turns", "particle", "partner", "counter", "config", "as_json", "sets", "coupling"))
+        return breathers_on_system(
+            system, config=config, sets=sets, omega=omega, to=to, turns=turns, particle=particle, partner=partner, counter=counter,
+            coupling=coupling, as_json=as_json,
+        )  # fmt: skip
+    system_only_or_exit(ctx, ("sets", "coupling"))
     import numpy as np
 
     from ..experiments.breathers import lifetime, roto_breather_family

@@ -1,0 +1,90 @@
+"""``cosserat-chain breathers --system REF``: roto-breather families of a user's system (:mod:`cosserat_chain.experiments.system_breathers`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from .common import bar_callback, fail, progress_bar
+from .systems import _echo_json, system_or_exit
+
+
+def breathers_on_system(
+    reference: str,
+    *,
+    config: Path | None,
+    sets: list[str] | None,
+    omega: float,
+    to: float | None,
+    turns: int,
+    particle: int,
+    partner: int | None,
+    counter: bool,
+    coupling: str,
+    as_json: bool,
+) -> None:
+    """The family from the anti-continuum limit at ``omega``, continued in ``coupling`` to the system's value, then to ``to``.
+
+    ``particle`` and ``partner`` count the system's angles from the central one (as the chain's
+    particles count from its centre). Exit 2 on bad input, 3 when no orbit is found.
+    """
+    import numpy as np
+
+    from ..experiments.system_breathers import BreatherError, roto_breather_family
+    from ..numerics.shooting import OrbitNotFound
+    from ..systems import SystemDefinitionError
+
+    if counter and partner is None:
+        fail("--counter sets the partner's direction: give --partner as well")
+    system = system_or_exit(reference, config, sets)
+    angles = np.flatnonzero(system.angles)
+    if not angles.size:
+        fail(f"--system {reference}: {system.name} has no angle coordinate: nothing can turn")
+
+    def angle(offset: int, option: str) -> int:
+        index = angles.size // 2 + offset
+        if not 0 <= index < angles.size:
+            fail(
+                f"{option} {offset} is off the system: its {angles.size} angles count from {-(angles.size // 2)} "
+                f"to {angles.size - 1 - angles.size // 2} about the central one"
+            )
+        return int(angles[index])
+
+    rotor = angle(particle, "--particle")
+    other = None if partner is None else angle(partner, "--partner")
+    if other == rotor:
+        fail(f"--partner {partner} is the rotating one (--particle {particle}): give a neighbour, e.g. --partner {particle + 1}")
+    bar = progress_bar(f"breathers {system.name}", "orbit")
+    try:
+        family = roto_breather_family(
+            system, omega, to=to, rotor=rotor, partner=other, counter=counter, turns=turns, coupling=coupling,
+            progress=bar_callback(bar),
+        )  # fmt: skip
+    except (BreatherError, SystemDefinitionError) as err:
+        bar.close()
+        fail(str(err))
+    except OrbitNotFound as err:
+        bar.close()
+        fail(str(err), code=3)
+    bar.finish()
+    summary = family.as_dict()
+    if as_json:
+        _echo_json({"reference": reference, **summary})
+        return
+    names = ", ".join(f"{name} ({k:+d} turns)" for name, k in summary["rotors"].items())
+    typer.echo(f"{system.name}, {coupling} = {summary['coupling_value']:g}: {len(family.orbits)} roto-breathers of {names}")
+    typer.echo("bands: " + ", ".join(f"[{b:.6g}, {t:.6g}]" for b, t in family.bands))
+    typer.echo(f"{'omega':>10}  {'energy':>14}  {'max |mu|':>10}  stable  harmonics in a band")
+    for i, o in enumerate(family.orbits):
+        energy = "-" if summary["energy"][i] is None else f"{summary['energy'][i]:.10g}"
+        inside = ", ".join(f"{h['harmonic']}x in band {h['band']}" for h in summary["harmonics_in_bands"][i]) or "none"
+        typer.echo(f"{summary['omega'][i]:>10.6g}  {energy:>14}  {o.max_multiplier:>10.6g}  {'yes' if o.stable else 'no':>6}  {inside}")
+    for change in family.changes:
+        r = change.resonance
+        typer.echo(
+            f"stability {'lost' if change.unstable_omega < change.stable_omega else 'regained'} going down at Omega = {change.omega:.8g} "
+            f"(a multiplier leaves the circle at {change.kind}); nearest resonance: {r.harmonic:g} x Omega = {r.edge_frequency:.6g} "
+            f"(band {r.band} {r.edge}) at Omega = {r.omega:.6g}"
+        )
+    typer.echo(family.message)

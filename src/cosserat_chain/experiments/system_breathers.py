@@ -1,0 +1,622 @@
+"""Roto-breathers of a user's system: families from the anti-continuum limit, their stability and resonances.
+
+Contract
+--------
+For a :class:`~cosserat_chain.systems.base.System` with a coupling parameter (``C`` of
+:func:`~cosserat_chain.systems.takeno_peyrard`) and a damping parameter (``gamma``), a
+roto-breather is a periodic orbit of the undamped system in which one angle (or two
+neighbouring ones) turns k times per period T = 2 pi k / Omega while the others oscillate.
+
+* :func:`rotor_potential` and :func:`anti_continuum_orbit` give the anti-continuum limit:
+  with the coupling at 0 the rotor is a pendulum in its on-site potential V (every other
+  coordinate at rest), whose turn at energy E takes T(E) = int_0^{2 pi} sqrt(m / (2 (E - V))) dphi
+  (for V = 1 - cos phi the closed form 4 K(2/E) / sqrt(2 E)); the state (phi = 0,
+  phi' = sqrt(2 (E - V(0)) / m)) is an orbit there.
+* :func:`roto_breather_family` continues it in the coupling (at fixed period) up to the
+  system's value, then in the period over the frequencies asked for
+  (:func:`~cosserat_chain.numerics.shooting.continue_orbits`, conservative orbits by the
+  damping's unfolding, returned at zero), and locates by bisection in the period every
+  frequency where stability is lost or regained.
+* :func:`linear_bands` gives the phonon bands of the lattice about rest from its force
+  Jacobian (a ring's Bloch matrix, sampled in the wavenumber), and :func:`resonances` the
+  frequencies where a harmonic of the rotation meets a band edge: the phonons' Floquet
+  multipliers exp(+-i w T) reach +1 where w = n Omega (a harmonic, n whole) and -1 where
+  2 w = m Omega (m odd: a parametric, half-integer harmonic); :func:`nearest_resonance` names
+  the one next to a located loss of stability.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import brentq
+
+from ..numerics.shooting import PERIOD, Orbit, OrbitNotFound, continue_orbits, find_orbit
+from ..systems.base import System
+from ..systems.lattice import LatticeSystem
+
+ProgressCallback = Callable[[int, int], None]
+
+#: Angles at which the rotor's torque is sampled for its on-site potential (a smooth periodic function).
+POTENTIAL_POINTS = 256
+#: Quadrature points of the rotor's period integral (trapezoid: spectral for a periodic integrand).
+PERIOD_POINTS = 4096
+#: Wavenumbers in [0, pi] at which the Bloch matrix is sampled for the band edges.
+BAND_SAMPLES = 257
+#: Highest harmonic n (and half-harmonic m / 2) of the rotation compared with the band edges.
+MAX_HARMONIC = 6
+#: First steps of the coupling from 0 to its value, and the most halvings of a step.
+COUPLING_STEPS = 8
+COUPLING_HALVINGS = 10
+#: Bisections in the period that locate a change of stability between two members of a family.
+BISECTIONS = 12
+
+
+class BreatherError(ValueError):
+    """A roto-breather that cannot be posed as asked (a bad rotor, coupling, frequency)."""
+
+
+# -- the anti-continuum limit -----------------------------------------------------------------
+
+
+def _coordinate(system: System, which: int | str, what: str) -> int:
+    names = system.coordinates
+    i = names.index(which) if isinstance(which, str) and which in names else which
+    if not (isinstance(i, int | np.integer) and not isinstance(i, bool) and 0 <= i < system.size):
+        raise BreatherError(f"{what} must be a coordinate of {system.name} (a name or an index 0..{system.size - 1}), got {which!r}")
+    if not system.angles[i]:
+        angles = ", ".join(n for n, a in zip(names, system.angles, strict=True) if a) or "none"
+        raise BreatherError(f"{what} {names[i]!r} is not an angle of {system.name}: only angles can turn (its angles: {angles})")
+    return int(i)
+
+
+def rotor_potential(system: System, rotor: int | str, coupling: str) -> Callable[[np.ndarray], np.ndarray]:
+    """The on-site potential V(phi) of the coordinate ``rotor`` turned alone, the coupling at 0 and every other at rest (V(0) = 0).
+
+    From the torque F_rotor sampled at :data:`POTENTIAL_POINTS` angles and integrated as a
+    Fourier series, so it needs no energy function (the torque must have zero mean: a
+    constant torque would make the rotor accelerate, not rotate periodically).
+
+    Raises
+    ------
+    BreatherError
+        For a rotor that is not an angle, or a torque with a non-zero mean.
+    """
+    i = _coordinate(system, rotor, "rotor")
+    alone = system.with_parameters(**{coupling: 0.0})
+    phi = 2 * math.pi * np.arange(POTENTIAL_POINTS) / POTENTIAL_POINTS
+    q = np.zeros(system.size)
+    torque = np.empty(POTENTIAL_POINTS)
+    for j, angle in enumerate(phi):
+        q[i] = angle
+        torque[j] = alone.forces(q)[i]
+    coef = np.fft.rfft(torque) / POTENTIAL_POINTS
+    if abs(coef[0]) > 1e-12 * max(1.0, float(np.max(np.abs(torque)))):
+        raise BreatherError(
+            f"the torque on {system.coordinates[i]} has the mean {coef[0].real:.6g} over a turn (a drive): "
+            "roto-breathers are orbits of the undriven system; set the drive to 0"
+        )
+    wave = np.arange(1, coef.size)
+
+    def potential(angle: np.ndarray) -> np.ndarray:
+        angle = np.asarray(angle, dtype=float)
+        # V = -int torque: each harmonic c_n e^{i n phi} integrates to c_n e^{i n phi} / (i n).
+        terms = (coef[1:, None] / (1j * wave[:, None])) * (np.exp(1j * np.outer(wave, angle.ravel())) - 1.0)
+        return -2.0 * np.real(terms.sum(axis=0)).reshape(angle.shape)
+
+    return potential
+
+
+def rotor_period(potential: Callable[[np.ndarray], np.ndarray], mass: float, energy: float) -> float:
+    """Time of one turn of the rotor m phi'' = -V'(phi) at energy E > max V."""
+    phi = 2 * math.pi * np.arange(PERIOD_POINTS) / PERIOD_POINTS
+    return float(np.mean(np.sqrt(mass / (2.0 * (energy - potential(phi))))) * 2 * math.pi)
+
+
+def rotor_energy(potential: Callable[[np.ndarray], np.ndarray], mass: float, turn_time: float) -> float:
+    """The energy E at which one turn of the rotor takes ``turn_time`` (every such time is reached: T -> inf at the barrier)."""
+    top = float(np.max(potential(2 * math.pi * np.arange(PERIOD_POINTS) / PERIOD_POINTS)))
+    low = top * (1 + 1e-12) + 1e-300
+    if rotor_period(potential, mass, low) < turn_time:
+        # The quadrature cannot resolve a turn slower than just above the barrier.
+        raise BreatherError(f"a turn in {turn_time:.6g} is too slow to resolve: the rotor's frequency is too close to 0")
+    high = max(2 * abs(top), 1.0)
+    while rotor_period(potential, mass, high) > turn_time:
+        high *= 4.0
+    return float(brentq(lambda e: rotor_period(potential, mass, e) - turn_time, low, high, xtol=1e-14, rtol=1e-14))
+
+
+@dataclass
+class AntiContinuum:
+    """The anti-continuum orbit: its state, period and every rotor's energy in its on-site potential."""
+
+    y0: np.ndarray
+    period: float
+    turns: dict[int, int]
+    energies: dict[int, float]
+
+
+def anti_continuum_orbit(system: System, omega: float, rotors: Mapping[int | str, int], coupling: str) -> AntiContinuum:
+    """The rotors turning alone at frequency ``omega`` (of the first rotor), the coupling at 0, every other coordinate at rest.
+
+    Parameters
+    ----------
+    system : System
+    omega : float
+        Mean angular velocity of the first rotor: T = 2 pi |k_1| / omega.
+    rotors : mapping coordinate -> k
+        The turning coordinates and their signed turns per period (``{3: 1, 4: -1}``: two rotors against each other).
+    coupling : str
+        The parameter set to 0.
+
+    Raises
+    ------
+    BreatherError
+        For omega not finite and > 0, a rotor that is not an angle, or zero turns.
+    """
+    if not (isinstance(omega, float | int) and math.isfinite(omega) and omega > 0):
+        raise BreatherError(f"omega must be a finite number > 0, got {omega!r}")
+    system.parameter(coupling)
+    if not rotors:
+        raise BreatherError("at least one rotor is needed")
+    turns = {}
+    for key, k in rotors.items():
+        if not (isinstance(k, int | np.integer) and not isinstance(k, bool) and k != 0):
+            raise BreatherError(f"the turns of rotor {key!r} must be a non-zero integer, got {k!r}")
+        turns[_coordinate(system, key, "rotor")] = int(k)
+    first = next(iter(turns.values()))
+    period = 2 * math.pi * abs(first) / omega
+    y0 = np.zeros(2 * system.size)
+    energies = {}
+    mass = system.mass()
+    for i, k in turns.items():
+        potential = rotor_potential(system, i, coupling)
+        energy = rotor_energy(potential, float(mass[i]), period / abs(k))
+        y0[system.size + i] = math.copysign(math.sqrt(2.0 * energy / mass[i]), k)
+        energies[i] = energy
+    return AntiContinuum(y0=y0, period=period, turns=turns, energies=energies)
+
+
+# -- bands and resonances ---------------------------------------------------------------------
+
+
+def linear_bands(system: System, rest: np.ndarray | None = None) -> list[tuple[float, float]]:
+    """The phonon bands (bottom, top) about rest, lowest first.
+
+    For a :class:`~cosserat_chain.systems.lattice.LatticeSystem` with nearest-neighbour bonds:
+    the Bloch matrix D(q) = -(J_0 + J_1 e^{iq} + J_1^T e^{-iq}) / m of a ring's force Jacobian
+    at rest (J_0 a site's own block, J_1 its coupling to the next), its eigenvalues w^2(q) at
+    :data:`BAND_SAMPLES` wavenumbers in [0, pi] (for Takeno-Peyrard, w^2 = 1 + 4 C sin^2(q / 2)).
+    For any other system, one band spanning the frequencies of -M^-1 dF/dq at rest.
+
+    Parameters
+    ----------
+    rest : (n,) ndarray, optional
+        The state about which to linearise (default every coordinate 0); for a lattice, the
+        state of the first site is repeated on the ring.
+
+    Raises
+    ------
+    BreatherError
+        If rest is not a stable equilibrium (a negative w^2).
+    """
+    if isinstance(system, LatticeSystem):
+        nd = len(system.dofs)
+        site = np.zeros(nd) if rest is None else np.asarray(rest, dtype=float)[:nd]
+        # A ring of 4 sites holds every bond of a site and no boundary; the copy shares the compiled kernels.
+        ring = system.with_sites(4)
+        ring.boundary = "periodic"
+        jac = ring.force_jacobian(np.tile(site, 4)).toarray()
+        own, nxt = jac[nd : 2 * nd, nd : 2 * nd], jac[nd : 2 * nd, 2 * nd : 3 * nd]
+        scale = 1.0 / np.sqrt(system.mass()[:nd])
+        waves = np.linspace(0.0, math.pi, BAND_SAMPLES)
+        squares = np.array(
+            [np.linalg.eigvalsh(-(scale[:, None] * (own + nxt * np.exp(1j * k) + nxt.T * np.exp(-1j * k)) * scale[None, :])) for k in waves]
+        )
+    else:
+        q = np.zeros(system.size) if rest is None else system.check_state(rest, "rest")
+        scale = 1.0 / np.sqrt(system.mass())
+        matrix = -(scale[:, None] * system.force_jacobian(q).toarray() * scale[None, :])
+        squares = np.sort(np.linalg.eigvals(matrix).real)[None, :]
+        squares = np.array([[squares.min(), squares.max()]]).T
+    if np.min(squares) < -1e-12:
+        raise BreatherError(
+            f"the rest state of {system.name} is not a stable equilibrium (w^2 = {np.min(squares):.6g} < 0): it has no bands"
+        )
+    frequencies = np.sqrt(np.clip(squares, 0.0, None))
+    return [(float(frequencies[:, b].min()), float(frequencies[:, b].max())) for b in range(frequencies.shape[1])]
+
+
+@dataclass(frozen=True)
+class Resonance:
+    """A harmonic of the rotation at a band edge: (m / 2) Omega = edge.
+
+    ``order`` is m: even m is the harmonic n = m / 2 (the phonon multipliers at +1), odd m a
+    parametric resonance 2 w = m Omega (at -1).
+    """
+
+    omega: float
+    order: int
+    band: int
+    edge: str
+    edge_frequency: float
+
+    @property
+    def harmonic(self) -> float:
+        return self.order / 2
+
+    @property
+    def multiplier(self) -> int:
+        return 1 if self.order % 2 == 0 else -1
+
+    def as_dict(self) -> dict:
+        return {
+            "omega": self.omega,
+            "harmonic": self.harmonic,
+            "multiplier": self.multiplier,
+            "band": self.band,
+            "edge": self.edge,
+            "edge_frequency": self.edge_frequency,
+        }
+
+
+def resonances(
+    bands: list[tuple[float, float]], low: float = 0.0, high: float = math.inf, *, max_harmonic: int = MAX_HARMONIC
+) -> list[Resonance]:
+    """Every Omega in [low, high] with (m / 2) Omega at a band edge, m = 1 .. 2 max_harmonic, sorted by Omega."""
+    out = []
+    for b, (bottom, top) in enumerate(bands):
+        for edge, frequency in (("bottom", bottom), ("top", top)):
+            for m in range(1, 2 * max_harmonic + 1):
+                omega = 2 * frequency / m
+                if frequency > 0 and low <= omega <= high:
+                    out.append(Resonance(omega, m, b, edge, frequency))
+    return sorted(out, key=lambda r: r.omega)
+
+
+def nearest_resonance(
+    bands: list[tuple[float, float]], omega: float, *, multiplier: int | None = None, max_harmonic: int = MAX_HARMONIC
+) -> Resonance:
+    """The resonance (:func:`resonances`) nearest ``omega``; with ``multiplier`` (+1 or -1) only those of that kind."""
+    found = [r for r in resonances(bands, max_harmonic=max_harmonic) if multiplier is None or r.multiplier == multiplier]
+    return min(found, key=lambda r: abs(r.omega - omega))
+
+
+def harmonics_in_bands(bands: list[tuple[float, float]], omega: float, *, max_harmonic: int = MAX_HARMONIC) -> list[tuple[int, int]]:
+    """The (n, band) with n Omega inside a band (n = 1 .. max_harmonic): the rotation drives those phonons resonantly."""
+    return [(n, b) for n in range(1, max_harmonic + 1) for b, (bottom, top) in enumerate(bands) if bottom <= n * omega <= top]
+
+
+# -- families ---------------------------------------------------------------------------------
+
+
+def orbit_energy(orbit: Orbit) -> float | None:
+    """Kinetic plus potential energy of the undamped orbit at its start (None for a system without energy)."""
+    system = orbit.system
+    potential = system.energy(orbit.q0)
+    return None if potential is None else float(potential + 0.5 * np.sum(system.mass() * orbit.v0**2))
+
+
+@dataclass(frozen=True)
+class StabilityChange:
+    """Where a family loses (or regains) stability, located by bisection in the period.
+
+    ``omega`` lies between ``stable_omega`` and ``unstable_omega`` (bracketing members after the
+    bisections); ``multiplier`` is the unstable side's largest one; ``kind`` is ``+1`` (a real
+    multiplier > 1: a collision at +1), ``-1`` (real < -1: at -1) or ``complex`` (a Krein
+    collision off the real axis); ``resonance`` the nearest resonance of that kind, ``nearest``
+    the nearest of any.
+    """
+
+    omega: float
+    stable_omega: float
+    unstable_omega: float
+    multiplier: complex
+    kind: str
+    resonance: Resonance
+    nearest: Resonance
+
+    def as_dict(self) -> dict:
+        return {
+            "omega": self.omega,
+            "stable_omega": self.stable_omega,
+            "unstable_omega": self.unstable_omega,
+            "multiplier": [self.multiplier.real, self.multiplier.imag],
+            "kind": self.kind,
+            "resonance": self.resonance.as_dict(),
+            "nearest_resonance": self.nearest.as_dict(),
+        }
+
+
+@dataclass
+class SystemBreatherFamily:
+    """A roto-breather family of a system: the anti-continuum start, the orbits in the frequency, stability changes, bands.
+
+    Attributes
+    ----------
+    start : AntiContinuum
+    coupling : str
+        The parameter continued from 0 to its value in the system.
+    orbits : list of Orbit
+        The family at that coupling, in the order followed from the first frequency.
+    bands : list of (bottom, top)
+    changes : list of StabilityChange
+    message : str
+        How the continuation in the period ended.
+    """
+
+    system: System
+    start: AntiContinuum
+    coupling: str
+    orbits: list[Orbit]
+    bands: list[tuple[float, float]]
+    changes: list[StabilityChange]
+    message: str
+    settings: dict = field(default_factory=dict)
+
+    @property
+    def first_turns(self) -> int:
+        return abs(next(iter(self.start.turns.values())))
+
+    @property
+    def omegas(self) -> np.ndarray:
+        """Mean angular velocity of the first rotor, 2 pi k / T, per orbit."""
+        return np.array([2 * math.pi * self.first_turns / o.period for o in self.orbits])
+
+    def energies(self) -> np.ndarray:
+        """Energy of every orbit (NaN for a system without an energy)."""
+        return np.array([math.nan if (e := orbit_energy(o)) is None else e for o in self.orbits])
+
+    def energy_extrema(self) -> list[float]:
+        """Frequencies where the energy is extremal along the family (dE/dOmega changes sign).
+
+        Each the vertex of the parabola E(Omega) through the three members around the sign
+        change. A Hamiltonian family's pair of multipliers at +1 turns real exactly where
+        dE/dOmega = 0 (the energy's fold), so a loss of stability at +1 sits at one of these.
+        """
+        omegas, energy = self.omegas, self.energies()
+        slope = np.diff(energy) / np.diff(omegas)
+        out = []
+        for j in np.flatnonzero(np.sign(slope[:-1]) * np.sign(slope[1:]) < 0):
+            a, b, c = np.polyfit(omegas[j : j + 3], energy[j : j + 3], 2)
+            out.append(float(-b / (2 * a)))
+        return out
+
+    def as_dict(self) -> dict:
+        omegas = self.omegas
+        rotors = list(self.start.turns)
+        return {
+            **self.system.describe(),
+            "coupling": self.coupling,
+            "coupling_value": self.system.parameter(self.coupling),
+            "rotors": {self.system.coordinates[i]: k for i, k in self.start.turns.items()},
+            "anti_continuum_energy": {self.system.coordinates[i]: e for i, e in self.start.energies.items()},
+            "anti_continuum_period": self.start.period,
+            "omega": omegas.tolist(),
+            "period": [o.period for o in self.orbits],
+            "energy": [orbit_energy(o) for o in self.orbits],
+            "energy_extrema": self.energy_extrema() if self.orbits else [],
+            "rotor_velocity": [o.v0[rotors[0]] for o in self.orbits],
+            "max_multiplier": [o.max_multiplier for o in self.orbits],
+            "stable": [bool(o.stable) for o in self.orbits],
+            "unfolding": [o.unfolding for o in self.orbits],
+            "closure": [o.closure for o in self.orbits],
+            "harmonics_in_bands": [[{"harmonic": n, "band": b} for n, b in harmonics_in_bands(self.bands, w)] for w in omegas],
+            "bands": [list(b) for b in self.bands],
+            "resonances": [r.as_dict() for r in resonances(self.bands, float(omegas.min()), float(omegas.max()))] if self.orbits else [],
+            "stability_changes": [c.as_dict() for c in self.changes],
+            "message": self.message,
+            **{k: v for k, v in self.settings.items() if k not in ("system",)},
+        }
+
+
+def _unfolding_parameter(system: System, unfold: str | None) -> str:
+    if unfold is not None:
+        system.parameter(unfold)
+        return unfold
+    for name in system.parameters:
+        if np.any(system.parameter_mass_damping(name)[1] != 0.0):
+            return name
+    raise BreatherError(
+        f"{system.name} has no damping parameter (a parameter the damping depends on): the conservative orbits are found "
+        "with a damping as the unfolding unknown; give the system one (e.g. damping='gamma')"
+    )
+
+
+def _at(system: System, turns: np.ndarray, unfold: str, y0: np.ndarray, period: float) -> Orbit:
+    return find_orbit(system, (y0, period), turns=turns, unfold=unfold)
+
+
+def _land(branch_orbits: list[Orbit], value: float, name: str, target: System, turns, unfold: str) -> Orbit:
+    """The orbit at ``name`` = value exactly, from the two members of a branch that bracket it (a linear guess)."""
+    values = np.array([o.period if name == PERIOD else o.parameter(name) for o in branch_orbits])
+    j = next((j for j in range(1, len(values)) if min(values[j - 1], values[j]) <= value <= max(values[j - 1], values[j])), len(values) - 1)
+    a, b = branch_orbits[j - 1], branch_orbits[j]
+    span = values[j] - values[j - 1]
+    s = 0.0 if span == 0 else (value - values[j - 1]) / span
+    guess = (1 - s) * a.y0 + s * b.y0
+    period = value if name == PERIOD else (1 - s) * a.period + s * b.period
+    return _at(target, turns, unfold, guess, period)
+
+
+def _continue_coupling(orbit: Orbit, system: System, coupling: str, target: float, turns, unfold: str) -> Orbit:
+    """From the anti-continuum orbit to the coupling ``target`` at fixed period: Newton at coupling values
+    stepped from 0, each guess extrapolated from the last two orbits, the step halved where Newton fails.
+
+    Natural steps rather than arclength: at coupling 0 every rotor's phase is free (a
+    multi-site start is degenerate there), and the symmetric start picks the branch that
+    persists; the coupling never folds on a roto-breather's way from the anti-continuum limit.
+    """
+    done, previous, value, step = orbit, None, 0.0, target / COUPLING_STEPS
+    while value != target:
+        trial = target if abs(target - value) <= abs(step) else value + step
+        guess = (
+            done.y0 if previous is None else done.y0 + (done.y0 - previous.y0) * (trial - value) / (value - previous.parameter(coupling))
+        )
+        try:
+            found = _at(system.with_parameters(**{coupling: trial}), turns, unfold, guess, orbit.period)
+        except OrbitNotFound:
+            step /= 2
+            if abs(step) < abs(target) / 2**COUPLING_HALVINGS:
+                raise OrbitNotFound(
+                    f"the anti-continuum orbit continued in {coupling} stops at {coupling} = {value:.6g} before {target:g}: "
+                    "no orbit at the next steps (a resonance of a harmonic with the band on the way: try another frequency)"
+                ) from None
+            continue
+        previous, done, value, step = done, found, trial, step * 1.5
+    return done
+
+
+def _classify(orbit: Orbit) -> tuple[complex, str]:
+    """The largest nontrivial multiplier and where it left the circle: near +1, near -1, or elsewhere (a complex quartet).
+
+    By its sector rather than its imaginary part: a pair leaving at +1 splits from a multiple
+    multiplier there (the family's own pair), which the eigenvalue solver returns slightly complex.
+    """
+    mu = orbit.nontrivial_multipliers
+    top = complex(mu[int(np.argmax(np.abs(mu)))])
+    angle = abs(math.atan2(top.imag, top.real))
+    return top, "+1" if angle < math.pi / 3 else "-1" if angle > 2 * math.pi / 3 else "complex"
+
+
+def _locate(a: Orbit, b: Orbit, target: System, turns, unfold: str, bands, k: int) -> StabilityChange:
+    """Bisect in the period between members ``a`` and ``b`` of opposite stability."""
+    stable, unstable = (a, b) if a.stable else (b, a)
+    for _ in range(BISECTIONS):
+        period = 0.5 * (stable.period + unstable.period)
+        try:
+            middle = _at(target, turns, unfold, 0.5 * (stable.y0 + unstable.y0), period)
+        except Exception:  # noqa: BLE001 - a failed Newton ends the bisection, the bracket stays valid
+            break
+        if middle.stable:
+            stable = middle
+        else:
+            unstable = middle
+    multiplier, kind = _classify(b if a.stable else a)
+    omega_s, omega_u = 2 * math.pi * k / stable.period, 2 * math.pi * k / unstable.period
+    omega = 0.5 * (omega_s + omega_u)
+    sign = {"+1": 1, "-1": -1}.get(kind)
+    return StabilityChange(
+        omega=omega,
+        stable_omega=omega_s,
+        unstable_omega=omega_u,
+        multiplier=multiplier,
+        kind=kind,
+        resonance=nearest_resonance(bands, omega, multiplier=sign),
+        nearest=nearest_resonance(bands, omega),
+    )
+
+
+def roto_breather_family(
+    system: System,
+    omega: float,
+    *,
+    to: float | None = None,
+    rotor: int | str | None = None,
+    partner: int | str | None = None,
+    counter: bool = False,
+    turns: int = 1,
+    coupling: str = "C",
+    unfold: str | None = None,
+    step: float = 0.02,
+    max_step: float = 0.05,
+    max_points: int = 300,
+    locate: bool = True,
+    progress: ProgressCallback | None = None,
+) -> SystemBreatherFamily:
+    """A roto-breather family of ``system`` from the anti-continuum limit at frequency ``omega``.
+
+    Parameters
+    ----------
+    system : System
+        The system at the coupling wanted (its ``coupling`` parameter's value is the target);
+        any drive set to 0 (its damping is the unfolding and is set to 0 as well).
+    omega : float
+        Frequency Omega = 2 pi k / T of the rotor at which the family starts (from the anti-continuum limit).
+    to : float, optional
+        Follow the family in the period until the frequency reaches ``to`` (default: the start alone).
+    rotor : int or str, optional
+        The turning coordinate (default the central angle).
+    partner : int or str, optional
+        A second rotor (a two-site roto-breather), turning with the first, or against it with ``counter``.
+    turns : int
+        k, turns of the rotor per period.
+    coupling : str
+        The parameter that couples the sites: continued from 0 (the anti-continuum limit) to its value.
+    unfold : str, optional
+        The damping parameter (default: the first one the damping depends on).
+    step, max_step, max_points
+        Of the continuation in the period (in log T).
+    locate : bool
+        Locate every change of stability along the family by bisection.
+    progress : callable(done, total), optional
+
+    Returns
+    -------
+    SystemBreatherFamily
+
+    Raises
+    ------
+    BreatherError
+        For bad input (a rotor that is not an angle, a coupling that is not a parameter, omega <= 0).
+    OrbitNotFound
+        If Newton fails at the target coupling.
+    """
+    unfold = _unfolding_parameter(system, unfold)
+    try:
+        target_coupling = system.parameter(coupling)
+    except ValueError:
+        raise BreatherError(
+            f"coupling: {system.name} has no parameter {coupling!r}; its parameters are {', '.join(system.parameters)}"
+        ) from None
+    if to is not None and not (math.isfinite(to) and to > 0):
+        raise BreatherError(f"to must be a finite frequency > 0, got {to!r}")
+    angles = np.flatnonzero(system.angles)
+    if rotor is None:
+        if not angles.size:
+            raise BreatherError(f"{system.name} has no angle: nothing can turn")
+        rotor = int(angles[angles.size // 2])
+    rotors = {rotor: turns}
+    if partner is not None:
+        if _coordinate(system, partner, "partner") == _coordinate(system, rotor, "rotor"):
+            raise BreatherError(f"partner must differ from the rotor, got {partner!r} for both")
+        rotors[partner] = -turns if counter else turns
+    system = system.with_parameters(**{unfold: 0.0})
+    start = anti_continuum_orbit(system, float(omega), rotors, coupling)
+    k = np.zeros(system.size)
+    for i, t in start.turns.items():
+        k[i] = t
+    alone = system.with_parameters(**{coupling: 0.0})
+    first = _at(alone, k, unfold, start.y0, start.period)
+    if target_coupling != 0.0:
+        first = _continue_coupling(first, system, coupling, target_coupling, k, unfold)
+    members = [first]
+    message = "the start alone"
+    if to is not None and to != omega:
+        period_to = 2 * math.pi * turns / to
+        family = continue_orbits(
+            first, PERIOD, direction=1.0 if period_to > first.period else -1.0,
+            limits=(min(first.period, period_to), max(first.period, period_to)), stop_at=(),
+            step=step, max_step=max_step, max_points=max_points, progress=progress,
+        )  # fmt: skip
+        lo, hi = min(first.period, period_to), max(first.period, period_to)
+        inside = [o for o in family.orbits if lo <= o.period <= hi]
+        members = inside
+        message = family.message
+        outside = [o for o in family.orbits if not lo <= o.period <= hi]
+        if outside and len(family.orbits) >= 2:
+            try:
+                members.append(_land(family.orbits, period_to, PERIOD, system, k, unfold))
+            except OrbitNotFound:
+                message += f"; no orbit at Omega = {to:g} itself from the last two members"
+    bands = linear_bands(system)
+    changes = []
+    if locate:
+        for a, b in zip(members[:-1], members[1:], strict=True):
+            if a.stable != b.stable:
+                changes.append(_locate(a, b, system, k, unfold, bands, turns))
+    settings = {"turns": turns, "unfold": unfold, "partner_against": counter if partner is not None else None}
+    return SystemBreatherFamily(system, start, coupling, members, bands, changes, message, settings)
