@@ -1,14 +1,18 @@
-"""Wall time of the whole ``cosserat-chain reproduce`` command, per stage.
+"""CPU and wall time of the whole ``cosserat-chain reproduce`` command, per stage.
 
 Run from the repository root::
 
-    python benchmarks/bench_reproduce.py            # the paper's defaults, about a minute on 2 cores
+    python benchmarks/bench_reproduce.py            # warm: the compiled kernels from Numba's cache
+    python benchmarks/bench_reproduce.py --cold     # cold: an empty Numba cache, every kernel compiled
     python benchmarks/bench_reproduce.py --json     # also print one JSON object
 
-It runs the command as a user does (a fresh process, so imports and loading the
-cached Numba kernels count), reads the per-stage times from the report's
-``summary.json``, and reports the stages' share of the total. Results go to
-``benchmarks/results/reproduce.json``.
+It runs the command as a user does (a fresh process, so imports and loading or compiling
+the Numba kernels count) into a temporary folder, and reports the CPU time (user + system)
+of the command and of every process it started (the state diagram runs in a second process
+beside the other stages where two cores are free), the wall time, the load average before and
+after (the machine may be shared: wall times only compare on the same load), and each
+stage's wall and CPU seconds from the report's ``summary.json``. Results go to
+``benchmarks/results/reproduce.json`` (``reproduce_cold.json`` with ``--cold``).
 """
 
 from __future__ import annotations
@@ -17,6 +21,7 @@ import argparse
 import json
 import os
 import platform
+import resource
 import subprocess
 import sys
 import tempfile
@@ -26,30 +31,52 @@ from pathlib import Path
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
+def _children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--cold", action="store_true", help="run with an empty Numba cache (every kernel compiled)")
     parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
     args = parser.parse_args()
-    with tempfile.TemporaryDirectory() as out:
+    env = dict(os.environ)
+    with tempfile.TemporaryDirectory() as out, tempfile.TemporaryDirectory() as cache:
+        if args.cold:
+            env["NUMBA_CACHE_DIR"] = cache
+        load_before = os.getloadavg()
+        cpu_before = _children_cpu()
         start = time.perf_counter()
-        subprocess.run([sys.executable, "-m", "cosserat_chain.cli", "reproduce", "--out", out], check=True, stdout=subprocess.DEVNULL)
+        subprocess.run(
+            [sys.executable, "-m", "cosserat_chain.cli", "reproduce", "--out", out], check=True, stdout=subprocess.DEVNULL, env=env
+        )
         wall = time.perf_counter() - start
+        cpu = _children_cpu() - cpu_before
+        load_after = os.getloadavg()
         summary = json.loads((Path(out) / "summary.json").read_text())
-    stages = {name: stage["seconds"] for name, stage in summary["stages"].items()}
+    stages = {name: {"seconds": stage["seconds"], "cpu_seconds": stage.get("cpu_seconds")} for name, stage in summary["stages"].items()}
     result = {
         "machine": platform.platform(),
         "cores": os.cpu_count(),
+        "cold": args.cold,
         "version": summary["cosserat_chain_version"],
+        "load_average_before": load_before[0],
+        "load_average_after": load_after[0],
+        "cpu_seconds": cpu,
         "wall_seconds": wall,
-        "stage_seconds": stages,
-        "outside_stages_seconds": wall - sum(stages.values()),
+        "stages": stages,
+        "stages_cpu_seconds": sum(stage["cpu_seconds"] or 0.0 for stage in stages.values()),
     }
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "reproduce.json").write_text(json.dumps(result, indent=2) + "\n")
-    for name, seconds in stages.items():
-        print(f"{name:14s} {seconds:7.1f} s  {100 * seconds / wall:5.1f} %")
-    print(f"{'(start-up)':14s} {result['outside_stages_seconds']:7.1f} s")
-    print(f"{'total':14s} {wall:7.1f} s")
+    (RESULTS / ("reproduce_cold.json" if args.cold else "reproduce.json")).write_text(json.dumps(result, indent=2) + "\n")
+    print(f"{'stage':16s} {'wall s':>7s} {'CPU s':>7s}")
+    for name, stage in stages.items():
+        print(f"{name:16s} {stage['seconds']:7.1f} {stage['cpu_seconds'] or float('nan'):7.1f}")
+    print(f"{'(outside stages)':16s} {'':7s} {cpu - result['stages_cpu_seconds']:7.1f}")
+    print(
+        f"{'total':16s} {wall:7.1f} {cpu:7.1f}   ({'cold' if args.cold else 'warm'}; load average {load_before[0]:.1f} -> {load_after[0]:.1f})"
+    )
     if args.json:
         print(json.dumps(result))
 

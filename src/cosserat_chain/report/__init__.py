@@ -2,13 +2,15 @@
 
 Contract
 --------
-:func:`reproduce` runs the stages below in turn. Each one computes with the public
+:func:`reproduce` runs the stages below in turn, those that share nothing with the others
+(the state diagram, the chains of other lengths, which continuum) in a second process beside
+them where two cores are free (:mod:`.background`: the same report, file for file). Each one computes with the public
 API, writes its figures (PNG and SVG) and data (NetCDF and JSON) under the output
 folder, and returns a section of the report: text, tables and figures. A stage that
 fails becomes a section with its error, and the other stages still run. At the end,
 ``index.html`` (self-contained: the figures are embedded, so it opens from disk with no
 server and no network), ``report.md`` (the same content) and ``summary.json`` (every
-number, the resolved parameters, the package version and the run time of each stage)
+number, the resolved parameters, the package version and the wall and CPU time of each stage)
 are written atomically. An interrupted run leaves no half-written report. Last comes
 ``manifest.json``, the list of the report's files with their SHA-256 and the package's
 marker: a report written into a folder that holds an older one removes the older files
@@ -29,8 +31,8 @@ the discrete reduced chain), ``waves`` (dispersion, band gap), ``errata``.
 The package is split by concern: :mod:`.settings` (what the report computes and on which
 chain), :mod:`.stages` (the stages and the :class:`Section` each returns), :mod:`.claims` (the
 first table, read from the sections' numbers), :mod:`.rendering` (``report.md`` and
-``index.html``) and :mod:`.folder` (the folder's layout and manifest). This module runs them
-in turn, and every name below is importable from it.
+``index.html``), :mod:`.folder` (the folder's layout and manifest) and :mod:`.background` (stages
+on a second core). This module runs them, and every name below is importable from it.
 """
 
 from __future__ import annotations
@@ -47,6 +49,7 @@ from typing import Any
 from .._version import __version__
 from ..io import write_text
 from ..params import ChainParams
+from . import background
 from .claims import CLAIMS_HEADER, claims
 from .folder import MANIFEST, MANIFEST_MARKER, check_folder, json_default
 from .rendering import ANIMATION_LINK, PAGE, format_cell, html_page, markdown_page
@@ -148,19 +151,38 @@ def reproduce(
         raise ValueError(f"unknown stage(s) {unknown}; allowed: {', '.join(STAGES)}")
     out = Path(out)
     stage = _Stage(out, params, settings)
-    sections = []
-    for i, name in enumerate(names):
+    # The stages that share nothing with the others run on a second core beside them (.background).
+    beside = background.start(stage, names, _run_stage)
+    done: dict[str, Section] = {}
+    cpu: dict[str, float] = {}
+
+    def finished() -> int:
+        return len(done) + (len(beside.sections) if beside is not None else 0)
+
+    def detail(name: str, text: str) -> None:
         if progress is not None:
-            progress(name, i, len(names))
-            stage.progress = lambda detail, name=name, i=i: progress(f"{name}: {detail}", i, len(names))
-        start = time.perf_counter()
-        try:
-            section = STAGES[name](stage)
-        except Exception as err:  # a failed stage is reported in the page; the others still run
-            log.exception("stage %s failed", name)
-            section = Section(name, error=f"{type(err).__name__}: {err}\n\n{traceback.format_exc(limit=4)}")
-        section.seconds = time.perf_counter() - start
-        sections.append(section)
+            progress(f"{name}: {text}", finished(), len(names))
+
+    try:
+        for name in names:
+            if beside is not None:
+                beside.poll(stage, detail)
+            if progress is not None:
+                progress(name, finished(), len(names))
+                stage.progress = lambda text, name=name: detail(name, text)
+            if beside is not None and name in beside.names:
+                continue
+            start = time.process_time()
+            done[name] = _run_stage(stage, name)
+            cpu[name] = time.process_time() - start
+        if beside is not None:
+            beside.poll(stage, detail, wait=True)
+            done.update(beside.sections)
+            cpu.update(beside.cpu_seconds)
+    finally:
+        if beside is not None:
+            beside.stop()
+    sections = [done[name] for name in names]
     if progress is not None:
         progress("done", len(names), len(names))
     table = claims(dict(zip(names, sections)), settings)
@@ -170,7 +192,8 @@ def reproduce(
         "params": params.model_dump(),
         "settings": asdict(settings),
         "stages": {
-            name: {"title": s.title, "seconds": s.seconds, "error": s.error, "numbers": s.numbers} for name, s in zip(names, sections)
+            name: {"title": s.title, "seconds": s.seconds, "cpu_seconds": cpu[name], "error": s.error, "numbers": s.numbers}
+            for name, s in zip(names, sections)
         },
     }
     write_text(json.dumps(params.model_dump(), indent=1), stage.path("params.json"))
@@ -179,3 +202,15 @@ def reproduce(
     write_text(html_page(sections, params, out, table), stage.path("index.html"))
     stage.finish()
     return Report(out, sections, summary)
+
+
+def _run_stage(stage: _Stage, name: str) -> Section:
+    """Stage ``name``'s section, its wall time in ``seconds``; a failure becomes the section's error (the others still run)."""
+    start = time.perf_counter()
+    try:
+        section = STAGES[name](stage)
+    except Exception as err:  # a failed stage is reported in the page; the others still run
+        log.exception("stage %s failed", name)
+        section = Section(name, error=f"{type(err).__name__}: {err}\n\n{traceback.format_exc(limit=4)}")
+    section.seconds = time.perf_counter() - start
+    return section

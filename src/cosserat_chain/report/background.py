@@ -1,0 +1,112 @@
+"""Stages that run beside the others, in a second process: the report on two cores.
+
+Contract
+--------
+:func:`start` forks one process that runs the stages of :data:`BACKGROUND` asked for, in
+order, with the same chain, settings and output folder as the main process (the fork copies
+the :class:`~cosserat_chain.report.stages._Stage`), and sends back, through a queue, the
+progress details each reports, then its :class:`~cosserat_chain.report.stages.Section` (an
+error caught as in the main loop), the files it wrote (for the manifest) and its CPU time.
+The stages of :data:`BACKGROUND` read nothing that another stage computes and leave nothing
+for one (``_Stage.shared``), so the report is the same, file for file, as when they run in
+order; together they take about as much CPU as the others (``benchmarks/bench_reproduce.py``).
+
+:func:`start` returns None (the stages then run in order) where fork is not the platform's
+safe way to start a process (only Linux forks here), where fewer than two cores are free to
+this process, or where nothing else is asked for beside the background stages.
+"""
+
+from __future__ import annotations
+
+import os
+import queue
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from .stages import Section, _Stage
+
+#: Stages that share no result with another (they read only the chain and the settings), the state diagram the longest.
+BACKGROUND = ("long_chains", "state_map", "which_continuum")
+#: Seconds between looks at a process that has not reported while the main process waits for it.
+POLL_SECONDS = 0.5
+
+
+def free_cores() -> int:
+    """The cores this process may run on."""
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+@dataclass
+class Background:
+    """The background stages under way (:func:`start`)."""
+
+    names: list[str]
+    channel: Any
+    process: Any
+    #: Sections received, by stage name, with their CPU seconds.
+    sections: dict[str, Section] = field(default_factory=dict)
+    cpu_seconds: dict[str, float] = field(default_factory=dict)
+
+    def poll(self, stage: _Stage, report: Callable[[str, str], None], *, wait: bool = False) -> None:
+        """Take what the processes sent: ``report(name, detail)`` for each progress detail, each section
+        and its files into ``stage.written``. With ``wait``, until every section has come."""
+        while len(self.sections) < len(self.names):
+            try:
+                message = self.channel.get(timeout=POLL_SECONDS) if wait else self.channel.get_nowait()
+            except queue.Empty:
+                if not wait:
+                    return
+                self._check_alive()
+                continue
+            kind, name, *payload = message
+            if kind == "progress":
+                report(name, payload[0])
+            else:
+                section, written, cpu = payload
+                self.sections[name] = section
+                self.cpu_seconds[name] = cpu
+                stage.written.update(written)
+
+    def _check_alive(self) -> None:
+        """Error sections for the stages a process that ended (killed, out of memory) did not send."""
+        if self.process.is_alive() or not self.channel.empty():
+            return
+        for name in self.names:
+            if name not in self.sections:
+                self.sections[name] = Section(name, error=f"the stage's process ended without a result (exit code {self.process.exitcode})")
+                self.cpu_seconds[name] = 0.0
+
+    def stop(self) -> None:
+        """End the process if it still runs (an interrupted report)."""
+        if self.process.is_alive():
+            self.process.terminate()
+        self.process.join()
+
+
+def _child(channel, stage: _Stage, names: list[str], run: Callable[[_Stage, str], Section]) -> None:
+    for name in names:
+        stage.progress = lambda detail, name=name: channel.put(("progress", name, detail))
+        stage.written = set()
+        cpu = time.process_time()
+        section = run(stage, name)
+        channel.put(("done", name, section, stage.written, time.process_time() - cpu))
+
+
+def start(stage: _Stage, names: list[str], run: Callable[[_Stage, str], Section]) -> Background | None:
+    """Fork a process that runs ``run(stage, name)`` for the stages of :data:`BACKGROUND` in ``names`` (module docstring)."""
+    chosen = [name for name in names if name in BACKGROUND]
+    if not chosen or len(chosen) == len(names) or not sys.platform.startswith("linux") or free_cores() < 2:
+        return None
+    import multiprocessing
+
+    context = multiprocessing.get_context("fork")
+    channel = context.Queue()
+    process = context.Process(target=_child, args=(channel, stage, chosen, run), name="report-background", daemon=True)
+    process.start()
+    return Background(chosen, channel, process)
