@@ -120,3 +120,29 @@ def test_lattice_hessian_is_the_gradients_derivative():
         [(lattice_energy(WIDE, phi + step * e)[1] - lattice_energy(WIDE, phi - step * e)[1]) / (2 * step) for e in np.eye(phi.size)]
     )
     np.testing.assert_allclose(lattice_hessian(WIDE, phi), numeric, atol=1e-8)
+
+
+@pytest.mark.parametrize(
+    ("params", "smooth_path"),
+    [(ChainParams(), True), (ChainParams(a=0.05, b=0.3, E2=0.01), True), (ChainParams(a=0.05, b=0.6, E2=0.01), False)],
+)
+def test_turn_saddle_is_a_first_order_saddle_between_rest_and_the_turned_particle_bracketing_the_barrier(params, smooth_path):
+    from cosserat_chain.analysis.rotation_front import lattice_hessian
+
+    barrier = turn_barrier(params, half_length=8, points=32)
+    state = barrier.saddle_state
+    free = np.ones(state.size, dtype=bool)
+    free[[0, -1]] = False
+    hessian = lattice_hessian(params, state)[np.ix_(free, free)]
+    assert np.max(np.abs(lattice_energy(params, state)[1][free])) < 1e-10 * np.max(np.abs(hessian))
+    assert np.sum(np.linalg.eigvalsh(hessian) < 0) == 1 and barrier.negative_eigenvalues == 1
+    # Its two descents: rest, and the particle turned once (zero energy, 2 pi apart).
+    first, second, energy = barrier.descents
+    assert sorted([round(first / (2 * np.pi)), round(second / (2 * np.pi))]) in ([0, 1], [-1, 0]) and energy < 1e-12
+    # The rotation-controlled path's top bounds the barrier from below; the saddle (a path over it) from above.
+    assert barrier.relaxed <= barrier.saddle + 1e-9 and barrier.saddle <= barrier.fixed + 1e-9
+    if smooth_path:
+        assert barrier.saddle == pytest.approx(barrier.relaxed, rel=1e-7)
+    else:
+        # Wide fronts: the dragged path runs into a metastable state, which the search lists among the others.
+        assert barrier.saddle > barrier.relaxed + 0.05 and barrier.others

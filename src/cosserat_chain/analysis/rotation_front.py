@@ -22,8 +22,12 @@ whose ratio is EI / (GA h^2) = E1 d^2 / (4 E2 h^2): a smooth front needs weak di
 centred on a particle and on a bond: the two stationary fronts, whose energies differ by the
 Peierls barrier; V being 2 pi-periodic, a narrow front slips into one bond, where it costs
 nothing); :func:`turn_barrier` is the energy barrier of one particle turning once, past
-fixed neighbours (2 max V(0, phi)) and past relaxing ones (the constrained minimum over the others
-at each angle of the turning particle, maximised along the turn).
+fixed neighbours (2 max V(0, phi)) and past relaxing ones. Every path of the turn crosses each
+value of the turning particle's angle, so the largest over that angle of the constrained minimum
+over the others is a lower bound of the barrier; a first-order saddle whose two descents end at
+rest and at the particle turned once is an upper bound (its two descents are a path of the turn).
+Where the rotation-controlled path is continuous its top is such a saddle and the two meet; where
+it jumps (wide fronts: the dragged neighbours and the ones left behind are two valleys) they do not.
 """
 
 from __future__ import annotations
@@ -318,6 +322,13 @@ def discrete_front(params: ChainParams, *, half_length: int = 30) -> DiscreteFro
     return DiscreteFront(phi_site, phi_bond, energy_site, energy_bond, float(2 * np.pi / np.max(np.abs(np.diff(lower)))))
 
 
+#: A saddle's gradient counts as zero below this fraction of the Hessian's largest entry (per radian).
+SADDLE_GTOL = 1e-11
+#: Newton (P-RFO) steps of the saddle search, and its largest step (rad).
+SADDLE_STEPS = 200
+SADDLE_TRUST = 0.3
+
+
 @dataclass(frozen=True)
 class TurnBarrier:
     """The energy barrier of one particle turning once against its neighbours.
@@ -330,26 +341,135 @@ class TurnBarrier:
         With the other particles of a held lattice relaxing (each end held at 0): the largest,
         over the turning particle's angle, of the minimum over the others (the lower of the
         minima reached from the last angle and from rest): the top of the rotation-controlled
-        path, an upper bound of the saddle's energy, and at most ``fixed``.
+        path, a lower bound of the barrier (module docstring), and at most ``fixed``.
     angle_fixed, angle_relaxed : float
         The turning particle's angle at the two barriers.
+    saddle : float
+        The energy of the lowest first-order saddle of the turn found (:func:`turn_barrier`):
+        the barrier of the turn with every other particle free; NaN if no candidate converged
+        to one that descends to rest on one side and to the particle turned once on the other.
+    saddle_state : ndarray, shape (2 half_length + 1,)
+        The lattice's angles there (the turning particle in the middle; NaN if none).
+    saddle_gradient : float
+        The largest |dE/dphi_k| over the free particles there.
+    negative_eigenvalues : int
+        Negative eigenvalues of the Hessian over the free particles there (1 for a first-order saddle).
+    descents : tuple of float
+        The turning particle's angle at the minima reached by descending from the saddle along
+        either side of its unstable mode (rest and the particle turned once, 0 and 2 pi), with
+        the larger energy of the two minima.
+    others : tuple of (energy, angle, descent angle, descent angle, descent energy)
+        The other first-order saddles the search converged to (those leading to a metastable
+        state, such as a pair of fronts, rather than through the turn).
     """
 
     fixed: float
     relaxed: float
     angle_fixed: float
     angle_relaxed: float
+    saddle: float = math.nan
+    saddle_state: np.ndarray | None = None
+    saddle_gradient: float = math.nan
+    negative_eigenvalues: int = -1
+    descents: tuple[float, float, float] = (math.nan, math.nan, math.nan)
+    others: tuple[tuple[float, float, float, float, float], ...] = ()
+
+    @property
+    def saddle_angle(self) -> float:
+        """The turning particle's angle at the saddle."""
+        return math.nan if self.saddle_state is None else float(self.saddle_state[self.saddle_state.size // 2])
 
     def as_dict(self) -> dict[str, float]:
-        """The barriers and their angles (for JSON)."""
-        return {"fixed": self.fixed, "relaxed": self.relaxed, "angle_fixed": self.angle_fixed, "angle_relaxed": self.angle_relaxed}
+        """The barriers and their angles (for JSON), NaN as None."""
+
+        def plain(value: float) -> float | None:
+            return float(value) if math.isfinite(value) else None
+
+        return {
+            "fixed": self.fixed,
+            "relaxed": self.relaxed,
+            "angle_fixed": self.angle_fixed,
+            "angle_relaxed": self.angle_relaxed,
+            "saddle": plain(self.saddle),
+            "saddle_angle": plain(self.saddle_angle),
+            "saddle_gradient": plain(self.saddle_gradient),
+            "negative_eigenvalues": self.negative_eigenvalues,
+            "descents": [plain(value) for value in self.descents],
+            "other_saddles": [dict(zip(("energy", "angle", "descent_angle_0", "descent_angle_1", "descent_energy"), item)) for item in self.others],
+        }
+
+
+def _tridiagonal_eigh(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenvalues (ascending) and vectors of a symmetric tridiagonal matrix stored dense (LAPACK stemr: no BLAS threads)."""
+    from scipy.linalg import eigh_tridiagonal
+
+    return eigh_tridiagonal(np.diag(matrix).copy(), np.diag(matrix, 1).copy())
+
+
+def _saddle_search(params: ChainParams, phi: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, float, int, bool]:
+    """A first-order saddle of the lattice over the ``free`` angles by partitioned rational-function (P-RFO) Newton steps.
+
+    Each step ascends along the Hessian's lowest mode and descends along the others, with the
+    RFO shifts that make it a Newton step as the gradient vanishes (quadratic convergence), and
+    at most :data:`SADDLE_TRUST` long. Returns the angles, the largest gradient entry, the
+    Hessian's negative eigenvalues there, and whether the gradient reached
+    :data:`SADDLE_GTOL` of the Hessian's scale.
+    """
+    x = phi.copy()
+    for _ in range(SADDLE_STEPS):
+        gradient = lattice_energy(params, x)[1][free]
+        hessian = lattice_hessian(params, x)[np.ix_(free, free)]
+        values, vectors = _tridiagonal_eigh(hessian)
+        scale = max(float(np.max(np.abs(hessian))), np.finfo(float).tiny)
+        negative = int(np.sum(values < -1e-9 * scale))
+        if np.max(np.abs(gradient)) <= SADDLE_GTOL * scale:
+            return x, float(np.max(np.abs(gradient))), negative, True
+        g = vectors.T @ gradient
+        up = values[0] / 2 + math.sqrt(values[0] ** 2 / 4 + g[0] ** 2)
+        augmented = np.diag(np.append(values[1:], 0.0))
+        augmented[-1, :-1] = augmented[:-1, -1] = g[1:]
+        down = float(np.linalg.eigvalsh(augmented)[0])
+        shifted = values[1:] - down
+        step = np.concatenate(
+            [
+                [-g[0] / (values[0] - up) if values[0] != up else 0.0],
+                np.divide(-g[1:], shifted, out=np.zeros_like(shifted), where=shifted > 0),
+            ]
+        )
+        step = vectors @ step
+        length = float(np.linalg.norm(step))
+        if length > SADDLE_TRUST:
+            step *= SADDLE_TRUST / length
+        x[free] += step
+    gradient = lattice_energy(params, x)[1][free]
+    values = _tridiagonal_eigh(lattice_hessian(params, x)[np.ix_(free, free)])[0]
+    return x, float(np.max(np.abs(gradient))), int(np.sum(values < -1e-9 * np.max(np.abs(values)))), False
+
+
+def _descents(params: ChainParams, saddle: np.ndarray, free: np.ndarray, middle: int) -> tuple[float, float, float]:
+    """Minimise from the saddle displaced along either side of its unstable mode: the turning particle's two angles and the larger energy."""
+    values, vectors = _tridiagonal_eigh(lattice_hessian(params, saddle)[np.ix_(free, free)])
+    mode = vectors[:, 0] * (1.0 if vectors[np.flatnonzero(free).tolist().index(middle), 0] >= 0 else -1.0)
+    ends = []
+    for sign in (-1.0, 1.0):
+        start = saddle.copy()
+        start[free] += sign * 0.05 * mode / np.max(np.abs(mode))
+        ends.append(_minimise(params, start, free))
+    return float(ends[0][1][middle]), float(ends[1][1][middle]), max(ends[0][0], ends[1][0])
 
 
 def turn_barrier(params: ChainParams, *, half_length: int = 10, points: int = 64) -> TurnBarrier:
-    """Barriers of one particle turning past fixed and past relaxing neighbours (module docstring).
+    """Barriers of one particle turning past fixed and past relaxing neighbours, and the turn's saddle (module docstring).
 
     The relaxed barrier scans the turning particle's angle over ``points`` values in [0, 2 pi],
     each minimisation started from the last, and refines the largest by a bounded scalar search.
+    The saddle search then frees the turning particle too and runs P-RFO Newton steps
+    (:func:`_saddle_search`) from the path's top, from the fixed-neighbour barrier's state and
+    from the path's highest scanned states, and keeps the lowest first-order saddle that
+    descends to rest and to the particle turned once: where the path is smooth its top is that
+    saddle (there dE/dphi of the turning particle vanishes with the others' gradients) and
+    ``saddle`` equals ``relaxed``; where it jumps from dragging the neighbours to leaving them
+    behind, the saddle lies above the path's top.
     """
     from scipy.optimize import minimize_scalar
 
@@ -395,4 +515,42 @@ def turn_barrier(params: ChainParams, *, half_length: int = 10, points: int = 64
     )
     relaxed = max(-float(fine.fun), float(energies[best]))
     angle_relaxed = float(fine.x) if -float(fine.fun) >= energies[best] else float(angles[best])
-    return TurnBarrier(fixed, relaxed, angle_fixed, angle_relaxed)
+
+    everyone = free.copy()
+    everyone[half_length] = True
+    symmetric = phi.copy()
+    symmetric[half_length] = angle_fixed
+    candidates = [constrained(float(fine.x), start)[1], symmetric] + [states[i] for i in np.argsort(energies)[::-1][:4]]
+    saddles: dict[float, tuple[np.ndarray, float, tuple[float, float, float]]] = {}
+    for candidate in candidates:
+        saddle, gradient, negative, converged = _saddle_search(params, candidate, everyone)
+        if converged and negative == 1:
+            energy = lattice_energy(params, saddle)[0]
+            if all(abs(energy - known) > 1e-9 * max(fixed, 1e-300) for known in saddles):
+                saddles[energy] = (saddle, gradient, _descents(params, saddle, everyone, half_length))
+    # The turn's saddles: descending on one side to rest, on the other to the particle turned once.
+    tolerance = 1e-9 * fixed
+    turns = {
+        energy: found
+        for energy, found in saddles.items()
+        if found[2][2] <= tolerance and sorted(round(angle / (2 * np.pi)) for angle in found[2][:2]) in ([0, 1], [-1, 0])
+    }
+    others = tuple(
+        (float(energy), float(found[0][half_length]), found[2][0], found[2][1], found[2][2]) for energy, found in sorted(saddles.items()) if energy not in turns
+    )
+    if not turns:
+        return TurnBarrier(fixed, relaxed, angle_fixed, angle_relaxed, others=others)
+    energy = min(turns)
+    saddle, gradient, descents = turns[energy]
+    return TurnBarrier(
+        fixed,
+        relaxed,
+        angle_fixed,
+        angle_relaxed,
+        saddle=energy,
+        saddle_state=saddle,
+        saddle_gradient=gradient,
+        negative_eigenvalues=1,
+        descents=descents,
+        others=others,
+    )
