@@ -66,7 +66,13 @@ class Answer:
             lines.append(
                 f"Full rotation: no continuum. The quasi-continuum front's width is {width} (tails {qc.tail:.3g} particles); the "
                 f"discrete front slips into one bond, so the rotation localises on one particle, whose turn past fixed neighbours "
-                f"costs {barrier.fixed:.4g} ({barrier.relaxed:.4g} with the others relaxing)."
+                f"costs {barrier.fixed:.4g} ("
+                + (
+                    f"{barrier.saddle:.4g} with the others relaxing, a first-order saddle of the lattice"
+                    if math.isfinite(barrier.saddle)
+                    else f"at least {barrier.relaxed:.4g} with the others relaxing"
+                )
+                + ")."
             )
         return lines
 

@@ -306,8 +306,25 @@ def _print_rotation(rotation: dict[str, Any]) -> None:
             f"(energy {front['energy_site']:.6g}): a localized rotation no smooth continuum describes"
         )
     typer.echo(
-        f"  barrier of one particle turning once: {barrier['fixed']:.6g} past fixed neighbours, {barrier['relaxed']:.6g} with the others relaxing"
+        f"  barrier of one particle turning once: {barrier['fixed']:.6g} past fixed neighbours; with the others relaxing at least "
+        f"{barrier['relaxed']:.6g} (top of the rotation-controlled path)"
+        + (
+            f" and at most {barrier['saddle']:.6g}, the first-order saddle (one negative Hessian eigenvalue, gradient "
+            f"{barrier['saddle_gradient']:.1e}) whose descents end at rest and at the particle turned once"
+            if barrier["saddle"] is not None
+            else "; no first-order saddle of the turn found from that path (wide fronts: it runs into metastable states)"
+        )
     )
+    if qc["front_energy"] is not None:
+        typer.echo(
+            f"  the quasi-continuum's barrier: {qc['front_energy']:.6g} (a smooth field cannot slip past its neighbours: turned by pi, "
+            "the particle carries two half fronts, the energy of one 2 pi front)"
+        )
+    for other in barrier["other_saddles"]:
+        typer.echo(
+            f"  another first-order saddle: energy {other['energy']:.6g}, between minima with the particle at "
+            f"{other['descent_angle_0']:.4g} and {other['descent_angle_1']:.4g} rad (the higher one {other['descent_energy']:.4g})"
+        )
 
 
 def _long_waves(params) -> dict[str, Any]:
