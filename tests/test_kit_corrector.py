@@ -187,3 +187,37 @@ def test_chord_corrections_follow_the_same_branch_and_the_given_first_point_is_k
     # Steps stay fixed (no growth with easy = 0, max_step reached): the same arclength, so the same points to round-off.
     np.testing.assert_allclose(np.array(chord.points[1:]), np.array(plain.points[1:]), atol=1e-9)
     assert chord_problem.jacobians <= plain_problem.jacobians
+
+
+def curved(w: np.ndarray, jacobian: bool) -> Evaluation:
+    """R = (x, 1000 (y - x^2)): from (1, 1) the Newton step lands at (0, -1), where max |R| grew 1000-fold,
+    yet the Newton step there is shorter, and the next one ends at the root (0, 0)."""
+    x, y = w
+    return Evaluation(np.array([x, 1000.0 * (y - x * x)]), np.array([[1.0, 0.0], [-2000.0 * x, 1000.0]]))
+
+
+def test_the_natural_monotonicity_test_takes_a_step_that_max_r_alone_refuses_and_each_iterate_is_reported():
+    seen = []
+    natural = newton(
+        curved, np.array([1.0, 1.0]), tol=1e-12, damping=5, natural=True, divergence=None, iterate=lambda w, ev: seen.append(w.copy())
+    )
+    assert natural.converged and natural.iterations == 2
+    np.testing.assert_array_equal(natural.w, [0.0, 0.0])
+    np.testing.assert_array_equal(np.array(seen), [[1.0, 1.0], [0.0, -1.0], [0.0, 0.0]])
+    assert newton(curved, np.array([1.0, 1.0]), tol=1e-12, damping=5, divergence=None).status == Corrector.DIVERGED
+
+
+def test_an_iteration_that_does_not_contract_is_named_and_a_problem_s_own_step_is_used():
+    def linear(w, jacobian):
+        return Evaluation(w.copy(), np.eye(1))
+
+    # A tenth of the Newton step each time: max |R| falls only by 0.9 an iteration.
+    slow = newton(linear, np.array([1.0]), tol=1e-12, newton_step=lambda w, ev: -0.1 * ev.residual, contraction=0.5)
+    assert slow.status == Corrector.NOT_CONTRACTING and slow.iterations == 2
+    assert slow.w[0] == pytest.approx(0.81, rel=1e-15)
+    assert newton(linear, np.array([1.0]), tol=1e-12, newton_step=lambda w, ev: -0.1 * ev.residual).status == Corrector.STALLED
+
+    def undefined(w, ev):
+        raise np.linalg.LinAlgError("no step here")
+
+    assert newton(linear, np.array([1.0]), tol=1e-12, newton_step=undefined).status == Corrector.NOT_FINITE

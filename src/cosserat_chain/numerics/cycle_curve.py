@@ -7,7 +7,8 @@ stops being the state a slowly falling load keeps at one of a few kinds of point
 ``end`` of :mod:`cosserat_chain.experiments.diagram`); three of them are regular points of an
 augmented system. Each is a curve in the plane of the
 moment M and a field p of the chain, and :func:`continue_cycle_end` follows it through
-values of p by Newton's method on an *augmented shooting system* at each value, started
+values of p by Newton's method (the kit's corrector, :func:`~.kit.newton`) on an
+*augmented shooting system* at each value, started
 from the point at the value before (extrapolated along the curve from the two before it):
 
 * ``fold_of_cycles``: (P) and g = 0, g the bordered test function of the shooting
@@ -64,6 +65,7 @@ from ..models.base import get_model
 from ..params import ChainParams
 from ..state import n_free
 from .fold_curve import FIELDS, chain_with, field_values
+from .kit import Evaluation, EvaluationFailed, newton
 from .periodic import ATOL, CLOSURE_TOL, RTOL, OrbitError, PeriodicOrbit, _orbit, _shooting, _System, _to_y
 
 #: Kinds of end that can be followed (:mod:`~cosserat_chain.experiments.diagram`'s ends that are
@@ -159,10 +161,6 @@ class _Point:
     def norm(self) -> float:
         return float(np.max(np.abs(self.residual)))
 
-    @property
-    def merit(self) -> float:
-        return max(self.norm, abs(self.g))
-
 
 @dataclass
 class _Augmented:
@@ -236,51 +234,47 @@ class _Augmented:
             except OrbitError:
                 return None
             self.borders = _singular_vectors(self.bordered(mono, shooting))
-        current = self._point(chain, z)
-        if current is None:
-            return None
-        self.pair = current.pair
-        merits = []
-        for iteration in range(MAX_ITERATIONS + 1):
-            merits.append(current.merit)
-            if len(merits) > 2 and merits[-1] > CONTRACTION * merits[-3]:
-                return None  # not converging: cheaper to halve the parameter step than to go on
-            if current.norm <= self.tol and abs(current.g) <= TEST_TOL:
-                if self.kind in BORDERED:
-                    # Borders for the next value: the singular vectors at this point.
-                    self.borders = _singular_vectors(self.bordered(current.mono, current.jac[:, :-1]))
-                return z, current.mono, current.norm, iteration
-            step = self._newton_step(chain, z, current)
-            if iteration == MAX_ITERATIONS or step is None:
-                return None
-            # A step is taken when it makes max(|R|, |g|) smaller or, as Deuflhard's natural
-            # monotonicity test, the Newton step after it shorter (residual and test function
-            # have unrelated scales, so neither measures progress alone); otherwise it is halved.
-            length, fraction = float(np.linalg.norm(step)), 1.0
-            for _ in range(NEWTON_HALVINGS + 1):
-                trial = self._point(chain, z + fraction * step)
-                if trial is not None:
-                    if trial.merit < current.merit:
-                        break
-                    after = self._newton_step(chain, z + fraction * step, trial)
-                    if after is not None and np.linalg.norm(after) <= (1.0 - fraction / 4.0) * length:
-                        break
-                fraction /= 2.0
-            else:
-                return None
-            z, current = z + fraction * step, trial
-            # The torus's pair is followed from iterate to iterate (nearest the last one).
-            self.pair = current.pair
-        return None
 
-    def _newton_step(self, chain: ChainParams, z: np.ndarray, point: _Point) -> np.ndarray | None:
-        """The Newton step at ``point`` (kept on it), or None where it is not defined."""
-        if point.step is None:
-            try:
-                point.step = self._step(chain, z, point.residual, point.jac, point.g)
-            except (OrbitError, np.linalg.LinAlgError):
-                return None
-        return point.step if np.all(np.isfinite(point.step)) else None
+        def evaluate(w: np.ndarray, jacobian: bool) -> Evaluation:
+            # (P) and g in one residual: its max |.| is max(|R|, |g|).
+            point = self._point(chain, w)
+            if point is None:
+                raise EvaluationFailed("(P) or the test function is not defined there")
+            return Evaluation(np.append(point.residual, point.g), point.jac, point)
+
+        def step(w: np.ndarray, evaluation: Evaluation) -> np.ndarray:
+            point = evaluation.data
+            if point.step is None:
+                point.step = self._step(chain, w, point.residual, point.jac, point.g)
+            return point.step
+
+        def follow(w: np.ndarray, evaluation: Evaluation) -> None:
+            # The torus's pair is followed from iterate to iterate (nearest the last one).
+            self.pair = evaluation.data.pair
+
+        # A step is taken when it makes max(|R|, |g|) smaller or, by Deuflhard's natural
+        # monotonicity test, the Newton step after it shorter (residual and test function
+        # have unrelated scales, so neither measures progress alone); otherwise it is halved.
+        # An iteration that does not contract ends it: cheaper to halve the parameter step.
+        solved = newton(
+            evaluate,
+            z,
+            converged=lambda evaluation, norm: evaluation.data.norm <= self.tol and abs(evaluation.data.g) <= TEST_TOL,
+            max_iterations=MAX_ITERATIONS,
+            divergence=None,
+            contraction=CONTRACTION,
+            damping=NEWTON_HALVINGS + 1,
+            natural=True,
+            newton_step=step,
+            iterate=follow,
+        )
+        if not solved.converged:
+            return None
+        current = solved.evaluation.data
+        if self.kind in BORDERED:
+            # Borders for the next value: the singular vectors at this point.
+            self.borders = _singular_vectors(self.bordered(current.mono, current.jac[:, :-1]))
+        return solved.w, current.mono, current.norm, solved.iterations
 
     def leaves_circle(self, chain: ChainParams, z: np.ndarray, orbit: PeriodicOrbit) -> bool:
         """Whether the critical multiplier of the end at z lies outside the circle a step down the orbit branch

@@ -11,8 +11,12 @@ pseudo-arclength, as AUTO-07p and BifurcationKit.jl do:
   oriented along the previous one (so a fold is passed, and seen as a sign change of
   t's lambda component);
 * **corrector**: :func:`newton` on (R(w), t . (w - w_pred)) = 0. It reports one of the
-  named outcomes of :class:`Corrector` (converged, diverged, stalled, not finite), in the
-  manner of diffrax's root finders, so every caller reads the same reasons;
+  named outcomes of :class:`Corrector` (converged, diverged, not contracting, stalled, not finite), in the
+  manner of diffrax's root finders, so every caller reads the same reasons. Its named
+  options are the package's Newton variants: chord iterations that keep the Jacobian
+  while it converges fast (an orbit's variational equations cost ten state integrations),
+  damping by halved steps, Deuflhard's natural monotonicity test, a contraction test, a
+  problem's own convergence test and step;
 * **step control**: the step grows after an easy correction and shrinks after a hard
   one; a failed correction or a step the problem's monitor refuses (a quantity that
   moved farther than its declared budget, such as a Floquet multiplier near the unit
@@ -108,6 +112,7 @@ class Corrector(StrEnum):
     DIVERGED = "diverged"
     STALLED = "stalled"
     NOT_FINITE = "not_finite"
+    NOT_CONTRACTING = "not_contracting"
 
 
 @dataclass
@@ -236,6 +241,10 @@ def newton(
     chord: float | None = None,
     jacobian0: Any = None,
     damping: int = 0,
+    natural: bool = False,
+    contraction: float | None = None,
+    newton_step: Callable[[np.ndarray, Evaluation], np.ndarray] | None = None,
+    iterate: Callable[[np.ndarray, Evaluation], None] | None = None,
 ) -> Correction:
     """Newton's method on R(w) = 0, the one corrector of the package's continuations and orbit searches.
 
@@ -248,8 +257,9 @@ def newton(
         Start.
     tol : float, optional
         Converged when max |R| <= tol (the residual at the returned w; the Jacobian there is fresh).
-    converged : callable(evaluation, max|R|) -> bool, optional
-        The convergence test instead of ``tol`` (one tolerance per block of equations).
+    converged : callable(evaluation, norm) -> bool, optional
+        The convergence test instead of ``tol`` (one tolerance per block of equations);
+        ``norm`` is max |R|.
     max_iterations : int
         Stalled after this many steps.
     border : (t, w_pred), optional
@@ -272,15 +282,31 @@ def newton(
     jacobian0 : matrix, optional
         With ``chord``, the Jacobian the first step uses (the previous point's).
     damping : int
-        Halvings of a step that does not reduce max |R| (each trial evaluated without the
-        Jacobian; a trial that cannot be evaluated counts as not reducing). When none of
-        them does, a kept Jacobian is computed again at w; a fresh one has diverged.
+        Trials of a step that does not reduce max |R|, the full step first and each one half
+        the one before (each evaluated without the Jacobian; a trial that cannot be evaluated
+        counts as not reducing). When none of them does, a kept Jacobian is computed again at w; a fresh one has diverged. A trial
+        evaluated with its Jacobian anyway (the problem computes both at once) serves as the
+        next iterate's.
+    natural : bool
+        Damping also takes a trial whose own Newton step is shorter than (1 - f / 4) times
+        the full step, f the fraction of it tried (Deuflhard's natural monotonicity test):
+        where R's blocks have unrelated scales, max |R| alone does not measure progress.
+    contraction : float, optional
+        max |R| of the iterates must fall by this factor every two steps, else the
+        correction is ``not_contracting`` (cheaper to retake a shorter continuation step).
+    newton_step : callable(w, evaluation) -> ndarray, optional
+        The step at w instead of one linear solve with the Jacobian (a minimum-norm
+        correction plus a multiple of a null vector); it may raise where it is not defined.
+    iterate : callable(w, evaluation), optional
+        Called at each iterate Newton moves to (the start included), before its tests: a
+        problem that follows something from iterate to iterate (a Floquet multiplier) keeps it here.
 
     Returns
     -------
     Correction
         Its status names the test that ended it: converged, diverged (max |R| grew beyond
-        ``divergence``, or no damped step reduced it), stalled (``max_iterations``) or not finite.
+        ``divergence``, or no damped step reduced it), not contracting (``contraction``),
+        stalled (``max_iterations``) or not finite.
     """
     if (tol is None) == (converged is None):
         raise ValueError("newton needs exactly one of tol (max |R| <= tol) and converged (a test)")
@@ -290,7 +316,17 @@ def newton(
     matrix = jacobian0 if chord is not None else None
     fresh = matrix is None
     best, grace, last, steps = math.inf, forgive, math.inf, 0
-    pending = None
+    pending, moved, norms = None, True, []
+
+    def step_at(w: np.ndarray, ev: Evaluation, matrix) -> np.ndarray:
+        if newton_step is not None:
+            out = np.asarray(newton_step(w, ev), dtype=float)
+        else:
+            out = _direction(matrix, np.asarray(ev.residual, dtype=float), w, border, keep)
+        if not np.all(np.isfinite(out)):
+            raise ArithmeticError("the Newton step is not finite")
+        return out
+
     while True:
         if pending is None:
             try:
@@ -303,11 +339,18 @@ def newton(
         norm = float(np.max(np.abs(residual))) if residual.size else 0.0
         if not math.isfinite(norm):
             return Correction(Corrector.NOT_FINITE, w, ev, norm, steps)
+        if moved:
+            norms.append(norm)
+            if iterate is not None:
+                iterate(w, ev)
+        moved = False
         if converged(ev, norm):
             if fresh:
                 return Correction(Corrector.CONVERGED, w, ev, norm, steps)
             fresh = True  # the solution's own Jacobian, for the caller's tangent and multipliers
             continue
+        if contraction is not None and len(norms) > 2 and norms[-1] > contraction * norms[-3]:
+            return Correction(Corrector.NOT_CONTRACTING, w, ev, norm, steps)
         if not fresh and norm > chord * last:
             fresh = True  # the kept Jacobian converges too slowly now
             continue
@@ -323,10 +366,11 @@ def newton(
             matrix = ev.matrix()
         steps += 1
         try:
-            direction = _direction(matrix, residual, w, border, keep)
-        except (np.linalg.LinAlgError, RuntimeError):
+            direction = step_at(w, ev, matrix)
+        except (ArithmeticError, np.linalg.LinAlgError, RuntimeError):
             return Correction(Corrector.NOT_FINITE, w, ev, norm, steps - 1)
         if damping:
+            length, fraction = float(np.linalg.norm(direction)), 1.0
             for _ in range(damping):
                 trial = _advance(w, direction, keep)
                 try:
@@ -334,21 +378,26 @@ def newton(
                     trial_norm = float(np.max(np.abs(pending.residual)))
                 except _EVALUATION_ERRORS:
                     pending, trial_norm = None, math.inf
-                if trial_norm < norm:
+                if trial_norm < norm or (
+                    natural and pending is not None and _shorter(step_at, trial, pending, fraction, length, newton_step)
+                ):
                     break
                 # A rough start far from the solution: halve the step while it makes max |R| worse.
-                direction = 0.5 * direction
+                direction, fraction = 0.5 * direction, 0.5 * fraction
             else:
                 pending = None
                 if fresh:
                     return Correction(Corrector.DIVERGED, w, ev, norm, steps)
                 fresh = True
                 continue
-            w = trial
+            w, moved = trial, True
+            if pending.jacobian is not None:
+                fresh, last = True, norm  # the trial's own Jacobian, computed with its residual
+                continue
             if chord is None:
                 pending = None  # the next step's Jacobian, fresh at the new w
         else:
-            w = _advance(w, direction, keep)
+            w, moved = _advance(w, direction, keep), True
         fresh, last = chord is None, norm
         if not np.all(np.isfinite(w)):
             return Correction(Corrector.NOT_FINITE, w, ev, norm, steps - 1)
@@ -363,6 +412,17 @@ def _direction(matrix, residual: np.ndarray, w: np.ndarray, border, keep) -> np.
         jac = matrix[:, keep] if not sp.issparse(matrix) else sp.csc_matrix(matrix)[:, np.flatnonzero(keep)]
         return _solve(jac, -residual)
     return _solve(matrix, -residual)
+
+
+def _shorter(step_at, trial: np.ndarray, evaluation: Evaluation, fraction: float, length: float, newton_step) -> bool:
+    """Deuflhard's natural monotonicity test: the Newton step at the trial is shorter than (1 - fraction / 4) length."""
+    if evaluation.jacobian is None and newton_step is None:
+        return False  # a residual alone: no step to measure
+    try:
+        after = step_at(trial, evaluation, evaluation.matrix())
+    except (ArithmeticError, np.linalg.LinAlgError, RuntimeError):
+        return False
+    return float(np.linalg.norm(after)) <= (1.0 - fraction / 4.0) * length
 
 
 def _advance(w: np.ndarray, direction: np.ndarray, keep) -> np.ndarray:
