@@ -2,11 +2,18 @@
 
 from __future__ import annotations
 
-import numpy as np
-import pytest
+import os
 
-from cosserat_chain import ChainParams
-from cosserat_chain.state import fixed_mask
+# One BLAS thread, set before NumPy loads (the test processes' children inherit it): the suite's
+# dense matrices are small, and OpenBLAS's threads spinning on them cost many times the work
+# on a loaded 2-core machine without changing a result the tests check.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from cosserat_chain import ChainParams  # noqa: E402
+from cosserat_chain.state import fixed_mask  # noqa: E402
 
 #: Round-off level for exact identities between independent implementations.
 ROUND_OFF = 1e-12
