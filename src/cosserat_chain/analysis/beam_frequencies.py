@@ -68,7 +68,11 @@ def _rigid_in_family(params: ChainParams, family: str) -> int:
 def _strain_energy(params: ChainParams, u: np.ndarray, v: np.ndarray, phi: np.ndarray) -> float:
     """sum of the bond energies k_u du^2/2 + E1 b^2 dphi^2 + k_v (dv - h (phi_k + phi_k+1)/2)^2 / 2, from the strains."""
     shear = np.diff(v) - params.h * (phi[1:] + phi[:-1]) / 2
-    return float(0.5 * params.k_u * np.sum(np.diff(u) ** 2) + params.E1 * params.b**2 * np.sum(np.diff(phi) ** 2) + 0.5 * params.k_v * np.sum(shear**2))
+    return float(
+        0.5 * params.k_u * np.sum(np.diff(u) ** 2)
+        + params.E1 * params.b**2 * np.sum(np.diff(phi) ** 2)
+        + 0.5 * params.k_v * np.sum(shear**2)
+    )
 
 
 def chain_frequencies(params: ChainParams, count: int = 3, family: str = "flexural") -> np.ndarray:
@@ -126,7 +130,9 @@ def chain_frequencies(params: ChainParams, count: int = 3, family: str = "flexur
     return np.sqrt(np.maximum(omega2, 0.0))
 
 
-def _end_matrix(params: ChainParams, omega: float, a: float, b: float, EI: float, GA: float, end_mass: float, end_rotary: float) -> np.ndarray:
+def _end_matrix(
+    params: ChainParams, omega: float, a: float, b: float, EI: float, GA: float, end_mass: float, end_rotary: float
+) -> np.ndarray:
     """The 4 x 4 matrix of the flexural end conditions, columns the four basis functions (module docstring)."""
     L = params.N * params.h
     mu = beam_stiffness(params).mass
@@ -296,7 +302,9 @@ class FrequencyConvergence:
         }
 
 
-def frequency_convergence(params: ChainParams, n_values: list[int] | np.ndarray, *, count: int = 3, family: str = "flexural") -> FrequencyConvergence:
+def frequency_convergence(
+    params: ChainParams, n_values: list[int] | np.ndarray, *, count: int = 3, family: str = "flexural"
+) -> FrequencyConvergence:
     """The first ``count`` frequencies of the chain, its Timoshenko beam and eq. (6) for each N (its ends as in ``params``).
 
     Raises

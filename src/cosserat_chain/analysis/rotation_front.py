@@ -395,7 +395,9 @@ class TurnBarrier:
             "saddle_gradient": plain(self.saddle_gradient),
             "negative_eigenvalues": self.negative_eigenvalues,
             "descents": [plain(value) for value in self.descents],
-            "other_saddles": [dict(zip(("energy", "angle", "descent_angle_0", "descent_angle_1", "descent_energy"), item)) for item in self.others],
+            "other_saddles": [
+                dict(zip(("energy", "angle", "descent_angle_0", "descent_angle_1", "descent_energy"), item)) for item in self.others
+            ],
         }
 
 
@@ -536,7 +538,9 @@ def turn_barrier(params: ChainParams, *, half_length: int = 10, points: int = 64
         if found[2][2] <= tolerance and sorted(round(angle / (2 * np.pi)) for angle in found[2][:2]) in ([0, 1], [-1, 0])
     }
     others = tuple(
-        (float(energy), float(found[0][half_length]), found[2][0], found[2][1], found[2][2]) for energy, found in sorted(saddles.items()) if energy not in turns
+        (float(energy), float(found[0][half_length]), found[2][0], found[2][1], found[2][2])
+        for energy, found in sorted(saddles.items())
+        if energy not in turns
     )
     if not turns:
         return TurnBarrier(fixed, relaxed, angle_fixed, angle_relaxed, others=others)

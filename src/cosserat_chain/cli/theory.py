@@ -262,7 +262,9 @@ def _print_frequencies(params, modes) -> None:
             for mode in range(table.chain.shape[1]):
                 paper = table.paper_error[row, mode]
                 paper_text = f"{paper:>+11.3e}" if paper == paper else f"{'none':>11}"
-                typer.echo(f"{n:>8d}  {mode + 1:>4d}  {table.chain[row, mode]:>16.10g}  {table.timoshenko_error[row, mode]:>+11.3e}  {paper_text}")
+                typer.echo(
+                    f"{n:>8d}  {mode + 1:>4d}  {table.chain[row, mode]:>16.10g}  {table.timoshenko_error[row, mode]:>+11.3e}  {paper_text}"
+                )
         for label, which in (("Timoshenko", "timoshenko"), ("eq. (6)", "paper")):
             orders = ", ".join("n/a" if order is None else f"{order:.3f}" for order in table.orders(which))
             typer.echo(f"  measured orders of {label}'s errors, mode by mode: {orders}")
