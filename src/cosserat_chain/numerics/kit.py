@@ -574,7 +574,11 @@ def continuation(
         else np.asarray(tangent0, dtype=float) / np.linalg.norm(tangent0)
     )
     if tangent0 is not None:
-        t = tangent(jacobian, t, method=tangent_method)
+        try:
+            t = tangent(jacobian, t, method=tangent_method)
+        except (np.linalg.LinAlgError, RuntimeError):
+            # Started on a branch point, where the null space has two dimensions: the direction given is the tangent.
+            pass
     point = first if first is not None and start.iterations == 0 else problem.point(w, ev, start.iterations)
     result = Continuation(points=[point], tangents=[t])
     if progress is not None:
@@ -601,7 +605,12 @@ def continuation(
                 break
             h = max(min_step, 0.5 * h)
             continue
-        t_new = tangent(jacobian, t, method=tangent_method)
+        try:
+            t_new = tangent(jacobian, t, method=tangent_method)
+        except (np.linalg.LinAlgError, RuntimeError):
+            # A point exactly on a branch point: its tangent is not unique, so the step is retaken shorter.
+            h = max(min_step, 0.5 * h)
+            continue
         new_tests = _all_tests(problem, candidate, jacobian, t_new)
         result.points.append(candidate)
         result.tangents.append(t_new)
@@ -666,7 +675,12 @@ def _locate(
         if not corrected.converged:
             break
         point = problem.point(corrected.w, corrected.evaluation, corrected.iterations)
-        t_s = tangent(corrected.evaluation.matrix(), t, method=method)
+        try:
+            t_s = tangent(corrected.evaluation.matrix(), t, method=method)
+        except (np.linalg.LinAlgError, RuntimeError):
+            # The bordered matrix is singular exactly here: a branch point hit on the nose.
+            best = (point, corrected.w[-1], t)
+            break
         value = _all_tests(problem, point, corrected.evaluation.matrix(), t_s)[kind]
         best = (point, corrected.w[-1], t_s)
         if value == 0 or (high - low) < EVENT_TOL * max(1.0, h):
