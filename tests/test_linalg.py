@@ -233,3 +233,25 @@ def test_the_floor_imports_nothing_of_the_package_above_it():
     allowed = floor | {"cosserat_chain.memory", "cosserat_chain.status", "cosserat_chain.errors"}
     above = {name: sorted(graph[name] - allowed) for name in floor if graph[name] - allowed}
     assert not above, f"the linear-algebra floor imports modules above it: {above}"
+
+
+@pytest.mark.parametrize("size", [1, 2, 5, 17])
+def test_general_solve_append_row_and_determinant_sign_agree_dense_and_sparse(size):
+    """The continuation kit's dense-or-sparse helpers: the same answers in both kinds, the determinant's
+    sign against NumPy's (random permuted matrices, so SuperLU pivots and the parities count)."""
+    import scipy.sparse as sparse
+
+    from cosserat_chain.linalg.general import append_row, determinant_sign, solve
+
+    rng = np.random.default_rng(size)
+    for _ in range(5):
+        dense = rng.normal(size=(size, size)) * (rng.random((size, size)) < 0.5) + np.diag(rng.normal(size=size))
+        dense = dense[rng.permutation(size)]
+        if abs(np.linalg.det(dense)) < 1e-8:
+            continue
+        rhs = rng.normal(size=size)
+        np.testing.assert_allclose(solve(sparse.csr_matrix(dense), rhs), np.linalg.solve(dense, rhs), rtol=1e-10, atol=1e-12)
+        assert determinant_sign(sparse.csr_matrix(dense)) == determinant_sign(dense) == np.sign(np.linalg.det(dense))
+        row = rng.normal(size=size)
+        np.testing.assert_array_equal(append_row(sparse.csr_matrix(dense[:-1]), row).toarray(), append_row(dense[:-1], row))
+    assert determinant_sign(sparse.csr_matrix((size, size))) == 0.0

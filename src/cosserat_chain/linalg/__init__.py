@@ -21,6 +21,8 @@ NumPy/SciPy references directly (``tests/test_linalg.py``).
 * :mod:`.pencil`: the damped pencil K + z R + z^2 I: eigenvalues near the axis by
   shift-invert, the count right of it by the argument principle.
 * :mod:`.refinement`: solves refined with residuals in extended precision.
+* :mod:`.general`: dense-or-sparse matrices of any structure (the continuation kit's):
+  :func:`solve`, :func:`append_row`, :func:`determinant_sign`.
 
 The compiled kernels are cached on disk (``cache=True``) and keep a fixed order of
 operations: the same inputs give the same bits on every run and thread count.

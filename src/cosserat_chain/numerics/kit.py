@@ -43,9 +43,9 @@ from typing import Any, Protocol
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from ..errors import CosseratChainError
+from ..linalg.general import append_row, determinant_sign, solve
 
 #: Corrector iterations before a step is retaken shorter.
 MAX_ITERATIONS = 10
@@ -175,48 +175,6 @@ class ContinuationProblem(Protocol):
     def confirm(self, kind: str, point: Any) -> bool:
         """Whether a located event of this kind is real at ``point`` (a fold of cycles has a second
         multiplier at +1, a torus a pair on the unit circle); a sign change that is not is dropped."""
-
-
-def _solve(matrix, rhs: np.ndarray) -> np.ndarray:
-    if sp.issparse(matrix):
-        return spla.spsolve(sp.csc_matrix(matrix), rhs)
-    return np.linalg.solve(matrix, rhs)
-
-
-def _bordered(jacobian, row: np.ndarray):
-    if sp.issparse(jacobian):
-        return sp.vstack([jacobian, sp.csr_matrix(row[None, :])], format="csc")
-    return np.vstack([jacobian, row])
-
-
-def _sign_det(matrix) -> float:
-    """Sign of the determinant (0 for a singular matrix)."""
-    if sp.issparse(matrix):
-        try:
-            lu = spla.splu(sp.csc_matrix(matrix))
-        except RuntimeError:
-            return 0.0
-        diag = lu.U.diagonal()
-        sign = np.prod(np.sign(diag))
-        # splu permutes rows (perm_r) and columns (perm_c): each permutation's parity multiplies the sign.
-        return float(sign * _parity(lu.perm_r) * _parity(lu.perm_c))
-    sign, _ = np.linalg.slogdet(matrix)
-    return float(np.real(sign))
-
-
-def _parity(perm: np.ndarray) -> int:
-    seen = np.zeros(len(perm), dtype=bool)
-    parity = 1
-    for i in range(len(perm)):
-        if not seen[i]:
-            j, length = i, 0
-            while not seen[j]:
-                seen[j] = True
-                j = perm[j]
-                length += 1
-            if length % 2 == 0:
-                parity = -parity
-    return parity
 
 
 class EvaluationFailed(CosseratChainError, RuntimeError):
@@ -407,11 +365,11 @@ def _direction(matrix, residual: np.ndarray, w: np.ndarray, border, keep) -> np.
     """The Newton step: of all unknowns with the arclength border, of the ``keep`` unknowns, or of a square R."""
     if border is not None:
         t, w_pred = border
-        return _solve(_bordered(matrix, t), -np.append(residual, t @ (w - w_pred)))
+        return solve(append_row(matrix, t), -np.append(residual, t @ (w - w_pred)))
     if keep is not None:
         jac = matrix[:, keep] if not sp.issparse(matrix) else sp.csc_matrix(matrix)[:, np.flatnonzero(keep)]
-        return _solve(jac, -residual)
-    return _solve(matrix, -residual)
+        return solve(jac, -residual)
+    return solve(matrix, -residual)
 
 
 def _shorter(step_at, trial: np.ndarray, evaluation: Evaluation, fraction: float, length: float, newton_step) -> bool:
@@ -447,11 +405,11 @@ def tangent(jacobian, previous: np.ndarray | None = None, *, direction: float = 
         reference = previous @ t if previous is not None else t[-1] * direction
         return -t if reference < 0 else t
     if previous is not None:
-        t = _solve(_bordered(jacobian, previous), np.append(np.zeros(jacobian.shape[0]), 1.0))
+        t = solve(append_row(jacobian, previous), np.append(np.zeros(jacobian.shape[0]), 1.0))
     elif sp.issparse(jacobian):
         seed = np.zeros(jacobian.shape[1])
         seed[-1] = 1.0
-        t = _solve(_bordered(jacobian, seed), np.append(np.zeros(jacobian.shape[0]), 1.0))
+        t = solve(append_row(jacobian, seed), np.append(np.zeros(jacobian.shape[0]), 1.0))
     else:
         t = sla.null_space(np.asarray(jacobian, dtype=float))[:, -1]
     t = t / np.linalg.norm(t)
@@ -651,7 +609,7 @@ class StartError(CosseratChainError, ValueError):
 
 
 def _all_tests(problem: ContinuationProblem, point, jacobian, t: np.ndarray) -> dict[str, float]:
-    tests = {"fold": float(t[-1]), "branch_point": _sign_det(_bordered(jacobian, t))}
+    tests = {"fold": float(t[-1]), "branch_point": determinant_sign(append_row(jacobian, t))}
     tests.update(problem.tests(point))
     return tests
 
