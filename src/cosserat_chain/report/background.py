@@ -3,7 +3,7 @@
 Contract
 --------
 :func:`start` forks one process that runs the stages of :data:`BACKGROUND` asked for, in
-order, with the same chain, settings and output folder as the main process (the fork copies
+its order, with the same chain, settings and output folder as the main process (the fork copies
 the :class:`~cosserat_chain.report.stages._Stage`), and sends back, through a queue, the
 progress details each reports, then its :class:`~cosserat_chain.report.stages.Section` (an
 error caught as in the main loop), the files it wrote (for the manifest) and its CPU time.
@@ -28,8 +28,10 @@ from typing import Any
 
 from .stages import Section, _Stage
 
-#: Stages that share no result with another (they read only the chain and the settings), the state diagram the longest.
-BACKGROUND = ("long_chains", "state_map", "which_continuum")
+#: Stages that share no result with another (they read only the chain and the settings), in the order run: the state
+#: diagram first, as the longest, and the longer chains last, when the main process's statics have put the kernels
+#: they share in Numba's cache (a cold cache would otherwise be compiled in both processes at once).
+BACKGROUND = ("state_map", "which_continuum", "long_chains")
 #: Seconds between looks at a process that has not reported while the main process waits for it.
 POLL_SECONDS = 0.5
 
@@ -90,17 +92,20 @@ class Background:
 
 
 def _child(channel, stage: _Stage, names: list[str], run: Callable[[_Stage, str], Section]) -> None:
-    for name in names:
-        stage.progress = lambda detail, name=name: channel.put(("progress", name, detail))
-        stage.written = set()
-        cpu = time.process_time()
-        section = run(stage, name)
-        channel.put(("done", name, section, stage.written, time.process_time() - cpu))
+    try:
+        for name in names:
+            stage.progress = lambda detail, name=name: channel.put(("progress", name, detail))
+            stage.written = set()
+            cpu = time.process_time()
+            section = run(stage, name)
+            channel.put(("done", name, section, stage.written, time.process_time() - cpu))
+    except KeyboardInterrupt:  # Ctrl-C reaches both processes: the main one reports it, once
+        return
 
 
 def start(stage: _Stage, names: list[str], run: Callable[[_Stage, str], Section]) -> Background | None:
     """Fork a process that runs ``run(stage, name)`` for the stages of :data:`BACKGROUND` in ``names`` (module docstring)."""
-    chosen = [name for name in names if name in BACKGROUND]
+    chosen = [name for name in BACKGROUND if name in names]
     if not chosen or len(chosen) == len(names) or not sys.platform.startswith("linux") or free_cores() < 2:
         return None
     import multiprocessing
