@@ -146,3 +146,25 @@ def test_turn_saddle_is_a_first_order_saddle_between_rest_and_the_turned_particl
     else:
         # Wide fronts: the dragged path runs into a metastable state, which the search lists among the others.
         assert barrier.saddle > barrier.relaxed + 0.05 and barrier.others
+
+
+def test_free_centres_relax_the_front_into_a_stable_minimum_whose_energy_falls_with_the_chains_length():
+    from cosserat_chain.analysis.rotation_front import free_front
+    from cosserat_chain.models import NONLINEAR
+    from cosserat_chain.state import pack
+
+    params = ChainParams(a=0.02, b=0.8, E2=0.01)
+    short, longer = free_front(params, half_length=10), free_front(params, half_length=20)
+    for front, n in ((short, 10), (longer, 20)):
+        chain = params.replace(N=n)
+        state = front.state.copy()
+        state[2, -1] = 0.0  # the clamped end's 2 pi, as the model stores it
+        assert np.max(np.abs(pack(chain, NONLINEAR.forces(chain, state)))) < 1e-8
+        assert np.linalg.eigvalsh(NONLINEAR.stiffness(chain, state).toarray())[0] > 0
+        assert front.energy == pytest.approx(NONLINEAR.energy(chain, state), rel=1e-12)
+        # The held front is admissible, so freeing the centres can only lower the energy: here a lot.
+        assert front.smooth and front.energy < 0.8 * front.held_energy and front.displacement > 0.3
+    # No intrinsic front: the relaxation grows with the room the clamped ends leave.
+    assert longer.energy < 0.8 * short.energy
+    # The paper's chain: the front slips into one bond, free centres or not.
+    assert free_front(ChainParams(), half_length=6).energy < 1e-12

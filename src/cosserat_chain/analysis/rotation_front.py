@@ -558,3 +558,93 @@ def turn_barrier(params: ChainParams, *, half_length: int = 10, points: int = 64
         descents=descents,
         others=others,
     )
+
+
+# ---------------------------------------------------------------------------- free centres
+@dataclass(frozen=True)
+class FreeFront:
+    """The 2 pi front of model (i) with its centres free: both ends clamped, the right one turned by 2 pi.
+
+    Attributes
+    ----------
+    state : ndarray, shape (3, 2 half_length + 1)
+        u, v, phi of the minimised chain (the right end's angle written as 2 pi).
+    energy : float
+        Its energy.
+    held_energy : float
+        The held lattice's front (:func:`discrete_front`, the same half-length) it started from.
+    width : float
+        2 pi / the largest angle difference between neighbours, in particles.
+    displacement : float
+        The largest |u| or |v| of a centre, in units of h.
+    gradient : float
+        The largest force on a free degree of freedom at the minimum.
+    """
+
+    state: np.ndarray
+    energy: float
+    held_energy: float
+    width: float
+    displacement: float
+    gradient: float
+
+    @property
+    def smooth(self) -> bool:
+        """Whether the front stayed spread: no two neighbours differ by pi/2 or more."""
+        return bool(np.max(np.abs(np.diff(self.state[2]))) < np.pi / 2)
+
+    def as_dict(self) -> dict[str, float | bool]:
+        """The front's numbers (for JSON)."""
+        return {
+            "smooth": self.smooth,
+            "energy": self.energy,
+            "held_energy": self.held_energy,
+            "width": self.width,
+            "displacement": self.displacement,
+            "gradient": self.gradient,
+        }
+
+
+def free_front(params: ChainParams, *, half_length: int = 30) -> FreeFront:
+    """Relax the held lattice's 2 pi front with its centres free: model (i) with both ends clamped.
+
+    Model (i)'s energy is 2 pi-periodic in each angle, so a clamped end at phi = 0 is one turned
+    by 2 pi: the chain of N = ``half_length`` with both ends clamped holds a front whose right
+    part has turned once. Its energy is minimised over every free u, v, phi by a trust-region
+    Newton method with the model's exact stiffness, from the held front (:func:`discrete_front`),
+    which is admissible: the free front's energy is at most the held one's.
+
+    Raises
+    ------
+    ValueError
+        For half_length < 2 or a graded chain.
+    """
+    from scipy.optimize import minimize
+
+    from ..models import NONLINEAR
+    from ..state import pack, unpack
+
+    held = discrete_front(params, half_length=half_length)
+    chain = params.replace(N=half_length, left_end="clamped", right_end="clamped", periodic=False)
+    start = np.zeros((3, chain.n_particles))
+    start[2] = held.phi_site if held.energy_site <= held.energy_bond else held.phi_bond[:-1]
+    start[2, -1] = 0.0  # the clamped end's 2 pi
+
+    def objective(q: np.ndarray) -> tuple[float, np.ndarray]:
+        x = unpack(chain, q)
+        return NONLINEAR.energy(chain, x), -pack(chain, NONLINEAR.forces(chain, x))
+
+    def hessian(q: np.ndarray) -> np.ndarray:
+        return NONLINEAR.stiffness(chain, unpack(chain, q)).toarray()
+
+    result = minimize(objective, pack(chain, start), jac=True, hess=hessian, method="trust-exact", options={"gtol": 1e-10, "maxiter": 2000})
+    state = unpack(chain, result.x)
+    state[2, -1] = 2 * np.pi
+    return FreeFront(
+        state=state,
+        energy=float(result.fun),
+        held_energy=held.energy,
+        width=float(2 * np.pi / np.max(np.abs(np.diff(state[2])))),
+        displacement=float(np.max(np.abs(state[:2])) / params.h),
+        gradient=float(np.max(np.abs(result.jac))),
+    )
