@@ -28,6 +28,9 @@ over the others is a lower bound of the barrier; a first-order saddle whose two 
 rest and at the particle turned once is an upper bound (its two descents are a path of the turn).
 Where the rotation-controlled path is continuous its top is such a saddle and the two meet; where
 it jumps (wide fronts: the dragged neighbours and the ones left behind are two valleys) they do not.
+
+:func:`free_front` frees the centres: model (i) with both ends clamped, the right one turned once,
+minimised from the held front.
 """
 
 from __future__ import annotations
