@@ -99,6 +99,24 @@ def test_confirm_folds_matches_kind_moment_and_angle_within_the_tolerances():
     assert confirm_folds(branch, [near])[0].x is first.x and confirm_folds(branch, [near])[0].index_after == first.index_after
 
 
+def test_the_re_solve_narrows_its_bracket_where_phi0_turns_back_next_to_the_fold(monkeypatch):
+    # phi_0 can turn back within the bracket (two folds of N = 1000, 1e-6 rad beyond them): no state
+    # there, the solve fails, and a narrower bracket finds the fold; failing everywhere, none is found.
+    first = critical_point(TWO_MAXIMA, "nonlinear").branch.folds[0]
+    original = critical.solve_rotation_controlled
+
+    def reachable(params, model, angle, **kwargs):
+        if abs(angle - first.phi0) > 2e-6:
+            raise critical.NewtonError(f"no state at phi0={angle}", None)
+        return original(params, model, angle, **kwargs)
+
+    monkeypatch.setattr(critical, "solve_rotation_controlled", reachable)
+    found = resolve_fold(TWO_MAXIMA, get_model("nonlinear"), first)
+    assert found is not None and abs(found.moment - first.moment) < 1e-12 and abs(found.phi0 - first.phi0) < 1e-9
+    monkeypatch.setattr(critical, "CONFIRM_NARROWING", np.array([1.0, 0.5]))
+    assert resolve_fold(TWO_MAXIMA, get_model("nonlinear"), first) is None
+
+
 def _re_solve_moved(monkeypatch, shift: float = 1e-6):
     """Every chain re-solved, and the re-solved folds moved by ``shift`` in M (as round-off's folds move)."""
     monkeypatch.setattr(critical, "CONFIRM_MARGIN", math.inf)

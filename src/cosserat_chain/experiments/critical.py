@@ -138,6 +138,11 @@ CONFIRM_PHI0_ATOL = 1e-5
 #: The re-solve's root of dM/dphi_0 to this (rad): M is stationary there, so M is then known to
 #: round-off, and a tighter root costs more solves for nothing.
 CONFIRM_PHI0_XTOL = 1e-10
+#: The re-solve's brackets, in units of CONFIRM_PHI0_ATOL, each tried where the wider one holds no
+#: state on one side: phi_0 can turn back within 1e-5 rad of a fold (two folds of N = 1000 whose
+#: phi_0 turns 1e-6 beyond them), and only where a solve fails, never where the slope's signs do
+#: not bracket a fold of the kind traced (a narrow bracket would put that test into round-off).
+CONFIRM_NARROWING = np.array([1.0, 0.1, 0.01])
 #: Most Newton iterations of a re-solve's rotation-controlled solve from the nearest solved angle
 #: (it starts within CONFIRM_PHI0_ATOL of a solved state: a few iterations, where more signal a
 #: branch the rotation control does not follow there).
@@ -626,7 +631,8 @@ def resolve_fold(params: ChainParams, model: Model, fold: Fold, *, particle: int
     :data:`CONFIRM_PHI0_ATOL` are solved from the traced fold's, and a maximum of M along the
     branch is one of M(phi_0) wherever phi_0 runs one way through it, so dM/dphi_0 falls through
     zero there (rises, at a minimum). Its root, to :data:`CONFIRM_PHI0_XTOL` (Brent's method), is
-    the re-solved fold.
+    the re-solved fold. Where a solve at an end fails (phi_0 turns back within the bracket), a
+    narrower bracket is tried (:data:`CONFIRM_NARROWING`).
 
     Returns
     -------
@@ -649,17 +655,22 @@ def resolve_fold(params: ChainParams, model: Model, fold: Fold, *, particle: int
     def slope(angle: float) -> float:
         return moment_slope(params, model, solve(angle)[0], particle=particle)
 
-    low, high = fold.phi0 - CONFIRM_PHI0_ATOL, fold.phi0 + CONFIRM_PHI0_ATOL
-    try:
-        before, after = slope(low), slope(high)
-        sign = 1.0 if fold.maximum else -1.0
+    sign = 1.0 if fold.maximum else -1.0
+    for width in CONFIRM_PHI0_ATOL * CONFIRM_NARROWING:
+        low, high = fold.phi0 - width, fold.phi0 + width
+        try:
+            before, after = slope(low), slope(high)
+        except NewtonError:
+            continue  # phi_0 turns back within the bracket: no state there on this side of the fold
         if not (sign * before > 0.0 > sign * after):
             return None
-        root = so.brentq(slope, low, high, xtol=CONFIRM_PHI0_XTOL, rtol=4 * np.finfo(float).eps)
-        x, moment = solve(root)
-    except (NewtonError, ValueError):
-        return None
-    return replace(fold, moment=float(moment), phi0=float(root), x=x)
+        try:
+            root = so.brentq(slope, low, high, xtol=min(CONFIRM_PHI0_XTOL, 1e-3 * width), rtol=4 * np.finfo(float).eps)
+            x, moment = solve(root)
+        except (NewtonError, ValueError):
+            return None
+        return replace(fold, moment=float(moment), phi0=float(root), x=x)
+    return None
 
 
 def _state_at(params: ChainParams, model: Model, branch: Branch, point: int) -> np.ndarray:
