@@ -101,6 +101,7 @@ def test_theory_cli_front_reports_the_wide_front_in_json(tmp_path):
         quasi_continuum(WIDE).front_energy
     )
     assert rotation["barrier"]["relaxed"] <= rotation["barrier"]["fixed"]
+    assert rotation["free_front"]["smooth"] and rotation["free_front"]["energy"] < rotation["free_front"]["held_energy"]
 
 
 def test_bad_input_is_refused():

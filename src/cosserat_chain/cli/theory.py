@@ -270,9 +270,13 @@ def _print_frequencies(params, modes) -> None:
             typer.echo(f"  measured orders of {label}'s errors, mode by mode: {orders}")
 
 
+#: Half-length of the chain in which ``--front`` frees the centres (its energy depends on it: no intrinsic front).
+FREE_HALF_LENGTH = 20
+
+
 def _rotation(params) -> dict[str, Any]:
     """The held lattice's numbers (:mod:`cosserat_chain.analysis.rotation_front`), as plain data."""
-    from ..analysis.rotation_front import discrete_front, fourier_content, quasi_continuum, turn_barrier
+    from ..analysis.rotation_front import discrete_front, fourier_content, free_front, quasi_continuum, turn_barrier
 
     qc = quasi_continuum(params)
     half_length = int(min(max(30, 6 * (qc.tail if qc.tail == qc.tail else 0)), 200))
@@ -281,6 +285,7 @@ def _rotation(params) -> dict[str, Any]:
         "quasi_continuum": qc.as_dict(),
         "discrete_front": {**discrete_front(params, half_length=half_length).as_dict(), "half_length": half_length},
         "barrier": {**turn_barrier(params, half_length=min(half_length, 30), points=32).as_dict(), "half_length": min(half_length, 30)},
+        "free_front": {**free_front(params, half_length=FREE_HALF_LENGTH).as_dict(), "half_length": FREE_HALF_LENGTH},
     }
 
 
@@ -321,6 +326,13 @@ def _print_rotation(rotation: dict[str, Any]) -> None:
         typer.echo(
             f"  the quasi-continuum's barrier: {qc['front_energy']:.6g} (a smooth field cannot slip past its neighbours: turned by pi, "
             "the particle carries two half fronts, the energy of one 2 pi front)"
+        )
+    free = rotation["free_front"]
+    if free["smooth"]:
+        typer.echo(
+            f"  with the centres free (model (i), 2 x {free['half_length']} + 1 particles, ends clamped): energy {free['energy']:.6g} "
+            f"against the held front's {free['held_energy']:.6g}, centres moved by up to {free['displacement']:.3g} h; the energy "
+            "falls with the chain's length (docs/which-continuum.md): no intrinsic front"
         )
     for other in barrier["other_saddles"]:
         typer.echo(
