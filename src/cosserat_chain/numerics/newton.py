@@ -36,7 +36,8 @@ from ..linalg import BandMatrix, infinity_norm, rotation_controlled_jacobian, sp
 from ..loads import Loads
 from ..models.base import Model, get_model
 from ..params import ChainParams
-from ..state import ROW_INDEX, check_state, column, dof, n_free, pack, require_held, unpack, zeros
+from ..state import ROW_INDEX, check_state, column, dof, pack, require_held, unpack, zeros
+from .kit import Evaluation, newton
 
 
 class NewtonError(CosseratChainError, RuntimeError):
@@ -237,18 +238,24 @@ def solve_equilibrium(
 
 
 def _newton(params: ChainParams, model: Model, x: np.ndarray, load: np.ndarray, tol: float, max_iter: int) -> np.ndarray | None:
-    """Newton's method for F(x) + load = 0 from ``x`` with full steps; None if it does not converge."""
+    """Newton's method for F(x) + load = 0 from ``x`` with full steps (the kit's corrector, at most
+    ``max_iter`` evaluations); None if it does not converge."""
     scale = 1.0 + np.max(np.abs(load))
-    for _ in range(max_iter):
-        r = pack(params, model.compiled_forces(params, x) + load)
-        residual = float(np.max(np.abs(r))) if n_free(params) else 0.0
-        if not np.isfinite(residual):
-            return None
-        stiffness = model.stiffness(params, x)
-        if residual <= max(tol * scale, round_off_floor(stiffness, x)):
-            return x
-        x = x + unpack(params, sparse_solve(stiffness, r))
-    return None
+    shape = x.shape
+
+    def evaluate(w: np.ndarray, jacobian: bool) -> Evaluation:
+        state = w.reshape(shape)
+        return Evaluation(pack(params, model.compiled_forces(params, state) + load), lambda: model.stiffness(params, state), state)
+
+    def converged(ev: Evaluation, norm: float) -> bool:
+        return norm <= max(tol * scale, round_off_floor(ev.matrix(), ev.data))
+
+    def step(w: np.ndarray, ev: Evaluation) -> np.ndarray:
+        # The step of the free degrees of freedom, added to the whole state (the held ones stay as they are).
+        return unpack(params, sparse_solve(ev.matrix(), ev.residual)).ravel()
+
+    corrected = newton(evaluate, x.ravel(), converged=converged, newton_step=step, max_iterations=max_iter - 1, divergence=None)
+    return corrected.w.reshape(shape) if corrected.converged else None
 
 
 def _classified(params: ChainParams, model: Model, x: np.ndarray, *, from_rest: bool, load_steps: int, stability=None) -> Equilibrium:
