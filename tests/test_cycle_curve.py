@@ -65,6 +65,7 @@ def test_the_torus_end_followed_in_E2_crosses_the_circle_where_it_says():
         assert moment == pytest.approx(crossing_by_natural_continuation(chain, orbit, moment, "torus"), rel=1e-7)
 
 
+@pytest.mark.slow
 def test_the_period_doubling_end_followed_in_the_damping_agrees_with_each_value_on_its_own():
     """Followed from gamma_phi = 0.12 to 0.15, and each value computed on its own by one-parameter
     continuation from 1.1 M_c and then located: the same edge (path independence)."""
@@ -102,6 +103,7 @@ def test_the_fold_of_cycles_of_the_two_turn_orbit_followed_in_E2_is_where_the_br
     assert np.min(np.abs(rest - 1.0)) < 1e-3
 
 
+@pytest.mark.slow
 def test_where_the_torus_end_turns_into_a_period_doubling_the_curve_stops_and_the_diagram_computes_the_row_on_its_own():
     """Between E2 = 1.0 (torus) and 1.2 (period doubling) the two ends meet: the torus curve cannot be
     followed to 1.2; with ``follow`` the diagram says so and finds the period doubling there on its own."""
@@ -142,7 +144,9 @@ def test_bad_input_is_refused_with_the_field_and_the_value(kind, field, values, 
     assert set(KINDS) == {"fold_of_cycles", "period_doubling", "torus"}
 
 
-@pytest.mark.parametrize("index", [2, 5, 6])
+# Chain 6 (a period doubling; the paper chain's torus end is followed above) in the quick suite, chains 2 and 5
+# (torus ends, 5 with its stability window) with the slow tests.
+@pytest.mark.parametrize("index", [pytest.param(2, marks=pytest.mark.slow), pytest.param(5, marks=pytest.mark.slow), 6])
 def test_ends_of_random_chains_followed_in_E2_cross_the_circle_where_they_say(index):
     """Random admissible chains (N = 4, 5) whose rotation ends at a torus or a period doubling (as the
     diagram finds it at the chain's own E2): followed 5 % up in E2, the end agrees with orbits found on

@@ -158,7 +158,7 @@ def pendulum_homoclinic(j: float, gamma: float, c: float) -> float:
     return 0.5 * (low + high)
 
 
-@pytest.mark.parametrize("gamma", [0.02, 0.05])
+@pytest.mark.parametrize("gamma", [0.02, pytest.param(0.05, marks=pytest.mark.slow)])
 def test_the_one_particle_sine_chain_stops_rotating_at_the_pendulums_homoclinic_orbit(gamma):
     """N = 1: the sine model is j phi'' + gamma_phi phi' + M_c sin(phi) = M (u and v decouple). A weakly
     damped pendulum's rotation ends at a homoclinic orbit, where its period grows only like -log(M - M_h)
