@@ -56,8 +56,8 @@ class ReproduceSettings:
     diagram_damping : dict
         Per rotating model, the values of gamma_phi of the state diagram (both edges of
         the hysteresis loop, :func:`~cosserat_chain.experiments.diagram.state_diagram`).
-        The nonlinear model's rows cost minutes each (benchmarks/TIMINGS.md), so its default is one
-        value; an empty tuple leaves a model out.
+        The nonlinear model's rows cost several times the sine model's (benchmarks/TIMINGS.md), so its
+        default is one value; an empty tuple leaves a model out.
     reading : str or None
         Which reading of Section 4's "a finite 1D chain consists of seven particles" sets
         the chain's N (:data:`READINGS`): ``"clamped-ends-among-seven"`` (N = 3, the
