@@ -288,14 +288,15 @@ def discrete_static(params: ChainParams, load: PointLoad) -> tuple[np.ndarray, R
     """
     _require_uniform_chain(params, "the discrete chain beside its beam")
     require_held(params)
-    load.check(params)
     from .continuum import BYTES_PER_DOF
 
+    # Before the load's check, whose index of the free degrees of freedom is itself 8 bytes a degree of freedom.
     require(
         BYTES_PER_DOF * 3 * params.n_particles,
         f"the discrete chain of N = {params.N} ({3 * params.n_particles} degrees of freedom)",
         "compare shorter chains",
     )
+    load.check(params)
     forces = np.zeros((3, params.n_particles))
     column = load.particle + params.N
     forces[:, column] = (load.force_u, load.force_v, load.moment)
