@@ -87,4 +87,6 @@ def breathers_on_system(
             f"(a multiplier leaves the circle at {change.kind}); nearest resonance: {r.harmonic:g} x Omega = {r.edge_frequency:.6g} "
             f"(band {r.band} {r.edge}) at Omega = {r.omega:.6g}"
         )
-    typer.echo(family.message)
+    for omega in summary["energy_extrema"]:
+        typer.echo(f"energy extremal at Omega = {omega:.6g} (dE/dOmega = 0: where a pair of multipliers passes +1)")
+    typer.echo(f"family end: {family.message}")

@@ -12,11 +12,12 @@ neighbouring ones) turns k times per period T = 2 pi k / Omega while the others 
   coordinate at rest), whose turn at energy E takes T(E) = int_0^{2 pi} sqrt(m / (2 (E - V))) dphi
   (for V = 1 - cos phi the closed form 4 K(2/E) / sqrt(2 E)); the state (phi = 0,
   phi' = sqrt(2 (E - V(0)) / m)) is an orbit there.
-* :func:`roto_breather_family` continues it in the coupling (at fixed period) up to the
-  system's value, then in the period over the frequencies asked for
-  (:func:`~cosserat_chain.numerics.shooting.continue_orbits`, conservative orbits by the
+* :func:`roto_breather_family` continues it in the coupling (at fixed period, Newton at
+  stepped values) up to the system's value, then in the period over the frequencies asked
+  for (:func:`~cosserat_chain.numerics.shooting.continue_orbits`; conservative orbits by the
   damping's unfolding, returned at zero), and locates by bisection in the period every
-  frequency where stability is lost or regained.
+  frequency where stability is lost or regained. A loss at +1 sits where the family's
+  energy is extremal (:meth:`SystemBreatherFamily.energy_extrema`).
 * :func:`linear_bands` gives the phonon bands of the lattice about rest from its force
   Jacobian (a ring's Bloch matrix, sampled in the wavenumber), and :func:`resonances` the
   frequencies where a harmonic of the rotation meets a band edge: the phonons' Floquet
