@@ -1,12 +1,15 @@
 """Every Python block of README.md and docs/*.md runs as written (issue 16, item 2).
 
 The blocks of one file run in order as one script (later blocks may use what earlier
-ones made), as ``__main__``, in a fresh folder, with matplotlib's non-interactive
-backend: what a reader who copies them gets.
+ones made), as ``__main__``, in a fresh folder and a fresh namespace, with matplotlib's
+non-interactive backend: what a reader who copies them gets. The pages share one
+interpreter (the package is imported once); a page guarded by ``if __name__ == "__main__"``
+(its worker processes import the script again) runs in its own.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import subprocess
@@ -23,13 +26,69 @@ def python_blocks(page: Path) -> list[str]:
     return re.findall(r"^```python\n(.*?)^```", page.read_text(encoding="utf-8"), flags=re.S | re.M)
 
 
-@pytest.mark.parametrize("page", [p for p in PAGES if python_blocks(p)], ids=lambda p: p.name)
-def test_the_pages_python_blocks_run(page, tmp_path):
-    script = tmp_path / f"{page.stem}.py"
-    script.write_text("\n\n".join(python_blocks(page)), encoding="utf-8")
+#: Runs each script given on its command line as ``__main__`` in its own folder and fresh namespace, one after
+#: the other in this one interpreter (the package is imported once, not once a page), and prints a JSON object
+#: of script -> the end of its traceback, or null.
+_DRIVER = """
+import json, os, runpy, sys, traceback
+import matplotlib.pyplot as plt
+outcome = {}
+for script in sys.argv[1:]:
+    os.chdir(os.path.dirname(script))
+    sys.path.insert(0, os.path.dirname(script))
+    try:
+        runpy.run_path(script, run_name="__main__")
+        outcome[script] = None
+    except BaseException:
+        outcome[script] = traceback.format_exc()[-3000:]
+    sys.path.remove(os.path.dirname(script))
+    plt.close("all")
+print(json.dumps(outcome))
+"""
+
+
+def _needs_its_own_process(script: str) -> bool:
+    """A page guarded by ``if __name__ == "__main__"`` starts worker processes that import the script again."""
+    return "__main__" in script
+
+
+@pytest.fixture(scope="module")
+def page_runs(tmp_path_factory) -> dict[str, str | None]:
+    """Page name -> None if its blocks ran as one script, else why not: the pages without a ``__main__`` guard in
+    one driver process, each guarded page in a process of its own, as a reader would run it."""
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")])}
-    result = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
-    assert result.returncode == 0, f"{page.name}: {result.stderr[-3000:]}"
+    shared, own = {}, {}
+    for page in PAGES:
+        text = "\n\n".join(python_blocks(page))
+        if text:
+            script = tmp_path_factory.mktemp(page.stem) / f"{page.stem}.py"
+            script.write_text(text, encoding="utf-8")
+            (own if _needs_its_own_process(text) else shared)[str(script)] = page.name
+    outcome = {}
+    result = subprocess.run([sys.executable, "-c", _DRIVER, *shared], env=env, capture_output=True, text=True, timeout=1200)
+    driven = json.loads(result.stdout.strip().splitlines()[-1]) if result.returncode == 0 else {}
+    for script, name in shared.items():
+        outcome[name] = driven[script] if script in driven else f"the driver failed: {result.stderr[-3000:]}"
+    for script, name in own.items():
+        alone = subprocess.run([sys.executable, script], cwd=Path(script).parent, env=env, capture_output=True, text=True, timeout=600)
+        outcome[name] = None if alone.returncode == 0 else alone.stderr[-3000:]
+    return outcome
+
+
+@pytest.mark.parametrize("page", [p for p in PAGES if python_blocks(p)], ids=lambda p: p.name)
+def test_the_pages_python_blocks_run(page, page_runs):
+    assert page_runs[page.name] is None, f"{page.name}: {page_runs[page.name]}"
+
+
+def test_a_page_that_fails_or_misses_an_import_is_reported_by_the_driver(tmp_path):
+    """The driver's namespaces are fresh: a name imported by an earlier page is not defined in a later one."""
+    first, second = tmp_path / "a" / "first.py", tmp_path / "b" / "second.py"
+    for script, text in ((first, "import math\nprint(math.pi)\n"), (second, "print(math.pi)\n")):
+        script.parent.mkdir()
+        script.write_text(text, encoding="utf-8")
+    result = subprocess.run([sys.executable, "-c", _DRIVER, str(first), str(second)], capture_output=True, text=True, timeout=600)
+    outcome = json.loads(result.stdout.strip().splitlines()[-1])
+    assert outcome[str(first)] is None and "NameError" in outcome[str(second)]
 
 
 def test_no_python_block_escapes_the_extraction():
