@@ -57,3 +57,37 @@ def random_state(params: ChainParams, scale: float, seed: int = 0) -> np.ndarray
 def paper() -> ChainParams:
     """The paper's Section 4 chain (seven particles)."""
     return ChainParams()
+
+
+def quick_report_settings():
+    """The quick report's settings: short sweeps, runs and chain lists; the sine chain's state diagram at two dampings."""
+    from cosserat_chain.report import ReproduceSettings
+
+    return ReproduceSettings(
+        dm=0.05,
+        turns=15,
+        n_list=(3, 10, 30),
+        long_n_list=(3, 10),
+        snapshot_times=(20.0, 21.0),
+        animation_frames=10,
+        diagram_damping={"sine": (0.2, 0.5), "nonlinear": ()},
+    )
+
+
+@pytest.fixture(scope="session")
+def quick_report_and_figures(tmp_path_factory):
+    """(report, {stem: Figure}) of one quick report of the paper's chain, computed once for the tests of the report
+    and of its figures (each figure as the stage drew it, before saving)."""
+    import cosserat_chain.report as report_module
+
+    figures = {}
+    keep = report_module._Stage.figure
+
+    def figure(self, fig, stem):
+        figures[stem] = fig
+        return keep(self, fig, stem)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(report_module._Stage, "figure", figure)
+        report = report_module.reproduce(tmp_path_factory.mktemp("report"), settings=quick_report_settings())
+    return report, figures

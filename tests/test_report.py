@@ -11,6 +11,7 @@ import scipy.sparse.linalg as spla
 from typer.testing import CliRunner
 
 import cosserat_chain.report as report_module
+from conftest import quick_report_settings
 from cosserat_chain import ChainParams
 from cosserat_chain.analysis.agreement import agreement_range, static_deviation
 from cosserat_chain.analysis.continuum import convergence
@@ -22,23 +23,15 @@ from cosserat_chain.experiments.sweep import relaxation_sweep
 from cosserat_chain.io import read_dataset
 from cosserat_chain.models.linear import stiffness_matrix
 from cosserat_chain.numerics.newton import moment_dof
-from cosserat_chain.report import ReproduceSettings, format_cell, reproduce
+from cosserat_chain.report import format_cell, reproduce
 from cosserat_chain.state import n_free, unpack
 
-QUICK = ReproduceSettings(
-    dm=0.05,
-    turns=15,
-    n_list=(3, 10, 30),
-    long_n_list=(3, 10),
-    snapshot_times=(20.0, 21.0),
-    animation_frames=10,
-    diagram_damping={"sine": (0.2, 0.5), "nonlinear": ()},
-)
+QUICK = quick_report_settings()
 
 
 @pytest.fixture(scope="module")
-def quick_report(tmp_path_factory):
-    return reproduce(tmp_path_factory.mktemp("report"), settings=QUICK)
+def quick_report(quick_report_and_figures):
+    return quick_report_and_figures[0]
 
 
 def markdown_tables(text: str) -> dict[str, list[list[str]]]:

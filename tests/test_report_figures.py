@@ -14,39 +14,21 @@ import numpy as np
 import pytest
 
 import cosserat_chain.report as report_module
+from conftest import quick_report_settings
 from cosserat_chain.experiments.diagram import DiagramRow, StateDiagram
 from cosserat_chain.params import ChainParams
 from cosserat_chain.plots.diagram import REGIONS, diagram_figure
-from cosserat_chain.report import ReproduceSettings, reproduce
+from cosserat_chain.report import reproduce
 
 RTOL = 1e-12
 
-SETTINGS = ReproduceSettings(
-    snapshot_times=(20.0, 21.0),
-    animation_frames=5,
-    dm=0.05,
-    long_n_list=(3, 10),
-    diagram_damping={"sine": (0.2, 0.5), "nonlinear": ()},
-)
+SETTINGS = quick_report_settings()
 
 
 @pytest.fixture(scope="module")
-def drawn(tmp_path_factory):
-    """(report, {stem: Figure}) of the stages whose figures plot numbers of their JSON."""
-    figures = {}
-    keep = report_module._Stage.figure
-
-    def figure(self, fig, stem):
-        figures[stem] = fig
-        return keep(self, fig, stem)
-
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setattr(report_module._Stage, "figure", figure)
-        report = reproduce(
-            tmp_path_factory.mktemp("report"),
-            settings=SETTINGS,
-            stages=["statics", "orbits", "state_map", "rotation", "long_chains", "continuum", "waves"],
-        )
+def drawn(quick_report_and_figures):
+    """(report, {stem: Figure}) of the quick report, whose stages' figures plot numbers of their JSON."""
+    report, figures = quick_report_and_figures
     assert report.failed == []
     return report, figures
 
