@@ -40,28 +40,47 @@ _JSON_COMMANDS = {
     "breathers": ["breathers", "--omega", "6", "--json"],
 }
 
-#: The command line as ``python -m cosserat_chain ARGS`` runs it, with the heavy libraries loaded by then printed at exit.
-_HEAVY_AT_EXIT = """
-import atexit, runpy, sys
+#: The commands given as JSON lists of arguments, each as ``python -m cosserat_chain ARGS`` runs it, one after the
+#: other in one fresh interpreter (the package's import paid once): after each, its exit code and the heavy libraries
+#: loaded by then. The libraries only accumulate, so a command that loads one is the first listed with it.
+_HEAVY_AFTER_EACH = """
+import json, runpy, sys
 heavy = ("xarray", "pandas", "dask", "distributed", "matplotlib")
-atexit.register(lambda: print("HEAVY", sorted(m for m in heavy if m in sys.modules)))
-sys.argv = ["cosserat-chain", *sys.argv[1:]]
-runpy.run_module("cosserat_chain", run_name="__main__")
+for args in sys.argv[1:]:
+    sys.argv = ["cosserat-chain", *json.loads(args)]
+    try:
+        runpy.run_module("cosserat_chain", run_name="__main__")
+        code = 0
+    except SystemExit as done:
+        code = done.code or 0
+    print("\\nEXIT", code, "HEAVY", sorted(m for m in heavy if m in sys.modules), flush=True)
 """
 
 
+@pytest.fixture(scope="module")
+def json_runs() -> dict[str, tuple[str, str, str]]:
+    """Command -> (what it printed, its exit line, the interpreter's stderr) of the commands of ``_JSON_COMMANDS``."""
+    import json
+
+    run = subprocess.run(
+        [sys.executable, "-c", _HEAVY_AFTER_EACH, *(json.dumps(args) for args in _JSON_COMMANDS.values())], capture_output=True, text=True
+    )
+    outputs = run.stdout.split("\nEXIT ")
+    printed = [outputs[0]] + [part.split("\n", 1)[1] if "\n" in part else "" for part in outputs[1:-1]]
+    ends = ["EXIT " + part.split("\n", 1)[0] for part in outputs[1:]]
+    assert len(ends) == len(_JSON_COMMANDS), run.stderr[-2000:]
+    return {command: (printed[i], ends[i], run.stderr[-2000:]) for i, command in enumerate(_JSON_COMMANDS)}
+
+
 @pytest.mark.parametrize("command", list(_JSON_COMMANDS))
-def test_computing_commands_with_json_load_no_data_or_plotting_library(command):
+def test_computing_commands_with_json_load_no_data_or_plotting_library(command, json_runs):
     """Issue 44, item 3: with --json and no file output, a command computes and prints without xarray, pandas, Dask or
     matplotlib (xarray and pandas alone cost about 1 s of start-up); the result is still the full JSON object."""
     import json
 
-    args = _JSON_COMMANDS[command]
-    run = subprocess.run([sys.executable, "-c", _HEAVY_AT_EXIT, *args], capture_output=True, text=True)
-    assert run.returncode == 0, run.stderr[-2000:]
-    *printed, heavy = run.stdout.strip().splitlines()
-    assert heavy == "HEAVY []", f"{command}: {heavy}"
-    assert isinstance(json.loads("\n".join(printed)), dict)
+    printed, end, stderr = json_runs[command]
+    assert end == "EXIT 0 HEAVY []", f"{command}: {end} {stderr}"
+    assert isinstance(json.loads(printed), dict)
 
 
 def test_python_dash_m_and_version():
