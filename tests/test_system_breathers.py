@@ -96,6 +96,23 @@ def test_stability_is_lost_at_plus_one_where_the_energy_is_least_above_the_first
     assert np.all(stable[family.omegas > change.stable_omega]) and not np.any(stable[family.omegas < change.unstable_omega])
 
 
+def test_a_parametric_instability_window_opens_where_half_the_frequency_meets_the_band():
+    """Above the band, the rotor modulates its neighbours' stiffness at Omega: phonons with 2 w = Omega resonate
+    parametrically (their multipliers meet at -1), so going down the family loses stability at -1 where Omega / 2
+    reaches the band's top and regains it where Omega / 2 leaves the bottom (each within the family's step)."""
+    family = sb.roto_breather_family(takeno_peyrard(11, C=COUPLING), 2.4, to=1.95)
+    lost, regained = family.changes
+    step = np.max(np.abs(np.diff(family.omegas)))
+    assert lost.unstable_omega < lost.stable_omega and regained.stable_omega < regained.unstable_omega
+    assert lost.kind == regained.kind == "-1"
+    assert (lost.resonance.harmonic, lost.resonance.edge) == (0.5, "top")
+    assert (regained.resonance.harmonic, regained.resonance.edge) == (0.5, "bottom")
+    assert abs(lost.omega - 2 * math.sqrt(1 + 4 * COUPLING)) < step
+    assert abs(regained.omega - 2.0) < step
+    inside = (family.omegas < lost.unstable_omega) & (family.omegas > regained.unstable_omega)
+    assert inside.any() and not any(o.stable for o, flag in zip(family.orbits, inside, strict=True) if flag)
+
+
 def test_linear_bands_from_the_ring_jacobian_equal_the_closed_forms():
     for C in (0.0, 0.3, 2.0):
         ((bottom, top),) = sb.linear_bands(takeno_peyrard(5, C=C))
