@@ -89,5 +89,8 @@ def quick_report_and_figures(tmp_path_factory):
 
     with pytest.MonkeyPatch.context() as patch:
         patch.setattr(report_module._Stage, "figure", figure)
+        # Every stage in this process, so that the figures of the ones that would run beside the others
+        # (report.background, tested on its own) are caught here too.
+        patch.setattr(report_module.background, "start", lambda *args, **kwargs: None)
         report = report_module.reproduce(tmp_path_factory.mktemp("report"), settings=quick_report_settings())
     return report, figures
