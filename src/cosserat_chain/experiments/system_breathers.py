@@ -221,8 +221,8 @@ def linear_bands(system: System, rest: np.ndarray | None = None) -> list[tuple[f
         q = np.zeros(system.size) if rest is None else system.check_state(rest, "rest")
         scale = 1.0 / np.sqrt(system.mass())
         matrix = -(scale[:, None] * system.force_jacobian(q).toarray() * scale[None, :])
-        squares = np.sort(np.linalg.eigvals(matrix).real)[None, :]
-        squares = np.array([[squares.min(), squares.max()]]).T
+        spectrum = np.linalg.eigvals(matrix).real
+        squares = np.array([[spectrum.min()], [spectrum.max()]])
     if np.min(squares) < -1e-12:
         raise BreatherError(
             f"the rest state of {system.name} is not a stable equilibrium (w^2 = {np.min(squares):.6g} < 0): it has no bands"
@@ -490,7 +490,7 @@ def _locate(a: Orbit, b: Orbit, target: System, turns, unfold: str, bands, k: in
         period = 0.5 * (stable.period + unstable.period)
         try:
             middle = _at(target, turns, unfold, 0.5 * (stable.y0 + unstable.y0), period)
-        except Exception:  # noqa: BLE001 - a failed Newton ends the bisection, the bracket stays valid
+        except OrbitNotFound:  # the bracket found so far stays valid
             break
         if middle.stable:
             stable = middle
