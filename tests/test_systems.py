@@ -390,3 +390,16 @@ def test_a_takeno_peyrard_rotobreather_from_the_anti_continuum_limit_is_an_orbit
         assert abs(member.unfolding) < 1e-10
     with pytest.raises(ValueError, match="needs an orbit found with unfold"):
         shooting.continue_orbits(shooting.find_orbit(pen(), (np.array([0, 0, 4.2, 4.2]), 1.57), turns={"phi_0": 1, "phi_1": 1}), "period")
+
+
+def test_a_runaway_flow_fails_within_its_step_budget_instead_of_grinding():
+    """A Newton trial into a blow-up (a strong negative damping) is refused by the flow's budget of steps per time."""
+    from cosserat_chain.numerics.kit import EvaluationFailed
+
+    runaway = josephson_array(3, I=0.0, alpha=-50.0)
+    with pytest.raises(EvaluationFailed, match="failed"):
+        shooting.flow(runaway, np.array([0.1, 0.0, -0.1, 1.0, 0.0, 0.0]), 50.0, variations=False)
+    ring = josephson_array(5, kappa=0.3).with_boundary("periodic")
+    assert ring.boundary == "periodic" and ring.force_jacobian(np.zeros(5)).nnz == 15
+    with pytest.raises(SystemDefinitionError, match="boundary must be one of"):
+        ring.with_boundary("open")

@@ -208,8 +208,7 @@ def linear_bands(system: System, rest: np.ndarray | None = None) -> list[tuple[f
         nd = len(system.dofs)
         site = np.zeros(nd) if rest is None else np.asarray(rest, dtype=float)[:nd]
         # A ring of 4 sites holds every bond of a site and no boundary; the copy shares the compiled kernels.
-        ring = system.with_sites(4)
-        ring.boundary = "periodic"
+        ring = system.with_sites(4).with_boundary("periodic")
         jac = ring.force_jacobian(np.tile(site, 4)).toarray()
         own, nxt = jac[nd : 2 * nd, nd : 2 * nd], jac[nd : 2 * nd, 2 * nd : 3 * nd]
         scale = 1.0 / np.sqrt(system.mass()[:nd])

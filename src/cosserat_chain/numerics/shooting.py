@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import CosseratChainError
+from ..models.base import no_ends
 from ..systems.base import System
 from . import dop853
 from .kit import BranchEnd, Continuation, Evaluation, EvaluationFailed, continuation, newton
@@ -46,8 +47,11 @@ RTOL = 1e-11
 ATOL = 1e-11
 #: Newton tolerance on max |R| of (O).
 CLOSURE_TOL = 1e-9
-#: Most DOP853 steps over one period.
+#: Most DOP853 steps over one period, and per unit of time: a Newton trial that runs into a stiff or
+#: blowing-up state fails in seconds instead of grinding through MAX_STEPS (a roto-breather's trial
+#: below the band did).
 MAX_STEPS = 10_000_000
+STEPS_PER_TIME = 100_000
 #: A multiplier within this of +1, -1 or the unit circle confirms a located fold, period doubling or torus.
 CONFIRM_TOL = 1e-3
 #: Largest |mu| - 1 of a conservative orbit's multiplier that still counts as on the unit circle: the
@@ -67,7 +71,8 @@ def flow(
     Raises
     ------
     EvaluationFailed
-        If the integration cannot finish (a blow-up, or more than MAX_STEPS steps).
+        If the integration cannot finish: a blow-up, or more than MAX_STEPS steps or
+        STEPS_PER_TIME steps per unit of time (whichever is fewer).
     """
     n = system.size
     size = 2 * n
@@ -86,8 +91,6 @@ def flow(
         index = kernels.parameter_index[parameter] if (parameter is not None and variations) else -1
         ipar = np.array([*kernels.head, ncols, index], dtype=np.int64)
         rpar = np.concatenate([inverse, rate, d_inverse, d_rate])
-        from ..models.base import no_ends
-
         sol = dop853.solve(
             kernels.rhs,
             _no_force,
@@ -98,7 +101,7 @@ def flow(
             np.array([0.0, period]),
             rtol=rtol,
             atol=atol,
-            max_steps=MAX_STEPS,
+            max_steps=min(MAX_STEPS, int(STEPS_PER_TIME * (1.0 + period))),
             end_force=no_ends,
         )
         if not sol.success:

@@ -200,6 +200,17 @@ class LatticeSystem(System):
         clone.sites = int(sites)
         return clone
 
+    def with_boundary(self, boundary: str) -> LatticeSystem:
+        """The same lattice with other ends (``"free"``, ``"periodic"``, ``"fixed"``): e.g. the ring whose
+        Bloch waves give the bands of a finite lattice."""
+        if boundary not in BOUNDARIES:
+            raise SystemDefinitionError(f"boundary must be one of {', '.join(BOUNDARIES)}, got {boundary!r}")
+        if boundary == "periodic" and self.sites < 3:
+            raise SystemDefinitionError(f"a periodic lattice (a ring) needs at least 3 sites, got sites={self.sites}")
+        clone = self.with_parameters()
+        clone.boundary = boundary
+        return clone
+
     def describe(self) -> dict:
         out = super().describe()
         out.update(
