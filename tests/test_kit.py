@@ -1,4 +1,7 @@
-"""The one continuation kit on problems with closed-form branches: folds, branch points, branch switching, ends."""
+"""The one continuation kit on problems with closed-form roots and branches: folds, branch points, branch
+switching, ends, and its one corrector in each of the package's Newton variants (chord iterations, damping, a
+problem's own convergence test, lazy Jacobians, unforgiving divergence), each against what a wrong
+implementation would do: converge elsewhere, compute Jacobians it should reuse, or go on where it should stop."""
 
 from __future__ import annotations
 
@@ -7,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from cosserat_chain.numerics.kit import BranchEnd, Corrector, Evaluation, StartError, branch_directions, continuation, newton
+from cosserat_chain.numerics.kit import BranchEnd, Corrector, Evaluation, StartError, branch_directions, continuation, newton, tangent
 
 
 class Algebraic:
@@ -91,3 +94,193 @@ def test_bad_continuation_arguments_and_starts_are_refused():
     far = Algebraic(lambda x, lam: math.exp(x) + 1, lambda x, lam: [math.exp(x), 0.0])
     with pytest.raises(StartError, match="not on the branch"):
         continuation(far, np.zeros(2), step=0.1, min_step=0.01, max_step=0.5, max_points=5)
+
+
+class Counted:
+    """R(w) = w^3 - (1, 8) componentwise, counting residuals and Jacobians."""
+
+    roots = np.array([1.0, 2.0])
+
+    def __init__(self) -> None:
+        self.residuals = 0
+        self.jacobians = 0
+        self.asked: list[bool] = []
+
+    def __call__(self, w: np.ndarray, jacobian: bool) -> Evaluation:
+        self.residuals += 1
+        self.asked.append(jacobian)
+        if jacobian:
+            self.jacobians += 1
+        return Evaluation(w**3 - self.roots**3, np.diag(3 * w**2) if jacobian else None, data=w.copy())
+
+
+def test_chord_iterations_reach_the_root_with_fewer_jacobians_and_a_fresh_one_at_the_solution():
+    full, chord = Counted(), Counted()
+    start = np.array([1.3, 2.4])
+    plain = newton(full, start, tol=1e-13)
+    reused = newton(chord, start, tol=1e-13, chord=0.1, max_iterations=25)
+    assert plain.converged and reused.converged
+    np.testing.assert_allclose(reused.w, Counted.roots, atol=1e-13)
+    assert chord.jacobians < full.jacobians
+    # The returned evaluation carries the Jacobian at the returned w (the caller's tangent, multipliers).
+    np.testing.assert_array_equal(reused.evaluation.data, reused.w)
+    np.testing.assert_allclose(reused.evaluation.matrix(), np.diag(3 * reused.w**2), rtol=1e-15)
+
+
+def test_chord_iterations_start_from_a_given_jacobian_and_refresh_it_when_it_converges_slowly():
+    problem = Counted()
+    stale = np.diag([30.0, 30.0])  # far from the Jacobian at the start: steps too short to converge fast
+    reused = newton(problem, np.array([1.3, 2.4]), tol=1e-13, chord=0.1, jacobian0=stale, max_iterations=25)
+    assert reused.converged
+    np.testing.assert_allclose(reused.w, Counted.roots, atol=1e-13)
+    # The first step used the given Jacobian (a residual only at the start), the slow steps had it
+    # refreshed, and the solution has its own.
+    assert problem.asked[0] is False and problem.asked[-1] is True and problem.jacobians >= 2
+    assert problem.jacobians < problem.residuals
+
+
+def arctan(w: np.ndarray, jacobian: bool) -> Evaluation:
+    # Newton on arctan overshoots from |w| > 1.39: |w| grows every step without damping.
+    return Evaluation(np.arctan(w), np.array([[1.0 / (1.0 + w[0] ** 2)]]))
+
+
+def test_damping_converges_where_newton_runs_off_and_without_it_the_growth_is_named_diverged():
+    assert newton(arctan, np.array([3.0]), tol=1e-12).status == Corrector.DIVERGED
+    damped = newton(arctan, np.array([3.0]), tol=1e-12, damping=10, divergence=None)
+    assert damped.converged and abs(damped.w[0]) < 1e-12
+
+
+def test_no_damped_step_that_reduces_the_residual_is_named_diverged():
+    def wrong_sign(w, jacobian):
+        # A Jacobian of the wrong sign: every Newton direction climbs.
+        return Evaluation(np.array([w[0] - 1.0]), np.array([[-1.0]]))
+
+    assert newton(wrong_sign, np.array([3.0]), tol=1e-12, damping=4, divergence=None).status == Corrector.DIVERGED
+
+
+def test_a_trial_that_cannot_be_evaluated_is_halved_not_fatal():
+    def log_root(w, jacobian):
+        # log w = 0: the full step from 5 lands at w < 0, where log is undefined.
+        if w[0] <= 0:
+            raise ArithmeticError("log of a non-positive number")
+        return Evaluation(np.array([math.log(w[0])]), np.array([[1.0 / w[0]]]))
+
+    assert newton(log_root, np.array([5.0]), tol=1e-12).status == Corrector.NOT_FINITE
+    damped = newton(log_root, np.array([5.0]), tol=1e-12, damping=10, divergence=None)
+    assert damped.converged and damped.w[0] == pytest.approx(1.0, abs=1e-12)
+
+
+def test_one_growth_is_forgiven_by_default_and_none_with_forgive_zero():
+    start = np.array([1.45])  # just beyond the arctan's radius of convergence: slow growth
+    assert newton(arctan, start, tol=1e-12, forgive=0).iterations == 1
+    assert newton(arctan, start, tol=1e-12).iterations == 2
+
+
+def test_a_problem_s_own_convergence_test_and_lazy_jacobians():
+    made = []
+
+    def lazy(w, jacobian):
+        def matrix():
+            made.append(w.copy())
+            return np.diag(3 * w**2)
+
+        return Evaluation(w**3 - Counted.roots**3, matrix)
+
+    # One tolerance per block: the first equation to 1e-14, the second only to 1e-3.
+    solved = newton(lazy, np.array([1.3, 2.4]), converged=lambda ev, norm: abs(ev.residual[0]) <= 1e-14 and abs(ev.residual[1]) <= 1e-3)
+    assert solved.converged and abs(solved.w[0] ** 3 - 1.0) <= 1e-14 and abs(solved.w[1] ** 3 - 8.0) <= 1e-3
+    # A Jacobian was made for every step and none at the solution.
+    assert len(made) == solved.iterations and not any(np.array_equal(m, solved.w) for m in made)
+    with pytest.raises(ValueError, match="exactly one of tol"):
+        newton(lazy, np.array([1.0, 2.0]))
+    with pytest.raises(ValueError, match="exactly one of tol"):
+        newton(lazy, np.array([1.0, 2.0]), tol=1e-12, converged=lambda ev, norm: True)
+
+
+def test_the_svd_tangent_equals_the_bordered_one():
+    rng = np.random.default_rng(3)
+    jacobian = rng.normal(size=(6, 7))
+    previous = rng.normal(size=7)
+    by_svd = tangent(jacobian, previous, method="svd")
+    by_border = tangent(jacobian, previous)
+    np.testing.assert_allclose(by_svd, by_border, atol=1e-12)
+    np.testing.assert_allclose(jacobian @ by_svd, 0.0, atol=1e-12)
+    assert tangent(jacobian, None, direction=-1.0, method="svd")[-1] < 0
+    with pytest.raises(ValueError, match="method must be 'bordered' or 'svd'"):
+        tangent(jacobian, previous, method="qr")
+
+
+class Parabola(Algebraic):
+    """x^2 + lam - 1 = 0: lam = 1 - x^2 folds at x = 0, lam = 1; counts its Jacobians."""
+
+    def __init__(self) -> None:
+        super().__init__(lambda x, lam: x * x + lam - 1.0, lambda x, lam: [2 * x, 1.0])
+        self.jacobians = 0
+
+    def evaluate(self, w, jacobian):
+        self.jacobians += bool(jacobian)
+        return super().evaluate(w, jacobian)
+
+
+def test_an_unlocated_fold_ends_the_branch_at_the_point_after_it_and_says_so():
+    start = np.array([-1.0, 0.0])
+    kwargs = dict(step=0.1, min_step=1e-8, max_step=0.2, max_points=100, direction=1.0, stop_at=("fold",))
+    located = continuation(Parabola(), start, **kwargs)
+    passed = continuation(Parabola(), start, locate=False, **kwargs)
+    assert located.end == passed.end == BranchEnd.FOLD
+    assert located.events[-1].located and located.events[-1].parameter == pytest.approx(1.0, abs=1e-10)
+    event = passed.events[-1]
+    assert not event.located and event.point is passed.points[-1] and event.parameter == passed.points[-1][1]
+    assert passed.points[-1][0] > 0 > passed.points[-2][0] and "passed before" in passed.message
+    # Locating costs corrections that the unlocated branch does not make; the points are the same.
+    assert len(located.points) == len(passed.points)
+    np.testing.assert_array_equal(np.array(located.points), np.array(passed.points))
+
+
+def test_chord_corrections_follow_the_same_branch_and_the_given_first_point_is_kept():
+    start = np.array([-1.0, 0.0])
+    first = object()
+    kwargs = dict(step=0.05, min_step=1e-8, max_step=0.05, max_points=12, direction=1.0)
+    plain_problem, chord_problem = Parabola(), Parabola()
+    plain = continuation(plain_problem, start, **kwargs)
+    chord = continuation(chord_problem, start, corrector={"chord": 0.5, "forgive": 0}, first=first, easy=0, hard=100, **kwargs)
+    assert chord.points[0] is first
+    for p in chord.points[1:]:
+        assert abs(p[0] ** 2 + p[1] - 1.0) <= 1e-12
+    # Steps stay fixed (no growth with easy = 0, max_step reached): the same arclength, so the same points to round-off.
+    np.testing.assert_allclose(np.array(chord.points[1:]), np.array(plain.points[1:]), atol=1e-9)
+    assert chord_problem.jacobians <= plain_problem.jacobians
+
+
+def curved(w: np.ndarray, jacobian: bool) -> Evaluation:
+    """R = (x, 1000 (y - x^2)): from (1, 1) the Newton step lands at (0, -1), where max |R| grew 1000-fold,
+    yet the Newton step there is shorter, and the next one ends at the root (0, 0)."""
+    x, y = w
+    return Evaluation(np.array([x, 1000.0 * (y - x * x)]), np.array([[1.0, 0.0], [-2000.0 * x, 1000.0]]))
+
+
+def test_the_natural_monotonicity_test_takes_a_step_that_max_r_alone_refuses_and_each_iterate_is_reported():
+    seen = []
+    natural = newton(
+        curved, np.array([1.0, 1.0]), tol=1e-12, damping=5, natural=True, divergence=None, iterate=lambda w, ev: seen.append(w.copy())
+    )
+    assert natural.converged and natural.iterations == 2
+    np.testing.assert_array_equal(natural.w, [0.0, 0.0])
+    np.testing.assert_array_equal(np.array(seen), [[1.0, 1.0], [0.0, -1.0], [0.0, 0.0]])
+    assert newton(curved, np.array([1.0, 1.0]), tol=1e-12, damping=5, divergence=None).status == Corrector.DIVERGED
+
+
+def test_an_iteration_that_does_not_contract_is_named_and_a_problem_s_own_step_is_used():
+    def linear(w, jacobian):
+        return Evaluation(w.copy(), np.eye(1))
+
+    # A tenth of the Newton step each time: max |R| falls only by 0.9 an iteration.
+    slow = newton(linear, np.array([1.0]), tol=1e-12, newton_step=lambda w, ev: -0.1 * ev.residual, contraction=0.5)
+    assert slow.status == Corrector.NOT_CONTRACTING and slow.iterations == 2
+    assert slow.w[0] == pytest.approx(0.81, rel=1e-15)
+    assert newton(linear, np.array([1.0]), tol=1e-12, newton_step=lambda w, ev: -0.1 * ev.residual).status == Corrector.STALLED
+
+    def undefined(w, ev):
+        raise np.linalg.LinAlgError("no step here")
+
+    assert newton(linear, np.array([1.0]), tol=1e-12, newton_step=undefined).status == Corrector.NOT_FINITE
