@@ -383,6 +383,19 @@ def gather(q, site, x):
         x[d] = q[site * ND + d] if site >= 0 else 0.0
 
 
+@njit(cache=True, nogil=True)
+def bond_scratch():
+    # A bond's two sites, forces, Jacobian block, parameter derivatives and coordinates.
+    return (
+        np.empty(ND),
+        np.empty(ND),
+        np.empty(2 * ND),
+        np.zeros((2 * ND, 2 * ND)),
+        np.zeros((2 * ND, NP)),
+        np.empty(2 * ND, dtype=np.int64),
+    )
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def bond_at(q, b, nsites, boundary, coef, xl, xr, fb, kb, dpb, index, mode):
     # Bond b's terms, and index[a] the coordinate of its local entry a (-1 on a phantom site).
@@ -420,12 +433,7 @@ def accumulate(q, coef, nsites, boundary, out, jq, ncols, cols_q, cols_off, dpar
             for d in range(ND):
                 for j in range(NP):
                     dpar[i * ND + d, j] += dp[d, j]
-    xl = np.empty(ND)
-    xr = np.empty(ND)
-    fb = np.empty(2 * ND)
-    kb = np.zeros((2 * ND, 2 * ND))
-    dpb = np.zeros((2 * ND, NP))
-    index = np.empty(2 * ND, dtype=np.int64)
+    xl, xr, fb, kb, dpb, index = bond_scratch()
     for b in range(bonds(nsites, boundary)):
         bond_at(q, b, nsites, boundary, coef, xl, xr, fb, kb, dpb, index, mode)
         for a in range(2 * ND):
@@ -477,12 +485,7 @@ def jacobian(q, coef, nsites, boundary, rows, cols, vals):
                 cols[count] = i * ND + e
                 vals[count] = k[d, e]
                 count += 1
-    xl = np.empty(ND)
-    xr = np.empty(ND)
-    fb = np.empty(2 * ND)
-    kb = np.zeros((2 * ND, 2 * ND))
-    dpb = np.zeros((2 * ND, NP))
-    index = np.empty(2 * ND, dtype=np.int64)
+    xl, xr, fb, kb, dpb, index = bond_scratch()
     for b in range(bonds(nsites, boundary)):
         bond_at(q, b, nsites, boundary, coef, xl, xr, fb, kb, dpb, index, 1)
         for a in range(2 * ND):
