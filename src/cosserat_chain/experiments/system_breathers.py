@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import brentq
 
+from ..errors import CosseratChainError
 from ..numerics.shooting import PERIOD, Orbit, OrbitNotFound, continue_orbits, find_orbit
 from ..systems.base import System
 from ..systems.lattice import LatticeSystem
@@ -56,7 +57,7 @@ COUPLING_HALVINGS = 10
 BISECTIONS = 12
 
 
-class BreatherError(ValueError):
+class BreatherError(CosseratChainError, ValueError):
     """A roto-breather that cannot be posed as asked (a bad rotor, coupling, frequency)."""
 
 
