@@ -26,6 +26,9 @@ backs up during a turn, so a continuation cannot stop at a section's false fold.
   period doublings (a multiplier at -1), tori (a complex pair on the unit circle) and
   branch points, and ends where the period diverges, with the end fitted from the
   period's growth and the fit's spread given as its uncertainty.
+* A conservative system's orbits come in families: ``unfold=`` names a damping parameter
+  that replaces the period as unknown (:class:`_Shooting`), so an orbit is found at a given
+  period and the family is continued in the period or any other parameter.
 """
 
 from __future__ import annotations
