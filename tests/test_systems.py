@@ -403,3 +403,19 @@ def test_a_runaway_flow_fails_within_its_step_budget_instead_of_grinding():
     assert ring.boundary == "periodic" and ring.force_jacobian(np.zeros(5)).nnz == 15
     with pytest.raises(SystemDefinitionError, match="boundary must be one of"):
         ring.with_boundary("open")
+
+
+def test_the_index_of_a_long_josephson_array_is_the_closed_form_count_of_its_soft_modes():
+    """Past the dense limit the index is the inertia of -J: at the uniform state phi = pi - arcsin I of a free
+    array, -J = -sqrt(1 - I^2) + kappa L, so the index counts the modes with 4 kappa sin^2(pi k / 2n) < sqrt(1 - I^2)."""
+    n, current, kappa = 700, 0.5, 1.0
+    assert n > equilibria.DENSE_LIMIT
+    system = josephson_array(n, I=current, kappa=kappa)
+    top = equilibria.find_equilibrium(system, np.full(n, math.pi - math.asin(current)))
+    k = np.arange(n)
+    assert top.index == int(np.sum(4 * kappa * np.sin(np.pi * k / (2 * n)) ** 2 < math.sqrt(1 - current**2)))
+    assert top.index > 100 and not top.stable
+    bottom = equilibria.find_equilibrium(system, np.full(n, math.asin(current)))
+    assert bottom.index == 0 and bottom.stable
+    ring = equilibria.find_equilibrium(system.with_boundary("periodic"), np.full(n, math.asin(current)))
+    assert ring.stable is None and ring.index is None  # a ring's corners: not banded, not claimed
