@@ -419,3 +419,26 @@ def test_the_index_of_a_long_josephson_array_is_the_closed_form_count_of_its_sof
     assert bottom.index == 0 and bottom.stable
     ring = equilibria.find_equilibrium(system.with_boundary("periodic"), np.full(n, math.asin(current)))
     assert ring.stable is None and ring.index is None  # a ring's corners: not banded, not claimed
+
+
+def test_generated_code_is_never_imported_from_a_folder_others_may_write(tmp_path, monkeypatch):
+    """The compiled system's source is imported: a cache folder writable by others is refused (it would let
+    anyone plant code), and the message says what to do."""
+    import os
+
+    from cosserat_chain.systems import lattice
+
+    shared = tmp_path / "shared"
+    (shared / "systems").mkdir(parents=True)
+    os.chmod(shared / "systems", 0o777)
+    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(shared))
+    monkeypatch.setattr(lattice.tempfile, "gettempdir", lambda: str(shared))
+    os.makedirs(shared / f"cosserat-chain-{os.getuid()}" / "systems", exist_ok=True)
+    os.chmod(shared / f"cosserat-chain-{os.getuid()}" / "systems", 0o777)
+    with pytest.raises(SystemDefinitionError, match="private writable cache directory"):
+        LatticeSystem(sites=2, site_energy="w*(1 - cos(phi)) + 0.123456789*phi**2", parameters={"w": 1.0})
+    own = tmp_path / "own"
+    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(own))
+    system = LatticeSystem(sites=2, site_energy="w*(1 - cos(phi)) + 0.123456789*phi**2", parameters={"w": 1.0})
+    assert oct(os.stat(own / "systems").st_mode & 0o777) == "0o700"
+    np.testing.assert_allclose(system.forces(np.array([0.5, 0.0])), [-math.sin(0.5) - 2 * 0.123456789 * 0.5, 0.0])

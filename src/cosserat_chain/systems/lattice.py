@@ -31,6 +31,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import os
+import stat
 import sys
 import tempfile
 from collections.abc import Mapping, Sequence
@@ -550,6 +551,12 @@ def rhs(force, end_force, t, y, coef, rpar, ipar, dy):
 _LOADED: dict[str, object] = {}
 
 
+def _private(directory: Path) -> bool:
+    """Whether ``directory`` is a real folder of this user that nobody else may write: the code in it is imported."""
+    info = directory.lstat()
+    return stat.S_ISDIR(info.st_mode) and info.st_uid == os.getuid() and not info.st_mode & (stat.S_IWGRP | stat.S_IWOTH)
+
+
 def _compile(spec: _Spec):
     """The compiled kernels of ``spec``: its generated module, written once under the cache directory."""
     source = _source(spec)
@@ -560,7 +567,9 @@ def _compile(spec: _Spec):
     path = None
     for directory in (_cache_dir(), Path(tempfile.gettempdir()) / f"cosserat-chain-{os.getuid()}" / "systems"):
         try:
-            directory.mkdir(parents=True, exist_ok=True)
+            directory.mkdir(parents=True, exist_ok=True, mode=0o700)
+            if not _private(directory):
+                continue
             target = directory / f"{name}.py"
             if not target.is_file() or target.is_symlink() or target.read_text() != source:
                 handle, temporary = tempfile.mkstemp(dir=directory, suffix=".tmp")
@@ -572,7 +581,10 @@ def _compile(spec: _Spec):
         except OSError:
             continue
     if path is None:
-        raise SystemDefinitionError("no writable cache directory for the compiled system; set COSSERAT_CHAIN_CACHE to one")
+        raise SystemDefinitionError(
+            "no private writable cache directory for the compiled system (the generated code is imported from it, so it must "
+            "belong to you and be writable by nobody else); set COSSERAT_CHAIN_CACHE to one"
+        )
     module_spec = importlib.util.spec_from_file_location(name, path)
     module = importlib.util.module_from_spec(module_spec)
     sys.modules[name] = module
