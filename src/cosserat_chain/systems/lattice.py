@@ -233,6 +233,7 @@ class _Spec:
         spec = cls()
         sympy = _sympy()
         spec.dofs, spec.parameters = dofs, parameters
+        spec._functions = {}
         spec.q = [sympy.Symbol(d, real=True) for d in dofs]
         spec.ql = [sympy.Symbol(f"{d}_l", real=True) for d in dofs]
         spec.qr = [sympy.Symbol(f"{d}_r", real=True) for d in dofs]
@@ -253,15 +254,22 @@ class _Spec:
         return spec
 
     def per_dof(self, expressions, values: Mapping[str, float]) -> np.ndarray:
-        subs = {s: values[s.name] for s in self.p}
-        return np.array([float(e.subs(subs)) for e in expressions])
+        """``expressions`` (the mass or the damping, one per dof) at the parameters ``values``."""
+        return np.array(self._numeric(tuple(expressions))(*(values[p] for p in self.parameters)), dtype=float)
 
     def mass_damping_derivatives(self, name: str, values: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
         symbol = self.p[self.parameters.index(name)]
-        subs = {s: values[s.name] for s in self.p}
-        d_inverse = np.array([float((1 / m).diff(symbol).subs(subs)) for m in self.mass])
-        d_rate = np.array([float((c / m).diff(symbol).subs(subs)) for c, m in zip(self.damping, self.mass, strict=True)])
-        return d_inverse, d_rate
+        d_inverse = tuple((1 / m).diff(symbol) for m in self.mass)
+        d_rate = tuple((c / m).diff(symbol) for c, m in zip(self.damping, self.mass, strict=True))
+        return self.per_dof(d_inverse, values), self.per_dof(d_rate, values)
+
+    def _numeric(self, expressions: tuple):
+        # Each flow reads the mass, the damping and their derivatives: lambdified once, since SymPy's
+        # subs took half the time of a short orbit's flow.
+        function = self._functions.get(expressions)
+        if function is None:
+            function = self._functions[expressions] = _sympy().lambdify(self.p, list(expressions), "math")
+        return function
 
 
 def _per(value, dof: str):
