@@ -442,3 +442,12 @@ def test_generated_code_is_never_imported_from_a_folder_others_may_write(tmp_pat
     system = LatticeSystem(sites=2, site_energy="w*(1 - cos(phi)) + 0.123456789*phi**2", parameters={"w": 1.0})
     assert oct(os.stat(own / "systems").st_mode & 0o777) == "0o700"
     np.testing.assert_allclose(system.forces(np.array([0.5, 0.0])), [-math.sin(0.5) - 2 * 0.123456789 * 0.5, 0.0])
+
+
+def test_an_orbits_trajectory_in_one_integration_closes_after_a_period_and_equals_the_flow(pen_orbit):
+    times = pen_orbit.period * np.array([0.25, 0.5, 1.0])
+    path = pen_orbit.trajectory(times)
+    shift = np.array([2 * math.pi, 2 * math.pi, 0.0, 0.0])
+    assert np.max(np.abs(path[-1] - pen_orbit.y0 - shift)) < 1e-8
+    alone = shooting.flow(pen_orbit.system, pen_orbit.y0, times[0], variations=False)[0]
+    np.testing.assert_allclose(path[0], alone, atol=1e-9)

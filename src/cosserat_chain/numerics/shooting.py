@@ -77,48 +77,65 @@ def flow(
         If the integration cannot finish: a blow-up, or more than MAX_STEPS steps or
         STEPS_PER_TIME steps per unit of time (whichever is fewer).
     """
-    n = system.size
-    size = 2 * n
+    size = 2 * system.size
     ncols = size + 1 if variations else 0
-    kernels = system.flow_kernels()
-    inverse = 1.0 / system.mass()
-    rate = system.damping() * inverse
-    if parameter is not None and variations:
-        d_inverse, d_rate = system.parameter_mass_damping(parameter)
-    else:
-        d_inverse = d_rate = np.zeros(n)
     start = np.asarray(y0, dtype=float)
     if variations:
         start = np.concatenate([start, np.hstack([np.eye(size), np.zeros((size, 1))]).ravel()])
-    if kernels is not None:
-        index = kernels.parameter_index[parameter] if (parameter is not None and variations) else -1
-        ipar = np.array([*kernels.head, ncols, index], dtype=np.int64)
-        rpar = np.concatenate([inverse, rate, d_inverse, d_rate])
-        sol = dop853.solve(
-            kernels.rhs,
-            _no_force,
-            kernels.coef,
-            rpar,
-            ipar,
-            start,
-            np.array([0.0, period]),
-            rtol=rtol,
-            atol=atol,
-            max_steps=min(MAX_STEPS, int(STEPS_PER_TIME * (1.0 + period))),
-            end_force=no_ends,
-        )
-        if not sol.success:
-            raise EvaluationFailed(f"the flow of {system.name} over T={period:.10g} failed: {sol.message}")
-        end = sol.y[-1]
-    else:
-        end = _scipy_flow(system, start, period, variations, parameter, inverse, rate, d_inverse, d_rate, rtol, atol)
+    end = _integrate(system, start, np.array([0.0, period]), ncols, parameter if variations else None, rtol, atol)[-1]
     if not variations:
         return end[:size], None, None
     cols = end[size:].reshape(size, ncols)
     return end[:size], cols[:, :size], cols[:, size]
 
 
-def _scipy_flow(system, start, period, variations, parameter, inverse, rate, d_inverse, d_rate, rtol, atol):
+def states(system: System, y0: np.ndarray, times: np.ndarray, *, rtol: float = RTOL, atol: float = ATOL) -> np.ndarray:
+    """The states y (len(times), 2n) at ``times`` (increasing, from ``times[0]`` where y = y0), in one integration.
+
+    Raises
+    ------
+    EvaluationFailed
+        As :func:`flow`.
+    """
+    return _integrate(system, np.asarray(y0, dtype=float), np.asarray(times, dtype=float), 0, None, rtol, atol)
+
+
+def _integrate(system: System, start: np.ndarray, times: np.ndarray, ncols: int, parameter: str | None, rtol: float, atol: float):
+    """The state (with ``ncols`` variational columns, the last one dy/d``parameter``) at every time of ``times``:
+    the package's compiled DOP853 on a compiled system, SciPy's otherwise."""
+    n = system.size
+    inverse = 1.0 / system.mass()
+    rate = system.damping() * inverse
+    if parameter is not None:
+        d_inverse, d_rate = system.parameter_mass_damping(parameter)
+    else:
+        d_inverse = d_rate = np.zeros(n)
+    span = float(times[-1] - times[0])
+    kernels = system.flow_kernels()
+    if kernels is None:
+        return _scipy_integrate(system, start, times, ncols > 0, parameter, inverse, rate, d_inverse, d_rate, rtol, atol)
+    index = kernels.parameter_index[parameter] if parameter is not None else -1
+    ipar = np.array([*kernels.head, ncols, index], dtype=np.int64)
+    rpar = np.concatenate([inverse, rate, d_inverse, d_rate])
+    sol = dop853.solve(
+        kernels.rhs,
+        _no_force,
+        kernels.coef,
+        rpar,
+        ipar,
+        start,
+        times,
+        rtol=rtol,
+        atol=atol,
+        max_steps=min(MAX_STEPS, int(STEPS_PER_TIME * (1.0 + span))),
+        end_force=no_ends,
+    )
+    if not sol.success:
+        raise EvaluationFailed(f"the flow of {system.name} over T={span:.10g} failed: {sol.message}")
+    return sol.y
+
+
+def _scipy_integrate(system, start, times, variations, parameter, inverse, rate, d_inverse, d_rate, rtol, atol):
     from scipy.integrate import solve_ivp
 
     n = system.size
@@ -139,10 +156,10 @@ def _scipy_flow(system, start, period, variations, parameter, inverse, rate, d_i
             out[2 * n :] = d.ravel()
         return out
 
-    sol = solve_ivp(field, (0.0, period), start, method="DOP853", rtol=rtol, atol=atol)
-    if not sol.success or not np.all(np.isfinite(sol.y[:, -1])):
-        raise EvaluationFailed(f"the flow of {system.name} over T={period:.10g} failed: {sol.message}")
-    return sol.y[:, -1]
+    sol = solve_ivp(field, (times[0], times[-1]), start, method="DOP853", t_eval=times, rtol=rtol, atol=atol)
+    if not sol.success or not np.all(np.isfinite(sol.y)):
+        raise EvaluationFailed(f"the flow of {system.name} over T={times[-1] - times[0]:.10g} failed: {sol.message}")
+    return sol.y.T
 
 
 def _no_force_impl(x, coef, out, start, stop):  # pragma: no cover - compiled
@@ -234,14 +251,11 @@ class Orbit:
         return self.max_multiplier < (1.0 if self.unfold is None else 1.0 + CIRCLE_TOL)
 
     def trajectory(self, times: np.ndarray, *, rtol: float = RTOL, atol: float = ATOL) -> np.ndarray:
-        """States y (len(times), 2n) along the orbit at ``times`` (from 0)."""
+        """States y (len(times), 2n) along the orbit at ``times`` (increasing, from 0), in one integration from y0."""
         times = np.asarray(times, dtype=float)
-        out = [self.y0.copy()]
-        y = self.y0
-        for a, b in zip(times[:-1], times[1:], strict=True):
-            y = flow(self.system, y, b - a, variations=False, rtol=rtol, atol=atol)[0] if b > a else y
-            out.append(y)
-        return np.array(out)
+        if times.size and times[0] == 0.0:
+            return states(self.system, self.y0, times, rtol=rtol, atol=atol)
+        return states(self.system, self.y0, np.concatenate([[0.0], times]), rtol=rtol, atol=atol)[1:]
 
     def as_dict(self) -> dict:
         return {
@@ -411,10 +425,8 @@ def settled_guess(
     i = system.coordinates.index(coordinate) if isinstance(coordinate, str) else int(coordinate)
     y = flow(system, np.asarray(y0, dtype=float), transient, variations=False)[0]
     times = np.linspace(0.0, window, samples)
-    states = [y]
-    for dt in np.diff(times):
-        states.append(flow(system, states[-1], dt, variations=False, rtol=1e-10, atol=1e-10)[0])
-    angle = np.array(states)[:, i]
+    sampled = states(system, y, times, rtol=1e-10, atol=1e-10)
+    angle = sampled[:, i]
     level = np.floor(angle / (2 * math.pi))
     crossings = np.flatnonzero(np.diff(level) != 0)
     if crossings.size < turns + 1:
@@ -422,7 +434,7 @@ def settled_guess(
             f"{system.coordinates[i]} did not turn {turns} times in a window of {window:g} after a transient of {transient:g}"
         )
     a, b = crossings[0], crossings[turns]
-    start = states[a + 1].copy()
+    start = sampled[a + 1].copy()
     # Whole turns are dropped from the angles: the orbit is the same, the numbers small.
     angles = np.flatnonzero(system.angles)
     start[angles] -= 2 * math.pi * np.floor(start[angles] / (2 * math.pi))
