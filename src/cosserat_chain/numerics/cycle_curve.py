@@ -66,7 +66,7 @@ from ..params import ChainParams
 from ..state import n_free
 from .fold_curve import FIELDS, chain_with, field_values
 from .kit import Evaluation, EvaluationFailed, newton
-from .periodic import ATOL, CLOSURE_TOL, RTOL, OrbitError, PeriodicOrbit, _orbit, _shooting, _System, _to_y
+from .periodic import ATOL, CLOSURE_TOL, RTOL, OrbitError, PeriodicOrbit, _orbit, _phase_for, _shooting, _System, _to_y
 
 #: Kinds of end that can be followed (:mod:`~cosserat_chain.experiments.diagram`'s ends that are
 #: regular points of an augmented system; a SNIC lies on the static fold, followed by
@@ -99,6 +99,9 @@ EDGE_MARGIN = 1e-6
 CROSSING_STEP = 1e-4
 #: An imaginary part above this (relative to the modulus) makes a multiplier complex.
 COMPLEX_RTOL = 1e-6
+#: A fold of cycles has a second Floquet multiplier at +1 beside the trivial one: the two nearest +1 lie
+#: within this of it (a double multiplier of a monodromy accurate to ~1e-10 splits like its square root).
+FOLD_MULTIPLIER_TOL = 1e-3
 
 
 @dataclass
@@ -176,27 +179,28 @@ class _Augmented:
 
     def __post_init__(self) -> None:
         self.size = 2 * n_free(self.orbit.params)
-        self.dof = _System(self.orbit.params, get_model(self.orbit.model), self.orbit.moment, self.orbit.particle).load_dof
-        self.keep = np.arange(self.size) != self.dof
+        system = _System(self.orbit.params, get_model(self.orbit.model), self.orbit.moment, self.orbit.particle)
+        # The orbit's own phase condition: its section, or its plane where the flow is nearly tangent to the section.
+        self.phase = _phase_for(system, _to_y(self.orbit.params, self.orbit.x, self.orbit.v), self.orbit.phase_normal)
+        self.keep, self.head = self.phase.keep, self.phase.head
 
     def pack(self, orbit: PeriodicOrbit) -> np.ndarray:
         return np.concatenate([_to_y(orbit.params, orbit.x, orbit.v)[self.keep], [math.log(orbit.period), orbit.moment]])
 
     def split(self, z: np.ndarray) -> tuple[np.ndarray, float, float]:
-        y0 = np.zeros(self.size)
-        y0[self.keep] = z[: self.size - 1]
-        return y0, math.exp(z[self.size - 1]), float(z[-1])
+        return self.phase.state(z[: self.head]), math.exp(z[self.head]), float(z[-1])
 
     def evaluate(self, chain: ChainParams, z: np.ndarray):
-        """(R, R_z, monodromy, A) at z: (P), its Jacobian in z, and the shooting Jacobian in (y0, log T)."""
-        if not (np.all(np.isfinite(z)) and abs(z[self.size - 1] - math.log(self.orbit.period)) < math.log(1e3)):
+        """(R, R_z, monodromy, A) at z: (P) and the phase condition, their Jacobian in z, and the shooting Jacobian in (y0, log T)."""
+        if not (np.all(np.isfinite(z)) and abs(z[self.head] - math.log(self.orbit.period)) < math.log(1e3)):
             # A Newton step that left the orbit (a period a thousand times off): refused, the step is halved.
-            raise OrbitError(f"the period exp({z[self.size - 1]:.6g}) is far from the orbit's {self.orbit.period:.6g}")
+            raise OrbitError(f"the period exp({z[self.head]:.6g}) is far from the orbit's {self.orbit.period:.6g}")
         y0, period, moment = self.split(z)
         system = _System(chain, get_model(self.orbit.model), moment, self.orbit.particle)
         residual, jac_y, jac_t, d_moment, mono = _shooting(system, self.orbit.particle_turns, self.rtol, self.atol)(y0, period)
-        shooting = np.column_stack([jac_y[:, self.keep], period * jac_t])
-        return residual, np.column_stack([shooting, d_moment]), mono, shooting
+        residual = np.append(residual, self.phase.residual(y0))
+        shooting = np.vstack([np.column_stack([jac_y[:, self.keep], period * jac_t]), self.phase.rows(self.head + 1)])
+        return residual, np.column_stack([shooting, np.append(d_moment, np.zeros(shooting.shape[0] - d_moment.size))]), mono, shooting
 
     def bordered(self, mono: np.ndarray, shooting: np.ndarray) -> np.ndarray:
         """The matrix that is singular at a ``fold_of_cycles`` (A) or a ``period_doubling`` (monodromy + I)."""
@@ -242,10 +246,10 @@ class _Augmented:
                 raise EvaluationFailed("(P) or the test function is not defined there")
             return Evaluation(np.append(point.residual, point.g), point.jac, point)
 
-        def step(w: np.ndarray, evaluation: Evaluation) -> np.ndarray:
+        def step(w: np.ndarray, evaluation: Evaluation, jacobian) -> np.ndarray:
             point = evaluation.data
             if point.step is None:
-                point.step = self._step(chain, w, point.residual, point.jac, point.g)
+                point.step = self._step(chain, w, point.residual, jacobian, point.g)
             return point.step
 
         def follow(w: np.ndarray, evaluation: Evaluation) -> None:
@@ -375,11 +379,16 @@ def continue_cycle_end(
         if solved is None:
             return None, "Newton did not converge"
         z_new, mono, closure, iterations = solved
-        if np.max(np.abs(z_new[: augmented.size - 1] - z[: augmented.size - 1])) > JUMP:
+        if np.max(np.abs(z_new[: augmented.head] - z[: augmented.head])) > JUMP:
             return None, "Newton jumped to another orbit"
         y0, period, moment = augmented.split(z_new)
         system = _System(chain, get_model(orbit.model), moment, orbit.particle)
-        found = _orbit(system, orbit.turns, y0, period, mono, closure, iterations, orbit.particle_turns)
+        found = _orbit(system, orbit.turns, y0, period, mono, closure, iterations, orbit.particle_turns, augmented.phase.normal)
+        if kind == "fold_of_cycles" and np.sort(np.abs(found.multipliers - 1.0))[1] > FOLD_MULTIPLIER_TOL:
+            return None, (
+                f"no second Floquet multiplier at +1 there (the nearest is {np.sort(np.abs(found.multipliers - 1.0))[1]:.3g} "
+                "from it): not a fold of cycles"
+            )
         others = _other_multipliers(found, kind)
         if others.size and float(np.max(np.abs(others))) >= 1.0 - EDGE_MARGIN:
             return None, (

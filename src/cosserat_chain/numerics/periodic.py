@@ -19,7 +19,16 @@ pin), and (P) then shifts each by 2 pi times its turns (:attr:`PeriodicOrbit.par
 
 * :func:`find_periodic_orbit` solves (P) by Newton's method on the shooting map.
   The unknowns are the state on the Poincare section phi_0 = 0 (phi_0 is fixed,
-  which removes the phase freedom along the orbit) and the period T. The Jacobian
+  which removes the phase freedom along the orbit) and the period T. The section
+  serves only where the flow crosses it transversally: a loaded particle that backs up
+  after each turn crosses phi_0 = 0 three times a period, and where two crossings merge
+  the section's Newton system is singular although the orbit is regular (the N = 2 sine
+  chain at gamma_phi = 0.15 gave a false fold of cycles at M = 0.18223 so). Where the
+  cosine of the angle between the flow and the section's normal, |phi_0'| / |f(y0)|, is
+  small (:data:`TRANSVERSAL_MIN`) the phase condition is instead the plane through the
+  start normal to the flow there, f(y_ref) . (y0 - y_ref) = 0 (as
+  :mod:`~cosserat_chain.numerics.shooting` for any system), with the whole state unknown;
+  :attr:`PeriodicOrbit.phase_normal` records which. The Jacobian
   is exact up to the integration tolerance: the monodromy matrix dPhi_T/dy0 comes
   from the variational equations Phi' = A(t) Phi, A = [[0, I], [M^-1 dF/dq, -M^-1 Gamma]],
   integrated together with the state by the package's compiled DOP853
@@ -35,11 +44,16 @@ pin), and (P) then shifts each by 2 pi times its turns (:attr:`PeriodicOrbit.par
   (M turns back, the period stays finite) or where the period diverges (a
   homoclinic end; at the static fold M_c it is the saddle-node on the invariant
   circle, with T ~ (M - M_c)^(-1/2)). Using log T as the unknown keeps steps of the
-  same size while T grows without bound.
+  same size while T grows without bound. The phase condition is re-chosen along the
+  way where the flow turns towards tangency with it (:data:`TRANSVERSAL_DROP`), and a
+  turn of M counts as a fold of cycles only where a real Floquet multiplier crosses +1
+  between the orbits around it; a multiplier through +1 where M does not turn is a branch
+  point of cycles (:attr:`OrbitBranch.events`), and the branch goes on through it.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -73,6 +87,13 @@ RTOL = 1e-11
 ATOL = 1e-11
 #: Default Newton tolerance on the closure max |Phi_T(y0) - y0 - 2 pi k e_phi0|.
 CLOSURE_TOL = 1e-9
+#: The section phi_particle = const fixes the phase only where the flow crosses it with
+#: |phi'| / |f(y0)| at least this (the cosine of the angle between the flow and the section's
+#: normal): 0.41 on the N = 2 sine chain's orbit at 1.1 M_c, 0.02 one step before its false fold.
+TRANSVERSAL_MIN = 0.05
+#: :func:`continue_orbit` re-chooses the phase condition (the plane through the orbit normal to the
+#: flow) where that cosine has fallen below this fraction of its value where the condition was chosen.
+TRANSVERSAL_DROP = 0.25
 #: Newton iterations of one continuation step before the step is halved.
 MAX_CORRECTOR_ITERATIONS = 10
 #: Farthest a Floquet multiplier near the unit circle may move in the complex plane over one
@@ -308,6 +329,73 @@ class _System:
         return self.rhs(0)(0.0, y)
 
 
+@dataclass(frozen=True)
+class _Phase:
+    """The shooting's phase condition through the start ``reference`` (2nf,).
+
+    ``normal`` None: the section phi_particle = reference[dof] (the loaded angle is not an
+    unknown); otherwise the plane normal . (y0 - reference) = 0, ``normal`` a unit vector of the
+    state space, with every component of y0 unknown and the plane as one more equation.
+    """
+
+    reference: np.ndarray
+    dof: int
+    normal: np.ndarray | None = None
+
+    @property
+    def keep(self) -> np.ndarray:
+        """The components of y0 that are unknowns (bool, 2nf)."""
+        keep = np.ones(self.reference.size, dtype=bool)
+        if self.normal is None:
+            keep[self.dof] = False
+        return keep
+
+    @property
+    def head(self) -> int:
+        """How many unknowns y0 contributes."""
+        return self.reference.size - (self.normal is None)
+
+    def state(self, head: np.ndarray) -> np.ndarray:
+        """y0 from its unknowns."""
+        if self.normal is not None:
+            return np.array(head, dtype=float)
+        y0 = np.empty(self.reference.size)
+        y0[self.keep] = head
+        y0[self.dof] = self.reference[self.dof]
+        return y0
+
+    def residual(self, y0: np.ndarray) -> np.ndarray:
+        """The phase equation's residual (none for the section, which holds by construction)."""
+        return np.empty(0) if self.normal is None else np.array([self.normal @ (y0 - self.reference)])
+
+    def rows(self, width: int) -> np.ndarray:
+        """Its Jacobian rows over the unknowns (y0's first, then ``width - head`` others)."""
+        if self.normal is None:
+            return np.empty((0, width))
+        return np.concatenate([self.normal, np.zeros(width - self.normal.size)])[None, :]
+
+    def crossing(self, system: _System, y0: np.ndarray) -> float:
+        """The cosine of the angle between the flow at y0 and the condition's normal (signed)."""
+        f = system.velocity(y0)
+        along = f[self.dof] if self.normal is None else float(self.normal @ f)
+        return float(along / np.linalg.norm(f))
+
+
+def _plane(system: _System, y0: np.ndarray) -> _Phase:
+    """The plane through y0 normal to the flow there."""
+    f = system.velocity(y0)
+    return _Phase(np.array(y0, dtype=float), system.load_dof, f / np.linalg.norm(f))
+
+
+def _phase_for(system: _System, y0: np.ndarray, normal: np.ndarray | None = None) -> _Phase:
+    """The phase condition through y0: the plane of ``normal`` if given, else the section on the loaded angle
+    where the flow crosses it transversally (:data:`TRANSVERSAL_MIN`), else the plane normal to the flow."""
+    if normal is not None:
+        return _Phase(np.array(y0, dtype=float), system.load_dof, np.asarray(normal, dtype=float))
+    section = _Phase(np.array(y0, dtype=float), system.load_dof)
+    return section if abs(section.crossing(system, y0)) >= TRANSVERSAL_MIN else _plane(system, y0)
+
+
 @dataclass
 class PeriodicOrbit:
     """A rotating state as a limit cycle (see the module docstring, eq. (P)).
@@ -325,7 +413,9 @@ class PeriodicOrbit:
     period : float
         T.
     x, v : ndarray (3, 2N+1)
-        The state on the section phi_0 = 0 where the orbit starts.
+        The state where the orbit starts: on the section phi_0 = 0 (``phase_normal`` None), or
+        where the flow is nearly tangent to that section, on the plane ``phase_normal`` . (y -
+        y_start) = 0 (the loaded angle is then anywhere).
     multipliers : ndarray (2 n_free,) complex
         Floquet multipliers (eigenvalues of the monodromy matrix), by decreasing modulus.
     closure : float
@@ -336,6 +426,9 @@ class PeriodicOrbit:
         Signed turns of every particle's angle per period (the loaded particle's is
         +-``turns``; others wind when the whole chain spins about a pin). Default: the
         loaded particle's alone.
+    phase_normal : ndarray (2 n_free,) or None
+        The unit normal of the phase plane through the start, None for the section on the
+        loaded angle (module docstring); a continuation or a guess from this orbit keeps it.
     """
 
     params: ChainParams
@@ -350,6 +443,7 @@ class PeriodicOrbit:
     closure: float
     iterations: int
     particle_turns: np.ndarray | None = None
+    phase_normal: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.particle_turns is None:
@@ -417,6 +511,7 @@ class PeriodicOrbit:
             "stable": self.stable,
             "closure": self.closure,
             "iterations": self.iterations,
+            "phase_condition": "section" if self.phase_normal is None else "plane",
         }
 
 
@@ -661,18 +756,24 @@ def find_periodic_orbit(
         raise ValueError(f"the guessed period must be finite and > 0, got {period!r}")
     system = _System(params, model, float(moment), particle)
     y0 = _to_y(params, check_state(params, x0, "guess x"), check_state(params, v0, "guess v"))
-    y0[system.load_dof] = 0.0
+    # A guessed orbit on a phase plane keeps its plane; any other guess is put on phi_0 = 0.
+    normal = guess.phase_normal if isinstance(guess, PeriodicOrbit) else None
+    if normal is None:
+        y0[system.load_dof] = 0.0
+    phase = _phase_for(system, y0, normal)
     evaluate = _shooting(system, particle_turns, rtol, atol)
-    keep = np.arange(len(y0)) != system.load_dof
+    keep = phase.keep
 
     def closure(w: np.ndarray, jacobian: bool) -> Evaluation:
-        """(P) at w = (y0 without phi_0, T) and, with ``jacobian``, its Jacobian and the monodromy (``data``)."""
+        """(P) and the phase condition at w = (y0's unknowns, T) and, with ``jacobian``, their Jacobian and the monodromy (``data``)."""
         if not w[-1] > 0:
             raise EvaluationFailed(f"the period must stay > 0, got {w[-1]!r}")
-        y = np.zeros(len(keep))
-        y[keep] = w[:-1]
+        y = phase.state(w[:-1])
         residual, jac_y, jac_t, _, mono = evaluate(y, w[-1], jacobian)
-        return Evaluation(residual, None if jac_y is None else np.column_stack([jac_y[:, keep], jac_t]), mono)
+        residual = np.append(residual, phase.residual(y))
+        if jac_y is None:
+            return Evaluation(residual, None, mono)
+        return Evaluation(residual, np.vstack([np.column_stack([jac_y[:, keep], jac_t]), phase.rows(len(w))]), mono)
 
     # Newton with the Jacobian reused while it still converges fast (chord): a step costs one
     # state-only integration, and the variational equations are integrated again only
@@ -683,8 +784,8 @@ def find_periodic_orbit(
     )
     if not solved.converged:
         raise OrbitError(_no_convergence(moment, turns, solved.iterations, solved.norm))
-    y0[keep] = solved.w[:-1]
-    return _orbit(system, turns, y0, solved.w[-1], solved.evaluation.data, solved.norm, solved.iterations, particle_turns)
+    y0 = phase.state(solved.w[:-1])
+    return _orbit(system, turns, y0, solved.w[-1], solved.evaluation.data, solved.norm, solved.iterations, particle_turns, phase.normal)
 
 
 def _no_convergence(moment: float, turns: int, iterations: int, norm: float) -> str:
@@ -704,6 +805,7 @@ def _orbit(
     closure: float,
     iterations: int,
     particle_turns: np.ndarray,
+    phase_normal: np.ndarray | None = None,
 ) -> PeriodicOrbit:
     x, v = _from_y(system.params, y0)
     multipliers = sla.eigvals(mono)
@@ -721,6 +823,7 @@ def _orbit(
         closure=float(closure),
         iterations=iterations,
         particle_turns=particle_turns,
+        phase_normal=phase_normal,
     )
 
 
@@ -731,6 +834,8 @@ END_MOMENT_MIN = "moment_min"
 END_MAX_POINTS = "max_points"
 END_STEP_TOO_SMALL = Status.STEP_TOO_SMALL
 END_UNSTABLE = "unstable"
+#: M turned back on a transversal phase plane without a real Floquet multiplier crossing +1: not a fold of cycles.
+END_UNCONFIRMED_TURN = "unconfirmed_turn"
 
 
 @dataclass
@@ -742,14 +847,21 @@ class OrbitBranch:
     orbits : list of PeriodicOrbit
         In the order traced (downwards in M until the end).
     end : str
-        ``fold`` (a fold of limit cycles: M turns back, the period stays finite),
+        ``fold`` (a fold of limit cycles: M turns back, the period stays finite, and a real
+        Floquet multiplier crosses +1 between the orbits around the turn),
         ``infinite_period`` (T exceeded ``period_max``: a homoclinic end),
         ``moment_min``, ``unstable`` (asked to stop at the first unstable orbit after
-        stable ones), ``max_points`` or ``step_too_small`` (continuation failed).
+        stable ones), ``max_points``, ``step_too_small`` (continuation failed) or
+        ``unconfirmed_turn`` (M turned back without a multiplier at +1: no fold of cycles
+        is claimed; the message says where).
     end_moment : float
         Where the orbit ceases to exist: the fold's moment (a parabola through the
         three points around the turn), or the last moment reached for the other ends.
     message : str
+    events : list of dict
+        Branch points of cycles passed on the way: ``{"kind": "branch_point", "moment": M}``,
+        where a real multiplier crosses +1 while M does not turn (M interpolated linearly in
+        the multiplier between the two orbits around it); the branch goes on through them.
     """
 
     orbits: list[PeriodicOrbit]
@@ -757,6 +869,7 @@ class OrbitBranch:
     end_moment: float
     message: str
     settings: dict = field(default_factory=dict)
+    events: list[dict] = field(default_factory=list)
 
     @property
     def moment(self) -> np.ndarray:
@@ -812,7 +925,8 @@ def continue_orbit(
 ) -> OrbitBranch:
     """Pseudo-arclength continuation of a periodic orbit towards smaller |M|, until it ceases to exist.
 
-    The unknowns are w = (y0 on the section, log T, M), the equations (P) and the
+    The unknowns are w = (y0, log T, M), y0 without phi_0 on the section phi_0 = 0, the equations (P) (and the
+    phase plane's, where one replaces the section) and the
     arclength condition t . (w - w_pred) = 0 with t the unit tangent of the branch
     (the null vector of d(P)/dw); the bordered Jacobian is regular at a fold of
     limit cycles, so a fold is passed and detected as a sign change of dM/ds (the kit's
@@ -822,6 +936,14 @@ def continue_orbit(
     :data:`MAX_MULTIPLIER_MOTION` in the complex plane is retaken shorter, so that a loss of
     stability between two stable orbits is not stepped over (a window can still hide where
     the multipliers move less than that across it).
+
+    The phase condition never goes singular: where the flow turns towards tangency with the
+    section (the cosine |phi_0'| / |f| below :data:`TRANSVERSAL_DROP` of its value at the
+    start, or the crossing reversed) the continuation goes on from that orbit with the plane
+    through it normal to the flow, itself re-chosen where the flow turns away from it. A turn
+    of M is a fold of cycles only where a real multiplier crosses +1 between the orbits
+    around it; on the section, a turn without one (two crossings of the section merging) is
+    passed the same way, and on a plane it ends the branch as ``unconfirmed_turn``.
 
     Parameters
     ----------
@@ -858,32 +980,56 @@ def continue_orbit(
         raise ValueError(f"steps must satisfy min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
     params, model = orbit.params, get_model(orbit.model)
     sign = math.copysign(1.0, orbit.moment)
-    dof = _System(params, model, orbit.moment, orbit.particle).load_dof
-    keep = np.arange(2 * n_free(params)) != dof
     settings = {"moment_min": moment_min, "period_max": period_max, "step": step, "max_step": max_step, "tol": tol, "rtol": rtol}
-    problem = _OrbitBranchProblem(orbit, model, keep, tol, rtol, atol, moment_min, period_max, until_unstable)
-    w0 = np.concatenate([_to_y(params, orbit.x, orbit.v)[keep], [math.log(orbit.period), orbit.moment]])
-    traced = continuation(
-        problem,
-        w0,
-        step=step,
-        min_step=min_step,
-        max_step=max_step,
-        max_points=max_points,
-        direction=-sign,
-        stop_at=(BranchEnd.FOLD,),
-        progress=progress,
-        corrector={"max_iterations": MAX_CORRECTOR_ITERATIONS, "chord": NEWTON_RATE, "forgive": 0},
-        easy=EASY_ITERATIONS,
-        hard=HARD_ITERATIONS,
-        locate=False,  # the fold's moment is the parabola through the last three orbits (_fold_moment)
-        tangent_method="svd",
-        first=orbit,
-    )
-    orbits = traced.points
+    system = _System(params, model, orbit.moment, orbit.particle)
+    phase = _phase_for(system, _to_y(params, orbit.x, orbit.v), orbit.phase_normal)
+    orbits: list[PeriodicOrbit] = []
+    first, notes, h = orbit, [], step
+    while True:
+        problem = _OrbitBranchProblem(first, model, phase, tol, rtol, atol, moment_min, period_max, until_unstable, orbit.stable)
+        # A restart's first orbit is the last one already traced.
+        offset = max(len(orbits) - 1, 0)
+        traced = continuation(
+            problem,
+            problem.pack(first),
+            step=h,
+            min_step=min_step,
+            max_step=max_step,
+            max_points=max_points - offset,
+            direction=-sign,
+            stop_at=(BranchEnd.FOLD,),
+            progress=None if progress is None else (lambda done, total, offset=offset: progress(offset + done, max_points)),
+            corrector={"max_iterations": MAX_CORRECTOR_ITERATIONS, "chord": NEWTON_RATE, "forgive": 0},
+            easy=EASY_ITERATIONS,
+            hard=HARD_ITERATIONS,
+            locate=False,  # the fold's moment is the parabola through the last three orbits (_fold_moment)
+            tangent_method="svd",
+            first=first,
+        )
+        orbits.extend(traced.points[1:] if orbits else traced.points)
+        turned_falsely = traced.end == BranchEnd.FOLD and not _crosses_one(*traced.points[-2:])
+        if not ((problem.rechoose or turned_falsely) and phase.normal is None and len(traced.points) >= 2):
+            break
+        # The section has become (nearly) tangent to the flow: on from the last orbit with the plane through it,
+        # at the step that reached that orbit.
+        last = traced.points[-1]
+        h = min(max_step, max(min_step, float(np.linalg.norm(problem.pack(last) - problem.pack(traced.points[-2])))))
+        phase = _plane(_System(params, model, last.moment, last.particle), _to_y(params, last.x, last.v))
+        first = dataclasses.replace(last, phase_normal=phase.normal)
+        notes.append(
+            f"the flow became tangent to the section phi_0 = 0 near M = {last.moment:.10g}"
+            + (" (the section's system turned back there with no multiplier at +1: no fold)" if turned_falsely else "")
+            + "; continued with the phase plane normal to the flow"
+        )
     end, message = _ORBIT_ENDS[traced.end], traced.message
-    if traced.end == BranchEnd.FOLD:
-        message = "fold of limit cycles: the moment turns back with the period finite"
+    if traced.end == BranchEnd.FOLD and not _crosses_one(*orbits[-2:]):
+        end = END_UNCONFIRMED_TURN
+        message = (
+            f"M turned back near M = {orbits[-1].moment:.10g} with no real Floquet multiplier crossing +1: not a fold of cycles "
+            "(the phase condition may be singular there); try smaller steps"
+        )
+    elif traced.end == BranchEnd.FOLD:
+        message = "fold of limit cycles: the moment turns back with the period finite and a Floquet multiplier crosses +1"
     elif traced.end == BranchEnd.MAX_POINTS:
         message = f"stopped after max_points={max_points} orbits"
     elif traced.end == BranchEnd.STEP_TOO_SMALL:
@@ -891,7 +1037,30 @@ def continue_orbit(
     end_moment = orbits[-1].moment
     if end == END_FOLD and len(orbits) >= 3:
         end_moment = _fold_moment(orbits[-3:], sign)
-    return OrbitBranch(orbits=orbits, end=end, end_moment=float(end_moment), message=message, settings=settings)
+    events = _branch_points(orbits, end == END_FOLD)
+    message = "; ".join([message, *notes])
+    return OrbitBranch(orbits=orbits, end=end, end_moment=float(end_moment), message=message, settings=settings, events=events)
+
+
+def _one_test(orbit: PeriodicOrbit) -> float:
+    """Re prod (mu - 1) over the nontrivial multipliers: its sign changes where a real one crosses +1."""
+    return float(np.real(np.prod(orbit.nontrivial_multipliers - 1.0)))
+
+
+def _crosses_one(before: PeriodicOrbit, after: PeriodicOrbit) -> bool:
+    """Whether a real nontrivial Floquet multiplier crosses +1 between two orbits."""
+    return _one_test(before) * _one_test(after) < 0
+
+
+def _branch_points(orbits: list[PeriodicOrbit], folded: bool) -> list[dict]:
+    """Crossings of +1 between consecutive orbits, but the fold's (the last pair when ``folded``)."""
+    events = []
+    last = len(orbits) - 1 - folded
+    for a, b in zip(orbits[:last], orbits[1 : last + 1]):
+        if _crosses_one(a, b):
+            ga, gb = _one_test(a), _one_test(b)
+            events.append({"kind": "branch_point", "moment": float(a.moment + ga * (b.moment - a.moment) / (ga - gb))})
+    return events
 
 
 #: The kit's ends as :class:`OrbitBranch` names them.
@@ -907,26 +1076,38 @@ _ORBIT_ENDS = {
 
 @dataclass
 class _OrbitBranchProblem:
-    """(P) with M unknown for :func:`~.kit.continuation`: w = (y0 on the section, log T, M)."""
+    """(P) and the phase condition with M unknown for :func:`~.kit.continuation`: w = (y0's unknowns, log T, M)."""
 
     start: PeriodicOrbit
     model: Model
-    keep: np.ndarray
+    phase: _Phase
     tol: float
     rtol: float
     atol: float
     moment_min: float
     period_max: float
     until_unstable: bool
+    start_stable: bool
+    #: Set by :meth:`stop` where the section must give way to a plane (the branch is then ended here and restarted).
+    rechoose: bool = False
+
+    def __post_init__(self) -> None:
+        self.crossing0 = self._crossing(self.start)
+
+    def pack(self, orbit: PeriodicOrbit) -> np.ndarray:
+        return np.concatenate([_to_y(orbit.params, orbit.x, orbit.v)[self.phase.keep], [math.log(orbit.period), orbit.moment]])
+
+    def _crossing(self, orbit: PeriodicOrbit) -> float:
+        system = _System(orbit.params, self.model, orbit.moment, orbit.particle)
+        return self.phase.crossing(system, _to_y(orbit.params, orbit.x, orbit.v))
 
     def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
-        """(P) at w and, with ``jacobian``, its Jacobian (size, size + 1) in (y0 without phi_0, log T, M)."""
-        size = len(self.keep)
-        if w[size - 1] > math.log(100 * self.period_max):
+        """(P) and the phase condition at w and, with ``jacobian``, their Jacobian in (y0's unknowns, log T, M)."""
+        head = self.phase.head
+        if w[head] > math.log(100 * self.period_max):
             raise EvaluationFailed("the period ran off to 100 period_max: the corrector has left the branch")
-        y0 = np.zeros(size)
-        y0[self.keep] = w[: size - 1]
-        period, moment = math.exp(w[size - 1]), w[size]
+        y0 = self.phase.state(w[:head])
+        period, moment = math.exp(w[head]), w[head + 1]
         system = _System(self.start.params, self.model, moment, self.start.particle)
         try:
             residual, jac_y, jac_t, d_moment, mono = _shooting(system, self.start.particle_turns, self.rtol, self.atol)(
@@ -934,23 +1115,32 @@ class _OrbitBranchProblem:
             )
         except OrbitError as err:
             raise EvaluationFailed(str(err)) from err
+        residual = np.append(residual, self.phase.residual(y0))
         if not jacobian:
             return Evaluation(residual)
-        return Evaluation(residual, np.column_stack([jac_y[:, self.keep], period * jac_t, d_moment]), mono)
+        top = np.column_stack([jac_y[:, self.phase.keep], period * jac_t, d_moment])
+        return Evaluation(residual, np.vstack([top, self.phase.rows(len(w))]), mono)
 
     def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> PeriodicOrbit:
-        size = len(self.keep)
-        y0 = np.zeros(size)
-        y0[self.keep] = w[: size - 1]
-        system = _System(self.start.params, self.model, float(w[size]), self.start.particle)
+        head = self.phase.head
+        y0 = self.phase.state(w[:head])
+        system = _System(self.start.params, self.model, float(w[head + 1]), self.start.particle)
         closure = float(np.max(np.abs(evaluation.residual)))
-        return _orbit(system, self.start.turns, y0, math.exp(w[size - 1]), evaluation.data, closure, iterations, self.start.particle_turns)
+        orbit = _orbit(
+            system, self.start.turns, y0, math.exp(w[head]), evaluation.data, closure, iterations, self.start.particle_turns,
+            self.phase.normal,
+        )  # fmt: skip
+        return orbit
 
     def accept(self, previous: PeriodicOrbit, candidate: PeriodicOrbit) -> bool:
         # A step over which a multiplier near the unit circle moves this far can hide a
         # window of instability between two stable orbits (one random N = 4 chain's pair
         # rose above 1 and came back between M = 0.677 and 0.620, the largest modulus
-        # there 0.975 and 0.982): retaken shorter.
+        # there 0.975 and 0.982): retaken shorter. So is a step that lands on a crossing of
+        # the phase condition the other way (the section's point slid to where the loaded
+        # particle backs up).
+        if self._crossing(candidate) * self.crossing0 <= 0:
+            return False
         return _multiplier_motion(previous.multipliers, candidate.multipliers) <= MAX_MULTIPLIER_MOTION
 
     def tests(self, point: PeriodicOrbit) -> dict[str, float]:
@@ -961,8 +1151,17 @@ class _OrbitBranchProblem:
             return BranchEnd.INFINITE_PERIOD, f"the period exceeded period_max={self.period_max:g}: it diverges (homoclinic end)"
         if abs(point.moment) < self.moment_min:
             return BranchEnd.PARAMETER_LIMIT, f"|M| fell below moment_min={self.moment_min:g}"
-        if self.until_unstable and self.start.stable and not point.stable:
+        if self.until_unstable and self.start_stable and not point.stable:
             return BranchEnd.UNSTABLE, f"stopped at the first unstable orbit, M = {point.moment:.10g}"
+        crossing = self._crossing(point)
+        if abs(crossing) < TRANSVERSAL_DROP * abs(self.crossing0) or crossing * self.crossing0 <= 0:
+            if self.phase.normal is None:
+                # The unknowns change (phi_0 joins them): continue_orbit restarts the branch from here.
+                self.rechoose = True
+                return BranchEnd.MAX_POINTS, "the section is re-chosen"
+            # The whole state is unknown on a plane: the next plane passes through this orbit, normal to the flow.
+            self.phase = _plane(_System(point.params, self.model, point.moment, point.particle), _to_y(point.params, point.x, point.v))
+            self.crossing0 = 1.0
         return None
 
     def confirm(self, kind: str, point: PeriodicOrbit) -> bool:
