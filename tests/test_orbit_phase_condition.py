@@ -18,7 +18,6 @@ from typer.testing import CliRunner
 
 from cosserat_chain import ChainParams, moment_load
 from cosserat_chain.cli import app
-from cosserat_chain.experiments.diagram import state_diagram
 from cosserat_chain.models import get_model
 from cosserat_chain.numerics.adaptive import integrate_adaptive
 from cosserat_chain.numerics.continuation import locate_fold
