@@ -113,7 +113,7 @@ def run_dataset(run_bytes, tmp_path_factory) -> xr.Dataset:
     """The run of :func:`run_bytes`, read back."""
     path = tmp_path_factory.mktemp("fuzz") / "run.nc"
     path.write_bytes(run_bytes)
-    return xr.load_dataset(path, engine="h5netcdf")
+    return read_dataset(path)
 
 
 def _read_as_input(path, ds=None) -> str:
@@ -207,7 +207,7 @@ def test_commands_given_a_damaged_run_exit_2_or_3_and_change_nothing_else(run_by
     if kind == "drop":
         source = folder / "source.nc"
         source.write_bytes(run_bytes)
-        xr.load_dataset(source, engine="h5netcdf").drop_vars(value).to_netcdf(run, engine="h5netcdf")
+        read_dataset(source).drop_vars(value).to_netcdf(run, engine="h5netcdf")
         source.unlink()
     else:
         data = bytearray(run_bytes)
@@ -266,7 +266,7 @@ def test_a_damaged_or_resealed_checkpoint_resumes_or_is_refused(checkpoint_bytes
         path.write_bytes(bytes(data))
     else:
         path.write_bytes(checkpoint_bytes)
-        ds = xr.load_dataset(path, engine="h5netcdf")
+        ds = read_dataset(path)
         ds = ds.drop_vars(what) if kind == "drop" else ds.assign_attrs({what: value})
         seal(ds, CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT, _STATE_ATTRIBUTES).to_netcdf(path, engine="h5netcdf")
     try:

@@ -98,7 +98,7 @@ def test_params_json_that_is_not_a_table_is_named():
 
 
 def _edited(run_file, edit):
-    ds = xr.load_dataset(run_file, engine="h5netcdf")
+    ds = read_dataset(run_file)
     return edit(ds.copy())
 
 
@@ -185,7 +185,7 @@ def test_a_study_file_damaged_under_the_same_spec_is_refused(tmp_path):
 
 
 def _resealed(path, edit):
-    ds = edit(xr.load_dataset(path, engine="h5netcdf"))
+    ds = edit(read_dataset(path))
     return seal(ds, CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT, _STATE_ATTRIBUTES)
 
 

@@ -218,7 +218,7 @@ def test_a_study_whose_scheduler_dies_keeps_its_cells_and_resumes(tmp_path, monk
 def _assert_cf_described(ds: xr.Dataset, what: str) -> None:
     for key in ("Conventions", "title", "history", "source", "references", "units_convention"):
         assert ds.attrs.get(key), f"{what}: no {key}"
-    assert ds.attrs["Conventions"] == "CF-1.10" and "Vasiliev" in ds.attrs["references"]
+    assert ds.attrs["Conventions"] == "CF-1.8 CF-1.10" and "Vasiliev" in ds.attrs["references"]
     undescribed = [str(name) for name in ds.variables if not (ds[name].attrs.get("units") and ds[name].attrs.get("long_name"))]
     assert not undescribed, f"{what}: no units or long_name on {undescribed}"
 

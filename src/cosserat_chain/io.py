@@ -595,6 +595,15 @@ SCALES = {
     "energy": "stiffness x length^2, the unit of E1 h^2 and of a moment",
 }
 
+#: The CF versions every file declares: it uses nothing newer than CF-1.8 and meets the rules of both, so that
+#: cfchecks (whose newest release knows CF up to 1.8) and compliance-checker (``cf:1.10``) each find their version.
+CONVENTIONS = "CF-1.8 CF-1.10"
+
+#: The name of the time axis in a file. compliance-checker asks a dimension named "time" for the standard name
+#: "time", whose units are seconds from an epoch; CF itself standardizes no names. The model's time is a number,
+#: so the file names its axis "t", the paper's symbol; :func:`read_dataset` names it "time" again.
+FILE_TIME = "t"
+
 #: How the dimensionless model's units read (every file's ``units_convention`` attribute).
 UNITS_CONVENTION = (
     "Every quantity is a number (units '1', angles 'rad'): the model is dimensionless and takes its units from its "
@@ -723,6 +732,37 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "bending_direct_spread": ("1", "whole chain's moment against the per-bond one, relative"),
 }
 
+#: How a user system's file reads (``--system``): its quantities are in the system's own units, not the chain's.
+SYSTEM_UNITS_CONVENTION = (
+    "Every quantity is a number (units '1') in the units of the system's own parameters and equations; the global "
+    "attribute 'angles' names the generalized coordinates that are angles (in radians)."
+)
+
+#: Long names of the variables of a user system's file (``simulate``, ``orbit`` and ``diagram --system``), for
+#: those its producer did not name.
+SYSTEM_VARIABLES = {
+    "time": "time",
+    "coordinate": "name of a generalized coordinate of the system",
+    "q": "generalized coordinates",
+    "velocity": "generalized velocities dq/dt",
+    "potential_energy": "potential energy of the system",
+    "kinetic_energy": "kinetic energy of the system",
+    "q0": "start of the orbit on its phase plane: coordinates",
+    "v0": "start of the orbit on its phase plane: velocities",
+    "turns": "turns of each coordinate per period",
+    "multiplier_real": "real part of a Floquet multiplier",
+    "multiplier_imag": "imaginary part of a Floquet multiplier",
+    "branch_value": "the continued parameter",
+    "branch_period": "period T of the continued orbit",
+    "branch_max_multiplier": "largest modulus of a non-trivial Floquet multiplier on the continued orbit",
+    "value": "the varied parameter",
+    "starts": "drive where the equilibrium folds (rotation starts)",
+    "stops": "drive where the rotation ends (NaN: not found)",
+    "stops_uncertainty": "uncertainty of stops: the last step of the continuation towards the rotation's end",
+    "open": "1 if the hysteresis loop is open (the rotation stops below where it starts), 0 if not",
+    "end": "how the continued rotation ended",
+}
+
 #: Titles of the files by their ``experiment`` attribute (a simulation has none).
 TITLES = {
     None: "Damped simulation of a discrete Cosserat chain under loads",
@@ -820,12 +860,14 @@ def _command() -> str:
 def describe(dataset: xr.Dataset) -> xr.Dataset:
     """The dataset with the CF-1.10 attributes every file of the package carries (a new Dataset).
 
-    Global: ``Conventions``, ``title``, ``history`` (time, version and the command, its
-    program named without its folder), ``source``, ``references`` (the paper) and
-    ``units_convention``. Every variable and coordinate of :data:`VARIABLES` (also with a
-    ``final_`` or ``diag_`` prefix): ``units`` ("1" or "rad") and ``scale``
-    (:func:`cf_attributes`), which replace any the producer set, and a ``long_name`` where
-    the producer set none. Coordinates get no fill value (CF forbids one); text is
+    Global: ``Conventions`` (:data:`CONVENTIONS`), ``title``, ``history`` (time, version and
+    the command, its program named without its folder), ``source``, ``references`` (the
+    paper; none for a user system's file) and ``units_convention``. Every variable and
+    coordinate of :data:`VARIABLES` (also with a ``final_`` or ``diag_`` prefix): ``units``
+    ("1" or "rad") and ``scale`` (:func:`cf_attributes`), which replace any the producer set,
+    and a ``long_name`` where the producer set none. A user system's file (``experiment``
+    ``system_*``) is in the system's own units: its numbers get ``units = "1"`` and the long
+    names of :data:`SYSTEM_VARIABLES` where the producer set none. Coordinates get no fill value (CF forbids one); text is
     written as character arrays, and a text coordinate of more than one dimension (results
     stacked by :func:`stack_models`) as a data variable, since a CF label has one.
     """
@@ -834,21 +876,31 @@ def describe(dataset: xr.Dataset) -> xr.Dataset:
     dataset = dataset.copy()
     stamp = f"{datetime.now(UTC).isoformat(timespec='seconds')} cosserat-chain {__version__}: {_command()}"
     previous = dataset.attrs.get("history")
+    system = str(dataset.attrs.get("experiment", "")).startswith("system_")
     dataset.attrs.update(
         {
-            "Conventions": "CF-1.10",
+            "Conventions": CONVENTIONS,
             "title": dataset.attrs.get("title") or TITLES.get(dataset.attrs.get("experiment"), "Result of cosserat-chain"),
             "history": stamp if not previous else f"{previous}\n{stamp}",
             "source": f"cosserat-chain {__version__}",
-            "references": REFERENCES,
-            "units_convention": UNITS_CONVENTION,
+            "units_convention": SYSTEM_UNITS_CONVENTION if system else UNITS_CONVENTION,
         }
     )
+    if system:  # a user's system is not the paper's chain
+        dataset.attrs.pop("references", None)
+    else:
+        dataset.attrs["references"] = REFERENCES
     # A label (a text coordinate) has one dimension in CF: one of stacked results becomes a variable.
     labels = [name for name in dataset.coords if name not in dataset.indexes and dataset[name].ndim > 1 and dataset[name].dtype.kind in "USO"]
     dataset = dataset.reset_coords(labels)
     for name, variable in dataset.variables.items():
-        described = _describe_variable(str(name), dataset)
+        if system:
+            variable.attrs.setdefault("long_name", SYSTEM_VARIABLES.get(str(name), str(name)))
+            if variable.dtype.kind in "fcbiu":
+                variable.attrs["units"] = "1"
+            described = None
+        else:
+            described = _describe_variable(str(name), dataset)
         if described is not None:
             attrs = cf_attributes(*described)
             variable.attrs.pop("scale", None)
@@ -884,8 +936,11 @@ def netcdf_image(dataset: xr.Dataset) -> memoryview:
     subclasses of ``str`` (a :class:`~cosserat_chain.status.Status`) are written as plain
     strings: h5netcdf finds no conversion for them. Booleans (such as ``param_periodic``)
     are written as 0 or 1: NetCDF has no boolean type (``params_json`` keeps them as booleans).
+    The time axis is named :data:`FILE_TIME` in the file.
     """
     dataset = describe(dataset)
+    if "time" in dataset.dims and FILE_TIME not in dataset.variables:
+        dataset = dataset.rename({"time": FILE_TIME})
     for attrs in [dataset.attrs, *(variable.attrs for variable in dataset.variables.values())]:
         attrs.update({key: str(value) for key, value in attrs.items() if isinstance(value, str) and type(value) is not str})
         attrs.update({key: int(value) for key, value in attrs.items() if isinstance(value, (bool, np.bool_))})
@@ -978,7 +1033,8 @@ def read_dataset(path: str | Path) -> xr.Dataset:
     The file's structure is opened first in a forked child (:data:`READ_PROBE_SECONDS`), so
     that a damaged file on which the HDF5 library hangs or crashes is refused instead.
     What the file holds is checked by its reader (:func:`cosserat_chain.inputs.check_run`
-    for a run).
+    for a run). The time axis, :data:`FILE_TIME` in the file, is named ``time`` as in the
+    results in memory (a file written before it was renamed reads the same).
 
     Raises
     ------
@@ -1005,7 +1061,8 @@ def read_dataset(path: str | Path) -> xr.Dataset:
     try:
         try:
             with xr.open_dataset(path, engine="h5netcdf") as ds:
-                return ds.load()
+                ds = ds.load()
+            return ds.rename({FILE_TIME: "time"}) if FILE_TIME in ds.dims and "time" not in ds.variables else ds
         except MemoryError:
             raise
         except Exception as err:  # noqa: BLE001 - a damaged file fails in any of h5py's and xarray's errors (KeyError, ...)
