@@ -275,12 +275,12 @@ def test_an_iteration_that_does_not_contract_is_named_and_a_problem_s_own_step_i
         return Evaluation(w.copy(), np.eye(1))
 
     # A tenth of the Newton step each time: max |R| falls only by 0.9 an iteration.
-    slow = newton(linear, np.array([1.0]), tol=1e-12, newton_step=lambda w, ev: -0.1 * ev.residual, contraction=0.5)
+    slow = newton(linear, np.array([1.0]), tol=1e-12, newton_step=lambda w, ev, jacobian: -0.1 * ev.residual, contraction=0.5)
     assert slow.status == Corrector.NOT_CONTRACTING and slow.iterations == 2
     assert slow.w[0] == pytest.approx(0.81, rel=1e-15)
-    assert newton(linear, np.array([1.0]), tol=1e-12, newton_step=lambda w, ev: -0.1 * ev.residual).status == Corrector.STALLED
+    assert newton(linear, np.array([1.0]), tol=1e-12, newton_step=lambda w, ev, jacobian: -0.1 * ev.residual).status == Corrector.STALLED
 
-    def undefined(w, ev):
+    def undefined(w, ev, jacobian):
         raise np.linalg.LinAlgError("no step here")
 
     assert newton(linear, np.array([1.0]), tol=1e-12, newton_step=undefined).status == Corrector.NOT_FINITE

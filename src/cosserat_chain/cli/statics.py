@@ -146,6 +146,7 @@ def critical(
         )
     system_only_or_exit(ctx, ("sets", "vary", "start", "down"))
     from ..experiments.critical import CONFIRM_MOMENT_RTOL, CONFIRM_PHI0_ATOL, MAX_POINTS, TURNS, critical_point
+    from ..numerics.kit import BranchEnd
     from ..numerics.newton import NewtonError
 
     max_points = MAX_POINTS if max_points is None else max_points
@@ -190,7 +191,7 @@ def critical(
                 if r.complete
                 else f"on the traced part (incomplete: {len(r.branch.moment)} points)"
             )
-            if r.branch.stop == "wound":
+            if r.branch.stop == BranchEnd.WOUND:
                 over += f" (the trace stopped: {r.branch.message})"
             if r.confirmation == "closed form":
                 over += ", each at eq. (2)'s closed form M = +-1 / max_j |dphi_j/dM|"
@@ -206,13 +207,13 @@ def critical(
                 f"the {name} branch from rest is still stable after {turns:g} turns of the loaded particle (phi_0 = "
                 f"{r.branch.phi0[-1]:.6g}): its end, and M_c, lie beyond (raise --turns)",
             )
-        if r.branch.stop == "max_points":
+        if r.branch.stop == BranchEnd.MAX_POINTS:
             exit_on(
                 Status.MAX_STEPS,
                 f"the {name} branch used all {max_points} points before the loaded particle turned once: "
                 "M_c is the largest maximum of the traced part (raise --max-points)",
             )
-        if r.branch.stop == "stalled":
+        if r.branch.stop == BranchEnd.STEP_TOO_SMALL:
             exit_on(Status.STEP_TOO_SMALL, f"the {name} branch: {r.branch.message}; M_c is the largest maximum of the traced part")
         if not r.accurate:
             spread = max((f.discrepancy for f in (r.fold, r.first_fold) if f is not None and f.discrepancy is not None), default=math.inf)

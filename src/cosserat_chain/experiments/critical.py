@@ -102,6 +102,7 @@ from ..numerics.continuation import (
     moment_slope,
     require_branch_memory,
 )
+from ..numerics.kit import BranchEnd
 from ..numerics.newton import NewtonError, moment_dof, solve_equilibrium, solve_rotation_controlled
 from ..numerics.stability import static_stability
 from ..params import ChainParams
@@ -260,7 +261,7 @@ class CriticalResult:
     @property
     def budget_reached(self) -> bool:
         """Whether the branch from rest was still stable when the loaded particle had turned ``turns`` times."""
-        return self.turns is not None and self.branch.stop == "phi0_stop" and bool(np.all(self.branch.stable))
+        return self.turns is not None and self.branch.stop == BranchEnd.ANGLE_LIMIT and bool(np.all(self.branch.stable))
 
     @property
     def complete(self) -> bool:
@@ -271,13 +272,13 @@ class CriticalResult:
     @property
     def end(self) -> str | None:
         """How the stable branch from rest ends: "branch_point", "fold", or where it was not seen to end "budget"
-        (``turns`` reached), "max_points" or "stalled" (the trace cut short); None for a model that never loses it (linear)."""
+        (``turns`` reached), "max_points" or "step_too_small" (the trace cut short); None for a model that never loses it (linear)."""
         if self.branch_point is not None:
             return "branch_point"
         if self.first_fold is not None:
             return "fold"
-        if self.branch.stop in ("max_points", "stalled"):
-            return self.branch.stop
+        if self.branch.stop in (BranchEnd.MAX_POINTS, BranchEnd.STEP_TOO_SMALL):
+            return str(self.branch.stop)
         return "budget" if self.budget_reached else None
 
     @property
@@ -371,7 +372,7 @@ class CriticalResult:
             },
             "hopf_points": None if self.hopf is None else [h.as_dict() for h in self.hopf],
             "branch": {
-                "stop": self.branch.stop,
+                "stop": str(self.branch.stop),
                 "message": self.branch.message,
                 "moment": self.branch.moment.tolist(),
                 "phi0": self.branch.phi0.tolist(),
@@ -418,7 +419,7 @@ class CriticalResult:
             {
                 "experiment": "critical_point",
                 "loaded_particle": self.particle,
-                "branch_stop": self.branch.stop,
+                "branch_stop": str(self.branch.stop),
                 "branch_complete": int(self.complete),
                 "end": str(self.end),
                 "onset_particle": "none" if self.onset_particle is None else self.onset_particle,

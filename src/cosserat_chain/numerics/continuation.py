@@ -28,6 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any, NamedTuple
 
 import numpy as np
 import scipy.optimize as so
@@ -46,6 +47,7 @@ from ..memory import FLOAT, require
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, column, n_free, unpack, zeros
+from .kit import BranchEnd, Continuation, Correction, Corrector, Evaluation, Event, continuation, newton
 from .newton import NewtonError, moment_dof, round_off_floor, solve_rotation_controlled
 from .stability import static_stability
 
@@ -196,17 +198,16 @@ class Branch:
     branch_points : list of BranchPoint
         Changes of stability without a fold, in the order passed.
     particle : int
-    stop : str
-        Why the tracing ended: "phi0_stop", "moment_stop", "max_folds" (the
-        requested end), "returned" (the branch came back through the rest state
-        before the loaded particle turned once, as a closed loop does), "wound"
-        (a particle other than the loaded one turned a full turn further than it:
-        the chain rotates there, and the branch repeats its folds as that particle
-        winds on; ``message`` names it),
-        "max_points" (the point budget ran out first) or "stalled" (the corrector
-        failed even at ``min_step``: a point where the branch is not smooth, such as a
-        link of zero length; ``message`` says where): the branch is then incomplete;
-        "given" for the angles of :func:`rotation_branch`.
+    stop : BranchEnd or str
+        Why the tracing ended, in the kit's vocabulary (:class:`~.kit.BranchEnd`, equal to its
+        string): "phi0_stop", "moment_stop", "max_folds" (the requested end), "returned" (the
+        branch came back through the rest state before the loaded particle turned once, as a
+        closed loop does), "wound" (a particle other than the loaded one turned a full turn
+        further than it: the chain rotates there, and the branch repeats its folds as that
+        particle winds on; ``message`` names it), "max_points" (the point budget ran out
+        first) or "step_too_small" (the corrector failed even at ``min_step``: a point where
+        the branch is not smooth, such as a link of zero length; ``message`` says where): the
+        branch is then incomplete; "given" for the angles of :func:`rotation_branch`.
     message : str
         What stopped a stalled or wound branch (empty otherwise).
     state_points : ndarray of int (j,) or None
@@ -229,7 +230,7 @@ class Branch:
     @property
     def complete(self) -> bool:
         """False if the point budget ran out or the corrector stalled before the requested end."""
-        return self.stop not in ("max_points", "stalled")
+        return self.stop not in (BranchEnd.MAX_POINTS, BranchEnd.STEP_TOO_SMALL)
 
     @property
     def stable_end(self) -> BranchPoint | None:
@@ -481,6 +482,581 @@ def default_step(params: ChainParams) -> float:
     return STEP * math.sqrt(n_free(params) / 15)
 
 
+@dataclass(frozen=True)
+class _Stops:
+    """Where :func:`continue_in_moment` stops tracing (its parameters of the same names)."""
+
+    phi0_stop: float
+    phi0_until_unstable: float | None
+    moment_stop: float
+    max_folds: int | None
+
+
+class _Assembled(NamedTuple):
+    """What a corrector's evaluation of the static branch carries beside F + M e: K (None in a chord
+    iteration), the residual's round-off floor and the tolerance it is held to there."""
+
+    k: BandMatrix | None
+    floor: float
+    limit: float
+
+
+@dataclass
+class _Point:
+    """A corrected point of the static branch: w = (q, M), its state, stiffness, the factor of K that
+    solved for its tangent, the turns of the step to it and (once reviewed) its stability.
+
+    Once the next point is kept, only ``index`` is read: the rest is dropped (a long chain's branch
+    keeps thousands of points, each state as large as the chain).
+    """
+
+    z: np.ndarray | None
+    x: np.ndarray | None
+    k: BandMatrix | None
+    factor: BorderedFactor | None
+    tangent: np.ndarray | None
+    check: Any = None
+    index: int = 0
+    iterations: int = 0
+    chord: bool = False
+    turned: float = 0.0
+    turn: float = 0.0
+
+    def drop(self) -> None:
+        self.z = self.x = self.k = self.factor = self.tangent = None
+
+
+class _StaticBranch:
+    """The static branch F(q) + M e = 0, w = (q, M), as a problem of the kit's driver (:func:`~.kit.continuation`).
+
+    The driver steps; this problem takes over the stages where a long chain's branch needs
+    more than the driver's defaults (see :class:`~.kit.ContinuationProblem`):
+
+    * ``correct``: the kit's corrector in chord iterations with the banded factor of the last
+      point, from a start bent along the branch's curvature, then in full Newton from the plain
+      predictor where they fail; a correction that moved far off the predictor jumped (:meth:`_jumped`);
+    * ``review``: a step is retaken shorter where the loaded particle turned by more than
+      :data:`PHI0_STEP` or the tangent by more than :data:`MAX_TURN`, and down to
+      ``refine_step`` towards a crossing of an eigenvalue of K;
+    * ``events`` and ``locate``: a fold where the tangent's M component changes sign (its root
+      along the arclength, Brent's method), a branch point where the index of K changes without
+      it (the root of K's smallest eigenvalue);
+    * ``next_step``: sized for :data:`STEP_TARGET` of the turn limits at the rates of the step taken.
+
+    Every point's moment, angle and stability is kept, and the states of every ``stride``-th point (``max_states``).
+    """
+
+    def __init__(self, params: ChainParams, model: Model, particle: int, *, tol, min_step, max_step, refine_step, stops, max_states, progress):
+        self.params, self.model, self.particle = params, model, particle
+        self.tol, self.min_step, self.max_step, self.refine_step = tol, min_step, max_step, refine_step
+        self.stops, self.max_states, self.progress = stops, max_states, progress
+        self.dof = moment_dof(params, particle)
+        self.nf = n_free(params)
+        self.col = column(params, particle)
+        # A conservative model's symmetric matrix is its stiffness (Model.symmetric_similar):
+        # the stability of a point then reuses the stiffness its corrector assembled.
+        self.reuse_stiffness = model.conservative and type(model).symmetric_similar is Model.symmetric_similar
+        # Inverse iteration at a point starts from the previous point's lowest eigenvector.
+        self.eigenvector = np.zeros(self.nf)
+        # A step shortened on the way to a crossing of an eigenvalue (``resume``: the step from
+        # before), and the arclength within which the crossing lies ahead (``crossing``).
+        self.resume = self.crossing = 0.0
+        self.lost = False  # whether a traced point is unstable: the stable branch from rest has ended
+        self.bend = np.zeros(self.nf + 1)
+        self.folds = 0
+        self.last_step = 0.0  # the last step tried, for the message of a stalled branch
+
+    # The equations and their pieces.
+
+    def residual(self, w: np.ndarray) -> np.ndarray:
+        r = self.model.packed_forces(self.params, w[:-1])
+        r[self.dof] += w[-1]
+        return r
+
+    def stiffness(self, w: np.ndarray) -> BandMatrix:
+        return self.model.stiffness_band(self.params, unpack(self.params, w[:-1]))
+
+    def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
+        """F + M e at w; the Jacobian is the bordered factor of K (only the driver's start asks for it)."""
+        r = self.residual(w)
+        if not jacobian:
+            return Evaluation(r)
+        k = self.stiffness(w)
+        return Evaluation(r, lambda: BorderedFactor(k, self.dof), _Assembled(k, 0.0, 0.0))
+
+    def _unit_tangent(self, factor: BorderedFactor, previous: np.ndarray) -> np.ndarray:
+        """The unit tangent at the point of ``factor``, oriented along ``previous`` (the bordered solve's border)."""
+        rhs = np.zeros(self.nf + 1)
+        rhs[-1] = 1.0
+        t = factor.solve(previous, rhs)
+        return t / euclidean_norm(t)
+
+    def stability(self, x: np.ndarray, k: BandMatrix | None, guess: float | None = None, factor: BorderedFactor | None = None):
+        """The stability of x (``factor``: the tangent's factor of K there, whose inertia is the index)."""
+        if not self.reuse_stiffness:
+            return static_stability(self.params, self.model, x, guess=guess, start=self.eigenvector)
+        index = None if factor is None else factor.negative_eigenvalues
+        return static_stability(self.params, self.model, x, guess=guess, similar=k, start=self.eigenvector, index=index)
+
+    def rest(self) -> _Point:
+        """The branch's first point, the rest state (the driver's start gives its tangent)."""
+        x = zeros(self.params)
+        check = self.stability(x, None)
+        self.y_phi0 = 0.0
+        self.moments, self.angles, self.checks = [0.0], [0.0], [check]
+        self.states, self.kept, self.stride = [x], [0], 1
+        self.previous_state, self.previous_moment = x, 0.0
+        self.last = _Point(None, None, None, None, None, check, check.index)
+        return self.last
+
+    # The stages the driver calls.
+
+    def tangent(self, jacobian: BorderedFactor, previous: np.ndarray | None) -> np.ndarray:
+        """At the start, towards increasing M; after, the candidate's (:meth:`point`)."""
+        if previous is not None:
+            return self.candidate.tangent
+        seed = np.zeros(self.nf + 1)
+        seed[-1] = 1.0
+        self.factor, self.norm = jacobian, infinity_norm(jacobian.stiffness)
+        return self._unit_tangent(jacobian, seed)
+
+    def correct(self, w: np.ndarray, t: np.ndarray, h: float, jacobian) -> Correction:
+        """Chord iterations from the bent predictor, and full Newton from the plain one where they fail."""
+        self.last_step, self.step_tangent = h, t
+        found = self._correct_chord(w, t, h)
+        self.chord = found.converged
+        return found if found.converged else self._correct(w, t, h, self.tol)
+
+    def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> _Point:
+        factor = evaluation.matrix()
+        x = unpack(self.params, w[:-1])
+        t = self._unit_tangent(factor, self.step_tangent)
+        self.candidate = _Point(
+            w,
+            x,
+            evaluation.data.k,
+            factor,
+            t,
+            iterations=iterations,
+            chord=self.chord,
+            turned=abs(x[ROW_INDEX["phi"], self.col] - self.y_phi0),
+            turn=math.acos(min(1.0, abs(dot(t, self.step_tangent)))),
+        )
+        return self.candidate
+
+    def review(self, previous: _Point, candidate: _Point, h: float) -> float | None:
+        """Retake a step whose turns exceed their limits, or that approaches or hides a crossing of an eigenvalue."""
+        if (candidate.turned > PHI0_STEP or candidate.turn > MAX_TURN) and h > self.min_step:
+            return max(self.min_step, h / 2)
+        before = self.checks[-1]
+        check = self.stability(candidate.x, candidate.k, before.critical_eigenvalue, candidate.factor)
+        if abs(check.critical_eigenvalue) <= check.resolution:
+            # An eigenvalue within its round-off (Stability.resolution) has no sign: the
+            # stability and index it gives are noise, and the branch keeps the index last
+            # decided (a clamped-free chain of N = 1000 has its softest eigenvalue at 6e-14,
+            # below its resolution 1.4e-13, computed at -6e-15 at every third point: those
+            # were "unstable", and the stable branch from rest ended at its first point).
+            # A real crossing shows at the next point whose eigenvalue is decided.
+            check = replace(check, index=previous.index, stable=previous.index == 0)
+        falling = check.critical_eigenvalue < 0.5 * before.critical_eigenvalue
+        if falling and before.critical_eigenvalue > 100.0 * check.resolution and h > self.refine_step:
+            # A positive critical eigenvalue falling fast (or through zero): a fold ahead, or a pair of folds
+            # (a small maximum and minimum of M) that a longer step passes with no change
+            # of the index. Approach it in shorter steps (N = 10, a = 0.3, b = 0.1,
+            # E1 = 2, E2 = 0.3 has such a pair within 0.015 rad of phi_0 near 1.0). An
+            # eigenvalue near its round-off (a long chain's softest) is noise: not a sign.
+            # The step from before comes back once the crossing is passed (next_step).
+            self.resume = max(self.resume, h)
+            return max(self.refine_step, h / 2)
+        turns_back = candidate.tangent[-1] * self.step_tangent[-1] < 0
+        unmatched = abs(check.index - previous.index) != 1 if turns_back else check.index != previous.index
+        if unmatched and h > self.refine_step:
+            # An eigenvalue of K crosses zero within this step without the one turn of M
+            # that a single fold shows, or M turns without the one crossing a simple fold
+            # has: more folds (a maximum and a minimum of M that the step passes together)
+            # or a branch point lie in it, or the corrector landed off the branch traced (the
+            # paper's geometry with N = 20, clamped-pinned: a step of 0.05 across a minimum
+            # of M, index 1 at both ends where short steps find 1 before the fold and 2
+            # after it, and the fold's corrector found no point between). Approach the crossing in
+            # steps down to refine_step, so that each fold shows as a turn between points,
+            # then go on with the step from before. The crossing lies within ``crossing`` of
+            # y: the steps bisect towards it (steps of 1/8 that then grew by 1.3 a point
+            # approached it in many short accepted steps).
+            self.resume, self.crossing = max(self.resume, h), h
+            return max(self.refine_step, h / 2)
+        candidate.check, candidate.index = check, check.index
+        return None
+
+    def failed(self, h: float) -> float:
+        """Half the step; the driver ends the branch below ``min_step``."""
+        return h / 2
+
+    def events(self, previous: _Point, candidate: _Point, t_before: np.ndarray, t_after: np.ndarray) -> list[str]:
+        if t_after[-1] * t_before[-1] < 0:
+            return ["fold"]  # M turned between the two points
+        if candidate.index != previous.index and (self.model.conservative or (candidate.index - previous.index) % 2):
+            # Eigenvalues of K through zero at the shortest step without a turn of M: K
+            # singular off a fold, a branch point. (A non-symmetric K's complex pair
+            # crossing changes the count by two and leaves K regular.)
+            return ["branch_point"]
+        return []
+
+    def locate(self, kind: str, w: np.ndarray, t: np.ndarray, h: float, previous: _Point, candidate: _Point, index: int) -> Event:
+        if kind == "fold":
+            self.folds += 1
+            fold = self._fold_between(w, t, h, candidate.z, candidate.tangent[-1], previous.index, candidate.index)
+            return Event(kind, fold, fold.moment, index)
+        point = self._branch_point_between(w, t, h, previous.index, candidate.index, index - 1)
+        return Event(kind, point, point.moment, index, located=point.located)
+
+    def confirm(self, kind: str, point) -> bool:
+        return True  # every fold and branch point is located along the arclength, none is a false alarm
+
+    def next_step(self, h: float, correction: Correction, candidate: _Point) -> float:
+        """Keep the point (:meth:`_keep`) and size the next step."""
+        ds, before = h, self.checks[-1]
+        rising = 0.0 < before.critical_eigenvalue < candidate.check.critical_eigenvalue
+        if self.resume > 0.0 and (candidate.index != before.index or rising):
+            # The refined crossing is passed (the index changed), or the critical eigenvalue
+            # turned back up before zero: the step from before the refinement resumes
+            # (growing back by 1.3 a point took 30 points after each of the 60 folds and
+            # branch points of N = 1000; where it is too long, the turn limits halve it).
+            ds, self.resume, self.crossing = self.resume, 0.0, 0.0
+        elif self.crossing > 0.0:
+            # Short of a crossing known to lie ahead: half the rest of the way, or, where the
+            # arclength's estimate of it is spent without a crossing, on with the step from before.
+            self.crossing -= h
+            if self.crossing > 0.0:
+                ds = max(self.refine_step, self.crossing / 2)
+            else:
+                ds, self.resume, self.crossing = self.resume, 0.0, 0.0
+        self._keep(h, candidate)
+        if self.crossing == 0.0:
+            # The next step is sized for STEP_TARGET of the turn limits at the rate of this one
+            # (growing the step by 1.3 where both turns stayed below half their limits, and
+            # keeping it otherwise, left the loaded particle turning 0.065 rad a step on average:
+            # 2080 points for the turn of N = 1000 where this takes 1709). It grows only where
+            # its corrector needed at most one new factor (full Newton: two iterations).
+            grow = min(
+                STEP_GROWTH,
+                STEP_TARGET * PHI0_STEP / max(candidate.turned, 1e-300),
+                STEP_TARGET * MAX_TURN / max(candidate.turn, 1e-300),
+            )
+            if candidate.iterations > (1 if candidate.chord else 2):
+                grow = min(grow, 1.0)
+            ds = min(self.max_step, max(self.min_step, max(0.5, grow) * ds))
+        return ds
+
+    def _keep(self, taken: float, candidate: _Point) -> None:
+        """The candidate becomes the branch's last point: its records, and the next step's start."""
+        # The tangent's turn per arclength, normal to the new tangent: the next corrector's bent start.
+        bend = (candidate.tangent - self.step_tangent) / taken
+        bend -= dot(bend, candidate.tangent) * candidate.tangent
+        self.bend, self.factor, self.norm = bend, candidate.factor, infinity_norm(candidate.k)
+        self.previous_moment = self.moments[-1]
+        self.y_phi0 = candidate.x[ROW_INDEX["phi"], self.col]
+        self.moments.append(candidate.z[-1])
+        self.angles.append(self.y_phi0)
+        if (len(self.moments) - 1) % self.stride == 0:
+            self.kept.append(len(self.moments) - 1)
+            self.states.append(candidate.x)
+            if self.max_states is not None and len(self.states) > self.max_states:
+                # Every other kept state goes: the points kept stay evenly spaced from rest.
+                self.kept, self.states, self.stride = self.kept[::2], self.states[::2], 2 * self.stride
+        self.checks.append(candidate.check)
+        self.lost = self.lost or not candidate.check.stable
+        self.last.drop()
+        self.last = candidate
+
+    def stop(self, candidate: _Point) -> tuple[BranchEnd, str] | None:
+        stops, x, moment = self.stops, candidate.x, candidate.z[-1]
+        phi = abs(self.y_phi0)
+        angles = np.abs(x[ROW_INDEX["phi"]])
+        lead = int(np.argmax(angles))
+        if self.progress is not None:
+            until = stops.phi0_until_unstable
+            total = until if until is not None and (phi < until or self.lost) else stops.phi0_stop
+            self.progress(min(phi, total), total)
+        end = None
+        if moment * self.previous_moment < 0 and len(self.moments) > 2 and _passes_rest(self.previous_state, x, self.previous_moment, moment):
+            # Back through the rest state: going on would trace the mirrored branch
+            # (x -> -x, M -> -M) and come back here, as a closed loop does.
+            end = (BranchEnd.RETURNED, "")
+        elif phi >= stops.phi0_stop or (stops.phi0_until_unstable is not None and phi >= stops.phi0_until_unstable and self.lost):
+            end = (BranchEnd.ANGLE_LIMIT, "")
+        elif abs(moment) > stops.moment_stop:
+            end = (BranchEnd.LOAD_LIMIT, "")
+        elif stops.max_folds is not None and self.folds >= stops.max_folds:
+            end = (BranchEnd.MAX_FOLDS, "")
+        elif angles[lead] - phi >= 2 * math.pi:
+            # Another particle has turned a full turn further than the loaded one (a pinned end
+            # that turns first: clamped-pinned N = 1, h = 1, a = 0.45, b = 0.1, E1 = 0.5, E2 = 1.5,
+            # sine model): it winds on while phi_0 stays bounded, M repeating its folds (208 in
+            # 5000 points before), and phi0_stop would never come.
+            end = (
+                BranchEnd.WOUND,
+                f"particle {lead - self.params.N} turned by {angles[lead]:.6g} rad, a full turn more than the loaded particle "
+                f"{self.particle} (phi_0 = {self.y_phi0:.6g}): the chain rotates at particle {lead - self.params.N}, and the branch "
+                "beyond repeats its folds as it winds on",
+            )
+        self.previous_state = x
+        return end
+
+    def branch(self, traced: Continuation) -> Branch:
+        """The traced branch with its folds, branch points and end."""
+        message = ""
+        if traced.end == BranchEnd.STEP_TOO_SMALL:
+            # The branch is not smooth here (the nonlinear model's energy has a cone where a
+            # link's length vanishes: two particles' corners meet), or the corrector cannot
+            # follow it. What was traced is kept.
+            message = (
+                f"continuation stalled at M = {self.moments[-1]:.6g}, phi_0 = {self.y_phi0:.6g}: the corrector failed even with "
+                f"step {self.last_step:.3g} (a point where the branch is not smooth, e.g. a link of zero length)"
+            )
+        elif traced.end == BranchEnd.WOUND:
+            message = traced.message
+        folds = [event.point for event in traced.events if event.kind == "fold"]
+        branch = _assemble_branch(self.params, self.model, self.particle, self.moments, self.states, folds, self.checks, traced.end, self.angles)
+        branch.state_points = None if self.stride == 1 else np.array(self.kept)
+        branch.message = message
+        branch.branch_points = [event.point for event in traced.events if event.kind == "branch_point"]
+        return branch
+
+    # The correctors and the searches for folds and branch points.
+
+    def _jumped(self, y: np.ndarray, predicted: np.ndarray, z: np.ndarray, ds: float) -> bool:
+        """Whether the corrector's point z of the step ds from y lies on another part of the branch (or another branch).
+
+        Newton on the plane normal to the tangent can converge to a far part of the branch
+        that crosses the plane: a jump, not a step (one N = 4 chain jumped by 1.6, its
+        state's size, with steps of 0.01). A step's correction is a fraction of the step
+        where the tangent turns by MAX_TURN at most, but an ill-conditioned corrector moves
+        further along the soft directions (the sine model next to its fold at N = 1000: 7
+        times the step, 1e-7 of the state's size): a jump is a correction beyond the step
+        and beyond :data:`JUMP` of the state's size or :data:`JUMP_STEPS` steps, whichever
+        is less (a long chain's state is large: at N = 10^4, 1e-3 of it is 1.25, and
+        corrections of 100 steps passed where the branch winds near M = 0). Steps shorter than ``refine_step``
+        (next to a singular point of the branch, where the corrector moves along the kernel
+        of the bordered Jacobian: a cantilever's branch points) allow :data:`JUMP_SINGULAR`.
+        """
+        size = euclidean_norm(z - predicted)
+        if abs(ds) < self.refine_step:
+            return bool(size > max(abs(ds), JUMP_SINGULAR * (1.0 + euclidean_norm(y))))
+        return bool(size > max(abs(ds), min(JUMP * (1.0 + euclidean_norm(y)), JUMP_STEPS * abs(ds))))
+
+    def _checked(self, corrected: Correction, y: np.ndarray, predicted: np.ndarray, ds: float) -> Correction:
+        if corrected.converged and self._jumped(y, predicted, corrected.w, ds):
+            return replace(corrected, status=Corrector.JUMPED)
+        return corrected
+
+    def _correct(self, y: np.ndarray, tangent: np.ndarray, ds: float, tol: float, max_iter: int = 8) -> Correction:
+        """The point of the branch on the plane through y + ds tangent normal to tangent, by full Newton
+        (the kit's corrector, at most ``max_iter`` evaluations); ``data`` of its evaluation holds K there.
+
+        With more iterations than a step's (``max_iter`` > 8: locating a fold or a branch point),
+        a residual that no longer falls within :data:`STALL` times the round-off floor has
+        converged (one random chain's branch point stalled at four, another at twelve times
+        the floor), and each step is halved while it raises the residual above where it was
+        and above STALL times the floor (near the floor the residual is noise): the bordered
+        Jacobian is nearly singular there, and a full Newton step from a point already close
+        can throw the iterate off the branch (a cantilever's branch point, N = 3: from a
+        residual of 1e-10 to 2e-3, then a jump).
+        """
+        predicted = y + ds * tangent
+        locating = max_iter > 8
+        last = [math.inf]
+
+        def bordered(w: np.ndarray) -> np.ndarray:
+            return np.append(self.residual(w), dot(tangent, w - predicted))
+
+        def evaluate(w: np.ndarray, jacobian: bool) -> Evaluation:
+            r = bordered(w)
+            k = self.stiffness(w)
+            floor = round_off_floor(k, w[:-1])
+            return Evaluation(r, lambda: BorderedFactor(k, self.dof), _Assembled(k, floor, max(tol * (1.0 + abs(w[-1])), floor)))
+
+        def converged(evaluation: Evaluation, size: float) -> bool:
+            stalled = locating and size <= STALL * evaluation.data.floor and size > 0.5 * last[0]
+            last[0] = size
+            return size <= evaluation.data.limit or stalled
+
+        def step(w: np.ndarray, evaluation: Evaluation, factor: BorderedFactor) -> np.ndarray:
+            update = factor.solve(tangent, evaluation.residual)
+            if locating:
+                bound = max(np.max(np.abs(evaluation.residual)), STALL * evaluation.data.floor)
+                for _ in range(MAX_HALVINGS * 4):
+                    trial = w - update
+                    if np.max(np.abs(bordered(trial))) <= bound:
+                        break
+                    update = 0.5 * update
+            return -update
+
+        corrected = newton(evaluate, predicted, converged=converged, newton_step=step, max_iterations=max_iter - 1, divergence=None)
+        return self._checked(corrected, y, predicted, ds)
+
+    def _correct_chord(self, y: np.ndarray, tangent: np.ndarray, ds: float) -> Correction:
+        """:meth:`_correct` in chord iterations with the last point's factor, from the predictor bent by ``bend``.
+
+        Newton with the Jacobian kept (one residual and one O(n w) solve instead of an
+        assembly of K and an O(n w^2) elimination) while each iteration shrinks the
+        residual by :data:`CHORD_CONTRACTION` at least, and factored anew at the iterate
+        otherwise (a long chain's soft modes make the chord contract slowly). Its iterations
+        count the factors. The round-off floor takes K's norm at the last factor.
+
+        The iterations start from the predictor bent by ``bend``, the change of the unit
+        tangent per arclength over the step before, normal to the tangent (a second-order
+        predictor): at N = 1000 the iterations are far from Newton's quadratic regime along
+        the soft modes (a fresh factor shrinks the residual only 4-6 times), and the bent
+        start took 7.2 residuals and 2.9 factors a point where the tangent's took 9.1 and 3.6.
+        The plane of the step (and the jump test) stays that of the tangent's predictor.
+
+        A step with a fresh factor that raises the residual above :data:`CHORD_DIVERGED` times
+        the start's has left Newton's basin (the bent start on the long steps of N = 10^4,
+        where this corrector went on refactoring a diverging iterate, to residuals of 1e5-1e9,
+        for all its iterations in 192 of its first 318 steps: twice the time of the turn):
+        full Newton from the plain predictor takes over. Not at the first rise: an iterate
+        that rises a little and comes back is on its way (N = 20, clamped-pinned, whose full
+        Newton from the predictor went back along the branch).
+        """
+        predicted = y + ds * tangent
+        kept = [self.factor, self.norm]  # the factor in use and its K's norm
+
+        def evaluate(w: np.ndarray, jacobian: bool) -> Evaluation:
+            r = np.append(self.residual(w), dot(tangent, w - predicted))
+            floor = round_off_floor(None, w[:-1], norm=kept[1])
+            data = _Assembled(self.stiffness(w) if jacobian else None, floor, max(self.tol * (1.0 + abs(w[-1])), floor))
+            return Evaluation(r, (lambda: BorderedFactor(data.k, self.dof)) if jacobian else None, data)
+
+        def step(w: np.ndarray, evaluation: Evaluation, factor: BorderedFactor) -> np.ndarray:
+            if factor is not kept[0]:
+                kept[0], kept[1] = factor, infinity_norm(factor.stiffness)
+            return -factor.solve(tangent, evaluation.residual, refine=0)
+
+        corrected = newton(
+            evaluate,
+            predicted + (0.5 * ds * ds) * self.bend,
+            converged=lambda evaluation, size: size <= evaluation.data.limit,
+            max_iterations=CHORD_ITERATIONS - 1,
+            divergence=None,
+            chord=CHORD_CONTRACTION,
+            jacobian0=self.factor,
+            blowup=CHORD_DIVERGED,
+            newton_step=step,
+        )
+        if corrected.converged:
+            corrected = replace(corrected, iterations=corrected.jacobians)
+        return self._checked(corrected, y, predicted, ds)
+
+    def _solved(self, y: np.ndarray, tangent: np.ndarray, s: float, what: str) -> Correction:
+        """The branch's point at arclength s from y, to the fold's tolerance (more iterations than a step's)."""
+        found = self._correct(y, tangent, s, FOLD_TOL, FOLD_ITERATIONS)
+        if not found.converged:
+            raise NewtonError(f"the corrector failed at arclength {s:.3g} from M={y[-1]:.10g} while locating a {what}", unpack(self.params, y[:-1]))
+        return found
+
+    def _fold_between(self, y: np.ndarray, tangent: np.ndarray, ds: float, end: np.ndarray, end_slope: float, before: int, after: int) -> Fold:
+        """The fold between y and its successor ``end`` at arclength ds: where the tangent's M component vanishes.
+
+        ``before``, ``after``: the index of K at y and at ``end``.
+
+        Along the arclength, not in phi_0: a branch whose phi_0 turns back near a fold
+        is no function of phi_0 there. The bracket's ends are the two points whose
+        tangents showed the turn (``end_slope`` the M component at ``end``): solved anew at
+        ds to the fold's tolerance, a fold within round-off of the end had the slope's
+        sign of the start there (N = 10^4), and there was no bracket.
+        """
+        cache: dict[float, np.ndarray] = {}
+
+        def slope(s: float) -> float:
+            if s == 0.0:
+                return tangent[-1]
+            if s == ds:
+                cache[s] = end
+                return end_slope
+            # More iterations than a step takes: at a fold that is not simple (a cantilever's
+            # free half turned to 3 pi / 2 under the sine model, where the bordered Jacobian
+            # is singular) Newton converges only linearly, halving the error each time.
+            # Newton starts from the predicted point, not from the nearest solved one: at a
+            # fold that is not simple the root's position hangs on where Newton starts
+            # (a cantilever's phi_0 at its fold moved by 1e-8 with a warm start).
+            found = self._solved(y, tangent, s, "fold")
+            cache[s] = found.w
+            return self._unit_tangent(found.evaluation.matrix(), tangent)[-1]
+
+        # To 1e-12 of the arclength (of the step beyond unit length): within four or five
+        # evaluations the slope is at its round-off (1e-15 at N = 1000, with a random sign),
+        # and Brent's method went on bisecting that noise to 1e-15, 15 evaluations a fold.
+        s_fold = so.brentq(slope, 0.0, ds, xtol=1e-12 * max(1.0, ds), rtol=4 * np.finfo(float).eps)
+        point = cache.get(s_fold)
+        if point is None:
+            slope(s_fold)
+            point = cache[s_fold]
+        x = unpack(self.params, point[:-1])
+        # At a fold the branch's tangent is K's null vector (its M component vanishes): the mode that turns.
+        mode = unpack(self.params, self._unit_tangent(BorderedFactor(self.stiffness(point), self.dof), tangent)[:-1])
+        return Fold(
+            moment=float(point[-1]),
+            phi0=float(x[ROW_INDEX["phi"], self.col]),
+            x=x,
+            particle=self.particle,
+            maximum=bool(tangent[-1] > 0),
+            index_before=before,
+            index_after=after,
+            mode_particle=_turning_particle(self.params, mode),
+        )
+
+    def _branch_point_between(self, y: np.ndarray, tangent: np.ndarray, ds: float, before: int, after: int, after_point: int) -> BranchPoint:
+        """Where the smallest eigenvalue of K vanishes between y and its successor at arclength ds (no fold between).
+
+        Where the corrector fails inside the step (K singular there makes its Newton
+        iterations stall on some chains: clamped-free random geometries), the point is
+        the solved one of the tightest sign change found so far, with ``located`` False
+        and ``bracket`` the arclength it is known within, rather than no result at all.
+        """
+        evaluated: dict[float, tuple[np.ndarray, float]] = {}
+
+        def smallest(s: float) -> float:
+            if s > 0.0:
+                found = self._solved(y, tangent, s, "branch point")
+                z, k = found.w, found.evaluation.data.k
+            else:
+                z, k = y, None
+            value = self.stability(unpack(self.params, z[:-1]), k).critical_eigenvalue
+            evaluated[s] = (z, value)
+            return value
+
+        low = smallest(0.0)
+        try:
+            high = smallest(ds)
+            # The crossing eigenvalue is the smallest one only where the other side is stable;
+            # between two unstable states (no sign change of the smallest) the step's end is kept.
+            s_point = so.brentq(smallest, 0.0, ds, xtol=1e-13 * max(1.0, ds)) if low * high < 0 else ds
+            if s_point not in evaluated:
+                smallest(s_point)
+            point, located, bracket = evaluated[s_point][0], low * high < 0, 0.0 if low * high < 0 else ds
+        except NewtonError:
+            keys = sorted(evaluated)
+            pairs = [(b - a, a, b) for a, b in zip(keys, keys[1:]) if evaluated[a][1] * evaluated[b][1] <= 0]
+            width, a, b = min(pairs) if pairs else (ds, keys[-1], keys[-1])
+            s_point = a if abs(evaluated[a][1]) <= abs(evaluated[b][1]) else b
+            point, located, bracket = evaluated[s_point][0], False, width
+        x = unpack(self.params, point[:-1])
+        mode = self.eigenvector.copy()
+        static_stability(self.params, self.model, x, start=mode)  # leaves K's softest eigenvector (of its symmetric similar) in ``mode``
+        return BranchPoint(
+            float(point[-1]),
+            float(x[ROW_INDEX["phi"], self.col]),
+            x,
+            self.particle,
+            before,
+            after,
+            after_point,
+            located,
+            bracket,
+            _turning_particle(self.params, unpack(self.params, mode)),
+        )
+
+
 def continue_in_moment(
     params: ChainParams,
     model: str | Model,
@@ -600,423 +1176,25 @@ def continue_in_moment(
     if max_states is not None and max_states < 2:
         raise ValueError(f"max_states must be at least 2 (the states kept of the branch), got {max_states!r}")
     require_branch_memory(params, max_points, max_states)
-    dof = moment_dof(params, particle)
-    nf = n_free(params)
-    y = np.zeros(nf + 1)  # (q, M)
-    tangent = np.zeros(nf + 1)
-    tangent[-1] = 1.0
-
-    def residual(y: np.ndarray) -> np.ndarray:
-        r = model.packed_forces(params, y[:-1])
-        r[dof] += y[-1]
-        return r
-
-    def stiffness(y: np.ndarray) -> BandMatrix:
-        return model.stiffness_band(params, unpack(params, y[:-1]))
-
-    def new_tangent(y: np.ndarray, previous: np.ndarray, k: BandMatrix | None = None) -> tuple[np.ndarray, BorderedFactor]:
-        """The unit tangent at y oriented along ``previous``, and the factor of K(y) that solved for it."""
-        rhs = np.zeros(nf + 1)
-        rhs[-1] = 1.0
-        factor = BorderedFactor(stiffness(y) if k is None else k, dof)
-        t = factor.solve(previous, rhs)
-        return t / euclidean_norm(t), factor
-
-    # A conservative model's symmetric matrix is its stiffness (Model.symmetric_similar):
-    # the stability of a point then reuses the stiffness its corrector assembled.
-    reuse_stiffness = model.conservative and type(model).symmetric_similar is Model.symmetric_similar
-
-    # Inverse iteration at a point starts from the previous point's lowest eigenvector.
-    eigenvector = np.zeros(nf)
-
-    def stability(x: np.ndarray, k: BandMatrix | None, guess: float | None = None, factor: BorderedFactor | None = None):
-        """The stability of x (``factor``: the tangent's factor of K there, whose inertia is the index)."""
-        if not reuse_stiffness:
-            return static_stability(params, model, x, guess=guess, start=eigenvector)
-        index = None if factor is None else factor.negative_eigenvalues
-        return static_stability(params, model, x, guess=guess, similar=k, start=eigenvector, index=index)
-
-    def jumped(y: np.ndarray, predicted: np.ndarray, z: np.ndarray, ds: float) -> bool:
-        """Whether the corrector's point z of the step ds from y lies on another part of the branch (or another branch).
-
-        Newton on the plane normal to the tangent can converge to a far part of the branch
-        that crosses the plane: a jump, not a step (one N = 4 chain jumped by 1.6, its
-        state's size, with steps of 0.01). A step's correction is a fraction of the step
-        where the tangent turns by MAX_TURN at most, but an ill-conditioned corrector moves
-        further along the soft directions (the sine model next to its fold at N = 1000: 7
-        times the step, 1e-7 of the state's size): a jump is a correction beyond the step
-        and beyond :data:`JUMP` of the state's size or :data:`JUMP_STEPS` steps, whichever
-        is less (a long chain's state is large: at N = 10^4, 1e-3 of it is 1.25, and
-        corrections of 100 steps passed where the branch winds near M = 0). Steps shorter than ``refine_step``
-        (next to a singular point of the branch, where the corrector moves along the kernel
-        of the bordered Jacobian: a cantilever's branch points) allow :data:`JUMP_SINGULAR`.
-        """
-        size = euclidean_norm(z - predicted)
-        if abs(ds) < refine_step:
-            return bool(size > max(abs(ds), JUMP_SINGULAR * (1.0 + euclidean_norm(y))))
-        return bool(size > max(abs(ds), min(JUMP * (1.0 + euclidean_norm(y)), JUMP_STEPS * abs(ds))))
-
-    def correct(y: np.ndarray, tangent: np.ndarray, ds: float, tol: float, max_iter: int = 8) -> tuple[np.ndarray, int, BandMatrix] | None:
-        """The point of the branch on the plane through y + ds tangent normal to tangent, its iterations
-        and stiffness (None: no convergence)."""
-        predicted = y + ds * tangent
-        z = predicted.copy()
-        previous = math.inf
-        for iterations in range(max_iter):
-            r = np.append(residual(z), dot(tangent, z - predicted))
-            k = stiffness(z)
-            floor = round_off_floor(k, z[:-1])
-            size = np.max(np.abs(r))
-            # Locating a fold or a branch point (more iterations than a step), a residual
-            # that no longer falls within STALL times the floor is the round-off itself (one
-            # random chain's branch point stalled at four, another at twelve times the floor).
-            stalled = max_iter > 8 and size <= STALL * floor and size > 0.5 * previous
-            previous = size
-            if size <= max(tol * (1.0 + abs(z[-1])), floor) or stalled:
-                if jumped(y, predicted, z, ds):
-                    return None
-                return z, iterations, k
-            update = BorderedFactor(k, dof).solve(tangent, r)
-            if max_iter > 8:
-                # Locating a fold or branch point (more iterations than a step): the bordered
-                # Jacobian is nearly singular there, and a full Newton step from a point
-                # already close can throw the iterate off the branch (a cantilever's branch
-                # point, N = 3: from a residual of 1e-10 to 2e-3, then a jump). Halve the
-                # step while it raises the residual above where it was and above STALL times
-                # the round-off floor (near the floor the residual is noise).
-                bound = max(size, STALL * floor)
-                for _ in range(MAX_HALVINGS * 4):
-                    trial = z - update
-                    if np.max(np.abs(np.append(residual(trial), dot(tangent, trial - predicted)))) <= bound:
-                        break
-                    update = 0.5 * update
-            z = z - update
-            if not np.all(np.isfinite(z)):
-                return None
-        return None
-
-    def correct_chord(
-        y: np.ndarray, tangent: np.ndarray, ds: float, tol: float, factor: BorderedFactor, norm: float, bend: np.ndarray
-    ) -> tuple[np.ndarray, int, BandMatrix] | None:
-        """:func:`correct` reusing a factor of the Jacobian while it contracts (``factor`` at y, ``norm`` its ||K||_inf).
-
-        Newton with the Jacobian kept (a chord iteration: one residual and one O(n w) solve
-        instead of an assembly of K and an O(n w^2) elimination) while each iteration
-        shrinks the residual by :data:`CHORD_CONTRACTION` at least, and factored anew at
-        the iterate otherwise (a long chain's soft modes make the chord contract slowly).
-        Returns as :func:`correct`, the iterations counting the factors (one per full Newton
-        iteration). The round-off floor takes K's norm at the last factor.
-
-        The iterations start from the predictor bent by ``bend``, the change of the unit
-        tangent per arclength over the step before, normal to the tangent (a second-order
-        predictor): at N = 1000 the iterations are far from Newton's quadratic regime along
-        the soft modes (a fresh factor shrinks the residual only 4-6 times), and the bent
-        start took 7.2 residuals and 2.9 factors a point where the tangent's took 9.1 and 3.6.
-        The plane of the step (and the jump test) stays that of the tangent's predictor.
-        """
-        predicted = y + ds * tangent
-        z = predicted + (0.5 * ds * ds) * bend
-        previous = math.inf
-        factors = 0
-        fresh = False
-        first = None
-        for _ in range(CHORD_ITERATIONS):
-            r = np.append(residual(z), dot(tangent, z - predicted))
-            size = np.max(np.abs(r))
-            if size <= max(tol * (1.0 + abs(z[-1])), round_off_floor(None, z[:-1], norm=norm)):
-                if jumped(y, predicted, z, ds):
-                    return None
-                return z, factors, stiffness(z)
-            first = size if first is None else first
-            if fresh and size > CHORD_DIVERGED * first:
-                # A Newton step with a fresh factor that raised the residual far above the
-                # start's: the iterate left Newton's basin (the bent start on the long steps of
-                # N = 10^4, where this corrector went on refactoring a diverging iterate, to
-                # residuals of 1e5-1e9, for all its iterations in 192 of its first 318 steps:
-                # twice the time of the turn). Full Newton from the plain predictor takes over.
-                # Not at the first rise: an iterate that rises a little and comes back is on
-                # its way (N = 20, clamped-pinned, whose full Newton from the predictor went
-                # back along the branch).
-                return None
-            fresh = not size < CHORD_CONTRACTION * previous
-            if fresh:
-                k = stiffness(z)
-                factor, norm = BorderedFactor(k, dof), infinity_norm(k)
-                factors += 1
-            previous = size
-            z = z - factor.solve(tangent, r, refine=0)
-            if not np.all(np.isfinite(z)):
-                return None
-        return None
-
-    def fold_between(y: np.ndarray, tangent: np.ndarray, ds: float, end: np.ndarray, end_slope: float, before: int, after: int) -> Fold:
-        """The fold between y and its successor ``end`` at arclength ds: where the tangent's M component vanishes.
-
-        ``before``, ``after``: the index of K at y and at ``end``.
-
-        Along the arclength, not in phi_0: a branch whose phi_0 turns back near a fold
-        is no function of phi_0 there. The bracket's ends are the two points whose
-        tangents showed the turn (``end_slope`` the M component at ``end``): solved anew at
-        ds to the fold's tolerance, a fold within round-off of the end had the slope's
-        sign of the start there (N = 10^4), and there was no bracket.
-        """
-
-        def slope(s: float) -> float:
-            if s == 0.0:
-                return tangent[-1]
-            if s == ds:
-                cache[s] = end
-                return end_slope
-            # More iterations than a step takes: at a fold that is not simple (a cantilever's
-            # free half turned to 3 pi / 2 under the sine model, where the bordered Jacobian
-            # is singular) Newton converges only linearly, halving the error each time.
-            # Newton starts from the predicted point, not from the nearest solved one: at a
-            # fold that is not simple the root's position hangs on where Newton starts
-            # (a cantilever's phi_0 at its fold moved by 1e-8 with a warm start).
-            found = correct(y, tangent, s, FOLD_TOL, FOLD_ITERATIONS)
-            if found is None:
-                raise NewtonError(
-                    f"the corrector failed at arclength {s:.3g} from M={y[-1]:.10g} while locating a fold",
-                    unpack(params, y[:-1]),
-                )
-            point, _, k = found
-            cache[s] = point
-            return new_tangent(point, tangent, k)[0][-1]
-
-        cache: dict[float, np.ndarray] = {}
-        # To 1e-12 of the arclength (of the step beyond unit length): within four or five
-        # evaluations the slope is at its round-off (1e-15 at N = 1000, with a random sign),
-        # and Brent's method went on bisecting that noise to 1e-15, 15 evaluations a fold.
-        s_fold = so.brentq(slope, 0.0, ds, xtol=1e-12 * max(1.0, ds), rtol=4 * np.finfo(float).eps)
-        point = cache.get(s_fold)
-        if point is None:
-            slope(s_fold)
-            point = cache[s_fold]
-        x = unpack(params, point[:-1])
-        # At a fold the branch's tangent is K's null vector (its M component vanishes): the mode that turns.
-        mode = unpack(params, new_tangent(point, tangent)[0][:-1])
-        return Fold(
-            moment=float(point[-1]),
-            phi0=float(x[ROW_INDEX["phi"], column(params, particle)]),
-            x=x,
-            particle=particle,
-            maximum=bool(tangent[-1] > 0),
-            index_before=before,
-            index_after=after,
-            mode_particle=_turning_particle(params, mode),
-        )
-
-    def branch_point_between(y: np.ndarray, tangent: np.ndarray, ds: float, before: int, after: int) -> BranchPoint:
-        """Where the smallest eigenvalue of K vanishes between y and its successor at arclength ds (no fold between).
-
-        Where the corrector fails inside the step (K singular there makes its Newton
-        iterations stall on some chains: clamped-free random geometries), the point is
-        the solved one of the tightest sign change found so far, with ``located`` False
-        and ``bracket`` the arclength it is known within, rather than no result at all.
-        """
-        evaluated: dict[float, tuple[np.ndarray, float]] = {}
-
-        def smallest(s: float) -> float:
-            found = correct(y, tangent, s, FOLD_TOL, FOLD_ITERATIONS) if s > 0.0 else (y, 0, None)
-            if found is None:
-                raise NewtonError(
-                    f"the corrector failed at arclength {s:.3g} from M={y[-1]:.10g} while locating a branch point",
-                    unpack(params, y[:-1]),
-                )
-            value = stability(unpack(params, found[0][:-1]), found[2]).critical_eigenvalue
-            evaluated[s] = (found[0], value)
-            return value
-
-        low = smallest(0.0)
-        try:
-            high = smallest(ds)
-            # The crossing eigenvalue is the smallest one only where the other side is stable;
-            # between two unstable states (no sign change of the smallest) the step's end is kept.
-            s_point = so.brentq(smallest, 0.0, ds, xtol=1e-13 * max(1.0, ds)) if low * high < 0 else ds
-            if s_point not in evaluated:
-                smallest(s_point)
-            point, located, bracket = evaluated[s_point][0], low * high < 0, 0.0 if low * high < 0 else ds
-        except NewtonError:
-            keys = sorted(evaluated)
-            pairs = [(b - a, a, b) for a, b in zip(keys, keys[1:]) if evaluated[a][1] * evaluated[b][1] <= 0]
-            width, a, b = min(pairs) if pairs else (ds, keys[-1], keys[-1])
-            s_point = a if abs(evaluated[a][1]) <= abs(evaluated[b][1]) else b
-            point, located, bracket = evaluated[s_point][0], False, width
-        x = unpack(params, point[:-1])
-        phi0 = float(x[ROW_INDEX["phi"], column(params, particle)])
-        mode = eigenvector.copy()
-        static_stability(params, model, x, start=mode)  # leaves K's softest eigenvector (of its symmetric similar) in ``mode``
-        return BranchPoint(
-            float(point[-1]),
-            phi0,
-            x,
-            particle,
-            before,
-            after,
-            len(moments) - 1,
-            located,
-            bracket,
-            _turning_particle(params, unpack(params, mode)),
-        )
-
-    tangent, factor = new_tangent(y, tangent)
-    norm = infinity_norm(factor.stiffness)
-    moments, states, folds, branch_points = [0.0], [zeros(params)], [], []
-    angles_traced, kept, stride, previous_state = [0.0], [0], 1, states[0]
-    checks = [stability(states[0], None)]
-    index = checks[0].index
-    col = column(params, particle)
-    y_phi0 = 0.0
-    ds, resume, crossing = step, 0.0, 0.0
-    stop, message = "max_points", ""
-    lost = False  # whether a traced point is unstable: the stable branch from rest has ended
-    previous_moment = 0.0
-    bend = np.zeros(nf + 1)
-    while len(moments) < max_points:
-        found = correct_chord(y, tangent, ds, tol, factor, norm, bend)
-        chord = found is not None
-        if found is None:
-            found = correct(y, tangent, ds, tol)
-        if found is None:
-            ds /= 2
-            if ds < min_step:
-                # The branch is not smooth here (the nonlinear model's energy has a cone
-                # where a link's length vanishes: two particles' corners meet), or the
-                # corrector cannot follow it. What was traced is kept.
-                stop = "stalled"
-                message = (
-                    f"continuation stalled at M = {y[-1]:.6g}, phi_0 = {y_phi0:.6g}: the corrector failed even with step "
-                    f"{ds * 2:.3g} (a point where the branch is not smooth, e.g. a link of zero length)"
-                )
-                break
-            continue
-        z, iterations, k = found
-        x = unpack(params, z[:-1])
-        turned = abs(x[ROW_INDEX["phi"], col] - y_phi0)
-        next_tangent, next_factor = new_tangent(z, tangent, k)
-        turn = math.acos(min(1.0, abs(dot(next_tangent, tangent))))
-        if (turned > PHI0_STEP or turn > MAX_TURN) and ds > min_step:
-            ds = max(min_step, ds / 2)
-            continue
-        check = stability(x, k, checks[-1].critical_eigenvalue, next_factor)
-        if abs(check.critical_eigenvalue) <= check.resolution:
-            # An eigenvalue within its round-off (Stability.resolution) has no sign: the
-            # stability and index it gives are noise, and the branch keeps the index last
-            # decided (a clamped-free chain of N = 1000 has its softest eigenvalue at 6e-14,
-            # below its resolution 1.4e-13, computed at -6e-15 at every third point: those
-            # were "unstable", and the stable branch from rest ended at its first point).
-            # A real crossing shows at the next point whose eigenvalue is decided.
-            check = replace(check, index=index, stable=index == 0)
-        falling = check.critical_eigenvalue < 0.5 * checks[-1].critical_eigenvalue
-        if falling and checks[-1].critical_eigenvalue > 100.0 * check.resolution and ds > refine_step:
-            # A positive critical eigenvalue falling fast (or through zero): a fold ahead, or a pair of folds
-            # (a small maximum and minimum of M) that a longer step passes with no change
-            # of the index. Approach it in shorter steps (N = 10, a = 0.3, b = 0.1,
-            # E1 = 2, E2 = 0.3 has such a pair within 0.015 rad of phi_0 near 1.0). An
-            # eigenvalue near its round-off (a long chain's softest) is noise: not a sign.
-            # The step from before comes back once the crossing is passed (below).
-            resume = max(resume, ds)
-            ds = max(refine_step, ds / 2)
-            continue
-        now_index = check.index
-        turns_back = next_tangent[-1] * tangent[-1] < 0
-        unmatched = abs(now_index - index) != 1 if turns_back else now_index != index
-        if unmatched and ds > refine_step:
-            # An eigenvalue of K crosses zero within this step without the one turn of M
-            # that a single fold shows, or M turns without the one crossing a simple fold
-            # has: more folds (a maximum and a minimum of M that the step passes together)
-            # or a branch point lie in it, or the corrector landed off the branch traced (the
-            # paper's geometry with N = 20, clamped-pinned: a step of 0.05 across a minimum
-            # of M, index 1 at both ends where short steps find 1 before the fold and 2
-            # after it, and the fold's corrector found no point between). Approach the crossing in
-            # steps down to refine_step, so that each fold shows as a turn between points,
-            # then go on with the step from before. The crossing lies within ``crossing`` of
-            # y: the steps bisect towards it (steps of 1/8 that then grew by 1.3 a point
-            # approached it in many short accepted steps).
-            resume, crossing = max(resume, ds), ds
-            ds = max(refine_step, ds / 2)
-            continue
-        taken = ds  # the step from y to z (the step below may resume a longer one)
-        rising = 0.0 < checks[-1].critical_eigenvalue < check.critical_eigenvalue
-        if resume > 0.0 and (now_index != index or rising):
-            # The refined crossing is passed (the index changed), or the critical eigenvalue
-            # turned back up before zero: the step from before the refinement resumes
-            # (growing back by 1.3 a point took 30 points after each of the 60 folds and
-            # branch points of N = 1000; where it is too long, the turn limits halve it).
-            ds, resume, crossing = resume, 0.0, 0.0
-        elif crossing > 0.0:
-            # Short of a crossing known to lie ahead: half the rest of the way, or, where the
-            # arclength's estimate of it is spent without a crossing, on with the step from before.
-            crossing -= taken
-            ds, resume, crossing = (max(refine_step, crossing / 2), resume, crossing) if crossing > 0.0 else (resume, 0.0, 0.0)
-        if turns_back:
-            # M turned between the two points: a fold, located along the arc.
-            folds.append(fold_between(y, tangent, taken, z, next_tangent[-1], index, now_index))
-        elif now_index != index and (model.conservative or (now_index - index) % 2):
-            # Eigenvalues of K through zero at the shortest step without a turn of M: K
-            # singular off a fold, a branch point. (A non-symmetric K's complex pair
-            # crossing changes the count by two and leaves K regular.)
-            branch_points.append(branch_point_between(y, tangent, taken, index, now_index))
-        index = now_index
-        # The tangent's turn per arclength, normal to the new tangent: the next corrector's bent start.
-        bend = (next_tangent - tangent) / taken
-        bend -= dot(bend, next_tangent) * next_tangent
-        tangent, factor, norm = next_tangent, next_factor, infinity_norm(k)
-        previous_moment = y[-1]
-        y = z
-        y_phi0 = x[ROW_INDEX["phi"], col]
-        moments.append(y[-1])
-        angles_traced.append(y_phi0)
-        if (len(moments) - 1) % stride == 0:
-            kept.append(len(moments) - 1)
-            states.append(x)
-            if max_states is not None and len(states) > max_states:
-                # Every other kept state goes: the points kept stay evenly spaced from rest.
-                kept, states, stride = kept[::2], states[::2], 2 * stride
-        checks.append(check)
-        lost = lost or not check.stable
-        phi = abs(y_phi0)
-        angles = np.abs(x[ROW_INDEX["phi"]])
-        lead = int(np.argmax(angles))
-        if progress is not None:
-            total = phi0_until_unstable if phi0_until_unstable is not None and (phi < phi0_until_unstable or lost) else phi0_stop
-            progress(min(phi, total), total)
-        if y[-1] * previous_moment < 0 and len(moments) > 2 and _passes_rest(previous_state, x, previous_moment, y[-1]):
-            # Back through the rest state: going on would trace the mirrored branch
-            # (x -> -x, M -> -M) and come back here, as a closed loop does.
-            stop = "returned"
-        elif phi >= phi0_stop or (phi0_until_unstable is not None and phi >= phi0_until_unstable and lost):
-            stop = "phi0_stop"
-        elif abs(y[-1]) > moment_stop:
-            stop = "moment_stop"
-        elif max_folds is not None and len(folds) >= max_folds:
-            stop = "max_folds"
-        elif angles[lead] - phi >= 2 * math.pi:
-            # Another particle has turned a full turn further than the loaded one (a pinned end
-            # that turns first: clamped-pinned N = 1, h = 1, a = 0.45, b = 0.1, E1 = 0.5, E2 = 1.5,
-            # sine model): it winds on while phi_0 stays bounded, M repeating its folds (208 in
-            # 5000 points before), and phi0_stop would never come.
-            stop = "wound"
-            message = (
-                f"particle {lead - params.N} turned by {angles[lead]:.6g} rad, a full turn more than the loaded particle "
-                f"{particle} (phi_0 = {y_phi0:.6g}): the chain rotates at particle {lead - params.N}, and the branch beyond "
-                "repeats its folds as it winds on"
-            )
-        previous_state = x
-        if stop != "max_points":
-            break
-        if crossing == 0.0:
-            # The next step is sized for STEP_TARGET of the turn limits at the rate of this one
-            # (growing the step by 1.3 where both turns stayed below half their limits, and
-            # keeping it otherwise, left the loaded particle turning 0.065 rad a step on average:
-            # 2080 points for the turn of N = 1000 where this takes 1709). It grows only where
-            # its corrector needed at most one new factor (full Newton: two iterations).
-            grow = min(STEP_GROWTH, STEP_TARGET * PHI0_STEP / max(turned, 1e-300), STEP_TARGET * MAX_TURN / max(turn, 1e-300))
-            if iterations > (1 if chord else 2):
-                grow = min(grow, 1.0)
-            ds = min(max_step, max(min_step, max(0.5, grow) * ds))
-    branch = _assemble_branch(params, model, particle, moments, states, folds, checks, stop, angles_traced)
-    branch.state_points = None if stride == 1 else np.array(kept)
-    branch.message = message
-    branch.branch_points = branch_points
-    return branch
+    problem = _StaticBranch(
+        params,
+        model,
+        particle,
+        tol=tol,
+        min_step=min_step,
+        max_step=max_step,
+        refine_step=refine_step,
+        stops=_Stops(phi0_stop, phi0_until_unstable, moment_stop, max_folds),
+        max_states=max_states,
+        progress=progress,
+    )
+    traced = continuation(
+        problem,
+        np.zeros(n_free(params) + 1),
+        step=step,
+        min_step=min_step,
+        max_step=max_step,
+        max_points=max_points,
+        first=problem.rest(),
+    )
+    return problem.branch(traced)

@@ -59,6 +59,8 @@ GROW, SHRINK = 1.5, 0.7
 #: Secant iterations that locate an event, and the arclength accuracy asked of them.
 EVENT_ITERATIONS = 30
 EVENT_TOL = 1e-10
+#: The ends that are events located on the branch (the values ``stop_at`` of :func:`continuation` takes).
+EVENT_KINDS = ("fold", "branch_point", "period_doubling", "torus", "hopf")
 
 
 class BranchEnd(StrEnum):
@@ -84,6 +86,17 @@ class BranchEnd(StrEnum):
     TORUS = "torus"
     #: Stopped, as asked, at a Hopf point (a complex pair of eigenvalues through the imaginary axis).
     HOPF = "hopf"
+    #: A static branch's loaded particle turned as far as asked (``phi0_stop``).
+    ANGLE_LIMIT = "phi0_stop"
+    #: A static branch's load exceeded the bound asked for (``moment_stop``).
+    LOAD_LIMIT = "moment_stop"
+    #: As many folds as asked for were passed (``max_folds``).
+    MAX_FOLDS = "max_folds"
+    #: The branch came back through its start's mirror image, as a closed loop does: it would repeat.
+    RETURNED = "returned"
+    #: Another coordinate than the one followed turned a full turn further: the system rotates there,
+    #: and the branch beyond repeats its folds as it winds on.
+    WOUND = "wound"
 
     @property
     def advice(self) -> str:
@@ -102,6 +115,11 @@ _ADVICE = {
     BranchEnd.PERIOD_DOUBLING: "continue the period-doubled orbit (turns doubled, period doubled) from the located point",
     BranchEnd.TORUS: "the orbit goes on, unstable, beyond it: leave torus out of stop_at to follow it",
     BranchEnd.HOPF: "a family of periodic orbits is born here: start one from the located eigenvector",
+    BranchEnd.ANGLE_LIMIT: "raise phi0_stop to trace further",
+    BranchEnd.LOAD_LIMIT: "raise moment_stop to trace further",
+    BranchEnd.MAX_FOLDS: "raise max_folds to trace further",
+    BranchEnd.RETURNED: "the branch is complete: beyond, its mirror image",
+    BranchEnd.WOUND: "follow the rotation as a periodic orbit (orbit) rather than as a static branch",
 }
 
 
@@ -113,6 +131,8 @@ class Corrector(StrEnum):
     STALLED = "stalled"
     NOT_FINITE = "not_finite"
     NOT_CONTRACTING = "not_contracting"
+    #: Converged, but farther from the predicted point than a step allows: onto another part of the branch.
+    JUMPED = "jumped"
 
 
 @dataclass
@@ -143,6 +163,8 @@ class Correction:
     evaluation: Evaluation | None
     norm: float
     iterations: int
+    #: Jacobians computed for the steps (a chord correction's kept first one not counted).
+    jacobians: int = 0
 
     @property
     def converged(self) -> bool:
@@ -153,6 +175,31 @@ class ContinuationProblem(Protocol):
     """What a branch is: its equations, tests, monitors and stops.
 
     ``tol`` is the corrector's tolerance on max |R|.
+
+    A problem may also take over a stage of :func:`continuation` by defining a method of
+    the same name (the driver's own is used otherwise); the static branch of a long chain
+    does, with banded factors and step control by the turn of its loaded particle:
+
+    ``correct(w, t, h, jacobian) -> Correction``
+        The correction of the step h from w along t (``jacobian``: the last computed).
+        Default: :func:`newton` with the arclength border from w + h t.
+    ``tangent(jacobian, previous) -> ndarray``
+        The unit tangent at a corrected point, oriented along ``previous`` (None at the start).
+    ``review(previous, candidate, h) -> float | None``
+        None accepts the step to ``candidate``; a step length retakes it with that step.
+        Default: :meth:`accept`, halving the step where it refuses.
+    ``failed(h) -> float``
+        The step after a failed correction; one below ``min_step`` ends the branch
+        (:attr:`BranchEnd.STEP_TOO_SMALL`). Default: half, at least ``min_step``, and
+        below it once ``min_step`` failed.
+    ``events(previous, candidate, t_before, t_after) -> list of str``
+        The kinds of event between two accepted points. Default: sign changes of the
+        test functions (the built-in fold and branch point, and :meth:`tests`).
+    ``locate(kind, w, t, h, previous, candidate, index) -> Event``
+        The event between the point w (``previous``) and ``candidate``, the step h along t.
+        Default: the secant method on the arclength.
+    ``next_step(h, correction, candidate) -> float``
+        The step after an accepted point. Default: grown after an easy correction, shrunk after a hard one.
     """
 
     tol: float
@@ -201,7 +248,8 @@ def newton(
     damping: int = 0,
     natural: bool = False,
     contraction: float | None = None,
-    newton_step: Callable[[np.ndarray, Evaluation], np.ndarray] | None = None,
+    blowup: float | None = None,
+    newton_step: Callable[[np.ndarray, Evaluation, Any], np.ndarray] | None = None,
     iterate: Callable[[np.ndarray, Evaluation], None] | None = None,
 ) -> Correction:
     """Newton's method on R(w) = 0, the one corrector of the package's continuations and orbit searches.
@@ -252,9 +300,15 @@ def newton(
     contraction : float, optional
         max |R| of the iterates must fall by this factor every two steps, else the
         correction is ``not_contracting`` (cheaper to retake a shorter continuation step).
-    newton_step : callable(w, evaluation) -> ndarray, optional
-        The step at w instead of one linear solve with the Jacobian (a minimum-norm
-        correction plus a multiple of a null vector); it may raise where it is not defined.
+    blowup : float, optional
+        A step taken with a freshly computed Jacobian after which max |R| exceeds ``blowup``
+        times the first max |R| has left Newton's basin: the correction is ``diverged``
+        (a chord correction from a poor start, better retaken from another start than refactored on).
+    newton_step : callable(w, evaluation, jacobian) -> ndarray, optional
+        The step at w instead of one linear solve with the Jacobian in use (``jacobian``: the
+        evaluation's own, or the one a chord iteration keeps, which may be any object the
+        problem factors, such as a banded factor): a minimum-norm correction plus a multiple
+        of a null vector, or a step the problem damps itself; it may raise where it is not defined.
     iterate : callable(w, evaluation), optional
         Called at each iterate Newton moves to (the start included), before its tests: a
         problem that follows something from iterate to iterate (a Floquet multiplier) keeps it here.
@@ -273,12 +327,12 @@ def newton(
     w = np.array(w0, dtype=float)
     matrix = jacobian0 if chord is not None else None
     fresh = matrix is None
-    best, grace, last, steps = math.inf, forgive, math.inf, 0
-    pending, moved, norms = None, True, []
+    best, grace, last, steps, jacobians = math.inf, forgive, math.inf, 0, 0
+    pending, moved, norms, first, stepped_fresh = None, True, [], None, False
 
     def step_at(w: np.ndarray, ev: Evaluation, matrix) -> np.ndarray:
         if newton_step is not None:
-            out = np.asarray(newton_step(w, ev), dtype=float)
+            out = np.asarray(newton_step(w, ev, matrix), dtype=float)
         else:
             out = _direction(matrix, np.asarray(ev.residual, dtype=float), w, border, keep)
         if not np.all(np.isfinite(out)):
@@ -290,13 +344,13 @@ def newton(
             try:
                 ev = evaluate(w, fresh)
             except _EVALUATION_ERRORS:
-                return Correction(Corrector.NOT_FINITE, w, None, math.inf, steps)
+                return Correction(Corrector.NOT_FINITE, w, None, math.inf, steps, jacobians)
         else:
             ev, pending = pending, None
         residual = np.asarray(ev.residual, dtype=float)
         norm = float(np.max(np.abs(residual))) if residual.size else 0.0
         if not math.isfinite(norm):
-            return Correction(Corrector.NOT_FINITE, w, ev, norm, steps)
+            return Correction(Corrector.NOT_FINITE, w, ev, norm, steps, jacobians)
         if moved:
             norms.append(norm)
             if iterate is not None:
@@ -304,29 +358,34 @@ def newton(
         moved = False
         if converged(ev, norm):
             if fresh:
-                return Correction(Corrector.CONVERGED, w, ev, norm, steps)
+                return Correction(Corrector.CONVERGED, w, ev, norm, steps, jacobians)
             fresh = True  # the solution's own Jacobian, for the caller's tangent and multipliers
             continue
+        first = norm if first is None else first
+        if blowup is not None and stepped_fresh and norm > blowup * first:
+            return Correction(Corrector.DIVERGED, w, ev, norm, steps, jacobians)
         if contraction is not None and len(norms) > 2 and norms[-1] > contraction * norms[-3]:
-            return Correction(Corrector.NOT_CONTRACTING, w, ev, norm, steps)
-        if not fresh and norm > chord * last:
+            return Correction(Corrector.NOT_CONTRACTING, w, ev, norm, steps, jacobians)
+        if not fresh and not norm < chord * last:
             fresh = True  # the kept Jacobian converges too slowly now
             continue
         if fresh and divergence is not None and norm > divergence * best:
             if grace == 0:
-                return Correction(Corrector.DIVERGED, w, ev, norm, steps)
+                return Correction(Corrector.DIVERGED, w, ev, norm, steps, jacobians)
             grace -= 1
         elif norm < best:
             best, grace = norm, forgive
         if steps == max_iterations:
-            return Correction(Corrector.STALLED, w, ev, norm, steps)
+            return Correction(Corrector.STALLED, w, ev, norm, steps, jacobians)
         if fresh:
             matrix = ev.matrix()
+            jacobians += 1
+        stepped_fresh = fresh
         steps += 1
         try:
             direction = step_at(w, ev, matrix)
         except (ArithmeticError, np.linalg.LinAlgError, RuntimeError):
-            return Correction(Corrector.NOT_FINITE, w, ev, norm, steps - 1)
+            return Correction(Corrector.NOT_FINITE, w, ev, norm, steps - 1, jacobians)
         if damping:
             length, fraction = float(np.linalg.norm(direction)), 1.0
             for _ in range(damping):
@@ -345,7 +404,7 @@ def newton(
             else:
                 pending = None
                 if fresh:
-                    return Correction(Corrector.DIVERGED, w, ev, norm, steps)
+                    return Correction(Corrector.DIVERGED, w, ev, norm, steps, jacobians)
                 fresh = True
                 continue
             w, moved = trial, True
@@ -358,7 +417,7 @@ def newton(
             w, moved = _advance(w, direction, keep), True
         fresh, last = chord is None, norm
         if not np.all(np.isfinite(w)):
-            return Correction(Corrector.NOT_FINITE, w, ev, norm, steps - 1)
+            return Correction(Corrector.NOT_FINITE, w, ev, norm, steps - 1, jacobians)
 
 
 def _direction(matrix, residual: np.ndarray, w: np.ndarray, border, keep) -> np.ndarray:
@@ -447,7 +506,6 @@ class Continuation:
     events: list[Event] = field(default_factory=list)
     end: BranchEnd = BranchEnd.MAX_POINTS
     message: str = ""
-    tangents: list[np.ndarray] = field(default_factory=list)
 
 
 def continuation(
@@ -515,81 +573,111 @@ def continuation(
         raise ValueError(f"steps must satisfy min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
     if not (isinstance(max_points, int) and max_points >= 1):
         raise ValueError(f"max_points must be an integer >= 1, got {max_points!r}")
-    unknown = [kind for kind in stop_at if kind not in BranchEnd._value2member_map_]
+    unknown = [kind for kind in stop_at if kind not in EVENT_KINDS]
     if unknown:
-        raise ValueError(f"stop_at: unknown event kinds {unknown}; allowed: fold, branch_point, period_doubling, torus, hopf")
+        raise ValueError(f"stop_at: unknown event kinds {unknown}; allowed: {', '.join(EVENT_KINDS)}")
     keep = np.ones(len(w0), dtype=bool)
     keep[-1] = False
     start = newton(problem.evaluate, w0, tol=problem.tol, keep=keep)
     if not start.converged:
         raise StartError(f"the start is not on the branch: the corrector {start.status} with max|R| = {start.norm:.3g}")
+    options = dict(corrector or {})
+
+    def correct(w: np.ndarray, t: np.ndarray, h: float, jacobian) -> Correction:
+        if options.get("chord") is not None:
+            options["jacobian0"] = jacobian
+        return newton(problem.evaluate, w + h * t, tol=problem.tol, border=(t, w + h * t), **options)
+
+    def unit_tangent(jacobian, previous: np.ndarray | None) -> np.ndarray:
+        return tangent(jacobian, previous, direction=direction, method=tangent_method)
+
+    def review(previous, candidate, h: float) -> float | None:
+        return None if h <= min_step or problem.accept(previous, candidate) else max(min_step, 0.5 * h)
+
+    def failed(h: float) -> float:
+        return 0.5 * h if h <= min_step else max(min_step, 0.5 * h)
+
+    def next_step(h: float, corrected: Correction, candidate) -> float:
+        return min(max_step, h * (GROW if corrected.iterations <= easy else SHRINK if corrected.iterations >= hard else 1.0))
+
+    correct = getattr(problem, "correct", correct)
+    unit_tangent = getattr(problem, "tangent", unit_tangent)
+    review = getattr(problem, "review", review)
+    failed = getattr(problem, "failed", failed)
+    next_step = getattr(problem, "next_step", next_step)
+    own_events = getattr(problem, "events", None)
+    own_locate = getattr(problem, "locate", None)
+
     w = start.w
     ev = start.evaluation
     jacobian = ev.matrix()
-    t = (
-        tangent(jacobian, None, direction=direction, method=tangent_method)
-        if tangent0 is None
-        else np.asarray(tangent0, dtype=float) / np.linalg.norm(tangent0)
-    )
-    if tangent0 is not None:
+    if tangent0 is None:
+        t = unit_tangent(jacobian, None)
+    else:
+        t = np.asarray(tangent0, dtype=float) / np.linalg.norm(tangent0)
         try:
-            t = tangent(jacobian, t, method=tangent_method)
+            t = unit_tangent(jacobian, t)
         except (np.linalg.LinAlgError, RuntimeError):
             # Started on a branch point, where the null space has two dimensions: the direction given is the tangent.
             pass
     point = first if first is not None and start.iterations == 0 else problem.point(w, ev, start.iterations)
-    result = Continuation(points=[point], tangents=[t])
+    result = Continuation(points=[point])
     if progress is not None:
         progress(1, max_points)
-    tests = _all_tests(problem, point, jacobian, t)
-    options = dict(corrector or {})
+    tests = None if own_events is not None else _all_tests(problem, point, jacobian, t)
     h = step
     while len(result.points) < max_points:
-        if options.get("chord") is not None:
-            options["jacobian0"] = jacobian
-        corrected = newton(problem.evaluate, w + h * t, tol=problem.tol, border=(t, w + h * t), **options)
+        corrected = correct(w, t, h, jacobian)
         candidate = None
         if corrected.converged:
             # The latest Jacobian computed, the next chord iterations' start even where the monitor refuses the point.
             jacobian = corrected.evaluation.matrix()
             candidate = problem.point(corrected.w, corrected.evaluation, corrected.iterations)
-        if candidate is None or (h > min_step and not problem.accept(result.points[-1], candidate)):
-            if h <= min_step:
+        if candidate is None:
+            h = failed(h)
+            if h < min_step:
                 result.end = BranchEnd.STEP_TOO_SMALL
                 result.message = (
                     f"no step down to min_step={min_step:g} could be corrected after lambda = {w[-1]:.10g}: "
                     + BranchEnd.STEP_TOO_SMALL.advice
                 )
                 break
-            h = max(min_step, 0.5 * h)
+            continue
+        retake = review(result.points[-1], candidate, h)
+        if retake is not None:
+            h = retake
             continue
         try:
-            t_new = tangent(jacobian, t, method=tangent_method)
+            t_new = unit_tangent(jacobian, t)
         except (np.linalg.LinAlgError, RuntimeError):
             # A point exactly on a branch point: its tangent is not unique, so the step is retaken shorter.
             h = max(min_step, 0.5 * h)
             continue
-        new_tests = _all_tests(problem, candidate, jacobian, t_new)
+        previous = result.points[-1]
         result.points.append(candidate)
-        result.tangents.append(t_new)
         if progress is not None:
             progress(len(result.points), max_points)
+        if own_events is not None:
+            new_tests, kinds = None, own_events(previous, candidate, t, t_new)
+        else:
+            new_tests = _all_tests(problem, candidate, jacobian, t_new)
+            kinds = [kind for kind in new_tests if kind in tests and tests[kind] * new_tests[kind] < 0]
         ended = None
-        for kind in new_tests:
-            if kind in tests and tests[kind] * new_tests[kind] < 0:
-                if locate:
-                    event = _locate(
-                        problem, kind, w, t, h, tests[kind], new_tests[kind], len(result.points) - 1, candidate, options, tangent_method
-                    )
-                else:
-                    event = Event(kind, candidate, float(corrected.w[-1]), len(result.points) - 1, t_new, located=False)
-                if event.located and not problem.confirm(kind, event.point):
-                    continue
-                result.events.append(event)
-                if kind in stop_at and ended is None:
-                    ended = kind
+        index = len(result.points) - 1
+        for kind in kinds:
+            if own_locate is not None:
+                event = own_locate(kind, w, t, h, previous, candidate, index)
+            elif locate:
+                event = _locate(problem, kind, w, t, h, tests[kind], new_tests[kind], index, candidate, options, tangent_method)
+            else:
+                event = Event(kind, candidate, float(corrected.w[-1]), index, t_new, located=False)
+            if event.located and not problem.confirm(kind, event.point):
+                continue
+            result.events.append(event)
+            if kind in stop_at and ended is None:
+                ended = kind
         w, t, tests = corrected.w, t_new, new_tests
-        h = min(max_step, h * (GROW if corrected.iterations <= easy else SHRINK if corrected.iterations >= hard else 1.0))
+        h = next_step(h, corrected, candidate)
         if ended is not None:
             result.end = BranchEnd(ended)
             where = "located at" if result.events[-1].located else "passed before"

@@ -250,9 +250,9 @@ def _newton(params: ChainParams, model: Model, x: np.ndarray, load: np.ndarray, 
     def converged(ev: Evaluation, norm: float) -> bool:
         return norm <= max(tol * scale, round_off_floor(ev.matrix(), ev.data))
 
-    def step(w: np.ndarray, ev: Evaluation) -> np.ndarray:
+    def step(w: np.ndarray, ev: Evaluation, jacobian) -> np.ndarray:
         # The step of the free degrees of freedom, added to the whole state (the held ones stay as they are).
-        return unpack(params, sparse_solve(ev.matrix(), ev.residual)).ravel()
+        return unpack(params, sparse_solve(jacobian, ev.residual)).ravel()
 
     corrected = newton(evaluate, x.ravel(), converged=converged, newton_step=step, max_iterations=max_iter - 1, divergence=None)
     return corrected.w.reshape(shape) if corrected.converged else None
