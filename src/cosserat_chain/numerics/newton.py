@@ -380,22 +380,44 @@ def solve_rotation_controlled(
     col = column(params, particle)
     x = zeros(params) if x0 is None else check_state(params, x0, "x0").copy()
     x[ROW_INDEX["phi"], col] = phi0
-    moment = float(moment0)
-    residual = first = np.inf
-    for _ in range(max_iter):
-        r = pack(params, model.compiled_forces(params, x))
-        r[dof] += moment
-        residual = float(np.max(np.abs(r)))
-        first = min(first, residual)
-        if not residual <= DIVERGED * (1.0 + first):
-            break  # diverging (or not finite): no use going on
-        stiffness = model.stiffness(params, x)
-        if residual <= max(tol * (1.0 + abs(moment)), round_off_floor(stiffness, x)):
-            return x, moment
-        step = sparse_solve(rotation_controlled_jacobian(stiffness, dof), -r)
-        moment += step[dof]
-        step[dof] = 0.0
-        x = x + unpack(params, step)
+    shape = x.shape
+    smallest = [np.inf]  # the smallest residual so far
+
+    # The kit's corrector on w = (x, M): phi_0 is held, M takes its place among the unknowns
+    # (the rotation-controlled Jacobian), and the step of phi_0 is zero. K is assembled only at
+    # an iterate that is not diverging (``data``: the state, M, and K once assembled).
+    def evaluate(w: np.ndarray, jacobian: bool) -> Evaluation:
+        state = w[:-1].reshape(shape)
+        r = pack(params, model.compiled_forces(params, state))
+        r[dof] += w[-1]
+        data = [state, w[-1], None]
+        return Evaluation(r, lambda: rotation_controlled_jacobian(data[2], dof), data)
+
+    def diverging(residual: float) -> bool:
+        return not residual <= DIVERGED * (1.0 + smallest[0])
+
+    def converged(evaluation: Evaluation, residual: float) -> bool:
+        smallest[0] = min(smallest[0], residual)
+        if diverging(residual):
+            return False
+        state, moment, _ = evaluation.data
+        evaluation.data[2] = stiffness = model.stiffness(params, state)
+        return residual <= max(tol * (1.0 + abs(moment)), round_off_floor(stiffness, state))
+
+    def step(w: np.ndarray, evaluation: Evaluation, jacobian) -> np.ndarray:
+        if diverging(float(np.max(np.abs(evaluation.residual)))):
+            raise ArithmeticError("diverging")  # no use going on
+        solved = sparse_solve(jacobian, -evaluation.residual)
+        moment_step = solved[dof]
+        solved[dof] = 0.0
+        return np.append(unpack(params, solved).ravel(), moment_step)
+
+    w0 = np.append(x.ravel(), float(moment0))
+    corrected = newton(evaluate, w0, converged=converged, newton_step=step, max_iterations=max_iter - 1, divergence=None)
+    x, moment = corrected.w[:-1].reshape(shape), float(corrected.w[-1])
+    if corrected.converged:
+        return x, moment
+    residual = corrected.norm
     raise NewtonError(
         f"rotation-controlled Newton at phi0={float(phi0)!r} did not converge in {max_iter} iterations (residual {residual:.3g}); "
         "start nearer (a solved neighbouring angle as x0)",
