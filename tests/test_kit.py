@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from cosserat_chain.numerics.kit import BranchEnd, Corrector, Evaluation, StartError, branch_directions, continuation, newton, tangent
+from cosserat_chain.numerics.kit import BranchEnd, Corrector, Evaluation, Event, StartError, branch_directions, continuation, newton, tangent
 
 
 class Algebraic:
@@ -284,3 +284,69 @@ def test_an_iteration_that_does_not_contract_is_named_and_a_problem_s_own_step_i
         raise np.linalg.LinAlgError("no step here")
 
     assert newton(linear, np.array([1.0]), tol=1e-12, newton_step=undefined).status == Corrector.NOT_FINITE
+
+
+def cube_root(w: np.ndarray, jacobian: bool) -> Evaluation:
+    # Newton on the cube root doubles |w| and flips its sign every step: |R| grows by 2^(1/3).
+    return Evaluation(np.cbrt(w), np.array([[1.0 / (3.0 * np.cbrt(w[0]) ** 2)]]))
+
+
+def test_a_step_with_a_fresh_jacobian_that_blows_the_residual_up_is_named_diverged_and_jacobians_are_counted():
+    # |R| after the steps: 2^(1/3), 4^(1/3), 2 (not above 2 times the first), 16^(1/3): diverged at the fourth.
+    blown = newton(cube_root, np.array([1.0]), tol=1e-12, divergence=None, blowup=2.0)
+    assert blown.status == Corrector.DIVERGED and blown.iterations == 4 and blown.jacobians == 4
+    assert blown.w[0] == pytest.approx(16.0, rel=1e-15)
+    assert newton(cube_root, np.array([1.0]), tol=1e-12, divergence=None, max_iterations=6).status == Corrector.STALLED
+    # A chord correction counts only the Jacobians its steps were computed with, not the kept first one.
+    problem = Counted()
+    start = newton(problem, np.array([1.3, 2.4]), tol=1e-13)
+    kept = Counted()
+    reused = newton(kept, np.array([1.3, 2.4]), tol=1e-13, chord=0.1, jacobian0=start.evaluation.matrix(), max_iterations=25)
+    assert reused.converged and reused.jacobians == kept.jacobians - 1  # the solution's own is not a step's
+
+
+class Monitored(Algebraic):
+    """The circle with its own stages: a step may move lambda by MOVE at most (``review``), the next
+    step is always LONG (``next_step``), and the events are where x changes sign (``events``, ``locate``)."""
+
+    MOVE, LONG = 0.05, 0.2
+
+    def __init__(self):
+        super().__init__(lambda x, lam: x * x + lam * lam - 1, lambda x, lam: [2 * x, 2 * lam])
+        self.retaken, self.failures = [], 0
+
+    def review(self, previous, candidate, h):
+        if abs(candidate[-1] - previous[-1]) > self.MOVE:
+            self.retaken.append(h)
+            return h / 4
+        return None
+
+    def next_step(self, h, correction, candidate):
+        return self.LONG
+
+    def events(self, previous, candidate, t_before, t_after):
+        return ["x_zero"] if previous[0] * candidate[0] < 0 else []
+
+    def locate(self, kind, w, t, h, previous, candidate, index):
+        # On the unit circle x = 0 is lambda = +-1: the sign of lambda at the candidate says which.
+        return Event(kind, candidate, math.copysign(1.0, candidate[-1]), index)
+
+
+def test_a_problem_s_own_stages_replace_the_driver_s():
+    problem = Monitored()
+    branch = continuation(problem, np.array([1.0, 0.0]), step=0.2, min_step=1e-6, max_step=0.3, max_points=200)
+    lam = np.array([p[-1] for p in branch.points])
+    assert np.all(np.abs(np.diff(lam)) <= Monitored.MOVE)
+    assert problem.retaken and all(h == pytest.approx(Monitored.LONG) or h == pytest.approx(Monitored.LONG / 4) for h in problem.retaken)
+    crossings = [e for e in branch.events if e.kind == "x_zero"]
+    assert [e.parameter for e in crossings][:2] == [1.0, -1.0]
+    assert not [e for e in branch.events if e.kind == "fold"]  # the built-in tests are the problem's events now
+
+
+def test_the_static_branch_ends_in_the_kit_s_vocabulary():
+    from cosserat_chain.numerics.continuation import continue_in_moment
+    from cosserat_chain.params import ChainParams
+
+    branch = continue_in_moment(ChainParams(N=3), "sine", max_folds=1)
+    assert branch.stop is BranchEnd.MAX_FOLDS and branch.stop == "max_folds" and branch.complete
+    assert continue_in_moment(ChainParams(N=3), "sine", max_points=5).stop is BranchEnd.MAX_POINTS
