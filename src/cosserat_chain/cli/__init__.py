@@ -1,5 +1,12 @@
 """Command line ``cosserat-chain``: one module per command, all registered on one Typer ``app``."""
 
+import os
+
+# One BLAS thread unless the user asks for more: the package's dense linear algebra is small
+# (a few hundred unknowns: monodromies, eigenvalues of short chains), where OpenBLAS's second
+# thread spins and slows it (benchmarks/TIMINGS.md, "BLAS threads"). Set before NumPy loads.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
 from . import (
     breathers,  # noqa: F401  (registers the command)
     diagram,  # noqa: F401  (registers the command)

@@ -61,6 +61,7 @@ adding a model means one module and one :func:`register_model` call
 from __future__ import annotations
 
 import math
+import warnings
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from functools import lru_cache
@@ -70,6 +71,7 @@ import numpy as np
 import scipy.sparse as sp
 from llvmlite import ir
 from numba import njit, types
+from numba.core.errors import NumbaExperimentalFeatureWarning
 from numba.extending import intrinsic
 
 from ..linalg import BANDWIDTH, BandMatrix, largest_eigenvalue_bound
@@ -77,6 +79,11 @@ from ..linalg.band import scatter_add, scatter_signed
 from ..memory import FLOAT, require
 from ..params import ChainParams
 from ..state import _free, check_state, force_columns, n_free, pack, unpack, zero_held
+
+# The compiled integrators take the force kernels as first-class functions (one compiled
+# integrator serves every model); Numba calls that feature experimental at each dispatch, a note
+# for its own developers that would otherwise reach every user's terminal.
+warnings.filterwarnings("ignore", message="First-class function type feature is experimental", category=NumbaExperimentalFeatureWarning)
 
 #: Signature of every compiled force kernel: (x, coef, out, start, stop) -> None.
 FORCE_SIGNATURE = types.void(types.float64[:, ::1], types.float64[::1], types.float64[:, ::1], types.int64, types.int64)
