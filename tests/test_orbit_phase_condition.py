@@ -18,6 +18,7 @@ from typer.testing import CliRunner
 
 from cosserat_chain import ChainParams, moment_load
 from cosserat_chain.cli import app
+from cosserat_chain.experiments.diagram import _lower_edge
 from cosserat_chain.models import get_model
 from cosserat_chain.numerics.adaptive import integrate_adaptive
 from cosserat_chain.numerics.continuation import locate_fold
@@ -119,3 +120,37 @@ def test_period_and_multipliers_do_not_depend_on_the_phase_condition():
     assert plane.phase_normal is not None and plane.as_dict()["phase_condition"] == "plane"
     assert plane.period == pytest.approx(section.period, rel=1e-9)
     np.testing.assert_allclose(np.sort_complex(plane.multipliers), np.sort_complex(section.multipliers), atol=1e-9)
+
+
+@pytest.fixture(scope="module")
+def nonlinear_one():
+    """The nonlinear N = 1 chain's 1-turn orbit at M = 0.3, whose real multiplier crosses +1 at M = 0.29772 and back
+    at 0.29503 while M goes on falling: two branch points of cycles, no fold."""
+    return find_periodic_orbit(ChainParams(N=1), "nonlinear", 0.3)
+
+
+def test_a_multiplier_through_plus_one_without_a_turn_is_a_branch_point(nonlinear_one):
+    branch = continue_orbit(nonlinear_one, moment_min=0.294)
+    assert branch.end == "moment_min" and np.all(np.diff(branch.moment) < 0)
+    moments = [event["moment"] for event in branch.events]
+    assert [event["kind"] for event in branch.events] == ["branch_point", "branch_point"]
+    assert moments == pytest.approx([0.29772, 0.29503], abs=2e-4)
+    # Independent: orbits found on their own by Newton just above and below each have a real multiplier on
+    # either side of +1 (unstable between the two).
+    guess = nonlinear_one
+    for moment, unstable_below in zip(moments, (True, False)):
+        above = find_periodic_orbit(ChainParams(N=1), "nonlinear", moment + 3e-4, guess=guess)
+        below = find_periodic_orbit(ChainParams(N=1), "nonlinear", moment - 3e-4, guess=above)
+        real_above, real_below = (o.nontrivial_multipliers.real[np.abs(o.nontrivial_multipliers.imag) < 1e-9] for o in (above, below))
+        assert (np.max(real_below) > 1.0 > np.max(real_above)) == unstable_below
+        assert (np.max(real_above) > 1.0 > np.max(real_below)) != unstable_below
+        guess = below
+
+
+def test_the_diagram_names_a_branch_point_of_cycles_not_a_fold():
+    # The diagram's lower edge of that chain, its orbit sought at 1.1 M_c = 0.3: the orbit loses stability through
+    # +1 while M goes on falling. Located by the fold's augmented system: two multipliers at +1.
+    edge = _lower_edge(ChainParams(N=1), get_model("nonlinear"), 0.3 / 1.1, 1, 0, 30.0, "gamma_phi")
+    assert edge.end == "branch_point_of_cycles" and edge.method == "located"
+    assert edge.stops == pytest.approx(0.29772, abs=2e-4)
+    assert np.sort(np.abs(edge.orbit.multipliers - 1.0))[1] < 1e-6

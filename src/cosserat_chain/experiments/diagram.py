@@ -15,7 +15,9 @@ For each value of one field of the chain, :func:`state_diagram` gives
   ceases to exist there;
 * ``end``: how it stops, from the orbit's Floquet multipliers and the continuation's end:
   ``fold_of_cycles`` (a real multiplier through +1 and M turning back: the stable orbit
-  meets an unstable one), ``period_doubling`` (a real multiplier through -1), ``torus``
+  meets an unstable one), ``branch_point_of_cycles`` (a real multiplier through +1 while M
+  goes on falling: another branch of orbits crosses this one, as where the chain's mirror
+  symmetry breaks), ``period_doubling`` (a real multiplier through -1), ``torus``
   (a complex pair through the unit circle), ``homoclinic`` (the period grows without
   bound below M_c) or ``snic`` (the period grows without bound at M_c itself: a
   saddle-node on the invariant circle, no hysteresis), ``not_found`` when no rotating
@@ -67,7 +69,7 @@ if TYPE_CHECKING:
     import xarray as xr
 
 #: How the rotation can stop going down (module docstring).
-ENDS = ("fold_of_cycles", "period_doubling", "torus", "homoclinic", "snic", "not_found")
+ENDS = ("fold_of_cycles", "branch_point_of_cycles", "period_doubling", "torus", "homoclinic", "snic", "not_found")
 #: The rotating orbit is first sought at this multiple of M_c, above the static fold.
 START_FACTOR = 1.1
 #: A diverging period whose end extrapolates this close to M_c (relative) ends at the static
@@ -264,9 +266,10 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
         elif leading.real < 0:
             end = "period_doubling"
         else:
-            end = "fold_of_cycles"
+            # Through +1: a fold of cycles only where M turns there (the continuation's fold), else a branch point.
+            end = "fold_of_cycles" if branch.end == "fold" else "branch_point_of_cycles"
         around = branch.orbits[index - 1 : index + 1]
-        message = f"the orbit loses stability at M = {lost:.6g} (leading multiplier {leading:.4g}, interpolated)"
+        message = f"the orbit loses stability at M = {lost:.6g} (leading multiplier {leading:.4g}, interpolated)" + _phase_note(branch)
         return _located(_Edge(float(lost), end, message), around, field_name)
     if branch.end == "fold":
         around = sorted(branch.orbits[-3:], key=lambda o: abs(o.moment - branch.end_moment))
@@ -298,12 +301,22 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
     return _Edge(None, "not_found", f"the orbit's continuation ended by {branch.end}: {branch.message}")
 
 
+def _phase_note(branch) -> str:
+    """Says where the continuation left the section phi_0 = 0 for a phase plane (empty where it did not)."""
+    switched = next((o.moment for o in branch.orbits if o.phase_normal is not None), None)
+    if switched is None:
+        return ""
+    return f"; the flow became tangent to the section phi_0 = 0 near M = {switched:.6g}: the orbit was continued on the phase plane normal to the flow"
+
+
 def _located(edge: _Edge, around: Sequence[PeriodicOrbit], field_name: str) -> _Edge:
     """``edge`` with its moment from Newton on the augmented shooting system at its own chain, from the
     orbits ``around`` it (the one-parameter estimate interpolates the multipliers between two orbits: 3e-5
-    off for the paper's chain's period doubling at gamma_phi = 0.12); unchanged, saying so, where that fails."""
+    off for the paper's chain's period doubling at gamma_phi = 0.12); unchanged, saying so, where that fails.
+    A branch point of cycles is located by the fold's system (the shooting Jacobian is singular at both)."""
     try:
-        edge.orbit = locate_cycle_end(around, edge.end, field_name=field_name)
+        kind = "fold_of_cycles" if edge.end == "branch_point_of_cycles" else edge.end
+        edge.orbit = locate_cycle_end(around, kind, field_name=field_name)
     except ValueError as err:
         edge.message += f"; not located exactly ({err})"
         return edge

@@ -85,6 +85,8 @@ class OrbitResult:
                 "period": self.branch.period.tolist(),
                 "mean_angular_velocity": self.branch.mean_angular_velocity.tolist(),
                 "stable": self.branch.stable.tolist(),
+                "branch_points": [event["moment"] for event in self.branch.events if event["kind"] == "branch_point"],
+                "phase_condition": ["section" if o.phase_normal is None else "plane" for o in self.branch.orbits],
             }
         return out
 
