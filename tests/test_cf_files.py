@@ -31,6 +31,7 @@ from cosserat_chain.experiments.sweep import relaxation_sweep
 from cosserat_chain.io import (
     CONVENTIONS,
     FILE_TIME,
+    LABEL_SUFFIX,
     SCALES,
     SYSTEM_UNITS_CONVENTION,
     VARIABLES,
@@ -117,8 +118,8 @@ KINDS = [
 SYSTEM_KINDS = [kind for kind in KINDS if kind.startswith("system_")]
 
 
-def _compliance_errors(path: Path, tmp: Path) -> list[str]:
-    """The messages of compliance-checker's high-priority (error) results on ``path`` for cf:1.10."""
+def _compliance_errors(path: Path, tmp: Path, priorities: tuple[str, ...] = ("high_priorities",)) -> list[str]:
+    """The messages of compliance-checker's results of ``priorities`` (errors; "medium_priorities": warnings) on ``path`` for cf:1.10."""
     pytest.importorskip("compliance_checker", reason="compliance-checker is not installed (pip install -e .[test])")
     from compliance_checker.runner import CheckSuite, ComplianceChecker
 
@@ -126,7 +127,7 @@ def _compliance_errors(path: Path, tmp: Path) -> list[str]:
     report = tmp / "report.json"
     ComplianceChecker.run_checker(str(path), ["cf:1.10"], 0, "normal", output_filename=str(report), output_format="json")
     results = json.loads(report.read_text())["cf:1.10"]
-    return [message for result in results["high_priorities"] for message in result["msgs"]]
+    return [message for priority in priorities for result in results[priority] for message in result["msgs"]]
 
 
 def _cfchecks(tmp: Path):
@@ -151,16 +152,27 @@ def _cfchecks(tmp: Path):
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_compliance_checker_finds_no_error_in_a_file_of_each_kind(files, kind, tmp_path):
-    assert _compliance_errors(files[kind], tmp_path) == [], kind
+def test_compliance_checker_finds_no_error_nor_warning_in_a_file_of_each_kind(files, kind, tmp_path):
+    assert _compliance_errors(files[kind], tmp_path, ("high_priorities", "medium_priorities")) == [], kind
 
 
 @pytest.mark.parametrize("kind", KINDS)
-def test_cfchecks_finds_no_error_in_a_file_of_each_kind(files, kind, tmp_path):
+def test_cfchecks_finds_no_error_nor_warning_in_a_file_of_each_kind(files, kind, tmp_path):
     results = _cfchecks(tmp_path).checker(str(files[kind]))
-    errors = [*results["global"]["FATAL"], *results["global"]["ERROR"]]
-    errors += [f"{name}: {message}" for name, found in results["variables"].items() for message in found["FATAL"] + found["ERROR"]]
-    assert errors == [], kind
+    levels = ("FATAL", "ERROR", "WARN")
+    found = [message for level in levels for message in results["global"][level]]
+    found += [f"{name}: {message}" for name, messages in results["variables"].items() for level in levels for message in messages[level]]
+    assert found == [], kind
+
+
+def test_a_text_coordinate_is_a_label_in_the_file_and_the_coordinate_again_when_read(files):
+    """A CF coordinate variable holds numbers (cfchecks warned of the models' text one): text is a label (CF 6.1)."""
+    with h5py.File(files["study"]) as f:
+        assert "model_label" in f and f["model_label"].dtype.kind == "S", "the label, as characters"
+        assert "model_label" in str(f["compliance"].attrs["coordinates"]).split()
+    for kind, name, values in (("study", "model", ["linear"]), ("system_orbit", "coordinate", ["phi_0", "phi_1"])):
+        ds = read_dataset(files[kind])
+        assert ds[name].values.tolist() == values and name in ds.indexes and f"{name}{LABEL_SUFFIX}" not in ds.variables, kind
 
 
 def test_a_dimension_named_time_draws_the_checkers_time_rules_which_the_files_avoid(files, tmp_path):
@@ -232,7 +244,7 @@ def test_a_beam_tables_compliances_follow_its_load(files):
 
 def test_coordinates_have_no_fill_value_and_text_is_characters(files):
     with h5py.File(files["study"]) as f:
-        for name in ("E2", "model"):
+        for name in ("E2", "model_label"):
             assert "_FillValue" not in f[name].attrs, name
         assert f["error"].dtype.kind == "S" and f["error"].dtype.itemsize == 1, "a character array, not the string type"
     with h5py.File(files["simulate"]) as f:

@@ -135,7 +135,7 @@ def test_simulate_writes_the_systems_coordinates(tmp_path):
     )
     assert result.exit_code == 0, result.output
     with xr.open_dataset(out) as ds:
-        assert list(ds.coordinate.values) == ["phi_0", "phi_1"]
+        assert list(ds.coordinate_label.values) == ["phi_0", "phi_1"], "a text coordinate is a CF label in the file"
         assert ds.q.shape == (6, 2) and ds.t.values[-1] == 150.0, "the file's time axis is t (cosserat_chain.io.FILE_TIME)"
         assert ds.attrs["system"] == "pen" and ds.attrs["param_I"] == 0.2 and ds.attrs["status"] == "completed"
         assert ds.q.values[0] == pytest.approx([0.1, -0.1])

@@ -604,6 +604,11 @@ CONVENTIONS = "CF-1.8 CF-1.10"
 #: so the file names its axis "t", the paper's symbol; :func:`read_dataset` names it "time" again.
 FILE_TIME = "t"
 
+#: What a text coordinate's name takes in a file (``model`` -> ``model_label``): a CF coordinate variable holds
+#: numbers, so text naming a dimension's entries is a label (CF 6.1), an auxiliary coordinate of another name;
+#: :func:`read_dataset` makes it the dimension's coordinate again.
+LABEL_SUFFIX = "_label"
+
 #: How the dimensionless model's units read (every file's ``units_convention`` attribute).
 UNITS_CONVENTION = (
     "Every quantity is a number (units '1', angles 'rad'): the model is dimensionless and takes its units from its "
@@ -936,11 +941,21 @@ def netcdf_image(dataset: xr.Dataset) -> memoryview:
     subclasses of ``str`` (a :class:`~cosserat_chain.status.Status`) are written as plain
     strings: h5netcdf finds no conversion for them. Booleans (such as ``param_periodic``)
     are written as 0 or 1: NetCDF has no boolean type (``params_json`` keeps them as booleans).
-    The time axis is named :data:`FILE_TIME` in the file.
+    The time axis is named :data:`FILE_TIME` in the file, and a text coordinate (the models
+    of stacked results, a system's coordinates) is a label named with :data:`LABEL_SUFFIX`.
     """
     dataset = describe(dataset)
     if "time" in dataset.dims and FILE_TIME not in dataset.variables:
         dataset = dataset.rename({"time": FILE_TIME})
+    labels = {
+        str(name): f"{name}{LABEL_SUFFIX}"
+        for name in dataset.indexes
+        if dataset[name].dtype.kind in "USO" and f"{name}{LABEL_SUFFIX}" not in dataset.variables
+    }
+    if labels:
+        dataset = dataset.reset_index(list(labels)).rename_vars(labels)
+        for label in labels.values():
+            dataset[label].encoding["dtype"] = "S1"
     for attrs in [dataset.attrs, *(variable.attrs for variable in dataset.variables.values())]:
         attrs.update({key: str(value) for key, value in attrs.items() if isinstance(value, str) and type(value) is not str})
         attrs.update({key: int(value) for key, value in attrs.items() if isinstance(value, (bool, np.bool_))})
@@ -1027,14 +1042,26 @@ def _probe_structure(path: Path) -> str | None:
     return None
 
 
+def _names_in_memory(ds: xr.Dataset) -> xr.Dataset:
+    """A file's Dataset with the names of the results in memory: the time axis ``time``, text labels their dimension's coordinates."""
+    if FILE_TIME in ds.dims and "time" not in ds.variables:
+        ds = ds.rename({FILE_TIME: "time"})
+    for name in list(ds.coords):
+        dim = str(name)[: -len(LABEL_SUFFIX)]
+        if str(name).endswith(LABEL_SUFFIX) and ds[name].dims == (dim,) and dim not in ds.variables:
+            ds = ds.drop_vars(name).assign_coords({dim: (dim, ds[name].values, ds[name].attrs)})
+    return ds
+
+
 def read_dataset(path: str | Path) -> xr.Dataset:
     """Load a NetCDF result written by :func:`write_dataset` into memory.
 
     The file's structure is opened first in a forked child (:data:`READ_PROBE_SECONDS`), so
     that a damaged file on which the HDF5 library hangs or crashes is refused instead.
     What the file holds is checked by its reader (:func:`cosserat_chain.inputs.check_run`
-    for a run). The time axis, :data:`FILE_TIME` in the file, is named ``time`` as in the
-    results in memory (a file written before it was renamed reads the same).
+    for a run). The time axis, :data:`FILE_TIME` in the file, is named ``time`` and a text
+    label (:data:`LABEL_SUFFIX`) is its dimension's coordinate, as in the results in memory
+    (a file written before either reads the same).
 
     Raises
     ------
@@ -1061,8 +1088,7 @@ def read_dataset(path: str | Path) -> xr.Dataset:
     try:
         try:
             with xr.open_dataset(path, engine="h5netcdf") as ds:
-                ds = ds.load()
-            return ds.rename({FILE_TIME: "time"}) if FILE_TIME in ds.dims and "time" not in ds.variables else ds
+                return _names_in_memory(ds.load())
         except MemoryError:
             raise
         except Exception as err:  # noqa: BLE001 - a damaged file fails in any of h5py's and xarray's errors (KeyError, ...)
