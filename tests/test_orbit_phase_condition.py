@@ -20,10 +20,12 @@ from cosserat_chain import ChainParams, moment_load
 from cosserat_chain.cli import app
 from cosserat_chain.experiments.diagram import _lower_edge
 from cosserat_chain.models import get_model
+from cosserat_chain.numerics import shooting
 from cosserat_chain.numerics.adaptive import integrate_adaptive
 from cosserat_chain.numerics.continuation import locate_fold
 from cosserat_chain.numerics.cycle_curve import locate_cycle_end
 from cosserat_chain.numerics.periodic import _System, _to_y, continue_orbit, find_periodic_orbit
+from cosserat_chain.systems import pen
 
 CHAIN = ChainParams(N=2, gamma_phi=0.15)
 #: Where the section's system was singular: the old code's fold of cycles.
@@ -154,3 +156,19 @@ def test_the_diagram_names_a_branch_point_of_cycles_not_a_fold():
     assert edge.end == "branch_point_of_cycles" and edge.method == "located"
     assert edge.stops == pytest.approx(0.29772, abs=2e-4)
     assert np.sort(np.abs(edge.orbit.multipliers - 1.0))[1] < 1e-6
+
+
+def test_a_user_systems_branch_point_of_cycles_needs_a_multiplier_at_plus_one():
+    # numerics.shooting (any system) keeps its phase plane normal to the flow; a located sign change of the kit's
+    # branch-point test counts only with a second multiplier at +1 (the pen's in-phase orbit at I = 0.4 has none).
+    system = pen()
+    orbit = shooting.find_orbit(
+        system, shooting.settled_guess(system, np.array([0.0, 0.0, 2.0, 2.0]), coordinate="phi_0"), turns={"phi_0": 1, "phi_1": 1}
+    )
+    plane = shooting._Shooting(system, orbit.turns, orbit.y0, orbit.period, (shooting.PERIOD, "I"), 1e-9, 1e-11, 1e-11)
+    problem = shooting._OrbitProblem(plane, 1e3, (-math.inf, math.inf), False, orbit.stable, None)
+    assert np.min(np.abs(orbit.nontrivial_multipliers - 1.0)) > 0.1
+    assert not problem.confirm("branch_point", orbit)
+    mu = orbit.multipliers.copy()
+    mu[int(np.argmax(np.abs(mu - 1.0)))] = 1.0 + 1e-4
+    assert problem.confirm("branch_point", dataclasses.replace(orbit, multipliers=mu))

@@ -25,7 +25,11 @@ from the point at the value before (extrapolated along the curve from the two be
   (at the edge every other one lies inside), then the one nearest it at the iterate or point
   before (a Neimark-Sacker bifurcation of the cycle; a simple pair is a smooth function of
   the unknowns).
-The unknowns are z = (y0 without phi_0, log T, M). The
+The unknowns are z = (y0 without phi_0, log T, M), or (y0, log T, M) with the phase plane's
+equation beside (P) for an orbit that carries one (:attr:`~.periodic.PeriodicOrbit.phase_normal`:
+where the flow is nearly tangent to the section phi_0 = 0, whose system is singular there
+without a fold). A located ``fold_of_cycles`` must have a second multiplier at +1 beside the
+trivial one (:data:`FOLD_MULTIPLIER_TOL`), else it is refused. The
 Jacobian R_z of (P) is exact (the monodromy matrix and the flow's derivative in M). The test
 function's gradient is needed only along two directions: the minimum-norm correction of
 (P) and the null vector of R_z (the orbit branch's tangent in M); every Newton step of (P)

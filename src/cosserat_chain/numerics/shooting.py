@@ -524,6 +524,10 @@ class _OrbitProblem:
         if kind == "torus":
             pairs = mu[np.abs(np.imag(mu)) > 1e-6]
             return bool(np.min(np.abs(np.abs(pairs) - 1.0), initial=math.inf) < CONFIRM_TOL)
+        if kind == "branch_point" and orbit.unfold is None:
+            # A branch point of cycles has a second multiplier at +1, as a fold (the parameter does not turn there:
+            # the kit's test is the sign of det [dR/dw; t], which a fold leaves alone).
+            return bool(np.min(np.abs(mu - 1.0), initial=math.inf) < CONFIRM_TOL**0.5)
         return True
 
     def stop(self, orbit: Orbit):
