@@ -96,3 +96,25 @@ def test_bad_input_is_refused_naming_the_field_and_the_value():
         continue_fold(params, "linear", "E2", [1.0, 1.1])
     with pytest.raises(ValueError, match="can move rigidly"):
         continue_fold(ChainParams(left_end="free", right_end="free"), "nonlinear", "E2", [1.0])
+
+
+def test_where_the_fold_meets_another_the_turn_of_the_curve_is_located_between_two_and_no_fold():
+    # The same pair of folds near phi_0 = 1 (test above): the curve of the maximum turns back in
+    # E2 where it meets the minimum. Just above the located turn the branch from rest still has
+    # its first maximum there; just below, that pair is gone.
+    params = ChainParams(N=10, a=0.3, b=0.1, E1=2.0, E2=0.3)
+    curve = continue_fold(params, "nonlinear", "E2", [0.3, 0.29])
+    turn = float(curve.message.split("beyond E2 = ")[1].split(" ")[0])
+    above = continue_in_moment(params.replace(E2=turn + 2e-5), "nonlinear", max_folds=1).folds[0]
+    below = continue_in_moment(params.replace(E2=turn - 2e-5), "nonlinear", max_folds=1).folds[0]
+    assert abs(above.phi0 - curve.phi0[0]) < 0.05 and abs(below.phi0 - curve.phi0[0]) > 0.5
+
+
+def test_values_in_any_order_are_followed_there_and_back():
+    params = ChainParams(N=6)
+    values = [1.0, 0.7, 1.3, 1.0]
+    curve = continue_fold(params, "nonlinear", "E2", values)
+    assert curve.complete and np.array_equal(curve.values, values)
+    assert curve.moment[-1] == pytest.approx(curve.moment[0], abs=1e-13)
+    for value, moment in zip(values[1:3], curve.moment[1:3]):
+        assert moment == pytest.approx(independent_fold(params.replace(E2=value), "nonlinear"), abs=FOLD_AGREEMENT)

@@ -10,21 +10,23 @@ null vector w of the stiffness K = -dF/dq with
 2 n + 1 equations in the 2 n + 1 unknowns (q, M, w) for a parameter value p: the
 extended system with which AUTO-07p continues limit points (its "LP continuation").
 :func:`continue_fold` starts from the first fold of the branch from rest at the first
-value (:func:`~.continuation.locate_fold`) and follows it through the values in turn:
-each value's Newton (the kit's corrector, :func:`~.kit.newton`) starts from the previous
-fold, extrapolated along the curve from the two before it. Its Jacobian
+value (:func:`~.continuation.locate_fold`) and follows the curve of folds in (q, M, w, p)
+by the kit's pseudo-arclength driver (:func:`~.kit.continuation`), p the continued
+parameter, from each value asked for to the next; each value is an event of the driver
+(AUTO-07p's user point), solved with p held at it exactly. The Jacobian of the extended system
 
     [[ -K,        e,  0  ],
      [ D(K w)/dq, 0,  K  ],
      [ 0,         0,  l^T]]
 
 is sparse, each block banded (D(K w)/dq, the derivative of K along w, by central
-differences of the model's exact stiffness), so a Newton step is one sparse LU: O(N).
-A value that Newton cannot reach from the previous one, or reaches only by a jump to
-another fold (a correction beyond :data:`JUMP`), is approached through halved parameter
-steps; where even that fails the fold has ended (a cusp, where it meets another fold and
-both vanish: the onset of rotation then jumps to another maximum of M) or the curve turns
-back in p, and the curve stops there, saying so.
+differences of the model's exact stiffness), and its column dR/dp is a central difference
+in p, so a Newton step is one sparse LU: O(N). A correction that moves the state further
+than :data:`JUMP` from its predictor has jumped to another fold and is retaken shorter.
+Where p turns back along the curve (the driver's fold of the curve: two folds of the branch
+meet there, as at a cusp, and both vanish beyond; the onset of rotation then jumps to
+another maximum of M), the turn is located and the curve stops there, saying so; so does a
+curve the corrector cannot follow.
 
 The statics read neither the inertia (m, j) nor the viscosities (gamma_u, gamma_v,
 gamma_phi): along those fields the fold does not move (:data:`STATIC_INDEPENDENT`).
@@ -34,7 +36,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -45,19 +47,23 @@ from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, column, pack, require_held, unpack
 from .continuation import locate_fold
-from .kit import Evaluation, newton
+from .kit import BranchEnd, Correction, Corrector, Evaluation, EvaluationFailed, Event, continuation, newton, tangent
 from .newton import moment_dof, round_off_floor
 
 #: Fields along which the fold can be continued (the chain's numbers; N is a whole number).
 FIELDS = ("E1", "E2", "h", "a", "b", "m", "j", "gamma_u", "gamma_v", "gamma_phi")
 #: Fields the statics do not read: the fold is the same at every value of them.
 STATIC_INDEPENDENT = ("m", "j", "gamma_u", "gamma_v", "gamma_phi")
-#: Newton iterations per value before its parameter step is halved.
+#: Newton iterations of a correction (a step of the curve, or a value with p held) before the step is halved.
 MAX_ITERATIONS = 25
-#: Halvings of a parameter step before the curve is declared ended there.
+#: Halvings of the first step towards a value before the curve is declared ended there.
 MAX_HALVINGS = 10
 #: Residual asked of the extended system, relative (never below the forces' round-off floor).
 TOL = 1e-12
+#: Step of the central difference of the extended system in the parameter, relative to max(1, |p|).
+PARAMETER_STEP = 1e-6
+#: Most points of the curve between two values asked for.
+LEG_POINTS = 200
 #: Central-difference step of D(K w)/dq, relative to the state's size (w is normalised to |w| = 1 first).
 DERIVATIVE_STEP = 1e-6
 #: Largest change of the state (in h or rad) Newton may make from its predictor: a longer one
@@ -80,7 +86,7 @@ class FoldCurve:
     x : ndarray (k, 3, 2N+1)
         The states at the fold.
     iterations : ndarray (k,)
-        Newton iterations each value took (0 for the first, located by continuation).
+        Newton iterations each value took at p held there (for the first, from the fold the branch's continuation located).
     independent : bool
         True for a field the statics do not read (:data:`STATIC_INDEPENDENT`).
     complete : bool
@@ -147,38 +153,123 @@ def _along(model: Model, params: ChainParams, x: np.ndarray, w: np.ndarray) -> s
     return ((model.stiffness(params, x + shift) - model.stiffness(params, x - shift)) / (2.0 * h)).tocsr()
 
 
-def _newton(model, params, dof, q, moment, w, normal) -> tuple[np.ndarray, float, np.ndarray, int] | None:
-    """Solve the extended system for ``params`` from (q, M, w) by the kit's corrector; None if it does not converge."""
-    nf = q.size
-    e = sp.csr_matrix((np.ones(1), ([dof], [0])), shape=(nf, 1))
+class _FoldProblem:
+    """The extended system at the field's value p, with p the continued parameter of the kit's
+    driver (:func:`~.kit.continuation`): w = (q, M, w, p).
 
-    def evaluate(z: np.ndarray, jacobian: bool) -> Evaluation:
+    The driver's built-in fold of this curve is a turn of p along it (two folds of the branch
+    meet there: a cusp, or the curve turns back); its other events are the values asked for
+    (``"value"``), each solved at p fixed (:meth:`at`).
+    """
+
+    tol = TOL
+
+    def __init__(self, params: ChainParams, model: Model, field_name: str, dof: int, normal: np.ndarray):
+        self.params, self.model, self.field, self.dof, self.normal = params, model, field_name, dof, normal
+        self.nf = normal.size
+        self.e = sp.csr_matrix((np.ones(1), ([dof], [0])), shape=(self.nf, 1))
+        self.target = math.nan
+        self.chains: dict[float, ChainParams] = {}
+
+    def chain(self, value: float) -> ChainParams:
+        if value not in self.chains:
+            if len(self.chains) > 64:
+                self.chains.clear()
+            try:
+                self.chains[value] = chain_with(self.params, self.field, value)
+            except ValueError as err:
+                raise EvaluationFailed(str(err)) from None
+        return self.chains[value]
+
+    def _residual(self, z: np.ndarray, chain: ChainParams) -> tuple[np.ndarray, sp.csr_matrix, np.ndarray]:
+        nf = self.nf
         q, moment, w = z[:nf], z[nf], z[nf + 1 :]
-        x = unpack(params, q)
-        k = model.stiffness(params, x).tocsr()
-        force = pack(params, model.compiled_forces(params, x))
-        force[dof] += moment
-        residual = np.concatenate([force, k @ w, [normal @ w - 1.0]])
+        x = unpack(chain, q)
+        k = self.model.stiffness(chain, x).tocsr()
+        force = pack(chain, self.model.compiled_forces(chain, x))
+        force[self.dof] += moment
+        return np.concatenate([force, k @ w, [self.normal @ w - 1.0]]), k, x
+
+    def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
+        z, value = w[:-1], float(w[-1])
+        chain = self.chain(value)
+        residual, k, x = self._residual(z, chain)
 
         def matrix() -> sp.csc_matrix:
-            along = _along(model, params, x, w)
-            return sp.bmat([[-k, e, None], [along, None, k], [None, None, sp.csr_matrix(normal[None, :])]], format="csc")
+            along = _along(self.model, chain, x, z[self.nf + 1 :])
+            extended = sp.bmat([[-k, self.e, None], [along, None, k], [None, None, sp.csr_matrix(self.normal[None, :])]])
+            return sp.hstack([extended, self._by_parameter(z, value)[:, None]], format="csc")
 
-        return Evaluation(residual, matrix, data=(k, z))
+        return Evaluation(residual, matrix, data=(k, w))
 
-    def converged(evaluation: Evaluation, norm: float) -> bool:
+    def _by_parameter(self, z: np.ndarray, value: float) -> np.ndarray:
+        """dR/dp at (z, p) by central differences (one-sided next to the end of the admissible range)."""
+        step = PARAMETER_STEP * max(1.0, abs(value))
+        sides = []
+        for shifted in (value + step, value - step):
+            try:
+                sides.append((shifted, self._residual(z, self.chain(shifted))[0]))
+            except EvaluationFailed:
+                sides.append((value, self._residual(z, self.chain(value))[0]))
+        (high, r_high), (low, r_low) = sides
+        return (r_high - r_low) / (high - low)
+
+    def converged(self, evaluation: Evaluation, norm: float) -> bool:
         # The forces to their round-off floor, K w relative to the size of K and of w.
-        k, z = evaluation.data
-        residual = evaluation.residual
-        return np.max(np.abs(residual[:nf])) <= max(TOL * (1.0 + abs(z[nf])), round_off_floor(k, z[:nf])) and np.max(
-            np.abs(residual[nf:])
-        ) <= TOL * max(1.0, float(np.max(np.abs(z[nf + 1 :])))) * float(abs(k).sum(axis=1).max())
+        k, w = evaluation.data
+        nf, residual = self.nf, evaluation.residual
+        forces = np.max(np.abs(residual[:nf])) <= max(TOL * (1.0 + abs(w[nf])), round_off_floor(k, w[:nf]))
+        return forces and np.max(np.abs(residual[nf:])) <= TOL * max(1.0, float(np.max(np.abs(w[nf + 1 : -1])))) * float(
+            abs(k).sum(axis=1).max()
+        )
 
-    corrected = newton(evaluate, np.concatenate([q, [moment], w]), converged=converged, max_iterations=MAX_ITERATIONS, divergence=None)
-    if not corrected.converged:
+    def correct(self, w: np.ndarray, t: np.ndarray, h: float, jacobian) -> Correction:
+        predicted = w + h * t
+        corrected = newton(
+            self.evaluate, predicted, converged=self.converged, border=(t, predicted), max_iterations=MAX_ITERATIONS, divergence=None
+        )
+        if corrected.converged and np.max(np.abs(corrected.w[: self.nf] - predicted[: self.nf])) > JUMP:
+            return replace(corrected, status=Corrector.JUMPED)  # onto another fold, not along this one
+        return corrected
+
+    def at(self, start: np.ndarray, value: float) -> Correction:
+        """The fold at p = ``value`` exactly, by Newton from ``start`` with p held."""
+        guess = start.copy()
+        guess[-1] = value
+        keep = np.ones(guess.size, dtype=bool)
+        keep[-1] = False
+        return newton(self.evaluate, guess, converged=self.converged, keep=keep, max_iterations=MAX_ITERATIONS, divergence=None)
+
+    def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> np.ndarray:
+        return w.copy()
+
+    def accept(self, previous: np.ndarray, candidate: np.ndarray) -> bool:
+        return True
+
+    def tests(self, point: np.ndarray) -> dict[str, float]:
+        return {}
+
+    def events(self, previous: np.ndarray, candidate: np.ndarray, t_before: np.ndarray, t_after: np.ndarray) -> list[str]:
+        kinds = ["fold"] if t_before[-1] * t_after[-1] < 0 else []
+        if (previous[-1] - self.target) * (candidate[-1] - self.target) <= 0 and candidate[-1] != previous[-1]:
+            kinds.append("value")
+        return kinds
+
+    def locate(self, kind: str, w: np.ndarray, t: np.ndarray, h: float, previous, candidate, index: int) -> Event | None:
+        if kind != "value":
+            return None  # the turn of p: the driver's secant method on the tangent's p component
+        # From the chord's point at the value, Newton with p held there.
+        fraction = (self.target - previous[-1]) / (candidate[-1] - previous[-1])
+        solved = self.at(previous + fraction * (candidate - previous), self.target)
+        if not solved.converged:
+            return Event(kind, candidate, float(candidate[-1]), index, located=False)
+        return Event(kind, (solved.w, solved.iterations), self.target, index)
+
+    def confirm(self, kind: str, point) -> bool:
+        return True
+
+    def stop(self, point: np.ndarray) -> None:
         return None
-    z = corrected.w
-    return z[:nf].copy(), float(z[nf]), z[nf + 1 :].copy(), corrected.iterations
 
 
 def continue_fold(
@@ -230,55 +321,74 @@ def continue_fold(
         raise ValueError(
             f"the {model.name} model's branch from rest has no fold at {field_name} = {values[0]:g}: there is no M_c to follow"
         )
+    for value in values[1:]:
+        chain_with(params, field_name, float(value))  # every value admissible, or the error names it
     q = pack(chain, fold.x)
     w = _null_vector(model.stiffness(chain, fold.x))
     normal = w / float(w @ w)
     col = column(chain, particle)
-    found = [(float(values[0]), q, fold.moment, w, 0)]
+    problem = _FoldProblem(params, model, field_name, dof, normal)
+    first = problem.at(np.concatenate([q, [fold.moment], w, [values[0]]]), float(values[0]))
+    if not first.converged:
+        raise ValueError(f"the fold at {field_name} = {values[0]:g} could not be solved on the extended system ({first.status})")
+    found = [(float(values[0]), first.w, first.iterations)]
     message = ""
     for index, target in enumerate(values[1:], start=1):
         if progress is not None:
             progress(index, values.size)
-        start, step, reached = found[-1][0], float(target) - found[-1][0], None
-        for _ in range(MAX_HALVINGS + 1):
-            value = start + step
-            guess = found[-1]
-            if len(found) >= 2 and found[-2][0] != guess[0]:
-                # Secant predictor along the curve: the fold moves smoothly with the parameter.
-                ratio = (value - guess[0]) / (guess[0] - found[-2][0])
-                guess = (value, *(g + ratio * (g - h) for g, h in zip(guess[1:4], found[-2][1:4])), 0)
-            chain = chain_with(params, field_name, value)
-            solved = _newton(model, chain, dof, guess[1], guess[2], guess[3], normal)
-            if solved is not None and np.max(np.abs(solved[0] - guess[1])) > JUMP:
-                solved = None  # a jump to another fold, not this one followed
-            if solved is not None:
-                found.append((value, *solved))
-                if value == float(target):
-                    reached = True
-                    break
-                start, step = value, float(target) - value
-                continue
-            step /= 2.0
-        if not reached:
+        reached, end_at = _leg(problem, found[-1][1], float(target))
+        if reached is None:
             message = (
-                f"the fold could not be followed beyond {field_name} = {found[-1][0]:.6g} towards {float(target):.6g}: it ends there "
+                f"the fold could not be followed beyond {field_name} = {end_at:.6g} towards {float(target):.6g}: it ends there "
                 "(a cusp, where it meets another fold) or the curve turns back in the parameter"
             )
             break
-    # The values asked for, in order (the intermediate points of halved steps are dropped).
-    asked = [entry for entry in found if np.any(entry[0] == values)]
-    states = np.array([unpack(params.replace(**{field_name: v}), entry_q) for v, entry_q, *_ in asked])
+        found.append((float(target), *reached))
+    states = np.array([unpack(params.replace(**{field_name: v}), z[: normal.size]) for v, z, _ in found])
     if progress is not None:
         progress(values.size, values.size)
     return FoldCurve(
         field=field_name,
-        values=np.array([entry[0] for entry in asked]),
-        moment=np.array([entry[2] for entry in asked]),
+        values=np.array([entry[0] for entry in found]),
+        moment=np.array([float(z[normal.size]) for _, z, _ in found]),
         phi0=states[:, ROW_INDEX["phi"], col].copy(),
         x=states,
-        iterations=np.array([entry[4] for entry in asked]),
+        iterations=np.array([entry[2] for entry in found]),
         independent=independent,
         complete=not message,
         message=message,
         params=params.model_dump(),
     )
+
+
+def _leg(problem: _FoldProblem, start: np.ndarray, target: float) -> tuple[tuple[np.ndarray, int] | None, float]:
+    """Follow the fold curve from ``start`` (a solved fold) to p = ``target`` by the kit's driver.
+
+    Returns the fold at the target and its Newton iterations (None where the curve turned back
+    in p, or could not be followed, before it), and the value of p where it ended.
+    """
+    if start[-1] == target:
+        return (start, 0), target
+    problem.target = target
+    direction = 1.0 if target > start[-1] else -1.0
+    t0 = tangent(problem.evaluate(start, True).matrix(), None, direction=direction)
+    if abs(t0[-1]) < np.finfo(float).eps:
+        return None, float(start[-1])  # the curve is normal to p here: it turns back
+    # A first step past the target (1.5 times the distance along the tangent), halved while it fails.
+    step = 1.5 * abs(target - start[-1]) / abs(t0[-1])
+    traced = continuation(
+        problem,
+        start,
+        step=step,
+        min_step=step / 2**MAX_HALVINGS,
+        max_step=step,
+        max_points=LEG_POINTS,
+        tangent0=t0,
+        stop_at=("value", "fold"),
+        first=start.copy(),
+    )
+    if traced.end == BranchEnd.VALUE and traced.events[-1].located:
+        return traced.events[-1].point, target
+    if traced.end == BranchEnd.FOLD:
+        return None, float(traced.events[-1].parameter)
+    return None, float(traced.points[-1][-1])

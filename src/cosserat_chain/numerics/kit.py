@@ -60,7 +60,7 @@ GROW, SHRINK = 1.5, 0.7
 EVENT_ITERATIONS = 30
 EVENT_TOL = 1e-10
 #: The ends that are events located on the branch (the values ``stop_at`` of :func:`continuation` takes).
-EVENT_KINDS = ("fold", "branch_point", "period_doubling", "torus", "hopf")
+EVENT_KINDS = ("fold", "branch_point", "period_doubling", "torus", "hopf", "value")
 
 
 class BranchEnd(StrEnum):
@@ -86,6 +86,8 @@ class BranchEnd(StrEnum):
     TORUS = "torus"
     #: Stopped, as asked, at a Hopf point (a complex pair of eigenvalues through the imaginary axis).
     HOPF = "hopf"
+    #: Stopped, as asked, at a value of the parameter asked for (AUTO-07p's user point).
+    VALUE = "value"
     #: A static branch's loaded particle turned as far as asked (``phi0_stop``).
     ANGLE_LIMIT = "phi0_stop"
     #: A static branch's load exceeded the bound asked for (``moment_stop``).
@@ -115,6 +117,7 @@ _ADVICE = {
     BranchEnd.PERIOD_DOUBLING: "continue the period-doubled orbit (turns doubled, period doubled) from the located point",
     BranchEnd.TORUS: "the orbit goes on, unstable, beyond it: leave torus out of stop_at to follow it",
     BranchEnd.HOPF: "a family of periodic orbits is born here: start one from the located eigenvector",
+    BranchEnd.VALUE: "continue from the located point towards the next value",
     BranchEnd.ANGLE_LIMIT: "raise phi0_stop to trace further",
     BranchEnd.LOAD_LIMIT: "raise moment_stop to trace further",
     BranchEnd.MAX_FOLDS: "raise max_folds to trace further",
@@ -180,6 +183,8 @@ class ContinuationProblem(Protocol):
     the same name (the driver's own is used otherwise); the static branch of a long chain
     does, with banded factors and step control by the turn of its loaded particle:
 
+    ``converged(evaluation, norm) -> bool``
+        The corrector's convergence test (one tolerance per block of equations). Default: max |R| <= ``tol``.
     ``correct(w, t, h, jacobian) -> Correction``
         The correction of the step h from w along t (``jacobian``: the last computed).
         Default: :func:`newton` with the arclength border from w + h t.
@@ -195,9 +200,10 @@ class ContinuationProblem(Protocol):
     ``events(previous, candidate, t_before, t_after) -> list of str``
         The kinds of event between two accepted points. Default: sign changes of the
         test functions (the built-in fold and branch point, and :meth:`tests`).
-    ``locate(kind, w, t, h, previous, candidate, index) -> Event``
-        The event between the point w (``previous``) and ``candidate``, the step h along t.
-        Default: the secant method on the arclength.
+    ``locate(kind, w, t, h, previous, candidate, index) -> Event or None``
+        The event between the point w (``previous``) and ``candidate``, the step h along t;
+        None leaves it to the default: the secant method on the arclength (a fold's test is
+        the tangent's lambda component).
     ``next_step(h, correction, candidate) -> float``
         The step after an accepted point. Default: grown after an easy correction, shrunk after a hard one.
     """
@@ -578,7 +584,9 @@ def continuation(
         raise ValueError(f"stop_at: unknown event kinds {unknown}; allowed: {', '.join(EVENT_KINDS)}")
     keep = np.ones(len(w0), dtype=bool)
     keep[-1] = False
-    start = newton(problem.evaluate, w0, tol=problem.tol, keep=keep)
+    own_converged = getattr(problem, "converged", None)
+    criterion = {"tol": problem.tol} if own_converged is None else {"converged": own_converged}
+    start = newton(problem.evaluate, w0, keep=keep, **criterion)
     if not start.converged:
         raise StartError(f"the start is not on the branch: the corrector {start.status} with max|R| = {start.norm:.3g}")
     options = dict(corrector or {})
@@ -586,7 +594,7 @@ def continuation(
     def correct(w: np.ndarray, t: np.ndarray, h: float, jacobian) -> Correction:
         if options.get("chord") is not None:
             options["jacobian0"] = jacobian
-        return newton(problem.evaluate, w + h * t, tol=problem.tol, border=(t, w + h * t), **options)
+        return newton(problem.evaluate, w + h * t, border=(t, w + h * t), **criterion, **options)
 
     def unit_tangent(jacobian, previous: np.ndarray | None) -> np.ndarray:
         return tangent(jacobian, previous, direction=direction, method=tangent_method)
@@ -665,11 +673,11 @@ def continuation(
         ended = None
         index = len(result.points) - 1
         for kind in kinds:
-            if own_locate is not None:
-                event = own_locate(kind, w, t, h, previous, candidate, index)
-            elif locate:
-                event = _locate(problem, kind, w, t, h, tests[kind], new_tests[kind], index, candidate, options, tangent_method)
-            else:
+            event = None if own_locate is None else own_locate(kind, w, t, h, previous, candidate, index)
+            if event is None and locate and (new_tests is not None or kind == "fold"):
+                before, after = (tests[kind], new_tests[kind]) if new_tests is not None else (t[-1], t_new[-1])
+                event = _locate(problem, kind, w, t, h, before, after, index, candidate, {**criterion, **options}, tangent_method)
+            elif event is None:
                 event = Event(kind, candidate, float(corrected.w[-1]), index, t_new, located=False)
             if event.located and not problem.confirm(kind, event.point):
                 continue
@@ -717,7 +725,7 @@ def _locate(
             s = high - f_high * (high - low) / (f_high - f_low)
             if not (low < s < high):
                 s = 0.5 * (low + high)
-        corrected = newton(problem.evaluate, w + s * t, tol=problem.tol, border=(t, w + s * t), **options)
+        corrected = newton(problem.evaluate, w + s * t, border=(t, w + s * t), **options)
         if not corrected.converged:
             break
         point = problem.point(corrected.w, corrected.evaluation, corrected.iterations)
@@ -727,7 +735,7 @@ def _locate(
             # The bordered matrix is singular exactly here: a branch point hit on the nose.
             best = (point, corrected.w[-1], t)
             break
-        value = _all_tests(problem, point, corrected.evaluation.matrix(), t_s)[kind]
+        value = float(t_s[-1]) if kind == "fold" else _all_tests(problem, point, corrected.evaluation.matrix(), t_s)[kind]
         best = (point, corrected.w[-1], t_s)
         if value == 0 or (high - low) < EVENT_TOL * max(1.0, h):
             break
