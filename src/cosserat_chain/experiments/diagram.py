@@ -32,6 +32,11 @@ For each value of one field of the chain, :func:`state_diagram` gives
   ``follow``: the same system continued from the value before, the curve of the lower edge
   in (M, p)), ``one_parameter`` (read from the continuation alone: homoclinic and SNIC ends,
   or where Newton on the augmented system did not converge, ``message`` says);
+* ``rotation_stops_uncertainty``: for a homoclinic end, which is fitted to the period's growth
+  (T ~ -log(M - M_h)) and not computed, three times the difference between the fit to the
+  last orbits and the fit to the last four alone (:data:`FIT_SAFETY`; ``rotation_stops``
+  carries only the digits it leaves);
+  None for every end that is a computed point (located, followed, a SNIC at M_c);
 * ``hysteresis``: whether the loop is open, rotation_stops < M_c: between the two edges the
   particle can rest or rotate; None (unknown) where the followed orbit loses stability above
   M_c (no static state exists there: the rotation goes on in a state not followed);
@@ -87,6 +92,10 @@ APPROACH_RTOL = 1e-3
 #: Default period beyond which the period counts as diverging (each orbit near it costs an
 #: integration of that length with its monodromy: benchmarks/TIMINGS.md).
 PERIOD_MAX = 100.0
+#: A fitted homoclinic end's uncertainty is this times the difference between the fits to the last TAIL (or
+#: APPROACH_POINTS) orbits and to the last MIN_TAIL: the pendulum's true error (an independent bisection on the
+#: saddle's unstable manifold) is 2.1 times that difference at gamma_phi = 0.02, 1.2 times at 0.05.
+FIT_SAFETY = 3.0
 #: An imaginary part of the leading multiplier above this (relative to its modulus) is a complex pair.
 COMPLEX_RTOL = 1e-6
 
@@ -104,6 +113,7 @@ class DiagramRow:
     message: str = ""
     moment_scale: float = 1.0
     method: str = "one_parameter"
+    uncertainty: float | None = None
 
     @property
     def rotation_starts(self) -> str | None:
@@ -130,6 +140,7 @@ class DiagramRow:
             "message": self.message,
             "moment_scale": self.moment_scale,
             "method": self.method,
+            "rotation_stops_uncertainty": self.uncertainty,
             "static_fold_dimensionless": self.dimensionless(self.static_fold),
             "rotation_stops_dimensionless": self.dimensionless(self.rotation_stops),
         }
@@ -154,7 +165,8 @@ class StateDiagram:
         quadratically, (M_c - M_h) / M_c ~ (p* - p)^2, so sqrt of the gap is linear in the
         parameter p: the last two homoclinic rows before a SNIC row (in the order given)
         extrapolate it to zero at p*. Returns ``{"value": p*, "between": [p_h, p_snic],
-        "from": [p_h1, p_h2]}``, or None without such rows or when p* falls outside
+        "from": [p_h1, p_h2], "method": "extrapolated"}`` (an extrapolation of two fitted
+        homoclinic ends, not a solved codimension-two point), or None without such rows or when p* falls outside
         (p_h, p_snic] (the rows are then too far from the point to locate it). The
         one-particle pendulum gives alpha* = 1.1939 against the literature's 1.1925
         (alpha = gamma_phi / sqrt(j M_c); tested).
@@ -171,7 +183,12 @@ class StateDiagram:
             lo, hi = sorted((second.value, snic.value))
             if not (lo < root <= hi):
                 return None
-            return {"value": float(root), "between": [second.value, snic.value], "from": [first.value, second.value]}
+            return {
+                "value": float(root),
+                "between": [second.value, snic.value],
+                "from": [first.value, second.value],
+                "method": "extrapolated",
+            }
         return None
 
     def as_dict(self) -> dict[str, Any]:
@@ -207,6 +224,8 @@ class StateDiagram:
                                     {"long_name": "how a rising load starts the rotation at M_c: snic, jump or unknown"}),
                 "method": (("value",), np.array([row.method for row in self.rows], dtype=str),
                            {"long_name": "how rotation_stops was found: followed, located or one_parameter"}),
+                "rotation_stops_uncertainty": (("value",), column("uncertainty"),
+                                               {"long_name": "uncertainty of a fitted homoclinic rotation_stops (NaN: a computed point)"}),
                 "moment_scale": (("value",), column("moment_scale"), {"long_name": "E1 h^2, the unit of the dimensionless moment M / (E1 h^2)"}),
             },
             # The value's units are the varied field's: io.describe reads them from the attribute "parameter".
@@ -228,6 +247,7 @@ class _Edge:
     message: str
     orbit: PeriodicOrbit | None = None
     method: str = "one_parameter"
+    uncertainty: float | None = None
 
 
 def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle: int, period_max: float, field_name: str) -> _Edge:
@@ -285,18 +305,22 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
                     "diverges (try a larger period_max)"
                 ),
             )
-        return _Edge(*_diverging(branch.moment[-TAIL:], branch.period[-TAIL:], moment_c))
+        stops, end, message, uncertainty = _diverging(branch.moment[-TAIL:], branch.period[-TAIL:], moment_c)
+        return _Edge(stops, end, message, uncertainty=uncertainty)
     tail = _approach(np.asarray(branch.moment), np.asarray(branch.period)) if branch.end in ("step_too_small", "max_points") else None
     if tail is not None:
         # The continuation crawled to a halt with the period still growing: near a homoclinic
         # orbit T grows only like -log(M - M_h) / lambda (the weakly damped pendulum: T = 4.03
         # at M - M_h = 1e-8), so no period cap is ever reached; the growth locates M_h.
-        stops, end, message = _diverging(*tail, moment_c)
+        stops, end, message, uncertainty = _diverging(*tail, moment_c)
         last = abs(float(branch.moment[-1]))
         # The rotation exists down to the last orbit: M_h lies between the fit and it.
         if end == "snic" or 0.0 <= last - abs(stops) <= APPROACH_RTOL * last:
             return _Edge(
-                stops, end, f"{message}; the continuation stopped by {branch.end} at M = {branch.moment[-1]:.10g}, the bound above M_h"
+                stops,
+                end,
+                f"{message}; the continuation stopped by {branch.end} at M = {branch.moment[-1]:.10g}, the bound above M_h",
+                uncertainty=uncertainty,
             )
     return _Edge(None, "not_found", f"the orbit's continuation ended by {branch.end}: {branch.message}")
 
@@ -346,12 +370,14 @@ def _approach(moment: np.ndarray, period: np.ndarray) -> tuple[np.ndarray, np.nd
     return moment[keep], t
 
 
-def _diverging(moment: np.ndarray, period: np.ndarray, moment_c: float) -> tuple[float, str, str]:
-    """Where and how a diverging period ends: SNIC at M_c, or homoclinic below it.
+def _diverging(moment: np.ndarray, period: np.ndarray, moment_c: float) -> tuple[float, str, str, float | None]:
+    """Where and how a diverging period ends: SNIC at M_c, or homoclinic below it; and the uncertainty of a fitted M_h.
 
     At a SNIC T ~ (M - M_c)^(-1/2), so T^-2 is linear in M and vanishes at M_c; at a
     homoclinic end T ~ -log(M - M_h) / lambda. The first is tested by the linear
-    extrapolation of T^-2; otherwise M_h is where the fit of T against log(M - M_h) is best.
+    extrapolation of T^-2 (the end is then M_c itself, computed: no uncertainty is given);
+    otherwise M_h is where the fit of T against log(M - M_h) is best, and its uncertainty the
+    difference from the same fit to the last MIN_TAIL orbits alone.
     """
     import scipy.optimize as so
 
@@ -364,17 +390,30 @@ def _diverging(moment: np.ndarray, period: np.ndarray, moment_c: float) -> tuple
     real = roots[np.abs(roots.imag) <= 1e-12 * np.abs(roots)].real * width + moment[-1]
     at = float(real[np.argmin(np.abs(real - moment[-1]))]) if real.size else math.inf
     if abs(at - moment_c) <= SNIC_RTOL * abs(moment_c):
-        return float(moment_c), "snic", f"the period diverges like (M - M_c)^(-1/2) at M_c = {moment_c:.6g} (T^-2 extrapolates to {at:.6g})"
-    span = float(np.ptp(moment))
-    nearest = float(np.min(np.abs(moment)))
+        message = f"the period diverges like (M - M_c)^(-1/2) at M_c = {moment_c:.6g} (T^-2 extrapolates to {at:.6g})"
+        return float(moment_c), "snic", message, None
 
-    def misfit(m_h: float) -> float:
-        logs = np.log(np.abs(moment) - m_h)
-        return float(np.sum((period - np.polyval(np.polyfit(logs, period, 1), logs)) ** 2))
+    def fit(moment: np.ndarray, period: np.ndarray) -> float:
+        span = float(np.ptp(moment))
+        nearest = float(np.min(np.abs(moment)))
 
-    best = so.minimize_scalar(misfit, bounds=(nearest - 20.0 * span, nearest - 1e-9 * max(span, 1e-12)), method="bounded")
-    m_h = float(np.sign(moment[-1]) * best.x)
-    return m_h, "homoclinic", f"the period diverges like -log(M - M_h) at M_h = {m_h:.6g} (fitted to the last {moment.size} orbits)"
+        def misfit(m_h: float) -> float:
+            logs = np.log(np.abs(moment) - m_h)
+            return float(np.sum((period - np.polyval(np.polyfit(logs, period, 1), logs)) ** 2))
+
+        best = so.minimize_scalar(misfit, bounds=(nearest - 20.0 * span, nearest - 1e-9 * max(span, 1e-12)), method="bounded")
+        return float(np.sign(moment[-1]) * best.x)
+
+    m_h = fit(moment, period)
+    near = fit(moment[-MIN_TAIL:], period[-MIN_TAIL:]) if moment.size > MIN_TAIL else None
+    uncertainty = None if near is None else FIT_SAFETY * abs(m_h - near)
+    spread = "" if uncertainty is None else f" +- {uncertainty:.1g}"
+    return (
+        m_h,
+        "homoclinic",
+        f"the period diverges like -log(M - M_h) at M_h = {m_h:.6g}{spread} (a fit to the last {moment.size} orbits, not a computed point)",
+        uncertainty,
+    )
 
 
 def _static_onset(chain: ChainParams, model, particle: int, fold: float, phi0: float) -> tuple[float, float, str]:
@@ -493,7 +532,7 @@ def state_diagram(
             )
         diagram.rows.append(
             DiagramRow(float(value), moment_c, phi0_c, stops, edge.end, hysteresis, message,
-                       chain.moment_scale, edge.method)
+                       chain.moment_scale, edge.method, edge.uncertainty)
         )  # fmt: skip
     if progress is not None:
         progress(total, total)
