@@ -18,7 +18,7 @@ from typer.testing import CliRunner
 
 from cosserat_chain import ChainParams, moment_load
 from cosserat_chain.cli import app
-from cosserat_chain.experiments.diagram import _lower_edge
+from cosserat_chain.experiments.diagram import _lower_edge, state_diagram
 from cosserat_chain.models import get_model
 from cosserat_chain.numerics import shooting
 from cosserat_chain.numerics.adaptive import integrate_adaptive
@@ -172,3 +172,13 @@ def test_a_user_systems_branch_point_of_cycles_needs_a_multiplier_at_plus_one():
     mu = orbit.multipliers.copy()
     mu[int(np.argmax(np.abs(mu - 1.0)))] = 1.0 + 1e-4
     assert problem.confirm("branch_point", dataclasses.replace(orbit, multipliers=mu))
+
+
+def test_the_fold_on_the_phase_plane_followed_in_the_damping_equals_each_value_located_on_its_own():
+    followed = state_diagram(ChainParams(N=2), "sine", "gamma_phi", [0.15, 0.16], follow=True)
+    alone = state_diagram(ChainParams(N=2), "sine", "gamma_phi", [0.16])
+    assert [row.method for row in followed.rows] == ["located", "followed"] and alone.rows[0].method == "located"
+    assert [row.end for row in followed.rows] == ["fold_of_cycles"] * 2 == [followed.rows[0].end, alone.rows[0].end]
+    assert followed.rows[0].rotation_stops == pytest.approx(FOLD, abs=1e-7)
+    assert "tangent to the section phi_0 = 0 near M = 0.1831" in followed.rows[0].message
+    assert followed.rows[1].rotation_stops == pytest.approx(alone.rows[0].rotation_stops, rel=1e-9)

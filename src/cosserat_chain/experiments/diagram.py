@@ -327,9 +327,11 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
 
 def _phase_note(branch) -> str:
     """Says where the continuation left the section phi_0 = 0 for a phase plane (empty where it did not)."""
-    switched = next((o.moment for o in branch.orbits if o.phase_normal is not None), None)
-    if switched is None:
+    index = next((i for i, o in enumerate(branch.orbits) if o.phase_normal is not None), None)
+    if index is None:
         return ""
+    # The plane passes through the last orbit on the section (the first one, if the start had a plane).
+    switched = branch.orbits[max(index - 1, 0)].moment
     return f"; the flow became tangent to the section phi_0 = 0 near M = {switched:.6g}: the orbit was continued on the phase plane normal to the flow"
 
 
