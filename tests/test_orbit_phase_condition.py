@@ -182,3 +182,16 @@ def test_the_fold_on_the_phase_plane_followed_in_the_damping_equals_each_value_l
     assert followed.rows[0].rotation_stops == pytest.approx(FOLD, abs=1e-7)
     assert "tangent to the section phi_0 = 0 near M = 0.1831" in followed.rows[0].message
     assert followed.rows[1].rotation_stops == pytest.approx(alone.rows[0].rotation_stops, rel=1e-9)
+
+
+def test_orbit_down_to_goes_past_the_old_end(tmp_path):
+    config = tmp_path / "N2.toml"
+    config.write_text("N = 2\ngamma_phi = 0.15\n")
+    result = CliRunner().invoke(
+        app, ["orbit", "--model", "sine", "--moment", "0.3195", "--down-to", "0.1", "--config", str(config), "--json"]
+    )
+    assert result.exit_code == 0, result.output
+    branch = json.loads(result.output[result.output.index("{") :])["continuation"]
+    assert branch["end"] == "fold" and branch["end_moment"] == pytest.approx(FOLD, abs=2e-6)
+    assert branch["phase_condition"][0] == "section" and branch["phase_condition"][-1] == "plane"
+    assert branch["branch_points"] == [] and min(branch["moment"]) < FALSE_FOLD - 1e-3
