@@ -707,6 +707,7 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "branch_stable": ("1", "1 if the continued orbit is stable"),
     "static_fold": ("energy", "M_c, the end of the static branch from rest"),
     "rotation_stops": ("energy", "moment at which a falling load stops the rotation"),
+    "rotation_stops_uncertainty": ("energy", "uncertainty of a fitted homoclinic rotation_stops (NaN: a computed point)"),
     "end": ("1", "how the rotation stops"),
     "hysteresis": ("1", "1: open loop (rotation_stops < static_fold), 0: closed, -1: unknown"),
     "rotation_starts": ("1", "how a rising load starts the rotation at M_c: snic, jump or unknown"),
