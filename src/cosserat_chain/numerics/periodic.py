@@ -710,7 +710,10 @@ def find_periodic_orbit(
         :func:`initial_guess` from rest, which also counts the turns every particle
         makes a period (the whole chain winds when it spins about a pin). A tuple
         without ``particle_turns``, or an orbit with other turns, winds the loaded
-        particle alone.
+        particle alone. A guessed orbit on a phase plane (:attr:`PeriodicOrbit.phase_normal`)
+        keeps its plane; any other guess is put on the section phi_0 = 0, or, where the flow
+        is nearly tangent to it there (:data:`TRANSVERSAL_MIN`), on the plane through it
+        normal to the flow.
     tol : float
         Newton stops when max |Phi_T(y0) - y0 - 2 pi k e_phi0| <= tol.
     max_iter : int
