@@ -20,7 +20,7 @@ from cosserat_chain import ChainParams, moment_load
 from cosserat_chain.cli import app
 from cosserat_chain.experiments.diagram import _lower_edge, state_diagram
 from cosserat_chain.models import get_model
-from cosserat_chain.numerics import shooting
+from cosserat_chain.numerics import periodic, shooting
 from cosserat_chain.numerics.adaptive import integrate_adaptive
 from cosserat_chain.numerics.continuation import locate_fold
 from cosserat_chain.numerics.cycle_curve import locate_cycle_end
@@ -195,3 +195,13 @@ def test_orbit_down_to_goes_past_the_old_end(tmp_path):
     assert branch["end"] == "fold" and branch["end_moment"] == pytest.approx(FOLD, abs=2e-6)
     assert branch["phase_condition"][0] == "section" and branch["phase_condition"][-1] == "plane"
     assert branch["branch_points"] == [] and min(branch["moment"]) < FALSE_FOLD - 1e-3
+
+
+def test_a_turn_of_the_sections_system_without_a_multiplier_at_plus_one_is_passed(monkeypatch):
+    # With the early re-choice of the phase condition switched off, the continuation on the section meets the
+    # section's own turn (the old false fold, 0.1822292); it is not taken for a fold of cycles, and the branch goes on
+    # from there on the phase plane to the real fold.
+    monkeypatch.setattr(periodic, "TRANSVERSAL_DROP", 0.0)
+    branch = continue_orbit(find_periodic_orbit(CHAIN, "sine", 1.1 * locate_fold(CHAIN, "sine").moment), period_max=100.0)
+    assert "no multiplier at +1: no fold" in branch.message and "near M = 0.18222919" in branch.message
+    assert branch.end == "fold" and branch.end_moment == pytest.approx(FOLD, abs=2e-6)
