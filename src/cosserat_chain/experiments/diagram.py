@@ -378,8 +378,8 @@ def _diverging(moment: np.ndarray, period: np.ndarray, moment_c: float) -> tuple
     At a SNIC T ~ (M - M_c)^(-1/2), so T^-2 is linear in M and vanishes at M_c; at a
     homoclinic end T ~ -log(M - M_h) / lambda. The first is tested by the linear
     extrapolation of T^-2 (the end is then M_c itself, computed: no uncertainty is given);
-    otherwise M_h is where the fit of T against log(M - M_h) is best, and its uncertainty the
-    difference from the same fit to the last MIN_TAIL orbits alone.
+    otherwise M_h is where the fit of T against log(M - M_h) is best, and its uncertainty
+    FIT_SAFETY times the difference from the same fit to the last MIN_TAIL orbits alone.
     """
     import scipy.optimize as so
 
