@@ -255,3 +255,26 @@ def test_general_solve_append_row_and_determinant_sign_agree_dense_and_sparse(si
         row = rng.normal(size=size)
         np.testing.assert_array_equal(append_row(sparse.csr_matrix(dense[:-1]), row).toarray(), append_row(dense[:-1], row))
     assert determinant_sign(sparse.csr_matrix((size, size))) == 0.0
+
+
+@pytest.mark.parametrize("n", [1, 5, 40])
+@pytest.mark.parametrize("pivoting", [1.0, 0.01])
+def test_a_core_with_its_column_solves_as_the_dense_bordered_matrix(n, pivoting):
+    from cosserat_chain.linalg.general import CoreAndColumn
+
+    rng = np.random.default_rng(n)
+    core = sp.random(n, n, density=0.3, random_state=rng) + sp.identity(n) * (2.0 + n / 10)
+    column, row, rhs = rng.standard_normal(n), rng.standard_normal(n + 1), rng.standard_normal(n + 1)
+    matrix = CoreAndColumn(core, column, pivoting=pivoting)
+    dense = np.vstack([np.column_stack([core.toarray(), column]), row])
+    np.testing.assert_allclose(matrix.solve(row, rhs), np.linalg.solve(dense, rhs), rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(matrix.solve_core(rhs[:-1]), np.linalg.solve(core.toarray(), rhs[:-1]), rtol=1e-10, atol=1e-12)
+    np.testing.assert_array_equal(matrix.tocsc().toarray(), dense[:-1])
+
+
+def test_a_singular_core_with_a_regular_border_is_solved_whole():
+    from cosserat_chain.linalg.general import CoreAndColumn
+
+    # A fold of x^2 + lambda = 0 at x = 0 (2 x is singular there): [[0, 1], [t]] is regular.
+    matrix = CoreAndColumn(sp.csc_matrix([[0.0]]), np.array([1.0]))
+    np.testing.assert_allclose(matrix.solve(np.array([1.0, 0.0]), np.array([0.0, 1.0])), [1.0, 0.0])

@@ -3,6 +3,13 @@
 The continuation kit (:mod:`cosserat_chain.numerics.kit`) takes a problem's Jacobian as it
 comes, a dense array for a small system or a SciPy sparse matrix for a lattice of 10^4 sites;
 these functions give both the same answers, sparse ones in O(nnz) memory.
+
+A large sparse Jacobian with the continued parameter's column, n x (n + 1), is best given as
+:class:`CoreAndColumn`: the pseudo-arclength system appends a dense row (the tangent) to it,
+and SuperLU's partial pivoting then takes pivots from that row and fills the factor (the
+extended system of a fold at N = 1000, 12 000 unknowns: 59 million entries and 2.6 s a solve
+with the row and column, against 15 million and 1.4 s for the square core alone). Block
+elimination solves it with the core's factor and two of its solves.
 """
 
 from __future__ import annotations
@@ -23,6 +30,67 @@ def solve(matrix, rhs: np.ndarray) -> np.ndarray:
     if sp.issparse(matrix):
         return spla.spsolve(sp.csc_matrix(matrix), rhs)
     return np.linalg.solve(matrix, rhs)
+
+
+class CoreAndColumn:
+    """The n x (n + 1) matrix [A c]: a square sparse core A and one dense column c (a Jacobian with
+    its continued parameter's column), solved with one LU of A.
+
+    :meth:`solve` takes the system with a row appended, [[A, c], [r^T]] x = b, by block
+    elimination (x_A = A^-1 b_A - xi A^-1 c) and one step of iterative refinement on the whole
+    system; :meth:`solve_core` solves A x = b (the parameter held), refined the same way. Where A
+    is singular to working precision (a point where the parameter turns), the whole system goes
+    to SuperLU.
+
+    ``pivoting`` is SuperLU's threshold for keeping a diagonal pivot (1: partial pivoting; a
+    band with its borders ordered last fills far less with 0.01, the refinement step making up
+    for the weaker pivots).
+    """
+
+    def __init__(self, core, column: np.ndarray, *, pivoting: float = 1.0):
+        self.core = sp.csc_matrix(core)
+        self.pivoting = pivoting
+        self.column = np.asarray(column, dtype=float)
+        if self.core.shape[0] != self.core.shape[1] or self.column.shape != (self.core.shape[0],):
+            raise ValueError(f"CoreAndColumn needs a square core and one column of its size, got {self.core.shape} and {self.column.shape}")
+        self.shape = (self.core.shape[0], self.core.shape[1] + 1)
+        self._lu = None
+        self._along = None  # A^-1 c
+
+    def tocsc(self) -> sp.csc_matrix:
+        """The matrix [A c] itself."""
+        return sp.hstack([self.core, sp.csc_matrix(self.column[:, None])], format="csc")
+
+    def _factor(self):
+        if self._lu is None:
+            self._lu = spla.splu(self.core, diag_pivot_thresh=self.pivoting)
+            self._along = self._lu.solve(self.column)
+        return self._lu
+
+    def solve_core(self, rhs: np.ndarray) -> np.ndarray:
+        """A^-1 rhs (RuntimeError where A is singular)."""
+        rhs = np.asarray(rhs, dtype=float)
+        x = self._factor().solve(rhs)
+        return x + self._lu.solve(rhs - self.core @ x)
+
+    def solve(self, row: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+        """x with [[A, c], [row^T]] x = rhs (row and rhs of length n + 1)."""
+        row, rhs = np.asarray(row, dtype=float), np.asarray(rhs, dtype=float)
+        try:
+            self._factor()
+        except RuntimeError:
+            return spla.spsolve(append_row(self.tocsc(), row), rhs)
+        x = self._eliminate(row, rhs)
+        residual = rhs - np.append(self.core @ x[:-1] + self.column * x[-1], row @ x)
+        x += self._eliminate(row, residual)
+        if not np.all(np.isfinite(x)):
+            return spla.spsolve(append_row(self.tocsc(), row), rhs)
+        return x
+
+    def _eliminate(self, row: np.ndarray, rhs: np.ndarray) -> np.ndarray:
+        head = self._lu.solve(rhs[:-1])
+        xi = (rhs[-1] - row[:-1] @ head) / (row[-1] - row[:-1] @ self._along)
+        return np.append(head - xi * self._along, xi)
 
 
 def append_row(matrix, row: np.ndarray):

@@ -43,6 +43,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from pydantic import ValidationError
 
+from ..linalg.general import CoreAndColumn
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, column, pack, require_held, unpack
@@ -64,6 +65,9 @@ TOL = 1e-12
 PARAMETER_STEP = 1e-6
 #: Most points of the curve between two values asked for.
 LEG_POINTS = 200
+#: SuperLU's threshold for a diagonal pivot of the extended system in the interleaved order
+#: (benchmarks/TIMINGS.md: a third of the fill and of the time of partial pivoting at N = 1000).
+PIVOTING = 0.01
 #: Central-difference step of D(K w)/dq, relative to the state's size (w is normalised to |w| = 1 first).
 DERIVATIVE_STEP = 1e-6
 #: Largest change of the state (in h or rad) Newton may make from its predictor: a longer one
@@ -155,21 +159,43 @@ def _along(model: Model, params: ChainParams, x: np.ndarray, w: np.ndarray) -> s
 
 class _FoldProblem:
     """The extended system at the field's value p, with p the continued parameter of the kit's
-    driver (:func:`~.kit.continuation`): w = (q, M, w, p).
+    driver (:func:`~.kit.continuation`).
+
+    The driver's unknowns interleave the state and the null vector degree of freedom by degree
+    of freedom, (q_1, w_1, q_2, w_2, ..., M, p), and so do the equations, (F_1, (K w)_1, ...,
+    l . w - 1): the Jacobian is then a band with its borders, and SuperLU's factor of it fills
+    half as much as in the blocks' order. :meth:`natural` and :meth:`interleaved` convert.
 
     The driver's built-in fold of this curve is a turn of p along it (two folds of the branch
     meet there: a cusp, or the curve turns back); its other events are the values asked for
-    (``"value"``), each solved at p fixed (:meth:`at`).
+    (``"value"``), each solved with p held there (:meth:`at`).
     """
 
     tol = TOL
 
     def __init__(self, params: ChainParams, model: Model, field_name: str, dof: int, normal: np.ndarray):
         self.params, self.model, self.field, self.dof, self.normal = params, model, field_name, dof, normal
-        self.nf = normal.size
-        self.e = sp.csr_matrix((np.ones(1), ([dof], [0])), shape=(self.nf, 1))
+        nf = self.nf = normal.size
+        self.e = sp.csr_matrix((np.ones(1), ([dof], [0])), shape=(nf, 1))
         self.target = math.nan
         self.chains: dict[float, ChainParams] = {}
+        # The natural order is (q, M, w, p) and (F, K w, l . w - 1); the driver's interleaves them.
+        self.unknowns = np.empty(2 * nf + 2, dtype=int)
+        self.unknowns[0 : 2 * nf : 2] = np.arange(nf)
+        self.unknowns[1 : 2 * nf : 2] = nf + 1 + np.arange(nf)
+        self.unknowns[2 * nf :] = (nf, 2 * nf + 1)
+        self.equations = np.empty(2 * nf + 1, dtype=int)
+        self.equations[0 : 2 * nf : 2] = np.arange(nf)
+        self.equations[1 : 2 * nf : 2] = nf + np.arange(nf)
+        self.equations[2 * nf] = 2 * nf
+
+    def interleaved(self, natural: np.ndarray) -> np.ndarray:
+        return natural[self.unknowns]
+
+    def natural(self, interleaved: np.ndarray) -> np.ndarray:
+        out = np.empty_like(interleaved)
+        out[self.unknowns] = interleaved
+        return out
 
     def chain(self, value: float) -> ChainParams:
         if value not in self.chains:
@@ -182,6 +208,7 @@ class _FoldProblem:
         return self.chains[value]
 
     def _residual(self, z: np.ndarray, chain: ChainParams) -> tuple[np.ndarray, sp.csr_matrix, np.ndarray]:
+        """The extended system's residual in the natural order at z = (q, M, w), K, and the state."""
         nf = self.nf
         q, moment, w = z[:nf], z[nf], z[nf + 1 :]
         x = unpack(chain, q)
@@ -191,16 +218,18 @@ class _FoldProblem:
         return np.concatenate([force, k @ w, [self.normal @ w - 1.0]]), k, x
 
     def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
-        z, value = w[:-1], float(w[-1])
+        natural = self.natural(w)
+        z, value = natural[:-1], float(natural[-1])
         chain = self.chain(value)
         residual, k, x = self._residual(z, chain)
 
-        def matrix() -> sp.csc_matrix:
+        def matrix() -> CoreAndColumn:
             along = _along(self.model, chain, x, z[self.nf + 1 :])
-            extended = sp.bmat([[-k, self.e, None], [along, None, k], [None, None, sp.csr_matrix(self.normal[None, :])]])
-            return sp.hstack([extended, self._by_parameter(z, value)[:, None]], format="csc")
+            extended = sp.bmat([[-k, self.e, None], [along, None, k], [None, None, sp.csr_matrix(self.normal[None, :])]], format="csr")
+            core = extended[self.equations][:, self.unknowns[:-1]]
+            return CoreAndColumn(core, self._by_parameter(z, value)[self.equations], pivoting=PIVOTING)
 
-        return Evaluation(residual, matrix, data=(k, w))
+        return Evaluation(residual[self.equations], matrix, data=(k, natural, residual))
 
     def _by_parameter(self, z: np.ndarray, value: float) -> np.ndarray:
         """dR/dp at (z, p) by central differences (one-sided next to the end of the admissible range)."""
@@ -216,8 +245,8 @@ class _FoldProblem:
 
     def converged(self, evaluation: Evaluation, norm: float) -> bool:
         # The forces to their round-off floor, K w relative to the size of K and of w.
-        k, w = evaluation.data
-        nf, residual = self.nf, evaluation.residual
+        k, w, residual = evaluation.data
+        nf = self.nf
         forces = np.max(np.abs(residual[:nf])) <= max(TOL * (1.0 + abs(w[nf])), round_off_floor(k, w[:nf]))
         return forces and np.max(np.abs(residual[nf:])) <= TOL * max(1.0, float(np.max(np.abs(w[nf + 1 : -1])))) * float(
             abs(k).sum(axis=1).max()
@@ -228,7 +257,7 @@ class _FoldProblem:
         corrected = newton(
             self.evaluate, predicted, converged=self.converged, border=(t, predicted), max_iterations=MAX_ITERATIONS, divergence=None
         )
-        if corrected.converged and np.max(np.abs(corrected.w[: self.nf] - predicted[: self.nf])) > JUMP:
+        if corrected.converged and np.max(np.abs(corrected.w[0 : 2 * self.nf : 2] - predicted[0 : 2 * self.nf : 2])) > JUMP:
             return replace(corrected, status=Corrector.JUMPED)  # onto another fold, not along this one
         return corrected
 
@@ -328,10 +357,10 @@ def continue_fold(
     normal = w / float(w @ w)
     col = column(chain, particle)
     problem = _FoldProblem(params, model, field_name, dof, normal)
-    first = problem.at(np.concatenate([q, [fold.moment], w, [values[0]]]), float(values[0]))
+    first = problem.at(problem.interleaved(np.concatenate([q, [fold.moment], w, [values[0]]])), float(values[0]))
     if not first.converged:
         raise ValueError(f"the fold at {field_name} = {values[0]:g} could not be solved on the extended system ({first.status})")
-    found = [(float(values[0]), first.w, first.iterations)]
+    found = [(float(values[0]), first.w, first.iterations)]  # in the driver's order
     message = ""
     for index, target in enumerate(values[1:], start=1):
         if progress is not None:
@@ -344,6 +373,7 @@ def continue_fold(
             )
             break
         found.append((float(target), *reached))
+    found = [(value, problem.natural(z), iterations) for value, z, iterations in found]
     states = np.array([unpack(params.replace(**{field_name: v}), z[: normal.size]) for v, z, _ in found])
     if progress is not None:
         progress(values.size, values.size)

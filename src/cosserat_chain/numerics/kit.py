@@ -45,7 +45,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 
 from ..errors import CosseratChainError
-from ..linalg.general import append_row, determinant_sign, solve
+from ..linalg.general import CoreAndColumn, append_row, determinant_sign, solve
 
 #: Corrector iterations before a step is retaken shorter.
 MAX_ITERATIONS = 10
@@ -428,6 +428,13 @@ def newton(
 
 def _direction(matrix, residual: np.ndarray, w: np.ndarray, border, keep) -> np.ndarray:
     """The Newton step: of all unknowns with the arclength border, of the ``keep`` unknowns, or of a square R."""
+    if isinstance(matrix, CoreAndColumn):
+        if border is not None:
+            t, w_pred = border
+            return matrix.solve(t, -np.append(residual, t @ (w - w_pred)))
+        if keep is not None and keep[:-1].all() and not keep[-1]:
+            return matrix.solve_core(-residual)
+        matrix = matrix.tocsc()
     if border is not None:
         t, w_pred = border
         return solve(append_row(matrix, t), -np.append(residual, t @ (w - w_pred)))
@@ -469,7 +476,10 @@ def tangent(jacobian, previous: np.ndarray | None = None, *, direction: float = 
         t = sla.null_space(np.asarray(jacobian, dtype=float))[:, -1]
         reference = previous @ t if previous is not None else t[-1] * direction
         return -t if reference < 0 else t
-    if previous is not None:
+    if isinstance(jacobian, CoreAndColumn):
+        seed = previous if previous is not None else np.append(np.zeros(jacobian.shape[0]), 1.0)
+        t = jacobian.solve(seed, np.append(np.zeros(jacobian.shape[0]), 1.0))
+    elif previous is not None:
         t = solve(append_row(jacobian, previous), np.append(np.zeros(jacobian.shape[0]), 1.0))
     elif sp.issparse(jacobian):
         seed = np.zeros(jacobian.shape[1])
