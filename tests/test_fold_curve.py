@@ -118,3 +118,13 @@ def test_values_in_any_order_are_followed_there_and_back():
     assert curve.moment[-1] == pytest.approx(curve.moment[0], abs=1e-13)
     for value, moment in zip(values[1:3], curve.moment[1:3]):
         assert moment == pytest.approx(independent_fold(params.replace(E2=value), "nonlinear"), abs=FOLD_AGREEMENT)
+
+
+def test_a_fold_that_is_nearly_not_simple_is_still_followed_to_the_value():
+    # The N = 3 cantilever's first fold (phi_0 = 4.84, near 3 pi / 2): its null vector turns 10^5
+    # times faster than E2 moves, the extended system is nearly singular and the curve's tangent
+    # shows turns that are not there; the fold at the value is regular.
+    params = ChainParams(right_end="free")
+    curve = continue_fold(params, "nonlinear", "E2", [1.0, 1.1])
+    assert curve.complete
+    assert curve.moment[-1] == pytest.approx(independent_fold(params.replace(E2=1.1), "nonlinear"), abs=FOLD_AGREEMENT)

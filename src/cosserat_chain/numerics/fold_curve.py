@@ -48,7 +48,7 @@ from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, column, pack, require_held, unpack
 from .continuation import locate_fold
-from .kit import BranchEnd, Correction, Corrector, Evaluation, EvaluationFailed, Event, continuation, newton, tangent
+from .kit import BranchEnd, Correction, Corrector, Evaluation, EvaluationFailed, continuation, newton, tangent
 from .newton import moment_dof, round_off_floor
 
 #: Fields along which the fold can be continued (the chain's numbers; N is a whole number).
@@ -65,6 +65,13 @@ TOL = 1e-12
 PARAMETER_STEP = 1e-6
 #: Most points of the curve between two values asked for.
 LEG_POINTS = 200
+#: Weight of the null vector in the arclength (its unknowns enter the driver scaled by it): the
+#: curve is followed in the state, the moment and p, the null vector following them. Near a
+#: nearly double fold (a cantilever of N = 3, E2 = 1) the null vector turns 10^5 times faster
+#: than p moves, and unweighted steps went to a spurious solution with |w| = 2e4.
+NULL_WEIGHT = 1e-3
+#: Most growth of the null vector's size in one step (:data:`NULL_WEIGHT`).
+NULL_GROWTH = 10.0
 #: SuperLU's threshold for a diagonal pivot of the extended system in the interleaved order
 #: (benchmarks/TIMINGS.md: a third of the fill and of the time of partial pivoting at N = 1000).
 PIVOTING = 0.01
@@ -168,7 +175,8 @@ class _FoldProblem:
 
     The driver's built-in fold of this curve is a turn of p along it (two folds of the branch
     meet there: a cusp, or the curve turns back); its other events are the values asked for
-    (``"value"``), each solved with p held there (:meth:`at`).
+    (``"value"``, the test p - target), each located by the driver and then solved with p held
+    there exactly (:meth:`at`).
     """
 
     tol = TOL
@@ -188,13 +196,16 @@ class _FoldProblem:
         self.equations[0 : 2 * nf : 2] = np.arange(nf)
         self.equations[1 : 2 * nf : 2] = nf + np.arange(nf)
         self.equations[2 * nf] = 2 * nf
+        # The null vector enters the driver's unknowns scaled by NULL_WEIGHT (its arclength: below).
+        self.scale = np.ones(2 * nf + 2)
+        self.scale[1 : 2 * nf : 2] = NULL_WEIGHT
 
     def interleaved(self, natural: np.ndarray) -> np.ndarray:
-        return natural[self.unknowns]
+        return natural[self.unknowns] * self.scale
 
     def natural(self, interleaved: np.ndarray) -> np.ndarray:
         out = np.empty_like(interleaved)
-        out[self.unknowns] = interleaved
+        out[self.unknowns] = interleaved / self.scale
         return out
 
     def chain(self, value: float) -> ChainParams:
@@ -226,7 +237,7 @@ class _FoldProblem:
         def matrix() -> CoreAndColumn:
             along = _along(self.model, chain, x, z[self.nf + 1 :])
             extended = sp.bmat([[-k, self.e, None], [along, None, k], [None, None, sp.csr_matrix(self.normal[None, :])]], format="csr")
-            core = extended[self.equations][:, self.unknowns[:-1]]
+            core = extended[self.equations][:, self.unknowns[:-1]] @ sp.diags(1.0 / self.scale[:-1])
             return CoreAndColumn(core, self._by_parameter(z, value)[self.equations], pivoting=PIVOTING)
 
         return Evaluation(residual[self.equations], matrix, data=(k, natural, residual))
@@ -273,26 +284,19 @@ class _FoldProblem:
         return w.copy()
 
     def accept(self, previous: np.ndarray, candidate: np.ndarray) -> bool:
-        return True
+        # A null vector that grew NULL_GROWTH times turned nearly normal to l: the fold is nearly
+        # double there (two eigenvalues of K near zero), and the step is retaken shorter.
+        grown = np.max(np.abs(candidate[1 : 2 * self.nf : 2])) / max(np.max(np.abs(previous[1 : 2 * self.nf : 2])), NULL_WEIGHT)
+        return bool(grown <= NULL_GROWTH)
 
     def tests(self, point: np.ndarray) -> dict[str, float]:
-        return {}
+        return {"value": float(point[-1]) - self.target}
 
     def events(self, previous: np.ndarray, candidate: np.ndarray, t_before: np.ndarray, t_after: np.ndarray) -> list[str]:
         kinds = ["fold"] if t_before[-1] * t_after[-1] < 0 else []
-        if (previous[-1] - self.target) * (candidate[-1] - self.target) <= 0 and candidate[-1] != previous[-1]:
+        if (previous[-1] - self.target) * (candidate[-1] - self.target) < 0:
             kinds.append("value")
         return kinds
-
-    def locate(self, kind: str, w: np.ndarray, t: np.ndarray, h: float, previous, candidate, index: int) -> Event | None:
-        if kind != "value":
-            return None  # the turn of p: the driver's secant method on the tangent's p component
-        # From the chord's point at the value, Newton with p held there.
-        fraction = (self.target - previous[-1]) / (candidate[-1] - previous[-1])
-        solved = self.at(previous + fraction * (candidate - previous), self.target)
-        if not solved.converged:
-            return Event(kind, candidate, float(candidate[-1]), index, located=False)
-        return Event(kind, (solved.w, solved.iterations), self.target, index)
 
     def confirm(self, kind: str, point) -> bool:
         return True
@@ -418,7 +422,17 @@ def _leg(problem: _FoldProblem, start: np.ndarray, target: float) -> tuple[tuple
         first=start.copy(),
     )
     if traced.end == BranchEnd.VALUE and traced.events[-1].located:
-        return traced.events[-1].point, target
+        # The secant method's point, within its tolerance of the value: p set to it exactly.
+        solved = problem.at(traced.events[-1].point, target)
+        if solved.converged:
+            return (solved.w, solved.iterations), target
+    # Where the driver stopped short (a turn of p, or no step it could correct), Newton with p held
+    # at the value from the start: near a fold that is nearly not simple (the N = 3 cantilever's,
+    # E2 = 1 ... 1.1) the extended system is nearly singular and the tangent's p component is
+    # round-off, which shows as turns that are not there, while the fold at the value is regular.
+    direct = problem.at(start, target)
+    if direct.converged and np.max(np.abs(direct.w[0 : 2 * problem.nf : 2] - start[0 : 2 * problem.nf : 2])) <= JUMP:
+        return (direct.w, direct.iterations), target
     if traced.end == BranchEnd.FOLD:
         return None, float(traced.events[-1].parameter)
     return None, float(traced.points[-1][-1])

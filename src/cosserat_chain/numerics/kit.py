@@ -202,8 +202,8 @@ class ContinuationProblem(Protocol):
         test functions (the built-in fold and branch point, and :meth:`tests`).
     ``locate(kind, w, t, h, previous, candidate, index) -> Event or None``
         The event between the point w (``previous``) and ``candidate``, the step h along t;
-        None leaves it to the default: the secant method on the arclength (a fold's test is
-        the tangent's lambda component).
+        None leaves it to the default: the secant method on the arclength, on the kind's test
+        function (a fold's is the tangent's lambda component, others :meth:`tests` gives).
     ``next_step(h, correction, candidate) -> float``
         The step after an accepted point. Default: grown after an easy correction, shrunk after a hard one.
     """
@@ -684,8 +684,13 @@ def continuation(
         index = len(result.points) - 1
         for kind in kinds:
             event = None if own_locate is None else own_locate(kind, w, t, h, previous, candidate, index)
-            if event is None and locate and (new_tests is not None or kind == "fold"):
-                before, after = (tests[kind], new_tests[kind]) if new_tests is not None else (t[-1], t_new[-1])
+            if event is None and locate:
+                if new_tests is not None:
+                    before, after = tests[kind], new_tests[kind]
+                elif kind == "fold":
+                    before, after = t[-1], t_new[-1]
+                else:
+                    before, after = problem.tests(previous)[kind], problem.tests(candidate)[kind]
                 event = _locate(problem, kind, w, t, h, before, after, index, candidate, {**criterion, **options}, tangent_method)
             elif event is None:
                 event = Event(kind, candidate, float(corrected.w[-1]), index, t_new, located=False)
@@ -745,7 +750,12 @@ def _locate(
             # The bordered matrix is singular exactly here: a branch point hit on the nose.
             best = (point, corrected.w[-1], t)
             break
-        value = float(t_s[-1]) if kind == "fold" else _all_tests(problem, point, corrected.evaluation.matrix(), t_s)[kind]
+        if kind == "fold":
+            value = float(t_s[-1])
+        elif kind == "branch_point":
+            value = determinant_sign(append_row(corrected.evaluation.matrix(), t_s))
+        else:
+            value = problem.tests(point)[kind]
         best = (point, corrected.w[-1], t_s)
         if value == 0 or (high - low) < EVENT_TOL * max(1.0, h):
             break
