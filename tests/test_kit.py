@@ -10,7 +10,17 @@ import math
 import numpy as np
 import pytest
 
-from cosserat_chain.numerics.kit import BranchEnd, Corrector, Evaluation, Event, StartError, branch_directions, continuation, newton, tangent
+from cosserat_chain.numerics.kit import (
+    BranchEnd,
+    Corrector,
+    Evaluation,
+    Event,
+    StartError,
+    branch_directions,
+    continuation,
+    newton,
+    tangent,
+)
 
 
 class Algebraic:
