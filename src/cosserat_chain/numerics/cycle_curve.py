@@ -7,9 +7,10 @@ stops being the state a slowly falling load keeps at one of a few kinds of point
 ``end`` of :mod:`cosserat_chain.experiments.diagram`); three of them are regular points of an
 augmented system. Each is a curve in the plane of the
 moment M and a field p of the chain, and :func:`continue_cycle_end` follows it through
-values of p by Newton's method (the kit's corrector, :func:`~.kit.newton`) on an
-*augmented shooting system* at each value, started
-from the point at the value before (extrapolated along the curve from the two before it):
+values of p on the kit's driver (:func:`~.kit.continuation`, natural steps in p:
+:class:`_EndCurve`), each step Newton's method (the kit's corrector, :func:`~.kit.newton`) on an
+*augmented shooting system* at its value, started
+from the point before (extrapolated along the curve from the two before it):
 
 * ``fold_of_cycles``: (P) and g = 0, g the bordered test function of the shooting
   Jacobian A = d(P)/d(y0, log T): [[A, b], [c^T, 0]] [v; g] = [0; 1], zero exactly where A is
@@ -69,7 +70,7 @@ from ..models.base import get_model
 from ..params import ChainParams
 from ..state import n_free
 from .fold_curve import FIELDS, chain_with, field_values
-from .kit import Evaluation, EvaluationFailed, newton
+from .kit import BranchEnd, Correction, Corrector, Evaluation, EvaluationFailed, Event, continuation, newton
 from .periodic import ATOL, CLOSURE_TOL, RTOL, OrbitError, PeriodicOrbit, _orbit, _phase_for, _shooting, _System, _to_y
 
 #: Kinds of end that can be followed (:mod:`~cosserat_chain.experiments.diagram`'s ends that are
@@ -330,6 +331,120 @@ def _singular_vectors(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return u[:, -1].copy(), vt[-1].copy()
 
 
+class _EndCurve:
+    """The end's curve in (z, p) as a problem of the kit's driver (:func:`~.kit.continuation`), in the
+    natural parameterization: each step sets p and solves the augmented system there.
+
+    A step of the driver is a change of p (towards the value asked for, and ending on it within
+    round-off); its correction is the augmented system's Newton at that p (:class:`_Augmented`)
+    from the point before, extrapolated along the curve from the two before it (at most
+    :data:`MAX_EXTRAPOLATION` times their spacing), checked to be the lower edge it claims to be.
+    A failed step is halved, at most :data:`MAX_HALVINGS` times towards one value; an accepted one
+    doubles the next (the residual's sensitivity to p can be large: 135 per unit of E2 for the
+    paper's chain's torus end). The value reached is the driver's ``"value"`` event. Natural
+    steps, not pseudo-arclength ones: the augmented system's Jacobian in p would cost a monodromy
+    integration per unknown, and every point of the curve here is one the caller asked for or a
+    step towards it.
+    """
+
+    tol = 0.0  # the driver's start is the located end itself (:meth:`evaluate`)
+
+    def __init__(self, solve_at: Callable, first: tuple, size: int):
+        self.solve_at = solve_at  # (value, guess) -> ((value, z, orbit, iterations), "") or (None, reason)
+        self.found = [first]  # every point solved, in order (the steps towards a value included)
+        self.size = size
+        self.target = math.nan
+        self.sign = 1.0
+        self.failures = 0
+        self.reason = ""
+
+    def follow(self, target: float) -> bool:
+        """Follow the curve from the last point found to p = ``target``; whether it got there."""
+        last = self.found[-1]
+        self.target, self.failures = target, 0
+        distance = target - last[0]
+        self.sign = 1.0 if distance >= 0 else -1.0
+        step = abs(distance)
+        if step == 0.0:  # the same value again: solved again there
+            entry, self.reason = self.solve_at(target, last[1])
+            if entry is not None:
+                self.found.append(entry)
+            return entry is not None
+        traced = continuation(
+            self,
+            self._packed(last),
+            step=step,
+            min_step=step / 2 ** (MAX_HALVINGS + 2),
+            max_step=step,
+            max_points=2**31,
+            stop_at=("value",),
+            first=last,
+        )
+        return traced.end == BranchEnd.VALUE
+
+    @staticmethod
+    def _packed(entry: tuple) -> np.ndarray:
+        return np.append(entry[1], entry[0])
+
+    def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
+        # Asked only at the driver's start, the located end: solved already.
+        if not np.array_equal(w, self._packed(self.found[-1])):
+            raise EvaluationFailed("the end's curve is corrected by the augmented system at each value (correct)")
+        return Evaluation(np.zeros(1))
+
+    def correct(self, w: np.ndarray, t: np.ndarray, h: float, jacobian) -> Correction:
+        start, step, target = float(w[-1]), self.sign * h, self.target
+        # A step that ends within round-off of the target ends on it (0.85 + 0.05 is not 0.9).
+        close = abs(target - start - step) <= 1e-9 * abs(step)
+        value = target if close or abs(step) >= abs(target - start) else start + step
+        guess = self.found[-1][1]
+        if len(self.found) >= 2 and self.found[-2][0] != self.found[-1][0]:
+            # Secant predictor along the curve: the end moves smoothly with the parameter.
+            # It extrapolates at most MAX_EXTRAPOLATION times the last spacing: beyond, the
+            # last point is the better guess.
+            ratio = (value - self.found[-1][0]) / (self.found[-1][0] - self.found[-2][0])
+            if abs(ratio) <= MAX_EXTRAPOLATION:
+                guess = guess + ratio * (guess - self.found[-2][1])
+        entry, self.reason = self.solve_at(value, guess)
+        if entry is None:
+            return Correction(Corrector.DIVERGED, w, None, math.inf, 0)
+        return Correction(Corrector.CONVERGED, np.append(entry[1], value), Evaluation(np.zeros(1), None, entry), 0.0, entry[3])
+
+    def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> tuple:
+        self.found.append(evaluation.data)
+        return evaluation.data
+
+    def tangent(self, jacobian, previous: np.ndarray | None) -> np.ndarray:
+        direction = np.zeros(self.size)
+        direction[-1] = self.sign  # the steps are changes of p (correct)
+        return direction
+
+    def failed(self, h: float) -> float:
+        self.failures += 1
+        return h / 2 if self.failures <= MAX_HALVINGS else 0.0
+
+    def next_step(self, h: float, correction: Correction, candidate: tuple) -> float:
+        return 2.0 * h
+
+    def accept(self, previous: tuple, candidate: tuple) -> bool:
+        return True
+
+    def events(self, previous: tuple, candidate: tuple, t_before: np.ndarray, t_after: np.ndarray) -> list[str]:
+        return ["value"] if candidate[0] == self.target else []
+
+    def locate(self, kind: str, w: np.ndarray, t: np.ndarray, h: float, previous: tuple, candidate: tuple, index: int) -> Event:
+        return Event(kind, candidate, self.target, index)
+
+    def tests(self, point: tuple) -> dict[str, float]:
+        return {}
+
+    def confirm(self, kind: str, point: tuple) -> bool:
+        return True
+
+    def stop(self, point: tuple) -> None:
+        return None
+
+
 def continue_cycle_end(
     orbit: PeriodicOrbit,
     kind: str,
@@ -408,42 +523,19 @@ def continue_cycle_end(
         raise ValueError(
             f"the {kind} end could not be located at {field_name} = {values[0]:g} from the orbit at M = {orbit.moment:.6g}: {reason}"
         )
-    found = [first]
+    curve = _EndCurve(point, first, augmented.pack(orbit).size + 1)
     complete, message = True, ""
     for index, target in enumerate(values[1:], start=1):
         if progress is not None:
             progress(index, values.size)
-        start, step, reached, failures = found[-1][0], float(target) - found[-1][0], False, 0
-        while failures <= MAX_HALVINGS:
-            # A step that ends within round-off of the target ends on it (0.85 + 0.05 is not 0.9).
-            close = abs(float(target) - start - step) <= 1e-9 * abs(step)
-            value = float(target) if close or abs(step) >= abs(float(target) - start) else start + step
-            guess = found[-1][1]
-            if len(found) >= 2 and found[-2][0] != found[-1][0]:
-                # Secant predictor along the curve: the end moves smoothly with the parameter.
-                # It extrapolates at most MAX_EXTRAPOLATION times the last spacing: beyond, the
-                # last point is the better guess.
-                ratio = (value - found[-1][0]) / (found[-1][0] - found[-2][0])
-                if abs(ratio) <= MAX_EXTRAPOLATION:
-                    guess = guess + ratio * (guess - found[-2][1])
-            entry, reason = point(value, guess)
-            if entry is None:
-                failures, step = failures + 1, step / 2.0
-                continue
-            found.append(entry)
-            if value == float(target):
-                reached = True
-                break
-            # Each step reached lets the next one grow again (the residual's sensitivity to p
-            # can be large: 135 per unit of E2 for the paper's chain's torus end).
-            start, step = value, 2.0 * step
-        if not reached:
+        if not curve.follow(float(target)):
             complete = False
             message = (
-                f"the {kind} end could not be followed beyond {field_name} = {found[-1][0]:.6g} towards {float(target):.6g} "
-                f"({reason}): the curve turns back in {field_name}, ends (a codimension-two point), or the edge changes kind"
+                f"the {kind} end could not be followed beyond {field_name} = {curve.found[-1][0]:.6g} towards {float(target):.6g} "
+                f"({curve.reason}): the curve turns back in {field_name}, ends (a codimension-two point), or the edge changes kind"
             )
             break
+    found = curve.found
     if progress is not None:
         progress(values.size, values.size)
     asked = [entry for entry in found if np.any(entry[0] == values)]
