@@ -1,0 +1,703 @@
+"""Homoclinic ends of rotating orbits, solved as boundary-value problems rather than fitted.
+
+Contract
+--------
+Below the static fold M_c a rotating orbit can end where it grows into a loop through the
+static branch's unstable equilibrium, the saddle y_s: the orbit leaves y_s along its
+unstable direction, turns k times in its angles and comes back to the same saddle shifted
+by 2 pi k, y_s + 2 pi k. Its period diverges there like -log(M - M_h) / lambda_u, which is
+why a continuation of the orbits can only creep towards M_h. Here the loop itself is the
+unknown, on a truncated interval [0, T] with projection boundary conditions (the
+formulation of HomCont, Champneys, Kuznetsov and Sandstede 1996, and Beyn 1990):
+
+    y(0) = y_s(p) + eps0 v_u(p),                                           (H0)
+    w_u(p) . (y(T) - y_s(p) - 2 pi k) = 0,                                (H1)
+    |y(T) - y_s(p) - 2 pi k| = eps1,                                      (H2)
+
+with v_u the saddle's unstable eigenvector (oriented so that the winding angle grows) and
+w_u its left eigenvector, which is normal to the stable eigenspace: (H1) puts the end on
+the stable eigenspace of the shifted saddle. (H0) and (H2) fix the time shift, so the
+unknowns are the parameter p (the moment, or any named parameter of a
+:class:`~cosserat_chain.systems.base.System`) and the time T: two equations in two
+unknowns, solved by Newton with y(T) from the flow (:func:`~cosserat_chain.numerics.shooting.flow`),
+dR/dT exact (the vector field at y(T)) and dR/dp by central differences. The saddle at each
+p is Newton's (:func:`~cosserat_chain.numerics.equilibria.find_equilibrium`) from the nearest
+one solved. The error of the linear boundary conditions is O(eps0^2 + eps1^2) in p; eps runs
+down a ladder (1e-2 to 1e-6 by default), each rung started from the one before, and the
+difference between the last two rungs is the reported accuracy (with the last Newton step
+and the integration tolerance: :attr:`HomoclinicOrbit.accuracy`).
+
+* :func:`homoclinic_end` solves (H0)-(H2) for any system, starting from a bracket of p in
+  which the saddle's unstable manifold goes from falling back to turning over (bisection on
+  that fate first, then the ladder).
+* :func:`chain_homoclinic_end` does so for the paper's chain: the saddle is the static
+  branch's equilibrium past the fold (:func:`~cosserat_chain.numerics.newton.solve_rotation_controlled`).
+* :func:`continue_homoclinic` follows the end in a second parameter (the damping, say) by
+  Newton from the previous point with a secant predictor.
+* :func:`locate_snic_point` locates the codimension-two point where the homoclinic end meets
+  the static fold and becomes a saddle-node on the invariant circle (SNIC) by the augmented
+  system: the equilibrium is the fold (F = 0, J v = 0, in (q, M)), the orbit leaves it along
+  its centre direction v (eigenvalue 0) and returns on the shifted fold's strong stable
+  eigenspace, w_0 . (y(T) - y_f - 2 pi k) = 0: (H0)-(H2) with the fold for the saddle and
+  the second parameter for p. Leaving along a zero eigenvalue is slow (the time to leave a
+  distance eps0 grows like 1 / eps0), but the centre manifold attracts the start's
+  O(eps0^2) offset on that side, so eps0 there is 1e-3 at no cost in accuracy.
+
+Only saddles with one unstable eigenvalue are taken (one leaving direction): a saddle with
+more (the sine chain's unstable branch past a Hopf point) is refused with a message.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import CosseratChainError
+from ..systems.base import System
+from .equilibria import EquilibriumNotFound, find_equilibrium
+from .kit import EvaluationFailed
+from .shooting import flow, states, turns_vector
+
+#: Distances eps0 = eps1 of the boundary conditions, solved in turn, each from the one before.
+EPS_LADDER = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
+#: eps0 at a fold (the codimension-two point): the orbit leaves along the centre direction,
+#: which attracts the start's offset, while the time to leave grows like 1 / eps0.
+FOLD_EPS0 = 1e-3
+#: Tolerances of the integrations (DOP853).
+RTOL = 1e-12
+ATOL = 1e-13
+#: Newton on (H1)-(H2) stops when max |R| is below this.
+RESIDUAL_TOL = 1e-10
+#: Newton iterations per rung of the ladder.
+MAX_ITERATIONS = 30
+#: Relative step of the central differences in the parameter (the scale is max(|p|, 1)).
+FD_STEP = 1e-8
+#: The bisection on the manifold's fate stops at this relative width of the bracket.
+BISECTION_RTOL = 1e-6
+#: Time step of the sampled trajectories (fate and first guess of T), in units of 1 / |lambda|max.
+SAMPLE = 0.05
+#: The manifold turns over once the winding angle passes the shifted saddle's by this (rad).
+OVER_MARGIN = 0.5
+#: Largest |Im| / |lambda| of a real leaving eigenvalue.
+REAL_TOL = 1e-8
+
+
+class HomoclinicError(CosseratChainError, RuntimeError):
+    """The homoclinic orbit (or its codimension-two point) was not found; the message says why."""
+
+
+@dataclass(frozen=True)
+class Rest:
+    """An equilibrium with its leaving direction: the saddle (or fold) an end's orbit leaves and returns to.
+
+    Attributes
+    ----------
+    system : System
+        At the parameters of this equilibrium.
+    q : ndarray (n,)
+    leaving : ndarray (2n,)
+        Unit right eigenvector of the eigenvalue ``rate``, its winding angle growing.
+    normal : ndarray (2n,)
+        Unit left eigenvector of ``rate``: normal to the invariant subspace of all other eigenvalues.
+    rate : float
+        The leaving eigenvalue: > 0 at a saddle, 0 at a fold.
+    decay : float
+        -Re of the leading stable eigenvalue (> 0).
+    eigenvalues : ndarray (2n,) complex
+    """
+
+    system: System
+    q: np.ndarray
+    leaving: np.ndarray
+    normal: np.ndarray
+    rate: float
+    decay: float
+    eigenvalues: np.ndarray
+
+    @property
+    def y(self) -> np.ndarray:
+        """The state (q, 0) (2n,)."""
+        return np.concatenate([self.q, np.zeros_like(self.q)])
+
+
+def dynamics_matrix(system: System, q: np.ndarray) -> np.ndarray:
+    """The Jacobian of the first-order field at rest, [[0, I], [M^-1 dF/dq, -M^-1 C]] (2n, 2n)."""
+    n = system.size
+    inverse = 1.0 / system.mass()
+    a = np.zeros((2 * n, 2 * n))
+    a[:n, n:] = np.eye(n)
+    a[n:, :n] = inverse[:, None] * system.force_jacobian(q).toarray()
+    a[n:, n:] = -np.diag(system.damping() * inverse)
+    return a
+
+
+def rest(system: System, q: np.ndarray, winding: int, *, fold: bool = False) -> Rest:
+    """The equilibrium ``q`` of ``system`` with its leaving direction (:class:`Rest`).
+
+    ``fold``: the leaving eigenvalue is the one nearest 0 (a fold's centre direction), else the
+    largest real part, which must be the only one > 0.
+
+    Raises
+    ------
+    HomoclinicError
+        If the leaving eigenvalue is complex, or the equilibrium has more than one leaving direction.
+    """
+    a = dynamics_matrix(system, q)
+    eig, right = np.linalg.eig(a)
+    scale = max(1.0, float(np.max(np.abs(eig))))
+    i = int(np.argmin(np.abs(eig))) if fold else int(np.argmax(eig.real))
+    rate = eig[i]
+    if abs(rate.imag) > REAL_TOL * scale:
+        raise HomoclinicError(f"the leaving eigenvalue {rate:.6g} of the equilibrium is complex: no single leaving direction")
+    others = np.delete(eig, i)
+    if np.max(others.real) >= -1e-9 * scale:
+        count = int(np.sum(eig.real > -1e-9 * scale))
+        raise HomoclinicError(
+            f"the equilibrium has {count} eigenvalues with Re >= 0 ({', '.join(f'{e:.4g}' for e in eig[eig.real > -1e-9 * scale])}): "
+            "only a saddle with one unstable direction (or a fold with one centre direction) is supported"
+        )
+    v = right[:, i].real
+    v /= np.linalg.norm(v)
+    if v[winding] < 0:
+        v = -v
+    left_eig, left = np.linalg.eig(a.T)
+    w = left[:, int(np.argmin(np.abs(left_eig - rate)))].real
+    w /= np.linalg.norm(w)
+    if w @ v < 0:
+        w = -w
+    stable = others.real[others.real < 0]
+    return Rest(system, np.array(q, dtype=float), v, w, float(rate.real), float(-np.max(stable)), eig)
+
+
+@dataclass
+class HomoclinicOrbit:
+    """A solved homoclinic end (see the module docstring, (H0)-(H2)).
+
+    Attributes
+    ----------
+    parameter : str
+        The parameter solved for (``M`` on the chain).
+    value : float
+        Its value at the homoclinic orbit: M_h.
+    accuracy : float
+        Estimated error of ``value``: the largest of the difference between the last two
+        rungs of the eps ladder, the last Newton step and 100 RTOL max(|value|, 1) (the
+        integrations: the pendulum's ends agree with an independent computation to 1e-13).
+    rest : Rest
+        The saddle (or, at a codimension-two point, the fold) at ``value``.
+    time : float
+        T, the length of the truncated interval.
+    eps : float
+        eps0 = eps1 of the last rung (eps1 only, at a fold: eps0 is :data:`FOLD_EPS0`).
+    shift : ndarray (2n,)
+        2 pi k: the shifted saddle is rest.y + shift.
+    ladder : list of (eps, value)
+        The value at each rung.
+    iterations : int
+        Newton iterations of the last rung.
+    """
+
+    parameter: str
+    value: float
+    accuracy: float
+    rest: Rest
+    time: float
+    eps: float
+    shift: np.ndarray
+    ladder: list[tuple[float, float]] = field(default_factory=list)
+    iterations: int = 0
+
+    @property
+    def system(self) -> System:
+        return self.rest.system
+
+    @property
+    def start(self) -> np.ndarray:
+        """y(0) (2n,)."""
+        eps0 = FOLD_EPS0 if abs(self.rest.rate) < 1e-6 else self.eps
+        return self.rest.y + eps0 * self.rest.leaving
+
+    def trajectory(self, times: np.ndarray) -> np.ndarray:
+        """States (len(times), 2n) of the truncated orbit at ``times`` in [0, T]."""
+        return states(self.system, self.start, np.asarray(times, dtype=float), rtol=RTOL, atol=ATOL)
+
+    def as_dict(self) -> dict:
+        return {
+            "parameter": self.parameter,
+            "value": self.value,
+            "accuracy": self.accuracy,
+            "method": "solved",
+            "saddle_eigenvalue": self.rest.rate,
+            "stable_decay": self.rest.decay,
+            "time": self.time,
+            "eps": self.eps,
+            "ladder": [[e, v] for e, v in self.ladder],
+        }
+
+
+class _Equilibria:
+    """Equilibria of ``system`` at values of ``parameter``, each solved by Newton from the nearest one known."""
+
+    def __init__(self, system: System, parameter: str, q0: np.ndarray, winding: int):
+        self.system, self.parameter, self.winding = system, parameter, winding
+        self.known: dict[float, np.ndarray] = {float(system.parameter(parameter)): np.asarray(q0, dtype=float)}
+
+    def __call__(self, value: float, depth: int = 0) -> Rest:
+        nearest = min(self.known, key=lambda v: abs(v - value))
+        system = self.system.with_parameters(**{self.parameter: float(value)})
+        try:
+            found = find_equilibrium(system, self.known[nearest], tol=1e-13)
+        except EquilibriumNotFound:
+            if depth >= 8:
+                raise HomoclinicError(f"the saddle was lost on the way from {self.parameter} = {nearest:.12g} to {value:.12g}") from None
+            self(0.5 * (nearest + value), depth + 1)
+            return self(value, depth + 1)
+        self.known[float(value)] = found.q
+        return rest(system, found.q, self.winding)
+
+
+class _Folds:
+    """The fold of the static branch in ``moment`` at values of ``parameter``: F(q; M) = 0, J(q) v = 0, |v| = 1
+    by Newton on (q, v, M), each from the nearest one known (second derivatives by differences of J)."""
+
+    def __init__(self, system: System, parameter: str, moment: str, q0: np.ndarray, winding: int):
+        self.system, self.parameter, self.moment, self.winding = system, parameter, moment, winding
+        jac = system.force_jacobian(q0).toarray()
+        _, _, vt = np.linalg.svd(jac)
+        self.known: dict[float, tuple[np.ndarray, np.ndarray, float]] = {
+            float(system.parameter(parameter)): (np.asarray(q0, dtype=float), vt[-1], system.parameter(moment))
+        }
+
+    def solve(self, value: float) -> tuple[System, np.ndarray]:
+        nearest = min(self.known, key=lambda v: abs(v - value))
+        q, v, m = self.known[nearest]
+        q, v = q.copy(), v.copy()
+        base = self.system.with_parameters(**{self.parameter: float(value)})
+        n = q.size
+        reference = v.copy()
+        for _ in range(MAX_ITERATIONS):
+            system = base.with_parameters(**{self.moment: m})
+            jac = system.force_jacobian(q).toarray()
+            residual = np.concatenate([system.forces(q), jac @ v, [reference @ v - 1.0]])
+            if np.max(np.abs(residual)) < 1e-13:
+                break
+            h = 1e-6 * max(1.0, float(np.max(np.abs(q))))
+            second = np.column_stack(
+                [(system.force_jacobian(q + h * e).toarray() - system.force_jacobian(q - h * e).toarray()) @ v / (2 * h) for e in np.eye(n)]
+            )
+            big = np.zeros((2 * n + 1, 2 * n + 1))
+            big[:n, :n] = jac
+            big[:n, 2 * n] = system.parameter_forces(q, self.moment)
+            big[n : 2 * n, :n] = second
+            big[n : 2 * n, n : 2 * n] = jac
+            big[2 * n, n : 2 * n] = reference
+            step = np.linalg.solve(big, -residual)
+            q, v, m = q + step[:n], v + step[n : 2 * n], m + step[2 * n]
+        else:
+            raise HomoclinicError(f"Newton on the fold did not converge at {self.parameter} = {value:.12g} (max residual {np.max(np.abs(residual)):.3g})")
+        self.known[float(value)] = (q, v, m)
+        return system, q
+
+    def __call__(self, value: float) -> Rest:
+        system, q = self.solve(value)
+        return rest(system, q, self.winding, fold=True)
+
+
+class _Loop:
+    """The residual (H1)-(H2) of the loop from ``rests(p)`` with eps0, eps1, as a function of (p, T)."""
+
+    def __init__(self, rests: Callable[[float], Rest], shift: np.ndarray, eps0: float, eps1: float):
+        self.rests, self.shift, self.eps0, self.eps1 = rests, shift, eps0, eps1
+
+    def end(self, p: float, time: float) -> tuple[Rest, np.ndarray]:
+        r = self.rests(p)
+        y, _, _ = flow(r.system, r.y + self.eps0 * r.leaving, time, variations=False, rtol=RTOL, atol=ATOL)
+        return r, y
+
+    def residual(self, p: float, time: float) -> tuple[np.ndarray, Rest, np.ndarray]:
+        r, y = self.end(p, time)
+        d = y - r.y - self.shift
+        return np.array([r.normal @ d / self.eps1, np.linalg.norm(d) / self.eps1 - 1.0]), r, y
+
+    def solve(self, p: float, time: float, what: str) -> tuple[float, float, float, int, Rest]:
+        """Newton on (p, T); returns (p, T, last |dp|, iterations, rest)."""
+        residual, r, y = self.residual(p, time)
+        for iteration in range(1, MAX_ITERATIONS + 1):
+            h = FD_STEP * max(1.0, abs(p))
+            plus, _, _ = self.residual(p + h, time)
+            minus, _, _ = self.residual(p - h, time)
+            d = y - r.y - self.shift
+            velocity = r.system.vector_field(y)
+            jac = np.column_stack([(plus - minus) / (2 * h), [r.normal @ velocity / self.eps1, d @ velocity / (np.linalg.norm(d) * self.eps1)]])
+            try:
+                step = np.linalg.solve(jac, -residual)
+            except np.linalg.LinAlgError:
+                raise HomoclinicError(f"{what}: singular Newton system at p = {p:.12g}, T = {time:.6g}") from None
+            # Keep T positive and the step inside the region where the residual falls.
+            scale = 1.0
+            for _ in range(20):
+                trial_p, trial_t = p + scale * step[0], time + scale * step[1]
+                if trial_t > 0:
+                    try:
+                        trial, r_trial, y_trial = self.residual(trial_p, trial_t)
+                    except (HomoclinicError, EvaluationFailed):
+                        trial = None
+                    if trial is not None and np.max(np.abs(trial)) < max(np.max(np.abs(residual)), 1e-300) * (1 + 1e-9) + 1e-12:
+                        break
+                scale *= 0.5
+            else:
+                raise HomoclinicError(f"{what}: Newton made no progress at p = {p:.12g}, T = {time:.6g} (max |R| = {np.max(np.abs(residual)):.3g})")
+            moved = abs(trial_p - p)
+            p, time, residual, r, y = trial_p, trial_t, trial, r_trial, y_trial
+            if np.max(np.abs(residual)) < RESIDUAL_TOL or moved < 4 * np.finfo(float).eps * max(1.0, abs(p)):
+                return p, time, moved, iteration, r
+        raise HomoclinicError(f"{what}: Newton did not converge in {MAX_ITERATIONS} iterations (max |R| = {np.max(np.abs(residual)):.3g})")
+
+
+def _sampled(r: Rest, eps0: float, t_max: float, shift: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Times and the distance |y(t) - y_s - shift| along the manifold from y_s + eps0 v, up to t_max."""
+    step = SAMPLE / max(1e-3, float(np.max(np.abs(r.eigenvalues))))
+    times = np.arange(0.0, t_max + step, step)
+    ys = states(r.system, r.y + eps0 * r.leaving, times, rtol=RTOL, atol=ATOL)
+    return times, np.linalg.norm(ys - r.y - shift, axis=1)
+
+
+def _turns_over(r: Rest, eps0: float, shift: np.ndarray, winding: int, t_max: float) -> bool:
+    """Whether the manifold from y_s + eps0 v passes the shifted saddle's winding angle by OVER_MARGIN
+    within t_max (else it falls back: it comes to rest away from the saddle, or runs out of time)."""
+    target = r.q[winding] + shift[winding] + np.sign(shift[winding]) * OVER_MARGIN
+    chunk = 20.0 / max(1e-3, float(np.max(np.abs(r.eigenvalues))) ** 0.5)
+    y, t = r.y + eps0 * r.leaving, 0.0
+    sign = np.sign(shift[winding])
+    highest = sign * y[winding]
+    n = r.q.size
+    while t < t_max:
+        times = np.linspace(t, t + chunk, 201)
+        ys = states(r.system, y, times, rtol=1e-10, atol=1e-12)
+        angle = sign * ys[:, winding]
+        if np.any(angle >= sign * target):
+            return True
+        highest = max(highest, float(np.max(angle)))
+        y, t = ys[-1], t + chunk
+        # Fallen back: a whole turn below the highest point, or at rest away from the shifted saddle.
+        if highest - angle[-1] > math.pi:
+            return False
+        if np.max(np.abs(y[n:])) < 1e-6 and np.linalg.norm(y - r.y - shift) > 0.1:
+            return False
+    return False
+
+
+def _winding(system: System, turns: Mapping[str | int, int] | np.ndarray) -> tuple[np.ndarray, int]:
+    k = turns_vector(system, turns)
+    if not np.any(k):
+        raise ValueError(f"turns must name at least one angle of {system.name} that turns, got {turns!r}")
+    return np.concatenate([2 * np.pi * k, np.zeros(system.size)]), int(np.flatnonzero(k)[0])
+
+
+def _solve_ladder(loop_for: Callable[[float], _Loop], parameter: str, p: float, time: float, rate: float, decay: float,
+                  ladder: Sequence[float], what: str) -> tuple[float, float, float, list[tuple[float, float]], int, Rest, float]:
+    """Newton on every rung of ``ladder`` from the one before; T grows by log(ratio) (1/rate + 1/decay)."""
+    values: list[tuple[float, float]] = []
+    previous_eps = None
+    moved = iterations = 0
+    r = None
+    for eps in ladder:
+        if previous_eps is not None:
+            growth = math.log(previous_eps / eps)
+            time += growth * ((1.0 / rate if rate > 1e-6 else 0.0) + 1.0 / decay)
+        p, time, moved, iterations, r = loop_for(eps).solve(p, time, f"{what} (eps = {eps:g})")
+        values.append((eps, p))
+        previous_eps = eps
+    spread = abs(values[-1][1] - values[-2][1]) if len(values) > 1 else math.inf
+    accuracy = max(spread, moved, 100.0 * RTOL * max(1.0, abs(p)))
+    return p, time, accuracy, values, iterations, r, spread
+
+
+def _first_time(r: Rest, eps0: float, eps1: float, shift: np.ndarray, t_max: float) -> float:
+    """The first time the manifold from y_s + eps0 v comes within eps1 of the shifted saddle (else its closest approach)."""
+    times, distance = _sampled(r, eps0, t_max, shift)
+    inside = np.flatnonzero(distance <= eps1)
+    if inside.size:
+        i = int(inside[0])
+        if i == 0:
+            return float(times[0])
+        a, b = distance[i - 1], distance[i]
+        return float(times[i - 1] + (times[i] - times[i - 1]) * (a - eps1) / (a - b))
+    return float(times[int(np.argmin(distance))])
+
+
+def _bracketed(fate: Callable[[float], bool], low: float, high: float, parameter: str) -> tuple[float, float]:
+    """Bisection of ``fate`` (True: over) between ``low`` and ``high`` to BISECTION_RTOL; returns (over, back) ends."""
+    over_low, over_high = fate(low), fate(high)
+    if over_low == over_high:
+        raise HomoclinicError(
+            f"the saddle's unstable manifold {'turns over' if over_low else 'falls back'} at both ends of the bracket "
+            f"{parameter} in [{low:.10g}, {high:.10g}]: no homoclinic end between them (widen the bracket)"
+        )
+    over, back = (low, high) if over_low else (high, low)
+    while abs(over - back) > BISECTION_RTOL * max(abs(over), abs(back), 1e-300):
+        middle = 0.5 * (over + back)
+        if fate(middle):
+            over = middle
+        else:
+            back = middle
+    return over, back
+
+
+def _t_max(r: Rest, t_max: float | None) -> float:
+    if t_max is not None:
+        return float(t_max)
+    # Leaving eps0 = 1e-2 and the passage near the shifted saddle take a few e-foldings each; the turn in between
+    # a few natural periods.
+    fast = float(np.max(np.abs(r.eigenvalues)))
+    return 20.0 / max(r.rate, 1e-3) + 20.0 / r.decay + 200.0 / fast
+
+
+def homoclinic_end(
+    system: System,
+    saddle: np.ndarray,
+    *,
+    turns: Mapping[str | int, int] | np.ndarray,
+    bracket: tuple[float, float],
+    parameter: str = "M",
+    ladder: Sequence[float] = EPS_LADDER,
+    t_max: float | None = None,
+) -> HomoclinicOrbit:
+    """The orbit homoclinic to the saddle that leaves it and returns shifted by 2 pi ``turns``: (H0)-(H2).
+
+    Parameters
+    ----------
+    system : System
+        Any system (:mod:`cosserat_chain.systems`); its value of ``parameter`` is where ``saddle`` holds.
+    saddle : ndarray (n,)
+        The saddle's coordinates at that value (or near them: Newton corrects them).
+    turns : mapping name-or-index -> int, or ndarray (n,)
+        The turns of the angles along the loop (``{"phi_0": 1}``).
+    bracket : (float, float)
+        Values of ``parameter`` between which the saddle's unstable manifold goes from falling
+        back to turning over: the homoclinic end lies between them (the saddle is followed to both).
+    parameter : str
+        The parameter solved for.
+    ladder : sequence of float
+        eps0 = eps1 of the boundary conditions, solved in turn (at least two: their last two
+        values give the accuracy).
+    t_max : float, optional
+        Longest integration of the manifold while bracketing (default from the saddle's eigenvalues).
+
+    Returns
+    -------
+    HomoclinicOrbit
+
+    Raises
+    ------
+    ValueError
+        For bad input (turns, ladder, bracket).
+    HomoclinicError
+        If the saddle has more than one unstable direction, the bracket holds no end, or Newton fails.
+    """
+    shift, winding = _winding(system, turns)
+    ladder = _check_ladder(ladder)
+    low, high = (float(b) for b in bracket)
+    if not (math.isfinite(low) and math.isfinite(high) and low != high):
+        raise ValueError(f"bracket must be two different finite values of {parameter}, got {bracket!r}")
+    rests = _Equilibria(system, parameter, system.check_state(saddle, "saddle"), winding)
+    first = rests(float(system.parameter(parameter)))
+    horizon = _t_max(first, t_max)
+    over, back = _bracketed(lambda p: _turns_over(rests(p), ladder[0], shift, winding, horizon), low, high, parameter)
+    r = rests(over)
+    time = _first_time(r, ladder[0], ladder[0], shift, horizon)
+
+    def loop_for(eps: float) -> _Loop:
+        return _Loop(rests, shift, eps, eps)
+
+    p, time, accuracy, values, iterations, r, _ = _solve_ladder(loop_for, parameter, 0.5 * (over + back), time, r.rate, r.decay, ladder, "homoclinic end")
+    return HomoclinicOrbit(parameter, p, accuracy, r, time, ladder[-1], shift, values, iterations)
+
+
+def _check_ladder(ladder: Sequence[float]) -> tuple[float, ...]:
+    values = tuple(float(e) for e in ladder)
+    if len(values) < 2 or not all(0 < e < 1 for e in values) or any(b >= a for a, b in zip(values, values[1:])):
+        raise ValueError(f"ladder must hold at least two decreasing distances in (0, 1), got {ladder!r}")
+    return values
+
+
+@dataclass
+class HomoclinicCurve:
+    """The homoclinic end followed in a second parameter.
+
+    Attributes
+    ----------
+    name : str
+        The second parameter.
+    values : ndarray
+        Its values reached, in order.
+    ends : ndarray
+        The homoclinic end (the first parameter's value) at each.
+    accuracy : ndarray
+        Each end's accuracy (:attr:`HomoclinicOrbit.accuracy`).
+    orbits : list of HomoclinicOrbit
+    complete : bool
+        Whether every value was reached; ``message`` says why not.
+    message : str
+    """
+
+    name: str
+    values: np.ndarray
+    ends: np.ndarray
+    accuracy: np.ndarray
+    orbits: list[HomoclinicOrbit]
+    complete: bool
+    message: str
+
+    def as_dict(self) -> dict:
+        return {
+            "parameter": self.name,
+            "values": self.values.tolist(),
+            "ends": self.ends.tolist(),
+            "accuracy": self.accuracy.tolist(),
+            "complete": self.complete,
+            "message": self.message,
+        }
+
+
+def continue_homoclinic(orbit: HomoclinicOrbit, name: str, values: Sequence[float], *, ladder: Sequence[float] = EPS_LADDER[-2:]) -> HomoclinicCurve:
+    """Follow the homoclinic end ``orbit`` through ``values`` of the parameter ``name``.
+
+    At each value the loop (H0)-(H2) is solved on the last two rungs of ``ladder`` (their
+    difference is the accuracy) by Newton from the value before, with a secant predictor in
+    the end and T. Stops where Newton fails (near the codimension-two point, where the
+    saddle's unstable eigenvalue goes to zero and T grows; :func:`locate_snic_point`).
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``name`` or a ``values`` that does not start away from the orbit's own value.
+    """
+    ladder = _check_ladder(ladder)
+    system = orbit.system
+    system.parameter(name)
+    first = float(system.parameter(name))
+    winding = int(np.flatnonzero(orbit.shift)[0])
+    points = [(first, orbit.value, orbit.time)]
+    done: list[HomoclinicOrbit] = []
+    reached, ends, accuracy = [], [], []
+    message = ""
+    current = orbit.rest
+    for value in (float(v) for v in values):
+        (v0, p0, t0) = points[-1]
+        if len(points) > 1:
+            (v1, p1, t1) = points[-2]
+            slope = (value - v0) / (v0 - v1)
+            p_guess, t_guess = p0 + slope * (p0 - p1), t0 + slope * (t0 - t1)
+        else:
+            p_guess, t_guess = p0, t0
+        base = current.system.with_parameters(**{name: value})
+        rests = _Equilibria(base.with_parameters(**{orbit.parameter: p0}), orbit.parameter, current.q, winding)
+
+        def loop_for(eps: float, rests=rests) -> _Loop:
+            return _Loop(rests, orbit.shift, eps, eps)
+
+        try:
+            r0 = rests(p0)
+            p, time, acc, rungs, iterations, r, _ = _solve_ladder(
+                loop_for, orbit.parameter, p_guess, t_guess * (1.0 if orbit.eps == ladder[0] else 1.0), r0.rate, r0.decay, ladder, f"homoclinic end at {name} = {value:.10g}"
+            )
+        except (HomoclinicError, EvaluationFailed) as err:
+            message = f"stopped before {name} = {value:.10g}: {err}"
+            break
+        current = r
+        points.append((value, p, time))
+        done.append(HomoclinicOrbit(orbit.parameter, p, acc, r, time, ladder[-1], orbit.shift, rungs, iterations))
+        reached.append(value)
+        ends.append(p)
+        accuracy.append(acc)
+    return HomoclinicCurve(name, np.array(reached), np.array(ends), np.array(accuracy), done, not message, message)
+
+
+@dataclass
+class SnicPoint:
+    """The codimension-two point where the homoclinic end meets the static fold (a non-central saddle-node homoclinic orbit).
+
+    Attributes
+    ----------
+    name : str
+        The second parameter.
+    value : float
+        Its value there.
+    accuracy : float
+        Estimated error of ``value`` (as :attr:`HomoclinicOrbit.accuracy`).
+    moment : float
+        The first parameter there: the fold's, M_c.
+    orbit : HomoclinicOrbit
+        The loop from the fold (``orbit.rest`` is the fold, ``orbit.parameter`` the second parameter).
+    """
+
+    name: str
+    value: float
+    accuracy: float
+    moment: float
+    orbit: HomoclinicOrbit
+
+    def as_dict(self) -> dict:
+        return {"parameter": self.name, "value": self.value, "accuracy": self.accuracy, "moment": self.moment, "method": "augmented_system"}
+
+
+def locate_snic_point(
+    system: System,
+    fold: np.ndarray,
+    *,
+    name: str,
+    bracket: tuple[float, float],
+    turns: Mapping[str | int, int] | np.ndarray,
+    moment: str = "M",
+    ladder: Sequence[float] = EPS_LADDER[1:],
+    t_max: float | None = None,
+) -> SnicPoint:
+    """The value of ``name`` where the homoclinic end meets the static fold in ``moment`` (module docstring).
+
+    Parameters
+    ----------
+    system : System
+        Its ``moment`` and ``name`` values at (or near) a fold of the static branch.
+    fold : ndarray (n,)
+        The fold's coordinates (or near them: Newton on the fold corrects them).
+    name : str
+        The second parameter (the damping).
+    bracket : (float, float)
+        Values of ``name`` between which the fold's centre manifold goes from falling back
+        (a SNIC: it creeps back into the shifted fold) to turning over (a homoclinic end below M_c).
+    turns : mapping or ndarray
+        As :func:`homoclinic_end`.
+    ladder : sequence of float
+        eps1 of the end condition, solved in turn (eps0 is :data:`FOLD_EPS0`).
+
+    Returns
+    -------
+    SnicPoint
+
+    Raises
+    ------
+    HomoclinicError
+        If the bracket holds no change of fate, or Newton fails.
+    """
+    shift, winding = _winding(system, turns)
+    ladder = _check_ladder(ladder)
+    low, high = (float(b) for b in bracket)
+    if not (math.isfinite(low) and math.isfinite(high) and low != high):
+        raise ValueError(f"bracket must be two different finite values of {name}, got {bracket!r}")
+    folds = _Folds(system, name, moment, system.check_state(fold, "fold"), winding)
+    first = folds(float(system.parameter(name)))
+    horizon = _t_max(first, t_max) + 20.0 / (FOLD_EPS0 * max(1e-3, float(np.max(np.abs(first.eigenvalues)))))
+    over, back = _bracketed(lambda p: _turns_over(folds(p), FOLD_EPS0, shift, winding, horizon), low, high, name)
+    r = folds(over)
+    time = _first_time(r, FOLD_EPS0, ladder[0], shift, horizon)
+
+    def loop_for(eps: float) -> _Loop:
+        return _Loop(folds, shift, FOLD_EPS0, eps)
+
+    p, time, accuracy, values, iterations, r, _ = _solve_ladder(loop_for, name, 0.5 * (over + back), time, 0.0, r.decay, ladder, "codimension-two point")
+    orbit = HomoclinicOrbit(name, p, accuracy, r, time, ladder[-1], shift, values, iterations)
+    return SnicPoint(name, p, accuracy, float(r.system.parameter(moment)), orbit)
