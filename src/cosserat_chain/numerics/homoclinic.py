@@ -41,7 +41,7 @@ and the integration tolerance: :attr:`HomoclinicOrbit.accuracy`).
   eigenspace, w_0 . (y(T) - y_f - 2 pi k) = 0: (H0)-(H2) with the fold for the saddle and
   the second parameter for p. Leaving along a zero eigenvalue is slow (the time to leave a
   distance eps0 grows like 1 / eps0), but the centre manifold attracts the start's
-  O(eps0^2) offset on that side, so eps0 there is 1e-3 at no cost in accuracy.
+  O(eps0^2) offset on that side, so eps0 there is 1e-2 at no cost in accuracy.
 
 Only saddles with one unstable eigenvalue are taken (one leaving direction): a saddle with
 more (the sine chain's unstable branch past a Hopf point) is refused with a message.
@@ -65,7 +65,7 @@ from .shooting import flow, states, turns_vector
 EPS_LADDER = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
 #: eps0 at a fold (the codimension-two point): the orbit leaves along the centre direction,
 #: which attracts the start's offset, while the time to leave grows like 1 / eps0.
-FOLD_EPS0 = 1e-3
+FOLD_EPS0 = 1e-2
 #: Tolerances of the integrations (DOP853).
 RTOL = 1e-12
 ATOL = 1e-13
@@ -73,14 +73,19 @@ ATOL = 1e-13
 RESIDUAL_TOL = 1e-10
 #: Newton iterations per rung of the ladder.
 MAX_ITERATIONS = 30
-#: Relative step of the central differences in the parameter (the scale is max(|p|, 1)).
+#: First relative step of the central differences in the parameter (the scale is max(|p|, 1)), made smaller until
+#: the residual changes by at most FD_CHANGE over it (within its linear range; the integrations' noise in R is ~1e-7).
 FD_STEP = 1e-8
+FD_CHANGE = 1e-2
 #: The bisection on the manifold's fate stops at this relative width of the bracket.
 BISECTION_RTOL = 1e-6
 #: Time step of the sampled trajectories (fate and first guess of T), in units of 1 / |lambda|max.
 SAMPLE = 0.05
 #: The manifold turns over once the winding angle passes the shifted saddle's by this (rad).
 OVER_MARGIN = 0.5
+#: Largest change of any coordinate when the saddle is followed to a new parameter value in one Newton solve (rad, or
+#: the coordinate's unit); a larger one is taken in halves (Newton from far lands on the node).
+JUMP = 0.3
 #: Largest |Im| / |lambda| of a real leaving eigenvalue.
 REAL_TOL = 1e-8
 
@@ -152,6 +157,8 @@ def rest(system: System, q: np.ndarray, winding: int, *, fold: bool = False) -> 
     rate = eig[i]
     if abs(rate.imag) > REAL_TOL * scale:
         raise HomoclinicError(f"the leaving eigenvalue {rate:.6g} of the equilibrium is complex: no single leaving direction")
+    if not fold and rate.real <= 1e-9 * scale:
+        raise HomoclinicError(f"the equilibrium is not a saddle: its eigenvalues all have Re <= 0 (largest {rate:.6g})")
     others = np.delete(eig, i)
     if np.max(others.real) >= -1e-9 * scale:
         count = int(np.sum(eig.real > -1e-9 * scale))
@@ -207,7 +214,7 @@ class HomoclinicOrbit:
     time: float
     eps: float
     shift: np.ndarray
-    ladder: list[tuple[float, float]] = field(default_factory=list)
+    ladder: list[tuple[float, float, float]] = field(default_factory=list)
     iterations: int = 0
 
     @property
@@ -234,7 +241,7 @@ class HomoclinicOrbit:
             "stable_decay": self.rest.decay,
             "time": self.time,
             "eps": self.eps,
-            "ladder": [[e, v] for e, v in self.ladder],
+            "ladder": [list(rung) for rung in self.ladder],
         }
 
 
@@ -248,15 +255,20 @@ class _Equilibria:
     def __call__(self, value: float, depth: int = 0) -> Rest:
         nearest = min(self.known, key=lambda v: abs(v - value))
         system = self.system.with_parameters(**{self.parameter: float(value)})
+        start = self.known[nearest]
         try:
-            found = find_equilibrium(system, self.known[nearest], tol=1e-13)
-        except EquilibriumNotFound:
-            if depth >= 8:
+            found = find_equilibrium(system, start, tol=1e-13)
+            # Newton from too far lands on the node or on another saddle: take it only near the one it started from.
+            if np.max(np.abs(found.q - start)) > JUMP:
+                raise EquilibriumNotFound("jumped")
+            saddle = rest(system, found.q, self.winding)
+        except (EquilibriumNotFound, HomoclinicError):
+            if depth >= 12:
                 raise HomoclinicError(f"the saddle was lost on the way from {self.parameter} = {nearest:.12g} to {value:.12g}") from None
             self(0.5 * (nearest + value), depth + 1)
             return self(value, depth + 1)
         self.known[float(value)] = found.q
-        return rest(system, found.q, self.winding)
+        return saddle
 
 
 class _Folds:
@@ -311,6 +323,7 @@ class _Loop:
 
     def __init__(self, rests: Callable[[float], Rest], shift: np.ndarray, eps0: float, eps1: float):
         self.rests, self.shift, self.eps0, self.eps1 = rests, shift, eps0, eps1
+        self.step: float | None = None
 
     def end(self, p: float, time: float) -> tuple[Rest, np.ndarray]:
         r = self.rests(p)
@@ -320,18 +333,31 @@ class _Loop:
     def residual(self, p: float, time: float) -> tuple[np.ndarray, Rest, np.ndarray]:
         r, y = self.end(p, time)
         d = y - r.y - self.shift
-        return np.array([r.normal @ d / self.eps1, np.linalg.norm(d) / self.eps1 - 1.0]), r, y
+        # (H2) as log(|d| / eps1): near the saddle |d| decays exponentially in T, so the log is nearly linear in T.
+        return np.array([r.normal @ d / self.eps1, math.log(np.linalg.norm(d) / self.eps1)]), r, y
 
-    def solve(self, p: float, time: float, what: str) -> tuple[float, float, float, int, Rest]:
-        """Newton on (p, T); returns (p, T, last |dp|, iterations, rest)."""
-        residual, r, y = self.residual(p, time)
-        for iteration in range(1, MAX_ITERATIONS + 1):
-            h = FD_STEP * max(1.0, abs(p))
+    def differences(self, p: float, time: float) -> tuple[np.ndarray, np.ndarray, float]:
+        """R at p + h and p - h, with h small enough that R changes by at most FD_CHANGE (the loop is
+        sensitive to p like 1 / eps: the N = 1 chain's R moves by 50 per 1e-9 of M at eps = 1e-5)."""
+        h = self.step if self.step is not None else FD_STEP * max(1.0, abs(p))
+        for _ in range(8):
             plus, _, _ = self.residual(p + h, time)
             minus, _, _ = self.residual(p - h, time)
+            change = float(np.max(np.abs(plus - minus))) / 2
+            if change <= FD_CHANGE:
+                break
+            h *= 0.5 * FD_CHANGE / change
+        self.step = h
+        return plus, minus, h
+
+    def solve(self, p: float, time: float, what: str) -> tuple[float, float, float, int, Rest, float]:
+        """Newton on (p, T); returns (p, T, last |dp|, iterations, rest, the rate at which |d| falls at T)."""
+        residual, r, y = self.residual(p, time)
+        for iteration in range(1, MAX_ITERATIONS + 1):
+            plus, minus, h = self.differences(p, time)
             d = y - r.y - self.shift
             velocity = r.system.vector_field(y)
-            jac = np.column_stack([(plus - minus) / (2 * h), [r.normal @ velocity / self.eps1, d @ velocity / (np.linalg.norm(d) * self.eps1)]])
+            jac = np.column_stack([(plus - minus) / (2 * h), [r.normal @ velocity / self.eps1, d @ velocity / (d @ d)]])
             try:
                 step = np.linalg.solve(jac, -residual)
             except np.linalg.LinAlgError:
@@ -353,7 +379,8 @@ class _Loop:
             moved = abs(trial_p - p)
             p, time, residual, r, y = trial_p, trial_t, trial, r_trial, y_trial
             if np.max(np.abs(residual)) < RESIDUAL_TOL or moved < 4 * np.finfo(float).eps * max(1.0, abs(p)):
-                return p, time, moved, iteration, r
+                d = y - r.y - self.shift
+                return p, time, moved, iteration, r, float(-(d @ r.system.vector_field(y)) / (d @ d))
         raise HomoclinicError(f"{what}: Newton did not converge in {MAX_ITERATIONS} iterations (max |R| = {np.max(np.abs(residual)):.3g})")
 
 
@@ -385,7 +412,7 @@ def _turns_over(r: Rest, eps0: float, shift: np.ndarray, winding: int, t_max: fl
         # Fallen back: a whole turn below the highest point, or at rest away from the shifted saddle.
         if highest - angle[-1] > math.pi:
             return False
-        if np.max(np.abs(y[n:])) < 1e-6 and np.linalg.norm(y - r.y - shift) > 0.1:
+        if np.max(np.abs(y[n:])) < 1e-6 and min(np.linalg.norm(y - r.y - shift), np.linalg.norm(y - r.y)) > 0.1:
             return False
     return False
 
@@ -398,18 +425,21 @@ def _winding(system: System, turns: Mapping[str | int, int] | np.ndarray) -> tup
 
 
 def _solve_ladder(loop_for: Callable[[float], _Loop], parameter: str, p: float, time: float, rate: float, decay: float,
-                  ladder: Sequence[float], what: str) -> tuple[float, float, float, list[tuple[float, float]], int, Rest, float]:
+                  ladder: Sequence[float], what: str) -> tuple[float, float, float, list[tuple[float, float, float]], int, Rest, float]:
     """Newton on every rung of ``ladder`` from the one before; T grows by log(ratio) (1/rate + 1/decay)."""
-    values: list[tuple[float, float]] = []
+    values: list[tuple[float, float, float]] = []
     previous_eps = None
     moved = iterations = 0
     r = None
+    approach = decay
     for eps in ladder:
         if previous_eps is not None:
-            growth = math.log(previous_eps / eps)
-            time += growth * ((1.0 / rate if rate > 1e-6 else 0.0) + 1.0 / decay)
-        p, time, moved, iterations, r = loop_for(eps).solve(p, time, f"{what} (eps = {eps:g})")
-        values.append((eps, p))
+            # Leaving takes log(ratio) / rate longer (nothing at a fold, where eps0 stays), arriving log(ratio) / approach.
+            loop = loop_for(eps)
+            leaving = math.log(previous_eps / loop.eps0) / rate if rate > 1e-6 and loop.eps0 < previous_eps else 0.0
+            time += leaving + math.log(previous_eps / eps) / max(approach, 1e-6)
+        p, time, moved, iterations, r, approach = loop_for(eps).solve(p, time, f"{what} (eps = {eps:g})")
+        values.append((eps, p, time))
         previous_eps = eps
     spread = abs(values[-1][1] - values[-2][1]) if len(values) > 1 else math.inf
     accuracy = max(spread, moved, 100.0 * RTOL * max(1.0, abs(p)))
@@ -504,9 +534,14 @@ def homoclinic_end(
     if not (math.isfinite(low) and math.isfinite(high) and low != high):
         raise ValueError(f"bracket must be two different finite values of {parameter}, got {bracket!r}")
     rests = _Equilibria(system, parameter, system.check_state(saddle, "saddle"), winding)
-    first = rests(float(system.parameter(parameter)))
-    horizon = _t_max(first, t_max)
-    over, back = _bracketed(lambda p: _turns_over(rests(p), ladder[0], shift, winding, horizon), low, high, parameter)
+    horizon = _t_max(rests(float(system.parameter(parameter))), t_max)
+    return _end_in_bracket(rests, shift, winding, (low, high), parameter, ladder, horizon)
+
+
+def _end_in_bracket(rests: _Equilibria, shift: np.ndarray, winding: int, bracket: tuple[float, float], parameter: str,
+                    ladder: Sequence[float], horizon: float) -> HomoclinicOrbit:
+    """Bisection on the manifold's fate in ``bracket``, then Newton down the ladder from the bracket's middle."""
+    over, back = _bracketed(lambda p: _turns_over(rests(p), ladder[0], shift, winding, horizon), *bracket, parameter)
     r = rests(over)
     time = _first_time(r, ladder[0], ladder[0], shift, horizon)
 
@@ -563,58 +598,85 @@ class HomoclinicCurve:
         }
 
 
-def continue_homoclinic(orbit: HomoclinicOrbit, name: str, values: Sequence[float], *, ladder: Sequence[float] = EPS_LADDER[-2:]) -> HomoclinicCurve:
+def continue_homoclinic(orbit: HomoclinicOrbit, name: str, values: Sequence[float], *, ladder: Sequence[float] = EPS_LADDER,
+                        t_max: float | None = None) -> HomoclinicCurve:
     """Follow the homoclinic end ``orbit`` through ``values`` of the parameter ``name``.
 
-    At each value the loop (H0)-(H2) is solved on the last two rungs of ``ladder`` (their
-    difference is the accuracy) by Newton from the value before, with a secant predictor in
-    the end and T. Stops where Newton fails (near the codimension-two point, where the
-    saddle's unstable eigenvalue goes to zero and T grows; :func:`locate_snic_point`).
+    At each value the end is predicted by a secant through the two before (the orbit's own
+    value first), bracketed around that prediction by the manifold's fate (the bracket widened
+    until the fate changes across it) and solved as :func:`homoclinic_end` does, the saddle
+    followed from the value before. Stops where that fails (near the codimension-two point,
+    where the saddle's unstable eigenvalue goes to zero; :func:`locate_snic_point`), saying why.
 
     Raises
     ------
     ValueError
-        For an unknown ``name`` or a ``values`` that does not start away from the orbit's own value.
+        For an unknown ``name`` or a bad ``ladder``.
     """
     ladder = _check_ladder(ladder)
     system = orbit.system
-    system.parameter(name)
     first = float(system.parameter(name))
     winding = int(np.flatnonzero(orbit.shift)[0])
-    points = [(first, orbit.value, orbit.time)]
+    points = [(first, orbit.value)]
     done: list[HomoclinicOrbit] = []
-    reached, ends, accuracy = [], [], []
     message = ""
     current = orbit.rest
     for value in (float(v) for v in values):
-        (v0, p0, t0) = points[-1]
-        if len(points) > 1:
-            (v1, p1, t1) = points[-2]
-            slope = (value - v0) / (v0 - v1)
-            p_guess, t_guess = p0 + slope * (p0 - p1), t0 + slope * (t0 - t1)
-        else:
-            p_guess, t_guess = p0, t0
+        v0, p0 = points[-1]
+        predicted = p0 if len(points) == 1 else p0 + (value - v0) * (p0 - points[-2][1]) / (v0 - points[-2][0])
         base = current.system.with_parameters(**{name: value})
-        rests = _Equilibria(base.with_parameters(**{orbit.parameter: p0}), orbit.parameter, current.q, winding)
-
-        def loop_for(eps: float, rests=rests) -> _Loop:
-            return _Loop(rests, orbit.shift, eps, eps)
-
+        rests = _Equilibria(base, orbit.parameter, current.q, winding)
         try:
-            r0 = rests(p0)
-            p, time, acc, rungs, iterations, r, _ = _solve_ladder(
-                loop_for, orbit.parameter, p_guess, t_guess * (1.0 if orbit.eps == ladder[0] else 1.0), r0.rate, r0.decay, ladder, f"homoclinic end at {name} = {value:.10g}"
-            )
+            horizon = _t_max(rests(float(base.parameter(orbit.parameter))), t_max)
+            end = _end_in_bracket(rests, orbit.shift, winding, _bracket_near(rests, orbit, predicted, p0, ladder[0], horizon),
+                                  orbit.parameter, ladder, horizon)
         except (HomoclinicError, EvaluationFailed) as err:
             message = f"stopped before {name} = {value:.10g}: {err}"
             break
-        current = r
-        points.append((value, p, time))
-        done.append(HomoclinicOrbit(orbit.parameter, p, acc, r, time, ladder[-1], orbit.shift, rungs, iterations))
-        reached.append(value)
-        ends.append(p)
-        accuracy.append(acc)
-    return HomoclinicCurve(name, np.array(reached), np.array(ends), np.array(accuracy), done, not message, message)
+        current = end.rest
+        points.append((value, end.value))
+        done.append(end)
+    return HomoclinicCurve(
+        name,
+        np.array([p[0] for p in points[1:]]),
+        np.array([o.value for o in done]),
+        np.array([o.accuracy for o in done]),
+        done,
+        not message,
+        message,
+    )
+
+
+def _bracket_near(rests: _Equilibria, orbit: HomoclinicOrbit, predicted: float, previous: float, eps: float, horizon: float) -> tuple[float, float]:
+    """A bracket of the end around ``predicted``: from there, steps doubling towards the side the fate points to
+    (a manifold that turns over puts the end below, as the moment's; the sign is read from the orbit's own side)."""
+    winding = int(np.flatnonzero(orbit.shift)[0])
+    # Which way the end lies when the manifold turns over: the previous end's own fate just above and below it.
+    for _ in range(40):
+        try:
+            rests(predicted)
+            break
+        except HomoclinicError:
+            # Predicted past the fold, where the saddle is gone: back towards the previous end.
+            predicted = 0.5 * (predicted + previous)
+    step = max(0.1 * abs(predicted - previous), 1e-4 * max(abs(previous), 1e-3))
+    over_up = _turns_over(rests(predicted + step), eps, orbit.shift, winding, horizon)
+    over_down = _turns_over(rests(predicted - step), eps, orbit.shift, winding, horizon)
+    if over_up != over_down:
+        return predicted - step, predicted + step
+    # Both ends agree: the end lies beyond one of them. Over with "over above" (over_up at the true end's upper side)
+    # is not known here, so walk both ways at once, doubling, until the fate changes.
+    low, high = predicted - step, predicted + step
+    for _ in range(30):
+        step *= 2.0
+        for candidate, is_low in ((low - step, True), (high + step, False)):
+            try:
+                fate = _turns_over(rests(candidate), eps, orbit.shift, winding, horizon)
+            except (HomoclinicError, EvaluationFailed):
+                continue
+            if fate != over_up:
+                return (candidate, low) if is_low else (high, candidate)
+    raise HomoclinicError(f"no change of the manifold's fate found near {orbit.parameter} = {predicted:.10g}")
 
 
 @dataclass
@@ -701,3 +763,97 @@ def locate_snic_point(
     p, time, accuracy, values, iterations, r, _ = _solve_ladder(loop_for, name, 0.5 * (over + back), time, 0.0, r.decay, ladder, "codimension-two point")
     orbit = HomoclinicOrbit(name, p, accuracy, r, time, ladder[-1], shift, values, iterations)
     return SnicPoint(name, p, accuracy, float(r.system.parameter(moment)), orbit)
+
+
+def _chain_system(params, model, moment: float, particle: int):
+    from ..systems.chain import ChainSystem
+
+    return ChainSystem(params, model, M=moment, particle=particle)
+
+
+def chain_saddle(params, model, moment: float, *, particle: int = 0, fold=None) -> np.ndarray:
+    """The free coordinates (n,) of the static branch's saddle at ``moment``: the equilibrium just past the fold,
+    where M(phi_0) falls back through ``moment`` (rotation-controlled Newton from the fold outwards).
+
+    Raises
+    ------
+    HomoclinicError
+        If the branch has no fold, or ``moment`` is not below it.
+    """
+    import scipy.optimize as so
+
+    from ..state import pack
+    from .continuation import locate_fold
+    from .newton import solve_rotation_controlled
+
+    fold = locate_fold(params, model, particle=particle) if fold is None else fold
+    if fold is None:
+        raise HomoclinicError(f"the static branch of the {getattr(model, 'name', model)} chain has no fold: no saddle to be homoclinic to")
+    if not 0 < moment < fold.moment:
+        raise HomoclinicError(f"moment {moment!r} is not between 0 and the fold's M_c = {fold.moment:.12g}: no saddle there")
+    cache = {fold.phi0: (fold.x, fold.moment)}
+
+    def solve(phi0: float) -> tuple[np.ndarray, float]:
+        nearest = min(cache, key=lambda a: abs(a - phi0))
+        x, m = solve_rotation_controlled(params, model, phi0, particle=particle, x0=cache[nearest][0], moment0=cache[nearest][1])
+        cache[phi0] = (x, m)
+        return x, m
+
+    step, phi0 = 1e-3, fold.phi0
+    while solve(phi0 + step)[1] > moment:
+        phi0, step = phi0 + step, 2.0 * step
+        if step > 4 * np.pi:
+            raise HomoclinicError(f"M(phi_0) does not fall to {moment!r} past the fold at phi_0 = {fold.phi0:.6g}")
+    angle = so.brentq(lambda a: solve(a)[1] - moment, phi0, phi0 + step, xtol=1e-14)
+    return pack(params, solve(angle)[0])
+
+
+def chain_homoclinic_end(params, model, *, bracket: tuple[float, float], particle: int = 0, fold=None,
+                         ladder: Sequence[float] = EPS_LADDER) -> HomoclinicOrbit:
+    """The paper's chain's homoclinic end M_h in ``bracket``: the loaded particle's one turn from the saddle to itself.
+
+    Parameters
+    ----------
+    params : ChainParams
+    model : str or Model
+    bracket : (float, float)
+        Moments between which the rotation ends (below M_c): the rotating orbit's last moment and a
+        moment where the saddle's unstable manifold falls back (the diagram's fit minus a few of its uncertainties).
+    particle : int
+        The loaded particle.
+    fold : Fold, optional
+        The static fold (:func:`~cosserat_chain.numerics.continuation.locate_fold`), if known.
+
+    Returns
+    -------
+    HomoclinicOrbit
+        ``value`` is M_h, ``accuracy`` its error estimate.
+
+    Raises
+    ------
+    HomoclinicError
+        As :func:`homoclinic_end`, or when the static branch has no fold below which the bracket lies.
+    """
+    high = max(float(b) for b in bracket)
+    system = _chain_system(params, model, high, particle)
+    saddle = chain_saddle(params, model, high, particle=particle, fold=fold)
+    return homoclinic_end(system, saddle, turns={f"phi_{particle}": 1}, bracket=bracket, parameter="M", ladder=ladder)
+
+
+def chain_snic_point(params, model, *, name: str, bracket: tuple[float, float], particle: int = 0, fold=None,
+                     ladder: Sequence[float] = EPS_LADDER[1:]) -> SnicPoint:
+    """The value of the chain's field ``name`` (``gamma_phi``, say) where its homoclinic end meets the static fold.
+
+    Raises
+    ------
+    HomoclinicError
+        As :func:`locate_snic_point`, or when the static branch has no fold.
+    """
+    from ..state import pack
+    from .continuation import locate_fold
+
+    fold = locate_fold(params, model, particle=particle) if fold is None else fold
+    if fold is None:
+        raise HomoclinicError(f"the static branch of the {getattr(model, 'name', model)} chain has no fold")
+    system = _chain_system(params, model, fold.moment, particle)
+    return locate_snic_point(system, pack(params, fold.x), name=name, bracket=bracket, turns={f"phi_{particle}": 1}, ladder=ladder)
