@@ -32,7 +32,7 @@ def test_importing_the_package_and_the_command_line_loads_no_heavy_library():
 #: Computing commands with --json and their quickest options (each a few seconds on the paper's chain).
 _JSON_COMMANDS = {
     "critical": ["critical", "--model", "sine", "--json"],
-    "orbit": ["orbit", "--model", "sine", "--moment", "0.3", "--json"],
+    "orbit": ["orbit", "--model", "sine", "--moment", "0.3", "--turns", "3", "--json"],
     "sweep": ["sweep", "--model", "sine", "--m-max", "0.05", "--steps", "1", "--json"],
     "waves": ["waves", "--json"],
     "states": ["states", "--model", "sine", "--moment", "0.22", "--random-starts", "0", "--t-long", "1000", "--json"],
