@@ -14,17 +14,19 @@ from cosserat_chain.cli import app
 #: pendulum's, from an independent SciPy shooting (tests of numerics.shooting).
 PEN_PERIOD = 1.5738796958
 
+#: A user's file: the pen demo's formulas on any number of sites (the same formulas compile to the same kernels, so
+#: the session compiles them once; what is tested is the file, its function and the config's [system] table).
 USER_SYSTEM = """
 from cosserat_chain.systems import LatticeSystem
 
 
-def pendula(*, sites=2, I=0.4, coupling=0.175, friction=0.1):
+def pendula(*, sites=2, I=0.4, gamma=0.175, eps=0.1):
     return LatticeSystem(
         sites=sites,
         site_energy="1 - cos(phi) - I*phi",
-        bond_energy="coupling/2*(phi_r - phi_l)**2",
-        damping="friction",
-        parameters={"I": I, "coupling": coupling, "friction": friction},
+        bond_energy="gamma/2*(phi_r - phi_l)**2",
+        damping="eps",
+        parameters={"I": I, "gamma": gamma, "eps": eps},
         name="my_pendula",
     )
 
