@@ -39,6 +39,7 @@ def _frozen_heap():
     yield
     gc.unfreeze()
 
+
 #: TOML values of every type, at every scale.
 _VALUES = st.recursive(
     st.one_of(
