@@ -364,6 +364,9 @@ class TurnBarrier:
     others : tuple of (energy, angle, descent angle, descent angle, descent energy)
         The other first-order saddles the search converged to (those leading to a metastable
         state, such as a pair of fronts, rather than through the turn).
+    paths : tuple of TurnPath
+        The turn's validated minimum energy paths (:func:`turn_barrier`); :attr:`barrier` is
+        the lowest of their tops.
     """
 
     fixed: float
@@ -376,6 +379,12 @@ class TurnBarrier:
     negative_eigenvalues: int = -1
     descents: tuple[float, float, float] = (math.nan, math.nan, math.nan)
     others: tuple[tuple[float, float, float, float, float], ...] = ()
+    paths: tuple[TurnPath, ...] = ()
+
+    @property
+    def barrier(self) -> float:
+        """The turn's barrier: the lowest top of the validated minimum energy paths (NaN if none)."""
+        return min((path.barrier for path in self.paths), default=math.nan)
 
     @property
     def saddle_angle(self) -> float:
@@ -398,6 +407,8 @@ class TurnBarrier:
             "saddle_gradient": plain(self.saddle_gradient),
             "negative_eigenvalues": self.negative_eigenvalues,
             "descents": [plain(value) for value in self.descents],
+            "barrier": plain(self.barrier),
+            "paths": [path.as_dict() for path in self.paths],
             "other_saddles": [
                 dict(zip(("energy", "angle", "descent_angle_0", "descent_angle_1", "descent_energy"), item)) for item in self.others
             ],
@@ -412,47 +423,30 @@ def _tridiagonal_eigh(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _saddle_search(params: ChainParams, phi: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, float, int, bool]:
-    """A first-order saddle of the lattice over the ``free`` angles by partitioned rational-function (P-RFO) Newton steps.
+    """A first-order saddle of the lattice over the ``free`` angles by P-RFO Newton steps (:func:`~cosserat_chain.numerics.mep.saddle_search`).
 
-    Each step ascends along the Hessian's lowest mode and descends along the others, with the
-    RFO shifts that make it a Newton step as the gradient vanishes (quadratic convergence), and
-    at most :data:`SADDLE_TRUST` long. Returns the angles, the largest gradient entry, the
-    Hessian's negative eigenvalues there, and whether the gradient reached
-    :data:`SADDLE_GTOL` of the Hessian's scale.
+    Each step ascends along the Hessian's lowest mode and descends along the others, at most
+    :data:`SADDLE_TRUST` long. Returns the angles, the largest gradient entry, the Hessian's
+    negative eigenvalues there, and whether the gradient reached :data:`SADDLE_GTOL` of the
+    Hessian's scale.
     """
+    from ..numerics.mep import saddle_search
+
+    def gradient_hessian(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        trial = phi.copy()
+        trial[free] = values
+        return lattice_energy(params, trial)[1][free], lattice_hessian(params, trial)[np.ix_(free, free)]
+
+    found = saddle_search(
+        gradient_hessian, phi[free], tolerance=SADDLE_GTOL, steps=SADDLE_STEPS, trust=SADDLE_TRUST, eigh=_tridiagonal_eigh
+    )
     x = phi.copy()
-    for _ in range(SADDLE_STEPS):
-        gradient = lattice_energy(params, x)[1][free]
-        hessian = lattice_hessian(params, x)[np.ix_(free, free)]
-        values, vectors = _tridiagonal_eigh(hessian)
-        scale = max(float(np.max(np.abs(hessian))), np.finfo(float).tiny)
-        negative = int(np.sum(values < -1e-9 * scale))
-        if np.max(np.abs(gradient)) <= SADDLE_GTOL * scale:
-            return x, float(np.max(np.abs(gradient))), negative, True
-        g = vectors.T @ gradient
-        up = values[0] / 2 + math.sqrt(values[0] ** 2 / 4 + g[0] ** 2)
-        augmented = np.diag(np.append(values[1:], 0.0))
-        augmented[-1, :-1] = augmented[:-1, -1] = g[1:]
-        down = float(np.linalg.eigvalsh(augmented)[0])
-        shifted = values[1:] - down
-        step = np.concatenate(
-            [
-                [-g[0] / (values[0] - up) if values[0] != up else 0.0],
-                np.divide(-g[1:], shifted, out=np.zeros_like(shifted), where=shifted > 0),
-            ]
-        )
-        step = vectors @ step
-        length = float(np.linalg.norm(step))
-        if length > SADDLE_TRUST:
-            step *= SADDLE_TRUST / length
-        x[free] += step
-    gradient = lattice_energy(params, x)[1][free]
-    values = _tridiagonal_eigh(lattice_hessian(params, x)[np.ix_(free, free)])[0]
-    return x, float(np.max(np.abs(gradient))), int(np.sum(values < -1e-9 * np.max(np.abs(values)))), False
+    x[free] = found.x
+    return x, found.gradient, found.negative, found.converged
 
 
-def _descents(params: ChainParams, saddle: np.ndarray, free: np.ndarray, middle: int) -> tuple[float, float, float]:
-    """Minimise from the saddle displaced along either side of its unstable mode: the turning particle's two angles and the larger energy."""
+def _descent_states(params: ChainParams, saddle: np.ndarray, free: np.ndarray, middle: int) -> list[tuple[float, np.ndarray]]:
+    """Minimise from the saddle displaced along either side of its unstable mode (the turning particle's side first backwards): two (energy, angles)."""
     values, vectors = _tridiagonal_eigh(lattice_hessian(params, saddle)[np.ix_(free, free)])
     mode = vectors[:, 0] * (1.0 if vectors[np.flatnonzero(free).tolist().index(middle), 0] >= 0 else -1.0)
     ends = []
@@ -460,10 +454,143 @@ def _descents(params: ChainParams, saddle: np.ndarray, free: np.ndarray, middle:
         start = saddle.copy()
         start[free] += sign * 0.05 * mode / np.max(np.abs(mode))
         ends.append(_minimise(params, start, free))
+    return ends
+
+
+def _descents(params: ChainParams, saddle: np.ndarray, free: np.ndarray, middle: int) -> tuple[float, float, float]:
+    """The turning particle's angles at the two minima of :func:`_descent_states`, and the larger energy."""
+    ends = _descent_states(params, saddle, free, middle)
     return float(ends[0][1][middle]), float(ends[1][1][middle]), max(ends[0][0], ends[1][0])
 
 
-def turn_barrier(params: ChainParams, *, half_length: int = 10, points: int = 64) -> TurnBarrier:
+#: Images of the turn's minimum energy path (the ends included), and the force left on it (E1 h^2 per radian).
+PATH_IMAGES = 32
+PATH_TOLERANCE = 1e-6
+#: Two minima (or saddles) reached along the path are one where no angle differs by more than this (rad).
+SAME_STATE = 1e-4
+
+
+@dataclass(frozen=True)
+class TurnPath:
+    """The turn's minimum energy path (climbing-image string) and the validated saddles and minima along it.
+
+    Attributes
+    ----------
+    start : str
+        The first path: ``"rotation-controlled"`` (the path's states, mirror-symmetric) or
+        ``"one-sided"`` (the particle slipping past its left neighbours while dragging its right
+        ones, then the straight line to the particle turned once).
+    images : ndarray, shape (M, 2 half_length + 1)
+        The relaxed string, from rest to the particle turned once.
+    energies : ndarray, shape (M,)
+        The images' energies.
+    force : float
+        The force left on the string (largest move per unit time step of an image, the climbing one's whole force).
+    iterations : int
+        String steps.
+    saddles : tuple of float
+        The first-order saddles refined (P-RFO) from the string's local tops, in order along it.
+    minima : tuple of float
+        The minima between them, in order, rest and the particle turned once included.
+    state : ndarray, shape (2 half_length + 1,)
+        The angles at the highest saddle, the path's top.
+    gradient : float
+        The largest |dE/dphi_k| over the free particles there.
+    """
+
+    start: str
+    images: np.ndarray
+    energies: np.ndarray
+    force: float
+    iterations: int
+    saddles: tuple[float, ...]
+    minima: tuple[float, ...]
+    state: np.ndarray
+    gradient: float
+
+    @property
+    def barrier(self) -> float:
+        """The highest saddle along the path: the turn's barrier over this path."""
+        return max(self.saddles)
+
+    def as_dict(self) -> dict[str, object]:
+        """The path's numbers (for JSON)."""
+        return {
+            "start": self.start,
+            "barrier": self.barrier,
+            "saddle_angle": float(self.state[self.state.size // 2]),
+            "saddle_gradient": self.gradient,
+            "images": int(self.images.shape[0]),
+            "force": self.force,
+            "iterations": self.iterations,
+            "saddles": list(self.saddles),
+            "minima": list(self.minima),
+        }
+
+
+def _lattice_energies(params: ChainParams, phis: np.ndarray, free: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Energies (M,) and gradients (M, n) of M lattices at once, the held angles' entries zero."""
+    energy, d0, d1 = _links_energy(params, phis[:, :-1], phis[:, 1:], 1)
+    gradient = np.zeros_like(phis)
+    gradient[:, :-1] += d0
+    gradient[:, 1:] += d1
+    gradient[:, ~free] = 0.0
+    return energy.sum(axis=1), gradient
+
+
+def _turn_path(params: ChainParams, path: np.ndarray, free: np.ndarray, start: str, images: int) -> TurnPath | None:
+    """Relax ``path`` (rest to the particle turned once) by the climbing string and validate it; None if it fails.
+
+    Each local top of the string is refined to a first-order saddle (P-RFO: zero gradient,
+    exactly one negative eigenvalue) whose descents must end at the minimum the path came
+    from and at the next one; the chain of minima must run from rest to the particle turned
+    once. A top that refines to the saddle just passed is one top.
+    """
+    from ..numerics.mep import string_method
+
+    middle = path.shape[1] // 2
+    # The explicit step's stability: 1 / Gershgorin's bound on the Hessian's largest eigenvalue along the path.
+    _, _, _, h00, h01, h11 = _links_energy(params, path[:, :-1], path[:, 1:], 2)
+    rows = np.zeros_like(path)
+    rows[:, :-1] += np.abs(h00) + np.abs(h01)
+    rows[:, 1:] += np.abs(h11) + np.abs(h01)
+    step = 1.0 / float(np.max(rows[:, free]))
+    string = string_method(lambda x: _lattice_energies(params, x, free), path, step=step, images=images, tolerance=PATH_TOLERANCE)
+    if not string.converged:
+        return None
+    current, turned = string.images[0], string.images[-1]
+    saddles: list[tuple[float, np.ndarray, float]] = []
+    minima = [float(string.energies[0])]
+    for top in sorted(string.maxima()):
+        saddle, gradient, negative, converged = _saddle_search(params, string.images[top], free)
+        if not converged or negative != 1:
+            return None
+        if saddles and np.max(np.abs(saddle - saddles[-1][1])) < SAME_STATE:
+            continue
+        ends = _descent_states(params, saddle, free, middle)
+        back = [np.max(np.abs(state - current)) < SAME_STATE for _, state in ends]
+        if back.count(True) != 1:
+            return None
+        energy, current = ends[back.index(False)]
+        saddles.append((lattice_energy(params, saddle)[0], saddle, gradient))
+        minima.append(float(energy))
+    if not saddles or np.max(np.abs(current - turned)) >= SAME_STATE:
+        return None
+    highest = max(saddles, key=lambda item: item[0])
+    return TurnPath(
+        start=start,
+        images=string.images,
+        energies=string.energies,
+        force=string.force,
+        iterations=string.iterations,
+        saddles=tuple(float(item[0]) for item in saddles),
+        minima=tuple(minima),
+        state=highest[1],
+        gradient=highest[2],
+    )
+
+
+def turn_barrier(params: ChainParams, *, half_length: int = 10, points: int = 64, images: int = PATH_IMAGES) -> TurnBarrier:
     """Barriers of one particle turning past fixed and past relaxing neighbours, and the turn's saddle (module docstring).
 
     The relaxed barrier scans the turning particle's angle over ``points`` values in [0, 2 pi],
@@ -475,12 +602,23 @@ def turn_barrier(params: ChainParams, *, half_length: int = 10, points: int = 64
     saddle (there dE/dphi of the turning particle vanishes with the others' gradients) and
     ``saddle`` equals ``relaxed``; where it jumps from dragging the neighbours to leaving them
     behind, the saddle lies above the path's top.
+
+    With ``images`` > 0 the turn's minimum energy path decides the barrier: a climbing string of
+    that many images (:func:`~cosserat_chain.numerics.mep.string_method`) relaxed from the
+    rotation-controlled path's states and from the one-sided path (the particle slipping past
+    its left neighbours while its right ones are dragged), each validated as a chain of
+    first-order saddles and minima from rest to the particle turned once (:class:`TurnPath`).
+    Both first paths are needed: the gradient flow and the P-RFO steps keep the lattice's mirror
+    symmetry, so the rotation-controlled path never leaves it.
     """
     from scipy.optimize import minimize_scalar
 
     _require_uniform(params)
-    if half_length < 1 or points < 8:
-        raise ValueError(f"half_length must be >= 1 and points >= 8, got half_length={half_length!r}, points={points!r}")
+    if half_length < 1 or points < 8 or not (images == 0 or images >= 3):
+        raise ValueError(
+            f"half_length must be >= 1, points >= 8 and images 0 (no path) or >= 3, got half_length={half_length!r}, "
+            f"points={points!r}, images={images!r}"
+        )
     grid = np.linspace(0.0, 2 * np.pi, GRID + 1)
     single = 2 * bond_potential(params, 0.0, grid)
     top = int(np.argmax(single))
@@ -545,8 +683,24 @@ def turn_barrier(params: ChainParams, *, half_length: int = 10, points: int = 64
         for energy, found in sorted(saddles.items())
         if energy not in turns
     )
+    paths: tuple[TurnPath, ...] = ()
+    if images:
+        one_sided, state = [], phi
+        for angle in angles:
+            trial = state.copy()
+            trial[:half_length] = 0.0
+            trial[half_length] = angle
+            state = _minimise(params, trial, free)[1]
+            one_sided.append(state)
+        turned = phi.copy()
+        turned[half_length] = 2 * np.pi
+        found = (
+            _turn_path(params, np.array(states), everyone, "rotation-controlled", images),
+            _turn_path(params, np.array([*one_sided, turned]), everyone, "one-sided", images),
+        )
+        paths = tuple(path for path in found if path is not None)
     if not turns:
-        return TurnBarrier(fixed, relaxed, angle_fixed, angle_relaxed, others=others)
+        return TurnBarrier(fixed, relaxed, angle_fixed, angle_relaxed, others=others, paths=paths)
     energy = min(turns)
     saddle, gradient, descents = turns[energy]
     return TurnBarrier(
@@ -560,6 +714,7 @@ def turn_barrier(params: ChainParams, *, half_length: int = 10, points: int = 64
         negative_eigenvalues=1,
         descents=descents,
         others=others,
+        paths=paths,
     )
 
 
