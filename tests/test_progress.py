@@ -202,7 +202,7 @@ def test_reproduce_on_a_terminal_ends_at_100_percent(tmp_path):
     config = tmp_path / "quick.toml"
     config.write_text(
         "[reproduce]\ndm = 0.05\nturns = 15\nn_list = [3, 10]\nlong_n_list = [3, 10]\nsnapshot_times = [20.0, 21.0]\n"
-        "animation_frames = 10\ndiagram_damping = { sine = [0.5], nonlinear = [] }\n"
+        "animation_frames = 10\norbit_down_to = 0.21\ndiagram_damping = { sine = [0.5], nonlinear = [] }\n"
     )
     code, screen = on_terminal(cli("reproduce", "--out", str(tmp_path / "report"), "--config", str(config)), tmp_path)
     assert code == 0
