@@ -98,8 +98,11 @@ class _Stage:
         width, height = fig.get_size_inches()
         if width < FIGURE_WIDTH:
             fig.set_size_inches(FIGURE_WIDTH, max(height, min(height * FIGURE_WIDTH / width, 0.6 * FIGURE_WIDTH)))
-        for suffix in ("png", "svg"):
-            write_figure(fig, self.path(f"figures/{stem}.{suffix}"), dpi=130)
+        write_figure(fig, self.path(f"figures/{stem}.png"), dpi=130)
+        # The PNG's draw has placed every axes; the SVG keeps those places rather than laying the figure out again.
+        if fig.get_layout_engine() is not None:
+            fig.set_layout_engine("none")
+        write_figure(fig, self.path(f"figures/{stem}.svg"), dpi=130)
         plt.close(fig)
         return stem
 
