@@ -155,10 +155,10 @@ def rest(system: System, q: np.ndarray, winding: int, *, fold: bool = False) -> 
     scale = max(1.0, float(np.max(np.abs(eig))))
     i = int(np.argmin(np.abs(eig))) if fold else int(np.argmax(eig.real))
     rate = eig[i]
-    if abs(rate.imag) > REAL_TOL * scale:
-        raise HomoclinicError(f"the leaving eigenvalue {rate:.6g} of the equilibrium is complex: no single leaving direction")
     if not fold and rate.real <= 1e-9 * scale:
         raise HomoclinicError(f"the equilibrium is not a saddle: its eigenvalues all have Re <= 0 (largest {rate:.6g})")
+    if abs(rate.imag) > REAL_TOL * scale:
+        raise HomoclinicError(f"the leaving eigenvalue {rate:.6g} of the equilibrium is complex: no single leaving direction")
     others = np.delete(eig, i)
     if np.max(others.real) >= -1e-9 * scale:
         count = int(np.sum(eig.real > -1e-9 * scale))
@@ -263,6 +263,8 @@ class _Equilibria:
                 raise EquilibriumNotFound("jumped")
             saddle = rest(system, found.q, self.winding)
         except (EquilibriumNotFound, HomoclinicError):
+            if value == nearest:
+                raise
             if depth >= 12:
                 raise HomoclinicError(f"the saddle was lost on the way from {self.parameter} = {nearest:.12g} to {value:.12g}") from None
             self(0.5 * (nearest + value), depth + 1)
@@ -396,7 +398,7 @@ def _turns_over(r: Rest, eps0: float, shift: np.ndarray, winding: int, t_max: fl
     """Whether the manifold from y_s + eps0 v passes the shifted saddle's winding angle by OVER_MARGIN
     within t_max (else it falls back: it comes to rest away from the saddle, or runs out of time)."""
     target = r.q[winding] + shift[winding] + np.sign(shift[winding]) * OVER_MARGIN
-    chunk = 20.0 / max(1e-3, float(np.max(np.abs(r.eigenvalues))) ** 0.5)
+    chunk = max(20.0 / max(1e-3, float(np.max(np.abs(r.eigenvalues))) ** 0.5), t_max / 20.0)
     y, t = r.y + eps0 * r.leaving, 0.0
     sign = np.sign(shift[winding])
     highest = sign * y[winding]
@@ -477,13 +479,14 @@ def _bracketed(fate: Callable[[float], bool], low: float, high: float, parameter
     return over, back
 
 
-def _t_max(r: Rest, t_max: float | None) -> float:
+def _t_max(r: Rest, t_max: float | None, eps0: float) -> float:
     if t_max is not None:
         return float(t_max)
-    # Leaving eps0 = 1e-2 and the passage near the shifted saddle take a few e-foldings each; the turn in between
-    # a few natural periods.
+    # Leaving eps0 (a few e-foldings of the saddle's rate; at a fold, where the rate is 0, the quadratic drift
+    # takes ~ 1 / (eps0 |lambda|max)), the passage near the shifted saddle, and the turn in between.
     fast = float(np.max(np.abs(r.eigenvalues)))
-    return 20.0 / max(r.rate, 1e-3) + 20.0 / r.decay + 200.0 / fast
+    leaving = 20.0 / r.rate if r.rate > 1e-6 else 20.0 / (eps0 * fast)
+    return leaving + 20.0 / r.decay + 200.0 / fast
 
 
 def homoclinic_end(
@@ -534,7 +537,7 @@ def homoclinic_end(
     if not (math.isfinite(low) and math.isfinite(high) and low != high):
         raise ValueError(f"bracket must be two different finite values of {parameter}, got {bracket!r}")
     rests = _Equilibria(system, parameter, system.check_state(saddle, "saddle"), winding)
-    horizon = _t_max(rests(float(system.parameter(parameter))), t_max)
+    horizon = _t_max(rests(float(system.parameter(parameter))), t_max, ladder[0])
     return _end_in_bracket(rests, shift, winding, (low, high), parameter, ladder, horizon)
 
 
@@ -627,7 +630,7 @@ def continue_homoclinic(orbit: HomoclinicOrbit, name: str, values: Sequence[floa
         base = current.system.with_parameters(**{name: value})
         rests = _Equilibria(base, orbit.parameter, current.q, winding)
         try:
-            horizon = _t_max(rests(float(base.parameter(orbit.parameter))), t_max)
+            horizon = _t_max(rests(float(base.parameter(orbit.parameter))), t_max, ladder[0])
             end = _end_in_bracket(rests, orbit.shift, winding, _bracket_near(rests, orbit, predicted, p0, ladder[0], horizon),
                                   orbit.parameter, ladder, horizon)
         except (HomoclinicError, EvaluationFailed) as err:
@@ -752,7 +755,7 @@ def locate_snic_point(
         raise ValueError(f"bracket must be two different finite values of {name}, got {bracket!r}")
     folds = _Folds(system, name, moment, system.check_state(fold, "fold"), winding)
     first = folds(float(system.parameter(name)))
-    horizon = _t_max(first, t_max) + 20.0 / (FOLD_EPS0 * max(1e-3, float(np.max(np.abs(first.eigenvalues)))))
+    horizon = _t_max(first, t_max, FOLD_EPS0)
     over, back = _bracketed(lambda p: _turns_over(folds(p), FOLD_EPS0, shift, winding, horizon), low, high, name)
     r = folds(over)
     time = _first_time(r, FOLD_EPS0, ladder[0], shift, horizon)
