@@ -6,10 +6,9 @@ these functions give both the same answers, sparse ones in O(nnz) memory.
 
 A large sparse Jacobian with the continued parameter's column, n x (n + 1), is best given as
 :class:`CoreAndColumn`: the pseudo-arclength system appends a dense row (the tangent) to it,
-and SuperLU's partial pivoting then takes pivots from that row and fills the factor (the
-extended system of a fold at N = 1000, 12 000 unknowns: 59 million entries and 2.6 s a solve
-with the row and column, against 15 million and 1.4 s for the square core alone). Block
-elimination solves it with the core's factor and two of its solves.
+and SuperLU's partial pivoting then takes pivots from that row and fills the factor (four
+times the core's alone for the extended system of a fold at N = 1000: benchmarks/TIMINGS.md).
+Block elimination solves it with the core's factor and two of its solves.
 """
 
 from __future__ import annotations
