@@ -215,6 +215,9 @@ def _minimise(params: ChainParams, phi: np.ndarray, free: np.ndarray) -> tuple[f
     """Minimise over the ``free`` angles by a trust-region Newton method (exact Hessian; safe where it is indefinite)."""
     from scipy.optimize import minimize
 
+    if not np.any(free):  # one particle between held neighbours: nothing to minimise
+        return lattice_energy(params, phi)[0], phi.copy()
+
     def full(values: np.ndarray) -> np.ndarray:
         trial = phi.copy()
         trial[free] = values
@@ -464,7 +467,7 @@ def _descents(params: ChainParams, saddle: np.ndarray, free: np.ndarray, middle:
 
 
 #: Images of the turn's minimum energy path (the ends included), and the force left on it (E1 h^2 per radian).
-PATH_IMAGES = 32
+PATH_IMAGES = 48
 PATH_TOLERANCE = 1e-6
 #: Two minima (or saddles) reached along the path are one where no angle differs by more than this (rad).
 SAME_STATE = 1e-4
@@ -542,9 +545,14 @@ def _turn_path(params: ChainParams, path: np.ndarray, free: np.ndarray, start: s
     """Relax ``path`` (rest to the particle turned once) by the climbing string and validate it; None if it fails.
 
     Each local top of the string is refined to a first-order saddle (P-RFO: zero gradient,
-    exactly one negative eigenvalue) whose descents must end at the minimum the path came
-    from and at the next one; the chain of minima must run from rest to the particle turned
-    once. A top that refines to the saddle just passed is one top.
+    exactly one negative eigenvalue), and its descents give the minima on either side, so the
+    path is a chain of saddles and minima from rest to the particle turned once. Where the
+    string's images miss a minimum (the wide front's Peierls hops, 1e-3 of the barrier, are
+    finer than the images), the descent that should come back to the last minimum does not:
+    the images between the two tops join them, and they must stay below the highest saddle. A
+    top that refines to the saddle just passed is one top; where the chain reaches the particle
+    turned once early (and comes back), or comes back to rest, the turn is the part between
+    the last rest and the first arrival.
     """
     from ..numerics.mep import string_method
 
@@ -558,9 +566,11 @@ def _turn_path(params: ChainParams, path: np.ndarray, free: np.ndarray, start: s
     string = string_method(lambda x: _lattice_energies(params, x, free), path, step=step, images=images, tolerance=PATH_TOLERANCE)
     if not string.converged:
         return None
-    current, turned = string.images[0], string.images[-1]
+    rest, turned = string.images[0], string.images[-1]
+    states, energies = [rest], [float(string.energies[0])]  # the chain's minima
     saddles: list[tuple[float, np.ndarray, float]] = []
-    minima = [float(string.energies[0])]
+    gaps: list[float] = []  # before each saddle: the images' top where they alone join it to the last minimum
+    previous = 0
     for top in sorted(string.maxima()):
         saddle, gradient, negative, converged = _saddle_search(params, string.images[top], free)
         if not converged or negative != 1:
@@ -568,15 +578,31 @@ def _turn_path(params: ChainParams, path: np.ndarray, free: np.ndarray, start: s
         if saddles and np.max(np.abs(saddle - saddles[-1][1])) < SAME_STATE:
             continue
         ends = _descent_states(params, saddle, free, middle)
-        back = [np.max(np.abs(state - current)) < SAME_STATE for _, state in ends]
-        if back.count(True) != 1:
-            return None
-        energy, current = ends[back.index(False)]
+        # The descent that goes on along the string: of the two ways to pair the ends with the
+        # images either side of the top, the closer one.
+        before, after = string.images[top - 1], string.images[top + 1]
+        forward = int(
+            np.linalg.norm(ends[1][1] - after) + np.linalg.norm(ends[0][1] - before)
+            < np.linalg.norm(ends[0][1] - after) + np.linalg.norm(ends[1][1] - before)
+        )
+        joined = np.max(np.abs(ends[1 - forward][1] - states[-1])) >= SAME_STATE
+        gaps.append(float(np.max(string.energies[previous + 1 : top], initial=-math.inf)) if joined else -math.inf)
         saddles.append((lattice_energy(params, saddle)[0], saddle, gradient))
-        minima.append(float(energy))
-    if not saddles or np.max(np.abs(current - turned)) >= SAME_STATE:
+        energies.append(float(ends[forward][0]))
+        states.append(ends[forward][1])
+        previous = top
+    # The turn proper: from the last visit of rest before the first arrival at the particle turned once.
+    arrivals = [k for k, state in enumerate(states) if np.max(np.abs(state - turned)) < SAME_STATE]
+    last = arrivals[0] if arrivals else len(states) - 1
+    first = max(k for k in range(last + 1) if np.max(np.abs(states[k] - rest)) < SAME_STATE)
+    tail = [] if arrivals else [float(np.max(string.energies[previous + 1 :]))]
+    saddles, gaps = saddles[first:last], gaps[first:last] + tail
+    energies = energies[first : last + 1] + ([] if arrivals else [float(string.energies[-1])])
+    if not saddles:
         return None
     highest = max(saddles, key=lambda item: item[0])
+    if max(gaps) >= highest[0]:
+        return None
     return TurnPath(
         start=start,
         images=string.images,
@@ -584,7 +610,7 @@ def _turn_path(params: ChainParams, path: np.ndarray, free: np.ndarray, start: s
         force=string.force,
         iterations=string.iterations,
         saddles=tuple(float(item[0]) for item in saddles),
-        minima=tuple(minima),
+        minima=tuple(energies),
         state=highest[1],
         gradient=highest[2],
     )
