@@ -97,6 +97,13 @@ def test_the_end_followed_in_the_damping_stays_on_the_retrapping_curve():
         assert abs(value - retrapping_current(alpha)) <= min(accuracy, AGREE)
 
 
+def test_the_curve_stops_past_the_codimension_two_point_and_says_so():
+    """Above alpha* = 1.193 the rotation ends at the fold (a SNIC): no homoclinic end exists, the curve stops there."""
+    curve = continue_homoclinic(pendulum_end(1.1), "alpha", [1.15, 1.3])
+    assert list(curve.values) == [1.15] and not curve.complete
+    assert "stopped before alpha = 1.3" in curve.message and curve.as_dict()["complete"] is False
+
+
 def test_the_codimension_two_point_is_where_the_retrapping_current_reaches_one():
     """The augmented system (the loop leaving the fold I = 1, phi = pi / 2 along its centre direction and returning
     on its strong stable one) gives alpha* = 1.19305 (1.1925 in the literature's three digits) to 1e-10."""
@@ -162,7 +169,9 @@ def test_the_diagrams_fitted_end_lies_within_its_uncertainty_of_the_solved_one()
     params = ChainParams(N=1, gamma_phi=0.02)
     row = state_diagram(params, "sine", "gamma_phi", [0.02]).rows[0]
     assert row.end == "homoclinic"
-    end = chain_homoclinic_end(params, "sine", bracket=(row.rotation_stops - 10 * row.uncertainty, row.rotation_stops + 10 * row.uncertainty))
+    end = chain_homoclinic_end(
+        params, "sine", bracket=(row.rotation_stops - 10 * row.uncertainty, row.rotation_stops + 10 * row.uncertainty)
+    )
     assert abs(row.rotation_stops - end.value) <= row.uncertainty
     assert end.accuracy < 1e-3 * row.uncertainty
 

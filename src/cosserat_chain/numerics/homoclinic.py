@@ -310,8 +310,12 @@ class _Folds:
             big[2 * n, n : 2 * n] = reference
             step = np.linalg.solve(big, -residual)
             q, v, m = q + step[:n], v + step[n : 2 * n], m + step[2 * n]
+            if np.max(np.abs(step)) <= 4 * np.finfo(float).eps * (1.0 + float(np.max(np.abs(q)))):
+                break  # at round-off: the residual cannot fall further
         else:
-            raise HomoclinicError(f"Newton on the fold did not converge at {self.parameter} = {value:.12g} (max residual {np.max(np.abs(residual)):.3g})")
+            raise HomoclinicError(
+                f"Newton on the fold did not converge at {self.parameter} = {value:.12g} (max residual {np.max(np.abs(residual)):.3g})"
+            )
         self.known[float(value)] = (q, v, m)
         return system, q
 
@@ -377,7 +381,9 @@ class _Loop:
                         break
                 scale *= 0.5
             else:
-                raise HomoclinicError(f"{what}: Newton made no progress at p = {p:.12g}, T = {time:.6g} (max |R| = {np.max(np.abs(residual)):.3g})")
+                raise HomoclinicError(
+                    f"{what}: Newton made no progress at p = {p:.12g}, T = {time:.6g} (max |R| = {np.max(np.abs(residual)):.3g})"
+                )
             moved = abs(trial_p - p)
             p, time, residual, r, y = trial_p, trial_t, trial, r_trial, y_trial
             if np.max(np.abs(residual)) < RESIDUAL_TOL or moved < 4 * np.finfo(float).eps * max(1.0, abs(p)):
@@ -426,8 +432,9 @@ def _winding(system: System, turns: Mapping[str | int, int] | np.ndarray) -> tup
     return np.concatenate([2 * np.pi * k, np.zeros(system.size)]), int(np.flatnonzero(k)[0])
 
 
-def _solve_ladder(loop_for: Callable[[float], _Loop], parameter: str, p: float, time: float, rate: float, decay: float,
-                  ladder: Sequence[float], what: str) -> tuple[float, float, float, list[tuple[float, float, float]], int, Rest, float]:
+def _solve_ladder(
+    loop_for: Callable[[float], _Loop], parameter: str, p: float, time: float, rate: float, decay: float, ladder: Sequence[float], what: str
+) -> tuple[float, float, float, list[tuple[float, float, float]], int, Rest, float]:
     """Newton on every rung of ``ladder`` from the one before; T grows by log(ratio) (1/rate + 1/decay)."""
     values: list[tuple[float, float, float]] = []
     previous_eps = None
@@ -541,8 +548,15 @@ def homoclinic_end(
     return _end_in_bracket(rests, shift, winding, (low, high), parameter, ladder, horizon)
 
 
-def _end_in_bracket(rests: _Equilibria, shift: np.ndarray, winding: int, bracket: tuple[float, float], parameter: str,
-                    ladder: Sequence[float], horizon: float) -> HomoclinicOrbit:
+def _end_in_bracket(
+    rests: _Equilibria,
+    shift: np.ndarray,
+    winding: int,
+    bracket: tuple[float, float],
+    parameter: str,
+    ladder: Sequence[float],
+    horizon: float,
+) -> HomoclinicOrbit:
     """Bisection on the manifold's fate in ``bracket``, then Newton down the ladder from the bracket's middle."""
     over, back = _bracketed(lambda p: _turns_over(rests(p), ladder[0], shift, winding, horizon), *bracket, parameter)
     r = rests(over)
@@ -551,7 +565,9 @@ def _end_in_bracket(rests: _Equilibria, shift: np.ndarray, winding: int, bracket
     def loop_for(eps: float) -> _Loop:
         return _Loop(rests, shift, eps, eps)
 
-    p, time, accuracy, values, iterations, r, _ = _solve_ladder(loop_for, parameter, 0.5 * (over + back), time, r.rate, r.decay, ladder, "homoclinic end")
+    p, time, accuracy, values, iterations, r, _ = _solve_ladder(
+        loop_for, parameter, 0.5 * (over + back), time, r.rate, r.decay, ladder, "homoclinic end"
+    )
     return HomoclinicOrbit(parameter, p, accuracy, r, time, ladder[-1], shift, values, iterations)
 
 
@@ -601,8 +617,9 @@ class HomoclinicCurve:
         }
 
 
-def continue_homoclinic(orbit: HomoclinicOrbit, name: str, values: Sequence[float], *, ladder: Sequence[float] = EPS_LADDER,
-                        t_max: float | None = None) -> HomoclinicCurve:
+def continue_homoclinic(
+    orbit: HomoclinicOrbit, name: str, values: Sequence[float], *, ladder: Sequence[float] = EPS_LADDER, t_max: float | None = None
+) -> HomoclinicCurve:
     """Follow the homoclinic end ``orbit`` through ``values`` of the parameter ``name``.
 
     At each value the end is predicted by a secant through the two before (the orbit's own
@@ -631,8 +648,15 @@ def continue_homoclinic(orbit: HomoclinicOrbit, name: str, values: Sequence[floa
         rests = _Equilibria(base, orbit.parameter, current.q, winding)
         try:
             horizon = _t_max(rests(float(base.parameter(orbit.parameter))), t_max, ladder[0])
-            end = _end_in_bracket(rests, orbit.shift, winding, _bracket_near(rests, orbit, predicted, p0, ladder[0], horizon),
-                                  orbit.parameter, ladder, horizon)
+            end = _end_in_bracket(
+                rests,
+                orbit.shift,
+                winding,
+                _bracket_near(rests, orbit, predicted, p0, ladder[0], horizon),
+                orbit.parameter,
+                ladder,
+                horizon,
+            )
         except (HomoclinicError, EvaluationFailed) as err:
             message = f"stopped before {name} = {value:.10g}: {err}"
             break
@@ -650,7 +674,9 @@ def continue_homoclinic(orbit: HomoclinicOrbit, name: str, values: Sequence[floa
     )
 
 
-def _bracket_near(rests: _Equilibria, orbit: HomoclinicOrbit, predicted: float, previous: float, eps: float, horizon: float) -> tuple[float, float]:
+def _bracket_near(
+    rests: _Equilibria, orbit: HomoclinicOrbit, predicted: float, previous: float, eps: float, horizon: float
+) -> tuple[float, float]:
     """A bracket of the end around ``predicted``: from there, steps doubling towards the side the fate points to
     (a manifold that turns over puts the end below, as the moment's; the sign is read from the orbit's own side)."""
     winding = int(np.flatnonzero(orbit.shift)[0])
@@ -672,13 +698,25 @@ def _bracket_near(rests: _Equilibria, orbit: HomoclinicOrbit, predicted: float, 
     low, high = predicted - step, predicted + step
     for _ in range(30):
         step *= 2.0
-        for candidate, is_low in ((low - step, True), (high + step, False)):
-            try:
-                fate = _turns_over(rests(candidate), eps, orbit.shift, winding, horizon)
-            except (HomoclinicError, EvaluationFailed):
+        for is_low in (True, False):
+            bound = low if is_low else high
+            candidate = bound - step if is_low else bound + step
+            fate = None
+            for _ in range(20):
+                try:
+                    fate = _turns_over(rests(candidate), eps, orbit.shift, winding, horizon)
+                    break
+                except (HomoclinicError, EvaluationFailed):
+                    # No saddle there (past the fold): closer to the last value that had one.
+                    candidate = 0.5 * (bound + candidate)
+            if fate is None:
                 continue
             if fate != over_up:
                 return (candidate, low) if is_low else (high, candidate)
+            if is_low:
+                low = candidate
+            else:
+                high = candidate
     raise HomoclinicError(f"no change of the manifold's fate found near {orbit.parameter} = {predicted:.10g}")
 
 
@@ -763,7 +801,9 @@ def locate_snic_point(
     def loop_for(eps: float) -> _Loop:
         return _Loop(folds, shift, FOLD_EPS0, eps)
 
-    p, time, accuracy, values, iterations, r, _ = _solve_ladder(loop_for, name, 0.5 * (over + back), time, 0.0, r.decay, ladder, "codimension-two point")
+    p, time, accuracy, values, iterations, r, _ = _solve_ladder(
+        loop_for, name, 0.5 * (over + back), time, 0.0, r.decay, ladder, "codimension-two point"
+    )
     orbit = HomoclinicOrbit(name, p, accuracy, r, time, ladder[-1], shift, values, iterations)
     return SnicPoint(name, p, accuracy, float(r.system.parameter(moment)), orbit)
 
@@ -811,8 +851,9 @@ def chain_saddle(params, model, moment: float, *, particle: int = 0, fold=None) 
     return pack(params, solve(angle)[0])
 
 
-def chain_homoclinic_end(params, model, *, bracket: tuple[float, float], particle: int = 0, fold=None,
-                         ladder: Sequence[float] = EPS_LADDER) -> HomoclinicOrbit:
+def chain_homoclinic_end(
+    params, model, *, bracket: tuple[float, float], particle: int = 0, fold=None, ladder: Sequence[float] = EPS_LADDER
+) -> HomoclinicOrbit:
     """The paper's chain's homoclinic end M_h in ``bracket``: the loaded particle's one turn from the saddle to itself.
 
     Parameters
@@ -843,8 +884,9 @@ def chain_homoclinic_end(params, model, *, bracket: tuple[float, float], particl
     return homoclinic_end(system, saddle, turns={f"phi_{particle}": 1}, bracket=bracket, parameter="M", ladder=ladder)
 
 
-def chain_snic_point(params, model, *, name: str, bracket: tuple[float, float], particle: int = 0, fold=None,
-                     ladder: Sequence[float] = EPS_LADDER[1:]) -> SnicPoint:
+def chain_snic_point(
+    params, model, *, name: str, bracket: tuple[float, float], particle: int = 0, fold=None, ladder: Sequence[float] = EPS_LADDER[1:]
+) -> SnicPoint:
     """The value of the chain's field ``name`` (``gamma_phi``, say) where its homoclinic end meets the static fold.
 
     Raises
