@@ -86,6 +86,9 @@ OVER_MARGIN = 0.5
 #: Largest change of any coordinate when the saddle is followed to a new parameter value in one Newton solve (rad, or
 #: the coordinate's unit); a larger one is taken in halves (Newton from far lands on the node).
 JUMP = 0.3
+#: After the bisection the manifold must come within this many eps0 of the shifted saddle (else the fate changes at
+#: another boundary: the N = 2 sine chain at gamma_phi = 0.02 passes 0.27 from it, crossing an unstable orbit's manifold).
+APPROACH_FACTOR = 10.0
 #: Largest |Im| / |lambda| of a real leaving eigenvalue.
 REAL_TOL = 1e-8
 
@@ -455,17 +458,19 @@ def _solve_ladder(
     return p, time, accuracy, values, iterations, r, spread
 
 
-def _first_time(r: Rest, eps0: float, eps1: float, shift: np.ndarray, t_max: float) -> float:
-    """The first time the manifold from y_s + eps0 v comes within eps1 of the shifted saddle (else its closest approach)."""
+def _first_time(r: Rest, eps0: float, eps1: float, shift: np.ndarray, t_max: float) -> tuple[float, float]:
+    """The first time the manifold from y_s + eps0 v comes within eps1 of the shifted saddle (else the time of its
+    closest approach), and that closest distance."""
     times, distance = _sampled(r, eps0, t_max, shift)
+    closest = float(np.min(distance))
     inside = np.flatnonzero(distance <= eps1)
     if inside.size:
         i = int(inside[0])
         if i == 0:
-            return float(times[0])
+            return float(times[0]), closest
         a, b = distance[i - 1], distance[i]
-        return float(times[i - 1] + (times[i] - times[i - 1]) * (a - eps1) / (a - b))
-    return float(times[int(np.argmin(distance))])
+        return float(times[i - 1] + (times[i] - times[i - 1]) * (a - eps1) / (a - b)), closest
+    return float(times[int(np.argmin(distance))]), closest
 
 
 def _bracketed(fate: Callable[[float], bool], low: float, high: float, parameter: str) -> tuple[float, float]:
@@ -560,7 +565,13 @@ def _end_in_bracket(
     """Bisection on the manifold's fate in ``bracket``, then Newton down the ladder from the bracket's middle."""
     over, back = _bracketed(lambda p: _turns_over(rests(p), ladder[0], shift, winding, horizon), *bracket, parameter)
     r = rests(over)
-    time = _first_time(r, ladder[0], ladder[0], shift, horizon)
+    time, closest = _first_time(r, ladder[0], ladder[0], shift, horizon)
+    if closest > APPROACH_FACTOR * ladder[0]:
+        raise HomoclinicError(
+            f"the saddle's unstable manifold changes fate at {parameter} = {0.5 * (over + back):.10g} without coming near the "
+            f"shifted saddle (closest {closest:.3g}): the boundary it crosses there is not the saddle's stable manifold (an "
+            "unstable orbit's, say), so the rotation does not end at a loop through this saddle in the bracket"
+        )
 
     def loop_for(eps: float) -> _Loop:
         return _Loop(rests, shift, eps, eps)
@@ -796,7 +807,7 @@ def locate_snic_point(
     horizon = _t_max(first, t_max, FOLD_EPS0)
     over, back = _bracketed(lambda p: _turns_over(folds(p), FOLD_EPS0, shift, winding, horizon), low, high, name)
     r = folds(over)
-    time = _first_time(r, FOLD_EPS0, ladder[0], shift, horizon)
+    time, _ = _first_time(r, FOLD_EPS0, ladder[0], shift, horizon)
 
     def loop_for(eps: float) -> _Loop:
         return _Loop(folds, shift, FOLD_EPS0, eps)
