@@ -20,7 +20,8 @@ the stable eigenspace of the shifted saddle. (H0) and (H2) fix the time shift, s
 unknowns are the parameter p (the moment, or any named parameter of a
 :class:`~cosserat_chain.systems.base.System`) and the time T: two equations in two
 unknowns, solved by Newton with y(T) from the flow (:func:`~cosserat_chain.numerics.shooting.flow`),
-dR/dT exact (the vector field at y(T)) and dR/dp by central differences. The saddle at each
+dR/dT exact (the vector field at y(T)) and dR/dp by central differences ((H2) is solved as
+log(|d| / eps1), nearly linear in T near the saddle). The saddle at each
 p is Newton's (:func:`~cosserat_chain.numerics.equilibria.find_equilibrium`) from the nearest
 one solved. The error of the linear boundary conditions is O(eps0^2 + eps1^2) in p; eps runs
 down a ladder (1e-2 to 1e-6 by default), each rung started from the one before, and the
@@ -32,8 +33,9 @@ and the integration tolerance: :attr:`HomoclinicOrbit.accuracy`).
   that fate first, then the ladder).
 * :func:`chain_homoclinic_end` does so for the paper's chain: the saddle is the static
   branch's equilibrium past the fold (:func:`~cosserat_chain.numerics.newton.solve_rotation_controlled`).
-* :func:`continue_homoclinic` follows the end in a second parameter (the damping, say) by
-  Newton from the previous point with a secant predictor.
+* :func:`continue_homoclinic` follows the end in a second parameter (the damping, say): each
+  end predicted by a secant, bracketed around the prediction by the manifold's fate and
+  solved down the ladder.
 * :func:`locate_snic_point` locates the codimension-two point where the homoclinic end meets
   the static fold and becomes a saddle-node on the invariant circle (SNIC) by the augmented
   system: the equilibrium is the fold (F = 0, J v = 0, in (q, M)), the orbit leaves it along
@@ -42,6 +44,7 @@ and the integration tolerance: :attr:`HomoclinicOrbit.accuracy`).
   the second parameter for p. Leaving along a zero eigenvalue is slow (the time to leave a
   distance eps0 grows like 1 / eps0), but the centre manifold attracts the start's
   O(eps0^2) offset on that side, so eps0 there is 1e-2 at no cost in accuracy.
+  :func:`chain_snic_point` does so for the paper's chain in any of its fields.
 
 Only saddles with one unstable eigenvalue are taken (one leaving direction): a saddle with
 more (the sine chain's unstable branch past a Hopf point) is refused with a message.
