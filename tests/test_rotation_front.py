@@ -70,7 +70,7 @@ def test_wide_front_of_the_lattice_matches_the_quasi_continuum():
     assert front.width == pytest.approx(qc.width, rel=0.1)
     assert front.peierls_barrier < 1e-3 * front.energy
     # Turning one particle drags its neighbours along: far below the fixed-neighbour barrier.
-    barrier = turn_barrier(WIDE, half_length=10, points=24)
+    barrier = turn_barrier(WIDE, half_length=10, points=24, images=0)
     assert barrier.relaxed < 0.8 * barrier.fixed
 
 
@@ -78,19 +78,20 @@ def test_narrow_front_slips_into_one_bond_and_a_particle_half_turned_costs_the_s
     params = ChainParams()
     front = discrete_front(params, half_length=10)
     assert not front.smooth and front.energy < 1e-12
-    barrier = turn_barrier(params, half_length=6, points=32)
+    barrier = turn_barrier(params, half_length=6, points=32, images=0)
     grid = np.linspace(0, 2 * np.pi, 20001)
     assert barrier.fixed == pytest.approx(2 * bond_potential(params, 0.0, grid).max(), rel=1e-7)
     assert barrier.relaxed <= barrier.fixed + 1e-9
     assert front.energy_site == pytest.approx(barrier.relaxed, rel=1e-6)
 
 
-def test_theory_cli_front_reports_the_wide_front_in_json(tmp_path):
+def test_theory_cli_front_reports_the_wide_front_in_json(tmp_path, capsys):
     import json
 
     from typer.testing import CliRunner
 
     from cosserat_chain.cli import app
+    from cosserat_chain.cli.theory import _print_rotation
 
     config = tmp_path / "wide.toml"
     config.write_text("a = 0.05\nb = 0.6\nE2 = 0.001\n")
@@ -101,6 +102,13 @@ def test_theory_cli_front_reports_the_wide_front_in_json(tmp_path):
         quasi_continuum(WIDE).front_energy
     )
     assert rotation["barrier"]["relaxed"] <= rotation["barrier"]["fixed"]
+    # The minimum energy path closes the bracket: above the path's top, below the fixed neighbours.
+    barrier = rotation["barrier"]
+    assert barrier["relaxed"] < barrier["barrier"] < barrier["fixed"] and barrier["saddle"] is None
+    best = min(barrier["paths"], key=lambda path: path["barrier"])
+    assert barrier["barrier"] == best["barrier"] == max(best["saddles"]) and best["saddle_gradient"] < 1e-10
+    _print_rotation(rotation)
+    assert f"barrier {barrier['barrier']:.6g}" in capsys.readouterr().out
     assert rotation["free_front"]["smooth"] and rotation["free_front"]["energy"] < rotation["free_front"]["held_energy"]
 
 
@@ -130,7 +138,7 @@ def test_lattice_hessian_is_the_gradients_derivative():
 def test_turn_saddle_is_a_first_order_saddle_between_rest_and_the_turned_particle_bracketing_the_barrier(params, smooth_path):
     from cosserat_chain.analysis.rotation_front import lattice_hessian
 
-    barrier = turn_barrier(params, half_length=8, points=32)
+    barrier = turn_barrier(params, half_length=8, points=32, images=0)
     state = barrier.saddle_state
     free = np.ones(state.size, dtype=bool)
     free[[0, -1]] = False

@@ -68,8 +68,8 @@ class Answer:
                 f"discrete front slips into one bond, so the rotation localises on one particle, whose turn past fixed neighbours "
                 f"costs {barrier.fixed:.4g} ("
                 + (
-                    f"{barrier.saddle:.4g} with the others relaxing, a first-order saddle of the lattice"
-                    if math.isfinite(barrier.saddle)
+                    f"{barrier.barrier:.4g} with the others relaxing, the top of the turn's minimum energy path"
+                    if math.isfinite(barrier.barrier)
                     else f"at least {barrier.relaxed:.4g} with the others relaxing"
                 )
                 + ")."

@@ -322,6 +322,13 @@ def _print_rotation(rotation: dict[str, Any]) -> None:
             else "; no first-order saddle of the turn found from that path (wide fronts: it runs into metastable states)"
         )
     )
+    if barrier["barrier"] is not None:
+        best = min(barrier["paths"], key=lambda path: path["barrier"])
+        typer.echo(
+            f"  the turn's minimum energy path (climbing string of {best['images']} images from the {best['start']} path): barrier "
+            f"{barrier['barrier']:.6g}, its highest first-order saddle (gradient {best['saddle_gradient']:.1e}), "
+            f"{len(best['minima']) - 2} metastable minima on the way"
+        )
     if qc["front_energy"] is not None:
         typer.echo(
             f"  the quasi-continuum's barrier: {qc['front_energy']:.6g} (a smooth field cannot slip past its neighbours: turned by pi, "
