@@ -94,6 +94,9 @@ JUMP = 0.3
 #: After the bisection the manifold must come within this many eps0 of the shifted saddle (else the fate changes at
 #: another boundary: the N = 2 sine chain at gamma_phi = 0.02 passes 0.27 from it, crossing an unstable orbit's manifold).
 APPROACH_FACTOR = 10.0
+#: Doublings of the step while :func:`continue_homoclinic` brackets an end around its prediction (from 1e-4 of
+#: the value, or a tenth of the last change, to 0.4 of the value).
+BRACKET_DOUBLINGS = 12
 #: Largest |Im| / |lambda| of a real leaving eigenvalue.
 REAL_TOL = 1e-8
 
@@ -296,11 +299,13 @@ class _Equilibria:
             if np.max(np.abs(found.q - start)) > JUMP:
                 raise EquilibriumNotFound("jumped")
             saddle = rest(system, found.q, self.winding)
-        except (EquilibriumNotFound, HomoclinicError):
+        except (EquilibriumNotFound, HomoclinicError) as err:
             if value == nearest:
                 raise
             if depth >= 12:
-                raise HomoclinicError(f"the saddle was lost on the way from {self.parameter} = {nearest:.12g} to {value:.12g}") from None
+                raise HomoclinicError(
+                    f"the saddle was lost on the way from {self.parameter} = {nearest:.12g} to {value:.12g} ({err})"
+                ) from None
             self(0.5 * (nearest + value), depth + 1)
             return self(value, depth + 1)
         self.known[float(value)] = found.q
@@ -738,7 +743,7 @@ def _bracket_near(
     # Both ends agree: the end lies beyond one of them. Over with "over above" (over_up at the true end's upper side)
     # is not known here, so walk both ways at once, doubling, until the fate changes.
     low, high = predicted - step, predicted + step
-    for _ in range(30):
+    for _ in range(BRACKET_DOUBLINGS):
         step *= 2.0
         for is_low in (True, False):
             bound = low if is_low else high
@@ -798,7 +803,7 @@ def locate_snic_point(
     bracket: tuple[float, float],
     turns: Mapping[str | int, int] | np.ndarray,
     moment: str = "M",
-    ladder: Sequence[float] = EPS_LADDER[1:],
+    ladder: Sequence[float] = EPS_LADDER,
     t_max: float | None = None,
 ) -> SnicPoint:
     """The value of ``name`` where the homoclinic end meets the static fold in ``moment`` (module docstring).
@@ -926,7 +931,7 @@ def chain_homoclinic_end(
 
 
 def chain_snic_point(
-    params, model, *, name: str, bracket: tuple[float, float], particle: int = 0, fold=None, ladder: Sequence[float] = EPS_LADDER[1:]
+    params, model, *, name: str, bracket: tuple[float, float], particle: int = 0, fold=None, ladder: Sequence[float] = EPS_LADDER
 ) -> SnicPoint:
     """The value of the chain's field ``name`` (``gamma_phi``, say) where its homoclinic end meets the static fold.
 
