@@ -109,6 +109,19 @@ def files(tmp_path_factory) -> dict[str, Path]:
     return out
 
 
+@pytest.fixture(scope="module")
+def read(files):
+    """The package's reader on a kind's file, each file read once for the tests that only look at what it holds."""
+    cache: dict[str, xr.Dataset] = {}
+
+    def read_kind(kind: str) -> xr.Dataset:
+        if kind not in cache:
+            cache[kind] = read_dataset(files[kind])
+        return cache[kind]
+
+    return read_kind
+
+
 KINDS = [
     "simulate", "simulate_pinned_free", "checkpoint", "critical", "sweep", "localization", "localization_checkpoint", "orbit",
     "rotation_characteristic", "study", "state_diagram", "breathers", "report_critical", "report_sweep", "theory", "theory_force",
@@ -165,17 +178,17 @@ def test_cfchecks_finds_no_error_nor_warning_in_a_file_of_each_kind(files, kind,
     assert found == [], kind
 
 
-def test_a_text_coordinate_is_a_label_in_the_file_and_the_coordinate_again_when_read(files):
+def test_a_text_coordinate_is_a_label_in_the_file_and_the_coordinate_again_when_read(files, read):
     """A CF coordinate variable holds numbers (cfchecks warned of the models' text one): text is a label (CF 6.1)."""
     with h5py.File(files["study"]) as f:
         assert "model_label" in f and f["model_label"].dtype.kind == "S", "the label, as characters"
         assert "model_label" in str(f["compliance"].attrs["coordinates"]).split()
     for kind, name, values in (("study", "model", ["linear"]), ("system_orbit", "coordinate", ["phi_0", "phi_1"])):
-        ds = read_dataset(files[kind])
+        ds = read(kind)
         assert ds[name].values.tolist() == values and name in ds.indexes and f"{name}{LABEL_SUFFIX}" not in ds.variables, kind
 
 
-def test_a_dimension_named_time_draws_the_checkers_time_rules_which_the_files_avoid(files, tmp_path):
+def test_a_dimension_named_time_draws_the_checkers_time_rules_which_the_files_avoid(files, read, tmp_path):
     """A file's time axis is "t": named "time", compliance-checker asks it for standard_name "time" (seconds from an
     epoch, which the model's number of time units is not), and giving it that name draws the epoch rule instead."""
     renamed = tmp_path / "named_time.nc"
@@ -188,13 +201,13 @@ def test_a_dimension_named_time_draws_the_checkers_time_rules_which_the_files_av
         ds.to_netcdf(named := tmp_path / "standard_time.nc", engine="h5netcdf")
     assert any("time must be in a valid units format <unit> since <epoch>" in m for m in _compliance_errors(named, tmp_path))
     # The package reads its files, and one written before the rename, with the axis named "time".
-    assert read_dataset(files["simulate"]).time.dims == ("time",) and read_dataset(renamed).time.dims == ("time",)
-    assert read_dataset(files["system_simulate"]).q.dims == ("time", "coordinate")
+    assert read("simulate").time.dims == ("time",) and read_dataset(renamed).time.dims == ("time",)
+    assert read("system_simulate").q.dims == ("time", "coordinate")
 
 
 @pytest.mark.parametrize("kind", SYSTEM_KINDS)
-def test_a_user_systems_file_is_in_its_own_units(files, kind):
-    ds = read_dataset(files[kind])
+def test_a_user_systems_file_is_in_its_own_units(read, kind):
+    ds = read(kind)
     assert ds.attrs["units_convention"] == SYSTEM_UNITS_CONVENTION and "references" not in ds.attrs, "not the paper's chain"
     for name, variable in ds.variables.items():
         assert variable.attrs.get("long_name"), (kind, name)
@@ -220,10 +233,10 @@ def test_every_file_reads_back_with_units_that_pint_parses(files, kind):
     assert described and all(ds[name].attrs["units"] in ("1", "rad") for name in described), kind
 
 
-def test_a_quantity_keeps_its_units_and_scale_in_every_file(files):
+def test_a_quantity_keeps_its_units_and_scale_in_every_file(read):
     seen: dict[str, tuple[str, str | None]] = {}
     for kind in [kind for kind in KINDS if kind != "theory_force" and kind not in SYSTEM_KINDS]:
-        ds = read_dataset(files[kind])
+        ds = read(kind)
         for name in ds.variables:
             attrs = (ds[name].attrs["units"], ds[name].attrs.get("scale"))
             assert seen.setdefault(str(name), attrs) == attrs, (kind, name, attrs, seen[str(name)])
@@ -242,31 +255,31 @@ def test_a_beam_tables_compliances_follow_its_load(files):
     assert force.attrs["load"] == "force"
 
 
-def test_coordinates_have_no_fill_value_and_text_is_characters(files):
+def test_coordinates_have_no_fill_value_and_text_is_characters(files, read):
     with h5py.File(files["study"]) as f:
         for name in ("E2", "model_label"):
             assert "_FillValue" not in f[name].attrs, name
         assert f["error"].dtype.kind == "S" and f["error"].dtype.itemsize == 1, "a character array, not the string type"
     with h5py.File(files["simulate"]) as f:
         assert "_FillValue" not in f[FILE_TIME].attrs and "_FillValue" not in f["particle"].attrs
-    stacked = read_dataset(files["report_sweep"])
+    stacked = read("report_sweep")
     assert stacked["status"].sel(model="linear").values.tolist() == ["static", "static", ""], "a gap is an empty string"
     assert stacked["direction"].dims == ("model", "step") and "direction" in stacked.data_vars, "no label of two dimensions"
-    study = read_dataset(files["study"])
+    study = read("study")
     assert study["error"].values.tolist() == [[""], ["a failed cell keeps its message"]]
     assert study["model"].values.tolist() == ["linear"]
 
 
-def test_long_names_are_true_for_the_file_at_hand(files):
-    pinned_free = read_dataset(files["simulate_pinned_free"])
+def test_long_names_are_true_for_the_file_at_hand(read):
+    pinned_free = read("simulate_pinned_free")
     assert pinned_free["particle"].attrs["long_name"] == "particle index k in -N..N (left pinned, right free)"
     assert pinned_free["potential"].attrs["long_name"] == "potential energy P", "no sine caveat on a nonlinear run"
     assert np.isfinite(pinned_free["potential"].values).all()
-    sine = read_dataset(files["simulate"])
+    sine = read("simulate")
     assert sine["particle"].attrs["long_name"] == "particle index k in -N..N (clamped ends)"
     assert "NaN for the non-conservative sine model" in sine["potential"].attrs["long_name"]
-    assert read_dataset(files["state_diagram"])["value"].attrs["long_name"].startswith("the varied field E2")
-    assert "sine model" in read_dataset(files["critical"])["critical_eigenvalue"].attrs["long_name"]
+    assert read("state_diagram")["value"].attrs["long_name"].startswith("the varied field E2")
+    assert "sine model" in read("critical")["critical_eigenvalue"].attrs["long_name"]
     linear = describe(critical_point(ChainParams(), "linear").to_dataset())
     assert linear["critical_eigenvalue"].attrs["long_name"] == "lowest eigenvalue of the stiffness matrix"
 
