@@ -119,3 +119,22 @@ def test_wide_front_turns_through_a_lower_one_sided_saddle_inside_the_bracket():
     assert len(one_sided.minima) >= 3 and 0.5 < max(one_sided.minima) < barrier.relaxed
     assert barrier.barrier == one_sided.barrier
     assert barrier.relaxed < barrier.barrier < barrier.saddle - 0.03
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("a", "b", "E2", "expected"),
+    [(0.05, 0.6, 0.01, 0.7718), (0.05, 0.6, 0.001, 0.7214), (0.02, 0.8, 0.01, 1.1039), (0.02, 0.8, 0.001, 1.0237)],
+)
+def test_wide_fronts_barrier_of_the_held_lattice_lies_in_the_bracket_and_does_not_move_when_the_images_double(a, b, E2, expected):
+    params = ChainParams(a=a, b=b, E2=E2)
+    coarse = turn_barrier(params, half_length=30, points=32, images=48)
+    assert coarse.relaxed < coarse.barrier < coarse.fixed
+    if np.isfinite(coarse.saddle):
+        assert coarse.barrier < coarse.saddle
+    assert coarse.barrier == pytest.approx(expected, abs=5e-5)
+    best = min(coarse.paths, key=lambda path: path.barrier)
+    _check_top(params, best)
+    assert len(best.minima) >= 3  # a metastable state on the way: the front, or the particle half-turned
+    fine = turn_barrier(params, half_length=30, points=32, images=96)
+    assert fine.barrier == pytest.approx(coarse.barrier, rel=1e-10)

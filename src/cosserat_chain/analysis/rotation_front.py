@@ -28,6 +28,10 @@ over the others is a lower bound of the barrier; a first-order saddle whose two 
 rest and at the particle turned once is an upper bound (its two descents are a path of the turn).
 Where the rotation-controlled path is continuous its top is such a saddle and the two meet; where
 it jumps (wide fronts: the dragged neighbours and the ones left behind are two valleys) they do not.
+The barrier itself is the top of the turn's minimum energy path (:class:`TurnPath`), relaxed by the
+climbing-image string method (:mod:`cosserat_chain.numerics.mep`) from the rotation-controlled path
+and from a one-sided one, its tops refined to first-order saddles: where fronts are wide the turn
+goes over two slips with a metastable front between them, inside the bracket.
 
 :func:`free_front` frees the centres: model (i) with both ends clamped, the right one turned once,
 minimised from the held front.
