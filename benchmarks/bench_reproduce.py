@@ -5,6 +5,7 @@ Run from the repository root::
     python benchmarks/bench_reproduce.py            # warm: the compiled kernels from Numba's cache
     python benchmarks/bench_reproduce.py --cold     # cold: an empty Numba cache, every kernel compiled
     python benchmarks/bench_reproduce.py --json     # also print one JSON object
+    python benchmarks/bench_reproduce.py --src /tmp/old/src   # another checkout's package (before/after)
 
 It runs the command as a user does (a fresh process, so imports and loading or compiling
 the Numba kernels count) into a temporary folder, and reports the CPU time (user + system)
@@ -12,7 +13,10 @@ of the command and of every process it started (the state diagram runs in a seco
 beside the other stages where two cores are free), the wall time, the load average before and
 after (the machine may be shared: wall times only compare on the same load), and each
 stage's wall and CPU seconds from the report's ``summary.json``. Results go to
-``benchmarks/results/reproduce.json`` (``reproduce_cold.json`` with ``--cold``).
+``benchmarks/results/reproduce.json`` (``reproduce_cold.json`` with ``--cold``; with ``--src``,
+which runs the package under that folder instead, e.g. one unpacked by ``git archive REV src |
+tar -x -C /tmp/old``, nothing is written: its numbers are for comparison, run interleaved with
+this checkout's, the machine's load moving the CPU time by 10 % from one run to the next).
 """
 
 from __future__ import annotations
@@ -40,8 +44,13 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cold", action="store_true", help="run with an empty Numba cache (every kernel compiled)")
     parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
+    parser.add_argument("--src", type=Path, help="run the package under this folder (another checkout's src/); writes no results file")
     args = parser.parse_args()
     env = dict(os.environ)
+    if args.src is not None:
+        if not (args.src / "cosserat_chain" / "__init__.py").is_file():
+            parser.error(f"--src {args.src}: no cosserat_chain package there (give the folder that holds it, a checkout's src/)")
+        env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(args.src.resolve()), env.get("PYTHONPATH")]))
     with tempfile.TemporaryDirectory() as out, tempfile.TemporaryDirectory() as cache:
         if args.cold:
             env["NUMBA_CACHE_DIR"] = cache
@@ -60,6 +69,7 @@ def main() -> None:
         "machine": platform.platform(),
         "cores": os.cpu_count(),
         "cold": args.cold,
+        "src": None if args.src is None else str(args.src),
         "version": summary["cosserat_chain_version"],
         "load_average_before": load_before[0],
         "load_average_after": load_after[0],
@@ -68,8 +78,9 @@ def main() -> None:
         "stages": stages,
         "stages_cpu_seconds": sum(stage["cpu_seconds"] or 0.0 for stage in stages.values()),
     }
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / ("reproduce_cold.json" if args.cold else "reproduce.json")).write_text(json.dumps(result, indent=2) + "\n")
+    if args.src is None:
+        RESULTS.mkdir(exist_ok=True)
+        (RESULTS / ("reproduce_cold.json" if args.cold else "reproduce.json")).write_text(json.dumps(result, indent=2) + "\n")
     print(f"{'stage':16s} {'wall s':>7s} {'CPU s':>7s}")
     for name, stage in stages.items():
         print(f"{name:16s} {stage['seconds']:7.1f} {stage['cpu_seconds'] or float('nan'):7.1f}")

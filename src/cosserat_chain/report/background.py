@@ -10,6 +10,7 @@ error caught as in the main loop), the files it wrote (for the manifest) and its
 The stages of :data:`BACKGROUND` read nothing that another stage computes and leave nothing
 for one (``_Stage.shared``), so the report is the same, file for file, as when they run in
 order; together they take about as much CPU as the others (``benchmarks/bench_reproduce.py``).
+The modules they import (:data:`IMPORTS`) are imported before the fork, once for both processes.
 
 :func:`start` returns None (the stages then run in order) where fork is not the platform's
 safe way to start a process (only Linux forks here), where fewer than two cores are free to
@@ -32,6 +33,16 @@ from .stages import Section, _Stage
 #: diagram first, as the longest, and the longer chains last, when the main process's statics have put the kernels
 #: they share in Numba's cache (a cold cache would otherwise be compiled in both processes at once).
 BACKGROUND = ("state_map", "which_continuum", "long_chains")
+#: What each background stage imports, and what every stage's data and figures need (xarray's NetCDF engine,
+#: pyplot): imported before the fork, so that the second process inherits the modules and the compiled kernels they
+#: load (Numba compiles those with a signature at import) rather than loading them again, or with a cold cache
+#: compiling them again, beside the main process, which imports most of them too (benchmarks/TIMINGS.md).
+IMPORTS = {
+    "state_map": ("cosserat_chain.experiments.diagram", "cosserat_chain.plots.diagram"),
+    "which_continuum": ("cosserat_chain.analysis.which_continuum", "cosserat_chain.plots.theory"),
+    "long_chains": ("cosserat_chain.experiments.critical", "cosserat_chain.plots.statics"),
+}
+SHARED_IMPORTS = ("xarray", "h5netcdf", "matplotlib.pyplot")
 #: Seconds between looks at a process that has not reported while the main process waits for it.
 POLL_SECONDS = 0.5
 
@@ -108,8 +119,11 @@ def start(stage: _Stage, names: list[str], run: Callable[[_Stage, str], Section]
     chosen = [name for name in BACKGROUND if name in names]
     if not chosen or len(chosen) == len(names) or not sys.platform.startswith("linux") or free_cores() < 2:
         return None
+    import importlib
     import multiprocessing
 
+    for module in [*SHARED_IMPORTS, *(module for name in chosen for module in IMPORTS[name])]:
+        importlib.import_module(module)
     context = multiprocessing.get_context("fork")
     channel = context.Queue()
     process = context.Process(target=_child, args=(channel, stage, chosen, run), name="report-background", daemon=True)
