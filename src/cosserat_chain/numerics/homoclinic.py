@@ -474,7 +474,12 @@ def _winding(system: System, turns: Mapping[str | int, int] | np.ndarray) -> tup
 def _solve_ladder(
     loop_for: Callable[[float], _Loop], parameter: str, p: float, time: float, rate: float, decay: float, ladder: Sequence[float], what: str
 ) -> tuple[float, float, float, list[tuple[float, float, float]], int, Rest, float]:
-    """Newton on every rung of ``ladder`` from the one before; T grows by log(ratio) (1/rate + 1/decay)."""
+    """Newton on every rung of ``ladder`` from the one before; T grows by log(ratio) (1/rate + 1/approach).
+
+    A rung that fails after three have converged ends the ladder there (the loop's sensitivity to p grows
+    like 1 / eps times e^(rate T): on the N = 2 chain near its fold the differences in p reach round-off at
+    eps = 1e-6); the accuracy is then the difference between the last two that converged.
+    """
     values: list[tuple[float, float, float]] = []
     previous_eps = None
     moved = iterations = 0
@@ -486,7 +491,13 @@ def _solve_ladder(
             loop = loop_for(eps)
             leaving = math.log(previous_eps / loop.eps0) / rate if rate > 1e-6 and loop.eps0 < previous_eps else 0.0
             time += leaving + math.log(previous_eps / eps) / max(approach, 1e-6)
-        p, time, moved, iterations, r, approach = loop_for(eps).solve(p, time, f"{what} (eps = {eps:g})")
+        try:
+            p, time, moved, iterations, r, approach = loop_for(eps).solve(p, time, f"{what} (eps = {eps:g})")
+        except HomoclinicError:
+            if len(values) < 3:
+                raise
+            p, time = values[-1][1], values[-1][2]
+            break
         values.append((eps, p, time))
         previous_eps = eps
     spread = abs(values[-1][1] - values[-2][1]) if len(values) > 1 else math.inf
@@ -615,7 +626,7 @@ def _end_in_bracket(
     p, time, accuracy, values, iterations, r, _ = _solve_ladder(
         loop_for, parameter, 0.5 * (over + back), time, r.rate, r.decay, ladder, "homoclinic end"
     )
-    return HomoclinicOrbit(parameter, p, accuracy, r, time, ladder[-1], shift, values, iterations)
+    return HomoclinicOrbit(parameter, p, accuracy, r, time, values[-1][0], shift, values, iterations)
 
 
 def _check_ladder(ladder: Sequence[float]) -> tuple[float, ...]:
@@ -851,7 +862,7 @@ def locate_snic_point(
     p, time, accuracy, values, iterations, r, _ = _solve_ladder(
         loop_for, name, 0.5 * (over + back), time, 0.0, r.decay, ladder, "codimension-two point"
     )
-    orbit = HomoclinicOrbit(name, p, accuracy, r, time, ladder[-1], shift, values, iterations)
+    orbit = HomoclinicOrbit(name, p, accuracy, r, time, values[-1][0], shift, values, iterations)
     return SnicPoint(name, p, accuracy, float(r.system.parameter(moment)), orbit)
 
 
