@@ -7,14 +7,16 @@ onto a minimum energy path (MEP: the gradient along it is tangent to it) by the 
 string method of E, Ren and Vanden-Eijnden (J. Chem. Phys. 126, 164103, 2007): each iteration
 moves every inner image one explicit steepest-descent step, x <- x - dt grad E(x), and then
 redistributes the images at equal arc length along the polygon through them, which removes
-the gradient's tangential part. Once the path's perpendicular force has fallen to
-``climb_after`` of its start, the highest image climbs (Ren and Vanden-Eijnden, J. Chem. Phys.
+the gradient's tangential part. The force left on the path is how far an iteration moves its
+images, per unit time step: the gradient across the path (the part along it the redistribution
+takes back; at a fixed point of the iteration it vanishes, whereas a tangent estimated from the
+images would leave an error of the order of their spacing). Once that force has fallen to
+:data:`CLIMB_AFTER` of its first value, the highest image climbs (Ren and Vanden-Eijnden, J. Chem. Phys.
 138, 134105, 2013; the climbing image of Henkelman, Uberuaga and Jonsson, J. Chem. Phys. 113,
 9901, 2000): it moves with -grad E + 2 (grad E . t) t, up along the path's tangent t and down
 across it, and the images on each side of it are redistributed separately, so it converges to
 the saddle at the path's top and the others to the MEP on each side. The path has converged when
-the largest perpendicular force on an image (the whole force on the climbing one) is below
-``tolerance``.
+the force left (on the climbing image its whole climbing force) is below ``tolerance``.
 
 :func:`saddle_search` refines a point near a first-order saddle (the climbing image) by Newton
 steps with partitioned rational-function shifts (P-RFO; Baker, J. Comput. Chem. 7, 385, 1986):
@@ -30,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: The highest image starts climbing once the perpendicular force has fallen to this fraction of its start.
+#: The highest image starts climbing once the force left on the path has fallen to this fraction of its first value.
 CLIMB_AFTER = 0.1
 
 
@@ -47,7 +49,7 @@ class MinimumEnergyPath:
     climbing : int
         The index of the climbing image (the path's top); -1 if none climbed.
     force : float
-        The largest perpendicular force on an inner image, or the whole force on the climbing one.
+        The force left: the largest move of an image in the last iteration over the time step.
     iterations : int
         Steps taken.
     converged : bool
