@@ -189,3 +189,25 @@ def test_the_one_particle_chains_snic_point_is_the_pendulums():
     point = chain_snic_point(params, "sine", name="gamma_phi", bracket=(1.0 * scale, 1.4 * scale), fold=fold)
     assert point.moment == pytest.approx(fold.moment, rel=1e-12)
     assert abs(point.value / scale - snic_damping()) <= min(point.accuracy / scale, AGREE)
+
+
+@pytest.mark.slow
+def test_the_two_particle_chains_homoclinic_end_closes_on_its_fold_at_the_located_point():
+    """N = 2 sine (no closed form): the codimension-two point by the augmented system, its eps ladder converging like
+    eps^2, and just below it (gamma_phi = 0.95 gamma*) a homoclinic end within the gap that a square-root law leaves
+    open: (M_c - M_h) / M_c ~ (gamma* - gamma)^2, so about 1e-3 there, and never above M_c."""
+    from cosserat_chain.numerics.continuation import locate_fold
+    from cosserat_chain.numerics.homoclinic import chain_homoclinic_end, chain_snic_point
+    from cosserat_chain.params import ChainParams
+
+    params = ChainParams(N=2)
+    fold = locate_fold(params, "sine")
+    point = chain_snic_point(params, "sine", name="gamma_phi", bracket=(0.2, 0.5), fold=fold)
+    values = [value for _, value, _ in point.orbit.ladder]
+    steps = np.abs(np.diff(values))
+    assert np.all(steps[1:] < 0.02 * steps[:-1]) and point.accuracy <= 1e-9
+    assert point.moment == pytest.approx(fold.moment, rel=1e-12)
+    gamma = 0.95 * point.value
+    end = chain_homoclinic_end(params.replace(gamma_phi=gamma), "sine", bracket=(0.97 * fold.moment, 0.99999 * fold.moment), fold=fold)
+    gap = 1 - end.value / fold.moment
+    assert 1e-4 < gap < 1e-2 and end.accuracy <= 1e-9
