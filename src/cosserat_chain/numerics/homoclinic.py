@@ -271,14 +271,14 @@ class HomoclinicOrbit:
     def as_dict(self) -> dict:
         return {
             "parameter": self.parameter,
-            "value": self.value,
-            "accuracy": self.accuracy,
+            "value": float(self.value),
+            "accuracy": float(self.accuracy),
             "method": "solved",
             "saddle_eigenvalue": self.rest.rate,
             "stable_decay": self.rest.decay,
-            "time": self.time,
-            "eps": self.eps,
-            "ladder": [list(rung) for rung in self.ladder],
+            "time": float(self.time),
+            "eps": float(self.eps),
+            "ladder": [[float(x) for x in rung] for rung in self.ladder],
         }
 
 
@@ -803,7 +803,13 @@ class SnicPoint:
     orbit: HomoclinicOrbit
 
     def as_dict(self) -> dict:
-        return {"parameter": self.name, "value": self.value, "accuracy": self.accuracy, "moment": self.moment, "method": "augmented_system"}
+        return {
+            "parameter": self.name,
+            "value": float(self.value),
+            "accuracy": float(self.accuracy),
+            "moment": float(self.moment),
+            "method": "augmented_system",
+        }
 
 
 def locate_snic_point(
