@@ -163,20 +163,22 @@ def test_the_one_particle_sine_chains_end_is_the_pendulums_retrapping_current(ga
 
 
 @pytest.mark.slow
-def test_the_diagrams_fitted_end_lies_within_its_uncertainty_of_the_solved_one():
-    """The diagram's fit of the period's growth (issue 40 item 3) against the solved end: within its stated uncertainty."""
+def test_the_diagrams_row_is_the_solved_end_and_its_former_fit_lies_within_its_uncertainty_of_it():
+    """The diagram solves a homoclinic end (issue 40 item 3): its row is the solved loop, and the fit of the
+    period's growth that bracketed it (quoted in the message) lies within the fit's stated uncertainty of it."""
+    import re
+
     from cosserat_chain.experiments.diagram import state_diagram
     from cosserat_chain.numerics.homoclinic import chain_homoclinic_end
     from cosserat_chain.params import ChainParams
 
     params = ChainParams(N=1, gamma_phi=0.02)
     row = state_diagram(params, "sine", "gamma_phi", [0.02]).rows[0]
-    assert row.end == "homoclinic"
-    end = chain_homoclinic_end(
-        params, "sine", bracket=(row.rotation_stops - 10 * row.uncertainty, row.rotation_stops + 10 * row.uncertainty)
-    )
-    assert abs(row.rotation_stops - end.value) <= row.uncertainty
-    assert end.accuracy < 1e-3 * row.uncertainty
+    assert row.end == "homoclinic" and row.method == "solved"
+    fit, spread = (float(v) for v in re.search(r"growth gave ([-0-9.e]+) \+- ([-0-9.e]+)", row.message).groups())
+    end = chain_homoclinic_end(params, "sine", bracket=(fit - 10 * spread, fit + 10 * spread))
+    assert abs(row.rotation_stops - end.value) <= end.accuracy and row.uncertainty == end.accuracy
+    assert abs(fit - end.value) <= spread and end.accuracy < 1e-3 * spread
 
 
 @pytest.mark.slow

@@ -30,13 +30,16 @@ For each value of one field of the chain, :func:`state_diagram` gives
   by Newton on the augmented shooting system of
   :mod:`~cosserat_chain.numerics.cycle_curve` at that value), ``followed`` (with
   ``follow``: the same system continued from the value before, the curve of the lower edge
-  in (M, p)), ``one_parameter`` (read from the continuation alone: homoclinic and SNIC ends,
-  or where Newton on the augmented system did not converge, ``message`` says);
-* ``rotation_stops_uncertainty``: for a homoclinic end, which is fitted to the period's growth
-  (T ~ -log(M - M_h)) and not computed, three times the difference between the fit to the
-  last orbits and the fit to the last four alone (:data:`FIT_SAFETY`; ``rotation_stops``
-  carries only the digits it leaves);
-  None for every end that is a computed point (located, followed, a SNIC at M_c);
+  in (M, p)), ``solved`` (a homoclinic end: the loop from the saddle back to it shifted by
+  2 pi, a boundary-value problem with projection boundary conditions,
+  :func:`~cosserat_chain.numerics.homoclinic.chain_homoclinic_end`), ``one_parameter`` (read
+  from the continuation alone: SNIC ends, a homoclinic end the boundary-value problem did not
+  solve, or where Newton on the augmented system did not converge, ``message`` says);
+* ``rotation_stops_uncertainty``: for a solved homoclinic end its accuracy (the change over the
+  last step of the boundary conditions' distance to the saddle); for one left fitted to the
+  period's growth (T ~ -log(M - M_h)), three times the difference between the fit to the last
+  orbits and the fit to the last four alone (:data:`FIT_SAFETY`; ``rotation_stops`` carries
+  only the digits it leaves); None for every other end, a computed point (located, followed, a SNIC at M_c);
 * ``hysteresis``: whether the loop is open, rotation_stops < M_c: between the two edges the
   particle can rest or rotate; None (unknown) where the followed orbit loses stability above
   M_c (no static state exists there: the rotation goes on in a state not followed);
@@ -67,6 +70,7 @@ from ..models.base import get_model
 from ..numerics.continuation import continue_in_moment
 from ..numerics.cycle_curve import KINDS, continue_cycle_end, locate_cycle_end
 from ..numerics.fold_curve import continue_fold
+from ..numerics.homoclinic import HomoclinicError, chain_homoclinic_end
 from ..numerics.periodic import OrbitError, PeriodicOrbit, continue_orbit, find_periodic_orbit
 from ..params import ChainParams
 
@@ -168,7 +172,7 @@ class StateDiagram:
         "from": [p_h1, p_h2], "method": "extrapolated"}`` (an extrapolation of two fitted
         homoclinic ends, not a solved codimension-two point), or None without such rows or when p* falls outside
         (p_h, p_snic] (the rows are then too far from the point to locate it). The
-        one-particle pendulum gives alpha* = 1.1939 against the literature's 1.1925
+        one-particle pendulum gives alpha* = 1.1939 against the solved 1.19305 (:func:`~cosserat_chain.numerics.homoclinic.locate_snic_point`)
         (alpha = gamma_phi / sqrt(j M_c); tested).
         """
         for i in range(2, len(self.rows)):
@@ -223,9 +227,9 @@ class StateDiagram:
                 "rotation_starts": (("value",), np.array([row.rotation_starts or "unknown" for row in self.rows], dtype=str),
                                     {"long_name": "how a rising load starts the rotation at M_c: snic, jump or unknown"}),
                 "method": (("value",), np.array([row.method for row in self.rows], dtype=str),
-                           {"long_name": "how rotation_stops was found: followed, located or one_parameter"}),
+                           {"long_name": "how rotation_stops was found: followed, located, solved or one_parameter"}),
                 "rotation_stops_uncertainty": (("value",), column("uncertainty"),
-                                               {"long_name": "uncertainty of a fitted homoclinic rotation_stops (NaN: a computed point)"}),
+                                               {"long_name": "accuracy of a homoclinic rotation_stops, solved or fitted (NaN: another computed point)"}),
                 "moment_scale": (("value",), column("moment_scale"), {"long_name": "E1 h^2, the unit of the dimensionless moment M / (E1 h^2)"}),
             },
             # The value's units are the varied field's: io.describe reads them from the attribute "parameter".
@@ -306,7 +310,7 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
                 ),
             )
         stops, end, message, uncertainty = _diverging(branch.moment[-TAIL:], branch.period[-TAIL:], moment_c)
-        return _Edge(stops, end, message, uncertainty=uncertainty)
+        return _solved(_Edge(stops, end, message, uncertainty=uncertainty), chain, model, particle, float(branch.moment[-1]))
     tail = _approach(np.asarray(branch.moment), np.asarray(branch.period)) if branch.end in ("step_too_small", "max_points") else None
     if tail is not None:
         # The continuation crawled to a halt with the period still growing: near a homoclinic
@@ -316,13 +320,31 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
         last = abs(float(branch.moment[-1]))
         # The rotation exists down to the last orbit: M_h lies between the fit and it.
         if end == "snic" or 0.0 <= last - abs(stops) <= APPROACH_RTOL * last:
-            return _Edge(
+            fitted = _Edge(
                 stops,
                 end,
                 f"{message}; the continuation stopped by {branch.end} at M = {branch.moment[-1]:.10g}, the bound above M_h",
                 uncertainty=uncertainty,
             )
+            return _solved(fitted, chain, model, particle, float(branch.moment[-1]))
     return _Edge(None, "not_found", f"the orbit's continuation ended by {branch.end}: {branch.message}")
+
+
+def _solved(edge: _Edge, chain: ChainParams, model, particle: int, last: float) -> _Edge:
+    """A fitted homoclinic end replaced by the solved loop (:func:`~cosserat_chain.numerics.homoclinic.chain_homoclinic_end`:
+    projection boundary conditions, with its accuracy); where that fails, the fit is kept and the message says why."""
+    if edge.end != "homoclinic" or edge.stops is None or edge.uncertainty is None:
+        return edge
+    try:
+        orbit = chain_homoclinic_end(chain, model, bracket=(edge.stops - 10.0 * edge.uncertainty, last), particle=particle)
+    except HomoclinicError as err:
+        edge.message += f"; not solved ({err})"
+        return edge
+    message = (
+        f"the orbit ends at a loop homoclinic to the saddle at M_h = {orbit.value:.12g} +- {orbit.accuracy:.1g}, solved by "
+        f"projection boundary conditions (the fit of the period's growth gave {edge.stops:.10g} +- {edge.uncertainty:.2g})"
+    )
+    return _Edge(orbit.value, "homoclinic", message, method="solved", uncertainty=orbit.accuracy)
 
 
 def _phase_note(branch) -> str:
