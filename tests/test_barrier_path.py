@@ -123,10 +123,12 @@ def test_wide_front_turns_through_a_lower_one_sided_saddle_inside_the_bracket():
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    ("a", "b", "E2", "expected"),
-    [(0.05, 0.6, 0.01, 0.7718), (0.05, 0.6, 0.001, 0.7214), (0.02, 0.8, 0.01, 1.1039), (0.02, 0.8, 0.001, 1.0237)],
+    ("a", "b", "E2", "expected", "double"),
+    # The images are doubled on the two rows where that costs least (the two widest fronts' 96-image
+    # paths took three quarters of this test's time; their convergence is in docs/which-continuum.md).
+    [(0.05, 0.6, 0.01, 0.7718, True), (0.05, 0.6, 0.001, 0.7214, True), (0.02, 0.8, 0.01, 1.1039, False), (0.02, 0.8, 0.001, 1.0237, False)],
 )
-def test_wide_fronts_barrier_of_the_held_lattice_lies_in_the_bracket_and_does_not_move_when_the_images_double(a, b, E2, expected):
+def test_wide_fronts_barrier_of_the_held_lattice_lies_in_the_bracket_and_does_not_move_when_the_images_double(a, b, E2, expected, double):
     params = ChainParams(a=a, b=b, E2=E2)
     coarse = turn_barrier(params, half_length=30, points=32, images=48)
     assert coarse.relaxed < coarse.barrier < coarse.fixed
@@ -136,5 +138,6 @@ def test_wide_fronts_barrier_of_the_held_lattice_lies_in_the_bracket_and_does_no
     best = min(coarse.paths, key=lambda path: path.barrier)
     _check_top(params, best)
     assert len(best.minima) >= 3  # a metastable state on the way: the front, or the particle half-turned
-    fine = turn_barrier(params, half_length=30, points=32, images=96)
-    assert fine.barrier == pytest.approx(coarse.barrier, rel=1e-10)
+    if double:
+        fine = turn_barrier(params, half_length=30, points=32, images=96)
+        assert fine.barrier == pytest.approx(coarse.barrier, rel=1e-10)
