@@ -360,3 +360,23 @@ def test_the_static_branch_ends_in_the_kit_s_vocabulary():
     branch = continue_in_moment(ChainParams(N=3), "sine", max_folds=1)
     assert branch.stop is BranchEnd.MAX_FOLDS and branch.stop == "max_folds" and branch.complete
     assert continue_in_moment(ChainParams(N=3), "sine", max_points=5).stop is BranchEnd.MAX_POINTS
+
+
+def test_a_jacobian_that_cannot_be_computed_ends_the_correction_as_not_finite():
+    def evaluate(w, jacobian):
+        def matrix():
+            raise ArithmeticError("no Jacobian here")
+
+        return Evaluation(np.array([w[0] - 2.0]), matrix)
+
+    corrected = newton(evaluate, np.array([1.0]), tol=1e-12)
+    assert corrected.status == Corrector.NOT_FINITE and corrected.w[0] == 1.0
+
+
+def test_a_diverging_rotation_controlled_newton_is_a_newton_error_not_a_traceback(monkeypatch):
+    from cosserat_chain.numerics import newton as rotation
+    from cosserat_chain.params import ChainParams
+
+    monkeypatch.setattr(rotation, "DIVERGED", -1.0)  # every iterate counts as diverging: the corrector must stop cleanly
+    with pytest.raises(rotation.NewtonError, match="did not converge"):
+        rotation.solve_rotation_controlled(ChainParams(N=3), "nonlinear", 1.0)

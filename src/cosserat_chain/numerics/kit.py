@@ -383,12 +383,13 @@ def newton(
             best, grace = norm, forgive
         if steps == max_iterations:
             return Correction(Corrector.STALLED, w, ev, norm, steps, jacobians)
-        if fresh:
-            matrix = ev.matrix()
-            jacobians += 1
         stepped_fresh = fresh
         steps += 1
         try:
+            # A Jacobian computed only now (a callable) that cannot be is a step that cannot be taken.
+            if fresh:
+                matrix = ev.matrix()
+                jacobians += 1
             direction = step_at(w, ev, matrix)
         except (ArithmeticError, np.linalg.LinAlgError, RuntimeError):
             return Correction(Corrector.NOT_FINITE, w, ev, norm, steps - 1, jacobians)

@@ -385,28 +385,30 @@ def solve_rotation_controlled(
 
     # The kit's corrector on w = (x, M): phi_0 is held, M takes its place among the unknowns
     # (the rotation-controlled Jacobian), and the step of phi_0 is zero. K is assembled only at
-    # an iterate that is not diverging (``data``: the state, M, and K once assembled).
+    # an iterate that is not diverging (``data``: the state, M, and K once assembled); at one
+    # that is, there is no Jacobian, and the corrector stops there.
     def evaluate(w: np.ndarray, jacobian: bool) -> Evaluation:
         state = w[:-1].reshape(shape)
         r = pack(params, model.compiled_forces(params, state))
         r[dof] += w[-1]
         data = [state, w[-1], None]
-        return Evaluation(r, lambda: rotation_controlled_jacobian(data[2], dof), data)
 
-    def diverging(residual: float) -> bool:
-        return not residual <= DIVERGED * (1.0 + smallest[0])
+        def matrix():
+            if data[2] is None:
+                raise ArithmeticError("diverging: no use going on")
+            return rotation_controlled_jacobian(data[2], dof)
+
+        return Evaluation(r, matrix, data)
 
     def converged(evaluation: Evaluation, residual: float) -> bool:
         smallest[0] = min(smallest[0], residual)
-        if diverging(residual):
+        if not residual <= DIVERGED * (1.0 + smallest[0]):
             return False
         state, moment, _ = evaluation.data
         evaluation.data[2] = stiffness = model.stiffness(params, state)
         return residual <= max(tol * (1.0 + abs(moment)), round_off_floor(stiffness, state))
 
     def step(w: np.ndarray, evaluation: Evaluation, jacobian) -> np.ndarray:
-        if diverging(float(np.max(np.abs(evaluation.residual)))):
-            raise ArithmeticError("diverging")  # no use going on
         solved = sparse_solve(jacobian, -evaluation.residual)
         moment_step = solved[dof]
         solved[dof] = 0.0
