@@ -1,0 +1,331 @@
+"""Rotating orbits of long chains: Newton-Krylov shooting and the leading Floquet multipliers by Arnoldi.
+
+Contract
+--------
+:func:`~.periodic.find_periodic_orbit` solves the shooting equations (P) of
+:mod:`~.periodic` with the monodromy matrix M = dPhi_T/dy0 in hand: 2 n_free + 1 variational
+columns integrated with the state, whose memory and time grow like N^2 per unit time (an
+hour for one orbit near N = 100). Here M is never formed. Its products M V with a few
+columns V (2 n_free, p) come from one integration of the variational equations with p
+columns (:class:`Monodromy`), which costs O(N p) per step, and
+
+* **Newton-Krylov shooting** (:func:`newton_krylov_orbit`): the package's one Newton
+  corrector (:func:`~.kit.newton`) on (P) and the phase condition, in the same unknowns
+  (y0 on the section or the plane of :class:`~.periodic._Phase`, and T), each Newton step
+  the solution of
+
+      [(M - I) E    f(Phi_T(y0))] [dy]   [-R      ]
+      [ phase rows            0 ] [dT] = [-phase  ]
+
+  (E embeds the unknowns of y0) by GMRES with matrix-free products. The damped modes'
+  multipliers are small or cluster on circles |mu| = exp(-gamma T / 2 m) inside the unit
+  circle, so GMRES needs about the number of multipliers near the unit circle plus
+  ln(tol) / ln(max cluster radius) products: the integrated time per Newton step is bounded
+  by about 2 m ln(1 / tol) / gamma whatever the period (a short period has a cluster near 1
+  but cheap products). GMRES's relative tolerance follows the closure (an inexact Newton that
+  keeps Newton's fast convergence): between :data:`GMRES_RTOL_MIN` and :data:`GMRES_RTOL_MAX`.
+* **Leading Floquet multipliers** (:func:`leading_multipliers`): Arnoldi's method on M
+  (products one column at a time, full reorthogonalisation, no restart), the Ritz values of
+  largest modulus; each reported with its error estimate, the residual norm |M x - mu x| of
+  its unit Ritz vector, computed by one more integration with every Ritz vector as a column
+  (for a normal M the distance to an eigenvalue is at most that; a non-normal M can
+  multiply it by the eigenvalue's condition number). The trivial multiplier's error adds
+  |(M - I) f| / |f| for the flow direction f = f(y0), the exact eigenvector at an exactly
+  closed orbit: 1 is then within that of an eigenvalue of the computed M, and the trivial
+  Ritz value within the sum of 1 (tested). A system small enough (2 n_free <=
+  2 :data:`MULTIPLIERS` + 2) gets all its multipliers from M formed by one integration with
+  the identity's columns.
+
+The result is a :class:`~.periodic.PeriodicOrbit` like the dense method's: its
+``multipliers`` are the leading :data:`MULTIPLIERS` (or all of a small system) by decreasing
+modulus, ``multiplier_errors`` their error estimates. The method is chosen by
+``find_periodic_orbit(..., method=)``: ``"auto"`` takes this one from N = :data:`KRYLOV_FROM_N`
+(``benchmarks/bench_long_orbits.py`` measures where it pays).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse.linalg as spla
+
+from ..params import ChainParams
+from ..state import ROW_INDEX, pack, zeros
+from . import dop853
+from .kit import Evaluation, EvaluationFailed, newton
+from .periodic import MAX_HALVINGS, MAX_STEPS, OrbitError, PeriodicOrbit, _from_y, _no_convergence, _Phase, _System
+
+#: The methods of :func:`~.periodic.find_periodic_orbit`: the dense monodromy, Newton-Krylov, or by the chain's length.
+METHODS = ("auto", "dense", "krylov")
+#: ``method="auto"`` shoots with Newton-Krylov from this N on (benchmarks/README.md, long orbits).
+KRYLOV_FROM_N = 30
+#: Leading Floquet multipliers computed by the Krylov method.
+MULTIPLIERS = 12
+#: Most Arnoldi vectors (products with M) spent on the leading multipliers.
+ARNOLDI_MAX = 240
+#: A Ritz pair has converged when its estimated residual is below this times max(1, |mu|).
+ARNOLDI_TOL = 1e-10
+#: Arnoldi's Ritz values are checked every this many products.
+ARNOLDI_CHECK = 10
+#: GMRES's relative tolerance in a Newton step: the closure max |R|, clipped to this range.
+GMRES_RTOL_MIN, GMRES_RTOL_MAX = 1e-10, 1e-2
+#: Most GMRES iterations (products with M) in one Newton step (no restart).
+GMRES_MAX_ITERATIONS = 400
+#: Seed of Arnoldi's start vector (reproducible multipliers).
+SEED = 20240
+
+
+def choose_method(params: ChainParams, method: str) -> str:
+    """``"dense"`` or ``"krylov"``: ``method`` itself, or for ``"auto"`` by the chain's length (:data:`KRYLOV_FROM_N`).
+
+    Raises
+    ------
+    ValueError
+        For a method not in :data:`METHODS`.
+    """
+    if method not in METHODS:
+        raise ValueError(
+            f"method must be one of {', '.join(METHODS)} (the monodromy formed, Newton-Krylov, or by the chain's length), got {method!r}"
+        )
+    if method == "auto":
+        return "krylov" if params.N >= KRYLOV_FROM_N else "dense"
+    return method
+
+
+@dataclass
+class Monodromy:
+    """The monodromy matrix M = dPhi_T/dy0 (2 n_free, 2 n_free) of the flow from ``start`` over ``period``, as products.
+
+    Attributes
+    ----------
+    products : int
+        Columns applied so far (each a column of the variational equations over one period).
+    integrations : int
+        Integrations so far (one per :meth:`apply`).
+    """
+
+    system: _System
+    start: np.ndarray
+    period: float
+    rtol: float
+    atol: float
+    products: int = 0
+    integrations: int = 0
+
+    @property
+    def size(self) -> int:
+        return self.start.size
+
+    def apply(self, columns: np.ndarray) -> np.ndarray:
+        """M V for V (2 n_free, p) real or complex (or a vector), by one integration of the state with p (2 p) columns."""
+        columns = np.asarray(columns)
+        vector = columns.ndim == 1
+        block = columns.reshape(self.size, -1)
+        if np.iscomplexobj(block):
+            real = self.apply(np.hstack([block.real, block.imag]))
+            out = real[:, : block.shape[1]] + 1j * real[:, block.shape[1] :]
+            return out[:, 0] if vector else out
+        # Unit columns: DOP853's absolute tolerance then means the same for each (M is linear).
+        scale = np.linalg.norm(block, axis=0)
+        scale[scale == 0] = 1.0
+        ncols = block.shape[1]
+        rhs, kernel, ends, coef, rpar, ipar = self.system.parameters(ncols)
+        y0 = np.concatenate([self.start, (block / scale).ravel()])
+        sol = dop853.solve(
+            rhs, kernel, coef, rpar, ipar, y0, np.array([0.0, self.period]), rtol=self.rtol, atol=self.atol, max_steps=MAX_STEPS,
+            end_force=ends,
+        )  # fmt: skip
+        if not sol.success:
+            raise OrbitError(f"the variational equations over T={self.period!r} failed at M={self.system.moment!r}: {sol.message}")
+        self.products += ncols
+        self.integrations += 1
+        out = sol.y[-1][self.size :].reshape(self.size, ncols) * scale
+        return out[:, 0] if vector else out
+
+
+def _shift(system: _System, particle_turns: np.ndarray) -> np.ndarray:
+    """2 pi times every angle's turns a period, in the layout of y (eq. (P))."""
+    shift = np.zeros(2 * system.nf)
+    angles = zeros(system.params)
+    angles[ROW_INDEX["phi"]] = particle_turns
+    shift[: system.nf] = 2 * math.pi * pack(system.params, angles)
+    return shift
+
+
+@dataclass
+class _ShootingStep:
+    """The Newton step of (P) and the phase condition at (y0, T), solved by GMRES with products of :class:`Monodromy`."""
+
+    monodromy: Monodromy
+    phase: _Phase
+    velocity_end: np.ndarray
+
+    def _apply(self, x: np.ndarray) -> np.ndarray:
+        head = self.phase.head
+        dy = np.zeros(self.monodromy.size)
+        dy[self.phase.keep] = x[:head]
+        top = self.monodromy.apply(dy) - dy + self.velocity_end * x[head]
+        return np.concatenate([top, self.phase.rows(x.size) @ x])
+
+    def solve(self, rhs: np.ndarray, rtol: float) -> np.ndarray:
+        n = rhs.size
+        operator = spla.LinearOperator((n, n), matvec=self._apply, dtype=float)
+        step, _ = spla.gmres(operator, rhs, rtol=rtol, atol=0.0, restart=GMRES_MAX_ITERATIONS, maxiter=1)
+        # A step GMRES did not resolve to rtol is still a descent direction: Newton's halving judges it.
+        return step
+
+
+def newton_krylov_orbit(
+    system: _System,
+    turns: int,
+    y0: np.ndarray,
+    period: float,
+    particle_turns: np.ndarray,
+    phase: _Phase,
+    *,
+    tol: float,
+    max_iter: int,
+    rtol: float,
+    atol: float,
+    multipliers: int = MULTIPLIERS,
+) -> PeriodicOrbit:
+    """The orbit through the guess (y0 (2 n_free,), period) by Newton-Krylov shooting, with its leading multipliers.
+
+    The arguments are those :func:`~.periodic.find_periodic_orbit` has checked and prepared (the
+    guess on its phase condition ``phase``).
+
+    Raises
+    ------
+    OrbitError
+        If Newton's method does not converge.
+    """
+    shift = _shift(system, particle_turns)
+
+    def closure(w: np.ndarray, jacobian: bool) -> Evaluation:
+        """(P) and the phase condition at w = (y0's unknowns, T); the step's operator beside (a state-only integration either way)."""
+        if not w[-1] > 0:
+            raise EvaluationFailed(f"the period must stay > 0, got {w[-1]!r}")
+        y = phase.state(w[:-1])
+        try:
+            end, _, _ = system.flow(y, w[-1], rtol=rtol, atol=atol, variations=False)
+        except OrbitError as err:
+            raise EvaluationFailed(str(err)) from err
+        residual = np.append(end - y - shift, phase.residual(y))
+        step = _ShootingStep(Monodromy(system, y, float(w[-1]), rtol, atol), phase, system.velocity(end))
+        return Evaluation(residual, step)
+
+    def krylov_step(w: np.ndarray, evaluation: Evaluation, step: _ShootingStep) -> np.ndarray:
+        residual = np.asarray(evaluation.residual)
+        eta = min(GMRES_RTOL_MAX, max(GMRES_RTOL_MIN, float(np.max(np.abs(residual)))))
+        return step.solve(-residual, eta)
+
+    solved = newton(
+        closure, np.append(y0[phase.keep], period), tol=tol, max_iterations=max_iter, divergence=None, damping=MAX_HALVINGS,
+        newton_step=krylov_step,
+    )  # fmt: skip
+    if not solved.converged:
+        raise OrbitError(_no_convergence(system.moment, turns, solved.iterations, solved.norm))
+    start = phase.state(solved.w[:-1])
+    period = float(solved.w[-1])
+    mono = Monodromy(system, start, period, rtol, atol)
+    values, errors = leading_multipliers(mono, multipliers, flow=system.velocity(start))
+    x, v = _from_y(system.params, start)
+    return PeriodicOrbit(
+        params=system.params,
+        model=system.model.name,
+        moment=float(system.moment),
+        turns=turns,
+        particle=system.particle,
+        period=period,
+        x=x,
+        v=v,
+        multipliers=values,
+        closure=float(solved.norm),
+        iterations=solved.iterations,
+        particle_turns=particle_turns,
+        phase_normal=phase.normal,
+        multiplier_errors=errors,
+    )
+
+
+def leading_multipliers(
+    monodromy: Monodromy, count: int = MULTIPLIERS, *, flow: np.ndarray | None = None, max_dimension: int = ARNOLDI_MAX
+) -> tuple[np.ndarray, np.ndarray]:
+    """The ``count`` Floquet multipliers of largest modulus and their error estimates (module docstring).
+
+    Parameters
+    ----------
+    monodromy : Monodromy
+    count : int
+        How many (all of them where 2 n_free <= 2 count + 2).
+    flow : ndarray (2 n_free,), optional
+        f(y0), the trivial multiplier's eigenvector at an exactly closed orbit: its residual
+        is added to the error of the multiplier nearest 1.
+    max_dimension : int
+        Most Arnoldi vectors; where the leading Ritz values have not converged by then (a
+        cluster of equal moduli among them) they are reported with their larger errors.
+
+    Returns
+    -------
+    multipliers : ndarray (k,) complex
+        By decreasing modulus.
+    errors : ndarray (k,)
+        Residual norms |M x - mu x| of the unit Ritz vectors (module docstring).
+
+    Raises
+    ------
+    ValueError
+        For count < 1.
+    """
+    if not (isinstance(count, int | np.integer) and count >= 1):
+        raise ValueError(f"count must be an integer >= 1 (leading Floquet multipliers), got {count!r}")
+    size = monodromy.size
+    unit_flow = None if flow is None else np.asarray(flow, dtype=float) / np.linalg.norm(flow)
+    if size <= 2 * count + 2:
+        matrix = monodromy.apply(np.eye(size))
+        values, vectors = sla.eig(matrix)
+        mapped = matrix @ (vectors if unit_flow is None else np.column_stack([vectors, unit_flow]))
+    else:
+        values, vectors = _arnoldi(monodromy, count, min(max_dimension, size - 1))
+        # Every Ritz vector and the flow direction in one integration.
+        mapped = monodromy.apply(vectors if unit_flow is None else np.column_stack([vectors, unit_flow]))
+    errors = np.linalg.norm(mapped[:, : values.size] - vectors * values, axis=0)
+    if unit_flow is not None:
+        errors[int(np.argmin(np.abs(values - 1.0)))] += float(np.linalg.norm(mapped[:, -1].real - unit_flow))
+    order = np.argsort(-np.abs(values), kind="stable")
+    return values[order], errors[order]
+
+
+def _arnoldi(monodromy: Monodromy, count: int, dimension: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``count`` Ritz pairs of largest modulus from Arnoldi's method on M (unit Ritz vectors).
+
+    Stops once their estimated residuals are below :data:`ARNOLDI_TOL` (checked every
+    :data:`ARNOLDI_CHECK` products), at an invariant subspace, or after ``dimension`` products.
+    """
+    size = monodromy.size
+    basis = np.zeros((size, dimension + 1))
+    hessenberg = np.zeros((dimension + 1, dimension))
+    start = np.random.default_rng(SEED).standard_normal(size)
+    basis[:, 0] = start / np.linalg.norm(start)
+    for m in range(1, dimension + 1):
+        w = monodromy.apply(basis[:, m - 1])
+        # Two passes of Gram-Schmidt keep the basis orthonormal to round-off.
+        for _ in range(2):
+            coefficients = basis[:, :m].T @ w
+            w -= basis[:, :m] @ coefficients
+            hessenberg[:m, m - 1] += coefficients
+        hessenberg[m, m - 1] = np.linalg.norm(w)
+        invariant = hessenberg[m, m - 1] <= 1e-14 * np.linalg.norm(hessenberg[: m + 1, m - 1])
+        if not invariant:
+            basis[:, m] = w / hessenberg[m, m - 1]
+        if invariant or m == dimension or (m >= count and m % ARNOLDI_CHECK == 0):
+            values, small = sla.eig(hessenberg[:m, :m])
+            leading = np.argsort(-np.abs(values), kind="stable")[:count]
+            estimate = abs(hessenberg[m, m - 1]) * np.abs(small[m - 1, leading])
+            if invariant or m == dimension or np.all(estimate <= ARNOLDI_TOL * np.maximum(1.0, np.abs(values[leading]))):
+                break
+    vectors = basis[:, :m] @ small[:, leading]
+    return values[leading], vectors / np.linalg.norm(vectors, axis=0)
