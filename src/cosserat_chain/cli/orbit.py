@@ -38,15 +38,33 @@ from .systems import (
 def orbit(
     ctx: typer.Context,
     model: str = model_option("sine", "A model that supports full rotations (the linear model does not).", rotating=True),
-    moment: float | None = number(None, "Moment M on the loaded particle (above M_c, or near an orbit; required without --system)."),
+    moment: float | None = number(
+        None, "Moment M on the loaded particle (above M_c; below it with --from-above or --guess; required without --system)."
+    ),
     turns: int | None = typer.Option(
         None,
         min=1,
         help="Turns of the loaded particle per period (default: the first of 1, 2, 3 whose orbit is stable, else the first found).",
     ),
     particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
-    down_to: float | None = number(None, "Continue the orbit down in M (with --system: in --vary, either way) to here, reporting where it ceases to exist.", flags=("--down-to",)),
+    down_to: float | None = number(
+        None,
+        "Continue the orbit down in M (with --system: in --vary, either way) to here, reporting where it ceases to exist.",
+        flags=("--down-to",),
+    ),
     period_max: float = number(2000.0, "Continuation: a period beyond this counts as diverging.", above=0.0, flags=("--period-max",)),
+    from_above: float | None = number(
+        None,
+        "Find the orbit at this larger moment (above M_c) and continue it down to --moment: reaches rotating states below M_c.",
+        flags=("--from-above",),
+    ),
+    guess: Path | None = typer.Option(
+        None,
+        "--guess",
+        metavar="FILE",
+        help="Start from a stored state: an orbit (orbit --out: Newton from it) or the last frame of a run (simulate --out: "
+        "a settling run from it); reaches rotating states below M_c.",
+    ),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields (with --system: the system's [system] table)."),
     out: Path | None = typer.Option(None, help="Write the orbit (and the continuation) to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the rotation characteristic (needs --down-to) to this PNG/SVG file."),
@@ -62,7 +80,9 @@ def orbit(
 ) -> None:
     """Find the rotating state as a limit cycle: period, mean angular velocity, Floquet multipliers, stability.
 
-    With --system: a rotation of the system (from a settled run, then shooting), and with --vary its continuation.
+    Below M_c a run from rest stays static: --from-above M continues the orbit found at M down to --moment,
+    --guess FILE starts from a stored orbit or run. With --system: a rotation of the system (from a settled run,
+    then shooting), and with --vary its continuation.
     """
     if system is not None:
         chain_only_or_exit(ctx, ("config", "as_json", "out", "down_to", "period_max", "sets", "vary", "turn", "start", "velocity"))
@@ -79,25 +99,41 @@ def orbit(
 
     if plot is not None and down_to is None:
         fail("--plot draws the continued branch: give --down-to as well")
-    outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
+    if from_above is not None and guess is not None:
+        fail("--from-above and --guess are two ways to start the orbit: give one of them")
+    if from_above is not None and not (moment != 0 and from_above / moment > 1):
+        fail(f"--from-above must be a moment beyond --moment {moment:g} (same sign, larger in size), got {from_above:g}")
+    outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config, "--guess": guess})
     params = params_or_exit(config)
     spin_or_exit(params, moment, step_for_checks(params, model, None), dt_option=False)
+    if from_above is not None:
+        spin_or_exit(params, from_above, step_for_checks(params, model, None), dt_option=False)
+    stored: dict = {} if guess is None else _guess_or_exit(guess, params, particle)
+    if turns is None and "turns" in stored:
+        turns = stored["turns"]
+    begin = {"from_above": from_above, **{key: stored[key] for key in ("guess", "start") if key in stored}}
     bar = progress_bar(f"orbit {model}", "orbit")
     try:
-        result = None
         if turns is None:
-            turns, result = _turns_to_follow(params, model, moment, particle)
-        if result is None or down_to is not None:
-            # The search found the orbit without its continuation: computed again only to continue it.
+            turns, result = _turns_to_follow(params, model, moment, particle, period_max=period_max, progress=bar_callback(bar), **begin)
+            if down_to is not None:
+                result = result.continued(down_to, period_max=period_max, progress=bar_callback(bar))
+        else:
             result = periodic_orbit(
-                params, model, moment, turns=turns, particle=particle, down_to=down_to, period_max=period_max, progress=bar_callback(bar)
-            )
+                params, model, moment, turns=turns, particle=particle, down_to=down_to, period_max=period_max,
+                progress=bar_callback(bar), **begin,
+            )  # fmt: skip
     except ValueError as err:
         bar.close()
         fail(str(err))
     except (OrbitError, IntegrationError) as err:
         bar.close()
-        fail(str(err), code=3)
+        # Below M_c a run from rest stays static: the command line's two other starts.
+        hint = "" if from_above is not None or guess is not None else " (from the command line: --from-above M or --guess FILE)"
+        fail(f"{err}{hint}", code=3)
+    if guess is not None:
+        result.start["file"] = str(guess)
+        result.start["file_holds"] = stored["holds"]
     bar.finish(note=f"the branch ended: {result.branch.end}" if result.branch is not None else "")
     if out is not None:  # the Dataset (and xarray) only for a file: --json alone starts quickly
         save_dataset(result.to_dataset(), out)
@@ -110,6 +146,7 @@ def orbit(
         typer.echo(json.dumps({"params": params.model_dump(), **result.as_dict(), "static_fold": finite_or_none(result.static_fold)}))
         return
     o = result.orbit
+    typer.echo(_started(result.start))
     typer.echo(
         f"{model}: M = {o.moment:g}, {o.turns} turn(s) per period T = {o.period:.10g}, mean angular velocity {o.mean_angular_velocity:.10g}"
     )
@@ -129,11 +166,12 @@ def orbit(
 AUTO_TURNS = (1, 2, 3)
 
 
-def _turns_to_follow(params, model: str, moment: float, particle: int):
+def _turns_to_follow(params, model: str, moment: float, particle: int, **start):
     """(k, its result) for the first k of :data:`AUTO_TURNS` whose orbit is stable, else the first with an orbit.
 
-    Raises the last :class:`~cosserat_chain.numerics.periodic.OrbitError` when none converges
-    (its message suggests what to try).
+    ``start`` goes to :func:`~cosserat_chain.experiments.orbits.periodic_orbit` (``from_above``, ``guess``,
+    ``start``, ``period_max``, ``progress``). Raises the last :class:`~cosserat_chain.numerics.periodic.OrbitError` when
+    none converges (its message suggests what to try).
     """
     from ..experiments.orbits import periodic_orbit
     from ..numerics.periodic import OrbitError
@@ -141,7 +179,7 @@ def _turns_to_follow(params, model: str, moment: float, particle: int):
     found, error = None, None
     for k in AUTO_TURNS:
         try:
-            result = periodic_orbit(params, model, moment, turns=k, particle=particle)
+            result = periodic_orbit(params, model, moment, turns=k, particle=particle, **start)
         except OrbitError as err:
             error = err
             continue
@@ -151,3 +189,75 @@ def _turns_to_follow(params, model: str, moment: float, particle: int):
     if found is None:
         raise error
     return found
+
+
+def _started(start: dict) -> str:
+    """One line on how the orbit was reached (:attr:`~cosserat_chain.experiments.orbits.OrbitResult.start`)."""
+    method = start["method"]
+    source = f" {start['file']}" if "file" in start else ""
+    if method == "from_above":
+        lost = start["stability_lost_at"]
+        note = "" if lost is None else f"; it lost stability on the way down at M = {lost:.6g} (a falling load leaves it there)"
+        return f"reached from the orbit at M = {start['from_moment']:g}, continued down over {start['approach_points']} orbits{note}"
+    if method == "guess":
+        return f"Newton from the stored orbit{source}" if source else "Newton from the guess"
+    if method == "state":
+        return f"a run settled from the last frame of{source}" if source else "a run settled from the given state"
+    return "a run settled from rest"
+
+
+def _guess_or_exit(path: Path, params, particle: int) -> dict:
+    """The start stored in ``path`` for :func:`~cosserat_chain.experiments.orbits.periodic_orbit`, or exit 2 naming what is wrong.
+
+    An orbit (``orbit --out``) gives ``guess`` = (x, v, T, turns of every particle) and its ``turns``;
+    a run (``simulate --out``) its last frame as ``start``. ``holds`` says which.
+    """
+    import math
+
+    import numpy as np
+
+    from ..io import params_of, read_dataset, run_frame
+    from ..state import ROWS
+
+    label = f"--guess {str(path)!r}"
+    try:
+        ds = read_dataset(path)
+        if "time" in ds.dims:
+            run_params, _, _, x, v = run_frame(ds, source=label)
+            holds = "run"
+        elif ds.attrs.get("experiment") == "periodic_orbit":
+            run_params = params_of(ds)
+            holds = "orbit"
+        else:
+            fail(
+                f"{label} holds neither an orbit (orbit --out) nor a run (simulate --out): its experiment is "
+                f"{ds.attrs.get('experiment')!r}, allowed 'periodic_orbit' or a run over time"
+            )
+    except ValueError as err:
+        fail(f"{label}: {err}")
+    if run_params.n_particles != params.n_particles or (run_params.left_end, run_params.right_end) != (params.left_end, params.right_end):
+        fail(
+            f"{label} holds a chain of {run_params.n_particles} particles with ends {run_params.left_end}/{run_params.right_end}; "
+            f"the chain asked (--config) has {params.n_particles} with ends {params.left_end}/{params.right_end}: they must agree"
+        )
+    if holds == "run":
+        return {"start": (x, v), "holds": holds}
+    loaded = int(ds.attrs.get("loaded_particle", particle))
+    if loaded != particle:
+        fail(f"{label} holds an orbit loaded at particle {loaded}; --particle is {particle}: they must agree")
+    needed = [*ROWS, *(f"{row}_dot" for row in ROWS), "particle_turns"]
+    missing = [name for name in needed if name not in ds.variables]
+    if missing:
+        fail(f"{label} lacks {', '.join(missing)}: an orbit file (orbit --out, this version) holds {', '.join(needed)}")
+    ordered = ds.sortby("particle")
+    x = np.stack([np.asarray(ordered[row].values, dtype=float) for row in ROWS])
+    v = np.stack([np.asarray(ordered[f"{row}_dot"].values, dtype=float) for row in ROWS])
+    period, turns = float(ds.attrs.get("period", math.nan)), ds.attrs.get("turns")
+    if not (np.all(np.isfinite(x)) and np.all(np.isfinite(v))):
+        fail(f"{label}: the orbit's state holds a value that is not a finite number; allowed: finite numbers")
+    if not (math.isfinite(period) and period > 0):
+        fail(f"{label}: the orbit's period is {period!r}; allowed: a finite number > 0")
+    if not (isinstance(turns, (int, np.integer)) and turns >= 1):
+        fail(f"{label}: the orbit's turns is {turns!r}; allowed: an integer >= 1")
+    particle_turns = np.asarray(ordered["particle_turns"].values)
+    return {"guess": (x, v, period, particle_turns), "turns": int(turns), "holds": holds}

@@ -8,7 +8,12 @@ Contract
 (:func:`~cosserat_chain.numerics.periodic.continue_orbit`); the result also holds the
 static fold M_c (:func:`~cosserat_chain.numerics.continuation.locate_fold`), so the
 two edges of the hysteresis loop are side by side: rotation starts going up at M_c,
-and stops going down where the orbit ends.
+and stops going down where the orbit ends. Below M_c a run from rest stays static, so the
+orbit there is reached from a start given: ``guess`` (an orbit or a state and period, as
+:func:`~cosserat_chain.numerics.periodic.find_periodic_orbit` takes), ``start`` (a state,
+a stored frame of a run, that the settling run starts from instead of rest) or
+``from_above`` (the orbit found at a larger moment and continued down to this one); the
+result's ``start`` says which.
 
 :func:`rotation_characteristic` gives the mean angular velocity 2 pi k / T against M
 at chosen moments (each orbit seeded by the one at the next larger moment), with the
@@ -21,7 +26,7 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -29,7 +34,7 @@ import numpy as np
 from ..loads import moment_load
 from ..models.base import Model, get_model
 from ..numerics.continuation import locate_fold
-from ..numerics.periodic import OrbitBranch, OrbitError, PeriodicOrbit, continue_orbit, find_periodic_orbit
+from ..numerics.periodic import END_MOMENT_MIN, OrbitBranch, OrbitError, PeriodicOrbit, continue_orbit, find_periodic_orbit, initial_guess
 from ..params import ChainParams
 from ..state import ROWS
 from .simulation import run_attributes
@@ -64,16 +69,24 @@ class OrbitResult:
         The continuation (with ``down_to``).
     static_fold : float
         M_c of the static branch (NaN if it has none, as a chain that spins about a pin has no static state).
+    start : dict
+        How the orbit was reached: ``method`` ``rest`` (a settled run from rest), ``guess``, ``state``
+        (a settled run from a given state) or ``from_above`` (with ``from_moment``, the ``approach``'s end
+        and where the orbit lost stability on the way down, if it did); the CLI adds the ``file`` read.
+    approach : OrbitBranch or None
+        With ``from_above``: the continuation from the larger moment down to this one.
     """
 
     orbit: PeriodicOrbit
     branch: OrbitBranch | None
     static_fold: float
     settings: dict = field(default_factory=dict)
+    start: dict = field(default_factory=lambda: {"method": "rest"})
+    approach: OrbitBranch | None = None
 
     def as_dict(self) -> dict:
-        """JSON-ready summary: the orbit, M_c and, with a continuation, where the orbit ends. Moments in the parameters' units; ``moment_scale`` = E1 h^2 divides them into the paper's dimensionless moment (Fig. 2)."""
-        out = {**self.orbit.as_dict(), "static_fold": _none_if_nan(self.static_fold)}
+        """JSON-ready summary: the orbit, how it was reached, M_c and, with a continuation, where the orbit ends. Moments in the parameters' units; ``moment_scale`` = E1 h^2 divides them into the paper's dimensionless moment (Fig. 2)."""
+        out = {**self.orbit.as_dict(), "static_fold": _none_if_nan(self.static_fold), "start": dict(self.start)}
         if self.branch is not None:
             out["continuation"] = {
                 "end": self.branch.end,
@@ -90,6 +103,22 @@ class OrbitResult:
             }
         return out
 
+    def continued(self, down_to: float, *, period_max: float = 2000.0, progress: ProgressCallback | None = None) -> OrbitResult:
+        """This result with its orbit continued down to ``down_to`` (as :func:`periodic_orbit`'s ``down_to``).
+
+        Raises
+        ------
+        ValueError
+            If ``down_to`` is not between 0 and the orbit's moment.
+        """
+        moment = self.orbit.moment
+        if not (math.isfinite(down_to) and 0 <= down_to / moment < 1):
+            raise ValueError(f"down_to must lie between 0 and the moment {moment!r} (same sign, smaller), got {down_to!r}")
+        keep = {k: v for k, v in self.settings.items() if k in ("tol", "rtol", "atol")}
+        branch = continue_orbit(self.orbit, moment_min=abs(down_to), period_max=period_max, progress=progress, **keep)
+        settings = {**self.settings, "down_to": down_to, "period_max": period_max}
+        return replace(self, branch=branch, settings=settings)
+
     def to_dataset(self) -> xr.Dataset:
         """Dataset with the start state (dims ``particle``), the multipliers and, with a
         continuation, the branch (dim ``point``)."""
@@ -99,6 +128,7 @@ class OrbitResult:
         particle = np.arange(-o.params.N, o.params.N + 1)
         data = {row: (("particle",), o.x[i]) for i, row in enumerate(ROWS)}
         data.update({f"{row}_dot": (("particle",), o.v[i]) for i, row in enumerate(ROWS)})
+        data["particle_turns"] = (("particle",), o.particle_turns, {"long_name": "turns of each particle's angle per period"})
         data["multiplier_real"] = (("multiplier",), o.multipliers.real)
         data["multiplier_imag"] = (("multiplier",), o.multipliers.imag)
         coords = {"particle": particle, "multiplier": np.arange(len(o.multipliers))}
@@ -124,6 +154,7 @@ class OrbitResult:
                 "closure": o.closure,
                 "static_fold": self.static_fold,
                 "settings_json": json.dumps(self.settings),
+                "start_json": json.dumps(self.start),
             }
         )
         if self.branch is not None:
@@ -148,6 +179,9 @@ def periodic_orbit(
     particle: int = 0,
     down_to: float | None = None,
     period_max: float = 2000.0,
+    guess: PeriodicOrbit | tuple | None = None,
+    start: tuple[np.ndarray, np.ndarray] | None = None,
+    from_above: float | None = None,
     progress: ProgressCallback | None = None,
     **options,
 ) -> OrbitResult:
@@ -165,8 +199,19 @@ def periodic_orbit(
     down_to : float, optional
         Continue the orbit towards smaller |M|, stopping at this moment if it still exists there.
     period_max : float
-        The continuation reports a diverging period (homoclinic end) beyond this.
+        The continuations report a diverging period (homoclinic end) beyond this.
+    guess : PeriodicOrbit or tuple, optional
+        Newton's start, as :func:`~cosserat_chain.numerics.periodic.find_periodic_orbit` takes it.
+    start : (x (3, 2N+1), v (3, 2N+1)), optional
+        The state the settling run that gives Newton's start begins from, instead of rest
+        (a frame of a rotating run: below M_c a run from rest stays static).
+    from_above : float, optional
+        A larger moment of the same sign (above M_c, where a run from rest rotates): the orbit is
+        found there, continued down to ``moment`` (:func:`~cosserat_chain.numerics.periodic.continue_orbit`)
+        and solved at ``moment`` from the nearest orbit of that branch. At most one of
+        ``guess``, ``start`` and ``from_above``.
     progress : callable(points, max_points), optional
+        Reports the continuations' orbits.
     **options
         Passed to :func:`~cosserat_chain.numerics.periodic.find_periodic_orbit` (``tol``, ``rtol``, ``atol``, ...).
 
@@ -177,20 +222,55 @@ def periodic_orbit(
     Raises
     ------
     ValueError
-        For bad input, e.g. ``down_to`` not between 0 and ``moment``.
+        For bad input, e.g. ``down_to`` not between 0 and ``moment``, ``from_above`` not beyond it,
+        or more than one of ``guess``, ``start``, ``from_above``.
     OrbitError
-        If no orbit is found at ``moment``.
+        If no orbit is found at ``moment``, or the branch followed down from ``from_above`` ends before it.
     """
     model = get_model(model)
     if down_to is not None and not (math.isfinite(down_to) and 0 <= down_to / moment < 1):
         raise ValueError(f"down_to must lie between 0 and the moment {moment!r} (same sign, smaller), got {down_to!r}")
-    orbit = find_periodic_orbit(params, model, moment, turns=turns, particle=particle, **options)
+    given = [name for name, value in (("guess", guess), ("start", start), ("from_above", from_above)) if value is not None]
+    if len(given) > 1:
+        raise ValueError(f"give at most one start of the orbit (guess, start or from_above), got {' and '.join(given)}")
+    keep = {k: v for k, v in options.items() if k in ("tol", "rtol", "atol")}
+    approach = None
+    if from_above is not None:
+        orbit, approach = _from_above(params, model, moment, from_above, turns, particle, period_max, progress, options, keep)
+        how = {"method": "from_above", "from_moment": float(from_above), "approach_points": len(approach.orbits)}
+        lost = approach.stability_lost_at
+        how["stability_lost_at"] = None if lost is None else float(lost)
+    elif start is not None:
+        x, v, period = initial_guess(params, model, moment, turns=turns, particle=particle, x0=start[0], v0=start[1])
+        orbit = find_periodic_orbit(params, model, moment, turns=turns, particle=particle, guess=(x, v, period), **options)
+        how = {"method": "state"}
+    else:
+        orbit = find_periodic_orbit(params, model, moment, turns=turns, particle=particle, guess=guess, **options)
+        how = {"method": "rest" if guess is None else "guess"}
     branch = None
     if down_to is not None:
-        keep = {k: v for k, v in options.items() if k in ("tol", "rtol", "atol")}
         branch = continue_orbit(orbit, moment_min=abs(down_to), period_max=period_max, progress=progress, **keep)
-    settings = {"turns": turns, "down_to": down_to, "period_max": period_max, **options}
-    return OrbitResult(orbit=orbit, branch=branch, static_fold=_static_fold(params, model, particle), settings=settings)
+    settings = {"turns": turns, "down_to": down_to, "period_max": period_max, "from_above": from_above, **options}
+    return OrbitResult(
+        orbit=orbit, branch=branch, static_fold=_static_fold(params, model, particle), settings=settings, start=how, approach=approach
+    )
+
+
+def _from_above(params, model: Model, moment: float, above: float, turns: int, particle: int, period_max: float, progress, options, keep):
+    """(the orbit at ``moment``, the branch that led there) for :func:`periodic_orbit`'s ``from_above``."""
+    if not (math.isfinite(above) and above / moment > 1):
+        raise ValueError(f"from_above must be a finite moment beyond {moment!r} (same sign, larger in size), got {above!r}")
+    first = find_periodic_orbit(params, model, above, turns=turns, particle=particle, **options)
+    approach = continue_orbit(first, moment_min=abs(moment), period_max=period_max, progress=progress, **keep)
+    if approach.end != END_MOMENT_MIN:
+        raise OrbitError(
+            f"the {turns}-turn orbit followed down from M = {above!r} ends at M = {approach.end_moment:.10g} "
+            f"({approach.end}: {approach.message}), before the moment {moment!r}: this orbit does not reach it "
+            "(try another --turns, or a guess from a run at the moment)"
+        )
+    # The continuation stops at its first orbit past |moment|: Newton at the moment from the nearest one.
+    nearest = min(approach.orbits, key=lambda o: abs(o.moment - moment))
+    return find_periodic_orbit(params, model, moment, turns=turns, particle=particle, guess=nearest, **options), approach
 
 
 @dataclass
