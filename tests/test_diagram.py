@@ -209,19 +209,22 @@ def test_the_snic_point_extrapolates_the_closing_gap_linearly_in_its_square_root
     assert diagram.snic_point["value"] == pytest.approx(2.0, rel=1e-12)
     assert diagram.snic_point["between"] == [1.5, 2.5]
     diagram.rows[-1] = row(1.8, "snic")  # the extrapolated point would lie beyond the SNIC row
-    assert diagram.snic_point is None
+    assert diagram.snic_point["method"] == "not_located" and diagram.snic_point["value"] is None
 
 
 @pytest.mark.slow
 def test_the_pendulums_homoclinic_end_meets_the_static_fold_at_the_known_damping():
     """N = 1: alpha* = gamma_phi / sqrt(j M_c) where the homoclinic end becomes a SNIC, for phi'' + alpha phi' +
     sin(phi) = beta 1.1930459188 as solved by the augmented system and Lin's method (tests/test_homoclinic.py;
-    the often-quoted 1.1925 is off in its fourth digit): the diagram's extrapolation from two rows within 1e-3."""
+    the often-quoted 1.1925 is off in its fourth digit): the diagram's point solved to its accuracy, and its
+    fallback, the extrapolation from two rows, within 1e-3."""
     params = ChainParams(N=1)
     scale = np.sqrt(params.j * locate_fold(params, "sine").moment)
     diagram = state_diagram(params, "sine", "gamma_phi", [1.1 * scale, 1.15 * scale, 1.25 * scale])
     assert [row.end for row in diagram.rows] == ["homoclinic", "homoclinic", "snic"]
-    assert diagram.snic_point["value"] / scale == pytest.approx(1.1930459188, rel=1e-3)
+    assert diagram.extrapolated_snic_point()["value"] / scale == pytest.approx(1.1930459188, rel=1e-3)
+    point = diagram.snic_point
+    assert point["method"] == "solved" and abs(point["value"] / scale - 1.1930459188) <= max(point["accuracy"] / scale, 1e-9)
 
 
 @pytest.mark.parametrize("ends", [{}, {"right_end": "free"}, {"left_end": "pinned", "right_end": "pinned"}])

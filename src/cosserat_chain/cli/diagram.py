@@ -53,7 +53,9 @@ def diagram(
         "--follow",
         help="Follow each fold of cycles, period doubling or torus end from the value before (the lower edge's curve in (M, value)).",
     ),
-    config: Path | None = typer.Option(None, help="TOML file with ChainParams fields (the other fields of the chain; with --system: its [system] table)."),
+    config: Path | None = typer.Option(
+        None, help="TOML file with ChainParams fields (the other fields of the chain; with --system: its [system] table)."
+    ),
     out: Path | None = typer.Option(None, help="Write the rows to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the phase diagram in (parameter, M) to this PNG/SVG file."),
     as_json: bool = typer.Option(False, "--json", help="Print the rows as one JSON object."),
@@ -107,6 +109,13 @@ def diagram(
         fold = "none" if row.static_fold is None else f"{row.static_fold:.6g}"
         stops = "none" if row.rotation_stops is None else f"{row.rotation_stops:.6g}"
         typer.echo(f"{row.value:>12.6g} {fold:>12} {stops:>12}  {row.end:<16} {str(row.hysteresis):<11} {row.method}")
-    if result.snic_point is not None:
-        point = result.snic_point
-        typer.echo(f"the homoclinic end meets M_c (a SNIC from there on) at {vary} = {point['value']:.6g}, between {point['between']}")
+    point = result.snic_point
+    if point is not None:
+        where = f"between {vary} = {point['between'][0]:g} and {point['between'][1]:g}"
+        if point["method"] == "solved":
+            value = f"{point['value']:.10g} +- {point['accuracy']:.1g} (solved by the augmented system, M_c = {point['moment']:.10g})"
+        elif point["method"] == "extrapolated":
+            value = f"{point['value']:.6g}, extrapolated from {vary} = {point['from'][0]:g}, {point['from'][1]:g} ({point['reason']})"
+        else:
+            value = f"(not located: {point['reason']})"
+        typer.echo(f"the homoclinic end meets M_c (a SNIC from there on) {where}: {vary} = {value}")

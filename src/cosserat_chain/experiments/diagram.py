@@ -47,6 +47,12 @@ For each value of one field of the chain, :func:`state_diagram` gives
   (``..._dimensionless``), the paper's dimensionless moment of Fig. 2 (the varied field
   may be E1 or h, so the unit is per row).
 
+Across the rows, ``snic_point`` is where the homoclinic end meets the static fold and becomes a
+SNIC (between a homoclinic row and a SNIC row next to it): solved by the augmented system
+(:func:`~cosserat_chain.numerics.homoclinic.chain_snic_point`, ``method`` ``solved`` with its
+``accuracy``); where that fails, extrapolated from two homoclinic rows (``method``
+``extrapolated``, no accuracy, ``reason`` the solve's error).
+
 A diverging period is told apart by its growth over the last orbits before ``period_max``:
 like (M - M_c)^(-1/2) at a SNIC (T^-2 extrapolated to zero lands on M_c), like -log(M - M_h)
 at a homoclinic end (M_h from the best fit). Limits: one rotating orbit is followed, the
@@ -59,6 +65,7 @@ chain at M = 0.22 has a stable 2-turn orbit beside the 1-turn one a run from res
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -70,7 +77,7 @@ from ..models.base import get_model
 from ..numerics.continuation import continue_in_moment
 from ..numerics.cycle_curve import KINDS, continue_cycle_end, locate_cycle_end
 from ..numerics.fold_curve import continue_fold
-from ..numerics.homoclinic import HomoclinicError, chain_homoclinic_end
+from ..numerics.homoclinic import HomoclinicError, chain_homoclinic_end, chain_snic_point
 from ..numerics.periodic import OrbitError, PeriodicOrbit, continue_orbit, find_periodic_orbit
 from ..params import ChainParams
 
@@ -100,6 +107,8 @@ PERIOD_MAX = 100.0
 #: APPROACH_POINTS) orbits and to the last MIN_TAIL: the pendulum's true error (an independent bisection on the
 #: saddle's unstable manifold) is 2.1 times that difference at gamma_phi = 0.02, 1.2 times at 0.05.
 FIT_SAFETY = 3.0
+#: A fitted homoclinic end's bracket for the solve reaches at least this far (relative) below the fit.
+BRACKET_RTOL = 1e-4
 #: An imaginary part of the leading multiplier above this (relative to its modulus) is a complex pair.
 COMPLEX_RTOL = 1e-6
 
@@ -160,20 +169,44 @@ class StateDiagram:
     turns: int
     rows: list[DiagramRow] = field(default_factory=list)
     independent: bool = False
+    #: The SNIC point solved by :func:`state_diagram` (:attr:`snic_point`'s form), None where it was not.
+    solved_snic: dict[str, Any] | None = None
+    #: Why it was not solved, where rows with a homoclinic end next to a SNIC have one.
+    snic_failure: str = ""
 
     @property
     def snic_point(self) -> dict[str, Any] | None:
-        """Where the homoclinic end meets the static fold and becomes a SNIC, between two rows.
+        """Where the homoclinic end meets the static fold and becomes a SNIC, between two rows (None without such rows).
+
+        Solved where :func:`state_diagram` could (:attr:`solved_snic`): ``{"value": p*, "accuracy": ...,
+        "moment": M_c there, "between": [p_h, p_snic], "method": "solved", "solver": "augmented_system"}``,
+        the codimension-two point by :func:`~cosserat_chain.numerics.homoclinic.chain_snic_point` between the
+        first homoclinic row and the SNIC row next to it. Otherwise (``reason`` says why: the solve's error,
+        or rows made without it) the fallback of :meth:`extrapolated_snic_point`, ``method`` ``extrapolated``
+        with no accuracy, or ``not_located`` (``value`` None) where it cannot be extrapolated either.
+        """
+        if self.solved_snic is not None:
+            return dict(self.solved_snic)
+        pair = _snic_pair(self.rows)
+        if pair is None:
+            return None
+        reason = self.snic_failure or "not solved: the rows were not computed by state_diagram"
+        point = self.extrapolated_snic_point()
+        if point is None:
+            between = [pair[0].value, pair[1].value]
+            return {"value": None, "accuracy": None, "between": between, "method": "not_located", "reason": reason}
+        return {**point, "accuracy": None, "reason": reason}
+
+    def extrapolated_snic_point(self) -> dict[str, Any] | None:
+        """The SNIC point extrapolated from two homoclinic rows before a SNIC row (the fallback of :attr:`snic_point`).
 
         Near that point (a saddle-node homoclinic orbit, codimension two) the gap closes
         quadratically, (M_c - M_h) / M_c ~ (p* - p)^2, so sqrt of the gap is linear in the
         parameter p: the last two homoclinic rows before a SNIC row (in the order given)
         extrapolate it to zero at p*. Returns ``{"value": p*, "between": [p_h, p_snic],
-        "from": [p_h1, p_h2], "method": "extrapolated"}`` (an extrapolation of two fitted
-        homoclinic ends, not a solved codimension-two point), or None without such rows or when p* falls outside
-        (p_h, p_snic] (the rows are then too far from the point to locate it). The
-        one-particle pendulum gives alpha* = 1.1939 against the solved 1.19305 (:func:`~cosserat_chain.numerics.homoclinic.locate_snic_point`)
-        (alpha = gamma_phi / sqrt(j M_c); tested).
+        "from": [p_h1, p_h2], "method": "extrapolated"}``, or None without such rows or when p* falls
+        outside (p_h, p_snic] (the rows are then too far from the point to locate it). The
+        one-particle pendulum gives alpha* = 1.1939 against the solved 1.19305 (alpha = gamma_phi / sqrt(j M_c); tested).
         """
         for i in range(2, len(self.rows)):
             first, second, snic = self.rows[i - 2], self.rows[i - 1], self.rows[i]
@@ -237,7 +270,8 @@ class StateDiagram:
         )  # fmt: skip
         ds.attrs.update(run_attributes(self.params, get_model(self.model), Loads()))
         ds.attrs.update({"experiment": "state_diagram", "parameter": self.field, "turns": self.turns,
-                         "static_fold_independent_of_parameter": int(self.independent)})  # fmt: skip
+                         "static_fold_independent_of_parameter": int(self.independent),
+                         "snic_point_json": json.dumps(self.snic_point)})  # fmt: skip
         return ds
 
 
@@ -252,6 +286,38 @@ class _Edge:
     orbit: PeriodicOrbit | None = None
     method: str = "one_parameter"
     uncertainty: float | None = None
+
+
+def _snic_pair(rows: Sequence[DiagramRow]) -> tuple[DiagramRow, DiagramRow] | None:
+    """The first two neighbouring rows of which one ends homoclinic and the other at a SNIC (the SNIC point lies between)."""
+    for before, after in zip(rows, rows[1:]):
+        if {before.end, after.end} == {"homoclinic", "snic"}:
+            return before, after
+    return None
+
+
+def _solve_snic(diagram: StateDiagram, params: ChainParams, model, particle: int) -> None:
+    """Set ``diagram.solved_snic`` to the codimension-two point between its homoclinic and SNIC rows, solved by the
+    augmented system (:func:`~cosserat_chain.numerics.homoclinic.chain_snic_point`), or ``snic_failure`` to why not."""
+    pair = _snic_pair(diagram.rows)
+    if pair is None:
+        return
+    homoclinic = pair[0] if pair[0].end == "homoclinic" else pair[1]
+    between = [pair[0].value, pair[1].value]
+    chain = params.replace(**{diagram.field: homoclinic.value})
+    try:
+        point = chain_snic_point(chain, model, name=diagram.field, bracket=tuple(between), particle=particle)
+    except (HomoclinicError, ValueError) as err:
+        diagram.snic_failure = f"the augmented system did not solve it ({err})"
+        return
+    diagram.solved_snic = {
+        "value": float(point.value),
+        "accuracy": float(point.accuracy),
+        "moment": float(point.moment),
+        "between": between,
+        "method": "solved",
+        "solver": "augmented_system",
+    }
 
 
 def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle: int, period_max: float, field_name: str) -> _Edge:
@@ -335,8 +401,11 @@ def _solved(edge: _Edge, chain: ChainParams, model, particle: int, last: float) 
     projection boundary conditions, with its accuracy); where that fails, the fit is kept and the message says why."""
     if edge.end != "homoclinic" or edge.stops is None or edge.uncertainty is None:
         return edge
+    # The fit's uncertainty can be too small by a factor of ten (the pendulum at gamma_phi = 0.02: 1e-8 against an
+    # error of 1.1e-7): the bracket reaches at least BRACKET_RTOL below it; its bisection costs a few manifold runs more.
+    low = edge.stops - max(10.0 * edge.uncertainty, BRACKET_RTOL * abs(edge.stops))
     try:
-        orbit = chain_homoclinic_end(chain, model, bracket=(edge.stops - 10.0 * edge.uncertainty, last), particle=particle)
+        orbit = chain_homoclinic_end(chain, model, bracket=(low, last), particle=particle)
     except HomoclinicError as err:
         edge.message += f"; not solved ({err})"
         return edge
@@ -558,6 +627,7 @@ def state_diagram(
             DiagramRow(float(value), moment_c, phi0_c, stops, edge.end, hysteresis, message,
                        chain.moment_scale, edge.method, edge.uncertainty)
         )  # fmt: skip
+    _solve_snic(diagram, params, model, particle)
     if progress is not None:
         progress(total, total)
     return diagram
