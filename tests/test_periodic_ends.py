@@ -167,7 +167,7 @@ def test_clamped_chain_right_hand_side_is_unchanged_by_the_general_layout(paper,
     x = random_state(paper, 0.3, seed=4)
     system = _System(paper, m, 0.25, 0)
     nf = n_free(paper)
-    _, _, _, _, ipar = system.parameters(0)
+    *_, ipar = system.parameters(0)
     assert list(ipar[:6]) == [paper.n_particles, system.load_dof, 0, nf, 1, paper.n_particles - 1]
     dy = system.velocity(np.concatenate([pack(paper, x), np.zeros(nf)]))
     np.testing.assert_array_equal(

@@ -37,6 +37,15 @@ viscosity). Every model provides
   own, so that the uniform chain's loop reads no per-bond array; ``end_kernel``
   reads either layout (the end columns are not the hot loop). A graded chain runs
   as a batch of one (:func:`cosserat_chain.numerics.engine.split`).
+* ``bond_kernel`` (optional): every bond's forces and their exact Jacobian, signature
+  :data:`FORCE_SIGNATURE`, ``kernel(x, coef, out, first, last)``, overwriting
+  ``out[:, first:last]`` (:data:`BOND_ROWS` rows) for the bonds first..last-1 of an open chain
+  (bond k joins columns k and k+1): rows 0-3 the bond's (fx, fy) on its left particle (the
+  right one gets minus them) and its moments m0 on the left, m1 on the right particle; rows
+  4 + 6 r + c the derivative of force r by degree of freedom c, both over (u_k, v_k, phi_k,
+  u_k+1, v_k+1, phi_k+1). It reads either layout of ``coef`` (uniform or graded). The
+  periodic orbits' variational equations take it; a model without it gets their Jacobian
+  by coloured finite differences of ``force_kernel``.
 * ``coefficients(params)``: the flat float64 array ``coef`` the kernel reads.
 * ``forces(params, x)``: a NumPy twin of the kernel (zero at the degrees of
   freedom the ends hold fixed), tested against it.
@@ -87,6 +96,8 @@ warnings.filterwarnings("ignore", message="First-class function type feature is 
 
 #: Signature of every compiled force kernel: (x, coef, out, start, stop) -> None.
 FORCE_SIGNATURE = types.void(types.float64[:, ::1], types.float64[::1], types.float64[:, ::1], types.int64, types.int64)
+#: Rows of a bond kernel's output per bond: four forces, then the 6x6 Jacobian row by row (module docstring).
+BOND_ROWS = 40
 #: Signature of the end kernels: (x, coef, out, first, last, ring) -> None.
 END_SIGNATURE = types.void(types.float64[:, ::1], types.float64[::1], types.float64[:, ::1], types.boolean, types.boolean, types.boolean)
 END_KERNEL_TYPE = types.FunctionType(END_SIGNATURE)
@@ -107,6 +118,18 @@ KERNEL_OPTIONS = {"cache": True, "nogil": True, "error_model": "numpy", "fastmat
 #: float64 lanes of the widest SIMD registers (AVX-512) a kernel's vector loop fills: a loop
 #: whose trip count is a multiple of it leaves nothing to its scalar remainder loop.
 LANES = 8
+
+
+@njit(inline="always", **KERNEL_OPTIONS)
+def put_row(out, first, k, a0, a1, a2, a3, a4, a5):  # pragma: no cover - compiled
+    """A bond kernel's Jacobian row: ``out[first:first + 6, k]`` = (a0, ..., a5), written one by one
+    (a tuple indexed in a loop cost the kernel several times its arithmetic)."""
+    out[first, k] = a0
+    out[first + 1, k] = a1
+    out[first + 2, k] = a2
+    out[first + 3, k] = a3
+    out[first + 4, k] = a4
+    out[first + 5, k] = a5
 
 
 @intrinsic
@@ -157,6 +180,8 @@ class Model(ABC):
     batch_kernel: ClassVar[Callable[..., None]]
     #: The interior forces of a chain graded in its bonds (module docstring); None: uniform chains only.
     graded_kernel: ClassVar[Callable[..., None] | None] = None
+    #: Every bond's forces and their exact Jacobian (module docstring); None: finite differences where a Jacobian is wanted.
+    bond_kernel: ClassVar[Callable[..., None] | None] = None
     #: Largest |phi| at which the kernels of a model that does not rotate are accurate; the
     #: engine stops a run beyond it. A rotating model needs none: the engine keeps its angles
     #: below :data:`.trig.WRAP_ANGLE` by whole turns (``numerics.engine``).

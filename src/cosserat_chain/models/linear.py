@@ -25,7 +25,7 @@ from numba import njit
 
 from ..params import ChainParams
 from ..state import bonded, check_state, scatter_bonds, zero_held
-from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks
+from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks, put_row
 from .trig import sincos
 
 
@@ -178,6 +178,48 @@ def cosserat_end_columns(x, coef, out, first, last, ring, sine):  # pragma: no c
         out[0, c], out[1, c], out[2, c] = f_u, f_v, f_phi
 
 
+@njit(inline="always", **KERNEL_OPTIONS)
+def cosserat_bonds(x, coef, out, first, last, sine):  # pragma: no cover - compiled
+    """Bonds first..last-1 of eqs. (2)-(3) with their exact Jacobian (the bond kernel's layout,
+    :data:`~.base.BOND_ROWS`), ``sine`` as in :func:`cosserat_graded`, for either layout of ``coef``.
+
+    The bond's forces (:func:`cosserat_bond`) are linear in (du, dv, a0, a1), with a = sin phi
+    (eq. 2, da/dphi = cos phi) or phi (eq. 3); with T = bend + couple / 4 and
+    L = couple / (2 h): fx = k_u du, fy = k_v s, m0 = T (a1 - a0) + L s, m1 = L s - T (a1 - a0),
+    s = dv - h (a0 + a1) / 2.
+    """
+    graded = coef.size > GRADED_OFFSET
+    n_bonds = (coef.size - GRADED_OFFSET) // 4
+    h = coef[2]
+    for k in range(first, last):
+        if graded:
+            k_u, k_v = coef[GRADED_OFFSET + k], coef[GRADED_OFFSET + n_bonds + k]
+            bend, couple = coef[GRADED_OFFSET + 2 * n_bonds + k], coef[GRADED_OFFSET + 3 * n_bonds + k]
+        else:
+            k_u, k_v, bend, couple = coef[0], coef[1], coef[3], coef[4]
+        s0, c0 = sincos(x[2, k])
+        s1, c1 = sincos(x[2, k + 1])
+        a0, a1, da0, da1 = (s0, s1, c0, c1) if sine else (x[2, k], x[2, k + 1], 1.0, 1.0)
+        fx, fy, m0, m1 = cosserat_bond(k_u, k_v, h, bend, couple, x[0, k + 1] - x[0, k], x[1, k + 1] - x[1, k], a0, a1)
+        out[0, k], out[1, k], out[2, k], out[3, k] = fx, fy, m0, m1
+        twist = bend + 0.25 * couple
+        lever = couple / (2.0 * h)
+        shear0, shear1 = -0.5 * h * da0, -0.5 * h * da1  # ds/dphi0, ds/dphi1
+        # Rows of the left particle's (fx, fy, m0), then the right one's (-fx, -fy, m1), over
+        # (u0, v0, phi0, u1, v1, phi1).
+        put_row(out, 4, k, -k_u, 0.0, 0.0, k_u, 0.0, 0.0)
+        put_row(out, 10, k, 0.0, -k_v, k_v * shear0, 0.0, k_v, k_v * shear1)
+        put_row(out, 16, k, 0.0, -lever, -twist * da0 + lever * shear0, 0.0, lever, twist * da1 + lever * shear1)
+        put_row(out, 22, k, k_u, 0.0, 0.0, -k_u, 0.0, 0.0)
+        put_row(out, 28, k, 0.0, k_v, -k_v * shear0, 0.0, -k_v, -k_v * shear1)
+        put_row(out, 34, k, 0.0, -lever, twist * da0 + lever * shear0, 0.0, lever, -twist * da1 + lever * shear1)
+
+
+@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
+def linear_bond_kernel(x, coef, out, first, last):  # pragma: no cover - compiled
+    cosserat_bonds(x, coef, out, first, last, False)
+
+
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
 def linear_graded_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     cosserat_graded(x, coef, out, start, stop, False)
@@ -287,6 +329,7 @@ class LinearModel(Model):
     end_kernel = linear_end_kernel
     batch_kernel = linear_batch_kernel
     graded_kernel = linear_graded_kernel
+    bond_kernel = linear_bond_kernel
 
     @staticmethod
     def coefficients(params: ChainParams) -> np.ndarray:

@@ -34,6 +34,7 @@ from .base import (
     LANES,
     Model,
     assemble_bond_sums,
+    put_row,
     stack_floats,
 )
 from .linear import max_frequency
@@ -338,7 +339,8 @@ _HESSIAN_BLOCK = 256
 
 @njit(inline="always", cache=True, nogil=True, error_model="numpy")
 def _link_hessian(px, py, qx, qy, stiff, rest, h, c0, s0, c1, s1, u0, u1, dv):  # pragma: no cover - compiled
-    """One link's terms of its bond's Hessian sums (:data:`~.base.BOND_SUMS`), corners (px, py) left and (qx, qy) right.
+    """One link's terms of its bond's Hessian sums (:data:`~.base.BOND_SUMS`), corners (px, py) left and (qx, qy) right,
+    then its force (fx, fy) on the left particle and its moments on the left and the right one (as :func:`_bond`'s).
 
     With D the link vector, e = D / L and B = dD/d(u0, v0, phi0, u1, v1, phi1), the block
     gains B^T G B with G = d^2 P / dD^2 = E [(L0/L) e e^T + (1 - L0/L) I], and the corner
@@ -362,6 +364,9 @@ def _link_hessian(px, py, qx, qy, stiff, rest, h, c0, s0, c1, s1, u0, u1, dv):  
     g0x, g0y = gxx * r0y - gxy * r0x, gxy * r0y - gyy * r0x
     g1x, g1y = -gxx * r1y + gxy * r1x, -gxy * r1y + gyy * r1x
     tension = stiff * (1.0 - ratio)
+    # The link's tension T = tension D on the left particle and its moments r0 x T and -r1 x T
+    # after the ten sums (read by the bond kernel; dead code where only the sums are used).
+    tx, ty = tension * dx, tension * dy
     return (
         gxx,
         gxy,
@@ -373,6 +378,10 @@ def _link_hessian(px, py, qx, qy, stiff, rest, h, c0, s0, c1, s1, u0, u1, dv):  
         r0y * g0x - r0x * g0y + tension * (dx * r0x + dy * r0y),
         -r1y * g1x + r1x * g1y - tension * (dx * r1x + dy * r1y),
         r0y * g1x - r0x * g1y,
+        tx,
+        ty,
+        r0x * ty - r0y * tx,
+        r1y * tx - r1x * ty,
     )
 
 
@@ -433,6 +442,49 @@ def _hessian_sums(x, h, corners, rests, stiffness, sums):  # pragma: no cover - 
         for row in range(10):
             for i in range(m):
                 sums[row, start + i] = work[row * width + i]
+
+
+@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
+def nonlinear_bond_kernel(x, coef, out, first, last):  # pragma: no cover - compiled
+    """Bonds first..last-1: the forces and their Jacobian, minus the Hessian, summed over the four
+    links (:func:`_link_hessian`; top A-C and bottom B-D with E1, diagonals A-D and B-C with E2),
+    for either layout of ``coef``.
+
+    Bond k's E1 and E2 are read at k * stride from the uniform scalars (stride 0) or the graded
+    tail (stride 1), and the indices are unsigned: no branch and no wrap-around in the loop,
+    which then vectorises across bonds.
+    """
+    a, b, h, rest1, rest2 = coef[0], coef[1], coef[2], coef[5], coef[6]
+    graded = coef.size > GRADED_OFFSET
+    n_bonds = (coef.size - GRADED_OFFSET) // 2
+    E1 = coef[GRADED_OFFSET:] if graded else coef[3:4]
+    E2 = coef[GRADED_OFFSET + n_bonds :] if graded else coef[4:5]
+    stride = np.uint64(1 if graded else 0)
+    one = np.uint64(1)
+    for k in range(np.uint64(first), np.uint64(last)):
+        e1, e2 = E1[k * stride], E2[k * stride]
+        s0, c0 = sincos(x[2, k])
+        s1, c1 = sincos(x[2, k + one])
+        u0, u1, dv = x[0, k], x[0, k + one], x[1, k + one] - x[1, k]
+        t0 = _link_hessian(a, b, -a, b, e1, rest1, h, c0, s0, c1, s1, u0, u1, dv)
+        t1 = _link_hessian(a, -b, -a, -b, e1, rest1, h, c0, s0, c1, s1, u0, u1, dv)
+        t2 = _link_hessian(a, b, -a, -b, e2, rest2, h, c0, s0, c1, s1, u0, u1, dv)
+        t3 = _link_hessian(a, -b, -a, b, e2, rest2, h, c0, s0, c1, s1, u0, u1, dv)
+        out[0, k] = t0[10] + t1[10] + t2[10] + t3[10]
+        out[1, k] = t0[11] + t1[11] + t2[11] + t3[11]
+        out[2, k] = t0[12] + t1[12] + t2[12] + t3[12]
+        out[3, k] = t0[13] + t1[13] + t2[13] + t3[13]
+        uu, uv, vv = t0[0] + t1[0] + t2[0] + t3[0], t0[1] + t1[1] + t2[1] + t3[1], t0[2] + t1[2] + t2[2] + t3[2]
+        u_p0, v_p0 = t0[3] + t1[3] + t2[3] + t3[3], t0[4] + t1[4] + t2[4] + t3[4]
+        u_p1, v_p1 = t0[5] + t1[5] + t2[5] + t3[5], t0[6] + t1[6] + t2[6] + t3[6]
+        p0p0, p1p1, p0p1 = t0[7] + t1[7] + t2[7] + t3[7], t0[8] + t1[8] + t2[8] + t3[8], t0[9] + t1[9] + t2[9] + t3[9]
+        # Minus the Hessian (BOND_SUMS' signs: the left particle's translations enter with -1).
+        put_row(out, 4, k, -uu, -uv, u_p0, uu, uv, u_p1)
+        put_row(out, 10, k, -uv, -vv, v_p0, uv, vv, v_p1)
+        put_row(out, 16, k, u_p0, v_p0, -p0p0, -u_p0, -v_p0, -p0p1)
+        put_row(out, 22, k, uu, uv, -u_p0, -uu, -uv, -u_p1)
+        put_row(out, 28, k, uv, vv, -v_p0, -uv, -vv, -v_p1)
+        put_row(out, 34, k, u_p1, v_p1, -p0p1, -u_p1, -v_p1, -p1p1)
 
 
 def _links(params: ChainParams, x: np.ndarray):
@@ -497,6 +549,7 @@ class NonlinearModel(Model):
     end_kernel = nonlinear_end_kernel
     batch_kernel = nonlinear_batch_kernel
     graded_kernel = nonlinear_graded_kernel
+    bond_kernel = nonlinear_bond_kernel
 
     @staticmethod
     def coefficients(params: ChainParams) -> np.ndarray:

@@ -28,6 +28,7 @@ from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_
 from .linear import (
     chain_coefficients,
     cosserat_batch,
+    cosserat_bonds,
     cosserat_bond_energy,
     cosserat_end_columns,
     cosserat_forces,
@@ -88,6 +89,11 @@ def sine_graded_kernel(x, coef, out, start, stop):  # pragma: no cover - compile
     cosserat_graded(x, coef, out, start, stop, True)
 
 
+@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
+def sine_bond_kernel(x, coef, out, first, last):  # pragma: no cover - compiled
+    cosserat_bonds(x, coef, out, first, last, True)
+
+
 @njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
 def sine_batch_kernel(x, coef, out):  # pragma: no cover - compiled
     phi = x[2]
@@ -109,6 +115,7 @@ class SineModel(Model):
     end_kernel = sine_end_kernel
     batch_kernel = sine_batch_kernel
     graded_kernel = sine_graded_kernel
+    bond_kernel = sine_bond_kernel
 
     @staticmethod
     def coefficients(params: ChainParams) -> np.ndarray:

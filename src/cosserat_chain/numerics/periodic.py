@@ -33,9 +33,10 @@ pin), and (P) then shifts each by 2 pi times its turns (:attr:`PeriodicOrbit.par
   from the variational equations Phi' = A(t) Phi, A = [[0, I], [M^-1 dF/dq, -M^-1 Gamma]],
   integrated together with the state by the package's compiled DOP853
   (:mod:`cosserat_chain.numerics.dop853`) on a compiled right-hand side; the
-  force Jacobian dF/dq is formed inside it by fourth-order central differences of the
-  model's compiled force kernel, coloured so that it costs 36 force evaluations whatever N
-  (a column's forces depend only on its two neighbours).
+  force Jacobian dF/dq inside it is exact, bond by bond from the model's bond kernel
+  (:mod:`cosserat_chain.models.base`), or, for a model without one, formed by fourth-order
+  central differences of its compiled force kernel, coloured so that it costs 36 force
+  evaluations whatever N (a column's forces depend only on its two neighbours).
 * The Floquet multipliers are the eigenvalues of the monodromy matrix. One equals 1
   (the flow direction); the orbit is stable iff all the others lie inside the unit
   circle.
@@ -65,7 +66,7 @@ from numba import njit
 from ..errors import CosseratChainError
 from ..loads import moment_load
 from ..memory import FLOAT, require
-from ..models.base import Model, get_model
+from ..models.base import BOND_ROWS, Model, get_model, no_ends
 from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, force_columns, free_index, held, n_free, pack, per_dof, unpack, zeros
 from ..state import dof as free_dof
@@ -120,44 +121,95 @@ SETTLE_RTOL = 1e-3
 ProgressCallback = Callable[[float, float], None]
 
 
-@njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
-def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
-    # Autonomous: t is not read. rpar = (M, 1/mass (nf), gamma/mass (nf)) and ipar = (n,
-    # load_dof, ncols, nf, start, stop, row (nf), col (nf), first (n + 1), lookup (3 n)[, 1 for
-    # the Hamiltonian unfolding of _UndampedSystem]), as _System.parameters lays them out: [start, stop) the columns that move, (row[i], col[i])
-    # the place of free degree of freedom i in x (no division in the loops: benchmarks/TIMINGS.md), first[c] the free degrees of freedom before
-    # column c, lookup[3 column + row] the free index (-1 where an end holds it).
-    n = ipar[0]
-    load_dof = ipar[1]
-    ncols = ipar[2]
-    nf = ipar[3]
-    start = ipar[4]
-    stop = ipar[5]
+@njit(inline="always", cache=True, nogil=True, error_model="numpy")
+def _unpack_layout(ipar):  # pragma: no cover - compiled
+    """ipar = (n, load_dof, ncols, nf, start, stop, row (nf), col (nf), lookup (3 n)[, 1 for the
+    Hamiltonian unfolding of _UndampedSystem]), as _System.parameters lays it out: [start, stop) the
+    columns that move, (row[i], col[i]) the place of free degree of freedom i in x (no division in the
+    loops: benchmarks/TIMINGS.md), lookup[3 column + row] the free index (-1 where an end holds it)."""
+    n, nf = ipar[0], ipar[3]
     row = ipar[6 : 6 + nf]
     col = ipar[6 + nf : 6 + 2 * nf]
-    first = ipar[6 + 2 * nf : 7 + 2 * nf + n]
-    lookup = ipar[7 + 2 * nf + n : 7 + 2 * nf + 4 * n]
-    ends = start == 0 or stop == n
-    moment = rpar[0]
-    inv_mass = rpar[1 : 1 + nf]
-    damping_rate = rpar[1 + nf : 1 + 2 * nf]
+    lookup = ipar[6 + 2 * nf : 6 + 2 * nf + 3 * n]
+    return n, ipar[1], ipar[2], nf, ipar[4], ipar[5], row, col, lookup
+
+
+@njit(inline="always", cache=True, nogil=True, error_model="numpy")
+def _state_of(y, nf, n, row, col):  # pragma: no cover - compiled
     x = np.zeros((3, n))
     for i in range(nf):
         x[row[i], col[i]] = y[i]
-    f = np.zeros((3, n))
-    force(x, coef, f, 1, n - 1)
-    if ends:
-        end_force(x, coef, f, start == 0, stop == n, False)
+    return x
+
+
+@njit(inline="always", cache=True, nogil=True, error_model="numpy")
+def _accelerations(y, dy, f, rpar, nf, load_dof, row, col):  # pragma: no cover - compiled
+    # rpar = (M, 1/mass (nf), gamma/mass (nf)).
+    moment = rpar[0]
+    inv_mass = rpar[1 : 1 + nf]
+    damping_rate = rpar[1 + nf : 1 + 2 * nf]
     for i in range(nf):
         dy[i] = y[nf + i]
         load = moment if i == load_dof else 0.0
         dy[nf + i] = (f[row[i], col[i]] + load) * inv_mass[i] - damping_rate[i] * y[nf + i]
+
+
+@njit(inline="always", cache=True, nogil=True, error_model="numpy")
+def _variations(y, dy, jacobian, rpar, ipar, n, nf, ncols, load_dof, col, lookup):  # pragma: no cover - compiled
+    """The variational equations Phi' = A Phi with dF/dq given as ``jacobian`` (nf, 9): the derivative of
+    free degree of freedom i's force by (u, v, phi) of its column's left neighbour, itself and its right
+    neighbour (block tridiagonal: a column's forces read only its two neighbours), so the product costs
+    O(nf ncols), not the O(nf^2 ncols) of a dense one (benchmarks/TIMINGS.md)."""
+    inv_mass = rpar[1 : 1 + nf]
+    damping_rate = rpar[1 + nf : 1 + 2 * nf]
+    phi = y[2 * nf :].reshape((2 * nf, ncols))
+    dphi = dy[2 * nf :].reshape((2 * nf, ncols))
+    dphi[:nf] = phi[nf:]
+    for i in range(nf):
+        out = dphi[nf + i]
+        velocity = phi[nf + i]
+        for k in range(ncols):
+            out[k] = -damping_rate[i] * velocity[k]
+        for slot in range(9):
+            p = col[i] - 1 + slot // 3
+            if p < 0 or p >= n:
+                continue
+            j = lookup[3 * p + slot % 3]
+            if j < 0:
+                continue
+            weight = jacobian[i, slot] * inv_mass[i]
+            column = phi[j]
+            for k in range(ncols):
+                out[k] += weight * column[k]
+    if ncols == 2 * nf + 1:
+        if ipar.size > 6 + 2 * nf + 3 * n:
+            # The last column is dy/deps of the Hamiltonian unfolding (a uniform damping rate
+            # eps on every velocity, ipar's extra entry): d(-eps v)/deps = -v.
+            for i in range(nf):
+                dphi[nf + i, ncols - 1] -= y[nf + i]
+        else:
+            # The last column is dy/dM: the moment enters the loaded particle's equation.
+            dphi[nf + load_dof, ncols - 1] += inv_mass[load_dof]
+
+
+@njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
+    # Autonomous: t is not read. The forces from the model's chain and end kernels; with
+    # variational columns, dF/dq by fourth-order central differences of them, (8 (F(q + h) -
+    # F(q - h)) - (F(q + 2h) - F(q - 2h))) / 12h, for a model without a bond kernel.
+    n, load_dof, ncols, nf, start, stop, row, col, lookup = _unpack_layout(ipar)
+    ends = start == 0 or stop == n
+    x = _state_of(y, nf, n, row, col)
+    f = np.zeros((3, n))
+    force(x, coef, f, 1, n - 1)
+    if ends:
+        end_force(x, coef, f, start == 0, stop == n, False)
+    _accelerations(y, dy, f, rpar, nf, load_dof, row, col)
     if ncols == 0:
         return
-    # dF/dq by fourth-order central differences, (8 (F(q + h) - F(q - h)) - (F(q + 2h) -
-    # F(q - 2h))) / 12h, coloured: perturbing row r of every third moving column at once is
-    # exact because a column's forces read only its two neighbours (an end column's only its one).
-    jac = np.zeros((nf, nf))
+    # Coloured: perturbing row r of every third moving column at once is exact because a
+    # column's forces read only its two neighbours (an end column's only its one).
+    jacobian = np.zeros((nf, 9))
     xp = np.empty_like(x)
     xm = np.empty_like(x)
     fp = np.zeros((3, n))
@@ -185,39 +237,45 @@ def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - co
                         diff[rr, c] += weight * (fp[rr, c] - fm[rr, c])
             for c in range(start, stop):
                 for p in range(max(c - 1, start), min(c + 2, stop)):
-                    j = lookup[3 * p + r]
-                    if (p - start) % 3 != color or j < 0:
+                    if (p - start) % 3 != color or lookup[3 * p + r] < 0:
                         continue
                     for rr in range(3):
                         i = lookup[3 * c + rr]
                         if i >= 0:
-                            jac[i, j] = diff[rr, c] / (12.0 * FD_STEP)
-    phi = y[2 * nf :].reshape((2 * nf, ncols))
-    dphi = dy[2 * nf :].reshape((2 * nf, ncols))
-    dphi[:nf] = phi[nf:]
-    # dF/dq is block tridiagonal: row i reads only the columns of its particle and its two
-    # neighbours (free indices first[c - 1] to first[c + 2]: 0 to 3 each, as the ends hold
-    # them), so the product costs O(nf ncols), not the O(nf^2 ncols) of a dense one (benchmarks/TIMINGS.md).
+                            jacobian[i, 3 * (p - c + 1) + r] = diff[rr, c] / (12.0 * FD_STEP)
+    _variations(y, dy, jacobian, rpar, ipar, n, nf, ncols, load_dof, col, lookup)
+
+
+@njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+def _bond_rhs(bond_force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
+    # _rhs for a model with a bond kernel (``bond_force``; ``end_force`` is not read): the forces
+    # and their exact Jacobian bond by bond. Free degree of freedom i (row r of column c) takes
+    # the left half of bond c and the right half of bond c - 1 (models.base: the bond kernel's rows).
+    n, load_dof, ncols, nf, start, stop, row, col, lookup = _unpack_layout(ipar)
+    x = _state_of(y, nf, n, row, col)
+    bonds = np.empty((BOND_ROWS, n - 1))
+    bond_force(x, coef, bonds, 0, n - 1)
+    f = np.zeros((3, n))
+    for k in range(n - 1):
+        f[0, k] += bonds[0, k]
+        f[1, k] += bonds[1, k]
+        f[2, k] += bonds[2, k]
+        f[0, k + 1] -= bonds[0, k]
+        f[1, k + 1] -= bonds[1, k]
+        f[2, k + 1] += bonds[3, k]
+    _accelerations(y, dy, f, rpar, nf, load_dof, row, col)
+    if ncols == 0:
+        return
+    jacobian = np.zeros((nf, 9))
     for i in range(nf):
-        out = dphi[nf + i]
-        velocity = phi[nf + i]
-        for k in range(ncols):
-            out[k] = -damping_rate[i] * velocity[k]
-        c = col[i]
-        for j in range(first[max(c - 1, 0)], first[min(c + 2, n)]):
-            weight = jac[i, j] * inv_mass[i]
-            column = phi[j]
-            for k in range(ncols):
-                out[k] += weight * column[k]
-    if ncols == 2 * nf + 1:
-        if ipar.size > 7 + 2 * nf + 4 * n:
-            # The last column is dy/deps of the Hamiltonian unfolding (a uniform damping rate
-            # eps on every velocity, ipar's extra entry): d(-eps v)/deps = -v.
-            for i in range(nf):
-                dphi[nf + i, ncols - 1] -= y[nf + i]
-        else:
-            # The last column is dy/dM: the moment enters the loaded particle's equation.
-            dphi[nf + load_dof, ncols - 1] += inv_mass[load_dof]
+        r, c = row[i], col[i]
+        if c < n - 1:  # bond c: its left particle's rows over columns c, c + 1 (slots 3 to 8)
+            for k in range(6):
+                jacobian[i, 3 + k] += bonds[4 + 6 * r + k, c]
+        if c > 0:  # bond c - 1: its right particle's rows over columns c - 1, c (slots 0 to 5)
+            for k in range(6):
+                jacobian[i, k] += bonds[4 + 6 * (3 + r) + k, c - 1]
+    _variations(y, dy, jacobian, rpar, ipar, n, nf, ncols, load_dof, col, lookup)
 
 
 def require_orbit_ends(params: ChainParams) -> None:
@@ -247,12 +305,11 @@ def require_orbit_ends(params: ChainParams) -> None:
 
 
 def _layout(params: ChainParams) -> np.ndarray:
-    """The tail of :func:`_rhs`'s ipar: row, col (nf each), first (n + 1) and lookup (3 n) of the free degrees of freedom."""
+    """The tail of :func:`_rhs`'s ipar: row, col (nf each) and lookup (3 n) of the free degrees of freedom."""
     position = free_index(params)
     lookup = np.full(3 * params.n_particles, -1, dtype=np.int64)
     lookup[position] = np.arange(position.size)
-    first = np.searchsorted(position, 3 * np.arange(params.n_particles + 1))
-    return np.concatenate([position % 3, position // 3, first, lookup])
+    return np.concatenate([position % 3, position // 3, lookup])
 
 
 class OrbitError(CosseratChainError, RuntimeError):
@@ -280,22 +337,30 @@ class _System:
         return free_dof(self.params, "phi", self.particle)
 
     def parameters(self, ncols: int):
-        """The force and end kernels, their coefficients, and rpar, ipar of :func:`_rhs` with ``ncols`` variational columns."""
+        """The right-hand side, its force and end kernels, their coefficients, rpar and ipar with ``ncols`` variational columns.
+
+        :func:`_bond_rhs` with the model's bond kernel where there are variational columns and the
+        model has one (an exact force Jacobian), else :func:`_rhs` with its chain kernels.
+        """
         mass = pack(self.params, self.params.particle_inertia)
         gamma = per_dof(self.params, self.params.damping)
         rpar = np.concatenate([[self.moment], 1.0 / mass, gamma / mass])
         head = [self.params.n_particles, self.load_dof, ncols, self.nf, *force_columns(self.params)]
         ipar = np.concatenate([head, _layout(self.params)]).astype(np.int64)
+        coef = self.model.coefficients(self.params)
+        bonds = type(self.model).bond_kernel
+        if ncols and bonds is not None:
+            return _bond_rhs, bonds, no_ends, coef, rpar, ipar
         kernel, ends = self.model.chain_kernels(self.params)
-        return kernel, ends, self.model.coefficients(self.params), rpar, ipar
+        return _rhs, kernel, ends, coef, rpar, ipar
 
     def rhs(self, ncols: int):
         """The right-hand side f(t, y) with ``ncols`` variational columns, for Python callers."""
-        kernel, ends, coef, rpar, ipar = self.parameters(ncols)
+        rhs, kernel, ends, coef, rpar, ipar = self.parameters(ncols)
 
         def f(t: float, y: np.ndarray) -> np.ndarray:
             dy = np.empty_like(y)
-            _rhs(kernel, ends, t, y, coef, rpar, ipar, dy)
+            rhs(kernel, ends, t, y, coef, rpar, ipar, dy)
             return dy
 
         return f
@@ -312,9 +377,9 @@ class _System:
                 "periodic orbits of a shorter chain (the monodromy matrix is dense: its memory grows like N^2)",
             )
         start = np.concatenate([y0, np.hstack([np.eye(size), np.zeros((size, 1))]).ravel() if variations else []])
-        kernel, ends, coef, rpar, ipar = self.parameters(ncols)
+        rhs, kernel, ends, coef, rpar, ipar = self.parameters(ncols)
         sol = dop853.solve(
-            _rhs, kernel, coef, rpar, ipar, start, np.array([0.0, period]), rtol=rtol, atol=atol, max_steps=MAX_STEPS, end_force=ends
+            rhs, kernel, coef, rpar, ipar, start, np.array([0.0, period]), rtol=rtol, atol=atol, max_steps=MAX_STEPS, end_force=ends
         )
         if not sol.success:
             raise OrbitError(f"integration over T={period!r} failed at M={self.moment!r}: {sol.message}")
@@ -429,6 +494,9 @@ class PeriodicOrbit:
     phase_normal : ndarray (2 n_free,) or None
         The unit normal of the phase plane through the start, None for the section on the
         loaded angle (module docstring); a continuation or a guess from this orbit keeps it.
+    multiplier_errors : ndarray (k,) or None
+        Error estimates of ``multipliers`` (residual norms, :mod:`~.long_orbits`), where the
+        Krylov method computed them; its ``multipliers`` are then the k leading ones only.
     """
 
     params: ChainParams
@@ -444,6 +512,7 @@ class PeriodicOrbit:
     iterations: int
     particle_turns: np.ndarray | None = None
     phase_normal: np.ndarray | None = None
+    multiplier_errors: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.particle_turns is None:
@@ -458,6 +527,13 @@ class PeriodicOrbit:
     def trivial_multiplier(self) -> complex:
         """The multiplier along the flow (closest to 1); it equals 1 up to the integration error."""
         return complex(self.multipliers[np.argmin(np.abs(self.multipliers - 1.0))])
+
+    @property
+    def trivial_multiplier_error(self) -> float | None:
+        """The trivial multiplier's error estimate (:attr:`multiplier_errors`); None where not estimated."""
+        if self.multiplier_errors is None:
+            return None
+        return float(self.multiplier_errors[np.argmin(np.abs(self.multipliers - 1.0))])
 
     @property
     def nontrivial_multipliers(self) -> np.ndarray:
@@ -484,10 +560,10 @@ class PeriodicOrbit:
         """
         times = np.asarray(times, dtype=float)
         system = _System(self.params, get_model(self.model), self.moment, self.particle)
-        kernel, ends, coef, rpar, ipar = system.parameters(0)
+        rhs, kernel, ends, coef, rpar, ipar = system.parameters(0)
         start = _to_y(self.params, self.x, self.v)
         sol = dop853.solve(
-            _rhs, kernel, coef, rpar, ipar, start, np.concatenate([[0.0], times]), rtol=rtol, atol=atol, max_steps=MAX_STEPS, end_force=ends
+            rhs, kernel, coef, rpar, ipar, start, np.concatenate([[0.0], times]), rtol=rtol, atol=atol, max_steps=MAX_STEPS, end_force=ends
         )
         if not sol.success:
             raise OrbitError(f"integration along the orbit failed at M={self.moment!r}: {sol.message}")
@@ -512,6 +588,7 @@ class PeriodicOrbit:
             "closure": self.closure,
             "iterations": self.iterations,
             "phase_condition": "section" if self.phase_normal is None else "plane",
+            "trivial_multiplier_error": self.trivial_multiplier_error,
         }
 
 
@@ -690,6 +767,7 @@ def find_periodic_orbit(
     rtol: float = RTOL,
     atol: float = ATOL,
     transient_turns: int = 30,
+    method: str = "auto",
 ) -> PeriodicOrbit:
     """The rotating state at ``moment`` as a limit cycle, by Newton on the shooting map (P).
 
@@ -721,6 +799,12 @@ def find_periodic_orbit(
         Tolerances of the DOP853 integrations of the state and its variations.
     transient_turns : int
         Turns simulated before the default guess is taken.
+    method : {"auto", "dense", "blocks", "krylov"}
+        ``dense``: the monodromy matrix integrated in one piece; ``blocks``: assembled from
+        column blocks integrated on parallel threads, with the memory of M alone (all
+        multipliers up to 2 n_free = 2500, the leading ones above); ``krylov``: never formed,
+        Newton-Krylov shooting with the leading multipliers by Arnoldi (:mod:`~.long_orbits`);
+        ``auto``: ``blocks`` from N = ``long_orbits.BLOCKS_FROM_N`` on, else ``dense``.
 
     Returns
     -------
@@ -729,18 +813,21 @@ def find_periodic_orbit(
     Raises
     ------
     ValueError
-        For a zero or non-finite moment, turns < 1 or a bad guess, and for a ring or a
+        For an unknown method, a zero or non-finite moment, turns < 1 or a bad guess, and for a ring or a
         chain with two free ends (:func:`require_orbit_ends` says why).
     OrbitError
         If Newton's method does not converge (try a guess from a nearby moment, another
         ``turns``, or the rotation may be chaotic).
     """
+    from . import long_orbits  # it builds on this module
+
     model = get_model(model)
     _check_moment_and_turns(moment, turns)
     for name, value in (("tol", tol), ("rtol", rtol), ("atol", atol)):
         if not (math.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
     require_orbit_ends(params)
+    method = long_orbits.choose_method(params, method)
     particle_turns = _loaded_turns(params, particle, turns, moment)
     if guess is None:
         x0, v0, period, particle_turns = _settled_guess(
@@ -764,6 +851,9 @@ def find_periodic_orbit(
     if normal is None:
         y0[system.load_dof] = 0.0
     phase = _phase_for(system, y0, normal)
+    if method != "dense":
+        solver = long_orbits.newton_krylov_orbit if method == "krylov" else long_orbits.blocked_orbit
+        return solver(system, turns, y0, period, particle_turns, phase, tol=tol, max_iter=max_iter, rtol=rtol, atol=atol)
     evaluate = _shooting(system, particle_turns, rtol, atol)
     keep = phase.keep
 
@@ -1226,9 +1316,9 @@ class _UndampedSystem(_System):
     eps: float = 0.0
 
     def parameters(self, ncols: int):
-        kernel, ends, coef, rpar, ipar = super().parameters(ncols)
+        rhs, kernel, ends, coef, rpar, ipar = super().parameters(ncols)
         rpar[1 + self.nf :] = self.eps
-        return kernel, ends, coef, rpar, np.append(ipar, 1)
+        return rhs, kernel, ends, coef, rpar, np.append(ipar, 1)
 
 
 @dataclass
