@@ -46,6 +46,8 @@ modulus, ``multiplier_errors`` their error estimates. The method is chosen by
 from __future__ import annotations
 
 import math
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,10 +60,16 @@ from . import dop853
 from .kit import Evaluation, EvaluationFailed, newton
 from .periodic import MAX_HALVINGS, MAX_STEPS, OrbitError, PeriodicOrbit, _from_y, _no_convergence, _Phase, _System
 
-#: The methods of :func:`~.periodic.find_periodic_orbit`: the dense monodromy, Newton-Krylov, or by the chain's length.
-METHODS = ("auto", "dense", "krylov")
-#: ``method="auto"`` shoots with Newton-Krylov from this N on (benchmarks/README.md, long orbits).
-KRYLOV_FROM_N = 30
+#: The methods of :func:`~.periodic.find_periodic_orbit`: the monodromy in one integration, in column blocks, Newton-Krylov, or by the chain's length.
+METHODS = ("auto", "dense", "blocks", "krylov")
+#: ``method="auto"`` assembles the monodromy from column blocks from this N on (benchmarks/README.md, long orbits).
+BLOCKS_FROM_N = 30
+#: Columns of the monodromy integrated together in one block (a few hundred kB of variational state: in cache).
+BLOCK_COLUMNS = 64
+#: Up to this size (2 n_free) the multipliers of a formed monodromy are all its eigenvalues; above, the leading ones.
+ALL_MULTIPLIERS_UP_TO = 2500
+#: Newton (chord) reuses the formed monodromy while each step divides the closure by at least 1 / CHORD_RATE.
+CHORD_RATE = 0.1
 #: Leading Floquet multipliers computed by the Krylov method.
 MULTIPLIERS = 12
 #: Most Arnoldi vectors (products with M) spent on the leading multipliers.
@@ -88,10 +96,11 @@ def choose_method(params: ChainParams, method: str) -> str:
     """
     if method not in METHODS:
         raise ValueError(
-            f"method must be one of {', '.join(METHODS)} (the monodromy formed, Newton-Krylov, or by the chain's length), got {method!r}"
+            f"method must be one of {', '.join(METHODS)} (the monodromy in one integration or in column blocks, Newton-Krylov, "
+            f"or by the chain's length), got {method!r}"
         )
     if method == "auto":
-        return "krylov" if params.N >= KRYLOV_FROM_N else "dense"
+        return "blocks" if params.N >= BLOCKS_FROM_N else "dense"
     return method
 
 
@@ -114,6 +123,8 @@ class Monodromy:
     atol: float
     products: int = 0
     integrations: int = 0
+    #: M once :meth:`matrix` has formed it.
+    formed: np.ndarray | None = None
 
     @property
     def size(self) -> int:
@@ -144,6 +155,26 @@ class Monodromy:
         self.integrations += 1
         out = sol.y[-1][self.size :].reshape(self.size, ncols) * scale
         return out[:, 0] if vector else out
+
+    def matrix(self, block: int = BLOCK_COLUMNS, threads: int | None = None) -> np.ndarray:
+        """M itself (2 n_free, 2 n_free), from the identity's columns ``block`` at a time, the blocks on ``threads``
+        threads (default: the CPUs this process may use); the integrator releases the GIL, so they run in parallel.
+        Formed once (:attr:`formed`)."""
+        if self.formed is not None:
+            return self.formed
+        size = self.size
+        firsts = range(0, size, block)
+
+        def columns(first: int) -> np.ndarray:
+            width = min(block, size - first)
+            unit = np.zeros((size, width))
+            unit[first + np.arange(width), np.arange(width)] = 1.0
+            return self.apply(unit)
+
+        workers = threads or len(os.sched_getaffinity(0))
+        with ThreadPoolExecutor(max_workers=max(1, min(workers, len(firsts)))) as pool:
+            self.formed = np.hstack(list(pool.map(columns, firsts)))
+        return self.formed
 
 
 def _shift(system: _System, particle_turns: np.ndarray) -> np.ndarray:
@@ -178,6 +209,23 @@ class _ShootingStep:
         return step
 
 
+def _closure(system: _System, phase: _Phase, shift: np.ndarray, rtol: float, atol: float):
+    """(P) and the phase condition at w = (y0's unknowns, T), with the :class:`Monodromy` there and f(Phi_T(y0)) (a state-only integration)."""
+
+    def evaluate(w: np.ndarray) -> tuple[np.ndarray, Monodromy, np.ndarray]:
+        if not w[-1] > 0:
+            raise EvaluationFailed(f"the period must stay > 0, got {w[-1]!r}")
+        y = phase.state(w[:-1])
+        try:
+            end, _, _ = system.flow(y, w[-1], rtol=rtol, atol=atol, variations=False)
+        except OrbitError as err:
+            raise EvaluationFailed(str(err)) from err
+        residual = np.append(end - y - shift, phase.residual(y))
+        return residual, Monodromy(system, y, float(w[-1]), rtol, atol), system.velocity(end)
+
+    return evaluate
+
+
 def newton_krylov_orbit(
     system: _System,
     turns: int,
@@ -202,20 +250,12 @@ def newton_krylov_orbit(
     OrbitError
         If Newton's method does not converge.
     """
-    shift = _shift(system, particle_turns)
+    evaluate = _closure(system, phase, _shift(system, particle_turns), rtol, atol)
 
     def closure(w: np.ndarray, jacobian: bool) -> Evaluation:
-        """(P) and the phase condition at w = (y0's unknowns, T); the step's operator beside (a state-only integration either way)."""
-        if not w[-1] > 0:
-            raise EvaluationFailed(f"the period must stay > 0, got {w[-1]!r}")
-        y = phase.state(w[:-1])
-        try:
-            end, _, _ = system.flow(y, w[-1], rtol=rtol, atol=atol, variations=False)
-        except OrbitError as err:
-            raise EvaluationFailed(str(err)) from err
-        residual = np.append(end - y - shift, phase.residual(y))
-        step = _ShootingStep(Monodromy(system, y, float(w[-1]), rtol, atol), phase, system.velocity(end))
-        return Evaluation(residual, step)
+        # The step's operator costs nothing until GMRES applies it: given with every residual.
+        residual, monodromy, velocity = evaluate(w)
+        return Evaluation(residual, _ShootingStep(monodromy, phase, velocity))
 
     def krylov_step(w: np.ndarray, evaluation: Evaluation, step: _ShootingStep) -> np.ndarray:
         residual = np.asarray(evaluation.residual)
@@ -229,9 +269,66 @@ def newton_krylov_orbit(
     if not solved.converged:
         raise OrbitError(_no_convergence(system.moment, turns, solved.iterations, solved.norm))
     start = phase.state(solved.w[:-1])
-    period = float(solved.w[-1])
-    mono = Monodromy(system, start, period, rtol, atol)
-    values, errors = leading_multipliers(mono, multipliers, flow=system.velocity(start))
+    monodromy = solved.evaluation.matrix().monodromy
+    values, errors = leading_multipliers(monodromy, multipliers, flow=system.velocity(start))
+    return _periodic_orbit(system, turns, start, solved, particle_turns, phase, values, errors)
+
+
+def blocked_orbit(
+    system: _System,
+    turns: int,
+    y0: np.ndarray,
+    period: float,
+    particle_turns: np.ndarray,
+    phase: _Phase,
+    *,
+    tol: float,
+    max_iter: int,
+    rtol: float,
+    atol: float,
+    multipliers: int = MULTIPLIERS,
+    threads: int | None = None,
+) -> PeriodicOrbit:
+    """The orbit through the guess by Newton on (P) with the monodromy assembled from column blocks (:meth:`Monodromy.matrix`).
+
+    As the dense method of :func:`~.periodic.find_periodic_orbit` (chord iterations:
+    :data:`CHORD_RATE`), with the memory of M alone instead of the integrator's copies of
+    2 n_free + 1 columns, and the blocks on ``threads`` threads. The multipliers are all
+    eigenvalues of M up to 2 n_free = :data:`ALL_MULTIPLIERS_UP_TO`, above it the leading
+    ``multipliers`` (ARPACK on M), each with its error estimate (module docstring).
+
+    Raises
+    ------
+    OrbitError
+        If Newton's method does not converge.
+    """
+    evaluate = _closure(system, phase, _shift(system, particle_turns), rtol, atol)
+    keep = phase.keep
+
+    def closure(w: np.ndarray, jacobian: bool) -> Evaluation:
+        residual, monodromy, velocity = evaluate(w)
+
+        def matrix() -> np.ndarray:
+            mono = monodromy.matrix(threads=threads)
+            top = np.column_stack([mono[:, keep] - np.eye(mono.shape[0])[:, keep], velocity])
+            return np.vstack([top, phase.rows(len(w))])
+
+        # M is formed only where Newton asks for a fresh Jacobian (chord iterations, and at the solution).
+        return Evaluation(residual, matrix, monodromy)
+
+    solved = newton(
+        closure, np.append(y0[keep], period), tol=tol, max_iterations=max_iter, divergence=None, chord=CHORD_RATE,
+        damping=MAX_HALVINGS,
+    )  # fmt: skip
+    if not solved.converged:
+        raise OrbitError(_no_convergence(system.moment, turns, solved.iterations, solved.norm))
+    start = phase.state(solved.w[:-1])
+    solved.evaluation.matrix()  # M at the solution, formed once
+    values, errors = leading_multipliers(solved.evaluation.data.formed, multipliers, flow=system.velocity(start))
+    return _periodic_orbit(system, turns, start, solved, particle_turns, phase, values, errors)
+
+
+def _periodic_orbit(system, turns, start, solved, particle_turns, phase, values, errors) -> PeriodicOrbit:
     x, v = _from_y(system.params, start)
     return PeriodicOrbit(
         params=system.params,
@@ -239,7 +336,7 @@ def newton_krylov_orbit(
         moment=float(system.moment),
         turns=turns,
         particle=system.particle,
-        period=period,
+        period=float(solved.w[-1]),
         x=x,
         v=v,
         multipliers=values,
@@ -252,13 +349,15 @@ def newton_krylov_orbit(
 
 
 def leading_multipliers(
-    monodromy: Monodromy, count: int = MULTIPLIERS, *, flow: np.ndarray | None = None, max_dimension: int = ARNOLDI_MAX
+    monodromy: Monodromy | np.ndarray, count: int = MULTIPLIERS, *, flow: np.ndarray | None = None, max_dimension: int = ARNOLDI_MAX
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The ``count`` Floquet multipliers of largest modulus and their error estimates (module docstring).
+    """The Floquet multipliers of largest modulus and their error estimates (module docstring).
 
     Parameters
     ----------
-    monodromy : Monodromy
+    monodromy : Monodromy or ndarray (2 n_free, 2 n_free)
+        Products with M, or M formed: then all its eigenvalues up to :data:`ALL_MULTIPLIERS_UP_TO`,
+        the leading ``count`` by ARPACK above.
     count : int
         How many (all of them where 2 n_free <= 2 count + 2).
     flow : ndarray (2 n_free,), optional
@@ -273,7 +372,7 @@ def leading_multipliers(
     multipliers : ndarray (k,) complex
         By decreasing modulus.
     errors : ndarray (k,)
-        Residual norms |M x - mu x| of the unit Ritz vectors (module docstring).
+        Residual norms |M x - mu x| of the unit (Ritz) eigenvectors (module docstring).
 
     Raises
     ------
@@ -282,16 +381,20 @@ def leading_multipliers(
     """
     if not (isinstance(count, int | np.integer) and count >= 1):
         raise ValueError(f"count must be an integer >= 1 (leading Floquet multipliers), got {count!r}")
-    size = monodromy.size
     unit_flow = None if flow is None else np.asarray(flow, dtype=float) / np.linalg.norm(flow)
-    if size <= 2 * count + 2:
-        matrix = monodromy.apply(np.eye(size))
-        values, vectors = sla.eig(matrix)
-        mapped = matrix @ (vectors if unit_flow is None else np.column_stack([vectors, unit_flow]))
+    if isinstance(monodromy, np.ndarray) or monodromy.size <= 2 * count + 2:
+        matrix = monodromy if isinstance(monodromy, np.ndarray) else monodromy.apply(np.eye(monodromy.size))
+        if matrix.shape[0] <= max(ALL_MULTIPLIERS_UP_TO, 2 * count + 2):
+            values, vectors = sla.eig(matrix)
+        else:
+            values, vectors = spla.eigs(matrix, k=count, which="LM", tol=ARNOLDI_TOL)
+        apply = lambda block: matrix @ block  # noqa: E731
     else:
-        values, vectors = _arnoldi(monodromy, count, min(max_dimension, size - 1))
-        # Every Ritz vector and the flow direction in one integration.
-        mapped = monodromy.apply(vectors if unit_flow is None else np.column_stack([vectors, unit_flow]))
+        values, vectors = _arnoldi(monodromy, count, min(max_dimension, monodromy.size - 1))
+        apply = monodromy.apply
+    vectors = vectors / np.linalg.norm(vectors, axis=0)
+    # Every eigenvector and the flow direction in one product (one integration for the Krylov method).
+    mapped = apply(vectors if unit_flow is None else np.column_stack([vectors, unit_flow]))
     errors = np.linalg.norm(mapped[:, : values.size] - vectors * values, axis=0)
     if unit_flow is not None:
         errors[int(np.argmin(np.abs(values - 1.0)))] += float(np.linalg.norm(mapped[:, -1].real - unit_flow))
