@@ -70,8 +70,10 @@ BLOCK_COLUMNS = 64
 ALL_MULTIPLIERS_UP_TO = 2500
 #: Newton (chord) reuses the formed monodromy while each step divides the closure by at least 1 / CHORD_RATE.
 CHORD_RATE = 0.1
-#: Leading Floquet multipliers computed by the Krylov method.
+#: Nontrivial Floquet multipliers computed where not all of them are (Arnoldi, ARPACK).
 MULTIPLIERS = 12
+#: Products with M form it (from column blocks) for its multipliers up to this size (2 n_free); Arnoldi above.
+FORM_UP_TO = 600
 #: Most Arnoldi vectors (products with M) spent on the leading multipliers.
 ARNOLDI_MAX = 240
 #: A Ritz pair has converged when its estimated residual is below this times max(1, |mu|).
@@ -270,7 +272,7 @@ def newton_krylov_orbit(
         raise OrbitError(_no_convergence(system.moment, turns, solved.iterations, solved.norm))
     start = phase.state(solved.w[:-1])
     monodromy = solved.evaluation.matrix().monodromy
-    values, errors = leading_multipliers(monodromy, multipliers, flow=system.velocity(start))
+    values, errors = leading_multipliers(monodromy, system.velocity(start), multipliers)
     return _periodic_orbit(system, turns, start, solved, particle_turns, phase, values, errors)
 
 
@@ -324,7 +326,7 @@ def blocked_orbit(
         raise OrbitError(_no_convergence(system.moment, turns, solved.iterations, solved.norm))
     start = phase.state(solved.w[:-1])
     solved.evaluation.matrix()  # M at the solution, formed once
-    values, errors = leading_multipliers(solved.evaluation.data.formed, multipliers, flow=system.velocity(start))
+    values, errors = leading_multipliers(solved.evaluation.data.formed, system.velocity(start), multipliers)
     return _periodic_orbit(system, turns, start, solved, particle_turns, phase, values, errors)
 
 
@@ -349,20 +351,37 @@ def _periodic_orbit(system, turns, start, solved, particle_turns, phase, values,
 
 
 def leading_multipliers(
-    monodromy: Monodromy | np.ndarray, count: int = MULTIPLIERS, *, flow: np.ndarray | None = None, max_dimension: int = ARNOLDI_MAX
+    monodromy: Monodromy | np.ndarray,
+    flow: np.ndarray,
+    count: int = MULTIPLIERS,
+    *,
+    form: bool | None = None,
+    max_dimension: int = ARNOLDI_MAX,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """The Floquet multipliers of largest modulus and their error estimates (module docstring).
+    """The trivial Floquet multiplier and the nontrivial ones of largest modulus, with their error estimates.
+
+    The flow direction f = f(y0) is the trivial multiplier's eigenvector at a closed orbit
+    (M f = f), so in an orthonormal basis (f / |f|, Q) M is block upper triangular up to the
+    integration error, [[mu_1, *], [c, Q^T M Q]] with c = Q^T M f / |f| ~ 0: the trivial
+    multiplier is mu_1 = f^T M f / |f|^2, its error |(M - I) f| / |f| (>= |mu_1 - 1|: 1 is an
+    exact multiplier of a monodromy that far from M), and the others are the eigenvalues of
+    Q^T M Q, the deflated M (a cluster of nontrivial multipliers near 1 cannot blur the
+    trivial one). Their errors are the residual norms |Q^T M Q x - mu x| of unit eigenvectors
+    plus |c| (each is an exact eigenvalue of a matrix that close to the computed M where M is
+    normal; a non-normal M can multiply the distance by the eigenvalue's condition number).
 
     Parameters
     ----------
     monodromy : Monodromy or ndarray (2 n_free, 2 n_free)
-        Products with M, or M formed: then all its eigenvalues up to :data:`ALL_MULTIPLIERS_UP_TO`,
-        the leading ``count`` by ARPACK above.
+        Products with M, or M formed.
+    flow : ndarray (2 n_free,)
+        f(y0), the vector field at the orbit's start.
     count : int
-        How many (all of them where 2 n_free <= 2 count + 2).
-    flow : ndarray (2 n_free,), optional
-        f(y0), the trivial multiplier's eigenvector at an exactly closed orbit: its residual
-        is added to the error of the multiplier nearest 1.
+        How many nontrivial multipliers beyond the formed M's :data:`ALL_MULTIPLIERS_UP_TO`
+        (then by ARPACK on the deflated M), or by Arnoldi on products.
+    form : bool, optional
+        Form M from column blocks (:meth:`Monodromy.matrix`) rather than Arnoldi on products;
+        default where 2 n_free <= :data:`FORM_UP_TO`, or 2 count + 2 (Arnoldi needs room).
     max_dimension : int
         Most Arnoldi vectors; where the leading Ritz values have not converged by then (a
         cluster of equal moduli among them) they are reported with their larger errors.
@@ -370,51 +389,75 @@ def leading_multipliers(
     Returns
     -------
     multipliers : ndarray (k,) complex
-        By decreasing modulus.
+        By decreasing modulus, the trivial one among them.
     errors : ndarray (k,)
-        Residual norms |M x - mu x| of the unit (Ritz) eigenvectors (module docstring).
+        Their error estimates (above).
 
     Raises
     ------
     ValueError
-        For count < 1.
+        For count < 1 or a zero flow (a rest state is no orbit).
     """
     if not (isinstance(count, int | np.integer) and count >= 1):
         raise ValueError(f"count must be an integer >= 1 (leading Floquet multipliers), got {count!r}")
-    unit_flow = None if flow is None else np.asarray(flow, dtype=float) / np.linalg.norm(flow)
-    if isinstance(monodromy, np.ndarray) or monodromy.size <= 2 * count + 2:
-        matrix = monodromy if isinstance(monodromy, np.ndarray) else monodromy.apply(np.eye(monodromy.size))
-        if matrix.shape[0] <= max(ALL_MULTIPLIERS_UP_TO, 2 * count + 2):
-            values, vectors = sla.eig(matrix)
+    norm = float(np.linalg.norm(flow))
+    if not (math.isfinite(norm) and norm > 0):
+        raise ValueError(f"flow must be a finite non-zero vector (the vector field on the orbit), got norm {norm!r}")
+    unit = np.asarray(flow, dtype=float) / norm
+    size = unit.size
+    if form is None:
+        form = size <= max(FORM_UP_TO, 2 * count + 2)
+    if isinstance(monodromy, np.ndarray) or form:
+        matrix = monodromy if isinstance(monodromy, np.ndarray) else monodromy.matrix()
+        mapped = matrix @ unit
+        trivial = float(unit @ mapped)
+        # Householder reflector H (symmetric, orthogonal) with H unit = -+e_1: H M H = [[mu_1, *], [c, core]].
+        w = unit.copy()
+        w[0] += math.copysign(1.0, unit[0])
+        beta = 2.0 / float(w @ w)
+        left = matrix - beta * np.outer(matrix @ w, w)
+        deflated = left - beta * np.outer(w, w @ left)
+        core, coupling = deflated[1:, 1:], float(np.linalg.norm(deflated[1:, 0]))
+        if size <= ALL_MULTIPLIERS_UP_TO:
+            values, vectors = sla.eig(core)
         else:
-            values, vectors = spla.eigs(matrix, k=count, which="LM", tol=ARNOLDI_TOL)
-        apply = lambda block: matrix @ block  # noqa: E731
+            values, vectors = spla.eigs(core, k=min(count, size - 3), which="LM", tol=ARNOLDI_TOL)
+        vectors = vectors / np.linalg.norm(vectors, axis=0)
+        errors = np.linalg.norm(core @ vectors - vectors * values, axis=0) + coupling
     else:
-        values, vectors = _arnoldi(monodromy, count, min(max_dimension, monodromy.size - 1))
-        apply = monodromy.apply
-    vectors = vectors / np.linalg.norm(vectors, axis=0)
-    # Every eigenvector and the flow direction in one product (one integration for the Krylov method).
-    mapped = apply(vectors if unit_flow is None else np.column_stack([vectors, unit_flow]))
-    errors = np.linalg.norm(mapped[:, : values.size] - vectors * values, axis=0)
-    if unit_flow is not None:
-        errors[int(np.argmin(np.abs(values - 1.0)))] += float(np.linalg.norm(mapped[:, -1].real - unit_flow))
+
+        def deflated_product(z: np.ndarray) -> np.ndarray:
+            out = monodromy.apply(z)
+            return out - unit * (unit @ out)
+
+        start = np.random.default_rng(SEED).standard_normal(size)
+        values, vectors = _arnoldi(deflated_product, start - unit * (unit @ start), count, min(max_dimension, size - 2))
+        # Every Ritz vector and the flow direction in one integration.
+        mapped = monodromy.apply(np.column_stack([vectors, unit]))
+        mapped_unit = mapped[:, -1].real
+        trivial = float(unit @ mapped_unit)
+        coupling = float(np.linalg.norm(mapped_unit - trivial * unit))
+        products = mapped[:, :-1] - np.outer(unit, unit @ mapped[:, :-1])
+        errors = np.linalg.norm(products - vectors * values, axis=0) + coupling
+        mapped = mapped_unit
+    values = np.append(trivial, values)
+    errors = np.append(np.linalg.norm(mapped - unit), errors)
     order = np.argsort(-np.abs(values), kind="stable")
     return values[order], errors[order]
 
 
-def _arnoldi(monodromy: Monodromy, count: int, dimension: int) -> tuple[np.ndarray, np.ndarray]:
-    """The ``count`` Ritz pairs of largest modulus from Arnoldi's method on M (unit Ritz vectors).
+def _arnoldi(product, start: np.ndarray, count: int, dimension: int) -> tuple[np.ndarray, np.ndarray]:
+    """The ``count`` Ritz pairs of largest modulus of the operator ``product`` from Arnoldi's method (unit Ritz vectors).
 
     Stops once their estimated residuals are below :data:`ARNOLDI_TOL` (checked every
     :data:`ARNOLDI_CHECK` products), at an invariant subspace, or after ``dimension`` products.
     """
-    size = monodromy.size
+    size = start.size
     basis = np.zeros((size, dimension + 1))
     hessenberg = np.zeros((dimension + 1, dimension))
-    start = np.random.default_rng(SEED).standard_normal(size)
     basis[:, 0] = start / np.linalg.norm(start)
     for m in range(1, dimension + 1):
-        w = monodromy.apply(basis[:, m - 1])
+        w = product(basis[:, m - 1])
         # Two passes of Gram-Schmidt keep the basis orthonormal to round-off.
         for _ in range(2):
             coefficients = basis[:, :m].T @ w
