@@ -109,6 +109,17 @@ def diagram(
         fold = "none" if row.static_fold is None else f"{row.static_fold:.6g}"
         stops = "none" if row.rotation_stops is None else f"{row.rotation_stops:.6g}"
         typer.echo(f"{row.value:>12.6g} {fold:>12} {stops:>12}  {row.end:<16} {str(row.hysteresis):<11} {row.method}")
+    for row in result.rows:
+        # Where the followed orbit's fold is not the end of rotation: the orbits followed in turn, or the warning.
+        if len(row.followed) > 1:
+            steps = "; then ".join(
+                f"a {o['turns']}-turn orbit (found at M = {o['found_at']:.6g}) to its {o['end']} at {o['rotation_stops']:.6g}"
+                + (", below which a run keeps rotating" if o["below"] == "rotating" else "")
+                for o in row.followed
+            )
+            typer.echo(f"{vary} = {row.value:g}: followed {steps}")
+        if row.warning:
+            typer.echo(f"warning: {vary} = {row.value:g}: {row.warning}")
     point = result.snic_point
     if point is not None:
         where = f"between {vary} = {point['between'][0]:g} and {point['between'][1]:g}"

@@ -76,10 +76,13 @@ import numpy as np
 from ..models.base import get_model
 from ..numerics.continuation import continue_in_moment
 from ..numerics.cycle_curve import KINDS, continue_cycle_end, locate_cycle_end
+from ..numerics.dynamics import IntegrationError
 from ..numerics.fold_curve import continue_fold
 from ..numerics.homoclinic import HomoclinicError, chain_homoclinic_end, chain_snic_point
-from ..numerics.periodic import OrbitError, PeriodicOrbit, continue_orbit, find_periodic_orbit
+from ..numerics.periodic import OrbitError, PeriodicOrbit, continue_orbit, find_periodic_orbit, initial_guess
+from ..numerics.relaxation import relax
 from ..params import ChainParams
+from ..state import column
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -109,6 +112,12 @@ PERIOD_MAX = 100.0
 FIT_SAFETY = 3.0
 #: A fitted homoclinic end's bracket for the solve reaches at least this far (relative) below the fit.
 BRACKET_RTOL = 1e-4
+#: A fold of cycles is checked by a run this far (relative) below it: close enough to stay near the fold's orbit,
+#: far enough that its ghost does not hold the run for long (the N = 2 sine chain at gamma_phi = 0.2: 116 turns near
+#: its fold's rate at 1e-3 below, 4 turns at 1e-2).
+BELOW_FOLD = 1e-2
+#: Orbits a row follows in turn where the rotation goes on below a fold of cycles.
+MAX_ORBITS = 3
 #: An imaginary part of the leading multiplier above this (relative to its modulus) is a complex pair.
 COMPLEX_RTOL = 1e-6
 
@@ -127,6 +136,15 @@ class DiagramRow:
     moment_scale: float = 1.0
     method: str = "one_parameter"
     uncertainty: float | None = None
+    below: str | None = None
+    followed: list[dict[str, Any]] = field(default_factory=list)
+    warning: str = ""
+
+    @property
+    def rotation_continues_below(self) -> bool | None:
+        """Whether a run just below a fold-of-cycles edge keeps rotating (the edge is then not the end of rotation);
+        None where it was not checked (other ends) or did not settle."""
+        return {"rest": False, "rotating": True}.get(self.below)
 
     @property
     def rotation_starts(self) -> str | None:
@@ -154,6 +172,10 @@ class DiagramRow:
             "moment_scale": self.moment_scale,
             "method": self.method,
             "rotation_stops_uncertainty": self.uncertainty,
+            "below_edge": self.below,
+            "rotation_continues_below": self.rotation_continues_below,
+            "followed_orbits": self.followed,
+            "warning": self.warning or None,
             "static_fold_dimensionless": self.dimensionless(self.static_fold),
             "rotation_stops_dimensionless": self.dimensionless(self.rotation_stops),
         }
@@ -264,6 +286,8 @@ class StateDiagram:
                 "rotation_stops_uncertainty": (("value",), column("uncertainty"),
                                                {"long_name": "accuracy of a homoclinic rotation_stops, solved or fitted (NaN: another computed point)"}),
                 "moment_scale": (("value",), column("moment_scale"), {"long_name": "E1 h^2, the unit of the dimensionless moment M / (E1 h^2)"}),
+                "below_edge": (("value",), np.array([row.below or "not_checked" for row in self.rows], dtype=str),
+                               {"long_name": "a run just below a fold-of-cycles edge: rest, rotating (the edge is not the end of rotation), not_converged or not_checked"}),
             },
             # The value's units are the varied field's: io.describe reads them from the attribute "parameter".
             coords={"value": ("value", np.array([row.value for row in self.rows]))},
@@ -286,6 +310,10 @@ class _Edge:
     orbit: PeriodicOrbit | None = None
     method: str = "one_parameter"
     uncertainty: float | None = None
+    below: str | None = None
+    followed: list[dict[str, Any]] = field(default_factory=list)
+    warning: str = ""
+    first: PeriodicOrbit | None = None
 
 
 def _snic_pair(rows: Sequence[DiagramRow]) -> tuple[DiagramRow, DiagramRow] | None:
@@ -320,15 +348,16 @@ def _solve_snic(diagram: StateDiagram, params: ChainParams, model, particle: int
     }
 
 
-def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle: int, period_max: float, field_name: str) -> _Edge:
-    """The lower edge of one chain by one-parameter continuation in M, located exactly by the augmented
-    shooting system where it is a fold of cycles, a period doubling or a torus (``field_name``: the
-    varied field, which the messages name)."""
-    start = START_FACTOR * moment_c
+def _first_stable(
+    chain: ChainParams, model, moment: float, turns: int, particle: int, state=None
+) -> tuple[PeriodicOrbit | None, list[str]]:
+    """The first stable orbit at ``moment`` with 1, 2, ... ``turns`` turns a period (settled from rest, or from
+    ``state`` = (x, v)), and what each try gave."""
     orbit, tried = None, []
     for k in range(1, turns + 1):
         try:
-            candidate = find_periodic_orbit(chain, model, start, turns=k, particle=particle)
+            guess = None if state is None else initial_guess(chain, model, moment, turns=k, particle=particle, x0=state[0], v0=state[1])
+            candidate = find_periodic_orbit(chain, model, moment, turns=k, particle=particle, guess=guess)
         except OrbitError:
             tried.append(f"{k} turn(s): none found")
             continue
@@ -336,6 +365,15 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
             orbit = candidate
             break
         tried.append(f"{k} turn(s): unstable (largest multiplier {candidate.max_multiplier:.4g})")
+    return orbit, tried
+
+
+def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle: int, period_max: float, field_name: str) -> _Edge:
+    """The lower edge of one chain by one-parameter continuation in M, located exactly by the augmented
+    shooting system where it is a fold of cycles, a period doubling or a torus (``field_name``: the
+    varied field, which the messages name)."""
+    start = START_FACTOR * moment_c
+    orbit, tried = _first_stable(chain, model, start, turns, particle)
     if orbit is None:
         return _Edge(
             None,
@@ -345,6 +383,20 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
                 "the rotation there may be modulated or irregular (simulate or rotate show it)"
             ),
         )
+    return _edge_of(orbit, chain, model, moment_c, particle, period_max, field_name)
+
+
+def _edge_of(orbit: PeriodicOrbit, chain: ChainParams, model, moment_c: float, particle: int, period_max: float, field_name: str) -> _Edge:
+    """Where the stable ``orbit`` ends going down in M (:func:`_lower_edge`), the orbit kept as ``first``."""
+    edge = _edge_from(orbit, chain, model, moment_c, particle, period_max, field_name)
+    edge.first = orbit
+    return edge
+
+
+def _edge_from(
+    orbit: PeriodicOrbit, chain: ChainParams, model, moment_c: float, particle: int, period_max: float, field_name: str
+) -> _Edge:
+    start = orbit.moment
     branch = continue_orbit(orbit, moment_min=0.0, period_max=period_max, until_unstable=True)
     lost = branch.stability_lost_at
     if lost is not None:
@@ -396,6 +448,67 @@ def _lower_edge(chain: ChainParams, model, moment_c: float, turns: int, particle
     return _Edge(None, "not_found", f"the orbit's continuation ended by {branch.end}: {branch.message}")
 
 
+def _below_fold(
+    edge: _Edge, chain: ChainParams, model, moment_c: float, turns: int, particle: int, period_max: float, field_name: str
+) -> _Edge:
+    """Whether the rotation goes on below a fold of cycles, and where it stops if it does (module docstring).
+
+    A run starts at (1 - :data:`BELOW_FOLD`) times the fold's moment from the fold's orbit
+    (:func:`~cosserat_chain.numerics.relaxation.relax`, the protocol's test of rest or steady rotation). Where it
+    keeps rotating, the first stable orbit of 1 to ``turns`` turns settled from where it went is followed down in
+    turn, up to :data:`MAX_ORBITS` orbits in all; the returned edge is the last orbit's, with ``below`` (``rest``,
+    ``rotating`` or ``not_converged``), ``followed`` (each orbit: turns, rate, moment it was found at, end, where)
+    and a ``warning`` where a run below the reported edge still rotates.
+    """
+    followed = [_followed_entry(edge)]
+    while edge.end == "fold_of_cycles" and edge.orbit is not None and edge.stops is not None and edge.stops < moment_c:
+        below = edge.stops * (1.0 - BELOW_FOLD)
+        try:
+            run = relax(chain, model, below, particle=particle, x0=edge.orbit.x, v0=edge.orbit.v)
+        except IntegrationError as err:
+            edge.below, edge.message = "not_converged", edge.message + f"; a run below the fold at M = {below:.8g} failed ({err})"
+            break
+        rate = float(run.angular_velocity[column(chain, particle)]) if run.status == "rotating" else 0.0
+        edge.below = "rest" if run.status == "static" else ("rotating" if run.status == "rotating" else "not_converged")
+        followed[-1]["below"] = edge.below
+        if edge.below == "rest":
+            edge.message += f"; a run from the fold's orbit at M = {below:.8g} comes to rest: the fold is the edge of rotation"
+            break
+        what = f"keeps rotating (mean rate {rate:.6g})" if edge.below == "rotating" else f"has not settled ({run.message})"
+        edge.warning = (
+            f"below the fold of cycles at M = {edge.stops:.8g} a run from its orbit at M = {below:.8g} {what}: "
+            "the fold ends one orbit, not the rotation"
+        )
+        if edge.below != "rotating" or len(followed) >= MAX_ORBITS:
+            edge.message += "; " + edge.warning
+            break
+        orbit, tried = _first_stable(chain, model, below, turns, particle, state=(run.x, run.v))
+        if orbit is None:
+            edge.message += f"; {edge.warning}; no stable orbit found there ({'; '.join(tried)})"
+            break
+        previous = edge
+        edge = _edge_of(orbit, chain, model, moment_c, particle, period_max, field_name)
+        edge.message = (
+            f"the {previous.orbit.turns}-turn orbit ends at a fold of cycles at M = {previous.stops:.8g}, where the chain "
+            f"goes on to a {orbit.turns}-turn orbit (mean rate {orbit.mean_angular_velocity:.6g}), followed from there: {edge.message}"
+        )
+        followed.append(_followed_entry(edge))
+    edge.followed = followed
+    if edge.below != "rotating":
+        edge.warning = ""
+    return edge
+
+
+def _followed_entry(edge: _Edge) -> dict[str, Any]:
+    """One orbit of a row's ``followed_orbits``: its turns and rate where it was found, its end, where, and what a run
+    below a fold of cycles does (``below``: None where not checked)."""
+    entry: dict[str, Any] = {"turns": None, "found_at": None, "mean_angular_velocity": None}
+    if edge.first is not None:
+        orbit = edge.first
+        entry = {"turns": orbit.turns, "found_at": float(orbit.moment), "mean_angular_velocity": float(orbit.mean_angular_velocity)}
+    return {**entry, "end": edge.end, "rotation_stops": edge.stops, "below": None}
+
+
 def _solved(edge: _Edge, chain: ChainParams, model, particle: int, last: float) -> _Edge:
     """A fitted homoclinic end replaced by the solved loop (:func:`~cosserat_chain.numerics.homoclinic.chain_homoclinic_end`:
     projection boundary conditions, with its accuracy); where that fails, the fit is kept and the message says why."""
@@ -406,7 +519,7 @@ def _solved(edge: _Edge, chain: ChainParams, model, particle: int, last: float) 
     low = edge.stops - max(10.0 * edge.uncertainty, BRACKET_RTOL * abs(edge.stops))
     try:
         orbit = chain_homoclinic_end(chain, model, bracket=(low, last), particle=particle)
-    except HomoclinicError as err:
+    except (HomoclinicError, OrbitError) as err:  # an integration along a loop that ran away ends the solve too
         edge.message += f"; not solved ({err})"
         return edge
     message = (
@@ -611,6 +724,7 @@ def state_diagram(
             note = "" if edge is None else edge.message + "; "
             edge = _lower_edge(chain, model, moment_c, turns, particle, period_max, field_name)
             edge.message = note + edge.message
+        edge = _below_fold(edge, chain, model, moment_c, turns, particle, period_max, field_name)
         edge.message = branch_note + edge.message
         previous = (float(value), edge)
         stops, message = edge.stops, edge.message
@@ -625,7 +739,7 @@ def state_diagram(
             )
         diagram.rows.append(
             DiagramRow(float(value), moment_c, phi0_c, stops, edge.end, hysteresis, message,
-                       chain.moment_scale, edge.method, edge.uncertainty)
+                       chain.moment_scale, edge.method, edge.uncertainty, edge.below, edge.followed, edge.warning)
         )  # fmt: skip
     _solve_snic(diagram, params, model, particle)
     if progress is not None:
