@@ -58,7 +58,11 @@ like (M - M_c)^(-1/2) at a SNIC (T^-2 extrapolated to zero lands on M_c), like -
 at a homoclinic end (M_h from the best fit). Limits: one rotating orbit is followed, the
 first stable one with 1, 2, ... ``turns`` turns a period just above M_c (``not_found`` if
 none is: the rotation there may be irregular, as the nonlinear chain's at the default
-damping); coexisting orbits and irregular rotation are not searched here
+damping). Below a fold of cycles (below M_c) a run from the fold's orbit tells whether the
+chain rests there (``below_edge`` ``rest``: the fold is the edge of rotation) or keeps rotating;
+then the stable orbit it settles on is followed down in its turn (:data:`MAX_ORBITS` orbits in
+all, ``followed_orbits``), or the row warns (``warning``) that the fold ends one orbit, not the
+rotation. Other coexisting orbits and irregular rotation are not searched here
 (:func:`~cosserat_chain.experiments.coexisting.states_at` lists them at one moment: the sine
 chain at M = 0.22 has a stable 2-turn orbit beside the 1-turn one a run from rest reaches).
 """
