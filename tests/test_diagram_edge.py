@@ -42,9 +42,13 @@ def late_rate(chain: ChainParams, orbit, moment: float, t_end: float) -> float:
     return float((phi[-1] - phi[-2]) / (run.time[-1] - run.time[-2]))
 
 
-def test_where_the_chain_jumps_to_another_orbit_below_the_fold_the_row_follows_that_one():
-    chain = ChainParams(**LIGHT)
-    row = state_diagram(chain, "sine", "gamma_phi", [LIGHT["gamma_phi"]]).rows[0]
+@pytest.fixture(scope="module")
+def light_row():
+    return state_diagram(ChainParams(**LIGHT), "sine", "gamma_phi", [LIGHT["gamma_phi"]]).rows[0]
+
+
+def test_where_the_chain_jumps_to_another_orbit_below_the_fold_the_row_follows_that_one(light_row):
+    chain, row = ChainParams(**LIGHT), light_row
     first, second = row.followed
     assert first["end"] == "fold_of_cycles" and first["below"] == "rotating"
     assert second["found_at"] == pytest.approx(0.99 * first["rotation_stops"], rel=1e-12)
@@ -58,6 +62,18 @@ def test_where_the_chain_jumps_to_another_orbit_below_the_fold_the_row_follows_t
     rate = late_rate(chain, near, below, 400.0)
     assert rate > 0.5 * second["mean_angular_velocity"]
     assert abs(rate - near.mean_angular_velocity) > 0.1 * near.mean_angular_velocity
+
+
+def test_the_relaxation_protocols_down_sweep_stops_at_the_rows_edge_not_at_the_first_fold(light_row):
+    """The paper's protocol (relax at each step of a falling load, from the last state) rotates on past the first
+    orbit's fold and comes to rest within two steps below the row's edge (just below a period doubling the doubled
+    orbit still turns)."""
+    from cosserat_chain.experiments.sweep import relaxation_sweep
+
+    dm = 0.0025
+    sweep = relaxation_sweep(ChainParams(**LIGHT), "sine", m_max=0.3, dm=dm, down=True, stop_at_onset=True)
+    fold = light_row.followed[0]["rotation_stops"]
+    assert light_row.rotation_stops - 2 * dm <= sweep.stop_load < light_row.rotation_stops < fold - 5 * dm
 
 
 def test_where_the_chain_rests_below_the_fold_the_fold_is_the_edge():

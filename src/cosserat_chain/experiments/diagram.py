@@ -120,6 +120,9 @@ BRACKET_RTOL = 1e-4
 #: far enough that its ghost does not hold the run for long (the N = 2 sine chain at gamma_phi = 0.2: 116 turns near
 #: its fold's rate at 1e-3 below, 4 turns at 1e-2).
 BELOW_FOLD = 1e-2
+#: The run below a fold lasts at most this many of the fold orbit's periods (the light N = 2 chain settles on its
+#: next orbit within 100, the paper's N = 2 chain at gamma_phi = 0.15 rests within 60); longer, it is ``not_converged``.
+BELOW_PERIODS = 500
 #: Orbits a row follows in turn where the rotation goes on below a fold of cycles.
 MAX_ORBITS = 3
 #: An imaginary part of the leading multiplier above this (relative to its modulus) is a complex pair.
@@ -400,6 +403,7 @@ def _edge_of(orbit: PeriodicOrbit, chain: ChainParams, model, moment_c: float, p
 def _edge_from(
     orbit: PeriodicOrbit, chain: ChainParams, model, moment_c: float, particle: int, period_max: float, field_name: str
 ) -> _Edge:
+    """:func:`_edge_of` without the orbit kept."""
     start = orbit.moment
     branch = continue_orbit(orbit, moment_min=0.0, period_max=period_max, until_unstable=True)
     lost = branch.stability_lost_at
@@ -468,7 +472,7 @@ def _below_fold(
     while edge.end == "fold_of_cycles" and edge.orbit is not None and edge.stops is not None and edge.stops < moment_c:
         below = edge.stops * (1.0 - BELOW_FOLD)
         try:
-            run = relax(chain, model, below, particle=particle, x0=edge.orbit.x, v0=edge.orbit.v)
+            run = relax(chain, model, below, particle=particle, x0=edge.orbit.x, v0=edge.orbit.v, t_max=BELOW_PERIODS * edge.orbit.period)
         except IntegrationError as err:
             edge.below, edge.message = "not_converged", edge.message + f"; a run below the fold at M = {below:.8g} failed ({err})"
             break
