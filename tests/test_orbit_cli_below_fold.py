@@ -117,6 +117,15 @@ def test_an_orbit_written_below_the_fold_says_how_it_was_reached_and_starts_the_
     assert_same_orbit(found, reference) and found["iterations"] <= 1
 
 
+def test_the_orbit_reached_from_above_is_continued_further_down_with_down_to(folder, reference):
+    """Turns left to the search (the first stable of 1, 2, 3 at the start above), then --down-to from the orbit below M_c."""
+    found = orbit_json(folder, "--from-above", str(ABOVE), "--down-to", "0.44")
+    assert_same_orbit(found, reference)
+    branch = found["continuation"]
+    assert branch["end"] == "moment_min" and branch["moment"][0] == pytest.approx(BELOW, rel=1e-12) and branch["moment"][-1] < 0.44
+    assert np.all(np.diff(branch["moment"]) < 0) and np.all(np.diff(branch["period"]) > 0)
+
+
 def test_a_branch_that_ends_before_the_moment_exits_3_naming_its_end(folder):
     """Below the homoclinic end (near 0.43) the orbit from above does not exist: its continuation creeps to a halt there."""
     result = runner.invoke(
