@@ -18,6 +18,11 @@ periodic orbit (:func:`~cosserat_chain.numerics.periodic.find_hamiltonian_orbit`
 * :func:`lifetime` runs the undamped chain directly from a perturbed orbit and measures,
   period by period, how far it has left the orbit: the lifetime of an unstable roto-breather,
   and its growth per period against the largest Floquet multiplier.
+* :func:`damped_to_undamped` follows the paper's damped, driven rotating orbit to zero
+  damping at its own mean rate (:func:`~cosserat_chain.numerics.undamping.continue_to_undamped`:
+  the viscosities scaled by s -> 0, the moment following) and compares where it lands with
+  the roto-breather that :func:`roto_breather_family` finds from the anti-continuum limit at
+  that frequency.
 * :func:`resonances` gives the frequencies Omega = edge / n at which the n-th harmonic of
   the rotation meets a band edge of the linear chain
   (:func:`~cosserat_chain.analysis.dispersion.wave_summary`), and
@@ -40,7 +45,16 @@ from ..analysis.dispersion import BRANCHES, wave_summary
 from ..loads import moment_load
 from ..models.base import Model, get_model
 from ..numerics.dynamics import integrate
-from ..numerics.periodic import HamiltonianFamily, HamiltonianOrbit, continue_in_frequency, find_hamiltonian_orbit, require_undamped
+from ..numerics.periodic import (
+    HamiltonianFamily,
+    HamiltonianOrbit,
+    OrbitError,
+    PeriodicOrbit,
+    continue_in_frequency,
+    find_hamiltonian_orbit,
+    require_undamped,
+)
+from ..numerics.undamping import UndampingPath, continue_to_undamped
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column, n_free, unpack, zeros
 from .simulation import run_attributes
@@ -500,3 +514,96 @@ def lifetime(
     if window.size >= 2 and window[-1] > window[0]:
         growth = float((deviation[window[-1]] / deviation[window[0]]) ** (1.0 / (window[-1] - window[0])))
     return Lifetime(deviation=deviation, periods=int(lost[0]) if lost.size else None, growth_per_period=growth, period=orbit.period)
+
+
+@dataclass
+class DampedToUndamped:
+    """Where a damped, driven rotating orbit lands at zero damping, against the anti-continuum family there.
+
+    Attributes
+    ----------
+    path : UndampingPath
+        The homotopy s = 1 -> 0 at the orbit's mean rate.
+    landed : HamiltonianOrbit or None
+        The homotopy's end as an orbit of the undamped chain (multipliers, energy; Newton
+        from the end converges at once), None where the path did not reach s = 0.
+    family : HamiltonianOrbit or None
+        The roto-breather :func:`roto_breather_family` finds from the anti-continuum limit
+        at the same frequency, None where Newton fails from it (``message`` says so).
+    message : str
+    """
+
+    path: UndampingPath
+    landed: HamiltonianOrbit | None
+    family: HamiltonianOrbit | None
+    message: str
+
+    @property
+    def state_difference(self) -> float | None:
+        """max |x - x_family|, |v - v_family| (both on the section phi_rotor = 0); None without both orbits."""
+        if self.landed is None or self.family is None:
+            return None
+        return float(max(np.max(np.abs(self.landed.x - self.family.x)), np.max(np.abs(self.landed.v - self.family.v))))
+
+    @property
+    def same_orbit(self) -> bool:
+        """Whether the homotopy landed on the anti-continuum family's orbit (states equal to 1e-6)."""
+        difference = self.state_difference
+        return difference is not None and difference <= 1e-6
+
+    def as_dict(self) -> dict:
+        def orbit(o: HamiltonianOrbit | None) -> dict | None:
+            if o is None:
+                return None
+            return {"energy": o.energy, "max_multiplier": o.max_multiplier, "stable": o.stable, "period": o.period,
+                    "rotor_velocity": float(o.v[ROW_INDEX["phi"], column(o.params, o.particle)])}  # fmt: skip
+
+        return {
+            "path": self.path.as_dict(),
+            "landed": orbit(self.landed),
+            "family": orbit(self.family),
+            "state_difference": self.state_difference,
+            "same_orbit": self.same_orbit,
+            "message": self.message,
+        }
+
+
+def damped_to_undamped(orbit: PeriodicOrbit, *, stop_at_fold: bool = True, max_points: int = 200) -> DampedToUndamped:
+    """Follow a damped, driven rotating orbit to gamma = 0 at its mean rate and compare it with the family there.
+
+    Parameters
+    ----------
+    orbit : PeriodicOrbit
+        From :func:`~cosserat_chain.numerics.periodic.find_periodic_orbit` on a damped chain.
+    stop_at_fold, max_points
+        Of :func:`~cosserat_chain.numerics.undamping.continue_to_undamped`.
+
+    Returns
+    -------
+    DampedToUndamped
+
+    Raises
+    ------
+    ValueError
+        For an orbit of an undamped chain.
+    """
+    path = continue_to_undamped(orbit, stop_at_fold=stop_at_fold, max_points=max_points)
+    end = path.undamped
+    if end is None:
+        return DampedToUndamped(path, None, None, f"the homotopy did not reach gamma = 0: {path.message}")
+    params = orbit.params.replace(gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
+    omega = abs(end.omega)
+    landed = find_hamiltonian_orbit(
+        params, orbit.model, omega, (end.x, end.v), turns=orbit.turns, particle=orbit.particle, particle_turns=end.particle_turns
+    )
+    try:
+        family = roto_breather_family(params, orbit.model, [omega], turns=orbit.turns, particle=orbit.particle).family.orbits[0]
+    except OrbitError as err:
+        return DampedToUndamped(path, landed, None, f"no roto-breather from the anti-continuum limit at Omega = {omega:.10g}: {err}")
+    result = DampedToUndamped(path, landed, family, "")
+    result.message = (
+        f"landed on the anti-continuum family's orbit at Omega = {omega:.10g} (states equal to {result.state_difference:.2g})"
+        if result.same_orbit
+        else f"landed on another undamped orbit at Omega = {omega:.10g} than the anti-continuum family's (states differ by {result.state_difference:.3g})"
+    )
+    return result
