@@ -215,6 +215,8 @@ def critical(
             )
         if r.branch.stop == BranchEnd.STEP_TOO_SMALL:
             exit_on(Status.STEP_TOO_SMALL, f"the {name} branch: {r.branch.message}; M_c is the largest maximum of the traced part")
+        if r.branch.stop == BranchEnd.REVERSED:
+            exit_on(Status.FAILED, f"the {name} branch: {r.branch.message}; M_c is the largest maximum of the traced part")
         if not r.accurate:
             spread = max((f.discrepancy for f in (r.fold, r.first_fold) if f is not None and f.discrepancy is not None), default=math.inf)
             exit_on(

@@ -272,12 +272,12 @@ class CriticalResult:
     @property
     def end(self) -> str | None:
         """How the stable branch from rest ends: "branch_point", "fold", or where it was not seen to end "budget"
-        (``turns`` reached), "max_points" or "step_too_small" (the trace cut short); None for a model that never loses it (linear)."""
+        (``turns`` reached), "max_points", "step_too_small" or "reversed" (the trace cut short); None for a model that never loses it (linear)."""
         if self.branch_point is not None:
             return "branch_point"
         if self.first_fold is not None:
             return "fold"
-        if self.branch.stop in (BranchEnd.MAX_POINTS, BranchEnd.STEP_TOO_SMALL):
+        if self.branch.stop in (BranchEnd.MAX_POINTS, BranchEnd.STEP_TOO_SMALL, BranchEnd.REVERSED):
             return str(self.branch.stop)
         return "budget" if self.budget_reached else None
 

@@ -71,6 +71,11 @@ MAX_TURN = 0.2
 STEP_TARGET = 0.85
 #: Most growth of the step from one point to the next.
 STEP_GROWTH = 1.3
+#: A fold passed again the other way, within these of an earlier one's angle (rad) and moment (relative), is
+#: the trace going back along itself (``_StaticBranch._check_retrace``); the folds of the paper's geometry
+#: at N = 3000, traced twice, agreed to 7e-11 in both.
+RETRACE_PHI0_ATOL = 1e-8
+RETRACE_MOMENT_RTOL = 1e-8
 #: A corrector that moves further than this fraction of the state's size (and than the step) jumped.
 #: The paper's chain of N = 1000 jumped by 0.0067 of its state's size (1.2 with a step of 0.19)
 #: with a tenth allowed, onto a closed loop of the branch it then went round twice.
@@ -202,14 +207,16 @@ class Branch:
         Why the tracing ended, in the kit's vocabulary (:class:`~.kit.BranchEnd`, equal to its
         string): "phi0_stop", "moment_stop", "max_folds" (the requested end), "returned" (the
         branch came back through the rest state before the loaded particle turned once, as a
-        closed loop does), "wound" (a particle other than the loaded one turned a full turn
+        closed loop does), "reversed" (the trace turned back along itself where a cluster of
+        folds or a branch point lies within the corrector's resolution: the branch beyond is not
+        traced, ``message`` says where), "wound" (a particle other than the loaded one turned a full turn
         further than it: the chain rotates there, and the branch repeats its folds as that
         particle winds on; ``message`` names it), "max_points" (the point budget ran out
         first) or "step_too_small" (the corrector failed even at ``min_step``: a point where
         the branch is not smooth, such as a link of zero length; ``message`` says where): the
         branch is then incomplete; "given" for the angles of :func:`rotation_branch`.
     message : str
-        What stopped a stalled or wound branch (empty otherwise).
+        What stopped a stalled, wound or reversed branch (empty otherwise).
     state_points : ndarray of int (j,) or None
         The points whose states ``x`` holds, where a trace kept only some
         (``max_states`` of :func:`continue_in_moment`); None where ``x`` holds every point's.
@@ -229,8 +236,8 @@ class Branch:
 
     @property
     def complete(self) -> bool:
-        """False if the point budget ran out or the corrector stalled before the requested end."""
-        return self.stop not in (BranchEnd.MAX_POINTS, BranchEnd.STEP_TOO_SMALL)
+        """False if the point budget ran out, the corrector stalled or the trace turned back along itself before the requested end."""
+        return self.stop not in (BranchEnd.MAX_POINTS, BranchEnd.STEP_TOO_SMALL, BranchEnd.REVERSED)
 
     @property
     def stable_end(self) -> BranchPoint | None:
@@ -564,6 +571,8 @@ class _StaticBranch:
         self.lost = False  # whether a traced point is unstable: the stable branch from rest has ended
         self.bend = np.zeros(self.nf + 1)
         self.folds = 0
+        self.located_folds: list[Fold] = []
+        self.reversal = ""  # why the trace is going back along itself (stop: BranchEnd.REVERSED), empty while it is not
         self.last_step = 0.0  # the last step tried, for the message of a stalled branch
 
     # The equations and their pieces.
@@ -705,12 +714,39 @@ class _StaticBranch:
         if kind == "fold":
             self.folds += 1
             fold = self._fold_between(w, t, h, candidate.z, candidate.tangent[-1], previous.index, candidate.index)
+            self._check_retrace(fold)
+            self.located_folds.append(fold)
             return Event(kind, fold, fold.moment, index)
         point = self._branch_point_between(w, t, h, previous.index, candidate.index, index - 1)
         return Event(kind, point, point.moment, index, located=point.located)
 
     def confirm(self, kind: str, point) -> bool:
         return True  # every fold and branch point is located along the arclength, none is a false alarm
+
+    def _check_retrace(self, fold: Fold) -> None:
+        """Note a trace that has turned back along itself: ``fold`` is an earlier fold passed the other way.
+
+        Where a cluster of folds or a branch point lies within the corrector's resolution, an odd
+        number of false turns of the tangent there sends the trace back along the branch already
+        traced: it then passes the same folds in reverse order, each at the same moment and angle
+        with its stiffness index changing the other way (the paper's geometry at N = 3000 turned back
+        at phi_0 = 6.27536, M = 3.6e-4, and came back through the rest state: a "returned" branch, as
+        if complete). A pair of adjacent folds may be a real small maximum and minimum of M; a
+        non-adjacent one repeated is the retrace, and the branch beyond the turning point is not traced.
+        """
+        for earlier in self.located_folds[:-1]:
+            if (
+                (earlier.index_before, earlier.index_after) == (fold.index_after, fold.index_before)
+                and abs(earlier.phi0 - fold.phi0) <= RETRACE_PHI0_ATOL
+                and abs(earlier.moment - fold.moment) <= RETRACE_MOMENT_RTOL * max(abs(earlier.moment), abs(fold.moment))
+            ):
+                turned = self.located_folds[-1]
+                self.reversal = (
+                    f"the trace turned back along itself near phi_0 = {turned.phi0:.10g} rad, M = {turned.moment:.10g} (a cluster "
+                    f"of folds or a branch point within the corrector's resolution) and passed again the fold at phi_0 = "
+                    f"{earlier.phi0:.10g} rad, M = {earlier.moment:.10g}: the branch beyond that point is not traced"
+                )
+                return
 
     def next_step(self, h: float, correction: Correction, candidate: _Point) -> float:
         """Keep the point (:meth:`_keep`) and size the next step."""
@@ -778,7 +814,9 @@ class _StaticBranch:
             total = until if until is not None and (phi < until or self.lost) else stops.phi0_stop
             self.progress(min(phi, total), total)
         end = None
-        if moment * self.previous_moment < 0 and len(self.moments) > 2 and _passes_rest(self.previous_state, x, self.previous_moment, moment):
+        if self.reversal:
+            end = (BranchEnd.REVERSED, self.reversal)
+        elif moment * self.previous_moment < 0 and len(self.moments) > 2 and _passes_rest(self.previous_state, x, self.previous_moment, moment):
             # Back through the rest state: going on would trace the mirrored branch
             # (x -> -x, M -> -M) and come back here, as a closed loop does.
             end = (BranchEnd.RETURNED, "")
@@ -813,7 +851,7 @@ class _StaticBranch:
                 f"continuation stalled at M = {self.moments[-1]:.6g}, phi_0 = {self.y_phi0:.6g}: the corrector failed even with "
                 f"step {self.last_step:.3g} (a point where the branch is not smooth, e.g. a link of zero length)"
             )
-        elif traced.end == BranchEnd.WOUND:
+        elif traced.end in (BranchEnd.WOUND, BranchEnd.REVERSED):
             message = traced.message
         folds = [event.point for event in traced.events if event.kind == "fold"]
         branch = _assemble_branch(self.params, self.model, self.particle, self.moments, self.states, folds, self.checks, traced.end, self.angles)

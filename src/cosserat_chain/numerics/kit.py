@@ -96,6 +96,8 @@ class BranchEnd(StrEnum):
     MAX_FOLDS = "max_folds"
     #: The branch came back through its start's mirror image, as a closed loop does: it would repeat.
     RETURNED = "returned"
+    #: The trace turned back along the branch already traced (a point it could not pass): the rest is not traced.
+    REVERSED = "reversed"
     #: Another coordinate than the one followed turned a full turn further: the system rotates there,
     #: and the branch beyond repeats its folds as it winds on.
     WOUND = "wound"
@@ -122,6 +124,7 @@ _ADVICE = {
     BranchEnd.LOAD_LIMIT: "raise moment_stop to trace further",
     BranchEnd.MAX_FOLDS: "raise max_folds to trace further",
     BranchEnd.RETURNED: "the branch is complete: beyond, its mirror image",
+    BranchEnd.REVERSED: "trace the branch from beyond that point, or with a smaller refine_step (continue_in_moment)",
     BranchEnd.WOUND: "follow the rotation as a periodic orbit (orbit) rather than as a static branch",
 }
 
