@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+import xarray as xr
 from scipy.optimize import brentq
 from scipy.special import ellipk
 from typer.testing import CliRunner
@@ -195,3 +196,30 @@ def test_the_command_computes_a_system_family_as_json_and_refuses_chain_options(
     assert off.exit_code == 2 and "--particle 3 is off the system" in off.output
     chain = runner.invoke(app, ["breathers", "--omega", "1.4", "--set", "C=1"])
     assert chain.exit_code == 2 and "need(s) --system" in chain.output
+
+
+def test_the_command_writes_a_self_describing_netcdf_file_that_reads_back(tmp_path):
+    runner = CliRunner()
+    out = tmp_path / "tp.nc"
+    args = ["breathers", "--system", "takeno_peyrard", "--set", "sites=5", "--set", "C=0.05", "--omega", "1.4", "--to", "1.3"]
+    result = runner.invoke(app, [*args, "--json", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    with xr.open_dataset(out) as ds:
+        np.testing.assert_array_equal(ds["omega"].values, data["omega"])
+        np.testing.assert_array_equal(ds["energy"].values, data["energy"])
+        assert ds["stable"].values.astype(bool).tolist() == data["stable"]
+        # The start of every member closes under the flow of the system rebuilt from the file's own parameters.
+        system = takeno_peyrard(5, **{k[len("param_") :]: float(v) for k, v in ds.attrs.items() if k.startswith("param_")})
+        y0 = np.concatenate([ds["q0"].values[-1], ds["v0"].values[-1]])
+        end = shooting.flow(system, y0, float(ds["period"].values[-1]), variations=False)[0]
+        turns = np.zeros(10)
+        turns[2] = 2 * math.pi
+        assert np.max(np.abs(end - y0 - turns)) < 1e-8
+        assert ds.attrs["experiment"] == "system_roto_breathers" and ds.attrs["system_reference"] == "takeno_peyrard"
+        assert ds.attrs["coupling"] == "C" and json.loads(ds.attrs["rotors_json"]) == {"phi_2": 1}
+        assert ds.attrs["cosserat_chain_version"] and ds["omega"].attrs["units"] == "1" and "Omega" in ds["omega"].attrs["long_name"]
+        assert ds["band_top"].values[0] == pytest.approx(math.sqrt(1.2))
+    # The output is checked before anything is computed: a folder is refused at once (exit 2).
+    folder = runner.invoke(app, [*args, "--out", str(tmp_path)])
+    assert folder.exit_code == 2 and "--out" in folder.output

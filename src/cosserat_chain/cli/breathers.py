@@ -37,15 +37,15 @@ def breathers(
 ) -> None:
     """Roto-breathers: one particle rotating, the rest oscillating, undamped; Newton from the anti-continuum limit, Floquet multipliers, resonances with the bands.
 
-    With --system: the system's family (its angles counted from the central one by --particle and --partner), continued in --coupling from 0, then in the frequency to --to.
+    With --system: the system's family (its angles counted from the central one by --particle and --partner), continued in --coupling from 0, then in the frequency to --to; --out writes it to NetCDF.
     """
     if system is not None:
         from .system_breathers import breathers_on_system
 
-        chain_only_or_exit(ctx, ("omega", "to", "turns", "particle", "partner", "counter", "config", "as_json", "sets", "coupling"))
+        chain_only_or_exit(ctx, ("omega", "to", "turns", "particle", "partner", "counter", "config", "out", "as_json", "sets", "coupling"))
         return breathers_on_system(
             system, config=config, sets=sets, omega=omega, to=to, turns=turns, particle=particle, partner=partner, counter=counter,
-            coupling=coupling, as_json=as_json,
+            coupling=coupling, out=out, as_json=as_json,
         )  # fmt: skip
     system_only_or_exit(ctx, ("sets", "coupling"))
     import numpy as np

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from .common import bar_callback, fail, progress_bar
+from .common import bar_callback, fail, outputs_or_exit, progress_bar, save_dataset
 from .systems import _echo_json, system_or_exit
 
 
@@ -22,12 +22,15 @@ def breathers_on_system(
     partner: int | None,
     counter: bool,
     coupling: str,
+    out: Path | None,
     as_json: bool,
 ) -> None:
     """The family from the anti-continuum limit at ``omega``, continued in ``coupling`` to the system's value, then to ``to``.
 
     ``particle`` and ``partner`` count the system's angles from the central one (as the chain's
-    particles count from its centre). Exit 2 on bad input, 3 when no orbit is found.
+    particles count from its centre). ``out`` is checked (and locked) before anything is computed and
+    written atomically at the end (:meth:`SystemBreatherFamily.to_dataset`). Exit 2 on bad input, 3
+    when no orbit is found.
     """
     import numpy as np
 
@@ -37,6 +40,7 @@ def breathers_on_system(
 
     if counter and partner is None:
         fail("--counter sets the partner's direction: give --partner as well")
+    outputs_or_exit({"--out": out}, {"--config": config})
     system = system_or_exit(reference, config, sets)
     angles = np.flatnonzero(system.angles)
     if not angles.size:
@@ -68,6 +72,8 @@ def breathers_on_system(
         bar.close()
         fail(str(err), code=3)
     bar.finish()
+    if out is not None:  # the Dataset (and xarray) only for a file
+        save_dataset(family.to_dataset(reference), out)
     summary = family.as_dict()
     if as_json:
         _echo_json({"reference": reference, **summary})

@@ -28,9 +28,11 @@ neighbouring ones) turns k times per period T = 2 pi k / Omega while the others 
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.optimize import brentq
@@ -39,6 +41,9 @@ from ..errors import CosseratChainError
 from ..numerics.shooting import PERIOD, Orbit, OrbitNotFound, continue_orbits, find_orbit
 from ..systems.base import System
 from ..systems.lattice import LatticeSystem
+
+if TYPE_CHECKING:  # xarray is imported where a Dataset is built: commands without file output start without it
+    import xarray as xr
 
 ProgressCallback = Callable[[int, int], None]
 
@@ -385,6 +390,93 @@ class SystemBreatherFamily:
             a, b, c = np.polyfit(omegas[j : j + 3], energy[j : j + 3], 2)
             out.append(float(-b / (2 * a)))
         return out
+
+    def to_dataset(self, reference: str | None = None) -> xr.Dataset:
+        """The family as a self-describing Dataset: dims ``point`` (the members), ``coordinate``, ``multiplier``, ``band``.
+
+        Per member: omega, period, energy (NaN without one), the start (q0, v0), the Floquet
+        multipliers, max |mu|, stability, the unfolding and the closure; the bands' edges; in the
+        attributes, the system (name, parameters, coordinates, angles), the coupling, the
+        rotors and their anti-continuum energies, the stability changes, the resonances and the
+        package's version. Numbers are in the system's own units (``experiment`` ``system_*``:
+        :func:`cosserat_chain.io.describe` marks them so when the file is written).
+
+        Parameters
+        ----------
+        reference : str, optional
+            How the system was named (``takeno_peyrard``, ``my_lattice.py:build``), kept as ``system_reference``.
+
+        Raises
+        ------
+        ValueError
+            For a family with no member.
+        """
+        import xarray as xr
+
+        from .._version import __version__
+
+        if not self.orbits:
+            raise ValueError("the family holds no orbit: nothing to write")
+        summary = self.as_dict()
+        data = {
+            "omega": ("point", self.omegas),
+            "period": ("point", np.array([o.period for o in self.orbits])),
+            "energy": ("point", self.energies()),
+            "max_multiplier": ("point", np.array([o.max_multiplier for o in self.orbits])),
+            "stable": ("point", np.array([o.stable for o in self.orbits], dtype=np.int8)),
+            "unfolding": ("point", np.array([o.unfolding for o in self.orbits], dtype=float)),
+            "closure": ("point", np.array([o.closure for o in self.orbits])),
+            "q0": (("point", "coordinate"), np.array([o.q0 for o in self.orbits])),
+            "v0": (("point", "coordinate"), np.array([o.v0 for o in self.orbits])),
+            "multiplier_real": (("point", "multiplier"), np.array([o.multipliers.real for o in self.orbits])),
+            "multiplier_imag": (("point", "multiplier"), np.array([o.multipliers.imag for o in self.orbits])),
+            "band_bottom": ("band", np.array([b for b, _ in self.bands])),
+            "band_top": ("band", np.array([t for _, t in self.bands])),
+        }
+        coords = {
+            "point": np.arange(len(self.orbits)),
+            "coordinate": list(self.system.coordinates),
+            "multiplier": np.arange(self.orbits[0].multipliers.size),
+            "band": np.arange(len(self.bands)),
+        }
+        ds = xr.Dataset(data, coords=coords)
+        names = {
+            "omega": "mean angular velocity Omega = 2 pi k / T of the first rotor",
+            "period": "period T of the orbit",
+            "energy": "total energy of the orbit (NaN: the system has no energy function)",
+            "max_multiplier": "largest modulus of a non-trivial Floquet multiplier",
+            "stable": "1 if every non-trivial Floquet multiplier lies on the unit circle, 0 if not",
+            "unfolding": f"the unfolding damping {self.settings.get('unfold')} at the solution (0 for an orbit of the undamped system)",
+            "closure": "max |Phi_T(y0) - y0 - 2 pi k| of the converged orbit",
+            "q0": "start of the orbit: coordinates",
+            "v0": "start of the orbit: velocities",
+            "band_bottom": "lowest frequency of a phonon band about rest",
+            "band_top": "highest frequency of a phonon band about rest",
+        }
+        for name, long_name in names.items():
+            ds[name].attrs["long_name"] = long_name
+        ds.attrs.update({f"param_{name}": value for name, value in self.system.parameters.items()})
+        ds.attrs.update(
+            {
+                "experiment": "system_roto_breathers",
+                "title": f"Roto-breather family of the system {self.system.name}",
+                "system": self.system.name,
+                "system_json": json.dumps(self.system.describe()),
+                "angles": ",".join(n for n, a in zip(self.system.coordinates, self.system.angles, strict=True) if a),
+                "cosserat_chain_version": __version__,
+                "coupling": self.coupling,
+                "rotors_json": json.dumps(summary["rotors"]),
+                "anti_continuum_json": json.dumps({"energy": summary["anti_continuum_energy"], "period": self.start.period}),
+                "stability_changes_json": json.dumps(summary["stability_changes"]),
+                "resonances_json": json.dumps(summary["resonances"]),
+                "energy_extrema_json": json.dumps(summary["energy_extrema"]),
+                "message": self.message,
+                "settings_json": json.dumps(self.settings),
+            }
+        )
+        if reference is not None:
+            ds.attrs["system_reference"] = reference
+        return ds
 
     def as_dict(self) -> dict:
         omegas = self.omegas

@@ -204,15 +204,20 @@ class UndampingPath:
     end : BranchEnd
         ``value`` (s = 0 reached), ``fold`` (s turned back first), or why the driver stopped.
     message : str
-    fold_scale : float or None
-        The located s of a fold.
+    fold : UndampingPoint or None
+        The located fold (where s turns back), on the curve.
     """
 
     points: list[UndampingPoint]
     end: BranchEnd
     message: str
-    fold_scale: float | None = None
+    fold: UndampingPoint | None = None
     settings: dict = field(default_factory=dict)
+
+    @property
+    def fold_scale(self) -> float | None:
+        """The s of the located fold (None without one)."""
+        return None if self.fold is None else self.fold.gamma_scale
 
     @property
     def undamped(self) -> UndampingPoint | None:
@@ -232,7 +237,7 @@ class UndampingPath:
         return {
             "end": str(self.end),
             "message": self.message,
-            "fold_gamma_scale": self.fold_scale,
+            "fold": None if self.fold is None else self.fold.as_dict(),
             "omega": self.points[0].omega,
             "period": self.points[0].period,
             "points": [p.as_dict() for p in self.points],
@@ -379,4 +384,4 @@ def continue_to_undamped(
             return UndampingPath(points, BranchEnd.STEP_TOO_SMALL, message, None, settings)
         points[-1] = problem.point(landed.w, landed.evaluation, landed.iterations)
         message = f"reached the undamped chain (s = 0) with M = {points[-1].moment:.3g}"
-    return UndampingPath(points, traced.end, message, None if fold is None else float(fold.parameter), settings)
+    return UndampingPath(points, traced.end, message, None if fold is None else fold.point, settings)
