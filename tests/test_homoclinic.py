@@ -123,6 +123,21 @@ def test_a_bracket_without_an_end_is_refused_with_a_message():
         homoclinic_end(system, np.array([np.pi - np.arcsin(0.5)]), turns={"phi_0": 1}, bracket=(0.7, 0.9), parameter="I")
 
 
+def test_an_integration_that_fails_ends_the_search_with_a_homoclinic_error(monkeypatch):
+    # A weakly damped chain's manifold integration can stop at max_steps: the caller gets the
+    # package's HomoclinicError with the reason, as for every other failure, not the integrator's error.
+    from cosserat_chain.numerics import homoclinic
+    from cosserat_chain.numerics.periodic import OrbitError
+
+    def fails(*args, **kwargs):
+        raise OrbitError("integration over T=1.3e6 failed: max_steps")
+
+    monkeypatch.setattr(homoclinic, "_turns_over", fails)
+    system = josephson_array(1, I=0.5, alpha=0.5)
+    with pytest.raises(HomoclinicError, match="was not found: integration over T=1.3e6 failed: max_steps"):
+        homoclinic_end(system, np.array([np.pi - np.arcsin(0.5)]), turns={"phi_0": 1}, bracket=(0.3, 0.9), parameter="I")
+
+
 def test_a_stable_equilibrium_is_not_taken_for_the_saddle():
     system = josephson_array(1, I=0.5, alpha=0.5)
     with pytest.raises(HomoclinicError, match="not a saddle"):

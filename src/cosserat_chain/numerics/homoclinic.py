@@ -597,7 +597,12 @@ def homoclinic_end(
         raise ValueError(f"bracket must be two different finite values of {parameter}, got {bracket!r}")
     rests = _Equilibria(system, parameter, system.check_state(saddle, "saddle"), winding)
     horizon = _t_max(rests(float(system.parameter(parameter))), t_max, ladder[0])
-    return _end_in_bracket(rests, shift, winding, (low, high), parameter, ladder, horizon)
+    try:
+        return _end_in_bracket(rests, shift, winding, (low, high), parameter, ladder, horizon)
+    except (EvaluationFailed, OrbitError) as err:
+        # An integration of the manifold that fails (a weakly damped chain's at max_steps) ends the search
+        # as any other failure does: no loop found, with the reason.
+        raise HomoclinicError(f"the homoclinic orbit in {parameter} in [{low:.10g}, {high:.10g}] was not found: {err}") from err
 
 
 def _end_in_bracket(
