@@ -39,7 +39,6 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ..analysis.dispersion import BRANCHES, wave_summary
 from ..loads import moment_load
@@ -57,6 +56,7 @@ from ..numerics.periodic import (
 from ..numerics.undamping import UndampingPath, continue_to_undamped
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column, n_free, unpack, zeros
+from .anti_continuum import potential_from_torque, rotor_energy, sample_angles
 from .simulation import run_attributes
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
@@ -64,10 +64,6 @@ if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: comman
 
 ProgressCallback = Callable[[float, float], None]
 
-#: Points of the torque's Fourier series in :func:`rotor_potential` (the on-site potential is smooth).
-POTENTIAL_POINTS = 256
-#: Quadrature points of the rotor's period integral.
-PERIOD_POINTS = 4096
 #: Highest harmonic n of the rotation compared with the bands.
 MAX_HARMONIC = 6
 #: Times per period at which the tail's amplitude is sampled.
@@ -75,10 +71,10 @@ TAIL_SAMPLES = 32
 
 
 def _rotor_forces(params: ChainParams, model: Model, particle: int) -> np.ndarray:
-    """Forces (POTENTIAL_POINTS, 3, 2N+1) with ``particle`` turned to 2 pi i / POTENTIAL_POINTS, every other at rest."""
+    """Forces (POTENTIAL_POINTS, 3, 2N+1) with ``particle`` turned to each of :func:`~.anti_continuum.sample_angles`, every other at rest."""
     col = column(params, particle)
     out = []
-    for phi in 2 * math.pi * np.arange(POTENTIAL_POINTS) / POTENTIAL_POINTS:
+    for phi in sample_angles():
         x = zeros(params)
         x[ROW_INDEX["phi"], col] = phi
         out.append(model.forces(params, x))
@@ -88,25 +84,16 @@ def _rotor_forces(params: ChainParams, model: Model, particle: int) -> np.ndarra
 def rotor_potential(params: ChainParams, model: str | Model, particle: int = 0) -> Callable[[np.ndarray], np.ndarray]:
     """The on-site potential V(phi) of ``particle`` turned alone, every other particle at rest (V(0) = 0).
 
-    From the torque -dV/dphi of the model's forces, sampled at :data:`POTENTIAL_POINTS`
-    angles and integrated as a Fourier series (the torque is 2 pi periodic with zero mean
-    for every rotating model).
+    From the torque -dV/dphi of the model's forces, sampled at
+    :data:`~.anti_continuum.POTENTIAL_POINTS` angles and integrated as a Fourier series
+    (:func:`~.anti_continuum.potential_from_torque`; the torque is 2 pi periodic with zero
+    mean for every rotating model).
 
     Returns
     -------
     callable(phi ndarray) -> ndarray
     """
-    torque = _rotor_forces(params, get_model(model), particle)[:, ROW_INDEX["phi"], column(params, particle)]
-    coef = np.fft.rfft(torque) / POTENTIAL_POINTS
-    wave = np.arange(1, coef.size)
-
-    def potential(phi: np.ndarray) -> np.ndarray:
-        phi = np.asarray(phi, dtype=float)
-        # V = -int torque: each harmonic c_n e^{i n phi} integrates to c_n e^{i n phi} / (i n).
-        terms = (coef[1:, None] / (1j * wave[:, None])) * (np.exp(1j * np.outer(wave, phi.ravel())) - 1.0)
-        return -2.0 * np.real(terms.sum(axis=0)).reshape(phi.shape)
-
-    return potential
+    return potential_from_torque(_rotor_forces(params, get_model(model), particle)[:, ROW_INDEX["phi"], column(params, particle)])
 
 
 def coupled_bands(params: ChainParams, model: str | Model, particle: int = 0) -> tuple[str, ...]:
@@ -118,12 +105,6 @@ def coupled_bands(params: ChainParams, model: str | Model, particle: int = 0) ->
     forces = _rotor_forces(params, get_model(model), particle)
     drives_u = bool(np.any(forces[:, ROW_INDEX["u"], :] != 0.0))
     return tuple(name for name in BRANCHES if name != "longitudinal" or drives_u)
-
-
-def rotor_period(potential: Callable[[np.ndarray], np.ndarray], inertia: float, energy: float) -> float:
-    """Time of one turn of the rotor J phi'' = -V'(phi) at energy E > max V (trapezoid: spectral for a periodic integrand)."""
-    phi = 2 * math.pi * np.arange(PERIOD_POINTS) / PERIOD_POINTS
-    return float(np.mean(np.sqrt(inertia / (2.0 * (energy - potential(phi))))) * 2 * math.pi)
 
 
 def anti_continuum_state(
@@ -141,24 +122,14 @@ def anti_continuum_state(
     Raises
     ------
     ValueError
-        For omega not finite and > 0.
+        For omega not finite and > 0, or too close to 0 for the rotor's turn to be resolved.
     """
     if not (math.isfinite(omega) and omega > 0):
         raise ValueError(f"omega must be a finite number > 0, got {omega!r}")
     potential = rotor_potential(params, model, particle)
     col = column(params, particle)
     inertia = float(params.particle_inertia[ROW_INDEX["phi"], col])
-    top = float(np.max(potential(2 * math.pi * np.arange(PERIOD_POINTS) / PERIOD_POINTS)))
-    target = 2 * math.pi / omega
-    low = top + 1e-12 * max(1.0, abs(top))
-    high = max(2 * low, 1.0)
-    while rotor_period(potential, inertia, high) > target:
-        high *= 4.0
-    if rotor_period(potential, inertia, low) < target:
-        # Slower than the rotor can turn just above its barrier: the slowest rotation.
-        energy = low
-    else:
-        energy = brentq(lambda e: rotor_period(potential, inertia, e) - target, low, high, xtol=1e-14, rtol=1e-14)
+    energy = rotor_energy(potential, inertia, 2 * math.pi / omega)
     x, v = zeros(params), zeros(params)
     v[ROW_INDEX["phi"], col] = math.sqrt(2.0 * energy / inertia)
     return x, v, float(energy)

@@ -35,22 +35,18 @@ from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.optimize import brentq
 
 from ..errors import CosseratChainError
 from ..numerics.shooting import PERIOD, Orbit, OrbitNotFound, continue_orbits, find_orbit
 from ..systems.base import System
 from ..systems.lattice import LatticeSystem
+from .anti_continuum import POTENTIAL_POINTS, potential_from_torque, rotor_energy, sample_angles
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built: commands without file output start without it
     import xarray as xr
 
 ProgressCallback = Callable[[int, int], None]
 
-#: Angles at which the rotor's torque is sampled for its on-site potential (a smooth periodic function).
-POTENTIAL_POINTS = 256
-#: Quadrature points of the rotor's period integral (trapezoid: spectral for a periodic integrand).
-PERIOD_POINTS = 4096
 #: Wavenumbers in [0, pi] at which the Bloch matrix is sampled for the band edges.
 BAND_SAMPLES = 257
 #: Highest harmonic n (and half-harmonic m / 2) of the rotation compared with the band edges.
@@ -83,9 +79,10 @@ def _coordinate(system: System, which: int | str, what: str) -> int:
 def rotor_potential(system: System, rotor: int | str, coupling: str) -> Callable[[np.ndarray], np.ndarray]:
     """The on-site potential V(phi) of the coordinate ``rotor`` turned alone, the coupling at 0 and every other at rest (V(0) = 0).
 
-    From the torque F_rotor sampled at :data:`POTENTIAL_POINTS` angles and integrated as a
-    Fourier series, so it needs no energy function (the torque must have zero mean: a
-    constant torque would make the rotor accelerate, not rotate periodically).
+    From the torque F_rotor sampled at :data:`~.anti_continuum.POTENTIAL_POINTS` angles and
+    integrated as a Fourier series (:func:`~.anti_continuum.potential_from_torque`), so it needs
+    no energy function (the torque must have zero mean: a constant torque would make the rotor
+    accelerate, not rotate periodically).
 
     Raises
     ------
@@ -94,46 +91,18 @@ def rotor_potential(system: System, rotor: int | str, coupling: str) -> Callable
     """
     i = _coordinate(system, rotor, "rotor")
     alone = system.with_parameters(**{coupling: 0.0})
-    phi = 2 * math.pi * np.arange(POTENTIAL_POINTS) / POTENTIAL_POINTS
     q = np.zeros(system.size)
     torque = np.empty(POTENTIAL_POINTS)
-    for j, angle in enumerate(phi):
+    for j, angle in enumerate(sample_angles()):
         q[i] = angle
         torque[j] = alone.forces(q)[i]
-    coef = np.fft.rfft(torque) / POTENTIAL_POINTS
-    if abs(coef[0]) > 1e-12 * max(1.0, float(np.max(np.abs(torque)))):
+    mean = float(np.mean(torque))
+    if abs(mean) > 1e-12 * max(1.0, float(np.max(np.abs(torque)))):
         raise BreatherError(
-            f"the torque on {system.coordinates[i]} has the mean {coef[0].real:.6g} over a turn (a drive): "
+            f"the torque on {system.coordinates[i]} has the mean {mean:.6g} over a turn (a drive): "
             "roto-breathers are orbits of the undriven system; set the drive to 0"
         )
-    wave = np.arange(1, coef.size)
-
-    def potential(angle: np.ndarray) -> np.ndarray:
-        angle = np.asarray(angle, dtype=float)
-        # V = -int torque: each harmonic c_n e^{i n phi} integrates to c_n e^{i n phi} / (i n).
-        terms = (coef[1:, None] / (1j * wave[:, None])) * (np.exp(1j * np.outer(wave, angle.ravel())) - 1.0)
-        return -2.0 * np.real(terms.sum(axis=0)).reshape(angle.shape)
-
-    return potential
-
-
-def rotor_period(potential: Callable[[np.ndarray], np.ndarray], mass: float, energy: float) -> float:
-    """Time of one turn of the rotor m phi'' = -V'(phi) at energy E > max V."""
-    phi = 2 * math.pi * np.arange(PERIOD_POINTS) / PERIOD_POINTS
-    return float(np.mean(np.sqrt(mass / (2.0 * (energy - potential(phi))))) * 2 * math.pi)
-
-
-def rotor_energy(potential: Callable[[np.ndarray], np.ndarray], mass: float, turn_time: float) -> float:
-    """The energy E at which one turn of the rotor takes ``turn_time`` (every such time is reached: T -> inf at the barrier)."""
-    top = float(np.max(potential(2 * math.pi * np.arange(PERIOD_POINTS) / PERIOD_POINTS)))
-    low = top * (1 + 1e-12) + 1e-300
-    if rotor_period(potential, mass, low) < turn_time:
-        # The quadrature cannot resolve a turn slower than just above the barrier.
-        raise BreatherError(f"a turn in {turn_time:.6g} is too slow to resolve: the rotor's frequency is too close to 0")
-    high = max(2 * abs(top), 1.0)
-    while rotor_period(potential, mass, high) > turn_time:
-        high *= 4.0
-    return float(brentq(lambda e: rotor_period(potential, mass, e) - turn_time, low, high, xtol=1e-14, rtol=1e-14))
+    return potential_from_torque(torque)
 
 
 @dataclass
@@ -181,7 +150,10 @@ def anti_continuum_orbit(system: System, omega: float, rotors: Mapping[int | str
     mass = system.mass()
     for i, k in turns.items():
         potential = rotor_potential(system, i, coupling)
-        energy = rotor_energy(potential, float(mass[i]), period / abs(k))
+        try:
+            energy = rotor_energy(potential, float(mass[i]), period / abs(k))
+        except ValueError as err:
+            raise BreatherError(str(err)) from None
         y0[system.size + i] = math.copysign(math.sqrt(2.0 * energy / mass[i]), k)
         energies[i] = energy
     return AntiContinuum(y0=y0, period=period, turns=turns, energies=energies)
