@@ -74,3 +74,6 @@ def test_homotopy_refuses_an_undamped_orbit():
     undamped = orbit.__class__(**{**orbit.__dict__, "params": orbit.params.replace(gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)})
     with pytest.raises(ValueError, match="undamped already"):
         continue_to_undamped(undamped)
+    backwards = find_periodic_orbit(damped(0.02), "sine", -0.22)
+    with pytest.raises(ValueError, match="M > 0"):
+        damped_to_undamped(backwards)

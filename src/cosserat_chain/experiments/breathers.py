@@ -556,8 +556,14 @@ def damped_to_undamped(orbit: PeriodicOrbit, *, stop_at_fold: bool = True, max_p
     Raises
     ------
     ValueError
-        For an orbit of an undamped chain.
+        For an orbit of an undamped chain, or one under a negative moment (the roto-breathers
+        turn the rotor forwards: take the mirror orbit, M > 0).
     """
+    if orbit.moment < 0:
+        raise ValueError(
+            f"orbit: its moment is M = {orbit.moment!r} < 0, and roto-breathers are computed turning forwards: "
+            "find the orbit at M > 0 (the chain's mirror image) and follow that"
+        )
     path = continue_to_undamped(orbit, stop_at_fold=stop_at_fold, max_points=max_points)
     end = path.undamped
     if end is None:
