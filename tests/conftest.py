@@ -53,6 +53,18 @@ def random_state(params: ChainParams, scale: float, seed: int = 0) -> np.ndarray
     return x
 
 
+def selected_params(request: pytest.FixtureRequest, argname: str) -> list:
+    """The values of the parameter ``argname`` among the tests this session runs, in order: a module fixture that
+    computes every case at once (one interpreter for all the docs pages or examples) computes only these, so a case
+    marked slow costs nothing in the quick suite."""
+    values = []
+    for item in request.session.items:
+        callspec = getattr(item, "callspec", None)
+        if callspec is not None and argname in callspec.params and callspec.params[argname] not in values:
+            values.append(callspec.params[argname])
+    return values
+
+
 @pytest.fixture
 def paper() -> ChainParams:
     """The paper's Section 4 chain (seven particles)."""

@@ -17,9 +17,12 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import selected_params
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+#: Pages whose blocks are long runs (a study on a local Dask cluster of worker processes): slow tests.
+SLOW_PAGES = {"studies.md"}
 
 
 def python_blocks(page: Path) -> list[str]:
@@ -53,12 +56,14 @@ def _needs_its_own_process(script: str) -> bool:
 
 
 @pytest.fixture(scope="module")
-def page_runs(tmp_path_factory) -> dict[str, str | None]:
+def page_runs(request, tmp_path_factory) -> dict[str, str | None]:
     """Page name -> None if its blocks ran as one script, else why not: the pages without a ``__main__`` guard in
-    one driver process, each guarded page in a process of its own, as a reader would run it."""
+    one driver process, each guarded page in a process of its own, as a reader would run it (only the pages of the
+    tests selected in this session)."""
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")])}
     shared, own = {}, {}
-    for page in PAGES:
+    wanted = selected_params(request, "page")
+    for page in (page for page in PAGES if page in wanted):
         text = "\n\n".join(python_blocks(page))
         if text:
             script = tmp_path_factory.mktemp(page.stem) / f"{page.stem}.py"
@@ -75,7 +80,9 @@ def page_runs(tmp_path_factory) -> dict[str, str | None]:
     return outcome
 
 
-@pytest.mark.parametrize("page", [p for p in PAGES if python_blocks(p)], ids=lambda p: p.name)
+@pytest.mark.parametrize(
+    "page", [pytest.param(p, marks=pytest.mark.slow) if p.name in SLOW_PAGES else p for p in PAGES if python_blocks(p)], ids=lambda p: p.name
+)
 def test_the_pages_python_blocks_run(page, page_runs):
     assert page_runs[page.name] is None, f"{page.name}: {page_runs[page.name]}"
 

@@ -15,9 +15,12 @@ import sys
 from pathlib import Path
 
 import pytest
+from conftest import selected_params
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
+#: Examples that are long runs (a study on a local Dask cluster of worker processes): slow tests.
+SLOW_EXAMPLES = {"parameter_study.py"}
 
 #: Arguments: pairs of a script and the folder to run it in. Runs each as ``python SCRIPT --quick`` in that folder,
 #: one after the other, and prints a JSON object of script -> [its exit code, what it printed, the end of its traceback or
@@ -55,9 +58,11 @@ def _needs_its_own_process(script: Path) -> bool:
 
 
 @pytest.fixture(scope="module")
-def example_runs(tmp_path_factory) -> dict[str, tuple[int, str, str]]:
-    """Script name -> (exit code, what it printed, why it failed: a traceback or stderr's end)."""
-    shared = {script: tmp_path_factory.mktemp(script.stem) for script in EXAMPLES if not _needs_its_own_process(script)}
+def example_runs(request, tmp_path_factory) -> dict[str, tuple[int, str, str]]:
+    """Script name -> (exit code, what it printed, why it failed: a traceback or stderr's end), for the scripts of
+    the tests selected in this session."""
+    wanted = [script for script in EXAMPLES if script in selected_params(request, "script")]
+    shared = {script: tmp_path_factory.mktemp(script.stem) for script in wanted if not _needs_its_own_process(script)}
     arguments = [str(part) for pair in shared.items() for part in pair]
     result = subprocess.run([sys.executable, "-c", _DRIVER, *arguments], env=_env(), capture_output=True, text=True, timeout=1200)
     driven = json.loads(result.stdout.strip().splitlines()[-1]) if result.returncode == 0 else {}
@@ -65,7 +70,7 @@ def example_runs(tmp_path_factory) -> dict[str, tuple[int, str, str]]:
     for script in shared:
         code, printed, failure = driven.get(str(script), (1, "", None))
         outcome[script.name] = (code, printed, failure or result.stderr[-3000:])
-    for script in EXAMPLES:
+    for script in wanted:
         if script not in shared:
             alone = subprocess.run(
                 [sys.executable, str(script), "--quick"], cwd=tmp_path_factory.mktemp(script.stem), env=_env(), capture_output=True,
@@ -75,7 +80,9 @@ def example_runs(tmp_path_factory) -> dict[str, tuple[int, str, str]]:
     return outcome
 
 
-@pytest.mark.parametrize("script", EXAMPLES, ids=lambda p: p.stem)
+@pytest.mark.parametrize(
+    "script", [pytest.param(p, marks=pytest.mark.slow) if p.name in SLOW_EXAMPLES else p for p in EXAMPLES], ids=lambda p: p.stem
+)
 def test_example_runs_quick(script, example_runs):
     code, printed, failure = example_runs[script.name]
     assert code == 0, failure

@@ -30,6 +30,21 @@ from cosserat_chain.loads import moment_load
 runner = CliRunner()
 
 
+def _quick_and_slow(quick: int, more: int, **strategies):
+    """Two tests of one property drawn from ``strategies``: ``quick`` examples in the quick suite and ``more`` in the
+    slow one, for the properties whose examples each run a command or a simulation."""
+
+    def tests(body):
+        def drawn(count):
+            return settings(max_examples=count, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])(
+                given(**strategies)(body)
+            )
+
+        return drawn(quick), pytest.mark.slow(drawn(more))
+
+    return tests
+
+
 @pytest.fixture(autouse=True)
 def _frozen_heap():
     """What the session made before a test is left out of the garbage collector's passes while it runs (and collected
@@ -199,16 +214,7 @@ def _digests(folder) -> dict[str, str]:
     return {str(p): hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
-@settings(max_examples=12, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(
-    damage=st.one_of(
-        st.tuples(st.just("cut"), st.floats(0, 0.95)),
-        st.tuples(st.just("flip"), st.floats(0, 1, exclude_max=True)),
-        st.tuples(st.just("drop"), st.sampled_from(["u", "phi_dot", "time"])),
-    ),
-    command=st.sampled_from(["export", "x0", "draw"]),
-)
-def test_commands_given_a_damaged_run_exit_2_or_3_and_change_nothing_else(run_bytes, damage, command, tmp_path):
+def _commands_given_a_damaged_run(run_bytes, damage, command, tmp_path):
     """The command line over damaged runs: no traceback, exit 2 (or 0 for a damage the reader does not see), the input untouched."""
     folder = tmp_path / "work"
     folder.mkdir(exist_ok=True)
@@ -244,6 +250,18 @@ def test_commands_given_a_damaged_run_exit_2_or_3_and_change_nothing_else(run_by
     assert {path: digest for path, digest in after.items() if path != str(out)} == before
 
 
+test_commands_given_a_damaged_run_exit_2_or_3_and_change_nothing_else, test_commands_given_more_damaged_runs = _quick_and_slow(
+    4,
+    12,
+    damage=st.one_of(
+        st.tuples(st.just("cut"), st.floats(0, 0.95)),
+        st.tuples(st.just("flip"), st.floats(0, 1, exclude_max=True)),
+        st.tuples(st.just("drop"), st.sampled_from(["u", "phi_dot", "time"])),
+    ),
+    command=st.sampled_from(["export", "x0", "draw"]),
+)(_commands_given_a_damaged_run)
+
+
 @pytest.fixture(scope="module")
 def checkpoint_bytes(tmp_path_factory) -> bytes:
     """The checkpoint of a finished short simulation."""
@@ -252,18 +270,8 @@ def checkpoint_bytes(tmp_path_factory) -> bytes:
     return path.read_bytes()
 
 
-@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(
-    damage=st.one_of(
-        st.tuples(st.just("cut"), st.floats(0, 0.99)),
-        st.tuples(st.just("flip"), st.floats(0, 1, exclude_max=True)),
-        st.tuples(st.just("drop"), st.sampled_from(["phi", "final_phi_dot", "frame_step", "final_load_work", "split_sums", "time"])),
-        st.tuples(st.just("count"), st.sampled_from(["steps", "n_steps", "stride_steps", "chunk_steps"])),
-    ),
-    value=st.one_of(st.integers(-10, 10**6), st.floats(allow_nan=True), st.text(max_size=3)),
-)
 @pytest.mark.filterwarnings("ignore::UserWarning")
-def test_a_damaged_or_resealed_checkpoint_resumes_or_is_refused(checkpoint_bytes, damage, value, tmp_path):
+def _damaged_or_resealed_checkpoint(checkpoint_bytes, damage, value, tmp_path):
     """A checkpoint cut, flipped, or edited and sealed again: the resumed run is the run asked for, or a ValueError."""
     from cosserat_chain.experiments.checkpoint import seal
     from cosserat_chain.experiments.simulation import _STATE_ATTRIBUTES, CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT
@@ -289,3 +297,16 @@ def test_a_damaged_or_resealed_checkpoint_resumes_or_is_refused(checkpoint_bytes
     except ValueError:  # exit 2, the message naming what differs (checked case by case in test_inputs_schema)
         return
     assert ds.sizes["time"] == 5 and float(ds.time[-1]) == 1.0
+
+
+test_a_damaged_or_resealed_checkpoint_resumes_or_is_refused, test_more_damaged_or_resealed_checkpoints = _quick_and_slow(
+    8,
+    30,
+    damage=st.one_of(
+        st.tuples(st.just("cut"), st.floats(0, 0.99)),
+        st.tuples(st.just("flip"), st.floats(0, 1, exclude_max=True)),
+        st.tuples(st.just("drop"), st.sampled_from(["phi", "final_phi_dot", "frame_step", "final_load_work", "split_sums", "time"])),
+        st.tuples(st.just("count"), st.sampled_from(["steps", "n_steps", "stride_steps", "chunk_steps"])),
+    ),
+    value=st.one_of(st.integers(-10, 10**6), st.floats(allow_nan=True), st.text(max_size=3)),
+)(_damaged_or_resealed_checkpoint)

@@ -167,6 +167,7 @@ def cpu_taken():
         spinner.wait()
 
 
+@pytest.mark.slow  # every core kept busy on purpose for the whole study: the suite's longest wait
 def test_a_study_whose_scheduler_dies_keeps_its_cells_and_resumes(tmp_path, monkeypatch, cpu_taken):
     """A real scheduler and worker in their own processes; the scheduler is killed after the first chunk arrives, on a loaded machine."""
     import cosserat_chain.study_runner as study_runner

@@ -85,6 +85,7 @@ def test_narrow_front_slips_into_one_bond_and_a_particle_half_turned_costs_the_s
     assert front.energy_site == pytest.approx(barrier.relaxed, rel=1e-6)
 
 
+@pytest.mark.slow  # the command's whole front, its minimum energy paths included (test_barrier_path.py tests those on their own)
 def test_theory_cli_front_reports_the_wide_front_in_json(tmp_path, capsys):
     import json
 

@@ -39,7 +39,8 @@ def _listening(process: psutil.Process) -> list[tuple[int, str, int]]:
     return found
 
 
-@pytest.mark.parametrize("dashboard", [False, True], ids=["no-dashboard", "dashboard"])
+# With the dashboard the cluster opens every listener it opens without one, and the dashboard's: the quick case.
+@pytest.mark.parametrize("dashboard", [pytest.param(False, marks=pytest.mark.slow), True], ids=["no-dashboard", "dashboard"])
 def test_the_embedded_cluster_listens_on_loopback_only(dashboard):
     sockets: list[tuple[int, str, int]] = []
     addresses: list[str] = []
