@@ -253,6 +253,7 @@ class _UndampingProblem:
         self.crossing0 = self._crossing(self.pack(start, 1.0))
 
     def pack(self, orbit: PeriodicOrbit, scale: float) -> np.ndarray:
+        """w of the start orbit at the damping's scale ``scale``."""
         return np.concatenate([_to_y(orbit.params, orbit.x, orbit.v)[self.phase.keep], [orbit.moment, scale]])
 
     def _system(self, moment: float, scale: float) -> _ScaledSystem:
@@ -292,18 +293,19 @@ class _UndampingProblem:
             closure=float(np.max(np.abs(evaluation.residual))),
         )  # fmt: skip
 
-    def _w(self, point: UndampingPoint) -> np.ndarray:
+    def packed(self, point: UndampingPoint) -> np.ndarray:
+        """w of a point of the homotopy."""
         return np.concatenate([_to_y(point.params, point.x, point.v)[self.phase.keep], [point.moment, point.gamma_scale]])
 
     def accept(self, previous: UndampingPoint, candidate: UndampingPoint) -> bool:
         # A step onto a crossing of the section the other way has slid to where the particle backs up.
-        return self._crossing(self._w(candidate)) * self.crossing0 > 0
+        return self._crossing(self.packed(candidate)) * self.crossing0 > 0
 
     def tests(self, point: UndampingPoint) -> dict[str, float]:
         return {"value": point.gamma_scale}
 
     def stop(self, point: UndampingPoint) -> tuple[BranchEnd, str] | None:
-        if abs(self._crossing(self._w(point))) < TRANSVERSAL_MIN:
+        if abs(self._crossing(self.packed(point))) < TRANSVERSAL_MIN:
             return (
                 BranchEnd.PARAMETER_LIMIT,
                 f"the flow became nearly tangent to the phase condition at s = {point.gamma_scale:.8g}: the section cannot fix the phase",
@@ -376,7 +378,7 @@ def continue_to_undamped(
         event = traced.events[-1]
         keep = np.ones(phase.head + 2, dtype=bool)
         keep[-1] = False
-        w = problem._w(event.point)
+        w = problem.packed(event.point)
         w[-1] = 0.0
         landed = newton(problem.evaluate, w, tol=tol, keep=keep, divergence=None)
         if not landed.converged:
