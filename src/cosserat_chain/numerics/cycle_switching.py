@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -146,15 +147,6 @@ def flip_vector(point: PeriodicOrbit, *, rtol: float = RTOL, atol: float = ATOL)
     return complex(values[i]), vector / np.linalg.norm(vector)
 
 
-def _doubled_problem(point: PeriodicOrbit, rtol: float, atol: float, tol: float) -> _OrbitBranchProblem:
-    """(P) with twice the turns, the moment unknown, on the located orbit's phase condition."""
-    model = get_model(point.model)
-    system = _System(point.params, model, point.moment, point.particle)
-    phase = _phase_for(system, _to_y(point.params, point.x, point.v), point.phase_normal)
-    start = dataclasses.replace(point, turns=2 * point.turns, period=2 * point.period, particle_turns=2 * point.particle_turns)
-    return _OrbitBranchProblem(start, model, phase, tol, rtol, atol, 0.0, math.inf, False, False)
-
-
 def doubled_orbit(
     point: PeriodicOrbit,
     amplitude: float,
@@ -172,7 +164,9 @@ def doubled_orbit(
         The located period doubling (:func:`~.cycle_curve.locate_cycle_end`).
     amplitude : float
         a != 0 of e . (y0 - y_PD) = a (module docstring); its sign picks one of the two starts of the
-        same doubled orbit, half a period apart.
+        same doubled orbit, half a period apart. Beyond the first of :data:`PROBE_AMPLITUDES` the
+        orbit is reached by doubling the amplitude, each orbit predicted by the parabola in a
+        through the period doubling and the two orbits before (a step that fails is halved).
     eigenvector : ndarray (2 n_free,), optional
         e, from :func:`flip_vector` by default.
     tol, rtol, atol : float
@@ -194,25 +188,75 @@ def doubled_orbit(
         raise ValueError(f"amplitude must be a finite non-zero number (along the flip eigenvector), got {amplitude!r}")
     if eigenvector is None:
         eigenvector = flip_vector(point, rtol=rtol, atol=atol)[1]
-    problem = _doubled_problem(point, rtol, atol, tol)
-    keep, head = problem.phase.keep, problem.phase.head
-    direction = np.zeros(head + 2)
-    direction[:head] = eigenvector[keep]
-    norm = float(np.linalg.norm(direction))
-    if norm < 0.1:
-        raise OrbitError(f"the flip eigenvector at M={point.moment!r} lies along the phase condition: no amplitude can be set")
-    direction /= norm
-    start = problem.pack(problem.start)
-    predictor = start + amplitude * direction
-    solved = newton(
-        problem.evaluate, predictor, tol=tol, border=(direction, predictor), max_iterations=MAX_ITERATIONS, divergence=None, damping=6
-    )
-    if not solved.converged:
-        raise OrbitError(
-            f"Newton did not converge to the doubled orbit of amplitude {amplitude!r} at the period doubling M={point.moment!r} "
-            f"({solved.iterations} iterations, closure {solved.norm:.3g}); try a smaller amplitude"
-        )
-    return problem.point(solved.w, solved.evaluation, solved.iterations)
+    march = _March(point, math.copysign(1.0, amplitude) * eigenvector, tol, rtol, atol)
+    return march.to(abs(amplitude))
+
+
+class _March:
+    """Doubled orbits of growing amplitude from one period doubling (:func:`doubled_orbit`)."""
+
+    def __init__(self, point: PeriodicOrbit, eigenvector: np.ndarray, tol: float, rtol: float, atol: float):
+        model = get_model(point.model)
+        system = _System(point.params, model, point.moment, point.particle)
+        phase = _phase_for(system, _to_y(point.params, point.x, point.v), point.phase_normal)
+        start = dataclasses.replace(point, turns=2 * point.turns, period=2 * point.period, particle_turns=2 * point.particle_turns)
+        self.point, self.tol = point, tol
+        self.problem = _OrbitBranchProblem(start, model, phase, tol, rtol, atol, 0.0, math.inf, False, False)
+        head = phase.head
+        direction = np.zeros(head + 2)
+        direction[:head] = eigenvector[phase.keep]
+        norm = float(np.linalg.norm(direction))
+        if norm < 0.1:
+            raise OrbitError(f"the flip eigenvector at M={point.moment!r} lies along the phase condition: no amplitude can be set")
+        self.direction = direction / norm
+        #: (amplitude, w) of the doubled family, from its limit at the period doubling (a = 0) on.
+        self.done: list[tuple[float, np.ndarray]] = [(0.0, self.problem.pack(start))]
+        self.orbits: dict[float, PeriodicOrbit] = {}
+
+    def _predict(self, amplitude: float) -> np.ndarray:
+        """The parabola in a through the last three solutions (the tangent e at the period doubling before two)."""
+        if len(self.done) < 3:
+            return self.done[-1][1] + (amplitude - self.done[-1][0]) * self.direction
+        (a0, w0), (a1, w1), (a2, w2) = self.done[-3:]
+        l0 = (amplitude - a1) * (amplitude - a2) / ((a0 - a1) * (a0 - a2))
+        l1 = (amplitude - a0) * (amplitude - a2) / ((a1 - a0) * (a1 - a2))
+        l2 = (amplitude - a0) * (amplitude - a1) / ((a2 - a0) * (a2 - a1))
+        return l0 * w0 + l1 * w1 + l2 * w2
+
+    def solve(self, amplitude: float) -> PeriodicOrbit | None:
+        """The doubled orbit at ``amplitude`` (above the last one solved) from the prediction, None where Newton fails."""
+        predictor = self._predict(amplitude)
+        # The border fixes e . (w - w_pred) = 0, which is the amplitude condition: the predictor satisfies it.
+        solved = newton(
+            self.problem.evaluate, predictor, tol=self.tol, border=(self.direction, predictor), max_iterations=MAX_ITERATIONS,
+            divergence=None, damping=6,
+        )  # fmt: skip
+        if not solved.converged:
+            return None
+        self.done.append((amplitude, solved.w))
+        return self.problem.point(solved.w, solved.evaluation, solved.iterations)
+
+    def to(self, amplitude: float, enough: Callable[[PeriodicOrbit], bool] | None = None) -> PeriodicOrbit:
+        """The doubled orbit at ``amplitude`` > 0, in steps from the largest one solved: each at most doubles the
+        amplitude, a failed one is halved. With ``enough``, the first orbit it accepts on the way is returned."""
+        last, orbit = self.done[-1][0], None
+        a = min(amplitude, max(PROBE_AMPLITUDES[0], 2 * last))
+        while True:
+            found = self.solve(a)
+            if found is not None:
+                orbit, last = found, a
+                if a >= amplitude or (enough is not None and enough(orbit)):
+                    return orbit
+                a = min(amplitude, 2 * a)
+            elif a - last > 0.05 * max(last, PROBE_AMPLITUDES[0]):
+                a = 0.5 * (a + last)
+            elif enough is not None and orbit is not None:
+                return orbit  # the family turns back or Newton fails beyond: the largest amplitude reached
+            else:
+                raise OrbitError(
+                    f"Newton did not converge to the doubled orbit of amplitude {a!r} at the period doubling M={self.point.moment!r}; "
+                    f"the doubled family may turn back before amplitude {amplitude!r}: try a smaller amplitude"
+                )
 
 
 def _moment_offset(point: PeriodicOrbit, orbit: PeriodicOrbit) -> float:
@@ -267,15 +311,22 @@ def switch_at_period_doubling(
         raise ValueError(f"moment_offset must be a number in (0, 1) (relative distance in M), got {moment_offset!r}")
     point = _located(start, rtol=rtol, atol=atol)
     multiplier, vector = flip_vector(point, rtol=rtol, atol=atol)
-    probes = [doubled_orbit(point, a, eigenvector=vector, tol=tol, rtol=rtol, atol=atol) for a in PROBE_AMPLITUDES]
+    march = _March(point, vector, tol, rtol, atol)
+    probes = [march.to(a) for a in PROBE_AMPLITUDES]
     # The normal form M - M_PD = c a^2 + O(a^3) (a and -a + O(a^2) start one orbit, half a period apart), by a secant in a^2.
     (a1, a2), (m1, m2) = PROBE_AMPLITUDES, [_moment_offset(point, o) for o in probes]
     coefficient = (m2 - m1) / (a2 * a2 - a1 * a1)
     if coefficient == 0:
         raise OrbitError(f"the doubled family at M={point.moment!r} does not move in M with its amplitude (a degenerate flip)")
     if amplitude is None:
-        amplitude = min(MAX_AMPLITUDE, math.sqrt(moment_offset * abs(point.moment) / abs(coefficient)))
-    doubled = doubled_orbit(point, amplitude, eigenvector=vector, tol=tol, rtol=rtol, atol=atol)
+        # The normal form's amplitude, approached in steps: the family's M bends away from c a^2 within a few times the
+        # probes on the sine chain at gamma_phi = 0.3, so the first orbit at least the wanted distance from M_PD serves.
+        wanted = moment_offset * abs(point.moment)
+        guess = max(PROBE_AMPLITUDES[-1], min(MAX_AMPLITUDE, math.sqrt(wanted / abs(coefficient))))
+        doubled = march.to(guess, enough=lambda o: abs(_moment_offset(point, o)) >= wanted)
+        amplitude = march.done[-1][0]
+    else:
+        doubled = doubled_orbit(point, amplitude, eigenvector=vector, tol=tol, rtol=rtol, atol=atol)
     doubled = find_periodic_orbit(
         point.params, point.model, doubled.moment, turns=doubled.turns, particle=point.particle, guess=doubled, tol=tol, rtol=rtol, atol=atol
     )
