@@ -285,7 +285,8 @@ def switch_at_period_doubling(
         multiplier passes -1 (the first such passage is located).
     amplitude : float, optional
         a of the first doubled orbit along the flip eigenvector; by default the normal form's
-        amplitude for |M - M_PD| = ``moment_offset`` |M_PD| (capped at :data:`MAX_AMPLITUDE`).
+        amplitude for |M - M_PD| = ``moment_offset`` |M_PD| (capped at :data:`MAX_AMPLITUDE`; the orbit
+        lies about that far from M_PD, or nearer where the family bends away from c a^2 sooner).
     moment_offset : float
         Relative distance in M of the first doubled orbit from the period doubling (default amplitude only).
     follow : bool
@@ -320,7 +321,7 @@ def switch_at_period_doubling(
         raise OrbitError(f"the doubled family at M={point.moment!r} does not move in M with its amplitude (a degenerate flip)")
     if amplitude is None:
         # The normal form's amplitude, approached in steps: the family's M bends away from c a^2 within a few times the
-        # probes on the sine chain at gamma_phi = 0.3, so the first orbit at least the wanted distance from M_PD serves.
+        # probes on the sine chain at gamma_phi = 0.3, so the first orbit at the wanted distance from M_PD serves.
         wanted = moment_offset * abs(point.moment)
         guess = max(PROBE_AMPLITUDES[-1], min(MAX_AMPLITUDE, math.sqrt(wanted / abs(coefficient))))
         doubled = march.to(guess, enough=lambda o: abs(_moment_offset(point, o)) >= wanted)

@@ -1,0 +1,175 @@
+"""Branch switching at a period doubling (issue 40, item 4): ``numerics.cycle_switching``.
+
+The nonlinear paper chain at gamma_phi = 0.2 loses its one-turn orbit at a period doubling near
+M = 0.19665 (``tests/test_periodic_jacobian.py``). The doubled orbit must behave as the normal form
+says where its amplitude a vanishes (period 2 T_PD + O(a^2), M_PD + O(a^2), multipliers the squares
+of the one-turn orbit's + O(a^2)), be a genuine orbit of period 2T (not the one-turn orbit traversed
+twice), and be the orbit a simulation settles on below the period doubling.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+import scipy.optimize as so
+
+from cosserat_chain import ChainParams
+from cosserat_chain.numerics.continuation import locate_fold
+from cosserat_chain.numerics.cycle_switching import PeriodDoubling, doubled_orbit, flip_vector, switch_at_period_doubling
+from cosserat_chain.numerics.periodic import OrbitError, continue_orbit, find_periodic_orbit
+
+PARAMS = ChainParams(gamma_phi=0.2)
+AMPLITUDES = (1e-3, 2e-3, 4e-3)
+
+
+@pytest.fixture(scope="module")
+def branch():
+    """The one-turn orbit followed down from 0.2172 to its first unstable orbit (below the period doubling)."""
+    return continue_orbit(find_periodic_orbit(PARAMS, "nonlinear", 0.2172), period_max=100.0, until_unstable=True)
+
+
+@pytest.fixture(scope="module")
+def switch(branch) -> PeriodDoubling:
+    return switch_at_period_doubling(branch, max_points=4, period_max=100.0)
+
+
+@pytest.fixture(scope="module")
+def family(switch):
+    """Doubled orbits of small amplitudes at the located period doubling."""
+    return [doubled_orbit(switch.point, a, eigenvector=switch.eigenvector) for a in AMPLITUDES]
+
+
+def half_period_gap(orbit) -> float:
+    """max |state at T/2 - start| with the loaded angle's half of the turns taken off: zero for an orbit of period T/2."""
+    x, v = orbit.trajectory(np.array([orbit.period / 2]))
+    x = x[0] - 2 * math.pi * (orbit.particle_turns // 2)[None, :] * np.array([[0], [0], [1]])
+    return float(max(np.abs(x - orbit.x).max(), np.abs(v[0] - orbit.v).max()))
+
+
+def test_the_switch_starts_at_the_located_period_doubling(switch, branch):
+    point = switch.point
+    assert point.moment == pytest.approx(0.19665, abs=1e-5)
+    assert abs(switch.multiplier + 1.0) < 1e-8
+    # Between the last stable and the first unstable one-turn orbit of the branch.
+    assert branch.orbits[-1].moment < point.moment < branch.orbits[-2].moment
+    # The eigenvector is the monodromy's for -1: flip_vector of the same orbit gives it again.
+    again = flip_vector(point)[1]
+    assert min(np.abs(again - switch.eigenvector).max(), np.abs(again + switch.eigenvector).max()) < 1e-6
+
+
+def test_the_doubled_orbit_tends_to_twice_the_period_and_the_moment_of_the_period_doubling(switch, family):
+    point = switch.point
+    period = np.array([o.period for o in family])
+    moment = np.array([o.moment for o in family])
+    a = np.array(AMPLITUDES)
+    for orbit in family:
+        assert orbit.turns == 2 and np.array_equal(orbit.particle_turns, 2 * point.particle_turns)
+        assert orbit.closure <= 1e-9
+    # O(a^2): doubling a multiplies the offsets by about 4 ...
+    for offset in (period - 2 * point.period, moment - point.moment):
+        ratios = offset[1:] / offset[:-1]
+        assert np.all((3.5 < ratios) & (ratios < 4.5)), ratios
+    # ... and the limit a -> 0 of T = T0 + p a^2 + q a^3 through the three is 2 T_PD to the located accuracy.
+    limit = np.linalg.solve(np.column_stack([np.ones(3), a**2, a**3]), period)[0]
+    assert limit == pytest.approx(2 * point.period, rel=1e-8)
+    assert np.linalg.solve(np.column_stack([np.ones(3), a**2, a**3]), moment)[0] == pytest.approx(point.moment, abs=1e-9)
+    # The normal form's coefficient c of M - M_PD = c a^2 (the switch's secant) agrees with these orbits.
+    assert (moment[0] - point.moment) / a[0] ** 2 == pytest.approx(switch.coefficient, rel=0.1)
+
+
+def test_the_doubled_orbits_multipliers_are_the_squares_of_the_one_turn_orbits(switch, family):
+    squares = switch.point.multipliers**2
+    distances = []
+    for orbit in family:
+        gap = np.abs(squares[:, None] - orbit.multipliers[None, :])
+        rows, cols = so.linear_sum_assignment(gap)
+        distances.append(gap[rows, cols].max())
+        # The -1 became a second multiplier near +1 beside the trivial one, but not +1 itself: no double cover.
+        near_one = np.sort(np.abs(orbit.multipliers - 1.0))
+        assert near_one[0] < 1e-8 and 1e-6 < near_one[1] < 1e-2
+    distances = np.array(distances)
+    assert distances[0] < 1e-3
+    assert np.all((3.0 < distances[1:] / distances[:-1]) & (distances[1:] / distances[:-1] < 5.0)), distances
+
+
+def test_the_doubled_orbit_is_a_genuine_orbit_of_twice_the_period(switch, family):
+    # At T/2 the doubled orbit is O(a) away from its start (y_PD + a e against y_PD - a e, each moved back onto the
+    # section along the flow): not the one-turn orbit twice.
+    gaps = np.array([half_period_gap(orbit) for orbit in family])
+    for a, gap, orbit in zip(AMPLITUDES, gaps, family):
+        assert 1e3 * orbit.closure < a < gap
+    assert np.all((1.8 < gaps[1:] / gaps[:-1]) & (gaps[1:] / gaps[:-1] < 2.2)), gaps
+    # The one-turn orbit itself closes after half the period (the check's own control).
+    point = switch.point
+    doubled_point = dataclasses.replace(point, turns=2, period=2 * point.period, particle_turns=2 * point.particle_turns)
+    assert half_period_gap(doubled_point) < 1e-7
+
+
+def test_the_doubled_family_lies_below_and_takes_over_the_stability(switch, branch):
+    point, doubled = switch.point, switch.doubled
+    assert switch.side == "below" and switch.coefficient < 0  # a supercritical flip of an orbit that loses stability downwards
+    # About the default relative distance MOMENT_OFFSET = 1e-4 from the period doubling (the normal form's amplitude).
+    assert doubled.moment < point.moment and 0.5e-4 < (point.moment - doubled.moment) / point.moment < 2e-4
+    assert doubled.stable and not branch.orbits[-1].stable
+    assert doubled.period == pytest.approx(2 * point.period, rel=1e-2)
+    # Followed down in M: every orbit of the family has two turns, a period near 2T, and stays stable near the switch.
+    followed = switch.branch
+    assert followed is not None and len(followed.orbits) >= 3
+    assert np.all(np.diff(followed.moment) < 0)
+    assert all(o.turns == 2 and o.stable for o in followed.orbits)
+    assert np.allclose(followed.period, 2 * point.period, rtol=1e-2)
+    assert switch.as_dict()["side"] == "below"
+
+
+def test_a_located_orbit_switches_as_its_branch_does(switch):
+    again = switch_at_period_doubling(switch.point, follow=False)
+    assert again.branch is None
+    assert again.doubled.moment == pytest.approx(switch.doubled.moment, abs=1e-10)
+    assert again.doubled.period == pytest.approx(switch.doubled.period, abs=1e-8)
+
+
+def test_bad_input_is_refused_with_the_value(switch, branch):
+    with pytest.raises(ValueError, match="amplitude must be a finite non-zero"):
+        doubled_orbit(switch.point, 0.0, eigenvector=switch.eigenvector)
+    with pytest.raises(ValueError, match="amplitude must be a finite non-zero"):
+        doubled_orbit(switch.point, float("nan"), eigenvector=switch.eigenvector)
+    with pytest.raises(ValueError, match="moment_offset must be a number in"):
+        switch_at_period_doubling(switch.point, moment_offset=2.0)
+    with pytest.raises(ValueError, match="no real Floquet multiplier passes -1"):
+        switch_at_period_doubling(dataclasses.replace(branch, orbits=branch.orbits[:2]))
+    with pytest.raises(ValueError, match="start must be a PeriodicOrbit or an OrbitBranch"):
+        switch_at_period_doubling("orbit")
+
+
+@pytest.mark.slow
+def test_a_simulation_below_the_period_doubling_settles_on_the_doubled_orbit(switch):
+    """Independent of the switch: Newton with two turns from a simulation that has settled (Yoshida-4 from rest)."""
+    doubled = switch.branch.orbits[-1]
+    simulated = find_periodic_orbit(PARAMS, "nonlinear", doubled.moment, turns=2)
+    assert simulated.period == pytest.approx(doubled.period, rel=1e-9)
+    assert simulated.max_multiplier == pytest.approx(doubled.max_multiplier, abs=1e-6)
+
+
+@pytest.mark.slow
+def test_the_sine_chain_above_its_static_fold_doubles_its_period_at_gamma_phi_03():
+    """The sine chain at gamma_phi = 0.3 period-doubles at M = 0.2105 > M_c (``tests/test_diagram.py``): the
+    doubled orbit is stable below it, where the one-turn orbit is not."""
+    params = ChainParams(gamma_phi=0.3)
+    one_turn = find_periodic_orbit(params, "sine", 1.1 * locate_fold(params, "sine").moment)
+    branch = continue_orbit(one_turn, period_max=100.0, until_unstable=True)
+    switch = switch_at_period_doubling(branch, max_points=5)
+    assert switch.point.moment == pytest.approx(0.21057, abs=1e-5)
+    assert switch.side == "below" and switch.doubled.stable and not branch.orbits[-1].stable
+    assert switch.doubled.period == pytest.approx(2 * switch.point.period, rel=1e-2)
+    assert half_period_gap(switch.doubled) > 1e3 * switch.doubled.closure
+
+
+def test_an_orbit_without_a_real_negative_multiplier_has_no_flip_vector(switch):
+    orbit = dataclasses.replace(switch.point, multipliers=np.array([1.0 + 0j]))
+    # The multipliers are recomputed from the monodromy: the located orbit has its -1 whatever it carries.
+    assert abs(flip_vector(orbit)[0] + 1.0) < 1e-8
+    with pytest.raises(OrbitError, match="no real negative Floquet multiplier"):
+        flip_vector(dataclasses.replace(switch.point, period=1e-3))
