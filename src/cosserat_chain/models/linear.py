@@ -25,7 +25,7 @@ from numba import njit
 
 from ..params import ChainParams
 from ..state import bonded, check_state, scatter_bonds, zero_held
-from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks, put_row
+from .base import BATCH_FORCE_SIGNATURE, BOND_BLOCK, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks, put_six
 from .trig import sincos
 
 
@@ -179,6 +179,33 @@ def cosserat_end_columns(x, coef, out, first, last, ring, sine):  # pragma: no c
 
 
 @njit(inline="always", **KERNEL_OPTIONS)
+def _cosserat_bond_rows(k_u, k_v, h, bend, couple, x, work, start, i):  # pragma: no cover - compiled
+    """Bond start + i's 40 rows (the bond kernel's layout) into column i of the block's scratch ``work``,
+    whose rows 40 and 41 hold the block's angles a (phi or sin phi) and da/dphi."""
+    width = BOND_BLOCK
+    one = np.uint64(1)
+    k = start + i
+    a0, a1 = work[40 * width + i], work[40 * width + i + one]
+    da0, da1 = work[41 * width + 1 + i], work[41 * width + 1 + i + one]
+    fx, fy, m0, m1 = cosserat_bond(k_u, k_v, h, bend, couple, x[0, k + one] - x[0, k], x[1, k + one] - x[1, k], a0, a1)
+    work[i] = fx
+    work[width + i] = fy
+    work[2 * width + i] = m0
+    work[3 * width + i] = m1
+    twist = bend + 0.25 * couple
+    lever = couple / (2.0 * h)
+    shear0, shear1 = -0.5 * h * da0, -0.5 * h * da1  # ds/dphi0, ds/dphi1
+    # Rows of the left particle's (fx, fy, m0), then the right one's (-fx, -fy, m1), over
+    # (u0, v0, phi0, u1, v1, phi1).
+    put_six(work, width, 4, i, -k_u, 0.0, 0.0, k_u, 0.0, 0.0)
+    put_six(work, width, 10, i, 0.0, -k_v, k_v * shear0, 0.0, k_v, k_v * shear1)
+    put_six(work, width, 16, i, 0.0, -lever, -twist * da0 + lever * shear0, 0.0, lever, twist * da1 + lever * shear1)
+    put_six(work, width, 22, i, k_u, 0.0, 0.0, -k_u, 0.0, 0.0)
+    put_six(work, width, 28, i, 0.0, k_v, -k_v * shear0, 0.0, -k_v, -k_v * shear1)
+    put_six(work, width, 34, i, 0.0, -lever, twist * da0 + lever * shear0, 0.0, lever, -twist * da1 + lever * shear1)
+
+
+@njit(inline="always", **KERNEL_OPTIONS)
 def cosserat_bonds(x, coef, out, first, last, sine):  # pragma: no cover - compiled
     """Bonds first..last-1 of eqs. (2)-(3) with their exact Jacobian (the bond kernel's layout,
     :data:`~.base.BOND_ROWS`), ``sine`` as in :func:`cosserat_graded`, for either layout of ``coef``.
@@ -186,33 +213,34 @@ def cosserat_bonds(x, coef, out, first, last, sine):  # pragma: no cover - compi
     The bond's forces (:func:`cosserat_bond`) are linear in (du, dv, a0, a1), with a = sin phi
     (eq. 2, da/dphi = cos phi) or phi (eq. 3); with T = bend + couple / 4 and
     L = couple / (2 h): fx = k_u du, fy = k_v s, m0 = T (a1 - a0) + L s, m1 = L s - T (a1 - a0),
-    s = dv - h (a0 + a1) / 2.
+    s = dv - h (a0 + a1) / 2. In blocks of :data:`~.base.BOND_BLOCK` bonds through scratch, a loop
+    of its own for the uniform and the graded chain, as the nonlinear model's bond kernel (SIMD across bonds).
     """
     graded = coef.size > GRADED_OFFSET
     n_bonds = (coef.size - GRADED_OFFSET) // 4
     h = coef[2]
-    for k in range(first, last):
+    width = BOND_BLOCK
+    work = np.empty(42 * width + 2)
+    one = np.uint64(1)
+    for begin in range(first, last, width):
+        start = np.uint64(begin)
+        m = np.uint64(min(width, last - begin))
+        for i in range(m + one):
+            phi = x[2, start + i]
+            s, c = sincos(phi)
+            work[40 * width + i] = s if sine else phi
+            work[41 * width + 1 + i] = c if sine else 1.0
         if graded:
-            k_u, k_v = coef[GRADED_OFFSET + k], coef[GRADED_OFFSET + n_bonds + k]
-            bend, couple = coef[GRADED_OFFSET + 2 * n_bonds + k], coef[GRADED_OFFSET + 3 * n_bonds + k]
+            k_u, k_v = coef[GRADED_OFFSET + begin :], coef[GRADED_OFFSET + n_bonds + begin :]
+            bend, couple = coef[GRADED_OFFSET + 2 * n_bonds + begin :], coef[GRADED_OFFSET + 3 * n_bonds + begin :]
+            for i in range(m):
+                _cosserat_bond_rows(k_u[i], k_v[i], h, bend[i], couple[i], x, work, start, i)
         else:
-            k_u, k_v, bend, couple = coef[0], coef[1], coef[3], coef[4]
-        s0, c0 = sincos(x[2, k])
-        s1, c1 = sincos(x[2, k + 1])
-        a0, a1, da0, da1 = (s0, s1, c0, c1) if sine else (x[2, k], x[2, k + 1], 1.0, 1.0)
-        fx, fy, m0, m1 = cosserat_bond(k_u, k_v, h, bend, couple, x[0, k + 1] - x[0, k], x[1, k + 1] - x[1, k], a0, a1)
-        out[0, k], out[1, k], out[2, k], out[3, k] = fx, fy, m0, m1
-        twist = bend + 0.25 * couple
-        lever = couple / (2.0 * h)
-        shear0, shear1 = -0.5 * h * da0, -0.5 * h * da1  # ds/dphi0, ds/dphi1
-        # Rows of the left particle's (fx, fy, m0), then the right one's (-fx, -fy, m1), over
-        # (u0, v0, phi0, u1, v1, phi1).
-        put_row(out, 4, k, -k_u, 0.0, 0.0, k_u, 0.0, 0.0)
-        put_row(out, 10, k, 0.0, -k_v, k_v * shear0, 0.0, k_v, k_v * shear1)
-        put_row(out, 16, k, 0.0, -lever, -twist * da0 + lever * shear0, 0.0, lever, twist * da1 + lever * shear1)
-        put_row(out, 22, k, k_u, 0.0, 0.0, -k_u, 0.0, 0.0)
-        put_row(out, 28, k, 0.0, k_v, -k_v * shear0, 0.0, -k_v, -k_v * shear1)
-        put_row(out, 34, k, 0.0, -lever, twist * da0 + lever * shear0, 0.0, lever, -twist * da1 + lever * shear1)
+            for i in range(m):
+                _cosserat_bond_rows(coef[0], coef[1], h, coef[3], coef[4], x, work, start, i)
+        for row in range(40):
+            for i in range(m):
+                out[row, start + i] = work[row * width + i]
 
 
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)

@@ -27,6 +27,7 @@ from ..params import ChainParams
 from ..state import bonded, check_state, scatter_bonds, zero_held
 from .base import (
     BATCH_FORCE_SIGNATURE,
+    BOND_BLOCK,
     BOND_SUMS,
     END_SIGNATURE,
     FORCE_SIGNATURE,
@@ -34,7 +35,7 @@ from .base import (
     LANES,
     Model,
     assemble_bond_sums,
-    put_row,
+    put_six,
     stack_floats,
 )
 from .linear import max_frequency
@@ -444,47 +445,71 @@ def _hessian_sums(x, h, corners, rests, stiffness, sums):  # pragma: no cover - 
                 sums[row, start + i] = work[row * width + i]
 
 
+@njit(inline="always", **KERNEL_OPTIONS)
+def _bond_rows(a, b, h, rest1, rest2, e1, e2, x, work, start, i):  # pragma: no cover - compiled
+    """Bond start + i's 40 rows (the bond kernel's layout) into column i of the block's scratch ``work``."""
+    width = BOND_BLOCK
+    one = np.uint64(1)
+    k = start + i
+    s0, s1 = work[40 * width + i], work[40 * width + i + one]
+    c0, c1 = work[41 * width + 1 + i], work[41 * width + 1 + i + one]
+    u0, u1, dv = x[0, k], x[0, k + one], x[1, k + one] - x[1, k]
+    t0 = _link_hessian(a, b, -a, b, e1, rest1, h, c0, s0, c1, s1, u0, u1, dv)
+    t1 = _link_hessian(a, -b, -a, -b, e1, rest1, h, c0, s0, c1, s1, u0, u1, dv)
+    t2 = _link_hessian(a, b, -a, -b, e2, rest2, h, c0, s0, c1, s1, u0, u1, dv)
+    t3 = _link_hessian(a, -b, -a, b, e2, rest2, h, c0, s0, c1, s1, u0, u1, dv)
+    work[i] = t0[10] + t1[10] + t2[10] + t3[10]
+    work[width + i] = t0[11] + t1[11] + t2[11] + t3[11]
+    work[2 * width + i] = t0[12] + t1[12] + t2[12] + t3[12]
+    work[3 * width + i] = t0[13] + t1[13] + t2[13] + t3[13]
+    uu, uv, vv = t0[0] + t1[0] + t2[0] + t3[0], t0[1] + t1[1] + t2[1] + t3[1], t0[2] + t1[2] + t2[2] + t3[2]
+    u_p0, v_p0 = t0[3] + t1[3] + t2[3] + t3[3], t0[4] + t1[4] + t2[4] + t3[4]
+    u_p1, v_p1 = t0[5] + t1[5] + t2[5] + t3[5], t0[6] + t1[6] + t2[6] + t3[6]
+    p0p0, p1p1, p0p1 = t0[7] + t1[7] + t2[7] + t3[7], t0[8] + t1[8] + t2[8] + t3[8], t0[9] + t1[9] + t2[9] + t3[9]
+    # Minus the Hessian (BOND_SUMS' signs: the left particle's translations enter with -1), row by row.
+    put_six(work, width, 4, i, -uu, -uv, u_p0, uu, uv, u_p1)
+    put_six(work, width, 10, i, -uv, -vv, v_p0, uv, vv, v_p1)
+    put_six(work, width, 16, i, u_p0, v_p0, -p0p0, -u_p0, -v_p0, -p0p1)
+    put_six(work, width, 22, i, uu, uv, -u_p0, -uu, -uv, -u_p1)
+    put_six(work, width, 28, i, uv, vv, -v_p0, -uv, -vv, -v_p1)
+    put_six(work, width, 34, i, u_p1, v_p1, -p0p1, -u_p1, -v_p1, -p1p1)
+
+
 @njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
 def nonlinear_bond_kernel(x, coef, out, first, last):  # pragma: no cover - compiled
     """Bonds first..last-1: the forces and their Jacobian, minus the Hessian, summed over the four
     links (:func:`_link_hessian`; top A-C and bottom B-D with E1, diagonals A-D and B-C with E2),
     for either layout of ``coef``.
 
-    Bond k's E1 and E2 are read at k * stride from the uniform scalars (stride 0) or the graded
-    tail (stride 1), and the indices are unsigned: no branch and no wrap-around in the loop,
-    which then vectorises across bonds.
+    Written for SIMD across bonds, as :func:`_hessian_sums`: blocks of :data:`~.base.BOND_BLOCK` bonds in
+    one scratch array at offsets fixed at compile time (40 rows, then the sines and cosines of the
+    block's columns), unsigned indices, a loop of its own for the uniform and the graded chain (no
+    branch in either), and the rows copied out at the end of each block.
     """
     a, b, h, rest1, rest2 = coef[0], coef[1], coef[2], coef[5], coef[6]
     graded = coef.size > GRADED_OFFSET
     n_bonds = (coef.size - GRADED_OFFSET) // 2
-    E1 = coef[GRADED_OFFSET:] if graded else coef[3:4]
-    E2 = coef[GRADED_OFFSET + n_bonds :] if graded else coef[4:5]
-    stride = np.uint64(1 if graded else 0)
+    width = BOND_BLOCK
+    work = np.empty(42 * width + 2)
     one = np.uint64(1)
-    for k in range(np.uint64(first), np.uint64(last)):
-        e1, e2 = E1[k * stride], E2[k * stride]
-        s0, c0 = sincos(x[2, k])
-        s1, c1 = sincos(x[2, k + one])
-        u0, u1, dv = x[0, k], x[0, k + one], x[1, k + one] - x[1, k]
-        t0 = _link_hessian(a, b, -a, b, e1, rest1, h, c0, s0, c1, s1, u0, u1, dv)
-        t1 = _link_hessian(a, -b, -a, -b, e1, rest1, h, c0, s0, c1, s1, u0, u1, dv)
-        t2 = _link_hessian(a, b, -a, -b, e2, rest2, h, c0, s0, c1, s1, u0, u1, dv)
-        t3 = _link_hessian(a, -b, -a, b, e2, rest2, h, c0, s0, c1, s1, u0, u1, dv)
-        out[0, k] = t0[10] + t1[10] + t2[10] + t3[10]
-        out[1, k] = t0[11] + t1[11] + t2[11] + t3[11]
-        out[2, k] = t0[12] + t1[12] + t2[12] + t3[12]
-        out[3, k] = t0[13] + t1[13] + t2[13] + t3[13]
-        uu, uv, vv = t0[0] + t1[0] + t2[0] + t3[0], t0[1] + t1[1] + t2[1] + t3[1], t0[2] + t1[2] + t2[2] + t3[2]
-        u_p0, v_p0 = t0[3] + t1[3] + t2[3] + t3[3], t0[4] + t1[4] + t2[4] + t3[4]
-        u_p1, v_p1 = t0[5] + t1[5] + t2[5] + t3[5], t0[6] + t1[6] + t2[6] + t3[6]
-        p0p0, p1p1, p0p1 = t0[7] + t1[7] + t2[7] + t3[7], t0[8] + t1[8] + t2[8] + t3[8], t0[9] + t1[9] + t2[9] + t3[9]
-        # Minus the Hessian (BOND_SUMS' signs: the left particle's translations enter with -1).
-        put_row(out, 4, k, -uu, -uv, u_p0, uu, uv, u_p1)
-        put_row(out, 10, k, -uv, -vv, v_p0, uv, vv, v_p1)
-        put_row(out, 16, k, u_p0, v_p0, -p0p0, -u_p0, -v_p0, -p0p1)
-        put_row(out, 22, k, uu, uv, -u_p0, -uu, -uv, -u_p1)
-        put_row(out, 28, k, uv, vv, -v_p0, -uv, -vv, -v_p1)
-        put_row(out, 34, k, u_p1, v_p1, -p0p1, -u_p1, -v_p1, -p1p1)
+    for begin in range(first, last, width):
+        start = np.uint64(begin)
+        m = np.uint64(min(width, last - begin))
+        for i in range(m + one):
+            s, c = sincos(x[2, start + i])
+            work[40 * width + i] = s
+            work[41 * width + 1 + i] = c
+        if graded:
+            E1, E2 = coef[GRADED_OFFSET + begin :], coef[GRADED_OFFSET + n_bonds + begin :]
+            for i in range(m):
+                _bond_rows(a, b, h, rest1, rest2, E1[i], E2[i], x, work, start, i)
+        else:
+            e1, e2 = coef[3], coef[4]
+            for i in range(m):
+                _bond_rows(a, b, h, rest1, rest2, e1, e2, x, work, start, i)
+        for row in range(40):
+            for i in range(m):
+                out[row, start + i] = work[row * width + i]
 
 
 def _links(params: ChainParams, x: np.ndarray):

@@ -66,7 +66,7 @@ from numba import njit
 from ..errors import CosseratChainError
 from ..loads import moment_load
 from ..memory import FLOAT, require
-from ..models.base import BOND_ROWS, Model, get_model, no_ends
+from ..models.base import BOND_BLOCK, BOND_ROWS, Model, get_model, no_ends
 from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, force_columns, free_index, held, n_free, pack, per_dof, unpack, zeros
 from ..state import dof as free_dof
@@ -123,15 +123,17 @@ ProgressCallback = Callable[[float, float], None]
 
 @njit(inline="always", cache=True, nogil=True, error_model="numpy")
 def _unpack_layout(ipar):  # pragma: no cover - compiled
-    """ipar = (n, load_dof, ncols, nf, start, stop, row (nf), col (nf), lookup (3 n)[, 1 for the
-    Hamiltonian unfolding of _UndampedSystem]), as _System.parameters lays it out: [start, stop) the
-    columns that move, (row[i], col[i]) the place of free degree of freedom i in x (no division in the
-    loops: benchmarks/TIMINGS.md), lookup[3 column + row] the free index (-1 where an end holds it)."""
+    """ipar = (n, load_dof, ncols, nf, start, stop, row (nf), col (nf), lookup (3 n), neighbours (9 nf)[, 1
+    for the Hamiltonian unfolding of _UndampedSystem]), as _System.parameters lays it out: [start, stop)
+    the columns that move, (row[i], col[i]) the place of free degree of freedom i in x (no division in
+    the loops: benchmarks/TIMINGS.md), lookup[3 column + row] the free index (-1 where an end holds it),
+    neighbours[9 i + 3 o + r] the free index of row r of column col[i] - 1 + o (-1 where there is none)."""
     n, nf = ipar[0], ipar[3]
     row = ipar[6 : 6 + nf]
     col = ipar[6 + nf : 6 + 2 * nf]
     lookup = ipar[6 + 2 * nf : 6 + 2 * nf + 3 * n]
-    return n, ipar[1], ipar[2], nf, ipar[4], ipar[5], row, col, lookup
+    neighbours = ipar[6 + 2 * nf + 3 * n : 6 + 11 * nf + 3 * n]
+    return n, ipar[1], ipar[2], nf, ipar[4], ipar[5], row, col, lookup, neighbours
 
 
 @njit(inline="always", cache=True, nogil=True, error_model="numpy")
@@ -155,41 +157,42 @@ def _accelerations(y, dy, f, rpar, nf, load_dof, row, col):  # pragma: no cover 
 
 
 @njit(inline="always", cache=True, nogil=True, error_model="numpy")
-def _variations(y, dy, jacobian, rpar, ipar, n, nf, ncols, load_dof, col, lookup):  # pragma: no cover - compiled
-    """The variational equations Phi' = A Phi with dF/dq given as ``jacobian`` (nf, 9): the derivative of
+def _variations(y, dy, jacobian, rpar, ipar, n, nf, ncols, load_dof, neighbours):  # pragma: no cover - compiled
+    """The variational equations Phi' = A Phi with dF/dq given as ``jacobian`` (9 nf): the derivative of
     free degree of freedom i's force by (u, v, phi) of its column's left neighbour, itself and its right
-    neighbour (block tridiagonal: a column's forces read only its two neighbours), so the product costs
-    O(nf ncols), not the O(nf^2 ncols) of a dense one (benchmarks/TIMINGS.md)."""
+    neighbour at 9 i + 3 o + r (block tridiagonal: a column's forces read only its two neighbours), so the
+    product costs O(nf ncols), not the O(nf^2 ncols) of a dense one (benchmarks/TIMINGS.md). Phi is read
+    and written at flat offsets, no row views: with few columns (a Krylov product) the views' set-up
+    cost more than the arithmetic."""
     inv_mass = rpar[1 : 1 + nf]
     damping_rate = rpar[1 + nf : 1 + 2 * nf]
-    phi = y[2 * nf :].reshape((2 * nf, ncols))
-    dphi = dy[2 * nf :].reshape((2 * nf, ncols))
-    dphi[:nf] = phi[nf:]
+    base = 2 * nf
+    velocities = base + nf * ncols
+    for index in range(nf * ncols):
+        dy[base + index] = y[velocities + index]
     for i in range(nf):
-        out = dphi[nf + i]
-        velocity = phi[nf + i]
+        out = velocities + i * ncols
+        rate = damping_rate[i]
         for k in range(ncols):
-            out[k] = -damping_rate[i] * velocity[k]
+            dy[out + k] = -rate * y[out + k]
         for slot in range(9):
-            p = col[i] - 1 + slot // 3
-            if p < 0 or p >= n:
-                continue
-            j = lookup[3 * p + slot % 3]
+            j = neighbours[9 * i + slot]
             if j < 0:
                 continue
-            weight = jacobian[i, slot] * inv_mass[i]
-            column = phi[j]
+            weight = jacobian[9 * i + slot] * inv_mass[i]
+            column = base + j * ncols
             for k in range(ncols):
-                out[k] += weight * column[k]
+                dy[out + k] += weight * y[column + k]
     if ncols == 2 * nf + 1:
-        if ipar.size > 6 + 2 * nf + 3 * n:
+        last = ncols - 1
+        if ipar.size > 6 + 11 * nf + 3 * n:
             # The last column is dy/deps of the Hamiltonian unfolding (a uniform damping rate
             # eps on every velocity, ipar's extra entry): d(-eps v)/deps = -v.
             for i in range(nf):
-                dphi[nf + i, ncols - 1] -= y[nf + i]
+                dy[velocities + i * ncols + last] -= y[nf + i]
         else:
             # The last column is dy/dM: the moment enters the loaded particle's equation.
-            dphi[nf + load_dof, ncols - 1] += inv_mass[load_dof]
+            dy[velocities + load_dof * ncols + last] += inv_mass[load_dof]
 
 
 @njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
@@ -197,7 +200,7 @@ def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - co
     # Autonomous: t is not read. The forces from the model's chain and end kernels; with
     # variational columns, dF/dq by fourth-order central differences of them, (8 (F(q + h) -
     # F(q - h)) - (F(q + 2h) - F(q - 2h))) / 12h, for a model without a bond kernel.
-    n, load_dof, ncols, nf, start, stop, row, col, lookup = _unpack_layout(ipar)
+    n, load_dof, ncols, nf, start, stop, row, col, lookup, neighbours = _unpack_layout(ipar)
     ends = start == 0 or stop == n
     x = _state_of(y, nf, n, row, col)
     f = np.zeros((3, n))
@@ -209,7 +212,7 @@ def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - co
         return
     # Coloured: perturbing row r of every third moving column at once is exact because a
     # column's forces read only its two neighbours (an end column's only its one).
-    jacobian = np.zeros((nf, 9))
+    jacobian = np.zeros(9 * nf)
     xp = np.empty_like(x)
     xm = np.empty_like(x)
     fp = np.zeros((3, n))
@@ -242,40 +245,44 @@ def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - co
                     for rr in range(3):
                         i = lookup[3 * c + rr]
                         if i >= 0:
-                            jacobian[i, 3 * (p - c + 1) + r] = diff[rr, c] / (12.0 * FD_STEP)
-    _variations(y, dy, jacobian, rpar, ipar, n, nf, ncols, load_dof, col, lookup)
+                            jacobian[9 * i + 3 * (p - c + 1) + r] = diff[rr, c] / (12.0 * FD_STEP)
+    _variations(y, dy, jacobian, rpar, ipar, n, nf, ncols, load_dof, neighbours)
 
 
 @njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
 def _bond_rhs(bond_force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
     # _rhs for a model with a bond kernel (``bond_force``; ``end_force`` is not read): the forces
-    # and their exact Jacobian bond by bond. Free degree of freedom i (row r of column c) takes
-    # the left half of bond c and the right half of bond c - 1 (models.base: the bond kernel's rows).
-    n, load_dof, ncols, nf, start, stop, row, col, lookup = _unpack_layout(ipar)
+    # and their exact Jacobian bond by bond. Row r of column c takes the left half of bond c and the
+    # right half of bond c - 1 (models.base: the bond kernel's rows). The bonds come a block at a time
+    # and their columns are read at once, while the block's rows are in the L1 cache (read column by
+    # column from the whole array, each value a cache miss: they cost more than the bonds themselves).
+    n, load_dof, ncols, nf, start, stop, row, col, lookup, neighbours = _unpack_layout(ipar)
     x = _state_of(y, nf, n, row, col)
     bonds = np.empty((BOND_ROWS, n - 1))
-    bond_force(x, coef, bonds, 0, n - 1)
     f = np.zeros((3, n))
-    for k in range(n - 1):
-        f[0, k] += bonds[0, k]
-        f[1, k] += bonds[1, k]
-        f[2, k] += bonds[2, k]
-        f[0, k + 1] -= bonds[0, k]
-        f[1, k + 1] -= bonds[1, k]
-        f[2, k + 1] += bonds[3, k]
+    jacobian = np.zeros(9 * nf)
+    for begin in range(0, n - 1, BOND_BLOCK):
+        end = min(begin + BOND_BLOCK, n - 1)
+        bond_force(x, coef, bonds, begin, end)
+        for c in range(begin, end + 1 if end == n - 1 else end):
+            for r in range(3):
+                if c < n - 1:  # bond c: the left particle's force r, by columns c, c + 1 (slots 3 to 8)
+                    f[r, c] += bonds[r, c]
+                if c > 0:  # bond c - 1: the right particle's (-fx, -fy, m1)
+                    f[r, c] += bonds[3, c - 1] if r == 2 else -bonds[r, c - 1]
+                i = lookup[3 * c + r]
+                if ncols == 0 or i < 0:
+                    continue
+                if c < n - 1:
+                    for k in range(6):
+                        jacobian[9 * i + 3 + k] += bonds[4 + 6 * r + k, c]
+                if c > 0:  # by columns c - 1, c (slots 0 to 5)
+                    for k in range(6):
+                        jacobian[9 * i + k] += bonds[4 + 6 * (3 + r) + k, c - 1]
     _accelerations(y, dy, f, rpar, nf, load_dof, row, col)
     if ncols == 0:
         return
-    jacobian = np.zeros((nf, 9))
-    for i in range(nf):
-        r, c = row[i], col[i]
-        if c < n - 1:  # bond c: its left particle's rows over columns c, c + 1 (slots 3 to 8)
-            for k in range(6):
-                jacobian[i, 3 + k] += bonds[4 + 6 * r + k, c]
-        if c > 0:  # bond c - 1: its right particle's rows over columns c - 1, c (slots 0 to 5)
-            for k in range(6):
-                jacobian[i, k] += bonds[4 + 6 * (3 + r) + k, c - 1]
-    _variations(y, dy, jacobian, rpar, ipar, n, nf, ncols, load_dof, col, lookup)
+    _variations(y, dy, jacobian, rpar, ipar, n, nf, ncols, load_dof, neighbours)
 
 
 def require_orbit_ends(params: ChainParams) -> None:
@@ -305,11 +312,14 @@ def require_orbit_ends(params: ChainParams) -> None:
 
 
 def _layout(params: ChainParams) -> np.ndarray:
-    """The tail of :func:`_rhs`'s ipar: row, col (nf each) and lookup (3 n) of the free degrees of freedom."""
+    """The tail of :func:`_rhs`'s ipar: row, col (nf each), lookup (3 n) and neighbours (9 nf) of the free degrees of freedom."""
     position = free_index(params)
-    lookup = np.full(3 * params.n_particles, -1, dtype=np.int64)
-    lookup[position] = np.arange(position.size)
-    return np.concatenate([position % 3, position // 3, lookup])
+    n = params.n_particles
+    lookup = np.full(3 * n + 6, -1, dtype=np.int64)  # three columns of -1 either side: the neighbours beyond the ends
+    lookup[3 + position] = np.arange(position.size)
+    col = position // 3
+    neighbours = lookup[3 * col[:, None] + np.arange(9)]
+    return np.concatenate([position % 3, col, lookup[3:-3], neighbours.ravel()])
 
 
 class OrbitError(CosseratChainError, RuntimeError):
