@@ -17,9 +17,12 @@ import pytest
 import scipy.optimize as so
 
 from cosserat_chain import ChainParams
+from cosserat_chain.loads import moment_load
 from cosserat_chain.numerics.continuation import locate_fold
 from cosserat_chain.numerics.cycle_switching import PeriodDoubling, doubled_orbit, flip_vector, switch_at_period_doubling
-from cosserat_chain.numerics.periodic import OrbitError, continue_orbit, find_periodic_orbit
+from cosserat_chain.numerics.dynamics import integrate
+from cosserat_chain.numerics.integrators import default_time_step
+from cosserat_chain.numerics.periodic import OrbitError, continue_orbit, find_periodic_orbit, initial_guess
 
 PARAMS = ChainParams(gamma_phi=0.2)
 AMPLITUDES = (1e-3, 2e-3, 4e-3)
@@ -144,16 +147,23 @@ def test_bad_input_is_refused_with_the_value(switch, branch):
         switch_at_period_doubling("orbit")
 
 
-@pytest.mark.slow
 def test_a_simulation_below_the_period_doubling_settles_on_the_doubled_orbit(switch):
-    """Independent of the switch: Newton with two turns from a simulation that has settled (Yoshida-4 from rest)."""
-    doubled = switch.branch.orbits[-1]
-    simulated = find_periodic_orbit(PARAMS, "nonlinear", doubled.moment, turns=2)
+    """Independent of the switch: a run (Yoshida-4) from the one-turn orbit's state at the period doubling, at the
+    moment of the last doubled orbit followed, leaves the now unstable one-turn orbit for the doubled one."""
+    doubled, point = switch.branch.orbits[-1], switch.point
+    loads = moment_load(doubled.moment, point.particle).validate(PARAMS)
+    run = integrate(
+        PARAMS, "nonlinear", loads, t0=0.0, t_end=100 * doubled.period, dt=default_time_step(PARAMS, "nonlinear"), x0=point.x,
+        v0=point.v, method="yoshida4", n_frames=2,
+    )  # fmt: skip
+    guess = initial_guess(PARAMS, "nonlinear", doubled.moment, turns=2, x0=run.x[-1], v0=run.v[-1])
+    assert guess[2] == pytest.approx(doubled.period, rel=1e-4)  # the simulation's own two turns
+    simulated = find_periodic_orbit(PARAMS, "nonlinear", doubled.moment, turns=2, guess=guess)
     assert simulated.period == pytest.approx(doubled.period, rel=1e-9)
     assert simulated.max_multiplier == pytest.approx(doubled.max_multiplier, abs=1e-6)
+    assert doubled.max_multiplier < 1.0
 
 
-@pytest.mark.slow
 def test_the_sine_chain_above_its_static_fold_doubles_its_period_at_gamma_phi_03():
     """The sine chain at gamma_phi = 0.3 period-doubles at M = 0.2105 > M_c (``tests/test_diagram.py``): the
     doubled orbit is stable below it, where the one-turn orbit is not."""
