@@ -53,7 +53,6 @@ from .periodic import (
     OrbitBranch,
     OrbitError,
     PeriodicOrbit,
-    _orbit,
     _OrbitBranchProblem,
     _phase_for,
     _System,
@@ -329,7 +328,15 @@ def switch_at_period_doubling(
     else:
         doubled = doubled_orbit(point, amplitude, eigenvector=vector, tol=tol, rtol=rtol, atol=atol)
     doubled = find_periodic_orbit(
-        point.params, point.model, doubled.moment, turns=doubled.turns, particle=point.particle, guess=doubled, tol=tol, rtol=rtol, atol=atol
+        point.params,
+        point.model,
+        doubled.moment,
+        turns=doubled.turns,
+        particle=point.particle,
+        guess=doubled,
+        tol=tol,
+        rtol=rtol,
+        atol=atol,
     )
     side = "below" if _moment_offset(point, doubled) < 0 else "above"
     branch = continue_orbit(doubled, tol=tol, rtol=rtol, atol=atol, **continue_options) if follow and side == "below" else None
