@@ -41,6 +41,17 @@ def test_the_nonlinear_kernels_take_square_roots_and_divisions_four_lanes_at_a_t
     assert re.search(r"vsqrtpd\s+[^\n]*%[yz]mm", asm) and re.search(r"vdivpd\s+[^\n]*%[yz]mm", asm)
 
 
+@pytest.mark.parametrize("name", available_models())
+def test_every_bond_kernel_vectorises(name):
+    """The bonds' forces and exact Jacobian (the periodic orbits' variational equations) are computed across bonds in SIMD lanes."""
+    kernel = type(get_model(name)).bond_kernel
+    fresh = njit(FORCE_SIGNATURE, **{**KERNEL_OPTIONS, "cache": False})(kernel.py_func)
+    asm = fresh.inspect_asm(fresh.signatures[0])
+    assert len(PACKED.findall(asm)) >= 40  # at least one packed store of every row
+    if name == "nonlinear":
+        assert re.search(r"vsqrtpd\s+[^\n]*%[yz]mm", asm) and re.search(r"vdivpd\s+[^\n]*%[yz]mm", asm)
+
+
 def test_the_kick_drift_vectorises_with_its_energy_sums():
     options = {**engine._KICK_OPTIONS, "cache": False}
     row = njit(**options)(engine._kick_drift_row.py_func)
