@@ -32,7 +32,9 @@ def three_shootings(request):
     """The same orbit from the same guess by the dense, the blocked and the Newton-Krylov shooting."""
     params, model, moment = CASES[request.param]
     x, v, period = initial_guess(params, model, moment)
-    return {method: find_periodic_orbit(params, model, moment, guess=(x, v, period), method=method) for method in ("dense", "blocks", "krylov")}
+    return {
+        method: find_periodic_orbit(params, model, moment, guess=(x, v, period), method=method) for method in ("dense", "blocks", "krylov")
+    }
 
 
 def _nearest(reference: np.ndarray, values: np.ndarray) -> np.ndarray:
@@ -80,7 +82,9 @@ def test_arnoldi_on_products_finds_the_leading_eigenvalues_of_a_non_normal_matri
     rng = np.random.default_rng(4)
     size = 80
     # Eigenvalue 1 (the flow's), two complex pairs and a real one near the circle, the rest decaying.
-    known = np.concatenate([[1.0, 0.95, -0.7], 0.8 * np.exp([0.3j, -0.3j]), 0.5 * np.exp([2.0j, -2.0j]), 0.3 * rng.uniform(-1, 1, size - 7)])
+    known = np.concatenate(
+        [[1.0, 0.95, -0.7], 0.8 * np.exp([0.3j, -0.3j]), 0.5 * np.exp([2.0j, -2.0j]), 0.3 * rng.uniform(-1, 1, size - 7)]
+    )
     basis = np.eye(size) + 0.3 * rng.standard_normal((size, size))
     real_basis = basis.astype(complex)
     real_basis[:, 3], real_basis[:, 4] = basis[:, 3] + 1j * basis[:, 4], basis[:, 3] - 1j * basis[:, 4]

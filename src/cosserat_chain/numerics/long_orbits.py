@@ -1,46 +1,45 @@
-"""Rotating orbits of long chains: Newton-Krylov shooting and the leading Floquet multipliers by Arnoldi.
+"""Rotating orbits of long chains: the monodromy in column blocks, Newton-Krylov shooting, deflated Floquet multipliers.
 
 Contract
 --------
-:func:`~.periodic.find_periodic_orbit` solves the shooting equations (P) of
-:mod:`~.periodic` with the monodromy matrix M = dPhi_T/dy0 in hand: 2 n_free + 1 variational
-columns integrated with the state, whose memory and time grow like N^2 per unit time (an
-hour for one orbit near N = 100). Here M is never formed. Its products M V with a few
-columns V (2 n_free, p) come from one integration of the variational equations with p
-columns (:class:`Monodromy`), which costs O(N p) per step, and
+The dense shooting of :mod:`~.periodic` integrates the monodromy matrix M = dPhi_T/dy0 as
+2 n_free + 1 variational columns together with the state in one DOP853 run: its time grows
+like N^2 per unit time, and its memory too (the integrator's ~16 copies of (2 n_free)^2
+numbers: 0.7 GB at N = 200, 18 GB at N = 1000). Here the products M V with a block of p
+columns V (2 n_free, p) come from one integration of the state with p variational columns
+(:class:`Monodromy`, O(N p) a step), and
 
-* **Newton-Krylov shooting** (:func:`newton_krylov_orbit`): the package's one Newton
-  corrector (:func:`~.kit.newton`) on (P) and the phase condition, in the same unknowns
-  (y0 on the section or the plane of :class:`~.periodic._Phase`, and T), each Newton step
-  the solution of
+* **blocks** (:func:`blocked_orbit`, ``method="blocks"``): M formed from the identity's
+  columns :data:`BLOCK_COLUMNS` at a time, the blocks on parallel threads (the compiled
+  integrator releases the GIL), with the memory of M alone; a block's variational state stays
+  in cache, so even on one thread it is faster than the one-piece integration (1.7x at
+  N = 100). Newton as the dense method: the package's corrector (:func:`~.kit.newton`) in
+  chord iterations, M formed again only where the closure stops falling tenfold a step.
+* **Newton-Krylov** (:func:`newton_krylov_orbit`, ``method="krylov"``): M never formed;
+  each Newton step of (P) and the phase condition, in the same unknowns (y0 on the section or
+  the plane of :class:`~.periodic._Phase`, and T),
 
       [(M - I) E    f(Phi_T(y0))] [dy]   [-R      ]
       [ phase rows            0 ] [dT] = [-phase  ]
 
-  (E embeds the unknowns of y0) by GMRES with matrix-free products. The damped modes'
-  multipliers are small or cluster on circles |mu| = exp(-gamma T / 2 m) inside the unit
-  circle, so GMRES needs about the number of multipliers near the unit circle plus
-  ln(tol) / ln(max cluster radius) products: the integrated time per Newton step is bounded
-  by about 2 m ln(1 / tol) / gamma whatever the period (a short period has a cluster near 1
-  but cheap products). GMRES's relative tolerance follows the closure (an inexact Newton that
-  keeps Newton's fast convergence): between :data:`GMRES_RTOL_MIN` and :data:`GMRES_RTOL_MAX`.
-* **Leading Floquet multipliers** (:func:`leading_multipliers`): Arnoldi's method on M
-  (products one column at a time, full reorthogonalisation, no restart), the Ritz values of
-  largest modulus; each reported with its error estimate, the residual norm |M x - mu x| of
-  its unit Ritz vector, computed by one more integration with every Ritz vector as a column
-  (for a normal M the distance to an eigenvalue is at most that; a non-normal M can
-  multiply it by the eigenvalue's condition number). The trivial multiplier's error adds
-  |(M - I) f| / |f| for the flow direction f = f(y0), the exact eigenvector at an exactly
-  closed orbit: 1 is then within that of an eigenvalue of the computed M, and the trivial
-  Ritz value within the sum of 1 (tested). A system small enough (2 n_free <=
-  2 :data:`MULTIPLIERS` + 2) gets all its multipliers from M formed by one integration with
-  the identity's columns.
+  (E embeds the unknowns of y0) is solved by GMRES with one-column products, its relative
+  tolerance following the closure (between :data:`GMRES_RTOL_MIN` and :data:`GMRES_RTOL_MAX`:
+  an inexact Newton that keeps Newton's fast convergence). It pays only where few
+  multipliers lie near the unit circle: the chain's damped modes put a ring of them at
+  |mu| ~ exp(-gamma T / 2 m) and its soft overdamped bending modes a cluster below 1, and M
+  is far from normal (eigenvector condition ~1e4 at N = 30), so GMRES needs a large part of
+  2 n_free products, each ~8 times a column of a block (benchmarks/README.md, long orbits).
+* **multipliers** (:func:`leading_multipliers`): the trivial one deflated with its known
+  eigenvector, the flow f(y0), and the others as eigenvalues of the deflated M: all of them
+  from a formed M up to 2 n_free = :data:`ALL_MULTIPLIERS_UP_TO`, the :data:`MULTIPLIERS`
+  largest above it (ARPACK on the formed M), or by Arnoldi on products (no M formed, for
+  ``krylov`` above 2 n_free = :data:`FORM_UP_TO`). Each comes with an error estimate; the
+  trivial one's, |(M - I) f| / |f|, bounds its distance from 1 (tested).
 
-The result is a :class:`~.periodic.PeriodicOrbit` like the dense method's: its
-``multipliers`` are the leading :data:`MULTIPLIERS` (or all of a small system) by decreasing
-modulus, ``multiplier_errors`` their error estimates. The method is chosen by
-``find_periodic_orbit(..., method=)``: ``"auto"`` takes this one from N = :data:`KRYLOV_FROM_N`
-(``benchmarks/bench_long_orbits.py`` measures where it pays).
+The result is a :class:`~.periodic.PeriodicOrbit` like the dense method's, with
+``multiplier_errors`` (the trivial one's in ``as_dict``); where not all multipliers are
+computed, ``multipliers`` holds the leading ones by decreasing modulus. The method is chosen by
+``find_periodic_orbit(..., method=)``: ``"auto"`` takes the blocks from N = :data:`BLOCKS_FROM_N`.
 """
 
 from __future__ import annotations
@@ -63,9 +62,11 @@ from .periodic import MAX_HALVINGS, MAX_STEPS, OrbitError, PeriodicOrbit, _from_
 #: The methods of :func:`~.periodic.find_periodic_orbit`: the monodromy in one integration, in column blocks, Newton-Krylov, or by the chain's length.
 METHODS = ("auto", "dense", "blocks", "krylov")
 #: ``method="auto"`` assembles the monodromy from column blocks from this N on (benchmarks/README.md, long orbits).
-BLOCKS_FROM_N = 30
+BLOCKS_FROM_N = 50
 #: Columns of the monodromy integrated together in one block (a few hundred kB of variational state: in cache).
 BLOCK_COLUMNS = 64
+#: Threads the blocks run on; None: the CPUs this process may use.
+THREADS: int | None = None
 #: Up to this size (2 n_free) the multipliers of a formed monodromy are all its eigenvalues; above, the leading ones.
 ALL_MULTIPLIERS_UP_TO = 2500
 #: Newton (chord) reuses the formed monodromy while each step divides the closure by at least 1 / CHORD_RATE.
@@ -160,7 +161,7 @@ class Monodromy:
 
     def matrix(self, block: int = BLOCK_COLUMNS, threads: int | None = None) -> np.ndarray:
         """M itself (2 n_free, 2 n_free), from the identity's columns ``block`` at a time, the blocks on ``threads``
-        threads (default: the CPUs this process may use); the integrator releases the GIL, so they run in parallel.
+        threads (default :data:`THREADS`); the integrator releases the GIL, so they run in parallel.
         Formed once (:attr:`formed`)."""
         if self.formed is not None:
             return self.formed
@@ -173,7 +174,7 @@ class Monodromy:
             unit[first + np.arange(width), np.arange(width)] = 1.0
             return self.apply(unit)
 
-        workers = threads or len(os.sched_getaffinity(0))
+        workers = threads or THREADS or len(os.sched_getaffinity(0))
         with ThreadPoolExecutor(max_workers=max(1, min(workers, len(firsts)))) as pool:
             self.formed = np.hstack(list(pool.map(columns, firsts)))
         return self.formed

@@ -1,0 +1,212 @@
+"""Cost of one rotating orbit and its Floquet multipliers against the chain's length, by each shooting method.
+
+Run from the repository root::
+
+    python benchmarks/bench_long_orbits.py                       # N = 10, 30, 100, 200 (about 25 minutes on one core)
+    python benchmarks/bench_long_orbits.py --sizes 10 30 --methods dense blocks krylov
+    python benchmarks/bench_long_orbits.py --json                # also print the JSON on stdout
+    python benchmarks/bench_long_orbits.py --rates               # per unit time, N = 10 ... 1000 (about 2 minutes)
+
+The sine chain (eq. (2)) with strong damping (all gammas 1, other fields default) under the
+moment 0.3 on particle 0: its rotation settles on one stable one-turn orbit at every length
+measured. For each N: the guess (a settled simulation, ``initial_guess``), then from that same
+guess ``find_periodic_orbit`` with each method (``dense``: the monodromy integrated in one
+piece; ``blocks``: from column blocks; ``krylov``: Newton-Krylov, multipliers by Arnoldi on
+products): CPU seconds (all threads; the blocks run on ``--threads``, default 1, so that
+CPU time compares methods), wall seconds, Newton iterations, variational columns integrated
+over a period (``products``) and integrations, the period, the largest nontrivial
+multiplier, the trivial multiplier's distance from 1 and its reported error, and each
+method's largest distance of period and multipliers from the first method's. The dense
+method runs up to ``--dense-max`` (default 100; its memory is 16 (2 n_free)^2 numbers), the
+Krylov method up to ``--krylov-max`` (default 30: at N = 100 its GMRES needs about a
+thousand products a Newton step). Results go to
+``benchmarks/results/long_orbits.json`` (``docs/periodic-orbits.md``).
+
+``--rates``: for N = 10, 30, 100, 200, 1000 (``--sizes``), CPU seconds per unit time of
+integration (the same chain and moment, from a moving state) of the state alone, of one
+product (the state and one variational column: a GMRES or Arnoldi step), of one block of
+:data:`~cosserat_chain.numerics.long_orbits.BLOCK_COLUMNS` columns, and of the dense
+monodromy in one piece (up to ``--dense-max``), with the blocks' time for all of M and the
+memory of M and of the one-piece integration (``results/long_orbit_rates.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from cosserat_chain import ChainParams
+from cosserat_chain.models.base import get_model
+from cosserat_chain.numerics import long_orbits
+from cosserat_chain.numerics.periodic import _System, find_periodic_orbit, initial_guess
+
+RESULTS = Path(__file__).resolve().parent / "results"
+SIZES = (10, 30, 100, 200)
+METHODS = ("dense", "blocks", "krylov")
+MODEL, MOMENT, DAMPING = "sine", 0.3, 1.0
+#: Time integrated per rate measurement.
+RATE_SPAN = 0.5
+
+
+class _Counter:
+    """Counts the variational columns and integrations of every Monodromy product (wraps ``Monodromy.apply``)."""
+
+    def __init__(self) -> None:
+        self.products = self.integrations = 0
+        self._apply = long_orbits.Monodromy.apply
+        counter = self
+
+        def apply(monodromy, columns):
+            out = counter._apply(monodromy, columns)
+            block = np.asarray(columns).reshape(monodromy.size, -1)
+            counter.products += block.shape[1] * (2 if np.iscomplexobj(block) else 1)
+            counter.integrations += 1
+            return out
+
+        long_orbits.Monodromy.apply = apply
+
+    def reset(self) -> tuple[int, int]:
+        out = (self.products, self.integrations)
+        self.products = self.integrations = 0
+        return out
+
+
+def measure(n: int, methods: list[str], dense_max: int, krylov_max: int, threads: int, counter: _Counter) -> dict:
+    params = ChainParams(N=n, gamma_u=DAMPING, gamma_v=DAMPING, gamma_phi=DAMPING)
+    start = time.process_time()
+    x, v, period = initial_guess(params, MODEL, MOMENT)
+    row = {"N": n, "size": None, "guess_cpu_s": time.process_time() - start, "guess_period": period, "methods": {}}
+    first = None
+    for method in methods:
+        if (method == "dense" and n > dense_max) or (method == "krylov" and n > krylov_max):
+            continue
+        counter.reset()
+        cpu, wall = time.process_time(), time.perf_counter()
+        long_orbits.THREADS = threads
+        orbit = find_periodic_orbit(params, MODEL, MOMENT, guess=(x, v, period), method=method)
+        cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+        products, integrations = counter.reset()
+        entry = {
+            "cpu_s": cpu,
+            "wall_s": wall,
+            "iterations": orbit.iterations,
+            "products": products,
+            "integrations": integrations,
+            "period": orbit.period,
+            "closure": orbit.closure,
+            "multipliers_computed": int(orbit.multipliers.size),
+            "max_nontrivial_multiplier": orbit.max_multiplier,
+            "trivial_distance_from_1": abs(orbit.trivial_multiplier - 1.0),
+            "trivial_error": orbit.trivial_multiplier_error,
+        }
+        if first is None:
+            first = orbit
+        else:
+            entry["period_difference"] = abs(orbit.period - first.period)
+            leading = orbit.multipliers[: min(13, orbit.multipliers.size)]
+            entry["multiplier_difference"] = float(max(np.min(np.abs(first.multipliers - mu)) for mu in leading))
+        row["methods"][method] = entry
+        row["size"] = 2 * (3 * params.n_particles - 6)
+    return row
+
+
+def rates(n: int, dense_max: int, span: float) -> dict:
+    """CPU seconds per unit time of the state, one product, one block and the one-piece monodromy at N = n."""
+    params = ChainParams(N=n, gamma_u=DAMPING, gamma_v=DAMPING, gamma_phi=DAMPING)
+    system = _System(params, get_model(MODEL), MOMENT, 0)
+    rng = np.random.default_rng(0)
+    y0 = np.concatenate([0.3 * rng.standard_normal(system.nf), 0.1 * rng.standard_normal(system.nf)])
+    size = 2 * system.nf
+    block = rng.standard_normal((size, long_orbits.BLOCK_COLUMNS))
+    long_orbits.Monodromy(system, y0, 0.01, 1e-11, 1e-11).apply(block[:, :2])  # compile outside the timing
+    row = {"N": n, "size": size}
+
+    def timed(call) -> float:
+        start = time.process_time()
+        call()
+        return (time.process_time() - start) / span
+
+    row["state_s"] = timed(lambda: system.flow(y0, span, rtol=1e-11, atol=1e-11, variations=False))
+    row["product_s"] = timed(lambda: long_orbits.Monodromy(system, y0, span, 1e-11, 1e-11).apply(block[:, 0]))
+    row["block_s"] = timed(lambda: long_orbits.Monodromy(system, y0, span, 1e-11, 1e-11).apply(block))
+    row["blocks_whole_s"] = row["block_s"] * size / long_orbits.BLOCK_COLUMNS
+    row["dense_s"] = timed(lambda: system.flow(y0, span, rtol=1e-11, atol=1e-11, variations=True)) if n <= dense_max else None
+    row["matrix_MB"] = 8 * size * size / 1e6
+    row["dense_integration_MB"] = 16 * 8 * size * (size + 2) / 1e6
+    return row
+
+
+def rates_markdown(rows: list[dict]) -> str:
+    lines = [
+        "| N | 2 n_free | state | one product | one block of 64 | all blocks (M) | dense in one piece | M (MB) | one-piece integration (MB) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        dense = "-" if r["dense_s"] is None else f"{r['dense_s']:.3g}"
+        lines.append(
+            f"| {r['N']} | {r['size']} | {r['state_s']:.2g} | {r['product_s']:.2g} | {r['block_s']:.2g} | {r['blocks_whole_s']:.3g} | "
+            f"{dense} | {r['matrix_MB']:.3g} | {r['dense_integration_MB']:.3g} |"
+        )
+    return "\n".join(lines)
+
+
+def markdown(rows: list[dict]) -> str:
+    lines = [
+        "| N | 2 n_free | method | CPU s | wall s | Newton iterations | columns integrated | period T | largest other abs(mu) | abs(mu_1 - 1) / its error | against the first |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        for method, e in row["methods"].items():
+            against = "" if "period_difference" not in e else f"T {e['period_difference']:.1e}, mu {e['multiplier_difference']:.1e}"
+            error = "-" if e["trivial_error"] is None else f"{e['trivial_error']:.1e}"
+            lines.append(
+                f"| {row['N']} | {row['size']} | {method} | {e['cpu_s']:.3g} | {e['wall_s']:.3g} | {e['iterations']} | {e['products']} | "
+                f"{e['period']:.10g} | {e['max_nontrivial_multiplier']:.6f} | {e['trivial_distance_from_1']:.1e} / {error} | {against} |"
+            )
+    return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=list(SIZES), help="N values")
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument("--dense-max", type=int, default=100, help="largest N for the dense method")
+    parser.add_argument("--krylov-max", type=int, default=30, help="largest N for the Krylov method")
+    parser.add_argument("--threads", type=int, default=1, help="threads of the blocks")
+    parser.add_argument("--out", type=Path, default=RESULTS / "long_orbits.json")
+    parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
+    parser.add_argument("--rates", action="store_true", help="only the costs per unit time, N = 10 ... 1000")
+    args = parser.parse_args()
+    log = sys.stderr if args.json else sys.stdout
+    if args.rates:
+        sizes = args.sizes if args.sizes != list(SIZES) else [10, 30, 100, 200, 1000]
+        table = []
+        for n in sizes:
+            table.append(rates(n, args.dense_max, RATE_SPAN))
+            print("\n".join(rates_markdown(table[-1:]).splitlines()[2:]), file=log, flush=True)
+        out = args.out if args.out != RESULTS / "long_orbits.json" else RESULTS / "long_orbit_rates.json"
+        out.parent.mkdir(exist_ok=True)
+        out.write_text(json.dumps(table, indent=1))
+        print(rates_markdown(table), file=log)
+        if args.json:
+            print(json.dumps(table))
+        return
+    counter = _Counter()
+    rows = []
+    for n in args.sizes:
+        rows.append(measure(n, args.methods, args.dense_max, args.krylov_max, args.threads, counter))
+        print("\n".join(markdown(rows[-1:]).splitlines()[2:]), file=log, flush=True)
+        args.out.parent.mkdir(exist_ok=True)
+        args.out.write_text(json.dumps(rows, indent=1))
+    print(markdown(rows), file=log)
+    if args.json:
+        print(json.dumps(rows))
+
+
+if __name__ == "__main__":
+    main()
