@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import gc
 import os
+from pathlib import Path
 
 # One BLAS thread, set before NumPy loads (the test processes' children inherit it): the suite's
 # dense matrices are small, and OpenBLAS's threads spinning on them cost many times the work
@@ -14,6 +16,11 @@ import pytest  # noqa: E402
 
 from cosserat_chain import ChainParams  # noqa: E402
 from cosserat_chain.state import fixed_mask  # noqa: E402
+
+#: Where the tests keep the systems they compile from formulas (``COSSERAT_CHAIN_CACHE``): in the checkout, ignored by
+#: git, and kept between sessions as Numba keeps the package's own kernels, so that a session compiles only the systems
+#: it has not met before; a system's file is named by the hash of its generated code, so nothing in it goes stale.
+SYSTEMS_CACHE = Path(__file__).resolve().parents[1] / ".pytest_cache" / "cosserat-chain"
 
 #: Round-off level for exact identities between independent implementations.
 ROUND_OFF = 1e-12
@@ -51,6 +58,16 @@ def random_state(params: ChainParams, scale: float, seed: int = 0) -> np.ndarray
     x[:, [0, -1]] = np.where(fixed_mask(params)[:, [0, -1]], 0.0, ends)
     x[:2] *= params.h
     return x
+
+
+@pytest.fixture(autouse=True)
+def _frozen_heap():
+    """What the session made before a test (the imported libraries, the shared fixtures' results) is left out of the
+    garbage collector's passes while the test runs, and collected as before afterwards: a refused file ends in
+    ``gc.collect()`` (``io.read_dataset``), which would otherwise walk every object of the session each time."""
+    gc.freeze()
+    yield
+    gc.unfreeze()
 
 
 def selected_params(request: pytest.FixtureRequest, argname: str) -> list:

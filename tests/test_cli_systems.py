@@ -8,6 +8,7 @@ import math
 import pytest
 from typer.testing import CliRunner
 
+from conftest import SYSTEMS_CACHE
 from cosserat_chain.cli import app
 
 #: The in-phase rotation of AUTO-07p's pen demo at I = 0.4 (gamma = 0.175, eps = 0.1): one damped driven
@@ -36,9 +37,9 @@ not_a_system = 3
 
 
 @pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    """The compiled systems go to a folder of the test session, not the user's cache."""
-    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(tmp_path_factory.getbasetemp() / "systems-cache"))
+def _cache(monkeypatch):
+    """The compiled systems go to the tests' cache folder, not the user's."""
+    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(SYSTEMS_CACHE))
 
 
 def invoke(*args: str):

@@ -17,6 +17,7 @@ import sys
 from pathlib import Path
 
 import pytest
+
 from conftest import selected_params
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -81,7 +82,9 @@ def page_runs(request, tmp_path_factory) -> dict[str, str | None]:
 
 
 @pytest.mark.parametrize(
-    "page", [pytest.param(p, marks=pytest.mark.slow) if p.name in SLOW_PAGES else p for p in PAGES if python_blocks(p)], ids=lambda p: p.name
+    "page",
+    [pytest.param(p, marks=pytest.mark.slow) if p.name in SLOW_PAGES else p for p in PAGES if python_blocks(p)],
+    ids=lambda p: p.name,
 )
 def test_the_pages_python_blocks_run(page, page_runs):
     assert page_runs[page.name] is None, f"{page.name}: {page_runs[page.name]}"

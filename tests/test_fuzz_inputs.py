@@ -9,7 +9,6 @@ output could not be written), never another exception, and no file but the outpu
 
 from __future__ import annotations
 
-import gc
 import hashlib
 import json
 import math
@@ -43,16 +42,6 @@ def _quick_and_slow(quick: int, more: int, **strategies):
         return drawn(quick), pytest.mark.slow(drawn(more))
 
     return tests
-
-
-@pytest.fixture(autouse=True)
-def _frozen_heap():
-    """What the session made before a test is left out of the garbage collector's passes while it runs (and collected
-    as before afterwards): a refused file ends in ``gc.collect()`` (``io.read_dataset``), which otherwise walks every
-    object of the session, 0.17 s a refusal after the package's imports and more in the whole suite."""
-    gc.freeze()
-    yield
-    gc.unfreeze()
 
 
 #: TOML values of every type, at every scale.

@@ -11,6 +11,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq, fsolve
 
+from conftest import SYSTEMS_CACHE
 from cosserat_chain.numerics import equilibria, shooting
 from cosserat_chain.params import ChainParams
 from cosserat_chain.systems import (
@@ -28,8 +29,9 @@ from cosserat_chain.systems.chain import ChainSystem
 
 
 @pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(tmp_path_factory.getbasetemp() / "systems-cache"))
+def _cache(monkeypatch):
+    """The compiled systems go to the tests' cache folder, not the user's."""
+    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(SYSTEMS_CACHE))
 
 
 # -- the pen demo against an independent SciPy shooting --------------------------------------------------
