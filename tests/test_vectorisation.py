@@ -20,9 +20,21 @@ from cosserat_chain.numerics import engine
 PACKED = re.compile(r"\bv\w+pd\s+[^\n]*%[yz]mm")
 
 
+_ASM: dict[tuple, str] = {}
+
+
+def _fresh_asm(py_func, signature, options) -> str:
+    """The assembly of ``py_func`` compiled afresh for ``signature`` with ``options``, once a session: the nonlinear
+    force kernel's is read by two tests."""
+    key = (py_func, str(signature), repr(sorted(options.items())))
+    if key not in _ASM:
+        fresh = njit(signature, **{**options, "cache": False})(py_func)
+        _ASM[key] = fresh.inspect_asm(fresh.signatures[0])
+    return _ASM[key]
+
+
 def packed_instructions(dispatcher, signature, options) -> int:
-    fresh = njit(signature, **{**options, "cache": False})(dispatcher.py_func)
-    return len(PACKED.findall(fresh.inspect_asm(fresh.signatures[0])))
+    return len(PACKED.findall(_fresh_asm(dispatcher.py_func, signature, options)))
 
 
 @pytest.mark.parametrize("name", available_models())
@@ -36,8 +48,7 @@ def test_every_force_kernel_vectorises(name, kind):
 
 def test_the_nonlinear_kernels_take_square_roots_and_divisions_four_lanes_at_a_time():
     kernel = type(get_model("nonlinear")).force_kernel
-    fresh = njit(FORCE_SIGNATURE, **{**KERNEL_OPTIONS, "cache": False})(kernel.py_func)
-    asm = fresh.inspect_asm(fresh.signatures[0])
+    asm = _fresh_asm(kernel.py_func, FORCE_SIGNATURE, KERNEL_OPTIONS)
     assert re.search(r"vsqrtpd\s+[^\n]*%[yz]mm", asm) and re.search(r"vdivpd\s+[^\n]*%[yz]mm", asm)
 
 
