@@ -18,11 +18,13 @@ import scipy.optimize as so
 
 from cosserat_chain import ChainParams
 from cosserat_chain.loads import moment_load
+from cosserat_chain.numerics import shooting
 from cosserat_chain.numerics.continuation import locate_fold
 from cosserat_chain.numerics.cycle_switching import PeriodDoubling, doubled_orbit, flip_vector, switch_at_period_doubling
 from cosserat_chain.numerics.dynamics import integrate
 from cosserat_chain.numerics.integrators import default_time_step
 from cosserat_chain.numerics.periodic import OrbitError, continue_orbit, find_periodic_orbit, initial_guess
+from cosserat_chain.systems import pen
 
 PARAMS = ChainParams(gamma_phi=0.2)
 AMPLITUDES = (1e-3, 2e-3, 4e-3)
@@ -139,8 +141,8 @@ def test_bad_input_is_refused_with_the_value(switch, branch):
         doubled_orbit(switch.point, 0.0, eigenvector=switch.eigenvector)
     with pytest.raises(ValueError, match="amplitude must be a finite non-zero"):
         doubled_orbit(switch.point, float("nan"), eigenvector=switch.eigenvector)
-    with pytest.raises(ValueError, match="moment_offset must be a number in"):
-        switch_at_period_doubling(switch.point, moment_offset=2.0)
+    with pytest.raises(ValueError, match="offset must be a number in"):
+        switch_at_period_doubling(switch.point, offset=2.0)
     with pytest.raises(ValueError, match="no real Floquet multiplier passes -1"):
         switch_at_period_doubling(dataclasses.replace(branch, orbits=branch.orbits[:2]))
     with pytest.raises(ValueError, match="start must be a PeriodicOrbit or an OrbitBranch"):
@@ -183,3 +185,32 @@ def test_an_orbit_without_a_real_negative_multiplier_has_no_flip_vector(switch):
     assert abs(flip_vector(orbit)[0] + 1.0) < 1e-8
     with pytest.raises(OrbitError, match="no real negative Floquet multiplier"):
         flip_vector(dataclasses.replace(switch.point, period=1e-3))
+
+
+def test_the_pen_demo_doubles_into_out_of_phase_rotations_with_auto07p_s_branch_point():
+    """AUTO-07p's demo ``pen`` (two coupled pendula): the in-phase rotation period-doubles at I = 0.17916377626
+    (``tests/test_systems.py``), and its second run follows the bifurcating branch of out-of-phase rotations,
+    on which AUTO's regression output (``test/hyper.all``) prints a branch point at I = 3.31445E-01 with period
+    9.72615E+00 (a multiplier through +1). The switch gives the same branch: subcritical here (the doubled
+    orbits lie above the period doubling, unstable), up to a fold of cycles and back down through that point."""
+    system = pen()
+    guess = shooting.settled_guess(system, np.array([0.0, 0.0, 2.0, 2.0]), coordinate="phi_0")
+    in_phase = shooting.find_orbit(system, guess, turns={"phi_0": 1, "phi_1": 1})
+    branch = shooting.continue_orbits(in_phase, "I", direction=-1, max_points=60, stop_at=("period_doubling",))
+    switch = switch_at_period_doubling(branch, stop_at=(), limits=(0.179, 1.0), max_points=80)
+    assert switch.parameter == "I" and switch.value == pytest.approx(0.17916377626, abs=1e-9)
+    # AUTO's first run prints PERIOD 3.70528E+00 there: its collocation's periods lie ~8e-6 off the shooting's.
+    assert switch.point.period == pytest.approx(3.70528, abs=1e-5)
+    # The flip is out of phase: the eigenvector moves the two pendula against each other.
+    e = switch.eigenvector
+    assert np.allclose(e[0], -e[1], atol=1e-8) and np.allclose(e[2], -e[3], atol=1e-8)
+    doubled = switch.doubled
+    assert switch.side == "above" and switch.coefficient > 0 and not doubled.stable
+    assert np.array_equal(doubled.turns, [2, 2]) and doubled.period == pytest.approx(2 * switch.point.period, rel=1e-3)
+    assert abs(doubled.q0[0] - doubled.q0[1]) > 1e-2  # out of phase, no longer on phi_1 = phi_2
+    folds = [e for e in switch.branch.events if e.kind == "fold" and e.located]
+    assert folds and folds[0].parameter > 0.39
+    crossing = next(e for e in switch.branch.events if e.located and e.kind == "stability" and e.parameter < folds[0].parameter - 1e-3)
+    assert crossing.parameter == pytest.approx(0.331445, abs=5e-7)
+    assert crossing.point.period == pytest.approx(9.72615, abs=1e-5)
+    assert np.min(np.abs(crossing.point.nontrivial_multipliers - 1.0)) < 1e-5

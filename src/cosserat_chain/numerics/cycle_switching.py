@@ -31,6 +31,10 @@ stability as M falls (the doubled orbit inherits its stability), above it for a 
 one; :attr:`PeriodDoubling.side` says which. :func:`~.periodic.continue_orbit` follows orbits
 towards smaller |M| only, so a family above M_PD is returned as its first orbit, not
 continued (continued down it would run back into the period doubling).
+
+The same switch serves a user's system (:mod:`~cosserat_chain.numerics.shooting`): from an orbit or
+event of :func:`~.shooting.continue_orbits` at a period doubling in any named parameter p, on the
+shooting's phase plane (O), the doubled family is continued in p on whichever side it lies.
 """
 
 from __future__ import annotations
@@ -39,11 +43,13 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 import scipy.linalg as sla
 
 from ..models.base import get_model
+from . import shooting
 from .cycle_curve import locate_cycle_end
 from .kit import newton
 from .periodic import (
@@ -62,16 +68,18 @@ from .periodic import (
 )
 
 #: The critical multiplier of a period doubling lies within this of -1 (the located end's is within ~1e-9);
-#: an orbit farther off is located first.
+#: an orbit of the chain farther off is located first.
 FLIP_TOL = 1e-6
-#: Relative distance |M - M_PD| / |M_PD| of the first doubled orbit (from the normal form), by default.
-MOMENT_OFFSET = 1e-4
-#: The two amplitudes (in the unit eigenvector's norm, units of h and rad) of the normal form's secant.
+#: Relative distance |p - p_PD| / |p_PD| of the first doubled orbit (from the normal form), by default.
+OFFSET = 1e-4
+#: The two amplitudes (in the unit eigenvector's norm, units of the state) of the normal form's secant.
 PROBE_AMPLITUDES = (2e-3, 4e-3)
 #: Largest amplitude the normal form may ask for (beyond it the quadratic law is not trusted).
 MAX_AMPLITUDE = 0.1
 #: Newton iterations of one doubled orbit.
 MAX_ITERATIONS = 20
+
+Point = PeriodicOrbit | shooting.Orbit
 
 
 @dataclass
@@ -80,106 +88,130 @@ class PeriodDoubling:
 
     Attributes
     ----------
-    point : PeriodicOrbit
-        The located period doubling (k turns, period T_PD, a multiplier at -1).
+    point : PeriodicOrbit or shooting.Orbit
+        The located period doubling (period T_PD, a multiplier at -1).
+    parameter : str
+        The parameter p it lies in: ``M`` for the chain, a system's parameter name otherwise.
+    value : float
+        p_PD.
     multiplier : complex
         Its critical multiplier (-1 to the located accuracy).
-    eigenvector : ndarray (2 n_free,)
+    eigenvector : ndarray (2n,)
         Real unit eigenvector of the monodromy matrix for it, in the shooting's state y = (q, q').
     coefficient : float
-        c of M - M_PD = c a^2 on the doubled family (secant through two amplitudes).
+        c of p - p_PD = c a^2 on the doubled family (secant through two amplitudes; for the chain
+        signed towards larger |M|).
     amplitude : float
         a of the first doubled orbit.
-    doubled : PeriodicOrbit
-        The first doubled orbit: 2k turns, period near 2 T_PD.
+    doubled : PeriodicOrbit or shooting.Orbit
+        The first doubled orbit: twice the turns, period near 2 T_PD.
     side : str
-        ``below`` (the doubled family exists at smaller |M| than the period doubling) or ``above``.
-    branch : OrbitBranch or None
-        The doubled family continued down in |M| from ``doubled`` (None above the period doubling or
-        when not asked for).
+        ``below`` (the doubled family exists at smaller p, for the chain smaller |M|, than the period
+        doubling) or ``above``.
+    branch : periodic.OrbitBranch or shooting.OrbitBranch or None
+        The doubled family continued away from the period doubling from ``doubled`` (None where not
+        asked for, and for the chain above the period doubling).
     """
 
-    point: PeriodicOrbit
+    point: Point
+    parameter: str
+    value: float
     multiplier: complex
     eigenvector: np.ndarray
     coefficient: float
     amplitude: float
-    doubled: PeriodicOrbit
+    doubled: Point
     side: str
-    branch: OrbitBranch | None
+    branch: Any
 
     def as_dict(self) -> dict:
         """JSON-ready summary."""
         return {
-            "moment": self.point.moment,
+            "parameter": self.parameter,
+            "value": self.value,
             "period": self.point.period,
-            "turns": self.point.turns,
             "multiplier": [self.multiplier.real, self.multiplier.imag],
             "coefficient": self.coefficient,
             "amplitude": self.amplitude,
             "side": self.side,
             "doubled": self.doubled.as_dict(),
-            "branch_end": None if self.branch is None else self.branch.end,
-            "branch_end_moment": None if self.branch is None else self.branch.end_moment,
-        }
+            "branch": None if self.branch is None else self.branch.as_dict() if isinstance(self.branch, shooting.OrbitBranch) else {
+                "end": self.branch.end, "end_moment": self.branch.end_moment, "message": self.branch.message
+            },
+        }  # fmt: skip
 
 
-def flip_vector(point: PeriodicOrbit, *, rtol: float = RTOL, atol: float = ATOL) -> tuple[complex, np.ndarray]:
+def flip_vector(point: Point, *, rtol: float = RTOL, atol: float = ATOL) -> tuple[complex, np.ndarray]:
     """The multiplier of ``point`` nearest -1 among the real negative ones, and its real unit eigenvector.
 
-    The monodromy matrix is integrated again (an orbit keeps only its multipliers).
+    A chain's monodromy matrix is integrated again (a :class:`~.periodic.PeriodicOrbit` keeps only its
+    multipliers); a system's orbit carries its own.
 
     Raises
     ------
     OrbitError
         Where the orbit has no real negative multiplier.
     """
-    system = _System(point.params, get_model(point.model), point.moment, point.particle)
-    _, mono, _ = system.flow(_to_y(point.params, point.x, point.v), point.period, rtol=rtol, atol=atol, variations=True)
+    if isinstance(point, shooting.Orbit):
+        mono = point.monodromy
+    else:
+        system = _System(point.params, get_model(point.model), point.moment, point.particle)
+        _, mono, _ = system.flow(_to_y(point.params, point.x, point.v), point.period, rtol=rtol, atol=atol, variations=True)
     values, vectors = sla.eig(mono)
     real = np.abs(values.imag) <= 1e-6 * np.abs(values)
     candidates = np.flatnonzero(real & (values.real < 0))
     if candidates.size == 0:
-        raise OrbitError(f"the orbit at M={point.moment!r} has no real negative Floquet multiplier: no period doubling")
+        raise OrbitError(f"the orbit at {_where(point)} has no real negative Floquet multiplier: no period doubling")
     i = candidates[np.argmin(np.abs(values[candidates] + 1.0))]
     vector = np.real(vectors[:, i])
     return complex(values[i]), vector / np.linalg.norm(vector)
 
 
+def _where(point: Point, parameter: str | None = None) -> str:
+    if isinstance(point, shooting.Orbit):
+        return point.system.name if parameter is None else f"{parameter}={point.parameter(parameter)!r}"
+    return f"M={point.moment!r}"
+
+
 def doubled_orbit(
-    point: PeriodicOrbit,
+    point: Point,
     amplitude: float,
     *,
+    parameter: str | None = None,
     eigenvector: np.ndarray | None = None,
     tol: float = CLOSURE_TOL,
     rtol: float = RTOL,
     atol: float = ATOL,
-) -> PeriodicOrbit:
+) -> Point:
     """The period-doubled orbit of amplitude ``amplitude`` along the flip eigenvector at the period doubling ``point``.
 
     Parameters
     ----------
-    point : PeriodicOrbit
-        The located period doubling (:func:`~.cycle_curve.locate_cycle_end`).
+    point : PeriodicOrbit or shooting.Orbit
+        The located period doubling (:func:`~.cycle_curve.locate_cycle_end`; for a system, the point of
+        :func:`~.shooting.continue_orbits`' ``period_doubling`` event).
     amplitude : float
         a != 0 of e . (y0 - y_PD) = a (module docstring); its sign picks one of the two starts of the
         same doubled orbit, half a period apart. Beyond the first of :data:`PROBE_AMPLITUDES` the
         orbit is reached by doubling the amplitude, each orbit predicted by the parabola in a
         through the period doubling and the two orbits before (a step that fails is halved).
-    eigenvector : ndarray (2 n_free,), optional
+    parameter : str, optional
+        For a system's orbit: the parameter that is unknown beside the period (required); the
+        chain's is M.
+    eigenvector : ndarray (2n,), optional
         e, from :func:`flip_vector` by default.
     tol, rtol, atol : float
         As for :func:`~.periodic.find_periodic_orbit`.
 
     Returns
     -------
-    PeriodicOrbit
-        2k turns, at the moment the amplitude fixes (near M_PD), its multipliers computed.
+    PeriodicOrbit or shooting.Orbit
+        Twice the turns, at the parameter value the amplitude fixes (near p_PD), its multipliers computed.
 
     Raises
     ------
     ValueError
-        For a zero or non-finite amplitude.
+        For a zero or non-finite amplitude, or a system's orbit without ``parameter``.
     OrbitError
         Where Newton's method does not converge.
     """
@@ -187,30 +219,22 @@ def doubled_orbit(
         raise ValueError(f"amplitude must be a finite non-zero number (along the flip eigenvector), got {amplitude!r}")
     if eigenvector is None:
         eigenvector = flip_vector(point, rtol=rtol, atol=atol)[1]
-    march = _March(point, math.copysign(1.0, amplitude) * eigenvector, tol, rtol, atol)
+    march = _march(point, parameter, math.copysign(1.0, amplitude) * eigenvector, tol, rtol, atol)
     return march.to(abs(amplitude))
 
 
 class _March:
-    """Doubled orbits of growing amplitude from one period doubling (:func:`doubled_orbit`)."""
+    """Doubled orbits of growing amplitude from one period doubling (:func:`doubled_orbit`): Newton on
+    ``evaluate`` (R(w), the moment or parameter among the unknowns w) with the amplitude as the kit's
+    border along ``direction`` (unit, in w), from ``base`` (the period doubling's w with twice the period)."""
 
-    def __init__(self, point: PeriodicOrbit, eigenvector: np.ndarray, tol: float, rtol: float, atol: float):
-        model = get_model(point.model)
-        system = _System(point.params, model, point.moment, point.particle)
-        phase = _phase_for(system, _to_y(point.params, point.x, point.v), point.phase_normal)
-        start = dataclasses.replace(point, turns=2 * point.turns, period=2 * point.period, particle_turns=2 * point.particle_turns)
-        self.point, self.tol = point, tol
-        self.problem = _OrbitBranchProblem(start, model, phase, tol, rtol, atol, 0.0, math.inf, False, False)
-        head = phase.head
-        direction = np.zeros(head + 2)
-        direction[:head] = eigenvector[phase.keep]
+    def __init__(self, evaluate, make_point: Callable, base: np.ndarray, direction: np.ndarray, tol: float, where: str):
         norm = float(np.linalg.norm(direction))
         if norm < 0.1:
-            raise OrbitError(f"the flip eigenvector at M={point.moment!r} lies along the phase condition: no amplitude can be set")
-        self.direction = direction / norm
+            raise OrbitError(f"the flip eigenvector at {where} lies along the phase condition: no amplitude can be set")
+        self.evaluate, self.make_point, self.direction, self.tol, self.where = evaluate, make_point, direction / norm, tol, where
         #: (amplitude, w) of the doubled family, from its limit at the period doubling (a = 0) on.
-        self.done: list[tuple[float, np.ndarray]] = [(0.0, self.problem.pack(start))]
-        self.orbits: dict[float, PeriodicOrbit] = {}
+        self.done: list[tuple[float, np.ndarray]] = [(0.0, np.array(base, dtype=float))]
 
     def _predict(self, amplitude: float) -> np.ndarray:
         """The parabola in a through the last three solutions (the tangent e at the period doubling before two)."""
@@ -222,20 +246,20 @@ class _March:
         l2 = (amplitude - a0) * (amplitude - a1) / ((a2 - a0) * (a2 - a1))
         return l0 * w0 + l1 * w1 + l2 * w2
 
-    def solve(self, amplitude: float) -> PeriodicOrbit | None:
+    def solve(self, amplitude: float):
         """The doubled orbit at ``amplitude`` (above the last one solved) from the prediction, None where Newton fails."""
         predictor = self._predict(amplitude)
         # The border fixes e . (w - w_pred) = 0, which is the amplitude condition: the predictor satisfies it.
         solved = newton(
-            self.problem.evaluate, predictor, tol=self.tol, border=(self.direction, predictor), max_iterations=MAX_ITERATIONS,
+            self.evaluate, predictor, tol=self.tol, border=(self.direction, predictor), max_iterations=MAX_ITERATIONS,
             divergence=None, damping=6,
         )  # fmt: skip
         if not solved.converged:
             return None
         self.done.append((amplitude, solved.w))
-        return self.problem.point(solved.w, solved.evaluation, solved.iterations)
+        return self.make_point(solved.w, solved.evaluation, solved.iterations)
 
-    def to(self, amplitude: float, enough: Callable[[PeriodicOrbit], bool] | None = None) -> PeriodicOrbit:
+    def to(self, amplitude: float, enough: Callable[[Any], bool] | None = None):
         """The doubled orbit at ``amplitude`` > 0, in steps from the largest one solved: each at most doubles the
         amplitude, a failed one is halved. With ``enough``, the first orbit it accepts on the way is returned."""
         last, orbit = self.done[-1][0], None
@@ -253,21 +277,40 @@ class _March:
                 return orbit  # the family turns back or Newton fails beyond: the largest amplitude reached
             else:
                 raise OrbitError(
-                    f"Newton did not converge to the doubled orbit of amplitude {a!r} at the period doubling M={self.point.moment!r}; "
+                    f"Newton did not converge to the doubled orbit of amplitude {a!r} at the period doubling {self.where}; "
                     f"the doubled family may turn back before amplitude {amplitude!r}: try a smaller amplitude"
                 )
 
 
-def _moment_offset(point: PeriodicOrbit, orbit: PeriodicOrbit) -> float:
-    """M - M_PD, positive towards larger |M|."""
-    return math.copysign(1.0, point.moment) * (orbit.moment - point.moment)
+def _march(point: Point, parameter: str | None, eigenvector: np.ndarray, tol: float, rtol: float, atol: float) -> _March:
+    """The doubled family's equations at ``point``: the chain's (P) with twice the turns on the located orbit's phase
+    condition, or a system's (O) with twice the turns on the plane through the point, the period and p unknown."""
+    if isinstance(point, shooting.Orbit):
+        if parameter is None:
+            raise ValueError("parameter must name the system's parameter of the period doubling (the unknown beside the period)")
+        point.parameter(parameter)
+        problem = shooting._Shooting(
+            point.system, 2 * point.turns, point.y0, 2 * point.period, (shooting.PERIOD, parameter), tol, rtol, atol
+        )
+        base = np.concatenate([point.y0, [math.log(2 * point.period), point.parameter(parameter)]])
+        direction = np.concatenate([eigenvector, [0.0, 0.0]])
+        return _March(problem.evaluate, problem.orbit, base, direction, tol, _where(point, parameter))
+    model = get_model(point.model)
+    system = _System(point.params, model, point.moment, point.particle)
+    phase = _phase_for(system, _to_y(point.params, point.x, point.v), point.phase_normal)
+    start = dataclasses.replace(point, turns=2 * point.turns, period=2 * point.period, particle_turns=2 * point.particle_turns)
+    problem = _OrbitBranchProblem(start, model, phase, tol, rtol, atol, 0.0, math.inf, False, False)
+    direction = np.zeros(phase.head + 2)
+    direction[: phase.head] = eigenvector[phase.keep]
+    return _March(problem.evaluate, problem.point, problem.pack(start), direction, tol, _where(point))
 
 
 def switch_at_period_doubling(
-    start: PeriodicOrbit | OrbitBranch,
+    start: PeriodicOrbit | OrbitBranch | shooting.Orbit | shooting.OrbitBranch,
     *,
+    parameter: str | None = None,
     amplitude: float | None = None,
-    moment_offset: float = MOMENT_OFFSET,
+    offset: float = OFFSET,
     follow: bool = True,
     tol: float = CLOSURE_TOL,
     rtol: float = RTOL,
@@ -278,22 +321,28 @@ def switch_at_period_doubling(
 
     Parameters
     ----------
-    start : PeriodicOrbit or OrbitBranch
-        The period doubling (an orbit with a real multiplier within :data:`FLIP_TOL` of -1), an orbit
-        near one (located first), or a branch of :func:`~.periodic.continue_orbit` along which a real
-        multiplier passes -1 (the first such passage is located).
+    start : PeriodicOrbit, periodic.OrbitBranch, shooting.Orbit or shooting.OrbitBranch
+        The chain's: the period doubling (an orbit with a real multiplier within :data:`FLIP_TOL` of
+        -1), an orbit near one (located first), or a branch of :func:`~.periodic.continue_orbit`
+        along which a real multiplier passes -1 (the first such passage is located). A system's:
+        the orbit at a period doubling (the point of a ``period_doubling`` event), or a branch of
+        :func:`~.shooting.continue_orbits` with such an event (the first is taken).
+    parameter : str, optional
+        A system's parameter of the period doubling (a branch's own by default); the chain's is M.
     amplitude : float, optional
         a of the first doubled orbit along the flip eigenvector; by default the normal form's
-        amplitude for |M - M_PD| = ``moment_offset`` |M_PD| (capped at :data:`MAX_AMPLITUDE`; the orbit
-        lies about that far from M_PD, or nearer where the family bends away from c a^2 sooner).
-    moment_offset : float
-        Relative distance in M of the first doubled orbit from the period doubling (default amplitude only).
+        amplitude for |p - p_PD| = ``offset`` |p_PD| (capped at :data:`MAX_AMPLITUDE`; the orbit lies
+        about that far from p_PD, or nearer where the family bends away from c a^2 sooner).
+    offset : float
+        Relative distance in p of the first doubled orbit from the period doubling (default amplitude only).
     follow : bool
-        Continue the doubled family down in |M| (:func:`~.periodic.continue_orbit`) where it lies below.
+        Continue the doubled family away from the period doubling: the chain's down in |M|
+        (:func:`~.periodic.continue_orbit`) where it lies below, a system's in p on its side
+        (:func:`~.shooting.continue_orbits`).
     tol, rtol, atol : float
         As for :func:`~.periodic.find_periodic_orbit`.
     **continue_options
-        Passed to :func:`~.periodic.continue_orbit` (``moment_min``, ``period_max``, ``max_points``, ...).
+        Passed to the continuation (``period_max``, ``max_points``, ...).
 
     Returns
     -------
@@ -302,45 +351,60 @@ def switch_at_period_doubling(
     Raises
     ------
     ValueError
-        For a branch without a passage of -1, bad amplitudes or offsets, or where the period doubling
-        cannot be located.
+        For a branch without a passage of -1, bad amplitudes or offsets, a system without its parameter,
+        or where the period doubling cannot be located.
     OrbitError
         Where the doubled orbit is not found.
     """
-    if not (math.isfinite(moment_offset) and 0 < moment_offset < 1):
-        raise ValueError(f"moment_offset must be a number in (0, 1) (relative distance in M), got {moment_offset!r}")
-    point = _located(start, rtol=rtol, atol=atol)
+    if not (math.isfinite(offset) and 0 < offset < 1):
+        raise ValueError(f"offset must be a number in (0, 1) (relative distance in the parameter), got {offset!r}")
+    point, parameter = _located(start, parameter, rtol=rtol, atol=atol)
+    system = isinstance(point, shooting.Orbit)
+    value = point.parameter(parameter) if system else point.moment
+    # p - p_PD, for the chain positive towards larger |M|.
+    sign = 1.0 if system else math.copysign(1.0, point.moment)
+
+    def distance(orbit) -> float:
+        return sign * ((orbit.parameter(parameter) if system else orbit.moment) - value)
+
     multiplier, vector = flip_vector(point, rtol=rtol, atol=atol)
-    march = _March(point, vector, tol, rtol, atol)
+    if abs(multiplier + 1.0) > FLIP_TOL:
+        raise ValueError(
+            f"the orbit at {_where(point, parameter)} has its multiplier nearest -1 at {multiplier:.6g}: not a located period "
+            "doubling (take the point of continue_orbits' period_doubling event)"
+        )
+    march = _march(point, parameter, vector, tol, rtol, atol)
     probes = [march.to(a) for a in PROBE_AMPLITUDES]
-    # The normal form M - M_PD = c a^2 + O(a^3) (a and -a + O(a^2) start one orbit, half a period apart), by a secant in a^2.
-    (a1, a2), (m1, m2) = PROBE_AMPLITUDES, [_moment_offset(point, o) for o in probes]
-    coefficient = (m2 - m1) / (a2 * a2 - a1 * a1)
+    # The normal form p - p_PD = c a^2 + O(a^3) (a and -a + O(a^2) start one orbit, half a period apart), by a secant in a^2.
+    (a1, a2), (d1, d2) = PROBE_AMPLITUDES, [distance(o) for o in probes]
+    coefficient = (d2 - d1) / (a2 * a2 - a1 * a1)
     if coefficient == 0:
-        raise OrbitError(f"the doubled family at M={point.moment!r} does not move in M with its amplitude (a degenerate flip)")
+        raise OrbitError(f"the doubled family at {_where(point, parameter)} does not move with its amplitude (a degenerate flip)")
     if amplitude is None:
-        # The normal form's amplitude, approached in steps: the family's M bends away from c a^2 within a few times the
-        # probes on the sine chain at gamma_phi = 0.3, so the first orbit at the wanted distance from M_PD serves.
-        wanted = moment_offset * abs(point.moment)
+        # The normal form's amplitude, approached in steps: the family bends away from c a^2 within a few times the
+        # probes on the sine chain at gamma_phi = 0.3, so the first orbit at the wanted distance from p_PD serves.
+        wanted = offset * (abs(value) if value != 0 else 1.0)
         guess = max(PROBE_AMPLITUDES[-1], min(MAX_AMPLITUDE, math.sqrt(wanted / abs(coefficient))))
-        doubled = march.to(guess, enough=lambda o: abs(_moment_offset(point, o)) >= wanted)
+        doubled = march.to(guess, enough=lambda o: abs(distance(o)) >= wanted)
         amplitude = march.done[-1][0]
     else:
-        doubled = doubled_orbit(point, amplitude, eigenvector=vector, tol=tol, rtol=rtol, atol=atol)
-    doubled = find_periodic_orbit(
-        point.params,
-        point.model,
-        doubled.moment,
-        turns=doubled.turns,
-        particle=point.particle,
-        guess=doubled,
-        tol=tol,
-        rtol=rtol,
-        atol=atol,
-    )
-    side = "below" if _moment_offset(point, doubled) < 0 else "above"
-    branch = continue_orbit(doubled, tol=tol, rtol=rtol, atol=atol, **continue_options) if follow and side == "below" else None
-    return PeriodDoubling(point, multiplier, vector, float(coefficient), float(amplitude), doubled, side, branch)
+        doubled = doubled_orbit(point, amplitude, parameter=parameter, eigenvector=vector, tol=tol, rtol=rtol, atol=atol)
+    side = "below" if distance(doubled) < 0 else "above"
+    if system:
+        doubled = shooting.find_orbit(doubled.system, doubled, tol=tol, rtol=rtol, atol=atol)
+        direction = -1.0 if side == "below" else 1.0
+        branch = (
+            shooting.continue_orbits(doubled, parameter, direction=direction, tol=tol, rtol=rtol, atol=atol, **continue_options)
+            if follow
+            else None
+        )
+    else:
+        doubled = find_periodic_orbit(
+            point.params, point.model, doubled.moment, turns=doubled.turns, particle=point.particle, guess=doubled, tol=tol,
+            rtol=rtol, atol=atol,
+        )  # fmt: skip
+        branch = continue_orbit(doubled, tol=tol, rtol=rtol, atol=atol, **continue_options) if follow and side == "below" else None
+    return PeriodDoubling(point, parameter, float(value), multiplier, vector, float(coefficient), float(amplitude), doubled, side, branch)
 
 
 def _flip_test(orbit: PeriodicOrbit) -> float:
@@ -348,8 +412,22 @@ def _flip_test(orbit: PeriodicOrbit) -> float:
     return float(np.real(np.prod(orbit.multipliers + 1.0)))
 
 
-def _located(start: PeriodicOrbit | OrbitBranch, *, rtol: float, atol: float) -> PeriodicOrbit:
-    """The period doubling ``start`` is, is near, or lies on (module docstring of :func:`switch_at_period_doubling`)."""
+def _located(start, parameter: str | None, *, rtol: float, atol: float) -> tuple[Point, str]:
+    """The period doubling ``start`` is, is near, or lies on (:func:`switch_at_period_doubling`), and its parameter."""
+    if isinstance(start, shooting.OrbitBranch):
+        events = [e for e in start.events if e.kind == "period_doubling" and e.located]
+        if not events:
+            raise ValueError(
+                f"the branch in {start.parameter} has no located period_doubling event: continue_orbits locates one where a "
+                "real multiplier passes -1 (stop_at=('period_doubling',) ends the branch there)"
+            )
+        return events[0].point, start.parameter if parameter is None else parameter
+    if isinstance(start, shooting.Orbit):
+        if parameter is None:
+            raise ValueError("parameter must name the system's parameter of the period doubling, given an orbit")
+        return start, parameter
+    if parameter not in (None, "M"):
+        raise ValueError(f"the chain's period doubling lies in the moment M, got parameter={parameter!r}")
     if isinstance(start, OrbitBranch):
         orbits = start.orbits
         pairs = [i for i in range(len(orbits) - 1) if _flip_test(orbits[i]) * _flip_test(orbits[i + 1]) < 0]
@@ -358,12 +436,12 @@ def _located(start: PeriodicOrbit | OrbitBranch, *, rtol: float, atol: float) ->
         around = orbits[pairs[0] : pairs[0] + 2]
         if abs(around[1].max_multiplier - 1.0) < abs(around[0].max_multiplier - 1.0):
             around = around[::-1]
-        return locate_cycle_end(around, "period_doubling", rtol=rtol, atol=atol)
+        return locate_cycle_end(around, "period_doubling", rtol=rtol, atol=atol), "M"
     if not isinstance(start, PeriodicOrbit):
-        raise ValueError(f"start must be a PeriodicOrbit or an OrbitBranch, got {type(start).__name__}")
+        raise ValueError(f"start must be a PeriodicOrbit or an OrbitBranch (of the chain or a system), got {type(start).__name__}")
     if np.min(np.abs(start.multipliers + 1.0)) <= FLIP_TOL:
-        return start
-    return locate_cycle_end([start], "period_doubling", rtol=rtol, atol=atol)
+        return start, "M"
+    return locate_cycle_end([start], "period_doubling", rtol=rtol, atol=atol), "M"
 
 
 __all__ = ["PeriodDoubling", "doubled_orbit", "flip_vector", "switch_at_period_doubling"]
