@@ -70,6 +70,18 @@ def _frozen_heap():
     gc.unfreeze()
 
 
+@pytest.fixture(scope="session")
+def dask_cluster():
+    """One local Dask cluster of two worker processes for the session's studies whose claim is not about the cluster
+    a command starts itself (each such start imports the package in its workers again)."""
+    import dask.distributed
+
+    with dask.distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+    ) as local:
+        yield local
+
+
 def selected_params(request: pytest.FixtureRequest, argname: str) -> list:
     """The values of the parameter ``argname`` among the tests this session runs, in order: a module fixture that
     computes every case at once (one interpreter for all the docs pages or examples) computes only these, so a case

@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 
-import dask.distributed as distributed
 import numpy as np
 import pytest
 from typer.testing import CliRunner
@@ -40,16 +39,10 @@ RELAXING = {
 
 
 @pytest.fixture(scope="module")
-def cluster():
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None) as local:
-        yield local
-
-
-@pytest.fixture(scope="module")
-def one_cell_per_task(cluster, tmp_path_factory):
+def one_cell_per_task(dask_cluster, tmp_path_factory):
     """The RELAXING study computed with one cell per task."""
     run = run_study(
-        spec_from_mapping(RELAXING), out=tmp_path_factory.mktemp("single") / "study.nc", scheduler=cluster.scheduler_address, chunk=1
+        spec_from_mapping(RELAXING), out=tmp_path_factory.mktemp("single") / "study.nc", scheduler=dask_cluster.scheduler_address, chunk=1
     )
     assert run.completed and run.computed == 12 and run.failed == 0
     return run.dataset
@@ -60,9 +53,9 @@ def assert_same_cells(ds, expected):
         np.testing.assert_array_equal(ds[name].values, expected[name].values, err_msg=name)
 
 
-def test_every_cell_equals_the_single_run_api(cluster, tmp_path):
+def test_every_cell_equals_the_single_run_api(dask_cluster, tmp_path):
     spec = spec_from_mapping(SPEC)
-    run = run_study(spec, out=tmp_path / "study.nc", scheduler=cluster.scheduler_address)
+    run = run_study(spec, out=tmp_path / "study.nc", scheduler=dask_cluster.scheduler_address)
     assert run.completed and run.computed == 12 and run.failed == 0
     ds = read_dataset(tmp_path / "study.nc")
     assert list(ds.M_c.dims) == ["a", "E2", "model"]
@@ -87,11 +80,11 @@ def test_every_cell_equals_the_single_run_api(cluster, tmp_path):
                 assert int(cell.done) == 1 and str(cell.error.values) == ""
 
 
-def test_chunks_of_cells_equal_one_cell_per_task_and_single_runs(cluster, tmp_path, one_cell_per_task):
+def test_chunks_of_cells_equal_one_cell_per_task_and_single_runs(dask_cluster, tmp_path, one_cell_per_task):
     spec = spec_from_mapping(RELAXING)
     params = [ChainParams(**fields) for _, _, fields in spec.cells()]
     assert len({cell_time_step(p, "sine", spec) for p in params}) == 1  # one shared loop per chunk
-    run = run_study(spec, out=tmp_path / "study.nc", scheduler=cluster.scheduler_address, chunk=6)
+    run = run_study(spec, out=tmp_path / "study.nc", scheduler=dask_cluster.scheduler_address, chunk=6)
     assert run.completed and run.computed == 12 and run.failed == 0
     assert_same_cells(read_dataset(tmp_path / "study.nc"), one_cell_per_task)
     cell = run.dataset.sel(a=0.15, gamma_phi=0.2, model="nonlinear")
@@ -104,7 +97,7 @@ def test_chunks_of_cells_equal_one_cell_per_task_and_single_runs(cluster, tmp_pa
 
 
 @pytest.mark.parametrize("stop", [KeyboardInterrupt, RuntimeError])
-def test_a_study_stopped_after_a_chunk_resumes_without_recomputing_it(cluster, tmp_path, one_cell_per_task, stop):
+def test_a_study_stopped_after_a_chunk_resumes_without_recomputing_it(dask_cluster, tmp_path, one_cell_per_task, stop):
     spec = spec_from_mapping(RELAXING)
     out = tmp_path / "study.nc"
 
@@ -113,16 +106,16 @@ def test_a_study_stopped_after_a_chunk_resumes_without_recomputing_it(cluster, t
             raise stop
 
     if stop is KeyboardInterrupt:
-        first = run_study(spec, out=out, scheduler=cluster.scheduler_address, chunk=2, progress=stop_after_a_chunk)
+        first = run_study(spec, out=out, scheduler=dask_cluster.scheduler_address, chunk=2, progress=stop_after_a_chunk)
         assert not first.completed and first.computed == 2
     else:
         with pytest.raises(RuntimeError):
-            run_study(spec, out=out, scheduler=cluster.scheduler_address, chunk=2, progress=stop_after_a_chunk)
+            run_study(spec, out=out, scheduler=dask_cluster.scheduler_address, chunk=2, progress=stop_after_a_chunk)
     assert int(read_dataset(out).done.sum()) == 2
-    second = run_study(spec, out=out, scheduler=cluster.scheduler_address, chunk=4)
+    second = run_study(spec, out=out, scheduler=dask_cluster.scheduler_address, chunk=4)
     assert second.completed and second.skipped == 2 and second.computed == 12 - 2
     assert_same_cells(second.dataset, one_cell_per_task)
-    again = run_study(spec, out=out, scheduler=cluster.scheduler_address)
+    again = run_study(spec, out=out, scheduler=dask_cluster.scheduler_address)
     assert again.computed == 0 and again.skipped == 12
 
 
@@ -145,7 +138,7 @@ def test_chunks_share_n_and_model_and_keep_the_workers_busy():
     )
 
 
-def test_a_failing_cell_in_a_chunk_is_recorded_and_the_others_complete(cluster, tmp_path):
+def test_a_failing_cell_in_a_chunk_is_recorded_and_the_others_complete(dask_cluster, tmp_path):
     # dt = 0.05 is stable for E1 = 1 and 2 but beyond the stability limit for E1 = 1000: that cell's
     # relaxation refuses to run, so the chunk's batch raises and its cells are computed one by one.
     spec = spec_from_mapping(
@@ -156,7 +149,7 @@ def test_a_failing_cell_in_a_chunk_is_recorded_and_the_others_complete(cluster, 
             "sweep": {"m_max": 0.3, "dm": 0.1, "dt": 0.05},
         }
     )
-    run = run_study(spec, out=tmp_path / "study.nc", scheduler=cluster.scheduler_address, chunk=3)
+    run = run_study(spec, out=tmp_path / "study.nc", scheduler=dask_cluster.scheduler_address, chunk=3)
     assert run.completed and run.computed == 3 and run.failed == 1
     ds = run.dataset
     assert "stability limit" in str(ds.error.sel(E1=1000.0, model="sine").values)
@@ -167,16 +160,16 @@ def test_a_failing_cell_in_a_chunk_is_recorded_and_the_others_complete(cluster, 
         assert float(ds.compliance.sel(E1=e1, model="sine")) == compliance(ChainParams(E1=e1), "sine")
 
 
-def test_a_different_spec_does_not_resume_from_the_same_file(cluster, tmp_path):
+def test_a_different_spec_does_not_resume_from_the_same_file(dask_cluster, tmp_path):
     out = tmp_path / "study.nc"
-    run_study(spec_from_mapping({**SPEC, "quantities": ["compliance"]}), out=out, scheduler=cluster.scheduler_address)
+    run_study(spec_from_mapping({**SPEC, "quantities": ["compliance"]}), out=out, scheduler=dask_cluster.scheduler_address)
     with pytest.raises(ValueError, match="different study spec"):
-        run_study(spec_from_mapping({**SPEC, "quantities": ["band_gap"]}), out=out, scheduler=cluster.scheduler_address)
+        run_study(spec_from_mapping({**SPEC, "quantities": ["band_gap"]}), out=out, scheduler=dask_cluster.scheduler_address)
     earlier = read_dataset(out)
     earlier.attrs["time_step_rule"] = "default step of each cell"
     write_dataset(earlier, out)
     with pytest.raises(ValueError, match="another time-step rule"):
-        run_study(spec_from_mapping({**SPEC, "quantities": ["compliance"]}), out=out, scheduler=cluster.scheduler_address)
+        run_study(spec_from_mapping({**SPEC, "quantities": ["compliance"]}), out=out, scheduler=dask_cluster.scheduler_address)
 
 
 @pytest.mark.parametrize(
@@ -228,13 +221,13 @@ LOADED = {
 }
 
 
-def test_a_cell_under_extra_loads_equals_the_single_runs_under_the_same_loads(cluster, tmp_path):
+def test_a_cell_under_extra_loads_equals_the_single_runs_under_the_same_loads(dask_cluster, tmp_path):
     spec = spec_from_mapping(LOADED)
     assert spec.loads == [0.2]  # the number stays a moment of mean_angular_velocity, the table is an extra load
     extra = Loads([PointLoad("phi", 1, Schedule.constant(0.1))])
     assert spec.extra() == extra
     # chunk=2: both cells in one batch on a worker, which receives the loads in the spec's JSON.
-    run = run_study(spec, out=tmp_path / "study.nc", scheduler=cluster.scheduler_address, chunk=2)
+    run = run_study(spec, out=tmp_path / "study.nc", scheduler=dask_cluster.scheduler_address, chunk=2)
     assert run.completed and run.computed == 2 and run.failed == 0
     ds = read_dataset(tmp_path / "study.nc")
     assert json.loads(ds.attrs["loads_json"]) == extra.to_list()
@@ -276,13 +269,14 @@ def test_study_cli_with_an_embedded_cluster(tmp_path):
     assert result.exit_code == 2 and "Invalid value for '--chunk'" in result.output
 
 
-def test_study_cli_takes_load_tables_and_load_options(tmp_path):
+def test_study_cli_takes_load_tables_and_load_options(dask_cluster, tmp_path):
     spec_file = tmp_path / "loaded.toml"
     spec_file.write_text(
         'models = ["sine"]\nquantities = ["onset_load"]\n[parameters]\na = [0.2]\n[sweep]\nm_max = 0.4\ndm = 0.05\nt_max = 2000.0\n'
         '[[loads]]\nrow = "phi"\nparticle = 1\nvalue = 0.05\n'
     )
-    result = CliRunner().invoke(app, ["study", str(spec_file), "--load", "phi:-1=0.05", "--workers", "1", "--json"])
+    address = dask_cluster.scheduler_address
+    result = CliRunner().invoke(app, ["study", str(spec_file), "--load", "phi:-1=0.05", "--scheduler", address, "--json"])
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)
     extra = Loads([PointLoad("phi", 1, Schedule.constant(0.05)), PointLoad("phi", -1, Schedule.constant(0.05))])

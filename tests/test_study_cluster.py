@@ -142,17 +142,17 @@ def test_the_cli_refuses_a_silent_scheduler_with_exit_2(tmp_path, monkeypatch):
     assert not out.exists()
 
 
-def test_a_study_whose_every_cell_failed_exits_3_and_a_partial_one_says_how_many(tmp_path):
+def test_a_study_whose_every_cell_failed_exits_3_and_a_partial_one_says_how_many(dask_cluster, tmp_path):
     spec = tmp_path / "failing.toml"
     spec.write_text(
         'models = ["sine"]\nquantities = ["onset_load"]\n[parameters]\nE1 = [1000.0, 2000.0]\n[sweep]\nm_max = 0.3\ndm = 0.1\ndt = 0.05\n'
     )
-    result = runner.invoke(app, ["study", str(spec), "--workers", "1", "--json"])
+    result = runner.invoke(app, ["study", str(spec), "--scheduler", dask_cluster.scheduler_address, "--json"])
     assert result.exit_code == 3, result.output
     assert json.loads(result.stdout.splitlines()[0])["failed"] == 2
     assert "no cell succeeded" in result.stderr and "2 of 2 cells failed" in result.stderr and "stability limit" in result.stderr
     spec.write_text(spec.read_text().replace("E1 = [1000.0, 2000.0]", "E1 = [1.0, 1000.0]"))
-    result = runner.invoke(app, ["study", str(spec), "--workers", "1"])
+    result = runner.invoke(app, ["study", str(spec), "--scheduler", dask_cluster.scheduler_address])
     assert result.exit_code == 0, result.output
     assert "1 of 2 cells failed" in result.stderr
 
