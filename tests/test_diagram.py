@@ -33,23 +33,34 @@ def natural_continuation(chain: ChainParams, start: float, stop: float):
     return orbit
 
 
-def test_the_sine_chains_loop_is_open_and_its_lower_edge_is_where_the_orbit_loses_stability():
-    params = ChainParams()
-    diagram = state_diagram(params, "sine", "gamma_phi", [0.1, 0.12])
-    assert diagram.independent  # the statics do not read the viscosity
-    for row in diagram.rows:
-        chain = params.replace(gamma_phi=row.value)
+@pytest.fixture(scope="module")
+def sine_loop():
+    """The paper's sine chain's diagram at two weak dampings."""
+    return state_diagram(ChainParams(), "sine", "gamma_phi", [0.1, 0.12])
+
+
+def test_the_sine_chains_loop_is_open(sine_loop):
+    assert sine_loop.independent  # the statics do not read the viscosity
+    for row in sine_loop.rows:
+        chain = ChainParams().replace(gamma_phi=row.value)
         assert row.static_fold == pytest.approx(locate_fold(chain, "sine").moment, abs=1e-10)
         assert row.end in ("torus", "period_doubling") and row.hysteresis is True and row.rotation_starts == "jump"
         assert 0.16 < row.rotation_stops < row.static_fold
-        # Stable just above the edge (Newton in short steps down from 1.1 M_c, on its own), and
-        # the package's branch orbits below it unstable, their leading multiplier as named.
-        assert natural_continuation(chain, 1.1 * row.static_fold, 1.03 * row.rotation_stops).stable
-        branch = periodic_orbit(chain, "sine", 1.1 * row.static_fold, down_to=0.9 * row.rotation_stops).branch
-        below = [o for o in branch.orbits if o.moment < row.rotation_stops]
-        assert below and not below[0].stable and all(o.stable for o in branch.orbits if o.moment > 1.001 * row.rotation_stops)
     # The two damping values lose the orbit in different ways: a complex pair, then -1.
-    assert [row.end for row in diagram.rows] == ["torus", "period_doubling"]
+    assert [row.end for row in sine_loop.rows] == ["torus", "period_doubling"]
+
+
+# The torus row's edge in the quick suite, the period-doubling row's with the slow tests.
+@pytest.mark.parametrize("row_index", [0, pytest.param(1, marks=pytest.mark.slow)], ids=["torus", "period_doubling"])
+def test_the_sine_chains_lower_edge_is_where_the_orbit_loses_stability(sine_loop, row_index):
+    row = sine_loop.rows[row_index]
+    chain = ChainParams().replace(gamma_phi=row.value)
+    # Stable just above the edge (Newton in short steps down from 1.1 M_c, on its own), and
+    # the package's branch orbits below it unstable, their leading multiplier as named.
+    assert natural_continuation(chain, 1.1 * row.static_fold, 1.03 * row.rotation_stops).stable
+    branch = periodic_orbit(chain, "sine", 1.1 * row.static_fold, down_to=0.9 * row.rotation_stops).branch
+    below = [o for o in branch.orbits if o.moment < row.rotation_stops]
+    assert below and not below[0].stable and all(o.stable for o in branch.orbits if o.moment > 1.001 * row.rotation_stops)
 
 
 def test_where_no_stable_periodic_orbit_exists_above_the_fold_the_row_says_so():

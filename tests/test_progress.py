@@ -177,6 +177,7 @@ def test_rotate_at_its_time_limit_says_it_stopped_there(tmp_path):
     assert "stopped: time_limit" in bar and counts(bar)[1:] == ("1", "100")
 
 
+@pytest.mark.slow  # a continuation of some sixty orbits; a bar whose work ends before its cap is tested quickly above
 def test_orbit_down_to_ends_at_100_percent_where_the_branch_ends(tmp_path):
     """The continuation is capped in points; it ends at the fold of cycles near M = 0.164 (61 orbits)."""
     code, screen = on_terminal(cli("orbit", "--model", "sine", "--moment", "0.22", "--turns", "1", "--down-to", "0.1"), tmp_path)
