@@ -101,9 +101,15 @@ def test_shell_completion_script_is_offered():
 
 
 def test_models_command_lists_the_registry():
+    """In this interpreter (``python -m cosserat_chain`` is the test above): a fresh one imports and loads every model."""
     import json
 
-    out = subprocess.run([sys.executable, "-m", "cosserat_chain", "models", "--json"], capture_output=True, text=True, check=True).stdout
-    rows = json.loads(out)["models"]
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    result = CliRunner().invoke(app, ["models", "--json"])
+    assert result.exit_code == 0, result.output
+    rows = json.loads(result.stdout)["models"]
     assert [r["name"] for r in rows] == ["nonlinear", "sine", "linear"]
     assert [r["rotates"] for r in rows] == [True, True, False] and rows[1]["equation"] == "eq. (2)" and not rows[1]["conservative"]
