@@ -214,3 +214,23 @@ def test_the_pen_demo_doubles_into_out_of_phase_rotations_with_auto07p_s_branch_
     assert crossing.parameter == pytest.approx(0.331445, abs=5e-7)
     assert crossing.point.period == pytest.approx(9.72615, abs=1e-5)
     assert np.min(np.abs(crossing.point.nontrivial_multipliers - 1.0)) < 1e-5
+
+
+def test_where_the_flip_vector_nearly_follows_the_branch_the_switch_still_finds_the_doubled_orbit():
+    """On the sine chain at gamma_phi = 0.15 (period doubling at M = 0.17288, ``tests/test_cycle_curve.py``) the
+    amplitude condition along e alone also meets the one-turn orbit traversed twice, at a distance O(a), and
+    Newton went there (M - M_PD linear in a, the squared flip multiplier 1 + 9.5 a): the doubled orbits found
+    have M - M_PD quadratic in a, a multiplier 1 - O(a^2) and do not close after half their period."""
+    params = ChainParams(gamma_phi=0.15)
+    one_turn = find_periodic_orbit(params, "sine", 1.1 * locate_fold(params, "sine").moment)
+    switch = switch_at_period_doubling(continue_orbit(one_turn, period_max=100.0, until_unstable=True), follow=False)
+    point = switch.point
+    assert point.moment == pytest.approx(0.17288, abs=1e-5)
+    family = [doubled_orbit(point, a, eigenvector=switch.eigenvector) for a in (1e-3, 2e-3)]
+    offsets = [o.moment - point.moment for o in family]
+    assert offsets[0] < 0 and 3.5 < offsets[1] / offsets[0] < 4.5
+    for a, orbit in zip((1e-3, 2e-3), family):
+        second = np.sort(np.abs(orbit.multipliers - 1.0))[1]
+        assert 1e-7 < second < 1e3 * a**2
+        assert half_period_gap(orbit) > a
+    assert switch.side == "below" and switch.doubled.stable

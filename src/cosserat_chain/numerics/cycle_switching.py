@@ -78,6 +78,9 @@ PROBE_AMPLITUDES = (2e-3, 4e-3)
 MAX_AMPLITUDE = 0.1
 #: Newton iterations of one doubled orbit.
 MAX_ITERATIONS = 20
+#: A solution whose k-turn closure after half its period is within this many times the Newton tolerance is the
+#: k-turn orbit traversed twice, not a doubled orbit.
+HALF_CLOSURE = 1e3
 
 Point = PeriodicOrbit | shooting.Orbit
 
@@ -224,22 +227,45 @@ def doubled_orbit(
 
 
 class _March:
-    """Doubled orbits of growing amplitude from one period doubling (:func:`doubled_orbit`): Newton on
-    ``evaluate`` (R(w), the moment or parameter among the unknowns w) with the amplitude as the kit's
-    border along ``direction`` (unit, in w), from ``base`` (the period doubling's w with twice the period)."""
+    """Doubled orbits of growing amplitude from one period doubling (:func:`doubled_orbit`).
 
-    def __init__(self, evaluate, make_point: Callable, base: np.ndarray, direction: np.ndarray, tol: float, where: str):
-        norm = float(np.linalg.norm(direction))
+    Newton on ``evaluate`` (R(w) with twice the turns, w = (y0's unknowns, log T, p)) with the amplitude
+    a = e . (w - base) fixed by the kit's border, from ``base`` (the period doubling's w with twice the period)
+    and e the unit flip eigenvector ``tangent`` in w.
+    Two branches of that system cross at ``base``: the doubled family, tangent to the flip eigenvector
+    ``tangent``, and the k-turn orbit traversed twice, tangent to the null vector tau of ``single`` (the
+    k-turn system) there. The border e meets the second one O(a) away, and on the sine chain at
+    gamma_phi = 0.15 Newton went there: a solution that still closes after half its period is refused, and
+    the step is taken again with the border d, e made orthogonal to tau, which meets it only O(sqrt(a)) away.
+    """
+
+    def __init__(self, evaluate, single, make_point: Callable, base: np.ndarray, tangent: np.ndarray, tol: float, where: str):
+        norm = float(np.linalg.norm(tangent))
         if norm < 0.1:
             raise OrbitError(f"the flip eigenvector at {where} lies along the phase condition: no amplitude can be set")
-        self.evaluate, self.make_point, self.direction, self.tol, self.where = evaluate, make_point, direction / norm, tol, where
+        self.tangent = tangent / norm
+        half = np.array(base, dtype=float)
+        half[-2] -= math.log(2.0)
+        jacobian = np.asarray(single(half, True).jacobian)
+        tau = sla.svd(jacobian)[2][-1]
+        direction = self.tangent - (self.tangent @ tau) * tau
+        if np.linalg.norm(direction) < 0.1:
+            raise OrbitError(f"the flip eigenvector at {where} is nearly the orbit branch's tangent: a degenerate period doubling")
+        self.direction = direction / np.linalg.norm(direction)
+        self.evaluate, self.single, self.make_point, self.tol, self.where = evaluate, single, make_point, tol, where
         #: (amplitude, w) of the doubled family, from its limit at the period doubling (a = 0) on.
         self.done: list[tuple[float, np.ndarray]] = [(0.0, np.array(base, dtype=float))]
+
+    def _closes_at_half(self, w: np.ndarray) -> bool:
+        """Whether the orbit at w is the k-turn one traversed twice: it closes after half its period (to HALF_CLOSURE tol)."""
+        half = np.array(w, dtype=float)
+        half[-2] -= math.log(2.0)
+        return float(np.max(np.abs(self.single(half, False).residual))) <= HALF_CLOSURE * self.tol
 
     def _predict(self, amplitude: float) -> np.ndarray:
         """The parabola in a through the last three solutions (the tangent e at the period doubling before two)."""
         if len(self.done) < 3:
-            return self.done[-1][1] + (amplitude - self.done[-1][0]) * self.direction
+            return self.done[-1][1] + (amplitude - self.done[-1][0]) * self.tangent
         (a0, w0), (a1, w1), (a2, w2) = self.done[-3:]
         l0 = (amplitude - a1) * (amplitude - a2) / ((a0 - a1) * (a0 - a2))
         l1 = (amplitude - a0) * (amplitude - a2) / ((a1 - a0) * (a1 - a2))
@@ -247,17 +273,22 @@ class _March:
         return l0 * w0 + l1 * w1 + l2 * w2
 
     def solve(self, amplitude: float):
-        """The doubled orbit at ``amplitude`` (above the last one solved) from the prediction, None where Newton fails."""
+        """The doubled orbit near the prediction at ``amplitude`` (above the last one solved), None where Newton fails.
+
+        The border through the prediction is e's first (Newton converges from farther there: on the nonlinear
+        chain d's stalled), d's where that fails or reaches the orbit traversed twice; the orbit is recorded at
+        its own amplitude e . (w - base), which d's border leaves within O(a^2) of ``amplitude``.
+        """
         predictor = self._predict(amplitude)
-        # The border fixes e . (w - w_pred) = 0, which is the amplitude condition: the predictor satisfies it.
-        solved = newton(
-            self.evaluate, predictor, tol=self.tol, border=(self.direction, predictor), max_iterations=MAX_ITERATIONS,
-            divergence=None, damping=6,
-        )  # fmt: skip
-        if not solved.converged:
-            return None
-        self.done.append((amplitude, solved.w))
-        return self.make_point(solved.w, solved.evaluation, solved.iterations)
+        for border in (self.tangent, self.direction):
+            solved = newton(
+                self.evaluate, predictor, tol=self.tol, border=(border, predictor), max_iterations=MAX_ITERATIONS, divergence=None,
+                damping=6,
+            )  # fmt: skip
+            if solved.converged and not self._closes_at_half(solved.w):
+                self.done.append((float(self.tangent @ (solved.w - self.done[0][1])), solved.w))
+                return self.make_point(solved.w, solved.evaluation, solved.iterations)
+        return None
 
     def to(self, amplitude: float, enough: Callable[[Any], bool] | None = None):
         """The doubled orbit at ``amplitude`` > 0, in steps from the largest one solved: each at most doubles the
@@ -289,20 +320,21 @@ def _march(point: Point, parameter: str | None, eigenvector: np.ndarray, tol: fl
         if parameter is None:
             raise ValueError("parameter must name the system's parameter of the period doubling (the unknown beside the period)")
         point.parameter(parameter)
-        problem = shooting._Shooting(
-            point.system, 2 * point.turns, point.y0, 2 * point.period, (shooting.PERIOD, parameter), tol, rtol, atol
-        )
+        unknowns = (shooting.PERIOD, parameter)
+        problem = shooting._Shooting(point.system, 2 * point.turns, point.y0, 2 * point.period, unknowns, tol, rtol, atol)
+        single = shooting._Shooting(point.system, point.turns, point.y0, point.period, unknowns, tol, rtol, atol)
         base = np.concatenate([point.y0, [math.log(2 * point.period), point.parameter(parameter)]])
-        direction = np.concatenate([eigenvector, [0.0, 0.0]])
-        return _March(problem.evaluate, problem.orbit, base, direction, tol, _where(point, parameter))
+        tangent = np.concatenate([eigenvector, [0.0, 0.0]])
+        return _March(problem.evaluate, single.evaluate, problem.orbit, base, tangent, tol, _where(point, parameter))
     model = get_model(point.model)
     system = _System(point.params, model, point.moment, point.particle)
     phase = _phase_for(system, _to_y(point.params, point.x, point.v), point.phase_normal)
     start = dataclasses.replace(point, turns=2 * point.turns, period=2 * point.period, particle_turns=2 * point.particle_turns)
     problem = _OrbitBranchProblem(start, model, phase, tol, rtol, atol, 0.0, math.inf, False, False)
-    direction = np.zeros(phase.head + 2)
-    direction[: phase.head] = eigenvector[phase.keep]
-    return _March(problem.evaluate, problem.point, problem.pack(start), direction, tol, _where(point))
+    single = _OrbitBranchProblem(point, model, phase, tol, rtol, atol, 0.0, math.inf, False, False)
+    tangent = np.zeros(phase.head + 2)
+    tangent[: phase.head] = eigenvector[phase.keep]
+    return _March(problem.evaluate, single.evaluate, problem.point, problem.pack(start), tangent, tol, _where(point))
 
 
 def switch_at_period_doubling(
