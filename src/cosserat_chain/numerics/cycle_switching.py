@@ -227,40 +227,33 @@ def doubled_orbit(
 
 
 class _March:
-    """Doubled orbits of growing amplitude from one period doubling (:func:`doubled_orbit`).
+    """Orbits of growing amplitude on the family that leaves a bifurcation (:func:`doubled_orbit`, :func:`hopf_orbit`).
 
-    Newton on ``evaluate`` (R(w) with twice the turns, w = (y0's unknowns, log T, p)) with the amplitude
-    a = e . (w - base) fixed by the kit's border, from ``base`` (the period doubling's w with twice the period)
-    and e the unit flip eigenvector ``tangent`` in w.
-    Two branches of that system cross at ``base``: the doubled family, tangent to the flip eigenvector
-    ``tangent``, and the k-turn orbit traversed twice, tangent to the null vector tau of ``single`` (the
-    k-turn system) there. The border e meets the second one O(a) away, and on the sine chain at
-    gamma_phi = 0.15 Newton went there: a solution that still closes after half its period is refused, and
-    the step is taken again with the border d, e made orthogonal to tau, which meets it only O(sqrt(a)) away.
+    Newton on ``evaluate`` (the shooting residual R(w), w = (y0's unknowns, log T, p)) with the amplitude
+    a = e . (w - base) fixed by the kit's border, from ``base`` (the bifurcation's w) and e the unit
+    critical eigenvector ``tangent`` in w (the flip's, or the real part of the Hopf pair's). Two solution
+    sets meet at ``base``: the new family, tangent to e, and the one it leaves (the k-turn orbit traversed
+    twice, the equilibrium), tangent to ``tau``. The border e meets the second one O(a) away, and on the
+    sine chain at gamma_phi = 0.15 Newton went there: a solution ``refuse`` rejects is not taken, and the
+    step is taken again with the border d, e made orthogonal to tau, which meets it only O(sqrt(a)) away.
     """
 
-    def __init__(self, evaluate, single, make_point: Callable, base: np.ndarray, tangent: np.ndarray, tol: float, where: str):
+    def __init__(
+        self, evaluate, make_point: Callable, base: np.ndarray, tangent: np.ndarray, tau: np.ndarray, refuse: Callable, tol: float,
+        where: str,
+    ):  # fmt: skip
         norm = float(np.linalg.norm(tangent))
         if norm < 0.1:
-            raise OrbitError(f"the flip eigenvector at {where} lies along the phase condition: no amplitude can be set")
+            raise OrbitError(f"the critical eigenvector at {where} lies along the phase condition: no amplitude can be set")
         self.tangent = tangent / norm
-        half = np.array(base, dtype=float)
-        half[-2] -= math.log(2.0)
-        jacobian = np.asarray(single(half, True).jacobian)
-        tau = sla.svd(jacobian)[2][-1]
+        tau = tau / np.linalg.norm(tau)
         direction = self.tangent - (self.tangent @ tau) * tau
         if np.linalg.norm(direction) < 0.1:
-            raise OrbitError(f"the flip eigenvector at {where} is nearly the orbit branch's tangent: a degenerate period doubling")
+            raise OrbitError(f"the critical eigenvector at {where} is nearly the old branch's tangent: a degenerate bifurcation")
         self.direction = direction / np.linalg.norm(direction)
-        self.evaluate, self.single, self.make_point, self.tol, self.where = evaluate, single, make_point, tol, where
-        #: (amplitude, w) of the doubled family, from its limit at the period doubling (a = 0) on.
+        self.evaluate, self.make_point, self.refuse, self.tol, self.where = evaluate, make_point, refuse, tol, where
+        #: (amplitude, w) of the new family, from its limit at the bifurcation (a = 0) on.
         self.done: list[tuple[float, np.ndarray]] = [(0.0, np.array(base, dtype=float))]
-
-    def _closes_at_half(self, w: np.ndarray) -> bool:
-        """Whether the orbit at w is the k-turn one traversed twice: it closes after half its period (to HALF_CLOSURE tol)."""
-        half = np.array(w, dtype=float)
-        half[-2] -= math.log(2.0)
-        return float(np.max(np.abs(self.single(half, False).residual))) <= HALF_CLOSURE * self.tol
 
     def _predict(self, amplitude: float) -> np.ndarray:
         """The parabola in a through the last three solutions (the tangent e at the period doubling before two)."""
@@ -276,7 +269,7 @@ class _March:
         """The doubled orbit near the prediction at ``amplitude`` (above the last one solved), None where Newton fails.
 
         The border through the prediction is e's first (Newton converges from farther there: on the nonlinear
-        chain d's stalled), d's where that fails or reaches the orbit traversed twice; the orbit is recorded at
+        chain d's stalled), d's where that fails or reaches the old branch; the orbit is recorded at
         its own amplitude e . (w - base), which d's border leaves within O(a^2) of ``amplitude``.
         """
         predictor = self._predict(amplitude)
@@ -285,7 +278,7 @@ class _March:
                 self.evaluate, predictor, tol=self.tol, border=(border, predictor), max_iterations=MAX_ITERATIONS, divergence=None,
                 damping=6,
             )  # fmt: skip
-            if solved.converged and not self._closes_at_half(solved.w):
+            if solved.converged and not self.refuse(solved.w):
                 self.done.append((float(self.tangent @ (solved.w - self.done[0][1])), solved.w))
                 return self.make_point(solved.w, solved.evaluation, solved.iterations)
         return None
@@ -315,26 +308,40 @@ class _March:
 
 def _march(point: Point, parameter: str | None, eigenvector: np.ndarray, tol: float, rtol: float, atol: float) -> _March:
     """The doubled family's equations at ``point``: the chain's (P) with twice the turns on the located orbit's phase
-    condition, or a system's (O) with twice the turns on the plane through the point, the period and p unknown."""
+    condition, or a system's (O) with twice the turns on the plane through the point, the period and p unknown.
+    The old branch is the k-turn orbit's (tau: the null vector of its own shooting Jacobian); a solution that
+    closes after half its period (to :data:`HALF_CLOSURE` tol) is that orbit traversed twice."""
     if isinstance(point, shooting.Orbit):
         if parameter is None:
             raise ValueError("parameter must name the system's parameter of the period doubling (the unknown beside the period)")
         point.parameter(parameter)
         unknowns = (shooting.PERIOD, parameter)
         problem = shooting._Shooting(point.system, 2 * point.turns, point.y0, 2 * point.period, unknowns, tol, rtol, atol)
-        single = shooting._Shooting(point.system, point.turns, point.y0, point.period, unknowns, tol, rtol, atol)
+        single = shooting._Shooting(point.system, point.turns, point.y0, point.period, unknowns, tol, rtol, atol).evaluate
         base = np.concatenate([point.y0, [math.log(2 * point.period), point.parameter(parameter)]])
         tangent = np.concatenate([eigenvector, [0.0, 0.0]])
-        return _March(problem.evaluate, single.evaluate, problem.orbit, base, tangent, tol, _where(point, parameter))
-    model = get_model(point.model)
-    system = _System(point.params, model, point.moment, point.particle)
-    phase = _phase_for(system, _to_y(point.params, point.x, point.v), point.phase_normal)
-    start = dataclasses.replace(point, turns=2 * point.turns, period=2 * point.period, particle_turns=2 * point.particle_turns)
-    problem = _OrbitBranchProblem(start, model, phase, tol, rtol, atol, 0.0, math.inf, False, False)
-    single = _OrbitBranchProblem(point, model, phase, tol, rtol, atol, 0.0, math.inf, False, False)
-    tangent = np.zeros(phase.head + 2)
-    tangent[: phase.head] = eigenvector[phase.keep]
-    return _March(problem.evaluate, single.evaluate, problem.point, problem.pack(start), tangent, tol, _where(point))
+        evaluate, make_point, where = problem.evaluate, problem.orbit, _where(point, parameter)
+    else:
+        model = get_model(point.model)
+        system = _System(point.params, model, point.moment, point.particle)
+        phase = _phase_for(system, _to_y(point.params, point.x, point.v), point.phase_normal)
+        start = dataclasses.replace(point, turns=2 * point.turns, period=2 * point.period, particle_turns=2 * point.particle_turns)
+        problem = _OrbitBranchProblem(start, model, phase, tol, rtol, atol, 0.0, math.inf, False, False)
+        single = _OrbitBranchProblem(point, model, phase, tol, rtol, atol, 0.0, math.inf, False, False).evaluate
+        tangent = np.zeros(phase.head + 2)
+        tangent[: phase.head] = eigenvector[phase.keep]
+        base, evaluate, make_point, where = problem.pack(start), problem.evaluate, problem.point, _where(point)
+
+    def halved(w: np.ndarray) -> np.ndarray:
+        out = np.array(w, dtype=float)
+        out[-2] -= math.log(2.0)
+        return out
+
+    def closes_at_half(w: np.ndarray) -> bool:
+        return float(np.max(np.abs(single(halved(w), False).residual))) <= HALF_CLOSURE * tol
+
+    tau = sla.svd(np.asarray(single(halved(base), True).jacobian))[2][-1]
+    return _March(evaluate, make_point, base, tangent, tau, closes_at_half, tol, where)
 
 
 def switch_at_period_doubling(
