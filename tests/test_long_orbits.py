@@ -9,7 +9,7 @@ from conftest import random_geometries
 from cosserat_chain import ChainParams
 from cosserat_chain.models import get_model
 from cosserat_chain.numerics.long_orbits import BLOCKS_FROM_N, Monodromy, choose_method, leading_multipliers
-from cosserat_chain.numerics.periodic import _System, _to_y, find_periodic_orbit, initial_guess
+from cosserat_chain.numerics.periodic import _System, _to_y, continue_orbit, find_periodic_orbit, initial_guess
 
 #: Two shootings of one orbit agree to this (Newton stops at closure 1e-9; the integrations are at 1e-11).
 AGREE = 1e-8
@@ -127,6 +127,18 @@ def test_monodromy_products_equal_central_differences_of_the_flow():
     assert np.allclose(monodromy.apply(block)[:, 0], monodromy.apply(block[:, 0]), atol=1e-9)
     formed = monodromy.matrix(block=16, threads=2)
     assert np.allclose(formed @ direction, product, atol=1e-9)
+
+
+def test_a_continuation_with_the_blocks_ends_at_the_dense_continuations_fold_and_loses_stability_where_it_does():
+    orbit = find_periodic_orbit(ChainParams(), "sine", 0.22)
+    dense = continue_orbit(orbit, method="dense", moment_min=0.1)
+    blocks = continue_orbit(orbit, method="blocks", moment_min=0.1)
+    assert dense.end == blocks.end == "fold"
+    # dPhi_T/dM by differences (|dPhi_T/dM| = 1.2e5 near the fold) moves the steps, not the orbits.
+    assert blocks.end_moment == pytest.approx(dense.end_moment, abs=1e-9)
+    assert blocks.stability_lost_at == pytest.approx(dense.stability_lost_at, abs=1e-9)
+    with pytest.raises(ValueError, match="continue_orbit's method must be auto, dense or blocks"):
+        continue_orbit(orbit, method="krylov")
 
 
 def test_auto_method_chooses_the_blocks_from_the_length_where_they_pay():

@@ -1025,6 +1025,7 @@ def continue_orbit(
     rtol: float = RTOL,
     atol: float = ATOL,
     progress: ProgressCallback | None = None,
+    method: str = "auto",
 ) -> OrbitBranch:
     """Pseudo-arclength continuation of a periodic orbit towards smaller |M|, until it ceases to exist.
 
@@ -1066,6 +1067,9 @@ def continue_orbit(
     tol, rtol, atol : float
         As for :func:`find_periodic_orbit`.
     progress : callable(points, max_points), optional
+    method : {"auto", "dense", "blocks"}
+        How the monodromy is integrated (:func:`find_periodic_orbit`); ``blocks`` takes
+        dPhi_T/dM by central differences in M (:func:`~.long_orbits.blocked_shooting`).
 
     Returns
     -------
@@ -1074,13 +1078,18 @@ def continue_orbit(
     Raises
     ------
     ValueError
-        For non-positive steps or an unordered step range.
+        For non-positive steps, an unordered step range or a method not in auto, dense, blocks.
     """
     for name, value in (("step", step), ("min_step", min_step), ("max_step", max_step), ("period_max", period_max)):
         if not (math.isfinite(value) and value > 0):
             raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
     if not min_step <= step <= max_step:
         raise ValueError(f"steps must satisfy min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
+    from . import long_orbits  # it builds on this module
+
+    method = long_orbits.choose_method(orbit.params, method)
+    if method == "krylov":
+        raise ValueError("continue_orbit's method must be auto, dense or blocks (a continuation needs the monodromy), got 'krylov'")
     params, model = orbit.params, get_model(orbit.model)
     sign = math.copysign(1.0, orbit.moment)
     settings = {"moment_min": moment_min, "period_max": period_max, "step": step, "max_step": max_step, "tol": tol, "rtol": rtol}
@@ -1089,7 +1098,9 @@ def continue_orbit(
     orbits: list[PeriodicOrbit] = []
     first, notes, h = orbit, [], step
     while True:
-        problem = _OrbitBranchProblem(first, model, phase, tol, rtol, atol, moment_min, period_max, until_unstable, orbit.stable)
+        problem = _OrbitBranchProblem(
+            first, model, phase, tol, rtol, atol, moment_min, period_max, until_unstable, orbit.stable, method=method
+        )
         # A restart's first orbit is the last one already traced.
         offset = max(len(orbits) - 1, 0)
         traced = continuation(
@@ -1193,6 +1204,8 @@ class _OrbitBranchProblem:
     start_stable: bool
     #: Set by :meth:`stop` where the section must give way to a plane (the branch is then ended here and restarted).
     rechoose: bool = False
+    #: ``dense`` or ``blocks`` (:func:`continue_orbit`).
+    method: str = "dense"
 
     def __post_init__(self) -> None:
         self.crossing0 = self._crossing(self.start)
@@ -1212,10 +1225,11 @@ class _OrbitBranchProblem:
         y0 = self.phase.state(w[:head])
         period, moment = math.exp(w[head]), w[head + 1]
         system = _System(self.start.params, self.model, moment, self.start.particle)
+        from .long_orbits import blocked_shooting  # it builds on this module
+
+        shooting = _shooting if self.method == "dense" else blocked_shooting
         try:
-            residual, jac_y, jac_t, d_moment, mono = _shooting(system, self.start.particle_turns, self.rtol, self.atol)(
-                y0, period, jacobian
-            )
+            residual, jac_y, jac_t, d_moment, mono = shooting(system, self.start.particle_turns, self.rtol, self.atol)(y0, period, jacobian)
         except OrbitError as err:
             raise EvaluationFailed(str(err)) from err
         residual = np.append(residual, self.phase.residual(y0))
