@@ -15,6 +15,8 @@ columns V (2 n_free, p) come from one integration of the state with p variationa
   in cache, so even on one thread it is faster than the one-piece integration (1.7x at
   N = 100). Newton as the dense method: the package's corrector (:func:`~.kit.newton`) in
   chord iterations, M formed again only where the closure stops falling tenfold a step.
+  :func:`~.periodic.continue_orbit` takes them too (:func:`blocked_shooting`: dPhi_T/dM,
+  which only the one-piece integration carries as a column, by differences in M).
 * **Newton-Krylov** (:func:`newton_krylov_orbit`, ``method="krylov"``): M never formed;
   each Newton step of (P) and the phase condition, in the same unknowns (y0 on the section or
   the plane of :class:`~.periodic._Phase`, and T),
