@@ -70,16 +70,37 @@ def _frozen_heap():
     gc.unfreeze()
 
 
+#: The running cluster of ``dask_cluster``, and the last test of the session that uses it.
+_DASK: dict = {}
+
+
 @pytest.fixture(scope="session")
 def dask_cluster():
-    """One local Dask cluster of two worker processes for the session's studies whose claim is not about the cluster
-    a command starts itself (each such start imports the package in its workers again)."""
-    import dask.distributed
+    """One local Dask cluster of two worker processes for the studies of test_study.py and test_study_cluster.py whose
+    claim is not about the cluster a command starts itself (each start imports the package in its workers again).
+    Started by the first test that asks for it and closed after the last: an idle cluster's heartbeats cost CPU."""
+    if "cluster" not in _DASK:
+        import dask.distributed
 
-    with dask.distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
-    ) as local:
-        yield local
+        _DASK["cluster"] = dask.distributed.LocalCluster(
+            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+        )
+    return _DASK["cluster"]
+
+
+def pytest_collection_finish(session):
+    users = [item for item in session.items if "dask_cluster" in getattr(item, "fixturenames", ())]
+    _DASK["last"] = users[-1] if users else None
+
+
+def pytest_runtest_teardown(item, nextitem):
+    if item is _DASK.get("last") and "cluster" in _DASK:
+        _DASK.pop("cluster").close()
+
+
+def pytest_sessionfinish(session):
+    if "cluster" in _DASK:  # a session stopped before the last user (-x)
+        _DASK.pop("cluster").close()
 
 
 def selected_params(request: pytest.FixtureRequest, argname: str) -> list:

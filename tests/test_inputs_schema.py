@@ -170,14 +170,13 @@ def test_commands_refuse_a_damaged_run_with_exit_2(run_file, tmp_path, command, 
     assert "bad.nc" in result.output
 
 
-def test_a_study_file_damaged_under_the_same_spec_is_refused(dask_cluster, tmp_path):
+def test_a_study_file_damaged_under_the_same_spec_is_refused(tmp_path):
     spec = tmp_path / "spec.toml"
     spec.write_text('models = ["linear"]\nquantities = ["compliance"]\n[parameters]\na = [0.1, 0.2]\n')
     out = tmp_path / "study.nc"
-    on_the_cluster = ["--scheduler", dask_cluster.scheduler_address]
-    assert runner.invoke(app, ["study", str(spec), "--out", str(out), *on_the_cluster]).exit_code == 0
+    assert runner.invoke(app, ["study", str(spec), "--out", str(out), "--workers", "1"]).exit_code == 0
     xr.load_dataset(out).drop_vars("error").to_netcdf(tmp_path / "noerror.nc", engine="h5netcdf")
-    result = runner.invoke(app, ["study", str(spec), "--out", str(tmp_path / "noerror.nc"), *on_the_cluster])
+    result = runner.invoke(app, ["study", str(spec), "--out", str(tmp_path / "noerror.nc"), "--workers", "1"])
     _no_traceback(result)
     assert result.exit_code == 2 and "lacks the variable 'error'" in result.output
 

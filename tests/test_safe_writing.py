@@ -114,11 +114,11 @@ def test_a_study_file_that_cannot_be_written_is_reported_not_raised(full_folder)
     assert not (full_folder / "study.nc").exists()
 
 
-def test_a_study_on_a_full_disk_keeps_its_cells_in_a_fallback_and_exits_3(dask_cluster, full_folder, tmp_path, monkeypatch):
+def test_a_study_on_a_full_disk_keeps_its_cells_in_a_fallback_and_exits_3(full_folder, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     spec = tmp_path / "spec.toml"
     spec.write_text('models = ["linear"]\nquantities = ["compliance"]\n[parameters]\na = [0.1, 0.2]\n')
-    result = runner.invoke(app, ["study", str(spec), "--out", str(full_folder / "study.nc"), "--scheduler", dask_cluster.scheduler_address])
+    result = runner.invoke(app, ["study", str(spec), "--out", str(full_folder / "study.nc"), "--workers", "1"])
     assert result.exit_code == 3, result.output
     (fallback,) = tmp_path.glob("study.recovered-*.nc")
     assert str(fallback) in result.output and int(read_dataset(fallback)["done"].sum()) == 2
