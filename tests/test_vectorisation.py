@@ -37,7 +37,13 @@ def packed_instructions(dispatcher, signature, options) -> int:
     return len(PACKED.findall(_fresh_asm(dispatcher.py_func, signature, options)))
 
 
-@pytest.mark.parametrize("name", available_models())
+def nonlinear_quick(names) -> list:
+    """The models, each but the nonlinear one (the kernels' hardest case: square roots and divisions) marked slow: each
+    case compiles a kernel afresh, which is what this file's time is."""
+    return [name if name == "nonlinear" else pytest.param(name, marks=pytest.mark.slow) for name in names]
+
+
+@pytest.mark.parametrize("name", nonlinear_quick(available_models()))
 @pytest.mark.parametrize("kind", ["force_kernel", "batch_kernel"])
 def test_every_force_kernel_vectorises(name, kind):
     kernel = getattr(type(get_model(name)), kind)
@@ -52,7 +58,7 @@ def test_the_nonlinear_kernels_take_square_roots_and_divisions_four_lanes_at_a_t
     assert re.search(r"vsqrtpd\s+[^\n]*%[yz]mm", asm) and re.search(r"vdivpd\s+[^\n]*%[yz]mm", asm)
 
 
-@pytest.mark.parametrize("name", available_models())
+@pytest.mark.parametrize("name", nonlinear_quick(available_models()))
 def test_every_bond_kernel_vectorises(name):
     """The bonds' forces and exact Jacobian (the periodic orbits' variational equations) are computed across bonds in SIMD lanes."""
     kernel = type(get_model(name)).bond_kernel
@@ -76,7 +82,7 @@ def test_the_kick_drift_vectorises_with_its_energy_sums():
         assert len(PACKED.findall(fresh.inspect_asm(fresh.signatures[0]))) >= 4
 
 
-@pytest.mark.parametrize("name", available_models())
+@pytest.mark.parametrize("name", nonlinear_quick(available_models()))
 def test_every_graded_kernel_vectorises(name):
     """The per-bond coefficients (a graded chain, issue 14) keep the interior loop packed."""
     kernel = type(get_model(name)).graded_kernel
