@@ -8,8 +8,8 @@ import pytest
 from conftest import random_geometries
 from cosserat_chain import ChainParams
 from cosserat_chain.models import get_model
-from cosserat_chain.numerics.long_orbits import BLOCKS_FROM_N, Monodromy, choose_method, leading_multipliers
-from cosserat_chain.numerics.periodic import _System, _to_y, continue_orbit, find_periodic_orbit, initial_guess
+from cosserat_chain.numerics.long_orbits import BLOCKS_FROM_N, Monodromy, blocked_shooting, choose_method, leading_multipliers
+from cosserat_chain.numerics.periodic import _shooting, _System, _to_y, continue_orbit, find_periodic_orbit, initial_guess
 
 #: Two shootings of one orbit agree to this (Newton stops at closure 1e-9; the integrations are at 1e-11).
 AGREE = 1e-8
@@ -139,6 +139,16 @@ def test_a_continuation_with_the_blocks_ends_at_the_dense_continuations_fold_and
     assert blocks.stability_lost_at == pytest.approx(dense.stability_lost_at, abs=1e-9)
     with pytest.raises(ValueError, match="continue_orbit's method must be auto, dense or blocks"):
         continue_orbit(orbit, method="krylov")
+
+
+def test_the_blocked_shooting_jacobian_equals_the_variational_one_with_the_moment_column_by_differences():
+    orbit = find_periodic_orbit(ChainParams(), "sine", 0.22)
+    system = _System(orbit.params, get_model("sine"), orbit.moment, 0)
+    start = _to_y(orbit.params, orbit.x, orbit.v)
+    dense = _shooting(system, orbit.particle_turns, 1e-11, 1e-11)(start, orbit.period, True)
+    blocks = blocked_shooting(system, orbit.particle_turns, 1e-11, 1e-11)(start, orbit.period, True)
+    for name, exact, other in zip(("residual", "dR/dy0", "dR/dT", "dR/dM", "monodromy"), dense, blocks, strict=True):
+        assert np.max(np.abs(other - exact)) <= 1e-8 * max(1.0, np.max(np.abs(exact))), name
 
 
 def test_auto_method_chooses_the_blocks_from_the_length_where_they_pay():
