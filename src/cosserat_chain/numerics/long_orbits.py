@@ -97,7 +97,7 @@ SEED = 20240
 
 
 def choose_method(params: ChainParams, method: str) -> str:
-    """``"dense"`` or ``"krylov"``: ``method`` itself, or for ``"auto"`` by the chain's length (:data:`KRYLOV_FROM_N`).
+    """``"dense"``, ``"blocks"`` or ``"krylov"``: ``method`` itself, or for ``"auto"`` by the chain's length (:data:`BLOCKS_FROM_N`).
 
     Raises
     ------
@@ -215,7 +215,7 @@ class _ShootingStep:
         n = rhs.size
         operator = spla.LinearOperator((n, n), matvec=self._apply, dtype=float)
         step, _ = spla.gmres(operator, rhs, rtol=rtol, atol=0.0, restart=GMRES_MAX_ITERATIONS, maxiter=1)
-        # A step GMRES did not resolve to rtol is still a descent direction: Newton's halving judges it.
+        # A step GMRES did not resolve to rtol (after GMRES_MAX_ITERATIONS) is still taken: Newton's halving judges it.
         return step
 
 
