@@ -9,7 +9,7 @@ numbers: 0.7 GB at N = 200, 18 GB at N = 1000). Here the products M V with a blo
 columns V (2 n_free, p) come from one integration of the state with p variational columns
 (:class:`Monodromy`, O(N p) a step), and
 
-* **blocks** (:func:`blocked_orbit`, ``method="blocks"``): M formed from the identity's
+* **blocks** (:func:`blocks_correction`, ``method="blocks"``): M formed from the identity's
   columns :data:`BLOCK_COLUMNS` at a time, the blocks on parallel threads (the compiled
   integrator releases the GIL), with the memory of M alone; a block's variational state stays
   in cache, so even on one thread it is faster than the one-piece integration (1.7x at
@@ -17,7 +17,7 @@ columns V (2 n_free, p) come from one integration of the state with p variationa
   chord iterations, M formed again only where the closure stops falling tenfold a step.
   :func:`~.periodic.continue_orbit` takes them too (:func:`blocked_shooting`: dPhi_T/dM,
   which only the one-piece integration carries as a column, by differences in M).
-* **Newton-Krylov** (:func:`newton_krylov_orbit`, ``method="krylov"``): M never formed;
+* **Newton-Krylov** (:func:`krylov_correction`, ``method="krylov"``): M never formed;
   each Newton step of (P) and the phase condition, in the same unknowns (y0 on the section or
   the plane of :class:`~.periodic._Phase`, and T),
 
@@ -51,16 +51,21 @@ import math
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
+from ..errors import CosseratChainError
 from ..params import ChainParams
 from ..state import ROW_INDEX, pack, zeros
 from . import dop853
-from .kit import Evaluation, EvaluationFailed, newton
-from .periodic import MAX_HALVINGS, MAX_STEPS, OrbitError, PeriodicOrbit, _from_y, _no_convergence, _Phase, _System
+from .kit import Correction, Evaluation, EvaluationFailed, newton
+
+if TYPE_CHECKING:
+    # The solvers below serve numerics.periodic, which imports this module: its classes are only named here.
+    from .periodic import _Phase, _System
 
 #: The methods of :func:`~.periodic.find_periodic_orbit`: the monodromy in one integration, in column blocks, Newton-Krylov, or by the chain's length.
 METHODS = ("auto", "dense", "blocks", "krylov")
@@ -156,11 +161,11 @@ class Monodromy:
         rhs, kernel, ends, coef, rpar, ipar = self.system.parameters(ncols)
         y0 = np.concatenate([self.start, (block / scale).ravel()])
         sol = dop853.solve(
-            rhs, kernel, coef, rpar, ipar, y0, np.array([0.0, self.period]), rtol=self.rtol, atol=self.atol, max_steps=MAX_STEPS,
+            rhs, kernel, coef, rpar, ipar, y0, np.array([0.0, self.period]), rtol=self.rtol, atol=self.atol,
             end_force=ends,
         )  # fmt: skip
         if not sol.success:
-            raise OrbitError(f"the variational equations over T={self.period!r} failed at M={self.system.moment!r}: {sol.message}")
+            raise EvaluationFailed(f"the variational equations over T={self.period!r} failed at M={self.system.moment!r}: {sol.message}")
         self.products += ncols
         self.integrations += 1
         out = sol.y[-1][self.size :].reshape(self.size, ncols) * scale
@@ -228,7 +233,7 @@ def _closure(system: _System, phase: _Phase, shift: np.ndarray, rtol: float, ato
         y = phase.state(w[:-1])
         try:
             end, _, _ = system.flow(y, w[-1], rtol=rtol, atol=atol, variations=False)
-        except OrbitError as err:
+        except CosseratChainError as err:  # the integration failed (periodic.OrbitError)
             raise EvaluationFailed(str(err)) from err
         residual = np.append(end - y - shift, phase.residual(y))
         return residual, Monodromy(system, y, float(w[-1]), rtol, atol), system.velocity(end)
@@ -236,29 +241,22 @@ def _closure(system: _System, phase: _Phase, shift: np.ndarray, rtol: float, ato
     return evaluate
 
 
-def newton_krylov_orbit(
+def krylov_correction(
     system: _System,
-    turns: int,
-    y0: np.ndarray,
-    period: float,
-    particle_turns: np.ndarray,
     phase: _Phase,
+    particle_turns: np.ndarray,
+    w0: np.ndarray,
     *,
     tol: float,
     max_iter: int,
     rtol: float,
     atol: float,
-    multipliers: int = MULTIPLIERS,
-) -> PeriodicOrbit:
-    """The orbit through the guess (y0 (2 n_free,), period) by Newton-Krylov shooting, with its leading multipliers.
+    damping: int,
+) -> tuple[Correction, Monodromy | None]:
+    """Newton-Krylov shooting from w0 = (y0's unknowns on ``phase``, T); the correction and, converged, M's products there.
 
-    The arguments are those :func:`~.periodic.find_periodic_orbit` has checked and prepared (the
-    guess on its phase condition ``phase``).
-
-    Raises
-    ------
-    OrbitError
-        If Newton's method does not converge.
+    The Newton steps by GMRES on products (module docstring); ``damping`` halvings of a step
+    that does not reduce the closure (:func:`~.kit.newton`).
     """
     evaluate = _closure(system, phase, _shift(system, particle_turns), rtol, atol)
 
@@ -272,45 +270,27 @@ def newton_krylov_orbit(
         eta = min(GMRES_RTOL_MAX, max(GMRES_RTOL_MIN, float(np.max(np.abs(residual)))))
         return step.solve(-residual, eta)
 
-    solved = newton(
-        closure, np.append(y0[phase.keep], period), tol=tol, max_iterations=max_iter, divergence=None, damping=MAX_HALVINGS,
-        newton_step=krylov_step,
-    )  # fmt: skip
-    if not solved.converged:
-        raise OrbitError(_no_convergence(system.moment, turns, solved.iterations, solved.norm))
-    start = phase.state(solved.w[:-1])
-    monodromy = solved.evaluation.matrix().monodromy
-    values, errors = leading_multipliers(monodromy, system.velocity(start), multipliers)
-    return _periodic_orbit(system, turns, start, solved, particle_turns, phase, values, errors)
+    solved = newton(closure, w0, tol=tol, max_iterations=max_iter, divergence=None, damping=damping, newton_step=krylov_step)
+    return solved, (solved.evaluation.matrix().monodromy if solved.converged else None)
 
 
-def blocked_orbit(
+def blocks_correction(
     system: _System,
-    turns: int,
-    y0: np.ndarray,
-    period: float,
-    particle_turns: np.ndarray,
     phase: _Phase,
+    particle_turns: np.ndarray,
+    w0: np.ndarray,
     *,
     tol: float,
     max_iter: int,
     rtol: float,
     atol: float,
-    multipliers: int = MULTIPLIERS,
+    damping: int,
     threads: int | None = None,
-) -> PeriodicOrbit:
-    """The orbit through the guess by Newton on (P) with the monodromy assembled from column blocks (:meth:`Monodromy.matrix`).
+) -> tuple[Correction, np.ndarray | None]:
+    """Newton on (P) from w0 with the monodromy from column blocks (:meth:`Monodromy.matrix`); the correction and, converged, M there.
 
-    As the dense method of :func:`~.periodic.find_periodic_orbit` (chord iterations:
-    :data:`CHORD_RATE`), with the memory of M alone instead of the integrator's copies of
-    2 n_free + 1 columns, and the blocks on ``threads`` threads. The multipliers are all
-    eigenvalues of M up to 2 n_free = :data:`ALL_MULTIPLIERS_UP_TO`, above it the leading
-    ``multipliers`` (ARPACK on M), each with its error estimate (module docstring).
-
-    Raises
-    ------
-    OrbitError
-        If Newton's method does not converge.
+    As the dense shooting (chord iterations: :data:`CHORD_RATE`), with the memory of M alone
+    instead of the integrator's copies of 2 n_free + 1 columns, the blocks on ``threads`` threads.
     """
     evaluate = _closure(system, phase, _shift(system, particle_turns), rtol, atol)
     keep = phase.keep
@@ -326,16 +306,11 @@ def blocked_orbit(
         # M is formed only where Newton asks for a fresh Jacobian (chord iterations, and at the solution).
         return Evaluation(residual, matrix, monodromy)
 
-    solved = newton(
-        closure, np.append(y0[keep], period), tol=tol, max_iterations=max_iter, divergence=None, chord=CHORD_RATE,
-        damping=MAX_HALVINGS,
-    )  # fmt: skip
+    solved = newton(closure, w0, tol=tol, max_iterations=max_iter, divergence=None, chord=CHORD_RATE, damping=damping)
     if not solved.converged:
-        raise OrbitError(_no_convergence(system.moment, turns, solved.iterations, solved.norm))
-    start = phase.state(solved.w[:-1])
+        return solved, None
     solved.evaluation.matrix()  # M at the solution, formed once
-    values, errors = leading_multipliers(solved.evaluation.data.formed, system.velocity(start), multipliers)
-    return _periodic_orbit(system, turns, start, solved, particle_turns, phase, values, errors)
+    return solved, solved.evaluation.data.formed
 
 
 def blocked_shooting(system: _System, particle_turns: np.ndarray, rtol: float, atol: float):
@@ -380,26 +355,6 @@ def _moment_derivative(system: _System, y0: np.ndarray, period: float, step: flo
         for reach in (1.0, 2.0)
     )
     return (8.0 * (near[0] - near[1]) - (far[0] - far[1])) / (12.0 * step)
-
-
-def _periodic_orbit(system, turns, start, solved, particle_turns, phase, values, errors) -> PeriodicOrbit:
-    x, v = _from_y(system.params, start)
-    return PeriodicOrbit(
-        params=system.params,
-        model=system.model.name,
-        moment=float(system.moment),
-        turns=turns,
-        particle=system.particle,
-        period=float(solved.w[-1]),
-        x=x,
-        v=v,
-        multipliers=values,
-        closure=float(solved.norm),
-        iterations=solved.iterations,
-        particle_turns=particle_turns,
-        phase_normal=phase.normal,
-        multiplier_errors=errors,
-    )
 
 
 def leading_multipliers(

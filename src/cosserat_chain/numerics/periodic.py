@@ -71,7 +71,7 @@ from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, force_columns, free_index, held, n_free, pack, per_dof, unpack, zeros
 from ..state import dof as free_dof
 from ..status import Status
-from . import dop853
+from . import dop853, long_orbits
 from .dynamics import TurnWatch, integrate
 from .integrators import default_time_step
 from .kit import BranchEnd, Evaluation, EvaluationFailed, continuation, newton
@@ -829,8 +829,6 @@ def find_periodic_orbit(
         If Newton's method does not converge (try a guess from a nearby moment, another
         ``turns``, or the rotation may be chaotic).
     """
-    from . import long_orbits  # it builds on this module
-
     model = get_model(model)
     _check_moment_and_turns(moment, turns)
     for name, value in (("tol", tol), ("rtol", rtol), ("atol", atol)):
@@ -862,8 +860,7 @@ def find_periodic_orbit(
         y0[system.load_dof] = 0.0
     phase = _phase_for(system, y0, normal)
     if method != "dense":
-        solver = long_orbits.newton_krylov_orbit if method == "krylov" else long_orbits.blocked_orbit
-        return solver(system, turns, y0, period, particle_turns, phase, tol=tol, max_iter=max_iter, rtol=rtol, atol=atol)
+        return _long_orbit(system, turns, y0, period, particle_turns, phase, method, tol=tol, max_iter=max_iter, rtol=rtol, atol=atol)
     evaluate = _shooting(system, particle_turns, rtol, atol)
     keep = phase.keep
 
@@ -889,6 +886,39 @@ def find_periodic_orbit(
         raise OrbitError(_no_convergence(moment, turns, solved.iterations, solved.norm))
     y0 = phase.state(solved.w[:-1])
     return _orbit(system, turns, y0, solved.w[-1], solved.evaluation.data, solved.norm, solved.iterations, particle_turns, phase.normal)
+
+
+def _long_orbit(system, turns, y0, period, particle_turns, phase, method, *, tol, max_iter, rtol, atol) -> PeriodicOrbit:
+    """:func:`find_periodic_orbit` by the blocks or Newton-Krylov (:mod:`.long_orbits`), with the multipliers' errors."""
+    correct = long_orbits.krylov_correction if method == "krylov" else long_orbits.blocks_correction
+    try:
+        solved, monodromy = correct(
+            system, phase, particle_turns, np.append(y0[phase.keep], period), tol=tol, max_iter=max_iter, rtol=rtol, atol=atol,
+            damping=MAX_HALVINGS,
+        )  # fmt: skip
+        if not solved.converged:
+            raise OrbitError(_no_convergence(system.moment, turns, solved.iterations, solved.norm))
+        y0 = phase.state(solved.w[:-1])
+        multipliers, errors = long_orbits.leading_multipliers(monodromy, system.velocity(y0))
+    except EvaluationFailed as err:
+        raise OrbitError(f"the monodromy's products at the orbit failed: {err}") from err
+    x, v = _from_y(system.params, y0)
+    return PeriodicOrbit(
+        params=system.params,
+        model=system.model.name,
+        moment=float(system.moment),
+        turns=turns,
+        particle=system.particle,
+        period=float(solved.w[-1]),
+        x=x,
+        v=v,
+        multipliers=multipliers,
+        closure=float(solved.norm),
+        iterations=solved.iterations,
+        particle_turns=particle_turns,
+        phase_normal=phase.normal,
+        multiplier_errors=errors,
+    )
 
 
 def _no_convergence(moment: float, turns: int, iterations: int, norm: float) -> str:
@@ -1085,8 +1115,6 @@ def continue_orbit(
             raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
     if not min_step <= step <= max_step:
         raise ValueError(f"steps must satisfy min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
-    from . import long_orbits  # it builds on this module
-
     method = long_orbits.choose_method(orbit.params, method)
     if method == "krylov":
         raise ValueError("continue_orbit's method must be auto, dense or blocks (a continuation needs the monodromy), got 'krylov'")
@@ -1225,9 +1253,7 @@ class _OrbitBranchProblem:
         y0 = self.phase.state(w[:head])
         period, moment = math.exp(w[head]), w[head + 1]
         system = _System(self.start.params, self.model, moment, self.start.particle)
-        from .long_orbits import blocked_shooting  # it builds on this module
-
-        shooting = _shooting if self.method == "dense" else blocked_shooting
+        shooting = _shooting if self.method == "dense" else long_orbits.blocked_shooting
         try:
             residual, jac_y, jac_t, d_moment, mono = shooting(system, self.start.particle_turns, self.rtol, self.atol)(y0, period, jacobian)
         except OrbitError as err:
