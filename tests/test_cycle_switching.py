@@ -1,4 +1,4 @@
-"""Branch switching at a period doubling (issue 40, item 4): ``numerics.cycle_switching``.
+"""Branch switching at a period doubling and at Hopf points (issue 40, item 4): ``numerics.cycle_switching``.
 
 The nonlinear paper chain at gamma_phi = 0.2 loses its one-turn orbit at a period doubling near
 M = 0.19665 (``tests/test_periodic_jacobian.py``). The doubled orbit must behave as the normal form
@@ -19,9 +19,18 @@ import scipy.optimize as so
 from cosserat_chain import ChainParams
 from cosserat_chain.loads import moment_load
 from cosserat_chain.numerics import shooting
-from cosserat_chain.numerics.continuation import locate_fold
-from cosserat_chain.numerics.cycle_switching import PeriodDoubling, doubled_orbit, flip_vector, switch_at_period_doubling
+from cosserat_chain.numerics.continuation import continue_in_moment, locate_fold
+from cosserat_chain.numerics.cycle_switching import (
+    PeriodDoubling,
+    doubled_orbit,
+    flip_vector,
+    hopf_orbit,
+    hopf_vector,
+    switch_at_hopf,
+    switch_at_period_doubling,
+)
 from cosserat_chain.numerics.dynamics import integrate
+from cosserat_chain.numerics.hopf import hopf_points
 from cosserat_chain.numerics.integrators import default_time_step
 from cosserat_chain.numerics.periodic import OrbitError, continue_orbit, find_periodic_orbit, initial_guess
 from cosserat_chain.systems import pen
@@ -234,3 +243,77 @@ def test_where_the_flip_vector_nearly_follows_the_branch_the_switch_still_finds_
         assert 1e-7 < second < 1e3 * a**2
         assert half_period_gap(orbit) > a
     assert switch.side == "below" and switch.doubled.stable
+
+
+@pytest.fixture(scope="module")
+def hopf_chain():
+    """The sine chain at N = 2 (paper's geometry) and the Hopf points of positive M on its unstable branch
+    (``tests/test_dynamic_stability.py``: phi_0 = 1.6575 and 2.4380)."""
+    params = ChainParams(N=2)
+    points = hopf_points(params, "sine", continue_in_moment(params, "sine", phi0_stop=2 * math.pi))
+    return params, [h for h in points if h.moment > 0]
+
+
+def linear_multipliers(params, point) -> np.ndarray:
+    """exp(lambda 2 pi / omega) over the eigenvalues lambda of the damped dynamics linearised at the Hopf point."""
+    system, state, _, _ = hopf_vector(params, "sine", point)
+    n = system.size
+    jacobian = system.force_jacobian(state[:n]).toarray() / system.mass()[:, None]
+    matrix = np.block([[np.zeros((n, n)), np.eye(n)], [jacobian, -np.diag(system.damping() / system.mass())]])
+    return np.exp(np.linalg.eigvals(matrix) * 2 * math.pi / point.frequency)
+
+
+@pytest.mark.parametrize("which", [0, 1])
+def test_orbits_born_at_a_hopf_point_have_its_period_and_grow_like_the_root_of_the_moment(hopf_chain, which):
+    params, points = hopf_chain
+    point = points[which]
+    assert point.phi0 == pytest.approx((1.6575078516528, 2.4380368033649)[which], abs=1e-9)
+    period = 2 * math.pi / point.frequency
+    a = np.array(AMPLITUDES)
+    family = [hopf_orbit(params, "sine", point, x) for x in a]
+    for x, orbit in zip(a, family):
+        # Non-rotating: no turns, the loaded angle swings about the Hopf state's by about the amplitude.
+        assert orbit.turns == 0 and not orbit.particle_turns.any() and orbit.closure <= 1e-9
+        angles, _ = orbit.trajectory(np.linspace(0.0, orbit.period, 41)[1:])
+        swing = angles[:, 2, params.N] - point.phi0
+        assert 0.3 * x < swing.max() < 3 * x and 0.3 * x < -swing.min() < 3 * x
+    periods = np.array([o.period for o in family])
+    offsets = np.array([o.moment - point.moment for o in family])
+    # a ~ sqrt(|M - M_H|): M - M_H quadruples with a doubled ...
+    assert np.all((3.5 < offsets[1:] / offsets[:-1]) & (offsets[1:] / offsets[:-1] < 4.5)), offsets
+    # ... and the period tends to 2 pi / omega (T = T0 + p a^2 + q a^3 through the three).
+    limit = np.linalg.solve(np.column_stack([np.ones(3), a**2, a**3]), periods)[0]
+    assert limit == pytest.approx(period, rel=1e-8)
+    # Floquet multipliers: exp(lambda T) of the static state's eigenvalues to O(a^2) (independent: the statics'
+    # linearisation), the crossing pair's two now the trivial +1 and one 1 - O(a^2).
+    expected = linear_multipliers(params, point)
+    for x, orbit in zip(a, family):
+        mu = orbit.multipliers[np.abs(orbit.multipliers) > 1e-3]
+        gap = np.abs(mu[:, None] - expected[None, :]) / np.maximum(1.0, np.abs(mu[:, None]))
+        rows, cols = so.linear_sum_assignment(gap)
+        assert gap[rows, cols].max() < 50 * x**2
+
+
+def test_the_switch_at_a_hopf_point_continues_the_family_down(hopf_chain):
+    params, points = hopf_chain
+    switch = switch_at_hopf(params, "sine", points[0], max_points=5, period_max=100.0)
+    assert switch.side == "below" and switch.coefficient < 0
+    assert abs(switch.eigenvalue - 1j * points[0].frequency) < 1e-9
+    assert 0.5e-4 < (points[0].moment - switch.orbit.moment) / points[0].moment < 2e-4
+    # The saddle's unstable real eigenvalue stays: the orbits are unstable, their leading multiplier exp(lambda T).
+    assert not switch.orbit.stable and switch.orbit.max_multiplier == pytest.approx(4.18, abs=0.05)
+    branch = switch.branch
+    assert len(branch.orbits) == 5 and np.all(np.diff(branch.moment) < 0)
+    assert all(o.turns == 0 for o in branch.orbits)
+    assert np.all(np.diff(branch.period) > 0)  # the period grows away from the Hopf point
+    assert switch.as_dict()["side"] == "below"
+
+
+def test_a_hopf_point_not_located_or_a_bad_amplitude_is_refused(hopf_chain):
+    params, points = hopf_chain
+    with pytest.raises(ValueError, match="located HopfPoint"):
+        hopf_orbit(params, "sine", dataclasses.replace(points[0], located=False), 1e-3)
+    with pytest.raises(ValueError, match="amplitude must be a finite number > 0"):
+        hopf_orbit(params, "sine", points[0], -1e-3)
+    with pytest.raises(ValueError, match="offset must be a number in"):
+        switch_at_hopf(params, "sine", points[0], offset=0.0)

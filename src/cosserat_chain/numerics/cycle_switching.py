@@ -48,9 +48,13 @@ from typing import Any
 import numpy as np
 import scipy.linalg as sla
 
-from ..models.base import get_model
+from ..models.base import Model, get_model
+from ..params import ChainParams
+from ..state import pack
+from ..systems.chain import ChainSystem
 from . import shooting
 from .cycle_curve import locate_cycle_end
+from .hopf import HopfPoint
 from .kit import newton
 from .periodic import (
     ATOL,
@@ -59,6 +63,7 @@ from .periodic import (
     OrbitBranch,
     OrbitError,
     PeriodicOrbit,
+    _from_y,
     _OrbitBranchProblem,
     _phase_for,
     _System,
@@ -76,6 +81,10 @@ OFFSET = 1e-4
 PROBE_AMPLITUDES = (2e-3, 4e-3)
 #: Largest amplitude the normal form may ask for (beyond it the quadratic law is not trusted).
 MAX_AMPLITUDE = 0.1
+#: Smallest step of the amplitude, relative to the last one reached (or the first probe), after failed steps are
+#: halved: the orbits born at the N = 2 sine chain's second Hopf point have a multiplier exp(2.07 T) = 1.3e6,
+#: and single shooting needs amplitudes near 4e-5 there before the predictor's O(a^2) error is amplified too far.
+MIN_STEP = 1e-3
 #: Newton iterations of one doubled orbit.
 MAX_ITERATIONS = 20
 #: A solution whose k-turn closure after half its period is within this many times the Newton tolerance is the
@@ -291,18 +300,19 @@ class _March:
         while True:
             found = self.solve(a)
             if found is not None:
-                orbit, last = found, a
-                if a >= amplitude or (enough is not None and enough(orbit)):
+                # The amplitude reached, which the border d leaves O(a^2) off the one asked for.
+                orbit, last = found, self.done[-1][0]
+                if last >= (1.0 - MIN_STEP) * amplitude or (enough is not None and enough(orbit)):
                     return orbit
-                a = min(amplitude, 2 * a)
-            elif a - last > 0.05 * max(last, PROBE_AMPLITUDES[0]):
+                a = min(amplitude, 2 * last)
+            elif a - last > MIN_STEP * max(last, PROBE_AMPLITUDES[0]):
                 a = 0.5 * (a + last)
             elif enough is not None and orbit is not None:
                 return orbit  # the family turns back or Newton fails beyond: the largest amplitude reached
             else:
                 raise OrbitError(
-                    f"Newton did not converge to the doubled orbit of amplitude {a!r} at the period doubling {self.where}; "
-                    f"the doubled family may turn back before amplitude {amplitude!r}: try a smaller amplitude"
+                    f"Newton did not converge to the orbit of amplitude {a!r} on the family leaving the bifurcation at {self.where}; "
+                    f"the family may turn back before amplitude {amplitude!r}: try a smaller amplitude"
                 )
 
 
@@ -446,6 +456,227 @@ def switch_at_period_doubling(
     return PeriodDoubling(point, parameter, float(value), multiplier, vector, float(coefficient), float(amplitude), doubled, side, branch)
 
 
+@dataclass
+class HopfOrbits:
+    """The periodic orbits born at a Hopf point of a static branch (module docstring).
+
+    Attributes
+    ----------
+    point : HopfPoint
+        The located Hopf point (moment M_H, frequency omega).
+    eigenvalue : complex
+        The crossing eigenvalue of the damped dynamics there (+i omega to the located accuracy).
+    eigenvector : ndarray (2n,) complex
+        Its eigenvector, turned so that its real and imaginary parts are orthogonal, the real part of unit length.
+    coefficient : float
+        c of M - M_H = c a^2 on the family (secant through two amplitudes; signed towards larger |M|).
+    amplitude : float
+        a of the first orbit along the real part of the eigenvector.
+    orbit : PeriodicOrbit
+        The first orbit: no turns (``turns`` 0, every ``particle_turns`` 0), period near 2 pi / omega, on
+        the phase plane through it normal to the flow.
+    side : str
+        ``below`` (the orbits exist at smaller |M| than the Hopf point) or ``above``.
+    branch : OrbitBranch or None
+        The family continued down in |M| (:func:`~.periodic.continue_orbit`) where it lies below (None
+        above, or where not asked for).
+    """
+
+    point: HopfPoint
+    eigenvalue: complex
+    eigenvector: np.ndarray
+    coefficient: float
+    amplitude: float
+    orbit: PeriodicOrbit
+    side: str
+    branch: OrbitBranch | None
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary."""
+        return {
+            "hopf": self.point.as_dict(),
+            "eigenvalue": [self.eigenvalue.real, self.eigenvalue.imag],
+            "coefficient": self.coefficient,
+            "amplitude": self.amplitude,
+            "side": self.side,
+            "orbit": self.orbit.as_dict(),
+            "branch": None if self.branch is None else {"end": self.branch.end, "end_moment": self.branch.end_moment},
+        }
+
+
+def hopf_vector(params: ChainParams, model: str | Model, point: HopfPoint) -> tuple[ChainSystem, np.ndarray, complex, np.ndarray]:
+    """The chain at a Hopf point as a system, its state y_H (2n,), the crossing eigenvalue near +i omega and its eigenvector.
+
+    The eigenvector is turned so that its real and imaginary parts are orthogonal, the real part of unit length.
+    """
+    system = ChainSystem(params, model, M=point.moment, particle=point.particle)
+    n = system.size
+    q = pack(params, point.x)
+    rate = system.damping() / system.mass()
+    jacobian = system.force_jacobian(q).toarray() / system.mass()[:, None]
+    matrix = np.block([[np.zeros((n, n)), np.eye(n)], [jacobian, -np.diag(rate)]])
+    values, vectors = sla.eig(matrix)
+    i = int(np.argmin(np.abs(values - 1j * point.frequency)))
+    v = vectors[:, i]
+    re, im = np.real(v), np.imag(v)
+    v = v * np.exp(0.5j * math.atan2(-2.0 * (re @ im), re @ re - im @ im))
+    v = v / np.linalg.norm(np.real(v))
+    return system, np.concatenate([q, np.zeros(n)]), complex(values[i]), v
+
+
+def _hopf_march(params: ChainParams, model: str | Model, point: HopfPoint, tol, rtol, atol) -> _March:
+    """(P) with no turns (every particle_turns 0), the period and M unknown, on the plane through y_H + a_1 e normal
+    to the flow there (the chain's compiled shooting, as :func:`~.periodic.continue_orbit`'s); the old branch is the
+    equilibrium's (tau = (dq/dM, 0, 0, 1), K dq/dM = dF/dM), which every solution with max |f(y0)| at most
+    HALF_CLOSURE tol is."""
+    system, state, _, vector = hopf_vector(params, model, point)
+    n = system.size
+    e = np.real(vector)
+    model = get_model(model)
+    chain = _System(params, model, point.moment, point.particle)
+    reference = state + PROBE_AMPLITUDES[0] * e
+    flow = chain.velocity(reference)
+    phase = _phase_for(chain, reference, flow / np.linalg.norm(flow))
+    x, v = _from_y(params, state)
+    start = PeriodicOrbit(
+        params, model.name, point.moment, 0, point.particle, 2.0 * math.pi / point.frequency, x, v, np.ones(1, dtype=complex),
+        math.inf, 0, particle_turns=np.zeros(params.n_particles, dtype=np.int64), phase_normal=phase.normal,
+    )  # fmt: skip
+    problem = _OrbitBranchProblem(start, model, phase, tol, rtol, atol, 0.0, math.inf, False, False)
+    q = state[:n]
+    slope = -np.linalg.solve(system.force_jacobian(q).toarray(), system.parameter_forces(q, "M"))
+    tau = np.concatenate([slope, np.zeros(n + 1), [1.0]])
+
+    def at_rest(w: np.ndarray) -> bool:
+        moving = _System(params, model, float(w[-1]), point.particle).velocity(w[: 2 * n])
+        return float(np.max(np.abs(moving))) <= HALF_CLOSURE * tol
+
+    tangent = np.concatenate([e, [0.0, 0.0]])
+    return _March(problem.evaluate, problem.point, problem.pack(start), tangent, tau, at_rest, tol, f"M={point.moment!r}")
+
+
+def hopf_orbit(
+    params: ChainParams,
+    model: str | Model,
+    point: HopfPoint,
+    amplitude: float,
+    *,
+    tol: float = CLOSURE_TOL,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+) -> PeriodicOrbit:
+    """The periodic orbit of amplitude ``amplitude`` born at the Hopf point ``point`` (no turns, period near 2 pi / omega).
+
+    Parameters
+    ----------
+    params : ChainParams
+    model : str or Model
+        Those of the static branch the Hopf point lies on.
+    point : HopfPoint
+        From :func:`~.hopf.hopf_points`, located.
+    amplitude : float
+        a > 0 of e . (y0 - y_H) = a, e the real part of the crossing eigenvector (:func:`hopf_vector`);
+        reached in steps as in :func:`doubled_orbit`.
+    tol, rtol, atol : float
+        As for :func:`~.periodic.find_periodic_orbit`.
+
+    Returns
+    -------
+    PeriodicOrbit
+        No turns, at the moment the amplitude fixes, its multipliers computed.
+
+    Raises
+    ------
+    ValueError
+        For an amplitude that is not a finite positive number, or a Hopf point that was not located.
+    OrbitError
+        Where Newton's method does not converge.
+    """
+    if not (math.isfinite(amplitude) and amplitude > 0):
+        raise ValueError(f"amplitude must be a finite number > 0 (along the Hopf eigenvector), got {amplitude!r}")
+    _check_hopf(point)
+    return _hopf_march(params, model, point, tol, rtol, atol).to(amplitude)
+
+
+def _check_hopf(point) -> None:
+    if not isinstance(point, HopfPoint) or not point.located:
+        raise ValueError(f"point must be a located HopfPoint (numerics.hopf.hopf_points), got {point!r:.80}")
+
+
+def switch_at_hopf(
+    params: ChainParams,
+    model: str | Model,
+    point: HopfPoint,
+    *,
+    amplitude: float | None = None,
+    offset: float = OFFSET,
+    follow: bool = True,
+    tol: float = CLOSURE_TOL,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+    **continue_options,
+) -> HopfOrbits:
+    """The family of non-rotating periodic orbits born at a Hopf point of a static branch.
+
+    Parameters
+    ----------
+    params : ChainParams
+    model : str or Model
+        Those of the static branch.
+    point : HopfPoint
+        From :func:`~.hopf.hopf_points`, located.
+    amplitude : float, optional
+        a of the first orbit; by default the normal form's for |M - M_H| = ``offset`` |M_H| (as in
+        :func:`switch_at_period_doubling`).
+    offset : float
+        Relative distance in M of the first orbit from the Hopf point (default amplitude only).
+    follow : bool
+        Continue the family down in |M| (:func:`~.periodic.continue_orbit`) where it lies below.
+    tol, rtol, atol : float
+        As for :func:`~.periodic.find_periodic_orbit`.
+    **continue_options
+        Passed to :func:`~.periodic.continue_orbit` (``max_points``, ``period_max``, ...).
+
+    Returns
+    -------
+    HopfOrbits
+
+    Raises
+    ------
+    ValueError
+        For a Hopf point that was not located, or a bad amplitude or offset.
+    OrbitError
+        Where the orbits are not found.
+    """
+    if not (math.isfinite(offset) and 0 < offset < 1):
+        raise ValueError(f"offset must be a number in (0, 1) (relative distance in M), got {offset!r}")
+    if amplitude is not None and not (math.isfinite(amplitude) and amplitude > 0):
+        raise ValueError(f"amplitude must be a finite number > 0 (along the Hopf eigenvector), got {amplitude!r}")
+    _check_hopf(point)
+    _, _, eigenvalue, vector = hopf_vector(params, model, point)
+    march = _hopf_march(params, model, point, tol, rtol, atol)
+    sign = math.copysign(1.0, point.moment)
+
+    def distance(orbit: PeriodicOrbit) -> float:
+        return sign * (orbit.moment - point.moment)
+
+    probes = [march.to(a) for a in PROBE_AMPLITUDES]
+    (a1, a2), (d1, d2) = PROBE_AMPLITUDES, [distance(o) for o in probes]
+    coefficient = (d2 - d1) / (a2 * a2 - a1 * a1)
+    if coefficient == 0:
+        raise OrbitError(f"the orbits born at the Hopf point M={point.moment!r} do not move in M with their amplitude (degenerate)")
+    if amplitude is None:
+        wanted = offset * abs(point.moment)
+        guess = max(PROBE_AMPLITUDES[-1], min(MAX_AMPLITUDE, math.sqrt(wanted / abs(coefficient))))
+        orbit = march.to(guess, enough=lambda o: abs(distance(o)) >= wanted)
+        amplitude = march.done[-1][0]
+    else:
+        orbit = march.to(amplitude)
+    side = "below" if distance(orbit) < 0 else "above"
+    branch = continue_orbit(orbit, tol=tol, rtol=rtol, atol=atol, **continue_options) if follow and side == "below" else None
+    return HopfOrbits(point, eigenvalue, vector, float(coefficient), float(amplitude), orbit, side, branch)
+
+
 def _flip_test(orbit: PeriodicOrbit) -> float:
     """Re prod (mu + 1) over the multipliers: its sign changes where a real one passes -1."""
     return float(np.real(np.prod(orbit.multipliers + 1.0)))
@@ -483,4 +714,13 @@ def _located(start, parameter: str | None, *, rtol: float, atol: float) -> tuple
     return locate_cycle_end([start], "period_doubling", rtol=rtol, atol=atol), "M"
 
 
-__all__ = ["PeriodDoubling", "doubled_orbit", "flip_vector", "switch_at_period_doubling"]
+__all__ = [
+    "HopfOrbits",
+    "PeriodDoubling",
+    "doubled_orbit",
+    "flip_vector",
+    "hopf_orbit",
+    "hopf_vector",
+    "switch_at_hopf",
+    "switch_at_period_doubling",
+]
