@@ -35,6 +35,12 @@ continued (continued down it would run back into the period doubling).
 The same switch serves a user's system (:mod:`~cosserat_chain.numerics.shooting`): from an orbit or
 event of :func:`~.shooting.continue_orbits` at a period doubling in any named parameter p, on the
 shooting's phase plane (O), the doubled family is continued in p on whichever side it lies.
+
+At a Hopf point of a static branch (:func:`~cosserat_chain.numerics.hopf.hopf_points`: a complex
+pair +-i omega of the damped dynamics on the axis) non-rotating orbits are born: :func:`switch_at_hopf`
+and :func:`hopf_orbit` solve them the same way, with the chain's shooting and no turns (every
+``particle_turns`` 0) on a phase plane, the amplitude along the real part of the eigenvector for
++i omega, from (y_H + a e, 2 pi / omega, M_H): period 2 pi / omega + O(a^2), M_H + c a^2.
 """
 
 from __future__ import annotations
