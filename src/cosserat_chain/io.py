@@ -712,6 +712,8 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "hysteresis": ("1", "1: open loop (rotation_stops < static_fold), 0: closed, -1: unknown"),
     "rotation_starts": ("1", "how a rising load starts the rotation at M_c: snic, jump or unknown"),
     "method": ("1", "how rotation_stops was found: followed, located or one_parameter"),
+    "below_edge": ("1", "what a run just below a fold of cycles does: rest, rotating, not_converged or not_checked"),
+    "particle_turns": ("1", "turns of each particle's angle per period"),
     "moment_scale": ("energy", "E1 h^2, the unit of the dimensionless moment M / (E1 h^2)"),
     "E1": ("stiffness", "stiffness E1 of a horizontal link"),
     "E2": ("stiffness", "stiffness E2 of a diagonal link"),
