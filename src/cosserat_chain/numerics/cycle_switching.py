@@ -91,10 +91,10 @@ MAX_AMPLITUDE = 0.1
 #: halved: the orbits born at the N = 2 sine chain's second Hopf point have a multiplier exp(2.07 T) = 1.3e6,
 #: and single shooting needs amplitudes near 4e-5 there before the predictor's O(a^2) error is amplified too far.
 MIN_STEP = 1e-3
-#: Newton iterations of one doubled orbit.
+#: Newton iterations of one orbit of the new family.
 MAX_ITERATIONS = 20
-#: A solution whose k-turn closure after half its period is within this many times the Newton tolerance is the
-#: k-turn orbit traversed twice, not a doubled orbit.
+#: A solution whose k-turn closure after half its period (at a Hopf point: whose velocity field) is within this
+#: many times the Newton tolerance is the k-turn orbit traversed twice (the equilibrium), not a new orbit.
 HALF_CLOSURE = 1e3
 
 Point = PeriodicOrbit | shooting.Orbit
