@@ -112,7 +112,9 @@ APPROACH_RTOL = 1e-3
 PERIOD_MAX = 100.0
 #: A fitted homoclinic end's uncertainty is this times the difference between the fits to the last TAIL (or
 #: APPROACH_POINTS) orbits and to the last MIN_TAIL: the pendulum's true error (an independent bisection on the
-#: saddle's unstable manifold) is 2.1 times that difference at gamma_phi = 0.02, 1.2 times at 0.05.
+#: saddle's unstable manifold) was 2.1 times that difference at gamma_phi = 0.02, 1.2 times at 0.05. It is a
+#: heuristic: where the continuation crawls to a halt far from the divergence (the N = 1 chain at gamma_phi = 0.02
+#: since its Jacobian is exact) the fit is off by 12 times it; the end is then solved (:func:`_solved`).
 FIT_SAFETY = 3.0
 #: A fitted homoclinic end's bracket for the solve reaches at least this far (relative) below the fit.
 BRACKET_RTOL = 1e-4
@@ -522,17 +524,24 @@ def _solved(edge: _Edge, chain: ChainParams, model, particle: int, last: float) 
     projection boundary conditions, with its accuracy); where that fails, the fit is kept and the message says why."""
     if edge.end != "homoclinic" or edge.stops is None or edge.uncertainty is None:
         return edge
-    # The fit's uncertainty can be too small by a factor of ten (the pendulum at gamma_phi = 0.02: 1e-8 against an
-    # error of 1.1e-7): the bracket reaches at least BRACKET_RTOL below it; its bisection costs a few manifold runs more.
-    low = edge.stops - max(10.0 * edge.uncertainty, BRACKET_RTOL * abs(edge.stops))
+    # The fit's uncertainty can be too small by more than a factor of ten (the N = 1 chain at gamma_phi = 0.02, whose
+    # continuation crawls to a halt at a period of 4.4, far from diverging: 1.2e-8 against an error of 1.5e-7): the
+    # bracket reaches at least BRACKET_RTOL below it; its bisection costs a few manifold runs more.
+    reach = max(10.0 * edge.uncertainty, BRACKET_RTOL * abs(edge.stops))
     try:
-        orbit = chain_homoclinic_end(chain, model, bracket=(low, last), particle=particle)
+        orbit = chain_homoclinic_end(chain, model, bracket=(edge.stops - reach, last), particle=particle)
     except (HomoclinicError, OrbitError) as err:  # an integration along a loop that ran away ends the solve too
-        edge.message += f"; not solved ({err})"
+        # The fit stays, with the uncertainty of the bracket the solve searched: its own can be that far off.
+        edge.message += f"; not solved ({err}); its uncertainty is the solve's bracket, {reach:.2g}, its own spread can be that far off"
+        edge.uncertainty = reach
         return edge
+    off = abs(edge.stops - orbit.value)
+    fit = f"the fit of the period's growth gave {edge.stops:.10g} +- {edge.uncertainty:.2g}" + (
+        f", off by {off:.2g}: its spread understated its error" if off > edge.uncertainty else ""
+    )
     message = (
         f"the orbit ends at a loop homoclinic to the saddle at M_h = {orbit.value:.12g} +- {orbit.accuracy:.1g}, solved by "
-        f"projection boundary conditions (the fit of the period's growth gave {edge.stops:.10g} +- {edge.uncertainty:.2g})"
+        f"projection boundary conditions ({fit})"
     )
     return _Edge(orbit.value, "homoclinic", message, method="solved", uncertainty=orbit.accuracy)
 
