@@ -28,8 +28,8 @@ from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_
 from .linear import (
     chain_coefficients,
     cosserat_batch,
-    cosserat_bonds,
     cosserat_bond_energy,
+    cosserat_bonds,
     cosserat_end_columns,
     cosserat_forces,
     cosserat_graded,
