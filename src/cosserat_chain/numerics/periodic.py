@@ -902,22 +902,8 @@ def _long_orbit(system, turns, y0, period, particle_turns, phase, method, *, tol
         multipliers, errors = long_orbits.leading_multipliers(monodromy, system.velocity(y0))
     except EvaluationFailed as err:
         raise OrbitError(f"the monodromy's products at the orbit failed: {err}") from err
-    x, v = _from_y(system.params, y0)
-    return PeriodicOrbit(
-        params=system.params,
-        model=system.model.name,
-        moment=float(system.moment),
-        turns=turns,
-        particle=system.particle,
-        period=float(solved.w[-1]),
-        x=x,
-        v=v,
-        multipliers=multipliers,
-        closure=float(solved.norm),
-        iterations=solved.iterations,
-        particle_turns=particle_turns,
-        phase_normal=phase.normal,
-        multiplier_errors=errors,
+    return _orbit_from(
+        system, turns, y0, solved.w[-1], multipliers, solved.norm, solved.iterations, particle_turns, phase.normal, errors
     )
 
 
@@ -940,9 +926,25 @@ def _orbit(
     particle_turns: np.ndarray,
     phase_normal: np.ndarray | None = None,
 ) -> PeriodicOrbit:
-    x, v = _from_y(system.params, y0)
     multipliers = sla.eigvals(mono)
     multipliers = multipliers[np.argsort(-np.abs(multipliers), kind="stable")]
+    return _orbit_from(system, turns, y0, period, multipliers, closure, iterations, particle_turns, phase_normal)
+
+
+def _orbit_from(
+    system: _System,
+    turns: int,
+    y0: np.ndarray,
+    period: float,
+    multipliers: np.ndarray,
+    closure: float,
+    iterations: int,
+    particle_turns: np.ndarray,
+    phase_normal: np.ndarray | None = None,
+    multiplier_errors: np.ndarray | None = None,
+) -> PeriodicOrbit:
+    """The solved orbit at y0 with its multipliers (all, by decreasing modulus, or the leading ones with their errors)."""
+    x, v = _from_y(system.params, y0)
     return PeriodicOrbit(
         params=system.params,
         model=system.model.name,
@@ -957,6 +959,7 @@ def _orbit(
         iterations=iterations,
         particle_turns=particle_turns,
         phase_normal=phase_normal,
+        multiplier_errors=multiplier_errors,
     )
 
 
