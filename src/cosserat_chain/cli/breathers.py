@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import typer
@@ -15,7 +16,7 @@ from .systems import chain_only_or_exit, set_option, system_only_or_exit, system
 def breathers(
     ctx: typer.Context,
     model: str = model_option("sine", "A model that supports full rotations (the linear model does not).", rotating=True),
-    omega: float = number(..., "Frequency Omega of the rotating particle (its mean angular velocity) to start from.", above=0.0),
+    omega: float | None = number(None, "Frequency Omega of the rotating particle (its mean angular velocity) to start from.", above=0.0),
     to: float | None = number(None, "Follow the family in Omega to here (default: the start alone).", above=0.0),
     steps: int = typer.Option(11, min=2, help="Frequencies from --omega to --to, both included."),
     turns: int = typer.Option(1, min=1, help="Turns of the rotating particle per period (T = 2 pi turns / Omega)."),
@@ -34,11 +35,45 @@ def breathers(
     coupling: str = typer.Option(
         "C", "--coupling", metavar="NAME", help="With --system: the coupling, continued from 0 (the anti-continuum limit) to its value."
     ),
+    atlas: str | None = typer.Option(
+        None,
+        "--atlas",
+        metavar="FIELD=V1,V2,...",
+        help="The existence map: roto-breathers over the frequencies --omega..--to (--steps) and these values of a chain field "
+        "(a, b, h, E1, E2), continued in both; existence, stability, localization against the bands' harmonics.",
+    ),
+    method: str = typer.Option(
+        "auto",
+        help="With --atlas: the monodromy in one integration (dense), in column blocks (blocks), or by N (auto: blocks from N = 50).",
+    ),
+    from_moment: float | None = number(
+        None,
+        "Instead of a family: find the damped chain's rotating orbit at this moment M (the config's viscosities, or --gamma) and "
+        "follow it to zero damping at its mean rate (damped to undamped), against the anti-continuum family there.",
+        above=0.0,
+    ),
+    gamma: float | None = number(None, "With --from-moment: the viscosities gamma_u = gamma_v = gamma_phi of the damped start.", above=0.0),
 ) -> None:
     """Roto-breathers: one particle rotating, the rest oscillating, undamped; Newton from the anti-continuum limit, Floquet multipliers, resonances with the bands.
 
     With --system: the system's family (its angles counted from the central one by --particle and --partner), continued in --coupling from 0, then in the frequency to --to; --out writes it to NetCDF.
+    With --atlas FIELD=V1,V2,...: the existence map over (Omega, FIELD). With --from-moment M: the damped, driven orbit followed to zero damping.
     """
+    if from_moment is not None:
+        if system is not None or atlas is not None:
+            fail("--from-moment follows the chain's damped orbit: leave out --system and --atlas")
+        return _damped_to_undamped(model, from_moment, gamma, turns=turns, particle=particle, config=config, as_json=as_json)
+    if gamma is not None:
+        fail("--gamma sets the damped start of --from-moment: give --from-moment M as well")
+    if omega is None:
+        fail("give --omega, the rotating particle's frequency to start from (or --from-moment M for the damped-to-undamped homotopy)")
+    if atlas is not None:
+        if system is not None or partner is not None or lifetimes:
+            fail("--atlas maps one-site roto-breathers of the chain: leave out --system, --partner and --lifetimes")
+        return _atlas(atlas, model, omega, to, steps, turns=turns, particle=particle, method=method, config=config, out=out, plot=plot,
+                      as_json=as_json)  # fmt: skip
+    if method != "auto":
+        fail("--method chooses the atlas's shooting: give --atlas FIELD=V1,V2,... as well")
     if system is not None:
         from .system_breathers import breathers_on_system
 
@@ -100,3 +135,105 @@ def breathers(
         typer.echo(f"resonance: {r.harmonic} x Omega = {r.edge_frequency:.6g} ({r.band} band {r.edge}) at Omega = {r.omega:.6g}")
     if not family.complete:
         typer.echo(family.message)
+
+
+def _atlas_values(text: str) -> tuple[str, list[float]]:
+    """FIELD and its values from ``FIELD=V1,V2,...``; exit 2 naming what is wrong."""
+    from ..experiments.breather_atlas import ATLAS_FIELDS
+
+    name, sep, listed = text.partition("=")
+    name = name.strip()
+    if not sep or name not in ATLAS_FIELDS:
+        fail(f"--atlas must be FIELD=V1,V2,... with FIELD one of {', '.join(ATLAS_FIELDS)}, got {text!r}")
+    try:
+        values = [float(item) for item in listed.split(",") if item.strip()]
+    except ValueError:
+        fail(f"--atlas {name}: the values must be numbers separated by commas, got {listed!r}")
+    if not values or not all(math.isfinite(v) for v in values):
+        fail(f"--atlas {name}: give one or more finite values separated by commas, got {listed!r}")
+    return name, values
+
+
+def _atlas(
+    text: str, model: str, omega: float, to: float | None, steps: int, *, turns: int, particle: int, method: str,
+    config: Path | None, out: Path | None, plot: Path | None, as_json: bool,
+) -> None:  # fmt: skip
+    """``breathers --atlas``: the existence map over (Omega, a field)."""
+    import numpy as np
+
+    from ..experiments.breather_atlas import breather_atlas
+
+    name, values = _atlas_values(text)
+    if method not in ("auto", "dense", "blocks"):
+        fail(f"--method must be auto, dense or blocks, got {method!r}")
+    outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
+    params = params_or_exit(config).replace(gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
+    omegas = np.array([omega]) if to is None else np.linspace(omega, to, steps)
+    bar = progress_bar(f"atlas {model} {name}", "orbit")
+    try:
+        result = breather_atlas(
+            params, model, omegas, name, values, turns=turns, particle=particle, method=method, progress=bar_callback(bar)
+        )
+    except ValueError as err:
+        bar.close()
+        fail(str(err))
+    found = int(result.grid("exists").sum())
+    bar.finish(note=f"{found} of {omegas.size * len(values)} found")
+    if out is not None:
+        save_dataset(result.to_dataset(), out)
+    if plot is not None:
+        from ..plots.breathers import breather_atlas_figure
+
+        save_figure(breather_atlas_figure(result), plot)
+    if as_json:
+        typer.echo(json.dumps({"params": params.model_dump(), **result.as_dict()}))
+        return
+    typer.echo(f"{model}: roto-breathers over Omega and {name}, N = {params.N}: {found} of {omegas.size * len(values)} found")
+    header = f"{name:>8}  {'omega':>8}  {'from':>14}  {'max |mu|':>10}  stable  {'PR':>6}  {'xi':>6}  {'phi':>7}  {'u/h':>7}  {'v/h':>7}  localized"
+    typer.echo(header)
+    for row in result.points:
+        for p in row:
+            if p.orbit is None:
+                typer.echo(f"{p.value:>8.4g}  {p.omega:>8.4g}  {'not found':>14}")
+                continue
+            loc = p.localization
+            amp = loc.amplitudes
+            typer.echo(
+                f"{p.value:>8.4g}  {p.omega:>8.4g}  {p.source:>14}  {p.orbit.max_multiplier:>10.6g}  {'yes' if p.orbit.stable else 'no':>6}  "
+                f"{loc.participation_ratio:>6.3g}  {loc.length:>6.3g}  {amp['phi']:>7.3g}  {amp['u_over_h']:>7.3g}  {amp['v_over_h']:>7.3g}  "
+                f"{'yes' if loc.localized else 'no'}"
+            )
+    edges = result.band_edges()
+    for j, value in enumerate(result.values):
+        listed = ", ".join(f"{band} {lo:.4g}-{hi:.4g}" for band, (lo, hi) in zip(result.bands, edges[j]))
+        typer.echo(f"bands at {name} = {value:g}: {listed}")
+
+
+def _damped_to_undamped(
+    model: str, moment: float, gamma: float | None, *, turns: int, particle: int, config: Path | None, as_json: bool
+) -> None:
+    """``breathers --from-moment``: the damped, driven orbit followed to zero damping at its mean rate."""
+    from ..experiments.breathers import damped_to_undamped
+    from ..numerics.periodic import OrbitError, find_periodic_orbit
+
+    params = params_or_exit(config)
+    if gamma is not None:
+        params = params.replace(gamma_u=gamma, gamma_v=gamma, gamma_phi=gamma)
+    if params.gamma_phi <= 0:
+        fail(f"--from-moment needs a damped chain (gamma_phi > 0) to start from, got gamma_phi={params.gamma_phi!r}: give --gamma")
+    try:
+        orbit = find_periodic_orbit(params, model, moment, turns=turns, particle=particle)
+        result = damped_to_undamped(orbit)
+    except ValueError as err:
+        fail(str(err))
+    except OrbitError as err:
+        fail(str(err), code=3)
+    summary = result.as_dict()
+    if as_json:
+        typer.echo(json.dumps({"params": params.model_dump(), "model": model, "moment": moment, "orbit": orbit.as_dict(), **summary}))
+        return
+    typer.echo(
+        f"{model}: the rotating orbit at M = {moment:g} (gamma_phi = {params.gamma_phi:g}), Omega = {abs(orbit.mean_angular_velocity):.8g}"
+    )
+    typer.echo(f"homotopy: {summary['path'].get('message') or 'reached gamma = 0'}")
+    typer.echo(result.message)

@@ -7,15 +7,21 @@ Contract
 non-rotating particles (the tail) and the largest Floquet multiplier modulus against
 Omega (stable orbits filled, unstable open), with the frequency windows where a harmonic
 n Omega lies in a driven band shaded and the resonances n Omega = band edge as dotted
-lines. It never computes anything itself.
+lines. :func:`breather_atlas_figure` draws the existence map of a
+:class:`~cosserat_chain.experiments.breather_atlas.BreatherAtlas` over (Omega, field): stable
+orbits filled, unstable open, none found crossed, coloured by their participation ratio, on the
+windows n Omega inside a driven band (n = 1..3) shaded between the edges' harmonics. Neither
+computes anything itself.
 """
 
 from __future__ import annotations
 
 import matplotlib.pyplot as plt
+import numpy as np
 from matplotlib.figure import Figure
 
 from ..analysis.dispersion import wave_summary
+from ..experiments.breather_atlas import BreatherAtlas
 from ..experiments.breathers import BreatherFamily
 
 #: One colour per band of :data:`~cosserat_chain.analysis.dispersion.BRANCHES`.
@@ -72,5 +78,57 @@ def breather_family_figure(result: BreatherFamily) -> Figure:
     bottom.set_xlabel("Ω (mean angular velocity of the rotor)")
     bottom.legend(fontsize=7)
     top.set_xlim(low - 0.05 * span, high + 0.05 * span)
+    fig.tight_layout()
+    return fig
+
+
+#: Harmonics n whose windows n Omega in a band the atlas figure shades.
+ATLAS_HARMONICS = 3
+
+
+def breather_atlas_figure(atlas: BreatherAtlas) -> Figure:
+    """The existence map over (Omega, field value) against the bands' harmonics.
+
+    Parameters
+    ----------
+    atlas : BreatherAtlas
+
+    Returns
+    -------
+    Figure
+    """
+    fig, ax = plt.subplots(figsize=(7.0, 4.8))
+    values, omegas = atlas.values, atlas.omegas
+    order = np.argsort(values)
+    resonance = atlas.resonance_omegas()
+    low, high = float(omegas.min()), float(omegas.max())
+    span = max(high - low, 1e-3)
+    for b, band in enumerate(atlas.bands):
+        for n in range(ATLAS_HARMONICS):
+            bottom, top = resonance[order, b, 0, n], resonance[order, b, 1, n]
+            if np.all(top < low - 0.05 * span) or np.all(bottom > high + 0.05 * span):
+                continue
+            ax.fill_betweenx(values[order], bottom, top, color=BAND_COLORS[band], alpha=0.12, lw=0)
+            ax.text(float(np.mean(0.5 * (bottom + top))), float(values[order][-1]), f"{n + 1}Ω", fontsize=7, ha="center", va="bottom",
+                    color=BAND_COLORS[band])  # fmt: skip
+        ax.plot([], [], color=BAND_COLORS[band], alpha=0.4, lw=6, label=f"n Ω in {band.replace('_', ' ')}")
+    exists = atlas.grid("exists") > 0
+    stable = atlas.grid("stable") > 0
+    ratio = atlas.grid("participation_ratio")
+    om, va = np.meshgrid(omegas, values)
+    finite = ratio[exists]
+    norm = plt.Normalize(float(finite.min()), float(finite.max()) + 1e-12) if finite.size else None
+    filled = ax.scatter(om[exists & stable], va[exists & stable], c=ratio[exists & stable], cmap="viridis", norm=norm, s=30,
+                        edgecolor="k", label="stable")  # fmt: skip
+    ax.scatter(om[exists & ~stable], va[exists & ~stable], facecolor="none", edgecolor=plt.get_cmap("viridis")(norm(ratio[exists & ~stable]))
+               if norm else "k", s=30, lw=1.5, label="unstable")  # fmt: skip
+    ax.scatter(om[~exists], va[~exists], marker="x", color="0.4", s=20, label="not found")
+    if finite.size:
+        fig.colorbar(filled, ax=ax, label="participation ratio of the energies")
+    ax.set_xlim(low - 0.05 * span, high + 0.05 * span)
+    ax.set_xlabel("Ω (mean angular velocity of the rotor)")
+    ax.set_ylabel(atlas.field)
+    ax.set_title(f"roto-breathers, {atlas.model} model, N = {atlas.params.N}", fontsize=9)
+    ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     return fig

@@ -1,0 +1,491 @@
+"""The existence map of roto-breathers: an atlas over the frequency Omega and a field of the chain (its geometry).
+
+Contract
+--------
+:func:`breather_atlas` computes, on the grid of frequencies ``omegas`` and values of one
+field of :class:`~cosserat_chain.params.ChainParams` (``a``, ``b``, ``h``: the geometry;
+``E1``, ``E2``: the stiffnesses), the one-site roto-breather of the undamped, unloaded chain
+at each point, by Newton on the unfolded shooting map
+(:func:`~cosserat_chain.numerics.long_breathers.find_breather_orbit`, the monodromy in
+column blocks from N = 50: a chain of 101-401 particles costs seconds to a minute an orbit,
+docs/roto-breathers.md). The families are continued in both directions: every point starts
+Newton from, in this order,
+
+1. the secant through the two orbits before it at the same field value (continuation in
+   Omega, the last orbit's Newton Jacobian kept for the first steps),
+2. the secant through the two orbits at the same Omega and the previous field values
+   (continuation in the field),
+3. the anti-continuum rotor (:func:`~.breathers.anti_continuum_state`),
+
+and ``exists`` is whether one of them converged (``source`` says which). At each orbit:
+
+* **stability**: the largest modulus of the Floquet multipliers other than the Hamiltonian
+  pair at +1 (the flow and the family), stable where it is 1 to
+  :data:`~cosserat_chain.numerics.periodic.HAMILTONIAN_CIRCLE_TOL`;
+* **localization** (:func:`orbit_localization`, over :data:`~.breathers.TAIL_SAMPLES`
+  times of a period): the participation ratio PR = (sum e_k)^2 / sum e_k^2 of the particles'
+  energies e_k (kinetic plus half of each bond's:
+  :func:`~cosserat_chain.analysis.diagnostics.particle_energies`, the sine model's bonds
+  with the linear bond energy at sin phi), averaged over the samples as the localization
+  diagnostics average it over a run; the largest |phi|, |u| / h, |v| / h of the particles
+  that do not turn against the diagnostics' :data:`~cosserat_chain.analysis.diagnostics.THRESHOLDS`
+  (``localized``: every one within); and the localization length xi, from a least-squares
+  fit of log A_d = c - d / xi to the largest amplitude A_d (|u| / h, |v| / h or |phi|) of the
+  particles d sites from the rotor (:func:`localization_length`);
+* **checks**: the closure of the orbit under a separate integration of the state alone
+  (its return modulo 2 pi after one period, ``return_error``) and the spread of the energy
+  along it (``energy_drift``; NaN for the sine model, which has no energy);
+* **the bands**: the band edges of the infinite linear chain at each field value
+  (:func:`~cosserat_chain.analysis.dispersion.wave_summary`, the bands the rotation drives:
+  :func:`~.breathers.coupled_bands`) and the frequencies edge / n at which the n-th harmonic
+  meets them, the lines the map is drawn against.
+
+:meth:`BreatherAtlas.to_dataset` writes it all to one self-describing Dataset.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ..analysis.diagnostics import THRESHOLDS, participation_ratio, particle_energies
+from ..analysis.dispersion import wave_summary
+from ..loads import moment_load
+from ..models.base import Model, get_model
+from ..numerics.long_breathers import SolvedBreather, find_breather_orbit
+from ..numerics.periodic import HamiltonianOrbit, OrbitError, require_undamped
+from ..params import ChainParams
+from ..state import ROW_INDEX, column
+from .breathers import MAX_HARMONIC, TAIL_SAMPLES, anti_continuum_state, combination_resonances, coupled_bands, harmonics_in_bands
+from .simulation import run_attributes
+
+if TYPE_CHECKING:  # xarray is imported where a Dataset is built
+    import xarray as xr
+
+ProgressCallback = Callable[[float, float], None]
+
+#: The fields an atlas may vary: the geometry (a, b, h) and the links' stiffnesses.
+ATLAS_FIELDS = ("a", "b", "h", "E1", "E2")
+#: Where each point's Newton started (``source``): none converged, continued in Omega, in the field, the anti-continuum rotor.
+SOURCES = ("none", "omega", "field", "anti_continuum")
+#: Newton iterations allowed from each start (a start that needs more is left for the next one).
+ATLAS_MAX_ITER = 12
+#: Amplitudes below this are integration noise, not a tail: :func:`localization_length` fits only above it.
+AMPLITUDE_FLOOR = 1e-9
+
+
+def localization_length(amplitudes: np.ndarray) -> float:
+    """The decay length xi of amplitudes A_d ~ exp(-d / xi), d = 1, 2, ... sites from the rotor.
+
+    A least-squares fit of log A_d over the A_d above :data:`AMPLITUDE_FLOOR` (a tail that
+    falls under the integration's noise is fitted only where it is resolved).
+
+    Parameters
+    ----------
+    amplitudes : ndarray (D,)
+        A_1, ..., A_D.
+
+    Returns
+    -------
+    float
+        xi in sites; inf where the tail does not decay, NaN with fewer than two resolved sites.
+    """
+    amplitudes = np.asarray(amplitudes, dtype=float)
+    d = np.arange(1, amplitudes.size + 1)
+    resolved = amplitudes > AMPLITUDE_FLOOR
+    if np.count_nonzero(resolved) < 2:
+        return math.nan
+    slope = np.polyfit(d[resolved], np.log(amplitudes[resolved]), 1)[0]
+    return math.inf if slope >= 0 else float(-1.0 / slope)
+
+
+@dataclass(frozen=True)
+class Localization:
+    """How localized a roto-breather is (module docstring).
+
+    Attributes
+    ----------
+    participation_ratio : float
+        Mean over a period of (sum e_k)^2 / sum e_k^2 of the particles' energies.
+    amplitudes : dict
+        The largest |phi| (rad), |u| / h, |v| / h of the particles that do not turn (names of
+        :data:`~cosserat_chain.analysis.diagnostics.THRESHOLDS`).
+    site_amplitudes : ndarray (N,)
+        A_d, the largest of |u| / h, |v| / h, |phi| of the particles d = 1..N sites from the rotor.
+    length : float
+        :func:`localization_length` of ``site_amplitudes``.
+    energy_drift : float
+        max |E(t) - E(0)| / max(1, |E(0)|) over the samples (NaN without an energy).
+    return_error : float
+        max |x(T) - x(0) - 2 pi k e_phi|, |v(T) - v(0)|: the orbit closed by an integration of its state alone.
+    """
+
+    participation_ratio: float
+    amplitudes: dict
+    site_amplitudes: np.ndarray
+    length: float
+    energy_drift: float
+    return_error: float
+
+    @property
+    def localized(self) -> bool:
+        """Every amplitude of the others within its threshold (the diagnostics' ``localized_rotation``)."""
+        return all(self.amplitudes[name] <= THRESHOLDS[name] for name in THRESHOLDS)
+
+
+def orbit_localization(orbit: HamiltonianOrbit) -> Localization:
+    """:class:`Localization` of ``orbit`` from :data:`~.breathers.TAIL_SAMPLES` states over its period."""
+    params = orbit.params
+    x, v = orbit.trajectory(orbit.period * np.arange(1, TAIL_SAMPLES + 1) / TAIL_SAMPLES)
+    energies = particle_energies(params, orbit.model, x, v)
+    ratio = float(np.nanmean(participation_ratio(energies)))
+    scale = np.array([params.h, params.h, 1.0])[None, :, None]
+    size = np.abs(x) / scale
+    turning = np.flatnonzero(orbit.particle_turns)
+    others = np.delete(size, turning, axis=2)
+    names = {"u_over_h": ROW_INDEX["u"], "v_over_h": ROW_INDEX["v"], "phi": ROW_INDEX["phi"]}
+    amplitudes = {name: float(np.max(others[:, row], initial=0.0)) for name, row in names.items()}
+    per_particle = np.max(size, axis=(0, 1))
+    per_particle[turning] = 0.0
+    rotor = column(params, orbit.particle)
+    n = params.n_particles
+    site = np.array([max(per_particle[c] for c in (rotor - d, rotor + d) if 0 <= c < n) for d in range(1, params.N + 1)])
+    drift = math.nan
+    if orbit.energy is not None:
+        drift = float(np.max(np.abs(energies.sum(axis=1) - orbit.energy)) / max(1.0, abs(orbit.energy)))
+    shift = np.zeros_like(orbit.x)
+    shift[ROW_INDEX["phi"]] = 2 * math.pi * orbit.particle_turns
+    back = float(max(np.max(np.abs(x[-1] - orbit.x - shift)), np.max(np.abs(v[-1] - orbit.v))))
+    return Localization(ratio, amplitudes, site, localization_length(site), drift, back)
+
+
+@dataclass
+class AtlasPoint:
+    """One point of the atlas: the orbit (None where none was found) and what was measured on it."""
+
+    omega: float
+    value: float
+    source: str
+    orbit: HamiltonianOrbit | None = None
+    localization: Localization | None = None
+    cpu_s: float = 0.0
+    message: str = ""
+
+    @property
+    def exists(self) -> bool:
+        return self.orbit is not None
+
+    def as_dict(self) -> dict:
+        out = {"omega": self.omega, "value": self.value, "exists": self.exists, "source": self.source, "cpu_s": self.cpu_s}
+        if self.orbit is None:
+            return {**out, "message": self.message}
+        o, loc = self.orbit, self.localization
+        return {
+            **out,
+            "energy": o.energy,
+            "max_multiplier": o.max_multiplier,
+            "stable": o.stable,
+            "unfolding": o.unfolding,
+            "closure": o.closure,
+            "iterations": o.iterations,
+            "participation_ratio": loc.participation_ratio,
+            "localization_length": None if not math.isfinite(loc.length) else loc.length,
+            "amplitudes_of_others": loc.amplitudes,
+            "localized": loc.localized,
+            "energy_drift": None if not math.isfinite(loc.energy_drift) else loc.energy_drift,
+            "return_error": loc.return_error,
+        }
+
+
+@dataclass
+class BreatherAtlas:
+    """Roto-breathers over (field value, Omega): ``points[j][i]`` at ``values[j]``, ``omegas[i]``.
+
+    Attributes
+    ----------
+    params : ChainParams
+        The chain at the first value (the field aside).
+    model : str
+    field : str
+    values, omegas : ndarray
+    points : list of list of AtlasPoint
+    bands : tuple of str
+        The bands the rotation drives (at the first value).
+    settings : dict
+    """
+
+    params: ChainParams
+    model: str
+    field: str
+    values: np.ndarray
+    omegas: np.ndarray
+    points: list[list[AtlasPoint]]
+    bands: tuple[str, ...]
+    settings: dict = field(default_factory=dict)
+
+    def params_at(self, value: float) -> ChainParams:
+        return chain_at(self.params, self.field, value)
+
+    def grid(self, name: str) -> np.ndarray:
+        """A measure over (value, omega) from :meth:`AtlasPoint.as_dict` (NaN where no orbit)."""
+        out = np.full((self.values.size, self.omegas.size), np.nan)
+        for j, row in enumerate(self.points):
+            for i, point in enumerate(row):
+                item = point.as_dict().get(name)
+                if item is not None:
+                    out[j, i] = float(item)
+        return out
+
+    def band_edges(self) -> np.ndarray:
+        """(value, band, edge) the bottom and top of each driven band at each field value (:func:`wave_summary`)."""
+        out = np.zeros((self.values.size, len(self.bands), 2))
+        for j, value in enumerate(self.values):
+            edges = wave_summary(self.params_at(value)).bands
+            for b, band in enumerate(self.bands):
+                out[j, b] = edges[band]
+        return out
+
+    def resonance_omegas(self) -> np.ndarray:
+        """(value, band, edge, harmonic): Omega = edge / n, where the n-th harmonic meets the edge."""
+        return self.band_edges()[..., None] / np.arange(1, MAX_HARMONIC + 1)
+
+    def as_dict(self) -> dict:
+        return {
+            "model": self.model,
+            "field": self.field,
+            "values": self.values.tolist(),
+            "omegas": self.omegas.tolist(),
+            "bands": list(self.bands),
+            "band_edges": {band: self.band_edges()[:, b].tolist() for b, band in enumerate(self.bands)},
+            "thresholds": THRESHOLDS,
+            "points": [[p.as_dict() for p in row] for row in self.points],
+            "resonances": atlas_resonances(self),
+            "settings": self.settings,
+        }
+
+    def to_dataset(self) -> xr.Dataset:
+        """Dataset over (value, omega) with the bands and their harmonics; parameters, model, version, units in the attributes."""
+        import xarray as xr
+
+        dims = ("value", "omega")
+        measures = {
+            "energy": ("1", "total energy of the orbit (NaN: no orbit, or the model has no energy)"),
+            "max_multiplier": ("1", "largest modulus of the Floquet multipliers other than the Hamiltonian pair at +1"),
+            "unfolding": ("1", "unfolding damping rate eps at the solution (0 up to Newton's tolerance)"),
+            "closure": ("1", "max |Phi_T(y0) - y0 - 2 pi k e_phi| of the converged orbit"),
+            "iterations": ("1", "Newton iterations"),
+            "participation_ratio": ("1", "(sum e_k)^2 / sum e_k^2 of the particles' energies, mean over a period"),
+            "localization_length": ("1", "decay length of the tail's amplitudes, in sites (inf: no decay)"),
+            "energy_drift": ("1", "max |E(t) - E(0)| / max(1, |E(0)|) along the orbit"),
+            "return_error": ("1", "max |state(T) - state(0) - 2 pi k e_phi| by a separate integration of the state"),
+            "cpu_s": ("s", "CPU time of the point (Newton from every start tried, multipliers, checks)"),
+        }
+        data = {name: (dims, self.grid(name), {"units": units, "long_name": long}) for name, (units, long) in measures.items()}
+        data["exists"] = (
+            dims,
+            self.grid("exists").astype(np.int8),
+            {"units": "1", "long_name": "a roto-breather was found (Newton converged)"},
+        )
+        data["stable"] = (
+            dims,
+            np.nan_to_num(self.grid("stable")).astype(np.int8),
+            {"units": "1", "long_name": "every nontrivial multiplier on the unit circle"},
+        )
+        data["localized"] = (dims, np.nan_to_num(self.grid("localized")).astype(np.int8),
+                             {"units": "1", "long_name": "every amplitude of the others within the localization diagnostics' threshold"})  # fmt: skip
+        sources = np.array([[SOURCES.index(p.source) for p in row] for row in self.points], dtype=np.int8)
+        data["source"] = (dims, sources, {"units": "1", "long_name": "where Newton started", "flag_values": np.arange(len(SOURCES), dtype=np.int8),
+                                          "flag_meanings": " ".join(SOURCES)})  # fmt: skip
+        for name in THRESHOLDS:
+            unit = "rad" if name == "phi" else "1"
+            values = np.full(sources.shape, np.nan)
+            for j, row in enumerate(self.points):
+                for i, p in enumerate(row):
+                    if p.localization is not None:
+                        values[j, i] = p.localization.amplitudes[name]
+            data[f"amplitude_{name}"] = (dims, values, {"units": unit, "long_name": f"largest {name} of the particles that do not turn",
+                                                        "threshold": THRESHOLDS[name]})  # fmt: skip
+        resonant = atlas_resonances(self)
+        for name, long in (
+            ("harmonics_in_bands", "harmonics n Omega (n <= 6) inside a driven band"),
+            ("combination_resonances", "pairs of driven bands whose frequencies sum to a harmonic n Omega (n <= 6)"),
+        ):
+            counts = np.array([len(r[name]) for r in resonant], dtype=np.int16).reshape(sources.shape)
+            data[name] = (dims, counts, {"units": "1", "long_name": long})
+        edges = self.band_edges()
+        data["band_edge"] = (("value", "band", "edge"), edges, {"units": "rad s-1", "long_name": "band edges of the infinite linear chain"})
+        data["resonance_omega"] = (("value", "band", "edge", "harmonic"), self.resonance_omegas(),
+                                   {"units": "rad s-1", "long_name": "Omega at which the n-th harmonic meets the band edge"})  # fmt: skip
+        coords = {
+            "value": ("value", self.values, {"long_name": f"chain field {self.field}"}),
+            "omega": ("omega", self.omegas, {"units": "rad s-1", "long_name": "mean angular velocity Omega of the rotating particle"}),
+            "band": ("band", list(self.bands)),
+            "edge": ("edge", ["bottom", "top"]),
+            "harmonic": ("harmonic", np.arange(1, MAX_HARMONIC + 1)),
+        }
+        ds = xr.Dataset(data, coords=coords)
+        model = get_model(self.model)
+        ds.attrs.update(run_attributes(self.params, model, moment_load(0.0, self.settings.get("particle", 0))))
+        ds.attrs.update(
+            {
+                "experiment": "roto_breather_atlas",
+                "field": self.field,
+                "field_units": "length (units of the parameters' h)" if self.field in ("a", "b", "h") else "stiffness (units of E1)",
+                "units": "time: the parameters' units (m = 1, E1 = 1 give the paper's); angles: rad",
+                "bands": ", ".join(self.bands),
+                "thresholds_json": json.dumps(THRESHOLDS),
+                "settings_json": json.dumps(self.settings),
+            }
+        )
+        return ds
+
+
+def chain_at(params: ChainParams, field: str, value: float) -> ChainParams:
+    """``params`` with ``field`` = ``value``; a change of a or b re-derives j = m (a^2 + b^2) / 3 where the chain's j is that default.
+
+    A particle is a 2a x 2b rectangle: its moment of inertia follows its shape unless it was given apart.
+
+    Raises
+    ------
+    ValueError
+        For a value the chain refuses (naming the field).
+    """
+    changes: dict = {field: float(value)}
+    if field in ("a", "b") and math.isclose(params.j, params.m * (params.a**2 + params.b**2) / 3.0, rel_tol=1e-12):
+        changes["j"] = None
+    return params.replace(**changes)
+
+
+def _secant(a: HamiltonianOrbit | None, b: HamiltonianOrbit | None, r: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """The state b + r (b - a) (b alone without a), or None without b."""
+    if b is None:
+        return None
+    if a is None:
+        return b.x, b.v
+    return b.x + r * (b.x - a.x), b.v + r * (b.v - a.v)
+
+
+def breather_atlas(
+    params: ChainParams,
+    model: str | Model,
+    omegas: np.ndarray | list[float],
+    field: str,
+    values: np.ndarray | list[float],
+    *,
+    turns: int = 1,
+    particle: int = 0,
+    method: str = "auto",
+    progress: ProgressCallback | None = None,
+) -> BreatherAtlas:
+    """One-site roto-breathers over the grid ``values`` x ``omegas`` (module docstring).
+
+    Parameters
+    ----------
+    params : ChainParams
+        Undamped; ``field`` is replaced by each of ``values`` (:func:`chain_at`: the inertia
+        follows a and b where it is their default).
+    model : str or Model
+        ``sine`` or ``nonlinear``.
+    omegas : sequence of float
+        Frequencies > 0, followed in this order (a family is continued from one to the next:
+        start where the anti-continuum rotor converges, above the bands).
+    field : str
+        One of :data:`ATLAS_FIELDS`.
+    values : sequence of float
+        Its values, followed in this order.
+    turns, particle
+        The rotor's turns per period and its particle.
+    method : {"auto", "dense", "blocks"}
+        Of :func:`~cosserat_chain.numerics.long_breathers.find_breather_orbit`.
+    progress : callable(done, total), optional
+        Called after each point.
+
+    Returns
+    -------
+    BreatherAtlas
+
+    Raises
+    ------
+    ValueError
+        For a damped chain, a field not in :data:`ATLAS_FIELDS`, values the chain refuses, or
+        frequencies not finite and > 0.
+    """
+    model = get_model(model)
+    require_undamped(params)
+    if field not in ATLAS_FIELDS:
+        raise ValueError(f"field must be one of {', '.join(ATLAS_FIELDS)} (the geometry or a stiffness), got {field!r}")
+    omegas = np.asarray(omegas, dtype=float)
+    values = np.asarray(values, dtype=float)
+    if omegas.ndim != 1 or omegas.size == 0 or not np.all(np.isfinite(omegas)) or np.any(omegas <= 0):
+        raise ValueError(f"omegas must be one or more finite frequencies > 0, got {omegas.tolist()!r}")
+    if values.ndim != 1 or values.size == 0 or not np.all(np.isfinite(values)):
+        raise ValueError(f"values of {field} must be one or more finite numbers, got {values.tolist()!r}")
+    chains = []
+    for value in values:
+        try:
+            chains.append(chain_at(params, field, value))
+        except ValueError as err:  # pydantic's ValidationError: its messages without the framework's wording
+            reasons = [e["msg"].removeprefix("Value error, ") for e in err.errors()] if hasattr(err, "errors") else [str(err)]
+            raise ValueError(f"values of {field}: the chain refuses {field}={float(value)!r}: {'; '.join(reasons)}") from None
+    found: list[list[SolvedBreather | None]] = [[None] * omegas.size for _ in values]
+    points: list[list[AtlasPoint]] = []
+    total = values.size * omegas.size
+    for j, chain in enumerate(chains):
+        row = []
+        for i, omega in enumerate(omegas):
+            started = time.process_time()
+            starts = []
+            before = found[j][i - 1] if i >= 1 else None
+            if before is not None:
+                earlier = found[j][i - 2] if i >= 2 else None
+                r = 0.0 if earlier is None else (omega - before.orbit.omega) / (before.orbit.omega - earlier.orbit.omega)
+                starts.append(("omega", _secant(None if earlier is None else earlier.orbit, before.orbit, r), before.jacobian))
+            last = found[j - 1][i] if j >= 1 else None
+            if last is not None:
+                first = found[j - 2][i] if j >= 2 else None
+                r = 0.0 if first is None else (values[j] - values[j - 1]) / (values[j - 1] - values[j - 2])
+                starts.append(("field", _secant(None if first is None else first.orbit, last.orbit, r), last.jacobian))
+            starts.append(("anti_continuum", anti_continuum_state(chain, model, float(omega), particle=particle)[:2], None))
+            point = AtlasPoint(float(omega), float(values[j]), "none")
+            messages = []
+            for source, guess, jacobian in starts:
+                try:
+                    solved = find_breather_orbit(
+                        chain, model, float(omega), guess, method=method, turns=turns, particle=particle, max_iter=ATLAS_MAX_ITER,
+                        jacobian0=jacobian,
+                    )  # fmt: skip
+                except OrbitError as err:
+                    messages.append(f"from {source}: {err}")
+                    continue
+                found[j][i] = solved
+                point = AtlasPoint(float(omega), float(values[j]), source, solved.orbit, orbit_localization(solved.orbit))
+                break
+            point.message = "; ".join(messages) if point.orbit is None else ""
+            point.cpu_s = time.process_time() - started
+            row.append(point)
+            if progress is not None:
+                progress(j * omegas.size + i + 1, total)
+        points.append(row)
+    settings = {"model": model.name, "field": field, "turns": turns, "particle": particle, "method": method}
+    return BreatherAtlas(params, model.name, field, values, omegas, points, coupled_bands(params, model, particle), settings)
+
+
+def atlas_resonances(atlas: BreatherAtlas) -> list[dict]:
+    """Per point: the harmonics inside a driven band and the phonon pairs summing to a harmonic (JSON-ready)."""
+    out = []
+    for value in atlas.values:
+        chain = atlas.params_at(value)
+        for omega in atlas.omegas:
+            out.append({
+                "value": float(value),
+                "omega": float(omega),
+                "harmonics_in_bands": [{"harmonic": n, "band": b} for n, b in harmonics_in_bands(chain, float(omega), bands=atlas.bands)],
+                "combination_resonances": [{"harmonic": n, "bands": [a, b]} for n, a, b in combination_resonances(chain, float(omega), bands=atlas.bands)],
+            })  # fmt: skip
+    return out
