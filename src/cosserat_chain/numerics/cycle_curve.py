@@ -107,6 +107,23 @@ COMPLEX_RTOL = 1e-6
 #: A fold of cycles has a second Floquet multiplier at +1 beside the trivial one: the two nearest +1 lie
 #: within this of it (a double multiplier of a monodromy accurate to ~1e-10 splits like its square root).
 FOLD_MULTIPLIER_TOL = 1e-3
+#: Codimension-two points watched along each kind's curve (module docstring), by the names of :class:`Codim2Point`.
+CODIM2 = {
+    "fold_of_cycles": ("fold_flip",),
+    "period_doubling": ("resonance_1_2", "fold_flip"),
+    "torus": ("resonance_1_1", "resonance_1_2", "resonance_1_3", "resonance_1_4"),
+}
+#: AUTO-07p's labels of the same points (its two-parameter runs of LP, PD and TR curves print them).
+AUTO_LABELS = {"resonance_1_1": "R1", "resonance_1_2": "R2", "resonance_1_3": "R3", "resonance_1_4": "R4", "fold_flip": "LPPD"}
+#: Where a torus curve's pair turns real (at +1 or -1) the curve ends: its test function reaches zero without changing sign.
+ENDS_AT = ("resonance_1_1", "resonance_1_2")
+#: A codimension-two point is located when its test function is this small (a multiplier's or a cosine's distance
+#: from its value there, accurate to about the monodromy's round-off)...
+CODIM2_TOL = 1e-9
+#: ... or its bracket in the field this narrow, relative to max(1, |p|).
+CODIM2_XTOL = 1e-11
+#: Secant (Illinois) iterations, each an augmented solve, that locate one codimension-two point.
+CODIM2_ITERATIONS = 40
 
 
 @dataclass
@@ -139,9 +156,10 @@ class CycleEndCurve:
     iterations: np.ndarray
     complete: bool = True
     message: str = ""
+    points: list[Codim2Point] = field(default_factory=list)
 
     def as_dict(self) -> dict:
-        """JSON-ready rows, one per value reached."""
+        """JSON-ready rows, one per value reached, and the codimension-two points located on the way."""
         return {
             "kind": self.kind,
             "field": self.field,
@@ -151,6 +169,63 @@ class CycleEndCurve:
                 {"value": float(v), "moment": float(m), "period": float(t), "iterations": int(i)}
                 for v, m, t, i in zip(self.values, self.moment, self.period, self.iterations)
             ],
+            "codim2": [point.as_dict() for point in self.points],
+        }
+
+
+@dataclass
+class Codim2Point:
+    """A codimension-two point located on an end's curve (:data:`CODIM2`).
+
+    Attributes
+    ----------
+    kind : str
+        One of :data:`CODIM2` for the curve's kind (``resonance_1_2``, ``fold_flip``, ...).
+    label : str
+        AUTO-07p's label of the same point (:data:`AUTO_LABELS`: R1 ... R4, LPPD).
+    value : float
+        The field's value there.
+    moment, period : float
+    orbit : PeriodicOrbit
+        The orbit there (its multipliers show the point: two at -1, the pair at angle pi / 2, ...).
+    test : float
+        The test function's value at ``orbit`` (zero at the point).
+    uncertainty : float
+        Bound on the error of ``value``: the width of the last bracket in the field (between
+        solved points on either side of the zero, or a solved point and a value where the
+        curve does not exist).
+    angle : float or None
+        On a torus curve, the critical pair's angle arg(mu) in (0, pi) at ``orbit``.
+    """
+
+    kind: str
+    label: str
+    value: float
+    moment: float
+    period: float
+    orbit: PeriodicOrbit
+    test: float
+    uncertainty: float
+    angle: float | None = None
+
+    @property
+    def name(self) -> str:
+        """The point's name in words: ``1:2 resonance``, ``fold-flip``."""
+        if self.kind.startswith("resonance_"):
+            return self.kind.removeprefix("resonance_").replace("_", ":") + " resonance"
+        return self.kind.replace("_", "-")
+
+    def as_dict(self) -> dict:
+        """JSON-ready summary."""
+        return {
+            "kind": self.kind,
+            "label": self.label,
+            "value": self.value,
+            "moment": self.moment,
+            "period": self.period,
+            "test": self.test,
+            "uncertainty": self.uncertainty,
+            "angle": self.angle,
         }
 
 
@@ -491,13 +566,14 @@ def continue_cycle_end(
     values = field_values(field_name, values)
     augmented = _Augmented(kind, orbit, tol, rtol, atol)
 
-    def point(value: float, z: np.ndarray):
-        """The end at ``value`` from the guess z, checked to be the lower edge; (entry, reason) or (None, reason)."""
+    def solved(value: float, z: np.ndarray):
+        """The augmented system's solution at ``value`` from the guess z, not checked to be the lower edge:
+        (entry, reason) or (None, reason); an entry is (value, z, orbit, iterations, the torus's pair)."""
         chain = chain_with(orbit.params, field_name, value)
-        solved = augmented.solve(chain, z)
-        if solved is None:
+        solution = augmented.solve(chain, z)
+        if solution is None:
             return None, "Newton did not converge"
-        z_new, mono, closure, iterations = solved
+        z_new, mono, closure, iterations = solution
         if np.max(np.abs(z_new[: augmented.head] - z[: augmented.head])) > JUMP:
             return None, "Newton jumped to another orbit"
         y0, period, moment = augmented.split(z_new)
@@ -508,6 +584,14 @@ def continue_cycle_end(
                 f"no second Floquet multiplier at +1 there (the nearest is {np.sort(np.abs(found.multipliers - 1.0))[1]:.3g} "
                 "from it): not a fold of cycles"
             )
+        return (value, z_new, found, iterations, augmented.pair), ""
+
+    def point(value: float, z: np.ndarray):
+        """The end at ``value`` from the guess z, checked to be the lower edge; (entry, reason) or (None, reason)."""
+        entry, reason = solved(value, z)
+        if entry is None:
+            return None, reason
+        chain, z_new, found = chain_with(orbit.params, field_name, value), entry[1], entry[2]
         others = _other_multipliers(found, kind)
         if others.size and float(np.max(np.abs(others))) >= 1.0 - EDGE_MARGIN:
             return None, (
@@ -516,7 +600,13 @@ def continue_cycle_end(
             )
         if kind != "fold_of_cycles" and not augmented.leaves_circle(chain, z_new, found):
             return None, "the critical multiplier enters the unit circle as M falls there: the orbit regains stability, no lower edge"
-        return (value, z_new, found, iterations), ""
+        return entry, ""
+
+    def located(value: float, guess: np.ndarray, pair: complex | None):
+        """A trial of the codimension-two search: the augmented system solved at ``value``, the edge not checked
+        (the search passes through the point, where the edge changes kind), its borders taken at the guess."""
+        augmented.borders, augmented.pair = None, pair
+        return solved(value, guess)[0]
 
     first, reason = point(float(values[0]), augmented.pack(orbit))
     if first is None:
@@ -524,7 +614,7 @@ def continue_cycle_end(
             f"the {kind} end could not be located at {field_name} = {values[0]:g} from the orbit at M = {orbit.moment:.6g}: {reason}"
         )
     curve = _EndCurve(point, first, augmented.pack(orbit).size + 1)
-    complete, message = True, ""
+    complete, message, target = True, "", float(values[-1])
     for index, target in enumerate(values[1:], start=1):
         if progress is not None:
             progress(index, values.size)
@@ -532,10 +622,19 @@ def continue_cycle_end(
             complete = False
             message = (
                 f"the {kind} end could not be followed beyond {field_name} = {curve.found[-1][0]:.6g} towards {float(target):.6g} "
-                f"({curve.reason}): the curve turns back in {field_name}, ends (a codimension-two point), or the edge changes kind"
+                f"({curve.reason})"
             )
             break
     found = curve.found
+    points, at_stop = _codim2_points(kind, found, located, None if complete else float(target))
+    if not complete:
+        if at_stop is not None:
+            message += (
+                f": it meets a {at_stop.name} ({at_stop.label}) at {field_name} = {at_stop.value:.10g} "
+                f"+- {at_stop.uncertainty:.2g} (M = {at_stop.moment:.10g}), where the edge changes kind"
+            )
+        else:
+            message += f": the curve turns back in {field_name}, ends at a codimension-two point not watched, or the edge changes kind"
     if progress is not None:
         progress(values.size, values.size)
     asked = [entry for entry in found if np.any(entry[0] == values)]
@@ -549,6 +648,128 @@ def continue_cycle_end(
         iterations=np.array([e[3] for e in asked]),
         complete=complete,
         message=message,
+        points=points,
+    )
+
+
+def _codim2_tests(kind: str, orbit: PeriodicOrbit, pair: complex | None) -> dict[str, float]:
+    """The test functions of :data:`CODIM2` for a point of a ``kind`` curve, each zero at its point.
+
+    Each is a smooth function of a cluster of multipliers (a sum, a product, a cosine of a conjugate
+    pair), well conditioned where two of them meet, as they do at a 1:2 resonance:
+
+    * ``resonance_1_1`` ... ``resonance_1_4`` (torus): cos(theta) - 1, + 1, + 1/2 and cos(theta), theta the
+      pair's angle;
+    * ``resonance_1_2`` (period doubling): Re(mu_1 + mu_2) + 2, mu_1, mu_2 the two nontrivial multipliers
+      nearest -1 (one of them is -1 on the curve, so this is the other's distance from -1);
+    * ``fold_flip``: on a period-doubling curve Re(mu_1 + mu_2) - 2 over the two multipliers nearest +1 (the
+      trivial one and the other's distance from +1), on a fold curve Re prod(mu + 1) over the nontrivial ones.
+    """
+    if kind == "torus":
+        cosine = pair.real / abs(pair)
+        return {"resonance_1_1": cosine - 1.0, "resonance_1_2": cosine + 1.0, "resonance_1_3": cosine + 0.5, "resonance_1_4": cosine}
+    if kind == "fold_of_cycles":
+        return {"fold_flip": float(np.real(np.prod(orbit.nontrivial_multipliers + 1.0)))}
+    rest, every = orbit.nontrivial_multipliers, orbit.multipliers
+    near_minus = rest[np.argsort(np.abs(rest + 1.0))[:2]]
+    near_plus = every[np.argsort(np.abs(every - 1.0))[:2]]
+    return {"resonance_1_2": float(np.sum(near_minus).real) + 2.0, "fold_flip": float(np.sum(near_plus).real) - 2.0}
+
+
+def _codim2_points(kind: str, found: list[tuple], solve: Callable, target: float | None) -> tuple[list[Codim2Point], Codim2Point | None]:
+    """The codimension-two points on a curve's points ``found`` (entries of :func:`continue_cycle_end`), and the
+    one where the curve stopped short of ``target`` (None where it did not stop, or stopped elsewhere).
+
+    Between two points where a test function changes sign, its zero is located by the Illinois secant in the
+    field (:func:`_locate_codim2`). Where the curve stopped, a test function whose secant through the last two
+    points reaches zero within :data:`MAX_EXTRAPOLATION` of their spacing towards ``target`` is searched
+    for beyond the last point: the curve's own checks of the edge (or its existence: a torus pair turning
+    real) stop it at such a point.
+    """
+    entries = [e for i, e in enumerate(found) if i == 0 or e[0] != found[i - 1][0]]
+    tests = [_codim2_tests(kind, e[2], e[4]) for e in entries]
+    points: list[Codim2Point] = []
+    for i in range(1, len(entries)):
+        for name in CODIM2[kind]:
+            if tests[i - 1][name] * tests[i][name] < 0:
+                before = entries[max(0, i - 2) : i]
+                points.append(_locate_codim2(kind, name, solve, before, entries[i], entries[i][0]))
+    at_stop = None
+    if target is not None and len(entries) >= 2:
+        (p0, p1), (t0, t1) = (entries[-2][0], entries[-1][0]), (tests[-2], tests[-1])
+        reach = []
+        for name in CODIM2[kind]:
+            if t1[name] == t0[name]:
+                continue
+            zero = p1 - t1[name] * (p1 - p0) / (t1[name] - t0[name])
+            ahead = (zero - p1) * (target - p1)
+            if 0 <= ahead and abs(zero - p1) <= min(MAX_EXTRAPOLATION * abs(p1 - p0), abs(target - p1)):
+                reach.append((abs(zero - p1), name))
+        if reach:
+            at_stop = _locate_codim2(kind, min(reach)[1], solve, entries[-2:], None, target)
+            points.append(at_stop)
+    return points, at_stop
+
+
+def _locate_codim2(kind: str, name: str, solve: Callable, before: list[tuple], after: tuple | None, limit: float) -> Codim2Point:
+    """The zero of test function ``name`` beyond the curve's points ``before`` (the last the bracket's near end),
+    towards the point ``after`` on the other side of it or, without one, towards ``limit`` (the search for where
+    the curve stopped: a trial that fails there moves the bracket's far end to it).
+
+    Illinois secant steps in the field, each trial the augmented system solved from the guess interpolated
+    (extrapolated without a far point) along the curve; a step outside the bracket is a bisection.
+    """
+
+    def test(entry: tuple) -> float:
+        return _codim2_tests(kind, entry[2], entry[4])[name]
+
+    low, f_low = before[-1], test(before[-1])
+    other = before[-2] if len(before) > 1 else None
+    f_other = test(other) if other is not None else math.nan
+    high, f_high = (after, test(after)) if after is not None else (None, math.nan)
+    far = limit if high is None else high[0]
+    best, f_best, side = low, f_low, 0
+    if high is not None and abs(f_high) < abs(f_best):
+        best, f_best = high, f_high
+    for _ in range(CODIM2_ITERATIONS):
+        if abs(f_best) <= CODIM2_TOL or abs(far - low[0]) <= CODIM2_XTOL * max(1.0, abs(low[0])):
+            break
+        if high is not None:
+            reference, f_reference = high, f_high
+        else:
+            reference, f_reference = other, f_other
+        value = math.nan
+        if reference is not None and f_reference != f_low:
+            value = low[0] - f_low * (low[0] - reference[0]) / (f_low - f_reference)
+        if not (min(low[0], far) < value < max(low[0], far)):
+            value = 0.5 * (low[0] + far)
+        guess = low[1] if reference is None else low[1] + (value - low[0]) / (reference[0] - low[0]) * (reference[1] - low[1])
+        entry = solve(value, guess, low[4])
+        if entry is None:
+            if high is not None:
+                break  # no solution between two solved points: the bracket is kept as it is
+            far = value  # the curve does not reach this value: the zero lies nearer
+            continue
+        f = test(entry)
+        if abs(f) < abs(f_best):
+            best, f_best = entry, f
+        if f * f_low > 0:
+            other, f_other, low, f_low = low, f_low, entry, f
+            if side == 1 and high is not None:
+                f_high *= 0.5
+            side = 1
+        else:
+            high, f_high, far = entry, f, entry[0]
+            if side == -1:
+                f_low *= 0.5
+            side = -1
+    bracket = abs(far - low[0]) if best is low else abs(far - best[0]) if high is None else abs(high[0] - low[0])
+    slope = (f_low - f_other) / (low[0] - other[0]) if other is not None and other[0] != low[0] else math.nan
+    estimate = 10.0 * abs(f_best / slope) if math.isfinite(slope) and slope != 0 else math.inf
+    orbit = best[2]
+    angle = float(np.angle(best[4])) if kind == "torus" else None
+    return Codim2Point(
+        name, AUTO_LABELS[name], float(best[0]), orbit.moment, orbit.period, orbit, float(f_best), float(min(bracket, estimate)), angle
     )
 
 

@@ -1,0 +1,105 @@
+"""Codimension-two points on the two-parameter curves of the rotating orbit's ends (issue 40 item 4):
+``numerics.cycle_curve``'s test functions and their located zeros.
+
+On the paper's chain (N = 3 sine, E2 varied) the torus end's critical pair turns through the angle
+2 pi / 3 (a 1:3 resonance) between E2 = 0.9 and 0.95, and through pi near E2 = 1.1336 where it meets
+the period-doubling end (a 1:2 resonance): located from the torus curve (its pair turning real) and
+from the period-doubling curve (a second multiplier reaching -1), two different augmented systems,
+the two agree.
+"""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from cosserat_chain import ChainParams
+from cosserat_chain.numerics.continuation import locate_fold
+from cosserat_chain.numerics.cycle_curve import AUTO_LABELS, CODIM2, Codim2Point, _codim2_tests, continue_cycle_end, locate_cycle_end
+from cosserat_chain.numerics.periodic import continue_orbit, find_periodic_orbit
+
+
+def located_end(chain: ChainParams, kind: str):
+    """The end of ``kind`` of the one-turn orbit followed down from 1.1 M_c."""
+    branch = continue_orbit(find_periodic_orbit(chain, "sine", 1.1 * locate_fold(chain, "sine").moment), period_max=100.0)
+    index = int(np.argmin(branch.stable))
+    return locate_cycle_end(branch.orbits[index - 1 : index + 1], kind)
+
+
+def pair_of(orbit) -> complex:
+    """The complex multiplier nearest the unit circle, positive imaginary part."""
+    mu = orbit.nontrivial_multipliers
+    pairs = mu[mu.imag > 1e-6 * np.abs(mu)]
+    return complex(pairs[np.argmin(np.abs(np.abs(pairs) - 1.0))])
+
+
+def test_the_test_functions_vanish_at_their_points_and_change_sign_across_them():
+    """Each test function on multipliers built to sit on either side of its point (no orbit needed)."""
+
+    def orbit(*mu):
+        every = np.array([1.0, *mu], dtype=complex)
+        return SimpleNamespace(multipliers=every, nontrivial_multipliers=every[1:])
+
+    for angle, name in ((2 * math.pi / 3, "resonance_1_3"), (math.pi / 2, "resonance_1_4")):
+        below, above = (_codim2_tests("torus", None, complex(np.exp(1j * (angle + d))))[name] for d in (-1e-3, 1e-3))
+        assert below * above < 0 and abs(_codim2_tests("torus", None, complex(np.exp(1j * angle)))[name]) < 1e-15
+    # The torus's pair turning real at -1 or +1 ends the curve: the test reaches zero from one side.
+    assert _codim2_tests("torus", None, complex(np.exp(1j * (math.pi - 1e-3))))["resonance_1_2"] > 0
+    assert _codim2_tests("torus", None, complex(np.exp(1e-3j)))["resonance_1_1"] < 0
+    # On a period doubling (a multiplier at -1): a second one through -1, or a real one through +1.
+    inside, outside = orbit(-1.0, -0.99, 0.3 + 0.2j, 0.3 - 0.2j), orbit(-1.0, -1.01, 0.3 + 0.2j, 0.3 - 0.2j)
+    assert _codim2_tests("period_doubling", inside, None)["resonance_1_2"] == pytest.approx(0.01)
+    assert _codim2_tests("period_doubling", outside, None)["resonance_1_2"] == pytest.approx(-0.01)
+    flip_below, flip_above = orbit(-1.0, 0.99, 0.2), orbit(-1.0, 1.01, 0.2)
+    assert _codim2_tests("period_doubling", flip_below, None)["fold_flip"] == pytest.approx(-0.01)
+    assert _codim2_tests("period_doubling", flip_above, None)["fold_flip"] == pytest.approx(0.01)
+    # On a fold (a second multiplier at +1): a real one through -1; a complex pair near -1 changes nothing.
+    fold = [_codim2_tests("fold_of_cycles", orbit(1.0, mu, -0.9 + 0.1j, -0.9 - 0.1j), None)["fold_flip"] for mu in (-0.99, -1.01)]
+    assert fold[0] * fold[1] < 0
+    assert set(AUTO_LABELS) == {name for names in CODIM2.values() for name in names}
+
+
+def test_the_torus_end_of_the_paper_s_chain_passes_a_1_to_3_resonance():
+    """Followed from E2 = 0.9 to 0.95, the torus end's pair turns through 2 pi / 3: located to the test's tolerance,
+    with the pair on the circle at exactly that angle, between the followed values' angles."""
+    curve = continue_cycle_end(located_end(ChainParams(E2=0.9), "torus"), "torus", "E2", [0.9, 0.95])
+    assert curve.complete
+    (point,) = curve.points
+    assert isinstance(point, Codim2Point) and (point.kind, point.label, point.name) == ("resonance_1_3", "R3", "1:3 resonance")
+    assert 0.9 < point.value < 0.95 and point.uncertainty < 1e-9
+    mu = pair_of(point.orbit)
+    assert abs(abs(mu) - 1.0) < 1e-8  # still a torus end
+    assert np.angle(mu) == pytest.approx(2 * math.pi / 3, abs=1e-8) and point.angle == pytest.approx(np.angle(mu), abs=1e-12)
+    # Independently of the located point: the followed ends' angles lie on either side of 2 pi / 3.
+    angles = [np.angle(pair_of(orbit)) for orbit in curve.orbits]
+    assert angles[0] < 2 * math.pi / 3 < angles[1]
+    assert point.moment == pytest.approx(0.170201521, abs=1e-8)
+    assert curve.as_dict()["codim2"][0]["label"] == "R3"
+
+
+@pytest.mark.slow
+def test_the_1_to_2_resonance_where_the_torus_end_becomes_a_period_doubling_is_the_same_from_either_curve():
+    """The torus curve (from E2 = 1.0 up) ends where its pair turns real at -1; the period-doubling curve (from
+    1.2 down) stops where its second real negative multiplier reaches -1. Both stop there and say so, and the
+    two points agree within their stated uncertainties."""
+    params = ChainParams()
+    torus = continue_cycle_end(located_end(params.replace(E2=1.0), "torus"), "torus", "E2", [1.0, 1.13, 1.2])
+    flip = continue_cycle_end(located_end(params.replace(E2=1.2), "period_doubling"), "period_doubling", "E2", [1.2, 1.14, 1.13])
+    assert not torus.complete and not flip.complete
+    for curve in (torus, flip):
+        assert "1:2 resonance (R2)" in curve.message
+        assert curve.points[-1].kind == "resonance_1_2"
+    a, b = torus.points[-1], flip.points[-1]
+    assert abs(a.value - b.value) <= a.uncertainty + b.uncertainty + 1e-10
+    assert a.value == pytest.approx(1.1336439615, abs=1e-9) and a.moment == pytest.approx(b.moment, abs=1e-9)
+    assert a.angle == pytest.approx(math.pi, abs=1e-4)
+    # Two multipliers at -1 (a Jordan block: each within sqrt(round-off), their sum and product to round-off).
+    for point in (a, b):
+        mu = point.orbit.nontrivial_multipliers
+        pair = mu[np.argsort(np.abs(mu + 1.0))[:2]]
+        assert np.all(np.abs(pair + 1.0) < 1e-4)
+        assert abs(np.sum(pair).real + 2.0) < 1e-8 and abs(np.prod(pair).real - 1.0) < 1e-8
+        assert np.max(np.abs(np.delete(mu, np.argsort(np.abs(mu + 1.0))[:2]))) < 0.6  # the rest well inside
