@@ -70,6 +70,8 @@ BRANCH_POINT_TOL = 1e-4
 MIRROR_TOL = 1e-6
 #: Largest amplitude of the first orbit of the new family (the default's search stops there).
 MAX_AMPLITUDE = 0.2
+#: A located event whose tangent's parameter component is below this (unit tangent) lies on a fold, not a branch point.
+TURN_TOL = 1e-3
 #: Kinds of branch point (:attr:`BranchSwitch.kind`).
 KINDS = ("mirror_symmetry_breaking", "branch_point")
 
@@ -175,18 +177,54 @@ def _symmetry(orbit: PeriodicOrbit, mono: np.ndarray) -> np.ndarray | None:
     return s
 
 
-def _located(start, parameter: str | None, index: int, rtol: float, atol: float) -> tuple[Point, str, np.ndarray | None]:
+def _is_branch_point(event) -> bool:
+    """Whether a system's located event has two multipliers at +1: the kit's ``branch_point``, or a change of
+    stability through +1 (the kit's determinant test is lost where the continuation jumps onto the crossing
+    family at the point, as on the pen's out-of-phase family: its stability event remains). Whether the
+    parameter turns there (a fold) is asked of the branch's tangents (:func:`_old_tangent`)."""
+    if not event.located or event.kind not in ("branch_point", "stability"):
+        return False
+    return bool(np.sort(np.abs(event.point.multipliers - 1.0))[1] <= BRANCH_POINT_TOL)
+
+
+def _old_tangent(branch: shooting.OrbitBranch, event, tol: float, rtol: float, atol: float) -> np.ndarray:
+    """The old branch's direction at a system's branch point: the mean of its unit tangents (null vectors of the
+    shooting Jacobian) at the two orbits around the event. The event's own tangent will not do: the null space
+    is two-dimensional at the point, and the kit's tangent there is any direction in it.
+
+    Raises
+    ------
+    ValueError
+        Where the parameter turns there (a fold of cycles, not a branch point).
+    """
+    tangents = []
+    for orbit in branch.orbits[event.index - 1 : event.index + 1]:
+        problem = shooting._Shooting(orbit.system, orbit.turns, orbit.y0, orbit.period, (shooting.PERIOD, branch.parameter), tol, rtol, atol)
+        t = sla.svd(np.asarray(problem.evaluate(problem.pack(orbit), True).jacobian))[2][-1]
+        tangents.append(t if not tangents or t @ tangents[0] >= 0 else -t)
+    along = (tangents[0] + tangents[-1]) / 2
+    if tangents[0][-1] * tangents[-1][-1] <= 0 or abs(along[-1]) < TURN_TOL * np.linalg.norm(along):
+        raise ValueError(f"the parameter {branch.parameter} turns at {event.parameter!r}: a fold of cycles, not a branch point")
+    return along
+
+
+def _located(start, parameter: str | None, index: int, tol: float, rtol: float, atol: float) -> tuple[Point, str, np.ndarray | None]:
     """The branch point ``start`` is or lies on, its parameter, and the old branch's direction (a chord or a
     tangent in w, None where only the point is given)."""
     if isinstance(start, shooting.OrbitBranch):
-        events = [e for e in start.events if e.kind == "branch_point" and e.located]
-        if len(events) <= index:
+        found = []
+        for event in (e for e in start.events if _is_branch_point(e)):
+            try:
+                found.append((event, _old_tangent(start, event, tol, rtol, atol)))
+            except ValueError:
+                continue  # a fold of cycles
+        if len(found) <= index:
             raise ValueError(
-                f"the branch in {start.parameter} has {len(events)} located branch_point event(s), asked for number {index}: "
+                f"the branch in {start.parameter} has {len(found)} located branch point(s) of cycles, asked for number {index}: "
                 "continue_orbits locates one where a real multiplier passes +1 while the parameter does not turn"
             )
-        event = events[index]
-        return event.point, start.parameter if parameter is None else parameter, event.tangent
+        event, along = found[index]
+        return event.point, start.parameter if parameter is None else parameter, along
     if isinstance(start, shooting.Orbit):
         raise ValueError("a system's branch point is switched from its branch (continue_orbits' located branch_point event)")
     if parameter not in (None, "M"):
@@ -269,7 +307,7 @@ def switch_at_branch_point(
         raise ValueError(f"amplitude must be a finite non-zero number (along the new family's tangent), got {amplitude!r}")
     if not (isinstance(index, int) and index >= 0):
         raise ValueError(f"index must be an integer >= 0 (which branch point along the branch), got {index!r}")
-    point, parameter, chord = _located(start, parameter, index, rtol, atol)
+    point, parameter, chord = _located(start, parameter, index, tol, rtol, atol)
     if isinstance(point, shooting.Orbit):
         problem = shooting._Shooting(point.system, point.turns, point.y0, point.period, (shooting.PERIOD, parameter), tol, rtol, atol)
         base, make_point, value = problem.pack(point), problem.orbit, point.parameter(parameter)
