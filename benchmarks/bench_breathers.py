@@ -1,0 +1,107 @@
+"""Cost of a roto-breather family against the chain's length, by the dense shooting and the column blocks.
+
+Run from the repository root::
+
+    python benchmarks/bench_breathers.py                          # N = 10, 25, 50, 100 (dense to 50)
+    python benchmarks/bench_breathers.py --sizes 10 50 200 --dense-max 25
+    python benchmarks/bench_breathers.py --json                   # also print the JSON on stdout
+
+The undamped sine chain (eq. (2), other fields default), one rotor on particle 0, the family at
+Omega = 6.6, 6.5, 6.4 (above the optical band, every member stable): Newton from the
+anti-continuum rotor at the first frequency, then each member from the secant through the two
+before it, the blocks' Newton starting from the last member's Jacobian
+(:func:`~cosserat_chain.numerics.long_breathers.find_breather_orbit`). For each N and method:
+CPU seconds of the family (all threads: the blocks run on ``--threads``, default 1, so that CPU
+time compares methods) and per member, wall seconds, Newton iterations, and the largest
+distance of the members' states and largest multipliers from the dense method's. The dense
+method runs up to ``--dense-max`` (its memory is 16 (2 n_free)^2 numbers). Results go to
+``benchmarks/results/breathers.json`` (docs/roto-breathers.md).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from cosserat_chain import ChainParams
+from cosserat_chain.experiments.breathers import anti_continuum_state
+from cosserat_chain.numerics import long_orbits
+from cosserat_chain.numerics.long_breathers import find_breather_orbit
+
+RESULTS = Path(__file__).resolve().parent / "results"
+SIZES = (10, 25, 50, 100)
+OMEGAS = (6.6, 6.5, 6.4)
+MODEL = "sine"
+
+
+def family(params: ChainParams, method: str) -> dict:
+    """The family at :data:`OMEGAS` by ``method``: its cost and members."""
+    cpu, wall = time.process_time(), time.perf_counter()
+    members, solved = [], None
+    for i, omega in enumerate(OMEGAS):
+        if i == 0:
+            guess = anti_continuum_state(params, MODEL, omega)[:2]
+        elif i == 1:
+            guess = members[-1]
+        else:
+            a, b = members[-2], members[-1]
+            r = (omega - b.omega) / (b.omega - a.omega)
+            guess = (b.x + r * (b.x - a.x), b.v + r * (b.v - a.v))
+        solved = find_breather_orbit(params, MODEL, omega, guess, method=method, jacobian0=None if solved is None else solved.jacobian)
+        members.append(solved.orbit)
+    cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
+    return {
+        "cpu_s": cpu,
+        "cpu_s_per_member": cpu / len(OMEGAS),
+        "wall_s": wall,
+        "iterations": [o.iterations for o in members],
+        "max_multiplier": [o.max_multiplier for o in members],
+        "stable": [bool(o.stable) for o in members],
+        "members": members,
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--sizes", type=int, nargs="+", default=list(SIZES))
+    parser.add_argument("--dense-max", type=int, default=50)
+    parser.add_argument("--threads", type=int, default=1)
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+    long_orbits.THREADS = args.threads
+    rows = []
+    for n in args.sizes:
+        params = ChainParams(N=n, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
+        row = {"N": n, "size": 2 * (3 * (2 * n + 1) - 6), "methods": {}}
+        for method in ("dense", "blocks"):
+            if method == "dense" and n > args.dense_max:
+                continue
+            row["methods"][method] = family(params, method)
+        if "dense" in row["methods"]:
+            dense = row["methods"]["dense"]["members"]
+            blocks = row["methods"]["blocks"]["members"]
+            row["blocks_vs_dense"] = {
+                "state": max(float(max(np.abs(a.x - b.x).max(), np.abs(a.v - b.v).max())) for a, b in zip(dense, blocks)),
+                "max_multiplier": max(abs(a.max_multiplier - b.max_multiplier) for a, b in zip(dense, blocks)),
+                "cpu_ratio": row["methods"]["blocks"]["cpu_s"] / row["methods"]["dense"]["cpu_s"],
+            }
+        for result in row["methods"].values():
+            del result["members"]
+        rows.append(row)
+        line = ", ".join(f"{m} {r['cpu_s']:.3g} s ({r['cpu_s_per_member']:.3g} s a member)" for m, r in row["methods"].items())
+        print(f"N = {n} (2 n_free = {row['size']}): {line}", file=sys.stderr, flush=True)
+    RESULTS.mkdir(exist_ok=True)
+    text = json.dumps({"model": MODEL, "omegas": OMEGAS, "threads": args.threads, "rows": rows}, indent=1)
+    (RESULTS / "breathers.json").write_text(text + "\n")
+    if args.json:
+        print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
