@@ -129,6 +129,10 @@ BELOW_PERIODS = 500
 MAX_ORBITS = 3
 #: An imaginary part of the leading multiplier above this (relative to its modulus) is a complex pair.
 COMPLEX_RTOL = 1e-6
+#: Tolerances of the continuation that brackets a row's end (:func:`_edge_from`): the integration's and the
+#: orbits' closure. Where the end is then located, the augmented system solves it at the package's full
+#: tolerances from the orbits around it, so the edge is the same to the solve's accuracy (benchmarks/TIMINGS.md).
+SCOUT = {"rtol": 1e-9, "atol": 1e-9, "tol": 1e-7}
 
 
 @dataclass
@@ -405,9 +409,29 @@ def _edge_of(orbit: PeriodicOrbit, chain: ChainParams, model, moment_c: float, p
 def _edge_from(
     orbit: PeriodicOrbit, chain: ChainParams, model, moment_c: float, particle: int, period_max: float, field_name: str
 ) -> _Edge:
-    """:func:`_edge_of` without the orbit kept."""
-    start = orbit.moment
+    """:func:`_edge_of` without the orbit kept.
+
+    The continuation first runs at :data:`SCOUT` tolerances: it only brackets the end, which the augmented
+    shooting system then locates at full accuracy from the orbits around it, and a SNIC end is M_c itself.
+    Every other end is read from the branch's own orbits (a fitted homoclinic end, the one-parameter
+    estimate where the location fails, a continuation that ended otherwise): that branch is traced again
+    at full accuracy, so that such an edge is what the accurate continuation gives.
+    """
+    edge = _edge_of_branch(
+        orbit, continue_orbit(orbit, moment_min=0.0, period_max=period_max, until_unstable=True, **SCOUT),
+        chain, model, moment_c, particle, period_max, field_name,
+    )  # fmt: skip
+    if edge.method == "located" or edge.end == "snic":
+        return edge
     branch = continue_orbit(orbit, moment_min=0.0, period_max=period_max, until_unstable=True)
+    return _edge_of_branch(orbit, branch, chain, model, moment_c, particle, period_max, field_name)
+
+
+def _edge_of_branch(
+    orbit: PeriodicOrbit, branch, chain: ChainParams, model, moment_c: float, particle: int, period_max: float, field_name: str
+) -> _Edge:
+    """Where the rotation stops, read from ``branch``, the continuation of the stable ``orbit`` down in M."""
+    start = orbit.moment
     lost = branch.stability_lost_at
     if lost is not None:
         index = int(np.argmin(branch.stable))
