@@ -2,14 +2,15 @@
 
 Contract
 --------
-:func:`breathers_stage` computes, on the report's chain at N = :data:`REPORT_N` with its
+:func:`breathers_section` computes, on the report's chain at N = :data:`REPORT_N` with its
 viscosities set to 0, the one-site roto-breather families of the sine model
 (:data:`SINE_OMEGAS`, across the end of the combination resonance w_TA + w_RO = Omega) and the
 nonlinear model (:data:`NONLINEAR_OMEGAS`) from the anti-continuum rotor
 (:func:`~cosserat_chain.experiments.breathers.roto_breather_family`): a short chain and a few
 frequencies keep the stage to a small part of ``reproduce``'s time. It writes their JSON,
-the sine family's figure against the bands' harmonics, and returns a
-:class:`~cosserat_chain.report.stages.Section` with a table per model; the atlas over
+the sine family's figure against the bands' harmonics, and returns the fields of a
+:class:`~cosserat_chain.report.stages.Section` (title, paragraphs, a table per model, the
+figure, the numbers: the stages build it, and this module imports none of theirs); the atlas over
 (Omega, geometry) of long chains is docs/roto-breathers.md's, not the report's.
 """
 
@@ -17,8 +18,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
-if TYPE_CHECKING:
-    from .stages import Section, _Stage
+if TYPE_CHECKING:  # the stages import this module: their classes are only named here
+    from .stages import _Stage
 
 #: Half-length of the report's roto-breather chain (2N + 1 particles).
 REPORT_N = 3
@@ -28,16 +29,15 @@ SINE_OMEGAS = (8.0, 7.0, 6.6, 6.4, 6.2, 5.8, 5.4, 5.0)
 NONLINEAR_OMEGAS = (10.5, 9.8, 9.4, 9.0)
 
 
-def breathers_stage(stage: _Stage) -> Section:
-    """Roto-breather families of the report's chain (undamped, N = :data:`REPORT_N`) with their stability and tails."""
+def breathers_section(stage: _Stage) -> dict:
+    """Roto-breather families of the report's chain (undamped, N = :data:`REPORT_N`): the fields of its :class:`~.stages.Section`."""
     from ..analysis.dispersion import wave_summary
     from ..experiments.breathers import roto_breather_family
     from ..plots.breathers import breather_family_figure
-    from .stages import Section
 
     params = stage.params.replace(N=REPORT_N, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
-    section = Section("Roto-breathers: localized rotation without damping or load")
-    section.paragraphs.append(
+    paragraphs, tables, figures = [], [], []
+    paragraphs.append(
         f"Undamped and unloaded, the chain (N = {REPORT_N}, the report's geometry) carries time-periodic states in which "
         "one particle turns while the others oscillate: roto-breathers, found by Newton's method on the period map from "
         "the anti-continuum rotor (the particle alone in the potential of its bonds) and continued in the frequency Omega. "
@@ -51,7 +51,7 @@ def breathers_stage(stage: _Stage) -> Section:
         summary = result.as_dict()
         numbers[model] = summary
         pairs = result.combination_resonances()
-        section.tables.append(
+        tables.append(
             (
                 f"{model} model: one-site roto-breathers",
                 ["Omega", "energy", "max nontrivial |mu|", "stable", "tail (max |q| off the rotor)", "phonon pairs w_A + w_B = n Omega"],
@@ -63,13 +63,13 @@ def breathers_stage(stage: _Stage) -> Section:
                         "yes" if o.stable else "no",
                         tail,
                         ", ".join(f"{n}: {a} + {b}" for n, a, b in pair) or "none",
-                    ]  # fmt: skip
+                    ]
                     for o, tail, pair in zip(result.family.orbits, summary["tail_amplitude"], pairs)
                 ],
             )
         )
         if model == "sine":
-            section.figures.append(
+            figures.append(
                 (
                     stage.figure(breather_family_figure(result), "roto_breathers_sine"),
                     "Sine model: the tail's amplitude and the largest nontrivial multiplier against Omega; shaded, the "
@@ -82,7 +82,7 @@ def breathers_stage(stage: _Stage) -> Section:
     unstable = [o for o, s in zip(sine["omega"], sine["stable"]) if not s]
     stable = [o for o, s in zip(sine["omega"], sine["stable"]) if s and (not unstable or o > max(unstable))]
     numbers["combination_edge"] = edge
-    section.paragraphs.append(
+    paragraphs.append(
         f"In the infinite chain the pair (transverse acoustic, rotational optical) reaches Omega up to {edge:.4g}: the sine "
         f"family is unstable at and below {max(unstable):.4g} and stable from {min(stable):.4g} up. A chain of "
         f"{params.n_particles} particles has a few discrete modes in each band, so its instabilities are tongues around the "
@@ -93,5 +93,5 @@ def breathers_stage(stage: _Stage) -> Section:
         else f"In the infinite chain the pair (transverse acoustic, rotational optical) reaches Omega up to {edge:.4g}."
     )
     stage.data("roto_breathers", numbers)
-    section.numbers.update(numbers)
-    return section
+    title = "Roto-breathers: localized rotation without damping or load"
+    return {"title": title, "paragraphs": paragraphs, "tables": tables, "figures": figures, "numbers": numbers}

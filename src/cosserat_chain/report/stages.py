@@ -24,7 +24,7 @@ import numpy as np
 
 from ..io import stack_models, write_dataset, write_figure, write_text
 from ..params import ChainParams
-from .breathers import breathers_stage
+from .breathers import breathers_section
 from .folder import json_default, write_manifest
 from .settings import ABOVE_CRITICAL, MODELS, READINGS, ROTATING, ReproduceSettings, above_critical
 
@@ -767,6 +767,6 @@ STAGES: dict[str, Callable[[_Stage], Section]] = {
     "continuum": _continuum,
     "which_continuum": _which_continuum,
     "waves": _waves,
-    "roto_breathers": breathers_stage,
+    "roto_breathers": lambda stage: Section(**breathers_section(stage)),
     "errata": _errata,
 }
