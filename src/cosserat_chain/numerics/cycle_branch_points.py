@@ -72,6 +72,10 @@ MIRROR_TOL = 1e-6
 MAX_AMPLITUDE = 0.2
 #: A located event whose tangent's parameter component is below this (unit tangent) lies on a fold, not a branch point.
 TURN_TOL = 1e-3
+#: A system's branch point is refined on its old branch until the crossing multiplier is this near +1 ...
+REFINE_TOL = 1e-9
+#: ... in at most this many secant steps, each orbit found at its parameter value in this many steps.
+REFINE_ITERATIONS, SUBSTEPS = 30, 5
 #: Kinds of branch point (:attr:`BranchSwitch.kind`).
 KINDS = ("mirror_symmetry_breaking", "branch_point")
 
@@ -199,13 +203,63 @@ def _old_tangent(branch: shooting.OrbitBranch, event, tol: float, rtol: float, a
     """
     tangents = []
     for orbit in branch.orbits[event.index - 1 : event.index + 1]:
-        problem = shooting._Shooting(orbit.system, orbit.turns, orbit.y0, orbit.period, (shooting.PERIOD, branch.parameter), tol, rtol, atol)
+        problem = shooting._Shooting(
+            orbit.system, orbit.turns, orbit.y0, orbit.period, (shooting.PERIOD, branch.parameter), tol, rtol, atol
+        )
         t = sla.svd(np.asarray(problem.evaluate(problem.pack(orbit), True).jacobian))[2][-1]
         tangents.append(t if not tangents or t @ tangents[0] >= 0 else -t)
     along = (tangents[0] + tangents[-1]) / 2
     if tangents[0][-1] * tangents[-1][-1] <= 0 or abs(along[-1]) < TURN_TOL * np.linalg.norm(along):
         raise ValueError(f"the parameter {branch.parameter} turns at {event.parameter!r}: a fold of cycles, not a branch point")
     return along
+
+
+def _plus_one(orbit) -> float:
+    """Re(mu_1 + mu_2) - 2 over the two multipliers nearest +1: the crossing one's distance from +1 beside the
+    trivial one (a sum, well conditioned where the two meet)."""
+    mu = orbit.multipliers
+    return float(np.sum(mu[np.argsort(np.abs(mu - 1.0))[:2]]).real) - 2.0
+
+
+def _refined(branch: shooting.OrbitBranch, event, tol: float, rtol: float, atol: float):
+    """A system's branch point on the old branch itself: the kit locates its event on the arclength, where the
+    corrector can land on the crossing family near the point (the pen's event point lies 2e-3 off the old,
+    symmetric, family). Here orbits of the old branch at fixed values of the parameter, each found by
+    :func:`~.shooting.find_orbit` in :data:`SUBSTEPS` steps from the nearer of the two orbits around the event,
+    bracket the zero of :func:`_plus_one`, narrowed by the Illinois secant to :data:`REFINE_TOL`."""
+    name = branch.parameter
+    low, high = branch.orbits[event.index - 1], branch.orbits[event.index]
+    f_low, f_high = _plus_one(low), _plus_one(high)
+    best = min((low, high), key=lambda o: abs(_plus_one(o)))
+    if f_low * f_high > 0:
+        return event.point
+    side = 0
+    for _ in range(REFINE_ITERATIONS):
+        p_low, p_high = low.parameter(name), high.parameter(name)
+        value = p_high - f_high * (p_high - p_low) / (f_high - f_low)
+        nearer = low if abs(value - p_low) <= abs(value - p_high) else high
+        orbit = nearer
+        try:
+            for step in np.linspace(nearer.parameter(name), value, SUBSTEPS + 1)[1:]:
+                orbit = shooting.find_orbit(orbit.system.with_parameters(**{name: float(step)}), orbit, tol=tol, rtol=rtol, atol=atol)
+        except shooting.OrbitNotFound:
+            break
+        f = _plus_one(orbit)
+        if abs(f) < abs(_plus_one(best)):
+            best = orbit
+        if abs(f) <= REFINE_TOL or abs(p_high - p_low) <= 1e-13 * max(1.0, abs(value)):
+            break
+        if f * f_low > 0:
+            low, f_low = orbit, f
+            if side == 1:
+                f_high *= 0.5
+            side = 1
+        else:
+            high, f_high = orbit, f
+            if side == -1:
+                f_low *= 0.5
+            side = -1
+    return best
 
 
 def _located(start, parameter: str | None, index: int, tol: float, rtol: float, atol: float) -> tuple[Point, str, np.ndarray | None]:
@@ -224,7 +278,7 @@ def _located(start, parameter: str | None, index: int, tol: float, rtol: float, 
                 "continue_orbits locates one where a real multiplier passes +1 while the parameter does not turn"
             )
         event, along = found[index]
-        return event.point, start.parameter if parameter is None else parameter, along
+        return _refined(start, event, tol, rtol, atol), start.parameter if parameter is None else parameter, along
     if isinstance(start, shooting.Orbit):
         raise ValueError("a system's branch point is switched from its branch (continue_orbits' located branch_point event)")
     if parameter not in (None, "M"):
