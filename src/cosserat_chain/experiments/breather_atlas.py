@@ -76,6 +76,10 @@ ATLAS_FIELDS = ("a", "b", "h", "E1", "E2")
 SOURCES = ("none", "omega", "field", "anti_continuum")
 #: Newton iterations allowed from each start (a start that needs more is left for the next one).
 ATLAS_MAX_ITER = 12
+#: Newton from each start must divide the closure by this every two steps, else the next start is tried.
+ATLAS_CONTRACTION = 0.5
+#: Newton from each start must divide the closure by this every two steps (else the next start is tried).
+ATLAS_CONTRACTION = 0.5
 #: Amplitudes below this are integration noise, not a tail: :func:`localization_length` fits only above it.
 AMPLITUDE_FLOOR = 1e-9
 
@@ -459,7 +463,7 @@ def breather_atlas(
                 try:
                     solved = find_breather_orbit(
                         chain, model, float(omega), guess, method=method, turns=turns, particle=particle, max_iter=ATLAS_MAX_ITER,
-                        jacobian0=jacobian,
+                        jacobian0=jacobian, contraction=ATLAS_CONTRACTION,
                     )  # fmt: skip
                 except OrbitError as err:
                     messages.append(f"from {source}: {err}")

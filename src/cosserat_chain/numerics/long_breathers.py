@@ -98,6 +98,7 @@ def find_long_hamiltonian_orbit(
     rtol: float = RTOL,
     atol: float = ATOL,
     jacobian0: np.ndarray | None = None,
+    contraction: float | None = None,
     threads: int | None = None,
 ) -> SolvedBreather:
     """:func:`~.periodic.find_hamiltonian_orbit` with the monodromy from column blocks (module docstring).
@@ -109,6 +110,9 @@ def find_long_hamiltonian_orbit(
     jacobian0 : ndarray (2 n_free, 2 n_free), optional
         The Newton Jacobian of a nearby orbit (:attr:`SolvedBreather.jacobian`): the first
         steps use it, and M is formed only where they stop converging fast, and at the solution.
+    contraction : float, optional
+        Give up unless the closure falls by this factor every two steps (:func:`~.kit.newton`):
+        a start outside Newton's basin then costs a few steps, not ``max_iter`` monodromies.
     threads : int, optional
         Threads the blocks run on (default :data:`~.long_orbits.THREADS`).
 
@@ -171,7 +175,7 @@ def find_long_hamiltonian_orbit(
     w0 = np.append(y0[keep], 0.0)
     solved = newton(
         closure, w0, tol=tol, max_iterations=max_iter, divergence=None, chord=long_orbits.CHORD_RATE, jacobian0=jacobian0,
-        damping=MAX_HALVINGS,
+        damping=MAX_HALVINGS, contraction=contraction,
     )  # fmt: skip
     if not solved.converged:
         raise OrbitError(_no_hamiltonian_convergence(omega, turns, solved.iterations, solved.norm))
@@ -199,11 +203,12 @@ def find_breather_orbit(
     particle_turns: np.ndarray | None = None,
     max_iter: int = 25,
     jacobian0: np.ndarray | None = None,
+    contraction: float | None = None,
 ) -> SolvedBreather:
     """A Hamiltonian orbit by the dense shooting or the blocks (``method``: ``"auto"``, ``"dense"``, ``"blocks"``).
 
-    ``"auto"`` takes the blocks from N = :data:`~.long_orbits.BLOCKS_FROM_N`; ``jacobian0``
-    serves the blocks only (the dense method forms M at every step).
+    ``"auto"`` takes the blocks from N = :data:`~.long_orbits.BLOCKS_FROM_N`; ``jacobian0`` and
+    ``contraction`` serve the blocks only (the dense method forms M at every step, cheaply).
 
     Raises
     ------
@@ -222,5 +227,5 @@ def find_breather_orbit(
         return SolvedBreather(orbit)
     return find_long_hamiltonian_orbit(
         params, model, omega, guess, turns=turns, particle=particle, particle_turns=particle_turns, max_iter=max_iter,
-        jacobian0=jacobian0,
+        jacobian0=jacobian0, contraction=contraction,
     )  # fmt: skip
