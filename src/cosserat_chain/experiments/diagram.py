@@ -129,10 +129,11 @@ BELOW_PERIODS = 500
 MAX_ORBITS = 3
 #: An imaginary part of the leading multiplier above this (relative to its modulus) is a complex pair.
 COMPLEX_RTOL = 1e-6
-#: Tolerances of the continuation that brackets a row's end (:func:`_edge_from`): the integration's and the
-#: orbits' closure. Where the end is then located, the augmented system solves it at the package's full
-#: tolerances from the orbits around it, so the edge is the same to the solve's accuracy (benchmarks/TIMINGS.md).
-SCOUT = {"rtol": 1e-9, "atol": 1e-9, "tol": 1e-7}
+#: Settings of the continuation that brackets a row's end (:func:`_edge_from`): the integration's tolerances, the
+#: orbits' closure and the first arclength step. Where the end is then located, the augmented system solves it at the
+#: package's full tolerances from the orbits around it, so the edge is the same to the solve's accuracy
+#: (benchmarks/TIMINGS.md); the multipliers, accurate to about 1e-7, still tell where stability is lost.
+SCOUT = {"rtol": 1e-8, "atol": 1e-8, "tol": 1e-6, "step": 0.2}
 
 
 @dataclass
@@ -411,7 +412,7 @@ def _edge_from(
 ) -> _Edge:
     """:func:`_edge_of` without the orbit kept.
 
-    The continuation first runs at :data:`SCOUT` tolerances: it only brackets the end, which the augmented
+    The continuation first runs with :data:`SCOUT`'s looser tolerances: it only brackets the end, which the augmented
     shooting system then locates at full accuracy from the orbits around it, and a SNIC end is M_c itself.
     Every other end is read from the branch's own orbits (a fitted homoclinic end, the one-parameter
     estimate where the location fails, a continuation that ended otherwise): that branch is traced again
