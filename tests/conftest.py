@@ -13,6 +13,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
+import typer.testing  # noqa: E402
 
 from cosserat_chain import ChainParams  # noqa: E402
 from cosserat_chain.state import fixed_mask  # noqa: E402
@@ -68,6 +69,25 @@ def _frozen_heap():
     gc.freeze()
     yield
     gc.unfreeze()
+
+
+def _command_built_once(app):
+    """The Click command of a Typer ``app``, built once a session as the installed command builds it once a process:
+    ``CliRunner().invoke`` would build it again at every call (each command's signature and annotations read anew).
+    Keyed by the app and its registered commands and groups, so an app changed in between is built again."""
+    key = (
+        id(app),
+        tuple(id(info.callback) for info in app.registered_commands),
+        tuple(id(g.typer_instance) for g in app.registered_groups),
+    )
+    if key not in _COMMANDS:
+        _COMMANDS[key] = (app, _build_command(app))
+    return _COMMANDS[key][1]
+
+
+_COMMANDS: dict = {}
+_build_command = typer.testing._get_command
+typer.testing._get_command = _command_built_once
 
 
 #: The running cluster of ``dask_cluster``, and the last test of the session that uses it.
