@@ -36,12 +36,13 @@ import numpy as np
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import check_state, column
-from . import long_orbits
+from . import dop853, long_orbits
 from .kit import Evaluation, EvaluationFailed, newton
 from .periodic import (
     ATOL,
     CLOSURE_TOL,
     MAX_HALVINGS,
+    MAX_STEPS,
     RTOL,
     HamiltonianOrbit,
     OrbitError,
@@ -62,6 +63,11 @@ from .periodic import (
 
 #: Step of the fourth-order central differences of the flow in the unfolding eps (a rate: 1/time).
 EPS_STEP = 1e-5
+#: A Newton trial state farther than this times max(1, max |y0|) from the start (max norm) is refused unintegrated.
+REACH = 4.0
+#: A trial's flow may take this many times the DOP853 steps of the start's (plus STEPS_SLACK), else it is refused.
+STEPS_FACTOR = 50
+STEPS_SLACK = 1000
 
 
 @dataclass
@@ -154,15 +160,29 @@ def find_long_hamiltonian_orbit(
     shift = long_orbits._shift(base, particle_turns)
     identity = np.eye(len(y0))[:, keep]
 
+    reach = REACH * max(1.0, float(np.max(np.abs(y0))))
+    budget: list[int] = []  # the trials' step budget, set by the first flow (the start's)
+
     def closure(w: np.ndarray, jacobian: bool) -> Evaluation:
         y = np.zeros(len(keep))
         y[keep] = w[:-1]
+        if np.max(np.abs(y - y0)) > reach:
+            # A step from a poor Jacobian can throw the chain into a violent motion that DOP853 follows for
+            # minutes at N = 50: refused as a worse closure (halved), without integrating.
+            raise EvaluationFailed(f"the trial state moved {np.max(np.abs(y - y0)):.3g} from the start (more than {reach:.3g})")
         system = _UndampedSystem(params, model, 0.0, particle, float(w[-1]))
-        try:
-            end = system.flow(y, period, rtol=rtol, atol=atol, variations=False)[0]
-        except OrbitError as err:
-            # A step far off the orbit can make the flow run away before T: halved as a worse closure.
-            raise EvaluationFailed(str(err)) from err
+        rhs, kernel, ends, coef, rpar, ipar = system.parameters(0)
+        times = np.array([0.0, period])
+        sol = dop853.solve(
+            rhs, kernel, coef, rpar, ipar, y, times, rtol=rtol, atol=atol, max_steps=budget[0] if budget else MAX_STEPS, end_force=ends
+        )
+        if not sol.success:
+            # A step far off the orbit can make the flow run away (or turn violent, taking minutes) before T:
+            # refused as a worse closure (halved).
+            raise EvaluationFailed(f"the flow of a Newton trial over T={period!r} failed: {sol.message}")
+        if not budget:
+            budget.append(STEPS_FACTOR * sol.steps + STEPS_SLACK)
+        end = sol.y[-1]
         monodromy = long_orbits.Monodromy(system, y, period, rtol, atol)
 
         def matrix() -> np.ndarray:
