@@ -10,7 +10,8 @@ error caught as in the main loop), the files it wrote (for the manifest) and its
 The stages of :data:`BACKGROUND` read nothing that another stage computes and leave nothing
 for one (``_Stage.shared``), so the report is the same, file for file, as when they run in
 order; together they take about as much CPU as the others (``benchmarks/bench_reproduce.py``).
-The modules they import (:data:`IMPORTS`) are imported before the fork, once for both processes.
+The modules they import (:data:`IMPORTS`) are imported before the fork, once for both processes, and so is
+what the first dataset and figure written import (:func:`_first_writes`).
 
 :func:`start` returns None (the stages then run in order) where fork is not the platform's
 safe way to start a process (only Linux forks here), where fewer than two cores are free to
@@ -114,6 +115,27 @@ def _child(channel, stage: _Stage, names: list[str], run: Callable[[_Stage, str]
         return
 
 
+def _first_writes() -> None:
+    """A tiny dataset and figure written to memory, so that what their first writes import happens once, before the fork.
+
+    xarray imports its duck-array and parallel back-ends (pint, Dask, distributed) when it first builds
+    a coordinate and writes a file, and matplotlib its SVG back-end and Pillow its plugins when they first
+    save: both processes write, and each would pay for those imports itself.
+    """
+    import io
+
+    import numpy as np
+    import xarray as xr
+    from matplotlib.figure import Figure
+
+    from ..io import netcdf_image
+
+    netcdf_image(xr.Dataset({"x": ("i", np.zeros(1))}, coords={"i": [0]}))
+    figure = Figure(figsize=(1, 1))
+    for kind in ("png", "svg"):
+        figure.savefig(io.BytesIO(), format=kind)
+
+
 def start(stage: _Stage, names: list[str], run: Callable[[_Stage, str], Section]) -> Background | None:
     """Fork a process that runs ``run(stage, name)`` for the stages of :data:`BACKGROUND` in ``names`` (module docstring)."""
     chosen = [name for name in BACKGROUND if name in names]
@@ -124,6 +146,7 @@ def start(stage: _Stage, names: list[str], run: Callable[[_Stage, str], Section]
 
     for module in [*SHARED_IMPORTS, *(module for name in chosen for module in IMPORTS[name])]:
         importlib.import_module(module)
+    _first_writes()
     context = multiprocessing.get_context("fork")
     channel = context.Queue()
     process = context.Process(target=_child, args=(channel, stage, chosen, run), name="report-background", daemon=True)
