@@ -455,10 +455,12 @@ class _FrameWriter:
         self._writer = None if self._gif else iio2.get_writer(path, format="FFMPEG", mode="I", fps=fps, codec="libx264", macro_block_size=2)
 
     def append(self, frame: np.ndarray) -> None:
+        """Append one frame, an RGBA array (the canvas's own buffer: it is read here, not kept)."""
         if self._writer is not None:
-            self._writer.append_data(frame)
+            self._writer.append_data(np.ascontiguousarray(frame[..., :3]))
             return
-        image = Image.fromarray(frame)
+        # Pillow drops the alpha channel in C, without the strided copy an RGB slice of the array would need.
+        image = Image.fromarray(frame, "RGBA").convert("RGB")
         palette = self._frames[0] if self._frames else image.quantize(colors=256, dither=Image.Dither.NONE)
         self._frames.append(image.quantize(palette=palette, dither=Image.Dither.NONE))
 
@@ -568,7 +570,7 @@ def animate(
                 figure.canvas.restore_region(background)
                 for artist in moving:
                     figure.draw_artist(artist)
-                writer.append(np.asarray(figure.canvas.buffer_rgba())[..., :3].copy())
+                writer.append(np.asarray(figure.canvas.buffer_rgba()))
                 if progress is not None:
                     progress(done, len(frames))
         finally:
