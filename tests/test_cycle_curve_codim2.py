@@ -77,6 +77,9 @@ def test_the_torus_end_of_the_paper_s_chain_passes_a_1_to_3_resonance():
     angles = [np.angle(pair_of(orbit)) for orbit in curve.orbits]
     assert angles[0] < 2 * math.pi / 3 < angles[1]
     assert point.moment == pytest.approx(0.170201521, abs=1e-8)
+    # AUTO-07p's torus curve of the same chain (docs/state-diagram.md): its pair's angle, printed to 6 digits,
+    # passes 2 pi / 3 at E2 = 0.9213118 (interpolated between its points 0.003 apart).
+    assert point.value == pytest.approx(0.9213118, abs=5e-6)
     assert curve.as_dict()["codim2"][0]["label"] == "R3"
 
 
@@ -95,6 +98,10 @@ def test_the_1_to_2_resonance_where_the_torus_end_becomes_a_period_doubling_is_t
     a, b = torus.points[-1], flip.points[-1]
     assert abs(a.value - b.value) <= a.uncertainty + b.uncertainty + 1e-10
     assert a.value == pytest.approx(1.1336439615, abs=1e-9) and a.moment == pytest.approx(b.moment, abs=1e-9)
+    # AUTO-07p's two-parameter run of the torus point (ISW = 2) reports its branch point there at
+    # E2 = 1.1336440222, M = 0.17753002649, period 11.723242759 (located to its EPSS).
+    assert a.value == pytest.approx(1.1336440222, abs=1e-7) and a.moment == pytest.approx(0.17753002649, abs=1e-8)
+    assert a.period == pytest.approx(11.723242759, rel=1e-7)
     assert a.angle == pytest.approx(math.pi, abs=1e-4)
     # Two multipliers at -1 (a Jordan block: each within sqrt(round-off), their sum and product to round-off).
     for point in (a, b):
@@ -103,3 +110,13 @@ def test_the_1_to_2_resonance_where_the_torus_end_becomes_a_period_doubling_is_t
         assert np.all(np.abs(pair + 1.0) < 1e-4)
         assert abs(np.sum(pair).real + 2.0) < 1e-8 and abs(np.prod(pair).real - 1.0) < 1e-8
         assert np.max(np.abs(np.delete(mu, np.argsort(np.abs(mu + 1.0))[:2]))) < 0.6  # the rest well inside
+
+
+@pytest.mark.slow
+def test_the_torus_end_followed_down_from_0_8_passes_a_1_to_4_resonance():
+    curve = continue_cycle_end(located_end(ChainParams(E2=0.8), "torus"), "torus", "E2", [0.8, 0.7])
+    (point,) = curve.points
+    assert (point.kind, point.label) == ("resonance_1_4", "R4") and 0.7 < point.value < 0.8
+    assert np.angle(pair_of(point.orbit)) == pytest.approx(math.pi / 2, abs=1e-8) and point.uncertainty < 1e-8
+    # AUTO-07p's torus curve: its printed pair passes pi / 2 at E2 = 0.7280999 (interpolated, 6 digits).
+    assert point.value == pytest.approx(0.7280999, abs=5e-6)
