@@ -29,9 +29,11 @@ and ``exists`` is whether one of them converged (``source`` says which). At each
   with the linear bond energy at sin phi), averaged over the samples as the localization
   diagnostics average it over a run; the largest |phi|, |u| / h, |v| / h of the particles
   that do not turn against the diagnostics' :data:`~cosserat_chain.analysis.diagnostics.THRESHOLDS`
-  (``localized``: every one within); and the localization length xi, from a least-squares
-  fit of log A_d = c - d / xi to the largest amplitude A_d (|u| / h, |v| / h or |phi|) of the
-  particles d sites from the rotor (:func:`localization_length`);
+  (``localized``: every one within); the localization length xi, from a least-squares
+  fit of log A_d = c - d / xi to the largest oscillation A_d (half the range over the period
+  of u / h, v / h or phi) of the particles d sites from the rotor (:func:`localization_length`);
+  and the static displacement, the largest mean |u| / h, |v| / h of the others (a zero-frequency
+  deformation, which a chain with an acoustic band does not localize);
 * **checks**: the closure of the orbit under a separate integration of the state alone
   (its return modulo 2 pi after one period, ``return_error``) and the spread of the energy
   along it (``energy_drift``; NaN for the sine model, which has no energy);
@@ -61,7 +63,7 @@ from ..models.base import Model, get_model
 from ..numerics.long_breathers import SolvedBreather, find_breather_orbit
 from ..numerics.periodic import HamiltonianOrbit, OrbitError, require_undamped
 from ..params import ChainParams
-from ..state import ROW_INDEX, column
+from ..state import ROW_INDEX, ROWS, column
 from .breathers import MAX_HARMONIC, TAIL_SAMPLES, anti_continuum_state, combination_resonances, coupled_bands, harmonics_in_bands
 from .simulation import run_attributes
 
@@ -122,9 +124,15 @@ class Localization:
         The largest |phi| (rad), |u| / h, |v| / h of the particles that do not turn (names of
         :data:`~cosserat_chain.analysis.diagnostics.THRESHOLDS`).
     site_amplitudes : ndarray (N,)
-        A_d, the largest of |u| / h, |v| / h, |phi| of the particles d = 1..N sites from the rotor.
+        A_d, the largest half-range (max - min) / 2 over the period of u / h, v / h, phi of the
+        particles d = 1..N sites from the rotor: their oscillation about their mean position.
     length : float
         :func:`localization_length` of ``site_amplitudes``.
+    static_displacement : float
+        The largest |mean over the period| of u / h and v / h of the particles that do not turn:
+        the chain's static deformation by the rotor (the nonlinear model's turning corners push
+        its neighbours apart on average, a strain that a clamped chain spreads over its whole
+        length, falling linearly to the ends: zero frequency, in the longitudinal band).
     energy_drift : float
         max |E(t) - E(0)| / max(1, |E(0)|) over the samples (NaN without an energy).
     return_error : float
@@ -137,6 +145,7 @@ class Localization:
     length: float
     energy_drift: float
     return_error: float
+    static_displacement: float = 0.0
 
     @property
     def localized(self) -> bool:
@@ -156,18 +165,21 @@ def orbit_localization(orbit: HamiltonianOrbit) -> Localization:
     others = np.delete(size, turning, axis=2)
     names = {"u_over_h": ROW_INDEX["u"], "v_over_h": ROW_INDEX["v"], "phi": ROW_INDEX["phi"]}
     amplitudes = {name: float(np.max(others[:, row], initial=0.0)) for name, row in names.items()}
-    per_particle = np.max(size, axis=(0, 1))
+    signed = x / scale
+    swing = 0.5 * (signed.max(axis=0) - signed.min(axis=0))  # (3, 2N+1): the oscillation about the mean
+    per_particle = np.max(swing, axis=0)
     per_particle[turning] = 0.0
     rotor = column(params, orbit.particle)
     n = params.n_particles
     site = np.array([max(per_particle[c] for c in (rotor - d, rotor + d) if 0 <= c < n) for d in range(1, params.N + 1)])
+    static = np.delete(np.abs(signed.mean(axis=0)[: ROW_INDEX["phi"]]), turning, axis=1)
     drift = math.nan
     if orbit.energy is not None:
         drift = float(np.max(np.abs(energies.sum(axis=1) - orbit.energy)) / max(1.0, abs(orbit.energy)))
     shift = np.zeros_like(orbit.x)
     shift[ROW_INDEX["phi"]] = 2 * math.pi * orbit.particle_turns
     back = float(max(np.max(np.abs(x[-1] - orbit.x - shift)), np.max(np.abs(v[-1] - orbit.v))))
-    return Localization(ratio, amplitudes, site, localization_length(site), drift, back)
+    return Localization(ratio, amplitudes, site, localization_length(site), drift, back, float(np.max(static, initial=0.0)))
 
 
 @dataclass
@@ -202,6 +214,7 @@ class AtlasPoint:
             "participation_ratio": loc.participation_ratio,
             "localization_length": None if not math.isfinite(loc.length) else loc.length,
             "amplitudes_of_others": loc.amplitudes,
+            "static_displacement": loc.static_displacement,
             "localized": loc.localized,
             "energy_drift": None if not math.isfinite(loc.energy_drift) else loc.energy_drift,
             "return_error": loc.return_error,
@@ -242,7 +255,9 @@ class BreatherAtlas:
         out = np.full((self.values.size, self.omegas.size), np.nan)
         for j, row in enumerate(self.points):
             for i, point in enumerate(row):
-                item = point.as_dict().get(name)
+                # The JSON has no infinity: an undecaying tail's length is taken from the measure itself.
+                length = name == "localization_length" and point.localization is not None
+                item = point.localization.length if length else point.as_dict().get(name)
                 if item is not None:
                     out[j, i] = float(item)
         return out
@@ -286,7 +301,8 @@ class BreatherAtlas:
             "closure": ("1", "max |Phi_T(y0) - y0 - 2 pi k e_phi| of the converged orbit"),
             "iterations": ("1", "Newton iterations"),
             "participation_ratio": ("1", "(sum e_k)^2 / sum e_k^2 of the particles' energies, mean over a period"),
-            "localization_length": ("1", "decay length of the tail's amplitudes, in sites (inf: no decay)"),
+            "localization_length": ("1", "decay length of the others' oscillation about their mean, in sites (inf: no decay)"),
+            "static_displacement": ("1", "largest |mean u| / h, |mean v| / h over a period of the particles that do not turn"),
             "energy_drift": ("1", "max |E(t) - E(0)| / max(1, |E(0)|) along the orbit"),
             "return_error": ("1", "max |state(T) - state(0) - 2 pi k e_phi| by a separate integration of the state"),
             "cpu_s": ("s", "CPU time of the point (Newton from every start tried, multipliers, checks)"),
@@ -316,6 +332,20 @@ class BreatherAtlas:
                         values[j, i] = p.localization.amplitudes[name]
             data[f"amplitude_{name}"] = (dims, values, {"units": unit, "long_name": f"largest {name} of the particles that do not turn",
                                                         "threshold": THRESHOLDS[name]})  # fmt: skip
+        states = np.full((2, len(ROWS), *sources.shape, self.params.n_particles), np.nan)
+        for j, row in enumerate(self.points):
+            for i, p in enumerate(row):
+                if p.orbit is not None:
+                    states[:, :, j, i] = p.orbit.x, p.orbit.v
+        for r, name in enumerate(ROWS):
+            unit = "rad" if name == "phi" else "1"
+            data[name] = (
+                (*dims, "particle"),
+                states[0, r],
+                {"units": unit, "long_name": f"{name} of the orbit's start (section phi_rotor = 0)"},
+            )
+            data[f"{name}_dot"] = ((*dims, "particle"), states[1, r],
+                                   {"units": f"{unit} s-1" if unit == "rad" else "s-1", "long_name": f"rate of {name} at the orbit's start"})  # fmt: skip
         resonant = atlas_resonances(self)
         for name, long in (
             ("harmonics_in_bands", "harmonics n Omega (n <= 6) inside a driven band"),
@@ -333,6 +363,7 @@ class BreatherAtlas:
             "band": ("band", list(self.bands)),
             "edge": ("edge", ["bottom", "top"]),
             "harmonic": ("harmonic", np.arange(1, MAX_HARMONIC + 1)),
+            "particle": ("particle", np.arange(-self.params.N, self.params.N + 1)),
         }
         ds = xr.Dataset(data, coords=coords)
         model = get_model(self.model)
