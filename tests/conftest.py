@@ -141,6 +141,23 @@ def paper() -> ChainParams:
     return ChainParams()
 
 
+@pytest.fixture(scope="session")
+def paper_sine_orbit():
+    """The paper chain's one-turn rotating state of the sine model at M = 0.22 (default damping), found once a session."""
+    from cosserat_chain.numerics.periodic import find_periodic_orbit
+
+    return find_periodic_orbit(ChainParams(), "sine", 0.22)
+
+
+@pytest.fixture(scope="session")
+def paper_sine_branch(paper_sine_orbit):
+    """``paper_sine_orbit`` continued down in M to its fold of cycles (``moment_min=0.1``; the dense method, the one
+    ``auto`` takes for seven particles), computed once for the tests of test_periodic.py and test_long_orbits.py."""
+    from cosserat_chain.numerics.periodic import continue_orbit
+
+    return continue_orbit(paper_sine_orbit, moment_min=0.1)
+
+
 def quick_report_settings():
     """The quick report's settings: short sweeps, runs and chain lists; the sine chain's state diagram at two dampings."""
     from cosserat_chain.report import ReproduceSettings

@@ -129,9 +129,11 @@ def test_monodromy_products_equal_central_differences_of_the_flow():
     assert np.allclose(formed @ direction, product, atol=1e-9)
 
 
-def test_a_continuation_with_the_blocks_ends_at_the_dense_continuations_fold_and_loses_stability_where_it_does():
-    orbit = find_periodic_orbit(ChainParams(), "sine", 0.22)
-    dense = continue_orbit(orbit, method="dense", moment_min=0.1)
+def test_a_continuation_with_the_blocks_ends_at_the_dense_continuations_fold_and_loses_stability_where_it_does(
+    paper_sine_orbit, paper_sine_branch
+):
+    orbit, dense = paper_sine_orbit, paper_sine_branch  # the dense continuation down to M = 0.1 (conftest.py)
+    assert choose_method(orbit.params, "auto") == "dense"
     blocks = continue_orbit(orbit, method="blocks", moment_min=0.1)
     assert dense.end == blocks.end == "fold"
     # dPhi_T/dM by differences (|dPhi_T/dM| = 1.2e5 near the fold) moves the steps, not the orbits.
@@ -141,8 +143,8 @@ def test_a_continuation_with_the_blocks_ends_at_the_dense_continuations_fold_and
         continue_orbit(orbit, method="krylov")
 
 
-def test_the_blocked_shooting_jacobian_equals_the_variational_one_with_the_moment_column_by_differences():
-    orbit = find_periodic_orbit(ChainParams(), "sine", 0.22)
+def test_the_blocked_shooting_jacobian_equals_the_variational_one_with_the_moment_column_by_differences(paper_sine_orbit):
+    orbit = paper_sine_orbit
     system = _System(orbit.params, get_model("sine"), orbit.moment, 0)
     start = _to_y(orbit.params, orbit.x, orbit.v)
     dense = _shooting(system, orbit.particle_turns, 1e-11, 1e-11)(start, orbit.period, True)

@@ -32,9 +32,9 @@ WEAK = ChainParams(gamma_u=0.02, gamma_v=0.02, gamma_phi=0.02)
 
 
 @pytest.fixture(scope="module")
-def sine_orbit():
+def sine_orbit(paper_sine_orbit):
     """The paper chain's 1-turn rotating state of the sine model at M = 0.22 (default damping)."""
-    return find_periodic_orbit(ChainParams(), "sine", 0.22)
+    return paper_sine_orbit
 
 
 @pytest.mark.parametrize("model", ["nonlinear", "sine"])
@@ -116,8 +116,8 @@ def test_with_weak_damping_the_orbit_exists_and_is_stable_well_below_the_static_
     assert np.all(branch.period > 0) and np.all(np.diff(branch.moment[: int(np.argmin(branch.moment)) + 1]) < 0)
 
 
-def test_default_damping_sine_orbit_loses_stability_then_folds_below_the_static_fold(sine_orbit):
-    branch = continue_orbit(sine_orbit, moment_min=0.1)
+def test_default_damping_sine_orbit_loses_stability_then_folds_below_the_static_fold(sine_orbit, paper_sine_branch):
+    branch = paper_sine_branch  # sine_orbit continued down to M = 0.1 (conftest.py)
     fold = locate_fold(sine_orbit.params, "sine").moment
     assert branch.end == "fold"
     # Measured: stable down to 0.1731, fold of limit cycles at 0.16395 (docs/periodic-orbits.md).
@@ -185,7 +185,7 @@ def test_with_strong_damping_the_orbit_ends_at_the_static_fold_with_period_like_
     assert exponent == pytest.approx(0.5, abs=0.05)
 
 
-def test_each_edge_of_the_hysteresis_loop_lies_in_the_load_step_where_the_sweep_changes_state(paper):
+def test_each_edge_of_the_hysteresis_loop_lies_in_the_load_step_where_the_sweep_changes_state(paper, paper_sine_branch):
     # Default damping, sine model: the 1-turn orbit is stable from above M_c down to
     # 0.1731, which is 2.7e-3 from the nearest load of the sweep (dM = 0.01), and going
     # up the static state is lost at M_c = 0.20396 (4e-3 from the nearest load): both
@@ -194,7 +194,7 @@ def test_each_edge_of_the_hysteresis_loop_lies_in_the_load_step_where_the_sweep_
     sweep = relaxation_sweep(paper, "sine", m_max=0.25, dm=dm, down=True)
     fold = locate_fold(paper, "sine").moment
     assert sweep.onset_load - dm < fold <= sweep.onset_load
-    branch = continue_orbit(find_periodic_orbit(paper, "sine", 0.22), moment_min=0.1)
+    branch = paper_sine_branch  # the orbit at M = 0.22 continued down to M = 0.1 (conftest.py)
     assert sweep.stop_load < branch.stability_lost_at <= sweep.stop_load + dm
 
 
@@ -229,10 +229,10 @@ def test_orbit_without_turns_takes_the_first_stable_of_one_two_and_three_turns()
     assert data["turns"] == 3 and data["stable"] is True
 
 
-def test_a_continuation_asked_to_stop_at_the_first_unstable_orbit_stops_there_with_the_same_loss():
-    orbit = find_periodic_orbit(ChainParams(), "sine", 0.22)
-    full = continue_orbit(orbit)
-    short = continue_orbit(orbit, until_unstable=True)
+def test_a_continuation_asked_to_stop_at_the_first_unstable_orbit_stops_there_with_the_same_loss(paper_sine_orbit, paper_sine_branch):
+    full = paper_sine_branch  # the same orbit continued with the same settings, to its fold of cycles
+    short = continue_orbit(paper_sine_orbit, moment_min=0.1, until_unstable=True)
+    assert full.end == "fold"
     assert short.end == "unstable" and not short.orbits[-1].stable and all(o.stable for o in short.orbits[:-1])
     assert len(short.orbits) < len(full.orbits)
     assert short.stability_lost_at == full.stability_lost_at  # the same steps up to there
