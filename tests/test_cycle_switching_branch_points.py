@@ -117,6 +117,24 @@ def test_the_family_from_the_lower_branch_point_is_stable_and_a_run_from_near_it
     assert np.max(np.abs(s @ y0 - y0)) > 100 * before  # its mirror image (and the symmetric orbit) lie far off
 
 
+def test_the_asymmetric_family_rises_over_a_fold_of_cycles_and_comes_back_to_the_other_branch_point(switches):
+    """Born above the upper branch point, the family is followed up (continue_family: through its folds), turns at
+    a fold of cycles near M = 0.3395 and comes back down to the symmetric branch at the lower branch point: its
+    asymmetry falls towards zero there. The two branch points are joined by one family of asymmetric orbits."""
+    switch = switch_at_branch_point(switches[0].point, max_points=60)
+    assert switch.side == "above"
+    family = switch.branch
+    folds = [e["moment"] for e in family.events if e["kind"] == "fold"]
+    assert len(folds) == 1 and 0.339 < folds[0] < 0.340
+    s = mirror(CHAIN)
+    asymmetry = np.array([np.max(np.abs((s - np.eye(s.shape[0])) @ _to_y(CHAIN, o.x, o.v))) for o in family.orbits])
+    moments = np.array([o.moment for o in family.orbits])
+    top = int(np.argmax(moments))
+    closest = top + int(np.argmin(asymmetry[top:]))
+    assert abs(moments[closest] - switches[1].value) < 1e-3 and asymmetry[closest] < 0.03
+    assert family.orbits[closest].stable  # the lower point's family is the stable one
+
+
 def test_the_orbit_at_a_symmetry_breaking_point_switches_without_its_branch(switches):
     alone = switch_at_branch_point(switches[0].point, follow=False)
     assert alone.kind == "mirror_symmetry_breaking"

@@ -17,8 +17,9 @@ chain's orbits around it, a system's event tangent, projected onto the null spac
 orbits of the other family at growing amplitudes a = e . (w - w_BP) by Newton's method with the
 amplitude fixed (:class:`~.cycle_switching._March`, as at a period doubling), until the parameter
 lies ``offset`` |p_BP| from p_BP. The orbit found is polished by the ordinary shooting Newton and
-the family continued away from the point: the chain's down in |M| where it lies below, a
-system's in p on its side.
+the family continued away from the point: the chain's down in |M| where it lies below
+(:func:`~.periodic.continue_orbit`), up and through its folds where it lies above
+(:func:`~.cycle_switching.continue_family`), a system's in p on its side.
 
 The chain's mirror symmetry. A chain whose loaded particle is its middle one and whose two
 halves are alike is symmetric under the point reflection S about that particle (particle k to
@@ -45,7 +46,7 @@ from ..params import ChainParams
 from ..state import n_free, pack, unpack
 from . import shooting
 from .cycle_curve import locate_cycle_end
-from .cycle_switching import OFFSET, Point, _March, _where
+from .cycle_switching import OFFSET, Point, _March, _where, continue_family
 from .kit import branch_directions
 from .periodic import (
     ATOL,
@@ -106,7 +107,8 @@ class BranchSwitch:
     side : str
         ``below`` (the new family's first orbit at smaller p, for the chain smaller |M|) or ``above``.
     branch : periodic.OrbitBranch or shooting.OrbitBranch or None
-        The new family continued away from the point (None where not asked for, and for the chain above it).
+        The new family continued away from the point (None where not asked for; for the chain above it,
+        :func:`~.cycle_switching.continue_family`'s, up in |M| and through its folds).
     """
 
     point: Point
@@ -442,7 +444,11 @@ def switch_at_branch_point(
         )  # fmt: skip
         # For the chain "below" is towards smaller |M|, the way continue_orbit goes.
         side = "below" if distance(orbit) * math.copysign(1.0, value) < 0 else "above"
-        branch = continue_orbit(orbit, tol=tol, rtol=rtol, atol=atol, **continue_options) if follow and side == "below" else None
+        branch = None
+        if follow and side == "below":
+            branch = continue_orbit(orbit, tol=tol, rtol=rtol, atol=atol, **continue_options)
+        elif follow:
+            branch = continue_family(orbit, tol=tol, rtol=rtol, atol=atol, **continue_options)
     return BranchSwitch(
         point, parameter, float(value), second, KINDS[0] if breaking else KINDS[1], along, direction, float(reached), orbit, side, branch
     )

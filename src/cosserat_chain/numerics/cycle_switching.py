@@ -28,9 +28,9 @@ turns, and continues it with :func:`~.periodic.continue_orbit`.
 
 The doubled family lies below M_PD (in |M|) for a supercritical flip of an orbit that loses
 stability as M falls (the doubled orbit inherits its stability), above it for a subcritical
-one; :attr:`PeriodDoubling.side` says which. :func:`~.periodic.continue_orbit` follows orbits
-towards smaller |M| only, so a family above M_PD is returned as its first orbit, not
-continued (continued down it would run back into the period doubling).
+one; :attr:`PeriodDoubling.side` says which. A family below M_PD is continued down by
+:func:`~.periodic.continue_orbit`; one above it by :func:`continue_family`, up in |M| and through
+its folds of cycles (continued down it would run back into the period doubling).
 
 The same switch serves a user's system (:mod:`~cosserat_chain.numerics.shooting`): from an orbit or
 event of :func:`~.shooting.continue_orbits` at a period doubling in any named parameter p, on the
@@ -61,17 +61,24 @@ from ..systems.chain import ChainSystem
 from . import shooting
 from .cycle_curve import locate_cycle_end
 from .hopf import HopfPoint
-from .kit import newton
+from .kit import BranchEnd, continuation, newton
 from .periodic import (
+    _ORBIT_ENDS,
     ATOL,
     CLOSURE_TOL,
+    EASY_ITERATIONS,
+    HARD_ITERATIONS,
+    MAX_CORRECTOR_ITERATIONS,
+    NEWTON_RATE,
     RTOL,
     OrbitBranch,
     OrbitError,
     PeriodicOrbit,
+    _crosses_one,
     _from_y,
     _OrbitBranchProblem,
     _phase_for,
+    _plane,
     _System,
     _to_y,
     continue_orbit,
@@ -128,7 +135,7 @@ class PeriodDoubling:
         doubling) or ``above``.
     branch : periodic.OrbitBranch or shooting.OrbitBranch or None
         The doubled family continued away from the period doubling from ``doubled`` (None where not
-        asked for, and for the chain above the period doubling).
+        asked for; for the chain above the period doubling, :func:`continue_family`'s up in |M|).
     """
 
     point: Point
@@ -392,7 +399,8 @@ def switch_at_period_doubling(
         Relative distance in p of the first doubled orbit from the period doubling (default amplitude only).
     follow : bool
         Continue the doubled family away from the period doubling: the chain's down in |M|
-        (:func:`~.periodic.continue_orbit`) where it lies below, a system's in p on its side
+        (:func:`~.periodic.continue_orbit`) where it lies below, up through its folds
+        (:func:`continue_family`) where it lies above; a system's in p on its side
         (:func:`~.shooting.continue_orbits`).
     tol, rtol, atol : float
         As for :func:`~.periodic.find_periodic_orbit`.
@@ -458,7 +466,11 @@ def switch_at_period_doubling(
             point.params, point.model, doubled.moment, turns=doubled.turns, particle=point.particle, guess=doubled, tol=tol,
             rtol=rtol, atol=atol,
         )  # fmt: skip
-        branch = continue_orbit(doubled, tol=tol, rtol=rtol, atol=atol, **continue_options) if follow and side == "below" else None
+        branch = None
+        if follow and side == "below":
+            branch = continue_orbit(doubled, tol=tol, rtol=rtol, atol=atol, **continue_options)
+        elif follow:
+            branch = continue_family(doubled, tol=tol, rtol=rtol, atol=atol, **continue_options)
     return PeriodDoubling(point, parameter, float(value), multiplier, vector, float(coefficient), float(amplitude), doubled, side, branch)
 
 
@@ -683,6 +695,81 @@ def switch_at_hopf(
     return HopfOrbits(point, eigenvalue, vector, float(coefficient), float(amplitude), orbit, side, branch)
 
 
+def continue_family(
+    orbit: PeriodicOrbit,
+    *,
+    direction: float = 1.0,
+    moment_min: float = 0.0,
+    period_max: float = 2000.0,
+    step: float = 0.02,
+    min_step: float = 1e-7,
+    max_step: float = 0.2,
+    max_points: int = 200,
+    tol: float = CLOSURE_TOL,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+) -> OrbitBranch:
+    """A chain's family of orbits followed from ``orbit`` either way in M and through its folds of cycles.
+
+    :func:`~.periodic.continue_orbit` goes towards smaller |M| and ends at the first fold; a family born
+    above its bifurcation (a subcritical flip, the branch points of the nonlinear N = 1 chain) starts
+    by rising in |M|. Here the same equations and corrector are followed by pseudo-arclength from
+    ``orbit`` towards larger |M| (``direction`` +1) or smaller (-1), on a phase plane normal to the flow
+    (re-chosen on the way where the flow turns from it), past every fold, until ``max_points``,
+    ``moment_min``, ``period_max`` or a step that cannot be corrected.
+
+    Returns
+    -------
+    periodic.OrbitBranch
+        Its ``events``: ``{"kind": "fold", "moment": M}`` where M turns back and a real multiplier
+        crosses +1 between the orbits around the turn (M the middle orbit's), and ``branch_point``
+        where one crosses +1 while M does not turn (M interpolated in the multiplier).
+
+    Raises
+    ------
+    ValueError
+        For a direction other than +1 or -1.
+    """
+    if direction not in (1.0, -1.0):
+        raise ValueError(f"direction must be +1 (towards larger |M|) or -1, got {direction!r}")
+    params, model = orbit.params, get_model(orbit.model)
+    phase = _plane(_System(params, model, orbit.moment, orbit.particle), _to_y(params, orbit.x, orbit.v))
+    first = dataclasses.replace(orbit, phase_normal=phase.normal)
+    problem = _OrbitBranchProblem(first, model, phase, tol, rtol, atol, moment_min, period_max, False, orbit.stable)
+    traced = continuation(
+        problem,
+        problem.pack(first),
+        step=step,
+        min_step=min_step,
+        max_step=max_step,
+        max_points=max_points,
+        direction=direction * math.copysign(1.0, orbit.moment),
+        corrector={"max_iterations": MAX_CORRECTOR_ITERATIONS, "chord": NEWTON_RATE, "forgive": 0},
+        easy=EASY_ITERATIONS,
+        hard=HARD_ITERATIONS,
+        locate=False,
+        tangent_method="svd",
+        first=first,
+    )
+    orbits = traced.points
+    events = []
+    moments = [o.moment for o in orbits]
+    for i in range(len(orbits) - 1):
+        if not _crosses_one(orbits[i], orbits[i + 1]):
+            continue
+        turns = [j for j in (i, i + 1) if 0 < j < len(orbits) - 1 and (moments[j] - moments[j - 1]) * (moments[j + 1] - moments[j]) < 0]
+        if turns:
+            events.append({"kind": "fold", "moment": float(moments[turns[0]])})
+        else:
+            ga, gb = (float(np.real(np.prod(o.nontrivial_multipliers - 1.0))) for o in orbits[i : i + 2])
+            events.append({"kind": "branch_point", "moment": float(moments[i] + ga * (moments[i + 1] - moments[i]) / (ga - gb))})
+    end = _ORBIT_ENDS.get(traced.end, str(traced.end)) if traced.end != BranchEnd.MAX_POINTS else "max_points"
+    settings = {"direction": direction, "moment_min": moment_min, "period_max": period_max, "step": step, "max_step": max_step, "tol": tol}
+    return OrbitBranch(
+        orbits=orbits, end=end, end_moment=float(orbits[-1].moment), message=traced.message, settings=settings, events=events
+    )
+
+
 def _flip_test(orbit: PeriodicOrbit) -> float:
     """Re prod (mu + 1) over the multipliers: its sign changes where a real one passes -1."""
     return float(np.real(np.prod(orbit.multipliers + 1.0)))
@@ -723,6 +810,7 @@ def _located(start, parameter: str | None, *, rtol: float, atol: float) -> tuple
 __all__ = [
     "HopfOrbits",
     "PeriodDoubling",
+    "continue_family",
     "doubled_orbit",
     "flip_vector",
     "hopf_orbit",
