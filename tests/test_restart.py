@@ -247,6 +247,26 @@ def test_simulate_resume_from_a_stored_frame_takes_the_same_x0_and_at(tmp_path, 
     assert_same_run(read_dataset(out), read_dataset(whole))
 
 
+@pytest.fixture(scope="module")
+def interrupted(tmp_path_factory):
+    """A ``simulate`` stopped by Ctrl-C after two chunks: (its checkpoint, its bytes, its options, another chain's config),
+    made once for the refused resumes below; each test starts from these bytes."""
+    folder = tmp_path_factory.mktemp("interrupted")
+    config = _write_config(folder / "c.toml")
+    other_config = _write_config(folder / "other.toml", e2=2.0)
+    checkpoint = folder / "c.nc"
+    base = {"--config": str(config), "--model": "nonlinear", "--dt": str(ODD_DT), "--moment": "0.15", "--t-end": "30", "--frames": "41"}
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(dynamics, "CHUNK_WORK", 7 * 200)
+        _interrupt_the_command(patch, 2)
+        assert runner.invoke(app, _resume_line(base, checkpoint)).exit_code == 130
+    return checkpoint, checkpoint.read_bytes(), base, other_config
+
+
+def _resume_line(options: dict[str, str], checkpoint) -> list[str]:
+    return ["simulate", *(item for pair in options.items() for item in pair), "--checkpoint", str(checkpoint)]
+
+
 @pytest.mark.parametrize(
     ("change", "named"),
     [
@@ -260,21 +280,20 @@ def test_simulate_resume_from_a_stored_frame_takes_the_same_x0_and_at(tmp_path, 
     ],
     ids=["params", "model", "dt", "loads", "t_end", "method", "frames"],
 )
-def test_a_resume_with_other_settings_is_refused_naming_what_differs(tmp_path, small_chunks, monkeypatch, change, named):
-    config = _write_config(tmp_path / "c.toml")
-    other_config = _write_config(tmp_path / "other.toml", e2=2.0)
-    checkpoint = tmp_path / "c.nc"
-    base = {"--config": str(config), "--model": "nonlinear", "--dt": str(ODD_DT), "--moment": "0.15", "--t-end": "30", "--frames": "41"}
-    line = lambda options: ["simulate", *(item for pair in options.items() for item in pair), "--checkpoint", str(checkpoint)]  # noqa: E731
-    with monkeypatch.context() as patch:
-        _interrupt_the_command(patch, 2)
-        assert runner.invoke(app, line(base)).exit_code == 130
-    before = checkpoint.read_bytes()
+def test_a_resume_with_other_settings_is_refused_naming_what_differs(interrupted, small_chunks, change, named):
+    checkpoint, before, base, other_config = interrupted
+    checkpoint.write_bytes(before)
     changed = {**base, change[0]: change[1].format(other_config=other_config)}
-    result = runner.invoke(app, [*line(changed), "--resume"])
+    result = runner.invoke(app, [*_resume_line(changed, checkpoint), "--resume"])
     assert result.exit_code == 2 and named in result.output and "Traceback" not in result.output, result.output
     assert checkpoint.read_bytes() == before, "a refused resume leaves the checkpoint as it was"
-    assert runner.invoke(app, [*line(base), "--resume"]).exit_code == 0, "the same settings resume"
+
+
+def test_the_checkpoint_the_refused_resumes_left_resumes_with_its_own_settings(interrupted, small_chunks):
+    """The control of the refusals above: their checkpoint, byte for byte as they left it, resumes with the same settings."""
+    checkpoint, before, base, _ = interrupted
+    checkpoint.write_bytes(before)
+    assert runner.invoke(app, [*_resume_line(base, checkpoint), "--resume"]).exit_code == 0, "the same settings resume"
 
 
 def test_a_simulation_checkpoint_edited_or_of_another_command_is_refused(tmp_path, small_chunks):
