@@ -161,6 +161,19 @@ def test_cli_atlas_json_and_netcdf_round_trip(tmp_path):
                 assert float(ds["energy"][j, i]) == point["energy"]
         undescribed = [str(n) for n in ds.data_vars if not (ds[n].attrs.get("units") and ds[n].attrs.get("long_name"))]
         assert not undescribed
+        # Each point's orbit from the file alone: the chain from its attributes and the field's value, the start from
+        # its states, one period by Yoshida-4 (not the shooting's integrator) returns it with the rotor a turn further.
+        base = ChainParams(**json.loads(ds.attrs["params_json"]))
+        for j, b in enumerate(ds["value"].values):
+            params = chain_at(base, ds.attrs["field"], float(b))
+            for i, omega in enumerate(ds["omega"].values):
+                x0 = np.array([ds[r].values[j, i] for r in ("u", "v", "phi")])
+                v0 = np.array([ds[f"{r}_dot"].values[j, i] for r in ("u", "v", "phi")])
+                period = 2 * math.pi / float(omega)
+                run = integrate(params, "nonlinear", moment_load(0.0, 0), t_end=period, dt=period / 4000, x0=x0, v0=v0, method="yoshida4",
+                                n_frames=2)  # fmt: skip
+                x0[PHI, params.N] += 2 * math.pi
+                assert np.max(np.abs(run.x[-1] - x0)) < RETURN_TOL and np.max(np.abs(run.v[-1] - v0)) < RETURN_TOL
 
 
 @pytest.mark.parametrize(
@@ -217,3 +230,19 @@ def test_a_long_chain_atlas_point_by_the_blocks_is_a_closed_orbit():
     assert p.exists and p.orbit.multiplier_errors is not None and p.orbit.stable
     assert p.localization.return_error < 1e-8 and p.localization.participation_ratio < 2.0
     assert 0.5 < p.localization.length < 5.0
+
+
+def test_the_nonlinear_rotor_strains_the_chain_statically_while_its_oscillation_is_localized():
+    atlas = breather_atlas(undamped(N=6), "nonlinear", [10.5], "b", [0.2])
+    p = atlas.points[0][0]
+    loc = p.localization
+    # The oscillation about the mean falls by more than 20 a site: a localization length below 1/3 site ...
+    assert np.all(loc.site_amplitudes[1:5] < loc.site_amplitudes[:4] / 20) and loc.length < 1 / 3
+    # ... while the mean pull is a uniform strain: mean u falls linearly from the rotor's neighbours to the clamped ends.
+    x, _ = p.orbit.trajectory(p.orbit.period * np.arange(1, 65) / 64)
+    mean_u = x[:, ROW_INDEX["u"]].mean(axis=0)
+    right = mean_u[p.orbit.params.N + 2 :]  # particles 2..6, the last clamped
+    assert np.allclose(np.diff(right), np.diff(right)[0], rtol=1e-3) and right[-1] == 0
+    assert loc.static_displacement == pytest.approx(np.max(np.abs(np.delete(mean_u, p.orbit.params.N))), rel=1e-2)
+    # Pulled towards the rotor, symmetrically: a turning corner's mean distance from the centre along the chain is 0, not a.
+    assert mean_u[p.orbit.params.N + 1] < -0.1 and mean_u[p.orbit.params.N + 1] == pytest.approx(-mean_u[p.orbit.params.N - 1], rel=1e-6)

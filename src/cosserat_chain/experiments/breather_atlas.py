@@ -130,8 +130,8 @@ class Localization:
         :func:`localization_length` of ``site_amplitudes``.
     static_displacement : float
         The largest |mean over the period| of u / h and v / h of the particles that do not turn:
-        the chain's static deformation by the rotor (the nonlinear model's turning corners push
-        its neighbours apart on average, a strain that a clamped chain spreads over its whole
+        the chain's static deformation by the rotor (the nonlinear model's turning corners pull
+        its neighbours in on average, a strain that a clamped chain spreads over its whole
         length, falling linearly to the ends: zero frequency, in the longitudinal band).
     energy_drift : float
         max |E(t) - E(0)| / max(1, |E(0)|) over the samples (NaN without an energy).
