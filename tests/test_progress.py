@@ -156,22 +156,58 @@ def test_a_bar_that_stops_says_why_and_keeps_its_count(tmp_path):
     assert counts(interrupted) == (20, "2", "10") and "stopped: KeyboardInterrupt" in interrupted
 
 
-def test_simulate_counts_whole_steps_to_100_percent(tmp_path):
-    code, screen = on_terminal(cli("simulate", "--moment", "0.1", "--t-end", "30"), tmp_path)
+#: The commands whose bars the three tests below read, run one after the other in one interpreter on the terminal (as
+#: ``python -m cosserat_chain`` each: the package is imported once, not once a command), each between two markers.
+_ON_TERMINAL = {
+    "simulate": ["simulate", "--moment", "0.1", "--t-end", "30"],
+    "animate": ["animate", "--t-end", "20", "--frames", "5", "--out", "a.gif"],
+    "rotate": ["rotate", "--moment", "0.3", "--turns", "100", "--t-max", "5"],
+}
+_COMMANDS_IN_TURN = """
+import json, runpy, sys
+for name, args in json.loads(sys.argv[1]).items():
+    sys.argv = ["cosserat-chain", *args]
+    print(f"<<<START {name}>>>", file=sys.stderr, flush=True)
+    try:
+        runpy.run_module("cosserat_chain", run_name="__main__")
+        code = 0
+    except SystemExit as done:
+        code = done.code if isinstance(done.code, int) else (0 if done.code is None else 1)
+    print(f"<<<EXIT {name} {code}>>>", file=sys.stderr, flush=True)
+"""
+
+
+@pytest.fixture(scope="module")
+def terminal_runs(tmp_path_factory) -> dict[str, tuple[int, str]]:
+    """Command -> (its exit code, what it wrote to the terminal) of the commands of ``_ON_TERMINAL``."""
+    import json
+
+    code, screen = on_terminal([sys.executable, "-c", _COMMANDS_IN_TURN, json.dumps(_ON_TERMINAL)], tmp_path_factory.mktemp("terminal"))
+    assert code == 0, screen[-3000:]
+    runs = {}
+    for name in _ON_TERMINAL:
+        match = re.search(rf"<<<START {name}>>>(.*)<<<EXIT {name} (-?\d+)>>>", screen, flags=re.S)
+        assert match, f"{name} did not finish: {screen[-3000:]}"
+        runs[name] = (int(match.group(2)), match.group(1))
+    return runs
+
+
+def test_simulate_counts_whole_steps_to_100_percent(terminal_runs):
+    code, screen = terminal_runs["simulate"]
     assert code == 0
     percent, done, total = counts(last_bar(screen, "simulate nonlinear"))
     assert percent == 100 and done == total and done.isdigit() and int(done) > 100
 
 
-def test_animate_counts_its_frames_to_100_percent(tmp_path):
-    code, screen = on_terminal(cli("animate", "--t-end", "20", "--frames", "5", "--out", "a.gif"), tmp_path)
+def test_animate_counts_its_frames_to_100_percent(terminal_runs):
+    code, screen = terminal_runs["animate"]
     assert code == 0
     assert counts(last_bar(screen, "animate"))[1:] == ("5", "5") and counts(last_bar(screen, "animate"))[0] == 100
     assert counts(last_bar(screen, "simulate nonlinear"))[0] == 100
 
 
-def test_rotate_at_its_time_limit_says_it_stopped_there(tmp_path):
-    code, screen = on_terminal(cli("rotate", "--moment", "0.3", "--turns", "100", "--t-max", "5"), tmp_path)
+def test_rotate_at_its_time_limit_says_it_stopped_there(terminal_runs):
+    code, screen = terminal_runs["rotate"]
     assert code == 4
     bar = last_bar(screen, "rotate nonlinear")
     assert "stopped: time_limit" in bar and counts(bar)[1:] == ("1", "100")
