@@ -147,15 +147,22 @@ def _read_as_input(path, ds=None) -> str:
     return "ok"
 
 
-@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(flips=st.lists(st.tuples(st.floats(0, 1, exclude_max=True), st.integers(1, 255)), min_size=1, max_size=8), cut=st.floats(0, 1))
-def test_a_run_with_flipped_bytes_or_cut_short_is_read_or_refused(run_bytes, flips, cut, tmp_path):
+def _run_with_flipped_bytes_or_cut_short(run_bytes, flips, cut, tmp_path):
+    """A run with bytes flipped or its end cut off is read or refused (each example reads a file, in a forked probe)."""
     data = bytearray(run_bytes)
     for where, mask in flips:
         data[int(where * len(data))] ^= mask
     path = tmp_path / "damaged.nc"
     path.write_bytes(bytes(data[: max(1, int(cut * len(data)))] if cut < 0.9 else data))
     _read_as_input(path)
+
+
+test_a_run_with_flipped_bytes_or_cut_short_is_read_or_refused, test_more_runs_with_flipped_bytes_or_cut_short = _quick_and_slow(
+    20,
+    60,
+    flips=st.lists(st.tuples(st.floats(0, 1, exclude_max=True), st.integers(1, 255)), min_size=1, max_size=8),
+    cut=st.floats(0, 1),
+)(_run_with_flipped_bytes_or_cut_short)
 
 
 def _without(ds, name):
