@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
-from matplotlib.ticker import NullFormatter
+from matplotlib.ticker import NullLocator
 
 from ..analysis.continuum import ConvergenceTable, ProfileComparison
 from ..analysis.dispersion import BRANCHES, Dispersion, WaveSummary
@@ -33,6 +33,24 @@ def _figure(ax: Axes | None, ncols: int = 1) -> tuple[Figure, list[Axes]]:
         return ax.figure, [ax]
     fig = Figure(figsize=(5.0 * ncols, 3.8), layout="constrained")
     return fig, list(np.atleast_1d(fig.subplots(1, ncols)))
+
+
+#: A log axis spanning more decades than this has its decades ticked and labelled, and no minor ticks.
+MINOR_DECADES = 3.0
+
+
+def _ticks_at(panel: Axes, n: np.ndarray) -> None:
+    """A log-log panel's x ticks at the computed N only, and no more tick marks than its reader needs.
+
+    The minor ticks of the log axes (between N's that are not decades, or eight per decade on an error
+    axis over ten or more) are marks without labels that each cost a tick's artists at every draw; the
+    y axis keeps them where it spans few decades, where they may be its only labelled ticks.
+    """
+    panel.set_xticks(n, [str(int(v)) for v in n])
+    panel.xaxis.set_minor_locator(NullLocator())
+    low, high = panel.get_ylim()
+    if low > 0 and high / low > 10.0**MINOR_DECADES:
+        panel.yaxis.set_minor_locator(NullLocator())
 
 
 def plot_profiles(comparison: ProfileComparison, axes: tuple[Axes, Axes] | None = None) -> Figure:
@@ -76,8 +94,7 @@ def plot_convergence(table: ConvergenceTable, ax: Axes | None = None) -> Figure:
     panel.set_xlabel("N (chain of 2N+1 particles)")
     # Ticks at the computed N only: over less than a decade matplotlib labels the minor
     # ticks as well (3 x 10^0, 4 x 10^0, ...), and they overlap.
-    panel.set_xticks(table.N, [str(int(n)) for n in table.N])
-    panel.xaxis.set_minor_formatter(NullFormatter())
+    _ticks_at(panel, table.N)
     panel.legend(loc="best", fontsize="small")
     return fig
 
@@ -104,8 +121,7 @@ def plot_beam_convergence(table: BeamConvergence, ax: Axes | None = None) -> Fig
     panel.loglog(table.N, floor, "x", color="0.5", label="discrete value's own error")
     panel.set_xlabel("N (chain of 2N+1 particles)")
     panel.set_ylabel(f"|relative error| of the compliance ({table.load})")
-    panel.set_xticks(table.N, [str(int(n)) for n in table.N])
-    panel.xaxis.set_minor_formatter(NullFormatter())
+    _ticks_at(panel, table.N)
     panel.legend(loc="best", fontsize="small")
     return fig
 
@@ -124,8 +140,7 @@ def plot_bending(table: BendingConvergence, ax: Axes | None = None) -> Figure:
     panel.set_xlabel("N (chain of 2N+1 particles)")
     panel.set_ylabel("|relative error| of the beam")
     panel.set_title(f"cantilever, end turned by {table.angle:.3g} rad", fontsize="small", loc="left")
-    panel.set_xticks(n, [str(int(v)) for v in n])
-    panel.xaxis.set_minor_formatter(NullFormatter())
+    _ticks_at(panel, n)
     panel.legend(loc="best", fontsize="small")
     return fig
 
