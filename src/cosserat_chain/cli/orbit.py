@@ -53,6 +53,12 @@ def orbit(
         flags=("--down-to",),
     ),
     period_max: float = number(2000.0, "Continuation: a period beyond this counts as diverging.", above=0.0, flags=("--period-max",)),
+    switch: str | None = typer.Option(
+        None,
+        "--switch",
+        metavar="KIND",
+        help="With --down-to: switch at the branch's first period-doubling or branch-point (of cycles) onto the family born there.",
+    ),
     from_above: float | None = number(
         None,
         "Find the orbit at this larger moment (above M_c) and continue it down to --moment: reaches rotating states below M_c.",
@@ -99,6 +105,8 @@ def orbit(
 
     if plot is not None and down_to is None:
         fail("--plot draws the continued branch: give --down-to as well")
+    if switch is not None and (switch not in SWITCHES or down_to is None):
+        fail(f"--switch takes {' or '.join(SWITCHES)} with --down-to (the branch it switches from), got {switch!r}")
     if from_above is not None and guess is not None:
         fail("--from-above and --guess are two ways to start the orbit: give one of them")
     if from_above is not None and not (moment != 0 and from_above / moment > 1):
@@ -135,6 +143,7 @@ def orbit(
         result.start["file"] = str(guess)
         result.start["file_holds"] = stored["holds"]
     bar.finish(note=f"the branch ended: {result.branch.end}" if result.branch is not None else "")
+    switched = None if switch is None else _switched(switch, result.branch, period_max)
     if out is not None:  # the Dataset (and xarray) only for a file: --json alone starts quickly
         save_dataset(result.to_dataset(), out)
     if plot is not None:
@@ -143,7 +152,10 @@ def orbit(
         fig = rotation_characteristic_figure(branches=[result.branch], static_fold=result.static_fold, model=model)
         save_figure(fig, plot)
     if as_json:
-        typer.echo(json.dumps({"params": params.model_dump(), **result.as_dict(), "static_fold": finite_or_none(result.static_fold)}))
+        extra = {} if switched is None else {"switch": switched.as_dict()}
+        typer.echo(
+            json.dumps({"params": params.model_dump(), **result.as_dict(), "static_fold": finite_or_none(result.static_fold), **extra})
+        )
         return
     o = result.orbit
     typer.echo(_started(result.start))
@@ -159,7 +171,31 @@ def orbit(
         typer.echo(f"continued to M = {b.moment[-1]:.10g} ({len(b.orbits)} orbits): {b.message}; the orbit ends at M = {b.end_moment:.10g}")
         if b.stability_lost_at is not None:
             typer.echo(f"the orbit loses stability at M = {b.stability_lost_at:.6g}")
+    if switched is not None:
+        new = switched.doubled if switch == "period-doubling" else switched.orbit
+        typer.echo(
+            f"switched at the {switch} at M = {switched.value:.10g}: {new.turns} turn(s), T = {new.period:.10g} at M = {new.moment:.10g} "
+            f"({'stable' if new.stable else 'unstable'}), the family {switched.side} it"
+            + (f", followed to M = {switched.branch.orbits[-1].moment:.10g} ({switched.branch.end})" if switched.branch is not None else "")
+        )
     typer.echo(f"static fold M_c = {result.static_fold:.15g}")
+
+
+#: The points --switch takes.
+SWITCHES = ("period-doubling", "branch-point")
+
+
+def _switched(kind: str, branch, period_max: float):
+    """The family born at the branch's first point of ``kind`` (numerics.cycle_switching, numerics.cycle_branch_points);
+    a branch without one exits 3 saying so."""
+    from ..numerics.cycle_branch_points import switch_at_branch_point
+    from ..numerics.cycle_switching import switch_at_period_doubling
+    from ..numerics.periodic import OrbitError
+
+    try:
+        return (switch_at_period_doubling if kind == "period-doubling" else switch_at_branch_point)(branch, period_max=period_max)
+    except (ValueError, OrbitError) as err:
+        fail(f"--switch {kind}: {err}", code=3)
 
 
 #: The turns per period tried when --turns is not given (states of the paper's chain repeat after up to 3).
