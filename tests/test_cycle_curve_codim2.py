@@ -120,3 +120,26 @@ def test_the_torus_end_followed_down_from_0_8_passes_a_1_to_4_resonance():
     assert np.angle(pair_of(point.orbit)) == pytest.approx(math.pi / 2, abs=1e-8) and point.uncertainty < 1e-8
     # AUTO-07p's torus curve: its printed pair passes pi / 2 at E2 = 0.7280999 (interpolated, 6 digits).
     assert point.value == pytest.approx(0.7280999, abs=5e-6)
+
+
+def test_the_secant_finds_a_zero_between_points_and_refuses_a_stop_that_is_not_one():
+    """``_locate_codim2`` on a curve made up from the angle theta(p) of a pair on the circle (no orbit): the 1:3
+    resonance at theta = 2 pi / 3 between two points, to the tolerance; the 1:2 resonance at the end of a curve
+    that reaches theta = pi at p = 1; and a curve that stops at p = 0.9 for another reason (no solution beyond)
+    while theta is still 0.3 from pi: not reported."""
+    from cosserat_chain.numerics.cycle_curve import _locate_codim2
+
+    def entry(p: float, theta) -> tuple:
+        return (p, np.array([p]), SimpleNamespace(moment=0.1 + p, period=1.0), 0, complex(np.exp(1j * theta(p))))
+
+    def curve(theta, stop: float):
+        return lambda p, guess, pair: entry(p, theta) if p <= stop else None
+
+    line = lambda p: 2.0 + p  # noqa: E731 - theta(p), through 2 pi / 3 at p = 2 pi / 3 - 2
+    zero = 2 * math.pi / 3 - 2.0
+    point = _locate_codim2("torus", "resonance_1_3", curve(line, 1.0), [entry(0.0, line)], entry(0.2, line), 0.2)
+    assert point.label == "R3" and abs(point.value - zero) <= max(point.uncertainty, 1e-12) and point.uncertainty < 1e-9
+    ending = lambda p: math.pi - 0.5 * math.sqrt(max(1.0 - p, 0.0))  # noqa: E731 - reaches pi at p = 1 like a square root
+    point = _locate_codim2("torus", "resonance_1_2", curve(ending, 1.0), [entry(0.9, ending), entry(0.95, ending)], None, 1.5)
+    assert point.kind == "resonance_1_2" and abs(point.value - 1.0) <= point.uncertainty < 1e-6
+    assert _locate_codim2("torus", "resonance_1_2", curve(line, 0.9), [entry(0.85, line), entry(0.88, line)], None, 1.5) is None

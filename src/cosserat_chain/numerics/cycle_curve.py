@@ -122,6 +122,9 @@ ENDS_AT = ("resonance_1_1", "resonance_1_2")
 CODIM2_TOL = 1e-9
 #: ... or its bracket in the field this narrow, relative to max(1, |p|).
 CODIM2_XTOL = 1e-11
+#: A search that ends with its test function above this, and no sign change bracketed as narrowly (relative to
+#: max(1, |p|)), has not located its point (the curve stopped for another reason): nothing is reported.
+CODIM2_ACCEPT = 1e-6
 #: Secant (Illinois) iterations, each an augmented solve, that locate one codimension-two point.
 CODIM2_ITERATIONS = 40
 
@@ -693,7 +696,9 @@ def _codim2_points(kind: str, found: list[tuple], solve: Callable, target: float
         for name in CODIM2[kind]:
             if tests[i - 1][name] * tests[i][name] < 0:
                 before = entries[max(0, i - 2) : i]
-                points.append(_locate_codim2(kind, name, solve, before, entries[i], entries[i][0]))
+                located = _locate_codim2(kind, name, solve, before, entries[i], entries[i][0])
+                if located is not None:
+                    points.append(located)
     at_stop = None
     if target is not None and len(entries) >= 2:
         (p0, p1), (t0, t1) = (entries[-2][0], entries[-1][0]), (tests[-2], tests[-1])
@@ -707,17 +712,19 @@ def _codim2_points(kind: str, found: list[tuple], solve: Callable, target: float
                 reach.append((abs(zero - p1), name))
         if reach:
             at_stop = _locate_codim2(kind, min(reach)[1], solve, entries[-2:], None, target)
-            points.append(at_stop)
+            if at_stop is not None:
+                points.append(at_stop)
     return points, at_stop
 
 
-def _locate_codim2(kind: str, name: str, solve: Callable, before: list[tuple], after: tuple | None, limit: float) -> Codim2Point:
+def _locate_codim2(kind: str, name: str, solve: Callable, before: list[tuple], after: tuple | None, limit: float) -> Codim2Point | None:
     """The zero of test function ``name`` beyond the curve's points ``before`` (the last the bracket's near end),
     towards the point ``after`` on the other side of it or, without one, towards ``limit`` (the search for where
     the curve stopped: a trial that fails there moves the bracket's far end to it).
 
     Illinois secant steps in the field, each trial the augmented system solved from the guess interpolated
-    (extrapolated without a far point) along the curve; a step outside the bracket is a bisection.
+    (extrapolated without a far point) along the curve; a step outside the bracket is a bisection. None where
+    the search ends with the test function above :data:`CODIM2_ACCEPT` and no bracket that narrow.
     """
 
     def test(entry: tuple) -> float:
@@ -764,6 +771,8 @@ def _locate_codim2(kind: str, name: str, solve: Callable, before: list[tuple], a
                 f_low *= 0.5
             side = -1
     bracket = abs(far - low[0]) if best is low else abs(far - best[0]) if high is None else abs(high[0] - low[0])
+    if abs(f_best) > CODIM2_ACCEPT and (high is None or bracket > CODIM2_ACCEPT * max(1.0, abs(low[0]))):
+        return None  # neither near the zero nor bracketing it closely: not located
     slope = (f_low - f_other) / (low[0] - other[0]) if other is not None and other[0] != low[0] else math.nan
     estimate = 10.0 * abs(f_best / slope) if math.isfinite(slope) and slope != 0 else math.inf
     orbit = best[2]
