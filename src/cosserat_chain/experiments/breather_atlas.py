@@ -77,11 +77,9 @@ ATLAS_FIELDS = ("a", "b", "h", "E1", "E2")
 #: Where each point's Newton started (``source``): none converged, continued in Omega, in the field, the anti-continuum rotor.
 SOURCES = ("none", "omega", "field", "anti_continuum")
 #: Newton iterations allowed from each start (a start that needs more is left for the next one).
-ATLAS_MAX_ITER = 12
+ATLAS_MAX_ITER = 25
 #: Newton from each start must divide the closure by this every two steps, else the next start is tried.
-ATLAS_CONTRACTION = 0.5
-#: Newton from each start must divide the closure by this every two steps (else the next start is tried).
-ATLAS_CONTRACTION = 0.5
+ATLAS_CONTRACTION = 0.9
 #: Amplitudes below this are integration noise, not a tail: :func:`localization_length` fits only above it.
 AMPLITUDE_FLOOR = 1e-9
 
