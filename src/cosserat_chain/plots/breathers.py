@@ -129,6 +129,6 @@ def breather_atlas_figure(atlas: BreatherAtlas) -> Figure:
     ax.set_xlabel("Ω (mean angular velocity of the rotor)")
     ax.set_ylabel(atlas.field)
     ax.set_title(f"roto-breathers, {atlas.model} model, N = {atlas.params.N}", fontsize=9)
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3)  # below the axes: inside, it hides points
     fig.tight_layout()
     return fig
