@@ -22,8 +22,9 @@ from conftest import selected_params
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
-#: Pages whose blocks are long runs (a study on a local Dask cluster of worker processes): slow tests.
-SLOW_PAGES = {"studies.md"}
+#: Pages whose blocks are long runs (a study on a local Dask cluster of worker processes; the roto-breather atlas of a
+#: 101-particle chain over a grid of frequencies and geometries): slow tests.
+SLOW_PAGES = {"studies.md", "roto-breathers.md"}
 
 
 def python_blocks(page: Path) -> list[str]:
