@@ -149,6 +149,31 @@ def test_chord_iterations_start_from_a_given_jacobian_and_refresh_it_when_it_con
     assert problem.jacobians < problem.residuals
 
 
+def test_a_chord_step_that_raises_the_residual_is_retreated_from_with_a_fresh_jacobian_where_it_started():
+    # A kept Jacobian far too soft (a soft mode that has stiffened since it was factored) throws
+    # the first chord step far off. Without retreat the iterate goes there and its residual
+    # grows by orders; with it that step is not taken: the next Jacobian is the start's own,
+    # and from there Newton converges with every iterate below the start's residual.
+    soft = np.diag([1e-3, 1e-3])
+    start = np.array([1.3, 2.4])
+    first = float(np.max(np.abs(start**3 - Counted.roots**3)))
+    seen: dict[bool, list[float]] = {}
+    for retreat in (False, True):
+        problem = Counted()
+        norms = seen.setdefault(retreat, [])
+        found = newton(
+            problem, start, tol=1e-13, chord=0.25, jacobian0=soft, retreat=retreat, max_iterations=40, divergence=None,
+            iterate=lambda w, ev, norms=norms: norms.append(float(np.max(np.abs(ev.residual)))),
+        )  # fmt: skip
+        if retreat:
+            assert found.converged
+            np.testing.assert_allclose(found.w, Counted.roots, atol=1e-13)
+            # The Jacobian asked for after the refused step is the start's (a residual at the refused trial between).
+            assert problem.asked[:3] == [False, False, True]
+    assert max(seen[False][1:]) > 1e3 * first
+    assert max(seen[True][1:]) < first
+
+
 def arctan(w: np.ndarray, jacobian: bool) -> Evaluation:
     # Newton on arctan overshoots from |w| > 1.39: |w| grows every step without damping.
     return Evaluation(np.arctan(w), np.array([[1.0 / (1.0 + w[0] ** 2)]]))

@@ -91,6 +91,9 @@ CHORD_ITERATIONS = 16
 CHORD_CONTRACTION = 0.25
 #: ... and gives up where a step with a fresh factor raises the residual above this many times its first.
 CHORD_DIVERGED = 100.0
+#: That corrector refuses a step with the last point's factor that raises the residual (the kit's ``retreat``)
+#: only from a start whose residual lies this many times above its limit (below, round-off rules it).
+RETREAT_ABOVE = 10.0
 #: A fold's or branch point's corrector whose residual stops falling within this many times the
 #: round-off floor (:func:`~.newton.round_off_floor`, an estimate) has converged to round-off.
 STALL = 100.0
@@ -572,6 +575,7 @@ class _StaticBranch:
         self.bend = np.zeros(self.nf + 1)
         self.folds = 0
         self.located_folds: list[Fold] = []
+        self.unlocated = ""  # a fold the corrector could not locate (stop: BranchEnd.STEP_TOO_SMALL), empty while none
         self.reversal = ""  # why the trace is going back along itself (stop: BranchEnd.REVERSED), empty while it is not
         self.last_step = 0.0  # the last step tried, for the message of a stalled branch
 
@@ -713,7 +717,15 @@ class _StaticBranch:
     def locate(self, kind: str, w: np.ndarray, t: np.ndarray, h: float, previous: _Point, candidate: _Point, index: int) -> Event:
         if kind == "fold":
             self.folds += 1
-            fold = self._fold_between(w, t, h, candidate.z, candidate.tangent[-1], previous.index, candidate.index)
+            try:
+                fold = self._fold_between(w, t, h, candidate.z, candidate.tangent[-1], previous.index, candidate.index)
+            except NewtonError as err:
+                # The trace so far is kept and ends here (BranchEnd.STEP_TOO_SMALL), rather than lost.
+                self.unlocated = (
+                    f"a fold lies between M = {w[-1]:.10g} and M = {candidate.z[-1]:.10g} (phi_0 = {self.y_phi0:.10g} to "
+                    f"{candidate.x[ROW_INDEX['phi'], self.col]:.10g} rad) but was not located ({err}): the branch beyond is not traced"
+                )
+                return Event(kind, None, float(candidate.z[-1]), index, located=False)
             self._check_retrace(fold)
             self.located_folds.append(fold)
             return Event(kind, fold, fold.moment, index)
@@ -814,7 +826,9 @@ class _StaticBranch:
             total = until if until is not None and (phi < until or self.lost) else stops.phi0_stop
             self.progress(min(phi, total), total)
         end = None
-        if self.reversal:
+        if self.unlocated:
+            end = (BranchEnd.STEP_TOO_SMALL, self.unlocated)
+        elif self.reversal:
             end = (BranchEnd.REVERSED, self.reversal)
         elif moment * self.previous_moment < 0 and len(self.moments) > 2 and _passes_rest(self.previous_state, x, self.previous_moment, moment):
             # Back through the rest state: going on would trace the mirrored branch
@@ -843,7 +857,9 @@ class _StaticBranch:
     def branch(self, traced: Continuation) -> Branch:
         """The traced branch with its folds, branch points and end."""
         message = ""
-        if traced.end == BranchEnd.STEP_TOO_SMALL:
+        if self.unlocated:
+            message = self.unlocated
+        elif traced.end == BranchEnd.STEP_TOO_SMALL:
             # The branch is not smooth here (the nonlinear model's energy has a cone where a
             # link's length vanishes: two particles' corners meet), or the corrector cannot
             # follow it. What was traced is kept.
@@ -853,7 +869,7 @@ class _StaticBranch:
             )
         elif traced.end in (BranchEnd.WOUND, BranchEnd.REVERSED):
             message = traced.message
-        folds = [event.point for event in traced.events if event.kind == "fold"]
+        folds = [event.point for event in traced.events if event.kind == "fold" and event.located]
         branch = _assemble_branch(self.params, self.model, self.particle, self.moments, self.states, folds, self.checks, traced.end, self.angles)
         branch.state_points = None if self.stride == 1 else np.array(self.kept)
         branch.message = message
@@ -954,7 +970,15 @@ class _StaticBranch:
         for all its iterations in 192 of its first 318 steps: twice the time of the turn):
         full Newton from the plain predictor takes over. Not at the first rise: an iterate
         that rises a little and comes back is on its way (N = 20, clamped-pinned, whose full
-        Newton from the predictor went back along the branch).
+        Newton from the predictor went back along the branch). A step with the last point's factor
+        that does not lower the residual is not taken (the kit's ``retreat``): the factor is
+        renewed where it started. Past the first fold of N = 10^4 that factor sent the iterate
+        from residuals of 2e-3 to 1e3-1e5 along the soft modes, the factor renewed there
+        diverged, and 416 of 513 steps fell back on full Newton; retreating halved the factors
+        of the whole trace. Not from a start within :data:`RETREAT_ABOVE` times the residual's
+        limit: there the residual is round-off, no step lowers it, and a step away and back is
+        how Newton finds a point below it (the sine model at N = 10^4 next to its second fold,
+        whose starts lay at its limit 9e-8: retreating from them stalled the trace).
         """
         predicted = y + ds * tangent
         kept = [self.factor, self.norm]  # the factor in use and its K's norm
@@ -970,15 +994,18 @@ class _StaticBranch:
                 kept[0], kept[1] = factor, infinity_norm(factor.stiffness)
             return -factor.solve(tangent, evaluation.residual, refine=0)
 
+        start = predicted + (0.5 * ds * ds) * self.bend
+        first = evaluate(start, False)
         corrected = newton(
             evaluate,
-            predicted + (0.5 * ds * ds) * self.bend,
+            start,
             converged=lambda evaluation, size: size <= evaluation.data.limit,
             max_iterations=CHORD_ITERATIONS - 1,
             divergence=None,
             chord=CHORD_CONTRACTION,
             jacobian0=self.factor,
             blowup=CHORD_DIVERGED,
+            retreat=bool(np.max(np.abs(first.residual)) > RETREAT_ABOVE * first.data.limit),
             newton_step=step,
         )
         if corrected.converged:

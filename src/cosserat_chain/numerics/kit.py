@@ -258,6 +258,7 @@ def newton(
     natural: bool = False,
     contraction: float | None = None,
     blowup: float | None = None,
+    retreat: bool = False,
     newton_step: Callable[[np.ndarray, Evaluation, Any], np.ndarray] | None = None,
     iterate: Callable[[np.ndarray, Evaluation], None] | None = None,
 ) -> Correction:
@@ -313,6 +314,12 @@ def newton(
         A step taken with a freshly computed Jacobian after which max |R| exceeds ``blowup``
         times the first max |R| has left Newton's basin: the correction is ``diverged``
         (a chord correction from a poor start, better retaken from another start than refactored on).
+    retreat : bool
+        With ``chord``: a step with the kept Jacobian that does not lower max |R| is not taken,
+        and the Jacobian is computed anew where it started (``damping``'s one trial, for kept
+        Jacobians only): a kept Jacobian next to a soft mode can throw the iterate far off,
+        where a fresh one then diverges, while steps with fresh Jacobians that raise max |R|
+        a little may still be on their way.
     newton_step : callable(w, evaluation, jacobian) -> ndarray, optional
         The step at w instead of one linear solve with the Jacobian in use (``jacobian``: the
         evaluation's own, or the one a chord iteration keeps, which may be any object the
@@ -396,9 +403,10 @@ def newton(
             direction = step_at(w, ev, matrix)
         except (ArithmeticError, np.linalg.LinAlgError, RuntimeError):
             return Correction(Corrector.NOT_FINITE, w, ev, norm, steps - 1, jacobians)
-        if damping:
+        trials = damping if damping or fresh or not retreat else 1
+        if trials:
             length, fraction = float(np.linalg.norm(direction)), 1.0
-            for _ in range(damping):
+            for _ in range(trials):
                 trial = _advance(w, direction, keep)
                 try:
                     pending = evaluate(trial, False)
