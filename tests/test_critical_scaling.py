@@ -105,3 +105,24 @@ def test_the_sine_model_at_n_2000_is_confirmed_and_follows_the_trend_of_shorter_
     shorter = critical_point(ChainParams(N=500), "sine", dynamics=False).critical_moment
     assert 2000 * m_c == pytest.approx(0.64, abs=1e-4) and 500 * shorter == pytest.approx(0.64, abs=1e-4)
     assert abs(2000 * m_c - 0.64) <= abs(500 * shorter - 0.64) + 1e-7
+
+
+@pytest.mark.slow
+def test_the_nonlinear_turn_of_n_1e4_is_complete_in_a_few_hundred_points_and_m_c_is_confirmed():
+    # Past its first fold the chain's soft modes sent the chord corrector's steps with the last
+    # point's factor to residuals 1e3-1e5 times their start; the factors renewed there diverged
+    # and 416 of 513 steps fell back on full Newton, and the trace crawled near phi_0 = 2 pi
+    # (1853 points). Refusing those steps (retreat) traces the turn in a few hundred.
+    result = critical_point(ChainParams(N=10**4), "nonlinear")
+    branch = result.branch
+    assert result.complete and result.accurate and branch.stop == "phi0_stop" and branch.phi0[-1] >= 2 * np.pi
+    assert branch.moment.size < 600, branch.moment.size
+    # M_c: the first fold, confirmed by its re-solve on the rotation-controlled branch within the
+    # residual's round-off limit (about 1e-9 at this N), at the value of the earlier traces.
+    fold = result.fold
+    assert result.confirmation == "re-solved" and fold.confirmed and fold.discrepancy < 1e-8
+    assert fold is result.first_fold and fold.phi0 == pytest.approx(3.63979, abs=1e-5)
+    assert fold.moment == pytest.approx(0.0672169806, rel=1e-8)
+    # Every fold alternates maximum and minimum, with the index changing by one.
+    assert all(f.maximum != g.maximum for f, g in zip(branch.folds, branch.folds[1:], strict=False))
+    assert all(abs(f.index_after - f.index_before) == 1 for f in branch.folds)
