@@ -60,6 +60,7 @@ from typing import Any
 import numpy as np
 import scipy.optimize as so
 
+from ..linalg.threads import one_blas_thread
 from ..loads import moment_load
 from ..models.base import Model, get_model
 from ..numerics.continuation import continue_in_moment
@@ -527,6 +528,7 @@ def _random_start(params: ChainParams, rng: np.random.Generator) -> tuple[np.nda
     return x, v
 
 
+@one_blas_thread
 def states_at(
     params: ChainParams,
     model: str | Model,

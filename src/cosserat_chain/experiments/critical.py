@@ -89,6 +89,7 @@ import numpy as np
 import scipy.optimize as so
 
 from ..linalg import smallest_eigenvalue
+from ..linalg.threads import one_blas_thread
 from ..loads import Loads, moment_load
 from ..memory import FLOAT
 from ..models.base import Model, get_model
@@ -462,6 +463,7 @@ class CriticalResult:
         }
 
 
+@one_blas_thread
 def critical_point(
     params: ChainParams,
     model: str | Model,

@@ -77,6 +77,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..linalg.threads import one_blas_thread
 from ..models.base import get_model
 from ..numerics.continuation import continue_in_moment
 from ..numerics.cycle_curve import KINDS, continue_cycle_end, locate_cycle_end
@@ -694,6 +695,7 @@ def _followed(previous: tuple[float, _Edge] | None, field_name: str, value: floa
     return _Edge(float(curve.moment[-1]), edge.end, message, curve.orbits[-1], "followed")
 
 
+@one_blas_thread
 def state_diagram(
     params: ChainParams,
     model: str,

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..linalg.threads import one_blas_thread
 from ..loads import moment_load
 from ..models.base import Model, get_model
 from ..numerics.continuation import locate_fold
@@ -170,6 +171,7 @@ class OrbitResult:
         return ds
 
 
+@one_blas_thread
 def periodic_orbit(
     params: ChainParams,
     model: str | Model,
@@ -346,6 +348,7 @@ class RotationCharacteristic:
         return ds
 
 
+@one_blas_thread
 def rotation_characteristic(
     params: ChainParams,
     model: str | Model,

@@ -64,6 +64,7 @@ import scipy.linalg as sla
 from numba import njit
 
 from ..errors import CosseratChainError
+from ..linalg.threads import one_blas_thread
 from ..loads import moment_load
 from ..memory import FLOAT, require
 from ..models.base import BOND_BLOCK, BOND_ROWS, Model, get_model, no_ends
@@ -764,6 +765,7 @@ def _shooting(system: _System, particle_turns: np.ndarray, rtol: float, atol: fl
     return evaluate
 
 
+@one_blas_thread
 def find_periodic_orbit(
     params: ChainParams,
     model: str | Model,
@@ -1044,6 +1046,7 @@ class OrbitBranch:
         return float(m0 + (1.0 - r0) * (m1 - m0) / (r1 - r0))
 
 
+@one_blas_thread
 def continue_orbit(
     orbit: PeriodicOrbit,
     *,
@@ -1428,6 +1431,7 @@ def hamiltonian_energy(params: ChainParams, model: str | Model, x: np.ndarray, v
     return float(0.5 * np.sum(inertia * pack(params, v) ** 2) + model.energy(params, x))
 
 
+@one_blas_thread
 def find_hamiltonian_orbit(
     params: ChainParams,
     model: str | Model,
@@ -1584,6 +1588,7 @@ class HamiltonianFamily:
         return np.array([o.stable for o in self.orbits], dtype=bool)
 
 
+@one_blas_thread
 def continue_in_frequency(
     orbit: HamiltonianOrbit,
     omegas: np.ndarray | list[float],

@@ -65,6 +65,7 @@ import scipy.sparse as sp
 from ..linalg import BandMatrix, band_storage, eigenvalue_resolution, negative_count
 from ..linalg.eigen import BISECTION_RTOL, smallest_band_eigenvalue
 from ..linalg.pencil import nearest_axis, shifted_solver, unstable_count
+from ..linalg.threads import one_blas_thread
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import check_state, pack, per_dof
@@ -264,6 +265,7 @@ class DynamicStability:
         return f"unstable eigenvalues: {self.unstable_eigenvalues} ({self.unstable_real} real, {pairs}; {index})"
 
 
+@one_blas_thread
 def dynamic_stability(
     params: ChainParams,
     model: str | Model,
