@@ -4,7 +4,7 @@ Contract
 --------
 :func:`~.periodic.find_hamiltonian_orbit` integrates the monodromy in one piece, with the
 unfolding's derivative as one more variational column; its time and memory grow like N^2
-per unit time (docs/roto-breathers.md: 25 s an orbit at N = 80). Here the same Newton
+per unit time (docs/roto-breathers.md, cost of a family). Here the same Newton
 system,
 
     Phi_T^eps(y0) - y0 - 2 pi k e_phi = 0,  unknowns (y0 without phi_rotor, eps),
