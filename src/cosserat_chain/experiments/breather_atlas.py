@@ -7,8 +7,8 @@ field of :class:`~cosserat_chain.params.ChainParams` (``a``, ``b``, ``h``: the g
 ``E1``, ``E2``: the stiffnesses), the one-site roto-breather of the undamped, unloaded chain
 at each point, by Newton on the unfolded shooting map
 (:func:`~cosserat_chain.numerics.long_breathers.find_breather_orbit`, the monodromy in
-column blocks from N = 50; the cost of a family is in docs/roto-breathers.md). The families are continued in both directions: every point starts
-Newton from, in this order,
+column blocks from N = 50; the cost of a family is in docs/roto-breathers.md). The families
+are continued in both directions: every point starts Newton from, in this order,
 
 1. the secant through the two orbits before it at the same field value (continuation in
    Omega, the last orbit's Newton Jacobian kept for the first steps),
