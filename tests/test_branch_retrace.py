@@ -95,3 +95,18 @@ def test_a_fold_the_corrector_cannot_locate_ends_the_trace_and_keeps_what_was_tr
     assert branch.phi0[-2] < second.phi0 < branch.phi0[-1] and min(branch.moment[-2:]) > second.moment
     out = CliRunner().invoke(app, ["critical", "--model", "nonlinear", "--json"])
     assert out.exit_code != 0 and "was not located" in out.stderr
+
+
+def test_a_fold_brent_puts_at_the_step_s_start_is_that_point(monkeypatch):
+    # Brent's method may return the bracket's end s = 0 (the step's start, whose slope it had
+    # from the tangent, not from a solve): at N = 10^5 that raised KeyError after minutes.
+    from cosserat_chain import ChainParams
+    from cosserat_chain.numerics import continuation
+
+    def at_start(f, a, b, **options):
+        f(a)
+        return a
+
+    monkeypatch.setattr(continuation.so, "brentq", at_start)
+    branch = continuation.continue_in_moment(ChainParams(), "nonlinear")
+    assert branch.folds and all(any(f.moment == m for m in branch.moment) for f in branch.folds)

@@ -1034,6 +1034,7 @@ class _StaticBranch:
 
         def slope(s: float) -> float:
             if s == 0.0:
+                cache[s] = y  # the fold at the step's start itself (Brent's root at the bracket's end: N = 10^5)
                 return tangent[-1]
             if s == ds:
                 cache[s] = end
