@@ -1005,7 +1005,7 @@ class _StaticBranch:
             chord=CHORD_CONTRACTION,
             jacobian0=self.factor,
             blowup=CHORD_DIVERGED,
-            retreat=bool(np.max(np.abs(first.residual)) > RETREAT_ABOVE * first.data.limit),
+            retreat=1.0 if np.max(np.abs(first.residual)) > RETREAT_ABOVE * first.data.limit else None,
             newton_step=step,
         )
         if corrected.converged:

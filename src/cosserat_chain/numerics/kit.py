@@ -258,7 +258,7 @@ def newton(
     natural: bool = False,
     contraction: float | None = None,
     blowup: float | None = None,
-    retreat: bool = False,
+    retreat: float | None = None,
     newton_step: Callable[[np.ndarray, Evaluation, Any], np.ndarray] | None = None,
     iterate: Callable[[np.ndarray, Evaluation], None] | None = None,
 ) -> Correction:
@@ -314,12 +314,12 @@ def newton(
         A step taken with a freshly computed Jacobian after which max |R| exceeds ``blowup``
         times the first max |R| has left Newton's basin: the correction is ``diverged``
         (a chord correction from a poor start, better retaken from another start than refactored on).
-    retreat : bool
-        With ``chord``: a step with the kept Jacobian that does not lower max |R| is not taken,
-        and the Jacobian is computed anew where it started (``damping``'s one trial, for kept
-        Jacobians only): a kept Jacobian next to a soft mode can throw the iterate far off,
-        where a fresh one then diverges, while steps with fresh Jacobians that raise max |R|
-        a little may still be on their way.
+    retreat : float, optional
+        With ``chord``: a step with the kept Jacobian that multiplies max |R| by more than this
+        (1: does not lower it) is not taken, and the Jacobian is computed anew where it started
+        (``damping``'s one trial, for kept Jacobians only): a kept Jacobian next to a soft mode
+        can throw the iterate far off, where a fresh one then diverges, while steps with fresh
+        Jacobians that raise max |R| a little may still be on their way.
     newton_step : callable(w, evaluation, jacobian) -> ndarray, optional
         The step at w instead of one linear solve with the Jacobian in use (``jacobian``: the
         evaluation's own, or the one a chord iteration keeps, which may be any object the
@@ -403,7 +403,9 @@ def newton(
             direction = step_at(w, ev, matrix)
         except (ArithmeticError, np.linalg.LinAlgError, RuntimeError):
             return Correction(Corrector.NOT_FINITE, w, ev, norm, steps - 1, jacobians)
-        trials = damping if damping or fresh or not retreat else 1
+        retreating = bool(retreat) and not damping and not fresh
+        trials = 1 if retreating else damping
+        allowed = norm * retreat if retreating else norm
         if trials:
             length, fraction = float(np.linalg.norm(direction)), 1.0
             for _ in range(trials):
@@ -413,7 +415,7 @@ def newton(
                     trial_norm = float(np.max(np.abs(pending.residual)))
                 except _EVALUATION_ERRORS:
                     pending, trial_norm = None, math.inf
-                if trial_norm < norm or (
+                if trial_norm < allowed or (
                     natural and pending is not None and _shorter(step_at, trial, pending, fraction, length, newton_step)
                 ):
                     break
