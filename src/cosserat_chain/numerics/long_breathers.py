@@ -33,9 +33,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..models.base import Model, get_model
+from ..models.base import Model
 from ..params import ChainParams
-from ..state import check_state, column
+from ..state import check_state
 from . import dop853, long_orbits
 from .kit import Evaluation, EvaluationFailed, newton
 from .periodic import (
@@ -47,9 +47,6 @@ from .periodic import (
     HamiltonianOrbit,
     OrbitError,
     PeriodicOrbit,
-    _check_moment_and_turns,
-    _check_particle_turns,
-    _loaded_turns,
     _no_hamiltonian_convergence,
     _orbit_from,
     _System,
@@ -57,8 +54,7 @@ from .periodic import (
     _UndampedSystem,
     find_hamiltonian_orbit,
     hamiltonian_energy,
-    require_orbit_ends,
-    require_undamped,
+    hamiltonian_setup,
 )
 
 #: Step of the fourth-order central differences of the flow in the unfolding eps (a rate: 1/time).
@@ -134,21 +130,7 @@ def find_long_hamiltonian_orbit(
     OrbitError
         If Newton's method does not converge.
     """
-    model = get_model(model)
-    if not (isinstance(omega, (int, float)) and math.isfinite(omega) and omega > 0):
-        raise ValueError(f"omega must be a finite number > 0 (the rotating particle's mean angular velocity), got {omega!r}")
-    _check_moment_and_turns(1.0, turns)
-    for name, value in (("tol", tol), ("rtol", rtol), ("atol", atol)):
-        if not (math.isfinite(value) and value > 0):
-            raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    require_orbit_ends(params)
-    require_undamped(params)
-    if particle_turns is not None:
-        particle_turns = _check_particle_turns(params, particle, turns, 1.0, particle_turns)
-    elif isinstance(guess, PeriodicOrbit) and guess.particle_turns[column(params, particle)] == turns:
-        particle_turns = guess.particle_turns
-    else:
-        particle_turns = _loaded_turns(params, particle, turns, 1.0)
+    model, particle_turns = hamiltonian_setup(params, model, omega, guess, turns, particle, particle_turns, tol, rtol, atol)
     x0, v0 = (guess.x, guess.v) if isinstance(guess, PeriodicOrbit) else guess
     period = 2.0 * math.pi * turns / float(omega)
     base = _System(params, model, 0.0, particle)

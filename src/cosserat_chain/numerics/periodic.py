@@ -1431,6 +1431,33 @@ def hamiltonian_energy(params: ChainParams, model: str | Model, x: np.ndarray, v
     return float(0.5 * np.sum(inertia * pack(params, v) ** 2) + model.energy(params, x))
 
 
+def hamiltonian_setup(params, model, omega, guess, turns, particle, particle_turns, tol, rtol, atol) -> tuple[Model, np.ndarray]:
+    """The checked arguments of a Hamiltonian orbit's solve (:func:`find_hamiltonian_orbit`'s) and the turns of its particles.
+
+    The turns are ``particle_turns`` checked, else the guess's where it turns the particle as
+    often, else ``turns`` on the rotating particle alone.
+
+    Raises
+    ------
+    ValueError
+        For a non-positive or non-finite omega or tolerance, turns < 1, a damped chain or ends the shooting cannot take.
+    """
+    model = get_model(model)
+    if not (isinstance(omega, (int, float)) and math.isfinite(omega) and omega > 0):
+        raise ValueError(f"omega must be a finite number > 0 (the rotating particle's mean angular velocity), got {omega!r}")
+    _check_moment_and_turns(1.0, turns)
+    for name, value in (("tol", tol), ("rtol", rtol), ("atol", atol)):
+        if not (math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
+    require_orbit_ends(params)
+    require_undamped(params)
+    if particle_turns is not None:
+        return model, _check_particle_turns(params, particle, turns, 1.0, particle_turns)
+    if isinstance(guess, PeriodicOrbit) and guess.particle_turns[column(params, particle)] == turns:
+        return model, guess.particle_turns
+    return model, _loaded_turns(params, particle, turns, 1.0)
+
+
 @one_blas_thread
 def find_hamiltonian_orbit(
     params: ChainParams,
@@ -1493,21 +1520,7 @@ def find_hamiltonian_orbit(
     OrbitError
         If Newton's method does not converge.
     """
-    model = get_model(model)
-    if not (isinstance(omega, (int, float)) and math.isfinite(omega) and omega > 0):
-        raise ValueError(f"omega must be a finite number > 0 (the rotating particle's mean angular velocity), got {omega!r}")
-    _check_moment_and_turns(1.0, turns)
-    for name, value in (("tol", tol), ("rtol", rtol), ("atol", atol)):
-        if not (math.isfinite(value) and value > 0):
-            raise ValueError(f"{name} must be a finite number > 0, got {value!r}")
-    require_orbit_ends(params)
-    require_undamped(params)
-    if particle_turns is not None:
-        particle_turns = _check_particle_turns(params, particle, turns, 1.0, particle_turns)
-    elif isinstance(guess, PeriodicOrbit) and guess.particle_turns[column(params, particle)] == turns:
-        particle_turns = guess.particle_turns
-    else:
-        particle_turns = _loaded_turns(params, particle, turns, 1.0)
+    model, particle_turns = hamiltonian_setup(params, model, omega, guess, turns, particle, particle_turns, tol, rtol, atol)
     if isinstance(guess, PeriodicOrbit):
         x0, v0 = guess.x, guess.v
     else:
