@@ -12,6 +12,8 @@ neighbouring ones) turns k times per period T = 2 pi k / Omega while the others 
   coordinate at rest), whose turn at energy E takes T(E) = int_0^{2 pi} sqrt(m / (2 (E - V))) dphi
   (for V = 1 - cos phi the closed form 4 K(2/E) / sqrt(2 E)); the state (phi = 0,
   phi' = sqrt(2 (E - V(0)) / m)) is an orbit there.
+* :func:`held_rotor_energy` is the family's energy to first order in the coupling: the
+  rotor between neighbours held at rest.
 * :func:`roto_breather_family` continues it in the coupling (at fixed period, Newton at
   stepped values) up to the system's value, then in the period over the frequencies asked
   for (:func:`~cosserat_chain.numerics.shooting.continue_orbits`; conservative orbits by the
@@ -76,8 +78,11 @@ def _coordinate(system: System, which: int | str, what: str) -> int:
     return int(i)
 
 
-def rotor_potential(system: System, rotor: int | str, coupling: str) -> Callable[[np.ndarray], np.ndarray]:
+def rotor_potential(system: System, rotor: int | str, coupling: str | None) -> Callable[[np.ndarray], np.ndarray]:
     """The on-site potential V(phi) of the coordinate ``rotor`` turned alone, the coupling at 0 and every other at rest (V(0) = 0).
+
+    With ``coupling`` None the coupling keeps its value: V is then the potential of the rotor
+    between neighbours held at rest (:func:`held_rotor_energy`).
 
     From the torque F_rotor sampled at :data:`~.anti_continuum.POTENTIAL_POINTS` angles and
     integrated as a Fourier series (:func:`~.anti_continuum.potential_from_torque`), so it needs
@@ -90,7 +95,7 @@ def rotor_potential(system: System, rotor: int | str, coupling: str) -> Callable
         For a rotor that is not an angle, or a torque with a non-zero mean.
     """
     i = _coordinate(system, rotor, "rotor")
-    alone = system.with_parameters(**{coupling: 0.0})
+    alone = system if coupling is None else system.with_parameters(**{coupling: 0.0})
     q = np.zeros(system.size)
     torque = np.empty(POTENTIAL_POINTS)
     for j, angle in enumerate(sample_angles()):
@@ -157,6 +162,51 @@ def anti_continuum_orbit(system: System, omega: float, rotors: Mapping[int | str
         y0[system.size + i] = math.copysign(math.sqrt(2.0 * energy / mass[i]), k)
         energies[i] = energy
     return AntiContinuum(y0=y0, period=period, turns=turns, energies=energies)
+
+
+def held_rotor_energy(system: System, omega: float, *, rotor: int | str | None = None, turns: int = 1) -> float:
+    """The energy of the one-site roto-breather at frequency ``omega`` to first order in the coupling.
+
+    The rotor turning between neighbours held at rest, in the potential V_C of the system at
+    its coupling (:func:`rotor_potential` with ``coupling`` None), plus the energy of the
+    lattice at rest: E(Omega, C) = E_C(Omega) + O(C^2), the anti-continuum expansion of the
+    frequency-energy relation (the neighbours move by O(C), which changes the energy at fixed
+    period by O(C^2); derivation in the docs, "Roto-breathers" > "An analytic value"). For the
+    Takeno-Peyrard lattice V_C = (1 + 2 C)(1 - cos phi) and E_C(Omega) = (1 + 2 C) E_0(Omega /
+    sqrt(1 + 2 C)), E_0 the free pendulum's.
+
+    Parameters
+    ----------
+    system : System
+        Undriven (its torque has zero mean over a turn).
+    omega : float
+        Mean angular velocity of the rotor: one turn takes 2 pi / omega.
+    rotor : int or str, optional
+        The turning coordinate (default the central angle).
+    turns : int
+        Turns per period (the energy depends on the turn time 2 pi / omega only).
+
+    Raises
+    ------
+    BreatherError
+        For omega not finite and > 0, a rotor that is not an angle, or a driven rotor.
+    """
+    if not (isinstance(omega, float | int) and math.isfinite(omega) and omega > 0):
+        raise BreatherError(f"omega must be a finite number > 0, got {omega!r}")
+    if not (isinstance(turns, int) and not isinstance(turns, bool) and turns != 0):
+        raise BreatherError(f"turns must be a non-zero integer, got {turns!r}")
+    if rotor is None:
+        angles = np.flatnonzero(system.angles)
+        if not angles.size:
+            raise BreatherError(f"{system.name} has no angle: nothing can turn")
+        rotor = int(angles[angles.size // 2])
+    i = _coordinate(system, rotor, "rotor")
+    try:
+        energy = rotor_energy(rotor_potential(system, i, None), float(system.mass()[i]), 2 * math.pi / omega)
+    except ValueError as err:
+        raise BreatherError(str(err)) from None
+    rest = system.energy(np.zeros(system.size))
+    return energy + (0.0 if rest is None else float(rest))
 
 
 # -- bands and resonances ---------------------------------------------------------------------
