@@ -85,7 +85,7 @@ def breathers(
     system_only_or_exit(ctx, ("sets", "coupling"))
     import numpy as np
 
-    from ..experiments.breathers import lifetime, roto_breather_family
+    from ..experiments.breathers import roto_breather_family
     from ..numerics.periodic import OrbitError
 
     if counter and partner is None:
@@ -105,7 +105,11 @@ def breathers(
         fail(str(err), code=3)
     family = result.family
     bar.finish(note="" if family.complete else "the family ended early")
-    lives = [lifetime(o, max_periods=lifetimes).as_dict() for o in family.orbits] if lifetimes else None
+    lives = None
+    if lifetimes:
+        bar = progress_bar("lifetimes", "orbit")
+        lives = [life.as_dict() for life in result.measure_lifetimes(lifetimes, progress=bar_callback(bar))]
+        bar.finish()
     if out is not None:  # the Dataset (and xarray) only for a file: --json alone starts quickly
         save_dataset(result.to_dataset(), out)
     if plot is not None:
@@ -113,8 +117,6 @@ def breathers(
 
         save_figure(breather_family_figure(result), plot)
     summary = result.as_dict()
-    if lives is not None:
-        summary["lifetimes"] = lives
     if as_json:
         typer.echo(json.dumps({"params": params.model_dump(), **summary}))
         return

@@ -220,7 +220,39 @@ class BreatherFamily:
     bands: tuple[str, ...]
     resonances: list[Resonance]
     settings: dict = field(default_factory=dict)
+    lifetimes: list[Lifetime] | None = None
     _tail: np.ndarray | None = field(default=None, init=False, repr=False)
+
+    def measure_lifetimes(
+        self, max_periods: int, *, perturbation: float = 1e-8, threshold: float = 1e-2, progress: ProgressCallback | None = None
+    ) -> list[Lifetime]:
+        """Run every member from its perturbed orbit (:func:`lifetime`) and keep the lifetimes with the family.
+
+        They go into :meth:`as_dict` (``lifetimes``), :meth:`to_dataset` and the family's figure.
+
+        Parameters
+        ----------
+        max_periods : int
+            Length of each run in periods.
+        perturbation, threshold : float
+            Of :func:`lifetime`.
+        progress : callable(done, total), optional
+            Called after each member.
+
+        Raises
+        ------
+        ValueError
+            As :func:`lifetime` does.
+        """
+        orbits = self.family.orbits
+        out = []
+        for i, orbit in enumerate(orbits):
+            out.append(lifetime(orbit, perturbation=perturbation, threshold=threshold, max_periods=max_periods))
+            if progress is not None:
+                progress(i + 1, len(orbits))
+        self.lifetimes = out
+        self.settings["lifetime"] = {"max_periods": max_periods, "perturbation": perturbation, "threshold": threshold}
+        return out
 
     def resonant_harmonics(self) -> list[list[tuple[int, str]]]:
         """For every orbit, the harmonics n Omega inside a driven band."""
@@ -271,6 +303,7 @@ class BreatherFamily:
             "resonant_harmonics": [[{"harmonic": n, "band": b} for n, b in h] for h in self.resonant_harmonics()],
             "combination_resonances": [[{"harmonic": n, "bands": [a, b]} for n, a, b in h] for h in self.combination_resonances()],
             "resonances": [r.as_dict() for r in self.resonances],
+            **({} if self.lifetimes is None else {"lifetimes": [life.as_dict() for life in self.lifetimes]}),
         }
 
     def to_dataset(self) -> xr.Dataset:
@@ -304,6 +337,21 @@ class BreatherFamily:
         ds["omega"].attrs.update(units="rad", long_name="mean angular velocity Omega = 2 pi k / T of the rotating particle")
         ds["energy"].attrs.update(units="1", long_name="total energy of the orbit (NaN: the model has no energy)")
         ds["tail_amplitude"].attrs.update(units="1", long_name="largest |u|, |v|, |phi| of the non-rotating particles over a period")
+        if self.lifetimes is not None:
+            lives = self.lifetimes
+            ds["lifetime_periods"] = (
+                "point",
+                np.array([math.nan if life.periods is None else life.periods for life in lives], dtype=float),
+            )
+            ds["lifetime_periods"].attrs.update(
+                units="1", long_name="periods of a direct run from the perturbed orbit until it left it (NaN: it stayed for the whole run)"
+            )
+            ds["growth_per_period"] = ("point", np.array([life.growth_per_period for life in lives]))
+            ds["growth_per_period"].attrs.update(units="1", long_name="growth of the deviation per period in the direct run")
+            ds["predicted_lifetime_periods"] = ("point", np.array([life.predicted_periods for life in lives]))
+            ds["predicted_lifetime_periods"].attrs.update(
+                units="1", long_name="ln(threshold / perturbation) / ln max|mu| (NaN: a stable orbit); the run's settings in settings_json"
+            )
         ds.attrs.update(run_attributes(params, get_model(orbits[0].model), moment_load(0.0, orbits[0].particle)))
         ds.attrs.update(
             {
@@ -415,18 +463,27 @@ class Lifetime:
         (NaN where the deviation never grows that far).
     period : float
         The orbit's period T.
+    predicted_periods : float
+        ln(threshold / perturbation) / ln max|mu|: the periods the largest multiplier needs to
+        grow the perturbation to the threshold (NaN for a stable orbit).
+    run_periods : int
+        Length of the run in periods (a lifetime of None means beyond it).
     """
 
     deviation: np.ndarray
     periods: int | None
     growth_per_period: float
     period: float
+    predicted_periods: float = math.nan
+    run_periods: int = 0
 
     def as_dict(self) -> dict:
         return {
             "lifetime_periods": self.periods,
             "lifetime": None if self.periods is None else self.periods * self.period,
             "growth_per_period": None if not math.isfinite(self.growth_per_period) else self.growth_per_period,
+            "predicted_periods": None if not math.isfinite(self.predicted_periods) else self.predicted_periods,
+            "run_periods": self.run_periods,
         }
 
 
@@ -484,7 +541,12 @@ def lifetime(
     growth = math.nan
     if window.size >= 2 and window[-1] > window[0]:
         growth = float((deviation[window[-1]] / deviation[window[0]]) ** (1.0 / (window[-1] - window[0])))
-    return Lifetime(deviation=deviation, periods=int(lost[0]) if lost.size else None, growth_per_period=growth, period=orbit.period)
+    mu = orbit.max_multiplier
+    predicted = math.log(threshold / perturbation) / math.log(mu) if not orbit.stable and mu > 1.0 else math.nan
+    return Lifetime(
+        deviation=deviation, periods=int(lost[0]) if lost.size else None, growth_per_period=growth, period=orbit.period,
+        predicted_periods=predicted, run_periods=max_periods,
+    )  # fmt: skip
 
 
 @dataclass

@@ -5,7 +5,9 @@ Contract
 :func:`breather_family_figure` draws, from a computed
 :class:`~cosserat_chain.experiments.breathers.BreatherFamily`, the amplitude of the
 non-rotating particles (the tail) and the largest Floquet multiplier modulus against
-Omega (stable orbits filled, unstable open), with the frequency windows where a harmonic
+Omega (stable orbits filled, unstable open), and, where the family's lifetimes were measured
+(:meth:`~cosserat_chain.experiments.breathers.BreatherFamily.measure_lifetimes`), each member's
+lifetime in periods against ln(threshold / eps) / ln max|mu|, with the frequency windows where a harmonic
 n Omega lies in a driven band shaded and the resonances n Omega = band edge as dotted
 lines. :func:`breather_atlas_figure` draws the existence map of a
 :class:`~cosserat_chain.experiments.breather_atlas.BreatherAtlas` over (Omega, field): stable
@@ -42,7 +44,12 @@ def breather_family_figure(result: BreatherFamily) -> Figure:
     """
     family = result.family
     omega = family.omega
-    fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(6.4, 5.6))
+    lives = result.lifetimes
+    if lives is None:
+        fig, (top, bottom) = plt.subplots(2, 1, sharex=True, figsize=(6.4, 5.6))
+    else:
+        fig, (top, bottom, below) = plt.subplots(3, 1, sharex=True, figsize=(6.4, 7.8))
+        _lifetimes_panel(below, omega, lives)
     stable = family.stable
     top.plot(omega, result.localization(), color="k", lw=1)
     bottom.plot(omega, family.max_multiplier, color="k", lw=1)
@@ -75,11 +82,24 @@ def breather_family_figure(result: BreatherFamily) -> Figure:
     top.set_ylabel("tail amplitude (max |q| off the rotor)")
     bottom.set_ylabel("max nontrivial |μ|")
     bottom.set_yscale("log")
-    bottom.set_xlabel("Ω (mean angular velocity of the rotor)")
+    (bottom if lives is None else below).set_xlabel("Ω (mean angular velocity of the rotor)")
     bottom.legend(fontsize=7)
     top.set_xlim(low - 0.05 * span, high + 0.05 * span)
     fig.tight_layout()
     return fig
+
+
+def _lifetimes_panel(ax, omega: np.ndarray, lives: list) -> None:
+    """Lifetime in periods against Omega: lost members filled, survivors as a triangle at the run's length, ln(threshold/eps)/ln|mu| crossed."""
+    lost = np.array([life.periods is not None for life in lives])
+    periods = np.array([life.run_periods if life.periods is None else life.periods for life in lives], dtype=float)
+    predicted = np.array([life.predicted_periods for life in lives])
+    ax.scatter(omega[lost], periods[lost], color="k", s=14, label="lifetime (direct run)")
+    ax.scatter(omega[~lost], periods[~lost], marker="^", color="tab:green", s=18, label="stayed for the whole run")
+    ax.scatter(omega, predicted, marker="x", color="tab:red", s=16, label="ln(threshold/ε) / ln max|μ|")
+    ax.set_yscale("log")
+    ax.set_ylabel("lifetime (periods)")
+    ax.legend(fontsize=7)
 
 
 #: Harmonics n whose windows n Omega in a band the atlas figure shades.
