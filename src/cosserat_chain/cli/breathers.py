@@ -68,10 +68,25 @@ def breathers(
     if omega is None:
         fail("give --omega, the rotating particle's frequency to start from (or --from-moment M for the damped-to-undamped homotopy)")
     if atlas is not None:
-        if system is not None or partner is not None or lifetimes:
-            fail("--atlas maps one-site roto-breathers of the chain: leave out --system, --partner and --lifetimes")
-        return _atlas(atlas, model, omega, to, steps, turns=turns, particle=particle, method=method, config=config, out=out, plot=plot,
-                      as_json=as_json)  # fmt: skip
+        if lifetimes:
+            fail("--atlas maps existence and stability: leave out --lifetimes (a family's lifetimes come without --atlas)")
+        if counter and partner is None:
+            fail("--counter sets the partner's direction: give --partner as well")
+        if system is not None:
+            import numpy as np
+
+            from .system_breathers import atlas_on_system
+
+            chain_only_or_exit(ctx, ("omega", "to", "steps", "turns", "particle", "partner", "counter", "config", "out", "plot", "as_json",
+                                     "sets", "coupling", "atlas"))  # fmt: skip
+            omegas = [omega] if to is None else [float(w) for w in np.linspace(omega, to, steps)]
+            return atlas_on_system(
+                system, atlas, config=config, sets=sets, omegas=omegas, turns=turns, particle=particle, partner=partner, counter=counter,
+                coupling=coupling, out=out, plot=plot, as_json=as_json,
+            )  # fmt: skip
+        system_only_or_exit(ctx, ("sets", "coupling"))
+        return _atlas(atlas, model, omega, to, steps, turns=turns, particle=particle, partner=partner, counter=counter, method=method,
+                      config=config, out=out, plot=plot, as_json=as_json)  # fmt: skip
     if method != "auto":
         fail("--method chooses the atlas's shooting: give --atlas FIELD=V1,V2,... as well")
     if system is not None:
@@ -139,14 +154,15 @@ def breathers(
         typer.echo(family.message)
 
 
-def _atlas_values(text: str) -> tuple[str, list[float]]:
-    """FIELD and its values from ``FIELD=V1,V2,...``; exit 2 naming what is wrong."""
+def _atlas_values(text: str, fields: tuple[str, ...] | None = None) -> tuple[str, list[float]]:
+    """FIELD and its values from ``FIELD=V1,V2,...`` (FIELD among ``fields``, default the chain's); exit 2 naming what is wrong."""
     from ..experiments.breather_atlas import ATLAS_FIELDS
 
+    fields = ATLAS_FIELDS if fields is None else fields
     name, sep, listed = text.partition("=")
     name = name.strip()
-    if not sep or name not in ATLAS_FIELDS:
-        fail(f"--atlas must be FIELD=V1,V2,... with FIELD one of {', '.join(ATLAS_FIELDS)}, got {text!r}")
+    if not sep or name not in fields:
+        fail(f"--atlas must be FIELD=V1,V2,... with FIELD one of {', '.join(fields)}, got {text!r}")
     try:
         values = [float(item) for item in listed.split(",") if item.strip()]
     except ValueError:
@@ -157,10 +173,10 @@ def _atlas_values(text: str) -> tuple[str, list[float]]:
 
 
 def _atlas(
-    text: str, model: str, omega: float, to: float | None, steps: int, *, turns: int, particle: int, method: str,
-    config: Path | None, out: Path | None, plot: Path | None, as_json: bool,
+    text: str, model: str, omega: float, to: float | None, steps: int, *, turns: int, particle: int, partner: int | None, counter: bool,
+    method: str, config: Path | None, out: Path | None, plot: Path | None, as_json: bool,
 ) -> None:  # fmt: skip
-    """``breathers --atlas``: the existence map over (Omega, a field)."""
+    """``breathers --atlas``: the existence map over (Omega, a field), of one rotor or of two (``partner``, against it with ``counter``)."""
     import numpy as np
 
     from ..experiments.breather_atlas import breather_atlas
@@ -173,8 +189,18 @@ def _atlas(
     omegas = np.array([omega]) if to is None else np.linspace(omega, to, steps)
     bar = progress_bar(f"atlas {model} {name}", "orbit")
     try:
+        partners = None if partner is None else {partner: -turns if counter else turns}
         result = breather_atlas(
-            params, model, omegas, name, values, turns=turns, particle=particle, method=method, progress=bar_callback(bar)
+            params,
+            model,
+            omegas,
+            name,
+            values,
+            turns=turns,
+            particle=particle,
+            method=method,
+            partners=partners,
+            progress=bar_callback(bar),
         )
     except ValueError as err:
         bar.close()

@@ -6,8 +6,100 @@ from pathlib import Path
 
 import typer
 
-from .common import bar_callback, fail, outputs_or_exit, progress_bar, save_dataset
+from .common import bar_callback, fail, outputs_or_exit, progress_bar, save_dataset, save_figure
 from .systems import _echo_json, system_or_exit
+
+
+def _angle_or_exit(system, offset: int | None, option: str) -> int | None:
+    """The system's angle ``offset`` places from its central one (None for None); exit 2 if it is off the system."""
+    import numpy as np
+
+    if offset is None:
+        return None
+    angles = np.flatnonzero(system.angles)
+    index = angles.size // 2 + offset
+    if not 0 <= index < angles.size:
+        fail(
+            f"{option} {offset} is off the system: its {angles.size} angles count from {-(angles.size // 2)} "
+            f"to {angles.size - 1 - angles.size // 2} about the central one"
+        )
+    return int(angles[index])
+
+
+def atlas_on_system(
+    reference: str,
+    text: str,
+    *,
+    config: Path | None,
+    sets: list[str] | None,
+    omegas: list[float],
+    turns: int,
+    particle: int,
+    partner: int | None,
+    counter: bool,
+    coupling: str,
+    out: Path | None,
+    plot: Path | None,
+    as_json: bool,
+) -> None:
+    """``breathers --system REF --atlas NAME=V1,V2,...``: the existence map over (Omega, a parameter of the system).
+
+    ``text`` names one of the system's parameters and its values; ``particle`` and ``partner``
+    count its angles from the central one. The outputs are checked (and locked) before anything
+    is computed. Exit 2 on bad input.
+    """
+    import numpy as np
+
+    from ..experiments.system_breather_atlas import system_breather_atlas
+    from ..experiments.system_breathers import BreatherError
+    from ..systems import SystemDefinitionError
+    from .breathers import _atlas_values
+
+    outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
+    system = system_or_exit(reference, config, sets)
+    if not np.flatnonzero(system.angles).size:
+        fail(f"--system {reference}: {system.name} has no angle coordinate: nothing can turn")
+    name, values = _atlas_values(text, tuple(system.parameters))
+    rotor = _angle_or_exit(system, particle, "--particle")
+    other = _angle_or_exit(system, partner, "--partner")
+    if other == rotor:
+        fail(f"--partner {partner} is the rotating one (--particle {particle}): give a neighbour, e.g. --partner {particle + 1}")
+    bar = progress_bar(f"atlas {system.name} {name}", "orbit")
+    try:
+        atlas = system_breather_atlas(
+            system, omegas, name, values, rotor=rotor, partner=other, counter=counter, turns=turns, coupling=coupling,
+            progress=bar_callback(bar),
+        )  # fmt: skip
+    except (BreatherError, SystemDefinitionError) as err:
+        bar.close()
+        fail(str(err))
+    found = int(atlas.grid("exists").sum())
+    bar.finish(note=f"{found} of {len(omegas) * len(values)} found")
+    if out is not None:
+        save_dataset(atlas.to_dataset(reference), out)
+    if plot is not None:
+        from ..plots.breathers import system_atlas_figure
+
+        save_figure(system_atlas_figure(atlas), plot)
+    if as_json:
+        _echo_json({"reference": reference, **atlas.as_dict()})
+        return
+    rotors = ", ".join(f"{system.coordinates[i]} ({k:+d} turns)" for i, k in atlas.rotors.items())
+    typer.echo(f"{system.name}: roto-breathers of {rotors} over Omega and {name}: {found} of {len(omegas) * len(values)} found")
+    typer.echo(f"{name:>8}  {'omega':>8}  {'from':>14}  {'energy':>12}  {'max |mu|':>10}  stable  {'PR':>6}  {'xi':>6}  {'max |q|':>8}")
+    for row in atlas.points:
+        for p in row:
+            if p.orbit is None:
+                typer.echo(f"{p.value:>8.4g}  {p.omega:>8.4g}  {'not found':>14}")
+                continue
+            loc, energy = p.localization, p.as_dict()["energy"]
+            typer.echo(
+                f"{p.value:>8.4g}  {p.omega:>8.4g}  {p.source:>14}  {'-' if energy is None else f'{energy:.8g}':>12}  "
+                f"{p.orbit.max_multiplier:>10.6g}  {'yes' if p.orbit.stable else 'no':>6}  {loc.participation_ratio:>6.3g}  "
+                f"{loc.length:>6.3g}  {loc.amplitude:>8.3g}"
+            )
+    for value, bands in zip(atlas.values, atlas.bands(), strict=True):
+        typer.echo(f"bands at {name} = {value:g}: " + ", ".join(f"[{b:.6g}, {t:.6g}]" for b, t in bands))
 
 
 def breathers_on_system(

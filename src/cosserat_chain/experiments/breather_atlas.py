@@ -49,7 +49,7 @@ from __future__ import annotations
 import json
 import math
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -63,7 +63,7 @@ from ..numerics.long_breathers import SolvedBreather, find_breather_orbit
 from ..numerics.periodic import HamiltonianOrbit, OrbitError, require_undamped
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column
-from .breathers import MAX_HARMONIC, TAIL_SAMPLES, anti_continuum_state, combination_resonances, coupled_bands, harmonics_in_bands
+from .breathers import MAX_HARMONIC, TAIL_SAMPLES, combination_resonances, coupled_bands, harmonics_in_bands, rotors_start
 from .simulation import run_attributes
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built
@@ -414,9 +414,10 @@ def breather_atlas(
     turns: int = 1,
     particle: int = 0,
     method: str = "auto",
+    partners: Mapping[int, int] | None = None,
     progress: ProgressCallback | None = None,
 ) -> BreatherAtlas:
-    """One-site roto-breathers over the grid ``values`` x ``omegas`` (module docstring).
+    """Roto-breathers over the grid ``values`` x ``omegas`` (module docstring): one-site, or multi-site with ``partners``.
 
     Parameters
     ----------
@@ -436,6 +437,9 @@ def breather_atlas(
         The rotor's turns per period and its particle.
     method : {"auto", "dense", "blocks"}
         Of :func:`~cosserat_chain.numerics.long_breathers.find_breather_orbit`.
+    partners : {particle: signed turns}, optional
+        More rotors (:func:`~.breathers.rotors_start`): ``{1: turns}`` turns particle 1 with the
+        first rotor (in phase), ``{1: -turns}`` against it (out of phase).
     progress : callable(done, total), optional
         Called after each point.
 
@@ -466,6 +470,8 @@ def breather_atlas(
         except ValueError as err:  # pydantic's ValidationError: its messages without the framework's wording
             reasons = [e["msg"].removeprefix("Value error, ") for e in err.errors()] if hasattr(err, "errors") else [str(err)]
             raise ValueError(f"values of {field}: the chain refuses {field}={float(value)!r}: {'; '.join(reasons)}") from None
+    partners = dict(partners or {})
+    particle_turns = rotors_start(chains[0], model, float(omegas[0]), turns=turns, particle=particle, partners=partners)[3]
     found: list[list[SolvedBreather | None]] = [[None] * omegas.size for _ in values]
     points: list[list[AtlasPoint]] = []
     total = values.size * omegas.size
@@ -484,14 +490,16 @@ def breather_atlas(
                 first = found[j - 2][i] if j >= 2 else None
                 r = 0.0 if first is None else (values[j] - values[j - 1]) / (values[j - 1] - values[j - 2])
                 starts.append(("field", _secant(None if first is None else first.orbit, last.orbit, r), last.jacobian))
-            starts.append(("anti_continuum", anti_continuum_state(chain, model, float(omega), particle=particle)[:2], None))
+            starts.append(
+                ("anti_continuum", rotors_start(chain, model, float(omega), turns=turns, particle=particle, partners=partners)[:2], None)
+            )
             point = AtlasPoint(float(omega), float(values[j]), "none")
             messages = []
             for source, guess, jacobian in starts:
                 try:
                     solved = find_breather_orbit(
-                        chain, model, float(omega), guess, method=method, turns=turns, particle=particle, max_iter=ATLAS_MAX_ITER,
-                        jacobian0=jacobian, contraction=ATLAS_CONTRACTION,
+                        chain, model, float(omega), guess, method=method, turns=turns, particle=particle, particle_turns=particle_turns,
+                        max_iter=ATLAS_MAX_ITER, jacobian0=jacobian, contraction=ATLAS_CONTRACTION,
                     )  # fmt: skip
                 except OrbitError as err:
                     messages.append(f"from {source}: {err}")
@@ -506,6 +514,8 @@ def breather_atlas(
                 progress(j * omegas.size + i + 1, total)
         points.append(row)
     settings = {"model": model.name, "field": field, "turns": turns, "particle": particle, "method": method}
+    if partners:
+        settings["partners"] = {str(k): t for k, t in partners.items()}
     return BreatherAtlas(params, model.name, field, values, omegas, points, coupled_bands(params, model, particle), settings)
 
 

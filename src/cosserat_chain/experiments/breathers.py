@@ -135,6 +135,46 @@ def anti_continuum_state(
     return x, v, float(energy)
 
 
+def rotors_start(
+    params: ChainParams, model: str | Model, omega: float, *, turns: int = 1, particle: int = 0, partners: Mapping[int, int] | None = None
+) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+    """The anti-continuum start of a one- or multi-site roto-breather: each rotor alone in its on-site potential.
+
+    ``particle`` turns ``turns`` times per period, each of ``partners`` (particle: signed
+    turns) its own, starting at phi = 0 with the velocity of its anti-continuum rotor at its
+    rate; every other particle is at rest.
+
+    Returns
+    -------
+    x, v : ndarray (3, 2N+1)
+    energy : float
+        The first rotor's energy.
+    particle_turns : ndarray (2N+1,) of int
+        Every particle's signed turns per period.
+
+    Raises
+    ------
+    ValueError
+        As :func:`anti_continuum_state`, or for a partner that is the rotor or has no non-zero integer turns.
+    """
+    model = get_model(model)
+    x, v, energy = anti_continuum_state(params, model, omega, particle=particle)
+    particle_turns = np.zeros(params.n_particles, dtype=np.int64)
+    particle_turns[column(params, particle)] = turns
+    for other, other_turns in (partners or {}).items():
+        if other == particle or not isinstance(other_turns, int) or isinstance(other_turns, bool) or other_turns == 0:
+            raise ValueError(
+                f"partners must map particles other than the rotating one ({particle}) to non-zero integer turns, "
+                f"got {other!r}: {other_turns!r}"
+            )
+        rate = omega * abs(other_turns) / turns
+        v[ROW_INDEX["phi"], column(params, other)] = math.copysign(
+            anti_continuum_state(params, model, rate, particle=other)[1][ROW_INDEX["phi"], column(params, other)], other_turns
+        )
+        particle_turns[column(params, other)] = other_turns
+    return x, v, energy, particle_turns
+
+
 @dataclass(frozen=True)
 class Resonance:
     """A harmonic of the rotation meeting a band edge: n Omega = edge."""
@@ -415,20 +455,7 @@ def roto_breather_family(
     if omegas.ndim != 1 or omegas.size == 0 or not np.all(np.isfinite(omegas)) or np.any(omegas <= 0):
         raise ValueError(f"omegas must be one or more finite frequencies > 0, got {omegas.tolist()!r}")
     partners = dict(partners or {})
-    x, v, energy = anti_continuum_state(params, model, float(omegas[0]), particle=particle)
-    particle_turns = np.zeros(params.n_particles, dtype=np.int64)
-    particle_turns[column(params, particle)] = turns
-    for other, other_turns in partners.items():
-        if other == particle or not isinstance(other_turns, int) or isinstance(other_turns, bool) or other_turns == 0:
-            raise ValueError(
-                f"partners must map particles other than the rotating one ({particle}) to non-zero integer turns, "
-                f"got {other!r}: {other_turns!r}"
-            )
-        rate = float(omegas[0]) * abs(other_turns) / turns
-        v[ROW_INDEX["phi"], column(params, other)] = math.copysign(
-            anti_continuum_state(params, model, rate, particle=other)[1][ROW_INDEX["phi"], column(params, other)], other_turns
-        )
-        particle_turns[column(params, other)] = other_turns
+    x, v, energy, particle_turns = rotors_start(params, model, float(omegas[0]), turns=turns, particle=particle, partners=partners)
     first = find_hamiltonian_orbit(params, model, float(omegas[0]), (x, v), turns=turns, particle=particle, particle_turns=particle_turns)
     family = continue_in_frequency(first, omegas, progress=progress)
     settings = {"model": model.name, "turns": turns, "particle": particle, "partners": partners, "params": params.model_dump()}

@@ -12,11 +12,15 @@ n Omega lies in a driven band shaded and the resonances n Omega = band edge as d
 lines. :func:`breather_atlas_figure` draws the existence map of a
 :class:`~cosserat_chain.experiments.breather_atlas.BreatherAtlas` over (Omega, field): stable
 orbits filled, unstable open, none found crossed, coloured by their participation ratio, on the
-windows n Omega inside a driven band (n = 1..3) shaded between the edges' harmonics. Neither
-computes anything itself.
+windows n Omega inside a driven band (n = 1..3) shaded between the edges' harmonics;
+:func:`system_atlas_figure` the same map of a user system's
+:class:`~cosserat_chain.experiments.system_breather_atlas.SystemBreatherAtlas`, against its
+bands about rest. None computes anything itself.
 """
 
 from __future__ import annotations
+
+from typing import TYPE_CHECKING
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -25,6 +29,9 @@ from matplotlib.figure import Figure
 from ..analysis.dispersion import wave_summary
 from ..experiments.breather_atlas import BreatherAtlas
 from ..experiments.breathers import BreatherFamily
+
+if TYPE_CHECKING:  # only its type: a user system's atlas is drawn from the object handed in
+    from ..experiments.system_breather_atlas import SystemBreatherAtlas
 
 #: One colour per band of :data:`~cosserat_chain.analysis.dispersion.BRANCHES`.
 BAND_COLORS = {"longitudinal": "tab:green", "transverse_acoustic": "tab:blue", "rotational_optical": "tab:red"}
@@ -150,5 +157,56 @@ def breather_atlas_figure(atlas: BreatherAtlas) -> Figure:
     ax.set_ylabel(atlas.field)
     ax.set_title(f"roto-breathers, {atlas.model} model, N = {atlas.params.N}", fontsize=9)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3)  # below the axes: inside, it hides points
+    fig.tight_layout()
+    return fig
+
+
+def system_atlas_figure(atlas: SystemBreatherAtlas) -> Figure:
+    """A user system's existence map over (Omega, parameter value) against its bands' harmonics.
+
+    Parameters
+    ----------
+    atlas : SystemBreatherAtlas
+
+    Returns
+    -------
+    Figure
+    """
+    fig, ax = plt.subplots(figsize=(7.0, 4.8))
+    values, omegas = atlas.values, atlas.omegas
+    order = np.argsort(values)
+    bands = atlas.bands()
+    low, high = float(omegas.min()), float(omegas.max())
+    span = max(high - low, 1e-3)
+    for b in range(max((len(row) for row in bands), default=0)):
+        edges = np.array([bands[j][b] if b < len(bands[j]) else (np.nan, np.nan) for j in order])
+        color = plt.get_cmap("tab10")(b % 10)
+        for n in range(1, ATLAS_HARMONICS + 1):
+            bottom, top = edges[:, 0] / n, edges[:, 1] / n
+            if np.all(~(top >= low - 0.05 * span)) or np.all(~(bottom <= high + 0.05 * span)):
+                continue
+            ax.fill_betweenx(values[order], bottom, top, color=color, alpha=0.15, lw=0)
+            ax.text(float(np.nanmean(0.5 * (bottom + top))), float(values[order][-1]), f"{n}Ω", fontsize=7, ha="center", va="bottom",
+                    color=color)  # fmt: skip
+        ax.plot([], [], color=color, alpha=0.4, lw=6, label=f"n Ω in band {b}")
+    exists = atlas.grid("exists") > 0
+    stable = atlas.grid("stable") > 0
+    ratio = atlas.grid("participation_ratio")
+    om, va = np.meshgrid(omegas, values)
+    finite = ratio[exists]
+    norm = plt.Normalize(float(finite.min()), float(finite.max()) + 1e-12) if finite.size else None
+    filled = ax.scatter(om[exists & stable], va[exists & stable], c=ratio[exists & stable], cmap="viridis", norm=norm, s=30,
+                        edgecolor="k", label="stable")  # fmt: skip
+    ax.scatter(om[exists & ~stable], va[exists & ~stable], facecolor="none", edgecolor=plt.get_cmap("viridis")(norm(ratio[exists & ~stable]))
+               if norm else "k", s=30, lw=1.5, label="unstable")  # fmt: skip
+    ax.scatter(om[~exists], va[~exists], marker="x", color="0.4", s=20, label="not found")
+    if finite.size:
+        fig.colorbar(filled, ax=ax, label="participation ratio of the kinetic energies")
+    rotors = ", ".join(f"{atlas.system.coordinates[i]} ({k:+d})" for i, k in atlas.rotors.items())
+    ax.set_xlim(low - 0.05 * span, high + 0.05 * span)
+    ax.set_xlabel("Ω (mean angular velocity of the first rotor)")
+    ax.set_ylabel(atlas.field)
+    ax.set_title(f"roto-breathers of {atlas.system.name}: {rotors}", fontsize=9)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3)
     fig.tight_layout()
     return fig
