@@ -64,6 +64,31 @@ def test_the_banded_stiffness_equals_the_sparse_one_bit_for_bit_at_random_states
         assert np.array_equal(band.toarray(), model.stiffness(params, x).toarray()), name
 
 
+@pytest.mark.parametrize("params", [*_ends(1), *_ends(3), *_ends(30), *random_geometries(4, seed=12)], ids=repr)
+def test_the_sine_models_banded_similar_equals_its_sparse_product_bit_for_bit_and_has_the_stiffness_eigenvalues(params):
+    """U C U^T assembled in the band is SciPy's product to the bit (padding zero), and similar to K C."""
+    x = random_state(params, 2.0, seed=params.N)  # angles beyond pi / 2: C has negative entries
+    model = get_model("sine")
+    band = model.symmetric_similar_band(params, x)
+    if params.rigid_modes:
+        assert band is None and model.symmetric_similar(params, x) is None
+        return
+    reference = BandMatrix.from_sparse(model.symmetric_similar(params, x)).data
+    assert np.array_equal(band.data, reference)
+    if params.N <= 3:
+        similar = np.sort(np.linalg.eigvalsh(band.toarray()))
+        direct = np.sort(np.linalg.eigvals(model.stiffness(params, x).toarray()).real)
+        assert np.allclose(similar, direct, rtol=1e-9, atol=1e-9 * np.abs(direct).max())
+
+
+def test_a_ring_has_no_banded_similar():
+    ring = ChainParams(N=3, periodic=True)
+    rest = np.zeros((3, ring.n_particles))
+    assert get_model("sine").symmetric_similar_band(ring, rest) is None
+    with pytest.raises(ValueError, match="half-bandwidth"):  # the Hessian's corner blocks
+        get_model("nonlinear").symmetric_similar_band(ring, rest)
+
+
 def test_bond_sums_assemble_what_their_six_by_six_blocks_assemble():
     # Each bond's block from its ten sums by the rule of BOND_SUMS (translations +-S, their
     # couplings to a rotation signed by the particle, the rotations alone), assembled by

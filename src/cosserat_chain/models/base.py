@@ -242,6 +242,20 @@ class Model(ABC):
         """
         return self.stiffness(params, x) if self.conservative else None
 
+    def symmetric_similar_band(self, params: ChainParams, x: np.ndarray) -> BandMatrix | None:
+        """:meth:`symmetric_similar` in band storage, or None where it is None (the statics' stability reads this).
+
+        By default the band of :meth:`symmetric_similar`; a model with a banded similar of its own
+        assembles it there (no sparse product between).
+
+        Raises
+        ------
+        ValueError
+            For a ring (its matrices are not banded).
+        """
+        similar = self.symmetric_similar(params, x)
+        return None if similar is None else BandMatrix.from_sparse(similar)
+
     def bond_energy(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         """Energy stored in every bond, for any number of configurations.
 

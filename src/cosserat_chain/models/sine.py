@@ -57,10 +57,54 @@ def _columns_scaled(band, scale):  # pragma: no cover - compiled
     return out
 
 
+@njit(cache=True, nogil=True)
+def _similar_band(columns, scale):  # pragma: no cover - compiled
+    """U C U^T in band storage (:class:`~cosserat_chain.linalg.BandMatrix`) from U's columns
+    (``columns[k, d] = U[k - B + d, k]``, :func:`_linear_factor_columns`) and C = diag(``scale``).
+
+    The sum of the rank-one terms (U[:, k] c_k) U[:, k]^T for k from the last column down:
+    each entry gets its products in the order of SciPy's CSR product ``U @ diags(c) @ U.T``
+    (the same bits), in fixed (B + 1) x (B + 1) blocks where that product and its conversion to
+    the band took most of the sine model's stability check on a long chain (benchmarks/TIMINGS.md).
+    Rows of U before the first are zero columns of ``columns``: their terms add zeros.
+    """
+    n = columns.shape[0]
+    out = np.zeros((n + 2 * BANDWIDTH, 2 * BANDWIDTH + 1))
+    for k in range(n - 1, -1, -1):
+        for da in range(BANDWIDTH + 1):
+            term = columns[k, da] * scale[k]
+            row = out[k + da]  # row BANDWIDTH + a of the storage, a = k - BANDWIDTH + da
+            for db in range(BANDWIDTH + 1):
+                row[BANDWIDTH + db - da] += term * columns[k, db]
+    return out
+
+
+@lru_cache(maxsize=16)
+def _linear_factor_bands(params: ChainParams) -> np.ndarray:
+    """U with U^T U the linear model's stiffness (banded Cholesky; constant per chain) in LAPACK's upper storage."""
+    return cholesky_banded(upper_bands(stiffness_matrix(params)))
+
+
+@lru_cache(maxsize=16)
+def _linear_factor_columns(params: ChainParams) -> np.ndarray:
+    """U's columns by rows, ``out[k, d] = U[k - B + d, k]`` (B = :data:`~cosserat_chain.linalg.BANDWIDTH`; zero
+    above the matrix and beyond U's band), for :func:`_similar_band`."""
+    bands = _linear_factor_bands(params)
+    width, n = bands.shape[0] - 1, bands.shape[1]
+    if width > BANDWIDTH:
+        raise ValueError(f"the linear stiffness has half-bandwidth {width}, more than the chain's {BANDWIDTH}")
+    columns = np.zeros((n, BANDWIDTH + 1))
+    columns[:, BANDWIDTH - width :] = bands.T
+    for k in range(min(BANDWIDTH, n)):
+        columns[k, : BANDWIDTH - k] = 0.0  # LAPACK leaves the storage above the matrix's first row unread
+    columns.flags.writeable = False
+    return columns
+
+
 @lru_cache(maxsize=16)
 def _linear_factor(params: ChainParams) -> sp.csr_matrix:
-    """U with U^T U the linear model's stiffness (banded Cholesky; constant per chain)."""
-    return from_upper_bands(cholesky_banded(upper_bands(stiffness_matrix(params))))
+    """U with U^T U the linear model's stiffness (:func:`_linear_factor_bands`) as a sparse matrix."""
+    return from_upper_bands(_linear_factor_bands(params))
 
 
 @lru_cache(maxsize=16)
@@ -170,6 +214,13 @@ class SineModel(Model):
             return None
         factor = _linear_factor(params)
         return (factor @ sp.diags(_chain_rule(params, x)) @ factor.T).tocsr()
+
+    def symmetric_similar_band(self, params: ChainParams, x: np.ndarray) -> BandMatrix | None:
+        """:meth:`symmetric_similar` assembled in band storage, O(N) (the same values bit for bit)."""
+        x = check_state(params, x)
+        if params.periodic or params.rigid_modes:
+            return None
+        return BandMatrix(_similar_band(_linear_factor_columns(params), _chain_rule(params, x)))
 
     def bond_energy(self, params: ChainParams, x: np.ndarray) -> np.ndarray:
         """The linear model's P_bond at (u, v, sin phi), shape (..., 2N) for x (..., 3, 2N+1).

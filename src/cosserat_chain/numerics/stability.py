@@ -167,7 +167,7 @@ def static_stability(
         similar = None
     counted = index if similar is not None else None  # a count of the caller's matrix only
     if similar is None and not (dense or params.periodic):
-        similar = model.symmetric_similar(params, x)
+        similar = model.symmetric_similar_band(params, x)
     if similar is not None:
         band = band_storage(similar)
         resolution = eigenvalue_resolution(similar)
@@ -369,9 +369,11 @@ def _stiffness_index(params: ChainParams, model: Model, x: np.ndarray, stiffness
     """Eigenvalues of K with a real part below minus its round-off (:func:`_resolution`; a rigid mode's zero is not
     negative): the inertia of its symmetric similar matrix where it has one (banded, or dense for a ring), else
     the dense eigenvalues of K (a registered model without one)."""
+    if not params.periodic:
+        similar = model.symmetric_similar_band(params, x)
+        if similar is not None:
+            return int(negative_count(band_storage(similar), -eigenvalue_resolution(similar)))
     similar = model.symmetric_similar(params, x)
-    if similar is not None and not params.periodic:
-        return int(negative_count(band_storage(similar), -eigenvalue_resolution(similar)))
     if similar is not None:
         return int(np.sum(la.eigvalsh(similar.toarray()) < -eigenvalue_resolution(similar)))
     return int(np.sum(la.eigvals(stiffness.toarray()).real < -eigenvalue_resolution(stiffness)))
