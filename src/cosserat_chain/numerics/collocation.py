@@ -47,6 +47,7 @@ mesh re-adapted and the phase reference renewed every few points, until the peri
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from collections.abc import Callable
@@ -55,6 +56,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.linalg as sla
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from numba import njit, types
 from scipy.optimize import brentq
 
@@ -160,9 +162,9 @@ def scheme(ncol: int) -> Scheme:
     x, w = np.polynomial.legendre.leggauss(ncol)
     points, weights = 0.5 * (x + 1.0), 0.5 * w
     coefficients = []
-    for l in range(ncol + 1):
-        others = np.delete(nodes, l)
-        coefficients.append(np.poly(others) / np.prod(nodes[l] - others))
+    for node in range(ncol + 1):
+        others = np.delete(nodes, node)
+        coefficients.append(np.poly(others) / np.prod(nodes[node] - others))
     coefficients = np.array(coefficients)
     values = np.array([[np.polyval(c, z) for c in coefficients] for z in points])
     slopes = np.array([[np.polyval(np.polyder(c), z) for c in coefficients] for z in points])
@@ -203,17 +205,19 @@ class _Fields:
     def nnz(self) -> int:
         return self.rows.size
 
-    def values(self, points: np.ndarray) -> np.ndarray:
-        """f at ``points`` (P, n)."""
+    def values(self, points: np.ndarray, moment: float) -> np.ndarray:
+        """f at ``points`` (P, n) under the moment ``moment``."""
         rhs, kernel, ends, coef, rpar, ipar = self._plain
+        rpar[0] = moment
         points = np.ascontiguousarray(points, dtype=float)
         out = np.empty_like(points)
         _batch(rhs, kernel, ends, coef, rpar, ipar, points, out)
         return out
 
-    def jacobian(self, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """f (P, n) and the values of A = df/dy on (:attr:`rows`, :attr:`cols`) (P, nnz) at ``points``."""
+    def jacobian(self, points: np.ndarray, moment: float) -> tuple[np.ndarray, np.ndarray]:
+        """f (P, n) and the values of A = df/dy on (:attr:`rows`, :attr:`cols`) (P, nnz) at ``points`` under ``moment``."""
         rhs, kernel, ends, coef, rpar, ipar = self._coloured
+        rpar[0] = moment
         count = points.shape[0]
         start = np.empty((count, self.n * (1 + SEEDS)))
         start[:, : self.n] = points
@@ -420,7 +424,9 @@ class _Collocation:
     Jacobian has its column.
     """
 
-    def __init__(self, system: periodic._System, mesh: np.ndarray, ncol: int, shift: np.ndarray, reference: np.ndarray, *, free_moment: bool):
+    def __init__(
+        self, system: periodic._System, mesh: np.ndarray, ncol: int, shift: np.ndarray, reference: np.ndarray, *, free_moment: bool
+    ):
         self.system = system
         self.fields = _Fields(system)
         self.mesh = np.asarray(mesh, dtype=float)
@@ -473,38 +479,34 @@ class _Collocation:
         w = np.append(self.scale * np.asarray(profile).ravel(), math.log(period))
         return np.append(w, moment) if self.free_moment else w
 
-    def unpack(self, w: np.ndarray) -> tuple[np.ndarray, float, periodic._System]:
+    def unpack(self, w: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """(profile (G, n), T, M) at w."""
         profile = w[: self.nodes * self.n].reshape(self.nodes, self.n) / self.scale
         period = math.exp(w[self.nodes * self.n])
-        system = self.system
-        if self.free_moment and w[-1] != system.moment:
-            system = periodic._System(system.params, system.model, float(w[-1]), system.particle)
-        return profile, period, system
-
-    def _fields_for(self, system: periodic._System) -> _Fields:
-        if system is self.system:
-            return self.fields
-        fields = _Fields(system)
-        return fields
+        return profile, period, float(w[-1]) if self.free_moment else self.system.moment
 
     def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
         """R(w) of (C) and, with ``jacobian``, dR/dw (CSC) and (the field's Jacobian values, T) as data."""
         if not np.all(np.isfinite(w)) or w[self.nodes * self.n] > 700.0:
             raise EvaluationFailed("the collocation unknowns left the finite numbers")
-        profile, period, system = self.unpack(w)
-        fields = self._fields_for(system)
+        profile, period, moment = self.unpack(w)
+        fields = self.fields
         blocks = profile[self.index]  # (ntst, ncol + 1, n)
         at = np.einsum("il,jlm->jim", self.sch.values, blocks)  # (ntst, ncol, n)
         slope = np.einsum("il,jlm->jim", self.sch.slopes, blocks)
         points = at.reshape(-1, self.n)
         if jacobian:
-            f, a_values = fields.jacobian(points)
+            f, a_values = fields.jacobian(points, moment)
         else:
-            f, a_values = fields.values(points), None
+            f, a_values = fields.values(points, moment), None
         scaled = (self.h * period)[:, None, None]
         colloc = slope - scaled * f.reshape(self.ntst, self.ncol, self.n)
         bc = profile[-1] - profile[0] - self.shift
-        phase = float(np.sum(self.sch.weights[None, :, None] * (at - np.einsum("il,jlm->jim", self.sch.values, self.reference[self.index])) * self._slope))
+        phase = float(
+            np.sum(
+                self.sch.weights[None, :, None] * (at - np.einsum("il,jlm->jim", self.sch.values, self.reference[self.index])) * self._slope
+            )
+        )
         residual = np.concatenate([colloc.ravel(), bc, [phase]])
         if not jacobian:
             return Evaluation(residual)
@@ -531,18 +533,20 @@ class _Collocation:
         # The node columns carry the unknowns' scale.
         data = np.where(col_idx < self.nodes * self.n, data / self.scale, data)
         matrix = sp.csc_matrix((data, (row_idx, col_idx)), shape=(self.size, width))
-        return Evaluation(residual, matrix, (a_values, period, fields))
+        return Evaluation(residual, matrix, (a_values, period))
 
-    def multipliers(self, a_values: np.ndarray, period: float, fields: _Fields) -> np.ndarray:
+    def multipliers(self, a_values: np.ndarray, period: float) -> np.ndarray:
         """The Floquet multipliers of the linearised collocation equations (module docstring), by decreasing modulus."""
         n, ncol = self.n, self.ncol
-        dense = fields.dense(a_values).reshape(self.ntst, ncol, n, n)
+        dense = self.fields.dense(a_values).reshape(self.ntst, ncol, n, n)
         eye = np.eye(n)
         e_chain = f_chain = None
         for j in range(self.ntst):
             block = np.empty((ncol, n, ncol + 1, n))
-            for l in range(ncol + 1):
-                block[:, :, l, :] = self.sch.slopes[:, l, None, None] * eye - (self.h[j] * period * self.sch.values[:, l])[:, None, None] * dense[j]
+            for node in range(ncol + 1):
+                block[:, :, node, :] = (
+                    self.sch.slopes[:, node, None, None] * eye - (self.h[j] * period * self.sch.values[:, node])[:, None, None] * dense[j]
+                )
             block = block.reshape(ncol * n, (ncol + 1) * n)
             q, _ = sla.qr(block[:, n : ncol * n], mode="full")
             ends = q[:, (ncol - 1) * n :].T @ block[:, np.r_[0:n, ncol * n : (ncol + 1) * n]]
@@ -559,7 +563,24 @@ class _Collocation:
         return mu[np.argsort(-np.abs(mu), kind="stable")]
 
 
-def _trajectory_guess(system: periodic._System, y0: np.ndarray, period: float, mesh: np.ndarray, sch: Scheme, shift: np.ndarray) -> np.ndarray:
+def _sparse_step(w: np.ndarray, evaluation: Evaluation, matrix, border: np.ndarray | None = None) -> np.ndarray:
+    """The Newton step -J^-1 R by SuperLU, ordered by minimum degree on J + J^T (half the fill of the default
+    column ordering on these block-banded systems); with ``border`` (t, w_pred) the arclength row is appended."""
+    residual = np.asarray(evaluation.residual, dtype=float)
+    if border is not None:
+        t, w_pred = border
+        matrix = sp.vstack([matrix, sp.csr_matrix(t[None, :])], format="csc")
+        residual = np.append(residual, t @ (w - w_pred))
+    try:
+        factor = spla.splu(sp.csc_matrix(matrix), permc_spec="MMD_AT_PLUS_A")
+    except RuntimeError as err:
+        raise np.linalg.LinAlgError(f"the collocation Jacobian is singular: {err}") from err
+    return factor.solve(-residual)
+
+
+def _trajectory_guess(
+    system: periodic._System, y0: np.ndarray, period: float, mesh: np.ndarray, sch: Scheme, shift: np.ndarray
+) -> np.ndarray:
     """The node values of the flow from y0 over ``period`` (unwrapped), its mismatch to (C)'s boundary condition spread linearly."""
     rhs, kernel, ends, coef, rpar, ipar = system.parameters(0)
     tau = _node_times(mesh, sch)
@@ -583,7 +604,10 @@ def _shift(system: periodic._System, particle_turns: np.ndarray) -> np.ndarray:
 
 def _solve(problem: _Collocation, profile: np.ndarray, period: float, *, tol: float, max_iter: int):
     """Newton on (C) at fixed M from (profile, period): the correction and its multipliers."""
-    solved = newton(problem.evaluate, problem.pack(profile, period), tol=tol, max_iterations=max_iter, divergence=None, damping=MAX_HALVINGS)
+    solved = newton(
+        problem.evaluate, problem.pack(profile, period), tol=tol, max_iterations=max_iter, divergence=None, damping=MAX_HALVINGS,
+        newton_step=_sparse_step,
+    )  # fmt: skip
     if not solved.converged:
         raise CollocationError(
             f"Newton on the collocation system did not converge at M={problem.system.moment!r} ({solved.status}, "
@@ -649,10 +673,10 @@ def solve_collocation(
             new = _adapted_mesh(mesh, profile, sch, ntst)
             profile = _interpolate(mesh, profile, sch, _node_times(new, sch))
             mesh = new
-    a_values, period, fields = solved.evaluation.data
+    a_values, period = solved.evaluation.data
     return CollocationOrbit(
         params=system.params, model=system.model.name, moment=float(system.moment), turns=turns, particle=system.particle,
-        period=float(period), mesh=mesh, ncol=ncol, profile=profile, multipliers=problem.multipliers(a_values, period, fields),
+        period=float(period), mesh=mesh, ncol=ncol, profile=profile, multipliers=problem.multipliers(a_values, period),
         residual=float(solved.norm), iterations=solved.iterations, particle_turns=np.asarray(particle_turns),
     )  # fmt: skip
 
@@ -722,3 +746,219 @@ def find_collocation_orbit(
     else:
         raise ValueError(f"guess must be a PeriodicOrbit, a CollocationOrbit or None, got {type(guess).__name__}")
     return solve_collocation(system, turns, y0, period, particle_turns, ntst=ntst, ncol=ncol, adapt=adapt, tol=tol, max_iter=max_iter)
+
+
+#: Continuation points between two mesh adaptations (the phase reference is renewed at every point).
+REMESH_EVERY = 8
+#: A branch's message warns where |mu_trivial - 1| exceeds this.
+TRIVIAL_WARNING = 1e-6
+#: Default bound on the period: beyond it the branch ends as infinite-period (a homoclinic or SNIC end).
+PERIOD_MAX = 2000.0
+
+
+@dataclass
+class CollocationBranch:
+    """Orbits traced in M by :func:`continue_collocation`.
+
+    Attributes
+    ----------
+    orbits : list of CollocationOrbit
+        In the order traced.
+    end : BranchEnd
+        ``infinite_period`` (T exceeded ``period_max``), ``parameter_limit`` (M left the range),
+        ``fold`` (M turned: a fold of cycles, reported at the first point past it), ``max_points``
+        or ``step_too_small``.
+    message : str
+    adaptations : int
+        Mesh adaptations along the way.
+    """
+
+    orbits: list[CollocationOrbit]
+    end: BranchEnd
+    message: str
+    adaptations: int = 0
+
+    @property
+    def moment(self) -> np.ndarray:
+        return np.array([o.moment for o in self.orbits])
+
+    @property
+    def period(self) -> np.ndarray:
+        return np.array([o.period for o in self.orbits])
+
+    @property
+    def max_multiplier(self) -> np.ndarray:
+        return np.array([o.max_multiplier for o in self.orbits])
+
+
+@dataclass
+class _BranchProblem:
+    """(C) with M free, for :func:`~cosserat_chain.numerics.kit.continuation` (its ContinuationProblem)."""
+
+    collocation: _Collocation
+    template: CollocationOrbit
+    moment_range: tuple[float, float]
+    period_max: float
+    tol: float = TOL
+
+    def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
+        return self.collocation.evaluate(w, jacobian)
+
+    def correct(self, w: np.ndarray, t: np.ndarray, h: float, jacobian):
+        """The kit's corrector with the arclength row appended to the sparse system (:func:`_sparse_step`)."""
+        border = (t, w + h * t)
+
+        def step(x: np.ndarray, evaluation: Evaluation, matrix) -> np.ndarray:
+            return _sparse_step(x, evaluation, matrix, border)
+
+        return newton(self.evaluate, w + h * t, tol=self.tol, divergence=None, damping=MAX_HALVINGS, newton_step=step)
+
+    def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> CollocationOrbit:
+        profile, period, moment = self.collocation.unpack(w)
+        a_values, _ = evaluation.data
+        return dataclasses.replace(
+            self.template, moment=moment, period=period, mesh=self.collocation.mesh, profile=profile,
+            multipliers=self.collocation.multipliers(a_values, period), residual=float(np.max(np.abs(evaluation.residual))),
+            iterations=iterations,
+        )  # fmt: skip
+
+    def accept(self, previous: CollocationOrbit, candidate: CollocationOrbit) -> bool:
+        # AUTO's practice: the phase condition's reference is the last point of the branch.
+        self.collocation.set_reference(candidate.profile)
+        return True
+
+    def tests(self, point: CollocationOrbit) -> dict[str, float]:
+        return {}
+
+    def stop(self, point: CollocationOrbit) -> tuple[BranchEnd, str] | None:
+        if point.period > self.period_max:
+            return BranchEnd.INFINITE_PERIOD, (
+                f"the period reached {point.period:.6g} > period_max={self.period_max:g} at M={point.moment!r}: "
+                + BranchEnd.INFINITE_PERIOD.advice
+            )
+        low, high = self.moment_range
+        if not low <= point.moment <= high:
+            return BranchEnd.PARAMETER_LIMIT, f"M={point.moment!r} left [{low!r}, {high!r}]: " + BranchEnd.PARAMETER_LIMIT.advice
+        return None
+
+    def confirm(self, kind: str, point: CollocationOrbit) -> bool:
+        return True
+
+
+@one_blas_thread
+def continue_collocation(
+    orbit: CollocationOrbit,
+    *,
+    moment_min: float = -math.inf,
+    moment_max: float = math.inf,
+    period_max: float = PERIOD_MAX,
+    direction: float = -1.0,
+    step: float = 0.02,
+    min_step: float = 1e-7,
+    max_step: float = 0.3,
+    max_points: int = 400,
+    remesh_every: int = REMESH_EVERY,
+    ntst: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> CollocationBranch:
+    """Follow a collocation orbit in M by pseudo-arclength (module docstring), downwards by default.
+
+    The unknowns are the profile (scaled to its mean square norm), log T (steps of one size while
+    T grows without bound towards a homoclinic end) and M. Every ``remesh_every`` points the mesh
+    is adapted to the last orbit and the driver restarts there with the tangent interpolated.
+
+    Parameters
+    ----------
+    orbit : CollocationOrbit
+        The start.
+    moment_min, moment_max : float
+        The range of M.
+    period_max : float
+        The branch ends as ``infinite_period`` beyond this period.
+    direction : float
+        -1 towards smaller M, +1 towards larger.
+    step, min_step, max_step : float
+        Arclength steps of :func:`~cosserat_chain.numerics.kit.continuation`.
+    max_points : int
+    remesh_every : int
+        Points between mesh adaptations (>= 2).
+    ntst : int, optional
+        Mesh intervals along the branch (default: the start's). Towards a homoclinic end the
+        period comes out right on coarse meshes, the strongly damped multipliers do not (an
+        interval spanning many damping times damps too little): the message warns where the
+        trivial multiplier's error exceeds :data:`TRIVIAL_WARNING`, and a finer mesh cures it.
+    progress : callable(points, max_points), optional
+
+    Returns
+    -------
+    CollocationBranch
+
+    Raises
+    ------
+    ValueError
+        For a bad range, period_max, direction or remesh_every.
+    """
+    if not moment_min < moment_max or math.isnan(moment_min) or math.isnan(moment_max):
+        raise ValueError(f"moment_min must be < moment_max, got {moment_min!r}, {moment_max!r}")
+    if not (math.isfinite(period_max) and period_max > orbit.period):
+        raise ValueError(f"period_max must be finite and above the start's period {orbit.period:.6g}, got {period_max!r}")
+    if direction not in (-1, 1, -1.0, 1.0):
+        raise ValueError(f"direction must be -1 or +1, got {direction!r}")
+    if not (isinstance(remesh_every, int) and remesh_every >= 2):
+        raise ValueError(f"remesh_every must be an integer >= 2, got {remesh_every!r}")
+    if not (isinstance(max_points, int) and max_points >= 1):
+        raise ValueError(f"max_points must be an integer >= 1, got {max_points!r}")
+    ntst = orbit.ntst if ntst is None else ntst
+    check_mesh(ntst, orbit.ncol)
+    system = periodic._System(orbit.params, get_model(orbit.model), orbit.moment, orbit.particle)
+    shift = _shift(system, orbit.particle_turns)
+    sch = scheme(orbit.ncol)
+    orbits = [orbit]
+    current, tangent0, adaptations = orbit, None, 0
+    end, message = BranchEnd.MAX_POINTS, f"stopped after max_points={max_points} points: " + BranchEnd.MAX_POINTS.advice
+    while len(orbits) < max_points:
+        mesh = _adapted_mesh(current.mesh, current.profile, sch, ntst)
+        profile = _interpolate(current.mesh, current.profile, sch, _node_times(mesh, sch))
+        if tangent0 is not None:
+            nodes = current.profile.shape[0]
+            moved = _interpolate(current.mesh, tangent0[:-2].reshape(nodes, -1) * math.sqrt(nodes), sch, _node_times(mesh, sch))
+            adaptations += 1
+        collocation = _Collocation(system, mesh, orbit.ncol, shift, profile, free_moment=True)
+        if tangent0 is not None:
+            tangent0 = np.concatenate([collocation.scale * moved.ravel(), tangent0[-2:]])
+        problem = _BranchProblem(collocation, current, (moment_min, moment_max), period_max)
+        count = min(remesh_every, max_points - len(orbits) + 1)
+        traced = continuation(
+            problem, collocation.pack(profile, current.period, current.moment), step=step, min_step=min_step, max_step=max_step,
+            max_points=count, direction=direction, tangent0=tangent0, stop_at=("fold",), locate=False,
+        )  # fmt: skip
+        orbits.extend(traced.points[1:])
+        if progress is not None:
+            progress(len(orbits), max_points)
+        if traced.end != BranchEnd.MAX_POINTS or len(traced.points) < 2:
+            end, message = traced.end, traced.message
+            break
+        current = traced.points[-1]
+        step = min(max_step, max(min_step, _last_step(traced.points)))
+        tangent0 = _secant(collocation, traced.points[-2], traced.points[-1])
+    worst = max(orbits, key=lambda o: o.trivial_multiplier_error)
+    if worst.trivial_multiplier_error > TRIVIAL_WARNING:
+        message += (
+            f"; the trivial multiplier is off by {worst.trivial_multiplier_error:.2g} at M={worst.moment!r} (T={worst.period:.6g}): "
+            f"the multipliers there are not resolved on {ntst} intervals, raise ntst"
+        )
+    return CollocationBranch(orbits, end, message, adaptations)
+
+
+def _last_step(points: list[CollocationOrbit]) -> float:
+    """A restart's first step: a fraction of the last chord's length in the unknowns' scaled norm (log T and M included)."""
+    a, b = points[-2], points[-1]
+    scale = 1.0 / math.sqrt(b.profile.shape[0])
+    chord = np.concatenate([scale * (b.profile - a.profile).ravel(), [math.log(b.period / a.period), b.moment - a.moment]])
+    return max(1e-6, float(np.linalg.norm(chord)))
+
+
+def _secant(collocation: _Collocation, a: CollocationOrbit, b: CollocationOrbit) -> np.ndarray:
+    """The unit secant from a to b in the unknowns of ``collocation`` (both on its mesh)."""
+    chord = collocation.pack(b.profile, b.period, b.moment) - collocation.pack(a.profile, a.period, a.moment)
+    return chord / np.linalg.norm(chord)
