@@ -75,7 +75,7 @@ from ..status import Status
 from . import dop853, long_orbits
 from .dynamics import TurnWatch, integrate
 from .integrators import default_time_step
-from .kit import BranchEnd, Correction, Evaluation, EvaluationFailed, continuation, newton
+from .kit import BranchEnd, Evaluation, EvaluationFailed, continuation, newton
 
 #: Step of the fourth-order central differences of the force kernel: dF/dq is then accurate
 #: to ~5e-13 of |K| against the nonlinear model's exact stiffness at displacements of 0.1,
@@ -106,9 +106,6 @@ MAX_MULTIPLIER_MOTION = 0.1
 MULTIPLIER_WATCH = (0.9, 1.2)
 #: Newton reuses its Jacobian while each step divides the closure by at least 1 / NEWTON_RATE.
 NEWTON_RATE = 0.1
-#: :func:`continue_orbit`'s corrector keeps its (Broyden-updated) Jacobian while each step divides the closure by
-#: at least 1 / CHORD_RATE.
-CHORD_RATE = float(__import__("os").environ.get("CR", "0.1"))
 #: The continuation's step grows after a correction in at most EASY_ITERATIONS, shrinks after HARD_ITERATIONS or more.
 EASY_ITERATIONS, HARD_ITERATIONS = 5, 8
 #: Step halvings of a Newton step that makes the closure worse.
@@ -1280,22 +1277,6 @@ class _OrbitBranchProblem:
         top = np.column_stack([jac_y[:, self.phase.keep], period * jac_t, d_moment])
         return Evaluation(residual, np.vstack([top, self.phase.rows(len(w))]), mono)
 
-    def correct(self, w: np.ndarray, t: np.ndarray, h: float, jacobian) -> Correction:
-        """The kit's chord corrector from the predictor w + h t, the kept Jacobian updated after each of its steps
-        (:class:`_Broyden`): a monodromy costs an integration of the whole variational system, a residual one of the state."""
-        predicted = w + h * t
-        return newton(
-            self.evaluate,
-            predicted,
-            border=(t, predicted),
-            tol=self.tol,
-            max_iterations=MAX_CORRECTOR_ITERATIONS,
-            chord=CHORD_RATE,
-            forgive=0,
-            jacobian0=jacobian,
-            newton_step=_Broyden(t, predicted),
-        )
-
     def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> PeriodicOrbit:
         head = self.phase.head
         y0 = self.phase.state(w[:head])
@@ -1341,31 +1322,6 @@ class _OrbitBranchProblem:
 
     def confirm(self, kind: str, point: PeriodicOrbit) -> bool:
         return True
-
-
-class _Broyden:
-    """The bordered Newton step of :meth:`_OrbitBranchProblem.correct` with the Jacobian it is given, updated by
-    Broyden's rank-one formula after each step taken with the same one (a chord iteration): B += (dR - B dw) dw^T / |dw|^2.
-
-    The kept Jacobian is the last orbit's; the update makes it agree with the residuals the corrector has seen
-    since, so the chord iterations converge superlinearly rather than linearly and fewer of them ask for a new
-    monodromy. A fresh Jacobian (another object) is taken as it is.
-    """
-
-    def __init__(self, tangent: np.ndarray, predicted: np.ndarray) -> None:
-        self.tangent, self.predicted = tangent, predicted
-        self.given = self.matrix = self.w = self.residual = None
-
-    def __call__(self, w: np.ndarray, evaluation: Evaluation, matrix) -> np.ndarray:
-        residual = np.asarray(evaluation.residual, dtype=float)
-        if matrix is not self.given:
-            self.given, self.matrix = matrix, np.array(matrix, dtype=float)
-        else:
-            dw = w - self.w
-            self.matrix += np.outer(residual - self.residual - self.matrix @ dw, dw / (dw @ dw))
-        self.w, self.residual = w.copy(), residual
-        bordered = np.vstack([self.matrix, self.tangent])
-        return np.linalg.solve(bordered, -np.append(residual, self.tangent @ (w - self.predicted)))
 
 
 def _multiplier_motion(before: np.ndarray, after: np.ndarray) -> float:
