@@ -51,7 +51,7 @@ import dataclasses
 import functools
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
@@ -146,12 +146,32 @@ class Scheme:
     values: np.ndarray
     slopes: np.ndarray
     top: np.ndarray
-    coefficients: np.ndarray = field(repr=False)
 
     def basis(self, s: np.ndarray) -> np.ndarray:
-        """L_l(s) (k, ncol + 1) at local coordinates ``s`` (k,)."""
-        s = np.asarray(s, dtype=float)
-        return np.stack([np.polyval(c, s) for c in self.coefficients], axis=-1)
+        """L_l(s) (k, ncol + 1) at local coordinates ``s`` (k,), as products (monomial coefficients lose digits at ncol = 7)."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        out = np.ones((s.size, self.ncol + 1))
+        for node in range(self.ncol + 1):
+            for other in range(self.ncol + 1):
+                if other != node:
+                    out[:, node] *= (s - self.nodes[other]) / (self.nodes[node] - self.nodes[other])
+        return out
+
+    def slope(self, s: np.ndarray) -> np.ndarray:
+        """L_l'(s) (k, ncol + 1): the sum over the factors left out of the product."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        out = np.zeros((s.size, self.ncol + 1))
+        nodes = self.nodes
+        for node in range(self.ncol + 1):
+            for left in range(self.ncol + 1):
+                if left == node:
+                    continue
+                term = np.full(s.size, 1.0 / (nodes[node] - nodes[left]))
+                for other in range(self.ncol + 1):
+                    if other not in (node, left):
+                        term *= (s - nodes[other]) / (nodes[node] - nodes[other])
+                out[:, node] += term
+        return out
 
 
 @functools.cache
@@ -161,15 +181,9 @@ def scheme(ncol: int) -> Scheme:
     nodes = np.linspace(0.0, 1.0, ncol + 1)
     x, w = np.polynomial.legendre.leggauss(ncol)
     points, weights = 0.5 * (x + 1.0), 0.5 * w
-    coefficients = []
-    for node in range(ncol + 1):
-        others = np.delete(nodes, node)
-        coefficients.append(np.poly(others) / np.prod(nodes[node] - others))
-    coefficients = np.array(coefficients)
-    values = np.array([[np.polyval(c, z) for c in coefficients] for z in points])
-    slopes = np.array([[np.polyval(np.polyder(c), z) for c in coefficients] for z in points])
-    top = np.array([np.polyder(c, ncol)[0] for c in coefficients])
-    return Scheme(ncol, nodes, points, weights, values, slopes, top, coefficients)
+    top = np.array([math.factorial(ncol) / np.prod(nodes[node] - np.delete(nodes, node)) for node in range(ncol + 1)])
+    table = Scheme(ncol, nodes, points, weights, np.empty(0), np.empty(0), top)
+    return dataclasses.replace(table, values=table.basis(points), slopes=table.slope(points))
 
 
 class _Fields:
@@ -392,8 +406,11 @@ def _interpolate(mesh: np.ndarray, profile: np.ndarray, sch: Scheme, tau: np.nda
     return np.einsum("kl,klm->km", basis, profile[nodes])
 
 
-def _adapted_mesh(mesh: np.ndarray, profile: np.ndarray, sch: Scheme, ntst: int) -> np.ndarray:
-    """A mesh of ``ntst`` intervals equidistributing h |u^(ncol+1)|^(1/(ncol+1)) of the current profile (AUTO's ADAPT)."""
+def _adapted_mesh(mesh: np.ndarray, profile: np.ndarray, sch: Scheme, ntst: int, floor: float = MONITOR_FLOOR) -> np.ndarray:
+    """A mesh of ``ntst`` intervals equidistributing h |u^(ncol+1)|^(1/(ncol+1)) of the current profile (AUTO's ADAPT).
+
+    The monitor is raised to ``floor`` times its mean at least: with ``floor`` = 1 no interval is longer than 2 / ntst.
+    """
     h = np.diff(mesh)
     old = h.size
     nodes = np.arange(old)[:, None] * sch.ncol + np.arange(sch.ncol + 1)
@@ -401,7 +418,7 @@ def _adapted_mesh(mesh: np.ndarray, profile: np.ndarray, sch: Scheme, ntst: int)
     # The (ncol+1)-th derivative at each mesh point from the jumps of the ncol-th (periodic: the shift s is constant).
     jump = np.linalg.norm(np.roll(top, -1, axis=0) - top, axis=1) / (0.5 * (h + np.roll(h, -1)))
     monitor = (0.5 * (np.roll(jump, 1) + jump)) ** (1.0 / (sch.ncol + 1))
-    monitor = np.maximum(monitor, MONITOR_FLOOR * max(float(np.mean(monitor)), np.finfo(float).tiny))
+    monitor = np.maximum(monitor, floor * max(float(np.sum(monitor * h)), np.finfo(float).tiny))
     cumulative = np.concatenate([[0.0], np.cumsum(monitor * h)])
     new = np.interp(np.linspace(0.0, cumulative[-1], ntst + 1), cumulative, mesh)
     new[0], new[-1] = 0.0, 1.0
@@ -750,6 +767,8 @@ def find_collocation_orbit(
 
 #: Continuation points between two mesh adaptations (the phase reference is renewed at every point).
 REMESH_EVERY = 8
+#: The most intervals a continuation's ``max_interval`` may ask for.
+NTST_MAX = 4000
 #: A branch's message warns where |mu_trivial - 1| exceeds this.
 TRIVIAL_WARNING = 1e-6
 #: Default bound on the period: beyond it the branch ends as infinite-period (a homoclinic or SNIC end).
@@ -859,6 +878,8 @@ def continue_collocation(
     max_points: int = 400,
     remesh_every: int = REMESH_EVERY,
     ntst: int | None = None,
+    max_interval: float | None = None,
+    ntst_max: int = NTST_MAX,
     progress: Callable[[int, int], None] | None = None,
 ) -> CollocationBranch:
     """Follow a collocation orbit in M by pseudo-arclength (module docstring), downwards by default.
@@ -887,6 +908,13 @@ def continue_collocation(
         period comes out right on coarse meshes, the strongly damped multipliers do not (an
         interval spanning many damping times damps too little): the message warns where the
         trivial multiplier's error exceeds :data:`TRIVIAL_WARNING`, and a finer mesh cures it.
+    max_interval : float, optional
+        Longest interval in time units: at each adaptation ntst is raised to 2 T / ``max_interval``
+        (at most ``ntst_max``) and the monitor floored at its mean, so that every interval is that
+        short. The damped modes then stay resolved and the multipliers right as T grows, at a cost
+        that grows with T (the orbit and its period alone need no such bound).
+    ntst_max : int
+        The most intervals ``max_interval`` may ask for.
     progress : callable(points, max_points), optional
 
     Returns
@@ -908,6 +936,8 @@ def continue_collocation(
         raise ValueError(f"remesh_every must be an integer >= 2, got {remesh_every!r}")
     if not (isinstance(max_points, int) and max_points >= 1):
         raise ValueError(f"max_points must be an integer >= 1, got {max_points!r}")
+    if max_interval is not None and not (math.isfinite(max_interval) and max_interval > 0):
+        raise ValueError(f"max_interval must be a finite number > 0 (time units) or None, got {max_interval!r}")
     ntst = orbit.ntst if ntst is None else ntst
     check_mesh(ntst, orbit.ncol)
     system = periodic._System(orbit.params, get_model(orbit.model), orbit.moment, orbit.particle)
@@ -917,7 +947,11 @@ def continue_collocation(
     current, tangent0, adaptations = orbit, None, 0
     end, message = BranchEnd.MAX_POINTS, f"stopped after max_points={max_points} points: " + BranchEnd.MAX_POINTS.advice
     while len(orbits) < max_points:
-        mesh = _adapted_mesh(current.mesh, current.profile, sch, ntst)
+        if max_interval is None:
+            mesh = _adapted_mesh(current.mesh, current.profile, sch, ntst)
+        else:
+            intervals = min(ntst_max, max(ntst, math.ceil(2.0 * current.period / max_interval)))
+            mesh = _adapted_mesh(current.mesh, current.profile, sch, intervals, floor=1.0)
         profile = _interpolate(current.mesh, current.profile, sch, _node_times(mesh, sch))
         if tangent0 is not None:
             nodes = current.profile.shape[0]
@@ -945,7 +979,7 @@ def continue_collocation(
     if worst.trivial_multiplier_error > TRIVIAL_WARNING:
         message += (
             f"; the trivial multiplier is off by {worst.trivial_multiplier_error:.2g} at M={worst.moment!r} (T={worst.period:.6g}): "
-            f"the multipliers there are not resolved on {ntst} intervals, raise ntst"
+            "the multipliers there are not resolved: raise ntst or give max_interval"
         )
     return CollocationBranch(orbits, end, message, adaptations)
 
