@@ -31,11 +31,11 @@ The mesh is adapted by equidistributing the error monitor h_j |u^(NCOL+1)|^(1/(N
 (NCOL+1)-th derivative from the jumps of the piecewise constant NCOL-th one (AUTO's ADAPT), so
 the points go where the orbit moves fast.
 
-Floquet multipliers: each interval's linearised collocation equations are condensed, by a QR
-elimination of its interior nodes, to E_j x_j + F_j x_{j+1} = 0 (x_j the perturbation at mesh
-point j); the chain is then eliminated pairwise by QR (never inverting E_j or F_j) to
-E x_0 + F x_NTST = 0, and x_NTST = mu x_0 gives the multipliers as the generalised eigenvalues
-of the pencil (E, -F) (QZ). This is Fairgrieve and Jepson's method, AUTO's FLOWKM: no product of
+Floquet multipliers: each interval's linearised collocation equations are condensed, by one LU
+of the interval's block, to its transfer matrix, x_{j+1} = P_j x_j (x_j the perturbation at mesh
+point j); the chain P_j x_j - x_{j+1} = 0 is then eliminated pairwise by QR (the P_j are never
+multiplied together) to E x_0 + F x_NTST = 0, and x_NTST = mu x_0 gives the multipliers as the
+generalised eigenvalues of the pencil (E, -F) (QZ). This is Fairgrieve and Jepson's method, AUTO's FLOWKM: no product of
 badly scaled matrices is formed, so multipliers of 1e-20 and 1e+5 on one orbit come out with
 their own accuracy. The trivial multiplier's distance to 1 is its error.
 
@@ -63,7 +63,7 @@ from scipy.optimize import brentq
 from ..linalg.threads import one_blas_thread
 from ..models.base import END_KERNEL_TYPE, FORCE_KERNEL_TYPE, get_model
 from ..params import ChainParams
-from ..state import ROW_INDEX, column, pack
+from ..state import ROW_INDEX, check_state, column, pack
 from . import dop853, periodic
 from .kit import BranchEnd, Evaluation, EvaluationFailed, continuation, newton
 
@@ -553,7 +553,12 @@ class _Collocation:
         return Evaluation(residual, matrix, (a_values, period))
 
     def multipliers(self, a_values: np.ndarray, period: float) -> np.ndarray:
-        """The Floquet multipliers of the linearised collocation equations (module docstring), by decreasing modulus."""
+        """The Floquet multipliers of the linearised collocation equations (module docstring), by decreasing modulus.
+
+        Each interval's equations give its transfer matrix x_{j+1} = P_j x_j (one LU of the
+        interval's own block: well conditioned, an interval being short); the chain
+        P_j x_j - x_{j+1} = 0 is then eliminated pairwise by QR, never multiplying the P_j.
+        """
         n, ncol = self.n, self.ncol
         dense = self.fields.dense(a_values).reshape(self.ntst, ncol, n, n)
         eye = np.eye(n)
@@ -565,16 +570,13 @@ class _Collocation:
                     self.sch.slopes[:, node, None, None] * eye - (self.h[j] * period * self.sch.values[:, node])[:, None, None] * dense[j]
                 )
             block = block.reshape(ncol * n, (ncol + 1) * n)
-            q, _ = sla.qr(block[:, n : ncol * n], mode="full")
-            ends = q[:, (ncol - 1) * n :].T @ block[:, np.r_[0:n, ncol * n : (ncol + 1) * n]]
-            e_j, f_j = ends[:, :n], ends[:, n:]
+            transfer = np.linalg.solve(block[:, n:], -block[:, :n])[-n:]
             if e_chain is None:
-                e_chain, f_chain = e_j, f_j
+                e_chain, f_chain = transfer, -eye
                 continue
-            # Eliminate the shared mesh point: [[E, F, 0], [0, E_j, F_j]] on (x_0, x_j, x_{j+1}).
-            q, _ = sla.qr(np.vstack([f_chain, e_j]), mode="full")
-            rest = q[:, n:].T @ np.block([[e_chain, np.zeros((n, n))], [np.zeros((n, n)), f_j]])
-            e_chain, f_chain = rest[:, :n], rest[:, n:]
+            # Eliminate the shared mesh point x_j from E x_0 + F x_j = 0 and P_j x_j - x_{j+1} = 0.
+            q, _ = sla.qr(np.vstack([f_chain, transfer]), mode="full")
+            e_chain, f_chain = q[:n, n:].T @ e_chain, -q[n:, n:].T
         mu = sla.eigvals(e_chain, -f_chain)
         mu = mu[np.isfinite(mu)]
         return mu[np.argsort(-np.abs(mu), kind="stable")]
@@ -721,8 +723,8 @@ def find_collocation_orbit(
     moment : float
     turns, particle : int
         As :func:`~cosserat_chain.numerics.periodic.find_periodic_orbit`.
-    guess : PeriodicOrbit or CollocationOrbit, optional
-        An orbit at this or a nearby moment; by default the shooting's settled guess from rest
+    guess : PeriodicOrbit, CollocationOrbit or (x (3, 2N+1), v (3, 2N+1), T[, particle_turns (2N+1,)]), optional
+        An orbit at this or a nearby moment, or a state on it and its period; by default the shooting's settled guess from rest
         (a simulation until the rotation repeats).
     ntst, ncol : int
         Mesh intervals (>= 2) and Gauss points per interval (2..7).
@@ -755,13 +757,23 @@ def find_collocation_orbit(
         )  # fmt: skip
     if isinstance(guess, periodic.PeriodicOrbit):
         y0, period, particle_turns = periodic._to_y(params, guess.x, guess.v), guess.period, guess.particle_turns
+    elif isinstance(guess, tuple) and len(guess) in (3, 4):
+        x0, v0, period = guess[:3]
+        y0 = periodic._to_y(params, check_state(params, x0, "guess x"), check_state(params, v0, "guess v"))
+        particle_turns = (
+            periodic._check_particle_turns(params, particle, turns, moment, guess[3])
+            if len(guess) == 4
+            else periodic._loaded_turns(params, particle, turns, moment)
+        )
     elif guess is None:
         x0, v0, period, particle_turns = periodic._settled_guess(
             params, model, moment, turns=turns, particle=particle, x0=None, v0=None, transient_turns=30, t_max=periodic.GUESS_T_MAX
         )
         y0 = periodic._to_y(params, x0, v0)
     else:
-        raise ValueError(f"guess must be a PeriodicOrbit, a CollocationOrbit or None, got {type(guess).__name__}")
+        raise ValueError(
+            f"guess must be a PeriodicOrbit, a CollocationOrbit, (x, v, T[, particle_turns]) or None, got {type(guess).__name__}"
+        )
     return solve_collocation(system, turns, y0, period, particle_turns, ntst=ntst, ncol=ncol, adapt=adapt, tol=tol, max_iter=max_iter)
 
 
