@@ -81,6 +81,10 @@ MONITOR_FLOOR = 0.05
 #: Coloured variational columns: 3 rows times 3 column classes, plus one never used so that the count is
 #: never the shooting's 2 n_free + 1 (which adds the moment's column).
 SEEDS = 10
+#: Newton keeps its Jacobian's factor while each step divides max |R| by at least 1 / CHORD_RATE.
+CHORD_RATE = 0.1
+#: SuperLU's column ordering: minimum degree on J + J^T fills these block-banded systems least (benchmarks/TIMINGS.md).
+PERMUTATION = "MMD_AT_PLUS_A"
 #: Halvings of a Newton step that does not lower max |R|.
 MAX_HALVINGS = 6
 
@@ -582,19 +586,28 @@ class _Collocation:
         return mu[np.argsort(-np.abs(mu), kind="stable")]
 
 
-def _sparse_step(w: np.ndarray, evaluation: Evaluation, matrix, border: np.ndarray | None = None) -> np.ndarray:
-    """The Newton step -J^-1 R by SuperLU, ordered by minimum degree on J + J^T (half the fill of the default
-    column ordering on these block-banded systems); with ``border`` (t, w_pred) the arclength row is appended."""
-    residual = np.asarray(evaluation.residual, dtype=float)
-    if border is not None:
-        t, w_pred = border
-        matrix = sp.vstack([matrix, sp.csr_matrix(t[None, :])], format="csc")
-        residual = np.append(residual, t @ (w - w_pred))
-    try:
-        factor = spla.splu(sp.csc_matrix(matrix), permc_spec="MMD_AT_PLUS_A")
-    except RuntimeError as err:
-        raise np.linalg.LinAlgError(f"the collocation Jacobian is singular: {err}") from err
-    return factor.solve(-residual)
+class _SparseStep:
+    """The Newton step -J^-1 R by SuperLU, ordered by minimum degree on J + J^T (:data:`PERMUTATION`), with
+    ``border`` (t, w_pred) the arclength row appended; the factor is kept while the kit's chord iterations
+    pass the same Jacobian, so a step with a kept Jacobian costs a residual and two triangular solves."""
+
+    def __init__(self, border: tuple[np.ndarray, np.ndarray] | None = None):
+        self.border = border
+        self.matrix = self.factor = None
+
+    def __call__(self, w: np.ndarray, evaluation: Evaluation, matrix) -> np.ndarray:
+        residual = np.asarray(evaluation.residual, dtype=float)
+        if self.border is not None:
+            t, w_pred = self.border
+            residual = np.append(residual, t @ (w - w_pred))
+        if matrix is not self.matrix:
+            bordered = matrix if self.border is None else sp.vstack([matrix, sp.csr_matrix(self.border[0][None, :])], format="csc")
+            try:
+                self.factor = spla.splu(sp.csc_matrix(bordered), permc_spec=PERMUTATION)
+            except RuntimeError as err:
+                raise np.linalg.LinAlgError(f"the collocation Jacobian is singular: {err}") from err
+            self.matrix = matrix
+        return self.factor.solve(-residual)
 
 
 def _trajectory_guess(
@@ -625,7 +638,7 @@ def _solve(problem: _Collocation, profile: np.ndarray, period: float, *, tol: fl
     """Newton on (C) at fixed M from (profile, period): the correction and its multipliers."""
     solved = newton(
         problem.evaluate, problem.pack(profile, period), tol=tol, max_iterations=max_iter, divergence=None, damping=MAX_HALVINGS,
-        newton_step=_sparse_step,
+        chord=CHORD_RATE, newton_step=_SparseStep(),
     )  # fmt: skip
     if not solved.converged:
         raise CollocationError(
@@ -836,13 +849,11 @@ class _BranchProblem:
         return self.collocation.evaluate(w, jacobian)
 
     def correct(self, w: np.ndarray, t: np.ndarray, h: float, jacobian):
-        """The kit's corrector with the arclength row appended to the sparse system (:func:`_sparse_step`)."""
+        """The kit's chord corrector with the arclength row appended to the sparse system (:class:`_SparseStep`)."""
         border = (t, w + h * t)
-
-        def step(x: np.ndarray, evaluation: Evaluation, matrix) -> np.ndarray:
-            return _sparse_step(x, evaluation, matrix, border)
-
-        return newton(self.evaluate, w + h * t, tol=self.tol, divergence=None, damping=MAX_HALVINGS, newton_step=step)
+        return newton(
+            self.evaluate, w + h * t, tol=self.tol, divergence=None, damping=MAX_HALVINGS, chord=CHORD_RATE, newton_step=_SparseStep(border)
+        )
 
     def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> CollocationOrbit:
         profile, period, moment = self.collocation.unpack(w)
