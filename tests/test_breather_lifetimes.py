@@ -1,4 +1,4 @@
-"""Lifetimes along a whole roto-breather family: direct runs from the perturbed orbits against the multipliers."""
+"""Lifetimes along whole roto-breather families (the chain's, a user system's): direct runs from the perturbed orbits against the multipliers."""
 
 from __future__ import annotations
 
@@ -13,7 +13,10 @@ from typer.testing import CliRunner
 from cosserat_chain import ChainParams
 from cosserat_chain.cli import app
 from cosserat_chain.experiments.breathers import lifetime, roto_breather_family
+from cosserat_chain.experiments.system_breathers import roto_breather_family as system_family
+from cosserat_chain.experiments.system_breathers import system_lifetime
 from cosserat_chain.plots.breathers import breather_family_figure
+from cosserat_chain.systems import takeno_peyrard
 
 RUN = 200
 
@@ -76,3 +79,31 @@ def test_command_writes_the_lifetimes(tmp_path):
         stayed = np.isnan(ds["lifetime_periods"].values)
         assert stayed.tolist() == [life["lifetime_periods"] is None for life in summary["lifetimes"]]
         assert stayed[-1]  # the stable member at 6.6
+
+
+def test_system_family_lifetimes_follow_the_multipliers():
+    # Takeno-Peyrard, 9 sites, C = 0.05: stable down to 1.144, then a real multiplier grows (1.45 to 1.96 by 1.1)
+    family = system_family(takeno_peyrard(9, C=0.05), 1.2, to=1.1, locate=False)
+    lives = family.measure_lifetimes(150)
+    assert lives[0].periods is None and family.orbits[0].stable and np.all(lives[0].deviation < 1e-2)
+    unstable = [(o, life) for o, life in zip(family.orbits, lives, strict=True) if o.max_multiplier > 1.3]
+    assert len(unstable) >= 3
+    for orbit, life in unstable:
+        predicted = math.log(1e-2 / 1e-8) / math.log(orbit.max_multiplier)
+        assert life.predicted_periods == pytest.approx(predicted, rel=1e-12)
+        assert 0.5 * predicted < life.periods < 2 * predicted
+    ds = family.to_dataset()
+    assert np.isnan(ds["lifetime_periods"].values[0]) and ds["lifetime_periods"].values[-1] == lives[-1].periods
+    assert family.as_dict()["lifetimes"][-1]["run_periods"] == 150
+    with pytest.raises(ValueError, match="max_periods"):
+        system_lifetime(family.orbits[0], max_periods=0)
+
+
+def test_command_measures_a_system_familys_lifetimes():
+    result = CliRunner().invoke(
+        app,
+        ["breathers", "--system", "takeno_peyrard", "--set", "sites=7", "--set", "C=0.05", "--omega", "1.3", "--lifetimes", "30", "--json"],
+    )  # fmt: skip
+    assert result.exit_code == 0, result.output
+    lives = json.loads(result.stdout)["lifetimes"]
+    assert len(lives) == 1 and lives[0]["lifetime_periods"] is None and lives[0]["run_periods"] == 30

@@ -92,10 +92,12 @@ def breathers(
     if system is not None:
         from .system_breathers import breathers_on_system
 
-        chain_only_or_exit(ctx, ("omega", "to", "turns", "particle", "partner", "counter", "config", "out", "as_json", "sets", "coupling"))
+        chain_only_or_exit(
+            ctx, ("omega", "to", "turns", "particle", "partner", "counter", "config", "out", "as_json", "sets", "coupling", "lifetimes")
+        )
         return breathers_on_system(
             system, config=config, sets=sets, omega=omega, to=to, turns=turns, particle=particle, partner=partner, counter=counter,
-            coupling=coupling, out=out, as_json=as_json,
+            coupling=coupling, out=out, as_json=as_json, lifetimes=lifetimes,
         )  # fmt: skip
     system_only_or_exit(ctx, ("sets", "coupling"))
     import numpy as np

@@ -116,8 +116,12 @@ def breathers_on_system(
     coupling: str,
     out: Path | None,
     as_json: bool,
+    lifetimes: int = 0,
 ) -> None:
     """The family from the anti-continuum limit at ``omega``, continued in ``coupling`` to the system's value, then to ``to``.
+
+    ``lifetimes`` > 0 runs every member from its perturbed orbit for that many periods
+    (:meth:`SystemBreatherFamily.measure_lifetimes`).
 
     ``particle`` and ``partner`` count the system's angles from the central one (as the chain's
     particles count from its centre). ``out`` is checked (and locked) before anything is computed and
@@ -164,6 +168,10 @@ def breathers_on_system(
         bar.close()
         fail(str(err), code=3)
     bar.finish()
+    if lifetimes:
+        bar = progress_bar("lifetimes", "orbit")
+        family.measure_lifetimes(lifetimes, progress=bar_callback(bar))
+        bar.finish()
     if out is not None:  # the Dataset (and xarray) only for a file
         save_dataset(family.to_dataset(reference), out)
     summary = family.as_dict()
@@ -178,6 +186,9 @@ def breathers_on_system(
         energy = "-" if summary["energy"][i] is None else f"{summary['energy'][i]:.10g}"
         inside = ", ".join(f"{h['harmonic']}x in band {h['band']}" for h in summary["harmonics_in_bands"][i]) or "none"
         typer.echo(f"{summary['omega'][i]:>10.6g}  {energy:>14}  {o.max_multiplier:>10.6g}  {'yes' if o.stable else 'no':>6}  {inside}")
+        if family.lifetimes is not None:
+            life = family.lifetimes[i].periods
+            typer.echo(f"{'':>10}  lifetime: {'beyond ' + str(lifetimes) if life is None else life} periods")
     for change in family.changes:
         r = change.resonance
         typer.echo(

@@ -57,6 +57,7 @@ from ..numerics.undamping import UndampingPath, continue_to_undamped
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column, n_free, unpack, zeros
 from .anti_continuum import potential_from_torque, rotor_energy, sample_angles
+from .lifetimes import Lifetime, check_lifetime_run, lifetime_from_deviation
 from .simulation import run_attributes
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
@@ -473,47 +474,6 @@ def roto_breather_family(
 LIFETIME_STEPS = 1000
 
 
-@dataclass
-class Lifetime:
-    """How a roto-breather perturbed by ``perturbation`` leaves its orbit in a direct undamped run.
-
-    Attributes
-    ----------
-    deviation : ndarray (periods + 1,)
-        max over the coordinates and velocities of |state(k T) - orbit(k T)|, k = 0, 1, ...
-        (the angles unwrapped, the rotors' advanced by 2 pi times their turns).
-    periods : int or None
-        First k with deviation > ``threshold``: the lifetime in periods (None: it stayed).
-    growth_per_period : float
-        Geometric mean of deviation[k+1] / deviation[k] while the deviation lies between 10 times
-        the perturbation and the threshold / 10: the largest |multiplier| for an unstable orbit
-        (NaN where the deviation never grows that far).
-    period : float
-        The orbit's period T.
-    predicted_periods : float
-        ln(threshold / perturbation) / ln max|mu|: the periods the largest multiplier needs to
-        grow the perturbation to the threshold (NaN for a stable orbit).
-    run_periods : int
-        Length of the run in periods (a lifetime of None means beyond it).
-    """
-
-    deviation: np.ndarray
-    periods: int | None
-    growth_per_period: float
-    period: float
-    predicted_periods: float = math.nan
-    run_periods: int = 0
-
-    def as_dict(self) -> dict:
-        return {
-            "lifetime_periods": self.periods,
-            "lifetime": None if self.periods is None else self.periods * self.period,
-            "growth_per_period": None if not math.isfinite(self.growth_per_period) else self.growth_per_period,
-            "predicted_periods": None if not math.isfinite(self.predicted_periods) else self.predicted_periods,
-            "run_periods": self.run_periods,
-        }
-
-
 def lifetime(
     orbit: HamiltonianOrbit,
     *,
@@ -544,10 +504,7 @@ def lifetime(
     ValueError
         For a non-positive perturbation, a threshold not above it, or max_periods < 1.
     """
-    if not (math.isfinite(perturbation) and perturbation > 0 and math.isfinite(threshold) and threshold > perturbation):
-        raise ValueError(f"need 0 < perturbation < threshold, got perturbation={perturbation!r}, threshold={threshold!r}")
-    if not (isinstance(max_periods, int) and max_periods >= 1):
-        raise ValueError(f"max_periods must be an integer >= 1, got {max_periods!r}")
+    check_lifetime_run(perturbation, threshold, max_periods)
     params = orbit.params
     rng = np.random.default_rng(seed)
     # On the free degrees of freedom only: an end holds the others.
@@ -562,17 +519,9 @@ def lifetime(
     shift[ROW_INDEX["phi"]] = 2 * math.pi * orbit.particle_turns
     drift = run.x - orbit.x[None] - k[:, None, None] * shift[None]
     deviation = np.maximum(np.max(np.abs(drift), axis=(1, 2)), np.max(np.abs(run.v - orbit.v[None]), axis=(1, 2)))
-    deviation = np.where(np.isfinite(deviation), deviation, np.inf)
-    lost = np.flatnonzero(deviation > threshold)
-    window = np.flatnonzero((deviation > 10 * perturbation) & (deviation < threshold / 10))
-    growth = math.nan
-    if window.size >= 2 and window[-1] > window[0]:
-        growth = float((deviation[window[-1]] / deviation[window[0]]) ** (1.0 / (window[-1] - window[0])))
-    mu = orbit.max_multiplier
-    predicted = math.log(threshold / perturbation) / math.log(mu) if not orbit.stable and mu > 1.0 else math.nan
-    return Lifetime(
-        deviation=deviation, periods=int(lost[0]) if lost.size else None, growth_per_period=growth, period=orbit.period,
-        predicted_periods=predicted, run_periods=max_periods,
+    return lifetime_from_deviation(
+        deviation, period=orbit.period, perturbation=perturbation, threshold=threshold,
+        max_multiplier=None if orbit.stable else orbit.max_multiplier,
     )  # fmt: skip
 
 

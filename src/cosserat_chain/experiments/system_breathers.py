@@ -39,10 +39,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import CosseratChainError
-from ..numerics.shooting import PERIOD, Orbit, OrbitNotFound, continue_orbits, find_orbit
+from ..numerics.kit import EvaluationFailed
+from ..numerics.shooting import PERIOD, Orbit, OrbitNotFound, continue_orbits, find_orbit, flow
 from ..systems.base import System
 from ..systems.lattice import LatticeSystem
 from .anti_continuum import POTENTIAL_POINTS, potential_from_torque, rotor_energy, sample_angles
+from .lifetimes import Lifetime, check_lifetime_run, lifetime_from_deviation
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built: commands without file output start without it
     import xarray as xr
@@ -384,6 +386,28 @@ class SystemBreatherFamily:
     changes: list[StabilityChange]
     message: str
     settings: dict = field(default_factory=dict)
+    lifetimes: list[Lifetime] | None = None
+
+    def measure_lifetimes(
+        self, max_periods: int, *, perturbation: float = 1e-8, threshold: float = 1e-2, progress: ProgressCallback | None = None
+    ) -> list[Lifetime]:
+        """Run every member from its perturbed orbit (:func:`system_lifetime`) and keep the lifetimes with the family.
+
+        They go into :meth:`as_dict` (``lifetimes``) and :meth:`to_dataset`.
+
+        Raises
+        ------
+        ValueError
+            As :func:`system_lifetime` does.
+        """
+        out = []
+        for i, orbit in enumerate(self.orbits):
+            out.append(system_lifetime(orbit, perturbation=perturbation, threshold=threshold, max_periods=max_periods))
+            if progress is not None:
+                progress(i + 1, len(self.orbits))
+        self.lifetimes = out
+        self.settings["lifetime"] = {"max_periods": max_periods, "perturbation": perturbation, "threshold": threshold}
+        return out
 
     @property
     def first_turns(self) -> int:
@@ -475,6 +499,18 @@ class SystemBreatherFamily:
             "band_bottom": "lowest frequency of a phonon band about rest",
             "band_top": "highest frequency of a phonon band about rest",
         }
+        if self.lifetimes is not None:
+            lives = self.lifetimes
+            ds["lifetime_periods"] = ("point", np.array([math.nan if x.periods is None else x.periods for x in lives], dtype=float))
+            ds["growth_per_period"] = ("point", np.array([x.growth_per_period for x in lives]))
+            ds["predicted_lifetime_periods"] = ("point", np.array([x.predicted_periods for x in lives]))
+            names["lifetime_periods"] = (
+                "periods of a direct run from the perturbed orbit until it left it (NaN: it stayed for the whole run)"
+            )
+            names["growth_per_period"] = "growth of the deviation per period in the direct run"
+            names["predicted_lifetime_periods"] = (
+                "ln(threshold / perturbation) / ln max|mu| (NaN: a stable orbit); the run's settings in settings_json"
+            )
         for name, long_name in names.items():
             ds[name].attrs["long_name"] = long_name
         ds.attrs.update({f"param_{name}": value for name, value in self.system.parameters.items()})
@@ -523,9 +559,61 @@ class SystemBreatherFamily:
             "bands": [list(b) for b in self.bands],
             "resonances": [r.as_dict() for r in resonances(self.bands, float(omegas.min()), float(omegas.max()))] if self.orbits else [],
             "stability_changes": [c.as_dict() for c in self.changes],
+            **({} if self.lifetimes is None else {"lifetimes": [x.as_dict() for x in self.lifetimes]}),
             "message": self.message,
             **{k: v for k, v in self.settings.items() if k not in ("system",)},
         }
+
+
+def system_lifetime(
+    orbit: Orbit, *, perturbation: float = 1e-8, threshold: float = 1e-2, max_periods: int = 200, seed: int = 0
+) -> Lifetime:
+    """Run the undamped system from the orbit with its velocities perturbed and follow it period by period.
+
+    The system's own flow (:func:`~cosserat_chain.numerics.shooting.flow`, the compiled DOP853
+    of ``simulate --system``), one period at a time; a flow that fails leaves the rest of the
+    run infinitely far (lost).
+
+    Parameters
+    ----------
+    orbit : Orbit
+        A conservative orbit (its unfolding parameter is set to 0 for the run).
+    perturbation : float
+        Size (max norm) of a random velocity perturbation (seeded).
+    threshold : float
+        Deviation (max over coordinates and velocities, the rotors' angles advanced by 2 pi
+        times their turns) at which the roto-breather counts as lost.
+    max_periods : int
+    seed : int
+
+    Returns
+    -------
+    Lifetime
+
+    Raises
+    ------
+    ValueError
+        For a non-positive perturbation, a threshold not above it, or max_periods < 1.
+    """
+    check_lifetime_run(perturbation, threshold, max_periods)
+    system = orbit.system if orbit.unfold is None else orbit.system.with_parameters(**{orbit.unfold: 0.0})
+    kick = np.random.default_rng(seed).uniform(-1.0, 1.0, system.size)
+    y = np.concatenate([orbit.q0, orbit.v0 + kick * (perturbation / np.max(np.abs(kick)))])
+    shift = np.concatenate([2 * math.pi * orbit.turns, np.zeros(system.size)])
+    deviation = np.full(max_periods + 1, np.inf)
+    deviation[0] = float(np.max(np.abs(y - orbit.y0)))
+    for k in range(1, max_periods + 1):
+        try:
+            y = flow(system, y, orbit.period, variations=False)[0]
+        except EvaluationFailed:
+            break
+        deviation[k] = float(np.max(np.abs(y - orbit.y0 - k * shift)))
+        if not np.isfinite(deviation[k]):
+            break
+    return lifetime_from_deviation(
+        deviation, period=orbit.period, perturbation=perturbation, threshold=threshold,
+        max_multiplier=None if orbit.stable else orbit.max_multiplier,
+    )  # fmt: skip
 
 
 def _unfolding_parameter(system: System, unfold: str | None) -> str:
