@@ -792,6 +792,9 @@ def find_collocation_orbit(
 
 #: Continuation points between two mesh adaptations (the phase reference is renewed at every point).
 REMESH_EVERY = 8
+#: A continuation adapts its mesh also once the period has grown by this factor since the last adaptation
+#: (1.25 with ``max_interval``, whose intervals then stay within 1.25 times it).
+REMESH_GROWTH = 1.5
 #: The most intervals a continuation's ``max_interval`` may ask for.
 NTST_MAX = 4000
 #: A branch's message warns where |mu_trivial - 1| exceeds this.
@@ -843,6 +846,8 @@ class _BranchProblem:
     template: CollocationOrbit
     moment_range: tuple[float, float]
     period_max: float
+    #: The segment ends (for a new mesh) once the period exceeds this.
+    remesh_above: float = math.inf
     tol: float = TOL
 
     def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
@@ -881,6 +886,8 @@ class _BranchProblem:
         low, high = self.moment_range
         if not low <= point.moment <= high:
             return BranchEnd.PARAMETER_LIMIT, f"M={point.moment!r} left [{low!r}, {high!r}]: " + BranchEnd.PARAMETER_LIMIT.advice
+        if point.period > self.remesh_above:
+            return BranchEnd.MAX_POINTS, "the period grew: a new mesh"
         return None
 
     def confirm(self, kind: str, point: CollocationOrbit) -> bool:
@@ -909,7 +916,8 @@ def continue_collocation(
 
     The unknowns are the profile (scaled to its mean square norm), log T (steps of one size while
     T grows without bound towards a homoclinic end) and M. Every ``remesh_every`` points the mesh
-    is adapted to the last orbit and the driver restarts there with the tangent interpolated.
+    is adapted to the last orbit (and sooner once the period has grown by :data:`REMESH_GROWTH`)
+    and the driver restarts there with the tangent interpolated.
 
     Parameters
     ----------
@@ -983,7 +991,8 @@ def continue_collocation(
         collocation = _Collocation(system, mesh, orbit.ncol, shift, profile, free_moment=True)
         if tangent0 is not None:
             tangent0 = np.concatenate([collocation.scale * moved.ravel(), tangent0[-2:]])
-        problem = _BranchProblem(collocation, current, (moment_min, moment_max), period_max)
+        growth = REMESH_GROWTH if max_interval is None else 1.25
+        problem = _BranchProblem(collocation, current, (moment_min, moment_max), period_max, growth * current.period)
         count = min(remesh_every, max_points - len(orbits) + 1)
         traced = continuation(
             problem, collocation.pack(profile, current.period, current.moment), step=step, min_step=min_step, max_step=max_step,
