@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import typer
@@ -156,24 +155,6 @@ def breathers(
         typer.echo(family.message)
 
 
-def _atlas_values(text: str, fields: tuple[str, ...] | None = None) -> tuple[str, list[float]]:
-    """FIELD and its values from ``FIELD=V1,V2,...`` (FIELD among ``fields``, default the chain's); exit 2 naming what is wrong."""
-    from ..experiments.breather_atlas import ATLAS_FIELDS
-
-    fields = ATLAS_FIELDS if fields is None else fields
-    name, sep, listed = text.partition("=")
-    name = name.strip()
-    if not sep or name not in fields:
-        fail(f"--atlas must be FIELD=V1,V2,... with FIELD one of {', '.join(fields)}, got {text!r}")
-    try:
-        values = [float(item) for item in listed.split(",") if item.strip()]
-    except ValueError:
-        fail(f"--atlas {name}: the values must be numbers separated by commas, got {listed!r}")
-    if not values or not all(math.isfinite(v) for v in values):
-        fail(f"--atlas {name}: give one or more finite values separated by commas, got {listed!r}")
-    return name, values
-
-
 def _atlas(
     text: str, model: str, omega: float, to: float | None, steps: int, *, turns: int, particle: int, partner: int | None, counter: bool,
     method: str, config: Path | None, out: Path | None, plot: Path | None, as_json: bool,
@@ -182,8 +163,9 @@ def _atlas(
     import numpy as np
 
     from ..experiments.breather_atlas import breather_atlas
+    from .system_breathers import atlas_values
 
-    name, values = _atlas_values(text)
+    name, values = atlas_values(text)
     if method not in ("auto", "dense", "blocks"):
         fail(f"--method must be auto, dense or blocks, got {method!r}")
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})

@@ -1,13 +1,32 @@
-"""``cosserat-chain breathers --system REF``: roto-breather families of a user's system (:mod:`cosserat_chain.experiments.system_breathers`)."""
+"""``cosserat-chain breathers --system REF``: roto-breather families and atlases of a user's system; the atlases' ``FIELD=V1,V2,...`` parser."""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import typer
 
 from .common import bar_callback, fail, outputs_or_exit, progress_bar, save_dataset, save_figure
 from .systems import _echo_json, system_or_exit
+
+
+def atlas_values(text: str, fields: tuple[str, ...] | None = None) -> tuple[str, list[float]]:
+    """FIELD and its values from ``FIELD=V1,V2,...`` (FIELD among ``fields``, default the chain's); exit 2 naming what is wrong."""
+    from ..experiments.breather_atlas import ATLAS_FIELDS
+
+    fields = ATLAS_FIELDS if fields is None else fields
+    name, sep, listed = text.partition("=")
+    name = name.strip()
+    if not sep or name not in fields:
+        fail(f"--atlas must be FIELD=V1,V2,... with FIELD one of {', '.join(fields)}, got {text!r}")
+    try:
+        values = [float(item) for item in listed.split(",") if item.strip()]
+    except ValueError:
+        fail(f"--atlas {name}: the values must be numbers separated by commas, got {listed!r}")
+    if not values or not all(math.isfinite(v) for v in values):
+        fail(f"--atlas {name}: give one or more finite values separated by commas, got {listed!r}")
+    return name, values
 
 
 def _angle_or_exit(system, offset: int | None, option: str) -> int | None:
@@ -53,13 +72,12 @@ def atlas_on_system(
     from ..experiments.system_breather_atlas import system_breather_atlas
     from ..experiments.system_breathers import BreatherError
     from ..systems import SystemDefinitionError
-    from .breathers import _atlas_values
 
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     system = system_or_exit(reference, config, sets)
     if not np.flatnonzero(system.angles).size:
         fail(f"--system {reference}: {system.name} has no angle coordinate: nothing can turn")
-    name, values = _atlas_values(text, tuple(system.parameters))
+    name, values = atlas_values(text, tuple(system.parameters))
     rotor = _angle_or_exit(system, particle, "--particle")
     other = _angle_or_exit(system, partner, "--partner")
     if other == rotor:
