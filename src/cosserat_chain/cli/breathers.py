@@ -23,7 +23,10 @@ def breathers(
     partner: int | None = typer.Option(None, help="A second rotor (a two-site roto-breather), turning as often as the first."),
     counter: bool = typer.Option(False, "--counter", help="The partner turns against the first rotor (default: with it)."),
     lifetimes: int = typer.Option(
-        0, min=0, help="Run each orbit, its velocities perturbed by 1e-8, for up to this many periods: its lifetime (0: none)."
+        0,
+        min=0,
+        help="Run each orbit, its velocities perturbed by 1e-8, for up to this many periods: its lifetime (0: none); also in "
+        "--out and --plot.",
     ),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields; its viscosities are set to 0 (undamped)."),
     out: Path | None = typer.Option(None, help="Write the family to this NetCDF file."),
@@ -39,7 +42,8 @@ def breathers(
         "--atlas",
         metavar="FIELD=V1,V2,...",
         help="The existence map: roto-breathers over the frequencies --omega..--to (--steps) and these values of a chain field "
-        "(a, b, h, E1, E2), continued in both; existence, stability, localization against the bands' harmonics.",
+        "(a, b, h, E1, E2), or with --system of a system parameter, continued in both; existence, stability, localization against "
+        "the bands' harmonics; with --partner, of two rotors.",
     ),
     method: str = typer.Option(
         "auto",
@@ -56,7 +60,7 @@ def breathers(
     """Roto-breathers: one particle rotating, the rest oscillating, undamped; Newton from the anti-continuum limit, Floquet multipliers, resonances with the bands.
 
     With --system: the system's family (its angles counted from the central one by --particle and --partner), continued in --coupling from 0, then in the frequency to --to; --out writes it to NetCDF.
-    With --atlas FIELD=V1,V2,...: the existence map over (Omega, FIELD). With --from-moment M: the damped, driven orbit followed to zero damping.
+    With --atlas FIELD=V1,V2,...: the existence map over (Omega, FIELD), of the chain or of the --system. With --from-moment M: the damped, driven orbit followed to zero damping.
     """
     if from_moment is not None:
         if system is not None or atlas is not None:
