@@ -25,8 +25,9 @@ CPU seconds (``time.process_time``, one BLAS thread), the two methods interleave
 ``branch``
     The whole branch from M = 0.3 until the period exceeds 2000 by ``continue_collocation``
     (NTST = 40; and with ``max_interval`` = 1 time unit, which keeps the damped modes'
-    multipliers resolved), against the shooting's ``continue_orbit`` to the period
-    ``--shooting-period-max`` (default 100; the issue's run to 2000 did not end in 30 minutes).
+    multipliers resolved), against the shooting's ``continue_orbit`` to each period
+    ``--shooting-period-max`` (default 100 and 300; the issue's run to 2000 did not end in 30
+    minutes). Each result is written as soon as it is measured.
 
 Results go to ``benchmarks/results/collocation.json`` (``docs/collocation.md``).
 """
@@ -144,9 +145,9 @@ def _or_none(function):
         return None
 
 
-def branch_part(shooting_period_max: float) -> dict:
+def branch_part(shooting_period_max: list[float], save) -> dict:
     start = find_collocation_orbit(N1, "nonlinear", 0.3)
-    out = {}
+    out: dict = {"shooting": []}
     for name, options in (("collocation", {}), ("collocation_max_interval_1", {"max_interval": 1.0})):
         seconds, branch = _cpu(lambda options=options: continue_collocation(start, moment_min=0.1, period_max=2000.0, **options))
         out[name] = {
@@ -160,17 +161,22 @@ def branch_part(shooting_period_max: float) -> dict:
             "message": branch.message,
         }
         print(json.dumps({name: out[name]}), file=sys.stderr, flush=True)
+        save(out)
     shot = find_periodic_orbit(N1, "nonlinear", 0.3)
-    seconds, branch = _cpu(lambda: continue_orbit(shot, moment_min=0.1, period_max=shooting_period_max, max_points=5000))
-    out["shooting"] = {
-        "cpu_s": seconds,
-        "period_max": shooting_period_max,
-        "points": len(branch.orbits),
-        "end": str(branch.end),
-        "last_period": float(branch.orbits[-1].period),
-        "last_moment": float(branch.orbits[-1].moment),
-    }
-    print(json.dumps({"shooting": out["shooting"]}), file=sys.stderr, flush=True)
+    for period_max in shooting_period_max:
+        seconds, branch = _cpu(lambda period_max=period_max: continue_orbit(shot, moment_min=0.1, period_max=period_max, max_points=5000))
+        out["shooting"].append(
+            {
+                "cpu_s": seconds,
+                "period_max": period_max,
+                "points": len(branch.orbits),
+                "end": str(branch.end),
+                "last_period": float(branch.orbits[-1].period),
+                "last_moment": float(branch.orbits[-1].moment),
+            }
+        )
+        print(json.dumps(out["shooting"][-1]), file=sys.stderr, flush=True)
+        save(out)
     return out
 
 
@@ -180,23 +186,30 @@ def main(argv: list[str] | None = None) -> dict:
     parser.add_argument("--parts", nargs="+", default=["sizes", "periods", "branch"], choices=["sizes", "periods", "branch"])
     parser.add_argument("--sizes", nargs="+", type=int, default=list(SIZES))
     parser.add_argument("--repeats", type=int, default=3)
-    parser.add_argument("--shooting-period-max", type=float, default=100.0)
+    parser.add_argument("--shooting-period-max", nargs="+", type=float, default=[100.0, 300.0])
     parser.add_argument("--json", action="store_true", help="also print the results on stdout")
     args = parser.parse_args(argv)
     results: dict = {"benchmark": "collocation", "cpu": "time.process_time, one BLAS thread"}
     path = RESULTS / "collocation.json"
     if path.exists():
         results.update(json.loads(path.read_text()))
+
+    def save(part: str):
+        def write(rows) -> None:
+            results[part] = rows
+            RESULTS.mkdir(exist_ok=True)
+            tmp = path.with_suffix(".json.tmp")
+            tmp.write_text(json.dumps(results, indent=1) + "\n")
+            tmp.replace(path)
+
+        return write
+
     if "sizes" in args.parts:
-        results["sizes"] = sizes_part(tuple(args.sizes), args.repeats)
+        save("sizes")(sizes_part(tuple(args.sizes), args.repeats))
     if "periods" in args.parts:
-        results["periods"] = periods_part(args.repeats)
+        save("periods")(periods_part(args.repeats))
     if "branch" in args.parts:
-        results["branch"] = branch_part(args.shooting_period_max)
-    RESULTS.mkdir(exist_ok=True)
-    tmp = path.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(results, indent=1) + "\n")
-    tmp.replace(path)
+        branch_part(args.shooting_period_max, save("branch"))
     if args.json:
         print(json.dumps(results, indent=1))
     return results
