@@ -19,6 +19,7 @@ from cosserat_chain.numerics.collocation import (
 )
 from cosserat_chain.numerics.continuation import locate_fold
 from cosserat_chain.numerics.periodic import find_periodic_orbit
+from cosserat_chain.state import pack, per_dof
 
 #: The N = 1 chain of the issue's long-period case (three particles, the middle one free).
 N1 = ChainParams(N=1)
@@ -90,6 +91,15 @@ def test_longitudinal_multipliers_of_the_sine_chain_are_exp_of_minus_half_the_da
     expected = math.exp(-gamma * orbit.period / (2 * params.m))
     relative = np.sort(np.abs(np.abs(orbit.multipliers) / expected - 1.0))
     assert relative[1] < 1e-6
+
+
+@pytest.mark.parametrize(("params", "model", "moment"), [CASES[0], CASES[2]])
+def test_product_of_the_multipliers_obeys_liouville(params, model, moment):
+    # det(monodromy) = exp(int tr A dt) = exp(-T sum gamma_i / m_i): the damping alone sets the product,
+    # down to the strongly damped multipliers (6e-7 on the nonlinear N = 1 orbit) that the trivial one does not test.
+    orbit = find_collocation_orbit(params, model, moment)
+    rate = np.sum(per_dof(params, params.damping) / pack(params, params.particle_inertia))
+    assert np.sum(np.log(np.abs(orbit.multipliers))) == pytest.approx(-orbit.period * rate, rel=1e-7)
 
 
 @pytest.mark.slow
