@@ -43,6 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, types
+from numba.experimental.function_type import _get_wrapper_address
 
 from ..models.base import END_KERNEL_TYPE, FORCE_KERNEL_TYPE, no_ends
 from ..status import Status
@@ -231,6 +232,46 @@ _SOLVE_SIGNATURE = types.Tuple((types.int64, types.int64, types.int64, types.int
     types.int64,
     types.float64[:, ::1],
 )
+
+
+class _Entry(types.WrapperAddressProtocol):
+    """A compiled function handed to compiled code as a first-class function by its address, found once.
+
+    Numba's dispatcher looks up the compiled overload and its address of every function argument at
+    every call (:func:`entry`); this object gives the address it was made with.
+    """
+
+    def __init__(self, function, kind: types.FunctionType) -> None:
+        self.function, self.kind = function, kind
+        self.address = _get_wrapper_address(function, kind.signature)
+
+    def __wrapper_address__(self) -> int:
+        return self.address
+
+    def signature(self):
+        return self.kind.signature
+
+
+_ENTRIES: dict = {}
+
+
+def entry(function, kind: types.FunctionType):
+    """``function`` (a compiled function) as a first-class function argument of type ``kind`` that compiled code
+    enters with no look-up: the same compiled code, called through the same address, as ``function`` itself.
+
+    A function Numba cannot address so (a plain Python function, an older Numba) is returned as it is.
+    """
+    if isinstance(function, _Entry):
+        return function
+    key = (function, kind)
+    found = _ENTRIES.get(key)
+    if found is None:
+        try:
+            found = _Entry(function, kind)
+        except (TypeError, ValueError, NotImplementedError, AttributeError):
+            found = function
+        _ENTRIES[key] = found
+    return found
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -448,9 +489,8 @@ def solve(
     coef = np.ascontiguousarray(coef, dtype=float)
     rpar = np.ascontiguousarray(rpar, dtype=float)
     ipar = np.ascontiguousarray(ipar, dtype=np.int64)
-    code, frames, steps, evaluations, t = _solve(
-        rhs, force, end_force, coef, rpar, ipar, times, float(rtol), float(atol), int(max_steps), out
-    )
+    functions = (entry(rhs, _SOLVE_SIGNATURE.args[0]), entry(force, FORCE_KERNEL_TYPE), entry(end_force, END_KERNEL_TYPE))
+    code, frames, steps, evaluations, t = _solve(*functions, coef, rpar, ipar, times, float(rtol), float(atol), int(max_steps), out)
     if code == _COMPLETED:
         message = f"reached t={t:.10g} in {steps} steps"
     elif code == _MAX_STEPS:

@@ -58,6 +58,7 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 import scipy.linalg as sla
@@ -67,7 +68,7 @@ from ..errors import CosseratChainError
 from ..linalg.threads import one_blas_thread
 from ..loads import moment_load
 from ..memory import FLOAT, require
-from ..models.base import BOND_BLOCK, BOND_ROWS, Model, get_model, no_ends
+from ..models.base import BOND_BLOCK, BOND_ROWS, END_KERNEL_TYPE, FORCE_KERNEL_TYPE, Model, get_model, no_ends
 from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, force_columns, free_index, held, n_free, pack, per_dof, unpack, zeros
 from ..state import dof as free_dof
@@ -323,6 +324,23 @@ def _layout(params: ChainParams) -> np.ndarray:
     return np.concatenate([position % 3, col, lookup[3:-3], neighbours.ravel()])
 
 
+@lru_cache(maxsize=64)
+def _parameters(params: ChainParams, model: Model, particle: int, ncols: int):
+    """:meth:`_System.parameters` at M = 0, built once per chain, model, loaded particle and column count: a
+    continuation evaluates the same chain at many moments (the callers get copies of the arrays)."""
+    mass = pack(params, params.particle_inertia)
+    gamma = per_dof(params, params.damping)
+    rpar = np.concatenate([[0.0], 1.0 / mass, gamma / mass])
+    head = [params.n_particles, free_dof(params, "phi", particle), ncols, n_free(params), *force_columns(params)]
+    ipar = np.concatenate([head, _layout(params)]).astype(np.int64)
+    coef = model.coefficients(params)
+    bonds = type(model).bond_kernel
+    if ncols and bonds is not None:
+        return _bond_rhs, bonds, no_ends, coef, rpar, ipar
+    kernel, ends = model.chain_kernels(params)
+    return _rhs, kernel, ends, coef, rpar, ipar
+
+
 class OrbitError(CosseratChainError, RuntimeError):
     """Newton's method on the shooting map did not converge (the message says what to try)."""
 
@@ -353,21 +371,20 @@ class _System:
         :func:`_bond_rhs` with the model's bond kernel where there are variational columns and the
         model has one (an exact force Jacobian), else :func:`_rhs` with its chain kernels.
         """
-        mass = pack(self.params, self.params.particle_inertia)
-        gamma = per_dof(self.params, self.params.damping)
-        rpar = np.concatenate([[self.moment], 1.0 / mass, gamma / mass])
-        head = [self.params.n_particles, self.load_dof, ncols, self.nf, *force_columns(self.params)]
-        ipar = np.concatenate([head, _layout(self.params)]).astype(np.int64)
-        coef = self.model.coefficients(self.params)
-        bonds = type(self.model).bond_kernel
-        if ncols and bonds is not None:
-            return _bond_rhs, bonds, no_ends, coef, rpar, ipar
-        kernel, ends = self.model.chain_kernels(self.params)
-        return _rhs, kernel, ends, coef, rpar, ipar
+        try:
+            built = _parameters(self.params, self.model, self.particle, ncols)
+        except TypeError:  # a chain or model that cannot be hashed is built anew each time
+            built = _parameters.__wrapped__(self.params, self.model, self.particle, ncols)
+        rhs, kernel, ends, coef, rpar, ipar = built
+        rpar = rpar.copy()
+        rpar[0] = self.moment
+        return rhs, kernel, ends, coef.copy(), rpar, ipar.copy()
 
     def rhs(self, ncols: int):
         """The right-hand side f(t, y) with ``ncols`` variational columns, for Python callers."""
         rhs, kernel, ends, coef, rpar, ipar = self.parameters(ncols)
+        # The kernels by their addresses (dop853.entry): a call then skips Numba's look-up of each.
+        kernel, ends = dop853.entry(kernel, FORCE_KERNEL_TYPE), dop853.entry(ends, END_KERNEL_TYPE)
 
         def f(t: float, y: np.ndarray) -> np.ndarray:
             dy = np.empty_like(y)
