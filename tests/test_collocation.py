@@ -128,6 +128,20 @@ def test_continuation_follows_the_nonlinear_n1_orbit_to_its_snic_with_the_saddle
     np.testing.assert_allclose(np.abs(fine.multipliers[:5]), np.abs(shot.multipliers[:5]), rtol=1e-6)
 
 
+@pytest.mark.slow
+def test_fold_of_cycles_of_the_paper_sine_chain_equals_the_shooting_s(paper_sine_branch):
+    # From the shooting's orbit a few points before its fold (the same branch, fewer points to trace).
+    near = paper_sine_branch.orbits[-6]
+    start = find_collocation_orbit(near.params, "sine", near.moment, guess=near)
+    branch = continue_collocation(start, moment_min=0.1)
+    assert branch.end == "fold" and paper_sine_branch.end == "fold"
+    fold = [event for event in branch.events if event["kind"] == "fold"][-1]
+    assert fold["located"] and fold["moment"] == pytest.approx(paper_sine_branch.end_moment, abs=1e-7)
+    # The fold's double multiplier at +1: two multipliers near it, the rest well away.
+    distance = np.sort(np.abs(fold["orbit"].multipliers - 1.0))
+    assert distance[1] < 1e-2 < distance[2]
+
+
 @pytest.mark.parametrize(
     ("ntst", "ncol", "match"),
     [(1, 4, "ntst"), (40, 1, "ncol"), (40, 8, "ncol"), (2.5, 4, "ntst"), (40, True, "ncol")],

@@ -42,7 +42,9 @@ their own accuracy. The trivial multiplier's distance to 1 is its error.
 :func:`continue_collocation` follows the orbit in M with the package's one pseudo-arclength
 driver (:func:`~cosserat_chain.numerics.kit.continuation`) in (node values, log T, M), the
 mesh re-adapted and the phase reference renewed every few points, until the period exceeds
-``period_max`` (a homoclinic or SNIC end), M leaves the range, or M turns (a fold of cycles).
+``period_max`` (a homoclinic or SNIC end), M leaves the range, or M turns (a fold of cycles:
+located by the driver's secant method on the tangent's M component, and accepted only with a
+second multiplier at +1, as issue 40 asks).
 """
 
 from __future__ import annotations
@@ -65,7 +67,7 @@ from ..models.base import END_KERNEL_TYPE, FORCE_KERNEL_TYPE, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, pack
 from . import dop853, periodic
-from .kit import BranchEnd, Evaluation, EvaluationFailed, continuation, newton
+from .kit import BranchEnd, Evaluation, EvaluationFailed, Event, continuation, newton
 
 #: Default number of mesh intervals and of Gauss points per interval (AUTO-07p's NTST, NCOL).
 NTST = 40
@@ -797,6 +799,8 @@ REMESH_EVERY = 8
 REMESH_GROWTH = 1.5
 #: The most intervals a continuation's ``max_interval`` may ask for.
 NTST_MAX = 4000
+#: A located fold of cycles is confirmed where the second multiplier nearest +1 lies this close to it.
+FOLD_MULTIPLIER = 1e-2
 #: A branch's message warns where |mu_trivial - 1| exceeds this.
 TRIVIAL_WARNING = 1e-6
 #: Default bound on the period: beyond it the branch ends as infinite-period (a homoclinic or SNIC end).
@@ -813,17 +817,22 @@ class CollocationBranch:
         In the order traced.
     end : BranchEnd
         ``infinite_period`` (T exceeded ``period_max``), ``parameter_limit`` (M left the range),
-        ``fold`` (M turned: a fold of cycles, reported at the first point past it), ``max_points``
+        ``fold`` (M turned: a fold of cycles, located and confirmed, :attr:`events`), ``max_points``
         or ``step_too_small``.
     message : str
     adaptations : int
         Mesh adaptations along the way.
+    events : list of dict
+        ``{"kind", "moment", "located", "orbit"}``: folds of cycles (located by the secant method on
+        the tangent's M component, confirmed by a second multiplier at +1) and the sign changes of
+        the kit's branch-point test (not located, not confirmed).
     """
 
     orbits: list[CollocationOrbit]
     end: BranchEnd
     message: str
     adaptations: int = 0
+    events: list[dict] = dataclasses.field(default_factory=list)
 
     @property
     def moment(self) -> np.ndarray:
@@ -890,8 +899,15 @@ class _BranchProblem:
             return BranchEnd.MAX_POINTS, "the period grew: a new mesh"
         return None
 
+    def locate(self, kind: str, w, t, h, previous, candidate, index: int) -> Event | None:
+        """Folds are located by the kit's secant method (None); other sign changes are left where they were seen."""
+        return None if kind == "fold" else Event(kind, candidate, candidate.moment, index, None, located=False)
+
     def confirm(self, kind: str, point: CollocationOrbit) -> bool:
-        return True
+        """A fold of cycles needs a second multiplier at +1 (issue 40's first item): within :data:`FOLD_MULTIPLIER`."""
+        if kind != "fold":
+            return True
+        return bool(np.sort(np.abs(point.multipliers - 1.0))[1] < FOLD_MULTIPLIER)
 
 
 @one_blas_thread
@@ -974,7 +990,7 @@ def continue_collocation(
     system = periodic._System(orbit.params, get_model(orbit.model), orbit.moment, orbit.particle)
     shift = _shift(system, orbit.particle_turns)
     sch = scheme(orbit.ncol)
-    orbits = [orbit]
+    orbits, events = [orbit], []
     current, tangent0, adaptations = orbit, None, 0
     end, message = BranchEnd.MAX_POINTS, f"stopped after max_points={max_points} points: " + BranchEnd.MAX_POINTS.advice
     while len(orbits) < max_points:
@@ -996,9 +1012,10 @@ def continue_collocation(
         count = min(remesh_every, max_points - len(orbits) + 1)
         traced = continuation(
             problem, collocation.pack(profile, current.period, current.moment), step=step, min_step=min_step, max_step=max_step,
-            max_points=count, direction=direction, tangent0=tangent0, stop_at=("fold",), locate=False,
+            max_points=count, direction=direction, tangent0=tangent0, stop_at=("fold",), locate=True,
         )  # fmt: skip
         orbits.extend(traced.points[1:])
+        events.extend({"kind": e.kind, "moment": e.parameter, "located": e.located, "orbit": e.point} for e in traced.events)
         if progress is not None:
             progress(len(orbits), max_points)
         if traced.end != BranchEnd.MAX_POINTS or len(traced.points) < 2:
@@ -1013,7 +1030,7 @@ def continue_collocation(
             f"; the trivial multiplier is off by {worst.trivial_multiplier_error:.2g} at M={worst.moment!r} (T={worst.period:.6g}): "
             "the multipliers there are not resolved: raise ntst or give max_interval"
         )
-    return CollocationBranch(orbits, end, message, adaptations)
+    return CollocationBranch(orbits, end, message, adaptations, events)
 
 
 def _last_step(points: list[CollocationOrbit]) -> float:
