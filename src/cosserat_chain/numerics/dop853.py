@@ -43,10 +43,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, types
-from numba.experimental.function_type import _get_wrapper_address
 
 from ..models.base import END_KERNEL_TYPE, FORCE_KERNEL_TYPE, no_ends
 from ..status import Status
+from .addresses import entry
 
 #: Signature of every right-hand side: rhs(force, end_force, t, y, coef, rpar, ipar, dy) -> None.
 RHS_SIGNATURE = types.void(
@@ -232,46 +232,6 @@ _SOLVE_SIGNATURE = types.Tuple((types.int64, types.int64, types.int64, types.int
     types.int64,
     types.float64[:, ::1],
 )
-
-
-class _Entry(types.WrapperAddressProtocol):
-    """A compiled function handed to compiled code as a first-class function by its address, found once.
-
-    Numba's dispatcher looks up the compiled overload and its address of every function argument at
-    every call (:func:`entry`); this object gives the address it was made with.
-    """
-
-    def __init__(self, function, kind: types.FunctionType) -> None:
-        self.function, self.kind = function, kind
-        self.address = _get_wrapper_address(function, kind.signature)
-
-    def __wrapper_address__(self) -> int:
-        return self.address
-
-    def signature(self):
-        return self.kind.signature
-
-
-_ENTRIES: dict = {}
-
-
-def entry(function, kind: types.FunctionType):
-    """``function`` (a compiled function) as a first-class function argument of type ``kind`` that compiled code
-    enters with no look-up: the same compiled code, called through the same address, as ``function`` itself.
-
-    A function Numba cannot address so (a plain Python function, an older Numba) is returned as it is.
-    """
-    if isinstance(function, _Entry):
-        return function
-    key = (function, kind)
-    found = _ENTRIES.get(key)
-    if found is None:
-        try:
-            found = _Entry(function, kind)
-        except (TypeError, ValueError, NotImplementedError, AttributeError):
-            found = function
-        _ENTRIES[key] = found
-    return found
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

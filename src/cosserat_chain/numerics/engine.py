@@ -66,6 +66,7 @@ from ..memory import FLOAT, require
 from ..models.base import BATCH_FORCE_KERNEL_TYPE, END_KERNEL_TYPE, FORCE_KERNEL_TYPE, LANES
 from ..models.trig import TWO_PI_1, TWO_PI_2, TWO_PI_3, WRAP_ANGLE, join_turns, split_turns
 from ..state import force_columns, held
+from .addresses import entry
 from .integrators import check_time_step, default_time_step, substep_table
 
 #: Options of the compiled loop: no fastmath, so that the state arithmetic rounds
@@ -929,7 +930,11 @@ class Lanes:
         winding = self.winding.reshape(-1)
         assert np.shares_memory(winding, self.winding)
         status, done, written, self.pending = advance(
-            (self.force_kernel, self.end_kernel, kind.batch_kernel),
+            (
+                entry(self.force_kernel, FORCE_KERNEL_TYPE),
+                entry(self.end_kernel, END_KERNEL_TYPE),
+                entry(kind.batch_kernel, BATCH_FORCE_KERNEL_TYPE),
+            ),
             (self._flat(self.x), self._flat(self.v), self._flat(self.f), winding, self.acc),
             (self.coef, self.coef[:, 0].copy(), self.pairs, self.weights),
             (self.load_index, self.knots, self.load_scale),

@@ -74,6 +74,7 @@ from ..state import ROW_INDEX, check_state, column, force_columns, free_index, h
 from ..state import dof as free_dof
 from ..status import Status
 from . import dop853, long_orbits
+from .addresses import entry
 from .dynamics import TurnWatch, integrate
 from .integrators import default_time_step
 from .kit import BranchEnd, Evaluation, EvaluationFailed, continuation, newton
@@ -383,8 +384,8 @@ class _System:
     def rhs(self, ncols: int):
         """The right-hand side f(t, y) with ``ncols`` variational columns, for Python callers."""
         rhs, kernel, ends, coef, rpar, ipar = self.parameters(ncols)
-        # The kernels by their addresses (dop853.entry): a call then skips Numba's look-up of each.
-        kernel, ends = dop853.entry(kernel, FORCE_KERNEL_TYPE), dop853.entry(ends, END_KERNEL_TYPE)
+        # The kernels by their addresses (addresses.entry): a call then skips Numba's look-up of each.
+        kernel, ends = entry(kernel, FORCE_KERNEL_TYPE), entry(ends, END_KERNEL_TYPE)
 
         def f(t: float, y: np.ndarray) -> np.ndarray:
             dy = np.empty_like(y)

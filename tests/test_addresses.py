@@ -1,0 +1,58 @@
+"""numerics.addresses: a compiled function handed over by its address runs the same code as the dispatcher."""
+
+import numpy as np
+import pytest
+
+from cosserat_chain.models.base import END_KERNEL_TYPE, FORCE_KERNEL_TYPE, get_model
+from cosserat_chain.numerics import dop853
+from cosserat_chain.numerics.addresses import _Entry, entry
+from cosserat_chain.numerics.periodic import _System
+from cosserat_chain.params import ChainParams
+
+
+def _parts(model: str, ncols: int = 0):
+    system = _System(ChainParams(), get_model(model), 0.21, 0)
+    return system, system.parameters(ncols)
+
+
+def test_entry_is_found_once_and_kept():
+    _, (rhs, kernel, ends, *_) = _parts("sine")
+    first = entry(kernel, FORCE_KERNEL_TYPE)
+    assert isinstance(first, _Entry)
+    assert entry(kernel, FORCE_KERNEL_TYPE) is first
+    assert entry(first, FORCE_KERNEL_TYPE) is first
+    assert first.signature() == FORCE_KERNEL_TYPE.signature
+    assert entry(ends, END_KERNEL_TYPE).address > 0
+
+
+def test_a_plain_python_function_is_returned_as_it_is():
+    def plain(*args):
+        return None
+
+    assert entry(plain, FORCE_KERNEL_TYPE) is plain
+
+
+@pytest.mark.parametrize("model", ["sine", "nonlinear"])
+def test_dop853_by_address_is_bitwise_the_dispatchers_run(model):
+    """The integrator entered through the addresses and through the dispatchers themselves (the compiled
+    loop called directly) gives the same numbers to the last bit, monodromy columns included."""
+    system, (rhs, kernel, ends, coef, rpar, ipar) = _parts(model, ncols=3)
+    size = 2 * system.nf
+    rng = np.random.default_rng(4)
+    y0 = np.concatenate([0.05 * rng.standard_normal(size), rng.standard_normal(size * 3)])
+    times = np.array([0.0, 1.5, 3.0])
+    by_address = dop853.solve(rhs, kernel, coef, rpar, ipar, y0, times, rtol=1e-10, atol=1e-10, end_force=ends)
+    out = np.empty((times.size, y0.size))
+    out[0] = y0
+    code, frames, steps, evaluations, t = dop853._solve(rhs, kernel, ends, coef, rpar, ipar, times, 1e-10, 1e-10, 100000, out)
+    assert by_address.success and code == 0
+    assert by_address.steps == steps
+    np.testing.assert_array_equal(by_address.y, out)
+
+
+def test_rhs_by_address_matches_the_dispatcher():
+    system, (rhs, kernel, ends, coef, rpar, ipar) = _parts("nonlinear")
+    y = 0.1 * np.random.default_rng(1).standard_normal(2 * system.nf)
+    direct = np.empty_like(y)
+    rhs(kernel, ends, 0.0, y, coef, rpar, ipar, direct)
+    np.testing.assert_array_equal(system.rhs(0)(0.0, y), direct)
