@@ -73,7 +73,7 @@ from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, force_columns, free_index, held, n_free, pack, per_dof, unpack, zeros
 from ..state import dof as free_dof
 from ..status import Status
-from . import dop853, long_orbits
+from . import collocation_core, dop853, long_orbits
 from .addresses import entry
 from .dynamics import TurnWatch, integrate
 from .integrators import default_time_step
@@ -835,7 +835,7 @@ def find_periodic_orbit(
         multipliers up to 2 n_free = 2500, the leading ones above); ``krylov``: never formed,
         Newton-Krylov shooting with the leading multipliers by Arnoldi (:mod:`~.long_orbits`);
         ``auto``: ``blocks`` from N = ``long_orbits.BLOCKS_FROM_N`` on, else ``dense``;
-        ``collocation``: orthogonal collocation with its default mesh (:mod:`~.collocation`; ``tol``,
+        ``collocation``: orthogonal collocation with its default mesh (:mod:`~.collocation_core`; ``tol``,
         ``rtol`` and ``atol`` do not apply), the start put on the section afterwards.
 
     Returns
@@ -883,9 +883,12 @@ def find_periodic_orbit(
         y0[system.load_dof] = 0.0
     phase = _phase_for(system, y0, normal)
     if collocating:
-        from .collocation import solve_collocation  # it builds on this module
-
-        return solve_collocation(system, turns, y0, period, particle_turns, max_iter=max_iter).periodic_orbit()
+        try:
+            solved = collocation_core.solve_profile(system, y0, period, particle_turns, max_iter=max_iter)
+        except collocation_core.CollocationError as err:
+            raise OrbitError(str(err)) from err
+        y0, normal = collocation_core.section_state(system, solved.mesh, solved.ncol, solved.profile, particle_turns, TRANSVERSAL_MIN)
+        return _orbit_from(system, turns, y0, solved.period, solved.multipliers, solved.residual, solved.iterations, particle_turns, normal)
     if method != "dense":
         return _long_orbit(system, turns, y0, period, particle_turns, phase, method, tol=tol, max_iter=max_iter, rtol=rtol, atol=atol)
     evaluate = _shooting(system, particle_turns, rtol, atol)
