@@ -44,6 +44,8 @@ class Section:
 
 #: Width (inches) of every figure of the report.
 FIGURE_WIDTH = 10.0
+#: Resolution (dots per inch) of the report's PNG figures.
+FIGURE_DPI = 130
 
 
 class _Stage:
@@ -99,11 +101,15 @@ class _Stage:
         width, height = fig.get_size_inches()
         if width < FIGURE_WIDTH:
             fig.set_size_inches(FIGURE_WIDTH, max(height, min(height * FIGURE_WIDTH / width, 0.6 * FIGURE_WIDTH)))
-        write_figure(fig, self.path(f"figures/{stem}.png"), dpi=130)
-        # The PNG's draw has placed every axes; the SVG keeps those places rather than laying the figure out again.
-        if fig.get_layout_engine() is not None:
+        # The figure is laid out once, at the saved resolution, and both files keep those places: savefig
+        # with a layout engine draws the figure twice (once to lay it out) and lays it out at each draw.
+        fig.set_dpi(FIGURE_DPI)
+        engine = fig.get_layout_engine()
+        if engine is not None:
+            engine.execute(fig)
             fig.set_layout_engine("none")
-        write_figure(fig, self.path(f"figures/{stem}.svg"), dpi=130)
+        write_figure(fig, self.path(f"figures/{stem}.png"), dpi=FIGURE_DPI)
+        write_figure(fig, self.path(f"figures/{stem}.svg"), dpi=FIGURE_DPI)
         plt.close(fig)
         return stem
 
