@@ -23,8 +23,10 @@ from conftest import selected_params
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 #: Pages whose blocks are long runs (a study on a local Dask cluster of worker processes; the roto-breather atlas of a
-#: 101-particle chain over a grid of frequencies and geometries): slow tests.
-SLOW_PAGES = {"studies.md", "roto-breathers.md"}
+#: 101-particle chain over a grid of frequencies and geometries; the period-doubling switch of periodic-orbits.md, whose
+#: branch, switch and branch point the quick tests of test_cycle_switching.py and test_cycle_switching_branch_points.py
+#: compute on the same chains): slow tests.
+SLOW_PAGES = {"studies.md", "roto-breathers.md", "periodic-orbits.md"}
 
 
 def python_blocks(page: Path) -> list[str]:
