@@ -21,8 +21,9 @@ from cosserat_chain.numerics.periodic import continue_orbit, find_periodic_orbit
 
 
 def around_loss(chain: ChainParams):
-    """The last stable and the first unstable orbit of the one-parameter branch down from 1.1 M_c."""
-    branch = continue_orbit(find_periodic_orbit(chain, "sine", 1.1 * locate_fold(chain, "sine").moment), period_max=100.0)
+    """The last stable and the first unstable orbit of the one-parameter branch down from 1.1 M_c (traced no further)."""
+    start = find_periodic_orbit(chain, "sine", 1.1 * locate_fold(chain, "sine").moment)
+    branch = continue_orbit(start, period_max=100.0, until_unstable=True)
     index = int(np.argmin(branch.stable))
     return branch.orbits[index - 1 : index + 1]
 
