@@ -142,6 +142,21 @@ def test_fold_of_cycles_of_the_paper_sine_chain_equals_the_shooting_s(paper_sine
     assert distance[1] < 1e-2 < distance[2]
 
 
+@pytest.mark.slow
+def test_integral_phase_condition_passes_the_sections_false_fold_to_the_real_one():
+    # Issue 40 item 1's case: on the N = 2 sine chain at gamma_phi = 0.15 the loaded particle backs up after each
+    # turn, and the section phi_0 = 0 gave a false fold at M = 0.18223; the real fold of cycles is at 0.1803666
+    # (the augmented shooting system on a phase plane, tests/test_orbit_phase_condition.py).
+    chain = ChainParams(N=2, gamma_phi=0.15)
+    moment = 1.1 * locate_fold(chain, "sine").moment
+    start = find_collocation_orbit(chain, "sine", moment, guess=find_periodic_orbit(chain, "sine", moment))
+    branch = continue_collocation(start, moment_min=0.1)
+    folds = [event for event in branch.events if event["kind"] == "fold"]
+    assert branch.end == "fold" and len(folds) == 1 and folds[0]["located"]
+    assert folds[0]["moment"] == pytest.approx(0.1803666, abs=2e-7)
+    assert np.all(branch.moment[:-1] > folds[0]["moment"])
+
+
 @pytest.mark.parametrize(
     ("ntst", "ncol", "match"),
     [(1, 4, "ntst"), (40, 1, "ncol"), (40, 8, "ncol"), (2.5, 4, "ntst"), (40, True, "ncol")],
