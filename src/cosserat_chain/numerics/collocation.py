@@ -133,7 +133,8 @@ class CollocationOrbit:
 
     @property
     def trivial_multiplier_error(self) -> float:
-        """|mu_trivial - 1|: the multipliers' discretisation error, measured on the one known exactly."""
+        """|mu_trivial - 1|: the discretisation's error on the one multiplier known exactly (on long orbits the
+        strongly damped multipliers can be worse: ``docs/collocation.md``, Limits)."""
         return float(abs(self.trivial_multiplier - 1.0))
 
     @property
