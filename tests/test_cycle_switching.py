@@ -175,6 +175,7 @@ def test_a_simulation_below_the_period_doubling_settles_on_the_doubled_orbit(swi
     assert doubled.max_multiplier < 1.0
 
 
+@pytest.mark.slow  # a second damping of the sine chain's switch: at gamma_phi = 0.15 it is tested quickly below
 def test_the_sine_chain_above_its_static_fold_doubles_its_period_at_gamma_phi_03():
     """The sine chain at gamma_phi = 0.3 period-doubles at M = 0.2105 > M_c (``tests/test_diagram.py``): the
     doubled orbit is stable below it, where the one-turn orbit is not."""

@@ -102,12 +102,22 @@ def test_reproduce_takes_either_reading_from_the_command_line_or_the_config(tmp_
     assert not (tmp_path / "c").exists() and not (tmp_path / "d").exists()
 
 
-@pytest.mark.parametrize("reading", list(READINGS))
-def test_the_report_gives_both_readings_and_the_reduced_model_from_its_stages(tmp_path, reading, statics):
+def _statics_and_continuum(reading: str, tmp_path, request):
+    """A report's statics and continuum sections with ``reading``, and its folder: the paper chain's own reading
+    (its N = 3, no reading set) from the session's quick report (conftest.py), the other computed here."""
+    if chain_for_reading(ReproduceSettings(reading=reading)) == ChainParams():
+        report = request.getfixturevalue("quick_report_and_figures")[0]
+        return report, report.out
     settings = ReproduceSettings(dm=0.05, n_list=(3, 10), reading=reading)
-    report = reproduce(tmp_path, settings=settings, stages=["statics", "continuum"])
+    return reproduce(tmp_path, settings=settings, stages=["statics", "continuum"]), tmp_path
+
+
+@pytest.mark.parametrize("reading", list(READINGS))
+def test_the_report_gives_both_readings_and_the_reduced_model_from_its_stages(tmp_path, reading, statics, request):
+    report, tmp_path = _statics_and_continuum(reading, tmp_path, request)
+    sections = {section.title: section for section in report.sections}
     assert report.failed == [] and report.summary["params"]["N"] == READINGS[reading]
-    seven = report.sections[0].numbers["seven_particles"]
+    seven = sections["Static response and the onset of rotation (Fig. 2)"].numbers["seven_particles"]
     assert seven["used"] == reading and set(seven["readings"]) == set(READINGS)
     for name, exact in statics.items():
         for model in ("nonlinear", "sine"):
@@ -120,7 +130,7 @@ def test_the_report_gives_both_readings_and_the_reduced_model_from_its_stages(tm
     assert row["agreement"].startswith("ambiguous") and f"uses {reading!r}" in row["agreement"]
     markdown = (tmp_path / "report.md").read_text()
     assert "*The paper's seven particles, both readings (this chain's geometry): exact statics*" in markdown
-    reduced = report.sections[1].numbers["reduced"]
+    reduced = sections["Continuum theory (Section 3) against the discrete chain"].numbers["reduced"]
     chain = ChainParams(N=READINGS[reading])
     assert reduced == reduced_discrete(chain).as_dict() and reduced["positive_definite"]
     row = next(r for claim, r in rows.items() if claim.startswith("Section 3.2"))
