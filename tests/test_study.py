@@ -247,28 +247,6 @@ def test_a_cell_under_extra_loads_equals_the_single_runs_under_the_same_loads(da
     assert moved  # the extra moment brings the onset forward: a study that dropped it would fail above
 
 
-def test_study_cli_with_an_embedded_cluster(tmp_path):
-    spec_file = tmp_path / "spec.toml"
-    spec_file.write_text('models = ["sine"]\nquantities = ["M_c", "compliance"]\n[parameters]\nb = [0.2, 0.3]\n')
-    out, plot = tmp_path / "study.nc", tmp_path / "lines.png"
-    result = CliRunner().invoke(
-        app, ["study", str(spec_file), "--out", str(out), "--workers", "2", "--chunk", "2", "--json", "--plot", str(plot)]
-    )
-    assert result.exit_code == 0, result.output
-    data = json.loads(result.stdout)
-    assert data["computed"] == 2 and data["failed"] == 0
-    for cell in data["results"]:
-        params = ChainParams(b=cell["params"]["b"])
-        assert cell["M_c"] == pytest.approx(locate_fold(params, "sine").moment, rel=1e-12)
-    assert plot.stat().st_size > 5_000
-    bad = tmp_path / "bad.toml"
-    bad.write_text('quantities = ["M_c"]\n[parameters]\na = [0.7]\n')
-    result = CliRunner().invoke(app, ["study", str(bad)])
-    assert result.exit_code == 2 and "a=0.7" in result.output
-    result = CliRunner().invoke(app, ["study", str(spec_file), "--chunk", "0"])
-    assert result.exit_code == 2 and "Invalid value for '--chunk'" in result.output
-
-
 def test_study_cli_takes_load_tables_and_load_options(dask_cluster, tmp_path):
     spec_file = tmp_path / "loaded.toml"
     spec_file.write_text(
@@ -317,3 +295,26 @@ def test_study_maps_show_each_quantity_and_the_regime_per_load():
     np.testing.assert_allclose(np.asarray(m_c).reshape(2, 2), ds.M_c.sel(model="sine").values.T)  # rows: b, columns: a
     regime = np.ma.filled(panels["regime at M=0.3 (sine)"].collections[0].get_array(), np.nan).reshape(2, 2).T
     np.testing.assert_array_equal(regime, [[0.0, 1.0], [np.nan, 1.0]])
+
+
+# Last of the file: the shared cluster's users (dask_cluster) run one after the other, not with this one's cluster between.
+def test_study_cli_with_an_embedded_cluster(tmp_path):
+    spec_file = tmp_path / "spec.toml"
+    spec_file.write_text('models = ["sine"]\nquantities = ["M_c", "compliance"]\n[parameters]\nb = [0.2, 0.3]\n')
+    out, plot = tmp_path / "study.nc", tmp_path / "lines.png"
+    result = CliRunner().invoke(
+        app, ["study", str(spec_file), "--out", str(out), "--workers", "2", "--chunk", "2", "--json", "--plot", str(plot)]
+    )
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    assert data["computed"] == 2 and data["failed"] == 0
+    for cell in data["results"]:
+        params = ChainParams(b=cell["params"]["b"])
+        assert cell["M_c"] == pytest.approx(locate_fold(params, "sine").moment, rel=1e-12)
+    assert plot.stat().st_size > 5_000
+    bad = tmp_path / "bad.toml"
+    bad.write_text('quantities = ["M_c"]\n[parameters]\na = [0.7]\n')
+    result = CliRunner().invoke(app, ["study", str(bad)])
+    assert result.exit_code == 2 and "a=0.7" in result.output
+    result = CliRunner().invoke(app, ["study", str(spec_file), "--chunk", "0"])
+    assert result.exit_code == 2 and "Invalid value for '--chunk'" in result.output

@@ -39,6 +39,22 @@ def _listening(process: psutil.Process) -> list[tuple[int, str, int]]:
     return found
 
 
+# First of the file: the shared cluster (conftest.py) closes after its last user, not idle through the tests below.
+def test_a_study_whose_every_cell_failed_exits_3_and_a_partial_one_says_how_many(dask_cluster, tmp_path):
+    spec = tmp_path / "failing.toml"
+    spec.write_text(
+        'models = ["sine"]\nquantities = ["onset_load"]\n[parameters]\nE1 = [1000.0, 2000.0]\n[sweep]\nm_max = 0.3\ndm = 0.1\ndt = 0.05\n'
+    )
+    result = runner.invoke(app, ["study", str(spec), "--scheduler", dask_cluster.scheduler_address, "--json"])
+    assert result.exit_code == 3, result.output
+    assert json.loads(result.stdout.splitlines()[0])["failed"] == 2
+    assert "no cell succeeded" in result.stderr and "2 of 2 cells failed" in result.stderr and "stability limit" in result.stderr
+    spec.write_text(spec.read_text().replace("E1 = [1000.0, 2000.0]", "E1 = [1.0, 1000.0]"))
+    result = runner.invoke(app, ["study", str(spec), "--scheduler", dask_cluster.scheduler_address])
+    assert result.exit_code == 0, result.output
+    assert "1 of 2 cells failed" in result.stderr
+
+
 # With the dashboard the cluster opens every listener it opens without one, and the dashboard's: the quick case.
 @pytest.mark.parametrize("dashboard", [pytest.param(False, marks=pytest.mark.slow), True], ids=["no-dashboard", "dashboard"])
 def test_the_embedded_cluster_listens_on_loopback_only(dashboard):
@@ -140,21 +156,6 @@ def test_the_cli_refuses_a_silent_scheduler_with_exit_2(tmp_path, monkeypatch):
     assert result.exit_code == 2, result.output
     assert "no Dask scheduler answered" in result.output and address in result.output
     assert not out.exists()
-
-
-def test_a_study_whose_every_cell_failed_exits_3_and_a_partial_one_says_how_many(dask_cluster, tmp_path):
-    spec = tmp_path / "failing.toml"
-    spec.write_text(
-        'models = ["sine"]\nquantities = ["onset_load"]\n[parameters]\nE1 = [1000.0, 2000.0]\n[sweep]\nm_max = 0.3\ndm = 0.1\ndt = 0.05\n'
-    )
-    result = runner.invoke(app, ["study", str(spec), "--scheduler", dask_cluster.scheduler_address, "--json"])
-    assert result.exit_code == 3, result.output
-    assert json.loads(result.stdout.splitlines()[0])["failed"] == 2
-    assert "no cell succeeded" in result.stderr and "2 of 2 cells failed" in result.stderr and "stability limit" in result.stderr
-    spec.write_text(spec.read_text().replace("E1 = [1000.0, 2000.0]", "E1 = [1.0, 1000.0]"))
-    result = runner.invoke(app, ["study", str(spec), "--scheduler", dask_cluster.scheduler_address])
-    assert result.exit_code == 0, result.output
-    assert "1 of 2 cells failed" in result.stderr
 
 
 def test_a_sweep_with_no_converged_step_exits_3_and_a_partial_one_warns():
