@@ -118,6 +118,14 @@ def test_continuation_follows_the_nonlinear_n1_orbit_to_its_snic_with_the_saddle
     assert slope == pytest.approx(-0.5, abs=0.01)
     line = np.polyfit(branch.moment[last], branch.period[last] ** -2.0, 1)
     assert -line[1] / line[0] == pytest.approx(fold, abs=1e-8)
+    # Issue 40: the orbit has branch points of cycles (a real multiplier through +1 while M goes on), two pairs,
+    # the second pair 5e-4 apart in M; each located with its second multiplier at +1. The shooting's continue_orbit
+    # sees the same four, interpolated between its orbits (0.29768, 0.29503, 0.28848, 0.28828).
+    points = [event for event in branch.events if event["kind"] == "branch_point"]
+    assert [event["located"] for event in points] == [True] * 4
+    assert [event["moment"] for event in points] == pytest.approx([0.29768, 0.29503, 0.28848, 0.28828], abs=3e-4)
+    for event in points:
+        assert np.sort(np.abs(event["orbit"].multipliers - 1.0))[1] < 1e-6
     # A point of period ~100 against the shooting started from it: the period on the branch's mesh; the
     # multipliers (the damped modes over the slow passage) with NCOL = 7 on intervals of a quarter time unit.
     orbit = branch.orbits[int(np.argmin(np.abs(branch.period - 100.0)))]

@@ -296,7 +296,7 @@ REMESH_EVERY = 8
 REMESH_GROWTH = 1.5
 #: The most intervals a continuation's ``max_interval`` may ask for.
 NTST_MAX = 4000
-#: A located fold of cycles is confirmed where the second multiplier nearest +1 lies this close to it.
+#: A located fold or branch point of cycles is confirmed where the second multiplier nearest +1 lies this close to it.
 FOLD_MULTIPLIER = 1e-2
 #: A branch's message warns where |mu_trivial - 1| exceeds this.
 TRIVIAL_WARNING = 1e-6
@@ -321,8 +321,9 @@ class CollocationBranch:
         Mesh adaptations along the way.
     events : list of dict
         ``{"kind", "moment", "located", "orbit"}``: folds of cycles (located by the secant method on
-        the tangent's M component, confirmed by a second multiplier at +1) and the sign changes of
-        the kit's branch-point test (not located, not confirmed).
+        the tangent's M component) and branch points of cycles (bisected on the sign of the kit's
+        bordered determinant), each kept only with a second multiplier within :data:`FOLD_MULTIPLIER`
+        of +1; the branch goes on through branch points.
     """
 
     orbits: list[CollocationOrbit]
@@ -376,7 +377,11 @@ class _BranchProblem:
         )  # fmt: skip
 
     def accept(self, previous: CollocationOrbit, candidate: CollocationOrbit) -> bool:
-        # AUTO's practice: the phase condition's reference is the last point of the branch.
+        # A multiplier near the unit circle that moves farther than the shooting's budget can hide a pair of
+        # crossings of +1 within one step (two branch points of the nonlinear N = 1 orbit lie 5e-4 apart in M):
+        # the step is retaken shorter. AUTO's practice otherwise: the phase reference is the last point.
+        if periodic._multiplier_motion(previous.multipliers, candidate.multipliers) > periodic.MAX_MULTIPLIER_MOTION:
+            return False
         self.collocation.set_reference(candidate.profile)
         return True
 
@@ -397,12 +402,12 @@ class _BranchProblem:
         return None
 
     def locate(self, kind: str, w, t, h, previous, candidate, index: int) -> Event | None:
-        """Folds are located by the kit's secant method (None); other sign changes are left where they were seen."""
-        return None if kind == "fold" else Event(kind, candidate, candidate.moment, index, None, located=False)
+        """Folds and branch points are located by the kit (None); other sign changes are left where they were seen."""
+        return None if kind in ("fold", "branch_point") else Event(kind, candidate, candidate.moment, index, None, located=False)
 
     def confirm(self, kind: str, point: CollocationOrbit) -> bool:
-        """A fold of cycles needs a second multiplier at +1 (issue 40's first item): within :data:`FOLD_MULTIPLIER`."""
-        if kind != "fold":
+        """A fold or branch point of cycles needs a second multiplier at +1 (issue 40's first item): within :data:`FOLD_MULTIPLIER`."""
+        if kind not in ("fold", "branch_point"):
             return True
         return bool(np.sort(np.abs(point.multipliers - 1.0))[1] < FOLD_MULTIPLIER)
 
