@@ -588,10 +588,14 @@ class NonlinearModel(Model):
         """Potential (1) of the four links of every bond, shape (..., n_bonds) for x (..., 3, 2N+1)."""
         x = bonded(params, x)
         du, dv, phi = np.diff(x[..., 0, :], axis=-1), np.diff(x[..., 1, :], axis=-1), x[..., 2, :]
+        # The corners rotated as geometry.rotate does, from one cosine and sine of each angle for all four links.
+        c, s = np.cos(phi), np.sin(phi)
+        c0, s0, c1, s1 = c[..., :-1], s[..., :-1], c[..., 1:], s[..., 1:]
         total = np.zeros(du.shape)
         for link in bond_links(params):
-            r0x, r0y = rotate(link.left_corner, phi[..., :-1])
-            r1x, r1y = rotate(link.right_corner, phi[..., 1:])
+            (ax, ay), (bx, by) = link.left_corner, link.right_corner
+            r0x, r0y = ax * c0 - ay * s0, ax * s0 + ay * c0
+            r1x, r1y = bx * c1 - by * s1, bx * s1 + by * c1
             length = np.hypot(params.h + du + r1x - r0x, dv + r1y - r0y)
             total += 0.5 * link.stiffness * (length - link.rest_length) ** 2
         return total
