@@ -244,7 +244,8 @@ def test_linear_bands_of_the_builtin_lattices_equal_their_closed_forms():
         np.testing.assert_allclose(np.sort(squared), np.sort(band), atol=1e-12, err_msg=system.name)
 
 
-@pytest.mark.parametrize("make", [takeno_peyrard, frenkel_kontorova])
+# Frenkel-Kontorova in the quick suite, Takeno-Peyrard (the same convergence with another coupling) with the slow tests.
+@pytest.mark.parametrize("make", [pytest.param(takeno_peyrard, marks=pytest.mark.slow), frenkel_kontorova])
 def test_static_kinks_converge_to_the_sine_gordon_kink_at_first_order_in_1_over_C(make):
     """Energy 8 sqrt(C) and profile 4 arctan exp(i / sqrt(C)) of the continuum kink, errors O(1/C)."""
     errors = []
