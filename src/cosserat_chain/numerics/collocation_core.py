@@ -110,7 +110,7 @@ _BATCH_SIGNATURE = types.void(
 
 @njit(_BATCH_SIGNATURE, cache=True, nogil=True, error_model="numpy")
 def _batch(rhs, force, end_force, coef, rpar, ipar, points, out):  # pragma: no cover - compiled
-    # One compiled loop over the points (a Python call per point would cost more than the field).
+    # All the points in one compiled call.
     for p in range(points.shape[0]):
         rhs(force, end_force, 0.0, points[p], coef, rpar, ipar, out[p])
 
