@@ -12,13 +12,14 @@ from conftest import random_geometries
 from cosserat_chain import ChainParams
 from cosserat_chain.numerics.collocation import (
     NCOL_RANGE,
+    CollocationError,
     check_mesh,
     continue_collocation,
     find_collocation_orbit,
     scheme,
 )
 from cosserat_chain.numerics.continuation import locate_fold
-from cosserat_chain.numerics.periodic import find_periodic_orbit
+from cosserat_chain.numerics.periodic import OrbitError, find_periodic_orbit
 from cosserat_chain.state import pack, per_dof
 
 #: The N = 1 chain of the issue's long-period case (three particles, the middle one free).
@@ -174,6 +175,15 @@ def test_bad_mesh_is_refused_naming_the_field(ntst, ncol, match):
         check_mesh(ntst, ncol)
     with pytest.raises(ValueError, match=match):
         find_collocation_orbit(N1, "nonlinear", 0.3, ntst=ntst, ncol=ncol)
+
+
+def test_a_newton_that_does_not_converge_says_what_to_try():
+    shot = find_periodic_orbit(N1, "nonlinear", 0.3)
+    with pytest.raises(CollocationError, match="did not converge.*raise ntst"):
+        find_collocation_orbit(N1, "nonlinear", 0.3, guess=(shot.x, shot.v, 1.3 * shot.period), max_iter=1, adapt=0)
+    # Through the shooting's entry point it is the shooting's error.
+    with pytest.raises(OrbitError, match="did not converge"):
+        find_periodic_orbit(N1, "nonlinear", 0.3, guess=(shot.x, shot.v, 1.3 * shot.period), method="collocation", max_iter=1)
 
 
 def test_bad_continuation_arguments_are_refused():
