@@ -470,7 +470,7 @@ def test_a_continuation_point_assembles_the_stiffness_once_per_solve_and_counts_
 
     monkeypatch.setattr(NonlinearModel, "stiffness", counted("stiffness", NonlinearModel.stiffness))
     monkeypatch.setattr(NonlinearModel, "stiffness_band", counted("stiffness", NonlinearModel.stiffness_band))
-    monkeypatch.setattr(Model, "symmetric_similar", counted("similar", Model.symmetric_similar))
+    monkeypatch.setattr(Model, "symmetric_similar_band", counted("similar", Model.symmetric_similar_band))
     monkeypatch.setattr(continuation, "BorderedFactor", counted("solve", continuation.BorderedFactor))
     monkeypatch.setattr(stability, "negative_count", counted("count", stability.negative_count))
     brentq = continuation.so.brentq

@@ -245,7 +245,8 @@ class Model(ABC):
     def symmetric_similar_band(self, params: ChainParams, x: np.ndarray) -> BandMatrix | None:
         """:meth:`symmetric_similar` in band storage, or None where it is None (the statics' stability reads this).
 
-        By default the band of :meth:`symmetric_similar`; a model with a banded similar of its own
+        By default :meth:`stiffness_band` for a conservative model whose similar is its stiffness,
+        else the band of :meth:`symmetric_similar`; a model with a banded similar of its own
         assembles it there (no sparse product between).
 
         Raises
@@ -253,6 +254,8 @@ class Model(ABC):
         ValueError
             For a ring (its matrices are not banded).
         """
+        if self.conservative and type(self).symmetric_similar is Model.symmetric_similar:
+            return self.stiffness_band(params, x)
         similar = self.symmetric_similar(params, x)
         return None if similar is None else BandMatrix.from_sparse(similar)
 
