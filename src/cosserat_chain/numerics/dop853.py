@@ -12,7 +12,9 @@ where ``force`` and ``end_force`` (a model's force and end kernels) and ``coef``
 untouched for the chain's forces, and ``rpar`` (float64) and ``ipar`` (int64) are flat vectors
 holding whatever else the right-hand side reads, as RPAR and IPAR of Hairer's ``dop853.f``.
 Because right-hand sides and kernels are first-class functions, one compiled and cached
-integrator serves every right-hand side and every model (a closure would defeat the cache).
+integrator serves every right-hand side and every model (a closure would defeat the cache);
+:func:`solve` hands them over by their addresses (:func:`~.addresses.entry`), so that a call
+costs no look-up of them.
 
 The method is DOP853 of Hairer, Norsett & Wanner (Solving Ordinary Differential Equations I,
 2nd ed., Sec. II.10; the coefficients below are those of the public ``dop853.f``, as SciPy
