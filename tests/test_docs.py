@@ -27,10 +27,36 @@ PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 #: branch, switch and branch point the quick tests of test_cycle_switching.py and test_cycle_switching_branch_points.py
 #: compute on the same chains): slow tests.
 SLOW_PAGES = {"studies.md", "roto-breathers.md", "periodic-orbits.md"}
+#: A block that runs only in a page's slow case (the whole page), found by a line of it; the quick case runs the page's
+#: other blocks. README's last block is the call test_report.py's quick test_table_numbers_equal_the_python_api makes
+#: too (the paper chain's sine orbit at M = 0.22 followed down to its fold of cycles).
+SLOW_BLOCKS = {"README.md": 'result = periodic_orbit(ChainParams(), "sine", 0.22, down_to=0.1)'}
 
 
 def python_blocks(page: Path) -> list[str]:
     return re.findall(r"^```python\n(.*?)^```", page.read_text(encoding="utf-8"), flags=re.S | re.M)
+
+
+def page_script(page: Path, every_block: bool) -> str:
+    """The page's blocks as one script: every block, or all but its slow one (``SLOW_BLOCKS``)."""
+    slow = SLOW_BLOCKS.get(page.name)
+    return "\n\n".join(block for block in python_blocks(page) if every_block or slow is None or slow not in block)
+
+
+def case_name(case: tuple[Path, bool]) -> str:
+    """The page's name; ``-every-block`` added for the slow case of a page with a slow block."""
+    page, every_block = case
+    return f"{page.name}-every-block" if every_block and page.name in SLOW_BLOCKS else page.name
+
+
+def _cases() -> list:
+    cases = []
+    for page in (page for page in PAGES if python_blocks(page)):
+        if page.name in SLOW_BLOCKS:
+            cases += [(page, False), pytest.param((page, True), marks=pytest.mark.slow)]
+        else:
+            cases.append(pytest.param((page, True), marks=pytest.mark.slow) if page.name in SLOW_PAGES else (page, True))
+    return cases
 
 
 #: Runs each script given on its command line as ``__main__`` in its own folder and fresh namespace, one after
@@ -66,13 +92,13 @@ def page_runs(request, tmp_path_factory) -> dict[str, str | None]:
     tests selected in this session)."""
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")])}
     shared, own = {}, {}
-    wanted = selected_params(request, "page")
-    for page in (page for page in PAGES if page in wanted):
-        text = "\n\n".join(python_blocks(page))
+    for case in selected_params(request, "case"):
+        page, every_block = case
+        text = page_script(page, every_block)
         if text:
             script = tmp_path_factory.mktemp(page.stem) / f"{page.stem}.py"
             script.write_text(text, encoding="utf-8")
-            (own if _needs_its_own_process(text) else shared)[str(script)] = page.name
+            (own if _needs_its_own_process(text) else shared)[str(script)] = case_name(case)
     outcome = {}
     result = subprocess.run([sys.executable, "-c", _DRIVER, *shared], env=env, capture_output=True, text=True, timeout=1200)
     driven = json.loads(result.stdout.strip().splitlines()[-1]) if result.returncode == 0 else {}
@@ -84,13 +110,18 @@ def page_runs(request, tmp_path_factory) -> dict[str, str | None]:
     return outcome
 
 
-@pytest.mark.parametrize(
-    "page",
-    [pytest.param(p, marks=pytest.mark.slow) if p.name in SLOW_PAGES else p for p in PAGES if python_blocks(p)],
-    ids=lambda p: p.name,
-)
-def test_the_pages_python_blocks_run(page, page_runs):
-    assert page_runs[page.name] is None, f"{page.name}: {page_runs[page.name]}"
+@pytest.mark.parametrize("case", _cases(), ids=case_name)
+def test_the_pages_python_blocks_run(case, page_runs):
+    name = case_name(case)
+    assert page_runs[name] is None, f"{name}: {page_runs[name]}"
+
+
+def test_a_slow_block_is_one_block_of_its_page_and_the_quick_case_runs_the_others():
+    for name, line in SLOW_BLOCKS.items():
+        page = ROOT / name
+        assert sum(line in block for block in python_blocks(page)) == 1, name
+        assert len(python_blocks(page)) > 1 and page_script(page, False).strip()
+        assert line in page_script(page, True) and line not in page_script(page, False)
 
 
 def test_a_page_that_fails_or_misses_an_import_is_reported_by_the_driver(tmp_path):
