@@ -75,6 +75,12 @@ def orbit(
     out: Path | None = typer.Option(None, help="Write the orbit (and the continuation) to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the rotation characteristic (needs --down-to) to this PNG/SVG file."),
     as_json: bool = typer.Option(False, "--json", help="Print the result as one JSON object."),
+    method: str = typer.Option(
+        "auto",
+        "--method",
+        help="How the orbit (and --down-to's branch) is solved: auto, dense, blocks or krylov shooting (auto: by the chain's "
+        "length), or collocation, whose cost does not grow with the period (a branch towards a homoclinic or SNIC end).",
+    ),
     system: str | None = system_option(),
     sets: list[str] | None = set_option(),
     vary: str | None = vary_option("from its value down, or towards --down-to"),
@@ -97,6 +103,8 @@ def orbit(
             velocity=velocity, out=out, as_json=as_json,
         )  # fmt: skip
     system_only_or_exit(ctx, ("sets", "vary", "turn", "start", "velocity"))
+    if method not in ORBIT_METHODS:
+        fail(f"--method takes {', '.join(ORBIT_METHODS)}, got {method!r}")
     if moment is None:
         fail("--moment is required: the moment M on the loaded particle (or give --system REF for a system's orbit)")
     from ..experiments.orbits import periodic_orbit
@@ -119,7 +127,7 @@ def orbit(
     stored: dict = {} if guess is None else _guess_or_exit(guess, params, particle)
     if turns is None and "turns" in stored:
         turns = stored["turns"]
-    begin = {"from_above": from_above, **{key: stored[key] for key in ("guess", "start") if key in stored}}
+    begin = {"from_above": from_above, "method": method, **{key: stored[key] for key in ("guess", "start") if key in stored}}
     bar = progress_bar(f"orbit {model}", "orbit")
     try:
         if turns is None:
@@ -179,6 +187,10 @@ def orbit(
             + (f", followed to M = {switched.branch.orbits[-1].moment:.10g} ({switched.branch.end})" if switched.branch is not None else "")
         )
     typer.echo(f"static fold M_c = {result.static_fold:.15g}")
+
+
+#: The solvers --method takes (:func:`~cosserat_chain.numerics.periodic.find_periodic_orbit`'s ``method``).
+ORBIT_METHODS = ("auto", "dense", "blocks", "krylov", "collocation")
 
 
 #: The points --switch takes.

@@ -34,6 +34,7 @@ import numpy as np
 from ..linalg.threads import one_blas_thread
 from ..loads import moment_load
 from ..models.base import Model, get_model
+from ..numerics.collocation import continue_periodic_orbit
 from ..numerics.continuation import locate_fold
 from ..numerics.periodic import END_MOMENT_MIN, OrbitBranch, OrbitError, PeriodicOrbit, continue_orbit, find_periodic_orbit, initial_guess
 from ..params import ChainParams
@@ -115,8 +116,7 @@ class OrbitResult:
         moment = self.orbit.moment
         if not (math.isfinite(down_to) and 0 <= down_to / moment < 1):
             raise ValueError(f"down_to must lie between 0 and the moment {moment!r} (same sign, smaller), got {down_to!r}")
-        keep = {k: v for k, v in self.settings.items() if k in ("tol", "rtol", "atol")}
-        branch = continue_orbit(self.orbit, moment_min=abs(down_to), period_max=period_max, progress=progress, **keep)
+        branch = _continued(self.orbit, self.settings, abs(down_to), period_max, progress)
         settings = {**self.settings, "down_to": down_to, "period_max": period_max}
         return replace(self, branch=branch, settings=settings)
 
@@ -235,10 +235,9 @@ def periodic_orbit(
     given = [name for name, value in (("guess", guess), ("start", start), ("from_above", from_above)) if value is not None]
     if len(given) > 1:
         raise ValueError(f"give at most one start of the orbit (guess, start or from_above), got {' and '.join(given)}")
-    keep = {k: v for k, v in options.items() if k in ("tol", "rtol", "atol")}
     approach = None
     if from_above is not None:
-        orbit, approach = _from_above(params, model, moment, from_above, turns, particle, period_max, progress, options, keep)
+        orbit, approach = _from_above(params, model, moment, from_above, turns, particle, period_max, progress, options)
         how = {"method": "from_above", "from_moment": float(from_above), "approach_points": len(approach.orbits)}
         lost = approach.stability_lost_at
         how["stability_lost_at"] = None if lost is None else float(lost)
@@ -251,19 +250,28 @@ def periodic_orbit(
         how = {"method": "rest" if guess is None else "guess"}
     branch = None
     if down_to is not None:
-        branch = continue_orbit(orbit, moment_min=abs(down_to), period_max=period_max, progress=progress, **keep)
+        branch = _continued(orbit, options, abs(down_to), period_max, progress)
     settings = {"turns": turns, "down_to": down_to, "period_max": period_max, "from_above": from_above, **options}
     return OrbitResult(
         orbit=orbit, branch=branch, static_fold=_static_fold(params, model, particle), settings=settings, start=how, approach=approach
     )
 
 
-def _from_above(params, model: Model, moment: float, above: float, turns: int, particle: int, period_max: float, progress, options, keep):
+def _continued(orbit: PeriodicOrbit, options: dict, moment_min: float, period_max: float, progress) -> OrbitBranch:
+    """The orbit continued down to ``moment_min``: by collocation where ``options`` ask for it (``method``), else by
+    :func:`~cosserat_chain.numerics.periodic.continue_orbit` with the options' tolerances."""
+    if options.get("method") == "collocation":
+        return continue_periodic_orbit(orbit, moment_min=moment_min, period_max=period_max, progress=progress)
+    keep = {k: v for k, v in options.items() if k in ("tol", "rtol", "atol")}
+    return continue_orbit(orbit, moment_min=moment_min, period_max=period_max, progress=progress, **keep)
+
+
+def _from_above(params, model: Model, moment: float, above: float, turns: int, particle: int, period_max: float, progress, options):
     """(the orbit at ``moment``, the branch that led there) for :func:`periodic_orbit`'s ``from_above``."""
     if not (math.isfinite(above) and above / moment > 1):
         raise ValueError(f"from_above must be a finite moment beyond {moment!r} (same sign, larger in size), got {above!r}")
     first = find_periodic_orbit(params, model, above, turns=turns, particle=particle, **options)
-    approach = continue_orbit(first, moment_min=abs(moment), period_max=period_max, progress=progress, **keep)
+    approach = _continued(first, options, abs(moment), period_max, progress)
     if approach.end != END_MOMENT_MIN:
         raise OrbitError(
             f"the {turns}-turn orbit followed down from M = {above!r} ends at M = {approach.end_moment:.10g} "

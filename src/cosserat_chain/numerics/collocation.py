@@ -344,6 +344,58 @@ class CollocationBranch:
     def max_multiplier(self) -> np.ndarray:
         return np.array([o.max_multiplier for o in self.orbits])
 
+    def orbit_branch(self, settings: dict | None = None) -> periodic.OrbitBranch:
+        """The branch as the shooting's :class:`~cosserat_chain.numerics.periodic.OrbitBranch` (what ``orbit --down-to`` reports).
+
+        Every orbit is started on the loaded angle's section (:meth:`CollocationOrbit.periodic_orbit`);
+        the end ``parameter_limit`` is the shooting's ``moment_min``; the end moment is the located fold's
+        where the branch ends at one, else the last orbit's; the branch points of cycles are its events.
+        """
+        end = periodic.END_MOMENT_MIN if self.end == BranchEnd.PARAMETER_LIMIT else str(self.end)
+        folds = [e["moment"] for e in self.events if e["kind"] == "fold" and e["located"]]
+        end_moment = folds[-1] if self.end == BranchEnd.FOLD and folds else self.orbits[-1].moment
+        events = [{"kind": "branch_point", "moment": e["moment"]} for e in self.events if e["kind"] == "branch_point"]
+        return periodic.OrbitBranch(
+            [o.periodic_orbit() for o in self.orbits], end, float(end_moment), self.message,
+            settings={"method": "collocation", "ntst": self.orbits[-1].ntst, "ncol": self.orbits[-1].ncol, **(settings or {})},
+            events=events,
+        )  # fmt: skip
+
+
+@one_blas_thread
+def continue_periodic_orbit(
+    orbit: periodic.PeriodicOrbit,
+    *,
+    moment_min: float = 0.0,
+    period_max: float = PERIOD_MAX,
+    max_points: int = 400,
+    progress: Callable[[int, int], None] | None = None,
+) -> periodic.OrbitBranch:
+    """:func:`~cosserat_chain.numerics.periodic.continue_orbit` by collocation: the orbit followed towards smaller |M|.
+
+    The orbit is solved again by collocation (:func:`find_collocation_orbit`, from it), followed by
+    :func:`continue_collocation` down to |M| = ``moment_min`` or a period beyond ``period_max``, and
+    returned as :meth:`CollocationBranch.orbit_branch`. Its cost does not grow with the period,
+    where the shooting's does (docs/collocation.md), so a branch towards a homoclinic or SNIC end
+    reaches long periods.
+
+    Raises
+    ------
+    ValueError
+        For a ``moment_min`` not between 0 and |M|, or a ``period_max`` not above the orbit's period.
+    CollocationError
+        If the orbit cannot be solved by collocation.
+    """
+    if not (math.isfinite(moment_min) and 0.0 <= moment_min < abs(orbit.moment)):
+        raise ValueError(f"moment_min must lie between 0 and |M| = {abs(orbit.moment)!r}, got {moment_min!r}")
+    start = find_collocation_orbit(orbit.params, orbit.model, orbit.moment, turns=orbit.turns, particle=orbit.particle, guess=orbit)
+    sign = math.copysign(1.0, orbit.moment)
+    bounds = (moment_min, math.inf) if sign > 0 else (-math.inf, -moment_min)
+    branch = continue_collocation(
+        start, moment_min=bounds[0], moment_max=bounds[1], period_max=period_max, direction=-sign, max_points=max_points, progress=progress
+    )
+    return branch.orbit_branch({"moment_min": moment_min, "period_max": period_max})
+
 
 @dataclass
 class _BranchProblem:
@@ -392,7 +444,7 @@ class _BranchProblem:
         if point.period > self.period_max:
             return BranchEnd.INFINITE_PERIOD, (
                 f"the period reached {point.period:.6g} > period_max={self.period_max:g} at M={point.moment!r}: "
-                + BranchEnd.INFINITE_PERIOD.advice
+                "raise period_max to follow the period further (the end is this last orbit's moment, not a fit)"
             )
         low, high = self.moment_range
         if not low <= point.moment <= high:

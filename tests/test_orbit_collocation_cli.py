@@ -1,0 +1,72 @@
+"""``cosserat-chain orbit --method collocation``: a branch towards a SNIC end at a cost that does not grow with the period.
+
+Issue 40: ``orbit --model nonlinear --moment 0.3 --down-to 0.1`` on the one-particle chain ran 30
+minutes by shooting (every point integrates its monodromy over the whole period). By collocation
+the branch reaches its period bound in seconds. Checked against independent references: the
+statics' fold M_c (the orbit ends at a saddle-node on the invariant circle there), and the
+shooting's Newton solved at the branch's last, longest orbit from it.
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from typer.testing import CliRunner
+
+from cosserat_chain import ChainParams
+from cosserat_chain.cli import app
+from cosserat_chain.numerics.collocation import continue_periodic_orbit
+from cosserat_chain.numerics.periodic import find_periodic_orbit
+
+runner = CliRunner()
+#: The period bound: long enough for T ~ (M - M_c)^(-1/2) to put the end within 1e-4 of M_c.
+PERIOD_MAX = 300.0
+
+
+@pytest.fixture(scope="module")
+def branch(tmp_path_factory):
+    config = tmp_path_factory.mktemp("collocation_cli") / "N1.toml"
+    config.write_text("N = 1\n")
+    command = ["orbit", "--model", "nonlinear", "--moment", "0.3", "--down-to", "0.1", "--config", str(config)]
+    result = runner.invoke(app, [*command, "--period-max", str(PERIOD_MAX), "--method", "collocation", "--json"])
+    assert result.exit_code == 0, result.output
+    return json.loads(result.output)
+
+
+def test_the_collocation_branch_ends_at_the_snic_of_the_static_fold(branch):
+    continuation = branch["continuation"]
+    assert continuation["end"] == "infinite_period" and continuation["end_period"] > PERIOD_MAX
+    # A SNIC: the period diverges at the static fold, approached from above.
+    assert 0.0 < continuation["end_moment"] - branch["static_fold"] < 1e-4
+    # The branch points of cycles the nonlinear N = 1 orbit passes (mirror-symmetry breaking, issue 40).
+    assert continuation["branch_points"][:2] == pytest.approx([0.2977176, 0.2949965], abs=1e-6)
+
+
+def test_the_branchs_longest_orbit_is_the_shootings_at_its_moment():
+    """The API's branch (the command's): its last, longest orbit solved again by shooting from it has the same period
+    and the same largest multiplier (a separate integration of the variational equations over 300 time units)."""
+    params = ChainParams(N=1)
+    orbit = find_periodic_orbit(params, "nonlinear", 0.3, method="collocation")
+    branch = continue_periodic_orbit(orbit, moment_min=0.1, period_max=PERIOD_MAX)
+    assert branch.end == "infinite_period" and branch.settings["method"] == "collocation"
+    last = branch.orbits[-2]  # the last within the period bound
+    shot = find_periodic_orbit(params, "nonlinear", last.moment, guess=last)
+    assert last.period > 0.5 * PERIOD_MAX
+    assert shot.period == pytest.approx(last.period, rel=1e-6)  # the default mesh (40 intervals of degree 4) there
+    # The strongly damped multipliers of a long orbit are not resolved by the default mesh (6.6e-7 by shooting, 0.34
+    # here): the stability is the same, and the branch's message says where the trivial multiplier showed it.
+    assert shot.stable and last.stable
+    assert "the multipliers there are not resolved" in branch.message
+
+
+@pytest.mark.parametrize(
+    ("options", "message"),
+    [
+        (["--method", "shooting"], "--method takes auto, dense, blocks, krylov, collocation, got 'shooting'"),
+        (["--system", "pendulum", "--method", "collocation"], "--method belong(s) to the chain"),
+    ],
+)
+def test_a_bad_method_exits_2_naming_what_is_allowed(options, message):
+    result = runner.invoke(app, ["orbit", "--moment", "0.3", *options])
+    assert result.exit_code == 2 and message in result.output, result.output
