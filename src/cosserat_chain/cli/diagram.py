@@ -53,6 +53,11 @@ def diagram(
         "--follow",
         help="Follow each fold of cycles, period doubling or torus end from the value before (the lower edge's curve in (M, value)).",
     ),
+    codim2: bool = typer.Option(
+        False,
+        "--codim2",
+        help="Between two rows whose ends differ, follow one row's end to the other value and list the codimension-two points on the way (1:2 resonance, ...).",
+    ),
     config: Path | None = typer.Option(
         None, help="TOML file with ChainParams fields (the other fields of the chain; with --system: its [system] table)."
     ),
@@ -89,7 +94,8 @@ def diagram(
     chosen = _values(values, span)
     bar = progress_bar(f"diagram {model}", "value")
     try:
-        result = state_diagram(params, model, vary, chosen, turns=turns, period_max=period_max, follow=follow, progress=bar_callback(bar))
+        result = state_diagram(params, model, vary, chosen, turns=turns, period_max=period_max, follow=follow, codim2=codim2,
+                               progress=bar_callback(bar))  # fmt: skip
     except ValueError as err:
         bar.close()
         fail(str(err))
@@ -130,3 +136,16 @@ def diagram(
         else:
             value = f"(not located: {point['reason']})"
         typer.echo(f"the homoclinic end meets M_c (a SNIC from there on) {where}: {vary} = {value}")
+    for entry in result.codim2_between or []:
+        _echo_between(entry, vary)
+
+
+def _echo_between(entry: dict, vary: str) -> None:
+    """One line for each two rows whose ends differ: the codimension-two points between them, or why none is listed."""
+    (low, high), (first, second) = entry["between"], entry["ends"]
+    where = f"between {vary} = {low:g} ({first}) and {high:g} ({second})"
+    points = "; ".join(
+        f"a {p['name']} ({p['label']}) at {vary} = {p['value']:.10g} +- {p['accuracy']:.2g} (M = {p['moment']:.10g})"
+        for p in entry["points"]
+    )
+    typer.echo(f"{where}: {points or 'no codimension-two point located'} [{entry['message']}]")

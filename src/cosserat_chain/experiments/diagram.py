@@ -53,6 +53,12 @@ SNIC (between a homoclinic row and a SNIC row next to it): solved by the augment
 ``accuracy``); where that fails, extrapolated from two homoclinic rows (``method``
 ``extrapolated``, no accuracy, ``reason`` the solve's error).
 
+With ``codim2``, ``codim2_between`` says what lies between each two neighbouring rows whose ends differ (a torus
+end at one value, a period doubling at the next): the first row's end (else the second's) followed towards the other
+row's value by :func:`~cosserat_chain.numerics.cycle_curve.continue_cycle_end`, with the codimension-two points it
+located on the way (named, each value with its accuracy) and where and why the curve stopped; a homoclinic, SNIC or
+branch-point end is not followed, and the entry says so.
+
 A diverging period is told apart by its growth over the last orbits before ``period_max``:
 like (M - M_c)^(-1/2) at a SNIC (T^-2 extrapolated to zero lands on M_c), like -log(M - M_h)
 at a homoclinic end (M_h from the best fit). Limits: one rotating orbit is followed, the
@@ -210,6 +216,9 @@ class StateDiagram:
     solved_snic: dict[str, Any] | None = None
     #: Why it was not solved, where rows with a homoclinic end next to a SNIC have one.
     snic_failure: str = ""
+    #: What lies between each two neighbouring rows with different ends (:func:`_codim2_between`'s entries),
+    #: None where it was not asked for (``codim2`` of :func:`state_diagram`).
+    codim2_between: list[dict[str, Any]] | None = None
 
     @property
     def snic_point(self) -> dict[str, Any] | None:
@@ -274,6 +283,7 @@ class StateDiagram:
             "snic_point": self.snic_point,
             "static_fold_independent_of_parameter": self.independent,
             "rows": [row.as_dict() for row in self.rows],
+            "codim2_between": self.codim2_between,
         }
 
     def to_dataset(self) -> xr.Dataset:
@@ -310,7 +320,8 @@ class StateDiagram:
         ds.attrs.update(run_attributes(self.params, get_model(self.model), Loads()))
         ds.attrs.update({"experiment": "state_diagram", "parameter": self.field, "turns": self.turns,
                          "static_fold_independent_of_parameter": int(self.independent),
-                         "snic_point_json": json.dumps(self.snic_point)})  # fmt: skip
+                         "snic_point_json": json.dumps(self.snic_point),
+                         "codim2_between_json": json.dumps(self.codim2_between)})  # fmt: skip
         return ds
 
 
@@ -695,6 +706,66 @@ def _followed(previous: tuple[float, _Edge] | None, field_name: str, value: floa
     return _Edge(float(curve.moment[-1]), edge.end, message, curve.orbits[-1], "followed")
 
 
+#: Why an end cannot be followed in the field by :func:`~cosserat_chain.numerics.cycle_curve.continue_cycle_end`.
+UNFOLLOWED = {
+    "homoclinic": "a homoclinic end cannot be followed by the augmented shooting system (numerics.cycle_curve: with single "
+    "shooting the orbit's passage near the saddle makes Newton fail at the first step)",
+    "snic": "a SNIC end lies on the static fold, not on a curve of cycles (snic_point: where it meets a homoclinic end)",
+    "branch_point_of_cycles": "a branch point of cycles is not followed in a second parameter",
+    "not_found": "no end was found there",
+}
+
+
+def _codim2_between(rows: Sequence[DiagramRow], edges: Sequence[_Edge | None], field_name: str) -> list[dict[str, Any]]:
+    """What lies between each two neighbouring rows whose ends differ: one entry per such pair (module docstring).
+
+    The first row's end (or, where it cannot be followed, the second's, towards the first) is followed from its row
+    to the other's value by :func:`~cosserat_chain.numerics.cycle_curve.continue_cycle_end`: ``points`` are the
+    codimension-two points it located on the way (name, AUTO-07p's label, value, its accuracy, M, period), and
+    ``message`` says where and why the curve stopped (its own words: Newton failed on halved steps, another
+    multiplier left the circle), or that it reached the other row. Where neither end can be followed,
+    ``followed`` is None and ``message`` says why (:data:`UNFOLLOWED`).
+    """
+    out = []
+    for i in range(1, len(rows)):
+        before, after = rows[i - 1], rows[i]
+        if before.end == after.end:
+            continue
+        entry: dict[str, Any] = {
+            "between": [before.value, after.value], "ends": [before.end, after.end],
+            "followed": None, "from": None, "complete": None, "points": [], "message": "",
+        }  # fmt: skip
+        why = []
+        for start, target, edge in ((before, after, edges[i - 1]), (after, before, edges[i])):
+            if start.end not in KINDS or edge is None or edge.orbit is None:
+                reason = UNFOLLOWED.get(start.end, "its end was not located exactly (no orbit at the end to start from)")
+                why.append(f"the {start.end} end at {field_name} = {start.value:g}: {reason}")
+                continue
+            entry["followed"], entry["from"] = start.end, start.value
+            try:
+                curve = continue_cycle_end(edge.orbit, start.end, field_name, [start.value, target.value])
+            except (ValueError, OrbitError) as err:
+                entry["message"] = f"the {start.end} end was not followed from {field_name} = {start.value:g} ({err})"
+                break
+            entry["complete"] = curve.complete
+            entry["points"] = [
+                {"name": p.name, "kind": p.kind, "label": p.label, "value": p.value, "accuracy": p.uncertainty,
+                 "moment": p.moment, "period": p.period, "angle": p.angle}
+                for p in curve.points
+            ]  # fmt: skip
+            entry["message"] = curve.message or (
+                f"the {start.end} end followed from {field_name} = {start.value:g} reaches {target.value:g} at "
+                f"M = {curve.moment[-1]:.8g}, where the row's end is {target.end}: the two rows end different orbits"
+            )
+            break
+        if entry["followed"] is None:
+            entry["message"] = "not followed: " + "; ".join(why)
+        elif why:
+            entry["message"] = f"{why[0]}, so the other end was followed: {entry['message']}"
+        out.append(entry)
+    return out
+
+
 @one_blas_thread
 def state_diagram(
     params: ChainParams,
@@ -706,6 +777,7 @@ def state_diagram(
     particle: int = 0,
     period_max: float = PERIOD_MAX,
     follow: bool = False,
+    codim2: bool = False,
     progress: Callable[[float, float], None] | None = None,
 ) -> StateDiagram:
     """Both edges of the hysteresis loop at each value of ``field_name`` (module docstring).
@@ -729,6 +801,10 @@ def state_diagram(
         (:func:`~cosserat_chain.numerics.cycle_curve.continue_cycle_end`), the curve of the
         lower edge in (M, p); False computes every row on its own by one-parameter
         continuation in M (each then located exactly).
+    codim2 : bool
+        Between each two neighbouring rows whose ends differ, follow one row's end towards the other's value and
+        report the codimension-two points located on the way, or where and why the curve stopped
+        (:attr:`StateDiagram.codim2_between`, :func:`_codim2_between`; several times a row's cost).
     progress : callable(done, total), optional
 
     Raises
@@ -744,6 +820,8 @@ def state_diagram(
         raise ValueError(f"turns must be an integer >= 1, got {turns!r}")
     if not (math.isfinite(period_max) and period_max > 0):
         raise ValueError(f"period_max must be a finite number > 0, got {period_max!r}")
+    if not isinstance(codim2, bool):
+        raise ValueError(f"codim2 must be True or False, got {codim2!r}")
     curve = continue_fold(params, model, field_name, values)
     diagram = StateDiagram(params=params, model=model.name, field=field_name, turns=turns, independent=curve.independent)
     total = len(values)
@@ -751,6 +829,7 @@ def state_diagram(
     # Along a field the statics do not read (curve.independent: damping, mass, inertia) every row's branch
     # from rest is the same, so where it ends is computed once.
     onset: tuple[float, float, str] | None = None
+    edges: list[_Edge | None] = []
     for index, value in enumerate(np.asarray(values, dtype=float)):
         if progress is not None:
             progress(index, total)
@@ -758,6 +837,7 @@ def state_diagram(
         chain = params.replace(**{field_name: float(value)})
         if reached.size == 0:
             diagram.rows.append(DiagramRow(float(value), None, None, None, "not_found", None, curve.message, chain.moment_scale))
+            edges.append(None)
             previous = None
             continue
         if onset is None or not curve.independent:
@@ -785,7 +865,10 @@ def state_diagram(
             DiagramRow(float(value), moment_c, phi0_c, stops, edge.end, hysteresis, message,
                        chain.moment_scale, edge.method, edge.uncertainty, edge.below, edge.followed, edge.warning)
         )  # fmt: skip
+        edges.append(edge)
     _solve_snic(diagram, params, model, particle)
+    if codim2:
+        diagram.codim2_between = _codim2_between(diagram.rows, edges, field_name)
     if progress is not None:
         progress(total, total)
     return diagram
