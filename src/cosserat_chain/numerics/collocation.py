@@ -22,7 +22,10 @@ sparse bordered Newton, the adapted mesh and the multipliers by condensation) is
   mesh re-adapted and the phase reference renewed on the way, until the period exceeds
   ``period_max`` (a homoclinic or SNIC end), M leaves the range, or M turns (a fold of cycles:
   located by the driver's secant method on the tangent's M component, and accepted only with a
-  second multiplier at +1, as issue 40 asks).
+  second multiplier at +1, as issue 40 asks). Period doublings (a real multiplier through -1) and
+  tori (a complex pair through the unit circle) are located on the way by the same secant method on
+  test functions of the multipliers near the unit circle (:func:`circle_tests`), and the branch goes
+  on through them.
 """
 
 from __future__ import annotations
@@ -298,6 +301,14 @@ REMESH_GROWTH = 1.5
 NTST_MAX = 4000
 #: A located fold or branch point of cycles is confirmed where the second multiplier nearest +1 lies this close to it.
 FOLD_MULTIPLIER = 1e-2
+#: The period-doubling and torus tests take only the multipliers of modulus above this: on long orbits the
+#: strongly damped ones are not resolved (docs/collocation.md, Limits), the ones near the circle are.
+NEAR_CIRCLE = 0.5
+#: A located period doubling or torus is confirmed where its critical multiplier lies this close to -1 or to
+#: the unit circle (the shooting's ``CONFIRM_TOL``).
+CIRCLE_MULTIPLIER = 1e-3
+#: A multiplier is complex where |Im mu| exceeds this times |mu|.
+COMPLEX_RTOL = 1e-6
 #: A branch's message warns where |mu_trivial - 1| exceeds this.
 TRIVIAL_WARNING = 1e-6
 #: Default bound on the period: beyond it the branch ends as infinite-period (a homoclinic or SNIC end).
@@ -323,7 +334,11 @@ class CollocationBranch:
         ``{"kind", "moment", "located", "orbit"}``: folds of cycles (located by the secant method on
         the tangent's M component) and branch points of cycles (bisected on the sign of the kit's
         bordered determinant), each kept only with a second multiplier within :data:`FOLD_MULTIPLIER`
-        of +1; the branch goes on through branch points.
+        of +1; the branch goes on through branch points. Period doublings (``period_doubling``) and
+        tori (``torus``), located by the secant method on :func:`circle_tests` and kept only with the
+        critical multiplier within :data:`CIRCLE_MULTIPLIER` of -1 or of the unit circle, carry it as
+        ``"multiplier"`` (complex) and, for a torus, its angle arg mu in (0, pi) as ``"angle"``; the
+        branch goes on through them.
     """
 
     orbits: list[CollocationOrbit]
@@ -349,12 +364,21 @@ class CollocationBranch:
 
         Every orbit is started on the loaded angle's section (:meth:`CollocationOrbit.periodic_orbit`);
         the end ``parameter_limit`` is the shooting's ``moment_min``; the end moment is the located fold's
-        where the branch ends at one, else the last orbit's; the branch points of cycles are its events.
+        where the branch ends at one, else the last orbit's; the branch points of cycles, period doublings
+        and tori are its events (the last two with ``"multiplier"`` as [re, im] and, for a torus, ``"angle"``).
         """
         end = periodic.END_MOMENT_MIN if self.end == BranchEnd.PARAMETER_LIMIT else str(self.end)
         folds = [e["moment"] for e in self.events if e["kind"] == "fold" and e["located"]]
         end_moment = folds[-1] if self.end == BranchEnd.FOLD and folds else self.orbits[-1].moment
-        events = [{"kind": "branch_point", "moment": e["moment"]} for e in self.events if e["kind"] == "branch_point"]
+        events = []
+        for e in self.events:
+            if e["kind"] == "branch_point":
+                events.append({"kind": "branch_point", "moment": e["moment"]})
+            elif e["kind"] in CIRCLE_KINDS:
+                mu = e["multiplier"]
+                events.append({"kind": e["kind"], "moment": e["moment"], "multiplier": [mu.real, mu.imag]})
+                if e["kind"] == "torus":
+                    events[-1]["angle"] = e["angle"]
         return periodic.OrbitBranch(
             [o.periodic_orbit() for o in self.orbits], end, float(end_moment), self.message,
             settings={"method": "collocation", "ntst": self.orbits[-1].ntst, "ncol": self.orbits[-1].ncol, **(settings or {})},
@@ -438,7 +462,7 @@ class _BranchProblem:
         return True
 
     def tests(self, point: CollocationOrbit) -> dict[str, float]:
-        return {}
+        return circle_tests(point.nontrivial_multipliers)
 
     def stop(self, point: CollocationOrbit) -> tuple[BranchEnd, str] | None:
         if point.period > self.period_max:
@@ -454,14 +478,56 @@ class _BranchProblem:
         return None
 
     def locate(self, kind: str, w, t, h, previous, candidate, index: int) -> Event | None:
-        """Folds and branch points are located by the kit (None); other sign changes are left where they were seen."""
-        return None if kind in ("fold", "branch_point") else Event(kind, candidate, candidate.moment, index, None, located=False)
+        """Folds, branch points, period doublings and tori are located by the kit (None); other sign changes are left where they were seen."""
+        if kind in ("fold", "branch_point", *CIRCLE_KINDS):
+            return None
+        return Event(kind, candidate, candidate.moment, index, None, located=False)
 
     def confirm(self, kind: str, point: CollocationOrbit) -> bool:
-        """A fold or branch point of cycles needs a second multiplier at +1 (issue 40's first item): within :data:`FOLD_MULTIPLIER`."""
+        """A fold or branch point of cycles needs a second multiplier at +1 (issue 40's first item): within
+        :data:`FOLD_MULTIPLIER`; a period doubling a multiplier at -1, a torus a complex pair on the circle:
+        within :data:`CIRCLE_MULTIPLIER` (a pair outside the circle that turns real also changes the torus test's sign)."""
+        if kind in CIRCLE_KINDS:
+            mu = critical_multiplier(point.nontrivial_multipliers, kind)
+            return mu is not None and abs((mu + 1.0) if kind == "period_doubling" else (abs(mu) - 1.0)) < CIRCLE_MULTIPLIER
         if kind not in ("fold", "branch_point"):
             return True
         return bool(np.sort(np.abs(point.multipliers - 1.0))[1] < FOLD_MULTIPLIER)
+
+
+#: The events of :func:`circle_tests`.
+CIRCLE_KINDS = ("period_doubling", "torus")
+
+
+def _near_circle(multipliers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The multipliers of modulus above :data:`NEAR_CIRCLE`, and those of them that are complex with Im mu > 0."""
+    near = multipliers[np.abs(multipliers) > NEAR_CIRCLE]
+    return near, near[near.imag > COMPLEX_RTOL * np.abs(near)]
+
+
+def circle_tests(multipliers: np.ndarray) -> dict[str, float]:
+    """Test functions of the nontrivial ``multipliers`` that change sign at a period doubling and at a torus.
+
+    Over the multipliers of modulus above :data:`NEAR_CIRCLE` only (the damped ones are not resolved
+    on long orbits and cannot cross the circle):
+
+    * ``period_doubling``: Re prod (mu + 1), whose sign is (-1)^(real multipliers below -1): a
+      conjugate pair contributes |mu + 1|^2 > 0;
+    * ``torus``: prod (1 - |mu|) over the complex ones with Im mu > 0, whose sign is (-1)^(pairs outside
+      the circle): a pair inside the circle that turns real leaves the product without changing its sign.
+    """
+    near, pairs = _near_circle(np.asarray(multipliers))
+    return {"period_doubling": float(np.real(np.prod(near + 1.0))), "torus": float(np.prod(1.0 - np.abs(pairs)))}
+
+
+def critical_multiplier(multipliers: np.ndarray, kind: str) -> complex | None:
+    """The multiplier of a ``kind`` event among the nontrivial ``multipliers``: for ``period_doubling`` the real
+    negative one nearest -1, for ``torus`` the complex one (Im mu > 0) nearest the unit circle; None where there is none."""
+    near, pairs = _near_circle(np.asarray(multipliers))
+    if kind == "period_doubling":
+        candidates = near[(np.abs(near.imag) <= COMPLEX_RTOL * np.abs(near)) & (near.real < 0)]
+        return complex(candidates[np.argmin(np.abs(candidates + 1.0))].real) if candidates.size else None
+    return complex(pairs[np.argmin(np.abs(np.abs(pairs) - 1.0))]) if pairs.size else None
 
 
 @one_blas_thread
@@ -569,7 +635,7 @@ def continue_collocation(
             max_points=count, direction=direction, tangent0=tangent0, stop_at=("fold",), locate=True,
         )  # fmt: skip
         orbits.extend(traced.points[1:])
-        events.extend({"kind": e.kind, "moment": e.parameter, "located": e.located, "orbit": e.point} for e in traced.events)
+        events.extend(_event_record(e) for e in traced.events)
         if progress is not None:
             progress(len(orbits), max_points)
         if traced.end != BranchEnd.MAX_POINTS or len(traced.points) < 2:
@@ -585,6 +651,17 @@ def continue_collocation(
             "the multipliers there are not resolved: raise ntst or give max_interval"
         )
     return CollocationBranch(orbits, end, message, adaptations, events)
+
+
+def _event_record(event: Event) -> dict:
+    """An event of the driver as an entry of :attr:`CollocationBranch.events` (a period doubling's or torus's with its multiplier)."""
+    record = {"kind": event.kind, "moment": event.parameter, "located": event.located, "orbit": event.point}
+    if event.kind in CIRCLE_KINDS:
+        mu = critical_multiplier(event.point.nontrivial_multipliers, event.kind)
+        record["multiplier"] = complex(math.nan, math.nan) if mu is None else mu
+        if event.kind == "torus":
+            record["angle"] = math.nan if mu is None else float(np.angle(mu))
+    return record
 
 
 def _last_step(points: list[CollocationOrbit]) -> float:
