@@ -184,7 +184,6 @@ def test_cli_atlas_json_and_netcdf_round_trip(tmp_path):
         (["--atlas", "b="], "one or more finite values"),
         (["--atlas", "b=0.2,-1"], "b must be > 0"),
         (["--atlas", "b=0.2", "--method", "krylov"], "--method must be auto, dense or blocks"),
-        (["--atlas", "b=0.2", "--lifetimes", "10"], "leave out --lifetimes"),
         (["--atlas", "b=0.2", "--counter"], "give --partner as well"),
         (["--atlas", "b=0.2", "--set", "C=1"], "need(s) --system REF"),
         (["--atlas", "K=0.1", "--system", "takeno_peyrard", "--set", "sites=5"], "FIELD one of C, T, gamma"),

@@ -25,8 +25,8 @@ def breathers(
     lifetimes: int = typer.Option(
         0,
         min=0,
-        help="Run each orbit, its velocities perturbed by 1e-8, for up to this many periods: its lifetime (0: none); also in "
-        "--out and --plot.",
+        help="Run each orbit (of the family, or found by --atlas), its velocities perturbed by 1e-8, for up to this many periods: "
+        "its lifetime (0: none); also in --json and --out (a family's in --plot too).",
     ),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields; its viscosities are set to 0 (undamped)."),
     out: Path | None = typer.Option(None, help="Write the family to this NetCDF file."),
@@ -71,8 +71,6 @@ def breathers(
     if omega is None:
         fail("give --omega, the rotating particle's frequency to start from (or --from-moment M for the damped-to-undamped homotopy)")
     if atlas is not None:
-        if lifetimes:
-            fail("--atlas maps existence and stability: leave out --lifetimes (a family's lifetimes come without --atlas)")
         if counter and partner is None:
             fail("--counter sets the partner's direction: give --partner as well")
         if system is not None:
@@ -81,15 +79,15 @@ def breathers(
             from .system_breathers import atlas_on_system
 
             chain_only_or_exit(ctx, ("omega", "to", "steps", "turns", "particle", "partner", "counter", "config", "out", "plot", "as_json",
-                                     "sets", "coupling", "atlas"))  # fmt: skip
+                                     "sets", "coupling", "atlas", "lifetimes"))  # fmt: skip
             omegas = [omega] if to is None else [float(w) for w in np.linspace(omega, to, steps)]
             return atlas_on_system(
                 system, atlas, config=config, sets=sets, omegas=omegas, turns=turns, particle=particle, partner=partner, counter=counter,
-                coupling=coupling, out=out, plot=plot, as_json=as_json,
+                coupling=coupling, out=out, plot=plot, as_json=as_json, lifetimes=lifetimes,
             )  # fmt: skip
         system_only_or_exit(ctx, ("sets", "coupling"))
         return _atlas(atlas, model, omega, to, steps, turns=turns, particle=particle, partner=partner, counter=counter, method=method,
-                      config=config, out=out, plot=plot, as_json=as_json)  # fmt: skip
+                      config=config, out=out, plot=plot, as_json=as_json, lifetimes=lifetimes)  # fmt: skip
     if method != "auto":
         fail("--method chooses the atlas's shooting: give --atlas FIELD=V1,V2,... as well")
     if system is not None:
@@ -161,13 +159,14 @@ def breathers(
 
 def _atlas(
     text: str, model: str, omega: float, to: float | None, steps: int, *, turns: int, particle: int, partner: int | None, counter: bool,
-    method: str, config: Path | None, out: Path | None, plot: Path | None, as_json: bool,
+    method: str, config: Path | None, out: Path | None, plot: Path | None, as_json: bool, lifetimes: int = 0,
 ) -> None:  # fmt: skip
-    """``breathers --atlas``: the existence map over (Omega, a field), of one rotor or of two (``partner``, against it with ``counter``)."""
+    """``breathers --atlas``: the existence map over (Omega, a field), of one rotor or of two (``partner``, against it with ``counter``);
+    ``lifetimes`` > 0: every orbit found run from its perturbed velocities for that many periods."""
     import numpy as np
 
     from ..experiments.breather_atlas import breather_atlas
-    from .system_breathers import atlas_values
+    from .system_breathers import atlas_lifetimes, atlas_values, lifetime_text
 
     name, values = atlas_values(text)
     if method not in ("auto", "dense", "blocks"):
@@ -195,6 +194,7 @@ def _atlas(
         fail(str(err))
     found = int(result.grid("exists").sum())
     bar.finish(note=f"{found} of {omegas.size * len(values)} found")
+    atlas_lifetimes(result, lifetimes)
     if out is not None:
         save_dataset(result.to_dataset(), out)
     if plot is not None:
@@ -217,7 +217,7 @@ def _atlas(
             typer.echo(
                 f"{p.value:>8.4g}  {p.omega:>8.4g}  {p.source:>14}  {p.orbit.max_multiplier:>10.6g}  {'yes' if p.orbit.stable else 'no':>6}  "
                 f"{loc.participation_ratio:>6.3g}  {loc.length:>6.3g}  {amp['phi']:>7.3g}  {amp['u_over_h']:>7.3g}  {amp['v_over_h']:>7.3g}  "
-                f"{'yes' if loc.localized else 'no'}"
+                f"{'yes' if loc.localized else 'no'}" + lifetime_text(p)
             )
     edges = result.band_edges()
     for j, value in enumerate(result.values):

@@ -45,6 +45,22 @@ def _angle_or_exit(system, offset: int | None, option: str) -> int | None:
     return int(angles[index])
 
 
+def atlas_lifetimes(atlas, max_periods: int) -> None:
+    """With ``max_periods`` > 0: every orbit of the atlas run from its perturbed velocities (``measure_lifetimes``), with a bar."""
+    if max_periods:
+        bar = progress_bar("lifetimes", "orbit")
+        atlas.measure_lifetimes(max_periods, progress=bar_callback(bar))
+        bar.finish()
+
+
+def lifetime_text(point) -> str:
+    """A point's lifetime for the text tables ('' where none was measured)."""
+    life = point.lifetime
+    if life is None:
+        return ""
+    return f"  lifetime {'> ' + str(life.run_periods) if life.periods is None else life.periods} periods"
+
+
 def atlas_on_system(
     reference: str,
     text: str,
@@ -60,12 +76,14 @@ def atlas_on_system(
     out: Path | None,
     plot: Path | None,
     as_json: bool,
+    lifetimes: int = 0,
 ) -> None:
     """``breathers --system REF --atlas NAME=V1,V2,...``: the existence map over (Omega, a parameter of the system).
 
     ``text`` names one of the system's parameters and its values; ``particle`` and ``partner``
-    count its angles from the central one. The outputs are checked (and locked) before anything
-    is computed. Exit 2 on bad input.
+    count its angles from the central one; ``lifetimes`` > 0 runs every orbit found from its
+    perturbed velocities for that many periods (:func:`atlas_lifetimes`). The outputs are checked
+    (and locked) before anything is computed. Exit 2 on bad input.
     """
     import numpy as np
 
@@ -93,6 +111,7 @@ def atlas_on_system(
         fail(str(err))
     found = int(atlas.grid("exists").sum())
     bar.finish(note=f"{found} of {len(omegas) * len(values)} found")
+    atlas_lifetimes(atlas, lifetimes)
     if out is not None:
         save_dataset(atlas.to_dataset(reference), out)
     if plot is not None:
@@ -114,7 +133,7 @@ def atlas_on_system(
             typer.echo(
                 f"{p.value:>8.4g}  {p.omega:>8.4g}  {p.source:>14}  {'-' if energy is None else f'{energy:.8g}':>12}  "
                 f"{p.orbit.max_multiplier:>10.6g}  {'yes' if p.orbit.stable else 'no':>6}  {loc.participation_ratio:>6.3g}  "
-                f"{loc.length:>6.3g}  {loc.amplitude:>8.3g}"
+                f"{loc.length:>6.3g}  {loc.amplitude:>8.3g}" + lifetime_text(p)
             )
     for value, bands in zip(atlas.values, atlas.bands(), strict=True):
         typer.echo(f"bands at {name} = {value:g}: " + ", ".join(f"[{b:.6g}, {t:.6g}]" for b, t in bands))

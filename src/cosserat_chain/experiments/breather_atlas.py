@@ -51,6 +51,7 @@ import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -63,7 +64,8 @@ from ..numerics.long_breathers import SolvedBreather, find_breather_orbit
 from ..numerics.periodic import HamiltonianOrbit, OrbitError, require_undamped
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column
-from .breathers import MAX_HARMONIC, TAIL_SAMPLES, combination_resonances, coupled_bands, harmonics_in_bands, rotors_start
+from .breathers import MAX_HARMONIC, TAIL_SAMPLES, combination_resonances, coupled_bands, harmonics_in_bands, lifetime, rotors_start
+from .lifetimes import Lifetime, check_lifetime_run, lifetime_variables, measure_point_lifetimes
 from .simulation import run_attributes
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built
@@ -190,6 +192,8 @@ class AtlasPoint:
     localization: Localization | None = None
     cpu_s: float = 0.0
     message: str = ""
+    #: From :meth:`BreatherAtlas.measure_lifetimes` (None: not run).
+    lifetime: Lifetime | None = None
 
     @property
     def exists(self) -> bool:
@@ -200,6 +204,8 @@ class AtlasPoint:
         if self.orbit is None:
             return {**out, "message": self.message}
         o, loc = self.orbit, self.localization
+        if self.lifetime is not None:
+            out["lifetime"] = self.lifetime.as_dict()
         return {
             **out,
             "energy": o.energy,
@@ -246,6 +252,22 @@ class BreatherAtlas:
 
     def params_at(self, value: float) -> ChainParams:
         return chain_at(self.params, self.field, value)
+
+    def measure_lifetimes(
+        self, max_periods: int, *, perturbation: float = 1e-8, threshold: float = 1e-2, progress: Callable[[int, int], None] | None = None
+    ) -> None:
+        """Run every point's orbit from its perturbed velocities (:func:`~.breathers.lifetime`) and keep the lifetimes
+        with the points (:attr:`AtlasPoint.lifetime`): in :meth:`as_dict`, :meth:`to_dataset` and the settings.
+
+        Raises
+        ------
+        ValueError
+            As :func:`~.breathers.lifetime` does (before any run).
+        """
+        check_lifetime_run(perturbation, threshold, max_periods)
+        run = partial(lifetime, perturbation=perturbation, threshold=threshold, max_periods=max_periods)
+        measure_point_lifetimes(self.points, run, progress)
+        self.settings["lifetime"] = {"max_periods": max_periods, "perturbation": perturbation, "threshold": threshold}
 
     def grid(self, name: str) -> np.ndarray:
         """A measure over (value, omega) from :meth:`AtlasPoint.as_dict` (NaN where no orbit)."""
@@ -362,6 +384,8 @@ class BreatherAtlas:
             "harmonic": ("harmonic", np.arange(1, MAX_HARMONIC + 1)),
             "particle": ("particle", np.arange(-self.params.N, self.params.N + 1)),
         }
+        if "lifetime" in self.settings:
+            data.update(lifetime_variables(self.points, dims))
         ds = xr.Dataset(data, coords=coords)
         model = get_model(self.model)
         ds.attrs.update(run_attributes(self.params, model, moment_load(0.0, self.settings.get("particle", 0))))

@@ -14,7 +14,9 @@ system's (:func:`~.system_breathers.system_lifetime`, its DOP853 flow).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -95,3 +97,39 @@ def lifetime_from_deviation(
         deviation=deviation, periods=int(lost[0]) if lost.size else None, growth_per_period=growth, period=period,
         predicted_periods=predicted, run_periods=deviation.size - 1,
     )  # fmt: skip
+
+
+def measure_point_lifetimes(points: list[list], run: Callable[[Any], Lifetime], progress: Callable[[int, int], None] | None = None) -> None:
+    """Set ``lifetime`` on every point of an atlas's rows that has an orbit, from ``run(orbit)``.
+
+    ``progress(done, total)`` after each run (the points with an orbit).
+    """
+    found = [p for row in points for p in row if p.orbit is not None]
+    for done, point in enumerate(found, 1):
+        point.lifetime = run(point.orbit)
+        if progress is not None:
+            progress(done, len(found))
+
+
+def lifetime_variables(points: list[list], dims: tuple[str, str]) -> dict[str, tuple]:
+    """An atlas's lifetimes as Dataset variables over ``dims`` (NaN where no orbit or no run).
+
+    ``lifetime_periods`` is the run's length where the orbit outlived it, flagged by ``outlived_run``.
+    """
+    shape = (len(points), len(points[0]) if points else 0)
+    periods, growth, predicted = (np.full(shape, np.nan) for _ in range(3))
+    outlived = np.zeros(shape, dtype=np.int8)
+    for j, row in enumerate(points):
+        for i, p in enumerate(row):
+            life = getattr(p, "lifetime", None)
+            if life is None:
+                continue
+            outlived[j, i] = life.periods is None
+            periods[j, i] = life.run_periods if life.periods is None else life.periods
+            growth[j, i], predicted[j, i] = life.growth_per_period, life.predicted_periods
+    return {
+        "lifetime_periods": (dims, periods, {"units": "1", "long_name": "periods until the perturbed orbit's deviation exceeded the threshold (the run's length where it never did: outlived_run)"}),
+        "outlived_run": (dims, outlived, {"units": "1", "long_name": "the perturbed orbit stayed within the threshold for the whole run"}),
+        "growth_per_period": (dims, growth, {"units": "1", "long_name": "geometric mean growth of the deviation per period while it grew"}),
+        "predicted_lifetime_periods": (dims, predicted, {"units": "1", "long_name": "ln(threshold / perturbation) / ln max|mu| (unstable orbits)"}),
+    }  # fmt: skip

@@ -41,6 +41,7 @@ import math
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -50,6 +51,7 @@ from ..systems.base import System
 from ..systems.lattice import LatticeSystem
 from .breather_atlas import ATLAS_MAX_ITER, SOURCES, localization_length
 from .breathers import TAIL_SAMPLES
+from .lifetimes import Lifetime, check_lifetime_run, lifetime_variables, measure_point_lifetimes
 from .system_breathers import (
     BreatherError,
     _coordinate,
@@ -58,6 +60,7 @@ from .system_breathers import (
     linear_bands,
     orbit_energy,
     roto_breather_family,
+    system_lifetime,
 )
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built
@@ -123,6 +126,8 @@ class SystemAtlasPoint:
     localization: SystemLocalization | None = None
     cpu_s: float = 0.0
     message: str = ""
+    #: From :meth:`SystemBreatherAtlas.measure_lifetimes` (None: not run).
+    lifetime: Lifetime | None = None
 
     @property
     def exists(self) -> bool:
@@ -133,6 +138,8 @@ class SystemAtlasPoint:
         if self.orbit is None:
             return {**out, "message": self.message}
         o, loc = self.orbit, self.localization
+        if self.lifetime is not None:
+            out["lifetime"] = self.lifetime.as_dict()
         return {
             **out,
             "energy": orbit_energy(o),
@@ -173,6 +180,22 @@ class SystemBreatherAtlas:
     points: list[list[SystemAtlasPoint]]
     rotors: dict[int, int]
     settings: dict = field(default_factory=dict)
+
+    def measure_lifetimes(
+        self, max_periods: int, *, perturbation: float = 1e-8, threshold: float = 1e-2, progress: Callable[[int, int], None] | None = None
+    ) -> None:
+        """Run every point's orbit from its perturbed velocities on the system's flow (:func:`~.system_breathers.system_lifetime`)
+        and keep the lifetimes with the points: in :meth:`as_dict`, :meth:`to_dataset` and the settings.
+
+        Raises
+        ------
+        ValueError
+            As :func:`~.system_breathers.system_lifetime` does (before any run).
+        """
+        check_lifetime_run(perturbation, threshold, max_periods)
+        run = partial(system_lifetime, perturbation=perturbation, threshold=threshold, max_periods=max_periods)
+        measure_point_lifetimes(self.points, run, progress)
+        self.settings["lifetime"] = {"max_periods": max_periods, "perturbation": perturbation, "threshold": threshold}
 
     def system_at(self, value: float) -> System:
         return self.system.with_parameters(**{self.field: float(value)})
@@ -265,6 +288,8 @@ class SystemBreatherAtlas:
             "band": ("band", np.arange(width)),
             "edge": ("edge", ["bottom", "top"]),
         }
+        if "lifetime" in self.settings:
+            data.update(lifetime_variables(self.points, dims))
         ds = xr.Dataset(data, coords=coords)
         ds.attrs.update({f"param_{name}": value for name, value in self.system.parameters.items()})
         ds.attrs.update(
