@@ -89,7 +89,12 @@ def test_the_shootings_orbit_branch_keeps_the_event(crossing):
     kind, _, _, branch = crossing
     event = branch.events[0]
     converted = branch.orbit_branch().events
-    expected = {"kind": kind, "moment": event["moment"], "multiplier": [event["multiplier"].real, event["multiplier"].imag]}
+    expected = {
+        "kind": kind,
+        "moment": event["moment"],
+        "located": True,
+        "multiplier": [event["multiplier"].real, event["multiplier"].imag],
+    }
     if kind == "torus":
         expected["angle"] = event["angle"]
     assert converted == [expected]

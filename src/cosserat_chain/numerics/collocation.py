@@ -73,7 +73,9 @@ __all__ = [
     "CollocationError",
     "CollocationOrbit",
     "check_mesh",
+    "circle_tests",
     "continue_collocation",
+    "critical_multiplier",
     "find_collocation_orbit",
     "scheme",
     "solve_collocation",
@@ -337,7 +339,8 @@ class CollocationBranch:
         of +1; the branch goes on through branch points. Period doublings (``period_doubling``) and
         tori (``torus``), located by the secant method on :func:`circle_tests` and kept only with the
         critical multiplier within :data:`CIRCLE_MULTIPLIER` of -1 or of the unit circle, carry it as
-        ``"multiplier"`` (complex) and, for a torus, its angle arg mu in (0, pi) as ``"angle"``; the
+        ``"multiplier"`` (complex) and, for a torus, its angle arg mu in (0, pi) as ``"angle"`` (where the
+        secant fails, ``"located"`` is False and the moment is the first orbit's past the sign change); the
         branch goes on through them.
     """
 
@@ -365,7 +368,7 @@ class CollocationBranch:
         Every orbit is started on the loaded angle's section (:meth:`CollocationOrbit.periodic_orbit`);
         the end ``parameter_limit`` is the shooting's ``moment_min``; the end moment is the located fold's
         where the branch ends at one, else the last orbit's; the branch points of cycles, period doublings
-        and tori are its events (the last two with ``"multiplier"`` as [re, im] and, for a torus, ``"angle"``).
+        and tori are its events (the last two with ``"located"``, ``"multiplier"`` as [re, im] and, for a torus, ``"angle"``).
         """
         end = periodic.END_MOMENT_MIN if self.end == BranchEnd.PARAMETER_LIMIT else str(self.end)
         folds = [e["moment"] for e in self.events if e["kind"] == "fold" and e["located"]]
@@ -376,7 +379,7 @@ class CollocationBranch:
                 events.append({"kind": "branch_point", "moment": e["moment"]})
             elif e["kind"] in CIRCLE_KINDS:
                 mu = e["multiplier"]
-                events.append({"kind": e["kind"], "moment": e["moment"], "multiplier": [mu.real, mu.imag]})
+                events.append({"kind": e["kind"], "moment": e["moment"], "located": e["located"], "multiplier": [mu.real, mu.imag]})
                 if e["kind"] == "torus":
                     events[-1]["angle"] = e["angle"]
         return periodic.OrbitBranch(
@@ -657,6 +660,9 @@ def _event_record(event: Event) -> dict:
     """An event of the driver as an entry of :attr:`CollocationBranch.events` (a period doubling's or torus's with its multiplier)."""
     record = {"kind": event.kind, "moment": event.parameter, "located": event.located, "orbit": event.point}
     if event.kind in CIRCLE_KINDS:
+        if not event.located:
+            # The secant failed: the event is reported at the first orbit past the sign change.
+            record["moment"] = event.point.moment
         mu = critical_multiplier(event.point.nontrivial_multipliers, event.kind)
         record["multiplier"] = complex(math.nan, math.nan) if mu is None else mu
         if event.kind == "torus":
