@@ -1027,7 +1027,10 @@ class OrbitBranch:
     events : list of dict
         Branch points of cycles passed on the way: ``{"kind": "branch_point", "moment": M}``,
         where a real multiplier crosses +1 while M does not turn (M interpolated linearly in
-        the multiplier between the two orbits around it); the branch goes on through them.
+        the multiplier between the two orbits around it); the branch goes on through them. A
+        collocation branch's (``CollocationBranch.orbit_branch``) also lists its located period
+        doublings and tori (``"kind": "period_doubling"`` or ``"torus"``, with ``"located"``,
+        ``"multiplier"`` [re, im] and a torus's ``"angle"``).
     """
 
     orbits: list[PeriodicOrbit]
