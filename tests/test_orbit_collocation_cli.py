@@ -70,3 +70,21 @@ def test_the_branchs_longest_orbit_is_the_shootings_at_its_moment():
 def test_a_bad_method_exits_2_naming_what_is_allowed(options, message):
     result = runner.invoke(app, ["orbit", "--moment", "0.3", *options])
     assert result.exit_code == 2 and message in result.output, result.output
+
+
+def test_the_json_lists_the_period_doublings_and_tori_a_branch_passed():
+    """A collocation branch's period doublings and tori (its ``events``) reach ``continuation.events``; branch points stay apart."""
+    from cosserat_chain.experiments.orbits import OrbitResult
+    from cosserat_chain.numerics.periodic import OrbitBranch
+
+    orbit = find_periodic_orbit(ChainParams(N=1), "sine", 0.5)
+    events = [
+        {"kind": "period_doubling", "moment": 0.45, "located": True, "multiplier": [-1.0, 0.0]},
+        {"kind": "branch_point", "moment": 0.48},
+        {"kind": "torus", "moment": 0.44, "located": True, "multiplier": [0.6, 0.8], "angle": 0.927},
+    ]
+    branch = OrbitBranch([orbit], "moment_min", 0.4, "", events=events)
+    summary = OrbitResult(orbit=orbit, branch=branch, static_fold=0.47, settings={}).as_dict()["continuation"]
+    assert summary["branch_points"] == [0.48]
+    assert summary["events"] == [events[0], events[2]]
+    json.dumps(summary)

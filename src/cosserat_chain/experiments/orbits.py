@@ -101,6 +101,8 @@ class OrbitResult:
                 "mean_angular_velocity": self.branch.mean_angular_velocity.tolist(),
                 "stable": self.branch.stable.tolist(),
                 "branch_points": [event["moment"] for event in self.branch.events if event["kind"] == "branch_point"],
+                # Period doublings and tori passed on the way (a collocation branch locates them and goes on).
+                "events": [{k: v for k, v in event.items() if k != "orbit"} for event in self.branch.events if event["kind"] != "branch_point"],
                 "phase_condition": ["section" if o.phase_normal is None else "plane" for o in self.branch.orbits],
             }
         return out
