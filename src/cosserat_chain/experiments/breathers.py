@@ -14,7 +14,9 @@ periodic orbit (:func:`~cosserat_chain.numerics.periodic.find_hamiltonian_orbit`
   phi' = sqrt(2 (E - V(0)) / J), every other particle at rest) starts Newton.
 * :func:`roto_breather_family` corrects it by Newton at the first frequency and follows
   the family in Omega (:func:`~cosserat_chain.numerics.periodic.continue_in_frequency`),
-  with the Floquet multipliers of every orbit.
+  with the Floquet multipliers of every orbit; with ``arclength`` by pseudo-arclength
+  (:func:`~cosserat_chain.numerics.breather_arclength.continue_hamiltonian_arclength`),
+  through the folds where Omega turns back, which it locates.
 * :func:`lifetime` runs the undamped chain directly from a perturbed orbit and measures,
   period by period, how far it has left the orbit: the lifetime of an unstable roto-breather,
   and its growth per period against the largest Floquet multiplier.
@@ -43,6 +45,7 @@ import numpy as np
 from ..analysis.dispersion import BRANCHES, wave_summary
 from ..loads import moment_load
 from ..models.base import Model, get_model
+from ..numerics.breather_arclength import ArclengthFamily, continue_hamiltonian_arclength
 from ..numerics.dynamics import integrate
 from ..numerics.periodic import (
     HamiltonianFamily,
@@ -344,8 +347,23 @@ class BreatherFamily:
             "resonant_harmonics": [[{"harmonic": n, "band": b} for n, b in h] for h in self.resonant_harmonics()],
             "combination_resonances": [[{"harmonic": n, "bands": [a, b]} for n, a, b in h] for h in self.combination_resonances()],
             "resonances": [r.as_dict() for r in self.resonances],
+            **({} if not isinstance(self.family, ArclengthFamily) else {"events": self._events()}),
             **({} if self.lifetimes is None else {"lifetimes": [life.as_dict() for life in self.lifetimes]}),
         }
+
+    def _events(self) -> list[dict]:
+        """The arclength family's located folds and branch points: kind, Omega, energy, largest multiplier, the orbits they lie between."""
+        return [
+            {
+                "kind": e.kind,
+                "omega": e.parameter,
+                "energy": e.point.energy,
+                "max_multiplier": e.point.max_multiplier,
+                "located": e.located,
+                "between": [e.index - 1, e.index],
+            }
+            for e in self.family.events
+        ]
 
     def to_dataset(self) -> xr.Dataset:
         """Dataset with dims ``point`` (the family), ``particle`` and ``multiplier``; parameters in the attributes."""
@@ -418,6 +436,8 @@ def roto_breather_family(
     particle: int = 0,
     partners: Mapping[int, int] | None = None,
     progress: ProgressCallback | None = None,
+    arclength: bool = False,
+    max_points: int = 200,
 ) -> BreatherFamily:
     """One-site roto-breathers at the frequencies ``omegas``, from the anti-continuum limit at the first.
 
@@ -438,6 +458,13 @@ def roto_breather_family(
         turns particle 1 with it, ``{1: -turns}`` against it. Each starts as its own
         anti-continuum rotor at phi = 0.
     progress : callable(done, total), optional
+    arclength : bool
+        Follow the family by pseudo-arclength from ``omegas[0]`` towards ``omegas[-1]`` until
+        Omega leaves [min(omegas), max(omegas)] (or ``max_points`` orbits): the orbits are the
+        driver's, not at ``omegas``, and folds in Omega are passed and located
+        (:class:`~cosserat_chain.numerics.breather_arclength.ArclengthFamily`).
+    max_points : int
+        With ``arclength``, the most orbits traced.
 
     Returns
     -------
@@ -446,7 +473,8 @@ def roto_breather_family(
     Raises
     ------
     ValueError
-        For a damped chain, an empty or non-positive ``omegas``.
+        For a damped chain, an empty or non-positive ``omegas``, and with ``arclength`` fewer than
+        two distinct frequencies.
     OrbitError
         If Newton fails at the first frequency (no roto-breather found from the anti-continuum start).
     """
@@ -455,11 +483,23 @@ def roto_breather_family(
     omegas = np.asarray(omegas, dtype=float)
     if omegas.ndim != 1 or omegas.size == 0 or not np.all(np.isfinite(omegas)) or np.any(omegas <= 0):
         raise ValueError(f"omegas must be one or more finite frequencies > 0, got {omegas.tolist()!r}")
+    if arclength and omegas[-1] == omegas[0]:
+        raise ValueError(
+            f"omegas must start and end at different frequencies for arclength (the direction and range), got {omegas.tolist()!r}"
+        )
     partners = dict(partners or {})
     x, v, energy, particle_turns = rotors_start(params, model, float(omegas[0]), turns=turns, particle=particle, partners=partners)
     first = find_hamiltonian_orbit(params, model, float(omegas[0]), (x, v), turns=turns, particle=particle, particle_turns=particle_turns)
-    family = continue_in_frequency(first, omegas, progress=progress)
+    if arclength:
+        family = continue_hamiltonian_arclength(
+            first, float(omegas.min()), float(omegas.max()), direction=math.copysign(1.0, omegas[-1] - omegas[0]),
+            max_points=max_points, progress=progress,
+        )  # fmt: skip
+    else:
+        family = continue_in_frequency(first, omegas, progress=progress)
     settings = {"model": model.name, "turns": turns, "particle": particle, "partners": partners, "params": params.model_dump()}
+    if arclength:
+        settings["arclength"] = True
     bands = coupled_bands(params, model, particle)
     return BreatherFamily(
         family=family,

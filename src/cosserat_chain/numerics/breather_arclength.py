@@ -1,0 +1,242 @@
+"""Hamiltonian rotating orbits (roto-breathers) followed in the frequency by pseudo-arclength, through folds.
+
+Contract
+--------
+:func:`~.periodic.continue_in_frequency` steps Omega along a grid, so a fold in Omega (the
+family turning back, its energy going on) ends it. Here the same unfolded shooting as
+:func:`~.periodic.find_hamiltonian_orbit`,
+
+    R(y0, eps, Omega) = Phi_T^eps(y0) - y0 - 2 pi k e_phi = 0,   T = 2 pi k / Omega,
+
+with the phase condition phi_rotor = 0 (phi_rotor not an unknown) and the unfolding eps, is a
+branch of n equations in n + 1 unknowns w = (y0 without phi_rotor, eps, Omega), Omega last.
+Its Jacobian is [(M - I) without the phi column, dPhi_T/deps, f(Phi_T(y0)) dT/dOmega]: the
+variational equations give the first two (one integration, as for the orbit alone), the
+vector field at the end the last. :class:`HamiltonianFrequencyProblem` states it as a
+:class:`~.kit.ContinuationProblem`, and :func:`continue_hamiltonian_arclength` follows it on
+the kit's one driver (:func:`~.kit.continuation`): the tangent's Omega component changing
+sign is a fold, located by the kit's secant method on the arclength.
+
+At a fold in Omega the period-energy curve turns (dT/dE = 0): the fixed-frequency problem
+that :func:`~.periodic.find_hamiltonian_orbit` solves, the Jacobian without its Omega column,
+is singular there (:meth:`HamiltonianFrequencyProblem.fixed_frequency_singular_value`), which is
+why natural steps in Omega stop before it. The monodromy's Jordan block at +1 (the flow and the
+family, coupled by dT/dE) becomes semisimple there: the pair at +1, split by the integration
+error, turns from a real split on one side to a complex one on the other.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..state import check_state
+from .kit import BranchEnd, Evaluation, EvaluationFailed, Event, continuation
+from .periodic import (
+    ATOL,
+    CLOSURE_TOL,
+    RTOL,
+    HamiltonianFamily,
+    HamiltonianOrbit,
+    OrbitError,
+    PeriodicOrbit,
+    _orbit,
+    _shooting,
+    _System,
+    _to_y,
+    _UndampedSystem,
+    hamiltonian_energy,
+    hamiltonian_setup,
+)
+
+#: Default arclength steps (in the max norm of the state and Omega together).
+STEP, MIN_STEP, MAX_STEP = 0.01, 1e-6, 0.05
+
+
+@dataclass
+class HamiltonianFrequencyProblem:
+    """The branch R(y0, eps, Omega) = 0 of the module docstring, for :func:`~.kit.continuation`.
+
+    Attributes
+    ----------
+    orbit : HamiltonianOrbit
+        The start: its chain, model, turns, rotating particle and every particle's turns.
+    omega_min, omega_max : float
+        The branch ends where Omega leaves this range (:attr:`~.kit.BranchEnd.PARAMETER_LIMIT`).
+    tol, rtol, atol : float
+        Newton's tolerance on the closure, and DOP853's.
+    """
+
+    orbit: HamiltonianOrbit
+    omega_min: float
+    omega_max: float
+    tol: float = CLOSURE_TOL
+    rtol: float = RTOL
+    atol: float = ATOL
+    _keep: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        o = self.orbit
+        self._model = hamiltonian_setup(
+            o.params, o.model, o.omega, o, o.turns, o.particle, o.particle_turns, self.tol, self.rtol, self.atol
+        )[0]
+        self._base = _System(o.params, self._model, 0.0, o.particle)
+        self._keep = np.arange(2 * self._base.nf) != self._base.load_dof
+
+    def start(self) -> np.ndarray:
+        """w at the start orbit: (y0 without phi_rotor, eps, Omega)."""
+        o = self.orbit
+        y0 = _to_y(o.params, check_state(o.params, o.x, "orbit x"), check_state(o.params, o.v, "orbit v"))
+        return np.concatenate([y0[self._keep], [o.unfolding, o.omega]])
+
+    def _state(self, w: np.ndarray) -> np.ndarray:
+        y = np.zeros(len(self._keep))
+        y[self._keep] = w[:-2]
+        return y
+
+    def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
+        """R(w) and, with ``jacobian``, dR/dw and the monodromy (``data``)."""
+        omega = float(w[-1])
+        if not (math.isfinite(omega) and omega > 0):
+            raise EvaluationFailed(f"a trial frequency {omega!r} is not > 0")
+        o = self.orbit
+        period = 2.0 * math.pi * o.turns / omega
+        system = _UndampedSystem(o.params, self._model, 0.0, o.particle, float(w[-2]))
+        try:
+            residual, jac_y, d_period, d_eps, mono = _shooting(system, o.particle_turns, self.rtol, self.atol)(
+                self._state(w), period, jacobian
+            )
+        except OrbitError as err:
+            raise EvaluationFailed(str(err)) from err
+        if jac_y is None:
+            return Evaluation(residual)
+        d_omega = d_period * (-period / omega)
+        return Evaluation(residual, np.column_stack([jac_y[:, self._keep], d_eps, d_omega]), mono)
+
+    def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> HamiltonianOrbit:
+        """The orbit at a corrected w, with its multipliers and energy."""
+        o = self.orbit
+        period = 2.0 * math.pi * o.turns / float(w[-1])
+        closure = float(np.max(np.abs(evaluation.residual)))
+        base = _orbit(self._base, o.turns, self._state(w), period, evaluation.data, closure, iterations, o.particle_turns)
+        fields = {name: getattr(base, name) for name in PeriodicOrbit.__dataclass_fields__}
+        energy = hamiltonian_energy(o.params, self._model, base.x, base.v)
+        return HamiltonianOrbit(**fields, unfolding=float(w[-2]), energy=energy)
+
+    def fixed_frequency_singular_value(self, orbit: HamiltonianOrbit) -> float:
+        """The smallest singular value of dR/d(y0, eps) at ``orbit`` (Omega held): 0 at a fold in Omega.
+
+        It is the Newton Jacobian of :func:`~.periodic.find_hamiltonian_orbit` at that frequency,
+        relative to its largest singular value.
+        """
+        y0 = _to_y(orbit.params, orbit.x, orbit.v)
+        w = np.concatenate([y0[self._keep], [orbit.unfolding, orbit.omega]])
+        singular = np.linalg.svd(self.evaluate(w, True).matrix()[:, :-1], compute_uv=False)
+        return float(singular[-1] / singular[0])
+
+    def accept(self, previous: HamiltonianOrbit, candidate: HamiltonianOrbit) -> bool:
+        return True
+
+    def tests(self, point: HamiltonianOrbit) -> dict[str, float]:
+        return {}
+
+    def stop(self, point: HamiltonianOrbit) -> tuple[BranchEnd, str] | None:
+        if self.omega_min <= point.omega <= self.omega_max:
+            return None
+        return BranchEnd.PARAMETER_LIMIT, (
+            f"Omega = {point.omega:.10g} left [{self.omega_min:g}, {self.omega_max:g}]: " + BranchEnd.PARAMETER_LIMIT.advice
+        )
+
+    def confirm(self, kind: str, point: HamiltonianOrbit) -> bool:
+        return True
+
+
+@dataclass
+class ArclengthFamily(HamiltonianFamily):
+    """A :class:`~.periodic.HamiltonianFamily` traced by pseudo-arclength: Omega may turn back at folds.
+
+    Attributes
+    ----------
+    events : list of Event
+        The located events of the kit (``fold``, ``branch_point``): ``point`` the orbit there, with
+        its energy and multipliers; ``parameter`` its Omega; it lies between ``orbits[index - 1]``
+        and ``orbits[index]``.
+    end : BranchEnd
+        Why the trace stopped.
+    """
+
+    events: list[Event] = field(default_factory=list)
+    end: BranchEnd = BranchEnd.MAX_POINTS
+
+    @property
+    def folds(self) -> list[Event]:
+        """The located folds in Omega."""
+        return [event for event in self.events if event.kind == "fold"]
+
+    @property
+    def complete(self) -> bool:
+        """Whether the trace left the frequency range asked for (rather than stopping inside it)."""
+        return self.end == BranchEnd.PARAMETER_LIMIT
+
+
+def continue_hamiltonian_arclength(
+    orbit: HamiltonianOrbit,
+    omega_min: float,
+    omega_max: float,
+    *,
+    direction: float = 1.0,
+    step: float = STEP,
+    min_step: float = MIN_STEP,
+    max_step: float = MAX_STEP,
+    max_points: int = 200,
+    tol: float = CLOSURE_TOL,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+    progress=None,
+) -> ArclengthFamily:
+    """Follow a Hamiltonian orbit's family in Omega by pseudo-arclength, passing and locating its folds.
+
+    Parameters
+    ----------
+    orbit : HamiltonianOrbit
+        The start (:func:`~.periodic.find_hamiltonian_orbit`).
+    omega_min, omega_max : float
+        The trace stops at the first orbit outside [omega_min, omega_max]; the start must lie inside.
+    direction : float
+        +1 to start towards larger Omega, -1 towards smaller.
+    step, min_step, max_step : float
+        Arclength steps (:func:`~.kit.continuation`).
+    max_points : int
+    tol, rtol, atol : float
+        Newton's closure tolerance, DOP853's tolerances.
+    progress : callable(done, total), optional
+
+    Returns
+    -------
+    ArclengthFamily
+        ``requested`` holds (omega_min, omega_max).
+
+    Raises
+    ------
+    ValueError
+        For a range that is empty, not positive or does not hold the start, a direction other
+        than +-1, and as :func:`~.periodic.find_hamiltonian_orbit`.
+    """
+    for name, value in (("omega_min", omega_min), ("omega_max", omega_max)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise ValueError(f"{name} must be a finite frequency > 0, got {value!r}")
+    if not omega_min <= orbit.omega <= omega_max:
+        raise ValueError(f"the start's Omega = {orbit.omega!r} must lie in [omega_min, omega_max] = [{omega_min!r}, {omega_max!r}]")
+    if direction not in (1, -1, 1.0, -1.0):
+        raise ValueError(f"direction must be +1 or -1, got {direction!r}")
+    problem = HamiltonianFrequencyProblem(orbit, float(omega_min), float(omega_max), tol=tol, rtol=rtol, atol=atol)
+    traced = continuation(
+        problem, problem.start(), step=step, min_step=min_step, max_step=max_step, max_points=max_points,
+        direction=float(direction), progress=progress, first=orbit,
+    )  # fmt: skip
+    return ArclengthFamily(
+        orbits=list(traced.points), requested=np.array([omega_min, omega_max], dtype=float), message=traced.message,
+        events=list(traced.events), end=traced.end,
+    )  # fmt: skip

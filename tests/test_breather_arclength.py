@@ -1,0 +1,140 @@
+"""Roto-breather families by pseudo-arclength in Omega (numerics.breather_arclength): through folds, on the kit's driver."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cosserat_chain.experiments.breathers import damped_to_undamped, roto_breather_family
+from cosserat_chain.loads import moment_load
+from cosserat_chain.numerics.breather_arclength import HamiltonianFrequencyProblem, continue_hamiltonian_arclength
+from cosserat_chain.numerics.dynamics import integrate
+from cosserat_chain.numerics.kit import BranchEnd
+from cosserat_chain.numerics.periodic import continue_in_frequency, find_periodic_orbit
+from cosserat_chain.params import ChainParams
+from cosserat_chain.state import ROW_INDEX
+
+PHI = ROW_INDEX["phi"]
+
+
+def undamped(**fields) -> ChainParams:
+    return ChainParams(gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0, **fields)
+
+
+def closes_by_a_direct_run(o) -> float:
+    """max |x(T) - x(0) - 2 pi k e_phi|, |v(T) - v(0)| of an independent Yoshida-4 run over one period."""
+    run = integrate(
+        o.params, o.model, moment_load(0.0, o.particle), t_end=o.period, dt=o.period / 4000, x0=o.x, v0=o.v,
+        method="yoshida4", n_frames=2,
+    )  # fmt: skip
+    shift = np.zeros_like(o.x)
+    shift[PHI] = 2 * math.pi * o.particle_turns
+    return max(float(np.max(np.abs(run.x[-1] - o.x - shift))), float(np.max(np.abs(run.v[-1] - o.v))))
+
+
+def test_without_a_fold_the_arclength_family_is_the_natural_step_family_at_the_same_frequencies():
+    family = roto_breather_family(undamped(N=1), "sine", [6.0, 5.4], arclength=True, max_points=6)
+    arc = family.family
+    assert arc.folds == [] and len(arc.orbits) == 6
+    omegas = arc.omega
+    assert np.all(np.diff(omegas) < 0)  # towards omegas[-1]
+    natural = continue_in_frequency(arc.orbits[0], omegas)
+    assert natural.complete
+    for a, b in zip(arc.orbits, natural.orbits):
+        assert b.omega == pytest.approx(a.omega, rel=1e-14)
+        assert np.max(np.abs(a.x - b.x)) < 1e-9 and np.max(np.abs(a.v - b.v)) < 1e-9
+        assert abs(a.unfolding) < 1e-10
+    assert family.as_dict()["events"] == []
+
+
+def test_the_trace_stops_where_omega_leaves_the_range():
+    family = roto_breather_family(undamped(N=1), "sine", [6.0, 5.9], arclength=True, max_points=50)
+    arc = family.family
+    assert arc.end == BranchEnd.PARAMETER_LIMIT and arc.complete
+    assert arc.omega[-1] < 5.9 <= arc.omega[-2]
+
+
+def test_bad_ranges_are_refused_naming_the_field():
+    start = roto_breather_family(undamped(N=1), "sine", [6.0]).family.orbits[0]
+    with pytest.raises(ValueError, match="omega_min"):
+        continue_hamiltonian_arclength(start, -1.0, 7.0)
+    with pytest.raises(ValueError, match=r"start's Omega"):
+        continue_hamiltonian_arclength(start, 6.5, 7.0)
+    with pytest.raises(ValueError, match="direction"):
+        continue_hamiltonian_arclength(start, 5.0, 7.0, direction=0.5)
+    with pytest.raises(ValueError, match="different frequencies"):
+        roto_breather_family(undamped(N=1), "sine", [6.0, 6.0], arclength=True)
+
+
+@pytest.fixture(scope="module")
+def folded():
+    """The in-band undamped family the paper's nonlinear rotation (N = 3, gamma = 0.1, M = 0.30) lands on, traced up in Omega."""
+    damped = find_periodic_orbit(ChainParams(gamma_u=0.1, gamma_v=0.1, gamma_phi=0.1), "nonlinear", 0.30)
+    landed = damped_to_undamped(damped).landed
+    return landed, continue_hamiltonian_arclength(landed, 1.2, 1.45, max_points=40)
+
+
+@pytest.mark.slow
+def test_the_in_band_family_passes_its_fold_in_omega_where_the_fixed_frequency_problem_is_singular(folded):
+    landed, arc = folded
+    assert landed.omega == pytest.approx(1.3485410, abs=1e-6)
+    assert len(arc.folds) == 1
+    fold = arc.folds[0]
+    # Omega turns back there, the energy goes on rising through it.
+    omegas, energies = arc.omega, arc.energy
+    assert np.all(omegas[: fold.index] < fold.parameter) and np.all(omegas[fold.index :] < fold.parameter)
+    assert np.all(np.diff(omegas[: fold.index]) > 0) and np.all(np.diff(omegas[fold.index + 1 :]) < 0)
+    assert np.all(np.diff(energies) > 0)
+    assert energies[fold.index - 1] < fold.point.energy < energies[fold.index]
+    assert fold.point.omega == pytest.approx(fold.parameter, rel=1e-14)
+    # The energy-frequency curve's turn: a parabola Omega(E) through the orbits around the fold peaks there.
+    near = slice(fold.index - 2, fold.index + 2)
+    a, b, c = np.polyfit(energies[near], omegas[near], 2)
+    assert -b / (2 * a) == pytest.approx(fold.point.energy, abs=2e-3)
+    assert c - b * b / (4 * a) == pytest.approx(fold.parameter, abs=1e-5)
+    # The fixed-frequency Newton Jacobian (find_hamiltonian_orbit's) is singular at the fold, regular beside it.
+    problem = HamiltonianFrequencyProblem(landed, 1.2, 1.45)
+    assert problem.fixed_frequency_singular_value(fold.point) < 1e-12
+    assert problem.fixed_frequency_singular_value(arc.orbits[fold.index + 3]) > 1e-5
+    assert problem.fixed_frequency_singular_value(arc.orbits[fold.index - 4]) > 1e-5
+    # Both sides, and the fold itself, close under an independent integration.
+    for o in (arc.orbits[fold.index - 1], fold.point, arc.orbits[fold.index + 1], arc.orbits[-1]):
+        assert abs(o.unfolding) < 1e-10
+        assert closes_by_a_direct_run(o) < 1e-7
+
+
+@pytest.mark.slow
+def test_two_orbits_of_the_folded_family_share_a_frequency(folded):
+    """Past the fold the family holds a second orbit at a frequency already traced: another energy, both closed."""
+    _, arc = folded
+    fold = arc.folds[0]
+    omega = float(arc.omega[-1])
+    below = [o for o in arc.orbits[: fold.index] if o.omega < omega]
+    assert below, "the trace came back below a frequency of the rising side"
+    natural = continue_in_frequency(below[-1], [below[-1].omega, omega])
+    assert natural.complete
+    low, high = natural.orbits[-1], arc.orbits[-1]
+    assert low.omega == pytest.approx(high.omega, rel=1e-14)
+    assert high.energy - low.energy > 0.05
+    assert np.max(np.abs(high.x - low.x)) > 1e-2
+
+
+@pytest.mark.slow
+def test_the_pitchfork_before_the_fold_is_a_branch_point_where_a_multiplier_pair_meets_plus_one(folded):
+    _, arc = folded
+    points = [e for e in arc.events if e.kind == "branch_point"]
+    assert len(points) == 1
+    bp = points[0]
+    assert bp.parameter < arc.folds[0].parameter
+    before, after = arc.orbits[bp.index - 1], arc.orbits[bp.index]
+
+    # Beside the branch point a nontrivial pair goes from the unit circle (complex) to the real axis.
+    def nearest_pair(o):
+        others = o.nontrivial_multipliers
+        return others[np.argsort(np.abs(others - 1.0))[:2]]
+
+    assert np.all(np.abs(np.abs(nearest_pair(before)) - 1.0) < 1e-6) and np.all(np.abs(nearest_pair(before).imag) > 1e-3)
+    assert np.all(np.abs(nearest_pair(after).imag) < 1e-9) and np.max(np.abs(nearest_pair(after))) > 1.0 + 1e-3
+    assert np.min(np.abs(nearest_pair(bp.point) - 1.0)) < 1e-2
