@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
+from cosserat_chain.cli import app
 from cosserat_chain.experiments.breathers import damped_to_undamped, roto_breather_family
 from cosserat_chain.loads import moment_load
 from cosserat_chain.numerics.breather_arclength import HamiltonianFrequencyProblem, continue_hamiltonian_arclength
@@ -17,6 +20,7 @@ from cosserat_chain.params import ChainParams
 from cosserat_chain.state import ROW_INDEX
 
 PHI = ROW_INDEX["phi"]
+runner = CliRunner()
 
 
 def undamped(**fields) -> ChainParams:
@@ -138,3 +142,15 @@ def test_the_pitchfork_before_the_fold_is_a_branch_point_where_a_multiplier_pair
     assert np.all(np.abs(np.abs(nearest_pair(before)) - 1.0) < 1e-6) and np.all(np.abs(nearest_pair(before).imag) > 1e-3)
     assert np.all(np.abs(nearest_pair(after).imag) < 1e-9) and np.max(np.abs(nearest_pair(after))) > 1.0 + 1e-3
     assert np.min(np.abs(nearest_pair(bp.point) - 1.0)) < 1e-2
+
+
+def test_cli_arclength_json_and_refusal(tmp_path):
+    config = tmp_path / "chain.toml"
+    config.write_text("N = 1\n")
+    result = runner.invoke(app, ["breathers", "--omega", "6", "--to", "5.9", "--arclength", "--config", str(config), "--json"])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output.splitlines()[-1])
+    assert summary["events"] == [] and summary["complete"]
+    assert summary["omega"][0] == pytest.approx(6.0) and summary["omega"][-1] < 5.9 <= summary["omega"][-2]
+    refused = runner.invoke(app, ["breathers", "--omega", "6", "--arclength", "--config", str(config)])
+    assert refused.exit_code == 2 and "--arclength" in refused.output and "Traceback" not in refused.output

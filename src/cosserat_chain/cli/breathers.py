@@ -56,12 +56,17 @@ def breathers(
         above=0.0,
     ),
     gamma: float | None = number(None, "With --from-moment: the viscosities gamma_u = gamma_v = gamma_phi of the damped start.", above=0.0),
+    arclength: bool = typer.Option(
+        False, "--arclength", help="Follow the family from --omega towards --to by pseudo-arclength: through folds in Omega, located."
+    ),
 ) -> None:
     """Roto-breathers: one particle rotating, the rest oscillating, undamped; Newton from the anti-continuum limit, Floquet multipliers, resonances with the bands.
 
     With --system: the system's family (its angles counted from the central one by --particle and --partner), continued in --coupling from 0, then in the frequency to --to; --out writes it to NetCDF.
     With --atlas FIELD=V1,V2,...: the existence map over (Omega, FIELD), of the chain or of the --system. With --from-moment M: the damped, driven orbit followed to zero damping.
     """
+    if arclength and (to is None or system is not None or atlas is not None or from_moment is not None):
+        fail("--arclength follows the chain's family from --omega to --to: give --to, and leave out --system, --atlas and --from-moment")
     if from_moment is not None:
         if system is not None or atlas is not None:
             fail("--from-moment follows the chain's damped orbit: leave out --system and --atlas")
@@ -110,11 +115,13 @@ def breathers(
         fail("--counter sets the partner's direction: give --partner as well")
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     params = params_or_exit(config).replace(gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
-    omegas = np.array([omega]) if to is None else np.linspace(omega, to, steps)
+    omegas = np.array([omega]) if to is None else np.array([omega, to]) if arclength else np.linspace(omega, to, steps)
     bar = progress_bar(f"breathers {model}", "orbit")
     try:
         partners = None if partner is None else {partner: -turns if counter else turns}
-        result = roto_breather_family(params, model, omegas, turns=turns, particle=particle, partners=partners, progress=bar_callback(bar))
+        result = roto_breather_family(
+            params, model, omegas, turns=turns, particle=particle, partners=partners, progress=bar_callback(bar), arclength=arclength
+        )
     except ValueError as err:
         bar.close()
         fail(str(err))
@@ -139,7 +146,8 @@ def breathers(
         typer.echo(json.dumps({"params": params.model_dump(), **summary}))
         return
     also = "" if partner is None else f" and {partner} ({'against' if counter else 'with'} it)"
-    typer.echo(f"{model}: {len(family.orbits)} of {len(omegas)} roto-breathers, {turns} turn(s) per period, particle {particle}{also}")
+    count = f"{len(family.orbits)} roto-breathers by arclength" if arclength else f"{len(family.orbits)} of {len(omegas)} roto-breathers"
+    typer.echo(f"{model}: {count}, {turns} turn(s) per period, particle {particle}{also}")
     typer.echo(f"{'omega':>10}  {'energy':>12}  {'rotor rate':>11}  {'tail':>10}  {'max |mu|':>10}  stable  harmonics in a band")
     for i, o in enumerate(family.orbits):
         energy = "-" if o.energy is None else f"{o.energy:.8g}"
@@ -151,6 +159,8 @@ def breathers(
         if lives is not None:
             life = lives[i]["lifetime_periods"]
             typer.echo(f"{'':>10}  lifetime: {'beyond ' + str(lifetimes) if life is None else life} periods")
+    for e in summary.get("events", []):
+        typer.echo(f"{e['kind'].replace('_', ' ')} at Omega = {e['omega']:.10g}: energy {e['energy']}, max |mu| {e['max_multiplier']:.6g}")
     for r in result.resonances:
         typer.echo(f"resonance: {r.harmonic} x Omega = {r.edge_frequency:.6g} ({r.band} band {r.edge}) at Omega = {r.omega:.6g}")
     if not family.complete:
