@@ -1,0 +1,169 @@
+"""Branch switching at a period doubling of a collocation branch on the doubled mesh (issue 40, item 4).
+
+The sine chain at gamma_phi = 0.15 (paper's N = 3 geometry) loses its one-turn orbit at a period doubling
+at M = 0.172882426 (``tests/test_collocation_events.py``). At the located event the doubled mesh carries the
+orbit run twice; its multipliers are exactly the squares of the one-turn orbit's (the doubled chain of
+transfer matrices is the single one repeated); the flip mode changes sign after one period; the doubled
+orbits of small amplitude a have period 2 T_PD + O(a^2) and a half-period gap a |x(1/2) - x(0)| + O(a^2);
+the family continued away has a period that moves away from 2 T_single; and at the shooting's first doubled
+orbit (``cycle_switching.switch_at_period_doubling``, an independent method) both agree.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.optimize as so
+
+from cosserat_chain import ChainParams
+from cosserat_chain.numerics.collocation import continue_collocation, find_collocation_orbit
+from cosserat_chain.numerics.collocation_switching import (
+    CollocationPeriodDoubling,
+    doubled_collocation_orbit,
+    flip_mode,
+    half_period_gap,
+    switch_collocation_at_period_doubling,
+)
+from cosserat_chain.numerics.collocation_switching import _run_twice as run_twice
+from cosserat_chain.numerics.continuation import locate_fold
+from cosserat_chain.numerics.cycle_switching import switch_at_period_doubling
+from cosserat_chain.numerics.periodic import continue_orbit, find_periodic_orbit
+
+PARAMS = ChainParams(gamma_phi=0.15)
+AMPLITUDES = (1e-3, 2e-3)
+
+
+@pytest.fixture(scope="module")
+def shooting_branch():
+    """The shooting's one-turn branch from 1.1 M_c to its first orbit past the period doubling."""
+    start = find_periodic_orbit(PARAMS, "sine", 1.1 * locate_fold(PARAMS, "sine").moment)
+    return continue_orbit(start, period_max=100.0, until_unstable=True)
+
+
+@pytest.fixture(scope="module")
+def branch(shooting_branch):
+    """The collocation branch over the period doubling, from the last stable shooting orbit."""
+    orbits = shooting_branch.orbits
+    start = find_collocation_orbit(PARAMS, "sine", orbits[-2].moment, guess=orbits[-2])
+    below = orbits[-1].moment - 0.5 * (orbits[-2].moment - orbits[-1].moment)
+    return continue_collocation(start, moment_min=below, period_max=200.0)
+
+
+@pytest.fixture(scope="module")
+def event(branch):
+    assert [e["kind"] for e in branch.events] == ["period_doubling"]
+    return branch.events[0]
+
+
+@pytest.fixture(scope="module")
+def flip(event):
+    return flip_mode(event)
+
+
+def matched_gap(a: np.ndarray, b: np.ndarray) -> float:
+    """The largest |a_i - b_pi(i)| of the best one-to-one matching."""
+    gap = np.abs(a[:, None] - b[None, :])
+    rows, cols = so.linear_sum_assignment(gap)
+    return float(gap[rows, cols].max())
+
+
+def test_at_the_period_doubling_the_doubled_multipliers_are_the_squares(event, flip):
+    point = event["orbit"]
+    doubled_point, mode = flip
+    assert doubled_point.turns == 2 * point.turns and doubled_point.ntst == 2 * point.ntst
+    assert doubled_point.period == pytest.approx(2 * point.period, rel=1e-14)
+    assert np.array_equal(doubled_point.particle_turns, 2 * point.particle_turns)
+    # mu_doubled = mu_single^2: the doubled chain of transfer matrices is the single one repeated (measured 6e-14).
+    assert matched_gap(doubled_point.multipliers, point.multipliers**2) < 1e-9
+    # The -1 became a second +1 beside the trivial one: a double eigenvalue of the pencil, split by the square root of the
+    # round-off (measured 3.3e-8).
+    assert np.sort(np.abs(doubled_point.multipliers - 1.0))[1] < 1e-6
+
+
+def test_the_flip_mode_changes_sign_after_one_period(flip):
+    doubled_point, mode = flip
+    half = mode.shape[0] // 2
+    assert np.sqrt(np.mean(np.sum(mode**2, axis=1))) == pytest.approx(1.0, rel=1e-12)
+    # x on [0, 1/2], -x on [1/2, 1] (measured 8e-15), and x not zero at the start.
+    assert np.abs(mode[: half + 1] + mode[half:]).max() < 1e-9
+    assert np.abs(mode[0]).max() > 0.1
+
+
+def test_small_doubled_orbits_tend_to_twice_the_period_and_are_not_the_orbit_run_twice(event, flip):
+    point = event["orbit"]
+    _, mode = flip
+    _, _, shift = run_twice(point)
+    family = [doubled_collocation_orbit(event, a, mode=mode) for a in AMPLITUDES]
+    offsets = np.array([o.period - 2 * point.period for o in family])
+    moments = np.array([o.moment - point.moment for o in family])
+    # O(a^2) (measured 8.0e-8 and 3.2e-7 in T, -4.2e-11 and -1.6e-10 in M).
+    assert np.all(offsets > 0) and 3.5 < offsets[1] / offsets[0] < 4.5
+    assert np.all(moments < 0) and 3.5 < moments[1] / moments[0] < 4.5
+    # The state at half the doubled period is the start plus a (x(1/2) - x(0)) = -2 a x(0): the flip mode.
+    half = mode.shape[0] // 2
+    for a, orbit in zip(AMPLITUDES, family):
+        assert orbit.turns == 2 and orbit.residual < 1e-9
+        gap = orbit.states(np.array([0.5]))[0] - orbit.profile[0] - shift
+        flipped = (mode[half] - mode[0]) * a
+        # Up to the orbit's phase, pinned by the integral condition (O(a^2) off).
+        assert np.abs(gap - flipped).max() < 0.05 * np.abs(flipped).max()
+        assert half_period_gap(orbit, shift) == pytest.approx(np.abs(flipped).max(), rel=0.05)
+
+
+def test_the_switch_follows_the_doubled_family_away_from_twice_the_single_period(event, branch):
+    switch = switch_collocation_at_period_doubling(branch, max_points=5, period_max=200.0)
+    assert isinstance(switch, CollocationPeriodDoubling)
+    assert switch.point is event["orbit"] and abs(switch.multiplier + 1.0) < 1e-9
+    assert switch.side == "below" and switch.coefficient < 0 and switch.doubled.moment < switch.point.moment
+    followed = switch.branch
+    assert len(followed.orbits) == 5 and np.all(np.diff(followed.moment) < 0)
+    assert all(o.turns == 2 and o.trivial_multiplier_error < 1e-6 for o in followed.orbits)
+    # The period leaves 2 T_PD as M leaves M_PD, and leaves twice the single orbit's at the same M.
+    excess = [o.period - 2 * switch.point.period for o in followed.orbits]
+    assert np.all(np.diff(excess) > 0)
+    first, last = followed.orbits[0], followed.orbits[-1]
+    excess = [o.period - 2 * find_collocation_orbit(PARAMS, "sine", o.moment, guess=switch.point).period for o in (first, last)]
+    # Measured 7.9e-4 at M_PD - 4.2e-7 and 4.4e-3 at M_PD - 1.5e-6.
+    assert 0 < 3 * excess[0] < excess[1]
+    assert switch.as_dict()["side"] == "below"
+
+
+@pytest.mark.slow
+def test_the_doubled_orbit_is_the_shootings_at_the_same_moment(event, shooting_branch):
+    shot = switch_at_period_doubling(shooting_branch, follow=False)
+    target = shot.doubled
+    switch = switch_collocation_at_period_doubling(event, moment_min=target.moment, period_max=200.0, max_points=40)
+    assert str(switch.branch.end) == "parameter_limit"
+    last = [o for o in switch.branch.orbits if o.moment > target.moment][-1]
+    orbit = find_collocation_orbit(PARAMS, "sine", target.moment, turns=2, guess=last, ntst=last.ntst)
+    # Measured: period 2.3e-8 relative on the branch's mesh (80 intervals, NCOL = 4), whose fast longitudinal modes
+    # are resolved to 3e-4 only; solved again from it with NCOL = 7: period 4.6e-13, multipliers 5.5e-10.
+    assert orbit.period == pytest.approx(target.period, rel=1e-7)
+    fine = find_collocation_orbit(PARAMS, "sine", target.moment, turns=2, guess=last, ntst=last.ntst, ncol=7)
+    assert fine.period == pytest.approx(target.period, rel=1e-9)
+    # The shooting's multipliers below 1e-3 are its round-off.
+    resolved = lambda mu: mu[np.abs(mu) > 1e-3]  # noqa: E731
+    assert matched_gap(resolved(fine.multipliers), resolved(target.multipliers)) < 1e-8
+    # The critical one (the flip's square, near +1) already on the branch's mesh.
+    assert np.sort(np.abs(orbit.multipliers - 1.0))[1] == pytest.approx(np.sort(np.abs(target.multipliers - 1.0))[1], abs=1e-6)
+
+
+@pytest.mark.parametrize("kind", ["fold", "torus", "branch_point"])
+def test_an_event_that_is_not_a_period_doubling_is_refused(event, kind):
+    with pytest.raises(ValueError, match=f"the event is a '{kind}', not a 'period_doubling'"):
+        switch_collocation_at_period_doubling({**event, "kind": kind})
+
+
+def test_bad_starts_and_arguments_are_refused(event, branch):
+    with pytest.raises(ValueError, match="not a located period doubling"):
+        switch_collocation_at_period_doubling(branch.orbits[0])
+    with pytest.raises(ValueError, match="no located period_doubling event"):
+        switch_collocation_at_period_doubling(continue_collocation(branch.orbits[0], direction=1.0, max_points=2))
+    with pytest.raises(ValueError, match="was not located"):
+        switch_collocation_at_period_doubling({**event, "located": False})
+    with pytest.raises(ValueError, match="offset"):
+        switch_collocation_at_period_doubling(event, offset=2.0)
+    with pytest.raises(ValueError, match="amplitude"):
+        doubled_collocation_orbit(event["orbit"], 0.0)
+    with pytest.raises(ValueError, match="start must be"):
+        switch_collocation_at_period_doubling("event")
