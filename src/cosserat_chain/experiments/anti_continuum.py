@@ -62,8 +62,17 @@ def potential_from_torque(torque: np.ndarray) -> Callable[[np.ndarray], np.ndarr
 
 def rotor_period(potential: Callable[[np.ndarray], np.ndarray], inertia: float, energy: float) -> float:
     """Time of one turn of the rotor J phi'' = -V'(phi) at energy E > max V."""
-    phi = 2 * math.pi * np.arange(PERIOD_POINTS) / PERIOD_POINTS
-    return float(np.mean(np.sqrt(inertia / (2.0 * (energy - potential(phi))))) * 2 * math.pi)
+    return _period(potential(_period_angles()), inertia, energy)
+
+
+def _period_angles() -> np.ndarray:
+    """The :data:`PERIOD_POINTS` angles of the turn's quadrature."""
+    return 2 * math.pi * np.arange(PERIOD_POINTS) / PERIOD_POINTS
+
+
+def _period(values: np.ndarray, inertia: float, energy: float) -> float:
+    """:func:`rotor_period` from the potential's ``values`` at :func:`_period_angles`."""
+    return float(np.mean(np.sqrt(inertia / (2.0 * (energy - values)))) * 2 * math.pi)
 
 
 def rotor_energy(potential: Callable[[np.ndarray], np.ndarray], inertia: float, turn_time: float) -> float:
@@ -75,11 +84,13 @@ def rotor_energy(potential: Callable[[np.ndarray], np.ndarray], inertia: float, 
         Where the turn is slower than the quadrature resolves just above the barrier (a
         frequency too close to 0).
     """
-    top = float(np.max(potential(2 * math.pi * np.arange(PERIOD_POINTS) / PERIOD_POINTS)))
+    # The potential at the quadrature's angles once: each of Brent's steps changes only the energy.
+    values = potential(_period_angles())
+    top = float(np.max(values))
     low = top + 1e-12 * max(1.0, abs(top))
-    if rotor_period(potential, inertia, low) < turn_time:
+    if _period(values, inertia, low) < turn_time:
         raise ValueError(f"a turn in {turn_time:.6g} is too slow to resolve: the rotor's frequency is too close to 0")
     high = max(2 * abs(top), 1.0)
-    while rotor_period(potential, inertia, high) > turn_time:
+    while _period(values, inertia, high) > turn_time:
         high *= 4.0
-    return float(brentq(lambda e: rotor_period(potential, inertia, e) - turn_time, low, high, xtol=1e-14, rtol=1e-14))
+    return float(brentq(lambda e: _period(values, inertia, e) - turn_time, low, high, xtol=1e-14, rtol=1e-14))
