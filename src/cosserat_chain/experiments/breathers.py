@@ -352,11 +352,14 @@ class BreatherFamily:
         }
 
     def _events(self) -> list[dict]:
-        """The arclength family's located folds and branch points: kind, Omega, energy, largest multiplier, the orbits they lie between."""
+        """The arclength family's folds and branch points: kind, Omega, energy, largest multiplier, the orbits they lie between.
+
+        An event the secant method did not locate (``located`` False) is given at the orbit after its sign change.
+        """
         return [
             {
                 "kind": e.kind,
-                "omega": e.parameter,
+                "omega": e.parameter if e.located else e.point.omega,
                 "energy": e.point.energy,
                 "max_multiplier": e.point.max_multiplier,
                 "located": e.located,
