@@ -49,7 +49,13 @@ from .collocation import (
 from .collocation_core import CHORD_RATE, MAX_HALVINGS, PERMUTATION, TOL, _Collocation, _shift, _SparseStep
 from .kit import newton
 
-__all__ = ["CollocationPeriodDoubling", "doubled_collocation_orbit", "flip_mode", "switch_collocation_at_period_doubling"]
+__all__ = [
+    "CollocationPeriodDoubling",
+    "doubled_collocation_orbit",
+    "flip_mode",
+    "half_period_gap",
+    "switch_collocation_at_period_doubling",
+]
 
 #: The critical multiplier of a period doubling lies within this of -1 (a located event's within ~1e-12).
 FLIP_TOL = 1e-6
