@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+import xarray as xr
 from typer.testing import CliRunner
 
 from cosserat_chain.cli import app
@@ -147,9 +148,13 @@ def test_the_pitchfork_before_the_fold_is_a_branch_point_where_a_multiplier_pair
 def test_cli_arclength_json_and_refusal(tmp_path):
     config = tmp_path / "chain.toml"
     config.write_text("N = 1\n")
-    result = runner.invoke(app, ["breathers", "--omega", "6", "--to", "5.9", "--arclength", "--config", str(config), "--json"])
+    out = tmp_path / "family.nc"
+    args = ["breathers", "--omega", "6", "--to", "5.9", "--arclength", "--config", str(config), "--json", "--out", str(out)]
+    result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     summary = json.loads(result.output.splitlines()[-1])
+    with xr.open_dataset(out) as ds:
+        assert json.loads(ds.attrs["events_json"]) == [] and np.allclose(ds["omega"].values, summary["omega"], rtol=1e-14)
     assert summary["events"] == [] and summary["complete"]
     assert summary["omega"][0] == pytest.approx(6.0) and summary["omega"][-1] < 5.9 <= summary["omega"][-2]
     refused = runner.invoke(app, ["breathers", "--omega", "6", "--arclength", "--config", str(config)])

@@ -427,6 +427,8 @@ class BreatherFamily:
                 "settings_json": json.dumps({k: v for k, v in self.settings.items() if k != "params"}),
             }
         )
+        if isinstance(self.family, ArclengthFamily):
+            ds.attrs["events_json"] = json.dumps(self._events())
         return ds
 
 
