@@ -104,6 +104,16 @@ def test_the_in_band_family_passes_its_fold_in_omega_where_the_fixed_frequency_p
     assert problem.fixed_frequency_singular_value(fold.point) < 1e-12
     assert problem.fixed_frequency_singular_value(arc.orbits[fold.index + 3]) > 1e-5
     assert problem.fixed_frequency_singular_value(arc.orbits[fold.index - 4]) > 1e-5
+
+    # The Jordan block of the Hamiltonian pair at +1 (coupled by dT/dE) changes sign there: the pair, split by the
+    # integration error, is real on the rising side and complex on the falling one.
+    def pair(o):
+        return o.multipliers[np.argsort(np.abs(o.multipliers - 1.0))[:2]]
+
+    for o in arc.orbits[fold.index - 3 : fold.index]:
+        assert np.all(np.abs(pair(o) - 1.0) < 1e-3) and np.all(pair(o).imag == 0.0)
+    for o in arc.orbits[fold.index : fold.index + 3]:
+        assert np.all(np.abs(pair(o) - 1.0) < 1e-3) and np.all(np.abs(pair(o).imag) > 1e-7)
     # Both sides, and the fold itself, close under an independent integration.
     for o in (arc.orbits[fold.index - 1], fold.point, arc.orbits[fold.index + 1], arc.orbits[-1]):
         assert abs(o.unfolding) < 1e-10
