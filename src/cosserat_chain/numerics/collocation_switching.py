@@ -210,14 +210,22 @@ def flip_mode(point: CollocationOrbit) -> tuple[CollocationOrbit, np.ndarray]:
     return _doubled(point, problem, w, evaluation, 0), mode
 
 
+def _plane(point: CollocationOrbit, mode: np.ndarray) -> tuple[_Collocation, np.ndarray, np.ndarray]:
+    """The doubled system with M free, the orbit run twice in its unknowns (w_PD) and the unit flip direction t there."""
+    mesh, profile, _ = _run_twice(point)
+    problem = _problem(point, mesh, profile, free_moment=True)
+    t = np.concatenate([problem.scale * mode.ravel(), [0.0, 0.0]])
+    return problem, problem.pack(profile, 2.0 * point.period, point.moment), t / np.linalg.norm(t)
+
+
 def doubled_collocation_orbit(
-    point: CollocationOrbit, amplitude: float, *, mode: np.ndarray | None = None, predictor: np.ndarray | None = None, tol: float = TOL
+    point: CollocationOrbit, amplitude: float, *, mode: np.ndarray | None = None, probe: CollocationOrbit | None = None, tol: float = TOL
 ) -> CollocationOrbit:
     """The doubled orbit of amplitude ``amplitude`` along the flip mode at the period doubling ``point``.
 
-    Newton on the doubled collocation system with M free, from w_PD + a t (or ``predictor``, a profile
-    of the doubled mesh with log T and M appended as :meth:`_Collocation.pack` packs them) on the plane
-    t . (w - w_PD) = a (module docstring).
+    Newton on the doubled collocation system with M free, from w_PD + a t (or, given ``probe``, from the
+    parabola w_PD + a t + (a / a_1)^2 (w_1 - w_PD - a_1 t) through the probe's w_1 at its amplitude a_1)
+    on the plane t . (w - w_PD) = a (module docstring).
 
     Parameters
     ----------
@@ -228,8 +236,8 @@ def doubled_collocation_orbit(
         doubled orbit, a period apart.
     mode : ndarray, optional
         The flip mode of :func:`flip_mode` (computed by default).
-    predictor : ndarray, optional
-        A better start than the straight line (the parabola through a probe).
+    probe : CollocationOrbit, optional
+        A doubled orbit of this function at a smaller amplitude (the parabola's a^2 term is even in a).
     tol : float
         Newton stops at max |R| <= tol.
 
@@ -250,12 +258,12 @@ def doubled_collocation_orbit(
     point = _point(point)
     if mode is None:
         mode = flip_mode(point)[1]
-    mesh, profile, shift = _run_twice(point)
-    problem = _problem(point, mesh, profile, free_moment=True)
-    base = problem.pack(profile, 2.0 * point.period, point.moment)
-    t = np.concatenate([problem.scale * mode.ravel(), [0.0, 0.0]])
-    t /= np.linalg.norm(t)
-    start = base + amplitude * t if predictor is None else predictor
+    problem, base, t = _plane(point, mode)
+    start = base + amplitude * t
+    if probe is not None:
+        w1 = problem.pack(probe.profile, probe.period, probe.moment)
+        a1 = float(t @ (w1 - base))
+        start += (amplitude / a1) ** 2 * (w1 - base - a1 * t)
     solved = newton(
         problem.evaluate, start, tol=tol, divergence=None, damping=MAX_HALVINGS, chord=CHORD_RATE,
         newton_step=_SparseStep((t, base + amplitude * t)),
@@ -266,7 +274,7 @@ def doubled_collocation_orbit(
             f"({solved.status}, max|R| {solved.norm:.3g}): try a smaller amplitude"
         )
     orbit = _doubled(point, problem, solved.w, solved.evaluation, solved.iterations)
-    if half_period_gap(orbit, shift) < HALF_CLOSURE:
+    if half_period_gap(orbit, _run_twice(point)[2]) < HALF_CLOSURE:
         raise CollocationError(f"Newton at amplitude {amplitude!r} found the orbit at M={orbit.moment!r} run twice, not a doubled one")
     return orbit
 
@@ -319,27 +327,20 @@ def switch_collocation_at_period_doubling(
     """
     if not (math.isfinite(offset) and 0 < offset < 1):
         raise ValueError(f"offset must be a number in (0, 1) (relative distance in M), got {offset!r}")
+    if amplitude is not None and not (math.isfinite(amplitude) and amplitude != 0):
+        raise ValueError(f"amplitude must be a finite non-zero number (along the flip mode) or None, got {amplitude!r}")
     point = _point(start)
     doubled_point, mode = flip_mode(point)
     probe = doubled_collocation_orbit(point, PROBE_AMPLITUDE, mode=mode, tol=tol)
     coefficient = (probe.moment - point.moment) / PROBE_AMPLITUDE**2
     if coefficient == 0:
         raise CollocationError(f"the doubled family at M={point.moment!r} does not move with its amplitude (a degenerate flip)")
-    predictor = None
     if amplitude is None:
         amplitude = min(MAX_AMPLITUDE, max(PROBE_AMPLITUDE, math.sqrt(offset * abs(point.moment) / abs(coefficient))))
-    if amplitude != PROBE_AMPLITUDE:
-        # The parabola in a through w_PD (tangent t) and the probe: w(a) = w_PD + a t + (a / a_1)^2 (w_1 - w_PD - a_1 t).
-        mesh, profile, _ = _run_twice(point)
-        problem = _problem(point, mesh, profile, free_moment=True)
-        base = problem.pack(profile, 2.0 * point.period, point.moment)
-        t = np.concatenate([problem.scale * mode.ravel(), [0.0, 0.0]])
-        t /= np.linalg.norm(t)
-        bend = problem.pack(probe.profile, probe.period, probe.moment) - base - PROBE_AMPLITUDE * t
-        predictor = base + amplitude * t + (amplitude / PROBE_AMPLITUDE) ** 2 * bend
-        doubled = doubled_collocation_orbit(point, amplitude, mode=mode, predictor=predictor, tol=tol)
-    else:
+    if amplitude == PROBE_AMPLITUDE:
         doubled = probe
+    else:
+        doubled = doubled_collocation_orbit(point, amplitude, mode=mode, probe=probe, tol=tol)
     below = abs(doubled.moment) < abs(point.moment)
     branch = None
     if follow:
