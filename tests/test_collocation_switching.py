@@ -184,3 +184,27 @@ def test_bad_starts_and_arguments_are_refused(event, branch):
         switch_collocation_at_period_doubling(event, amplitude=float("nan"))
     with pytest.raises(ValueError, match="start must be"):
         switch_collocation_at_period_doubling("event")
+
+
+@pytest.mark.slow
+def test_at_gamma_phi_03_the_doubled_family_is_the_shootings_and_stable():
+    """The sine chain at gamma_phi = 0.3 period-doubles above M_c (M = 0.21057, ``tests/test_cycle_switching.py``):
+    the collocation's doubled family, continued to the shooting switch's first doubled orbit, is that orbit."""
+    params = ChainParams(gamma_phi=0.3)
+    shooting = continue_orbit(
+        find_periodic_orbit(params, "sine", 1.1 * locate_fold(params, "sine").moment), period_max=100.0, until_unstable=True
+    )
+    orbits = shooting.orbits
+    start = find_collocation_orbit(params, "sine", orbits[-2].moment, guess=orbits[-2])
+    branch = continue_collocation(start, moment_min=orbits[-1].moment - 0.5 * (orbits[-2].moment - orbits[-1].moment), period_max=200.0)
+    target = switch_at_period_doubling(shooting, follow=False).doubled
+    switch = switch_collocation_at_period_doubling(branch, moment_min=target.moment, period_max=200.0, max_points=40)
+    assert switch.point.moment == pytest.approx(0.21057, abs=1e-5)
+    assert switch.side == "below" and str(switch.branch.end) == "parameter_limit"
+    last = [o for o in switch.branch.orbits if o.moment > target.moment][-1]
+    orbit = find_collocation_orbit(params, "sine", target.moment, turns=2, guess=last, ntst=last.ntst)
+    # Measured: period 1.4e-9 relative, the multipliers near the circle (1 and 0.856) 4.6e-8.
+    assert orbit.period == pytest.approx(target.period, rel=1e-7)
+    near = lambda mu: mu[np.abs(mu) > 0.5]  # noqa: E731
+    assert matched_gap(near(orbit.multipliers), near(target.multipliers)) < 1e-6
+    assert orbit.stable and target.stable and not orbits[-1].stable
