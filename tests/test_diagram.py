@@ -33,10 +33,14 @@ def natural_continuation(chain: ChainParams, start: float, stop: float):
     return orbit
 
 
+#: The arguments of ``sine_loop``'s diagram.
+SINE_LOOP = (ChainParams(), "sine", "gamma_phi", [0.1, 0.12])
+
+
 @pytest.fixture(scope="module")
 def sine_loop():
     """The paper's sine chain's diagram at two weak dampings."""
-    return state_diagram(ChainParams(), "sine", "gamma_phi", [0.1, 0.12])
+    return state_diagram(*SINE_LOOP)
 
 
 def test_the_sine_chains_loop_is_open(sine_loop):
@@ -78,11 +82,23 @@ def test_strong_damping_closes_the_loop_at_a_saddle_node_on_the_invariant_circle
     assert row.rotation_stops == pytest.approx(row.static_fold, rel=1e-12)
 
 
-def test_the_command_prints_rows_writes_the_file_and_draws_the_phase_diagram(tmp_path):
+def test_the_command_prints_rows_writes_the_file_and_draws_the_phase_diagram(tmp_path, monkeypatch, sine_loop):
+    # The command asks for ``sine_loop``'s diagram (asserted: the same arguments, the defaults for the rest): it is
+    # given that one rather than computing it again.
+    from cosserat_chain.experiments import diagram
+
+    calls = []
+
+    def shared(params, model, field_name, values, progress=None, **options):
+        calls.append(((params, model, field_name, list(values)), options))
+        return sine_loop
+
+    monkeypatch.setattr(diagram, "state_diagram", shared)
     out, png = tmp_path / "d.nc", tmp_path / "d.png"
     args = ["diagram", "--model", "sine", "--vary", "gamma_phi", "--range", "0.1:0.12:2", "--out", str(out), "--plot", str(png), "--json"]
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
+    assert calls == [(SINE_LOOP, {"turns": 3, "period_max": diagram.PERIOD_MAX, "follow": False, "codim2": False})]
     data = json.loads(result.output)
     assert data["parameter"] == "gamma_phi" and [r["value"] for r in data["rows"]] == [0.1, 0.12]
     assert all(r["end"] in ENDS for r in data["rows"]) and data["static_fold_independent_of_parameter"] is True
