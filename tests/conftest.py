@@ -124,12 +124,15 @@ def pytest_sessionfinish(session):
 
 
 def selected_params(request: pytest.FixtureRequest, argname: str) -> list:
-    """The values of the parameter ``argname`` among the tests this session runs, in order: a module fixture that
-    computes every case at once (one interpreter for all the docs pages or examples) computes only these, so a case
-    marked slow costs nothing in the quick suite."""
+    """The values of the parameter ``argname`` among the tests of the requesting module this session runs, in order: a
+    module fixture that computes every case at once (one interpreter for all the docs pages or examples) computes only
+    these, so a case marked slow costs nothing in the quick suite. Other modules' parameters of the same name are not
+    its cases."""
     values = []
     for item in request.session.items:
         callspec = getattr(item, "callspec", None)
+        if getattr(item, "module", None) is not request.module:
+            continue
         if callspec is not None and argname in callspec.params and callspec.params[argname] not in values:
             values.append(callspec.params[argname])
     return values
