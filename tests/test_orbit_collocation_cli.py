@@ -88,3 +88,27 @@ def test_the_json_lists_the_period_doublings_and_tori_a_branch_passed():
     assert summary["branch_points"] == [0.48]
     assert summary["events"] == [events[0], events[2]]
     json.dumps(summary)
+
+
+@pytest.mark.parametrize(("method", "branch_method"), [("dense", "dense"), ("blocks", "blocks"), ("krylov", "auto"), ("auto", "auto")])
+def test_the_shooting_methods_reach_the_orbit_and_its_branch(monkeypatch, method, branch_method):
+    """--method goes to the orbit's solve and to the continuation (krylov's continuation by auto: it needs the monodromy)."""
+    from cosserat_chain.experiments import orbits
+
+    seen = {}
+    find, follow = orbits.find_periodic_orbit, orbits.continue_orbit
+
+    def spy_find(*args, **kwargs):
+        seen["find"] = kwargs.get("method")
+        return find(*args, **kwargs)
+
+    def spy_follow(*args, **kwargs):
+        seen["follow"] = kwargs.get("method")
+        return follow(*args, **{**kwargs, "max_points": 2})
+
+    monkeypatch.setattr(orbits, "find_periodic_orbit", spy_find)
+    monkeypatch.setattr(orbits, "continue_orbit", spy_follow)
+    args = ["orbit", "--model", "sine", "--moment", "0.3", "--turns", "3", "--down-to", "0.29", "--method", method, "--json"]
+    result = runner.invoke(app, args)
+    assert result.exit_code == 0, result.output
+    assert seen == {"find": method, "follow": branch_method}

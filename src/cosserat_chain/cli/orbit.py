@@ -79,7 +79,8 @@ def orbit(
         "auto",
         "--method",
         help="How the orbit (and --down-to's branch) is solved: auto, dense, blocks or krylov shooting (auto: by the chain's "
-        "length), or collocation, whose cost does not grow with the period (a branch towards a homoclinic or SNIC end).",
+        "length; krylov's branch by auto, which forms the monodromy), or collocation, whose cost does not grow with the "
+        "period (a branch towards a homoclinic or SNIC end).",
     ),
     system: str | None = system_option(),
     sets: list[str] | None = set_option(),

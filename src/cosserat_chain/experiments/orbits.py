@@ -261,11 +261,14 @@ def periodic_orbit(
 
 def _continued(orbit: PeriodicOrbit, options: dict, moment_min: float, period_max: float, progress) -> OrbitBranch:
     """The orbit continued down to ``moment_min``: by collocation where ``options`` ask for it (``method``), else by
-    :func:`~cosserat_chain.numerics.periodic.continue_orbit` with the options' tolerances."""
-    if options.get("method") == "collocation":
+    :func:`~cosserat_chain.numerics.periodic.continue_orbit` with the options' tolerances and shooting (``dense`` or
+    ``blocks``; a ``krylov`` orbit's branch by ``auto``: a continuation needs the monodromy)."""
+    method = options.get("method", "auto")
+    if method == "collocation":
         return continue_periodic_orbit(orbit, moment_min=moment_min, period_max=period_max, progress=progress)
     keep = {k: v for k, v in options.items() if k in ("tol", "rtol", "atol")}
-    return continue_orbit(orbit, moment_min=moment_min, period_max=period_max, progress=progress, **keep)
+    shooting = method if method in ("dense", "blocks") else "auto"
+    return continue_orbit(orbit, moment_min=moment_min, period_max=period_max, progress=progress, method=shooting, **keep)
 
 
 def _from_above(params, model: Model, moment: float, above: float, turns: int, particle: int, period_max: float, progress, options):
