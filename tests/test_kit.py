@@ -321,6 +321,24 @@ def test_an_iteration_that_does_not_contract_is_named_and_a_problem_s_own_step_i
     assert newton(linear, np.array([1.0]), tol=1e-12, newton_step=undefined).status == Corrector.NOT_FINITE
 
 
+def test_the_contraction_of_the_best_lets_an_iteration_that_rises_and_comes_back_go_on():
+    """Residuals 1e-1, 1e-3, 1e-5, 1e-3, 1e-7, 1e-9 (one iterate thrown off and back, as a long chain's statics do)."""
+    sequence = iter([1e-1, 1e-3, 1e-5, 1e-3, 1e-7, 1e-9, 1e-11, 1e-13])
+
+    def scripted(w, jacobian):
+        return Evaluation(np.array([next(sequence)]), np.eye(1))
+
+    step = lambda w, ev, jacobian: np.array([1.0])  # noqa: E731 - the residuals are scripted, the step moves the iterate
+    best = newton(scripted, np.array([0.0]), tol=1e-8, newton_step=step, contraction=0.5, contraction_of_best=True, divergence=None)
+    assert best.converged and best.iterations == 5
+    sequence = iter([1e-1, 1e-3, 1e-5, 1e-3, 1e-7, 1e-9])
+    each = newton(scripted, np.array([0.0]), tol=1e-8, newton_step=step, contraction=0.5, divergence=None)
+    assert each.status == Corrector.NOT_CONTRACTING and each.iterations == 3
+    # A wandering one (the sine model's fallbacks) stops either way.
+    sequence = iter([1.6e-3, 4.2e-4, 1.6e-4, 8.7e-4, 2.6e-4, 1.3e-4, 1.4e-2])
+    assert newton(scripted, np.array([0.0]), tol=1e-8, newton_step=step, contraction=0.5, contraction_of_best=True, divergence=None).status == Corrector.NOT_CONTRACTING
+
+
 def cube_root(w: np.ndarray, jacobian: bool) -> Evaluation:
     # Newton on the cube root doubles |w| and flips its sign every step: |R| grows by 2^(1/3).
     return Evaluation(np.cbrt(w), np.array([[1.0 / (3.0 * np.cbrt(w[0]) ** 2)]]))

@@ -95,9 +95,11 @@ CHORD_DIVERGED = 100.0
 #: only from a start whose residual lies this many times above its limit (below, round-off rules it).
 RETREAT_ABOVE = 10.0
 #: Full Newton from the plain predictor, where the chord corrector fails, gives up (the step is
-#: halved) when max |R| has not fallen by this factor over two iterations (the kit's ``contraction``).
-#: Without it, the sine model at N = 10^4 spent seven fresh factors on each of 134 of its 146
-#: fallbacks, their residuals wandering between 1e-5 and 1e-2 against a limit of 9e-8.
+#: halved) when its smallest max |R| so far has not fallen by this factor over two iterations (the
+#: kit's ``contraction`` of the best). Without it, the sine model at N = 10^4 spent seven fresh
+#: factors on each of 134 of its 146 fallbacks, their residuals wandering between 1e-5 and 1e-2
+#: against a limit of 9e-8. Of the best, not of each iterate: the nonlinear model's fallbacks at
+#: N = 10^4 converge with residuals alternating up and down (1.3e-4, 2.3e-6, 2.3e-4, 2.3e-8, ...).
 FALLBACK_CONTRACTION = 0.5
 #: A fold's or branch point's corrector whose residual stops falling within this many times the
 #: round-off floor (:func:`~.newton.round_off_floor`, an estimate) has converged to round-off.
@@ -955,7 +957,14 @@ class _StaticBranch:
             return -update
 
         corrected = newton(
-            evaluate, predicted, converged=converged, newton_step=step, max_iterations=max_iter - 1, divergence=None, contraction=contraction
+            evaluate,
+            predicted,
+            converged=converged,
+            newton_step=step,
+            max_iterations=max_iter - 1,
+            divergence=None,
+            contraction=contraction,
+            contraction_of_best=True,
         )
         return self._checked(corrected, y, predicted, ds)
 

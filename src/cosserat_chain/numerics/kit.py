@@ -257,6 +257,7 @@ def newton(
     damping: int = 0,
     natural: bool = False,
     contraction: float | None = None,
+    contraction_of_best: bool = False,
     blowup: float | None = None,
     retreat: float | None = None,
     newton_step: Callable[[np.ndarray, Evaluation, Any], np.ndarray] | None = None,
@@ -310,6 +311,10 @@ def newton(
     contraction : float, optional
         max |R| of the iterates must fall by this factor every two steps, else the
         correction is ``not_contracting`` (cheaper to retake a shorter continuation step).
+    contraction_of_best : bool
+        With ``contraction``: the smallest max |R| so far must fall so, not each iterate's: an
+        iteration that throws one iterate along a soft mode and comes back below where it was
+        goes on (a long chain's statics, whose residuals alternate up and down as they converge).
     blowup : float, optional
         A step taken with a freshly computed Jacobian after which max |R| exceeds ``blowup``
         times the first max |R| has left Newton's basin: the correction is ``diverged``
@@ -380,7 +385,9 @@ def newton(
         first = norm if first is None else first
         if blowup is not None and stepped_fresh and norm > blowup * first:
             return Correction(Corrector.DIVERGED, w, ev, norm, steps, jacobians)
-        if contraction is not None and len(norms) > 2 and norms[-1] > contraction * norms[-3]:
+        if contraction is not None and len(norms) > 2 and (
+            (min(norms) > contraction * min(norms[:-2])) if contraction_of_best else norms[-1] > contraction * norms[-3]
+        ):
             return Correction(Corrector.NOT_CONTRACTING, w, ev, norm, steps, jacobians)
         if not fresh and not norm < chord * last:
             fresh = True  # the kept Jacobian converges too slowly now
