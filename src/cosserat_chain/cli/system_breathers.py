@@ -175,21 +175,10 @@ def breathers_on_system(
         fail("--counter sets the partner's direction: give --partner as well")
     outputs_or_exit({"--out": out}, {"--config": config})
     system = system_or_exit(reference, config, sets)
-    angles = np.flatnonzero(system.angles)
-    if not angles.size:
+    if not np.flatnonzero(system.angles).size:
         fail(f"--system {reference}: {system.name} has no angle coordinate: nothing can turn")
-
-    def angle(offset: int, option: str) -> int:
-        index = angles.size // 2 + offset
-        if not 0 <= index < angles.size:
-            fail(
-                f"{option} {offset} is off the system: its {angles.size} angles count from {-(angles.size // 2)} "
-                f"to {angles.size - 1 - angles.size // 2} about the central one"
-            )
-        return int(angles[index])
-
-    rotor = angle(particle, "--particle")
-    other = None if partner is None else angle(partner, "--partner")
+    rotor = _angle_or_exit(system, particle, "--particle")
+    other = _angle_or_exit(system, partner, "--partner")
     if other == rotor:
         fail(f"--partner {partner} is the rotating one (--particle {particle}): give a neighbour, e.g. --partner {particle + 1}")
     bar = progress_bar(f"breathers {system.name}", "orbit")
