@@ -1027,6 +1027,7 @@ class _StaticBranch:
             blowup=CHORD_DIVERGED,
             retreat=1.0 if np.max(np.abs(first.residual)) > RETREAT_ABOVE * first.data.limit else None,
             newton_step=step,
+            evaluation0=first,
         )
         if corrected.converged:
             corrected = replace(corrected, iterations=corrected.jacobians)

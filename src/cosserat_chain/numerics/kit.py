@@ -262,6 +262,7 @@ def newton(
     retreat: float | None = None,
     newton_step: Callable[[np.ndarray, Evaluation, Any], np.ndarray] | None = None,
     iterate: Callable[[np.ndarray, Evaluation], None] | None = None,
+    evaluation0: Evaluation | None = None,
 ) -> Correction:
     """Newton's method on R(w) = 0, the one corrector of the package's continuations and orbit searches.
 
@@ -333,6 +334,10 @@ def newton(
     iterate : callable(w, evaluation), optional
         Called at each iterate Newton moves to (the start included), before its tests: a
         problem that follows something from iterate to iterate (a Floquet multiplier) keeps it here.
+    evaluation0 : Evaluation, optional
+        ``evaluate(w0, ...)`` where the caller has it already (its residual decided how to
+        call Newton): taken as the first evaluation, with the Jacobian asked for or not as
+        the first iteration would (without it where ``jacobian0`` is kept).
 
     Returns
     -------
@@ -349,7 +354,7 @@ def newton(
     matrix = jacobian0 if chord is not None else None
     fresh = matrix is None
     best, grace, last, steps, jacobians = math.inf, forgive, math.inf, 0, 0
-    pending, moved, norms, first, stepped_fresh = None, True, [], None, False
+    pending, moved, norms, first, stepped_fresh = evaluation0, True, [], None, False
 
     def step_at(w: np.ndarray, ev: Evaluation, matrix) -> np.ndarray:
         if newton_step is not None:
