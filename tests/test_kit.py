@@ -358,6 +358,17 @@ def test_a_step_with_a_fresh_jacobian_that_blows_the_residual_up_is_named_diverg
     assert reused.converged and reused.jacobians == kept.jacobians - 1  # the solution's own is not a step's
 
 
+def test_a_given_first_evaluation_is_used_instead_of_evaluating_the_start_again():
+    start = newton(Counted(), np.array([1.3, 2.4]), tol=1e-13).evaluation.matrix()
+    plain, given = Counted(), Counted()
+    w0 = np.array([1.1, 2.2])
+    first = given(w0, False)
+    a = newton(plain, w0, tol=1e-13, chord=0.1, jacobian0=start)
+    b = newton(given, w0, tol=1e-13, chord=0.1, jacobian0=start, evaluation0=first)
+    assert a.converged and np.array_equal(a.w, b.w) and a.iterations == b.iterations
+    assert given.residuals == plain.residuals and given.asked == plain.asked  # the one evaluation of the start
+
+
 class Monitored(Algebraic):
     """The circle with its own stages: a step may move lambda by MOVE at most (``review``), the next
     step is always LONG (``next_step``), and the events are where x changes sign (``events``, ``locate``)."""
