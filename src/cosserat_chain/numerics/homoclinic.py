@@ -46,8 +46,13 @@ and the integration tolerance: :attr:`HomoclinicOrbit.accuracy`).
   O(eps0^2) offset on that side, so eps0 there is 1e-2 at no cost in accuracy.
   :func:`chain_snic_point` does so for the paper's chain in any of its fields.
 
-Only saddles with one unstable eigenvalue are taken (one leaving direction): a saddle with
-more (the sine chain's unstable branch past a Hopf point) is refused with a message.
+The saddle's unstable eigenvalues must be real and off the imaginary axis. With one of them
+(m = 1) the unknowns are (p, T) as above. With m > 1 (the in-phase saddle of AUTO-07p's two
+coupled pendula also leaves in anti-phase) the loop leaves along the largest one's direction
+tilted by m - 1 coefficients a into the others, y(0) = y_s + eps0 (v_u + V a) / |v_u + V a|,
+and (H1) asks the end to lie on the stable eigenspace, W^T (y(T) - y_s - 2 pi k) = 0 with W
+the m left unstable eigenvectors: m + 1 equations in (p, T, a). A saddle with a complex
+unstable pair (the sine chain's unstable branch past a Hopf point) is refused with a message.
 """
 
 from __future__ import annotations
@@ -149,6 +154,12 @@ class Rest:
     decay : float
         -Re of the leading stable eigenvalue (> 0).
     eigenvalues : ndarray (2n,) complex
+    others : ndarray (2n, m - 1)
+        Unit right eigenvectors of the saddle's other unstable eigenvalues (real, each with its
+        first sizeable component > 0); none (m = 1) at a fold or a saddle with one.
+    normals : ndarray (2n, m)
+        An orthonormal basis of the left unstable eigenspace, normal to the stable eigenspace (``normal``
+        alone where m = 1): the end condition (H1) asks all of them.
     """
 
     system: System
@@ -158,6 +169,19 @@ class Rest:
     rate: float
     decay: float
     eigenvalues: np.ndarray
+    others: np.ndarray | None = None
+    normals: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.others is None:
+            object.__setattr__(self, "others", np.zeros((self.leaving.size, 0)))
+        if self.normals is None:
+            object.__setattr__(self, "normals", self.normal[:, None])
+
+    def start(self, eps0: float, direction: np.ndarray | None = None) -> np.ndarray:
+        """y(0) of (H0): eps0 along the leaving direction, tilted by ``direction`` (m - 1) into the other unstable ones."""
+        u = self.leaving if direction is None or not direction.size else self.leaving + self.others @ direction
+        return self.y + eps0 * u / np.linalg.norm(u)
 
     @property
     def y(self) -> np.ndarray:
@@ -179,13 +203,16 @@ def dynamics_matrix(system: System, q: np.ndarray) -> np.ndarray:
 def rest(system: System, q: np.ndarray, winding: int, *, fold: bool = False) -> Rest:
     """The equilibrium ``q`` of ``system`` with its leaving direction (:class:`Rest`).
 
-    ``fold``: the leaving eigenvalue is the one nearest 0 (a fold's centre direction), else the
-    largest real part, which must be the only one > 0.
+    ``fold``: the leaving eigenvalue is the one nearest 0 (a fold's centre direction), and all
+    others must be stable. Else the leaving eigenvalue is the largest real one; a saddle may have
+    further real unstable eigenvalues (the in-phase saddle of two coupled pendula has the
+    anti-phase one too), which the loop's start may tilt into (:class:`Rest` ``others``).
 
     Raises
     ------
     HomoclinicError
-        If the leaving eigenvalue is complex, or the equilibrium has more than one leaving direction.
+        If the leaving eigenvalue is complex, another unstable one is complex or on the imaginary
+        axis, or a fold has more than one centre direction.
     """
     a = dynamics_matrix(system, q)
     eig, right = np.linalg.eig(a)
@@ -196,13 +223,17 @@ def rest(system: System, q: np.ndarray, winding: int, *, fold: bool = False) -> 
         raise HomoclinicError(f"the equilibrium is not a saddle: its eigenvalues all have Re <= 0 (largest {rate:.6g})")
     if abs(rate.imag) > REAL_TOL * scale:
         raise HomoclinicError(f"the leaving eigenvalue {rate:.6g} of the equilibrium is complex: no single leaving direction")
-    others = np.delete(eig, i)
-    if np.max(others.real) >= -1e-9 * scale:
-        count = int(np.sum(eig.real > -1e-9 * scale))
-        raise HomoclinicError(
-            f"the equilibrium has {count} eigenvalues with Re >= 0 ({', '.join(f'{e:.4g}' for e in eig[eig.real > -1e-9 * scale])}): "
-            "only a saddle with one unstable direction (or a fold with one centre direction) is supported"
-        )
+    rest_of = np.delete(np.arange(eig.size), i)
+    others = eig[rest_of]
+    near_axis = np.abs(others.real) <= 1e-9 * scale
+    unstable = rest_of[others.real > 1e-9 * scale]
+    if fold or np.any(near_axis) or np.any(np.abs(eig[unstable].imag) > REAL_TOL * scale):
+        if np.max(others.real) >= -1e-9 * scale:
+            count = int(np.sum(eig.real > -1e-9 * scale))
+            raise HomoclinicError(
+                f"the equilibrium has {count} eigenvalues with Re >= 0 ({', '.join(f'{e:.4g}' for e in eig[eig.real > -1e-9 * scale])}): "
+                "only a saddle with real unstable eigenvalues off the imaginary axis (or a fold with one centre direction) is supported"
+            )
     v = right[:, i].real
     v /= np.linalg.norm(v)
     if v[winding] < 0:
@@ -212,8 +243,17 @@ def rest(system: System, q: np.ndarray, winding: int, *, fold: bool = False) -> 
     w /= np.linalg.norm(w)
     if w @ v < 0:
         w = -w
+    extra = np.zeros((v.size, unstable.size))
+    lefts = [w]
+    for column, j in enumerate(unstable):
+        u = right[:, j].real / np.linalg.norm(right[:, j].real)
+        # A sign fixed by the vector itself, so that the tilt means the same at neighbouring parameters.
+        first = int(np.flatnonzero(np.abs(u) > 1e-3 * np.max(np.abs(u)))[0])
+        extra[:, column] = u if u[first] > 0 else -u
+        lefts.append(left[:, int(np.argmin(np.abs(left_eig - eig[j])))].real)
+    normals = np.linalg.qr(np.column_stack(lefts))[0] if unstable.size else w[:, None]
     stable = others.real[others.real < 0]
-    return Rest(system, np.array(q, dtype=float), v, w, float(rate.real), float(-np.max(stable)), eig)
+    return Rest(system, np.array(q, dtype=float), v, w, float(rate.real), float(-np.max(stable)), eig, extra, normals)
 
 
 @dataclass
@@ -242,6 +282,8 @@ class HomoclinicOrbit:
         The value at each rung.
     iterations : int
         Newton iterations of the last rung.
+    direction : ndarray (m - 1,)
+        The start's tilt into the saddle's other unstable directions (:meth:`Rest.start`; empty where it has one).
     """
 
     parameter: str
@@ -253,6 +295,7 @@ class HomoclinicOrbit:
     shift: np.ndarray
     ladder: list[tuple[float, float, float]] = field(default_factory=list)
     iterations: int = 0
+    direction: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def system(self) -> System:
@@ -262,7 +305,7 @@ class HomoclinicOrbit:
     def start(self) -> np.ndarray:
         """y(0) (2n,)."""
         eps0 = FOLD_EPS0 if abs(self.rest.rate) < 1e-6 else self.eps
-        return self.rest.y + eps0 * self.rest.leaving
+        return self.rest.start(eps0, self.direction)
 
     def trajectory(self, times: np.ndarray) -> np.ndarray:
         """States (len(times), 2n) of the truncated orbit at ``times`` in [0, T]."""
@@ -279,6 +322,7 @@ class HomoclinicOrbit:
             "time": float(self.time),
             "eps": float(self.eps),
             "ladder": [[float(x) for x in rung] for rung in self.ladder],
+            "unstable_directions": 1 + int(self.rest.others.shape[1]),
         }
 
 
@@ -364,22 +408,24 @@ class _Folds:
 
 
 class _Loop:
-    """The residual (H1)-(H2) of the loop from ``rests(p)`` with eps0, eps1, as a function of (p, T)."""
+    """The residual (H1)-(H2) of the loop from ``rests(p)`` with eps0, eps1, as a function of (p, T) and, where the
+    saddle has m > 1 unstable directions, of the start's tilt a (m - 1) into the others: (H1) then holds m equations."""
 
-    def __init__(self, rests: Callable[[float], Rest], shift: np.ndarray, eps0: float, eps1: float):
+    def __init__(self, rests: Callable[[float], Rest], shift: np.ndarray, eps0: float, eps1: float, direction: np.ndarray | None = None):
         self.rests, self.shift, self.eps0, self.eps1 = rests, shift, eps0, eps1
+        self.direction = np.zeros(0) if direction is None else np.asarray(direction, dtype=float)
         self.step: float | None = None
 
-    def end(self, p: float, time: float) -> tuple[Rest, np.ndarray]:
+    def end(self, p: float, time: float, direction: np.ndarray) -> tuple[Rest, np.ndarray]:
         r = self.rests(p)
-        y = _states(r.system, r.y + self.eps0 * r.leaving, np.array([0.0, time]), rtol=RTOL, atol=ATOL)[-1]
+        y = _states(r.system, r.start(self.eps0, direction), np.array([0.0, time]), rtol=RTOL, atol=ATOL)[-1]
         return r, y
 
-    def residual(self, p: float, time: float) -> tuple[np.ndarray, Rest, np.ndarray]:
-        r, y = self.end(p, time)
+    def residual(self, p: float, time: float, direction: np.ndarray | None = None) -> tuple[np.ndarray, Rest, np.ndarray]:
+        r, y = self.end(p, time, self.direction if direction is None else direction)
         d = y - r.y - self.shift
         # (H2) as log(|d| / eps1): near the saddle |d| decays exponentially in T, so the log is nearly linear in T.
-        return np.array([r.normal @ d / self.eps1, math.log(np.linalg.norm(d) / self.eps1)]), r, y
+        return np.concatenate([r.normals.T @ d / self.eps1, [math.log(np.linalg.norm(d) / self.eps1)]]), r, y
 
     def differences(self, p: float, time: float) -> tuple[np.ndarray, np.ndarray, float]:
         """R at p + h and p - h, with h small enough that R changes by at most FD_CHANGE (the loop is
@@ -395,14 +441,37 @@ class _Loop:
         self.step = h
         return plus, minus, h
 
+    def tilt_columns(self, p: float, time: float) -> np.ndarray:
+        """dR/da by central differences, each step made small enough that R changes by at most FD_CHANGE."""
+        columns = []
+        for j in range(self.direction.size):
+            h = FD_STEP
+            for _ in range(8):
+                e = np.zeros(self.direction.size)
+                e[j] = h
+                plus = self.residual(p, time, self.direction + e)[0]
+                minus = self.residual(p, time, self.direction - e)[0]
+                change = float(np.max(np.abs(plus - minus))) / 2
+                if change <= FD_CHANGE:
+                    break
+                h *= 0.5 * FD_CHANGE / change
+            columns.append((plus - minus) / (2 * h))
+        return np.column_stack(columns) if columns else np.zeros((self.direction.size + 2, 0))
+
     def solve(self, p: float, time: float, what: str) -> tuple[float, float, float, int, Rest, float]:
-        """Newton on (p, T); returns (p, T, last |dp|, iterations, rest, the rate at which |d| falls at T)."""
+        """Newton on (p, T, a); returns (p, T, last |dp|, iterations, rest, the rate at which |d| falls at T).
+        The tilt a found is left in ``direction``."""
+        extra = self.rests(p).others.shape[1]
+        if self.direction.size != extra:
+            self.direction = np.zeros(extra)
         residual, r, y = self.residual(p, time)
         for iteration in range(1, MAX_ITERATIONS + 1):
             plus, minus, h = self.differences(p, time)
             d = y - r.y - self.shift
             velocity = r.system.vector_field(y)
-            jac = np.column_stack([(plus - minus) / (2 * h), [r.normal @ velocity / self.eps1, d @ velocity / (d @ d)]])
+            jac = np.column_stack(
+                [(plus - minus) / (2 * h), np.concatenate([r.normals.T @ velocity / self.eps1, [d @ velocity / (d @ d)]]), self.tilt_columns(p, time)]
+            )
             try:
                 step = np.linalg.solve(jac, -residual)
             except np.linalg.LinAlgError:
@@ -410,10 +479,10 @@ class _Loop:
             # Keep T positive and the step inside the region where the residual falls.
             scale = 1.0
             for _ in range(20):
-                trial_p, trial_t = p + scale * step[0], time + scale * step[1]
+                trial_p, trial_t, trial_a = p + scale * step[0], time + scale * step[1], self.direction + scale * step[2:]
                 if trial_t > 0:
                     try:
-                        trial, r_trial, y_trial = self.residual(trial_p, trial_t)
+                        trial, r_trial, y_trial = self.residual(trial_p, trial_t, trial_a)
                     except _FAILURES:
                         trial = None
                     if trial is not None and np.max(np.abs(trial)) < max(np.max(np.abs(residual)), 1e-300) * (1 + 1e-9) + 1e-12:
@@ -424,7 +493,7 @@ class _Loop:
                     f"{what}: Newton made no progress at p = {p:.12g}, T = {time:.6g} (max |R| = {np.max(np.abs(residual)):.3g})"
                 )
             moved = abs(trial_p - p)
-            p, time, residual, r, y = trial_p, trial_t, trial, r_trial, y_trial
+            p, time, residual, r, y, self.direction = trial_p, trial_t, trial, r_trial, y_trial, trial_a
             if np.max(np.abs(residual)) < RESIDUAL_TOL or moved < 4 * np.finfo(float).eps * max(1.0, abs(p)):
                 d = y - r.y - self.shift
                 return p, time, moved, iteration, r, float(-(d @ r.system.vector_field(y)) / (d @ d))
@@ -473,8 +542,9 @@ def _winding(system: System, turns: Mapping[str | int, int] | np.ndarray) -> tup
 
 def _solve_ladder(
     loop_for: Callable[[float], _Loop], parameter: str, p: float, time: float, rate: float, decay: float, ladder: Sequence[float], what: str
-) -> tuple[float, float, float, list[tuple[float, float, float]], int, Rest, float]:
-    """Newton on every rung of ``ladder`` from the one before; T grows by log(ratio) (1/rate + 1/approach).
+) -> tuple[float, float, float, list[tuple[float, float, float]], int, Rest, float, np.ndarray]:
+    """Newton on every rung of ``ladder`` from the one before (the start's tilt too, where the saddle has several
+    unstable directions); T grows by log(ratio) (1/rate + 1/approach).
 
     A rung that fails after three have converged ends the ladder there (the loop's sensitivity to p grows
     like 1 / eps times e^(rate T): on the N = 2 chain near its fold the differences in p reach round-off at
@@ -485,14 +555,17 @@ def _solve_ladder(
     moved = iterations = 0
     r = None
     approach = decay
+    direction = np.zeros(0)
     for eps in ladder:
+        loop = loop_for(eps)
+        loop.direction = direction
         if previous_eps is not None:
             # Leaving takes log(ratio) / rate longer (nothing at a fold, where eps0 stays), arriving log(ratio) / approach.
-            loop = loop_for(eps)
             leaving = math.log(previous_eps / loop.eps0) / rate if rate > 1e-6 and loop.eps0 < previous_eps else 0.0
             time += leaving + math.log(previous_eps / eps) / max(approach, 1e-6)
         try:
-            p, time, moved, iterations, r, approach = loop_for(eps).solve(p, time, f"{what} (eps = {eps:g})")
+            p, time, moved, iterations, r, approach = loop.solve(p, time, f"{what} (eps = {eps:g})")
+            direction = loop.direction
         except HomoclinicError:
             if len(values) < 3:
                 raise
@@ -502,7 +575,7 @@ def _solve_ladder(
         previous_eps = eps
     spread = abs(values[-1][1] - values[-2][1]) if len(values) > 1 else math.inf
     accuracy = max(spread, moved, 100.0 * RTOL * max(1.0, abs(p)))
-    return p, time, accuracy, values, iterations, r, spread
+    return p, time, accuracy, values, iterations, r, spread, direction
 
 
 def _first_time(r: Rest, eps0: float, eps1: float, shift: np.ndarray, t_max: float) -> tuple[float, float]:
@@ -628,10 +701,10 @@ def _end_in_bracket(
     def loop_for(eps: float) -> _Loop:
         return _Loop(rests, shift, eps, eps)
 
-    p, time, accuracy, values, iterations, r, _ = _solve_ladder(
+    p, time, accuracy, values, iterations, r, _, direction = _solve_ladder(
         loop_for, parameter, 0.5 * (over + back), time, r.rate, r.decay, ladder, "homoclinic end"
     )
-    return HomoclinicOrbit(parameter, p, accuracy, r, time, values[-1][0], shift, values, iterations)
+    return HomoclinicOrbit(parameter, p, accuracy, r, time, values[-1][0], shift, values, iterations, direction)
 
 
 def _check_ladder(ladder: Sequence[float]) -> tuple[float, ...]:
@@ -870,7 +943,7 @@ def locate_snic_point(
     def loop_for(eps: float) -> _Loop:
         return _Loop(folds, shift, FOLD_EPS0, eps)
 
-    p, time, accuracy, values, iterations, r, _ = _solve_ladder(
+    p, time, accuracy, values, iterations, r, _, _ = _solve_ladder(
         loop_for, name, 0.5 * (over + back), time, 0.0, r.decay, ladder, "codimension-two point"
     )
     orbit = HomoclinicOrbit(name, p, accuracy, r, time, values[-1][0], shift, values, iterations)
