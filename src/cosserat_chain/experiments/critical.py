@@ -64,7 +64,11 @@ damped first-order system (:func:`~cosserat_chain.numerics.stability.dynamic_sta
   dense eigenvalues): the verdict is K's inertia, not recomputed, and the branch has no Hopf point;
 * "eigenvalues": any other model (the sine model, eq. (2)) where the first-order system is
   dense (:data:`~cosserat_chain.numerics.stability.DENSE_LIMIT`, the limit ``states`` uses):
-  its eigenvalues at every traced point, and the branch's Hopf points
+  its eigenvalues at every traced point (for eq. (2), at a point whose free angles are all
+  within pi/2 of rest and whose neighbours' too, the theorem below instead, valid at every
+  such state: :func:`~cosserat_chain.numerics.stability.sine_theorem_stability`, the same
+  verdict without a dense eigenproblem, checked against one at every point by the tests),
+  and the branch's Hopf points
   (:func:`~cosserat_chain.numerics.hopf.hopf_points`; N = 2, paper's geometry: phi_0 = 1.6575 and
   2.4380 on the unstable branch, where K keeps one negative eigenvalue and the dynamics have three
   unstable eigenvalues between them);
@@ -162,8 +166,8 @@ DYNAMICS_NOTES = {
         "eigenvalues are K's negative ones (a theorem), so they are not recomputed; no Hopf points"
     ),
     "eigenvalues": (
-        "the dynamic verdict from the damped dynamics' eigenvalues at every traced point; Hopf points searched on the "
-        "traced branch"
+        "the dynamic verdict from the damped dynamics' eigenvalues at every traced point (for eq. (2), where every "
+        "|phi_j| < pi/2 and not next to a point beyond, its theorem: stable); Hopf points searched on the traced branch"
     ),
     "eq. (2) theorem": (
         "beyond the dense limit: on the branch from rest up to M_c every |phi_j| < pi/2, and eq. (2)'s linearised dynamics "
@@ -550,7 +554,7 @@ def _dynamics(
     """``dynamics_from``, the dynamic verdict at every point and the Hopf points of ``branch`` (module docstring;
     ``compute`` False: only the theorems' verdicts, which cost nothing)."""
     from ..numerics.hopf import hopf_points
-    from ..numerics.stability import DENSE_LIMIT, dynamic_stability
+    from ..numerics.stability import DENSE_LIMIT, dynamic_stability, sine_theorem_stability
     from ..state import n_free
 
     if model.conservative and all(g > 0 for g in params.damping):
@@ -558,7 +562,15 @@ def _dynamics(
     if not compute:
         return "not computed", None, None
     if 2 * n_free(params) <= DENSE_LIMIT and branch.state_points is None:
-        checks = [dynamic_stability(params, model, x) for x in branch.x]
+        # The theorem's verdict where every free angle is within pi/2 of rest (no eigenvalues: most of a
+        # long chain's turn); the eigenvalues elsewhere and at the theorem's points next to such a point,
+        # where the Hopf search compares neighbours.
+        theorem = [sine_theorem_stability(params, model, x) for x in branch.x]
+        near = [
+            t is None or (i > 0 and theorem[i - 1] is None) or (i + 1 < len(theorem) and theorem[i + 1] is None)
+            for i, t in enumerate(theorem)
+        ]
+        checks = [dynamic_stability(params, model, x) if dense else t for x, t, dense in zip(branch.x, theorem, near)]
         return "eigenvalues", checks, hopf_points(params, model, branch, checks=checks)
     return ("eq. (2) theorem" if model.name == "sine" else "not computed"), None, None
 

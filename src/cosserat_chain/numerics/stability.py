@@ -68,7 +68,7 @@ from ..linalg.pencil import nearest_axis, shifted_solver, unstable_count
 from ..linalg.threads import one_blas_thread
 from ..models.base import Model, get_model
 from ..params import ChainParams
-from ..state import check_state, pack, per_dof
+from ..state import check_state, free_rows, pack, per_dof
 
 
 @dataclass(frozen=True)
@@ -310,18 +310,8 @@ def dynamic_stability(
         raise ValueError(f"method must be one of {', '.join(DYNAMIC_METHODS)}, got {method!r}")
     if not (isinstance(rightmost, int) and not isinstance(rightmost, bool) and rightmost >= 1):
         raise ValueError(f"rightmost must be an integer >= 1 (eigenvalues reported), got {rightmost!r}")
-    stiffness = model.stiffness(params, x).tocsr()
+    stiffness, root, scaled, rate, scale, tolerance = _damped_system(params, model, x)
     n = stiffness.shape[0]
-    root = 1.0 / np.sqrt(pack(params, params.particle_inertia))
-    scaled = sp.csr_matrix(sp.diags(root) @ stiffness @ sp.diags(root))
-    rate = per_dof(params, params.damping) * root**2  # Gamma M^-1
-    norm = float(abs(scaled).sum(axis=1).max()) if n else 0.0
-    scale = max(math.sqrt(norm), float(rate.max(initial=0.0)), 1e-300)
-    tolerance = DYNAMIC_RTOL * scale
-    if params.rigid_modes and not np.all(rate > 0):
-        # An undamped rigid mode is a Jordan block at zero (a drift q = a + b t): its computed
-        # eigenvalues scatter by sqrt(eps |A|), 2e-8 for a free chain, and are neutral.
-        tolerance = math.sqrt(np.finfo(float).eps) * scale
     if method == "auto":
         method = "dense" if 2 * n <= DENSE_LIMIT else "sparse"
     if params.periodic or 2 * n <= 2 * rightmost + 4:
@@ -349,6 +339,59 @@ def dynamic_stability(
     shift = max(tolerance, 1e-5 * scale)
     eigenvalues = shift + nearest_axis(shifted_solver(scaled, rate, shift), 2 * n, count, rightmost)
     return _verdict(eigenvalues, tolerance, rightmost, index, method, count)
+
+
+def _damped_system(
+    params: ChainParams, model: Model, x: np.ndarray
+) -> tuple[sp.csr_matrix, np.ndarray, sp.csr_matrix, np.ndarray, float, float]:
+    """K, M^(-1/2)'s diagonal, K~ = M^(-1/2) K M^(-1/2), R = Gamma M^-1 (its diagonal), the scale of A and the tolerance
+    of :func:`dynamic_stability`."""
+    stiffness = model.stiffness(params, x).tocsr()
+    root = 1.0 / np.sqrt(pack(params, params.particle_inertia))
+    scaled = sp.csr_matrix(sp.diags(root) @ stiffness @ sp.diags(root))
+    rate = per_dof(params, params.damping) * root**2  # Gamma M^-1
+    norm = float(abs(scaled).sum(axis=1).max()) if stiffness.shape[0] else 0.0
+    scale = max(math.sqrt(norm), float(rate.max(initial=0.0)), 1e-300)
+    tolerance = DYNAMIC_RTOL * scale
+    if params.rigid_modes and not np.all(rate > 0):
+        # An undamped rigid mode is a Jordan block at zero (a drift q = a + b t): its computed
+        # eigenvalues scatter by sqrt(eps |A|), 2e-8 for a free chain, and are neutral.
+        tolerance = math.sqrt(np.finfo(float).eps) * scale
+    return stiffness, root, scaled, rate, scale, tolerance
+
+
+#: ``DynamicStability.method`` of a verdict by :func:`sine_theorem_stability`.
+THEOREM = "eq. (2) theorem"
+
+
+def sine_theorem_stability(params: ChainParams, model: str | Model, x: np.ndarray) -> DynamicStability | None:
+    """The damped dynamics' verdict on a state of eq. (2) with every free angle within pi/2 of rest, without eigenvalues.
+
+    There K = S C with S the linear model's stiffness (symmetric, positive semi-definite)
+    and C = diag(1, 1, cos phi) positive. An eigenvalue z with (z^2 M + z Gamma + S C) v = 0,
+    multiplied by (C v)^H, solves a z^2 + b z + c = 0 with a = v^H C M v > 0,
+    b = v^H C Gamma v >= 0 and c = (C v)^H S (C v) >= 0, whose roots have no positive real
+    part: none counts as unstable (the module docstring's energy argument, at every
+    state of the kind, not only on the branch from rest). The verdict is that of
+    :func:`dynamic_stability` (the tests compare them along branches) with no eigenvalue
+    found: ``rightmost`` empty, ``spectral_abscissa`` NaN, ``method`` :data:`THEOREM`;
+    the stiffness index is counted as there (0 by Sylvester's law).
+
+    Returns
+    -------
+    DynamicStability or None
+        None where the theorem does not apply: another model, a ring, a chain with rigid
+        modes, or a free angle at or beyond pi/2 from rest.
+    """
+    model = get_model(model)
+    if model.name != "sine" or params.periodic or params.rigid_modes:
+        return None
+    x = check_state(params, x)
+    if not np.all(np.cos(pack(params, x)[free_rows(params) == 2]) > 0.0):
+        return None
+    stiffness, *_, tolerance = _damped_system(params, model, x)
+    index = _stiffness_index(params, model, x, stiffness)
+    return DynamicStability(True, 0, 0, 0, (), math.nan, index, tolerance, THEOREM)
 
 
 def _verdict(eigenvalues: np.ndarray, tolerance: float, rightmost: int, index: int, method: str, count: int) -> DynamicStability:
