@@ -566,9 +566,6 @@ def simulate_on_system(
 
 # -- diagram ---------------------------------------------------------------------------------
 
-#: Where the rotation is first sought: this fraction of the fold's size beyond the fold (no equilibrium is left there).
-BEYOND_FOLD = 0.1
-
 
 def diagram_on_system(
     reference: str,
@@ -584,8 +581,10 @@ def diagram_on_system(
     out: Path | None,
     as_json: bool,
 ) -> None:
-    """Both edges of the hysteresis loop in ``drive`` at each value of ``vary``: where the equilibrium from ``start``
-    folds (rotation starts, rising drive) and where the rotation continued down in the drive ends."""
+    """Both edges of the hysteresis loop in ``drive`` at each value of ``vary``
+    (:func:`~cosserat_chain.experiments.system_diagram.system_diagram`): printed, as JSON, or written with ``--out``."""
+    from ..experiments.system_diagram import system_diagram
+
     if drive is None:
         fail("diagram --system needs --drive NAME: the parameter whose rise starts the rotation (the chain's moment), e.g. --drive I")
     if drive == vary:
@@ -596,101 +595,54 @@ def diagram_on_system(
     _parameter_or_exit(system, drive, "--drive")
     k = _turns_or_exit(system, turns)
     q0 = state_or_exit(system, start, "--start")
-    rows = []
     bar = progress_bar(f"diagram {system.name}", "value")
-    progress = bar_callback(bar)
-    for i, value in enumerate(values):
-        rows.append(_diagram_row(system.with_parameters(**{vary: value}), vary, value, drive, k, q0, period_max))
-        progress(i + 1, len(values))
+    try:
+        result = system_diagram(system, vary, values, drive, turns=k, start=q0, period_max=period_max, progress=bar_callback(bar))
+    except ValueError as err:
+        bar.close()
+        fail(str(err))
     bar.finish()
     if out is not None:
-        save_dataset(_diagram_dataset(system, reference, vary, drive, rows), out)
+        ds = result.to_dataset()
+        ds.attrs.update(_system_attributes(system, reference))
+        save_dataset(ds, out)
     if as_json:
-        _echo_json({**system.describe(), "reference": reference, "vary": vary, "drive": drive, "rows": rows})
+        _echo_json({**result.as_dict(), "reference": reference})
     else:
-        typer.echo(f"{system.name}: the loop in {drive} against {vary}")
-        typer.echo(f"{vary:>12} {'starts':>14} {'stops':>14}  {'end':<32} open")
-        for row in rows:
-            onset = "none" if row["starts"] is None else f"{row['starts']:.10g}"
-            stops = "none" if row["stops"] is None else f"{row['stops']:.10g}"
-            end = (row["end"] or "failed") + (", fitted from T" if row["fitted"] else "")
-            typer.echo(f"{row['value']:>12.6g} {onset:>14} {stops:>14}  {end:<32} {row['open']}")
-            if row["end"] is None:
-                typer.echo(f"  {row['message']}")
-    if any(row["end"] is None for row in rows):
+        _echo_diagram(result)
+    if any(row.end is None for row in result.rows):
         exit_on(Status.NOT_CONVERGED, "some values have no edge of the loop (their messages say why)")
 
 
-def _diagram_row(system, vary: str, value: float, drive: str, turns: dict[str, int], q0, period_max: float) -> dict[str, Any]:
-    """One value's row: the equilibrium's first fold in ``drive`` and the end of the rotation followed down from beyond it."""
-    import numpy as np
-
-    from ..numerics.equilibria import EquilibriumNotFound, continue_equilibria, find_equilibrium
-    from ..numerics.kit import EvaluationFailed
-    from ..numerics.shooting import OrbitNotFound, continue_orbits, find_orbit, settled_guess
-
-    row: dict[str, Any] = {
-        "value": value,
-        "starts": None,
-        "stops": None,
-        "stops_uncertainty": None,
-        "end": None,
-        "fitted": False,
-        "open": None,
-    }
-    try:
-        statics = continue_equilibria(find_equilibrium(system, q0), drive, direction=1.0)
-    except EquilibriumNotFound as err:
-        return {**row, "message": str(err)}
-    folds = statics.folds()
-    if not folds:
-        return {**row, "message": f"the equilibrium has no fold in {drive}: {statics.message}"}
-    onset = folds[0]
-    row["starts"] = onset
-    beyond = system.with_parameters(**{drive: onset + BEYOND_FOLD * max(abs(onset), 1e-3)})
-    forces, damping = beyond.forces(q0), beyond.damping()
-    drift = np.where(beyond.angles & (damping > 0), forces / np.where(damping > 0, damping, 1.0), 0.0)
-    first = next(name for name, k in turns.items() if k)
-    try:
-        guess = settled_guess(beyond, np.concatenate([q0, drift]), coordinate=first, turns=abs(turns[first]))
-        branch = continue_orbits(find_orbit(beyond, guess, turns=turns), drive, direction=-1.0, period_max=period_max)
-    except (OrbitNotFound, EvaluationFailed, ValueError) as err:
-        return {**row, "message": f"no rotation followed from {drive} = {beyond.parameter(drive):.6g}: {err}"}
-    stops = branch.end_value if branch.end_value is not None else float(branch.values[-1])
-    return {
-        **row,
-        "stops": stops,
-        "stops_uncertainty": branch.end_uncertainty,
-        "end": str(branch.end),
-        "fitted": branch.end_value is not None,
-        "open": bool(stops < onset - 1e-6 * max(1.0, abs(onset))),
-        "events": branch.as_dict()["events"],
-        "message": branch.message,
-    }
-
-
-def _diagram_dataset(system, reference: str, vary: str, drive: str, rows: list[dict]):
-    import numpy as np
-    import xarray as xr
-
-    def column(key):
-        return np.array([np.nan if row[key] is None else float(row[key]) for row in rows])
-
-    ds = xr.Dataset(
-        {
-            "starts": ("value", column("starts")),
-            "stops": ("value", column("stops")),
-            "stops_uncertainty": ("value", column("stops_uncertainty")),
-            "open": ("value", np.array([bool(row["open"]) for row in rows])),
-            "end": ("value", np.array([row["end"] or "failed" for row in rows], dtype=object)),
-        },
-        coords={"value": [row["value"] for row in rows]},
-    )
-    ds["value"].attrs["long_name"] = f"the varied parameter {vary}"
-    ds["starts"].attrs["long_name"] = f"{drive} where the equilibrium folds (rotation starts, rising {drive})"
-    ds["stops"].attrs["long_name"] = f"{drive} where the rotation ends (falling {drive}; NaN: not found)"
-    ds.attrs.update(_system_attributes(system, reference))
-    ds.attrs.update(
-        {"experiment": "system_diagram", "title": f"Hysteresis loop of the system {system.name}", "varied": vary, "drive": drive}
-    )
-    return ds
+def _echo_diagram(result) -> None:
+    """The rows as a table (each edge with how it was found and its accuracy), their warnings and the SNIC point."""
+    vary, drive = result.vary, result.drive
+    typer.echo(f"{result.system.name}: the loop in {drive} against {vary}")
+    typer.echo(f"{vary:>12} {'starts':>14} {'stops':>18}  {'end':<16} {'found':<22} open")
+    for row in result.rows:
+        onset = "none" if row.starts is None else f"{row.starts:.10g}"
+        stops = "none" if row.stops is None else f"{row.stops:.13g}" if row.method == "solved" else f"{row.stops:.10g}"
+        if row.method == "solved":
+            found = f"solved +- {row.accuracy:.1g}"
+        elif row.method == "fitted":
+            found = f"fitted +- {row.accuracy:.1g}"
+        else:
+            found = row.method or "-"
+        typer.echo(f"{row.value:>12.6g} {onset:>14} {stops:>18}  {row.end or 'failed':<16} {found:<22} {row.open}")
+    for row in result.rows:
+        if row.end is None:
+            typer.echo(f"  {vary} = {row.value:g}: {row.message}")
+        if row.reason:
+            typer.echo(f"  {vary} = {row.value:g}: a fit, not a computed point: {row.reason}")
+        if row.warning:
+            typer.echo(f"warning: {vary} = {row.value:g}: {row.warning}")
+    point = result.snic_point
+    if point is not None:
+        where = f"between {vary} = {point['between'][0]:g} and {point['between'][1]:g}"
+        if point["method"] == "solved":
+            value = (
+                f"{point['value']:.13g} +- {point['accuracy']:.1g} (solved by the augmented system, {drive} = {point['drive']:.10g} there)"
+            )
+        else:
+            value = f"not located ({point['reason']})"
+        typer.echo(f"the homoclinic end meets the fold (a SNIC from there on) {where}: {vary} = {value}")

@@ -470,7 +470,11 @@ class _Loop:
             d = y - r.y - self.shift
             velocity = r.system.vector_field(y)
             jac = np.column_stack(
-                [(plus - minus) / (2 * h), np.concatenate([r.normals.T @ velocity / self.eps1, [d @ velocity / (d @ d)]]), self.tilt_columns(p, time)]
+                [
+                    (plus - minus) / (2 * h),
+                    np.concatenate([r.normals.T @ velocity / self.eps1, [d @ velocity / (d @ d)]]),
+                    self.tilt_columns(p, time),
+                ]
             )
             try:
                 step = np.linalg.solve(jac, -residual)

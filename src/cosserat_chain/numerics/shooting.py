@@ -615,7 +615,8 @@ def continue_orbits(
         if branch.end_value is not None:
             branch.message += (
                 f"; the period grows like a homoclinic end's: fitted end {parameter} = {branch.end_value:.10g} "
-                f"+- {branch.end_uncertainty:.2g} (a fit of p = p* + c exp(-s T), not a computed point)"
+                + ("" if branch.end_uncertainty is None else f"+- {branch.end_uncertainty:.2g} ")
+                + "(a fit of p = p* + c exp(-s T), not a computed point)"
             )
     return branch
 
@@ -651,5 +652,9 @@ def _fitted_end(branch: OrbitBranch) -> tuple[float | None, float | None]:
         return float(v[2] - scale * e[2])
 
     span = min(6.0, 0.5 * (periods[-1] - np.min(periods)))
-    wide, narrow = fit(*spread(span)), fit(*spread(0.5 * span))
-    return wide, abs(wide - narrow)
+    # Orbits picked twice (a short span) make the ratios 0/0: that fit is not finite, and neither is its spread.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        wide, narrow = fit(*spread(span)), fit(*spread(0.5 * span))
+    if not math.isfinite(wide):
+        return None, None
+    return wide, abs(wide - narrow) if math.isfinite(narrow) else None
