@@ -106,6 +106,8 @@ class CollocationOrbit:
     iterations : int
         Newton iterations of the last solve.
     particle_turns : ndarray (2N+1,) int
+    multiplier_log_moduli : ndarray (2 n_free,) or None
+        ln |mu| of each multiplier, in range where the value under- or overflows (:attr:`log_moduli`).
     """
 
     params: ChainParams
@@ -121,6 +123,16 @@ class CollocationOrbit:
     residual: float
     iterations: int
     particle_turns: np.ndarray
+    multiplier_log_moduli: np.ndarray | None = None
+
+    @property
+    def log_moduli(self) -> np.ndarray:
+        """ln |mu| of :attr:`multipliers` (from the periodic Schur form, so that multipliers below the floating-point
+        range keep their modulus; ln |multipliers| where an orbit was built without them)."""
+        if self.multiplier_log_moduli is not None:
+            return self.multiplier_log_moduli
+        with np.errstate(divide="ignore"):
+            return np.log(np.abs(self.multipliers))
 
     @property
     def ntst(self) -> int:
@@ -170,8 +182,9 @@ class CollocationOrbit:
         system = periodic._System(self.params, get_model(self.model), self.moment, self.particle)
         y, normal = section_state(system, self.mesh, self.ncol, self.profile, self.particle_turns, periodic.TRANSVERSAL_MIN)
         return periodic._orbit_from(
-            system, self.turns, y, self.period, self.multipliers, self.residual, self.iterations, self.particle_turns, normal
-        )
+            system, self.turns, y, self.period, self.multipliers, self.residual, self.iterations, self.particle_turns, normal,
+            multiplier_log_moduli=self.multiplier_log_moduli,
+        )  # fmt: skip
 
     def as_dict(self) -> dict:
         """JSON-ready summary."""
@@ -185,6 +198,7 @@ class CollocationOrbit:
             "ntst": self.ntst,
             "ncol": self.ncol,
             "floquet_multipliers_abs": np.abs(self.multipliers).tolist(),
+            "floquet_multipliers_log10_abs": (self.log_moduli / math.log(10.0)).tolist(),
             "trivial_multiplier": [self.trivial_multiplier.real, self.trivial_multiplier.imag],
             "trivial_multiplier_error": self.trivial_multiplier_error,
             "max_nontrivial_multiplier": self.max_multiplier,
@@ -213,7 +227,7 @@ def _orbit_of(system: periodic._System, turns: int, particle_turns: np.ndarray, 
         params=system.params, model=system.model.name, moment=float(system.moment), turns=turns, particle=system.particle,
         period=solution.period, mesh=solution.mesh, ncol=solution.ncol, profile=solution.profile,
         multipliers=solution.multipliers, residual=solution.residual, iterations=solution.iterations,
-        particle_turns=np.asarray(particle_turns),
+        particle_turns=np.asarray(particle_turns), multiplier_log_moduli=solution.log_moduli,
     )  # fmt: skip
 
 
@@ -449,10 +463,11 @@ class _BranchProblem:
     def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> CollocationOrbit:
         profile, period, moment = self.collocation.unpack(w)
         a_values, _ = evaluation.data
+        found = self.collocation.floquet(a_values, period)
         return dataclasses.replace(
             self.template, moment=moment, period=period, mesh=self.collocation.mesh, profile=profile,
-            multipliers=self.collocation.multipliers(a_values, period), residual=float(np.max(np.abs(evaluation.residual))),
-            iterations=iterations,
+            multipliers=found.values, residual=float(np.max(np.abs(evaluation.residual))), iterations=iterations,
+            multiplier_log_moduli=found.log_moduli,
         )  # fmt: skip
 
     def accept(self, previous: CollocationOrbit, candidate: CollocationOrbit) -> bool:

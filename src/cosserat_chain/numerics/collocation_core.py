@@ -33,11 +33,12 @@ the points go where the orbit moves fast.
 
 Floquet multipliers: each interval's linearised collocation equations are condensed, by one LU
 of the interval's block, to its transfer matrix, x_{j+1} = P_j x_j (x_j the perturbation at mesh
-point j); the chain P_j x_j - x_{j+1} = 0 is then eliminated pairwise by QR (the P_j are never
-multiplied together) to E x_0 + F x_NTST = 0, and x_NTST = mu x_0 gives the multipliers as the
-generalised eigenvalues of the pencil (E, -F) (QZ): Fairgrieve and Jepson's method, AUTO's
-FLOWKM, which never forms the product of the P_j. The trivial multiplier's distance to 1 is
-its error.
+point j); the multipliers are the eigenvalues of P_NTST ... P_1, computed from the factors by the
+periodic Schur form (:func:`~cosserat_chain.numerics.floquet.periodic_schur_multipliers`), which
+never forms the product, so that the strongly damped multipliers of long orbits keep their digits
+(to 1e-170 and below, with their log-moduli) wherever the mesh resolves their modes. (AUTO's FLOWKM,
+Fairgrieve and Jepson's pencil of the pairwise-eliminated chain, used here before, loses them below
+about 1e-20: Lust 2001.) The trivial multiplier's distance to 1 is its error.
 
 This module knows the equations of motion only through the shooting's system object
 (:class:`~cosserat_chain.numerics._System`: ``parameters``, ``nf``, ``load_dof``,
@@ -54,7 +55,6 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numba import njit, types
@@ -64,7 +64,7 @@ from ..errors import CosseratChainError
 from ..models.base import END_KERNEL_TYPE, FORCE_KERNEL_TYPE
 from ..state import ROW_INDEX, pack
 from ..state import dof as free_dof
-from . import dop853
+from . import dop853, floquet
 from .kit import Evaluation, EvaluationFailed, newton
 
 if TYPE_CHECKING:
@@ -418,17 +418,15 @@ class _Collocation:
         matrix = sp.csc_matrix((data, (row_idx, col_idx)), shape=(self.size, width))
         return Evaluation(residual, matrix, (a_values, period))
 
-    def multipliers(self, a_values: np.ndarray, period: float) -> np.ndarray:
-        """The Floquet multipliers of the linearised collocation equations (module docstring), by decreasing modulus.
+    def transfers(self, a_values: np.ndarray, period: float) -> np.ndarray:
+        """The intervals' transfer matrices P_j (ntst, n, n), x_{j+1} = P_j x_j, of the linearised collocation equations.
 
-        Each interval's equations give its transfer matrix x_{j+1} = P_j x_j (one LU of the
-        interval's own block: well conditioned, an interval being short); the chain
-        P_j x_j - x_{j+1} = 0 is then eliminated pairwise by QR, never multiplying the P_j.
+        One LU of each interval's own block (well conditioned, an interval being short).
         """
         n, ncol = self.n, self.ncol
         dense = self.fields.dense(a_values).reshape(self.ntst, ncol, n, n)
         eye = np.eye(n)
-        e_chain = f_chain = None
+        out = np.empty((self.ntst, n, n))
         for j in range(self.ntst):
             block = np.empty((ncol, n, ncol + 1, n))
             for node in range(ncol + 1):
@@ -436,16 +434,16 @@ class _Collocation:
                     self.sch.slopes[:, node, None, None] * eye - (self.h[j] * period * self.sch.values[:, node])[:, None, None] * dense[j]
                 )
             block = block.reshape(ncol * n, (ncol + 1) * n)
-            transfer = np.linalg.solve(block[:, n:], -block[:, :n])[-n:]
-            if e_chain is None:
-                e_chain, f_chain = transfer, -eye
-                continue
-            # Eliminate the shared mesh point x_j from E x_0 + F x_j = 0 and P_j x_j - x_{j+1} = 0.
-            q, _ = sla.qr(np.vstack([f_chain, transfer]), mode="full")
-            e_chain, f_chain = q[:n, n:].T @ e_chain, -q[n:, n:].T
-        mu = sla.eigvals(e_chain, -f_chain)
-        mu = mu[np.isfinite(mu)]
-        return mu[np.argsort(-np.abs(mu), kind="stable")]
+            out[j] = np.linalg.solve(block[:, n:], -block[:, :n])[-n:]
+        return out
+
+    def floquet(self, a_values: np.ndarray, period: float) -> floquet.Multipliers:
+        """The Floquet multipliers of the linearised collocation equations with their log-moduli (module docstring)."""
+        return floquet.periodic_schur_multipliers(self.transfers(a_values, period))
+
+    def multipliers(self, a_values: np.ndarray, period: float) -> np.ndarray:
+        """The Floquet multipliers of the linearised collocation equations (module docstring), by decreasing modulus."""
+        return self.floquet(a_values, period).values
 
 
 class _SparseStep:
@@ -512,7 +510,8 @@ def _solve(problem: _Collocation, profile: np.ndarray, period: float, *, tol: fl
 @dataclass
 class Solution:
     """A solved profile of (C): mesh (ntst + 1,), ncol, node values (ntst ncol + 1, 2 n_free) unwrapped, the period,
-    the multipliers (by decreasing modulus), max |R| and the Newton iterations of the last solve."""
+    the multipliers (by decreasing modulus), max |R|, the Newton iterations of the last solve and ln |mu| of the
+    multipliers (in range where the values under- or overflow)."""
 
     mesh: np.ndarray
     ncol: int
@@ -521,6 +520,7 @@ class Solution:
     multipliers: np.ndarray
     residual: float
     iterations: int
+    log_moduli: np.ndarray | None = None
 
 
 def solve_profile(
@@ -577,7 +577,8 @@ def solve_profile(
             profile = _interpolate(mesh, profile, sch, _node_times(new, sch))
             mesh = new
     a_values, period = solved.evaluation.data
-    return Solution(mesh, ncol, profile, float(period), problem.multipliers(a_values, period), float(solved.norm), solved.iterations)
+    found = problem.floquet(a_values, period)
+    return Solution(mesh, ncol, profile, float(period), found.values, float(solved.norm), solved.iterations, found.log_moduli)
 
 
 def section_state(

@@ -73,7 +73,7 @@ from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, force_columns, free_index, held, n_free, pack, per_dof, unpack, zeros
 from ..state import dof as free_dof
 from ..status import Status
-from . import collocation_core, dop853, long_orbits
+from . import collocation_core, dop853, floquet, long_orbits
 from .addresses import entry
 from .dynamics import TurnWatch, integrate
 from .integrators import default_time_step
@@ -418,6 +418,19 @@ class _System:
         phi = end[size:].reshape(size, ncols)
         return end[:size], phi[:, :size], phi[:, size]
 
+    def segment_jacobians(self, y0: np.ndarray, period: float, segments: int, *, rtol: float, atol: float) -> np.ndarray:
+        """The flow's Jacobians over ``segments`` equal pieces of [0, period] from y0 (segments, 2nf, 2nf), each from the identity.
+
+        Their product, the last on the left, is the monodromy; kept apart, their strongly damped
+        directions keep their digits (:mod:`~.floquet`). The state is carried from piece to piece.
+        """
+        size = 2 * self.nf
+        out = np.empty((segments, size, size))
+        y = np.asarray(y0, dtype=float)
+        for k in range(segments):
+            y, out[k], _ = self.flow(y, period / segments, rtol=rtol, atol=atol, variations=True)
+        return out
+
     def velocity(self, y: np.ndarray) -> np.ndarray:
         """The vector field f(y) (2nf,)."""
         return self.rhs(0)(0.0, y)
@@ -526,6 +539,9 @@ class PeriodicOrbit:
     multiplier_errors : ndarray (k,) or None
         Error estimates of ``multipliers`` (residual norms, :mod:`~.long_orbits`), where the
         Krylov method computed them; its ``multipliers`` are then the k leading ones only.
+    multiplier_log_moduli : ndarray (2 n_free,) or None
+        ln |mu| of each multiplier where they came from the segments' product (``segments`` of
+        :func:`find_periodic_orbit`, or collocation): in range where the value under- or overflows.
     """
 
     params: ChainParams
@@ -542,6 +558,7 @@ class PeriodicOrbit:
     particle_turns: np.ndarray | None = None
     phase_normal: np.ndarray | None = None
     multiplier_errors: np.ndarray | None = None
+    multiplier_log_moduli: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         if self.particle_turns is None:
@@ -551,6 +568,14 @@ class PeriodicOrbit:
     def mean_angular_velocity(self) -> float:
         """2 pi k / T, signed along the moment."""
         return math.copysign(2.0 * math.pi * self.turns / self.period, self.moment)
+
+    @property
+    def log_moduli(self) -> np.ndarray:
+        """ln |mu| of :attr:`multipliers` (:attr:`multiplier_log_moduli` where known, else from the values)."""
+        if self.multiplier_log_moduli is not None:
+            return self.multiplier_log_moduli
+        with np.errstate(divide="ignore"):
+            return np.log(np.abs(self.multipliers))
 
     @property
     def trivial_multiplier(self) -> complex:
@@ -798,6 +823,7 @@ def find_periodic_orbit(
     atol: float = ATOL,
     transient_turns: int = 30,
     method: str = "auto",
+    segments: int | None = None,
 ) -> PeriodicOrbit:
     """The rotating state at ``moment`` as a limit cycle, by Newton on the shooting map (P).
 
@@ -837,6 +863,14 @@ def find_periodic_orbit(
         ``auto``: ``blocks`` from N = ``long_orbits.BLOCKS_FROM_N`` on, else ``dense``;
         ``collocation``: orthogonal collocation with its default mesh (:mod:`~.collocation_core`; ``tol``,
         ``rtol`` and ``atol`` do not apply), the start put on the section afterwards.
+    segments : int, optional
+        With the dense method: the multipliers from the Jacobians of this many equal pieces of the
+        converged orbit (the variational equations integrated from the identity on each: one more
+        integration of the monodromy's cost), by the periodic Schur form of their product
+        (:func:`~.floquet.periodic_schur_multipliers`), with their log-moduli. The eigenvalues of
+        the formed monodromy (the default) lose every multiplier below about 1e-16 times the
+        largest; these keep them wherever each piece's own decay stays within the integration's
+        tolerance (docs/periodic-orbits.md, Multipliers of long, strongly damped orbits).
 
     Returns
     -------
@@ -859,6 +893,14 @@ def find_periodic_orbit(
     require_orbit_ends(params)
     collocating = method == "collocation"
     method = "dense" if collocating else long_orbits.choose_method(params, method)
+    if segments is not None:
+        if not (isinstance(segments, (int, np.integer)) and not isinstance(segments, bool) and segments >= 1):
+            raise ValueError(f"segments must be an integer >= 1 (pieces of the period), got {segments!r}")
+        if collocating or method != "dense":
+            raise ValueError(
+                f"segments applies to the dense shooting only, got method={'collocation' if collocating else method!r} "
+                "(collocation takes its multipliers from its intervals' product already)"
+            )
     particle_turns = _loaded_turns(params, particle, turns, moment)
     if guess is None:
         x0, v0, period, particle_turns = _settled_guess(
@@ -888,7 +930,10 @@ def find_periodic_orbit(
         except collocation_core.CollocationError as err:
             raise OrbitError(str(err)) from err
         y0, normal = collocation_core.section_state(system, solved.mesh, solved.ncol, solved.profile, particle_turns, TRANSVERSAL_MIN)
-        return _orbit_from(system, turns, y0, solved.period, solved.multipliers, solved.residual, solved.iterations, particle_turns, normal)
+        return _orbit_from(
+            system, turns, y0, solved.period, solved.multipliers, solved.residual, solved.iterations, particle_turns, normal,
+            multiplier_log_moduli=solved.log_moduli,
+        )  # fmt: skip
     if method != "dense":
         return _long_orbit(system, turns, y0, period, particle_turns, phase, method, tol=tol, max_iter=max_iter, rtol=rtol, atol=atol)
     evaluate = _shooting(system, particle_turns, rtol, atol)
@@ -915,7 +960,13 @@ def find_periodic_orbit(
     if not solved.converged:
         raise OrbitError(_no_convergence(moment, turns, solved.iterations, solved.norm))
     y0 = phase.state(solved.w[:-1])
-    return _orbit(system, turns, y0, solved.w[-1], solved.evaluation.data, solved.norm, solved.iterations, particle_turns, phase.normal)
+    if segments is None:
+        return _orbit(system, turns, y0, solved.w[-1], solved.evaluation.data, solved.norm, solved.iterations, particle_turns, phase.normal)
+    found = floquet.periodic_schur_multipliers(system.segment_jacobians(y0, solved.w[-1], segments, rtol=rtol, atol=atol))
+    return _orbit_from(
+        system, turns, y0, solved.w[-1], found.values, solved.norm, solved.iterations, particle_turns, phase.normal,
+        multiplier_log_moduli=found.log_moduli,
+    )  # fmt: skip
 
 
 def _long_orbit(system, turns, y0, period, particle_turns, phase, method, *, tol, max_iter, rtol, atol) -> PeriodicOrbit:
@@ -972,6 +1023,7 @@ def _orbit_from(
     particle_turns: np.ndarray,
     phase_normal: np.ndarray | None = None,
     multiplier_errors: np.ndarray | None = None,
+    multiplier_log_moduli: np.ndarray | None = None,
 ) -> PeriodicOrbit:
     """The solved orbit at y0 with its multipliers (all, by decreasing modulus, or the leading ones with their errors)."""
     x, v = _from_y(system.params, y0)
@@ -990,6 +1042,7 @@ def _orbit_from(
         particle_turns=particle_turns,
         phase_normal=phase_normal,
         multiplier_errors=multiplier_errors,
+        multiplier_log_moduli=multiplier_log_moduli,
     )
 
 

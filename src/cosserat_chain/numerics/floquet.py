@@ -1,0 +1,268 @@
+"""Floquet multipliers from the product of segment matrices, by the periodic Schur form.
+
+Contract
+--------
+A periodic orbit's monodromy is a product M = G_m ... G_1 of the transfer matrices of its
+segments (the variational flow over each piece of the period, or a collocation interval's
+condensed equations). Its eigenvalues, the Floquet multipliers, span many orders of magnitude
+on a long, strongly damped orbit: a mode damped at rate gamma / (2 m) has the multiplier
+exp(-gamma T / (2 m)), 1e-100 and below for T in the hundreds, next to the trivial multiplier 1.
+Formed in floating point, M carries an absolute error of about eps |M| in every entry, so its
+eigenvalues below eps |mu_max| ~ 1e-16 are round-off: the small multipliers are lost, whatever
+the accuracy of the factors.
+
+:func:`periodic_schur_multipliers` never forms the product. Orthogonal Q_1 ... Q_m bring the
+factors to the periodic real Schur form
+
+    G_k Q_k = Q_{k+1} T_k,    k = 1..m,    Q_{m+1} = Q_1,
+
+with every T_k upper triangular (Q_1^T M Q_1 = T_m ... T_1 upper triangular up to 2 x 2 blocks,
+Bojanczyk, Golub and Van Dooren 1992), and each multiplier is the product of the factors'
+diagonal entries, summed as logarithms; a complex pair (or multipliers of equal modulus, which
+the iteration below does not separate) comes from the product of the matching small diagonal
+blocks. The form is reached by the periodic orthogonal iteration G_k Q_k = Q_{k+1} R_k (a QR
+factorisation per segment) repeated around the period, started from the eigenvectors of the
+formed product, which already span the subspaces of the multipliers it resolves: the coupling
+of two multipliers falls by their moduli's ratio every period, so the strongly damped ones,
+far apart, separate in a few periods. Each step is orthogonal and touches one factor, so the
+result is exact for factors perturbed by round-off relative to each factor's own norm: a
+multiplier is accurate when every segment's part of it is, however small the product. On a
+flow, where each segment keeps its modes apart (an exponential dichotomy), this gives the
+small multipliers to nearly full relative precision, where the formed product gives round-off
+and the pencils of AUTO's FLOWKM lose them below about 1e-20 (Lust 2001). Moduli beyond the
+floating-point range (below 1e-308) keep their value in :attr:`Multipliers.log_moduli`.
+
+SLICOT's periodic QR (MB03VD/MB03WD, Hench and Laub 1994) computes the same form with shifts,
+but MB03WD returns transformations that do not reduce the factors (residuals of order 1) on
+products with small multipliers (SLICOT-Reference issue 3, open), so it is not used.
+
+References
+----------
+A. Bojanczyk, G. Golub and P. Van Dooren, "The periodic Schur decomposition: algorithms and
+applications", Proc. SPIE 1770 (1992) 31-42. J. J. Hench and A. J. Laub, "Numerical solution
+of the discrete-time periodic Riccati equation", IEEE Trans. Automat. Control 39 (1994)
+1197-1210 (SLICOT MB03VD, MB03WD). L. Dieci and E. S. Van Vleck, "Lyapunov spectral intervals:
+theory and computation", SIAM J. Numer. Anal. 40 (2002) 516-542 (the discrete QR method). K. Lust, "Improved numerical Floquet multipliers",
+Int. J. Bifurcation and Chaos 11 (2001) 2389-2410.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+__all__ = ["DEFLATION", "MAX_SWEEPS", "STALL", "Multipliers", "periodic_schur_multipliers"]
+
+#: An entry of the iteration's lower part below this (relative to the unit-norm factors) is round-off: it deflates.
+DEFLATION = 1e-13
+#: A block's coupling that keeps more than this fraction over a sweep no longer converges: the iteration stops.
+STALL = 0.5
+#: Periods of the orthogonal iteration at most (the formed product's eigenvectors start it close to the answer).
+MAX_SWEEPS = 30
+
+
+@dataclass(frozen=True)
+class Multipliers:
+    """Floquet multipliers by decreasing modulus.
+
+    Attributes
+    ----------
+    values : ndarray (n,) complex
+        The multipliers; those beyond the floating-point range are 0 or infinite there, with their
+        modulus in ``log_moduli``. A complex pair comes with the positive imaginary part first.
+    log_moduli : ndarray (n,)
+        ln |mu| of each (-inf for an exactly zero multiplier).
+    angles : ndarray (n,)
+        arg mu in (-pi, pi] of each (0 or pi for the real ones).
+    """
+
+    values: np.ndarray
+    log_moduli: np.ndarray
+    angles: np.ndarray
+
+    @property
+    def log10_moduli(self) -> np.ndarray:
+        """log10 |mu| of each."""
+        return self.log_moduli / math.log(10.0)
+
+
+def _check_segments(segments) -> np.ndarray:
+    """The segments as a real (m, n, n) array, or a ValueError naming what is wrong."""
+    try:
+        stack = np.asarray(segments)
+    except ValueError as err:  # ragged sequences
+        raise ValueError(f"segments must be a sequence of m >= 1 square n x n matrices of one size: {err}") from None
+    if stack.dtype == object or stack.ndim != 3 or stack.shape[0] < 1 or stack.shape[1] != stack.shape[2] or stack.shape[1] < 1:
+        raise ValueError(
+            f"segments must be a sequence of m >= 1 square n x n matrices of one size (an (m, n, n) array), got shape {stack.shape}"
+        )
+    if np.iscomplexobj(stack):
+        raise ValueError("segments must be real matrices (the variational flow of a real system), got complex ones")
+    try:
+        stack = stack.astype(float)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"segments must be real numbers: {err}") from None
+    bad = ~np.isfinite(stack)
+    if bad.any():
+        k, i, j = np.argwhere(bad)[0]
+        raise ValueError(f"segments must be finite, got {float(stack[k, i, j])!r} at segment {k}, entry ({i}, {j})")
+    return stack
+
+
+def periodic_schur_multipliers(segments: Sequence[np.ndarray] | np.ndarray, *, max_sweeps: int = MAX_SWEEPS) -> Multipliers:
+    """The eigenvalues of M = G_m ... G_1 from its factors, without forming the product (module docstring).
+
+    Parameters
+    ----------
+    segments : sequence of m ndarrays (n, n), or ndarray (m, n, n)
+        G_1, ..., G_m in the order of time: G_1 maps the perturbation at the start of the first
+        segment to the end of it, so the monodromy is G_m ... G_1 (the last factor on the left).
+    max_sweeps : int
+        The most periods of the orthogonal iteration; multipliers still coupled after them (equal or
+        nearly equal moduli) are taken together from the product of their diagonal blocks.
+
+    Returns
+    -------
+    Multipliers
+        The n multipliers by decreasing modulus, with ln |mu| and arg mu.
+
+    Raises
+    ------
+    ValueError
+        For segments that are not m >= 1 real square matrices of one size, not finite, or max_sweeps < 1.
+    """
+    stack = _check_segments(segments)
+    if not (isinstance(max_sweeps, (int, np.integer)) and max_sweeps >= 1):
+        raise ValueError(f"max_sweeps must be an integer >= 1, got {max_sweeps!r}")
+    m, n = stack.shape[0], stack.shape[1]
+    # Each factor scaled by a power of two (exact), so that no product over- or underflows.
+    peak = np.max(np.abs(stack), axis=(1, 2))
+    exponents = np.frexp(np.where(peak > 0, peak, 1.0))[1]
+    stack = np.ldexp(stack, -exponents[:, None, None])
+    shift = float(np.sum(exponents)) * math.log(2.0)
+    # Orthogonal (periodic QR) iteration: G_k Q_k = Q_{k+1} R_k around the period, Q_1 <- Q_{m+1}. The
+    # transformations are applied to each factor alone, so that every R_k is exact for a G_k perturbed by
+    # round-off of its own norm; the coupling of two multipliers in Q_1^T Q_{m+1} falls by their moduli's
+    # ratio a sweep, and the couplings that do not fall (a complex pair, equal or close moduli) are kept as blocks.
+    basis, triangles = _start(stack), np.empty_like(stack)
+    partition, coupling = None, None
+    for _ in range(max_sweeps):
+        q = basis
+        for k in range(m):
+            q, triangles[k] = np.linalg.qr(stack[k] @ q)
+        turn = basis.T @ q  # Q_1^T M Q_1 = turn R_m ... R_1
+        basis = q
+        blocks = _blocks(turn)
+        strength = [float(np.max(np.abs(np.tril(turn[lo:hi, lo:hi], -1)), initial=0.0)) for lo, hi in blocks]
+        if all(hi - lo == 1 for lo, hi in blocks):
+            break
+        if blocks == partition and all(new >= STALL * old for new, old in zip(strength, coupling)):
+            break
+        partition, coupling = blocks, strength
+    logs, angles = np.empty(n), np.empty(n)
+    for lo, hi in blocks:
+        factors = [turn[lo:hi, lo:hi], *(triangles[k, lo:hi, lo:hi] for k in range(m - 1, -1, -1))]
+        logs[lo:hi], angles[lo:hi] = _block(factors)
+    logs = logs + shift
+    order = np.lexsort((-angles, -logs))
+    logs, angles = logs[order], angles[order]
+    with np.errstate(over="ignore", under="ignore", invalid="ignore"):
+        moduli = np.exp(logs)
+        # Real multipliers exactly real (exp(i pi) has an imaginary part of round-off).
+        values = np.where(angles == 0.0, moduli + 0j, np.where(angles == math.pi, -moduli + 0j, moduli * np.exp(1j * angles)))
+    return Multipliers(values=values, log_moduli=logs, angles=angles)
+
+
+def _start(stack: np.ndarray) -> np.ndarray:
+    """An orthogonal start of the iteration: the formed product's eigenvectors by decreasing modulus, orthonormalised.
+
+    Their leading columns already span the invariant subspaces of the multipliers that the formed
+    product resolves, so that the sweeps only have to separate the small ones.
+    """
+    product = np.eye(stack.shape[1])
+    for factor in stack:
+        product = factor @ product
+        product = product / max(float(np.max(np.abs(product))), np.finfo(float).tiny)
+    values, vectors = np.linalg.eig(product)
+    order = np.lexsort((-values.imag, -np.abs(values)))
+    vectors = vectors[:, order]
+    # A complex pair's real and imaginary parts span its real invariant plane.
+    return np.linalg.qr(np.where(values[order].imag[None, :] < 0.0, vectors.imag, vectors.real))[0]
+
+
+def _blocks(turn: np.ndarray) -> list[tuple[int, int]]:
+    """The diagonal blocks [lo, hi) of ``turn`` that its lower part above :data:`DEFLATION` couples (contiguous)."""
+    n = turn.shape[0]
+    reach = np.arange(n)
+    for i, j in np.argwhere(np.abs(np.tril(turn, -1)) > DEFLATION):
+        reach[j] = max(reach[j], i)
+    blocks, lo = [], 0
+    while lo < n:
+        hi, k = lo + 1, lo
+        while k < hi:
+            hi = max(hi, reach[k] + 1)
+            k += 1
+        blocks.append((lo, hi))
+        lo = hi
+    return blocks
+
+
+def _block(factors: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """ln |mu| and arg mu of the eigenvalues of the product of ``factors`` (first on the left; all but the first upper triangular)."""
+    size = factors[0].shape[0]
+    if size == 1:
+        diagonal = np.array([f[0, 0] for f in factors])
+        with np.errstate(divide="ignore"):
+            log = float(np.sum(np.log(np.abs(diagonal))))
+        return np.array([log]), np.array([0.0 if np.prod(np.sign(diagonal)) >= 0 else math.pi])
+    if size == 2:
+        return _pair(np.stack(factors, axis=2))
+    product, scale = np.eye(size), 0.0
+    for factor in factors:
+        product = product @ factor
+        peak = float(np.max(np.abs(product)))
+        if peak == 0.0:
+            return np.full(size, -math.inf), np.zeros(size)
+        product, scale = product / peak, scale + math.log(peak)
+    values = np.linalg.eigvals(product)
+    with np.errstate(divide="ignore"):
+        logs = np.log(np.abs(values)) + scale
+    angles = np.angle(values)
+    angles = np.where(np.abs(values.imag) == 0.0, np.where(values.real < 0, math.pi, 0.0), angles)
+    return logs, angles
+
+
+def _pair(blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """ln |mu| and arg mu of the two eigenvalues of the product of 2 x 2 ``blocks`` (2, 2, p), first factor on the left.
+
+    The determinant is the product of the blocks' determinants (as a sum of logarithms: exact
+    in range); the product itself is kept at unit norm, its scale in a logarithm, and gives the
+    larger eigenvalue (or a complex pair's angle); the smaller real one is the determinant over
+    the larger, so that it keeps its digits however far apart the two are.
+    """
+    first = blocks[:, :, 0]
+    det_first = first[0, 0] * first[1, 1] - first[0, 1] * first[1, 0]
+    rest = blocks[0, 0, 1:] * blocks[1, 1, 1:]
+    with np.errstate(divide="ignore"):
+        log_det = math.log(abs(det_first)) + float(np.sum(np.log(np.abs(rest)))) if det_first != 0.0 else -math.inf
+    det_sign = math.copysign(1.0, det_first) * float(np.prod(np.sign(rest)))
+    product, scale = np.eye(2), 0.0
+    for k in range(blocks.shape[2]):
+        product = product @ blocks[:, :, k]
+        size = float(np.max(np.abs(product)))
+        if size == 0.0:
+            return np.full(2, -math.inf), np.zeros(2)
+        product, scale = product / size, scale + math.log(size)
+    trace = product[0, 0] + product[1, 1]
+    det = product[0, 0] * product[1, 1] - product[0, 1] * product[1, 0]
+    disc = trace * trace - 4.0 * det
+    if disc < 0.0:
+        angle = math.atan2(math.sqrt(-disc), trace)
+        return np.full(2, 0.5 * log_det), np.array([angle, -angle])
+    big = 0.5 * (trace + math.copysign(math.sqrt(disc), trace))
+    log_big = scale + math.log(abs(big))
+    sign_big = math.copysign(1.0, big)
+    return np.array([log_big, log_det - log_big]), np.array([0.0 if sign_big > 0 else math.pi, 0.0 if sign_big * det_sign > 0 else math.pi])
