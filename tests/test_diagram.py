@@ -15,11 +15,12 @@ from typer.testing import CliRunner
 
 from cosserat_chain import ChainParams
 from cosserat_chain.cli import app
+from cosserat_chain.experiments import diagram
 from cosserat_chain.experiments.diagram import ENDS, state_diagram
 from cosserat_chain.experiments.orbits import periodic_orbit
 from cosserat_chain.models.base import get_model
 from cosserat_chain.numerics.continuation import locate_fold
-from cosserat_chain.numerics.periodic import find_periodic_orbit
+from cosserat_chain.numerics.periodic import continue_orbit, find_periodic_orbit
 
 runner = CliRunner()
 
@@ -187,16 +188,19 @@ def pendulum_homoclinic(j: float, gamma: float, c: float) -> float:
 
 
 @pytest.mark.parametrize("gamma", [0.02, pytest.param(0.05, marks=pytest.mark.slow)])
-def test_the_one_particle_sine_chain_stops_rotating_at_the_pendulums_homoclinic_orbit(gamma):
+def test_the_one_particle_sine_chain_stops_rotating_at_the_pendulums_homoclinic_orbit(gamma, monkeypatch):
     """N = 1: the sine model is j phi'' + gamma_phi phi' + M_c sin(phi) = M (u and v decouple). A weakly
     damped pendulum's rotation ends at a homoclinic orbit, where its period grows only like -log(M - M_h)
     (T = 4 at M - M_h = 1e-8): found from that growth, not a period cap. Against the bisection above, and
     against Melnikov's small-damping asymptotics M_h = (4 / pi) gamma sqrt(M_c / j) (1 - k alpha^2),
     alpha = gamma / sqrt(j M_c), whose first correction k lies near 0.245 (measured)."""
     params = ChainParams(N=1, gamma_phi=gamma)
+    traced = _traced_branches(monkeypatch)
     row = state_diagram(params, "sine", "gamma_phi", [gamma]).rows[0]
     c = row.static_fold
     assert row.end == "homoclinic" and row.hysteresis is True
+    # The loop is solved in the bracket of the scouting branch's fit: the branch is not traced again.
+    assert traced == [diagram.SCOUT["tol"]]
     reference = pendulum_homoclinic(params.j, gamma, c)
     # The end is solved (the loop homoclinic to the saddle, projection boundary conditions: issue 40 item 3), with an
     # accuracy that covers its error; the fit of the period's growth it replaces is in the message.
@@ -206,6 +210,41 @@ def test_the_one_particle_sine_chain_stops_rotating_at_the_pendulums_homoclinic_
     alpha = gamma / np.sqrt(params.j * c)
     melnikov = 4 / np.pi * gamma * np.sqrt(c / params.j)
     assert 0.2 * alpha**2 < 1 - row.rotation_stops / melnikov < 0.3 * alpha**2
+
+
+def _traced_branches(monkeypatch) -> list:
+    """The closure tolerance of every orbit branch the diagram traces (None: the package's full accuracy), as it goes."""
+    traced = []
+
+    def spy(orbit, **kwargs):
+        traced.append(kwargs.get("tol"))
+        return continue_orbit(orbit, **kwargs)
+
+    monkeypatch.setattr(diagram, "continue_orbit", spy)
+    return traced
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("gamma", [0.01, 0.02, 0.05])
+def test_a_homoclinic_end_solved_from_the_scouting_branch_is_the_accurate_branchs(gamma, monkeypatch):
+    # The row's loop is solved once, in the bracket of the scouting branch's fit; the branch traced again at full
+    # accuracy, as the diagram did before, brackets and solves the same loop, to far below the solve's accuracy.
+    params = ChainParams(N=1, gamma_phi=gamma)
+    seen = []
+    edge_of_branch = diagram._edge_of_branch
+
+    def spy(orbit, branch, *args):
+        seen.append((orbit, args))
+        return edge_of_branch(orbit, branch, *args)
+
+    monkeypatch.setattr(diagram, "_edge_of_branch", spy)
+    row = state_diagram(params, "sine", "gamma_phi", [gamma]).rows[0]
+    assert row.method == "solved" and len(seen) == 1
+    orbit, args = seen[0]
+    period_max = args[4]
+    accurate = edge_of_branch(orbit, continue_orbit(orbit, moment_min=0.0, period_max=period_max, until_unstable=True), *args)
+    assert accurate.method == "solved" and accurate.uncertainty == row.uncertainty
+    assert abs(accurate.stops - row.rotation_stops) <= 1e-3 * row.uncertainty
 
 
 def test_the_strongly_damped_pendulum_closes_its_loop_at_a_snic():

@@ -425,16 +425,18 @@ def _edge_from(
     """:func:`_edge_of` without the orbit kept.
 
     The continuation first runs with :data:`SCOUT`'s looser tolerances: it only brackets the end, which the augmented
-    shooting system then locates at full accuracy from the orbits around it, and a SNIC end is M_c itself.
-    Every other end is read from the branch's own orbits (a fitted homoclinic end, the one-parameter
-    estimate where the location fails, a continuation that ended otherwise): that branch is traced again
-    at full accuracy, so that such an edge is what the accurate continuation gives.
+    shooting system then locates at full accuracy from the orbits around it, or the projection boundary conditions
+    solve (a homoclinic end: the loop in the bracket of the scouting branch's fit, the same M_h as from the accurate
+    branch's to far below its accuracy; the message quotes the scouting fit), and a SNIC end is M_c itself.
+    Every other end is read from the branch's own orbits (a fitted homoclinic end the solve did not find, the
+    one-parameter estimate where the location fails, a continuation that ended otherwise): that branch is traced
+    again at full accuracy, so that such an edge is what the accurate continuation gives.
     """
     edge = _edge_of_branch(
         orbit, continue_orbit(orbit, moment_min=0.0, period_max=period_max, until_unstable=True, **SCOUT),
         chain, model, moment_c, particle, period_max, field_name,
     )  # fmt: skip
-    if edge.method == "located" or edge.end == "snic":
+    if edge.method in ("located", "solved") or edge.end == "snic":
         return edge
     branch = continue_orbit(orbit, moment_min=0.0, period_max=period_max, until_unstable=True)
     return _edge_of_branch(orbit, branch, chain, model, moment_c, particle, period_max, field_name)
