@@ -387,6 +387,10 @@ class SystemBreatherFamily:
     message: str
     settings: dict = field(default_factory=dict)
     lifetimes: list[Lifetime] | None = None
+    #: For a family traced by pseudo-arclength (``arclength=True``): its located folds, branch points and
+    #: changes of stability (:class:`~.system_breather_arclength.FamilyEvent`), and the parameter continued.
+    events: list | None = None
+    parameter: str = "omega"
 
     def measure_lifetimes(
         self, max_periods: int, *, perturbation: float = 1e-8, threshold: float = 1e-2, progress: ProgressCallback | None = None
@@ -410,6 +414,11 @@ class SystemBreatherFamily:
         return out
 
     @property
+    def values(self) -> np.ndarray:
+        """The continued parameter per orbit: Omega, or the parameter followed at a fixed frequency (``along``)."""
+        return self.omegas if self.parameter == "omega" else np.array([o.parameter(self.parameter) for o in self.orbits])
+
+    @property
     def first_turns(self) -> int:
         return abs(next(iter(self.start.turns.values())))
 
@@ -430,6 +439,8 @@ class SystemBreatherFamily:
         dE/dOmega = 0 (the energy's fold), so a loss of stability at +1 sits at one of these.
         """
         omegas, energy = self.omegas, self.energies()
+        if self.events is not None:  # an arclength family: Omega may turn or stay put; its events say where a pair meets +1
+            return []
         slope = np.diff(energy) / np.diff(omegas)
         out = []
         for j in np.flatnonzero(np.sign(slope[:-1]) * np.sign(slope[1:]) < 0):
@@ -528,6 +539,8 @@ class SystemBreatherFamily:
                 "stability_changes_json": json.dumps(summary["stability_changes"]),
                 "resonances_json": json.dumps(summary["resonances"]),
                 "energy_extrema_json": json.dumps(summary["energy_extrema"]),
+                "parameter": self.parameter,
+                "events_json": json.dumps(summary.get("events", [])),
                 "message": self.message,
                 "settings_json": json.dumps(self.settings),
             }
@@ -560,6 +573,15 @@ class SystemBreatherFamily:
             "resonances": [r.as_dict() for r in resonances(self.bands, float(omegas.min()), float(omegas.max()))] if self.orbits else [],
             "stability_changes": [c.as_dict() for c in self.changes],
             **({} if self.lifetimes is None else {"lifetimes": [x.as_dict() for x in self.lifetimes]}),
+            **(
+                {}
+                if self.events is None
+                else {
+                    "parameter": self.parameter,
+                    "values": self.values.tolist(),
+                    "events": [e.as_dict() for e in self.events],
+                }
+            ),  # fmt: skip
             "message": self.message,
             **{k: v for k, v in self.settings.items() if k not in ("system",)},
         }
@@ -728,6 +750,9 @@ def roto_breather_family(
     max_step: float = 0.05,
     max_points: int = 300,
     locate: bool = True,
+    arclength: bool = False,
+    along: tuple[str, float] | None = None,
+    branches: bool = False,
     progress: ProgressCallback | None = None,
 ) -> SystemBreatherFamily:
     """A roto-breather family of ``system`` from the anti-continuum limit at frequency ``omega``.
@@ -755,6 +780,16 @@ def roto_breather_family(
         Of the continuation in the period (in log T).
     locate : bool
         Locate every change of stability along the family by bisection.
+    arclength : bool
+        Follow the family from ``omega`` to ``to`` by pseudo-arclength instead
+        (:func:`~.system_breather_arclength.continue_family`): through folds in Omega, its folds,
+        branch points and changes of stability as ``events``.
+    along : (str, float), optional
+        With ``arclength``: follow the family at the fixed frequency ``omega`` in this parameter
+        (the coupling, a geometric one) from the system's value to the value given, instead of in Omega.
+    branches : bool
+        With ``arclength``: follow the family through each branch point
+        (:func:`~.system_breather_arclength.follow_branch`).
     progress : callable(done, total), optional
 
     Returns
@@ -798,6 +833,10 @@ def roto_breather_family(
         first = _continue_coupling(first, system, coupling, target_coupling, k, unfold)
     members = [first]
     message = "the start alone"
+    if arclength:
+        return _arclength_family(system, start, coupling, first, omega, to, along, branches, counter, partner, turns, unfold, progress)
+    if along is not None or branches:
+        raise BreatherError("along and branches follow a family by pseudo-arclength: set arclength=True")
     if to is not None and to != omega:
         period_to = 2 * math.pi * turns / to
         family = continue_orbits(
@@ -823,3 +862,31 @@ def roto_breather_family(
                 changes.append(_locate(a, b, system, k, unfold, bands, turns))
     settings = {"turns": turns, "unfold": unfold, "partner_against": counter if partner is not None else None}
     return SystemBreatherFamily(system, start, coupling, members, bands, changes, message, settings)
+
+
+def _arclength_family(system, start, coupling, first, omega, to, along, branches, counter, partner, turns, unfold, progress):
+    """:func:`roto_breather_family` with ``arclength``: the family from ``first`` in Omega to ``to``, or in ``along`` at fixed Omega."""
+    from .system_breather_arclength import continue_family
+
+    if along is None:
+        if to is None or to == omega:
+            raise BreatherError(f"arclength needs a frequency to go to (to) other than the start's {omega!r}, got {to!r}")
+        name, target, here = "omega", float(to), float(omega)
+    else:
+        name, target = along
+        try:
+            here = system.parameter(name)
+        except ValueError:
+            raise BreatherError(
+                f"along: {system.name} has no parameter {name!r}; its parameters are {', '.join(system.parameters)}"
+            ) from None
+        if not (isinstance(target, float | int) and math.isfinite(target)) or target == here:
+            raise BreatherError(f"along: {name} must go to a finite value other than its {here!r}, got {target!r}")
+    traced = continue_family(
+        first, name, (min(here, target), max(here, target)), direction=1.0 if target > here else -1.0, branches=branches,
+        progress=progress,
+    )  # fmt: skip
+    settings = {"turns": turns, "unfold": unfold, "partner_against": counter if partner is not None else None, "arclength": True}
+    return SystemBreatherFamily(
+        system, start, coupling, traced.orbits, linear_bands(system), [], traced.message, settings, events=traced.events, parameter=name
+    )

@@ -1,0 +1,153 @@
+"""A user system's roto-breather family by pseudo-arclength (experiments.system_breather_arclength): folds, branch points, branches.
+
+The Takeno-Peyrard lattice of three sites, free ends, the middle one rotating: below the band
+(Omega < 1) its one-site family folds in Omega (C = 0.02), and lower down (C = 0.1) a pair of
+multipliers passes through +1 while Omega goes on: a branch point, where orbits that break the
+lattice's time reversal branch off.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from cosserat_chain.experiments import system_breather_arclength as sa
+from cosserat_chain.experiments import system_breathers as sb
+from cosserat_chain.numerics.shooting import OrbitNotFound, find_orbit, flow
+from cosserat_chain.systems import takeno_peyrard
+
+SITES = 3
+#: The rotor turns once per period: its angle gains 2 pi.
+SHIFT = np.array([0.0, 2 * math.pi, 0.0, 0.0, 0.0, 0.0])
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path_factory, monkeypatch):
+    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(tmp_path_factory.getbasetemp() / "cache"))
+
+
+@pytest.fixture(scope="module")
+def folding():
+    """C = 0.02: from the anti-continuum orbit at Omega = 0.9 up in Omega, through its fold near 0.9653, back down to 0.85."""
+    start = sb.roto_breather_family(takeno_peyrard(SITES, C=0.02), 0.9).orbits[0]
+    return sa.continue_family(start, "omega", (0.85, 0.97), direction=1.0)
+
+
+@pytest.fixture(scope="module")
+def branching():
+    """C = 0.1: from Omega = 1.3 down to 0.7, the branch at its branch point near Omega = 0.743 followed for 10 orbits."""
+    start = sb.roto_breather_family(takeno_peyrard(SITES, C=0.1), 1.3).orbits[0]
+    return sa.continue_family(start, "omega", (0.7, 1.31), direction=-1.0, branches=True, branch_points=10)
+
+
+def energy_spread(orbit, samples: int = 9) -> float:
+    states = orbit.trajectory(orbit.period * np.linspace(0.0, 1.0, samples))
+    system = orbit.system.with_parameters(gamma=0.0)
+    return float(np.ptp([system.energy(y[:SITES]) + 0.5 * np.sum(y[SITES:] ** 2) for y in states]))
+
+
+def test_the_family_passes_its_fold_in_omega_and_reports_it_with_a_singular_fixed_frequency_newton_system(folding):
+    omegas = folding.values
+    (fold,) = folding.folds
+    top = int(np.argmax(omegas))
+    # The trace went up, turned at the fold and came back down below where it started.
+    assert 0 < top < len(omegas) - 1 and omegas[-1] < 0.86 and omegas[0] == pytest.approx(0.9)
+    assert omegas[top - 1] < fold.value and omegas[top + 1] < fold.value and abs(fold.value - omegas[top]) < 1e-3
+    assert fold.value == pytest.approx(0.96531910, abs=1e-7) and fold.accuracy < 1e-6
+    # The fixed-frequency Jacobian is singular at the fold, and only there.
+    assert fold.singular_value < 1e-12
+    assert min(sa.fixed_parameter_singular_value(o, "omega") for o in folding.orbits[::4]) > 1e-5
+    # The Hamiltonian pair at +1 (a Jordan block away from the fold) splits complex on one side, real on the other.
+    assert {fold.split_before, fold.split_after} == {"complex", "real"}
+    before, after = folding.orbits[fold.index - 3], folding.orbits[fold.index + 3]
+    assert {sa.pair_split(before), sa.pair_split(after)} == {"complex", "real"}
+    # Energy grows through the fold (the family is one curve) and is conserved along each orbit.
+    energies = [sa.energy(o) for o in folding.orbits]
+    assert np.all(np.diff(energies) > 0)
+    for orbit in (fold.orbit, folding.orbits[0], folding.orbits[-1]):
+        assert energy_spread(orbit) < 1e-9
+        assert np.max(np.abs(flow(orbit.system, orbit.y0, orbit.period, variations=False)[0] - orbit.y0 - SHIFT)) < 1e-8
+
+
+def test_the_fold_lies_between_two_fixed_frequency_traces_from_either_branch(folding):
+    """Newton at fixed Omega (natural steps of 1e-4 up from 0.9640): each branch's last orbit lies just below the fold, none above."""
+    (fold,) = folding.folds
+    step = 1e-4
+    lasts = []
+    for side in (folding.orbits[: fold.index], folding.orbits[fold.index :]):
+        # The member of this side nearest Omega = 0.9640 starts the trace.
+        member = min(side, key=lambda o: abs(2 * math.pi / o.period - 0.964))
+        orbit, omega = member, 2 * math.pi / member.period
+        while True:
+            trial = omega + step
+            try:
+                found = find_orbit(orbit.system, (orbit.y0, 2 * math.pi / trial), turns=orbit.turns, unfold="gamma")
+            except OrbitNotFound:
+                break
+            if np.max(np.abs(found.y0 - orbit.y0)) > 0.05:  # a jump onto the other branch: the trace's own branch is gone
+                break
+            orbit, omega = found, trial
+            assert omega < fold.value + 1e-6
+        lasts.append((omega, sa.energy(orbit)))
+    (low_omega, low_energy), (high_omega, high_energy) = lasts
+    assert fold.value - 2 * step < low_omega <= fold.value and fold.value - 2 * step < high_omega <= fold.value
+    # The fold's energy lies between the two traces' last ones.
+    assert low_energy < fold.energy < high_energy
+
+
+def test_a_branch_point_is_a_pair_through_plus_one_while_omega_goes_on(branching):
+    (point,) = branching.branch_points
+    assert 0.742 < point.value < 0.744 and point.accuracy < 1e-4
+    a, b = branching.orbits[point.index - 1], branching.orbits[point.index]
+    # Omega keeps decreasing across it (no fold), and one pair goes from real to the unit circle.
+    assert 2 * math.pi / a.period > point.value > 2 * math.pi / b.period
+    assert sa.pair_test(a) * sa.pair_test(b) < 0
+    assert not branching.folds
+    assert point.singular_value < 1e-6
+
+
+def distance_to_reversal_fixed_set(orbit, samples: int = 1500) -> float:
+    """Smallest over the orbit of max_i dist(q_i, {0, pi} mod 2 pi): 0 for an orbit the time reversal (q, v) -> (-q, v) maps to itself."""
+    q = orbit.trajectory(orbit.period * np.linspace(0.0, 1.0, samples))[:, :SITES]
+    r = np.mod(q, math.pi)
+    return float(np.min(np.max(np.minimum(r, math.pi - r), axis=1)))
+
+
+def test_the_branch_at_the_branch_point_breaks_the_time_reversal_the_family_keeps(branching):
+    (point,) = branching.branch_points
+    branch = point.branch
+    assert len(branch) == 10, point.branch_message
+    # The family's orbits start at rest in every angle: they pass through the reversal's fixed set.
+    assert max(np.max(np.abs(o.q0)) for o in branching.orbits) < 1e-6
+    # The branch's do not, more so the farther from the branch point; they are orbits of the undamped lattice
+    # and leave at Omega = the branch point's.
+    distances = [distance_to_reversal_fixed_set(o) for o in branch[::3]]
+    assert distances[0] > 1e-4 and distances[-1] > 3e-3 and distances[-1] > 2 * distances[0]
+    assert abs(2 * math.pi / branch[0].period - point.value) < 1e-4
+    last = branch[-1]
+    assert abs(last.unfolding) < 1e-9
+    # Its mirror image under the reversal, (-q0, v0), is an orbit too, and a different one (the other half of the pitchfork).
+    system = last.system.with_parameters(gamma=0.0)
+    mirrored = np.concatenate([-last.q0, last.v0])
+    assert np.max(np.abs(flow(system, mirrored, last.period, variations=False)[0] - mirrored - SHIFT)) < 1e-7
+    states = last.trajectory(last.period * np.linspace(0.0, 1.0, 1500))
+    assert np.min(np.max(np.abs(states - mirrored), axis=1)) > 1e-3
+    assert energy_spread(last) < 1e-9
+
+
+def test_bad_input_is_refused_with_the_field_named():
+    start = sb.roto_breather_family(takeno_peyrard(SITES, C=0.02), 0.9).orbits[0]
+    with pytest.raises(ValueError, match="direction"):
+        sa.continue_family(start, "omega", (0.85, 0.97), direction=2)
+    with pytest.raises(ValueError, match="must lie in the limits"):
+        sa.continue_family(start, "omega", (0.95, 0.97))
+    with pytest.raises(ValueError, match="low < high"):
+        sa.continue_family(start, "omega", (0.97, 0.85))
+    with pytest.raises(ValueError, match="K"):
+        sa.continue_family(start, "K", (0.0, 1.0))
+    with pytest.raises(sb.BreatherError, match="arclength"):
+        sb.roto_breather_family(takeno_peyrard(SITES, C=0.02), 0.9, along=("C", 0.1))
+    with pytest.raises(sb.BreatherError, match="along: takeno_peyrard has no parameter 'K'"):
+        sb.roto_breather_family(takeno_peyrard(SITES, C=0.02), 0.9, arclength=True, along=("K", 0.1))
