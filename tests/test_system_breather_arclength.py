@@ -151,3 +151,66 @@ def test_bad_input_is_refused_with_the_field_named():
         sb.roto_breather_family(takeno_peyrard(SITES, C=0.02), 0.9, along=("C", 0.1))
     with pytest.raises(sb.BreatherError, match="along: takeno_peyrard has no parameter 'K'"):
         sb.roto_breather_family(takeno_peyrard(SITES, C=0.02), 0.9, arclength=True, along=("K", 0.1))
+
+
+@pytest.mark.slow
+def test_a_fold_in_the_coupling_at_fixed_omega_is_the_fold_in_omega_at_that_coupling():
+    """Both are where dT/dE = 0 on the surface of orbits: the C-family at Omega = 0.95 folds at C_f, and the family in Omega at C_f folds at 0.95."""
+    start = sb.roto_breather_family(takeno_peyrard(SITES, C=0.02), 0.95).orbits[0]
+    in_coupling = sa.continue_family(start, "C", (0.0, 0.06), direction=1.0)
+    (fold,) = in_coupling.folds
+    assert 0.03 < fold.value < 0.04 and fold.accuracy < 1e-8 and fold.singular_value < 1e-12
+    assert np.all(np.array([o.period for o in in_coupling.orbits]) == start.period)
+    assert in_coupling.values[-1] < 0.0  # it came back down past the anti-continuum limit on the other branch
+    in_omega = sb.roto_breather_family(takeno_peyrard(SITES, C=fold.value), 0.85, to=0.97, arclength=True)
+    (other,) = [e for e in in_omega.events if e.kind == "fold"]
+    assert other.value == pytest.approx(0.95, abs=1e-9)
+    assert other.energy == pytest.approx(fold.energy, abs=1e-9)
+
+
+def test_the_command_lists_the_events_in_json_and_in_the_file(tmp_path):
+    import json
+
+    import xarray as xr
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    out = tmp_path / "family.nc"
+    args = ["breathers", "--system", "takeno_peyrard", "--set", "sites=3", "--set", "C=0.02", "--omega", "0.95", "--arclength"]
+    result = CliRunner().invoke(app, [*args, "--along", "C=0.06", "--json", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output.strip().splitlines()[-1])
+    assert summary["parameter"] == "C" and summary["values"][0] == 0.02 and np.allclose(summary["omega"], 0.95, rtol=1e-14)
+    fold = next(e for e in summary["events"] if e["kind"] == "fold")
+    assert (
+        0.03 < fold["value"] < 0.04
+        and fold["singular_value"] < 1e-12
+        and {fold["split_before"], fold["split_after"]} == {"real", "complex"}
+    )
+    with xr.open_dataset(out) as ds:
+        assert ds.attrs["parameter"] == "C"
+        assert json.loads(ds.attrs["events_json"]) == summary["events"]
+    text = CliRunner().invoke(app, [*args, "--along", "C=0.06"])
+    assert text.exit_code == 0 and "fold at C = 0.03364" in text.output and "split complex -> real" in text.output
+
+
+@pytest.mark.parametrize(
+    ("extra", "message"),
+    [
+        (["--along", "C=0.06"], "give --arclength as well"),
+        (["--arclength", "--along", "K=1"], "NAME=VALUE with NAME a parameter of takeno_peyrard"),
+        (["--arclength", "--along", "C=x"], "VALUE must be a number"),
+        (["--arclength", "--along", "C=0.02"], "differ from C = 0.02"),
+        (["--arclength"], "give one of them"),
+        (["--arclength", "--to", "1.0", "--along", "C=0.1"], "give one of them"),
+    ],
+)
+def test_the_command_refuses_bad_arclength_options(extra, message):
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    args = ["breathers", "--system", "takeno_peyrard", "--set", "sites=3", "--set", "C=0.02", "--omega", "0.95"]
+    result = CliRunner().invoke(app, [*args, *extra])
+    assert result.exit_code == 2 and message in result.output, result.output

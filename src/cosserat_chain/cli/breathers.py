@@ -59,14 +59,30 @@ def breathers(
     arclength: bool = typer.Option(
         False, "--arclength", help="Follow the family from --omega towards --to by pseudo-arclength: through folds in Omega, located."
     ),
+    along: str | None = typer.Option(
+        None,
+        "--along",
+        metavar="NAME=VALUE",
+        help="With --arclength: follow the family at the fixed frequency --omega in this parameter (with --system one of its "
+        "parameters; of the chain a field a, b, h, E1, E2) from its value to VALUE, instead of in Omega to --to.",
+    ),
+    branches: bool = typer.Option(
+        False,
+        "--branches",
+        help="With --arclength: follow the family crossing each located branch point (a step off along its null vector).",
+    ),
 ) -> None:
     """Roto-breathers: one particle rotating, the rest oscillating, undamped; Newton from the anti-continuum limit, Floquet multipliers, resonances with the bands.
 
     With --system: the system's family (its angles counted from the central one by --particle and --partner), continued in --coupling from 0, then in the frequency to --to; --out writes it to NetCDF.
     With --atlas FIELD=V1,V2,...: the existence map over (Omega, FIELD), of the chain or of the --system. With --from-moment M: the damped, driven orbit followed to zero damping.
     """
-    if arclength and (to is None or system is not None or atlas is not None or from_moment is not None):
-        fail("--arclength follows the chain's family from --omega to --to: give --to, and leave out --system, --atlas and --from-moment")
+    if arclength and (atlas is not None or from_moment is not None):
+        fail("--arclength follows one family from --omega: leave out --atlas and --from-moment")
+    if arclength and (to is None) == (along is None):
+        fail("--arclength follows the family in Omega to --to, or in a parameter with --along NAME=VALUE: give one of them")
+    if (along is not None or branches) and not arclength:
+        fail("--along and --branches follow a family by pseudo-arclength: give --arclength as well")
     if from_moment is not None:
         if system is not None or atlas is not None:
             fail("--from-moment follows the chain's damped orbit: leave out --system and --atlas")
@@ -99,13 +115,16 @@ def breathers(
         from .system_breathers import breathers_on_system
 
         chain_only_or_exit(
-            ctx, ("omega", "to", "turns", "particle", "partner", "counter", "config", "out", "as_json", "sets", "coupling", "lifetimes")
-        )
+            ctx, ("omega", "to", "turns", "particle", "partner", "counter", "config", "out", "as_json", "sets", "coupling", "lifetimes",
+                  "arclength", "along", "branches"),
+        )  # fmt: skip
         return breathers_on_system(
             system, config=config, sets=sets, omega=omega, to=to, turns=turns, particle=particle, partner=partner, counter=counter,
-            coupling=coupling, out=out, as_json=as_json, lifetimes=lifetimes,
+            coupling=coupling, out=out, as_json=as_json, lifetimes=lifetimes, arclength=arclength, along=along, branches=branches,
         )  # fmt: skip
     system_only_or_exit(ctx, ("sets", "coupling"))
+    if along is not None or branches:
+        fail("--along and --branches follow a user system's family (with --system); the chain's is followed in Omega (--to)")
     import numpy as np
 
     from ..experiments.breathers import roto_breather_family

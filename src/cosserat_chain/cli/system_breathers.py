@@ -154,8 +154,15 @@ def breathers_on_system(
     out: Path | None,
     as_json: bool,
     lifetimes: int = 0,
+    arclength: bool = False,
+    along: str | None = None,
+    branches: bool = False,
 ) -> None:
     """The family from the anti-continuum limit at ``omega``, continued in ``coupling`` to the system's value, then to ``to``.
+
+    With ``arclength`` the family is followed by pseudo-arclength (to ``to``, or at the fixed
+    frequency ``omega`` in the parameter of ``along``, ``NAME=VALUE``), its folds, branch points and
+    changes of stability listed as events; ``branches`` follows the family crossing each branch point.
 
     ``lifetimes`` > 0 runs every member from its perturbed orbit for that many periods
     (:meth:`SystemBreatherFamily.measure_lifetimes`).
@@ -181,11 +188,12 @@ def breathers_on_system(
     other = _angle_or_exit(system, partner, "--partner")
     if other == rotor:
         fail(f"--partner {partner} is the rotating one (--particle {particle}): give a neighbour, e.g. --partner {particle + 1}")
+    target = None if along is None else _along_or_exit(system, along)
     bar = progress_bar(f"breathers {system.name}", "orbit")
     try:
         family = roto_breather_family(
             system, omega, to=to, rotor=rotor, partner=other, counter=counter, turns=turns, coupling=coupling,
-            progress=bar_callback(bar),
+            arclength=arclength, along=target, branches=branches, progress=bar_callback(bar),
         )  # fmt: skip
     except (BreatherError, SystemDefinitionError) as err:
         bar.close()
@@ -205,6 +213,8 @@ def breathers_on_system(
         _echo_json({"reference": reference, **summary})
         return
     names = ", ".join(f"{name} ({k:+d} turns)" for name, k in summary["rotors"].items())
+    if family.events is not None:
+        return _arclength_text(family, summary, names)
     typer.echo(f"{system.name}, {coupling} = {summary['coupling_value']:g}: {len(family.orbits)} roto-breathers of {names}")
     typer.echo("bands: " + ", ".join(f"[{b:.6g}, {t:.6g}]" for b, t in family.bands))
     typer.echo(f"{'omega':>10}  {'energy':>14}  {'max |mu|':>10}  stable  harmonics in a band")
@@ -224,4 +234,49 @@ def breathers_on_system(
         )
     for omega in summary["energy_extrema"]:
         typer.echo(f"energy extremal at Omega = {omega:.6g} (dE/dOmega = 0: where a pair of multipliers passes +1)")
+    typer.echo(f"family end: {family.message}")
+
+
+def _along_or_exit(system, text: str) -> tuple[str, float]:
+    """NAME and VALUE of ``--along NAME=VALUE`` (NAME a parameter of the system); exit 2 naming what is wrong."""
+    name, sep, value = text.partition("=")
+    name = name.strip()
+    if not sep or name not in system.parameters:
+        fail(f"--along must be NAME=VALUE with NAME a parameter of {system.name} ({', '.join(system.parameters)}), got {text!r}")
+    try:
+        number = float(value)
+    except ValueError:
+        fail(f"--along {name}: VALUE must be a number, got {value!r}")
+    if not math.isfinite(number) or number == system.parameter(name):
+        fail(f"--along {name}: VALUE must be finite and differ from {name} = {system.parameter(name):g}, got {value!r}")
+    return name, number
+
+
+def _arclength_text(family, summary: dict, names: str) -> None:
+    """The text table of a family traced by pseudo-arclength, its events after it."""
+    system, parameter = family.system, family.parameter
+    fixed = "" if parameter == "omega" else f" at Omega = {summary['omega'][0]:.8g}"
+    typer.echo(f"{system.name}: {len(family.orbits)} roto-breathers of {names} by arclength in {parameter}{fixed}")
+    typer.echo(f"{parameter:>12}  {'omega':>10}  {'energy':>14}  {'max |mu|':>10}  stable")
+    for i, o in enumerate(family.orbits):
+        energy = "-" if summary["energy"][i] is None else f"{summary['energy'][i]:.10g}"
+        typer.echo(
+            f"{summary['values'][i]:>12.8g}  {summary['omega'][i]:>10.6g}  {energy:>14}  {o.max_multiplier:>10.6g}  {'yes' if o.stable else 'no':>6}"
+        )
+    for e in summary["events"]:
+        accuracy = "" if e["accuracy"] is None else f" +- {e['accuracy']:.2g}"
+        typer.echo(
+            f"{e['kind'].replace('_', ' ')} at {parameter} = {e['value']:.10g}{accuracy}: energy {e['energy']}, max |mu| "
+            f"{e['max_multiplier']:.6g}, fixed-{parameter} Newton system's singular value {e['singular_value']:.2g}, "
+            f"pair at +1 split {e['split_before']} -> {e['split_after']}"
+        )
+        if "branch" in e:
+            b = e["branch"]
+            if b["values"]:
+                typer.echo(
+                    f"  branch: {len(b['values'])} orbits, {parameter} {b['values'][0]:.8g} to {b['values'][-1]:.8g}, "
+                    f"max |mu| {b['max_multiplier'][0]:.4g} to {b['max_multiplier'][-1]:.4g}; {b['message']}"
+                )
+            else:
+                typer.echo(f"  branch: none ({b['message']})")
     typer.echo(f"family end: {family.message}")

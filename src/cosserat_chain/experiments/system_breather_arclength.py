@@ -21,7 +21,8 @@ other. :func:`continue_family` follows the same branch and reports, as :class:`F
 * ``branch_point``: the sign of det [dR/dw; t] changing while lambda does not turn, where a
   nontrivial multiplier pair passes through +1 (:func:`pair_test` changes sign; bisected on the
   chord between the two members, each trial corrected): a family of other orbits crosses there;
-* ``stability``: a nontrivial multiplier leaving (or joining) the unit circle.
+* ``stability``: a nontrivial multiplier leaving (or joining) the unit circle (at a branch
+  point, the branch point stands for it).
 
 At a fixed period the folds in a coupling are the same points as the folds in the period at
 that coupling: both are where dT/dE = 0 on the two-parameter surface of orbits.
@@ -235,7 +236,12 @@ def _fold_accuracy(orbits: list[Orbit], event_orbit: Orbit, t: np.ndarray, index
 def _events(traced: Continuation, shooting: _Shooting, parameter: str) -> list[FamilyEvent]:
     out = []
     orbits = traced.points
+    # A change of stability beside a branch point is its pair through +1, which the branch point locates better
+    # (the kit's secant corrects ever nearer a singular bordered Jacobian there).
+    crossings = {e.index for e in traced.events if e.kind == "branch_point"}
     for e in traced.events:
+        if e.kind == "stability" and e.index in crossings:
+            continue
         tangent, accuracy = e.tangent, None
         if e.kind == "branch_point":
             found = _relocate(shooting, orbits[e.index - 1], orbits[e.index], parameter) if e.index >= 1 else None
