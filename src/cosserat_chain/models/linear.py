@@ -25,7 +25,7 @@ from numba import njit
 
 from ..params import ChainParams
 from ..state import bonded, check_state, scatter_bonds, zero_held
-from .base import BATCH_FORCE_SIGNATURE, BOND_BLOCK, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks, put_six
+from .base import BATCH_FORCE_SIGNATURE, BOND_BLOCK, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks, put_six
 from .trig import sincos
 
 
@@ -243,12 +243,16 @@ def cosserat_bonds(x, coef, out, first, last, sine):  # pragma: no cover - compi
                 out[row, start + i] = work[row * width + i]
 
 
-@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
+# Compiled at its first use (for FORCE_SIGNATURE), not at import: the report follows no orbit of this model,
+# and with an empty cache it cost it its compilation (benchmarks/TIMINGS.md).
+@njit(**KERNEL_OPTIONS)
 def linear_bond_kernel(x, coef, out, first, last):  # pragma: no cover - compiled
     cosserat_bonds(x, coef, out, first, last, False)
 
 
-@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
+# Compiled at its first use (for FORCE_SIGNATURE, by the engine), not at import: most runs, the report's among
+# them, have no graded chain, and with an empty cache it cost them its compilation (benchmarks/TIMINGS.md).
+@njit(**KERNEL_OPTIONS)
 def linear_graded_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     cosserat_graded(x, coef, out, start, stop, False)
 
@@ -268,7 +272,9 @@ def linear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compi
         )
 
 
-@njit(END_SIGNATURE, **KERNEL_OPTIONS)
+# Compiled at its first use (for END_SIGNATURE, by the engine), not at import: the report runs this model's
+# chains clamped only, and with an empty cache it cost them its compilation (benchmarks/TIMINGS.md).
+@njit(**KERNEL_OPTIONS)
 def linear_end_kernel(x, coef, out, first, last, ring):  # pragma: no cover - compiled
     cosserat_end_columns(x, coef, out, first, last, ring, False)
 

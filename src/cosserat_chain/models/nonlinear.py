@@ -194,7 +194,9 @@ def nonlinear_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - co
         _differences(bonds, out_u, out_v, out_phi, _whole_turns(count), count)
 
 
-@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
+# Compiled at its first use (for FORCE_SIGNATURE, by the engine), not at import: most runs, the report's among
+# them, have no graded chain, and with an empty cache it cost them its compilation (benchmarks/TIMINGS.md).
+@njit(**KERNEL_OPTIONS)
 def nonlinear_graded_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     a, b, h, rest1, rest2 = coef[0], coef[1], coef[2], coef[5], coef[6]
     # nonlinear_forces_kernel with bond k's E1 and E2 read from the coefficients' tail

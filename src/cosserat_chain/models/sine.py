@@ -24,7 +24,7 @@ from scipy.linalg import cholesky_banded
 from ..linalg import BANDWIDTH, BandMatrix, from_upper_bands, upper_bands
 from ..params import ChainParams
 from ..state import check_state, pack
-from .base import BATCH_FORCE_SIGNATURE, END_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model
+from .base import BATCH_FORCE_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model
 from .linear import (
     chain_coefficients,
     cosserat_batch,
@@ -135,12 +135,16 @@ def sine_forces_kernel(x, coef, out, start, stop):  # pragma: no cover - compile
         s_cur = s_next
 
 
-@njit(END_SIGNATURE, **KERNEL_OPTIONS)
+# Compiled at its first use (for END_SIGNATURE, by the engine), not at import: the report runs this model's
+# chains clamped only, and with an empty cache it cost them its compilation (benchmarks/TIMINGS.md).
+@njit(**KERNEL_OPTIONS)
 def sine_end_kernel(x, coef, out, first, last, ring):  # pragma: no cover - compiled
     cosserat_end_columns(x, coef, out, first, last, ring, True)
 
 
-@njit(FORCE_SIGNATURE, **KERNEL_OPTIONS)
+# Compiled at its first use (for FORCE_SIGNATURE, by the engine), not at import: most runs, the report's among
+# them, have no graded chain, and with an empty cache it cost them its compilation (benchmarks/TIMINGS.md).
+@njit(**KERNEL_OPTIONS)
 def sine_graded_kernel(x, coef, out, start, stop):  # pragma: no cover - compiled
     cosserat_graded(x, coef, out, start, stop, True)
 

@@ -340,11 +340,14 @@ def _solve(rhs, force, end_force, coef, rpar, ipar, times, rtol, atol, max_steps
         h_abs = max(h_abs, h * factor) if clipped else h * factor
         accepted += 1
         t = t_new
-        y[:] = y_new
+        # Loops, not slice assignments, which compile numba's shape-mismatch message.
+        for i in range(size):
+            y[i] = y_new[i]
         rhs(force, end_force, t, y, coef, rpar, ipar, k[0])
         evaluations += 1
         if t == target:
-            out[frame] = y
+            for i in range(size):
+                out[frame, i] = y[i]
             frame += 1
     return _COMPLETED, frame, accepted, evaluations, t
 

@@ -677,12 +677,17 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
             pending = empty
         if store:
             to_store = stride
-            # The caller may hand in its last frame slots as x and v; nothing to copy then.
+            # The caller may hand in its last frame slots as x and v; nothing to copy then. Copied
+            # by loops: an array assigned to a slice compiles numba's shape-mismatch message (string
+            # formatting), a large part of this function's compile time with an empty cache.
             if keep_states and frames_x[frame].ctypes.data != x.ctypes.data:
-                frames_x[frame] = x
-                frames_v[frame] = v
+                for r in range(3):
+                    for j in range(x.shape[1]):
+                        frames_x[frame, r, j] = x[r, j]
+                        frames_v[frame, r, j] = v[r, j]
             if keep_states and frames_winding[frame].ctypes.data != winding.ctypes.data:
-                frames_winding[frame] = winding
+                for j in range(winding.shape[0]):
+                    frames_winding[frame, j] = winding[j]
             for i in range(size):
                 frames_acc[frame, 0, i] = work[i]
                 frames_acc[frame, 1, i] = dissipated[i]

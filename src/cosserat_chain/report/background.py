@@ -136,6 +136,22 @@ def _first_writes() -> None:
         figure.savefig(io.BytesIO(), format=kind)
 
 
+def _critical_points(stage: _Stage) -> None:
+    """Every model's critical point, which the statics stage computes first, computed before the fork.
+
+    The state diagram computes the same statics: forked after them, its process inherits the kernels they
+    compiled (with an empty cache, both processes compiled them at once) and finds the rest in the cache.
+    A failure is left to the statics stage, which computes the point again and reports it.
+    """
+    from .settings import MODELS
+
+    for model in MODELS:
+        try:
+            stage.critical(model)
+        except Exception:  # the statics stage reports it
+            return
+
+
 def start(stage: _Stage, names: list[str], run: Callable[[_Stage, str], Section]) -> Background | None:
     """Fork a process that runs ``run(stage, name)`` for the stages of :data:`BACKGROUND` in ``names`` (module docstring)."""
     chosen = [name for name in BACKGROUND if name in names]
@@ -147,6 +163,8 @@ def start(stage: _Stage, names: list[str], run: Callable[[_Stage, str], Section]
     for module in [*SHARED_IMPORTS, *(module for name in chosen for module in IMPORTS[name])]:
         importlib.import_module(module)
     _first_writes()
+    if "statics" in names:
+        _critical_points(stage)
     context = multiprocessing.get_context("fork")
     channel = context.Queue()
     process = context.Process(target=_child, args=(channel, stage, chosen, run), name="report-background", daemon=True)
