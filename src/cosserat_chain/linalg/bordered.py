@@ -73,7 +73,8 @@ def _band_row(band, inverse, last_column, row):  # pragma: no cover - compiled
     """The eliminated last row (U^T l = row) and corner (row[n] - l . L^-1 e_dof) of the bordered matrix."""
     n = band.shape[0] - BANDWIDTH
     last_row = np.zeros(n + BANDWIDTH)
-    last_row[:n] = row[:n]
+    for j in range(n):  # a loop: a slice assignment compiles numba's shape-mismatch message
+        last_row[j] = row[j]
     corner = row[n]
     for j in range(n):
         factor = last_row[j] * inverse[j]

@@ -227,8 +227,10 @@ def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - co
             for far in range(2):
                 offset = (1.0 + far) * FD_STEP
                 weight = -1.0 if far else 8.0
-                xp[:] = x
-                xm[:] = x
+                for rr in range(3):  # loops: a slice assignment compiles numba's shape-mismatch message
+                    for c in range(n):
+                        xp[rr, c] = x[rr, c]
+                        xm[rr, c] = x[rr, c]
                 for c in range(start + color, stop, 3):
                     if lookup[3 * c + r] >= 0:
                         xp[r, c] += offset
