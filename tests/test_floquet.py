@@ -115,6 +115,27 @@ def test_multipliers_below_the_floating_point_range_keep_their_log_moduli():
     assert found.angles.tolist() == [0.0, 0.0, 0.0]  # (-1e-3)^150 > 0
 
 
+def test_many_close_moduli_spanning_decades_are_separated():
+    # 20 rotating pairs whose moduli exp(-c_i) per segment step by 0.85 from 1 to exp(-3): over 40 segments the
+    # multipliers run from 1 to 1e-52 with neighbours only 0.001 apart per period, so that no pair is isolated by
+    # the first sweeps; an iteration stopped early (or a block taken from its formed product) misses the small ones.
+    rng = np.random.default_rng(5)
+    n, m = 40, 40
+    decay = np.linspace(0.0, 3.0, n // 2)
+    s = [np.eye(n) + 0.2 / math.sqrt(n) * rng.standard_normal((n, n)) for _ in range(m)]
+    s.append(s[0])
+    factors = np.array(
+        [
+            s[k + 1] @ sla.block_diag(*(math.exp(-c) * _rotation(rng.uniform(0.1, 1.0)) for c in decay)) @ np.linalg.inv(s[k])
+            for k in range(m)
+        ]
+    )
+    found = periodic_schur_multipliers(factors)
+    assert found.separated
+    assert found.log_moduli == pytest.approx(np.repeat(-m * decay, 2), rel=1e-10, abs=1e-10)
+    assert not periodic_schur_multipliers(factors, max_sweeps=1).separated
+
+
 def test_ordering_is_by_decreasing_modulus_with_a_pairs_positive_angle_first():
     rng = np.random.default_rng(4)
     factors = rng.standard_normal((5, 7, 7))

@@ -54,14 +54,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..linalg.threads import one_blas_thread
+
 __all__ = ["DEFLATION", "MAX_SWEEPS", "STALL", "Multipliers", "periodic_schur_multipliers"]
 
 #: An entry of the iteration's lower part below this (relative to the unit-norm factors) is round-off: it deflates.
 DEFLATION = 1e-13
-#: A block's coupling that keeps more than this fraction over a sweep no longer converges: the iteration stops.
+#: The iteration stops once the multipliers that remain coupled (one block) lie within this ratio of moduli of each
+#: other: a complex pair, equal moduli, or close ones, whose coupling would fall by less than this ratio a sweep.
 STALL = 0.5
 #: Periods of the orthogonal iteration at most (the formed product's eigenvectors start it close to the answer).
-MAX_SWEEPS = 30
+MAX_SWEEPS = 100
 
 
 @dataclass(frozen=True)
@@ -77,11 +80,16 @@ class Multipliers:
         ln |mu| of each (-inf for an exactly zero multiplier).
     angles : ndarray (n,)
         arg mu in (-pi, pi] of each (0 or pi for the real ones).
+    separated : bool
+        Whether the iteration separated the multipliers down to blocks of moduli within 1 / :data:`STALL`
+        of each other; False where ``max_sweeps`` ran out first (many close moduli spanning decades):
+        the smaller members of a wide block then carry its formed product's round-off.
     """
 
     values: np.ndarray
     log_moduli: np.ndarray
     angles: np.ndarray
+    separated: bool = True
 
     @property
     def log10_moduli(self) -> np.ndarray:
@@ -112,6 +120,7 @@ def _check_segments(segments) -> np.ndarray:
     return stack
 
 
+@one_blas_thread
 def periodic_schur_multipliers(segments: Sequence[np.ndarray] | np.ndarray, *, max_sweeps: int = MAX_SWEEPS) -> Multipliers:
     """The eigenvalues of M = G_m ... G_1 from its factors, without forming the product (module docstring).
 
@@ -127,7 +136,7 @@ def periodic_schur_multipliers(segments: Sequence[np.ndarray] | np.ndarray, *, m
     Returns
     -------
     Multipliers
-        The n multipliers by decreasing modulus, with ln |mu| and arg mu.
+        The n multipliers by decreasing modulus, with ln |mu|, arg mu and whether they were separated.
 
     Raises
     ------
@@ -148,24 +157,24 @@ def periodic_schur_multipliers(segments: Sequence[np.ndarray] | np.ndarray, *, m
     # round-off of its own norm; the coupling of two multipliers in Q_1^T Q_{m+1} falls by their moduli's
     # ratio a sweep, and the couplings that do not fall (a complex pair, equal or close moduli) are kept as blocks.
     basis, triangles = _start(stack), np.empty_like(stack)
-    partition, coupling = None, None
+    converged = False
     for _ in range(max_sweeps):
         q = basis
         for k in range(m):
             q, triangles[k] = np.linalg.qr(stack[k] @ q)
         turn = basis.T @ q  # Q_1^T M Q_1 = turn R_m ... R_1
         basis = q
-        blocks = _blocks(turn)
-        strength = [float(np.max(np.abs(np.tril(turn[lo:hi, lo:hi], -1)), initial=0.0)) for lo, hi in blocks]
-        if all(hi - lo == 1 for lo, hi in blocks):
+        logs, angles = np.empty(n), np.empty(n)
+        converged = True
+        for lo, hi in _blocks(turn):
+            factors = [turn[lo:hi, lo:hi], *(triangles[k, lo:hi, lo:hi] for k in range(m - 1, -1, -1))]
+            logs[lo:hi], angles[lo:hi] = _block(factors)
+            # A block whose multipliers' moduli differ by more than 1 / STALL is still separating: sweep on.
+            finite = logs[lo:hi][np.isfinite(logs[lo:hi])]
+            if finite.size > 1 and np.ptp(finite) > -math.log(STALL):
+                converged = False
+        if converged:
             break
-        if blocks == partition and all(new >= STALL * old for new, old in zip(strength, coupling)):
-            break
-        partition, coupling = blocks, strength
-    logs, angles = np.empty(n), np.empty(n)
-    for lo, hi in blocks:
-        factors = [turn[lo:hi, lo:hi], *(triangles[k, lo:hi, lo:hi] for k in range(m - 1, -1, -1))]
-        logs[lo:hi], angles[lo:hi] = _block(factors)
     logs = logs + shift
     order = np.lexsort((-angles, -logs))
     logs, angles = logs[order], angles[order]
@@ -173,7 +182,7 @@ def periodic_schur_multipliers(segments: Sequence[np.ndarray] | np.ndarray, *, m
         moduli = np.exp(logs)
         # Real multipliers exactly real (exp(i pi) has an imaginary part of round-off).
         values = np.where(angles == 0.0, moduli + 0j, np.where(angles == math.pi, -moduli + 0j, moduli * np.exp(1j * angles)))
-    return Multipliers(values=values, log_moduli=logs, angles=angles)
+    return Multipliers(values=values, log_moduli=logs, angles=angles, separated=converged)
 
 
 def _start(stack: np.ndarray) -> np.ndarray:
