@@ -169,3 +169,79 @@ def test_cli_arclength_json_and_refusal(tmp_path):
     assert summary["omega"][0] == pytest.approx(6.0) and summary["omega"][-1] < 5.9 <= summary["omega"][-2]
     refused = runner.invoke(app, ["breathers", "--omega", "6", "--arclength", "--config", str(config)])
     assert refused.exit_code == 2 and "--arclength" in refused.output and "Traceback" not in refused.output
+
+
+def test_a_family_in_a_field_at_fixed_omega_is_the_natural_step_family_at_the_same_values():
+    """The sine chain N = 1 at Omega = 6, in E2 and in a (which carries the inertia j of its rectangle with it)."""
+    from cosserat_chain.experiments.breather_atlas import chain_at
+    from cosserat_chain.numerics.breather_arclength import continue_hamiltonian_field
+    from cosserat_chain.numerics.periodic import find_hamiltonian_orbit
+
+    params = undamped(N=1)
+    start = roto_breather_family(params, "sine", [6.0]).family.orbits[0]
+    for name, high in (("E2", 1.2), ("a", 0.24)):
+        arc = continue_hamiltonian_field(start, name, lambda value, name=name: chain_at(params, name, value), 0.0, high, max_points=5)
+        values = arc.values
+        assert arc.parameter == name and values[0] == getattr(params, name) and np.all(np.diff(values) > 0) and arc.events == []
+        for o in arc.orbits[1:]:
+            assert o.omega == pytest.approx(6.0, rel=1e-14) and abs(o.unfolding) < 1e-10
+            # Newton at that value from the start's state: the same orbit.
+            natural = find_hamiltonian_orbit(o.params, "sine", 6.0, (start.x, start.v), turns=1, particle=0)
+            assert np.max(np.abs(natural.x - o.x)) < 1e-8 and np.max(np.abs(natural.v - o.v)) < 1e-8
+        if name == "a":
+            assert arc.orbits[-1].params.j == pytest.approx(params.m * (values[-1] ** 2 + params.b**2) / 3.0, rel=1e-12)
+    with pytest.raises(ValueError, match="field_name"):
+        continue_hamiltonian_field(start, "model", lambda value: params, 0.0, 1.0)
+    with pytest.raises(ValueError, match="must lie in"):
+        continue_hamiltonian_field(start, "E2", lambda value: params, 1.5, 2.0)
+    with pytest.raises(ValueError, match="arclength=True"):
+        roto_breather_family(params, "sine", [6.0], along=("E2", 1.1))
+    with pytest.raises(ValueError, match="one of a, b, h, E1, E2"):
+        roto_breather_family(params, "sine", [6.0], arclength=True, along=("m", 1.1))
+
+
+def test_cli_along_a_field_json_and_refusals(tmp_path):
+    config = tmp_path / "chain.toml"
+    config.write_text("N = 1\n")
+    out = tmp_path / "family.nc"
+    args = ["breathers", "--omega", "6", "--arclength", "--config", str(config)]
+    result = runner.invoke(app, [*args, "--along", "E2=1.05", "--json", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.output.splitlines()[-1])
+    assert summary["parameter"] == "E2" and summary["values"][0] == 1.0 and summary["values"][-1] > 1.05 > summary["values"][-2]
+    assert np.allclose(summary["omega"], 6.0, rtol=1e-14) and summary["events"] == []
+    with xr.open_dataset(out) as ds:
+        assert json.loads(ds.attrs["settings_json"])["along"] == ["E2", 1.05]
+    for extra, message in (
+        (["--along", "m=2"], "FIELD one of a, b, h, E1, E2"),
+        (["--along", "E2=x"], "VALUE must be a number"),
+        (["--along", "E2=1"], "other than its 1.0"),
+        (["--along", "E2=1.1", "--to", "5"], "give one of them"),
+        (["--along", "E2=1.1", "--branches"], "located only"),
+    ):
+        refused = runner.invoke(app, [*args, *extra])
+        assert refused.exit_code == 2 and message in refused.output, (extra, refused.output)
+
+
+@pytest.mark.slow
+def test_the_in_band_family_folds_in_e2_at_fixed_omega_where_the_family_in_omega_at_that_e2_folds(folded):
+    """dT/dE = 0 on the surface of orbits over (Omega, E2): a fold in E2 at a fixed Omega is a fold in Omega at that E2."""
+    from cosserat_chain.experiments.breather_atlas import chain_at
+    from cosserat_chain.numerics.breather_arclength import continue_hamiltonian_field
+    from cosserat_chain.numerics.periodic import find_hamiltonian_orbit
+
+    landed, arc = folded
+    start = arc.orbits[arc.folds[0].index - 2]  # below the fold in Omega, on its rising side
+    params = start.params
+    in_e2 = continue_hamiltonian_field(start, "E2", lambda value: chain_at(params, "E2", value), 0.9, 1.1, direction=-1.0, max_points=9)
+    (fold,) = in_e2.folds
+    e2 = fold.parameter
+    assert 0.998 < e2 < 0.9995 and fold.point.omega == pytest.approx(start.omega, rel=1e-14)
+    problem = HamiltonianFrequencyProblem(fold.point, 1.2, 1.45)
+    assert problem.fixed_frequency_singular_value(fold.point) < 1e-10
+    # The family in Omega at that E2, from an orbit 0.002 below: it folds at the fixed frequency, at the same energy.
+    below = find_hamiltonian_orbit(fold.point.params, "nonlinear", start.omega - 0.002, fold.point, turns=1, particle=0)
+    in_omega = continue_hamiltonian_arclength(below, 1.3, 1.45, max_points=12)
+    other = in_omega.folds[0]
+    assert other.parameter == pytest.approx(start.omega, abs=1e-8)
+    assert other.point.energy == pytest.approx(fold.point.energy, abs=1e-7)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import typer
@@ -123,8 +124,9 @@ def breathers(
             coupling=coupling, out=out, as_json=as_json, lifetimes=lifetimes, arclength=arclength, along=along, branches=branches,
         )  # fmt: skip
     system_only_or_exit(ctx, ("sets", "coupling"))
-    if along is not None or branches:
-        fail("--along and --branches follow a user system's family (with --system); the chain's is followed in Omega (--to)")
+    if branches:
+        fail("--branches follows the branches of a user system's family (with --system); the chain's branch points are located only")
+    field_target = None if along is None else _chain_along_or_exit(along)
     import numpy as np
 
     from ..experiments.breathers import roto_breather_family
@@ -139,8 +141,9 @@ def breathers(
     try:
         partners = None if partner is None else {partner: -turns if counter else turns}
         result = roto_breather_family(
-            params, model, omegas, turns=turns, particle=particle, partners=partners, progress=bar_callback(bar), arclength=arclength
-        )
+            params, model, omegas, turns=turns, particle=particle, partners=partners, progress=bar_callback(bar), arclength=arclength,
+            along=field_target,
+        )  # fmt: skip
     except ValueError as err:
         bar.close()
         fail(str(err))
@@ -166,6 +169,8 @@ def breathers(
         return
     also = "" if partner is None else f" and {partner} ({'against' if counter else 'with'} it)"
     count = f"{len(family.orbits)} roto-breathers by arclength" if arclength else f"{len(family.orbits)} of {len(omegas)} roto-breathers"
+    if field_target is not None:
+        count += f" in {field_target[0]} from {summary['values'][0]:g} (Omega = {omega:g} held)"
     typer.echo(f"{model}: {count}, {turns} turn(s) per period, particle {particle}{also}")
     typer.echo(f"{'omega':>10}  {'energy':>12}  {'rotor rate':>11}  {'tail':>10}  {'max |mu|':>10}  stable  harmonics in a band")
     for i, o in enumerate(family.orbits):
@@ -178,12 +183,32 @@ def breathers(
         if lives is not None:
             life = lives[i]["lifetime_periods"]
             typer.echo(f"{'':>10}  lifetime: {'beyond ' + str(lifetimes) if life is None else life} periods")
+    if field_target is not None:
+        typer.echo(f"{field_target[0]} per orbit: " + ", ".join(f"{value:.8g}" for value in summary["values"]))
     for e in summary.get("events", []):
-        typer.echo(f"{e['kind'].replace('_', ' ')} at Omega = {e['omega']:.10g}: energy {e['energy']}, max |mu| {e['max_multiplier']:.6g}")
+        where = f"Omega = {e['omega']:.10g}" if "value" not in e else f"{e['parameter']} = {e['value']:.10g}"
+        typer.echo(f"{e['kind'].replace('_', ' ')} at {where}: energy {e['energy']}, max |mu| {e['max_multiplier']:.6g}")
     for r in result.resonances:
         typer.echo(f"resonance: {r.harmonic} x Omega = {r.edge_frequency:.6g} ({r.band} band {r.edge}) at Omega = {r.omega:.6g}")
     if not family.complete:
         typer.echo(family.message)
+
+
+def _chain_along_or_exit(text: str) -> tuple[str, float]:
+    """FIELD and VALUE of ``--along FIELD=VALUE`` for the chain (FIELD one the atlas takes); exit 2 naming what is wrong."""
+    from ..experiments.breather_atlas import ATLAS_FIELDS
+
+    name, sep, value = text.partition("=")
+    name = name.strip()
+    if not sep or name not in ATLAS_FIELDS:
+        fail(f"--along must be FIELD=VALUE with FIELD one of {', '.join(ATLAS_FIELDS)}, got {text!r}")
+    try:
+        number = float(value)
+    except ValueError:
+        fail(f"--along {name}: VALUE must be a number, got {value!r}")
+    if not math.isfinite(number):
+        fail(f"--along {name}: VALUE must be finite, got {value!r}")
+    return name, number
 
 
 def _atlas(

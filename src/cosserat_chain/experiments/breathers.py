@@ -45,7 +45,7 @@ import numpy as np
 from ..analysis.dispersion import BRANCHES, wave_summary
 from ..loads import moment_load
 from ..models.base import Model, get_model
-from ..numerics.breather_arclength import ArclengthFamily, continue_hamiltonian_arclength
+from ..numerics.breather_arclength import ArclengthFamily, continue_hamiltonian_arclength, continue_hamiltonian_field
 from ..numerics.dynamics import integrate
 from ..numerics.periodic import (
     HamiltonianFamily,
@@ -348,6 +348,11 @@ class BreatherFamily:
             "combination_resonances": [[{"harmonic": n, "bands": [a, b]} for n, a, b in h] for h in self.combination_resonances()],
             "resonances": [r.as_dict() for r in self.resonances],
             **({} if not isinstance(self.family, ArclengthFamily) else {"events": self._events()}),
+            **(
+                {}
+                if not isinstance(self.family, ArclengthFamily) or self.family.parameter == "omega"
+                else {"parameter": self.family.parameter, "values": self.family.values.tolist()}
+            ),
             **({} if self.lifetimes is None else {"lifetimes": [life.as_dict() for life in self.lifetimes]}),
         }
 
@@ -355,11 +360,14 @@ class BreatherFamily:
         """The arclength family's folds and branch points: kind, Omega, energy, largest multiplier, the orbits they lie between.
 
         An event the secant method did not locate (``located`` False) is given at the orbit after its sign change.
+        A family followed in a field at a fixed frequency gives the field's value there as ``value``.
         """
+        along = self.family.parameter != "omega"
         return [
             {
                 "kind": e.kind,
-                "omega": e.parameter if e.located else e.point.omega,
+                **({"parameter": self.family.parameter, "value": float(getattr(e.point.params, self.family.parameter))} if along else {}),
+                "omega": e.point.omega if along or not e.located else e.parameter,
                 "energy": e.point.energy,
                 "max_multiplier": e.point.max_multiplier,
                 "located": e.located,
@@ -443,6 +451,7 @@ def roto_breather_family(
     progress: ProgressCallback | None = None,
     arclength: bool = False,
     max_points: int = 200,
+    along: tuple[str, float] | None = None,
 ) -> BreatherFamily:
     """One-site roto-breathers at the frequencies ``omegas``, from the anti-continuum limit at the first.
 
@@ -470,6 +479,12 @@ def roto_breather_family(
         (:class:`~cosserat_chain.numerics.breather_arclength.ArclengthFamily`).
     max_points : int
         With ``arclength``, the most orbits traced.
+    along : (str, float), optional
+        With ``arclength``: follow the family at the frequency ``omegas[0]`` in this field of the
+        chain (:data:`~.breather_atlas.ATLAS_FIELDS`: a coupling or a geometric field) from its
+        value to the one given, instead of in Omega
+        (:func:`~cosserat_chain.numerics.breather_arclength.continue_hamiltonian_field`); a or b
+        carry the inertia j with them where it is their rectangle's (:func:`~.breather_atlas.chain_at`).
 
     Returns
     -------
@@ -488,6 +503,8 @@ def roto_breather_family(
     omegas = np.asarray(omegas, dtype=float)
     if omegas.ndim != 1 or omegas.size == 0 or not np.all(np.isfinite(omegas)) or np.any(omegas <= 0):
         raise ValueError(f"omegas must be one or more finite frequencies > 0, got {omegas.tolist()!r}")
+    if along is not None:
+        return _along_field(params, model, omegas, along, turns, particle, partners, progress, arclength, max_points)
     if arclength and omegas[-1] == omegas[0]:
         raise ValueError(
             f"omegas must start and end at different frequencies for arclength (the direction and range), got {omegas.tolist()!r}"
@@ -513,6 +530,38 @@ def roto_breather_family(
         resonances=resonances(params, float(omegas.min()), float(omegas.max()), bands=bands),
         settings=settings,
     )
+
+
+def _along_field(params, model, omegas, along, turns, particle, partners, progress, arclength, max_points) -> BreatherFamily:
+    """:func:`roto_breather_family` with ``along``: the family at ``omegas[0]`` followed in a chain field by pseudo-arclength."""
+    from .breather_atlas import ATLAS_FIELDS, chain_at
+
+    if not arclength:
+        raise ValueError("along follows the family by pseudo-arclength: set arclength=True")
+    name, target = along
+    if name not in ATLAS_FIELDS:
+        raise ValueError(f"along: the field must be one of {', '.join(ATLAS_FIELDS)}, got {name!r}")
+    here = float(getattr(params, name))
+    if not (isinstance(target, (int, float)) and math.isfinite(target)) or target == here:
+        raise ValueError(f"along: {name} must go to a finite value other than its {here!r}, got {target!r}")
+    chain_at(params, name, target)  # a target the chain refuses is named before any solve
+    partners = dict(partners or {})
+    omega = float(omegas[0])
+    x, v, energy, particle_turns = rotors_start(params, model, omega, turns=turns, particle=particle, partners=partners)
+    first = find_hamiltonian_orbit(params, model, omega, (x, v), turns=turns, particle=particle, particle_turns=particle_turns)
+    family = continue_hamiltonian_field(
+        first, name, lambda value: chain_at(params, name, value), min(here, target), max(here, target),
+        direction=1.0 if target > here else -1.0, max_points=max_points, progress=progress,
+    )  # fmt: skip
+    settings = {
+        "model": model.name, "turns": turns, "particle": particle, "partners": partners, "params": params.model_dump(),
+        "arclength": True, "along": [name, float(target)],
+    }  # fmt: skip
+    bands = coupled_bands(params, model, particle)
+    return BreatherFamily(
+        family=family, anti_continuum_energy=energy, bands=bands, resonances=resonances(params, omega, omega, bands=bands),
+        settings=settings,
+    )  # fmt: skip
 
 
 #: Time steps per period of the direct runs of :func:`lifetime` (Yoshida-4).

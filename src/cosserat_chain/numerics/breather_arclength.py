@@ -28,7 +28,9 @@ error, turns from a real split on one side to a complex one on the other.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -153,6 +155,93 @@ class HamiltonianFrequencyProblem:
         return True
 
 
+#: Relative step of the central difference of the closure in a chain field (its column of the Jacobian).
+FIELD_STEP = 1e-6
+
+
+@dataclass
+class HamiltonianFieldProblem(HamiltonianFrequencyProblem):
+    """The branch R(y0, eps, p) = 0 at the start's frequency, p a field of the chain (a coupling, a geometric one).
+
+    The unknowns are w = (y0 without phi_rotor, eps, p), p last; the chain at p is ``params_at(p)``
+    (a geometric field may carry others with it, as a particle's inertia follows its shape). The
+    Jacobian's last column is the central difference of the closure in p (two integrations of
+    the state alone); the others are those of :class:`HamiltonianFrequencyProblem`. The branch ends
+    where p leaves [``omega_min``, ``omega_max``] (here the field's range).
+
+    Attributes
+    ----------
+    field_name : str
+    params_at : callable(float) -> ChainParams
+    """
+
+    field_name: str = ""
+    params_at: Callable[[float], Any] | None = None
+
+    def start(self) -> np.ndarray:
+        """w at the start orbit: (y0 without phi_rotor, eps, p)."""
+        w = super().start()
+        w[-1] = float(getattr(self.orbit.params, self.field_name))
+        return w
+
+    def _pack(self, orbit: HamiltonianOrbit) -> np.ndarray:
+        y0 = _to_y(orbit.params, orbit.x, orbit.v)
+        return np.concatenate([y0[self._keep], [orbit.unfolding, float(getattr(orbit.params, self.field_name))]])
+
+    def _params(self, value: float):
+        if not math.isfinite(value):
+            raise EvaluationFailed(f"a trial {self.field_name} = {value!r} is not finite")
+        try:
+            return self.params_at(value)
+        except ValueError as err:
+            raise EvaluationFailed(f"no chain at {self.field_name} = {value!r}: {err}") from err
+
+    def _closure(self, params, w: np.ndarray, jacobian: bool):
+        o = self.orbit
+        system = _UndampedSystem(params, self._model, 0.0, o.particle, float(w[-2]))
+        try:
+            return _shooting(system, o.particle_turns, self.rtol, self.atol)(self._state(w), 2.0 * math.pi * o.turns / o.omega, jacobian)
+        except OrbitError as err:
+            raise EvaluationFailed(str(err)) from err
+
+    def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
+        """R(w) and, with ``jacobian``, dR/dw (the field's column by central differences) and the monodromy (``data``)."""
+        value = float(w[-1])
+        residual, jac_y, _, d_eps, mono = self._closure(self._params(value), w, jacobian)
+        if jac_y is None:
+            return Evaluation(residual)
+        h = FIELD_STEP * max(1.0, abs(value))
+        up, down = w.copy(), w.copy()
+        up[-1], down[-1] = value + h, value - h
+        d_field = (self._closure(self._params(value + h), up, False)[0] - self._closure(self._params(value - h), down, False)[0]) / (2 * h)
+        return Evaluation(residual, np.column_stack([jac_y[:, self._keep], d_eps, d_field]), mono)
+
+    def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> HamiltonianOrbit:
+        """The orbit at a corrected w (the chain at its field value), with its multipliers and energy."""
+        o = self.orbit
+        params = self._params(float(w[-1]))
+        base_system = _System(params, self._model, 0.0, o.particle)
+        closure = float(np.max(np.abs(evaluation.residual)))
+        period = 2.0 * math.pi * o.turns / o.omega
+        base = _orbit(base_system, o.turns, self._state(w), period, evaluation.data, closure, iterations, o.particle_turns)
+        fields = {name: getattr(base, name) for name in PeriodicOrbit.__dataclass_fields__}
+        energy = hamiltonian_energy(params, self._model, base.x, base.v)
+        return HamiltonianOrbit(**fields, unfolding=float(w[-2]), energy=energy)
+
+    def fixed_frequency_singular_value(self, orbit: HamiltonianOrbit) -> float:
+        """The smallest singular value of dR/d(y0, eps) at ``orbit`` (Omega and the field held), relative to its largest: 0 at a fold."""
+        singular = np.linalg.svd(self.evaluate(self._pack(orbit), True).matrix()[:, :-1], compute_uv=False)
+        return float(singular[-1] / singular[0])
+
+    def stop(self, point: HamiltonianOrbit) -> tuple[BranchEnd, str] | None:
+        value = float(getattr(point.params, self.field_name))
+        if self.omega_min <= value <= self.omega_max:
+            return None
+        return BranchEnd.PARAMETER_LIMIT, (
+            f"{self.field_name} = {value:.10g} left [{self.omega_min:g}, {self.omega_max:g}]: " + BranchEnd.PARAMETER_LIMIT.advice
+        )
+
+
 @dataclass
 class ArclengthFamily(HamiltonianFamily):
     """A :class:`~.periodic.HamiltonianFamily` traced by pseudo-arclength: Omega may turn back at folds.
@@ -169,6 +258,15 @@ class ArclengthFamily(HamiltonianFamily):
 
     events: list[Event] = field(default_factory=list)
     end: BranchEnd = BranchEnd.MAX_POINTS
+    #: ``omega``, or the chain's field followed at a fixed frequency (:func:`continue_hamiltonian_field`).
+    parameter: str = "omega"
+
+    @property
+    def values(self) -> np.ndarray:
+        """The continued parameter per orbit."""
+        if self.parameter == "omega":
+            return self.omega
+        return np.array([float(getattr(o.params, self.parameter)) for o in self.orbits])
 
     @property
     def folds(self) -> list[Event]:
@@ -177,7 +275,7 @@ class ArclengthFamily(HamiltonianFamily):
 
     @property
     def complete(self) -> bool:
-        """Whether the trace left the frequency range asked for (rather than stopping inside it)."""
+        """Whether the trace left the range asked for (rather than stopping inside it)."""
         return self.end == BranchEnd.PARAMETER_LIMIT
 
 
@@ -239,4 +337,72 @@ def continue_hamiltonian_arclength(
     return ArclengthFamily(
         orbits=list(traced.points), requested=np.array([omega_min, omega_max], dtype=float), message=traced.message,
         events=list(traced.events), end=traced.end,
+    )  # fmt: skip
+
+
+def continue_hamiltonian_field(
+    orbit: HamiltonianOrbit,
+    field_name: str,
+    params_at: Callable[[float], Any],
+    low: float,
+    high: float,
+    *,
+    direction: float = 1.0,
+    step: float = STEP,
+    min_step: float = MIN_STEP,
+    max_step: float = MAX_STEP,
+    max_points: int = 200,
+    tol: float = CLOSURE_TOL,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+    progress=None,
+) -> ArclengthFamily:
+    """Follow a Hamiltonian orbit's family at its frequency in a chain field by pseudo-arclength, passing and locating its folds.
+
+    At a fixed frequency a fold in the field is where dT/dE = 0 on the surface of orbits over
+    (Omega, field): the family in Omega at that field value folds there too.
+
+    Parameters
+    ----------
+    orbit : HamiltonianOrbit
+        The start, at the chain's present value of the field.
+    field_name : str
+        A numeric field of :class:`~cosserat_chain.params.ChainParams` (``E2``, ``a``, ...).
+    params_at : callable(float) -> ChainParams
+        The chain at a value of the field (a ValueError where there is none).
+    low, high : float
+        The trace stops at the first orbit outside [low, high]; the start must lie inside.
+    direction : float
+        +1 to start towards larger values, -1 towards smaller.
+
+    Returns
+    -------
+    ArclengthFamily
+        ``parameter`` the field; ``requested`` (low, high).
+
+    Raises
+    ------
+    ValueError
+        For a field the chain does not have, a range that is empty or does not hold the start, a direction other than +-1.
+    """
+    here = getattr(orbit.params, field_name, None)
+    if not isinstance(here, (int, float)) or isinstance(here, bool):
+        raise ValueError(f"field_name must be a numeric field of the chain (a, b, h, E1, E2, ...), got {field_name!r}")
+    for name, value in (("low", low), ("high", high)):
+        if not (isinstance(value, (int, float)) and math.isfinite(value)):
+            raise ValueError(f"{name} must be a finite number, got {value!r}")
+    if not low <= here <= high or not low < high:
+        raise ValueError(f"the start's {field_name} = {here!r} must lie in [low, high] = [{low!r}, {high!r}], low < high")
+    if direction not in (1, -1, 1.0, -1.0):
+        raise ValueError(f"direction must be +1 or -1, got {direction!r}")
+    problem = HamiltonianFieldProblem(
+        orbit, float(low), float(high), tol=tol, rtol=rtol, atol=atol, field_name=field_name, params_at=params_at
+    )
+    traced = continuation(
+        problem, problem.start(), step=step, min_step=min_step, max_step=max_step, max_points=max_points,
+        direction=float(direction), progress=progress, first=orbit,
+    )  # fmt: skip
+    return ArclengthFamily(
+        orbits=list(traced.points), requested=np.array([low, high], dtype=float), message=traced.message,
+        events=list(traced.events), end=traced.end, parameter=field_name,
     )  # fmt: skip
