@@ -108,6 +108,15 @@ def test_a_branch_point_is_a_pair_through_plus_one_while_omega_goes_on(branching
     assert point.singular_value < 1e-6
 
 
+def distance_to_trajectory(orbit, y: np.ndarray, samples: int = 1500) -> float:
+    """Smallest max-norm distance from the state y to the orbit's states, the angles compared modulo 2 pi."""
+    states = orbit.trajectory(orbit.period * np.linspace(0.0, 1.0, samples))
+    n = orbit.system.size
+    gap = states - y
+    gap[:, :n] = np.angle(np.exp(1j * gap[:, :n]))
+    return float(np.min(np.max(np.abs(gap), axis=1)))
+
+
 def distance_to_reversal_fixed_set(orbit, samples: int = 1500) -> float:
     """Smallest over the orbit of max_i dist(q_i, {0, pi} mod 2 pi): 0 for an orbit the time reversal (q, v) -> (-q, v) maps to itself."""
     q = orbit.trajectory(orbit.period * np.linspace(0.0, 1.0, samples))[:, :SITES]
@@ -132,8 +141,7 @@ def test_the_branch_at_the_branch_point_breaks_the_time_reversal_the_family_keep
     system = last.system.with_parameters(gamma=0.0)
     mirrored = np.concatenate([-last.q0, last.v0])
     assert np.max(np.abs(flow(system, mirrored, last.period, variations=False)[0] - mirrored - SHIFT)) < 1e-7
-    states = last.trajectory(last.period * np.linspace(0.0, 1.0, 1500))
-    assert np.min(np.max(np.abs(states - mirrored), axis=1)) > 1e-3
+    assert distance_to_trajectory(last, mirrored) > 1e-3
     assert energy_spread(last) < 1e-9
 
 
@@ -214,3 +222,31 @@ def test_the_command_refuses_bad_arclength_options(extra, message):
     args = ["breathers", "--system", "takeno_peyrard", "--set", "sites=3", "--set", "C=0.02", "--omega", "0.95"]
     result = CliRunner().invoke(app, [*args, *extra])
     assert result.exit_code == 2 and message in result.output, result.output
+
+
+@pytest.mark.slow
+def test_the_counter_rotating_pair_has_a_branch_point_where_orbits_breaking_its_mirror_symmetry_branch_off():
+    """Four sites, rotors 1 and 2 turning against each other (C = 0.1): the family keeps S: q_i -> -q_(3-i); a branch off it does not."""
+    system = takeno_peyrard(4, C=0.1)
+    start = sb.roto_breather_family(system, 1.5, rotor=1, partner=2, counter=True).orbits[0]
+    family = sa.continue_family(start, "omega", (0.7, 1.5), direction=-1.0, branches=True, branch_points=8)
+
+    def asymmetry(y: np.ndarray) -> float:
+        q, v = y[:4], y[4:]
+        return float(max(np.max(np.abs(q + q[::-1])), np.max(np.abs(v + v[::-1]))))
+
+    assert max(asymmetry(o.y0) for o in family.orbits) < 1e-9
+    breaking = [e for e in family.branch_points if e.branch and asymmetry(e.branch[-1].y0) > 1e-2]
+    assert len(breaking) == 1
+    point = breaking[0]
+    assert point.value == pytest.approx(0.7133125, abs=1e-6) and point.accuracy < 1e-6
+    branch = point.branch
+    grows = [asymmetry(o.y0) for o in branch]
+    assert 1e-4 < grows[0] < grows[-1] and np.all(np.diff(grows) > 0)
+    # Its image under S is an orbit too, another one: the branch's two halves.
+    last = branch[-1]
+    undamped = last.system.with_parameters(gamma=0.0)
+    image = -np.concatenate([last.q0[::-1], last.v0[::-1]])
+    shift = np.concatenate([2 * math.pi * last.turns, np.zeros(4)])
+    assert np.max(np.abs(flow(undamped, image, last.period, variations=False)[0] - image - shift)) < 1e-7
+    assert distance_to_trajectory(last, image) > 1e-2
