@@ -23,7 +23,9 @@ CPU seconds (``time.process_time``, one BLAS thread), the methods interleaved, e
     1e-26): the relative error of sum ln |mu| against Liouville's -T sum gamma_i / m_i for the
     dense shooting's formed monodromy and for ``segments`` = 4, 16, 64 (with each call's CPU
     time), and for the collocation on 100 intervals of NCOL = 7 by the periodic Schur form and
-    by the pencil, with the cost of the multipliers alone.
+    by the pencil, with the cost of the multipliers alone; and the cost of the two on the sine
+    chain's collocation orbits at N = 2, 5, 10 (M = 0.5, the default mesh), with their largest
+    difference over the multipliers above 1e-10.
 
 Results go to ``benchmarks/results/floquet.json`` (``docs/periodic-orbits.md``).
 """
@@ -187,6 +189,25 @@ def orbits(repeats: int) -> dict:
         },
     }
     print(json.dumps(out["collocation"]), flush=True)
+    out["collocation_chains"] = []
+    for n_half in (2, 5, 10):
+        params = ChainParams(N=n_half)
+        transfers = _transfers(find_collocation_orbit(params, "sine", 0.5))
+        cpu, found = _least(
+            {"periodic_schur": lambda t=transfers: periodic_schur_multipliers(t), "pencil": lambda t=transfers: pencil_multipliers(t)},
+            repeats,
+        )
+        big = found["pencil"][np.abs(found["pencil"]) > 1e-10]
+        row = {
+            "N": n_half,
+            "n": transfers.shape[1],
+            "ntst": transfers.shape[0],
+            "cpu_s": cpu,
+            "ratio_to_pencil": cpu["periodic_schur"] / cpu["pencil"],
+            "max_difference_above_1e-10": float(max(np.min(np.abs(found["periodic_schur"].values - z)) for z in big)),
+        }
+        out["collocation_chains"].append(row)
+        print(json.dumps(row), flush=True)
     return out
 
 
