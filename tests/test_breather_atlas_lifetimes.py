@@ -84,3 +84,31 @@ def test_cli_atlas_lifetimes_in_json_and_text(tmp_path):
     assert [p["lifetime"]["lifetime_periods"] is None for p in points] == [True, False]
     text = runner.invoke(app, [*args, "--lifetimes", "100"])
     assert text.exit_code == 0 and "lifetime > 100 periods" in text.stdout and np.sum(["lifetime" in line for line in text.stdout.splitlines()]) == 2
+
+
+def test_the_atlas_figures_draw_the_lifetimes_where_they_were_measured(tmp_path):
+    """A second panel with one marker per orbit: the lost ones coloured by log10 of their periods, survivors as triangles."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from cosserat_chain.plots.breathers import atlas_lifetime_grid, breather_atlas_figure, system_atlas_figure
+
+    atlas = breather_atlas(ChainParams(N=3, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0), "sine", [6.6, 5.0], "b", [0.2])
+    before = breather_atlas_figure(atlas)
+    assert atlas_lifetime_grid(atlas) is None and len([a for a in before.axes if a.get_label() != "<colorbar>"]) == 1
+    atlas.measure_lifetimes(RUN)
+    periods, stayed = atlas_lifetime_grid(atlas)
+    assert stayed.tolist() == [[True, False]] and periods[0, 0] == RUN and periods[0, 1] == atlas.points[0][1].lifetime.periods
+    figures = [breather_atlas_figure(atlas)]
+    system = system_breather_atlas(takeno_peyrard(9, C=0.05), [1.3, 1.2], "C", [0.05])
+    system.measure_lifetimes(RUN)
+    figures.append(system_atlas_figure(system))
+    for fig, drawn in zip(figures, (atlas, system)):
+        periods, stayed = atlas_lifetime_grid(drawn)
+        lower = fig.axes[1]
+        lost, survivors = lower.collections[0], lower.collections[1]
+        # The lost orbits' colours are log10 of their lifetimes; the survivors sit where the grid says they stayed.
+        assert np.allclose(np.sort(lost.get_array()), np.sort(np.log10(periods[np.isfinite(periods) & ~stayed])))
+        assert len(survivors.get_offsets()) == int(stayed.sum())
+        assert "lifetimes" in lower.get_title()
+        fig.savefig(tmp_path / "atlas.png")

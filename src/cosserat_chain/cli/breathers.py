@@ -27,7 +27,7 @@ def breathers(
         0,
         min=0,
         help="Run each orbit (of the family, or found by --atlas), its velocities perturbed by 1e-8, for up to this many periods: "
-        "its lifetime (0: none); also in --json and --out (a family's in --plot too).",
+        "its lifetime (0: none); also in --json, --out and --plot (a family's or an atlas's figure).",
     ),
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields; its viscosities are set to 0 (undamped)."),
     out: Path | None = typer.Option(None, help="Write the family to this NetCDF file."),

@@ -15,7 +15,9 @@ orbits filled, unstable open, none found crossed, coloured by their participatio
 windows n Omega inside a driven band (n = 1..3) shaded between the edges' harmonics;
 :func:`system_atlas_figure` the same map of a user system's
 :class:`~cosserat_chain.experiments.system_breather_atlas.SystemBreatherAtlas`, against its
-bands about rest. None computes anything itself.
+bands about rest. Where the atlas's lifetimes were measured (``measure_lifetimes``) both add
+a second panel below the map: each orbit's lifetime over (Omega, field), coloured by log10 of
+its periods, the orbits that outlived the run as triangles. None computes anything itself.
 """
 
 from __future__ import annotations
@@ -124,7 +126,7 @@ def breather_atlas_figure(atlas: BreatherAtlas) -> Figure:
     -------
     Figure
     """
-    fig, ax = plt.subplots(figsize=(7.0, 4.8))
+    fig, ax, below, lives = _atlas_axes(atlas)
     values, omegas = atlas.values, atlas.omegas
     order = np.argsort(values)
     resonance = atlas.resonance_omegas()
@@ -157,6 +159,8 @@ def breather_atlas_figure(atlas: BreatherAtlas) -> Figure:
     ax.set_ylabel(atlas.field)
     ax.set_title(f"roto-breathers, {atlas.model} model, N = {atlas.params.N}", fontsize=9)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3)  # below the axes: inside, it hides points
+    if lives is not None:
+        _atlas_lifetimes(fig, below, lives, atlas, ax.get_xlim())
     fig.tight_layout()
     return fig
 
@@ -172,7 +176,7 @@ def system_atlas_figure(atlas: SystemBreatherAtlas) -> Figure:
     -------
     Figure
     """
-    fig, ax = plt.subplots(figsize=(7.0, 4.8))
+    fig, ax, below, lives = _atlas_axes(atlas)
     values, omegas = atlas.values, atlas.omegas
     order = np.argsort(values)
     bands = atlas.bands()
@@ -208,5 +212,57 @@ def system_atlas_figure(atlas: SystemBreatherAtlas) -> Figure:
     ax.set_ylabel(atlas.field)
     ax.set_title(f"roto-breathers of {atlas.system.name}: {rotors}", fontsize=9)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3)
+    if lives is not None:
+        _atlas_lifetimes(fig, below, lives, atlas, ax.get_xlim())
     fig.tight_layout()
     return fig
+
+
+def atlas_lifetime_grid(atlas) -> tuple[np.ndarray, np.ndarray] | None:
+    """(value, omega) grids of the measured lifetimes in periods (the run's length for a survivor, NaN where no orbit) and of
+    whether the orbit outlived the run; None where no lifetime was measured."""
+    points = [p for row in atlas.points for p in row]
+    if all(p.lifetime is None for p in points):
+        return None
+    periods = np.full((len(atlas.values), len(atlas.omegas)), np.nan)
+    stayed = np.zeros(periods.shape, dtype=bool)
+    for j, row in enumerate(atlas.points):
+        for i, p in enumerate(row):
+            if p.lifetime is not None:
+                stayed[j, i] = p.lifetime.periods is None
+                periods[j, i] = p.lifetime.run_periods if stayed[j, i] else p.lifetime.periods
+    return periods, stayed
+
+
+def _atlas_axes(atlas):
+    """The figure, the map's axes and, where lifetimes were measured, axes below for them and their grids (else None, None)."""
+    lives = atlas_lifetime_grid(atlas)
+    if lives is None:
+        fig, ax = plt.subplots(figsize=(7.0, 4.8))
+        return fig, ax, None, None
+    fig, (ax, below) = plt.subplots(2, 1, figsize=(7.0, 9.2))
+    return fig, ax, below, lives
+
+
+def _atlas_lifetimes(fig: Figure, ax, lives: tuple[np.ndarray, np.ndarray], atlas, xlim) -> None:
+    """The lifetimes over (Omega, value) on ``ax``: coloured by log10 of the periods, survivors as triangles."""
+    periods, stayed = lives
+    om, va = np.meshgrid(atlas.omegas, atlas.values)
+    measured = np.isfinite(periods)
+    lost = measured & ~stayed
+    norm = plt.Normalize(0.0, float(np.log10(np.nanmax(periods))) + 1e-12)
+    shown = ax.scatter(om[lost], va[lost], c=np.log10(periods[lost]), cmap="magma", norm=norm, s=30, edgecolor="k", label="lost after")
+    ax.scatter(om[measured & stayed], va[measured & stayed], marker="^", color="tab:green", s=34, edgecolor="k",
+               label="stayed for the whole run")  # fmt: skip
+    ax.scatter(om[~measured], va[~measured], marker="x", color="0.4", s=20, label="no orbit")
+    fig.colorbar(shown, ax=ax, label="log10 lifetime (periods)")
+    run = atlas.settings.get("lifetime", {})
+    ax.set_title(
+        f"lifetimes: direct runs from the orbits perturbed by {run.get('perturbation', 'ε')}, lost at a deviation of "
+        f"{run.get('threshold', '?')}, for up to {run.get('max_periods', '?')} periods",
+        fontsize=8,
+    )
+    ax.set_xlim(*xlim)
+    ax.set_xlabel("Ω (mean angular velocity of the rotor)")
+    ax.set_ylabel(atlas.field)
+    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3)
