@@ -195,6 +195,8 @@ def test_long_orbit_multipliers_obey_liouville_by_segments_where_the_formed_mono
     assert np.sum(split.log_moduli) == pytest.approx(exact, rel=1e-8)
     assert np.sum(formed.log_moduli) != pytest.approx(exact, rel=0.1)
     assert split.log_moduli[-1] < math.log(1e-20)
+    assert split.as_dict()["floquet_multipliers_log10_abs"] == pytest.approx(split.log_moduli / math.log(10.0))
+    assert "floquet_multipliers_log10_abs" not in formed.as_dict()
     big = np.abs(formed.multipliers) > 1e-10
     assert np.sort(np.abs(split.multipliers[big])) == pytest.approx(np.sort(np.abs(formed.multipliers[big])), abs=1e-10)
 

@@ -627,8 +627,12 @@ class PeriodicOrbit:
         return np.array([s[0] for s in states]), np.array([s[1] for s in states])
 
     def as_dict(self) -> dict:
-        """JSON-ready summary. Moments in the parameters' units; ``moment_scale`` = E1 h^2 divides them into the paper's dimensionless moment (Fig. 2)."""
-        return {
+        """JSON-ready summary. Moments in the parameters' units; ``moment_scale`` = E1 h^2 divides them into the paper's dimensionless moment (Fig. 2).
+
+        ``floquet_multipliers_log10_abs`` (log10 |mu|, in range below 1e-308) where the multipliers came from the
+        segments' product (:attr:`multiplier_log_moduli`).
+        """
+        out = {
             "model": self.model,
             "moment": self.moment,
             "moment_scale": self.params.moment_scale,
@@ -646,6 +650,9 @@ class PeriodicOrbit:
             "phase_condition": "section" if self.phase_normal is None else "plane",
             "trivial_multiplier_error": self.trivial_multiplier_error,
         }
+        if self.multiplier_log_moduli is not None:
+            out["floquet_multipliers_log10_abs"] = (self.multiplier_log_moduli / math.log(10.0)).tolist()
+        return out
 
 
 def _check_moment_and_turns(moment: float, turns: int) -> None:
