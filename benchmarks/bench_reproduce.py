@@ -19,7 +19,8 @@ which runs the package under that folder instead, e.g. one unpacked by ``git arc
 tar -x -C /tmp/old``, nothing is written: its numbers are for comparison, run interleaved with
 this checkout's, the machine's load moving the CPU time by 10 % from one run to the next).
 ``--against OLD --rounds K`` runs that interleaving itself: K rounds of the package under OLD then
-this checkout's (or ``--src``'s), one line each (CPU, wall, the state map's CPU, the load), written to
+this checkout's (or ``--src``'s), one line each (CPU, wall, the state map's CPU, the load) and whether the two
+summaries' numbers are the same bit for bit (the floats as JSON writes them, which round-trips them), written to
 ``benchmarks/results/reproduce_interleaved.json`` (nothing with ``--src``). Give OLD's Numba cache one
 run first: a checkout elsewhere compiles every kernel on its first run.
 """
@@ -64,6 +65,7 @@ def measure(src: Path | None, cold: bool) -> dict:
         load_after = os.getloadavg()
         summary = json.loads((Path(out) / "summary.json").read_text())
     stages = {name: {"seconds": stage["seconds"], "cpu_seconds": stage.get("cpu_seconds")} for name, stage in summary["stages"].items()}
+    numbers = {name: stage.get("numbers") for name, stage in summary["stages"].items()}
     return {
         "machine": platform.platform(),
         "cores": os.cpu_count(),
@@ -76,7 +78,20 @@ def measure(src: Path | None, cold: bool) -> dict:
         "wall_seconds": wall,
         "stages": stages,
         "stages_cpu_seconds": sum(stage["cpu_seconds"] or 0.0 for stage in stages.values()),
+        "numbers": numbers,
     }
+
+
+def differences(first, second, where: str = "") -> list[str]:
+    """Where two summaries' numbers differ (JSON values compared exactly: floats bit for bit, as JSON writes them)."""
+    if isinstance(first, dict) and isinstance(second, dict):
+        found = [f"{where}/{key}: only in one" for key in sorted(set(first) ^ set(second), key=str)]
+        for key in first.keys() & second.keys():
+            found += differences(first[key], second[key], f"{where}/{key}")
+        return found
+    if isinstance(first, list) and isinstance(second, list) and len(first) == len(second):
+        return [d for k, (a, b) in enumerate(zip(first, second, strict=True)) for d in differences(a, b, f"{where}[{k}]")]
+    return [] if first == second or (first != first and second != second) else [f"{where}: {first!r} != {second!r}"]
 
 
 def _checked(parser: argparse.ArgumentParser, option: str, src: Path | None) -> None:
@@ -92,6 +107,10 @@ def interleaved(against: Path, src: Path | None, rounds: int, cold: bool) -> lis
         for package in (against, src):
             result = measure(package, cold)
             runs.append({"round": k, **result})
+            if package is src:
+                found = differences(runs[-2]["numbers"], result["numbers"])
+                runs[-1]["numbers_equal_to_against"] = not found
+                print("      the summaries' numbers: " + ("the same, bit for bit" if not found else f"{len(found)} differ: {found[:5]}"))
             state_map = result["stages"].get("state_map", {}).get("cpu_seconds") or float("nan")
             name = str(package) if package is not None else "this checkout"
             print(

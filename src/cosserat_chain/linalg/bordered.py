@@ -129,7 +129,8 @@ def _band_border_solve(band, inverse, stiffness, last_column, last_row, corner, 
         if sweep == refine:
             break
         # residual = rhs - B solution, with the matrix as given (``stiffness``: K's storage)
-        padded[BANDWIDTH : n + BANDWIDTH] = solution[:n]
+        for i in range(n):  # a loop: a slice assignment compiles numba's shape-mismatch message
+            padded[BANDWIDTH + i] = solution[i]
         for i in range(n):
             total = rhs[i] - (solution[n] if i == dof else 0.0)
             for t in range(2 * BANDWIDTH + 1):

@@ -32,7 +32,9 @@ from .dynamics import Trajectory
 METHOD = "DOP853"
 
 
-@njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+# Compiled at its first use (for dop853.RHS_SIGNATURE, by dop853.solve), not at import: the commands that import
+# this module (the report among them) seldom run a reference, and with an empty cache it cost them its compilation.
+@njit(cache=True, nogil=True, error_model="numpy")
 def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
     # y = (x (3, n), v (3, n), W, D) flattened; rpar = (gamma (3), inertia (3 n) of every degree of
     # freedom (a graded chain's particles differ), free (3 n): 1.0 where the ends leave the degree
