@@ -11,7 +11,7 @@ import pytest
 import scipy.linalg as sla
 
 from cosserat_chain import ChainParams
-from cosserat_chain.numerics.collocation import find_collocation_orbit
+from cosserat_chain.numerics.collocation import continue_collocation, find_collocation_orbit
 from cosserat_chain.numerics.floquet import periodic_schur_multipliers
 from cosserat_chain.numerics.periodic import find_periodic_orbit
 from cosserat_chain.state import pack, per_dof
@@ -210,6 +210,20 @@ def test_collocation_multipliers_obey_liouville_on_a_long_orbit():
     assert orbit.log_moduli[-1] < math.log(1e-20)
     assert orbit.trivial_multiplier_error < 1e-10
     assert orbit.as_dict()["floquet_multipliers_log10_abs"] == pytest.approx(orbit.log_moduli / math.log(10.0))
+
+
+@pytest.mark.slow
+def test_collocation_resolves_multipliers_of_1e_170_at_period_100_on_a_fine_mesh():
+    # Towards the SNIC to T > 100 (M - M_c ~ 1e-4): Liouville's product is 1e-181, the smallest multiplier about
+    # 1e-172. On 400 intervals of NCOL = 7 the damped modes are resolved, and the periodic Schur form of the
+    # intervals' transfer matrices gives the product to 1e-10 (the FLOWKM pencil used before gave 1e-28).
+    start = find_collocation_orbit(N1, "nonlinear", 0.3, ntst=80)
+    last = continue_collocation(start, moment_min=0.1, period_max=100.0).orbits[-1]
+    orbit = find_collocation_orbit(N1, "nonlinear", last.moment, guess=last, ntst=400, ncol=7)
+    assert orbit.period > 100.0
+    assert np.sum(orbit.log_moduli) == pytest.approx(-orbit.period * _damping_rate(N1), rel=1e-10)
+    assert orbit.log_moduli[-1] < math.log(1e-150)
+    assert orbit.trivial_multiplier_error < 1e-10
 
 
 def test_segments_are_refused_outside_the_dense_shooting():
