@@ -160,7 +160,7 @@ def breather_atlas_figure(atlas: BreatherAtlas) -> Figure:
     ax.set_title(f"roto-breathers, {atlas.model} model, N = {atlas.params.N}", fontsize=9)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3)  # below the axes: inside, it hides points
     if lives is not None:
-        _atlas_lifetimes(fig, below, lives, atlas, ax.get_xlim())
+        _atlas_lifetimes(fig, below, lives, atlas, ax)
     fig.tight_layout()
     return fig
 
@@ -213,7 +213,7 @@ def system_atlas_figure(atlas: SystemBreatherAtlas) -> Figure:
     ax.set_title(f"roto-breathers of {atlas.system.name}: {rotors}", fontsize=9)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3)
     if lives is not None:
-        _atlas_lifetimes(fig, below, lives, atlas, ax.get_xlim())
+        _atlas_lifetimes(fig, below, lives, atlas, ax)
     fig.tight_layout()
     return fig
 
@@ -244,8 +244,8 @@ def _atlas_axes(atlas):
     return fig, ax, below, lives
 
 
-def _atlas_lifetimes(fig: Figure, ax, lives: tuple[np.ndarray, np.ndarray], atlas, xlim) -> None:
-    """The lifetimes over (Omega, value) on ``ax``: coloured by log10 of the periods, survivors as triangles."""
+def _atlas_lifetimes(fig: Figure, ax, lives: tuple[np.ndarray, np.ndarray], atlas, above) -> None:
+    """The lifetimes over (Omega, value) on ``ax``, under the map's axes ``above``: coloured by log10 of the periods, survivors as triangles."""
     periods, stayed = lives
     om, va = np.meshgrid(atlas.omegas, atlas.values)
     measured = np.isfinite(periods)
@@ -262,7 +262,7 @@ def _atlas_lifetimes(fig: Figure, ax, lives: tuple[np.ndarray, np.ndarray], atla
         f"{run.get('threshold', '?')}, for up to {run.get('max_periods', '?')} periods",
         fontsize=8,
     )
-    ax.set_xlim(*xlim)
-    ax.set_xlabel("Ω (mean angular velocity of the rotor)")
+    ax.set_xlim(*above.get_xlim())
+    ax.set_xlabel(above.get_xlabel())
     ax.set_ylabel(atlas.field)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3)
