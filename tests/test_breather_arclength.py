@@ -235,6 +235,10 @@ def test_the_in_band_family_folds_in_e2_at_fixed_omega_where_the_family_in_omega
     params = start.params
     in_e2 = continue_hamiltonian_field(start, "E2", lambda value: chain_at(params, "E2", value), 0.9, 1.1, direction=-1.0, max_points=9)
     (fold,) = in_e2.folds
+    (diagnostic,) = [d for e, d in zip(in_e2.events, in_e2.diagnostics, strict=True) if e.kind == "fold"]
+    # The fixed-(Omega, E2) Newton system is singular there. (The pair at +1 stays split complex on both sides here:
+    # its split follows the integration error's sign as well, so only the singular value marks the fold.)
+    assert diagnostic["singular_value"] < 1e-10 and diagnostic["split_before"] == diagnostic["split_after"] == "complex"
     e2 = fold.parameter
     assert 0.998 < e2 < 0.9995 and fold.point.omega == pytest.approx(start.omega, rel=1e-14)
     problem = HamiltonianFrequencyProblem(fold.point, 1.2, 1.45)

@@ -187,7 +187,13 @@ def breathers(
         typer.echo(f"{field_target[0]} per orbit: " + ", ".join(f"{value:.8g}" for value in summary["values"]))
     for e in summary.get("events", []):
         where = f"Omega = {e['omega']:.10g}" if "value" not in e else f"{e['parameter']} = {e['value']:.10g}"
-        typer.echo(f"{e['kind'].replace('_', ' ')} at {where}: energy {e['energy']}, max |mu| {e['max_multiplier']:.6g}")
+        found = f"{e['kind'].replace('_', ' ')} at {where}: energy {e['energy']}, max |mu| {e['max_multiplier']:.6g}"
+        if "singular_value" in e:
+            found += (
+                f", fixed-{e.get('parameter', 'Omega')} Newton system's singular value {e['singular_value']:.2g}, "
+                f"pair at +1 split {e['split_before']} -> {e['split_after']}"
+            )
+        typer.echo(found)
     for r in result.resonances:
         typer.echo(f"resonance: {r.harmonic} x Omega = {r.edge_frequency:.6g} ({r.band} band {r.edge}) at Omega = {r.omega:.6g}")
     if not family.complete:

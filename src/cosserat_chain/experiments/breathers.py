@@ -360,7 +360,9 @@ class BreatherFamily:
         """The arclength family's folds and branch points: kind, Omega, energy, largest multiplier, the orbits they lie between.
 
         An event the secant method did not locate (``located`` False) is given at the orbit after its sign change.
-        A family followed in a field at a fixed frequency gives the field's value there as ``value``.
+        A family followed in a field at a fixed frequency gives the field's value there as ``value``. Each has
+        the fixed-parameter Newton system's ``singular_value`` and the pair at +1's ``split_before`` and
+        ``split_after`` (:attr:`~cosserat_chain.numerics.breather_arclength.ArclengthFamily.diagnostics`).
         """
         along = self.family.parameter != "omega"
         return [
@@ -372,8 +374,9 @@ class BreatherFamily:
                 "max_multiplier": e.point.max_multiplier,
                 "located": e.located,
                 "between": [e.index - 1, e.index],
+                **diagnostic,
             }
-            for e in self.family.events
+            for e, diagnostic in zip(self.family.events, self.family.diagnostics or [{}] * len(self.family.events), strict=True)
         ]
 
     def to_dataset(self) -> xr.Dataset:

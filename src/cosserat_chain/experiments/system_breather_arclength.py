@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..numerics.breather_arclength import pair_split
 from ..numerics.kit import BranchEnd, Continuation, EvaluationFailed, StartError, branch_directions, continuation, newton
 from ..numerics.shooting import ATOL, CLOSURE_TOL, PERIOD, RTOL, Orbit, _OrbitProblem, _Shooting
 
@@ -54,16 +55,6 @@ NEAR_SINGULAR = {"damping": 6, "max_iterations": 30}
 NEAR_TOL = 10.0
 #: Bisections that locate a branch point between two members.
 BISECTIONS = 24
-
-
-def pair_split(orbit: Orbit) -> str:
-    """How the two multipliers nearest +1 split: ``real`` (1 +- d), ``complex`` (1 +- i d) or ``none`` (a double 1)."""
-    mu = orbit.multipliers[np.argsort(np.abs(orbit.multipliers - 1.0))[:2]]
-    off = float(np.max(np.abs(mu.imag)))
-    along = float(np.max(np.abs(mu.real - 1.0)))
-    if off == along == 0.0:
-        return "none"
-    return "complex" if off > along else "real"
 
 
 def energy(orbit: Orbit) -> float | None:

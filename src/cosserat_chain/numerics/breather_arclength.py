@@ -242,6 +242,33 @@ class HamiltonianFieldProblem(HamiltonianFrequencyProblem):
         )
 
 
+def pair_split(orbit) -> str:
+    """How the two multipliers nearest +1 split: ``real`` (1 +- d), ``complex`` (1 +- i d) or ``none`` (a double 1).
+
+    The Hamiltonian pair at +1 is a Jordan block (the flow and the family, coupled by dT/dE) that
+    the integration error splits: real on one side of a fold, complex on the other.
+    """
+    mu = orbit.multipliers[np.argsort(np.abs(orbit.multipliers - 1.0))[:2]]
+    off = float(np.max(np.abs(mu.imag)))
+    along = float(np.max(np.abs(mu.real - 1.0)))
+    if off == along == 0.0:
+        return "none"
+    return "complex" if off > along else "real"
+
+
+def _diagnostics(problem: HamiltonianFrequencyProblem, points: list, events: list[Event]) -> list[dict]:
+    out = []
+    for e in events:
+        before = points[e.index - 1] if e.index >= 1 else e.point
+        after = points[e.index] if e.index < len(points) else e.point
+        try:
+            singular = problem.fixed_frequency_singular_value(e.point)
+        except EvaluationFailed:
+            singular = math.nan
+        out.append({"singular_value": singular, "split_before": pair_split(before), "split_after": pair_split(after)})
+    return out
+
+
 @dataclass
 class ArclengthFamily(HamiltonianFamily):
     """A :class:`~.periodic.HamiltonianFamily` traced by pseudo-arclength: Omega may turn back at folds.
@@ -258,6 +285,10 @@ class ArclengthFamily(HamiltonianFamily):
 
     events: list[Event] = field(default_factory=list)
     end: BranchEnd = BranchEnd.MAX_POINTS
+    #: Per event: the fixed-parameter Newton system's smallest relative singular value there
+    #: (``singular_value``) and how the Hamiltonian pair at +1 splits on either side (``split_before``,
+    #: ``split_after``: :func:`pair_split`).
+    diagnostics: list[dict] = field(default_factory=list)
     #: ``omega``, or the chain's field followed at a fixed frequency (:func:`continue_hamiltonian_field`).
     parameter: str = "omega"
 
@@ -336,7 +367,7 @@ def continue_hamiltonian_arclength(
     )  # fmt: skip
     return ArclengthFamily(
         orbits=list(traced.points), requested=np.array([omega_min, omega_max], dtype=float), message=traced.message,
-        events=list(traced.events), end=traced.end,
+        events=list(traced.events), end=traced.end, diagnostics=_diagnostics(problem, traced.points, traced.events),
     )  # fmt: skip
 
 
@@ -405,4 +436,5 @@ def continue_hamiltonian_field(
     return ArclengthFamily(
         orbits=list(traced.points), requested=np.array([low, high], dtype=float), message=traced.message,
         events=list(traced.events), end=traced.end, parameter=field_name,
+        diagnostics=_diagnostics(problem, traced.points, traced.events),
     )  # fmt: skip
