@@ -92,12 +92,18 @@ FLIP_TOL = 1e-6
 OFFSET = 1e-4
 #: The two amplitudes (in the unit eigenvector's norm, units of the state) of the normal form's secant.
 PROBE_AMPLITUDES = (2e-3, 4e-3)
+#: The probes scaled by these in turn where the family turns back before them (on the sine chain at gamma_phi = 0.15
+#: the doubled family's amplitude along the flip vector turns at 0.0023).
+PROBE_SCALES = (1.0, 0.25, 0.0625)
 #: Largest amplitude the normal form may ask for (beyond it the quadratic law is not trusted).
 MAX_AMPLITUDE = 0.1
 #: Smallest step of the amplitude, relative to the last one reached (or the first probe), after failed steps are
 #: halved: the orbits born at the N = 2 sine chain's second Hopf point have a multiplier exp(2.07 T) = 1.3e6,
 #: and single shooting needs amplitudes near 4e-5 there before the predictor's O(a^2) error is amplified too far.
 MIN_STEP = 1e-3
+#: The same where an orbit far enough out serves (``_March.to``'s ``enough``) and one beyond the probes is solved: the
+#: family is then followed by arclength from the largest reached (creeping to where the amplitude turns costs more).
+ENOUGH_STEP = 0.1
 #: Newton iterations of one orbit of the new family.
 MAX_ITERATIONS = 20
 #: A solution whose k-turn closure after half its period (at a Hopf point: whose velocity field) is within this
@@ -292,7 +298,9 @@ class _March:
 
         The border through the prediction is e's first (Newton converges from farther there: on the nonlinear
         chain d's stalled), d's where that fails or reaches the old branch; the orbit is recorded at
-        its own amplitude e . (w - base), which d's border leaves within O(a^2) of ``amplitude``.
+        its own amplitude e . (w - base), which d's border leaves within O(a^2) of ``amplitude``. An orbit at
+        an amplitude not beyond the last one's is not taken: a doubled orbit at a is the one at -a + O(a^2)
+        half a period on, and from a = 0.004 on the sine chain at gamma_phi = 0.15 Newton went there (a = -0.0061).
         """
         predictor = self._predict(amplitude)
         for border in (self.tangent, self.direction):
@@ -300,14 +308,16 @@ class _March:
                 self.evaluate, predictor, tol=self.tol, border=(border, predictor), max_iterations=MAX_ITERATIONS, divergence=None,
                 damping=6,
             )  # fmt: skip
-            if solved.converged and not self.refuse(solved.w):
-                self.done.append((float(self.tangent @ (solved.w - self.done[0][1])), solved.w))
+            reached = float(self.tangent @ (solved.w - self.done[0][1]))
+            if solved.converged and reached > self.done[-1][0] and not self.refuse(solved.w):
+                self.done.append((reached, solved.w))
                 return self.make_point(solved.w, solved.evaluation, solved.iterations)
         return None
 
     def to(self, amplitude: float, enough: Callable[[Any], bool] | None = None):
         """The doubled orbit at ``amplitude`` > 0, in steps from the largest one solved: each at most doubles the
-        amplitude, a failed one is halved. With ``enough``, the first orbit it accepts on the way is returned."""
+        amplitude, a failed one is halved. With ``enough``, the first orbit it accepts on the way is returned, or
+        the largest one reached where the steps beyond it fail down to :data:`ENOUGH_STEP`."""
         last, orbit = self.done[-1][0], None
         a = min(amplitude, max(PROBE_AMPLITUDES[0], 2 * last))
         while True:
@@ -318,7 +328,7 @@ class _March:
                 if last >= (1.0 - MIN_STEP) * amplitude or (enough is not None and enough(orbit)):
                     return orbit
                 a = min(amplitude, 2 * last)
-            elif a - last > MIN_STEP * max(last, PROBE_AMPLITUDES[0]):
+            elif a - last > (MIN_STEP if enough is None or orbit is None else ENOUGH_STEP) * max(last, PROBE_AMPLITUDES[0]):
                 a = 0.5 * (a + last)
             elif enough is not None and orbit is not None:
                 return orbit  # the family turns back or Newton fails beyond: the largest amplitude reached
@@ -327,6 +337,28 @@ class _March:
                     f"Newton did not converge to the orbit of amplitude {a!r} on the family leaving the bifurcation at {self.where}; "
                     f"the family may turn back before amplitude {amplitude!r}: try a smaller amplitude"
                 )
+
+
+def _normal_form(new_march: Callable[[], _March], distance: Callable[[Any], float]) -> tuple[_March, float, float]:
+    """The march, its larger probe amplitude and c of the normal form p - p_* = c a^2 + O(a^3) on the new family.
+
+    c by a secant in a^2 through the orbits at :data:`PROBE_AMPLITUDES` (a and -a + O(a^2) start one doubled orbit,
+    half a period apart), at their amplitudes reached; where the family turns back before a probe, the probes
+    scaled down by :data:`PROBE_SCALES` on a fresh march.
+    """
+    failure: OrbitError | None = None
+    for scale in PROBE_SCALES:
+        march, probes = new_march(), []
+        try:
+            for a in PROBE_AMPLITUDES:
+                orbit = march.to(scale * a)
+                probes.append((march.done[-1][0], distance(orbit)))
+        except OrbitError as err:
+            failure = err
+            continue
+        (a1, d1), (a2, d2) = probes
+        return march, a2, (d2 - d1) / (a2 * a2 - a1 * a1)
+    raise failure
 
 
 def _march(point: Point, parameter: str | None, eigenvector: np.ndarray, tol: float, rtol: float, atol: float) -> _March:
@@ -436,18 +468,14 @@ def switch_at_period_doubling(
             f"the orbit at {_where(point, parameter)} has its multiplier nearest -1 at {multiplier:.6g}: not a located period "
             "doubling (take the point of continue_orbits' period_doubling event)"
         )
-    march = _march(point, parameter, vector, tol, rtol, atol)
-    probes = [march.to(a) for a in PROBE_AMPLITUDES]
-    # The normal form p - p_PD = c a^2 + O(a^3) (a and -a + O(a^2) start one orbit, half a period apart), by a secant in a^2.
-    (a1, a2), (d1, d2) = PROBE_AMPLITUDES, [distance(o) for o in probes]
-    coefficient = (d2 - d1) / (a2 * a2 - a1 * a1)
+    march, probe, coefficient = _normal_form(lambda: _march(point, parameter, vector, tol, rtol, atol), distance)
     if coefficient == 0:
         raise OrbitError(f"the doubled family at {_where(point, parameter)} does not move with its amplitude (a degenerate flip)")
     if amplitude is None:
         # The normal form's amplitude, approached in steps: the family bends away from c a^2 within a few times the
         # probes on the sine chain at gamma_phi = 0.3, so the first orbit at the wanted distance from p_PD serves.
         wanted = offset * (abs(value) if value != 0 else 1.0)
-        guess = max(PROBE_AMPLITUDES[-1], min(MAX_AMPLITUDE, math.sqrt(wanted / abs(coefficient))))
+        guess = max(probe, min(MAX_AMPLITUDE, math.sqrt(wanted / abs(coefficient))))
         doubled = march.to(guess, enough=lambda o: abs(distance(o)) >= wanted)
         amplitude = march.done[-1][0]
     else:
@@ -672,20 +700,17 @@ def switch_at_hopf(
         raise ValueError(f"amplitude must be a finite number > 0 (along the Hopf eigenvector), got {amplitude!r}")
     _check_hopf(point)
     _, _, eigenvalue, vector = hopf_vector(params, model, point)
-    march = _hopf_march(params, model, point, tol, rtol, atol)
     sign = math.copysign(1.0, point.moment)
 
     def distance(orbit: PeriodicOrbit) -> float:
         return sign * (orbit.moment - point.moment)
 
-    probes = [march.to(a) for a in PROBE_AMPLITUDES]
-    (a1, a2), (d1, d2) = PROBE_AMPLITUDES, [distance(o) for o in probes]
-    coefficient = (d2 - d1) / (a2 * a2 - a1 * a1)
+    march, probe, coefficient = _normal_form(lambda: _hopf_march(params, model, point, tol, rtol, atol), distance)
     if coefficient == 0:
         raise OrbitError(f"the orbits born at the Hopf point M={point.moment!r} do not move in M with their amplitude (degenerate)")
     if amplitude is None:
         wanted = offset * abs(point.moment)
-        guess = max(PROBE_AMPLITUDES[-1], min(MAX_AMPLITUDE, math.sqrt(wanted / abs(coefficient))))
+        guess = max(probe, min(MAX_AMPLITUDE, math.sqrt(wanted / abs(coefficient))))
         orbit = march.to(guess, enough=lambda o: abs(distance(o)) >= wanted)
         amplitude = march.done[-1][0]
     else:

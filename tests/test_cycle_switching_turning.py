@@ -1,0 +1,62 @@
+"""Branch switching where the new family turns before the normal form's probes (issue 40: no false ends).
+
+On the paper's sine chain at gamma_phi = 0.15 the one-turn orbit followed down from M = 0.2 loses its
+stability at a period doubling near M_PD = 0.1728824; the doubled family's amplitude along the flip
+vector turns at about 0.0023, below the second probe (0.004), and from there Newton found the doubled
+orbit half a period on (amplitude -0.0061, the same orbit): ``orbit --switch period-doubling`` failed.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cosserat_chain import ChainParams
+from cosserat_chain.numerics import cycle_switching
+from cosserat_chain.numerics.cycle_switching import PROBE_AMPLITUDES, PROBE_SCALES, switch_at_period_doubling
+from cosserat_chain.numerics.periodic import OrbitError, continue_orbit, find_periodic_orbit
+from test_cycle_switching import half_period_gap
+
+
+class _Family:
+    """A march on a family whose amplitude cannot pass ``turn``: the moment moves by c a^2 on it."""
+
+    def __init__(self, turn: float, c: float, log: list):
+        self.turn, self.c, self.log, self.done = turn, c, log, [(0.0, None)]
+
+    def to(self, amplitude: float):
+        self.log.append(amplitude)
+        if amplitude > self.turn:
+            raise OrbitError("the family turns back")
+        self.done.append((amplitude, None))
+        return amplitude  # the "orbit": its distance is c a^2
+
+
+def test_the_normal_form_takes_smaller_probes_where_the_family_turns_before_them():
+    log: list[float] = []
+    c = -3.0
+    march, probe, coefficient = cycle_switching._normal_form(lambda: _Family(0.0023, c, log), lambda a: c * a * a)
+    assert coefficient == pytest.approx(c, rel=1e-12)
+    assert probe == pytest.approx(PROBE_SCALES[1] * PROBE_AMPLITUDES[1])
+    assert log[:2] == [PROBE_AMPLITUDES[0], PROBE_AMPLITUDES[1]]  # the first scale: the second probe fails
+    with pytest.raises(OrbitError, match="turns back"):  # every scale fails: the last failure, not a made-up value
+        cycle_switching._normal_form(lambda: _Family(1e-9, c, []), lambda a: c * a * a)
+
+
+@pytest.mark.slow
+def test_the_sine_chain_at_gamma_phi_015_switches_onto_its_doubled_family():
+    params = ChainParams(gamma_phi=0.15)
+    branch = continue_orbit(find_periodic_orbit(params, "sine", 0.2, turns=1), moment_min=0.17, period_max=2000.0)
+    switch = switch_at_period_doubling(branch, period_max=2000.0)
+    point, doubled = switch.point, switch.doubled
+    assert switch.value == pytest.approx(0.1728824269, abs=1e-9)
+    assert doubled.turns == 2 * point.turns and switch.side == "below"
+    # Near M_PD on the doubled family (below it, as the normal form's sign says), twice the period.
+    assert doubled.period == pytest.approx(2 * point.period, rel=1e-3)
+    assert 0 < switch.value - doubled.moment < 1e-4 * switch.value and switch.coefficient < 0
+    # A genuine orbit of period 2T, not the one-turn orbit twice: O(a) away from its start after T, while closing
+    # after 2T; the -1 became a second multiplier near +1 beside the trivial one.
+    assert half_period_gap(doubled) > 1e3 * doubled.closure and half_period_gap(doubled) > 0.1 * switch.amplitude
+    near_one = np.sort(np.abs(doubled.multipliers - 1.0))
+    assert near_one[0] < 1e-8 and near_one[1] < 1e-2
+    assert switch.branch is not None and len(switch.branch.orbits) > 2
