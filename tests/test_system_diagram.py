@@ -165,6 +165,9 @@ def test_a_fitted_end_says_it_is_a_fit_and_why(monkeypatch):
     assert "no loop in this bracket" in row.reason and "fitted" in row.message
     assert row.accuracy >= module.BRACKET_RTOL * row.stops
     assert abs(row.stops - retrapping_current(0.3, 0.36, 0.38)) <= row.accuracy
+    text = invoke("diagram", "--system", "josephson_array", "--set", "sites=1", "--vary", "alpha", "--values", "0.3", "--drive", "I")
+    assert text.exit_code == 0, text.output
+    assert "fitted +-" in text.stdout and "a fit, not a computed point: " in text.stdout and "no loop in this bracket" in text.stdout
 
 
 # -- the SNIC end and the SNIC point ----------------------------------------------------------------
