@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import typer
@@ -82,6 +83,14 @@ def orbit(
         "length; krylov's branch by auto, which forms the monodromy), or collocation, whose cost does not grow with the "
         "period (a branch towards a homoclinic or SNIC end).",
     ),
+    segments: int | None = typer.Option(
+        None,
+        "--segments",
+        min=1,
+        help="The Floquet multipliers from the Jacobians of this many pieces of the orbit, by the periodic Schur form of "
+        "their product: every multiplier of a long, strongly damped orbit with its log10 modulus (the formed monodromy "
+        "loses those below 1e-16); dense shooting only (collocation always takes them so).",
+    ),
     system: str | None = system_option(),
     sets: list[str] | None = set_option(),
     vary: str | None = vary_option("from its value down, or towards --down-to"),
@@ -129,6 +138,8 @@ def orbit(
     if turns is None and "turns" in stored:
         turns = stored["turns"]
     begin = {"from_above": from_above, "method": method, **{key: stored[key] for key in ("guess", "start") if key in stored}}
+    if segments is not None:
+        begin["segments"] = segments
     bar = progress_bar(f"orbit {model}", "orbit")
     try:
         if turns is None:
@@ -172,6 +183,8 @@ def orbit(
         f"{model}: M = {o.moment:g}, {o.turns} turn(s) per period T = {o.period:.10g}, mean angular velocity {o.mean_angular_velocity:.10g}"
     )
     typer.echo(f"Floquet multipliers |mu|: {' '.join(f'{abs(m):.4g}' for m in o.multipliers)}")
+    if o.multiplier_log_moduli is not None:
+        typer.echo(f"log10 |mu| (periodic Schur form): {' '.join(f'{v / math.log(10.0):.6g}' for v in o.multiplier_log_moduli)}")
     typer.echo(
         f"trivial multiplier {o.trivial_multiplier.real:.12g}; largest other |mu| = {o.max_multiplier:.6g}: {'stable' if o.stable else 'unstable'}"
     )

@@ -1,0 +1,55 @@
+"""``cosserat-chain orbit --segments M``: every Floquet multiplier of a long, strongly damped orbit.
+
+Near the nonlinear one-particle chain's SNIC (M = 0.265, T = 15.9) the smallest multiplier is about
+1e-26, below the formed monodromy's round-off. Liouville's formula fixes the product of all the
+multipliers (the flow's divergence is minus the damping's trace at every state), so the sum of the
+printed log10 |mu| is known exactly; the formed monodromy misses it by half.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from cosserat_chain import ChainParams
+from cosserat_chain.cli import app
+from cosserat_chain.state import pack, per_dof
+
+runner = CliRunner()
+
+
+def _orbit(tmp_path, *extra):
+    config = tmp_path / "N1.toml"
+    config.write_text("N = 1\n")
+    command = ["orbit", "--model", "nonlinear", "--moment", "0.265", "--turns", "1", "--config", str(config), "--json", *extra]
+    result = runner.invoke(app, command)
+    assert result.exit_code == 0, result.output
+    return json.loads(result.output)
+
+
+def test_segments_give_every_multiplier_with_liouvilles_product(tmp_path):
+    params = ChainParams(N=1)
+    rate = float(np.sum(per_dof(params, params.damping) / pack(params, params.particle_inertia)))
+    split = _orbit(tmp_path, "--segments", "16")
+    exact = -split["period"] * rate / math.log(10.0)
+    assert sum(split["floquet_multipliers_log10_abs"]) == pytest.approx(exact, rel=1e-8)
+    assert min(split["floquet_multipliers_log10_abs"]) < -25
+    # Without segments: the formed monodromy's multipliers, its smallest at round-off, no log-moduli claimed.
+    formed = _orbit(tmp_path)
+    assert "floquet_multipliers_log10_abs" not in formed
+    assert abs(sum(math.log10(m) for m in formed["floquet_multipliers_abs"]) - exact) > 0.1 * abs(exact)
+    # The multipliers above the formed monodromy's round-off are the same.
+    big = [m for m in formed["floquet_multipliers_abs"] if m > 1e-10]
+    assert np.allclose(sorted(big), sorted(m for m in split["floquet_multipliers_abs"] if m > 1e-10), rtol=1e-8, atol=1e-10)
+
+
+@pytest.mark.parametrize("extra", [("--segments", "0"), ("--segments", "2", "--method", "blocks"), ("--segments", "x")])
+def test_bad_segments_are_refused_with_the_value(tmp_path, extra):
+    config = tmp_path / "N1.toml"
+    config.write_text("N = 1\n")
+    result = runner.invoke(app, ["orbit", "--model", "nonlinear", "--moment", "0.265", "--config", str(config), *extra])
+    assert result.exit_code == 2 and "segments" in result.output and "Traceback" not in result.output
