@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 
@@ -217,7 +218,6 @@ def test_cli_along_a_field_json_and_refusals(tmp_path):
         (["--along", "E2=x"], "VALUE must be a number"),
         (["--along", "E2=1"], "other than its 1.0"),
         (["--along", "E2=1.1", "--to", "5"], "give one of them"),
-        (["--along", "E2=1.1", "--branches"], "located only"),
     ):
         refused = runner.invoke(app, [*args, *extra])
         assert refused.exit_code == 2 and message in refused.output, (extra, refused.output)
@@ -249,3 +249,33 @@ def test_the_in_band_family_folds_in_e2_at_fixed_omega_where_the_family_in_omega
     other = in_omega.folds[0]
     assert other.parameter == pytest.approx(start.omega, abs=1e-8)
     assert other.point.energy == pytest.approx(fold.point.energy, abs=1e-7)
+
+
+def point_reflection_asymmetry(x: np.ndarray, v: np.ndarray) -> float:
+    """max |S(x, v) - (x, v)| for the chain turned by pi in its plane: particle i -> -i, (u, v, phi) -> (-u, -v, phi)."""
+    sign = np.array([-1.0, -1.0, 1.0])[:, None]
+    return float(max(np.max(np.abs(sign * x[:, ::-1] - x)), np.max(np.abs(sign * v[:, ::-1] - v))))
+
+
+@pytest.mark.slow
+def test_the_branch_off_the_pitchfork_before_the_fold_breaks_the_point_symmetry_the_family_keeps(folded):
+    from cosserat_chain.numerics.breather_arclength import follow_branches
+
+    landed, arc = folded
+    problem = HamiltonianFrequencyProblem(landed, 1.2, 1.45)
+    follow_branches(arc, problem, max_points=8)
+    (branch,) = [b for b in arc.branches if b is not None]
+    # The kit's bisection of a sign stopped short; relocated on the chord a pair sits at +1 to 1e-11 in Omega.
+    assert branch.point.omega == pytest.approx(1.3763283, abs=1e-6) and branch.accuracy < 1e-9
+    assert max(point_reflection_asymmetry(o.x, o.v) for o in arc.orbits) < 1e-10
+    orbits = branch.orbits
+    assert len(orbits) == 8, branch.message
+    grows = [point_reflection_asymmetry(o.x, o.v) for o in orbits]
+    assert 1e-3 < grows[0] and grows[-1] > 0.1 and np.all(np.diff(grows) > 0)
+    last = orbits[-1]
+    assert abs(last.unfolding) < 1e-10 and closes_by_a_direct_run(last) < 1e-7
+    # Its image under the point reflection is another orbit of the same frequency (the pitchfork's other half).
+    sign = np.array([-1.0, -1.0, 1.0])[:, None]
+    image = dataclasses.replace(last, x=sign * last.x[:, ::-1], v=sign * last.v[:, ::-1])
+    assert closes_by_a_direct_run(image) < 1e-7
+    assert max(np.max(np.abs(image.x - last.x)), np.max(np.abs(image.v - last.v))) > 0.1

@@ -124,8 +124,6 @@ def breathers(
             coupling=coupling, out=out, as_json=as_json, lifetimes=lifetimes, arclength=arclength, along=along, branches=branches,
         )  # fmt: skip
     system_only_or_exit(ctx, ("sets", "coupling"))
-    if branches:
-        fail("--branches follows the branches of a user system's family (with --system); the chain's branch points are located only")
     field_target = None if along is None else _chain_along_or_exit(along)
     import numpy as np
 
@@ -142,7 +140,7 @@ def breathers(
         partners = None if partner is None else {partner: -turns if counter else turns}
         result = roto_breather_family(
             params, model, omegas, turns=turns, particle=particle, partners=partners, progress=bar_callback(bar), arclength=arclength,
-            along=field_target,
+            along=field_target, branches=branches,
         )  # fmt: skip
     except ValueError as err:
         bar.close()
@@ -194,6 +192,16 @@ def breathers(
                 f"pair at +1 split {e['split_before']} -> {e['split_after']}"
             )
         typer.echo(found)
+        if "branch" in e:
+            b = e["branch"]
+            where = f"relocated at {b['at']:.10g} +- {b['accuracy']:.2g}"
+            if b["values"]:
+                typer.echo(
+                    f"  branch ({where}): {len(b['values'])} orbits, {b['values'][0]:.8g} to {b['values'][-1]:.8g}, "
+                    f"max |mu| {b['max_multiplier'][0]:.4g} to {b['max_multiplier'][-1]:.4g}; {b['message']}"
+                )
+            else:
+                typer.echo(f"  branch ({where}): none ({b['message']})")
     for r in result.resonances:
         typer.echo(f"resonance: {r.harmonic} x Omega = {r.edge_frequency:.6g} ({r.band} band {r.edge}) at Omega = {r.omega:.6g}")
     if not family.complete:

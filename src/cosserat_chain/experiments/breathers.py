@@ -375,8 +375,14 @@ class BreatherFamily:
                 "located": e.located,
                 "between": [e.index - 1, e.index],
                 **diagnostic,
+                **({} if branch is None else {"branch": _branch_summary(branch, self.family.parameter)}),
             }
-            for e, diagnostic in zip(self.family.events, self.family.diagnostics or [{}] * len(self.family.events), strict=True)
+            for e, diagnostic, branch in zip(
+                self.family.events,
+                self.family.diagnostics or [{}] * len(self.family.events),
+                self.family.branches or [None] * len(self.family.events),
+                strict=True,
+            )
         ]
 
     def to_dataset(self) -> xr.Dataset:
@@ -443,6 +449,22 @@ class BreatherFamily:
         return ds
 
 
+def _branch_summary(branch, parameter: str) -> dict:
+    """A followed branch for the JSON: the relocated branch point, its accuracy, and per orbit Omega (or the field), energy, max |mu|."""
+
+    def value(o) -> float:
+        return o.omega if parameter == "omega" else float(getattr(o.params, parameter))
+
+    return {
+        "at": value(branch.point),
+        "accuracy": branch.accuracy,
+        "values": [value(o) for o in branch.orbits],
+        "energy": [o.energy for o in branch.orbits],
+        "max_multiplier": [o.max_multiplier for o in branch.orbits],
+        "message": branch.message,
+    }
+
+
 def roto_breather_family(
     params: ChainParams,
     model: str | Model,
@@ -455,6 +477,7 @@ def roto_breather_family(
     arclength: bool = False,
     max_points: int = 200,
     along: tuple[str, float] | None = None,
+    branches: bool = False,
 ) -> BreatherFamily:
     """One-site roto-breathers at the frequencies ``omegas``, from the anti-continuum limit at the first.
 
@@ -488,6 +511,9 @@ def roto_breather_family(
         value to the one given, instead of in Omega
         (:func:`~cosserat_chain.numerics.breather_arclength.continue_hamiltonian_field`); a or b
         carry the inertia j with them where it is their rectangle's (:func:`~.breather_atlas.chain_at`).
+    branches : bool
+        With ``arclength``: relocate each branch point and follow the family crossing it
+        (:func:`~cosserat_chain.numerics.breather_arclength.follow_branches`; in the events' ``branch``).
 
     Returns
     -------
@@ -506,8 +532,10 @@ def roto_breather_family(
     omegas = np.asarray(omegas, dtype=float)
     if omegas.ndim != 1 or omegas.size == 0 or not np.all(np.isfinite(omegas)) or np.any(omegas <= 0):
         raise ValueError(f"omegas must be one or more finite frequencies > 0, got {omegas.tolist()!r}")
+    if branches and not arclength:
+        raise ValueError("branches are followed off a family traced by pseudo-arclength: set arclength=True")
     if along is not None:
-        return _along_field(params, model, omegas, along, turns, particle, partners, progress, arclength, max_points)
+        return _along_field(params, model, omegas, along, turns, particle, partners, progress, arclength, max_points, branches)
     if arclength and omegas[-1] == omegas[0]:
         raise ValueError(
             f"omegas must start and end at different frequencies for arclength (the direction and range), got {omegas.tolist()!r}"
@@ -518,7 +546,7 @@ def roto_breather_family(
     if arclength:
         family = continue_hamiltonian_arclength(
             first, float(omegas.min()), float(omegas.max()), direction=math.copysign(1.0, omegas[-1] - omegas[0]),
-            max_points=max_points, progress=progress,
+            max_points=max_points, progress=progress, branches=branches,
         )  # fmt: skip
     else:
         family = continue_in_frequency(first, omegas, progress=progress)
@@ -535,7 +563,7 @@ def roto_breather_family(
     )
 
 
-def _along_field(params, model, omegas, along, turns, particle, partners, progress, arclength, max_points) -> BreatherFamily:
+def _along_field(params, model, omegas, along, turns, particle, partners, progress, arclength, max_points, branches) -> BreatherFamily:
     """:func:`roto_breather_family` with ``along``: the family at ``omegas[0]`` followed in a chain field by pseudo-arclength."""
     from .breather_atlas import ATLAS_FIELDS, chain_at
 
@@ -554,7 +582,7 @@ def _along_field(params, model, omegas, along, turns, particle, partners, progre
     first = find_hamiltonian_orbit(params, model, omega, (x, v), turns=turns, particle=particle, particle_turns=particle_turns)
     family = continue_hamiltonian_field(
         first, name, lambda value: chain_at(params, name, value), min(here, target), max(here, target),
-        direction=1.0 if target > here else -1.0, max_points=max_points, progress=progress,
+        direction=1.0 if target > here else -1.0, max_points=max_points, progress=progress, branches=branches,
     )  # fmt: skip
     settings = {
         "model": model.name, "turns": turns, "particle": particle, "partners": partners, "params": params.model_dump(),

@@ -40,8 +40,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..numerics.breather_arclength import pair_split
-from ..numerics.kit import BranchEnd, Continuation, EvaluationFailed, StartError, branch_directions, continuation, newton
+from ..numerics.breather_arclength import branch_off, pair_split, relocate_branch_point
+from ..numerics.kit import BranchEnd, Continuation, continuation
 from ..numerics.shooting import ATOL, CLOSURE_TOL, PERIOD, RTOL, Orbit, _OrbitProblem, _Shooting
 
 #: Arclength steps (in the max norm of (y0, eps, lambda)) of a family, and of a branch followed from a branch point.
@@ -49,12 +49,8 @@ STEP, MIN_STEP, MAX_STEP = 0.02, 1e-6, 0.05
 BRANCH_POINTS = 30
 #: The first step off a branch point (the bordered Newton is nearly singular there: a short one).
 BRANCH_STEP = 0.005
-#: Newton's options near a branch point, where the bordered Jacobian is nearly singular: damped, with more steps.
-NEAR_SINGULAR = {"damping": 6, "max_iterations": 30}
 #: There the closure stalls near the tolerance (the integration error, amplified): it is relaxed this many times.
 NEAR_TOL = 10.0
-#: Bisections that locate a branch point between two members.
-BISECTIONS = 24
 
 
 def energy(orbit: Orbit) -> float | None:
@@ -141,45 +137,18 @@ class _HamiltonianProblem(_OrbitProblem):
         return True
 
 
-def pair_test(orbit: Orbit) -> float:
-    """The sign of prod (mu - 1) over the multipliers but the two nearest +1 (the Hamiltonian pair).
-
-    A pair on the unit circle, a complex quartet and a real pair below 0 each contribute a
-    positive factor, a real pair (mu, 1 / mu) above 0 a negative one: the sign changes where a
-    nontrivial pair passes through +1.
-    """
-    mu = orbit.multipliers[np.argsort(np.abs(orbit.multipliers - 1.0))[2:]]
-    return float(np.sign(np.prod(mu - 1.0).real))
-
-
 def _relocate(shooting: _Shooting, a: Orbit, b: Orbit, parameter: str) -> tuple[Orbit, float, np.ndarray] | None:
-    """The point between members ``a`` and ``b`` where :func:`pair_test` changes sign, by bisection on their chord.
-
-    Each trial is corrected on the plane normal to the chord. Returns the orbit, the half-width of
-    the final bracket in the parameter, and the chord's direction; None where the test does not
-    change sign between them.
-    """
+    """The branch point between members ``a`` and ``b`` (:func:`~cosserat_chain.numerics.breather_arclength.relocate_branch_point`):
+    the orbit, half the final bracket in the parameter, the chord's direction; None without a pair through +1 between them."""
     shooting.set_reference(a.y0)
-    wa, wb = shooting.pack(a), shooting.pack(b)
-    fa = pair_test(a)
-    if fa * pair_test(b) >= 0:
-        return None
-    chord = (wb - wa) / np.linalg.norm(wb - wa)
-    low, high, best = 0.0, 1.0, a
-    bracket = (a, b)
-    for _ in range(BISECTIONS):
-        middle = 0.5 * (low + high)
-        guess = wa + middle * (wb - wa)
-        corrected = newton(shooting.evaluate, guess, border=(chord, guess), tol=NEAR_TOL * shooting.tol, **NEAR_SINGULAR)
-        if not corrected.converged:
-            break
-        best = shooting.orbit(corrected.w, corrected.evaluation, corrected.iterations)
-        best.unfold = a.unfold
-        if pair_test(best) * fa > 0:
-            low, bracket = middle, (best, bracket[1])
-        else:
-            high, bracket = middle, (bracket[0], best)
-    return best, 0.5 * abs(_value(bracket[1], parameter) - _value(bracket[0], parameter)), chord
+
+    def point(w, evaluation, iterations) -> Orbit:
+        orbit = shooting.orbit(w, evaluation, iterations)
+        orbit.unfold = a.unfold
+        return orbit
+
+    found = relocate_branch_point(shooting.evaluate, point, shooting.pack, a, b, NEAR_TOL * shooting.tol, lambda o: _value(o, parameter))
+    return None if found is None else (found[0], found[2], found[3])
 
 
 def _setup(orbit: Orbit, parameter: str, limits, tol: float) -> tuple[_Shooting, _HamiltonianProblem, str]:
@@ -359,24 +328,5 @@ def follow_branch(event: FamilyEvent, limits: tuple[float, float], *, step: floa
         The branch's orbits (from the first off the branch point) and how it ended; no orbit and
         the reason where the first step cannot be corrected.
     """
-    orbit = event.orbit
-    shooting, problem, _ = _setup(orbit, event.parameter, limits, tol)
-    w = shooting.pack(orbit)
-    jacobian = shooting.evaluate(w, True).matrix()
-    other = branch_directions(jacobian, event.tangent)
-    first = None
-    for h in (step, 2 * step, 4 * step):  # the closure stalls nearest the branch point: farther is easier
-        guess = w + h * other
-        first = newton(shooting.evaluate, guess, border=(other, guess), tol=tol, **NEAR_SINGULAR)
-        if first.converged:
-            break
-    if not first.converged:
-        return [], f"the first step off the branch point along its other null vector could not be corrected ({first.status})"
-    try:
-        traced = continuation(
-            problem, first.w, step=step, min_step=MIN_STEP, max_step=MAX_STEP, max_points=max_points, tangent0=other,
-            first=problem.point(first.w, first.evaluation, first.iterations),
-        )  # fmt: skip
-    except (StartError, EvaluationFailed) as err:
-        return [], f"the branch could not be started: {err}"
-    return list(traced.points), traced.message
+    shooting, problem, _ = _setup(event.orbit, event.parameter, limits, tol)
+    return branch_off(problem, shooting.pack(event.orbit), event.tangent, step=step, max_points=max_points, tol=tol)

@@ -35,7 +35,7 @@ from typing import Any
 import numpy as np
 
 from ..state import check_state
-from .kit import BranchEnd, Evaluation, EvaluationFailed, Event, continuation
+from .kit import BranchEnd, Evaluation, EvaluationFailed, Event, StartError, branch_directions, continuation, newton
 from .periodic import (
     ATOL,
     CLOSURE_TOL,
@@ -93,6 +93,10 @@ class HamiltonianFrequencyProblem:
         y0 = _to_y(o.params, check_state(o.params, o.x, "orbit x"), check_state(o.params, o.v, "orbit v"))
         return np.concatenate([y0[self._keep], [o.unfolding, o.omega]])
 
+    def _pack(self, orbit: HamiltonianOrbit) -> np.ndarray:
+        y0 = _to_y(orbit.params, orbit.x, orbit.v)
+        return np.concatenate([y0[self._keep], [orbit.unfolding, orbit.omega]])
+
     def _state(self, w: np.ndarray) -> np.ndarray:
         y = np.zeros(len(self._keep))
         y[self._keep] = w[:-2]
@@ -133,9 +137,7 @@ class HamiltonianFrequencyProblem:
         It is the Newton Jacobian of :func:`~.periodic.find_hamiltonian_orbit` at that frequency,
         relative to its largest singular value.
         """
-        y0 = _to_y(orbit.params, orbit.x, orbit.v)
-        w = np.concatenate([y0[self._keep], [orbit.unfolding, orbit.omega]])
-        singular = np.linalg.svd(self.evaluate(w, True).matrix()[:, :-1], compute_uv=False)
+        singular = np.linalg.svd(self.evaluate(self._pack(orbit), True).matrix()[:, :-1], compute_uv=False)
         return float(singular[-1] / singular[0])
 
     def accept(self, previous: HamiltonianOrbit, candidate: HamiltonianOrbit) -> bool:
@@ -228,11 +230,6 @@ class HamiltonianFieldProblem(HamiltonianFrequencyProblem):
         energy = hamiltonian_energy(params, self._model, base.x, base.v)
         return HamiltonianOrbit(**fields, unfolding=float(w[-2]), energy=energy)
 
-    def fixed_frequency_singular_value(self, orbit: HamiltonianOrbit) -> float:
-        """The smallest singular value of dR/d(y0, eps) at ``orbit`` (Omega and the field held), relative to its largest: 0 at a fold."""
-        singular = np.linalg.svd(self.evaluate(self._pack(orbit), True).matrix()[:, :-1], compute_uv=False)
-        return float(singular[-1] / singular[0])
-
     def stop(self, point: HamiltonianOrbit) -> tuple[BranchEnd, str] | None:
         value = float(getattr(point.params, self.field_name))
         if self.omega_min <= value <= self.omega_max:
@@ -254,6 +251,139 @@ def pair_split(orbit) -> str:
     if off == along == 0.0:
         return "none"
     return "complex" if off > along else "real"
+
+
+def pair_test(orbit) -> float:
+    """The sign of prod (mu - 1) over the multipliers but the two nearest +1 (the Hamiltonian pair).
+
+    A pair on the unit circle, a complex quartet and a real pair below 0 each contribute a
+    positive factor, a real pair (mu, 1 / mu) above 0 a negative one: the sign changes where a
+    nontrivial pair passes through +1 (a branch point, or an extremum of the energy).
+    """
+    mu = orbit.multipliers[np.argsort(np.abs(orbit.multipliers - 1.0))[2:]]
+    return float(np.sign(np.prod(mu - 1.0).real))
+
+
+#: Bisections of :func:`relocate_branch_point`, and Newton's options there (the bordered Jacobian is nearly singular).
+BISECTIONS = 24
+NEAR_SINGULAR = {"damping": 6, "max_iterations": 30}
+
+
+def relocate_branch_point(evaluate, point, pack, a, b, tol: float, value) -> tuple[Any, np.ndarray, float, np.ndarray] | None:
+    """Where :func:`pair_test` changes sign between two members ``a`` and ``b`` of a branch, by bisection on their chord.
+
+    The kit's bisection of the sign of det [dR/dw; t] corrects ever nearer a singular bordered
+    Jacobian and may stop short of the branch point; here each trial is corrected on the plane
+    normal to the chord (damped Newton).
+
+    Parameters
+    ----------
+    evaluate : callable(w, jacobian) -> Evaluation
+    point : callable(w, evaluation, iterations)
+        The problem's orbit at a corrected w.
+    pack : callable(orbit) -> w
+    a, b : orbits
+    tol : float
+    value : callable(orbit) -> float
+        The continued parameter of an orbit (for the accuracy).
+
+    Returns
+    -------
+    (orbit, w, accuracy, chord) or None
+        The last corrected orbit, its w, half the final bracket in the parameter, and the chord's
+        unit direction; None where the test does not change sign between a and b.
+    """
+    fa = pair_test(a)
+    if fa * pair_test(b) >= 0:
+        return None
+    wa, wb = pack(a), pack(b)
+    chord = (wb - wa) / np.linalg.norm(wb - wa)
+    low, high = 0.0, 1.0
+    best, best_w, bracket = a, wa, (a, b)
+    for _ in range(BISECTIONS):
+        middle = 0.5 * (low + high)
+        guess = wa + middle * (wb - wa)
+        corrected = newton(evaluate, guess, border=(chord, guess), tol=tol, **NEAR_SINGULAR)
+        if not corrected.converged:
+            break
+        best, best_w = point(corrected.w, corrected.evaluation, corrected.iterations), corrected.w
+        if pair_test(best) * fa > 0:
+            low, bracket = middle, (best, bracket[1])
+        else:
+            high, bracket = middle, (bracket[0], best)
+    return best, best_w, 0.5 * abs(value(bracket[1]) - value(bracket[0])), chord
+
+
+def branch_off(problem, w: np.ndarray, along: np.ndarray, *, step: float, max_points: int, tol: float) -> tuple[list, str]:
+    """The family crossing the branch at its branch point w (``along`` its tangent there): a step off along the other null vector
+    of dR/dw (:func:`~.kit.branch_directions`; 2 and 4 times longer where the first cannot be corrected), corrected on
+    the plane normal to it, then the kit's driver.
+
+    Returns
+    -------
+    (list, str)
+        The branch's points from the first off the branch point and how it ended (none, and why, where no first step corrects).
+    """
+    other = branch_directions(problem.evaluate(w, True).matrix(), along)
+    first = None
+    for h in (step, 2 * step, 4 * step):  # nearest the branch point the closure stalls: farther is easier
+        guess = w + h * other
+        first = newton(problem.evaluate, guess, border=(other, guess), tol=tol, **NEAR_SINGULAR)
+        if first.converged:
+            break
+    if not first.converged:
+        return [], f"the first step off the branch point along its other null vector could not be corrected ({first.status})"
+    try:
+        traced = continuation(
+            problem, first.w, step=step, min_step=MIN_STEP, max_step=MAX_STEP, max_points=max_points, tangent0=other,
+            first=problem.point(first.w, first.evaluation, first.iterations),
+        )  # fmt: skip
+    except (StartError, EvaluationFailed) as err:
+        return [], f"the branch could not be started: {err}"
+    return list(traced.points), traced.message
+
+
+@dataclass
+class Branch:
+    """A family followed off a branch point of an arclength family.
+
+    Attributes
+    ----------
+    point : HamiltonianOrbit
+        The branch point relocated (:func:`relocate_branch_point`).
+    accuracy : float
+        Half the bisection's final bracket in the continued parameter.
+    orbits : list of HamiltonianOrbit
+        The branch, from its first orbit off the branch point.
+    message : str
+    """
+
+    point: HamiltonianOrbit
+    accuracy: float
+    orbits: list
+    message: str
+
+
+def follow_branches(family: ArclengthFamily, problem: HamiltonianFrequencyProblem, *, step: float = 0.005, max_points: int = 30) -> None:
+    """Relocate every branch point of ``family`` and follow the family crossing it; kept in ``family.branches`` (one per event)."""
+
+    def value(orbit) -> float:
+        return orbit.omega if family.parameter == "omega" else float(getattr(orbit.params, family.parameter))
+
+    out = []
+    for e in family.events:
+        if e.kind != "branch_point" or not 1 <= e.index < len(family.orbits):
+            out.append(None)
+            continue
+        a, b = family.orbits[e.index - 1], family.orbits[e.index]
+        found = relocate_branch_point(problem.evaluate, problem.point, problem._pack, a, b, problem.tol, value)
+        if found is None:
+            out.append(Branch(e.point, math.nan, [], "no nontrivial pair passes through +1 between the two orbits"))
+            continue
+        orbit, w, accuracy, chord = found
+        orbits, message = branch_off(problem, w, chord, step=step, max_points=max_points, tol=problem.tol)
+        out.append(Branch(orbit, accuracy, orbits, message))
+    family.branches = out
 
 
 def _diagnostics(problem: HamiltonianFrequencyProblem, points: list, events: list[Event]) -> list[dict]:
@@ -289,6 +419,8 @@ class ArclengthFamily(HamiltonianFamily):
     #: (``singular_value``) and how the Hamiltonian pair at +1 splits on either side (``split_before``,
     #: ``split_after``: :func:`pair_split`).
     diagnostics: list[dict] = field(default_factory=list)
+    #: Per event, with ``branches``: the :class:`Branch` followed off a branch point (None for other events).
+    branches: list | None = None
     #: ``omega``, or the chain's field followed at a fixed frequency (:func:`continue_hamiltonian_field`).
     parameter: str = "omega"
 
@@ -324,6 +456,8 @@ def continue_hamiltonian_arclength(
     rtol: float = RTOL,
     atol: float = ATOL,
     progress=None,
+    branches: bool = False,
+    branch_points: int = 30,
 ) -> ArclengthFamily:
     """Follow a Hamiltonian orbit's family in Omega by pseudo-arclength, passing and locating its folds.
 
@@ -341,6 +475,9 @@ def continue_hamiltonian_arclength(
     tol, rtol, atol : float
         Newton's closure tolerance, DOP853's tolerances.
     progress : callable(done, total), optional
+    branches : bool
+        Relocate each branch point and follow the family crossing it for ``branch_points`` orbits
+        (:func:`follow_branches`, into ``branches``).
 
     Returns
     -------
@@ -365,10 +502,13 @@ def continue_hamiltonian_arclength(
         problem, problem.start(), step=step, min_step=min_step, max_step=max_step, max_points=max_points,
         direction=float(direction), progress=progress, first=orbit,
     )  # fmt: skip
-    return ArclengthFamily(
+    family = ArclengthFamily(
         orbits=list(traced.points), requested=np.array([omega_min, omega_max], dtype=float), message=traced.message,
         events=list(traced.events), end=traced.end, diagnostics=_diagnostics(problem, traced.points, traced.events),
     )  # fmt: skip
+    if branches:
+        follow_branches(family, problem, max_points=branch_points)
+    return family
 
 
 def continue_hamiltonian_field(
@@ -387,6 +527,8 @@ def continue_hamiltonian_field(
     rtol: float = RTOL,
     atol: float = ATOL,
     progress=None,
+    branches: bool = False,
+    branch_points: int = 30,
 ) -> ArclengthFamily:
     """Follow a Hamiltonian orbit's family at its frequency in a chain field by pseudo-arclength, passing and locating its folds.
 
@@ -405,6 +547,8 @@ def continue_hamiltonian_field(
         The trace stops at the first orbit outside [low, high]; the start must lie inside.
     direction : float
         +1 to start towards larger values, -1 towards smaller.
+    branches, branch_points
+        As for :func:`continue_hamiltonian_arclength`.
 
     Returns
     -------
@@ -433,8 +577,11 @@ def continue_hamiltonian_field(
         problem, problem.start(), step=step, min_step=min_step, max_step=max_step, max_points=max_points,
         direction=float(direction), progress=progress, first=orbit,
     )  # fmt: skip
-    return ArclengthFamily(
+    family = ArclengthFamily(
         orbits=list(traced.points), requested=np.array([low, high], dtype=float), message=traced.message,
         events=list(traced.events), end=traced.end, parameter=field_name,
         diagnostics=_diagnostics(problem, traced.points, traced.events),
     )  # fmt: skip
+    if branches:
+        follow_branches(family, problem, max_points=branch_points)
+    return family
