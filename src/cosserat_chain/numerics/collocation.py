@@ -657,7 +657,7 @@ def continue_collocation(
         if progress is not None:
             progress(len(orbits), max_points)
         if traced.end != BranchEnd.MAX_POINTS or len(traced.points) < 2:
-            end, message = traced.end, traced.message
+            end, message = traced.end, (periodic.FOLD_OF_CYCLES if traced.end == BranchEnd.FOLD else traced.message)
             break
         current = traced.points[-1]
         step = min(max_step, max(min_step, _last_step(traced.points)))

@@ -1064,6 +1064,8 @@ END_STEP_TOO_SMALL = Status.STEP_TOO_SMALL
 END_UNSTABLE = "unstable"
 #: M turned back on a transversal phase plane without a real Floquet multiplier crossing +1: not a fold of cycles.
 END_UNCONFIRMED_TURN = "unconfirmed_turn"
+#: The message of a branch that ends at a fold of cycles (the shooting's and the collocation's).
+FOLD_OF_CYCLES = "fold of limit cycles: the moment turns back with the period finite and a Floquet multiplier crosses +1"
 
 
 @dataclass
@@ -1270,7 +1272,7 @@ def continue_orbit(
             "(the phase condition may be singular there); try smaller steps"
         )
     elif traced.end == BranchEnd.FOLD:
-        message = "fold of limit cycles: the moment turns back with the period finite and a Floquet multiplier crosses +1"
+        message = FOLD_OF_CYCLES
     elif traced.end == BranchEnd.MAX_POINTS:
         message = f"stopped after max_points={max_points} orbits"
     elif traced.end == BranchEnd.STEP_TOO_SMALL:
