@@ -1064,6 +1064,8 @@ END_STEP_TOO_SMALL = Status.STEP_TOO_SMALL
 END_UNSTABLE = "unstable"
 #: M turned back on a transversal phase plane without a real Floquet multiplier crossing +1: not a fold of cycles.
 END_UNCONFIRMED_TURN = "unconfirmed_turn"
+#: Located events where an orbit may lose its stability (:attr:`OrbitBranch.stability_lost_at`).
+STABILITY_EVENTS = ("period_doubling", "torus", "branch_point")
 #: The message of a branch that ends at a fold of cycles (the shooting's and the collocation's).
 FOLD_OF_CYCLES = "fold of limit cycles: the moment turns back with the period finite and a Floquet multiplier crosses +1"
 
@@ -1128,8 +1130,11 @@ class OrbitBranch:
     def stability_lost_at(self) -> float | None:
         """M where the orbit, stable at the start, first loses stability along the branch.
 
-        The largest nontrivial multiplier modulus is interpolated linearly in M to 1
-        between the last stable and the first unstable orbit; None if it never does.
+        A located event between the last stable and the first unstable orbit (a period
+        doubling, a torus or a branch point of cycles) gives it; otherwise the largest
+        nontrivial multiplier modulus is interpolated linearly in M to 1 between them (the
+        collocation's steps are long: the interpolation put the sine chain's period doubling
+        at gamma_phi = 0.15 at 0.17269, located at 0.17288). None if it never does.
         Below it the rotating state seen in a simulation is no longer this orbit, so
         with a fold below it this, not the fold, is the lower edge of the hysteresis loop.
         """
@@ -1138,6 +1143,9 @@ class OrbitBranch:
             return None
         i = int(np.argmin(stable))
         (m0, m1), (r0, r1) = self.moment[i - 1 : i + 1], self.max_multiplier[i - 1 : i + 1]
+        for event in self.events:
+            if event["kind"] in STABILITY_EVENTS and event.get("located", True) and min(m0, m1) <= event["moment"] <= max(m0, m1):
+                return float(event["moment"])
         return float(m0 + (1.0 - r0) * (m1 - m0) / (r1 - r0))
 
 
