@@ -43,9 +43,24 @@ def _check_lifetimes(atlas):
     return stable, unstable
 
 
-def test_chain_atlas_lifetimes_follow_the_multipliers_and_reach_the_file():
+@pytest.fixture(scope="module")
+def chain_atlas():
+    """The sine chain, N = 3, b = 0.2, at Omega = 6.6 and 5.0, every orbit run for RUN periods."""
     atlas = breather_atlas(ChainParams(N=3, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0), "sine", [6.6, 5.0], "b", [0.2])
     atlas.measure_lifetimes(RUN)
+    return atlas
+
+
+@pytest.fixture(scope="module")
+def system_atlas():
+    """Takeno-Peyrard, 9 sites, C = 0.05, at Omega = 1.3 and 1.2, every orbit run for RUN periods."""
+    atlas = system_breather_atlas(takeno_peyrard(9, C=0.05), [1.3, 1.2], "C", [0.05])
+    atlas.measure_lifetimes(RUN)
+    return atlas
+
+
+def test_chain_atlas_lifetimes_follow_the_multipliers_and_reach_the_file(chain_atlas):
+    atlas = chain_atlas
     assert _check_lifetimes(atlas) == (1, 1)  # 6.6 stable, 5.0 unstable (|mu| = 1.24)
     ds = atlas.to_dataset()
     points = atlas.as_dict()["points"]
@@ -57,9 +72,8 @@ def test_chain_atlas_lifetimes_follow_the_multipliers_and_reach_the_file():
     assert atlas.settings["lifetime"]["max_periods"] == RUN
 
 
-def test_system_atlas_lifetimes_follow_the_multipliers():
-    atlas = system_breather_atlas(takeno_peyrard(9, C=0.05), [1.3, 1.2], "C", [0.05])
-    atlas.measure_lifetimes(RUN)
+def test_system_atlas_lifetimes_follow_the_multipliers(system_atlas):
+    atlas = system_atlas
     stable, unstable = _check_lifetimes(atlas)
     assert stable + unstable == int(atlas.grid("exists").sum()) > 0
     assert "lifetime_periods" in atlas.to_dataset("takeno_peyrard")
@@ -83,26 +97,27 @@ def test_cli_atlas_lifetimes_in_json_and_text(tmp_path):
     points = json.loads(result.stdout)["points"][0]
     assert [p["lifetime"]["lifetime_periods"] is None for p in points] == [True, False]
     text = runner.invoke(app, [*args, "--lifetimes", "100"])
-    assert text.exit_code == 0 and "lifetime > 100 periods" in text.stdout and np.sum(["lifetime" in line for line in text.stdout.splitlines()]) == 2
+    assert (
+        text.exit_code == 0
+        and "lifetime > 100 periods" in text.stdout
+        and np.sum(["lifetime" in line for line in text.stdout.splitlines()]) == 2
+    )
 
 
-def test_the_atlas_figures_draw_the_lifetimes_where_they_were_measured(tmp_path):
+def test_the_atlas_figures_draw_the_lifetimes_where_they_were_measured(tmp_path, chain_atlas, system_atlas):
     """A second panel with one marker per orbit: the lost ones coloured by log10 of their periods, survivors as triangles."""
     import matplotlib
 
     matplotlib.use("Agg")
     from cosserat_chain.plots.breathers import atlas_lifetime_grid, breather_atlas_figure, system_atlas_figure
 
-    atlas = breather_atlas(ChainParams(N=3, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0), "sine", [6.6, 5.0], "b", [0.2])
-    before = breather_atlas_figure(atlas)
-    assert atlas_lifetime_grid(atlas) is None and len([a for a in before.axes if a.get_label() != "<colorbar>"]) == 1
-    atlas.measure_lifetimes(RUN)
+    unmeasured = breather_atlas(ChainParams(N=1, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0), "sine", [6.0], "b", [0.2])
+    before = breather_atlas_figure(unmeasured)
+    assert atlas_lifetime_grid(unmeasured) is None and len([a for a in before.axes if a.get_label() != "<colorbar>"]) == 1
+    atlas, system = chain_atlas, system_atlas
     periods, stayed = atlas_lifetime_grid(atlas)
     assert stayed.tolist() == [[True, False]] and periods[0, 0] == RUN and periods[0, 1] == atlas.points[0][1].lifetime.periods
-    figures = [breather_atlas_figure(atlas)]
-    system = system_breather_atlas(takeno_peyrard(9, C=0.05), [1.3, 1.2], "C", [0.05])
-    system.measure_lifetimes(RUN)
-    figures.append(system_atlas_figure(system))
+    figures = [breather_atlas_figure(atlas), system_atlas_figure(system)]
     for fig, drawn in zip(figures, (atlas, system)):
         periods, stayed = atlas_lifetime_grid(drawn)
         lower = fig.axes[1]
@@ -112,3 +127,5 @@ def test_the_atlas_figures_draw_the_lifetimes_where_they_were_measured(tmp_path)
         assert len(survivors.get_offsets()) == int(stayed.sum())
         assert "lifetimes" in lower.get_title()
         fig.savefig(tmp_path / "atlas.png")
+        matplotlib.pyplot.close(fig)
+    matplotlib.pyplot.close(before)
