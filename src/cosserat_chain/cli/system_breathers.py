@@ -257,12 +257,15 @@ def _arclength_text(family, summary: dict, names: str) -> None:
     system, parameter = family.system, family.parameter
     fixed = "" if parameter == "omega" else f" at Omega = {summary['omega'][0]:.8g}"
     typer.echo(f"{system.name}: {len(family.orbits)} roto-breathers of {names} by arclength in {parameter}{fixed}")
-    typer.echo(f"{parameter:>12}  {'omega':>10}  {'energy':>14}  {'max |mu|':>10}  stable")
+    first = parameter if parameter != "omega" else ""  # in Omega the value column is Omega itself
+    typer.echo(f"{first:>12}  {'omega':>10}  {'energy':>14}  {'max |mu|':>10}  stable")
     for i, o in enumerate(family.orbits):
         energy = "-" if summary["energy"][i] is None else f"{summary['energy'][i]:.10g}"
-        typer.echo(
-            f"{summary['values'][i]:>12.8g}  {summary['omega'][i]:>10.6g}  {energy:>14}  {o.max_multiplier:>10.6g}  {'yes' if o.stable else 'no':>6}"
-        )
+        value = "" if not first else f"{summary['values'][i]:.8g}"
+        typer.echo(f"{value:>12}  {summary['omega'][i]:>10.8g}  {energy:>14}  {o.max_multiplier:>10.6g}  {'yes' if o.stable else 'no':>6}")
+        if family.lifetimes is not None:
+            life = family.lifetimes[i]
+            typer.echo(f"{'':>12}  lifetime: {'beyond ' + str(life.run_periods) if life.periods is None else life.periods} periods")
     for e in summary["events"]:
         accuracy = "" if e["accuracy"] is None else f" +- {e['accuracy']:.2g}"
         typer.echo(
