@@ -10,8 +10,8 @@ second multiplier at +1, which a Hamiltonian family's fold does not have: at a f
 frequency (dT/dE = 0) the fixed-lambda Newton system (the Jacobian without its lambda column)
 is singular while every nontrivial multiplier may stay away from +1; the Jordan block of the
 pair at +1 (the flow and the family, coupled by dT/dE) turns semisimple there, so the pair,
-split by the integration error, goes from a complex split on one side to a real one on the
-other. :func:`continue_family` follows the same branch and reports, as :class:`FamilyEvent`:
+split by the integration error, often goes from a complex split on one side to a real one on
+the other (the split follows the error's sign as well: the singular value is the test). :func:`continue_family` follows the same branch and reports, as :class:`FamilyEvent`:
 
 * ``fold``: the tangent's lambda component changing sign (the kit's secant method on the
   arclength), with the fixed-lambda Jacobian's smallest relative singular value there, the
@@ -19,7 +19,8 @@ other. :func:`continue_family` follows the same branch and reports, as :class:`F
   to the vertex of the parabola lambda(s) through the fold and its two neighbours (s the
   arclength along the fold's tangent);
 * ``branch_point``: the sign of det [dR/dw; t] changing while lambda does not turn, where a
-  nontrivial multiplier pair passes through +1 (:func:`pair_test` changes sign; bisected on the
+  nontrivial multiplier pair passes through +1
+  (:func:`~cosserat_chain.numerics.breather_arclength.pair_test` changes sign; bisected on the
   chord between the two members, each trial corrected): a family of other orbits crosses there;
 * ``stability``: a nontrivial multiplier leaving (or joining) the unit circle (at a branch
   point, the branch point stands for it).
@@ -232,7 +233,7 @@ def _events(traced: Continuation, shooting: _Shooting, parameter: str) -> list[F
                 index=e.index,
                 orbit=point,
                 tangent=tangent,
-            )  # fmt: skip
+            )
         )
     return out
 

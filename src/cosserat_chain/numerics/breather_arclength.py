@@ -22,7 +22,17 @@ that :func:`~.periodic.find_hamiltonian_orbit` solves, the Jacobian without its 
 is singular there (:meth:`HamiltonianFrequencyProblem.fixed_frequency_singular_value`), which is
 why natural steps in Omega stop before it. The monodromy's Jordan block at +1 (the flow and the
 family, coupled by dT/dE) becomes semisimple there: the pair at +1, split by the integration
-error, turns from a real split on one side to a complex one on the other.
+error, turns from a real split on one side to a complex one on the other (often: the split
+follows the error's sign too, so :attr:`ArclengthFamily.diagnostics` gives it beside the singular
+value, which is the test).
+
+:class:`HamiltonianFieldProblem` and :func:`continue_hamiltonian_field` follow the family at a
+fixed frequency in a field of the chain instead (its column by central differences); a fold
+there is where dT/dE = 0 as well, so it is the fold in Omega at that field value. With
+``branches``, :func:`follow_branches` relocates each branch point by bisecting
+:func:`pair_test` on the chord between its two orbits (:func:`relocate_branch_point`) and
+follows the family crossing it (:func:`branch_off`: a step along the second null vector of
+dR/dw, then the kit's driver).
 """
 
 from __future__ import annotations
