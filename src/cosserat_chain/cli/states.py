@@ -62,14 +62,25 @@ def states(
         fail("--moment is required: the constant moment M on the loaded particle (or give --system REF for a system's states)")
     from ..experiments.coexisting import states_at
     from ..numerics.dynamics import IntegrationError
+    from ..state import column, require_held
 
     if turns < 1:
         fail(f"--turns must be an integer >= 1 (turns of the loaded particle per period), got {turns!r}")
     if random_starts < 0:
         fail(f"--random-starts must be an integer >= 0, got {random_starts!r}")
+    if seed < 0:
+        fail(f"--seed must be an integer >= 0 (a seed of NumPy's generator), got {seed!r}")
     params, loads = config_or_exit(config)
     if len(loads):
         fail("--config: states takes no [[loads]] tables (the moment is the only load)")
+    try:
+        column(params, particle)
+    except ValueError as err:
+        fail(f"--particle: {err}")
+    try:
+        require_held(params)
+    except ValueError as err:
+        fail(f"--config: {err}")
     step = step_for_checks(params, model, None)
     if step is not None:
         spin_or_exit(params, moment, step, dt_option=False)
@@ -86,9 +97,9 @@ def states(
             t_long=t_long, progress=bar_callback(bar),
         )  # fmt: skip
     except ValueError as err:
+        # The inputs were checked above: what is left is the computation's own failure (a state gone NaN).
         bar.close()
-        message = str(err)
-        fail(f"--particle: {message}" if "particle" in message else message)
+        fail(f"the states at M = {moment:g} could not be computed: {err}", code=EXIT_CODES[Status.FAILED])
     except IntegrationError as err:
         bar.close()
         fail(str(err), code=EXIT_CODES[Status.BLEW_UP])

@@ -12,6 +12,7 @@ from ..io import stack_models
 from ..status import Status
 from .common import (
     ALL_MODELS,
+    LARGER_STEP,
     app,
     bar_callback,
     chosen_models,
@@ -25,6 +26,8 @@ from .common import (
     progress_bar,
     save_dataset,
     save_figure,
+    step_for_checks,
+    work_or_exit,
 )
 from .systems import chain_only_or_exit, critical_on_system, set_option, start_option, system_only_or_exit, system_option, vary_option
 
@@ -57,6 +60,7 @@ def sweep(
     """Raise the moment step by step, relaxing to rest at each step (the paper's protocol); report the onset of rotation."""
     from ..experiments.critical import critical_point
     from ..experiments.sweep import relaxation_sweep
+    from ..numerics.relaxation import RelaxSettings
 
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     count = steps if steps is not None else math.ceil(m_max / dm) if dm is not None else None
@@ -69,6 +73,14 @@ def sweep(
     params, extra = config_or_exit(config, load)
     if extra and plot is not None:
         fail("--plot draws the exact static branches, which hold the moment alone: leave out --plot or the extra loads")
+    if count is not None:
+        # Each load step relaxes for at least one chunk of time before its first test.
+        chunk = min(t_max, RelaxSettings.chunk_time)
+        for name in chosen_models(model):
+            step = step_for_checks(params, name, None)
+            if step is not None:
+                what = f"{name}: {count * (2 if down else 1)} load steps of at least {chunk:g} time units at dt={step:.3g}"
+                work_or_exit(count * (2 if down else 1) * chunk / step, params.n_particles, what, f"fewer load steps, or {LARGER_STEP}")
     results = {}
     interrupted = False
     for name in chosen_models(model):

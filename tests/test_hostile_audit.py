@@ -1,0 +1,69 @@
+"""Hostile inputs found by the audit of every command (issue HX): each gave a traceback or a wrong message.
+
+Each case runs the command in process and checks the exit code, that no exception escaped
+and that the message names the option or field, the value and what is allowed; those that
+must be refused before any work patch the computation to fail.
+"""
+
+from __future__ import annotations
+
+import pytest
+from typer.testing import CliRunner
+
+from cosserat_chain.cli import app
+
+runner = CliRunner()
+
+
+def _never(*args, **kwargs):
+    raise AssertionError("computed before the refusal")
+
+
+def _invoke(argv: list[str]):
+    result = runner.invoke(app, argv)
+    assert result.exception is None or isinstance(result.exception, SystemExit), repr(result.exception)
+    return result, result.output + getattr(result, "stderr", "")
+
+
+@pytest.fixture
+def config(tmp_path):
+    def write(text: str):
+        path = tmp_path / "chain.toml"
+        path.write_text(text)
+        return str(path)
+
+    return write
+
+
+def test_states_refuses_a_negative_seed_before_computing(monkeypatch):
+    monkeypatch.setattr("cosserat_chain.experiments.coexisting.states_at", _never)
+    result, text = _invoke(["states", "--moment", "0.22", "--seed", "-1"])
+    assert result.exit_code == 2
+    assert "--seed" in text and "-1" in text and ">= 0" in text
+
+
+def test_states_refuses_a_chain_that_moves_rigidly_naming_the_config(monkeypatch, config):
+    monkeypatch.setattr("cosserat_chain.experiments.coexisting.states_at", _never)
+    result, text = _invoke(["states", "--moment", "0.22", "--config", config("periodic = true\n")])
+    assert result.exit_code == 2
+    assert "--config" in text and "rigidly" in text
+
+
+def test_states_failing_inside_its_computation_exits_3_without_blaming_the_particle(monkeypatch):
+    """A NaN met by the continuation (E1 = 1e-100 gives one) is the run's failure, not bad input."""
+
+    def nan_state(*args, **kwargs):
+        raise ValueError("x[u] of particle -2 is nan; values must be finite")
+
+    monkeypatch.setattr("cosserat_chain.experiments.coexisting.states_at", nan_state)
+    result, text = _invoke(["states", "--moment", "0.22", "--turns", "1", "--random-starts", "0"])
+    assert result.exit_code == 3
+    assert "--particle" not in text and "could not be computed" in text and "nan" in text
+
+
+def test_sweep_of_a_stiff_chain_is_refused_by_its_work_not_an_overflow(monkeypatch, config):
+    """E1 = 1e100 makes the default step 3e-52: the relaxation's chunk count overflowed a C long."""
+    monkeypatch.setattr("cosserat_chain.experiments.sweep.relaxation_sweep", _never)
+    result, text = _invoke(["sweep", "--model", "nonlinear", "--m-max", "0.05", "--steps", "1", "--config", config("E1 = 1e100\n")])
+    assert result.exit_code == 2
+    assert "particle-steps" in text and "dt=2.89e-52" in text and "E1" in text
