@@ -137,6 +137,54 @@ def test_lattices_from_formulas_end_at_the_uniform_loop(build, vary, drive):
     assert row.starts == pytest.approx(1.0, abs=1e-8)
 
 
+@pytest.mark.slow
+def test_a_potential_with_two_harmonics_ends_where_its_manifold_changes_fate():
+    """A rotor in 1 - cos(phi) + b (1 - cos 2 phi) (not the pendulum: its fold and saddle have no closed form): the
+    fold is the maximum of sin(phi) + 2 b sin(2 phi), and the end is where the saddle's unstable manifold changes
+    fate, both computed here with SciPy alone."""
+    from scipy.optimize import minimize_scalar
+
+    from cosserat_chain.systems import LatticeSystem
+
+    b, alpha = 0.2, 0.3
+
+    def drive(phi):
+        return math.sin(phi) + 2 * b * math.sin(2 * phi)
+
+    peak = minimize_scalar(lambda phi: -drive(phi), bounds=(0.0, math.pi), method="bounded", options={"xatol": 1e-12})
+
+    def turns_over(current, eps=1e-9):
+        saddle = brentq(lambda phi: drive(phi) - current, peak.x, math.pi, xtol=1e-15)
+        up = (-alpha + math.sqrt(alpha**2 - 4 * (math.cos(saddle) + 4 * b * math.cos(2 * saddle)))) / 2
+
+        def over(t, y):
+            return y[0] - (saddle + 2 * math.pi + 0.5)
+
+        def back(t, y):
+            return y[1]
+
+        over.terminal = back.terminal = True
+        back.direction = -1
+        run = solve_ivp(
+            lambda t, y: [y[1], current - alpha * y[1] - drive(y[0])], (0.0, 1e4), [saddle + eps, up * eps],
+            method="DOP853", events=[over, back], rtol=1e-12, atol=1e-14,
+        )  # fmt: skip
+        return run.t_events[0].size > 0
+
+    low, high = 0.2, 0.6
+    while high - low > 1e-13:
+        middle = 0.5 * (low + high)
+        low, high = (low, middle) if turns_over(middle) else (middle, high)
+    system = LatticeSystem(
+        sites=1, site_energy="1 - cos(phi) + b*(1 - cos(2*phi)) - I*phi", damping="alpha",
+        parameters={"I": 0.0, "b": b, "alpha": alpha}, name="two_harmonics",
+    )  # fmt: skip
+    (row,) = system_diagram(system, "alpha", [alpha], "I").rows
+    assert row.starts == pytest.approx(-peak.fun, abs=1e-9)
+    assert (row.end, row.method) == ("homoclinic", "solved") and row.accuracy <= ASKED
+    assert abs(row.stops - 0.5 * (low + high)) <= row.accuracy
+
+
 def test_a_saddle_with_two_unstable_directions_leaves_in_phase():
     """The pen's in-phase saddle: the solved loop's tilt into the anti-phase direction is zero (the in-phase
     subspace is invariant), and the loop returns to the saddle shifted by 2 pi in both angles, in phase."""
