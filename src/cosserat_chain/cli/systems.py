@@ -1,9 +1,10 @@
-"""The commands on a user's system: ``states``, ``critical``, ``orbit`` and ``simulate`` with ``--system REF``.
+"""The commands on a user's system: ``states``, ``critical``, ``orbit``, ``simulate`` and ``diagram`` with ``--system REF``.
 
 A command given ``--system`` runs on a :class:`~cosserat_chain.systems.base.System` (a
 built-in example, ``module:function`` or ``file.py:function``, built with the config's
 ``[system]`` table and ``--set NAME=VALUE``) through :mod:`cosserat_chain.numerics.equilibria`
-and :mod:`cosserat_chain.numerics.shooting`; without it the command runs on the chain as
+and :mod:`cosserat_chain.numerics.shooting` (``diagram`` through
+:mod:`cosserat_chain.experiments.system_diagram`); without it the command runs on the chain as
 before. The chain's own options (``--model``, ``--moment``, ...) and the system's
 (``--set``, ``--vary``, ...) exclude each other: either kind given with the other command
 form exits 2 naming it.

@@ -300,8 +300,11 @@ def _stability_warning(row: SystemDiagramRow, branch, drive: str) -> None:
         return
     index = stable.index(False)
     kinds = sorted({e.kind for e in branch.events if e.kind in ("period_doubling", "torus", "fold", "branch_point")})
-    lost = next((e.parameter for e in branch.events if e.kind == "stability" and e.located), None)
-    row.stability_lost = float(branch.values[index] if lost is None else lost)
+    values = branch.values
+    # The located change of stability between the last stable orbit and the first unstable one (else that orbit's value).
+    span = sorted(values[max(index - 1, 0) : index + 1])
+    lost = next((e.parameter for e in branch.events if e.kind == "stability" and e.located and span[0] <= e.parameter <= span[-1]), None)
+    row.stability_lost = float(values[index] if index == 0 or lost is None else lost)
     where = "is unstable where it was found" if index == 0 else f"loses stability at {drive} = {row.stability_lost:.10g}"
     how = f" ({', '.join(kinds)} on the way)" if kinds else ""
     row.warning = (
