@@ -230,6 +230,16 @@ def test_strong_damping_ends_at_a_snic_on_the_fold():
     assert "homoclinic" not in row.message
 
 
+def test_just_below_the_snic_point_the_end_is_bounded_by_the_fold_not_called_a_snic():
+    """At alpha = 1.19 < alpha* the rotation ends at I_r just below the fold, but its period passes period_max above
+    the fold: the fold's centre manifold turns over there (a rotation exists at I = 1), so the row is a homoclinic
+    end bounded by the fold, not a SNIC; at 1.197 > alpha* the manifold falls back: a SNIC."""
+    below, above = system_diagram(josephson_array(1, alpha=1.19), "alpha", [1.19, 1.197], "I").rows
+    assert (below.end, below.method, below.stops, below.open) == ("homoclinic", "upper_bound", below.starts, None)
+    assert "turns over" in below.reason and "period_max" in below.reason
+    assert (above.end, above.method) == ("snic", "static_fold") and "falls back" in above.message
+
+
 @pytest.mark.slow
 def test_the_snic_point_is_where_the_retrapping_current_reaches_the_fold():
     """Between a homoclinic row and a SNIC row the codimension-two point is solved by the augmented system, and

@@ -634,7 +634,8 @@ def _echo_diagram(result) -> None:
         if row.end is None:
             typer.echo(f"  {vary} = {row.value:g}: {row.message}")
         if row.reason:
-            typer.echo(f"  {vary} = {row.value:g}: a fit, not a computed point: {row.reason}")
+            what = "a fit" if row.method == "fitted" else "a bound"
+            typer.echo(f"  {vary} = {row.value:g}: {what}, not a computed point: {row.reason}")
         if row.warning:
             typer.echo(f"warning: {vary} = {row.value:g}: {row.warning}")
     point = result.snic_point

@@ -27,7 +27,11 @@ a torque):
   solved, and its uncertainty is the bracket the solve searched: the fit's own spread can be
   that far off); ``located`` for a fold of cycles (the continuation's event, located by the
   kit to its corrector's tolerance; no accuracy estimated); ``static_fold`` for a SNIC (the end
-  is the equilibrium's fold, ``starts``); ``last_orbit`` where the continuation stopped for
+  is the equilibrium's fold, ``starts``; every orbit lies above it and the fold's centre
+  manifold falls back into the shifted fold, :func:`~cosserat_chain.numerics.homoclinic.fold_turns_over`);
+  ``upper_bound`` where the period passed ``period_max`` above the fold but that manifold turns
+  over (near the codimension-two point: the end is a homoclinic one just below the fold, which
+  bounds it; ``reason`` says so); ``last_orbit`` where the continuation stopped for
   another reason (the last orbit's value, not an end);
 * ``open``: whether the loop is open, stops below starts (None where the end is not known);
 * ``warning``: where the followed orbit loses stability before its end (a falling drive then
@@ -54,7 +58,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..numerics.equilibria import EquilibriumNotFound, continue_equilibria, find_equilibrium
-from ..numerics.homoclinic import HomoclinicError, homoclinic_end, locate_snic_point
+from ..numerics.homoclinic import HomoclinicError, fold_turns_over, homoclinic_end, locate_snic_point
 from ..numerics.kit import BranchEnd, EvaluationFailed
 from ..numerics.shooting import OrbitNotFound, continue_orbits, find_orbit, flow, settled_guess, states, turns_vector
 from ..systems.base import System
@@ -83,7 +87,7 @@ WINDOW_PERIODS = 20
 #: Velocities below this at the end of that run: the system came to rest.
 REST_VELOCITY = 1e-4
 #: How ``stops`` was found (module docstring).
-METHODS = ("solved", "fitted", "located", "static_fold", "last_orbit")
+METHODS = ("solved", "fitted", "located", "static_fold", "upper_bound", "last_orbit")
 
 
 @dataclass
@@ -235,14 +239,14 @@ def system_diagram(
     for i, value in enumerate(values):
         if progress is not None:
             progress(i, len(values))
-        diagram.rows.append(_row(system.with_parameters(**{vary: value}), value, drive, k, q0, period_max))
+        diagram.rows.append(_row(system.with_parameters(**{vary: value}), vary, value, drive, k, q0, period_max))
     diagram.snic_point = _snic_point(diagram, k)
     if progress is not None:
         progress(len(values), len(values))
     return diagram
 
 
-def _row(system: System, value: float, drive: str, k: np.ndarray, q0: np.ndarray, period_max: float) -> SystemDiagramRow:
+def _row(system: System, vary: str, value: float, drive: str, k: np.ndarray, q0: np.ndarray, period_max: float) -> SystemDiagramRow:
     """One value's row: the equilibrium's first fold in ``drive`` and the end of the rotation followed down from beyond it."""
     row = SystemDiagramRow(value)
     try:
@@ -279,18 +283,48 @@ def _row(system: System, value: float, drive: str, k: np.ndarray, q0: np.ndarray
             _below_fold(row, fold.point, drive, first)
     elif branch.end == BranchEnd.INFINITE_PERIOD or branch.end_value is not None:
         if last >= onset - SNIC_RTOL * max(1.0, abs(onset)):
-            row.stops, row.end, row.method = onset, "snic", "static_fold"
             # The continuation's note fits a homoclinic end's growth, which a SNIC's is not.
             row.message = row.message.split("; the period grows like a homoclinic")[0]
-            row.message += f"; every orbit lies above the fold at {drive} = {onset:.12g}: the period diverges at the fold itself (a SNIC)"
+            _snic_or_near(row, system, vary, drive, k, onset, period_max)
         else:
             row.end = "homoclinic"
             _homoclinic(row, system, drive, k, first, branch, last)
     else:
         row.stops, row.end, row.method = last, str(branch.end), "last_orbit"
-    if row.end in ("fold_of_cycles", "homoclinic", "snic"):
+    if row.method == "upper_bound":
+        row.open = None
+    elif row.end in ("fold_of_cycles", "homoclinic", "snic"):
         row.open = bool(row.stops < onset - 1e-9 * max(1.0, abs(onset)))
     return row
+
+
+def _snic_or_near(row: SystemDiagramRow, system: System, vary: str, drive: str, k: np.ndarray, onset: float, period_max: float) -> None:
+    """Every orbit lies above the fold: a SNIC where the fold's centre manifold falls back into the shifted fold; where
+    it turns over instead, a rotation exists at the fold and ends below it (near the codimension-two point the period
+    passes period_max above the fold on the way): the end is then only bounded by the fold, and the row says so."""
+    turns = {system.coordinates[i]: int(n) for i, n in enumerate(k) if n}
+    try:
+        over = fold_turns_over(system.with_parameters(**{drive: onset}), row.fold_q, turns=turns, name=vary, moment=drive)
+    except (HomoclinicError, EvaluationFailed) as err:
+        row.stops, row.end, row.method = onset, "snic", "static_fold"
+        row.message += (
+            f"; every orbit lies above the fold at {drive} = {onset:.12g}: the period diverges there (a SNIC; not confirmed: {err})"
+        )
+        return
+    if not over:
+        row.stops, row.end, row.method = onset, "snic", "static_fold"
+        row.message += (
+            f"; every orbit lies above the fold at {drive} = {onset:.12g} and the fold's centre manifold falls back into the "
+            "shifted fold: the period diverges at the fold itself (a SNIC)"
+        )
+        return
+    row.stops, row.end, row.method = onset, "homoclinic", "upper_bound"
+    row.reason = (
+        f"the period passed period_max = {period_max:g} above the fold, but the fold's centre manifold turns over: a rotation "
+        f"exists at the fold, so it ends at a homoclinic loop below {drive} = {onset:.12g} (near the point where the homoclinic "
+        "end becomes a SNIC); raise period_max to follow it there"
+    )
+    row.message += "; " + row.reason
 
 
 def _stability_warning(row: SystemDiagramRow, branch, drive: str) -> None:

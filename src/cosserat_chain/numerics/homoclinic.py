@@ -36,6 +36,9 @@ and the integration tolerance: :attr:`HomoclinicOrbit.accuracy`).
 * :func:`continue_homoclinic` follows the end in a second parameter (the damping, say): each
   end predicted by a secant, bracketed around the prediction by the manifold's fate and
   solved down the ladder.
+* :func:`fold_turns_over` tells, at one value of the second parameter, a homoclinic end from a
+  SNIC: whether the fold's centre manifold turns over (a rotation exists at the fold; its end
+  lies below) or falls back into the shifted fold (a SNIC).
 * :func:`locate_snic_point` locates the codimension-two point where the homoclinic end meets
   the static fold and becomes a saddle-node on the invariant circle (SNIC) by the augmented
   system: the equilibrium is the fold (F = 0, J v = 0, in (q, M)), the orbit leaves it along
@@ -892,6 +895,33 @@ class SnicPoint:
             "moment": float(self.moment),
             "method": "augmented_system",
         }
+
+
+def fold_turns_over(
+    system: System,
+    fold: np.ndarray,
+    *,
+    turns: Mapping[str | int, int] | np.ndarray,
+    name: str,
+    moment: str = "M",
+    t_max: float | None = None,
+) -> bool:
+    """Whether the centre manifold of the static fold turns over (a rotation exists at the fold, so the rotating
+    orbit ends below it, at a homoclinic loop) rather than falling back into the shifted fold (a SNIC).
+
+    The fold is first solved exactly (F = 0, J v = 0 in (q, v, ``moment``), as :func:`locate_snic_point` does at the
+    value of ``name`` the system has), so that a drive a little past the fold, where no equilibrium holds the
+    manifold back, cannot make it turn over.
+
+    Raises
+    ------
+    HomoclinicError
+        If Newton on the fold fails or the fold has more than one centre direction.
+    """
+    shift, winding = _winding(system, turns)
+    folds = _Folds(system, name, moment, system.check_state(fold, "fold"), winding)
+    r = folds(float(system.parameter(name)))
+    return _turns_over(r, FOLD_EPS0, shift, winding, _t_max(r, t_max, FOLD_EPS0))
 
 
 def locate_snic_point(
