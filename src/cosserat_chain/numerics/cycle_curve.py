@@ -114,7 +114,16 @@ CODIM2 = {
     "torus": ("resonance_1_1", "resonance_1_2", "resonance_1_3", "resonance_1_4"),
 }
 #: AUTO-07p's labels of the same points (its two-parameter runs of LP, PD and TR curves print them).
-AUTO_LABELS = {"resonance_1_1": "R1", "resonance_1_2": "R2", "resonance_1_3": "R3", "resonance_1_4": "R4", "fold_flip": "LPPD"}
+AUTO_LABELS = {
+    "resonance_1_1": "R1",
+    "resonance_1_2": "R2",
+    "resonance_1_3": "R3",
+    "resonance_1_4": "R4",
+    "fold_flip": "LPPD",
+    "cusp": "CP",
+}
+#: Pseudo-arclength steps (:class:`_FoldArc`) that look for the cusp where a fold-of-cycles curve stopped.
+CUSP_STEPS = 8
 #: Where a torus curve's pair turns real (at +1 or -1) the curve ends: its test function reaches zero without changing sign.
 ENDS_AT = ("resonance_1_1", "resonance_1_2")
 #: A codimension-two point is located when its test function is this small (a multiplier's or a cosine's distance
@@ -199,6 +208,13 @@ class Codim2Point:
         curve does not exist).
     angle : float or None
         On a torus curve, the critical pair's angle arg(mu) in (0, pi) at ``orbit``.
+    branches : tuple of two (value, PeriodicOrbit) or None
+        At a ``cusp``: the fold curve's points on either side of the turn (the pseudo-arclength
+        bracket's ends, each the field's value and the orbit at the fold), both on the same side of
+        ``value`` in the field: the two folds of cycles that meet there.
+    tangent_moment : float or None
+        At a ``cusp``: the M-component of the fold curve's unit tangent there (zero at a cusp, with
+        the p-component ``test``: the curve's projection on (p, M) has its cusp there).
     """
 
     kind: str
@@ -210,6 +226,8 @@ class Codim2Point:
     test: float
     uncertainty: float
     angle: float | None = None
+    branches: tuple[tuple[float, PeriodicOrbit], tuple[float, PeriodicOrbit]] | None = None
+    tangent_moment: float | None = None
 
     @property
     def name(self) -> str:
@@ -229,6 +247,8 @@ class Codim2Point:
             "test": self.test,
             "uncertainty": self.uncertainty,
             "angle": self.angle,
+            "branches": None if self.branches is None else [{"value": v, "moment": o.moment, "period": o.period} for v, o in self.branches],
+            "tangent_moment": self.tangent_moment,
         }
 
 
@@ -630,7 +650,15 @@ def continue_cycle_end(
             break
     found = curve.found
     points, at_stop = _codim2_points(kind, found, located, None if complete else float(target))
-    if not complete:
+    if not complete and at_stop is None and kind == "fold_of_cycles":
+        at_stop = _cusp(augmented, orbit.params, field_name, found, kind)
+        if at_stop is not None:
+            points.append(at_stop)
+            message += (
+                f": the curve turns back in {field_name} at a cusp (CP) at {field_name} = {at_stop.value:.10g} "
+                f"+- {at_stop.uncertainty:.2g} (M = {at_stop.moment:.10g}): two folds of cycles meet there and vanish beyond"
+            )
+    if not complete and (at_stop is None or at_stop.kind != "cusp"):
         if at_stop is not None:
             message += (
                 f": it meets a {at_stop.name} ({at_stop.label}) at {field_name} = {at_stop.value:.10g} "
@@ -779,6 +807,195 @@ def _locate_codim2(kind: str, name: str, solve: Callable, before: list[tuple], a
     angle = float(np.angle(best[4])) if kind == "torus" else None
     return Codim2Point(
         name, AUTO_LABELS[name], float(best[0]), orbit.moment, orbit.period, orbit, float(f_best), float(min(bracket, estimate)), angle
+    )
+
+
+class _FoldArc:
+    """The fold-of-cycles curve in (z, p) by pseudo-arclength: the augmented system (P), g = 0 with the field p
+    free and the arclength condition t . (w - w_pred) = 0, w = (z, p) (module docstring, "cusp").
+
+    The Jacobian [R_z, R_p] of (P) (R_p a one-sided difference in p) has a two-dimensional null space; a Newton
+    step is its minimum-norm correction plus the combination of two null vectors that zeroes the linearised
+    g and the arclength condition (g's gradient along three directions, one-sided differences). The curve's
+    tangent is the combination of the same null vectors along which g does not change.
+    """
+
+    def __init__(self, augmented: _Augmented, params: ChainParams, field_name: str):
+        self.augmented, self.params, self.field_name = augmented, params, field_name
+
+    def _at(self, w: np.ndarray):
+        chain = chain_with(self.params, self.field_name, float(w[-1]))
+        residual, jac, mono, shooting = self.augmented.evaluate(chain, w[:-1])
+        return residual, jac, mono, shooting
+
+    def _g(self, w: np.ndarray) -> float:
+        _, _, mono, shooting = self._at(w)
+        return self.augmented.test(mono, shooting)[0]
+
+    def _linear(self, w: np.ndarray):
+        """(R, g, the minimum-norm correction of (P) in w, its two null vectors, g's slopes along the three, the
+        monodromy, the p-row of [R_z, R_p]'s pseudo-inverse)."""
+        residual, jac, mono, shooting = self._at(w)
+        g = self.augmented.test(mono, shooting)[0]
+        step = DIFFERENCE_STEP * max(1.0, abs(w[-1]))
+        shifted = w.copy()
+        shifted[-1] += step
+        by_field = (self._at(shifted)[0] - residual) / step
+        u, s, vt = np.linalg.svd(np.column_stack([jac, by_field]))
+        correction = vt[: s.size].T @ ((u.T @ -residual) / s)
+        null = vt[s.size :]
+        pinv_row = (vt[: s.size, -1] / s) @ u[:, : s.size].T  # p's change per unit residual of (P)
+
+        def slope(direction: np.ndarray) -> float:
+            size = float(np.linalg.norm(direction))
+            if size < 1e-14:
+                return 0.0
+            return (self._g(w + DIFFERENCE_STEP * direction / size) - g) / DIFFERENCE_STEP * size
+
+        slopes = np.array([slope(correction), slope(null[0]), slope(null[1])])
+        return residual, g, correction, null, slopes, mono, pinv_row
+
+    def accuracy(self, w: np.ndarray) -> float:
+        """Bound on the error in p of a point w of the curve from Newton's tolerances: (P) solved to ``tol``
+        (each row's effect on p through the minimum-norm correction) and g to :data:`TEST_TOL` (along the null
+        direction across the curve, which is where p changes at a turn)."""
+        *_, null, slopes, _, pinv_row = self._linear(w)
+        across = slopes[1] * null[0] + slopes[2] * null[1]
+        size = float(np.hypot(slopes[1], slopes[2]))
+        return float(np.sum(np.abs(pinv_row)) * self.augmented.tol + abs(across[-1]) / size**2 * TEST_TOL)
+
+    def tangent(self, w: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
+        """The curve's unit tangent at a point w of it, oriented along ``previous``."""
+        _, _, _, null, slopes, _, _ = self._linear(w)
+        t = -slopes[2] * null[0] + slopes[1] * null[1]
+        t /= np.linalg.norm(t)
+        return -t if previous is not None and t @ previous < 0 else t
+
+    def correct(self, predicted: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, int] | None:
+        """Newton from ``predicted`` on the curve's system with the arclength condition along ``t``:
+        (w, monodromy, closure, iterations), or None where it does not converge (its borders kept)."""
+        saved = self.augmented.borders
+        w, last = predicted.copy(), math.inf
+        for iteration in range(1, MAX_ITERATIONS + 1):
+            try:
+                residual, g, correction, null, slopes, mono, _ = self._linear(w)
+            except (OrbitError, ValueError, np.linalg.LinAlgError):
+                break
+            norm = max(float(np.max(np.abs(residual))), abs(g))
+            if norm <= self.augmented.tol and abs(g) <= TEST_TOL:
+                self.augmented.borders = _singular_vectors(self.augmented.bordered(mono, self._at(w)[3]))
+                return w, mono, float(np.max(np.abs(residual))), iteration
+            if norm > CONTRACTION * last and iteration > 2:
+                break
+            last = norm
+            system = np.array([[slopes[1], slopes[2]], [t @ null[0], t @ null[1]]])
+            rhs = -np.array([g + slopes[0], t @ (w + correction - predicted)])
+            w = w + correction + null.T @ np.linalg.solve(system, rhs)
+        self.augmented.borders = saved
+        return None
+
+
+def _cusp(augmented: _Augmented, params: ChainParams, field_name: str, found: list[tuple], kind: str) -> Codim2Point | None:
+    """The cusp where a fold-of-cycles curve that stopped after the points ``found`` turns back in the field, or None.
+
+    From the last two points (distinct values) the curve is followed by pseudo-arclength (:class:`_FoldArc`) at
+    most :data:`CUSP_STEPS` steps, each as long as their spacing in (z, p) (halved where Newton fails), until
+    the tangent's p-component changes sign; its zero is then located by the Illinois secant in the arclength
+    from the point before the turn (:data:`CODIM2_TOL` on the component, unit tangent). Near the cusp
+    p = p* - k s^2, so the value is the best point's p plus the remainder t_p^2 / (4 k) (its uncertainty,
+    with the bracket's spread).
+    """
+    entries = [e for i, e in enumerate(found) if i == 0 or e[0] != found[i - 1][0]]
+    if kind != "fold_of_cycles" or len(entries) < 2:
+        return None
+    arc = _FoldArc(augmented, params, field_name)
+    w0, w1 = (np.append(e[1], e[0]) for e in entries[-2:])
+    h = float(np.linalg.norm(w1 - w0))
+    try:
+        _, _, mono, shooting = arc._at(w1)
+        augmented.borders = _singular_vectors(augmented.bordered(mono, shooting))
+        t = arc.tangent(w1, w1 - w0)
+    except (OrbitError, ValueError, np.linalg.LinAlgError):
+        return None
+    before = (w1, t, entries[-1][2])
+    after = None
+    for _ in range(CUSP_STEPS):
+        corrected = None
+        for _halving in range(MAX_HALVINGS):
+            corrected = arc.correct(before[0] + h * before[1], before[1])
+            if corrected is not None and float(np.max(np.abs(corrected[0][: augmented.head] - before[0][: augmented.head]))) <= JUMP:
+                break
+            corrected, h = None, h / 2
+        if corrected is None:
+            return None
+        w = corrected[0]
+        tw = arc.tangent(w, before[1])
+        point = (w, tw, corrected, h)
+        if tw[-1] * before[1][-1] <= 0:
+            after = point
+            break
+        before = (w, tw, corrected)
+    if after is None:
+        return None
+    # The Illinois secant in the arclength s from ``before`` along its tangent: t_p(0) and t_p(h) bracket zero.
+    start, t_start = before[0], before[1]
+    low, f_low, high, f_high = 0.0, float(t_start[-1]), after[3], float(after[1][-1])
+    best = (abs(f_high), after[0], after[1], after[2]) if abs(f_high) < abs(f_low) else (abs(f_low), before[0], before[1], None)
+    side = 0
+    for _ in range(CODIM2_ITERATIONS):
+        if best[0] <= CODIM2_TOL or high - low <= CODIM2_XTOL:
+            break
+        s = high - f_high * (high - low) / (f_high - f_low)
+        if not low < s < high:
+            s = 0.5 * (low + high)
+        corrected = arc.correct(start + s * t_start, t_start)
+        if corrected is None:
+            break
+        ts = arc.tangent(corrected[0], t_start)
+        f = float(ts[-1])
+        if abs(f) < best[0]:
+            best = (abs(f), corrected[0], ts, corrected)
+        if f * f_low > 0:
+            low, f_low = s, f
+            if side == 1:
+                f_high *= 0.5
+            side = 1
+        else:
+            high, f_high = s, f
+            if side == -1:
+                f_low *= 0.5
+            side = -1
+    _, w, tw, corrected = best
+
+    def orbit_of(w: np.ndarray, corrected) -> PeriodicOrbit:
+        if isinstance(corrected, PeriodicOrbit):  # the curve's own last point
+            return corrected
+        y0, period, moment = augmented.split(w[:-1])
+        system = _System(chain_with(params, field_name, float(w[-1])), get_model(augmented.orbit.model), moment, augmented.orbit.particle)
+        _, mono, closure, iterations = corrected
+        return _orbit(
+            system, augmented.orbit.turns, y0, period, mono, closure, iterations, augmented.orbit.particle_turns, augmented.phase.normal
+        )
+
+    orbit = orbit_of(w, before[2] if corrected is None else corrected)
+    # p = p* - k (s - s*)^2 near the cusp, t_p = -2 k (s - s*): k from the secant's last slope. The tangent's
+    # p-component is no more accurate than the one-sided differences of g (relative DIFFERENCE_STEP).
+    k = abs(f_high - f_low) / max(2.0 * (high - low), 1e-300)
+    remainder = max(abs(float(tw[-1])), DIFFERENCE_STEP) ** 2 / (4.0 * k) if k > 0 else math.inf
+    value = float(w[-1]) + math.copysign(abs(float(tw[-1])) ** 2 / (4.0 * k), float(start[-1] - w0[-1]))
+    remainder += arc.accuracy(w)
+    branches = ((float(before[0][-1]), orbit_of(*before[::2])), (float(after[0][-1]), orbit_of(after[0], after[2])))
+    return Codim2Point(
+        "cusp",
+        AUTO_LABELS["cusp"],
+        value,
+        orbit.moment,
+        orbit.period,
+        orbit,
+        float(tw[-1]),
+        remainder,
+        branches=branches,
+        tangent_moment=float(tw[-2]),
     )
 
 
