@@ -114,14 +114,10 @@ CODIM2 = {
     "torus": ("resonance_1_1", "resonance_1_2", "resonance_1_3", "resonance_1_4"),
 }
 #: AUTO-07p's labels of the same points (its two-parameter runs of LP, PD and TR curves print them).
-AUTO_LABELS = {
-    "resonance_1_1": "R1",
-    "resonance_1_2": "R2",
-    "resonance_1_3": "R3",
-    "resonance_1_4": "R4",
-    "fold_flip": "LPPD",
-    "cusp": "CP",
-}
+AUTO_LABELS = {"resonance_1_1": "R1", "resonance_1_2": "R2", "resonance_1_3": "R3", "resonance_1_4": "R4", "fold_flip": "LPPD"}
+#: The codimension-two point where a ``fold_of_cycles`` curve turns back in the field (no multiplier's test
+#: function: located by pseudo-arclength through the turn, :func:`_cusp`), with AUTO-07p's label.
+CUSP_LABELS = {"cusp": "CP"}
 #: Pseudo-arclength steps (:class:`_FoldArc`) that look for the cusp where a fold-of-cycles curve stopped.
 CUSP_STEPS = 8
 #: Where a torus curve's pair turns real (at +1 or -1) the curve ends: its test function reaches zero without changing sign.
@@ -194,7 +190,7 @@ class Codim2Point:
     kind : str
         One of :data:`CODIM2` for the curve's kind (``resonance_1_2``, ``fold_flip``, ...).
     label : str
-        AUTO-07p's label of the same point (:data:`AUTO_LABELS`: R1 ... R4, LPPD).
+        AUTO-07p's label of the same point (:data:`AUTO_LABELS`: R1 ... R4, LPPD; :data:`CUSP_LABELS`: CP).
     value : float
         The field's value there.
     moment, period : float
@@ -987,7 +983,7 @@ def _cusp(augmented: _Augmented, params: ChainParams, field_name: str, found: li
     branches = ((float(before[0][-1]), orbit_of(*before[::2])), (float(after[0][-1]), orbit_of(after[0], after[2])))
     return Codim2Point(
         "cusp",
-        AUTO_LABELS["cusp"],
+        CUSP_LABELS["cusp"],
         value,
         orbit.moment,
         orbit.period,
