@@ -58,7 +58,7 @@ def test_states_failing_inside_its_computation_exits_3_without_blaming_the_parti
     monkeypatch.setattr("cosserat_chain.experiments.coexisting.states_at", nan_state)
     result, text = _invoke(["states", "--moment", "0.22", "--turns", "1", "--random-starts", "0"])
     assert result.exit_code == 3
-    assert "--particle" not in text and "could not be computed" in text and "nan" in text
+    assert "--particle" not in text and "the computation failed: x[u] of particle -2 is nan" in text
 
 
 def test_sweep_of_a_stiff_chain_is_refused_by_its_work_not_an_overflow(monkeypatch, config):
@@ -67,3 +67,32 @@ def test_sweep_of_a_stiff_chain_is_refused_by_its_work_not_an_overflow(monkeypat
     result, text = _invoke(["sweep", "--model", "nonlinear", "--m-max", "0.05", "--steps", "1", "--config", config("E1 = 1e100\n")])
     assert result.exit_code == 2
     assert "particle-steps" in text and "dt=2.89e-52" in text and "E1" in text
+
+
+@pytest.mark.parametrize(
+    ("text", "named"),
+    [("E2 = 0\n", ["E2 = 0", "E2 > 0"]), ("E1 = 1e-100\n", ["singular", "E1=1e-100"]), ("b = 1e-100\n", ["singular", "b=1e-100"])],
+)
+def test_critical_on_a_chain_without_stiffness_at_rest_names_its_fields(config, text, named):
+    """Admissible fields whose K at rest is singular: the continuation's message named a fold (or max_step = inf)."""
+    result, out = _invoke(["critical", "--model", "linear", "--config", config(text)])
+    assert result.exit_code == 2
+    assert all(name in out for name in named), out
+    assert "a fold" not in out and "max_step" not in out
+
+
+def test_critical_failing_on_a_regular_chain_exits_3_with_its_message(monkeypatch):
+    def fails(*args, **kwargs):
+        raise ValueError("x[u] of particle 1 is nan; values must be finite")
+
+    monkeypatch.setattr("cosserat_chain.experiments.critical.critical_point", fails)
+    result, out = _invoke(["critical", "--model", "linear"])
+    assert result.exit_code == 3
+    assert "the computation failed: x[u] of particle 1 is nan" in out
+
+
+def test_critical_refuses_a_ring_naming_the_config_before_computing(monkeypatch, config):
+    monkeypatch.setattr("cosserat_chain.experiments.critical.critical_point", _never)
+    result, out = _invoke(["critical", "--model", "linear", "--config", config("periodic = true\n")])
+    assert result.exit_code == 2
+    assert "--config" in out and "rigidly" in out

@@ -31,7 +31,7 @@ from ..io import (
     write_figure,
 )
 from ..memory import MemoryEstimateError, available, size_text
-from ..params import ChainParams
+from ..params import MAX_MAGNITUDE, ChainParams
 from ..status import Status
 
 if TYPE_CHECKING:  # loads import numba: the command line imports them where a command needs them
@@ -173,6 +173,59 @@ def fail(message: str, code: int = 2) -> NoReturn:
     """Print ``error: message`` on stderr and exit with ``code`` (2: bad input)."""
     typer.secho(f"error: {message}", err=True, fg=typer.colors.RED)
     raise typer.Exit(code)
+
+
+def held_or_exit(params: ChainParams, particle: int) -> None:
+    """Refuse (exit 2), for a static computation, a chain that can move rigidly or a loaded particle outside it or held by an end."""
+    from ..params import FIXED_ROWS
+    from ..state import ROW_INDEX, column, require_held
+
+    try:
+        require_held(params)
+    except ValueError as err:
+        fail(f"--config: {err}")
+    try:
+        col = column(params, particle)
+    except ValueError as err:
+        fail(f"--particle: {err}")
+    # The ends' rows by their kind, not by the index of every free degree of freedom (N may be 10^9).
+    end = {0: 0, params.n_particles - 1: 1}.get(col)
+    if end is not None and ROW_INDEX["phi"] in FIXED_ROWS[params.ends[end]]:
+        fail(
+            f"--particle: phi of particle {particle} is held fixed by the {('left', 'right')[end]} end ({params.ends[end]}); "
+            "choose a free degree of freedom"
+        )
+
+
+def statics_failed(params: ChainParams, err: Exception, particle: int = 0) -> NoReturn:
+    """Exit on the error of a computation from the static branch, naming the fields where the chain has no stiffness at rest.
+
+    Called once a computation failed (it costs a solve): a chain whose stiffness at rest is singular
+    (E2 = 0 leaves v without any, or fields so far apart that it is singular in double
+    precision) has no static branch, and the computation's own message would name a fold or a
+    NaN instead; that is bad input (code 2). Any other failure keeps its message (code 3).
+    """
+    import numpy as np
+
+    from ..numerics.continuation import moment_response
+
+    if params.E2 == 0:
+        fail(
+            "E2 = 0 leaves the transverse displacements v without stiffness (k_v = 8 b^2 / d^2 E2 = 0): the chain has no "
+            "unique static state and no static branch; the statics need E2 > 0"
+        )
+    try:
+        response = moment_response(params, "linear", particle=particle)
+        singular = not float(np.max(np.abs(response), initial=0.0)) <= MAX_MAGNITUDE
+    except (ValueError, ArithmeticError):
+        singular = True
+    if singular:
+        fields = ", ".join(f"{name}={getattr(params, name)!r}" for name in ("E1", "E2", "h", "a", "b"))
+        fail(
+            f"the chain's stiffness at rest is singular in double precision ({fields}): it has no static branch; the model is "
+            "dimensionless, so give fields of order 1"
+        )
+    fail(f"the computation failed: {err}", code=EXIT_CODES[Status.FAILED])
 
 
 def params_or_exit(config: Path | None) -> ChainParams:

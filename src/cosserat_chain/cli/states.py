@@ -16,10 +16,12 @@ from .common import (
     config_or_exit,
     exit_on,
     fail,
+    held_or_exit,
     model_option,
     number,
     progress_bar,
     spin_or_exit,
+    statics_failed,
     step_for_checks,
     work_or_exit,
 )
@@ -61,8 +63,8 @@ def states(
     if moment is None:
         fail("--moment is required: the constant moment M on the loaded particle (or give --system REF for a system's states)")
     from ..experiments.coexisting import states_at
+    from ..memory import MemoryEstimateError
     from ..numerics.dynamics import IntegrationError
-    from ..state import column, require_held
 
     if turns < 1:
         fail(f"--turns must be an integer >= 1 (turns of the loaded particle per period), got {turns!r}")
@@ -73,14 +75,7 @@ def states(
     params, loads = config_or_exit(config)
     if len(loads):
         fail("--config: states takes no [[loads]] tables (the moment is the only load)")
-    try:
-        column(params, particle)
-    except ValueError as err:
-        fail(f"--particle: {err}")
-    try:
-        require_held(params)
-    except ValueError as err:
-        fail(f"--config: {err}")
+    held_or_exit(params, particle)
     step = step_for_checks(params, model, None)
     if step is not None:
         spin_or_exit(params, moment, step, dt_option=False)
@@ -99,7 +94,9 @@ def states(
     except ValueError as err:
         # The inputs were checked above: what is left is the computation's own failure (a state gone NaN).
         bar.close()
-        fail(f"the states at M = {moment:g} could not be computed: {err}", code=EXIT_CODES[Status.FAILED])
+        if isinstance(err, MemoryEstimateError):
+            raise
+        statics_failed(params, err, particle)
     except IntegrationError as err:
         bar.close()
         fail(str(err), code=EXIT_CODES[Status.BLEW_UP])

@@ -19,6 +19,7 @@ from .common import (
     config_or_exit,
     exit_on,
     fail,
+    held_or_exit,
     model_option,
     number,
     outputs_or_exit,
@@ -26,6 +27,7 @@ from .common import (
     progress_bar,
     save_dataset,
     save_figure,
+    statics_failed,
     step_for_checks,
     work_or_exit,
 )
@@ -158,6 +160,7 @@ def critical(
         )
     system_only_or_exit(ctx, ("sets", "vary", "start", "down"))
     from ..experiments.critical import CONFIRM_MOMENT_RTOL, CONFIRM_PHI0_ATOL, MAX_POINTS, TURNS, critical_point
+    from ..memory import MemoryEstimateError
     from ..numerics.kit import BranchEnd
     from ..numerics.newton import NewtonError
 
@@ -165,14 +168,20 @@ def critical(
     turns = TURNS if turns is None else turns
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     params = params_or_exit(config)
+    held_or_exit(params, particle)
     results = {}
     for name in chosen_models(model):
         bar = progress_bar(f"critical {name}", "rad")
         try:
             results[name] = critical_point(params, name, particle=particle, max_points=max_points, turns=turns, progress=bar_callback(bar))
-        except (ValueError, NewtonError) as err:
+        except NewtonError as err:
             bar.close()
-            fail(str(err), code=2 if isinstance(err, ValueError) else 3)
+            fail(str(err), code=3)
+        except ValueError as err:
+            bar.close()
+            if isinstance(err, MemoryEstimateError):
+                raise
+            statics_failed(params, err, particle)
         bar.finish()
     if out is not None:  # the Dataset (and xarray) only for a file: --json alone starts quickly
         save_dataset(stack_models({name: r.to_dataset() for name, r in results.items()}), out)
