@@ -46,7 +46,19 @@ multiplier has left the circle first (the edge changes kind between two values) 
 curve stops there, saying so; so it does where Newton fails from the previous point even
 on halved parameter steps (the curve turns back in p, or ends at a codimension-two point:
 the paper's chain's torus end cannot be followed beyond E2 = 1.12 and is a period doubling at
-1.2; where the two meet was not located).
+1.2: the two meet at a 1:2 resonance; the multiplier's codimension-two points along each
+kind, :data:`CODIM2`, are located by :func:`_codim2_points`).
+
+Where a ``fold_of_cycles`` curve stops so, it is followed on by pseudo-arclength in w = (z, p)
+(:class:`_FoldArc`: the augmented system with p free and the condition t . (w - w_pred) = 0),
+which passes a turn of p. On a fold curve p turns exactly where the fold's quadratic
+coefficient vanishes (at fixed p the folds are the critical points of M along the orbit
+branch; their curve can turn in p only where that critical point is degenerate): two folds of
+the branch meet there and both vanish beyond, a *cusp* of cycles (AUTO-07p's CP), where the
+curve's tangent has no M-component either. The zero of the tangent's p-component is located
+(:func:`_cusp`) and reported as a :class:`Codim2Point` ``cusp`` with the curve's points on
+either side of the turn (the two folds); below the cusp their moments part like the distance
+to it to the power 3/2 (the cusp's normal form).
 
 Not followed: a homoclinic end. Approximating the homoclinic orbit by an orbit of fixed
 long period (AUTO-07p's way) needs collocation or multiple shooting: with single shooting the
@@ -118,8 +130,10 @@ AUTO_LABELS = {"resonance_1_1": "R1", "resonance_1_2": "R2", "resonance_1_3": "R
 #: The codimension-two point where a ``fold_of_cycles`` curve turns back in the field (no multiplier's test
 #: function: located by pseudo-arclength through the turn, :func:`_cusp`), with AUTO-07p's label.
 CUSP_LABELS = {"cusp": "CP"}
-#: Pseudo-arclength steps (:class:`_FoldArc`) that look for the cusp where a fold-of-cycles curve stopped.
+#: Pseudo-arclength steps (:class:`_FoldArc`) that look for the cusp where a fold-of-cycles curve stopped...
 CUSP_STEPS = 8
+#: ... and halvings of one of them before the search gives up.
+CUSP_HALVINGS = 4
 #: Where a torus curve's pair turns real (at +1 or -1) the curve ends: its test function reaches zero without changing sign.
 ENDS_AT = ("resonance_1_1", "resonance_1_2")
 #: A codimension-two point is located when its test function is this small (a multiplier's or a cosine's distance
@@ -646,7 +660,8 @@ def continue_cycle_end(
             break
     found = curve.found
     points, at_stop = _codim2_points(kind, found, located, None if complete else float(target))
-    if not complete and at_stop is None and kind == "fold_of_cycles":
+    if not complete and at_stop is None and kind == "fold_of_cycles" and curve.reason.startswith("Newton"):
+        # Newton failed on natural steps (not an edge check): the curve may turn back in the field there.
         at_stop = _cusp(augmented, orbit.params, field_name, found, kind)
         if at_stop is not None:
             points.append(at_stop)
@@ -895,11 +910,13 @@ def _cusp(augmented: _Augmented, params: ChainParams, field_name: str, found: li
     """The cusp where a fold-of-cycles curve that stopped after the points ``found`` turns back in the field, or None.
 
     From the last two points (distinct values) the curve is followed by pseudo-arclength (:class:`_FoldArc`) at
-    most :data:`CUSP_STEPS` steps, each as long as their spacing in (z, p) (halved where Newton fails), until
-    the tangent's p-component changes sign; its zero is then located by the Illinois secant in the arclength
-    from the point before the turn (:data:`CODIM2_TOL` on the component, unit tangent). Near the cusp
-    p = p* - k s^2, so the value is the best point's p plus the remainder t_p^2 / (4 k) (its uncertainty,
-    with the bracket's spread).
+    most :data:`CUSP_STEPS` steps, each as long as their spacing in (z, p) (halved where Newton fails, at most
+    :data:`CUSP_HALVINGS` times), until the tangent's p-component t_p changes sign; its zero is then located by
+    the Illinois secant in the arclength from the point before the turn (:data:`CODIM2_TOL` on t_p, of the unit
+    tangent). Near the cusp p = p* - k s^2, so the value is the best point's p plus the remainder t_p^2 / (4 k);
+    the uncertainty is that remainder (t_p taken no smaller than :data:`DIFFERENCE_STEP`, the accuracy of the
+    tangent's differences) plus the point's error in p from Newton's tolerances (:meth:`_FoldArc.accuracy`).
+    None where no turn is met (the natural steps failed for another reason).
     """
     entries = [e for i, e in enumerate(found) if i == 0 or e[0] != found[i - 1][0]]
     if kind != "fold_of_cycles" or len(entries) < 2:
@@ -917,7 +934,7 @@ def _cusp(augmented: _Augmented, params: ChainParams, field_name: str, found: li
     after = None
     for _ in range(CUSP_STEPS):
         corrected = None
-        for _halving in range(MAX_HALVINGS):
+        for _halving in range(CUSP_HALVINGS):
             corrected = arc.correct(before[0] + h * before[1], before[1])
             if corrected is not None and float(np.max(np.abs(corrected[0][: augmented.head] - before[0][: augmented.head]))) <= JUMP:
                 break
