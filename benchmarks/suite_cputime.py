@@ -23,6 +23,10 @@ _COMPILING = {"depth": 0, "since": 0.0, "seconds": 0.0}
 
 
 def _listen_to_numba() -> None:
+    # Called at the session's start, not when the plugin loads: importing Numba loads NumPy, and NumPy loaded
+    # before tests/conftest.py sets OPENBLAS_NUM_THREADS=1 starts OpenBLAS with a thread a core, which the
+    # suite does not have without the plugin (dense eigenvalues outside the package's one_blas_thread
+    # entry points then spin a second thread on the loaded machine: many times the CPU).
     try:
         from numba.core import event
     except ImportError:
@@ -42,7 +46,9 @@ def _listen_to_numba() -> None:
     event.register("numba:compile", Compilations())
 
 
-_listen_to_numba()
+def pytest_sessionstart(session):
+    """Listen to Numba's compilations once the suite's conftest has set the environment."""
+    _listen_to_numba()
 
 
 @pytest.hookimpl(hookwrapper=True)
