@@ -96,3 +96,21 @@ def test_critical_refuses_a_ring_naming_the_config_before_computing(monkeypatch,
     result, out = _invoke(["critical", "--model", "linear", "--config", config("periodic = true\n")])
     assert result.exit_code == 2
     assert "--config" in out and "rigidly" in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "named"),
+    [
+        (["--vary", "a", "--values", "0.1,0.6"], ["--values", "a = 0.6", "h/2"]),
+        (["--vary", "E2", "--values", "-1"], ["--values", "E2 = -1.0", ">= 0"]),
+        (["--vary", "m", "--values", "0"], ["--values", "m = 0.0", "> 0"]),
+        (["--vary", "E2", "--range", "1:2:1000000000"], ["--range", "1000000000", "10,000"]),
+    ],
+)
+def test_diagram_refuses_values_that_make_no_chain_before_computing(monkeypatch, argv, named):
+    """The chain's validation error came out raw (pydantic's text and link) after the diagram began; 10^9 values ran."""
+    monkeypatch.setattr("cosserat_chain.experiments.diagram.state_diagram", _never)
+    result, out = _invoke(["diagram", *argv])
+    assert result.exit_code == 2
+    assert all(name in out for name in named), out
+    assert "pydantic" not in out

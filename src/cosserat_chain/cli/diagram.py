@@ -10,9 +10,12 @@ import typer
 from .common import app, bar_callback, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, save_dataset, save_figure
 from .systems import chain_only_or_exit, diagram_on_system, set_option, start_option, system_only_or_exit, system_option
 
+#: Most values of one diagram: each is a continuation of the static branch and of a rotating orbit.
+MAX_VALUES = 10_000
+
 
 def _values(values: str | None, span: str | None) -> list[float]:
-    """The values of --values V1,V2,... or --range START:STOP:NUM (exactly one of them)."""
+    """The values of --values V1,V2,... or --range START:STOP:NUM (exactly one of them, at most :data:`MAX_VALUES`)."""
     import numpy as np
 
     if (values is None) == (span is None):
@@ -25,6 +28,8 @@ def _values(values: str | None, span: str | None) -> list[float]:
             count = int(num)
             if count < 1:
                 raise ValueError
+            if count > MAX_VALUES:
+                fail(f"--range {span!r} asks for {count} values, more than {MAX_VALUES:,} (each is a continuation): a smaller NUM")
             # Rounded to 12 significant digits: linspace's 0.15000000000000002 would be the
             # row's value in the JSON and the file; the rounding moves a value by 1e-12 at most.
             out = [float(f"{v:.12g}") for v in np.linspace(float(start), float(stop), count)]
@@ -32,7 +37,20 @@ def _values(values: str | None, span: str | None) -> list[float]:
         fail(f"--values must read V1,V2,... and --range START:STOP:NUM (NUM >= 1), got {values or span!r}")
     if not out or not all(np.isfinite(out)):
         fail(f"the values of --vary must be finite numbers, got {values or span!r}")
+    if len(out) > MAX_VALUES:
+        fail(f"--values gives {len(out)} values, more than {MAX_VALUES:,} (each is a continuation): fewer values")
     return out
+
+
+def _chains_or_exit(params, vary: str, values: list[float]) -> None:
+    """Refuse (exit 2) before computing a value that makes no chain (``--vary a`` beyond h/2, a negative stiffness)."""
+    from pydantic import ValidationError
+
+    for value in values:
+        try:
+            params.replace(**{vary: value})
+        except ValidationError as err:
+            fail(f"--values: {vary} = {value!r} makes no chain: " + "; ".join(e["msg"].removeprefix("Value error, ") for e in err.errors()))
 
 
 @app.command()
@@ -92,6 +110,7 @@ def diagram(
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     params = params_or_exit(config)
     chosen = _values(values, span)
+    _chains_or_exit(params, vary, chosen)
     bar = progress_bar(f"diagram {model}", "value")
     try:
         result = state_diagram(params, model, vary, chosen, turns=turns, period_max=period_max, follow=follow, codim2=codim2,
