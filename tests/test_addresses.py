@@ -56,3 +56,35 @@ def test_rhs_by_address_matches_the_dispatcher():
     direct = np.empty_like(y)
     rhs(kernel, ends, 0.0, y, coef, rpar, ipar, direct)
     np.testing.assert_array_equal(system.rhs(0)(0.0, y), direct)
+
+
+def test_a_kernel_compiled_at_first_use_is_compiled_for_the_kernel_signature_only():
+    """A kernel with no signature at import (the graded and unused end kernels: cold start, issue 44) is compiled by
+    :func:`entry` for the kernel type's signature, once, and runs the same code as a call of the dispatcher."""
+    from numba import njit
+
+    from cosserat_chain.models.base import FORCE_SIGNATURE
+
+    @njit(cache=False)
+    def lazy(x, coef, out, start, stop):  # pragma: no cover - compiled
+        for k in range(start, stop):
+            out[0, k] = coef[0] * (x[0, k - 1] - 2.0 * x[0, k] + x[0, k + 1])
+
+    assert lazy.signatures == []
+    handed = entry(lazy, FORCE_KERNEL_TYPE)
+    assert isinstance(handed, _Entry) and handed.address > 0
+    assert lazy.signatures == [FORCE_SIGNATURE.args]
+    x = np.random.default_rng(3).standard_normal((3, 9))
+    out = np.zeros((3, 9))
+    lazy(x, np.array([2.5]), out, 1, 8)
+    assert lazy.signatures == [FORCE_SIGNATURE.args]  # the call found the same overload
+    np.testing.assert_array_equal(out[0, 1:8], 2.5 * (x[0, :7] - 2.0 * x[0, 1:8] + x[0, 2:]))
+
+
+@pytest.mark.parametrize("model", ["nonlinear", "sine", "linear"])
+def test_the_graded_kernels_compile_at_first_use_to_the_force_signature(model):
+    from cosserat_chain.models.base import FORCE_SIGNATURE
+
+    kernel = type(get_model(model)).graded_kernel
+    entry(kernel, FORCE_KERNEL_TYPE)
+    assert kernel.signatures == [FORCE_SIGNATURE.args]
