@@ -64,7 +64,17 @@ from ..numerics.long_breathers import SolvedBreather, find_breather_orbit
 from ..numerics.periodic import HamiltonianOrbit, OrbitError, require_undamped
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column
-from .breathers import MAX_HARMONIC, TAIL_SAMPLES, combination_resonances, coupled_bands, harmonics_in_bands, lifetime, rotors_start
+from .breathers import (
+    ATLAS_FIELDS,
+    MAX_HARMONIC,
+    TAIL_SAMPLES,
+    chain_at,
+    combination_resonances,
+    coupled_bands,
+    harmonics_in_bands,
+    lifetime,
+    rotors_start,
+)
 from .lifetimes import Lifetime, check_lifetime_run, lifetime_variables, measure_point_lifetimes
 from .simulation import run_attributes
 
@@ -73,8 +83,6 @@ if TYPE_CHECKING:  # xarray is imported where a Dataset is built
 
 ProgressCallback = Callable[[float, float], None]
 
-#: The fields an atlas may vary: the geometry (a, b, h) and the links' stiffnesses.
-ATLAS_FIELDS = ("a", "b", "h", "E1", "E2")
 #: Where each point's Newton started (``source``): none converged, continued in Omega, in the field, the anti-continuum rotor.
 SOURCES = ("none", "omega", "field", "anti_continuum")
 #: Newton iterations allowed from each start (a start that needs more is left for the next one).
@@ -401,22 +409,6 @@ class BreatherAtlas:
             }
         )
         return ds
-
-
-def chain_at(params: ChainParams, field: str, value: float) -> ChainParams:
-    """``params`` with ``field`` = ``value``; a change of a or b re-derives j = m (a^2 + b^2) / 3 where the chain's j is that default.
-
-    A particle is a 2a x 2b rectangle: its moment of inertia follows its shape unless it was given apart.
-
-    Raises
-    ------
-    ValueError
-        For a value the chain refuses (naming the field).
-    """
-    changes: dict = {field: float(value)}
-    if field in ("a", "b") and math.isclose(params.j, params.m * (params.a**2 + params.b**2) / 3.0, rel_tol=1e-12):
-        changes["j"] = None
-    return params.replace(**changes)
 
 
 def _secant(a: HamiltonianOrbit | None, b: HamiltonianOrbit | None, r: float) -> tuple[np.ndarray, np.ndarray] | None:

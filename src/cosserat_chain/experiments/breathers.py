@@ -507,10 +507,10 @@ def roto_breather_family(
         With ``arclength``, the most orbits traced.
     along : (str, float), optional
         With ``arclength``: follow the family at the frequency ``omegas[0]`` in this field of the
-        chain (:data:`~.breather_atlas.ATLAS_FIELDS`: a coupling or a geometric field) from its
+        chain (:data:`ATLAS_FIELDS`: a coupling or a geometric field) from its
         value to the one given, instead of in Omega
         (:func:`~cosserat_chain.numerics.breather_arclength.continue_hamiltonian_field`); a or b
-        carry the inertia j with them where it is their rectangle's (:func:`~.breather_atlas.chain_at`).
+        carry the inertia j with them where it is their rectangle's (:func:`chain_at`).
     branches : bool
         With ``arclength``: relocate each branch point and follow the family crossing it
         (:func:`~cosserat_chain.numerics.breather_arclength.follow_branches`; in the events' ``branch``).
@@ -563,10 +563,28 @@ def roto_breather_family(
     )
 
 
+#: The fields an atlas may vary: the geometry (a, b, h) and the links' stiffnesses.
+ATLAS_FIELDS = ("a", "b", "h", "E1", "E2")
+
+
+def chain_at(params: ChainParams, field: str, value: float) -> ChainParams:
+    """``params`` with ``field`` = ``value``; a change of a or b re-derives j = m (a^2 + b^2) / 3 where the chain's j is that default.
+
+    A particle is a 2a x 2b rectangle: its moment of inertia follows its shape unless it was given apart.
+
+    Raises
+    ------
+    ValueError
+        For a value the chain refuses (naming the field).
+    """
+    changes: dict = {field: float(value)}
+    if field in ("a", "b") and math.isclose(params.j, params.m * (params.a**2 + params.b**2) / 3.0, rel_tol=1e-12):
+        changes["j"] = None
+    return params.replace(**changes)
+
+
 def _along_field(params, model, omegas, along, turns, particle, partners, progress, arclength, max_points, branches) -> BreatherFamily:
     """:func:`roto_breather_family` with ``along``: the family at ``omegas[0]`` followed in a chain field by pseudo-arclength."""
-    from .breather_atlas import ATLAS_FIELDS, chain_at
-
     if not arclength:
         raise ValueError("along follows the family by pseudo-arclength: set arclength=True")
     name, target = along
