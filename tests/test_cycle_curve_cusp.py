@@ -72,7 +72,7 @@ def test_below_the_cusp_the_two_folds_part_like_the_distance_to_the_power_three_
         moments.append(followed.moment[1:])
     gap = np.abs(moments[0] - moments[1])
     exponents = np.diff(np.log(gap)) / math.log(4.0)
-    assert np.all(np.abs(exponents - 1.5) < 0.02), exponents
+    assert np.all(np.abs(exponents - 1.5) < 0.01), exponents  # a cusp value 2e-6 off fails this
     # Both meet the cusp's moment as the distance shrinks (M moves about as fast as gamma_phi along the curve).
     assert np.all(np.abs(np.array(moments) - cusp.moment) <= 2.0 * np.array(DISTANCES))
 
