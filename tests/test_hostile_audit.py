@@ -114,3 +114,37 @@ def test_diagram_refuses_values_that_make_no_chain_before_computing(monkeypatch,
     assert result.exit_code == 2
     assert all(name in out for name in named), out
     assert "pydantic" not in out
+
+
+def test_a_default_inertia_out_of_range_is_refused_naming_j(config):
+    """h = 1e100, a = b = 1e99 are each in range, but their default j = 6.7e197 is not: later copies of the chain failed."""
+    result, out = _invoke(["waves", "--config", config("h = 1e100\na = 1e99\nb = 1e99\n")])
+    assert result.exit_code == 2
+    assert "j, left out, defaults to m (a^2 + b^2) / 3 = 6.666666666666666e+197" in out and "give j" in out
+
+
+def test_theory_refuses_a_graded_chain_naming_the_config(monkeypatch, config):
+    monkeypatch.setattr("cosserat_chain.analysis.timoshenko.convergence", _never)
+    result, out = _invoke(["theory", "--n-list", "3", "--config", config("E1_factors = [1, 2, 3, 4, 5, 6]\n")])
+    assert result.exit_code == 2
+    assert "--config" in out and "E1_factors" in out
+
+
+def test_theory_on_a_chain_singular_at_rest_names_its_fields(config):
+    """The discrete chain's solve said only "the matrix is singular: Factor is exactly singular"."""
+    result, out = _invoke(["theory", "--n-list", "2", "--config", config("E1 = 1e-100\n")])
+    assert result.exit_code == 2
+    assert "singular" in out and "E1=1e-100" in out and "Factor" not in out
+
+
+def test_diagram_whose_run_blows_up_exits_3_with_its_message(monkeypatch):
+    """gamma_phi = 1e100 made the orbit's settling run blow up: IntegrationError escaped as a traceback."""
+    from cosserat_chain.numerics.dynamics import IntegrationError
+
+    def blows_up(*args, **kwargs):
+        raise IntegrationError("the run blew up at t=21.3: v of particle -2 became non-finite", None)
+
+    monkeypatch.setattr("cosserat_chain.experiments.diagram.state_diagram", blows_up)
+    result, out = _invoke(["diagram", "--vary", "E2", "--values", "1"])
+    assert result.exit_code == 3
+    assert "the diagram could not be computed: the run blew up at t=21.3" in out

@@ -163,7 +163,14 @@ class ChainParams(BaseModel):
         fields = cls.model_fields
         m, a, b = (data.get(name, fields[name].default) for name in ("m", "a", "b"))
         if all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (m, a, b)):
-            data = {**data, "j": m * (a * a + b * b) / 3.0}
+            j = m * (a * a + b * b) / 3.0
+            if m > 0 and a > 0 and b > 0 and not MIN_MAGNITUDE <= j <= MAX_MAGNITUDE:
+                # Fields each in range can still give a default j out of it (or 0, or inf).
+                raise ValueError(
+                    f"j, left out, defaults to m (a^2 + b^2) / 3 = {j!r} (m={m!r}, a={a!r}, b={b!r}), which must lie between "
+                    f"{MIN_MAGNITUDE:g} and {MAX_MAGNITUDE:g}: give j, or scale the chain to numbers of order 1"
+                )
+            data = {**data, "j": j}
         return data
 
     @field_validator("E1", "h", "b", "m", "j")

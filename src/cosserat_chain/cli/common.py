@@ -197,13 +197,13 @@ def held_or_exit(params: ChainParams, particle: int) -> None:
         )
 
 
-def statics_failed(params: ChainParams, err: Exception, particle: int = 0) -> NoReturn:
-    """Exit on the error of a computation from the static branch, naming the fields where the chain has no stiffness at rest.
+def stiff_at_rest_or_exit(params: ChainParams, particle: int = 0) -> None:
+    """Refuse (exit 2) a chain whose stiffness at rest is singular, naming its fields; return otherwise.
 
-    Called once a computation failed (it costs a solve): a chain whose stiffness at rest is singular
-    (E2 = 0 leaves v without any, or fields so far apart that it is singular in double
-    precision) has no static branch, and the computation's own message would name a fold or a
-    NaN instead; that is bad input (code 2). Any other failure keeps its message (code 3).
+    For a computation that already failed (it costs a solve): E2 = 0 leaves v without
+    stiffness, and fields far from order 1 (E1 or b = 1e-100) make K singular in double
+    precision; such a chain has no static branch, and the computation's own message would
+    name a fold or a NaN instead.
     """
     import numpy as np
 
@@ -222,9 +222,18 @@ def statics_failed(params: ChainParams, err: Exception, particle: int = 0) -> No
     if singular:
         fields = ", ".join(f"{name}={getattr(params, name)!r}" for name in ("E1", "E2", "h", "a", "b"))
         fail(
-            f"the chain's stiffness at rest is singular in double precision ({fields}): it has no static branch; the model is "
+            f"the chain's stiffness at rest is singular in double precision ({fields}): it has no unique static state; the model is "
             "dimensionless, so give fields of order 1"
         )
+
+
+def statics_failed(params: ChainParams, err: Exception, particle: int = 0) -> NoReturn:
+    """Exit on the error of a computation from the static branch whose inputs were checked.
+
+    A chain without stiffness at rest is bad input (code 2, :func:`stiff_at_rest_or_exit`);
+    any other failure keeps its message (code 3).
+    """
+    stiff_at_rest_or_exit(params, particle)
     fail(f"the computation failed: {err}", code=EXIT_CODES[Status.FAILED])
 
 

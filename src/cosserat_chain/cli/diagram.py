@@ -103,7 +103,9 @@ def diagram(
         )  # fmt: skip
     system_only_or_exit(ctx, ("sets", "drive", "turn", "start"))
     from ..experiments.diagram import state_diagram
+    from ..numerics.dynamics import IntegrationError
     from ..numerics.fold_curve import FIELDS
+    from ..numerics.periodic import OrbitError
 
     if vary not in FIELDS:
         fail(f"--vary: field must be one of {', '.join(FIELDS)} (a number of the chain), got {vary!r}")
@@ -118,6 +120,9 @@ def diagram(
     except ValueError as err:
         bar.close()
         fail(str(err))
+    except (IntegrationError, OrbitError) as err:
+        bar.close()
+        fail(f"the diagram could not be computed: {err}", code=3)
     bar.finish()
     save_dataset(result.to_dataset(), out)
     if plot is not None:

@@ -91,7 +91,7 @@ def states(
             params, model, moment, particle=particle, turns=tuple(range(1, turns + 1)), random_starts=random_starts, seed=seed,
             t_long=t_long, progress=bar_callback(bar),
         )  # fmt: skip
-    except ValueError as err:
+    except (ValueError, ArithmeticError) as err:
         # The inputs were checked above: what is left is the computation's own failure (a state gone NaN).
         bar.close()
         if isinstance(err, MemoryEstimateError):

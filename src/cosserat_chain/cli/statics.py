@@ -177,7 +177,7 @@ def critical(
         except NewtonError as err:
             bar.close()
             fail(str(err), code=3)
-        except ValueError as err:
+        except (ValueError, ArithmeticError) as err:
             bar.close()
             if isinstance(err, MemoryEstimateError):
                 raise

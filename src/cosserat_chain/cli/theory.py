@@ -9,7 +9,7 @@ from typing import Any
 
 import typer
 
-from .common import app, fail, outputs_or_exit, params_or_exit, save_dataset, save_figure
+from .common import app, fail, outputs_or_exit, params_or_exit, save_dataset, save_figure, stiff_at_rest_or_exit
 
 
 def parse_n_list(text: str) -> list[int]:
@@ -76,6 +76,11 @@ def theory(
 
     outputs_or_exit({"--plot": plot, "--out": out}, {"--config": config})
     params = params_or_exit(config)
+    if params.graded:
+        fail(
+            "--config: theory compares the uniform chain at each N of --n-list with its continua; a graded chain's factors "
+            "(E1_factors, E2_factors, m_factors, j_factors) fix its N: leave them out"
+        )
     n_values = parse_n_list(n_list)
     if load not in LOADS:
         fail(f"--load must be one of {', '.join(LOADS)}, got {load!r}")
@@ -89,7 +94,8 @@ def theory(
         beam = beam_convergence(params, n_values, at=at, load=load)
         stiffness = beam_stiffness(params)
         table = convergence(params, n_values) if paper_applies else None
-    except ValueError as err:
+    except (ValueError, ArithmeticError) as err:
+        stiff_at_rest_or_exit(params.replace(N=min(n_values)))
         fail(str(err))
     bending = None
     if bend_angle is not None:
