@@ -36,8 +36,18 @@ def spy(*args, **kwargs):
     return real(*args, **kwargs)
 critical.continue_in_moment = spy
 result = critical.critical_point(ChainParams(N=2), "sine")
-print(json.dumps({"before": blas_threads(), "probe": probe(), "critical": seen, "after": blas_threads(),
-                  "M_c": result.critical_moment}))
+# A user system's entry points (numerics.equilibria, shooting, homoclinic, experiments.system_diagram) as well.
+from cosserat_chain.numerics import equilibria
+from cosserat_chain.systems import pen
+system_seen = []
+real_classify = equilibria.classify
+def system_spy(*args, **kwargs):
+    system_seen.append(blas_threads())
+    return real_classify(*args, **kwargs)
+equilibria.classify = system_spy
+equilibria.find_equilibrium(pen(), numpy.zeros(2))
+print(json.dumps({"before": blas_threads(), "probe": probe(), "critical": seen, "system": system_seen,
+                  "after": blas_threads(), "M_c": result.critical_moment}))
 """
 
 
@@ -53,7 +63,7 @@ def _run(env_extra: dict[str, str]) -> dict:
 def test_the_entry_points_run_on_one_blas_thread_and_give_the_sessions_threads_back():
     out = _run({})
     assert out["before"] and max(out["before"]) >= 2  # the session's default on this machine
-    assert out["probe"] == [1] and out["critical"] == [[1]]
+    assert out["probe"] == [1] and out["critical"] == [[1]] and out["system"] and all(seen == [1] for seen in out["system"])
     assert out["after"] == out["before"]
     assert out["M_c"] > 0
 
@@ -61,3 +71,4 @@ def test_the_entry_points_run_on_one_blas_thread_and_give_the_sessions_threads_b
 def test_a_number_of_threads_the_user_chose_is_kept():
     out = _run({"OPENBLAS_NUM_THREADS": "2"})
     assert out["before"] == out["probe"] == out["after"] and out["critical"] == [out["before"]]
+    assert all(seen == out["before"] for seen in out["system"])

@@ -57,6 +57,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..linalg.threads import one_blas_thread
 from ..numerics.equilibria import EquilibriumNotFound, continue_equilibria, find_equilibrium
 from ..numerics.homoclinic import HomoclinicError, fold_turns_over, homoclinic_end, locate_snic_point
 from ..numerics.kit import BranchEnd, EvaluationFailed
@@ -187,6 +188,7 @@ class SystemDiagram:
         return ds
 
 
+@one_blas_thread
 def system_diagram(
     system: System,
     vary: str,

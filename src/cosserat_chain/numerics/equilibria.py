@@ -31,6 +31,7 @@ import scipy.sparse as sp
 
 from ..errors import CosseratChainError
 from ..linalg import band_storage, negative_count
+from ..linalg.threads import one_blas_thread
 from ..systems.base import System
 from .kit import BranchEnd, Evaluation, continuation, newton
 
@@ -86,6 +87,7 @@ def classify(system: System, q: np.ndarray, residual: float = 0.0) -> SystemEqui
     return SystemEquilibrium(system, q, None, residual, negative == 0, negative)
 
 
+@one_blas_thread
 def find_equilibrium(system: System, q0: np.ndarray, *, tol: float = FORCE_TOL, max_iterations: int = 50) -> SystemEquilibrium:
     """The equilibrium of ``system`` reached by Newton from ``q0``.
 
@@ -177,6 +179,7 @@ class _EquilibriumProblem:
         return None
 
 
+@one_blas_thread
 def continue_equilibria(
     start: SystemEquilibrium,
     parameter: str,

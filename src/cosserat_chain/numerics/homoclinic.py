@@ -67,6 +67,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import CosseratChainError
+from ..linalg.threads import one_blas_thread
 from ..state import pack, unpack
 from ..systems.base import System
 from .equilibria import EquilibriumNotFound, find_equilibrium
@@ -628,6 +629,7 @@ def _t_max(r: Rest, t_max: float | None, eps0: float) -> float:
     return leaving + 20.0 / r.decay + 200.0 / fast
 
 
+@one_blas_thread
 def homoclinic_end(
     system: System,
     saddle: np.ndarray,
@@ -760,6 +762,7 @@ class HomoclinicCurve:
         }
 
 
+@one_blas_thread
 def continue_homoclinic(
     orbit: HomoclinicOrbit, name: str, values: Sequence[float], *, ladder: Sequence[float] = EPS_LADDER, t_max: float | None = None
 ) -> HomoclinicCurve:
@@ -924,6 +927,7 @@ def fold_turns_over(
     return _turns_over(r, FOLD_EPS0, shift, winding, _t_max(r, t_max, FOLD_EPS0))
 
 
+@one_blas_thread
 def locate_snic_point(
     system: System,
     fold: np.ndarray,

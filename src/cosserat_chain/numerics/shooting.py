@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import CosseratChainError
+from ..linalg.threads import one_blas_thread
 from ..models.base import no_ends
 from ..systems.base import System
 from . import dop853
@@ -348,6 +349,7 @@ class _Shooting:
         )
 
 
+@one_blas_thread
 def find_orbit(
     system: System,
     guess: tuple[np.ndarray, float] | Orbit,
@@ -545,6 +547,7 @@ class _OrbitProblem:
         return None
 
 
+@one_blas_thread
 def continue_orbits(
     orbit: Orbit,
     parameter: str,
