@@ -148,3 +148,12 @@ def test_diagram_whose_run_blows_up_exits_3_with_its_message(monkeypatch):
     result, out = _invoke(["diagram", "--vary", "E2", "--values", "1"])
     assert result.exit_code == 3
     assert "the diagram could not be computed: the run blew up at t=21.3" in out
+
+
+def test_draw_names_times_outside_the_run(tmp_path):
+    run = tmp_path / "run.nc"
+    made, _ = _invoke(["simulate", "--model", "linear", "--t-end", "1", "--frames", "3", "--out", str(run)])
+    assert made.exit_code == 0
+    result, out = _invoke(["draw", str(run), "--out", str(tmp_path / "x.png"), "--times", "0,100"])
+    assert result.exit_code == 2
+    assert "--times '0,100'" in out and "100" in out and "0 <= t <= 1" in out

@@ -72,7 +72,7 @@ def draw(
     try:
         figure = snapshot_figure(None, ds, chosen, path=out)
     except ValueError as err:
-        fail(str(err))
+        fail(f"--times {times!r}: {err}" if times is not None else str(err))
     typer.echo(f"wrote {out} ({len(figure.axes)} snapshot{'s' if len(figure.axes) > 1 else ''} of {ds.attrs.get('model', 'the run')})")
 
 
