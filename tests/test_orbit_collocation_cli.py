@@ -16,6 +16,7 @@ from typer.testing import CliRunner
 
 from cosserat_chain import ChainParams
 from cosserat_chain.cli import app
+from cosserat_chain.experiments import orbits
 from cosserat_chain.numerics.collocation import continue_periodic_orbit
 from cosserat_chain.numerics.periodic import find_periodic_orbit
 
@@ -25,13 +26,29 @@ PERIOD_MAX = 300.0
 
 
 @pytest.fixture(scope="module")
-def branch(tmp_path_factory):
+def command_run(tmp_path_factory):
+    """The command's JSON, and the arguments and result of the API call it made (:func:`continue_periodic_orbit`, spied
+    on: the branch is computed once for the command's output and the API's checks)."""
     config = tmp_path_factory.mktemp("collocation_cli") / "N1.toml"
     config.write_text("N = 1\n")
     command = ["orbit", "--model", "nonlinear", "--moment", "0.3", "--down-to", "0.1", "--config", str(config)]
-    result = runner.invoke(app, [*command, "--period-max", str(PERIOD_MAX), "--method", "collocation", "--json"])
+    calls = []
+
+    def spy(orbit, **options):
+        calls.append((orbit, options, continue_periodic_orbit(orbit, **options)))
+        return calls[-1][2]
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(orbits, "continue_periodic_orbit", spy)
+        result = runner.invoke(app, [*command, "--period-max", str(PERIOD_MAX), "--method", "collocation", "--json"])
     assert result.exit_code == 0, result.output
-    return json.loads(result.output)
+    assert len(calls) == 1
+    return json.loads(result.output), calls[0]
+
+
+@pytest.fixture(scope="module")
+def branch(command_run):
+    return command_run[0]
 
 
 def test_the_collocation_branch_ends_at_the_snic_of_the_static_fold(branch):
@@ -43,12 +60,14 @@ def test_the_collocation_branch_ends_at_the_snic_of_the_static_fold(branch):
     assert continuation["branch_points"][:2] == pytest.approx([0.2977176, 0.2949965], abs=1e-6)
 
 
-def test_the_branchs_longest_orbit_is_the_shootings_at_its_moment():
+def test_the_branchs_longest_orbit_is_the_shootings_at_its_moment(command_run):
     """The API's branch (the command's): its last, longest orbit solved again by shooting from it has the same period
     and the same largest multiplier (a separate integration of the variational equations over 300 time units)."""
     params = ChainParams(N=1)
-    orbit = find_periodic_orbit(params, "nonlinear", 0.3, method="collocation")
-    branch = continue_periodic_orbit(orbit, moment_min=0.1, period_max=PERIOD_MAX)
+    _, (orbit, options, branch) = command_run
+    # The command's call is the API's: the N = 1 chain's orbit at M = 0.3 followed down to 0.1 within the period bound.
+    assert orbit.params == params and orbit.model == "nonlinear" and orbit.moment == 0.3
+    assert options["moment_min"] == 0.1 and options["period_max"] == PERIOD_MAX
     assert branch.end == "infinite_period" and branch.settings["method"] == "collocation"
     last = branch.orbits[-2]  # the last within the period bound
     shot = find_periodic_orbit(params, "nonlinear", last.moment, guess=last)
