@@ -81,6 +81,7 @@ import scipy.linalg as sla
 from ..models.base import get_model
 from ..params import ChainParams
 from ..state import n_free
+from . import shooting
 from .fold_curve import FIELDS, chain_with, field_values
 from .kit import BranchEnd, Correction, Corrector, Evaluation, EvaluationFailed, Event, continuation, newton
 from .periodic import ATOL, CLOSURE_TOL, RTOL, OrbitError, PeriodicOrbit, _orbit, _phase_for, _shooting, _System, _to_y
@@ -167,6 +168,9 @@ class CycleEndCurve:
     complete : bool
         False if the curve could not be followed to the last value; ``message`` says where and why.
     message : str
+    points : list of Codim2Point
+    parameter : str
+        The parameter the end lies at in ``moment``: M for the chain, a user system's own (``I`` of ``pen``).
     """
 
     kind: str
@@ -179,12 +183,14 @@ class CycleEndCurve:
     complete: bool = True
     message: str = ""
     points: list[Codim2Point] = field(default_factory=list)
+    parameter: str = "M"
 
     def as_dict(self) -> dict:
         """JSON-ready rows, one per value reached, and the codimension-two points located on the way."""
         return {
             "kind": self.kind,
             "field": self.field,
+            "parameter": self.parameter,
             "complete": self.complete,
             "message": self.message,
             "rows": [
@@ -289,6 +295,7 @@ class _Augmented:
     atol: float
     borders: tuple[np.ndarray, np.ndarray] | None = field(default=None)  # b, c of a bordered test function
     pair: complex | None = field(default=None)  # the torus's critical multiplier at the last point
+    field_name: str = ""  # the second parameter, followed through its values
 
     def __post_init__(self) -> None:
         self.size = 2 * n_free(self.orbit.params)
@@ -302,6 +309,16 @@ class _Augmented:
 
     def split(self, z: np.ndarray) -> tuple[np.ndarray, float, float]:
         return self.phase.state(z[: self.head]), math.exp(z[self.head]), float(z[-1])
+
+    def at(self, value: float) -> ChainParams:
+        """The chain with the second parameter at ``value``."""
+        return chain_with(self.orbit.params, self.field_name, value)
+
+    def orbit_at(self, chain: ChainParams, z: np.ndarray, mono: np.ndarray, closure: float, iterations: int) -> PeriodicOrbit:
+        """The orbit of a solution z of the augmented system for ``chain``."""
+        y0, period, moment = self.split(z)
+        system = _System(chain, get_model(self.orbit.model), moment, self.orbit.particle)
+        return _orbit(system, self.orbit.turns, y0, period, mono, closure, iterations, self.orbit.particle_turns, self.phase.normal)
 
     def evaluate(self, chain: ChainParams, z: np.ndarray):
         """(R, R_z, monodromy, A) at z: (P) and the phase condition, their Jacobian in z, and the shooting Jacobian in (y0, log T)."""
@@ -433,6 +450,61 @@ class _Augmented:
         return correction - (g + along_correction) / along_tangent * tangent
 
 
+@dataclass
+class _SystemAugmented(_Augmented):
+    """(O) of a user system (:mod:`~.shooting`) and the test function of one kind, in z = (y0, log T, p), p the
+    system's parameter the end was found in (``parameter``, the chain's M); the phase condition is the orbit's own
+    plane (through its y0, normal to the flow there), kept for the whole curve. The test functions, Newton's
+    method and the codimension-two watch are :class:`_Augmented`'s; the context of an evaluation is the system
+    with the second parameter set (:meth:`at`) instead of a chain."""
+
+    parameter: str = ""
+
+    def __post_init__(self) -> None:
+        self.size = 2 * self.orbit.system.size
+        self.reference = np.array(self.orbit.y0, dtype=float)
+        self.normal = self.orbit.system.vector_field(self.reference)
+        self.head = self.size
+
+    def pack(self, orbit: shooting.Orbit) -> np.ndarray:
+        return np.concatenate([orbit.y0, [math.log(orbit.period), orbit.parameter(self.parameter)]])
+
+    def split(self, z: np.ndarray) -> tuple[np.ndarray, float, float]:
+        return z[: self.size], math.exp(z[self.head]), float(z[-1])
+
+    def at(self, value: float):
+        """The system with the second parameter at ``value``."""
+        return self.orbit.system.with_parameters(**{self.field_name: value})
+
+    def orbit_at(self, system, z: np.ndarray, mono: np.ndarray, closure: float, iterations: int) -> shooting.Orbit:
+        y0, period, value = self.split(z)
+        return shooting.Orbit(
+            system=system.with_parameters(**{self.parameter: value}),
+            y0=y0.copy(),
+            period=period,
+            turns=self.orbit.turns,
+            multipliers=np.linalg.eigvals(mono),
+            closure=closure,
+            iterations=iterations,
+            monodromy=mono,
+        )
+
+    def evaluate(self, system, z: np.ndarray):
+        """As :meth:`_Augmented.evaluate`, on (O) of ``system`` (:class:`~.shooting._Shooting`, p its second unknown)."""
+        if not (np.all(np.isfinite(z)) and abs(z[self.head] - math.log(self.orbit.period)) < math.log(1e3)):
+            raise OrbitError(f"the period exp({z[self.head]:.6g}) is far from the orbit's {self.orbit.period:.6g}")
+        problem = shooting._Shooting(
+            system, self.orbit.turns, self.reference, self.orbit.period, (shooting.PERIOD, self.parameter), self.tol, self.rtol, self.atol
+        )
+        problem.normal = self.normal  # one plane for the whole curve, not the flow's direction at each value
+        try:
+            evaluation = problem.evaluate(z, True)
+        except EvaluationFailed as err:
+            raise OrbitError(str(err)) from None
+        jac = np.asarray(evaluation.jacobian)
+        return evaluation.residual, jac, evaluation.data, jac[:, :-1]
+
+
 def _singular_vectors(matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The left and right singular vectors of the smallest singular value: the borders of a bordered test function."""
     u, _, vt = np.linalg.svd(matrix)
@@ -554,11 +626,12 @@ class _EndCurve:
 
 
 def continue_cycle_end(
-    orbit: PeriodicOrbit,
+    orbit: PeriodicOrbit | shooting.Orbit,
     kind: str,
     field_name: str,
     values: Sequence[float],
     *,
+    parameter: str | None = None,
     tol: float = CLOSURE_TOL,
     rtol: float = RTOL,
     atol: float = ATOL,
@@ -566,16 +639,25 @@ def continue_cycle_end(
 ) -> CycleEndCurve:
     """Follow the end of a rotating orbit of one ``kind`` through ``values`` of ``field_name`` (module docstring).
 
+    A user system's orbit (:class:`~.shooting.Orbit`) is followed the same way on (O) with the phase plane
+    of ``orbit`` (:class:`_SystemAugmented`), its end in ``parameter`` (the chain's M); a system's
+    bifurcation need not be an edge of rotation, so its points are not checked to be one (every other
+    multiplier inside the circle), and the cusp of a fold curve is looked for on the chain's curves only.
+
     Parameters
     ----------
-    orbit : PeriodicOrbit
+    orbit : PeriodicOrbit or shooting.Orbit
         An orbit near the end at the first value (for the chain of ``orbit.params`` with
         ``field_name`` set to ``values[0]``): one of :func:`~.periodic.continue_orbit`'s
-        orbits next to where it turns or loses stability.
+        orbits next to where it turns or loses stability; or a system's orbit
+        (:func:`~.shooting.continue_orbits`'), its system with ``field_name`` at ``values[0]``.
     kind : str
         One of :data:`KINDS`.
     field_name : str
-        A number of the chain (:data:`~.fold_curve.FIELDS`).
+        A number of the chain (:data:`~.fold_curve.FIELDS`), or a parameter of the system.
+    parameter : str, optional
+        For a system's orbit (required there): the system's parameter in which the end is located at
+        each value of ``field_name``. Not for the chain (its end lies in M).
     values : sequence of float
         In the order to follow them; the first is solved from ``orbit`` (which locates the end
         there to Newton's tolerance), each next one from the point before.
@@ -596,22 +678,27 @@ def continue_cycle_end(
     """
     if kind not in KINDS:
         raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
-    values = field_values(field_name, values)
-    augmented = _Augmented(kind, orbit, tol, rtol, atol)
+    system_orbit = isinstance(orbit, shooting.Orbit)
+    if system_orbit:
+        values = _system_values(orbit, field_name, parameter, values)
+        augmented = _SystemAugmented(kind, orbit, tol, rtol, atol, field_name=field_name, parameter=parameter)
+    else:
+        if parameter is not None:
+            raise ValueError(f"parameter is for a system's orbit; a chain's end lies in M, got parameter={parameter!r}")
+        values = field_values(field_name, values)
+        augmented = _Augmented(kind, orbit, tol, rtol, atol, field_name=field_name)
 
     def solved(value: float, z: np.ndarray):
         """The augmented system's solution at ``value`` from the guess z, not checked to be the lower edge:
         (entry, reason) or (None, reason); an entry is (value, z, orbit, iterations, the torus's pair)."""
-        chain = chain_with(orbit.params, field_name, value)
+        chain = augmented.at(value)
         solution = augmented.solve(chain, z)
         if solution is None:
             return None, "Newton did not converge"
         z_new, mono, closure, iterations = solution
         if np.max(np.abs(z_new[: augmented.head] - z[: augmented.head])) > JUMP:
             return None, "Newton jumped to another orbit"
-        y0, period, moment = augmented.split(z_new)
-        system = _System(chain, get_model(orbit.model), moment, orbit.particle)
-        found = _orbit(system, orbit.turns, y0, period, mono, closure, iterations, orbit.particle_turns, augmented.phase.normal)
+        found = augmented.orbit_at(chain, z_new, mono, closure, iterations)
         if kind == "fold_of_cycles" and np.sort(np.abs(found.multipliers - 1.0))[1] > FOLD_MULTIPLIER_TOL:
             return None, (
                 f"no second Floquet multiplier at +1 there (the nearest is {np.sort(np.abs(found.multipliers - 1.0))[1]:.3g} "
@@ -622,9 +709,9 @@ def continue_cycle_end(
     def point(value: float, z: np.ndarray):
         """The end at ``value`` from the guess z, checked to be the lower edge; (entry, reason) or (None, reason)."""
         entry, reason = solved(value, z)
-        if entry is None:
-            return None, reason
-        chain, z_new, found = chain_with(orbit.params, field_name, value), entry[1], entry[2]
+        if entry is None or system_orbit:
+            return entry, reason
+        chain, z_new, found = augmented.at(value), entry[1], entry[2]
         others = _other_multipliers(found, kind)
         if others.size and float(np.max(np.abs(others))) >= 1.0 - EDGE_MARGIN:
             return None, (
@@ -644,7 +731,8 @@ def continue_cycle_end(
     first, reason = point(float(values[0]), augmented.pack(orbit))
     if first is None:
         raise ValueError(
-            f"the {kind} end could not be located at {field_name} = {values[0]:g} from the orbit at M = {orbit.moment:.6g}: {reason}"
+            f"the {kind} end could not be located at {field_name} = {values[0]:g} from the orbit at "
+            f"{parameter or 'M'} = {augmented.pack(orbit)[-1]:.6g}: {reason}"
         )
     curve = _EndCurve(point, first, augmented.pack(orbit).size + 1)
     complete, message, target = True, "", float(values[-1])
@@ -660,7 +748,7 @@ def continue_cycle_end(
             break
     found = curve.found
     points, at_stop = _codim2_points(kind, found, located, None if complete else float(target))
-    if not complete and at_stop is None and kind == "fold_of_cycles" and curve.reason.startswith("Newton"):
+    if not complete and at_stop is None and kind == "fold_of_cycles" and not system_orbit and curve.reason.startswith("Newton"):
         # Newton failed on natural steps (not an edge check): the curve may turn back in the field there.
         at_stop = _cusp(augmented, orbit.params, field_name, found, kind)
         if at_stop is not None:
@@ -673,7 +761,7 @@ def continue_cycle_end(
         if at_stop is not None:
             message += (
                 f": it meets a {at_stop.name} ({at_stop.label}) at {field_name} = {at_stop.value:.10g} "
-                f"+- {at_stop.uncertainty:.2g} (M = {at_stop.moment:.10g}), where the edge changes kind"
+                f"+- {at_stop.uncertainty:.2g} ({parameter or 'M'} = {at_stop.moment:.10g}), where the edge changes kind"
             )
         else:
             message += f": the curve turns back in {field_name}, ends at a codimension-two point not watched, or the edge changes kind"
@@ -684,14 +772,31 @@ def continue_cycle_end(
         kind=kind,
         field=field_name,
         values=np.array([e[0] for e in asked]),
-        moment=np.array([e[2].moment for e in asked]),
+        moment=np.array([e[1][-1] for e in asked]),
         period=np.array([e[2].period for e in asked]),
         orbits=[e[2] for e in asked],
         iterations=np.array([e[3] for e in asked]),
         complete=complete,
         message=message,
         points=points,
+        parameter=parameter or "M",
     )
+
+
+def _system_values(orbit: shooting.Orbit, field_name: str, parameter: str | None, values: Sequence[float]) -> np.ndarray:
+    """The values of a system's ``field_name`` to follow an end in ``parameter`` through, checked."""
+    known = orbit.system.parameters
+    if parameter not in known or field_name not in known or parameter == field_name:
+        raise ValueError(
+            f"parameter and field must be two different parameters of {orbit.system.name} ({', '.join(known) or 'none'}), "
+            f"got parameter={parameter!r}, field={field_name!r}"
+        )
+    if orbit.unfold is not None:
+        raise ValueError(f"the orbit is a conservative one (unfolded in {orbit.unfold!r}): its ends are not followed in a second parameter")
+    array = np.atleast_1d(np.asarray(values, dtype=float))
+    if array.ndim != 1 or array.size == 0 or not np.all(np.isfinite(array)):
+        raise ValueError(f"values of {field_name} must be one or more finite numbers, got {values!r}")
+    return array
 
 
 def _codim2_tests(kind: str, orbit: PeriodicOrbit, pair: complex | None) -> dict[str, float]:
@@ -816,8 +921,17 @@ def _locate_codim2(kind: str, name: str, solve: Callable, before: list[tuple], a
     estimate = 10.0 * abs(f_best / slope) if math.isfinite(slope) and slope != 0 else math.inf
     orbit = best[2]
     angle = float(np.angle(best[4])) if kind == "torus" else None
+    # z ends with the first parameter's value (the chain's M, a system's own).
     return Codim2Point(
-        name, AUTO_LABELS[name], float(best[0]), orbit.moment, orbit.period, orbit, float(f_best), float(min(bracket, estimate)), angle
+        name,
+        AUTO_LABELS[name],
+        float(best[0]),
+        float(best[1][-1]),
+        orbit.period,
+        orbit,
+        float(f_best),
+        float(min(bracket, estimate)),
+        angle,
     )
 
 

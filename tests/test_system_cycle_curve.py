@@ -1,0 +1,55 @@
+"""Two-parameter curves of a user system's cycle ends (:func:`~cosserat_chain.numerics.cycle_curve.continue_cycle_end`
+on a :class:`~cosserat_chain.numerics.shooting.Orbit`)."""
+
+import numpy as np
+import pytest
+
+from cosserat_chain.numerics import shooting
+from cosserat_chain.numerics.cycle_curve import continue_cycle_end
+from cosserat_chain.systems import pen
+
+
+def in_phase_period_doubling(**parameters) -> shooting.Orbit:
+    """The pen demo's in-phase rotation followed down in I to its period doubling, located by the one-parameter
+    continuation's own event (an independent method: a multiplier's test function on the orbit branch)."""
+    system = pen(**parameters)
+    guess = shooting.settled_guess(system, np.array([0.0, 0.0, 2.0, 2.0]), coordinate="phi_0")
+    orbit = shooting.find_orbit(system, guess, turns={"phi_0": 1, "phi_1": 1})
+    branch = shooting.continue_orbits(orbit, "I", direction=-1, max_points=60, stop_at=("period_doubling",))
+    return next(e for e in branch.events if e.kind == "period_doubling" and e.located).point
+
+
+@pytest.fixture(scope="module")
+def curve():
+    """AUTO-07p's demo ``pen``: the in-phase rotation period-doubles at I = 0.17916377626 for eps = 0.1
+    (``tests/test_cycle_switching.py``); its curve followed in eps."""
+    start = in_phase_period_doubling()
+    assert start.parameter("I") == pytest.approx(0.17916377626, abs=1e-9)
+    return continue_cycle_end(start, "period_doubling", "eps", [0.1, 0.12, 0.15], parameter="I")
+
+
+def test_the_pen_demo_s_period_doubling_curve_in_eps_is_where_each_value_s_own_branch_doubles(curve):
+    """Each point of the curve is the period doubling that a one-parameter continuation in I of that eps's own
+    in-phase rotation (from a settled run) locates, to 1e-8 in I and the period; a multiplier is -1 there."""
+    assert curve.complete and curve.parameter == "I" and list(curve.values) == [0.1, 0.12, 0.15]
+    assert np.all(np.diff(curve.moment) > 0.01)  # more damping, a larger current to keep it rotating in phase
+    for eps, current, period, orbit in zip(curve.values[1:], curve.moment[1:], curve.period[1:], curve.orbits[1:]):
+        independent = in_phase_period_doubling(eps=eps)
+        assert current == pytest.approx(independent.parameter("I"), abs=1e-8)
+        assert period == pytest.approx(independent.period, abs=1e-8)
+        assert orbit.parameter("eps") == eps and orbit.parameter("I") == current
+        assert np.min(np.abs(orbit.multipliers + 1.0)) < 1e-8
+    summary = curve.as_dict()
+    assert summary["parameter"] == "I" and [r["moment"] for r in summary["rows"]] == list(curve.moment)
+
+
+def test_a_system_s_curve_refuses_unknown_parameters_and_bad_values(curve):
+    start = curve.orbits[0]
+    with pytest.raises(ValueError, match="parameter and field must be two different parameters of pen"):
+        continue_cycle_end(start, "period_doubling", "eps", [0.1])
+    with pytest.raises(ValueError, match="got parameter='I', field='mass'"):
+        continue_cycle_end(start, "period_doubling", "mass", [0.1], parameter="I")
+    with pytest.raises(ValueError, match="values of eps must be one or more finite numbers"):
+        continue_cycle_end(start, "period_doubling", "eps", [0.1, float("nan")], parameter="I")
+    with pytest.raises(ValueError, match="kind must be one of"):
+        continue_cycle_end(start, "hopf", "eps", [0.1], parameter="I")
