@@ -15,6 +15,7 @@ import math
 import numpy as np
 import pytest
 
+from collocation_crossings import collocation_crossing, shooting_crossing
 from cosserat_chain import ChainParams
 from cosserat_chain.numerics.collocation import (
     NEAR_CIRCLE,
@@ -25,18 +26,10 @@ from cosserat_chain.numerics.collocation import (
 )
 from cosserat_chain.numerics.continuation import locate_fold
 from cosserat_chain.numerics.cycle_curve import locate_cycle_end
-from cosserat_chain.numerics.periodic import continue_orbit, find_periodic_orbit
 
 #: The sine chain's one-turn orbit loses its stability at a period doubling at gamma_phi = 0.15 (M = 0.17288,
 #: ``tests/test_cycle_switching.py``) and at a torus on the paper's default chain (M = 0.17312, ``tests/test_cycle_curve.py``).
 CASES = {"period_doubling": ChainParams(gamma_phi=0.15), "torus": ChainParams()}
-
-
-def shooting_crossing(params: ChainParams):
-    """The shooting's branch down from 1.1 M_c to its first unstable orbit, and the index of that orbit."""
-    start = find_periodic_orbit(params, "sine", 1.1 * locate_fold(params, "sine").moment)
-    branch = continue_orbit(start, period_max=100.0, until_unstable=True)
-    return branch, int(np.argmin(branch.stable))
 
 
 def shooting_critical(orbit, kind: str) -> complex:
@@ -51,14 +44,12 @@ def shooting_critical(orbit, kind: str) -> complex:
 @pytest.fixture(scope="module", params=list(CASES))
 def crossing(request):
     """(kind, the shooting's located end, the collocation start two stable orbits above it, the collocation
-    branch from there to two steps of the shooting below the end)."""
+    branch from there to two steps of the shooting below the end: ``collocation_crossings``, shared with
+    ``tests/test_collocation_switching.py``)."""
     kind, params = request.param, CASES[request.param]
     branch, index = shooting_crossing(params)
     end = locate_cycle_end(branch.orbits[index - 1 : index + 1], kind)
-    above = branch.orbits[index - 2]
-    start = find_collocation_orbit(params, "sine", above.moment, guess=above)
-    below = branch.orbits[index].moment - 2 * (branch.orbits[index - 1].moment - branch.orbits[index].moment)
-    return kind, end, start, continue_collocation(start, moment_min=below, period_max=200.0)
+    return kind, end, *collocation_crossing(params)
 
 
 def test_the_collocation_branch_locates_the_shootings_end_with_its_multiplier_on_the_circle(crossing):

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import scipy.optimize as so
 
+from collocation_crossings import collocation_crossing, shooting_crossing
 from cosserat_chain import ChainParams
 from cosserat_chain.numerics.collocation import continue_collocation, find_collocation_orbit
 from cosserat_chain.numerics.collocation_switching import (
@@ -36,17 +37,14 @@ AMPLITUDES = (1e-3, 2e-3)
 @pytest.fixture(scope="module")
 def shooting_branch():
     """The shooting's one-turn branch from 1.1 M_c to its first orbit past the period doubling."""
-    start = find_periodic_orbit(PARAMS, "sine", 1.1 * locate_fold(PARAMS, "sine").moment)
-    return continue_orbit(start, period_max=100.0, until_unstable=True)
+    return shooting_crossing(PARAMS)[0]
 
 
 @pytest.fixture(scope="module")
-def branch(shooting_branch):
-    """The collocation branch over the period doubling, from the last stable shooting orbit."""
-    orbits = shooting_branch.orbits
-    start = find_collocation_orbit(PARAMS, "sine", orbits[-2].moment, guess=orbits[-2])
-    below = orbits[-1].moment - 0.5 * (orbits[-2].moment - orbits[-1].moment)
-    return continue_collocation(start, moment_min=below, period_max=200.0)
+def branch():
+    """The collocation branch over the period doubling, from two stable shooting orbits above it to two steps below
+    (``tests/test_collocation_events.py``'s, computed once for both)."""
+    return collocation_crossing(PARAMS)[1]
 
 
 @pytest.fixture(scope="module")
