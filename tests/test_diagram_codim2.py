@@ -32,8 +32,11 @@ def row(value: float, end: str) -> diagram.DiagramRow:
     return diagram.DiagramRow(value, 0.2, 1.0, 0.17, end, True)
 
 
-def edge(end: str, located: bool = True) -> diagram._Edge:
-    return diagram._Edge(0.17, end, "", orbit=SimpleNamespace(moment=0.17) if located else None)
+def edge(end: str, located: bool = True, angle: float = 1.0) -> diagram._Edge:
+    """A row's end with an orbit whose complex pair lies on the unit circle at ``angle``."""
+    pair = np.exp(1j * angle)
+    orbit = SimpleNamespace(moment=0.17, nontrivial_multipliers=np.array([pair, np.conj(pair), 0.1])) if located else None
+    return diagram._Edge(0.17, end, "", orbit=orbit)
 
 
 @pytest.fixture
@@ -62,6 +65,55 @@ def test_rows_of_the_same_kind_list_nothing_and_a_change_of_kind_follows_the_fir
     assert point["value"] == pytest.approx(1.075) and point["accuracy"] == 2e-10
     assert "meets a 1:2 resonance" in entry["message"]
     json.dumps(entry)  # the JSON output and the NetCDF attribute take it as it is
+
+
+def test_two_torus_rows_whose_angles_straddle_a_strong_resonance_follow_the_torus_end_between_them(followed):
+    """cos theta through -1/2 (1:3) or 0 (1:4) between two torus rows: the first row's end is followed to the second
+    value; angles on one side of both, or a row whose end has no orbit, list nothing."""
+    rows = [row(0.9, "torus"), row(0.95, "torus"), row(1.0, "torus"), row(1.05, "torus")]
+    third = 2 * np.pi / 3
+    entries = diagram._codim2_between(rows, [edge("torus", angle=a) for a in (third - 0.1, third + 0.1, 1.5, 1.4)], "E2")
+    assert followed == [("torus", "E2", [0.9, 0.95]), ("torus", "E2", [0.95, 1.0])]
+    assert [e["straddles"] for e in entries] == [["resonance_1_3"], ["resonance_1_3", "resonance_1_4"]]
+    assert entries[0]["angles"] == pytest.approx([third - 0.1, third + 0.1]) and entries[0]["ends"] == ["torus", "torus"]
+    assert entries[0]["followed"] == "torus" and entries[0]["from"] == 0.9
+    json.dumps(entries)
+    followed.clear()
+    assert diagram._codim2_between(rows[:2], [edge("torus", angle=1.0), edge("torus", angle=1.2)], "E2") == []
+    assert diagram._codim2_between(rows[:2], [edge("torus", angle=1.0), edge("torus", located=False)], "E2") == []
+    assert followed == []
+    # Rows of different ends carry no angles.
+    (entry,) = diagram._codim2_between([row(1.0, "torus"), row(1.1, "period_doubling")], [edge("torus"), edge("period_doubling")], "E2")
+    assert entry["angles"] is None and entry["straddles"] == []
+
+
+def test_between_two_torus_rows_of_the_paper_s_chain_the_1_to_3_resonance_is_located():
+    """The paper's chain at E2 = 0.9 and 0.95 (torus ends whose pairs' angles lie either side of 2 pi / 3,
+    tests/test_cycle_curve_codim2.py): the entry follows the torus end between them and names the 1:3 resonance
+    (R3), its pair at 2 pi / 3 to 1e-8 and its value between the rows, at AUTO-07p's 0.9213118 to 5e-6."""
+    from cosserat_chain.numerics.continuation import locate_fold
+    from cosserat_chain.numerics.cycle_curve import locate_cycle_end, torus_angle
+    from cosserat_chain.numerics.periodic import continue_orbit, find_periodic_orbit
+
+    rows, edges = [], []
+    for value in (0.9, 0.95):
+        chain = ChainParams(E2=value)
+        start = find_periodic_orbit(chain, "sine", 1.1 * locate_fold(chain, "sine").moment)
+        branch = continue_orbit(start, period_max=100.0, until_unstable=True)
+        index = int(np.argmin(branch.stable))
+        orbit = locate_cycle_end(branch.orbits[index - 1 : index + 1], "torus")
+        rows.append(diagram.DiagramRow(value, 0.2, 1.0, orbit.moment, "torus", True))
+        edges.append(diagram._Edge(orbit.moment, "torus", "", orbit=orbit))
+    (entry,) = diagram._codim2_between(rows, edges, "E2")
+    assert entry["straddles"] == ["resonance_1_3"] and entry["angles"][0] < 2 * np.pi / 3 < entry["angles"][1]
+    assert entry["complete"] is True and entry["followed"] == "torus"
+    (point,) = entry["points"]
+    assert (point["kind"], point["label"]) == ("resonance_1_3", "R3") and 0.9 < point["value"] < 0.95
+    assert point["angle"] == pytest.approx(2 * np.pi / 3, abs=1e-8) and point["accuracy"] < 1e-9
+    assert point["value"] == pytest.approx(0.9213118, abs=5e-6)
+    assert "passes the 1:3 resonance (R3) at E2 = 0.92131" in entry["message"]
+    assert torus_angle(edges[0].orbit) == pytest.approx(entry["angles"][0], abs=1e-15)
+    json.dumps(entry)
 
 
 def test_a_homoclinic_end_is_not_followed_and_the_entry_says_why(followed):

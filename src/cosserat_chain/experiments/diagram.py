@@ -86,7 +86,7 @@ import numpy as np
 from ..linalg.threads import one_blas_thread
 from ..models.base import get_model
 from ..numerics.continuation import continue_in_moment
-from ..numerics.cycle_curve import KINDS, continue_cycle_end, locate_cycle_end
+from ..numerics.cycle_curve import KINDS, continue_cycle_end, locate_cycle_end, torus_angle
 from ..numerics.dynamics import IntegrationError
 from ..numerics.fold_curve import continue_fold
 from ..numerics.homoclinic import HomoclinicError, chain_homoclinic_end, chain_snic_point
@@ -718,24 +718,49 @@ UNFOLLOWED = {
 }
 
 
+#: The strong resonances two neighbouring torus rows can straddle, by the angle of the pair on the circle (the 1:1 and
+#: 1:2 ones, at 0 and pi, end a torus curve: they lie between a torus row and a row of another end).
+TORUS_RESONANCES = {"resonance_1_3": 2 * math.pi / 3, "resonance_1_4": math.pi / 2}
+
+
+def _torus_angles(edges: Sequence[_Edge | None]) -> list[float] | None:
+    """The torus pair's angles at two rows' ends, or None where an end's orbit is missing or has no complex pair."""
+    try:
+        return [torus_angle(edge.orbit) for edge in edges if edge is not None and edge.orbit is not None] or None
+    except OrbitError:
+        return None
+
+
+def _straddled(edges: Sequence[_Edge | None]) -> tuple[list[float] | None, list[str]]:
+    """Two torus rows' angles and the resonances of :data:`TORUS_RESONANCES` between them (their cos theta on either side)."""
+    angles = _torus_angles(edges)
+    if angles is None or len(angles) != 2:
+        return angles, []
+    return angles, [name for name, angle in TORUS_RESONANCES.items() if (angles[0] - angle) * (angles[1] - angle) < 0]
+
+
 def _codim2_between(rows: Sequence[DiagramRow], edges: Sequence[_Edge | None], field_name: str) -> list[dict[str, Any]]:
-    """What lies between each two neighbouring rows whose ends differ: one entry per such pair (module docstring).
+    """What lies between each two neighbouring rows whose ends differ, or which both end at a torus with the pair's
+    angles on either side of a strong resonance (:data:`TORUS_RESONANCES`): one entry per such pair (module docstring).
 
     The first row's end (or, where it cannot be followed, the second's, towards the first) is followed from its row
     to the other's value by :func:`~cosserat_chain.numerics.cycle_curve.continue_cycle_end`: ``points`` are the
     codimension-two points it located on the way (name, AUTO-07p's label, value, its accuracy, M, period), and
     ``message`` says where and why the curve stopped (its own words: Newton failed on halved steps, another
     multiplier left the circle), or that it reached the other row. Where neither end can be followed,
-    ``followed`` is None and ``message`` says why (:data:`UNFOLLOWED`).
+    ``followed`` is None and ``message`` says why (:data:`UNFOLLOWED`). Between two torus rows ``angles`` are their
+    pairs' angles and ``straddles`` the resonances between them (empty, and ``angles`` None, for rows of different ends).
     """
     out = []
     for i in range(1, len(rows)):
         before, after = rows[i - 1], rows[i]
-        if before.end == after.end:
+        angles, straddles = _straddled(edges[i - 1 : i + 1]) if before.end == after.end == "torus" else (None, [])
+        if before.end == after.end and not straddles:
             continue
         entry: dict[str, Any] = {
             "between": [before.value, after.value], "ends": [before.end, after.end],
             "followed": None, "from": None, "complete": None, "points": [], "message": "",
+            "angles": angles if straddles else None, "straddles": straddles,
         }  # fmt: skip
         why = []
         for start, target, edge in ((before, after, edges[i - 1]), (after, before, edges[i])):
@@ -758,6 +783,8 @@ def _codim2_between(rows: Sequence[DiagramRow], edges: Sequence[_Edge | None], f
             entry["message"] = curve.message or (
                 f"the {start.end} end followed from {field_name} = {start.value:g} reaches {target.value:g} at "
                 f"M = {curve.moment[-1]:.8g}, where the row's end is {target.end}: the two rows end different orbits"
+                if start.end != target.end
+                else _straddle_message(start, target, field_name, straddles, curve)
             )
             break
         if entry["followed"] is None:
@@ -766,6 +793,20 @@ def _codim2_between(rows: Sequence[DiagramRow], edges: Sequence[_Edge | None], f
             entry["message"] = f"{why[0]}, so the other end was followed: {entry['message']}"
         out.append(entry)
     return out
+
+
+def _straddle_message(start: DiagramRow, target: DiagramRow, field_name: str, straddles: list[str], curve) -> str:
+    """What following a torus end between two torus rows found: each resonance their angles straddle, located or not."""
+    located = {point.kind: point for point in curve.points}
+    said = []
+    for name in straddles:
+        point = located.get(name)
+        words = f"{name.removeprefix('resonance_').replace('_', ':')} resonance"
+        if point is None:
+            said.append(f"the {words} its angles straddle was not located")
+        else:
+            said.append(f"its pair passes the {words} ({point.label}) at {field_name} = {point.value:.10g} +- {point.uncertainty:.2g}")
+    return f"the torus end followed from {field_name} = {start.value:g} reaches {target.value:g}: " + "; ".join(said)
 
 
 @one_blas_thread

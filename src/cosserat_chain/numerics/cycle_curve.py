@@ -1150,6 +1150,18 @@ def _critical(multipliers: np.ndarray, kind: str, pair: complex | None) -> compl
     return complex(candidates[np.argmin(np.abs(candidates - pair))])
 
 
+def torus_angle(orbit: PeriodicOrbit | shooting.Orbit) -> float:
+    """The angle arg(mu) in (0, pi) of an orbit's torus pair (its largest complex multiplier; at a torus end the
+    one on the unit circle); its strong resonances lie at 2 pi / 3 (1:3) and pi / 2 (1:4).
+
+    Raises
+    ------
+    OrbitError
+        If the orbit has no complex multiplier.
+    """
+    return float(np.angle(_critical(orbit.nontrivial_multipliers, "torus", None)))
+
+
 def locate_cycle_end(orbits: Sequence[PeriodicOrbit], kind: str, *, field_name: str | None = None, **options) -> PeriodicOrbit:
     """The end of one ``kind`` between ``orbits`` of one chain, to Newton's tolerance.
 
