@@ -25,8 +25,10 @@ PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 #: Pages whose blocks are long runs (a study on a local Dask cluster of worker processes; the roto-breather atlas of a
 #: 101-particle chain over a grid of frequencies and geometries; the period-doubling switch of periodic-orbits.md, whose
 #: branch, switch and branch point the quick tests of test_cycle_switching.py and test_cycle_switching_branch_points.py
-#: compute on the same chains): slow tests.
-SLOW_PAGES = {"studies.md", "roto-breathers.md", "periodic-orbits.md"}
+#: compute on the same chains; collocation.md's N = 1 branch to its SNIC, which test_orbit_collocation_cli.py's quick
+#: tests follow from the same orbit through the same calls; homoclinic.md's retrapping current, its curve in the damping
+#: and the codimension-two point, test_homoclinic.py's quick tests on the same pendulum): slow tests.
+SLOW_PAGES = {"studies.md", "roto-breathers.md", "periodic-orbits.md", "collocation.md", "homoclinic.md"}
 #: A block that runs only in a page's slow case (the whole page), found by a line of it; the quick case runs the page's
 #: other blocks. README's last block is the call test_report.py's quick test_table_numbers_equal_the_python_api makes
 #: too (the paper chain's sine orbit at M = 0.22 followed down to its fold of cycles).

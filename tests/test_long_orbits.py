@@ -129,6 +129,9 @@ def test_monodromy_products_equal_central_differences_of_the_flow():
     assert np.allclose(formed @ direction, product, atol=1e-9)
 
 
+# A whole branch to the fold: the blocks' Jacobian equal to the dense one (below) and the command's branch by the blocks
+# (test_orbit_collocation_cli.py) are the quick tests of the same path.
+@pytest.mark.slow
 def test_a_continuation_with_the_blocks_ends_at_the_dense_continuations_fold_and_loses_stability_where_it_does(
     paper_sine_orbit, paper_sine_branch
 ):
