@@ -157,3 +157,38 @@ def test_draw_names_times_outside_the_run(tmp_path):
     result, out = _invoke(["draw", str(run), "--out", str(tmp_path / "x.png"), "--times", "0,100"])
     assert result.exit_code == 2
     assert "--times '0,100'" in out and "100" in out and "0 <= t <= 1" in out
+
+
+def test_states_interrupted_exits_130_with_a_message(monkeypatch):
+    """Ctrl-C in a long run (integrate's IntegrationError, status interrupted) exited 3, as if the run blew up."""
+    from types import SimpleNamespace
+
+    from cosserat_chain.numerics.dynamics import IntegrationError
+    from cosserat_chain.status import Status
+
+    def interrupted(*args, **kwargs):
+        raise IntegrationError("interrupted at t=12 after 600 of 240000 steps", SimpleNamespace(status=Status.INTERRUPTED))
+
+    monkeypatch.setattr("cosserat_chain.experiments.coexisting.states_at", interrupted)
+    result, out = _invoke(["states", "--moment", "0.22", "--turns", "1"])
+    assert result.exit_code == 130
+    assert "interrupted at t=12" in out and "none is kept" in out
+
+
+@pytest.mark.parametrize(
+    ("argv", "target"),
+    [
+        (["states", "--moment", "0.22", "--turns", "1"], "cosserat_chain.experiments.coexisting.states_at"),
+        (["diagram", "--vary", "E2", "--values", "1"], "cosserat_chain.experiments.diagram.state_diagram"),
+    ],
+)
+def test_ctrl_c_in_python_code_exits_130_saying_what_is_kept(monkeypatch, argv, target):
+    """Typer turned the KeyboardInterrupt into a silent exit 130."""
+
+    def ctrl_c(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(target, ctrl_c)
+    result, out = _invoke(argv)
+    assert result.exit_code == 130
+    assert "interrupted" in out and "none is kept" in out

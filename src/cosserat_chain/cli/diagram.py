@@ -7,7 +7,20 @@ from pathlib import Path
 
 import typer
 
-from .common import app, bar_callback, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, save_dataset, save_figure
+from ..status import Status
+from .common import (
+    app,
+    bar_callback,
+    exit_on,
+    fail,
+    model_option,
+    number,
+    outputs_or_exit,
+    params_or_exit,
+    progress_bar,
+    save_dataset,
+    save_figure,
+)
 from .systems import chain_only_or_exit, diagram_on_system, set_option, start_option, system_only_or_exit, system_option
 
 #: Most values of one diagram: each is a continuation of the static branch and of a rotating orbit.
@@ -123,6 +136,9 @@ def diagram(
     except (IntegrationError, OrbitError) as err:
         bar.close()
         fail(f"the diagram could not be computed: {err}", code=3)
+    except KeyboardInterrupt:
+        bar.close()
+        exit_on(Status.INTERRUPTED, "the diagram's rows are written only once every value is done, so none is kept")
     bar.finish()
     save_dataset(result.to_dataset(), out)
     if plot is not None:

@@ -99,7 +99,12 @@ def states(
         statics_failed(params, err, particle)
     except IntegrationError as err:
         bar.close()
+        if getattr(err.trajectory, "status", None) == Status.INTERRUPTED:
+            exit_on(Status.INTERRUPTED, f"{err}; the states are listed only once every start has run, so none is kept")
         fail(str(err), code=EXIT_CODES[Status.BLEW_UP])
+    except KeyboardInterrupt:
+        bar.close()
+        exit_on(Status.INTERRUPTED, "the states are listed only once every start has run, so none is kept")
     bar.finish()
     if as_json:
         typer.echo(json.dumps({"params": params.model_dump(), **result.as_dict()}))
