@@ -22,6 +22,7 @@ from cosserat_chain.experiments.simulation import _STATE_ATTRIBUTES, CHECKPOINT_
 from cosserat_chain.inputs import InputFileError, check_counts, check_run, params_from_mapping
 from cosserat_chain.io import load_config, read_dataset, run_frame, write_dataset
 from cosserat_chain.loads import MAX_KNOTS, Loads, Schedule, load_from_table, loads_from_tables, moment_load
+from in_process_study import study_in_process  # noqa: F401 (a fixture)
 
 runner = CliRunner()
 
@@ -170,6 +171,7 @@ def test_commands_refuse_a_damaged_run_with_exit_2(run_file, tmp_path, command, 
     assert "bad.nc" in result.output
 
 
+@pytest.mark.usefixtures("study_in_process")  # the study only writes the file damaged below
 def test_a_study_file_damaged_under_the_same_spec_is_refused(tmp_path):
     spec = tmp_path / "spec.toml"
     spec.write_text('models = ["linear"]\nquantities = ["compliance"]\n[parameters]\na = [0.1, 0.2]\n')

@@ -23,6 +23,7 @@ from typer.testing import CliRunner
 from cosserat_chain.cli import app
 from cosserat_chain.experiments.checkpoint import CheckpointClock
 from cosserat_chain.io import OutputError, output_lock, read_dataset, write_dataset, write_text
+from in_process_study import study_in_process  # noqa: F401 (a fixture)
 
 runner = CliRunner()
 
@@ -114,6 +115,7 @@ def test_a_study_file_that_cannot_be_written_is_reported_not_raised(full_folder)
     assert not (full_folder / "study.nc").exists()
 
 
+@pytest.mark.usefixtures("study_in_process")  # the claim is the study's files, not its cluster
 def test_a_study_on_a_full_disk_keeps_its_cells_in_a_fallback_and_exits_3(full_folder, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     spec = tmp_path / "spec.toml"
