@@ -20,6 +20,7 @@ from cosserat_chain.experiments.localization import localization_run
 from cosserat_chain.experiments.study import spec_from_mapping
 from cosserat_chain.io import OutputError, check_output, read_dataset, write_dataset, write_text
 from cosserat_chain.memory import MemoryEstimateError, require
+from in_process_study import study_in_process  # noqa: F401 (a fixture)
 
 runner = CliRunner()
 
@@ -224,6 +225,7 @@ def _assert_cf_described(ds: xr.Dataset, what: str) -> None:
     assert not undescribed, f"{what}: no units or long_name on {undescribed}"
 
 
+@pytest.mark.usefixtures("study_in_process")  # the study's file, not its cluster (test_study.py)
 def test_every_file_a_command_writes_is_cf_described(tmp_path):
     spec = tmp_path / "spec.toml"
     spec.write_text('models = ["linear"]\nquantities = ["compliance", "band_gap"]\n[parameters]\nE2 = [0.5, 1.0]\n')
