@@ -391,6 +391,20 @@ def no_ends(x, coef, out, first, last, ring):  # pragma: no cover - compiled
     """The end kernel of a clamped chain: its end columns do not move."""
 
 
+@njit(FORCE_SIGNATURE, cache=True, nogil=True)
+def no_chain_forces(x, coef, out, start, stop):  # pragma: no cover - compiled
+    """Fills the chain-kernel slot of a compiled loop that runs a batch: the loop never calls it.
+
+    A slot's kernel is compiled when it is handed over; a stub there instead of the model's
+    kernel spares the compilation of a kernel the run does not use.
+    """
+
+
+@njit(BATCH_FORCE_SIGNATURE, cache=True, nogil=True)
+def no_batch_forces(x, coef, out):  # pragma: no cover - compiled
+    """Fills the batch-kernel slot of a compiled loop that runs one chain: the loop never calls it (:func:`no_chain_forces`)."""
+
+
 #: Names the command line keeps for itself (``--model all``).
 RESERVED_NAMES = ("all",)
 #: Class attributes of the contract that have no default: checked at registration, so that

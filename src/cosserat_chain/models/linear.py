@@ -25,7 +25,7 @@ from numba import njit
 
 from ..params import ChainParams
 from ..state import bonded, check_state, scatter_bonds, zero_held
-from .base import BATCH_FORCE_SIGNATURE, BOND_BLOCK, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks, put_six
+from .base import BOND_BLOCK, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks, put_six
 from .trig import sincos
 
 
@@ -213,14 +213,23 @@ def cosserat_bonds(x, coef, out, first, last, sine):  # pragma: no cover - compi
     The bond's forces (:func:`cosserat_bond`) are linear in (du, dv, a0, a1), with a = sin phi
     (eq. 2, da/dphi = cos phi) or phi (eq. 3); with T = bend + couple / 4 and
     L = couple / (2 h): fx = k_u du, fy = k_v s, m0 = T (a1 - a0) + L s, m1 = L s - T (a1 - a0),
-    s = dv - h (a0 + a1) / 2. In blocks of :data:`~.base.BOND_BLOCK` bonds through scratch, a loop
-    of its own for the uniform and the graded chain, as the nonlinear model's bond kernel (SIMD across bonds).
+    s = dv - h (a0 + a1) / 2. In blocks of :data:`~.base.BOND_BLOCK` bonds through scratch, the
+    coefficients read from arrays (a uniform chain's from blocks of equal values), as the nonlinear
+    model's bond kernel (SIMD across bonds).
     """
     graded = coef.size > GRADED_OFFSET
     n_bonds = (coef.size - GRADED_OFFSET) // 4
     h = coef[2]
     width = BOND_BLOCK
     work = np.empty(42 * width + 2)
+    # A uniform chain's coefficients as blocks of equal values: one loop for both layouts (a second
+    # copy of the inlined bond for the uniform chain doubled the compile).
+    uniform = np.empty((4, width))
+    for i in range(width):
+        uniform[0, i] = coef[0]
+        uniform[1, i] = coef[1]
+        uniform[2, i] = coef[3]
+        uniform[3, i] = coef[4]
     one = np.uint64(1)
     for begin in range(first, last, width):
         start = np.uint64(begin)
@@ -230,14 +239,12 @@ def cosserat_bonds(x, coef, out, first, last, sine):  # pragma: no cover - compi
             s, c = sincos(phi)
             work[40 * width + i] = s if sine else phi
             work[41 * width + 1 + i] = c if sine else 1.0
-        if graded:
-            k_u, k_v = coef[GRADED_OFFSET + begin :], coef[GRADED_OFFSET + n_bonds + begin :]
-            bend, couple = coef[GRADED_OFFSET + 2 * n_bonds + begin :], coef[GRADED_OFFSET + 3 * n_bonds + begin :]
-            for i in range(m):
-                _cosserat_bond_rows(k_u[i], k_v[i], h, bend[i], couple[i], x, work, start, i)
-        else:
-            for i in range(m):
-                _cosserat_bond_rows(coef[0], coef[1], h, coef[3], coef[4], x, work, start, i)
+        k_u = coef[GRADED_OFFSET + begin :] if graded else uniform[0]
+        k_v = coef[GRADED_OFFSET + n_bonds + begin :] if graded else uniform[1]
+        bend = coef[GRADED_OFFSET + 2 * n_bonds + begin :] if graded else uniform[2]
+        couple = coef[GRADED_OFFSET + 3 * n_bonds + begin :] if graded else uniform[3]
+        for i in range(m):
+            _cosserat_bond_rows(k_u[i], k_v[i], h, bend[i], couple[i], x, work, start, i)
         for row in range(40):
             for i in range(m):
                 out[row, start + i] = work[row * width + i]
@@ -295,7 +302,7 @@ def cosserat_batch(coef, x, angle, out):  # pragma: no cover - compiled
             )
 
 
-@njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def linear_batch_kernel(x, coef, out):  # pragma: no cover - compiled
     cosserat_batch(coef, x, x[2], out)
 

@@ -26,7 +26,6 @@ from ..linalg import BandMatrix
 from ..params import ChainParams
 from ..state import bonded, check_state, scatter_bonds, zero_held
 from .base import (
-    BATCH_FORCE_SIGNATURE,
     BOND_BLOCK,
     BOND_SUMS,
     END_SIGNATURE,
@@ -302,7 +301,7 @@ def _batch_column(coef, x, out, k, at, trig, here, right, carried, first, last):
         carried[0, i], carried[1, i], carried[2, i] = fx, fy, m1
 
 
-@njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def nonlinear_batch_kernel(x, coef, out):  # pragma: no cover - compiled
     n, size = np.uint64(x.shape[1]), np.uint64(x.shape[2])
     zero, one, two = np.uint64(0), np.uint64(1), np.uint64(2)
@@ -485,14 +484,20 @@ def nonlinear_bond_kernel(x, coef, out, first, last):  # pragma: no cover - comp
 
     Written for SIMD across bonds, as :func:`_hessian_sums`: blocks of :data:`~.base.BOND_BLOCK` bonds in
     one scratch array at offsets fixed at compile time (40 rows, then the sines and cosines of the
-    block's columns), unsigned indices, a loop of its own for the uniform and the graded chain (no
-    branch in either), and the rows copied out at the end of each block.
+    block's columns), unsigned indices, the bonds' stiffnesses read from an array (a uniform chain's
+    from a block of equal values, no branch in the loop), and the rows copied out at the end of each block.
     """
     a, b, h, rest1, rest2 = coef[0], coef[1], coef[2], coef[5], coef[6]
     graded = coef.size > GRADED_OFFSET
     n_bonds = (coef.size - GRADED_OFFSET) // 2
     width = BOND_BLOCK
     work = np.empty(42 * width + 2)
+    # A uniform chain's stiffnesses as a block of equal values: one loop for both layouts (its
+    # body inlines four links' Hessians; a second copy for the uniform chain doubled the compile).
+    uniform = np.empty((2, width))
+    for i in range(width):
+        uniform[0, i] = coef[3]
+        uniform[1, i] = coef[4]
     one = np.uint64(1)
     for begin in range(first, last, width):
         start = np.uint64(begin)
@@ -501,14 +506,10 @@ def nonlinear_bond_kernel(x, coef, out, first, last):  # pragma: no cover - comp
             s, c = sincos(x[2, start + i])
             work[40 * width + i] = s
             work[41 * width + 1 + i] = c
-        if graded:
-            E1, E2 = coef[GRADED_OFFSET + begin :], coef[GRADED_OFFSET + n_bonds + begin :]
-            for i in range(m):
-                _bond_rows(a, b, h, rest1, rest2, E1[i], E2[i], x, work, start, i)
-        else:
-            e1, e2 = coef[3], coef[4]
-            for i in range(m):
-                _bond_rows(a, b, h, rest1, rest2, e1, e2, x, work, start, i)
+        E1 = coef[GRADED_OFFSET + begin :] if graded else uniform[0]
+        E2 = coef[GRADED_OFFSET + n_bonds + begin :] if graded else uniform[1]
+        for i in range(m):
+            _bond_rows(a, b, h, rest1, rest2, E1[i], E2[i], x, work, start, i)
         for row in range(40):
             for i in range(m):
                 out[row, start + i] = work[row * width + i]

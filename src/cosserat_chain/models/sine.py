@@ -24,7 +24,7 @@ from scipy.linalg import cholesky_banded
 from ..linalg import BANDWIDTH, BandMatrix, from_upper_bands, upper_bands
 from ..params import ChainParams
 from ..state import check_state, pack
-from .base import BATCH_FORCE_SIGNATURE, FORCE_SIGNATURE, KERNEL_OPTIONS, Model
+from .base import FORCE_SIGNATURE, KERNEL_OPTIONS, Model
 from .linear import (
     chain_coefficients,
     cosserat_batch,
@@ -154,7 +154,7 @@ def sine_bond_kernel(x, coef, out, first, last):  # pragma: no cover - compiled
     cosserat_bonds(x, coef, out, first, last, True)
 
 
-@njit(BATCH_FORCE_SIGNATURE, **KERNEL_OPTIONS)
+@njit(**KERNEL_OPTIONS)
 def sine_batch_kernel(x, coef, out):  # pragma: no cover - compiled
     phi = x[2]
     sines = np.empty_like(phi)

@@ -63,7 +63,7 @@ from numba import njit, types
 
 from ..loads import schedule_value
 from ..memory import FLOAT, require
-from ..models.base import BATCH_FORCE_KERNEL_TYPE, END_KERNEL_TYPE, FORCE_KERNEL_TYPE, LANES
+from ..models.base import BATCH_FORCE_KERNEL_TYPE, END_KERNEL_TYPE, FORCE_KERNEL_TYPE, LANES, no_batch_forces, no_chain_forces
 from ..models.trig import TWO_PI_1, TWO_PI_2, TWO_PI_3, WRAP_ANGLE, join_turns, split_turns
 from ..state import force_columns, held
 from .addresses import entry
@@ -934,11 +934,14 @@ class Lanes:
         kind = type(self.model)
         winding = self.winding.reshape(-1)
         assert np.shares_memory(winding, self.winding)
+        # The loop calls the chain kernel for one chain and the batch kernel for a batch, never
+        # both: a stub in the other slot, so that a kernel the run does not use is not compiled.
+        one = self.size == 1
         status, done, written, self.pending = advance(
             (
-                entry(self.force_kernel, FORCE_KERNEL_TYPE),
+                entry(self.force_kernel if one else no_chain_forces, FORCE_KERNEL_TYPE),
                 entry(self.end_kernel, END_KERNEL_TYPE),
-                entry(kind.batch_kernel, BATCH_FORCE_KERNEL_TYPE),
+                entry(no_batch_forces if one else kind.batch_kernel, BATCH_FORCE_KERNEL_TYPE),
             ),
             (self._flat(self.x), self._flat(self.v), self._flat(self.f), winding, self.acc),
             (self.coef, self.coef[:, 0].copy(), self.pairs, self.weights),
