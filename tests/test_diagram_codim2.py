@@ -142,7 +142,7 @@ def test_the_between_entries_are_absent_unless_asked_for():
     ("args", "message"),
     [
         (["--vary", "E2", "--values", "1.1,1.2", "--codim2=yes"], "--codim2"),
-        (["--system", "pendulum", "--vary", "alpha", "--values", "0.1,0.2", "--codim2"], "--codim2 belong(s) to the chain"),
+        (["--system", "pendulum", "--vary", "alpha", "--values", "0.1,0.2", "--codim2", "--follow"], "--follow belong(s) to the chain"),
     ],
 )
 def test_bad_options_are_refused(args, message):

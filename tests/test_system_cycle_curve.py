@@ -53,3 +53,40 @@ def test_a_system_s_curve_refuses_unknown_parameters_and_bad_values(curve):
         continue_cycle_end(start, "period_doubling", "eps", [0.1, float("nan")], parameter="I")
     with pytest.raises(ValueError, match="kind must be one of"):
         continue_cycle_end(start, "hopf", "eps", [0.1], parameter="I")
+
+
+def test_the_system_diagram_follows_each_row_s_period_doubling_to_the_next_value(curve, tmp_path):
+    """``system_diagram(codim2=True)`` on the pen demo: each row's orbit loses stability at a period doubling, whose
+    curve from eps = 0.1 reaches eps = 0.12 where that row's own one-parameter continuation locates it, and where
+    the curve followed from the located start (the fixture) lies, to 1e-8; JSON and NetCDF carry the entries."""
+    import json
+
+    from cosserat_chain.experiments.system_diagram import system_diagram
+
+    diagram = system_diagram(pen(), "eps", [0.1, 0.12], "I", codim2=True)
+    assert [row.curve for row in diagram.rows] == ["period_doubling", "period_doubling"]
+    (entry,) = diagram.codim2_between
+    assert entry["followed"] == "period_doubling" and entry["from"] == 0.1 and entry["complete"] is True and entry["points"] == []
+    assert entry["reaches"] == pytest.approx(diagram.rows[1].stability_lost, abs=1e-8)
+    assert entry["reaches"] == pytest.approx(curve.moment[1], abs=1e-8)
+    assert "reaches 0.12 at I = 0.21454571" in entry["message"]
+    assert json.loads(diagram.to_dataset().attrs["codim2_between_json"]) == diagram.as_dict()["codim2_between"]
+    assert system_diagram(pen(), "eps", [0.1], "I").codim2_between is None
+    with pytest.raises(ValueError, match="codim2 must be True or False, got 'yes'"):
+        system_diagram(pen(), "eps", [0.1], "I", codim2="yes")
+
+
+def test_diagram_system_codim2_prints_and_writes_the_curve_between_the_rows(tmp_path):
+    import json
+
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    args = ["diagram", "--system", "pen", "--vary", "eps", "--values", "0.1,0.12", "--drive", "I", "--codim2"]
+    result = CliRunner().invoke(app, [*args, "--json"])
+    assert result.exit_code == 0, result.output
+    (entry,) = json.loads(result.output)["codim2_between"]
+    assert entry["curves"] == ["period_doubling", "period_doubling"] and entry["reaches"] == pytest.approx(0.2145457198, abs=1e-8)
+    text = CliRunner().invoke(app, args)
+    assert text.exit_code == 0 and "between eps = 0.1 and 0.12: the period_doubling curve followed from eps = 0.1" in text.output

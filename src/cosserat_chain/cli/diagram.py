@@ -87,7 +87,7 @@ def diagram(
     codim2: bool = typer.Option(
         False,
         "--codim2",
-        help="Between two rows whose ends differ, follow one row's end to the other value and list the codimension-two points on the way (1:2 resonance, ...).",
+        help="Between two rows whose ends differ, follow one row's end to the other value and list the codimension-two points on the way (1:2 resonance, ...); with --system, each row's period doubling, torus or fold of cycles to the next value.",
     ),
     config: Path | None = typer.Option(
         None, help="TOML file with ChainParams fields (the other fields of the chain; with --system: its [system] table)."
@@ -109,10 +109,12 @@ def diagram(
 
     With --system: the same edges in the system's --drive, at each value of its parameter --vary."""
     if system is not None:
-        chain_only_or_exit(ctx, ("vary", "values", "span", "period_max", "config", "out", "as_json", "sets", "drive", "turn", "start"))
+        chain_only_or_exit(
+            ctx, ("vary", "values", "span", "period_max", "config", "out", "as_json", "sets", "drive", "turn", "start", "codim2")
+        )
         return diagram_on_system(
             system, config=config, sets=sets, vary=vary, values=_values(values, span), drive=drive, turns=turn,
-            period_max=period_max, start=start, out=out, as_json=as_json,
+            period_max=period_max, start=start, out=out, as_json=as_json, codim2=codim2,
         )  # fmt: skip
     system_only_or_exit(ctx, ("sets", "drive", "turn", "start"))
     from ..experiments.diagram import state_diagram

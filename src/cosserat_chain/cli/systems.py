@@ -581,6 +581,7 @@ def diagram_on_system(
     start: str | None,
     out: Path | None,
     as_json: bool,
+    codim2: bool = False,
 ) -> None:
     """Both edges of the hysteresis loop in ``drive`` at each value of ``vary``
     (:func:`~cosserat_chain.experiments.system_diagram.system_diagram`): printed, as JSON, or written with ``--out``."""
@@ -598,7 +599,9 @@ def diagram_on_system(
     q0 = state_or_exit(system, start, "--start")
     bar = progress_bar(f"diagram {system.name}", "value")
     try:
-        result = system_diagram(system, vary, values, drive, turns=k, start=q0, period_max=period_max, progress=bar_callback(bar))
+        result = system_diagram(
+            system, vary, values, drive, turns=k, start=q0, period_max=period_max, codim2=codim2, progress=bar_callback(bar)
+        )
     except ValueError as err:
         bar.close()
         fail(str(err))
@@ -648,3 +651,8 @@ def _echo_diagram(result) -> None:
         else:
             value = f"not located ({point['reason']})"
         typer.echo(f"the homoclinic end meets the fold (a SNIC from there on) {where}: {vary} = {value}")
+    for entry in result.codim2_between or []:
+        points = "; ".join(f"{p['name']} ({p['label']}) at {vary} = {p['value']:.10g} +- {p['accuracy']:.1g}" for p in entry["points"])
+        typer.echo(
+            f"between {vary} = {entry['between'][0]:g} and {entry['between'][1]:g}: {entry['message']}" + (f"; {points}" if points else "")
+        )

@@ -45,6 +45,14 @@ Across the rows, ``snic_point`` is where the homoclinic end meets the static fol
 homoclinic row and a SNIC row next to it): solved by the augmented system
 (:func:`~cosserat_chain.numerics.homoclinic.locate_snic_point`, ``method`` ``solved``, with its
 ``accuracy`` and the drive there), or ``not_located`` with the reason. Nothing is extrapolated.
+
+With ``codim2``, ``codim2_between`` follows a two-parameter curve between each two neighbouring rows
+(:func:`~cosserat_chain.numerics.cycle_curve.continue_cycle_end` on the system's orbit): the row's
+``curve``, the located period doubling or torus where its orbit loses stability, else its located fold
+of cycles, from its value to the next row's (from the second row back where the first has none), in
+(``vary``, ``drive``); each entry lists the codimension-two points located on the way (1:2 ... 1:4
+resonances, fold-flip), the drive the curve reaches at the other value (``reaches``: where the other row's
+own curve of the same kind lies, to Newton's tolerance) and where and why it stopped.
 """
 
 from __future__ import annotations
@@ -58,6 +66,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..linalg.threads import one_blas_thread
+from ..numerics.cycle_curve import KINDS, continue_cycle_end
 from ..numerics.equilibria import EquilibriumNotFound, continue_equilibria, find_equilibrium
 from ..numerics.homoclinic import HomoclinicError, fold_turns_over, homoclinic_end, locate_snic_point
 from ..numerics.kit import BranchEnd, EvaluationFailed
@@ -109,6 +118,11 @@ class SystemDiagramRow:
     stability_lost: float | None = None
     homoclinic: dict[str, Any] | None = None
     events: list[dict[str, Any]] = field(default_factory=list)
+    #: The kind of the row's two-parameter curve (``codim2``): the located period doubling or torus where the orbit
+    #: loses stability, else its located fold of cycles; None where there is none.
+    curve: str | None = None
+    #: The orbit there (where that curve starts), not in the output.
+    curve_orbit: Any = field(default=None, repr=False)
     #: The fold's coordinates (where the SNIC point's augmented system starts), not in the output.
     fold_q: np.ndarray | None = field(default=None, repr=False)
 
@@ -127,6 +141,7 @@ class SystemDiagramRow:
             "below_edge": self.below,
             "stability_lost": self.stability_lost,
             "homoclinic": self.homoclinic,
+            "curve": self.curve,
             "events": self.events,
         }
 
@@ -141,6 +156,8 @@ class SystemDiagram:
     turns: dict[str, int]
     rows: list[SystemDiagramRow] = field(default_factory=list)
     snic_point: dict[str, Any] | None = None
+    #: The curves between the rows (module docstring), None where they were not asked for.
+    codim2_between: list[dict[str, Any]] | None = None
 
     def as_dict(self) -> dict[str, Any]:
         """The ``diagram --system --json`` object (with the system's description)."""
@@ -150,6 +167,7 @@ class SystemDiagram:
             "drive": self.drive,
             "turns": self.turns,
             "snic_point": self.snic_point,
+            "codim2_between": self.codim2_between,
             "rows": [row.as_dict() for row in self.rows],
         }
 
@@ -182,6 +200,7 @@ class SystemDiagram:
                 "varied": self.vary,
                 "drive": self.drive,
                 "snic_point_json": json.dumps(self.snic_point),
+                "codim2_between_json": json.dumps(self.codim2_between),
                 "rows_json": json.dumps([{k: v for k, v in row.as_dict().items() if k != "events"} for row in self.rows], default=float),
             }
         )
@@ -198,6 +217,7 @@ def system_diagram(
     turns: dict[str, int] | None = None,
     start: np.ndarray | None = None,
     period_max: float = PERIOD_MAX,
+    codim2: bool = False,
     progress: Callable[[int, int], None] | None = None,
 ) -> SystemDiagram:
     """Both edges of the hysteresis loop in ``drive`` at each of ``values`` of ``vary`` (module docstring).
@@ -214,6 +234,9 @@ def system_diagram(
         Where Newton starts for the equilibrium (default q = 0).
     period_max : float
         A period beyond this counts as diverging (a homoclinic or SNIC end).
+    codim2 : bool
+        Follow each row's curve to the next value and list the codimension-two points on the way
+        (:attr:`SystemDiagram.codim2_between`, module docstring).
     progress : callable(done, total), optional
 
     Raises
@@ -231,6 +254,8 @@ def system_diagram(
         raise ValueError(f"values must be finite numbers, at least one, got {values!r}")
     if not (isinstance(period_max, int | float) and math.isfinite(period_max) and period_max > 0):
         raise ValueError(f"period_max must be a finite number > 0, got {period_max!r}")
+    if not isinstance(codim2, bool):
+        raise ValueError(f"codim2 must be True or False, got {codim2!r}")
     if turns is None:
         turns = {name: 1 for name, angle in zip(system.coordinates, system.angles, strict=True) if angle}
     k = turns_vector(system, turns)
@@ -243,6 +268,8 @@ def system_diagram(
             progress(i, len(values))
         diagram.rows.append(_row(system.with_parameters(**{vary: value}), vary, value, drive, k, q0, period_max))
     diagram.snic_point = _snic_point(diagram, k)
+    if codim2:
+        diagram.codim2_between = _codim2_between(diagram)
     if progress is not None:
         progress(len(values), len(values))
     return diagram
@@ -283,6 +310,8 @@ def _row(system: System, vary: str, value: float, drive: str, k: np.ndarray, q0:
         row.end, row.method = "fold_of_cycles", "located"
         if fold is not None:
             _below_fold(row, fold.point, drive, first)
+            if row.curve is None:
+                row.curve, row.curve_orbit = "fold_of_cycles", fold.point
     elif branch.end == BranchEnd.INFINITE_PERIOD or branch.end_value is not None:
         if last >= onset - SNIC_RTOL * max(1.0, abs(onset)):
             # The continuation's note fits a homoclinic end's growth, which a SNIC's is not.
@@ -341,6 +370,12 @@ def _stability_warning(row: SystemDiagramRow, branch, drive: str) -> None:
     span = sorted(values[max(index - 1, 0) : index + 1])
     lost = next((e.parameter for e in branch.events if e.kind == "stability" and e.located and span[0] <= e.parameter <= span[-1]), None)
     row.stability_lost = float(values[index] if index == 0 or lost is None else lost)
+    if index > 0:
+        loss = next(
+            (e for e in branch.events if e.kind in ("period_doubling", "torus") and e.located and span[0] <= e.parameter <= span[-1]), None
+        )
+        if loss is not None:
+            row.curve, row.curve_orbit = loss.kind, loss.point
     where = "is unstable where it was found" if index == 0 else f"loses stability at {drive} = {row.stability_lost:.10g}"
     how = f" ({', '.join(kinds)} on the way)" if kinds else ""
     row.warning = (
@@ -459,6 +494,43 @@ def _below_fold(row: SystemDiagramRow, orbit, drive: str, winding: int) -> None:
     else:
         row.below = "not_converged"
         row.message += f"; a run from the fold's orbit at {where} has neither settled nor kept turning"
+
+
+def _codim2_between(diagram: SystemDiagram) -> list[dict[str, Any]]:
+    """Each two neighbouring rows' entry: the first row's curve (else the second's) followed to the other value (module docstring)."""
+    vary, drive, out = diagram.vary, diagram.drive, []
+    for before, after in zip(diagram.rows, diagram.rows[1:]):
+        entry: dict[str, Any] = {
+            "between": [before.value, after.value], "curves": [before.curve, after.curve], "followed": None, "from": None,
+            "complete": None, "points": [], "reaches": None, "message": "",
+        }  # fmt: skip
+        start, target = (before, after) if before.curve in KINDS else (after, before)
+        if start.curve not in KINDS:
+            entry["message"] = f"not followed: neither row's orbit has a located period doubling, torus or fold of cycles in {drive}"
+            out.append(entry)
+            continue
+        entry["followed"], entry["from"] = start.curve, start.value
+        try:
+            curve = continue_cycle_end(start.curve_orbit, start.curve, vary, [start.value, target.value], parameter=drive)
+        except (ValueError, EvaluationFailed) as err:
+            entry["message"] = f"the {start.curve} was not followed from {vary} = {start.value:g} ({err})"
+            out.append(entry)
+            continue
+        entry["complete"] = curve.complete
+        entry["points"] = [
+            {"name": p.name, "kind": p.kind, "label": p.label, "value": p.value, "accuracy": p.uncertainty,
+             "drive": p.moment, "period": p.period, "angle": p.angle}
+            for p in curve.points
+        ]  # fmt: skip
+        if curve.complete:
+            entry["reaches"] = float(curve.moment[-1])
+            entry["message"] = (
+                f"the {start.curve} curve followed from {vary} = {start.value:g} reaches {target.value:g} at {drive} = {curve.moment[-1]:.10g}"
+            )
+        else:
+            entry["message"] = curve.message
+        out.append(entry)
+    return out
 
 
 def _snic_point(diagram: SystemDiagram, k: np.ndarray) -> dict[str, Any] | None:
