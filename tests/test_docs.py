@@ -31,8 +31,12 @@ PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 SLOW_PAGES = {"studies.md", "roto-breathers.md", "periodic-orbits.md", "collocation.md", "homoclinic.md"}
 #: A block that runs only in a page's slow case (the whole page), found by a line of it; the quick case runs the page's
 #: other blocks. README's last block is the call test_report.py's quick test_table_numbers_equal_the_python_api makes
-#: too (the paper chain's sine orbit at M = 0.22 followed down to its fold of cycles).
-SLOW_BLOCKS = {"README.md": 'result = periodic_orbit(ChainParams(), "sine", 0.22, down_to=0.1)'}
+#: too (the paper chain's sine orbit at M = 0.22 followed down to its fold of cycles). statics.md's Fig. 2 block is
+#: examples/fig2.py's calls, which test_examples.py runs quick (its load steps coarser).
+SLOW_BLOCKS = {
+    "README.md": 'result = periodic_orbit(ChainParams(), "sine", 0.22, down_to=0.1)',
+    "statics.md": "sweeps = {m: relaxation_sweep(params, m, m_max=0.3, dm=0.01, down=True) for m in exact}",
+}
 
 
 def python_blocks(page: Path) -> list[str]:
@@ -120,7 +124,7 @@ def test_the_pages_python_blocks_run(case, page_runs):
 
 def test_a_slow_block_is_one_block_of_its_page_and_the_quick_case_runs_the_others():
     for name, line in SLOW_BLOCKS.items():
-        page = ROOT / name
+        (page,) = (page for page in PAGES if page.name == name)
         assert sum(line in block for block in python_blocks(page)) == 1, name
         assert len(python_blocks(page)) > 1 and page_script(page, False).strip()
         assert line in page_script(page, True) and line not in page_script(page, False)
