@@ -271,16 +271,13 @@ def _segment(c0, stop, first, last):  # pragma: no cover - compiled
 
 
 @njit(**_KICK_OPTIONS)
-def _kick_drift(x, v, f, pairs, close, open_, columns, dissipated, scratch):  # pragma: no cover - compiled
-    """Close ``close`` and open ``open_`` on the whole batch; adds each member's loss to ``dissipated``.
+def _kick_drift(x, v, f, pairs, close, open_, columns, dissipated):  # pragma: no cover - compiled
+    """Close ``close`` and open ``open_`` on one chain (B = 1); adds its loss to ``dissipated``.
 
-    ``columns`` (4,) for B = 1: advance columns [columns[0], columns[1]) and count the energy
-    removed on [columns[2], columns[3]) only. ``scratch`` (B,) holds the members' sums (B > 1).
-    Called only to close a step (to store it or to stop), so it is not inlined.
+    ``columns`` (4,): advance columns [columns[0], columns[1]) and count the energy removed on
+    [columns[2], columns[3]) only. Called only to close a step (to store it or to stop), so it
+    is not inlined; a batch's step is closed by its sub-step (:func:`_batch_substep`).
     """
-    if dissipated.size > 1:
-        _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch, columns[0], columns[1])
-        return
     c0, stop, first, last = columns[0], columns[1], columns[2], columns[3]
     while c0 < stop:
         c1, counted = _segment(c0, stop, first, last)
@@ -324,13 +321,37 @@ def batch_ends(end_force, x3, f3, coef, first, last, ring, sx, sf, sc):  # pragm
                 f3[r, n - 1, i] = sf[r, 3]
 
 
+#: A batch's sub-step (:func:`_batch_substep`), handed to the compiled loop as its fourth kernel.
+_BATCH_STEP_SIGNATURE = types.void(
+    BATCH_FORCE_KERNEL_TYPE, types.float64[:, ::1], types.float64[:, ::1], types.float64[:, ::1], types.float64[:, :, ::1],
+    types.float64[:, :, ::1], types.float64[:, ::1], types.float64[:, :, :, :, ::1], types.int64, types.int64,
+    types.float64[::1], types.float64[::1], types.int64, types.int64,
+)  # fmt: skip
+BATCH_STEP_TYPE = types.FunctionType(_BATCH_STEP_SIGNATURE)
+
+
+# Compiled at its first use (by the engine, for a batch): handed to the compiled loop as an argument
+# rather than called from it, so that a loop that runs single chains, as the report's, compiles
+# neither it nor the batch kick-drift (benchmarks/TIMINGS.md).
 @njit(**_KICK_OPTIONS)
 def _batch_substep(
     batch_force, x, v, f, x3, f3, coef, pairs, close, open_, dissipated, scratch, start, stop
 ):  # pragma: no cover - compiled
-    """A batch's sub-step (B > 1) on columns [start, stop): its kick-drift, then the batch kernel on the (3, n, B) views x3, f3."""
+    """A batch's sub-step (B > 1) on columns [start, stop): its kick-drift, then the batch kernel on the (3, n, B) views x3, f3.
+
+    With ``open_`` the number of sub-steps (no sub-step opened: a step closed to store it or to
+    stop), the kick-drift only; ``scratch`` (B,) holds the members' sums.
+    """
     _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch, start, stop)
-    batch_force(x3, coef, f3)
+    if open_ < pairs.shape[0] - 1:
+        batch_force(x3, coef, f3)
+
+
+@njit(_BATCH_STEP_SIGNATURE, cache=True, nogil=True)
+def _no_batch_step(
+    batch_force, x, v, f, x3, f3, coef, pairs, close, open_, dissipated, scratch, start, stop
+):  # pragma: no cover - compiled
+    """Fills the batch sub-step's slot of a compiled loop that runs one chain: the loop never calls it."""
 
 
 @njit(**_OPTIONS)
@@ -463,8 +484,8 @@ _TABLE = types.float64[:, ::1]
 _INTS = types.int64[:, ::1]
 # The compiled loop's arguments in the groups :class:`Lanes` keeps them in (each named in
 # :func:`advance`'s docstring): nine tuples instead of 36 positional arguments.
-#: The model's chain, end and batch kernels.
-KERNELS = types.Tuple((FORCE_KERNEL_TYPE, END_KERNEL_TYPE, BATCH_FORCE_KERNEL_TYPE))
+#: The model's chain, end and batch kernels, and the batch's sub-step.
+KERNELS = types.Tuple((FORCE_KERNEL_TYPE, END_KERNEL_TYPE, BATCH_FORCE_KERNEL_TYPE, BATCH_STEP_TYPE))
 #: x, v, f (3, n B), winding (n B), acc (2, B).
 STATE = types.Tuple((_TABLE, _TABLE, _TABLE, types.int64[::1], _TABLE))
 #: coef (c, B), chain_coef (c,), pairs (S+1, S+1, 5, 3, B), weights (S,).
@@ -490,8 +511,10 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
 
     Parameters
     ----------
-    kernels : (force, end_force, batch_force)
-        The model's compiled chain, end and batch kernels.
+    kernels : (force, end_force, batch_force, batch_step)
+        The model's compiled chain, end and batch kernels, and :func:`_batch_substep` (for B = 1
+        stubs may fill the batch slots, for B > 1 the chain kernel's: the loop calls the chain
+        and end kernels for one chain, the end kernel and ``batch_step`` for a batch).
     state : (x, v, f, winding, acc), updated in place
         x, v (3, n B): states at global step ``step0`` (time lanes[T0] + step0 lanes[DT]),
         velocities at the step boundary; column k of member b at index k B + b. f (3, n B):
@@ -540,7 +563,7 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
         but stored only if on the stride, at the step where the last member completed its TURN_LIMIT-th
         turn); ``pending`` the sub-step left open (S if none).
     """
-    force, end_force, batch_force = kernels
+    force, end_force, batch_force, batch_step = kernels
     x, v, f, winding, acc = state
     coef, chain_coef, pairs, weights = factors
     load_index, knots, load_scale = loads
@@ -593,7 +616,7 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
     for k in range(n_steps):
         for s in range(n_sub):
             if size > 1:
-                _batch_substep(batch_force, x, v, f, x3, f3, coef, pairs, pending, s, dissipated, scratch, columns[0], columns[1])
+                batch_step(batch_force, x, v, f, x3, f3, coef, pairs, pending, s, dissipated, scratch, columns[0], columns[1])
                 if ends:
                     batch_ends(end_force, x3, f3, coef, columns[0] == 0, columns[1] == n_chain, ring, end_x, end_f, end_coef)
             else:
@@ -673,7 +696,10 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
         last = (k == n_steps - 1 and close_at_end) or turned
         store = to_store == 0
         if store or last:
-            _kick_drift(x, v, f, pairs, pending, empty, columns, dissipated, scratch)
+            if size > 1:
+                batch_step(batch_force, x, v, f, x3, f3, coef, pairs, pending, empty, dissipated, scratch, columns[0], columns[1])
+            else:
+                _kick_drift(x, v, f, pairs, pending, empty, columns, dissipated)
             pending = empty
         if store:
             to_store = stride
@@ -697,8 +723,10 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
         if to_check == 0 or last:
             to_check = check_every
             if _runaway(x, v, lanes, lane_ints):
-                if pending != empty:
-                    _kick_drift(x, v, f, pairs, pending, empty, columns, dissipated, scratch)
+                if pending != empty and size > 1:
+                    batch_step(batch_force, x, v, f, x3, f3, coef, pairs, pending, empty, dissipated, scratch, columns[0], columns[1])
+                elif pending != empty:
+                    _kick_drift(x, v, f, pairs, pending, empty, columns, dissipated)
                 return STATUS_BLEW_UP, k + 1, frame - frame0, empty
             # At the checks on global multiples of WRAP_EVERY only: a run split into calls, or
             # rerun with a check after every step, wraps where the whole run does.
@@ -942,6 +970,7 @@ class Lanes:
                 entry(self.force_kernel if one else no_chain_forces, FORCE_KERNEL_TYPE),
                 entry(self.end_kernel, END_KERNEL_TYPE),
                 entry(no_batch_forces if one else kind.batch_kernel, BATCH_FORCE_KERNEL_TYPE),
+                entry(_no_batch_step if one else _batch_substep, BATCH_STEP_TYPE),
             ),
             (self._flat(self.x), self._flat(self.v), self._flat(self.f), winding, self.acc),
             (self.coef, self.coef[:, 0].copy(), self.pairs, self.weights),
