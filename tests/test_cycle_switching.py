@@ -16,6 +16,7 @@ import numpy as np
 import pytest
 import scipy.optimize as so
 
+from collocation_crossings import shooting_crossing
 from cosserat_chain import ChainParams
 from cosserat_chain.loads import moment_load
 from cosserat_chain.numerics import shooting
@@ -231,9 +232,8 @@ def test_where_the_flip_vector_nearly_follows_the_branch_the_switch_still_finds_
     amplitude condition along e alone also meets the one-turn orbit traversed twice, at a distance O(a), and
     Newton went there (M - M_PD linear in a, the squared flip multiplier 1 + 9.5 a): the doubled orbits found
     have M - M_PD quadratic in a, a multiplier 1 - O(a^2) and do not close after half their period."""
-    params = ChainParams(gamma_phi=0.15)
-    one_turn = find_periodic_orbit(params, "sine", 1.1 * locate_fold(params, "sine").moment)
-    switch = switch_at_period_doubling(continue_orbit(one_turn, period_max=100.0, until_unstable=True), follow=False)
+    # The shooting's branch of the collocation tests (tests/collocation_crossings.py), computed once a session.
+    switch = switch_at_period_doubling(shooting_crossing(ChainParams(gamma_phi=0.15))[0], follow=False)
     point = switch.point
     assert point.moment == pytest.approx(0.17288, abs=1e-5)
     family = [doubled_orbit(point, a, eigenvector=switch.eigenvector) for a in (1e-3, 2e-3)]
