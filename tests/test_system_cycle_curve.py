@@ -6,17 +6,21 @@ import pytest
 
 from cosserat_chain.numerics import shooting
 from cosserat_chain.numerics.cycle_curve import continue_cycle_end
+from cosserat_chain.numerics.cycle_switching import switch_at_period_doubling
 from cosserat_chain.systems import pen
 
 
-def in_phase_period_doubling(**parameters) -> shooting.Orbit:
-    """The pen demo's in-phase rotation followed down in I to its period doubling, located by the one-parameter
-    continuation's own event (an independent method: a multiplier's test function on the orbit branch)."""
+def in_phase_branch(**parameters) -> shooting.OrbitBranch:
+    """The pen demo's in-phase rotation followed down in I to its period doubling (located by the one-parameter
+    continuation's own event: an independent method, a multiplier's test function on the orbit branch)."""
     system = pen(**parameters)
     guess = shooting.settled_guess(system, np.array([0.0, 0.0, 2.0, 2.0]), coordinate="phi_0")
     orbit = shooting.find_orbit(system, guess, turns={"phi_0": 1, "phi_1": 1})
-    branch = shooting.continue_orbits(orbit, "I", direction=-1, max_points=60, stop_at=("period_doubling",))
-    return next(e for e in branch.events if e.kind == "period_doubling" and e.located).point
+    return shooting.continue_orbits(orbit, "I", direction=-1, max_points=60, stop_at=("period_doubling",))
+
+
+def in_phase_period_doubling(**parameters) -> shooting.Orbit:
+    return next(e for e in in_phase_branch(**parameters).events if e.kind == "period_doubling" and e.located).point
 
 
 @pytest.fixture(scope="module")
@@ -43,6 +47,26 @@ def test_the_pen_demo_s_period_doubling_curve_in_eps_is_where_each_value_s_own_b
     assert summary["parameter"] == "I" and [r["moment"] for r in summary["rows"]] == list(curve.moment)
 
 
+def doubled_fold(eps: float) -> shooting.Orbit:
+    """The fold of cycles on the pen demo's out-of-phase (period-doubled) branch, switched onto at the period
+    doubling and followed up in I (``tests/test_cycle_switching.py``: above I = 0.39 at eps = 0.1)."""
+    switch = switch_at_period_doubling(in_phase_branch(eps=eps), stop_at=("fold",), limits=(0.0, 1.0), max_points=80)
+    return next(e for e in switch.branch.events if e.kind == "fold" and e.located).point
+
+
+def test_the_fold_of_cycles_on_the_pen_demo_s_doubled_branch_followed_in_eps_is_each_eps_s_own_fold():
+    """The fold-of-cycles curve (the bordered test function of the shooting Jacobian, a second multiplier at +1):
+    at eps = 0.11 it lies where the one-parameter continuation of that eps's own doubled branch turns, to 1e-8."""
+    start = doubled_fold(0.1)
+    assert start.parameter("I") > 0.39
+    curve = continue_cycle_end(start, "fold_of_cycles", "eps", [0.1, 0.105, 0.11], parameter="I")
+    assert curve.complete and list(curve.values) == [0.1, 0.105, 0.11]
+    independent = doubled_fold(0.11)
+    assert curve.moment[-1] == pytest.approx(independent.parameter("I"), abs=1e-8)
+    assert curve.period[-1] == pytest.approx(independent.period, abs=1e-8)
+    assert np.sort(np.abs(curve.orbits[-1].multipliers - 1.0))[1] < 1e-3  # the second multiplier at +1
+
+
 def test_a_system_s_curve_refuses_unknown_parameters_and_bad_values(curve):
     start = curve.orbits[0]
     with pytest.raises(ValueError, match="parameter and field must be two different parameters of pen"):
@@ -61,7 +85,7 @@ def test_the_system_diagram_follows_each_row_s_period_doubling_to_the_next_value
     the curve followed from the located start (the fixture) lies, to 1e-8; JSON and NetCDF carry the entries."""
     import json
 
-    from cosserat_chain.experiments.system_diagram import system_diagram
+    from cosserat_chain.experiments.system_diagram import SystemDiagram, system_diagram
 
     diagram = system_diagram(pen(), "eps", [0.1, 0.12], "I", codim2=True)
     assert [row.curve for row in diagram.rows] == ["period_doubling", "period_doubling"]
@@ -71,12 +95,13 @@ def test_the_system_diagram_follows_each_row_s_period_doubling_to_the_next_value
     assert entry["reaches"] == pytest.approx(curve.moment[1], abs=1e-8)
     assert "reaches 0.12 at I = 0.21454571" in entry["message"]
     assert json.loads(diagram.to_dataset().attrs["codim2_between_json"]) == diagram.as_dict()["codim2_between"]
-    assert system_diagram(pen(), "eps", [0.1], "I").codim2_between is None
+    assert SystemDiagram(pen(), "eps", "I", {"phi_0": 1, "phi_1": 1}).as_dict()["codim2_between"] is None
     with pytest.raises(ValueError, match="codim2 must be True or False, got 'yes'"):
         system_diagram(pen(), "eps", [0.1], "I", codim2="yes")
 
 
-def test_diagram_system_codim2_prints_and_writes_the_curve_between_the_rows(tmp_path):
+@pytest.mark.slow
+def test_diagram_system_codim2_prints_and_writes_the_curve_between_the_rows():
     import json
 
     from typer.testing import CliRunner
