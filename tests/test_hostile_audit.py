@@ -192,3 +192,13 @@ def test_ctrl_c_in_python_code_exits_130_saying_what_is_kept(monkeypatch, argv, 
     result, out = _invoke(argv)
     assert result.exit_code == 130
     assert "interrupted" in out and "none is kept" in out
+
+
+def test_study_refuses_a_grid_beyond_its_cell_limit_before_building_it(monkeypatch, tmp_path):
+    """num = 10^9 built the grid's 10^9 values for minutes before anything ran."""
+    monkeypatch.setattr("cosserat_chain.experiments.study.spec_from_mapping", _never)
+    spec = tmp_path / "spec.toml"
+    spec.write_text('models = ["linear", "sine"]\nquantities = ["compliance"]\n[parameters]\nE2 = { start = 0.1, stop = 1, num = 1000000000 }\n')
+    result, out = _invoke(["study", str(spec)])
+    assert result.exit_code == 2
+    assert "2e+09 cells" in out and "E2 1000000000" in out and "1,000,000" in out

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import typer
@@ -10,6 +11,29 @@ import typer
 from ..io import read_config
 from ..status import Status
 from .common import app, bar_callback, exit_on, fail, outputs_or_exit, progress_bar, save_dataset, save_figure
+
+#: Most cells of one study: its spec, grid and file are built whole before the first cell runs.
+MAX_CELLS = 1_000_000
+
+
+def _cells_or_exit(mapping: object, source: Path) -> None:
+    """Refuse (exit 2) a grid of more than :data:`MAX_CELLS` cells before it is built (``num = 10^9`` took minutes, then memory)."""
+    if not isinstance(mapping, dict) or not isinstance(mapping.get("parameters"), dict):
+        return  # the spec's own validation names what is wrong
+    counts = {}
+    for name, values in mapping["parameters"].items():
+        if isinstance(values, dict) and isinstance(values.get("num"), int) and not isinstance(values.get("num"), bool):
+            counts[name] = values["num"]
+        elif isinstance(values, list):
+            counts[name] = len(values)
+    models = mapping.get("models")
+    n_models = len(models) if isinstance(models, list) and models else 1
+    total = math.prod(max(count, 1) for count in counts.values()) * n_models
+    if total > MAX_CELLS:
+        sizes = " x ".join(f"{name} {count}" for name, count in counts.items())
+        fail(
+            f"SPEC {str(source)!r} asks for {total:.3g} cells ({sizes}, times {n_models} model(s)), more than {MAX_CELLS:,}: fewer values per field"
+        )
 
 
 @app.command()
@@ -44,6 +68,7 @@ def study(
     outputs_or_exit({"--out": out, "--plot": plot}, {"SPEC": spec_file})
     try:
         mapping = read_config(spec_file)
+        _cells_or_exit(mapping, spec_file)
         if load:
             # --load adds tables to the spec's loads (its numbers stay the moments of mean_angular_velocity).
             tables = [{"row": p.row, "particle": p.particle, "value": p.schedule.values[0]} for p in map(parse_load, load)]
