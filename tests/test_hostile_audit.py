@@ -202,3 +202,10 @@ def test_study_refuses_a_grid_beyond_its_cell_limit_before_building_it(monkeypat
     result, out = _invoke(["study", str(spec)])
     assert result.exit_code == 2
     assert "2e+09 cells" in out and "E2 1000000000" in out and "1,000,000" in out
+
+
+def test_diagram_with_empty_values_quotes_what_was_given(monkeypatch):
+    monkeypatch.setattr("cosserat_chain.experiments.diagram.state_diagram", _never)
+    result, out = _invoke(["diagram", "--vary", "E2", "--values", ""])
+    assert result.exit_code == 2
+    assert "got ''" in out and "None" not in out

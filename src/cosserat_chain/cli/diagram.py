@@ -47,9 +47,9 @@ def _values(values: str | None, span: str | None) -> list[float]:
             # row's value in the JSON and the file; the rounding moves a value by 1e-12 at most.
             out = [float(f"{v:.12g}") for v in np.linspace(float(start), float(stop), count)]
     except ValueError:
-        fail(f"--values must read V1,V2,... and --range START:STOP:NUM (NUM >= 1), got {values or span!r}")
+        fail(f"--values must read V1,V2,... and --range START:STOP:NUM (NUM >= 1), got {values if values is not None else span!r}")
     if not out or not all(np.isfinite(out)):
-        fail(f"the values of --vary must be finite numbers, got {values or span!r}")
+        fail(f"the values of --vary must be finite numbers, got {values if values is not None else span!r}")
     if len(out) > MAX_VALUES:
         fail(f"--values gives {len(out)} values, more than {MAX_VALUES:,} (each is a continuation): fewer values")
     return out
