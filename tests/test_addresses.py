@@ -88,3 +88,46 @@ def test_the_graded_kernels_compile_at_first_use_to_the_force_signature(model):
     kernel = type(get_model(model)).graded_kernel
     entry(kernel, FORCE_KERNEL_TYPE)
     assert kernel.signatures == [FORCE_SIGNATURE.args]
+
+
+@pytest.mark.parametrize("model", ["nonlinear", "sine", "linear"])
+def test_the_batch_kernels_compile_at_first_use_to_the_batch_signature(model):
+    """The batch kernels have no signature at import (a single chain's run never calls one: cold start, issue 44); a
+    batch's run compiles the kernel type's signature only, which the engine's call from Python finds too."""
+    from cosserat_chain import ChainParams
+    from cosserat_chain.models.base import BATCH_FORCE_SIGNATURE
+    from cosserat_chain.numerics.batch import integrate_batch
+
+    kernel = type(get_model(model)).batch_kernel
+    run = integrate_batch([ChainParams(N=2), ChainParams(N=2, gamma_phi=0.3)], model, [0.4, 0.8], t_end=2.0)
+    assert np.isfinite(run.x).all()
+    assert kernel.signatures == [BATCH_FORCE_SIGNATURE.args]
+
+
+def test_the_engine_hands_a_single_chain_stubs_for_the_batch_slots_and_a_batch_one_for_the_chain_slot():
+    """The compiled loop calls the chain kernel for one chain and the batch kernel and sub-step for a batch: the slot
+    it does not call holds a stub, so that the run compiles no kernel it does not use; both runs stay exact."""
+    from cosserat_chain import ChainParams, moment_load
+    from cosserat_chain.models.base import no_batch_forces, no_chain_forces
+    from cosserat_chain.numerics import engine
+    from cosserat_chain.numerics.batch import integrate_batch
+    from cosserat_chain.numerics.dynamics import integrate
+
+    handed = []
+    original = engine.advance
+
+    def spy(kernels, *rest):
+        handed.append(tuple(getattr(k, "function", k) for k in kernels))
+        return original(kernels, *rest)
+
+    members = [ChainParams(N=2), ChainParams(N=2, gamma_phi=0.3)]
+    kind = type(get_model("sine"))
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(engine, "advance", spy)
+        single = integrate(members[1], "sine", moment_load(0.8), t_end=2.0, n_frames=3)
+        ends = get_model("sine").chain_kernels(members[1])[1]  # the default chain is clamped: the stub no_ends
+        assert handed[-1] == (kind.force_kernel, ends, no_batch_forces, engine._no_batch_step)
+        batch = integrate_batch(members, "sine", [0.4, 0.8], t_end=2.0)
+        assert handed[-1] == (no_chain_forces, ends, kind.batch_kernel, engine._batch_substep)
+    # The batch's member equals its single run (the batch test's tolerance: another loop, the same scheme).
+    np.testing.assert_allclose(batch.x[1], single.x[-1], rtol=0, atol=1e-12)
