@@ -73,6 +73,7 @@ def theory(
     from ..analysis.symbolic import errata
     from ..analysis.timoshenko import LOADS, beam_stiffness, loaded_particle
     from ..analysis.timoshenko import convergence as beam_convergence
+    from ..memory import MemoryEstimateError
 
     outputs_or_exit({"--plot": plot, "--out": out}, {"--config": config})
     params = params_or_exit(config)
@@ -95,7 +96,8 @@ def theory(
         stiffness = beam_stiffness(params)
         table = convergence(params, n_values) if paper_applies else None
     except (ValueError, ArithmeticError) as err:
-        stiff_at_rest_or_exit(params.replace(N=min(n_values)))
+        if not isinstance(err, MemoryEstimateError):
+            stiff_at_rest_or_exit(params.replace(N=min(n_values)))
         fail(str(err))
     bending = None
     if bend_angle is not None:
