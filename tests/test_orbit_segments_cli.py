@@ -47,9 +47,17 @@ def test_segments_give_every_multiplier_with_liouvilles_product(tmp_path):
     assert np.allclose(sorted(big), sorted(m for m in split["floquet_multipliers_abs"] if m > 1e-10), rtol=1e-8, atol=1e-10)
 
 
-@pytest.mark.parametrize("extra", [("--segments", "0"), ("--segments", "2", "--method", "blocks"), ("--segments", "x")])
+@pytest.mark.parametrize(
+    "extra", [("--segments", "0"), ("--segments", "2", "--method", "blocks"), ("--segments", "x"), ("--segments", "1000000000")]
+)
 def test_bad_segments_are_refused_with_the_value(tmp_path, extra):
+    # Refused before the orbit is computed (a billion segments: by the memory estimate, naming them).
     config = tmp_path / "N1.toml"
     config.write_text("N = 1\n")
     result = runner.invoke(app, ["orbit", "--model", "nonlinear", "--moment", "0.265", "--config", str(config), *extra])
     assert result.exit_code == 2 and "segments" in result.output and "Traceback" not in result.output
+
+
+def test_turns_beyond_the_limit_are_refused_before_computing(tmp_path):
+    result = runner.invoke(app, ["orbit", "--moment", "0.3", "--turns", "1000000000"])
+    assert result.exit_code == 2 and "turns must be an integer from 1 to 1000" in result.output and "1000000000" in result.output

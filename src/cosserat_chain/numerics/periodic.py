@@ -655,11 +655,16 @@ class PeriodicOrbit:
         return out
 
 
+#: Most turns of the loaded particle a period: the paper's chain repeats after 1 to 3; a period of many
+#: turns is a quasi-periodic or chaotic rotation, and its settling run grows with the turns.
+MAX_TURNS = 1000
+
+
 def _check_moment_and_turns(moment: float, turns: int) -> None:
     if not (math.isfinite(moment) and moment != 0):
         raise ValueError(f"moment must be finite and non-zero (a rotating state needs a load), got {moment!r}")
-    if not (isinstance(turns, int) and not isinstance(turns, bool) and turns >= 1):
-        raise ValueError(f"turns must be an integer >= 1 (turns of the loaded particle per period), got {turns!r}")
+    if not (isinstance(turns, int) and not isinstance(turns, bool) and 1 <= turns <= MAX_TURNS):
+        raise ValueError(f"turns must be an integer from 1 to {MAX_TURNS} (turns of the loaded particle per period), got {turns!r}")
 
 
 def _loaded_turns(params: ChainParams, particle: int, turns: int, moment: float) -> np.ndarray:
@@ -910,6 +915,11 @@ def find_periodic_orbit(
                 f"segments applies to the dense shooting only, got method={'collocation' if collocating else method!r} "
                 "(collocation takes its multipliers from its intervals' product already)"
             )
+        size = 2 * n_free(params)
+        require(
+            segments * size * size * FLOAT, f"{segments} segment Jacobians of {size} x {size}",
+            "fewer segments (--segments: 16 to 64 keep the smallest multipliers to round-off)",
+        )  # fmt: skip
     particle_turns = _loaded_turns(params, particle, turns, moment)
     if guess is None:
         x0, v0, period, particle_turns = _settled_guess(
