@@ -186,7 +186,16 @@ def smallest_band_eigenvalue(
         if not 0.0 < euclidean_norm(vector) < math.inf:
             vector[:] = _start_vector(n)
     tolerance = max(BISECTION_RTOL * radius, 1e-300)
-    value, bound = _smallest_eigenvalue_compiled(band, low, high, tolerance, 0.0 if guess is None else float(guess), vector)
+    try:
+        value, bound = _smallest_eigenvalue_compiled(band, low, high, tolerance, 0.0 if guess is None else float(guess), vector)
+    except ZeroDivisionError:
+        # A pivot of exactly zero in every nudge: entries so far from O(1) that the shifts vanish against them.
+        sizes = np.abs(band[np.nonzero(band)])
+        raise FloatingPointError(
+            "the smallest eigenvalue of the stiffness matrix cannot be searched in double precision: its entries span "
+            f"{sizes.min():.3g} to {sizes.max():.3g} (a chain far from unit scale: give its lengths, stiffnesses and "
+            "inertia in units where they are of order one)"
+        ) from None
     return float(value), float(bound)
 
 
