@@ -11,15 +11,22 @@ import typer
 from .common import app, bar_callback, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, save_dataset, save_figure
 from .systems import chain_only_or_exit, set_option, system_only_or_exit, system_option
 
+#: Largest frequency taken: the rotor's energy j Omega^2 / 2 stays far inside double precision's range.
+MAX_OMEGA = 1e100
+#: Most turns of the rotor a period (as the damped orbits': numerics.periodic.MAX_TURNS).
+MAX_TURNS = 1000
+
 
 @app.command()
 def breathers(
     ctx: typer.Context,
     model: str = model_option("sine", "A model that supports full rotations (the linear model does not).", rotating=True),
-    omega: float | None = number(None, "Frequency Omega of the rotating particle (its mean angular velocity) to start from.", above=0.0),
-    to: float | None = number(None, "Follow the family in Omega to here (default: the start alone).", above=0.0),
+    omega: float | None = number(
+        None, "Frequency Omega of the rotating particle (its mean angular velocity) to start from.", above=0.0, at_most=MAX_OMEGA
+    ),
+    to: float | None = number(None, "Follow the family in Omega to here (default: the start alone).", above=0.0, at_most=MAX_OMEGA),
     steps: int = typer.Option(11, min=2, help="Frequencies from --omega to --to, both included."),
-    turns: int = typer.Option(1, min=1, help="Turns of the rotating particle per period (T = 2 pi turns / Omega)."),
+    turns: int = typer.Option(1, min=1, max=MAX_TURNS, help="Turns of the rotating particle per period (T = 2 pi turns / Omega)."),
     particle: int = typer.Option(0, help="The rotating particle (default the central one)."),
     partner: int | None = typer.Option(None, help="A second rotor (a two-site roto-breather), turning as often as the first."),
     counter: bool = typer.Option(False, "--counter", help="The partner turns against the first rotor (default: with it)."),
@@ -92,6 +99,8 @@ def breathers(
         fail("--gamma sets the damped start of --from-moment: give --from-moment M as well")
     if omega is None:
         fail("give --omega, the rotating particle's frequency to start from (or --from-moment M for the damped-to-undamped homotopy)")
+    if to is not None and to == omega:
+        fail(f"--to must differ from --omega (the family runs from one frequency to another), got {to:g} for both; leave --to out for the one orbit")
     if atlas is not None:
         if counter and partner is None:
             fail("--counter sets the partner's direction: give --partner as well")
