@@ -1109,7 +1109,8 @@ def read_config(path: str | Path) -> dict[str, Any]:
     ------
     ValueError
         If the file does not exist, is not a regular file (a folder, /dev/zero), is
-        larger than :data:`MAX_CONFIG_BYTES`, cannot be read, or is not valid UTF-8 TOML.
+        larger than :data:`MAX_CONFIG_BYTES`, cannot be read, or is not valid UTF-8 TOML (a leading byte-order
+        mark is skipped).
     """
     path = Path(path)
     try:
@@ -1125,7 +1126,8 @@ def read_config(path: str | Path) -> dict[str, Any]:
     if len(data) > MAX_CONFIG_BYTES:
         raise ValueError(f"config file {str(path)!r} is larger than {MAX_CONFIG_BYTES} bytes: not a TOML file of parameters")
     try:
-        return tomllib.loads(data.decode("utf-8"))
+        # "utf-8-sig": a byte-order mark (Windows editors write one) is not TOML's, but it is no error of the user's.
+        return tomllib.loads(data.decode("utf-8-sig"))
     except UnicodeDecodeError as err:
         raise ValueError(f"config file {str(path)!r} is not valid TOML: not UTF-8 text ({err.reason} at byte {err.start})") from None
     except tomllib.TOMLDecodeError as err:
