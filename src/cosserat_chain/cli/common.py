@@ -61,6 +61,10 @@ class _App(typer.Typer):
                         f"not enough memory: {err or 'an allocation failed'} ({size_text(available())} free); "
                         "a shorter chain (N) or fewer stored states fit"
                     )
+                except KeyboardInterrupt:
+                    # The net for the commands that keep nothing on Ctrl-C (those that keep their frames or cells
+                    # catch it themselves and say what they kept): exit 130 saying so, not a traceback.
+                    exit_on(Status.INTERRUPTED, f"{function.__name__} was interrupted before it finished; nothing of it was kept")
                 finally:
                     _LOCKS.close()  # the outputs' locks of this command (a test runs many commands in one process)
 
