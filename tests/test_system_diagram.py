@@ -208,14 +208,24 @@ def test_a_fitted_end_says_it_is_a_fit_and_why(monkeypatch):
         raise HomoclinicError("no loop in this bracket")
 
     monkeypatch.setattr(module, "homoclinic_end", refuse)
-    (row,) = system_diagram(josephson_array(1, alpha=0.3), "alpha", [0.3], "I").rows
+    # The row computed once: the command's call of system_diagram (spied on) is the API's on the same system.
+    calls = []
+
+    def spy(system, vary, values, drive, **options):
+        calls.append((system, vary, list(values), drive, system_diagram(system, vary, values, drive, **options)))
+        return calls[-1][-1]
+
+    monkeypatch.setattr(module, "system_diagram", spy)
+    text = invoke("diagram", "--system", "josephson_array", "--set", "sites=1", "--vary", "alpha", "--values", "0.3", "--drive", "I")
+    assert text.exit_code == 0, text.output
+    assert "fitted +-" in text.stdout and "a fit, not a computed point: " in text.stdout and "no loop in this bracket" in text.stdout
+    ((system, vary, values, drive, result),) = calls
+    assert system.name == josephson_array(1).name and (vary, values, drive) == ("alpha", [0.3], "I")
+    (row,) = result.rows
     assert (row.end, row.method) == ("homoclinic", "fitted")
     assert "no loop in this bracket" in row.reason and "fitted" in row.message
     assert row.accuracy >= module.BRACKET_RTOL * row.stops
     assert abs(row.stops - retrapping_current(0.3, 0.36, 0.38)) <= row.accuracy
-    text = invoke("diagram", "--system", "josephson_array", "--set", "sites=1", "--vary", "alpha", "--values", "0.3", "--drive", "I")
-    assert text.exit_code == 0, text.output
-    assert "fitted +-" in text.stdout and "a fit, not a computed point: " in text.stdout and "no loop in this bracket" in text.stdout
 
 
 # -- the SNIC end and the SNIC point ----------------------------------------------------------------
