@@ -79,7 +79,7 @@ def test_a_system_s_curve_refuses_unknown_parameters_and_bad_values(curve):
         continue_cycle_end(start, "hopf", "eps", [0.1], parameter="I")
 
 
-def test_the_system_diagram_follows_each_row_s_period_doubling_to_the_next_value(curve, tmp_path):
+def test_the_system_diagram_follows_each_row_s_period_doubling_to_the_next_value(curve):
     """``system_diagram(codim2=True)`` on the pen demo: each row's orbit loses stability at a period doubling, whose
     curve from eps = 0.1 reaches eps = 0.12 where that row's own one-parameter continuation locates it, and where
     the curve followed from the located start (the fixture) lies, to 1e-8; JSON and NetCDF carry the entries."""
