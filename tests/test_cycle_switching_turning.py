@@ -8,12 +8,16 @@ orbit half a period on (amplitude -0.0061, the same orbit): ``orbit --switch per
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from cosserat_chain import ChainParams
 from cosserat_chain.numerics import cycle_switching
-from cosserat_chain.numerics.cycle_switching import PROBE_AMPLITUDES, PROBE_SCALES, switch_at_period_doubling
+from cosserat_chain.numerics.continuation import continue_in_moment
+from cosserat_chain.numerics.cycle_switching import PROBE_AMPLITUDES, PROBE_SCALES, hopf_orbit, switch_at_hopf, switch_at_period_doubling
+from cosserat_chain.numerics.hopf import hopf_points
 from cosserat_chain.numerics.periodic import OrbitError, continue_orbit, find_periodic_orbit
 from test_cycle_switching import half_period_gap
 
@@ -60,3 +64,22 @@ def test_the_sine_chain_at_gamma_phi_015_switches_onto_its_doubled_family():
     near_one = np.sort(np.abs(doubled.multipliers - 1.0))
     assert near_one[0] < 1e-8 and near_one[1] < 1e-2
     assert switch.branch is not None and len(switch.branch.orbits) > 2
+
+
+@pytest.fixture(scope="module")
+def hopf_chain():
+    """The N = 2 sine chain and its first Hopf point of positive M (``tests/test_cycle_switching.py``'s)."""
+    params = ChainParams(N=2)
+    points = hopf_points(params, "sine", continue_in_moment(params, "sine", phi0_stop=2 * math.pi))
+    return params, [h for h in points if h.moment > 0]
+
+
+def test_an_amplitude_below_the_probes_is_reached_back_on_the_same_march(hopf_chain):
+    # switch_at_hopf marches to its probes (2e-3, 4e-3) first; an amplitude asked below them is solved on that march
+    # (the rule that takes only orbits beyond the last amplitude holds for steps onward, not for one asked back).
+    params, points = hopf_chain
+    switch = switch_at_hopf(params, "sine", points[0], amplitude=1e-3, follow=False)
+    assert switch.amplitude == 1e-3 and switch.branch is None
+    again = hopf_orbit(params, "sine", points[0], 1e-3)  # a fresh march straight to it
+    assert switch.orbit.moment == pytest.approx(again.moment, abs=1e-9)
+    assert switch.orbit.period == pytest.approx(again.period, rel=1e-8)

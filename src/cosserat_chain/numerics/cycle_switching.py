@@ -298,9 +298,10 @@ class _March:
 
         The border through the prediction is e's first (Newton converges from farther there: on the nonlinear
         chain d's stalled), d's where that fails or reaches the old branch; the orbit is recorded at
-        its own amplitude e . (w - base), which d's border leaves within O(a^2) of ``amplitude``. An orbit at
-        an amplitude not beyond the last one's is not taken: a doubled orbit at a is the one at -a + O(a^2)
-        half a period on, and from a = 0.004 on the sine chain at gamma_phi = 0.15 Newton went there (a = -0.0061).
+        its own amplitude e . (w - base), which d's border leaves within O(a^2) of ``amplitude``. Asked beyond
+        the last one solved, an orbit at an amplitude not beyond it is not taken (asked below it, one at a
+        negative amplitude): a doubled orbit at a is the one at -a + O(a^2) half a period on, and from a = 0.004
+        on the sine chain at gamma_phi = 0.15 Newton went there (a = -0.0061).
         """
         predictor = self._predict(amplitude)
         for border in (self.tangent, self.direction):
@@ -309,7 +310,8 @@ class _March:
                 damping=6,
             )  # fmt: skip
             reached = float(self.tangent @ (solved.w - self.done[0][1]))
-            if solved.converged and reached > self.done[-1][0] and not self.refuse(solved.w):
+            onward = reached > self.done[-1][0] if amplitude > self.done[-1][0] else reached > 0.0
+            if solved.converged and onward and not self.refuse(solved.w):
                 self.done.append((reached, solved.w))
                 return self.make_point(solved.w, solved.evaluation, solved.iterations)
         return None
