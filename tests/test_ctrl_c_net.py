@@ -1,4 +1,4 @@
-"""Ctrl-C in a command that keeps nothing exits 130 saying so (the application's net), not with a traceback or in
+"""Ctrl-C in a command without its own handling exits 130 saying so (the application's net), not with a traceback or in
 silence (``theory``, ``critical`` and ``waves`` had no handler of their own)."""
 
 from __future__ import annotations
@@ -25,5 +25,5 @@ def test_ctrl_c_exits_130_saying_nothing_was_kept(monkeypatch, argv, target):
     monkeypatch.setattr(target, ctrl_c)
     result = CliRunner().invoke(app, argv)
     assert result.exit_code == 130, result.output
-    assert f"{argv[0]} was interrupted before it finished; nothing of it was kept" in result.output
+    assert f"{argv[0]} was interrupted before it finished: its result is not complete" in result.output
     assert "Traceback" not in result.output

@@ -62,9 +62,13 @@ class _App(typer.Typer):
                         "a shorter chain (N) or fewer stored states fit"
                     )
                 except KeyboardInterrupt:
-                    # The net for the commands that keep nothing on Ctrl-C (those that keep their frames or cells
-                    # catch it themselves and say what they kept): exit 130 saying so, not a traceback.
-                    exit_on(Status.INTERRUPTED, f"{function.__name__} was interrupted before it finished; nothing of it was kept")
+                    # The net for the commands without their own Ctrl-C handling (those that keep their frames or
+                    # cells catch it themselves and say what they kept): exit 130 saying so, not a traceback.
+                    exit_on(
+                        Status.INTERRUPTED,
+                        f"{function.__name__} was interrupted before it finished: its result is not complete (files it wrote "
+                        "whole before that stay, none is half-written)",
+                    )
                 finally:
                     _LOCKS.close()  # the outputs' locks of this command (a test runs many commands in one process)
 
