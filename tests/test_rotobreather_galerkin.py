@@ -25,6 +25,7 @@ import math
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
 
 from cosserat_chain.experiments import system_breathers as sb
 from cosserat_chain.systems import takeno_peyrard
@@ -161,3 +162,31 @@ def test_a_counter_rotating_pair_is_the_galerkin_orbit():
     orbit = family.orbits[0]
     assert abs(orbit.unfolding) < 1e-10
     assert np.max(np.abs(orbit.y0 - expected)) < 1e-9
+
+
+def test_the_located_loss_of_stability_is_at_the_galerkin_energy_minimum():
+    """Going down in Omega the one-site family loses stability by a pair through +1. A Hamiltonian family's pair
+    meets +1 where dE/dOmega = 0 (the energy criterion), here found on the series alone: the energy
+    E = sum phi_n'(0)^2 / 2 (every angle 0 on the section) by central differences (step 1e-5) and Brent's method.
+    The package's located change lies 5e-6 above it: the four multipliers at +1 there are resolved only to the
+    fourth root of the integration error (1e-3), so the bisection's bracket (5e-6 wide) is not its accuracy."""
+    turns = _rotor_turns({3: 1})
+    top = galerkin(turns, COUPLING, 1.3)
+
+    def energy(omega: float) -> float:
+        b = top
+        for w in np.linspace(1.3, omega, 5)[1:]:
+            b = galerkin(turns, COUPLING, w, start=b)
+        return 0.5 * float(np.sum(state_at_zero(b, turns, omega)[SITES:] ** 2))
+
+    def slope(omega: float, h: float = 1e-5) -> float:
+        return (energy(omega + h) - energy(omega - h)) / (2 * h)
+
+    minimum = brentq(slope, 1.12, 1.17, xtol=1e-12)
+    assert math.sqrt(1 + 4 * COUPLING) < minimum  # above the band's top, as the existing family test has it
+
+    family = sb.roto_breather_family(takeno_peyrard(SITES, C=COUPLING), 1.3, rotor=3, to=1.1)
+    (change,) = family.changes
+    assert change.kind == "+1"
+    assert abs(change.omega - minimum) < 2e-5
+    assert change.unstable_omega < change.stable_omega
