@@ -143,7 +143,7 @@ def test_the_package_orbit_is_the_galerkin_orbit_and_has_its_multipliers(omega):
     ours = np.sort_complex(orbit.nontrivial_multipliers)
     theirs = independent[np.argsort(np.abs(independent - 1.0))[2:]]
     # The independent ones are converged in their tolerance to 1e-11; the package's (its flow at rtol 1e-11)
-    # are within 1.5e-11 of them on the stable orbit and 7.6e-9 on the unstable one (its 1.94248758 + 4e-9 relative).
+    # are within 1.5e-11 of them on the stable orbit and 7.6e-9 on the unstable one (its 1.94248758, 4e-9 relative below).
     assert max(np.min(np.abs(theirs - mu)) for mu in ours) < 2e-8
     assert max(np.min(np.abs(ours - mu)) for mu in theirs) < 2e-8
     if omega == 1.3:
