@@ -2,14 +2,16 @@
 
 The blocks of one file run in order as one script (later blocks may use what earlier
 ones made), as ``__main__``, in a fresh folder and a fresh namespace, with matplotlib's
-non-interactive backend: what a reader who copies them gets. The pages share one
-interpreter (the package is imported once); a page guarded by ``if __name__ == "__main__"``
-(its worker processes import the script again) runs in its own.
+non-interactive backend: what a reader who copies them gets. The pages run in the test
+process (``in_process.run_script``: the package's imports and compiled kernels are the
+session's, what a page changes in the process is put back); a page guarded by
+``if __name__ == "__main__"`` (its worker processes import the script again) runs in a
+fresh interpreter of its own.
 """
 
 from __future__ import annotations
 
-import json
+import math
 import os
 import re
 import subprocess
@@ -19,6 +21,7 @@ from pathlib import Path
 import pytest
 
 from conftest import selected_params
+from in_process import run_script
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -65,27 +68,6 @@ def _cases() -> list:
     return cases
 
 
-#: Runs each script given on its command line as ``__main__`` in its own folder and fresh namespace, one after
-#: the other in this one interpreter (the package is imported once, not once a page), and prints a JSON object
-#: of script -> the end of its traceback, or null.
-_DRIVER = """
-import json, os, runpy, sys, traceback
-import matplotlib.pyplot as plt
-outcome = {}
-for script in sys.argv[1:]:
-    os.chdir(os.path.dirname(script))
-    sys.path.insert(0, os.path.dirname(script))
-    try:
-        runpy.run_path(script, run_name="__main__")
-        outcome[script] = None
-    except BaseException:
-        outcome[script] = traceback.format_exc()[-3000:]
-    sys.path.remove(os.path.dirname(script))
-    plt.close("all")
-print(json.dumps(outcome))
-"""
-
-
 def _needs_its_own_process(script: str) -> bool:
     """A page guarded by ``if __name__ == "__main__"`` starts worker processes that import the script again."""
     return "__main__" in script
@@ -94,8 +76,8 @@ def _needs_its_own_process(script: str) -> bool:
 @pytest.fixture(scope="module")
 def page_runs(request, tmp_path_factory) -> dict[str, str | None]:
     """Page name -> None if its blocks ran as one script, else why not: the pages without a ``__main__`` guard in
-    one driver process, each guarded page in a process of its own, as a reader would run it (only the pages of the
-    tests selected in this session)."""
+    this process, one after the other, each guarded page in a fresh interpreter of its own, as a reader would run it
+    (only the pages of the tests selected in this session)."""
     env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONPATH": os.pathsep.join([str(ROOT / "src"), os.environ.get("PYTHONPATH", "")])}
     shared, own = {}, {}
     for case in selected_params(request, "case"):
@@ -106,10 +88,9 @@ def page_runs(request, tmp_path_factory) -> dict[str, str | None]:
             script.write_text(text, encoding="utf-8")
             (own if _needs_its_own_process(text) else shared)[str(script)] = case_name(case)
     outcome = {}
-    result = subprocess.run([sys.executable, "-c", _DRIVER, *shared], env=env, capture_output=True, text=True, timeout=1200)
-    driven = json.loads(result.stdout.strip().splitlines()[-1]) if result.returncode == 0 else {}
     for script, name in shared.items():
-        outcome[name] = driven[script] if script in driven else f"the driver failed: {result.stderr[-3000:]}"
+        code, _, failure = run_script(script, Path(script).parent)
+        outcome[name] = None if code == 0 else failure or f"it exited {code}"
     for script, name in own.items():
         alone = subprocess.run([sys.executable, script], cwd=Path(script).parent, env=env, capture_output=True, text=True, timeout=600)
         outcome[name] = None if alone.returncode == 0 else alone.stderr[-3000:]
@@ -130,15 +111,18 @@ def test_a_slow_block_is_one_block_of_its_page_and_the_quick_case_runs_the_other
         assert line in page_script(page, True) and line not in page_script(page, False)
 
 
-def test_a_page_that_fails_or_misses_an_import_is_reported_by_the_driver(tmp_path):
-    """The driver's namespaces are fresh: a name imported by an earlier page is not defined in a later one."""
+def test_a_page_that_fails_or_misses_an_import_is_reported_in_process(tmp_path):
+    """The pages' namespaces are fresh: a name imported by an earlier page is not defined in a later one; each page runs
+    in its own folder, and the test process's folder and command line are as they were."""
     first, second = tmp_path / "a" / "first.py", tmp_path / "b" / "second.py"
-    for script, text in ((first, "import math\nprint(math.pi)\n"), (second, "print(math.pi)\n")):
+    for script, text in ((first, "import math, os\nprint(math.pi, os.getcwd())\n"), (second, "print(math.pi)\n")):
         script.parent.mkdir()
         script.write_text(text, encoding="utf-8")
-    result = subprocess.run([sys.executable, "-c", _DRIVER, str(first), str(second)], capture_output=True, text=True, timeout=600)
-    outcome = json.loads(result.stdout.strip().splitlines()[-1])
-    assert outcome[str(first)] is None and "NameError" in outcome[str(second)]
+    cwd, argv = os.getcwd(), sys.argv[:]
+    assert run_script(first, first.parent) == (0, f"{math.pi} {first.parent}\n", None)
+    code, printed, failure = run_script(second, second.parent)
+    assert code == 1 and printed == "" and "NameError" in failure
+    assert os.getcwd() == cwd and sys.argv == argv
 
 
 def test_no_python_block_escapes_the_extraction():

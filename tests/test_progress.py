@@ -1,7 +1,9 @@
 """Progress bars count whole pieces of real work and end at 100 %, or say why they stopped (issue 43, item 5).
 
 The bars show only on a terminal, so every test runs its command with stderr on a
-pseudo-terminal and reads what a user would see: the last state of the bar.
+pseudo-terminal and reads what a user would see: the last state of the bar. The commands and
+the scripts that draw bars run in the test process (``in_process.on_terminal``, its stderr on
+the terminal); the slow tests run ``python -m cosserat_chain`` on one, as a user does.
 """
 
 from __future__ import annotations
@@ -16,10 +18,13 @@ import subprocess
 import sys
 import termios
 import textwrap
+from collections.abc import Callable
 
 import pytest
 
+import in_process
 from cosserat_chain.report import STAGES, ReproduceSettings, reproduce
+from in_process import run_script
 
 #: tqdm's counter: ``done/total`` then the percentage, both whole.
 COUNT = re.compile(r"(\d+)%\|[^|]*\| (\S+)/(\S+)")
@@ -66,14 +71,21 @@ def cli(*args: str) -> list[str]:
     return [sys.executable, "-m", "cosserat_chain", *args]
 
 
-def script(tmp_path, body: str) -> list[str]:
+def script(tmp_path, body: str) -> Callable[[], int]:
+    """The script drawing bars as ``body`` says, run in this process: its exit code (its traceback if it failed)."""
     path = tmp_path / "bar.py"
     path.write_text("from cosserat_chain.cli.common import bar_callback, progress_bar\n" + textwrap.dedent(body))
-    return [sys.executable, str(path)]
+
+    def run() -> int:
+        code, _, failure = run_script(path, tmp_path)
+        assert failure is None, failure
+        return code
+
+    return run
 
 
 def test_a_bar_of_whole_counts_ends_at_its_total(tmp_path):
-    code, screen = on_terminal(
+    code, screen = in_process.on_terminal(
         script(
             tmp_path,
             """
@@ -92,7 +104,7 @@ def test_a_bar_of_whole_counts_ends_at_its_total(tmp_path):
 
 def test_work_that_ends_before_its_cap_ends_at_100_percent_and_says_why(tmp_path):
     """A continuation capped at 200 points that ends at a fold after 31 is done: 31/31, not 15 %."""
-    code, screen = on_terminal(
+    code, screen = in_process.on_terminal(
         script(
             tmp_path,
             """
@@ -111,7 +123,7 @@ def test_work_that_ends_before_its_cap_ends_at_100_percent_and_says_why(tmp_path
 
 
 def test_a_quantity_that_is_not_a_count_is_shown_as_whole_percent(tmp_path):
-    code, screen = on_terminal(
+    code, screen = in_process.on_terminal(
         script(
             tmp_path,
             """
@@ -131,7 +143,7 @@ def test_a_quantity_that_is_not_a_count_is_shown_as_whole_percent(tmp_path):
 
 
 def test_a_bar_that_stops_says_why_and_keeps_its_count(tmp_path):
-    code, screen = on_terminal(
+    code, screen = in_process.on_terminal(
         script(
             tmp_path,
             """
@@ -156,33 +168,27 @@ def test_a_bar_that_stops_says_why_and_keeps_its_count(tmp_path):
     assert counts(interrupted) == (20, "2", "10") and "stopped: KeyboardInterrupt" in interrupted
 
 
-#: The commands whose bars the three tests below read, run one after the other in one interpreter on the terminal (as
-#: ``python -m cosserat_chain`` each: the package is imported once, not once a command), each between two markers.
+#: The commands whose bars the three tests below read, run one after the other in this process on the terminal (as
+#: ``python -m cosserat_chain`` runs each: ``in_process.run_command``), each between two markers.
 _ON_TERMINAL = {
     "simulate": ["simulate", "--moment", "0.1", "--t-end", "30"],
     "animate": ["animate", "--t-end", "20", "--frames", "5", "--out", "a.gif"],
     "rotate": ["rotate", "--moment", "0.3", "--turns", "100", "--t-max", "5"],
 }
-_COMMANDS_IN_TURN = """
-import json, runpy, sys
-for name, args in json.loads(sys.argv[1]).items():
-    sys.argv = ["cosserat-chain", *args]
-    print(f"<<<START {name}>>>", file=sys.stderr, flush=True)
-    try:
-        runpy.run_module("cosserat_chain", run_name="__main__")
-        code = 0
-    except SystemExit as done:
-        code = done.code if isinstance(done.code, int) else (0 if done.code is None else 1)
-    print(f"<<<EXIT {name} {code}>>>", file=sys.stderr, flush=True)
-"""
+
+
+def _commands_in_turn() -> int:
+    for name, args in _ON_TERMINAL.items():
+        print(f"<<<START {name}>>>", file=sys.stderr, flush=True)
+        code = in_process.run_command(args)
+        print(f"<<<EXIT {name} {code}>>>", file=sys.stderr, flush=True)
+    return 0
 
 
 @pytest.fixture(scope="module")
 def terminal_runs(tmp_path_factory) -> dict[str, tuple[int, str]]:
     """Command -> (its exit code, what it wrote to the terminal) of the commands of ``_ON_TERMINAL``."""
-    import json
-
-    code, screen = on_terminal([sys.executable, "-c", _COMMANDS_IN_TURN, json.dumps(_ON_TERMINAL)], tmp_path_factory.mktemp("terminal"))
+    code, screen = in_process.on_terminal(_commands_in_turn, tmp_path_factory.mktemp("terminal"))
     assert code == 0, screen[-3000:]
     runs = {}
     for name in _ON_TERMINAL:
