@@ -21,6 +21,7 @@ NumPy/SciPy references directly (``tests/test_linalg.py``).
 * :mod:`.pencil`: the damped pencil K + z R + z^2 I: eigenvalues near the axis by
   shift-invert, the count right of it by the argument principle.
 * :mod:`.refinement`: solves refined with residuals in extended precision.
+* :mod:`.root`: solves with K = A^T A from A's banded rows (Givens QR), which keep a long chain's soft modes.
 * :mod:`.general`: dense-or-sparse matrices of any structure (the continuation kit's):
   :func:`solve`, :func:`append_row`, :func:`determinant_sign`.
 
@@ -33,12 +34,14 @@ from .bordered import BorderedFactor, bordered_jacobian, bordered_solve, rotatio
 from .eigen import eigenvalue_resolution, largest_eigenvalue_bound, lowest_real_eigenvalue, smallest_eigenvalue
 from .norms import dot, euclidean_norm, infinity_norm
 from .refinement import Refined, refined_solve
+from .root import RootFactor
 
 __all__ = [
     "BANDWIDTH",
     "BandMatrix",
     "BorderedFactor",
     "Refined",
+    "RootFactor",
     "band_storage",
     "bordered_jacobian",
     "bordered_solve",

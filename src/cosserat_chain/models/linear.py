@@ -23,8 +23,9 @@ import numpy as np
 import scipy.sparse as sp
 from numba import njit
 
+from ..linalg import RootFactor
 from ..params import ChainParams
-from ..state import bonded, check_state, scatter_bonds, zero_held
+from ..state import bonded, check_state, free_index, n_free, scatter_bonds, zero_held
 from .base import BOND_BLOCK, FORCE_SIGNATURE, KERNEL_OPTIONS, Model, assemble_bond_blocks, put_six
 from .trig import sincos
 
@@ -351,6 +352,59 @@ def bond_stiffness_blocks(params: ChainParams) -> np.ndarray:
         + (2 * E1 * params.b**2)[:, None, None] * np.outer(g_phi, g_phi)
         + k_v[:, None, None] * np.outer(g_shear, g_shear)
     )
+
+
+def stiffness_root(params: ChainParams) -> tuple[np.ndarray, np.ndarray]:
+    """The rows of A with K = A^T A over the free degrees of freedom (an open chain), for :class:`~cosserat_chain.linalg.RootFactor`.
+
+    P_bond is a sum of three squares (module docstring): each bond gives the rows sqrt(k_u) g_u,
+    sqrt(2 E1 b^2) g_phi and sqrt(k_v) g_shear over its six degrees of freedom
+    (:func:`bond_stiffness_blocks`), so that K, the sum of their outer products, is A^T A. Returns
+    ``values`` (rows, 6), row i's entries from its first free column ``starts[i]`` on (the held degrees
+    of freedom dropped).
+
+    Raises
+    ------
+    ValueError
+        For a ring, whose first and last bonds wrap around the band.
+    """
+    if params.periodic:
+        raise ValueError("a ring's stiffness has no banded square root (its first and last bonds wrap around the band)")
+    k_u, k_v, _, _ = bond_coefficients(params)
+    E1 = params.bond_stiffness[0]
+    bonds = params.n_particles - 1
+    shape = np.array([[-1.0, 0, 0, 1, 0, 0], [0, 0, -1.0, 0, 0, 1], [0, -1.0, -params.h / 2, 0, 1, -params.h / 2]])
+    weights = np.sqrt(np.stack(np.broadcast_arrays(k_u, 2 * E1 * params.b**2, k_v), axis=-1) * np.ones((bonds, 1)))
+    rows = (weights[:, :, None] * shape).reshape(3 * bonds, 6)
+    position = np.full(3 * params.n_particles, -1)
+    position[free_index(params)] = np.arange(n_free(params))
+    window = position[3 * np.arange(bonds)[:, None] + np.arange(6)]  # (bonds, 6): free position or -1
+    starts = np.where(window >= 0, window, np.iinfo(np.int64).max).min(axis=1)
+    offsets = np.where(window >= 0, window - starts[:, None], -1)
+    values = np.zeros((3 * bonds, 6))
+    row, column = np.nonzero(np.repeat(offsets, 3, axis=0) >= 0)
+    values[row, np.repeat(offsets, 3, axis=0)[row, column]] = rows[row, column]
+    return values, np.repeat(starts, 3)
+
+
+def rest_solve(params: ChainParams, rhs: np.ndarray) -> np.ndarray:
+    """K^-1 ``rhs`` (packed free degrees of freedom) with K of eq. (3), every model's K at rest, through its square root.
+
+    :func:`stiffness_root`'s rows reduced by Givens rotations (:class:`~cosserat_chain.linalg.RootFactor`):
+    a factor of K's rounded entries loses a clamped chain's bending modes, whose eigenvalue falls
+    like N^-4 (its compliance 0.15 % off at N = 10^4, 33 % at 3 10^4, 80 % at 10^5 by the band LU;
+    refined in extended precision, 1.1e-5 and 55 % off at the last two), where R keeps them
+    (docs/statics.md: 2e-13 from the closed form at N = 10^5).
+
+    Raises
+    ------
+    ValueError
+        For a ring (no banded square root), or where K is singular (a chain free to move rigidly).
+    """
+    x = RootFactor(*stiffness_root(params), n_free(params)).solve(rhs)
+    if not np.all(np.isfinite(x)):
+        raise ValueError("the stiffness at rest is singular: the chain can move rigidly")
+    return x
 
 
 def stiffness_matrix(params: ChainParams) -> sp.csr_matrix:

@@ -45,6 +45,7 @@ from ..linalg import (
 )
 from ..memory import FLOAT, require
 from ..models.base import Model, get_model
+from ..models.linear import rest_solve
 from ..params import ChainParams
 from ..state import ROW_INDEX, column, n_free, unpack, zeros
 from .kit import BranchEnd, Continuation, Correction, Corrector, Evaluation, Event, continuation, newton
@@ -271,17 +272,16 @@ def compliance(params: ChainParams, model: str | Model, *, particle: int = 0, x:
 def moment_response(params: ChainParams, model: str | Model, *, particle: int = 0, x: np.ndarray | None = None) -> np.ndarray:
     """K^-1 e at the state ``x`` (default rest): every free degree of freedom's response to a unit moment on ``particle``.
 
-    Refined with residuals in extended precision (:func:`~cosserat_chain.linalg.refined_solve`): K's
-    condition number grows like N^4, and at N = 10^4 a double-precision solve's compliance
-    was 1.2 % off (15434.5 for the paper's chain, 15625.000 refined).
-
     At rest every model of the package has the linear model's K (eq. (3) is derived as the
-    Hessian at rest), and that one is assembled from the derived coefficients, one rounding
-    an entry: it is solved wherever the model's own K at rest equals it to round-off. The
-    nonlinear model's Hessian, summed link by link, rounds its entries otherwise, and at
-    N = 10^4 its compliance was 4.2e-8 off the exact one where the linear K's is 7e-11 off
-    (:func:`~cosserat_chain.analysis.continuum.discrete_static` solves the same matrix: ``theory``
-    and ``critical`` give one compliance). A model whose K at rest differs (a user's model) is solved with its own.
+    Hessian at rest): wherever the model's own K at rest equals it to round-off, an open chain's
+    response is solved through K's square root (:func:`~cosserat_chain.models.linear.rest_solve`),
+    which keeps the clamped chain's bending modes, eigenvalues falling like N^-4, that every
+    factor of K's rounded entries loses: at N = 10^5 the band LU's compliance was 80 % off, and
+    refined with residuals in extended precision 55 %; the square root's is 2e-13 from the
+    closed form (:func:`~cosserat_chain.analysis.continuum.discrete_static` solves the same way:
+    ``theory`` and ``critical`` give one compliance). Elsewhere (a ring, a state away from rest, a
+    user's model whose K at rest differs) K is solved with residuals refined in extended
+    precision (:func:`~cosserat_chain.linalg.refined_solve`).
 
     Raises
     ------
@@ -291,17 +291,24 @@ def moment_response(params: ChainParams, model: str | Model, *, particle: int = 
     model = get_model(model)
     e = np.zeros(n_free(params))
     e[moment_dof(params, particle)] = 1.0
+    singular = "the stiffness is singular at this state (a fold): the compliance is infinite"
     if x is None:
         stiffness = model.stiffness(params, zeros(params)).tocsr()
         linear = get_model("linear").stiffness(params).tocsr()
-        if model.name != "linear" and infinity_norm(stiffness - linear) <= REST_RTOL * infinity_norm(linear):
+        shared = model.name == "linear" or infinity_norm(stiffness - linear) <= REST_RTOL * infinity_norm(linear)
+        if shared and not params.periodic:
+            try:
+                return rest_solve(params, e)
+            except ValueError:
+                raise ValueError(singular) from None
+        if shared:
             stiffness = linear
     else:
         stiffness = model.stiffness(params, x)
     try:
         return refined_solve(stiffness, e).x
     except ValueError:
-        raise ValueError("the stiffness is singular at this state (a fold): the compliance is infinite") from None
+        raise ValueError(singular) from None
 
 
 def largest_step(params: ChainParams, model: Model, particle: int) -> float:
