@@ -76,10 +76,10 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_serializer, model_validator
 
 from ..analysis.dispersion import wave_summary
-from ..loads import Loads, load_from_table, loads_from_tables
+from ..loads import Loads, load_from_table, loads_from_tables, moment_load
 from ..models.base import available_models
 from ..numerics.continuation import compliance, locate_fold
-from ..numerics.integrators import default_time_step
+from ..numerics.integrators import MAX_SPIN_PER_STEP, default_time_step, spin_hint
 from ..numerics.relaxation import relax_batch
 from ..params import ChainParams
 from .sweep import relaxation_sweeps
@@ -269,6 +269,7 @@ class StudySpec(BaseModel):
                 if self.particle and not -params.N < self.particle < params.N:
                     raise ValueError(f"particle={self.particle} is not a free particle of a chain with N={params.N}")
                 extra.validate(params)
+                self._check_spin(params, extra)
             except (ValidationError, ValueError) as err:
                 swept = ", ".join(f"{k}={fields[k]}" for k in self.parameters)
                 reason = "; ".join(e["msg"] for e in err.errors()) if isinstance(err, ValidationError) else str(err)
@@ -277,6 +278,28 @@ class StudySpec(BaseModel):
             shown = "\n  ".join(problems[:10])
             more = f"\n  ... and {len(problems) - 10} more" if len(problems) > 10 else ""
             raise ValueError(f"{len(problems)} impossible parameter combination(s):\n  {shown}{more}")
+
+    def _check_spin(self, params: ChainParams, extra: Loads) -> None:
+        """Refuse a cell whose largest load spins its particle faster than its relaxations' step follows.
+
+        The moment M drives its particle to the spin M / gamma_phi
+        (:func:`~cosserat_chain.numerics.integrators.spin_hint`): beyond what the step resolves, a
+        relaxation would run to ``t_max`` without an answer, so the cell is refused before anything runs.
+        """
+        # The sweeps of onset_load and stop_load stop at the onset, below any such spin: only the loads.
+        moments = [abs(m) for m in self.loads] if "mean_angular_velocity" in self.quantities else []
+        if not moments or params.gamma_phi == 0.0:  # undamped rotation: no terminal spin to bound
+            return
+        loads = Loads([*extra, *moment_load(max(moments), self.particle)])
+        spin = max(load.schedule.bound() for load in loads if load.row == "phi") / params.gamma_phi
+        # The default step (0.1 / omega_max, several banded factorisations) is computed only where it
+        # matters: a spin below MAX_SPIN_PER_STEP per unit time is followed by any step up to 1.
+        if self.sweep.dt is None and spin < MAX_SPIN_PER_STEP:
+            return
+        for model in self.models:
+            hint = spin_hint(params, loads, cell_time_step(params, model, self))
+            if hint:
+                raise ValueError(f"{model}: {hint} (loads are the moments of mean_angular_velocity; sweep.dt sets the step)")
 
     def to_json(self) -> str:
         return json.dumps(self.model_dump(mode="json"), sort_keys=True)
