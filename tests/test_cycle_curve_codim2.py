@@ -45,12 +45,16 @@ def test_the_test_functions_vanish_at_their_points_and_change_sign_across_them()
         every = np.array([1.0, *mu], dtype=complex)
         return SimpleNamespace(multipliers=every, nontrivial_multipliers=every[1:])
 
+    def torus(theta):
+        pair = complex(np.exp(1j * theta))
+        return orbit(pair, pair.conjugate(), 0.3), pair
+
     for angle, name in ((2 * math.pi / 3, "resonance_1_3"), (math.pi / 2, "resonance_1_4")):
-        below, above = (_codim2_tests("torus", None, complex(np.exp(1j * (angle + d))))[name] for d in (-1e-3, 1e-3))
-        assert below * above < 0 and abs(_codim2_tests("torus", None, complex(np.exp(1j * angle)))[name]) < 1e-15
+        below, above = (_codim2_tests("torus", *torus(angle + d))[name] for d in (-1e-3, 1e-3))
+        assert below * above < 0 and abs(_codim2_tests("torus", *torus(angle))[name]) < 1e-15
     # The torus's pair turning real at -1 or +1 ends the curve: the test reaches zero from one side.
-    assert _codim2_tests("torus", None, complex(np.exp(1j * (math.pi - 1e-3))))["resonance_1_2"] > 0
-    assert _codim2_tests("torus", None, complex(np.exp(1e-3j)))["resonance_1_1"] < 0
+    assert _codim2_tests("torus", *torus(math.pi - 1e-3))["resonance_1_2"] > 0
+    assert _codim2_tests("torus", *torus(1e-3))["resonance_1_1"] < 0
     # On a period doubling (a multiplier at -1): a second one through -1, or a real one through +1.
     inside, outside = orbit(-1.0, -0.99, 0.3 + 0.2j, 0.3 - 0.2j), orbit(-1.0, -1.01, 0.3 + 0.2j, 0.3 - 0.2j)
     assert _codim2_tests("period_doubling", inside, None)["resonance_1_2"] == pytest.approx(0.01)
@@ -132,7 +136,9 @@ def test_the_secant_finds_a_zero_between_points_and_refuses_a_stop_that_is_not_o
     from cosserat_chain.numerics.cycle_curve import _locate_codim2
 
     def entry(p: float, theta) -> tuple:
-        return (p, np.array([p]), SimpleNamespace(moment=0.1 + p, period=1.0), 0, complex(np.exp(1j * theta(p))))
+        pair = complex(np.exp(1j * theta(p)))
+        orbit = SimpleNamespace(moment=0.1 + p, period=1.0, multipliers=np.array([1.0, pair, pair.conjugate(), 0.3]))
+        return (p, np.array([p]), orbit, 0, pair)
 
     def curve(theta, stop: float):
         return lambda p, guess, pair: entry(p, theta) if p <= stop else None

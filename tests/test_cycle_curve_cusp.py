@@ -98,9 +98,8 @@ def test_one_parameter_continuations_in_the_moment_find_the_fold_below_the_cusp_
 
 def test_a_cusp_is_named_and_serialised_with_its_branches():
     orbit = SimpleNamespace(moment=0.47, period=6.67)
-    point = Codim2Point(
-        "cusp", CUSP_LABELS["cusp"], 0.514, 0.47, 6.67, orbit, 1e-9, 1e-9, branches=((0.5139, orbit), (0.5138, orbit)), tangent_moment=0.0
-    )
+    extra = {"branches": ((0.5139, orbit), (0.5138, orbit)), "tangent_moment": 0.0, "branch_moments": (0.47, 0.47)}
+    point = Codim2Point("cusp", CUSP_LABELS["cusp"], 0.514, 0.47, 6.67, orbit, 1e-9, 1e-9, **extra)
     assert point.name == "cusp" and point.label == "CP"
     summary = json.loads(json.dumps(point.as_dict()))
     assert summary["branches"] == [{"value": 0.5139, "moment": 0.47, "period": 6.67}, {"value": 0.5138, "moment": 0.47, "period": 6.67}]

@@ -122,12 +122,20 @@ COMPLEX_RTOL = 1e-6
 FOLD_MULTIPLIER_TOL = 1e-3
 #: Codimension-two points watched along each kind's curve (module docstring), by the names of :class:`Codim2Point`.
 CODIM2 = {
-    "fold_of_cycles": ("fold_flip",),
+    "fold_of_cycles": ("fold_flip", "fold_torus"),
     "period_doubling": ("resonance_1_2", "fold_flip"),
-    "torus": ("resonance_1_1", "resonance_1_2", "resonance_1_3", "resonance_1_4"),
+    "torus": ("resonance_1_1", "resonance_1_2", "resonance_1_3", "resonance_1_4", "fold_torus"),
 }
-#: AUTO-07p's labels of the same points (its two-parameter runs of LP, PD and TR curves print them).
-AUTO_LABELS = {"resonance_1_1": "R1", "resonance_1_2": "R2", "resonance_1_3": "R3", "resonance_1_4": "R4", "fold_flip": "LPPD"}
+#: AUTO-07p's labels of the same points (its manual's table of codimension-two points: R1 ... R4, LPD for fold-flip,
+#: LTR for fold-torus; MatCont calls the last two LPPD and LPNS).
+AUTO_LABELS = {
+    "resonance_1_1": "R1",
+    "resonance_1_2": "R2",
+    "resonance_1_3": "R3",
+    "resonance_1_4": "R4",
+    "fold_flip": "LPD",
+    "fold_torus": "LTR",
+}
 #: The codimension-two point where a ``fold_of_cycles`` curve turns back in the field (no multiplier's test
 #: function: located by pseudo-arclength through the turn, :func:`_cusp`), with AUTO-07p's label.
 CUSP_LABELS = {"cusp": "CP"}
@@ -135,6 +143,9 @@ CUSP_LABELS = {"cusp": "CP"}
 CUSP_STEPS = 8
 #: ... and halvings of one of them before the search gives up.
 CUSP_HALVINGS = 4
+#: How the reasons of the chain's edge checks begin (:func:`continue_cycle_end`): a fold curve stopped by one
+#: changes kind there (another multiplier leaves the circle first) and is not searched for a cusp.
+EDGE_CHECKED = ("another Floquet multiplier", "the critical multiplier")
 #: Where a torus curve's pair turns real (at +1 or -1) the curve ends: its test function reaches zero without changing sign.
 ENDS_AT = ("resonance_1_1", "resonance_1_2")
 #: A codimension-two point is located when its test function is this small (a multiplier's or a cosine's distance
@@ -210,7 +221,7 @@ class Codim2Point:
     kind : str
         One of :data:`CODIM2` for the curve's kind (``resonance_1_2``, ``fold_flip``, ...).
     label : str
-        AUTO-07p's label of the same point (:data:`AUTO_LABELS`: R1 ... R4, LPPD; :data:`CUSP_LABELS`: CP).
+        AUTO-07p's label of the same point (:data:`AUTO_LABELS`: R1 ... R4, LPD, LTR; :data:`CUSP_LABELS`: CP).
     value : float
         The field's value there.
     moment, period : float
@@ -231,6 +242,8 @@ class Codim2Point:
     tangent_moment : float or None
         At a ``cusp``: the M-component of the fold curve's unit tangent there (zero at a cusp, with
         the p-component ``test``: the curve's projection on (p, M) has its cusp there).
+    branch_moments : tuple of two float or None
+        At a ``cusp``: M (a system's parameter) at the two ``branches``' folds.
     """
 
     kind: str
@@ -243,6 +256,7 @@ class Codim2Point:
     uncertainty: float
     angle: float | None = None
     branches: tuple[tuple[float, PeriodicOrbit], tuple[float, PeriodicOrbit]] | None = None
+    branch_moments: tuple[float, float] | None = None
     tangent_moment: float | None = None
 
     @property
@@ -263,7 +277,9 @@ class Codim2Point:
             "test": self.test,
             "uncertainty": self.uncertainty,
             "angle": self.angle,
-            "branches": None if self.branches is None else [{"value": v, "moment": o.moment, "period": o.period} for v, o in self.branches],
+            "branches": None
+            if self.branches is None
+            else [{"value": v, "moment": m, "period": o.period} for (v, o), m in zip(self.branches, self.branch_moments)],
             "tangent_moment": self.tangent_moment,
         }
 
@@ -748,14 +764,15 @@ def continue_cycle_end(
             break
     found = curve.found
     points, at_stop = _codim2_points(kind, found, located, None if complete else float(target))
-    if not complete and at_stop is None and kind == "fold_of_cycles" and not system_orbit and curve.reason.startswith("Newton"):
-        # Newton failed on natural steps (not an edge check): the curve may turn back in the field there.
-        at_stop = _cusp(augmented, orbit.params, field_name, found, kind)
+    if not complete and at_stop is None and kind == "fold_of_cycles" and not curve.reason.startswith(EDGE_CHECKED):
+        # Natural steps found no fold beyond (not an edge check): the curve may turn back in the field there.
+        at_stop = _cusp(augmented, found, kind)
         if at_stop is not None:
             points.append(at_stop)
             message += (
                 f": the curve turns back in {field_name} at a cusp (CP) at {field_name} = {at_stop.value:.10g} "
-                f"+- {at_stop.uncertainty:.2g} (M = {at_stop.moment:.10g}): two folds of cycles meet there and vanish beyond"
+                f"+- {at_stop.uncertainty:.2g} ({parameter or 'M'} = {at_stop.moment:.10g}): two folds of cycles meet there "
+                "and vanish beyond"
             )
     if not complete and (at_stop is None or at_stop.kind != "cusp"):
         if at_stop is not None:
@@ -799,28 +816,93 @@ def _system_values(orbit: shooting.Orbit, field_name: str, parameter: str | None
     return array
 
 
-def _codim2_tests(kind: str, orbit: PeriodicOrbit, pair: complex | None) -> dict[str, float]:
+def _codim2_tests(kind: str, orbit, pair: complex | None) -> dict[str, float]:
     """The test functions of :data:`CODIM2` for a point of a ``kind`` curve, each zero at its point.
 
-    Each is a smooth function of a cluster of multipliers (a sum, a product, a cosine of a conjugate
-    pair), well conditioned where two of them meet, as they do at a 1:2 resonance:
+    Each is a continuous function of the multipliers, well conditioned where two of them meet (each of a
+    double multiplier is only accurate to the square root of the round-off; a symmetric function of the
+    two, a sum or a product, to the round-off):
 
     * ``resonance_1_1`` ... ``resonance_1_4`` (torus): cos(theta) - 1, + 1, + 1/2 and cos(theta), theta the
       pair's angle;
-    * ``resonance_1_2`` (period doubling): Re(mu_1 + mu_2) + 2, mu_1, mu_2 the two nontrivial multipliers
-      nearest -1 (one of them is -1 on the curve, so this is the other's distance from -1);
-    * ``fold_flip``: on a period-doubling curve Re(mu_1 + mu_2) - 2 over the two multipliers nearest +1 (the
-      trivial one and the other's distance from +1), on a fold curve Re prod(mu + 1) over the nontrivial ones.
+    * ``resonance_1_2`` (period doubling): :func:`_cluster_test` of x = mu + 1 over the nontrivial multipliers
+      (a second one reaches -1 beside the period doubling's);
+    * ``fold_flip``: on a period-doubling curve :func:`_cluster_test` of x = mu - 1 over all multipliers (a real
+      one reaches +1 beside the trivial one); on a fold curve Re prod(mu + 1) over the nontrivial ones;
+    * ``fold_torus`` (Kuznetsov's fold-Neimark-Sacker, Elements of Applied Bifurcation Theory, 3rd ed., Sect. 9.6
+      and 10.3; AUTO-07p's LTR): on a torus curve :func:`_cluster_test` of x = mu - 1 over the multipliers but
+      the torus's pair (a second real one reaches +1, as ``fold_flip`` on a period-doubling curve); on a fold
+      curve, over the multipliers but the trivial one and the fold's, sign(P) min |mu_i mu_j - 1| with
+      P = prod_{i<j} (mu_i mu_j - 1) (the determinant of MatCont's bialternate-product test): zero where a
+      complex pair lies on the circle, or where a real pair's product is 1, a neutral saddle that
+      :func:`_genuine` refuses. P is a symmetric function of the multipliers, continuous where a pair turns
+      real; the minimum gives the test the scale of the critical factor, |mu|^2 - 1 near the point, and keeps
+      it continuous where two factors swap places.
     """
     if kind == "torus":
         cosine = pair.real / abs(pair)
-        return {"resonance_1_1": cosine - 1.0, "resonance_1_2": cosine + 1.0, "resonance_1_3": cosine + 0.5, "resonance_1_4": cosine}
+        return {
+            "resonance_1_1": cosine - 1.0,
+            "resonance_1_2": cosine + 1.0,
+            "resonance_1_3": cosine + 0.5,
+            "resonance_1_4": cosine,
+            "fold_torus": _cluster_test(_beside_pair(orbit.multipliers, pair) - 1.0),
+        }
     if kind == "fold_of_cycles":
-        return {"fold_flip": float(np.real(np.prod(orbit.nontrivial_multipliers + 1.0)))}
-    rest, every = orbit.nontrivial_multipliers, orbit.multipliers
-    near_minus = rest[np.argsort(np.abs(rest + 1.0))[:2]]
-    near_plus = every[np.argsort(np.abs(every - 1.0))[:2]]
-    return {"resonance_1_2": float(np.sum(near_minus).real) + 2.0, "fold_flip": float(np.sum(near_plus).real) - 2.0}
+        factors = _pair_products(orbit)[0]
+        fold_torus = _sign(factors) * float(np.min(np.abs(factors))) if factors.size else 1.0  # no pair to reach the circle
+        return {"fold_flip": float(np.real(np.prod(orbit.nontrivial_multipliers + 1.0))), "fold_torus": fold_torus}
+    return {"resonance_1_2": _cluster_test(orbit.nontrivial_multipliers + 1.0), "fold_flip": _cluster_test(orbit.multipliers - 1.0)}
+
+
+def _sign(factors: np.ndarray) -> float:
+    """The sign of the real product of ``factors`` (closed under conjugation), from their arguments: conjugate
+    factors cancel, a real negative one adds pi (no underflow of a long product)."""
+    return 1.0 if math.cos(float(np.sum(np.angle(factors)))) > 0 else -1.0
+
+
+def _cluster_test(x: np.ndarray) -> float:
+    """e_{n-1}(x) / prod_O |x_k|: e_{n-1} the sum of the products of all but one of the x (a coefficient of the
+    characteristic polynomial, well conditioned), O all but the two x nearest zero, a and b.
+
+    It equals sign(prod_O x) (a + b + a b sum_O 1 / x_k): where a is a multiplier that stays put (the trivial one,
+    a period doubling's -1), about b, the other's distance from its value, which it changes sign with; and it
+    does wherever b lies, also far away (a sum over the two nearest alone keeps its sign when b leaves the
+    cluster between two points). Continuous where b and an x_k swap places (|b| = |x_k| there)."""
+    order = np.argsort(np.abs(x))
+    a, b, others = x[order[0]], x[order[1]], x[order[2:]]
+    return _sign(others) * float(np.real(a + b + a * b * np.sum(1.0 / others)))
+
+
+def _beside_pair(multipliers: np.ndarray, pair: complex) -> np.ndarray:
+    """The multipliers but the torus's ``pair`` and its conjugate, nearest +1 first."""
+    drop = {int(np.argmin(np.abs(multipliers - pair))), int(np.argmin(np.abs(multipliers - np.conj(pair))))}
+    rest = np.delete(multipliers, sorted(drop))
+    return rest[np.argsort(np.abs(rest - 1.0))]
+
+
+def _pair_products(orbit) -> tuple[np.ndarray, np.ndarray]:
+    """mu_i mu_j - 1 over the pairs i < j of a fold's multipliers but the trivial one and the fold's (the two
+    nearest +1), and each pair's mu_i."""
+    rest = orbit.nontrivial_multipliers
+    rest = np.delete(rest, int(np.argmin(np.abs(rest - 1.0))))
+    i, j = np.triu_indices(rest.size, 1)
+    return rest[i] * rest[j] - 1.0, rest[i]
+
+
+def _genuine(kind: str, name: str, orbit, pair: complex | None) -> bool:
+    """Whether a located zero of ``name``'s test function is the point it names: a ``fold_torus`` on a fold curve
+    where the factor mu_i mu_j - 1 that vanishes is a complex pair's |mu|^2 - 1 (not a neutral saddle, a real pair
+    with mu_i mu_j = 1: no bifurcation); on a torus curve where the two multipliers nearest +1 beside the pair lie
+    within :data:`FOLD_MULTIPLIER_TOL` of it (a second one at +1, not a complex pair passing Re mu = 1). Every other
+    point is what its test function's zero says."""
+    if name != "fold_torus":
+        return True
+    if kind == "torus":
+        return bool(np.all(np.abs(_beside_pair(orbit.multipliers, pair)[:2] - 1.0) <= FOLD_MULTIPLIER_TOL))
+    factors, first = _pair_products(orbit)
+    mu = first[int(np.argmin(np.abs(factors)))]
+    return bool(abs(mu.imag) > COMPLEX_RTOL * abs(mu))
 
 
 def _codim2_points(kind: str, found: list[tuple], solve: Callable, target: float | None) -> tuple[list[Codim2Point], Codim2Point | None]:
@@ -917,6 +999,8 @@ def _locate_codim2(kind: str, name: str, solve: Callable, before: list[tuple], a
     bracket = abs(far - low[0]) if best is low else abs(far - best[0]) if high is None else abs(high[0] - low[0])
     if abs(f_best) > CODIM2_ACCEPT and (high is None or bracket > CODIM2_ACCEPT * max(1.0, abs(low[0]))):
         return None  # neither near the zero nor bracketing it closely: not located
+    if not _genuine(kind, name, best[2], best[4]):
+        return None  # the test function's zero is not the point it names (a neutral saddle)
     slope = (f_low - f_other) / (low[0] - other[0]) if other is not None and other[0] != low[0] else math.nan
     estimate = 10.0 * abs(f_best / slope) if math.isfinite(slope) and slope != 0 else math.inf
     orbit = best[2]
@@ -945,13 +1029,11 @@ class _FoldArc:
     tangent is the combination of the same null vectors along which g does not change.
     """
 
-    def __init__(self, augmented: _Augmented, params: ChainParams, field_name: str):
-        self.augmented, self.params, self.field_name = augmented, params, field_name
+    def __init__(self, augmented: _Augmented):
+        self.augmented = augmented  # a chain's or a system's (its ``at`` sets the field)
 
     def _at(self, w: np.ndarray):
-        chain = chain_with(self.params, self.field_name, float(w[-1]))
-        residual, jac, mono, shooting = self.augmented.evaluate(chain, w[:-1])
-        return residual, jac, mono, shooting
+        return self.augmented.evaluate(self.augmented.at(float(w[-1])), w[:-1])
 
     def _g(self, w: np.ndarray) -> float:
         _, _, mono, shooting = self._at(w)
@@ -1020,7 +1102,7 @@ class _FoldArc:
         return None
 
 
-def _cusp(augmented: _Augmented, params: ChainParams, field_name: str, found: list[tuple], kind: str) -> Codim2Point | None:
+def _cusp(augmented: _Augmented, found: list[tuple], kind: str) -> Codim2Point | None:
     """The cusp where a fold-of-cycles curve that stopped after the points ``found`` turns back in the field, or None.
 
     From the last two points (distinct values) the curve is followed by pseudo-arclength (:class:`_FoldArc`) at
@@ -1035,12 +1117,12 @@ def _cusp(augmented: _Augmented, params: ChainParams, field_name: str, found: li
     entries = [e for i, e in enumerate(found) if i == 0 or e[0] != found[i - 1][0]]
     if kind != "fold_of_cycles" or len(entries) < 2:
         return None
-    arc = _FoldArc(augmented, params, field_name)
+    arc = _FoldArc(augmented)
     w0, w1 = (np.append(e[1], e[0]) for e in entries[-2:])
     h = float(np.linalg.norm(w1 - w0))
     try:
-        _, _, mono, shooting = arc._at(w1)
-        augmented.borders = _singular_vectors(augmented.bordered(mono, shooting))
+        _, _, mono, matrix = arc._at(w1)
+        augmented.borders = _singular_vectors(augmented.bordered(mono, matrix))
         t = arc.tangent(w1, w1 - w0)
     except (OrbitError, ValueError, np.linalg.LinAlgError):
         return None
@@ -1095,14 +1177,10 @@ def _cusp(augmented: _Augmented, params: ChainParams, field_name: str, found: li
     _, w, tw, corrected = best
 
     def orbit_of(w: np.ndarray, corrected) -> PeriodicOrbit:
-        if isinstance(corrected, PeriodicOrbit):  # the curve's own last point
+        if isinstance(corrected, (PeriodicOrbit, shooting.Orbit)):  # the curve's own last point
             return corrected
-        y0, period, moment = augmented.split(w[:-1])
-        system = _System(chain_with(params, field_name, float(w[-1])), get_model(augmented.orbit.model), moment, augmented.orbit.particle)
         _, mono, closure, iterations = corrected
-        return _orbit(
-            system, augmented.orbit.turns, y0, period, mono, closure, iterations, augmented.orbit.particle_turns, augmented.phase.normal
-        )
+        return augmented.orbit_at(augmented.at(float(w[-1])), w[:-1], mono, closure, iterations)
 
     orbit = orbit_of(w, before[2] if corrected is None else corrected)
     # p = p* - k (s - s*)^2 near the cusp, t_p = -2 k (s - s*): k from the secant's last slope. The tangent's
@@ -1112,17 +1190,19 @@ def _cusp(augmented: _Augmented, params: ChainParams, field_name: str, found: li
     value = float(w[-1]) + math.copysign(abs(float(tw[-1])) ** 2 / (4.0 * k), float(start[-1] - w0[-1]))
     remainder += arc.accuracy(w)
     branches = ((float(before[0][-1]), orbit_of(*before[::2])), (float(after[0][-1]), orbit_of(after[0], after[2])))
+    # w = (z, p) and z ends with the first parameter's value (the chain's M, a system's own).
     return Codim2Point(
         "cusp",
         CUSP_LABELS["cusp"],
         value,
-        orbit.moment,
+        float(w[-2]),
         orbit.period,
         orbit,
         float(tw[-1]),
         remainder,
         branches=branches,
         tangent_moment=float(tw[-2]),
+        branch_moments=(float(before[0][-2]), float(after[0][-2])),
     )
 
 
