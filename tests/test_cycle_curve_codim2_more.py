@@ -188,6 +188,7 @@ def test_a_fold_torus_on_a_fold_curve_is_where_the_circulatory_pair_reaches_the_
     mu = point.orbit.multipliers
     on_circle = mu[np.argmin(np.abs(mu - pair_multiplier(S_LTR, 0.0)))]
     assert abs(abs(on_circle) - 1.0) < 1e-8 and abs(np.angle(on_circle)) == pytest.approx(2 * math.pi * 1.2 - 2 * math.pi, abs=1e-8)
+    assert point.angle == pytest.approx(abs(np.angle(on_circle)), abs=1e-12)
     assert np.sort(np.abs(mu - 1.0))[1] < 1e-3  # still a fold of cycles: a second multiplier at +1
     assert json.loads(json.dumps(curve.as_dict()))["codim2"][0]["label"] == "LTR"
 

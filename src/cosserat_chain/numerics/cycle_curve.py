@@ -49,8 +49,9 @@ the paper's chain's torus end cannot be followed beyond E2 = 1.12 and is a perio
 1.2: the two meet at a 1:2 resonance; the multiplier's codimension-two points along each
 kind, :data:`CODIM2`, are located by :func:`_codim2_points`).
 
-Where a ``fold_of_cycles`` curve stops so, it is followed on by pseudo-arclength in w = (z, p)
-(:class:`_FoldArc`: the augmented system with p free and the condition t . (w - w_pred) = 0),
+Where a ``fold_of_cycles`` curve stops so (natural steps fail, jump, or reach no fold: anything but an
+edge check, on the chain's curves and a user system's alike), it is followed on by pseudo-arclength in
+w = (z, p) (:class:`_FoldArc`: the augmented system with p free and the condition t . (w - w_pred) = 0),
 which passes a turn of p. On a fold curve p turns exactly where the fold's quadratic
 coefficient vanishes (at fixed p the folds are the critical points of M along the orbit
 branch; their curve can turn in p only where that critical point is degenerate): two folds of
@@ -234,7 +235,8 @@ class Codim2Point:
         solved points on either side of the zero, or a solved point and a value where the
         curve does not exist).
     angle : float or None
-        On a torus curve, the critical pair's angle arg(mu) in (0, pi) at ``orbit``.
+        On a torus curve, the critical pair's angle arg(mu) in (0, pi) at ``orbit``; at a ``fold_torus`` on a fold
+        curve, the angle of the pair on the circle.
     branches : tuple of two (value, PeriodicOrbit) or None
         At a ``cusp``: the fold curve's points on either side of the turn (the pseudo-arclength
         bracket's ends, each the field's value and the orbit at the fold), both on the same side of
@@ -658,7 +660,8 @@ def continue_cycle_end(
     A user system's orbit (:class:`~.shooting.Orbit`) is followed the same way on (O) with the phase plane
     of ``orbit`` (:class:`_SystemAugmented`), its end in ``parameter`` (the chain's M); a system's
     bifurcation need not be an edge of rotation, so its points are not checked to be one (every other
-    multiplier inside the circle), and the cusp of a fold curve is looked for on the chain's curves only.
+    multiplier inside the circle). The codimension-two points of :data:`CODIM2` and the cusp of a fold
+    curve are located on both.
 
     Parameters
     ----------
@@ -890,6 +893,17 @@ def _pair_products(orbit) -> tuple[np.ndarray, np.ndarray]:
     return rest[i] * rest[j] - 1.0, rest[i]
 
 
+def _angle(kind: str, name: str, orbit, pair: complex | None) -> float | None:
+    """The angle in [0, pi] of the pair on the circle at a point of ``kind``'s curve: the torus's pair, or at a
+    ``fold_torus`` on a fold curve the pair whose |mu|^2 - 1 is the smallest factor; None for other points."""
+    if kind == "torus":
+        return float(np.angle(pair))
+    if name != "fold_torus":
+        return None
+    factors, first = _pair_products(orbit)
+    return float(abs(np.angle(first[int(np.argmin(np.abs(factors)))])))
+
+
 def _genuine(kind: str, name: str, orbit, pair: complex | None) -> bool:
     """Whether a located zero of ``name``'s test function is the point it names: a ``fold_torus`` on a fold curve
     where the factor mu_i mu_j - 1 that vanishes is a complex pair's |mu|^2 - 1 (not a neutral saddle, a real pair
@@ -1004,7 +1018,7 @@ def _locate_codim2(kind: str, name: str, solve: Callable, before: list[tuple], a
     slope = (f_low - f_other) / (low[0] - other[0]) if other is not None and other[0] != low[0] else math.nan
     estimate = 10.0 * abs(f_best / slope) if math.isfinite(slope) and slope != 0 else math.inf
     orbit = best[2]
-    angle = float(np.angle(best[4])) if kind == "torus" else None
+    angle = _angle(kind, name, orbit, best[4])
     # z ends with the first parameter's value (the chain's M, a system's own).
     return Codim2Point(
         name,
