@@ -103,11 +103,14 @@ class _Stage:
             fig.set_size_inches(FIGURE_WIDTH, max(height, min(height * FIGURE_WIDTH / width, 0.6 * FIGURE_WIDTH)))
         # The figure is laid out once, at the saved resolution, and both files keep those places: savefig
         # with a layout engine draws the figure twice (once to lay it out) and lays it out at each draw.
+        # The engine is then removed, not set to "none": savefig draws once more before printing while
+        # a figure has any engine, the placeholder that "none" leaves included.
         fig.set_dpi(FIGURE_DPI)
         engine = fig.get_layout_engine()
         if engine is not None:
             engine.execute(fig)
-            fig.set_layout_engine("none")
+            with plt.rc_context({"figure.autolayout": False, "figure.constrained_layout.use": False}):
+                fig.set_layout_engine(None)
         write_figure(fig, self.path(f"figures/{stem}.png"), dpi=FIGURE_DPI)
         write_figure(fig, self.path(f"figures/{stem}.svg"), dpi=FIGURE_DPI)
         plt.close(fig)
