@@ -29,6 +29,7 @@ from .common import (
     save_figure,
     statics_failed,
     step_for_checks,
+    stiff_at_rest_or_exit,
     work_or_exit,
 )
 from .systems import chain_only_or_exit, critical_on_system, set_option, start_option, system_only_or_exit, system_option, vary_option
@@ -169,6 +170,8 @@ def critical(
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     params = params_or_exit(config)
     held_or_exit(params, particle)
+    # Up front, not only on a failure: a K at rest singular to round-off can also end the trace quietly.
+    stiff_at_rest_or_exit(params, particle)
     results = {}
     for name in chosen_models(model):
         bar = progress_bar(f"critical {name}", "rad")

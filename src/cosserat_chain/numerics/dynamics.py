@@ -45,7 +45,7 @@ from ..loads import Loads
 from ..memory import FLOAT, require
 from ..models.base import Model, get_model
 from ..models.trig import join_turns
-from ..params import ChainParams
+from ..params import BOND_FACTORS, PARTICLE_FACTORS, ChainParams
 from ..state import check_state, column, held
 from ..status import Status
 from .engine import CROSSINGS, STATUS_BLEW_UP, STATUS_OK, STATUS_TURNED, TURN_LIMIT, Blocks, Lanes
@@ -509,7 +509,9 @@ def integrate(
         raise ValueError(
             f"the run would take {steps:.3g} steps of dt={dt:.3g} (t_end - t0 = {t_end - t0:g}), more than {MAX_STEPS:.3g}: "
             f"the time step follows the fastest mode sqrt(stiffness / inertia), here E1={params.E1:g}, E2={params.E2:g}, "
-            f"m={params.m:g}, j={params.j:g}; the model is dimensionless, so scale them to order 1 or shorten t_end"
+            f"m={params.m:g}, j={params.j:g}"
+            + ("".join(f", {name} from {min(f):g} to {max(f):g}" for name in (*BOND_FACTORS, *PARTICLE_FACTORS) if (f := getattr(params, name))))
+            + "; the model is dimensionless, so scale them to order 1 or shorten t_end"
         )
     n_steps = max(1, math.ceil(steps - 1e-9))
     dt = (t_end - t0) / n_steps  # at most the requested step, and t_end is reached exactly

@@ -69,7 +69,7 @@ from ..linalg.threads import one_blas_thread
 from ..loads import moment_load
 from ..memory import FLOAT, require
 from ..models.base import BOND_BLOCK, BOND_ROWS, END_KERNEL_TYPE, FORCE_KERNEL_TYPE, Model, get_model, no_ends
-from ..params import ChainParams
+from ..params import BOND_FACTORS, PARTICLE_FACTORS, ChainParams
 from ..state import ROW_INDEX, check_state, column, force_columns, free_index, held, n_free, pack, per_dof, unpack, zeros
 from ..state import dof as free_dof
 from ..status import Status
@@ -822,6 +822,37 @@ def _shooting(system: _System, particle_turns: np.ndarray, rtol: float, atol: fl
     return evaluate
 
 
+#: A bound on h |lambda| for DOP853's steps on the fastest mode, above the extent of its stability
+#: domain (about 6 along the negative real axis, less along the imaginary one): T omega_max / this
+#: bounds the steps of one period from below.
+DOP853_STABLE_STEP = 6.0
+
+
+def require_integrable_period(params: ChainParams, model: Model, period: float) -> None:
+    """Refuse a period that DOP853 cannot integrate within :data:`MAX_STEPS` steps.
+
+    The chain's fastest mode omega_max (:meth:`Model.max_frequency`, the factors of a graded
+    chain included) bounds the step from above by :data:`DOP853_STABLE_STEP` / omega_max, so one
+    period takes at least T omega_max / DOP853_STABLE_STEP steps; a chain whose stiffness and
+    inertia are many decades apart (a mass factor of 1e-90) would otherwise grind through
+    ``MAX_STEPS`` steps per integration, many times over, before failing.
+
+    Raises
+    ------
+    ValueError
+        Naming the period, omega_max and the steps, where they exceed :data:`MAX_STEPS`.
+    """
+    omega = model.max_frequency(params)
+    steps = period * omega / DOP853_STABLE_STEP
+    if not steps <= MAX_STEPS:  # also NaN
+        graded = ", their factors" if any(getattr(params, f) for f in (*BOND_FACTORS, *PARTICLE_FACTORS)) else ""
+        raise ValueError(
+            f"one period T = {period:.6g} of this chain takes at least {steps:.3g} integration steps (its fastest mode "
+            f"omega_max = {omega:.3g}, from E1, E2, m, j{graded}), more than {MAX_STEPS:.0e}: the model is dimensionless, "
+            "so scale stiffnesses and inertias to within a few decades of each other"
+        )
+
+
 @one_blas_thread
 def find_periodic_orbit(
     params: ChainParams,
@@ -936,6 +967,7 @@ def find_periodic_orbit(
         x0, v0, period = guess
     if not (math.isfinite(period) and period > 0):
         raise ValueError(f"the guessed period must be finite and > 0, got {period!r}")
+    require_integrable_period(params, model, period)
     system = _System(params, model, float(moment), particle)
     y0 = _to_y(params, check_state(params, x0, "guess x"), check_state(params, v0, "guess v"))
     # A guessed orbit on a phase plane keeps its plane; any other guess is put on phi_0 = 0.
@@ -1639,6 +1671,7 @@ def find_hamiltonian_orbit(
     else:
         x0, v0 = guess
     period = 2.0 * math.pi * turns / float(omega)
+    require_integrable_period(params, model, period)
     dof = _System(params, model, 0.0, particle).load_dof
     y0 = _to_y(params, check_state(params, x0, "guess x"), check_state(params, v0, "guess v"))
     y0[dof] = 0.0
