@@ -1,0 +1,123 @@
+"""AUTO-07p's fold-of-cycles curve of the fold-torus system of ``tests/test_cycle_curve_codim2_more.py``, beside the
+package's fold-torus point (LTR) on it.
+
+The system (a rotor beside a fold x'' = a - 0.1 - 0.5 (s - 0.24) - xi^2 - x' and a circulatory pair
+y'' = -(1.44 + xi) y + s J y - 0.2 y') is written as an AUTO-07p equations file (PAR(1) = a, PAR(2) = s); AUTO
+continues the rotation down in a to its fold (LP), then the fold in (a, s) from s = 0.2 to 0.3 (ISW = 2). AUTO
+labels fold-torus points (LTR) on the curves of maps only, so the point is read from the Floquet multipliers it
+prints along the curve: where the pair's modulus crosses 1 (log |mu| interpolated linearly between its two
+points around the crossing). The closed form is s = 0.24, a = 0.1.
+
+Needs ``auto-07p`` on the PATH (the Debian package auto-07p, with gfortran). Usage::
+
+    python benchmarks/auto07p_fold_torus.py WORKDIR
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+EQUATIONS = """      SUBROUTINE FUNC(NDIM,U,ICP,PAR,IJAC,F,DFDU,DFDP)
+      IMPLICIT DOUBLE PRECISION (A-H,O-Z)
+      DIMENSION U(NDIM),PAR(*),F(NDIM)
+      XI=U(2)-0.5D0
+      AK=1.44D0+XI
+      F(1)=U(5)
+      F(2)=U(6)
+      F(3)=U(7)
+      F(4)=U(8)
+      F(5)=1.0D0-U(5)
+      F(6)=PAR(1)-0.1D0-0.5D0*(PAR(2)-0.24D0)-XI**2-U(6)
+      F(7)=-AK*U(3)+PAR(2)*U(4)-0.2D0*U(7)
+      F(8)=-AK*U(4)-PAR(2)*U(3)-0.2D0*U(8)
+      RETURN
+      END
+      SUBROUTINE STPNT(NDIM,U,PAR,T)
+      IMPLICIT DOUBLE PRECISION (A-H,O-Z)
+      DIMENSION U(NDIM),PAR(*)
+      PI=4.0D0*ATAN(1.0D0)
+      PAR(1)=0.09D0
+      PAR(2)=0.2D0
+      PAR(11)=2.0D0*PI
+      U(1)=2.0D0*PI*T
+      U(2)=0.6D0
+      U(3)=0.0D0
+      U(4)=0.0D0
+      U(5)=1.0D0
+      U(6)=0.0D0
+      U(7)=0.0D0
+      U(8)=0.0D0
+      RETURN
+      END
+"""
+
+CONSTANTS = """NDIM=  8, IPS =   2, IRS =   0, ILP =   1
+ICP =  [1, 11]
+NTST=  20, NCOL=   4, IAD =   3, ISP =   2, ISW = 1, IPLT= 0, NBC= 0, NINT= 0
+NMX=  200, RL0=  0.0, RL1=  0.5, A0=   0.0, A1= 1000.0
+NPR=  500, MXBF=  10, IID =   2, ITMX=   8, ITNW= 7, NWTN= 3, JAC= 0
+EPSL= 1e-10, EPSU = 1e-10, EPSS =1e-08
+DS  =  -0.001, DSMIN=  1e-6, DSMAX=   0.005, IADS=   1
+THL =  {11: 0.0}, THU =  {}
+STOP = ['LP1']
+"""
+
+SCRIPT = """r1 = run('ft', c='ft')
+save(r1, 'r1')
+start = run(r1('LP1'), c='ft', ICP=[1, 2, 11], ISW=2, DS=0.001, DSMAX=0.002, NMX=200, UZSTOP={2: [0.15, 0.3]}, STOP=[])
+save(start, 'start')
+curve = run(start('EP1'), c='ft', ICP=[1, 2, 11], ISW=2, DS=0.001, DSMAX=0.002, NMX=200, UZSTOP={2: [0.15, 0.3]}, STOP=[])
+save(curve, 'curve')
+"""
+
+
+def crossing(fort7: Path, fort9: Path) -> tuple[float, float, float]:
+    """(s, a, the pair's angle) where AUTO's printed complex pair's modulus crosses 1 along its curve."""
+    rows, pairs = {}, {}
+    for line in fort7.read_text().splitlines():
+        f = line.split()
+        if len(f) >= 12 and all(re.fullmatch(r"-?\d+", x) for x in f[:3]):
+            try:
+                rows[abs(int(f[1]))] = (float(f[4]), float(f[10]))
+            except ValueError:
+                continue
+    for line in fort9.read_text().splitlines():
+        m = re.match(r"\s+\d+\s+(\d+)\s+Multiplier\s+\d+\s+(\S+)\s+(\S+)\s+Abs", line)
+        if m and float(m[3]) > 1e-3 and abs(math.hypot(float(m[2]), float(m[3])) - 1.0) < 0.2:
+            pairs.setdefault(int(m[1]), (math.log(math.hypot(float(m[2]), float(m[3]))), math.atan2(float(m[3]), float(m[2]))))
+    points = sorted(p for p in pairs if p in rows)
+    for p, q in zip(points, points[1:]):
+        if pairs[p][0] * pairs[q][0] < 0:
+            w = pairs[p][0] / (pairs[p][0] - pairs[q][0])
+            (a0, s0), (a1, s1) = rows[p], rows[q]
+            return s0 + w * (s1 - s0), a0 + w * (a1 - a0), pairs[p][1] + w * (pairs[q][1] - pairs[p][1])
+    raise SystemExit("AUTO's curve has no complex pair crossing the unit circle")
+
+
+def main(workdir: Path) -> None:
+    workdir.mkdir(parents=True, exist_ok=True)
+    (workdir / "ft.f90").write_text(
+        EQUATIONS + "".join(f"      SUBROUTINE {n}\n      RETURN\n      END\n" for n in ("BCND", "ICND", "FOPT", "PVLS"))
+    )
+    (workdir / "c.ft").write_text(CONSTANTS)
+    (workdir / "ft.auto").write_text(SCRIPT)
+    subprocess.run(["auto-07p", "ft.auto"], cwd=workdir, check=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    s, a, angle = crossing(workdir / "b.curve", workdir / "d.curve")
+    print(f"AUTO-07p's fold curve: the pair crosses the unit circle at s = {s:.10g}, a = {a:.10g}, angle {angle:.8g}")
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+    from test_cycle_curve_codim2_more import fold_torus_fold_curve
+
+    (point,) = fold_torus_fold_curve().points
+    print(
+        f"the package's fold-torus (LTR): s = {point.value:.12g} +- {point.uncertainty:.2g}, a = {point.moment:.12g}, angle {point.angle:.10g}"
+    )
+    print(f"the closed form: s = 0.24, a = 0.1, angle 2 pi / 5 = {2 * math.pi / 5:.10g}")
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1] if len(sys.argv) > 1 else "auto07p-fold-torus"))
