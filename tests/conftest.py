@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import gc
+import hashlib
 import os
 from pathlib import Path
 
@@ -10,6 +11,13 @@ from pathlib import Path
 # dense matrices are small, and OpenBLAS's threads spinning on them cost many times the work
 # on a loaded 2-core machine without changing a result the tests check.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# The Dask clusters of the studies' tests (the shared one below, the commands' embedded ones, worker processes of the
+# test's own), which live for minutes of a session and mostly wait: without the statistical profiler that samples every
+# worker's threads a hundred times a second, and with the event loops' liveness checks and the system monitor's
+# samples less often. Their work and results are the same; dask reads these when it loads, the workers inherit them.
+os.environ.setdefault("DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED", "False")
+os.environ.setdefault("DASK_DISTRIBUTED__ADMIN__TICK__INTERVAL", "1s")
+os.environ.setdefault("DASK_DISTRIBUTED__ADMIN__SYSTEM_MONITOR__INTERVAL", "5s")
 
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
@@ -88,6 +96,64 @@ def _command_built_once(app):
 _COMMANDS: dict = {}
 _build_command = typer.testing._get_command
 typer.testing._get_command = _command_built_once
+
+
+#: Digests of the NetCDF images ``io.netcdf_image`` made in this session (every file the package writes in the test
+#: process, through ``write_dataset`` or the commands' writer).
+WRITTEN_IMAGES: set[bytes] = set()
+#: Files larger than this are probed without being read for their digest.
+_DIGEST_MAX_BYTES = 1 << 26
+
+
+def _digest(data) -> bytes:
+    return hashlib.blake2b(data, digest_size=16).digest()
+
+
+def _image_remembered(make):
+    def netcdf_image(dataset):
+        image = make(dataset)
+        WRITTEN_IMAGES.add(_digest(image))
+        return image
+
+    return netcdf_image
+
+
+def _probe_unless_written_whole(probe):
+    """``io.read_dataset``'s probe, which opens a file's structure in a forked child (the parent's whole memory mapped
+    again, the reader's imports touched), skipped for a file whose bytes are an image the package made in this session
+    and read by xarray's own ``open_dataset``: h5netcdf wrote it whole, and the probe finds nothing in it. A file damaged,
+    cut short, edited or written by another process, and every file a test reads through a reader it replaced, is
+    probed as before (test_suite_shortcuts.py)."""
+
+    def probe_structure(path):
+        import xarray
+
+        if _xarrays_own(xarray.open_dataset) and os.stat(path).st_size <= _DIGEST_MAX_BYTES:
+            try:
+                if _digest(Path(path).read_bytes()) in WRITTEN_IMAGES:
+                    return None
+            except OSError:  # unreadable here: the probe and the reader say so
+                pass
+        return probe(path)
+
+    return probe_structure
+
+
+def _xarrays_own(function) -> bool:
+    """Whether ``function`` is xarray's, not a test's replacement."""
+    return getattr(function, "__module__", "").split(".")[0] == "xarray"
+
+
+def _shortcut_the_read_probe() -> None:
+    import cosserat_chain.cli.common as common
+    import cosserat_chain.io as io
+
+    io.netcdf_image = _image_remembered(io.netcdf_image)
+    common.netcdf_image = io.netcdf_image
+    io._probe_structure = _probe_unless_written_whole(io._probe_structure)
+
+
+_shortcut_the_read_probe()
 
 
 #: The running cluster of ``dask_cluster``, and the last test of the session that uses it.
