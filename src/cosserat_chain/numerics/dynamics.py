@@ -402,6 +402,26 @@ def _check_winding(params: ChainParams, winding0, model: Model) -> np.ndarray:
     return turns
 
 
+def require_step_count(params: ChainParams, span: float, dt: float, what: str) -> float:
+    """The steps of ``dt`` over ``span``; refuse more than :data:`MAX_STEPS`, naming the chain's stiffness and inertia.
+
+    Raises
+    ------
+    ValueError
+        Where span / dt exceeds :data:`MAX_STEPS` (the step counters' exact integers).
+    """
+    steps = span / dt
+    if not steps <= MAX_STEPS:
+        raise ValueError(
+            f"the run would take {steps:.3g} steps of dt={dt:.3g} ({what} = {span:g}), more than {MAX_STEPS:.3g}: "
+            f"the time step follows the fastest mode sqrt(stiffness / inertia), here E1={params.E1:g}, E2={params.E2:g}, "
+            f"m={params.m:g}, j={params.j:g}"
+            + "".join(f", {name} from {min(f):g} to {max(f):g}" for name in (*BOND_FACTORS, *PARTICLE_FACTORS) if (f := getattr(params, name)))
+            + f"; the model is dimensionless, so scale them to order 1 or shorten {what}"
+        )
+    return steps
+
+
 def integrate(
     params: ChainParams,
     model: str | Model,
@@ -504,15 +524,7 @@ def integrate(
     dt = float(dt)
     if not (math.isfinite(t_end) and t_end > t0):
         raise ValueError(f"t_end must be finite and > t0={t0!r}, got {t_end!r}")
-    steps = (t_end - t0) / dt
-    if steps > MAX_STEPS:
-        raise ValueError(
-            f"the run would take {steps:.3g} steps of dt={dt:.3g} (t_end - t0 = {t_end - t0:g}), more than {MAX_STEPS:.3g}: "
-            f"the time step follows the fastest mode sqrt(stiffness / inertia), here E1={params.E1:g}, E2={params.E2:g}, "
-            f"m={params.m:g}, j={params.j:g}"
-            + ("".join(f", {name} from {min(f):g} to {max(f):g}" for name in (*BOND_FACTORS, *PARTICLE_FACTORS) if (f := getattr(params, name))))
-            + "; the model is dimensionless, so scale them to order 1 or shorten t_end"
-        )
+    steps = require_step_count(params, t_end - t0, dt, "t_end - t0")
     n_steps = max(1, math.ceil(steps - 1e-9))
     dt = (t_end - t0) / n_steps  # at most the requested step, and t_end is reached exactly
     if stride is None:

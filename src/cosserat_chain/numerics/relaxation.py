@@ -47,7 +47,7 @@ from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import column, zero_held
 from ..status import Status
-from .dynamics import IntegrationError, Trajectory
+from .dynamics import IntegrationError, Trajectory, require_step_count
 from .engine import (
     BLEW_UP,
     CROSSINGS,
@@ -307,6 +307,11 @@ def run_plans(
     x0 = stack_states(params, x0, "x0")
     v0 = stack_states(params, v0, "v0")
     requested = member_steps(params, options.dt, method, model)
+    for i, (member, step) in enumerate(zip(params, requested.tolist())):
+        try:
+            require_step_count(member, options.t_max, step, "t_max")
+        except ValueError as err:
+            raise ValueError(f"member {i} (params_list[{i}]): {err}") from None
     # Whole chunks: chunk_time in a whole number of steps; members with the same step share a loop.
     per_chunk = np.array([math.ceil(options.chunk_time / step - 1e-9) for step in requested], dtype=np.int64)
     steps = options.chunk_time / per_chunk
