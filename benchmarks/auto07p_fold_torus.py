@@ -1,5 +1,6 @@
-"""AUTO-07p's fold-of-cycles curve of the fold-torus system of ``tests/test_cycle_curve_codim2_more.py``, beside the
-package's fold-torus point (LTR) on it.
+"""AUTO-07p on two systems of ``tests/test_cycle_curve_codim2_more.py`` built to have codimension-two points of cycles,
+beside the package's: the fold-torus point (LTR) on the fold-of-cycles curve of the fold-torus system, and the R3, R4
+and R1 points on the torus curve of the resonant system.
 
 The system (a rotor beside a fold x'' = a - 0.1 - 0.5 (s - 0.24) - xi^2 - x' and a circulatory pair
 y'' = -(1.44 + xi) y + s J y - 0.2 y') is written as an AUTO-07p equations file (PAR(1) = a, PAR(2) = s); AUTO
@@ -7,6 +8,10 @@ continues the rotation down in a to its fold (LP), then the fold in (a, s) from 
 labels fold-torus points (LTR) on the curves of maps only, so the point is read from the Floquet multipliers it
 prints along the curve: where the pair's modulus crosses 1 (log |mu| interpolated linearly between its two
 points around the crossing). The closed form is s = 0.24, a = 0.1.
+
+The resonant system (y'' = -(s - 0.3) y - (a - 0.05 - 0.5 (s - 0.3)) y' beside the rotor) is continued down in a
+from 0.12 at s = 0.42 to its torus point (TR), then the torus curve in (a, s) down to s = 0.25: AUTO labels R3, R4
+and R1 on it (types -87, -88, -85), at the closed forms s = 0.3 + 1/9, 0.3 + 1/16 and 0.3.
 
 Needs ``auto-07p`` on the PATH (the Debian package auto-07p, with gfortran). Usage::
 
@@ -21,6 +26,8 @@ import re
 import subprocess
 import sys
 from pathlib import Path
+
+from cosserat_chain.numerics.cycle_curve import continue_cycle_end
 
 EQUATIONS = """      SUBROUTINE FUNC(NDIM,U,ICP,PAR,IJAC,F,DFDU,DFDP)
       IMPLICIT DOUBLE PRECISION (A-H,O-Z)
@@ -67,6 +74,41 @@ THL =  {11: 0.0}, THU =  {}
 STOP = ['LP1']
 """
 
+RESONANT = """      SUBROUTINE FUNC(NDIM,U,ICP,PAR,IJAC,F,DFDU,DFDP)
+      IMPLICIT DOUBLE PRECISION (A-H,O-Z)
+      DIMENSION U(NDIM),PAR(*),F(NDIM)
+      F(1)=U(3)
+      F(2)=U(4)
+      F(3)=1.0D0-U(3)
+      F(4)=-(PAR(2)-0.3D0)*U(2)-(PAR(1)-0.05D0-0.5D0*(PAR(2)-0.3D0))*U(4)
+      RETURN
+      END
+      SUBROUTINE STPNT(NDIM,U,PAR,T)
+      IMPLICIT DOUBLE PRECISION (A-H,O-Z)
+      DIMENSION U(NDIM),PAR(*)
+      PI=4.0D0*ATAN(1.0D0)
+      PAR(1)=0.12D0
+      PAR(2)=0.42D0
+      PAR(11)=2.0D0*PI
+      U(1)=2.0D0*PI*T
+      U(2)=0.0D0
+      U(3)=1.0D0
+      U(4)=0.0D0
+      RETURN
+      END
+"""
+
+RESONANT_SCRIPT = """r1 = run('rs', c='rs')
+save(r1, 'r1')
+start = run(r1('TR1'), c='rs', ICP=[1, 2, 11], ISW=2, DS=-0.001, DSMAX=0.005, NMX=2000, UZSTOP={2: [0.25, 0.45]}, STOP=[])
+save(start, 'start')
+curve = run(start('EP1'), c='rs', ICP=[1, 2, 11], ISW=2, DS=-0.001, DSMAX=0.005, NMX=2000, UZSTOP={2: [0.25, 0.45]}, STOP=[])
+save(curve, 'rcurve')
+"""
+
+#: AUTO-07p's codes of the points on a torus curve of periodic solutions (its manual's table).
+TORUS_CODES = {-85: "R1", -87: "R3", -88: "R4"}
+
 SCRIPT = """r1 = run('ft', c='ft')
 save(r1, 'r1')
 start = run(r1('LP1'), c='ft', ICP=[1, 2, 11], ISW=2, DS=0.001, DSMAX=0.002, NMX=200, UZSTOP={2: [0.15, 0.3]}, STOP=[])
@@ -99,24 +141,47 @@ def crossing(fort7: Path, fort9: Path) -> tuple[float, float, float]:
     raise SystemExit("AUTO's curve has no complex pair crossing the unit circle")
 
 
+def labelled(fort7: Path) -> list[tuple[int, float, float]]:
+    """AUTO's labelled points (type, a, s) from its b-file."""
+    out = []
+    for line in fort7.read_text().splitlines():
+        f = line.split()
+        if len(f) >= 12 and all(re.fullmatch(r"-?\d+", x) for x in f[:3]) and int(f[2]) != 0:
+            out.append((int(f[2]), float(f[4]), float(f[10])))
+    return out
+
+
+def run_auto(workdir: Path, name: str, equations: str, constants: str, script: str) -> None:
+    """Write one problem's files (equations, constants, script) and run AUTO-07p on them."""
+    empty = "".join(f"      SUBROUTINE {n}\n      RETURN\n      END\n" for n in ("BCND", "ICND", "FOPT", "PVLS"))
+    (workdir / f"{name}.f90").write_text(equations + empty)
+    (workdir / f"c.{name}").write_text(constants)
+    (workdir / f"{name}.auto").write_text(script)
+    subprocess.run(["auto-07p", f"{name}.auto"], cwd=workdir, check=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+
+
 def main(workdir: Path) -> None:
     workdir.mkdir(parents=True, exist_ok=True)
-    (workdir / "ft.f90").write_text(
-        EQUATIONS + "".join(f"      SUBROUTINE {n}\n      RETURN\n      END\n" for n in ("BCND", "ICND", "FOPT", "PVLS"))
-    )
-    (workdir / "c.ft").write_text(CONSTANTS)
-    (workdir / "ft.auto").write_text(SCRIPT)
-    subprocess.run(["auto-07p", "ft.auto"], cwd=workdir, check=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    run_auto(workdir, "ft", EQUATIONS, CONSTANTS, SCRIPT)
+    resonant = CONSTANTS.replace("NDIM=  8", "NDIM=  4").replace("STOP = ['LP1']", "STOP = ['TR1']")
+    run_auto(workdir, "rs", RESONANT, resonant, RESONANT_SCRIPT)
     s, a, angle = crossing(workdir / "b.curve", workdir / "d.curve")
     print(f"AUTO-07p's fold curve: the pair crosses the unit circle at s = {s:.10g}, a = {a:.10g}, angle {angle:.8g}")
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from test_cycle_curve_codim2_more import fold_torus_fold_curve
+    from test_cycle_curve_codim2_more import Resonant, fold_torus_fold_curve, orbit_at
 
     (point,) = fold_torus_fold_curve().points
     print(
         f"the package's fold-torus (LTR): s = {point.value:.12g} +- {point.uncertainty:.2g}, a = {point.moment:.12g}, angle {point.angle:.10g}"
     )
     print(f"the closed form: s = 0.24, a = 0.1, angle 2 pi / 5 = {2 * math.pi / 5:.10g}")
+    for code, a, s in labelled(workdir / "b.rcurve"):
+        if code in TORUS_CODES:
+            print(f"AUTO-07p's torus curve: {TORUS_CODES[code]} (type {code}) at s = {s:.11g}, a = {a:.11g}")
+    start = orbit_at(Resonant(a=0.12, s=0.42), 0.0)
+    for point in continue_cycle_end(start, "torus", "s", [0.42, 0.4, 0.35, 0.31, 0.29], parameter="a").points:
+        print(f"the package's {point.label}: s = {point.value:.12g} +- {point.uncertainty:.2g}, a = {point.moment:.12g}")
+    print("the closed forms: R3 at s = 0.3 + 1/9, R4 at 0.3 + 1/16, R1 at 0.3, a = 0.05 + 0.5 (s - 0.3)")
 
 
 if __name__ == "__main__":
