@@ -868,13 +868,16 @@ def _cluster_test(x: np.ndarray) -> float:
     """e_{n-1}(x) / prod_O |x_k|: e_{n-1} the sum of the products of all but one of the x (a coefficient of the
     characteristic polynomial, well conditioned), O all but the two x nearest zero, a and b.
 
-    It equals sign(prod_O x) (a + b + a b sum_O 1 / x_k): where a is a multiplier that stays put (the trivial one,
-    a period doubling's -1), about b, the other's distance from its value, which it changes sign with; and it
-    does wherever b lies, also far away (a sum over the two nearest alone keeps its sign when b leaves the
-    cluster between two points). Continuous where b and an x_k swap places (|b| = |x_k| there)."""
+    It equals u (a + b + a b sum_O 1 / x_k), u = prod_O x / |prod_O x| (the sign of prod_O x where O is closed
+    under conjugation; a unit number that makes the whole real where one of a conjugate pair is b): where a is a
+    multiplier that stays put (the trivial one, a period doubling's -1), about b, the other's distance from its
+    value, which it changes sign with; and it does wherever b lies, also far away (a sum over the two nearest
+    alone keeps its sign when b leaves the cluster between two points). Continuous where b and an x_k swap
+    places (|b| = |x_k| there)."""
     order = np.argsort(np.abs(x))
     a, b, others = x[order[0]], x[order[1]], x[order[2:]]
-    return _sign(others) * float(np.real(a + b + a * b * np.sum(1.0 / others)))
+    unit = np.exp(1j * np.sum(np.angle(others)))
+    return float(np.real(unit * (a + b + a * b * np.sum(1.0 / others))))
 
 
 def _beside_pair(multipliers: np.ndarray, pair: complex) -> np.ndarray:
@@ -1126,7 +1129,8 @@ def _cusp(augmented: _Augmented, found: list[tuple], kind: str) -> Codim2Point |
     tangent). Near the cusp p = p* - k s^2, so the value is the best point's p plus the remainder t_p^2 / (4 k);
     the uncertainty is that remainder (t_p taken no smaller than :data:`DIFFERENCE_STEP`, the accuracy of the
     tangent's differences) plus the point's error in p from Newton's tolerances (:meth:`_FoldArc.accuracy`).
-    None where no turn is met (the natural steps failed for another reason).
+    None where no turn is met (the natural steps failed for another reason), or where the orbit there has no second
+    multiplier at +1 (:data:`FOLD_MULTIPLIER_TOL`: not a fold of cycles).
     """
     entries = [e for i, e in enumerate(found) if i == 0 or e[0] != found[i - 1][0]]
     if kind != "fold_of_cycles" or len(entries) < 2:
@@ -1197,6 +1201,8 @@ def _cusp(augmented: _Augmented, found: list[tuple], kind: str) -> Codim2Point |
         return augmented.orbit_at(augmented.at(float(w[-1])), w[:-1], mono, closure, iterations)
 
     orbit = orbit_of(w, before[2] if corrected is None else corrected)
+    if np.sort(np.abs(orbit.multipliers - 1.0))[1] > FOLD_MULTIPLIER_TOL:
+        return None  # the turn of a curve of singular shooting Jacobians that are no folds of cycles (a section's)
     # p = p* - k (s - s*)^2 near the cusp, t_p = -2 k (s - s*): k from the secant's last slope. The tangent's
     # p-component is no more accurate than the one-sided differences of g (relative DIFFERENCE_STEP).
     k = abs(f_high - f_low) / max(2.0 * (high - low), 1e-300)
