@@ -50,8 +50,8 @@ With ``codim2``, ``codim2_between`` follows a two-parameter curve between each t
 (:func:`~cosserat_chain.numerics.cycle_curve.continue_cycle_end` on the system's orbit): the row's
 ``curve``, the located period doubling or torus where its orbit loses stability, else its located fold
 of cycles, from its value to the next row's (from the second row back where the first has none), in
-(``vary``, ``drive``); each entry lists the codimension-two points located on the way (1:2 ... 1:4
-resonances, fold-flip), the drive the curve reaches at the other value (``reaches``: where the other row's
+(``vary``, ``drive``); each entry lists the codimension-two points located on the way (1:1 ... 1:4
+resonances, fold-flip, fold-torus, the cusp of a fold curve), the drive the curve reaches at the other value (``reaches``: where the other row's
 own curve of the same kind lies, to Newton's tolerance) and where and why it stopped.
 """
 
