@@ -106,6 +106,7 @@ from ..numerics.continuation import (
     moment_response,
     moment_slope,
     require_branch_memory,
+    rest_resolved,
 )
 from ..numerics.kit import BranchEnd
 from ..numerics.newton import NewtonError, moment_dof, solve_equilibrium, solve_rotation_controlled
@@ -505,8 +506,10 @@ def critical_point(
     states = max_states(params)
     require_branch_memory(params, max_points, states)
     closed = model.name == "sine"
+    near_singular = model.rotates and near_singular_at_rest(params, model)
+    approach = near_singular and not rest_resolved(params, model, particle=particle)
     trace = dict(particle=particle, phi0_stop=budget, phi0_until_unstable=until, max_points=max_points, max_states=states)
-    branch = continue_in_moment(params, model, **trace, progress=progress)
+    branch = continue_in_moment(params, model, **trace, progress=progress, from_approach=approach)
     confirmation = "once"
     response = moment_response(params, model, particle=particle)
     angles = unpack(params, response)[ROW_INDEX["phi"]]
@@ -514,7 +517,7 @@ def critical_point(
     if closed:
         branch.folds, onset_particle = _sine_folds(params, branch, angles, particle), int(np.argmax(np.abs(angles))) - params.N
         confirmation = "closed form"
-    elif model.rotates and branch.folds and near_singular_at_rest(params, model):
+    elif branch.folds and near_singular:
         deciding = _deciding_folds(branch)
         resolved = [resolve_fold(params, model, branch.folds[i], particle=particle) for i in deciding]
         checked = confirm_folds(branch, [g for g in resolved if g is not None])

@@ -47,7 +47,7 @@ from ..memory import FLOAT, require
 from ..models.base import Model, get_model
 from ..models.linear import rest_solve
 from ..params import ChainParams
-from ..state import ROW_INDEX, column, n_free, unpack, zeros
+from ..state import ROW_INDEX, column, n_free, pack, unpack, zeros
 from .kit import BranchEnd, Continuation, Correction, Corrector, Evaluation, Event, continuation, newton
 from .newton import NewtonError, moment_dof, round_off_floor, solve_rotation_controlled
 from .stability import static_stability
@@ -109,6 +109,16 @@ STALL = 100.0
 MAX_HALVINGS = 12
 #: A model's K at rest is the linear model's where they agree to this, relative to its norm (:func:`moment_response`).
 REST_RTOL = 1e-12
+#: The approach from rest (:func:`approach_from_rest`) solves the branch at angles phi_0 = APPROACH_ANGLE 2^-k, k = APPROACH_HALVINGS
+#: .. 0 (rad; the trace starts at the last): where the moment is still far below the corrector's limit and K's bending modes
+#: beyond double precision (a clamped chain of N = 10^5: M = 1e-14 at the first points, the limit 1e-11), the states are set
+#: by the predictor alone, and past 1 rad the branch of the paper's geometry at N = 3 10^4 and 10^5 has stiffened (K's
+#: smallest eigenvalue 1e-12 and 1e-13, 20 000 and 2 000 times the bending mode's at rest).
+APPROACH_ANGLE = 1.0
+APPROACH_HALVINGS = 12
+#: The trace starts from rest where the band factor's compliance at rest lies within this of the rest response's
+#: (:func:`moment_response`, through K's square root): 1.5e-3 at N = 10^4 on the paper's geometry, 0.33 at 3 10^4, 0.8 at 10^5.
+APPROACH_RTOL = 1e-2
 #: Callback ``progress(done, total)`` used by the long-running functions.
 ProgressCallback = Callable[[float, float], None]
 
@@ -231,6 +241,9 @@ class Branch:
     state_points : ndarray of int (j,) or None
         The points whose states ``x`` holds, where a trace kept only some
         (``max_states`` of :func:`continue_in_moment`); None where ``x`` holds every point's.
+    approach : int
+        The points after rest solved with the angle held at fixed angles before the trace
+        (:func:`approach_from_rest`: a chain whose K at rest is beyond double precision), 0 where the trace starts at rest.
     """
 
     moment: np.ndarray
@@ -244,6 +257,7 @@ class Branch:
     message: str = ""
     branch_points: list[BranchPoint] = field(default_factory=list)
     state_points: np.ndarray | None = None
+    approach: int = 0
 
     @property
     def complete(self) -> bool:
@@ -309,6 +323,50 @@ def moment_response(params: ChainParams, model: str | Model, *, particle: int = 
         return refined_solve(stiffness, e).x
     except ValueError:
         raise ValueError(singular) from None
+
+
+def rest_resolved(params: ChainParams, model: str | Model, *, particle: int = 0) -> bool:
+    """Whether the trace's band factor of K at rest gives the rest response's compliance to :data:`APPROACH_RTOL`.
+
+    Where it does not (a clamped chain of N = 3 10^4 on the paper's geometry: K's bending modes beyond double precision),
+    :func:`continue_in_moment` starts from the approach (:func:`approach_from_rest`) instead of from rest.
+    """
+    model = get_model(model)
+    dof = moment_dof(params, particle)
+    seed = np.zeros(n_free(params) + 1)
+    seed[-1] = 1.0
+    banded = BorderedFactor(model.stiffness_band(params, zeros(params)), dof).solve(seed, seed)[dof]
+    exact = moment_response(params, model, particle=particle)[dof]
+    return bool(abs(banded - exact) <= APPROACH_RTOL * abs(exact))
+
+
+def approach_from_rest(params: ChainParams, model: str | Model, *, particle: int = 0) -> list[tuple[np.ndarray, float]]:
+    """The branch from rest at the angles phi_0 = :data:`APPROACH_ANGLE` 2^-k, k = :data:`APPROACH_HALVINGS` .. 0, as (state, M).
+
+    Each is solved with the angle held (:func:`~.newton.solve_rotation_controlled`), the first from the rest response
+    (:func:`moment_response`, K^-1 e through K's square root) scaled to its angle, each next from the one before scaled
+    likewise. The list ends before the first angle whose moment does not rise (the branch passed a maximum of M between:
+    the trace from the last point finds it) or whose solve fails. Where the angle is held, M is read off the equilibrium
+    (the moment that holds it), which K's bending modes, undetermined by the residual, do not move.
+    """
+    model = get_model(model)
+    dof = moment_dof(params, particle)
+    response = moment_response(params, model, particle=particle)
+    x, moment, angle = unpack(params, response / response[dof]), 1.0 / response[dof], 1.0
+    out: list[tuple[np.ndarray, float]] = []
+    for k in range(APPROACH_HALVINGS, -1, -1):
+        target = APPROACH_ANGLE * 2.0**-k
+        try:
+            x, found = solve_rotation_controlled(
+                params, model, target, particle=particle, x0=x * (target / angle), moment0=moment * (target / angle)
+            )
+        except NewtonError:
+            break
+        if out and found <= moment:
+            break
+        out.append((x, found))
+        moment, angle = found, target
+    return out
 
 
 def largest_step(params: ChainParams, model: Model, particle: int) -> float:
@@ -609,7 +667,13 @@ class _StaticBranch:
         if not jacobian:
             return Evaluation(r)
         k = self.stiffness(w)
-        return Evaluation(r, lambda: BorderedFactor(k, self.dof), _Assembled(k, 0.0, 0.0))
+        floor = round_off_floor(k, w[:-1])
+        return Evaluation(r, lambda: BorderedFactor(k, self.dof), _Assembled(k, floor, max(self.tol * (1.0 + abs(w[-1])), floor)))
+
+    def converged(self, evaluation: Evaluation, size: float) -> bool:
+        """The driver's test of its start (rest, or the last point of the approach): max |F + M e| within the corrector's
+        limit there, its tolerance or the residual's round-off floor (:meth:`evaluate`)."""
+        return size <= (self.tol if evaluation.data is None else evaluation.data.limit)
 
     def _unit_tangent(self, factor: BorderedFactor, previous: np.ndarray) -> np.ndarray:
         """The unit tangent at the point of ``factor``, oriented along ``previous`` (the bordered solve's border)."""
@@ -625,16 +689,42 @@ class _StaticBranch:
         index = None if factor is None else factor.negative_eigenvalues
         return static_stability(self.params, self.model, x, guess=guess, similar=k, start=self.eigenvector, index=index)
 
-    def rest(self) -> _Point:
-        """The branch's first point, the rest state (the driver's start gives its tangent)."""
+    def rest(self, approach: list[tuple[np.ndarray, float]] = ()) -> _Point:
+        """The branch's first point, the rest state, then the ``approach`` (states and moments solved at angles, rising
+        from rest: :func:`approach_from_rest`); the last is the trace's start (the driver's start gives its tangent).
+
+        An approach point's critical eigenvalue within its round-off keeps the index last decided (as :meth:`review`).
+        """
         x = zeros(self.params)
         check = self.stability(x, None)
         self.y_phi0 = 0.0
         self.moments, self.angles, self.checks = [0.0], [0.0], [check]
         self.states, self.kept, self.stride = [x], [0], 1
-        self.previous_state, self.previous_moment = x, 0.0
+        for state, moment in approach:
+            found = self.stability(state, self.stiffness(np.append(pack(self.params, state), moment)))
+            if abs(found.critical_eigenvalue) <= found.resolution:
+                found = replace(found, index=check.index, stable=check.index == 0)
+            check = found
+            self.y_phi0 = float(state[ROW_INDEX["phi"], self.col])
+            self._record(state, moment, check)
+            x = state
+        self.previous_state, self.previous_moment = x, self.moments[-1]
+        self.step_tangent = np.zeros(self.nf + 1)
+        self.step_tangent[-1] = 1.0
         self.last = _Point(None, None, None, None, None, check, check.index)
         return self.last
+
+    def _record(self, x: np.ndarray, moment: float, check) -> None:
+        """A new last point's moment, angle and stability, and its state where kept (every ``stride``-th, ``max_states``)."""
+        self.moments.append(moment)
+        self.angles.append(self.y_phi0)
+        if (len(self.moments) - 1) % self.stride == 0:
+            self.kept.append(len(self.moments) - 1)
+            self.states.append(x)
+            if self.max_states is not None and len(self.states) > self.max_states:
+                # Every other kept state goes: the points kept stay evenly spaced from rest.
+                self.kept, self.states, self.stride = self.kept[::2], self.states[::2], 2 * self.stride
+        self.checks.append(check)
 
     # The stages the driver calls.
 
@@ -818,15 +908,7 @@ class _StaticBranch:
         self.bend, self.factor, self.norm = bend, candidate.factor, infinity_norm(candidate.k)
         self.previous_moment = self.moments[-1]
         self.y_phi0 = candidate.x[ROW_INDEX["phi"], self.col]
-        self.moments.append(candidate.z[-1])
-        self.angles.append(self.y_phi0)
-        if (len(self.moments) - 1) % self.stride == 0:
-            self.kept.append(len(self.moments) - 1)
-            self.states.append(candidate.x)
-            if self.max_states is not None and len(self.states) > self.max_states:
-                # Every other kept state goes: the points kept stay evenly spaced from rest.
-                self.kept, self.states, self.stride = self.kept[::2], self.states[::2], 2 * self.stride
-        self.checks.append(candidate.check)
+        self._record(candidate.x, candidate.z[-1], candidate.check)
         self.lost = self.lost or not candidate.check.stable
         self.last.drop()
         self.last = candidate
@@ -1168,6 +1250,7 @@ def continue_in_moment(
     max_folds: int | None = None,
     progress: ProgressCallback | None = None,
     max_states: int | None = None,
+    from_approach: bool = False,
 ) -> Branch:
     """Pseudo-arclength continuation of the static branch from rest, in the direction of increasing M.
 
@@ -1219,6 +1302,13 @@ def continue_in_moment(
         halving the kept ones each time they overflow, so that the memory of a long chain's branch
         is bounded whatever the points (:func:`branch_memory`). Every point's moment, angle and
         stability are kept, and the folds and branch points keep their own states.
+    from_approach : bool
+        Start the trace from the last point of the approach from rest (:func:`approach_from_rest`, the branch solved
+        with the angle held at fixed angles up to :data:`APPROACH_ANGLE`, kept as the branch's first points) instead
+        of from rest: where K's bending modes at rest are beyond double precision (:func:`rest_resolved` False; a
+        clamped chain of N = 10^5, whose trace from rest crawled at moments of 1e-14, below the corrector's limit,
+        and turned back at a fold of round-off). A fold between the approach's angles is not seen unless M falls
+        at one of them (the approach then ends before it, and the trace finds it).
 
     Returns
     -------
@@ -1282,13 +1372,10 @@ def continue_in_moment(
         max_states=max_states,
         progress=progress,
     )
-    traced = continuation(
-        problem,
-        np.zeros(n_free(params) + 1),
-        step=step,
-        min_step=min_step,
-        max_step=max_step,
-        max_points=max_points,
-        first=problem.rest(),
-    )
-    return problem.branch(traced)
+    approach = approach_from_rest(params, model, particle=particle) if from_approach else []
+    first = problem.rest(approach)
+    start = np.zeros(n_free(params) + 1) if not approach else np.append(pack(params, approach[-1][0]), approach[-1][1])
+    traced = continuation(problem, start, step=step, min_step=min_step, max_step=max_step, max_points=max_points, first=first)
+    branch = problem.branch(traced)
+    branch.approach = len(approach)
+    return branch
