@@ -199,6 +199,21 @@ def _variations(y, dy, jacobian, rpar, ipar, n, nf, ncols, load_dof, neighbours)
 
 
 @njit(dop853.RHS_SIGNATURE, cache=True, nogil=True, error_model="numpy")
+def _state_rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
+    # :func:`_rhs` without variational columns (ncols = 0), the same arithmetic: compiled apart, so that a
+    # program whose models all have a bond kernel (the report) never compiles _rhs's force differences.
+    n, load_dof, ncols, nf, start, stop, row, col, lookup, neighbours = _unpack_layout(ipar)
+    x = _state_of(y, nf, n, row, col)
+    f = np.zeros((3, n))
+    force(x, coef, f, 1, n - 1)
+    if start == 0 or stop == n:
+        end_force(x, coef, f, start == 0, stop == n, False)
+    _accelerations(y, dy, f, rpar, nf, load_dof, row, col)
+
+
+# Compiled at its first use (addresses.entry compiles dop853.RHS_SIGNATURE exactly): only a model without a bond
+# kernel integrates variational columns with it.
+@njit(cache=True, nogil=True, error_model="numpy")
 def _rhs(force, end_force, t, y, coef, rpar, ipar, dy):  # pragma: no cover - compiled
     # Autonomous: t is not read. The forces from the model's chain and end kernels; with
     # variational columns, dF/dq by fourth-order central differences of them, (8 (F(q + h) -
@@ -341,7 +356,7 @@ def _parameters(params: ChainParams, model: Model, particle: int, ncols: int):
     if ncols and bonds is not None:
         return _bond_rhs, bonds, no_ends, coef, rpar, ipar
     kernel, ends = model.chain_kernels(params)
-    return _rhs, kernel, ends, coef, rpar, ipar
+    return (_rhs if ncols else _state_rhs), kernel, ends, coef, rpar, ipar
 
 
 class OrbitError(CosseratChainError, RuntimeError):
@@ -372,7 +387,8 @@ class _System:
         """The right-hand side, its force and end kernels, their coefficients, rpar and ipar with ``ncols`` variational columns.
 
         :func:`_bond_rhs` with the model's bond kernel where there are variational columns and the
-        model has one (an exact force Jacobian), else :func:`_rhs` with its chain kernels.
+        model has one (an exact force Jacobian), else :func:`_rhs` with its chain kernels
+        (:func:`_state_rhs` without variational columns).
         """
         try:
             built = _parameters(self.params, self.model, self.particle, ncols)
