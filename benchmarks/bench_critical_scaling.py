@@ -5,6 +5,7 @@ Run from the repository root::
     python benchmarks/bench_critical_scaling.py              # N = 10, 100, 1000, 10^4, both models
     python benchmarks/bench_critical_scaling.py --large      # and N = 10^5 (minutes, a few GiB)
     python benchmarks/bench_critical_scaling.py --sizes 10 100 --models sine
+    python benchmarks/bench_critical_scaling.py --sizes 100000 --models nonlinear --out results/critical_scaling_large_nonlinear.json
 
 Each (model, N) runs :func:`~cosserat_chain.experiments.critical.critical_point` as
 ``cosserat-chain critical`` does, in a fresh process (so that its peak memory, ``ru_maxrss``,
@@ -52,8 +53,10 @@ print(json.dumps({
     "model": model, "N": n, "cpu_seconds": cpu, "wall_seconds": wall,
     "peak_rss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
     "points": int(branch.moment.size), "folds": len(branch.folds),
-    "states_kept": int(branch.x.shape[0]), "stop": branch.stop, "complete": result.complete,
+    "states_kept": int(branch.x.shape[0]), "approach": branch.approach, "stop": branch.stop, "complete": result.complete,
     "M_c": result.critical_moment, "confirmation": result.confirmation, "accurate": result.accurate,
+    "compliance": result.compliance, "first_fold_phi0": None if result.first_fold is None else result.first_fold.phi0,
+    "folds_confirmed": [f.confirmed for f in branch.folds][:3], "message": branch.message,
 }))
 """
 
@@ -81,6 +84,7 @@ def main() -> None:
     parser.add_argument("--large", action="store_true", help=f"also N = {LARGE}")
     parser.add_argument("--models", nargs="+", default=list(MODELS), choices=MODELS)
     parser.add_argument("--timeout", type=float, default=3600.0, help="seconds one run may take")
+    parser.add_argument("--out", type=Path, default=RESULTS, help="the results' JSON file")
     args = parser.parse_args()
     sizes = sorted(set(args.sizes) | ({LARGE} if args.large else set()))
     import psutil
@@ -109,8 +113,8 @@ def main() -> None:
     fits = {model: exponent([r for r in rows if r["model"] == model]) for model in args.models}
     for model, slope in fits.items():
         print(f"{model}: CPU time ~ N^{slope:.2f} over N >= 100" if slope is not None else f"{model}: too few rows to fit")
-    RESULTS.parent.mkdir(exist_ok=True)
-    RESULTS.write_text(json.dumps({**env, "rows": rows, "cpu_exponent": fits}, indent=2) + "\n")
+    args.out.parent.mkdir(exist_ok=True)
+    args.out.write_text(json.dumps({**env, "rows": rows, "cpu_exponent": fits}, indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -45,6 +45,15 @@ M = 0, where dM/dphi_0 has no root of the kind traced, while the first fold agre
 ``accurate`` is False where the onset's fold or the first fold is not confirmed, and the command
 line then exits with ``inaccurate``.
 
+Where the trace's band factor of K at rest loses the rest response (its compliance more than
+:data:`~cosserat_chain.numerics.continuation.APPROACH_RTOL` off the one through K's square root:
+the bending modes beyond double precision, N = 3 10^4 and up on the paper's geometry), the trace
+starts from the approach from rest
+(:func:`~cosserat_chain.numerics.continuation.approach_from_rest`: the branch solved with the angle
+held at 2^-12 .. 1 rad, from the rest response), not from rest, where its moments lie below the
+corrector's limit (N = 10^5: the trace from rest crawled at M = 1e-14 and turned back at a fold of
+round-off). The approach's points are the branch's first (``Branch.approach``).
+
 Eq. (2)'s folds are known in closed form: its static states are (u, v, sin phi) = M c with
 c = K^-1 e at rest, so every fold lies at M = +-1 / max_j |c_j|, where the particle of largest
 |c_j| passes pi/2. ``critical_point`` takes them there (``confirmation`` "closed form"; one
@@ -321,7 +330,8 @@ class CriticalResult:
         ``phi0_at_onset``, ``phi0_at_fold`` (the largest maximum's), ``largest_fold``, ``first_fold``, ``snap_through``,
         ``branch_points``, ``compliance``, ``branch_complete``, ``end`` (how the stable branch from rest ends),
         ``onset_particle``, ``turns`` (the budget), ``folds`` (every fold in order: moment, phi_0, maximum,
-        the index of K before and after it, ``confirmed``, ``discrepancy``), ``confirmation``, ``accurate`` and the branch. Moments are in
+        the index of K before and after it, ``confirmed``, ``discrepancy``), ``confirmation``, ``accurate`` and the branch (its ``approach``: the points after rest solved with the angle held
+        before the trace, :func:`~cosserat_chain.numerics.continuation.approach_from_rest`). Moments are in
         the parameters' units; ``moment_scale`` (E1 h^2) is the unit of the paper's dimensionless moment,
         ``M_c_dimensionless`` = M_c / (E1 h^2)."""
         scale = self.params.moment_scale
@@ -380,6 +390,7 @@ class CriticalResult:
             "branch": {
                 "stop": str(self.branch.stop),
                 "message": self.branch.message,
+                "approach": self.branch.approach,
                 "moment": self.branch.moment.tolist(),
                 "phi0": self.branch.phi0.tolist(),
                 "stable": self.branch.stable.tolist(),
@@ -431,6 +442,7 @@ class CriticalResult:
                 "onset_particle": "none" if self.onset_particle is None else self.onset_particle,
                 "fold_confirmation": self.confirmation,
                 "states_kept": "every point" if b.state_points is None else "the points in state_point",
+                "approach_points": b.approach,
                 "accurate": int(self.accurate),
                 "dynamics_from": self.dynamics_from,
                 "dynamics_note": self.dynamics_note,
