@@ -1,6 +1,6 @@
-"""AUTO-07p on two systems of ``tests/test_cycle_curve_codim2_more.py`` built to have codimension-two points of cycles,
+"""AUTO-07p on three systems of ``tests/test_cycle_curve_codim2_more.py`` built to have codimension-two points of cycles,
 beside the package's: the fold-torus point (LTR) on the fold-of-cycles curve of the fold-torus system, and the R3, R4
-and R1 points on the torus curve of the resonant system.
+and R1 points on the torus curve of the resonant system, and the cusp (CP) on the cusp system's fold-of-cycles curve.
 
 The system (a rotor beside a fold x'' = a - 0.1 - 0.5 (s - 0.24) - xi^2 - x' and a circulatory pair
 y'' = -(1.44 + xi) y + s J y - 0.2 y') is written as an AUTO-07p equations file (PAR(1) = a, PAR(2) = s); AUTO
@@ -12,6 +12,11 @@ points around the crossing). The closed form is s = 0.24, a = 0.1.
 The resonant system (y'' = -(s - 0.3) y - (a - 0.05 - 0.5 (s - 0.3)) y' beside the rotor) is continued down in a
 from 0.12 at s = 0.42 to its torus point (TR), then the torus curve in (a, s) down to s = 0.25: AUTO labels R3, R4
 and R1 on it (types -87, -88, -85), at the closed forms s = 0.3 + 1/9, 0.3 + 1/16 and 0.3.
+
+The cusp system (x'' = (a - 0.3) + (s - 0.2) xi - xi^3 - x', the rotor's torque 1 + 0.2 xi) is continued down in a
+from 0.29 at s = 0.3 to its fold, then the fold in (a, s) through its turn in s: AUTO labels no CP on the fold curves
+of periodic solutions, so the turn is read from its points, the parabola through the three around the least s (in
+x, the rest point's coordinate along the curve). The closed form is s = 0.2, a = 0.3.
 
 Needs ``auto-07p`` on the PATH (the Debian package auto-07p, with gfortran). Usage::
 
@@ -26,6 +31,8 @@ import re
 import subprocess
 import sys
 from pathlib import Path
+
+import numpy as np
 
 from cosserat_chain.numerics.cycle_curve import continue_cycle_end
 
@@ -106,6 +113,40 @@ curve = run(start('EP1'), c='rs', ICP=[1, 2, 11], ISW=2, DS=-0.001, DSMAX=0.005,
 save(curve, 'rcurve')
 """
 
+CUSP = """      SUBROUTINE FUNC(NDIM,U,ICP,PAR,IJAC,F,DFDU,DFDP)
+      IMPLICIT DOUBLE PRECISION (A-H,O-Z)
+      DIMENSION U(NDIM),PAR(*),F(NDIM)
+      XI=U(2)-0.5D0
+      F(1)=U(3)
+      F(2)=U(4)
+      F(3)=1.0D0+0.2D0*XI-U(3)
+      F(4)=PAR(1)-0.3D0+(PAR(2)-0.2D0)*XI-XI**3-U(4)
+      RETURN
+      END
+      SUBROUTINE STPNT(NDIM,U,PAR,T)
+      IMPLICIT DOUBLE PRECISION (A-H,O-Z)
+      DIMENSION U(NDIM),PAR(*)
+      PI=4.0D0*ATAN(1.0D0)
+      XI=0.1153D0
+      PAR(1)=0.29D0
+      PAR(2)=0.3D0
+      PAR(11)=2.0D0*PI/(1.0D0+0.2D0*XI)
+      U(1)=2.0D0*PI*T
+      U(2)=0.5D0+XI
+      U(3)=1.0D0+0.2D0*XI
+      U(4)=0.0D0
+      RETURN
+      END
+"""
+
+CUSP_SCRIPT = """r1 = run('cu', c='cu')
+save(r1, 'r1')
+start = run(r1('LP1'), c='cu', ICP=[1, 2, 11], ISW=2, DS=0.001, DSMAX=0.002, NMX=400, UZSTOP={2: [0.31]}, STOP=[])
+save(start, 'start')
+curve = run(start('EP1'), c='cu', ICP=[1, 2, 11], ISW=2, DS=0.001, DSMAX=0.002, NMX=400, UZSTOP={2: [0.31]}, STOP=[])
+save(curve, 'ccurve')
+"""
+
 #: AUTO-07p's codes of the points on a torus curve of periodic solutions (its manual's table).
 TORUS_CODES = {-85: "R1", -87: "R3", -88: "R4"}
 
@@ -151,6 +192,23 @@ def labelled(fort7: Path) -> list[tuple[int, float, float]]:
     return out
 
 
+def turn(fort7: Path) -> tuple[float, float]:
+    """(s, a) at the least s along AUTO's curve: the parabolas in x (MAX U(2)) through its three points around it."""
+    rows = []
+    for line in fort7.read_text().splitlines():
+        f = line.split()
+        if len(f) >= 12 and all(re.fullmatch(r"-?\d+", x) for x in f[:3]):
+            try:
+                rows.append((float(f[4]), float(f[10]), float(f[7])))
+            except ValueError:
+                continue
+    i = min(range(1, len(rows) - 1), key=lambda k: rows[k][1])
+    a, s, x = (np.array(column) for column in zip(*rows[i - 1 : i + 2]))
+    fit = np.polyfit(x, s, 2)
+    at = -fit[1] / (2 * fit[0])
+    return float(np.polyval(fit, at)), float(np.polyval(np.polyfit(x, a, 2), at))
+
+
 def run_auto(workdir: Path, name: str, equations: str, constants: str, script: str) -> None:
     """Write one problem's files (equations, constants, script) and run AUTO-07p on them."""
     empty = "".join(f"      SUBROUTINE {n}\n      RETURN\n      END\n" for n in ("BCND", "ICND", "FOPT", "PVLS"))
@@ -165,10 +223,11 @@ def main(workdir: Path) -> None:
     run_auto(workdir, "ft", EQUATIONS, CONSTANTS, SCRIPT)
     resonant = CONSTANTS.replace("NDIM=  8", "NDIM=  4").replace("STOP = ['LP1']", "STOP = ['TR1']")
     run_auto(workdir, "rs", RESONANT, resonant, RESONANT_SCRIPT)
+    run_auto(workdir, "cu", CUSP, CONSTANTS.replace("NDIM=  8", "NDIM=  4"), CUSP_SCRIPT)
     s, a, angle = crossing(workdir / "b.curve", workdir / "d.curve")
     print(f"AUTO-07p's fold curve: the pair crosses the unit circle at s = {s:.10g}, a = {a:.10g}, angle {angle:.8g}")
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
-    from test_cycle_curve_codim2_more import Resonant, fold_torus_fold_curve, orbit_at
+    from test_cycle_curve_codim2_more import Resonant, cusp_curve, fold_torus_fold_curve, orbit_at
 
     (point,) = fold_torus_fold_curve().points
     print(
@@ -182,6 +241,12 @@ def main(workdir: Path) -> None:
     for point in continue_cycle_end(start, "torus", "s", [0.42, 0.4, 0.35, 0.31, 0.29], parameter="a").points:
         print(f"the package's {point.label}: s = {point.value:.12g} +- {point.uncertainty:.2g}, a = {point.moment:.12g}")
     print("the closed forms: R3 at s = 0.3 + 1/9, R4 at 0.3 + 1/16, R1 at 0.3, a = 0.05 + 0.5 (s - 0.3)")
+    s, a = turn(workdir / "b.ccurve")
+    print(f"AUTO-07p's fold curve of the cusp system turns back in s at s = {s:.11g}, a = {a:.10g} (its points' parabola)")
+    point = cusp_curve([0.3, 0.15]).points[-1]
+    print(
+        f"the package's {point.label}: s = {point.value:.12g} +- {point.uncertainty:.2g}, a = {point.moment:.12g}; the closed form 0.2, 0.3"
+    )
 
 
 if __name__ == "__main__":
