@@ -457,8 +457,9 @@ class _BranchProblem:
         """The kit's chord corrector with the arclength row appended to the sparse system (:class:`_SparseStep`)."""
         border = (t, w + h * t)
         return newton(
-            self.evaluate, w + h * t, tol=self.tol, divergence=None, damping=MAX_HALVINGS, chord=CHORD_RATE, newton_step=_SparseStep(border)
-        )
+            self.evaluate, w + h * t, tol=self.tol, divergence=None, damping=MAX_HALVINGS, chord=CHORD_RATE,
+            newton_step=_SparseStep(border, self.collocation.elimination_order(True)),
+        )  # fmt: skip
 
     def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> CollocationOrbit:
         profile, period, moment = self.collocation.unpack(w)

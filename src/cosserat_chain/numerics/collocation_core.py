@@ -87,8 +87,29 @@ MONITOR_FLOOR = 0.05
 SEEDS = 10
 #: Newton keeps its Jacobian's factor while each step divides max |R| by at least 1 / CHORD_RATE.
 CHORD_RATE = 0.1
-#: SuperLU's column ordering: minimum degree on J + J^T fills these block-banded systems least (benchmarks/TIMINGS.md).
+#: SuperLU's column ordering where no nested dissection is given (an interval's own block, a caller's factor of the
+#: Jacobian): minimum degree on J + J^T (benchmarks/TIMINGS.md).
 PERMUTATION = "MMD_AT_PLUS_A"
+#: Nested dissection stops at boxes of at most this many (node, particle) pairs (each 2 x 3 unknowns); smaller
+#: leaves fill less (docs/collocation.md, Long chains).
+DISSECTION_LEAF = 8
+#: SuperLU keeps a diagonal pivot of the dissected system down to this fraction of its column's largest entry
+#: (partial pivoting, 1, would move rows across the separators and fill).
+PIVOT_THRESHOLD = 0.1
+#: Up to this phase-space dimension (2 n_free) the multipliers are all of them, from the dense transfer matrices
+#: by the periodic Schur form; above it the leading ones, by Arnoldi on the products of the intervals' sparse
+#: transfer maps (docs/collocation.md, Long chains).
+ALL_MULTIPLIERS_UP_TO = 240
+#: Above :data:`ALL_MULTIPLIERS_UP_TO`: the multipliers asked of each of the two Arnoldi iterations (the largest in
+#: modulus; the nearest to :data:`SHIFT`).
+LEADING_MULTIPLIERS = 12
+#: The shift of the shift-and-invert iteration: the multipliers nearest it are the real ones near +1 (the trivial one,
+#: folds and branch points of cycles, the chain's soft overdamped modes, 1 - 1e-5 apart), which Arnoldi on the
+#: monodromy itself separates only after hundreds of products.
+SHIFT = 1.01
+#: ARPACK's relative tolerance on the leading multipliers, and its restarts at most.
+ARPACK_TOL = 1e-12
+ARPACK_RESTARTS = 20
 #: Halvings of a Newton step that does not lower max |R|.
 MAX_HALVINGS = 6
 
@@ -213,6 +234,8 @@ class _Fields:
         start = 6 + 2 * nf + 3 * params.n_particles
         neighbours = ipar[start : start + 9 * nf].reshape(nf, 9)
         colour = 3 * (col % 3) + row
+        #: The particle (array column) of each state component (positions, then velocities).
+        self.particle = np.concatenate([col, col]).astype(np.int64)
         # Seeds: position j perturbed in column colour(j); a force row then reads each of its nine
         # neighbours from a different column.
         self._seed = np.zeros((self.n, SEEDS))
@@ -324,6 +347,7 @@ class _Collocation:
         self.index = np.arange(ntst)[:, None] * ncol + np.arange(ncol + 1)  # (ntst, ncol + 1) node of (interval, l)
         self.set_reference(reference)
         self._structure()
+        self._orders: dict[bool, tuple[np.ndarray, np.ndarray]] = {}
 
     def set_reference(self, reference: np.ndarray) -> None:
         """The phase condition's reference profile (G, n): its slopes at the Gauss points weigh the condition."""
@@ -394,7 +418,7 @@ class _Collocation:
         if not jacobian:
             return Evaluation(residual)
         ht = np.repeat(self.h * period, self.ncol)  # (ntst ncol,) h_j T per point
-        a_part = -(ht[:, None] * a_values).reshape(self.ntst, self.ncol, 1, -1) * self.sch.values[None, :, :, None]
+        a_part = self._a_part(a_values, period)
         rows = self.ntst * self.ncol * self.n
         logt = -(ht[:, None] * f).ravel()
         extra_rows = [self._col_rows, [self._phase_index]]
@@ -418,6 +442,74 @@ class _Collocation:
         matrix = sp.csc_matrix((data, (row_idx, col_idx)), shape=(self.size, width))
         return Evaluation(residual, matrix, (a_values, period))
 
+    def _a_part(self, a_values: np.ndarray, period: float) -> np.ndarray:
+        """The entries -h_j T L_il A(u_ji) of the collocation blocks, in the order of the structure's ``_a_rows``."""
+        ht = np.repeat(self.h * period, self.ncol)
+        return -(ht[:, None] * a_values).reshape(self.ntst, self.ncol, 1, -1) * self.sch.values[None, :, :, None]
+
+    def collocation_matrix(self, a_values: np.ndarray, period: float) -> sp.csr_matrix:
+        """The collocation rows of the Jacobian in the node values themselves (unscaled), (ntst ncol n, nodes n)."""
+        data = np.concatenate([self._d_vals, self._a_part(a_values, period).ravel()])
+        rows = np.concatenate([self._d_rows, self._a_rows])
+        cols = np.concatenate([self._d_cols, self._a_cols])
+        return sp.csr_matrix((data, (rows, cols)), shape=(self.ntst * self.ncol * self.n, self.nodes * self.n))
+
+    def elimination_order(self, bordered: bool) -> tuple[np.ndarray, np.ndarray]:
+        """The Jacobian's rows and columns in a nested-dissection order (with the arclength row and the M column where ``bordered``).
+
+        The unknowns form a grid of (node, particle) pairs: the nodes of one interval are coupled among
+        themselves, the intervals only through their mesh points, and a particle only to its neighbours
+        (the force Jacobian's band); the boundary condition closes the ring of nodes, and log T (with M)
+        and the phase (with the arclength) rows are a thin border. Nodes 0 and last (the ring's closure)
+        and the border go last; the rest is split recursively, across a mesh point (a node of all the
+        box's particles) or across the particles (the band's width of particles over all the box's nodes),
+        whichever separator is smaller, down to boxes of :data:`DISSECTION_LEAF` pairs, each box ordered
+        before its separator. The fill of the factor then grows like N log N, not N^2 per mesh point
+        (docs/collocation.md, Long chains). Each column is paired with a row whose diagonal entry
+        is structurally nonzero: node g > 0 with the collocation point g - 1 (the same interval),
+        node 0 with the boundary condition, log T with the phase row, M with the arclength row.
+        """
+        cached = self._orders.get(bordered)
+        if cached is not None:
+            return cached
+        n, ncol, nodes = self.n, self.ncol, self.nodes
+        part = self.fields.particle
+        width = max(1, int(np.max(np.abs(part[self.fields.rows] - part[self.fields.cols]), initial=0)))
+        count = int(part.max()) + 1
+        dofs = [np.flatnonzero(part == p) for p in range(count)]
+        pieces: list[np.ndarray] = []
+
+        def box(g0: int, g1: int, p0: int, p1: int) -> None:
+            pieces.append((np.arange(g0, g1)[:, None] * n + np.concatenate(dofs[p0:p1])[None, :]).ravel())
+
+        def dissect(g0: int, g1: int, p0: int, p1: int) -> None:
+            if g1 <= g0 or p1 <= p0:
+                return
+            mesh_point = round((g0 + g1) / (2 * ncol)) * ncol
+            across_time = g0 < mesh_point < g1 - 1
+            across_chain = p1 - p0 >= 2 * width + 1
+            if (g1 - g0) * (p1 - p0) <= DISSECTION_LEAF or not (across_time or across_chain):
+                box(g0, g1, p0, p1)
+            elif across_time and (not across_chain or p1 - p0 <= (g1 - g0) * width):
+                dissect(g0, mesh_point, p0, p1)
+                dissect(mesh_point + 1, g1, p0, p1)
+                box(mesh_point, mesh_point + 1, p0, p1)
+            else:
+                low = (p0 + p1 - width) // 2
+                dissect(g0, g1, p0, low)
+                dissect(g0, g1, low + width, p1)
+                box(g0, g1, low, low + width)
+
+        dissect(1, nodes - 1, 0, count)
+        box(0, 1, 0, count)
+        box(nodes - 1, nodes, 0, count)
+        border = np.arange(nodes * n, self.size + (1 if bordered else 0))
+        cols = np.concatenate([*pieces, border])
+        g, d = np.divmod(np.arange(nodes * n), n)
+        paired = np.concatenate([np.where(g > 0, (g - 1) * n + d, (nodes - 1) * n + d), border])
+        self._orders[bordered] = paired[cols], cols
+        return self._orders[bordered]
+
     def transfers(self, a_values: np.ndarray, period: float) -> np.ndarray:
         """The intervals' transfer matrices P_j (ntst, n, n), x_{j+1} = P_j x_j, of the linearised collocation equations.
 
@@ -438,22 +530,81 @@ class _Collocation:
         return out
 
     def floquet(self, a_values: np.ndarray, period: float) -> floquet.Multipliers:
-        """The Floquet multipliers of the linearised collocation equations with their log-moduli (module docstring)."""
-        return floquet.periodic_schur_multipliers(self.transfers(a_values, period))
+        """The Floquet multipliers of the linearised collocation equations with their log-moduli (module docstring).
+
+        All of them up to 2 n_free = :data:`ALL_MULTIPLIERS_UP_TO`, from the dense transfer matrices by the periodic
+        Schur form; above it the leading ones with their error estimates (:meth:`leading`).
+        """
+        if self.n <= ALL_MULTIPLIERS_UP_TO:
+            return floquet.periodic_schur_multipliers(self.transfers(a_values, period))
+        return self.leading(a_values, period)
 
     def multipliers(self, a_values: np.ndarray, period: float) -> np.ndarray:
         """The Floquet multipliers of the linearised collocation equations (module docstring), by decreasing modulus."""
         return self.floquet(a_values, period).values
 
+    def transfer_maps(self, a_values: np.ndarray, period: float) -> _TransferMaps:
+        """The intervals' transfer maps x -> P_j x as sparse factors (no dense P_j): :class:`_TransferMaps`."""
+        return _TransferMaps(self, a_values, period)
+
+    def leading(self, a_values: np.ndarray, period: float, count: int = LEADING_MULTIPLIERS) -> floquet.Multipliers:
+        """The leading multipliers without dense transfer matrices, with their error estimates (docs/collocation.md, Long chains).
+
+        The monodromy P_NTST ... P_1 is applied as the intervals' sparse transfer maps in turn
+        (:class:`_TransferMaps`), and ARPACK takes the ``count`` multipliers of largest modulus from
+        these products; (M - sigma)^-1 at sigma = :data:`SHIFT` is one solve of the periodic boundary-value
+        problem x_{j+1} = P_j x_j, x_NTST - sigma x_0 = b, factored once in the nested-dissection order
+        (:class:`_ShiftInvert`), and ARPACK takes the ``count`` multipliers nearest sigma from it. The two sets
+        are merged (a value within 1e-9 of one kept is the same), by decreasing modulus; each multiplier's error
+        estimate is |M v - mu v| of its unit eigenvector v. The trivial multiplier is the one nearest 1, as on the
+        dense path.
+        """
+        n = self.n
+        maps = self.transfer_maps(a_values, period)
+        inverse = _ShiftInvert(self, a_values, period, SHIFT)
+        k = min(count, n - 2)
+        ncv = min(n - 1, max(2 * k + 1, 40))
+        found, vectors = [], []
+        for operator, convert in (
+            (spla.LinearOperator((n, n), matvec=maps.apply, dtype=float), lambda nu: nu),
+            (spla.LinearOperator((n, n), matvec=inverse.apply, dtype=float), lambda nu: SHIFT + 1.0 / nu),
+        ):
+            try:
+                nu, v = spla.eigs(operator, k=k, which="LM", ncv=ncv, tol=ARPACK_TOL, maxiter=ARPACK_RESTARTS)
+            except spla.ArpackNoConvergence as err:
+                nu, v = err.eigenvalues, err.eigenvectors
+            found.append(convert(nu))
+            vectors.append(v)
+        values, v = np.concatenate(found), np.concatenate(vectors, axis=1)
+        order = np.argsort(-np.abs(values), kind="stable")
+        keep: list[int] = []
+        for i in order:
+            if all(abs(values[i] - values[j]) > 1e-9 * max(1.0, abs(values[j])) for j in keep):
+                keep.append(i)
+        values, v = values[keep], v[:, keep] / np.linalg.norm(v[:, keep], axis=0)
+        errors = np.linalg.norm(maps.apply(v) - v * values, axis=0)
+        with np.errstate(divide="ignore"):
+            log_moduli = np.log(np.abs(values))
+        return floquet.Multipliers(values, log_moduli, np.angle(values), errors=errors)
+
 
 class _SparseStep:
-    """The Newton step -J^-1 R by SuperLU, ordered by minimum degree on J + J^T (:data:`PERMUTATION`), with
-    ``border`` (t, w_pred) the arclength row appended; the factor is kept while the kit's chord iterations
-    pass the same Jacobian, so a step with a kept Jacobian costs a residual and two triangular solves."""
+    """The Newton step -J^-1 R by SuperLU, with ``border`` (t, w_pred) the arclength row appended; the factor is kept
+    while the kit's chord iterations pass the same Jacobian, so a step with a kept Jacobian costs a residual and
+    two triangular solves.
 
-    def __init__(self, border: tuple[np.ndarray, np.ndarray] | None = None):
+    With ``order`` (rows, columns: :meth:`_Collocation.elimination_order`) the system is factored in that
+    nested-dissection order, diagonal pivots kept down to :data:`PIVOT_THRESHOLD`, and each solve refined once;
+    without it SuperLU orders it by minimum degree on J + J^T (:data:`PERMUTATION`).
+    """
+
+    def __init__(self, border: tuple[np.ndarray, np.ndarray] | None = None, order: tuple[np.ndarray, np.ndarray] | None = None):
         self.border = border
-        self.matrix = self.factor = None
+        self.order = order
+        self.matrix = self.factor = self.permuted = None
+        #: Factorisations made, and the entries of the last factor's L + U.
+        self.factorizations = 0
+        self.fill = 0
 
     def __call__(self, w: np.ndarray, evaluation: Evaluation, matrix) -> np.ndarray:
         residual = np.asarray(evaluation.residual, dtype=float)
@@ -463,11 +614,93 @@ class _SparseStep:
         if matrix is not self.matrix:
             bordered = matrix if self.border is None else sp.vstack([matrix, sp.csr_matrix(self.border[0][None, :])], format="csc")
             try:
-                self.factor = spla.splu(sp.csc_matrix(bordered), permc_spec=PERMUTATION)
+                if self.order is None:
+                    self.factor = spla.splu(sp.csc_matrix(bordered), permc_spec=PERMUTATION)
+                else:
+                    rows, cols = self.order
+                    self.permuted = sp.csr_matrix(bordered)[rows].tocsc()[:, cols]
+                    self.factor = spla.splu(
+                        self.permuted, permc_spec="NATURAL", diag_pivot_thresh=PIVOT_THRESHOLD, options={"SymmetricMode": True}
+                    )
             except RuntimeError as err:
                 raise np.linalg.LinAlgError(f"the collocation Jacobian is singular: {err}") from err
             self.matrix = matrix
-        return self.factor.solve(-residual)
+            self.factorizations += 1
+            self.fill = self.factor.L.nnz + self.factor.U.nnz
+        if self.order is None:
+            return self.factor.solve(-residual)
+        rows, cols = self.order
+        rhs = -residual[rows]
+        step = self.factor.solve(rhs)
+        # One step of iterative refinement makes up for the weaker pivots.
+        step += self.factor.solve(rhs - self.permuted @ step)
+        out = np.empty_like(residual)
+        out[cols] = step
+        return out
+
+
+class _TransferMaps:
+    """The monodromy of the linearised collocation equations, x_0 -> P_NTST ... P_1 x_0, as the intervals' maps in turn.
+
+    Interval j's collocation rows [B0 B1] (B0 on its first node, B1 on the other NCOL) give
+    x_{j+1} = -(B1^-1 B0 x_j) at the last node: one sparse LU of B1 per interval (a band along the
+    chain, ordered by :data:`PERMUTATION`), no dense P_j. :meth:`apply` takes vectors or column
+    blocks, real or complex.
+    """
+
+    def __init__(self, problem: _Collocation, a_values: np.ndarray, period: float):
+        n, ncol = problem.n, problem.ncol
+        matrix = problem.collocation_matrix(a_values, period)
+        self.size = n
+        self._first, self._factors = [], []
+        for j in range(problem.ntst):
+            block = matrix[j * ncol * n : (j + 1) * ncol * n, j * ncol * n : ((j + 1) * ncol + 1) * n]
+            self._first.append(sp.csr_matrix(block[:, :n]))
+            self._factors.append(spla.splu(sp.csc_matrix(block[:, n:]), permc_spec=PERMUTATION))
+        #: Products applied so far (each NTST sparse solves).
+        self.products = 0
+
+    def apply(self, x: np.ndarray) -> np.ndarray:
+        """P_NTST ... P_1 x for x (n,) or (n, p)."""
+        x = np.asarray(x)
+        if np.iscomplexobj(x):
+            return self.apply(x.real) + 1j * self.apply(x.imag)
+        self.products += 1 if x.ndim == 1 else x.shape[1]
+        for first, factor in zip(self._first, self._factors, strict=True):
+            x = -factor.solve(np.asarray(first @ x))[-self.size :]
+        return x
+
+
+class _ShiftInvert:
+    """(M - sigma)^-1 b for the monodromy M of the linearised collocation equations, without M.
+
+    x_0 = (M - sigma)^-1 b solves the collocation rows on all intervals with the closing rows
+    x_NTST - sigma x_0 = b: the Newton system without its border, factored once in the
+    nested-dissection order (:meth:`_Collocation.elimination_order`).
+    """
+
+    def __init__(self, problem: _Collocation, a_values: np.ndarray, period: float, sigma: float):
+        n, nodes = problem.n, problem.nodes
+        eye = sp.eye(n, format="csr")
+        closing = sp.hstack([-sigma * eye, sp.csr_matrix((n, (nodes - 2) * n)), eye])
+        matrix = sp.vstack([problem.collocation_matrix(a_values, period), closing], format="csr")
+        rows, cols = problem.elimination_order(False)
+        self._rows, self._cols = rows[:-1], cols[:-1]  # without log T and the phase row
+        self._factor = spla.splu(
+            matrix[self._rows].tocsc()[:, self._cols], permc_spec="NATURAL", diag_pivot_thresh=PIVOT_THRESHOLD,
+            options={"SymmetricMode": True},
+        )  # fmt: skip
+        self._n, self._size = n, nodes * n
+
+    def apply(self, b: np.ndarray) -> np.ndarray:
+        b = np.asarray(b)
+        if np.iscomplexobj(b):
+            return self.apply(b.real) + 1j * self.apply(b.imag)
+        rhs = np.zeros(self._size)
+        rhs[-self._n :] = b
+        out = np.empty(self._size)
+        out[self._cols] = self._factor.solve(rhs[self._rows])
+        return out[: self._n]
 
 
 def _trajectory_guess(system: _System, y0: np.ndarray, period: float, mesh: np.ndarray, sch: Scheme, shift: np.ndarray) -> np.ndarray:
@@ -496,7 +729,7 @@ def _solve(problem: _Collocation, profile: np.ndarray, period: float, *, tol: fl
     """Newton on (C) at fixed M from (profile, period): the correction and its multipliers."""
     solved = newton(
         problem.evaluate, problem.pack(profile, period), tol=tol, max_iterations=max_iter, divergence=None, damping=MAX_HALVINGS,
-        chord=CHORD_RATE, newton_step=_SparseStep(),
+        chord=CHORD_RATE, newton_step=_SparseStep(order=problem.elimination_order(False)),
     )  # fmt: skip
     if not solved.converged:
         raise CollocationError(

@@ -84,12 +84,16 @@ class Multipliers:
         Whether the iteration separated the multipliers down to blocks of moduli within 1 / :data:`STALL`
         of each other; False where ``max_sweeps`` ran out first (many close moduli spanning decades):
         the smaller members of a wide block then carry its formed product's round-off.
+    errors : ndarray (n,) or None
+        Error estimates of the values, where they come from an iteration that gives them (the leading
+        multipliers of a long chain's collocation by Arnoldi's method); None from the periodic Schur form.
     """
 
     values: np.ndarray
     log_moduli: np.ndarray
     angles: np.ndarray
     separated: bool = True
+    errors: np.ndarray | None = None
 
     @property
     def log10_moduli(self) -> np.ndarray:
