@@ -518,12 +518,12 @@ def critical_point(
     states = max_states(params)
     require_branch_memory(params, max_points, states)
     closed = model.name == "sine"
+    response = moment_response(params, model, particle=particle)
     near_singular = model.rotates and near_singular_at_rest(params, model)
-    approach = near_singular and not rest_resolved(params, model, particle=particle)
+    approach = near_singular and not rest_resolved(params, model, particle=particle, response=response)
     trace = dict(particle=particle, phi0_stop=budget, phi0_until_unstable=until, max_points=max_points, max_states=states)
     branch = continue_in_moment(params, model, **trace, progress=progress, from_approach=approach)
     confirmation = "once"
-    response = moment_response(params, model, particle=particle)
     angles = unpack(params, response)[ROW_INDEX["phi"]]
     onset_particle = None
     if closed:

@@ -394,7 +394,7 @@ def rest_solve(params: ChainParams, rhs: np.ndarray) -> np.ndarray:
     a factor of K's rounded entries loses a clamped chain's bending modes, whose eigenvalue falls
     like N^-4 (its compliance 0.15 % off at N = 10^4, 33 % at 3 10^4, 80 % at 10^5 by the band LU;
     refined in extended precision, 1.1e-5 and 55 % off at the last two), where R keeps them
-    (docs/statics.md: 2e-13 from the closed form at N = 10^5).
+    (docs/statics.md: 1.8e-14 from the closed form at N = 10^5).
 
     Raises
     ------
