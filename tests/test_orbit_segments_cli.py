@@ -47,8 +47,19 @@ def test_segments_give_every_multiplier_with_liouvilles_product(tmp_path):
     assert np.allclose(sorted(big), sorted(m for m in split["floquet_multipliers_abs"] if m > 1e-10), rtol=1e-8, atol=1e-10)
 
 
+def test_segments_with_the_blocks_give_the_dense_segments_multipliers(tmp_path):
+    # The long chains' shooting (auto from N = 50) forced on the one-particle chain: the same pieces, assembled from column blocks.
+    params = ChainParams(N=1)
+    exact = -_orbit(tmp_path)["period"] * float(np.sum(per_dof(params, params.damping) / pack(params, params.particle_inertia)))
+    blocks = _orbit(tmp_path, "--segments", "16", "--method", "blocks")
+    dense = _orbit(tmp_path, "--segments", "16", "--method", "dense")
+    assert sum(blocks["floquet_multipliers_log10_abs"]) == pytest.approx(exact / math.log(10.0), rel=1e-8)
+    assert np.allclose(blocks["floquet_multipliers_log10_abs"], dense["floquet_multipliers_log10_abs"], rtol=0, atol=1e-8)
+    assert 0 < blocks["trivial_multiplier_error"] < 1e-8
+
+
 @pytest.mark.parametrize(
-    "extra", [("--segments", "0"), ("--segments", "2", "--method", "blocks"), ("--segments", "x"), ("--segments", "1000000000")]
+    "extra", [("--segments", "0"), ("--segments", "2", "--method", "krylov"), ("--segments", "x"), ("--segments", "1000000000")]
 )
 def test_bad_segments_are_refused_with_the_value(tmp_path, extra):
     # Refused before the orbit is computed (a billion segments: by the memory estimate, naming them).

@@ -89,7 +89,8 @@ def orbit(
         min=1,
         help="The Floquet multipliers from the Jacobians of this many pieces of the orbit, by the periodic Schur form of "
         "their product: every multiplier of a long, strongly damped orbit with its log10 modulus (the formed monodromy "
-        "loses those below 1e-16); dense shooting only (collocation always takes them so).",
+        "loses those below 1e-16); dense or blocks shooting (the blocks integrated piece by piece; above 2 n_free = 2500 "
+        "the leading ones only), not krylov (collocation always takes them so).",
     ),
     system: str | None = system_option(),
     sets: list[str] | None = set_option(),

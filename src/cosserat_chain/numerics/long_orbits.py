@@ -37,6 +37,14 @@ columns V (2 n_free, p) come from one integration of the state with p variationa
   largest above it (ARPACK on the formed M), or by Arnoldi on products (no M formed, for
   ``krylov`` above 2 n_free = :data:`FORM_UP_TO`). Each comes with an error estimate; the
   trivial one's, |(M - I) f| / |f|, bounds its distance from 1 (tested).
+* **segments** (:func:`orbit_multipliers`, ``find_periodic_orbit(..., segments=m)`` with the
+  blocks): the multipliers of a formed M below about 1e-16 |M| are round-off. With m segments
+  every block is integrated piece by piece, each piece's transfer matrix G_k assembled from the
+  blocks (:func:`segment_matrices`: m (2 n_free)^2 numbers), and all multipliers come from the
+  periodic Schur form of G_m ... G_1 (:func:`~.floquet.periodic_schur_multipliers`) with their
+  log-moduli, the trivial one with its error |G_m ... G_1 f - f| / |f|; up to 2 n_free =
+  :data:`ALL_MULTIPLIERS_UP_TO`, above which the leading ones come as without segments (a warning
+  says the small ones are not computed).
 
 The result is a :class:`~.periodic.PeriodicOrbit` like the dense method's, with
 ``multiplier_errors`` (the trivial one's in ``as_dict``); where not all multipliers are
@@ -49,6 +57,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
@@ -58,9 +67,10 @@ import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
 from ..errors import CosseratChainError
+from ..memory import FLOAT, require
 from ..params import ChainParams
 from ..state import ROW_INDEX, pack, zeros
-from . import dop853
+from . import dop853, floquet
 from .kit import Correction, Evaluation, EvaluationFailed, newton
 
 if TYPE_CHECKING:
@@ -99,6 +109,8 @@ MOMENT_STEP = 1e-5
 MOMENT_REACH = 1e-3
 #: Seed of Arnoldi's start vector (reproducible multipliers).
 SEED = 20240
+#: Copies of the segments' matrices alive at once with ``segments`` (theirs, and two in the periodic Schur form).
+SEGMENT_COPIES = 3
 
 
 def choose_method(params: ChainParams, method: str) -> str:
@@ -286,11 +298,14 @@ def blocks_correction(
     atol: float,
     damping: int,
     threads: int | None = None,
+    segments: int | None = None,
 ) -> tuple[Correction, np.ndarray | None]:
     """Newton on (P) from w0 with the monodromy from column blocks (:meth:`Monodromy.matrix`); the correction and, converged, M there.
 
     As the dense shooting (chord iterations: :data:`CHORD_RATE`), with the memory of M alone
     instead of the integrator's copies of 2 n_free + 1 columns, the blocks on ``threads`` threads.
+    With ``segments`` up to 2 n_free = :data:`ALL_MULTIPLIERS_UP_TO` M is not formed at the
+    solution (None): :func:`orbit_multipliers` takes them from the segments' matrices.
     """
     evaluate = _closure(system, phase, _shift(system, particle_turns), rtol, atol)
     keep = phase.keep
@@ -307,7 +322,7 @@ def blocks_correction(
         return Evaluation(residual, matrix, monodromy)
 
     solved = newton(closure, w0, tol=tol, max_iterations=max_iter, divergence=None, chord=CHORD_RATE, damping=damping)
-    if not solved.converged:
+    if not solved.converged or (segments is not None and solved.evaluation.data.size <= ALL_MULTIPLIERS_UP_TO):
         return solved, None
     solved.evaluation.matrix()  # M at the solution, formed once
     return solved, solved.evaluation.data.formed
@@ -355,6 +370,102 @@ def _moment_derivative(system: _System, y0: np.ndarray, period: float, step: flo
         for reach in (1.0, 2.0)
     )
     return (8.0 * (near[0] - near[1]) - (far[0] - far[1])) / (12.0 * step)
+
+
+def segment_matrices(
+    system: _System,
+    y0: np.ndarray,
+    period: float,
+    segments: int,
+    *,
+    rtol: float,
+    atol: float,
+    block: int = BLOCK_COLUMNS,
+    threads: int | None = None,
+) -> np.ndarray:
+    """The transfer matrices G_1 ... G_m (m, 2 n_free, 2 n_free) of ``segments`` equal pieces of [0, period] from y0, from column blocks.
+
+    The pieces' start states come from state-only integrations carried from y0; each block of
+    ``block`` identity columns is integrated over every piece from its start (one
+    integration a piece, from the identity's columns again), the blocks on ``threads`` threads
+    (default :data:`THREADS`) as in :meth:`Monodromy.matrix`. G_m ... G_1 is the monodromy; kept
+    apart, the strongly damped directions keep their digits (:mod:`~.floquet`).
+
+    Raises
+    ------
+    MemoryEstimateError
+        Where the matrices and the periodic Schur form's working copies of them
+        (:data:`SEGMENT_COPIES` in all) do not fit in the free memory.
+    """
+    size = y0.size
+    require(
+        SEGMENT_COPIES * segments * size * size * FLOAT,
+        f"{segments} segment matrices of {size} x {size} and the periodic Schur form's {SEGMENT_COPIES - 1} working copies",
+        "fewer segments (--segments: 16 to 64 keep the smallest multipliers to round-off)",
+    )  # fmt: skip
+    piece = period / segments
+    starts = [np.asarray(y0, dtype=float)]
+    for _ in range(segments - 1):
+        starts.append(system.flow(starts[-1], piece, rtol=rtol, atol=atol, variations=False)[0])
+    out = np.empty((segments, size, size))
+
+    def columns(first: int) -> None:
+        width = min(block, size - first)
+        unit = np.zeros((size, width))
+        unit[first + np.arange(width), np.arange(width)] = 1.0
+        for k, start in enumerate(starts):
+            out[k, :, first : first + width] = Monodromy(system, start, piece, rtol, atol).apply(unit)
+
+    firsts = range(0, size, block)
+    workers = threads or THREADS or len(os.sched_getaffinity(0))
+    with ThreadPoolExecutor(max_workers=max(1, min(workers, len(firsts)))) as pool:
+        list(pool.map(columns, firsts))
+    return out
+
+
+def orbit_multipliers(
+    system: _System,
+    y0: np.ndarray,
+    period: float,
+    monodromy: Monodromy | np.ndarray | None,
+    segments: int | None,
+    *,
+    rtol: float,
+    atol: float,
+    threads: int | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The orbit's Floquet multipliers, their error estimates and, from segments, their log-moduli (else None).
+
+    Without ``segments``: :func:`leading_multipliers` of ``monodromy``. With them, up to 2 n_free =
+    :data:`ALL_MULTIPLIERS_UP_TO`: all multipliers by the periodic Schur form of the segments'
+    matrices (:func:`segment_matrices`, :func:`~.floquet.periodic_schur_multipliers`), each
+    small one as accurate as its pieces; the trivial one's error is |G_m ... G_1 f - f| / |f|
+    for the unit flow f at y0 (the factors applied in turn), the others' are not estimated
+    (NaN). Above that size the periodic Schur form of the full matrices is not computed: the
+    leading ones from the formed ``monodromy`` as without segments, with a warning that the
+    small ones are not computed.
+    """
+    flow = system.velocity(y0)
+    if segments is not None and y0.size > ALL_MULTIPLIERS_UP_TO:
+        warnings.warn(
+            f"segments={segments}: only the {MULTIPLIERS} leading nontrivial Floquet multipliers are computed above "
+            f"2 n_free = {ALL_MULTIPLIERS_UP_TO} (this orbit has {y0.size}), from the formed monodromy as without segments; "
+            "the small ones are not computed",
+            stacklevel=3,
+        )
+        segments = None
+    if segments is None:
+        values, errors = leading_multipliers(monodromy, flow)
+        return values, errors, None
+    stack = segment_matrices(system, y0, period, segments, rtol=rtol, atol=atol, threads=threads)
+    found = floquet.periodic_schur_multipliers(stack)
+    unit = flow / np.linalg.norm(flow)
+    mapped = unit
+    for factor in stack:
+        mapped = factor @ mapped
+    errors = np.full(found.values.size, np.nan)
+    errors[np.argmin(np.abs(found.values - 1.0))] = float(np.linalg.norm(mapped - unit))
+    return found.values, errors, found.log_moduli
 
 
 def leading_multipliers(

@@ -925,7 +925,9 @@ def find_periodic_orbit(
         ``collocation``: orthogonal collocation with its default mesh (:mod:`~.collocation_core`; ``tol``,
         ``rtol`` and ``atol`` do not apply), the start put on the section afterwards.
     segments : int, optional
-        With the dense method: the multipliers from the Jacobians of this many equal pieces of the
+        With the dense or the blocks method (the blocks integrated piece by piece,
+        :func:`~.long_orbits.orbit_multipliers`; above 2 n_free = 2500 the leading ones only, with a
+        warning): the multipliers from the Jacobians of this many equal pieces of the
         converged orbit (the variational equations integrated from the identity on each: one more
         integration of the monodromy's cost), by the periodic Schur form of their product
         (:func:`~.floquet.periodic_schur_multipliers`), with their log-moduli. The eigenvalues of
@@ -957,10 +959,10 @@ def find_periodic_orbit(
     if segments is not None:
         if not (isinstance(segments, (int, np.integer)) and not isinstance(segments, bool) and segments >= 1):
             raise ValueError(f"segments must be an integer >= 1 (pieces of the period), got {segments!r}")
-        if collocating or method != "dense":
+        if collocating or method == "krylov":
             raise ValueError(
-                f"segments applies to the dense shooting only, got method={'collocation' if collocating else method!r} "
-                "(collocation takes its multipliers from its intervals' product already)"
+                f"segments applies to the dense and blocks shooting only, got method={'collocation' if collocating else method!r} "
+                "(collocation takes its multipliers from its intervals' product already; krylov forms no matrices)"
             )
         size = 2 * n_free(params)
         require(
@@ -1002,7 +1004,9 @@ def find_periodic_orbit(
             multiplier_log_moduli=solved.log_moduli,
         )  # fmt: skip
     if method != "dense":
-        return _long_orbit(system, turns, y0, period, particle_turns, phase, method, tol=tol, max_iter=max_iter, rtol=rtol, atol=atol)
+        return _long_orbit(
+            system, turns, y0, period, particle_turns, phase, method, tol=tol, max_iter=max_iter, rtol=rtol, atol=atol, segments=segments
+        )  # fmt: skip
     evaluate = _shooting(system, particle_turns, rtol, atol)
     keep = phase.keep
 
@@ -1036,23 +1040,26 @@ def find_periodic_orbit(
     )  # fmt: skip
 
 
-def _long_orbit(system, turns, y0, period, particle_turns, phase, method, *, tol, max_iter, rtol, atol) -> PeriodicOrbit:
-    """:func:`find_periodic_orbit` by the blocks or Newton-Krylov (:mod:`.long_orbits`), with the multipliers' errors."""
+def _long_orbit(system, turns, y0, period, particle_turns, phase, method, *, tol, max_iter, rtol, atol, segments=None) -> PeriodicOrbit:
+    """:func:`find_periodic_orbit` by the blocks or Newton-Krylov (:mod:`.long_orbits`), with the multipliers' errors
+    (by the blocks with ``segments``: from the segments' matrices, :func:`~.long_orbits.orbit_multipliers`)."""
     correct = long_orbits.krylov_correction if method == "krylov" else long_orbits.blocks_correction
+    options = {} if segments is None else {"segments": segments}
     try:
         solved, monodromy = correct(
             system, phase, particle_turns, np.append(y0[phase.keep], period), tol=tol, max_iter=max_iter, rtol=rtol, atol=atol,
-            damping=MAX_HALVINGS,
+            damping=MAX_HALVINGS, **options,
         )  # fmt: skip
         if not solved.converged:
             raise OrbitError(_no_convergence(system.moment, turns, solved.iterations, solved.norm))
         y0 = phase.state(solved.w[:-1])
-        multipliers, errors = long_orbits.leading_multipliers(monodromy, system.velocity(y0))
+        multipliers, errors, logs = long_orbits.orbit_multipliers(system, y0, solved.w[-1], monodromy, segments, rtol=rtol, atol=atol)
     except EvaluationFailed as err:
         raise OrbitError(f"the monodromy's products at the orbit failed: {err}") from err
     return _orbit_from(
-        system, turns, y0, solved.w[-1], multipliers, solved.norm, solved.iterations, particle_turns, phase.normal, errors
-    )
+        system, turns, y0, solved.w[-1], multipliers, solved.norm, solved.iterations, particle_turns, phase.normal, errors,
+        multiplier_log_moduli=logs,
+    )  # fmt: skip
 
 
 def _no_convergence(moment: float, turns: int, iterations: int, norm: float) -> str:
