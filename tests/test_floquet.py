@@ -226,8 +226,8 @@ def test_collocation_resolves_multipliers_of_1e_170_at_period_100_on_a_fine_mesh
     assert orbit.trivial_multiplier_error < 1e-10
 
 
-def test_segments_are_refused_outside_the_dense_shooting():
+def test_segments_are_refused_outside_the_dense_and_blocks_shooting():
     with pytest.raises(ValueError, match="segments must be an integer >= 1"):
         find_periodic_orbit(N1, "sine", 0.5, segments=0)
-    with pytest.raises(ValueError, match="segments applies to the dense shooting only"):
+    with pytest.raises(ValueError, match="segments applies to the dense and blocks shooting only"):
         find_periodic_orbit(N1, "sine", 0.5, segments=4, method="collocation")
