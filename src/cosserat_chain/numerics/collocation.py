@@ -45,10 +45,12 @@ from . import periodic
 from .collocation_core import (
     ADAPTATIONS,
     CHORD_RATE,
+    LEADING_MULTIPLIERS,
     MAX_HALVINGS,
     NCOL,
     NCOL_RANGE,
     NTST,
+    SHIFT,
     TOL,
     CollocationError,
     Solution,
@@ -475,7 +477,8 @@ class _BranchProblem:
         # A multiplier near the unit circle that moves farther than the shooting's budget can hide a pair of
         # crossings of +1 within one step (two branch points of the nonlinear N = 1 orbit lie 5e-4 apart in M):
         # the step is retaken shorter. AUTO's practice otherwise: the phase reference is the last point.
-        if periodic._multiplier_motion(previous.multipliers, candidate.multipliers) > periodic.MAX_MULTIPLIER_MOTION:
+        before, after = _complete(previous), _complete(candidate)
+        if periodic._multiplier_motion(before, after) > periodic.MAX_MULTIPLIER_MOTION:
             return False
         self.collocation.set_reference(candidate.profile)
         return True
@@ -512,6 +515,18 @@ class _BranchProblem:
         if kind not in ("fold", "branch_point"):
             return True
         return bool(np.sort(np.abs(point.multipliers - 1.0))[1] < FOLD_MULTIPLIER)
+
+
+def _complete(orbit: CollocationOrbit) -> np.ndarray:
+    """The multipliers the step's motion check compares: all of them, or of a long chain's leading ones
+    (collocation_core.ALL_MULTIPLIERS_UP_TO) those nearer the shift than its ``LEADING_MULTIPLIERS``-th nearest,
+    which no orbit can miss; within a damped ring of nearly equal moduli the members found change from orbit to orbit."""
+    multipliers = orbit.multipliers
+    if multipliers.size == orbit.profile.shape[1]:
+        return multipliers
+    distance = np.abs(multipliers - SHIFT)
+    radius = np.sort(distance)[min(LEADING_MULTIPLIERS, distance.size) - 1]
+    return multipliers[distance < radius]
 
 
 #: The events of :func:`circle_tests`.
