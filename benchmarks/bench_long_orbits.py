@@ -5,6 +5,7 @@ Run from the repository root::
     python benchmarks/bench_long_orbits.py                       # N = 10, 30, 100, 200 (about 25 minutes on one core)
     python benchmarks/bench_long_orbits.py --sizes 10 30 --methods dense blocks krylov
     python benchmarks/bench_long_orbits.py --json                # also print the JSON on stdout
+    python benchmarks/bench_long_orbits.py --segments 16 --dense-max 50   # blocks with segments, N = 50, 100
     python benchmarks/bench_long_orbits.py --rates               # per unit time, N = 10 ... 1000 (about 2 minutes)
 
 The sine chain (eq. (2)) with strong damping (all gammas 1, other fields default) under the
@@ -22,6 +23,15 @@ Krylov method up to ``--krylov-max`` (default 30: at N = 100 its GMRES needs abo
 thousand products a Newton step). Results go to
 ``benchmarks/results/long_orbits.json`` (``docs/periodic-orbits.md``).
 
+``--segments M``: for N = 50, 100 (``--sizes``), the chain of :data:`SEGMENT_DAMPING` (its
+angles' modes damped at gamma_phi / j = 3.75, the others at 1; T = 2.13) by the
+blocks without and with M segments (``find_periodic_orbit(..., segments=M)``: every block
+integrated piece by piece, the multipliers by the periodic Schur form of the pieces' matrices),
+and the dense shooting with the same segments up to ``--dense-max``: CPU seconds, the sum of
+ln |mu| against Liouville's -T sum gamma_i / m_i, the smallest log10 |mu|, the trivial
+multiplier's distance from 1 and its error, the largest difference of log10 |mu| from the
+blocks with segments, and the load average (``results/long_orbit_segments.json``).
+
 ``--rates``: for N = 10, 30, 100, 200, 1000 (``--sizes``), CPU seconds per unit time of
 integration (the same chain and moment, from a moving state) of the state alone, of one
 product (the state and one variational column: a GMRES or Arnoldi step), of one block of
@@ -34,6 +44,8 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -44,11 +56,14 @@ from cosserat_chain import ChainParams
 from cosserat_chain.models.base import get_model
 from cosserat_chain.numerics import long_orbits
 from cosserat_chain.numerics.periodic import _System, find_periodic_orbit, initial_guess
+from cosserat_chain.state import n_free, pack, per_dof
 
 RESULTS = Path(__file__).resolve().parent / "results"
 SIZES = (10, 30, 100, 200)
 METHODS = ("dense", "blocks", "krylov")
 MODEL, MOMENT, DAMPING = "sine", 0.3, 1.0
+#: (gamma_u, gamma_v, gamma_phi) of --segments: the angles' modes damped at gamma_phi / j = 3.75, the others at 1.
+SEGMENT_DAMPING = (1.0, 1.0, 0.1)
 #: Time integrated per rate measurement.
 RATE_SPAN = 0.5
 
@@ -113,6 +128,60 @@ def measure(n: int, methods: list[str], dense_max: int, krylov_max: int, threads
         row["methods"][method] = entry
         row["size"] = 2 * (3 * params.n_particles - 6)
     return row
+
+
+def measure_segments(n: int, segments: int, dense_max: int, threads: int) -> dict:
+    """Blocks without and with ``segments``, and the dense shooting with them up to ``dense_max``, at N = n (``--segments``)."""
+    gamma_u, gamma_v, gamma_phi = SEGMENT_DAMPING
+    params = ChainParams(N=n, gamma_u=gamma_u, gamma_v=gamma_v, gamma_phi=gamma_phi)
+    rate = float(np.sum(per_dof(params, params.damping) / pack(params, params.particle_inertia)))
+    long_orbits.THREADS = threads
+    start = time.process_time()
+    guess = initial_guess(params, MODEL, MOMENT)
+    row = {"N": n, "size": 2 * n_free(params), "segments": segments, "guess_cpu_s": time.process_time() - start, "runs": {}}
+    runs = [("blocks", None), ("blocks", segments)] + ([("dense", segments)] if n <= dense_max else [])
+    reference = None
+    for method, pieces in runs:
+        load = os.getloadavg()[0]
+        cpu = time.process_time()
+        orbit = find_periodic_orbit(params, MODEL, MOMENT, guess=guess, method=method, segments=pieces)
+        cpu = time.process_time() - cpu
+        logs = orbit.log_moduli
+        entry = {
+            "cpu_s": cpu,
+            "load_average": load,
+            "period": orbit.period,
+            "liouville_exact": -orbit.period * rate,
+            "liouville_error": float(np.sum(logs) + orbit.period * rate),
+            "smallest_log10_abs": float(np.min(logs) / math.log(10.0)),
+            "max_nontrivial_multiplier": orbit.max_multiplier,
+            "trivial_distance_from_1": abs(orbit.trivial_multiplier - 1.0),
+            "trivial_error": orbit.trivial_multiplier_error,
+        }
+        if pieces is not None:
+            if reference is None:
+                reference = logs
+            else:
+                entry["log10_difference_from_blocks"] = float(np.max(np.abs(logs - reference)) / math.log(10.0))
+        row["runs"][f"{method}" + ("" if pieces is None else f" + {pieces} segments")] = entry
+    return row
+
+
+def segments_markdown(rows: list[dict]) -> str:
+    lines = [
+        "| N | 2 n_free | method | CPU s | load | period T | sum ln abs(mu) - Liouville | smallest log10 abs(mu) | abs(mu_1 - 1) / its error | log10 abs(mu) against blocks + segments |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        for name, e in row["runs"].items():
+            error = "-" if e["trivial_error"] is None else f"{e['trivial_error']:.1e}"
+            against = f"{e['log10_difference_from_blocks']:.1e}" if "log10_difference_from_blocks" in e else ""
+            lines.append(
+                f"| {row['N']} | {row['size']} | {name} | {e['cpu_s']:.3g} | {e['load_average']:.1f} | {e['period']:.10g} | "
+                f"{e['liouville_error']:.2e} (of {e['liouville_exact']:.6g}) | {e['smallest_log10_abs']:.2f} | "
+                f"{e['trivial_distance_from_1']:.1e} / {error} | {against} |"
+            )
+    return "\n".join(lines)
 
 
 def rates(n: int, dense_max: int, span: float) -> dict:
@@ -181,8 +250,22 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=RESULTS / "long_orbits.json")
     parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
     parser.add_argument("--rates", action="store_true", help="only the costs per unit time, N = 10 ... 1000")
+    parser.add_argument("--segments", type=int, default=None, metavar="M", help="blocks with M segments against the formed monodromy")
     args = parser.parse_args()
     log = sys.stderr if args.json else sys.stdout
+    if args.segments is not None:
+        sizes = args.sizes if args.sizes != list(SIZES) else [50, 100]
+        out = args.out if args.out != RESULTS / "long_orbits.json" else RESULTS / "long_orbit_segments.json"
+        table = []
+        for n in sizes:
+            table.append(measure_segments(n, args.segments, args.dense_max, args.threads))
+            print("\n".join(segments_markdown(table[-1:]).splitlines()[2:]), file=log, flush=True)
+            out.parent.mkdir(exist_ok=True)
+            out.write_text(json.dumps(table, indent=1))
+        print(segments_markdown(table), file=log)
+        if args.json:
+            print(json.dumps(table))
+        return
     if args.rates:
         sizes = args.sizes if args.sizes != list(SIZES) else [10, 30, 100, 200, 1000]
         table = []
