@@ -577,7 +577,13 @@ def _long_chains(stage: _Stage) -> Section:
     from ..plots.statics import critical_against_length
 
     p, s = stage.params, stage.settings
-    results = {m: [critical_point(p.replace(N=n), m, dynamics=False) for n in s.long_n_list] for m in ROTATING}
+    # The chain's own N is the statics stage's point where it is computed already (the same branch and fold: its
+    # dynamics only add the stability along it, which this stage does not read).
+    known = stage.shared.get("exact", {})
+    results = {
+        m: [known[m] if n == p.N and m in known else critical_point(p.replace(N=n), m, dynamics=False) for n in s.long_n_list]
+        for m in ROTATING
+    }
 
     def summary(result) -> dict:
         whole = result.as_dict()
