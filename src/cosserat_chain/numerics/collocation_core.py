@@ -109,7 +109,7 @@ LEADING_MULTIPLIERS = 12
 SHIFT = 1.01
 #: ARPACK's relative tolerance on the leading multipliers, and its restarts at most.
 ARPACK_TOL = 1e-12
-ARPACK_RESTARTS = 8
+ARPACK_RESTARTS = 20
 #: Halvings of a Newton step that does not lower max |R|.
 MAX_HALVINGS = 6
 
