@@ -44,13 +44,13 @@ def snic_orbits():
     }
 
 
-def _compare(dense, blocks) -> None:
-    """The blocks' segment multipliers are the dense shooting's: the nontrivial ones above 1e-12 to AGREE, all log-moduli to LOG_AGREE."""
+def _compare(dense, blocks, agree: float = AGREE, log_agree: float = LOG_AGREE) -> None:
+    """The blocks' segment multipliers are the dense shooting's: the nontrivial ones above 1e-12 to ``agree``, all log-moduli to ``log_agree``."""
     assert blocks.multipliers.shape == dense.multipliers.shape == blocks.log_moduli.shape
     # Each nontrivial one above 1e-12 against the nearest of the other's (a complex pair's two members may come in either order).
     big = dense.multipliers[(np.abs(dense.multipliers) > 1e-12) & (np.abs(dense.multipliers - 1.0) > 1e-6)]
-    assert max(np.min(np.abs(blocks.multipliers - mu)) / abs(mu) for mu in big) < AGREE
-    assert np.max(np.abs(blocks.log_moduli - dense.log_moduli)) < LOG_AGREE
+    assert max(np.min(np.abs(blocks.multipliers - mu)) / abs(mu) for mu in big) < agree
+    assert np.max(np.abs(blocks.log_moduli - dense.log_moduli)) < log_agree
     assert abs(blocks.trivial_multiplier - dense.trivial_multiplier) < 1e-8
 
 
@@ -130,7 +130,8 @@ def test_a_hundred_and_one_particle_orbit_by_blocks_and_segments_equals_the_dens
     blocks = find_periodic_orbit(params, "sine", 0.3, guess=guess, segments=16)  # auto: the blocks
     assert blocks.multipliers.size == 2 * 3 * 99 and blocks.multiplier_log_moduli is not None
     dense = find_periodic_orbit(params, "sine", 0.3, guess=guess, method="dense", segments=16)
-    _compare(dense, blocks)
+    # 594 multipliers of a non-normal monodromy from two integrations at rtol 1e-11: ln |mu| measured 6.8e-9 apart at most.
+    _compare(dense, blocks, agree=1e-8, log_agree=2e-8)
     exact = -blocks.period * _damping_rate(params)
     assert np.sum(blocks.log_moduli) == pytest.approx(exact, rel=1e-8)
     formed = find_periodic_orbit(params, "sine", 0.3, guess=guess)
