@@ -69,7 +69,7 @@ from ..linalg.threads import one_blas_thread
 from ..loads import moment_load
 from ..memory import FLOAT, require
 from ..models.base import BOND_BLOCK, BOND_ROWS, END_KERNEL_TYPE, FORCE_KERNEL_TYPE, Model, get_model, no_ends
-from ..params import BOND_FACTORS, PARTICLE_FACTORS, ChainParams
+from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, force_columns, free_index, held, n_free, pack, per_dof, unpack, zeros
 from ..state import dof as free_dof
 from ..status import Status
@@ -861,7 +861,7 @@ def require_integrable_period(params: ChainParams, model: Model, period: float) 
     omega = model.max_frequency(params)
     steps = period * omega / DOP853_STABLE_STEP
     if not steps <= MAX_STEPS:  # also NaN
-        graded = ", their factors" if any(getattr(params, f) for f in (*BOND_FACTORS, *PARTICLE_FACTORS)) else ""
+        graded = ", their factors" if params.graded else ""
         raise ValueError(
             f"one period T = {period:.6g} of this chain takes at least {steps:.3g} integration steps (its fastest mode "
             f"omega_max = {omega:.3g}, from E1, E2, m, j{graded}), more than {MAX_STEPS:.0e}: the model is dimensionless, "
