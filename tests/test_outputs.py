@@ -29,14 +29,36 @@ def _dataset(value: float) -> xr.Dataset:
     return xr.Dataset({"x": ("i", np.full(3, value))}, attrs={"what": "test"})
 
 
-def test_a_symbolic_link_is_written_through_and_kept(tmp_path):
+def test_a_symbolic_link_is_never_written_through(tmp_path):
+    """The file a link points to is not the package's: an input, or a system file when run as root."""
+    victim = tmp_path / "passwd"
+    victim.write_text("root:x:0:0\n")
     target = tmp_path / "target.nc"
     write_dataset(_dataset(1.0), target)
-    link = tmp_path / "link.nc"
-    link.symlink_to(target)
-    write_dataset(_dataset(2.0), link)
-    assert link.is_symlink() and os.readlink(link) == str(target)
-    assert float(read_dataset(target).x[0]) == 2.0
+    for name, points_to in (("link.nc", target), ("etc.nc", victim), ("dangling.nc", tmp_path / "gone.nc")):
+        link = tmp_path / name
+        link.symlink_to(points_to)
+        with pytest.raises(OutputError, match=f"{name}' is a symbolic link to '{points_to}'"):
+            check_output(link)
+        with pytest.raises(OutputError, match="symbolic link"):
+            write_dataset(_dataset(2.0), link)
+        assert link.is_symlink() and os.readlink(link) == str(points_to)
+    assert victim.read_text() == "root:x:0:0\n" and float(read_dataset(target).x[0]) == 1.0
+    assert not (tmp_path / "gone.nc").exists()
+    folder_link = tmp_path / "results"
+    folder_link.symlink_to(tmp_path / "real", target_is_directory=True)
+    (tmp_path / "real").mkdir()
+    write_dataset(_dataset(3.0), folder_link / "run.nc")  # a link among the folders on the way is followed
+    assert float(read_dataset(tmp_path / "real" / "run.nc").x[0]) == 3.0
+
+
+def test_the_cli_refuses_a_link_before_computing(tmp_path):
+    victim = tmp_path / "passwd"
+    victim.write_text("root:x:0:0\n")
+    (tmp_path / "run.nc").symlink_to(victim)
+    result = runner.invoke(app, ["simulate", "--t-end", "0.2", "--frames", "2", "--out", str(tmp_path / "run.nc")])
+    assert result.exit_code == 2 and "symbolic link" in result.output, result.output
+    assert victim.read_text() == "root:x:0:0\n"
 
 
 @pytest.mark.parametrize("kind", ["fifo", "folder"])
@@ -65,17 +87,17 @@ def test_check_output_refuses_inputs_unknown_formats_and_unwritable_places(tmp_p
     config.write_text("N = 3\n")
     with pytest.raises(OutputError, match="--config"):
         check_output(config, "--out", inputs={"--config": config})
-    link = tmp_path / "alias.toml"
-    link.symlink_to(config)
+    alias = tmp_path / "alias"
+    alias.symlink_to(tmp_path, target_is_directory=True)
     with pytest.raises(OutputError, match="--config"):  # the same file under another name
-        check_output(link, "--out", inputs={"--config": config})
+        check_output(alias / "chain.toml", "--out", inputs={"--config": config})
     with pytest.raises(OutputError, match="'.jpeg'"):
         check_output(tmp_path / "fig.jpeg", "--plot", formats=(".png", ".svg"))
     with pytest.raises(OutputError, match="cannot write"):
         check_output("/proc/out.nc")
     assert check_output(tmp_path / "new" / "deeper" / "out.nc") == tmp_path / "new" / "deeper" / "out.nc"
     assert not (tmp_path / "new").exists(), "a check creates nothing"
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["alias.toml", "chain.toml"], "the writability probe leaves nothing"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["alias", "chain.toml"], "the writability probe leaves nothing"
 
 
 def test_a_result_whose_write_fails_after_the_work_is_kept_in_a_fallback(tmp_path, monkeypatch):

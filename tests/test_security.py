@@ -109,14 +109,18 @@ def test_a_link_of_another_user_in_their_own_folder_is_refused(machine):
     assert _untouched(secret)
 
 
-def test_the_callers_own_link_in_a_shared_folder_is_written_through(machine):
+def test_the_callers_own_link_in_a_shared_folder_is_refused_and_its_folder_link_followed(machine):
     root, shared, _ = machine
     target = root / "mine.nc"
     link = shared / "mine.nc"
     link.symlink_to(target)
     result = runner.invoke(app, [*TINY, "--out", str(link)])
+    assert result.exit_code == 2 and "symbolic link to" in result.output, result.output
+    assert link.is_symlink() and not target.exists()
+    (shared / "mine").symlink_to(root, target_is_directory=True)
+    result = runner.invoke(app, [*TINY, "--out", str(shared / "mine" / "run.nc")])
     assert result.exit_code == 0, result.output
-    assert link.is_symlink() and read_dataset(target).sizes["time"] == 3
+    assert read_dataset(root / "run.nc").sizes["time"] == 3
 
 
 def test_the_fallback_never_follows_a_link_planted_at_its_name(machine, monkeypatch):

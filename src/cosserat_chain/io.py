@@ -7,9 +7,9 @@ a text file and :func:`write_figure` a matplotlib figure: each is made in memory
 written by :func:`write_bytes` into a temporary file in the same folder (its space
 reserved first) and renamed onto the target, so that a reader never sees a half-written
 file and a full disk is an OSError, never a crash. Nothing that is not a regular file is
-ever replaced: a folder, a FIFO or a device is refused (:class:`OutputError`); a symbolic
-link is written through only where it and its folder belong to the caller or root; a
-replaced file keeps its mode and owner. One process writes an output at a time: its
+ever replaced: a folder, a FIFO, a device or a symbolic link is refused
+(:class:`OutputError`); links in the folders on the way are followed only where they and
+their folders belong to the caller or root; a replaced file keeps its mode and owner. One process writes an output at a time: its
 advisory lock (:func:`output_lock`) refuses a second. :func:`write_fallback` keeps a
 result that could not be written where asked, under a name no other user can predict.
 :func:`check_output` runs the same checks, and a probe of the folder's writability,
@@ -124,8 +124,12 @@ def _check_link(link: Path, info: os.stat_result, label: str, path: Path) -> Non
 _MAX_LINKS = 40
 
 
-def _resolve(path: Path, label: str) -> Path:
-    """``path`` made absolute with its symbolic links followed, as the kernel does, through trusted links only (:func:`_check_link`)."""
+def _resolve(path: Path, label: str, *, through_last: bool = True) -> Path:
+    """``path`` made absolute with its symbolic links followed, as the kernel does, through trusted links only (:func:`_check_link`).
+
+    With ``through_last`` false a link in the last place (the file itself, not a folder on
+    its way) is refused: writing through it would replace a file the package did not make.
+    """
     parts = list(path.parts) if path.is_absolute() else [*Path.cwd().parts, *path.parts]
     current, rest, followed = Path(parts[0]), parts[1:], 0
     while rest:
@@ -142,6 +146,11 @@ def _resolve(path: Path, label: str) -> Path:
             current = candidate
             continue
         _check_link(candidate, info, label, path)
+        if not rest and not through_last:
+            raise OutputError(
+                f"{label} {str(path)!r} is a symbolic link to {os.readlink(candidate)!r}: refusing to replace the file it "
+                "points to; give that path itself if it is the file meant, or remove the link"
+            )
         followed += 1
         if followed > _MAX_LINKS:
             raise OutputError(f"{label} {str(path)!r}: more than {_MAX_LINKS} symbolic links (a loop of links?)")
@@ -156,7 +165,7 @@ def _target(path: Path, label: str) -> Path:
     """Where a write to ``path`` lands: through trusted symbolic links, and only onto a regular file the caller may replace, or nothing."""
     if str(path) == "":
         raise OutputError(f"{label} is empty: give a file name")
-    target = _resolve(path, label)
+    target = _resolve(path, label, through_last=False)
     try:
         info = os.lstat(target)
     except FileNotFoundError:
@@ -506,15 +515,16 @@ def atomic_path(path: str | Path) -> Iterator[Path]:
     A reader never sees a half-written file, and an interrupted write leaves none
     behind (a killed one is removed by the next write to the same place). The output's
     advisory lock is held while it is written (:func:`output_lock`). A replaced file keeps
-    its mode and owner; a new one gets 0666 less the umask. A symbolic link is written
-    through (its target replaced, the link kept) only where the link and its folder are
-    the caller's or root's. Missing folders are created.
+    its mode and owner; a new one gets 0666 less the umask. A symbolic link at ``path`` is
+    refused (the file it points to is not the package's to replace); links among the
+    folders on the way are followed only where they and their folders are the caller's or
+    root's. Missing folders are created.
 
     Raises
     ------
     OutputError
-        If ``path`` is empty, a folder, or exists and is not a regular file (a FIFO, a device):
-        such a target is never replaced; a link another user controls; another user's file in
+        If ``path`` is empty, a folder, a symbolic link, or exists and is not a regular file (a
+        FIFO, a device): such a target is never replaced; a link another user controls; another user's file in
         a shared folder; an output another process is writing.
     """
     with _replacing(path) as (_, tmp):
