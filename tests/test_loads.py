@@ -53,7 +53,7 @@ def test_loads_on_clamped_or_missing_particles_are_rejected():
     params = ChainParams(N=3)
     with pytest.raises(ValueError, match="particle 3: the right end is clamped"):
         moment_load(1.0, particle=3).validate(params)
-    with pytest.raises(ValueError, match=r"particle must be in -N..N = -3..3, got 7"):
+    with pytest.raises(ValueError, match=r"load 0 \(on phi\): particle must be in -N..N = -3..3, got 7"):
         moment_load(1.0, particle=7).validate(params)
 
 

@@ -210,7 +210,9 @@ class Loads(tuple):
         ValueError
             If a load sits outside the chain or on a degree of freedom an end holds fixed.
         """
-        for load in self:
+        for i, load in enumerate(self):
+            if not -params.N <= load.particle <= params.N:
+                raise ValueError(f"load {i} (on {load.row}): particle must be in -N..N = {-params.N}..{params.N}, got {load.particle!r}")
             col = column(params, load.particle)
             if (ROW_INDEX[load.row], col) in held(params):
                 end = "left" if col == 0 else "right"
