@@ -28,6 +28,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from cosserat_chain.experiments import system_breathers as sb
+from cosserat_chain.numerics.breather_arclength import collision_discriminant
 from cosserat_chain.systems import takeno_peyrard
 
 SITES = 7
@@ -50,31 +51,38 @@ def _hessian(phi: np.ndarray, C: float) -> tuple[np.ndarray, np.ndarray]:
     return diagonal, bond
 
 
+def _collocation(turns: np.ndarray, b: np.ndarray, c: float, omega: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The collocation equations' residual (n, modes), their Jacobian in b (n modes, n modes) and in Omega (n, modes)."""
+    n, modes = b.shape
+    k = np.arange(1, modes + 1)
+    tau = np.arange(1, modes + 1) * math.pi / (modes + 1)
+    S = np.sin(np.outer(tau, k))  # S[j, k]: mode k at node j
+    phi = turns[:, None] * tau[None, :] + b @ S.T
+    force = np.sin(phi)
+    pull = c * np.sin(phi[:-1] - phi[1:])
+    force[:-1] += pull
+    force[1:] -= pull
+    inertia = (b * k**2) @ S.T
+    diagonal, bond = _hessian(phi, c)
+    J = np.zeros((n, modes, n, modes))
+    for i in range(n):
+        J[i, :, i, :] = -(omega**2) * S * k**2 + diagonal[i][:, None] * S
+        if i + 1 < n:
+            J[i, :, i + 1, :] = J[i + 1, :, i, :] = -bond[i][:, None] * S
+    return -(omega**2) * inertia + force, J.reshape(n * modes, n * modes), -2 * omega * inertia
+
+
 def galerkin(turns: np.ndarray, C: float, omega: float, modes: int = MODES, start: np.ndarray | None = None) -> np.ndarray:
     """Sine coefficients b (sites, modes) of the symmetric orbit at coupling C, by Newton on the collocation equations.
 
     Without ``start`` the coupling is raised from 0 in five steps, each solved from the one before.
     """
     n = turns.size
-    k = np.arange(1, modes + 1)
-    tau = np.arange(1, modes + 1) * math.pi / (modes + 1)
-    S = np.sin(np.outer(tau, k))  # S[j, k]: mode k at node j
 
     def solve(c: float, b: np.ndarray) -> np.ndarray:
         for _ in range(30):
-            phi = turns[:, None] * tau[None, :] + b @ S.T
-            force = np.sin(phi)
-            pull = c * np.sin(phi[:-1] - phi[1:])
-            force[:-1] += pull
-            force[1:] -= pull
-            residual = -(omega**2) * ((b * k**2) @ S.T) + force
-            diagonal, bond = _hessian(phi, c)
-            J = np.zeros((n, modes, n, modes))
-            for i in range(n):
-                J[i, :, i, :] = -(omega**2) * S * k**2 + diagonal[i][:, None] * S
-                if i + 1 < n:
-                    J[i, :, i + 1, :] = J[i + 1, :, i, :] = -bond[i][:, None] * S
-            step = np.linalg.solve(J.reshape(n * modes, n * modes), -residual.ravel()).reshape(n, modes)
+            residual, J, _ = _collocation(turns, b, c, omega)
+            step = np.linalg.solve(J, -residual.ravel()).reshape(n, modes)
             b = b + step
             if np.max(np.abs(step)) < 1e-14:
                 return b
@@ -86,6 +94,15 @@ def galerkin(turns: np.ndarray, C: float, omega: float, modes: int = MODES, star
     for c in np.linspace(0.0, C, 6):
         b = solve(c, b)
     return b
+
+
+def energy_slope(b: np.ndarray, turns: np.ndarray, C: float, omega: float) -> float:
+    """dE/dOmega along the family, E = sum phi_n'(0)^2 / 2: db/dOmega from the collocation's Jacobian (no differences)."""
+    _, J, d_omega = _collocation(turns, b, C, omega)
+    db = np.linalg.solve(J, -d_omega.ravel()).reshape(b.shape)
+    k = np.arange(1, b.shape[1] + 1)
+    rate = turns + b @ k  # phi_n'(0) / Omega
+    return float(np.sum(omega * rate * (rate + omega * (db @ k))))
 
 
 def state_at_zero(b: np.ndarray, turns: np.ndarray, omega: float) -> np.ndarray:
@@ -164,29 +181,47 @@ def test_a_counter_rotating_pair_is_the_galerkin_orbit():
     assert np.max(np.abs(orbit.y0 - expected)) < 1e-9
 
 
-def test_the_located_loss_of_stability_is_at_the_galerkin_energy_minimum():
+def test_the_located_loss_of_stability_is_at_the_galerkin_energy_minimum_within_its_reported_accuracy():
     """Going down in Omega the one-site family loses stability by a pair through +1. A Hamiltonian family's pair
-    meets +1 where dE/dOmega = 0 (the energy criterion), here found on the series alone: the energy
-    E = sum phi_n'(0)^2 / 2 (every angle 0 on the section) by central differences (step 1e-5) and Brent's method.
-    The package's located change lies 5e-6 above it: the four multipliers at +1 there are resolved only to the
-    fourth root of the integration error (1e-3), so the bisection's bracket (5e-6 wide) is not its accuracy."""
+    meets +1 where dE/dOmega = 0 (the energy criterion), here found on the series alone: E = sum phi_n'(0)^2 / 2
+    (every angle 0 on the section), its slope from the collocation's Jacobian (db/dOmega, no differences), zeroed
+    by Brent's method; the independent monodromy's collision discriminant vanishes there too (its zero 3e-12 away).
+
+    The package's bisection on the multipliers' moduli is off by 5.4e-6 (the four multipliers at +1 resolved to
+    the fourth root of the monodromy's error): within its reported moduli_accuracy (4 delta^(1/2) / |D'|, 1.8e-5)
+    and not absurdly inside it (a factor 10). The zero of the discriminant is within 1e-12 of the series' value,
+    inside its reported bracket (3e-9); the same zero from the shooting's own orbits and monodromies (at their
+    rtol), 3.4e-10 off, is what that accuracy measures: it holds it, within a factor 20."""
     turns = _rotor_turns({3: 1})
     top = galerkin(turns, COUPLING, 1.3)
 
-    def energy(omega: float) -> float:
+    def coefficients(omega: float) -> np.ndarray:
         b = top
         for w in np.linspace(1.3, omega, 5)[1:]:
             b = galerkin(turns, COUPLING, w, start=b)
-        return 0.5 * float(np.sum(state_at_zero(b, turns, omega)[SITES:] ** 2))
+        return b
 
-    def slope(omega: float, h: float = 1e-5) -> float:
-        return (energy(omega + h) - energy(omega - h)) / (2 * h)
-
-    minimum = brentq(slope, 1.12, 1.17, xtol=1e-12)
+    minimum = brentq(lambda w: energy_slope(coefficients(w), turns, COUPLING, w), 1.12, 1.17, xtol=1e-15)
     assert math.sqrt(1 + 4 * COUPLING) < minimum  # above the band's top, as the existing family test has it
+    # The series is converged in its modes at the minimum, and its own monodromy's pair meets +1 there.
+    assert brentq(lambda w: energy_slope(coefficients(w)[:, :24], turns, COUPLING, w), 1.12, 1.17, xtol=1e-15) == pytest.approx(
+        minimum, abs=1e-13
+    )
+    side = [
+        collision_discriminant(np.linalg.eigvals(monodromy(coefficients(w), turns, COUPLING, w)), "+1")
+        for w in (minimum - 1e-9, minimum + 1e-9)
+    ]
+    assert side[0] > 0 > side[1]
 
     family = sb.roto_breather_family(takeno_peyrard(SITES, C=COUPLING), 1.3, rotor=3, to=1.1)
     (change,) = family.changes
-    assert change.kind == "+1"
-    assert abs(change.omega - minimum) < 2e-5
+    assert change.kind == "+1" and change.method == "discriminant"
     assert change.unstable_omega < change.stable_omega
+    low, high = change.bracket
+    assert low <= minimum <= high
+    assert abs(change.omega - minimum) < 1e-11
+    assert abs(change.shooting_omega - minimum) <= change.accuracy <= 20 * abs(change.shooting_omega - minimum)
+    assert abs(change.moduli_omega - minimum) <= change.moduli_accuracy <= 10 * abs(change.moduli_omega - minimum)
+    # The reported numbers reach the JSON.
+    summary = change.as_dict()
+    assert summary["bracket"] == [low, high] and summary["accuracy"] == change.accuracy and summary["method"] == "discriminant"

@@ -228,7 +228,8 @@ def breathers_on_system(
     for change in family.changes:
         r = change.resonance
         typer.echo(
-            f"stability {'lost' if change.unstable_omega < change.stable_omega else 'regained'} going down at Omega = {change.omega:.8g} "
+            f"stability {'lost' if change.unstable_omega < change.stable_omega else 'regained'} going down at Omega = {change.omega:.12g} "
+            f"{'(accuracy unknown: ' + change.method + ')' if change.accuracy is None else f'+- {change.accuracy:.2g}'} "
             f"(a multiplier leaves the circle at {change.kind}); nearest resonance: {r.harmonic:g} x Omega = {r.edge_frequency:.6g} "
             f"(band {r.band} {r.edge}) at Omega = {r.omega:.6g}"
         )

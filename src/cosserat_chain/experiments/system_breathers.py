@@ -39,6 +39,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import CosseratChainError
+from ..numerics.breather_arclength import CLUSTER_SIZE, collision_discriminant
 from ..numerics.kit import EvaluationFailed
 from ..numerics.shooting import PERIOD, Orbit, OrbitNotFound, continue_orbits, find_orbit, flow
 from ..systems.base import System
@@ -60,6 +61,15 @@ COUPLING_STEPS = 8
 COUPLING_HALVINGS = 10
 #: Bisections in the period that locate a change of stability between two members of a family.
 BISECTIONS = 12
+#: rtol and atol of the second monodromy that measures the shooting's and locates a collision's discriminant.
+TIGHT_RTOL = 1e-13
+#: Newton's closure there.
+TIGHT_CLOSURE = 1e-12
+#: Secant iterations on the discriminant, the most widenings of its first bracket, and the secant's end: a
+#: discriminant below this fraction of its own measured error.
+SECANT_ITERATIONS = 12
+WIDENINGS = 8
+RESOLVED = 0.01
 
 
 class BreatherError(CosseratChainError, ValueError):
@@ -332,13 +342,29 @@ def orbit_energy(orbit: Orbit) -> float | None:
 
 @dataclass(frozen=True)
 class StabilityChange:
-    """Where a family loses (or regains) stability, located by bisection in the period.
+    """Where a family loses (or regains) stability, and how well that is known.
 
-    ``omega`` lies between ``stable_omega`` and ``unstable_omega`` (bracketing members after the
-    bisections); ``multiplier`` is the unstable side's largest one; ``kind`` is ``+1`` (a real
-    multiplier > 1: a collision at +1), ``-1`` (real < -1: at -1) or ``complex`` (a Krein
-    collision off the real axis); ``resonance`` the nearest resonance of that kind, ``nearest``
-    the nearest of any.
+    ``stable_omega`` and ``unstable_omega`` are the members that bracket the change after
+    :data:`BISECTIONS` bisections in the period on the multipliers' moduli (``moduli_omega`` their
+    middle). That bracket is not the accuracy: at the collision m multipliers meet (four at +1),
+    and the monodromy's error delta moves each of them by delta^(1/m), so the moduli say
+    stable or unstable wrongly within ``moduli_accuracy`` = 4 delta^(2/m) / |dD/dOmega| of the
+    collision (D the discriminant below; the pair's split is sqrt(D) / 2 there). ``omega`` is
+    instead the zero of the colliding pair's discriminant D
+    (:func:`~cosserat_chain.numerics.breather_arclength.collision_discriminant`), smooth in Omega
+    and resolved to O(delta), found by the Illinois secant method in the period, each orbit found
+    again and its monodromy integrated at :data:`TIGHT_RTOL`. ``shooting_omega`` is the zero that
+    the shooting's own orbits and monodromies (at its rtol) give, and ``accuracy`` =
+    |D - D_tight| / |dD/dOmega|, the largest over the secant's points, is its error measured
+    against the tight ones: a bound for ``omega``, whose error is smaller by about the ratio of
+    the tolerances, so [omega - accuracy, omega + accuracy] (``bracket``) holds the change;
+    ``monodromy_error`` is delta = max |M - M_tight| there (the orbit's own error included). Where the discriminant cannot be followed (its cluster not
+    resolved, no sign change found), ``method`` is ``moduli`` and ``omega`` the bisection's
+    middle, its accuracy ``moduli_accuracy`` if a slope was measured (None if not).
+
+    ``multiplier`` is the unstable side's largest one; ``kind`` is ``+1`` (a real multiplier
+    > 1: a collision at +1), ``-1`` (real < -1: at -1) or ``complex`` (a Krein collision off the
+    real axis); ``resonance`` the nearest resonance of that kind, ``nearest`` the nearest of any.
     """
 
     omega: float
@@ -348,12 +374,32 @@ class StabilityChange:
     kind: str
     resonance: Resonance
     nearest: Resonance
+    accuracy: float | None = None
+    method: str = "moduli"
+    moduli_omega: float = math.nan
+    moduli_accuracy: float | None = None
+    monodromy_error: float | None = None
+    slope: float | None = None
+    shooting_omega: float = math.nan
+
+    @property
+    def bracket(self) -> tuple[float, float] | None:
+        """[omega - accuracy, omega + accuracy], or None without an accuracy."""
+        return None if self.accuracy is None else (self.omega - self.accuracy, self.omega + self.accuracy)
 
     def as_dict(self) -> dict:
         return {
             "omega": self.omega,
+            "accuracy": self.accuracy,
+            "bracket": None if self.bracket is None else list(self.bracket),
+            "method": self.method,
             "stable_omega": self.stable_omega,
             "unstable_omega": self.unstable_omega,
+            "moduli_omega": self.moduli_omega,
+            "moduli_accuracy": self.moduli_accuracy,
+            "monodromy_error": self.monodromy_error,
+            "shooting_omega": self.shooting_omega,
+            "discriminant_slope": self.slope,
             "multiplier": [self.multiplier.real, self.multiplier.imag],
             "kind": self.kind,
             "resonance": self.resonance.as_dict(),
@@ -707,8 +753,104 @@ def _classify(orbit: Orbit) -> tuple[complex, str]:
     return top, "+1" if angle < math.pi / 3 else "-1" if angle > 2 * math.pi / 3 else "complex"
 
 
+@dataclass
+class _Sample:
+    """An orbit with its collision discriminant: from the monodromy at :data:`TIGHT_RTOL`, its difference
+    from the shooting's own monodromy's, and max |M - M_tight|."""
+
+    omega: float
+    orbit: Orbit
+    value: float
+    loose: float
+    delta: float
+
+    @property
+    def error(self) -> float:
+        return abs(self.loose - self.value)
+
+
+def _sample(orbit: Orbit, omega: float, kind: str, centre: complex | None) -> _Sample | None:
+    """The discriminant at ``orbit`` (found at the shooting's rtol) and at the same orbit found again, and its
+    monodromy integrated, at :data:`TIGHT_RTOL`: the error of the first includes the orbit's own."""
+    try:
+        tight = find_orbit(orbit.system, orbit, unfold=orbit.unfold, tol=TIGHT_CLOSURE, rtol=TIGHT_RTOL, atol=TIGHT_RTOL)
+    except OrbitNotFound:
+        return None
+    loose = collision_discriminant(orbit.multipliers, kind, centre)
+    sharp = collision_discriminant(tight.multipliers, kind, centre)
+    if loose is None or sharp is None:
+        return None
+    return _Sample(omega, tight, sharp, loose, float(np.max(np.abs(orbit.monodromy - tight.monodromy))))
+
+
+def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None, solve: Callable[[float, np.ndarray], Orbit], k: int):
+    """The zero of the collision discriminant in Omega near the members ``stable`` and ``unstable``.
+
+    Returns (omega, samples, slope) or None where a discriminant is unresolved or no sign change is found.
+    ``solve(omega, guess)`` is the orbit at that frequency.
+    """
+    samples = []
+
+    def at(omega: float) -> _Sample | None:
+        near = sorted(samples, key=lambda x: abs(x.omega - omega))[:2]
+        a, b = near
+        s = (omega - a.omega) / (b.omega - a.omega)
+        try:
+            found = _sample(solve(omega, a.orbit.y0 + s * (b.orbit.y0 - a.orbit.y0)), omega, kind, centre)
+        except OrbitNotFound:
+            return None
+        if found is not None:
+            samples.append(found)
+        return found
+
+    for orbit in (stable, unstable):
+        found = _sample(orbit, 2 * math.pi * k / orbit.period, kind, centre)
+        if found is None:
+            return None
+        samples.append(found)
+    lo, hi = samples
+    for _ in range(WIDENINGS):
+        if lo.value * hi.value <= 0:
+            break
+        # Both on one side: past the secant's zero by as far again, away from the nearer sample.
+        root = hi.omega - hi.value * (hi.omega - lo.omega) / (hi.value - lo.value)
+        nearer = lo if abs(lo.omega - root) < abs(hi.omega - root) else hi
+        beyond = at(root + (root - nearer.omega))
+        if beyond is None:
+            return None
+        lo, hi = nearer, beyond
+    else:
+        return None
+    f_lo, f_hi, side = lo.value, hi.value, 0
+    omega = lo.omega if lo.value == 0 else hi.omega
+    for _ in range(SECANT_ITERATIONS):
+        if f_hi == f_lo:
+            break
+        omega = hi.omega - f_hi * (hi.omega - lo.omega) / (f_hi - f_lo)
+        if not min(lo.omega, hi.omega) < omega < max(lo.omega, hi.omega):
+            omega = 0.5 * (lo.omega + hi.omega)
+        middle = at(omega)
+        if middle is None or abs(middle.value) <= RESOLVED * middle.error:
+            break
+        if middle.value * lo.value > 0:
+            lo, f_lo = middle, middle.value
+            if side == 1:
+                f_hi *= 0.5
+            side = 1
+        else:
+            hi, f_hi = middle, middle.value
+            if side == -1:
+                f_lo *= 0.5
+            side = -1
+    slope = (hi.value - lo.value) / (hi.omega - lo.omega) if hi.omega != lo.omega else math.nan
+    if not (math.isfinite(slope) and slope != 0):
+        return None
+    return omega, samples, slope
+
+
 def _locate(a: Orbit, b: Orbit, target: System, turns, unfold: str, bands, k: int) -> StabilityChange:
-    """Bisect in the period between members ``a`` and ``b`` of opposite stability."""
+    """Bisect in the period between members ``a`` and ``b`` of opposite stability on the moduli, then
+    find the zero of the collision's discriminant (:class:`StabilityChange`)."""
     stable, unstable = (a, b) if a.stable else (b, a)
     for _ in range(BISECTIONS):
         period = 0.5 * (stable.period + unstable.period)
@@ -722,7 +864,24 @@ def _locate(a: Orbit, b: Orbit, target: System, turns, unfold: str, bands, k: in
             unstable = middle
     multiplier, kind = _classify(b if a.stable else a)
     omega_s, omega_u = 2 * math.pi * k / stable.period, 2 * math.pi * k / unstable.period
-    omega = 0.5 * (omega_s + omega_u)
+    moduli_omega = 0.5 * (omega_s + omega_u)
+    centre = complex(np.exp(1j * abs(np.angle(multiplier)))) if kind == "complex" else None
+    if kind == "complex" and multiplier.imag < 0:
+        multiplier = multiplier.conjugate()
+    found = _collision(stable, unstable, kind, centre, lambda omega, guess: _at(target, turns, unfold, guess, 2 * math.pi * k / omega), k)
+    size = CLUSTER_SIZE[kind]
+    if found is None:
+        omega, accuracy, method, delta, slope, moduli_accuracy = moduli_omega, None, "moduli", None, None, None
+        shooting_omega = math.nan
+    else:
+        omega, samples, slope = found
+        delta = max(x.delta for x in samples)
+        nearest = min(samples, key=lambda x: abs(x.omega - omega))
+        shooting_omega = nearest.omega - nearest.loose / slope
+        accuracy = max(x.error for x in samples) / abs(slope)
+        method = "discriminant"
+        # The moduli hide the pair's split sqrt(D) / 2 below the cluster's resolution delta^(1 / m).
+        moduli_accuracy = max(4 * delta ** (2 / size) / abs(slope), 0.5 * abs(omega_s - omega_u))
     sign = {"+1": 1, "-1": -1}.get(kind)
     return StabilityChange(
         omega=omega,
@@ -732,6 +891,13 @@ def _locate(a: Orbit, b: Orbit, target: System, turns, unfold: str, bands, k: in
         kind=kind,
         resonance=nearest_resonance(bands, omega, multiplier=sign),
         nearest=nearest_resonance(bands, omega),
+        accuracy=accuracy,
+        method=method,
+        moduli_omega=moduli_omega,
+        moduli_accuracy=moduli_accuracy,
+        monodromy_error=delta,
+        slope=slope,
+        shooting_omega=shooting_omega,
     )
 
 

@@ -274,6 +274,60 @@ def pair_test(orbit) -> float:
     return float(np.sign(np.prod(mu - 1.0).real))
 
 
+#: A cluster of multipliers is resolved when its farthest member from the cluster's centre is nearer
+#: it than this fraction of the next multiplier's distance.
+CLUSTER_GAP = 0.5
+#: Multipliers in the cluster at a collision of each kind: at +1 the colliding pair and the Hamiltonian pair.
+CLUSTER_SIZE = {"+1": 4, "-1": 2, "complex": 2}
+
+
+def collision_discriminant(multipliers: np.ndarray, kind: str, centre: complex | None = None) -> float | None:
+    """The discriminant of the colliding pair's characteristic polynomial: < 0 on the unit circle, > 0 off it.
+
+    A smooth test of a collision of multipliers, where their moduli are not: at the collision
+    m multipliers meet (m = :data:`CLUSTER_SIZE`), and an error delta of the monodromy moves
+    each of them by delta^(1/m) (four at +1: the pair passing through and the Hamiltonian pair,
+    a Jordan block), while the cluster's symmetric functions (its sum, its product) move by
+    O(delta) only (they are analytic in the matrix, as the trace is). So:
+
+    * ``+1``: the four multipliers nearest +1; s = their sum - 2 is mu + 1 / mu of the pair
+      passing through (the Hamiltonian pair adds exactly 2), and D = s^2 - 4 (s = 2 cos theta
+      on the circle, s = mu + 1 / mu > 2 for a real pair);
+    * ``-1``: the two nearest -1, s their sum, D = s^2 - 4;
+    * ``complex`` (a Krein collision at ``centre`` on the circle): the two nearest ``centre``,
+      D = Re (mu_1 - mu_2)^2 / (mu_1 mu_2): -4 sin^2((theta_1 - theta_2) / 2) on the circle,
+      (r - 1 / r)^2 for the quartet's r e^(i theta), e^(i theta) / r.
+
+    Returns
+    -------
+    float or None
+        D, or None where the cluster is not resolved (its farthest member is not nearer its centre than
+        :data:`CLUSTER_GAP` times the next multiplier).
+
+    Raises
+    ------
+    ValueError
+        For an unknown kind, or ``complex`` without a centre.
+    """
+    if kind not in CLUSTER_SIZE:
+        raise ValueError(f"kind must be one of {', '.join(CLUSTER_SIZE)}, got {kind!r}")
+    if kind == "complex" and centre is None:
+        raise ValueError("a complex collision needs its centre on the unit circle")
+    mu = np.asarray(multipliers, dtype=complex)
+    size = CLUSTER_SIZE[kind]
+    where = {"+1": 1.0, "-1": -1.0}.get(kind, centre)
+    distance = np.abs(mu - where)
+    order = np.argsort(distance)
+    if mu.size <= size or distance[order[size - 1]] >= CLUSTER_GAP * distance[order[size]]:
+        return None
+    cluster = mu[order[:size]]
+    if kind == "complex":
+        a, b = cluster
+        return float(((a - b) ** 2 / (a * b)).real)
+    s = float(np.sum(cluster).real) - (2.0 if kind == "+1" else 0.0)
+    return s * s - 4.0
+
+
 #: Bisections of :func:`relocate_branch_point`, and Newton's options there (the bordered Jacobian is nearly singular).
 BISECTIONS = 24
 NEAR_SINGULAR = {"damping": 6, "max_iterations": 30}
