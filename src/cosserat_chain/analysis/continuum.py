@@ -36,11 +36,12 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse.linalg as spla
 
-from ..linalg import refined_solve, upper_bands
+from ..linalg import RootFactor, upper_bands
 from ..memory import require
-from ..models.linear import rest_solve, stiffness_matrix
+from ..models.linear import n_free, rest_solve, stiffness_matrix, stiffness_root
 from ..params import ChainParams
 from ..state import pack, require_clamped, unpack
+from .beam import clamped_central_compliance
 
 
 @dataclass(frozen=True)
@@ -378,7 +379,7 @@ def discrete_static(params: ChainParams, moment: float = 1.0) -> np.ndarray:
     return unpack(params, rest_solve(params, pack(params, load)))
 
 
-#: A discrete compliance whose two factorisations differ by more than this is flagged inaccurate.
+#: A discrete compliance off the chain's closed form by more than this (relative) is flagged inaccurate.
 ACCURATE = 1e-6
 #: Inverse-iteration steps for K's smallest eigenvalue (the next one is several times larger).
 CONDITION_ITERATIONS = 8
@@ -399,14 +400,14 @@ class ConvergenceTable:
         |continuum - discrete| / |discrete|.
     residue : ndarray, shape (n,)
         Residue (12) per unit moment.
-    discrete_spread : ndarray, shape (n,)
-        Relative difference of phi_0 / M between two independent factorisations of K
-        (SuperLU and LAPACK's banded Cholesky), each refined with residuals in extended
-        precision: an estimate of the discrete value's own error. It grows with K's
-        condition number (about N^4: the clamped chain's softest mode); beyond
-        :data:`ACCURATE` the discrete value, and the relative error, are not to be trusted
-        (the paper's chain, refined: 2e-12 at N = 1000, 1e-9 at N = 10^4; the two
-        unrefined solves differed by 1.5e-7 and 4e-3).
+    discrete_error : ndarray, shape (n,)
+        Relative difference of ``discrete`` from the chain's phi_0 / M in closed form, the
+        clamped Timoshenko beam with the nodal shear compliance
+        (:func:`~cosserat_chain.analysis.beam.clamped_central_compliance`, equal to the chain
+        in exact arithmetic): the discrete solve's own error. Beyond :data:`ACCURATE` the
+        discrete value, and the relative error, are not to be trusted. A factorisation of K
+        would not do as the check: K's softest eigenvalue falls like N^-4, and its factor
+        loses that mode where the root solve keeps it.
     condition : ndarray, shape (n,)
         Condition number of K: its Gershgorin bound over its smallest eigenvalue (inverse
         iteration), within a factor of about two of the 2-norm one.
@@ -417,7 +418,7 @@ class ConvergenceTable:
     discrete: np.ndarray
     relative_error: np.ndarray
     residue: np.ndarray
-    discrete_spread: np.ndarray
+    discrete_error: np.ndarray
     condition: np.ndarray
 
     @property
@@ -434,8 +435,8 @@ class ConvergenceTable:
 
     @property
     def accurate(self) -> np.ndarray:
-        """Rows whose discrete value is accurate to ACCURATE (see ``discrete_spread``)."""
-        return self.discrete_spread <= ACCURATE
+        """Rows whose discrete value is accurate to ACCURATE (see ``discrete_error``)."""
+        return self.discrete_error <= ACCURATE
 
     def order(self) -> float:
         """Observed order p of relative_error ~ N^-p, from a least-squares fit on log-log axes over the accurate rows.
@@ -459,7 +460,7 @@ class ConvergenceTable:
             "relative_error": self.relative_error.tolist(),
             "signed_error": self.signed_error.tolist(),
             "residue": self.residue.tolist(),
-            "discrete_spread": self.discrete_spread.tolist(),
+            "discrete_error": self.discrete_error.tolist(),
             "condition": self.condition.tolist(),
             "accurate": self.accurate.tolist(),
         }
@@ -482,7 +483,8 @@ def convergence(params: ChainParams, n_values: list[int] | np.ndarray) -> Conver
     Raises
     ------
     ValueError
-        For an empty list or an N below 1 (naming it).
+        For an empty list or an N below 1 (naming it), or a chain its closed form does not
+        describe (graded, or E2 = 0).
     """
     n_values = [int(n) for n in n_values]
     if not n_values:
@@ -490,43 +492,39 @@ def convergence(params: ChainParams, n_values: list[int] | np.ndarray) -> Conver
     chains = [params.replace(N=n) for n in n_values]
     largest = max(n_values)
     # Measured: about 1.1 kB per degree of freedom at its peak (the sparse K, its LU
-    # factor and the banded Cholesky of the second check), at N = 10^5 and 4 10^5.
+    # factor and the square root of the condition estimate), at N = 10^5 and 4 10^5.
     require(
         BYTES_PER_DOF * 3 * (2 * largest + 1),
         f"the discrete chain of N = {largest} ({3 * (2 * largest + 1)} degrees of freedom, about {BYTES_PER_DOF} bytes each)",
         "compare shorter chains",
     )
     continuum = np.array([central_rotation(p) for p in chains])
+    exact = np.array([clamped_central_compliance(p, nodal=True) for p in chains])
     discrete = np.array([discrete_static(p)[2, p.N] for p in chains])
-    checks = np.array([_discrete_check(p) for p in chains]).reshape(len(chains), 2)
     return ConvergenceTable(
         N=np.array(n_values),
         continuum=continuum,
         discrete=discrete,
         relative_error=np.abs(continuum - discrete) / np.abs(discrete),
         residue=np.array([residue(p) for p in chains]),
-        discrete_spread=np.abs(checks[:, 0] - discrete) / np.abs(discrete),
-        condition=checks[:, 1],
+        discrete_error=np.abs(exact - discrete) / np.abs(discrete),
+        condition=np.array([_condition(p) for p in chains]),
     )
 
 
-def _discrete_check(params: ChainParams) -> tuple[float, float]:
-    """phi_0 / M from LAPACK's banded Cholesky (independent of SuperLU), refined as :func:`discrete_static`, and K's condition number."""
-    stiffness = stiffness_matrix(params)
-    bands = upper_bands(stiffness)
-    load = np.zeros((3, params.n_particles))
-    load[2, params.N] = 1.0
-    factor = la.cholesky_banded(bands)
-    solution = unpack(params, refined_solve(stiffness, pack(params, load), lambda r: la.cho_solve_banded((factor, False), r)).x)
-    # The smallest eigenvalue by inverse iteration with the factor (O(N) a step; LAPACK's
-    # banded eigensolver is O(N^2): benchmarks/TIMINGS.md), the largest bounded by Gershgorin.
-    vector = np.random.default_rng(0).standard_normal(bands.shape[1])
+def _condition(params: ChainParams) -> float:
+    """K's condition number: its Gershgorin bound over its smallest eigenvalue."""
+    # The smallest eigenvalue by inverse iteration with K's square root (O(N) a step; LAPACK's
+    # banded eigensolver is O(N^2): benchmarks/TIMINGS.md; a factor of K's rounded entries
+    # loses the softest mode from N of about 10^4 on), the largest bounded by Gershgorin.
+    factor = RootFactor(*stiffness_root(params), n_free(params))
+    vector = np.random.default_rng(0).standard_normal(n_free(params))
     lowest = math.inf
     for _ in range(CONDITION_ITERATIONS):
-        vector = la.cho_solve_banded((factor, False), vector / np.linalg.norm(vector))
+        vector = factor.solve(vector / np.linalg.norm(vector))
         lowest = 1.0 / np.linalg.norm(vector)
-    highest = float(abs(stiffness).sum(axis=1).max())
-    return float(solution[2, params.N]), highest / lowest
+    highest = float(abs(stiffness_matrix(params)).sum(axis=1).max())
+    return highest / lowest
 
 
 @dataclass(frozen=True)

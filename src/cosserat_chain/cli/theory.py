@@ -193,10 +193,11 @@ def _print_paper(table, order: float | None) -> None:
         typer.echo(f"{n:>8d}  {c:>17.8g}  {d:>16.8g}  {e:>+11.3e}  {r:>12.3e}" + ("" if ok else "  (inaccurate)"))
     if np.any(np.diff(np.sign(table.signed_error[table.N > 1])) != 0):
         typer.echo("the continuum's error changes sign along this list: its 1/N fall holds only past the last change")
-    for n, spread, condition in zip(table.N[~table.accurate], table.discrete_spread[~table.accurate], table.condition[~table.accurate]):
+    for n, error, condition in zip(table.N[~table.accurate], table.discrete_error[~table.accurate], table.condition[~table.accurate]):
         typer.echo(
-            f"N = {n}: the discrete value is inaccurate: two factorisations of K, each refined in extended precision, differ by {spread:.1e} (relative; "
-            f"K's condition number {condition:.1e}, about N^4: the clamped chain's softest mode), so its error is not the continuum's"
+            f"N = {n}: the discrete value is inaccurate: it is {error:.1e} (relative) off the chain's closed form, the clamped Timoshenko "
+            f"beam with the nodal shear compliance (K's condition number {condition:.1e}, about N^4: the clamped chain's softest mode), "
+            "so its error is not the continuum's"
         )
     if order is not None:
         typer.echo(f"observed order of the relative error: N^-{order:.3f}")
