@@ -34,7 +34,8 @@ import numpy as np
 from ..linalg.threads import one_blas_thread
 from ..loads import moment_load
 from ..models.base import Model, get_model
-from ..numerics.collocation import continue_periodic_orbit
+from ..numerics.collocation import CollocationOrbit, continue_periodic_orbit, find_collocation_orbit
+from ..numerics.collocation_core import CollocationError
 from ..numerics.continuation import locate_fold
 from ..numerics.periodic import END_MOMENT_MIN, OrbitBranch, OrbitError, PeriodicOrbit, continue_orbit, find_periodic_orbit, initial_guess
 from ..params import ChainParams
@@ -77,6 +78,9 @@ class OrbitResult:
         and where the orbit lost stability on the way down, if it did); the CLI adds the ``file`` read.
     approach : OrbitBranch or None
         With ``from_above``: the continuation from the larger moment down to this one.
+    collocation : CollocationOrbit or None
+        With ``method="collocation"``: the collocation solve ``orbit`` was read from, where a
+        continuation (``down_to``, :meth:`continued`) starts, so that the orbit is solved once.
     """
 
     orbit: PeriodicOrbit
@@ -85,6 +89,7 @@ class OrbitResult:
     settings: dict = field(default_factory=dict)
     start: dict = field(default_factory=lambda: {"method": "rest"})
     approach: OrbitBranch | None = None
+    collocation: CollocationOrbit | None = field(default=None, repr=False)
 
     def as_dict(self) -> dict:
         """JSON-ready summary: the orbit, how it was reached, M_c and, with a continuation, where the orbit ends. Moments in the parameters' units; ``moment_scale`` = E1 h^2 divides them into the paper's dimensionless moment (Fig. 2)."""
@@ -118,7 +123,7 @@ class OrbitResult:
         moment = self.orbit.moment
         if not (math.isfinite(down_to) and 0 <= down_to / moment < 1):
             raise ValueError(f"down_to must lie between 0 and the moment {moment!r} (same sign, smaller), got {down_to!r}")
-        branch = _continued(self.orbit, self.settings, abs(down_to), period_max, progress)
+        branch = _continued(self.collocation or self.orbit, self.settings, abs(down_to), period_max, progress)
         settings = {**self.settings, "down_to": down_to, "period_max": period_max}
         return replace(self, branch=branch, settings=settings)
 
@@ -239,28 +244,52 @@ def periodic_orbit(
         raise ValueError(f"give at most one start of the orbit (guess, start or from_above), got {' and '.join(given)}")
     approach = None
     if from_above is not None:
-        orbit, approach = _from_above(params, model, moment, from_above, turns, particle, period_max, progress, options)
+        solved, approach = _from_above(params, model, moment, from_above, turns, particle, period_max, progress, options)
         how = {"method": "from_above", "from_moment": float(from_above), "approach_points": len(approach.orbits)}
         lost = approach.stability_lost_at
         how["stability_lost_at"] = None if lost is None else float(lost)
     elif start is not None:
         x, v, period = initial_guess(params, model, moment, turns=turns, particle=particle, x0=start[0], v0=start[1])
-        orbit = find_periodic_orbit(params, model, moment, turns=turns, particle=particle, guess=(x, v, period), **options)
+        solved = _solve(params, model, moment, turns, particle, (x, v, period), options)
         how = {"method": "state"}
     else:
-        orbit = find_periodic_orbit(params, model, moment, turns=turns, particle=particle, guess=guess, **options)
+        solved = _solve(params, model, moment, turns, particle, guess, options)
         how = {"method": "rest" if guess is None else "guess"}
     branch = None
     if down_to is not None:
-        branch = _continued(orbit, options, abs(down_to), period_max, progress)
+        branch = _continued(solved, options, abs(down_to), period_max, progress)
     settings = {"turns": turns, "down_to": down_to, "period_max": period_max, "from_above": from_above, **options}
     return OrbitResult(
-        orbit=orbit, branch=branch, static_fold=_static_fold(params, model, particle), settings=settings, start=how, approach=approach
-    )
+        orbit=_orbit_of(solved), branch=branch, static_fold=_static_fold(params, model, particle), settings=settings, start=how,
+        approach=approach, collocation=solved if isinstance(solved, CollocationOrbit) else None,
+    )  # fmt: skip
 
 
-def _continued(orbit: PeriodicOrbit, options: dict, moment_min: float, period_max: float, progress) -> OrbitBranch:
-    """The orbit continued down to ``moment_min``: by collocation where ``options`` ask for it (``method``), else by
+def _solve(params, model: Model, moment: float, turns: int, particle: int, guess, options: dict) -> PeriodicOrbit | CollocationOrbit:
+    """The orbit at ``moment``: by :func:`~cosserat_chain.numerics.collocation.find_collocation_orbit` where ``options``
+    ask for collocation (``method``; its profile is where a continuation starts, :func:`_continued`), else by
+    :func:`~cosserat_chain.numerics.periodic.find_periodic_orbit` with the options."""
+    if options.get("method") != "collocation":
+        return find_periodic_orbit(params, model, moment, turns=turns, particle=particle, guess=guess, **options)
+    if "segments" in options:
+        raise ValueError(
+            f"segments applies to the dense and blocks shooting only, got method='collocation' and segments={options['segments']!r} "
+            "(collocation takes its multipliers from its intervals' product already)"
+        )
+    keep = {k: v for k, v in options.items() if k == "max_iter"}
+    try:
+        return find_collocation_orbit(params, model, moment, turns=turns, particle=particle, guess=guess, **keep)
+    except CollocationError as err:
+        raise OrbitError(str(err)) from err
+
+
+def _orbit_of(solved: PeriodicOrbit | CollocationOrbit) -> PeriodicOrbit:
+    """The :class:`~cosserat_chain.numerics.periodic.PeriodicOrbit` of what :func:`_solve` returned."""
+    return solved.periodic_orbit() if isinstance(solved, CollocationOrbit) else solved
+
+
+def _continued(orbit: PeriodicOrbit | CollocationOrbit, options: dict, moment_min: float, period_max: float, progress) -> OrbitBranch:
+    """The orbit (as :func:`_solve` returned it) continued down to ``moment_min``: by collocation where ``options`` ask for it (``method``), else by
     :func:`~cosserat_chain.numerics.periodic.continue_orbit` with the options' tolerances and shooting (``dense`` or
     ``blocks``; a ``krylov`` orbit's branch by ``auto``: a continuation needs the monodromy)."""
     method = options.get("method", "auto")
@@ -272,10 +301,10 @@ def _continued(orbit: PeriodicOrbit, options: dict, moment_min: float, period_ma
 
 
 def _from_above(params, model: Model, moment: float, above: float, turns: int, particle: int, period_max: float, progress, options):
-    """(the orbit at ``moment``, the branch that led there) for :func:`periodic_orbit`'s ``from_above``."""
+    """(the orbit at ``moment`` as :func:`_solve` returns it, the branch that led there) for :func:`periodic_orbit`'s ``from_above``."""
     if not (math.isfinite(above) and above / moment > 1):
         raise ValueError(f"from_above must be a finite moment beyond {moment!r} (same sign, larger in size), got {above!r}")
-    first = find_periodic_orbit(params, model, above, turns=turns, particle=particle, **options)
+    first = _solve(params, model, above, turns, particle, None, options)
     approach = _continued(first, options, abs(moment), period_max, progress)
     if approach.end != END_MOMENT_MIN:
         raise OrbitError(
@@ -285,7 +314,7 @@ def _from_above(params, model: Model, moment: float, above: float, turns: int, p
         )
     # The continuation stops at its first orbit past |moment|: Newton at the moment from the nearest one.
     nearest = min(approach.orbits, key=lambda o: abs(o.moment - moment))
-    return find_periodic_orbit(params, model, moment, turns=turns, particle=particle, guess=nearest, **options), approach
+    return _solve(params, model, moment, turns, particle, nearest, options), approach
 
 
 @dataclass

@@ -407,7 +407,7 @@ class CollocationBranch:
 
 @one_blas_thread
 def continue_periodic_orbit(
-    orbit: periodic.PeriodicOrbit,
+    orbit: periodic.PeriodicOrbit | CollocationOrbit,
     *,
     moment_min: float = 0.0,
     period_max: float = PERIOD_MAX,
@@ -416,7 +416,8 @@ def continue_periodic_orbit(
 ) -> periodic.OrbitBranch:
     """:func:`~cosserat_chain.numerics.periodic.continue_orbit` by collocation: the orbit followed towards smaller |M|.
 
-    The orbit is solved again by collocation (:func:`find_collocation_orbit`, from it), followed by
+    The orbit is solved again by collocation (:func:`find_collocation_orbit`, from it; a
+    :class:`CollocationOrbit` is taken as it is), followed by
     :func:`continue_collocation` down to |M| = ``moment_min`` or a period beyond ``period_max``, and
     returned as :meth:`CollocationBranch.orbit_branch`. Its cost does not grow with the period,
     where the shooting's does (docs/collocation.md), so a branch towards a homoclinic or SNIC end
@@ -431,7 +432,9 @@ def continue_periodic_orbit(
     """
     if not (math.isfinite(moment_min) and 0.0 <= moment_min < abs(orbit.moment)):
         raise ValueError(f"moment_min must lie between 0 and |M| = {abs(orbit.moment)!r}, got {moment_min!r}")
-    start = find_collocation_orbit(orbit.params, orbit.model, orbit.moment, turns=orbit.turns, particle=orbit.particle, guess=orbit)
+    start = orbit
+    if not isinstance(orbit, CollocationOrbit):
+        start = find_collocation_orbit(orbit.params, orbit.model, orbit.moment, turns=orbit.turns, particle=orbit.particle, guess=orbit)
     sign = math.copysign(1.0, orbit.moment)
     bounds = (moment_min, math.inf) if sign > 0 else (-math.inf, -moment_min)
     branch = continue_collocation(
