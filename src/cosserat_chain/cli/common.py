@@ -169,6 +169,31 @@ EXIT_CODES = {
 }
 
 
+def snic_line(point: dict, vary: str, fold: str, drive: str, drive_value: float | None) -> str:
+    """The line on where a diagram's homoclinic end meets the static fold (a SNIC from there on), for ``diagram`` and ``system diagram``.
+
+    Parameters
+    ----------
+    point : dict
+        The diagram's ``snic_point``: ``between`` (two values of ``vary``), ``method`` (``solved``,
+        ``extrapolated`` or ``not_located``), ``value``, ``accuracy``, ``from`` and ``reason`` as the method has them.
+    vary : str
+        The varied parameter's name.
+    fold : str
+        What the fold is called ("M_c", "the fold").
+    drive, drive_value : str, float or None
+        The drive's name and its value at the solved point.
+    """
+    where = f"between {vary} = {point['between'][0]:g} and {point['between'][1]:g}"
+    if point["method"] == "solved":
+        value = f"{point['value']:.13g} +- {point['accuracy']:.1g} (solved by the augmented system, {drive} = {drive_value:.10g} there)"
+    elif point["method"] == "extrapolated":
+        value = f"{point['value']:.6g}, extrapolated from {vary} = {point['from'][0]:g}, {point['from'][1]:g} ({point['reason']})"
+    else:
+        value = f"not located ({point['reason']})"
+    return f"the homoclinic end meets {fold} (a SNIC from there on) {where}: {vary} = {value}"
+
+
 def exit_on(status: str, message: str) -> None:
     """Warn on stderr and exit with the status's code unless it is a result (:data:`EXIT_CODES`)."""
     status = Status(status)

@@ -20,6 +20,7 @@ from .common import (
     progress_bar,
     save_dataset,
     save_figure,
+    snic_line,
 )
 from .systems import chain_only_or_exit, diagram_on_system, set_option, start_option, system_only_or_exit, system_option
 
@@ -170,14 +171,7 @@ def diagram(
             typer.echo(f"warning: {vary} = {row.value:g}: {row.warning}")
     point = result.snic_point
     if point is not None:
-        where = f"between {vary} = {point['between'][0]:g} and {point['between'][1]:g}"
-        if point["method"] == "solved":
-            value = f"{point['value']:.10g} +- {point['accuracy']:.1g} (solved by the augmented system, M_c = {point['moment']:.10g})"
-        elif point["method"] == "extrapolated":
-            value = f"{point['value']:.6g}, extrapolated from {vary} = {point['from'][0]:g}, {point['from'][1]:g} ({point['reason']})"
-        else:
-            value = f"(not located: {point['reason']})"
-        typer.echo(f"the homoclinic end meets M_c (a SNIC from there on) {where}: {vary} = {value}")
+        typer.echo(snic_line(point, vary, "M_c", "M_c", point.get("moment")))
     for entry in result.codim2_between or []:
         _echo_between(entry, vary)
 

@@ -21,7 +21,7 @@ from typing import Any
 import typer
 
 from ..status import Status
-from .common import EXIT_CODES, bar_callback, exit_on, fail, outputs_or_exit, progress_bar, save_dataset
+from .common import EXIT_CODES, bar_callback, exit_on, fail, outputs_or_exit, progress_bar, save_dataset, snic_line
 
 #: The table of a config file that holds the system's arguments.
 SYSTEM_TABLE = "system"
@@ -643,14 +643,7 @@ def _echo_diagram(result) -> None:
             typer.echo(f"warning: {vary} = {row.value:g}: {row.warning}")
     point = result.snic_point
     if point is not None:
-        where = f"between {vary} = {point['between'][0]:g} and {point['between'][1]:g}"
-        if point["method"] == "solved":
-            value = (
-                f"{point['value']:.13g} +- {point['accuracy']:.1g} (solved by the augmented system, {drive} = {point['drive']:.10g} there)"
-            )
-        else:
-            value = f"not located ({point['reason']})"
-        typer.echo(f"the homoclinic end meets the fold (a SNIC from there on) {where}: {vary} = {value}")
+        typer.echo(snic_line(point, vary, "the fold", drive, point["drive"]))
     for entry in result.codim2_between or []:
         points = "; ".join(f"{p['name']} ({p['label']}) at {vary} = {p['value']:.10g} +- {p['accuracy']:.1g}" for p in entry["points"])
         typer.echo(
