@@ -255,11 +255,36 @@ def stiff_at_rest_or_exit(params: ChainParams, particle: int = 0) -> None:
     except (ValueError, ArithmeticError):
         singular = True
     if singular:
-        fields = ", ".join(f"{name}={getattr(params, name)!r}" for name in ("E1", "E2", "h", "a", "b"))
-        fail(
-            f"the chain's stiffness at rest is singular in double precision ({fields}): it has no unique static state; the model is "
-            "dimensionless, so give fields of order 1"
-        )
+        _singular_at_rest(params)
+
+
+#: Half-length of the chain on which :func:`short_stiff_at_rest_or_exit` checks K at rest.
+SHORT_N = 3
+
+
+def short_stiff_at_rest_or_exit(params: ChainParams) -> None:
+    """:func:`stiff_at_rest_or_exit` up front at a cost independent of N: on the chain cut to N = :data:`SHORT_N`.
+
+    For a computation that solves the chain's own response at rest itself (``critical``): fields
+    far from order 1 (E1 = 1e-100) make K singular at any length, and are refused here before
+    the computation, whose quiet end they could otherwise be; the response it solves is then
+    checked with :func:`compliance_or_exit`. A graded chain (its factors fix N) is checked whole.
+    """
+    stiff_at_rest_or_exit(params if params.graded or params.N <= SHORT_N else params.replace(N=SHORT_N))
+
+
+def compliance_or_exit(params: ChainParams, compliance: float) -> None:
+    """Refuse (exit 2, as :func:`stiff_at_rest_or_exit`) a chain whose compliance at rest, solved by the computation, is not finite and within MAX_MAGNITUDE."""
+    if not abs(compliance) <= MAX_MAGNITUDE:
+        _singular_at_rest(params)
+
+
+def _singular_at_rest(params: ChainParams) -> NoReturn:
+    fields = ", ".join(f"{name}={getattr(params, name)!r}" for name in ("E1", "E2", "h", "a", "b"))
+    fail(
+        f"the chain's stiffness at rest is singular in double precision ({fields}): it has no unique static state; the model is "
+        "dimensionless, so give fields of order 1"
+    )
 
 
 def statics_failed(params: ChainParams, err: Exception, particle: int = 0) -> NoReturn:

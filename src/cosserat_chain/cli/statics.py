@@ -16,6 +16,7 @@ from .common import (
     app,
     bar_callback,
     chosen_models,
+    compliance_or_exit,
     config_or_exit,
     exit_on,
     fail,
@@ -27,9 +28,9 @@ from .common import (
     progress_bar,
     save_dataset,
     save_figure,
+    short_stiff_at_rest_or_exit,
     statics_failed,
     step_for_checks,
-    stiff_at_rest_or_exit,
     work_or_exit,
 )
 from .systems import chain_only_or_exit, critical_on_system, set_option, start_option, system_only_or_exit, system_option, vary_option
@@ -170,8 +171,9 @@ def critical(
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     params = params_or_exit(config)
     held_or_exit(params, particle)
-    # Up front, not only on a failure: a K at rest singular to round-off can also end the trace quietly.
-    stiff_at_rest_or_exit(params, particle)
+    # Up front, not only on a failure: a K at rest singular to round-off can also end the trace quietly. On a
+    # short chain: the chain's own response at rest is critical_point's (its compliance), checked on its result.
+    short_stiff_at_rest_or_exit(params)
     results = {}
     for name in chosen_models(model):
         bar = progress_bar(f"critical {name}", "rad")
@@ -186,6 +188,7 @@ def critical(
                 raise
             statics_failed(params, err, particle)
         bar.finish()
+        compliance_or_exit(params, results[name].compliance)
     if out is not None:  # the Dataset (and xarray) only for a file: --json alone starts quickly
         save_dataset(stack_models({name: r.to_dataset() for name, r in results.items()}), out)
     if plot is not None:
