@@ -213,7 +213,7 @@ def breathers_on_system(
         _echo_json({"reference": reference, **summary})
         return
     names = ", ".join(f"{name} ({k:+d} turns)" for name, k in summary["rotors"].items())
-    if family.events is not None:
+    if family.settings.get("arclength"):
         return _arclength_text(family, summary, names)
     typer.echo(f"{system.name}, {coupling} = {summary['coupling_value']:g}: {len(family.orbits)} roto-breathers of {names}")
     typer.echo("bands: " + ", ".join(f"[{b:.6g}, {t:.6g}]" for b, t in family.bands))
@@ -233,6 +233,7 @@ def breathers_on_system(
             f"(a multiplier leaves the circle at {change.kind}); nearest resonance: {r.harmonic:g} x Omega = {r.edge_frequency:.6g} "
             f"(band {r.band} {r.edge}) at Omega = {r.omega:.6g}"
         )
+    _event_lines(summary, "omega")
     for omega in summary["energy_extrema"]:
         typer.echo(f"energy extremal at Omega = {omega:.6g} (dE/dOmega = 0: where a pair of multipliers passes +1)")
     typer.echo(f"family end: {family.message}")
@@ -267,7 +268,13 @@ def _arclength_text(family, summary: dict, names: str) -> None:
         if family.lifetimes is not None:
             life = family.lifetimes[i]
             typer.echo(f"{'':>12}  lifetime: {'beyond ' + str(life.run_periods) if life.periods is None else life.periods} periods")
-    for e in summary["events"]:
+    _event_lines(summary, parameter)
+    typer.echo(f"family end: {family.message}")
+
+
+def _event_lines(summary: dict, parameter: str) -> None:
+    """A line per located event of the family (fold, branch point, stability), with the branch followed from it."""
+    for e in summary.get("events", []):
         accuracy = "" if e["accuracy"] is None else f" +- {e['accuracy']:.2g}"
         typer.echo(
             f"{e['kind'].replace('_', ' ')} at {parameter} = {e['value']:.10g}{accuracy}: energy {e['energy']}, max |mu| "
@@ -283,4 +290,3 @@ def _arclength_text(family, summary: dict, names: str) -> None:
                 )
             else:
                 typer.echo(f"  branch: none ({b['message']})")
-    typer.echo(f"family end: {family.message}")

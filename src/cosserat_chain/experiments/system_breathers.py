@@ -41,7 +41,7 @@ import numpy as np
 from ..errors import CosseratChainError
 from ..numerics.breather_arclength import CLUSTER_SIZE, collision_discriminant
 from ..numerics.kit import EvaluationFailed
-from ..numerics.shooting import PERIOD, Orbit, OrbitNotFound, continue_orbits, find_orbit, flow
+from ..numerics.shooting import PERIOD, Orbit, OrbitNotFound, find_orbit, flow
 from ..systems.base import System
 from ..systems.lattice import LatticeSystem
 from .anti_continuum import POTENTIAL_POINTS, potential_from_torque, rotor_energy, sample_angles
@@ -433,8 +433,9 @@ class SystemBreatherFamily:
     message: str
     settings: dict = field(default_factory=dict)
     lifetimes: list[Lifetime] | None = None
-    #: For a family traced by pseudo-arclength (``arclength=True``): its located folds, branch points and
-    #: changes of stability (:class:`~.system_breather_arclength.FamilyEvent`), and the parameter continued.
+    #: The family's located folds and branch points (:class:`~.system_breather_arclength.FamilyEvent`, each with
+    #: its accuracy), found by the kit's driver on the way in the period; with ``arclength=True`` its changes of
+    #: stability as well (``changes`` holds them otherwise), and the parameter continued.
     events: list | None = None
     parameter: str = "omega"
 
@@ -485,7 +486,7 @@ class SystemBreatherFamily:
         dE/dOmega = 0 (the energy's fold), so a loss of stability at +1 sits at one of these.
         """
         omegas, energy = self.omegas, self.energies()
-        if self.events is not None:  # an arclength family: Omega may turn or stay put; its events say where a pair meets +1
+        if self.settings.get("arclength"):  # Omega may turn or stay put; its events say where a pair meets +1
             return []
         slope = np.diff(energy) / np.diff(omegas)
         out = []
@@ -1003,13 +1004,18 @@ def roto_breather_family(
         return _arclength_family(system, start, coupling, first, omega, to, along, branches, counter, partner, turns, unfold, progress)
     if along is not None or branches:
         raise BreatherError("along and branches follow a family by pseudo-arclength: set arclength=True")
+    events = []
     if to is not None and to != omega:
+        from .system_breather_arclength import continue_family
+
         period_to = 2 * math.pi * turns / to
-        family = continue_orbits(
-            first, PERIOD, direction=1.0 if period_to > first.period else -1.0,
-            limits=(min(first.period, period_to), max(first.period, period_to)), stop_at=(),
+        # The kit's driver in the period: its folds (Omega turning) and branch points (a pair through +1 while
+        # Omega goes on) are located on the way, each with its accuracy.
+        family = continue_family(
+            first, "omega", (min(omega, to), max(omega, to)), direction=1.0 if to > omega else -1.0,
             step=step, max_step=max_step, max_points=max_points, progress=progress,
         )  # fmt: skip
+        events = [e for e in family.events if e.kind in ("fold", "branch_point")]
         lo, hi = min(first.period, period_to), max(first.period, period_to)
         inside = [o for o in family.orbits if lo <= o.period <= hi]
         members = inside
@@ -1027,7 +1033,7 @@ def roto_breather_family(
             if a.stable != b.stable:
                 changes.append(_locate(a, b, system, k, unfold, bands, turns))
     settings = {"turns": turns, "unfold": unfold, "partner_against": counter if partner is not None else None}
-    return SystemBreatherFamily(system, start, coupling, members, bands, changes, message, settings)
+    return SystemBreatherFamily(system, start, coupling, members, bands, changes, message, settings, events=events)
 
 
 def _arclength_family(system, start, coupling, first, omega, to, along, branches, counter, partner, turns, unfold, progress):

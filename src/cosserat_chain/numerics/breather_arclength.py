@@ -302,7 +302,7 @@ def collision_discriminant(multipliers: np.ndarray, kind: str, centre: complex |
     -------
     float or None
         D, or None where the cluster is not resolved (its farthest member is not nearer its centre than
-        :data:`CLUSTER_GAP` times the next multiplier).
+        :data:`CLUSTER_GAP` times the next multiplier) or there are fewer multipliers than it holds.
 
     Raises
     ------
@@ -318,7 +318,7 @@ def collision_discriminant(multipliers: np.ndarray, kind: str, centre: complex |
     where = {"+1": 1.0, "-1": -1.0}.get(kind, centre)
     distance = np.abs(mu - where)
     order = np.argsort(distance)
-    if mu.size <= size or distance[order[size - 1]] >= CLUSTER_GAP * distance[order[size]]:
+    if mu.size < size or (mu.size > size and distance[order[size - 1]] >= CLUSTER_GAP * distance[order[size]]):
         return None
     cluster = mu[order[:size]]
     if kind == "complex":
