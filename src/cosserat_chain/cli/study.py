@@ -75,6 +75,8 @@ def study(
             entries = mapping.get("loads", [])
             mapping["loads"] = [*entries, *tables] if isinstance(entries, list) else entries
         spec = spec_from_mapping(mapping, source=str(spec_file))
+        if scheduler is None:  # the embedded cluster's cells run on this machine: its memory, checked before any runs
+            spec.check_memory()
     except ValueError as err:
         fail(str(err))
     bar = progress_bar("study", "cell")

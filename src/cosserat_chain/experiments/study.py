@@ -10,7 +10,9 @@ moment (``[[loads]]`` tables, :func:`~cosserat_chain.loads.load_from_table`: the
 key ``loads`` with the moments of ``mean_angular_velocity``, a number being a moment and a
 table a load). :meth:`StudySpec.check` reports unknown keys and
 impossible parameter combinations (e.g. overlapping particles), naming the
-offending entries, before anything runs.
+offending entries, before anything runs; :meth:`StudySpec.check_memory` refuses, on the
+machine that will run the cells, a chain too long for the memory its quantities' own
+estimates ask for.
 
 Every cell of the grid (one value per swept field, one model) is independent.
 :func:`compute_cells` computes a chunk of cells that share N and the model: the
@@ -65,6 +67,7 @@ the results' ``loads_json`` attribute.
 
 from __future__ import annotations
 
+import inspect
 import itertools
 import json
 import logging
@@ -77,11 +80,14 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from ..analysis.dispersion import wave_summary
 from ..loads import Loads, load_from_table, loads_from_tables, moment_load
+from ..memory import FLOAT, MemoryEstimateError, require
 from ..models.base import available_models
-from ..numerics.continuation import compliance, locate_fold
+from ..numerics.continuation import compliance, continue_in_moment, locate_fold, require_branch_memory
+from ..numerics.engine import require_batch_memory
 from ..numerics.integrators import MAX_SPIN_PER_STEP, default_time_step, spin_hint
 from ..numerics.relaxation import relax_batch
 from ..params import ChainParams
+from ..state import MIN_STATES
 from .sweep import relaxation_sweeps
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
@@ -278,6 +284,37 @@ class StudySpec(BaseModel):
             shown = "\n  ".join(problems[:10])
             more = f"\n  ... and {len(problems) - 10} more" if len(problems) > 10 else ""
             raise ValueError(f"{len(problems)} impossible parameter combination(s):\n  {shown}{more}")
+
+    def check_memory(self) -> None:
+        """Refuse a study whose longest chain does not fit in this machine's free memory, before any cell runs.
+
+        Each quantity's own estimate, the one its computation checks first (a cell would
+        otherwise fail with it, one by one): the branch from rest of ``M_c`` and ``phi0_at_fold``
+        (:func:`~cosserat_chain.numerics.continuation.require_branch_memory`, at
+        :func:`~cosserat_chain.numerics.continuation.continue_in_moment`'s default points), the
+        states of ``compliance`` (:data:`~cosserat_chain.state.MIN_STATES`) and one member of the
+        relaxations' batch (:func:`~cosserat_chain.numerics.engine.require_batch_memory`).
+        The memory is that of the machine this runs on: the CLI checks an embedded cluster's.
+
+        Raises
+        ------
+        ValueError
+            Naming N's entry, its value, and the memory needed against the memory free.
+        """
+        wanted = set(self.quantities)
+        longest = max((fields for _, _, fields in self.cells()), key=lambda fields: fields.get("N", ChainParams().N))
+        params = ChainParams(**longest)
+        entry = "parameters.N" if "N" in self.parameters else "fixed.N" if "N" in self.fixed else "N (the default)"
+        try:
+            if wanted & {"M_c", "phi0_at_fold"}:
+                require_branch_memory(params, inspect.signature(continue_in_moment).parameters["max_points"].default)
+            if "compliance" in wanted:
+                n = params.n_particles
+                require(MIN_STATES * FLOAT * 3 * n, f"{MIN_STATES} states of {n} particles (N={params.N})", "a shorter chain")
+            if wanted & set(RELAXATION_QUANTITIES):
+                require_batch_memory([params])
+        except MemoryEstimateError as err:
+            raise ValueError(f"{entry} = {params.N}: every cell of this chain would fail: {err}") from None
 
     def _check_spin(self, params: ChainParams, extra: Loads) -> None:
         """Refuse a cell whose largest load spins its particle faster than its relaxations' step follows.
