@@ -2,7 +2,8 @@
 
 The report's figures are saved with the layout engine removed once it has laid them out (no second draw
 before printing): the PNG is the one the layout engine's placeholder gave, byte for byte. The periodic
-orbits' state-only right-hand side is compiled apart from the one with force differences: the same bits.
+orbits' state-only right-hand side is compiled apart from the one with force differences: the same bits. The errata
+read only the SymPy checks they report, not Section 3's algebra: the same errata.
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ import io
 import numpy as np
 import pytest
 
+from cosserat_chain.analysis import symbolic
 from cosserat_chain.models.base import get_model
 from cosserat_chain.numerics import dop853
 from cosserat_chain.numerics.periodic import _bond_rhs, _rhs, _state_rhs, _System
@@ -67,3 +69,21 @@ def test_the_state_only_right_hand_side_is_rhs_without_columns_bit_for_bit(model
     runs = [dop853.solve(f, kernel, coef, rpar, ipar, y, times, rtol=1e-9, atol=1e-9, end_force=end_kernel) for f in (_state_rhs, _rhs)]
     assert runs[0].steps == runs[1].steps
     np.testing.assert_array_equal(runs[0].y.view(np.int64), runs[1].y.view(np.int64))
+
+
+def test_the_errata_read_only_their_checks_and_miss_no_failing_one(monkeypatch):
+    full = symbolic.compare_with_paper()
+    read = symbolic.errata_checks()
+    # The same checks, the same objects, then Section 3's algebra, of which none fails (no erratum is left out).
+    assert full[: len(read)] == read and all(a is b for a, b in zip(full, read))
+    assert {c.key for c in full[len(read) :]} == {"eq7", "eq11.v", "eq11.phi", "phi0", "eq12", "eq4", "reduced"}
+    assert all(c.agrees for c in full[len(read) :])
+    expected = symbolic.errata(ChainParams())
+
+    def refused():
+        raise AssertionError("errata computed Section 3's algebra")
+
+    monkeypatch.setattr(symbolic, "compare_with_paper", refused)
+    monkeypatch.setattr(symbolic, "_section3_checks", refused)
+    assert symbolic.errata(ChainParams()) == expected
+    assert {key for e in expected for key in e.checks} == {c.key for c in full if not c.agrees}

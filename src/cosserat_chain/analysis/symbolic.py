@@ -443,11 +443,23 @@ def compare_with_paper() -> tuple[Check, ...]:
     Returns
     -------
     tuple of Check
+        Those of :func:`errata_checks`, then the algebra of Section 3 (eqs. (7),
+        (11), phi(0), (12), the reduced solution), which no erratum reads.
+    """
+    return (*errata_checks(), *_section3_checks())
+
+
+@functools.cache
+def errata_checks() -> tuple[Check, ...]:
+    """The printed forms of Sections 2-3 that :func:`errata` reads, against the derivation (cached).
+
+    Returns
+    -------
+    tuple of Check
         Coefficients of eqs. (2) and (3), the definitions of D1 and D2 and the
         reduced-model condition of Section 3, the linearised link energy of
-        Section 2, the kinetic energy, whether eq. (2) derives from a potential,
-        and the algebra of Section 3 (eqs. (7), (11), phi(0), (12), the reduced
-        solution).
+        Section 2, the kinetic energy and whether eq. (2) derives from a potential:
+        the first checks of :func:`compare_with_paper`, the same objects.
     """
     import sympy as sp
 
@@ -507,7 +519,6 @@ def compare_with_paper() -> tuple[Check, ...]:
     checks.append(_link_energy_check(derived))
     checks.append(_kinetic_energy_check())
     checks.append(_potential_check(derived))
-    checks.extend(_section3_checks())
     return tuple(checks)
 
 
@@ -630,8 +641,9 @@ def errata(params: ChainParams | None = None) -> tuple[Erratum, ...]:
     Returns
     -------
     tuple of Erratum
-        Numbers 1-4 are found by :func:`compare_with_paper` (each lists its failing
-        checks); 5 and 6 are slips in the text.
+        Numbers 1-4 are found by :func:`errata_checks` (each lists its failing
+        checks; Section 3's algebra, the rest of :func:`compare_with_paper`, is
+        no erratum's); 5 and 6 are slips in the text.
     """
     from ..linalg import lowest_real_eigenvalue, smallest_eigenvalue
     from ..models.linear import stiffness_matrix
@@ -639,7 +651,7 @@ def errata(params: ChainParams | None = None) -> tuple[Erratum, ...]:
     params = ChainParams() if params is None else params
     # The printed operator, its eigenvalues and the derived one's bands: tens of arrays of the chain's size.
     require(60 * FLOAT * n_free(params), f"the errata's operators for N = {params.N}", "evaluate the errata on a shorter chain")
-    checks = {c.key: c for c in compare_with_paper()}
+    checks = {c.key: c for c in errata_checks()}
     failing = {key for key, c in checks.items() if not c.agrees}
 
     # 1: the printed eq. (3) as an operator.
