@@ -26,14 +26,12 @@ Needs ``auto-07p`` on the PATH (the Debian package auto-07p, with gfortran). Usa
 from __future__ import annotations
 
 import math
-import os
-import re
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from auto07p_common import b_rows, multipliers, run_auto, two_parameter_script
 from cosserat_chain.numerics.cycle_curve import continue_cycle_end
 
 EQUATIONS = """      SUBROUTINE FUNC(NDIM,U,ICP,PAR,IJAC,F,DFDU,DFDP)
@@ -105,14 +103,6 @@ RESONANT = """      SUBROUTINE FUNC(NDIM,U,ICP,PAR,IJAC,F,DFDU,DFDP)
       END
 """
 
-RESONANT_SCRIPT = """r1 = run('rs', c='rs')
-save(r1, 'r1')
-start = run(r1('TR1'), c='rs', ICP=[1, 2, 11], ISW=2, DS=-0.001, DSMAX=0.005, NMX=2000, UZSTOP={2: [0.25, 0.45]}, STOP=[])
-save(start, 'start')
-curve = run(start('EP1'), c='rs', ICP=[1, 2, 11], ISW=2, DS=-0.001, DSMAX=0.005, NMX=2000, UZSTOP={2: [0.25, 0.45]}, STOP=[])
-save(curve, 'rcurve')
-"""
-
 CUSP = """      SUBROUTINE FUNC(NDIM,U,ICP,PAR,IJAC,F,DFDU,DFDP)
       IMPLICIT DOUBLE PRECISION (A-H,O-Z)
       DIMENSION U(NDIM),PAR(*),F(NDIM)
@@ -139,40 +129,17 @@ CUSP = """      SUBROUTINE FUNC(NDIM,U,ICP,PAR,IJAC,F,DFDU,DFDP)
       END
 """
 
-CUSP_SCRIPT = """r1 = run('cu', c='cu')
-save(r1, 'r1')
-start = run(r1('LP1'), c='cu', ICP=[1, 2, 11], ISW=2, DS=0.001, DSMAX=0.002, NMX=400, UZSTOP={2: [0.31]}, STOP=[])
-save(start, 'start')
-curve = run(start('EP1'), c='cu', ICP=[1, 2, 11], ISW=2, DS=0.001, DSMAX=0.002, NMX=400, UZSTOP={2: [0.31]}, STOP=[])
-save(curve, 'ccurve')
-"""
-
 #: AUTO-07p's codes of the points on a torus curve of periodic solutions (its manual's table).
 TORUS_CODES = {-85: "R1", -87: "R3", -88: "R4"}
-
-SCRIPT = """r1 = run('ft', c='ft')
-save(r1, 'r1')
-start = run(r1('LP1'), c='ft', ICP=[1, 2, 11], ISW=2, DS=0.001, DSMAX=0.002, NMX=200, UZSTOP={2: [0.15, 0.3]}, STOP=[])
-save(start, 'start')
-curve = run(start('EP1'), c='ft', ICP=[1, 2, 11], ISW=2, DS=0.001, DSMAX=0.002, NMX=200, UZSTOP={2: [0.15, 0.3]}, STOP=[])
-save(curve, 'curve')
-"""
 
 
 def crossing(fort7: Path, fort9: Path) -> tuple[float, float, float]:
     """(s, a, the pair's angle) where AUTO's printed complex pair's modulus crosses 1 along its curve."""
-    rows, pairs = {}, {}
-    for line in fort7.read_text().splitlines():
-        f = line.split()
-        if len(f) >= 12 and all(re.fullmatch(r"-?\d+", x) for x in f[:3]):
-            try:
-                rows[abs(int(f[1]))] = (float(f[4]), float(f[10]))
-            except ValueError:
-                continue
-    for line in fort9.read_text().splitlines():
-        m = re.match(r"\s+\d+\s+(\d+)\s+Multiplier\s+\d+\s+(\S+)\s+(\S+)\s+Abs", line)
-        if m and float(m[3]) > 1e-3 and abs(math.hypot(float(m[2]), float(m[3])) - 1.0) < 0.2:
-            pairs.setdefault(int(m[1]), (math.log(math.hypot(float(m[2]), float(m[3]))), math.atan2(float(m[3]), float(m[2]))))
+    rows = {point: (values[0], values[6]) for point, _, values in b_rows(fort7)}
+    pairs = {}
+    for point, mu in multipliers(fort9):
+        if mu.imag > 1e-3 and abs(abs(mu) - 1.0) < 0.2:
+            pairs.setdefault(point, (math.log(abs(mu)), math.atan2(mu.imag, mu.real)))
     points = sorted(p for p in pairs if p in rows)
     for p, q in zip(points, points[1:]):
         if pairs[p][0] * pairs[q][0] < 0:
@@ -184,24 +151,12 @@ def crossing(fort7: Path, fort9: Path) -> tuple[float, float, float]:
 
 def labelled(fort7: Path) -> list[tuple[int, float, float]]:
     """AUTO's labelled points (type, a, s) from its b-file."""
-    out = []
-    for line in fort7.read_text().splitlines():
-        f = line.split()
-        if len(f) >= 12 and all(re.fullmatch(r"-?\d+", x) for x in f[:3]) and int(f[2]) != 0:
-            out.append((int(f[2]), float(f[4]), float(f[10])))
-    return out
+    return [(kind, values[0], values[6]) for _, kind, values in b_rows(fort7) if kind != 0]
 
 
 def turn(fort7: Path) -> tuple[float, float]:
     """(s, a) at the least s along AUTO's curve: the parabolas in x (MAX U(2)) through its three points around it."""
-    rows = []
-    for line in fort7.read_text().splitlines():
-        f = line.split()
-        if len(f) >= 12 and all(re.fullmatch(r"-?\d+", x) for x in f[:3]):
-            try:
-                rows.append((float(f[4]), float(f[10]), float(f[7])))
-            except ValueError:
-                continue
+    rows = [(values[0], values[6], values[3]) for _, _, values in b_rows(fort7)]
     i = min(range(1, len(rows) - 1), key=lambda k: rows[k][1])
     a, s, x = (np.array(column) for column in zip(*rows[i - 1 : i + 2]))
     fit = np.polyfit(x, s, 2)
@@ -209,21 +164,26 @@ def turn(fort7: Path) -> tuple[float, float]:
     return float(np.polyval(fit, at)), float(np.polyval(np.polyfit(x, a, 2), at))
 
 
-def run_auto(workdir: Path, name: str, equations: str, constants: str, script: str) -> None:
-    """Write one problem's files (equations, constants, script) and run AUTO-07p on them."""
+def solve(workdir: Path, name: str, equations: str, constants: str, script: str) -> None:
+    """Run AUTO-07p on one problem: its equations (with empty boundary and integral conditions), constants and script."""
     empty = "".join(f"      SUBROUTINE {n}\n      RETURN\n      END\n" for n in ("BCND", "ICND", "FOPT", "PVLS"))
-    (workdir / f"{name}.f90").write_text(equations + empty)
-    (workdir / f"c.{name}").write_text(constants)
-    (workdir / f"{name}.auto").write_text(script)
-    subprocess.run(["auto-07p", f"{name}.auto"], cwd=workdir, check=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    run_auto(workdir, f"{name}.auto", {f"{name}.f90": equations + empty, f"c.{name}": constants, f"{name}.auto": script})
 
 
 def main(workdir: Path) -> None:
     workdir.mkdir(parents=True, exist_ok=True)
-    run_auto(workdir, "ft", EQUATIONS, CONSTANTS, SCRIPT)
+    solve(
+        workdir,
+        "ft",
+        EQUATIONS,
+        CONSTANTS,
+        two_parameter_script("ft", "LP1", "curve", nmx=(200, 200), DS=0.001, DSMAX=0.002, UZSTOP={2: [0.15, 0.3]}),
+    )
     resonant = CONSTANTS.replace("NDIM=  8", "NDIM=  4").replace("STOP = ['LP1']", "STOP = ['TR1']")
-    run_auto(workdir, "rs", RESONANT, resonant, RESONANT_SCRIPT)
-    run_auto(workdir, "cu", CUSP, CONSTANTS.replace("NDIM=  8", "NDIM=  4"), CUSP_SCRIPT)
+    script = two_parameter_script("rs", "TR1", "rcurve", nmx=(2000, 2000), DS=-0.001, DSMAX=0.005, UZSTOP={2: [0.25, 0.45]})
+    solve(workdir, "rs", RESONANT, resonant, script)
+    script = two_parameter_script("cu", "LP1", "ccurve", nmx=(400, 400), DS=0.001, DSMAX=0.002, UZSTOP={2: [0.31]})
+    solve(workdir, "cu", CUSP, CONSTANTS.replace("NDIM=  8", "NDIM=  4"), script)
     s, a, angle = crossing(workdir / "b.curve", workdir / "d.curve")
     print(f"AUTO-07p's fold curve: the pair crosses the unit circle at s = {s:.10g}, a = {a:.10g}, angle {angle:.8g}")
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))

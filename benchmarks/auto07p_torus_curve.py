@@ -19,15 +19,13 @@ Needs ``auto-07p`` on the PATH (the Debian package auto-07p, with gfortran). Usa
 from __future__ import annotations
 
 import math
-import os
-import re
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
+from auto07p_common import b_rows, multipliers, run_auto, two_parameter_script
 from cosserat_chain import ChainParams
 from cosserat_chain.models.base import get_model
 from cosserat_chain.models.linear import stiffness_matrix
@@ -44,14 +42,6 @@ EPSL= 1e-08, EPSU = 1e-08, EPSS =1e-06
 DS  =  -0.001, DSMIN=  1e-5, DSMAX=   0.005, IADS=   1
 THL =  {{11: 0.0}}, THU =  {{}}
 STOP = ['TR1']
-"""
-
-SCRIPT = """r1 = run('chain', c='chain.1', dat='chain')
-save(r1, 'r1')
-start = run(r1('TR1'), c='chain.1', ICP=[1, 2, 11], ISW=2, ISP=2, DS=0.002, DSMAX=0.01, NMX=300, UZSTOP={2: [0.6, 1.2]}, STOP=[])
-save(start, 'start')
-curve = run(start('EP1'), c='chain.1', ICP=[1, 2, 11], ISW=2, ISP=2, DS=0.002, DSMAX=0.01, NMX=400, UZSTOP={2: [0.6, 1.2]}, STOP=[])
-save(curve, 'curve')
 """
 
 
@@ -116,20 +106,13 @@ def equations(params: ChainParams, moment: float, period: float) -> str:
 def points(fort7: Path, fort9: Path) -> tuple[list, dict]:
     """AUTO's labelled points (type, M, E2, period) and each point's critical pair angle, from its output files."""
     labelled, rows, angles = [], {}, {}
-    for line in fort7.read_text().splitlines():
-        f = line.split()
-        if len(f) >= 12 and re.fullmatch(r"-?\d+", f[0]) and re.fullmatch(r"-?\d+", f[1]) and re.fullmatch(r"-?\d+", f[2]):
-            try:
-                row = (float(f[4]), float(f[10]), float(f[11]))
-            except ValueError:
-                continue
-            rows[abs(int(f[1]))] = row
-            if int(f[2]) != 0:
-                labelled.append((int(f[2]), *row))
-    for line in fort9.read_text().splitlines():
-        m = re.match(r"\s+\d+\s+(\d+)\s+Multiplier\s+\d+\s+(\S+)\s+(\S+)\s+Abs", line)
-        if m and float(m[3]) > 0 and abs(math.hypot(float(m[2]), float(m[3])) - 1.0) < 1e-3:
-            angles.setdefault(int(m[1]), math.atan2(float(m[3]), float(m[2])))
+    for point, kind, values in b_rows(fort7):
+        rows[point] = row = (values[0], values[6], values[7])
+        if kind != 0:
+            labelled.append((kind, *row))
+    for point, mu in multipliers(fort9):
+        if mu.imag > 0 and abs(abs(mu) - 1.0) < 1e-3:
+            angles.setdefault(point, math.atan2(mu.imag, mu.real))
     return labelled, {pt: (*rows[pt], angles[pt]) for pt in rows if pt in angles}
 
 
@@ -144,9 +127,10 @@ def main(workdir: Path) -> None:
         system.rhs(0), (0.0, orbit.period), _to_y(params, orbit.x, orbit.v), method="DOP853", rtol=1e-12, atol=1e-12, t_eval=times
     ).y.T
     (workdir / "chain.dat").write_text("".join(" ".join(f"{v:.15E}" for v in (t, *y)) + "\n" for t, y in zip(times / orbit.period, states)))
-    (workdir / "c.chain.1").write_text(CONSTANTS.format(ndim=2 * n_free(params)))
-    (workdir / "chain.auto").write_text(SCRIPT)
-    subprocess.run(["auto-07p", "chain.auto"], cwd=workdir, check=True, env={**os.environ, "OMP_NUM_THREADS": "1"})
+    script = two_parameter_script(
+        "chain", "TR1", "curve", constants="chain.1", dat="chain", nmx=(300, 400), ISP=2, DS=0.002, DSMAX=0.01, UZSTOP={2: [0.6, 1.2]}
+    )
+    run_auto(workdir, "chain.auto", {"c.chain.1": CONSTANTS.format(ndim=2 * n_free(params)), "chain.auto": script})
     labelled, curve = points(workdir / "b.curve", workdir / "d.curve")
     for kind, moment, _, period in points(workdir / "b.r1", workdir / "d.r1")[0]:
         print(f"AUTO's run in M, label type {kind}: M = {moment:.11g}, period = {period:.11g} (E2 = {params.E2})")
