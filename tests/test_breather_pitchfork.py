@@ -98,3 +98,20 @@ def test_the_branch_breaks_the_mirror_symmetry_and_its_image_is_an_orbit():
     end = flow(orbit.system, image, orbit.period, variations=False)[0]
     shift = np.concatenate([2 * math.pi * orbit.turns, np.zeros(n)])
     assert np.max(np.abs(end - image - shift)) < 1e-8
+
+
+def test_the_natural_family_reports_its_fold_in_the_frequency_and_no_change_of_stability_across_it():
+    """The Takeno-Peyrard one-site family of three sites at C = 0.02, from Omega = 0.9 up: it turns back at a fold in
+    Omega (docs: 0.96531910) and comes down again. The family in the period reports the fold (the fixed-frequency
+    Newton system singular there, to round-off) and the branch point just before it; no member lies beyond the fold,
+    and no change of stability is bisected across it (the period is not a coordinate there)."""
+    from cosserat_chain.systems import takeno_peyrard
+
+    family = sb.roto_breather_family(takeno_peyrard(3, C=0.02), 0.9, to=0.97)
+    fold = next(e for e in family.events if e.kind == "fold")
+    assert fold.value == pytest.approx(0.96531910, abs=2e-8) and fold.accuracy < 1e-7
+    assert fold.singular_value < 1e-14
+    assert np.max(family.omegas) <= fold.value + fold.accuracy
+    assert family.omegas[-1] < family.omegas[fold.index - 1]  # it came back down
+    assert sorted(e.kind for e in family.events) == ["branch_point", "fold"]
+    assert family.changes == []

@@ -1029,8 +1029,14 @@ def roto_breather_family(
     bands = linear_bands(system)
     changes = []
     if locate:
+        # Bisection in the period is ill-posed across a fold (both members' periods lie on one side of it): there
+        # the fold, with the branch point that comes with it, stands for the change.
+        folds = [e.index for e in events if e.kind == "fold"]
+        traced = {id(o): i for i, o in enumerate(family.orbits)} if folds else {}
         for a, b in zip(members[:-1], members[1:], strict=True):
-            if a.stable != b.stable:
+            # Members are in the traced order; one landed past the last traced orbit counts as after it.
+            first, last = traced.get(id(a), -1), traced.get(id(b), len(traced))
+            if a.stable != b.stable and not any(first < j <= last for j in folds):
                 changes.append(_locate(a, b, system, k, unfold, bands, turns))
     settings = {"turns": turns, "unfold": unfold, "partner_against": counter if partner is not None else None}
     return SystemBreatherFamily(system, start, coupling, members, bands, changes, message, settings, events=events)
