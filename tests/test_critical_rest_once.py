@@ -20,17 +20,12 @@ from cosserat_chain.numerics import continuation
 runner = CliRunner()
 
 
-@pytest.fixture
-def config(tmp_path):
-    def write(text: str):
-        path = tmp_path / "chain.toml"
-        path.write_text(text)
-        return str(path)
-
-    return write
+def _config(folder, text: str) -> str:
+    (folder / "chain.toml").write_text(text)
+    return str(folder / "chain.toml")
 
 
-def test_the_command_solves_the_whole_chains_response_at_rest_no_more_than_critical_point_does(monkeypatch, config):
+def test_the_command_solves_the_whole_chains_response_at_rest_no_more_than_critical_point_does(monkeypatch, tmp_path):
     lengths: list[int] = []
     solve = continuation.moment_response
 
@@ -43,7 +38,7 @@ def test_the_command_solves_the_whole_chains_response_at_rest_no_more_than_criti
     critical.critical_point(ChainParams(N=12), "linear")
     by_the_api = lengths.count(12)
     lengths.clear()
-    result = runner.invoke(app, ["critical", "--model", "linear", "--config", config("N = 12\n"), "--json"])
+    result = runner.invoke(app, ["critical", "--model", "linear", "--config", _config(tmp_path, "N = 12\n"), "--json"])
     assert result.exit_code == 0, result.output
     assert by_the_api >= 1 and lengths.count(12) == by_the_api and lengths.count(SHORT_N) == 1
 
@@ -53,15 +48,15 @@ def _never(*args, **kwargs):
 
 
 @pytest.mark.parametrize("field", ["E1", "b"])
-def test_a_k_singular_by_its_fields_is_refused_before_the_computation(monkeypatch, config, field):
+def test_a_k_singular_by_its_fields_is_refused_before_the_computation(monkeypatch, tmp_path, field):
     monkeypatch.setattr(critical, "critical_point", _never)
-    result = runner.invoke(app, ["critical", "--model", "nonlinear", "--config", config(f"N = 200\n{field} = 1e-100\n")])
+    result = runner.invoke(app, ["critical", "--model", "nonlinear", "--config", _config(tmp_path, f"N = 200\n{field} = 1e-100\n")])
     assert result.exit_code == 2, result.output
     assert "singular in double precision" in result.output and f"{field}=1e-100" in result.output
 
 
-def test_a_compliance_beyond_range_from_the_computation_is_refused_naming_the_fields(monkeypatch, config):
+def test_a_compliance_beyond_range_from_the_computation_is_refused_naming_the_fields(tmp_path):
     # Fields the short chain passes (its compliance about 4e99) while the whole chain's is beyond 1e100.
-    result = runner.invoke(app, ["critical", "--model", "linear", "--config", config("N = 40\nE1 = 1e-99\n")])
+    result = runner.invoke(app, ["critical", "--model", "linear", "--config", _config(tmp_path, "N = 40\nE1 = 1e-99\n")])
     assert result.exit_code == 2, result.output
     assert "singular in double precision" in result.output and "E1=1e-99" in result.output
