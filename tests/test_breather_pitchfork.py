@@ -115,3 +115,4 @@ def test_the_natural_family_reports_its_fold_in_the_frequency_and_no_change_of_s
     assert family.omegas[-1] < family.omegas[fold.index - 1]  # it came back down
     assert sorted(e.kind for e in family.events) == ["branch_point", "fold"]
     assert family.changes == []
+    assert family.energy_extrema() == []  # the energy goes on through the fold: dE/dOmega turns with Omega, not with E

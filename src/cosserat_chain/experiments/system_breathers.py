@@ -488,9 +488,11 @@ class SystemBreatherFamily:
         omegas, energy = self.omegas, self.energies()
         if self.settings.get("arclength"):  # Omega may turn or stay put; its events say where a pair meets +1
             return []
-        slope = np.diff(energy) / np.diff(omegas)
+        steps = np.diff(omegas)
+        slope = np.diff(energy) / steps
         out = []
-        for j in np.flatnonzero(np.sign(slope[:-1]) * np.sign(slope[1:]) < 0):
+        # Where Omega turns (a fold, in ``events``) the slope changes sign with the energy still going on: not an extremum.
+        for j in np.flatnonzero((np.sign(slope[:-1]) * np.sign(slope[1:]) < 0) & (np.sign(steps[:-1]) == np.sign(steps[1:]))):
             a, b, c = np.polyfit(omegas[j : j + 3], energy[j : j + 3], 2)
             out.append(float(-b / (2 * a)))
         return out
