@@ -16,10 +16,13 @@ neighbouring ones) turns k times per period T = 2 pi k / Omega while the others 
   rotor between neighbours held at rest.
 * :func:`roto_breather_family` continues it in the coupling (at fixed period, Newton at
   stepped values) up to the system's value, then in the period over the frequencies asked
-  for (:func:`~cosserat_chain.numerics.shooting.continue_orbits`; conservative orbits by the
-  damping's unfolding, returned at zero), and locates by bisection in the period every
-  frequency where stability is lost or regained. A loss at +1 sits where the family's
-  energy is extremal (:meth:`SystemBreatherFamily.energy_extrema`).
+  for on the kit's driver (:func:`~.system_breather_arclength.continue_family`; conservative
+  orbits by the damping's unfolding, returned at zero), which locates the family's folds and
+  branch points with their accuracy, and locates every frequency where stability is lost or
+  regained: bracketed by bisection in the period on the multipliers' moduli, then placed at
+  the zero of the colliding pair's discriminant with an accuracy measured against a tighter
+  integration (:class:`StabilityChange`). A loss at +1 sits where the family's energy is
+  extremal (:meth:`SystemBreatherFamily.energy_extrema`).
 * :func:`linear_bands` gives the phonon bands of the lattice about rest from its force
   Jacobian (a ring's Bloch matrix, sampled in the wavenumber), and :func:`resonances` the
   frequencies where a harmonic of the rotation meets a band edge: the phonons' Floquet
