@@ -870,6 +870,51 @@ def require_integrable_period(params: ChainParams, model: Model, period: float) 
 
 
 @one_blas_thread
+def _check_segments(params: ChainParams, segments: int | None, method: str) -> None:
+    """Refuse ``segments`` that are not a positive integer, that ``method`` cannot take, or whose matrices do not fit in memory.
+
+    Raises
+    ------
+    ValueError
+        For segments < 1 or not an integer, or a method other than the dense and blocks shooting.
+    MemoryEstimateError
+        Where the segments' Jacobians do not fit in the free memory.
+    """
+    if segments is None:
+        return
+    if not (isinstance(segments, (int, np.integer)) and not isinstance(segments, bool) and segments >= 1):
+        raise ValueError(f"segments must be an integer >= 1 (pieces of the period), got {segments!r}")
+    if method not in ("dense", "blocks"):
+        raise ValueError(
+            f"segments applies to the dense and blocks shooting only, got method={method!r} "
+            "(collocation takes its multipliers from its intervals' product already; krylov forms no matrices)"
+        )
+    size = 2 * n_free(params)
+    require(
+        segments * size * size * FLOAT, f"{segments} segment Jacobians of {size} x {size}",
+        "fewer segments (--segments: 16 to 64 keep the smallest multipliers to round-off)",
+    )  # fmt: skip
+
+
+def _multipliers(
+    system: _System, y0: np.ndarray, period: float, mono: np.ndarray | None, method: str, segments: int | None, rtol: float, atol: float
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+    """The Floquet multipliers of the orbit from y0 (by decreasing modulus), their errors and log-moduli (None where not computed).
+
+    ``dense``: the eigenvalues of the formed monodromy ``mono``, or with ``segments`` the periodic
+    Schur form of the pieces' Jacobians (:meth:`_System.segment_jacobians`); ``blocks``:
+    :func:`~.long_orbits.orbit_multipliers` (the trivial one deflated, with its error; with
+    ``segments`` from the pieces' matrices assembled from column blocks).
+    """
+    if method == "blocks":
+        return long_orbits.orbit_multipliers(system, y0, period, mono, segments, rtol=rtol, atol=atol)
+    if segments is None:
+        values = sla.eigvals(mono)
+        return values[np.argsort(-np.abs(values), kind="stable")], None, None
+    found = floquet.periodic_schur_multipliers(system.segment_jacobians(y0, period, segments, rtol=rtol, atol=atol))
+    return found.values, None, found.log_moduli
+
+
 def find_periodic_orbit(
     params: ChainParams,
     model: str | Model,
@@ -956,19 +1001,7 @@ def find_periodic_orbit(
     require_orbit_ends(params)
     collocating = method == "collocation"
     method = "dense" if collocating else long_orbits.choose_method(params, method)
-    if segments is not None:
-        if not (isinstance(segments, (int, np.integer)) and not isinstance(segments, bool) and segments >= 1):
-            raise ValueError(f"segments must be an integer >= 1 (pieces of the period), got {segments!r}")
-        if collocating or method == "krylov":
-            raise ValueError(
-                f"segments applies to the dense and blocks shooting only, got method={'collocation' if collocating else method!r} "
-                "(collocation takes its multipliers from its intervals' product already; krylov forms no matrices)"
-            )
-        size = 2 * n_free(params)
-        require(
-            segments * size * size * FLOAT, f"{segments} segment Jacobians of {size} x {size}",
-            "fewer segments (--segments: 16 to 64 keep the smallest multipliers to round-off)",
-        )  # fmt: skip
+    _check_segments(params, segments, "collocation" if collocating else method)
     particle_turns = _loaded_turns(params, particle, turns, moment)
     if guess is None:
         x0, v0, period, particle_turns = _settled_guess(
@@ -1031,12 +1064,10 @@ def find_periodic_orbit(
     if not solved.converged:
         raise OrbitError(_no_convergence(moment, turns, solved.iterations, solved.norm))
     y0 = phase.state(solved.w[:-1])
-    if segments is None:
-        return _orbit(system, turns, y0, solved.w[-1], solved.evaluation.data, solved.norm, solved.iterations, particle_turns, phase.normal)
-    found = floquet.periodic_schur_multipliers(system.segment_jacobians(y0, solved.w[-1], segments, rtol=rtol, atol=atol))
+    multipliers, _, logs = _multipliers(system, y0, solved.w[-1], solved.evaluation.data, "dense", segments, rtol, atol)
     return _orbit_from(
-        system, turns, y0, solved.w[-1], found.values, solved.norm, solved.iterations, particle_turns, phase.normal,
-        multiplier_log_moduli=found.log_moduli,
+        system, turns, y0, solved.w[-1], multipliers, solved.norm, solved.iterations, particle_turns, phase.normal,
+        multiplier_log_moduli=logs,
     )  # fmt: skip
 
 
@@ -1081,8 +1112,7 @@ def _orbit(
     particle_turns: np.ndarray,
     phase_normal: np.ndarray | None = None,
 ) -> PeriodicOrbit:
-    multipliers = sla.eigvals(mono)
-    multipliers = multipliers[np.argsort(-np.abs(multipliers), kind="stable")]
+    multipliers, _, _ = _multipliers(system, y0, period, mono, "dense", None, RTOL, ATOL)
     return _orbit_from(system, turns, y0, period, multipliers, closure, iterations, particle_turns, phase_normal)
 
 
@@ -1230,6 +1260,7 @@ def continue_orbit(
     atol: float = ATOL,
     progress: ProgressCallback | None = None,
     method: str = "auto",
+    segments: int | None = None,
 ) -> OrbitBranch:
     """Pseudo-arclength continuation of a periodic orbit towards smaller |M|, until it ceases to exist.
 
@@ -1273,7 +1304,14 @@ def continue_orbit(
     progress : callable(points, max_points), optional
     method : {"auto", "dense", "blocks"}
         How the monodromy is integrated (:func:`find_periodic_orbit`); ``blocks`` takes
-        dPhi_T/dM by central differences in M (:func:`~.long_orbits.blocked_shooting`).
+        dPhi_T/dM by central differences in M (:func:`~.long_orbits.blocked_shooting`), and
+        every orbit's multipliers as :func:`find_periodic_orbit`'s blocks give them (the trivial
+        one deflated, with its error: :attr:`PeriodicOrbit.trivial_multiplier_error`).
+    segments : int, optional
+        Every orbit's multipliers from the Jacobians of this many equal pieces of it, with their
+        log-moduli, as ``find_periodic_orbit(..., segments=)`` (one more integration of the
+        monodromy's cost a point: the corrector still forms M for its Newton steps and the
+        tangent). The branch itself is the one without segments.
 
     Returns
     -------
@@ -1282,7 +1320,8 @@ def continue_orbit(
     Raises
     ------
     ValueError
-        For non-positive steps, an unordered step range or a method not in auto, dense, blocks.
+        For non-positive steps, an unordered step range, a method not in auto, dense, blocks, or bad
+        ``segments`` (as :func:`find_periodic_orbit`).
     """
     for name, value in (("step", step), ("min_step", min_step), ("max_step", max_step), ("period_max", period_max)):
         if not (math.isfinite(value) and value > 0):
@@ -1292,16 +1331,24 @@ def continue_orbit(
     method = long_orbits.choose_method(orbit.params, method)
     if method == "krylov":
         raise ValueError("continue_orbit's method must be auto, dense or blocks (a continuation needs the monodromy), got 'krylov'")
+    _check_segments(orbit.params, segments, method)
     params, model = orbit.params, get_model(orbit.model)
     sign = math.copysign(1.0, orbit.moment)
     settings = {"moment_min": moment_min, "period_max": period_max, "step": step, "max_step": max_step, "tol": tol, "rtol": rtol}
     system = _System(params, model, orbit.moment, orbit.particle)
     phase = _phase_for(system, _to_y(params, orbit.x, orbit.v), orbit.phase_normal)
+    if segments is not None and orbit.multiplier_log_moduli is None:
+        # The start's multipliers from its segments too, so that the whole branch carries them alike.
+        y = _to_y(params, orbit.x, orbit.v)
+        values, errors, logs = _multipliers(
+            system, y, orbit.period, long_orbits.Monodromy(system, y, orbit.period, rtol, atol), method, segments, rtol, atol
+        )  # fmt: skip
+        orbit = dataclasses.replace(orbit, multipliers=values, multiplier_errors=errors, multiplier_log_moduli=logs)
     orbits: list[PeriodicOrbit] = []
     first, notes, h = orbit, [], step
     while True:
         problem = _OrbitBranchProblem(
-            first, model, phase, tol, rtol, atol, moment_min, period_max, until_unstable, orbit.stable, method=method
+            first, model, phase, tol, rtol, atol, moment_min, period_max, until_unstable, orbit.stable, method=method, segments=segments
         )
         # A restart's first orbit is the last one already traced.
         offset = max(len(orbits) - 1, 0)
@@ -1408,6 +1455,8 @@ class _OrbitBranchProblem:
     rechoose: bool = False
     #: ``dense`` or ``blocks`` (:func:`continue_orbit`).
     method: str = "dense"
+    #: Pieces of each orbit its multipliers come from (:func:`_multipliers`); None: the formed monodromy.
+    segments: int | None = None
 
     def __post_init__(self) -> None:
         self.crossing0 = self._crossing(self.start)
@@ -1442,12 +1491,12 @@ class _OrbitBranchProblem:
         head = self.phase.head
         y0 = self.phase.state(w[:head])
         system = _System(self.start.params, self.model, float(w[head + 1]), self.start.particle)
-        closure = float(np.max(np.abs(evaluation.residual)))
-        orbit = _orbit(
-            system, self.start.turns, y0, math.exp(w[head]), evaluation.data, closure, iterations, self.start.particle_turns,
-            self.phase.normal,
+        closure, period = float(np.max(np.abs(evaluation.residual))), math.exp(w[head])
+        multipliers, errors, logs = _multipliers(system, y0, period, evaluation.data, self.method, self.segments, self.rtol, self.atol)
+        return _orbit_from(
+            system, self.start.turns, y0, period, multipliers, closure, iterations, self.start.particle_turns, self.phase.normal,
+            errors, logs,
         )  # fmt: skip
-        return orbit
 
     def accept(self, previous: PeriodicOrbit, candidate: PeriodicOrbit) -> bool:
         # A step over which a multiplier near the unit circle moves this far can hide a
