@@ -32,6 +32,7 @@ operations: the same inputs give the same bits on every run and thread count.
 from .band import BANDWIDTH, BandMatrix, band_storage, from_upper_bands, ldlt, negated_lu, negative_count, upper_bands
 from .bordered import BorderedFactor, bordered_jacobian, bordered_solve, rotation_controlled_jacobian, sparse_solve
 from .eigen import eigenvalue_resolution, largest_eigenvalue_bound, lowest_real_eigenvalue, smallest_eigenvalue
+from .mixed import MixedBorderedFactor, MixedFactor, StiffnessRows
 from .norms import dot, euclidean_norm, infinity_norm
 from .refinement import Refined, refined_solve
 from .root import RootFactor
@@ -40,8 +41,11 @@ __all__ = [
     "BANDWIDTH",
     "BandMatrix",
     "BorderedFactor",
+    "MixedBorderedFactor",
+    "MixedFactor",
     "Refined",
     "RootFactor",
+    "StiffnessRows",
     "band_storage",
     "bordered_jacobian",
     "bordered_solve",

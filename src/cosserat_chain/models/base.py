@@ -83,7 +83,7 @@ from numba import njit, types
 from numba.core.errors import NumbaExperimentalFeatureWarning
 from numba.extending import intrinsic
 
-from ..linalg import BANDWIDTH, BandMatrix, largest_eigenvalue_bound
+from ..linalg import BANDWIDTH, BandMatrix, StiffnessRows, largest_eigenvalue_bound
 from ..linalg.band import scatter_add, scatter_signed
 from ..memory import FLOAT, require
 from ..params import ChainParams
@@ -220,6 +220,15 @@ class Model(ABC):
             For a ring (its matrices are not banded).
         """
         return BandMatrix.from_sparse(self.stiffness(params, x))
+
+    def stiffness_rows(self, params: ChainParams, x: np.ndarray) -> StiffnessRows | None:
+        """K = L^T R + G over the free degrees of freedom as rows (:class:`~cosserat_chain.linalg.StiffnessRows`), for
+        :class:`~cosserat_chain.linalg.MixedFactor`, or None where the model has no such form (the default).
+
+        A model whose K is a sum of rank-one terms gives them so that a long chain's soft modes survive
+        the solves (:mod:`cosserat_chain.linalg.mixed`).
+        """
+        return None
 
     def energy(self, params: ChainParams, x: np.ndarray) -> float:
         """Potential energy at ``x``.

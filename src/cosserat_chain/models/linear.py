@@ -354,14 +354,14 @@ def bond_stiffness_blocks(params: ChainParams) -> np.ndarray:
     )
 
 
-def stiffness_root(params: ChainParams) -> tuple[np.ndarray, np.ndarray]:
+def stiffness_root(params: ChainParams, *, before: bool = False) -> tuple[np.ndarray, ...]:
     """The rows of A with K = A^T A over the free degrees of freedom (an open chain), for :class:`~cosserat_chain.linalg.RootFactor`.
 
     P_bond is a sum of three squares (module docstring): each bond gives the rows sqrt(k_u) g_u,
     sqrt(2 E1 b^2) g_phi and sqrt(k_v) g_shear over its six degrees of freedom
     (:func:`bond_stiffness_blocks`), so that K, the sum of their outer products, is A^T A. Returns
     ``values`` (rows, 6), row i's entries from its first free column ``starts[i]`` on (the held degrees
-    of freedom dropped).
+    of freedom dropped), and with ``before`` the rows' places in the mixed form (:func:`free_bond_rows`).
 
     Raises
     ------
@@ -375,16 +375,48 @@ def stiffness_root(params: ChainParams) -> tuple[np.ndarray, np.ndarray]:
     bonds = params.n_particles - 1
     shape = np.array([[-1.0, 0, 0, 1, 0, 0], [0, 0, -1.0, 0, 0, 1], [0, -1.0, -params.h / 2, 0, 1, -params.h / 2]])
     weights = np.sqrt(np.stack(np.broadcast_arrays(k_u, 2 * E1 * params.b**2, k_v), axis=-1) * np.ones((bonds, 1)))
-    rows = (weights[:, :, None] * shape).reshape(3 * bonds, 6)
+    values, starts, placed = free_bond_rows(params, (weights[:, :, None] * shape).reshape(3 * bonds, 6))
+    return (values, starts, placed) if before else (values, starts)
+
+
+def free_bond_rows(params: ChainParams, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Rows over each bond's six degrees of freedom (u_k, v_k, phi_k, u_k+1, v_k+1, phi_k+1), the same number for
+    every bond and in bond order, as rows over the free degrees of freedom (:class:`~cosserat_chain.linalg.RootFactor`'s
+    form): ``values`` (rows, 6) from each row's first free column ``starts`` on, the held degrees of freedom dropped,
+    and ``before``, the number of free degrees of freedom of the particles up to each row's bond's left one (where
+    :class:`~cosserat_chain.linalg.MixedFactor` puts the row's multiplier). Rows without a free column are left out.
+
+    Raises
+    ------
+    ValueError
+        For a ring, whose first and last bonds wrap around the band.
+    """
+    if params.periodic:
+        raise ValueError("a ring's stiffness has no banded square root (its first and last bonds wrap around the band)")
+    source, target, starts, before = _free_bond_layout(params, rows.shape[0] // (params.n_particles - 1))
+    values = np.zeros((starts.size, 6))
+    values.reshape(-1)[target] = rows.reshape(-1)[source]
+    return values, starts, before
+
+
+@lru_cache(maxsize=16)
+def _free_bond_layout(params: ChainParams, per_bond: int) -> tuple[np.ndarray, ...]:
+    """Where :func:`free_bond_rows` puts each entry (constant per chain): the flat indices of the entries read
+    (``source``) and written (``target``), and the rows' ``starts`` and ``before``."""
+    bonds = params.n_particles - 1
     position = np.full(3 * params.n_particles, -1)
     position[free_index(params)] = np.arange(n_free(params))
-    window = position[3 * np.arange(bonds)[:, None] + np.arange(6)]  # (bonds, 6): free position or -1
+    window = np.repeat(position[3 * np.arange(bonds)[:, None] + np.arange(6)], per_bond, axis=0)  # free position or -1
+    kept = np.flatnonzero(np.any(window >= 0, axis=1))
+    before = np.searchsorted(free_index(params), 3 * (kept // per_bond) + 3)
+    window = window[kept]
     starts = np.where(window >= 0, window, np.iinfo(np.int64).max).min(axis=1)
     offsets = np.where(window >= 0, window - starts[:, None], -1)
-    values = np.zeros((3 * bonds, 6))
-    row, column = np.nonzero(np.repeat(offsets, 3, axis=0) >= 0)
-    values[row, np.repeat(offsets, 3, axis=0)[row, column]] = rows[row, column]
-    return values, np.repeat(starts, 3)
+    row, column = np.nonzero(offsets >= 0)
+    out = (kept[row] * 6 + column, row * 6 + offsets[row, column], starts, before)
+    for array in out:
+        array.flags.writeable = False
+    return out
 
 
 def rest_solve(params: ChainParams, rhs: np.ndarray) -> np.ndarray:

@@ -22,7 +22,7 @@ import scipy.sparse as sp
 from numba import carray, njit
 
 from ..geometry import bond_links, rotate
-from ..linalg import BandMatrix
+from ..linalg import BandMatrix, StiffnessRows
 from ..params import ChainParams
 from ..state import bonded, check_state, scatter_bonds, zero_held
 from .base import (
@@ -37,7 +37,7 @@ from .base import (
     put_six,
     stack_floats,
 )
-from .linear import max_frequency
+from .linear import free_bond_rows, max_frequency
 from .trig import sincos
 
 #: Length of a uniform chain's coefficients (a, b, h, E1, E2, h - 2a, d); a graded chain's
@@ -558,6 +558,58 @@ def _link_tables(params: ChainParams) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return corners, rests, stiffness
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _split_hessian(x, h, corners, rests, stiffness, rows, sums):  # pragma: no cover - compiled
+    """The Hessian of P = E (L - L0)^2 / 2 split as K = J^T J + G: every link's row sqrt(E) dL/dq over its bond's six
+    degrees of freedom into ``rows`` (4 n_bonds, 6), and the bonds' sums (:data:`~.base.BOND_SUMS`) of G into ``sums``.
+
+    With e = D / L, the link's d^2 P / dD^2 = E e e^T + tension (I - e e^T), tension = E (1 - L0/L)
+    (:func:`_link_hessian`): its first term is the row's outer product, the second and the corner
+    paths' curvature (tension D.r0 and -tension D.r1) are G's, which vanishes at rest.
+    """
+    n_bonds = x.shape[1] - 1
+    for k in range(n_bonds):
+        s0, c0 = sincos(x[2, k])
+        s1, c1 = sincos(x[2, k + 1])
+        u0, u1 = x[0, k], x[0, k + 1]
+        dv = x[1, k + 1] - x[1, k]
+        for row in range(10):
+            sums[row, k] = 0.0
+        for link in range(4):
+            px, py, qx, qy = corners[link, 0, 0], corners[link, 0, 1], corners[link, 1, 0], corners[link, 1, 1]
+            stiff = stiffness[link, k]
+            r0x = px * c0 - py * s0
+            r0y = px * s0 + py * c0
+            r1x = qx * c1 - qy * s1
+            r1y = qx * s1 + qy * c1
+            dx = h + u1 - u0 + r1x - r0x
+            dy = dv + r1y - r0y
+            length = math.sqrt(dx * dx + dy * dy)
+            ex, ey = dx / length, dy / length
+            root = math.sqrt(stiff)
+            i = 4 * k + link
+            rows[i, 0] = -root * ex
+            rows[i, 1] = -root * ey
+            rows[i, 2] = root * (ex * r0y - ey * r0x)
+            rows[i, 3] = root * ex
+            rows[i, 4] = root * ey
+            rows[i, 5] = root * (ey * r1x - ex * r1y)
+            tension = stiff * (1.0 - rests[link] / length)
+            gxx, gxy, gyy = tension * ey * ey, -tension * ex * ey, tension * ex * ex
+            g0x, g0y = gxx * r0y - gxy * r0x, gxy * r0y - gyy * r0x
+            g1x, g1y = -gxx * r1y + gxy * r1x, -gxy * r1y + gyy * r1x
+            sums[0, k] += gxx
+            sums[1, k] += gxy
+            sums[2, k] += gyy
+            sums[3, k] += g0x
+            sums[4, k] += g0y
+            sums[5, k] += g1x
+            sums[6, k] += g1y
+            sums[7, k] += r0y * g0x - r0x * g0y + tension * (dx * r0x + dy * r0y)
+            sums[8, k] += -r1y * g1x + r1x * g1y - tension * (dx * r1x + dy * r1y)
+            sums[9, k] += r0y * g1x - r0x * g1y
+
+
 def _hessian(params: ChainParams, x: np.ndarray) -> np.ndarray:
     """Every bond's Hessian sums (:data:`~.base.BOND_SUMS`) at ``x`` (:func:`_hessian_sums`), shape (10, n_bonds)."""
     x = check_state(params, x)
@@ -629,3 +681,19 @@ class NonlinearModel(Model):
     def stiffness_band(self, params: ChainParams, x: np.ndarray) -> BandMatrix:
         """:meth:`stiffness` assembled straight into band storage (the same values, bit for bit)."""
         return assemble_bond_sums(_hessian(params, x), params, band=True)
+
+    def stiffness_rows(self, params: ChainParams, x: np.ndarray) -> StiffnessRows:
+        """K = J^T J + G (:func:`_split_hessian`): the links' rows sqrt(E) dL/dq over the free degrees of freedom
+        (left = right = J's rows) and G's band.
+
+        Raises
+        ------
+        ValueError
+            For a ring (its matrices are not banded).
+        """
+        x = check_state(params, x)
+        rows = np.empty((4 * params.n_bonds, 6))
+        sums = np.empty((len(BOND_SUMS), params.n_bonds))
+        _split_hessian(np.ascontiguousarray(bonded(params, x)), params.h, *_link_tables(params), rows, sums)
+        values, starts, before = free_bond_rows(params, rows)
+        return StiffnessRows(values, values, starts, before, assemble_bond_sums(sums, params, band=True))

@@ -21,7 +21,7 @@ import scipy.sparse as sp
 from numba import njit
 from scipy.linalg import cholesky_banded
 
-from ..linalg import BANDWIDTH, BandMatrix, from_upper_bands, upper_bands
+from ..linalg import BANDWIDTH, BandMatrix, StiffnessRows, from_upper_bands, upper_bands
 from ..params import ChainParams
 from ..state import check_state, pack
 from .base import FORCE_SIGNATURE, KERNEL_OPTIONS, Model
@@ -36,6 +36,7 @@ from .linear import (
     cosserat_site,
     max_frequency,
     stiffness_matrix,
+    stiffness_root,
 )
 from .trig import sincos
 
@@ -202,6 +203,19 @@ class SineModel(Model):
         scale = np.zeros(linear.shape[0] + 2 * BANDWIDTH)
         scale[2 * BANDWIDTH : -2 * BANDWIDTH] = _chain_rule(params, check_state(params, x))
         return BandMatrix(_columns_scaled(linear, scale))
+
+    def stiffness_rows(self, params: ChainParams, x: np.ndarray) -> StiffnessRows:
+        """K C = A^T (A C) with A the linear model's square-root rows (:func:`~.linear.stiffness_root`) and
+        C = diag(1, 1, cos phi): left A's rows, right A C's, and no G.
+
+        Raises
+        ------
+        ValueError
+            For a ring (its matrices are not banded).
+        """
+        left, starts, before = stiffness_root(params, before=True)
+        scale = np.append(_chain_rule(params, check_state(params, x)), np.zeros(BANDWIDTH))
+        return StiffnessRows(left, left * scale[starts[:, None] + np.arange(BANDWIDTH + 1)], starts, before, None)
 
     def symmetric_similar(self, params: ChainParams, x: np.ndarray) -> sp.csr_matrix | None:
         """U C U^T, similar to the stiffness K C (K = U^T U the linear model's, C = diag(1, 1, cos phi)).
