@@ -49,8 +49,8 @@ def tongue_edge(characteristic) -> float:
 def test_the_kit_locates_both_pitchforks_of_the_family_at_the_mathieu_tongue_edges():
     """From Omega = 1.1 down to 0.9: the kit's driver reports two branch points, each within its accuracy (half the
     relocation's bracket, 1e-9) of the Mathieu edge; the two changes of stability, located by the collision's
-    discriminant, lie within 1e-12 of them and within their accuracy (1e-11); the family keeps x = 0 to round-off,
-    unstable between the edges (a real pair) and stable outside."""
+    discriminant, lie within 1e-12 of them and within their accuracy (1e-11), and each branch point carries its
+    change's value; the family keeps x = 0 to round-off, unstable between the edges (a real pair), stable outside."""
     upper, lower = tongue_edge(mathieu_b), tongue_edge(mathieu_a)
     assert 0.98 < lower < 0.99 < 1.0 < upper < 1.01
     family = sb.roto_breather_family(rotor_mathieu(), 1.1, to=0.9)
@@ -64,6 +64,10 @@ def test_the_kit_locates_both_pitchforks_of_the_family_at_the_mathieu_tongue_edg
         assert 0 < event.accuracy < 1e-8
         assert abs(event.value - edge) <= event.accuracy
         assert event.as_dict()["accuracy"] == event.accuracy
+        # Its pair through +1 by the collision's discriminant: the same point, 1e-4 times more accurately.
+        value, accuracy = event.discriminant
+        assert abs(value - edge) <= accuracy < 1e-10
+        assert event.as_dict()["discriminant_value"] == value
 
     lost, regained = family.changes
     for change, edge in ((lost, upper), (regained, lower)):

@@ -281,6 +281,10 @@ def _event_lines(summary: dict, parameter: str) -> None:
             f"{e['max_multiplier']:.6g}, fixed-{parameter} Newton system's singular value {e['singular_value']:.2g}, "
             f"pair at +1 split {e['split_before']} -> {e['split_after']}"
         )
+        if "discriminant_value" in e:
+            typer.echo(
+                f"  its pair through +1 by the discriminant: {parameter} = {e['discriminant_value']:.12g} +- {e['discriminant_accuracy']:.2g}"
+            )
         if "branch" in e:
             b = e["branch"]
             if b["values"]:

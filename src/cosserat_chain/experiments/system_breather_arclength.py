@@ -86,6 +86,11 @@ class FamilyEvent:
     orbit : Orbit
     branch : list of Orbit, optional
         The family followed from a branch point (:func:`follow_branch`).
+    discriminant : (float, float), optional
+        For a branch point of a family followed in the period by natural members
+        (:func:`~.system_breathers.roto_breather_family` without ``arclength``): the value and accuracy of the zero of the
+        collision discriminant of the pair passing through +1 there (its change of stability), where it lies within the
+        two accuracies of ``value``: the same point, located without the singular Newton system.
     """
 
     kind: str
@@ -102,6 +107,7 @@ class FamilyEvent:
     tangent: np.ndarray | None = field(default=None, repr=False)
     branch: list[Orbit] | None = field(default=None, repr=False)
     branch_message: str = ""
+    discriminant: tuple[float, float] | None = None
 
     def as_dict(self) -> dict:
         out = {
@@ -109,6 +115,8 @@ class FamilyEvent:
             "energy": self.energy, "singular_value": self.singular_value, "max_multiplier": self.orbit.max_multiplier,
             "split_before": self.split_before, "split_after": self.split_after, "between": [self.index - 1, self.index],
         }  # fmt: skip
+        if self.discriminant is not None:
+            out["discriminant_value"], out["discriminant_accuracy"] = self.discriminant
         if self.branch is not None:
             out["branch"] = {
                 "values": [_value(o, self.parameter) for o in self.branch],

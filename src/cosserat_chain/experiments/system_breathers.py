@@ -1043,6 +1043,15 @@ def roto_breather_family(
             first, last = traced.get(id(a), -1), traced.get(id(b), len(traced))
             if a.stable != b.stable and not any(first < j <= last for j in folds):
                 changes.append(_locate(a, b, system, k, unfold, bands, turns))
+    for event in events:
+        # A branch point's pair through +1 is a change of stability too: its discriminant's zero is the same point,
+        # found without the singular Newton system that stops the relocation's bisection short.
+        same = [
+            c for c in changes if event.kind == "branch_point" and c.kind == "+1" and c.accuracy is not None
+            and abs(c.omega - event.value) <= c.accuracy + (event.accuracy or 0.0)
+        ]  # fmt: skip
+        if same:
+            event.discriminant = (same[0].omega, same[0].accuracy)
     settings = {"turns": turns, "unfold": unfold, "partner_against": counter if partner is not None else None}
     return SystemBreatherFamily(system, start, coupling, members, bands, changes, message, settings, events=events)
 
