@@ -111,7 +111,6 @@ def beam_stiffness(params: ChainParams) -> BeamStiffness:
     )
 
 
-
 def clamped_central_compliance(params: ChainParams, *, nodal: bool = False) -> float:
     """phi(0)/M of the clamped-clamped beam under a moment at its centre: L (1 + P) / (8 EI (1 + P/4)), P = 12 EI c / L^2.
 

@@ -57,7 +57,9 @@ log = logging.getLogger(__name__)
 #: reports and of chances to stop (Ctrl-C, checkpoints). Each chunk ends with its step closed,
 #: an out-of-bounds test and a copy of the state (to find a blow-up's first bad step): about
 #: 1.5 steps' worth of work at 10^6 particles, 7 % of a chunk of 2 * 10^7 (20 steps), 1.5 % of
-#: one of 10^8.
+#: one of 10^8. A chunk is whole strides; where one stride is more work than this (a run of few
+#: frames), a single-threaded run calls the compiled loop for pieces of this much work, left open
+#: between them (the same bits), so that progress and Ctrl-C do not wait for the stride's end.
 CHUNK_WORK = 100_000_000
 
 ProgressCallback = Callable[[int, int], None]
@@ -332,14 +334,8 @@ class _Restart:
         self.x, self.v, self.winding, self.pending = x, v, winding, lanes.pending
         return self
 
-    def first_bad_step(self, lanes: Lanes, step0: int, steps: int, stride: int) -> int:
-        """Steps from ``step0`` to the first state out of bounds (the loop checks only every 1024 steps).
-
-        The chunk is run again from its start with a check after every step, closing its
-        steps where the first run stored them (``stride``) but storing no state: the same
-        kernels on the same bits reach the same states, and it stops at the first bad
-        one, which is left in ``lanes``.
-        """
+    def restore(self, lanes: Lanes) -> None:
+        """Put ``lanes`` back to the chunk's start: its stored frame, forces and sums."""
         lanes.x[...], lanes.v[...], lanes.acc[...], lanes.lane_ints[...] = self.x, self.v, self.acc, self.lane_ints
         lanes.winding[...] = self.winding
         if self.evaluate:
@@ -349,6 +345,16 @@ class _Restart:
         else:
             lanes.f[...] = self.f
         lanes.pending = self.pending
+
+    def first_bad_step(self, lanes: Lanes, step0: int, steps: int, stride: int) -> int:
+        """Steps from ``step0`` to the first state out of bounds (the loop checks only every 1024 steps).
+
+        The chunk is run again from its start with a check after every step, closing its
+        steps where the first run stored them (``stride``) but storing no state: the same
+        kernels on the same bits reach the same states, and it stops at the first bad
+        one, which is left in ``lanes``.
+        """
+        self.restore(lanes)
         stores = steps // stride + 2
         scratch = (
             np.zeros((0, *lanes.x.shape)),
@@ -618,6 +624,10 @@ def integrate(
 
     # A chunk of blocks that blew up is rerun whole, unsplit, from its start: the same bits.
     restart = None if turns is not None else _Restart.like(lanes)
+    # Pieces of a chunk for one thread that keeps the chunk's start (CHUNK_WORK): Ctrl-C within a chunk goes back there.
+    piece = chunk if blocks is not None or restart is None else max(1, CHUNK_WORK // (n * method.force_evaluations))
+    chunk_start = chunk_stored = steps_done
+    inside = False
     try:
         if on_chunk is not None:
             on_chunk(run_state())
@@ -633,13 +643,23 @@ def integrate(
                     lanes, frames_x[stored - 1], frames_v[stored - 1], frames_winding[stored - 1], fresh=steps_done == 0 and resume is None
                 )
             )
-            code, done, written = runner.advance(todo, steps_done, stride, 1024, frames, stored)
-            if code == STATUS_BLEW_UP and start is not None:
-                done = start.first_bad_step(lanes, steps_done, done, stride)
-            first = (steps_done // stride + 1) * stride
-            frame_steps[stored : stored + written] = first + stride * np.arange(written)
-            stored += written
-            steps_done += done
+            chunk_start, chunk_stored, code, inside = steps_done, stored, STATUS_OK, True
+            while code == STATUS_OK and steps_done < chunk_start + todo:
+                length = min(piece, chunk_start + todo - steps_done)
+                if steps_done + length == chunk_start + todo:
+                    code, done, written = runner.advance(length, steps_done, stride, 1024, frames, stored)
+                else:  # left open: the next piece goes on as if the loop had not stopped (only the lanes run pieces)
+                    code, done, written = lanes.advance(length, steps_done, stride, 1024, frames, stored, close_at_end=False)
+                if code == STATUS_BLEW_UP and start is not None:
+                    done = start.first_bad_step(lanes, chunk_start, steps_done - chunk_start + done, stride) - (steps_done - chunk_start)
+                first = (steps_done // stride + 1) * stride
+                frame_steps[stored : stored + written] = first + stride * np.arange(written)
+                stored += written
+                steps_done += done
+                # A chunk done (or stopped) is kept: a Ctrl-C from here on stops after it.
+                inside = code == STATUS_OK and steps_done < chunk_start + todo
+                if inside and progress is not None:
+                    progress(steps_done, n_steps)
             if on_chunk is not None and code == STATUS_OK:
                 on_chunk(run_state())
             if progress is not None:
@@ -659,6 +679,10 @@ def integrate(
                 )
                 break
     except KeyboardInterrupt:
+        if inside and restart is not None:
+            # Within a chunk (its state may be open between pieces): back to its start, its last stored frame.
+            restart.restore(lanes)
+            steps_done, stored = chunk_start, chunk_stored
         status = Status.INTERRUPTED
         message = f"interrupted at t={t0 + steps_done * dt:.6g} after {steps_done} of {n_steps} steps; states up to then are kept"
         log.warning(message)
