@@ -78,6 +78,11 @@ def test_the_errata_read_only_their_checks_and_miss_no_failing_one(monkeypatch):
     assert full[: len(read)] == read and all(a is b for a, b in zip(full, read))
     assert {c.key for c in full[len(read) :]} == {"eq7", "eq11.v", "eq11.phi", "phi0", "eq12", "eq4", "reduced"}
     assert all(c.agrees for c in full[len(read) :])
+    # The reduced model's E1 (D1 = 0) by the linear solve is sympy.solve's root, the same expression.
+    sp = pytest.importorskip("sympy")
+    (reduced,) = [c for c in read if c.key == "section3.reduced_E1"]
+    coefficients, symbols = symbolic.derivation().coefficients, symbolic.derivation().symbols
+    assert sp.srepr(reduced.derived) == sp.srepr(sp.solve(sp.Eq(coefficients["D1"], 0), symbols["E1"])[0])
     expected = symbolic.errata(ChainParams())
 
     def refused():

@@ -505,7 +505,8 @@ def errata_checks() -> tuple[Check, ...]:
         )
     )
     reduced_printed = 2 * h**2 / d**2 * E2
-    reduced_derived = sp.solve(sp.Eq(coefficients["D1"], 0), E1)[0]
+    # D1 is linear in E1: the reduced model's E1 is its one root.
+    _, reduced_derived = sp.solve_linear(coefficients["D1"], symbols=[E1])
     checks.append(
         Check(
             "section3.reduced_E1",
