@@ -10,6 +10,7 @@ fold's centre manifold and the shifted fold's strong stable manifold (Brent in a
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 
@@ -60,8 +61,10 @@ def _turns_over(alpha: float, current: float, eps: float = 1e-9) -> bool:
     return run.t_events[0].size > 0
 
 
+@functools.cache
 def retrapping_current(alpha: float, low: float, high: float) -> float:
-    """I_r(alpha) by bisection on the manifold's fate between ``low`` (falls back) and ``high`` (turns over)."""
+    """I_r(alpha) by bisection on the manifold's fate between ``low`` (falls back) and ``high`` (turns over); computed
+    once a session for each bracket (three tests compare with I_r(0.3))."""
     assert _turns_over(alpha, high) and not _turns_over(alpha, low)
     while high - low > 1e-13:
         middle = 0.5 * (low + high)
