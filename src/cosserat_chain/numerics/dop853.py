@@ -217,6 +217,8 @@ ERROR_EXPONENT = -1.0 / 8.0
 MAX_STEPS = 10_000_000
 #: Below 100 machine epsilons the error test would only see round-off (SciPy raises rtol to it).
 MIN_RTOL = 100 * np.finfo(float).eps
+#: Components a step's stage sums handle at a time (their partial sums a few kB: in the L1 cache).
+STRIP = 512
 
 _COMPLETED, _MAX_STEPS, _STEP_TOO_SMALL = 0, 1, 2
 _STATUS = {_COMPLETED: Status.COMPLETED, _MAX_STEPS: Status.MAX_STEPS, _STEP_TOO_SMALL: Status.STEP_TOO_SMALL}
@@ -296,22 +298,37 @@ def _solve(rhs, force, end_force, coef, rpar, ipar, times, rtol, atol, max_steps
             clipped = t + h_abs > target
             t_new = target if clipped else t + h_abs
             h = t_new - t
-            # y + h sum_r a_sr k_r, summed over the stages first as SciPy does (rk_step).
+            # y + h sum_r a_sr k_r, summed over the stages first as SciPy does (rk_step), a strip of
+            # STRIP components at a time: the strip's partial sums stay in the L1 cache, so each stage
+            # k_r is read once from memory instead of the sum being read and written once per k_r (a
+            # state with variational columns outgrows the caches; the same sums in the same order).
             for s in range(1, N_STAGES):
-                stage[:] = 0.0
-                for r in range(s):
-                    if A[s, r] != 0.0:
-                        for i in range(size):
-                            stage[i] += A[s, r] * k[r, i]
-                for i in range(size):
-                    stage[i] = y[i] + h * stage[i]
+                for low in range(0, size, STRIP):
+                    # Unsigned indices: Numba then drops its wrap-around selects, which keep a loop at a
+                    # run-time offset scalar (and 0-based views cost as much as the sums on a short state).
+                    first = np.uint64(low)
+                    width = np.uint64(min(STRIP, size - low))
+                    for i in range(width):
+                        stage[first + i] = 0.0
+                    for r in range(s):
+                        a = A[s, r]
+                        if a != 0.0:
+                            for i in range(width):
+                                stage[first + i] += a * k[r, first + i]
+                    for i in range(width):
+                        stage[first + i] = y[first + i] + h * stage[first + i]
                 rhs(force, end_force, t + C[s] * h, stage, coef, rpar, ipar, k[s])
             evaluations += N_STAGES - 1
-            y_new[:] = 0.0
-            for r in range(N_STAGES):
-                if B[r] != 0.0:
-                    for i in range(size):
-                        y_new[i] += B[r] * k[r, i]
+            for low in range(0, size, STRIP):
+                first = np.uint64(low)
+                width = np.uint64(min(STRIP, size - low))
+                for i in range(width):
+                    y_new[first + i] = 0.0
+                for r in range(N_STAGES):
+                    b = B[r]
+                    if b != 0.0:
+                        for i in range(width):
+                            y_new[first + i] += b * k[r, first + i]
             # The scaled estimates first, in a loop that vectorises, then their squares summed in order
             # (a strict-order sum is a reduction the vectoriser refuses, which kept the whole loop scalar).
             for i in range(size):
