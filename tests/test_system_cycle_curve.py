@@ -1,6 +1,8 @@
 """Two-parameter curves of a user system's cycle ends (:func:`~cosserat_chain.numerics.cycle_curve.continue_cycle_end`
 on a :class:`~cosserat_chain.numerics.shooting.Orbit`)."""
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -10,9 +12,11 @@ from cosserat_chain.numerics.cycle_switching import switch_at_period_doubling
 from cosserat_chain.systems import pen
 
 
+@functools.cache
 def in_phase_branch(**parameters) -> shooting.OrbitBranch:
     """The pen demo's in-phase rotation followed down in I to its period doubling (located by the one-parameter
-    continuation's own event: an independent method, a multiplier's test function on the orbit branch)."""
+    continuation's own event: an independent method, a multiplier's test function on the orbit branch); once a session
+    for each eps (the curve's start and the doubled branch's fold at eps = 0.1 both start from it)."""
     system = pen(**parameters)
     guess = shooting.settled_guess(system, np.array([0.0, 0.0, 2.0, 2.0]), coordinate="phi_0")
     orbit = shooting.find_orbit(system, guess, turns={"phi_0": 1, "phi_1": 1})
