@@ -6,6 +6,7 @@ Run from the repository root::
     python benchmarks/bench_critical_scaling.py --large      # and N = 10^5 (minutes, a few GiB)
     python benchmarks/bench_critical_scaling.py --sizes 10 100 --models sine
     python benchmarks/bench_critical_scaling.py --sizes 100000 --models nonlinear --out results/critical_scaling_large_nonlinear.json
+    python benchmarks/bench_critical_scaling.py --sizes 100000 --merge    # N = 10^5's rows into the results' file
 
 Each (model, N) runs :func:`~cosserat_chain.experiments.critical.critical_point` as
 ``cosserat-chain critical`` does, in a fresh process (so that its peak memory, ``ru_maxrss``,
@@ -85,6 +86,9 @@ def main() -> None:
     parser.add_argument("--models", nargs="+", default=list(MODELS), choices=MODELS)
     parser.add_argument("--timeout", type=float, default=3600.0, help="seconds one run may take")
     parser.add_argument("--out", type=Path, default=RESULTS, help="the results' JSON file")
+    parser.add_argument(
+        "--merge", action="store_true", help="keep the file's other rows, replacing those of the same model and N (the fit over all)"
+    )
     args = parser.parse_args()
     sizes = sorted(set(args.sizes) | ({LARGE} if args.large else set()))
     import psutil
@@ -110,7 +114,12 @@ def main() -> None:
                 f"{model:>9} {n:>7} {row['cpu_seconds']:8.2f} {row['wall_seconds']:8.2f} {row['peak_rss_mib']:9.0f} {row['points']:6d} "
                 f"{row['folds']:5d} {row['states_kept']:6d} {row['M_c']:14.9g}  {row['confirmation']}{flag}"
             )
-    fits = {model: exponent([r for r in rows if r["model"] == model]) for model in args.models}
+    if args.merge and args.out.exists():
+        measured = {(r["model"], r["N"]) for r in rows}
+        old = json.loads(args.out.read_text())
+        rows = sorted([r for r in old["rows"] if (r["model"], r["N"]) not in measured] + rows, key=lambda r: (MODELS.index(r["model"]), r["N"]))
+        env["merged_with"] = {key: old[key] for key in ("machine", "load_average_at_start", "free_memory_gib_at_start") if key in old}
+    fits = {model: exponent([r for r in rows if r["model"] == model]) for model in sorted({r["model"] for r in rows}, key=MODELS.index)}
     for model, slope in fits.items():
         print(f"{model}: CPU time ~ N^{slope:.2f} over N >= 100" if slope is not None else f"{model}: too few rows to fit")
     args.out.parent.mkdir(exist_ok=True)

@@ -121,6 +121,9 @@ APPROACH_HALVINGS = 12
 #: The trace starts from rest where the band factor's compliance at rest lies within this of the rest response's
 #: (:func:`moment_response`, through K's square root): 1.5e-3 at N = 10^4 on the paper's geometry, 0.33 at 3 10^4, 0.8 at 10^5.
 APPROACH_RTOL = 1e-2
+#: Values a degree of freedom of the mixed form's factor (:class:`~cosserat_chain.linalg.MixedFactor`): its band LU over
+#: the unknowns and four multipliers a bond, 28 values a column (half-bandwidth 9, LAPACK's storage), and the rows.
+MIXED_VALUES = 90
 #: Callback ``progress(done, total)`` used by the long-running functions.
 ProgressCallback = Callable[[float, float], None]
 
@@ -541,22 +544,24 @@ def _passes_rest(before: np.ndarray, after: np.ndarray, moment_before: float, mo
     return bool(near and np.max(np.abs(crossing[ROW_INDEX["phi"]]), initial=0.0) < 0.5)
 
 
-def branch_memory(params: ChainParams, max_points: int, max_states: int | None = None) -> int:
+def branch_memory(params: ChainParams, max_points: int, max_states: int | None = None, *, mixed: bool = False) -> int:
     """Bytes a branch of up to ``max_points`` points needs, keeping at most ``max_states`` states (None: every one).
 
     The kept states (the branch's x) are held twice at the end (the list and its array), beside
-    the stiffness and its banded factors (about 60 values a degree of freedom) and, for every point,
-    its moment, angle and stability (about 40 values: the per-point record, not the state).
+    the stiffness and its banded factors (about 60 values a degree of freedom; with ``mixed``, the
+    mixed form's band LU, :data:`MIXED_VALUES` more) and, for every point, its moment, angle and
+    stability (about 40 values: the per-point record, not the state).
     """
     states = max_points if max_states is None else min(max_points, max_states)
-    return FLOAT * (3 * params.n_particles * (2 * states + 60) + 40 * max_points)
+    factors = 60 + (MIXED_VALUES if mixed else 0)
+    return FLOAT * (3 * params.n_particles * (2 * states + factors) + 40 * max_points)
 
 
-def require_branch_memory(params: ChainParams, max_points: int, max_states: int | None = None) -> None:
+def require_branch_memory(params: ChainParams, max_points: int, max_states: int | None = None, *, mixed: bool = False) -> None:
     """Refuse a branch that would not fit in memory (:func:`branch_memory`, :func:`cosserat_chain.memory.require`)."""
     states = max_points if max_states is None else min(max_points, max_states)
     require(
-        branch_memory(params, max_points, max_states),
+        branch_memory(params, max_points, max_states, mixed=mixed),
         f"a branch of up to {max_points} points keeping {states} states of {params.n_particles} particles (N={params.N})",
         "trace fewer points (max_points, --max-points) or a shorter chain",
     )
@@ -1377,7 +1382,8 @@ def continue_in_moment(
         raise ValueError(f"steps must satisfy 0 < min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
     if max_states is not None and max_states < 2:
         raise ValueError(f"max_states must be at least 2 (the states kept of the branch), got {max_states!r}")
-    require_branch_memory(params, max_points, max_states)
+    mixed = (from_approach if mixed is None else mixed) and model.stiffness_rows(params, zeros(params)) is not None
+    require_branch_memory(params, max_points, max_states, mixed=mixed)
     problem = _StaticBranch(
         params,
         model,
@@ -1389,7 +1395,7 @@ def continue_in_moment(
         stops=_Stops(phi0_stop, phi0_until_unstable, moment_stop, max_folds),
         max_states=max_states,
         progress=progress,
-        mixed=(from_approach if mixed is None else mixed) and model.stiffness_rows(params, zeros(params)) is not None,
+        mixed=mixed,
     )
     approach = approach_from_rest(params, model, particle=particle) if from_approach else []
     first = problem.rest(approach)
