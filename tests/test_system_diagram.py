@@ -103,12 +103,19 @@ def invoke(*args: str):
 # -- the homoclinic ends, solved ------------------------------------------------------------------
 
 
+@functools.cache
+def pen_loop(eps: float):
+    """The pen demo's diagram at one eps with the defaults, computed once a session for each eps (the row's test and
+    the command's, which is given it)."""
+    return system_diagram(pen(), "eps", [eps], "I")
+
+
 @pytest.mark.parametrize("eps", [0.3, pytest.param(0.1, marks=pytest.mark.slow)])
 def test_the_pen_demos_in_phase_rotation_ends_at_the_pendulums_retrapping_current(eps):
     """AUTO-07p's pen demo: its in-phase rotation is one pendulum's, so it ends at I_r(eps), solved to the asked
     accuracy (the in-phase saddle has two unstable directions: in phase and anti-phase); rotation starts at the fold
     I = 1; the orbit period-doubles on the way down, and the row says so."""
-    (row,) = system_diagram(pen(), "eps", [eps], "I").rows
+    (row,) = pen_loop(eps).rows
     reference = retrapping_current(eps, 4 * eps / math.pi - 0.01, 4 * eps / math.pi + 0.01)
     assert row.end == "homoclinic" and row.method == "solved"
     assert row.accuracy <= ASKED
@@ -299,11 +306,20 @@ def test_a_run_below_a_fold_of_cycles_tells_rest_from_rotation(current, below):
 # -- the command line -------------------------------------------------------------------------------
 
 
-def test_the_command_saves_and_dumps_the_solved_end(tmp_path):
+def test_the_command_saves_and_dumps_the_solved_end(tmp_path, monkeypatch):
     """``diagram --system --json --out``: the JSON and the NetCDF file carry ``stops_method``, ``stops_uncertainty``
     and the SNIC point (none here)."""
     import xarray as xr
 
+    # The command's call of system_diagram is the pen row's test's (the same system, values and defaults): its diagram
+    # computed once (pen_loop), the command's parsing, JSON and file as before.
+    calls = []
+
+    def given(system, vary, values, drive, **options):
+        calls.append((system.describe(), vary, list(values), drive, options))
+        return pen_loop(0.3)
+
+    monkeypatch.setattr(module, "system_diagram", given)
     out = tmp_path / "loop.nc"
     args = ("diagram", "--system", "pen", "--vary", "eps", "--values", "0.3", "--drive", "I")
     result = invoke(*args, "--json", "--out", str(out))
@@ -317,6 +333,11 @@ def test_the_command_saves_and_dumps_the_solved_end(tmp_path):
         assert str(ds.stops_method.values[0]) == "solved"
         assert float(ds.stops[0]) == row["stops"] and float(ds.stops_uncertainty[0]) == row["stops_uncertainty"]
         assert json.loads(ds.attrs["snic_point_json"]) is None and ds.attrs["drive"] == "I"
+    ((system, vary, values, drive, options),) = calls
+    assert (system, vary, values, drive) == (pen().describe(), "eps", [0.3], "I")
+    assert options["turns"] == pen_loop(0.3).turns == {"phi_0": 1, "phi_1": 1}
+    assert np.array_equal(options["start"], np.zeros(2)) and options["period_max"] == module.PERIOD_MAX  # the defaults
+    assert options["codim2"] is False
 
 
 @pytest.mark.slow
