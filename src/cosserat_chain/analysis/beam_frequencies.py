@@ -36,7 +36,8 @@ import numpy as np
 
 from ..params import ChainParams
 from ..state import free_rows
-from .timoshenko import _fit_order, beam_stiffness
+from .beam import beam_stiffness
+from .timoshenko import _fit_order
 
 #: The two families of modes of the linear chain.
 FAMILIES = ("flexural", "axial")

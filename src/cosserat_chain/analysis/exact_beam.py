@@ -32,7 +32,7 @@ import numpy as np
 
 from ..params import ChainParams
 from ..state import zero_held
-from .timoshenko import BeamStiffness, beam_stiffness
+from .beam import BeamStiffness, beam_stiffness
 
 #: Relative tolerance of the BVP solves (solve_bvp's residual measure).
 BVP_TOL = 1e-9
