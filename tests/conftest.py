@@ -227,6 +227,29 @@ def paper_sine_branch(paper_sine_orbit):
     return continue_orbit(paper_sine_orbit, moment_min=0.1)
 
 
+@pytest.fixture(scope="session")
+def pen_in_phase_orbit():
+    """AUTO-07p's demo ``pen`` (defaults): its in-phase rotation at I = 0.4, found from a settled run once a session."""
+    from cosserat_chain.numerics import shooting
+    from cosserat_chain.systems import pen
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("COSSERAT_CHAIN_CACHE", str(SYSTEMS_CACHE))  # the compiled system kept with the tests' others
+        system = pen()
+        guess = shooting.settled_guess(system, np.array([0.0, 0.0, 2.0, 2.0]), coordinate="phi_0")
+        return shooting.find_orbit(system, guess, turns={"phi_0": 1, "phi_1": 1})
+
+
+@pytest.fixture(scope="session")
+def pen_in_phase_branch(pen_in_phase_orbit):
+    """``pen_in_phase_orbit`` followed down in I to its period doubling (``max_points=60``), traced once a session for
+    test_systems.py, test_cycle_switching.py, test_cycle_switching_branch_points.py and test_system_cycle_curve.py
+    (none of them changes it)."""
+    from cosserat_chain.numerics import shooting
+
+    return shooting.continue_orbits(pen_in_phase_orbit, "I", direction=-1, max_points=60, stop_at=("period_doubling",))
+
+
 def quick_report_settings():
     """The quick report's settings: short sweeps, runs and chain lists; the sine chain's state diagram at two dampings."""
     from cosserat_chain.report import ReproduceSettings

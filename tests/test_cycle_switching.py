@@ -19,7 +19,6 @@ import scipy.optimize as so
 from collocation_crossings import shooting_crossing
 from cosserat_chain import ChainParams
 from cosserat_chain.loads import moment_load
-from cosserat_chain.numerics import shooting
 from cosserat_chain.numerics.continuation import continue_in_moment, locate_fold
 from cosserat_chain.numerics.cycle_switching import (
     PeriodDoubling,
@@ -34,7 +33,6 @@ from cosserat_chain.numerics.dynamics import integrate
 from cosserat_chain.numerics.hopf import hopf_points
 from cosserat_chain.numerics.integrators import default_time_step
 from cosserat_chain.numerics.periodic import OrbitError, continue_orbit, find_periodic_orbit, initial_guess
-from cosserat_chain.systems import pen
 
 PARAMS = ChainParams(gamma_phi=0.2)
 AMPLITUDES = (1e-3, 2e-3, 4e-3)
@@ -198,17 +196,13 @@ def test_an_orbit_without_a_real_negative_multiplier_has_no_flip_vector(switch):
         flip_vector(dataclasses.replace(switch.point, period=1e-3))
 
 
-def test_the_pen_demo_doubles_into_out_of_phase_rotations_with_auto07p_s_branch_point():
+def test_the_pen_demo_doubles_into_out_of_phase_rotations_with_auto07p_s_branch_point(pen_in_phase_branch):
     """AUTO-07p's demo ``pen`` (two coupled pendula): the in-phase rotation period-doubles at I = 0.17916377626
     (``tests/test_systems.py``), and its second run follows the bifurcating branch of out-of-phase rotations,
     on which AUTO's regression output (``test/hyper.all``) prints a branch point at I = 3.31445E-01 with period
     9.72615E+00 (a multiplier through +1). The switch gives the same branch: subcritical here (the doubled
     orbits lie above the period doubling, unstable), up to a fold of cycles and back down through that point."""
-    system = pen()
-    guess = shooting.settled_guess(system, np.array([0.0, 0.0, 2.0, 2.0]), coordinate="phi_0")
-    in_phase = shooting.find_orbit(system, guess, turns={"phi_0": 1, "phi_1": 1})
-    branch = shooting.continue_orbits(in_phase, "I", direction=-1, max_points=60, stop_at=("period_doubling",))
-    switch = switch_at_period_doubling(branch, stop_at=(), limits=(0.179, 1.0), max_points=80)
+    switch = switch_at_period_doubling(pen_in_phase_branch, stop_at=(), limits=(0.179, 1.0), max_points=80)
     assert switch.parameter == "I" and switch.value == pytest.approx(0.17916377626, abs=1e-9)
     # AUTO's first run prints PERIOD 3.70528E+00 there: its collocation's periods lie ~8e-6 off the shooting's.
     assert switch.point.period == pytest.approx(3.70528, abs=1e-5)

@@ -162,17 +162,14 @@ def test_an_orbit_without_a_second_multiplier_at_plus_one_is_not_a_branch_point(
 
 
 @pytest.mark.slow
-def test_the_pen_demo_s_branch_point_switches_onto_auto07p_s_third_run():
+def test_the_pen_demo_s_branch_point_switches_onto_auto07p_s_third_run(pen_in_phase_branch):
     """AUTO-07p's ``pen``: its second run (the out-of-phase family from the period doubling) prints a branch point
     at I = 3.31445E-01, period 9.72615E+00; its third run switches there (ISW = -1) and follows the crossing
     branch down to a homoclinic end near I = 0.15995 (period 30 at I = 0.1599536). AUTO-07p 0.9.2 (Debian),
     the demo's constants files, NTST = 30, NCOL = 4: points of that run at I = 0.28556823916 (period
     10.935861510) and 0.17519654660 (period 13.893092703). The switch here gives the same branch."""
     system = pen()
-    guess = shooting.settled_guess(system, np.array([0.0, 0.0, 2.0, 2.0]), coordinate="phi_0")
-    in_phase = shooting.find_orbit(system, guess, turns={"phi_0": 1, "phi_1": 1})
-    first = shooting.continue_orbits(in_phase, "I", direction=-1, max_points=60, stop_at=("period_doubling",))
-    doubled = switch_at_period_doubling(first, stop_at=("branch_point",), limits=(0.179, 1.0), max_points=80).branch
+    doubled = switch_at_period_doubling(pen_in_phase_branch, stop_at=("branch_point",), limits=(0.179, 1.0), max_points=80).branch
     switch = switch_at_branch_point(doubled, stop_at=(), limits=(0.1, 1.0), max_points=200, period_max=30.0)
     # AUTO's b.pen: BP at I = 0.33144454208, period 9.7261478586; its collocation (NTST = 30) is off by about the
     # same as its period (4e-7 relative): the point here, refined on the old family, is at 0.3314452407 (secant on

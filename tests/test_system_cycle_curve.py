@@ -1,8 +1,6 @@
 """Two-parameter curves of a user system's cycle ends (:func:`~cosserat_chain.numerics.cycle_curve.continue_cycle_end`
 on a :class:`~cosserat_chain.numerics.shooting.Orbit`)."""
 
-import functools
-
 import numpy as np
 import pytest
 
@@ -12,26 +10,25 @@ from cosserat_chain.numerics.cycle_switching import switch_at_period_doubling
 from cosserat_chain.systems import pen
 
 
-@functools.cache
 def in_phase_branch(**parameters) -> shooting.OrbitBranch:
     """The pen demo's in-phase rotation followed down in I to its period doubling (located by the one-parameter
-    continuation's own event: an independent method, a multiplier's test function on the orbit branch); once a session
-    for each eps (the curve's start and the doubled branch's fold at eps = 0.1 both start from it)."""
+    continuation's own event: an independent method, a multiplier's test function on the orbit branch); at the
+    defaults (eps = 0.1) it is the session's ``pen_in_phase_branch`` (conftest.py)."""
     system = pen(**parameters)
     guess = shooting.settled_guess(system, np.array([0.0, 0.0, 2.0, 2.0]), coordinate="phi_0")
     orbit = shooting.find_orbit(system, guess, turns={"phi_0": 1, "phi_1": 1})
     return shooting.continue_orbits(orbit, "I", direction=-1, max_points=60, stop_at=("period_doubling",))
 
 
-def in_phase_period_doubling(**parameters) -> shooting.Orbit:
-    return next(e for e in in_phase_branch(**parameters).events if e.kind == "period_doubling" and e.located).point
+def period_doubling_on(branch: shooting.OrbitBranch) -> shooting.Orbit:
+    return next(e for e in branch.events if e.kind == "period_doubling" and e.located).point
 
 
 @pytest.fixture(scope="module")
-def curve():
+def curve(pen_in_phase_branch):
     """AUTO-07p's demo ``pen``: the in-phase rotation period-doubles at I = 0.17916377626 for eps = 0.1
     (``tests/test_cycle_switching.py``); its curve followed in eps."""
-    start = in_phase_period_doubling()
+    start = period_doubling_on(pen_in_phase_branch)
     assert start.parameter("I") == pytest.approx(0.17916377626, abs=1e-9)
     return continue_cycle_end(start, "period_doubling", "eps", [0.1, 0.12, 0.15], parameter="I")
 
@@ -42,7 +39,7 @@ def test_the_pen_demo_s_period_doubling_curve_in_eps_is_where_each_value_s_own_b
     assert curve.complete and curve.parameter == "I" and list(curve.values) == [0.1, 0.12, 0.15]
     assert np.all(np.diff(curve.moment) > 0.01)  # more damping, a larger current to keep it rotating in phase
     for eps, current, period, orbit in zip(curve.values[1:], curve.moment[1:], curve.period[1:], curve.orbits[1:]):
-        independent = in_phase_period_doubling(eps=eps)
+        independent = period_doubling_on(in_phase_branch(eps=eps))
         assert current == pytest.approx(independent.parameter("I"), abs=1e-8)
         assert period == pytest.approx(independent.period, abs=1e-8)
         assert orbit.parameter("eps") == eps and orbit.parameter("I") == current
@@ -51,21 +48,21 @@ def test_the_pen_demo_s_period_doubling_curve_in_eps_is_where_each_value_s_own_b
     assert summary["parameter"] == "I" and [r["moment"] for r in summary["rows"]] == list(curve.moment)
 
 
-def doubled_fold(eps: float) -> shooting.Orbit:
+def doubled_fold(branch: shooting.OrbitBranch) -> shooting.Orbit:
     """The fold of cycles on the pen demo's out-of-phase (period-doubled) branch, switched onto at the period
-    doubling and followed up in I (``tests/test_cycle_switching.py``: above I = 0.39 at eps = 0.1)."""
-    switch = switch_at_period_doubling(in_phase_branch(eps=eps), stop_at=("fold",), limits=(0.0, 1.0), max_points=80)
+    doubling of ``branch`` and followed up in I (``tests/test_cycle_switching.py``: above I = 0.39 at eps = 0.1)."""
+    switch = switch_at_period_doubling(branch, stop_at=("fold",), limits=(0.0, 1.0), max_points=80)
     return next(e for e in switch.branch.events if e.kind == "fold" and e.located).point
 
 
-def test_the_fold_of_cycles_on_the_pen_demo_s_doubled_branch_followed_in_eps_is_each_eps_s_own_fold():
+def test_the_fold_of_cycles_on_the_pen_demo_s_doubled_branch_followed_in_eps_is_each_eps_s_own_fold(pen_in_phase_branch):
     """The fold-of-cycles curve (the bordered test function of the shooting Jacobian, a second multiplier at +1):
     at eps = 0.11 it lies where the one-parameter continuation of that eps's own doubled branch turns, to 1e-8."""
-    start = doubled_fold(0.1)
+    start = doubled_fold(pen_in_phase_branch)
     assert start.parameter("I") > 0.39
     curve = continue_cycle_end(start, "fold_of_cycles", "eps", [0.1, 0.105, 0.11], parameter="I")
     assert curve.complete and list(curve.values) == [0.1, 0.105, 0.11]
-    independent = doubled_fold(0.11)
+    independent = doubled_fold(in_phase_branch(eps=0.11))
     assert curve.moment[-1] == pytest.approx(independent.parameter("I"), abs=1e-8)
     assert curve.period[-1] == pytest.approx(independent.period, abs=1e-8)
     assert np.sort(np.abs(curve.orbits[-1].multipliers - 1.0))[1] < 1e-3  # the second multiplier at +1

@@ -67,32 +67,20 @@ def _scipy_multipliers(current: float, u) -> np.ndarray:
     return np.linalg.eigvals(end[4:].reshape(4, 4))
 
 
-@pytest.fixture(scope="module")
-def pen_orbit():
-    system = pen()
-    guess = shooting.settled_guess(system, np.array([0.0, 0.0, 2.0, 2.0]), coordinate="phi_0")
-    return shooting.find_orbit(system, guess, turns={"phi_0": 1, "phi_1": 1})
-
-
-def test_pen_in_phase_rotation_period_at_I_04_equals_scipy_shooting(pen_orbit):
+def test_pen_in_phase_rotation_period_at_I_04_equals_scipy_shooting(pen_in_phase_orbit):
     reference = _scipy_in_phase_orbit(0.4)
-    assert pen_orbit.period == pytest.approx(reference[3], abs=1e-9)
-    assert pen_orbit.closure <= shooting.CLOSURE_TOL
+    assert pen_in_phase_orbit.period == pytest.approx(reference[3], abs=1e-9)
+    assert pen_in_phase_orbit.closure <= shooting.CLOSURE_TOL
     # In phase: the two pendula move together, and the Floquet multipliers are SciPy's.
-    assert pen_orbit.q0[0] - pen_orbit.q0[1] == pytest.approx(0.0, abs=1e-9)
-    mine = np.sort(np.abs(pen_orbit.multipliers))
+    assert pen_in_phase_orbit.q0[0] - pen_in_phase_orbit.q0[1] == pytest.approx(0.0, abs=1e-9)
+    mine = np.sort(np.abs(pen_in_phase_orbit.multipliers))
     theirs = np.sort(np.abs(_scipy_multipliers(0.4, reference)))
     np.testing.assert_allclose(mine, theirs, atol=1e-8)
 
 
-@pytest.fixture(scope="module")
-def pen_branch(pen_orbit):
-    return shooting.continue_orbits(pen_orbit, "I", direction=-1, max_points=60, stop_at=("period_doubling",))
-
-
-def test_pen_period_doubling_in_I_equals_scipy(pen_branch):
-    assert pen_branch.end == "period_doubling"
-    located = [e for e in pen_branch.events if e.kind == "period_doubling"][0]
+def test_pen_period_doubling_in_I_equals_scipy(pen_in_phase_branch):
+    assert pen_in_phase_branch.end == "period_doubling"
+    located = [e for e in pen_in_phase_branch.events if e.kind == "period_doubling"][0]
 
     def test(current):
         return float(np.real(np.prod(_scipy_multipliers(current, _scipy_in_phase_orbit(current)) + 1.0)))
@@ -101,11 +89,11 @@ def test_pen_period_doubling_in_I_equals_scipy(pen_branch):
     assert located.parameter == pytest.approx(reference, abs=1e-9)
     # A multiplier sits at -1 there, and the orbit was stable above and is unstable below.
     assert np.min(np.abs(located.point.multipliers + 1)) < 1e-6
-    assert pen_branch.orbits[0].stable and not pen_branch.orbits[-1].stable
+    assert pen_in_phase_branch.orbits[0].stable and not pen_in_phase_branch.orbits[-1].stable
 
 
-def test_pen_period_against_I_equals_scipy(pen_branch):
-    for orbit in pen_branch.orbits[1::12]:
+def test_pen_period_against_I_equals_scipy(pen_in_phase_branch):
+    for orbit in pen_in_phase_branch.orbits[1::12]:
         current = orbit.parameter("I")
         assert orbit.period == pytest.approx(_scipy_in_phase_orbit(current)[3], abs=1e-9), current
 
@@ -348,7 +336,7 @@ def test_systems_load_by_name_module_or_file(tmp_path):
     np.testing.assert_allclose(system.forces(np.full(5, 0.5)), -2.0 * np.sin(0.5))
 
 
-def test_in_phase_pen_orbits_equal_the_sine_chain_N1_in_pendulum_units(pen_orbit):
+def test_in_phase_pen_orbits_equal_the_sine_chain_N1_in_pendulum_units(pen_in_phase_orbit):
     """With clamped neighbours the loaded particle of the N = 1 sine chain (eq. (2)) is one pendulum,
     j phi'' + gamma_phi phi' + K sin phi = M with K = 4 b^2 (E1 + h^2 E2 / d^2): in the time sqrt(j / K) it is
     the in-phase pen orbit at I = M / K, eps = gamma_phi / sqrt(j K). The chain's own shooting agrees."""
@@ -361,9 +349,9 @@ def test_in_phase_pen_orbits_equal_the_sine_chain_N1_in_pendulum_units(pen_orbit
     params = params.replace(gamma_phi=0.1 * math.sqrt(params.j * stiffness))
     unit = math.sqrt(params.j / stiffness)
     x, v = zeros(params), zeros(params)
-    v[2, 1] = pen_orbit.v0[0] / unit
-    chain = find_periodic_orbit(params, "sine", 0.4 * stiffness, guess=(x, v, pen_orbit.period * unit))
-    assert chain.period / unit == pytest.approx(pen_orbit.period, abs=1e-9)
+    v[2, 1] = pen_in_phase_orbit.v0[0] / unit
+    chain = find_periodic_orbit(params, "sine", 0.4 * stiffness, guess=(x, v, pen_in_phase_orbit.period * unit))
+    assert chain.period / unit == pytest.approx(pen_in_phase_orbit.period, abs=1e-9)
 
 
 def test_a_takeno_peyrard_rotobreather_from_the_anti_continuum_limit_is_an_orbit_of_the_undamped_chain():
@@ -447,10 +435,10 @@ def test_generated_code_is_never_imported_from_a_folder_others_may_write(tmp_pat
     np.testing.assert_allclose(system.forces(np.array([0.5, 0.0])), [-math.sin(0.5) - 2 * 0.123456789 * 0.5, 0.0])
 
 
-def test_an_orbits_trajectory_in_one_integration_closes_after_a_period_and_equals_the_flow(pen_orbit):
-    times = pen_orbit.period * np.array([0.25, 0.5, 1.0])
-    path = pen_orbit.trajectory(times)
+def test_an_orbits_trajectory_in_one_integration_closes_after_a_period_and_equals_the_flow(pen_in_phase_orbit):
+    times = pen_in_phase_orbit.period * np.array([0.25, 0.5, 1.0])
+    path = pen_in_phase_orbit.trajectory(times)
     shift = np.array([2 * math.pi, 2 * math.pi, 0.0, 0.0])
-    assert np.max(np.abs(path[-1] - pen_orbit.y0 - shift)) < 1e-8
-    alone = shooting.flow(pen_orbit.system, pen_orbit.y0, times[0], variations=False)[0]
+    assert np.max(np.abs(path[-1] - pen_in_phase_orbit.y0 - shift)) < 1e-8
+    alone = shooting.flow(pen_in_phase_orbit.system, pen_in_phase_orbit.y0, times[0], variations=False)[0]
     np.testing.assert_allclose(path[0], alone, atol=1e-9)
