@@ -775,12 +775,19 @@ class _Sample:
         return abs(self.loose - self.value)
 
 
-def _sample(orbit: Orbit, omega: float, kind: str, centre: complex | None) -> _Sample | None:
-    """The discriminant at ``orbit`` (found at the shooting's rtol) and at the same orbit found again, and its
-    monodromy integrated, at :data:`TIGHT_RTOL`: the error of the first includes the orbit's own."""
+def _tight(orbit: Orbit) -> Orbit | None:
+    """``orbit`` found again, and its monodromy integrated, at :data:`TIGHT_RTOL` (None where Newton fails)."""
     try:
-        tight = find_orbit(orbit.system, orbit, unfold=orbit.unfold, tol=TIGHT_CLOSURE, rtol=TIGHT_RTOL, atol=TIGHT_RTOL)
+        return find_orbit(orbit.system, orbit, unfold=orbit.unfold, tol=TIGHT_CLOSURE, rtol=TIGHT_RTOL, atol=TIGHT_RTOL)
     except OrbitNotFound:
+        return None
+
+
+def _sample(orbit: Orbit, omega: float, kind: str, centre: complex | None, tighten: Callable[[Orbit], Orbit | None]) -> _Sample | None:
+    """The discriminant at ``orbit`` (found at the shooting's rtol) and at ``tighten(orbit)``, the same orbit found
+    again, and its monodromy integrated, at :data:`TIGHT_RTOL`: the error of the first includes the orbit's own."""
+    tight = tighten(orbit)
+    if tight is None:
         return None
     loose = collision_discriminant(orbit.multipliers, kind, centre)
     sharp = collision_discriminant(tight.multipliers, kind, centre)
@@ -789,7 +796,8 @@ def _sample(orbit: Orbit, omega: float, kind: str, centre: complex | None) -> _S
     return _Sample(omega, tight, sharp, loose, float(np.max(np.abs(orbit.monodromy - tight.monodromy))))
 
 
-def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None, solve: Callable[[float, np.ndarray], Orbit], k: int):
+def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None, solve: Callable[[float, np.ndarray], Orbit], k: int,
+               tighten: Callable[[Orbit], Orbit | None]):  # fmt: skip
     """The zero of the collision discriminant in Omega near the members ``stable`` and ``unstable``.
 
     Returns (omega, samples, slope) or None where a discriminant is unresolved or no sign change is found.
@@ -802,7 +810,7 @@ def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None
         a, b = near
         s = (omega - a.omega) / (b.omega - a.omega)
         try:
-            found = _sample(solve(omega, a.orbit.y0 + s * (b.orbit.y0 - a.orbit.y0)), omega, kind, centre)
+            found = _sample(solve(omega, a.orbit.y0 + s * (b.orbit.y0 - a.orbit.y0)), omega, kind, centre, tighten)
         except OrbitNotFound:
             return None
         if found is not None:
@@ -810,7 +818,7 @@ def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None
         return found
 
     for orbit in (stable, unstable):
-        found = _sample(orbit, 2 * math.pi * k / orbit.period, kind, centre)
+        found = _sample(orbit, 2 * math.pi * k / orbit.period, kind, centre, tighten)
         if found is None:
             return None
         samples.append(found)
@@ -854,14 +862,33 @@ def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None
     return omega, samples, slope
 
 
-def _locate(a: Orbit, b: Orbit, target: System, turns, unfold: str, bands, k: int) -> StabilityChange:
+def locate_stability_change(
+    a, b, solve: Callable[[np.ndarray, float], Orbit], bands: list[tuple[float, float]], k: int,
+    tighten: Callable[[Orbit], Orbit | None] = _tight,
+) -> StabilityChange:  # fmt: skip
     """Bisect in the period between members ``a`` and ``b`` of opposite stability on the moduli, then
-    find the zero of the collision's discriminant (:class:`StabilityChange`)."""
+    find the zero of the collision's discriminant (:class:`StabilityChange`).
+
+    Parameters
+    ----------
+    a, b : Orbit
+        Members of one family (or any orbits with ``y0``, ``period``, ``stable``, ``multipliers``,
+        ``nontrivial_multipliers`` and ``monodromy``: the chain's, :mod:`~.breathers`).
+    solve : callable(y0, period) -> orbit
+        The member of that period from the start ``y0``; raises
+        :class:`~cosserat_chain.numerics.shooting.OrbitNotFound` where Newton fails.
+    bands : list of (bottom, top)
+        The phonon bands the resonances are named from (:func:`nearest_resonance`).
+    k : int
+        The first rotor's turns per period (Omega = 2 pi k / T).
+    tighten : callable(orbit) -> orbit or None
+        The same orbit found again, and its monodromy integrated, at :data:`TIGHT_RTOL`.
+    """
     stable, unstable = (a, b) if a.stable else (b, a)
     for _ in range(BISECTIONS):
         period = 0.5 * (stable.period + unstable.period)
         try:
-            middle = _at(target, turns, unfold, 0.5 * (stable.y0 + unstable.y0), period)
+            middle = solve(0.5 * (stable.y0 + unstable.y0), period)
         except OrbitNotFound:  # the bracket found so far stays valid
             break
         if middle.stable:
@@ -871,10 +898,11 @@ def _locate(a: Orbit, b: Orbit, target: System, turns, unfold: str, bands, k: in
     multiplier, kind = _classify(b if a.stable else a)
     omega_s, omega_u = 2 * math.pi * k / stable.period, 2 * math.pi * k / unstable.period
     moduli_omega = 0.5 * (omega_s + omega_u)
-    centre = complex(np.exp(1j * abs(np.angle(multiplier)))) if kind == "complex" else None
+    # The collision's centre from the bisected unstable member: the pair is nearest it there, not at a far member.
+    centre = complex(np.exp(1j * abs(np.angle(_classify(unstable)[0])))) if kind == "complex" else None
     if kind == "complex" and multiplier.imag < 0:
         multiplier = multiplier.conjugate()
-    found = _collision(stable, unstable, kind, centre, lambda omega, guess: _at(target, turns, unfold, guess, 2 * math.pi * k / omega), k)
+    found = _collision(stable, unstable, kind, centre, lambda omega, guess: solve(guess, 2 * math.pi * k / omega), k, tighten)
     size = CLUSTER_SIZE[kind]
     if found is None:
         omega, accuracy, method, delta, slope, moduli_accuracy = moduli_omega, None, "moduli", None, None, None
@@ -1042,7 +1070,7 @@ def roto_breather_family(
             # Members are in the traced order; one landed past the last traced orbit counts as after it.
             first, last = traced.get(id(a), -1), traced.get(id(b), len(traced))
             if a.stable != b.stable and not any(first < j <= last for j in folds):
-                changes.append(_locate(a, b, system, k, unfold, bands, turns))
+                changes.append(locate_stability_change(a, b, lambda y0, period: _at(system, k, unfold, y0, period), bands, turns))
     for event in events:
         # A branch point's pair through +1 is a change of stability too: its discriminant's zero is the same point,
         # found without the singular Newton system that stops the relocation's bisection short.
@@ -1076,7 +1104,7 @@ def _arclength_family(system, start, coupling, first, omega, to, along, branches
             raise BreatherError(f"along: {name} must go to a finite value other than its {here!r}, got {target!r}")
     traced = continue_family(
         first, name, (min(here, target), max(here, target)), direction=1.0 if target > here else -1.0, branches=branches,
-        progress=progress,
+        discriminants=True, progress=progress,
     )  # fmt: skip
     settings = {"turns": turns, "unfold": unfold, "partner_against": counter if partner is not None else None, "arclength": True}
     return SystemBreatherFamily(
