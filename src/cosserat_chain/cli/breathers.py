@@ -100,7 +100,9 @@ def breathers(
     if omega is None:
         fail("give --omega, the rotating particle's frequency to start from (or --from-moment M for the damped-to-undamped homotopy)")
     if to is not None and to == omega:
-        fail(f"--to must differ from --omega (the family runs from one frequency to another), got {to:g} for both; leave --to out for the one orbit")
+        fail(
+            f"--to must differ from --omega (the family runs from one frequency to another), got {to:g} for both; leave --to out for the one orbit"
+        )
     if atlas is not None:
         if counter and partner is None:
             fail("--counter sets the partner's direction: give --partner as well")
@@ -194,6 +196,8 @@ def breathers(
         typer.echo(f"{field_target[0]} per orbit: " + ", ".join(f"{value:.8g}" for value in summary["values"]))
     for e in summary.get("events", []):
         where = f"Omega = {e['omega']:.10g}" if "value" not in e else f"{e['parameter']} = {e['value']:.10g}"
+        if e.get("accuracy") is not None:
+            where += f" +- {e['accuracy']:.2g}"
         found = f"{e['kind'].replace('_', ' ')} at {where}: energy {e['energy']}, max |mu| {e['max_multiplier']:.6g}"
         if "singular_value" in e:
             found += (
@@ -201,6 +205,12 @@ def breathers(
                 f"pair at +1 split {e['split_before']} -> {e['split_after']}"
             )
         typer.echo(found)
+        if "discriminant_value" in e:
+            value, accuracy = e["discriminant_value"], e["discriminant_accuracy"]
+            typer.echo(
+                "  its pair through +1 by the discriminant: "
+                + ("not resolved" if value is None else f"Omega = {value:.12g} +- {accuracy:.2g}")
+            )
         if "branch" in e:
             b = e["branch"]
             where = f"relocated at {b['at']:.10g} +- {b['accuracy']:.2g}"
@@ -211,6 +221,14 @@ def breathers(
                 )
             else:
                 typer.echo(f"  branch ({where}): none ({b['message']})")
+    for c in summary["stability_changes"]:
+        r = c["resonance"]
+        typer.echo(
+            f"stability {'lost' if c['unstable_omega'] < c['stable_omega'] else 'regained'} going down at Omega = {c['omega']:.12g} "
+            f"{'(accuracy unknown: ' + c['method'] + ')' if c['accuracy'] is None else '+- ' + format(c['accuracy'], '.2g')} "
+            f"(a multiplier leaves the circle at {c['kind']}; the moduli's bisection: {c['moduli_omega']:.10g}); nearest resonance: "
+            f"{r['harmonic']:g} x Omega = {r['edge_frequency']:.6g} ({r['band']} band {r['edge']}) at Omega = {r['omega']:.6g}"
+        )
     for r in result.resonances:
         typer.echo(f"resonance: {r.harmonic} x Omega = {r.edge_frequency:.6g} ({r.band} band {r.edge}) at Omega = {r.omega:.6g}")
     if not family.complete:

@@ -38,6 +38,7 @@ import json
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -45,9 +46,16 @@ import numpy as np
 from ..analysis.dispersion import BRANCHES, wave_summary
 from ..loads import moment_load
 from ..models.base import Model, get_model
-from ..numerics.breather_arclength import ArclengthFamily, continue_hamiltonian_arclength, continue_hamiltonian_field
+from ..numerics.breather_arclength import (
+    ArclengthFamily,
+    HamiltonianFrequencyProblem,
+    continue_hamiltonian_arclength,
+    continue_hamiltonian_field,
+)
 from ..numerics.dynamics import integrate
 from ..numerics.periodic import (
+    CLOSURE_TOL,
+    RTOL,
     HamiltonianFamily,
     HamiltonianOrbit,
     OrbitError,
@@ -56,12 +64,15 @@ from ..numerics.periodic import (
     find_hamiltonian_orbit,
     require_undamped,
 )
+from ..numerics.shooting import OrbitNotFound
 from ..numerics.undamping import UndampingPath, continue_to_undamped
 from ..params import ChainParams
-from ..state import ROW_INDEX, ROWS, column, n_free, unpack, zeros
+from ..state import ROW_INDEX, ROWS, column, n_free, pack, unpack, zeros
 from .anti_continuum import potential_from_torque, rotor_energy, sample_angles
 from .lifetimes import Lifetime, check_lifetime_run, lifetime_from_deviation
 from .simulation import run_attributes
+from .system_breather_arclength import branch_point_discriminant, fold_accuracy
+from .system_breathers import TIGHT_CLOSURE, TIGHT_RTOL, StabilityChange, locate_stability_change
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
     import xarray as xr
@@ -243,6 +254,159 @@ def combination_resonances(
     return out
 
 
+@dataclass(eq=False)
+class _Member:
+    """A chain's orbit as :func:`~.system_breathers.locate_stability_change` reads a member.
+
+    ``y0`` is the free coordinates, then their velocities; ``monodromy`` is integrated again at the
+    orbit's ``rtol`` (the chain's orbits keep their multipliers, not the matrix).
+    """
+
+    orbit: HamiltonianOrbit
+    rtol: float = RTOL
+
+    @property
+    def y0(self) -> np.ndarray:
+        return np.concatenate([pack(self.orbit.params, self.orbit.x), pack(self.orbit.params, self.orbit.v)])
+
+    @property
+    def period(self) -> float:
+        return self.orbit.period
+
+    @property
+    def stable(self) -> bool:
+        return self.orbit.stable
+
+    @property
+    def multipliers(self) -> np.ndarray:
+        return self.orbit.multipliers
+
+    @property
+    def nontrivial_multipliers(self) -> np.ndarray:
+        return self.orbit.nontrivial_multipliers
+
+    @cached_property
+    def monodromy(self) -> np.ndarray:
+        problem = HamiltonianFrequencyProblem(self.orbit, 0.0, math.inf, rtol=self.rtol, atol=self.rtol)
+        return problem.evaluate(problem.start(), True).data
+
+
+def _solvers(orbit: HamiltonianOrbit) -> tuple[Callable[[np.ndarray, float], _Member], Callable[[_Member], _Member | None]]:
+    """``solve(y0, period)``: the member of ``orbit``'s family with that period from the start ``y0`` (OrbitNotFound where
+    Newton fails); ``tighten(member)``: the same orbit at :data:`~.system_breathers.TIGHT_RTOL` (None where it fails)."""
+    params, nf = orbit.params, n_free(orbit.params)
+
+    def solve(y0: np.ndarray, period: float, tol: float = CLOSURE_TOL, rtol: float = RTOL) -> _Member:
+        try:
+            found = find_hamiltonian_orbit(
+                params, orbit.model, 2 * math.pi * orbit.turns / period, (unpack(params, y0[:nf]), unpack(params, y0[nf:])),
+                turns=orbit.turns, particle=orbit.particle, particle_turns=orbit.particle_turns, tol=tol, rtol=rtol, atol=rtol,
+            )  # fmt: skip
+        except OrbitError as err:
+            raise OrbitNotFound(str(err)) from None
+        return _Member(found, rtol)
+
+    def tighten(member: _Member) -> _Member | None:
+        try:
+            return solve(member.y0, member.period, TIGHT_CLOSURE, TIGHT_RTOL)
+        except OrbitNotFound:
+            return None
+
+    return solve, tighten
+
+
+def located_changes(orbits: list[HamiltonianOrbit], bands: tuple[str, ...]) -> list[StabilityChange]:
+    """Where stability changes between consecutive members of opposite stability of a family in Omega.
+
+    Each bracketed by bisection in the period on the multipliers' moduli, then placed at the zero of
+    the colliding pair's discriminant with its accuracy measured against the orbits found again at
+    :data:`~.system_breathers.TIGHT_RTOL` (:func:`~.system_breathers.locate_stability_change`, the
+    user systems' mechanism). The resonances are named by the index of their band in ``bands``.
+    """
+    if len(orbits) < 2:
+        return []
+    solve, tighten = _solvers(orbits[0])
+    edges = wave_summary(orbits[0].params).bands
+    band_edges = [edges[name] for name in bands]
+    return [
+        locate_stability_change(_Member(a), _Member(b), solve, band_edges, a.turns, tighten)
+        for a, b in zip(orbits[:-1], orbits[1:], strict=True)
+        if a.stable != b.stable
+    ]
+
+
+#: The most orbits the kit's driver traces from a natural member (:func:`natural_events`).
+SEGMENT_POINTS = 60
+
+
+def _unknowns(orbit: HamiltonianOrbit) -> np.ndarray:
+    """The orbit's unknowns w = (y0 without phi_rotor, eps, Omega) of the driver's problem in Omega."""
+    return HamiltonianFrequencyProblem(orbit, 0.0, math.inf).start()
+
+
+def natural_events(orbits: list[HamiltonianOrbit], requested: np.ndarray, changes: list[StabilityChange]) -> list[dict]:
+    """The natural family's folds and branch points, traced by the kit's driver in Omega where they can lie.
+
+    Natural steps pass a branch point (a pair through +1) as a change of stability at +1 and stop
+    before a fold, so the driver (:func:`~cosserat_chain.numerics.breather_arclength.continue_hamiltonian_arclength`,
+    at most :data:`SEGMENT_POINTS` orbits) traces the family from the member before each located change at
+    +1 to the member after it (where it finds no branch point the change is the energy's extremum, dE/dOmega = 0),
+    and from the last member towards the next frequency asked for where the family ends before it.
+
+    Returns
+    -------
+    list of dict
+        Per event: ``kind`` (``fold``, ``branch_point``), ``omega`` and ``accuracy`` (a branch point:
+        the zero of its pair's discriminant, :func:`branch_discriminants`, and the kit's location
+        ``kit_omega``; a fold: the kit's location, and the distance to the vertex of the parabola
+        through it and its two neighbours, :func:`~.system_breather_arclength.fold_accuracy`),
+        ``energy``, ``max_multiplier``, ``located`` and ``between``, the members it lies between (the
+        last and None past it).
+    """
+    segments = []
+    pairs = [i for i in range(len(orbits) - 1) if orbits[i].stable != orbits[i + 1].stable]
+    for i, change in zip(pairs, changes, strict=True):
+        if change.kind == "+1":
+            segments.append((orbits[i], orbits[i + 1].omega, [i, i + 1]))
+    if orbits and len(orbits) < len(requested):
+        segments.append((orbits[-1], float(requested[len(orbits)]), [len(orbits) - 1, None]))
+    out = []
+    for start, target, between in segments:
+        if target == start.omega:
+            continue
+        trace = continue_hamiltonian_arclength(
+            start, min(start.omega, target), max(start.omega, target), direction=math.copysign(1.0, target - start.omega),
+            max_points=SEGMENT_POINTS,
+        )  # fmt: skip
+        zeros = branch_discriminants(trace)
+        for j, e in enumerate(trace.events):
+            entry = {"kind": e.kind, "omega": e.parameter, "accuracy": None, "energy": e.point.energy,
+                     "max_multiplier": e.point.max_multiplier, "located": e.located, "between": between}  # fmt: skip
+            if e.kind == "branch_point":
+                entry["kit_omega"] = e.parameter
+                if zeros.get(j) is not None:
+                    entry["omega"], entry["accuracy"] = zeros[j]
+            elif e.kind == "fold" and e.located and e.tangent is not None:
+                entry["accuracy"] = fold_accuracy(trace.orbits, e.point, e.tangent, e.index, _unknowns, lambda o: o.omega)
+            out.append(entry)
+    return out
+
+
+def branch_discriminants(family: ArclengthFamily) -> dict[int, tuple[float, float] | None]:
+    """Per index of a branch point in the events of a family traced in Omega: the zero of the discriminant of its
+    pair through +1 and its accuracy (:func:`~.system_breather_arclength.branch_point_discriminant`, from the two
+    orbits around it), None where that pair's discriminant is not resolved there."""
+    orbits = family.orbits
+    if family.parameter != "omega" or not orbits:
+        return {}
+    solve, tighten = _solvers(orbits[0])
+    return {
+        i: branch_point_discriminant(_Member(orbits[e.index - 1]), _Member(orbits[e.index]), solve, orbits[0].turns, tighten)
+        for i, e in enumerate(family.events)
+        if e.kind == "branch_point" and 1 <= e.index < len(orbits)
+    }
+
+
 @dataclass
 class BreatherFamily:
     """A family of roto-breathers (one rotor, or several with ``partners``) followed in Omega, with the band picture beside it.
@@ -257,6 +421,14 @@ class BreatherFamily:
     resonances : list of Resonance
         Edges of those bands met by a harmonic within the requested frequencies.
     settings : dict
+    changes : list of StabilityChange
+        Where the natural family's stability changes between members (:func:`located_changes`).
+    events : list of dict or None
+        The natural family's folds and branch points (:func:`natural_events`), with ``locate``.
+    discriminants : dict
+        For a family traced by pseudo-arclength in Omega: per index of a branch point in its
+        events, the zero of its pair's discriminant and the accuracy (or None where unresolved;
+        :func:`~.system_breather_arclength.branch_point_discriminant`).
     """
 
     family: HamiltonianFamily
@@ -265,6 +437,9 @@ class BreatherFamily:
     resonances: list[Resonance]
     settings: dict = field(default_factory=dict)
     lifetimes: list[Lifetime] | None = None
+    changes: list[StabilityChange] = field(default_factory=list)
+    discriminants: dict[int, tuple[float, float] | None] = field(default_factory=dict)
+    events: list[dict] | None = None
     _tail: np.ndarray | None = field(default=None, init=False, repr=False)
 
     def measure_lifetimes(
@@ -347,7 +522,14 @@ class BreatherFamily:
             "resonant_harmonics": [[{"harmonic": n, "band": b} for n, b in h] for h in self.resonant_harmonics()],
             "combination_resonances": [[{"harmonic": n, "bands": [a, b]} for n, a, b in h] for h in self.combination_resonances()],
             "resonances": [r.as_dict() for r in self.resonances],
-            **({} if not isinstance(self.family, ArclengthFamily) else {"events": self._events()}),
+            "stability_changes": self._changes(),
+            **(
+                {"events": self._events()}
+                if isinstance(self.family, ArclengthFamily)
+                else {"events": self.events}
+                if self.events is not None
+                else {}
+            ),
             **(
                 {}
                 if not isinstance(self.family, ArclengthFamily) or self.family.parameter == "omega"
@@ -356,13 +538,25 @@ class BreatherFamily:
             **({} if self.lifetimes is None else {"lifetimes": [life.as_dict() for life in self.lifetimes]}),
         }
 
+    def _changes(self) -> list[dict]:
+        """The located changes of stability (:meth:`~.system_breathers.StabilityChange.as_dict`), bands by name."""
+        out = []
+        for change in self.changes:
+            entry = change.as_dict()
+            for key in ("resonance", "nearest_resonance"):
+                entry[key]["band"] = self.bands[entry[key]["band"]]
+            out.append(entry)
+        return out
+
     def _events(self) -> list[dict]:
         """The arclength family's folds and branch points: kind, Omega, energy, largest multiplier, the orbits they lie between.
 
         An event the secant method did not locate (``located`` False) is given at the orbit after its sign change.
         A family followed in a field at a fixed frequency gives the field's value there as ``value``. Each has
         the fixed-parameter Newton system's ``singular_value`` and the pair at +1's ``split_before`` and
-        ``split_after`` (:attr:`~cosserat_chain.numerics.breather_arclength.ArclengthFamily.diagnostics`).
+        ``split_after`` (:attr:`~cosserat_chain.numerics.breather_arclength.ArclengthFamily.diagnostics`). A branch point
+        of a family in Omega has the zero of its pair's discriminant (``discriminant_value``,
+        ``discriminant_accuracy``: :attr:`discriminants`; None where it was not resolved).
         """
         along = self.family.parameter != "omega"
         return [
@@ -376,12 +570,19 @@ class BreatherFamily:
                 "between": [e.index - 1, e.index],
                 **diagnostic,
                 **({} if branch is None else {"branch": _branch_summary(branch, self.family.parameter)}),
+                **(
+                    {}
+                    if i not in self.discriminants
+                    else dict(zip(("discriminant_value", "discriminant_accuracy"), self.discriminants[i] or (None, None), strict=True))
+                ),
             }
-            for e, diagnostic, branch in zip(
-                self.family.events,
-                self.family.diagnostics or [{}] * len(self.family.events),
-                self.family.branches or [None] * len(self.family.events),
-                strict=True,
+            for i, (e, diagnostic, branch) in enumerate(
+                zip(
+                    self.family.events,
+                    self.family.diagnostics or [{}] * len(self.family.events),
+                    self.family.branches or [None] * len(self.family.events),
+                    strict=True,
+                )
             )
         ]
 
@@ -441,11 +642,14 @@ class BreatherFamily:
                 "message": self.family.message,
                 "bands": ", ".join(self.bands),
                 "resonances_json": json.dumps([r.as_dict() for r in self.resonances]),
+                "stability_changes_json": json.dumps(self._changes()),
                 "settings_json": json.dumps({k: v for k, v in self.settings.items() if k != "params"}),
             }
         )
         if isinstance(self.family, ArclengthFamily):
             ds.attrs["events_json"] = json.dumps(self._events())
+        elif self.events is not None:
+            ds.attrs["events_json"] = json.dumps(self.events)
         return ds
 
 
@@ -478,6 +682,7 @@ def roto_breather_family(
     max_points: int = 200,
     along: tuple[str, float] | None = None,
     branches: bool = False,
+    locate: bool = True,
 ) -> BreatherFamily:
     """One-site roto-breathers at the frequencies ``omegas``, from the anti-continuum limit at the first.
 
@@ -514,6 +719,11 @@ def roto_breather_family(
     branches : bool
         With ``arclength``: relocate each branch point and follow the family crossing it
         (:func:`~cosserat_chain.numerics.breather_arclength.follow_branches`; in the events' ``branch``).
+    locate : bool
+        Locate every change of stability between the members (:func:`located_changes`: the
+        discriminant's zero with its accuracy) and the folds and branch points by the kit's driver
+        where they can lie (:func:`natural_events`); with ``arclength`` in Omega, give every branch
+        point the zero of its pair's discriminant instead (:attr:`BreatherFamily.discriminants`).
 
     Returns
     -------
@@ -554,12 +764,21 @@ def roto_breather_family(
     if arclength:
         settings["arclength"] = True
     bands = coupled_bands(params, model, particle)
+    changes, discriminants, events = [], {}, None
+    if locate and not arclength:
+        changes = located_changes(family.orbits, bands)
+        events = natural_events(family.orbits, family.requested, changes)
+    elif locate:
+        discriminants = branch_discriminants(family)
     return BreatherFamily(
         family=family,
         anti_continuum_energy=energy,
         bands=bands,
         resonances=resonances(params, float(omegas.min()), float(omegas.max()), bands=bands),
         settings=settings,
+        changes=changes,
+        discriminants=discriminants,
+        events=events,
     )
 
 
