@@ -165,3 +165,25 @@ def test_the_natural_family_reports_the_branch_point_and_the_fold_that_stop_it(i
     assert fold["omega"] == pytest.approx(1.3767878, abs=1e-6) and fold["accuracy"] is not None and fold["accuracy"] < 1e-5
     assert branch["between"] == fold["between"] == [len(family.orbits) - 1, None]
     assert math.isfinite(fold["energy"])
+
+
+@pytest.mark.slow
+def test_a_systems_arclength_branch_points_carry_their_discriminants_zero_at_the_mathieu_edges(monkeypatch, tmp_path):
+    """``--arclength`` for a user system: each branch point of the rotor-Mathieu family (test_breather_pitchfork) gets
+    the zero of its pair's discriminant, within its accuracy of SciPy's Mathieu edge (round-off there), where the
+    relocation's bisection gives its bracket's half-width."""
+    from scipy.special import mathieu_a, mathieu_b
+
+    from cosserat_chain.experiments import system_breathers as sb
+    from test_breather_pitchfork import rotor_mathieu, tongue_edge
+
+    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(tmp_path / "cache"))
+    family = sb.roto_breather_family(rotor_mathieu(), 1.1, to=0.9, arclength=True)
+    points = [e for e in family.events if e.kind == "branch_point"]
+    assert len(points) == 2
+    for event, edge in zip(points, (tongue_edge(mathieu_b), tongue_edge(mathieu_a)), strict=True):
+        omega, accuracy = event.discriminant
+        assert accuracy < 1e-9
+        assert abs(omega - edge) <= accuracy + 1e-13
+        assert abs(omega - event.value) <= accuracy + event.accuracy
+        assert event.as_dict()["discriminant_value"] == omega
