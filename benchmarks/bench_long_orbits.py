@@ -7,6 +7,7 @@ Run from the repository root::
     python benchmarks/bench_long_orbits.py --json                # also print the JSON on stdout
     python benchmarks/bench_long_orbits.py --segments 16 --dense-max 50   # blocks with segments, N = 50, 100
     python benchmarks/bench_long_orbits.py --rates               # per unit time, N = 10 ... 1000 (about 2 minutes)
+    python benchmarks/bench_long_orbits.py --continuation 8 --sizes 100 200   # an orbit and 3 continuation points
 
 The sine chain (eq. (2)) with strong damping (all gammas 1, other fields default) under the
 moment 0.3 on particle 0: its rotation settles on one stable one-turn orbit at every length
@@ -38,6 +39,14 @@ product (the state and one variational column: a GMRES or Arnoldi step), of one 
 :data:`~cosserat_chain.numerics.long_orbits.BLOCK_COLUMNS` columns, and of the dense
 monodromy in one piece (up to ``--dense-max``), with the blocks' time for all of M and the
 memory of M and of the one-piece integration (``results/long_orbit_rates.json``).
+
+``--continuation M``: for each N of ``--sizes`` (default 100, 200), the chain of
+:data:`SEGMENT_DAMPING` under the moment above, by the blocks with M segments: the orbit from the guess (``find_periodic_orbit``), then
+``continue_orbit(..., method="blocks", segments=M)`` over :data:`CONTINUATION_POINTS` points
+(steps of :data:`CONTINUATION_STEP` in (y0, log T, M)): CPU seconds of each, and per point the
+moment, the period, the trivial multiplier's distance from 1 and its error, the largest other
+modulus, Liouville's sum against -T sum gamma_i / m_i, and the closure of a direct run of one
+period from the orbit's state; with the load average (``results/long_orbit_continuation.json``).
 """
 
 from __future__ import annotations
@@ -55,7 +64,7 @@ import numpy as np
 from cosserat_chain import ChainParams
 from cosserat_chain.models.base import get_model
 from cosserat_chain.numerics import long_orbits
-from cosserat_chain.numerics.periodic import _System, find_periodic_orbit, initial_guess
+from cosserat_chain.numerics.periodic import _System, _to_y, continue_orbit, find_periodic_orbit, initial_guess
 from cosserat_chain.state import n_free, pack, per_dof
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -66,6 +75,8 @@ MODEL, MOMENT, DAMPING = "sine", 0.3, 1.0
 SEGMENT_DAMPING = (1.0, 1.0, 0.1)
 #: Time integrated per rate measurement.
 RATE_SPAN = 0.5
+#: Points and first arclength step of --continuation.
+CONTINUATION_POINTS, CONTINUATION_STEP = 3, 0.01
 
 
 class _Counter:
@@ -210,6 +221,66 @@ def rates(n: int, dense_max: int, span: float) -> dict:
     return row
 
 
+def continuation(n: int, segments: int, threads: int) -> dict:
+    """An orbit at N = n by the blocks with ``segments``, and its continuation over CONTINUATION_POINTS points (``--continuation``)."""
+    gamma_u, gamma_v, gamma_phi = SEGMENT_DAMPING
+    params = ChainParams(N=n, gamma_u=gamma_u, gamma_v=gamma_v, gamma_phi=gamma_phi)
+    rate = float(np.sum(per_dof(params, params.damping) / pack(params, params.particle_inertia)))
+    long_orbits.THREADS = threads
+    row = {"N": n, "size": 2 * n_free(params), "segments": segments, "load_average": os.getloadavg()[0]}
+    cpu = time.process_time()
+    guess = initial_guess(params, MODEL, MOMENT)
+    row["guess_cpu_s"] = time.process_time() - cpu
+    cpu = time.process_time()
+    orbit = find_periodic_orbit(params, MODEL, MOMENT, guess=guess, method="blocks", segments=segments)
+    row["orbit_cpu_s"] = time.process_time() - cpu
+    cpu = time.process_time()
+    branch = continue_orbit(orbit, method="blocks", segments=segments, max_points=CONTINUATION_POINTS, step=CONTINUATION_STEP)
+    row["continuation_cpu_s"] = time.process_time() - cpu
+    row["load_average_after"] = os.getloadavg()[0]
+    points = []
+    for point in branch.orbits:
+        system = _System(params, get_model(MODEL), point.moment, 0)
+        start = _to_y(params, point.x, point.v)
+        end, _, _ = system.flow(start, point.period, rtol=1e-11, atol=1e-11, variations=False)
+        end[system.load_dof] -= 2 * math.pi
+        points.append(
+            {
+                "moment": point.moment,
+                "period": point.period,
+                "iterations": point.iterations,
+                "trivial_distance_from_1": abs(point.trivial_multiplier - 1.0),
+                "trivial_error": point.trivial_multiplier_error,
+                "max_nontrivial_multiplier": point.max_multiplier,
+                "liouville_error": float(np.sum(point.multiplier_log_moduli) + point.period * rate),
+                "direct_run_closure": float(np.max(np.abs(end - start))),
+            }
+        )
+    row["points"] = points
+    return row
+
+
+def continuation_markdown(rows: list[dict]) -> str:
+    lines = [
+        "| N | 2 n_free | segments | orbit CPU s | continuation CPU s (points) | load | M | period T | abs(mu_1 - 1) / its error | "
+        "sum ln abs(mu) - Liouville | direct run's closure |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        for k, p in enumerate(r["points"]):
+            head = (
+                f"| {r['N']} | {r['size']} | {r['segments']} | {r['orbit_cpu_s']:.3g} | {r['continuation_cpu_s']:.3g} ({len(r['points'])}) | "
+                f"{r['load_average']:.1f}-{r['load_average_after']:.1f} |"
+                if k == 0
+                else "| | | | | | |"
+            )
+            lines.append(
+                f"{head} {p['moment']:.8g} | {p['period']:.10g} | {p['trivial_distance_from_1']:.1e} / {p['trivial_error']:.1e} | "
+                f"{p['liouville_error']:.1e} | {p['direct_run_closure']:.1e} |"
+            )
+    return "\n".join(lines)
+
+
 def rates_markdown(rows: list[dict]) -> str:
     lines = [
         "| N | 2 n_free | state | one product | one block of 64 | all blocks (M) | dense in one piece | M (MB) | one-piece integration (MB) |",
@@ -251,8 +322,22 @@ def main() -> None:
     parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
     parser.add_argument("--rates", action="store_true", help="only the costs per unit time, N = 10 ... 1000")
     parser.add_argument("--segments", type=int, default=None, metavar="M", help="blocks with M segments against the formed monodromy")
+    parser.add_argument("--continuation", type=int, default=None, metavar="M", help="an orbit and a short continuation, M segments")
     args = parser.parse_args()
     log = sys.stderr if args.json else sys.stdout
+    if args.continuation is not None:
+        sizes = args.sizes if args.sizes != list(SIZES) else [100, 200]
+        out = args.out if args.out != RESULTS / "long_orbits.json" else RESULTS / "long_orbit_continuation.json"
+        table = []
+        for n in sizes:
+            table.append(continuation(n, args.continuation, args.threads))
+            print("\n".join(continuation_markdown(table[-1:]).splitlines()[2:]), file=log, flush=True)
+            out.parent.mkdir(exist_ok=True)
+            out.write_text(json.dumps(table, indent=1))
+        print(continuation_markdown(table), file=log)
+        if args.json:
+            print(json.dumps(table))
+        return
     if args.segments is not None:
         sizes = args.sizes if args.sizes != list(SIZES) else [50, 100]
         out = args.out if args.out != RESULTS / "long_orbits.json" else RESULTS / "long_orbit_segments.json"

@@ -76,8 +76,9 @@ def test_bad_segments_of_a_continuation_are_refused_naming_the_field(paper_sine_
 
 @pytest.mark.slow
 def test_the_sine_chains_orbit_at_a_hundred_particles_is_followed_in_the_moment_and_each_point_closes_under_the_flow():
-    # The sine chain of benchmarks/bench_long_orbits.py (all gammas 1, T = 21.1) at N = 100, by the blocks with 8 segments.
-    params = ChainParams(N=100, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0)
+    # The sine chain of benchmarks/bench_long_orbits.py --segments (gamma_phi = 0.1: its angles' modes damped at
+    # gamma_phi / j = 3.75, so that 8 pieces keep every multiplier; T = 2.1) at N = 100, by the blocks with 8 segments.
+    params = ChainParams(N=100, gamma_u=1.0, gamma_v=1.0, gamma_phi=0.1)
     guess = initial_guess(params, "sine", 0.3)
     orbit = find_periodic_orbit(params, "sine", 0.3, guess=guess, method="blocks")
     branch = continue_orbit(orbit, method="blocks", segments=8, max_points=3, step=0.01)

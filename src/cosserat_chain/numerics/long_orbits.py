@@ -14,7 +14,9 @@ columns V (2 n_free, p) come from one integration of the state with p variationa
   integrator releases the GIL), with the memory of M alone; a block's variational state stays
   in cache, so even on one thread it is faster than the one-piece integration (1.7x at
   N = 100). Newton as the dense method: the package's corrector (:func:`~.kit.newton`) in
-  chord iterations, M formed again only where the closure stops falling tenfold a step.
+  chord iterations, M formed again only where the closure stops falling tenfold a step; the
+  steps' M at the looser :data:`NEWTON_PRODUCTS_RTOL` (the closure at the shooting's tolerance,
+  Newton carried below ``tol``: :data:`NEWTON_DEPTH`), M at the solution at the shooting's.
   :func:`~.periodic.continue_orbit` takes them too (:func:`blocked_shooting`: dPhi_T/dM,
   which only the one-piece integration carries as a column, by differences in M).
 * **Newton-Krylov** (:func:`krylov_correction`, ``method="krylov"``): M never formed;
@@ -107,6 +109,13 @@ GMRES_MAX_ITERATIONS = 400
 MOMENT_STEP = 1e-5
 #: ... and where that step moves the state by more than this, the step that moves it by this.
 MOMENT_REACH = 1e-3
+#: The blocks' Newton steps form M at this relative and absolute tolerance (or the shooting's, if looser): about
+#: (this / rtol)^(1/8) times fewer DOP853 steps; the closure, and M at the solution, keep the shooting's tolerances.
+NEWTON_PRODUCTS_RTOL = 1e-8
+#: ... and Newton goes on below ``tol`` to ``tol`` times this, or until a step no longer divides the closure by
+#: 1 / CHORD_RATE (its noise floor): the inexact steps converge linearly, and the orbit's position along the
+#: soft directions (multipliers near 1) needs the closure well below ``tol`` for the multipliers to agree.
+NEWTON_DEPTH = 1e-3
 #: Seed of Arnoldi's start vector (reproducible multipliers).
 SEED = 20240
 #: Copies of the segments' matrices alive at once with ``segments`` (theirs, and two in the periodic Schur form).
@@ -236,8 +245,10 @@ class _ShootingStep:
         return step
 
 
-def _closure(system: _System, phase: _Phase, shift: np.ndarray, rtol: float, atol: float):
-    """(P) and the phase condition at w = (y0's unknowns, T), with the :class:`Monodromy` there and f(Phi_T(y0)) (a state-only integration)."""
+def _closure(system: _System, phase: _Phase, shift: np.ndarray, rtol: float, atol: float, products: tuple[float, float] | None = None):
+    """(P) and the phase condition at w = (y0's unknowns, T), with the :class:`Monodromy` there (at the tolerances
+    ``products``, default rtol and atol) and f(Phi_T(y0)) (a state-only integration)."""
+    mono_rtol, mono_atol = products or (rtol, atol)
 
     def evaluate(w: np.ndarray) -> tuple[np.ndarray, Monodromy, np.ndarray]:
         if not w[-1] > 0:
@@ -248,7 +259,7 @@ def _closure(system: _System, phase: _Phase, shift: np.ndarray, rtol: float, ato
         except CosseratChainError as err:  # the integration failed (periodic.OrbitError)
             raise EvaluationFailed(str(err)) from err
         residual = np.append(end - y - shift, phase.residual(y))
-        return residual, Monodromy(system, y, float(w[-1]), rtol, atol), system.velocity(end)
+        return residual, Monodromy(system, y, float(w[-1]), mono_rtol, mono_atol), system.velocity(end)
 
     return evaluate
 
@@ -304,10 +315,14 @@ def blocks_correction(
 
     As the dense shooting (chord iterations: :data:`CHORD_RATE`), with the memory of M alone
     instead of the integrator's copies of 2 n_free + 1 columns, the blocks on ``threads`` threads.
+    The Newton steps' M is integrated at :data:`NEWTON_PRODUCTS_RTOL` (fewer steps; the closure
+    itself at ``rtol``, ``atol``), Newton goes on to ``tol`` times :data:`NEWTON_DEPTH` or its
+    noise floor, and M at the solution is formed at ``rtol``, ``atol``.
     With ``segments`` up to 2 n_free = :data:`ALL_MULTIPLIERS_UP_TO` M is not formed at the
     solution (None): :func:`orbit_multipliers` takes them from the segments' matrices.
     """
-    evaluate = _closure(system, phase, _shift(system, particle_turns), rtol, atol)
+    loose = (max(rtol, NEWTON_PRODUCTS_RTOL), max(atol, NEWTON_PRODUCTS_RTOL))
+    evaluate = _closure(system, phase, _shift(system, particle_turns), rtol, atol, loose)
     keep = phase.keep
 
     def closure(w: np.ndarray, jacobian: bool) -> Evaluation:
@@ -321,11 +336,17 @@ def blocks_correction(
         # M is formed only where Newton asks for a fresh Jacobian (chord iterations, and at the solution).
         return Evaluation(residual, matrix, monodromy)
 
-    solved = newton(closure, w0, tol=tol, max_iterations=max_iter, divergence=None, chord=CHORD_RATE, damping=damping)
+    previous = [math.inf]
+
+    def converged(evaluation: Evaluation, norm: float) -> bool:
+        done = norm <= tol * NEWTON_DEPTH or (norm <= tol and norm > CHORD_RATE * previous[0])
+        previous[0] = norm
+        return done
+
+    solved = newton(closure, w0, converged=converged, max_iterations=max_iter, divergence=None, chord=CHORD_RATE, damping=damping)
     if not solved.converged or (segments is not None and solved.evaluation.data.size <= ALL_MULTIPLIERS_UP_TO):
         return solved, None
-    solved.evaluation.matrix()  # M at the solution, formed once
-    return solved, solved.evaluation.data.formed
+    return solved, Monodromy(system, solved.evaluation.data.start, solved.evaluation.data.period, rtol, atol).matrix(threads=threads)
 
 
 def blocked_shooting(system: _System, particle_turns: np.ndarray, rtol: float, atol: float):
