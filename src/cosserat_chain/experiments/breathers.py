@@ -71,8 +71,8 @@ from ..state import ROW_INDEX, ROWS, column, n_free, pack, unpack, zeros
 from .anti_continuum import potential_from_torque, rotor_energy, sample_angles
 from .lifetimes import Lifetime, check_lifetime_run, lifetime_from_deviation
 from .simulation import run_attributes
-from .system_breather_arclength import branch_point_discriminant, fold_accuracy
-from .system_breathers import TIGHT_CLOSURE, TIGHT_RTOL, StabilityChange, locate_stability_change
+from .system_breather_arclength import fold_accuracy
+from .system_breathers import TIGHT_CLOSURE, TIGHT_RTOL, StabilityChange, branch_point_discriminant, locate_stability_change
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
     import xarray as xr
@@ -394,7 +394,7 @@ def natural_events(orbits: list[HamiltonianOrbit], requested: np.ndarray, change
 
 def branch_discriminants(family: ArclengthFamily) -> dict[int, tuple[float, float] | None]:
     """Per index of a branch point in the events of a family traced in Omega: the zero of the discriminant of its
-    pair through +1 and its accuracy (:func:`~.system_breather_arclength.branch_point_discriminant`, from the two
+    pair through +1 and its accuracy (:func:`~.system_breathers.branch_point_discriminant`, from the two
     orbits around it), None where that pair's discriminant is not resolved there."""
     orbits = family.orbits
     if family.parameter != "omega" or not orbits:
@@ -428,7 +428,7 @@ class BreatherFamily:
     discriminants : dict
         For a family traced by pseudo-arclength in Omega: per index of a branch point in its
         events, the zero of its pair's discriminant and the accuracy (or None where unresolved;
-        :func:`~.system_breather_arclength.branch_point_discriminant`).
+        :func:`~.system_breathers.branch_point_discriminant`).
     """
 
     family: HamiltonianFamily

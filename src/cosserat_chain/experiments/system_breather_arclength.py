@@ -43,8 +43,7 @@ import numpy as np
 
 from ..numerics.breather_arclength import branch_off, pair_split, relocate_branch_point
 from ..numerics.kit import BranchEnd, Continuation, continuation
-from ..numerics.shooting import ATOL, CLOSURE_TOL, PERIOD, RTOL, Orbit, _OrbitProblem, _Shooting, find_orbit
-from .system_breathers import _collision, _tight
+from ..numerics.shooting import ATOL, CLOSURE_TOL, PERIOD, RTOL, Orbit, _OrbitProblem, _Shooting
 
 #: Arclength steps (in the max norm of (y0, eps, lambda)) of a family, and of a branch followed from a branch point.
 STEP, MIN_STEP, MAX_STEP = 0.02, 1e-6, 0.05
@@ -91,8 +90,8 @@ class FamilyEvent:
         For a branch point of a family in the period: the value and accuracy of the zero of the collision discriminant
         of the pair passing through +1 there (its change of stability), the same point located without the singular
         Newton system. By natural members (:func:`~.system_breathers.roto_breather_family` without ``arclength``)
-        where it lies within the two accuracies of ``value``; by pseudo-arclength (``discriminants`` of
-        :func:`continue_family`) from the two members around it (:func:`branch_point_discriminant`).
+        where it lies within the two accuracies of ``value``; by pseudo-arclength (:func:`~.system_breathers.roto_breather_family`
+        with ``arclength``) from the two members around it (:func:`~.system_breathers.branch_point_discriminant`).
     """
 
     kind: str
@@ -277,39 +276,6 @@ class ArclengthSystemFamily:
         return [e for e in self.events if e.kind == "branch_point"]
 
 
-def branch_point_discriminant(
-    a, b, solve: Callable[[np.ndarray, float], Orbit], k: int, tighten: Callable[[Orbit], Orbit | None] = _tight
-) -> tuple[float, float] | None:
-    """The zero in Omega of the discriminant of the multiplier pair passing through +1 between members ``a`` and ``b``.
-
-    The Illinois secant method of the natural family's located changes of stability
-    (:func:`~.system_breathers.locate_stability_change`), started from the two members, each point's
-    discriminant measured against the orbit found again at :data:`~.system_breathers.TIGHT_RTOL`.
-
-    Parameters
-    ----------
-    a, b : Orbit
-        The members on either side of the branch point (or any orbits in the shape
-        :func:`~.system_breathers.locate_stability_change` reads).
-    solve : callable(y0, period) -> orbit
-        The member of that period from the start ``y0``.
-    k : int
-        The first rotor's turns per period.
-    tighten : callable(orbit) -> orbit or None
-        The same orbit at the tight tolerances.
-
-    Returns
-    -------
-    (omega, accuracy) or None
-        None where the pair's discriminant is unresolved or has no zero near the two members.
-    """
-    found = _collision(a, b, "+1", None, lambda omega, guess: solve(guess, 2 * math.pi * k / omega), k, tighten)
-    if found is None:
-        return None
-    omega, samples, slope = found
-    return omega, max(x.error for x in samples) / abs(slope)
-
-
 def continue_family(
     orbit: Orbit,
     parameter: str,
@@ -323,7 +289,6 @@ def continue_family(
     tol: float = CLOSURE_TOL,
     branches: bool = False,
     branch_points: int = BRANCH_POINTS,
-    discriminants: bool = False,
     progress: Callable[[int, int], None] | None = None,
 ) -> ArclengthSystemFamily:
     """Follow a conservative orbit's family in ``parameter`` by pseudo-arclength, reporting its folds and branch points.
@@ -343,9 +308,6 @@ def continue_family(
         Of the kit's driver and Newton.
     branches : bool
         Follow the family through every branch point for ``branch_points`` points (:func:`follow_branch`).
-    discriminants : bool
-        With ``omega``: give every branch point the zero of its pair's discriminant and its accuracy
-        (:func:`branch_point_discriminant`, in the event's ``discriminant``).
 
     Raises
     ------
@@ -366,16 +328,6 @@ def continue_family(
         direction=-float(direction) if parameter == "omega" else float(direction), progress=progress, first=orbit,
     )  # fmt: skip
     family = ArclengthSystemFamily(parameter, list(traced.points), _events(traced, shooting, parameter), traced.end, traced.message)
-    if discriminants and parameter == "omega":
-
-        def solve(y0: np.ndarray, period: float) -> Orbit:
-            return find_orbit(orbit.system, (y0, period), turns=orbit.turns, unfold=orbit.unfold)
-
-        for event in family.branch_points:
-            if 1 <= event.index < len(family.orbits):
-                event.discriminant = branch_point_discriminant(
-                    family.orbits[event.index - 1], family.orbits[event.index], solve, _first_turns(orbit)
-                )
     if branches:
         for event in family.branch_points:
             event.branch, event.branch_message = follow_branch(event, limits, max_points=branch_points, tol=tol)

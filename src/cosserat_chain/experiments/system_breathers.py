@@ -862,6 +862,39 @@ def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None
     return omega, samples, slope
 
 
+def branch_point_discriminant(
+    a, b, solve: Callable[[np.ndarray, float], Orbit], k: int, tighten: Callable[[Orbit], Orbit | None] = _tight
+) -> tuple[float, float] | None:
+    """The zero in Omega of the discriminant of the multiplier pair passing through +1 between members ``a`` and ``b``.
+
+    The Illinois secant method of the natural family's located changes of stability
+    (:func:`locate_stability_change`), started from the two members, each point's
+    discriminant measured against the orbit found again at :data:`TIGHT_RTOL`.
+
+    Parameters
+    ----------
+    a, b : Orbit
+        The members on either side of the branch point (or any orbits in the shape
+        :func:`locate_stability_change` reads).
+    solve : callable(y0, period) -> orbit
+        The member of that period from the start ``y0``.
+    k : int
+        The first rotor's turns per period.
+    tighten : callable(orbit) -> orbit or None
+        The same orbit at the tight tolerances.
+
+    Returns
+    -------
+    (omega, accuracy) or None
+        None where the pair's discriminant is unresolved or has no zero near the two members.
+    """
+    found = _collision(a, b, "+1", None, lambda omega, guess: solve(guess, 2 * math.pi * k / omega), k, tighten)
+    if found is None:
+        return None
+    omega, samples, slope = found
+    return omega, max(x.error for x in samples) / abs(slope)
+
+
 def locate_stability_change(
     a, b, solve: Callable[[np.ndarray, float], Orbit], bands: list[tuple[float, float]], k: int,
     tighten: Callable[[Orbit], Orbit | None] = _tight,
@@ -1104,8 +1137,15 @@ def _arclength_family(system, start, coupling, first, omega, to, along, branches
             raise BreatherError(f"along: {name} must go to a finite value other than its {here!r}, got {target!r}")
     traced = continue_family(
         first, name, (min(here, target), max(here, target)), direction=1.0 if target > here else -1.0, branches=branches,
-        discriminants=True, progress=progress,
+        progress=progress,
     )  # fmt: skip
+    if name == "omega":
+        orbits = traced.orbits
+        for event in traced.branch_points:  # each with its pair's discriminant zero, as a natural family's
+            if 1 <= event.index < len(orbits):
+                event.discriminant = branch_point_discriminant(
+                    orbits[event.index - 1], orbits[event.index], lambda y0, period: _at(system, first.turns, unfold, y0, period), turns
+                )
     settings = {"turns": turns, "unfold": unfold, "partner_against": counter if partner is not None else None, "arclength": True}
     return SystemBreatherFamily(
         system, start, coupling, traced.orbits, linear_bands(system), [], traced.message, settings, events=traced.events, parameter=name
