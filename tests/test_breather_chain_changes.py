@@ -187,3 +187,14 @@ def test_a_systems_arclength_branch_points_carry_their_discriminants_zero_at_the
         assert abs(omega - edge) <= accuracy + 1e-13
         assert abs(omega - event.value) <= accuracy + event.accuracy
         assert event.as_dict()["discriminant_value"] == omega
+
+
+def test_the_family_figure_marks_each_located_change(sine_n2):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from cosserat_chain.plots.breathers import breather_family_figure
+
+    fig = breather_family_figure(sine_n2)
+    dashed = [line.get_xdata()[0] for line in fig.axes[1].get_lines() if line.get_linestyle() == "--"]
+    assert dashed == [change.omega for change in sine_n2.changes]

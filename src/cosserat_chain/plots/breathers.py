@@ -40,7 +40,7 @@ BAND_COLORS = {"longitudinal": "tab:green", "transverse_acoustic": "tab:blue", "
 
 
 def breather_family_figure(result: BreatherFamily) -> Figure:
-    """Tail amplitude and max |mu| against Omega, the bands' harmonic windows shaded.
+    """Tail amplitude and max |mu| against Omega, the bands' harmonic windows shaded, the located changes of stability dashed.
 
     Parameters
     ----------
@@ -86,6 +86,8 @@ def breather_family_figure(result: BreatherFamily) -> Figure:
     for r in result.resonances:
         for ax in (top, bottom):
             ax.axvline(r.omega, color=BAND_COLORS[r.band], ls=":", lw=0.8)
+    for i, change in enumerate(result.changes):
+        bottom.axvline(change.omega, color="tab:red", ls="--", lw=0.9, label="change of stability (discriminant)" if i == 0 else None)
     for band in result.bands:
         bottom.plot([], [], color=BAND_COLORS[band], alpha=0.4, lw=6, label=f"n Ω in {band.replace('_', ' ')}")
     top.set_ylabel("tail amplitude (max |q| off the rotor)")
