@@ -5,32 +5,67 @@ Run from the repository root::
     python benchmarks/bench_startup.py                              # critical --model sine --json, median of 5
     python benchmarks/bench_startup.py --runs 9 -- orbit --model sine --moment 0.3 --json
     python benchmarks/bench_startup.py --src /tmp/old/src           # another checkout's package, same interpreter
+    python benchmarks/bench_startup.py --against /tmp/old/src --runs 5 --out benchmarks/results/startup-h44u.json
 
 Each run is a fresh ``python -m cosserat_chain ARGS`` (its output discarded); its CPU time is
 user + system of the child (``resource.getrusage(RUSAGE_CHILDREN)``), which a busy neighbour
 on the other core does not change. One run first warms Numba's on-disk cache (not counted).
-Also printed: the heavy libraries loaded by the end of the command (none of xarray, pandas,
-Dask or matplotlib for ``--json`` without ``--out``/``--plot``), and the slowest top-level
-imports of one run from ``python -X importtime``.
+With ``--against OLD``, the runs of this tree and of ``OLD`` (a ``src`` folder) alternate.
+
+Also printed, from one more run of each tree: the heavy libraries loaded by the end of the
+command (none of xarray, pandas, Dask or matplotlib for ``--json`` without ``--out``/``--plot``),
+the CPU time of the interpreter's teardown (after the last ``atexit`` handler), the Numba
+dispatchers entered (each cached function's load and type resolution), and the slowest
+top-level imports from ``python -X importtime``.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import re
 import resource
 import statistics
 import subprocess
 import sys
+from pathlib import Path
 
-HEAVY = ("numba", "scipy", "xarray", "pandas", "dask", "distributed", "matplotlib")
-PROBE = (
-    "import atexit, runpy, sys\n"
-    f"atexit.register(lambda: print('HEAVY', sorted(m for m in {HEAVY!r} if m in sys.modules)))\n"
-    "sys.argv = ['cosserat-chain', *sys.argv[1:]]\n"
-    "runpy.run_module('cosserat_chain', run_name='__main__')\n"
-)
+HEAVY = ("numba", "scipy", "scipy.optimize", "xarray", "pandas", "dask", "distributed", "matplotlib")
+# Registered first, so run last among the atexit handlers: the CPU time before the teardown.
+PROBE = """\
+import atexit, json, runpy, sys, time
+import numba.core.dispatcher as dispatcher
+
+loads = []
+compile_ = dispatcher.Dispatcher.compile
+
+
+def timed(self, sig):
+    start = time.process_time()
+    try:
+        return compile_(self, sig)
+    finally:
+        loads.append((self.py_func.__module__ + "." + self.py_func.__qualname__, time.process_time() - start))
+
+
+dispatcher.Dispatcher.compile = timed
+report = sys.stderr
+atexit.register(lambda: print("PROBE", json.dumps({
+    "cpu_before_teardown_s": time.process_time(),
+    "loaded": [m for m in HEAVY if m in sys.modules],
+    "dispatchers": loads,
+}), file=report))
+sys.argv = ["cosserat-chain", *sys.argv[1:]]
+runpy.run_module("cosserat_chain", run_name="__main__")
+""".replace("HEAVY", repr(HEAVY))
+
+
+def environment(src: str | None) -> dict[str, str]:
+    env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    if src:
+        env["PYTHONPATH"] = src + os.pathsep + env.get("PYTHONPATH", "")
+    return env
 
 
 def cpu_seconds(cmd: list[str], env: dict[str, str]) -> float:
@@ -38,6 +73,17 @@ def cpu_seconds(cmd: list[str], env: dict[str, str]) -> float:
     subprocess.run(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, env=env, check=True)
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def probe(args: list[str], env: dict[str, str]) -> dict:
+    """One run with the probe: libraries loaded, CPU before the teardown and the teardown's, dispatchers entered."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    err = subprocess.run([sys.executable, "-c", PROBE, *args], capture_output=True, text=True, env=env).stderr
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    found = json.loads(next(line for line in err.splitlines() if line.startswith("PROBE ")).removeprefix("PROBE "))
+    total = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    found["teardown_s"] = total - found["cpu_before_teardown_s"]
+    return found
 
 
 def top_imports(args: list[str], env: dict[str, str], count: int = 8) -> list[tuple[str, float]]:
@@ -53,26 +99,63 @@ def top_imports(args: list[str], env: dict[str, str], count: int = 8) -> list[tu
     return sorted(rows, key=lambda r: -r[1])[:count]
 
 
+def describe(label: str, times: list[float], found: dict, imports: list[tuple[str, float]]) -> dict:
+    entered = found["dispatchers"]
+    row = {
+        "cpu_median_s": round(statistics.median(times), 3),
+        "cpu_runs_s": [round(t, 3) for t in times],
+        "teardown_s": round(found["teardown_s"], 3),
+        "loaded_at_exit": found["loaded"],
+        "dispatchers_entered": len(entered),
+        "dispatchers_s": round(sum(t for _, t in entered), 3),
+        "first_dispatcher_s": round(entered[0][1], 3) if entered else 0.0,
+    }
+    print(f"  {label}: CPU (user + sys) median of {len(times)}: {row['cpu_median_s']:.2f} s  runs: {' '.join(f'{t:.2f}' for t in times)}")
+    print(f"    teardown after the last atexit handler: {row['teardown_s']:.2f} s; loaded at exit: {row['loaded_at_exit']}")
+    print(
+        f"    Numba dispatchers entered: {row['dispatchers_entered']}, {row['dispatchers_s']:.2f} s "
+        f"(the first, with Numba's target set-up: {row['first_dispatcher_s']:.2f} s)"
+    )
+    print("    slowest top-level imports (cumulative, one run): " + ", ".join(f"{name} {sec:.2f} s" for name, sec in imports))
+    return row
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--runs", type=int, default=5)
     parser.add_argument("--src", help="put this folder first on PYTHONPATH (measure another checkout)")
+    parser.add_argument("--against", help="a second src folder (the old code), its runs interleaved with this tree's")
+    parser.add_argument("--out", type=Path, help="add this run's row to a JSON file (rows keyed by the command)")
     parser.add_argument("args", nargs="*", default=["critical", "--model", "sine", "--json"])
     ns = parser.parse_args()
-    env = dict(os.environ)
-    if ns.src:
-        env["PYTHONPATH"] = ns.src + os.pathsep + env.get("PYTHONPATH", "")
+    trees = {"this tree": environment(ns.src)}
+    if ns.against:
+        trees["against"] = environment(ns.against)
     cmd = [sys.executable, "-m", "cosserat_chain", *ns.args]
-    cpu_seconds(cmd, env)  # warm Numba's cache
-    times = [cpu_seconds(cmd, env) for _ in range(ns.runs)]
-    heavy = subprocess.run([sys.executable, "-c", PROBE, *ns.args], capture_output=True, text=True, env=env).stdout.strip().splitlines()[-1]
+    for env in trees.values():
+        cpu_seconds(cmd, env)  # warm Numba's cache
+    load_before = os.getloadavg()
+    times: dict[str, list[float]] = {label: [] for label in trees}
+    for _ in range(ns.runs):
+        for label, env in trees.items():
+            times[label].append(cpu_seconds(cmd, env))
+    load_after = os.getloadavg()
     print(f"cosserat-chain {' '.join(ns.args)}")
-    print(f"  CPU (user + sys) median of {ns.runs}: {statistics.median(times):.2f} s  runs: {' '.join(f'{t:.2f}' for t in times)}")
-    print(f"  loaded at exit: {heavy.removeprefix('HEAVY ')}")
-    print(
-        "  slowest top-level imports (cumulative, one run): " + ", ".join(f"{name} {sec:.2f} s" for name, sec in top_imports(ns.args, env))
-    )
-    print(f"  load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+    rows = {label: describe(label, times[label], probe(ns.args, env), top_imports(ns.args, env)) for label, env in trees.items()}
+    print(f"  load average: before {' '.join(f'{x:.2f}' for x in load_before)}, after {' '.join(f'{x:.2f}' for x in load_after)}")
+    if ns.out:
+        results = json.loads(ns.out.read_text()) if ns.out.exists() else {}
+        results[" ".join(ns.args)] = {
+            "trees": {"this tree": ns.src or "the installed package", **({"against": ns.against} if ns.against else {})},
+            **rows,
+            "load_average_before": [round(x, 2) for x in load_before],
+            "load_average_after": [round(x, 2) for x in load_after],
+            "cpu": next(
+                (line.split(":", 1)[1].strip() for line in Path("/proc/cpuinfo").read_text().splitlines() if line.startswith("model name")),
+                "?",
+            ),
+        }
+        ns.out.write_text(json.dumps(results, indent=1) + "\n")
 
 
 if __name__ == "__main__":

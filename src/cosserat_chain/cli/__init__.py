@@ -1,4 +1,8 @@
-"""Command line ``cosserat-chain``: one module per command, all registered on one Typer ``app``."""
+"""Command line ``cosserat-chain``: one module per command, all registered on one Typer ``app``.
+
+A command's module is imported when the command is needed (``_App.defer``): ``cosserat-chain
+critical ...`` imports :mod:`.statics` and what it uses, not the other commands' modules.
+"""
 
 import os
 
@@ -7,22 +11,27 @@ import os
 # thread spins and slows it (benchmarks/TIMINGS.md, "BLAS threads"). Set before NumPy loads.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from . import (
-    breathers,  # noqa: F401  (registers the command)
-    diagram,  # noqa: F401  (registers the command)
-    draw,  # noqa: F401  (registers draw and animate)
-    export,  # noqa: F401  (registers the command)
-    models,  # noqa: F401  (registers the command)
-    orbit,  # noqa: F401  (registers the command)
-    reproduce,  # noqa: F401  (registers the command)
-    rotate,  # noqa: F401  (registers the command)
-    simulate,  # noqa: F401  (registers the command)
-    states,  # noqa: F401  (registers the command)
-    statics,  # noqa: F401  (registers sweep and critical)
-    study,  # noqa: F401  (registers the command)
-    theory,  # noqa: F401  (registers the command)
-    waves,  # noqa: F401  (registers the command)
-)
-from .common import app
+from .common import app  # noqa: E402  (after the BLAS setting: common imports NumPy)
 
-__all__ = ["app"]
+#: Each command and the module that registers it, in the order ``--help`` lists them.
+COMMAND_MODULES = {
+    "breathers": "breathers",
+    "diagram": "diagram",
+    "draw": "draw",
+    "animate": "draw",
+    "export": "export",
+    "models": "models",
+    "orbit": "orbit",
+    "reproduce": "reproduce",
+    "rotate": "rotate",
+    "simulate": "simulate",
+    "states": "states",
+    "sweep": "statics",
+    "critical": "statics",
+    "study": "study",
+    "theory": "theory",
+    "waves": "waves",
+}
+app.defer(COMMAND_MODULES)
+
+__all__ = ["COMMAND_MODULES", "app"]

@@ -6,8 +6,12 @@ Each command lives in its own module of this package and registers itself on ``a
 
 from __future__ import annotations
 
+import atexit
 import functools
+import gc
+import importlib
 import math
+import os
 import sys
 import tempfile
 from contextlib import ExitStack
@@ -44,7 +48,63 @@ class _App(typer.Typer):
     The computations estimate their large arrays before allocating them
     (:mod:`cosserat_chain.memory`); this is the net for an allocation no estimate
     foresaw (a chain of 10^9 particles meets one in its first array).
+
+    Each command's module is imported when the command is needed (:meth:`defer`): a run
+    of the command line (:meth:`__call__`) imports the module of the command it names,
+    anything else that reads the commands (``--help``, a wrong name, completion, a test's
+    runner) imports them all and lists them in the order :meth:`defer` gave.
     """
+
+    def __init__(self, *args, **kwargs):
+        self._commands: list = []
+        self._modules: dict[str, str] = {}  # command name -> the module of this package that registers it
+        self._chosen: str | None = None  # the command a run names, whose module alone it imports
+        self._importing = False
+        super().__init__(*args, **kwargs)
+
+    def defer(self, modules: dict[str, str]) -> None:
+        """Register the commands by name, each with the module of this package that defines it, in the order of ``--help``."""
+        self._modules = dict(modules)
+
+    @property
+    def registered_commands(self) -> list:
+        """The commands, their modules imported first (only the named command's during a run), in :meth:`defer`'s order."""
+        if not self._importing:
+            wanted = self._modules if self._chosen is None else {self._chosen: self._modules[self._chosen]}
+            missing = [name for name in dict.fromkeys(wanted.values()) if f"{__package__}.{name}" not in sys.modules]
+            self._importing = True  # a module being imported registers its commands (appends) without a recursion
+            try:
+                for name in missing:
+                    importlib.import_module(f".{name}", __package__)
+            finally:
+                self._importing = False
+            order = {name: rank for rank, name in enumerate(self._modules)}
+            self._commands.sort(key=lambda info: order.get(info.name or typer.main.get_command_name(info.callback.__name__), len(order)))
+        return self._commands
+
+    @registered_commands.setter
+    def registered_commands(self, commands: list) -> None:
+        self._commands = commands
+
+    def __call__(self, *args, **kwargs):
+        """Run the command line: import the named command's module only (all of them for group options, help, completion).
+
+        At exit the objects alive are frozen out of the garbage collector (:func:`gc.freeze`):
+        the interpreter's teardown then skips the full collections over every object the imports
+        made (NumPy, Numba, SciPy), the largest cost of a short command after the imports.
+        Outputs are written and closed by the commands themselves, never left to a collector.
+        """
+        argv = kwargs.get("args", args[0] if args else None)
+        argv = sys.argv[1:] if argv is None else list(argv)
+        completing = any(key.startswith("_") and key.endswith("_COMPLETE") for key in os.environ)
+        chosen = argv[0] if argv and argv[0] in self._modules and not completing else None
+        atexit.unregister(gc.freeze)  # once, however many runs a process makes (the tests run many)
+        atexit.register(gc.freeze)
+        self._chosen = chosen
+        try:
+            return super().__call__(*args, **kwargs)
+        finally:
+            self._chosen = None
 
     def command(self, *args, **kwargs):
         register = super().command(*args, **kwargs)
