@@ -39,8 +39,8 @@ columns V (2 n_free, p) come from one integration of the state with p variationa
   largest above it (ARPACK on the formed M), or by Arnoldi on products (no M formed, for
   ``krylov`` above 2 n_free = :data:`FORM_UP_TO`). Each comes with an error estimate; the
   trivial one's, |(M - I) f| / |f|, bounds its distance from 1 (tested).
-* **segments** (:func:`orbit_multipliers`, ``find_periodic_orbit(..., segments=m)`` with the
-  blocks): the multipliers of a formed M below about 1e-16 |M| are round-off. With m segments
+* **segments** (:func:`orbit_multipliers`, ``find_periodic_orbit(..., segments=m)`` and
+  ``continue_orbit(..., segments=m)`` with the blocks): the multipliers of a formed M below about 1e-16 |M| are round-off. With m segments
   every block is integrated piece by piece, each piece's transfer matrix G_k assembled from the
   blocks (:func:`segment_matrices`: m (2 n_free)^2 numbers), and all multipliers come from the
   periodic Schur form of G_m ... G_1 (:func:`~.floquet.periodic_schur_multipliers`) with their
