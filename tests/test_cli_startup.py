@@ -1,0 +1,84 @@
+"""The command line's start-up: a run imports only what its command uses, and says the same as the whole application.
+
+``cosserat-chain critical ...`` imports the module of ``critical`` alone (``cli.COMMAND_MODULES``);
+``--help``, a wrong name and a test's runner see every command. Each claim is checked in a fresh
+interpreter, where ``sys.modules`` tells what the run imported.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+from typer.testing import CliRunner
+
+import cosserat_chain.cli as cli
+from cosserat_chain.cli import app
+
+runner = CliRunner()
+
+# Run the command line as ``python -m cosserat_chain`` does; an ``atexit`` handler registered
+# before the command (so run after every other) reports the modules loaded and the frozen objects.
+# With "whole" first, every command module is imported before the run (the whole application).
+_PROBE = """\
+import atexit, gc, json, runpy, sys
+atexit.register(lambda: print("PROBE", json.dumps({"modules": sorted(sys.modules), "frozen": gc.get_freeze_count()}), file=sys.stderr))
+if sys.argv[1] == "whole":
+    import cosserat_chain.cli
+    cosserat_chain.cli.app.registered_commands
+sys.argv = ["cosserat-chain", *sys.argv[2:]]
+runpy.run_module("cosserat_chain", run_name="__main__")
+"""
+
+
+def _run(*args: str, whole: bool = False) -> tuple[subprocess.CompletedProcess, dict]:
+    env = dict(os.environ, COLUMNS="80", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    mode = "whole" if whole else "lazy"
+    done = subprocess.run([sys.executable, "-c", _PROBE, mode, *args], capture_output=True, text=True, env=env, timeout=300)
+    line = next(line for line in done.stderr.splitlines() if line.startswith("PROBE "))
+    return done, json.loads(line.removeprefix("PROBE "))
+
+
+def test_the_table_of_command_modules_is_what_the_modules_register_in_the_order_of_help():
+    registered = app.registered_commands  # every command module imported
+    names = [info.name or info.callback.__name__ for info in registered]
+    assert names == list(cli.COMMAND_MODULES)
+    for info, name in zip(registered, names, strict=True):
+        assert info.callback.__module__ == f"cosserat_chain.cli.{cli.COMMAND_MODULES[name]}"
+
+
+def test_critical_json_imports_its_own_command_module_and_no_data_or_plot_library():
+    done, probe = _run("critical", "--model", "sine", "--json")
+    assert done.returncode == 0, done.stderr
+    command_modules = {f"cosserat_chain.cli.{module}" for module in cli.COMMAND_MODULES.values()}
+    assert command_modules & set(probe["modules"]) == {"cosserat_chain.cli.statics"}
+    heavy = {"xarray", "pandas", "dask", "distributed", "matplotlib", "h5netcdf"}
+    assert heavy.isdisjoint(probe["modules"])
+    # the same result, bit for bit, as the whole application gives in this process
+    assert done.stdout == runner.invoke(app, ["critical", "--model", "sine", "--json"]).stdout
+    assert probe["frozen"] > 0  # the objects alive at exit were frozen out of the teardown's collections
+
+
+def test_a_run_naming_a_command_prints_the_same_help_and_errors_as_the_whole_application():
+    for args in (["critical", "--help"], ["animate", "--help"], ["critical", "--model", "pendulum"], ["--help"], ["critcal"]):
+        done, probe = _run(*args)
+        whole, _ = _run(*args, whole=True)
+        assert (done.returncode, done.stdout, done.stderr.splitlines()[:-1]) == (
+            whole.returncode,
+            whole.stdout,
+            whole.stderr.splitlines()[:-1],
+        )
+        assert done.stdout or done.stderr.count("\n") > 1, args  # it said something (the probe's line last)
+        loaded = {module for module in cli.COMMAND_MODULES.values() if f"cosserat_chain.cli.{module}" in probe["modules"]}
+        named = args[0] in cli.COMMAND_MODULES
+        assert loaded == ({cli.COMMAND_MODULES[args[0]]} if named else set(cli.COMMAND_MODULES.values())), args
+
+
+@pytest.mark.parametrize("args", [["--version"], ["--help"], ["critical", "--help"]])
+def test_help_and_version_import_no_compiled_library(args):
+    done, probe = _run(*args)
+    assert done.returncode == 0, done.stderr
+    assert {"numba", "scipy", "xarray"}.isdisjoint(probe["modules"])
