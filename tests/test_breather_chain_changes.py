@@ -21,7 +21,6 @@ from cosserat_chain import ChainParams
 from cosserat_chain.cli import app
 from cosserat_chain.experiments.breathers import (
     branch_discriminants,
-    coupled_bands,
     damped_to_undamped,
     located_changes,
     natural_events,
@@ -156,7 +155,7 @@ def test_the_natural_family_reports_the_branch_point_and_the_fold_that_stop_it(i
     start = continue_in_frequency(in_band, [in_band.omega, 1.36]).orbits[-1]
     family = continue_in_frequency(start, grid)
     assert not family.complete and family.orbits[-1].omega < 1.3763283
-    events = natural_events(family.orbits, family.requested, located_changes(family.orbits, coupled_bands(in_band.params, "nonlinear")))
+    events = natural_events(family.orbits, family.requested)
     kinds = [e["kind"] for e in events]
     assert kinds == ["branch_point", "fold"]
     branch, fold = events

@@ -51,6 +51,7 @@ from ..numerics.breather_arclength import (
     HamiltonianFrequencyProblem,
     continue_hamiltonian_arclength,
     continue_hamiltonian_field,
+    pair_test,
 )
 from ..numerics.dynamics import integrate
 from ..numerics.periodic import (
@@ -344,14 +345,16 @@ def _unknowns(orbit: HamiltonianOrbit) -> np.ndarray:
     return HamiltonianFrequencyProblem(orbit, 0.0, math.inf).start()
 
 
-def natural_events(orbits: list[HamiltonianOrbit], requested: np.ndarray, changes: list[StabilityChange]) -> list[dict]:
+def natural_events(orbits: list[HamiltonianOrbit], requested: np.ndarray) -> list[dict]:
     """The natural family's folds and branch points, traced by the kit's driver in Omega where they can lie.
 
-    Natural steps pass a branch point (a pair through +1) as a change of stability at +1 and stop
-    before a fold, so the driver (:func:`~cosserat_chain.numerics.breather_arclength.continue_hamiltonian_arclength`,
-    at most :data:`SEGMENT_POINTS` orbits) traces the family from the member before each located change at
-    +1 to the member after it (where it finds no branch point the change is the energy's extremum, dE/dOmega = 0),
-    and from the last member towards the next frequency asked for where the family ends before it.
+    Natural steps pass a branch point (a nontrivial pair through +1) unseen or as a change of
+    stability, and stop before a fold, so the driver
+    (:func:`~cosserat_chain.numerics.breather_arclength.continue_hamiltonian_arclength`, at most
+    :data:`SEGMENT_POINTS` orbits) traces the family from each member to the next where
+    :func:`~cosserat_chain.numerics.breather_arclength.pair_test` changes sign between them (an odd
+    number of pairs through +1: a branch point, or the energy's extremum, where the driver finds
+    none), and from the last member towards the next frequency asked for where the family ends before it.
 
     Returns
     -------
@@ -363,11 +366,9 @@ def natural_events(orbits: list[HamiltonianOrbit], requested: np.ndarray, change
         ``energy``, ``max_multiplier``, ``located`` and ``between``, the members it lies between (the
         last and None past it).
     """
-    segments = []
-    pairs = [i for i in range(len(orbits) - 1) if orbits[i].stable != orbits[i + 1].stable]
-    for i, change in zip(pairs, changes, strict=True):
-        if change.kind == "+1":
-            segments.append((orbits[i], orbits[i + 1].omega, [i, i + 1]))
+    segments = [
+        (orbits[i], orbits[i + 1].omega, [i, i + 1]) for i in range(len(orbits) - 1) if pair_test(orbits[i]) != pair_test(orbits[i + 1])
+    ]
     if orbits and len(orbits) < len(requested):
         segments.append((orbits[-1], float(requested[len(orbits)]), [len(orbits) - 1, None]))
     out = []
@@ -767,7 +768,7 @@ def roto_breather_family(
     changes, discriminants, events = [], {}, None
     if locate and not arclength:
         changes = located_changes(family.orbits, bands)
-        events = natural_events(family.orbits, family.requested, changes)
+        events = natural_events(family.orbits, family.requested)
     elif locate:
         discriminants = branch_discriminants(family)
     return BreatherFamily(
