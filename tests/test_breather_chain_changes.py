@@ -197,3 +197,19 @@ def test_the_family_figure_marks_each_located_change(sine_n2):
     fig = breather_family_figure(sine_n2)
     dashed = [line.get_xdata()[0] for line in fig.axes[1].get_lines() if line.get_linestyle() == "--"]
     assert dashed == [change.omega for change in sine_n2.changes]
+
+
+def test_a_member_the_driver_cannot_start_from_is_reported_untraced(monkeypatch):
+    """Where the family ends early and its last member does not correct as the driver's start, the events say so
+    (kind ``untraced`` with the kit's message) instead of failing the whole family."""
+    from cosserat_chain.experiments import breathers
+    from cosserat_chain.numerics.kit import StartError
+
+    family = roto_breather_family(undamped(N=1), "sine", [6.0], locate=False)
+
+    def refuse(*args, **kwargs):
+        raise StartError("the start is not on the branch: the corrector diverged with max|R| = 1")
+
+    monkeypatch.setattr(breathers, "continue_hamiltonian_arclength", refuse)
+    (event,) = natural_events(family.family.orbits, np.array([6.0, 6.2]))
+    assert event["kind"] == "untraced" and event["between"] == [0, None] and "not on the branch" in event["message"]

@@ -194,7 +194,10 @@ def breathers(
             typer.echo(f"{'':>10}  lifetime: {'beyond ' + str(lifetimes) if life is None else life} periods")
     if field_target is not None:
         typer.echo(f"{field_target[0]} per orbit: " + ", ".join(f"{value:.8g}" for value in summary["values"]))
-    for e in summary.get("events", []):
+    for e in summary.get("events") or []:
+        if e["kind"] == "untraced":
+            typer.echo(f"not traced by the driver from Omega = {e['omega']:.10g}: {e['message']}")
+            continue
         where = f"Omega = {e['omega']:.10g}" if "value" not in e else f"{e['parameter']} = {e['value']:.10g}"
         if e.get("accuracy") is not None:
             where += f" +- {e['accuracy']:.2g}"

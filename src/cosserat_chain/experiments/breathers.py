@@ -54,6 +54,7 @@ from ..numerics.breather_arclength import (
     pair_test,
 )
 from ..numerics.dynamics import integrate
+from ..numerics.kit import StartError
 from ..numerics.periodic import (
     CLOSURE_TOL,
     RTOL,
@@ -364,7 +365,8 @@ def natural_events(orbits: list[HamiltonianOrbit], requested: np.ndarray) -> lis
         ``kit_omega``; a fold: the kit's location, and the distance to the vertex of the parabola
         through it and its two neighbours, :func:`~.system_breather_arclength.fold_accuracy`),
         ``energy``, ``max_multiplier``, ``located`` and ``between``, the members it lies between (the
-        last and None past it).
+        last and None past it); ``untraced`` (with its ``message``) where the driver could not start
+        from the member.
     """
     segments = [
         (orbits[i], orbits[i + 1].omega, [i, i + 1]) for i in range(len(orbits) - 1) if pair_test(orbits[i]) != pair_test(orbits[i + 1])
@@ -375,10 +377,14 @@ def natural_events(orbits: list[HamiltonianOrbit], requested: np.ndarray) -> lis
     for start, target, between in segments:
         if target == start.omega:
             continue
-        trace = continue_hamiltonian_arclength(
-            start, min(start.omega, target), max(start.omega, target), direction=math.copysign(1.0, target - start.omega),
-            max_points=SEGMENT_POINTS,
-        )  # fmt: skip
+        try:
+            trace = continue_hamiltonian_arclength(
+                start, min(start.omega, target), max(start.omega, target), direction=math.copysign(1.0, target - start.omega),
+                max_points=SEGMENT_POINTS,
+            )  # fmt: skip
+        except StartError as err:  # the member does not correct as the driver's start (beside a singular point)
+            out.append({"kind": "untraced", "omega": start.omega, "between": between, "message": str(err)})
+            continue
         zeros = branch_discriminants(trace)
         for j, e in enumerate(trace.events):
             entry = {"kind": e.kind, "omega": e.parameter, "accuracy": None, "energy": e.point.energy,
