@@ -122,7 +122,6 @@ from ..numerics.newton import NewtonError, moment_dof, solve_equilibrium, solve_
 from ..numerics.stability import static_stability
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column, unpack
-from .simulation import run_attributes
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
     import xarray as xr
@@ -406,6 +405,8 @@ class CriticalResult:
     def to_dataset(self) -> xr.Dataset:
         """Dataset with dims ``point`` (along the branch) and ``particle``; scalars for M_c, phi_0 at the fold, compliance."""
         import xarray as xr
+
+        from .simulation import run_attributes  # here, not at import: the simulation's engine is for a file only
 
         b = self.branch
         # A thinned branch keeps the states of some points only: dimension ``state``, its points in ``state_point``.
