@@ -55,8 +55,13 @@ def b_rows(path: Path) -> Iterator[tuple[int, int, list[float]]]:
             yield abs(int(f[1])), int(f[2]), values
 
 
+def fortran_float(text: str) -> float:
+    """A number as Fortran prints it, also where a three-digit exponent has lost its E (``1.79769+308``)."""
+    return float(re.sub(r"(\d)([+-]\d{3})$", r"\1E\2", text))
+
+
 def multipliers(path: Path) -> Iterator[tuple[int, complex]]:
     """Every Floquet multiplier an AUTO d-file prints: (point number, multiplier)."""
     for line in path.read_text().splitlines():
         if m := MULTIPLIER.match(line):
-            yield int(m[1]), complex(float(m[2]), float(m[3]))
+            yield int(m[1]), complex(fortran_float(m[2]), fortran_float(m[3]))
