@@ -6,6 +6,7 @@ Run from the repository root::
     python benchmarks/bench_startup.py --runs 9 -- orbit --model sine --moment 0.3 --json
     python benchmarks/bench_startup.py --src /tmp/old/src           # another checkout's package, same interpreter
     python benchmarks/bench_startup.py --against /tmp/old/src --runs 5 --out benchmarks/results/startup-h44u.json
+    python benchmarks/bench_startup.py --floor --runs 3                # what any computing command pays
 
 Each run is a fresh ``python -m cosserat_chain ARGS`` (its output discarded); its CPU time is
 user + system of the child (``resource.getrusage(RUSAGE_CHILDREN)``), which a busy neighbour
@@ -59,6 +60,37 @@ atexit.register(lambda: print("PROBE", json.dumps({
 sys.argv = ["cosserat-chain", *sys.argv[1:]]
 runpy.run_module("cosserat_chain", run_name="__main__")
 """.replace("HEAVY", repr(HEAVY))
+
+
+# The floor: the libraries any computing command imports, then one cached compiled function entered
+# (Numba sets up its CPU target on the first); each line adds to the one before, frozen at exit as the CLI does.
+_FROZEN = "import atexit, gc; atexit.register(gc.freeze)\n"
+_LIBRARIES = "import numpy, pydantic, typer; from pydantic import BaseModel\n"
+_KERNEL = (
+    "import numba, tempfile, pathlib, sys\n"
+    "folder = pathlib.Path(tempfile.gettempdir()) / 'bench_startup_floor'; folder.mkdir(exist_ok=True)\n"
+    "(folder / 'floor_kernel.py').write_text('import numba\\n@numba.njit(cache=True)\\ndef one(x):\\n    return x + 1.0\\n')\n"
+    "sys.path.insert(0, str(folder)); import floor_kernel; floor_kernel.one(1.0)\n"
+)
+FLOOR = {
+    "python -c pass": "pass",
+    "import numpy": _FROZEN + "import numpy",
+    "numpy + pydantic (BaseModel) + typer": _FROZEN + _LIBRARIES,
+    "... + numba": _FROZEN + _LIBRARIES + "import numba",
+    "... + scipy.optimize": _FROZEN + _LIBRARIES + "import numba, scipy.optimize",
+    "... + one cached njit function entered": _FROZEN + _LIBRARIES + "import scipy.optimize\n" + _KERNEL,
+}
+
+
+def floor(runs: int) -> dict[str, float]:
+    """The median CPU time of each line of :data:`FLOOR` in a fresh interpreter, the lines interleaved."""
+    env = environment(None)
+    cpu_seconds([sys.executable, "-c", FLOOR["... + one cached njit function entered"]], env)  # compile and cache it
+    times: dict[str, list[float]] = {label: [] for label in FLOOR}
+    for _ in range(runs):
+        for label, code in FLOOR.items():
+            times[label].append(cpu_seconds([sys.executable, "-c", code], env))
+    return {label: round(statistics.median(t), 3) for label, t in times.items()}
 
 
 def environment(src: str | None) -> dict[str, str]:
@@ -126,8 +158,19 @@ def main() -> None:
     parser.add_argument("--src", help="put this folder first on PYTHONPATH (measure another checkout)")
     parser.add_argument("--against", help="a second src folder (the old code), its runs interleaved with this tree's")
     parser.add_argument("--out", type=Path, help="add this run's row to a JSON file (rows keyed by the command)")
+    parser.add_argument("--floor", action="store_true", help="measure the floor (FLOOR) instead of a command")
     parser.add_argument("args", nargs="*", default=["critical", "--model", "sine", "--json"])
     ns = parser.parse_args()
+    if ns.floor:
+        medians = floor(ns.runs)
+        for label, seconds in medians.items():
+            print(f"  {label}: {seconds:.2f} s")
+        print(f"  load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        if ns.out:
+            results = json.loads(ns.out.read_text()) if ns.out.exists() else {}
+            results["floor"] = {"cpu_median_s": medians, "runs": ns.runs, "load_average_after": [round(x, 2) for x in os.getloadavg()]}
+            ns.out.write_text(json.dumps(results, indent=1) + "\n")
+        return
     trees = {"this tree": environment(ns.src)}
     if ns.against:
         trees["against"] = environment(ns.against)
