@@ -442,3 +442,24 @@ def test_an_orbits_trajectory_in_one_integration_closes_after_a_period_and_equal
     assert np.max(np.abs(path[-1] - pen_in_phase_orbit.y0 - shift)) < 1e-8
     alone = shooting.flow(pen_in_phase_orbit.system, pen_in_phase_orbit.y0, times[0], variations=False)[0]
     np.testing.assert_allclose(path[0], alone, atol=1e-9)
+
+
+def test_a_frenkel_kontorova_sliding_state_has_auto07ps_tori_and_fold_of_cycles():
+    # Three particles with free ends pulled apart by springs of rest length a0 (no symmetry reduces the sliding state),
+    # every particle one period a turn, followed down in F from 0.9. AUTO-07p 0.9.2 on the same equations
+    # (benchmarks/auto07p_user_systems.py, NTST = 200, NCOL = 4; NTST = 100 gives the same 11 digits) labels TR at
+    # F = 0.64394622615 and 0.57916770498 and LP at 0.51128461338.
+    system = frenkel_kontorova(3, C=0.61, gamma=0.29, a0=1.3, F=0.9)
+    guess = shooting.settled_guess(system, np.r_[np.zeros(3), np.full(3, 0.9 / 0.29)], coordinate=0)
+    orbit = shooting.find_orbit(system, guess, turns={name: 1 for name in system.coordinates})
+    branch = shooting.continue_orbits(orbit, "F", limits=(0.5, 1.0))
+    located = {kind: [e.parameter for e in branch.events if e.kind == kind] for kind in ("torus", "fold")}
+    np.testing.assert_allclose(located["torus"], [0.64394622615, 0.57916770498], atol=1e-9)
+    np.testing.assert_allclose(located["fold"], [0.51128461338], atol=1e-9)
+    assert branch.end == "fold"
+    # Stable above the first torus point, unstable between the two, stable again down to the fold.
+    (fold,) = [e for e in branch.events if e.kind == "fold"]
+    upper = branch.orbits[: fold.index]  # the orbits before the fold (after it: the unstable side)
+    between = [o.stable for o in upper if 0.5802 < o.parameter("F") < 0.6429]
+    outside = [o.stable for o in upper if not 0.5782 < o.parameter("F") < 0.6449]
+    assert between and not any(between) and outside and all(outside)
