@@ -447,14 +447,14 @@ def test_an_orbits_trajectory_in_one_integration_closes_after_a_period_and_equal
 def test_a_frenkel_kontorova_sliding_state_has_auto07ps_tori_and_fold_of_cycles():
     # Three particles with free ends pulled apart by springs of rest length a0 (no symmetry reduces the sliding state),
     # every particle one period a turn, followed down in F from 0.9. AUTO-07p 0.9.2 on the same equations
-    # (benchmarks/auto07p_user_systems.py, NTST = 200, NCOL = 4; NTST = 100 gives the same 11 digits) labels TR at
-    # F = 0.64394622615 and 0.57916770498 and LP at 0.51128461338.
+    # (benchmarks/auto07p_user_systems.py, NTST = 200, NCOL = 4; NTST = 100 moves the first by 1e-11) labels TR at
+    # F = 0.64394622614 and 0.57916770498 and LP at 0.51128461338.
     system = frenkel_kontorova(3, C=0.61, gamma=0.29, a0=1.3, F=0.9)
     guess = shooting.settled_guess(system, np.r_[np.zeros(3), np.full(3, 0.9 / 0.29)], coordinate=0)
     orbit = shooting.find_orbit(system, guess, turns={name: 1 for name in system.coordinates})
     branch = shooting.continue_orbits(orbit, "F", limits=(0.5, 1.0))
     located = {kind: [e.parameter for e in branch.events if e.kind == kind] for kind in ("torus", "fold")}
-    np.testing.assert_allclose(located["torus"], [0.64394622615, 0.57916770498], atol=1e-9)
+    np.testing.assert_allclose(located["torus"], [0.64394622614, 0.57916770498], atol=1e-9)
     np.testing.assert_allclose(located["fold"], [0.51128461338], atol=1e-9)
     assert branch.end == "fold"
     # Stable above the first torus point, unstable between the two, stable again down to the fold.
