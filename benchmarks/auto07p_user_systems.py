@@ -233,8 +233,18 @@ def package_numbers(case: Case, start, checkpoints: list[float]) -> dict:
         )
     out["events"] = [{"kind": e.kind, "value": e.parameter, "located": e.located} for e in branch.events]
     out["branch_end"] = {"end": str(branch.end), "fitted": branch.end_value, "fit_uncertainty": branch.end_uncertainty}
-    row = system_diagram(start.system, case.vary, [case.others[case.vary]], case.drive).rows[0]
-    out["end"] = {"end": row.end, "value": row.stops, "method": row.method, "accuracy": row.accuracy, "starts": row.starts}
+    # The diagram continues the equilibrium up in the drive from zero (none exists at the start above the fold).
+    at_rest = start.system.with_parameters(**{case.drive: 0.0})
+    row = system_diagram(at_rest, case.vary, [case.others[case.vary]], case.drive).rows[0]
+    out["end"] = {
+        "end": row.end,
+        "value": row.stops,
+        "method": row.method,
+        "accuracy": row.accuracy,
+        "starts": row.starts,
+        "message": row.message,
+        "reason": row.reason,
+    }
     return out
 
 
@@ -290,7 +300,7 @@ def compare(case: Case, ours: dict, auto: dict) -> list[dict]:
             "package_accuracy": ours["end"]["accuracy"],
             "auto07p": fine["last"]["value"],
             "auto07p_period": fine["last"]["period"],
-            "difference": ours["end"]["value"] - fine["last"]["value"],
+            "difference": None if ours["end"]["value"] is None else ours["end"]["value"] - fine["last"]["value"],
             "auto07p_ntst100_minus_ntst200": coarse["last"]["value"] - fine["last"]["value"],
         }
     )
@@ -304,13 +314,17 @@ def main(workdir: Path) -> None:
         check_equations(case, start.system)
         auto = {ntst: run_auto07p(workdir / case.name / f"ntst{ntst}", case, start, ntst) for ntst in (100, 200)}
         before = time.process_time()
-        ours = package_numbers(case, start, [p["value"] for p in auto[200]["points"] if p["label"] == "UZ"])
+        ours = package_numbers(
+            case,
+            start,
+            [p["value"] for p in auto[200]["points"] if p["label"] == "UZ" and min(abs(p["value"] - c) for c in case.checkpoints) < 1e-6],
+        )
         ours_cpu = time.process_time() - before
         table = compare(case, ours, auto)
         print(f"{case.name} {case.others}, continued down in {case.drive} from {case.start}:")
         for row in table:
-            if row["package"] is None:
-                print(f"  {row['what']}")
+            if row["package"] is None or row["auto07p"] is None:
+                print(f"  {row['what']}: package {row['package']}, AUTO-07p {row['auto07p']}")
                 continue
             print(f"  {row['what']:<44} package {row['package']:.12g}  AUTO-07p {row['auto07p']:.12g}  difference {row['difference']:.2e}")
             if "multipliers_max_distance" in row:
