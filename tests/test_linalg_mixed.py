@@ -122,7 +122,7 @@ def test_the_mixed_form_keeps_the_bending_mode_that_the_band_lu_loses():
 
 @pytest.mark.slow
 def test_the_first_fold_of_n_3e4_in_the_mixed_form_is_the_band_traces_confirmed_one():
-    """From the approach, every solve mixed (the default there): the fold the band trace from rest found and the
+    """From the approach, every solve mixed: the fold the band trace from rest found and the
     re-solve confirmed, 0.04689566864700 (docs/statics.md)."""
-    branch = continue_in_moment(ChainParams(N=30_000), "nonlinear", max_folds=1, from_approach=True)
+    branch = continue_in_moment(ChainParams(N=30_000), "nonlinear", max_folds=1, from_approach=True, mixed=True)
     assert branch.folds[0].moment == pytest.approx(0.04689566864700, rel=1e-11)

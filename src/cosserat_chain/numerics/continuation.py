@@ -1267,7 +1267,7 @@ def continue_in_moment(
     progress: ProgressCallback | None = None,
     max_states: int | None = None,
     from_approach: bool = False,
-    mixed: bool | None = None,
+    mixed: bool = False,
 ) -> Branch:
     """Pseudo-arclength continuation of the static branch from rest, in the direction of increasing M.
 
@@ -1326,12 +1326,12 @@ def continue_in_moment(
         clamped chain of N = 10^5, whose trace from rest crawled at moments of 1e-14, below the corrector's limit,
         and turned back at a fold of round-off). A fold between the approach's angles is not seen unless M falls
         at one of them (the approach then ends before it, and the trace finds it).
-    mixed : bool or None
+    mixed : bool
         Solve the corrector's and the tangent's systems in the mixed form of the model's rows
         (``Model.stiffness_rows``, :class:`~cosserat_chain.linalg.MixedFactor`) instead of the band LU of K's
         entries, which loses K's soft modes on a long clamped chain (at N = 10^5 its compliance at rest is 80 %
-        off). None: where the trace starts from the approach (``from_approach``, :func:`rest_resolved` False). A
-        model without rows keeps the band LU.
+        off). Not the default: its full turn costs several times the band trace's (docs/statics.md). A model
+        without rows keeps the band LU.
 
     Returns
     -------
@@ -1382,7 +1382,7 @@ def continue_in_moment(
         raise ValueError(f"steps must satisfy 0 < min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
     if max_states is not None and max_states < 2:
         raise ValueError(f"max_states must be at least 2 (the states kept of the branch), got {max_states!r}")
-    mixed = (from_approach if mixed is None else mixed) and model.stiffness_rows(params, zeros(params)) is not None
+    mixed = mixed and model.stiffness_rows(params, zeros(params)) is not None
     require_branch_memory(params, max_points, max_states, mixed=mixed)
     problem = _StaticBranch(
         params,
