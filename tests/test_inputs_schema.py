@@ -147,7 +147,7 @@ def test_any_error_of_the_netcdf_reader_becomes_a_value_error(run_file, monkeypa
         read_dataset(run_file)
 
 
-@pytest.mark.parametrize("command", ["draw", "export", "x0"])
+@pytest.mark.parametrize("command", ["draw", "export", "x0", "guess"])
 @pytest.mark.parametrize("edit", ["no-frames", "no-phi_dot", "nan"])
 def test_commands_refuse_a_damaged_run_with_exit_2(run_file, tmp_path, command, edit):
     edits = {
@@ -161,6 +161,7 @@ def test_commands_refuse_a_damaged_run_with_exit_2(run_file, tmp_path, command, 
         "draw": ["draw", str(bad), "--out", str(tmp_path / "x.png")],
         "export": ["export", str(bad), "--to", "csv", "--out", str(tmp_path / "x.csv")],
         "x0": ["simulate", "--model", "linear", "--t-end", "9", "--x0", str(bad)],
+        "guess": ["orbit", "--moment", "0.3", "--guess", str(bad), "--json"],
     }[command]
     result = runner.invoke(app, argv)
     _no_traceback(result)
@@ -168,7 +169,7 @@ def test_commands_refuse_a_damaged_run_with_exit_2(run_file, tmp_path, command, 
         assert result.exit_code == 0, result.output
         return
     assert result.exit_code == 2, result.output
-    assert "bad.nc" in result.output
+    assert result.output.count("bad.nc") == 1, result.output  # named once, not once per layer
 
 
 @pytest.mark.usefixtures("study_in_process")  # the study only writes the file damaged below

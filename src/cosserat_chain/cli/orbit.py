@@ -297,7 +297,7 @@ def _guess_or_exit(path: Path, params, particle: int) -> dict:
                 f"{ds.attrs.get('experiment')!r}, allowed 'periodic_orbit' or a run over time"
             )
     except ValueError as err:
-        fail(f"{label}: {err}")
+        fail(str(err) if str(err).startswith(label) else f"{label}: {err}")
     if run_params.n_particles != params.n_particles or (run_params.left_end, run_params.right_end) != (params.left_end, params.right_end):
         fail(
             f"{label} holds a chain of {run_params.n_particles} particles with ends {run_params.left_end}/{run_params.right_end}; "

@@ -188,10 +188,11 @@ def _frame_or_exit(path: Path, at: float | None):
     """The chain, loads, time, positions and velocities of a stored frame, or exit 2 saying why not."""
     from ..io import read_dataset, run_frame
 
+    label = f"--x0 {str(path)!r}"
     try:
-        return run_frame(read_dataset(path), at, source=repr(str(path)))
+        return run_frame(read_dataset(path), at, source=label)
     except ValueError as err:
-        fail(f"--x0 {str(path)!r}: {err}")
+        fail(str(err) if str(err).startswith(label) else f"{label}: {err}")
 
 
 def _summary(ds, params, model: str, t_end: float, out: Path | None) -> dict[str, Any]:
