@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from band_rows import dense_rows
 from cosserat_chain import ChainParams
 from cosserat_chain.analysis.timoshenko import clamped_central_compliance
 from cosserat_chain.linalg import BandMatrix, BorderedFactor, MixedBorderedFactor, MixedFactor
@@ -23,14 +24,6 @@ GEOMETRIES = [
 ]
 
 
-def _dense(values: np.ndarray, starts: np.ndarray, n: int) -> np.ndarray:
-    a = np.zeros((len(starts), n))
-    for i, (row, first) in enumerate(zip(values, starts)):
-        width = min(ROW_WIDTH, n - first)
-        a[i, first : first + width] = row[:width]
-    return a
-
-
 def _state(params: ChainParams, scale: float, seed: int) -> np.ndarray:
     return unpack(params, scale * np.random.default_rng(seed).standard_normal(n_free(params)))
 
@@ -43,7 +36,7 @@ def test_the_mixed_factor_solves_with_l_t_r_plus_g():
     left[starts[:, None] + np.arange(ROW_WIDTH) >= n] = 0.0
     right = left + 0.1 * rng.standard_normal(left.shape) * (left != 0.0)
     g = np.diag(rng.standard_normal(n)) + np.diag(rng.standard_normal(n - 5), 5) + np.diag(rng.standard_normal(n - 5), -5)
-    k = _dense(left, starts, n).T @ _dense(right, starts, n) + g
+    k = dense_rows(left, starts, n).T @ dense_rows(right, starts, n) + g
     factor = MixedFactor(left, right, starts, n, BandMatrix.from_sparse(g))
     q = rng.standard_normal(n)
     np.testing.assert_allclose(factor.apply(q), k @ q, rtol=0, atol=1e-12 * np.abs(k).max() * np.abs(q).max())
@@ -65,7 +58,7 @@ def test_the_rows_sum_to_the_stiffness(model, params):
     rows = get_model(model).stiffness_rows(params, x)
     n = n_free(params)
     k = get_model(model).stiffness(params, x).toarray()
-    total = _dense(rows.left, rows.starts, n).T @ _dense(rows.right, rows.starts, n)
+    total = dense_rows(rows.left, rows.starts, n).T @ dense_rows(rows.right, rows.starts, n)
     if rows.g is not None:
         total += rows.g.toarray()
     np.testing.assert_allclose(total, k, rtol=0, atol=1e-13 * np.abs(k).max())

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
+from band_rows import dense_rows
 from cosserat_chain import ChainParams
 from cosserat_chain.analysis.timoshenko import clamped_central_compliance
 from cosserat_chain.linalg import BorderedFactor, RootFactor
@@ -17,14 +18,6 @@ from cosserat_chain.numerics.newton import moment_dof
 from cosserat_chain.state import n_free, zeros
 
 
-def _dense(values: np.ndarray, starts: np.ndarray, n: int) -> np.ndarray:
-    a = np.zeros((len(starts), n))
-    for i, (row, first) in enumerate(zip(values, starts)):
-        width = min(ROW_WIDTH, n - first)
-        a[i, first : first + width] = row[:width]
-    return a
-
-
 def test_the_root_factor_is_the_cholesky_factor_of_a_t_a_and_solves_with_it():
     rng = np.random.default_rng(3)
     n = 40
@@ -32,7 +25,7 @@ def test_the_root_factor_is_the_cholesky_factor_of_a_t_a_and_solves_with_it():
     values = rng.standard_normal((starts.size, ROW_WIDTH))
     values[np.r_[0, np.flatnonzero(np.diff(starts)) + 1], 0] += 4.0  # a leading entry in every column: A^T A regular
     values[starts[:, None] + np.arange(ROW_WIDTH) >= n] = 0.0
-    a = _dense(values, starts, n)
+    a = dense_rows(values, starts, n)
     factor = RootFactor(values, starts, n)
     r = np.zeros((n, n))
     for j in range(n):
@@ -65,7 +58,7 @@ def test_the_root_factor_refuses_rows_out_of_order_or_beyond_the_last_column():
 def test_the_square_root_of_k_is_the_linear_stiffness(params):
     values, starts = stiffness_root(params)
     n = n_free(params)
-    a = _dense(values, starts, n)
+    a = dense_rows(values, starts, n)
     k = stiffness_matrix(params).toarray()
     np.testing.assert_allclose(a.T @ a, k, rtol=0, atol=4 * np.finfo(float).eps * np.abs(k).max())
     b = np.random.default_rng(1).standard_normal(n)
