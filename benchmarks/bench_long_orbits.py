@@ -325,55 +325,45 @@ def main() -> None:
     parser.add_argument("--continuation", type=int, default=None, metavar="M", help="an orbit and a short continuation, M segments")
     args = parser.parse_args()
     log = sys.stderr if args.json else sys.stdout
+    default_out = RESULTS / "long_orbits.json"
+
+    def chosen(default_sizes: list[int], name: str) -> tuple[list[int], Path]:
+        """A mode's own sizes and file where --sizes and --out were left at the default run's."""
+        return (args.sizes if args.sizes != list(SIZES) else default_sizes), (args.out if args.out != default_out else RESULTS / name)
+
     if args.continuation is not None:
-        sizes = args.sizes if args.sizes != list(SIZES) else [100, 200]
-        out = args.out if args.out != RESULTS / "long_orbits.json" else RESULTS / "long_orbit_continuation.json"
-        table = []
-        for n in sizes:
-            table.append(continuation(n, args.continuation, args.threads))
-            print("\n".join(continuation_markdown(table[-1:]).splitlines()[2:]), file=log, flush=True)
-            out.parent.mkdir(exist_ok=True)
-            out.write_text(json.dumps(table, indent=1))
-        print(continuation_markdown(table), file=log)
-        if args.json:
-            print(json.dumps(table))
-        return
-    if args.segments is not None:
-        sizes = args.sizes if args.sizes != list(SIZES) else [50, 100]
-        out = args.out if args.out != RESULTS / "long_orbits.json" else RESULTS / "long_orbit_segments.json"
-        table = []
-        for n in sizes:
-            table.append(measure_segments(n, args.segments, args.dense_max, args.threads))
-            print("\n".join(segments_markdown(table[-1:]).splitlines()[2:]), file=log, flush=True)
-            out.parent.mkdir(exist_ok=True)
-            out.write_text(json.dumps(table, indent=1))
-        print(segments_markdown(table), file=log)
-        if args.json:
-            print(json.dumps(table))
-        return
-    if args.rates:
-        sizes = args.sizes if args.sizes != list(SIZES) else [10, 30, 100, 200, 1000]
-        table = []
-        for n in sizes:
-            table.append(rates(n, args.dense_max, RATE_SPAN))
-            print("\n".join(rates_markdown(table[-1:]).splitlines()[2:]), file=log, flush=True)
-        out = args.out if args.out != RESULTS / "long_orbits.json" else RESULTS / "long_orbit_rates.json"
+        sizes, out = chosen([100, 200], "long_orbit_continuation.json")
+        _sweep(sizes, lambda n: continuation(n, args.continuation, args.threads), continuation_markdown, out, log, args.json)
+    elif args.segments is not None:
+        sizes, out = chosen([50, 100], "long_orbit_segments.json")
+        _sweep(sizes, lambda n: measure_segments(n, args.segments, args.dense_max, args.threads), segments_markdown, out, log, args.json)
+    elif args.rates:
+        sizes, out = chosen([10, 30, 100, 200, 1000], "long_orbit_rates.json")
+        _sweep(sizes, lambda n: rates(n, args.dense_max, RATE_SPAN), rates_markdown, out, log, args.json)
+    else:
+        counter = _Counter()
+        _sweep(
+            args.sizes,
+            lambda n: measure(n, args.methods, args.dense_max, args.krylov_max, args.threads, counter),
+            markdown,
+            args.out,
+            log,
+            args.json,
+        )
+
+
+def _sweep(sizes: list[int], measure_one, table_markdown, out: Path, log, as_json: bool) -> None:
+    """Measure each N in turn, print its table row and rewrite ``out`` as each one comes (an interrupted sweep keeps its
+    rows), then print the whole table (and the rows as JSON with ``as_json``)."""
+    table = []
+    for n in sizes:
+        table.append(measure_one(n))
+        print("\n".join(table_markdown(table[-1:]).splitlines()[2:]), file=log, flush=True)
         out.parent.mkdir(exist_ok=True)
         out.write_text(json.dumps(table, indent=1))
-        print(rates_markdown(table), file=log)
-        if args.json:
-            print(json.dumps(table))
-        return
-    counter = _Counter()
-    rows = []
-    for n in args.sizes:
-        rows.append(measure(n, args.methods, args.dense_max, args.krylov_max, args.threads, counter))
-        print("\n".join(markdown(rows[-1:]).splitlines()[2:]), file=log, flush=True)
-        args.out.parent.mkdir(exist_ok=True)
-        args.out.write_text(json.dumps(rows, indent=1))
-    print(markdown(rows), file=log)
-    if args.json:
-        print(json.dumps(rows))
+    print(table_markdown(table), file=log)
+    if as_json:
+        print(json.dumps(table))
 
 
 if __name__ == "__main__":
