@@ -57,6 +57,19 @@ def breathers(
         "auto",
         help="With --atlas: the monodromy in one integration (dense), in column blocks (blocks), or by N (auto: blocks from N = 50).",
     ),
+    locate: bool = typer.Option(
+        True,
+        "--locate/--no-locate",
+        help="With --atlas: locate each change of stability between neighbours along Omega whose pairs off the unit circle differ "
+        "(the zero of the colliding pair's discriminant, with its accuracy); in the table, --json, --out and --plot.",
+    ),
+    locate_tol: float | None = number(
+        None,
+        "With --atlas: the accuracy in Omega the changes are located to (default 1e-6; at most 0.01): a looser one stops the "
+        "bisection and the secant sooner.",
+        above=0.0,
+        flags=("--locate-tol",),
+    ),
     from_moment: float | None = number(
         None,
         "Instead of a family: find the damped chain's rotating orbit at this moment M (the config's viscosities, or --gamma) and "
@@ -103,6 +116,8 @@ def breathers(
         fail(
             f"--to must differ from --omega (the family runs from one frequency to another), got {to:g} for both; leave --to out for the one orbit"
         )
+    if atlas is None and locate_tol is not None:
+        fail("--locate-tol sets the accuracy of an atlas's located changes: give --atlas FIELD=V1,V2,... as well")
     if atlas is not None:
         if counter and partner is None:
             fail("--counter sets the partner's direction: give --partner as well")
@@ -112,15 +127,16 @@ def breathers(
             from .system_breathers import atlas_on_system
 
             chain_only_or_exit(ctx, ("omega", "to", "steps", "turns", "particle", "partner", "counter", "config", "out", "plot", "as_json",
-                                     "sets", "coupling", "atlas", "lifetimes"))  # fmt: skip
+                                     "sets", "coupling", "atlas", "lifetimes", "locate", "locate_tol"))  # fmt: skip
             omegas = [omega] if to is None else [float(w) for w in np.linspace(omega, to, steps)]
             return atlas_on_system(
                 system, atlas, config=config, sets=sets, omegas=omegas, turns=turns, particle=particle, partner=partner, counter=counter,
-                coupling=coupling, out=out, plot=plot, as_json=as_json, lifetimes=lifetimes,
+                coupling=coupling, out=out, plot=plot, as_json=as_json, lifetimes=lifetimes, locate=locate, locate_tol=locate_tol,
             )  # fmt: skip
         system_only_or_exit(ctx, ("sets", "coupling"))
         return _atlas(atlas, model, omega, to, steps, turns=turns, particle=particle, partner=partner, counter=counter, method=method,
-                      config=config, out=out, plot=plot, as_json=as_json, lifetimes=lifetimes)  # fmt: skip
+                      config=config, out=out, plot=plot, as_json=as_json, lifetimes=lifetimes, locate=locate,
+                      locate_tol=locate_tol)  # fmt: skip
     if method != "auto":
         fail("--method chooses the atlas's shooting: give --atlas FIELD=V1,V2,... as well")
     if system is not None:
@@ -257,16 +273,19 @@ def _chain_along_or_exit(text: str) -> tuple[str, float]:
 
 def _atlas(
     text: str, model: str, omega: float, to: float | None, steps: int, *, turns: int, particle: int, partner: int | None, counter: bool,
-    method: str, config: Path | None, out: Path | None, plot: Path | None, as_json: bool, lifetimes: int = 0,
+    method: str, config: Path | None, out: Path | None, plot: Path | None, as_json: bool, lifetimes: int = 0, locate: bool = True,
+    locate_tol: float | None = None,
 ) -> None:  # fmt: skip
     """``breathers --atlas``: the existence map over (Omega, a field), of one rotor or of two (``partner``, against it with ``counter``);
-    ``lifetimes`` > 0: every orbit found run from its perturbed velocities for that many periods."""
+    ``lifetimes`` > 0: every orbit found run from its perturbed velocities for that many periods; ``locate``: the changes of
+    stability between neighbours located to ``locate_tol`` (:func:`~.system_breathers.atlas_changes`)."""
     import numpy as np
 
     from ..experiments.breather_atlas import breather_atlas
-    from .system_breathers import atlas_lifetimes, atlas_values, lifetime_text
+    from .system_breathers import atlas_changes, atlas_lifetimes, atlas_values, changes_text, lifetime_text, locate_tol_or_exit
 
     name, values = atlas_values(text)
+    tol = locate_tol_or_exit(locate_tol)
     if method not in ("auto", "dense", "blocks"):
         fail(f"--method must be auto, dense or blocks, got {method!r}")
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
@@ -292,6 +311,7 @@ def _atlas(
         fail(str(err))
     found = int(result.grid("exists").sum())
     bar.finish(note=f"{found} of {omegas.size * len(values)} found")
+    atlas_changes(result, locate, tol)
     atlas_lifetimes(result, lifetimes)
     if out is not None:
         save_dataset(result.to_dataset(), out)
@@ -321,6 +341,7 @@ def _atlas(
     for j, value in enumerate(result.values):
         listed = ", ".join(f"{band} {lo:.4g}-{hi:.4g}" for band, (lo, hi) in zip(result.bands, edges[j]))
         typer.echo(f"bands at {name} = {value:g}: {listed}")
+    changes_text(result)
 
 
 def _damped_to_undamped(

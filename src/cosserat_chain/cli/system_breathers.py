@@ -53,6 +53,37 @@ def atlas_lifetimes(atlas, max_periods: int) -> None:
         bar.finish()
 
 
+def locate_tol_or_exit(tol: float | None) -> float:
+    """The atlas's locate tolerance (its default for None); exit 2 naming ``--locate-tol`` where it is refused."""
+    from ..experiments.breather_atlas import LOCATE_TOL, check_locate_tol
+
+    try:
+        return check_locate_tol(LOCATE_TOL if tol is None else tol)
+    except ValueError as err:
+        fail(f"--locate-tol: {err}")
+
+
+def atlas_changes(atlas, locate: bool, tol: float) -> None:
+    """With ``locate``: the atlas's changes of stability between neighbours located to ``tol`` (``locate_changes``), with a bar
+    that counts the pairs of neighbours to locate between."""
+    if locate:
+        bar = progress_bar("changes", "pair")
+        atlas.locate_changes(tol, progress=bar_callback(bar))
+        bar.finish(note=f"{len(atlas.changes)} located")
+
+
+def changes_text(atlas) -> None:
+    """The located changes of an atlas, one a line (nothing where they were not located)."""
+    if atlas.changes is None:
+        return
+    typer.echo(f"changes of stability located to {atlas.settings['locate']['tol']:g} in Omega: {len(atlas.changes)}")
+    for c in atlas.changes:
+        typer.echo(
+            f"  {atlas.field} = {c.value:g}: Omega = {c.change.omega:.10g} +- {c.accuracy:.2g} ({c.placed_by}), pair at {c.change.kind}, "
+            f"stable side {c.change.stable_omega:.8g}"
+        )
+
+
 def lifetime_text(point) -> str:
     """A point's lifetime for the text tables ('' where none was measured)."""
     life = point.lifetime
@@ -77,13 +108,16 @@ def atlas_on_system(
     plot: Path | None,
     as_json: bool,
     lifetimes: int = 0,
+    locate: bool = True,
+    locate_tol: float | None = None,
 ) -> None:
     """``breathers --system REF --atlas NAME=V1,V2,...``: the existence map over (Omega, a parameter of the system).
 
     ``text`` names one of the system's parameters and its values; ``particle`` and ``partner``
     count its angles from the central one; ``lifetimes`` > 0 runs every orbit found from its
-    perturbed velocities for that many periods (:func:`atlas_lifetimes`). The outputs are checked
-    (and locked) before anything is computed. Exit 2 on bad input.
+    perturbed velocities for that many periods (:func:`atlas_lifetimes`); ``locate`` locates the
+    changes of stability between neighbours to ``locate_tol`` (:func:`atlas_changes`). The outputs
+    are checked (and locked) before anything is computed. Exit 2 on bad input.
     """
     import numpy as np
 
@@ -91,6 +125,7 @@ def atlas_on_system(
     from ..experiments.system_breathers import BreatherError
     from ..systems import SystemDefinitionError
 
+    tol = locate_tol_or_exit(locate_tol)
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
     system = system_or_exit(reference, config, sets)
     if not np.flatnonzero(system.angles).size:
@@ -111,6 +146,7 @@ def atlas_on_system(
         fail(str(err))
     found = int(atlas.grid("exists").sum())
     bar.finish(note=f"{found} of {len(omegas) * len(values)} found")
+    atlas_changes(atlas, locate, tol)
     atlas_lifetimes(atlas, lifetimes)
     if out is not None:
         save_dataset(atlas.to_dataset(reference), out)
@@ -137,6 +173,7 @@ def atlas_on_system(
             )
     for value, bands in zip(atlas.values, atlas.bands(), strict=True):
         typer.echo(f"bands at {name} = {value:g}: " + ", ".join(f"[{b:.6g}, {t:.6g}]" for b, t in bands))
+    changes_text(atlas)
 
 
 def breathers_on_system(

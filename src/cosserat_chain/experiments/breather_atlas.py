@@ -41,6 +41,15 @@ and ``exists`` is whether one of them converged (``source`` says which). At each
   :func:`~.breathers.coupled_bands`) and the frequencies edge / n at which the n-th harmonic
   meets them, the lines the map is drawn against.
 
+:meth:`BreatherAtlas.locate_changes` then locates, between neighbours along Omega of one family
+(a point continued from the one before it) whose multiplier pairs off the unit circle differ
+(:func:`~cosserat_chain.numerics.breather_arclength.instability_counts`), every change of
+stability, with the families' one mechanism (:func:`~.breathers.located_changes`,
+:func:`~.system_breathers.locate_stability_changes`: the zero of the colliding pair's
+discriminant, its accuracy measured against the orbits found again at a tight tolerance) to an
+accuracy in Omega the caller asks for (:data:`LOCATE_TOL` by default): :class:`AtlasChange`,
+shared by the user systems' atlas (:mod:`~.system_breather_atlas`).
+
 :meth:`BreatherAtlas.to_dataset` writes it all to one self-describing Dataset.
 """
 
@@ -60,6 +69,7 @@ from ..analysis.diagnostics import THRESHOLDS, participation_ratio, particle_ene
 from ..analysis.dispersion import wave_summary
 from ..loads import moment_load
 from ..models.base import Model, get_model
+from ..numerics.breather_arclength import collisions_between, instability_counts
 from ..numerics.long_breathers import SolvedBreather, find_breather_orbit
 from ..numerics.periodic import HamiltonianOrbit, OrbitError, require_undamped
 from ..params import ChainParams
@@ -73,10 +83,12 @@ from .breathers import (
     coupled_bands,
     harmonics_in_bands,
     lifetime,
+    located_changes,
     rotors_start,
 )
 from .lifetimes import Lifetime, check_lifetime_run, lifetime_variables, measure_point_lifetimes
 from .simulation import run_attributes
+from .system_breathers import StabilityChange
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built
     import xarray as xr
@@ -91,6 +103,114 @@ ATLAS_MAX_ITER = 25
 ATLAS_CONTRACTION = 0.9
 #: Amplitudes below this are integration noise, not a tail: :func:`localization_length` fits only above it.
 AMPLITUDE_FLOOR = 1e-9
+#: The accuracy in Omega to which an atlas locates its changes of stability by default (:meth:`BreatherAtlas.locate_changes`):
+#: looser than a family's, which is the cost of the secant's last steps and the bisections below it.
+LOCATE_TOL = 1e-6
+#: The largest accuracy in Omega an atlas's changes may be asked for.
+LOCATE_TOL_MAX = 0.01
+#: How each located change was placed (:attr:`AtlasChange.placed_by`), and its kinds, as the Dataset's flags.
+PLACED_BY = ("discriminant", "moduli", "bracket")
+CHANGE_KINDS = ("+1", "-1", "complex")
+
+
+def check_locate_tol(tol: float) -> float:
+    """``tol`` as a float; ValueError naming ``locate_tol`` unless 0 < tol <= :data:`LOCATE_TOL_MAX`."""
+    if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not (math.isfinite(tol) and 0 < tol <= LOCATE_TOL_MAX):
+        raise ValueError(f"locate_tol must be an accuracy in Omega > 0 and <= {LOCATE_TOL_MAX:g}, got {tol!r}")
+    return float(tol)
+
+
+@dataclass(frozen=True)
+class AtlasChange:
+    """A change of stability located between two neighbours of an atlas along Omega.
+
+    Attributes
+    ----------
+    row : int
+        The index of the field value (``values[row]``).
+    value : float
+        That value.
+    between : (int, int)
+        The indices in ``omegas`` of the two neighbours.
+    change : StabilityChange
+        :class:`~.system_breathers.StabilityChange`: ``omega``, its ``accuracy``, ``kind``, ``method``.
+    """
+
+    row: int
+    value: float
+    between: tuple[int, int]
+    change: StabilityChange
+
+    @property
+    def placed_by(self) -> str:
+        """``discriminant`` (its zero, with a measured accuracy), ``moduli`` (the bisection on the moduli, with the
+        moduli's accuracy) or ``bracket`` (that bisection without a measured slope: half its bracket)."""
+        if self.change.accuracy is not None:
+            return "discriminant"
+        return "moduli" if self.change.moduli_accuracy is not None else "bracket"
+
+    @property
+    def accuracy(self) -> float:
+        """The change's accuracy in Omega as :attr:`placed_by` gives it."""
+        c = self.change
+        if c.accuracy is not None:
+            return float(c.accuracy)
+        return float(c.moduli_accuracy if c.moduli_accuracy is not None else 0.5 * abs(c.stable_omega - c.unstable_omega))
+
+    def as_dict(self) -> dict:
+        return {"value": self.value, "between": list(self.between), **self.change.as_dict(), "accuracy": self.accuracy,
+                "placed_by": self.placed_by}  # fmt: skip
+
+
+def to_locate(points: list[list]) -> list[tuple[int, int]]:
+    """(row, i) of the neighbours points[row][i], points[row][i + 1] of one family (the second continued from the first in
+    Omega) whose pairs off the unit circle differ, or whose stability does."""
+    out = []
+    for j, row in enumerate(points):
+        for i in range(len(row) - 1):
+            a, b = row[i], row[i + 1]
+            if a.orbit is None or b.orbit is None or b.source != "omega":
+                continue
+            counts = instability_counts(a.orbit.nontrivial_multipliers), instability_counts(b.orbit.nontrivial_multipliers)
+            if collisions_between(*counts) or a.orbit.stable != b.orbit.stable:
+                out.append((j, i))
+    return out
+
+
+def locate_atlas_changes(
+    points: list[list], values: np.ndarray, locate: Callable[[int, object, object], list[StabilityChange]],
+    progress: Callable[[int, int], None] | None = None,
+) -> list[AtlasChange]:  # fmt: skip
+    """Every change of stability between the neighbours :func:`to_locate` gives, ``locate(row, a, b)`` the located changes
+    between orbits ``a`` and ``b`` of that row; ``progress(done, total)`` after each pair of neighbours."""
+    pairs = to_locate(points)
+    out = []
+    for n, (j, i) in enumerate(pairs):
+        for change in locate(j, points[j][i].orbit, points[j][i + 1].orbit):
+            out.append(AtlasChange(j, float(values[j]), (i, i + 1), change))
+        if progress is not None:
+            progress(n + 1, len(pairs))
+    return out
+
+
+def change_variables(changes: list[AtlasChange], omega_units: str, value_units: str, field_name: str) -> dict:
+    """The located changes as Dataset variables over a dimension ``change`` (empty where none), their units and meanings."""
+    kinds = {"flag_values": np.arange(len(CHANGE_KINDS), dtype=np.int8), "flag_meanings": "plus_one minus_one complex"}
+    placed = {"flag_values": np.arange(len(PLACED_BY), dtype=np.int8), "flag_meanings": " ".join(PLACED_BY)}
+    table = (
+        ("value", lambda c: c.value, float, value_units, f"{field_name} of the row of the change", {}),
+        ("omega", lambda c: c.change.omega, float, omega_units, "Omega where stability changes", {}),
+        ("accuracy", lambda c: c.accuracy, float, omega_units, "accuracy of change_omega (change_placed_by says how it was measured)", {}),
+        ("stable_omega", lambda c: c.change.stable_omega, float, omega_units, "bracket's end with fewer pairs off the unit circle", {}),
+        ("unstable_omega", lambda c: c.change.unstable_omega, float, omega_units, "bracket's end with the colliding pair off it", {}),
+        ("between", lambda c: c.between[0], np.int32, "1", "index in omega of the first neighbour (the other: the next)", {}),
+        ("kind", lambda c: CHANGE_KINDS.index(c.change.kind), np.int8, "1", "where the pair meets: +1, -1, off the real axis", kinds),
+        ("placed_by", lambda c: PLACED_BY.index(c.placed_by), np.int8, "1", "how change_omega was placed", placed),
+    )
+    return {
+        f"change_{name}": (("change",), np.array([get(c) for c in changes], dtype=dtype), {"units": units, "long_name": long, **extra})
+        for name, get, dtype, units, long, extra in table
+    }
 
 
 def localization_length(amplitudes: np.ndarray) -> float:
@@ -257,9 +377,24 @@ class BreatherAtlas:
     points: list[list[AtlasPoint]]
     bands: tuple[str, ...]
     settings: dict = field(default_factory=dict)
+    #: From :meth:`locate_changes` (None: not located).
+    changes: list[AtlasChange] | None = None
 
     def params_at(self, value: float) -> ChainParams:
         return chain_at(self.params, self.field, value)
+
+    def locate_changes(self, tol: float = LOCATE_TOL, progress: Callable[[int, int], None] | None = None) -> None:
+        """Locate every change of stability between neighbours along Omega (:func:`locate_atlas_changes`) to ``tol`` in Omega,
+        by :func:`~.breathers.located_changes`; kept in :attr:`changes`, :meth:`as_dict`, :meth:`to_dataset` and the settings.
+
+        Raises
+        ------
+        ValueError
+            For a tolerance :func:`check_locate_tol` refuses.
+        """
+        tol = check_locate_tol(tol)
+        self.changes = locate_atlas_changes(self.points, self.values, lambda j, a, b: located_changes([a, b], self.bands, tol), progress)
+        self.settings["locate"] = {"tol": tol}
 
     def measure_lifetimes(
         self, max_periods: int, *, perturbation: float = 1e-8, threshold: float = 1e-2, progress: Callable[[int, int], None] | None = None
@@ -314,6 +449,7 @@ class BreatherAtlas:
             "points": [[p.as_dict() for p in row] for row in self.points],
             "resonances": atlas_resonances(self),
             "settings": self.settings,
+            "stability_changes": None if self.changes is None else [c.as_dict() for c in self.changes],
         }
 
     def to_dataset(self) -> xr.Dataset:
@@ -394,6 +530,9 @@ class BreatherAtlas:
         }
         if "lifetime" in self.settings:
             data.update(lifetime_variables(self.points, dims))
+        if self.changes is not None:
+            value_units = "length (units of the parameters' h)" if self.field in ("a", "b", "h") else "stiffness (units of E1)"
+            data.update(change_variables(self.changes, "rad s-1", value_units, f"chain field {self.field}"))
         ds = xr.Dataset(data, coords=coords)
         model = get_model(self.model)
         ds.attrs.update(run_attributes(self.params, model, moment_load(0.0, self.settings.get("particle", 0))))

@@ -74,7 +74,7 @@ from .anti_continuum import potential_from_torque, rotor_energy, sample_angles
 from .lifetimes import Lifetime, check_lifetime_run, lifetime_from_deviation
 from .simulation import run_attributes
 from .system_breather_arclength import fold_accuracy
-from .system_breathers import TIGHT_CLOSURE, TIGHT_RTOL, StabilityChange, branch_point_discriminant, locate_stability_change
+from .system_breathers import TIGHT_CLOSURE, TIGHT_RTOL, StabilityChange, branch_point_discriminant, locate_stability_changes
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
     import xarray as xr
@@ -317,13 +317,15 @@ def _solvers(orbit: HamiltonianOrbit) -> tuple[Callable[[np.ndarray, float], _Me
     return solve, tighten
 
 
-def located_changes(orbits: list[HamiltonianOrbit], bands: tuple[str, ...]) -> list[StabilityChange]:
-    """Where stability changes between consecutive members of opposite stability of a family in Omega.
+def located_changes(orbits: list[HamiltonianOrbit], bands: tuple[str, ...], tol: float | None = None) -> list[StabilityChange]:
+    """Where stability changes between consecutive members of a family in Omega whose pairs off the unit circle differ.
 
     Each bracketed by bisection in the period on the multipliers' moduli, then placed at the zero of
     the colliding pair's discriminant with its accuracy measured against the orbits found again at
     :data:`~.system_breathers.TIGHT_RTOL` (:func:`~.system_breathers.locate_stability_change`, the
-    user systems' mechanism). The resonances are named by the index of their band in ``bands``.
+    user systems' mechanism, :func:`~.system_breathers.locate_stability_changes`: two pairs crossing
+    between the same members give two changes). The resonances are named by the index of their band
+    in ``bands``; ``tol`` is the accuracy in Omega wanted (None: the full bisections and secant).
     """
     if len(orbits) < 2:
         return []
@@ -331,9 +333,9 @@ def located_changes(orbits: list[HamiltonianOrbit], bands: tuple[str, ...]) -> l
     edges = wave_summary(orbits[0].params).bands
     band_edges = [edges[name] for name in bands]
     return [
-        locate_stability_change(_Member(a), _Member(b), solve, band_edges, a.turns, tighten)
+        change
         for a, b in zip(orbits[:-1], orbits[1:], strict=True)
-        if a.stable != b.stable
+        for change in locate_stability_changes(_Member(a), _Member(b), solve, band_edges, a.turns, tighten, tol)
     ]
 
 

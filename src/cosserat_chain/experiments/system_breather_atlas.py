@@ -31,6 +31,9 @@ and ``source`` records which converged. At each orbit, from
 * **the bands** of the linear system about rest at each value
   (:func:`~.system_breathers.linear_bands`) and the harmonics of Omega inside them.
 
+:meth:`SystemBreatherAtlas.locate_changes` locates the changes of stability between neighbours along
+Omega as the chain's atlas does (:class:`~.breather_atlas.AtlasChange`), each by
+:func:`~.system_breathers.locate_stability_changes`.
 :meth:`SystemBreatherAtlas.to_dataset` writes it all to one self-describing Dataset.
 """
 
@@ -49,15 +52,26 @@ import numpy as np
 from ..numerics.shooting import Orbit, OrbitNotFound, find_orbit
 from ..systems.base import System
 from ..systems.lattice import LatticeSystem
-from .breather_atlas import ATLAS_MAX_ITER, SOURCES, localization_length
+from .breather_atlas import (
+    ATLAS_MAX_ITER,
+    LOCATE_TOL,
+    SOURCES,
+    AtlasChange,
+    change_variables,
+    check_locate_tol,
+    localization_length,
+    locate_atlas_changes,
+)
 from .breathers import TAIL_SAMPLES
 from .lifetimes import Lifetime, check_lifetime_run, lifetime_variables, measure_point_lifetimes
 from .system_breathers import (
     BreatherError,
+    _at,
     _coordinate,
     _unfolding_parameter,
     harmonics_in_bands,
     linear_bands,
+    locate_stability_changes,
     orbit_energy,
     roto_breather_family,
     system_lifetime,
@@ -180,6 +194,34 @@ class SystemBreatherAtlas:
     points: list[list[SystemAtlasPoint]]
     rotors: dict[int, int]
     settings: dict = field(default_factory=dict)
+    #: From :meth:`locate_changes` (None: not located).
+    changes: list[AtlasChange] | None = None
+
+    def locate_changes(self, tol: float = LOCATE_TOL, progress: Callable[[int, int], None] | None = None) -> None:
+        """Locate every change of stability between neighbours along Omega
+        (:func:`~.breather_atlas.locate_atlas_changes`) to ``tol`` in Omega, by
+        :func:`~.system_breathers.locate_stability_changes`; kept in :attr:`changes`, :meth:`as_dict`,
+        :meth:`to_dataset` and the settings.
+
+        Raises
+        ------
+        ValueError
+            For a tolerance :func:`~.breather_atlas.check_locate_tol` refuses.
+        """
+        tol = check_locate_tol(tol)
+        k = np.zeros(self.system.size)
+        for i, t in self.rotors.items():
+            k[i] = t
+        first = next(iter(self.rotors.values()))
+        unfold = self.settings["unfold"]
+
+        def locate(j: int, a: Orbit, b: Orbit) -> list:
+            here = self.system_at(self.values[j])
+            solve = partial(_at, here, k, unfold)
+            return locate_stability_changes(a, b, solve, linear_bands(here), first, tol=tol)
+
+        self.changes = locate_atlas_changes(self.points, self.values, locate, progress)
+        self.settings["locate"] = {"tol": tol}
 
     def measure_lifetimes(
         self, max_periods: int, *, perturbation: float = 1e-8, threshold: float = 1e-2, progress: Callable[[int, int], None] | None = None
@@ -230,6 +272,7 @@ class SystemBreatherAtlas:
                 for j in range(self.values.size)
             ],
             "settings": self.settings,
+            "stability_changes": None if self.changes is None else [c.as_dict() for c in self.changes],
         }
 
     def to_dataset(self, reference: str | None = None) -> xr.Dataset:
@@ -290,6 +333,8 @@ class SystemBreatherAtlas:
         }
         if "lifetime" in self.settings:
             data.update(lifetime_variables(self.points, dims))
+        if self.changes is not None:
+            data.update(change_variables(self.changes, "rad per time unit of the system", "the system's", f"system parameter {self.field}"))
         ds = xr.Dataset(data, coords=coords)
         ds.attrs.update({f"param_{name}": value for name, value in self.system.parameters.items()})
         ds.attrs.update(

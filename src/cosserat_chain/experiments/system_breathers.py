@@ -42,7 +42,14 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..errors import CosseratChainError
-from ..numerics.breather_arclength import CLUSTER_SIZE, collision_discriminant
+from ..numerics.breather_arclength import (
+    CLUSTER_SIZE,
+    COUNTED,
+    OFF_CIRCLE,
+    collision_discriminant,
+    collisions_between,
+    instability_counts,
+)
 from ..numerics.kit import EvaluationFailed
 from ..numerics.shooting import PERIOD, Orbit, OrbitNotFound, find_orbit, flow
 from ..systems.base import System
@@ -367,7 +374,9 @@ class StabilityChange:
 
     ``multiplier`` is the unstable side's largest one; ``kind`` is ``+1`` (a real multiplier
     > 1: a collision at +1), ``-1`` (real < -1: at -1) or ``complex`` (a Krein collision off the
-    real axis); ``resonance`` the nearest resonance of that kind, ``nearest`` the nearest of any.
+    real axis); ``resonance`` the nearest resonance of the multiplier's sector (+1 within pi / 3 of
+    +1, -1 within pi / 3 of -1; a Krein collision near -1 is a parametric resonance too), ``nearest``
+    the nearest of any.
     """
 
     omega: float
@@ -797,11 +806,12 @@ def _sample(orbit: Orbit, omega: float, kind: str, centre: complex | None, tight
 
 
 def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None, solve: Callable[[float, np.ndarray], Orbit], k: int,
-               tighten: Callable[[Orbit], Orbit | None]):  # fmt: skip
+               tighten: Callable[[Orbit], Orbit | None], tol: float = 0.0):  # fmt: skip
     """The zero of the collision discriminant in Omega near the members ``stable`` and ``unstable``.
 
-    Returns (omega, samples, slope) or None where a discriminant is unresolved or no sign change is found.
-    ``solve(omega, guess)`` is the orbit at that frequency.
+    Returns (omega, samples, slope, step) or None where a discriminant is unresolved or no sign change is found.
+    ``solve(omega, guess)`` is the orbit at that frequency. The secant stops early where its next step in Omega
+    is below ``tol`` (that step, not taken, is ``step``; 0 where the secant ran to its end).
     """
     samples = []
 
@@ -835,14 +845,18 @@ def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None
         lo, hi = nearer, beyond
     else:
         return None
-    f_lo, f_hi, side = lo.value, hi.value, 0
+    f_lo, f_hi, side, step = lo.value, hi.value, 0, 0.0
     omega = lo.omega if lo.value == 0 else hi.omega
     for _ in range(SECANT_ITERATIONS):
         if f_hi == f_lo:
             break
+        last = samples[-1].omega
         omega = hi.omega - f_hi * (hi.omega - lo.omega) / (f_hi - f_lo)
         if not min(lo.omega, hi.omega) < omega < max(lo.omega, hi.omega):
             omega = 0.5 * (lo.omega + hi.omega)
+        if abs(omega - last) < tol:
+            step = abs(omega - last)
+            break
         middle = at(omega)
         if middle is None or abs(middle.value) <= RESOLVED * middle.error:
             break
@@ -859,7 +873,7 @@ def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None
     slope = (hi.value - lo.value) / (hi.omega - lo.omega) if hi.omega != lo.omega else math.nan
     if not (math.isfinite(slope) and slope != 0):
         return None
-    return omega, samples, slope
+    return omega, samples, slope, step
 
 
 def branch_point_discriminant(
@@ -891,16 +905,38 @@ def branch_point_discriminant(
     found = _collision(a, b, "+1", None, lambda omega, guess: solve(guess, 2 * math.pi * k / omega), k, tighten)
     if found is None:
         return None
-    omega, samples, slope = found
+    omega, samples, slope, _ = found
     return omega, max(x.error for x in samples) / abs(slope)
+
+
+def _counts(orbit) -> tuple[int, int, int]:
+    """The member's :func:`~cosserat_chain.numerics.breather_arclength.instability_counts`."""
+    return instability_counts(orbit.nontrivial_multipliers)
+
+
+def _off(orbit, kind: str) -> np.ndarray:
+    """The member's nontrivial multipliers outside the unit circle that left it as ``kind`` (counted as
+    :func:`~cosserat_chain.numerics.breather_arclength.instability_counts` counts them)."""
+    mu = orbit.nontrivial_multipliers
+    out = mu[np.abs(mu) > 1.0 + OFF_CIRCLE]
+    real = np.abs(out.imag) < 0.5 * (np.abs(out) - 1.0)
+    return out[{"+1": real & (out.real > 0), "-1": real & (out.real < 0), "complex": ~real}[kind]]
 
 
 def locate_stability_change(
     a, b, solve: Callable[[np.ndarray, float], Orbit], bands: list[tuple[float, float]], k: int,
-    tighten: Callable[[Orbit], Orbit | None] = _tight,
+    tighten: Callable[[Orbit], Orbit | None] = _tight, tol: float | None = None,
 ) -> StabilityChange:  # fmt: skip
-    """Bisect in the period between members ``a`` and ``b`` of opposite stability on the moduli, then
-    find the zero of the collision's discriminant (:class:`StabilityChange`).
+    """Bisect in the period between members ``a`` and ``b`` that differ by one collision, then find the zero of the
+    collision's discriminant (:class:`StabilityChange`).
+
+    The members differ in their pairs off the unit circle
+    (:func:`~cosserat_chain.numerics.breather_arclength.instability_counts`; a stable member and an
+    unstable one, or two unstable ones with one pair more off the circle on one side): the side
+    with fewer is the ``stable`` one of :class:`StabilityChange` (the colliding pair on the circle),
+    and the bisection keeps each trial on the side whose counts it shares. Where they differ by
+    more than one collision (:func:`locate_stability_changes` splits those first), the first
+    kind that differs is located.
 
     Parameters
     ----------
@@ -916,40 +952,63 @@ def locate_stability_change(
         The first rotor's turns per period (Omega = 2 pi k / T).
     tighten : callable(orbit) -> orbit or None
         The same orbit found again, and its monodromy integrated, at :data:`TIGHT_RTOL`.
+    tol : float, optional
+        The accuracy in Omega wanted: the bisection stops once its bracket is narrower, and the
+        secant once its next step is shorter (that step is added to ``accuracy``). None: the full
+        :data:`BISECTIONS` and secant iterations.
     """
-    stable, unstable = (a, b) if a.stable else (b, a)
+    ca, cb = _counts(a), _counts(b)
+    which = next((i for i in range(len(COUNTED)) if ca[i] != cb[i]), None)
+    if which is None:  # the flags differ at the circle's tolerance while the counts agree: by the flags
+        stable, unstable = (a, b) if a.stable else (b, a)
+        which = int(np.argmax(_counts(unstable)))
+    else:
+        stable, unstable = (a, b) if ca[which] < cb[which] else (b, a)
+    kind = COUNTED[which]
+    on = _counts(stable)
+    far = unstable
     for _ in range(BISECTIONS):
+        if tol is not None and abs(2 * math.pi * k / stable.period - 2 * math.pi * k / unstable.period) <= tol:
+            break
         period = 0.5 * (stable.period + unstable.period)
         try:
             middle = solve(0.5 * (stable.y0 + unstable.y0), period)
         except OrbitNotFound:  # the bracket found so far stays valid
             break
-        if middle.stable:
+        if _counts(middle) == on:
             stable = middle
         else:
             unstable = middle
-    multiplier, kind = _classify(b if a.stable else a)
+    off = _off(far, kind)
+    multiplier = complex(off[int(np.argmax(np.abs(off)))]) if off.size else _classify(far)[0]
     omega_s, omega_u = 2 * math.pi * k / stable.period, 2 * math.pi * k / unstable.period
     moduli_omega = 0.5 * (omega_s + omega_u)
-    # The collision's centre from the bisected unstable member: the pair is nearest it there, not at a far member.
-    centre = complex(np.exp(1j * abs(np.angle(_classify(unstable)[0])))) if kind == "complex" else None
-    if kind == "complex" and multiplier.imag < 0:
-        multiplier = multiplier.conjugate()
-    found = _collision(stable, unstable, kind, centre, lambda omega, guess: solve(guess, 2 * math.pi * k / omega), k, tighten)
+    # The collision's centre from the bisected unstable member: the pair is nearest it there, not at a far member;
+    # of its quartets off the circle the one nearest it, which has just left.
+    near = _off(unstable, kind)
+    centre = None
+    if kind == "complex":
+        newest = near[int(np.argmin(np.abs(near)))] if near.size else _classify(unstable)[0]
+        centre = complex(np.exp(1j * abs(np.angle(newest))))
+        if multiplier.imag < 0:
+            multiplier = multiplier.conjugate()
+    found = _collision(stable, unstable, kind, centre, lambda omega, guess: solve(guess, 2 * math.pi * k / omega), k, tighten, tol or 0.0)
     size = CLUSTER_SIZE[kind]
     if found is None:
         omega, accuracy, method, delta, slope, moduli_accuracy = moduli_omega, None, "moduli", None, None, None
         shooting_omega = math.nan
     else:
-        omega, samples, slope = found
+        omega, samples, slope, step = found
         delta = max(x.delta for x in samples)
         nearest = min(samples, key=lambda x: abs(x.omega - omega))
         shooting_omega = nearest.omega - nearest.loose / slope
-        accuracy = max(x.error for x in samples) / abs(slope)
+        accuracy = max(x.error for x in samples) / abs(slope) + step
         method = "discriminant"
         # The moduli hide the pair's split sqrt(D) / 2 below the cluster's resolution delta^(1 / m).
         moduli_accuracy = max(4 * delta ** (2 / size) / abs(slope), 0.5 * abs(omega_s - omega_u))
-    sign = {"+1": 1, "-1": -1}.get(kind)
+    # The resonance by the multiplier's sector: a Krein collision near -1 is a parametric one too.
+    angle = abs(np.angle(multiplier))
+    sign = 1 if angle < math.pi / 3 else -1 if angle > 2 * math.pi / 3 else None
     return StabilityChange(
         omega=omega,
         stable_omega=omega_s,
@@ -966,6 +1025,44 @@ def locate_stability_change(
         slope=slope,
         shooting_omega=shooting_omega,
     )
+
+
+def locate_stability_changes(
+    a, b, solve: Callable[[np.ndarray, float], Orbit], bands: list[tuple[float, float]], k: int,
+    tighten: Callable[[Orbit], Orbit | None] = _tight, tol: float | None = None,
+) -> list[StabilityChange]:  # fmt: skip
+    """Every change of stability between members ``a`` and ``b``, in the order from ``a`` to ``b``.
+
+    The members' pairs off the unit circle
+    (:func:`~cosserat_chain.numerics.breather_arclength.instability_counts`) tell how many
+    collisions lie between them (:func:`~cosserat_chain.numerics.breather_arclength.collisions_between`;
+    none where they agree, even if the flags differ only at the circle's tolerance). Where more
+    than one does, the bracket is bisected in the period, each half kept where its ends differ,
+    until each part holds one (at most :data:`BISECTIONS` deep; a part Newton cannot split is
+    located as one); each is located by :func:`locate_stability_change`. Two pairs crossing
+    between the same two members so give two changes, where a stable/unstable flag or the
+    parity of the pairs through +1 (:func:`~cosserat_chain.numerics.breather_arclength.pair_test`)
+    give one or none.
+
+    Parameters
+    ----------
+    a, b, solve, bands, k, tighten, tol
+        As :func:`locate_stability_change`.
+    """
+
+    def split(a, b, depth: int) -> list:
+        count = collisions_between(_counts(a), _counts(b))
+        if count == 0 and a.stable == b.stable:
+            return []
+        if count <= 1 or depth == 0:
+            return [(a, b)]
+        try:
+            middle = solve(0.5 * (a.y0 + b.y0), 0.5 * (a.period + b.period))
+        except OrbitNotFound:
+            return [(a, b)]
+        return split(a, middle, depth - 1) + split(middle, b, depth - 1)
+
+    return [locate_stability_change(x, y, solve, bands, k, tighten, tol) for x, y in split(a, b, BISECTIONS)]
 
 
 def roto_breather_family(
@@ -1102,8 +1199,8 @@ def roto_breather_family(
         for a, b in zip(members[:-1], members[1:], strict=True):
             # Members are in the traced order; one landed past the last traced orbit counts as after it.
             first, last = traced.get(id(a), -1), traced.get(id(b), len(traced))
-            if a.stable != b.stable and not any(first < j <= last for j in folds):
-                changes.append(locate_stability_change(a, b, lambda y0, period: _at(system, k, unfold, y0, period), bands, turns))
+            if not any(first < j <= last for j in folds):
+                changes += locate_stability_changes(a, b, lambda y0, period: _at(system, k, unfold, y0, period), bands, turns)
     for event in events:
         # A branch point's pair through +1 is a change of stability too: its discriminant's zero is the same point,
         # found without the singular Newton system that stops the relocation's bisection short.

@@ -274,6 +274,47 @@ def pair_test(orbit) -> float:
     return float(np.sign(np.prod(mu - 1.0).real))
 
 
+#: A nontrivial multiplier counts as off the unit circle beyond this distance from it (the stability test's).
+OFF_CIRCLE = 1e-6
+#: What :func:`instability_counts` counts, in its order.
+COUNTED = ("+1", "-1", "complex")
+
+
+def instability_counts(multipliers: np.ndarray, tol: float = OFF_CIRCLE) -> tuple[int, int, int]:
+    """How many multiplier pairs are off the unit circle, by where they left it: (real > 0, real < 0, complex quartets).
+
+    :func:`pair_test` is the parity of the first only: two pairs passing through +1 between two
+    members leave its sign as it was, and a stable/unstable flag misses a second pair leaving
+    an unstable family. The counts do not: each collision changes one of them by one (a pair
+    through +1 or -1, a Krein collision making a quartet), so the sum of their differences
+    between two members (:func:`collisions_between`) is the number of collisions between them,
+    less any that undo each other (a pair leaving and coming back).
+
+    Of each pair off the circle one member lies outside it. It is real where its distance from
+    the real axis is below half its distance from the circle: just off a collision at +-1 the
+    eigenvalue solver's imaginary part is round-off far below the pair's split, while a
+    quartet's members sit at the collision's angle.
+
+    Parameters
+    ----------
+    multipliers : ndarray
+        The nontrivial multipliers (without the Hamiltonian pair at +1).
+    tol : float
+        Off the circle: |mu| > 1 + tol.
+    """
+    mu = np.asarray(multipliers, dtype=complex)
+    out = mu[np.abs(mu) > 1.0 + tol]
+    real = np.abs(out.imag) < 0.5 * (np.abs(out) - 1.0)
+    plus = int(np.sum(real & (out.real > 0)))
+    minus = int(np.sum(real & (out.real < 0)))
+    return plus, minus, int(math.ceil(np.sum(~real) / 2))
+
+
+def collisions_between(a: tuple[int, int, int], b: tuple[int, int, int]) -> int:
+    """The number of collisions between two members from their :func:`instability_counts`: the sum of the differences."""
+    return int(sum(abs(x - y) for x, y in zip(a, b, strict=True)))
+
+
 #: A cluster of multipliers is resolved when its farthest member from the cluster's centre is nearer
 #: it than this fraction of the next multiplier's distance.
 CLUSTER_GAP = 0.5

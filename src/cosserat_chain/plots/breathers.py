@@ -17,7 +17,10 @@ windows n Omega inside a driven band (n = 1..3) shaded between the edges' harmon
 :class:`~cosserat_chain.experiments.system_breather_atlas.SystemBreatherAtlas`, against its
 bands about rest. Where the atlas's lifetimes were measured (``measure_lifetimes``) both add
 a second panel below the map: each orbit's lifetime over (Omega, field), coloured by log10 of
-its periods, the orbits that outlived the run as triangles. None computes anything itself.
+its periods, the orbits that outlived the run as triangles. Where the atlas's changes of
+stability were located (``locate_changes``) both mark each on its row as a red bar with its
+accuracy as the error bar (too small to see, mostly: the change's place is the point). None
+computes anything itself.
 """
 
 from __future__ import annotations
@@ -154,6 +157,7 @@ def breather_atlas_figure(atlas: BreatherAtlas) -> Figure:
     ax.scatter(om[exists & ~stable], va[exists & ~stable], facecolor="none", edgecolor=plt.get_cmap("viridis")(norm(ratio[exists & ~stable]))
                if norm else "k", s=30, lw=1.5, label="unstable")  # fmt: skip
     ax.scatter(om[~exists], va[~exists], marker="x", color="0.4", s=20, label="not found")
+    _atlas_changes(ax, atlas)
     if finite.size:
         fig.colorbar(filled, ax=ax, label="participation ratio of the energies")
     ax.set_xlim(low - 0.05 * span, high + 0.05 * span)
@@ -206,6 +210,7 @@ def system_atlas_figure(atlas: SystemBreatherAtlas) -> Figure:
     ax.scatter(om[exists & ~stable], va[exists & ~stable], facecolor="none", edgecolor=plt.get_cmap("viridis")(norm(ratio[exists & ~stable]))
                if norm else "k", s=30, lw=1.5, label="unstable")  # fmt: skip
     ax.scatter(om[~exists], va[~exists], marker="x", color="0.4", s=20, label="not found")
+    _atlas_changes(ax, atlas)
     if finite.size:
         fig.colorbar(filled, ax=ax, label="participation ratio of the kinetic energies")
     rotors = ", ".join(f"{atlas.system.coordinates[i]} ({k:+d})" for i, k in atlas.rotors.items())
@@ -218,6 +223,16 @@ def system_atlas_figure(atlas: SystemBreatherAtlas) -> Figure:
         _atlas_lifetimes(fig, below, lives, atlas, ax)
     fig.tight_layout()
     return fig
+
+
+def _atlas_changes(ax, atlas) -> None:
+    """The atlas's located changes of stability on its rows (nothing where they were not located)."""
+    if not atlas.changes:
+        return
+    omega = np.array([c.change.omega for c in atlas.changes])
+    value = np.array([c.value for c in atlas.changes])
+    accuracy = np.array([c.accuracy for c in atlas.changes])
+    ax.errorbar(omega, value, xerr=accuracy, fmt="|", color="tab:red", ms=14, mew=1.5, capsize=3, label="stability changes (located)")
 
 
 def atlas_lifetime_grid(atlas) -> tuple[np.ndarray, np.ndarray] | None:
