@@ -8,8 +8,8 @@ reachable from this project): in a Klein-Gordon chain
 
 with a soft on-site potential (dOmega/dE < 0) and eps > 0 only two-site breathers with the excited sites
 out of phase may be stable, with eps < 0 only in-phase ones; hard potentials reverse it; the exponents are
-O(sqrt(eps)), estimated by MacKay's effective Hamiltonian. Here V = 1 - cos x (soft) and the package's
-Newton and Floquet multipliers (:func:`~cosserat_chain.numerics.shooting.find_orbit` on a user
+O(sqrt(eps)), estimated by MacKay's effective Hamiltonian. Here V = 1 - cos x (soft) and V = x^2 / 2 + x^4 / 4
+(hard), and the package's Newton and Floquet multipliers (:func:`~cosserat_chain.numerics.shooting.find_orbit` on a user
 :class:`~cosserat_chain.systems.lattice.LatticeSystem`) are held against it, sign and size.
 
 The size is derived here (the paper's own formula was not read), from first principles, as follows. Near
@@ -24,7 +24,8 @@ the reversibility) has, besides the double zero of the common phase, the pair
 (the 2 from both sites' actions: (I_1 - I_2)' = -2 eps W'(psi)), the Floquet multipliers exp(+-sigma T):
 real (unstable) for sigma^2 > 0, on the circle for sigma^2 < 0. For a linear bond W''(0) = -W''(pi) =
 <x'^2> / Omega^2 = I / Omega (x(theta + pi) = -x(theta) for an even V), so sigma^2 = -+ 2 eps I dOmega/dE in
-phase / out of phase, I and Omega closed forms in complete elliptic integrals (SymPy below).
+phase / out of phase; Omega(E) and I(E) are closed forms in complete elliptic integrals (SymPy below, checked
+against SciPy's quadrature of the period).
 
 The same averaging holds for rotations (the theory is stated for oscillators in general periodic orbits
 of a one-degree-of-freedom system: MacKay and Sepulchre's effective Hamiltonian needs only the action-angle
@@ -42,7 +43,7 @@ import math
 import numpy as np
 import pytest
 import sympy as sp
-from scipy.integrate import solve_ivp
+from scipy.integrate import quad, solve_ivp
 from scipy.optimize import brentq
 from scipy.special import ellipe, ellipk
 
@@ -52,47 +53,69 @@ from cosserat_chain.systems import takeno_peyrard
 from cosserat_chain.systems.lattice import LatticeSystem
 
 SITES, A, B = 10, 4, 5  # the excited pair: sites 4 and 5 of 10, free ends
-ROTATION = 1.3  # above the band [1, sqrt(1 + 4 C)]: every harmonic outside it
-OSCILLATION = 0.8  # below the band; 3 Omega (the first harmonic of an even V) above it
 SAMPLES = 256  # of the lone orbit, for W(psi)
 COUPLINGS = (0.000625, 0.00125, 0.0025, 0.005, 0.01)
 
 # -- the single oscillator: closed forms (SymPy) and the lone orbit (SciPy) ------------------------------------
 
-_E = sp.symbols("E", positive=True)
-#: Frequency and action of the pendulum p^2 / 2 + 1 - cos x at energy E: libration (E < 2, m = E / 2) and rotation (E > 2, m = 2 / E).
-CLOSED = {
-    False: (sp.pi / (2 * sp.elliptic_k(_E / 2)), 8 / sp.pi * (sp.elliptic_e(_E / 2) - (1 - _E / 2) * sp.elliptic_k(_E / 2))),
-    True: (sp.pi * sp.sqrt(2 * _E) / (2 * sp.elliptic_k(2 / _E)), 2 * sp.sqrt(2 * _E) * sp.elliptic_e(2 / _E) / sp.pi),
-}
+_A = sp.symbols("A", positive=True)
+#: The three oscillators, each in a parameter A: (force, Omega(A), E(A), I(A) or None, range of A). The pendulum
+#: p^2 / 2 + 1 - cos x librating (A = E < 2, m = E / 2) or turning (A = E > 2, m = 2 / E), and the hard Duffing
+#: oscillator p^2 / 2 + x^2 / 2 + x^4 / 4 of amplitude A (m = A^2 / (2 (1 + A^2))).
+KINDS = {
+    "libration": (
+        math.sin, sp.pi / (2 * sp.elliptic_k(_A / 2)), _A,
+        8 / sp.pi * (sp.elliptic_e(_A / 2) - (1 - _A / 2) * sp.elliptic_k(_A / 2)), (1e-12, 2 - 1e-14),
+    ),
+    "rotation": (
+        math.sin, sp.pi * sp.sqrt(2 * _A) / (2 * sp.elliptic_k(2 / _A)), _A,
+        2 * sp.sqrt(2 * _A) * sp.elliptic_e(2 / _A) / sp.pi, (2 + 1e-14, 1e4),
+    ),
+    "duffing": (
+        lambda x: x + x**3, sp.pi * sp.sqrt(1 + _A**2) / (2 * sp.elliptic_k(_A**2 / (2 * (1 + _A**2)))),
+        _A**2 / 2 + _A**4 / 4, None, (1e-8, 1e3),
+    ),
+}  # fmt: skip
 
 
 def _numeric(expr):
-    return sp.lambdify(_E, expr, modules="mpmath")
+    return sp.lambdify(_A, expr, modules="mpmath")
 
 
-def energy(omega: float, rotation: bool) -> float:
-    """E of the pendulum's libration or rotation (one turn) of frequency omega, from SciPy's K."""
-    if rotation:
+def parameter(omega: float, kind: str) -> float:
+    """A of the orbit of frequency omega (for the pendulum its energy), from SciPy's K."""
+    if kind == "libration":
+        return brentq(lambda e: 4 * ellipk(e / 2) - 2 * math.pi / omega, 1e-12, 2 - 1e-14, xtol=1e-15, rtol=1e-15)
+    if kind == "rotation":
         return brentq(lambda e: 4 * ellipk(2 / e) / math.sqrt(2 * e) - 2 * math.pi / omega, 2 + 1e-14, 1e4, xtol=1e-15, rtol=1e-15)
-    return brentq(lambda e: 4 * ellipk(e / 2) - 2 * math.pi / omega, 1e-12, 2 - 1e-14, xtol=1e-15, rtol=1e-15)
+    period = lambda a: 4 * ellipk(a * a / (2 * (1 + a * a))) / math.sqrt(1 + a * a)  # noqa: E731
+    return brentq(lambda a: period(a) - 2 * math.pi / omega, 1e-8, 1e3, xtol=1e-15, rtol=1e-15)
 
 
-def frequency_slope(omega: float, rotation: bool) -> float:
-    """dOmega/dE from SymPy's derivative of the closed form."""
-    return float(_numeric(sp.diff(CLOSED[rotation][0], _E))(energy(omega, rotation)))
+def energy(omega: float, kind: str) -> float:
+    return float(_numeric(KINDS[kind][2])(parameter(omega, kind)))
 
 
-def action(omega: float, rotation: bool) -> float:
-    return float(_numeric(CLOSED[rotation][1])(energy(omega, rotation)))
+def frequency_slope(omega: float, kind: str) -> float:
+    """dOmega/dE from SymPy's derivatives of the closed forms."""
+    _, freq, en, _, _ = KINDS[kind]
+    return float(_numeric(sp.diff(freq, _A) / sp.diff(en, _A))(parameter(omega, kind)))
 
 
-def lone_orbit(omega: float, rotation: bool) -> np.ndarray:
-    """(x, x') of the lone pendulum at SAMPLES equal steps of one period, from x' = 0 (libration) or x = 0 (rotation)."""
-    e, period = energy(omega, rotation), 2 * math.pi / omega
-    start = [0.0, math.sqrt(2 * e)] if rotation else [math.acos(1 - e), 0.0]
+def action(omega: float, kind: str) -> float:
+    return float(_numeric(KINDS[kind][3])(parameter(omega, kind)))
+
+
+def lone_orbit(omega: float, kind: str) -> np.ndarray:
+    """(x, x') of the lone oscillator at SAMPLES equal steps of one period, from x' = 0 (libration) or x = 0 (rotation)."""
+    force, period = KINDS[kind][0], 2 * math.pi / omega
+    e = energy(omega, kind)
+    if kind == "rotation":
+        start = [0.0, math.sqrt(2 * e)]
+    else:
+        start = [math.acos(1 - e) if kind == "libration" else parameter(omega, kind), 0.0]
     t = np.arange(SAMPLES) * period / SAMPLES
-    run = solve_ivp(lambda _, y: [y[1], -math.sin(y[0])], (0, period), start, method="DOP853", rtol=1e-13, atol=1e-13, t_eval=t)
+    run = solve_ivp(lambda _, y: [y[1], -force(y[0])], (0, period), start, method="DOP853", rtol=1e-13, atol=1e-13, t_eval=t)
     return run.y
 
 
@@ -105,28 +128,32 @@ def phase_curvature(x: np.ndarray, bond, psi0: float) -> float:
     return float(np.sum(-(n**2) * weight * np.real(c * np.exp(1j * n * psi0))))
 
 
-def predicted_square(eps: float, omega: float, rotation: bool, curvature: float) -> float:
+def predicted_square(eps: float, omega: float, kind: str, curvature: float) -> float:
     """sigma^2 of (P)."""
-    return -2 * eps * omega * frequency_slope(omega, rotation) * curvature
+    return -2 * eps * omega * frequency_slope(omega, kind) * curvature
 
 
 # -- the package's orbits --------------------------------------------------------------------------------------
 
 
-def klein_gordon(eps: float) -> LatticeSystem:
+SITE_ENERGY = {"libration": "1 - cos(x)", "duffing": "x**2/2 + x**4/4"}
+FREQUENCY = {"libration": 0.8, "duffing": 1.2, "rotation": 1.3}  # 3 Omega above the band / Omega above it (both V even)
+
+
+def klein_gordon(kind: str, eps: float) -> LatticeSystem:
     return LatticeSystem(
-        sites=SITES, dofs=("x",), site_energy="1 - cos(x)", bond_energy="C*(x_r - x_l)**2/2", damping="gamma",
-        parameters={"C": eps, "gamma": 0.0}, name="klein_gordon_pendulum",
+        sites=SITES, dofs=("x",), site_energy=SITE_ENERGY[kind], bond_energy="C*(x_r - x_l)**2/2", damping="gamma",
+        parameters={"C": eps, "gamma": 0.0}, name=f"klein_gordon_{kind}",
     )  # fmt: skip
 
 
-def anti_continuum(omega: float, rotation: bool, psi0: float, counter: bool) -> np.ndarray:
+def anti_continuum(omega: float, kind: str, psi0: float, counter: bool) -> np.ndarray:
     """Site A at theta = 0, site B at theta = -psi0 (0 or pi; mirrored with ``counter``), the others at rest."""
-    e = energy(omega, rotation)
-    if rotation:
+    e = energy(omega, kind)
+    if kind == "rotation":
         states = {0.0: (0.0, math.sqrt(2 * e)), math.pi: (-math.pi, math.sqrt(2 * (e - 2)))}
     else:
-        amplitude = math.acos(1 - e)
+        amplitude = math.acos(1 - e) if kind == "libration" else parameter(omega, kind)
         states = {0.0: (amplitude, 0.0), math.pi: (-amplitude, 0.0)}
     y0 = np.zeros(2 * SITES)
     y0[A], y0[SITES + A] = states[0.0]
@@ -135,12 +162,14 @@ def anti_continuum(omega: float, rotation: bool, psi0: float, counter: bool) -> 
     return y0
 
 
-def pair_orbits(system_at, omega: float, rotation: bool, psi0: float, counter: bool, couplings) -> list:
+def pair_orbits(kind: str, psi0: float, counter: bool, couplings) -> list:
     """Newton at each coupling in turn, from the anti-continuum state and then from the last orbit."""
-    y0, turns = anti_continuum(omega, rotation, psi0, counter), ({A: 1, B: -1 if counter else 1} if rotation else None)
+    omega, rotation = FREQUENCY[kind], kind == "rotation"
+    y0, turns = anti_continuum(omega, kind, psi0, counter), ({A: 1, B: -1 if counter else 1} if rotation else None)
     orbits = []
     for eps in couplings:
-        orbit = find_orbit(system_at(eps), (y0, 2 * math.pi / omega), turns=turns, unfold="gamma")
+        system = takeno_peyrard(SITES, C=eps) if rotation else klein_gordon(kind, eps)
+        orbit = find_orbit(system, (y0, 2 * math.pi / omega), turns=turns, unfold="gamma")
         orbits.append(orbit)
         y0 = orbit.y0
     return orbits
@@ -156,20 +185,22 @@ def measured_exponent(orbit) -> tuple[float, bool]:
 
 
 CASES = {
-    # name: (rotation, psi0, counter, coupling sign)
-    "Klein-Gordon in phase, eps > 0": (False, 0.0, False, 1.0),
-    "Klein-Gordon out of phase, eps > 0": (False, math.pi, False, 1.0),
-    "Klein-Gordon in phase, eps < 0": (False, 0.0, False, -1.0),
-    "Klein-Gordon out of phase, eps < 0": (False, math.pi, False, -1.0),
-    "rotors together, in phase": (True, 0.0, False, 1.0),
-    "rotors together, out of phase": (True, math.pi, False, 1.0),
-    "rotors against each other, in phase": (True, 0.0, True, 1.0),
-    "rotors against each other, out of phase": (True, math.pi, True, 1.0),
+    # name: (kind, psi0, counter, coupling sign)
+    "Klein-Gordon soft V, in phase, eps > 0": ("libration", 0.0, False, 1.0),
+    "Klein-Gordon soft V, out of phase, eps > 0": ("libration", math.pi, False, 1.0),
+    "Klein-Gordon soft V, in phase, eps < 0": ("libration", 0.0, False, -1.0),
+    "Klein-Gordon soft V, out of phase, eps < 0": ("libration", math.pi, False, -1.0),
+    "Klein-Gordon hard V, in phase, eps > 0": ("duffing", 0.0, False, 1.0),
+    "Klein-Gordon hard V, out of phase, eps > 0": ("duffing", math.pi, False, 1.0),
+    "rotors together, in phase": ("rotation", 0.0, False, 1.0),
+    "rotors together, out of phase": ("rotation", math.pi, False, 1.0),
+    "rotors against each other, in phase": ("rotation", 0.0, True, 1.0),
+    "rotors against each other, out of phase": ("rotation", math.pi, True, 1.0),
 }
 
 
-def bond_of(rotation: bool, counter: bool):
-    if not rotation:
+def bond_of(kind: str, counter: bool):
+    if kind != "rotation":
         return lambda a, b: (a - b) ** 2 / 2
     sign = -1.0 if counter else 1.0  # the mirrored partner: phi_B = -Phi
     return lambda a, b: 1 - np.cos(a - sign * b)
@@ -177,15 +208,13 @@ def bond_of(rotation: bool, counter: bool):
 
 def comparison(name: str, couplings=COUPLINGS) -> list[tuple[float, float, float, bool, bool]]:
     """(eps, measured sigma T, predicted sigma T, measured real, predicted real) at each coupling."""
-    rotation, psi0, counter, sign = CASES[name]
-    omega = ROTATION if rotation else OSCILLATION
-    x = lone_orbit(omega, rotation)[0]
-    curvature = phase_curvature(x, bond_of(rotation, counter), psi0)
+    kind, psi0, counter, sign = CASES[name]
+    omega = FREQUENCY[kind]
+    curvature = phase_curvature(lone_orbit(omega, kind)[0], bond_of(kind, counter), psi0)
     epss = [sign * c for c in couplings]
-    system_at = (lambda eps: takeno_peyrard(SITES, C=eps)) if rotation else klein_gordon
     rows = []
-    for eps, orbit in zip(epss, pair_orbits(system_at, omega, rotation, psi0, counter, epss), strict=True):
-        square = predicted_square(eps, omega, rotation, curvature)
+    for eps, orbit in zip(epss, pair_orbits(kind, psi0, counter, epss), strict=True):
+        square = predicted_square(eps, omega, kind, curvature)
         measured, real = measured_exponent(orbit)
         rows.append((eps, measured, math.sqrt(abs(square)) * orbit.period, real, square > 0))
     return rows
@@ -207,27 +236,44 @@ def test_effective_hamiltonian_pair_is_sigma_squared_minus_2_eps_h2_w2():
     assert sp.simplify(poly - lam**2 * (lam**2 + 2 * eps * h2 * w2)) == 0
 
 
-@pytest.mark.parametrize("rotation", [False, True])
-def test_single_pendulum_closed_forms_against_scipy(rotation):
-    """Omega(E) and I(E) (SymPy's elliptic integrals) against SciPy: the period, dI/dE = 1 / Omega, <x'^2> = Omega I."""
-    omega = ROTATION if rotation else OSCILLATION
-    e = energy(omega, rotation)
-    freq, act = (_numeric(f) for f in CLOSED[rotation])
-    assert float(freq(e)) == pytest.approx(omega, rel=1e-13)
-    assert float(_numeric(sp.diff(CLOSED[rotation][1], _E))(e)) * omega == pytest.approx(1, rel=1e-12)
-    step = 1e-5  # SymPy's derivative against SciPy's K by central differences
-    by_scipy = [2 * math.pi / (4 * ellipk(2 / s) / math.sqrt(2 * s) if rotation else 4 * ellipk(s / 2)) for s in (e - step, e + step)]
-    assert frequency_slope(omega, rotation) == pytest.approx((by_scipy[1] - by_scipy[0]) / (2 * step), rel=1e-8)
-    x, v = lone_orbit(omega, rotation)
-    assert float(np.mean(v**2)) == pytest.approx(omega * action(omega, rotation), rel=1e-10)
-    m = 2 / e if rotation else e / 2  # and the action against SciPy's E and K directly
-    direct = 2 * math.sqrt(2 * e) * ellipe(m) / math.pi if rotation else 8 / math.pi * (ellipe(m) - (1 - m) * ellipk(m))
-    assert action(omega, rotation) == pytest.approx(direct, rel=1e-13)
-    # the FFT curvature of a linear bond against its closed form I / Omega (in phase), -I / Omega (out of phase)
-    if not rotation:
-        bond = bond_of(False, False)
-        assert phase_curvature(x, bond, 0.0) == pytest.approx(action(omega, False) / omega, rel=1e-9)
-        assert phase_curvature(x, bond, math.pi) == pytest.approx(-action(omega, False) / omega, rel=1e-9)
+@pytest.mark.parametrize("kind", list(KINDS))
+def test_single_oscillator_closed_forms_against_scipy(kind):
+    """Omega and I (SymPy's elliptic integrals) against SciPy: the period, dOmega/dE, dI/dE = 1 / Omega, <x'^2> = Omega I."""
+    omega = FREQUENCY[kind]
+    force, freq, en, act, _ = KINDS[kind]
+    a = parameter(omega, kind)
+    assert float(_numeric(freq)(a)) == pytest.approx(omega, rel=1e-13)
+    # SymPy's dOmega/dE against the period by quadrature (SciPy) and central differences in the energy
+    x, v = lone_orbit(omega, kind)
+    e, step = energy(omega, kind), 1e-5
+
+    def quadrature_frequency(level: float) -> float:
+        """2 pi / T(E), T by quadrature (x = amp sin u on a libration: no singular end)."""
+        if kind == "rotation":
+            return 2 * math.pi / quad(lambda p: 1 / math.sqrt(2 * (level - 1 + math.cos(p))), 0, 2 * math.pi, epsabs=1e-14, epsrel=1e-13)[0]
+        if kind == "libration":
+            amp = math.acos(1 - level)
+            quarter = quad(lambda u: amp * math.cos(u) / math.sqrt(2 * (math.cos(amp * math.sin(u)) - math.cos(amp))), 0, math.pi / 2,
+                           epsabs=1e-14, epsrel=1e-13)[0]  # fmt: skip
+        else:
+            square = math.sqrt(1 + 4 * level) - 1  # A^2 of E = A^2 / 2 + A^4 / 4
+            quarter = quad(lambda u: 1 / math.sqrt(1 + square * (1 + math.sin(u) ** 2) / 2), 0, math.pi / 2, epsabs=1e-14, epsrel=1e-13)[0]
+        return 2 * math.pi / (4 * quarter)
+
+    slope = (quadrature_frequency(e + step) - quadrature_frequency(e - step)) / (2 * step)
+    assert frequency_slope(omega, kind) == pytest.approx(slope, rel=1e-6)
+    assert frequency_slope(omega, kind) * (1 if kind == "libration" else -1) < 0  # soft libration; hard Duffing, rotation
+    if act is None:
+        return
+    assert float(_numeric(sp.diff(act, _A) / sp.diff(en, _A))(a)) * omega == pytest.approx(1, rel=1e-12)
+    assert float(np.mean(v**2)) == pytest.approx(omega * action(omega, kind), rel=1e-10)
+    m = 2 / e if kind == "rotation" else e / 2  # and the action against SciPy's E and K directly
+    direct = 2 * math.sqrt(2 * e) * ellipe(m) / math.pi if kind == "rotation" else 8 / math.pi * (ellipe(m) - (1 - m) * ellipk(m))
+    assert action(omega, kind) == pytest.approx(direct, rel=1e-13)
+    if kind == "libration":  # the FFT curvature of a linear bond against its closed form +-I / Omega
+        bond = bond_of(kind, False)
+        assert phase_curvature(x, bond, 0.0) == pytest.approx(action(omega, kind) / omega, rel=1e-9)
+        assert phase_curvature(x, bond, math.pi) == pytest.approx(-action(omega, kind) / omega, rel=1e-9)
 
 
 @pytest.mark.parametrize("name", list(CASES))
@@ -249,7 +295,7 @@ def test_two_site_exponents_converge_to_the_averaged_prediction(name):
 def test_package_family_start_is_the_in_phase_pair(counter):
     """roto_breather_family with a partner starts at psi = 0: its pair is the in-phase one computed above."""
     eps = COUPLINGS[1]
-    orbit = roto_breather_family(takeno_peyrard(SITES, C=eps), ROTATION, rotor=A, partner=B, counter=counter).orbits[0]
+    orbit = roto_breather_family(takeno_peyrard(SITES, C=eps), FREQUENCY["rotation"], rotor=A, partner=B, counter=counter).orbits[0]
     name = "rotors against each other, in phase" if counter else "rotors together, in phase"
     _, measured, _, real, _ = comparison(name, [eps])[0]
     assert measured_exponent(orbit) == (pytest.approx(measured, rel=1e-7), real)
