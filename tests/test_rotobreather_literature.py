@@ -2,7 +2,8 @@
 
 Published statement reproduced: V. Koukouloyannis and P. G. Kevrekidis, "On the stability of multibreathers
 in Klein-Gordon chains", Nonlinearity 22, 2269 (2009), arXiv:0902.3990 (its abstract; the body was not
-reachable from this project): in a Klein-Gordon chain
+reachable from this project, so no equation or theorem number is cited; the chain's equation is written as in
+D. Pelinovsky and A. Sakovich, arXiv:1111.2557, eq. (1)): in a Klein-Gordon chain
 
     H = sum_n [ x_n'^2 / 2 + V(x_n) + (eps / 2) (x_{n+1} - x_n)^2 ]
 
