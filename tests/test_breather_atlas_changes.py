@@ -194,3 +194,45 @@ def test_check_locate_tol_names_the_field():
         with pytest.raises(ValueError, match="locate_tol must be an accuracy in Omega"):
             check_locate_tol(bad)
     assert check_locate_tol(1e-6) == 1e-6
+
+
+def test_a_looser_tolerance_solves_fewer_orbits(monkeypatch):
+    """The bisection and the secant stop sooner at 1e-4 than at 1e-9: fewer orbits solved between the same members."""
+    from cosserat_chain.experiments import system_breather_atlas as module
+
+    found = system_breather_atlas(rotor_two_mathieu(), OMEGAS, "C", [C])
+    calls = []
+
+    def counted(*args):
+        calls.append(args[-1])
+        return sb._at(*args)
+
+    monkeypatch.setattr(module, "_at", counted)
+    solves = {}
+    for tol in (1e-9, 1e-4):
+        calls.clear()
+        found.locate_changes(tol)
+        solves[tol] = len(calls)
+    assert solves[1e-4] < solves[1e-9]
+
+
+def test_the_chains_atlas_locates_the_chains_family_changes():
+    """The sine chain with N = 2 (test_breather_chain_changes): its atlas over the family's frequencies, at the
+    chain's own b, locates at the default tolerance the family's three changes (two Krein collisions, one at +1),
+    each within the sum of the two accuracies, and its NetCDF carries them."""
+    from cosserat_chain import ChainParams
+    from cosserat_chain.experiments.breather_atlas import LOCATE_TOL, breather_atlas
+    from cosserat_chain.experiments.breathers import roto_breather_family
+
+    chain = ChainParams(N=2, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
+    omegas = [6.2, 6.0, 5.8, 5.2, 5.0, 4.8]
+    family = roto_breather_family(chain, "sine", omegas)
+    found = breather_atlas(chain, "sine", omegas, "b", [chain.b])
+    found.locate_changes()
+    assert [c.change.kind for c in found.changes] == [c.kind for c in family.changes] == ["complex", "complex", "+1"]
+    for ours, theirs in zip(found.changes, family.changes, strict=True):
+        assert ours.placed_by == "discriminant" and ours.accuracy <= LOCATE_TOL + 1e-9
+        assert abs(ours.change.omega - theirs.omega) <= ours.accuracy + theirs.accuracy
+    ds = found.to_dataset()
+    assert ds["change_omega"].values.tolist() == [c.change.omega for c in found.changes]
+    assert ds["change_omega"].attrs["units"] == "rad s-1"
