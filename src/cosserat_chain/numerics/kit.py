@@ -101,6 +101,8 @@ class BranchEnd(StrEnum):
     #: Another coordinate than the one followed turned a full turn further: the system rotates there,
     #: and the branch beyond repeats its folds as it winds on.
     WOUND = "wound"
+    #: A static branch's trace ended where what it was traced for is decided (``continue_in_moment(decided=True)``).
+    DECIDED = "decided"
 
     @property
     def advice(self) -> str:
@@ -126,6 +128,7 @@ _ADVICE = {
     BranchEnd.RETURNED: "the branch is complete: beyond, its mirror image",
     BranchEnd.REVERSED: "trace the branch from beyond that point, or with a smaller refine_step (continue_in_moment)",
     BranchEnd.WOUND: "follow the rotation as a periodic orbit (orbit) rather than as a static branch",
+    BranchEnd.DECIDED: "pass decided=False (continue_in_moment) to trace the rest of the turn",
 }
 
 
