@@ -5,6 +5,7 @@ Run from the repository root::
     python benchmarks/bench_breathers.py                          # N = 10, 25, 50, 100 (dense to 50)
     python benchmarks/bench_breathers.py --sizes 10 50 200 --dense-max 25
     python benchmarks/bench_breathers.py --json                   # also print the JSON on stdout
+    python benchmarks/bench_breathers.py --located-atlas --sizes 10 25 50   # the cost of locating an atlas's changes
 
 The undamped sine chain (eq. (2), other fields default), one rotor on particle 0, the family at
 Omega = 6.6, 6.5, 6.4 (above the optical band, every member stable): Newton from the
@@ -16,12 +17,21 @@ time compares methods) and per member, wall seconds, Newton iterations, and the 
 distance of the members' states and largest multipliers from the dense method's. The dense
 method runs up to ``--dense-max`` (its memory is 16 (2 n_free)^2 numbers). Results go to
 ``benchmarks/results/breathers.json`` (docs/roto-breathers.md).
+
+With ``--located-atlas``: the atlas of the same chain over :data:`ATLAS_OMEGAS` at its own b (the
+family loses stability between 6.4 and 6.2: a Krein collision, the combination w_TA + w_RO = Omega), then its changes of stability located
+(:meth:`~cosserat_chain.experiments.breather_atlas.BreatherAtlas.locate_changes`) at each of
+:data:`LOCATE_TOLS`, and by a family's full bisections and secant (``family``:
+:func:`~cosserat_chain.experiments.breathers.located_changes` over the same members, no
+tolerance), alternately, ``--repeats`` times: CPU seconds of the atlas and of each location, the
+changes with their accuracies. Results go to ``benchmarks/results/breather_atlas_located.json``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -37,6 +47,31 @@ RESULTS = Path(__file__).resolve().parent / "results"
 SIZES = (10, 25, 50, 100)
 OMEGAS = (6.6, 6.5, 6.4)
 MODEL = "sine"
+ATLAS_OMEGAS = (6.6, 6.4, 6.2, 6.0)
+#: The atlas's default and a tight one.
+LOCATE_TOLS = (1e-6, 1e-10)
+
+
+def located_atlas(params: ChainParams, repeats: int) -> dict:
+    """The atlas over :data:`ATLAS_OMEGAS` and the cost of locating its changes at each of :data:`LOCATE_TOLS`, alternately."""
+    from cosserat_chain.experiments.breather_atlas import breather_atlas
+    from cosserat_chain.experiments.breathers import located_changes
+
+    cpu = time.process_time()
+    atlas = breather_atlas(params, MODEL, ATLAS_OMEGAS, "b", [params.b])
+    out = {"atlas_cpu_s": time.process_time() - cpu, "stable": atlas.grid("stable").tolist()}
+    out["locate"] = {name: [] for name in (*map(str, LOCATE_TOLS), "family")}
+    for _ in range(repeats):
+        for tol in LOCATE_TOLS:
+            cpu = time.process_time()
+            atlas.locate_changes(tol)
+            out["locate"][str(tol)].append(time.process_time() - cpu)
+            out[f"changes_{tol}"] = [{"omega": c.change.omega, "accuracy": c.accuracy, "kind": c.change.kind} for c in atlas.changes]
+        cpu = time.process_time()
+        changes = located_changes([p.orbit for p in atlas.points[0]], atlas.bands)
+        out["locate"]["family"].append(time.process_time() - cpu)
+        out["changes_family"] = [{"omega": c.omega, "accuracy": c.accuracy, "kind": c.kind} for c in changes]
+    return out
 
 
 def family(params: ChainParams, method: str) -> dict:
@@ -72,8 +107,23 @@ def main() -> int:
     parser.add_argument("--dense-max", type=int, default=50)
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--located-atlas", action="store_true")
+    parser.add_argument("--repeats", type=int, default=2)
     args = parser.parse_args()
     long_orbits.THREADS = args.threads
+    if args.located_atlas:
+        rows = []
+        for n in args.sizes:
+            row = {"N": n, **located_atlas(ChainParams(N=n, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0), args.repeats)}
+            rows.append(row)
+            costs = ", ".join(f"tol {t}: {min(c):.3g} s" for t, c in row["locate"].items())
+            print(f"N = {n}: atlas {row['atlas_cpu_s']:.3g} s; locating its changes: {costs}", file=sys.stderr, flush=True)
+            RESULTS.mkdir(exist_ok=True)
+            text = json.dumps({"model": MODEL, "omegas": ATLAS_OMEGAS, "load_average": list(os.getloadavg()), "rows": rows}, indent=1)
+            (RESULTS / "breather_atlas_located.json").write_text(text + "\n")
+        if args.json:
+            print(text)
+        return 0
     rows = []
     for n in args.sizes:
         params = ChainParams(N=n, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)

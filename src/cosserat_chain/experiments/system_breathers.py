@@ -923,6 +923,24 @@ def _off(orbit, kind: str) -> np.ndarray:
     return out[{"+1": real & (out.real > 0), "-1": real & (out.real < 0), "complex": ~real}[kind]]
 
 
+def _centre(unstable, kind: str) -> complex | None:
+    """A Krein collision's centre on the circle from an unstable member: at the angle of its quartet nearest the circle."""
+    if kind != "complex":
+        return None
+    near = _off(unstable, kind)
+    newest = near[int(np.argmin(np.abs(near)))] if near.size else _classify(unstable)[0]
+    return complex(np.exp(1j * abs(np.angle(newest))))
+
+
+def _bracketed(stable, unstable, kind: str) -> bool:
+    """Whether the collision's discriminant is resolved at both members (their own multipliers) with opposite signs, the
+    stable one's < 0: the secant can start from them."""
+    centre = _centre(unstable, kind)
+    d_stable = collision_discriminant(stable.multipliers, kind, centre)
+    d_unstable = collision_discriminant(unstable.multipliers, kind, centre)
+    return d_stable is not None and d_unstable is not None and d_stable < 0 < d_unstable
+
+
 def locate_stability_change(
     a, b, solve: Callable[[np.ndarray, float], Orbit], bands: list[tuple[float, float]], k: int,
     tighten: Callable[[Orbit], Orbit | None] = _tight, tol: float | None = None,
@@ -953,9 +971,10 @@ def locate_stability_change(
     tighten : callable(orbit) -> orbit or None
         The same orbit found again, and its monodromy integrated, at :data:`TIGHT_RTOL`.
     tol : float, optional
-        The accuracy in Omega wanted: the bisection stops once its bracket is narrower, and the
-        secant once its next step is shorter (that step is added to ``accuracy``). None: the full
-        :data:`BISECTIONS` and secant iterations.
+        The accuracy in Omega wanted: the bisection stops once its bracket is narrower, or once the
+        discriminant is resolved at both ends with opposite signs (the secant takes over from there),
+        and the secant once its next step is shorter (that step is added to ``accuracy``). None:
+        the full :data:`BISECTIONS` and secant iterations (a family's changes).
     """
     ca, cb = _counts(a), _counts(b)
     which = next((i for i in range(len(COUNTED)) if ca[i] != cb[i]), None)
@@ -968,7 +987,9 @@ def locate_stability_change(
     on = _counts(stable)
     far = unstable
     for _ in range(BISECTIONS):
-        if tol is not None and abs(2 * math.pi * k / stable.period - 2 * math.pi * k / unstable.period) <= tol:
+        if tol is not None and (
+            abs(2 * math.pi * k / stable.period - 2 * math.pi * k / unstable.period) <= tol or _bracketed(stable, unstable, kind)
+        ):
             break
         period = 0.5 * (stable.period + unstable.period)
         try:
@@ -985,13 +1006,9 @@ def locate_stability_change(
     moduli_omega = 0.5 * (omega_s + omega_u)
     # The collision's centre from the bisected unstable member: the pair is nearest it there, not at a far member;
     # of its quartets off the circle the one nearest it, which has just left.
-    near = _off(unstable, kind)
-    centre = None
-    if kind == "complex":
-        newest = near[int(np.argmin(np.abs(near)))] if near.size else _classify(unstable)[0]
-        centre = complex(np.exp(1j * abs(np.angle(newest))))
-        if multiplier.imag < 0:
-            multiplier = multiplier.conjugate()
+    centre = _centre(unstable, kind)
+    if kind == "complex" and multiplier.imag < 0:
+        multiplier = multiplier.conjugate()
     found = _collision(stable, unstable, kind, centre, lambda omega, guess: solve(guess, 2 * math.pi * k / omega), k, tighten, tol or 0.0)
     size = CLUSTER_SIZE[kind]
     if found is None:
