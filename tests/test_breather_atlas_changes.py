@@ -236,3 +236,14 @@ def test_the_chains_atlas_locates_the_chains_family_changes():
     ds = found.to_dataset()
     assert ds["change_omega"].values.tolist() == [c.change.omega for c in found.changes]
     assert ds["change_omega"].attrs["units"] == "rad s-1"
+    # The map marks each change on its row.
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from cosserat_chain.plots.breathers import breather_atlas_figure
+
+    ax = breather_atlas_figure(found).axes[0]
+    handles, labels = ax.get_legend_handles_labels()
+    marks = handles[labels.index("stability changes (located)")].lines[0]
+    assert marks.get_xdata().tolist() == [c.change.omega for c in found.changes]
+    assert marks.get_ydata().tolist() == [chain.b] * 3
