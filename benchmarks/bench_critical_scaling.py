@@ -29,6 +29,7 @@ import os
 import platform
 import subprocess
 import sys
+import threading
 from pathlib import Path
 
 import numpy as np
@@ -37,17 +38,31 @@ RESULTS = Path(__file__).resolve().parent / "results" / "critical_scaling_models
 MODELS = ("nonlinear", "sine")
 SIZES = (10, 100, 1000, 10_000)
 LARGE = 100_000
+#: A long row shows its progress (phi_0, CPU time, peak memory) every this many seconds of its CPU time.
+PROGRESS_SECONDS = 20.0
 
 #: The child: one critical_point, timed, with its peak memory, printed as one JSON line.
 CHILD = """
 import json, resource, sys, time
 from cosserat_chain import ChainParams
-from cosserat_chain.experiments.critical import critical_point
+from cosserat_chain.experiments.critical import critical_memory, critical_point
 
 model, n = sys.argv[1], int(sys.argv[2])
 critical_point(ChainParams(N=3), model, dynamics=False)  # compiled kernels loaded before the clock starts
+start_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 cpu, wall = time.process_time(), time.perf_counter()
-result = critical_point(ChainParams(N=n), model)
+shown = [cpu]
+
+
+def progress(done, total):  # every PROGRESS_SECONDS of CPU: phi_0, CPU time and peak memory so far, on stderr
+    now = time.process_time()
+    if now - shown[0] >= float(sys.argv[3]):
+        shown[0] = now
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+        print(f"{model} N={n}: phi_0 {done:.6f} of {total:.4f} rad, {now - cpu:.1f} s CPU, peak {peak:.0f} MiB", file=sys.stderr, flush=True)
+
+
+result = critical_point(ChainParams(N=n), model, progress=progress)
 cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
 branch = result.branch
 print(json.dumps({
@@ -58,16 +73,27 @@ print(json.dumps({
     "M_c": result.critical_moment, "confirmation": result.confirmation, "accurate": result.accurate,
     "compliance": result.compliance, "first_fold_phi0": None if result.first_fold is None else result.first_fold.phi0,
     "folds_confirmed": [f.confirmed for f in branch.folds][:3], "message": branch.message,
+    "estimate_mib": critical_memory(ChainParams(N=n)) / 2**20, "start_rss_mib": start_rss,
 }))
 """
 
 
 def run(model: str, n: int, timeout: float) -> dict:
-    """One (model, N) row from a fresh process."""
-    done = subprocess.run([sys.executable, "-c", CHILD, model, str(n)], capture_output=True, text=True, timeout=timeout)
-    if done.returncode != 0:
-        return {"model": model, "N": n, "error": done.stderr.strip().splitlines()[-1] if done.stderr.strip() else str(done.returncode)}
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    """One (model, N) row from a fresh process; its progress lines (:data:`PROGRESS_SECONDS`) are shown as they come."""
+    child = subprocess.Popen(
+        [sys.executable, "-c", CHILD, model, str(n), str(PROGRESS_SECONDS)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    timer = threading.Timer(timeout, child.kill)
+    timer.start()
+    errors = []
+    for line in child.stderr:
+        print("   ", line.rstrip(), flush=True) if " rad, " in line else errors.append(line)
+    out = child.stdout.read()
+    child.wait()
+    timer.cancel()
+    if child.returncode != 0:
+        return {"model": model, "N": n, "error": errors[-1].strip() if errors else str(child.returncode)}
+    return json.loads(out.strip().splitlines()[-1])
 
 
 def exponent(rows: list[dict]) -> float | None:

@@ -45,6 +45,16 @@ M = 0, where dM/dphi_0 has no root of the kind traced, while the first fold agre
 ``accurate`` is False where the onset's fold or the first fold is not confirmed, and the command
 line then exits with ``inaccurate``.
 
+Where K is near singular at rest (as above), the end of the turn is not traced once M_c is decided: the turn of
+a long clamped chain ends near the chain at rest turned once, where M falls towards the corrector's limit and
+K's soft modes are again beyond its rounded entries (N = 10^5's trace crawled there, phi_0 = 6.267 after 116 s
+of CPU in the band form). Eq. (2)'s trace ends at its first fold (``Branch.stop`` "max_folds": its closed form
+bounds every static state's |M| by that fold's, below), another model's once the stable branch from rest has
+ended at a fold, the loaded particle lies within
+:data:`~cosserat_chain.numerics.continuation.END_ANGLE` of the turn and |M| has fallen to
+:data:`~cosserat_chain.numerics.continuation.END_MOMENT` of the largest maximum traced ("decided";
+``continue_in_moment(decided=True)``, the same M_c and folds as the full turn: tests/test_critical_decided.py).
+
 Where the trace's band factor of K at rest loses the rest response (its compliance more than
 :data:`~cosserat_chain.numerics.continuation.APPROACH_RTOL` off the one through K's square root:
 the bending modes beyond double precision, N = 3 10^4 and up on the paper's geometry), the trace
@@ -111,6 +121,7 @@ from ..numerics.continuation import (
     Branch,
     BranchPoint,
     Fold,
+    branch_memory,
     continue_in_moment,
     moment_response,
     moment_slope,
@@ -135,7 +146,7 @@ MAX_POINTS = 5000
 #: default point budget's usual use, and a thinned set on longer chains (every 2^j-th point,
 #: ``Branch.state_points``; :func:`~cosserat_chain.numerics.continuation.continue_in_moment`'s
 #: ``max_states``), so that the branch's memory grows with N, not with N times its points.
-STATE_BYTES = 2**30
+STATE_BYTES = 2**28
 #: Default budget in turns of the loaded particle for a branch from rest that stays stable
 #: beyond its first turn (a cantilever of the paper's geometry: 1.41 N rad, N <= 71 within 16 turns).
 TURNS = 16
@@ -522,7 +533,13 @@ def critical_point(
     response = moment_response(params, model, particle=particle)
     near_singular = model.rotates and near_singular_at_rest(params, model)
     approach = near_singular and not rest_resolved(params, model, particle=particle, response=response)
-    trace = dict(particle=particle, phi0_stop=budget, phi0_until_unstable=until, max_points=max_points, max_states=states)
+    # Where K's soft modes at rest are beyond its rounded entries, the trace ends once M_c is decided (module docstring):
+    # eq. (2) at its first fold (no static state holds more than its closed form's 1 / max_j |c_j|), another model short
+    # of the turn's end, where its moment has fallen far below the largest maximum (continuation.END_ANGLE, END_MOMENT).
+    trace = dict(
+        particle=particle, phi0_stop=budget, phi0_until_unstable=until, max_points=max_points, max_states=states, response=response,
+        decided=near_singular and not closed, max_folds=1 if closed and near_singular else None,
+    )  # fmt: skip
     branch = continue_in_moment(params, model, **trace, progress=progress, from_approach=approach)
     confirmation = "once"
     angles = unpack(params, response)[ROW_INDEX["phi"]]
@@ -557,6 +574,12 @@ def critical_point(
         params, model.name, particle, fold, compliance, branch, first, snap_to, None, confirmation, turns if model.rotates else None,
         onset_particle, *_dynamics(params, model, branch, dynamics),
     )  # fmt: skip
+
+
+def critical_memory(params: ChainParams, max_points: int = MAX_POINTS) -> int:
+    """Bytes :func:`critical_point` plans for (:func:`~cosserat_chain.numerics.continuation.branch_memory` with
+    :func:`max_states`), checked against the free memory before it allocates."""
+    return branch_memory(params, max_points, max_states(params))
 
 
 def max_states(params: ChainParams) -> int:

@@ -121,6 +121,15 @@ APPROACH_HALVINGS = 12
 #: The trace starts from rest where the band factor's compliance at rest lies within this of the rest response's
 #: (:func:`moment_response`, through K's square root): 1.5e-3 at N = 10^4 on the paper's geometry, 0.33 at 3 10^4, 0.8 at 10^5.
 APPROACH_RTOL = 1e-2
+#: Where M_c is decided before the turn's end (``continue_in_moment(decided=True)``): the trace ends once the stable branch
+#: from rest has ended at a fold, the loaded particle lies within END_ANGLE (rad) of the turn (``phi0_until_unstable``, else
+#: ``phi0_stop``) and |M| has fallen to END_MOMENT times the largest maximum of M traced. On a long clamped chain the rest of
+#: the turn runs towards the chain at rest turned once, where M falls towards the corrector's limit and K's soft modes are
+#: those at rest, beyond its rounded entries (N = 10^4: M = 0.0108 at phi_0 = 6.02, 0.0033 at 6.20, 2.3e-5 at its last
+#: fold at 6.2826, against M_c = 0.0672; N = 10^5's trace crawled there): a maximum holding more than M_c would need M to
+#: rise fivefold within the last quarter radian.
+END_ANGLE = 0.25
+END_MOMENT = 0.2
 #: Values a degree of freedom of the mixed form's factor (:class:`~cosserat_chain.linalg.MixedFactor`): its band LU over
 #: the unknowns and four multipliers a bond, 28 values a column (half-bandwidth 9, LAPACK's storage), and the rows.
 MIXED_VALUES = 90
@@ -346,18 +355,21 @@ def rest_resolved(params: ChainParams, model: str | Model, *, particle: int = 0,
     return bool(abs(banded - exact) <= APPROACH_RTOL * abs(exact))
 
 
-def approach_from_rest(params: ChainParams, model: str | Model, *, particle: int = 0) -> list[tuple[np.ndarray, float]]:
+def approach_from_rest(
+    params: ChainParams, model: str | Model, *, particle: int = 0, response: np.ndarray | None = None
+) -> list[tuple[np.ndarray, float]]:
     """The branch from rest at the angles phi_0 = :data:`APPROACH_ANGLE` 2^-k, k = :data:`APPROACH_HALVINGS` .. 0, as (state, M).
 
     Each is solved with the angle held (:func:`~.newton.solve_rotation_controlled`), the first from the rest response
     (:func:`moment_response`, K^-1 e through K's square root) scaled to its angle, each next from the one before scaled
     likewise. The list ends before the first angle whose moment does not rise (the branch passed a maximum of M between:
     the trace from the last point finds it) or whose solve fails. Where the angle is held, M is read off the equilibrium
-    (the moment that holds it), which K's bending modes, undetermined by the residual, do not move.
+    (the moment that holds it), which K's bending modes, undetermined by the residual, do not move. ``response``: the
+    rest response where known.
     """
     model = get_model(model)
     dof = moment_dof(params, particle)
-    response = moment_response(params, model, particle=particle)
+    response = moment_response(params, model, particle=particle) if response is None else response
     x, moment, angle = unpack(params, response / response[dof]), 1.0 / response[dof], 1.0
     out: list[tuple[np.ndarray, float]] = []
     for k in range(APPROACH_HALVINGS, -1, -1):
@@ -375,17 +387,18 @@ def approach_from_rest(params: ChainParams, model: str | Model, *, particle: int
     return out
 
 
-def largest_step(params: ChainParams, model: Model, particle: int) -> float:
+def largest_step(params: ChainParams, model: Model, particle: int, response: np.ndarray | None = None) -> float:
     """The default ``max_step`` of :func:`continue_in_moment`: :data:`MAX_STEP_FACTOR` times the first step, or the
     arclength along the branch's tangent at rest over which the loaded particle turns by 2 :data:`PHI0_STEP`, if longer.
 
     The branch's length per radian of phi_0 grows with N faster than the first step: the sine model's
     u and v are linear in the load, like N^2 times M (N = 3000: 23000 per radian; a first step of 1.7).
     Capped at 20 first steps, its full turn took 2782 points at N = 3000 and every one at the cap, and
-    N = 10^4 crawled at 4e-4 rad a point; the turn limits, not the cap, then size the steps.
+    N = 10^4 crawled at 4e-4 rad a point; the turn limits, not the cap, then size the steps. ``response``: K^-1 e at
+    rest (:func:`moment_response`) where the caller has it, else solved here.
     """
     try:
-        response = moment_response(params, model, particle=particle)
+        response = moment_response(params, model, particle=particle) if response is None else response
     except ValueError:
         return MAX_STEP_FACTOR * default_step(params)
     turn = abs(float(response[moment_dof(params, particle)]))
@@ -411,7 +424,7 @@ def _assemble_branch(params, model, particle, moments, states, folds, checks=Non
     """A Branch from its points; ``checks`` their stabilities if already computed, ``phi0`` their angles where
     ``states`` holds only some of them."""
     col = column(params, particle)
-    x = np.array(states)
+    x = np.asarray(states, dtype=float)
     checks = [static_stability(params, model, xi) for xi in x] if checks is None else checks
     return Branch(
         moment=np.array(moments, dtype=float),
@@ -554,7 +567,7 @@ def branch_memory(params: ChainParams, max_points: int, max_states: int | None =
     """
     states = max_points if max_states is None else min(max_points, max_states)
     factors = 60 + (MIXED_VALUES if mixed else 0)
-    return FLOAT * (3 * params.n_particles * (2 * states + factors) + 40 * max_points)
+    return FLOAT * (3 * params.n_particles * (states + 2 + factors) + 40 * max_points)
 
 
 def require_branch_memory(params: ChainParams, max_points: int, max_states: int | None = None, *, mixed: bool = False) -> None:
@@ -580,6 +593,7 @@ class _Stops:
     phi0_until_unstable: float | None
     moment_stop: float
     max_folds: int | None
+    decided: bool = False
 
 
 class _Assembled(NamedTuple):
@@ -953,6 +967,8 @@ class _StaticBranch:
             end = (BranchEnd.LOAD_LIMIT, "")
         elif stops.max_folds is not None and self.folds >= stops.max_folds:
             end = (BranchEnd.MAX_FOLDS, "")
+        elif stops.decided and (decided := self._decided(phi, moment)):
+            end = (BranchEnd.DECIDED, decided)
         elif angles[lead] - phi >= 2 * math.pi:
             # Another particle has turned a full turn further than the loaded one (a pinned end
             # that turns first: clamped-pinned N = 1, h = 1, a = 0.45, b = 0.1, E1 = 0.5, E2 = 1.5,
@@ -967,6 +983,17 @@ class _StaticBranch:
         self.previous_state = x
         return end
 
+    def _decided(self, phi: float, moment: float) -> str:
+        """Why M_c is decided at a point at |phi_0| = ``phi`` holding ``moment`` (:data:`END_ANGLE`, :data:`END_MOMENT`), or ''."""
+        turn = self.stops.phi0_until_unstable if self.stops.phi0_until_unstable is not None else self.stops.phi0_stop
+        peak = max((f.moment for f in self.located_folds if f.maximum), default=None)
+        if not self.lost or peak is None or peak <= 0.0 or phi < turn - END_ANGLE or abs(moment) > END_MOMENT * peak:
+            return ""
+        return (
+            f"M_c is decided: the stable branch from rest has ended, and {turn - phi:.3g} rad short of the turn M = {moment:.6g}, "
+            f"{abs(moment) / peak:.3g} of the largest maximum traced ({peak:.10g}); the rest of the turn is not traced"
+        )
+
     def branch(self, traced: Continuation) -> Branch:
         """The traced branch with its folds, branch points and end."""
         message = ""
@@ -980,10 +1007,14 @@ class _StaticBranch:
                 f"continuation stalled at M = {self.moments[-1]:.6g}, phi_0 = {self.y_phi0:.6g}: the corrector failed even with "
                 f"step {self.last_step:.3g} (a point where the branch is not smooth, e.g. a link of zero length)"
             )
-        elif traced.end in (BranchEnd.WOUND, BranchEnd.REVERSED):
+        elif traced.end in (BranchEnd.WOUND, BranchEnd.REVERSED, BranchEnd.DECIDED):
             message = traced.message
         folds = [event.point for event in traced.events if event.kind == "fold" and event.located]
-        branch = _assemble_branch(self.params, self.model, self.particle, self.moments, self.states, folds, self.checks, traced.end, self.angles)
+        # The kept states into one array, each let go once copied: a long chain's branch is not held twice.
+        states = np.empty((len(self.states),) + self.states[0].shape)
+        for i in range(len(self.states)):
+            states[i], self.states[i] = self.states[i], None
+        branch = _assemble_branch(self.params, self.model, self.particle, self.moments, states, folds, self.checks, traced.end, self.angles)
         branch.state_points = None if self.stride == 1 else np.array(self.kept)
         branch.message = message
         branch.branch_points = [event.point for event in traced.events if event.kind == "branch_point"]
@@ -1268,6 +1299,8 @@ def continue_in_moment(
     max_states: int | None = None,
     from_approach: bool = False,
     mixed: bool = False,
+    decided: bool = False,
+    response: np.ndarray | None = None,
 ) -> Branch:
     """Pseudo-arclength continuation of the static branch from rest, in the direction of increasing M.
 
@@ -1332,6 +1365,13 @@ def continue_in_moment(
         entries, which loses K's soft modes on a long clamped chain (at N = 10^5 its compliance at rest is 80 %
         off). Not the default: its full turn costs several times the band trace's (docs/statics.md). A model
         without rows keeps the band LU.
+    decided : bool
+        End the trace where the largest maximum of M, M_c, is decided short of the turn (``stop`` "decided",
+        ``message`` says where): once the stable branch from rest has ended at a fold, the loaded particle lies within
+        :data:`END_ANGLE` of the turn and |M| has fallen to :data:`END_MOMENT` times the largest maximum traced. For a
+        long clamped chain, whose turn ends near the chain at rest turned once, where the trace hangs on round-off.
+    response : ndarray, optional
+        K^-1 e at rest (:func:`moment_response`) where the caller has it: the largest step and the approach use it.
 
     Returns
     -------
@@ -1377,7 +1417,12 @@ def continue_in_moment(
     model = get_model(model)
     default = default_step(params)
     step = default if step is None else step
-    max_step = max(largest_step(params, model, particle), step) if max_step is None else max_step
+    if response is None and max_step is None:
+        try:
+            response = moment_response(params, model, particle=particle)
+        except ValueError:
+            pass  # K singular at rest: largest_step's fallback
+    max_step = max(largest_step(params, model, particle, response), step) if max_step is None else max_step
     if not (0 < min_step <= step <= max_step):
         raise ValueError(f"steps must satisfy 0 < min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
     if max_states is not None and max_states < 2:
@@ -1392,12 +1437,12 @@ def continue_in_moment(
         min_step=min_step,
         max_step=max_step,
         refine_step=refine_step,
-        stops=_Stops(phi0_stop, phi0_until_unstable, moment_stop, max_folds),
+        stops=_Stops(phi0_stop, phi0_until_unstable, moment_stop, max_folds, decided),
         max_states=max_states,
         progress=progress,
         mixed=mixed,
     )
-    approach = approach_from_rest(params, model, particle=particle) if from_approach else []
+    approach = approach_from_rest(params, model, particle=particle, response=response) if from_approach else []
     first = problem.rest(approach)
     start = np.zeros(n_free(params) + 1) if not approach else np.append(pack(params, approach[-1][0]), approach[-1][1])
     traced = continuation(problem, start, step=step, min_step=min_step, max_step=max_step, max_points=max_points, first=first)
