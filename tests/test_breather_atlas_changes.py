@@ -247,3 +247,26 @@ def test_the_chains_atlas_locates_the_chains_family_changes():
     marks = handles[labels.index("stability changes (located)")].lines[0]
     assert marks.get_xdata().tolist() == [c.change.omega for c in found.changes]
     assert marks.get_ydata().tolist() == [chain.b] * 3
+
+
+def test_the_chain_cli_json_and_netcdf_carry_the_located_changes(tmp_path):
+    """``breathers --atlas`` of the chain (sine, N = 2, Omega 6.2 down to 4.8 in 8 steps): --json lists the three changes the
+    family locates between the same frequencies, within the two accuracies, and --out carries the same numbers."""
+    from cosserat_chain import ChainParams
+    from cosserat_chain.experiments.breathers import roto_breather_family
+
+    config = tmp_path / "chain.toml"
+    config.write_text("N = 2\n")
+    out = tmp_path / "atlas.nc"
+    args = ["breathers", "--model", "sine", "--omega", "6.2", "--to", "4.8", "--steps", "8", "--atlas", "b=0.2", "--config", str(config)]
+    result = runner.invoke(app, [*args, "--json", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    changes = json.loads(result.stdout)["stability_changes"]
+    family = roto_breather_family(ChainParams(N=2, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0), "sine", np.linspace(6.2, 4.8, 8).tolist())
+    assert [c["kind"] for c in changes] == [c.kind for c in family.changes] == ["complex", "complex", "+1"]
+    for ours, theirs in zip(changes, family.changes, strict=True):
+        assert abs(ours["omega"] - theirs.omega) <= ours["accuracy"] + theirs.accuracy
+    with xr.open_dataset(out) as ds:
+        assert ds["change_omega"].values.tolist() == [c["omega"] for c in changes]
+        assert ds["change_accuracy"].values.tolist() == [c["accuracy"] for c in changes]
+        assert ds["change_accuracy"].attrs["units"] == "rad s-1"
