@@ -356,7 +356,9 @@ class StabilityChange:
 
     ``stable_omega`` and ``unstable_omega`` are the members that bracket the change after
     :data:`BISECTIONS` bisections in the period on the multipliers' moduli (``moduli_omega`` their
-    middle). That bracket is not the accuracy: at the collision m multipliers meet (four at +1),
+    middle; fewer with a tolerance, :func:`locate_stability_change`). The ``stable`` side is the
+    one with the colliding pair on the circle (where another pair is off it on both sides, both
+    are unstable). That bracket is not the accuracy: at the collision m multipliers meet (four at +1),
     and the monodromy's error delta moves each of them by delta^(1/m), so the moduli say
     stable or unstable wrongly within ``moduli_accuracy`` = 4 delta^(2/m) / |dD/dOmega| of the
     collision (D the discriminant below; the pair's split is sqrt(D) / 2 there). ``omega`` is
@@ -372,11 +374,13 @@ class StabilityChange:
     resolved, no sign change found), ``method`` is ``moduli`` and ``omega`` the bisection's
     middle, its accuracy ``moduli_accuracy`` if a slope was measured (None if not).
 
-    ``multiplier`` is the unstable side's largest one; ``kind`` is ``+1`` (a real multiplier
-    > 1: a collision at +1), ``-1`` (real < -1: at -1) or ``complex`` (a Krein collision off the
-    real axis); ``resonance`` the nearest resonance of the multiplier's sector (+1 within pi / 3 of
-    +1, -1 within pi / 3 of -1; a Krein collision near -1 is a parametric resonance too), ``nearest``
-    the nearest of any.
+    ``multiplier`` is the unstable side's largest one of the colliding pair's kind; ``kind`` is
+    ``+1`` (a real multiplier > 1: a collision at +1), ``-1`` (real < -1: at -1) or ``complex``
+    (a Krein collision off the real axis), as
+    :func:`~cosserat_chain.numerics.breather_arclength.instability_counts` counts them;
+    ``resonance`` the nearest resonance of the multiplier's sector (+1 within pi / 3 of +1, -1
+    within pi / 3 of -1: a Krein collision near -1 is a parametric resonance too), ``nearest``
+    the nearest of any. With a tolerance the secant's last step, not taken, is added to ``accuracy``.
     """
 
     omega: float
