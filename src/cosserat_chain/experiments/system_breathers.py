@@ -45,10 +45,10 @@ from ..errors import CosseratChainError
 from ..numerics.breather_arclength import (
     CLUSTER_SIZE,
     COUNTED,
-    OFF_CIRCLE,
     collision_discriminant,
     collisions_between,
     instability_counts,
+    off_circle,
 )
 from ..numerics.kit import EvaluationFailed
 from ..numerics.shooting import PERIOD, Orbit, OrbitNotFound, find_orbit, flow
@@ -921,10 +921,7 @@ def _counts(orbit) -> tuple[int, int, int]:
 def _off(orbit, kind: str) -> np.ndarray:
     """The member's nontrivial multipliers outside the unit circle that left it as ``kind`` (counted as
     :func:`~cosserat_chain.numerics.breather_arclength.instability_counts` counts them)."""
-    mu = orbit.nontrivial_multipliers
-    out = mu[np.abs(mu) > 1.0 + OFF_CIRCLE]
-    real = np.abs(out.imag) < 0.5 * (np.abs(out) - 1.0)
-    return out[{"+1": real & (out.real > 0), "-1": real & (out.real < 0), "complex": ~real}[kind]]
+    return off_circle(orbit.nontrivial_multipliers)[kind]
 
 
 def _centre(unstable, kind: str) -> complex | None:

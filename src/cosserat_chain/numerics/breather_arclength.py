@@ -280,6 +280,20 @@ OFF_CIRCLE = 1e-6
 COUNTED = ("+1", "-1", "complex")
 
 
+def off_circle(multipliers: np.ndarray, tol: float = OFF_CIRCLE) -> dict[str, np.ndarray]:
+    """The multipliers outside the unit circle (|mu| > 1 + tol) by where their pair left it: ``+1``, ``-1``, ``complex``.
+
+    Of each pair off the circle one member lies outside it. It is real where its distance from
+    the real axis is below half its distance from the circle: just off a collision at +-1 the
+    eigenvalue solver's imaginary part is round-off far below the pair's split, while a
+    quartet's members sit at the collision's angle.
+    """
+    mu = np.asarray(multipliers, dtype=complex)
+    out = mu[np.abs(mu) > 1.0 + tol]
+    real = np.abs(out.imag) < 0.5 * (np.abs(out) - 1.0)
+    return {"+1": out[real & (out.real > 0)], "-1": out[real & (out.real < 0)], "complex": out[~real]}
+
+
 def instability_counts(multipliers: np.ndarray, tol: float = OFF_CIRCLE) -> tuple[int, int, int]:
     """How many multiplier pairs are off the unit circle, by where they left it: (real > 0, real < 0, complex quartets).
 
@@ -288,12 +302,8 @@ def instability_counts(multipliers: np.ndarray, tol: float = OFF_CIRCLE) -> tupl
     an unstable family. The counts do not: each collision changes one of them by one (a pair
     through +1 or -1, a Krein collision making a quartet), so the sum of their differences
     between two members (:func:`collisions_between`) is the number of collisions between them,
-    less any that undo each other (a pair leaving and coming back).
-
-    Of each pair off the circle one member lies outside it. It is real where its distance from
-    the real axis is below half its distance from the circle: just off a collision at +-1 the
-    eigenvalue solver's imaginary part is round-off far below the pair's split, while a
-    quartet's members sit at the collision's angle.
+    less any that undo each other (a pair leaving and coming back). Which is real and which a
+    quartet's: :func:`off_circle`.
 
     Parameters
     ----------
@@ -302,12 +312,8 @@ def instability_counts(multipliers: np.ndarray, tol: float = OFF_CIRCLE) -> tupl
     tol : float
         Off the circle: |mu| > 1 + tol.
     """
-    mu = np.asarray(multipliers, dtype=complex)
-    out = mu[np.abs(mu) > 1.0 + tol]
-    real = np.abs(out.imag) < 0.5 * (np.abs(out) - 1.0)
-    plus = int(np.sum(real & (out.real > 0)))
-    minus = int(np.sum(real & (out.real < 0)))
-    return plus, minus, int(math.ceil(np.sum(~real) / 2))
+    off = off_circle(multipliers, tol)
+    return off["+1"].size, off["-1"].size, int(math.ceil(off["complex"].size / 2))
 
 
 def collisions_between(a: tuple[int, int, int], b: tuple[int, int, int]) -> int:
