@@ -3,27 +3,16 @@
 ``tests/test_collocation_events.py`` locates the event of each branch against the shooting, and
 ``tests/test_collocation_switching.py`` switches at the period doubling of the gamma_phi = 0.15 one:
 the same shooting branch and the same collocation branch (most of either module's CPU is the
-branch's Floquet multipliers), so they share them here.
+branch's Floquet multipliers), so they share them here (the shooting's branch is ``tests/cycle_ends.py``'s).
 """
 
 from __future__ import annotations
 
 import functools
 
-import numpy as np
-
 from cosserat_chain import ChainParams
 from cosserat_chain.numerics.collocation import CollocationBranch, CollocationOrbit, continue_collocation, find_collocation_orbit
-from cosserat_chain.numerics.continuation import locate_fold
-from cosserat_chain.numerics.periodic import OrbitBranch, continue_orbit, find_periodic_orbit
-
-
-@functools.cache
-def shooting_crossing(params: ChainParams) -> tuple[OrbitBranch, int]:
-    """The shooting's branch down from 1.1 M_c to its first unstable orbit, and the index of that orbit."""
-    start = find_periodic_orbit(params, "sine", 1.1 * locate_fold(params, "sine").moment)
-    branch = continue_orbit(start, period_max=100.0, until_unstable=True)
-    return branch, int(np.argmin(branch.stable))
+from cycle_ends import shooting_crossing
 
 
 @functools.cache

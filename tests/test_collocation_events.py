@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pytest
 
-from collocation_crossings import collocation_crossing, shooting_crossing
+from collocation_crossings import collocation_crossing
 from cosserat_chain import ChainParams
 from cosserat_chain.numerics.collocation import (
     NEAR_CIRCLE,
@@ -26,6 +26,7 @@ from cosserat_chain.numerics.collocation import (
 )
 from cosserat_chain.numerics.continuation import locate_fold
 from cosserat_chain.numerics.cycle_curve import locate_cycle_end
+from cycle_ends import located_end, shooting_crossing
 
 #: The sine chain's one-turn orbit loses its stability at a period doubling at gamma_phi = 0.15 (M = 0.17288,
 #: ``tests/test_cycle_switching.py``) and at a torus on the paper's default chain (M = 0.17312, ``tests/test_cycle_curve.py``).
@@ -43,13 +44,11 @@ def shooting_critical(orbit, kind: str) -> complex:
 
 @pytest.fixture(scope="module", params=list(CASES))
 def crossing(request):
-    """(kind, the shooting's located end, the collocation start two stable orbits above it, the collocation
+    """(kind, the shooting's located end (``cycle_ends``), the collocation start two stable orbits above it, the collocation
     branch from there to two steps of the shooting below the end: ``collocation_crossings``, shared with
     ``tests/test_collocation_switching.py``)."""
     kind, params = request.param, CASES[request.param]
-    branch, index = shooting_crossing(params)
-    end = locate_cycle_end(branch.orbits[index - 1 : index + 1], kind)
-    return kind, end, *collocation_crossing(params)
+    return kind, located_end(params, kind), *collocation_crossing(params)
 
 
 def test_the_collocation_branch_locates_the_shootings_end_with_its_multiplier_on_the_circle(crossing):
@@ -91,6 +90,8 @@ def test_the_shootings_orbit_branch_keeps_the_event(crossing):
     assert converted == [expected]
 
 
+# The torus case's start in the quick suite; the period-doubling case's, the same claim on the damped chain, with the slow tests.
+@pytest.mark.parametrize("crossing", ["torus", pytest.param("period_doubling", marks=pytest.mark.slow)], indirect=True)
 def test_a_branch_without_a_crossing_reports_no_event(crossing):
     """The same start followed upwards: stable orbits, every multiplier inside the circle, no event."""
     kind, _, start, _ = crossing

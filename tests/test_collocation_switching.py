@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import scipy.optimize as so
 
-from collocation_crossings import collocation_crossing, shooting_crossing
+from collocation_crossings import collocation_crossing
 from cosserat_chain import ChainParams
 from cosserat_chain.numerics.collocation import continue_collocation, find_collocation_orbit
 from cosserat_chain.numerics.collocation_switching import (
@@ -29,6 +29,7 @@ from cosserat_chain.numerics.collocation_switching import _run_twice as run_twic
 from cosserat_chain.numerics.continuation import locate_fold
 from cosserat_chain.numerics.cycle_switching import switch_at_period_doubling
 from cosserat_chain.numerics.periodic import continue_orbit, find_periodic_orbit
+from cycle_ends import shooting_crossing
 
 PARAMS = ChainParams(gamma_phi=0.15)
 AMPLITUDES = (1e-3, 2e-3)

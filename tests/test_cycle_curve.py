@@ -15,22 +15,9 @@ from conftest import random_geometries
 from cosserat_chain import ChainParams
 from cosserat_chain.experiments.coexisting import states_at
 from cosserat_chain.experiments.diagram import state_diagram
-from cosserat_chain.numerics.continuation import locate_fold
 from cosserat_chain.numerics.cycle_curve import KINDS, continue_cycle_end, locate_cycle_end
 from cosserat_chain.numerics.periodic import continue_orbit, find_periodic_orbit
-
-
-def around_loss(chain: ChainParams):
-    """The last stable and the first unstable orbit of the one-parameter branch down from 1.1 M_c (traced no further)."""
-    start = find_periodic_orbit(chain, "sine", 1.1 * locate_fold(chain, "sine").moment)
-    branch = continue_orbit(start, period_max=100.0, until_unstable=True)
-    index = int(np.argmin(branch.stable))
-    return branch.orbits[index - 1 : index + 1]
-
-
-def orbit_near_loss(chain: ChainParams, kind: str):
-    """The end at ``chain``, located from the orbits around it."""
-    return locate_cycle_end(around_loss(chain), kind)
+from cycle_ends import around_loss, located_end
 
 
 def critical(orbit, kind: str) -> complex:
@@ -56,7 +43,7 @@ def crossing_by_natural_continuation(chain: ChainParams, orbit, moment: float, k
 def test_the_torus_end_followed_in_E2_crosses_the_circle_where_it_says():
     params = ChainParams(E2=0.8)
     # Followed over the same range of E2 as ever, each end of it checked (a point in between was a third check of the same).
-    curve = continue_cycle_end(orbit_near_loss(params, "torus"), "torus", "E2", [0.8, 1.0])
+    curve = continue_cycle_end(located_end(params, "torus"), "torus", "E2", [0.8, 1.0])
     assert curve.complete and list(curve.values) == [0.8, 1.0]
     assert np.all(np.diff(curve.moment) > 0)  # a stiffer diagonal raises the lower edge
     for value, moment, orbit in zip(curve.values, curve.moment, curve.orbits):
@@ -72,7 +59,7 @@ def test_the_period_doubling_end_followed_in_the_damping_agrees_with_each_value_
     """Followed from gamma_phi = 0.12 to 0.15, and each value computed on its own by one-parameter
     continuation from 1.1 M_c and then located: the same edge (path independence)."""
     params = ChainParams(gamma_phi=0.12)
-    curve = continue_cycle_end(orbit_near_loss(params, "period_doubling"), "period_doubling", "gamma_phi", [0.12, 0.13, 0.15])
+    curve = continue_cycle_end(located_end(params, "period_doubling"), "period_doubling", "gamma_phi", [0.12, 0.13, 0.15])
     assert curve.complete
     independent = state_diagram(ChainParams(), "sine", "gamma_phi", [0.12, 0.13, 0.15])
     for moment, orbit, row in zip(curve.moment, curve.orbits, independent.rows):
@@ -110,7 +97,7 @@ def test_where_the_torus_end_turns_into_a_period_doubling_the_curve_stops_and_th
     """Between E2 = 1.0 (torus) and 1.2 (period doubling) the two ends meet: the torus curve cannot be
     followed to 1.2; with ``follow`` the diagram says so and finds the period doubling there on its own."""
     params = ChainParams()
-    curve = continue_cycle_end(orbit_near_loss(params, "torus"), "torus", "E2", [1.0, 1.2])
+    curve = continue_cycle_end(located_end(params, "torus"), "torus", "E2", [1.0, 1.2])
     assert not curve.complete and "beyond E2" in curve.message and list(curve.values) == [1.0]
     followed = state_diagram(params, "sine", "E2", [0.8, 1.0, 1.2], follow=True)
     assert [row.method for row in followed.rows] == ["located", "followed", "located"]
@@ -158,7 +145,7 @@ def test_ends_of_random_chains_followed_in_E2_cross_the_circle_where_they_say(in
     kind = state_diagram(params, "sine", "E2", [params.E2]).rows[0].end
     assert kind in ("torus", "period_doubling")
     values = [params.E2, 1.05 * params.E2]
-    curve = continue_cycle_end(orbit_near_loss(params, kind), kind, "E2", values)
+    curve = continue_cycle_end(located_end(params, kind), kind, "E2", values)
     assert curve.complete
     for value, moment, orbit in zip(curve.values, curve.moment, curve.orbits):
         chain = params.replace(E2=float(value))

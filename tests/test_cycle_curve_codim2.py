@@ -17,18 +17,8 @@ import numpy as np
 import pytest
 
 from cosserat_chain import ChainParams
-from cosserat_chain.numerics.continuation import locate_fold
-from cosserat_chain.numerics.cycle_curve import AUTO_LABELS, CODIM2, Codim2Point, _codim2_tests, continue_cycle_end, locate_cycle_end
-from cosserat_chain.numerics.periodic import continue_orbit, find_periodic_orbit
-
-
-def located_end(chain: ChainParams, kind: str):
-    """The end of ``kind`` of the one-turn orbit followed down from 1.1 M_c (traced to its first unstable orbit, no
-    further: the same last stable and first unstable orbits as the branch traced to its fold)."""
-    start = find_periodic_orbit(chain, "sine", 1.1 * locate_fold(chain, "sine").moment)
-    branch = continue_orbit(start, period_max=100.0, until_unstable=True)
-    index = int(np.argmin(branch.stable))
-    return locate_cycle_end(branch.orbits[index - 1 : index + 1], kind)
+from cosserat_chain.numerics.cycle_curve import AUTO_LABELS, CODIM2, Codim2Point, _codim2_tests, continue_cycle_end
+from cycle_ends import located_end
 
 
 def pair_of(orbit) -> complex:

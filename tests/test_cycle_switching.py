@@ -16,7 +16,6 @@ import numpy as np
 import pytest
 import scipy.optimize as so
 
-from collocation_crossings import shooting_crossing
 from cosserat_chain import ChainParams
 from cosserat_chain.loads import moment_load
 from cosserat_chain.numerics.continuation import continue_in_moment, locate_fold
@@ -33,6 +32,7 @@ from cosserat_chain.numerics.dynamics import integrate
 from cosserat_chain.numerics.hopf import hopf_points
 from cosserat_chain.numerics.integrators import default_time_step
 from cosserat_chain.numerics.periodic import OrbitError, continue_orbit, find_periodic_orbit, initial_guess
+from cycle_ends import shooting_crossing
 
 PARAMS = ChainParams(gamma_phi=0.2)
 AMPLITUDES = (1e-3, 2e-3, 4e-3)

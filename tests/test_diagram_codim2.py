@@ -91,17 +91,12 @@ def test_between_two_torus_rows_of_the_paper_s_chain_the_1_to_3_resonance_is_loc
     """The paper's chain at E2 = 0.9 and 0.95 (torus ends whose pairs' angles lie either side of 2 pi / 3,
     tests/test_cycle_curve_codim2.py): the entry follows the torus end between them and names the 1:3 resonance
     (R3), its pair at 2 pi / 3 to 1e-8 and its value between the rows, at AUTO-07p's 0.9213118 to 5e-6."""
-    from cosserat_chain.numerics.continuation import locate_fold
-    from cosserat_chain.numerics.cycle_curve import locate_cycle_end, torus_angle
-    from cosserat_chain.numerics.periodic import continue_orbit, find_periodic_orbit
+    from cosserat_chain.numerics.cycle_curve import torus_angle
+    from cycle_ends import located_end
 
     rows, edges = [], []
     for value in (0.9, 0.95):
-        chain = ChainParams(E2=value)
-        start = find_periodic_orbit(chain, "sine", 1.1 * locate_fold(chain, "sine").moment)
-        branch = continue_orbit(start, period_max=100.0, until_unstable=True)
-        index = int(np.argmin(branch.stable))
-        orbit = locate_cycle_end(branch.orbits[index - 1 : index + 1], "torus")
+        orbit = located_end(ChainParams(E2=value), "torus")  # the one-turn branch's end, located (test_cycle_curve_codim2.py's)
         rows.append(diagram.DiagramRow(value, 0.2, 1.0, orbit.moment, "torus", True))
         edges.append(diagram._Edge(orbit.moment, "torus", "", orbit=orbit))
     (entry,) = diagram._codim2_between(rows, edges, "E2")
