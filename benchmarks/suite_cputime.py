@@ -7,8 +7,14 @@ process spent compiling with Numba (outermost compilations only; a kernel loaded
 compiles nothing), so that a kernel compiled again in every session shows. Use::
 
     PYTHONPATH=benchmarks CPUTIME_OUT=times.jsonl python -m pytest -p suite_cputime -m "not slow"
+
+and read the records with ``python benchmarks/suite_cputime.py times.jsonl [--top 30]`` (the sums, the most expensive
+tests and files), or ``python benchmarks/suite_cputime.py old.jsonl new.jsonl`` (the two runs' sums over the tests
+both have, and the files and tests that changed most).
 """
 
+import argparse
+import collections
 import json
 import os
 import resource
@@ -65,3 +71,66 @@ def pytest_runtest_protocol(item, nextitem):
     record = {"id": item.nodeid, "cpu": c1 - c0, "children": kids, "wall": w1 - w0, "numba": _COMPILING["seconds"], "slow": slow}
     with open(_OUT, "a") as fh:
         fh.write(json.dumps(record) + "\n")
+
+
+def _records(path: str) -> dict[str, dict]:
+    """The quick tests' records of one run, by node id (a test run twice keeps its last record)."""
+    with open(path) as fh:
+        rows = [json.loads(line) for line in fh if line.strip()]
+    return {row["id"]: row for row in rows if not row["slow"]}
+
+
+def _cost(record: dict) -> float:
+    return record["cpu"] + record["children"]
+
+
+def _by_file(records: dict[str, dict]) -> collections.Counter:
+    files: collections.Counter = collections.Counter()
+    for node, record in records.items():
+        files[node.split("::")[0]] += _cost(record)
+    return files
+
+
+def _summary(path: str, top: int) -> None:
+    records = _records(path)
+    total, numba = sum(map(_cost, records.values())), sum(r["numba"] for r in records.values())
+    print(f"{path}: {len(records)} quick tests, {total:.1f} s of CPU (children included), {numba:.1f} s of it Numba compiling")
+    print(f"\n{'CPU s':>7} {'kids s':>7} {'numba s':>7}  test")
+    for node, r in sorted(records.items(), key=lambda item: -_cost(item[1]))[:top]:
+        print(f"{_cost(r):7.2f} {r['children']:7.2f} {r['numba']:7.2f}  {node}")
+    print(f"\n{'CPU s':>7}  file")
+    for name, cost in _by_file(records).most_common(top):
+        print(f"{cost:7.1f}  {name}")
+
+
+def _compare(old_path: str, new_path: str, top: int) -> None:
+    old, new = _records(old_path), _records(new_path)
+    both = old.keys() & new.keys()
+    print(f"old {len(old)} tests {sum(map(_cost, old.values())):.1f} s; new {len(new)} tests {sum(map(_cost, new.values())):.1f} s")
+    print(f"the {len(both)} tests both have: {sum(_cost(old[k]) for k in both):.1f} -> {sum(_cost(new[k]) for k in both):.1f} s")
+    for label, nodes, run in (("only old", old.keys() - new.keys(), old), ("only new", new.keys() - old.keys(), new)):
+        print(f"{label}: {len(nodes)} tests, {sum(_cost(run[k]) for k in nodes):.1f} s")
+    files_old, files_new = _by_file({k: old[k] for k in both}), _by_file({k: new[k] for k in both})
+    print(f"\n{'old s':>7} {'new s':>7}  file (largest changes, tests both runs have)")
+    for name in sorted(files_old, key=lambda f: -abs(files_old[f] - files_new[f]))[:top]:
+        print(f"{files_old[name]:7.2f} {files_new[name]:7.2f}  {name}")
+    print(f"\n{'old s':>7} {'new s':>7}  test")
+    for node in sorted(both, key=lambda k: -abs(_cost(old[k]) - _cost(new[k])))[:top]:
+        print(f"{_cost(old[node]):7.2f} {_cost(new[node]):7.2f}  {node}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description="Summarise one run's records, or compare two runs'.")
+    parser.add_argument("records", nargs="+", help="one JSON-lines file of this plugin's, or two (old, new)")
+    parser.add_argument("--top", type=int, default=30, help="how many tests and files to list")
+    args = parser.parse_args()
+    if len(args.records) == 1:
+        _summary(args.records[0], args.top)
+    elif len(args.records) == 2:
+        _compare(*args.records, args.top)
+    else:
+        parser.error(f"records takes one file or two, got {len(args.records)}")
+
+
+if __name__ == "__main__":
+    main()
