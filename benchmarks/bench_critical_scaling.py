@@ -73,7 +73,7 @@ print(json.dumps({
     "M_c": result.critical_moment, "confirmation": result.confirmation, "accurate": result.accurate,
     "compliance": result.compliance, "first_fold_phi0": None if result.first_fold is None else result.first_fold.phi0,
     "folds_confirmed": [f.confirmed for f in branch.folds][:3], "message": branch.message,
-    "estimate_mib": critical_memory(ChainParams(N=n)) / 2**20, "start_rss_mib": start_rss,
+    "estimate_mib": critical_memory(ChainParams(N=n), model) / 2**20, "start_rss_mib": start_rss,
 }))
 """
 

@@ -18,9 +18,12 @@ import pytest
 from conftest import random_geometries
 from cosserat_chain import ChainParams
 from cosserat_chain.experiments.critical import critical_point
+from cosserat_chain.models.base import get_model
 from cosserat_chain.numerics import continuation
 from cosserat_chain.numerics.continuation import continue_in_moment
 from cosserat_chain.numerics.kit import BranchEnd
+from cosserat_chain.numerics.newton import moment_dof
+from cosserat_chain.state import pack
 
 TURN = 2 * math.pi
 CHAINS = [ChainParams(N=10), ChainParams(N=100), *random_geometries(2, seed=3)]
@@ -56,17 +59,31 @@ def test_a_branch_still_stable_at_the_turn_is_not_ended():
     assert branch.stable.all() and not branch.folds and branch.stop == BranchEnd.ANGLE_LIMIT
 
 
-@pytest.mark.parametrize("model", ["nonlinear", "sine"])
-def test_critical_ends_a_long_chains_turn_once_m_c_is_decided(model):
-    # N = 2000 is near singular at rest (K's softest eigenvalue within ten times its round-off): the nonlinear
-    # trace ends short of the turn, eq. (2)'s at its first fold (its closed form bounds every static state's M).
-    result = critical_point(ChainParams(N=2000), model, dynamics=False)
-    assert result.accurate and result.complete and result.end == "fold"
-    assert result.branch.stop == (BranchEnd.DECIDED if model == "nonlinear" else BranchEnd.MAX_FOLDS)
-    short = critical_point(ChainParams(N=300), model, dynamics=False)
-    assert short.branch.stop == BranchEnd.ANGLE_LIMIT  # resolved at rest: the whole turn, as before
-    # M_c on the trend of the paper's geometry (tests/test_critical_scaling.py: N M_c -> 0.64 for eq. (2)).
-    if model == "sine":
-        assert 2000 * result.critical_moment == pytest.approx(0.64, abs=1e-4)
-    else:
-        assert result.fold is result.first_fold and result.fold.confirmed
+def test_critical_ends_a_long_nonlinear_chains_turn_once_m_c_is_decided():
+    # N = 2000 is near singular at rest (K's softest eigenvalue within ten times its round-off): the trace ends
+    # short of the turn; N = 300 is resolved at rest and traces the whole turn, as before.
+    result = critical_point(ChainParams(N=2000), "nonlinear", dynamics=False)
+    assert result.accurate and result.complete and result.end == "fold" and result.branch.stop == BranchEnd.DECIDED
+    assert result.fold is result.first_fold and result.fold.confirmed
+    assert critical_point(ChainParams(N=300), "nonlinear", dynamics=False).branch.stop == BranchEnd.ANGLE_LIMIT
+
+
+def test_eq_2s_branch_to_its_first_fold_in_closed_form_is_static_and_meets_the_trace():
+    params = ChainParams(N=2000)
+    model = get_model("sine")
+    result = critical_point(params, model, dynamics=False)
+    branch = result.branch
+    assert result.accurate and result.complete and result.end == "fold" and branch.stop == BranchEnd.MAX_FOLDS
+    # Every closed-form point is a static state under its moment (to round-off of the forces) ...
+    for moment, x in zip(branch.moment, branch.x, strict=True):
+        residual = model.packed_forces(params, pack(params, x))
+        residual[moment_dof(params, 0)] += moment
+        assert np.max(np.abs(residual)) < 1e-12
+    # ... stable up to the fold by eq. (2)'s theorem (K's inertia counted), index one beyond it.
+    assert branch.stable[:-1].all() and not branch.stable[-1]
+    fold = result.fold
+    assert (fold.index_before, fold.index_after, fold.phi0) == (0, 1, math.pi / 2) and result.onset_particle == 0
+    # The trace from rest, stopped at its first fold, finds the same fold to its round-off.
+    traced = continue_in_moment(params, model, max_folds=1).folds[0]
+    assert traced.moment == pytest.approx(fold.moment, rel=1e-6) and traced.phi0 == pytest.approx(fold.phi0, abs=1e-4)
+    assert 2000 * fold.moment == pytest.approx(0.64, abs=1e-4)  # N M_c -> 0.64 (tests/test_critical_scaling.py)

@@ -114,18 +114,16 @@ import scipy.optimize as so
 from ..linalg import smallest_eigenvalue
 from ..linalg.threads import one_blas_thread
 from ..loads import Loads, moment_load
-from ..memory import FLOAT
+from ..memory import FLOAT, require
 from ..models.base import Model, get_model
 from ..numerics.continuation import (
     FOLD_TOL,
     Branch,
     BranchPoint,
     Fold,
-    branch_memory,
     continue_in_moment,
     moment_response,
     moment_slope,
-    require_branch_memory,
     rest_resolved,
 )
 from ..numerics.kit import BranchEnd
@@ -146,7 +144,15 @@ MAX_POINTS = 5000
 #: default point budget's usual use, and a thinned set on longer chains (every 2^j-th point,
 #: ``Branch.state_points``; :func:`~cosserat_chain.numerics.continuation.continue_in_moment`'s
 #: ``max_states``), so that the branch's memory grows with N, not with N times its points.
-STATE_BYTES = 2**28
+STATE_BYTES = 2**27
+#: Values a degree of freedom that :func:`critical_point` holds at its peak beside the branch's kept states
+#: (:func:`critical_memory`): a trace's band factors, the rest response through K's square root, the approach's and
+#: the re-solves' sparse factors, and bytes it takes whatever N (the first sparse factors' workspace): fitted to the
+#: peaks of benchmarks/bench_critical_scaling.py at N = 3 10^4 and 10^5 (nonlinear: 630 and 1643 MiB above the start) ...
+TRACE_VALUES = 272
+TRACE_BYTES = 140 * 2**20
+#: ... and eq. (2)'s closed-form branch's, its SINE_POINTS + 1 states included (139 at N = 10^4, 3 10^4 and 10^5).
+SINE_VALUES = 140
 #: Default budget in turns of the loaded particle for a branch from rest that stays stable
 #: beyond its first turn (a cantilever of the paper's geometry: 1.41 N rad, N <= 71 within 16 turns).
 TURNS = 16
@@ -528,19 +534,26 @@ def critical_point(
     budget = turn * turns if model.rotates else turn
     until = turn if model.rotates else None
     states = max_states(params)
-    require_branch_memory(params, max_points, states)
+    near_singular = model.rotates and near_singular_at_rest(params, model)
+    require(
+        critical_memory(params, model, max_points, near_singular),
+        f"critical on {params.n_particles} particles (N={params.N}), a branch of up to {max_points} points keeping {min(max_points, states)} states",
+        "trace fewer points (max_points, --max-points) or a shorter chain",
+    )
     closed = model.name == "sine"
     response = moment_response(params, model, particle=particle)
-    near_singular = model.rotates and near_singular_at_rest(params, model)
     approach = near_singular and not rest_resolved(params, model, particle=particle, response=response)
-    # Where K's soft modes at rest are beyond its rounded entries, the trace ends once M_c is decided (module docstring):
-    # eq. (2) at its first fold (no static state holds more than its closed form's 1 / max_j |c_j|), another model short
-    # of the turn's end, where its moment has fallen far below the largest maximum (continuation.END_ANGLE, END_MOMENT).
+    # Where K's soft modes at rest are beyond its rounded entries, the trace ends once M_c is decided (module docstring),
+    # short of the turn's end where its moment has fallen far below the largest maximum (continuation.END_ANGLE,
+    # END_MOMENT); eq. (2)'s branch to its first fold is its closed form there (_sine_branch).
     trace = dict(
         particle=particle, phi0_stop=budget, phi0_until_unstable=until, max_points=max_points, max_states=states, response=response,
-        decided=near_singular and not closed, max_folds=1 if closed and near_singular else None,
+        decided=near_singular,
     )  # fmt: skip
-    branch = continue_in_moment(params, model, **trace, progress=progress, from_approach=approach)
+    if closed and near_singular:
+        branch = _sine_branch(params, model, response, particle, progress)
+    else:
+        branch = continue_in_moment(params, model, **trace, progress=progress, from_approach=approach)
     confirmation = "once"
     angles = unpack(params, response)[ROW_INDEX["phi"]]
     onset_particle = None
@@ -576,10 +589,16 @@ def critical_point(
     )  # fmt: skip
 
 
-def critical_memory(params: ChainParams, max_points: int = MAX_POINTS) -> int:
-    """Bytes :func:`critical_point` plans for (:func:`~cosserat_chain.numerics.continuation.branch_memory` with
-    :func:`max_states`), checked against the free memory before it allocates."""
-    return branch_memory(params, max_points, max_states(params))
+def critical_memory(params: ChainParams, model: str | Model, max_points: int = MAX_POINTS, near_singular: bool | None = None) -> int:
+    """Bytes :func:`critical_point` allocates at its peak, checked against the free memory before it allocates: per
+    degree of freedom :data:`TRACE_VALUES` and the kept states (at most :func:`max_states`, each held once), a record a
+    point and :data:`TRACE_BYTES`, or where eq. (2)'s branch is taken in closed form (K near singular at rest: ``near_singular``, where
+    known, else :func:`near_singular_at_rest`) :data:`SINE_VALUES`."""
+    model = get_model(model)
+    values = 3 * params.n_particles
+    if model.name == "sine" and model.rotates and (near_singular_at_rest(params, model) if near_singular is None else near_singular):
+        return FLOAT * values * SINE_VALUES
+    return TRACE_BYTES + FLOAT * (values * (TRACE_VALUES + min(max_points, max_states(params)) + 2) + 40 * max_points)
 
 
 def max_states(params: ChainParams) -> int:
@@ -612,6 +631,56 @@ def _dynamics(
         checks = [dynamic_stability(params, model, x) if dense else t for x, t, dense in zip(branch.x, theorem, near)]
         return "eigenvalues", checks, hopf_points(params, model, branch, checks=checks)
     return ("eq. (2) theorem" if model.name == "sine" else "not computed"), None, None
+
+
+#: Points of eq. (2)'s closed-form branch (:func:`_sine_branch`) from rest to its first fold, at equal steps of the
+#: turning particle's angle (pi / 2 / SINE_POINTS each), and one step beyond it.
+SINE_POINTS = 16
+
+
+def _sine_branch(params: ChainParams, model: Model, response: np.ndarray, particle: int, progress=None) -> Branch:
+    """Eq. (2)'s branch from rest to its first fold and one step beyond, in closed form, with the fold.
+
+    Its static states are (u, v, sin phi) = M c with c = K^-1 e (``response``): with j the particle of
+    largest |c_j|, the branch from rest is M = M_c sin(theta), theta = 0 .. pi / 2 the angle of j,
+    M_c = 1 / |c_j|, every other angle asin(M c_k) (|M c_k| <= 1 there), and beyond the fold j's angle is
+    pi - theta. Used where K at rest is near singular (a trace of N = 10^5 crawled at 1.3 rad, where
+    this costs one stability check a point). Each point's stability is computed
+    (:func:`~cosserat_chain.numerics.stability.static_stability`: stable up to the fold by eq. (2)'s
+    theorem, the index one beyond); ``Branch.stop`` "max_folds", as a trace stopped at its first fold.
+    """
+    n = params.N
+    x_of = unpack(params, response)
+    angles = x_of[ROW_INDEX["phi"]]
+    turning = int(np.argmax(np.abs(angles)))
+    exact = 1.0 / abs(float(angles[turning]))
+    sign = math.copysign(1.0, angles[turning])
+    loaded = column(params, particle)
+    thetas = np.linspace(0.0, math.pi / 2, SINE_POINTS + 1)
+    thetas = np.append(thetas, math.pi / 2 + thetas[1])
+    moments, states, checks = [], [], []
+    for theta in thetas:
+        moment = exact * math.sin(theta)
+        x = moment * x_of
+        x[ROW_INDEX["phi"]] = np.arcsin(np.clip(moment * angles, -1.0, 1.0))
+        x[ROW_INDEX["phi"], turning] = sign * theta  # pi / 2 at the fold, pi - (pi / 2 - theta) beyond: exact
+        moments.append(moment)
+        states.append(x)
+        checks.append(None if theta == math.pi / 2 else static_stability(params, model, x))
+        if progress is not None:
+            progress(abs(float(x[ROW_INDEX["phi"], loaded])), 2 * math.pi)
+    fold_x = states[SINE_POINTS]
+    del moments[SINE_POINTS], states[SINE_POINTS], checks[SINE_POINTS]  # the fold is the Fold, not a point (K singular there)
+    fold = Fold(
+        moment=exact, phi0=float(fold_x[ROW_INDEX["phi"], loaded]), x=fold_x, particle=particle, maximum=True,
+        index_before=checks[-2].index, index_after=checks[-1].index, mode_particle=turning - n,
+    )  # fmt: skip
+    phi0 = [float(x[ROW_INDEX["phi"], loaded]) for x in states]
+    return Branch(
+        moment=np.array(moments), phi0=np.array(phi0), x=np.array(states), stable=np.array([c.stable for c in checks]),
+        critical_eigenvalue=np.array([c.critical_eigenvalue for c in checks]), folds=[fold], particle=particle,
+        stop=BranchEnd.MAX_FOLDS, message="eq. (2)'s branch from rest to its first fold in closed form",
+    )  # fmt: skip
 
 
 def _sine_folds(params: ChainParams, branch: Branch, angles: np.ndarray, particle: int) -> list[Fold]:
