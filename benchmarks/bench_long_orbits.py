@@ -8,6 +8,8 @@ Run from the repository root::
     python benchmarks/bench_long_orbits.py --segments 16 --dense-max 50   # blocks with segments, N = 50, 100
     python benchmarks/bench_long_orbits.py --rates               # per unit time, N = 10 ... 1000 (about 2 minutes)
     python benchmarks/bench_long_orbits.py --continuation 8 --sizes 100 200   # an orbit and 3 continuation points
+    python benchmarks/bench_long_orbits.py --picard --sizes 50 100 200      # Newton-Picard against the blocks
+    python benchmarks/bench_long_orbits.py --picard --sizes 1000 --progress # Newton-Picard alone (hours at N = 1000)
 
 The sine chain (eq. (2)) with strong damping (all gammas 1, other fields default) under the
 moment 0.3 on particle 0: its rotation settles on one stable one-turn orbit at every length
@@ -40,6 +42,17 @@ product (the state and one variational column: a GMRES or Arnoldi step), of one 
 monodromy in one piece (up to ``--dense-max``), with the blocks' time for all of M and the
 memory of M and of the one-piece integration (``results/long_orbit_rates.json``).
 
+``--picard``: for N = 50, 100, 200, 500, 1000 (``--sizes``), the chain and moment above by
+Newton-Picard (``method="picard"``, :mod:`~cosserat_chain.numerics.newton_picard`) and, up to
+``--blocks-max`` (default 200), by the blocks from the same guess: CPU seconds with the load
+average before and after, Newton iterations, columns integrated and integrations, the period,
+the nontrivial multipliers above rho found and those certified (|mu| minus its residual above
+rho), the largest residual among them, the trivial multiplier's distance from 1 and its error,
+the peak memory estimate (Newton-Picard: its basis and DOP853's copies of the state with it; the
+blocks: M and one block's integration), and the blocks' distance from the Newton-Picard orbit
+(period, start state, each Newton-Picard multiplier from the nearest of the blocks'); with
+``--progress`` the running totals after every block (``results/long_orbit_picard.json``).
+
 ``--continuation M``: for each N of ``--sizes`` (default 100, 200), the chain of
 :data:`SEGMENT_DAMPING` under the moment above, by the blocks with M segments: the orbit from the guess (``find_periodic_orbit``), then
 ``continue_orbit(..., method="blocks", segments=M)`` over :data:`CONTINUATION_POINTS` points
@@ -63,7 +76,7 @@ import numpy as np
 
 from cosserat_chain import ChainParams
 from cosserat_chain.models.base import get_model
-from cosserat_chain.numerics import long_orbits
+from cosserat_chain.numerics import long_orbits, newton_picard
 from cosserat_chain.numerics.periodic import _System, _to_y, continue_orbit, find_periodic_orbit, initial_guess
 from cosserat_chain.state import n_free, pack, per_dof
 
@@ -80,9 +93,10 @@ CONTINUATION_POINTS, CONTINUATION_STEP = 3, 0.01
 
 
 class _Counter:
-    """Counts the variational columns and integrations of every Monodromy product (wraps ``Monodromy.apply``)."""
+    """Counts the variational columns and integrations of every Monodromy product (wraps ``Monodromy.apply``);
+    with ``progress`` (a stream) it prints the totals after every block of several columns."""
 
-    def __init__(self) -> None:
+    def __init__(self, progress=None) -> None:
         self.products = self.integrations = 0
         self._apply = long_orbits.Monodromy.apply
         counter = self
@@ -92,6 +106,12 @@ class _Counter:
             block = np.asarray(columns).reshape(monodromy.size, -1)
             counter.products += block.shape[1] * (2 if np.iscomplexobj(block) else 1)
             counter.integrations += 1
+            if progress is not None and block.shape[1] > 1:
+                print(
+                    f"  2 n_free = {monodromy.size}: {counter.integrations} integrations, {counter.products} columns, "
+                    f"{time.process_time():.0f} s CPU, load {os.getloadavg()[0]:.1f}",
+                    file=progress, flush=True,
+                )  # fmt: skip
             return out
 
         long_orbits.Monodromy.apply = apply
@@ -139,6 +159,81 @@ def measure(n: int, methods: list[str], dense_max: int, krylov_max: int, threads
         row["methods"][method] = entry
         row["size"] = 2 * (3 * params.n_particles - 6)
     return row
+
+
+def measure_picard(n: int, blocks_max: int, threads: int, counter: _Counter) -> dict:
+    """Newton-Picard and, up to ``blocks_max``, the blocks from the same guess at N = n (``--picard``)."""
+    params = ChainParams(N=n, gamma_u=DAMPING, gamma_v=DAMPING, gamma_phi=DAMPING)
+    long_orbits.THREADS = threads
+    start = time.process_time()
+    guess = initial_guess(params, MODEL, MOMENT)
+    size = 2 * n_free(params)
+    row = {"N": n, "size": size, "guess_cpu_s": time.process_time() - start, "rho": newton_picard.RHO, "methods": {}}
+    for method in ("picard", "blocks") if n <= blocks_max else ("picard",):
+        counter.reset()
+        load = os.getloadavg()[0]
+        cpu = time.process_time()
+        orbit = find_periodic_orbit(params, MODEL, MOMENT, guess=guess, method=method)
+        cpu = time.process_time() - cpu
+        products, integrations = counter.reset()
+        errors = orbit.multiplier_errors
+        above = np.abs(orbit.multipliers) > newton_picard.RHO
+        nontrivial = np.arange(orbit.multipliers.size) != np.argmin(np.abs(orbit.multipliers - 1.0))
+        if method == "picard":
+            # The basis (p + max(guard, p / 2) columns) and DOP853's ~16 copies of the state with them.
+            p = int(np.count_nonzero(above))
+            columns = p + max(newton_picard.GUARD, p // 2)
+            memory = 8 * size * (16 * (columns + 1) + 4 * columns)
+        else:
+            memory = 8 * size * (size + 16 * (long_orbits.BLOCK_COLUMNS + 1))
+        entry = {
+            "cpu_s": cpu,
+            "load_average": load,
+            "load_average_after": os.getloadavg()[0],
+            "iterations": orbit.iterations,
+            "products": products,
+            "integrations": integrations,
+            "period": orbit.period,
+            "closure": orbit.closure,
+            "above_rho": int(np.count_nonzero(above & nontrivial)),
+            "certified_above_rho": int(np.count_nonzero((np.abs(orbit.multipliers) - errors > newton_picard.RHO) & nontrivial)),
+            "largest_residual_above_rho": float(np.max(errors[above & nontrivial], initial=0.0)),
+            "max_nontrivial_multiplier": orbit.max_multiplier,
+            "trivial_distance_from_1": abs(orbit.trivial_multiplier - 1.0),
+            "trivial_error": orbit.trivial_multiplier_error,
+            "memory_MB": memory / 1e6,
+        }
+        if method == "blocks":
+            picard = row["methods"]["picard"]["orbit"]
+            entry["period_difference"] = abs(orbit.period - picard.period)
+            entry["state_difference"] = float(max(np.max(np.abs(orbit.x - picard.x)), np.max(np.abs(orbit.v - picard.v))))
+            entry["multiplier_difference"] = float(np.max([np.min(np.abs(orbit.multipliers - mu)) for mu in picard.multipliers]))
+        entry["orbit"] = orbit
+        row["methods"][method] = entry
+    for entry in row["methods"].values():
+        del entry["orbit"]
+    return row
+
+
+def picard_markdown(rows: list[dict]) -> str:
+    lines = [
+        "| N | 2 n_free | method | CPU s | load | Newton iterations | columns integrated (integrations) | period T | abs(mu) > rho: found / certified "
+        "| largest residual | abs(mu_1 - 1) / its error | memory MB | blocks against Newton-Picard |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        for method, e in row["methods"].items():
+            against = "" if "period_difference" not in e else (
+                f"T {e['period_difference']:.1e}, y0 {e['state_difference']:.1e}, mu {e['multiplier_difference']:.1e}"
+            )  # fmt: skip
+            found = f"{e['above_rho']} / {e['certified_above_rho']}" if method == "picard" else f"{e['above_rho']} / -"
+            lines.append(
+                f"| {row['N']} | {row['size']} | {method} | {e['cpu_s']:.4g} | {e['load_average']:.1f}-{e['load_average_after']:.1f} | "
+                f"{e['iterations']} | {e['products']} ({e['integrations']}) | {e['period']:.10g} | {found} | "
+                f"{e['largest_residual_above_rho']:.1e} | {e['trivial_distance_from_1']:.1e} / {e['trivial_error']:.1e} | "
+                f"{e['memory_MB']:.4g} | {against} |"
+            )
+    return "\n".join(lines)
 
 
 def measure_segments(n: int, segments: int, dense_max: int, threads: int) -> dict:
@@ -323,6 +418,9 @@ def main() -> None:
     parser.add_argument("--rates", action="store_true", help="only the costs per unit time, N = 10 ... 1000")
     parser.add_argument("--segments", type=int, default=None, metavar="M", help="blocks with M segments against the formed monodromy")
     parser.add_argument("--continuation", type=int, default=None, metavar="M", help="an orbit and a short continuation, M segments")
+    parser.add_argument("--picard", action="store_true", help="Newton-Picard against the blocks, N = 50 ... 1000")
+    parser.add_argument("--blocks-max", type=int, default=200, help="largest N for the blocks in --picard")
+    parser.add_argument("--progress", action="store_true", help="print the columns integrated after every block (--picard)")
     args = parser.parse_args()
     log = sys.stderr if args.json else sys.stdout
     default_out = RESULTS / "long_orbits.json"
@@ -331,7 +429,11 @@ def main() -> None:
         """A mode's own sizes and file where --sizes and --out were left at the default run's."""
         return (args.sizes if args.sizes != list(SIZES) else default_sizes), (args.out if args.out != default_out else RESULTS / name)
 
-    if args.continuation is not None:
+    if args.picard:
+        sizes, out = chosen([50, 100, 200, 500, 1000], "long_orbit_picard.json")
+        counter = _Counter(log if args.progress else None)
+        _sweep(sizes, lambda n: measure_picard(n, args.blocks_max, args.threads, counter), picard_markdown, out, log, args.json)
+    elif args.continuation is not None:
         sizes, out = chosen([100, 200], "long_orbit_continuation.json")
         _sweep(sizes, lambda n: continuation(n, args.continuation, args.threads), continuation_markdown, out, log, args.json)
     elif args.segments is not None:

@@ -79,8 +79,9 @@ if TYPE_CHECKING:
     # The solvers below serve numerics.periodic, which imports this module: its classes are only named here.
     from .periodic import _Phase, _System
 
-#: The methods of :func:`~.periodic.find_periodic_orbit`: the monodromy in one integration, in column blocks, Newton-Krylov, or by the chain's length.
-METHODS = ("auto", "dense", "blocks", "krylov")
+#: The methods of :func:`~.periodic.find_periodic_orbit`: the monodromy in one integration, in column blocks, Newton-Krylov,
+#: Newton-Picard (:mod:`~.newton_picard`), or by the chain's length.
+METHODS = ("auto", "dense", "blocks", "krylov", "picard")
 #: ``method="auto"`` assembles the monodromy from column blocks from this N on (benchmarks/README.md, long orbits).
 BLOCKS_FROM_N = 50
 #: Columns of the monodromy integrated together in one block (a few hundred kB of variational state: in cache).
@@ -123,7 +124,7 @@ SEGMENT_COPIES = 3
 
 
 def choose_method(params: ChainParams, method: str) -> str:
-    """``"dense"``, ``"blocks"`` or ``"krylov"``: ``method`` itself, or for ``"auto"`` by the chain's length (:data:`BLOCKS_FROM_N`).
+    """``"dense"``, ``"blocks"``, ``"krylov"`` or ``"picard"``: ``method`` itself, or for ``"auto"`` by the chain's length (:data:`BLOCKS_FROM_N`).
 
     Raises
     ------
@@ -133,7 +134,7 @@ def choose_method(params: ChainParams, method: str) -> str:
     if method not in METHODS:
         raise ValueError(
             f"method must be one of {', '.join(METHODS)} (the monodromy in one integration or in column blocks, Newton-Krylov, "
-            f"or by the chain's length), got {method!r}"
+            f"Newton-Picard, or by the chain's length), got {method!r}"
         )
     if method == "auto":
         return "blocks" if params.N >= BLOCKS_FROM_N else "dense"
@@ -336,6 +337,18 @@ def blocks_correction(
         # M is formed only where Newton asks for a fresh Jacobian (chord iterations, and at the solution).
         return Evaluation(residual, matrix, monodromy)
 
+    solved = newton(
+        closure, w0, converged=deep_convergence(tol), max_iterations=max_iter, divergence=None, chord=CHORD_RATE, damping=damping
+    )
+    if not solved.converged or (segments is not None and solved.evaluation.data.size <= ALL_MULTIPLIERS_UP_TO):
+        return solved, None
+    return solved, Monodromy(system, solved.evaluation.data.start, solved.evaluation.data.period, rtol, atol).matrix(threads=threads)
+
+
+def deep_convergence(tol: float):
+    """The convergence test of Newton with inexact steps (:func:`~.kit.newton`'s ``converged``): the closure at
+    ``tol`` times :data:`NEWTON_DEPTH`, or at ``tol`` where a step no longer divides it by 1 / :data:`CHORD_RATE`
+    (its noise floor)."""
     previous = [math.inf]
 
     def converged(evaluation: Evaluation, norm: float) -> bool:
@@ -343,10 +356,7 @@ def blocks_correction(
         previous[0] = norm
         return done
 
-    solved = newton(closure, w0, converged=converged, max_iterations=max_iter, divergence=None, chord=CHORD_RATE, damping=damping)
-    if not solved.converged or (segments is not None and solved.evaluation.data.size <= ALL_MULTIPLIERS_UP_TO):
-        return solved, None
-    return solved, Monodromy(system, solved.evaluation.data.start, solved.evaluation.data.period, rtol, atol).matrix(threads=threads)
+    return converged
 
 
 def blocked_shooting(system: _System, particle_turns: np.ndarray, rtol: float, atol: float):

@@ -73,7 +73,7 @@ from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, force_columns, free_index, held, n_free, pack, per_dof, unpack, zeros
 from ..state import dof as free_dof
 from ..status import Status
-from . import collocation_core, dop853, floquet, long_orbits
+from . import collocation_core, dop853, floquet, long_orbits, newton_picard
 from .addresses import entry
 from .dynamics import TurnWatch, integrate
 from .integrators import default_time_step
@@ -961,12 +961,13 @@ def find_periodic_orbit(
         Tolerances of the DOP853 integrations of the state and its variations.
     transient_turns : int
         Turns simulated before the default guess is taken.
-    method : {"auto", "dense", "blocks", "krylov", "collocation"}
+    method : {"auto", "dense", "blocks", "krylov", "picard", "collocation"}
         ``dense``: the monodromy matrix integrated in one piece; ``blocks``: assembled from
         column blocks integrated on parallel threads, with the memory of M alone (all
         multipliers up to 2 n_free = 2500, the leading ones above); ``krylov``: never formed,
         Newton-Krylov shooting with the leading multipliers by Arnoldi (:mod:`~.long_orbits`);
-        ``auto``: ``blocks`` from N = ``long_orbits.BLOCKS_FROM_N`` on, else ``dense``;
+        ``picard``: Newton-Picard shooting, the multipliers above ``newton_picard.RHO`` with their
+        residuals (:mod:`~.newton_picard`); ``auto``: ``blocks`` from N = ``long_orbits.BLOCKS_FROM_N`` on, else ``dense``;
         ``collocation``: orthogonal collocation with its default mesh (:mod:`~.collocation_core`; ``tol``,
         ``rtol`` and ``atol`` do not apply), the start put on the section afterwards.
     segments : int, optional
@@ -1072,9 +1073,12 @@ def find_periodic_orbit(
 
 
 def _long_orbit(system, turns, y0, period, particle_turns, phase, method, *, tol, max_iter, rtol, atol, segments=None) -> PeriodicOrbit:
-    """:func:`find_periodic_orbit` by the blocks or Newton-Krylov (:mod:`.long_orbits`), with the multipliers' errors
+    """:func:`find_periodic_orbit` by the blocks, Newton-Krylov (:mod:`.long_orbits`) or Newton-Picard (:mod:`.newton_picard`: the
+    trivial multiplier and those above its rho), with the multipliers' errors
     (by the blocks with ``segments``: from the segments' matrices, :func:`~.long_orbits.orbit_multipliers`)."""
-    correct = long_orbits.krylov_correction if method == "krylov" else long_orbits.blocks_correction
+    correct = {"krylov": long_orbits.krylov_correction, "picard": newton_picard.picard_correction}.get(
+        method, long_orbits.blocks_correction
+    )
     options = {} if segments is None else {"segments": segments}
     try:
         solved, monodromy = correct(
@@ -1084,7 +1088,10 @@ def _long_orbit(system, turns, y0, period, particle_turns, phase, method, *, tol
         if not solved.converged:
             raise OrbitError(_no_convergence(system.moment, turns, solved.iterations, solved.norm))
         y0 = phase.state(solved.w[:-1])
-        multipliers, errors, logs = long_orbits.orbit_multipliers(system, y0, solved.w[-1], monodromy, segments, rtol=rtol, atol=atol)
+        if method == "picard":  # the Ritz values of the converged dominant subspace
+            (multipliers, errors), logs = monodromy, None
+        else:
+            multipliers, errors, logs = long_orbits.orbit_multipliers(system, y0, solved.w[-1], monodromy, segments, rtol=rtol, atol=atol)
     except EvaluationFailed as err:
         raise OrbitError(f"the monodromy's products at the orbit failed: {err}") from err
     return _orbit_from(

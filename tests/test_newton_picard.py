@@ -1,0 +1,112 @@
+"""Newton-Picard shooting (numerics.newton_picard): the blocks' orbit, the leading multipliers within their residuals."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from conftest import random_geometries
+from cosserat_chain import ChainParams
+from cosserat_chain.numerics import newton_picard
+from cosserat_chain.numerics.newton_picard import RHO, check_options, ritz_multipliers
+from cosserat_chain.numerics.periodic import find_periodic_orbit, initial_guess
+
+#: The two shootings stop at closure 1e-12 (the blocks' depth below tol 1e-9) with products at 1e-11: their orbits agree to this.
+SAME_ORBIT = 1e-9
+
+#: (params, model, moment): the strongly damped sine and nonlinear chains of benchmarks/bench_long_orbits.py, a random geometry.
+CASES = {
+    "sine N=10": (ChainParams(N=10, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0), "sine", 0.3),
+    "nonlinear N=10": (ChainParams(N=10, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0), "nonlinear", 0.3),
+    "random sine N=3": (random_geometries(6, seed=3)[1], "sine", 0.40880890655281255),
+}
+
+
+def _shootings(params, model, moment) -> dict:
+    guess = initial_guess(params, model, moment)
+    return {method: find_periodic_orbit(params, model, moment, guess=guess, method=method) for method in ("picard", "blocks")}
+
+
+@pytest.fixture(scope="module", params=list(CASES))
+def two_shootings(request):
+    """The same orbit from the same guess by Newton-Picard and by the blocks (all multipliers)."""
+    return _shootings(*CASES[request.param])
+
+
+def _check_against_blocks(picard, blocks) -> None:
+    assert picard.period == pytest.approx(blocks.period, abs=SAME_ORBIT)
+    assert np.max(np.abs(picard.x - blocks.x)) < SAME_ORBIT and np.max(np.abs(picard.v - blocks.v)) < SAME_ORBIT
+    # Every multiplier above rho, no more and no fewer (the trivial one besides), each one of the blocks' within the two
+    # stated errors (the residuals here, the blocks' deflated eigen-residuals).
+    assert picard.multiplier_errors.shape == picard.multipliers.shape
+    for mu, error in zip(picard.multipliers, picard.multiplier_errors, strict=True):
+        nearest = np.argmin(np.abs(blocks.multipliers - mu))
+        assert abs(blocks.multipliers[nearest] - mu) <= error + blocks.multiplier_errors[nearest]
+    assert np.count_nonzero(np.abs(blocks.multipliers) > RHO + 1e-6) <= picard.multipliers.size
+    assert np.all(np.abs(picard.multipliers) > RHO) and picard.multipliers.size <= np.count_nonzero(np.abs(blocks.multipliers) > RHO - 1e-6)
+    # The trivial one equals 1 within its error |(M - I) f| / |f|, which is small.
+    assert abs(picard.trivial_multiplier - 1.0) <= picard.trivial_multiplier_error < 1e-9
+    assert picard.stable == blocks.stable
+
+
+def test_newton_picard_finds_the_blocks_orbit_and_their_multipliers_above_rho(two_shootings):
+    _check_against_blocks(two_shootings["picard"], two_shootings["blocks"])
+
+
+@pytest.mark.slow
+def test_newton_picard_at_thirty_one_particles_each_side():
+    # 19 multipliers above rho = 0.5 among 354, the largest nontrivial 0.99993 (a soft mode Newton must carry).
+    _check_against_blocks(**_shootings(ChainParams(N=30, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0), "sine", 0.3))
+
+
+class _Matrix:
+    """A Monodromy stand-in: products with a known matrix."""
+
+    def __init__(self, matrix: np.ndarray):
+        self.matrix = matrix
+        self.size = matrix.shape[0]
+
+    def apply(self, columns: np.ndarray) -> np.ndarray:
+        return self.matrix @ columns
+
+
+def test_subspace_iteration_gives_the_multipliers_above_rho_of_a_non_normal_matrix_with_their_residuals():
+    rng = np.random.default_rng(7)
+    size = 60
+    # The flow's 1, a real one near 1, a complex pair and a real one just above rho, the rest below rho / 2.
+    known = np.concatenate([[1.0, 0.97, 0.6], 0.8 * np.exp([0.4j, -0.4j]), 0.25 * rng.uniform(-1, 1, size - 5)])
+    basis = (np.eye(size) + 0.3 * rng.standard_normal((size, size))).astype(complex)
+    basis[:, 3], basis[:, 4] = basis[:, 3].real + 1j * basis[:, 4].real, basis[:, 3].real - 1j * basis[:, 4].real
+    matrix = np.real(basis @ np.diag(known) @ np.linalg.inv(basis))
+    values, errors, _ = ritz_multipliers(_Matrix(matrix), basis[:, 0].real, rho=0.5, guard=4)
+    above = known[np.abs(known) > 0.5]
+    assert values.size == above.size
+    assert np.max([np.min(np.abs(above - mu)) for mu in values]) < 1e-9
+    assert values[0] == pytest.approx(1.0, abs=1e-12) and errors[0] < 1e-12
+    # Each residual is what it says: |M x - mu x| of the Ritz vector, small; all certified above rho.
+    assert np.all(errors < 1e-9) and np.all(np.abs(values) - errors > 0.5)
+
+
+@pytest.mark.parametrize(
+    ("rho", "guard", "match"),
+    [
+        (1.0, 8, r"rho must be a number in \(0, 1\)"),
+        (0.0, 8, r"rho must be a number in \(0, 1\)"),
+        (float("nan"), 8, r"rho must be a number in \(0, 1\)"),
+        (0.5, 0, r"guard must be an integer in \[1, 112\]"),
+        (0.5, 2.5, r"guard must be an integer in \[1, 112\]"),
+    ],
+)
+def test_bad_rho_or_guard_is_refused_with_what_is_allowed(rho, guard, match):
+    with pytest.raises(ValueError, match=match):
+        check_options(rho, guard, 114)
+
+
+def test_find_periodic_orbit_refuses_a_bad_module_rho(monkeypatch):
+    params = ChainParams(N=3, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0)
+    guess = initial_guess(params, "sine", 0.3)
+    monkeypatch.setattr(newton_picard, "RHO", 1.5)
+    with pytest.raises(ValueError, match=r"rho must be a number in \(0, 1\).*got 1.5"):
+        find_periodic_orbit(params, "sine", 0.3, guess=guess, method="picard")
+    with pytest.raises(ValueError, match="segments applies to the dense and blocks shooting only"):
+        find_periodic_orbit(params, "sine", 0.3, guess=guess, method="picard", segments=4)
