@@ -47,11 +47,10 @@ line then exits with ``inaccurate``.
 
 Where K is near singular at rest (as above), the end of the turn is not traced once M_c is decided: the turn of
 a long clamped chain ends near the chain at rest turned once, where M falls towards the corrector's limit and
-K's soft modes are again beyond its rounded entries (N = 10^5's trace crawled there, phi_0 = 6.267 after 116 s
-of CPU in the band form). Eq. (2)'s branch is not traced there: from rest to its first fold and one step beyond
+K's soft modes are again beyond its rounded entries (N = 10^5's trace crawled there, near phi_0 = 6.267 in the
+band form: docs/statics.md). Eq. (2)'s branch is not traced there: from rest to its first fold and one step beyond
 it is taken in closed form (below; ``Branch.stop`` "max_folds": the closed form bounds every static state's |M|
-by that fold's), with every point's stability computed (N = 10^5's trace had crawled to 1.3 rad after 80 s of
-CPU). Another model's trace ends once the stable branch from rest has ended at a fold, the loaded particle lies within
+by that fold's), with every point's stability computed (N = 10^5's trace had crawled near 1.3 rad). Another model's trace ends once the stable branch from rest has ended at a fold, the loaded particle lies within
 :data:`~cosserat_chain.numerics.continuation.END_ANGLE` of the turn and |M| has fallen to
 :data:`~cosserat_chain.numerics.continuation.END_MOMENT` of the largest maximum traced ("decided";
 ``continue_in_moment(decided=True)``, the same M_c and folds as the full turn: tests/test_critical_decided.py).
