@@ -131,3 +131,17 @@ def test_the_engine_hands_a_single_chain_stubs_for_the_batch_slots_and_a_batch_o
         assert handed[-1] == (no_chain_forces, ends, kind.batch_kernel, engine._batch_substep)
     # The batch's member equals its single run (the batch test's tolerance: another loop, the same scheme).
     np.testing.assert_allclose(batch.x[1], single.x[-1], rtol=0, atol=1e-12)
+
+
+def test_an_entry_is_typed_as_numbas_own_rule_types_it():
+    """The registered ``typeof`` gives the type the entry was made with, equal to (and interned as) the type Numba's
+    rule for wrapper-address objects builds from its signature, so the dispatcher picks the same compiled code."""
+    from numba import typeof, types
+    from numba.experimental.function_type import typeof_function_type
+
+    _, (rhs, kernel, ends, *_) = _parts("nonlinear")
+    for function, kind in ((kernel, FORCE_KERNEL_TYPE), (ends, END_KERNEL_TYPE)):
+        handed = entry(function, kind)
+        assert typeof(handed) is kind
+        assert typeof_function_type(handed, None) == kind
+        assert typeof((handed, handed)) == types.UniTuple(kind, 2)

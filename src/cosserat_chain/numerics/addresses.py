@@ -13,6 +13,7 @@ address, with no look-up; results are bitwise the same.
 from __future__ import annotations
 
 from numba import types
+from numba.core.typing.typeof import typeof_impl
 from numba.experimental.function_type import _get_wrapper_address
 
 
@@ -32,6 +33,17 @@ class _Entry(types.WrapperAddressProtocol):
 
     def signature(self):
         return self.kind.signature
+
+
+@typeof_impl.register(_Entry)
+def _typeof_entry(value: _Entry, context) -> types.FunctionType:
+    """The Numba type of an :class:`_Entry` argument: the type it was made with, not one built anew at every call.
+
+    Numba's own rule for wrapper-address objects builds a fresh ``FunctionType`` from the signature
+    each time the dispatcher types the argument; the type is the same, so the compiled code chosen is
+    the same.
+    """
+    return value.kind
 
 
 _ENTRIES: dict = {}
