@@ -118,7 +118,7 @@ def test_the_atlas_locates_all_four_edges_at_the_mathieu_values(atlas):
         assert isinstance(located, AtlasChange) and located.placed_by == "discriminant"
         assert located.change.kind == "+1" and located.value == C
         assert abs(located.change.omega - exact) <= located.accuracy < 1e-8
-    assert atlas.settings["locate"] == {"tol": 1e-9}
+    assert atlas.settings["locate"] == {"tol": 1e-9, "every": False}
 
 
 def test_the_atlas_changes_are_the_familys(atlas):
@@ -155,7 +155,7 @@ def test_the_dataset_and_the_json_carry_the_changes(atlas, tmp_path):
         for name in ds.data_vars:
             if str(name).startswith("change_"):
                 assert ds[name].attrs["units"] and ds[name].attrs["long_name"]
-        assert json.loads(ds.attrs["settings_json"])["locate"] == {"tol": 1e-9}
+        assert json.loads(ds.attrs["settings_json"])["locate"] == {"tol": 1e-9, "every": False}
     summary = atlas.as_dict()["stability_changes"]
     assert [c["omega"] for c in summary] == [c.change.omega for c in atlas.changes]
     assert all(c["placed_by"] == "discriminant" and c["kind"] == "+1" for c in summary)
@@ -184,9 +184,39 @@ def test_a_bad_tolerance_exits_2_naming_the_option(tol):
     assert result.exit_code == 2 and "--locate-tol" in result.output, result.output
 
 
-def test_locate_tol_without_an_atlas_exits_2():
-    result = runner.invoke(app, ["breathers", "--omega", "6", "--locate-tol", "1e-6"])
-    assert result.exit_code == 2 and "--locate-tol" in result.output and "--atlas" in result.output
+@pytest.mark.parametrize("extra", [["--locate-tol", "1e-6"], ["--locate-every"]])
+def test_locate_options_without_an_atlas_exit_2(extra):
+    result = runner.invoke(app, ["breathers", "--omega", "6", *extra])
+    assert result.exit_code == 2 and extra[0] in result.output and "--atlas" in result.output
+
+
+def test_locate_every_with_no_locate_exits_2():
+    result = runner.invoke(app, ["breathers", "--omega", "6", "--atlas", "b=0.2", "--no-locate", "--locate-every"])
+    assert result.exit_code == 2 and "--no-locate" in result.output
+
+
+def test_every_locates_the_pairs_leaving_an_unstable_stretch_too():
+    """The sine chain, N = 10, at Omega = 6.6, 6.4, 6.2, 6.0: stable, stable, unstable, unstable. By default only the loss
+    between 6.4 and 6.2 is located; with ``every`` also the two quartets that leave between 6.2 and 6.0, as the
+    family's located changes over the same members (each within the two accuracies)."""
+    from cosserat_chain import ChainParams
+    from cosserat_chain.experiments.breather_atlas import breather_atlas
+    from cosserat_chain.experiments.breathers import located_changes
+
+    chain = ChainParams(N=10, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
+    found = breather_atlas(chain, "sine", [6.6, 6.4, 6.2, 6.0], "b", [chain.b])
+    assert found.grid("stable").tolist() == [[1, 1, 0, 0]]
+    found.locate_changes()
+    (loss,) = found.changes
+    assert loss.between == (1, 2) and loss.change.kind == "complex"
+    found.locate_changes(every=True)
+    assert [c.between for c in found.changes] == [(1, 2), (2, 3), (2, 3)]
+    assert found.settings["locate"] == {"tol": 1e-6, "every": True}
+    family = located_changes([p.orbit for p in found.points[0]], found.bands)
+    assert len(family) == 3
+    for ours, theirs in zip(found.changes, family, strict=True):
+        assert ours.change.kind == theirs.kind == "complex"
+        assert abs(ours.change.omega - theirs.omega) <= ours.accuracy + theirs.accuracy
 
 
 def test_check_locate_tol_names_the_field():

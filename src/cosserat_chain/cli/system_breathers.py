@@ -63,12 +63,12 @@ def locate_tol_or_exit(tol: float | None) -> float:
         fail(f"--locate-tol: {err}")
 
 
-def atlas_changes(atlas, locate: bool, tol: float) -> None:
-    """With ``locate``: the atlas's changes of stability between neighbours located to ``tol`` (``locate_changes``), with a bar
-    that counts the pairs of neighbours to locate between."""
+def atlas_changes(atlas, locate: bool, tol: float, every: bool = False) -> None:
+    """With ``locate``: the atlas's changes of stability between neighbours located to ``tol`` (``locate_changes``, with
+    ``every``), with a bar that counts the pairs of neighbours to locate between."""
     if locate:
         bar = progress_bar("changes", "pair")
-        atlas.locate_changes(tol, progress=bar_callback(bar))
+        atlas.locate_changes(tol, progress=bar_callback(bar), every=every)
         bar.finish(note=f"{len(atlas.changes)} located")
 
 
@@ -110,13 +110,15 @@ def atlas_on_system(
     lifetimes: int = 0,
     locate: bool = True,
     locate_tol: float | None = None,
+    locate_every: bool = False,
 ) -> None:
     """``breathers --system REF --atlas NAME=V1,V2,...``: the existence map over (Omega, a parameter of the system).
 
     ``text`` names one of the system's parameters and its values; ``particle`` and ``partner``
     count its angles from the central one; ``lifetimes`` > 0 runs every orbit found from its
     perturbed velocities for that many periods (:func:`atlas_lifetimes`); ``locate`` locates the
-    changes of stability between neighbours to ``locate_tol`` (:func:`atlas_changes`). The outputs
+    changes of stability between neighbours to ``locate_tol`` (every one with ``locate_every``:
+    :func:`atlas_changes`). The outputs
     are checked (and locked) before anything is computed. Exit 2 on bad input.
     """
     import numpy as np
@@ -146,7 +148,7 @@ def atlas_on_system(
         fail(str(err))
     found = int(atlas.grid("exists").sum())
     bar.finish(note=f"{found} of {len(omegas) * len(values)} found")
-    atlas_changes(atlas, locate, tol)
+    atlas_changes(atlas, locate, tol, locate_every)
     atlas_lifetimes(atlas, lifetimes)
     if out is not None:
         save_dataset(atlas.to_dataset(reference), out)

@@ -42,9 +42,10 @@ and ``exists`` is whether one of them converged (``source`` says which). At each
   meets them, the lines the map is drawn against.
 
 :meth:`BreatherAtlas.locate_changes` then locates, between neighbours along Omega of one family
-(a point continued from the one before it) whose multiplier pairs off the unit circle differ
-(:func:`~cosserat_chain.numerics.breather_arclength.instability_counts`), every change of
-stability, with the families' one mechanism (:func:`~.breathers.located_changes`,
+(a point continued from the one before it) of opposite stability (with ``every``, also two
+unstable ones whose multiplier pairs off the unit circle differ:
+:func:`~cosserat_chain.numerics.breather_arclength.instability_counts`), every change of
+stability between them, with the families' one mechanism (:func:`~.breathers.located_changes`,
 :func:`~.system_breathers.locate_stability_changes`: the zero of the colliding pair's
 discriminant, its accuracy measured against the orbits found again at a tight tolerance) to an
 accuracy in Omega the caller asks for (:data:`LOCATE_TOL` by default): :class:`AtlasChange`,
@@ -162,9 +163,10 @@ class AtlasChange:
                 "placed_by": self.placed_by}  # fmt: skip
 
 
-def to_locate(points: list[list]) -> list[tuple[int, int]]:
+def to_locate(points: list[list], every: bool = False) -> list[tuple[int, int]]:
     """(row, i) of the neighbours points[row][i], points[row][i + 1] of one family (the second continued from the first in
-    Omega) whose pairs off the unit circle differ, or whose stability does."""
+    Omega) of opposite stability, and with ``every`` also two unstable ones whose pairs off the unit circle differ (a
+    second pair leaving or a pair coming back while another stays off)."""
     out = []
     for j, row in enumerate(points):
         for i in range(len(row) - 1):
@@ -172,18 +174,19 @@ def to_locate(points: list[list]) -> list[tuple[int, int]]:
             if a.orbit is None or b.orbit is None or b.source != "omega":
                 continue
             counts = instability_counts(a.orbit.nontrivial_multipliers), instability_counts(b.orbit.nontrivial_multipliers)
-            if collisions_between(*counts) or a.orbit.stable != b.orbit.stable:
+            if a.orbit.stable != b.orbit.stable or (every and collisions_between(*counts)):
                 out.append((j, i))
     return out
 
 
 def locate_atlas_changes(
     points: list[list], values: np.ndarray, locate: Callable[[int, object, object], list[StabilityChange]],
-    progress: Callable[[int, int], None] | None = None,
+    progress: Callable[[int, int], None] | None = None, every: bool = False,
 ) -> list[AtlasChange]:  # fmt: skip
-    """Every change of stability between the neighbours :func:`to_locate` gives, ``locate(row, a, b)`` the located changes
-    between orbits ``a`` and ``b`` of that row; ``progress(done, total)`` after each pair of neighbours."""
-    pairs = to_locate(points)
+    """Every change of stability between the neighbours :func:`to_locate` gives (with ``every``), ``locate(row, a, b)`` the
+    located changes between orbits ``a`` and ``b`` of that row (each collision between them, as their pairs off the circle
+    count them); ``progress(done, total)`` after each pair of neighbours."""
+    pairs = to_locate(points, every)
     out = []
     for n, (j, i) in enumerate(pairs):
         for change in locate(j, points[j][i].orbit, points[j][i + 1].orbit):
@@ -383,9 +386,10 @@ class BreatherAtlas:
     def params_at(self, value: float) -> ChainParams:
         return chain_at(self.params, self.field, value)
 
-    def locate_changes(self, tol: float = LOCATE_TOL, progress: Callable[[int, int], None] | None = None) -> None:
-        """Locate every change of stability between neighbours along Omega (:func:`locate_atlas_changes`) to ``tol`` in Omega,
-        by :func:`~.breathers.located_changes`; kept in :attr:`changes`, :meth:`as_dict`, :meth:`to_dataset` and the settings.
+    def locate_changes(self, tol: float = LOCATE_TOL, progress: Callable[[int, int], None] | None = None, every: bool = False) -> None:
+        """Locate every change of stability between neighbours along Omega of opposite stability, with ``every`` between any
+        whose pairs off the circle differ (:func:`locate_atlas_changes`), to ``tol`` in Omega, by
+        :func:`~.breathers.located_changes`; kept in :attr:`changes`, :meth:`as_dict`, :meth:`to_dataset` and the settings.
 
         Raises
         ------
@@ -393,8 +397,10 @@ class BreatherAtlas:
             For a tolerance :func:`check_locate_tol` refuses.
         """
         tol = check_locate_tol(tol)
-        self.changes = locate_atlas_changes(self.points, self.values, lambda j, a, b: located_changes([a, b], self.bands, tol), progress)
-        self.settings["locate"] = {"tol": tol}
+        self.changes = locate_atlas_changes(
+            self.points, self.values, lambda j, a, b: located_changes([a, b], self.bands, tol), progress, every
+        )  # fmt: skip
+        self.settings["locate"] = {"tol": tol, "every": every}
 
     def measure_lifetimes(
         self, max_periods: int, *, perturbation: float = 1e-8, threshold: float = 1e-2, progress: Callable[[int, int], None] | None = None

@@ -197,9 +197,9 @@ class SystemBreatherAtlas:
     #: From :meth:`locate_changes` (None: not located).
     changes: list[AtlasChange] | None = None
 
-    def locate_changes(self, tol: float = LOCATE_TOL, progress: Callable[[int, int], None] | None = None) -> None:
-        """Locate every change of stability between neighbours along Omega
-        (:func:`~.breather_atlas.locate_atlas_changes`) to ``tol`` in Omega, by
+    def locate_changes(self, tol: float = LOCATE_TOL, progress: Callable[[int, int], None] | None = None, every: bool = False) -> None:
+        """Locate every change of stability between neighbours along Omega of opposite stability, with ``every`` between
+        any whose pairs off the circle differ (:func:`~.breather_atlas.locate_atlas_changes`), to ``tol`` in Omega, by
         :func:`~.system_breathers.locate_stability_changes`; kept in :attr:`changes`, :meth:`as_dict`,
         :meth:`to_dataset` and the settings.
 
@@ -220,8 +220,8 @@ class SystemBreatherAtlas:
             solve = partial(_at, here, k, unfold)
             return locate_stability_changes(a, b, solve, linear_bands(here), first, tol=tol)
 
-        self.changes = locate_atlas_changes(self.points, self.values, locate, progress)
-        self.settings["locate"] = {"tol": tol}
+        self.changes = locate_atlas_changes(self.points, self.values, locate, progress, every)
+        self.settings["locate"] = {"tol": tol, "every": every}
 
     def measure_lifetimes(
         self, max_periods: int, *, perturbation: float = 1e-8, threshold: float = 1e-2, progress: Callable[[int, int], None] | None = None
