@@ -31,11 +31,16 @@ a multiplier that crosses ``rho`` between steps enters V_p, and grows by random 
 does; a direction along which Picard grows or stalls (a multiplier above ``rho`` still outside
 V_p) joins it too. The basis
 starts from the flow f(y0) (the trivial multiplier's vector) and random columns, swept at the
-guess until the count above ``rho`` settles (:data:`START_SWEEPS`). Newton's products use the looser
+guess until the count above ``rho`` and their moduli settle with ``guard`` columns below them
+(:data:`START_SWEEPS`). Newton's products use the looser
 :data:`~.long_orbits.NEWTON_PRODUCTS_RTOL`; the closure itself is at the shooting's tolerance and
 the convergence test is the blocks' (:func:`~.long_orbits.deep_convergence`). Each Newton step
 costs one state integration, one block and the Picard products: no monodromy is ever formed
-(memory: a few (2 n_free, p + g) blocks).
+(memory: a few (2 n_free, p + g) blocks). The split step is exact only where V_p is invariant,
+so far from the orbit it is a poorer step than the blocks' Newton step: Newton-Picard wants a
+guess near the orbit (a settled simulation of a damped chain, or the orbit at a nearby moment);
+from a settled guess that closes only to 1e-1 (a random geometry at N = 3, tests) it may stall
+where the blocks converge.
 
 **Multipliers and their guarantee** (:func:`ritz_multipliers`): at the solution the basis is
 refined by subspace iteration on the monodromy at the shooting's tolerance, with the flow
@@ -71,8 +76,9 @@ RHO = 0.5
 #: Columns of the basis beyond those above ``rho`` (they catch a multiplier crossing ``rho``, and speed up the iteration).
 GUARD = 8
 #: Subspace-iteration sweeps at the guess before the first Newton step: at least this many, and on (up to the
-#: second number) until the count of multipliers above ``rho`` repeats.
-START_SWEEPS, START_SWEEPS_MAX = 3, 30
+#: second number) until the count of multipliers above ``rho`` repeats with ``guard`` columns of the basis below it
+#: and their moduli move by at most START_SETTLED.
+START_SWEEPS, START_SWEEPS_MAX, START_SETTLED = 3, 40, 1e-3
 #: Picard's relative tolerance on q in a Newton step: the closure max |R|, clipped to this range.
 PICARD_RTOL_MIN, PICARD_RTOL_MAX = 1e-10, 1e-2
 #: Most Picard products in one Newton step.
@@ -126,11 +132,18 @@ class _Subspace:
             self.basis = _orthonormal(np.column_stack([self.basis, direction]))
 
     def start(self, monodromy: Monodromy) -> None:
-        """Sweeps at the guess: at least :data:`START_SWEEPS`, on until the count above ``rho`` repeats (at most
-        :data:`START_SWEEPS_MAX`)."""
-        counts = [self.sweep(monodromy)[3] for _ in range(START_SWEEPS)]
-        while counts[-1] != counts[-2] and len(counts) < START_SWEEPS_MAX:
-            counts.append(self.sweep(monodromy)[3])
+        """Sweeps at the guess: at least :data:`START_SWEEPS`, on until the count above ``rho`` repeats with ``guard``
+        columns below it and their moduli settle (:data:`START_SETTLED`; at most :data:`START_SWEEPS_MAX`)."""
+        moduli, settled, sweeps = None, False, 0
+        while sweeps < START_SWEEPS_MAX and not (settled and sweeps >= START_SWEEPS):
+            columns = self.basis.shape[1] if self.basis is not None else 0
+            _, _, schur, above = self.sweep(monodromy)
+            sweeps += 1
+            previous, moduli = moduli, np.sort(np.abs(sla.eigvals(schur[:above, :above])))
+            settled = (
+                previous is not None and previous.size == above and columns >= above + self.guard
+                and np.max(np.abs(moduli - previous), initial=0.0) <= START_SETTLED
+            )  # fmt: skip
 
     def sweep(self, monodromy: Monodromy) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
         """One Schur-Rayleigh-Ritz sweep: (V, M V, V^T M V) in the Schur basis, those above ``rho`` first, and their count p.
