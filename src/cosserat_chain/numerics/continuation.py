@@ -969,6 +969,8 @@ class _StaticBranch:
             end = (BranchEnd.MAX_FOLDS, "")
         elif stops.decided and (decided := self._decided(phi, moment)):
             end = (BranchEnd.DECIDED, decided)
+            if self.progress is not None:
+                self.progress(total, total)  # what the trace was for is done: the progress to its end
         elif angles[lead] - phi >= 2 * math.pi:
             # Another particle has turned a full turn further than the loaded one (a pinned end
             # that turns first: clamped-pinned N = 1, h = 1, a = 0.45, b = 0.1, E1 = 0.5, E2 = 1.5,
