@@ -439,3 +439,24 @@ def test_dispersion_bands_are_the_eigenvalues_of_the_independent_bloch_matrix():
         expected = np.array([np.linalg.eigvalsh(scale @ (A + C + B * np.exp(1j * k) + B.T * np.exp(-1j * k)) @ scale) for k in q]).T
         computed = np.sort(dispersion(p, q).omega2, axis=0)
         assert np.abs(computed - expected).max() <= 1e-12 * expected.max()
+
+
+# -- hostile inputs found by the audit ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize("model", ["sine", "linear"])
+def test_equilibrium_of_a_chain_without_transverse_stiffness_is_refused_by_name(model):
+    # E2 = 0 is admissible (k_v = 0), but K of eqs. (2)-(3) is then singular: a raw LinAlgError or a NaN state before.
+    with pytest.raises(ValueError, match=r"singular for this chain \(E2=0\.0"):
+        solve_equilibrium(ChainParams(N=2, E2=0.0), model, moment_load(0.01))
+
+
+def test_waves_refuses_a_graded_chain_naming_its_factors(tmp_path):
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    config = tmp_path / "graded.toml"
+    config.write_text("N = 1\nE1_factors = [1.0, 2.0]\n")
+    result = CliRunner().invoke(app, ["waves", "--json", "--config", str(config)])
+    assert result.exit_code == 2 and "E1_factors" in result.output and "Traceback" not in result.output

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import typer
 
-from .common import app, outputs_or_exit, params_or_exit, save_figure
+from .common import app, fail, outputs_or_exit, params_or_exit, save_figure
 
 
 @app.command()
@@ -23,6 +23,11 @@ def waves(
 
     outputs_or_exit({"--plot": plot}, {"--config": config})
     params = params_or_exit(config)
+    if params.graded:
+        fail(
+            "--config: waves are those of the infinite uniform chain; a graded chain's factors (E1_factors, E2_factors, "
+            "m_factors, j_factors) have no dispersion relation: leave them out"
+        )
     summary = wave_summary(params)
     if plot is not None:
         from ..plots.theory import plot_dispersion  # matplotlib only when plotting

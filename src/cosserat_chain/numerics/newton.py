@@ -224,7 +224,8 @@ def solve_equilibrium(
     NewtonError
         If the residual is still above the tolerance after ``max_iter`` iterations (from ``x0``).
     ValueError
-        For a chain that can move rigidly (:func:`~cosserat_chain.state.require_held`), or an ``x0`` of the wrong shape.
+        For a chain that can move rigidly (:func:`~cosserat_chain.state.require_held`), an ``x0`` of the wrong shape,
+        or, without ``x0``, a stiffness at rest that is singular (E2 = 0 in the linear and sine models).
     """
     model = get_model(model)
     require_held(params)
@@ -272,13 +273,25 @@ def _follow_from_rest(params: ChainParams, model: Model, load: np.ndarray, tol: 
     from .stability import static_stability
 
     x = zeros(params)
-    check = static_stability(params, model, x)
     lam, steps = 0.0, 0
     target = pack(params, load)
     phi = ROW_INDEX["phi"]
 
     def tangent_at(x: np.ndarray) -> np.ndarray:
         return unpack(params, sparse_solve(model.stiffness(params, x), target))
+
+    try:
+        check = static_stability(params, model, x)
+        tangent = tangent_at(x)
+    except np.linalg.LinAlgError:
+        tangent = None
+    if tangent is None or not np.all(np.isfinite(tangent)):
+        # E2 = 0 leaves v without stiffness (k_v = 0): the linear and sine models' K is singular at every state.
+        raise ValueError(
+            f"the {model.name} model's stiffness K at rest is singular for this chain (E2={params.E2!r}, E1={params.E1!r}, "
+            f"b={params.b!r}; E2 = 0 leaves the transverse displacements v without stiffness): no static state follows "
+            "from rest under the loads; give x0 to solve from a start of your own"
+        )
 
     def largest_step(tangent: np.ndarray) -> float:
         """The load step over which the tangent turns no angle by more than LOAD_PHI_STEP (1 for a model of small rotations)."""
@@ -287,7 +300,6 @@ def _follow_from_rest(params: ChainParams, model: Model, load: np.ndarray, tol: 
         turn = float(np.max(np.abs(tangent[phi])))
         return LOAD_PHI_STEP / turn if turn > 0.0 else 1.0
 
-    tangent = tangent_at(x)
     step = min(1.0, largest_step(tangent))
     while lam < 1.0:
         if steps >= MAX_LOAD_STEPS or step < MIN_LOAD_STEP:
