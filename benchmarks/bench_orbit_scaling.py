@@ -129,6 +129,51 @@ def columns(n: int, span: float) -> dict:
     return row
 
 
+COLUMNS_HEADER = (
+    "| N | 2 n_free | columns | s per unit time | steps | a column / the state | package s per step | NumPy reference | load |\n"
+    "|---|---|---|---|---|---|---|---|---|"
+)
+SCALING_HEADER = (
+    "| model | N | state only (s per unit time) | with the monodromy (exact Jacobian) | (differences) | its memory (MB) "
+    "| Floquet eigenvalues (s) |\n|---|---|---|---|---|---|---|"
+)
+
+
+def columns_lines(r: dict) -> list[str]:
+    """The ``--columns`` table's rows of one N."""
+    lines = []
+    for ncols, e in r["runs"].items():
+        ratio = f"{e['column_over_state']:.2f}" if ncols else "-"
+        reference = f"{e['reference_s_per_step']:.3g}" if ncols else "-"
+        lines.append(
+            f"| {r['N']} | {r['size']} | {ncols} | {e['s_per_time']:.3g} | {e['steps']} | {ratio} | {e['package_s_per_step']:.3g} | "
+            f"{reference} | {r['load_average']:.1f}-{r['load_average_after']:.1f} |"
+        )
+    return lines
+
+
+def scaling_lines(row: dict) -> list[str]:
+    """The default table's row of one model and N."""
+    return [
+        f"| {row['model']} | {row['N']} | {row['state_only_s_per_time']:.2g} | {row['with_monodromy_s_per_time']:.2g} | "
+        f"{row['with_monodromy_differences_s_per_time']:.2g} | {row['monodromy_memory_MB']:.2g} | {row['floquet_eigenvalues_s']:.2g} |"
+    ]
+
+
+def _sweep(cases: list, measure_one, header: str, row_lines, out: Path, log, as_json: bool) -> None:
+    """Print ``header``, then measure each case in turn, print its rows and rewrite ``out`` as each comes (an
+    interrupted sweep keeps its rows); with ``as_json`` the rows as one JSON list on stdout."""
+    print(header, file=log)
+    table = []
+    for case in cases:
+        table.append(measure_one(case))
+        print("\n".join(row_lines(table[-1])), file=log, flush=True)
+        out.parent.mkdir(exist_ok=True)
+        out.write_text(json.dumps(table, indent=1))
+    if as_json:
+        print(json.dumps(table))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--json", action="store_true", help="print the results as one JSON object")
@@ -137,50 +182,10 @@ def main() -> None:
     args = parser.parse_args()
     log = sys.stderr if args.json else sys.stdout
     if args.columns:
-        print(
-            "| N | 2 n_free | columns | s per unit time | steps | a column / the state | package s per step | NumPy reference | load |",
-            file=log,
-        )
-        print("|---|---|---|---|---|---|---|---|---|", file=log)
-        table = []
-        for n in args.sizes:
-            table.append(columns(n, 2.0))
-            r = table[-1]
-            for ncols, e in r["runs"].items():
-                ratio = f"{e['column_over_state']:.2f}" if ncols else "-"
-                reference = f"{e['reference_s_per_step']:.3g}" if ncols else "-"
-                print(
-                    f"| {n} | {r['size']} | {ncols} | {e['s_per_time']:.3g} | {e['steps']} | {ratio} | {e['package_s_per_step']:.3g} | "
-                    f"{reference} | {r['load_average']:.1f}-{r['load_average_after']:.1f} |",
-                    file=log,
-                    flush=True,
-                )
-            RESULTS.mkdir(exist_ok=True)
-            (RESULTS / "orbit_columns.json").write_text(json.dumps(table, indent=1))
-        if args.json:
-            print(json.dumps(table))
-        return
-    rows = []
-    print(
-        "| model | N | state only (s per unit time) | with the monodromy (exact Jacobian) | (differences) | its memory (MB) "
-        "| Floquet eigenvalues (s) |\n|---|---|---|---|---|---|---|",
-        file=log,
-    )
-    for model in MODELS:
-        for n in SIZES:
-            row = measure(model, n)
-            rows.append(row)
-            print(
-                f"| {model} | {n} | {row['state_only_s_per_time']:.2g} | {row['with_monodromy_s_per_time']:.2g} | "
-                f"{row['with_monodromy_differences_s_per_time']:.2g} | {row['monodromy_memory_MB']:.2g} | "
-                f"{row['floquet_eigenvalues_s']:.2g} |",
-                file=log,
-                flush=True,
-            )
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "orbit_scaling.json").write_text(json.dumps(rows, indent=1))
-    if args.json:
-        print(json.dumps(rows))
+        _sweep(args.sizes, lambda n: columns(n, 2.0), COLUMNS_HEADER, columns_lines, RESULTS / "orbit_columns.json", log, args.json)
+    else:
+        cases = [(model, n) for model in MODELS for n in SIZES]
+        _sweep(cases, lambda case: measure(*case), SCALING_HEADER, scaling_lines, RESULTS / "orbit_scaling.json", log, args.json)
 
 
 if __name__ == "__main__":
