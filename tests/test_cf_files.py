@@ -24,6 +24,7 @@ from cosserat_chain import ChainParams, simulate
 from cosserat_chain.analysis.exact_beam import bending_convergence
 from cosserat_chain.analysis.timoshenko import convergence
 from cosserat_chain.cli import app
+from cosserat_chain.experiments import system_diagram as system_diagram_module
 from cosserat_chain.experiments.critical import critical_point
 from cosserat_chain.experiments.orbits import rotation_characteristic
 from cosserat_chain.experiments.study import compute_cell, empty_results, spec_from_mapping, store_cell
@@ -41,6 +42,7 @@ from cosserat_chain.io import (
     stack_models,
     write_dataset,
 )
+from pen_loops import assert_the_pen_loops_call, pen_loop_given
 
 runner = CliRunner()
 
@@ -105,8 +107,15 @@ def files(tmp_path_factory) -> dict[str, Path]:
     out["breathers"] = _cli(tmp, "breathers", "breathers", "--model", "nonlinear", "--omega", "10.5", "--to", "10.3", "--steps", "2")
     out["system_simulate"] = _cli(tmp, "system_simulate", "simulate", "--system", "pen", "--velocity", "4", "--t-end", "5", "--frames", "6")
     out["system_orbit"] = _cli(tmp, "system_orbit", "orbit", "--system", "pen")
-    # eps = 0.3: the same columns as at 0.1, its edge in half the shooting evaluations.
-    out["system_diagram"] = _cli(tmp, "system_diagram", "diagram", "--system", "pen", "--vary", "eps", "--values", "0.3", "--drive", "I")
+    # eps = 0.3: the same columns as at 0.1, its edge in half the shooting evaluations. The command's diagram is the one
+    # tests/test_system_diagram.py checks (its call asserted to be that one's), computed once a session.
+    calls: list = []
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(system_diagram_module, "system_diagram", pen_loop_given(0.3, calls))
+        argv = ("diagram", "--system", "pen", "--vary", "eps", "--values", "0.3", "--drive", "I")
+        out["system_diagram"] = _cli(tmp, "system_diagram", *argv)
+    (call,) = calls
+    assert_the_pen_loops_call(call, 0.3)
     return out
 
 

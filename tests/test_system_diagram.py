@@ -30,6 +30,7 @@ from cosserat_chain.systems.frenkel_kontorova import frenkel_kontorova
 from cosserat_chain.systems.josephson import josephson_array
 from cosserat_chain.systems.pen import pen
 from cosserat_chain.systems.takeno_peyrard import takeno_peyrard
+from pen_loops import assert_the_pen_loops_call, pen_loop, pen_loop_given
 
 #: The accuracy the issue asks of the lower edge of the loop.
 ASKED = 1e-8
@@ -101,13 +102,6 @@ def invoke(*args: str):
 
 
 # -- the homoclinic ends, solved ------------------------------------------------------------------
-
-
-@functools.cache
-def pen_loop(eps: float):
-    """The pen demo's diagram at one eps with the defaults, computed once a session for each eps (the row's test and
-    the command's, which is given it)."""
-    return system_diagram(pen(), "eps", [eps], "I")
 
 
 @pytest.mark.parametrize("eps", [0.3, pytest.param(0.1, marks=pytest.mark.slow)])
@@ -314,12 +308,7 @@ def test_the_command_saves_and_dumps_the_solved_end(tmp_path, monkeypatch):
     # The command's call of system_diagram is the pen row's test's (the same system, values and defaults): its diagram
     # computed once (pen_loop), the command's parsing, JSON and file as before.
     calls = []
-
-    def given(system, vary, values, drive, **options):
-        calls.append((system.describe(), vary, list(values), drive, options))
-        return pen_loop(0.3)
-
-    monkeypatch.setattr(module, "system_diagram", given)
+    monkeypatch.setattr(module, "system_diagram", pen_loop_given(0.3, calls))
     out = tmp_path / "loop.nc"
     args = ("diagram", "--system", "pen", "--vary", "eps", "--values", "0.3", "--drive", "I")
     result = invoke(*args, "--json", "--out", str(out))
@@ -333,11 +322,8 @@ def test_the_command_saves_and_dumps_the_solved_end(tmp_path, monkeypatch):
         assert str(ds.stops_method.values[0]) == "solved"
         assert float(ds.stops[0]) == row["stops"] and float(ds.stops_uncertainty[0]) == row["stops_uncertainty"]
         assert json.loads(ds.attrs["snic_point_json"]) is None and ds.attrs["drive"] == "I"
-    ((system, vary, values, drive, options),) = calls
-    assert (system, vary, values, drive) == (pen().describe(), "eps", [0.3], "I")
-    assert options["turns"] == pen_loop(0.3).turns == {"phi_0": 1, "phi_1": 1}
-    assert np.array_equal(options["start"], np.zeros(2)) and options["period_max"] == module.PERIOD_MAX  # the defaults
-    assert options["codim2"] is False
+    (call,) = calls
+    assert_the_pen_loops_call(call, 0.3)
 
 
 @pytest.mark.slow
