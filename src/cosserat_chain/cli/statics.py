@@ -221,7 +221,7 @@ def critical(
             if r.branch.stop in (BranchEnd.WOUND, BranchEnd.DECIDED):
                 over += f" (the trace stopped: {r.branch.message})"
             elif r.branch.stop == BranchEnd.MAX_FOLDS and r.confirmation == "closed form":
-                over += " (the trace stopped at its first fold: no static state of eq. (2) holds more)"
+                over += " (the branch in closed form to one step past its first fold: no static state of eq. (2) holds more)"
             if r.confirmation == "closed form":
                 over += ", each at eq. (2)'s closed form M = +-1 / max_j |dphi_j/dM|"
             elif r.confirmation == "re-solved":
