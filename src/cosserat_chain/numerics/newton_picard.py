@@ -47,8 +47,9 @@ refined by subspace iteration on the monodromy at the shooting's tolerance, with
 direction u = f / |f| deflated as in :func:`~.long_orbits.leading_multipliers`: the trivial
 multiplier u . M u with its error |(M - I) u| (>= its distance from 1 up to the products'
 accuracy), the others the Ritz values of the deflated M on the basis, each with its residual
-|M x - mu x| (unit Ritz vector x, plus the flow's coupling |M u - (u . M u) u|), until those
-above ``rho`` are below :data:`RITZ_TOL` max(1, |mu|) or :data:`REFINE_MAX` sweeps. The residual
+|M x - mu x| (unit Ritz vector x, plus the flow's coupling |M u - (u . M u) u|, the integrations' floor), until the residuals of
+those above ``rho`` (without the coupling) are below :data:`RITZ_TOL` max(1, |mu|) or
+:data:`REFINE_MAX` sweeps. The residual
 is a backward error: each mu is an exact multiplier of a monodromy within that distance of the
 computed one (the eigenvalue itself may move further by its condition number where M is far
 from normal). A multiplier is *certified above rho* where |mu| - residual > rho. The orbit's
@@ -326,10 +327,12 @@ def ritz_multipliers(
         rayleigh = basis.T @ image
         values, vectors = sla.eig(rayleigh)
         vectors = vectors / np.linalg.norm(vectors, axis=0)
-        errors = np.linalg.norm(image @ vectors - (basis @ vectors) * values, axis=0) + coupling
+        residuals = np.linalg.norm(image @ vectors - (basis @ vectors) * values, axis=0)
+        errors = residuals + coupling
         above = np.abs(values) > rho
         wanted = int(np.count_nonzero(above))
-        done = np.all(errors[above] <= RITZ_TOL * np.maximum(1.0, np.abs(values[above])))
+        # The flow's coupling is the integrations' floor, the same every sweep: the test is on the residuals alone.
+        done = np.all(residuals[above] <= RITZ_TOL * np.maximum(1.0, np.abs(values[above])))
         # Converged once the basis also holds a multiplier below rho (none above it left out).
         if (done and wanted < basis.shape[1]) or sweep == sweeps - 1:
             break
