@@ -300,3 +300,22 @@ def test_the_chain_cli_json_and_netcdf_carry_the_located_changes(tmp_path):
         assert ds["change_omega"].values.tolist() == [c["omega"] for c in changes]
         assert ds["change_accuracy"].values.tolist() == [c["accuracy"] for c in changes]
         assert ds["change_accuracy"].attrs["units"] == "rad s-1"
+
+
+@pytest.mark.slow
+def test_a_krein_collision_on_a_dense_circle_is_located_where_the_quartet_leaves():
+    """The sine chain, N = 25, between Omega = 6.4 and 6.2: a quartet leaves the circle between 6.3640402 (off it by 1.5e-5
+    in modulus, solved at rtol 1e-13) and 6.3640407 (on it to 1e-12). The atlas's first located change lies there, and
+    is the family's within the two accuracies (a bisection cut short on the circle's many multipliers picked another
+    pair, whose discriminant's zero lay 5e-7 away)."""
+    from cosserat_chain import ChainParams
+    from cosserat_chain.experiments.breather_atlas import breather_atlas
+    from cosserat_chain.experiments.breathers import located_changes
+
+    chain = ChainParams(N=25, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
+    found = breather_atlas(chain, "sine", [6.6, 6.4, 6.2], "b", [chain.b])
+    found.locate_changes()
+    first = found.changes[0]
+    assert first.change.kind == "complex" and 6.3640402 < first.change.omega < 6.3640407
+    (theirs, *_) = located_changes([p.orbit for p in found.points[0][1:]], found.bands)
+    assert abs(first.change.omega - theirs.omega) <= first.accuracy + theirs.accuracy

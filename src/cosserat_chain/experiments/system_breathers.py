@@ -935,10 +935,12 @@ def _centre(unstable, kind: str) -> complex | None:
 
 def _bracketed(stable, unstable, kind: str) -> bool:
     """Whether the collision's discriminant is resolved at both members (their own multipliers) with opposite signs, the
-    stable one's < 0: the secant can start from them."""
-    centre = _centre(unstable, kind)
-    d_stable = collision_discriminant(stable.multipliers, kind, centre)
-    d_unstable = collision_discriminant(unstable.multipliers, kind, centre)
+    stable one's < 0: the secant can start from them. Never for a Krein collision: its centre, taken from an unstable
+    member far from it, may pick two other multipliers on a dense circle, whose discriminant has a zero elsewhere."""
+    if kind == "complex":
+        return False
+    d_stable = collision_discriminant(stable.multipliers, kind)
+    d_unstable = collision_discriminant(unstable.multipliers, kind)
     return d_stable is not None and d_unstable is not None and d_stable < 0 < d_unstable
 
 
@@ -972,8 +974,9 @@ def locate_stability_change(
     tighten : callable(orbit) -> orbit or None
         The same orbit found again, and its monodromy integrated, at :data:`TIGHT_RTOL`.
     tol : float, optional
-        The accuracy in Omega wanted: the bisection stops once its bracket is narrower, or once the
-        discriminant is resolved at both ends with opposite signs (the secant takes over from there),
+        The accuracy in Omega wanted: the bisection stops once its bracket is narrower, or, for a
+        collision at +1 or -1, once the discriminant is resolved at both ends with opposite signs (the
+        secant takes over from there),
         and the secant once its next step is shorter (that step is added to ``accuracy``). None:
         the full :data:`BISECTIONS` and secant iterations (a family's changes).
     """
