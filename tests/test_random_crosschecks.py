@@ -460,3 +460,15 @@ def test_waves_refuses_a_graded_chain_naming_its_factors(tmp_path):
     config.write_text("N = 1\nE1_factors = [1.0, 2.0]\n")
     result = CliRunner().invoke(app, ["waves", "--json", "--config", str(config)])
     assert result.exit_code == 2 and "E1_factors" in result.output and "Traceback" not in result.output
+
+
+def test_reproduce_refuses_a_chain_no_memory_holds_before_any_stage(tmp_path):
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    config = tmp_path / "long.toml"
+    config.write_text("N = 100000000000\n")
+    result = CliRunner().invoke(app, ["reproduce", "--out", str(tmp_path / "report"), "--json", "--config", str(config)])
+    assert result.exit_code == 2 and "N=100000000000" in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "report" / "summary.json").exists()

@@ -65,6 +65,18 @@ def reproduce(
         fail(str(err))
     if turns is not None:
         settings = dataclasses.replace(settings, turns=turns)
+    # Every stage would fail alike on a chain no memory holds (each with its traceback): refused here, as every command does.
+    from ..experiments.critical import critical_memory
+    from ..memory import MemoryEstimateError, require
+
+    try:
+        require(
+            critical_memory(params, "nonlinear", near_singular=False),
+            f"the report's static branch of {params.n_particles} particles (N={params.N})",
+            "a shorter chain",
+        )
+    except MemoryEstimateError as err:
+        fail(f"--config: {err}")
     bar = progress_bar("reproduce", "stage")
 
     def progress(name: str, done: int, total: int) -> None:
