@@ -275,11 +275,14 @@ def test_commands_that_ignore_loads_refuse_a_config_with_loads(loads_config, tmp
         (["animate", "--fps", "1e-300", "--out", "{tmp}/a.gif"], "cosserat_chain.experiments.simulation.simulate", "--fps"),
         (["simulate", "--dt", "1e-12", "--t-end", "300"], "cosserat_chain.experiments.simulation.simulate", "24.3 days"),
         (["simulate", "--t-end", "1", "--config", "{stiff}"], "cosserat_chain.experiments.simulation.simulate", "fastest mode"),
+        (["simulate", "--moment", "1e300", "--t-end", "1"], "cosserat_chain.experiments.simulation.simulate", "half a turn a step"),
+        (["simulate", "--load", "phi:1=3e300", "--t-end", "1"], "cosserat_chain.experiments.simulation.simulate",
+         "a moment on particle 1 of 3e+300"),
         (["sweep", "--model", "linear", "--m-max", "0.1", "--dm", "1e-300"], "cosserat_chain.experiments.sweep.relaxation_sweep",
          "1e+299 load steps"),
     ],
     ids=["rotate-dt", "rotate-moment", "states-starts", "states-turns", "orbit-moment", "animate-fps", "simulate-dt", "simulate-stiff",
-         "sweep-dm"],
+         "simulate-moment", "simulate-load", "sweep-dm"],
 )  # fmt: skip
 def test_absurd_work_is_refused_with_its_estimate_before_it_starts(tmp_path, monkeypatch, argv, compute, named):
     _forbid(monkeypatch, compute)

@@ -24,6 +24,7 @@ from .common import (
     outputs_or_exit,
     progress_bar,
     save_dataset,
+    spin_or_exit,
     step_for_checks,
     work_or_exit,
 )
@@ -141,6 +142,15 @@ def simulate(
         fail(str(err))
     step = None if reference else step_for_checks(params, model, dt)
     if step is not None:
+        # A moment that spins its particle by more than half a turn a step is refused before the run, as by states and
+        # orbit: the run would only blow up, and a smaller --dt is the one remedy (the loads on one particle add up).
+        spins: dict[int, float] = {}
+        for point in loads:
+            if point.row == "phi":
+                spins[point.particle] = spins.get(point.particle, 0.0) + point.schedule.bound()
+        for where, bound in spins.items():
+            option = "--moment" if moment is not None and where == particle else f"a moment on particle {where} of"
+            spin_or_exit(params, bound, step, option)
         span = f"{t_end - t0:g} time units at dt={step:.3g}"
         larger = "a larger --dt" if dt is not None else LARGER_STEP
         work_or_exit((t_end - t0) / step, params.n_particles, span, f"a shorter --t-end, or {larger}")
