@@ -277,7 +277,7 @@ def test_commands_that_ignore_loads_refuse_a_config_with_loads(loads_config, tmp
         (["simulate", "--t-end", "1", "--config", "{stiff}"], "cosserat_chain.experiments.simulation.simulate", "fastest mode"),
         (["simulate", "--moment", "1e300", "--t-end", "1"], "cosserat_chain.experiments.simulation.simulate", "half a turn a step"),
         (["simulate", "--load", "phi:1=3e300", "--t-end", "1"], "cosserat_chain.experiments.simulation.simulate",
-         "a moment on particle 1 of 3e+300"),
+         "a moment of 3e+300 on particle 1"),
         (["sweep", "--model", "linear", "--m-max", "0.1", "--dm", "1e-300"], "cosserat_chain.experiments.sweep.relaxation_sweep",
          "1e+299 load steps"),
     ],
@@ -339,3 +339,20 @@ def test_a_rotation_checkpoint_sealed_again_without_its_state_is_refused(tmp_pat
         result = runner.invoke(app, resumed)
         _no_traceback(result)
         assert result.exit_code == 2 and named in result.output and edited.name in result.output, result.output
+
+
+@pytest.mark.parametrize(
+    "argv, option, value, allowed",
+    [
+        (["simulate", "--threads", "0"], "--threads", "0", ">= 1"),
+        (["simulate", "--frames", "1"], "--frames", "1", ">= 2"),
+        (["critical", "--max-points", "-4"], "--max-points", "-4", ">= 2"),
+        (["rotate", "--turns", "0"], "--turns", "0", ">= 1"),
+        (["orbit", "--moment", "0.3", "--segments", "0"], "--segments", "0", ">= 1"),
+    ],
+)
+def test_a_whole_number_out_of_range_is_named_with_its_value_and_range(argv, option, value, allowed):
+    result = runner.invoke(app, argv)
+    _no_traceback(result)
+    assert result.exit_code == 2, result.output
+    assert option in result.output and f"got {value}" in result.output and allowed in result.output, result.output

@@ -567,6 +567,24 @@ def number(
     return typer.Option(default, *flags, callback=check, help=help)
 
 
+def whole(default: int | None, help: str, *, at_least: int, at_most: int | None = None, flags: tuple[str, ...] = ()):
+    """A whole-number option in [``at_least``, ``at_most``], checked as the line is parsed.
+
+    A bad value exits with code 2 and click's "Invalid value for '--name'" message naming the
+    value and the range allowed (click's own ranges name the range only).
+    """
+
+    def check(value: int | None) -> int | None:
+        if value is None:
+            return value
+        if value < at_least or (at_most is not None and value > at_most):
+            allowed = f">= {at_least}" if at_most is None else f"in {at_least}..{at_most}"
+            raise typer.BadParameter(f"must be a whole number {allowed}, got {value}")
+        return value
+
+    return typer.Option(default, *flags, callback=check, help=help)
+
+
 def outputs_or_exit(
     outputs: dict[str, Path | None],
     inputs: dict[str, Path | None] | None = None,

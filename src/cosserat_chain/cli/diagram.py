@@ -21,6 +21,7 @@ from .common import (
     save_dataset,
     save_figure,
     snic_line,
+    whole,
 )
 from .systems import chain_only_or_exit, diagram_on_system, set_option, start_option, system_only_or_exit, system_option
 
@@ -76,7 +77,7 @@ def diagram(
     ),
     values: str | None = typer.Option(None, "--values", help="Its values, V1,V2,... (in the order to follow them)."),
     span: str | None = typer.Option(None, "--range", help="Its values as START:STOP:NUM, evenly spaced."),
-    turns: int = typer.Option(3, min=1, help="The rotating orbit followed: the first stable one with 1..TURNS turns a period."),
+    turns: int = whole(3, at_least=1, help="The rotating orbit followed: the first stable one with 1..TURNS turns a period."),
     period_max: float = number(
         100.0, "A period beyond this counts as diverging (homoclinic or SNIC end).", above=0.0, flags=("--period-max",)
     ),

@@ -13,7 +13,7 @@ import typer
 
 from ..io import FIGURE_FORMATS
 from ..status import Status
-from .common import app, bar_callback, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, run_or_exit
+from .common import app, bar_callback, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, run_or_exit, whole
 
 #: Stored frames of a simulation run only to be drawn: a cap that keeps memory small.
 _MAX_SIMULATED_FRAMES = 20001
@@ -82,7 +82,7 @@ def animate(
     out: Path = typer.Option(..., "--out", help="Animation to write: .gif, or .mp4 when imageio-ffmpeg is installed."),
     t_start: float | None = number(None, "Start of the window (default: the start of the run).", flags=("--t-start",)),
     t_stop: float | None = number(None, "End of the window (default: the end of the run).", flags=("--t-stop",)),
-    frames: int = typer.Option(200, "--frames", min=1, help="At most this many frames, evenly spread over the window."),
+    frames: int = whole(200, at_least=1, flags=("--frames",), help="At most this many frames, evenly spread over the window."),
     fps: float = number(
         20.0,
         "Frames per second, 0.01 to 100 (a GIF times its frames in hundredths of a second).",

@@ -22,6 +22,7 @@ from .common import (
     save_figure,
     spin_or_exit,
     step_for_checks,
+    whole,
 )
 from .systems import (
     chain_only_or_exit,
@@ -42,9 +43,9 @@ def orbit(
     moment: float | None = number(
         None, "Moment M on the loaded particle (above M_c; below it with --from-above or --guess; required without --system)."
     ),
-    turns: int | None = typer.Option(
+    turns: int | None = whole(
         None,
-        min=1,
+        at_least=1,
         help="Turns of the loaded particle per period (default: the first of 1, 2, 3 whose orbit is stable, else the first found).",
     ),
     particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
@@ -83,10 +84,10 @@ def orbit(
         "length; krylov's branch by auto, which forms the monodromy), or collocation, whose cost does not grow with the "
         "period (a branch towards a homoclinic or SNIC end).",
     ),
-    segments: int | None = typer.Option(
+    segments: int | None = whole(
         None,
-        "--segments",
-        min=1,
+        at_least=1,
+        flags=("--segments",),
         help="The Floquet multipliers from the Jacobians of this many pieces of the orbit, by the periodic Schur form of "
         "their product: every multiplier of a long, strongly damped orbit with its log10 modulus (the formed monodromy "
         "loses those below 1e-16); dense or blocks shooting (the blocks integrated piece by piece; above 2 n_free = 2500 "

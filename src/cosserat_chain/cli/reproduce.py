@@ -9,7 +9,7 @@ from pathlib import Path
 import typer
 
 from ..io import params_from_mapping, read_config
-from .common import app, fail, outputs_or_exit, progress_bar
+from .common import app, fail, outputs_or_exit, progress_bar, whole
 
 #: The table of a ``--config`` file that holds the report's settings (``ReproduceSettings`` fields).
 SETTINGS_TABLE = "reproduce"
@@ -23,7 +23,7 @@ def reproduce(
         help="TOML file with ChainParams fields (default: the paper's chain) and, in a [reproduce] table, the report's "
         "settings (ReproduceSettings fields: m_max, dm, rotation_moment, turns, orbit_moment, n_list, reading, ...).",
     ),
-    turns: int | None = typer.Option(None, min=1, help="Full turns of the localization run (default 1500, the paper's)."),
+    turns: int | None = whole(None, at_least=1, help="Full turns of the localization run (default 1500, the paper's)."),
     reading: str | None = typer.Option(
         None,
         help="Which reading of the paper's 'seven particles' sets N: clamped-ends-among-seven (N = 3, the default chain) or "

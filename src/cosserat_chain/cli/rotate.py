@@ -22,6 +22,7 @@ from .common import (
     save_dataset,
     spin_or_exit,
     step_for_checks,
+    whole,
     work_or_exit,
 )
 
@@ -30,7 +31,7 @@ from .common import (
 def rotate(
     model: str = model_option("nonlinear", "A model that supports full rotations (the linear model does not).", rotating=True),
     moment: float = number(..., "Constant moment M on the loaded particle (rotation needs M above M_c, see `critical`)."),
-    turns: int = typer.Option(1500, min=1, help="Stop when the loaded particle has made this many full turns."),
+    turns: int = whole(1500, at_least=1, help="Stop when the loaded particle has made this many full turns."),
     t_max: float = number(100000.0, "Stop at this time if the turns are not made by then (exit 4; --resume with a larger --t-max goes on).", above=0.0, flags=("--t-max",)),
     particle: int = typer.Option(0, help="Loaded particle, in -N+1..N-1 (default the central one)."),
     dt: float | None = number(None, "Time step (default 0.1 / highest linear frequency, rounded down to 10 bits).", above=0.0),

@@ -11,6 +11,7 @@ import typer
 from ..status import Status
 from .common import (
     LARGER_STEP,
+    MAX_TURN_PER_STEP,
     MethodName,
     app,
     bar_callback,
@@ -24,8 +25,8 @@ from .common import (
     outputs_or_exit,
     progress_bar,
     save_dataset,
-    spin_or_exit,
     step_for_checks,
+    whole,
     work_or_exit,
 )
 from .systems import chain_only_or_exit, set_option, simulate_on_system, start_option, system_only_or_exit, system_option, velocity_option
@@ -43,8 +44,8 @@ def simulate(
     particle: int = typer.Option(0, help="Loaded particle, in -N+1..N-1 (default the central one)."),
     ramp: float = number(0.0, "Raise the moment linearly over this time (0: applied at once).", at_least=0.0),
     method: MethodName = typer.Option(MethodName.verlet, help="verlet (order 2) or yoshida4 (order 4)."),
-    frames: int = typer.Option(201, min=2, help="Number of stored states (>= 2: the start and the end)."),
-    threads: int = typer.Option(1, min=1, help="Threads per step (worth it from ~10^4 particles)."),
+    frames: int = whole(201, at_least=2, help="Number of stored states (>= 2: the start and the end)."),
+    threads: int = whole(1, at_least=1, help="Threads per step (worth it from ~10^4 particles)."),
     reference: bool = typer.Option(False, help="Use the adaptive DOP853 reference instead of the fixed step."),
     load: list[str] | None = typer.Option(
         None, "--load", help="A constant load ROW:PARTICLE=VALUE (ROW u, v or phi; e.g. v:-2=0.01); repeatable."
@@ -142,15 +143,23 @@ def simulate(
         fail(str(err))
     step = None if reference else step_for_checks(params, model, dt)
     if step is not None:
-        # A moment that spins its particle by more than half a turn a step is refused before the run, as by states and
-        # orbit: the run would only blow up, and a smaller --dt is the one remedy (the loads on one particle add up).
+        # A run whose moment spins its particle by more than half a turn a step runs and is flagged inaccurate with the
+        # step it needs (exit 5); where even that step is beyond the work started, it is refused before the run (the loads
+        # on one particle add up).
         spins: dict[int, float] = {}
         for point in loads:
-            if point.row == "phi":
-                spins[point.particle] = spins.get(point.particle, 0.0) + point.schedule.bound()
-        for where, bound in spins.items():
-            option = "--moment" if moment is not None and where == particle else f"a moment on particle {where} of"
-            spin_or_exit(params, bound, step, option)
+            if point.row == "phi" and params.gamma_phi > 0.0:
+                spins[point.particle] = spins.get(point.particle, 0.0) + point.schedule.bound() / params.gamma_phi
+        for where, spin in spins.items():
+            needed = MAX_TURN_PER_STEP / spin
+            if needed < step:
+                work_or_exit(
+                    (t_end - t0) / needed,
+                    params.n_particles,
+                    f"{t_end - t0:g} time units at the dt <= {needed:.3g} that a moment of {spin * params.gamma_phi:g} on "
+                    f"particle {where} needs: |M| / gamma_phi = {spin:.3g} rad per unit time, at most half a turn a step",
+                    "a smaller moment",
+                )
         span = f"{t_end - t0:g} time units at dt={step:.3g}"
         larger = "a larger --dt" if dt is not None else LARGER_STEP
         work_or_exit((t_end - t0) / step, params.n_particles, span, f"a shorter --t-end, or {larger}")

@@ -31,6 +31,7 @@ from .common import (
     short_stiff_at_rest_or_exit,
     statics_failed,
     step_for_checks,
+    whole,
     work_or_exit,
 )
 from .systems import chain_only_or_exit, critical_on_system, set_option, start_option, system_only_or_exit, system_option, vary_option
@@ -46,7 +47,7 @@ MAX_LOAD_STEPS = 100_000
 def sweep(
     model: str = model_option(ALL_MODELS, MODEL_HELP, all_models=True),
     m_max: float = number(..., "Largest moment of the upward sweep.", above=0.0, flags=("--m-max",)),
-    steps: int | None = typer.Option(None, min=1, help="Number of load steps from 0 to m_max."),
+    steps: int | None = whole(None, at_least=1, help="Number of load steps from 0 to m_max."),
     dm: float | None = number(None, "Load increment (instead of --steps).", above=0.0),
     down: bool = typer.Option(False, "--down", help="Then lower the load step by step to 0 (hysteresis)."),
     particle: int = typer.Option(0, help="Loaded particle (default the central one)."),
@@ -135,8 +136,8 @@ def critical(
     config: Path | None = typer.Option(None, help="TOML file with ChainParams fields (with --system: the system's [system] table)."),
     out: Path | None = typer.Option(None, help="Write the branches to this NetCDF file."),
     plot: Path | None = typer.Option(None, help="Draw the branches (Fig. 2 without the relaxation points) to this PNG/SVG file."),
-    max_points: int | None = typer.Option(
-        None, min=2, help="Most points of each branch (default 5000); a branch cut short exits with max_steps (3)."
+    max_points: int | None = whole(
+        None, at_least=2, help="Most points of each branch (default 5000); a branch cut short exits with max_steps (3)."
     ),
     turns: float | None = number(
         None,

@@ -10,7 +10,7 @@ import typer
 
 from ..io import read_config
 from ..status import Status
-from .common import app, bar_callback, exit_on, fail, outputs_or_exit, progress_bar, save_dataset, save_figure
+from .common import app, bar_callback, exit_on, fail, outputs_or_exit, progress_bar, save_dataset, save_figure, whole
 
 #: Most cells of one study: its spec, grid and file are built whole before the first cell runs.
 MAX_CELLS = 1_000_000
@@ -41,10 +41,10 @@ def study(
     spec_file: Path = typer.Argument(..., help="TOML study spec (see docs/studies.md)."),
     out: Path | None = typer.Option(None, help="NetCDF file written as cells finish; re-running resumes from it."),
     scheduler: str | None = typer.Option(None, help="Address of an existing Dask scheduler (default: an embedded LocalCluster)."),
-    workers: int | None = typer.Option(None, min=1, help="Worker processes of the embedded LocalCluster (default: one per core)."),
-    chunk: int | None = typer.Option(
+    workers: int | None = whole(None, at_least=1, help="Worker processes of the embedded LocalCluster (default: one per core)."),
+    chunk: int | None = whole(
         None,
-        min=1,
+        at_least=1,
         help="Cells per Dask task (cells of one N and model, relaxed as one batch; default: 4 tasks per worker, at most 256 cells).",
     ),
     load: list[str] | None = typer.Option(

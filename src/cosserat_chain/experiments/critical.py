@@ -534,12 +534,12 @@ def critical_point(
     budget = turn * turns if model.rotates else turn
     until = turn if model.rotates else None
     states = max_states(params)
+    what = f"critical on {params.n_particles} particles (N={params.N}), a branch of up to {max_points} points keeping {min(max_points, states)} states"
+    advice = "trace fewer points (max_points, --max-points) or a shorter chain"
+    # The least this model's path can need is checked before K at rest is factored to choose the path, then the path's.
+    require(critical_memory(params, model, max_points, model.rotates), what, advice)
     near_singular = model.rotates and near_singular_at_rest(params, model)
-    require(
-        critical_memory(params, model, max_points, near_singular),
-        f"critical on {params.n_particles} particles (N={params.N}), a branch of up to {max_points} points keeping {min(max_points, states)} states",
-        "trace fewer points (max_points, --max-points) or a shorter chain",
-    )
+    require(critical_memory(params, model, max_points, near_singular), what, advice)
     closed = model.name == "sine"
     response = moment_response(params, model, particle=particle)
     approach = near_singular and not rest_resolved(params, model, particle=particle, response=response)
