@@ -20,11 +20,12 @@ method runs up to ``--dense-max`` (its memory is 16 (2 n_free)^2 numbers). Resul
 
 With ``--located-atlas``: the atlas of the same chain over :data:`ATLAS_OMEGAS` at its own b (the
 family loses stability between 6.4 and 6.2: a Krein collision, the combination w_TA + w_RO = Omega), then its changes of stability located
-(:meth:`~cosserat_chain.experiments.breather_atlas.BreatherAtlas.locate_changes`) at each of
-:data:`LOCATE_TOLS`, and by a family's full bisections and secant (``family``:
-:func:`~cosserat_chain.experiments.breathers.located_changes` over the same members, no
-tolerance), alternately, ``--repeats`` times: CPU seconds of the atlas and of each location, the
-changes with their accuracies. Results go to ``benchmarks/results/breather_atlas_located.json``.
+(:meth:`~cosserat_chain.experiments.breather_atlas.BreatherAtlas.locate_changes`) at the
+default tolerance between neighbours of opposite stability (``default``), between every pair of
+neighbours whose pairs off the circle differ (``every``), and by a family's full bisections and
+secant over every pair (``family``: :func:`~cosserat_chain.experiments.breathers.located_changes`
+over the same members, no tolerance), alternately, ``--repeats`` times: CPU seconds of the atlas
+and of each location, the changes with their accuracies. Results go to ``benchmarks/results/breather_atlas_located.json``.
 """
 
 from __future__ import annotations
@@ -48,25 +49,23 @@ SIZES = (10, 25, 50, 100)
 OMEGAS = (6.6, 6.5, 6.4)
 MODEL = "sine"
 ATLAS_OMEGAS = (6.6, 6.4, 6.2, 6.0)
-#: The atlas's default and a tight one.
-LOCATE_TOLS = (1e-6, 1e-10)
 
 
 def located_atlas(params: ChainParams, repeats: int) -> dict:
-    """The atlas over :data:`ATLAS_OMEGAS` and the cost of locating its changes at each of :data:`LOCATE_TOLS`, alternately."""
-    from cosserat_chain.experiments.breather_atlas import breather_atlas
+    """The atlas over :data:`ATLAS_OMEGAS` and the cost of locating its changes by default, with ``every`` and as a family does."""
+    from cosserat_chain.experiments.breather_atlas import LOCATE_TOL, breather_atlas
     from cosserat_chain.experiments.breathers import located_changes
 
     cpu = time.process_time()
     atlas = breather_atlas(params, MODEL, ATLAS_OMEGAS, "b", [params.b])
     out = {"atlas_cpu_s": time.process_time() - cpu, "stable": atlas.grid("stable").tolist()}
-    out["locate"] = {name: [] for name in (*map(str, LOCATE_TOLS), "family")}
+    out["locate"] = {name: [] for name in ("default", "every", "family")}
     for _ in range(repeats):
-        for tol in LOCATE_TOLS:
+        for name, every in (("default", False), ("every", True)):
             cpu = time.process_time()
-            atlas.locate_changes(tol)
-            out["locate"][str(tol)].append(time.process_time() - cpu)
-            out[f"changes_{tol}"] = [{"omega": c.change.omega, "accuracy": c.accuracy, "kind": c.change.kind} for c in atlas.changes]
+            atlas.locate_changes(LOCATE_TOL, every=every)
+            out["locate"][name].append(time.process_time() - cpu)
+            out[f"changes_{name}"] = [{"omega": c.change.omega, "accuracy": c.accuracy, "kind": c.change.kind} for c in atlas.changes]
         cpu = time.process_time()
         changes = located_changes([p.orbit for p in atlas.points[0]], atlas.bands)
         out["locate"]["family"].append(time.process_time() - cpu)
@@ -116,7 +115,7 @@ def main() -> int:
         for n in args.sizes:
             row = {"N": n, **located_atlas(ChainParams(N=n, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0), args.repeats)}
             rows.append(row)
-            costs = ", ".join(f"tol {t}: {min(c):.3g} s" for t, c in row["locate"].items())
+            costs = ", ".join(f"{t} {min(c):.3g} s" for t, c in row["locate"].items())
             print(f"N = {n}: atlas {row['atlas_cpu_s']:.3g} s; locating its changes: {costs}", file=sys.stderr, flush=True)
             RESULTS.mkdir(exist_ok=True)
             text = json.dumps({"model": MODEL, "omegas": ATLAS_OMEGAS, "load_average": list(os.getloadavg()), "rows": rows}, indent=1)
