@@ -8,7 +8,19 @@ from pathlib import Path
 
 import typer
 
-from .common import app, bar_callback, fail, model_option, number, outputs_or_exit, params_or_exit, progress_bar, save_dataset, save_figure
+from .common import (
+    app,
+    bar_callback,
+    fail,
+    model_option,
+    number,
+    outputs_or_exit,
+    params_or_exit,
+    progress_bar,
+    save_dataset,
+    save_figure,
+    whole,
+)
 from .systems import chain_only_or_exit, set_option, system_only_or_exit, system_option
 
 #: Largest frequency taken: the rotor's energy j Omega^2 / 2 stays far inside double precision's range.
@@ -25,14 +37,14 @@ def breathers(
         None, "Frequency Omega of the rotating particle (its mean angular velocity) to start from.", above=0.0, at_most=MAX_OMEGA
     ),
     to: float | None = number(None, "Follow the family in Omega to here (default: the start alone).", above=0.0, at_most=MAX_OMEGA),
-    steps: int = typer.Option(11, min=2, help="Frequencies from --omega to --to, both included."),
-    turns: int = typer.Option(1, min=1, max=MAX_TURNS, help="Turns of the rotating particle per period (T = 2 pi turns / Omega)."),
+    steps: int = whole(11, at_least=2, help="Frequencies from --omega to --to, both included."),
+    turns: int = whole(1, at_least=1, at_most=MAX_TURNS, help="Turns of the rotating particle per period (T = 2 pi turns / Omega)."),
     particle: int = typer.Option(0, help="The rotating particle (default the central one)."),
     partner: int | None = typer.Option(None, help="A second rotor (a two-site roto-breather), turning as often as the first."),
     counter: bool = typer.Option(False, "--counter", help="The partner turns against the first rotor (default: with it)."),
-    lifetimes: int = typer.Option(
+    lifetimes: int = whole(
         0,
-        min=0,
+        at_least=0,
         help="Run each orbit (of the family, or found by --atlas), its velocities perturbed by 1e-8, for up to this many periods: "
         "its lifetime (0: none); also in --json, --out and --plot (a family's or an atlas's figure).",
     ),
