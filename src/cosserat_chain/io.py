@@ -972,30 +972,7 @@ def netcdf_image(dataset: xr.Dataset) -> memoryview:
     for attrs in [dataset.attrs, *(variable.attrs for variable in dataset.variables.values())]:
         attrs.update({key: str(value) for key, value in attrs.items() if isinstance(value, str) and type(value) is not str})
         attrs.update({key: int(value) for key, value in attrs.items() if isinstance(value, (bool, np.bool_))})
-    with _no_dask_cluster():
-        return dataset.to_netcdf(engine="h5netcdf")
-
-
-@contextmanager
-def _no_dask_cluster() -> Iterator[None]:
-    """Within it, Dask's ``distributed`` package, when no code has imported it, cannot be imported.
-
-    xarray's NetCDF writer asks Dask which scheduler runs (to close the file after each write under a
-    cluster's scheduler), and Dask and xarray import ``distributed`` to look for a cluster's client.
-    No client exists where ``distributed`` was never imported, so the answer is the same without it
-    (the threaded scheduler), and a file is written as before without importing that package.
-    Where ``distributed`` is imported already, nothing changes. A thread that imports ``distributed``
-    while a file is made here gets an ImportError: the package's writers make files from one thread.
-    """
-    if "distributed" in sys.modules:
-        yield
-        return
-    sys.modules["distributed"] = None  # type: ignore[assignment]
-    try:
-        yield
-    finally:
-        if "distributed" in sys.modules and sys.modules["distributed"] is None:
-            del sys.modules["distributed"]
+    return dataset.to_netcdf(engine="h5netcdf")
 
 
 def write_dataset(dataset: xr.Dataset, path: str | Path) -> Path:
