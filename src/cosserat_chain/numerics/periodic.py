@@ -555,8 +555,10 @@ class PeriodicOrbit:
         The unit normal of the phase plane through the start, None for the section on the
         loaded angle (module docstring); a continuation or a guess from this orbit keeps it.
     multiplier_errors : ndarray (k,) or None
-        Error estimates of ``multipliers`` (residual norms, :mod:`~.long_orbits`), where the
-        Krylov method computed them; its ``multipliers`` are then the k leading ones only.
+        Error estimates of ``multipliers`` (residual norms: :mod:`~.long_orbits` for the blocks
+        and Krylov methods, :mod:`~.newton_picard` for ``picard``, whose multipliers above its
+        rho are certified where |mu| less its residual exceeds rho); where not all are computed,
+        ``multipliers`` are the k leading ones only.
     multiplier_log_moduli : ndarray (2 n_free,) or None
         ln |mu| of each multiplier where they came from the segments' product (``segments`` of
         :func:`find_periodic_orbit`, or collocation): in range where the value under- or overflows.
