@@ -4,7 +4,8 @@ The paper's geometry at N = 3000 (nonlinear model) has a cluster of folds and a 
 near phi_0 = 6.2754, M = 3.6e-4, within the corrector's resolution: the trace turned back
 there, passed its folds again in reverse order (each at the same moment and angle to 1e-10,
 its index changing the other way) and came back through the rest state, which used to end
-the branch "returned" and report it complete.
+the branch "returned" and report it complete. `critical` now ends that chain's trace where M_c is
+decided, short of the cluster; the whole turn is traced by ``continue_in_moment(decided=False)``.
 """
 
 from __future__ import annotations
@@ -47,27 +48,39 @@ def test_a_fold_passed_again_the_other_way_is_a_retrace_an_adjacent_pair_is_not(
 
 @pytest.mark.slow
 def test_the_long_chain_that_turns_back_is_reported_incomplete_with_where(tmp_path):
+    import math
+
+    from cosserat_chain import ChainParams
+    from cosserat_chain.experiments.critical import max_states
+    from cosserat_chain.numerics.continuation import continue_in_moment, moment_response, rest_resolved
+
+    # `critical` ends this chain's trace once M_c is decided, 0.25 rad short of the turn, before the folds' cluster near
+    # phi_0 = 6.275 (M ~ 1e-4, a fifth of M_c at most there): complete, with the first fold's M_c re-solved and
+    # confirmed, to the residual's round-off limit at this N (2e-10: the corrector's settings move it within that).
     config = tmp_path / "long.toml"
     config.write_text("N = 3000\n")
     out = CliRunner().invoke(app, ["critical", "--model", "nonlinear", "--config", str(config), "--json"])
-    assert out.exit_code == 3, out.output
-    assert "largest maximum of the traced part" in out.stderr
+    assert out.exit_code == 0, out.output
     summary = json.loads(out.stdout)["models"]["nonlinear"]
-    assert summary["branch_complete"] is False
-    # M_c, from the part traced before the end, is the first fold's, re-solved and confirmed, to the
-    # residual's round-off limit at this N (2e-10: the corrector's settings move it within that).
+    assert summary["branch"]["stop"] == "decided" and summary["branch_complete"] is True
     assert summary["M_c"] == pytest.approx(0.0988499823911, rel=3e-9) and summary["accurate"]
-    folds = [_fold(f["phi0"], f["M"] if "M" in f else f["moment"], f["index_before"], f["index_after"]) for f in summary["folds"]]
-    # Within the folds' cluster near phi_0 = 6.275-6.278 (M ~ 1e-4, soft modes the residual
-    # barely resolves) the trace either turns back along itself, and ends at its first fold
-    # passed again the other way, or meets a fold its corrector cannot locate and ends there;
-    # either way it says where, and never "returned" as if complete.
-    if summary["branch"]["stop"] == "reversed":
-        assert "turned back along itself near phi_0 = 6.27" in out.stderr
+    # The whole turn, traced on (decided=False), meets that cluster: within it the trace either turns back along
+    # itself, and ends at its first fold passed again the other way, or meets a fold its corrector cannot locate and
+    # ends there; either way it says where, and never "returned" as if complete.
+    params = ChainParams(N=3000)
+    response = moment_response(params, "nonlinear")
+    branch = continue_in_moment(
+        params, "nonlinear", phi0_stop=16 * 2 * math.pi, phi0_until_unstable=2 * math.pi, max_states=max_states(params),
+        response=response, from_approach=not rest_resolved(params, "nonlinear", response=response),
+    )  # fmt: skip
+    folds = [_fold(f.phi0, f.moment, f.index_before, f.index_after) for f in branch.folds]
+    assert branch.folds[0].moment == pytest.approx(0.0988499823911, rel=3e-9)
+    if branch.stop == "reversed":
+        assert "turned back along itself near phi_0 = 6.27" in branch.message
         assert _retraced(folds) and not _retraced(folds[:-1])
     else:
-        assert summary["branch"]["stop"] == "step_too_small" and "was not located" in out.stderr
-        assert "(phi_0 = 6.27" in out.stderr and not _retraced(folds)
+        assert branch.stop == "step_too_small" and "was not located" in branch.message
+        assert "(phi_0 = 6.27" in branch.message and not _retraced(folds)
 
 
 def test_a_fold_the_corrector_cannot_locate_ends_the_trace_and_keeps_what_was_traced(monkeypatch):
