@@ -1088,7 +1088,8 @@ def _long_orbit(system, turns, y0, period, particle_turns, phase, method, *, tol
             damping=MAX_HALVINGS, **options,
         )  # fmt: skip
         if not solved.converged:
-            raise OrbitError(_no_convergence(system.moment, turns, solved.iterations, solved.norm))
+            hint = "; Newton-Picard wants a guess near the orbit: method='blocks' converges from farther" if method == "picard" else ""
+            raise OrbitError(_no_convergence(system.moment, turns, solved.iterations, solved.norm) + hint)
         y0 = phase.state(solved.w[:-1])
         if method == "picard":  # the Ritz values of the converged dominant subspace
             (multipliers, errors), logs = monodromy, None
