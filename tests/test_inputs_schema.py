@@ -356,3 +356,11 @@ def test_a_whole_number_out_of_range_is_named_with_its_value_and_range(argv, opt
     _no_traceback(result)
     assert result.exit_code == 2, result.output
     assert option in result.output and f"got {value}" in result.output and allowed in result.output, result.output
+
+
+@pytest.mark.parametrize("argv", [["--moment", "0"], ["--load", "phi:1=0"], ["--moment", "0", "--load", "phi:0=0"]])
+def test_simulate_takes_a_zero_moment(argv):
+    """A moment of zero (whose terminal spin is zero) runs: the spin check divides by nothing."""
+    result = runner.invoke(app, ["simulate", *argv, "--t-end", "0.5", "--frames", "2", "--json"])
+    _no_traceback(result)
+    assert result.exit_code == 0, result.output

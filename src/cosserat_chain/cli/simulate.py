@@ -151,8 +151,8 @@ def simulate(
             if point.row == "phi" and params.gamma_phi > 0.0:
                 spins[point.particle] = spins.get(point.particle, 0.0) + point.schedule.bound() / params.gamma_phi
         for where, spin in spins.items():
-            needed = MAX_TURN_PER_STEP / spin
-            if needed < step:
+            if spin * step > MAX_TURN_PER_STEP:  # (a zero moment spins nothing)
+                needed = MAX_TURN_PER_STEP / spin
                 work_or_exit(
                     (t_end - t0) / needed,
                     params.n_particles,
