@@ -163,6 +163,42 @@ class _Subspace:
         return basis, image, schur, int(above)
 
 
+def complement(monodromy: Monodromy, dominant: np.ndarray, sources: np.ndarray, forcing: float, subspace: _Subspace) -> tuple:
+    """Picard on the complement of ``dominant`` (V_p): the columns q with Q (M - I) q = -Q b for the columns b of ``sources``.
+
+    q = Q M q + Q b for all columns at once (one integration a step), from q = Q b, until a step
+    moves each by at most ``forcing`` times its norm or :data:`PICARD_MAX` products; on a blow-up
+    (:data:`PICARD_BLOWUP`) q = Q b. Where the first column's iteration is slow or grows (a multiplier
+    above rho outside V_p), its direction joins ``subspace``.
+
+    Returns
+    -------
+    q : ndarray (2 n_free, k)
+    mapped : ndarray (2 n_free, k)
+        M applied to the last iterate but one (the couplings V_p^T M q of the projected Newton step).
+    """
+    rhs = sources - dominant @ (dominant.T @ sources)
+    q, mapped, first = rhs, None, None
+    for _ in range(PICARD_MAX):
+        mapped = monodromy.apply(q)
+        first = mapped if first is None else first
+        following = mapped - dominant @ (dominant.T @ mapped) + rhs
+        change = following - q
+        moved = np.linalg.norm(change, axis=0)
+        # A non-normal M can make the first moves grow before they contract: only a blow-up stops Picard early,
+        # and its step is then Q b's alone.
+        if np.any(np.linalg.norm(following, axis=0) > PICARD_BLOWUP * np.maximum(np.linalg.norm(rhs, axis=0), 1e-300)):
+            q, mapped = rhs, first
+            break
+        q = following
+        if np.all(moved <= forcing * np.maximum(np.linalg.norm(q, axis=0), 1e-300)):
+            break
+    if not np.all(moved <= forcing * np.maximum(np.linalg.norm(q, axis=0), 1e-300)):
+        # Slow or growing: a multiplier above rho outside V_p, whose direction joins the basis.
+        subspace.add(change[:, 0] / max(moved[0], 1e-300))
+    return q, mapped
+
+
 @dataclass
 class _PicardStep:
     """The Newton-Picard step at one iterate: the monodromy's products there and the flow at Phi_T(y0)."""
@@ -226,29 +262,9 @@ def picard_correction(
         basis, image, schur, p = subspace.sweep(at.monodromy)
         dominant = basis[:, :p]
         closure_r, target = residual[:size], (-residual[size:] if residual.size > size else np.zeros(1))[0]
-        # Picard on the complement, dy = V_p a + q_R + q_T dT with Q (M - I) q_R = -Q R and Q (M - I) q_T = -Q f(Phi_T(y0)):
-        # q = Q M q + Q b for both columns at once (one integration a step), from q = Q b.
+        # Picard on the complement, dy = V_p a + q_R + q_T dT with Q (M - I) q_R = -Q R and Q (M - I) q_T = -Q f(Phi_T(y0)).
         forcing = min(PICARD_RTOL_MAX, max(PICARD_RTOL_MIN, float(np.max(np.abs(residual)))))
-        sources = np.column_stack([closure_r, at.velocity_end])
-        rhs = sources - dominant @ (dominant.T @ sources)
-        q, mapped, first = rhs, None, None
-        for _ in range(PICARD_MAX):
-            mapped = at.monodromy.apply(q)
-            first = mapped if first is None else first
-            following = mapped - dominant @ (dominant.T @ mapped) + rhs
-            change = following - q
-            moved = np.linalg.norm(change, axis=0)
-            # A non-normal M can make the first moves grow before they contract: only a blow-up stops Picard early,
-            # and its step is then Q b's alone.
-            if np.any(np.linalg.norm(following, axis=0) > PICARD_BLOWUP * np.maximum(np.linalg.norm(rhs, axis=0), 1e-300)):
-                q, mapped = rhs, first
-                break
-            q = following
-            if np.all(moved <= forcing * np.maximum(np.linalg.norm(q, axis=0), 1e-300)):
-                break
-        if not np.all(moved <= forcing * np.maximum(np.linalg.norm(q, axis=0), 1e-300)):
-            # Slow or growing: a multiplier above rho outside V_p, whose direction joins the basis.
-            subspace.add(change[:, 0] / max(moved[0], 1e-300))
+        q, mapped = complement(at.monodromy, dominant, np.column_stack([closure_r, at.velocity_end]), forcing, subspace)
         # Newton on the projection, the couplings V_p^T M q from Picard's last product:
         # [V^T (M - I) V, V^T M q_T + V^T f; c . V, c . q_T] (a, dT) = (-V^T R - V^T M q_R, target - c . q_R).
         coupling = dominant.T @ mapped
