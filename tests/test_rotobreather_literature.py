@@ -302,6 +302,82 @@ def test_package_family_start_is_the_in_phase_pair(counter):
     assert measured_exponent(orbit) == (pytest.approx(measured, rel=1e-7), real)
 
 
+# -- Takeno and Peyrard: the rotating mode at any coupling, intrinsically discrete ---------------------------------
+#
+# Published statements: S. Takeno and M. Peyrard, "A new type of topological localized mode: the rotating mode",
+# conference abstract (http://www.macs.hw.ac.uk/~chris/sca/TAKPEY.html; the authors' paper on the lattice is
+# "Nonlinear modes in coupled rotator models", Physica D 92, 140 (1996), not reachable here, so no equation is
+# cited): in a lattice whose on-site and coupling potentials are both periodic (the package's ``takeno_peyrard``,
+# H = sum [phi_i'^2 / 2 + 1 - cos phi_i + C (1 - cos(phi_{i+1} - phi_i))]) "an exact solution is likely to exist",
+# and the rotating modes "exist for any value of the coupling, strong or weak" and are "intrinsically discrete".
+# Checked here: Newton finds the rotating mode (one rotor turning, the rest oscillating) over five decades of C at
+# Omega = RATIO * omega_max, omega_max = sqrt(1 + 4 C) the top of the band, so that no harmonic of Omega meets the
+# band; "intrinsically discrete" as a number (derived here): in the tail, where the motion is linear, the
+# fundamental harmonic's amplitude c_n obeys (1 - Omega^2) c_n = C (c_{n+1} - 2 c_n + c_{n-1}), so
+#
+#     c_{n+1} / c_n = -exp(-kappa),    cosh kappa = (Omega^2 - 1) / (2 C) - 1,                        (T)
+#
+# which at Omega = RATIO * omega_max tends to cosh kappa = 2 RATIO^2 - 1 as C grows: the decay length 1 / kappa stays
+# below a site at every coupling, while a continuum object (the static kink, 4 arctan exp(n / sqrt(C))) widens as
+# sqrt(C), 31.6 sites at C = 1000.
+
+TP_SITES, TP_RATIO = 21, 1.5
+TP_COUPLINGS = (0.01, 0.1, 1.0, 10.0, 100.0, 1000.0)
+
+
+def tail_rate(omega: float, coupling: float) -> float:
+    """exp(-kappa) of (T)."""
+    return math.exp(-math.acosh((omega**2 - 1) / (2 * coupling) - 1))
+
+
+def fundamental_amplitudes(orbit) -> np.ndarray:
+    """The complex amplitude of the first harmonic of each angle (its winding k Omega t removed), by FFT."""
+    t = np.arange(SAMPLES) * orbit.period / SAMPLES
+    sites = orbit.system.size
+    phi = orbit.trajectory(t)[:, :sites] - np.outer(t, orbit.turns * 2 * math.pi / orbit.period)
+    return np.fft.rfft(phi, axis=0)[1] / SAMPLES
+
+
+@pytest.fixture(scope="module")
+def rotating_modes():
+    """The one-site rotating mode of the Takeno-Peyrard lattice at each coupling (Newton from the anti-continuum limit)."""
+    return {
+        c: roto_breather_family(takeno_peyrard(TP_SITES, C=c), TP_RATIO * math.sqrt(1 + 4 * c), locate=False).orbits[0]
+        for c in TP_COUPLINGS
+    }
+
+
+def test_rotating_mode_exists_from_weak_to_strong_coupling(rotating_modes):
+    """Takeno & Peyrard: the rotating mode exists for any coupling; Newton closes it to round-off, C = 0.01 to 1000."""
+    centre = TP_SITES // 2
+    for c, orbit in rotating_modes.items():
+        assert orbit.closure < 1e-8, c
+        assert orbit.turns[centre] == 1 and np.count_nonzero(orbit.turns) == 1  # one rotor turns once a period
+        states = orbit.trajectory(np.linspace(0, orbit.period, 65))
+        others = np.delete(states[:, :TP_SITES], centre, axis=1)
+        assert np.max(np.abs(others)) < 0.5, c  # the rest oscillate about phi = 0, far from turning over
+        assert orbit.period == pytest.approx(2 * math.pi / (TP_RATIO * math.sqrt(1 + 4 * c)), rel=1e-12)
+
+
+def test_rotating_mode_is_intrinsically_discrete(rotating_modes):
+    """The tail's first harmonic decays by -exp(-kappa) per site, (T); 1 / kappa stays under a site as C grows."""
+    centre = TP_SITES // 2
+    for c, orbit in rotating_modes.items():
+        amp = fundamental_amplitudes(orbit)
+        omega = 2 * math.pi / orbit.period
+        expected = -tail_rate(omega, c)
+        near, far = amp[centre + 2] / amp[centre + 1], amp[centre + 4] / amp[centre + 3]
+        assert abs(far.imag) < 1e-6 * abs(far)  # real and negative: the neighbours move against each other
+        assert far.real == pytest.approx(expected, rel=2e-4), c
+        assert abs(far.real / expected - 1) < abs(near.real / expected - 1)  # the core is nonlinear, the tail linear
+        assert amp[centre - 3] / amp[centre - 2] == pytest.approx(amp[centre + 3] / amp[centre + 2], rel=1e-6)  # mirror
+    strong = 2 * TP_RATIO**2 - 1  # cosh kappa at C -> infinity
+    amp = fundamental_amplitudes(rotating_modes[1000.0])
+    rate = abs(amp[centre + 4] / amp[centre + 3])
+    assert rate == pytest.approx(math.exp(-math.acosh(strong)), rel=3e-3)
+    assert 1 / math.acosh(strong) < 1 < math.sqrt(1000.0)  # decay length 0.52 site against the kink's width 31.6
+
+
 def table() -> str:
     """The docs' table (docs/roto-breathers-literature.md): ``python tests/test_rotobreather_literature.py``."""
     lines = ["| case | eps | sigma T (Newton, Floquet) | sigma T (P) | ratio | fitted order of ratio - 1 |", "|---|---|---|---|---|---|"]
