@@ -77,7 +77,7 @@ from . import collocation_core, dop853, floquet, long_orbits, newton_picard
 from .addresses import entry
 from .dynamics import TurnWatch, integrate
 from .integrators import default_time_step
-from .kit import BranchEnd, Evaluation, EvaluationFailed, continuation, newton
+from .kit import BranchEnd, Correction, Evaluation, EvaluationFailed, continuation, newton
 
 #: Step of the fourth-order central differences of the force kernel: dF/dq is then accurate
 #: to ~5e-13 of |K| against the nonlinear model's exact stiffness at displacements of 0.1,
@@ -1312,11 +1312,16 @@ def continue_orbit(
     tol, rtol, atol : float
         As for :func:`find_periodic_orbit`.
     progress : callable(points, max_points), optional
-    method : {"auto", "dense", "blocks"}
+    method : {"auto", "dense", "blocks", "picard"}
         How the monodromy is integrated (:func:`find_periodic_orbit`); ``blocks`` takes
         dPhi_T/dM by central differences in M (:func:`~.long_orbits.blocked_shooting`), and
         every orbit's multipliers as :func:`find_periodic_orbit`'s blocks give them (the trivial
-        one deflated, with its error: :attr:`PeriodicOrbit.trivial_multiplier_error`).
+        one deflated, with its error: :attr:`PeriodicOrbit.trivial_multiplier_error`);
+        ``picard`` never forms the monodromy: Newton-Picard corrector steps and tangents on the
+        subspace of the multipliers above ``newton_picard.RHO``, carried from point to point
+        (:class:`_PicardBranchProblem`), each orbit with the trivial multiplier and those above
+        rho and their Ritz residuals (the ones a fold, a branch point or a loss of stability moves
+        across the unit circle); dPhi_T/dM as the blocks take it.
     segments : int, optional
         Every orbit's multipliers from the Jacobians of this many equal pieces of it, with their
         log-moduli, as ``find_periodic_orbit(..., segments=)`` (one more integration of the
@@ -1330,8 +1335,10 @@ def continue_orbit(
     Raises
     ------
     ValueError
-        For non-positive steps, an unordered step range, a method not in auto, dense, blocks, or bad
-        ``segments`` (as :func:`find_periodic_orbit`).
+        For non-positive steps, an unordered step range, a method not in auto, dense, blocks, picard, or bad
+        ``segments`` (as :func:`find_periodic_orbit`; picard takes none).
+    OrbitError
+        With ``picard``, where the start does not close under Newton-Picard at its moment.
     """
     for name, value in (("step", step), ("min_step", min_step), ("max_step", max_step), ("period_max", period_max)):
         if not (math.isfinite(value) and value > 0):
@@ -1340,7 +1347,10 @@ def continue_orbit(
         raise ValueError(f"steps must satisfy min_step <= step <= max_step, got {min_step!r}, {step!r}, {max_step!r}")
     method = long_orbits.choose_method(orbit.params, method)
     if method == "krylov":
-        raise ValueError("continue_orbit's method must be auto, dense or blocks (a continuation needs the monodromy), got 'krylov'")
+        raise ValueError(
+            "continue_orbit's method must be auto, dense, blocks or picard (a continuation needs the monodromy or its dominant "
+            "subspace), got 'krylov'"
+        )
     _check_segments(orbit.params, segments, method)
     params, model = orbit.params, get_model(orbit.model)
     sign = math.copysign(1.0, orbit.moment)
@@ -1356,15 +1366,23 @@ def continue_orbit(
         orbit = dataclasses.replace(orbit, multipliers=values, multiplier_errors=errors, multiplier_log_moduli=logs)
     orbits: list[PeriodicOrbit] = []
     first, notes, h = orbit, [], step
+    # Newton-Picard's dominant subspace goes on from problem to problem (a restart on a phase plane).
+    carried = {"direction": -sign} if method == "picard" else {}
     while True:
-        problem = _OrbitBranchProblem(
-            first, model, phase, tol, rtol, atol, moment_min, period_max, until_unstable, orbit.stable, method=method, segments=segments
-        )
+        problem = (_PicardBranchProblem if method == "picard" else _OrbitBranchProblem)(
+            first, model, phase, tol, rtol, atol, moment_min, period_max, until_unstable, orbit.stable, method=method, segments=segments,
+            **carried,
+        )  # fmt: skip
+        w0 = problem.pack(first)
+        if method == "picard":
+            w0, settled = problem.settle(w0)
+            first = first if settled else None
+            carried["subspace"] = problem.subspace
         # A restart's first orbit is the last one already traced.
         offset = max(len(orbits) - 1, 0)
         traced = continuation(
             problem,
-            problem.pack(first),
+            w0,
             step=h,
             min_step=min_step,
             max_step=max_step,
@@ -1416,8 +1434,15 @@ def continue_orbit(
 
 
 def _one_test(orbit: PeriodicOrbit) -> float:
-    """Re prod (mu - 1) over the nontrivial multipliers: its sign changes where a real one crosses +1."""
-    return float(np.real(np.prod(orbit.nontrivial_multipliers - 1.0)))
+    """Re prod (mu - 1) over the nontrivial multipliers: its sign changes where a real one crosses +1.
+
+    Where only the leading multipliers are known (Newton-Picard: those above rho), each one left out
+    lies inside the unit circle, so a real one contributes a negative factor and a complex pair a
+    positive one: the product's sign is the known factors' times (-1) to the number left out, which
+    keeps a real multiplier that drops below rho from passing for a crossing of +1.
+    """
+    omitted = 2 * n_free(orbit.params) - orbit.multipliers.size
+    return float(np.real(np.prod(orbit.nontrivial_multipliers - 1.0))) * (-1.0) ** omitted
 
 
 def _crosses_one(before: PeriodicOrbit, after: PeriodicOrbit) -> bool:
@@ -1542,6 +1567,163 @@ class _OrbitBranchProblem:
 
     def confirm(self, kind: str, point: PeriodicOrbit) -> bool:
         return True
+
+
+#: Picard's relative tolerance in the tangent's solve (the predictor's direction and the sign of its dM that tells a fold).
+TANGENT_PICARD_RTOL = 1e-8
+
+
+@dataclass
+class _PicardJacobian:
+    """dR/dw of :class:`_PicardBranchProblem` at one iterate, as products, never formed: the monodromy's (at
+    :data:`~.long_orbits.NEWTON_PRODUCTS_RTOL`), f(Phi_T(y0)) and dPhi_T/dM (central differences, at its first use)."""
+
+    system: _System
+    monodromy: long_orbits.Monodromy
+    velocity_end: np.ndarray
+    rtol: float
+    atol: float
+    moment: np.ndarray | None = None
+
+    def moment_column(self) -> np.ndarray:
+        if self.moment is None:
+            self.moment = long_orbits.moment_column(self.system, self.monodromy.start, self.monodromy.period, self.rtol, self.atol)
+        return self.moment
+
+
+@dataclass
+class _PicardBranchProblem(_OrbitBranchProblem):
+    """The branch of :class:`_OrbitBranchProblem` corrected by Newton-Picard steps (:mod:`~.newton_picard`).
+
+    The bordered Newton step of (P), the phase condition and the arclength condition b . dw = r,
+
+        (M - I) dy + T f(Phi_T(y0)) d(log T) + dPhi_T/dM dM = -R,   c . dy = -phase residual,
+
+    is split as dy = V_p a + q along the basis V_p of the multipliers above ``rho`` carried from
+    step to step and from point to point (the previous point's basis is the next one's warm start
+    of the subspace iteration): Picard gives q = q_R + q_T d(log T) + q_M dM on the complement
+    (:func:`~.newton_picard.complement`, three columns), and a dense (p + 2) system gives a,
+    d(log T) and dM. The tangent is the same solve with R = 0 and the previous tangent as the
+    border (b . t = 1). Every point's multipliers are the trivial one and those above ``rho`` with
+    their Ritz residuals (:func:`~.newton_picard.ritz_multipliers`), which hold every multiplier
+    that a fold, a branch point, a torus or a period doubling moves across the unit circle.
+    """
+
+    #: -1 or +1: the sign of dM the branch starts with.
+    direction: float = -1.0
+    rho: float = newton_picard.RHO
+    guard: int = newton_picard.GUARD
+    subspace: object = None
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        # A short chain's whole space is smaller than the default guard asks for.
+        self.guard = min(self.guard, 2 * n_free(self.start.params) - 2)
+        if self.subspace is None:
+            self.subspace = newton_picard._Subspace(self.rho, self.guard, np.random.default_rng(long_orbits.SEED))
+        self.shift = long_orbits._shift(
+            _System(self.start.params, self.model, self.start.moment, self.start.particle), self.start.particle_turns
+        )
+
+    def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
+        """(P) and the phase condition at w = (y0's unknowns, log T, M), with their Jacobian as products (:class:`_PicardJacobian`)."""
+        head = self.phase.head
+        if w[head] > math.log(100 * self.period_max):
+            raise EvaluationFailed("the period ran off to 100 period_max: the corrector has left the branch")
+        system = _System(self.start.params, self.model, float(w[head + 1]), self.start.particle)
+        loose = (max(self.rtol, long_orbits.NEWTON_PRODUCTS_RTOL), max(self.atol, long_orbits.NEWTON_PRODUCTS_RTOL))
+        closure = long_orbits._closure(system, self.phase, self.shift, self.rtol, self.atol, loose)
+        residual, monodromy, velocity = closure(np.append(w[:head], math.exp(w[head])))
+        at = _PicardJacobian(system, monodromy, velocity, self.rtol, self.atol)
+        return Evaluation(residual, at, at)
+
+    def solve(self, at: _PicardJacobian, residual: np.ndarray, border: np.ndarray, border_rhs: float, forcing: float) -> np.ndarray:
+        """dw with (P)'s and the phase condition's linearisation at ``at`` equal to -``residual`` and border . dw = border_rhs."""
+        head, size, period = self.phase.head, at.monodromy.size, at.monodromy.period
+        if self.subspace.basis is None:
+            self.subspace.start(at.monodromy)
+        basis, _, schur, p = self.subspace.sweep(at.monodromy)
+        dominant = basis[:, :p]
+        normal = np.zeros(size)
+        if self.phase.normal is None:
+            normal[self.phase.dof] = 1.0  # dy keeps the section's angle
+        else:
+            normal[:] = self.phase.normal
+        along = np.zeros(size)
+        along[self.phase.keep] = border[:head]
+        top, target = -residual[:size], (-residual[size] if residual.size > size else 0.0)
+        columns = np.column_stack([-top, period * at.velocity_end, at.moment_column()])
+        q, mapped = newton_picard.complement(at.monodromy, dominant, columns, forcing, self.subspace)
+        coupling = dominant.T @ mapped
+        matrix = np.zeros((p + 2, p + 2))
+        matrix[:p, :p] = schur[:p, :p] - np.eye(p)
+        matrix[:p, p] = coupling[:, 1] + dominant.T @ columns[:, 1]
+        matrix[:p, p + 1] = coupling[:, 2] + dominant.T @ columns[:, 2]
+        matrix[p, :p], matrix[p, p:] = normal @ dominant, normal @ q[:, 1:]
+        matrix[p + 1, :p], matrix[p + 1, p:] = along @ dominant, along @ q[:, 1:] + border[head:]
+        right = np.concatenate([dominant.T @ top - coupling[:, 0], [target - normal @ q[:, 0], border_rhs - along @ q[:, 0]]])
+        solution = np.linalg.solve(matrix, right)
+        dy = dominant @ solution[:p] + q @ np.append(1.0, solution[p:])
+        return np.concatenate([dy[self.phase.keep], solution[p:]])
+
+    def _newton(self, start: np.ndarray, border: np.ndarray, w_pred: np.ndarray, criterion: dict) -> Correction:
+        """Newton-Picard on the equations with the border ``border`` . (w - w_pred) = 0 (:func:`~.kit.newton`)."""
+
+        def step(w: np.ndarray, evaluation: Evaluation, at: _PicardJacobian) -> np.ndarray:
+            residual = np.asarray(evaluation.residual)
+            forcing = min(newton_picard.PICARD_RTOL_MAX, max(newton_picard.PICARD_RTOL_MIN, float(np.max(np.abs(residual)))))
+            return self.solve(at, residual, border, -float(border @ (w - w_pred)), forcing)
+
+        return newton(
+            self.evaluate, start, **criterion, max_iterations=MAX_CORRECTOR_ITERATIONS, damping=MAX_HALVINGS, divergence=None, newton_step=step
+        )  # fmt: skip
+
+    def settle(self, w0: np.ndarray) -> tuple[np.ndarray, bool]:
+        """w0 closed to ``tol`` at its moment (an orbit from another method closes a little differently here), and whether it already was.
+
+        Raises
+        ------
+        OrbitError
+            Where it does not close.
+        """
+        fixed = np.zeros(w0.size)
+        fixed[-1] = 1.0
+        settled = self._newton(w0, fixed, w0, {"tol": self.tol})
+        if not settled.converged:
+            raise OrbitError(_no_convergence(self.start.moment, self.start.turns, settled.iterations, settled.norm))
+        return settled.w, settled.iterations == 0
+
+    def correct(self, w: np.ndarray, t: np.ndarray, h: float, jacobian) -> Correction:
+        """The kit's corrector stage: Newton-Picard from w + h t on the arclength plane through it."""
+        return self._newton(w + h * t, t, w + h * t, {"converged": long_orbits.deep_convergence(self.tol)})
+
+    def tangent(self, jacobian: _PicardJacobian, previous: np.ndarray | None) -> np.ndarray:
+        """The unit null vector of dR/dw at ``jacobian``, along ``previous`` (at the start, with dM of sign ``direction``)."""
+        border = previous
+        if border is None:
+            border = np.zeros(self.phase.head + 2)
+            border[-1] = self.direction
+        residual = np.zeros(jacobian.monodromy.size + (self.phase.normal is not None))
+        t = self.solve(jacobian, residual, border, 1.0, TANGENT_PICARD_RTOL)
+        return t / np.linalg.norm(t)
+
+    def events(self, previous: PeriodicOrbit, candidate: PeriodicOrbit, t_before: np.ndarray, t_after: np.ndarray) -> list[str]:
+        """A turn of M (the tangent's dM changes sign); branch points of cycles are read from the multipliers (:func:`_branch_points`)."""
+        return ["fold"] if t_before[-1] * t_after[-1] < 0 else []
+
+    def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> PeriodicOrbit:
+        """The orbit at w with the trivial multiplier and those above ``rho`` (Ritz values at the shooting's tolerance, with
+        their residuals); the refined basis, with the flow, is the next corrections' warm start."""
+        at = evaluation.data
+        y0, period = at.monodromy.start, at.monodromy.period
+        flow = at.system.velocity(y0)
+        accurate = long_orbits.Monodromy(at.system, y0, period, self.rtol, self.atol)
+        values, errors, basis = newton_picard.ritz_multipliers(accurate, flow, self.subspace.basis, rho=self.rho, guard=self.guard)
+        self.subspace.basis = np.linalg.qr(np.column_stack([flow, basis]))[0]
+        closure = float(np.max(np.abs(evaluation.residual)))
+        return _orbit_from(
+            at.system, self.start.turns, y0, period, values, closure, iterations, self.start.particle_turns, self.phase.normal, errors
+        )  # fmt: skip
 
 
 def _multiplier_motion(before: np.ndarray, after: np.ndarray) -> float:
