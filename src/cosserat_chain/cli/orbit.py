@@ -81,7 +81,8 @@ def orbit(
         "auto",
         "--method",
         help="How the orbit (and --down-to's branch) is solved: auto, dense, blocks or krylov shooting (auto: by the chain's "
-        "length; krylov's branch by auto, which forms the monodromy), or collocation, whose cost does not grow with the "
+        "length; krylov's branch by auto, which forms the monodromy), picard (Newton-Picard: the orbit and its branch on the "
+        "multipliers above rho, for long chains near a known orbit), or collocation, whose cost does not grow with the "
         "period (a branch towards a homoclinic or SNIC end).",
     ),
     segments: int | None = whole(
@@ -206,7 +207,7 @@ def orbit(
 
 
 #: The solvers --method takes (:func:`~cosserat_chain.numerics.periodic.find_periodic_orbit`'s ``method``).
-ORBIT_METHODS = ("auto", "dense", "blocks", "krylov", "collocation")
+ORBIT_METHODS = ("auto", "dense", "blocks", "krylov", "picard", "collocation")
 
 
 #: The points --switch takes.

@@ -290,13 +290,13 @@ def _orbit_of(solved: PeriodicOrbit | CollocationOrbit) -> PeriodicOrbit:
 
 def _continued(orbit: PeriodicOrbit | CollocationOrbit, options: dict, moment_min: float, period_max: float, progress) -> OrbitBranch:
     """The orbit (as :func:`_solve` returned it) continued down to ``moment_min``: by collocation where ``options`` ask for it (``method``), else by
-    :func:`~cosserat_chain.numerics.periodic.continue_orbit` with the options' tolerances and shooting (``dense`` or
-    ``blocks``; a ``krylov`` orbit's branch by ``auto``: a continuation needs the monodromy)."""
+    :func:`~cosserat_chain.numerics.periodic.continue_orbit` with the options' tolerances and shooting (``dense``,
+    ``blocks`` or ``picard``; a ``krylov`` orbit's branch by ``auto``: a continuation needs the monodromy or its dominant subspace)."""
     method = options.get("method", "auto")
     if method == "collocation":
         return continue_periodic_orbit(orbit, moment_min=moment_min, period_max=period_max, progress=progress)
     keep = {k: v for k, v in options.items() if k in ("tol", "rtol", "atol")}
-    shooting = method if method in ("dense", "blocks") else "auto"
+    shooting = method if method in ("dense", "blocks", "picard") else "auto"
     return continue_orbit(orbit, moment_min=moment_min, period_max=period_max, progress=progress, method=shooting, **keep)
 
 
