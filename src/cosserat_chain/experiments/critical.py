@@ -109,13 +109,13 @@ from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.optimize as so
 
 from ..linalg import smallest_eigenvalue
 from ..linalg.threads import one_blas_thread
 from ..loads import Loads, moment_load
 from ..memory import FLOAT, require
 from ..models.base import Model, get_model
+from ..numerics.brent import brentq
 from ..numerics.continuation import (
     FOLD_TOL,
     Branch,
@@ -788,7 +788,7 @@ def resolve_fold(params: ChainParams, model: Model, fold: Fold, *, particle: int
         if not (sign * before > 0.0 > sign * after):
             return None
         try:
-            root = so.brentq(slope, low, high, xtol=min(CONFIRM_PHI0_XTOL, 1e-3 * width), rtol=4 * np.finfo(float).eps)
+            root = brentq(slope, low, high, xtol=min(CONFIRM_PHI0_XTOL, 1e-3 * width), rtol=4 * np.finfo(float).eps)
             x, moment = solve(root)
         except (NewtonError, ValueError):
             return None

@@ -31,7 +31,6 @@ from dataclasses import dataclass, field, replace
 from typing import Any, NamedTuple
 
 import numpy as np
-import scipy.optimize as so
 
 from ..linalg import (
     BandMatrix,
@@ -50,6 +49,7 @@ from ..models.base import Model, get_model
 from ..models.linear import rest_solve
 from ..params import ChainParams
 from ..state import ROW_INDEX, column, n_free, pack, unpack, zeros
+from .brent import brentq
 from .kit import BranchEnd, Continuation, Correction, Corrector, Evaluation, Event, continuation, newton
 from .newton import NewtonError, moment_dof, round_off_floor, solve_rotation_controlled
 from .stability import static_stability
@@ -534,7 +534,7 @@ def locate_fold(
     if bracket is None:
         folds = continue_in_moment(params, model, particle=particle, phi0_stop=phi0_max, max_folds=1).folds
         return folds[0] if folds else None
-    phi_fold = so.brentq(slope, *bracket, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+    phi_fold = brentq(slope, *bracket, xtol=1e-15, rtol=4 * np.finfo(float).eps)
     x, moment = solve(phi_fold)
     return Fold(moment=moment, phi0=phi_fold, x=x, particle=particle)
 
@@ -1211,7 +1211,7 @@ class _StaticBranch:
         # To 1e-12 of the arclength (of the step beyond unit length): within four or five
         # evaluations the slope is at its round-off (1e-15 at N = 1000, with a random sign),
         # and Brent's method went on bisecting that noise to 1e-15, 15 evaluations a fold.
-        s_fold = so.brentq(slope, 0.0, ds, xtol=1e-12 * max(1.0, ds), rtol=4 * np.finfo(float).eps)
+        s_fold = brentq(slope, 0.0, ds, xtol=1e-12 * max(1.0, ds), rtol=4 * np.finfo(float).eps)
         point = cache.get(s_fold)
         if point is None:
             slope(s_fold)
@@ -1255,7 +1255,7 @@ class _StaticBranch:
             high = smallest(ds)
             # The crossing eigenvalue is the smallest one only where the other side is stable;
             # between two unstable states (no sign change of the smallest) the step's end is kept.
-            s_point = so.brentq(smallest, 0.0, ds, xtol=1e-13 * max(1.0, ds)) if low * high < 0 else ds
+            s_point = brentq(smallest, 0.0, ds, xtol=1e-13 * max(1.0, ds)) if low * high < 0 else ds
             if s_point not in evaluated:
                 smallest(s_point)
             point, located, bracket = evaluated[s_point][0], low * high < 0, 0.0 if low * high < 0 else ds

@@ -26,11 +26,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.optimize as so
 
 from ..models.base import Model, get_model
 from ..params import ChainParams
 from ..state import ROW_INDEX, column
+from .brent import brentq
 from .continuation import Branch
 from .newton import NewtonError, solve_rotation_controlled
 from .stability import DynamicStability, dynamic_stability
@@ -172,7 +172,7 @@ def _locate(params, model, branch: Branch, i: int, before: DynamicStability, aft
         a, b = real_part(low), real_part(high)
         if not (math.isfinite(a) and math.isfinite(b) and a * b < 0):
             return fallback
-        root = so.brentq(real_part, low, high, xtol=PHI0_TOL, rtol=4 * np.finfo(float).eps)
+        root = brentq(real_part, low, high, xtol=PHI0_TOL, rtol=4 * np.finfo(float).eps)
         x, moment = solve(root)
     except NewtonError:
         return fallback
