@@ -1,4 +1,5 @@
-"""Two-site breathers and roto-breathers at small coupling against the effective-Hamiltonian (averaging) theory.
+"""Two-site breathers and roto-breathers at small coupling against the effective-Hamiltonian (averaging) theory;
+Takeno and Peyrard's rotating mode at any coupling (its own section below).
 
 Published statement reproduced: V. Koukouloyannis and P. G. Kevrekidis, "On the stability of multibreathers
 in Klein-Gordon chains", Nonlinearity 22, 2269 (2009), arXiv:0902.3990 (its abstract; the body was not
@@ -312,12 +313,14 @@ def test_package_family_start_is_the_in_phase_pair(counter):
 # and the rotating modes "exist for any value of the coupling, strong or weak" and are "intrinsically discrete".
 # Checked here: Newton finds the rotating mode (one rotor turning, the rest oscillating) over five decades of C at
 # Omega = RATIO * omega_max, omega_max = sqrt(1 + 4 C) the top of the band, so that no harmonic of Omega meets the
-# band; "intrinsically discrete" as a number (derived here): in the tail, where the motion is linear, the
-# fundamental harmonic's amplitude c_n obeys (1 - Omega^2) c_n = C (c_{n+1} - 2 c_n + c_{n-1}), so
+# band; "intrinsically discrete" as a number (derived here): in the tail, where the motion is linear, the amplitude
+# c_n of the k-th harmonic at site n obeys (1 - k^2 Omega^2) c_n = C (c_{n+1} - 2 c_n + c_{n-1}), so
 #
-#     c_{n+1} / c_n = -exp(-kappa),    cosh kappa = (Omega^2 - 1) / (2 C) - 1,                        (T)
+#     c_{n+1} / c_n = -exp(-kappa_k),    cosh kappa_k = (k^2 Omega^2 - 1) / (2 C) - 1,                (T)
 #
-# which at Omega = RATIO * omega_max tends to cosh kappa = 2 RATIO^2 - 1 as C grows: the decay length 1 / kappa stays
+# (the odd nonlinearity feeds the k-th harmonic from the others only through products whose tails fall faster, so
+# the first two harmonics follow (T) from three sites on). At Omega = RATIO * omega_max, cosh kappa_1 tends to
+# 2 RATIO^2 - 1 as C grows: the decay length 1 / kappa_1 stays
 # below a site at every coupling, while a continuum object (the static kink, 4 arctan exp(n / sqrt(C))) widens as
 # sqrt(C), 31.6 sites at C = 1000.
 
@@ -325,17 +328,17 @@ TP_SITES, TP_RATIO = 21, 1.5
 TP_COUPLINGS = (0.01, 0.1, 1.0, 10.0, 100.0, 1000.0)
 
 
-def tail_rate(omega: float, coupling: float) -> float:
-    """exp(-kappa) of (T)."""
-    return math.exp(-math.acosh((omega**2 - 1) / (2 * coupling) - 1))
+def tail_rate(omega: float, coupling: float, harmonic: int = 1) -> float:
+    """exp(-kappa_k) of (T)."""
+    return math.exp(-math.acosh(((harmonic * omega) ** 2 - 1) / (2 * coupling) - 1))
 
 
-def fundamental_amplitudes(orbit) -> np.ndarray:
-    """The complex amplitude of the first harmonic of each angle (its winding k Omega t removed), by FFT."""
+def harmonic_amplitudes(orbit, harmonic: int = 1) -> np.ndarray:
+    """The complex amplitude of a harmonic of each angle (its winding k Omega t removed), by FFT."""
     t = np.arange(SAMPLES) * orbit.period / SAMPLES
     sites = orbit.system.size
     phi = orbit.trajectory(t)[:, :sites] - np.outer(t, orbit.turns * 2 * math.pi / orbit.period)
-    return np.fft.rfft(phi, axis=0)[1] / SAMPLES
+    return np.fft.rfft(phi, axis=0)[harmonic] / SAMPLES
 
 
 @pytest.fixture(scope="module")
@@ -360,19 +363,20 @@ def test_rotating_mode_exists_from_weak_to_strong_coupling(rotating_modes):
 
 
 def test_rotating_mode_is_intrinsically_discrete(rotating_modes):
-    """The tail's first harmonic decays by -exp(-kappa) per site, (T); 1 / kappa stays under a site as C grows."""
+    """Each of the tail's first two harmonics decays by -exp(-kappa_k) per site, (T); 1 / kappa_1 stays under a site."""
     centre = TP_SITES // 2
     for c, orbit in rotating_modes.items():
-        amp = fundamental_amplitudes(orbit)
         omega = 2 * math.pi / orbit.period
-        expected = -tail_rate(omega, c)
-        near, far = amp[centre + 2] / amp[centre + 1], amp[centre + 4] / amp[centre + 3]
-        assert abs(far.imag) < 1e-6 * abs(far)  # real and negative: the neighbours move against each other
-        assert far.real == pytest.approx(expected, rel=2e-4), c
-        assert abs(far.real / expected - 1) < abs(near.real / expected - 1)  # the core is nonlinear, the tail linear
-        assert amp[centre - 3] / amp[centre - 2] == pytest.approx(amp[centre + 3] / amp[centre + 2], rel=1e-6)  # mirror
-    strong = 2 * TP_RATIO**2 - 1  # cosh kappa at C -> infinity
-    amp = fundamental_amplitudes(rotating_modes[1000.0])
+        for k in (1, 2):
+            amp = harmonic_amplitudes(orbit, k)
+            expected = -tail_rate(omega, c, k)
+            near, far = amp[centre + 2] / amp[centre + 1], amp[centre + 4] / amp[centre + 3]
+            assert abs(far.imag) < 1e-6 * abs(far)  # real and negative: the neighbours move against each other
+            assert far.real == pytest.approx(expected, rel=2e-4), (c, k)
+            assert abs(far.real / expected - 1) < abs(near.real / expected - 1)  # the core is nonlinear, the tail linear
+            assert amp[centre - 3] / amp[centre - 2] == pytest.approx(amp[centre + 3] / amp[centre + 2], rel=1e-6)  # mirror
+    strong = 2 * TP_RATIO**2 - 1  # cosh kappa_1 at C -> infinity
+    amp = harmonic_amplitudes(rotating_modes[1000.0])
     rate = abs(amp[centre + 4] / amp[centre + 3])
     assert rate == pytest.approx(math.exp(-math.acosh(strong)), rel=3e-3)
     assert 1 / math.acosh(strong) < 1 < math.sqrt(1000.0)  # decay length 0.52 site against the kink's width 31.6
