@@ -23,6 +23,7 @@ from scipy.optimize import brentq
 from scipy.special import mathieu_a, mathieu_b
 from typer.testing import CliRunner
 
+from conftest import SYSTEMS_CACHE
 from cosserat_chain.cli import app
 from cosserat_chain.experiments import system_breathers as sb
 from cosserat_chain.experiments.breather_atlas import AtlasChange, check_locate_tol
@@ -48,8 +49,9 @@ def build():
 
 
 @pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(tmp_path_factory.getbasetemp() / "cache"))
+def _cache(monkeypatch):
+    """The compiled systems go to the tests' cache folder (compiled once, not every session), not the user's."""
+    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(SYSTEMS_CACHE))
 
 
 def rotor_two_mathieu() -> LatticeSystem:

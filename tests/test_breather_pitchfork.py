@@ -22,6 +22,7 @@ import pytest
 from scipy.optimize import brentq
 from scipy.special import mathieu_a, mathieu_b
 
+from conftest import SYSTEMS_CACHE
 from cosserat_chain.experiments import system_breathers as sb
 from cosserat_chain.numerics.shooting import flow
 from cosserat_chain.systems.lattice import LatticeSystem
@@ -30,8 +31,9 @@ C, W0 = 0.3, 1.0
 
 
 @pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(tmp_path_factory.getbasetemp() / "cache"))
+def _cache(monkeypatch):
+    """The compiled systems go to the tests' cache folder (compiled once, not every session), not the user's."""
+    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(SYSTEMS_CACHE))
 
 
 def rotor_mathieu() -> LatticeSystem:

@@ -27,6 +27,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
+from conftest import SYSTEMS_CACHE
 from cosserat_chain.experiments import system_breathers as sb
 from cosserat_chain.numerics.breather_arclength import collision_discriminant
 from cosserat_chain.systems import takeno_peyrard
@@ -38,8 +39,9 @@ MODES = 32
 
 
 @pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(tmp_path_factory.getbasetemp() / "cache"))
+def _cache(monkeypatch):
+    """The compiled systems go to the tests' cache folder (compiled once, not every session), not the user's."""
+    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(SYSTEMS_CACHE))
 
 
 def _hessian(phi: np.ndarray, C: float) -> tuple[np.ndarray, np.ndarray]:

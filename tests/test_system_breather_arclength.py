@@ -13,6 +13,7 @@ import math
 import numpy as np
 import pytest
 
+from conftest import SYSTEMS_CACHE
 from cosserat_chain.experiments import system_breather_arclength as sa
 from cosserat_chain.experiments import system_breathers as sb
 from cosserat_chain.numerics.breather_arclength import pair_test
@@ -25,8 +26,9 @@ SHIFT = np.array([0.0, 2 * math.pi, 0.0, 0.0, 0.0, 0.0])
 
 
 @pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(tmp_path_factory.getbasetemp() / "cache"))
+def _cache(monkeypatch):
+    """The compiled systems go to the tests' cache folder (compiled once, not every session), not the user's."""
+    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(SYSTEMS_CACHE))
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,7 @@ from scipy.optimize import brentq
 from scipy.special import ellipk
 from typer.testing import CliRunner
 
+from conftest import SYSTEMS_CACHE
 from cosserat_chain.cli import app
 from cosserat_chain.experiments import system_breathers as sb
 from cosserat_chain.numerics import shooting
@@ -23,8 +24,9 @@ COUPLING = 0.05
 
 
 @pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(tmp_path_factory.getbasetemp() / "cache"))
+def _cache(monkeypatch):
+    """The compiled systems go to the tests' cache folder (compiled once, not every session), not the user's."""
+    monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(SYSTEMS_CACHE))
 
 
 def pendulum_period(energy: float) -> float:
