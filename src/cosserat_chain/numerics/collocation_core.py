@@ -58,13 +58,13 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from numba import njit, types
-from scipy.optimize import brentq
 
 from ..errors import CosseratChainError
 from ..models.base import END_KERNEL_TYPE, FORCE_KERNEL_TYPE
 from ..state import ROW_INDEX, pack
 from ..state import dof as free_dof
 from . import dop853, floquet
+from .brent import brentq
 from .kit import Evaluation, EvaluationFailed, newton
 
 if TYPE_CHECKING:
