@@ -55,7 +55,7 @@ def test_critical_json_imports_its_own_command_module_and_no_data_or_plot_librar
     assert done.returncode == 0, done.stderr
     command_modules = {f"cosserat_chain.cli.{module}" for module in cli.COMMAND_MODULES.values()}
     assert command_modules & set(probe["modules"]) == {"cosserat_chain.cli.statics"}
-    heavy = {"xarray", "pandas", "dask", "distributed", "matplotlib", "h5netcdf"}
+    heavy = {"xarray", "pandas", "dask", "distributed", "matplotlib", "h5netcdf", "scipy.optimize", "mpmath", "sympy"}
     assert heavy.isdisjoint(probe["modules"])
     # the same result, bit for bit, as the whole application gives in this process
     assert done.stdout == runner.invoke(app, ["critical", "--model", "sine", "--json"]).stdout
@@ -82,3 +82,15 @@ def test_help_and_version_import_no_compiled_library(args):
     done, probe = _run(*args)
     assert done.returncode == 0, done.stderr
     assert {"numba", "scipy", "xarray"}.isdisjoint(probe["modules"])
+
+
+def test_the_written_out_two_pi_of_the_angle_reduction_is_mpmaths():
+    """models.trig.TWO_PI_SCALED (a literal, so that reducing a start angle imports no mpmath) is floor(2 pi 2^256)."""
+    import mpmath
+
+    from cosserat_chain.models import trig
+
+    with mpmath.workprec(320):
+        assert trig.TWO_PI_SCALED == int(mpmath.floor(2 * mpmath.pi * 2**256))
+    with mpmath.workprec(640):  # and not a rounding of the working precision
+        assert trig.TWO_PI_SCALED == int(mpmath.floor(2 * mpmath.pi * 2**256))

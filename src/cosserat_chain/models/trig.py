@@ -24,7 +24,6 @@ code until their own files change.
 
 from __future__ import annotations
 
-import functools
 import math
 from fractions import Fraction
 
@@ -60,13 +59,9 @@ MAX_START_ANGLE = 2.0**53
 _SCALE = 2**256
 
 
-@functools.cache
-def _two_pi_scaled() -> int:
-    """2 pi * _SCALE rounded down to an integer (mpmath, which SymPy brings; imported only when a start angle needs it)."""
-    import mpmath
-
-    with mpmath.workprec(320):
-        return int(mpmath.floor(2 * mpmath.pi * _SCALE))
+#: 2 pi * _SCALE rounded down to an integer (mpmath's ``floor(2 * pi * 2**256)`` at 320 bits, written out so that a
+#: run reducing a start angle does not import mpmath; tests/test_cli_startup.py recomputes it).
+TWO_PI_SCALED = 727543153783532648560469885555459725306786754656784859917544302235877788932370
 
 _S1, _S2, _S3 = 1.58962301576546568060e-10, -2.50507477628578072866e-8, 2.75573136213857245213e-6
 _S4, _S5, _S6 = -1.98412698295895385996e-4, 8.33333333332211858878e-3, -1.66666666666666307295e-1
@@ -125,9 +120,8 @@ def split_turns(angles, name: str = "phi") -> tuple[np.ndarray, np.ndarray]:
                 f"+-{MAX_START_ANGLE:.4g} rad (2^53; beyond it doubles are more than a radian apart)"
             )
         exact = Fraction(angle)
-        two_pi = _two_pi_scaled()
-        k = round(exact * _SCALE / two_pi)
-        flat[i] = float(exact - Fraction(k * two_pi, _SCALE))
+        k = round(exact * _SCALE / TWO_PI_SCALED)
+        flat[i] = float(exact - Fraction(k * TWO_PI_SCALED, _SCALE))
         flat_turns[i] = k
     return reduced, turns
 
