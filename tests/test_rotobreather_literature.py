@@ -318,8 +318,8 @@ def test_package_family_start_is_the_in_phase_pair(counter):
 #
 #     c_{n+1} / c_n = -exp(-kappa_k),    cosh kappa_k = (k^2 Omega^2 - 1) / (2 C) - 1,                (T)
 #
-# (the odd nonlinearity feeds the k-th harmonic from the others only through products whose tails fall faster, so
-# the first two harmonics follow (T) from three sites on). At Omega = RATIO * omega_max, cosh kappa_1 tends to
+# (the forces are odd in the angles, so the nonlinearity feeds the k-th harmonic from the others only through products
+# of three or more amplitudes, whose tails fall faster: the first two harmonics follow (T) from three sites on). At Omega = RATIO * omega_max, cosh kappa_1 tends to
 # 2 RATIO^2 - 1 as C grows: the decay length 1 / kappa_1 stays
 # below a site at every coupling, while a continuum object (the static kink, 4 arctan exp(n / sqrt(C))) widens as
 # sqrt(C), 31.6 sites at C = 1000.
