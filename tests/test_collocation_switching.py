@@ -11,6 +11,8 @@ orbit (``cycle_switching.switch_at_period_doubling``, an independent method) bot
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import scipy.optimize as so
@@ -171,8 +173,12 @@ def test_an_event_that_is_not_a_period_doubling_is_refused(event, kind):
 def test_bad_starts_and_arguments_are_refused(event, branch):
     with pytest.raises(ValueError, match="not a located period doubling"):
         switch_collocation_at_period_doubling(branch.orbits[0])
-    with pytest.raises(ValueError, match="no located period_doubling event"):
-        switch_collocation_at_period_doubling(continue_collocation(branch.orbits[0], direction=1.0, max_points=2))
+    # A branch without the event (the same branch's orbits, events as continue_collocation lists them away from a crossing:
+    # none, or only other kinds).
+    with pytest.raises(ValueError, match=r"no located period_doubling event \(its events: none\)"):
+        switch_collocation_at_period_doubling(dataclasses.replace(branch, events=[]))
+    with pytest.raises(ValueError, match=r"no located period_doubling event \(its events: \['torus'\]\)"):
+        switch_collocation_at_period_doubling(dataclasses.replace(branch, events=[{**event, "kind": "torus"}]))
     with pytest.raises(ValueError, match="was not located"):
         switch_collocation_at_period_doubling({**event, "located": False})
     with pytest.raises(ValueError, match="offset"):
