@@ -7,6 +7,7 @@ Run from the repository root::
     python benchmarks/bench_startup.py --src /tmp/old/src           # another checkout's package, same interpreter
     python benchmarks/bench_startup.py --against /tmp/old/src --runs 5 --out benchmarks/results/startup-h44u.json
     python benchmarks/bench_startup.py --floor --runs 3                # what any computing command pays
+    python benchmarks/bench_startup.py --phases --runs 5               # where critical's CPU goes, stage by stage
 
 Each run is a fresh ``python -m cosserat_chain ARGS`` (its output discarded); its CPU time is
 user + system of the child (``resource.getrusage(RUSAGE_CHILDREN)``), which a busy neighbour
@@ -32,7 +33,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-HEAVY = ("numba", "scipy", "scipy.optimize", "xarray", "pandas", "dask", "distributed", "matplotlib")
+HEAVY = ("numba", "scipy", "scipy.optimize", "mpmath", "xarray", "pandas", "dask", "distributed", "matplotlib")
 # Registered first, so run last among the atexit handlers: the CPU time before the teardown.
 PROBE = """\
 import atexit, json, runpy, sys, time
@@ -77,8 +78,12 @@ FLOOR = {
     "import numpy": _FROZEN + "import numpy",
     "numpy + pydantic (BaseModel) + typer": _FROZEN + _LIBRARIES,
     "... + numba": _FROZEN + _LIBRARIES + "import numba",
-    "... + scipy.optimize": _FROZEN + _LIBRARIES + "import numba, scipy.optimize",
-    "... + one cached njit function entered": _FROZEN + _LIBRARIES + "import scipy.optimize\n" + _KERNEL,
+    "... + scipy.sparse.linalg": _FROZEN + _LIBRARIES + "import numba, scipy.sparse.linalg",
+    "... + one cached njit function entered": _FROZEN + _LIBRARIES + "import scipy.sparse.linalg\n" + _KERNEL,
+    "(not cumulative: the floor + scipy.optimize, which critical and orbit no longer import)": _FROZEN
+    + _LIBRARIES
+    + "import scipy.sparse.linalg, scipy.optimize\n"
+    + _KERNEL,
 }
 
 
@@ -91,6 +96,48 @@ def floor(runs: int) -> dict[str, float]:
         for label, code in FLOOR.items():
             times[label].append(cpu_seconds([sys.executable, "-c", code], env))
     return {label: round(statistics.median(t), 3) for label, t in times.items()}
+
+
+# Where critical's CPU goes, stage by stage in one fresh interpreter (each line's CPU after the one before): the
+# libraries, the command line, Numba's set-up on the first compiled function, the models, the experiment's imports,
+# critical_point on each model of the paper's chain (its compiled functions loaded on the first call), then again
+# (the computation alone).
+PHASES = """\
+import json, os, sys, time
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+marks = []
+def mark(label):
+    marks.append((label, time.process_time()))
+mark("interpreter start")
+import numpy; mark("import numpy")
+import pydantic, typer, tqdm; mark("import pydantic, typer, tqdm")
+import numba; mark("import numba")
+import scipy.sparse.linalg; mark("import scipy.sparse.linalg (scipy.linalg with it)")
+import cosserat_chain.params; mark("cosserat_chain.params (ChainParams' pydantic schema)")
+import cosserat_chain.cli, cosserat_chain.cli.statics; mark("the command line: cli, cli.common, io, cli.statics")
+KERNEL
+mark("the first cached compiled function (Numba's target set-up)")
+import cosserat_chain.models; mark("cosserat_chain.models (kernels with a signature loaded at import)")
+import cosserat_chain.experiments.critical as critical; mark("experiments.critical and the numerics it imports")
+params = cosserat_chain.params.ChainParams()
+for name in ("nonlinear", "sine", "linear"):
+    critical.critical_point(params, name).as_dict(); mark(f"critical_point {name}, first call (its compiled functions loaded)")
+for name in ("nonlinear", "sine", "linear"):
+    critical.critical_point(params, name).as_dict(); mark(f"critical_point {name}, again (the computation alone)")
+print("PHASES", json.dumps(marks))
+"""
+
+
+def phases(runs: int) -> list[tuple[str, float]]:
+    """The median CPU of each stage of :data:`PHASES` over ``runs`` fresh interpreters."""
+    env = environment(None)
+    code = PHASES.replace("KERNEL", _KERNEL)
+    rows: list[list[tuple[str, float]]] = []
+    for _ in range(runs + 1):  # the first warms the caches
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True).stdout
+        marks = json.loads(next(line for line in out.splitlines() if line.startswith("PHASES ")).removeprefix("PHASES "))
+        rows.append([(label, t - (marks[i - 1][1] if i else 0.0)) for i, (label, t) in enumerate(marks)])
+    return [(label, round(statistics.median(row[i][1] for row in rows[1:]), 3)) for i, (label, _) in enumerate(rows[0])]
 
 
 def environment(src: str | None) -> dict[str, str]:
@@ -159,8 +206,23 @@ def main() -> None:
     parser.add_argument("--against", help="a second src folder (the old code), its runs interleaved with this tree's")
     parser.add_argument("--out", type=Path, help="add this run's row to a JSON file (rows keyed by the command)")
     parser.add_argument("--floor", action="store_true", help="measure the floor (FLOOR) instead of a command")
+    parser.add_argument("--phases", action="store_true", help="where critical's CPU goes, stage by stage (PHASES)")
     parser.add_argument("args", nargs="*", default=["critical", "--model", "sine", "--json"])
     ns = parser.parse_args()
+    if ns.phases:
+        stages = phases(ns.runs)
+        for label, seconds in stages:
+            print(f"  {seconds:6.3f} s  {label}")
+        print(f"  {sum(t for _, t in stages):6.3f} s  in all; load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
+        if ns.out:
+            results = json.loads(ns.out.read_text()) if ns.out.exists() else {}
+            results["phases"] = {
+                "cpu_median_s": dict(stages),
+                "runs": ns.runs,
+                "load_average_after": [round(x, 2) for x in os.getloadavg()],
+            }
+            ns.out.write_text(json.dumps(results, indent=1) + "\n")
+        return
     if ns.floor:
         medians = floor(ns.runs)
         for label, seconds in medians.items():
