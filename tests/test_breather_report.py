@@ -8,14 +8,17 @@ import pytest
 
 from cosserat_chain.experiments.breathers import roto_breather_family
 from cosserat_chain.params import ChainParams
-from cosserat_chain.report import reproduce
 from cosserat_chain.report.breathers import NONLINEAR_OMEGAS, REPORT_N, SINE_OMEGAS
 
 
-def test_the_roto_breather_section_shows_the_families_of_the_python_api(tmp_path):
-    result = reproduce(tmp_path, stages=["roto_breathers"])
-    assert result.failed == []
-    data = json.loads((tmp_path / "data" / "roto_breathers.json").read_text())
+def test_the_roto_breather_section_shows_the_families_of_the_python_api(quick_report_and_figures):
+    """The session's quick report (conftest.py; the section reads neither the sweeps nor the runs its settings
+    shorten: its chain and frequencies are fixed) wrote the section, its data and its figure."""
+    result, figures = quick_report_and_figures
+    out = result.out
+    (section,) = [s for s in result.sections if s.title.startswith("Roto-breathers")]
+    assert not section.error
+    data = json.loads((out / "data" / "roto_breathers.json").read_text())
     params = ChainParams(N=REPORT_N, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
     for model, omegas in (("sine", SINE_OMEGAS), ("nonlinear", NONLINEAR_OMEGAS)):
         family = roto_breather_family(params, model, list(omegas)).as_dict()
@@ -26,5 +29,6 @@ def test_the_roto_breather_section_shows_the_families_of_the_python_api(tmp_path
     sine = dict(zip(data["sine"]["omega"], data["sine"]["stable"]))
     assert data["combination_edge"] == pytest.approx(1.5689290811 + 4.8038446142, rel=1e-9)
     assert all(sine[o] for o in sine if o > data["combination_edge"]) and not any(sine[o] for o in sine if o < 5.9)
-    text = (tmp_path / "report.md").read_text()
-    assert "Roto-breathers" in text and (tmp_path / "figures" / "roto_breathers_sine.png").stat().st_size > 0
+    text = (out / "report.md").read_text()
+    assert "Roto-breathers" in text and (out / "figures" / "roto_breathers_sine.png").stat().st_size > 0
+    assert "roto_breathers_sine" in figures
