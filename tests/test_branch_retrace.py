@@ -121,6 +121,6 @@ def test_a_fold_brent_puts_at_the_step_s_start_is_that_point(monkeypatch):
         f(a)
         return a
 
-    monkeypatch.setattr(continuation.so, "brentq", at_start)
+    monkeypatch.setattr(continuation, "brentq", at_start)
     branch = continuation.continue_in_moment(ChainParams(), "nonlinear")
     assert branch.folds and all(any(f.moment == m for m in branch.moment) for f in branch.folds)

@@ -473,13 +473,13 @@ def test_a_continuation_point_assembles_the_stiffness_once_per_solve_and_counts_
     monkeypatch.setattr(Model, "symmetric_similar_band", counted("similar", Model.symmetric_similar_band))
     monkeypatch.setattr(continuation, "BorderedFactor", counted("solve", continuation.BorderedFactor))
     monkeypatch.setattr(stability, "negative_count", counted("count", stability.negative_count))
-    brentq = continuation.so.brentq
+    brentq = continuation.brentq
 
     def counted_search(function, *args, **kwargs):
         return brentq(counted("located", function), *args, **kwargs)
 
     calls["located"] = 0
-    monkeypatch.setattr(continuation.so, "brentq", counted_search)
+    monkeypatch.setattr(continuation, "brentq", counted_search)
     model = get_model("nonlinear")
     for params in (ChainParams(N=10), ChainParams(N=100)):
         calls.update(dict.fromkeys(calls, 0))
