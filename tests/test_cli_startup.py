@@ -7,6 +7,7 @@ interpreter, where ``sys.modules`` tells what the run imported.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import subprocess
@@ -34,7 +35,9 @@ runpy.run_module("cosserat_chain", run_name="__main__")
 """
 
 
+@functools.cache
 def _run(*args: str, whole: bool = False) -> tuple[subprocess.CompletedProcess, dict]:
+    """The fresh interpreter's run of ``args`` and its probe, once a session: the help runs serve two tests."""
     env = dict(os.environ, COLUMNS="80", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     mode = "whole" if whole else "lazy"
     done = subprocess.run([sys.executable, "-c", _PROBE, mode, *args], capture_output=True, text=True, env=env, timeout=300)
