@@ -11,7 +11,9 @@ Run from the repository root::
 
 Each run is a fresh ``python -m cosserat_chain ARGS`` (its output discarded); its CPU time is
 user + system of the child (``resource.getrusage(RUSAGE_CHILDREN)``), which a busy neighbour
-on the other core does not change. One run first warms Numba's on-disk cache (not counted).
+on the other core does not change. One run first warms Numba's on-disk cache (not counted). The
+children keep their bytecode under :data:`PYCACHE`, as an installed package has it (``--no-bytecode``:
+the sources compiled every run, as in a shell with ``PYTHONDONTWRITEBYTECODE``).
 With ``--against OLD``, the runs of this tree and of ``OLD`` (a ``src`` folder) alternate.
 
 Also printed, from one more run of each tree: the heavy libraries loaded by the end of the
@@ -31,6 +33,7 @@ import resource
 import statistics
 import subprocess
 import sys
+import tempfile
 from pathlib import Path
 
 HEAVY = ("numba", "scipy", "scipy.optimize", "mpmath", "xarray", "pandas", "dask", "distributed", "matplotlib")
@@ -87,9 +90,9 @@ FLOOR = {
 }
 
 
-def floor(runs: int) -> dict[str, float]:
+def floor(runs: int, bytecode: bool = True) -> dict[str, float]:
     """The median CPU time of each line of :data:`FLOOR` in a fresh interpreter, the lines interleaved."""
-    env = environment(None)
+    env = environment(None, bytecode)
     cpu_seconds([sys.executable, "-c", FLOOR["... + one cached njit function entered"]], env)  # compile and cache it
     times: dict[str, list[float]] = {label: [] for label in FLOOR}
     for _ in range(runs):
@@ -130,9 +133,9 @@ print("PHASES", json.dumps(marks))
 """
 
 
-def phases(runs: int) -> list[tuple[str, float]]:
+def phases(runs: int, bytecode: bool = True) -> list[tuple[str, float]]:
     """The median CPU of each stage of :data:`PHASES` over ``runs`` fresh interpreters."""
-    env = environment(None)
+    env = environment(None, bytecode)
     code = PHASES.replace("KERNEL", _KERNEL)
     rows: list[list[tuple[str, float]]] = []
     for _ in range(runs + 1):  # the first warms the caches
@@ -142,8 +145,19 @@ def phases(runs: int) -> list[tuple[str, float]]:
     return [(label, round(statistics.median(row[i][1] for row in rows[1:]), 3)) for i, (label, _) in enumerate(rows[0])]
 
 
-def environment(src: str | None) -> dict[str, str]:
+#: Where the children keep their bytecode (``PYTHONPYCACHEPREFIX``): cached as an installed package has it, also in a
+#: shell that sets ``PYTHONDONTWRITEBYTECODE`` (this project's sessions do), where every run would otherwise compile
+#: the package's sources again, a cost no installed package pays. ``--no-bytecode`` measures that way instead.
+PYCACHE = Path(tempfile.gettempdir()) / "bench_startup_pycache"
+
+
+def environment(src: str | None, bytecode: bool = True) -> dict[str, str]:
     env = dict(os.environ, OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    if bytecode:
+        env.pop("PYTHONDONTWRITEBYTECODE", None)
+        env["PYTHONPYCACHEPREFIX"] = str(PYCACHE)
+    else:
+        env["PYTHONDONTWRITEBYTECODE"] = "1"
     if src:
         env["PYTHONPATH"] = src + os.pathsep + env.get("PYTHONPATH", "")
     return env
@@ -209,10 +223,11 @@ def main() -> None:
     parser.add_argument("--out", type=Path, help="add this run's row to a JSON file (rows keyed by the command)")
     parser.add_argument("--floor", action="store_true", help="measure the floor (FLOOR) instead of a command")
     parser.add_argument("--phases", action="store_true", help="where critical's CPU goes, stage by stage (PHASES)")
+    parser.add_argument("--no-bytecode", action="store_true", help="compile the sources every run (PYTHONDONTWRITEBYTECODE)")
     parser.add_argument("args", nargs="*", default=["critical", "--model", "sine", "--json"])
     ns = parser.parse_args()
     if ns.phases:
-        stages = phases(ns.runs)
+        stages = phases(ns.runs, not ns.no_bytecode)
         for label, seconds in stages:
             print(f"  {seconds:6.3f} s  {label}")
         print(f"  {sum(t for _, t in stages):6.3f} s  in all; load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
@@ -226,7 +241,7 @@ def main() -> None:
             ns.out.write_text(json.dumps(results, indent=1) + "\n")
         return
     if ns.floor:
-        medians = floor(ns.runs)
+        medians = floor(ns.runs, not ns.no_bytecode)
         for label, seconds in medians.items():
             print(f"  {label}: {seconds:.2f} s")
         print(f"  load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
@@ -235,9 +250,9 @@ def main() -> None:
             results["floor"] = {"cpu_median_s": medians, "runs": ns.runs, "load_average_after": [round(x, 2) for x in os.getloadavg()]}
             ns.out.write_text(json.dumps(results, indent=1) + "\n")
         return
-    trees = {"this tree": environment(ns.src)}
+    trees = {"this tree": environment(ns.src, not ns.no_bytecode)}
     if ns.against:
-        trees["against"] = environment(ns.against)
+        trees["against"] = environment(ns.against, not ns.no_bytecode)
     cmd = [sys.executable, "-m", "cosserat_chain", *ns.args]
     for env in trees.values():
         cpu_seconds(cmd, env)  # warm Numba's cache
