@@ -147,16 +147,25 @@ def test_any_error_of_the_netcdf_reader_becomes_a_value_error(run_file, monkeypa
         read_dataset(run_file)
 
 
-@pytest.mark.parametrize("command", ["draw", "export", "x0", "guess"])
-@pytest.mark.parametrize("edit", ["no-frames", "no-phi_dot", "nan"])
-def test_commands_refuse_a_damaged_run_with_exit_2(run_file, tmp_path, command, edit):
+@pytest.fixture(scope="module")
+def damaged_runs(run_file, tmp_path_factory):
+    """Edit -> the run file damaged so, written once for the four commands that read it."""
     edits = {
         "no-frames": lambda ds: ds.isel(time=slice(0, 0)),
         "no-phi_dot": lambda ds: ds.drop_vars("phi_dot"),
         "nan": lambda ds: ds.assign(phi=ds.phi * np.nan),
     }
-    bad = tmp_path / "bad.nc"
-    _edited(run_file, edits[edit]).to_netcdf(bad, engine="h5netcdf")
+    paths = {}
+    for name, edit in edits.items():
+        paths[name] = tmp_path_factory.mktemp(name) / "bad.nc"
+        _edited(run_file, edit).to_netcdf(paths[name], engine="h5netcdf")
+    return paths
+
+
+@pytest.mark.parametrize("command", ["draw", "export", "x0", "guess"])
+@pytest.mark.parametrize("edit", ["no-frames", "no-phi_dot", "nan"])
+def test_commands_refuse_a_damaged_run_with_exit_2(damaged_runs, tmp_path, command, edit):
+    bad = damaged_runs[edit]
     argv = {
         "draw": ["draw", str(bad), "--out", str(tmp_path / "x.png")],
         "export": ["export", str(bad), "--to", "csv", "--out", str(tmp_path / "x.csv")],
@@ -187,18 +196,18 @@ def test_a_study_file_damaged_under_the_same_spec_is_refused(tmp_path):
 # ---------------------------------------------------------------- checkpoints and honest outcomes
 
 
-def _resealed(path, edit):
-    ds = edit(read_dataset(path))
-    return seal(ds, CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT, _STATE_ATTRIBUTES)
+def _resealed(checkpoint: xr.Dataset, edit):
+    return seal(edit(checkpoint.copy()), CHECKPOINT_EXPERIMENT, CHECKPOINT_FORMAT, _STATE_ATTRIBUTES)
 
 
 def test_a_checkpoint_sealed_again_with_impossible_counts_or_frames_is_refused(tmp_path):
     """Its seal is a checksum anyone can recompute: the counts and frames themselves are checked."""
     params, loads = ChainParams(), moment_load(0.1)
     path = tmp_path / "run.checkpoint.nc"
-    settings = {"t_end": 3.0, "n_frames": 11, "checkpoint_every": 0.0}
+    settings = {"t_end": 3.0, "n_frames": 11, "checkpoint_every": 1e9}  # written once, at the end
     simulate(params, "linear", loads, checkpoint=path, **settings)
     assert simulate(params, "linear", loads, checkpoint=path, resume=True, **settings).sizes["time"] == 11
+    checkpoint = read_dataset(path)  # read once, each edit made on a copy
 
     def cut(ds):
         out = ds.isel(time=slice(0, 3))
@@ -213,7 +222,7 @@ def test_a_checkpoint_sealed_again_with_impossible_counts_or_frames_is_refused(t
         (lambda ds: ds.assign(final_phi=ds.final_phi * np.inf), "'final_phi' holds"),
     ):
         tampered = tmp_path / "tampered.nc"
-        _resealed(path, edit).to_netcdf(tampered, engine="h5netcdf")
+        _resealed(checkpoint, edit).to_netcdf(tampered, engine="h5netcdf")
         with pytest.raises(ValueError, match=named):
             simulate(params, "linear", loads, checkpoint=tampered, resume=True, **settings)
 
