@@ -17,10 +17,11 @@ from cycle_ends import shooting_crossing
 
 @functools.cache
 def collocation_crossing(params: ChainParams) -> tuple[CollocationOrbit, CollocationBranch]:
-    """The collocation start two stable shooting orbits above the loss of stability, and the collocation branch from
-    there to two steps of the shooting below it."""
+    """The collocation start at the shooting's last stable orbit, and the collocation branch from there to a step of
+    the shooting below its first unstable one (stable orbits above the crossing, unstable ones below, each branch's
+    Floquet multipliers most of its CPU)."""
     branch, index = shooting_crossing(params)
-    above = branch.orbits[index - 2]
+    above = branch.orbits[index - 1]
     start = find_collocation_orbit(params, "sine", above.moment, guess=above)
-    below = branch.orbits[index].moment - 2 * (branch.orbits[index - 1].moment - branch.orbits[index].moment)
+    below = branch.orbits[index].moment - (branch.orbits[index - 1].moment - branch.orbits[index].moment)
     return start, continue_collocation(start, moment_min=below, period_max=200.0)

@@ -44,8 +44,8 @@ def shooting_critical(orbit, kind: str) -> complex:
 
 @pytest.fixture(scope="module", params=list(CASES))
 def crossing(request):
-    """(kind, the shooting's located end (``cycle_ends``), the collocation start two stable orbits above it, the collocation
-    branch from there to two steps of the shooting below the end: ``collocation_crossings``, shared with
+    """(kind, the shooting's located end (``cycle_ends``), the collocation start at the last stable shooting orbit above it, the
+    collocation branch from there to a step of the shooting below its first unstable orbit: ``collocation_crossings``, shared with
     ``tests/test_collocation_switching.py``)."""
     kind, params = request.param, CASES[request.param]
     return kind, located_end(params, kind), *collocation_crossing(params)

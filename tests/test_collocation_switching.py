@@ -45,8 +45,8 @@ def shooting_branch():
 
 @pytest.fixture(scope="module")
 def branch():
-    """The collocation branch over the period doubling, from two stable shooting orbits above it to two steps below
-    (``tests/test_collocation_events.py``'s, computed once for both)."""
+    """The collocation branch over the period doubling, from the last stable shooting orbit above it to a step below the
+    first unstable one (``tests/test_collocation_events.py``'s, computed once for both)."""
     return collocation_crossing(PARAMS)[1]
 
 
