@@ -932,6 +932,8 @@ def find_periodic_orbit(
     transient_turns: int = 30,
     method: str = "auto",
     segments: int | None = None,
+    rho: float | None = None,
+    guard: int | None = None,
 ) -> PeriodicOrbit:
     """The rotating state at ``moment`` as a limit cycle, by Newton on the shooting map (P).
 
@@ -982,6 +984,10 @@ def find_periodic_orbit(
         the formed monodromy (the default) lose every multiplier below about 1e-16 times the
         largest; these keep them wherever each piece's own decay stays within the integration's
         tolerance (docs/periodic-orbits.md, Multipliers of long, strongly damped orbits).
+    rho, guard : float, int, optional
+        With ``method="picard"`` only: the modulus above which multipliers are Newton's (the
+        rest Picard's; default ``newton_picard.RHO``) and the basis columns kept beyond them
+        (default ``newton_picard.GUARD``); :func:`~.newton_picard.check_options` says what is allowed.
 
     Returns
     -------
@@ -1005,6 +1011,12 @@ def find_periodic_orbit(
     collocating = method == "collocation"
     method = "dense" if collocating else long_orbits.choose_method(params, method)
     _check_segments(params, segments, "collocation" if collocating else method)
+    if (rho is not None or guard is not None) and method != "picard":
+        raise ValueError(f"rho and guard apply to method='picard' only, got method={method!r}")
+    if method == "picard":
+        newton_picard.check_options(
+            newton_picard.RHO if rho is None else rho, newton_picard.GUARD if guard is None else guard, 2 * n_free(params)
+        )  # fmt: skip
     particle_turns = _loaded_turns(params, particle, turns, moment)
     if guess is None:
         x0, v0, period, particle_turns = _settled_guess(
@@ -1041,7 +1053,8 @@ def find_periodic_orbit(
         )  # fmt: skip
     if method != "dense":
         return _long_orbit(
-            system, turns, y0, period, particle_turns, phase, method, tol=tol, max_iter=max_iter, rtol=rtol, atol=atol, segments=segments
+            system, turns, y0, period, particle_turns, phase, method, tol=tol, max_iter=max_iter, rtol=rtol, atol=atol, segments=segments,
+            picard={"rho": rho, "guard": guard},
         )  # fmt: skip
     evaluate = _shooting(system, particle_turns, rtol, atol)
     keep = phase.keep
@@ -1074,7 +1087,9 @@ def find_periodic_orbit(
     )  # fmt: skip
 
 
-def _long_orbit(system, turns, y0, period, particle_turns, phase, method, *, tol, max_iter, rtol, atol, segments=None) -> PeriodicOrbit:
+def _long_orbit(
+    system, turns, y0, period, particle_turns, phase, method, *, tol, max_iter, rtol, atol, segments=None, picard=None
+) -> PeriodicOrbit:
     """:func:`find_periodic_orbit` by the blocks, Newton-Krylov (:mod:`.long_orbits`) or Newton-Picard (:mod:`.newton_picard`: the
     trivial multiplier and those above its rho), with the multipliers' errors
     (by the blocks with ``segments``: from the segments' matrices, :func:`~.long_orbits.orbit_multipliers`)."""
@@ -1082,6 +1097,8 @@ def _long_orbit(system, turns, y0, period, particle_turns, phase, method, *, tol
         method, long_orbits.blocks_correction
     )
     options = {} if segments is None else {"segments": segments}
+    if method == "picard":
+        options.update(picard or {})
     try:
         solved, monodromy = correct(
             system, phase, particle_turns, np.append(y0[phase.keep], period), tol=tol, max_iter=max_iter, rtol=rtol, atol=atol,
