@@ -303,7 +303,7 @@ def test_study_cli_with_an_embedded_cluster(tmp_path):
     spec_file.write_text('models = ["sine"]\nquantities = ["M_c", "compliance"]\n[parameters]\nb = [0.2, 0.3]\n')
     out, plot = tmp_path / "study.nc", tmp_path / "lines.png"
     result = CliRunner().invoke(
-        app, ["study", str(spec_file), "--out", str(out), "--workers", "2", "--chunk", "2", "--json", "--plot", str(plot)]
+        app, ["study", str(spec_file), "--out", str(out), "--workers", "1", "--chunk", "2", "--json", "--plot", str(plot)]
     )
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)
