@@ -115,3 +115,24 @@ def test_find_periodic_orbit_refuses_a_bad_module_rho(monkeypatch):
         find_periodic_orbit(params, "sine", 0.3, guess=guess, method="picard")
     with pytest.raises(ValueError, match="segments applies to the dense and blocks shooting only"):
         find_periodic_orbit(params, "sine", 0.3, guess=guess, method="picard", segments=4)
+
+
+def test_find_periodic_orbit_takes_rho_and_guard_and_refuses_them_for_other_methods():
+    # The strongly damped N = 3 chain: one nontrivial multiplier (0.4992) between rho = 0.2 and the default 0.5.
+    params = ChainParams(N=3, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0)
+    guess = initial_guess(params, "sine", 0.3)
+    blocks = find_periodic_orbit(params, "sine", 0.3, guess=guess, method="blocks")
+    between = blocks.multipliers[
+        (np.abs(blocks.multipliers) > 0.2) & (np.abs(blocks.multipliers) < RHO) & (np.abs(blocks.multipliers - 1) > 1e-6)
+    ]
+    assert between.size == 1
+    default = find_periodic_orbit(params, "sine", 0.3, guess=guess, method="picard")
+    lower = find_periodic_orbit(params, "sine", 0.3, guess=guess, method="picard", rho=0.2, guard=4)
+    assert np.all(np.abs(default.multipliers - between[0]) > 1e-3)
+    nearest = np.argmin(np.abs(lower.multipliers - between[0]))
+    assert abs(lower.multipliers[nearest] - between[0]) <= lower.multiplier_errors[nearest] + 1e-9
+    assert lower.period == pytest.approx(blocks.period, abs=SAME_ORBIT)
+    with pytest.raises(ValueError, match=r"rho and guard apply to method='picard' only, got method='blocks'"):
+        find_periodic_orbit(params, "sine", 0.3, guess=guess, method="blocks", rho=0.2)
+    with pytest.raises(ValueError, match=r"guard must be an integer in \[1, 28\].*got 0"):
+        find_periodic_orbit(params, "sine", 0.3, guess=guess, method="picard", guard=0)
