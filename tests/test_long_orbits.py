@@ -142,7 +142,7 @@ def test_a_continuation_with_the_blocks_ends_at_the_dense_continuations_fold_and
     # dPhi_T/dM by differences (|dPhi_T/dM| = 1.2e5 near the fold) moves the steps, not the orbits.
     assert blocks.end_moment == pytest.approx(dense.end_moment, abs=1e-9)
     assert blocks.stability_lost_at == pytest.approx(dense.stability_lost_at, abs=1e-9)
-    with pytest.raises(ValueError, match="continue_orbit's method must be auto, dense or blocks"):
+    with pytest.raises(ValueError, match="continue_orbit's method must be auto, dense, blocks or picard"):
         continue_orbit(orbit, method="krylov")
 
 

@@ -82,7 +82,7 @@ def test_the_branchs_longest_orbit_is_the_shootings_at_its_moment(command_run):
 @pytest.mark.parametrize(
     ("options", "message"),
     [
-        (["--method", "shooting"], "--method takes auto, dense, blocks, krylov, collocation, got 'shooting'"),
+        (["--method", "shooting"], "--method takes auto, dense, blocks, krylov, picard, collocation, got 'shooting'"),
         (["--system", "pendulum", "--method", "collocation"], "--method belong(s) to the chain"),
     ],
 )
@@ -109,7 +109,9 @@ def test_the_json_lists_the_period_doublings_and_tori_a_branch_passed():
     json.dumps(summary)
 
 
-@pytest.mark.parametrize(("method", "branch_method"), [("dense", "dense"), ("blocks", "blocks"), ("krylov", "auto"), ("auto", "auto")])
+@pytest.mark.parametrize(
+    ("method", "branch_method"), [("dense", "dense"), ("blocks", "blocks"), ("krylov", "auto"), ("picard", "picard"), ("auto", "auto")]
+)
 def test_the_shooting_methods_reach_the_orbit_and_its_branch(monkeypatch, method, branch_method):
     """--method goes to the orbit's solve and to the continuation (krylov's continuation by auto: it needs the monodromy)."""
     from cosserat_chain.experiments import orbits

@@ -19,14 +19,14 @@ from conftest import random_geometries
 from cosserat_chain import ChainParams
 from cosserat_chain.numerics import long_orbits
 from cosserat_chain.numerics.newton_picard import RHO
-from cosserat_chain.numerics.periodic import END_FOLD, _crosses_one, continue_orbit, find_periodic_orbit
+from cosserat_chain.numerics.periodic import END_FOLD, END_INFINITE_PERIOD, _crosses_one, continue_orbit, find_periodic_orbit, initial_guess
 
 #: A picard orbit and the dense shooting's at its moment agree to this (both closed to 1e-9 or better, the products at
 #: 1e-11 and the Newton-Picard steps' at 1e-8).
 SAME_ORBIT = 1e-8
 #: The fold's moment is the extreme of the parabola through the last three orbits of each branch (the branches' points
 #: differ): the two agree to this.
-SAME_FOLD = 1e-7
+SAME_FOLD = 1e-8
 
 
 def _check_points_against_dense(branch, points: int = 4) -> None:
@@ -101,3 +101,23 @@ def test_krylov_and_segments_with_picard_are_refused_naming_what_is_allowed(pape
         continue_orbit(paper_sine_orbit, method="krylov")
     with pytest.raises(ValueError, match="segments applies to the dense and blocks shooting only"):
         continue_orbit(paper_sine_orbit, method="picard", segments=4)
+
+
+@pytest.mark.slow
+def test_at_thirty_one_particles_each_side_the_picard_branch_ends_where_the_blocks_one_does():
+    # The strongly damped sine chain of benchmarks/bench_picard_continuation.py at N = 30: its orbit's period grows
+    # towards the static fold (a SNIC); both branches end where it passes period_max, at the same moment up to where
+    # their last steps fall, and every picard orbit is the dense shooting's orbit at its moment.
+    params = ChainParams(N=30, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0)
+    start = find_periodic_orbit(params, "sine", 0.3, guess=initial_guess(params, "sine", 0.3), method="blocks")
+    common = {"period_max": 40.0, "step": 0.02}
+    picard, blocks = (continue_orbit(start, method=method, **common) for method in ("picard", "blocks"))
+    assert picard.end == blocks.end == END_INFINITE_PERIOD
+
+    def crossing(branch) -> float:
+        """M where log T passes log period_max, linear between the branch's last two orbits."""
+        (m0, m1), (t0, t1) = branch.moment[-2:], np.log(branch.period[-2:])
+        return float(m0 + (np.log(common["period_max"]) - t0) * (m1 - m0) / (t1 - t0))
+
+    assert crossing(picard) == pytest.approx(crossing(blocks), abs=0.1 * abs(blocks.moment[-1] - blocks.moment[-2]))
+    _check_points_against_dense(picard, points=3)
