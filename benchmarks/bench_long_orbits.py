@@ -51,7 +51,10 @@ rho), the largest residual among them, the trivial multiplier's distance from 1 
 the peak memory estimate (Newton-Picard: its basis and DOP853's copies of the state with it; the
 blocks: M and one block's integration), and the blocks' distance from the Newton-Picard orbit
 (period, start state, each Newton-Picard multiplier from the nearest of the blocks'); with
-``--progress`` the running totals after every block (``results/long_orbit_picard.json``).
+``--progress`` the running totals after every block (``results/long_orbit_picard.json``, merged: a
+row replaces the one of the same N, rho and guard, the others are kept). ``--rho`` and ``--guard``
+set Newton-Picard's options (``find_periodic_orbit(..., rho=, guard=)``); a run that does not
+converge is recorded with its message, CPU seconds and columns.
 
 ``--continuation M``: for each N of ``--sizes`` (default 100, 200), the chain of
 :data:`SEGMENT_DAMPING` under the moment above, by the blocks with M segments: the orbit from the guess (``find_periodic_orbit``), then
@@ -77,7 +80,7 @@ import numpy as np
 from cosserat_chain import ChainParams
 from cosserat_chain.models.base import get_model
 from cosserat_chain.numerics import long_orbits, newton_picard
-from cosserat_chain.numerics.periodic import _System, _to_y, continue_orbit, find_periodic_orbit, initial_guess
+from cosserat_chain.numerics.periodic import OrbitError, _System, _to_y, continue_orbit, find_periodic_orbit, initial_guess
 from cosserat_chain.state import n_free, pack, per_dof
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -161,32 +164,43 @@ def measure(n: int, methods: list[str], dense_max: int, krylov_max: int, threads
     return row
 
 
-def measure_picard(n: int, blocks_max: int, threads: int, counter: _Counter) -> dict:
-    """Newton-Picard and, up to ``blocks_max``, the blocks from the same guess at N = n (``--picard``)."""
+def measure_picard(n: int, blocks_max: int, threads: int, counter: _Counter, rho: float, guard: int) -> dict:
+    """Newton-Picard (``rho``, ``guard``) and, up to ``blocks_max``, the blocks from the same guess at N = n (``--picard``);
+    a Newton-Picard run that does not converge is recorded as such (its message, CPU and columns)."""
     params = ChainParams(N=n, gamma_u=DAMPING, gamma_v=DAMPING, gamma_phi=DAMPING)
     long_orbits.THREADS = threads
     start = time.process_time()
     guess = initial_guess(params, MODEL, MOMENT)
     size = 2 * n_free(params)
-    row = {"N": n, "size": size, "guess_cpu_s": time.process_time() - start, "rho": newton_picard.RHO, "methods": {}}
+    row = {"N": n, "size": size, "guess_cpu_s": time.process_time() - start, "rho": rho, "guard": guard, "methods": {}}
     for method in ("picard", "blocks") if n <= blocks_max else ("picard",):
         counter.reset()
         load = os.getloadavg()[0]
         cpu = time.process_time()
-        orbit = find_periodic_orbit(params, MODEL, MOMENT, guess=guess, method=method)
+        options = {"rho": rho, "guard": guard} if method == "picard" else {}
+        try:
+            orbit = find_periodic_orbit(params, MODEL, MOMENT, guess=guess, method=method, **options)
+        except OrbitError as err:
+            products, integrations = counter.reset()
+            row["methods"][method] = {
+                "converged": False, "message": str(err), "cpu_s": time.process_time() - cpu, "load_average": load,
+                "load_average_after": os.getloadavg()[0], "products": products, "integrations": integrations,
+            }  # fmt: skip
+            break
         cpu = time.process_time() - cpu
         products, integrations = counter.reset()
         errors = orbit.multiplier_errors
-        above = np.abs(orbit.multipliers) > newton_picard.RHO
+        above = np.abs(orbit.multipliers) > rho
         nontrivial = np.arange(orbit.multipliers.size) != np.argmin(np.abs(orbit.multipliers - 1.0))
         if method == "picard":
             # The basis (p + max(guard, p / 2) columns) and DOP853's ~16 copies of the state with them.
             p = int(np.count_nonzero(above))
-            columns = p + max(newton_picard.GUARD, p // 2)
+            columns = p + max(guard, p // 2)
             memory = 8 * size * (16 * (columns + 1) + 4 * columns)
         else:
             memory = 8 * size * (size + 16 * (long_orbits.BLOCK_COLUMNS + 1))
         entry = {
+            "converged": True,
             "cpu_s": cpu,
             "load_average": load,
             "load_average_after": os.getloadavg()[0],
@@ -196,7 +210,7 @@ def measure_picard(n: int, blocks_max: int, threads: int, counter: _Counter) -> 
             "period": orbit.period,
             "closure": orbit.closure,
             "above_rho": int(np.count_nonzero(above & nontrivial)),
-            "certified_above_rho": int(np.count_nonzero((np.abs(orbit.multipliers) - errors > newton_picard.RHO) & nontrivial)),
+            "certified_above_rho": int(np.count_nonzero((np.abs(orbit.multipliers) - errors > rho) & nontrivial)),
             "largest_residual_above_rho": float(np.max(errors[above & nontrivial], initial=0.0)),
             "max_nontrivial_multiplier": orbit.max_multiplier,
             "trivial_distance_from_1": abs(orbit.trivial_multiplier - 1.0),
@@ -211,8 +225,13 @@ def measure_picard(n: int, blocks_max: int, threads: int, counter: _Counter) -> 
         entry["orbit"] = orbit
         row["methods"][method] = entry
     for entry in row["methods"].values():
-        del entry["orbit"]
+        entry.pop("orbit", None)
     return row
+
+
+def _label(method: str, row: dict) -> str:
+    """Newton-Picard's row names its rho and guard (rows from before they were options: 0.5 and 8)."""
+    return f"picard (rho {row.get('rho', 0.5)}, guard {row.get('guard', 8)})" if method == "picard" else method
 
 
 def picard_markdown(rows: list[dict]) -> str:
@@ -223,12 +242,19 @@ def picard_markdown(rows: list[dict]) -> str:
     ]
     for row in rows:
         for method, e in row["methods"].items():
+            if not e.get("converged", True):
+                lines.append(
+                    f"| {row['N']} | {row['size']} | {_label(method, row)} | {e['cpu_s']:.4g} | "
+                    f"{e['load_average']:.1f}-{e['load_average_after']:.1f} | not converged: {e['message']} | "
+                    f"{e['products']} ({e['integrations']}) | | | | | | |"
+                )
+                continue
             against = "" if "period_difference" not in e else (
                 f"T {e['period_difference']:.1e}, y0 {e['state_difference']:.1e}, mu {e['multiplier_difference']:.1e}"
             )  # fmt: skip
             found = f"{e['above_rho']} / {e['certified_above_rho']}" if method == "picard" else f"{e['above_rho']} / -"
             lines.append(
-                f"| {row['N']} | {row['size']} | {method} | {e['cpu_s']:.4g} | {e['load_average']:.1f}-{e['load_average_after']:.1f} | "
+                f"| {row['N']} | {row['size']} | {_label(method, row)} | {e['cpu_s']:.4g} | {e['load_average']:.1f}-{e['load_average_after']:.1f} | "
                 f"{e['iterations']} | {e['products']} ({e['integrations']}) | {e['period']:.10g} | {found} | "
                 f"{e['largest_residual_above_rho']:.1e} | {e['trivial_distance_from_1']:.1e} / {e['trivial_error']:.1e} | "
                 f"{e['memory_MB']:.4g} | {against} |"
@@ -421,6 +447,8 @@ def main() -> None:
     parser.add_argument("--picard", action="store_true", help="Newton-Picard against the blocks, N = 50 ... 1000")
     parser.add_argument("--blocks-max", type=int, default=200, help="largest N for the blocks in --picard")
     parser.add_argument("--progress", action="store_true", help="print the columns integrated after every block (--picard)")
+    parser.add_argument("--rho", type=float, default=newton_picard.RHO, help="Newton-Picard's rho (--picard)")
+    parser.add_argument("--guard", type=int, default=newton_picard.GUARD, help="Newton-Picard's guard columns (--picard)")
     args = parser.parse_args()
     log = sys.stderr if args.json else sys.stdout
     default_out = RESULTS / "long_orbits.json"
@@ -432,7 +460,10 @@ def main() -> None:
     if args.picard:
         sizes, out = chosen([50, 100, 200, 500, 1000], "long_orbit_picard.json")
         counter = _Counter(log if args.progress else None)
-        _sweep(sizes, lambda n: measure_picard(n, args.blocks_max, args.threads, counter), picard_markdown, out, log, args.json)
+        _sweep(
+            sizes, lambda n: measure_picard(n, args.blocks_max, args.threads, counter, args.rho, args.guard), picard_markdown, out, log,
+            args.json, merge=lambda row: (row["N"], row.get("rho", 0.5), row.get("guard", 8)),
+        )  # fmt: skip
     elif args.continuation is not None:
         sizes, out = chosen([100, 200], "long_orbit_continuation.json")
         _sweep(sizes, lambda n: continuation(n, args.continuation, args.threads), continuation_markdown, out, log, args.json)
@@ -454,15 +485,19 @@ def main() -> None:
         )
 
 
-def _sweep(sizes: list[int], measure_one, table_markdown, out: Path, log, as_json: bool) -> None:
+def _sweep(sizes: list[int], measure_one, table_markdown, out: Path, log, as_json: bool, merge=None) -> None:
     """Measure each N in turn, print its table row and rewrite ``out`` as each one comes (an interrupted sweep keeps its
-    rows), then print the whole table (and the rows as JSON with ``as_json``)."""
+    rows), then print the whole table (and the rows as JSON with ``as_json``). With ``merge`` (a row's key), the rows
+    already in ``out`` are kept, a new row replacing the old one with its key."""
     table = []
+    kept = json.loads(out.read_text()) if merge is not None and out.exists() else []
     for n in sizes:
         table.append(measure_one(n))
         print("\n".join(table_markdown(table[-1:]).splitlines()[2:]), file=log, flush=True)
         out.parent.mkdir(exist_ok=True)
-        out.write_text(json.dumps(table, indent=1))
+        new = {merge(row) for row in table} if merge is not None else set()
+        rows = [row for row in kept if merge(row) not in new] + table if merge is not None else table
+        out.write_text(json.dumps(sorted(rows, key=merge) if merge is not None else rows, indent=1))
     print(table_markdown(table), file=log)
     if as_json:
         print(json.dumps(table))
