@@ -37,10 +37,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.optimize as so
 
 from ..loads import moment_load
 from ..models.base import Model, get_model
+from ..numerics.brent import brentq
 from ..numerics.continuation import PHI0_STEP, Branch, compliance, continue_in_moment
 from ..numerics.newton import NewtonError, solve_equilibrium
 from ..numerics.stability import static_stability
@@ -260,7 +260,7 @@ def agreement_range(
 
     # At rest the deviation is 0 / 0 (its limit is 0): the bracket starts just above it.
     low = moments[i - 1] if i > 1 else moments[i] * 1e-6
-    edge = so.brentq(excess, low, moments[i], xtol=1e-14 * moments[i], rtol=4 * np.finfo(float).eps)
+    edge = brentq(excess, low, moments[i], xtol=1e-14 * moments[i], rtol=4 * np.finfo(float).eps)
     if edge not in solved:
         excess(edge)
     return result(edge, _angle(params, solved[edge], particle), "tolerance")

@@ -34,6 +34,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..numerics.brent import brentq
 from ..params import ChainParams
 from ..state import free_rows
 from .beam import beam_stiffness
@@ -193,7 +194,6 @@ def beam_frequencies(params: ChainParams, count: int = 3, family: str = "flexura
         For a bad family or count, a ring, a graded chain or E2 = 0, a bending stiffness <= 0, or
         a mode above the beam's cut-off sqrt(GA / rotary) (ask for fewer).
     """
-    from scipy.optimize import brentq
 
     _require(params, family, count)
     beam = beam_stiffness(params)

@@ -22,7 +22,8 @@ import math
 from collections.abc import Callable
 
 import numpy as np
-from scipy.optimize import brentq
+
+from ..numerics.brent import brentq
 
 #: Angles 2 pi i / POTENTIAL_POINTS at which the torque is sampled (the on-site potential is smooth).
 POTENTIAL_POINTS = 256

@@ -58,11 +58,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-import scipy.optimize as so
 
 from ..linalg.threads import one_blas_thread
 from ..loads import moment_load
 from ..models.base import Model, get_model
+from ..numerics.brent import brentq
 from ..numerics.continuation import continue_in_moment
 from ..numerics.dynamics import TurnWatch, integrate
 from ..numerics.hopf import HopfPoint, hopf_points
@@ -350,7 +350,7 @@ def _solve_crossing(params: ChainParams, model: Model, moment: float, particle: 
         nearest = branch.x[i] if abs(phi0 - branch.phi0[i]) < abs(phi0 - branch.phi0[i + 1]) else branch.x[i + 1]
         return solve_rotation_controlled(params, model, phi0, particle=particle, x0=nearest, moment0=moment, tol=1e-13)[1] - moment
 
-    phi = so.brentq(excess, branch.phi0[i], branch.phi0[i + 1], xtol=1e-15, rtol=4 * np.finfo(float).eps)
+    phi = brentq(excess, branch.phi0[i], branch.phi0[i + 1], xtol=1e-15, rtol=4 * np.finfo(float).eps)
     return solve_rotation_controlled(params, model, phi, particle=particle, x0=guess, moment0=moment, tol=1e-13)[0]
 
 
@@ -375,7 +375,7 @@ def _section_states(orbit: PeriodicOrbit) -> list[np.ndarray]:
         target = 2 * math.pi * j
         after = int(np.argmax(phi >= target))
         t_low = 0.0 if after == 0 else times[after - 1]
-        t = so.brentq(past, t_low, times[after], args=(target,), xtol=1e-13)
+        t = brentq(lambda s, target=target: past(s, target), t_low, times[after], xtol=1e-13)
         x, v = state(t)
         x = x.copy()
         x[ROW_INDEX["phi"], col] -= sign * target

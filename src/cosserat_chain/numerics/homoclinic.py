@@ -70,6 +70,7 @@ from ..errors import CosseratChainError
 from ..linalg.threads import one_blas_thread
 from ..state import pack, unpack
 from ..systems.base import System
+from .brent import brentq
 from .equilibria import EquilibriumNotFound, find_equilibrium
 from .kit import EvaluationFailed
 from .periodic import OrbitError, PeriodicOrbit
@@ -1003,7 +1004,6 @@ def chain_saddle(params, model, moment: float, *, particle: int = 0, fold=None) 
     HomoclinicError
         If the branch has no fold, or ``moment`` is not below it.
     """
-    import scipy.optimize as so
 
     from .continuation import locate_fold
     from .newton import solve_rotation_controlled
@@ -1026,7 +1026,7 @@ def chain_saddle(params, model, moment: float, *, particle: int = 0, fold=None) 
         phi0, step = phi0 + step, 2.0 * step
         if step > 4 * np.pi:
             raise HomoclinicError(f"M(phi_0) does not fall to {moment!r} past the fold at phi_0 = {fold.phi0:.6g}")
-    angle = so.brentq(lambda a: solve(a)[1] - moment, phi0, phi0 + step, xtol=1e-14)
+    angle = brentq(lambda a: solve(a)[1] - moment, phi0, phi0 + step, xtol=1e-14)
     return pack(params, solve(angle)[0])
 
 

@@ -44,6 +44,7 @@ from ..linalg.threads import one_blas_thread
 from ..models.base import no_ends
 from ..systems.base import System
 from . import dop853
+from .brent import brentq
 from .kit import BranchEnd, Continuation, Evaluation, EvaluationFailed, continuation, newton
 
 #: Tolerances of the shooting integrations.
@@ -637,8 +638,6 @@ def _fitted_end(branch: OrbitBranch) -> tuple[float | None, float | None]:
         return values[picks], periods[picks]
 
     def fit(v: np.ndarray, t: np.ndarray) -> float:
-        from scipy.optimize import brentq
-
         t = t - t[0]
         ratio = (v[2] - v[1]) / (v[1] - v[0])
 
