@@ -42,7 +42,7 @@ import numpy as np
 from ..errors import CosseratChainError
 from ..linalg.threads import one_blas_thread
 from ..models.base import no_ends
-from ..systems.base import System
+from ..systems.base import System, SystemDefinitionError
 from . import dop853
 from .brent import brentq
 from .kit import BranchEnd, Continuation, Evaluation, EvaluationFailed, continuation, newton
@@ -203,6 +203,34 @@ def turns_vector(system: System, turns: Mapping[str | int, int] | np.ndarray | N
     return k
 
 
+#: Round-off allowed in F(q + 2 pi k) - F(q), relative to the largest force there, for turns k the forces are periodic in.
+PERIODIC_RTOL = 1e-9
+
+
+def require_periodic_turns(system: System, q: np.ndarray, turns: np.ndarray) -> None:
+    """Refuse turns the forces are not 2 pi periodic in: F(q + 2 pi k) must equal F(q) (checked at ``q``).
+
+    Only then is a state that gains 2 pi k in a period the same state again, and (O) an orbit: a
+    lattice bonded by k/2 (phi_r - phi_l)^2 turns its angles together, never one alone.
+
+    Raises
+    ------
+    SystemDefinitionError
+        Naming the turning coordinates and how far the forces move.
+    """
+    if not np.any(turns):
+        return
+    before, after = system.forces(q), system.forces(q + 2 * math.pi * turns)
+    moved = float(np.max(np.abs(after - before)))
+    if moved > PERIODIC_RTOL * max(1.0, float(np.max(np.abs(before)))):
+        turning = ", ".join(f"{system.coordinates[i]} {int(turns[i]):+d}" for i in np.flatnonzero(turns))
+        raise SystemDefinitionError(
+            f"turns {turning}: the forces of {system.name} are not 2 pi periodic in these turns (F moves by up to "
+            f"{moved:.3g} when they are made), so no orbit turning so closes; turn the coordinates whose differences "
+            "the forces depend on together, or write the coupling periodic (e.g. 1 - cos(phi_r - phi_l))"
+        )
+
+
 @dataclass
 class Orbit:
     """A periodic orbit of a system: its start y0 = (q0, v0) on the phase plane, period, turns and Floquet multipliers."""
@@ -293,6 +321,7 @@ class _Shooting:
             if name != PERIOD:
                 system.parameter(name)
         n = system.size
+        require_periodic_turns(system, np.asarray(reference, dtype=float)[:n], turns)
         self.shift = np.concatenate([2 * math.pi * turns, np.zeros(n)])
         self.turns = turns
         self.set_reference(reference)
