@@ -1621,8 +1621,8 @@ class _PicardBranchProblem(_OrbitBranchProblem):
     of the subspace iteration): Picard gives q = q_R + q_T d(log T) + q_M dM on the complement
     (:func:`~.newton_picard.complement`, three columns), and a dense (p + 2) system gives a,
     d(log T) and dM. The tangent is the same solve with R = 0 and the previous tangent as the
-    border (b . t = 1). Every point's multipliers are the trivial one and those above ``rho`` with
-    their Ritz residuals (:func:`~.newton_picard.ritz_multipliers`), which hold every multiplier
+    border (b . t = 1), from the correction's last step (its V_p, q_T and q_M: no more products).
+    Every point's multipliers are the trivial one and those above ``rho`` with their Ritz residuals (:func:`~.newton_picard.ritz_multipliers`), which hold every multiplier
     that a fold, a branch point, a torus or a period doubling moves across the unit circle.
     """
 
@@ -1631,6 +1631,8 @@ class _PicardBranchProblem(_OrbitBranchProblem):
     rho: float = newton_picard.RHO
     guard: int = newton_picard.GUARD
     subspace: object = None
+    #: The last Newton-Picard step's reduced system (:meth:`solve`), None before a correction's first step.
+    reduced: tuple | None = None
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -1681,10 +1683,23 @@ class _PicardBranchProblem(_OrbitBranchProblem):
         right = np.concatenate([dominant.T @ top - coupling[:, 0], [target - normal @ q[:, 0], border_rhs - along @ q[:, 0]]])
         solution = np.linalg.solve(matrix, right)
         dy = dominant @ solution[:p] + q @ np.append(1.0, solution[p:])
+        # The rows of (P) and the phase condition in (a, d log T, dM), and dy's map: the tangent's system at no more products.
+        self.reduced = (matrix[: p + 1], np.column_stack([dominant, q[:, 1:]]), p)
+        return np.concatenate([dy[self.phase.keep], solution[p:]])
+
+    def _reduced_tangent(self, border: np.ndarray) -> np.ndarray:
+        """The tangent from the last Newton-Picard step's reduced system (V_p, q_T and q_M at the iterate before the solution)."""
+        rows, span, p = self.reduced
+        along = np.zeros(span.shape[0])
+        along[self.phase.keep] = border[: self.phase.head]
+        bordered = np.vstack([rows, np.append(along @ span[:, :p], along @ span[:, p:] + border[self.phase.head :])])
+        solution = np.linalg.solve(bordered, np.append(np.zeros(p + 1), 1.0))
+        dy = span @ solution
         return np.concatenate([dy[self.phase.keep], solution[p:]])
 
     def _newton(self, start: np.ndarray, border: np.ndarray, w_pred: np.ndarray, criterion: dict) -> Correction:
         """Newton-Picard on the equations with the border ``border`` . (w - w_pred) = 0 (:func:`~.kit.newton`)."""
+        self.reduced = None
 
         def step(w: np.ndarray, evaluation: Evaluation, at: _PicardJacobian) -> np.ndarray:
             residual = np.asarray(evaluation.residual)
@@ -1720,8 +1735,11 @@ class _PicardBranchProblem(_OrbitBranchProblem):
         if border is None:
             border = np.zeros(self.phase.head + 2)
             border[-1] = self.direction
-        residual = np.zeros(jacobian.monodromy.size + (self.phase.normal is not None))
-        t = self.solve(jacobian, residual, border, 1.0, TANGENT_PICARD_RTOL)
+        if self.reduced is not None:  # the correction's last step: its Jacobian is the solution's to the step's length
+            t = self._reduced_tangent(border)
+        else:
+            residual = np.zeros(jacobian.monodromy.size + (self.phase.normal is not None))
+            t = self.solve(jacobian, residual, border, 1.0, TANGENT_PICARD_RTOL)
         return t / np.linalg.norm(t)
 
     def events(self, previous: PeriodicOrbit, candidate: PeriodicOrbit, t_before: np.ndarray, t_after: np.ndarray) -> list[str]:
