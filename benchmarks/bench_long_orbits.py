@@ -52,9 +52,11 @@ the peak memory estimate (Newton-Picard: its basis and DOP853's copies of the st
 blocks: M and one block's integration), and the blocks' distance from the Newton-Picard orbit
 (period, start state, each Newton-Picard multiplier from the nearest of the blocks'); with
 ``--progress`` the running totals after every block (``results/long_orbit_picard.json``, merged: a
-row replaces the one of the same N, rho and guard, the others are kept). ``--rho`` and ``--guard``
+row replaces the one of the same N, rho, guard and settle, the others are kept). ``--rho`` and ``--guard``
 set Newton-Picard's options (``find_periodic_orbit(..., rho=, guard=)``); a run that does not
-converge is recorded with its message, CPU seconds and columns.
+converge is recorded with its message, CPU seconds and columns. ``--settle K``: the guess continued
+by K more ``initial_guess`` calls from its own state (each a few turns: the settled run stops
+where two turns take the same time to 1e-3, while the period still drifts).
 
 ``--continuation M``: for each N of ``--sizes`` (default 100, 200), the chain of
 :data:`SEGMENT_DAMPING` under the moment above, by the blocks with M segments: the orbit from the guess (``find_periodic_orbit``), then
@@ -164,15 +166,21 @@ def measure(n: int, methods: list[str], dense_max: int, krylov_max: int, threads
     return row
 
 
-def measure_picard(n: int, blocks_max: int, threads: int, counter: _Counter, rho: float, guard: int) -> dict:
+def measure_picard(n: int, blocks_max: int, threads: int, counter: _Counter, rho: float, guard: int, settle: int = 0) -> dict:
     """Newton-Picard (``rho``, ``guard``) and, up to ``blocks_max``, the blocks from the same guess at N = n (``--picard``);
-    a Newton-Picard run that does not converge is recorded as such (its message, CPU and columns)."""
+    a Newton-Picard run that does not converge is recorded as such (its message, CPU and columns). ``settle``: the
+    settled guess continued by that many more calls of ``initial_guess`` from its own state (each a few turns)."""
     params = ChainParams(N=n, gamma_u=DAMPING, gamma_v=DAMPING, gamma_phi=DAMPING)
     long_orbits.THREADS = threads
     start = time.process_time()
     guess = initial_guess(params, MODEL, MOMENT)
+    for _ in range(settle):
+        guess = initial_guess(params, MODEL, MOMENT, x0=guess[0], v0=guess[1])
     size = 2 * n_free(params)
-    row = {"N": n, "size": size, "guess_cpu_s": time.process_time() - start, "rho": rho, "guard": guard, "methods": {}}
+    row = {
+        "N": n, "size": size, "guess_cpu_s": time.process_time() - start, "guess_period": guess[2], "settle": settle, "rho": rho,
+        "guard": guard, "methods": {},
+    }  # fmt: skip
     for method in ("picard", "blocks") if n <= blocks_max else ("picard",):
         counter.reset()
         load = os.getloadavg()[0]
@@ -449,6 +457,7 @@ def main() -> None:
     parser.add_argument("--progress", action="store_true", help="print the columns integrated after every block (--picard)")
     parser.add_argument("--rho", type=float, default=newton_picard.RHO, help="Newton-Picard's rho (--picard)")
     parser.add_argument("--guard", type=int, default=newton_picard.GUARD, help="Newton-Picard's guard columns (--picard)")
+    parser.add_argument("--settle", type=int, default=0, help="further initial_guess calls continuing the guess (--picard)")
     args = parser.parse_args()
     log = sys.stderr if args.json else sys.stdout
     default_out = RESULTS / "long_orbits.json"
@@ -461,8 +470,8 @@ def main() -> None:
         sizes, out = chosen([50, 100, 200, 500, 1000], "long_orbit_picard.json")
         counter = _Counter(log if args.progress else None)
         _sweep(
-            sizes, lambda n: measure_picard(n, args.blocks_max, args.threads, counter, args.rho, args.guard), picard_markdown, out, log,
-            args.json, merge=lambda row: (row["N"], row.get("rho", 0.5), row.get("guard", 8)),
+            sizes, lambda n: measure_picard(n, args.blocks_max, args.threads, counter, args.rho, args.guard, args.settle), picard_markdown, out, log,
+            args.json, merge=lambda row: (row["N"], row.get("rho", 0.5), row.get("guard", 8), row.get("settle", 0)),
         )  # fmt: skip
     elif args.continuation is not None:
         sizes, out = chosen([100, 200], "long_orbit_continuation.json")
