@@ -63,3 +63,13 @@ def test_an_orbit_turning_an_angle_its_forces_are_not_periodic_in_is_refused_nam
         find_orbit(system, (y0, 2 * math.pi / 3.0), turns={"phi_1": 1}, unfold="alpha")
     # Turning the three together keeps every spring's length: that rotation is posed.
     require_periodic_turns(system, np.array([0.3, -1.0, 2.0]), np.ones(3))
+
+
+@pytest.mark.parametrize("reference", ["./ring:ring", "systems/ring:ring", "../ring:ring"])
+def test_a_system_file_named_without_py_is_refused_saying_how_to_name_it(reference):
+    """Before: ``--system ./ring:ring`` (the .py left out) reached importlib.import_module, whose TypeError about
+    relative imports ('the package argument is required') was all the user saw."""
+    from cosserat_chain.systems.loader import load_system
+
+    with pytest.raises(SystemDefinitionError, match=r"not a \.py file.*file\.py:function"):
+        load_system(reference)

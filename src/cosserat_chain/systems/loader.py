@@ -56,6 +56,10 @@ def load_system(reference: str, arguments: Mapping[str, object] | None = None) -
         except Exception as error:  # the user's file: any failure is reported, not raised
             raise SystemDefinitionError(f"--system: importing {str(path)!r} failed: {type(error).__name__}: {error}") from None
     else:
+        if module_name.startswith(".") or "/" in module_name or "\\" in module_name:
+            raise SystemDefinitionError(
+                f"--system: {module_name!r} is a path but not a .py file: give path/to/file.py:function (or module:function)"
+            )
         try:
             module = importlib.import_module(module_name)
         except ImportError as error:
