@@ -109,7 +109,7 @@ def test_the_end_followed_in_the_damping_stays_on_the_retrapping_curve():
 
 def test_the_curve_stops_past_the_codimension_two_point_and_says_so():
     """Above alpha* = 1.193 the rotation ends at the fold (a SNIC): no homoclinic end exists, the curve stops there."""
-    curve = continue_homoclinic(pendulum_end(1.1), "alpha", [1.15, 1.3])
+    curve = continue_homoclinic(pendulum_end(1.0), "alpha", [1.15, 1.3])  # from the end solved for alpha = 1.0 above
     assert list(curve.values) == [1.15] and not curve.complete
     assert "stopped before alpha = 1.3" in curve.message and curve.as_dict()["complete"] is False
 
