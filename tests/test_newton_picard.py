@@ -136,3 +136,20 @@ def test_find_periodic_orbit_takes_rho_and_guard_and_refuses_them_for_other_meth
         find_periodic_orbit(params, "sine", 0.3, guess=guess, method="blocks", rho=0.2)
     with pytest.raises(ValueError, match=r"guard must be an integer in \[1, 28\].*got 0"):
         find_periodic_orbit(params, "sine", 0.3, guess=guess, method="picard", guard=0)
+
+
+def test_a_longer_settle_puts_the_guess_where_newton_picard_steps_in_full():
+    # The settled run stops where two turns take the same time to 1e-3 while its period still drifts (docs/periodic-orbits.md,
+    # why N = 500 stalled): continued by 100 more calls, the guess's period is 30x nearer the orbit's and Newton-Picard
+    # converges from it to the same orbit in fewer iterations.
+    params = ChainParams(N=20, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0)
+    settled = initial_guess(params, "sine", 0.3)
+    longer = settled
+    for _ in range(100):
+        longer = initial_guess(params, "sine", 0.3, x0=longer[0], v0=longer[1])
+    from_settled = find_periodic_orbit(params, "sine", 0.3, guess=settled, method="picard")
+    from_longer = find_periodic_orbit(params, "sine", 0.3, guess=longer, method="picard")
+    assert abs(longer[2] - from_settled.period) < abs(settled[2] - from_settled.period) / 30
+    assert from_longer.period == pytest.approx(from_settled.period, abs=SAME_ORBIT)
+    assert np.max(np.abs(from_longer.x - from_settled.x)) < SAME_ORBIT
+    assert from_longer.iterations < from_settled.iterations
