@@ -73,3 +73,14 @@ def test_a_system_file_named_without_py_is_refused_saying_how_to_name_it(referen
 
     with pytest.raises(SystemDefinitionError, match=r"not a \.py file.*file\.py:function"):
         load_system(reference)
+
+
+def test_a_lattice_too_large_for_the_memory_is_refused_before_it_is_built(monkeypatch):
+    """Before: ``--system ... --set sites=1000000000`` (a typo of three zeros) built a tuple of 10^9 coordinate
+    names and a Jacobian's triplets until the machine ran out of memory; now it is refused, naming sites."""
+    from cosserat_chain import memory
+    from cosserat_chain.systems import LatticeSystem
+
+    monkeypatch.setattr(memory, "available", lambda: 2**30)
+    with pytest.raises(SystemDefinitionError, match=r"not enough memory: a lattice of sites=100000000 .*fewer sites"):
+        LatticeSystem(sites=100_000_000, site_energy="1 - cos(phi)", bond_energy="C*(1 - cos(phi_r - phi_l))", parameters={"C": 1.0})

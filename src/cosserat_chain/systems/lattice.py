@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 import scipy.sparse as sp
 
+from ..memory import FLOAT, MemoryEstimateError, require
 from .base import FlowKernels, System, SystemDefinitionError
 
 BOUNDARIES = ("free", "periodic", "fixed")
@@ -57,6 +58,29 @@ def _cache_dir() -> Path:
         return Path(root) / "systems"
     base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
     return Path(base) / "cosserat-chain" / "systems"
+
+
+#: Bytes a coordinate holds at the least: its name (a short str and its pointer), a force and two state entries.
+COORDINATE_BYTES = 80 + 3 * FLOAT
+
+
+def _require_memory(sites: int, dofs: int) -> None:
+    """Refuse, before compiling anything, a lattice whose coordinates and Jacobian do not fit in the free memory.
+
+    Raises
+    ------
+    SystemDefinitionError
+        Naming ``sites`` and the memory it needs (see :func:`cosserat_chain.memory.require`).
+    """
+    jacobian = (2 * sites + 1) * 4 * dofs * dofs * 3 * FLOAT  # the triplets force_jacobian fills
+    try:
+        require(
+            sites * dofs * COORDINATE_BYTES + jacobian,
+            f"a lattice of sites={sites} x {dofs} dofs (its coordinates and Jacobian)",
+            "fewer sites",
+        )
+    except MemoryEstimateError as error:
+        raise SystemDefinitionError(str(error)) from None
 
 
 class LatticeSystem(System):
@@ -115,6 +139,7 @@ class LatticeSystem(System):
         unknown = [a for a in angles if a not in dofs]
         if unknown:
             raise SystemDefinitionError(f"angles must be among dofs {dofs}, got {unknown}")
+        _require_memory(int(sites), len(dofs))
         self.name = name
         self.sites = int(sites)
         self.dofs = dofs
