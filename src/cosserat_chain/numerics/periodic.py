@@ -1586,6 +1586,9 @@ class _OrbitBranchProblem:
         return True
 
 
+#: Subspace-iteration sweeps for each orbit's multipliers on a picard branch, from the last point's basis: those near the
+#: unit circle (the ones an end moves across it) converge first, those just above rho last; each carries its residual.
+BRANCH_RITZ_SWEEPS = 3
 #: Picard's relative tolerance in the tangent's solve (the predictor's direction and the sign of its dM that tells a fold).
 TANGENT_PICARD_RTOL = 1e-8
 
@@ -1747,13 +1750,15 @@ class _PicardBranchProblem(_OrbitBranchProblem):
         return ["fold"] if t_before[-1] * t_after[-1] < 0 else []
 
     def point(self, w: np.ndarray, evaluation: Evaluation, iterations: int) -> PeriodicOrbit:
-        """The orbit at w with the trivial multiplier and those above ``rho`` (Ritz values at the shooting's tolerance, with
-        their residuals); the refined basis, with the flow, is the next corrections' warm start."""
+        """The orbit at w with the trivial multiplier and those above ``rho`` (Ritz values at the shooting's tolerance after
+        :data:`BRANCH_RITZ_SWEEPS` sweeps, with their residuals); the refined basis, with the flow, is the next corrections' warm start."""
         at = evaluation.data
         y0, period = at.monodromy.start, at.monodromy.period
         flow = at.system.velocity(y0)
         accurate = long_orbits.Monodromy(at.system, y0, period, self.rtol, self.atol)
-        values, errors, basis = newton_picard.ritz_multipliers(accurate, flow, self.subspace.basis, rho=self.rho, guard=self.guard)
+        values, errors, basis = newton_picard.ritz_multipliers(
+            accurate, flow, self.subspace.basis, rho=self.rho, guard=self.guard, sweeps=BRANCH_RITZ_SWEEPS
+        )  # fmt: skip
         self.subspace.basis = np.linalg.qr(np.column_stack([flow, basis]))[0]
         closure = float(np.max(np.abs(evaluation.residual)))
         return _orbit_from(
