@@ -165,10 +165,25 @@ def test_orbit_command_prints_period_multipliers_and_stability(tmp_path):
     assert bad.exit_code == 2 and "turns" in bad.output
 
 
-def test_orbit_down_to_reports_where_the_orbit_ends_and_plots(tmp_path):
+def test_orbit_down_to_reports_where_the_orbit_ends_and_plots(tmp_path, monkeypatch, paper_sine_orbit, paper_sine_branch):
+    """The command's continuation is ``paper_sine_branch``'s call (the orbit at 0.22 continued down to 0.1 with the
+    defaults: asserted), given the session's branch in place of tracing it again; its report and plot as before."""
+    from cosserat_chain.experiments import orbits
+
+    calls = []
+
+    def given(orbit, **options):
+        calls.append((orbit, options))
+        return paper_sine_branch
+
+    monkeypatch.setattr(orbits, "continue_orbit", given)
     png = tmp_path / "characteristic.png"
     result = CliRunner().invoke(app, ["orbit", "--model", "sine", "--moment", "0.22", "--down-to", "0.1", "--plot", str(png)])
     assert result.exit_code == 0, result.output
+    ((orbit, options),) = calls
+    assert (orbit.params, orbit.model, orbit.moment, orbit.turns) == (ChainParams(), "sine", 0.22, 1)
+    assert orbit.period == pytest.approx(paper_sine_orbit.period, rel=1e-12)
+    assert {k: v for k, v in options.items() if k != "progress"} == {"moment_min": 0.1, "period_max": 2000.0, "method": "auto"}
     assert "fold of limit cycles" in result.output and "loses stability" in result.output
     assert png.stat().st_size > 0
 
