@@ -10,6 +10,7 @@ The one-particle sine chain: M_c = 0.4677, its rotation ends at a homoclinic loo
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -126,6 +127,23 @@ def test_the_orbit_reached_from_above_is_continued_further_down_with_down_to(fol
     assert np.all(np.diff(branch["moment"]) < 0) and np.all(np.diff(branch["period"]) > 0)
 
 
+def test_a_branch_cut_short_before_the_moment_exits_3_naming_its_end(folder, monkeypatch):
+    """The command's exit on a branch from above that ends before the moment, on the same continuation cut at five
+    orbits (``max_points``; the homoclinic end's 400-orbit creep is the slow test below): exit 3, the end and why."""
+    from cosserat_chain.experiments import orbits
+
+    follow = orbits.continue_orbit
+    monkeypatch.setattr(orbits, "continue_orbit", lambda orbit, **options: follow(orbit, **{**options, "max_points": 5}))
+    result = runner.invoke(
+        app,
+        ["orbit", "--model", "sine", "--moment", "0.4", "--config", str(folder / "N1.toml"), "--turns", "1", "--from-above", str(ABOVE)],
+    )
+    assert result.exit_code == 3
+    end = re.search(r"followed down from M = 0\.5 ends at M = ([0-9.]+) \(max_points", result.output)
+    assert end and 0.4 < float(end.group(1)) < ABOVE and "before the moment 0.4" in result.output
+
+
+@pytest.mark.slow
 def test_a_branch_that_ends_before_the_moment_exits_3_naming_its_end(folder):
     """Below the homoclinic end (near 0.43) the orbit from above does not exist: its continuation creeps to a halt there."""
     result = runner.invoke(
