@@ -153,3 +153,23 @@ def test_a_longer_settle_puts_the_guess_where_newton_picard_steps_in_full():
     assert from_longer.period == pytest.approx(from_settled.period, abs=SAME_ORBIT)
     assert np.max(np.abs(from_longer.x - from_settled.x)) < SAME_ORBIT
     assert from_longer.iterations < from_settled.iterations
+
+
+def test_trust_region_step_is_newtons_within_reach_and_the_best_step_of_that_length_beyond():
+    # A nearly singular direction (a soft multiplier within 1e-8 of 1) makes the Newton step long: within the reach the
+    # step is Newton's; beyond it, the Levenberg-Marquardt step of the reach's length, whose linear residual is below that
+    # of Newton's step cut to the same length (the halving that keeps its direction) and of random steps of that length.
+    rng = np.random.default_rng(3)
+    matrix = rng.standard_normal((6, 6)) @ np.diag([1.0, 0.8, 0.5, 0.3, 0.1, 1e-8]) @ rng.standard_normal((6, 6))
+    right = rng.standard_normal(6)
+    newton_step = np.linalg.solve(matrix, right)
+    same = newton_picard._trust_region_step(matrix, right, lambda x: x, 2 * np.linalg.norm(newton_step))
+    assert np.allclose(same, newton_step, rtol=1e-5, atol=0)  # two solves of a system of condition 1e9
+    reach = 1.0
+    assert np.linalg.norm(newton_step) > 1e3 * reach
+    step = newton_picard._trust_region_step(matrix, right, lambda x: x, reach)
+    assert np.linalg.norm(step) == pytest.approx(reach, rel=1e-5)
+    residual = np.linalg.norm(matrix @ step - right)
+    assert residual < np.linalg.norm(matrix @ (newton_step * reach / np.linalg.norm(newton_step)) - right)
+    for trial in rng.standard_normal((200, 6)):
+        assert residual <= np.linalg.norm(matrix @ (trial * reach / np.linalg.norm(trial)) - right) + 1e-12

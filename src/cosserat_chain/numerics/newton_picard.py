@@ -20,7 +20,12 @@ is split along an orthonormal basis V_p (2 n_free, p) of the multipliers above `
   products; it contracts at the rate of the largest multiplier left out (where it blows up,
   :data:`PICARD_BLOWUP`, the step takes Q b alone).
 * **Newton** on the p-dimensional projection with T and the phase condition (p + 1 unknowns,
-  a dense solve), the couplings V_p^T M q from Picard's last product.
+  a dense solve), the couplings V_p^T M q from Picard's last product. A step longer than
+  :data:`REACH` times the step taken before it is replaced by the Levenberg-Marquardt step of
+  that length (a trust region; :func:`_trust_region_step`): far from a long chain's orbit the
+  multipliers of its soft modes, within 1e-8 of 1 at the orbit, move by more than that, some
+  above 1, and the Newton step along them is long and points the wrong way, which halving it
+  (the corrector's damping) does not change.
 
 V_p comes from subspace iteration with block products M V (:class:`~.long_orbits.Monodromy`, one
 integration of the state with p + g columns, O(N (p + g)) a step): each Newton step applies M
@@ -90,6 +95,9 @@ PICARD_BLOWUP = 1e3
 RITZ_TOL = 1e-10
 #: Most subspace-iteration sweeps spent on the multipliers at the solution.
 REFINE_MAX = 60
+#: A Newton step is at most this many times as long as the step taken before it (a trust region on the p + 1 system,
+#: solved there in the Levenberg-Marquardt form; the first step is free).
+REACH = 2.0
 
 
 def check_options(rho: float, guard: int, size: int) -> None:
@@ -255,6 +263,8 @@ def picard_correction(
         residual, monodromy, velocity = evaluate(w)
         return Evaluation(residual, _PicardStep(monodromy, velocity), monodromy)
 
+    previous: list[np.ndarray] = []
+
     def step(w: np.ndarray, evaluation: Evaluation, at: _PicardStep) -> np.ndarray:
         residual = np.asarray(evaluation.residual)
         if subspace.basis is None:
@@ -274,9 +284,14 @@ def picard_correction(
         system_matrix[p, :p] = normal @ dominant
         system_matrix[p, p] = normal @ q[:, 1]
         right = np.append(-dominant.T @ closure_r - coupling[:, 0], target - normal @ q[:, 0])
-        solution = np.linalg.solve(system_matrix, right)
-        dy = dominant @ solution[:p] + q[:, 0] + q[:, 1] * solution[p]
-        return np.append(dy[phase.keep], solution[p])
+
+        def taken(solution: np.ndarray) -> np.ndarray:
+            dy = dominant @ solution[:p] + q[:, 0] + q[:, 1] * solution[p]
+            return np.append(dy[phase.keep], solution[p])
+
+        reach = REACH * float(np.linalg.norm(w - previous[-1])) if previous else math.inf
+        previous[:] = [w.copy()]
+        return _trust_region_step(system_matrix, right, taken, reach)
 
     solved = newton(
         closure, w0, converged=deep_convergence(tol), max_iterations=max_iter, divergence=None, damping=damping, newton_step=step
@@ -287,6 +302,39 @@ def picard_correction(
     accurate = Monodromy(system, at.start, at.period, rtol, atol)
     values, errors, _ = ritz_multipliers(accurate, system.velocity(at.start), subspace.basis, rho=rho, guard=guard)
     return solved, (values, errors)
+
+
+def _trust_region_step(matrix: np.ndarray, right: np.ndarray, taken, reach: float) -> np.ndarray:
+    """The step ``taken(x)`` of the solution x of ``matrix`` x = ``right``, or, where that step is longer than ``reach``,
+    of the Levenberg-Marquardt solution x(lam) = argmin |matrix x - right|^2 + lam^2 |x|^2 whose step is ``reach`` long.
+
+    Far from a long chain's orbit its soft multipliers (within 1e-8 of 1 at the orbit) move by more than their distance
+    from 1, some above it: the Newton step along them is long and wrong, and halving it keeps its direction
+    (docs/periodic-orbits.md). The regularised step leaves those directions until the iterate is nearer, and takes the
+    rest of the correction.
+    """
+    left, values, rows = np.linalg.svd(matrix)
+    projected = left.T @ right
+
+    def step(lam: float) -> np.ndarray:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gains = np.where(values > 0, values / (values**2 + lam**2), 0.0)
+        return taken(rows.T @ (gains * projected))
+
+    full = step(0.0)
+    if not np.linalg.norm(full) > reach:
+        return full
+    low, high = 0.0, max(float(values[0]), 1e-300)
+    for _ in range(200):  # lam large enough (the Picard part alone may stay longer than reach: then lam's largest)
+        if not np.linalg.norm(step(high)) > reach:
+            break
+        high *= 2.0
+    for _ in range(60):  # bisection on lam, the step's length falling as lam grows
+        middle = 0.5 * (low + high)
+        low, high = (middle, high) if np.linalg.norm(step(middle)) > reach else (low, middle)
+        if high - low <= 1e-6 * high:
+            break
+    return step(high)
 
 
 def ritz_multipliers(
