@@ -203,13 +203,14 @@ def critical(
             fold = "no fold" if r.fold is None else f"M_c = {r.fold.moment:.15g} at phi_0 = {r.fold.phi0:.15g} rad (onset of rotation)"
             if r.branch_point is not None:
                 q = r.branch_point
+                part = "the stable branch from rest" if r.end == "branch_point" else "the highest stable part of the branch"
                 fold = (
-                    f"M_c = {q.moment:.15g} at phi_0 = {q.phi0:.15g} rad (onset of rotation: the stable branch from rest "
+                    f"M_c = {q.moment:.15g} at phi_0 = {q.phi0:.15g} rad (onset of rotation: {part} "
                     f"ends at a branch point, K singular with M still rising; the branch's largest fold, "
                     + ("none" if r.fold is None else f"M = {r.fold.moment:.15g} at phi_0 = {r.fold.phi0:.15g} rad")
                     + ", lies on its unstable part)"
                 )
-            if r.as_dict()["snap_through"]:
+            if r.snap_through:
                 fold += f"; the stable branch from rest ends earlier, at M = {r.first_fold.moment:.15g}, phi_0 = {r.first_fold.phi0:.15g} rad (snap-through"
                 fold += ")" if r.snap_to is None else f" to the stable state at phi_0 = {r.snap_to.phi0:.15g} rad)"
             if r.onset_particle is not None and r.onset_particle != r.particle:
@@ -241,12 +242,12 @@ def critical(
             exit_on(
                 Status.MAX_STEPS,
                 f"the {name} branch used all {max_points} points before the loaded particle turned once: "
-                "M_c is the largest maximum of the traced part (raise --max-points)",
+                "M_c is decided on the traced part (raise --max-points)",
             )
         if r.branch.stop == BranchEnd.STEP_TOO_SMALL:
-            exit_on(Status.STEP_TOO_SMALL, f"the {name} branch: {r.branch.message}; M_c is the largest maximum of the traced part")
+            exit_on(Status.STEP_TOO_SMALL, f"the {name} branch: {r.branch.message}; M_c is decided on the traced part")
         if r.branch.stop == BranchEnd.REVERSED:
-            exit_on(Status.FAILED, f"the {name} branch: {r.branch.message}; M_c is the largest maximum of the traced part")
+            exit_on(Status.FAILED, f"the {name} branch: {r.branch.message}; M_c is decided on the traced part")
         if not r.accurate:
             spread = max((f.discrepancy for f in (r.fold, r.first_fold) if f is not None and f.discrepancy is not None), default=math.inf)
             exit_on(

@@ -15,15 +15,20 @@ Contract
   ``complete``), ``onset_particle`` which particle turns there (a pinned end can turn
   before the loaded particle; the trace stops once another particle has wound a full
   turn ahead of it, Branch.stop "wound");
-* M_c, the onset of rotation under a slowly rising load: the largest maximum of M
-  along the branch (no static state of the branch holds more; of its traced part if
+* M_c, the onset of rotation under a slowly rising load: the highest end of a stable
+  part of the branch, the largest maximum of M approached stably where no stable part
+  ends higher at a branch point (of its traced part if
   the point budget ran out or the corrector stalled first: ``complete`` is then False
   and the command line exits with ``max_steps`` or ``step_too_small``), and the first
   fold, where the stable branch from rest ends. A branch can have several maxima (N = 10,
   a = 0.3, b = 0.1, E1 = 2, E2 = 0.3: a first one near phi_0 = 1.0, the largest near
   2.04): at the first the chain snaps through to a static state further along, and
   only above M_c does it rotate. For the paper's chain both are the same fold. None
-  for a model without a fold (the linear model).
+  for a model without a fold (the linear model). A maximum approached on an unstable
+  part is not M_c: the stable part before it ended at a branch point, at a lower moment,
+  and the chain rotates above that (N = 2, a = 0.332, b = 0.492, E1 = 1.64, E2 = 2.65:
+  a branch point at M = 2.8474 before the maximum at 2.8634; a relaxation at 1.001 times
+  the branch point's moment rotates, tested).
 * where the stable branch from rest ends at a branch point instead (K turns singular
   while M still rises: the cantilever of the paper's geometry, nonlinear model, at
   M = 0.08198 before its fold at 0.08375), M_c is that branch point's moment
@@ -214,8 +219,9 @@ class CriticalResult:
     Attributes
     ----------
     fold : Fold or None
-        The fold of M_c, the onset of rotation: the largest maximum of M along the
-        branch (None for a model without one: the linear model).
+        The fold of M_c, the onset of rotation: the largest maximum of M approached stably
+        (module docstring); where M_c is a branch point, the branch's largest maximum (None
+        for a model without one: the linear model).
     first_fold : Fold or None
         The first fold along the branch from rest (where the stable branch ends; a
         snap-through when it is not ``fold``).
@@ -230,8 +236,9 @@ class CriticalResult:
     branch : Branch
         Continuation over one turn of the loaded particle.
     branch_point : BranchPoint or None
-        The branch point where the stable branch from rest ends, if it ends at one
-        (before any fold); M_c is then its moment.
+        The branch point where M_c is: where the stable branch from rest ends, if it ends at one
+        (before any fold), or where a later stable part that holds more than every fold approached
+        stably ends (after a snap-through); M_c is then its moment.
     """
 
     params: ChainParams
@@ -304,7 +311,7 @@ class CriticalResult:
     def end(self) -> str | None:
         """How the stable branch from rest ends: "branch_point", "fold", or where it was not seen to end "budget"
         (``turns`` reached), "max_points", "step_too_small" or "reversed" (the trace cut short); None for a model that never loses it (linear)."""
-        if self.branch_point is not None:
+        if self.branch_point is not None and self.branch_point is self.branch.stable_end:
             return "branch_point"
         if self.first_fold is not None:
             return "fold"
@@ -316,6 +323,11 @@ class CriticalResult:
     def accurate(self) -> bool:
         """False where the fold of M_c or the first fold is not confirmed by its re-solve (module docstring)."""
         return all(f is None or f.confirmed is not False for f in (self.fold, self.first_fold))
+
+    @property
+    def snap_through(self) -> bool:
+        """Whether the stable branch from rest ends at its first fold while M_c lies further along (a later fold or branch point)."""
+        return self.end == "fold" and (self.branch_point is not None or self.first_fold is not self.fold)
 
     @property
     def onset(self) -> str | None:
@@ -377,7 +389,7 @@ class CriticalResult:
             "phi0_at_fold": self.phi0_at_fold,
             "largest_fold": None if self.fold is None else {"moment": self.fold.moment, "phi0": self.fold.phi0},
             "first_fold": None if self.first_fold is None else {"moment": self.first_fold.moment, "phi0": self.first_fold.phi0},
-            "snap_through": self.branch_point is None and self.first_fold is not None and self.first_fold is not self.fold,
+            "snap_through": self.snap_through,
             "snap_to": None if self.snap_to is None else {"moment": self.snap_to.moment, "phi0": self.snap_to.phi0},
             "branch_points": [
                 {
@@ -570,22 +582,21 @@ def critical_point(
     higher = [branch.folds[i] for i in _deciding_folds(branch)[1:]]
     fold = max(higher, key=lambda f: f.moment) if higher else (first if first is not None and first.maximum else None)
     compliance = float(response[moment_dof(params, particle)])
-    end = branch.stable_end
-    if end is not None:
-        # The stable branch ends at a branch point, not at a fold: the chain leaves it there.
-        if onset_particle is None and abs(end.index_after - end.index_before) == 1:
+    onset = branch.stable_end if branch.stable_end is not None or first is None else _highest_stable_end(branch, first)
+    if isinstance(onset, Fold):
+        fold = onset
+    if isinstance(onset, BranchPoint):
+        # A stable part of the branch ends at a branch point, not at a fold: the chain leaves it there.
+        if onset_particle is None and abs(onset.index_after - onset.index_before) == 1:
             # Several eigenvalues through zero together (a cantilever's bonds, all alike) name no one particle.
-            onset_particle = end.mode_particle
-        return CriticalResult(
-            params, model.name, particle, fold, compliance, branch, first, None, end, confirmation, turns if model.rotates else None,
-            onset_particle, *_dynamics(params, model, branch, dynamics),
-        )  # fmt: skip
-    if onset_particle is None and first is not None:
+            onset_particle = onset.mode_particle
+    elif onset_particle is None and first is not None:
         onset_particle = first.mode_particle
-    snap_to = _snap_target(params, model, branch, first, particle) if first is not None and first is not fold else None
+    snapped = branch.stable_end is None and first is not None and onset is not first
+    snap_to = _snap_target(params, model, branch, first, particle) if snapped else None
     return CriticalResult(
-        params, model.name, particle, fold, compliance, branch, first, snap_to, None, confirmation, turns if model.rotates else None,
-        onset_particle, *_dynamics(params, model, branch, dynamics),
+        params, model.name, particle, fold, compliance, branch, first, snap_to, onset if isinstance(onset, BranchPoint) else None,
+        confirmation, turns if model.rotates else None, onset_particle, *_dynamics(params, model, branch, dynamics),
     )  # fmt: skip
 
 
@@ -728,6 +739,27 @@ def confirm_folds(branch: Branch, others: list[Fold]) -> list[Fold]:
         discrepancy = min((abs(g.moment - f.moment) for g in kin), default=math.inf)
         out.append(replace(f, confirmed=confirmed, discrepancy=discrepancy))
     return out
+
+
+def _highest_stable_end(branch: Branch, first: Fold) -> Fold | BranchPoint | None:
+    """Where M_c is, once the stable branch from rest has ended at its first fold: the highest end of a stable part.
+
+    Each stable part of the branch (K's index 0) ends at a maximum of M approached with index 0
+    or at a branch point left with index 0: a slowly loaded chain that has snapped through onto a
+    later stable part leaves it there. A maximum approached on an unstable part (index before it
+    above 0) is not where the chain leaves: the stable part before it ended at a branch point,
+    at a lower moment (module docstring; tests/test_critical_stable_parts.py).
+    A maximum without indices (located on its own) counts as approached stably. As for the maxima
+    (:func:`_deciding_folds`), a branch point decides only where it holds more than the first fold by
+    more than the folds' confirmation tolerance. None where the first fold is not a maximum.
+    """
+    if not first.maximum:
+        return None
+    above = first.moment + CONFIRM_MOMENT_RTOL * float(np.max(np.abs(branch.moment)))
+    ends: list[Fold | BranchPoint] = [first]
+    ends += [f for f in (branch.folds[i] for i in _deciding_folds(branch)[1:]) if not f.index_before]
+    ends += [q for q in branch.branch_points if q.index_before == 0 < q.index_after and q.moment > above]
+    return max(ends, key=lambda e: e.moment)
 
 
 def _deciding_folds(branch: Branch) -> list[int]:
