@@ -138,6 +138,7 @@ def test_find_periodic_orbit_takes_rho_and_guard_and_refuses_them_for_other_meth
         find_periodic_orbit(params, "sine", 0.3, guess=guess, method="picard", guard=0)
 
 
+@pytest.mark.slow
 def test_a_longer_settle_puts_the_guess_where_newton_picard_steps_in_full():
     # The settled run stops where two turns take the same time to 1e-3 while its period still drifts (docs/periodic-orbits.md,
     # why N = 500 stalled): continued by 100 more calls, the guess's period is 30x nearer the orbit's and Newton-Picard
