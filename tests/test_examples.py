@@ -22,7 +22,7 @@ from in_process import run_script
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
 #: Examples that are long runs (a study on a local Dask cluster of worker processes): slow tests.
-SLOW_EXAMPLES = {"parameter_study.py"}
+SLOW_EXAMPLES = {"parameter_study.py", "chain_ends.py"}
 
 
 def _env() -> dict[str, str]:
