@@ -107,6 +107,7 @@ def test_where_the_rotation_controlled_path_is_continuous_the_minimum_energy_pat
     assert barrier.barrier == pytest.approx(barrier.saddle, rel=1e-7)
 
 
+@pytest.mark.slow
 def test_wide_front_turns_through_a_lower_one_sided_saddle_inside_the_bracket():
     params = ChainParams(a=0.05, b=0.6, E2=0.01)
     barrier = turn_barrier(params, half_length=8, points=24, images=24)
