@@ -129,6 +129,7 @@ def test_the_switch_follows_the_doubled_family_away_from_twice_the_single_period
     assert switch.as_dict()["side"] == "below"
 
 
+@pytest.mark.slow
 def test_opposite_amplitudes_start_the_same_doubled_orbit_one_period_apart(event, flip):
     """a and -a: the same orbit (period, moment) started one single period apart (x against -x at the start)."""
     plus = doubled_collocation_orbit(event, 4e-3, mode=flip[1])
