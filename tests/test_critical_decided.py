@@ -59,6 +59,7 @@ def test_a_branch_still_stable_at_the_turn_is_not_ended():
     assert branch.stable.all() and not branch.folds and branch.stop == BranchEnd.ANGLE_LIMIT
 
 
+@pytest.mark.slow
 def test_critical_ends_a_long_nonlinear_chains_turn_once_m_c_is_decided():
     # N = 2000 is near singular at rest (K's softest eigenvalue within ten times its round-off): the trace ends
     # short of the turn; N = 300 is resolved at rest and traces the whole turn, as before.
