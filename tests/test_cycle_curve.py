@@ -40,6 +40,7 @@ def crossing_by_natural_continuation(chain: ChainParams, orbit, moment: float, k
     return above.moment + (1.0 - r_above) * (below.moment - above.moment) / (r_below - r_above)
 
 
+@pytest.mark.slow
 def test_the_torus_end_followed_in_E2_crosses_the_circle_where_it_says():
     params = ChainParams(E2=0.8)
     # Followed over the same range of E2 as ever, each end of it checked (a point in between was a third check of the same).
