@@ -197,6 +197,7 @@ def test_locate_every_with_no_locate_exits_2():
     assert result.exit_code == 2 and "--no-locate" in result.output
 
 
+@pytest.mark.slow
 def test_every_locates_the_pairs_leaving_an_unstable_stretch_too():
     """The sine chain, N = 6, at Omega = 6.6, 6.4, 6.2, 6.0: stable, stable, unstable, unstable. By default only the loss
     between 6.4 and 6.2 is located; with ``every`` also the quartet that leaves between 6.2 and 6.0 (two quartets at
