@@ -121,7 +121,7 @@ def assert_same_run(a: xr.Dataset, b: xr.Dataset) -> None:
     assert (a.attrs["steps"], a.attrs["status"], a.attrs["dt"]) == (b.attrs["steps"], b.attrs["status"], b.attrs["dt"])
 
 
-@pytest.mark.parametrize("method", ["verlet", "yoshida4"])
+@pytest.mark.parametrize("method", ["verlet", pytest.param("yoshida4", marks=pytest.mark.slow)])
 def test_a_run_resumed_from_its_checkpoint_equals_the_uninterrupted_run_bit_for_bit(tmp_path, small_chunks, method):
     params = ChainParams(N=3)
     whole = simulate(params, "nonlinear", LOADS, method=method, **RUN)
