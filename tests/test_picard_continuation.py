@@ -58,7 +58,7 @@ def test_the_paper_sine_chains_branch_ends_at_the_dense_continuations_fold_of_cy
     ("params", "model", "moment"),
     [
         (ChainParams(N=6, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0), "nonlinear", 0.3),
-        (ChainParams(N=6, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0), "sine", 0.3),
+        pytest.param(ChainParams(N=6, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0), "sine", 0.3, marks=pytest.mark.slow),
         (random_geometries(6, seed=3)[1], "sine", 0.41),
     ],
     ids=["nonlinear N=6", "sine N=6", "random sine N=3"],
