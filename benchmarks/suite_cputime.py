@@ -11,6 +11,12 @@ compiles nothing), so that a kernel compiled again in every session shows. Use::
 and read the records with ``python benchmarks/suite_cputime.py times.jsonl [--top 30]`` (the sums, the most expensive
 tests and files), or ``python benchmarks/suite_cputime.py old.jsonl new.jsonl`` (the two runs' sums over the tests
 both have, and the files and tests that changed most).
+
+Run under ``coverage run`` (coverage is not a dependency of the package; install it in the environment for this
+analysis only), the plugin names coverage's context after each test's node id and phase (``ID|setup``, ``ID|call``,
+``ID|teardown``), and ``python benchmarks/suite_cputime.py times.jsonl --unique-lines .coverage`` lists, for each
+quick test above ``--min`` seconds, the package's lines no other quick test runs, and which of them could move to
+``slow`` without the quick suite losing a line (greedy from the most expensive, each move counted before the next).
 """
 
 import argparse
@@ -18,6 +24,7 @@ import collections
 import json
 import os
 import resource
+import sys
 import time
 
 import pytest
@@ -50,6 +57,36 @@ def _listen_to_numba() -> None:
                 _COMPILING["seconds"] += time.process_time() - _COMPILING["since"]
 
     event.register("numba:compile", Compilations())
+
+
+def _switch_coverage_context(label: str) -> None:
+    # Only under ``coverage run``: the plugin never imports coverage itself.
+    coverage = sys.modules.get("coverage")
+    current = coverage.Coverage.current() if coverage is not None else None
+    if current is not None:
+        current.switch_context(label)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_setup(item):
+    """Name coverage's context after the test's setup."""
+    _switch_coverage_context(item.nodeid + "|setup")
+    yield
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_call(item):
+    """Name coverage's context after the test's call."""
+    _switch_coverage_context(item.nodeid + "|call")
+    yield
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_teardown(item):
+    """Name coverage's context after the test's teardown, and none once it is over."""
+    _switch_coverage_context(item.nodeid + "|teardown")
+    yield
+    _switch_coverage_context("")
 
 
 def pytest_sessionstart(session):
@@ -119,12 +156,48 @@ def _compare(old_path: str, new_path: str, top: int) -> None:
         print(f"{_cost(old[node]):7.2f} {_cost(new[node]):7.2f}  {node}")
 
 
+def _unique_lines(path: str, database: str, least: float) -> None:
+    try:
+        import coverage
+    except ImportError:
+        sys.exit("--unique-lines reads a coverage database: install coverage in this environment (pip install coverage)")
+    records = _records(path)
+    data = coverage.CoverageData(database)
+    data.read()
+    lines: dict[str, set] = collections.defaultdict(set)
+    for name in data.measured_files():
+        for number, contexts in data.contexts_by_lineno(name).items():
+            for context in contexts:
+                node = context.rpartition("|")[0]
+                if node in records:
+                    lines[node].add((name, number))
+    if not lines:
+        sys.exit(f"{database} holds no test's context: run the suite with -p suite_cputime under coverage run")
+    covers: collections.Counter = collections.Counter(line for node_lines in lines.values() for line in node_lines)
+    movable = []
+    print(f"{'CPU s':>7} {'kids s':>7} {'unique':>7}  test (greedy from the most expensive: 0 unique lines may move)")
+    for node in sorted((n for n in records if _cost(records[n]) > least), key=lambda n: -_cost(records[n])):
+        unique = [line for line in lines.get(node, ()) if covers[line] == 1]
+        if not unique:
+            movable.append(node)
+            covers.subtract(lines.get(node, ()))
+        print(f"{_cost(records[node]):7.2f} {records[node]['children']:7.2f} {len(unique):7d}  {node}")
+    print(f"\n{len(movable)} tests ({sum(_cost(records[n]) for n in movable):.1f} s) run no line that the others do not")
+    print("(a test whose CPU is its children's: their lines are not counted; decide it by its claim)")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description="Summarise one run's records, or compare two runs'.")
     parser.add_argument("records", nargs="+", help="one JSON-lines file of this plugin's, or two (old, new)")
     parser.add_argument("--top", type=int, default=30, help="how many tests and files to list")
+    parser.add_argument("--unique-lines", metavar="DATABASE", help="a coverage database of the same run (one records file)")
+    parser.add_argument("--min", type=float, default=1.0, help="with --unique-lines, the least CPU s of a test listed")
     args = parser.parse_args()
-    if len(args.records) == 1:
+    if args.unique_lines is not None:
+        if len(args.records) != 1:
+            parser.error(f"--unique-lines takes one records file, got {len(args.records)}")
+        _unique_lines(args.records[0], args.unique_lines, args.min)
+    elif len(args.records) == 1:
         _summary(args.records[0], args.top)
     elif len(args.records) == 2:
         _compare(*args.records, args.top)
