@@ -174,3 +174,29 @@ def test_trust_region_step_is_newtons_within_reach_and_the_best_step_of_that_len
     assert residual < np.linalg.norm(matrix @ (newton_step * reach / np.linalg.norm(newton_step)) - right)
     for trial in rng.standard_normal((200, 6)):
         assert residual <= np.linalg.norm(matrix @ (trial * reach / np.linalg.norm(trial)) - right) + 1e-12
+
+
+def test_newton_picards_default_start_is_the_settled_guess_continued_nearer_the_orbit(monkeypatch):
+    """Without a guess, method="picard" continues the settled simulation by PICARD_SETTLE further settled runs (the
+    period still drifts where two turns agree to SETTLE_RTOL); the other methods start from the first settled run."""
+    from cosserat_chain.numerics import periodic
+
+    starts = []
+    settled = periodic._settled_guess
+
+    def counted(*args, **kwargs):
+        starts.append("rest" if kwargs["x0"] is None else "continued")
+        return settled(*args, **kwargs)
+
+    monkeypatch.setattr(periodic, "_settled_guess", counted)
+    monkeypatch.setattr(periodic, "PICARD_SETTLE", 4)
+    params, model, moment, _ = CASES["sine N=10"]
+    orbit = find_periodic_orbit(params, model, moment, method="picard")
+    assert starts == ["rest"] + ["continued"] * 4
+    first = continued = initial_guess(params, model, moment)
+    for _ in range(4):
+        continued = initial_guess(params, model, moment, x0=continued[0], v0=continued[1])
+    assert abs(continued[2] - orbit.period) < 0.5 * abs(first[2] - orbit.period)
+    starts.clear()
+    find_periodic_orbit(ChainParams(N=1), model, 1.5, method="dense")
+    assert starts == ["rest"]

@@ -120,6 +120,10 @@ GUESS_CHUNK = 200.0
 GUESS_T_MAX = 20000.0
 #: The simulated rotation has settled when two consecutive spans of k turns agree to this.
 SETTLE_RTOL = 1e-3
+#: Further settled runs continuing the default guess of ``method="picard"`` (each a few turns): the period of a long
+#: chain still drifts where two turns agree to SETTLE_RTOL, and from there Newton-Picard's first steps leave the linear
+#: range (N = 500 stalled at closure 8.4e-3; from the guess continued so, it converged: docs/periodic-orbits.md).
+PICARD_SETTLE = 100
 
 ProgressCallback = Callable[[float, float], None]
 
@@ -951,7 +955,8 @@ def find_periodic_orbit(
         The loaded particle.
     guess : PeriodicOrbit or (x (3, 2N+1), v (3, 2N+1), T[, particle_turns (2N+1,)]), optional
         Start of Newton's method (an orbit at a nearby moment); by default
-        :func:`initial_guess` from rest, which also counts the turns every particle
+        :func:`initial_guess` from rest (for ``method="picard"`` continued by :data:`PICARD_SETTLE`
+        further settled runs), which also counts the turns every particle
         makes a period (the whole chain winds when it spins about a pin). A tuple
         without ``particle_turns``, or an orbit with other turns, winds the loaded
         particle alone. A guessed orbit on a phase plane (:attr:`PeriodicOrbit.phase_normal`)
@@ -1022,6 +1027,10 @@ def find_periodic_orbit(
         x0, v0, period, particle_turns = _settled_guess(
             params, model, moment, turns=turns, particle=particle, x0=None, v0=None, transient_turns=transient_turns, t_max=GUESS_T_MAX
         )
+        for _ in range(PICARD_SETTLE if method == "picard" else 0):
+            x0, v0, period, particle_turns = _settled_guess(
+                params, model, moment, turns=turns, particle=particle, x0=x0, v0=v0, transient_turns=transient_turns, t_max=GUESS_T_MAX
+            )
     elif isinstance(guess, PeriodicOrbit):
         x0, v0, period = guess.x, guess.v, guess.period
         if guess.particle_turns[column(params, particle)] == particle_turns[column(params, particle)]:
