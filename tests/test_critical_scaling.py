@@ -167,9 +167,12 @@ def measured_allocation(model: str, n: int) -> dict:
 @pytest.mark.parametrize(
     "model, n", [("sine", 30_000), pytest.param("nonlinear", 30_000, marks=pytest.mark.slow)], ids=["sine", "nonlinear"]
 )
-def test_the_memory_estimate_of_critical_is_its_measured_allocation_to_ten_percent(model, n):
+def test_the_memory_estimate_of_critical_bounds_its_measured_allocation_within_fifteen_percent(model, n):
     # The estimate critical_point checks before it allocates against the peak resident memory of a fresh process above
     # its start (benchmarks/bench_critical_scaling.py measures N = 10^5 so): eq. (2)'s closed-form branch, and a trace
     # from the approach with its re-solved fold.
+    # The estimate is checked before allocating, so it must not fall short (5 % for the peak's noise), nor overshoot by
+    # more than 15 %: the nonlinear trace's peak measured 0.895-0.925 of it over runs of the same code (the same 83
+    # points and M_c), eq. (2)'s 0.985.
     found = measured_allocation(model, n)
-    assert found["allocated"] == pytest.approx(found["estimate"], rel=0.1)
+    assert 0.85 * found["estimate"] <= found["allocated"] <= 1.05 * found["estimate"]
