@@ -437,7 +437,7 @@ def _saddle(system: System, drive: str, fold_q: np.ndarray, onset: float, target
         q_new, p_new = solved
         if p_new <= target:
             w = (p - target) / (p - p_new)
-            return find_equilibrium(system.with_parameters(**{drive: target}), q + w * (q_new - q), tol=1e-13).q
+            return find_equilibrium(system.with_parameters(**{drive: target}), q + w * (q_new - q), tol=1e-13, descent=False).q
         q, p, s, ds = q_new, p_new, s + ds, min(1.5 * ds, 0.2)
     raise HomoclinicError(
         f"the static branch past the fold at {drive} = {onset:.10g} does not fall back to {drive} = {target:.10g}: no saddle found there"

@@ -10,7 +10,16 @@ damping this is the inertia of -J; a non-conservative one (a follower torque, th
 sine-Cosserat model (2)) can lose stability at a Hopf point with J regular.
 
 * :func:`find_equilibrium`: Newton (:func:`cosserat_chain.numerics.kit.newton`) on F = 0,
-  the Jacobian sparse, so a chain of 10^4 sites costs O(n) per iteration.
+  the Jacobian sparse, so a chain of 10^4 sites costs O(n) per iteration. Where Newton
+  from the start does not converge and the system has an energy, the same corrector
+  starts again from there with descent steps: pseudo-transient continuation, implicit
+  Euler steps (M / dt - J) dq = F of the gradient flow M q' = F with a pseudo time step
+  dt that grows as max |F| falls (switched evolution relaxation) and is cut wherever a step
+  is not a descent direction or lowers the energy less than Armijo's condition asks. Every
+  step lowers the energy, and as dt grows the steps become Newton's, so the descent ends
+  quadratically at an equilibrium no higher than the start: from a start that is no
+  equilibrium, one that is stable or, from a start on a symmetric saddle's stable manifold
+  (a mirror-symmetric start), that saddle; the result's index says which.
 * :func:`continue_equilibria`: the branch in any named parameter by the one
   pseudo-arclength driver, unknowns (q, p); folds (the parameter turns), branch points
   (det [dF/d(q,p); t] changes sign) and Hopf points (a complex pair of A crosses the
@@ -30,7 +39,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..errors import CosseratChainError
-from ..linalg import band_storage, negative_count
+from ..linalg import band_storage, negative_count, sparse_solve
 from ..linalg.threads import one_blas_thread
 from ..systems.base import System
 from .kit import BranchEnd, Evaluation, continuation, newton
@@ -41,6 +50,13 @@ FORCE_TOL = 1e-10
 DENSE_LIMIT = 600
 #: A Hopf point is confirmed when a complex pair lies this close to the imaginary axis.
 HOPF_CONFIRM = 1e-5
+#: Steps of :func:`find_equilibrium`'s descent where Newton does not converge.
+MAX_DESCENT_STEPS = 500
+#: The descent's pseudo time step grows by DESCENT_GROWTH after a step, or as much as max |F| fell if more, but at
+#: most DESCENT_LARGEST_GROWTH; it is cut by DESCENT_CUT where a step does not descend.
+DESCENT_GROWTH, DESCENT_LARGEST_GROWTH, DESCENT_CUT = 2.0, 10.0, 0.25
+#: Armijo's sufficient decrease of the energy along a descent step (a fraction of F . dq).
+ARMIJO = 1e-4
 
 
 class EquilibriumNotFound(CosseratChainError, RuntimeError):
@@ -57,6 +73,8 @@ class SystemEquilibrium:
     residual: float
     stable: bool | None
     index: int | None
+    #: Which solver of :func:`find_equilibrium` found it: ``"newton"``, or ``"descent"`` where Newton did not converge.
+    method: str = "newton"
 
     def parameter(self, name: str) -> float:
         return self.system.parameter(name)
@@ -88,14 +106,54 @@ def classify(system: System, q: np.ndarray, residual: float = 0.0) -> SystemEqui
 
 
 @one_blas_thread
-def find_equilibrium(system: System, q0: np.ndarray, *, tol: float = FORCE_TOL, max_iterations: int = 50) -> SystemEquilibrium:
-    """The equilibrium of ``system`` reached by Newton from ``q0``.
+def find_equilibrium(
+    system: System,
+    q0: np.ndarray,
+    *,
+    tol: float = FORCE_TOL,
+    max_iterations: int = 50,
+    descent: bool = True,
+    max_descent_steps: int = MAX_DESCENT_STEPS,
+) -> SystemEquilibrium:
+    """The equilibrium of ``system`` reached by Newton from ``q0``, or by descent where Newton fails.
+
+    Newton's full steps come first: where they converge the answer is theirs, bit for bit,
+    and may be any equilibrium near the start (a saddle as well as a minimum). Where they do
+    not (a start far from any equilibrium, or one next to a nearly singular Jacobian, such as
+    a lattice kink started between its stationary positions, whose sliding mode is almost
+    free) and the system has an energy, the kit's corrector starts again from ``q0`` with
+    descent steps (pseudo-transient continuation, the module docstring): the energy falls at
+    every step, and the answer is an equilibrium of energy at most the start's; the result's
+    ``index`` says whether it is a minimum (0) or the saddle a symmetric start keeps to.
+    Each step is one sparse solve, O(n) for a chain.
+
+    Parameters
+    ----------
+    system : System
+    q0 : ndarray (n,)
+        The start; finite.
+    tol : float
+        Converged when max |F| <= tol.
+    max_iterations : int
+        Newton's steps.
+    descent : bool
+        Fall back on the descent where Newton does not converge (conservative systems only:
+        one without an energy raises as before).
+    max_descent_steps : int
+        The descent's steps.
+
+    Returns
+    -------
+    SystemEquilibrium
+        ``method`` says which solver found it: ``"newton"`` or ``"descent"``.
 
     Raises
     ------
     EquilibriumNotFound
-        If Newton does not converge (start nearer, or follow the branch from a known one with
+        If neither converges (start nearer, or follow the branch from a known one with
         :func:`continue_equilibria`).
+    SystemDefinitionError
+        For a start of the wrong shape or with a non-finite entry.
     """
     q0 = system.check_state(q0, "q0")
 
@@ -103,12 +161,60 @@ def find_equilibrium(system: System, q0: np.ndarray, *, tol: float = FORCE_TOL, 
         return Evaluation(system.forces(q), sp.csc_matrix(system.force_jacobian(q)) if jacobian else None)
 
     corrected = newton(evaluate, q0, tol=tol, max_iterations=max_iterations)
-    if not corrected.converged:
+    if corrected.converged:
+        return classify(system, corrected.w, corrected.norm)
+    message = (
+        f"Newton on the equilibrium of {system.name} {corrected.status} after {corrected.iterations} iterations "
+        f"(max|F| = {corrected.norm:.3g})"
+    )
+    if not descent or system.energy(q0) is None:
+        why = "" if descent else " (descent=False)"
+        raise EquilibriumNotFound(f"{message}{why}; start nearer, or continue from a known equilibrium")
+    descended = newton(evaluate, q0, tol=tol, max_iterations=max_descent_steps, divergence=None, newton_step=_DescentStep(system))
+    if not descended.converged:
         raise EquilibriumNotFound(
-            f"Newton on the equilibrium of {system.name} {corrected.status} after {corrected.iterations} iterations "
-            f"(max|F| = {corrected.norm:.3g}); start nearer, or continue from a known equilibrium"
+            f"{message}, and the descent from q0 {descended.status} after {descended.iterations} steps "
+            f"(max|F| = {descended.norm:.3g}); raise max_descent_steps, start nearer, or continue from a known equilibrium"
         )
-    return classify(system, corrected.w, corrected.norm)
+    found = classify(system, descended.w, descended.norm)
+    found.method = "descent"
+    return found
+
+
+class _DescentStep:
+    """The descent's step for :func:`~cosserat_chain.numerics.kit.newton` (pseudo-transient continuation).
+
+    At q with forces F and Jacobian J the step solves (M / dt - J) dq = F; dt follows max |F|
+    (switched evolution relaxation: dt max |F| stays constant, growing at most
+    :data:`DESCENT_GROWTH`-fold a step) and is cut by :data:`DESCENT_CUT` until dq is a
+    descent direction (F . dq > 0) and E(q + dq) <= E(q) - :data:`ARMIJO` F . dq, up to the
+    energy's round-off. The first dt is the fastest linear time scale's, min_i m_i / sum_j |J_ij|.
+    """
+
+    def __init__(self, system: System):
+        self.system = system
+        self.mass = np.asarray(system.mass(), dtype=float)
+        self.dt: float | None = None
+        self.norm = math.inf
+
+    def __call__(self, q: np.ndarray, evaluation: Evaluation, jacobian) -> np.ndarray:
+        forces = np.asarray(evaluation.residual, dtype=float)
+        norm = float(np.max(np.abs(forces)))
+        if self.dt is None:
+            rows = np.asarray(abs(jacobian).sum(axis=1)).ravel()
+            self.dt = float(np.min(self.mass / np.maximum(rows, np.finfo(float).tiny)))
+        else:
+            self.dt *= min(max(DESCENT_GROWTH, self.norm / norm), DESCENT_LARGEST_GROWTH)
+        self.norm = norm
+        energy = self.system.energy(q)
+        slack = np.finfo(float).eps * q.size * max(1.0, abs(energy))
+        while self.dt >= np.finfo(float).tiny:
+            step = sparse_solve(sp.diags(self.mass / self.dt, format="csc") - jacobian, forces)
+            slope = float(forces @ step)
+            if np.all(np.isfinite(step)) and slope > 0.0 and self.system.energy(q + step) <= energy - ARMIJO * slope + slack:
+                return step
+            self.dt *= DESCENT_CUT
+        raise ArithmeticError("no pseudo time step lowers the energy")
 
 
 @dataclass

@@ -343,7 +343,7 @@ class _Equilibria:
         system = self.system.with_parameters(**{self.parameter: float(value)})
         start = self.known[nearest]
         try:
-            found = find_equilibrium(system, start, tol=1e-13)
+            found = find_equilibrium(system, start, tol=1e-13, descent=False)
             # Newton from too far lands on the node or on another saddle: take it only near the one it started from.
             if np.max(np.abs(found.q - start)) > JUMP:
                 raise EquilibriumNotFound("jumped")
