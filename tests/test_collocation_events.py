@@ -17,15 +17,10 @@ import pytest
 
 from collocation_crossings import collocation_crossing
 from cosserat_chain import ChainParams
-from cosserat_chain.numerics.collocation import (
-    NEAR_CIRCLE,
-    circle_tests,
-    continue_collocation,
-    critical_multiplier,
-    find_collocation_orbit,
-)
+from cosserat_chain.numerics.collocation import circle_tests, continue_collocation, critical_multiplier, find_collocation_orbit
 from cosserat_chain.numerics.continuation import locate_fold
 from cosserat_chain.numerics.cycle_curve import locate_cycle_end
+from cosserat_chain.numerics.cycle_events import NEAR_CIRCLE
 from cycle_ends import located_end, shooting_crossing
 
 #: The sine chain's one-turn orbit loses its stability at a period doubling at gamma_phi = 0.15 (M = 0.17288,

@@ -65,6 +65,7 @@ from .collocation_core import (
     section_state,
     solve_profile,
 )
+from .cycle_events import CIRCLE_KINDS, circle_tests, critical_multiplier, on_circle
 from .kit import BranchEnd, Evaluation, Event, continuation, newton
 
 __all__ = [
@@ -319,14 +320,6 @@ REMESH_GROWTH = 1.5
 NTST_MAX = 4000
 #: A located fold or branch point of cycles is confirmed where the second multiplier nearest +1 lies this close to it.
 FOLD_MULTIPLIER = 1e-2
-#: The period-doubling and torus tests take only the multipliers of modulus above this: on long orbits the
-#: strongly damped ones are not resolved (docs/collocation.md, Limits), the ones near the circle are.
-NEAR_CIRCLE = 0.5
-#: A located period doubling or torus is confirmed where its critical multiplier lies this close to -1 or to
-#: the unit circle (the shooting's ``CONFIRM_TOL``).
-CIRCLE_MULTIPLIER = 1e-3
-#: A multiplier is complex where |Im mu| exceeds this times |mu|.
-COMPLEX_RTOL = 1e-6
 #: A branch's message warns where |mu_trivial - 1| exceeds this.
 TRIVIAL_WARNING = 1e-6
 #: Default bound on the period: beyond it the branch ends as infinite-period (a homoclinic or SNIC end).
@@ -354,7 +347,7 @@ class CollocationBranch:
         bordered determinant), each kept only with a second multiplier within :data:`FOLD_MULTIPLIER`
         of +1; the branch goes on through branch points. Period doublings (``period_doubling``) and
         tori (``torus``), located by the secant method on :func:`circle_tests` and kept only with the
-        critical multiplier within :data:`CIRCLE_MULTIPLIER` of -1 or of the unit circle, carry it as
+        critical multiplier within :data:`~.cycle_events.CIRCLE_MULTIPLIER` of -1 or of the unit circle, carry it as
         ``"multiplier"`` (complex) and, for a torus, its angle arg mu in (0, pi) as ``"angle"`` (where the
         secant fails, ``"located"`` is False and the moment is the first orbit's past the sign change); the
         branch goes on through them.
@@ -511,10 +504,9 @@ class _BranchProblem:
     def confirm(self, kind: str, point: CollocationOrbit) -> bool:
         """A fold or branch point of cycles needs a second multiplier at +1 (issue 40's first item): within
         :data:`FOLD_MULTIPLIER`; a period doubling a multiplier at -1, a torus a complex pair on the circle:
-        within :data:`CIRCLE_MULTIPLIER` (a pair outside the circle that turns real also changes the torus test's sign)."""
+        within :data:`~.cycle_events.CIRCLE_MULTIPLIER` (a pair outside the circle that turns real also changes the torus test's sign)."""
         if kind in CIRCLE_KINDS:
-            mu = critical_multiplier(point.nontrivial_multipliers, kind)
-            return mu is not None and abs((mu + 1.0) if kind == "period_doubling" else (abs(mu) - 1.0)) < CIRCLE_MULTIPLIER
+            return on_circle(point.nontrivial_multipliers, kind)
         if kind not in ("fold", "branch_point"):
             return True
         return bool(np.sort(np.abs(point.multipliers - 1.0))[1] < FOLD_MULTIPLIER)
@@ -530,41 +522,6 @@ def _complete(orbit: CollocationOrbit) -> np.ndarray:
     distance = np.abs(multipliers - SHIFT)
     radius = np.sort(distance)[min(LEADING_MULTIPLIERS, distance.size) - 1]
     return multipliers[distance < radius]
-
-
-#: The events of :func:`circle_tests`.
-CIRCLE_KINDS = ("period_doubling", "torus")
-
-
-def _near_circle(multipliers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The multipliers of modulus above :data:`NEAR_CIRCLE`, and those of them that are complex with Im mu > 0."""
-    near = multipliers[np.abs(multipliers) > NEAR_CIRCLE]
-    return near, near[near.imag > COMPLEX_RTOL * np.abs(near)]
-
-
-def circle_tests(multipliers: np.ndarray) -> dict[str, float]:
-    """Test functions of the nontrivial ``multipliers`` that change sign at a period doubling and at a torus.
-
-    Over the multipliers of modulus above :data:`NEAR_CIRCLE` only (the damped ones are not resolved
-    on long orbits and cannot cross the circle):
-
-    * ``period_doubling``: Re prod (mu + 1), whose sign is (-1)^(real multipliers below -1): a
-      conjugate pair contributes |mu + 1|^2 > 0;
-    * ``torus``: prod (1 - |mu|) over the complex ones with Im mu > 0, whose sign is (-1)^(pairs outside
-      the circle): a pair inside the circle that turns real leaves the product without changing its sign.
-    """
-    near, pairs = _near_circle(np.asarray(multipliers))
-    return {"period_doubling": float(np.real(np.prod(near + 1.0))), "torus": float(np.prod(1.0 - np.abs(pairs)))}
-
-
-def critical_multiplier(multipliers: np.ndarray, kind: str) -> complex | None:
-    """The multiplier of a ``kind`` event among the nontrivial ``multipliers``: for ``period_doubling`` the real
-    negative one nearest -1, for ``torus`` the complex one (Im mu > 0) nearest the unit circle; None where there is none."""
-    near, pairs = _near_circle(np.asarray(multipliers))
-    if kind == "period_doubling":
-        candidates = near[(np.abs(near.imag) <= COMPLEX_RTOL * np.abs(near)) & (near.real < 0)]
-        return complex(candidates[np.argmin(np.abs(candidates + 1.0))].real) if candidates.size else None
-    return complex(pairs[np.argmin(np.abs(np.abs(pairs) - 1.0))]) if pairs.size else None
 
 
 @one_blas_thread

@@ -58,7 +58,7 @@ import dataclasses
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import lru_cache, partial
 
 import numpy as np
 import scipy.linalg as sla
@@ -73,7 +73,7 @@ from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, force_columns, free_index, held, n_free, pack, per_dof, unpack, zeros
 from ..state import dof as free_dof
 from ..status import Status
-from . import collocation_core, dop853, floquet, long_orbits, newton_picard
+from . import collocation_core, cycle_events, dop853, floquet, long_orbits, newton_picard
 from .addresses import entry
 from .dynamics import TurnWatch, integrate
 from .integrators import default_time_step
@@ -1454,7 +1454,11 @@ def continue_orbit(
     end_moment = orbits[-1].moment
     if end == END_FOLD and len(orbits) >= 3:
         end_moment = _fold_moment(orbits[-3:], sign)
-    events = _branch_points(orbits, end == END_FOLD)
+    # Period doublings and tori located in M between the orbits where their tests turned, each trial re-solved by this
+    # branch's corrector (cycle_events); branch points of cycles interpolated: in the order of the branch.
+    between = partial(_orbit_between, method=method, segments=segments, tol=tol, rtol=rtol, atol=atol)
+    found = [*_branch_points(orbits, end == END_FOLD), *cycle_events.locate_circle_events(orbits, between)]
+    events = [event for _, event in sorted(found, key=lambda item: item[0])]
     message = "; ".join([message, *notes])
     return OrbitBranch(orbits=orbits, end=end, end_moment=float(end_moment), message=message, settings=settings, events=events)
 
@@ -1476,15 +1480,30 @@ def _crosses_one(before: PeriodicOrbit, after: PeriodicOrbit) -> bool:
     return _one_test(before) * _one_test(after) < 0
 
 
-def _branch_points(orbits: list[PeriodicOrbit], folded: bool) -> list[dict]:
-    """Crossings of +1 between consecutive orbits, but the fold's (the last pair when ``folded``)."""
+def _branch_points(orbits: list[PeriodicOrbit], folded: bool) -> list[tuple[int, dict]]:
+    """Crossings of +1 between consecutive orbits, but the fold's (the last pair when ``folded``), each with the index
+    of the orbit after it."""
     events = []
     last = len(orbits) - 1 - folded
-    for a, b in zip(orbits[:last], orbits[1 : last + 1]):
+    for i, (a, b) in enumerate(zip(orbits[:last], orbits[1 : last + 1]), start=1):
         if _crosses_one(a, b):
             ga, gb = _one_test(a), _one_test(b)
-            events.append({"kind": "branch_point", "moment": float(a.moment + ga * (b.moment - a.moment) / (ga - gb))})
+            events.append((i, {"kind": "branch_point", "moment": float(a.moment + ga * (b.moment - a.moment) / (ga - gb))}))
     return events
+
+
+def _orbit_between(
+    moment: float, a: PeriodicOrbit, b: PeriodicOrbit, *, method: str, segments: int | None, tol: float, rtol: float, atol: float
+) -> PeriodicOrbit:
+    """The orbit at ``moment`` between two consecutive orbits a and b of a branch, by :func:`find_periodic_orbit`'s
+    ``method`` from the orbit interpolated linearly in M between them (on b's phase condition: a plane re-chosen at a
+    passes through a)."""
+    w = (moment - a.moment) / (b.moment - a.moment)
+    guess = dataclasses.replace(b, x=a.x + w * (b.x - a.x), v=a.v + w * (b.v - a.v), period=a.period + w * (b.period - a.period))
+    return find_periodic_orbit(
+        b.params, b.model, moment, turns=b.turns, particle=b.particle, guess=guess, tol=tol, rtol=rtol, atol=atol, method=method,
+        segments=segments,
+    )  # fmt: skip
 
 
 #: The kit's ends as :class:`OrbitBranch` names them.
