@@ -18,6 +18,10 @@ is k_v s2^2 (bend + couple/4) = 2 b^2 E1 k_v s2^2, so the chain at rest is stabl
 for every geometry. Closed-form limits: omega_L ~ q sqrt(k_u/m),
 omega_TA ~ q^2 b sqrt(2 E1/m) / h, omega_RO(0) = sqrt(couple/j); at q = pi the
 branches decouple into 2 sqrt(k_u/m), 2 sqrt(k_v/m) and sqrt(8 b^2 E1/j).
+These are the uniform chain's: a graded chain (per-bond or per-particle factors) is not
+periodic and has no bands, and :func:`dispersion`, :func:`continuum_dispersion`,
+:func:`wave_summary` and :func:`parameter_scan` refuse it, naming the factors
+(:func:`require_uniform`); :func:`finite_modes` takes it.
 
 *Continuum.* Eq. (6) with the inertia of eq. (3) (m v_tt = k_v h^2 (v_xx - phi_x),
 j phi_tt = 2 b^2 (h^2 D1 phi_xx + D2 (v_x - phi))) is the same problem with
@@ -55,7 +59,7 @@ from scipy.optimize import minimize_scalar
 
 from ..models.base import Model, get_model
 from ..models.linear import cosserat_coefficients
-from ..params import ChainParams
+from ..params import BOND_FACTORS, PARTICLE_FACTORS, ChainParams
 from ..state import ROW_INDEX, check_state, free_index, pack, zeros
 
 #: A rigid motion r with |K r| <= RIGID_RTOL |K| |r| (infinity norms) is a zero mode of the chain.
@@ -115,6 +119,32 @@ def _branches(params: ChainParams, s2: np.ndarray, sin2: np.ndarray, det: np.nda
     return np.vstack([k_u * s2 / m, lower, upper])
 
 
+def require_uniform(params: ChainParams, what: str) -> None:
+    """Refuse a graded chain where ``what`` is a property of the infinite uniform chain.
+
+    A graded or disordered chain (``E1_factors``, ``E2_factors``, ``m_factors``, ``j_factors``)
+    is not periodic: it has no Bloch waves, and the scalar fields alone would give the
+    uniform chain's bands as if they were its own. Its own small oscillations are
+    :func:`finite_modes`.
+
+    Raises
+    ------
+    ValueError
+        Naming each factor field given, its number of factors and their range.
+    """
+    given = [name for name in (*BOND_FACTORS, *PARTICLE_FACTORS) if getattr(params, name) is not None]
+    if given:
+        fields = ", ".join(
+            f"{name} ({len(getattr(params, name))} factors in [{min(getattr(params, name)):.6g}, {max(getattr(params, name)):.6g}])"
+            for name in given
+        )
+        raise ValueError(
+            f"{what} is that of the infinite uniform chain, but this chain is graded: {fields}; a graded chain is not "
+            "periodic and has no bands: finite_modes(params) gives its modes, or leave the factors out "
+            f"(params.replace({', '.join(f'{name}=None' for name in given)})) for the uniform chain's bands"
+        )
+
+
 def dispersion(params: ChainParams, q: np.ndarray | float | None = None, *, n_q: int = 257) -> Dispersion:
     """Dispersion branches of the infinite linear chain, eq. (3) with derived coefficients.
 
@@ -130,7 +160,13 @@ def dispersion(params: ChainParams, q: np.ndarray | float | None = None, *, n_q:
     -------
     Dispersion
         With ``kind="discrete"``; the branches are sorted (acoustic below optical).
+
+    Raises
+    ------
+    ValueError
+        For a graded chain (:func:`require_uniform`), or wavenumbers that are not finite.
     """
+    require_uniform(params, "the dispersion")
     q = _wavenumbers(q, n_q)
     _, k_v, _, bend, couple = cosserat_coefficients(params)
     s2 = 4.0 * np.sin(q / 2) ** 2
@@ -142,8 +178,10 @@ def continuum_dispersion(params: ChainParams, q: np.ndarray | float | None = Non
     """Dispersion of the continuum equations (6) with inertia (see the module docstring).
 
     ``q`` is the continuum wavenumber times h, so that it shares the axis with
-    :func:`dispersion`. Uses the geometry-derived D1 and D2.
+    :func:`dispersion`. Uses the geometry-derived D1 and D2. A graded chain is refused
+    (:func:`require_uniform`).
     """
+    require_uniform(params, "the continuum dispersion")
     q = _wavenumbers(q, n_q)
     _, k_v, _, bend, _ = cosserat_coefficients(params)
     return Dispersion(q, _branches(params, q**2, q**2, k_v * bend * q**4), "continuum")
@@ -209,7 +247,13 @@ def wave_summary(params: ChainParams, *, n_q: int = 1025) -> WaveSummary:
     n_q : int
         Grid over [0, pi] for locating band edges inside the zone; each is then
         refined to about 1e-12 in q.
+
+    Raises
+    ------
+    ValueError
+        For a graded chain (:func:`require_uniform`).
     """
+    require_uniform(params, "the wave summary")
     curves = dispersion(params, n_q=n_q)
     omega = curves.omega
     at_zero = dict(zip(BRANCHES, omega[:, 0].tolist()))
@@ -249,8 +293,9 @@ def parameter_scan(params: ChainParams, field: str, values: np.ndarray | list[fl
     Raises
     ------
     ValueError
-        For an unknown field, or a value the parameters do not allow (naming it).
+        For a graded chain (:func:`require_uniform`), an unknown field, or a value the parameters do not allow (naming it).
     """
+    require_uniform(params, "the parameter scan")
     allowed = [name for name in ChainParams.model_fields if name != "N"]
     if field not in allowed:
         raise ValueError(f"field must be one of {allowed}, got {field!r}")
