@@ -120,7 +120,7 @@ def test_the_atlas_locates_all_four_edges_at_the_mathieu_values(atlas):
         assert isinstance(located, AtlasChange) and located.placed_by == "discriminant"
         assert located.change.kind == "+1" and located.value == C
         assert abs(located.change.omega - exact) <= located.accuracy < 1e-8
-    assert atlas.settings["locate"] == {"tol": 1e-9, "every": False}
+    assert atlas.settings["locate"] == {"tol": 1e-9, "every": False, "along": ["omega", "C"], "not_one_family": []}
 
 
 def test_the_atlas_changes_are_the_familys(atlas):
@@ -157,7 +157,7 @@ def test_the_dataset_and_the_json_carry_the_changes(atlas, tmp_path):
         for name in ds.data_vars:
             if str(name).startswith("change_"):
                 assert ds[name].attrs["units"] and ds[name].attrs["long_name"]
-        assert json.loads(ds.attrs["settings_json"])["locate"] == {"tol": 1e-9, "every": False}
+        assert json.loads(ds.attrs["settings_json"])["locate"] == {"tol": 1e-9, "every": False, "along": ["omega", "C"], "not_one_family": []}
     summary = atlas.as_dict()["stability_changes"]
     assert [c["omega"] for c in summary] == [c.change.omega for c in atlas.changes]
     assert all(c["placed_by"] == "discriminant" and c["kind"] == "+1" for c in summary)
@@ -214,7 +214,7 @@ def test_every_locates_the_pairs_leaving_an_unstable_stretch_too():
     assert loss.between == (1, 2) and loss.change.kind == "complex"
     found.locate_changes(every=True)
     assert [c.between for c in found.changes] == [(1, 2), (2, 3)]
-    assert found.settings["locate"] == {"tol": 1e-6, "every": True}
+    assert found.settings["locate"] == {"tol": 1e-6, "every": True, "along": ["omega", "b"], "not_one_family": []}
     family = located_changes([p.orbit for p in found.points[0]], found.bands)
     assert len(family) == 2
     for ours, theirs in zip(found.changes, family, strict=True):

@@ -72,8 +72,16 @@ def breathers(
     locate: bool = typer.Option(
         True,
         "--locate/--no-locate",
-        help="With --atlas: locate each change of stability between neighbours along Omega of opposite stability, every pair "
-        "crossing there (the zero of the colliding pair's discriminant, with its accuracy); in the table, --json, --out and --plot.",
+        help="With --atlas: locate each change of stability between neighbours of opposite stability, along Omega and along "
+        "the field (--locate-along), every pair crossing there (the zero of the colliding pair's discriminant, with its accuracy); "
+        "in the table, --json, --out and --plot.",
+    ),
+    locate_along: str | None = typer.Option(
+        None,
+        "--locate-along",
+        metavar="AXES",
+        help="With --atlas: the axes the changes are located along: omega, the atlas's FIELD, or both as omega,FIELD (the default): "
+        "between neighbours at one field value, at one Omega, or both.",
     ),
     locate_every: bool = typer.Option(
         False,
@@ -83,8 +91,8 @@ def breathers(
     ),
     locate_tol: float | None = number(
         None,
-        "With --atlas: the accuracy in Omega the changes are located to (default 1e-6; at most 0.01): a looser one stops the "
-        "bisection and the secant sooner.",
+        "With --atlas: the accuracy the changes are located to, in Omega and in the field (default 1e-6; at most 0.01): a looser "
+        "one stops the bisection and the secant sooner.",
         above=0.0,
         flags=("--locate-tol",),
     ),
@@ -134,10 +142,10 @@ def breathers(
         fail(
             f"--to must differ from --omega (the family runs from one frequency to another), got {to:g} for both; leave --to out for the one orbit"
         )
-    if atlas is None and (locate_tol is not None or locate_every):
-        fail("--locate-tol and --locate-every set how an atlas's changes are located: give --atlas FIELD=V1,V2,... as well")
-    if locate_every and not locate:
-        fail("--locate-every locates more changes: leave out --no-locate")
+    if atlas is None and (locate_tol is not None or locate_every or locate_along is not None):
+        fail("--locate-tol, --locate-every and --locate-along set how an atlas's changes are located: give --atlas FIELD=V1,V2,... as well")
+    if (locate_every or locate_along is not None) and not locate:
+        fail("--locate-every and --locate-along set how changes are located: leave out --no-locate")
     if atlas is not None:
         if counter and partner is None:
             fail("--counter sets the partner's direction: give --partner as well")
@@ -147,17 +155,17 @@ def breathers(
             from .system_breathers import atlas_on_system
 
             chain_only_or_exit(ctx, ("omega", "to", "steps", "turns", "particle", "partner", "counter", "config", "out", "plot", "as_json",
-                                     "sets", "coupling", "atlas", "lifetimes", "locate", "locate_tol", "locate_every"))  # fmt: skip
+                                     "sets", "coupling", "atlas", "lifetimes", "locate", "locate_tol", "locate_every", "locate_along"))  # fmt: skip
             omegas = [omega] if to is None else [float(w) for w in np.linspace(omega, to, steps)]
             return atlas_on_system(
                 system, atlas, config=config, sets=sets, omegas=omegas, turns=turns, particle=particle, partner=partner, counter=counter,
                 coupling=coupling, out=out, plot=plot, as_json=as_json, lifetimes=lifetimes, locate=locate, locate_tol=locate_tol,
-                locate_every=locate_every,
+                locate_every=locate_every, locate_along=locate_along,
             )  # fmt: skip
         system_only_or_exit(ctx, ("sets", "coupling"))
         return _atlas(atlas, model, omega, to, steps, turns=turns, particle=particle, partner=partner, counter=counter, method=method,
                       config=config, out=out, plot=plot, as_json=as_json, lifetimes=lifetimes, locate=locate,
-                      locate_tol=locate_tol, locate_every=locate_every)  # fmt: skip
+                      locate_tol=locate_tol, locate_every=locate_every, locate_along=locate_along)  # fmt: skip
     if method != "auto":
         fail("--method chooses the atlas's shooting: give --atlas FIELD=V1,V2,... as well")
     if system is not None:
@@ -295,18 +303,28 @@ def _chain_along_or_exit(text: str) -> tuple[str, float]:
 def _atlas(
     text: str, model: str, omega: float, to: float | None, steps: int, *, turns: int, particle: int, partner: int | None, counter: bool,
     method: str, config: Path | None, out: Path | None, plot: Path | None, as_json: bool, lifetimes: int = 0, locate: bool = True,
-    locate_tol: float | None = None, locate_every: bool = False,
+    locate_tol: float | None = None, locate_every: bool = False, locate_along: str | None = None,
 ) -> None:  # fmt: skip
     """``breathers --atlas``: the existence map over (Omega, a field), of one rotor or of two (``partner``, against it with ``counter``);
     ``lifetimes`` > 0: every orbit found run from its perturbed velocities for that many periods; ``locate``: the changes of
-    stability between neighbours located to ``locate_tol`` (every one with ``locate_every``: :func:`~.system_breathers.atlas_changes`)."""
+    stability between neighbours located to ``locate_tol`` (every one with ``locate_every``) along the axes ``locate_along``
+    names (:func:`~.system_breathers.atlas_changes`)."""
     import numpy as np
 
     from ..experiments.breather_atlas import breather_atlas
-    from .system_breathers import atlas_changes, atlas_lifetimes, atlas_values, changes_text, lifetime_text, locate_tol_or_exit
+    from .system_breathers import (
+        atlas_changes,
+        atlas_lifetimes,
+        atlas_values,
+        changes_text,
+        lifetime_text,
+        locate_along_or_exit,
+        locate_tol_or_exit,
+    )
 
     name, values = atlas_values(text)
     tol = locate_tol_or_exit(locate_tol)
+    axes = locate_along_or_exit(locate_along, name)
     if method not in ("auto", "dense", "blocks"):
         fail(f"--method must be auto, dense or blocks, got {method!r}")
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
@@ -332,7 +350,7 @@ def _atlas(
         fail(str(err))
     found = int(result.grid("exists").sum())
     bar.finish(note=f"{found} of {omegas.size * len(values)} found")
-    atlas_changes(result, locate, tol, locate_every)
+    atlas_changes(result, locate, tol, locate_every, axes)
     atlas_lifetimes(result, lifetimes)
     if out is not None:
         save_dataset(result.to_dataset(), out)

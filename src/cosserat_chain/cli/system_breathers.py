@@ -63,12 +63,25 @@ def locate_tol_or_exit(tol: float | None) -> float:
         fail(f"--locate-tol: {err}")
 
 
-def atlas_changes(atlas, locate: bool, tol: float, every: bool = False) -> None:
+def locate_along_or_exit(text: str | None, field: str) -> tuple[str, ...] | None:
+    """The axes ``--locate-along`` names, comma-separated (None: both); exit 2 naming the option for anything but omega and
+    the atlas's ``field``."""
+    from ..experiments.breather_atlas import check_along
+
+    if text is None:
+        return None
+    try:
+        return check_along([item.strip() for item in text.split(",")], field)
+    except ValueError:
+        fail(f"--locate-along must name omega, {field} or both as omega,{field} (the atlas's axes), got {text!r}")
+
+
+def atlas_changes(atlas, locate: bool, tol: float, every: bool = False, along: tuple[str, ...] | None = None) -> None:
     """With ``locate``: the atlas's changes of stability between neighbours located to ``tol`` (``locate_changes``, with
-    ``every``), with a bar that counts the pairs of neighbours to locate between."""
+    ``every``, along the axes ``along``), with a bar that counts the pairs of neighbours to locate between."""
     if locate:
         bar = progress_bar("changes", "pair")
-        atlas.locate_changes(tol, progress=bar_callback(bar), every=every)
+        atlas.locate_changes(tol, progress=bar_callback(bar), every=every, along=along)
         bar.finish(note=f"{len(atlas.changes)} located")
 
 
@@ -76,12 +89,18 @@ def changes_text(atlas) -> None:
     """The located changes of an atlas, one a line (nothing where they were not located)."""
     if atlas.changes is None:
         return
-    typer.echo(f"changes of stability located to {atlas.settings['locate']['tol']:g} in Omega: {len(atlas.changes)}")
+    along = " and ".join(atlas.settings["locate"]["along"])
+    typer.echo(f"changes of stability located along {along} to {atlas.settings['locate']['tol']:g}: {len(atlas.changes)}")
     for c in atlas.changes:
-        typer.echo(
-            f"  {atlas.field} = {c.value:g}: Omega = {c.change.omega:.10g} +- {c.accuracy:.2g} ({c.placed_by}), pair at {c.change.kind}, "
-            f"stable side {c.change.stable_omega:.8g}"
-        )
+        if c.axis == "omega":
+            where = f"{atlas.field} = {c.value:g}: Omega = {c.change.omega:.10g} +- {c.accuracy:.2g}"
+        else:
+            where = f"Omega = {c.omega:g}: {atlas.field} = {c.value:.10g} +- {c.accuracy:.2g}"
+        typer.echo(f"  {where} ({c.placed_by}), pair at {c.change.kind}, stable side {c.change.stable_omega:.8g}")
+    for pair in atlas.settings["locate"]["not_one_family"]:
+        j, i = pair["row"], pair["column"]
+        pairs = f"{atlas.field} = {atlas.values[j]:g}, {atlas.values[j + 1]:g} at Omega = {atlas.omegas[i]:g}"
+        typer.echo(f"  not located between {pairs}: not of one family")
 
 
 def lifetime_text(point) -> str:
@@ -111,14 +130,15 @@ def atlas_on_system(
     locate: bool = True,
     locate_tol: float | None = None,
     locate_every: bool = False,
+    locate_along: str | None = None,
 ) -> None:
     """``breathers --system REF --atlas NAME=V1,V2,...``: the existence map over (Omega, a parameter of the system).
 
     ``text`` names one of the system's parameters and its values; ``particle`` and ``partner``
     count its angles from the central one; ``lifetimes`` > 0 runs every orbit found from its
     perturbed velocities for that many periods (:func:`atlas_lifetimes`); ``locate`` locates the
-    changes of stability between neighbours to ``locate_tol`` (every one with ``locate_every``:
-    :func:`atlas_changes`). The outputs
+    changes of stability between neighbours to ``locate_tol`` (every one with ``locate_every``) along the
+    axes ``locate_along`` names (:func:`atlas_changes`). The outputs
     are checked (and locked) before anything is computed. Exit 2 on bad input.
     """
     import numpy as np
@@ -133,6 +153,7 @@ def atlas_on_system(
     if not np.flatnonzero(system.angles).size:
         fail(f"--system {reference}: {system.name} has no angle coordinate: nothing can turn")
     name, values = atlas_values(text, tuple(system.parameters))
+    axes = locate_along_or_exit(locate_along, name)
     rotor = _angle_or_exit(system, particle, "--particle")
     other = _angle_or_exit(system, partner, "--partner")
     if other == rotor:
@@ -148,7 +169,7 @@ def atlas_on_system(
         fail(str(err))
     found = int(atlas.grid("exists").sum())
     bar.finish(note=f"{found} of {len(omegas) * len(values)} found")
-    atlas_changes(atlas, locate, tol, locate_every)
+    atlas_changes(atlas, locate, tol, locate_every, axes)
     atlas_lifetimes(atlas, lifetimes)
     if out is not None:
         save_dataset(atlas.to_dataset(reference), out)

@@ -73,12 +73,15 @@ from ..models.base import Model, get_model
 from ..numerics.breather_arclength import collisions_between, instability_counts
 from ..numerics.long_breathers import SolvedBreather, find_breather_orbit
 from ..numerics.periodic import HamiltonianOrbit, OrbitError, require_undamped
+from ..numerics.shooting import OrbitNotFound
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column
 from .breathers import (
     ATLAS_FIELDS,
     MAX_HARMONIC,
     TAIL_SAMPLES,
+    _Member,
+    _solvers,
     chain_at,
     combination_resonances,
     coupled_bands,
@@ -89,7 +92,7 @@ from .breathers import (
 )
 from .lifetimes import Lifetime, check_lifetime_run, lifetime_variables, measure_point_lifetimes
 from .simulation import run_attributes
-from .system_breathers import StabilityChange
+from .system_breathers import StabilityChange, locate_stability_changes, parameter_axis
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built
     import xarray as xr
@@ -117,30 +120,58 @@ CHANGE_KINDS = ("+1", "-1", "complex")
 def check_locate_tol(tol: float) -> float:
     """``tol`` as a float; ValueError naming ``locate_tol`` unless 0 < tol <= :data:`LOCATE_TOL_MAX`."""
     if isinstance(tol, bool) or not isinstance(tol, (int, float)) or not (math.isfinite(tol) and 0 < tol <= LOCATE_TOL_MAX):
-        raise ValueError(f"locate_tol must be an accuracy in Omega > 0 and <= {LOCATE_TOL_MAX:g}, got {tol!r}")
+        raise ValueError(f"locate_tol must be an accuracy in Omega (and in the field along it) > 0 and <= {LOCATE_TOL_MAX:g}, got {tol!r}")
     return float(tol)
+
+
+def check_along(along, field_name: str) -> tuple[str, ...]:
+    """The axes to locate along, in the order ``omega``, ``field_name`` (both for None); ValueError naming ``along`` for
+    anything else, or none."""
+    allowed = ("omega", field_name)
+    if along is None:
+        return allowed
+    names = (along,) if isinstance(along, str) else tuple(along)
+    if not names or any(name not in allowed for name in names):
+        raise ValueError(f"along must name one or both of the atlas's axes {', '.join(allowed)}, got {along!r}")
+    return tuple(name for name in allowed if name in names)
 
 
 @dataclass(frozen=True)
 class AtlasChange:
-    """A change of stability located between two neighbours of an atlas along Omega.
+    """A change of stability located between two neighbours of an atlas: along Omega (one field value) or along the field
+    (one Omega).
 
     Attributes
     ----------
     row : int
-        The index of the field value (``values[row]``).
+        The index of the first neighbour's field value (``values[row]``).
     value : float
-        That value.
+        The field value of the change: the row's along Omega, the located one along the field.
     between : (int, int)
-        The indices in ``omegas`` of the two neighbours.
+        The indices of the two neighbours along the axis: in ``omegas``, or in ``values``.
     change : StabilityChange
-        :class:`~.system_breathers.StabilityChange`: ``omega``, its ``accuracy``, ``kind``, ``method``.
+        :class:`~.system_breathers.StabilityChange`: ``omega``, its ``accuracy``, ``kind``, ``method``; along the field
+        those are in the field's value (:class:`~.system_breathers.Axis`).
+    axis : str
+        ``omega``, or the field's name.
+    column : int, optional
+        Along the field: the index in ``omegas`` of both neighbours.
+    frequency : float, optional
+        Along the field: their Omega.
     """
 
     row: int
     value: float
     between: tuple[int, int]
     change: StabilityChange
+    axis: str = "omega"
+    column: int | None = None
+    frequency: float | None = None
+
+    @property
+    def omega(self) -> float:
+        """The Omega of the change: located along Omega, the neighbours' along the field."""
+        return self.change.omega if self.axis == "omega" else float(self.frequency)
 
     @property
     def placed_by(self) -> str:
@@ -152,26 +183,35 @@ class AtlasChange:
 
     @property
     def accuracy(self) -> float:
-        """The change's accuracy in Omega as :attr:`placed_by` gives it."""
+        """The change's accuracy along its axis (in Omega, or in the field) as :attr:`placed_by` gives it."""
         c = self.change
         if c.accuracy is not None:
             return float(c.accuracy)
         return float(c.moduli_accuracy if c.moduli_accuracy is not None else 0.5 * abs(c.stable_omega - c.unstable_omega))
 
     def as_dict(self) -> dict:
-        return {"value": self.value, "between": list(self.between), **self.change.as_dict(), "accuracy": self.accuracy,
-                "placed_by": self.placed_by}  # fmt: skip
+        """JSON-ready; along the field the change's coordinates are named ``value``, ``stable_value``, ... and ``omega`` is
+        the neighbours' Omega."""
+        change = self.change.as_dict()
+        if self.axis == "omega":
+            return {"axis": "omega", "value": self.value, "between": list(self.between), **change, "accuracy": self.accuracy,
+                    "placed_by": self.placed_by}  # fmt: skip
+        renamed = {key.replace("omega", "value"): item for key, item in change.items()}
+        return {"axis": self.axis, "omega": self.omega, "column": self.column, "between": list(self.between), **renamed,
+                "accuracy": self.accuracy, "placed_by": self.placed_by}  # fmt: skip
 
 
-def to_locate(points: list[list], every: bool = False) -> list[tuple[int, int]]:
-    """(row, i) of the neighbours points[row][i], points[row][i + 1] of one family (the second continued from the first in
-    Omega) of opposite stability, and with ``every`` also two unstable ones whose pairs off the unit circle differ (a
-    second pair leaving or a pair coming back while another stays off)."""
+def to_locate(points: list[list], every: bool = False, axis: str = "omega") -> list[tuple[int, int]]:
+    """(row, i) of neighbours of opposite stability, and with ``every`` also two unstable ones whose pairs off the unit
+    circle differ (a second pair leaving or a pair coming back while another stays off): along Omega points[row][i],
+    points[row][i + 1] of one family (the second continued from the first in Omega); along the field (any other ``axis``)
+    points[row][i], points[row + 1][i] (whether they are of one family is for the locate to check)."""
     out = []
-    for j, row in enumerate(points):
-        for i in range(len(row) - 1):
-            a, b = row[i], row[i + 1]
-            if a.orbit is None or b.orbit is None or b.source != "omega":
+    along_omega = axis == "omega"
+    for j in range(len(points) - (0 if along_omega else 1)):
+        for i in range(len(points[j]) - (1 if along_omega else 0)):
+            a, b = (points[j][i], points[j][i + 1]) if along_omega else (points[j][i], points[j + 1][i])
+            if a.orbit is None or b.orbit is None or (along_omega and b.source != "omega"):
                 continue
             counts = instability_counts(a.orbit.nontrivial_multipliers), instability_counts(b.orbit.nontrivial_multipliers)
             if a.orbit.stable != b.orbit.stable or (every and collisions_between(*counts)):
@@ -179,37 +219,103 @@ def to_locate(points: list[list], every: bool = False) -> list[tuple[int, int]]:
     return out
 
 
+#: Along the field, two neighbours the atlas's continuation does not join are of one family where Newton from the first's
+#: state at the second's value lands on the second to this (max-norm of the start's difference).
+ONE_FAMILY_TOL = 1e-6
+
+
+def traced_families(points: list[list]) -> np.ndarray:
+    """(value, omega) labels of the families as the atlas traced them: two points share one where a chain of continuations
+    joins them (a point continued in Omega from the one before it, in the field from the one at the previous value); -1
+    where no orbit was found."""
+    rows, columns = len(points), len(points[0]) if points else 0
+    parent = list(range(rows * columns))
+
+    def root(n: int) -> int:
+        while parent[n] != n:
+            parent[n] = parent[parent[n]]
+            n = parent[n]
+        return n
+
+    for j in range(rows):
+        for i in range(columns):
+            source = points[j][i].source
+            if source in ("omega", "field"):
+                parent[root(j * columns + i)] = root(j * columns + i - 1 if source == "omega" else (j - 1) * columns + i)
+    return np.array([[root(j * columns + i) if points[j][i].orbit is not None else -1 for i in range(columns)] for j in range(rows)])
+
+
+def one_family(a, b, solve: Callable[[np.ndarray, float], object], value: Callable[[object], float]) -> bool:
+    """Whether members ``a`` and ``b`` (at two values of a field, one Omega) are of one family: Newton from ``a``'s state at
+    ``b``'s value (``solve(y0, value)``) lands on ``b`` to :data:`ONE_FAMILY_TOL`."""
+    try:
+        landed = solve(a.y0, value(b))
+    except OrbitNotFound:
+        return False
+    return bool(np.max(np.abs(landed.y0 - b.y0)) <= ONE_FAMILY_TOL)
+
+
 def locate_atlas_changes(
-    points: list[list], values: np.ndarray, locate: Callable[[int, object, object], list[StabilityChange]],
+    points: list[list], values: np.ndarray, omegas: np.ndarray, axes: tuple[str, ...],
+    locate: Callable[[str, int, int, object, object, bool], list[StabilityChange] | None],
     progress: Callable[[int, int], None] | None = None, every: bool = False,
-) -> list[AtlasChange]:  # fmt: skip
-    """Every change of stability between the neighbours :func:`to_locate` gives (with ``every``), ``locate(row, a, b)`` the
-    located changes between orbits ``a`` and ``b`` of that row (each collision between them, as their pairs off the circle
-    count them); ``progress(done, total)`` after each pair of neighbours."""
-    pairs = to_locate(points, every)
-    out = []
-    for n, (j, i) in enumerate(pairs):
-        for change in locate(j, points[j][i].orbit, points[j][i + 1].orbit):
-            out.append(AtlasChange(j, float(values[j]), (i, i + 1), change))
+) -> tuple[list[AtlasChange], list[dict]]:  # fmt: skip
+    """Every change of stability between the neighbours :func:`to_locate` gives along each of ``axes`` (with ``every``),
+    ``locate(axis, row, i, a, b, traced)`` the located changes between orbits ``a`` and ``b`` (each collision between them,
+    as their pairs off the circle count them; ``traced``: the atlas's continuation joins them, :func:`traced_families`),
+    None where they are not of one family; ``progress(done, total)`` after each pair.
+
+    Returns
+    -------
+    (changes, skipped)
+        The changes along Omega, then along the field; the pairs not of one family (``axis``, ``row``, ``column``).
+    """
+    pairs = [(axis, j, i) for axis in axes for j, i in to_locate(points, every, axis)]
+    families = traced_families(points)
+    out, skipped = [], []
+    for n, (axis, j, i) in enumerate(pairs):
+        second = (j, i + 1) if axis == "omega" else (j + 1, i)
+        located = locate(axis, j, i, points[j][i].orbit, points[second[0]][second[1]].orbit, bool(families[j, i] == families[second]))
+        if located is None:
+            skipped.append({"axis": axis, "row": j, "column": i})
+        for change in located or []:
+            if axis == "omega":
+                out.append(AtlasChange(j, float(values[j]), (i, i + 1), change))
+            else:
+                out.append(AtlasChange(j, float(change.omega), (j, j + 1), change, axis, i, float(omegas[i])))
         if progress is not None:
             progress(n + 1, len(pairs))
-    return out
+    return out, skipped
 
 
-def change_variables(changes: list[AtlasChange], omega_units: str, value_units: str, field_name: str) -> dict:
-    """The located changes as Dataset variables over a dimension ``change`` (empty where none), their units and meanings."""
+def change_variables(changes: list[AtlasChange], omega_units: str, value_units: str, field_name: str, field: str) -> dict:
+    """The located changes as Dataset variables over a dimension ``change`` (empty where none), their units and meanings:
+    each change's point (value, omega), its axis (``omega`` or the field ``field``), and its accuracy and bracket in the
+    axis's units (NaN in the other's)."""
     kinds = {"flag_values": np.arange(len(CHANGE_KINDS), dtype=np.int8), "flag_meanings": "plus_one minus_one complex"}
     placed = {"flag_values": np.arange(len(PLACED_BY), dtype=np.int8), "flag_meanings": " ".join(PLACED_BY)}
+    axes = {"flag_values": np.arange(2, dtype=np.int8), "flag_meanings": f"omega {field}"}
+
+    def on(axis_is_omega: bool, get: Callable[[AtlasChange], float]) -> Callable[[AtlasChange], float]:
+        return lambda c: get(c) if (c.axis == "omega") == axis_is_omega else math.nan
+
     table = (
-        ("value", lambda c: c.value, float, value_units, f"{field_name} of the row of the change", {}),
-        ("omega", lambda c: c.change.omega, float, omega_units, "Omega where stability changes", {}),
-        ("accuracy", lambda c: c.accuracy, float, omega_units, "accuracy of change_omega (change_placed_by says how it was measured)", {}),
-        ("stable_omega", lambda c: c.change.stable_omega, float, omega_units, "bracket's end with fewer pairs off the unit circle", {}),
-        ("unstable_omega", lambda c: c.change.unstable_omega, float, omega_units, "bracket's end with the colliding pair off it", {}),
-        ("between", lambda c: c.between[0], np.int32, "1", "index in omega of the first neighbour (the other: the next)", {}),
+        ("axis", lambda c: 0 if c.axis == "omega" else 1, np.int8, "1", "the axis the change was located along", axes),
+        ("value", lambda c: c.value, float, value_units, f"{field_name} of the change (located along {field})", {}),
+        ("omega", lambda c: c.omega, float, omega_units, "Omega of the change (located along omega)", {}),
+        ("accuracy", on(True, lambda c: c.accuracy), float, omega_units,
+         "accuracy of change_omega along omega (change_placed_by says how it was measured)", {}),
+        ("value_accuracy", on(False, lambda c: c.accuracy), float, value_units,
+         f"accuracy of change_value along {field} (change_placed_by says how it was measured)", {}),
+        ("stable_omega", on(True, lambda c: c.change.stable_omega), float, omega_units, "bracket's end with fewer pairs off the unit circle", {}),
+        ("unstable_omega", on(True, lambda c: c.change.unstable_omega), float, omega_units, "bracket's end with the colliding pair off it", {}),
+        ("stable_value", on(False, lambda c: c.change.stable_omega), float, value_units, "bracket's end with fewer pairs off the unit circle", {}),
+        ("unstable_value", on(False, lambda c: c.change.unstable_omega), float, value_units, "bracket's end with the colliding pair off it", {}),
+        ("between", lambda c: c.between[0], np.int32, "1", "index of the first neighbour along the axis, in omega or in value (the other: the next)", {}),
+        ("at", lambda c: c.row if c.axis == "omega" else c.column, np.int32, "1", "index of both neighbours across the axis, in value or in omega", {}),
         ("kind", lambda c: CHANGE_KINDS.index(c.change.kind), np.int8, "1", "where the pair meets: +1, -1, off the real axis", kinds),
-        ("placed_by", lambda c: PLACED_BY.index(c.placed_by), np.int8, "1", "how change_omega was placed", placed),
-    )
+        ("placed_by", lambda c: PLACED_BY.index(c.placed_by), np.int8, "1", "how the change was placed", placed),
+    )  # fmt: skip
     return {
         f"change_{name}": (("change",), np.array([get(c) for c in changes], dtype=dtype), {"units": units, "long_name": long, **extra})
         for name, get, dtype, units, long, extra in table
@@ -386,21 +492,42 @@ class BreatherAtlas:
     def params_at(self, value: float) -> ChainParams:
         return chain_at(self.params, self.field, value)
 
-    def locate_changes(self, tol: float = LOCATE_TOL, progress: Callable[[int, int], None] | None = None, every: bool = False) -> None:
-        """Locate every change of stability between neighbours along Omega of opposite stability, with ``every`` between any
-        whose pairs off the circle differ (:func:`locate_atlas_changes`), to ``tol`` in Omega, by
-        :func:`~.breathers.located_changes`; kept in :attr:`changes`, :meth:`as_dict`, :meth:`to_dataset` and the settings.
+    def locate_changes(
+        self, tol: float = LOCATE_TOL, progress: Callable[[int, int], None] | None = None, every: bool = False,
+        along: str | tuple[str, ...] | None = None,
+    ) -> None:  # fmt: skip
+        """Locate every change of stability between neighbours of opposite stability, with ``every`` between any whose pairs
+        off the circle differ (:func:`locate_atlas_changes`), along Omega and along the field (``along``: ``omega``, the
+        field's name, or both for None), to ``tol`` in each; kept in :attr:`changes`, :meth:`as_dict`, :meth:`to_dataset`
+        and the settings (the field's neighbours neither joined by the atlas's continuation, :func:`traced_families`, nor
+        found of one family by :func:`one_family` are left unlocated).
+
+        Along Omega by :func:`~.breathers.located_changes`; along the field the same mechanism
+        (:func:`~.system_breathers.locate_stability_changes`) on :func:`~.system_breathers.parameter_axis`: the
+        members at the neighbours' Omega on the chain with the field's value (:func:`~.breathers.chain_at`), bisected and
+        placed in the value, the resonances named from the bands there.
 
         Raises
         ------
         ValueError
-            For a tolerance :func:`check_locate_tol` refuses.
+            For a tolerance :func:`check_locate_tol` refuses, or axes :func:`check_along` refuses.
         """
         tol = check_locate_tol(tol)
-        self.changes = locate_atlas_changes(
-            self.points, self.values, lambda j, a, b: located_changes([a, b], self.bands, tol), progress, every
-        )  # fmt: skip
-        self.settings["locate"] = {"tol": tol, "every": every}
+        axes = check_along(along, self.field)
+
+        def locate(axis: str, j: int, i: int, a: HamiltonianOrbit, b: HamiltonianOrbit, traced: bool) -> list | None:
+            if axis == "omega":
+                return located_changes([a, b], self.bands, tol)
+            solve, tighten = _solvers(a, self.field)
+            first, second = _Member(a), _Member(b)
+            value = partial(_member_value, self.field)
+            if not (traced or one_family(first, second, solve, value)):
+                return None
+            line = parameter_axis(self.field, value, solve, partial(_band_edges, self.params, self.field, self.bands), a.omega)
+            return locate_stability_changes(first, second, None, None, None, tighten, tol, axis=line)
+
+        self.changes, skipped = locate_atlas_changes(self.points, self.values, self.omegas, axes, locate, progress, every)
+        self.settings["locate"] = {"tol": tol, "every": every, "along": list(axes), "not_one_family": skipped}
 
     def measure_lifetimes(
         self, max_periods: int, *, perturbation: float = 1e-8, threshold: float = 1e-2, progress: Callable[[int, int], None] | None = None
@@ -538,7 +665,7 @@ class BreatherAtlas:
             data.update(lifetime_variables(self.points, dims))
         if self.changes is not None:
             value_units = "length (units of the parameters' h)" if self.field in ("a", "b", "h") else "stiffness (units of E1)"
-            data.update(change_variables(self.changes, "rad s-1", value_units, f"chain field {self.field}"))
+            data.update(change_variables(self.changes, "rad s-1", value_units, f"chain field {self.field}", self.field))
         ds = xr.Dataset(data, coords=coords)
         model = get_model(self.model)
         ds.attrs.update(run_attributes(self.params, model, moment_load(0.0, self.settings.get("particle", 0))))
@@ -554,6 +681,17 @@ class BreatherAtlas:
             }
         )
         return ds
+
+
+def _member_value(field_name: str, member) -> float:
+    """The field's value on a chain's member (:class:`~.breathers._Member`)."""
+    return float(getattr(member.orbit.params, field_name))
+
+
+def _band_edges(params: ChainParams, field_name: str, bands: tuple[str, ...], value: float) -> list[tuple[float, float]]:
+    """The driven bands' (bottom, top) on the chain with the field at ``value`` (the resonances are named from them)."""
+    edges = wave_summary(chain_at(params, field_name, value)).bands
+    return [tuple(edges[name]) for name in bands]
 
 
 def _secant(a: HamiltonianOrbit | None, b: HamiltonianOrbit | None, r: float) -> tuple[np.ndarray, np.ndarray] | None:

@@ -293,12 +293,16 @@ class _Member:
         return problem.evaluate(problem.start(), True).data
 
 
-def _solvers(orbit: HamiltonianOrbit) -> tuple[Callable[[np.ndarray, float], _Member], Callable[[_Member], _Member | None]]:
+def _solvers(
+    orbit: HamiltonianOrbit, field: str | None = None
+) -> tuple[Callable[[np.ndarray, float], _Member], Callable[[_Member], _Member | None]]:
     """``solve(y0, period)``: the member of ``orbit``'s family with that period from the start ``y0`` (OrbitNotFound where
-    Newton fails); ``tighten(member)``: the same orbit at :data:`~.system_breathers.TIGHT_RTOL` (None where it fails)."""
-    params, nf = orbit.params, n_free(orbit.params)
+    Newton fails), with ``field`` instead ``solve(y0, value)``: the member at ``orbit``'s frequency on the chain with that
+    value of the field (:func:`chain_at`); ``tighten(member)``: the same orbit on its chain at
+    :data:`~.system_breathers.TIGHT_RTOL` (None where it fails)."""
+    nf = n_free(orbit.params)
 
-    def solve(y0: np.ndarray, period: float, tol: float = CLOSURE_TOL, rtol: float = RTOL) -> _Member:
+    def find(params: ChainParams, y0: np.ndarray, period: float, tol: float = CLOSURE_TOL, rtol: float = RTOL) -> _Member:
         try:
             found = find_hamiltonian_orbit(
                 params, orbit.model, 2 * math.pi * orbit.turns / period, (unpack(params, y0[:nf]), unpack(params, y0[nf:])),
@@ -308,9 +312,12 @@ def _solvers(orbit: HamiltonianOrbit) -> tuple[Callable[[np.ndarray, float], _Me
             raise OrbitNotFound(str(err)) from None
         return _Member(found, rtol)
 
+    def solve(y0: np.ndarray, at: float) -> _Member:
+        return find(orbit.params, y0, at) if field is None else find(chain_at(orbit.params, field, at), y0, orbit.period)
+
     def tighten(member: _Member) -> _Member | None:
         try:
-            return solve(member.y0, member.period, TIGHT_CLOSURE, TIGHT_RTOL)
+            return find(member.orbit.params, member.y0, member.period, TIGHT_CLOSURE, TIGHT_RTOL)
         except OrbitNotFound:
             return None
 

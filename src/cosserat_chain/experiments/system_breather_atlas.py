@@ -32,8 +32,9 @@ and ``source`` records which converged. At each orbit, from
   (:func:`~.system_breathers.linear_bands`) and the harmonics of Omega inside them.
 
 :meth:`SystemBreatherAtlas.locate_changes` locates the changes of stability between neighbours along
-Omega as the chain's atlas does (:class:`~.breather_atlas.AtlasChange`), each by
-:func:`~.system_breathers.locate_stability_changes`.
+Omega and along the parameter as the chain's atlas does (:class:`~.breather_atlas.AtlasChange`), each by
+:func:`~.system_breathers.locate_stability_changes` (along the parameter at the neighbours' frequency,
+:func:`~.system_breathers.parameter_axis`).
 :meth:`SystemBreatherAtlas.to_dataset` writes it all to one self-describing Dataset.
 """
 
@@ -58,9 +59,11 @@ from .breather_atlas import (
     SOURCES,
     AtlasChange,
     change_variables,
+    check_along,
     check_locate_tol,
     localization_length,
     locate_atlas_changes,
+    one_family,
 )
 from .breathers import TAIL_SAMPLES
 from .lifetimes import Lifetime, check_lifetime_run, lifetime_variables, measure_point_lifetimes
@@ -73,6 +76,7 @@ from .system_breathers import (
     linear_bands,
     locate_stability_changes,
     orbit_energy,
+    parameter_axis,
     roto_breather_family,
     system_lifetime,
 )
@@ -197,31 +201,49 @@ class SystemBreatherAtlas:
     #: From :meth:`locate_changes` (None: not located).
     changes: list[AtlasChange] | None = None
 
-    def locate_changes(self, tol: float = LOCATE_TOL, progress: Callable[[int, int], None] | None = None, every: bool = False) -> None:
-        """Locate every change of stability between neighbours along Omega of opposite stability, with ``every`` between
-        any whose pairs off the circle differ (:func:`~.breather_atlas.locate_atlas_changes`), to ``tol`` in Omega, by
-        :func:`~.system_breathers.locate_stability_changes`; kept in :attr:`changes`, :meth:`as_dict`,
-        :meth:`to_dataset` and the settings.
+    def locate_changes(
+        self, tol: float = LOCATE_TOL, progress: Callable[[int, int], None] | None = None, every: bool = False,
+        along: str | tuple[str, ...] | None = None,
+    ) -> None:  # fmt: skip
+        """Locate every change of stability between neighbours of opposite stability, with ``every`` between any whose pairs
+        off the circle differ (:func:`~.breather_atlas.locate_atlas_changes`), along Omega and along the parameter
+        (``along``: ``omega``, the parameter's name, or both for None), to ``tol`` in each, by
+        :func:`~.system_breathers.locate_stability_changes` (along the parameter on
+        :func:`~.system_breathers.parameter_axis`: the orbits at the neighbours' period on the system with the parameter's
+        value, bisected and placed in it); kept in :attr:`changes`, :meth:`as_dict`, :meth:`to_dataset` and the settings
+        (the parameter's neighbours neither joined by the atlas's continuation nor found of one family by
+        :func:`~.breather_atlas.one_family` are left unlocated).
 
         Raises
         ------
         ValueError
-            For a tolerance :func:`~.breather_atlas.check_locate_tol` refuses.
+            For a tolerance :func:`~.breather_atlas.check_locate_tol` refuses, or axes :func:`~.breather_atlas.check_along`
+            refuses.
         """
         tol = check_locate_tol(tol)
+        axes = check_along(along, self.field)
         k = np.zeros(self.system.size)
         for i, t in self.rotors.items():
             k[i] = t
         first = next(iter(self.rotors.values()))
         unfold = self.settings["unfold"]
 
-        def locate(j: int, a: Orbit, b: Orbit) -> list:
-            here = self.system_at(self.values[j])
-            solve = partial(_at, here, k, unfold)
-            return locate_stability_changes(a, b, solve, linear_bands(here), first, tol=tol)
+        def locate(axis: str, j: int, i: int, a: Orbit, b: Orbit, traced: bool) -> list | None:
+            if axis == "omega":
+                here = self.system_at(self.values[j])
+                return locate_stability_changes(a, b, partial(_at, here, k, unfold), linear_bands(here), first, tol=tol)
 
-        self.changes = locate_atlas_changes(self.points, self.values, locate, progress, every)
-        self.settings["locate"] = {"tol": tol, "every": every}
+            def solve(y0: np.ndarray, value: float) -> Orbit:
+                return _at(self.system_at(value), k, unfold, y0, a.period)
+
+            value = partial(_parameter_value, self.field)
+            if not (traced or one_family(a, b, solve, value)):
+                return None
+            line = parameter_axis(self.field, value, solve, lambda v: linear_bands(self.system_at(v)), float(self.omegas[i]))
+            return locate_stability_changes(a, b, None, None, None, tol=tol, axis=line)
+
+        self.changes, skipped = locate_atlas_changes(self.points, self.values, self.omegas, axes, locate, progress, every)
+        self.settings["locate"] = {"tol": tol, "every": every, "along": list(axes), "not_one_family": skipped}
 
     def measure_lifetimes(
         self, max_periods: int, *, perturbation: float = 1e-8, threshold: float = 1e-2, progress: Callable[[int, int], None] | None = None
@@ -334,7 +356,8 @@ class SystemBreatherAtlas:
         if "lifetime" in self.settings:
             data.update(lifetime_variables(self.points, dims))
         if self.changes is not None:
-            data.update(change_variables(self.changes, "rad per time unit of the system", "the system's", f"system parameter {self.field}"))
+            units, field_name = "rad per time unit of the system", f"system parameter {self.field}"
+            data.update(change_variables(self.changes, units, "the system's", field_name, self.field))
         ds = xr.Dataset(data, coords=coords)
         ds.attrs.update({f"param_{name}": value for name, value in self.system.parameters.items()})
         ds.attrs.update(
@@ -352,6 +375,11 @@ class SystemBreatherAtlas:
         if reference is not None:
             ds.attrs["system_reference"] = reference
         return ds
+
+
+def _parameter_value(name: str, orbit: Orbit) -> float:
+    """The parameter's value on ``orbit``'s system."""
+    return float(orbit.parameter(name))
 
 
 def _secant(a: Orbit | None, b: Orbit | None, r: float) -> np.ndarray | None:

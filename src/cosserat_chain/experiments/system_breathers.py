@@ -809,15 +809,77 @@ def _sample(orbit: Orbit, omega: float, kind: str, centre: complex | None, tight
     return _Sample(omega, tight, sharp, loose, float(np.max(np.abs(orbit.monodromy - tight.monodromy))))
 
 
-def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None, solve: Callable[[float, np.ndarray], Orbit], k: int,
-               tighten: Callable[[Orbit], Orbit | None], tol: float = 0.0):  # fmt: skip
-    """The zero of the collision discriminant in Omega near the members ``stable`` and ``unstable``.
+@dataclass(frozen=True)
+class Axis:
+    """The coordinate along which a change of stability between two members is located (:func:`locate_stability_change`).
 
-    Returns (omega, samples, slope, step) or None where a discriminant is unresolved or no sign change is found.
-    ``solve(omega, guess)`` is the orbit at that frequency. The secant stops early where its next step in Omega
+    Omega (:func:`omega_axis`: members of one period apart, bisected in the period), or a parameter of
+    the system at a fixed frequency (:func:`parameter_axis`: the atlases' other axis, bisected in the
+    value). Along a parameter, the :class:`StabilityChange`'s ``omega``, ``stable_omega``,
+    ``unstable_omega``, ``moduli_omega``, ``shooting_omega``, ``accuracy`` and ``slope`` are in the
+    parameter's value, not in Omega.
+
+    Attributes
+    ----------
+    name : str
+        ``omega``, or the parameter's name.
+    parameter : callable(member) -> float
+        The member's parameter p, which the bisection halves: its period, or the parameter's value.
+    solve : callable(y0, p) -> member
+        The member at p from the start ``y0``; raises :class:`~cosserat_chain.numerics.shooting.OrbitNotFound`
+        where Newton fails.
+    coordinate : callable(p) -> float
+        The coordinate the change is placed in (the secant's): Omega = 2 pi k / T, or the value itself.
+    parameter_at : callable(coordinate) -> float
+        Its inverse.
+    bands : callable(coordinate) -> list of (bottom, top)
+        The phonon bands there (the resonances are named from them).
+    omega : callable(coordinate) -> float
+        The frequency there: the coordinate itself, or the fixed one.
+    """
+
+    name: str
+    parameter: Callable[[Orbit], float]
+    solve: Callable[[np.ndarray, float], Orbit]
+    coordinate: Callable[[float], float]
+    parameter_at: Callable[[float], float]
+    bands: Callable[[float], list[tuple[float, float]]]
+    omega: Callable[[float], float]
+
+    def at(self, member) -> float:
+        """The member's coordinate."""
+        return self.coordinate(self.parameter(member))
+
+
+def omega_axis(solve: Callable[[np.ndarray, float], Orbit], k: int, bands: list[tuple[float, float]]) -> Axis:
+    """Omega = 2 pi k / T along a family: ``solve(y0, period)`` the member of that period, the same ``bands`` throughout."""
+    return Axis(
+        "omega", lambda member: member.period, solve, lambda period: 2 * math.pi * k / period,
+        lambda omega: 2 * math.pi * k / omega, lambda omega: bands, lambda omega: omega,
+    )  # fmt: skip
+
+
+def parameter_axis(
+    name: str, value: Callable[[Orbit], float], solve: Callable[[np.ndarray, float], Orbit],
+    bands: Callable[[float], list[tuple[float, float]]], omega: float,
+) -> Axis:  # fmt: skip
+    """A parameter ``name`` at the fixed frequency ``omega``: ``value(member)`` its value at a member, ``solve(y0, value)`` the
+    member there, ``bands(value)`` the phonon bands there."""
+    return Axis(name, value, solve, float, float, bands, lambda _: omega)
+
+
+def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None, axis: Axis,
+               tighten: Callable[[Orbit], Orbit | None], tol: float = 0.0):  # fmt: skip
+    """The zero of the collision discriminant along ``axis`` near the members ``stable`` and ``unstable``.
+
+    Returns (coordinate, samples, slope, step) or None where a discriminant is unresolved or no sign change is found.
+    The secant runs in the axis's coordinate (Omega, or a parameter's value) and stops early where its next step
     is below ``tol`` (that step, not taken, is ``step``; 0 where the secant ran to its end).
     """
     samples = []
+
+    def solve(omega: float, guess: np.ndarray) -> Orbit:
+        return axis.solve(guess, axis.parameter_at(omega))
 
     def at(omega: float) -> _Sample | None:
         near = sorted(samples, key=lambda x: abs(x.omega - omega))[:2]
@@ -832,7 +894,7 @@ def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None
         return found
 
     for orbit in (stable, unstable):
-        found = _sample(orbit, 2 * math.pi * k / orbit.period, kind, centre, tighten)
+        found = _sample(orbit, axis.at(orbit), kind, centre, tighten)
         if found is None:
             return None
         samples.append(found)
@@ -906,7 +968,7 @@ def branch_point_discriminant(
     (omega, accuracy) or None
         None where the pair's discriminant is unresolved or has no zero near the two members.
     """
-    found = _collision(a, b, "+1", None, lambda omega, guess: solve(guess, 2 * math.pi * k / omega), k, tighten)
+    found = _collision(a, b, "+1", None, omega_axis(solve, k, []), tighten)
     if found is None:
         return None
     omega, samples, slope, _ = found
@@ -945,8 +1007,8 @@ def _bracketed(stable, unstable, kind: str) -> bool:
 
 
 def locate_stability_change(
-    a, b, solve: Callable[[np.ndarray, float], Orbit], bands: list[tuple[float, float]], k: int,
-    tighten: Callable[[Orbit], Orbit | None] = _tight, tol: float | None = None,
+    a, b, solve: Callable[[np.ndarray, float], Orbit] | None, bands: list[tuple[float, float]] | None, k: int | None,
+    tighten: Callable[[Orbit], Orbit | None] = _tight, tol: float | None = None, axis: Axis | None = None,
 ) -> StabilityChange:  # fmt: skip
     """Bisect in the period between members ``a`` and ``b`` that differ by one collision, then find the zero of the
     collision's discriminant (:class:`StabilityChange`).
@@ -979,7 +1041,12 @@ def locate_stability_change(
         secant takes over from there),
         and the secant once its next step is shorter (that step is added to ``accuracy``). None:
         the full :data:`BISECTIONS` and secant iterations (a family's changes).
+    axis : Axis, optional
+        The coordinate to locate along (:class:`Axis`: a parameter at a fixed frequency, the atlases'
+        other axis; ``tol`` is then in its value); ``solve``, ``bands`` and ``k`` are not read with it.
+        None: Omega, from them (:func:`omega_axis`).
     """
+    axis = omega_axis(solve, k, bands) if axis is None else axis
     ca, cb = _counts(a), _counts(b)
     which = next((i for i in range(len(COUNTED)) if ca[i] != cb[i]), None)
     if which is None:  # the flags differ at the circle's tolerance while the counts agree: by the flags
@@ -991,13 +1058,10 @@ def locate_stability_change(
     on = _counts(stable)
     far = unstable
     for _ in range(BISECTIONS):
-        if tol is not None and (
-            abs(2 * math.pi * k / stable.period - 2 * math.pi * k / unstable.period) <= tol or _bracketed(stable, unstable, kind)
-        ):
+        if tol is not None and (abs(axis.at(stable) - axis.at(unstable)) <= tol or _bracketed(stable, unstable, kind)):
             break
-        period = 0.5 * (stable.period + unstable.period)
         try:
-            middle = solve(0.5 * (stable.y0 + unstable.y0), period)
+            middle = axis.solve(0.5 * (stable.y0 + unstable.y0), 0.5 * (axis.parameter(stable) + axis.parameter(unstable)))
         except OrbitNotFound:  # the bracket found so far stays valid
             break
         if _counts(middle) == on:
@@ -1006,14 +1070,14 @@ def locate_stability_change(
             unstable = middle
     off = _off(far, kind)
     multiplier = complex(off[int(np.argmax(np.abs(off)))]) if off.size else _classify(far)[0]
-    omega_s, omega_u = 2 * math.pi * k / stable.period, 2 * math.pi * k / unstable.period
+    omega_s, omega_u = axis.at(stable), axis.at(unstable)
     moduli_omega = 0.5 * (omega_s + omega_u)
     # The collision's centre from the bisected unstable member: the pair is nearest it there, not at a far member;
     # of its quartets off the circle the one nearest it, which has just left.
     centre = _centre(unstable, kind)
     if kind == "complex" and multiplier.imag < 0:
         multiplier = multiplier.conjugate()
-    found = _collision(stable, unstable, kind, centre, lambda omega, guess: solve(guess, 2 * math.pi * k / omega), k, tighten, tol or 0.0)
+    found = _collision(stable, unstable, kind, centre, axis, tighten, tol or 0.0)
     size = CLUSTER_SIZE[kind]
     if found is None:
         omega, accuracy, method, delta, slope, moduli_accuracy = moduli_omega, None, "moduli", None, None, None
@@ -1036,8 +1100,8 @@ def locate_stability_change(
         unstable_omega=omega_u,
         multiplier=multiplier,
         kind=kind,
-        resonance=nearest_resonance(bands, omega, multiplier=sign),
-        nearest=nearest_resonance(bands, omega),
+        resonance=nearest_resonance(axis.bands(omega), axis.omega(omega), multiplier=sign),
+        nearest=nearest_resonance(axis.bands(omega), axis.omega(omega)),
         accuracy=accuracy,
         method=method,
         moduli_omega=moduli_omega,
@@ -1049,8 +1113,8 @@ def locate_stability_change(
 
 
 def locate_stability_changes(
-    a, b, solve: Callable[[np.ndarray, float], Orbit], bands: list[tuple[float, float]], k: int,
-    tighten: Callable[[Orbit], Orbit | None] = _tight, tol: float | None = None,
+    a, b, solve: Callable[[np.ndarray, float], Orbit] | None, bands: list[tuple[float, float]] | None, k: int | None,
+    tighten: Callable[[Orbit], Orbit | None] = _tight, tol: float | None = None, axis: Axis | None = None,
 ) -> list[StabilityChange]:  # fmt: skip
     """Every change of stability between members ``a`` and ``b``, in the order from ``a`` to ``b``.
 
@@ -1060,16 +1124,18 @@ def locate_stability_changes(
     none where they agree, even if the flags differ only at the circle's tolerance). Where more
     than one does, the bracket is bisected in the period, each half kept where its ends differ,
     until each part holds one (at most :data:`BISECTIONS` deep; a part Newton cannot split is
-    located as one); each is located by :func:`locate_stability_change`. Two pairs crossing
+    located as one); each is located by :func:`locate_stability_change` (along ``axis``: Omega, or a
+    parameter at a fixed frequency, the bisection then in the parameter). Two pairs crossing
     between the same two members so give two changes, where a stable/unstable flag or the
     parity of the pairs through +1 (:func:`~cosserat_chain.numerics.breather_arclength.pair_test`)
     give one or none.
 
     Parameters
     ----------
-    a, b, solve, bands, k, tighten, tol
+    a, b, solve, bands, k, tighten, tol, axis
         As :func:`locate_stability_change`.
     """
+    axis = omega_axis(solve, k, bands) if axis is None else axis
 
     def split(a, b, depth: int) -> list:
         count = collisions_between(_counts(a), _counts(b))
@@ -1078,12 +1144,12 @@ def locate_stability_changes(
         if count <= 1 or depth == 0:
             return [(a, b)]
         try:
-            middle = solve(0.5 * (a.y0 + b.y0), 0.5 * (a.period + b.period))
+            middle = axis.solve(0.5 * (a.y0 + b.y0), 0.5 * (axis.parameter(a) + axis.parameter(b)))
         except OrbitNotFound:
             return [(a, b)]
         return split(a, middle, depth - 1) + split(middle, b, depth - 1)
 
-    return [locate_stability_change(x, y, solve, bands, k, tighten, tol) for x, y in split(a, b, BISECTIONS)]
+    return [locate_stability_change(x, y, None, None, None, tighten, tol, axis) for x, y in split(a, b, BISECTIONS)]
 
 
 def roto_breather_family(

@@ -18,8 +18,9 @@ windows n Omega inside a driven band (n = 1..3) shaded between the edges' harmon
 bands about rest. Where the atlas's lifetimes were measured (``measure_lifetimes``) both add
 a second panel below the map: each orbit's lifetime over (Omega, field), coloured by log10 of
 its periods, the orbits that outlived the run as triangles. Where the atlas's changes of
-stability were located (``locate_changes``) both mark each on its row as a red bar with its
-accuracy as the error bar (too small to see, mostly: the change's place is the point). None
+stability were located (``locate_changes``) both mark each as a red bar with its accuracy as the
+error bar (too small to see, mostly: the change's place is the point): on its row where it was
+located along Omega, on its column where along the field. None
 computes anything itself.
 """
 
@@ -226,13 +227,19 @@ def system_atlas_figure(atlas: SystemBreatherAtlas) -> Figure:
 
 
 def _atlas_changes(ax, atlas) -> None:
-    """The atlas's located changes of stability on its rows (nothing where they were not located)."""
-    if not atlas.changes:
-        return
-    omega = np.array([c.change.omega for c in atlas.changes])
-    value = np.array([c.value for c in atlas.changes])
-    accuracy = np.array([c.accuracy for c in atlas.changes])
-    ax.errorbar(omega, value, xerr=accuracy, fmt="|", color="tab:red", ms=14, mew=1.5, capsize=3, label="stability changes (located)")
+    """The atlas's located changes of stability: those along Omega on their rows (a vertical bar, the accuracy in Omega),
+    those along the field on their columns (a horizontal bar, the accuracy in the field); nothing where none were located."""
+    for along_omega, marker, label in (
+        (True, "|", "stability changes (located)"),
+        (False, "_", f"stability changes along {atlas.field} (located)"),
+    ):
+        changes = [c for c in atlas.changes or [] if (c.axis == "omega") == along_omega]
+        if not changes:
+            continue
+        omega = np.array([c.omega for c in changes])
+        value = np.array([c.value for c in changes])
+        accuracy = {"xerr" if along_omega else "yerr": np.array([c.accuracy for c in changes])}
+        ax.errorbar(omega, value, **accuracy, fmt=marker, color="tab:red", ms=14, mew=1.5, capsize=3, label=label)
 
 
 def atlas_lifetime_grid(atlas) -> tuple[np.ndarray, np.ndarray] | None:
