@@ -88,8 +88,34 @@ class BandMatrix:
         return out
 
     def toarray(self) -> np.ndarray:
-        """The matrix as a dense array (tests and small chains)."""
-        return self.tocsr().toarray()
+        """The matrix as a dense array (tests and small chains), without a sparse matrix between.
+
+        Every zero is +0.0, as in :meth:`tocsr`'s dense form: a band entry -0.0 (a structural zero of K
+        times a negative factor) would otherwise flip a sign a dense eigensolver's reflections read.
+        """
+        n, b = self.shape[0], BANDWIDTH
+        padded = np.zeros((n, n + 2 * b))
+        rows = np.arange(n)[:, None]
+        padded[rows, rows + np.arange(2 * b + 1)] = self.data[b : n + b] + 0.0  # x + 0.0: -0.0 becomes +0.0
+        return padded[:, b : n + b].copy()
+
+    def scaled(self, diagonal: np.ndarray) -> BandMatrix:
+        """diag(d) M diag(d) for the vector ``diagonal`` d (length n), each entry (M_ij d_i) d_j.
+
+        Raises
+        ------
+        ValueError
+            If ``diagonal`` is not of length n.
+        """
+        n, b = self.shape[0], BANDWIDTH
+        diagonal = np.asarray(diagonal, dtype=float)
+        if diagonal.shape != (n,):
+            raise ValueError(f"diagonal must have length {n} (the matrix's order), got shape {diagonal.shape}")
+        padded = np.zeros(n + 4 * b)
+        padded[2 * b : 2 * b + n] = diagonal
+        # Storage row r holds row i = r - B, its entry t column j = r + t - 2B: d_i at padded[r + B], d_j at padded[r + t].
+        columns = np.lib.stride_tricks.sliding_window_view(padded, 2 * b + 1)[: n + 2 * b]
+        return BandMatrix(self.data * padded[b : n + 3 * b, None] * columns)
 
     def __repr__(self) -> str:
         return f"<BandMatrix {self.shape[0]}x{self.shape[1]}, half-bandwidth {BANDWIDTH}>"

@@ -62,7 +62,7 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse as sp
 
-from ..linalg import BandMatrix, band_storage, eigenvalue_resolution, negative_count
+from ..linalg import BandMatrix, band_storage, eigenvalue_resolution, infinity_norm, negative_count
 from ..linalg.eigen import BISECTION_RTOL, smallest_band_eigenvalue
 from ..linalg.pencil import nearest_axis, shifted_solver, unstable_count
 from ..linalg.threads import one_blas_thread
@@ -310,13 +310,13 @@ def dynamic_stability(
         raise ValueError(f"method must be one of {', '.join(DYNAMIC_METHODS)}, got {method!r}")
     if not (isinstance(rightmost, int) and not isinstance(rightmost, bool) and rightmost >= 1):
         raise ValueError(f"rightmost must be an integer >= 1 (eigenvalues reported), got {rightmost!r}")
-    stiffness, root, scaled, rate, scale, tolerance = _damped_system(params, model, x)
-    n = stiffness.shape[0]
+    root, scaled, rate, scale, tolerance = _damped_system(params, model, x)
+    n = scaled.shape[0]
     if method == "auto":
         method = "dense" if 2 * n <= DENSE_LIMIT else "sparse"
     if params.periodic or 2 * n <= 2 * rightmost + 4:
         method = "dense"
-    index = _stiffness_index(params, model, x, stiffness)
+    index = _stiffness_index(params, model, x)
     if method == "dense":
         a = np.zeros((2 * n, 2 * n))
         a[:n, n:] = np.eye(n)
@@ -333,31 +333,36 @@ def dynamic_stability(
         rest = model.stiffness(params, np.zeros_like(x)).tocsr()
         symmetric = abs(rest - rest.T).max() <= 1e-12 * abs(rest).max() if rest.nnz else False
         reference = sp.csr_matrix(sp.diags(root) @ rest @ sp.diags(root)) if symmetric else None
-        count = unstable_count(scaled, rate, tolerance, reference)
+        count = unstable_count(scaled.tocsr(), rate, tolerance, reference)
     # Shift-invert just right of the axis, far enough for K~ + s (R + s I) to be regular where
     # K~ is singular (rigid modes) and R has zeros.
     shift = max(tolerance, 1e-5 * scale)
-    eigenvalues = shift + nearest_axis(shifted_solver(scaled, rate, shift), 2 * n, count, rightmost)
+    eigenvalues = shift + nearest_axis(shifted_solver(scaled.tocsr(), rate, shift), 2 * n, count, rightmost)
     return _verdict(eigenvalues, tolerance, rightmost, index, method, count)
 
 
 def _damped_system(
     params: ChainParams, model: Model, x: np.ndarray
-) -> tuple[sp.csr_matrix, np.ndarray, sp.csr_matrix, np.ndarray, float, float]:
-    """K, M^(-1/2)'s diagonal, K~ = M^(-1/2) K M^(-1/2), R = Gamma M^-1 (its diagonal), the scale of A and the tolerance
-    of :func:`dynamic_stability`."""
-    stiffness = model.stiffness(params, x).tocsr()
+) -> tuple[np.ndarray, BandMatrix | sp.csr_matrix, np.ndarray, float, float]:
+    """M^(-1/2)'s diagonal, K~ = M^(-1/2) K M^(-1/2), R = Gamma M^-1 (its diagonal), the scale of A and the tolerance
+    of :func:`dynamic_stability`.
+
+    K~ is banded (:meth:`~cosserat_chain.models.base.Model.stiffness_band` scaled in band storage, no sparse
+    product: the same entries bit for bit) except for a ring, whose corner blocks lie outside the band (CSR)."""
     root = 1.0 / np.sqrt(pack(params, params.particle_inertia))
-    scaled = sp.csr_matrix(sp.diags(root) @ stiffness @ sp.diags(root))
+    if params.periodic:
+        scaled = sp.csr_matrix(sp.diags(root) @ model.stiffness(params, x).tocsr() @ sp.diags(root))
+    else:
+        scaled = model.stiffness_band(params, x).scaled(root)
     rate = per_dof(params, params.damping) * root**2  # Gamma M^-1
-    norm = float(abs(scaled).sum(axis=1).max()) if stiffness.shape[0] else 0.0
+    norm = infinity_norm(scaled)
     scale = max(math.sqrt(norm), float(rate.max(initial=0.0)), 1e-300)
     tolerance = DYNAMIC_RTOL * scale
     if params.rigid_modes and not np.all(rate > 0):
         # An undamped rigid mode is a Jordan block at zero (a drift q = a + b t): its computed
         # eigenvalues scatter by sqrt(eps |A|), 2e-8 for a free chain, and are neutral.
         tolerance = math.sqrt(np.finfo(float).eps) * scale
-    return stiffness, root, scaled, rate, scale, tolerance
+    return root, scaled, rate, scale, tolerance
 
 
 #: ``DynamicStability.method`` of a verdict by :func:`sine_theorem_stability`.
@@ -389,8 +394,8 @@ def sine_theorem_stability(params: ChainParams, model: str | Model, x: np.ndarra
     x = check_state(params, x)
     if not np.all(np.cos(pack(params, x)[free_rows(params) == 2]) > 0.0):
         return None
-    stiffness, *_, tolerance = _damped_system(params, model, x)
-    index = _stiffness_index(params, model, x, stiffness)
+    *_, tolerance = _damped_system(params, model, x)
+    index = _stiffness_index(params, model, x)
     return DynamicStability(True, 0, 0, 0, (), math.nan, index, tolerance, THEOREM)
 
 
@@ -408,7 +413,7 @@ def _verdict(eigenvalues: np.ndarray, tolerance: float, rightmost: int, index: i
     return DynamicStability(count == 0, count, real, (count - real) // 2, shown, abscissa, int(index), tolerance, method)
 
 
-def _stiffness_index(params: ChainParams, model: Model, x: np.ndarray, stiffness: sp.spmatrix) -> int:
+def _stiffness_index(params: ChainParams, model: Model, x: np.ndarray) -> int:
     """Eigenvalues of K with a real part below minus its round-off (:func:`_resolution`; a rigid mode's zero is not
     negative): the inertia of its symmetric similar matrix where it has one (banded, or dense for a ring), else
     the dense eigenvalues of K (a registered model without one)."""
@@ -419,4 +424,5 @@ def _stiffness_index(params: ChainParams, model: Model, x: np.ndarray, stiffness
     similar = model.symmetric_similar(params, x)
     if similar is not None:
         return int(np.sum(la.eigvalsh(similar.toarray()) < -eigenvalue_resolution(similar)))
+    stiffness = model.stiffness(params, x)
     return int(np.sum(la.eigvals(stiffness.toarray()).real < -eigenvalue_resolution(stiffness)))
