@@ -49,7 +49,10 @@ pin), and (P) then shifts each by 2 pi times its turns (:attr:`PeriodicOrbit.par
   way where the flow turns towards tangency with it (:data:`TRANSVERSAL_DROP`), and a
   turn of M counts as a fold of cycles only where a real Floquet multiplier crosses +1
   between the orbits around it; a multiplier through +1 where M does not turn is a branch
-  point of cycles (:attr:`OrbitBranch.events`), and the branch goes on through it.
+  point of cycles (:attr:`OrbitBranch.events`), and the branch goes on through it. Period
+  doublings (a real multiplier through -1) and tori (a complex pair through the unit circle)
+  are located in M between the orbits where their test functions turn, each trial orbit
+  re-solved by the branch's own method (:mod:`~cosserat_chain.numerics.cycle_events`).
 """
 
 from __future__ import annotations
@@ -1222,12 +1225,13 @@ class OrbitBranch:
         three points around the turn), or the last moment reached for the other ends.
     message : str
     events : list of dict
-        Branch points of cycles passed on the way: ``{"kind": "branch_point", "moment": M}``,
-        where a real multiplier crosses +1 while M does not turn (M interpolated linearly in
-        the multiplier between the two orbits around it); the branch goes on through them. A
-        collocation branch's (``CollocationBranch.orbit_branch``) also lists its located period
+        In the order of the branch. Branch points of cycles passed on the way: ``{"kind": "branch_point",
+        "moment": M}``, where a real multiplier crosses +1 while M does not turn (M interpolated linearly in
+        the multiplier between the two orbits around it); the branch goes on through them. Period
         doublings and tori (``"kind": "period_doubling"`` or ``"torus"``, with ``"located"``,
-        ``"multiplier"`` [re, im] and a torus's ``"angle"``).
+        ``"multiplier"`` [re, im] and a torus's ``"angle"``): located on every route, the shooting's
+        (:func:`~.cycle_events.locate_circle_events`: M to its ``"accuracy"``, with the located ``"orbit"``) and
+        the collocation's (``CollocationBranch.orbit_branch``).
     """
 
     orbits: list[PeriodicOrbit]
@@ -1319,6 +1323,14 @@ def continue_orbit(
     of M is a fold of cycles only where a real multiplier crosses +1 between the orbits
     around it; on the section, a turn without one (two crossings of the section merging) is
     passed the same way, and on a plane it ends the branch as ``unconfirmed_turn``.
+
+    Period doublings and tori are located once the branch is traced: between two consecutive orbits
+    where a test function of :func:`~.cycle_events.circle_tests` changes sign, Brent's method in M
+    (to :data:`~.cycle_events.MOMENT_TOL`) on that test, each trial the orbit re-solved at its M by
+    :func:`find_periodic_orbit` with this ``method`` (and ``segments``) from the orbit interpolated
+    between the two; kept where the critical multiplier lies on -1 or the unit circle
+    (:attr:`OrbitBranch.events`). With ``picard`` the tests see the multipliers above rho only,
+    where every crossing of the unit circle happens.
 
     Parameters
     ----------
