@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from cosserat_chain.numerics import equilibria
+from cosserat_chain.numerics import equilibria, kit
 from cosserat_chain.systems.base import SystemDefinitionError
 from cosserat_chain.systems.frenkel_kontorova import frenkel_kontorova
 from cosserat_chain.systems.lattice import LatticeSystem
@@ -66,6 +66,33 @@ def test_the_starts_newton_diverged_from_now_descend_to_the_minimum_between_site
     assert kink.index == 0
     assert kink_centre(kink.q) == pytest.approx(20.5, abs=1e-6)
     assert system.energy(kink.q) < system.energy(q0)
+
+
+def test_every_descent_step_lowers_the_energy_and_the_last_ones_are_newtons():
+    """The kit's corrector with the descent's step (as find_equilibrium runs it), each iterate recorded:
+    the energy falls at every step, and the last step divides max |F| by more than 1000 (the pseudo time step
+    has grown so large that the steps are Newton's)."""
+    system = frenkel_kontorova(101, C=8.0)
+    energies, norms = [], []
+
+    def record(q, evaluation):
+        energies.append(system.energy(q))
+        norms.append(float(np.max(np.abs(evaluation.residual))))
+
+    def evaluate(q, jacobian):
+        return kit.Evaluation(system.forces(q), system.force_jacobian(q).tocsc() if jacobian else None)
+
+    q0 = arctan_kink(101, 8.0, 50.25)
+    descended = kit.newton(
+        evaluate, q0, tol=1e-13, max_iterations=500, divergence=None, newton_step=equilibria._DescentStep(system), iterate=record
+    )
+    assert descended.converged
+    assert len(energies) > 10
+    # Up to the energy's round-off, which the descent allows for (eps n max(1, |E|)), once max |F| is small.
+    slack = np.finfo(float).eps * system.size * max(energies)
+    assert np.all(np.diff(energies) <= slack)
+    assert np.all(np.diff(energies)[np.array(norms[:-1]) > 1e-6] < 0)
+    assert norms[-1] < 1e-3 * norms[-2]
 
 
 def test_symmetric_starts_give_symmetric_kinks():
