@@ -210,6 +210,15 @@ def critical(
                     + ("none" if r.fold is None else f"M = {r.fold.moment:.15g} at phi_0 = {r.fold.phi0:.15g} rad")
                     + ", lies on its unstable part)"
                 )
+            if r.crossing is not None:
+                q, c = r.branch_point, r.crossing
+                fold = (
+                    f"M_c = {c.moment:.15g} at phi_0 = {c.phi0:.15g} rad (onset of rotation: the stable branch from rest ends at a "
+                    f"branch point, M = {q.moment:.15g} at phi_0 = {q.phi0:.15g} rad, past which a stable crossing branch carries "
+                    "the chain, at rest, to this fold)"
+                )
+            elif r.crossing_unresolved:
+                fold += "; a stable crossing branch carries the chain past it, not followed to its end: M_c is a lower bound"
             if r.snap_through:
                 fold += f"; the stable branch from rest ends earlier, at M = {r.first_fold.moment:.15g}, phi_0 = {r.first_fold.phi0:.15g} rad (snap-through"
                 fold += ")" if r.snap_to is None else f" to the stable state at phi_0 = {r.snap_to.phi0:.15g} rad)"
@@ -248,6 +257,13 @@ def critical(
             exit_on(Status.STEP_TOO_SMALL, f"the {name} branch: {r.branch.message}; M_c is decided on the traced part")
         if r.branch.stop == BranchEnd.REVERSED:
             exit_on(Status.FAILED, f"the {name} branch: {r.branch.message}; M_c is decided on the traced part")
+        if r.crossing_unresolved:
+            exit_on(
+                Status.INACCURATE,
+                f"the {name} branch: past the branch point at M = {r.branch_point.moment:.15g} a relaxation comes to rest on a "
+                "stable crossing branch, which could not be followed to its end: M_c is a lower bound (the relaxation protocol, "
+                "sweep, finds the onset)",
+            )
         if not r.accurate:
             spread = max((f.discrepancy for f in (r.fold, r.first_fold) if f is not None and f.discrepancy is not None), default=math.inf)
             exit_on(

@@ -33,8 +33,16 @@ Contract
   while M still rises: the cantilever of the paper's geometry, nonlinear model, at
   M = 0.08198 before its fold at 0.08375), M_c is that branch point's moment
   (``onset`` "branch_point"): the chain leaves the branch there, and for the cantilever
-  a relaxation just above it rotates (tested); a stable crossing branch would carry
-  it further, which the statics do not trace (the relaxation protocol decides).
+  a relaxation just above it rotates (tested). Where a stable crossing branch carries the
+  chain on instead (a relaxation at :data:`CROSSING_EXCESS` times the branch point's moment,
+  from its state nudged along K's lowest mode, comes to rest: a supercritical pitchfork, as
+  on the symmetric clamped chain N = 2, a = 0.4444, b = 0.6084, h = 1.4673, E1 = 1.2228,
+  E2 = 1.6538, whose branch point at M = 1.4245 is passed at rest up to 2.55), M_c is the
+  first fold of the branch it rests on, followed with the angle held
+  (:func:`crossing_fold`; ``onset`` "crossing_fold", ``crossing``: M = 2.6041 there, and
+  a relaxation at 0.99 of it rests, at 1.01 rotates: tests/test_audit_twelfth_statics.py).
+  Where that branch cannot be followed to a fold, M_c stays the branch point's moment, a
+  lower bound, and ``accurate`` is False.
 
 Where K's softest eigenvalue at rest lies within :data:`CONFIRM_MARGIN` times its
 round-off (a long clamped chain: its bending mode's eigenvalue falls like N^-4, within
@@ -127,6 +135,7 @@ from ..numerics.continuation import (
     BranchPoint,
     Fold,
     continue_in_moment,
+    locate_fold,
     moment_response,
     moment_slope,
     rest_resolved,
@@ -135,7 +144,8 @@ from ..numerics.kit import BranchEnd
 from ..numerics.newton import NewtonError, moment_dof, solve_equilibrium, solve_rotation_controlled
 from ..numerics.stability import static_stability
 from ..params import ChainParams
-from ..state import ROW_INDEX, ROWS, column, unpack
+from ..state import ROW_INDEX, ROWS, column, n_free, unpack
+from ..status import Status
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
     import xarray as xr
@@ -184,6 +194,15 @@ CONFIRM_NARROWING = np.array([1.0, 0.1, 0.01])
 #: (it starts within CONFIRM_PHI0_ATOL of a solved state: a few iterations, where more signal a
 #: branch the rotation control does not follow there).
 CONFIRM_ITERATIONS = 12
+#: A branch point that ends the stable branch from rest is tested by a relaxation at this many times its moment,
+#: from its state nudged by :data:`CROSSING_NUDGE` along K's lowest mode (each sign): where one comes to rest, a
+#: stable crossing branch carries the chain beyond it (:func:`crossing_fold`) ...
+CROSSING_EXCESS = 1.001
+CROSSING_NUDGE = 1e-3
+#: ... which is followed with the loaded particle's angle held, in steps of this (rad), halved where a solve fails, up to
+#: :data:`CROSSING_TURN` rad beyond its start, to its first maximum of M (located by Brent's method on dM/dphi_0).
+CROSSING_STEP = 0.02
+CROSSING_TURN = 2 * math.pi
 
 #: What ``index_before`` / ``index_after`` and ``stable`` along the branch count (the JSON's ``index_meaning``).
 INDEX_MEANING = (
@@ -266,6 +285,11 @@ class CriticalResult:
     dynamics: list[DynamicStability] | None = None
     #: The Hopf points of the traced branch ([] for a conservative model with positive damping; None: not searched).
     hopf: list[HopfPoint] | None = None
+    #: Where the stable branch from rest ends at a branch point past which a stable crossing branch carries the chain:
+    #: that branch's first fold, M_c (:func:`crossing_fold`); None otherwise.
+    crossing: Fold | None = None
+    #: True where such a crossing branch was found but not followed to a fold: M_c is then a lower bound.
+    crossing_unresolved: bool = False
 
     @property
     def rest_segment(self) -> int:
@@ -322,7 +346,8 @@ class CriticalResult:
     @property
     def accurate(self) -> bool:
         """False where the fold of M_c or the first fold is not confirmed by its re-solve (module docstring)."""
-        return all(f is None or f.confirmed is not False for f in (self.fold, self.first_fold))
+        confirmed = all(f is None or f.confirmed is not False for f in (self.fold, self.first_fold))
+        return confirmed and not self.crossing_unresolved
 
     @property
     def snap_through(self) -> bool:
@@ -331,7 +356,10 @@ class CriticalResult:
 
     @property
     def onset(self) -> str | None:
-        """What ends the stable branch from rest and starts the rotation: "fold", "branch_point" or None."""
+        """What ends the stable branch from rest and starts the rotation: "fold", "branch_point", "crossing_fold" (the
+        fold of a stable crossing branch past the branch point: ``crossing``) or None."""
+        if self.crossing is not None:
+            return "crossing_fold"
         if self.branch_point is not None:
             return "branch_point"
         return None if self.fold is None else "fold"
@@ -339,12 +367,16 @@ class CriticalResult:
     @property
     def critical_moment(self) -> float | None:
         """M_c, the onset of rotation under a slowly rising load (module docstring)."""
+        if self.crossing is not None:
+            return self.crossing.moment
         if self.branch_point is not None:
             return self.branch_point.moment
         return None if self.fold is None else self.fold.moment
 
     @property
     def phi0_at_onset(self) -> float | None:
+        if self.crossing is not None:
+            return self.crossing.phi0
         if self.branch_point is not None:
             return self.branch_point.phi0
         return self.phi0_at_fold
@@ -356,6 +388,7 @@ class CriticalResult:
     def as_dict(self) -> dict:
         """JSON-ready: ``M_c`` (onset of rotation; null without a fold), ``onset`` ("fold" or "branch_point"),
         ``phi0_at_onset``, ``phi0_at_fold`` (the largest maximum's), ``largest_fold``, ``first_fold``, ``snap_through``,
+        ``crossing`` (the fold of a stable crossing branch past the branch point, M_c there) and ``crossing_unresolved``,
         ``branch_points``, ``compliance``, ``branch_complete``, ``end`` (how the stable branch from rest ends),
         ``onset_particle``, ``turns`` (the budget), ``folds`` (every fold in order: moment, phi_0, maximum,
         the index of K before and after it, ``confirmed``, ``discrepancy``), ``confirmation``, ``accurate`` and the branch (its ``approach``: the points after rest solved with the angle held
@@ -391,6 +424,8 @@ class CriticalResult:
             "first_fold": None if self.first_fold is None else {"moment": self.first_fold.moment, "phi0": self.first_fold.phi0},
             "snap_through": self.snap_through,
             "snap_to": None if self.snap_to is None else {"moment": self.snap_to.moment, "phi0": self.snap_to.phi0},
+            "crossing": None if self.crossing is None else {"moment": self.crossing.moment, "phi0": self.crossing.phi0},
+            "crossing_unresolved": self.crossing_unresolved,
             "branch_points": [
                 {
                     "moment": q.moment,
@@ -594,9 +629,14 @@ def critical_point(
         onset_particle = first.mode_particle
     snapped = branch.stable_end is None and first is not None and onset is not first
     snap_to = _snap_target(params, model, branch, first, particle) if snapped else None
+    crossing, unresolved = None, False
+    if isinstance(onset, BranchPoint) and model.conservative and onset.index_before == 0:
+        crossing, unresolved = crossing_fold(params, model, onset, particle=particle)
+        onset_particle = onset_particle if crossing is None else crossing.mode_particle
     return CriticalResult(
         params, model.name, particle, fold, compliance, branch, first, snap_to, onset if isinstance(onset, BranchPoint) else None,
         confirmation, turns if model.rotates else None, onset_particle, *_dynamics(params, model, branch, dynamics),
+        crossing, unresolved,
     )  # fmt: skip
 
 
@@ -725,6 +765,50 @@ def near_singular_at_rest(params: ChainParams, model: Model) -> bool:
         return False
     value, resolution = smallest_eigenvalue(similar)
     return value < CONFIRM_MARGIN * resolution
+
+
+def crossing_fold(params: ChainParams, model: Model, point: BranchPoint, *, particle: int = 0) -> tuple[Fold | None, bool]:
+    """The onset of rotation past a branch point that ends a stable part of the branch, where a crossing branch is stable.
+
+    A relaxation (:func:`~cosserat_chain.numerics.relaxation.relax`) at :data:`CROSSING_EXCESS` times the branch point's
+    moment starts from its state nudged by :data:`CROSSING_NUDGE` along K's lowest mode, each way. Where neither comes to
+    rest at a stable state, the chain leaves the branch there: ``(None, False)``. Where one does, the branch it rests on
+    is followed with the loaded particle's angle held (:func:`~cosserat_chain.numerics.newton.solve_rotation_controlled`,
+    steps of :data:`CROSSING_STEP`) while it stays stable, to its first maximum of M, located by Brent's method on
+    dM/dphi_0 (:func:`~cosserat_chain.numerics.continuation.locate_fold`): ``(fold, False)``, the fold of M_c. Where
+    that branch turns unstable before a maximum (a branch point of its own), a solve fails, or no maximum comes within
+    :data:`CROSSING_TURN` rad: ``(None, True)``, M_c unresolved (the branch point's moment is then a lower bound).
+    """
+    from ..numerics.relaxation import relax  # the dynamics' engine only where a branch point needs it
+
+    col = column(params, particle)
+    moment = point.moment * CROSSING_EXCESS
+    mode = np.zeros(n_free(params))
+    static_stability(params, model, point.x, start=mode)
+    mode = unpack(params, mode / np.linalg.norm(mode))
+    steps = (relax(params, model, moment, particle=particle, x0=point.x + sign * CROSSING_NUDGE * mode) for sign in (1.0, -1.0))
+    # A state at rest counts only where it is stable: next to a branch point a relaxation can slow to rest on the
+    # unstable side before it leaves (its unstable eigenvalue is small there).
+    rest = next((s.x for s in steps if s.status == Status.STATIC and static_stability(params, model, s.x).stable), None)
+    if rest is None:
+        return None, False
+    x, held = rest, float(rest[ROW_INDEX["phi"], col])
+    start, delta = held, math.copysign(CROSSING_STEP, moment)
+    while abs(held - start) < CROSSING_TURN:
+        try:
+            new_x, new_moment = solve_rotation_controlled(params, model, held + delta, particle=particle, x0=x, moment0=moment)
+        except NewtonError:
+            if abs(delta) < CROSSING_STEP / 2**10:
+                return None, True
+            delta /= 2
+            continue
+        if moment_slope(params, model, new_x, particle=particle) * math.copysign(1.0, moment) <= 0:
+            fold = locate_fold(params, model, particle=particle, bracket=(held, held + delta), seed=(x, moment))
+            return (fold, False) if fold is not None else (None, True)
+        if not static_stability(params, model, new_x).stable:
+            return None, True
+        x, moment, held = new_x, new_moment, held + delta
+    return None, True
 
 
 def confirm_folds(branch: Branch, others: list[Fold]) -> list[Fold]:
