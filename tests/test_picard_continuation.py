@@ -44,20 +44,23 @@ def _check_points_against_dense(branch, points: int = 4) -> None:
         assert orbit.stable == dense.stable
 
 
-def test_the_paper_sine_chains_branch_ends_at_the_dense_continuations_fold_of_cycles(paper_sine_orbit, paper_sine_branch):
-    picard = continue_orbit(paper_sine_orbit, method="picard", moment_min=0.1)
+def test_the_paper_sine_chains_branch_ends_at_the_dense_continuations_fold_of_cycles(paper_sine_branch):
+    # From the dense branch's first orbit below M = 0.169, past its torus and period doubling (where the picard branch
+    # loses its stability is tested against the dense one's located torus in test_shooting_cycle_events.py): the picard
+    # branch's own way to the fold.
+    start = paper_sine_branch.orbits[int(np.argmax(paper_sine_branch.moment < 0.169))]
+    picard = continue_orbit(start, method="picard", moment_min=0.1)
     assert paper_sine_branch.end == END_FOLD and picard.end == END_FOLD
     assert picard.end_moment == pytest.approx(paper_sine_branch.end_moment, abs=SAME_FOLD)
     # The fold's real multiplier crosses +1 between the picard orbits around the turn, as between the dense ones.
     assert _crosses_one(*picard.orbits[-2:])
-    assert picard.stability_lost_at == pytest.approx(paper_sine_branch.stability_lost_at, abs=1e-4)
     _check_points_against_dense(picard)
 
 
 @pytest.mark.parametrize(
     ("params", "model", "moment"),
     [
-        (ChainParams(N=6, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0), "nonlinear", 0.3),
+        (ChainParams(N=6, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0), "nonlinear", 0.5),
         pytest.param(ChainParams(N=6, gamma_u=1.0, gamma_v=1.0, gamma_phi=1.0), "sine", 0.3, marks=pytest.mark.slow),
         (random_geometries(6, seed=3)[1], "sine", 0.41),
     ],
@@ -65,9 +68,9 @@ def test_the_paper_sine_chains_branch_ends_at_the_dense_continuations_fold_of_cy
 )
 def test_each_picard_orbit_is_the_dense_shootings_orbit_at_its_moment(params, model, moment):
     start = find_periodic_orbit(params, model, moment, method="dense")
-    picard = continue_orbit(start, method="picard", max_points=6, step=0.02)
-    assert len(picard.orbits) == 6 and np.all(np.diff(picard.moment) < 0)
-    _check_points_against_dense(picard, points=6)
+    picard = continue_orbit(start, method="picard", max_points=4, step=0.02)
+    assert len(picard.orbits) == 4 and np.all(np.diff(picard.moment) < 0)
+    _check_points_against_dense(picard, points=4)
 
 
 def test_a_picard_continuation_never_forms_the_monodromy(paper_sine_orbit, monkeypatch):
