@@ -171,6 +171,14 @@ def test_a_start_that_is_not_finite_is_a_clear_error():
         equilibria.find_equilibrium(system, q0)
 
 
+def test_a_driven_chain_without_equilibria_is_a_clear_error():
+    """F > V: no particle can rest (sin x = F has no root), the energy -F x falls without bound; the
+    descent says so instead of looping."""
+    system = frenkel_kontorova(41, C=2.0, F=2.0)
+    with pytest.raises(equilibria.EquilibriumNotFound, match=r"descent from q0 stalled after 50 steps .*energy lowered from 0 to -"):
+        equilibria.find_equilibrium(system, np.zeros(41), max_descent_steps=50)
+
+
 def test_a_system_without_an_energy_is_not_descended():
     """A non-conservative site force: no energy to descend, Newton's failure is reported as before."""
     system = LatticeSystem(

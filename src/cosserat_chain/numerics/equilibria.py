@@ -172,9 +172,15 @@ def find_equilibrium(
         raise EquilibriumNotFound(f"{message}{why}; start nearer, or continue from a known equilibrium")
     descended = newton(evaluate, q0, tol=tol, max_iterations=max_descent_steps, divergence=None, newton_step=_DescentStep(system))
     if not descended.converged:
+        lowered = (
+            f", the energy lowered from {system.energy(q0):.10g} to {system.energy(descended.w):.10g}: an energy without a "
+            "minimum below the start keeps falling"
+            if np.all(np.isfinite(descended.w))
+            else ""
+        )
         raise EquilibriumNotFound(
             f"{message}, and the descent from q0 {descended.status} after {descended.iterations} steps "
-            f"(max|F| = {descended.norm:.3g}); raise max_descent_steps, start nearer, or continue from a known equilibrium"
+            f"(max|F| = {descended.norm:.3g}{lowered}); raise max_descent_steps, start nearer, or continue from a known equilibrium"
         )
     found = classify(system, descended.w, descended.norm)
     found.method = "descent"
