@@ -14,12 +14,13 @@ sine-Cosserat model (2)) can lose stability at a Hopf point with J regular.
   from the start does not converge and the system has an energy, the same corrector
   starts again from there with descent steps: pseudo-transient continuation, implicit
   Euler steps (M / dt - J) dq = F of the gradient flow M q' = F with a pseudo time step
-  dt that grows as max |F| falls (switched evolution relaxation) and is cut wherever a step
-  is not a descent direction or lowers the energy less than Armijo's condition asks. Every
-  step lowers the energy, and as dt grows the steps become Newton's, so the descent ends
-  quadratically at an equilibrium no higher than the start: from a start that is no
-  equilibrium, one that is stable or, from a start on a symmetric saddle's stable manifold
-  (a mirror-symmetric start), that saddle; the result's index says which.
+  dt that grows after every step (doubled, or multiplied by the fall of max |F| where that
+  is more: switched evolution relaxation) and is cut wherever a step is not a descent
+  direction or lowers the energy less than Armijo's condition asks. Every step lowers the
+  energy, and as dt grows the steps become Newton's, so the descent ends quadratically at
+  an equilibrium no higher than the start: in general a stable one, but a saddle where the
+  start lies on its stable manifold (a mirror-symmetric start keeps its symmetry, and ends
+  at the symmetric saddle if that is the symmetric minimum); the result's index says which.
 * :func:`continue_equilibria`: the branch in any named parameter by the one
   pseudo-arclength driver, unknowns (q, p); folds (the parameter turns), branch points
   (det [dF/d(q,p); t] changes sign) and Hopf points (a complex pair of A crosses the
@@ -190,11 +191,13 @@ def find_equilibrium(
 class _DescentStep:
     """The descent's step for :func:`~cosserat_chain.numerics.kit.newton` (pseudo-transient continuation).
 
-    At q with forces F and Jacobian J the step solves (M / dt - J) dq = F; dt follows max |F|
-    (switched evolution relaxation: dt max |F| stays constant, growing at most
-    :data:`DESCENT_GROWTH`-fold a step) and is cut by :data:`DESCENT_CUT` until dq is a
+    At q with forces F and Jacobian J the step solves (M / dt - J) dq = F (one sparse solve);
+    dt grows after every step by :data:`DESCENT_GROWTH`, or by the fall of max |F| since the
+    last step where that is more (switched evolution relaxation), at most
+    :data:`DESCENT_LARGEST_GROWTH`-fold, and is cut by :data:`DESCENT_CUT` until dq is a
     descent direction (F . dq > 0) and E(q + dq) <= E(q) - :data:`ARMIJO` F . dq, up to the
-    energy's round-off. The first dt is the fastest linear time scale's, min_i m_i / sum_j |J_ij|.
+    energy's round-off eps n max(1, |E|). The first dt is the fastest linear time scale's,
+    min_i m_i / sum_j |J_ij|.
     """
 
     def __init__(self, system: System):
