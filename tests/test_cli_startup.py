@@ -80,6 +80,17 @@ def test_a_run_naming_a_command_prints_the_same_help_and_errors_as_the_whole_app
         assert loaded == ({cli.COMMAND_MODULES[args[0]]} if named else set(cli.COMMAND_MODULES.values())), args
 
 
+def test_critical_json_on_the_papers_chain_computes_every_verdict_without_scipys_sparse_solvers():
+    # The sine model's dynamic verdict at every traced point comes from the band (numerics.stability), the folds
+    # and stability from band factors: SuperLU, ARPACK and the graph routines are imported only where used.
+    done, probe = _run("critical", "--json")
+    assert done.returncode == 0, done.stderr
+    assert {"scipy.sparse.linalg", "scipy.sparse.csgraph", "scipy.optimize"}.isdisjoint(probe["modules"])
+    sine = json.loads(done.stdout)["models"]["sine"]
+    assert sine["dynamics"]["verdict_from"] == "eigenvalues" and len(sine["branch"]["unstable_eigenvalues"]) == len(sine["branch"]["phi0"])
+    assert 0 in sine["branch"]["unstable_eigenvalues"] and 1 in sine["branch"]["unstable_eigenvalues"]  # both sides of the fold
+
+
 @pytest.mark.parametrize("args", [["--version"], ["--help"], ["critical", "--help"]])
 def test_help_and_version_import_no_compiled_library(args):
     done, probe = _run(*args)

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numba import njit
 
 from .band import BANDWIDTH, BandMatrix, negated_lu
@@ -227,6 +226,8 @@ def sparse_solve(matrix: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
     factor recovers what the diagonal pivots lose; a factorisation that fails (a zero
     pivot) or gives a non-finite result falls back to the default pivoting.
     """
+    import scipy.sparse.linalg as spla  # here, not at import: small chains' statics never use it
+
     matrix = sp.csc_matrix(matrix)
     try:
         lu = spla.splu(matrix, permc_spec="NATURAL", diag_pivot_thresh=0.0)

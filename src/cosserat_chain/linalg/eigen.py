@@ -25,10 +25,8 @@ from functools import lru_cache
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from numba import njit
 from scipy.linalg import LinAlgError, cholesky_banded
-from scipy.sparse import csgraph
 
 from .band import BANDWIDTH, BandMatrix, band_storage, ldlt, upper_bands
 from .norms import euclidean_norm, infinity_norm
@@ -239,6 +237,8 @@ def diagonal_similar_symmetric(matrix: sp.spmatrix) -> sp.csc_matrix | None:
     component, and the result is checked entry by entry (None if it is not symmetric).
     The result is CSC, symmetrised (the mean of it and its transpose).
     """
+    from scipy.sparse import csgraph  # here, not at import: small chains' statics never use it
+
     a = sp.csr_matrix(matrix, dtype=float)
     a.eliminate_zeros()
     pattern = (a != 0).astype(np.int8)
@@ -288,6 +288,8 @@ def lowest_real_eigenvalue(matrix: sp.spmatrix) -> complex:
             return complex(smallest_eigenvalue(symmetric)[0])
         except ValueError:  # wider than the band
             pass
+    import scipy.sparse.linalg as spla  # here, not at import: small chains' statics never use it
+
     # A wide Krylov space: the eigenvalues near the shift are clustered, and 40 vectors
     # converge in fewer restarts than ARPACK's default of 20 (benchmarks/TIMINGS.md).
     return complex(spla.eigs(matrix.tocsc(), k=1, sigma=shift, which="LM", ncv=min(matrix.shape[0] - 1, 40), return_eigenvectors=False)[0])

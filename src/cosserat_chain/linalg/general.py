@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 
 def solve(matrix, rhs: np.ndarray) -> np.ndarray:
@@ -27,6 +26,8 @@ def solve(matrix, rhs: np.ndarray) -> np.ndarray:
         For a singular dense matrix (a singular sparse one gives non-finite entries or raises RuntimeError).
     """
     if sp.issparse(matrix):
+        import scipy.sparse.linalg as spla  # here, not at import: small chains' statics never use it
+
         return spla.spsolve(sp.csc_matrix(matrix), rhs)
     return np.linalg.solve(matrix, rhs)
 
@@ -62,6 +63,8 @@ class CoreAndColumn:
 
     def _factor(self):
         if self._lu is None:
+            import scipy.sparse.linalg as spla  # here, not at import: small chains' statics never use it
+
             self._lu = spla.splu(self.core, diag_pivot_thresh=self.pivoting)
             self._along = self._lu.solve(self.column)
         return self._lu
@@ -75,6 +78,8 @@ class CoreAndColumn:
     def solve(self, row: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         """x with [[A, c], [row^T]] x = rhs (row and rhs of length n + 1)."""
         row, rhs = np.asarray(row, dtype=float), np.asarray(rhs, dtype=float)
+        import scipy.sparse.linalg as spla  # here, not at import: small chains' statics never use it
+
         try:
             self._factor()
         except RuntimeError:
@@ -103,6 +108,8 @@ def determinant_sign(matrix) -> float:
     """Sign of det(matrix): +1, -1, or 0 for a singular one; sparse matrices by SuperLU with its
     row and column permutations' parities."""
     if sp.issparse(matrix):
+        import scipy.sparse.linalg as spla  # here, not at import: small chains' statics never use it
+
         try:
             lu = spla.splu(sp.csc_matrix(matrix))
         except RuntimeError:

@@ -23,7 +23,6 @@ from collections.abc import Callable
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as sla
 from numba import njit
 
 #: Most eigenvalues nearest the axis :func:`nearest_axis` asks ARPACK for.
@@ -37,6 +36,8 @@ def shifted_solver(scaled: sp.spmatrix, rate: np.ndarray, shift: float) -> Calla
     (K~ + s (R + s)) y = -b - (R + s) a.
     """
     n = scaled.shape[0]
+    import scipy.sparse.linalg as sla  # here, not at import: small chains' statics never use it
+
     lu = sla.splu(sp.csc_matrix(scaled + sp.diags(shift * (rate + shift))), permc_spec="NATURAL")
     damped = rate + shift
 
@@ -212,6 +213,8 @@ def nearest_axis(solve, size: int, count: int, rightmost: int) -> np.ndarray:
     unstable, up to :data:`NEAREST_LIMIT` (unstable eigenvalues far from the axis among
     many stable ones nearer it are then not all listed; their number is still exact).
     """
+    import scipy.sparse.linalg as sla  # here, not at import: small chains' statics never use it
+
     inverse = sla.LinearOperator((size, size), matvec=solve, dtype=float)
     start = np.random.default_rng(0).standard_normal(size)
     wanted = min(count + rightmost + 2, size - 2)

@@ -31,7 +31,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 #: Most refinement steps (the paper's chain at N = 10^4 settles in about 12).
 MAX_STEPS = 40
@@ -85,6 +84,8 @@ def refined_solve(matrix: sp.spmatrix, rhs: np.ndarray, solve: Callable[[np.ndar
     """
     csr = sp.csr_matrix(matrix)
     if solve is None:
+        import scipy.sparse.linalg as spla  # here, not at import: small chains' statics never use it
+
         try:
             solve = spla.splu(csr.tocsc()).solve
         except RuntimeError as err:  # SuperLU: "Factor is exactly singular"
