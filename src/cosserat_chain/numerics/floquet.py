@@ -53,6 +53,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from ..linalg.threads import one_blas_thread
 
@@ -163,16 +164,17 @@ def periodic_schur_multipliers(segments: Sequence[np.ndarray] | np.ndarray, *, m
     basis, triangles = _start(stack), np.empty_like(stack)
     converged = False
     for _ in range(max_sweeps):
-        q = basis
-        for k in range(m):
-            q, triangles[k] = np.linalg.qr(stack[k] @ q)
+        q = _sweep(stack, basis, triangles)
         turn = basis.T @ q  # Q_1^T M Q_1 = turn R_m ... R_1
         basis = q
         logs, angles = np.empty(n), np.empty(n)
         converged = True
         for lo, hi in _blocks(turn):
-            factors = [turn[lo:hi, lo:hi], *(triangles[k, lo:hi, lo:hi] for k in range(m - 1, -1, -1))]
-            logs[lo:hi], angles[lo:hi] = _block(factors)
+            if hi - lo <= 2:
+                _small_block(turn, triangles, lo, hi - lo, logs, angles)
+            else:
+                factors = [turn[lo:hi, lo:hi], *(triangles[k, lo:hi, lo:hi] for k in range(m - 1, -1, -1))]
+                logs[lo:hi], angles[lo:hi] = _block(factors)
             # A block whose multipliers' moduli differ by more than 1 / STALL is still separating: sweep on.
             finite = logs[lo:hi][np.isfinite(logs[lo:hi])]
             if finite.size > 1 and np.ptp(finite) > -math.log(STALL):
@@ -223,16 +225,24 @@ def _blocks(turn: np.ndarray) -> list[tuple[int, int]]:
     return blocks
 
 
+@njit(cache=True, nogil=True)
+def _sweep(stack: np.ndarray, basis: np.ndarray, triangles: np.ndarray) -> np.ndarray:
+    """One period of the orthogonal iteration: G_k Q_k = Q_{k+1} R_k for k = 1..m from Q_1 = ``basis``.
+
+    Writes R_k into ``triangles[k - 1]`` and returns Q_{m+1}.
+    """
+    q = np.ascontiguousarray(basis)
+    for k in range(stack.shape[0]):
+        q, triangles[k] = np.linalg.qr(stack[k] @ np.ascontiguousarray(q))
+    return q
+
+
 def _block(factors: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """ln |mu| and arg mu of the eigenvalues of the product of ``factors`` (first on the left; all but the first upper triangular)."""
+    """ln |mu| and arg mu of the eigenvalues of the product of ``factors`` (first on the left; all but the first upper triangular).
+
+    For blocks of three and more multipliers (equal or close moduli); those of one and two are :func:`_small_block`'s.
+    """
     size = factors[0].shape[0]
-    if size == 1:
-        diagonal = np.array([f[0, 0] for f in factors])
-        with np.errstate(divide="ignore"):
-            log = float(np.sum(np.log(np.abs(diagonal))))
-        return np.array([log]), np.array([0.0 if np.prod(np.sign(diagonal)) >= 0 else math.pi])
-    if size == 2:
-        return _pair(np.stack(factors, axis=2))
     product, scale = np.eye(size), 0.0
     for factor in factors:
         product = product @ factor
@@ -248,34 +258,58 @@ def _block(factors: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return logs, angles
 
 
-def _pair(blocks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """ln |mu| and arg mu of the two eigenvalues of the product of 2 x 2 ``blocks`` (2, 2, p), first factor on the left.
+@njit(cache=True, nogil=True, error_model="numpy")
+def _small_block(turn: np.ndarray, triangles: np.ndarray, lo: int, size: int, logs: np.ndarray, angles: np.ndarray) -> None:
+    """ln |mu| and arg mu of the one or two multipliers of the diagonal block at ``lo`` into ``logs``, ``angles``.
 
-    The determinant is the product of the blocks' determinants (as a sum of logarithms: exact
-    in range); the product itself is kept at unit norm, its scale in a logarithm, and gives the
+    The block's product is turn R_m ... R_1 restricted to rows and columns lo .. lo + size - 1. One
+    multiplier is the product of the diagonal entries (as a sum of logarithms). Of two, the
+    determinant is the product of the factors' determinants (as a sum of logarithms: exact in
+    range); the product itself is kept at unit norm, its scale in a logarithm, and gives the
     larger eigenvalue (or a complex pair's angle); the smaller real one is the determinant over
     the larger, so that it keeps its digits however far apart the two are.
     """
-    first = blocks[:, :, 0]
-    det_first = first[0, 0] * first[1, 1] - first[0, 1] * first[1, 0]
-    rest = blocks[0, 0, 1:] * blocks[1, 1, 1:]
-    with np.errstate(divide="ignore"):
-        log_det = math.log(abs(det_first)) + float(np.sum(np.log(np.abs(rest)))) if det_first != 0.0 else -math.inf
-    det_sign = math.copysign(1.0, det_first) * float(np.prod(np.sign(rest)))
-    product, scale = np.eye(2), 0.0
-    for k in range(blocks.shape[2]):
-        product = product @ blocks[:, :, k]
-        size = float(np.max(np.abs(product)))
-        if size == 0.0:
-            return np.full(2, -math.inf), np.zeros(2)
-        product, scale = product / size, scale + math.log(size)
-    trace = product[0, 0] + product[1, 1]
-    det = product[0, 0] * product[1, 1] - product[0, 1] * product[1, 0]
+    m = triangles.shape[0]
+    if size == 1:
+        log, negative, zero = np.log(abs(turn[lo, lo])), turn[lo, lo] < 0.0, turn[lo, lo] == 0.0
+        for k in range(m):
+            entry = triangles[k, lo, lo]
+            log += np.log(abs(entry))
+            negative ^= entry < 0.0
+            zero |= entry == 0.0
+        logs[lo], angles[lo] = log, math.pi if negative and not zero else 0.0
+        return
+    hi = lo + 1
+    det_first = turn[lo, lo] * turn[hi, hi] - turn[lo, hi] * turn[hi, lo]
+    log_det, det_sign = np.log(abs(det_first)), math.copysign(1.0, det_first)
+    for k in range(m):
+        entry = triangles[k, lo, lo] * triangles[k, hi, hi]
+        log_det += np.log(abs(entry))
+        det_sign *= np.sign(entry)
+    if det_first == 0.0:
+        log_det = -math.inf
+    # The product turn R_m ... R_1 of the 2 x 2 blocks from the left, at unit norm, its scale in a logarithm.
+    p00, p01, p10, p11 = turn[lo, lo], turn[lo, hi], turn[hi, lo], turn[hi, hi]
+    scale = 0.0
+    for k in range(m, -1, -1):  # k = m: the turn's block alone; then R_m ... R_1
+        if k < m:
+            f00, f01, f10, f11 = triangles[k, lo, lo], triangles[k, lo, hi], triangles[k, hi, lo], triangles[k, hi, hi]
+            p00, p01, p10, p11 = p00 * f00 + p01 * f10, p00 * f01 + p01 * f11, p10 * f00 + p11 * f10, p10 * f01 + p11 * f11
+        peak = max(abs(p00), abs(p01), abs(p10), abs(p11))
+        if peak == 0.0:
+            logs[lo], logs[hi], angles[lo], angles[hi] = -math.inf, -math.inf, 0.0, 0.0
+            return
+        p00, p01, p10, p11, scale = p00 / peak, p01 / peak, p10 / peak, p11 / peak, scale + math.log(peak)
+    trace = p00 + p11
+    det = p00 * p11 - p01 * p10
     disc = trace * trace - 4.0 * det
     if disc < 0.0:
         angle = math.atan2(math.sqrt(-disc), trace)
-        return np.full(2, 0.5 * log_det), np.array([angle, -angle])
+        logs[lo], logs[hi], angles[lo], angles[hi] = 0.5 * log_det, 0.5 * log_det, angle, -angle
+        return
     big = 0.5 * (trace + math.copysign(math.sqrt(disc), trace))
     log_big = scale + math.log(abs(big))
     sign_big = math.copysign(1.0, big)
-    return np.array([log_big, log_det - log_big]), np.array([0.0 if sign_big > 0 else math.pi, 0.0 if sign_big * det_sign > 0 else math.pi])
+    logs[lo], logs[hi] = log_big, log_det - log_big
+    angles[lo] = 0.0 if sign_big > 0 else math.pi
+    angles[hi] = 0.0 if sign_big * det_sign > 0 else math.pi
