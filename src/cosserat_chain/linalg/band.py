@@ -114,7 +114,7 @@ class BandMatrix:
         padded = np.zeros(n + 4 * b)
         padded[2 * b : 2 * b + n] = diagonal
         # Storage row r holds row i = r - B, its entry t column j = r + t - 2B: d_i at padded[r + B], d_j at padded[r + t].
-        columns = np.lib.stride_tricks.sliding_window_view(padded, 2 * b + 1)[: n + 2 * b]
+        columns = padded[np.arange(n + 2 * b)[:, None] + np.arange(2 * b + 1)]
         return BandMatrix(self.data * padded[b : n + 3 * b, None] * columns)
 
     def __repr__(self) -> str:
