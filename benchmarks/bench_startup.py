@@ -8,6 +8,7 @@ Run from the repository root::
     python benchmarks/bench_startup.py --against /tmp/old/src --runs 5 --out benchmarks/results/startup-h44u.json
     python benchmarks/bench_startup.py --floor --runs 3                # what any computing command pays
     python benchmarks/bench_startup.py --phases --runs 5               # where critical's CPU goes, stage by stage
+    python benchmarks/bench_startup.py --phases --no-jit --runs 5      # the same with every compiled function as Python
 
 Each run is a fresh ``python -m cosserat_chain ARGS`` (its output discarded); its CPU time is
 user + system of the child (``resource.getrusage(RUSAGE_CHILDREN)``), which a busy neighbour
@@ -115,7 +116,7 @@ mark("interpreter start")
 import numpy; mark("import numpy")
 import pydantic, typer, tqdm; mark("import pydantic, typer, tqdm")
 import numba; mark("import numba")
-import scipy.sparse.linalg; mark("import scipy.sparse.linalg (scipy.linalg with it)")
+import scipy.linalg, scipy.sparse; mark("import scipy.linalg, scipy.sparse (critical's SciPy)")
 import cosserat_chain.params; mark("cosserat_chain.params (ChainParams' pydantic schema)")
 import cosserat_chain.cli
 cosserat_chain.cli.app._chosen = "critical"  # as a run naming critical sets it (_App.__call__): its module alone
@@ -125,17 +126,22 @@ mark("the first cached compiled function (Numba's target set-up)")
 import cosserat_chain.models; mark("cosserat_chain.models (kernels with a signature loaded at import)")
 import cosserat_chain.experiments.critical as critical; mark("experiments.critical and the numerics it imports")
 params = cosserat_chain.params.ChainParams()
-for name in ("nonlinear", "sine", "linear"):
-    critical.critical_point(params, name).as_dict(); mark(f"critical_point {name}, first call (its compiled functions loaded)")
-for name in ("nonlinear", "sine", "linear"):
-    critical.critical_point(params, name).as_dict(); mark(f"critical_point {name}, again (the computation alone)")
+for again in ("first call (its compiled functions loaded)", "again (the computation alone)"):
+    for name in ("nonlinear", "sine", "linear"):
+        try:
+            critical.critical_point(params, name).as_dict(); mark(f"critical_point {name}, {again}")
+        except NotImplementedError as err:  # NUMBA_DISABLE_JIT: a kernel built on a Numba intrinsic has no Python form
+            mark(f"critical_point {name}, {again.split(' (')[0]}: cannot run without Numba ({err})")
 print("PHASES", json.dumps(marks))
 """
 
 
-def phases(runs: int, bytecode: bool = True) -> list[tuple[str, float]]:
-    """The median CPU of each stage of :data:`PHASES` over ``runs`` fresh interpreters."""
-    env = environment(None, bytecode)
+def phases(runs: int, bytecode: bool = True, src: str | None = None, jit: bool = True) -> list[tuple[str, float]]:
+    """The median CPU of each stage of :data:`PHASES` over ``runs`` fresh interpreters (``jit`` False: every compiled
+    function run as its Python source, ``NUMBA_DISABLE_JIT=1``, what a Numba-free start of a small chain would cost)."""
+    env = environment(src, bytecode)
+    if not jit:
+        env["NUMBA_DISABLE_JIT"] = "1"
     code = PHASES.replace("KERNEL", _KERNEL)
     rows: list[list[tuple[str, float]]] = []
     for _ in range(runs + 1):  # the first warms the caches
@@ -224,16 +230,17 @@ def main() -> None:
     parser.add_argument("--floor", action="store_true", help="measure the floor (FLOOR) instead of a command")
     parser.add_argument("--phases", action="store_true", help="where critical's CPU goes, stage by stage (PHASES)")
     parser.add_argument("--no-bytecode", action="store_true", help="compile the sources every run (PYTHONDONTWRITEBYTECODE)")
+    parser.add_argument("--no-jit", action="store_true", help="with --phases: every compiled function as Python (NUMBA_DISABLE_JIT=1)")
     parser.add_argument("args", nargs="*", default=["critical", "--model", "sine", "--json"])
     ns = parser.parse_args()
     if ns.phases:
-        stages = phases(ns.runs, not ns.no_bytecode)
+        stages = phases(ns.runs, not ns.no_bytecode, ns.src, not ns.no_jit)
         for label, seconds in stages:
             print(f"  {seconds:6.3f} s  {label}")
         print(f"  {sum(t for _, t in stages):6.3f} s  in all; load average: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
         if ns.out:
             results = json.loads(ns.out.read_text()) if ns.out.exists() else {}
-            results["phases"] = {
+            results["phases" + (" (NUMBA_DISABLE_JIT=1)" if ns.no_jit else "")] = {
                 "cpu_median_s": dict(stages),
                 "runs": ns.runs,
                 "load_average_after": [round(x, 2) for x in os.getloadavg()],
