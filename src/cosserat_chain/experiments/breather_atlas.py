@@ -42,14 +42,17 @@ and ``exists`` is whether one of them converged (``source`` says which). At each
   meets them, the lines the map is drawn against.
 
 :meth:`BreatherAtlas.locate_changes` then locates, between neighbours along Omega of one family
-(a point continued from the one before it) of opposite stability (with ``every``, also two
-unstable ones whose multiplier pairs off the unit circle differ:
+(a point continued from the one before it) and between neighbours along the field at one Omega
+(of one family: joined by the atlas's continuation, :func:`traced_families`, or by Newton from one
+to the other, :func:`one_family`) of opposite stability (with ``every``, also two unstable ones
+whose multiplier pairs off the unit circle differ:
 :func:`~cosserat_chain.numerics.breather_arclength.instability_counts`), every change of
 stability between them, with the families' one mechanism (:func:`~.breathers.located_changes`,
 :func:`~.system_breathers.locate_stability_changes`: the zero of the colliding pair's
-discriminant, its accuracy measured against the orbits found again at a tight tolerance) to an
-accuracy in Omega the caller asks for (:data:`LOCATE_TOL` by default): :class:`AtlasChange`,
-shared by the user systems' atlas (:mod:`~.system_breather_atlas`).
+discriminant, its accuracy measured against the orbits found again at a tight tolerance; along
+the field on :func:`~.system_breathers.parameter_axis`, bisected and placed in the field's value)
+to an accuracy the caller asks for (:data:`LOCATE_TOL` by default, in Omega or in the field):
+:class:`AtlasChange`, shared by the user systems' atlas (:mod:`~.system_breather_atlas`).
 
 :meth:`BreatherAtlas.to_dataset` writes it all to one self-describing Dataset.
 """
@@ -107,7 +110,7 @@ ATLAS_MAX_ITER = 25
 ATLAS_CONTRACTION = 0.9
 #: Amplitudes below this are integration noise, not a tail: :func:`localization_length` fits only above it.
 AMPLITUDE_FLOOR = 1e-9
-#: The accuracy in Omega to which an atlas locates its changes of stability by default (:meth:`BreatherAtlas.locate_changes`):
+#: The accuracy in Omega (and in the field, along it) to which an atlas locates its changes of stability by default (:meth:`BreatherAtlas.locate_changes`):
 #: looser than a family's, which is the cost of the secant's last steps and the bisections below it.
 LOCATE_TOL = 1e-6
 #: The largest accuracy in Omega an atlas's changes may be asked for.
@@ -523,7 +526,7 @@ class BreatherAtlas:
             value = partial(_member_value, self.field)
             if not (traced or one_family(first, second, solve, value)):
                 return None
-            line = parameter_axis(self.field, value, solve, partial(_band_edges, self.params, self.field, self.bands), a.omega)
+            line = parameter_axis(value, solve, partial(_band_edges, self.params, self.field, self.bands), a.omega)
             return locate_stability_changes(first, second, None, None, None, tighten, tol, axis=line)
 
         self.changes, skipped = locate_atlas_changes(self.points, self.values, self.omegas, axes, locate, progress, every)

@@ -239,7 +239,7 @@ class SystemBreatherAtlas:
             value = partial(_parameter_value, self.field)
             if not (traced or one_family(a, b, solve, value)):
                 return None
-            line = parameter_axis(self.field, value, solve, lambda v: linear_bands(self.system_at(v)), float(self.omegas[i]))
+            line = parameter_axis(value, solve, lambda v: linear_bands(self.system_at(v)), float(self.omegas[i]))
             return locate_stability_changes(a, b, None, None, None, tol=tol, axis=line)
 
         self.changes, skipped = locate_atlas_changes(self.points, self.values, self.omegas, axes, locate, progress, every)

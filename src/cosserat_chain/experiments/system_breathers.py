@@ -813,16 +813,14 @@ def _sample(orbit: Orbit, omega: float, kind: str, centre: complex | None, tight
 class Axis:
     """The coordinate along which a change of stability between two members is located (:func:`locate_stability_change`).
 
-    Omega (:func:`omega_axis`: members of one period apart, bisected in the period), or a parameter of
-    the system at a fixed frequency (:func:`parameter_axis`: the atlases' other axis, bisected in the
-    value). Along a parameter, the :class:`StabilityChange`'s ``omega``, ``stable_omega``,
+    Omega (:func:`omega_axis`: members of one family in the period, bisected in the period), or a
+    parameter of the system at a fixed frequency (:func:`parameter_axis`: the atlases' other axis,
+    bisected in the value). Along a parameter, the :class:`StabilityChange`'s ``omega``, ``stable_omega``,
     ``unstable_omega``, ``moduli_omega``, ``shooting_omega``, ``accuracy`` and ``slope`` are in the
     parameter's value, not in Omega.
 
     Attributes
     ----------
-    name : str
-        ``omega``, or the parameter's name.
     parameter : callable(member) -> float
         The member's parameter p, which the bisection halves: its period, or the parameter's value.
     solve : callable(y0, p) -> member
@@ -838,7 +836,6 @@ class Axis:
         The frequency there: the coordinate itself, or the fixed one.
     """
 
-    name: str
     parameter: Callable[[Orbit], float]
     solve: Callable[[np.ndarray, float], Orbit]
     coordinate: Callable[[float], float]
@@ -854,18 +851,18 @@ class Axis:
 def omega_axis(solve: Callable[[np.ndarray, float], Orbit], k: int, bands: list[tuple[float, float]]) -> Axis:
     """Omega = 2 pi k / T along a family: ``solve(y0, period)`` the member of that period, the same ``bands`` throughout."""
     return Axis(
-        "omega", lambda member: member.period, solve, lambda period: 2 * math.pi * k / period,
-        lambda omega: 2 * math.pi * k / omega, lambda omega: bands, lambda omega: omega,
+        lambda member: member.period, solve, lambda period: 2 * math.pi * k / period, lambda omega: 2 * math.pi * k / omega,
+        lambda omega: bands, lambda omega: omega,
     )  # fmt: skip
 
 
 def parameter_axis(
-    name: str, value: Callable[[Orbit], float], solve: Callable[[np.ndarray, float], Orbit],
-    bands: Callable[[float], list[tuple[float, float]]], omega: float,
+    value: Callable[[Orbit], float], solve: Callable[[np.ndarray, float], Orbit], bands: Callable[[float], list[tuple[float, float]]],
+    omega: float,
 ) -> Axis:  # fmt: skip
-    """A parameter ``name`` at the fixed frequency ``omega``: ``value(member)`` its value at a member, ``solve(y0, value)`` the
-    member there, ``bands(value)`` the phonon bands there."""
-    return Axis(name, value, solve, float, float, bands, lambda _: omega)
+    """A parameter at the fixed frequency ``omega``: ``value(member)`` its value at a member, ``solve(y0, value)`` the member
+    there, ``bands(value)`` the phonon bands there."""
+    return Axis(value, solve, float, float, bands, lambda _: omega)
 
 
 def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None, axis: Axis,
@@ -1010,8 +1007,8 @@ def locate_stability_change(
     a, b, solve: Callable[[np.ndarray, float], Orbit] | None, bands: list[tuple[float, float]] | None, k: int | None,
     tighten: Callable[[Orbit], Orbit | None] = _tight, tol: float | None = None, axis: Axis | None = None,
 ) -> StabilityChange:  # fmt: skip
-    """Bisect in the period between members ``a`` and ``b`` that differ by one collision, then find the zero of the
-    collision's discriminant (:class:`StabilityChange`).
+    """Bisect in the period (or along ``axis``) between members ``a`` and ``b`` that differ by one collision, then find
+    the zero of the collision's discriminant (:class:`StabilityChange`).
 
     The members differ in their pairs off the unit circle
     (:func:`~cosserat_chain.numerics.breather_arclength.instability_counts`; a stable member and an
