@@ -23,7 +23,7 @@ import pytest
 from collocation_crossings import collocation_crossing
 from cosserat_chain import ChainParams
 from cosserat_chain.numerics.cycle_curve import torus_angle
-from cosserat_chain.numerics.cycle_events import MOMENT_TOL, locate_circle_events
+from cosserat_chain.numerics.cycle_events import MOMENT_TOL, SPLITS, circle_counts, circle_tests, locate_circle_events
 from cosserat_chain.numerics.periodic import OrbitError, continue_orbit
 from cycle_ends import located_end, shooting_crossing
 
@@ -161,3 +161,36 @@ def test_two_events_in_one_step_come_in_the_order_of_the_tests_and_none_without_
     assert [(i, e["kind"]) for i, e in found] == [(1, "period_doubling"), (1, "torus")]
     assert [e["moment"] for _, e in found] == pytest.approx([M_CROSS, M_CROSS + 0.01], abs=MOMENT_TOL)
     assert locate_circle_events([flip(0.26), flip(0.23)], exactly(flip)) == []
+
+
+@pytest.mark.parametrize("kind", ["period_doubling", "torus"])
+def test_two_crossings_of_one_kind_in_one_step_are_separated_and_both_located(kind):
+    """Two multipliers cross at M = 0.2 and 0.203 between orbits at 0.23 and 0.16: the test's sign is the same at both
+    ends (two factors flipped), the counts of multipliers outside the circle differ by two."""
+
+    def two(moment: float) -> SimpleNamespace:
+        if kind == "period_doubling":  # the real multipliers of two flips
+            return orbit(moment, [flip(moment).nontrivial_multipliers[0], flip(moment - 0.003).nontrivial_multipliers[0], 0.7])
+        second = torus(moment - 0.003).nontrivial_multipliers[:2] * np.exp([0.5j, -0.5j])  # the second pair at another angle
+        return orbit(moment, [*torus(moment).nontrivial_multipliers[:2], *second, -0.8])
+
+    ends = [two(0.23), two(0.16)]
+    assert circle_tests(ends[0].nontrivial_multipliers)[kind] * circle_tests(ends[1].nontrivial_multipliers)[kind] > 0
+    assert np.subtract(circle_counts(ends[1].nontrivial_multipliers), circle_counts(ends[0].nontrivial_multipliers)).max() == 2
+    found = locate_circle_events(ends, exactly(two))
+    assert [(i, e["kind"], e["located"]) for i, e in found] == [(1, kind, True)] * 2
+    assert [e["moment"] for _, e in found] == pytest.approx([M_CROSS + 0.003, M_CROSS], abs=MOMENT_TOL)
+    # Without the halvings neither is seen; a step with one crossing is not halved (every trial is Brent's).
+    assert locate_circle_events(ends, exactly(two), splits=0) == []
+    family = flip if kind == "period_doubling" else torus
+    runs = []
+    for splits in (0, SPLITS):
+        trials = []
+
+        def counted(moment, a, b, trials=trials):
+            trials.append(moment)
+            return family(moment)
+
+        ((_, event),) = locate_circle_events([family(0.23), family(0.17)], counted, splits=splits)
+        runs.append((trials, event["moment"]))
+    assert runs[0] == runs[1]

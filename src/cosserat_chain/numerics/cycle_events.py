@@ -24,6 +24,15 @@ where its critical multiplier (:func:`critical_multiplier`) lies within :data:`C
 torus test) is no event. Where Brent's trials cannot be solved the event is reported unlocated, at
 the first orbit past the sign change (the collocation's convention).
 
+The tests are parities: two multipliers of one kind crossing within one step leave a sign as it
+was. :func:`circle_counts` counts what the parities count (real multipliers below -1, complex pairs
+outside the circle, classed as the tests class them); where a count changes by two or more between
+two orbits the step is halved in M, each midpoint solved, until the crossings lie apart. (The
+roto-breathers' ``breather_arclength.instability_counts`` counts the same for conservative orbits, with a
+band of 1e-6 about the circle that the exact parities here must not have, and lives above
+:mod:`~.periodic`, which imports this module.) A crossing out and back within one step changes no
+count; the branches' step control (``periodic.MAX_MULTIPLIER_MOTION``) keeps such windows from hiding.
+
 Only the multipliers above :data:`NEAR_CIRCLE` enter: on long collocation orbits the strongly damped
 ones are not resolved, and Newton-Picard (``newton_picard.RHO`` = 0.5) computes none below rho; a
 multiplier crossing the unit circle lies above either bound on both sides of the crossing.
@@ -52,6 +61,8 @@ CIRCLE_MULTIPLIER = 1e-3
 CIRCLE_KINDS = ("period_doubling", "torus")
 #: Brent's tolerance in M of an event located by :func:`locate_circle_events` (reported as its ``"accuracy"``).
 MOMENT_TOL = 1e-10
+#: Most halvings of a step over which two multipliers of one kind crossed the circle (:func:`locate_circle_events`).
+SPLITS = 8
 
 
 def _near_circle(multipliers: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -103,48 +114,86 @@ def event_record(kind: str, moment: float, located: bool, multipliers: np.ndarra
     return record
 
 
+def circle_counts(multipliers: np.ndarray) -> tuple[int, int]:
+    """How many real multipliers lie below -1 and how many complex pairs outside the unit circle, among those above
+    :data:`NEAR_CIRCLE` and classed as :func:`circle_tests` class them: the tests' signs are (-1) to these counts, and a
+    count that changes by two or more between two orbits is as many crossings, which the signs alone do not show."""
+    near, pairs = _near_circle(np.asarray(multipliers))
+    real = near[np.abs(near.imag) <= COMPLEX_RTOL * np.abs(near)]
+    return int(np.count_nonzero(real.real < -1.0)), int(np.count_nonzero(np.abs(pairs) > 1.0))
+
+
+def _separated(a: Any, b: Any, solve: Callable[[float, Any, Any], Any], splits: int) -> list[Any]:
+    """a, the orbits solved at the midpoints in M between a and b until no count of :func:`circle_counts` changes by
+    more than one from one to the next (at most ``splits`` halvings), and b."""
+    if (
+        splits == 0
+        or max(abs(x - y) for x, y in zip(circle_counts(a.nontrivial_multipliers), circle_counts(b.nontrivial_multipliers))) <= 1
+    ):
+        return [a, b]
+    try:
+        middle = solve(0.5 * (a.moment + b.moment), a, b)
+    except (CosseratChainError, RuntimeError, ValueError):
+        return [a, b]
+    return [*_separated(a, middle, solve, splits - 1)[:-1], *_separated(middle, b, solve, splits - 1)]
+
+
+def _located(kind: str, a: Any, b: Any, solve: Callable[[float, Any, Any], Any], tol: float) -> dict | None:
+    """The ``kind`` event between a and b, whose test has opposite signs there (:func:`locate_circle_events`)."""
+    solved = {a.moment: a, b.moment: b}
+
+    def value(moment: float) -> float:
+        if moment not in solved:
+            solved[moment] = solve(moment, a, b)
+        return circle_tests(solved[moment].nontrivial_multipliers)[kind]
+
+    try:
+        root = brentq(value, a.moment, b.moment, xtol=tol)
+    except (CosseratChainError, RuntimeError, ValueError):
+        # A trial that could not be solved (or a NaN test): the event is reported where its sign change was seen.
+        return event_record(kind, b.moment, False, b.nontrivial_multipliers)
+    orbit = solved[root]
+    if not on_circle(orbit.nontrivial_multipliers, kind):
+        return None
+    return {**event_record(kind, root, True, orbit.nontrivial_multipliers), "accuracy": tol, "orbit": orbit}
+
+
 def locate_circle_events(
-    orbits: Sequence[Any], solve: Callable[[float, Any, Any], Any], *, tol: float = MOMENT_TOL
+    orbits: Sequence[Any], solve: Callable[[float, Any, Any], Any], *, tol: float = MOMENT_TOL, splits: int = SPLITS
 ) -> list[tuple[int, dict]]:
     """The period doublings and tori between consecutive ``orbits`` of a branch, located in M (module docstring).
+
+    Where a count of :func:`circle_counts` changes by two or more between two orbits (two pairs leaving the circle
+    within one step leave the torus test's sign as it was), the step is first halved in M, each midpoint solved, until
+    the crossings lie in different pieces (:data:`SPLITS` halvings at most).
 
     Parameters
     ----------
     orbits : sequence of orbits
         A branch's orbits in order, each with ``moment`` and ``nontrivial_multipliers``.
     solve : callable(moment, a, b) -> orbit
-        The orbit at ``moment`` between the consecutive orbits a and b (Newton from their interpolation);
+        The orbit at ``moment`` between the orbits a and b (Newton from their interpolation);
         raises where it cannot (:class:`~cosserat_chain.errors.CosseratChainError`, RuntimeError or ValueError).
     tol : float
         Brent's tolerance in M, each located event's ``"accuracy"``.
+    splits : int
+        Most halvings of one step.
 
     Returns
     -------
     list of (int, dict)
-        For each event, the index of the orbit after it (it lies between ``orbits[i - 1]`` and ``orbits[i]``)
-        and its record (:func:`event_record`; a located one with ``"accuracy"`` and its ``"orbit"``).
+        For each event, in the order of the branch, the index of the orbit after it (it lies between ``orbits[i - 1]``
+        and ``orbits[i]``) and its record (:func:`event_record`; a located one with ``"accuracy"`` and its ``"orbit"``).
     """
     found = []
-    tests = [circle_tests(o.nontrivial_multipliers) for o in orbits]
     for i in range(1, len(orbits)):
-        a, b = orbits[i - 1], orbits[i]
-        for kind in CIRCLE_KINDS:
-            if tests[i - 1][kind] * tests[i][kind] >= 0 or a.moment == b.moment:
-                continue
-            solved = {a.moment: a, b.moment: b}
-
-            def value(moment: float, kind=kind, a=a, b=b, solved=solved) -> float:
-                if moment not in solved:
-                    solved[moment] = solve(moment, a, b)
-                return circle_tests(solved[moment].nontrivial_multipliers)[kind]
-
-            try:
-                root = brentq(value, a.moment, b.moment, xtol=tol)
-            except (CosseratChainError, RuntimeError, ValueError):
-                # A trial that could not be solved (or a NaN test): the event is reported where its sign change was seen.
-                found.append((i, event_record(kind, b.moment, False, b.nontrivial_multipliers)))
-                continue
-            orbit = solved[root]
-            if on_circle(orbit.nontrivial_multipliers, kind):
-                found.append((i, {**event_record(kind, root, True, orbit.nontrivial_multipliers), "accuracy": tol, "orbit": orbit}))
+        if orbits[i - 1].moment == orbits[i].moment:
+            continue
+        pieces = _separated(orbits[i - 1], orbits[i], solve, splits)
+        for a, b in zip(pieces[:-1], pieces[1:], strict=True):
+            before, after = circle_tests(a.nontrivial_multipliers), circle_tests(b.nontrivial_multipliers)
+            for kind in CIRCLE_KINDS:
+                event = None if before[kind] * after[kind] >= 0 else _located(kind, a, b, solve, tol)
+                if event is not None:
+                    found.append((i, event))
     return found
