@@ -16,7 +16,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any, get_type_hints
 
 from ..models import get_model
-from ..params import ChainParams
+from ..params import BOND_FACTORS, PARTICLE_FACTORS, ChainParams
 from ..state import require_clamped
 
 #: The paper's three models, named on purpose: the report reproduces the paper's
@@ -102,8 +102,8 @@ def chain_for_reading(settings: ReproduceSettings, params: ChainParams | None = 
     Raises
     ------
     ValueError
-        For an unknown reading, a ``params`` whose N is not the reading's, or one whose
-        ends are not both clamped.
+        For an unknown reading, a ``params`` whose N is not the reading's, one whose
+        ends are not both clamped, or a graded one (factor fields given).
     """
     error = reading_error(settings.reading)
     if error:
@@ -111,6 +111,13 @@ def chain_for_reading(settings: ReproduceSettings, params: ChainParams | None = 
     if params is not None:
         # The report reproduces the paper, whose chain and continuum solutions are clamped.
         require_clamped(params, "the paper's reproduction (reproduce)")
+        graded = [name for name in (*BOND_FACTORS, *PARTICLE_FACTORS) if getattr(params, name) is not None]
+        if graded:
+            # Its continua, waves and longer chains (N = 10 ... 10^4) have no graded counterpart.
+            raise ValueError(
+                f"the paper's reproduction (reproduce) computes the uniform chain, got a graded one: {', '.join(graded)}; "
+                "leave the factor fields out, or compute the graded chain with critical, states, simulate, orbit or study"
+            )
     if settings.reading is None:
         return params or ChainParams()
     n = READINGS[settings.reading]
