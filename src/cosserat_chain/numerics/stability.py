@@ -324,6 +324,7 @@ def dynamic_stability(
         a[n:, n:] = -np.diag(rate)
         eigenvalues = la.eigvals(a)
         return _verdict(eigenvalues, tolerance, rightmost, index, method, int(np.sum(eigenvalues.real > tolerance)))
+    scaled = scaled.tocsr()  # the band as CSR for SuperLU and the pencil (a ring is solved densely, above)
     if model.conservative and np.all(rate > 0):
         # Symmetric K, positive damping: the unstable eigenvalues are K's negative ones (the
         # tests check this theorem against the dense eigenvalues); no count needed.
@@ -333,11 +334,11 @@ def dynamic_stability(
         rest = model.stiffness(params, np.zeros_like(x)).tocsr()
         symmetric = abs(rest - rest.T).max() <= 1e-12 * abs(rest).max() if rest.nnz else False
         reference = sp.csr_matrix(sp.diags(root) @ rest @ sp.diags(root)) if symmetric else None
-        count = unstable_count(scaled.tocsr(), rate, tolerance, reference)
+        count = unstable_count(scaled, rate, tolerance, reference)
     # Shift-invert just right of the axis, far enough for K~ + s (R + s I) to be regular where
     # K~ is singular (rigid modes) and R has zeros.
     shift = max(tolerance, 1e-5 * scale)
-    eigenvalues = shift + nearest_axis(shifted_solver(scaled.tocsr(), rate, shift), 2 * n, count, rightmost)
+    eigenvalues = shift + nearest_axis(shifted_solver(scaled, rate, shift), 2 * n, count, rightmost)
     return _verdict(eigenvalues, tolerance, rightmost, index, method, count)
 
 
