@@ -25,7 +25,9 @@ backs up during a turn, so a continuation cannot stop at a section's false fold.
   (y0, log T, p); it locates folds of cycles (confirmed by a second multiplier at +1),
   period doublings (a multiplier at -1), tori (a complex pair on the unit circle) and
   branch points, and ends where the period diverges, with the end fitted from the
-  period's growth and the fit's spread given as its uncertainty.
+  period's growth and the fit's spread given as its uncertainty, or where an oscillation
+  shrinks onto an equilibrium at a Hopf point (there the parameter turns too, with the
+  equilibrium's pair at +1, but no fold of cycles is reported).
 * A conservative system's orbits come in families: ``unfold=`` names a damping parameter
   that replaces the period as unknown (:class:`_Shooting`), so an orbit is found at a given
   period and the family is continued in the period or any other parameter.
@@ -45,6 +47,7 @@ from ..models.base import no_ends
 from ..systems.base import System, SystemDefinitionError
 from . import dop853
 from .brent import brentq
+from .equilibria import EquilibriumNotFound, find_equilibrium
 from .kit import BranchEnd, Continuation, Evaluation, EvaluationFailed, continuation, newton
 
 #: Tolerances of the shooting integrations.
@@ -62,6 +65,9 @@ CONFIRM_TOL = 1e-3
 #: Largest |mu| - 1 of a conservative orbit's multiplier that still counts as on the unit circle: the
 #: monodromy is accurate to about 1e-9, and a colliding pair splits like the square root of that.
 CIRCLE_TOL = 1e-6
+#: An oscillation within this (relative to the state's size) of an equilibrium with a pair of eigenvalues
+#: within this (relative) of +-2 pi i / T has shrunk onto the equilibrium at a Hopf point.
+HOPF_COLLAPSE = 1e-2
 
 
 class OrbitNotFound(CosseratChainError, RuntimeError):
@@ -522,6 +528,8 @@ class _OrbitProblem:
     ):
         self.shooting, self.tol, self.unfold = shooting, shooting.tol, unfold
         self.period_max, self.limits, self.until_unstable, self.start_stable = period_max, limits, until_unstable, start_stable
+        #: The located point where an oscillation shrank onto an equilibrium (a Hopf point), the branch's end.
+        self.collapsed: Orbit | None = None
 
     def evaluate(self, w, jacobian):
         return self.shooting.evaluate(w, jacobian)
@@ -549,6 +557,11 @@ class _OrbitProblem:
         }
 
     def confirm(self, kind: str, orbit: Orbit) -> bool:
+        if kind in ("fold", "branch_point") and orbit.unfold is None and _shrunk_onto_equilibrium(orbit):
+            # The parameter turns at a Hopf point too (p - p_H ~ amplitude^2), with the equilibrium's pair
+            # exp(+-i omega T) at +1: no fold of cycles, the end of the family.
+            self.collapsed = orbit
+            return False
         mu = orbit.nontrivial_multipliers
         if kind == "fold":
             return bool(np.min(np.abs(mu - 1.0), initial=math.inf) < CONFIRM_TOL**0.5)
@@ -566,6 +579,13 @@ class _OrbitProblem:
     def stop(self, orbit: Orbit):
         name = self.shooting.unknowns[-1]
         value = orbit.period if name == PERIOD else orbit.parameter(name)
+        if self.collapsed is not None:
+            at = self.collapsed.period if name == PERIOD else self.collapsed.parameter(name)
+            return (
+                BranchEnd.HOPF,
+                f"the orbit shrank onto an equilibrium at a Hopf point near {name} = {at:.10g} (period {self.collapsed.period:.10g}): "
+                "the family ends there; equilibria.continue_equilibria locates the Hopf point itself",
+            )
         if orbit.period > self.period_max:
             return (
                 BranchEnd.INFINITE_PERIOD,
@@ -576,6 +596,22 @@ class _OrbitProblem:
         if self.until_unstable and self.start_stable and not orbit.stable:
             return BranchEnd.UNSTABLE, f"stability lost near {name} = {value:.12g}"
         return None
+
+
+def _shrunk_onto_equilibrium(orbit: Orbit) -> bool:
+    """Whether an oscillation (no turns) lies within :data:`HOPF_COLLAPSE` of an equilibrium whose dynamics has
+    a pair of eigenvalues at +-2 pi i / T: the orbit has shrunk onto it at a Hopf point."""
+    if np.any(orbit.turns):
+        return False
+    try:
+        rest = find_equilibrium(orbit.system, orbit.q0)
+    except EquilibriumNotFound:
+        return False
+    scale = max(1.0, float(np.linalg.norm(rest.q)))
+    if rest.eigenvalues is None or np.linalg.norm(orbit.y0 - np.append(rest.q, np.zeros(orbit.system.size))) > HOPF_COLLAPSE * scale:
+        return False
+    omega = 2 * math.pi / orbit.period
+    return bool(np.min(np.abs(rest.eigenvalues - 1j * omega)) < HOPF_COLLAPSE * omega)
 
 
 @one_blas_thread

@@ -1,0 +1,123 @@
+"""The twelfth outside audit of the orbit kit on user systems that no other test holds (H12audB).
+
+Each system is written here by hand; each number is checked against a closed form or an independent
+computation. The tests marked as defects fail on the code before their fix.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.sparse as sp
+
+from cosserat_chain.numerics.equilibria import continue_equilibria, find_equilibrium
+from cosserat_chain.numerics.kit import BranchEnd
+from cosserat_chain.numerics.shooting import continue_orbits, find_orbit
+from cosserat_chain.systems.base import System
+
+ROTATION = np.array([[0.0, -1.0], [1.0, 0.0]])
+
+
+class FollowerRotor(System):
+    """A rotationally symmetric oscillator under a saturating follower (circulatory) force:
+
+        q'' + c q' = -kk q + (a0 - b |q|^2) J q,        J the rotation by a quarter turn.
+
+    The equilibrium q = 0 has the eigenvalues of lambda^2 + c lambda + kk -+ i a0 = 0: a Hopf point at
+    a0 = c sqrt(kk), frequency sqrt(kk). The circle q = R (cos wt, sin wt) solves the equations where
+    w^2 = kk and a0 - b R^2 = c w: orbits of period 2 pi / sqrt(kk) and radius sqrt((a0 - c sqrt(kk)) / b),
+    born at the Hopf point (a Stuart-Landau normal form in second-order form).
+    """
+
+    name = "follower-rotor"
+
+    def __init__(self, **parameters):
+        super().__init__({"a0": 0.3, "b": 1.0, "c": 0.2, "kk": 1.5, **parameters})
+
+    @property
+    def coordinates(self):
+        return ("x", "y")
+
+    @property
+    def angles(self):
+        return np.zeros(2, dtype=bool)
+
+    def forces(self, q):
+        p = self.parameters
+        return -p["kk"] * q + (p["a0"] - p["b"] * (q @ q)) * (ROTATION @ q)
+
+    def force_jacobian(self, q):
+        p = self.parameters
+        j = -p["kk"] * np.eye(2) + (p["a0"] - p["b"] * (q @ q)) * ROTATION - 2 * p["b"] * np.outer(ROTATION @ q, q)
+        return sp.csr_matrix(j)
+
+    def parameter_forces(self, q, name):
+        self._check_name(name)
+        jq = ROTATION @ q
+        return {"a0": jq, "b": -(q @ q) * jq, "kk": -q}.get(name, np.zeros(2))
+
+    def mass(self):
+        return np.ones(2)
+
+    def damping(self):
+        return np.full(2, self.parameters["c"])
+
+
+def _hopf(system: System) -> float:
+    p = system.parameters
+    return p["c"] * math.sqrt(p["kk"])
+
+
+def _circle(system: System) -> tuple[np.ndarray, float]:
+    """The closed-form orbit's start (R, 0, 0, R w) and period."""
+    p = system.parameters
+    w = math.sqrt(p["kk"])
+    radius = math.sqrt((p["a0"] - _hopf(system)) / p["b"])
+    return np.array([radius, 0.0, 0.0, radius * w]), 2 * math.pi / w
+
+
+def test_a_hopf_point_of_a_circulatory_system_is_located_at_its_closed_form():
+    """The rest state's branch in a0 meets one Hopf point, at c sqrt(kk); no fold, no branch point."""
+    system = FollowerRotor(a0=0.1)
+    branch = continue_equilibria(find_equilibrium(system, np.zeros(2)), "a0", limits=(0.0, 0.5), stop_at=())
+    assert [e.kind for e in branch.events] == ["hopf"]
+    assert abs(branch.events[0].parameter - _hopf(system)) < 1e-8
+
+
+def test_the_orbits_born_at_the_hopf_point_have_the_closed_form_radius_period_and_multipliers():
+    """Shooting from 5 % off the circle returns the circle to Newton's tolerance; the multipliers equal
+    those of a monodromy by central differences of SciPy's DOP853 (rtol 1e-12), an independent computation."""
+    from scipy.integrate import solve_ivp
+
+    system = FollowerRotor(a0=0.3)
+    start, period = _circle(system)
+    orbit = find_orbit(system, (1.05 * start, 1.01 * period))
+    assert abs(orbit.period - period) < 1e-9
+    assert abs(np.hypot(*orbit.q0) - start[0]) < 1e-9
+    h, columns = 1e-6, []
+    for e in np.eye(4):
+        ends = [
+            solve_ivp(
+                lambda t, y: system.vector_field(y), (0, orbit.period), orbit.y0 + s * h * e, method="DOP853", rtol=1e-12, atol=1e-12
+            ).y[:, -1]
+            for s in (1, -1)
+        ]
+        columns.append((ends[0] - ends[1]) / (2 * h))
+    reference = np.sort_complex(np.linalg.eigvals(np.array(columns).T))
+    assert np.max(np.abs(np.sort_complex(orbit.multipliers) - reference)) < 1e-6
+
+
+def test_an_orbit_shrinking_onto_its_hopf_point_ends_there_not_at_a_fold_of_cycles():
+    """Defect: followed down in a0, the family shrinks onto q = 0 at the Hopf point, where a0 turns
+    (a0 - a0_H ~ R^2) and the equilibrium's pair exp(+-i w T) sits at +1. The continuation reported a
+    located ``fold`` (a fold of cycles) and a ``branch_point`` there and went on, back up the same family
+    phase-shifted by half a period, to max_points. It now ends at the Hopf point, naming it."""
+    system = FollowerRotor(a0=0.3)
+    orbit = find_orbit(system, _circle(system))
+    branch = continue_orbits(orbit, "a0", direction=-1, stop_at=(), max_points=40)
+    assert branch.end == BranchEnd.HOPF, branch.message
+    assert not [e for e in branch.events if e.kind in ("fold", "branch_point")]
+    assert "Hopf point" in branch.message
+    assert abs(branch.values[-1] - _hopf(system)) < 0.02
+    assert np.all(np.abs(branch.periods - _circle(system)[1]) < 1e-7)
