@@ -18,10 +18,10 @@ from cosserat_chain.analysis.continuum import convergence
 from cosserat_chain.cli import app
 from cosserat_chain.experiments.critical import critical_point
 from cosserat_chain.experiments.localization import localization_run
-from cosserat_chain.experiments.orbits import periodic_orbit
 from cosserat_chain.experiments.sweep import relaxation_sweep
 from cosserat_chain.io import read_dataset
 from cosserat_chain.models.linear import stiffness_matrix
+from cosserat_chain.numerics.continuation import locate_fold
 from cosserat_chain.numerics.newton import moment_dof
 from cosserat_chain.report import format_cell, reproduce
 from cosserat_chain.state import n_free, unpack
@@ -77,8 +77,12 @@ def test_every_figure_the_pages_reference_exists(quick_report):
     assert page.count("src='data:image/png;base64,") == markdown.count("![")
 
 
-def test_table_numbers_equal_the_python_api(quick_report):
+def test_table_numbers_equal_the_python_api(quick_report, paper_sine_branch):
+    """Each table's numbers are the API's, computed here again; the hysteresis edges' branch is the session's
+    ``paper_sine_branch`` (conftest.py: the sine orbit at ``QUICK.orbit_moment`` = 0.22 continued down to
+    ``orbit_down_to`` = 0.1 by ``continue_orbit`` with its defaults, the call ``periodic_orbit`` makes)."""
     params = ChainParams()
+    assert (QUICK.orbit_moment, QUICK.orbit_down_to) == (paper_sine_branch.orbits[0].moment, 0.1)
     tables = markdown_tables((quick_report.out / "report.md").read_text())
     statics = next(rows for caption, rows in tables.items() if caption.startswith("Compliance, critical moment"))
     for row in statics[1:]:
@@ -110,13 +114,12 @@ def test_table_numbers_equal_the_python_api(quick_report):
             format_cell(float(static_deviation(params, row[0], [report_module.AGREEMENT_ANGLE])[0]))
         ]
     edges = tables["Edges of the hysteresis loop: exact, and by the relaxation protocol"][1]
-    orbit = periodic_orbit(params, "sine", QUICK.orbit_moment, down_to=QUICK.orbit_down_to)
     sine_sweep = relaxation_sweep(params, "sine", m_max=QUICK.m_max, dm=QUICK.dm, down=True)
     expected = [
-        orbit.static_fold,
-        orbit.branch.stability_lost_at,
-        orbit.branch.end_moment,
-        orbit.branch.end,
+        locate_fold(params, "sine").moment,
+        paper_sine_branch.stability_lost_at,
+        paper_sine_branch.end_moment,
+        paper_sine_branch.end,
         sine_sweep.onset_load,
         sine_sweep.stop_load,
     ]
