@@ -42,15 +42,22 @@ d/dt (x, p) = (M^-1 p, F(x) - Gamma M^-1 p) linearised about x is
 
 similar to its Jacobian [[0, M^-1], [-K, -Gamma M^-1]] in (x, p) (the same eigenvalues,
 better balanced: j is 40 times smaller than m in the paper's chain). For a conservative
-model with positive damping the number of its unstable eigenvalues equals K's negative
-count (a theorem the tests check against the dense eigenvalues); for eq. (2) it does not:
+model with damping Gamma >= 0 the number of its unstable eigenvalues equals K's negative
+count (a theorem the tests check against the dense eigenvalues, undamped degrees of freedom
+included: an eigenvalue on the imaginary axis, i w, has D y = 0 and K y = w^2 M y, a positive
+mode, and so is never the limit of an unstable one); for eq. (2) it does not:
 the sine chain's unstable branch at N = 2 has one real and one complex pair of unstable
 eigenvalues where K has one negative eigenvalue, the pair crossing the axis at two Hopf
 points (:mod:`cosserat_chain.numerics.hopf`).
 
 Without a dense matrix (``method="sparse"``) the unstable eigenvalues are counted by the
 argument principle and the eigenvalues nearest the axis are found by shift-invert, both on
-the banded pencil K~ + z R + z^2 I, O(n) a point (:mod:`cosserat_chain.linalg.pencil`).
+the banded pencil K~ + z R + z^2 I, O(n) a point (:mod:`cosserat_chain.linalg.pencil`). The
+count's steps rely on every degree of freedom being damped (a complex eigenvalue then lies at
+least half the least damping rate left of the axis); a model without the theorem whose chain
+has an undamped degree of freedom (gamma_u, gamma_v or gamma_phi zero) has eigenvalues on the
+axis, next to the counting line, and is solved densely up to :data:`PARTLY_DAMPED_DENSE_LIMIT`
+unknowns and refused beyond.
 """
 
 from __future__ import annotations
@@ -197,6 +204,9 @@ DYNAMIC_RTOL = 1e-10
 RIGHTMOST = 6
 #: Largest first-order system (2 n_free unknowns) that ``method="auto"`` solves densely.
 DENSE_LIMIT = 400
+#: Largest first-order system solved densely where the sparse count does not hold (:func:`dynamic_stability`: a model
+#: without the theorem on a chain with an undamped degree of freedom); beyond it such a chain is refused.
+PARTLY_DAMPED_DENSE_LIMIT = 4000
 #: The dynamics methods :func:`dynamic_stability` takes.
 DYNAMIC_METHODS = ("auto", "dense", "sparse")
 
@@ -316,6 +326,16 @@ def dynamic_stability(
         method = "dense" if 2 * n <= DENSE_LIMIT else "sparse"
     if params.periodic or 2 * n <= 2 * rightmost + 4:
         method = "dense"
+    theorem = model.conservative and bool(np.all(rate >= 0.0))
+    if method == "sparse" and not theorem and not np.all(rate > 0.0):
+        if 2 * n > PARTLY_DAMPED_DENSE_LIMIT:
+            undamped = ", ".join(f"gamma_{row}" for row in ("u", "v", "phi") if getattr(params, f"gamma_{row}") == 0.0)
+            raise ValueError(
+                f"the {model.name} model's unstable eigenvalues are counted without a dense matrix only where every degree of "
+                f"freedom is damped, but {undamped} = 0; the dense count takes 2 n_free = {2 * n} unknowns, above "
+                f"{PARTLY_DAMPED_DENSE_LIMIT}: give {undamped} a positive value, or a shorter chain"
+            )
+        method = "dense"
     index = _stiffness_index(params, model, x)
     if method == "dense":
         a = np.zeros((2 * n, 2 * n))
@@ -325,9 +345,9 @@ def dynamic_stability(
         eigenvalues = la.eigvals(a)
         return _verdict(eigenvalues, tolerance, rightmost, index, method, int(np.sum(eigenvalues.real > tolerance)))
     scaled = scaled.tocsr()  # the band as CSR for SuperLU and the pencil (a ring is solved densely, above)
-    if model.conservative and np.all(rate > 0):
-        # Symmetric K, positive damping: the unstable eigenvalues are K's negative ones (the
-        # tests check this theorem against the dense eigenvalues); no count needed.
+    if theorem:
+        # Symmetric K, damping >= 0: the unstable eigenvalues are K's negative ones (module
+        # docstring; the tests check this theorem against the dense eigenvalues); no count needed.
         count = index
     else:
         # The chain at rest as the reference of the count (:func:`unstable_count`), where its K is symmetric.
@@ -339,7 +359,7 @@ def dynamic_stability(
     # K~ is singular (rigid modes) and R has zeros.
     shift = max(tolerance, 1e-5 * scale)
     eigenvalues = shift + nearest_axis(shifted_solver(scaled, rate, shift), 2 * n, count, rightmost)
-    return _verdict(eigenvalues, tolerance, rightmost, index, method, count)
+    return _verdict(eigenvalues, tolerance, rightmost, index, method, count, real_only=theorem)
 
 
 def _damped_system(
@@ -400,8 +420,14 @@ def sine_theorem_stability(params: ChainParams, model: str | Model, x: np.ndarra
     return DynamicStability(True, 0, 0, 0, (), math.nan, index, tolerance, THEOREM)
 
 
-def _verdict(eigenvalues: np.ndarray, tolerance: float, rightmost: int, index: int, method: str, count: int) -> DynamicStability:
-    """The :class:`DynamicStability` of ``count`` unstable eigenvalues and those found (all, or the nearest the axis)."""
+def _verdict(
+    eigenvalues: np.ndarray, tolerance: float, rightmost: int, index: int, method: str, count: int, *, real_only: bool = False
+) -> DynamicStability:
+    """The :class:`DynamicStability` of ``count`` unstable eigenvalues and those found (all, or the nearest the axis).
+
+    ``real_only``: a conservative model with damping >= 0, whose unstable eigenvalues are all real (an eigenvalue
+    with eigenvector y solves m z^2 + d z + k = 0 with m = y*My > 0, d = y*Dy >= 0, k = y*Ky real: a complex root
+    has Re z = -d / 2m <= 0), found or not."""
     eigenvalues = eigenvalues[np.argsort(-eigenvalues.real, kind="stable")]
     unstable = eigenvalues[eigenvalues.real > tolerance]
     # A real eigenvalue's imaginary part is round-off of its size or less; the pairs found
@@ -409,6 +435,8 @@ def _verdict(eigenvalues: np.ndarray, tolerance: float, rightmost: int, index: i
     # path) is counted with the pairs where the parity asks for it.
     real = int(np.sum(np.abs(unstable.imag) <= max(tolerance, 1e-8 * float(np.max(np.abs(unstable), initial=0.0)))))
     real += (count - unstable.size) % 2 if count > unstable.size else 0
+    if real_only:
+        real = count
     shown = tuple(complex(z) for z in eigenvalues[: unstable.size + rightmost])
     abscissa = float(eigenvalues[0].real) if eigenvalues.size else -math.inf
     return DynamicStability(count == 0, count, real, (count - real) // 2, shown, abscissa, int(index), tolerance, method)
