@@ -179,7 +179,7 @@ def test_a_fold_in_the_coupling_at_fixed_omega_is_the_fold_in_omega_at_that_coup
     assert other.energy == pytest.approx(fold.energy, abs=1e-9)
 
 
-def test_the_command_lists_the_events_in_json_and_in_the_file(tmp_path):
+def test_the_command_lists_the_events_in_json_and_in_the_file(tmp_path, monkeypatch):
     import json
 
     import xarray as xr
@@ -187,6 +187,16 @@ def test_the_command_lists_the_events_in_json_and_in_the_file(tmp_path):
 
     from cosserat_chain.cli import app
 
+    # The family traced once: the text run, asked with the same arguments, is handed the JSON run's.
+    traced, calls, families = sb.roto_breather_family, [], []
+
+    def once(system, omega, *, progress, **options):
+        calls.append((system.name, omega, options))
+        if not families:
+            families.append(traced(system, omega, progress=progress, **options))
+        return families[0]
+
+    monkeypatch.setattr(sb, "roto_breather_family", once)
     out = tmp_path / "family.nc"
     args = ["breathers", "--system", "takeno_peyrard", "--set", "sites=3", "--set", "C=0.02", "--omega", "0.95", "--arclength"]
     result = CliRunner().invoke(app, [*args, "--along", "C=0.06", "--json", "--out", str(out)])
@@ -204,6 +214,7 @@ def test_the_command_lists_the_events_in_json_and_in_the_file(tmp_path):
         assert json.loads(ds.attrs["events_json"]) == summary["events"]
     text = CliRunner().invoke(app, [*args, "--along", "C=0.06"])
     assert text.exit_code == 0 and "fold at C = 0.03364" in text.output and "split complex -> real" in text.output
+    assert len(calls) == 2 and calls[0] == calls[1]
 
 
 @pytest.mark.parametrize(
