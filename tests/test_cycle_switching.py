@@ -40,8 +40,9 @@ AMPLITUDES = (1e-3, 2e-3, 4e-3)
 
 @pytest.fixture(scope="module")
 def branch():
-    """The one-turn orbit followed down from 0.2172 to its first unstable orbit (below the period doubling)."""
-    return continue_orbit(find_periodic_orbit(PARAMS, "nonlinear", 0.2172), period_max=100.0, until_unstable=True)
+    """The one-turn orbit followed down from 0.1975 (0.4 % above the period doubling) to its first unstable orbit
+    (below it)."""
+    return continue_orbit(find_periodic_orbit(PARAMS, "nonlinear", 0.1975), period_max=100.0, until_unstable=True)
 
 
 @pytest.fixture(scope="module")
