@@ -57,3 +57,31 @@ def test_unresolved_crossing_is_flagged():
     assert r.onset == "branch_point" and r.crossing is None
     assert r.crossing_unresolved and not r.accurate
     assert r.as_dict()["crossing_unresolved"] is True
+
+
+def test_files_meet_cf_1_8_which_they_declare(tmp_path):
+    """Every file declares "CF-1.8 CF-1.10"; CF-1.8 has no 64-bit integers, and a run's ``particle`` and ``phi_winding``
+    were int64 (compliance-checker cf:1.8: "the datatype is int64"). They are written as int32 where they fit."""
+    pytest.importorskip("compliance_checker", reason="compliance-checker is not installed (pip install -e .[test])")
+    import json
+
+    import numpy as np
+    import xarray as xr
+    from compliance_checker.runner import CheckSuite, ComplianceChecker
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+    from cosserat_chain.io import read_dataset
+
+    out = tmp_path / "run.nc"
+    result = CliRunner().invoke(app, ["simulate", "--moment", "0.3", "--t-end", "20", "--frames", "5", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    with xr.open_dataset(out, engine="h5netcdf") as ds:
+        assert ds["particle"].dtype == np.int32
+        assert not [name for name, variable in ds.variables.items() if variable.dtype == np.int64]
+    assert read_dataset(out)["particle"].values.tolist() == list(range(-3, 4))
+    CheckSuite.load_all_available_checkers()
+    report = tmp_path / "report.json"
+    ComplianceChecker.run_checker(str(out), ["cf:1.8"], 0, "normal", output_filename=str(report), output_format="json")
+    errors = [m for r in json.loads(report.read_text())["cf:1.8"]["high_priorities"] for m in r["msgs"]]
+    assert errors == []

@@ -41,10 +41,13 @@ def checksum(ds: xr.Dataset, state_attributes: Iterable[str]) -> str:
 
     A checkpoint edited by hand or damaged on disk then fails its check instead of
     being trusted (NetCDF keeps the values bit for bit, so a sound file always passes).
+    Signed integers count as 64-bit ones: the file holds those that fit as 32-bit ones
+    (CF-1.8 has no 64-bit type: :func:`~cosserat_chain.io.netcdf_image`).
     """
     digest = hashlib.sha256()
     for name in sorted(map(str, ds.variables)):
         values = np.ascontiguousarray(ds[name].values)
+        values = values.astype(np.int64) if values.dtype.kind == "i" else values
         digest.update(f"{name}:{values.dtype.str}:{values.shape}:".encode())
         digest.update(values.tobytes())
     for key in state_attributes:
