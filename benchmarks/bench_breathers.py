@@ -6,6 +6,7 @@ Run from the repository root::
     python benchmarks/bench_breathers.py --sizes 10 50 200 --dense-max 25
     python benchmarks/bench_breathers.py --json                   # also print the JSON on stdout
     python benchmarks/bench_breathers.py --located-atlas --sizes 10 25 50   # the cost of locating an atlas's changes
+    python benchmarks/bench_breathers.py --located-field --sizes 10 25      # ... along b against along Omega
 
 The undamped sine chain (eq. (2), other fields default), one rotor on particle 0, the family at
 Omega = 6.6, 6.5, 6.4 (above the optical band, every member stable): Newton from the
@@ -26,6 +27,11 @@ neighbours whose pairs off the circle differ (``every``), and by a family's full
 secant over every pair (``family``: :func:`~cosserat_chain.experiments.breathers.located_changes`
 over the same members, no tolerance), alternately, ``--repeats`` times: CPU seconds of the atlas
 and of each location, the changes with their accuracies. Results go to ``benchmarks/results/breather_atlas_located.json``.
+
+With ``--located-field``: the atlas over :data:`FIELD_OMEGAS` and b = :data:`FIELD_VALUES`, its changes located along Omega
+and along b (``along``), alternately, ``--repeats`` times: CPU seconds of each; and each change along b found again along
+Omega on the row at its b (Omega +- :data:`ACROSS` about its column, with ``every``: other quartets may be off the circle at both ends):
+the distance of the two places in Omega against the row's accuracy. Results go to ``benchmarks/results/breather_atlas_located_field.json``.
 """
 
 from __future__ import annotations
@@ -49,6 +55,37 @@ SIZES = (10, 25, 50, 100)
 OMEGAS = (6.6, 6.5, 6.4)
 MODEL = "sine"
 ATLAS_OMEGAS = (6.6, 6.4, 6.2, 6.0)
+FIELD_OMEGAS = (6.6, 6.4, 6.2)
+FIELD_VALUES = (0.18, 0.2, 0.22)
+#: The row through a change along b spans its Omega +- this (narrow: on a long chain's dense circle a wider row may hold
+#: another quartet leaving and one coming back, equal counts at its ends).
+ACROSS = 1e-3
+
+
+def located_field(params: ChainParams, repeats: int) -> dict:
+    """The atlas over :data:`FIELD_OMEGAS` x b = :data:`FIELD_VALUES`, the cost of locating its changes along Omega and along b,
+    and each change along b found again along Omega on the row through it."""
+    from cosserat_chain.experiments.breather_atlas import breather_atlas
+
+    cpu = time.process_time()
+    atlas = breather_atlas(params, MODEL, FIELD_OMEGAS, "b", FIELD_VALUES)
+    out = {"atlas_cpu_s": time.process_time() - cpu, "stable": atlas.grid("stable").tolist(), "locate": {"omega": [], "b": []}}
+    for _ in range(repeats):
+        for axis in ("omega", "b"):
+            cpu = time.process_time()
+            atlas.locate_changes(along=axis)
+            out["locate"][axis].append(time.process_time() - cpu)
+            out[f"changes_{axis}"] = [c.as_dict() for c in atlas.changes]
+    out["across"] = []
+    for change in out["changes_b"]:
+        row = breather_atlas(params, MODEL, [change["omega"] + ACROSS, change["omega"] - ACROSS], "b", [change["value"]])
+        row.locate_changes(along="omega", every=True)
+        nearest = min(row.changes, key=lambda c: abs(c.omega - change["omega"]), default=None)
+        out["across"].append(None if nearest is None else {
+            "omega": nearest.omega, "accuracy": nearest.accuracy, "distance": abs(nearest.omega - change["omega"]),
+            "kind": nearest.change.kind, "value_accuracy": change["accuracy"],
+        })  # fmt: skip
+    return out
 
 
 def located_atlas(params: ChainParams, repeats: int) -> dict:
@@ -107,9 +144,26 @@ def main() -> int:
     parser.add_argument("--threads", type=int, default=1)
     parser.add_argument("--json", action="store_true")
     parser.add_argument("--located-atlas", action="store_true")
+    parser.add_argument("--located-field", action="store_true")
     parser.add_argument("--repeats", type=int, default=2)
     args = parser.parse_args()
     long_orbits.THREADS = args.threads
+    if args.located_field:
+        rows = []
+        for n in args.sizes:
+            row = {"N": n, **located_field(ChainParams(N=n, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0), args.repeats)}
+            rows.append(row)
+            costs = ", ".join(f"along {a} {len(row['changes_' + a])} changes {min(c):.3g} s" for a, c in row["locate"].items())
+            print(f"N = {n}: atlas {row['atlas_cpu_s']:.3g} s; {costs}", file=sys.stderr, flush=True)
+            RESULTS.mkdir(exist_ok=True)
+            text = json.dumps(
+                {"model": MODEL, "omegas": FIELD_OMEGAS, "values": FIELD_VALUES, "load_average": list(os.getloadavg()), "rows": rows},
+                indent=1,
+            )
+            (RESULTS / "breather_atlas_located_field.json").write_text(text + "\n")
+        if args.json:
+            print(text)
+        return 0
     if args.located_atlas:
         rows = []
         for n in args.sizes:
