@@ -8,13 +8,16 @@ at -1 (a period doubling) or as a complex pair (a torus, Neimark-Sacker). :func:
 the two test functions of the multipliers of modulus above :data:`NEAR_CIRCLE` that change sign at
 the last two; every branch of rotating orbits watches them between consecutive orbits: the
 collocation's (:func:`~.collocation.continue_collocation`, through the kit's secant method on the
-arclength) and the shooting's (:func:`~.periodic.continue_orbit`, dense, blocks and Newton-Picard,
-through :func:`locate_circle_events` after the branch is traced).
+arclength), the chain's shooting (:func:`~.periodic.continue_orbit`, dense, blocks and Newton-Picard,
+through :func:`locate_circle_events` after the branch is traced) and a user system's
+(:func:`~.shooting.continue_orbits` in any named parameter, through :func:`circle_events_between` at
+every step, so that ``stop_at`` can end the branch there).
 
 :func:`locate_circle_events` finds the zero of the test that changed sign between two orbits a and b
-of a branch by Brent's method in M (:func:`~.brent.brentq`), each trial the orbit re-solved at its M
+of a branch by Brent's method in the branch's parameter (:func:`~.brent.brentq`; M for the chain,
+``value`` says which for another branch), each trial the orbit re-solved at its parameter value
 by the branch's own corrector from the orbit interpolated between a and b (a ``solve`` the caller
-passes), to :data:`MOMENT_TOL` in M. The test functions, not the critical multiplier itself, are the
+passes), to :data:`MOMENT_TOL` in the parameter. The test functions, not the critical multiplier itself, are the
 functions whose zero is sought: they are symmetric functions of the multipliers near the circle and
 stay continuous where two of them collide (at a period doubling of the paper's chain a complex pair
 has just met on the negative real axis, and the multiplier nearest -1 is not a smooth function of M
@@ -27,7 +30,7 @@ the first orbit past the sign change (the collocation's convention).
 The tests are parities: two multipliers of one kind crossing within one step leave a sign as it
 was. :func:`circle_counts` counts what the parities count (real multipliers below -1, complex pairs
 outside the circle, classed as the tests class them); where a count changes by two or more between
-two orbits the step is halved in M, each midpoint solved, until the crossings lie apart. (The
+two orbits the step is halved in the parameter, each midpoint solved, until the crossings lie apart. (The
 roto-breathers' ``breather_arclength.instability_counts`` counts the same for conservative orbits, with a
 band of 1e-6 about the circle that the exact parities here must not have, and lives above
 :mod:`~.periodic`, which imports this module.) A crossing out and back within one step changes no
@@ -49,6 +52,11 @@ import numpy as np
 from ..errors import CosseratChainError
 from .brent import brentq
 
+#: The orbit at a parameter value between two orbits of a branch (:func:`locate_circle_events`' ``solve``).
+Solve = Callable[[float, Any, Any], Any]
+#: The continuation parameter's value at an orbit (:func:`locate_circle_events`' ``value``).
+Value = Callable[[Any], float]
+
 #: The period-doubling and torus tests take only the multipliers of modulus above this: on long orbits the
 #: strongly damped ones are not resolved (docs/collocation.md, Limits), the ones near the circle are.
 NEAR_CIRCLE = 0.5
@@ -59,7 +67,7 @@ COMPLEX_RTOL = 1e-6
 CIRCLE_MULTIPLIER = 1e-3
 #: The events of :func:`circle_tests`.
 CIRCLE_KINDS = ("period_doubling", "torus")
-#: Brent's tolerance in M of an event located by :func:`locate_circle_events` (reported as its ``"accuracy"``).
+#: Brent's tolerance in the parameter (M for the chain) of an event located by :func:`locate_circle_events` (its ``"accuracy"``).
 MOMENT_TOL = 1e-10
 #: Most halvings of a step over which two multipliers of one kind crossed the circle (:func:`locate_circle_events`).
 SPLITS = 8
@@ -123,59 +131,83 @@ def circle_counts(multipliers: np.ndarray) -> tuple[int, int]:
     return int(np.count_nonzero(real.real < -1.0)), int(np.count_nonzero(np.abs(pairs) > 1.0))
 
 
-def _separated(a: Any, b: Any, solve: Callable[[float, Any, Any], Any], splits: int) -> list[Any]:
-    """a, the orbits solved at the midpoints in M between a and b until no count of :func:`circle_counts` changes by
-    more than one from one to the next (at most ``splits`` halvings), and b."""
+def moment(orbit: Any) -> float:
+    """The chain's continuation parameter of an orbit, M: the default ``value`` of :func:`locate_circle_events`."""
+    return orbit.moment
+
+
+def _separated(a: Any, b: Any, solve: Solve, value: Value, splits: int) -> list[Any]:
+    """a, the orbits solved at the midpoints in the parameter between a and b until no count of :func:`circle_counts`
+    changes by more than one from one to the next (at most ``splits`` halvings), and b."""
     if (
         splits == 0
         or max(abs(x - y) for x, y in zip(circle_counts(a.nontrivial_multipliers), circle_counts(b.nontrivial_multipliers))) <= 1
     ):
         return [a, b]
     try:
-        middle = solve(0.5 * (a.moment + b.moment), a, b)
+        middle = solve(0.5 * (value(a) + value(b)), a, b)
     except (CosseratChainError, RuntimeError, ValueError):
         return [a, b]
-    return [*_separated(a, middle, solve, splits - 1)[:-1], *_separated(middle, b, solve, splits - 1)]
+    return [*_separated(a, middle, solve, value, splits - 1)[:-1], *_separated(middle, b, solve, value, splits - 1)]
 
 
-def _located(kind: str, a: Any, b: Any, solve: Callable[[float, Any, Any], Any], tol: float) -> dict | None:
+def _located(kind: str, a: Any, b: Any, solve: Solve, value: Value, tol: float) -> dict | None:
     """The ``kind`` event between a and b, whose test has opposite signs there (:func:`locate_circle_events`)."""
-    solved = {a.moment: a, b.moment: b}
+    solved = {value(a): a, value(b): b}
 
-    def value(moment: float) -> float:
-        if moment not in solved:
-            solved[moment] = solve(moment, a, b)
-        return circle_tests(solved[moment].nontrivial_multipliers)[kind]
+    def test(at: float) -> float:
+        if at not in solved:
+            solved[at] = solve(at, a, b)
+        return circle_tests(solved[at].nontrivial_multipliers)[kind]
 
     try:
-        root = brentq(value, a.moment, b.moment, xtol=tol)
+        root = brentq(test, value(a), value(b), xtol=tol)
     except (CosseratChainError, RuntimeError, ValueError):
         # A trial that could not be solved (or a NaN test): the event is reported where its sign change was seen.
-        return event_record(kind, b.moment, False, b.nontrivial_multipliers)
+        return event_record(kind, value(b), False, b.nontrivial_multipliers)
     orbit = solved[root]
     if not on_circle(orbit.nontrivial_multipliers, kind):
         return None
     return {**event_record(kind, root, True, orbit.nontrivial_multipliers), "accuracy": tol, "orbit": orbit}
 
 
+def circle_events_between(
+    a: Any, b: Any, solve: Solve, *, value: Value = moment, tol: float = MOMENT_TOL, splits: int = SPLITS
+) -> list[dict]:
+    """The period doublings and tori between two consecutive orbits a and b of a branch, in the order from a to b
+    (:func:`locate_circle_events`, whose parameters these are; one step of it)."""
+    found = []
+    pieces = _separated(a, b, solve, value, splits)
+    for start, stop in zip(pieces[:-1], pieces[1:], strict=True):
+        before, after = circle_tests(start.nontrivial_multipliers), circle_tests(stop.nontrivial_multipliers)
+        for kind in CIRCLE_KINDS:
+            event = None if before[kind] * after[kind] >= 0 else _located(kind, start, stop, solve, value, tol)
+            if event is not None:
+                found.append(event)
+    return found
+
+
 def locate_circle_events(
-    orbits: Sequence[Any], solve: Callable[[float, Any, Any], Any], *, tol: float = MOMENT_TOL, splits: int = SPLITS
+    orbits: Sequence[Any], solve: Solve, *, value: Value = moment, tol: float = MOMENT_TOL, splits: int = SPLITS
 ) -> list[tuple[int, dict]]:
-    """The period doublings and tori between consecutive ``orbits`` of a branch, located in M (module docstring).
+    """The period doublings and tori between consecutive ``orbits`` of a branch, located in its parameter (module docstring).
 
     Where a count of :func:`circle_counts` changes by two or more between two orbits (two pairs leaving the circle
-    within one step leave the torus test's sign as it was), the step is first halved in M, each midpoint solved, until
-    the crossings lie in different pieces (:data:`SPLITS` halvings at most).
+    within one step leave the torus test's sign as it was), the step is first halved in the parameter, each midpoint
+    solved, until the crossings lie in different pieces (:data:`SPLITS` halvings at most).
 
     Parameters
     ----------
     orbits : sequence of orbits
-        A branch's orbits in order, each with ``moment`` and ``nontrivial_multipliers``.
-    solve : callable(moment, a, b) -> orbit
-        The orbit at ``moment`` between the orbits a and b (Newton from their interpolation);
+        A branch's orbits in order, each with ``nontrivial_multipliers``.
+    solve : callable(p, a, b) -> orbit
+        The orbit at the parameter value p between the orbits a and b (Newton from their interpolation);
         raises where it cannot (:class:`~cosserat_chain.errors.CosseratChainError`, RuntimeError or ValueError).
+    value : callable(orbit) -> float
+        The continuation parameter's value at an orbit: M for the chain's (:func:`moment`, the default), any
+        named parameter for a system's (:func:`~.shooting.continue_orbits`).
     tol : float
-        Brent's tolerance in M, each located event's ``"accuracy"``.
+        Brent's tolerance in the parameter, each located event's ``"accuracy"``.
     splits : int
         Most halvings of one step.
 
@@ -183,17 +215,13 @@ def locate_circle_events(
     -------
     list of (int, dict)
         For each event, in the order of the branch, the index of the orbit after it (it lies between ``orbits[i - 1]``
-        and ``orbits[i]``) and its record (:func:`event_record`; a located one with ``"accuracy"`` and its ``"orbit"``).
+        and ``orbits[i]``) and its record (:func:`event_record`, ``"moment"`` the parameter's value; a located one with
+        ``"accuracy"`` and its ``"orbit"``).
     """
     found = []
     for i in range(1, len(orbits)):
-        if orbits[i - 1].moment == orbits[i].moment:
-            continue
-        pieces = _separated(orbits[i - 1], orbits[i], solve, splits)
-        for a, b in zip(pieces[:-1], pieces[1:], strict=True):
-            before, after = circle_tests(a.nontrivial_multipliers), circle_tests(b.nontrivial_multipliers)
-            for kind in CIRCLE_KINDS:
-                event = None if before[kind] * after[kind] >= 0 else _located(kind, a, b, solve, tol)
-                if event is not None:
-                    found.append((i, event))
+        if value(orbits[i - 1]) != value(orbits[i]):
+            found.extend(
+                (i, event) for event in circle_events_between(orbits[i - 1], orbits[i], solve, value=value, tol=tol, splits=splits)
+            )
     return found

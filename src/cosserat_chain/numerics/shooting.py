@@ -22,9 +22,11 @@ backs up during a turn, so a continuation cannot stop at a section's false fold.
   in (y0, T); the Floquet multipliers are the eigenvalues of the monodromy.
 * :func:`continue_orbits` follows the orbit in any parameter with the one
   pseudo-arclength driver (:func:`cosserat_chain.numerics.kit.continuation`), in
-  (y0, log T, p); it locates folds of cycles (confirmed by a second multiplier at +1),
-  period doublings (a multiplier at -1), tori (a complex pair on the unit circle) and
-  branch points, and ends where the period diverges, with the end fitted from the
+  (y0, log T, p); it locates folds of cycles (confirmed by a second multiplier at +1)
+  and branch points, period doublings (a multiplier at -1) and tori (a complex pair on the
+  unit circle) by the package's one mechanism for them (:mod:`~.cycle_events`: its test
+  functions watched at every step, Brent's method in p, each trial an orbit solved at its
+  p), and ends where the period diverges, with the end fitted from the
   period's growth and the fit's spread given as its uncertainty, or where an oscillation
   shrinks onto an equilibrium at a Hopf point (there the parameter turns too, with the
   equilibrium's pair at +1, but no fold of cycles is reported).
@@ -45,10 +47,10 @@ from ..errors import CosseratChainError
 from ..linalg.threads import one_blas_thread
 from ..models.base import no_ends
 from ..systems.base import System, SystemDefinitionError
-from . import dop853
+from . import cycle_events, dop853
 from .brent import brentq
 from .equilibria import EquilibriumNotFound, find_equilibrium
-from .kit import BranchEnd, Continuation, Evaluation, EvaluationFailed, continuation, newton
+from .kit import BranchEnd, Continuation, Evaluation, EvaluationFailed, Event, continuation, newton
 
 #: Tolerances of the shooting integrations.
 RTOL = 1e-11
@@ -60,7 +62,8 @@ CLOSURE_TOL = 1e-9
 #: below the band did).
 MAX_STEPS = 10_000_000
 STEPS_PER_TIME = 100_000
-#: A multiplier within this of +1, -1 or the unit circle confirms a located fold, period doubling or torus.
+#: A multiplier within the square root of this of +1 confirms a located fold or branch point of cycles (a period
+#: doubling's or torus's is confirmed by :func:`~.cycle_events.on_circle`).
 CONFIRM_TOL = 1e-3
 #: Largest |mu| - 1 of a conservative orbit's multiplier that still counts as on the unit circle: the
 #: monodromy is accurate to about 1e-9, and a colliding pair splits like the square root of that.
@@ -525,11 +528,20 @@ class _OrbitProblem:
         until_unstable: bool,
         start_stable: bool,
         unfold: str | None,
+        stop_at: tuple[str, ...],
     ):
         self.shooting, self.tol, self.unfold = shooting, shooting.tol, unfold
         self.period_max, self.limits, self.until_unstable, self.start_stable = period_max, limits, until_unstable, start_stable
         #: The located point where an oscillation shrank onto an equilibrium (a Hopf point), the branch's end.
         self.collapsed: Orbit | None = None
+        #: The period doublings and tori that end the branch once found (:meth:`stop`).
+        self.stop_at = tuple(kind for kind in stop_at if kind in cycle_events.CIRCLE_KINDS)
+        #: The last step accepted (previous, candidate), and the period doublings and tori found over each step by
+        #: :meth:`stop`, keyed by the two orbits' ids (reused by :meth:`circle_events`).
+        self.step: tuple[Orbit, Orbit] | None = None
+        #: The last orbit :meth:`stop` saw (the previous one where a step was accepted without :meth:`accept`).
+        self.last: Orbit | None = None
+        self.found: dict[tuple[int, int], list[dict]] = {}
 
     def evaluate(self, w, jacobian):
         return self.shooting.evaluate(w, jacobian)
@@ -542,19 +554,37 @@ class _OrbitProblem:
     def accept(self, previous: Orbit, candidate: Orbit) -> bool:
         # The next phase plane passes through the orbit just found.
         self.shooting.set_reference(candidate.y0)
+        self.step = (previous, candidate)
         return True
 
     def tests(self, orbit: Orbit) -> dict[str, float]:
-        if orbit.unfold is not None:
-            # A conservative orbit's multipliers lie on the circle up to round-off: only leaving it counts.
-            return {"stability": 1.0 if orbit.stable else -1.0}
-        mu = orbit.nontrivial_multipliers
-        complex_pairs = mu[np.imag(mu) > 1e-9]
-        return {
-            "period_doubling": float(np.real(np.prod(mu + 1.0))),
-            "torus": float(np.prod(np.abs(complex_pairs) - 1.0)) if complex_pairs.size else 1.0,
-            "stability": 1.0 if orbit.stable else -1.0,
-        }
+        # Period doublings and tori are the circle tests' (:meth:`circle_events`); a conservative orbit's multipliers
+        # lie on the circle up to round-off, and only leaving it counts.
+        return {"stability": 1.0 if orbit.stable else -1.0}
+
+    def value(self, orbit: Orbit) -> float:
+        """The continued parameter's value at ``orbit``."""
+        name = self.shooting.unknowns[-1]
+        return orbit.period if name == PERIOD else orbit.parameter(name)
+
+    def solve(self, value: float, a: Orbit, b: Orbit) -> Orbit:
+        """The orbit at the continued parameter's ``value`` between the orbits a and b: Newton on (O) from the orbit
+        interpolated linearly in the parameter (y0 and log T), on the phase plane through that start."""
+        theta = (value - self.value(a)) / (self.value(b) - self.value(a))
+        start = (1.0 - theta) * a.y0 + theta * b.y0
+        period = math.exp((1.0 - theta) * math.log(a.period) + theta * math.log(b.period))
+        system = a.system.with_parameters(**{self.shooting.unknowns[-1]: value})
+        shooting = self.shooting
+        return find_orbit(system, (start, period), turns=a.turns, tol=shooting.tol, rtol=shooting.rtol, atol=shooting.atol)
+
+    def circle_events(self, a: Orbit, b: Orbit) -> list[dict]:
+        """The period doublings and tori between the consecutive orbits a and b (:func:`~.cycle_events.circle_events_between`,
+        Brent's method in the parameter); none for a conservative family, whose multipliers lie on the circle."""
+        key = (id(a), id(b))
+        if key not in self.found:
+            dissipative = a.unfold is None and self.shooting.unknowns[-1] != PERIOD
+            self.found[key] = cycle_events.circle_events_between(a, b, self.solve, value=self.value) if dissipative else []
+        return self.found[key]
 
     def confirm(self, kind: str, orbit: Orbit) -> bool:
         if kind in ("fold", "branch_point") and orbit.unfold is None and _shrunk_onto_equilibrium(orbit):
@@ -565,11 +595,6 @@ class _OrbitProblem:
         mu = orbit.nontrivial_multipliers
         if kind == "fold":
             return bool(np.min(np.abs(mu - 1.0), initial=math.inf) < CONFIRM_TOL**0.5)
-        if kind == "period_doubling":
-            return bool(np.min(np.abs(mu + 1.0), initial=math.inf) < CONFIRM_TOL)
-        if kind == "torus":
-            pairs = mu[np.abs(np.imag(mu)) > 1e-6]
-            return bool(np.min(np.abs(np.abs(pairs) - 1.0), initial=math.inf) < CONFIRM_TOL)
         if kind == "branch_point" and orbit.unfold is None:
             # A branch point of cycles has a second multiplier at +1, as a fold (the parameter does not turn there:
             # the kit's test is the sign of det [dR/dw; t], which a fold leaves alone).
@@ -586,6 +611,14 @@ class _OrbitProblem:
                 f"the orbit shrank onto an equilibrium at a Hopf point near {name} = {at:.10g} (period {self.collapsed.period:.10g}): "
                 "the family ends there; equilibria.continue_equilibria locates the Hopf point itself",
             )
+        previous = self.step[0] if self.step is not None and self.step[1] is orbit else self.last
+        self.last = orbit
+        if self.stop_at and previous is not None:
+            ending = next((e for e in self.circle_events(previous, orbit) if e["kind"] in self.stop_at), None)
+            if ending is not None:
+                where = "located at" if ending["located"] else "passed before"
+                kind = BranchEnd(ending["kind"])
+                return kind, f"{ending['kind'].replace('_', ' ')} {where} {name} = {ending['moment']:.12g}: {kind.advice}"
         if orbit.period > self.period_max:
             return (
                 BranchEnd.INFINITE_PERIOD,
@@ -655,7 +688,11 @@ def continue_orbits(
     -------
     OrbitBranch
         Events located on the way are confirmed by their multipliers (a fold of cycles needs a
-        second multiplier at +1, a period doubling one at -1, a torus a complex pair on the circle).
+        second multiplier at +1). Period doublings and tori are :mod:`~.cycle_events`': located by
+        Brent's method in the parameter to :data:`~.cycle_events.MOMENT_TOL` where a circle test
+        changes sign, kept with the critical multiplier within :data:`~.cycle_events.CIRCLE_MULTIPLIER`
+        of -1 or of the unit circle (a pair inside the circle that turns real is no torus); where
+        Brent's trials cannot be solved the event is the orbit after the sign change, unlocated.
     """
     system = orbit.system
     unfold = getattr(orbit, "unfold", None)
@@ -665,7 +702,7 @@ def continue_orbits(
         system.parameter(parameter)
     unknowns = (PERIOD if unfold is None else unfold, parameter)
     shooting = _Shooting(system, orbit.turns, orbit.y0, orbit.period, unknowns, tol, rtol, atol)
-    problem = _OrbitProblem(shooting, period_max, limits, until_unstable, orbit.stable, unfold)
+    problem = _OrbitProblem(shooting, period_max, limits, until_unstable, orbit.stable, unfold, stop_at)
     w0 = shooting.pack(orbit)
     traced: Continuation = continuation(
         problem,
@@ -678,7 +715,7 @@ def continue_orbits(
         stop_at=stop_at,
         progress=progress,
     )
-    branch = OrbitBranch(parameter, traced.points, traced.events, traced.end, traced.message)
+    branch = OrbitBranch(parameter, traced.points, _with_circle_events(problem, traced), traced.end, traced.message)
     growing = len(branch.orbits) >= 4 and branch.periods[-1] > 2 * min(branch.periods)
     if traced.end == BranchEnd.INFINITE_PERIOD or (traced.end == BranchEnd.STEP_TOO_SMALL and growing):
         branch.end_value, branch.end_uncertainty = _fitted_end(branch)
@@ -689,6 +726,18 @@ def continue_orbits(
                 + "(a fit of p = p* + c exp(-s T), not a computed point)"
             )
     return branch
+
+
+def _with_circle_events(problem: _OrbitProblem, traced: Continuation) -> list[Event]:
+    """The kit's events of ``traced`` and the period doublings and tori between its consecutive orbits
+    (:meth:`_OrbitProblem.circle_events`, those :meth:`~_OrbitProblem.stop` found reused), in the order of the branch."""
+    points = traced.points
+    found = [
+        (i, Event(e["kind"], e["orbit"] if e["located"] else points[i], e["moment"], i, None, located=e["located"]))
+        for i in range(1, len(points))
+        for e in problem.circle_events(points[i - 1], points[i])
+    ]
+    return [event for _, event in sorted([*((e.index, e) for e in traced.events), *found], key=lambda item: item[0])]
 
 
 def _fitted_end(branch: OrbitBranch) -> tuple[float | None, float | None]:
