@@ -60,6 +60,7 @@ from ..state import pack
 from ..systems.chain import ChainSystem
 from . import shooting
 from .cycle_curve import locate_cycle_end
+from .cycle_events import circle_tests
 from .hopf import HopfPoint
 from .kit import BranchEnd, continuation, newton
 from .periodic import (
@@ -420,7 +421,11 @@ def switch_at_period_doubling(
     start : PeriodicOrbit, periodic.OrbitBranch, shooting.Orbit or shooting.OrbitBranch
         The chain's: the period doubling (an orbit with a real multiplier within :data:`FLIP_TOL` of
         -1), an orbit near one (located first), or a branch of :func:`~.periodic.continue_orbit`
-        along which a real multiplier passes -1 (the first such passage is located). A system's:
+        along which a real multiplier passes -1 (the first such passage, where the period-doubling test of
+        :func:`~.cycle_events.circle_tests` changes sign, is located by :func:`~.cycle_curve.locate_cycle_end`:
+        the branch's own event lies as near in M, 1e-11 at gamma_phi = 0.2, but it is a zero of the test in M,
+        to 1e-10, and the multiplier, steep in M there, lies 1.7e-8 off -1 at it; the augmented system
+        solves for the multiplier at -1 itself, 2e-11). A system's:
         the orbit at a period doubling (the point of a ``period_doubling`` event), or a branch of
         :func:`~.shooting.continue_orbits` with such an event (the first is taken).
     parameter : str, optional
@@ -798,8 +803,8 @@ def continue_family(
 
 
 def _flip_test(orbit: PeriodicOrbit) -> float:
-    """Re prod (mu + 1) over the multipliers: its sign changes where a real one passes -1."""
-    return float(np.real(np.prod(orbit.multipliers + 1.0)))
+    """The period-doubling test of :func:`~.cycle_events.circle_tests`: its sign changes where a real multiplier passes -1."""
+    return circle_tests(orbit.nontrivial_multipliers)["period_doubling"]
 
 
 def _located(start, parameter: str | None, *, rtol: float, atol: float) -> tuple[Point, str]:
