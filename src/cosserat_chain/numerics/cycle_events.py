@@ -63,7 +63,7 @@ NEAR_CIRCLE = 0.5
 #: A multiplier is complex where |Im mu| exceeds this times |mu|.
 COMPLEX_RTOL = 1e-6
 #: A located period doubling or torus is confirmed where its critical multiplier lies this close to -1 or to
-#: the unit circle (the shooting's ``CONFIRM_TOL``).
+#: the unit circle (on every branch: the chain's, the collocation's, a system's).
 CIRCLE_MULTIPLIER = 1e-3
 #: The events of :func:`circle_tests`.
 CIRCLE_KINDS = ("period_doubling", "torus")
