@@ -78,15 +78,23 @@ def reduced_E1(params: ChainParams) -> float:
     return params.h**2 / params.d**2 * params.E2
 
 
-def _coefficients(params: ChainParams, D1: float | None) -> _Coefficients:
+#: The denominator of (11) counts as vanishing below this many roundings of its terms' magnitude.
+SINGULAR_ROUNDINGS = 64
+
+
+def _coefficients(params: ChainParams, D1: float | None, *, solved: bool = True) -> _Coefficients:
     # Section 3's solutions meet the clamped ends' conditions u = v = phi = 0 at x = +-L.
+    # ``solved``: refuse a (rounding-)vanishing denominator of (11), where the conditions
+    # (8), (10) leave the constants of (7) undetermined (N = 1) or have no solution (N >= 2).
     require_clamped(params, "the continuum solution of Section 3")
     if D1 is not None and not math.isfinite(D1):
         raise ValueError(f"D1 must be a finite number or None (the geometry-derived params.D1), got {D1!r}")
     coef = _Coefficients(params.h, params.N * params.h, params.b, params.D1 if D1 is None else float(D1), params.D2)
     if coef.D2 <= 0:
         raise ValueError(f"the continuum solution needs coupling D2 = 4 (h/d)^2 E2 > 0, i.e. E2 > 0; got E2={params.E2!r}")
-    if coef.denominator == 0:
+    h, L, D1_, D2 = coef.h, coef.L, coef.D1, coef.D2
+    size = h * (24 * h * h * D1_ * D1_ + (8 * L * L + 6 * h * h) * abs(D1_) * D2 + L * (2 * L - h) * D2 * D2)
+    if solved and abs(coef.denominator) <= SINGULAR_ROUNDINGS * np.finfo(float).eps * size:
         raise ValueError(
             f"the continuum solution (11) is singular for D1={coef.D1!r}, D2={coef.D2!r}, L=N h={coef.L!r}: "
             "its denominator 24 h^2 D1^2 + (8 L^2 + 6 h^2) D1 D2 + L (2L - h) D2^2 vanishes"
@@ -208,7 +216,9 @@ def solution(params: ChainParams, x: np.ndarray | float, moment: float = 1.0, *,
     ------
     ValueError
         For x outside [0, L], a non-finite moment, E2 = 0 (no coupling), or a
-        vanishing denominator (possible only with a D1 other than the derived one).
+        vanishing denominator (to rounding): with the derived D1 at E1 = 2/3 (h/d)^2 E2
+        for N = 1, where the conditions leave the profile undetermined, and near
+        E1 = (h/d)^2 E2 / (2N) for N >= 2, where (11) has a pole (the continuum problem no solution).
     """
     x = _positions(params, x)
     moment = _moment(moment)
@@ -223,10 +233,17 @@ def solution(params: ChainParams, x: np.ndarray | float, moment: float = 1.0, *,
 def central_rotation(params: ChainParams, moment: float = 1.0, *, D1: float | None = None) -> float:
     """Rotation phi(0) = M L (12 h^2 D1 + L^2 D2) / (2 b^2 Den) of the loaded particle (Section 3.1).
 
-    ``central_rotation(params)`` is the continuum compliance phi_0 / M.
+    ``central_rotation(params)`` is the continuum compliance phi_0 / M. For N = 1 (L = h)
+    the factor 12 D1 + D2 of Den cancels, phi(0) = M / (2 b^2 (2 D1 + D2)), the chain's own
+    value, also where Den vanishes (E1 = 2/3 (h/d)^2 E2): the conditions then fix phi(0) but
+    not the profile (:func:`solution` refuses it).
     """
     moment = _moment(moment)
-    coef = _coefficients(params, D1)
+    coef = _coefficients(params, D1, solved=params.N > 1)
+    if params.N == 1:
+        if 2 * coef.D1 + coef.D2 == 0:
+            raise ValueError(f"the continuum solution (11) is singular for N = 1 and D1={coef.D1!r} = -D2/2 (D2={coef.D2!r})")
+        return moment / (2 * coef.b**2 * (2 * coef.D1 + coef.D2))
     L = coef.L
     return moment * L * (12 * coef.h**2 * coef.D1 + L * L * coef.D2) / (2 * coef.b**2 * coef.denominator)
 
@@ -241,7 +258,7 @@ def residue(params: ChainParams, moment: float = 1.0, *, D1: float | None = None
     (v_k+1 - v_k-1) / 2h = v_x + h^2 v_xxx / 6. It vanishes like eps as N grows.
     """
     moment = _moment(moment)
-    coef = _coefficients(params, D1)
+    coef = _coefficients(params, D1, solved=params.N > 1)  # N = 1: no interior site, (12) as printed
     eps, D1_, D2 = 1.0 / params.N, coef.D1, coef.D2
     return moment * D2 * D2 * eps / (2 * coef.b**2 * (24 * eps * eps * D1_ * D1_ + (8 + 6 * eps * eps) * D1_ * D2 + (2 - eps) * D2 * D2))
 
