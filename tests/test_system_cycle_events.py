@@ -13,13 +13,14 @@ from __future__ import annotations
 
 import cmath
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import scipy.sparse as sp
 
 from cosserat_chain.numerics import shooting
-from cosserat_chain.numerics.cycle_events import CIRCLE_MULTIPLIER, MOMENT_TOL
+from cosserat_chain.numerics.cycle_events import CIRCLE_MULTIPLIER, MOMENT_TOL, circle_events_between
 from cosserat_chain.numerics.kit import BranchEnd
 from cosserat_chain.systems.base import System
 
@@ -140,3 +141,24 @@ def test_the_pen_demo_s_period_doubling_is_auto_s(pen_in_phase_branch):
     assert event.point.parameter("I") == event.parameter
     assert np.min(np.abs(event.point.nontrivial_multipliers + 1.0)) < 1e-8
     assert branch.orbits[event.index].parameter("I") < event.parameter < branch.orbits[event.index - 1].parameter("I")
+
+
+def pair(p: float) -> SimpleNamespace:
+    """An orbit at the parameter value p whose complex pair leaves the unit circle at p = 0.305, at the angle 1."""
+    radius = 1.0 + 20.0 * (p - 0.305)
+    return SimpleNamespace(p=p, nontrivial_multipliers=np.array([radius * cmath.exp(1j), radius * cmath.exp(-1j)]))
+
+
+def test_the_locator_takes_any_parameter_and_nothing_between_two_orbits_at_one_value():
+    """``value`` names the branch's parameter: the crossing is located in it to MOMENT_TOL; a sign change between two
+    orbits at the same value (no interval in the parameter) is not solved for."""
+    (event,) = circle_events_between(pair(0.3), pair(0.31), lambda value, a, b: pair(value), value=lambda orbit: orbit.p)
+    assert event["kind"] == "torus" and event["located"] and abs(event["moment"] - 0.305) < MOMENT_TOL
+    assert event["angle"] == pytest.approx(1.0, abs=1e-12)
+
+    def solve(value, a, b):
+        raise AssertionError("no trial may be solved")
+
+    inside, outside = pair(0.3), pair(0.31)
+    outside.p = 0.3
+    assert circle_events_between(inside, outside, solve, value=lambda orbit: orbit.p) == []

@@ -175,7 +175,10 @@ def circle_events_between(
     a: Any, b: Any, solve: Solve, *, value: Value = moment, tol: float = MOMENT_TOL, splits: int = SPLITS
 ) -> list[dict]:
     """The period doublings and tori between two consecutive orbits a and b of a branch, in the order from a to b
-    (:func:`locate_circle_events`, whose parameters these are; one step of it)."""
+    (:func:`locate_circle_events`, whose parameters these are; one step of it). None between two orbits at one value
+    of the parameter (no interval to locate in)."""
+    if value(a) == value(b):
+        return []
     found = []
     pieces = _separated(a, b, solve, value, splits)
     for start, stop in zip(pieces[:-1], pieces[1:], strict=True):
@@ -220,8 +223,5 @@ def locate_circle_events(
     """
     found = []
     for i in range(1, len(orbits)):
-        if value(orbits[i - 1]) != value(orbits[i]):
-            found.extend(
-                (i, event) for event in circle_events_between(orbits[i - 1], orbits[i], solve, value=value, tol=tol, splits=splits)
-            )
+        found.extend((i, event) for event in circle_events_between(orbits[i - 1], orbits[i], solve, value=value, tol=tol, splits=splits))
     return found
