@@ -173,3 +173,27 @@ def test_held_bond_potential_and_quasi_continuum_front(g):
     qc = quasi_continuum(params)
     assert qc.front_energy == pytest.approx(np.trapezoid(np.sqrt(2 * W * kappa), p), rel=1e-4)
     assert qc.width == pytest.approx(2 * np.pi / np.max(np.sqrt(2 * W / kappa)), rel=1e-3)
+
+
+def test_eq2_is_not_model_i_linearised_in_the_displacements():
+    """At u = v = 0 a linearisation in u, v keeps model (i)'s exact torque; eq. (2)'s differs beyond small angles.
+
+    One particle of the paper's chain turned by pi/2, its neighbours at rest: model (i) (its forces, and
+    -dV/dphi of the four links' exact lengths) gives the torque -0.258, eq. (2) -4 b^2 (E1 + (h/d)^2 E2)
+    = -0.468; they agree to O(phi^2) only (ratio 0.9999 at 0.01 rad).
+    """
+    params = ChainParams(N=3)
+    g = dict(h=1.0, a=0.2, b=0.2, E1=1.0, E2=1.0)
+    x = np.zeros((3, 7))
+    for angle, ratio in ((0.01, 1.0), (np.pi / 2, 0.5517)):
+        x[2, 3] = angle
+        nonlinear = get_model("nonlinear").forces(params, x)[2, 3]
+        sine = get_model("sine").forces(params, x)[2, 3]
+        assert sine == pytest.approx(-4 * g["b"] ** 2 * (g["E1"] + params.h**2 / params.d**2 * params.E2) * np.sin(angle), rel=1e-12)
+        step = 1e-6
+
+        def held(p):
+            return bond_potential(params, 0.0, p) + bond_potential(params, p, 0.0)
+
+        assert nonlinear == pytest.approx(-(held(angle + step) - held(angle - step)) / (2 * step), rel=1e-7)
+        assert nonlinear / sine == pytest.approx(ratio, abs=2e-4)
