@@ -730,14 +730,15 @@ def continue_orbits(
 
 def _with_circle_events(problem: _OrbitProblem, traced: Continuation) -> list[Event]:
     """The kit's events of ``traced`` and the period doublings and tori between its consecutive orbits
-    (:meth:`_OrbitProblem.circle_events`, those :meth:`~_OrbitProblem.stop` found reused), in the order of the branch."""
+    (:meth:`_OrbitProblem.circle_events`, those :meth:`~_OrbitProblem.stop` found reused), in the order of the branch
+    (within a step the period doublings and tori first: the loss of stability the kit locates at one is listed after it)."""
     points = traced.points
     found = [
-        (i, Event(e["kind"], e["orbit"] if e["located"] else points[i], e["moment"], i, None, located=e["located"]))
+        Event(e["kind"], e["orbit"] if e["located"] else points[i], e["moment"], i, None, located=e["located"])
         for i in range(1, len(points))
         for e in problem.circle_events(points[i - 1], points[i])
     ]
-    return [event for _, event in sorted([*((e.index, e) for e in traced.events), *found], key=lambda item: item[0])]
+    return sorted([*found, *traced.events], key=lambda event: event.index)
 
 
 def _fitted_end(branch: OrbitBranch) -> tuple[float | None, float | None]:
