@@ -233,6 +233,7 @@ def _summary(ds, params, model: str, t_end: float, out: Path | None) -> dict[str
         "accuracy": {
             "balance_relative": finite_or_none(float(ds.attrs["balance_relative"])),
             "rotation_per_step": finite_or_none(float(ds.attrs["rotation_per_step"])),
+            "damping_per_step": finite_or_none(float(ds.attrs.get("damping_per_step", float("nan")))),
         },
         "out": str(out) if out else None,
     }
