@@ -119,3 +119,12 @@ def test_breather_orbit_against_independent_integration():
     full[:, 1:-1] = q.reshape(3, n)
     energy = get_model("nonlinear").energy(params, full) + 0.5 * np.sum(np.repeat([params.m, params.m, params.j], n) * w * w)
     assert energy == pytest.approx(orbit.energy, abs=1e-9)
+
+
+def test_light_particle_localization_run_is_flagged():
+    """`rotate` on the same light particle made its 3 turns by t = 1.99, where DOP853 turns 7.83 rad by t = 2."""
+    from cosserat_chain.experiments.localization import localization_run
+
+    result = localization_run(ChainParams(N=3, j=1e-5), "nonlinear", 0.5, turns=3, t_max=10.0)
+    assert result.status == Status.INACCURATE
+    assert "damping" in result.message

@@ -54,7 +54,7 @@ from ..params import ChainParams
 from ..state import ROWS, column, zeros
 from ..status import Status
 from .checkpoint import CheckpointClock, open_checkpoint, params_settings, seal
-from .simulation import run_attributes
+from .simulation import DAMPING_PER_STEP, run_attributes
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
     import xarray as xr
@@ -117,7 +117,8 @@ class LocalizationResult:
     diagnostics : StreamingDiagnostics
     status : {"completed", "inaccurate", "time_limit", "interrupted"}
         ``inaccurate``: the turns were made, but the loaded particle turned by more than
-        :data:`~cosserat_chain.numerics.integrators.MAX_SPIN_PER_STEP` radians per step on average.
+        :data:`~cosserat_chain.numerics.integrators.MAX_SPIN_PER_STEP` radians per step on average,
+        or its damping relaxes a velocity within a step (:data:`~.simulation.DAMPING_PER_STEP`).
         ``completed``: the loaded particle made the requested turns.
     message : str
     wall_time : float
@@ -427,6 +428,14 @@ def localization_run(
             f"{final.diagnostics.turns_completed} full turns at t={final.t_end:.6g}, but at {abs(spin) * dt:.3g} rad per step "
             f"(mean angular velocity {spin:.4g}, dt={dt:g}; tolerance {MAX_SPIN_PER_STEP:g}): inaccurate; "
             f"use dt <= {MAX_SPIN_PER_STEP / abs(spin):.3g}"
+        )
+    elif final.diagnostics.turns_completed >= turns and (decay := float(np.max(np.asarray(params.damping)[:, None] / params.particle_inertia)) * dt) > DAMPING_PER_STEP:
+        # A velocity relaxes within a step: the split damping moves the particle at the wrong speed.
+        final.status = Status.INACCURATE
+        final.message = (
+            f"{final.diagnostics.turns_completed} full turns at t={final.t_end:.6g}, but the damping takes a fraction "
+            f"gamma dt / inertia = {decay:.3g} of a velocity in one step (tolerance {DAMPING_PER_STEP:g}): inaccurate; "
+            f"use dt <= {dt * DAMPING_PER_STEP / decay:.3g}"
         )
     elif final.diagnostics.turns_completed >= turns:
         final.status, final.message = Status.COMPLETED, f"{final.diagnostics.turns_completed} full turns at t={final.t_end:.6g}"
