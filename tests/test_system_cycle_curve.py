@@ -35,15 +35,16 @@ def curve(pen_in_phase_branch):
 
 def test_the_pen_demo_s_period_doubling_curve_in_eps_is_where_each_value_s_own_branch_doubles(curve):
     """Each point of the curve is the period doubling that a one-parameter continuation in I of that eps's own
-    in-phase rotation (from a settled run) locates, to 1e-8 in I and the period; a multiplier is -1 there."""
+    in-phase rotation (from a settled run) locates, to 1e-8 in I and the period; a multiplier is -1 there. The last
+    point is checked here, the middle one (eps = 0.12) by the system diagram's own row below."""
     assert curve.complete and curve.parameter == "I" and list(curve.values) == [0.1, 0.12, 0.15]
     assert np.all(np.diff(curve.moment) > 0.01)  # more damping, a larger current to keep it rotating in phase
-    for eps, current, period, orbit in zip(curve.values[1:], curve.moment[1:], curve.period[1:], curve.orbits[1:]):
-        independent = period_doubling_on(in_phase_branch(eps=eps))
-        assert current == pytest.approx(independent.parameter("I"), abs=1e-8)
-        assert period == pytest.approx(independent.period, abs=1e-8)
+    for eps, current, orbit in zip(curve.values[1:], curve.moment[1:], curve.orbits[1:]):
         assert orbit.parameter("eps") == eps and orbit.parameter("I") == current
         assert np.min(np.abs(orbit.multipliers + 1.0)) < 1e-8
+    independent = period_doubling_on(in_phase_branch(eps=0.15))
+    assert curve.moment[-1] == pytest.approx(independent.parameter("I"), abs=1e-8)
+    assert curve.period[-1] == pytest.approx(independent.period, abs=1e-8)
     summary = curve.as_dict()
     assert summary["parameter"] == "I" and [r["moment"] for r in summary["rows"]] == list(curve.moment)
 
