@@ -121,3 +121,62 @@ def test_an_orbit_shrinking_onto_its_hopf_point_ends_there_not_at_a_fold_of_cycl
     assert "Hopf point" in branch.message
     assert abs(branch.values[-1] - _hopf(system)) < 0.02
     assert np.all(np.abs(branch.periods - _circle(system)[1]) < 1e-7)
+
+
+def _retrapping(alpha: float, low: float, high: float) -> float:
+    """The damped driven pendulum's retrapping torque I_r(alpha), independently: the saddle's unstable
+    manifold (SciPy's DOP853 at rtol 1e-13) reaches the next saddle at I_r; above, it goes over the top
+    (the pendulum rotates), below, it falls back (its rate comes to zero first). Bisected to 1e-12."""
+    from scipy.integrate import solve_ivp
+
+    def rotates(torque: float) -> bool:
+        saddle = math.pi - math.asin(torque)
+        rate = 0.5 * (-alpha + math.sqrt(alpha**2 + 4 * math.cos(math.asin(torque))))
+
+        def back(t, y):
+            return y[1]
+
+        def over(t, y):
+            return y[0] - saddle - 2 * math.pi - 0.5
+
+        back.terminal, back.direction, over.terminal = True, -1, True
+        run = solve_ivp(
+            lambda t, y: [y[1], torque - math.sin(y[0]) - alpha * y[1]],
+            (0, 1e3),
+            [saddle + 1e-8, rate * 1e-8],
+            method="DOP853",
+            events=[back, over],
+            rtol=1e-13,
+            atol=1e-15,
+        )
+        return run.t_events[1].size > 0
+
+    while high - low > 1e-12:
+        middle = 0.5 * (low + high)
+        low, high = (low, middle) if rotates(middle) else (middle, high)
+    return 0.5 * (low + high)
+
+
+def test_a_fitted_homoclinic_end_lies_within_its_stated_uncertainty():
+    """Defect: the end fitted from the period's growth was the fit over the widest span of periods, with its
+    distance from the fit over half that span as the uncertainty; the wide fit is the worse one (its orbits of
+    shorter period follow the exponential law less closely), and was off by more than the stated uncertainty:
+    1.5e-9 against +- 1.1e-9 on this pair's in-phase rotation, 1.8e-7 against 1.1e-7 on an unequal pendulum pair against
+    AUTO-07p. The narrow fit is now the value, the wide one's distance from it the uncertainty."""
+    from cosserat_chain.systems.lattice import LatticeSystem
+
+    # Two pendula with a Josephson (sine) bond: their in-phase rotation is the single pendulum's.
+    pair = LatticeSystem(
+        sites=2,
+        site_energy="1 - cos(phi) - I*phi",
+        bond_energy="kappa*(1 - cos(phi_r - phi_l))",
+        damping="alpha",
+        parameters={"I": 0.5, "alpha": 0.1, "kappa": 0.2},
+        name="sine-pair",
+    )
+    orbit = find_orbit(pair, (np.array([0.0, 0.0, 5.0, 5.0]), 1.25), turns={"phi_0": 1, "phi_1": 1})
+    branch = continue_orbits(orbit, "I", direction=-1, stop_at=())
+    reference = _retrapping(0.1, 0.12, 0.135)
+    assert abs(reference - 4 * 0.1 / math.pi) < 0.01
+    assert branch.end_value is not None and branch.end_uncertainty is not None, branch.message
+    assert abs(branch.end_value - reference) <= branch.end_uncertainty, (branch.end_value, reference, branch.end_uncertainty)

@@ -743,8 +743,9 @@ def _with_circle_events(problem: _OrbitProblem, traced: Continuation) -> list[Ev
 
 def _fitted_end(branch: OrbitBranch) -> tuple[float | None, float | None]:
     """Where the period diverges, from the last orbits: p = p* + c exp(-s T) (a homoclinic end)
-    fitted through three orbits spread over the last span of periods, against the same fit over
-    half that span as its uncertainty."""
+    fitted through three orbits spread over the last half span of periods, against the same fit
+    over the whole span as its uncertainty (the orbits of shorter periods are further from the
+    law, so the narrower fit is the nearer one, and the wider one's distance from it bounds its error)."""
     values, periods = branch.values, branch.periods
     if len(values) < 4:
         return None, None
@@ -773,6 +774,6 @@ def _fitted_end(branch: OrbitBranch) -> tuple[float | None, float | None]:
     # Orbits picked twice (a short span) make the ratios 0/0: that fit is not finite, and neither is its spread.
     with np.errstate(divide="ignore", invalid="ignore"):
         wide, narrow = fit(*spread(span)), fit(*spread(0.5 * span))
-    if not math.isfinite(wide):
-        return None, None
-    return wide, abs(wide - narrow) if math.isfinite(narrow) else None
+    if not math.isfinite(narrow):
+        return (wide, None) if math.isfinite(wide) else (None, None)
+    return narrow, abs(wide - narrow) if math.isfinite(wide) else None
