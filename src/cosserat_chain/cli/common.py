@@ -12,8 +12,10 @@ import gc
 import importlib
 import math
 import os
+import signal
 import sys
 import tempfile
+import threading
 from contextlib import ExitStack
 from enum import Enum
 from pathlib import Path
@@ -93,7 +95,21 @@ class _App(typer.Typer):
         the interpreter's teardown then skips the full collections over every object the imports
         made (NumPy, Numba, SciPy), the largest cost of a short command after the imports.
         Outputs are written and closed by the commands themselves, never left to a collector.
+
+        SIGTERM (a batch scheduler's stop, ``kill``) ends a command as Ctrl-C does, where no
+        handler of the caller's is installed: checkpoints, frames and cells computed so far are
+        kept and the exit status is 130.
         """
+        terminate = None
+        if threading.current_thread() is threading.main_thread() and signal.getsignal(signal.SIGTERM) is signal.SIG_DFL:
+            terminate = signal.signal(signal.SIGTERM, _stopped)
+        try:
+            return self._run(*args, **kwargs)
+        finally:
+            if terminate is not None:
+                signal.signal(signal.SIGTERM, terminate)
+
+    def _run(self, *args, **kwargs):
         argv = kwargs.get("args", args[0] if args else None)
         argv = sys.argv[1:] if argv is None else list(argv)
         completing = any(key.startswith("_") and key.endswith("_COMPLETE") for key in os.environ)
@@ -135,6 +151,11 @@ class _App(typer.Typer):
             return register(guarded)
 
         return decorate
+
+
+def _stopped(signum, frame) -> NoReturn:
+    """SIGTERM's handler while a command runs: the commands' Ctrl-C paths keep what was computed."""
+    raise KeyboardInterrupt
 
 
 # No Rich markup in the help: it would take the TOML tables "[[loads]]" and "[reproduce]" for style tags and drop them.
