@@ -313,6 +313,10 @@ class Orbit:
 
 #: The name under which the period is an unknown or the continued variable (as log T).
 PERIOD = "period"
+#: Along :func:`continue_orbits`, a trial period more than this many times the last orbit's (or less than its inverse)
+#: is not integrated: a Newton iterate thrown far off (a T of 10^7 next to orbits of T = 7 cost a minute of integration) fails at once instead,
+#: and the continuation shortens its step.
+PERIOD_JUMP = 16.0
 
 
 class _Shooting:
@@ -327,6 +331,7 @@ class _Shooting:
 
     def __init__(self, system: System, turns: np.ndarray, reference: np.ndarray, period: float, unknowns: tuple[str, ...], tol, rtol, atol):
         self.system, self.period, self.unknowns, self.tol, self.rtol, self.atol = system, period, unknowns, tol, rtol, atol
+        self.last_period: float | None = None  # set by a continuation (set_reference): the scale of PERIOD_JUMP
         for name in unknowns:
             if name != PERIOD:
                 system.parameter(name)
@@ -336,9 +341,12 @@ class _Shooting:
         self.turns = turns
         self.set_reference(reference)
 
-    def set_reference(self, reference: np.ndarray) -> None:
+    def set_reference(self, reference: np.ndarray, period: float | None = None) -> None:
+        """The phase plane through ``reference``; ``period``: the orbit's there, the scale of :data:`PERIOD_JUMP`."""
         self.reference = np.array(reference, dtype=float)
         self.normal = self.system.vector_field(self.reference)
+        if period is not None:
+            self.last_period = period
 
     def pack(self, orbit: Orbit) -> np.ndarray:
         extra = [math.log(orbit.period) if u == PERIOD else orbit.system.parameter(u) for u in self.unknowns]
@@ -352,6 +360,8 @@ class _Shooting:
                 if not (math.isfinite(w[size + i]) and -50 < w[size + i] < 50):
                     raise EvaluationFailed(f"log T = {w[size + i]!r} out of range")
                 period = math.exp(w[size + i])
+                if self.last_period is not None and not self.last_period / PERIOD_JUMP <= period <= self.last_period * PERIOD_JUMP:
+                    raise EvaluationFailed(f"T = {period:.6g} is more than {PERIOD_JUMP:g} times off the last orbit's {self.last_period:.6g}")
             else:
                 values[name] = float(w[size + i])
         return w[:size], period, self.system.with_parameters(**values) if values else self.system
@@ -553,7 +563,7 @@ class _OrbitProblem:
 
     def accept(self, previous: Orbit, candidate: Orbit) -> bool:
         # The next phase plane passes through the orbit just found.
-        self.shooting.set_reference(candidate.y0)
+        self.shooting.set_reference(candidate.y0, candidate.period)
         self.step = (previous, candidate)
         return True
 
@@ -702,6 +712,7 @@ def continue_orbits(
         system.parameter(parameter)
     unknowns = (PERIOD if unfold is None else unfold, parameter)
     shooting = _Shooting(system, orbit.turns, orbit.y0, orbit.period, unknowns, tol, rtol, atol)
+    shooting.set_reference(orbit.y0, orbit.period)
     problem = _OrbitProblem(shooting, period_max, limits, until_unstable, orbit.stable, unfold, stop_at)
     w0 = shooting.pack(orbit)
     traced: Continuation = continuation(
