@@ -173,7 +173,7 @@ def _setup(orbit: Orbit, parameter: str, limits, tol: float) -> tuple[_Shooting,
         low, high = (2 * math.pi * k / limits[1], 2 * math.pi * k / limits[0])
     else:
         low, high = limits
-    problem = _HamiltonianProblem(shooting, math.inf, (low, high), False, orbit.stable, orbit.unfold, ())
+    problem = _HamiltonianProblem(shooting, math.inf, (low, high), False, orbit.stable, orbit.unfold)
     return shooting, problem, name
 
 

@@ -538,7 +538,7 @@ class _OrbitProblem:
         until_unstable: bool,
         start_stable: bool,
         unfold: str | None,
-        stop_at: tuple[str, ...],
+        stop_at: tuple[str, ...] = (),
     ):
         self.shooting, self.tol, self.unfold = shooting, shooting.tol, unfold
         self.period_max, self.limits, self.until_unstable, self.start_stable = period_max, limits, until_unstable, start_stable
