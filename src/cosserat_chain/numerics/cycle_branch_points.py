@@ -223,6 +223,13 @@ def _plus_one(orbit) -> float:
     return float(np.sum(mu[np.argsort(np.abs(mu - 1.0))[:2]]).real) - 2.0
 
 
+def _old_family_orbit(orbit: shooting.Orbit, name: str, value: float, tol: float, rtol: float, atol: float) -> shooting.Orbit:
+    """The orbit of ``orbit``'s family at ``name`` = ``value``, by :func:`~.shooting.find_orbit` in :data:`SUBSTEPS` steps."""
+    for step in np.linspace(orbit.parameter(name), value, SUBSTEPS + 1)[1:]:
+        orbit = shooting.find_orbit(orbit.system.with_parameters(**{name: float(step)}), orbit, tol=tol, rtol=rtol, atol=atol)
+    return orbit
+
+
 def _refined(branch: shooting.OrbitBranch, event, tol: float, rtol: float, atol: float):
     """A system's branch point on the old branch itself: the kit locates its event on the arclength, where the
     corrector can land on the crossing family near the point (the pen's event point lies 2e-3 off the old,
@@ -232,9 +239,19 @@ def _refined(branch: shooting.OrbitBranch, event, tol: float, rtol: float, atol:
     name = branch.parameter
     low, high = branch.orbits[event.index - 1], branch.orbits[event.index]
     f_low, f_high = _plus_one(low), _plus_one(high)
-    best = min((low, high), key=lambda o: abs(_plus_one(o)))
     if f_low * f_high > 0:
-        return event.point
+        # The orbit after the event is the crossing family's (the continuation turned onto it at the point): the old
+        # family's orbit just beyond the event (a twentieth of the last step), from the orbit before it, is the
+        # bracket's other end.
+        try:
+            beyond = event.parameter + (event.parameter - low.parameter(name)) / 20.0
+            high = _old_family_orbit(low, name, beyond, tol, rtol, atol)
+        except shooting.OrbitNotFound:
+            return event.point
+        f_high = _plus_one(high)
+        if f_low * f_high > 0:
+            return event.point
+    best = min((low, high), key=lambda o: abs(_plus_one(o)))
     side = 0
     for _ in range(REFINE_ITERATIONS):
         p_low, p_high = low.parameter(name), high.parameter(name)
@@ -242,8 +259,7 @@ def _refined(branch: shooting.OrbitBranch, event, tol: float, rtol: float, atol:
         nearer = low if abs(value - p_low) <= abs(value - p_high) else high
         orbit = nearer
         try:
-            for step in np.linspace(nearer.parameter(name), value, SUBSTEPS + 1)[1:]:
-                orbit = shooting.find_orbit(orbit.system.with_parameters(**{name: float(step)}), orbit, tol=tol, rtol=rtol, atol=atol)
+            orbit = _old_family_orbit(nearer, name, value, tol, rtol, atol)
         except shooting.OrbitNotFound:
             break
         f = _plus_one(orbit)
