@@ -314,8 +314,8 @@ class Orbit:
 #: The name under which the period is an unknown or the continued variable (as log T).
 PERIOD = "period"
 #: Along :func:`continue_orbits`, a trial period more than this many times the last orbit's (or less than its inverse)
-#: is not integrated: a Newton iterate thrown far off (a T of 10^7 next to orbits of T = 7 cost a minute of integration) fails at once instead,
-#: and the continuation shortens its step.
+#: is not integrated: a Newton iterate thrown far off (a T of 10^7 next to orbits of T = 7, a million periods'
+#: integration) fails at once instead, and the continuation shortens its step.
 PERIOD_JUMP = 16.0
 
 
