@@ -30,22 +30,12 @@ from cosserat_chain.experiments.breather_atlas import AtlasChange, check_locate_
 from cosserat_chain.experiments.system_breather_atlas import system_breather_atlas
 from cosserat_chain.numerics.breather_arclength import collisions_between, instability_counts, pair_test
 from cosserat_chain.systems.lattice import LatticeSystem
+from mathieu_rotor_system import SYSTEM_FILE
 
 runner = CliRunner()
 C, W0, W1 = 0.3, 1.0, 1.01
 #: Above both tongues, in their overlap, below both.
 OMEGAS = [1.03, 0.998, 0.96]
-SYSTEM_FILE = """
-from cosserat_chain.systems.lattice import LatticeSystem
-
-
-def build():
-    return LatticeSystem(
-        sites=1, dofs=("phi", "x", "y"), damping="gamma", bond_energy="0",
-        site_energy="(w0**2 + C*cos(phi))*x**2/2 + (w1**2 + C*cos(phi))*y**2/2",
-        parameters={"C": 0.3, "w0": 1.0, "w1": 1.01, "gamma": 0.0}, name="rotor_two_mathieu",
-    )
-"""
 
 
 @pytest.fixture(autouse=True)
@@ -157,7 +147,12 @@ def test_the_dataset_and_the_json_carry_the_changes(atlas, tmp_path):
         for name in ds.data_vars:
             if str(name).startswith("change_"):
                 assert ds[name].attrs["units"] and ds[name].attrs["long_name"]
-        assert json.loads(ds.attrs["settings_json"])["locate"] == {"tol": 1e-9, "every": False, "along": ["omega", "C"], "not_one_family": []}
+        assert json.loads(ds.attrs["settings_json"])["locate"] == {
+            "tol": 1e-9,
+            "every": False,
+            "along": ["omega", "C"],
+            "not_one_family": [],
+        }
     summary = atlas.as_dict()["stability_changes"]
     assert [c["omega"] for c in summary] == [c.change.omega for c in atlas.changes]
     assert all(c["placed_by"] == "discriminant" and c["kind"] == "+1" for c in summary)

@@ -36,22 +36,12 @@ from cosserat_chain.experiments.breathers import _Member, _solvers
 from cosserat_chain.experiments.system_breather_atlas import SystemBreatherAtlas, system_breather_atlas
 from cosserat_chain.systems import takeno_peyrard
 from cosserat_chain.systems.lattice import LatticeSystem
+from mathieu_rotor_system import SYSTEM_FILE
 
 runner = CliRunner()
 W0, W1, OMEGA = 1.0, 1.01, 0.97
 #: The couplings of the Mathieu atlas: below both tongues' edges at OMEGA, between them, above both.
 COUPLINGS = [0.2, 0.4, 0.6]
-SYSTEM_FILE = """
-from cosserat_chain.systems.lattice import LatticeSystem
-
-
-def build():
-    return LatticeSystem(
-        sites=1, dofs=("phi", "x", "y"), damping="gamma", bond_energy="0",
-        site_energy="(w0**2 + C*cos(phi))*x**2/2 + (w1**2 + C*cos(phi))*y**2/2",
-        parameters={"C": 0.3, "w0": 1.0, "w1": 1.01, "gamma": 0.0}, name="rotor_two_mathieu",
-    )
-"""
 #: The sine chain with N = 2: at Omega = 5.8 a quartet leaves the circle between b = 0.16 and 0.2.
 CHAIN = ChainParams(N=2, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
 #: Takeno-Peyrard, 7 sites: the one-site family loses stability at +1 along C between 0.05 and 0.07 at Omega = 1.15.
