@@ -211,15 +211,17 @@ def critical(
                     + ", lies on its unstable part)"
                 )
             if r.crossing is not None:
-                q, c = r.branch_point, r.crossing
+                q, c = r.branch_point or r.first_fold, r.crossing
+                where = "a branch point" if r.branch_point is not None else "a fold past which the trace was cut short"
                 fold = (
-                    f"M_c = {c.moment:.15g} at phi_0 = {c.phi0:.15g} rad (onset of rotation: the stable branch from rest ends at a "
-                    f"branch point, M = {q.moment:.15g} at phi_0 = {q.phi0:.15g} rad, past which a stable crossing branch carries "
-                    "the chain, at rest, to this fold)"
+                    f"M_c = {c.moment:.15g} at phi_0 = {c.phi0:.15g} rad (onset of rotation: the stable branch from rest ends at "
+                    f"{where}, M = {q.moment:.15g} at phi_0 = {q.phi0:.15g} rad, past which a relaxation comes to rest on a "
+                    "stable branch that carries the chain, at rest, to this fold"
+                    + (": a lower bound, the chain still rests past it)" if r.crossing_unresolved else ")")
                 )
             elif r.crossing_unresolved:
                 fold += "; a stable crossing branch carries the chain past it, not followed to its end: M_c is a lower bound"
-            if r.snap_through:
+            if r.snap_through and r.crossing is None:
                 fold += f"; the stable branch from rest ends earlier, at M = {r.first_fold.moment:.15g}, phi_0 = {r.first_fold.phi0:.15g} rad (snap-through"
                 fold += ")" if r.snap_to is None else f" to the stable state at phi_0 = {r.snap_to.phi0:.15g} rad)"
             if r.onset_particle is not None and r.onset_particle != r.particle:
@@ -253,16 +255,18 @@ def critical(
                 f"the {name} branch used all {max_points} points before the loaded particle turned once: "
                 "M_c is decided on the traced part (raise --max-points)",
             )
+        decided = "M_c is decided on the traced part" if r.crossing is None else "M_c is decided past it, by relaxations"
         if r.branch.stop == BranchEnd.STEP_TOO_SMALL:
-            exit_on(Status.STEP_TOO_SMALL, f"the {name} branch: {r.branch.message}; M_c is decided on the traced part")
+            exit_on(Status.STEP_TOO_SMALL, f"the {name} branch: {r.branch.message}; {decided}")
         if r.branch.stop == BranchEnd.REVERSED:
-            exit_on(Status.FAILED, f"the {name} branch: {r.branch.message}; M_c is decided on the traced part")
+            exit_on(Status.FAILED, f"the {name} branch: {r.branch.message}; {decided}")
         if r.crossing_unresolved:
+            past = r.crossing or r.branch_point or r.first_fold
             exit_on(
                 Status.INACCURATE,
-                f"the {name} branch: past the branch point at M = {r.branch_point.moment:.15g} a relaxation comes to rest on a "
-                "stable crossing branch, which could not be followed to its end: M_c is a lower bound (the relaxation protocol, "
-                "sweep, finds the onset)",
+                f"the {name} branch: past M = {past.moment:.15g} a relaxation comes to rest on a stable branch, which could "
+                "not be followed to where the chain leaves rest: M_c is a lower bound (the relaxation protocol, sweep, finds "
+                "the onset)",
             )
         if not r.accurate:
             spread = max((f.discrepancy for f in (r.fold, r.first_fold) if f is not None and f.discrepancy is not None), default=math.inf)

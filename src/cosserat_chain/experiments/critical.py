@@ -43,6 +43,13 @@ Contract
   a relaxation at 0.99 of it rests, at 1.01 rotates: tests/test_audit_twelfth_statics.py).
   Where that branch cannot be followed to a fold, M_c stays the branch point's moment, a
   lower bound, and ``accurate`` is False.
+* where the trace is cut short past the fold that ends the stable branch from rest (the corrector stalls, the point
+  budget runs out), the traced branch cannot say where the chain goes from that fold: a relaxation just above it decides,
+  as past a branch point (:func:`onset_past`, the branch each relaxation rests on followed to its fold, up to
+  :data:`MAX_CROSSINGS` of them). N = 10, a = 0.4166, b = 0.2224: the trace stalls past the first fold, M = 0.13239;
+  the chain snaps onto a stable state near phi_0 = 1.08 and rotates only above that branch's fold, M_c = 0.371938
+  (``onset`` "crossing_fold"; ramped runs rest at 0.99 of it and rotate at 1.01:
+  tests/test_critical_past_trace.py). The command line still exits with the trace's status.
 
 Where K's softest eigenvalue at rest lies within :data:`CONFIRM_MARGIN` times its
 round-off (a long clamped chain: its bending mode's eigenvalue falls like N^-4, within
@@ -203,6 +210,9 @@ CROSSING_NUDGE = 1e-3
 #: :data:`CROSSING_TURN` rad beyond its start, to its first maximum of M (located by Brent's method on dM/dphi_0).
 CROSSING_STEP = 0.02
 CROSSING_TURN = 2 * math.pi
+#: Most stable branches a slowly loaded chain is followed onto, one after another, past the end of the traced branch's
+#: stable part (:func:`onset_past`); still at rest past the last one's fold, M_c is that fold's moment, a lower bound.
+MAX_CROSSINGS = 4
 
 #: What ``index_before`` / ``index_after`` and ``stable`` along the branch count (the JSON's ``index_meaning``).
 INDEX_MEANING = (
@@ -285,10 +295,11 @@ class CriticalResult:
     dynamics: list[DynamicStability] | None = None
     #: The Hopf points of the traced branch ([] for a conservative model with positive damping; None: not searched).
     hopf: list[HopfPoint] | None = None
-    #: Where the stable branch from rest ends at a branch point past which a stable crossing branch carries the chain:
-    #: that branch's first fold, M_c (:func:`crossing_fold`); None otherwise.
+    #: Where the stable branch from rest ends at a branch point, or at a fold past which the trace was cut short, and a
+    #: relaxation just past it comes to rest on a stable branch: the first fold past which the chain leaves rest, M_c
+    #: (:func:`onset_past`); None otherwise.
     crossing: Fold | None = None
-    #: True where such a crossing branch was found but not followed to a fold: M_c is then a lower bound.
+    #: True where such a branch was found but not followed to where the chain leaves rest: M_c is then a lower bound.
     crossing_unresolved: bool = False
 
     @property
@@ -351,13 +362,15 @@ class CriticalResult:
 
     @property
     def snap_through(self) -> bool:
-        """Whether the stable branch from rest ends at its first fold while M_c lies further along (a later fold or branch point)."""
-        return self.end == "fold" and (self.branch_point is not None or self.first_fold is not self.fold)
+        """Whether the stable branch from rest ends at its first fold while M_c lies further along (a later fold or branch
+        point, or the fold of a branch the chain comes to rest on past the traced part: ``crossing``)."""
+        return self.end == "fold" and (self.branch_point is not None or self.first_fold is not self.fold or self.crossing is not None)
 
     @property
     def onset(self) -> str | None:
         """What ends the stable branch from rest and starts the rotation: "fold", "branch_point", "crossing_fold" (the
-        fold of a stable crossing branch past the branch point: ``crossing``) or None."""
+        fold of a stable branch the chain comes to rest on past the branch point, or past a fold where the trace was cut
+        short: ``crossing``) or None."""
         if self.crossing is not None:
             return "crossing_fold"
         if self.branch_point is not None:
@@ -630,8 +643,12 @@ def critical_point(
     snapped = branch.stable_end is None and first is not None and onset is not first
     snap_to = _snap_target(params, model, branch, first, particle) if snapped else None
     crossing, unresolved = None, False
-    if isinstance(onset, BranchPoint) and model.conservative and onset.index_before == 0:
-        crossing, unresolved = crossing_fold(params, model, onset, particle=particle)
+    # Past a branch point, or past a fold where the trace was cut short (a stalled corrector: N = 10, a = 0.4166,
+    # b = 0.2224, whose chain snaps from the fold at M = 0.1324 onto a stable state the trace never reached and rotates
+    # only above 0.3719), where the chain goes is decided by relaxations, not by the traced branch.
+    past_trace = isinstance(onset, Fold) and not branch.complete
+    if model.conservative and (isinstance(onset, BranchPoint) and onset.index_before == 0 or past_trace):
+        crossing, unresolved = onset_past(params, model, onset, particle=particle)
         onset_particle = onset_particle if crossing is None else crossing.mode_particle
     return CriticalResult(
         params, model.name, particle, fold, compliance, branch, first, snap_to, onset if isinstance(onset, BranchPoint) else None,
@@ -767,10 +784,30 @@ def near_singular_at_rest(params: ChainParams, model: Model) -> bool:
     return value < CONFIRM_MARGIN * resolution
 
 
-def crossing_fold(params: ChainParams, model: Model, point: BranchPoint, *, particle: int = 0) -> tuple[Fold | None, bool]:
-    """The onset of rotation past a branch point that ends a stable part of the branch, where a crossing branch is stable.
+def onset_past(params: ChainParams, model: Model, point: BranchPoint | Fold, *, particle: int = 0) -> tuple[Fold | None, bool]:
+    """The onset of rotation past ``point``, where a stable part of the branch ends, by :func:`crossing_fold` repeated.
 
-    A relaxation (:func:`~cosserat_chain.numerics.relaxation.relax`) at :data:`CROSSING_EXCESS` times the branch point's
+    Where a relaxation just past ``point`` comes to rest on a stable branch, that branch's first maximum of M is tested the
+    same way, up to :data:`MAX_CROSSINGS` branches: the first maximum past which the chain leaves rest is M_c,
+    ``(fold, False)``. ``(None, False)`` where the chain leaves rest at ``point`` itself; ``(fold, True)`` or
+    ``(None, True)`` where a branch it rests on could not be followed to a maximum, or it still rests past the last one:
+    the moment reached is then a lower bound of M_c.
+    """
+    crossing, unresolved = crossing_fold(params, model, point, particle=particle)
+    for _ in range(MAX_CROSSINGS - 1):
+        if crossing is None or unresolved:
+            return crossing, unresolved
+        further, unresolved = crossing_fold(params, model, crossing, particle=particle)
+        if further is None:
+            return crossing, unresolved
+        crossing = further
+    return crossing, True
+
+
+def crossing_fold(params: ChainParams, model: Model, point: BranchPoint | Fold, *, particle: int = 0) -> tuple[Fold | None, bool]:
+    """The onset of rotation past a branch point or fold that ends a stable part of the branch, where a crossing branch is stable.
+
+    A relaxation (:func:`~cosserat_chain.numerics.relaxation.relax`) at :data:`CROSSING_EXCESS` times the point's
     moment starts from its state nudged by :data:`CROSSING_NUDGE` along K's lowest mode, each way. Where neither comes to
     rest at a stable state, the chain leaves the branch there: ``(None, False)``. Where one does, the branch it rests on
     is followed with the loaded particle's angle held (:func:`~cosserat_chain.numerics.newton.solve_rotation_controlled`,
