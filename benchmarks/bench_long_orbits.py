@@ -10,6 +10,7 @@ Run from the repository root::
     python benchmarks/bench_long_orbits.py --continuation 8 --sizes 100 200   # an orbit and 3 continuation points
     python benchmarks/bench_long_orbits.py --picard --sizes 50 100 200      # Newton-Picard against the blocks
     python benchmarks/bench_long_orbits.py --picard --sizes 1000 --progress # Newton-Picard alone (hours at N = 1000)
+    python benchmarks/bench_long_orbits.py --picard --case short --picard-methods blocks --sizes 500 --blocks-max 1000
 
 The sine chain (eq. (2)) with strong damping (all gammas 1, other fields default) under the
 moment 0.3 on particle 0: its rotation settles on one stable one-turn orbit at every length
@@ -57,6 +58,10 @@ set Newton-Picard's options (``find_periodic_orbit(..., rho=, guard=)``); a run 
 converge is recorded with its message, CPU seconds and columns. ``--settle K``: the guess continued
 by K more ``initial_guess`` calls from its own state (each a few turns: the settled run stops
 where two turns take the same time to 1e-3, while the period still drifts).
+``--case short``: bench_collocation_long.py's chain instead (default fields, M = 0.5, T about
+1.26; :data:`CASES`), the row keyed by its case too; ``--picard-methods blocks`` runs the blocks
+alone (``--picard --case short --picard-methods blocks --sizes 1000 --blocks-max 1000``). Each
+method's entry also has the process's peak resident memory (``peak_rss_GB``, measured).
 
 ``--continuation M``: for each N of ``--sizes`` (default 100, 200), the chain of
 :data:`SEGMENT_DAMPING` under the moment above, by the blocks with M segments: the orbit from the guess (``find_periodic_orbit``), then
@@ -73,6 +78,7 @@ import argparse
 import json
 import math
 import os
+import resource
 import sys
 import time
 from pathlib import Path
@@ -89,6 +95,9 @@ RESULTS = Path(__file__).resolve().parent / "results"
 SIZES = (10, 30, 100, 200)
 METHODS = ("dense", "blocks", "krylov")
 MODEL, MOMENT, DAMPING = "sine", 0.3, 1.0
+#: --picard's cases: (gamma_u = gamma_v = gamma_phi, moment); None keeps the fields' defaults. ``strong``: the chain above
+#: (T about 21); ``short``: bench_collocation_long.py's (default fields, M = 0.5, T about 1.26).
+CASES = {"strong": (DAMPING, MOMENT), "short": (None, 0.5)}
 #: (gamma_u, gamma_v, gamma_phi) of --segments: the angles' modes damped at gamma_phi / j = 3.75, the others at 1.
 SEGMENT_DAMPING = (1.0, 1.0, 0.1)
 #: Time integrated per rate measurement.
@@ -166,33 +175,47 @@ def measure(n: int, methods: list[str], dense_max: int, krylov_max: int, threads
     return row
 
 
-def measure_picard(n: int, blocks_max: int, threads: int, counter: _Counter, rho: float, guard: int, settle: int = 0) -> dict:
-    """Newton-Picard (``rho``, ``guard``) and, up to ``blocks_max``, the blocks from the same guess at N = n (``--picard``);
-    a Newton-Picard run that does not converge is recorded as such (its message, CPU and columns). ``settle``: the
-    settled guess continued by that many more calls of ``initial_guess`` from its own state (each a few turns)."""
-    params = ChainParams(N=n, gamma_u=DAMPING, gamma_v=DAMPING, gamma_phi=DAMPING)
+def measure_picard(
+    n: int,
+    blocks_max: int,
+    threads: int,
+    counter: _Counter,
+    rho: float,
+    guard: int,
+    settle: int = 0,
+    case: str = "strong",
+    methods: tuple[str, ...] = ("picard", "blocks"),
+) -> dict:
+    """Newton-Picard (``rho``, ``guard``) and, up to ``blocks_max``, the blocks from the same guess at N = n (``--picard``)
+    on ``case`` (:data:`CASES`), those of ``methods``; a run that does not converge is recorded as such (its message, CPU
+    and columns) and ends the row. ``settle``: the settled guess continued by that many more calls of ``initial_guess``
+    from its own state (each a few turns). Each method's entry has the process's peak resident memory so far
+    (``peak_rss_GB``: it never falls, so a row's first method's is its own where the process ran that N alone)."""
+    damping, moment = CASES[case]
+    params = ChainParams(N=n) if damping is None else ChainParams(N=n, gamma_u=damping, gamma_v=damping, gamma_phi=damping)
     long_orbits.THREADS = threads
     start = time.process_time()
-    guess = initial_guess(params, MODEL, MOMENT)
+    guess = initial_guess(params, MODEL, moment)
     for _ in range(settle):
-        guess = initial_guess(params, MODEL, MOMENT, x0=guess[0], v0=guess[1])
+        guess = initial_guess(params, MODEL, moment, x0=guess[0], v0=guess[1])
     size = 2 * n_free(params)
     row = {
         "N": n, "size": size, "guess_cpu_s": time.process_time() - start, "guess_period": guess[2], "settle": settle, "rho": rho,
-        "guard": guard, "methods": {},
+        "guard": guard, "case": case, "moment": moment, "methods": {},
     }  # fmt: skip
-    for method in ("picard", "blocks") if n <= blocks_max else ("picard",):
+    for method in [m for m in methods if m == "picard" or n <= blocks_max]:
         counter.reset()
         load = os.getloadavg()[0]
         cpu = time.process_time()
         options = {"rho": rho, "guard": guard} if method == "picard" else {}
         try:
-            orbit = find_periodic_orbit(params, MODEL, MOMENT, guess=guess, method=method, **options)
+            orbit = find_periodic_orbit(params, MODEL, moment, guess=guess, method=method, **options)
         except OrbitError as err:
             products, integrations = counter.reset()
             row["methods"][method] = {
                 "converged": False, "message": str(err), "cpu_s": time.process_time() - cpu, "load_average": load,
                 "load_average_after": os.getloadavg()[0], "products": products, "integrations": integrations,
+                "peak_rss_GB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6,
             }  # fmt: skip
             break
         cpu = time.process_time() - cpu
@@ -224,8 +247,9 @@ def measure_picard(n: int, blocks_max: int, threads: int, counter: _Counter, rho
             "trivial_distance_from_1": abs(orbit.trivial_multiplier - 1.0),
             "trivial_error": orbit.trivial_multiplier_error,
             "memory_MB": memory / 1e6,
+            "peak_rss_GB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6,
         }
-        if method == "blocks":
+        if method == "blocks" and "picard" in row["methods"]:
             picard = row["methods"]["picard"]["orbit"]
             entry["period_difference"] = abs(orbit.period - picard.period)
             entry["state_difference"] = float(max(np.max(np.abs(orbit.x - picard.x)), np.max(np.abs(orbit.v - picard.v))))
@@ -238,8 +262,10 @@ def measure_picard(n: int, blocks_max: int, threads: int, counter: _Counter, rho
 
 
 def _label(method: str, row: dict) -> str:
-    """Newton-Picard's row names its rho and guard (rows from before they were options: 0.5 and 8)."""
-    return f"picard (rho {row.get('rho', 0.5)}, guard {row.get('guard', 8)})" if method == "picard" else method
+    """Newton-Picard's row names its rho and guard (rows from before they were options: 0.5 and 8); a row of another case
+    than ``strong`` names it."""
+    label = f"picard (rho {row.get('rho', 0.5)}, guard {row.get('guard', 8)})" if method == "picard" else method
+    return label if row.get("case", "strong") == "strong" else f"{label}, {row['case']} case"
 
 
 def picard_markdown(rows: list[dict]) -> str:
@@ -458,6 +484,10 @@ def main() -> None:
     parser.add_argument("--rho", type=float, default=newton_picard.RHO, help="Newton-Picard's rho (--picard)")
     parser.add_argument("--guard", type=int, default=newton_picard.GUARD, help="Newton-Picard's guard columns (--picard)")
     parser.add_argument("--settle", type=int, default=0, help="further initial_guess calls continuing the guess (--picard)")
+    parser.add_argument("--case", choices=sorted(CASES), default="strong", help="the chain and moment of --picard (CASES)")
+    parser.add_argument(
+        "--picard-methods", nargs="+", choices=("picard", "blocks"), default=["picard", "blocks"], help="the methods of --picard, in order"
+    )
     args = parser.parse_args()
     log = sys.stderr if args.json else sys.stdout
     default_out = RESULTS / "long_orbits.json"
@@ -470,8 +500,12 @@ def main() -> None:
         sizes, out = chosen([50, 100, 200, 500, 1000], "long_orbit_picard.json")
         counter = _Counter(log if args.progress else None)
         _sweep(
-            sizes, lambda n: measure_picard(n, args.blocks_max, args.threads, counter, args.rho, args.guard, args.settle), picard_markdown, out, log,
-            args.json, merge=lambda row: (row["N"], row.get("rho", 0.5), row.get("guard", 8), row.get("settle", 0)),
+            sizes,
+            lambda n: measure_picard(
+                n, args.blocks_max, args.threads, counter, args.rho, args.guard, args.settle, args.case, tuple(args.picard_methods)
+            ),
+            picard_markdown, out, log, args.json,
+            merge=lambda row: (row.get("case", "strong"), row["N"], row.get("rho", 0.5), row.get("guard", 8), row.get("settle", 0)),
         )  # fmt: skip
     elif args.continuation is not None:
         sizes, out = chosen([100, 200], "long_orbit_continuation.json")
