@@ -30,10 +30,13 @@ from __future__ import annotations
 
 import hashlib
 import importlib.util
+import io
+import keyword
 import os
 import stat
 import sys
 import tempfile
+import tokenize
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 
@@ -93,7 +96,7 @@ class LatticeSystem(System):
     dofs : sequence of str
         Degrees of freedom of a site, e.g. ``("phi",)``.
     angles : sequence of str
-        Those of ``dofs`` in which the system is 2 pi periodic (default: all named ``phi*`` or ``theta*``).
+        Those of ``dofs`` in which the system is 2 pi periodic (default: all named ``phi*``, ``theta*``, ``φ*``, ``ϕ*`` or ``θ*``).
     site_energy, bond_energy : str or sympy.Expr
         Energy of a site in its ``dofs``, of a bond in ``<dof>_l`` and ``<dof>_r``.
     site_force : mapping dof -> str or sympy.Expr, optional
@@ -131,11 +134,16 @@ class LatticeSystem(System):
         dofs = tuple(dofs)
         if not dofs or len(set(dofs)) != len(dofs) or not all(isinstance(d, str) and d.isidentifier() for d in dofs):
             raise SystemDefinitionError(f"dofs must be distinct identifiers, got {dofs!r}")
+        reserved = sorted(n for n in (*dofs, *self._parameters) if keyword.iskeyword(n))
+        if reserved:
+            raise SystemDefinitionError(
+                f"names {reserved} are Python keywords, which a formula cannot use: rename them (e.g. 'lam' for 'lambda')"
+            )
         clash = set(dofs) & set(self._parameters)
         if clash:
             raise SystemDefinitionError(f"names used both as a degree of freedom and a parameter: {sorted(clash)}")
         if angles is None:
-            angles = tuple(d for d in dofs if d.startswith(("phi", "theta")))
+            angles = tuple(d for d in dofs if d.startswith(("phi", "theta", "φ", "ϕ", "θ")))
         unknown = [a for a in angles if a not in dofs]
         if unknown:
             raise SystemDefinitionError(f"angles must be among dofs {dofs}, got {unknown}")
@@ -146,6 +154,7 @@ class LatticeSystem(System):
         self.angle_dofs = tuple(angles)
         self.boundary = boundary
         self._spec = _Spec.build(dofs, tuple(self._parameters), site_energy, bond_energy, site_force or {}, mass, damping)
+        self.mass()  # a mass <= 0 is refused here, naming it, not at the first flow
 
     # -- the System interface ---------------------------------------------------------------
 
@@ -308,15 +317,37 @@ def _per(value, dof: str):
 def _parse(expression, names: Mapping[str, object], field: str):
     sympy = _sympy()
     try:
-        expr = sympy.sympify(expression, locals=dict(names)) if isinstance(expression, str) else sympy.sympify(expression)
+        if isinstance(expression, str):
+            # A bare name that is not declared is a symbol (so refused below, by name), not SymPy's constant or
+            # function of that name: E would be Euler's number, I the imaginary unit, gamma or zeta a function.
+            bare = {n: sympy.Symbol(n) for n in _bare_names(expression) if n not in names and n != "pi"}
+            expr = sympy.sympify(expression, locals={**bare, **names})
+        else:
+            expr = sympy.sympify(expression)
     except (sympy.SympifyError, SyntaxError, TypeError) as error:
         raise SystemDefinitionError(f"{field}: cannot read {expression!r} as a formula ({error})") from None
+    if expr.has(sympy.I, sympy.zoo, sympy.nan, sympy.oo, -sympy.oo):
+        raise SystemDefinitionError(f"{field}: {expression!r} is not a real finite formula (it holds sqrt(-1) or a division by zero)")
     # Symbols of the same name but other assumptions (a user's plain sympy.Symbol("phi")) are the same variable.
     expr = expr.subs({s: names[s.name] for s in expr.free_symbols if s.name in names})
     unknown = sorted(s.name for s in expr.free_symbols if s.name not in names)
     if unknown:
         raise SystemDefinitionError(f"{field} uses unknown names {unknown}; it may use: {', '.join(names) or 'nothing'}")
     return expr
+
+
+def _bare_names(text: str) -> set[str]:
+    """The names in ``text`` not called as functions (empty where it does not tokenize: SymPy then says why)."""
+    try:
+        tokens = [t for t in tokenize.generate_tokens(io.StringIO(text).readline) if t.string.strip()]
+    except (tokenize.TokenError, SyntaxError):
+        return set()
+    following = [t.string for t in tokens[1:]] + [""]
+    return {
+        t.string
+        for t, nxt in zip(tokens, following, strict=True)
+        if t.type == tokenize.NAME and nxt != "(" and not keyword.iskeyword(t.string)
+    }
 
 
 def _block(lines: list[str], targets: list[tuple[str, object]], indent: str, prefix: str) -> None:
