@@ -17,6 +17,9 @@ from cosserat_chain.numerics.shooting import continue_orbits, find_orbit
 from cosserat_chain.systems.base import System
 
 ROTATION = np.array([[0.0, -1.0], [1.0, 0.0]])
+#: The full 2 x 2 pattern of a CSR matrix (column indices, row pointers): the Jacobian's entries are filled into it
+#: directly, not converted from a dense array on each of the integrator's thousands of calls.
+FULL_2X2 = (np.array([0, 1, 0, 1], dtype=np.int32), np.array([0, 2, 4], dtype=np.int32))
 
 
 class FollowerRotor(System):
@@ -50,7 +53,7 @@ class FollowerRotor(System):
     def force_jacobian(self, q):
         p = self.parameters
         j = -p["kk"] * np.eye(2) + (p["a0"] - p["b"] * (q @ q)) * ROTATION - 2 * p["b"] * np.outer(ROTATION @ q, q)
-        return sp.csr_matrix(j)
+        return sp.csr_matrix((j.ravel(), *FULL_2X2), shape=(2, 2))
 
     def parameter_forces(self, q, name):
         self._check_name(name)
