@@ -8,6 +8,7 @@ import pytest
 from conftest import random_geometries
 from cosserat_chain import ChainParams
 from cosserat_chain.models import get_model
+from cosserat_chain.numerics import long_orbits
 from cosserat_chain.numerics.long_orbits import BLOCKS_FROM_N, Monodromy, blocked_shooting, choose_method, leading_multipliers
 from cosserat_chain.numerics.periodic import _shooting, _System, _to_y, continue_orbit, find_periodic_orbit, initial_guess
 
@@ -76,10 +77,11 @@ class _Matrix:
         return self.matrix_
 
 
-def test_arnoldi_on_products_finds_the_leading_eigenvalues_of_a_non_normal_matrix_with_a_known_flow_direction():
+def _known_matrix() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A non-normal 80 x 80 matrix with known eigenvalues (1 the flow's, two complex pairs and a real one near the circle,
+    the rest decaying), its eigenvalues and the eigenvector of 1."""
     rng = np.random.default_rng(4)
     size = 80
-    # Eigenvalue 1 (the flow's), two complex pairs and a real one near the circle, the rest decaying.
     known = np.concatenate(
         [[1.0, 0.95, -0.7], 0.8 * np.exp([0.3j, -0.3j]), 0.5 * np.exp([2.0j, -2.0j]), 0.3 * rng.uniform(-1, 1, size - 7)]
     )
@@ -87,14 +89,30 @@ def test_arnoldi_on_products_finds_the_leading_eigenvalues_of_a_non_normal_matri
     real_basis = basis.astype(complex)
     real_basis[:, 3], real_basis[:, 4] = basis[:, 3] + 1j * basis[:, 4], basis[:, 3] - 1j * basis[:, 4]
     real_basis[:, 5], real_basis[:, 6] = basis[:, 5] + 1j * basis[:, 6], basis[:, 5] - 1j * basis[:, 6]
-    matrix = np.real(real_basis @ np.diag(known) @ np.linalg.inv(real_basis))
-    flow = real_basis[:, 0].real
+    return np.real(real_basis @ np.diag(known) @ np.linalg.inv(real_basis)), known, real_basis[:, 0].real
+
+
+def test_arnoldi_on_products_finds_the_leading_eigenvalues_of_a_non_normal_matrix_with_a_known_flow_direction():
+    matrix, known, flow = _known_matrix()
     for form in (False, True):
         values, errors = leading_multipliers(_Matrix(matrix), flow, 6, form=form)
         leading = known[np.argsort(-np.abs(known))][: values.size]
         assert np.max(_nearest(leading, values)) < 1e-9
         assert values[0] == pytest.approx(1.0, abs=1e-12) and errors[0] < 1e-12
         assert np.all(errors < 1e-8)
+
+
+def test_above_the_dense_threshold_arpack_on_products_of_the_formed_matrix_finds_its_leading_eigenvalues(monkeypatch):
+    # Above ALL_MULTIPLIERS_UP_TO the deflated matrix is never formed: ARPACK runs on H M H's products.
+    matrix, known, flow = _known_matrix()
+    dense, dense_errors = leading_multipliers(matrix, flow, 6)
+    monkeypatch.setattr(long_orbits, "ALL_MULTIPLIERS_UP_TO", 20)
+    values, errors = leading_multipliers(matrix, flow, 6)
+    assert values.size == 7 and dense.size == matrix.shape[0]
+    assert np.max(_nearest(known[np.argsort(-np.abs(known))][:7], values)) < 1e-9
+    assert np.max(_nearest(dense, values)) < 1e-9
+    assert values[0] == pytest.approx(1.0, abs=1e-12) and errors[0] == pytest.approx(dense_errors[0], abs=1e-13)
+    assert np.all(errors < 1e-8)
 
 
 def test_arnoldi_and_the_formed_monodromy_give_the_same_leading_multipliers_of_an_orbit():

@@ -196,22 +196,24 @@ class Monodromy:
     def matrix(self, block: int = BLOCK_COLUMNS, threads: int | None = None) -> np.ndarray:
         """M itself (2 n_free, 2 n_free), from the identity's columns ``block`` at a time, the blocks on ``threads``
         threads (default :data:`THREADS`); the integrator releases the GIL, so they run in parallel.
-        Formed once (:attr:`formed`)."""
+        Formed once (:attr:`formed`), each block written into M in place (the memory of M and the blocks in flight)."""
         if self.formed is not None:
             return self.formed
         size = self.size
         firsts = range(0, size, block)
+        formed = np.empty((size, size))
 
-        def columns(first: int) -> np.ndarray:
+        def columns(first: int) -> None:
             width = min(block, size - first)
             unit = np.zeros((size, width))
             unit[first + np.arange(width), np.arange(width)] = 1.0
-            return self.apply(unit)
+            formed[:, first : first + width] = self.apply(unit)
 
         workers = threads or THREADS or len(os.sched_getaffinity(0))
         with ThreadPoolExecutor(max_workers=max(1, min(workers, len(firsts)))) as pool:
-            self.formed = np.hstack(list(pool.map(columns, firsts)))
-        return self.formed
+            list(pool.map(columns, firsts))
+        self.formed = formed
+        return formed
 
 
 def _shift(system: _System, particle_turns: np.ndarray) -> np.ndarray:
@@ -324,15 +326,25 @@ def blocks_correction(
     """
     loose = (max(rtol, NEWTON_PRODUCTS_RTOL), max(atol, NEWTON_PRODUCTS_RTOL))
     evaluate = _closure(system, phase, _shift(system, particle_turns), rtol, atol, loose)
-    keep = phase.keep
+    kept = np.flatnonzero(phase.keep)
 
     def closure(w: np.ndarray, jacobian: bool) -> Evaluation:
         residual, monodromy, velocity = evaluate(w)
 
         def matrix() -> np.ndarray:
-            mono = monodromy.matrix(threads=threads)
-            top = np.column_stack([mono[:, keep] - np.eye(mono.shape[0])[:, keep], velocity])
-            return np.vstack([top, phase.rows(len(w))])
+            # [(M - I) E, f(Phi_T(y0)); phase rows], written into one array a few columns at a time, and M let go
+            # (only the Jacobian is kept): one copy of M's size at the peak instead of several.
+            mono, size = monodromy.matrix(threads=threads), monodromy.size
+            rows = phase.rows(len(w))
+            out = np.empty((size + rows.shape[0], kept.size + 1))
+            for first in range(0, kept.size, BLOCK_COLUMNS):
+                chunk = kept[first : first + BLOCK_COLUMNS]
+                out[:size, first : first + chunk.size] = mono[:, chunk]
+            out[kept, np.arange(kept.size)] -= 1.0
+            out[:size, -1] = velocity
+            out[size:] = rows
+            monodromy.formed = None
+            return out
 
         # M is formed only where Newton asks for a fresh Jacobian (chord iterations, and at the solution).
         return Evaluation(residual, matrix, monodromy)
@@ -569,15 +581,28 @@ def leading_multipliers(
         w = unit.copy()
         w[0] += math.copysign(1.0, unit[0])
         beta = 2.0 / float(w @ w)
-        left = matrix - beta * np.outer(matrix @ w, w)
-        deflated = left - beta * np.outer(w, w @ left)
-        core, coupling = deflated[1:, 1:], float(np.linalg.norm(deflated[1:, 0]))
+
+        def reflect(z: np.ndarray) -> np.ndarray:
+            return z - beta * np.outer(w, w @ z).reshape(z.shape)
+
+        def deflated(z: np.ndarray) -> np.ndarray:
+            # H M H z for z (2 n_free,) or (2 n_free, k): products only, no second matrix of M's size.
+            return reflect(matrix @ reflect(z))
+
+        def core_product(z: np.ndarray) -> np.ndarray:
+            padded = np.zeros((size,) + z.shape[1:], dtype=np.result_type(z, float))
+            padded[1:] = z
+            return deflated(padded)[1:]
+
+        coupling = float(np.linalg.norm(deflated(np.eye(size, 1)[:, 0])[1:]))
         if size <= ALL_MULTIPLIERS_UP_TO:
-            values, vectors = sla.eig(core)
+            values, vectors = sla.eig(reflect(reflect(matrix.T).T)[1:, 1:])
         else:
+            # ARPACK on the products: a deflated copy of M would double the memory of a long chain's multipliers.
+            core = spla.LinearOperator((size - 1, size - 1), matvec=core_product, matmat=core_product, dtype=float)
             values, vectors = spla.eigs(core, k=min(count, size - 3), which="LM", tol=ARNOLDI_TOL)
         vectors = vectors / np.linalg.norm(vectors, axis=0)
-        errors = np.linalg.norm(core @ vectors - vectors * values, axis=0) + coupling
+        errors = np.linalg.norm(core_product(vectors) - vectors * values, axis=0) + coupling
     else:
 
         def deflated_product(z: np.ndarray) -> np.ndarray:
