@@ -226,15 +226,24 @@ def test_where_the_flip_vector_nearly_follows_the_branch_the_switch_still_finds_
     """On the sine chain at gamma_phi = 0.15 (period doubling at M = 0.17288, ``tests/test_cycle_curve.py``) the
     amplitude condition along e alone also meets the one-turn orbit traversed twice, at a distance O(a), and
     Newton went there (M - M_PD linear in a, the squared flip multiplier 1 + 9.5 a): the doubled orbits found
-    have M - M_PD quadratic in a, a multiplier 1 - O(a^2) and do not close after half their period."""
+    have M - M_PD quadratic in a, a multiplier 1 - O(a^2) and do not close after half their period.
+
+    The family bends within a few 1e-3 (its amplitude along e turns at 0.0023), so M - M_PD = c a^2 + d a^3 with
+    d a / c about 0.2 at a = 1e-3: the ratio of the offsets at 2a and a is 4 (1 + d a / c) to first order, 3.5 for one
+    sign of e and 6.3 for the other, and the eigenvector's sign is LAPACK's. Both signs are taken: the even part of
+    M - M_PD in a quadruples with a doubled, the odd part grows eightfold; the double cover's offsets are odd in a."""
     # The shooting's branch of the collocation tests (tests/collocation_crossings.py), computed once a session.
     switch = switch_at_period_doubling(shooting_crossing(ChainParams(gamma_phi=0.15))[0], follow=False)
     point = switch.point
     assert point.moment == pytest.approx(0.17288, abs=1e-5)
-    family = [doubled_orbit(point, a, eigenvector=switch.eigenvector) for a in (1e-3, 2e-3)]
-    offsets = [o.moment - point.moment for o in family]
-    assert offsets[0] < 0 and 3.5 < offsets[1] / offsets[0] < 4.5
-    for a, orbit in zip((1e-3, 2e-3), family):
+    amplitudes = (5e-4, 1e-3)
+    family = {(a, sign): doubled_orbit(point, sign * a, eigenvector=switch.eigenvector) for a in amplitudes for sign in (1, -1)}
+    offsets = {key: o.moment - point.moment for key, o in family.items()}
+    assert all(offset < 0 for offset in offsets.values())
+    even = [offsets[a, 1] + offsets[a, -1] for a in amplitudes]
+    odd = [offsets[a, 1] - offsets[a, -1] for a in amplitudes]
+    assert 3.5 < even[1] / even[0] < 4.5 and 6.0 < odd[1] / odd[0] < 10.0
+    for (a, _), orbit in family.items():
         second = np.sort(np.abs(orbit.multipliers - 1.0))[1]
         assert 1e-7 < second < 1e3 * a**2
         assert half_period_gap(orbit) > a

@@ -27,14 +27,15 @@ For each value of one field of the chain, :func:`state_diagram` gives
   state that exists there already: the loop is open), None where the lower edge is unknown;
 * ``method``: how ``rotation_stops`` was found: ``located`` (a fold of cycles, period
   doubling or torus first bracketed by the one-parameter continuation, then solved exactly
-  by Newton on the augmented shooting system of
-  :mod:`~cosserat_chain.numerics.cycle_curve` at that value), ``followed`` (with
+  at that value: a fold by Newton on the augmented shooting system of
+  :mod:`~cosserat_chain.numerics.cycle_curve`, a period doubling or torus by the one
+  mechanism of :mod:`~cosserat_chain.numerics.cycle_events`), ``followed`` (with
   ``follow``: the same system continued from the value before, the curve of the lower edge
   in (M, p)), ``solved`` (a homoclinic end: the loop from the saddle back to it shifted by
   2 pi, a boundary-value problem with projection boundary conditions,
   :func:`~cosserat_chain.numerics.homoclinic.chain_homoclinic_end`), ``one_parameter`` (read
   from the continuation alone: SNIC ends, a homoclinic end the boundary-value problem did not
-  solve, or where Newton on the augmented system did not converge, ``message`` says);
+  solve, or where the end could not be located, ``message`` says);
 * ``rotation_stops_uncertainty``: for a solved homoclinic end its accuracy (the change over the
   last step of the boundary conditions' distance to the saddle); for one left fitted to the
   period's growth (T ~ -log(M - M_h)), three times the difference between the fit to the last
@@ -86,7 +87,8 @@ import numpy as np
 from ..linalg.threads import one_blas_thread
 from ..models.base import get_model
 from ..numerics.continuation import continue_in_moment
-from ..numerics.cycle_curve import KINDS, continue_cycle_end, locate_cycle_end, torus_angle
+from ..numerics.cycle_curve import KINDS, continue_cycle_end, locate_circle_event, locate_cycle_end, torus_angle
+from ..numerics.cycle_events import CIRCLE_KINDS
 from ..numerics.dynamics import IntegrationError
 from ..numerics.fold_curve import continue_fold
 from ..numerics.homoclinic import HomoclinicError, chain_homoclinic_end, chain_snic_point
@@ -137,7 +139,7 @@ MAX_ORBITS = 3
 #: An imaginary part of the leading multiplier above this (relative to its modulus) is a complex pair.
 COMPLEX_RTOL = 1e-6
 #: Settings of the continuation that brackets a row's end (:func:`_edge_from`): the integration's tolerances, the
-#: orbits' closure and the first arclength step. Where the end is then located, the augmented system solves it at the
+#: orbits' closure and the first arclength step. Where the end is then located (:func:`_located`), it is solved at the
 #: package's full tolerances from the orbits around it, so the edge is the same to the solve's accuracy
 #: (benchmarks/TIMINGS.md); the multipliers, accurate to about 1e-7, still tell where stability is lost.
 SCOUT = {"rtol": 1e-8, "atol": 1e-8, "tol": 1e-6, "step": 0.2}
@@ -424,8 +426,8 @@ def _edge_from(
 ) -> _Edge:
     """:func:`_edge_of` without the orbit kept.
 
-    The continuation first runs with :data:`SCOUT`'s looser tolerances: it only brackets the end, which the augmented
-    shooting system then locates at full accuracy from the orbits around it, or the projection boundary conditions
+    The continuation first runs with :data:`SCOUT`'s looser tolerances: it only brackets the end, which :func:`_located`
+    then locates at full accuracy from the orbits around it, or the projection boundary conditions
     solve (a homoclinic end: the loop in the bracket of the scouting branch's fit, the same M_h as from the accurate
     branch's to far below its accuracy; the message quotes the scouting fit), and a SNIC end is M_c itself.
     Every other end is read from the branch's own orbits (a fitted homoclinic end the solve did not find, the
@@ -596,18 +598,26 @@ def _phase_note(branch) -> str:
 
 
 def _located(edge: _Edge, around: Sequence[PeriodicOrbit], field_name: str) -> _Edge:
-    """``edge`` with its moment from Newton on the augmented shooting system at its own chain, from the
-    orbits ``around`` it (the one-parameter estimate interpolates the multipliers between two orbits: 3e-5
-    off for the paper's chain's period doubling at gamma_phi = 0.12); unchanged, saying so, where that fails.
-    A branch point of cycles is located by the fold's system (the shooting Jacobian is singular at both)."""
+    """``edge`` located at full tolerances at its own chain from the orbits ``around`` it (the one-parameter estimate
+    interpolates the multipliers between two orbits: 3e-5 off for the paper's chain's period doubling at gamma_phi =
+    0.12); unchanged, saying so, where that fails. A period doubling or a torus is the scouting branch's event found
+    again by the one mechanism (:func:`~cosserat_chain.numerics.cycle_curve.locate_circle_event`: Brent's method in M
+    on its test function between the last stable and the first unstable orbit, solved again at full tolerances); a
+    fold of cycles is solved by Newton on the augmented shooting system, and a branch point of cycles by the fold's
+    system (the shooting Jacobian is singular at both)."""
     try:
-        kind = "fold_of_cycles" if edge.end == "branch_point_of_cycles" else edge.end
-        edge.orbit = locate_cycle_end(around, kind, field_name=field_name)
+        if edge.end in CIRCLE_KINDS:
+            edge.orbit = locate_circle_event(around, edge.end, field_name=field_name, resolve=True)
+            how = "Brent's method on its test function (cycle_events)"
+        else:
+            kind = "fold_of_cycles" if edge.end == "branch_point_of_cycles" else edge.end
+            edge.orbit = locate_cycle_end(around, kind, field_name=field_name)
+            how = "the augmented shooting system"
     except ValueError as err:
         edge.message += f"; not located exactly ({err})"
         return edge
     edge.stops, edge.method = float(edge.orbit.moment), "located"
-    edge.message += f"; located at M = {edge.stops:.8g} by the augmented shooting system"
+    edge.message += f"; located at M = {edge.stops:.8g} by {how}"
     return edge
 
 

@@ -72,6 +72,7 @@ from its own one-parameter continuation.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -83,9 +84,23 @@ from ..models.base import get_model
 from ..params import ChainParams
 from ..state import n_free
 from . import shooting
+from .cycle_events import CIRCLE_KINDS, circle_events_between
 from .fold_curve import FIELDS, chain_with, field_values
 from .kit import BranchEnd, Correction, Corrector, Evaluation, EvaluationFailed, Event, continuation, newton
-from .periodic import ATOL, CLOSURE_TOL, RTOL, OrbitError, PeriodicOrbit, _orbit, _phase_for, _shooting, _System, _to_y
+from .periodic import (
+    ATOL,
+    CLOSURE_TOL,
+    RTOL,
+    OrbitError,
+    PeriodicOrbit,
+    _orbit,
+    _orbit_between,
+    _phase_for,
+    _shooting,
+    _System,
+    _to_y,
+    find_periodic_orbit,
+)
 
 #: Kinds of end that can be followed (:mod:`~cosserat_chain.experiments.diagram`'s ends that are
 #: regular points of an augmented system; a SNIC lies on the static fold, followed by
@@ -1307,6 +1322,70 @@ def locate_cycle_end(orbits: Sequence[PeriodicOrbit], kind: str, *, field_name: 
         except ValueError as err:
             reasons.append(str(err))
     raise ValueError("; ".join(reasons))
+
+
+def locate_circle_event(
+    orbits: Sequence[PeriodicOrbit],
+    kind: str,
+    *,
+    field_name: str | None = None,
+    resolve: bool = False,
+    tol: float = CLOSURE_TOL,
+    rtol: float = RTOL,
+    atol: float = ATOL,
+) -> PeriodicOrbit:
+    """The period doubling or torus between the first two ``orbits`` of one chain's branch, by the one mechanism.
+
+    :func:`~.cycle_events.circle_events_between` at these tolerances: Brent's method in M on the event's test
+    function, each trial re-solved by the dense shooting (:func:`~.periodic.find_periodic_orbit`) from the orbit
+    interpolated between the two, and one secant step; the located orbit's critical multiplier lies on -1 or the
+    circle to the orbits' accuracy (:data:`~.cycle_events.CIRCLE_MULTIPLIER` at least). :func:`locate_cycle_end`
+    solves the same end by the augmented Newton from one orbit; this is the branch's own event, found again.
+
+    Parameters
+    ----------
+    orbits : sequence of PeriodicOrbit
+        The last orbit before the event and the first after it (a branch's, :func:`~.periodic.continue_orbit`).
+    kind : str
+        ``period_doubling`` or ``torus``.
+    field_name : str, optional
+        The field a caller varies (its messages name it and its value); default the first of :data:`FIELDS`.
+    resolve : bool
+        Solve the two orbits again at these tolerances first (orbits of a branch traced at looser ones).
+    tol, rtol, atol : float
+        As for :func:`~.periodic.find_periodic_orbit`.
+
+    Returns
+    -------
+    PeriodicOrbit
+        The orbit at the event.
+
+    Raises
+    ------
+    ValueError
+        For a ``kind`` other than the two, fewer than two orbits, or no such event located between them (the message
+        names the field and its value).
+    """
+    if kind not in CIRCLE_KINDS:
+        raise ValueError(f"kind must be one of {CIRCLE_KINDS} (located by cycle_events), got {kind!r}")
+    field_name = FIELDS[0] if field_name is None else field_name
+    where = f"{field_name} = {getattr(orbits[0].params, field_name):g}" if len(orbits) else field_name
+    if len(orbits) < 2:
+        raise ValueError(
+            f"the {kind} end could not be located at {where}: it needs the two orbits of a branch around it, got {len(orbits)}"
+        )
+    a, b = orbits[:2]
+    options = {"tol": tol, "rtol": rtol, "atol": atol}
+    if resolve:
+        a, b = (find_periodic_orbit(o.params, o.model, o.moment, turns=o.turns, particle=o.particle, guess=o, **options) for o in (a, b))
+    solve = functools.partial(_orbit_between, method="dense", segments=None, **options)
+    located = [e for e in circle_events_between(a, b, solve) if e["kind"] == kind and e["located"]]
+    if not located:
+        raise ValueError(
+            f"the {kind} end could not be located at {where} between the orbits at M = {a.moment:.10g} and {b.moment:.10g}: "
+            "its test function does not change sign there, or its critical multiplier is not on the circle"
+        )
+    return located[0]["orbit"]
 
 
 def _other_multipliers(orbit: PeriodicOrbit, kind: str) -> np.ndarray:

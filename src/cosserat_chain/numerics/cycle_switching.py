@@ -4,8 +4,8 @@ Contract
 --------
 Where a real Floquet multiplier of a rotating orbit (:mod:`~cosserat_chain.numerics.periodic`,
 eq. (P), k turns, period T) passes through -1 (a flip, or period doubling: ``period_doubling``
-of :mod:`~cosserat_chain.experiments.diagram`, located by
-:func:`~cosserat_chain.numerics.cycle_curve.locate_cycle_end`), a second family of orbits
+of :mod:`~cosserat_chain.experiments.diagram`, the branch's event located by
+:mod:`~cosserat_chain.numerics.cycle_events`), a second family of orbits
 leaves it: 2k turns in a period close to 2T. Seen as an orbit of 2k turns, the k-turn orbit
 traversed twice has every multiplier squared, the -1 turned into a second +1: there the
 doubled family crosses it at a branch point (a pitchfork of the 2T map), tangent to the
@@ -59,7 +59,7 @@ from ..params import ChainParams
 from ..state import pack
 from ..systems.chain import ChainSystem
 from . import shooting
-from .cycle_curve import locate_cycle_end
+from .cycle_curve import locate_circle_event, locate_cycle_end
 from .cycle_events import circle_tests
 from .hopf import HopfPoint
 from .kit import BranchEnd, continuation, newton
@@ -220,8 +220,8 @@ def doubled_orbit(
     Parameters
     ----------
     point : PeriodicOrbit or shooting.Orbit
-        The located period doubling (:func:`~.cycle_curve.locate_cycle_end`; for a system, the point of
-        :func:`~.shooting.continue_orbits`' ``period_doubling`` event).
+        The located period doubling (a branch's ``period_doubling`` event, :mod:`~.cycle_events`: for the chain
+        its ``"orbit"``, for a system the ``point`` of :func:`~.shooting.continue_orbits`' event).
     amplitude : float
         a != 0 of e . (y0 - y_PD) = a (module docstring); its sign picks one of the two starts of the
         same doubled orbit, half a period apart. Beyond the first of :data:`PROBE_AMPLITUDES` the
@@ -420,12 +420,13 @@ def switch_at_period_doubling(
     ----------
     start : PeriodicOrbit, periodic.OrbitBranch, shooting.Orbit or shooting.OrbitBranch
         The chain's: the period doubling (an orbit with a real multiplier within :data:`FLIP_TOL` of
-        -1), an orbit near one (located first), or a branch of :func:`~.periodic.continue_orbit`
-        along which a real multiplier passes -1 (the first such passage, where the period-doubling test of
-        :func:`~.cycle_events.circle_tests` changes sign, is located by :func:`~.cycle_curve.locate_cycle_end`:
-        the branch's own event lies as near in M, 1e-11 at gamma_phi = 0.2, but it is a zero of the test in M,
-        to 1e-10, and the multiplier, steep in M there, lies 1.7e-8 off -1 at it; the augmented system
-        solves for the multiplier at -1 itself, 2e-11). A system's:
+        -1), an orbit near one (located first by the augmented Newton, :func:`~.cycle_curve.locate_cycle_end`),
+        or a branch of :func:`~.periodic.continue_orbit` along which a real multiplier passes -1: at the first
+        such passage (where the period-doubling test of :func:`~.cycle_events.circle_tests` changes sign) the
+        branch's own located event (:attr:`~.periodic.OrbitBranch.events`, its orbit and multiplier: -1 to
+        2e-12 at gamma_phi = 0.2, the augmented Newton's 2.5e-11) where the branch was traced at these
+        tolerances, else the same event located again between the two orbits at them
+        (:func:`~.cycle_curve.locate_circle_event`). A system's:
         the orbit at a period doubling (the point of a ``period_doubling`` event), or a branch of
         :func:`~.shooting.continue_orbits` with such an event (the first is taken).
     parameter : str, optional
@@ -460,7 +461,7 @@ def switch_at_period_doubling(
     """
     if not (math.isfinite(offset) and 0 < offset < 1):
         raise ValueError(f"offset must be a number in (0, 1) (relative distance in the parameter), got {offset!r}")
-    point, parameter = _located(start, parameter, rtol=rtol, atol=atol)
+    point, parameter = _located(start, parameter, tol=tol, rtol=rtol, atol=atol)
     system = isinstance(point, shooting.Orbit)
     value = point.parameter(parameter) if system else point.moment
     # p - p_PD, for the chain positive towards larger |M|.
@@ -807,7 +808,7 @@ def _flip_test(orbit: PeriodicOrbit) -> float:
     return circle_tests(orbit.nontrivial_multipliers)["period_doubling"]
 
 
-def _located(start, parameter: str | None, *, rtol: float, atol: float) -> tuple[Point, str]:
+def _located(start, parameter: str | None, *, tol: float, rtol: float, atol: float) -> tuple[Point, str]:
     """The period doubling ``start`` is, is near, or lies on (:func:`switch_at_period_doubling`), and its parameter."""
     if isinstance(start, shooting.OrbitBranch):
         events = [e for e in start.events if e.kind == "period_doubling" and e.located]
@@ -828,10 +829,17 @@ def _located(start, parameter: str | None, *, rtol: float, atol: float) -> tuple
         pairs = [i for i in range(len(orbits) - 1) if _flip_test(orbits[i]) * _flip_test(orbits[i + 1]) < 0]
         if not pairs:
             raise ValueError("no real Floquet multiplier passes -1 along the branch: it has no period doubling to switch at")
-        around = orbits[pairs[0] : pairs[0] + 2]
-        if abs(around[1].max_multiplier - 1.0) < abs(around[0].max_multiplier - 1.0):
-            around = around[::-1]
-        return locate_cycle_end(around, "period_doubling", rtol=rtol, atol=atol), "M"
+        a, b = orbits[pairs[0] : pairs[0] + 2]
+        settings = start.settings
+        for event in start.events:
+            # The branch's own event (cycle_events), where it was located at these tolerances.
+            if (
+                event["kind"] == "period_doubling" and event.get("orbit") is not None
+                and min(a.moment, b.moment) <= event["moment"] <= max(a.moment, b.moment)
+                and (settings.get("tol"), settings.get("rtol"), settings.get("atol", atol)) == (tol, rtol, atol)
+            ):  # fmt: skip
+                return event["orbit"], "M"
+        return locate_circle_event([a, b], "period_doubling", resolve=True, tol=tol, rtol=rtol, atol=atol), "M"
     if not isinstance(start, PeriodicOrbit):
         raise ValueError(f"start must be a PeriodicOrbit or an OrbitBranch (of the chain or a system), got {type(start).__name__}")
     if np.min(np.abs(start.multipliers + 1.0)) <= FLIP_TOL:
