@@ -100,6 +100,13 @@ def orbit(
     turn: list[str] | None = typer.Option(
         None, "--turn", metavar="COORDINATE=K", help="With --system: turns of an angle per period; repeatable (default every angle once)."
     ),
+    oscillation: bool = typer.Option(
+        False,
+        "--oscillation",
+        help="With --system: an oscillation (no angle turns a period: a limit cycle, e.g. one born at a Hopf point), "
+        "from a settling run of --start/--velocity (off the equilibrium) timed by its first coordinate's crossings of "
+        "its mean; not with --turn.",
+    ),
     start: str | None = start_option("the coordinates the settling run starts from (default 0)"),
     velocity: str | None = velocity_option("default: the drive at the start over the damping, on the angles"),
 ) -> None:
@@ -110,12 +117,16 @@ def orbit(
     then shooting), and with --vary its continuation.
     """
     if system is not None:
-        chain_only_or_exit(ctx, ("config", "as_json", "out", "down_to", "period_max", "sets", "vary", "turn", "start", "velocity"))
+        chain_only_or_exit(
+            ctx, ("config", "as_json", "out", "down_to", "period_max", "sets", "vary", "turn", "oscillation", "start", "velocity")
+        )
+        if oscillation and turn:
+            fail(f"--oscillation turns no angle: leave out --turn (got {', '.join(turn)})")
         return orbit_on_system(
             system, config=config, sets=sets, vary=vary, turns=turn, down_to=down_to, period_max=period_max, start=start,
-            velocity=velocity, out=out, as_json=as_json,
+            velocity=velocity, out=out, as_json=as_json, oscillation=oscillation,
         )  # fmt: skip
-    system_only_or_exit(ctx, ("sets", "vary", "turn", "start", "velocity"))
+    system_only_or_exit(ctx, ("sets", "vary", "turn", "oscillation", "start", "velocity"))
     if method not in ORBIT_METHODS:
         fail(f"--method takes {', '.join(ORBIT_METHODS)}, got {method!r}")
     if moment is None:

@@ -349,7 +349,7 @@ def _turns_or_exit(system, turns: list[str] | None) -> dict[str, int]:
             fail(f"--turn: {name!r} is not a coordinate of {system.name}; its coordinates are {', '.join(system.coordinates)}")
         out[name] = int(k)
     if not any(out.values()):
-        fail("--turn: at least one angle must turn (K != 0) for a rotation")
+        fail("--turn: at least one angle must turn (K != 0) for a rotation; an orbit with no angle turning is --oscillation")
     return out
 
 
@@ -366,8 +366,10 @@ def orbit_on_system(
     velocity: str | None,
     out: Path | None,
     as_json: bool,
+    oscillation: bool = False,
 ) -> None:
-    """A rotating orbit of the system from a settled simulation, and with ``--vary`` its continuation."""
+    """A rotating orbit of the system (with ``oscillation`` one where no angle turns) from a settled simulation, and with
+    ``--vary`` its continuation."""
     import numpy as np
 
     from ..numerics.kit import EvaluationFailed
@@ -378,21 +380,27 @@ def orbit_on_system(
     outputs_or_exit({"--out": out}, {"--config": config})
     system = system_or_exit(reference, config, sets)
     value = _parameter_or_exit(system, vary) if vary is not None else None
-    k = _turns_or_exit(system, turns)
+    k = {} if oscillation else _turns_or_exit(system, turns)
     q0 = state_or_exit(system, start, "--start")
     forces, damping = system.forces(q0), system.damping()
     # Default start speed: where the drive at q0 meets the damping (the terminal spin I / eps of a driven pendulum).
     drift = np.where(system.angles & (damping > 0), forces / np.where(damping > 0, damping, 1.0), 0.0)
     v0 = state_or_exit(system, velocity, "--velocity", default=drift)
-    first = next(name for name, turn in k.items() if turn)
+    # An oscillation is timed by the first coordinate's crossings of its mean (settled_guess with no turns).
+    first = next((name for name, turn in k.items() if turn), system.coordinates[0])
+    hint = (
+        "start it off the equilibrium with --start or --velocity"
+        if oscillation
+        else "start it turning with --velocity (or another --start), or check the drive"
+    )
     bar = progress_bar(f"orbit {system.name}", "orbit")
     branch = None
     try:
         try:
-            guess = settled_guess(system, np.concatenate([q0, v0]), coordinate=first, turns=abs(k[first]))
+            guess = settled_guess(system, np.concatenate([q0, v0]), coordinate=first, turns=abs(k.get(first, 0)))
         except OrbitNotFound as err:
-            raise OrbitNotFound(f"{err}: start it turning with --velocity (or another --start), or check the drive") from None
-        orbit = find_orbit(system, guess, turns=k)
+            raise OrbitNotFound(f"{err}: {hint}") from None
+        orbit = find_orbit(system, guess, turns=k or None)
         if vary is not None:
             direction = -1.0 if down_to is None or down_to < value else 1.0
             limits = (-math.inf, math.inf) if down_to is None else (min(down_to, value), max(down_to, value))
@@ -412,7 +420,7 @@ def orbit_on_system(
     if as_json:
         _echo_json(result)
         return
-    turned = ", ".join(f"{name} {turn:+d}" for name, turn in k.items() if turn)
+    turned = ", ".join(f"{name} {turn:+d}" for name, turn in k.items() if turn) or "none (an oscillation)"
     typer.echo(f"{system.name} ({_parameters_text(system)}): period T = {orbit.period:.12g}, turns {turned}")
     typer.echo(f"Floquet multipliers |mu|: {' '.join(f'{abs(m):.6g}' for m in orbit.multipliers)}")
     typer.echo(f"largest other |mu| = {orbit.max_multiplier:.6g}: {'stable' if orbit.stable else 'unstable'}; closure {orbit.closure:.2g}")

@@ -456,6 +456,10 @@ def find_orbit(
     return orbit
 
 
+#: Upward crossings of its mean after the first among which :func:`settled_guess` seeks an oscillation's return.
+OSCILLATION_CROSSINGS = 4
+
+
 def settled_guess(
     system: System,
     y0: np.ndarray,
@@ -469,15 +473,33 @@ def settled_guess(
     """A start for :func:`find_orbit` from a simulation: after ``transient``, the state where
     ``coordinate`` crosses a multiple of 2 pi and the time it takes to gain 2 pi ``turns`` more.
 
+    With ``turns`` 0 (an oscillation, no angle turning): the state where ``coordinate`` crosses
+    its mean over the window upwards, and the time to the first later upward crossing (among the
+    next :data:`OSCILLATION_CROSSINGS`) whose state lies within ten times the nearest one's distance
+    of it: the period also where the oscillation crosses its mean more than once a period.
+
     Raises
     ------
     OrbitNotFound
-        If the coordinate does not turn ``turns`` times within ``window``.
+        If the coordinate does not turn ``turns`` times within ``window`` (does not oscillate, for
+        ``turns`` 0).
     """
     i = system.coordinates.index(coordinate) if isinstance(coordinate, str) else int(coordinate)
     y = flow(system, np.asarray(y0, dtype=float), transient, variations=False)[0]
     times = np.linspace(0.0, window, samples)
     sampled = states(system, y, times, rtol=1e-10, atol=1e-10)
+    if turns == 0:
+        value = sampled[:, i]
+        above = value > value.mean()
+        ups = np.flatnonzero(~above[:-1] & above[1:]) + 1
+        if ups.size < 2:
+            raise OrbitNotFound(
+                f"{system.coordinates[i]} did not oscillate about its mean in a window of {window:g} after a transient of {transient:g}"
+            )
+        later = ups[1 : OSCILLATION_CROSSINGS + 1]
+        distance = np.linalg.norm(sampled[later] - sampled[ups[0]], axis=1)
+        b = later[np.flatnonzero(distance <= 10.0 * distance.min() + 1e-9)[0]]
+        return sampled[ups[0]].copy(), float(times[b] - times[ups[0]])
     angle = sampled[:, i]
     level = np.floor(angle / (2 * math.pi))
     crossings = np.flatnonzero(np.diff(level) != 0)

@@ -1,0 +1,126 @@
+"""``orbit --system FILE --oscillation``: a limit cycle with no angle turning, from the command line (issue 40 item 6).
+
+The system is a rotationally symmetric oscillator under a saturating follower (circulatory) force, a Stuart-Landau
+normal form in second-order form (``tests/test_audit_twelfth_systems.py``'s ``FollowerRotor``, written as a user's
+file): q'' + c q' = -kk q + (a0 - b |q|^2) J q. Its limit cycle is the circle of radius sqrt((a0 - c sqrt(kk)) / b)
+and period 2 pi / sqrt(kk), born at the Hopf point a0 = c sqrt(kk) of q = 0: closed forms that a wrong period, a
+wrong phase of the settled guess or a rotation taken for the orbit would miss.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from cosserat_chain.cli import app
+
+runner = CliRunner()
+
+ROTOR = """
+import numpy as np
+import scipy.sparse as sp
+
+from cosserat_chain.systems.base import System
+
+ROTATION = np.array([[0.0, -1.0], [1.0, 0.0]])
+
+
+class FollowerRotor(System):
+    name = "follower-rotor"
+
+    def __init__(self, **parameters):
+        super().__init__({"a0": 0.3, "b": 1.0, "c": 0.2, "kk": 1.5, **parameters})
+
+    @property
+    def coordinates(self):
+        return ("x", "y")
+
+    @property
+    def angles(self):
+        return np.zeros(2, dtype=bool)
+
+    def forces(self, q):
+        p = self.parameters
+        return -p["kk"] * q + (p["a0"] - p["b"] * (q @ q)) * (ROTATION @ q)
+
+    def force_jacobian(self, q):
+        p = self.parameters
+        j = -p["kk"] * np.eye(2) + (p["a0"] - p["b"] * (q @ q)) * ROTATION - 2 * p["b"] * np.outer(ROTATION @ q, q)
+        return sp.csr_matrix(j)
+
+    def parameter_forces(self, q, name):
+        self._check_name(name)
+        jq = ROTATION @ q
+        return {"a0": jq, "b": -(q @ q) * jq, "kk": -q}.get(name, np.zeros(2))
+
+    def mass(self):
+        return np.ones(2)
+
+    def damping(self):
+        return np.full(2, self.parameters["c"])
+
+
+def build(**parameters):
+    return FollowerRotor(**parameters)
+"""
+
+PERIOD = 2 * math.pi / math.sqrt(1.5)
+HOPF = 0.2 * math.sqrt(1.5)
+
+
+def radius(a0: float) -> float:
+    return math.sqrt(a0 - HOPF)
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> str:
+    path = tmp_path_factory.mktemp("rotor") / "rotor.py"
+    path.write_text(ROTOR)
+    return f"{path}:build"
+
+
+@pytest.mark.parametrize("a0", [0.3, 0.4])
+def test_the_oscillation_is_the_closed_form_circle(reference, a0):
+    result = runner.invoke(app, ["orbit", "--system", reference, "--set", f"a0={a0}", "--oscillation", "--start", "0.1,0", "--json"])
+    assert result.exit_code == 0, result.output
+    orbit = json.loads(result.stdout)
+    assert orbit["turns"] == [0, 0] and orbit["closure"] < 1e-9
+    assert orbit["period"] == pytest.approx(PERIOD, abs=1e-8)
+    assert math.hypot(*orbit["q0"]) == pytest.approx(radius(a0), abs=1e-8)
+    # On the circle the velocity is the rotation at rate sqrt(kk): v0 = sqrt(kk) J q0.
+    assert np.allclose(orbit["v0"], math.sqrt(1.5) * np.array([-orbit["q0"][1], orbit["q0"][0]]), atol=1e-8)
+    assert orbit["stable"] and orbit["max_multiplier"] < 1.0
+
+
+def test_the_oscillation_followed_down_ends_at_its_hopf_point(reference):
+    result = runner.invoke(
+        app, ["orbit", "--system", reference, "--oscillation", "--start", "0.1,0", "--vary", "a0", "--down-to", "0.2", "--json"]
+    )
+    assert result.exit_code == 0, result.output
+    branch = json.loads(result.stdout)["branch"]
+    assert branch["parameter"] == "a0" and branch["end"] == "hopf", branch["message"]
+    assert "Hopf point" in branch["message"] and abs(branch["values"][-1] - HOPF) < 0.02
+    assert np.allclose(branch["periods"], PERIOD, atol=1e-7)
+    assert not [e for e in branch["events"] if e["kind"] in ("fold", "branch_point")]
+
+
+def test_the_text_output_names_an_oscillation(reference):
+    result = runner.invoke(app, ["orbit", "--system", reference, "--oscillation", "--start", "0.1,0"])
+    assert result.exit_code == 0, result.output
+    assert "turns none (an oscillation)" in result.stdout and f"period T = {PERIOD:.8f}"[:20] in result.stdout
+
+
+def test_bad_oscillation_requests_are_refused_with_a_reason(reference):
+    both = runner.invoke(app, ["orbit", "--system", reference, "--oscillation", "--turn", "x=1"])
+    assert both.exit_code == 2 and "--oscillation turns no angle: leave out --turn (got x=1)" in both.output
+    # From the equilibrium itself a settling run never moves: the message says how to start it.
+    still = runner.invoke(app, ["orbit", "--system", reference, "--oscillation"])
+    assert still.exit_code != 0 and "did not oscillate" in still.output and "--start or --velocity" in still.output
+    chain = runner.invoke(app, ["orbit", "--moment", "0.3", "--oscillation"])
+    assert chain.exit_code == 2 and "--oscillation" in chain.output and "--system" in chain.output
+    zero = runner.invoke(app, ["orbit", "--system", "pen", "--turn", "phi_0=0"])
+    assert zero.exit_code == 2 and "is --oscillation" in zero.output
