@@ -109,3 +109,15 @@ def test_states_on_a_file_with_an_error_exits_2_naming_it(tmp_path, settings, na
     assert result.exit_code == 2, result.output
     assert named in result.output
     assert "Traceback" not in result.output
+
+
+def test_a_branch_ending_at_a_fold_names_its_parameter_in_the_message():
+    # The kit's message read "fold located at lambda = 1" (its own name for the continued parameter), also on the
+    # command line and in orbit --out's branch_message.
+    from cosserat_chain.numerics.equilibria import continue_equilibria, find_equilibrium
+    from cosserat_chain.systems import josephson_array
+
+    branch = continue_equilibria(find_equilibrium(josephson_array(3, I=0.2), np.zeros(3)), "I")
+    assert branch.end == "fold"
+    assert abs(branch.events[-1].parameter - 1.0) < 1e-10  # sin(phi) = I folds at I = 1
+    assert "fold located at I = 1:" in branch.message, branch.message

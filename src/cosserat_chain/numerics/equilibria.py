@@ -257,6 +257,7 @@ class EquilibriumBranch:
 class _EquilibriumProblem:
     def __init__(self, system: System, name: str, limits: tuple[float, float], tol: float):
         self.system, self.name, self.limits, self.tol = system, name, limits, tol
+        self.parameter_name = name
 
     def evaluate(self, w, jacobian):
         system = self.system.with_parameters(**{self.name: float(w[-1])})

@@ -215,6 +215,8 @@ class ContinuationProblem(Protocol):
     """
 
     tol: float
+    #: The continued parameter's name in the branch's messages (optional; "lambda" where a problem has none).
+    parameter_name: str
 
     def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
         """R(w) and, with ``jacobian``, dR/dw."""
@@ -685,7 +687,7 @@ def continuation(
             if h < min_step:
                 result.end = BranchEnd.STEP_TOO_SMALL
                 result.message = (
-                    f"no step down to min_step={min_step:g} could be corrected after lambda = {w[-1]:.10g}: "
+                    f"no step down to min_step={min_step:g} could be corrected after {getattr(problem, 'parameter_name', 'lambda')} = {w[-1]:.10g}: "
                     + BranchEnd.STEP_TOO_SMALL.advice
                 )
                 break
@@ -733,7 +735,8 @@ def continuation(
         if ended is not None:
             result.end = BranchEnd(ended)
             where = "located at" if result.events[-1].located else "passed before"
-            result.message = f"{ended.replace('_', ' ')} {where} lambda = {result.events[-1].parameter:.12g}: {result.end.advice}"
+            name = getattr(problem, "parameter_name", "lambda")
+            result.message = f"{ended.replace('_', ' ')} {where} {name} = {result.events[-1].parameter:.12g}: {result.end.advice}"
             break
         stop = problem.stop(candidate)
         if stop is not None:
