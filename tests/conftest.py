@@ -163,14 +163,17 @@ _DASK: dict = {}
 @pytest.fixture(scope="session")
 def dask_cluster():
     """One local Dask cluster of two worker processes for the studies of test_study.py and test_study_cluster.py whose
-    claim is not about the cluster a command starts itself (each start imports the package in its workers again).
+    claim is not about the cluster a command starts itself (each start imports the package in its workers again; these
+    workers are forked from the test process, its imports and kernels already loaded, where a command's are spawned).
     Started by the first test that asks for it and closed after the last: an idle cluster's heartbeats cost CPU."""
     if "cluster" not in _DASK:
+        import dask
         import dask.distributed
 
-        _DASK["cluster"] = dask.distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
-        )
+        with dask.config.set({"distributed.worker.multiprocessing-method": "fork"}):
+            _DASK["cluster"] = dask.distributed.LocalCluster(
+                n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1", dashboard_address=None
+            )
     return _DASK["cluster"]
 
 
