@@ -121,3 +121,51 @@ def test_a_branch_ending_at_a_fold_names_its_parameter_in_the_message():
     assert branch.end == "fold"
     assert abs(branch.events[-1].parameter - 1.0) < 1e-10  # sin(phi) = I folds at I = 1
     assert "fold located at I = 1:" in branch.message, branch.message
+
+
+#: Three Josephson junctions in a row with unequal critical currents, one site of three angles (a researcher's file).
+JUNCTIONS = """
+from cosserat_chain.systems import LatticeSystem
+
+
+def junctions(*, I=0.8, kappa=0.29, alpha=0.21, ica=0.91, icb=1.13, icc=0.78):
+    return LatticeSystem(
+        sites=1,
+        dofs=("phi_a", "phi_b", "phi_c"),
+        site_energy="ica*(1 - cos(phi_a)) + icb*(1 - cos(phi_b)) + icc*(1 - cos(phi_c)) - I*(phi_a + phi_b + phi_c)"
+        " + kappa/2*((phi_b - phi_a)**2 + (phi_c - phi_b)**2)",
+        damping="alpha",
+        parameters={"I": I, "kappa": kappa, "alpha": alpha, "ica": ica, "icb": icb, "icc": icc},
+        name="junctions",
+    )
+"""
+
+#: AUTO-07p on the same equations (NTST = 100 and 200 agree to the digits printed here), the rotation continued
+#: down in I from 0.8: two period doublings, then the fold of cycles where the rotation stops.
+AUTO_PD = (0.47818853487, 0.34441407271)
+AUTO_FOLD = 0.25387275522
+
+
+@pytest.mark.slow
+def test_junctions_with_unequal_critical_currents_agree_with_auto07p_and_name_what_is_not_located(tmp_path):
+    import re
+
+    import xarray as xr
+
+    (tmp_path / "junctions.py").write_text(JUNCTIONS)
+    out = tmp_path / "orbit.nc"
+    result = CliRunner().invoke(
+        app,
+        ["orbit", "--system", f"{tmp_path / 'junctions.py'}:junctions", "--vary", "I", "--period-max", "150", "--out", str(out)],
+        terminal_width=200,
+    )
+    assert result.exit_code == 0, result.output
+    located = [float(v) for v in re.findall(r"period_doubling at I = (\S+)", result.output)]
+    assert np.allclose(located[:2], AUTO_PD, rtol=0, atol=2e-10), result.output
+    (fold,) = (float(v) for v in re.findall(r"fold at I = (\S+)", result.output))
+    assert abs(fold - AUTO_FOLD) < 2e-10
+    # A multiplier passes -1 within 3e-8 in I of the fold (between the last two orbits before it: an independent
+    # DOP853 monodromy has -10.0 there and then a complex pair of modulus 0.16); it was printed "at not located".
+    assert "at not located" not in result.output
+    with xr.open_dataset(out) as ds:
+        assert ds.attrs["branch_message"].startswith("fold located at I = 0.2538727552"), ds.attrs["branch_message"]

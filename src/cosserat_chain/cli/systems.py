@@ -426,8 +426,8 @@ def orbit_on_system(
     typer.echo(f"largest other |mu| = {orbit.max_multiplier:.6g}: {'stable' if orbit.stable else 'unstable'}; closure {orbit.closure:.2g}")
     if branch is not None:
         for e in branch.events:
-            where = f"{vary} = {e.parameter:.12g}" if e.located else "not located"
-            typer.echo(f"  {e.kind} at {where}")
+            where = f"at {vary} = {e.parameter:.12g}" if e.located else f"not located, passed before {vary} = {e.parameter:.12g}"
+            typer.echo(f"  {e.kind} {where}")
         typer.echo(f"continued to {vary} = {branch.values[-1]:.12g} ({len(branch.orbits)} orbits): {branch.end}: {branch.message}")
 
 
