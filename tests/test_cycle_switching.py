@@ -19,6 +19,7 @@ import scipy.optimize as so
 from cosserat_chain import ChainParams
 from cosserat_chain.loads import moment_load
 from cosserat_chain.numerics.continuation import continue_in_moment, locate_fold
+from cosserat_chain.numerics.cycle_curve import locate_circle_event
 from cosserat_chain.numerics.cycle_switching import (
     PeriodDoubling,
     doubled_orbit,
@@ -66,7 +67,15 @@ def half_period_gap(orbit) -> float:
 def test_the_switch_starts_at_the_located_period_doubling(switch, branch):
     point = switch.point
     assert point.moment == pytest.approx(0.19665, abs=1e-5)
-    assert abs(switch.multiplier + 1.0) < 1e-8
+    # The branch's own event (cycle_events: Brent's method in M and one secant step), its multiplier on -1 to the
+    # orbit's accuracy (1.5e-12; Brent's root alone 1.7e-8 off, the augmented Newton's 2.5e-11).
+    (event,) = [e for e in branch.events if e["kind"] == "period_doubling"]
+    assert point is event["orbit"] and event["moment"] == point.moment
+    assert abs(switch.multiplier + 1.0) < 1e-10
+    with pytest.raises(ValueError, match="kind must be one of"):
+        locate_circle_event(branch.orbits[-2:], "fold_of_cycles")
+    with pytest.raises(ValueError, match=r"could not be located at E1 = .*: it needs the two orbits of a branch around it"):
+        locate_circle_event(branch.orbits[-1:], "period_doubling")
     # Between the last stable and the first unstable one-turn orbit of the branch.
     assert branch.orbits[-1].moment < point.moment < branch.orbits[-2].moment
     # The eigenvector is the monodromy's for -1: flip_vector of the same orbit gives it again.
