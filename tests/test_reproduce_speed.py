@@ -20,7 +20,28 @@ from cosserat_chain.experiments import diagram
 #: The paper's chain at gamma_phi = 0.2: the sine model's rotation stops at a fold of cycles (a cheap row).
 ROW = 0.2
 
+#: The row's continuations by their start and options, traced once for this module's tests: the same start and options
+#: give the same branch, and both tests trace the loose and the accurate branch from the row's first orbit.
+_TRACED: dict = {}
 
+
+@pytest.fixture
+def calls(monkeypatch) -> list[dict]:
+    """The options of each ``continue_orbit`` call the diagram makes, each continuation traced once a module."""
+    made, continue_orbit = [], diagram.continue_orbit
+
+    def recorded(orbit, **options):
+        made.append(options)
+        key = (orbit.moment, orbit.period, orbit.x.tobytes(), orbit.v.tobytes(), tuple(sorted(options.items())))
+        if key not in _TRACED:
+            _TRACED[key] = continue_orbit(orbit, **options)
+        return _TRACED[key]
+
+    monkeypatch.setattr(diagram, "continue_orbit", recorded)
+    return made
+
+
+@pytest.mark.usefixtures("calls")
 def test_the_loose_continuation_locates_the_same_edge_as_the_accurate_one(monkeypatch):
     paper = ChainParams()
     scouted = diagram.state_diagram(paper, "sine", "gamma_phi", [ROW]).rows[0]
@@ -32,25 +53,15 @@ def test_the_loose_continuation_locates_the_same_edge_as_the_accurate_one(monkey
     assert scouted.rotation_stops == pytest.approx(accurate.rotation_stops, rel=1e-11)
 
 
-def test_an_end_read_from_the_loose_branch_is_traced_again_at_full_accuracy(monkeypatch):
+def test_an_end_read_from_the_loose_branch_is_traced_again_at_full_accuracy(monkeypatch, calls):
     """Where the end cannot be located its value is the branch's own estimate: that branch must be the accurate one.
 
-    Each continuation is traced once for its start and options (the row without the loose one asks for the accurate
-    branch twice, as the first row's second call did: the same start and options give the same branch)."""
-    calls, traced = [], {}
-    continue_orbit = diagram.continue_orbit
-
-    def recorded(orbit, **options):
-        calls.append(options)
-        key = (orbit.moment, orbit.period, orbit.x.tobytes(), orbit.v.tobytes(), tuple(sorted(options.items())))
-        if key not in traced:
-            traced[key] = continue_orbit(orbit, **options)
-        return traced[key]
+    Each continuation is traced once for its start and options (``calls``: the row without the loose one asks for the
+    accurate branch again, as the first row's second call did, and the test above traced both)."""
 
     def unlocatable(*args, **kwargs):
         raise ValueError("not located in this test")
 
-    monkeypatch.setattr(diagram, "continue_orbit", recorded)
     monkeypatch.setattr(diagram, "locate_cycle_end", unlocatable)
     row = diagram.state_diagram(ChainParams(), "sine", "gamma_phi", [ROW]).rows[0]
     assert row.method == "one_parameter" and "not located exactly" in row.message
