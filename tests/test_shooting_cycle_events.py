@@ -74,9 +74,10 @@ def test_the_dense_branch_locates_the_augmented_newtons_end_with_its_multiplier_
 
 @pytest.mark.parametrize("method", ["blocks", "picard"])
 def test_blocks_and_newton_picard_locate_the_dense_event(crossing, method):
-    """From three orbits above the end, so that each branch is short; picard sees only the multipliers above rho."""
+    """From the dense branch's last stable orbit, so that each branch is two orbits, the event between them; picard sees
+    only the multipliers above rho."""
     kind, branch, index = crossing
-    other = continue_orbit(branch.orbits[index - 3], period_max=100.0, until_unstable=True, method=method)
+    other = continue_orbit(branch.orbits[index - 1], period_max=100.0, until_unstable=True, method=method)
     (event,) = other.events
     assert event["kind"] == kind and event["located"]
     assert event["moment"] == pytest.approx(branch.events[0]["moment"], abs=MOMENT_AGREEMENT)
