@@ -652,6 +652,79 @@ def hopf_orbit(
     return _hopf_march(params, model, point, tol, rtol, atol).to(amplitude)
 
 
+def system_hopf_orbit(
+    point: Any, parameter: str, amplitude: float, *, tol: float = shooting.CLOSURE_TOL, rtol: float = shooting.RTOL,
+    atol: float = shooting.ATOL,
+) -> shooting.Orbit:  # fmt: skip
+    """The periodic orbit of amplitude ``amplitude`` born at a user system's Hopf point, as :func:`hopf_orbit` the chain's.
+
+    Parameters
+    ----------
+    point : equilibria.SystemEquilibrium
+        The equilibrium at the Hopf point (the located point of a ``hopf`` event of
+        :func:`~.equilibria.continue_equilibria`): a complex pair of its dynamics on the imaginary axis.
+    parameter : str
+        The system's parameter unknown beside the period (the one the equilibria were continued in).
+    amplitude : float
+        a > 0 of e . (y0 - y_H) = a, e the real part of the crossing eigenvector (turned so that its real and
+        imaginary parts are orthogonal, the real part of unit length), reached in steps as in :func:`doubled_orbit`.
+    tol, rtol, atol : float
+        As for :func:`~.shooting.find_orbit`.
+
+    Returns
+    -------
+    shooting.Orbit
+        No turns, period near 2 pi / omega, at the parameter value the amplitude fixes; on the phase plane through
+        y_H + a_1 e (a_1 the first of :data:`PROBE_AMPLITUDES`), normal to the flow there.
+
+    Raises
+    ------
+    ValueError
+        For an amplitude that is not a finite positive number, or an equilibrium with no pair near the axis.
+    OrbitError
+        Where Newton's method does not converge.
+    """
+    if not (math.isfinite(amplitude) and amplitude > 0):
+        raise ValueError(f"amplitude must be a finite number > 0 (along the Hopf eigenvector), got {amplitude!r}")
+    system, q = point.system, np.asarray(point.q, dtype=float)
+    n = system.size
+    inverse = 1.0 / system.mass()
+    matrix = np.block(
+        [[np.zeros((n, n)), np.eye(n)], [inverse[:, None] * system.force_jacobian(q).toarray(), -np.diag(system.damping() * inverse)]]
+    )
+    values, vectors = sla.eig(matrix)
+    upper = np.flatnonzero(values.imag > 1e-9)
+    if upper.size == 0:
+        raise ValueError(
+            f"the equilibrium of {system.name} at {parameter}={system.parameter(parameter)!r} has no complex pair: no Hopf point"
+        )
+    i = upper[np.argmin(np.abs(values[upper].real))]
+    if abs(values[i].real) > 1e-6 * abs(values[i]):
+        raise ValueError(
+            f"the pair nearest the imaginary axis lies at {values[i]:.6g}: not a located Hopf point (continue_equilibria's hopf event)"
+        )
+    v = vectors[:, i]
+    re, im = np.real(v), np.imag(v)
+    v = v * np.exp(0.5j * math.atan2(-2.0 * (re @ im), re @ re - im @ im))
+    e = np.real(v) / np.linalg.norm(np.real(v))
+    state = np.concatenate([q, np.zeros(n)])
+    period = 2.0 * math.pi / float(values[i].imag)
+    unknowns = (shooting.PERIOD, parameter)
+    problem = shooting._Shooting(system, np.zeros(n, dtype=np.int64), state + PROBE_AMPLITUDES[0] * e, period, unknowns, tol, rtol, atol)
+    # The equilibria's branch: K dq/dp = -dF/dp, the period and the velocities unchanged.
+    slope = -np.linalg.solve(system.force_jacobian(q).toarray(), system.parameter_forces(q, parameter))
+    tau = np.concatenate([slope, np.zeros(n + 1), [1.0]])
+
+    def at_rest(w: np.ndarray) -> bool:
+        moving = system.with_parameters(**{parameter: float(w[-1])}).vector_field(w[: 2 * n])
+        return float(np.max(np.abs(moving))) <= HALF_CLOSURE * tol
+
+    base = np.concatenate([state, [math.log(period), system.parameter(parameter)]])
+    tangent = np.concatenate([e, [0.0, 0.0]])
+    march = _March(problem.evaluate, problem.orbit, base, tangent, tau, at_rest, tol, f"{parameter}={system.parameter(parameter)!r}")
+    return march.to(amplitude)
+
+
 def _check_hopf(point) -> None:
     if not isinstance(point, HopfPoint) or not point.located:
         raise ValueError(f"point must be a located HopfPoint (numerics.hopf.hopf_points), got {point!r:.80}")
@@ -857,4 +930,5 @@ __all__ = [
     "hopf_vector",
     "switch_at_hopf",
     "switch_at_period_doubling",
+    "system_hopf_orbit",
 ]
