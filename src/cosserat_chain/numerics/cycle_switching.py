@@ -41,6 +41,8 @@ pair +-i omega of the damped dynamics on the axis) non-rotating orbits are born:
 and :func:`hopf_orbit` solve them the same way, with the chain's shooting and no turns (every
 ``particle_turns`` 0) on a phase plane, the amplitude along the real part of the eigenvector for
 +i omega, from (y_H + a e, 2 pi / omega, M_H): period 2 pi / omega + O(a^2), M_H + c a^2.
+:func:`system_hopf_orbit` does the same at a user system's Hopf point (the located ``hopf`` event of
+:func:`~cosserat_chain.numerics.equilibria.continue_equilibria`), on the system's shooting.
 """
 
 from __future__ import annotations
