@@ -50,3 +50,17 @@ def test_an_equilibrium_off_its_hopf_point_or_a_bad_amplitude_is_refused(hopf):
     off = find_equilibrium(hopf.system.with_parameters(a0=0.2), np.zeros(2))
     with pytest.raises(ValueError, match="not a located Hopf point"):
         system_hopf_orbit(off, "a0", 1e-2)
+
+
+def test_a_subcritical_hopf_points_unstable_circles_which_no_settling_run_reaches():
+    """With b < 0 the circles lie below the Hopf point (a0 - a0_H = b R^2 < 0) and are unstable: only the Hopf start
+    reaches them."""
+    namespace: dict = {}
+    exec(ROTOR, namespace)
+    system = namespace["build"](a0=0.2, b=-1.0)
+    branch = continue_equilibria(find_equilibrium(system, np.zeros(2)), "a0", direction=1, stop_at=("hopf",), limits=(0.0, 0.4))
+    (event,) = [e for e in branch.events if e.kind == "hopf"]
+    orbit = system_hopf_orbit(event.point, "a0", 4e-2)
+    radius = math.hypot(*orbit.q0)
+    assert orbit.period == pytest.approx(PERIOD, abs=1e-8) and not orbit.stable
+    assert orbit.parameter("a0") - HOPF == pytest.approx(-(radius**2), abs=2 * CLOSURE_TOL / (PERIOD * radius))
