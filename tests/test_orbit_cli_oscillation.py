@@ -124,3 +124,23 @@ def test_bad_oscillation_requests_are_refused_with_a_reason(reference):
     assert chain.exit_code == 2 and "--oscillation" in chain.output and "--system" in chain.output
     zero = runner.invoke(app, ["orbit", "--system", "pen", "--turn", "phi_0=0"])
     assert zero.exit_code == 2 and "is --oscillation" in zero.output
+
+
+def test_from_a_subcritical_hopf_point_the_unstable_circles_no_settling_run_reaches(reference):
+    """With b = -1 the circles (a0_H - a0 = R^2) lie below the Hopf point and are unstable: --from-hopf starts the family
+    at the Hopf point of q = 0 sought up from a0 = 0.2, and follows it down to the range's end."""
+    args = ["orbit", "--system", reference, "--set", "a0=0.2", "--set", "b=-1", "--oscillation", "--from-hopf", "--vary", "a0"]
+    result = runner.invoke(app, [*args, "--down-to", "0.4", "--json"])
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.stdout)
+    assert out["hopf"]["value"] == pytest.approx(HOPF, abs=1e-9) and np.allclose(out["hopf"]["q"], 0.0, atol=1e-12)
+    first_radius = math.hypot(*out["q0"])
+    assert out["period"] == pytest.approx(PERIOD, abs=1e-8) and not out["stable"] and out["turns"] == [0, 0]
+    branch = out["branch"]
+    assert branch["end"] == "parameter_limit" and min(branch["values"]) < 0.2 < HOPF - first_radius**2 + 1e-6
+    assert np.allclose(branch["periods"], PERIOD, atol=1e-7)
+    # Without a Hopf point in the range: exit 3, saying so; without --down-to: exit 2.
+    none = runner.invoke(app, [*args, "--down-to", "0.22"])
+    assert none.exit_code == 3 and "no Hopf point for a0 between 0.2 and 0.22" in none.output
+    bare = runner.invoke(app, args)
+    assert bare.exit_code == 2 and "--from-hopf starts an --oscillation" in bare.output

@@ -107,6 +107,12 @@ def orbit(
         "from a settling run of --start/--velocity (off the equilibrium) timed by its first coordinate's crossings of "
         "its mean; not with --turn.",
     ),
+    from_hopf: bool = typer.Option(
+        False,
+        "--from-hopf",
+        help="With --system --oscillation --vary NAME --down-to X: the oscillation born at the first Hopf point of the "
+        "equilibrium found from --start, sought along NAME towards X (unstable families too), followed within that range.",
+    ),
     start: str | None = start_option("the coordinates the settling run starts from (default 0)"),
     velocity: str | None = velocity_option("default: the drive at the start over the damping, on the angles"),
 ) -> None:
@@ -118,15 +124,16 @@ def orbit(
     """
     if system is not None:
         chain_only_or_exit(
-            ctx, ("config", "as_json", "out", "down_to", "period_max", "sets", "vary", "turn", "oscillation", "start", "velocity")
+            ctx,
+            ("config", "as_json", "out", "down_to", "period_max", "sets", "vary", "turn", "oscillation", "from_hopf", "start", "velocity"),
         )
         if oscillation and turn:
             fail(f"--oscillation turns no angle: leave out --turn (got {', '.join(turn)})")
         return orbit_on_system(
             system, config=config, sets=sets, vary=vary, turns=turn, down_to=down_to, period_max=period_max, start=start,
-            velocity=velocity, out=out, as_json=as_json, oscillation=oscillation,
+            velocity=velocity, out=out, as_json=as_json, oscillation=oscillation, from_hopf=from_hopf,
         )  # fmt: skip
-    system_only_or_exit(ctx, ("sets", "vary", "turn", "oscillation", "start", "velocity"))
+    system_only_or_exit(ctx, ("sets", "vary", "turn", "oscillation", "from_hopf", "start", "velocity"))
     if method not in ORBIT_METHODS:
         fail(f"--method takes {', '.join(ORBIT_METHODS)}, got {method!r}")
     if moment is None:

@@ -367,9 +367,11 @@ def orbit_on_system(
     out: Path | None,
     as_json: bool,
     oscillation: bool = False,
+    from_hopf: bool = False,
 ) -> None:
     """A rotating orbit of the system (with ``oscillation`` one where no angle turns) from a settled simulation, and with
-    ``--vary`` its continuation."""
+    ``--vary`` its continuation; with ``from_hopf`` the oscillation born at the first Hopf point of the equilibrium
+    found from ``--start``, followed in ``--vary`` towards ``--down-to``."""
     import numpy as np
 
     from ..numerics.kit import EvaluationFailed
@@ -377,6 +379,12 @@ def orbit_on_system(
 
     if down_to is not None and vary is None:
         fail("--down-to needs --vary NAME: the parameter to continue the orbit in")
+    if from_hopf and not (oscillation and down_to is not None):
+        fail("--from-hopf starts an --oscillation at a Hopf point sought along --vary NAME up to --down-to X: give all three")
+    if from_hopf:
+        return _orbit_from_hopf(
+            reference, config=config, sets=sets, vary=vary, down_to=down_to, period_max=period_max, start=start, out=out, as_json=as_json
+        )
     outputs_or_exit({"--out": out}, {"--config": config})
     system = system_or_exit(reference, config, sets)
     value = _parameter_or_exit(system, vary) if vary is not None else None
@@ -429,6 +437,66 @@ def orbit_on_system(
             where = f"at {vary} = {e.parameter:.12g}" if e.located else f"not located, passed before {vary} = {e.parameter:.12g}"
             typer.echo(f"  {e.kind} {where}")
         typer.echo(f"continued to {vary} = {branch.values[-1]:.12g} ({len(branch.orbits)} orbits): {branch.end}: {branch.message}")
+
+
+#: Amplitude along the crossing eigenvector of the first orbit ``orbit --from-hopf`` solves at a Hopf point.
+HOPF_AMPLITUDE = 0.02
+
+
+def _orbit_from_hopf(reference: str, *, config, sets, vary: str, down_to: float, period_max: float, start, out, as_json: bool) -> None:
+    """``orbit --system --oscillation --from-hopf``: the equilibrium from ``--start`` followed in ``vary`` towards
+    ``down_to`` to its first Hopf point, the orbit of amplitude :data:`HOPF_AMPLITUDE` born there
+    (:func:`~cosserat_chain.numerics.cycle_switching.system_hopf_orbit`: unstable families too, which no settling run
+    reaches), and that family followed away from the Hopf point within the same range."""
+    from ..numerics.cycle_switching import system_hopf_orbit
+    from ..numerics.equilibria import EquilibriumNotFound, continue_equilibria, find_equilibrium
+    from ..numerics.kit import EvaluationFailed
+    from ..numerics.periodic import OrbitError
+    from ..numerics.shooting import OrbitNotFound, continue_orbits
+
+    outputs_or_exit({"--out": out}, {"--config": config})
+    system = system_or_exit(reference, config, sets)
+    value = _parameter_or_exit(system, vary)
+    limits = (min(value, down_to), max(value, down_to))
+    bar = progress_bar(f"orbit {system.name}", "orbit")
+    try:
+        equilibrium = find_equilibrium(system, state_or_exit(system, start, "--start"))
+        states = continue_equilibria(equilibrium, vary, direction=1.0 if down_to > value else -1.0, limits=limits, stop_at=("hopf",))
+        # The last step may leave the range and locate a Hopf point beyond it: only one inside counts.
+        hopf = next((e for e in states.events if e.kind == "hopf" and e.located and limits[0] <= e.parameter <= limits[1]), None)
+        if hopf is None:
+            raise OrbitNotFound(f"the equilibrium from --start has no Hopf point for {vary} between {value:g} and {down_to:g}")
+        orbit = system_hopf_orbit(hopf.point, vary, HOPF_AMPLITUDE)
+        side = 1.0 if orbit.parameter(vary) > hopf.parameter else -1.0
+        branch = continue_orbits(orbit, vary, direction=side, limits=limits, period_max=period_max, progress=bar_callback(bar))
+    except ValueError as err:
+        bar.close()
+        fail(str(err))
+    except (EquilibriumNotFound, OrbitNotFound, OrbitError, EvaluationFailed) as err:
+        bar.close()
+        fail(str(err), code=EXIT_CODES[Status.NOT_CONVERGED])
+    bar.finish(note=f"the branch ended: {branch.end}")
+    if out is not None:
+        save_dataset(_orbit_dataset(system, reference, orbit, branch), out)
+    hopf_record = {"parameter": vary, "value": hopf.parameter, "q": hopf.point.q, "amplitude": HOPF_AMPLITUDE}
+    if as_json:
+        _echo_json(
+            {
+                **orbit.as_dict(),
+                "reference": reference,
+                "multipliers": [[m.real, m.imag] for m in orbit.multipliers],
+                "hopf": hopf_record,
+                "branch": branch.as_dict(),
+            }
+        )
+        return
+    typer.echo(
+        f"{system.name}: Hopf point at {vary} = {hopf.parameter:.12g}; the oscillation born there at {vary} = {orbit.parameter(vary):.12g}:"
+    )
+    typer.echo(
+        f"period T = {orbit.period:.12g}, largest other |mu| = {orbit.max_multiplier:.6g}: {'stable' if orbit.stable else 'unstable'}; closure {orbit.closure:.2g}"
+    )
+    typer.echo(f"continued to {vary} = {branch.values[-1]:.12g} ({len(branch.orbits)} orbits): {branch.end}: {branch.message}")
 
 
 def _orbit_dataset(system, reference: str, orbit, branch):
