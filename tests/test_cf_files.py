@@ -71,12 +71,13 @@ def files(tmp_path_factory) -> dict[str, Path]:
     """One small file of every kind the package writes, by kind."""
     tmp = tmp_path_factory.mktemp("cf")
     paper = ChainParams()
+    sine_critical = critical_point(paper, "sine")  # the critical file's and, with the linear model's, the report's
     out = {
         "simulate": _cli(tmp, "simulate", "simulate", "--model", "sine", "--t-end", "1", "--frames", "3"),
         "simulate_pinned_free": _write(
             tmp, "pinned_free", simulate(ChainParams(left_end="pinned", right_end="free"), "nonlinear", 0.01, t_end=0.5, n_frames=3)
         ),
-        "critical": _write(tmp, "critical", critical_point(paper, "sine").to_dataset()),
+        "critical": _write(tmp, "critical", sine_critical.to_dataset()),
         "sweep": _write(tmp, "sweep", relaxation_sweep(paper, "linear", m_max=0.02, dm=0.02).to_dataset()),
         "localization": _cli(tmp, "rotate", "rotate", "--model", "sine", "--moment", "0.3", "--turns", "1"),
         "orbit": _cli(tmp, "orbit", "orbit", "--moment", "0.22", "--down-to", "0.21"),
@@ -84,7 +85,9 @@ def files(tmp_path_factory) -> dict[str, Path]:
         "study": _study(tmp),
         "state_diagram": _cli(tmp, "diagram", "diagram", "--vary", "E2", "--values", "1.0"),
         "report_critical": _write(
-            tmp, "report_critical", stack_models({m: critical_point(paper, m).to_dataset() for m in ("sine", "linear")})
+            tmp,
+            "report_critical",
+            stack_models({"sine": sine_critical.to_dataset(), "linear": critical_point(paper, "linear").to_dataset()}),
         ),
         # Sweeps of different lengths, as the report's: stacking pads their text with NaN.
         "report_sweep": _write(
