@@ -169,3 +169,19 @@ def test_junctions_with_unequal_critical_currents_agree_with_auto07p_and_name_wh
     assert "at not located" not in result.output
     with xr.open_dataset(out) as ds:
         assert ds.attrs["branch_message"].startswith("fold located at I = 0.2538727552"), ds.attrs["branch_message"]
+
+
+
+def test_a_harmonic_josephson_ring_holds_no_fluxon():
+    # docs/systems/josephson.md said the ring "holds trapped fluxons": its closing bond sees the jump of -2 pi itself,
+    # so Newton from a fluxon ends on a kink-antikink pair of no net phase (the docs now say so).
+    from cosserat_chain.numerics.equilibria import find_equilibrium
+    from cosserat_chain.systems import josephson_array
+
+    n, kappa = 12, 0.5
+    fluxon = 4 * np.arctan(np.exp((np.arange(n) - n / 2 + 0.5) / np.sqrt(kappa)))
+    ring = josephson_array(n, kappa=kappa, boundary="periodic")
+    eq = find_equilibrium(ring, fluxon)
+    jumps = np.diff(np.append(eq.q, eq.q[0]))
+    assert abs(np.sum(np.angle(np.exp(1j * jumps)))) < 1e-12  # no net phase around the ring
+    assert ring.energy(eq.q) < ring.energy(fluxon) and np.max(np.abs(jumps)) < np.pi + 1e-9

@@ -3,8 +3,9 @@
     phi_i'' + alpha phi_i' + sin phi_i = I + kappa (phi_{i+1} - 2 phi_i + phi_{i-1}),
 
 with bias current (or torque) I, damping alpha and coupling kappa, in units of the
-junctions' plasma frequency; free ends by default, a ring (an annular array, which holds trapped fluxons) with
-``boundary="periodic"``. Its linear band about phi = arcsin I is
+junctions' plasma frequency; free ends by default, a ring (an annular array) with ``boundary="periodic"``: its
+closing bond sees the phase difference itself, not modulo 2 pi, so it holds no trapped fluxon (that needs a
+twisted closing bond, phi_0 + 2 pi - phi_{n-1}, which the lattice's ring does not offer). Its linear band about phi = arcsin I is
 omega^2 = sqrt(1 - I^2) + 4 kappa sin^2(q/2).
 """
 
