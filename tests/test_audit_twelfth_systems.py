@@ -116,7 +116,7 @@ def test_an_orbit_shrinking_onto_its_hopf_point_ends_there_not_at_a_fold_of_cycl
     (a0 - a0_H ~ R^2) and the equilibrium's pair exp(+-i w T) sits at +1. The continuation reported a
     located ``fold`` (a fold of cycles) and a ``branch_point`` there and went on, back up the same family
     phase-shifted by half a period, to max_points. It now ends at the Hopf point, naming it."""
-    system = FollowerRotor(a0=0.3)
+    system = FollowerRotor(a0=0.27)  # radius 0.16, five orbits to the Hopf point at 0.2449
     orbit = find_orbit(system, _circle(system))
     branch = continue_orbits(orbit, "a0", direction=-1, stop_at=(), max_points=40)
     assert branch.end == BranchEnd.HOPF, branch.message
