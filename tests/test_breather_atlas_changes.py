@@ -14,6 +14,7 @@ the same at both, so two crossings between them cancel there, and a stable/unsta
 
 from __future__ import annotations
 
+import functools
 import json
 
 import numpy as np
@@ -244,17 +245,26 @@ def test_a_looser_tolerance_solves_fewer_orbits(monkeypatch):
     assert solves[1e-4] < solves[1e-9]
 
 
+@functools.cache
+def chain_family():
+    """The sine chain's (N = 2, undamped) family over Omega = 6.2 ... 4.8 with its changes located: the independent
+    reference of the chain's atlas and of its command, computed once."""
+    from cosserat_chain import ChainParams
+    from cosserat_chain.experiments.breathers import roto_breather_family
+
+    return roto_breather_family(ChainParams(N=2, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0), "sine", [6.2, 6.0, 5.8, 5.2, 5.0, 4.8])
+
+
 def test_the_chains_atlas_locates_the_chains_family_changes():
     """The sine chain with N = 2 (test_breather_chain_changes): its atlas over the family's frequencies, at the
     chain's own b, locates at the default tolerance the family's three changes (two Krein collisions, one at +1),
     each within the sum of the two accuracies, and its NetCDF carries them."""
     from cosserat_chain import ChainParams
     from cosserat_chain.experiments.breather_atlas import LOCATE_TOL, breather_atlas
-    from cosserat_chain.experiments.breathers import roto_breather_family
 
     chain = ChainParams(N=2, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
     omegas = [6.2, 6.0, 5.8, 5.2, 5.0, 4.8]
-    family = roto_breather_family(chain, "sine", omegas)
+    family = chain_family()
     found = breather_atlas(chain, "sine", omegas, "b", [chain.b])
     found.locate_changes()
     assert [c.change.kind for c in found.changes] == [c.kind for c in family.changes] == ["complex", "complex", "+1"]
@@ -279,10 +289,8 @@ def test_the_chains_atlas_locates_the_chains_family_changes():
 
 def test_the_chain_cli_json_and_netcdf_carry_the_located_changes(tmp_path):
     """``breathers --atlas`` of the chain (sine, N = 2, Omega 6.2 down to 4.8 in 8 steps): --json lists the three changes the
-    family locates between the same frequencies, within the two accuracies, and --out carries the same numbers."""
-    from cosserat_chain import ChainParams
-    from cosserat_chain.experiments.breathers import roto_breather_family
-
+    family locates between the same frequencies (on its own six members), within the two accuracies, and --out carries
+    the same numbers."""
     config = tmp_path / "chain.toml"
     config.write_text("N = 2\n")
     out = tmp_path / "atlas.nc"
@@ -290,7 +298,7 @@ def test_the_chain_cli_json_and_netcdf_carry_the_located_changes(tmp_path):
     result = runner.invoke(app, [*args, "--json", "--out", str(out)])
     assert result.exit_code == 0, result.output
     changes = json.loads(result.stdout)["stability_changes"]
-    family = roto_breather_family(ChainParams(N=2, gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0), "sine", np.linspace(6.2, 4.8, 8).tolist())
+    family = chain_family()
     assert [c["kind"] for c in changes] == [c.kind for c in family.changes] == ["complex", "complex", "+1"]
     for ours, theirs in zip(changes, family.changes, strict=True):
         assert abs(ours["omega"] - theirs.omega) <= ours["accuracy"] + theirs.accuracy
