@@ -197,13 +197,14 @@ def test_a_saddle_with_two_unstable_directions_leaves_in_phase():
 
 
 def test_a_fitted_end_says_it_is_a_fit_and_why(monkeypatch):
-    """Where the boundary-value problem is not solved, the fit of the period's growth stays, labelled ``fitted``,
-    with the reason and the searched bracket as its uncertainty (which holds the true end)."""
+    """Where the boundary-value problem is not solved (neither from the last orbit nor in a bracket), the fit of the
+    period's growth stays, labelled ``fitted``, with the reason and the fit's own uncertainty (which holds the true end)."""
 
     def refuse(*args, **kwargs):
         raise HomoclinicError("no loop in this bracket")
 
     monkeypatch.setattr(module, "homoclinic_end", refuse)
+    monkeypatch.setattr(module, "homoclinic_from_orbit", refuse)
     # The row computed once: the command's call of system_diagram (spied on) is the API's on the same system.
     calls = []
 
@@ -220,7 +221,7 @@ def test_a_fitted_end_says_it_is_a_fit_and_why(monkeypatch):
     (row,) = result.rows
     assert (row.end, row.method) == ("homoclinic", "fitted")
     assert "no loop in this bracket" in row.reason and "fitted" in row.message
-    assert row.accuracy >= module.BRACKET_RTOL * row.stops
+    assert f"+- {row.accuracy:.2g}, fitted (the fit's own uncertainty)" in row.message
     assert holds_the_retrapping_current(0.3, row.stops, row.accuracy)
 
 

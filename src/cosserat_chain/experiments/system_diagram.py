@@ -19,20 +19,23 @@ a torque):
   ``parameter_limit``, ...: the rotation was not followed to its end); None where no edge was
   found (``message`` says why);
 * ``stops_method`` and ``stops_uncertainty`` (the accuracy): ``solved`` for a homoclinic end
-  solved as a boundary-value problem (:func:`~cosserat_chain.numerics.homoclinic.homoclinic_end`,
-  projection boundary conditions, started from the bracket between the continuation's last
-  orbit and the fit of its period's growth, the saddle followed along the static branch past
-  the fold), its accuracy the one the solve reports; ``fitted`` where that solve failed (the
-  fit of the period's growth, p = p* + c exp(-s T), is kept, ``reason`` says why it was not
-  solved, and its uncertainty is the bracket the solve searched: the fit's own spread can be
-  that far off); ``located`` for a fold of cycles (the continuation's event, located by the
+  solved as a boundary-value problem (projection boundary conditions): first from the loop the
+  continuation's last orbit nearly is, through the saddle that orbit lingers at
+  (:func:`~cosserat_chain.numerics.homoclinic.homoclinic_from_orbit`: any saddle with real
+  unstable eigenvalues, on whichever static branch), else
+  (:func:`~cosserat_chain.numerics.homoclinic.homoclinic_end`) in the bracket between that orbit
+  and the fit of its period's growth, the saddle followed along the static branch past the fold;
+  its accuracy the one the solve reports; ``fitted`` where both fail (the fit of the period's
+  growth, p = p* + c exp(-s T), is kept, ``reason`` says why it was not solved, and its
+  uncertainty is the fit's own: the distance between the fits over the last half and the whole
+  span of periods, :func:`~cosserat_chain.numerics.shooting.continue_orbits`); ``located`` for a fold of cycles (the continuation's event, located by the
   kit to its corrector's tolerance; no accuracy estimated); ``static_fold`` for a SNIC (the end
   is the equilibrium's fold, ``starts``; every orbit lies above it and the fold's centre
   manifold falls back into the shifted fold, :func:`~cosserat_chain.numerics.homoclinic.fold_turns_over`);
   ``upper_bound`` where the period passed ``period_max`` above the fold but that manifold turns
   over (near the codimension-two point: the end is a homoclinic one just below the fold, which
   bounds it; ``reason`` says so); ``last_orbit`` where the continuation stopped for
-  another reason (the last orbit's value, not an end);
+  another reason, or its period diverged with no fit and no solved loop (the last orbit's value, not an end);
 * ``open``: whether the loop is open, stops below starts (None where the end is not known);
 * ``warning``: where the followed orbit loses stability before its end (a falling drive then
   leaves it for a state not followed: the end reported is the unstable continuation's), and
@@ -68,7 +71,7 @@ import numpy as np
 from ..linalg.threads import one_blas_thread
 from ..numerics.cycle_curve import KINDS, continue_cycle_end
 from ..numerics.equilibria import EquilibriumNotFound, continue_equilibria, find_equilibrium
-from ..numerics.homoclinic import HomoclinicError, fold_turns_over, homoclinic_end, locate_snic_point
+from ..numerics.homoclinic import HomoclinicError, fold_turns_over, homoclinic_end, homoclinic_from_orbit, locate_snic_point
 from ..numerics.kit import BranchEnd, EvaluationFailed
 from ..numerics.shooting import OrbitNotFound, continue_orbits, find_orbit, flow, settled_guess, states, turns_vector
 from ..systems.base import System
@@ -185,7 +188,7 @@ class SystemDiagram:
             {
                 "starts": ("value", column("starts"), {"long_name": f"{self.drive} where the equilibrium folds (rotation starts, rising {self.drive})"}),
                 "stops": ("value", column("stops"), {"long_name": f"{self.drive} where the rotation ends (falling {self.drive}; NaN: not found)"}),
-                "stops_uncertainty": ("value", column("accuracy"), {"long_name": "accuracy of stops: a solved end's, or the searched bracket of a fitted one (NaN: not estimated)"}),
+                "stops_uncertainty": ("value", column("accuracy"), {"long_name": "accuracy of stops: a solved end's, or a fitted one's own uncertainty (stops_method fitted; NaN: not estimated)"}),
                 "stops_method": ("value", text("method", "none"), {"long_name": "how stops was found: " + ", ".join(METHODS) + " or none"}),
                 "open": ("value", np.array([bool(row.open) for row in self.rows]), {"long_name": "1 if the hysteresis loop is open (the rotation stops below where it starts), 0 if not or unknown"}),
                 "end": ("value", text("end", "failed"), {"long_name": "how the continued rotation ended"}),
@@ -385,31 +388,54 @@ def _stability_warning(row: SystemDiagramRow, branch, drive: str) -> None:
 
 
 def _homoclinic(row: SystemDiagramRow, system: System, drive: str, k: np.ndarray, winding: int, branch, last: float) -> None:
-    """Solve the homoclinic end between the fit and the last orbit; keep the fit, saying why, where that fails."""
-    fit = last if branch.end_value is None else float(branch.end_value)
+    """Solve the homoclinic end: from the loop the last orbit nearly is, else in the bracket between the fit and the last
+    orbit with the static branch's saddle past the fold; keep the fit, saying why and with its own uncertainty, where
+    both fail (the last orbit's value, where there is no fit)."""
     spread = branch.end_uncertainty if branch.end_uncertainty is not None and math.isfinite(branch.end_uncertainty) else 0.0
+    # A fit is reported only with its own uncertainty; without one the end is bounded by the last orbit alone.
+    fitted = branch.end_value is not None and spread > 0
+    fit = float(branch.end_value) if branch.end_value is not None else last
     reach = max(10.0 * spread, BRACKET_RTOL * max(abs(fit), 1e-3), 2.0 * abs(last - fit))
     turns = {system.coordinates[i]: int(n) for i, n in enumerate(k) if n}
-    error: Exception | None = None
+    errors: list[str] = []
     orbit = None
     try:
-        saddle = _saddle(system, drive, row.fold_q, float(row.starts), last, winding)
-        for _ in range(WIDENINGS + 1):
-            try:
-                orbit = homoclinic_end(
-                    system.with_parameters(**{drive: last}), saddle, turns=turns, bracket=(fit - reach, last), parameter=drive
-                )
-                break
-            except HomoclinicError as err:
-                error = err
-                reach *= WIDEN
-    except (HomoclinicError, EquilibriumNotFound, EvaluationFailed, ValueError) as err:
-        error = err
+        # Through the saddle the last orbit lingers at, which need not be the static branch's past the fold (an
+        # unequal pendulum pair's in-phase rotation ends at the saddle with both pendula up).
+        orbit = homoclinic_from_orbit(branch.orbits[-1], turns=turns, parameter=drive, value=fit)
+    except HomoclinicError as err:
+        errors.append(f"from the last orbit: {err}")
+    if orbit is None:
+        error: Exception | None = None
+        try:
+            saddle = _saddle(system, drive, row.fold_q, float(row.starts), last, winding)
+            for _ in range(WIDENINGS + 1):
+                try:
+                    orbit = homoclinic_end(
+                        system.with_parameters(**{drive: last}), saddle, turns=turns, bracket=(fit - reach, last), parameter=drive
+                    )
+                    break
+                except HomoclinicError as err:
+                    error = err
+                    reach *= WIDEN
+        except (HomoclinicError, EquilibriumNotFound, EvaluationFailed, ValueError) as err:
+            error = err
+        if orbit is None:
+            errors.append(f"in a bracket from the static branch's saddle past the fold: {error}")
     quoted = f"the fit of the period's growth gave {fit:.10g} +- {spread:.2g}"
     if orbit is None:
-        row.stops, row.method, row.accuracy = fit, "fitted", reach
-        row.reason = f"the boundary-value problem was not solved: {error}"
-        row.message += f"; homoclinic end fitted from the period's growth, not solved ({error}); its uncertainty is the searched bracket"
+        row.reason = "the boundary-value problem was not solved: " + "; ".join(errors)
+        if fitted:
+            row.stops, row.method, row.accuracy = fit, "fitted", spread
+            row.message += (
+                f"; homoclinic end fitted from the period's growth, not solved ({'; '.join(errors)}): {drive} = {fit:.10g} "
+                f"+- {spread:.2g}, fitted (the fit's own uncertainty)"
+            )
+        else:
+            row.stops, row.method, row.accuracy = last, "last_orbit", None
+            row.message += (
+                f"; homoclinic end not solved ({'; '.join(errors)}) and its fit has no uncertainty: the last orbit's {drive} bounds it"
+            )
         return
     row.stops, row.method, row.accuracy = float(orbit.value), "solved", float(orbit.accuracy)
     row.homoclinic = orbit.as_dict()

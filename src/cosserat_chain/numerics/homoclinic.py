@@ -109,6 +109,16 @@ APPROACH_FACTOR = 10.0
 BRACKET_DOUBLINGS = 12
 #: Largest |Im| / |lambda| of a real leaving eigenvalue.
 REAL_TOL = 1e-8
+#: Samples per period of a long-period orbit, where :func:`homoclinic_from_orbit` reads off its first guess.
+ORBIT_SAMPLES = 4001
+#: :func:`homoclinic_from_orbit`'s first rung is at least this many times the orbit's closest passage by the saddle
+#: (a rung before the ladder's first where that is too near), and at most FIRST_RUNG_MAX.
+ORBIT_NEAR = 4.0
+FIRST_RUNG_MAX = 0.1
+#: The rungs :func:`homoclinic_from_orbit` adds above the ladder's first are at most this factor apart.
+RUNG_RATIO = 1.5
+#: Rungs inserted (each halfway in log eps to the one that failed) where Newton misses a rung from a tilted start.
+SPLITS = 12
 
 
 class HomoclinicError(CosseratChainError, RuntimeError):
@@ -205,13 +215,16 @@ def dynamics_matrix(system: System, q: np.ndarray) -> np.ndarray:
     return a
 
 
-def rest(system: System, q: np.ndarray, winding: int, *, fold: bool = False) -> Rest:
+def rest(system: System, q: np.ndarray, winding: int, *, fold: bool = False, toward: np.ndarray | None = None) -> Rest:
     """The equilibrium ``q`` of ``system`` with its leaving direction (:class:`Rest`).
 
     ``fold``: the leaving eigenvalue is the one nearest 0 (a fold's centre direction), and all
     others must be stable. Else the leaving eigenvalue is the largest real one; a saddle may have
     further real unstable eigenvalues (the in-phase saddle of two coupled pendula has the
     anti-phase one too), which the loop's start may tilt into (:class:`Rest` ``others``).
+    ``toward`` (2n,): the leaving eigenvalue is instead the real unstable one whose eigenvector
+    lies nearest that direction, oriented along it (a loop that leaves along a weaker unstable
+    direction, as most orbits of a saddle's unstable manifold do, then has a small tilt).
 
     Raises
     ------
@@ -223,6 +236,9 @@ def rest(system: System, q: np.ndarray, winding: int, *, fold: bool = False) -> 
     eig, right = np.linalg.eig(a)
     scale = max(1.0, float(np.max(np.abs(eig))))
     i = int(np.argmin(np.abs(eig))) if fold else int(np.argmax(eig.real))
+    if toward is not None and not fold:
+        real = [j for j in range(eig.size) if eig[j].real > 1e-9 * scale and abs(eig[j].imag) <= REAL_TOL * scale]
+        i = max(real, key=lambda j: abs(right[:, j].real @ toward) / np.linalg.norm(right[:, j].real), default=i)
     rate = eig[i]
     if not fold and rate.real <= 1e-9 * scale:
         raise HomoclinicError(f"the equilibrium is not a saddle: its eigenvalues all have Re <= 0 (largest {rate:.6g})")
@@ -241,7 +257,7 @@ def rest(system: System, q: np.ndarray, winding: int, *, fold: bool = False) -> 
             )
     v = right[:, i].real
     v /= np.linalg.norm(v)
-    if v[winding] < 0:
+    if (v[winding] < 0) if toward is None else (v @ toward < 0):
         v = -v
     left_eig, left = np.linalg.eig(a.T)
     w = left[:, int(np.argmin(np.abs(left_eig - rate)))].real
@@ -334,8 +350,8 @@ class HomoclinicOrbit:
 class _Equilibria:
     """Equilibria of ``system`` at values of ``parameter``, each solved by Newton from the nearest one known."""
 
-    def __init__(self, system: System, parameter: str, q0: np.ndarray, winding: int):
-        self.system, self.parameter, self.winding = system, parameter, winding
+    def __init__(self, system: System, parameter: str, q0: np.ndarray, winding: int, toward: np.ndarray | None = None):
+        self.system, self.parameter, self.winding, self.toward = system, parameter, winding, toward
         self.known: dict[float, np.ndarray] = {float(system.parameter(parameter)): np.asarray(q0, dtype=float)}
 
     def __call__(self, value: float, depth: int = 0) -> Rest:
@@ -347,7 +363,7 @@ class _Equilibria:
             # Newton from too far lands on the node or on another saddle: take it only near the one it started from.
             if np.max(np.abs(found.q - start)) > JUMP:
                 raise EquilibriumNotFound("jumped")
-            saddle = rest(system, found.q, self.winding)
+            saddle = rest(system, found.q, self.winding, toward=self.toward)
         except (EquilibriumNotFound, HomoclinicError) as err:
             if value == nearest:
                 raise
@@ -550,41 +566,123 @@ def _winding(system: System, turns: Mapping[str | int, int] | np.ndarray) -> tup
 
 
 def _solve_ladder(
-    loop_for: Callable[[float], _Loop], parameter: str, p: float, time: float, rate: float, decay: float, ladder: Sequence[float], what: str
+    loop_for: Callable[[float], _Loop],
+    parameter: str,
+    p: float,
+    time: float,
+    rate: float,
+    decay: float,
+    ladder: Sequence[float],
+    what: str,
+    direction: np.ndarray | None = None,
 ) -> tuple[float, float, float, list[tuple[float, float, float]], int, Rest, float, np.ndarray]:
     """Newton on every rung of ``ladder`` from the one before (the start's tilt too, where the saddle has several
     unstable directions); T grows by log(ratio) (1/rate + 1/approach).
 
     A rung that fails after three have converged ends the ladder there (the loop's sensitivity to p grows
     like 1 / eps times e^(rate T): on the N = 2 chain near its fold the differences in p reach round-off at
-    eps = 1e-6); the accuracy is then the difference between the last two that converged.
+    eps = 1e-6). The accuracy is the difference between the last two rungs that converged, or where larger the last
+    one's error by Richardson's estimate from the last three. ``direction`` is the first rung's tilt (default none);
+    a rung Newton misses from a tilted start (a saddle with several unstable directions) before three have
+    converged is approached through rungs halfway in log eps (at most SPLITS).
     """
     values: list[tuple[float, float, float]] = []
     previous_eps = None
     moved = iterations = 0
     r = None
     approach = decay
-    direction = np.zeros(0)
-    for eps in ladder:
+    direction = solved = np.zeros(0) if direction is None else np.asarray(direction, dtype=float)
+    tilts: list[np.ndarray] = []
+    pending, splits = list(ladder), 0
+    while pending:
+        eps = pending.pop(0)
         loop = loop_for(eps)
-        loop.direction = direction
+        start = (p, time, direction, approach)
         if previous_eps is not None:
-            # Leaving takes log(ratio) / rate longer (nothing at a fold, where eps0 stays), arriving log(ratio) / approach.
-            leaving = math.log(previous_eps / loop.eps0) / rate if rate > 1e-6 and loop.eps0 < previous_eps else 0.0
+            # Leaving takes log(ratio) / rate longer (nothing at a fold, where eps0 stays), arriving log(ratio) / approach;
+            # with several unstable directions, the start is the last one's taken back along the saddle's linear flow.
+            if direction.size and r is not None and loop.eps0 < previous_eps:
+                leaving, direction = _taken_back(r, previous_eps, loop.eps0, direction)
+            else:
+                leaving = math.log(previous_eps / loop.eps0) / rate if rate > 1e-6 and loop.eps0 < previous_eps else 0.0
             time += leaving + math.log(previous_eps / eps) / max(approach, 1e-6)
+            p = _extrapolated(values, eps, p)
+            if len(tilts) >= 2 and np.all(tilts[-1] * tilts[-2] > 0):
+                # The tilt of the last two rungs as a power of eps (where its components keep their signs): the loop is
+                # so sensitive to it that the linear flow's prediction (1 % off at eps = 0.04) leaves Newton's reach.
+                exponent = math.log(eps / values[-1][0]) / math.log(values[-1][0] / values[-2][0])
+                direction = tilts[-1] * (tilts[-1] / tilts[-2]) ** exponent
+        loop.direction = direction
         try:
             p, time, moved, iterations, r, approach = loop.solve(p, time, f"{what} (eps = {eps:g})")
-            direction = loop.direction
+            direction = solved = loop.direction
+            tilts.append(direction)
         except HomoclinicError:
+            p, time, direction, approach = start
+            if direction.size and previous_eps is not None and splits < SPLITS and len(values) < 3:
+                # A tilted start: the rung halfway (in log eps) first, its solution a nearer start for this one.
+                splits += 1
+                pending[:0] = [math.sqrt(previous_eps * eps), eps]
+                continue
             if len(values) < 3:
                 raise
-            p, time = values[-1][1], values[-1][2]
+            p, time, direction = values[-1][1], values[-1][2], solved
             break
         values.append((eps, p, time))
         previous_eps = eps
     spread = abs(values[-1][1] - values[-2][1]) if len(values) > 1 else math.inf
-    accuracy = max(spread, moved, 100.0 * RTOL * max(1.0, abs(p)))
+    accuracy = max(spread, _richardson(values), moved, 100.0 * RTOL * max(1.0, abs(p)))
     return p, time, accuracy, values, iterations, r, spread, direction
+
+
+def _richardson(values: Sequence[tuple[float, float, float]]) -> float:
+    """The last rung's error where p = p* + c eps^k, k from the last three rungs: the last change over (ratio^k - 1). It
+    exceeds the last change where the rungs are close (the ones :func:`homoclinic_from_orbit` adds) and k is small; 0
+    where fewer than three rungs or their changes differ in sign."""
+    if len(values) < 3:
+        return 0.0
+    (e0, p0, _), (e1, p1, _), (e2, p2, _) = values[-3:]
+    before, after = p0 - p1, p1 - p2
+    if before * after <= 0 or e0 <= e1 or e1 <= e2:
+        return 0.0
+    order = max(math.log(abs(before / after)) / math.log(e0 / e1), 0.5)
+    return abs(after) / ((e1 / e2) ** order - 1.0)
+
+
+def _extrapolated(values: Sequence[tuple[float, float, float]], eps: float, p: float) -> float:
+    """The rung at ``eps``'s first p: the last rungs' values (eps, p, T) extrapolated by p = p* + c eps^k (k from the last
+    three, else 2, the order of the linear boundary conditions' error, kept within [1, 4]); ``p`` where fewer than two."""
+    if len(values) < 2:
+        return p
+    (e0, p0, _), (e1, p1, _) = values[-2], values[-1]
+    order = 2.0
+    if len(values) >= 3 and e0 != e1:
+        before, after = values[-3][1] - p0, p0 - p1
+        if before * after > 0 and abs(after) > 0:
+            order = min(4.0, max(1.0, math.log(abs(before / after)) / math.log(values[-3][0] / e0)))
+    denominator = e1**order - e0**order
+    return p if denominator == 0 else p1 + (p1 - p0) * (eps**order - e1**order) / denominator
+
+
+def _taken_back(r: Rest, eps_from: float, eps_to: float, direction: np.ndarray) -> tuple[float, np.ndarray]:
+    """The time tau and the tilt at which the saddle's linear flow, run backwards from the start at distance
+    ``eps_from`` with tilt ``direction``, reaches the distance ``eps_to``: each unstable component shrinks at its own
+    rate, so the tilt into the weaker directions grows (the loop's start at the smaller distance)."""
+    basis = np.column_stack([r.leaving, r.others])
+    matrix = dynamics_matrix(r.system, r.q)
+    rates = np.einsum("ij,ij->j", basis, matrix @ basis)  # unit eigenvectors: their Rayleigh quotients
+    c = np.concatenate([[1.0], direction])
+    c *= eps_from / np.linalg.norm(basis @ c)
+
+    def excess(tau: float) -> float:
+        return float(np.linalg.norm(basis @ (c * np.exp(-rates * tau)))) - eps_to
+
+    upper = math.log(eps_from / eps_to) / float(np.min(rates))
+    while excess(upper) > 0:
+        upper *= 2.0
+    tau = brentq(excess, 0.0, upper, xtol=1e-12)
+    back = c * np.exp(-rates * tau)
+    return tau, back[1:] / back[0]
 
 
 def _first_time(r: Rest, eps0: float, eps1: float, shift: np.ndarray, t_max: float) -> tuple[float, float]:
@@ -715,6 +813,122 @@ def _end_in_bracket(
         loop_for, parameter, 0.5 * (over + back), time, r.rate, r.decay, ladder, "homoclinic end"
     )
     return HomoclinicOrbit(parameter, p, accuracy, r, time, values[-1][0], shift, values, iterations, direction)
+
+
+@one_blas_thread
+def homoclinic_from_orbit(
+    orbit,
+    *,
+    turns: Mapping[str | int, int] | np.ndarray,
+    parameter: str,
+    value: float | None = None,
+    ladder: Sequence[float] = EPS_LADDER,
+) -> HomoclinicOrbit:
+    """The homoclinic end a long-period orbit is close to: (H0)-(H2) started from the loop the orbit nearly is.
+
+    The saddle is the equilibrium Newton reaches from the orbit's slowest point, the one the orbit lingers at
+    (whichever branch it lies on, and with as many real unstable directions as it has: an unequal pendulum pair's
+    in-phase rotation ends at the saddle with both pendula up, not at the static branch's saddle past the fold). Along
+    the orbit from that point, the first guess of T is the time from leaving the distance eps0 of the saddle to
+    coming within eps1 of the shifted saddle, and the start's tilt is that of the leaving point's components along the
+    saddle's unstable eigenvectors; the parameter starts at ``value`` (the fit of the period's growth) else the
+    orbit's. Newton then runs down the ladder as in :func:`homoclinic_end`, the saddle followed in the parameter.
+
+    Parameters
+    ----------
+    orbit : Orbit
+        A periodic orbit of a system (:class:`~cosserat_chain.numerics.shooting.Orbit`) near its homoclinic end: it
+        passes the saddle within FIRST_RUNG_MAX / ORBIT_NEAR (a first rung ORBIT_NEAR times that distance is added
+        where the ladder's first is smaller).
+    turns : mapping name-or-index -> int, or ndarray (n,)
+        The turns of the angles along the loop: the orbit's over one period.
+    parameter : str
+        The parameter solved for.
+    value : float, optional
+        Where Newton starts in ``parameter`` (default the orbit's value).
+    ladder : sequence of float
+        eps0 = eps1 of the boundary conditions, as in :func:`homoclinic_end`.
+
+    Returns
+    -------
+    HomoclinicOrbit
+
+    Raises
+    ------
+    ValueError
+        For bad input (turns, ladder, value).
+    HomoclinicError
+        If the orbit's slowest point leads to no saddle with real unstable eigenvalues, the orbit does not pass it
+        close enough, or Newton fails.
+    """
+    system = orbit.system
+    shift, winding = _winding(system, turns)
+    ladder = _check_ladder(ladder)
+    start = float(system.parameter(parameter)) if value is None else float(value)
+    if not math.isfinite(start):
+        raise ValueError(f"value must be a finite number, got {value!r}")
+    n = system.size
+    times = np.linspace(0.0, float(orbit.period), ORBIT_SAMPLES)
+    try:
+        path = _states(system, orbit.y0, times, rtol=RTOL, atol=ATOL)
+        slow = path[int(np.argmin([np.linalg.norm(system.vector_field(y)) for y in path]))]
+        try:
+            found = find_equilibrium(system, slow[:n], tol=1e-13, descent=False)
+        except EquilibriumNotFound as err:
+            raise HomoclinicError(f"no equilibrium near the orbit's slowest point ({err})") from None
+        if np.max(np.abs(found.q - slow[:n])) > JUMP:
+            raise HomoclinicError("Newton from the orbit's slowest point went to an equilibrium the orbit does not pass")
+        r = rest(system, found.q, winding)
+        passage = _states(system, slow, times, rtol=RTOL, atol=ATOL)
+        leaving = np.linalg.norm(passage - r.y, axis=1)
+        arriving = np.linalg.norm(passage - r.y - shift, axis=1)
+        nearest = max(leaving[0], arriving[-1])
+        if ORBIT_NEAR * nearest > ladder[0]:
+            # A first rung the orbit reaches, where the ladder's first one is too near the saddle for it.
+            if ORBIT_NEAR * nearest > FIRST_RUNG_MAX:
+                raise HomoclinicError(
+                    f"the orbit passes the saddle no nearer than {nearest:.3g}: it is not close enough to its homoclinic "
+                    f"loop (at most {FIRST_RUNG_MAX / ORBIT_NEAR:g})"
+                )
+            # Rungs at most a factor RUNG_RATIO apart from there to the ladder's first: the loop's sensitivity to p
+            # grows like 1 / eps, and a solution at the next rung must lie within Newton's reach of the last one.
+            count = math.ceil(math.log(ORBIT_NEAR * nearest / ladder[0]) / math.log(RUNG_RATIO))
+            ladder = (*(ladder[0] * (ORBIT_NEAR * nearest / ladder[0]) ** (1 - i / count) for i in range(count)), *ladder)
+        out = _crossing(times, leaving, ladder[0], rising=True)
+        back = _crossing(times, arriving, ladder[0], rising=False, after=out)
+        away = passage[int(np.searchsorted(times, out))] - r.y
+        basis = np.column_stack([r.leaving, r.others])
+        components = np.linalg.lstsq(basis, away, rcond=None)[0]
+        # The loop leaves along the unstable eigenvector the orbit's start has most of (tilted into the others).
+        j = int(np.argmax(np.abs(components)))
+        toward = basis[:, j] * np.sign(components[j])
+        r = rest(system, found.q, winding, toward=toward)
+        components = np.linalg.lstsq(np.column_stack([r.leaving, r.others]), away, rcond=None)[0]
+        rests = _Equilibria(system, parameter, found.q, winding, toward)
+
+        def loop_for(eps: float) -> _Loop:
+            return _Loop(rests, shift, eps, eps)
+
+        p, time, accuracy, values, iterations, r, _, direction = _solve_ladder(
+            loop_for, parameter, start, back - out, r.rate, r.decay, ladder, "homoclinic end from the orbit", components[1:] / components[0]
+        )
+    except (EvaluationFailed, OrbitError) as err:
+        raise HomoclinicError(
+            f"the homoclinic orbit near the orbit at {parameter} = {system.parameter(parameter):.10g} was not found: {err}"
+        ) from err
+    return HomoclinicOrbit(parameter, p, accuracy, r, time, values[-1][0], shift, values, iterations, direction)
+
+
+def _crossing(times: np.ndarray, distance: np.ndarray, eps: float, *, rising: bool, after: float = -math.inf) -> float:
+    """The first time (after ``after``) the sampled ``distance`` rises through (else falls through) ``eps``,
+    interpolated in log(distance) (which is nearly linear in time near a saddle)."""
+    side = distance >= eps if rising else distance <= eps
+    index = np.flatnonzero(side[1:] & ~side[:-1] & (times[1:] > after))
+    if not index.size:
+        raise HomoclinicError(f"the orbit does not {'leave' if rising else 'come back within'} eps = {eps:g} of the saddle")
+    i = int(index[0])
+    a, b = math.log(distance[i]), math.log(distance[i + 1])
+    return float(times[i] + (times[i + 1] - times[i]) * (math.log(eps) - a) / (b - a))
 
 
 def _check_ladder(ladder: Sequence[float]) -> tuple[float, ...]:
