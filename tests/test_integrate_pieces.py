@@ -76,15 +76,15 @@ def test_ctrl_c_between_pieces_returns_to_the_chunks_start(monkeypatch, calls):
 
 
 def test_a_blow_up_found_pieces_later_is_placed_at_its_first_bad_step(monkeypatch, calls):
-    # dt = 0.54 is past the stability limit: the first bad state comes at step 378, in the fourth piece, and is
-    # seen at the check of step 1024, in the eleventh; the chunk run again from its start places it.
+    # dt = 0.54 is past the stability limit: the first bad state comes at step 143, in the second piece, and is
+    # seen at the check at that piece's end (every call ends with one); the chunk run again from its start places it.
     run = {"t_end": 3000 * 0.54, "dt": 0.54, "n_frames": 3, "check_stability": False}
     whole = dynamics.integrate(PARAMS, "nonlinear", moment_load(0.3), **run)
     calls.clear()
     monkeypatch.setattr(dynamics, "CHUNK_WORK", 7 * 100)
     pieces = dynamics.integrate(PARAMS, "nonlinear", moment_load(0.3), **run)
-    assert calls == [100] * 11 + [1024]  # eleven pieces, then the chunk run again over the 1024 steps, to the first bad one
-    assert pieces.status == whole.status == Status.BLEW_UP and pieces.steps == whole.steps == 378
+    assert calls == [100] * 2 + [200]  # two pieces, then the chunk run again over their 200 steps, to the first bad one
+    assert pieces.status == whole.status == Status.BLEW_UP and pieces.steps == whole.steps == 143
     assert pieces.message == whole.message
     for name in ("time", "x", "v"):
         np.testing.assert_array_equal(getattr(pieces, name), getattr(whole, name), err_msg=name)

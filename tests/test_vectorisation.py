@@ -87,9 +87,9 @@ def test_the_kick_drift_vectorises_with_its_energy_sums():
     batch = njit(**options)(engine._kick_drift_batch.py_func)
 
     rows = np.zeros((3, 64))
-    row(rows, rows.copy(), rows.copy(), 0, 1, 63, 1.0, 0.0, 0.0, 0.0)
-    # A batch of 8 members of 8 columns, flat (3, 8 x 8), with its (S+1, S+1, 5, 3, B) factors.
-    batch(rows, rows.copy(), rows.copy(), np.ones((2, 2, 5, 3, 8)), 0, 1, np.zeros(8), np.zeros(8), 1, 7)
+    row(rows, rows.copy(), rows.copy(), 0, 1, 63, 1.0, 0.0, 0.0, 1.0, 0.0, 1.0)
+    # A batch of 8 members of 8 columns, flat (3, 8 x 8), with its (S+1, S+1, 6, 3, B) factors.
+    batch(rows, rows.copy(), rows.copy(), np.ones((2, 2, 6, 3, 8)), 0, 1, np.zeros(8), np.zeros(8), 1, 7)
     for fresh in (row, batch):
         assert len(PACKED.findall(fresh.inspect_asm(fresh.signatures[0]))) >= 4
 
@@ -105,8 +105,8 @@ def test_the_per_column_kick_drift_of_graded_inertia_vectorises():
     options = {**engine._KICK_OPTIONS, "cache": False}
     columns = njit(**options)(engine._kick_drift_columns.py_func)
     rows = np.zeros((3, 64))
-    pairs = np.ones((2, 2, 5, 3, 64))
-    columns(rows, rows.copy(), rows.copy(), pairs, 0, 1, 1, 63)
+    pairs = np.ones((2, 2, 6, 3, 64))
+    columns(rows, rows.copy(), rows.copy(), pairs, 0, 1, 1, 63, 1.0)
     assert len(PACKED.findall(columns.inspect_asm(columns.signatures[0]))) >= 4
 
 

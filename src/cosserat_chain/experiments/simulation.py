@@ -42,7 +42,7 @@ from ..loads import Loads, Schedule, moment_load
 from ..models.base import Model, get_model
 from ..numerics.adaptive import integrate_adaptive
 from ..numerics.dynamics import IntegrationError, ProgressCallback, RunState, Trajectory, integrate
-from ..numerics.integrators import default_time_step, get_method, spin_hint
+from ..numerics.integrators import MAX_SPIN_PER_STEP, default_time_step, get_method, spin_hint
 from ..params import ChainParams
 from ..state import ROWS
 from ..status import Status
@@ -53,8 +53,9 @@ if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: comman
 
 log = logging.getLogger(__name__)
 
-#: Version of the simulation checkpoint's layout; a checkpoint of another version is refused.
-CHECKPOINT_FORMAT = 1
+#: Version of the simulation checkpoint's layout; a checkpoint of another version is refused (2: the
+#: velocities are the open sub-step's, as the run goes on from them, and the peak spin is kept).
+CHECKPOINT_FORMAT = 2
 #: The ``experiment`` attribute of a simulation checkpoint (a simulation's result has none).
 CHECKPOINT_EXPERIMENT = "simulation_checkpoint"
 #: The attributes a resumed run reads: its settings (compared one by one) and the run's state.
@@ -66,7 +67,7 @@ _STATE_ATTRIBUTES = (
 _STATE_VARIABLES = (
     *ROWS, *(f"{row}_dot" for row in ROWS), *(f"final_{row}" for row in ROWS), *(f"final_{row}_dot" for row in ROWS),
     *(f"final_force_{row}" for row in ROWS), "load_work", "dissipated", "final_load_work", "final_dissipated", "frame_step",
-    "split_sums",
+    "split_sums", "final_peak_spin",
 )  # fmt: skip
 
 
@@ -84,7 +85,11 @@ def trajectory_dataset(params: ChainParams, model: str | Model, loads: Loads, tr
     if trajectory.winding is not None and trajectory.winding.any():
         # phi as a double loses bits beyond some turns: the whole turns and the rest keep them all.
         data["phi_winding"] = (("time", "particle"), trajectory.winding, {"long_name": "whole turns of the angle"})
-        data["phi_reduced"] = (("time", "particle"), trajectory.reduced_phi, {"long_name": "the angle less its whole turns: phi = phi_reduced + 2 pi phi_winding"})
+        data["phi_reduced"] = (
+            ("time", "particle"),
+            trajectory.reduced_phi,
+            {"long_name": "the angle less its whole turns: phi = phi_reduced + 2 pi phi_winding"},
+        )
     for name, values in budget.as_dict().items():
         data[name] = (("time",), values)
     ds = xr.Dataset(data, coords={"time": trajectory.time, "particle": particle})
@@ -106,9 +111,10 @@ def trajectory_dataset(params: ChainParams, model: str | Model, loads: Loads, tr
 #: before it is flagged ``inaccurate``: damped Verlet at the default step keeps it near 1e-4
 #: on the paper's chain, and at 10 times that step it passes 1e-2.
 BALANCE_TOLERANCE = 1e-2
-#: Largest rotation of a particle in one step, |phi_dot| dt over the stored frames (rad), before a
-#: run is flagged ``inaccurate``: beyond it a turn takes fewer than 2 pi / 0.5, about 13 steps.
-ROTATION_PER_STEP = 0.5
+#: Largest rotation of a particle in one step, |phi_dot| dt at any step boundary, stored or not (rad),
+#: before a run is flagged ``inaccurate``: beyond it a turn takes fewer than 2 pi / 0.5, about 13
+#: steps. The engine watches every step at this level (:data:`~cosserat_chain.numerics.integrators.MAX_SPIN_PER_STEP`).
+ROTATION_PER_STEP = MAX_SPIN_PER_STEP
 #: Largest viscous decay gamma dt / inertia of a degree of freedom in one step before a run is
 #: flagged ``inaccurate``: the step applies the damping exactly but splits it from the forces, so
 #: a degree of freedom whose velocity relaxes within a step (a light particle in a viscous medium)
@@ -116,17 +122,21 @@ ROTATION_PER_STEP = 0.5
 DAMPING_PER_STEP = 0.5
 
 
-def _check_accuracy(ds: xr.Dataset, load_hint: str = "") -> None:
+def _check_accuracy(ds: xr.Dataset, load_hint: str = "", peak_spin: float = 0.0) -> None:
     """Flag a completed run ``inaccurate`` when its energy balance, its rotation or its damping per step passes its tolerance.
 
     The balance is checked for the models with an energy (not the sine model, eq. (2), whose
     forces are not conservative: there the dissipated energy may exceed the load's work, at
-    any step). The numbers are stored in the attributes ``balance_relative``,
+    any step). The rotation is |phi_dot| dt at every step boundary: the stored frames', and
+    ``peak_spin``, the run's largest |phi_dot| beyond ROTATION_PER_STEP / dt at any step
+    (:attr:`~cosserat_chain.numerics.dynamics.Trajectory.peak_spin`), so that a spin between two
+    frames is seen; the number is exact where it passes the tolerance (below it, the frames'
+    largest). The numbers are stored in the attributes ``balance_relative``,
     ``rotation_per_step`` and ``damping_per_step`` (:data:`DAMPING_PER_STEP`) of every run,
     flagged or not.
     """
     dt = float(ds.attrs["dt"])  # NaN for the adaptive reference, which controls its own error: no rotation check
-    rotation = float(np.nanmax(np.abs(ds.phi_dot.values), initial=0.0)) * dt
+    rotation = max(float(np.nanmax(np.abs(ds.phi_dot.values), initial=0.0)), peak_spin) * dt
     scale = float((ds.kinetic + np.abs(ds.potential) + np.abs(ds.load_work) + ds.dissipated).max())  # NaN without a potential
     balance = float(np.abs(ds.balance_error).max()) / scale if scale > 0 else (0.0 if scale == 0 else math.nan)
     params = ChainParams.model_validate_json(ds.attrs["params_json"])
@@ -142,7 +152,9 @@ def _check_accuracy(ds: xr.Dataset, load_hint: str = "") -> None:
     if rotation > ROTATION_PER_STEP:
         problems.append(f"a particle turns by up to {rotation:.3g} rad per step (tolerance {ROTATION_PER_STEP:g})")
     if decay > DAMPING_PER_STEP:
-        problems.append(f"the damping takes a fraction gamma dt / inertia = {decay:.3g} of a velocity in one step (tolerance {DAMPING_PER_STEP:g})")
+        problems.append(
+            f"the damping takes a fraction gamma dt / inertia = {decay:.3g} of a velocity in one step (tolerance {DAMPING_PER_STEP:g})"
+        )
     if problems:
         ds.attrs["status"] = Status.INACCURATE
         factor = 0.25 if decay <= DAMPING_PER_STEP else min(0.25, DAMPING_PER_STEP / (2.0 * decay))
@@ -263,7 +275,7 @@ def simulate(
             progress=progress,
         )
     dataset = trajectory_dataset(params, model, loads, trajectory)
-    _check_accuracy(dataset, spin_hint(params, loads, trajectory.dt) if np.isfinite(trajectory.dt) else "")
+    _check_accuracy(dataset, spin_hint(params, loads, trajectory.dt) if np.isfinite(trajectory.dt) else "", trajectory.peak_spin)
     if checkpoint is not None and trajectory.status == Status.INTERRUPTED:
         dataset.attrs["message"] += f"; resume from the checkpoint {str(checkpoint)!r}"
     if throw and not trajectory.ok:
@@ -367,6 +379,11 @@ def _checkpoint_dataset(state: RunState, params: ChainParams, model: Model, load
     data["dissipated"] = (("time",), state.frames_acc[:, 1])
     data["final_load_work"] = ((), state.acc[0])
     data["final_dissipated"] = ((), state.acc[1])
+    data["final_peak_spin"] = (
+        (),
+        state.peak_spin,
+        {"long_name": "largest |phi_dot| beyond the rotation tolerance at a step so far (0: none)"},
+    )
     data["frame_step"] = (("time",), state.frame_steps, {"long_name": "step of the stored frame"})
     data["split_sums"] = (
         ("split_sum", "energy_sum"),
@@ -421,6 +438,7 @@ def _run_state(ds: xr.Dataset) -> RunState:
         # (None in a checkpoint written before the angles had whole turns: none then.)
         winding=np.asarray(ds["final_phi_winding"].values, dtype=np.int64) if "final_phi_winding" in ds else None,
         frames_winding=np.ascontiguousarray(ds["phi_winding"].values, dtype=np.int64) if "phi_winding" in ds else None,
+        peak_spin=float(ds["final_peak_spin"]),
     )
 
 

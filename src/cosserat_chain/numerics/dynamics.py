@@ -48,13 +48,13 @@ from ..models.trig import join_turns
 from ..params import BOND_FACTORS, PARTICLE_FACTORS, ChainParams
 from ..state import check_state, column, held
 from ..status import Status
-from .engine import CROSSINGS, STATUS_BLEW_UP, STATUS_OK, STATUS_TURNED, TURN_LIMIT, Blocks, Lanes
+from .engine import CROSSINGS, PEAK_SPIN, STATUS_BLEW_UP, STATUS_OK, STATUS_TURNED, TURN_LIMIT, Blocks, Lanes
 from .integrators import Method, check_time_step, default_time_step, get_method, spin_hint
 
 log = logging.getLogger(__name__)
 
 #: Compiled work per chunk (particle force evaluations); about 0.5-2 s, the rate of progress
-#: reports and of chances to stop (Ctrl-C, checkpoints). Each chunk ends with its step closed,
+#: reports and of chances to stop (Ctrl-C, checkpoints). Each chunk ends with its frame stored,
 #: an out-of-bounds test and a copy of the state (to find a blow-up's first bad step): about
 #: 1.5 steps' worth of work at 10^6 particles, 7 % of a chunk of 2 * 10^7 (20 steps), 1.5 % of
 #: one of 10^8. A chunk is whole strides; where one stride is more work than this (a run of few
@@ -164,6 +164,9 @@ class Trajectory:
     reduced_phi : ndarray (n_frames, 2N+1), or None
         The angles less their whole turns: phi = reduced_phi + 2 pi winding exactly, of
         which ``x[:, 2]`` is the nearest double (the same bits while the winding is 0).
+    peak_spin : float
+        The largest |phi'| at any step boundary, stored or not, where it passed
+        ``MAX_SPIN_PER_STEP / dt`` (a step that does not resolve a turn); 0 where none did.
     """
 
     time: np.ndarray
@@ -179,6 +182,7 @@ class Trajectory:
     turns: TurnLog | None = None
     winding: np.ndarray | None = None
     reduced_phi: np.ndarray | None = None
+    peak_spin: float = 0.0
 
     @property
     def ok(self) -> bool:
@@ -206,7 +210,9 @@ class RunState:
     method : str
     x, v, f : ndarray (3, 2N+1)
         Configuration (angles less their whole turns, as the engine keeps them), velocities
-        and forces plus loads at that step (copies).
+        and forces plus loads at that step (copies). The velocities are those of the open
+        sub-step that the run goes on from (a stored frame has them closed), at the start
+        (steps 0) and the end (steps n_steps) those at the step boundary.
     acc : ndarray (2,)
         Load work and dissipated energy since the start.
     frame_steps : ndarray (k,) of int
@@ -224,6 +230,8 @@ class RunState:
         Whole turns of the angles of ``x`` (None: none).
     frames_winding : ndarray (k, 2N+1) of int64, optional
         Whole turns of the frames' angles (None: none).
+    peak_spin : float
+        :attr:`Trajectory.peak_spin` so far.
     """
 
     def windings(self) -> tuple[np.ndarray, np.ndarray]:
@@ -232,7 +240,6 @@ class RunState:
         winding = np.zeros(n, dtype=np.int64) if self.winding is None else self.winding
         frames = np.zeros((k, n), dtype=np.int64) if self.frames_winding is None else self.frames_winding
         return winding, frames
-
 
     steps: int
     n_steps: int
@@ -252,6 +259,7 @@ class RunState:
     split_acc: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     winding: np.ndarray | None = None
     frames_winding: np.ndarray | None = None
+    peak_spin: float = 0.0
 
     def check(self, params: ChainParams, n_steps: int, stride: int, t0: float, dt: float, method: str) -> None:
         """Refuse a state that is not of this run (its steps, frames, time axis, method or chain).
@@ -294,10 +302,10 @@ class RunState:
 
 @dataclass
 class _Restart:
-    """A chain's state between two chunks (closed step), to rerun a chunk that blew up step by step.
+    """A chain's state between two chunks, to rerun a chunk that blew up step by step.
 
-    The positions and velocities are those of the frame stored at the chunk's start (a chunk
-    is a whole number of strides), so only the forces and the sums are kept. At the start of
+    The positions are those of the frame stored at the chunk's start (a chunk is a whole
+    number of strides), so the open velocities, the forces and the sums are kept. At the start of
     a fresh run the forces are evaluated again when needed (:meth:`Lanes.evaluate_forces` on
     the same state at the same time gives the same bits); later they are copied into a
     buffer made once a run, when first needed: a fresh copy every chunk page-faulted its
@@ -311,6 +319,7 @@ class _Restart:
     x: np.ndarray | None = None
     v: np.ndarray | None = None
     winding: np.ndarray | None = None
+    open_v: np.ndarray | None = None
     pending: int = 0
     evaluate: bool = False
 
@@ -321,21 +330,23 @@ class _Restart:
     def save(self, lanes: Lanes, x: np.ndarray, v: np.ndarray, winding: np.ndarray, fresh: bool = False) -> _Restart:
         """Keep ``lanes``' forces and sums at the start of a chunk whose state is the stored frame (x, v, winding).
 
-        ``fresh``: the chunk is a fresh run's first, whose forces :meth:`Lanes.evaluate_forces` gave.
+        ``fresh``: the chunk is a fresh run's first, whose forces :meth:`Lanes.evaluate_forces` gave
+        (and whose velocities are the frame's); a later chunk starts from the open sub-step.
         """
         self.evaluate = fresh
         if not fresh:
             if self.f is None:
-                self.f = np.empty_like(lanes.f)
+                self.f, self.open_v = np.empty_like(lanes.f), np.empty_like(lanes.v)
             np.copyto(self.f, lanes.f)
+            np.copyto(self.open_v, lanes.v)
+            v = self.open_v
         np.copyto(self.acc, lanes.acc)
         np.copyto(self.lane_ints, lanes.lane_ints)
-        # Closed at a chunk's start; after a blow-up in blocks it is their first block's, which may be open.
         self.x, self.v, self.winding, self.pending = x, v, winding, lanes.pending
         return self
 
     def restore(self, lanes: Lanes) -> None:
-        """Put ``lanes`` back to the chunk's start: its stored frame, forces and sums."""
+        """Put ``lanes`` back to the chunk's start: its stored positions, velocities, forces and sums."""
         lanes.x[...], lanes.v[...], lanes.acc[...], lanes.lane_ints[...] = self.x, self.v, self.acc, self.lane_ints
         lanes.winding[...] = self.winding
         if self.evaluate:
@@ -349,10 +360,9 @@ class _Restart:
     def first_bad_step(self, lanes: Lanes, step0: int, steps: int, stride: int) -> int:
         """Steps from ``step0`` to the first state out of bounds (the loop checks only every 1024 steps).
 
-        The chunk is run again from its start with a check after every step, closing its
-        steps where the first run stored them (``stride``) but storing no state: the same
-        kernels on the same bits reach the same states, and it stops at the first bad
-        one, which is left in ``lanes``.
+        The chunk is run again from its start with a check after every step, storing no
+        state (a store changes no state): the same kernels on the same bits reach the same
+        states, and it stops at the first bad one, which is left in ``lanes``.
         """
         self.restore(lanes)
         stores = steps // stride + 2
@@ -370,8 +380,9 @@ class _Restart:
 #: Most steps of one run: beyond 2^53 the step counter and the times it gives stop being exact.
 MAX_STEPS = 2.0**53
 
-#: Arrays of the chain's size that a run holds besides its frames (forces, the lanes' tables, scratch).
-_WORKING_ARRAYS = 12
+#: Arrays of the chain's size that a run holds besides its frames (forces, the lanes' tables, scratch,
+#: the open velocities kept at a chunk's start and the blocks' own frame slots).
+_WORKING_ARRAYS = 15
 
 
 def _require_frames(params: ChainParams, n_stored: int) -> None:
@@ -398,7 +409,9 @@ def _check_winding(params: ChainParams, winding0, model: Model) -> np.ndarray:
     whole = np.asarray(arr, dtype=float)
     bad = np.flatnonzero(~(np.isfinite(whole) & (whole == np.round(whole)) & (np.abs(whole) < 2.0**62)))
     if bad.size:
-        raise ValueError(f"winding0 of particle {bad[0] - params.N} is {arr[bad[0]].item()!r}; whole numbers of turns below 2^62 are allowed")
+        raise ValueError(
+            f"winding0 of particle {bad[0] - params.N} is {arr[bad[0]].item()!r}; whole numbers of turns below 2^62 are allowed"
+        )
     turns = whole.astype(np.int64)
     if turns.any() and not model.rotates:
         raise ValueError(f"winding0 gives whole turns, but the {model.name} model does not rotate (its forces are not periodic in phi)")
@@ -422,7 +435,9 @@ def require_step_count(params: ChainParams, span: float, dt: float, what: str) -
             f"the run would take {steps:.3g} steps of dt={dt:.3g} ({what} = {span:g}), more than {MAX_STEPS:.3g}: "
             f"the time step follows the fastest mode sqrt(stiffness / inertia), here E1={params.E1:g}, E2={params.E2:g}, "
             f"m={params.m:g}, j={params.j:g}"
-            + "".join(f", {name} from {min(f):g} to {max(f):g}" for name in (*BOND_FACTORS, *PARTICLE_FACTORS) if (f := getattr(params, name)))
+            + "".join(
+                f", {name} from {min(f):g} to {max(f):g}" for name in (*BOND_FACTORS, *PARTICLE_FACTORS) if (f := getattr(params, name))
+            )
             + f"; the model is dimensionless, so scale them to order 1 or shorten {what}"
         )
     return steps
@@ -589,6 +604,9 @@ def integrate(
         )  # fmt: skip
         lanes.x[..., 0], lanes.v[..., 0], lanes.f[..., 0], lanes.acc[:, 0] = resume.x, resume.v, resume.f, resume.acc
         lanes.winding[:, 0], frames_winding[:stored, :, 0] = resume.windings()
+        lanes.lanes[PEAK_SPIN, 0] = resume.peak_spin
+        if 0 < steps_done < n_steps:
+            lanes.pending = method.force_evaluations - 1  # between its first and last step a run is open (RunState.v)
     if turns is not None:
         lanes.follow_turns(column(params, turns.particle), turns.keep)
         # The current angle by default: from its turns and the rest as they are, not through a double.
@@ -619,7 +637,7 @@ def integrate(
             lanes.x[..., 0].copy(), lanes.v[..., 0].copy(), lanes.f[..., 0].copy(), lanes.acc[:, 0].copy(),
             frame_steps[:stored].copy(), frames_x[:stored, ..., 0], frames_v[:stored, ..., 0], frames_acc[:stored, :, 0],
             np.zeros((0, 2)) if blocks is None else np.array([blocks.acc0[:, 0], *(block.acc[:, 0] for block in blocks.blocks)]),
-            lanes.winding[:, 0].copy(), frames_winding[:stored, :, 0],
+            lanes.winding[:, 0].copy(), frames_winding[:stored, :, 0], float(lanes.lanes[PEAK_SPIN, 0]),
         )  # fmt: skip
 
     # A chunk of blocks that blew up is rerun whole, unsplit, from its start: the same bits.
@@ -647,7 +665,8 @@ def integrate(
             while code == STATUS_OK and steps_done < chunk_start + todo:
                 length = min(piece, chunk_start + todo - steps_done)
                 if steps_done + length == chunk_start + todo:
-                    code, done, written = runner.advance(length, steps_done, stride, 1024, frames, stored)
+                    # Open at a chunk's end too (its frame stored): only the run's last step is closed.
+                    code, done, written = runner.advance(length, steps_done, stride, 1024, frames, stored, steps_done + length == n_steps)
                 else:  # left open: the next piece goes on as if the loop had not stopped (only the lanes run pieces)
                     code, done, written = lanes.advance(length, steps_done, stride, 1024, frames, stored, close_at_end=False)
                 if code == STATUS_BLEW_UP and start is not None:
@@ -726,6 +745,7 @@ def integrate(
         turns=None if turns is None else TurnLog(turns, int(lanes.lane_ints[CROSSINGS, 0]), *lanes.latest_turns(0, turns.made)),
         winding=winding,
         reduced_phi=reduced_phi,
+        peak_spin=float(lanes.lanes[PEAK_SPIN, 0]),
     )
     if throw and status != Status.COMPLETED:
         raise IntegrationError(message, trajectory)

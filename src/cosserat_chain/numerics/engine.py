@@ -31,7 +31,12 @@ Along the way the loop accumulates per member the work done by the loads
 (trapezoidal in each sub-step, exact for constant loads) and the energy removed
 by each damping flow (exact for that flow), which close the energy balance
 K + P - W + D = K0 + P0 to within the integrator's error. It stores every
-``stride``-th state, and optionally follows one column's angle per member (the
+``stride``-th state without changing the run: a stored frame gets the velocities at
+the step boundary computed from the open sub-step, which goes on unclosed, so that
+the states are the same bits whichever steps are stored (only a run's last step is
+closed in place). At every step boundary it counts the angular velocities beyond
+MAX_SPIN_PER_STEP / dt (a step that does not resolve a turn) and keeps the largest
+of them per member (lanes[PEAK_SPIN]), whether that step is stored or not. It optionally follows one column's angle per member (the
 loaded particle's turns: :class:`TurnRecord`). It stops at the first check that
 finds a member out of bounds (a value not finite, |u| or |v| beyond the
 member's bound, a particle turning by more than :data:`MAX_ROTATION_PER_STEP` in
@@ -67,7 +72,7 @@ from ..models.base import BATCH_FORCE_KERNEL_TYPE, END_KERNEL_TYPE, FORCE_KERNEL
 from ..models.trig import TWO_PI_1, TWO_PI_2, TWO_PI_3, WRAP_ANGLE, join_turns, split_turns
 from ..state import force_columns, held
 from .addresses import entry
-from .integrators import check_time_step, default_time_step, substep_table
+from .integrators import MAX_SPIN_PER_STEP, check_time_step, default_time_step, substep_table
 
 #: Options of the compiled loop: no fastmath, so that the state arithmetic rounds
 #: the same in every copy of the loop (chain or batch, one thread or two).
@@ -85,10 +90,12 @@ STATUS_TURNED = 2
 # Rows of the per-member float table ``lanes``: start time, step, bounds on |u|, |v|
 # and on |phi| (a model that does not rotate), for the followed column the sense of its
 # turns and its start angle (less its whole turns, TURNS_START), the |phi| beyond which
-# angles lose whole turns to the winding (infinite: never) and the bound on |phi'|.
-T0, DT, MAX_DISPLACEMENT, MAX_ANGLE, DIRECTION, PHI_START, WRAP_LIMIT, MAX_SPIN = range(8)
+# angles lose whole turns to the winding (infinite: never), the bound on |phi'|, the
+# |phi'| at a step boundary beyond which a step is not resolved (MAX_SPIN_PER_STEP / dt)
+# and the largest such |phi'| met at any step boundary (0 while none passed it).
+T0, DT, MAX_DISPLACEMENT, MAX_ANGLE, DIRECTION, PHI_START, WRAP_LIMIT, MAX_SPIN, WATCH_SPIN, PEAK_SPIN = range(10)
 #: Number of rows of ``lanes``.
-N_LANE_FIELDS = 8
+N_LANE_FIELDS = 10
 #: Steps between two reductions of the angles by whole turns, done at the out-of-bounds
 #: checks that fall on global multiples of it (callers check every 1024 steps, or every
 #: step; a ``check_every`` must divide it): no work in the step loop (a pass every 64
@@ -126,18 +133,24 @@ NO_TURN_LIMIT = np.iinfo(np.int64).max
 
 
 # Rows of the factors of one (close, open) pair of sub-steps (:func:`pair_table`).
-DAMP, KICK, DRIFT, KICK_CLOSE, LOSS = range(5)
+DAMP, KICK, DRIFT, CLOSE_DAMP, CLOSE_KICK, LOSS = range(6)
 
 
 def pair_table(table: np.ndarray, mass: np.ndarray) -> np.ndarray:
     """Factors of closing one sub-step and opening the next, for every pair and member.
 
-    kick(close) damp(close) damp(open) kick(open) drift(open) is v <- A v + B f,
-    x <- x + D v, with A = e_o e_c, B = A k_c + k_o, D the drift; its damping flows
-    remove 0.5 m w^2 (1 - A^2) of kinetic energy, w = v + k_c f. Computed here, once,
-    so that the compiled loop does no arithmetic on factors (with reassociation
-    allowed there, a product of factors could round differently in different copies
-    of the loop).
+    Every kick-drift closes the sub-step ``close``, kick(h/2) damp(h/2), as c <- C v + K f
+    with C = e_c, K = e_c k_c, and then opens ``open``, damp(h/2) kick(h/2) drift(h), as
+    v <- A c + B f, x <- x + D v with A = e_o, B = k_o. A step boundary is thus passed
+    through the very velocities a stored frame or a run's end computes ([close, S]: the same
+    C and K, A = 1, B = D = 0), whether it is stored or not: a run started from a stored frame
+    takes the steps of the run that stored it, to the last bit, and a run's states do not
+    depend on which steps it stores. The damping flows remove 0.5 m (1 - e_o^2 e_c^2) w^2 of
+    kinetic energy, w = v + k_c f = c / e_c: LOSS c^2 with LOSS = 0.5 m (1 - e_o^2 e_c^2) / e_c^2
+    (0 where e_c underflows to 0, a damping beyond any step, flagged by ``simulate``).
+    Computed here, once, so that the compiled loop does no arithmetic on factors (with
+    reassociation allowed there, a product of factors could round differently in different
+    copies of the loop).
 
     Parameters
     ----------
@@ -146,23 +159,27 @@ def pair_table(table: np.ndarray, mass: np.ndarray) -> np.ndarray:
 
     Returns
     -------
-    ndarray (S+1, S+1, 5, 3, B)
-        [close, open, DAMP / KICK / DRIFT / KICK_CLOSE / LOSS, row, member].
+    ndarray (S+1, S+1, 6, 3, B)
+        [close, open, DAMP / KICK / DRIFT / CLOSE_DAMP / CLOSE_KICK / LOSS, row, member].
     """
-    damp = table[None, :, 0] * table[:, None, 0]  # [close, open]: e_open e_close
-    out = np.empty((table.shape[0], table.shape[0], 5, 3, table.shape[-1]))
-    out[:, :, DAMP] = damp
-    out[:, :, KICK] = damp * table[:, None, 1] + table[None, :, 1]
+    closing = table[:, None, 0]  # [close, open]: e_close
+    damp = table[None, :, 0] * closing  # e_open e_close
+    out = np.empty((table.shape[0], table.shape[0], 6, 3, table.shape[-1]))
+    out[:, :, DAMP] = table[None, :, 0]
+    out[:, :, KICK] = table[None, :, 1]
     out[:, :, DRIFT] = table[None, :, 2]
-    out[:, :, KICK_CLOSE] = table[:, None, 1]
-    out[:, :, LOSS] = 0.5 * mass * (1.0 - damp * damp)
+    out[:, :, CLOSE_DAMP] = closing
+    out[:, :, CLOSE_KICK] = closing * table[:, None, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out[:, :, LOSS] = np.where(closing > 0.0, 0.5 * mass * (1.0 - damp * damp) / (closing * closing), 0.0)
     return np.ascontiguousarray(out)
 
 
 # --------------------------------------------------------------------------- compiled loop
 @njit(inline="always", **_KICK_OPTIONS)
-def _kick_drift_row(x, v, f, r, start, stop, a, bk, d, kick_close):  # pragma: no cover - compiled
-    """Row r of a chain on columns start..stop-1: the combined kick-drift; returns sum (v + kick_close f)^2.
+def _kick_drift_row(x, v, f, r, start, stop, a, bk, d, ca, ck, level):  # pragma: no cover - compiled
+    """Row r of a chain on columns start..stop-1: the kick-drift (:func:`pair_table`); returns the sum of c^2
+    and how many closed velocities c have c^2 > ``level`` (a count vectorises, a maximum does not).
 
     Two-dimensional indexing, no slices: a slice is a new array whose reference
     count is updated atomically, about 250 ns per step over the rows and sub-steps
@@ -170,62 +187,74 @@ def _kick_drift_row(x, v, f, r, start, stop, a, bk, d, kick_close):  # pragma: n
     negative indices, which (with a run-time offset) would keep the loop scalar.
     """
     total = 0.0
+    over = 0.0
     for k in range(np.uint64(start), np.uint64(stop)):
-        w = v[r, k] + kick_close * f[r, k]
-        total += w * w
-        w = a * v[r, k] + bk * f[r, k]
+        c = ca * v[r, k] + ck * f[r, k]
+        total += c * c
+        over += 1.0 if c * c > level else 0.0
+        w = a * c + bk * f[r, k]
         v[r, k] = w
         x[r, k] += d * w
-    return total
+    return total, over
 
 
 @njit(inline="always", **_KICK_OPTIONS)
-def _kick_drift_row_columns(x, v, f, r, start, stop, pairs, close, open_):  # pragma: no cover - compiled
-    """:func:`_kick_drift_row` with the factors of every column (pairs (.., 3, n)); returns the energy removed."""
+def _kick_drift_row_columns(x, v, f, r, start, stop, pairs, close, open_, level):  # pragma: no cover - compiled
+    """:func:`_kick_drift_row` with the factors of every column (pairs (.., 3, n)); returns the energy removed and the count."""
     removed = 0.0
+    over = 0.0
     for k in range(np.uint64(start), np.uint64(stop)):
-        w = v[r, k] + pairs[close, open_, KICK_CLOSE, r, k] * f[r, k]
-        removed += pairs[close, open_, LOSS, r, k] * w * w
-        w = pairs[close, open_, DAMP, r, k] * v[r, k] + pairs[close, open_, KICK, r, k] * f[r, k]
+        c = pairs[close, open_, CLOSE_DAMP, r, k] * v[r, k] + pairs[close, open_, CLOSE_KICK, r, k] * f[r, k]
+        removed += pairs[close, open_, LOSS, r, k] * c * c
+        over += 1.0 if c * c > level else 0.0
+        w = pairs[close, open_, DAMP, r, k] * c + pairs[close, open_, KICK, r, k] * f[r, k]
         v[r, k] = w
         x[r, k] += pairs[close, open_, DRIFT, r, k] * w
-    return removed
+    return removed, over
 
 
 @njit(inline="always", **_KICK_OPTIONS)
-def _kick_drift_chain(x, v, f, pairs, close, open_, start, stop):  # pragma: no cover - compiled
-    """Close ``close`` and open ``open_`` on columns start..stop-1 of a chain; returns the energy removed.
+def _kick_drift_chain(x, v, f, pairs, close, open_, start, stop, level):  # pragma: no cover - compiled
+    """Close ``close`` and open ``open_`` on columns start..stop-1 of a chain; returns the energy removed and how
+    many closed angular velocities have a square beyond ``level``.
 
     Inlined into the compiled loop, which is compiled with reassociation: the state
-    updates have nothing to reassociate (v <- A v + B f, x <- x + D v with factors
-    read from ``pairs``), only the energy sums do, and those vectorise.
+    updates have nothing to reassociate (c <- C v + K f, v <- A c + B f, x <- x + D v with
+    factors read from ``pairs``), only the energy sums and the count do, and those vectorise.
     """
     removed = 0.0
+    spin = 0.0
     for r in range(3):
-        removed += pairs[close, open_, LOSS, r, 0] * _kick_drift_row(
+        total, over = _kick_drift_row(
             x, v, f, r, start, stop, pairs[close, open_, DAMP, r, 0], pairs[close, open_, KICK, r, 0],
-            pairs[close, open_, DRIFT, r, 0], pairs[close, open_, KICK_CLOSE, r, 0],
+            pairs[close, open_, DRIFT, r, 0], pairs[close, open_, CLOSE_DAMP, r, 0], pairs[close, open_, CLOSE_KICK, r, 0],
+            level if r == 2 else math.inf,
         )  # fmt: skip
-    return removed
+        removed += pairs[close, open_, LOSS, r, 0] * total
+        spin += over
+    return removed, spin
 
 
 @njit(**_KICK_OPTIONS)
-def _kick_drift_columns(x, v, f, pairs, close, open_, start, stop):  # pragma: no cover - compiled
+def _kick_drift_columns(x, v, f, pairs, close, open_, start, stop, level):  # pragma: no cover - compiled
     """:func:`_kick_drift_chain` of a chain graded in its inertia: the factors of every column
     (pairs (.., 3, n)). Not inlined: the uniform chain's loop must not carry its code."""
     removed = 0.0
+    spin = 0.0
     for r in range(3):
-        removed += _kick_drift_row_columns(x, v, f, r, start, stop, pairs, close, open_)
-    return removed
+        lost, over = _kick_drift_row_columns(x, v, f, r, start, stop, pairs, close, open_, level if r == 2 else math.inf)
+        removed += lost
+        spin += over
+    return removed, spin
 
 
 @njit(inline="always", **_KICK_OPTIONS)
 def _kick_drift_members(x, v, f, pairs, c, o, r, at, total, first, last):  # pragma: no cover - compiled
-    """Row r of members first..last-1 of a batch's column at offset ``at``: the combined kick-drift; sums (v + kick_close f)^2 into ``total``."""
+    """Row r of members first..last-1 of a batch's column at offset ``at``: the kick-drift (:func:`pair_table`); sums c^2 into ``total``."""
     for i in range(first, last):
-        w = v[r, at + i] + pairs[c, o, KICK_CLOSE, r, i] * f[r, at + i]
-        total[i] += w * w
-        w = pairs[c, o, DAMP, r, i] * v[r, at + i] + pairs[c, o, KICK, r, i] * f[r, at + i]
+        closed = pairs[c, o, CLOSE_DAMP, r, i] * v[r, at + i] + pairs[c, o, CLOSE_KICK, r, i] * f[r, at + i]
+        total[i] += closed * closed
+        w = pairs[c, o, DAMP, r, i] * closed + pairs[c, o, KICK, r, i] * f[r, at + i]
         v[r, at + i] = w
         x[r, at + i] += pairs[c, o, DRIFT, r, i] * w
 
@@ -271,21 +300,79 @@ def _segment(c0, stop, first, last):  # pragma: no cover - compiled
 
 
 @njit(**_KICK_OPTIONS)
-def _kick_drift(x, v, f, pairs, close, open_, columns, dissipated):  # pragma: no cover - compiled
-    """Close ``close`` and open ``open_`` on one chain (B = 1); adds its loss to ``dissipated``.
+def _close_chain(v, f, pairs, close, columns, out):  # pragma: no cover - compiled
+    """Close sub-step ``close`` of one chain (B = 1): its velocities at the step boundary into ``out``; returns the energy removed.
 
-    ``columns`` (4,): advance columns [columns[0], columns[1]) and count the energy removed on
-    [columns[2], columns[3]) only. Called only to close a step (to store it or to stop), so it
-    is not inlined; a batch's step is closed by its sub-step (:func:`_batch_substep`).
+    ``out`` (3, n) is a stored frame's slot, so that the run goes on from its open state
+    as if nothing had been stored, or ``v`` itself at a run's last step; with no columns
+    (3, 0) only the energy is computed. The columns not advanced (a clamped end, the
+    outer edge of a block's halo) are copied. The energy removed, summed on
+    [columns[2], columns[3]), has a loop of its own that only reads: it rounds alike
+    whether ``out`` is ``v`` or not (a loop that writes where it reads may take the
+    compiler's scalar path, whose sum rounds otherwise). Positions are not touched.
     """
-    c0, stop, first, last = columns[0], columns[1], columns[2], columns[3]
-    while c0 < stop:
-        c1, counted = _segment(c0, stop, first, last)
-        if pairs.shape[4] > 1:
-            dissipated[0] += counted * _kick_drift_columns(x, v, f, pairs, close, open_, c0, c1)
-        else:
-            dissipated[0] += counted * _kick_drift_chain(x, v, f, pairs, close, open_, c0, c1)
-        c0 = c1
+    empty = pairs.shape[0] - 1
+    by = np.uint64(1 if pairs.shape[4] > 1 else 0)  # the factors' column: k for a chain graded in its inertia, else 0
+    start, stop, first, last = np.uint64(columns[0]), np.uint64(columns[1]), np.uint64(columns[2]), np.uint64(columns[3])
+    removed = 0.0
+    for r in range(3):
+        for k in range(first, last):
+            c = pairs[close, empty, CLOSE_DAMP, r, k * by] * v[r, k] + pairs[close, empty, CLOSE_KICK, r, k * by] * f[r, k]
+            removed += pairs[close, empty, LOSS, r, k * by] * c * c
+    if out.shape[1] == 0:
+        return removed
+    for r in range(3):
+        for k in range(np.uint64(0), start):
+            out[r, k] = v[r, k]
+        for k in range(start, stop):
+            out[r, k] = pairs[close, empty, CLOSE_DAMP, r, k * by] * v[r, k] + pairs[close, empty, CLOSE_KICK, r, k * by] * f[r, k]
+        for k in range(stop, np.uint64(v.shape[1])):
+            out[r, k] = v[r, k]
+    return removed
+
+
+@njit(**_KICK_OPTIONS)
+def _close_batch(v, f, pairs, close, start, stop, out, removed):  # pragma: no cover - compiled
+    """:func:`_close_chain` of a batch (B > 1, members innermost) on columns [start, stop); adds each member's energy removed to ``removed`` (B,)."""
+    empty = pairs.shape[0] - 1
+    size = np.uint64(removed.size)
+    for r in range(3):
+        for k in range(np.uint64(start), np.uint64(stop)):
+            for i in range(size):
+                c = pairs[close, empty, CLOSE_DAMP, r, i] * v[r, k * size + i] + pairs[close, empty, CLOSE_KICK, r, i] * f[r, k * size + i]
+                removed[i] += pairs[close, empty, LOSS, r, i] * c * c
+    if out.shape[1] == 0:
+        return
+    for r in range(3):
+        for j in range(np.uint64(0), np.uint64(start) * size):
+            out[r, j] = v[r, j]
+        for k in range(np.uint64(start), np.uint64(stop)):
+            for i in range(size):
+                j = k * size + i
+                out[r, j] = pairs[close, empty, CLOSE_DAMP, r, i] * v[r, j] + pairs[close, empty, CLOSE_KICK, r, i] * f[r, j]
+        for j in range(np.uint64(stop) * size, np.uint64(v.shape[1])):
+            out[r, j] = v[r, j]
+
+
+@njit(**_OPTIONS)
+def _spin_peak(v, f, pairs, close, first, last, lanes):  # pragma: no cover - compiled
+    """Raise lanes[PEAK_SPIN] of every member to its largest |phi'| beyond lanes[WATCH_SPIN] at the step boundary
+    on columns [first, last) (the bits of a stored frame).
+
+    Called where the compiled loop counted any beyond the level (a count vectorises, a
+    maximum of doubles stays scalar).
+    """
+    size = lanes.shape[1]
+    empty = pairs.shape[0] - 1
+    by = 1 if pairs.shape[4] > 1 else 0
+    for k in range(first, last):
+        for i in range(size):
+            col = i + k * by
+            w = abs(
+                pairs[close, empty, CLOSE_DAMP, 2, col] * v[2, k * size + i] + pairs[close, empty, CLOSE_KICK, 2, col] * f[2, k * size + i]
+            )
+            if w > lanes[PEAK_SPIN, i] and w > lanes[WATCH_SPIN, i]:
+                lanes[PEAK_SPIN, i] = w
 
 
 # The four columns of a member the end kernel reads (0, 1, n-2, n-1), and its forces there.
@@ -323,7 +410,7 @@ def batch_ends(end_force, x3, f3, coef, first, last, ring, sx, sf, sc):  # pragm
 
 #: A batch's sub-step (:func:`_batch_substep`), handed to the compiled loop as its fourth kernel.
 _BATCH_STEP_SIGNATURE = types.void(
-    BATCH_FORCE_KERNEL_TYPE, types.float64[:, ::1], types.float64[:, ::1], types.float64[:, ::1], types.float64[:, :, ::1],
+    BATCH_FORCE_KERNEL_TYPE, types.float64[:, ::1], types.float64[:, ::1], types.float64[:, ::1], types.float64[:, ::1], types.float64[:, :, ::1],
     types.float64[:, :, ::1], types.float64[:, ::1], types.float64[:, :, :, :, ::1], types.int64, types.int64,
     types.float64[::1], types.float64[::1], types.int64, types.int64,
 )  # fmt: skip
@@ -335,23 +422,46 @@ BATCH_STEP_TYPE = types.FunctionType(_BATCH_STEP_SIGNATURE)
 # neither it nor the batch kick-drift (benchmarks/TIMINGS.md).
 @njit(**_KICK_OPTIONS)
 def _batch_substep(
-    batch_force, x, v, f, x3, f3, coef, pairs, close, open_, dissipated, scratch, start, stop
+    batch_force, x, v, f, out, x3, f3, coef, pairs, close, open_, dissipated, scratch, start, stop
 ):  # pragma: no cover - compiled
     """A batch's sub-step (B > 1) on columns [start, stop): its kick-drift, then the batch kernel on the (3, n, B) views x3, f3.
 
     With ``open_`` the number of sub-steps (no sub-step opened: a step closed to store it or to
-    stop), the kick-drift only; ``scratch`` (B,) holds the members' sums.
+    stop), :func:`_close_batch` instead: the velocities at the step boundary into ``out``, the
+    energy removed added to ``dissipated``. ``scratch`` (B,) holds the members' sums.
     """
-    _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch, start, stop)
     if open_ < pairs.shape[0] - 1:
+        _kick_drift_batch(x, v, f, pairs, close, open_, dissipated, scratch, start, stop)
         batch_force(x3, coef, f3)
+    else:
+        _close_batch(v, f, pairs, close, start, stop, out, dissipated)
 
 
 @njit(_BATCH_STEP_SIGNATURE, cache=True, nogil=True)
 def _no_batch_step(
-    batch_force, x, v, f, x3, f3, coef, pairs, close, open_, dissipated, scratch, start, stop
+    batch_force, x, v, f, out, x3, f3, coef, pairs, close, open_, dissipated, scratch, start, stop
 ):  # pragma: no cover - compiled
     """Fills the batch sub-step's slot of a compiled loop that runs one chain: the loop never calls it."""
+
+
+@njit(**_OPTIONS)
+def _close_state(
+    batch_step, batch_force, x, v, f, x3, f3, coef, pairs, close, columns, dissipated, removed, scratch
+):  # pragma: no cover - compiled
+    """Close sub-step ``close`` in place (a run's last step, or a blow-up): velocities at the step boundary, the energy removed added.
+
+    The same closing as a stored frame's (:func:`_close_chain`, :func:`_close_batch`), written
+    into the state: a run's last frame has the bits an intermediate frame at that step would have.
+    """
+    empty = pairs.shape[0] - 1
+    if removed.size > 1:
+        for i in range(removed.size):
+            removed[i] = 0.0
+        batch_step(batch_force, x, v, f, v, x3, f3, coef, pairs, close, empty, removed, scratch, columns[0], columns[1])
+        for i in range(removed.size):
+            dissipated[i] += removed[i]
+    else:
+        dissipated[0] += _close_chain(v, f, pairs, close, columns, v)
 
 
 @njit(**_OPTIONS)
@@ -542,13 +652,15 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
     run : (n_steps, step0, stride, check_every, pending, close_at_end, frame0)
         stride: store after every global step that is a multiple of it (and after the last if
         ``close_at_end``); check_every: test for members out of bounds after every global step
-        that is a multiple of it (and after the last if ``close_at_end``), a divisor of
+        that is a multiple of it and after the call's last step (which changes no state), a divisor of
         WRAP_EVERY; pending: the sub-step left open by the previous call (S, the number of
         sub-steps, if none); close_at_end: close the last step (velocities at the step
         boundary), False leaves it open, to be continued by the next call exactly as if the
-        run had not stopped; frame0: first slot of ``frames`` to write.
+        run had not stopped; frame0: first slot of ``frames`` to write. A store leaves the
+        state open (its frame gets the closed velocities): only the closing at the end changes it.
     frames : (frames_x, frames_v, frames_acc, record, frames_winding)
-        frames_x, frames_v (F, 3, n B), or F = 0 to store no states; frames_acc (F, 2, B);
+        frames_x, frames_v (F, 3, n B), or F = 0 to store no states (a slot that is x and v
+        itself is written only at a closed last step); frames_acc (F, 2, B);
         record (F, B): unwrapped angle of column ``watch`` at every store (when watch >= 0);
         frames_winding (F, n B): the winding at every store (F = 0 with frames_x).
     turns : (watch, ring_time, ring_step_time, ring_phi)
@@ -585,6 +697,8 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
     work = acc[0]
     dissipated = acc[1]
     scratch = np.empty(size)
+    removed = np.empty(size)
+    no_out = np.empty((3, 0))
     step_time = np.empty(size)
     winding_prev = np.empty(size)
     time_prev = np.empty(size)
@@ -608,6 +722,11 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
     empty = n_sub
     # A single chain graded in its inertia: its kick-drift factors are per column.
     by_column = size == 1 and pairs.shape[4] > 1
+    usize = np.uint64(size)
+    spin_over = 0.0
+    spin_level = np.empty(size)  # squared
+    for i in range(size):
+        spin_level[i] = lanes[WATCH_SPIN, i] * lanes[WATCH_SPIN, i]
     # Countdowns instead of a modulo per step: an integer division costs as much as
     # a small chain's kick-drift.
     to_store = stride - step0 % stride
@@ -616,7 +735,7 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
     for k in range(n_steps):
         for s in range(n_sub):
             if size > 1:
-                batch_step(batch_force, x, v, f, x3, f3, coef, pairs, pending, s, dissipated, scratch, columns[0], columns[1])
+                batch_step(batch_force, x, v, f, v, x3, f3, coef, pairs, pending, s, dissipated, scratch, columns[0], columns[1])
                 if ends:
                     batch_ends(end_force, x3, f3, coef, columns[0] == 0, columns[1] == n_chain, ring, end_x, end_f, end_coef)
             else:
@@ -632,12 +751,17 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
                 c0 = columns[0]
                 done = max(c0, 1)
                 stop, first, last = columns[1], columns[2], columns[3]
+                # Opening a step the kick-drift closes the previous one: its closed angular velocities
+                # are counted against the level of a step that does not resolve a turn (own columns).
+                level = spin_level[0] if s == 0 else math.inf
                 while c0 < stop:
                     c1, counted = _segment(c0, stop, first, last)
                     if by_column:
-                        dissipated[0] += counted * _kick_drift_columns(x, v, f, pairs, pending, s, c0, c1)
+                        lost, over = _kick_drift_columns(x, v, f, pairs, pending, s, c0, c1, level)
                     else:
-                        dissipated[0] += counted * _kick_drift_chain(x, v, f, pairs, pending, s, c0, c1)
+                        lost, over = _kick_drift_chain(x, v, f, pairs, pending, s, c0, c1, level)
+                    dissipated[0] += counted * lost
+                    spin_over += counted * over
                     top = min(stop if c1 == stop else c1 - 1, n_chain - 1)
                     if top > done:
                         force(x, chain_coef, f, done, top)
@@ -691,42 +815,76 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
             turned = _follow_turns(
                 x, winding, lanes, lane_ints, watch, step_time, winding_prev, time_prev, ring_time, ring_step_time, ring_phi
             )
+        # The angular velocities at this step's boundary (closed as a frame closes them) against the level
+        # of a step that does not resolve a turn. One chain: counted in the next step's kick-drift (free),
+        # which closes them; once one passed, every step's largest exactly (that first one's value is gone:
+        # the level stands for it). A batch: one vectorised count a step here, written out (a call that takes
+        # arrays costs their atomic reference counts), and the exact largest at a step with any beyond it.
+        if size == 1:
+            if spin_over > 0.0:
+                lanes[PEAK_SPIN, 0] = max(lanes[PEAK_SPIN, 0], lanes[WATCH_SPIN, 0])
+                spin_over = 0.0
+            if lanes[PEAK_SPIN, 0] > 0.0:
+                _spin_peak(v, f, pairs, pending, columns[2], columns[3], lanes)
+        else:
+            over = 0.0
+            for j in range(np.uint64(columns[2]), np.uint64(columns[3])):
+                for i in range(usize):
+                    w = (
+                        pairs[pending, empty, CLOSE_DAMP, 2, i] * v[2, j * usize + i]
+                        + pairs[pending, empty, CLOSE_KICK, 2, i] * f[2, j * usize + i]
+                    )
+                    over += 1.0 if w * w > spin_level[i] else 0.0
+            if over > 0.0:
+                _spin_peak(v, f, pairs, pending, columns[2], columns[3], lanes)
         to_store -= 1
         to_check -= 1
         last = (k == n_steps - 1 and close_at_end) or turned
         store = to_store == 0
-        if store or last:
-            if size > 1:
-                batch_step(batch_force, x, v, f, x3, f3, coef, pairs, pending, empty, dissipated, scratch, columns[0], columns[1])
-            else:
-                _kick_drift(x, v, f, pairs, pending, empty, columns, dissipated)
+        if last:
+            if size == 1 and lanes[PEAK_SPIN, 0] == 0.0:
+                _spin_peak(v, f, pairs, pending, columns[2], columns[3], lanes)  # no next kick-drift counts this boundary
+            _close_state(batch_step, batch_force, x, v, f, x3, f3, coef, pairs, pending, columns, dissipated, removed, scratch)
             pending = empty
         if store:
             to_store = stride
-            # The caller may hand in its last frame slots as x and v; nothing to copy then. Copied
+            # A stored frame gets the velocities at the step boundary computed from the open state,
+            # which is not written back: the run goes on as if nothing were stored, so that its
+            # states do not depend on which steps are stored. The caller may hand in its last frame
+            # slots as x and v (stored at a run's closed last step); nothing to copy then. Copied
             # by loops: an array assigned to a slice compiles numba's shape-mismatch message (string
             # formatting), a large part of this function's compile time with an empty cache.
-            if keep_states and frames_x[frame].ctypes.data != x.ctypes.data:
+            copy_states = keep_states and frames_x[frame].ctypes.data != x.ctypes.data
+            if copy_states:
                 for r in range(3):
                     for j in range(x.shape[1]):
                         frames_x[frame, r, j] = x[r, j]
-                        frames_v[frame, r, j] = v[r, j]
+                if last:
+                    for r in range(3):
+                        for j in range(x.shape[1]):
+                            frames_v[frame, r, j] = v[r, j]
+            for i in range(size):
+                removed[i] = 0.0
+            if not last:
+                out = frames_v[frame] if copy_states else no_out
+                if size > 1:
+                    batch_step(batch_force, x, v, f, out, x3, f3, coef, pairs, pending, empty, removed, scratch, columns[0], columns[1])
+                else:
+                    removed[0] = _close_chain(v, f, pairs, pending, columns, out)
             if keep_states and frames_winding[frame].ctypes.data != winding.ctypes.data:
                 for j in range(winding.shape[0]):
                     frames_winding[frame, j] = winding[j]
             for i in range(size):
                 frames_acc[frame, 0, i] = work[i]
-                frames_acc[frame, 1, i] = dissipated[i]
+                frames_acc[frame, 1, i] = dissipated[i] + removed[i]
                 if watch >= 0:
                     record[frame, i] = _unwrapped(x[2, watch * size + i], winding[watch * size + i])
             frame += 1
-        if to_check == 0 or last:
+        if to_check == 0 or last or k == n_steps - 1:
             to_check = check_every
             if _runaway(x, v, lanes, lane_ints):
-                if pending != empty and size > 1:
-                    batch_step(batch_force, x, v, f, x3, f3, coef, pairs, pending, empty, dissipated, scratch, columns[0], columns[1])
-                elif pending != empty:
-                    _kick_drift(x, v, f, pairs, pending, empty, columns, dissipated)
+                if pending != empty:
+                    _close_state(batch_step, batch_force, x, v, f, x3, f3, coef, pairs, pending, columns, dissipated, removed, scratch)
                 return STATUS_BLEW_UP, k + 1, frame - frame0, empty
             # At the checks on global multiples of WRAP_EVERY only: a run split into calls, or
             # rerun with a check after every step, wraps where the whole run does.
@@ -828,6 +986,7 @@ class Lanes:
         self.lane_ints[TURN_LIMIT] = NO_TURN_LIMIT
         self.lanes[DT] = dt
         self.lanes[MAX_SPIN] = MAX_ROTATION_PER_STEP / self.lanes[DT]
+        self.lanes[WATCH_SPIN] = MAX_SPIN_PER_STEP / self.lanes[DT]
         if self.params[0].graded_inertia:
             # Factors per column (the kick-drift reads them so when the last axis is the chain's).
             columns = self.params[0].particle_inertia
@@ -1084,6 +1243,7 @@ class Lanes:
         out.f = np.ascontiguousarray(self.f[:, first:last])
         out.winding = self.winding[first:last].copy()  # (a slice of rows is contiguous: ascontiguousarray would not copy)
         out.acc = np.zeros((2, 1))
+        out.lanes = self.lanes.copy()  # its own PEAK_SPIN: the blocks run at once
         low = 0 if first == 0 and self.columns[0] == 0 else 1
         high = out.n if last == self.n and self.columns[1] == self.n else out.n - 1
         out.columns = np.array([low, high, start - first, stop - first], dtype=np.int64)
@@ -1138,6 +1298,17 @@ class Blocks:
         # Copied out on the threads (numpy copies without the GIL): done in turn, the copies
         # and gathers of a 10^6-particle chain were a tenth of a two-thread call of 100 steps.
         self.blocks = self._each(lambda span: lanes.segment(*span), self.spans)
+        # One frame slot per block (states, sums, record, winding).
+        self.slots = [
+            (
+                np.zeros((1, *b.x.shape)),
+                np.zeros((1, *b.v.shape)),
+                np.zeros((1, 2, 1)),
+                np.zeros((1, 1)),
+                np.zeros((1, *b.winding.shape), dtype=np.int64),
+            )
+            for b in self.blocks
+        ]
 
     def _each(self, work, items) -> list:
         """``work`` of every item, on the threads (in the calling thread if there are none)."""
@@ -1159,39 +1330,56 @@ class Blocks:
         if self.pool is not None:
             self.pool.shutdown()
 
-    def advance(self, n_steps, step0, stride, check_every, frames, frame0):
-        """As :meth:`Lanes.advance` on the whole chain (frames of states, ``record`` unused)."""
+    def advance(self, n_steps, step0, stride, check_every, frames, frame0, close_at_end=True):
+        """As :meth:`Lanes.advance` on the whole chain (frames of states, ``record`` unused).
+
+        Each block stores its frame in a slot of its own (:attr:`slots`, its state left open
+        as the whole chain's would be); the frame is gathered from the blocks' own columns.
+        """
         frames_x, frames_v, frames_acc, _, frames_winding = frames
         done = written = 0
         while done < n_steps:
             to_store = stride - (step0 + done) % stride
             length = min(SUPER_STEPS, n_steps - done, to_store)
-            final = done + length == n_steps
+            final = done + length == n_steps and close_at_end
 
-            def run(block, begin=step0 + done, length=length, final=final):
-                return block.advance(length, begin, stride, check_every, close_at_end=final)
+            def run(item, begin=step0 + done, length=length, final=final):
+                block, slot = item
+                return block.advance(length, begin, stride, check_every, frames=slot, close_at_end=final)
 
-            outcomes = self._each(run, self.blocks)
+            outcomes = self._each(run, zip(self.blocks, self.slots))
             done += length
             blew_up = any(code == STATUS_BLEW_UP for code, _, _ in outcomes)
             stored = length == to_store
-            if blew_up or stored or final:
+            if blew_up or final:
                 self._gather()
-                if stored and not blew_up:
-                    # (The last frame is the chain's own state: nothing to copy.)
-                    if not np.may_share_memory(frames_x[frame0 + written], self.lanes.x):
-                        frames_x[frame0 + written] = self.lanes.x
-                        frames_v[frame0 + written] = self.lanes.v
-                    if not np.may_share_memory(frames_winding[frame0 + written], self.lanes.winding):
-                        frames_winding[frame0 + written] = self.lanes.winding
-                    frames_acc[frame0 + written] = self.lanes.acc
-                    written += 1
-                if blew_up:
-                    self.lanes.lane_ints[BLEW_UP] = 1
-                    return STATUS_BLEW_UP, done, written
-            if not final:
+            if stored and not blew_up:
+                self._gather_frame(frames_x, frames_v, frames_acc, frames_winding, frame0 + written)
+                written += 1
+            if blew_up:
+                self.lanes.lane_ints[BLEW_UP] = 1
+                return STATUS_BLEW_UP, done, written
+            if done < n_steps:
                 self._exchange()
+        if not close_at_end:
+            self._gather()
         return STATUS_OK, done, written
+
+    def _gather_frame(self, frames_x, frames_v, frames_acc, frames_winding, frame) -> None:
+        """The blocks' stored frames (their own columns, their sums added in the blocks' order) into slot ``frame``."""
+        # (The last frame may be the chain's own state, gathered already: the same values.)
+        if frames_x.shape[0]:
+
+            def own_columns(item):
+                (first, _, start, stop), (slot_x, slot_v, _, _, slot_winding) = item
+                frames_x[frame, :, start:stop] = slot_x[0, :, start - first : stop - first]
+                frames_v[frame, :, start:stop] = slot_v[0, :, start - first : stop - first]
+                frames_winding[frame, start:stop] = slot_winding[0, start - first : stop - first]
+
+            self._each(own_columns, zip(self.spans, self.slots))
+        frames_acc[frame] = self.acc0
+        for _, _, slot_acc, _, _ in self.slots:
+            frames_acc[frame] += slot_acc[0]
 
     def _exchange(self) -> None:
         """Each block's halo from its neighbours' own columns (a halo is narrower than a block: only the two next to it)."""
@@ -1218,6 +1406,7 @@ class Blocks:
         self.lanes.acc[...] = self.acc0
         for block in self.blocks:
             self.lanes.acc += block.acc
+        self.lanes.lanes[PEAK_SPIN] = max(block.lanes[PEAK_SPIN, 0] for block in self.blocks)
         self.lanes.pending = self.blocks[0].pending
 
 
