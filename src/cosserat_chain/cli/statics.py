@@ -68,8 +68,11 @@ def sweep(
     from ..numerics.relaxation import RelaxSettings
 
     outputs_or_exit({"--out": out, "--plot": plot}, {"--config": config})
-    count = steps if steps is not None else math.ceil(m_max / dm) if dm is not None else None
-    if count is not None and count * (2 if down else 1) > MAX_LOAD_STEPS:
+    if (steps is None) == (dm is None):
+        given = f"both (--steps {steps}, --dm {dm:g})" if steps is not None else "neither"
+        fail(f"give exactly one of --steps (the number of load steps) and --dm (the load increment), got {given}")
+    count = steps if steps is not None else math.ceil(m_max / dm)
+    if count * (2 if down else 1) > MAX_LOAD_STEPS:
         asked = "--steps" if steps is not None else f"--m-max / --dm = {m_max:g} / {dm:g}"
         fail(
             f"{asked} asks for {count:.3g} load steps, each relaxed for up to --t-max {t_max:g}: more than {MAX_LOAD_STEPS:,} "
@@ -78,14 +81,13 @@ def sweep(
     params, extra = config_or_exit(config, load)
     if extra and plot is not None:
         fail("--plot draws the exact static branches, which hold the moment alone: leave out --plot or the extra loads")
-    if count is not None:
-        # Each load step relaxes for at least one chunk of time before its first test.
-        chunk = min(t_max, RelaxSettings.chunk_time)
-        for name in chosen_models(model):
-            step = step_for_checks(params, name, None)
-            if step is not None:
-                what = f"{name}: {count * (2 if down else 1)} load steps of at least {chunk:g} time units at dt={step:.3g}"
-                work_or_exit(count * (2 if down else 1) * chunk / step, params.n_particles, what, f"fewer load steps, or {LARGER_STEP}")
+    # Each load step relaxes for at least one chunk of time before its first test.
+    chunk = min(t_max, RelaxSettings.chunk_time)
+    for name in chosen_models(model):
+        step = step_for_checks(params, name, None)
+        if step is not None:
+            what = f"{name}: {count * (2 if down else 1)} load steps of at least {chunk:g} time units at dt={step:.3g}"
+            work_or_exit(count * (2 if down else 1) * chunk / step, params.n_particles, what, f"fewer load steps, or {LARGER_STEP}")
     results = {}
     interrupted = False
     for name in chosen_models(model):
