@@ -55,8 +55,8 @@ def test_sweep_json_reports_steps_onset_and_stop(tmp_path):
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["sweep", "--m-max", "0.3"], "exactly one of steps"),
-        (["sweep", "--m-max", "0.3", "--steps", "3", "--dm", "0.1"], "exactly one of steps"),
+        (["sweep", "--m-max", "0.3"], "exactly one of --steps"),
+        (["sweep", "--m-max", "0.3", "--steps", "3", "--dm", "0.1"], "exactly one of --steps"),
         (["sweep", "--m-max", "0.3", "--steps", "3", "--particle", "3"], "end is clamped"),
     ],
 )
