@@ -10,6 +10,7 @@ import sys
 import pytest
 
 import cosserat_chain
+from fresh_cli import fresh_run
 
 
 def test_every_public_name_resolves_to_its_module_and_all_lists_them():
@@ -92,10 +93,11 @@ def test_computing_commands_with_json_load_no_data_or_plotting_library(command, 
 
 
 def test_python_dash_m_and_version():
-    out = subprocess.run([sys.executable, "-m", "cosserat_chain", "--version"], capture_output=True, text=True, check=True).stdout
-    assert out.strip() == f"cosserat-chain {cosserat_chain.__version__}"
-    help_text = subprocess.run([sys.executable, "-m", "cosserat_chain", "--help"], capture_output=True, text=True, check=True).stdout
-    assert "simulate" in help_text and "export" in help_text and "reproduce" in help_text
+    """``python -m cosserat_chain`` in a fresh interpreter (``fresh_cli``: the runs test_cli_startup.py reads too)."""
+    version, _ = fresh_run("--version")
+    assert version.returncode == 0 and version.stdout.strip() == f"cosserat-chain {cosserat_chain.__version__}"
+    help_text, _ = fresh_run("--help")
+    assert help_text.returncode == 0 and all(name in help_text.stdout for name in ("simulate", "export", "reproduce"))
 
 
 def test_shell_completion_script_is_offered():

@@ -7,37 +7,16 @@
 
 from __future__ import annotations
 
-import functools
 import json
-import os
-import subprocess
-import sys
 
 import pytest
 from typer.testing import CliRunner
 
 import cosserat_chain.cli as cli
 from cosserat_chain.cli import app
+from fresh_cli import fresh_run
 
 runner = CliRunner()
-
-# Run the command line as ``python -m cosserat_chain`` does; an ``atexit`` handler registered
-# before the command (so run after every other) reports the modules loaded and the frozen objects.
-_PROBE = """\
-import atexit, gc, json, runpy, sys
-atexit.register(lambda: print("PROBE", json.dumps({"modules": sorted(sys.modules), "frozen": gc.get_freeze_count()}), file=sys.stderr))
-sys.argv = ["cosserat-chain", *sys.argv[1:]]
-runpy.run_module("cosserat_chain", run_name="__main__")
-"""
-
-
-@functools.cache
-def _run(*args: str) -> tuple[subprocess.CompletedProcess, dict]:
-    """The fresh interpreter's run of ``args`` and its probe, once a session: the help runs serve two tests."""
-    env = dict(os.environ, COLUMNS="80", OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
-    done = subprocess.run([sys.executable, "-c", _PROBE, *args], capture_output=True, text=True, env=env, timeout=300)
-    line = next(line for line in done.stderr.splitlines() if line.startswith("PROBE "))
-    return done, json.loads(line.removeprefix("PROBE "))
 
 
 def test_the_table_of_command_modules_is_what_the_modules_register_in_the_order_of_help():
@@ -49,7 +28,7 @@ def test_the_table_of_command_modules_is_what_the_modules_register_in_the_order_
 
 
 def test_critical_json_imports_its_own_command_module_and_no_data_or_plot_library():
-    done, probe = _run("critical", "--model", "sine", "--json")
+    done, probe = fresh_run("critical", "--model", "sine", "--json")
     assert done.returncode == 0, done.stderr
     command_modules = {f"cosserat_chain.cli.{module}" for module in cli.COMMAND_MODULES.values()}
     assert command_modules & set(probe["modules"]) == {"cosserat_chain.cli.statics"}
@@ -66,7 +45,7 @@ def test_a_run_naming_a_command_prints_the_same_help_and_errors_as_the_whole_app
     ``COLUMNS=80`` (80 - 2)."""
     assert len(app.registered_commands) == len(cli.COMMAND_MODULES)  # every command module imported
     for args in (["critical", "--help"], ["animate", "--help"], ["critical", "--model", "pendulum"], ["--help"], ["critcal"]):
-        done, probe = _run(*args)
+        done, probe = fresh_run(*args)
         whole = runner.invoke(app, args, prog_name="cosserat-chain", terminal_width=78)
         assert (done.returncode, done.stdout, done.stderr.splitlines()[:-1]) == (whole.exit_code, whole.stdout, whole.stderr.splitlines())
         assert done.stdout or done.stderr.count("\n") > 1, args  # it said something (the probe's line last)
@@ -78,7 +57,7 @@ def test_a_run_naming_a_command_prints_the_same_help_and_errors_as_the_whole_app
 def test_critical_json_on_the_papers_chain_computes_every_verdict_without_scipys_sparse_solvers():
     # The sine model's dynamic verdict at every traced point comes from the band (numerics.stability), the folds
     # and stability from band factors: SuperLU, ARPACK and the graph routines are imported only where used.
-    done, probe = _run("critical", "--json")
+    done, probe = fresh_run("critical", "--json")
     assert done.returncode == 0, done.stderr
     assert {"scipy.sparse.linalg", "scipy.sparse.csgraph", "scipy.optimize"}.isdisjoint(probe["modules"])
     sine = json.loads(done.stdout)["models"]["sine"]
@@ -88,7 +67,7 @@ def test_critical_json_on_the_papers_chain_computes_every_verdict_without_scipys
 
 @pytest.mark.parametrize("args", [["--version"], ["--help"], ["critical", "--help"]])
 def test_help_and_version_import_no_compiled_library(args):
-    done, probe = _run(*args)
+    done, probe = fresh_run(*args)
     assert done.returncode == 0, done.stderr
     assert {"numba", "scipy", "xarray"}.isdisjoint(probe["modules"])
 
