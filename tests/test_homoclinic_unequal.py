@@ -130,3 +130,32 @@ def test_a_fit_that_remains_carries_its_own_uncertainty_and_says_fitted(monkeypa
     assert (entry["stops_method"], entry["stops_uncertainty"]) == ("fitted", branch.end_uncertainty)
     ds = diagram.to_dataset()
     assert ds["stops_uncertainty"].values[0] == branch.end_uncertainty and ds["stops_method"].values[0] == "fitted"
+
+
+def test_orbit_down_to_says_its_end_is_a_fit_in_the_json_and_the_file(tmp_path):
+    """``orbit --system --vary``: a period that diverges gives the end fitted from its growth, labelled ``fitted`` with the
+    fit's own uncertainty in the JSON branch and the NetCDF attributes (the pendulum's retrapping current within it)."""
+    import json
+
+    import xarray as xr
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    out = tmp_path / "orbit.nc"
+    args = ["orbit", "--system", "josephson_array", "--set", "sites=1", "--set", "alpha=0.3", "--set", "I=0.8"]
+    result = CliRunner().invoke(app, [*args, "--vary", "I", "--period-max", "60", "--json", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    branch = json.loads(result.stdout)["branch"]
+    assert branch["end_method"] == "fitted" and branch["end_uncertainty"] > 0
+    with xr.open_dataset(out) as ds:
+        assert ds.attrs["branch_end_method"] == "fitted"
+        assert (ds.attrs["branch_end_value"], ds.attrs["branch_end_uncertainty"]) == (branch["end_value"], branch["end_uncertainty"])
+    # The pendulum's retrapping current at alpha = 0.3 (the solved loop, 1e-10).
+    pendulum = LatticeSystem(
+        sites=1, site_energy="1 - cos(phi) - I*phi", damping="alpha", parameters={"I": 0.5, "alpha": 0.3}, name="pendulum"
+    )
+    from cosserat_chain.numerics.homoclinic import homoclinic_end
+
+    end = homoclinic_end(pendulum, np.array([math.pi - math.asin(0.5)]), turns={"phi_0": 1}, bracket=(0.2, 0.5), parameter="I")
+    assert abs(branch["end_value"] - end.value) <= branch["end_uncertainty"]

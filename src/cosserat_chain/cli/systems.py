@@ -530,6 +530,10 @@ def _orbit_dataset(system, reference: str, orbit, branch):
                 "events_json": json.dumps(branch.as_dict()["events"]),
             }
         )
+        if branch.end_value is not None:
+            # A homoclinic end fitted from the period's growth, with the fit's own uncertainty (NaN: none).
+            uncertainty = math.nan if branch.end_uncertainty is None else branch.end_uncertainty
+            ds.attrs.update({"branch_end_value": branch.end_value, "branch_end_uncertainty": uncertainty, "branch_end_method": "fitted"})
     ds.attrs.update(_system_attributes(system, reference))
     ds.attrs.update(
         {

@@ -33,9 +33,10 @@ For each value of one field of the chain, :func:`state_diagram` gives
   ``follow``: the same system continued from the value before, the curve of the lower edge
   in (M, p)), ``solved`` (a homoclinic end: the loop from the saddle back to it shifted by
   2 pi, a boundary-value problem with projection boundary conditions,
-  :func:`~cosserat_chain.numerics.homoclinic.chain_homoclinic_end`), ``one_parameter`` (read
-  from the continuation alone: SNIC ends, a homoclinic end the boundary-value problem did not
-  solve, or where the end could not be located, ``message`` says);
+  :func:`~cosserat_chain.numerics.homoclinic.chain_homoclinic_end`), ``fitted`` (a homoclinic
+  end the boundary-value problem did not solve: the fit of the period's growth, ``message`` says
+  why), ``one_parameter`` (read from the continuation alone: SNIC ends, or where the end could
+  not be located, ``message`` says);
 * ``rotation_stops_uncertainty``: for a solved homoclinic end its accuracy (the change over the
   last step of the boundary conditions' distance to the saddle); for one left fitted to the
   period's growth (T ~ -log(M - M_h)), three times the difference between the fit to the last
@@ -309,7 +310,7 @@ class StateDiagram:
                 "rotation_starts": (("value",), np.array([row.rotation_starts or "unknown" for row in self.rows], dtype=str),
                                     {"long_name": "how a rising load starts the rotation at M_c: snic, jump or unknown"}),
                 "method": (("value",), np.array([row.method for row in self.rows], dtype=str),
-                           {"long_name": "how rotation_stops was found: followed, located, solved or one_parameter"}),
+                           {"long_name": "how rotation_stops was found: followed, located, solved, fitted or one_parameter"}),
                 "rotation_stops_uncertainty": (("value",), column("uncertainty"),
                                                {"long_name": "accuracy of a homoclinic rotation_stops, solved or fitted (NaN: another computed point)"}),
                 "moment_scale": (("value",), column("moment_scale"), {"long_name": "E1 h^2, the unit of the dimensionless moment M / (E1 h^2)"}),
@@ -563,7 +564,10 @@ def _followed_entry(edge: _Edge) -> dict[str, Any]:
 def _solved(edge: _Edge, chain: ChainParams, model, particle: int, last: float) -> _Edge:
     """A fitted homoclinic end replaced by the solved loop (:func:`~cosserat_chain.numerics.homoclinic.chain_homoclinic_end`:
     projection boundary conditions, with its accuracy); where that fails, the fit is kept and the message says why."""
-    if edge.end != "homoclinic" or edge.stops is None or edge.uncertainty is None:
+    if edge.end != "homoclinic" or edge.stops is None:
+        return edge
+    if edge.uncertainty is None:
+        edge.method = "fitted"
         return edge
     # The fit's uncertainty can be too small by more than a factor of ten (the N = 1 chain at gamma_phi = 0.02, whose
     # continuation crawls to a halt at a period of 4.4, far from diverging: 1.2e-8 against an error of 1.5e-7): the
@@ -572,9 +576,9 @@ def _solved(edge: _Edge, chain: ChainParams, model, particle: int, last: float) 
     try:
         orbit = chain_homoclinic_end(chain, model, bracket=(edge.stops - reach, last), particle=particle)
     except (HomoclinicError, OrbitError) as err:  # an integration along a loop that ran away ends the solve too
-        # The fit stays, with the uncertainty of the bracket the solve searched: its own can be that far off.
-        edge.message += f"; not solved ({err}); its uncertainty is the solve's bracket, {reach:.2g}, its own spread can be that far off"
-        edge.uncertainty = reach
+        # The fit stays, labelled so, with its own uncertainty (FIT_SAFETY times the spread of the fits).
+        edge.message += f"; not solved ({err}): M_h = {edge.stops:.10g} +- {edge.uncertainty:.2g}, fitted (the fit's own uncertainty)"
+        edge.method = "fitted"
         return edge
     off = abs(edge.stops - orbit.value)
     fit = f"the fit of the period's growth gave {edge.stops:.10g} +- {edge.uncertainty:.2g}" + (

@@ -546,6 +546,8 @@ class OrbitBranch:
             "message": self.message,
             "end_value": self.end_value,
             "end_uncertainty": self.end_uncertainty,
+            # The end value is a fit of the period's growth, never a computed point (diagram --system solves it).
+            "end_method": None if self.end_value is None else "fitted",
         }
 
 
