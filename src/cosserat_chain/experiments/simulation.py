@@ -128,10 +128,10 @@ def _check_accuracy(ds: xr.Dataset, load_hint: str = "", peak_spin: float = 0.0)
     The balance is checked for the models with an energy (not the sine model, eq. (2), whose
     forces are not conservative: there the dissipated energy may exceed the load's work, at
     any step). The rotation is |phi_dot| dt at every step boundary: the stored frames', and
-    ``peak_spin``, the run's largest |phi_dot| beyond ROTATION_PER_STEP / dt at any step
+    ``peak_spin``, which the compiled loop keeps from every step, stored or not
     (:attr:`~cosserat_chain.numerics.dynamics.Trajectory.peak_spin`), so that a spin between two
-    frames is seen; the number is exact where it passes the tolerance (below it, the frames'
-    largest). The numbers are stored in the attributes ``balance_relative``,
+    frames is seen: the flag is exact; the number is the largest over the steps from the first
+    beyond the tolerance on (below it, the frames' largest). The numbers are stored in the attributes ``balance_relative``,
     ``rotation_per_step`` and ``damping_per_step`` (:data:`DAMPING_PER_STEP`) of every run,
     flagged or not.
     """

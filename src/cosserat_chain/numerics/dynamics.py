@@ -165,8 +165,9 @@ class Trajectory:
         The angles less their whole turns: phi = reduced_phi + 2 pi winding exactly, of
         which ``x[:, 2]`` is the nearest double (the same bits while the winding is 0).
     peak_spin : float
-        The largest |phi'| at any step boundary, stored or not, where it passed
-        ``MAX_SPIN_PER_STEP / dt`` (a step that does not resolve a turn); 0 where none did.
+        0 where |phi'| stayed within ``MAX_SPIN_PER_STEP / dt`` (a step that resolves a turn)
+        at every step boundary, stored or not; else the largest |phi'| at the step boundaries
+        from the first beyond it on (for that first one, the level itself: :mod:`.engine`).
     """
 
     time: np.ndarray

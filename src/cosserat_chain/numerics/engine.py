@@ -31,12 +31,15 @@ Along the way the loop accumulates per member the work done by the loads
 (trapezoidal in each sub-step, exact for constant loads) and the energy removed
 by each damping flow (exact for that flow), which close the energy balance
 K + P - W + D = K0 + P0 to within the integrator's error. It stores every
-``stride``-th state without changing the run: a stored frame gets the velocities at
-the step boundary computed from the open sub-step, which goes on unclosed, so that
-the states are the same bits whichever steps are stored (only a run's last step is
-closed in place). At every step boundary it counts the angular velocities beyond
-MAX_SPIN_PER_STEP / dt (a step that does not resolve a turn) and keeps the largest
-of them per member (lanes[PEAK_SPIN]), whether that step is stored or not. It optionally follows one column's angle per member (the
+``stride``-th state without changing the run: every kick-drift first closes the
+previous sub-step exactly as a stored frame or a run's end closes it (:func:`pair_table`),
+and a frame gets those velocities computed from the open sub-step without writing them
+back, so that the states are the same bits whichever steps are stored, and a run started
+from a stored frame takes the steps of the run that stored it. At every step boundary of a
+single chain it counts the angular velocities beyond MAX_SPIN_PER_STEP / dt (a step that does not resolve
+a turn), stored or not: a count in the kick-drift that closes them, free; from the first
+step that has one on, the loop takes every step's largest exactly (lanes[PEAK_SPIN]; for
+that first step the level stands in, its velocities being closed and gone). It optionally follows one column's angle per member (the
 loaded particle's turns: :class:`TurnRecord`). It stops at the first check that
 finds a member out of bounds (a value not finite, |u| or |v| beyond the
 member's bound, a particle turning by more than :data:`MAX_ROTATION_PER_STEP` in
@@ -148,6 +151,7 @@ def pair_table(table: np.ndarray, mass: np.ndarray) -> np.ndarray:
     depend on which steps it stores. The damping flows remove 0.5 m (1 - e_o^2 e_c^2) w^2 of
     kinetic energy, w = v + k_c f = c / e_c: LOSS c^2 with LOSS = 0.5 m (1 - e_o^2 e_c^2) / e_c^2
     (0 where e_c underflows to 0, a damping beyond any step, flagged by ``simulate``).
+
     Computed here, once, so that the compiled loop does no arithmetic on factors (with
     reassociation allowed there, a product of factors could round differently in different
     copies of the loop).
@@ -722,11 +726,8 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
     empty = n_sub
     # A single chain graded in its inertia: its kick-drift factors are per column.
     by_column = size == 1 and pairs.shape[4] > 1
-    usize = np.uint64(size)
     spin_over = 0.0
-    spin_level = np.empty(size)  # squared
-    for i in range(size):
-        spin_level[i] = lanes[WATCH_SPIN, i] * lanes[WATCH_SPIN, i]
+    spin_level = lanes[WATCH_SPIN, 0] * lanes[WATCH_SPIN, 0]  # one chain's (a batch does not watch the spin)
     # Countdowns instead of a modulo per step: an integer division costs as much as
     # a small chain's kick-drift.
     to_store = stride - step0 % stride
@@ -753,7 +754,7 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
                 stop, first, last = columns[1], columns[2], columns[3]
                 # Opening a step the kick-drift closes the previous one: its closed angular velocities
                 # are counted against the level of a step that does not resolve a turn (own columns).
-                level = spin_level[0] if s == 0 else math.inf
+                level = spin_level if s == 0 else math.inf
                 while c0 < stop:
                     c1, counted = _segment(c0, stop, first, last)
                     if by_column:
@@ -815,34 +816,25 @@ def advance(kernels, state, factors, loads, members, layout, run, frames, turns)
             turned = _follow_turns(
                 x, winding, lanes, lane_ints, watch, step_time, winding_prev, time_prev, ring_time, ring_step_time, ring_phi
             )
-        # The angular velocities at this step's boundary (closed as a frame closes them) against the level
-        # of a step that does not resolve a turn. One chain: counted in the next step's kick-drift (free),
-        # which closes them; once one passed, every step's largest exactly (that first one's value is gone:
-        # the level stands for it). A batch: one vectorised count a step here, written out (a call that takes
-        # arrays costs their atomic reference counts), and the exact largest at a step with any beyond it.
+        # One chain: the angular velocities at the previous step's boundary, closed by this step's first
+        # kick-drift as a frame closes them, were counted there against the level of a step that does not
+        # resolve a turn (free). Their values are gone; once one has passed, the level stands for it, and
+        # from then on every step's largest is taken exactly here (a scalar pass, in such runs only).
+        # A batch does not watch (integrate_batch and the relaxation have no such check).
+        watching = False
         if size == 1:
             if spin_over > 0.0:
                 lanes[PEAK_SPIN, 0] = max(lanes[PEAK_SPIN, 0], lanes[WATCH_SPIN, 0])
                 spin_over = 0.0
-            if lanes[PEAK_SPIN, 0] > 0.0:
-                _spin_peak(v, f, pairs, pending, columns[2], columns[3], lanes)
-        else:
-            over = 0.0
-            for j in range(np.uint64(columns[2]), np.uint64(columns[3])):
-                for i in range(usize):
-                    w = (
-                        pairs[pending, empty, CLOSE_DAMP, 2, i] * v[2, j * usize + i]
-                        + pairs[pending, empty, CLOSE_KICK, 2, i] * f[2, j * usize + i]
-                    )
-                    over += 1.0 if w * w > spin_level[i] else 0.0
-            if over > 0.0:
+            watching = lanes[PEAK_SPIN, 0] > 0.0
+            if watching:
                 _spin_peak(v, f, pairs, pending, columns[2], columns[3], lanes)
         to_store -= 1
         to_check -= 1
         last = (k == n_steps - 1 and close_at_end) or turned
         store = to_store == 0
         if last:
-            if size == 1 and lanes[PEAK_SPIN, 0] == 0.0:
+            if size == 1 and not watching:
                 _spin_peak(v, f, pairs, pending, columns[2], columns[3], lanes)  # no next kick-drift counts this boundary
             _close_state(batch_step, batch_force, x, v, f, x3, f3, coef, pairs, pending, columns, dissipated, removed, scratch)
             pending = empty
