@@ -640,6 +640,7 @@ VARIABLES: dict[str, tuple[str, str]] = {
     "u_dot": ("length / time", "velocity du/dt"),
     "v_dot": ("length / time", "velocity dv/dt"),
     "phi_dot": ("rad / time", "angular velocity dphi/dt"),
+    "peak_spin": ("rad / time", "largest |dphi/dt| at a step boundary beyond the rotation tolerance (0: none)"),
     "force_u": ("energy / length", "force plus load on u"),
     "force_v": ("energy / length", "force plus load on v"),
     "force_phi": ("energy", "moment plus load on phi"),
