@@ -118,7 +118,7 @@ FIRST_RUNG_MAX = 0.1
 #: The rungs :func:`homoclinic_from_orbit` adds above the ladder's first are at most this factor apart.
 RUNG_RATIO = 1.5
 #: Rungs inserted (each halfway in log eps to the one that failed) where Newton misses a rung from a tilted start.
-SPLITS = 12
+SPLITS = 4
 
 
 class HomoclinicError(CosseratChainError, RuntimeError):
@@ -505,7 +505,7 @@ class _Loop:
             scale = 1.0
             for _ in range(20):
                 trial_p, trial_t, trial_a = p + scale * step[0], time + scale * step[1], self.direction + scale * step[2:]
-                if trial_t > 0:
+                if 0 < trial_t <= 2.0 * time:  # T at most doubled: a longer trial runs far from the loop, at a cost
                     try:
                         trial, r_trial, y_trial = self.residual(trial_p, trial_t, trial_a)
                     except _FAILURES:
