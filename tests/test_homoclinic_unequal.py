@@ -84,13 +84,17 @@ def test_an_orbit_far_from_its_loop_is_refused_with_a_message():
         homoclinic_from_orbit(orbit, turns=TURNS, parameter="I", value=math.nan)
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize(
     ("parameters", "auto"),
     [
         pytest.param({}, AUDIT_END, id="audit"),
-        pytest.param({"k": 0.305, "a": 0.194, "mu": 0.802, "w": 1.459, "r": 0.949, "coupling": "sine"}, 0.27968300176, id="seed1"),
-        pytest.param({"k": 0.205, "a": 0.116, "mu": 1.74, "w": 0.774, "r": 1.18}, 0.13311167554, id="seed2"),
+        pytest.param(
+            {"k": 0.305, "a": 0.194, "mu": 0.802, "w": 1.459, "r": 0.949, "coupling": "sine"},
+            0.27968300176,
+            id="seed1",
+            marks=pytest.mark.slow,
+        ),
+        pytest.param({"k": 0.205, "a": 0.116, "mu": 1.74, "w": 0.774, "r": 1.18}, 0.13311167554, id="seed2", marks=pytest.mark.slow),
     ],
 )
 def test_the_diagrams_end_of_an_unequal_pair_is_solved_to_auto07p(parameters, auto):
