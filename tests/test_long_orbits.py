@@ -115,6 +115,22 @@ def test_above_the_dense_threshold_arpack_on_products_of_the_formed_matrix_finds
     assert np.all(errors < 1e-8)
 
 
+def test_arpack_that_does_not_converge_within_its_restarts_reports_the_multipliers_it_found_with_their_errors(monkeypatch):
+    # A symmetric M (its eigenvalue distances bounded by the residuals) whose leading nontrivial eigenvalues crowd within
+    # 1e-9 of one another, as a long chain's soft modes do: one restart cannot resolve them.
+    rng = np.random.default_rng(5)
+    size = 120
+    known = np.concatenate([[1.0], 0.999 - 1e-9 * np.arange(30), rng.uniform(-0.9, 0.9, size - 31)])
+    rotation = np.linalg.qr(rng.standard_normal((size, size)))[0]
+    matrix = rotation @ np.diag(known) @ rotation.T
+    monkeypatch.setattr(long_orbits, "ALL_MULTIPLIERS_UP_TO", 20)
+    monkeypatch.setattr(long_orbits, "ARPACK_RESTARTS", 1)
+    values, errors = leading_multipliers(matrix, rotation[:, 0], 6)
+    assert 1 <= values.size <= 7
+    assert values[0] == pytest.approx(1.0, abs=1e-12)
+    assert np.all(_nearest(known, values) <= errors + 1e-12)
+
+
 def test_arnoldi_and_the_formed_monodromy_give_the_same_leading_multipliers_of_an_orbit():
     params, model, moment = random_geometries(6, seed=3)[0], "nonlinear", 0.1238021083297486
     orbit = find_periodic_orbit(params, model, moment, method="dense")

@@ -102,6 +102,10 @@ ARNOLDI_MAX = 240
 ARNOLDI_TOL = 1e-10
 #: Arnoldi's Ritz values are checked every this many products.
 ARNOLDI_CHECK = 10
+#: Most implicit restarts of ARPACK on the formed M: a long chain's soft modes crowd below 1 (the sine chain's at
+#: M = 0.5, N = 1000, within 1e-6 of 1 and of one another), where ARPACK would restart for hours; those that converged
+#: by then are reported.
+ARPACK_RESTARTS = 50
 #: GMRES's relative tolerance in a Newton step: the closure max |R|, clipped to this range.
 GMRES_RTOL_MIN, GMRES_RTOL_MAX = 1e-10, 1e-2
 #: Most GMRES iterations (products with M) in one Newton step (no restart).
@@ -544,7 +548,8 @@ def leading_multipliers(
         f(y0), the vector field at the orbit's start.
     count : int
         How many nontrivial multipliers beyond the formed M's :data:`ALL_MULTIPLIERS_UP_TO`
-        (then by ARPACK on the deflated M), or by Arnoldi on products.
+        (then by ARPACK on the deflated M: those that converge within :data:`ARPACK_RESTARTS` restarts), or by
+        Arnoldi on products.
     form : bool, optional
         Form M from column blocks (:meth:`Monodromy.matrix`) rather than Arnoldi on products;
         default where 2 n_free <= :data:`FORM_UP_TO`, or 2 count + 2 (Arnoldi needs room).
@@ -600,7 +605,10 @@ def leading_multipliers(
         else:
             # ARPACK on the products: a deflated copy of M would double the memory of a long chain's multipliers.
             core = spla.LinearOperator((size - 1, size - 1), matvec=core_product, matmat=core_product, dtype=float)
-            values, vectors = spla.eigs(core, k=min(count, size - 3), which="LM", tol=ARNOLDI_TOL)
+            try:
+                values, vectors = spla.eigs(core, k=min(count, size - 3), which="LM", tol=ARNOLDI_TOL, maxiter=ARPACK_RESTARTS)
+            except spla.ArpackNoConvergence as err:
+                values, vectors = err.eigenvalues, err.eigenvectors
         vectors = vectors / np.linalg.norm(vectors, axis=0)
         errors = np.linalg.norm(core_product(vectors) - vectors * values, axis=0) + coupling
     else:
