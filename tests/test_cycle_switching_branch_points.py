@@ -68,11 +68,14 @@ def test_both_branch_points_break_the_mirror_symmetry_and_the_new_orbits_close_b
     for switch, moment in zip(switches, (0.29772, 0.29500)):
         assert isinstance(switch, BranchSwitch) and switch.kind == "mirror_symmetry_breaking" and switch.parameter == "M"
         assert switch.value == pytest.approx(moment, abs=3e-5)
-        # The located point: a second multiplier at +1, and the old orbit is its own mirror image.
+        # The located point: a second multiplier at +1, and the old orbit is its own mirror image. Its antisymmetric
+        # part is round-off amplified by the branch point's near-singular Jacobian (the symmetry-breaking direction is
+        # its null vector): 1e-9 to 5e-9 with the engine's rounding of the start (the frame-independent kick-drift's
+        # gives 5.2e-9), six orders below the new orbit's asymmetry (above 1e-2, checked below).
         assert abs(switch.multiplier - 1.0) < 1e-6
         s = mirror(CHAIN)
         old = _to_y(CHAIN, switch.point.x, switch.point.v)
-        assert np.max(np.abs(s @ old - old)) < 1e-9
+        assert np.max(np.abs(s @ old - old)) < 1e-8
         # The new orbit: same turns, near the point, solves the periodic problem by SciPy's integrator, is not
         # symmetric, and its mirror image is an orbit too (at the same M and T).
         new = switch.orbit
