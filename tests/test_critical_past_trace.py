@@ -8,6 +8,7 @@ traced part (:func:`~cosserat_chain.experiments.critical.onset_past`), and slowl
 independent method, rest just below it and rotate just above.
 """
 
+import json
 import math
 
 import numpy as np
@@ -47,3 +48,18 @@ def test_a_slowly_ramped_run_rests_below_the_onset_and_rotates_above_it(result, 
     if not rotates:
         # At rest past the first fold: on the branch it snapped onto, near the onset's angle.
         assert np.isclose(phi0, result.phi0_at_onset, atol=0.2) and phi0 > 2 * result.first_fold.phi0
+
+
+def test_the_command_decides_m_c_past_the_cut_short_trace_and_exits_0_noting_the_incomplete_branch(tmp_path):
+    from typer.testing import CliRunner
+
+    from cosserat_chain.cli import app
+
+    config = tmp_path / "stalls.toml"
+    config.write_text("N = 10\na = 0.4166\nb = 0.2224\n")
+    result = CliRunner().invoke(app, ["critical", "--model", "nonlinear", "--json", "--config", str(config)])
+    assert result.exit_code == 0, result.output
+    summary = json.loads(result.stdout)["models"]["nonlinear"]
+    assert summary["onset_checked"] is True and summary["branch_complete"] is False
+    assert summary["onset"] == "crossing_fold" and summary["M_c"] == pytest.approx(0.371938, abs=1e-6)
+    assert "note:" in result.stderr and "step_too_small" in result.stderr

@@ -251,16 +251,23 @@ def critical(
                 f"the {name} branch from rest is still stable after {turns:g} turns of the loaded particle (phi_0 = "
                 f"{r.branch.phi0[-1]:.6g}): its end, and M_c, lie beyond (raise --turns)",
             )
-        if r.branch.stop == BranchEnd.MAX_POINTS:
+        decided = "M_c is decided on the traced part" if r.crossing is None else "M_c is decided past it, by relaxations"
+        if r.onset_checked and r.branch.stop in (BranchEnd.MAX_POINTS, BranchEnd.STEP_TOO_SMALL, BranchEnd.REVERSED):
+            # M_c is decided by relaxations that leave rest just above it: only the branch beyond it is cut short.
+            typer.echo(
+                f"note: the {name} branch was traced only in part ({r.branch.stop}: {r.branch.message}); M_c is decided, "
+                "a relaxation just above it leaves rest (onset_checked); the branch past it is incomplete (branch_complete false)",
+                err=True,
+            )
+        elif r.branch.stop == BranchEnd.MAX_POINTS:
             exit_on(
                 Status.MAX_STEPS,
                 f"the {name} branch used all {max_points} points before the loaded particle turned once: "
                 "M_c is decided on the traced part (raise --max-points)",
             )
-        decided = "M_c is decided on the traced part" if r.crossing is None else "M_c is decided past it, by relaxations"
-        if r.branch.stop == BranchEnd.STEP_TOO_SMALL:
+        elif r.branch.stop == BranchEnd.STEP_TOO_SMALL:
             exit_on(Status.STEP_TOO_SMALL, f"the {name} branch: {r.branch.message}; {decided}")
-        if r.branch.stop == BranchEnd.REVERSED:
+        elif r.branch.stop == BranchEnd.REVERSED:
             exit_on(Status.FAILED, f"the {name} branch: {r.branch.message}; {decided}")
         if r.crossing_unresolved:
             past = r.crossing or r.branch_point or r.first_fold

@@ -49,7 +49,8 @@ Contract
   :data:`MAX_CROSSINGS` of them). N = 10, a = 0.4166, b = 0.2224: the trace stalls past the first fold, M = 0.13239;
   the chain snaps onto a stable state near phi_0 = 1.08 and rotates only above that branch's fold, M_c = 0.371938
   (``onset`` "crossing_fold"; ramped runs rest at 0.99 of it and rotate at 1.01:
-  tests/test_critical_past_trace.py). The command line still exits with the trace's status.
+  tests/test_critical_past_trace.py). Where such relaxations leave rest just above M_c (``onset_checked``), M_c is
+  decided whatever the trace past it: the command line notes the incomplete branch and exits 0.
 
 Where K's softest eigenvalue at rest lies within :data:`CONFIRM_MARGIN` times its
 round-off (a long clamped chain: its bending mode's eigenvalue falls like N^-4, within
@@ -301,6 +302,9 @@ class CriticalResult:
     crossing: Fold | None = None
     #: True where such a branch was found but not followed to where the chain leaves rest: M_c is then a lower bound.
     crossing_unresolved: bool = False
+    #: True where relaxations just above M_c leave rest (:func:`onset_past`): M_c is decided by the dynamics too, so a
+    #: trace cut short past it leaves the branch incomplete but not M_c.
+    onset_checked: bool = False
 
     @property
     def rest_segment(self) -> int:
@@ -439,6 +443,7 @@ class CriticalResult:
             "snap_to": None if self.snap_to is None else {"moment": self.snap_to.moment, "phi0": self.snap_to.phi0},
             "crossing": None if self.crossing is None else {"moment": self.crossing.moment, "phi0": self.crossing.phi0},
             "crossing_unresolved": self.crossing_unresolved,
+            "onset_checked": self.onset_checked,
             "branch_points": [
                 {
                     "moment": q.moment,
@@ -642,7 +647,7 @@ def critical_point(
         onset_particle = first.mode_particle
     snapped = branch.stable_end is None and first is not None and onset is not first
     snap_to = _snap_target(params, model, branch, first, particle) if snapped else None
-    crossing, unresolved = None, False
+    crossing, unresolved, checked = None, False, False
     # Past a branch point, or past a fold where the trace was cut short (a stalled corrector: N = 10, a = 0.4166,
     # b = 0.2224, whose chain snaps from the fold at M = 0.1324 onto a stable state the trace never reached and rotates
     # only above 0.3719), where the chain goes is decided by relaxations, not by the traced branch.
@@ -650,10 +655,11 @@ def critical_point(
     if model.conservative and (isinstance(onset, BranchPoint) and onset.index_before == 0 or past_trace):
         crossing, unresolved = onset_past(params, model, onset, particle=particle)
         onset_particle = onset_particle if crossing is None else crossing.mode_particle
+        checked = not unresolved
     return CriticalResult(
         params, model.name, particle, fold, compliance, branch, first, snap_to, onset if isinstance(onset, BranchPoint) else None,
         confirmation, turns if model.rotates else None, onset_particle, *_dynamics(params, model, branch, dynamics),
-        crossing, unresolved,
+        crossing, unresolved, checked,
     )  # fmt: skip
 
 
