@@ -1,6 +1,6 @@
 """Orbits born at a user system's Hopf point (issue 40 item 4): ``cycle_switching.system_hopf_orbit``.
 
-The follower-force rotor of ``tests/test_orbit_cli_oscillation.py`` (a Stuart-Landau normal form in second-order form)
+The follower-force rotor of ``tests/follower_rotor_system.py`` (a Stuart-Landau normal form in second-order form)
 has its Hopf point at a0 = c sqrt(kk) and, beyond it, the circle of radius R with a0 - c sqrt(kk) = b R^2 and period
 2 pi / sqrt(kk) at every amplitude: the orbit started along the crossing eigenvector must be that circle, exactly.
 """
@@ -15,7 +15,7 @@ import pytest
 from cosserat_chain.numerics.cycle_switching import system_hopf_orbit
 from cosserat_chain.numerics.equilibria import continue_equilibria, find_equilibrium
 from cosserat_chain.numerics.shooting import CLOSURE_TOL
-from test_orbit_cli_oscillation import HOPF, PERIOD, ROTOR
+from follower_rotor_system import HOPF, PERIOD, ROTOR
 
 
 @pytest.fixture(scope="module")

@@ -1,7 +1,7 @@
 """``orbit --system FILE --oscillation``: a limit cycle with no angle turning, from the command line (issue 40 item 6).
 
 The system is a rotationally symmetric oscillator under a saturating follower (circulatory) force, a Stuart-Landau
-normal form in second-order form (``tests/test_audit_twelfth_systems.py``'s ``FollowerRotor``, written as a user's
+normal form in second-order form (``tests/follower_rotor_system.py``, a user's
 file): q'' + c q' = -kk q + (a0 - b |q|^2) J q. Its limit cycle is the circle of radius sqrt((a0 - c sqrt(kk)) / b)
 and period 2 pi / sqrt(kk), born at the Hopf point a0 = c sqrt(kk) of q = 0: closed forms that a wrong period, a
 wrong phase of the settled guess or a rotation taken for the orbit would miss.
@@ -17,59 +17,9 @@ import pytest
 from typer.testing import CliRunner
 
 from cosserat_chain.cli import app
+from follower_rotor_system import HOPF, PERIOD, ROTOR
 
 runner = CliRunner()
-
-ROTOR = """
-import numpy as np
-import scipy.sparse as sp
-
-from cosserat_chain.systems.base import System
-
-ROTATION = np.array([[0.0, -1.0], [1.0, 0.0]])
-
-
-class FollowerRotor(System):
-    name = "follower-rotor"
-
-    def __init__(self, **parameters):
-        super().__init__({"a0": 0.3, "b": 1.0, "c": 0.2, "kk": 1.5, **parameters})
-
-    @property
-    def coordinates(self):
-        return ("x", "y")
-
-    @property
-    def angles(self):
-        return np.zeros(2, dtype=bool)
-
-    def forces(self, q):
-        p = self.parameters
-        return -p["kk"] * q + (p["a0"] - p["b"] * (q @ q)) * (ROTATION @ q)
-
-    def force_jacobian(self, q):
-        p = self.parameters
-        j = -p["kk"] * np.eye(2) + (p["a0"] - p["b"] * (q @ q)) * ROTATION - 2 * p["b"] * np.outer(ROTATION @ q, q)
-        return sp.csr_matrix(j)
-
-    def parameter_forces(self, q, name):
-        self._check_name(name)
-        jq = ROTATION @ q
-        return {"a0": jq, "b": -(q @ q) * jq, "kk": -q}.get(name, np.zeros(2))
-
-    def mass(self):
-        return np.ones(2)
-
-    def damping(self):
-        return np.full(2, self.parameters["c"])
-
-
-def build(**parameters):
-    return FollowerRotor(**parameters)
-"""
-
-PERIOD = 2 * math.pi / math.sqrt(1.5)
-HOPF = 0.2 * math.sqrt(1.5)
 
 
 def radius(a0: float) -> float:
