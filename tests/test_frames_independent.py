@@ -23,6 +23,8 @@ from cosserat_chain.params import ChainParams
 
 #: Steps of each run: frames every 7 and every 100 steps share steps 0, 700 and 1400.
 STEPS = 1500
+#: Steps of the blocks' runs: four of their super-steps (engine.SUPER_STEPS), frames every 100 steps at 0, 100, 200, 300.
+BLOCK_STEPS = 300
 #: Strides of the stored frames; None: only the start and the end.
 STRIDES = (1, 7, 100, None)
 
@@ -49,7 +51,7 @@ def _chain(seed: int, ends: str, n: int | None = None) -> ChainParams:
     return ChainParams(**fields)
 
 
-def _runs(params, model, method, threads, moment, scale, seed, **extra):
+def _runs(params, model, method, threads, moment, scale, seed, steps=STEPS, **extra):
     """One run per stride from the same moving start: {stride: Trajectory}."""
     x0 = random_state(params, scale, seed)
     v0 = random_state(params, scale, seed + 1)
@@ -57,15 +59,15 @@ def _runs(params, model, method, threads, moment, scale, seed, **extra):
     out = {}
     for stride in STRIDES:
         out[stride] = integrate(
-            params, model, moment_load(moment, 0), t_end=STEPS * dt, dt=dt, method=method, x0=x0, v0=v0,
+            params, model, moment_load(moment, 0), t_end=steps * dt, dt=dt, method=method, x0=x0, v0=v0,
             stride=stride, n_frames=2, threads=threads, **extra,
         )  # fmt: skip
-        assert out[stride].steps == STEPS and out[stride].ok, out[stride].message
+        assert out[stride].steps == steps and out[stride].ok, out[stride].message
     return out
 
 
 def _frame_steps(trajectory, stride) -> np.ndarray:
-    return np.append(np.arange(0, STEPS, stride or STEPS), STEPS)
+    return np.append(np.arange(0, trajectory.steps, stride or trajectory.steps), trajectory.steps)
 
 
 def _assert_same(runs: dict) -> None:
@@ -100,11 +102,13 @@ def test_one_chain_same_bits_whatever_the_frames(model, ends, method, moment, sc
 @pytest.mark.parametrize(("ends", "method"), [("pinned", "verlet"), ("free", "yoshida4"), ("clamped", "verlet")])
 def test_blocks_on_two_threads_same_bits_whatever_the_frames(ends, method):
     """A chain long enough for blocks (engine.Blocks): each block stores its frame apart; the
-    states equal one thread's to the last bit, the energy sums to round-off."""
+    states equal one thread's to the last bit, the energy sums to round-off. BLOCK_STEPS steps: a
+    frame at every step is a meeting of the threads; a few super-steps (engine.SUPER_STEPS) between
+    the blocks' exchanges are enough."""
     params = _chain(11, ends, n=400)
-    two = _runs(params, "nonlinear", method, 2, 0.5, 0.2, 11)
+    two = _runs(params, "nonlinear", method, 2, 0.5, 0.2, 11, steps=BLOCK_STEPS)
     _assert_same(two)
-    one = _runs(params, "nonlinear", method, 1, 0.5, 0.2, 11)
+    one = _runs(params, "nonlinear", method, 1, 0.5, 0.2, 11, steps=BLOCK_STEPS)
     assert np.array_equal(one[7].x, two[7].x) and np.array_equal(one[7].v, two[7].v)
     np.testing.assert_allclose(two[7].dissipated, one[7].dissipated, rtol=1e-12, atol=1e-15)
 
