@@ -16,6 +16,10 @@ matrix of any bandwidth by bisection with LAPACK's banded Cholesky.
 :func:`lowest_real_eigenvalue` is the eigenvalue of smallest real part of any sparse matrix,
 through its symmetric similar (:func:`diagonal_similar_symmetric`) where a diagonal
 similarity gives one.
+
+:func:`largest_and_nearest` is the eigenvalues of largest modulus of a general operator and
+those nearest a shift (shift-invert), by ARPACK, merged: the Floquet multipliers of long
+orbits, where they crowd near 1 (collocation, long-orbit shooting).
 """
 
 from __future__ import annotations
@@ -293,3 +297,85 @@ def lowest_real_eigenvalue(matrix: sp.spmatrix) -> complex:
     # A wide Krylov space: the eigenvalues near the shift are clustered, and 40 vectors
     # converge in fewer restarts than ARPACK's default of 20 (benchmarks/TIMINGS.md).
     return complex(spla.eigs(matrix.tocsc(), k=1, sigma=shift, which="LM", ncv=min(matrix.shape[0] - 1, 40), return_eigenvectors=False)[0])
+
+
+#: Arnoldi vectors at least of :func:`largest_and_nearest`'s ARPACK runs (and 2 count + 1): crowded leading eigenvalues
+#: converge in fewer restarts in a wide Krylov space.
+NEAREST_KRYLOV = 40
+#: A pair of one of :func:`largest_and_nearest`'s runs (:func:`merge_eigenpairs`' sets) is the other's where the two lie within this times
+#: max(1, |value|) and their unit eigenvectors' overlap |v^H w| exceeds :data:`SAME_DIRECTION`.
+SAME_EIGENVALUE = 1e-6
+SAME_DIRECTION = 0.99
+
+
+def largest_and_nearest(product, inverse, size: int, shift: float, count: int, *, tol: float, restarts: int):
+    """The ``count`` eigenvalues of largest modulus of an operator A and the ``count`` nearest ``shift``, merged.
+
+    ARPACK runs twice: on the products z -> A z (largest modulus) and on z -> (A - shift)^-1 z
+    (largest modulus nu, the eigenvalues shift + 1 / nu nearest the shift: shift-invert). Where
+    eigenvalues crowd (a long chain's soft Floquet multipliers just below 1), the first run
+    converges slowly or not at all within ``restarts``, the second fast where the shift lies
+    within the crowd's width of it; each keeps the pairs that converged. A pair found by both
+    is kept once (:func:`merge_eigenpairs`).
+
+    Parameters
+    ----------
+    product, inverse : callable
+        z (size,) or (size, p) -> A z and -> (A - shift)^-1 z, real.
+    size : int
+        The operator's size (>= 4).
+    shift : float
+        Where the second set is sought.
+    count : int
+        Eigenvalues sought by each run.
+    tol, restarts : float, int
+        ARPACK's relative tolerance and most implicit restarts.
+
+    Returns
+    -------
+    values : ndarray complex
+        The merged eigenvalues, by decreasing modulus.
+    vectors : ndarray (size, len(values)) complex
+        Their unit eigenvectors.
+    converged : tuple of int
+        How many each run converged on (largest modulus, nearest the shift), each at most ``count``.
+    """
+    import scipy.sparse.linalg as spla  # here, not at import: small chains' statics never use it
+
+    k = min(count, size - 2)
+    krylov = min(size - 1, max(2 * k + 1, NEAREST_KRYLOV))
+    found, vectors, converged = [], [], []
+    for apply, convert in ((product, lambda nu: nu), (inverse, lambda nu: shift + 1.0 / nu)):
+        operator = spla.LinearOperator((size, size), matvec=apply, matmat=apply, dtype=float)
+        try:
+            nu, v = spla.eigs(operator, k=k, which="LM", ncv=krylov, tol=tol, maxiter=restarts)
+        except spla.ArpackNoConvergence as err:
+            nu, v = err.eigenvalues, err.eigenvectors
+        found.append(convert(nu))
+        vectors.append(v)
+        converged.append(int(nu.size))
+    values, v = merge_eigenpairs(product, (found[0], vectors[0]), (found[1], vectors[1]))
+    return values, v, (converged[0], converged[1])
+
+
+def merge_eigenpairs(product, first: tuple[np.ndarray, np.ndarray], second: tuple[np.ndarray, np.ndarray]):
+    """Two sets of eigenpairs (values, vectors) of the operator ``product`` merged, by decreasing modulus (unit vectors).
+
+    A pair of one set is the other's where the values lie within :data:`SAME_EIGENVALUE` times
+    max(1, |value|) and the unit vectors' overlap exceeds :data:`SAME_DIRECTION`; of the two the
+    one with the smaller residual |A v - lambda v| is kept. A set's own pairs are never merged,
+    however close their values (a crowd's).
+    """
+    (a, va), (b, vb) = [(np.asarray(values), v / np.linalg.norm(v, axis=0)) for values, v in (first, second)]
+    residual_a, residual_b = [np.linalg.norm(np.asarray(product(v)) - v * values, axis=0) for values, v in ((a, va), (b, vb))]
+    keep_a, keep_b = np.ones(a.size, dtype=bool), np.ones(b.size, dtype=bool)
+    for i in range(a.size):
+        for j in np.flatnonzero(keep_b):
+            if abs(a[i] - b[j]) <= SAME_EIGENVALUE * max(1.0, abs(b[j])) and abs(np.vdot(va[:, i], vb[:, j])) > SAME_DIRECTION:
+                keep_a[i] = residual_a[i] < residual_b[j]
+                keep_b[j] = not keep_a[i]
+                break
+    values = np.concatenate([a[keep_a], b[keep_b]])
+    vectors = np.concatenate([va[:, keep_a], vb[:, keep_b]], axis=1)
+    order = np.argsort(-np.abs(values), kind="stable")
+    return values[order], vectors[:, order]

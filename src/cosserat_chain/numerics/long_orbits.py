@@ -35,10 +35,14 @@ columns V (2 n_free, p) come from one integration of the state with p variationa
   2 n_free products, each ~8 times a column of a block (benchmarks/README.md, long orbits).
 * **multipliers** (:func:`leading_multipliers`): the trivial one deflated with its known
   eigenvector, the flow f(y0), and the others as eigenvalues of the deflated M: all of them
-  from a formed M up to 2 n_free = :data:`ALL_MULTIPLIERS_UP_TO`, the :data:`MULTIPLIERS`
-  largest above it (ARPACK on the formed M), or by Arnoldi on products (no M formed, for
-  ``krylov`` above 2 n_free = :data:`FORM_UP_TO`). Each comes with an error estimate; the
-  trivial one's, |(M - I) f| / |f|, bounds its distance from 1 (tested).
+  from a formed M up to 2 n_free = :data:`ALL_MULTIPLIERS_UP_TO`; above it the :data:`MULTIPLIERS`
+  leading ones, by ARPACK on the formed M twice: largest modulus, and shift-invert nearest
+  :data:`SHIFT` (just above 1) through one LU factorisation of M - SHIFT I (:func:`_leading_core`),
+  which resolves the long chain's soft multipliers that crowd within 1e-7 below 1 where the
+  first run does not converge; or by Arnoldi on products (no M formed, for ``krylov`` above
+  2 n_free = :data:`FORM_UP_TO`, or where the LU factors do not fit in memory: a warning says
+  so). Each comes with an error estimate (its residual), and one above :data:`UNCONVERGED` is
+  flagged by a warning; the trivial one's, |(M - I) f| / |f|, bounds its distance from 1 (tested).
 * **segments** (:func:`orbit_multipliers`, ``find_periodic_orbit(..., segments=m)`` and
   ``continue_orbit(..., segments=m)`` with the blocks): the multipliers of a formed M below about 1e-16 |M| are round-off. With m segments
   every block is integrated piece by piece, each piece's transfer matrix G_k assembled from the
@@ -69,7 +73,8 @@ import scipy.linalg as sla
 import scipy.sparse.linalg as spla
 
 from ..errors import CosseratChainError
-from ..memory import FLOAT, require
+from ..linalg.eigen import largest_and_nearest, merge_eigenpairs
+from ..memory import FLOAT, MemoryEstimateError, require
 from ..params import ChainParams
 from ..state import ROW_INDEX, pack, zeros
 from . import dop853, floquet
@@ -123,6 +128,11 @@ NEWTON_PRODUCTS_RTOL = 1e-8
 NEWTON_DEPTH = 1e-3
 #: Seed of Arnoldi's start vector (reproducible multipliers).
 SEED = 20240
+#: Above :data:`ALL_MULTIPLIERS_UP_TO` the multipliers nearest this shift come by shift-invert on the formed M
+#: (:func:`_leading_core`): just above 1, within the width of the crowd of soft multipliers below it.
+SHIFT = 1.0 + 1e-9
+#: A multiplier whose error estimate exceeds this times max(1, |mu|) is flagged as not converged (a warning).
+UNCONVERGED = 1e-6
 #: Copies of the segments' matrices alive at once with ``segments`` (theirs, and two in the periodic Schur form).
 SEGMENT_COPIES = 3
 
@@ -603,19 +613,11 @@ def leading_multipliers(
         if size <= ALL_MULTIPLIERS_UP_TO:
             values, vectors = sla.eig(reflect(reflect(matrix.T).T)[1:, 1:])
         else:
-            # ARPACK on the products: a deflated copy of M would double the memory of a long chain's multipliers.
-            core = spla.LinearOperator((size - 1, size - 1), matvec=core_product, matmat=core_product, dtype=float)
-            try:
-                values, vectors = spla.eigs(core, k=min(count, size - 3), which="LM", tol=ARNOLDI_TOL, maxiter=ARPACK_RESTARTS)
-            except spla.ArpackNoConvergence as err:
-                values, vectors = err.eigenvalues, err.eigenvectors
-                if values.size < count:
-                    # Too few converged (soft modes crowding below 1, N = 1000: none): the leading Ritz pairs of the
-                    # package's Arnoldi on the same products, reported with their larger residual errors.
-                    start = np.random.default_rng(SEED).standard_normal(size - 1)
-                    values, vectors = _arnoldi(core_product, start, count, min(max_dimension, size - 2))
+            values, vectors = _leading_core(matrix, reflect, core_product, count, min(max_dimension, size - 2))
         vectors = vectors / np.linalg.norm(vectors, axis=0)
         errors = np.linalg.norm(core_product(vectors) - vectors * values, axis=0) + coupling
+        if size > ALL_MULTIPLIERS_UP_TO:
+            _flag_unconverged(values, errors)
     else:
 
         def deflated_product(z: np.ndarray) -> np.ndarray:
@@ -631,11 +633,91 @@ def leading_multipliers(
         coupling = float(np.linalg.norm(mapped_unit - trivial * unit))
         products = mapped[:, :-1] - np.outer(unit, unit @ mapped[:, :-1])
         errors = np.linalg.norm(products - vectors * values, axis=0) + coupling
+        _flag_unconverged(values, errors)
         mapped = mapped_unit
     values = np.append(trivial, values)
     errors = np.append(np.linalg.norm(mapped - unit), errors)
     order = np.argsort(-np.abs(values), kind="stable")
     return values[order], errors[order]
+
+
+def _leading_core(matrix: np.ndarray, reflect, core_product, count: int, dimension: int) -> tuple[np.ndarray, np.ndarray]:
+    """The leading eigenpairs of the deflated monodromy C = (H M H)[1:, 1:] (:func:`leading_multipliers`) above
+    :data:`ALL_MULTIPLIERS_UP_TO`: those of largest modulus and those nearest :data:`SHIFT` (shift-invert), by ARPACK
+    (:func:`~cosserat_chain.linalg.eigen.largest_and_nearest`).
+
+    (C - s)^-1 b comes from one LU factorisation of M - s I: X = H (M - s)^-1 H is the inverse of
+    A = H M H - s, and the inverse of its trailing block C - s is X_22 - X_21 X_12 / X_11
+    (the Schur complement of X's first entry), so (C - s)^-1 b = z[1:] - g[1:] z[0] / g[0]
+    with z = X (0, b) and g = X e_1: exact whatever the coupling c, with one matrix beside M (its
+    memory checked first). Where it does not fit, a warning says so and the leading Ritz pairs
+    come from ARPACK on the products, and where it converges on fewer than ``count`` within
+    :data:`ARPACK_RESTARTS` restarts, from the package's Arnoldi (``dimension`` products), with
+    their residual errors (:func:`_flag_unconverged` warns where these are large).
+    """
+    size = matrix.shape[0]
+    try:
+        require(
+            size * size * FLOAT, f"the LU factors of M - {SHIFT!r} I ({size} x {size}) beside the monodromy",
+            "the leading multipliers come by ARPACK and Arnoldi on products instead (less accurate where they crowd near 1)",
+        )  # fmt: skip
+    except MemoryEstimateError as err:
+        warnings.warn(f"{err}", stacklevel=4)
+    else:
+        work = np.array(matrix, order="C")
+        work.flat[:: size + 1] -= SHIFT
+        # The transpose is Fortran-ordered: LAPACK factors it in place, and M - s I is solved with trans=1.
+        factors = sla.lu_factor(work.T, overwrite_a=True, check_finite=False)
+
+        def shifted(z: np.ndarray) -> np.ndarray:
+            return reflect(sla.lu_solve(factors, reflect(z), trans=1, check_finite=False))
+
+        first = shifted(np.eye(size, 1)[:, 0])
+
+        def inverse(b: np.ndarray) -> np.ndarray:
+            padded = np.zeros((size,) + b.shape[1:])
+            padded[1:] = b
+            z = shifted(padded)
+            return z[1:] - np.multiply.outer(first[1:], z[0] / first[0]).reshape(b.shape)
+
+        values, vectors, (largest, nearest) = largest_and_nearest(
+            core_product, inverse, size - 1, SHIFT, count, tol=ARNOLDI_TOL, restarts=ARPACK_RESTARTS
+        )  # fmt: skip
+        if values.size < count:
+            # Neither run converged on enough (a crowd wider than the shift-invert's reach too): Arnoldi's Ritz pairs
+            # fill in, with their larger residual errors (flagged by _flag_unconverged).
+            start = np.random.default_rng(SEED).standard_normal(size - 1)
+            values, vectors = merge_eigenpairs(core_product, (values, vectors), _arnoldi(core_product, start, count, dimension))
+        values, vectors = values[:count], vectors[:, :count]
+        if largest < count:
+            reach = float(np.max(np.abs(values - SHIFT), initial=0.0))
+            warnings.warn(
+                f"ARPACK converged on {largest} of the {count} nontrivial Floquet multipliers of largest modulus within "
+                f"{ARPACK_RESTARTS} restarts (they crowd); those reported are the {nearest} nearest {SHIFT!r} by shift-invert and "
+                f"these: a multiplier farther than {reach:.3g} from {SHIFT!r} with a larger modulus than some of them is not excluded",
+                stacklevel=4,
+            )
+        return values, vectors
+    # ARPACK on the products: a deflated copy of M would double the memory of a long chain's multipliers.
+    core = spla.LinearOperator((size - 1, size - 1), matvec=core_product, matmat=core_product, dtype=float)
+    try:
+        return spla.eigs(core, k=min(count, size - 3), which="LM", tol=ARNOLDI_TOL, maxiter=ARPACK_RESTARTS)
+    except spla.ArpackNoConvergence as err:
+        if err.eigenvalues.size >= count:
+            return err.eigenvalues, err.eigenvectors
+    start = np.random.default_rng(SEED).standard_normal(size - 1)
+    return _arnoldi(core_product, start, count, dimension)
+
+
+def _flag_unconverged(values: np.ndarray, errors: np.ndarray) -> None:
+    """Warn where a nontrivial multiplier's error estimate exceeds :data:`UNCONVERGED` (a Ritz value, not an eigenvalue)."""
+    loose = errors > UNCONVERGED * np.maximum(1.0, np.abs(values))
+    if np.any(loose):
+        warnings.warn(
+            f"{int(np.count_nonzero(loose))} of {values.size} nontrivial Floquet multipliers did not converge: their residual "
+            f"errors reach {float(np.max(errors[loose])):.2g} (multiplier_errors); they are Ritz values, not eigenvalues",
+            stacklevel=4,
+        )
 
 
 def _arnoldi(product, start: np.ndarray, count: int, dimension: int) -> tuple[np.ndarray, np.ndarray]:
