@@ -61,7 +61,13 @@ where two turns take the same time to 1e-3, while the period still drifts).
 ``--case short``: bench_collocation_long.py's chain instead (default fields, M = 0.5, T about
 1.26; :data:`CASES`), the row keyed by its case too; ``--picard-methods blocks`` runs the blocks
 alone (``--picard --case short --picard-methods blocks --sizes 1000 --blocks-max 1000``). Each
-method's entry also has the process's peak resident memory (``peak_rss_GB``, measured).
+method's entry also has the process's peak resident memory (``peak_rss_GB``, measured) and the
+leading multipliers with their residual errors (``leading_multipliers``: [re, im, error], by decreasing
+modulus). ``--save-orbits DIR`` writes each converged orbit's start state and period to
+``DIR/orbit_CASE_NN.npz``; ``--multipliers-from FILE.npz`` (with ``--case``) computes the multipliers of
+such an orbit again with the current code (the monodromy formed again from blocks, or read from
+``FILE_M.npy`` beside it) and writes them, their CPU seconds, the load and the warnings into that
+orbit's row of the results (``multipliers_recomputed``; the Newton's numbers are kept).
 
 ``--continuation M``: for each N of ``--sizes`` (default 100, 200), the chain of
 :data:`SEGMENT_DAMPING` under the moment above, by the blocks with M segments: the orbit from the guess (``find_periodic_orbit``), then
@@ -88,7 +94,7 @@ import numpy as np
 from cosserat_chain import ChainParams
 from cosserat_chain.models.base import get_model
 from cosserat_chain.numerics import long_orbits, newton_picard
-from cosserat_chain.numerics.periodic import OrbitError, _System, _to_y, continue_orbit, find_periodic_orbit, initial_guess
+from cosserat_chain.numerics.periodic import ATOL, RTOL, OrbitError, _System, _to_y, continue_orbit, find_periodic_orbit, initial_guess
 from cosserat_chain.state import n_free, pack, per_dof
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -185,12 +191,14 @@ def measure_picard(
     settle: int = 0,
     case: str = "strong",
     methods: tuple[str, ...] = ("picard", "blocks"),
+    save: Path | None = None,
 ) -> dict:
     """Newton-Picard (``rho``, ``guard``) and, up to ``blocks_max``, the blocks from the same guess at N = n (``--picard``)
     on ``case`` (:data:`CASES`), those of ``methods``; a run that does not converge is recorded as such (its message, CPU
     and columns) and ends the row. ``settle``: the settled guess continued by that many more calls of ``initial_guess``
     from its own state (each a few turns). Each method's entry has the process's peak resident memory so far
-    (``peak_rss_GB``: it never falls, so a row's first method's is its own where the process ran that N alone)."""
+    (``peak_rss_GB``: it never falls, so a row's first method's is its own where the process ran that N alone); with
+    ``save`` (a folder) each converged orbit's start state and period (:func:`multipliers_from` reads them)."""
     damping, moment = CASES[case]
     params = ChainParams(N=n) if damping is None else ChainParams(N=n, gamma_u=damping, gamma_v=damping, gamma_phi=damping)
     long_orbits.THREADS = threads
@@ -254,11 +262,72 @@ def measure_picard(
             entry["period_difference"] = abs(orbit.period - picard.period)
             entry["state_difference"] = float(max(np.max(np.abs(orbit.x - picard.x)), np.max(np.abs(orbit.v - picard.v))))
             entry["multiplier_difference"] = float(np.max([np.min(np.abs(orbit.multipliers - mu)) for mu in picard.multipliers]))
+        entry["leading_multipliers"] = _leading(orbit.multipliers, errors)
+        if save is not None:
+            save.mkdir(parents=True, exist_ok=True)
+            np.savez(
+                save / f"orbit_{case}_N{n}.npz", y0=_to_y(params, orbit.x, orbit.v), period=orbit.period, moment=moment, N=n, case=case
+            )  # fmt: skip
         entry["orbit"] = orbit
         row["methods"][method] = entry
     for entry in row["methods"].values():
         entry.pop("orbit", None)
     return row
+
+
+def _leading(multipliers: np.ndarray, errors: np.ndarray | None, count: int = long_orbits.MULTIPLIERS + 1) -> list:
+    """[re, im, error] of the ``count`` multipliers of largest modulus (error None where not estimated)."""
+    order = np.argsort(-np.abs(multipliers), kind="stable")[:count]
+    return [[float(multipliers[i].real), float(multipliers[i].imag), None if errors is None else float(errors[i])] for i in order]
+
+
+def multipliers_from(path: Path, case: str, out: Path, threads: int) -> dict:
+    """The Floquet multipliers of the orbit saved in ``path`` (``--save-orbits``) by the current
+    :func:`~cosserat_chain.numerics.long_orbits.leading_multipliers`, written into its row of ``out`` (key: case and N,
+    default rho, guard and settle; the row is made where there is none) as ``multipliers_recomputed``."""
+    import warnings
+
+    saved = np.load(path)
+    n, moment = int(saved["N"]), float(saved["moment"])
+    case = str(saved["case"]) if "case" in saved else case
+    damping, _ = CASES[case]
+    params = ChainParams(N=n) if damping is None else ChainParams(N=n, gamma_u=damping, gamma_v=damping, gamma_phi=damping)
+    system = _System(params, get_model(MODEL), moment, 0)
+    y0, period = saved["y0"], float(saved["period"])
+    long_orbits.THREADS = threads
+    load, cpu = os.getloadavg()[0], time.process_time()
+    stored = path.with_name(f"{path.stem}_M.npy")
+    matrix = np.load(stored) if stored.exists() else long_orbits.Monodromy(system, y0, period, RTOL, ATOL).matrix()
+    formed = time.process_time() - cpu
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        values, errors = long_orbits.leading_multipliers(matrix, system.velocity(y0))
+    cpu = time.process_time() - cpu
+    trivial = int(np.argmin(np.abs(values - 1.0)))
+    nontrivial = np.delete(np.arange(values.size), trivial)
+    result = {
+        "file": str(path), "monodromy": f"read from {stored.name}" if stored.exists() else "formed from blocks", "form_cpu_s": formed,
+        "cpu_s": cpu, "load_average": load, "load_average_after": os.getloadavg()[0], "threads": threads,
+        "peak_rss_GB": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6, "shift": long_orbits.SHIFT,
+        "leading_multipliers": _leading(values, errors), "trivial_distance_from_1": abs(values[trivial] - 1.0),
+        "trivial_error": float(errors[trivial]), "largest_nontrivial_residual": float(np.max(errors[nontrivial])),
+        "max_nontrivial_multiplier": float(np.max(np.abs(values[nontrivial]))), "warnings": [str(w.message) for w in caught],
+    }  # fmt: skip
+    rows = json.loads(out.read_text()) if out.exists() else []
+    key = (case, n, newton_picard.RHO, newton_picard.GUARD, 0)
+    row = next((r for r in rows if _key(r) == key), None)
+    if row is None:
+        row = {"N": n, "size": y0.size, "case": case, "moment": moment, "rho": newton_picard.RHO, "guard": newton_picard.GUARD,
+               "settle": 0, "methods": {}}  # fmt: skip
+        rows.append(row)
+    row["multipliers_recomputed"] = result
+    out.write_text(json.dumps(sorted(rows, key=_key), indent=1))
+    return result
+
+
+def _key(row: dict) -> tuple:
+    """A --picard row's key: its case, N, rho, guard and settle (rows from before these were recorded: their defaults then)."""
+    return (row.get("case", "strong"), row["N"], row.get("rho", 0.5), row.get("guard", 8), row.get("settle", 0))
 
 
 def _label(method: str, row: dict) -> str:
@@ -485,6 +554,10 @@ def main() -> None:
     parser.add_argument("--guard", type=int, default=newton_picard.GUARD, help="Newton-Picard's guard columns (--picard)")
     parser.add_argument("--settle", type=int, default=0, help="further initial_guess calls continuing the guess (--picard)")
     parser.add_argument("--case", choices=sorted(CASES), default="strong", help="the chain and moment of --picard (CASES)")
+    parser.add_argument("--save-orbits", type=Path, default=None, metavar="DIR", help="write each converged orbit to DIR (--picard)")
+    parser.add_argument(
+        "--multipliers-from", type=Path, default=None, metavar="FILE", help="the multipliers of a saved orbit again, into its row"
+    )
     parser.add_argument(
         "--picard-methods", nargs="+", choices=("picard", "blocks"), default=["picard", "blocks"], help="the methods of --picard, in order"
     )
@@ -496,16 +569,19 @@ def main() -> None:
         """A mode's own sizes and file where --sizes and --out were left at the default run's."""
         return (args.sizes if args.sizes != list(SIZES) else default_sizes), (args.out if args.out != default_out else RESULTS / name)
 
-    if args.picard:
+    if args.multipliers_from is not None:
+        _, out = chosen([], "long_orbit_picard.json")
+        print(json.dumps(multipliers_from(args.multipliers_from, args.case, out, args.threads), indent=1), file=log)
+    elif args.picard:
         sizes, out = chosen([50, 100, 200, 500, 1000], "long_orbit_picard.json")
         counter = _Counter(log if args.progress else None)
         _sweep(
             sizes,
             lambda n: measure_picard(
-                n, args.blocks_max, args.threads, counter, args.rho, args.guard, args.settle, args.case, tuple(args.picard_methods)
+                n, args.blocks_max, args.threads, counter, args.rho, args.guard, args.settle, args.case, tuple(args.picard_methods),
+                args.save_orbits,
             ),
-            picard_markdown, out, log, args.json,
-            merge=lambda row: (row.get("case", "strong"), row["N"], row.get("rho", 0.5), row.get("guard", 8), row.get("settle", 0)),
+            picard_markdown, out, log, args.json, merge=_key,
         )  # fmt: skip
     elif args.continuation is not None:
         sizes, out = chosen([100, 200], "long_orbit_continuation.json")
