@@ -47,9 +47,9 @@ def test_the_oscillation_is_the_closed_form_circle(reference, a0):
 
 
 def test_the_oscillation_followed_down_ends_at_its_hopf_point(reference):
-    result = runner.invoke(
-        app, ["orbit", "--system", reference, "--oscillation", "--start", "0.1,0", "--vary", "a0", "--down-to", "0.2", "--json"]
-    )
+    """From a0 = 0.27 (radius 0.16): five circles down to one of radius 0.1 where the family shrinks onto q = 0."""
+    args = ["orbit", "--system", reference, "--set", "a0=0.27", "--oscillation", "--start", "0.1,0", "--vary", "a0"]
+    result = runner.invoke(app, [*args, "--down-to", "0.2", "--json"])
     assert result.exit_code == 0, result.output
     branch = json.loads(result.stdout)["branch"]
     assert branch["parameter"] == "a0" and branch["end"] == "hopf", branch["message"]
