@@ -37,7 +37,7 @@ and ``exists`` is whether one of them converged (``source`` says which). At each
   (its return modulo 2 pi after one period, ``return_error``) and the spread of the energy
   along it (``energy_drift``; NaN for the sine model, which has no energy);
 * **the bands**: the band edges of the infinite linear chain at each field value
-  (:func:`~cosserat_chain.analysis.dispersion.wave_summary`, the bands the rotation drives:
+  (:func:`~.breathers.band_edges`; a graded chain's from its finite modes; the bands the rotation drives:
   :func:`~.breathers.coupled_bands`) and the frequencies edge / n at which the n-th harmonic
   meets them, the lines the map is drawn against.
 
@@ -70,21 +70,22 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..analysis.diagnostics import THRESHOLDS, participation_ratio, particle_energies
-from ..analysis.dispersion import wave_summary
 from ..loads import moment_load
 from ..models.base import Model, get_model
 from ..numerics.breather_arclength import collisions_between, instability_counts
 from ..numerics.long_breathers import SolvedBreather, find_breather_orbit
 from ..numerics.periodic import HamiltonianOrbit, OrbitError, require_undamped
-from ..numerics.shooting import OrbitNotFound
+from ..numerics.shooting import Orbit, OrbitNotFound
 from ..params import ChainParams
 from ..state import ROW_INDEX, ROWS, column
 from .breathers import (
     ATLAS_FIELDS,
+    BAND_SOURCES,
     MAX_HARMONIC,
     TAIL_SAMPLES,
     _Member,
     _solvers,
+    band_edges,
     chain_at,
     combination_resonances,
     coupled_bands,
@@ -99,6 +100,8 @@ from .system_breathers import StabilityChange, locate_stability_changes, paramet
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built
     import xarray as xr
+
+    from .system_breather_atlas import SystemLocalization
 
 ProgressCallback = Callable[[float, float], None]
 
@@ -391,6 +394,23 @@ class Localization:
         """Every amplitude of the others within its threshold (the diagnostics' ``localized_rotation``)."""
         return all(self.amplitudes[name] <= THRESHOLDS[name] for name in THRESHOLDS)
 
+    def as_dict(self) -> dict:
+        """The measures in an atlas point's JSON (:func:`localization_entries`)."""
+        return localization_entries(
+            self, {"amplitudes_of_others": self.amplitudes, "static_displacement": self.static_displacement, "localized": self.localized}
+        )
+
+
+def localization_entries(localization, amplitudes: dict) -> dict:
+    """The JSON of a chain's or a system's localization: its ratio and length, ``amplitudes`` (the others'), its checks."""
+    return {
+        "participation_ratio": localization.participation_ratio,
+        "localization_length": None if not math.isfinite(localization.length) else localization.length,
+        **amplitudes,
+        "energy_drift": None if not math.isfinite(localization.energy_drift) else localization.energy_drift,
+        "return_error": localization.return_error,
+    }
+
 
 def orbit_localization(orbit: HamiltonianOrbit) -> Localization:
     """:class:`Localization` of ``orbit`` from :data:`~.breathers.TAIL_SAMPLES` states over its period."""
@@ -423,44 +443,47 @@ def orbit_localization(orbit: HamiltonianOrbit) -> Localization:
 
 @dataclass
 class AtlasPoint:
-    """One point of the atlas: the orbit (None where none was found) and what was measured on it."""
+    """One point of an atlas, of the chain or (:class:`~.system_breather_atlas.SystemAtlasPoint`) of a user system.
+
+    The orbit (None where none was found) and what was measured on it: ``localization`` a
+    :class:`Localization` (of a system's orbit, a
+    :class:`~.system_breather_atlas.SystemLocalization`: both give their JSON by ``as_dict``).
+    """
 
     omega: float
     value: float
     source: str
-    orbit: HamiltonianOrbit | None = None
-    localization: Localization | None = None
+    orbit: HamiltonianOrbit | Orbit | None = None
+    localization: Localization | SystemLocalization | None = None
     cpu_s: float = 0.0
     message: str = ""
-    #: From :meth:`BreatherAtlas.measure_lifetimes` (None: not run).
+    #: From the atlas's ``measure_lifetimes`` (None: not run).
     lifetime: Lifetime | None = None
 
     @property
     def exists(self) -> bool:
         return self.orbit is not None
 
+    def energy(self) -> float | None:
+        """The orbit's total energy (None for a model without one)."""
+        return self.orbit.energy
+
     def as_dict(self) -> dict:
         out = {"omega": self.omega, "value": self.value, "exists": self.exists, "source": self.source, "cpu_s": self.cpu_s}
         if self.orbit is None:
             return {**out, "message": self.message}
-        o, loc = self.orbit, self.localization
+        o = self.orbit
         if self.lifetime is not None:
             out["lifetime"] = self.lifetime.as_dict()
         return {
             **out,
-            "energy": o.energy,
+            "energy": self.energy(),
             "max_multiplier": o.max_multiplier,
-            "stable": o.stable,
+            "stable": bool(o.stable),
             "unfolding": o.unfolding,
             "closure": o.closure,
             "iterations": o.iterations,
-            "participation_ratio": loc.participation_ratio,
-            "localization_length": None if not math.isfinite(loc.length) else loc.length,
-            "amplitudes_of_others": loc.amplitudes,
-            "static_displacement": loc.static_displacement,
-            "localized": loc.localized,
-            "energy_drift": None if not math.isfinite(loc.energy_drift) else loc.energy_drift,
-            "return_error": loc.return_error,
+            **self.localization.as_dict(),
         }
 
 
@@ -561,10 +584,10 @@ class BreatherAtlas:
         return out
 
     def band_edges(self) -> np.ndarray:
-        """(value, band, edge) the bottom and top of each driven band at each field value (:func:`wave_summary`)."""
+        """(value, band, edge) the bottom and top of each driven band at each field value (:func:`~.breathers.band_edges`)."""
         out = np.zeros((self.values.size, len(self.bands), 2))
         for j, value in enumerate(self.values):
-            edges = wave_summary(self.params_at(value)).bands
+            edges = band_edges(self.params_at(value))
             for b, band in enumerate(self.bands):
                 out[j, b] = edges[band]
         return out
@@ -580,6 +603,7 @@ class BreatherAtlas:
             "values": self.values.tolist(),
             "omegas": self.omegas.tolist(),
             "bands": list(self.bands),
+            "bands_from": BAND_SOURCES[self.params.graded],
             "band_edges": {band: self.band_edges()[:, b].tolist() for b, band in enumerate(self.bands)},
             "thresholds": THRESHOLDS,
             "points": [[p.as_dict() for p in row] for row in self.points],
@@ -679,6 +703,7 @@ class BreatherAtlas:
                 "field_units": "length (units of the parameters' h)" if self.field in ("a", "b", "h") else "stiffness (units of E1)",
                 "units": "time: the parameters' units (m = 1, E1 = 1 give the paper's); angles: rad",
                 "bands": ", ".join(self.bands),
+                "bands_from": BAND_SOURCES[self.params.graded],
                 "thresholds_json": json.dumps(THRESHOLDS),
                 "settings_json": json.dumps(self.settings),
             }
@@ -693,7 +718,7 @@ def _member_value(field_name: str, member) -> float:
 
 def _band_edges(params: ChainParams, field_name: str, bands: tuple[str, ...], value: float) -> list[tuple[float, float]]:
     """The driven bands' (bottom, top) on the chain with the field at ``value`` (the resonances are named from them)."""
-    edges = wave_summary(chain_at(params, field_name, value)).bands
+    edges = band_edges(chain_at(params, field_name, value))
     return [tuple(edges[name]) for name in bands]
 
 

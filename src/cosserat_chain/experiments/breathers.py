@@ -26,14 +26,15 @@ periodic orbit (:func:`~cosserat_chain.numerics.periodic.find_hamiltonian_orbit`
   the roto-breather that :func:`roto_breather_family` finds from the anti-continuum limit at
   that frequency.
 * :func:`resonances` gives the frequencies Omega = edge / n at which the n-th harmonic of
-  the rotation meets a band edge of the linear chain
-  (:func:`~cosserat_chain.analysis.dispersion.wave_summary`), and
+  the rotation meets a band edge (:func:`band_edges`: the infinite linear chain's,
+  :func:`~cosserat_chain.analysis.dispersion.wave_summary`, or a graded chain's finite modes), and
   :func:`harmonics_in_bands` the harmonics n Omega that fall inside a band: a roto-breather
   is non-resonant (localised, long-lived) only where none does.
 """
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from collections.abc import Callable, Mapping
@@ -43,7 +44,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..analysis.dispersion import BRANCHES, wave_summary
+from ..analysis.dispersion import BRANCHES, finite_modes, wave_summary
 from ..loads import moment_load
 from ..models.base import Model, get_model
 from ..numerics.breather_arclength import (
@@ -69,7 +70,7 @@ from ..numerics.periodic import (
 from ..numerics.shooting import OrbitNotFound
 from ..numerics.undamping import UndampingPath, continue_to_undamped
 from ..params import ChainParams
-from ..state import ROW_INDEX, ROWS, column, n_free, pack, unpack, zeros
+from ..state import ROW_INDEX, ROWS, column, free_rows, n_free, pack, unpack, zeros
 from .anti_continuum import potential_from_torque, rotor_energy, sample_angles
 from .lifetimes import Lifetime, check_lifetime_run, lifetime_from_deviation
 from .simulation import run_attributes
@@ -206,16 +207,54 @@ class Resonance:
         return {"omega": self.omega, "harmonic": self.harmonic, "band": self.band, "edge": self.edge, "edge_frequency": self.edge_frequency}
 
 
+#: Where :func:`band_edges` takes a chain's bands from: the infinite uniform chain, or the finite graded chain's modes.
+BAND_SOURCES = {False: "infinite uniform chain, eq. (3)", True: "finite graded chain's linear modes"}
+
+
+def band_edges(params: ChainParams) -> dict[str, tuple[float, float]]:
+    """The (bottom, top) of each band (:data:`~cosserat_chain.analysis.dispersion.BRANCHES`) the chain's rotors meet.
+
+    A uniform chain's are those of the infinite linear chain, eq. (3) (:func:`wave_summary`),
+    to which every model linearises at rest. A graded chain (per-bond or per-particle factors)
+    is not periodic and has no bands; its harmonics meet its own small oscillations instead, the
+    linear modes of the finite chain about rest (:func:`~cosserat_chain.analysis.dispersion.finite_modes`),
+    split into the three branches: the modes with u alone (u decouples from v and phi at rest)
+    are longitudinal; of the others, sorted, as many as the chain has free v coordinates are
+    transverse acoustic and the rest rotational optical (the count that splits a uniform
+    finite chain's spectrum at its gap, for every kind of end and the ring). Each band is
+    the range of its modes: an impurity's localised mode, outside the host's band, widens it.
+    """
+    if not params.graded:
+        return wave_summary(params).bands
+    return _finite_band_edges(params)
+
+
+@functools.lru_cache(maxsize=64)
+def _finite_band_edges(params: ChainParams) -> dict[str, tuple[float, float]]:
+    """:func:`band_edges` of any chain from its finite modes (cached: a family asks at every member)."""
+    modes = finite_modes(params, "linear")
+    frequencies = np.sqrt(np.clip(modes.omega2.real, 0.0, None))
+    shares = np.sum(modes.shapes**2, axis=2)  # (mode, row): each row's share of the mode's shape
+    longitudinal = shares[:, ROW_INDEX["u"]] > shares[:, ROW_INDEX["v"]] + shares[:, ROW_INDEX["phi"]]
+    transverse = np.sort(frequencies[~longitudinal])
+    acoustic = int(np.count_nonzero(free_rows(params) == ROW_INDEX["v"]))
+    groups = {
+        "longitudinal": frequencies[longitudinal],
+        "transverse_acoustic": transverse[:acoustic],
+        "rotational_optical": transverse[acoustic:],
+    }
+    return {name: (float(groups[name].min()), float(groups[name].max())) for name in BRANCHES}
+
+
 def resonances(
     params: ChainParams, low: float, high: float, *, bands: tuple[str, ...] = BRANCHES, max_harmonic: int = MAX_HARMONIC
 ) -> list[Resonance]:
     """The frequencies Omega in [low, high] where n Omega (n = 1..max_harmonic) meets an edge of ``bands``, sorted by Omega.
 
-    The bands are those of the infinite linear chain, eq. (3) (:func:`wave_summary`), to
-    which every model linearises at rest.
+    The bands are :func:`band_edges`: the infinite linear chain's, or a graded chain's finite modes.
     """
     out = []
-    for band, (bottom, top) in wave_summary(params).bands.items():
+    for band, (bottom, top) in band_edges(params).items():
         if band not in bands:
             continue
         for edge, frequency in (("bottom", bottom), ("top", top)):
@@ -231,7 +270,7 @@ def harmonics_in_bands(
     params: ChainParams, omega: float, *, bands: tuple[str, ...] = BRANCHES, max_harmonic: int = MAX_HARMONIC
 ) -> list[tuple[int, str]]:
     """The (n, band) with n ``omega`` inside one of ``bands`` (n = 1..max_harmonic): the resonant harmonics."""
-    edges = wave_summary(params).bands
+    edges = band_edges(params)
     return [(n, band) for n in range(1, max_harmonic + 1) for band in bands if edges[band][0] <= n * omega <= edges[band][1]]
 
 
@@ -246,7 +285,7 @@ def combination_resonances(
     frequencies where a roto-breather of a long chain may be unstable even with every
     harmonic in a gap.
     """
-    edges = wave_summary(params).bands
+    edges = band_edges(params)
     out = []
     for n in range(1, max_harmonic + 1):
         for i, a in enumerate(bands):
@@ -337,12 +376,12 @@ def located_changes(orbits: list[HamiltonianOrbit], bands: tuple[str, ...], tol:
     if len(orbits) < 2:
         return []
     solve, tighten = _solvers(orbits[0])
-    edges = wave_summary(orbits[0].params).bands
-    band_edges = [edges[name] for name in bands]
+    edges = band_edges(orbits[0].params)
+    driven = [edges[name] for name in bands]
     return [
         change
         for a, b in zip(orbits[:-1], orbits[1:], strict=True)
-        for change in locate_stability_changes(_Member(a), _Member(b), solve, band_edges, a.turns, tighten, tol)
+        for change in locate_stability_changes(_Member(a), _Member(b), solve, driven, a.turns, tighten, tol)
     ]
 
 
@@ -535,6 +574,7 @@ class BreatherFamily:
             "unfolding": [o.unfolding for o in orbits],
             "closure": [o.closure for o in orbits],
             "bands": list(self.bands),
+            "bands_from": BAND_SOURCES[orbits[0].params.graded] if orbits else None,
             "resonant_harmonics": [[{"harmonic": n, "band": b} for n, b in h] for h in self.resonant_harmonics()],
             "combination_resonances": [[{"harmonic": n, "bands": [a, b]} for n, a, b in h] for h in self.combination_resonances()],
             "resonances": [r.as_dict() for r in self.resonances],
@@ -657,6 +697,7 @@ class BreatherFamily:
                 "complete": int(self.family.complete),
                 "message": self.family.message,
                 "bands": ", ".join(self.bands),
+                "bands_from": BAND_SOURCES[params.graded],
                 "resonances_json": json.dumps([r.as_dict() for r in self.resonances]),
                 "stability_changes_json": json.dumps(self._changes()),
                 "settings_json": json.dumps({k: v for k, v in self.settings.items() if k != "params"}),

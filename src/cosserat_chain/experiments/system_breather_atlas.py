@@ -58,15 +58,17 @@ from .breather_atlas import (
     LOCATE_TOL,
     SOURCES,
     AtlasChange,
+    AtlasPoint,
     change_variables,
     check_along,
     check_locate_tol,
+    localization_entries,
     localization_length,
     locate_atlas_changes,
     one_family,
 )
 from .breathers import TAIL_SAMPLES
-from .lifetimes import Lifetime, check_lifetime_run, lifetime_variables, measure_point_lifetimes
+from .lifetimes import check_lifetime_run, lifetime_variables, measure_point_lifetimes
 from .system_breathers import (
     BreatherError,
     _at,
@@ -105,6 +107,10 @@ class SystemLocalization:
     energy_drift: float
     return_error: float
 
+    def as_dict(self) -> dict:
+        """The measures in an atlas point's JSON (:func:`~.breather_atlas.localization_entries`)."""
+        return localization_entries(self, {"amplitude_of_others": self.amplitude})
+
 
 def system_orbit_localization(orbit: Orbit, rotor: int) -> SystemLocalization:
     """:class:`SystemLocalization` of ``orbit`` (``rotor``: the first turning coordinate) from :data:`~.breathers.TAIL_SAMPLES` states."""
@@ -134,44 +140,13 @@ def system_orbit_localization(orbit: Orbit, rotor: int) -> SystemLocalization:
 
 
 @dataclass
-class SystemAtlasPoint:
-    """One point of a system's atlas: the orbit (None where none was found) and what was measured on it."""
+class SystemAtlasPoint(AtlasPoint):
+    """One point of a system's atlas (:class:`~.breather_atlas.AtlasPoint`): an :class:`~cosserat_chain.numerics.shooting.Orbit`
+    and its :class:`SystemLocalization`."""
 
-    omega: float
-    value: float
-    source: str
-    orbit: Orbit | None = None
-    localization: SystemLocalization | None = None
-    cpu_s: float = 0.0
-    message: str = ""
-    #: From :meth:`SystemBreatherAtlas.measure_lifetimes` (None: not run).
-    lifetime: Lifetime | None = None
-
-    @property
-    def exists(self) -> bool:
-        return self.orbit is not None
-
-    def as_dict(self) -> dict:
-        out = {"omega": self.omega, "value": self.value, "exists": self.exists, "source": self.source, "cpu_s": self.cpu_s}
-        if self.orbit is None:
-            return {**out, "message": self.message}
-        o, loc = self.orbit, self.localization
-        if self.lifetime is not None:
-            out["lifetime"] = self.lifetime.as_dict()
-        return {
-            **out,
-            "energy": orbit_energy(o),
-            "max_multiplier": o.max_multiplier,
-            "stable": bool(o.stable),
-            "unfolding": o.unfolding,
-            "closure": o.closure,
-            "iterations": o.iterations,
-            "participation_ratio": loc.participation_ratio,
-            "localization_length": None if not math.isfinite(loc.length) else loc.length,
-            "amplitude_of_others": loc.amplitude,
-            "energy_drift": None if not math.isfinite(loc.energy_drift) else loc.energy_drift,
-            "return_error": loc.return_error,
-        }
+    def energy(self) -> float | None:
+        """The orbit's total energy (:func:`~.system_breathers.orbit_energy`; None for a system without one)."""
+        return orbit_energy(self.orbit)
 
 
 @dataclass
