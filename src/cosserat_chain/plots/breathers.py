@@ -32,9 +32,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..analysis.dispersion import wave_summary
 from ..experiments.breather_atlas import BreatherAtlas
-from ..experiments.breathers import BreatherFamily
+from ..experiments.breathers import BreatherFamily, band_edges
 
 if TYPE_CHECKING:  # only its type: a user system's atlas is drawn from the object handed in
     from ..experiments.system_breather_atlas import SystemBreatherAtlas
@@ -70,7 +69,7 @@ def breather_family_figure(result: BreatherFamily) -> Figure:
     bottom.scatter(omega[~stable], family.max_multiplier[~stable], facecolor="none", edgecolor="k", s=12, label="unstable")
     low, high = (float(omega.min()), float(omega.max())) if omega.size else (0.0, 1.0)
     span = max(high - low, 1e-3)
-    bands = wave_summary(family.orbits[0].params).bands if family.orbits else {}
+    bands = band_edges(family.orbits[0].params) if family.orbits else {}
     for band in result.bands:
         bottom_edge, top_edge = bands.get(band, (0.0, 0.0))
         for n in range(1, 7):
