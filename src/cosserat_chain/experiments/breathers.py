@@ -226,7 +226,7 @@ def band_edges(params: ChainParams) -> dict[str, tuple[float, float]]:
     """
     if not params.graded:
         return wave_summary(params).bands
-    return _finite_band_edges(params)
+    return dict(_finite_band_edges(params))  # a copy: the cached one is shared
 
 
 @functools.lru_cache(maxsize=64)
