@@ -38,7 +38,7 @@ from ..numerics.brent import brentq
 from ..params import ChainParams
 from ..state import free_rows
 from .beam import beam_stiffness
-from .timoshenko import _fit_order
+from .timoshenko import _fit_order, _half_lengths
 
 #: The two families of modes of the linear chain.
 FAMILIES = ("flexural", "axial")
@@ -314,9 +314,7 @@ def frequency_convergence(
         For an empty list or an N below 1, and as :func:`chain_frequencies` and :func:`beam_frequencies`.
     """
     _require(params, family, count)
-    n_values = [int(n) for n in n_values]
-    if not n_values or min(n_values) < 1:
-        raise ValueError(f"n_values must hold integers N >= 1, got {n_values!r}")
+    n_values = _half_lengths(n_values)
     chain, beam, paper = [], [], []
     bending = 2 * params.b**2 * params.D1 * params.h
     for n in n_values:

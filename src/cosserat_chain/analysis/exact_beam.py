@@ -33,6 +33,7 @@ import numpy as np
 from ..params import ChainParams
 from ..state import zero_held
 from .beam import BeamStiffness, beam_stiffness
+from .timoshenko import _fit_order, _half_lengths
 
 #: Relative tolerance of the BVP solves (solve_bvp's residual measure).
 BVP_TOL = 1e-9
@@ -172,6 +173,8 @@ def cantilever(
 # ---------------------------------------------------------------------------- against model (i)
 #: Longest chain that :func:`bending_convergence` also solves whole (the per-bond reduction covers any N).
 DIRECT_LIMIT = 1000
+#: Errors at or below this (round-off of agreeing values) are left out of the measured orders.
+FIT_FLOOR = 1e-13
 
 
 @dataclass(frozen=True)
@@ -231,11 +234,7 @@ class BendingConvergence:
         """Measured order p of |error| ~ N^-p of ``"moment"`` or ``"tip"`` (least squares on log-log axes)."""
         if which not in ("moment", "tip"):
             raise ValueError(f"which must be 'moment' or 'tip', got {which!r}")
-        error = np.abs(self.moment_error if which == "moment" else self.tip_error)
-        keep = error > 1e-13
-        if np.unique(self.N[keep]).size < 2:
-            return None
-        return float(-np.polyfit(np.log(self.N[keep]), np.log(error[keep]), 1)[0])
+        return _fit_order(self.N, self.moment_error if which == "moment" else self.tip_error, FIT_FLOOR)
 
     def to_dataset(self):
         """The table as an xarray Dataset over ``N`` (variables ``bending_*``), to merge with the Timoshenko table's."""
@@ -326,9 +325,7 @@ def bending_convergence(params: ChainParams, n_values: list[int] | np.ndarray, *
     _require_cantilever(params, "the chain bent by an end moment")
     if not (math.isfinite(angle) and 0 < angle <= 2 * math.pi):
         raise ValueError(f"angle must lie in (0, 2 pi] (the free end's angle, rad), got {angle!r}")
-    n_values = [int(n) for n in n_values]
-    if not n_values or min(n_values) < 1:
-        raise ValueError(f"n_values must hold integers N >= 1, got {n_values!r}")
+    n_values = _half_lengths(n_values)
     rows = []
     for n in n_values:
         chain = params.replace(N=n)
@@ -397,11 +394,7 @@ class ElasticaConvergence:
         """Measured order p of |error| ~ N^-p of ``"tip"`` or ``"angle"``."""
         if which not in ("tip", "angle"):
             raise ValueError(f"which must be 'tip' or 'angle', got {which!r}")
-        error = np.abs(self.tip_error if which == "tip" else self.angle_error)
-        keep = error > 1e-13
-        if np.unique(self.N[keep]).size < 2:
-            return None
-        return float(-np.polyfit(np.log(self.N[keep]), np.log(error[keep]), 1)[0])
+        return _fit_order(self.N, self.tip_error if which == "tip" else self.angle_error, FIT_FLOOR)
 
     def as_dict(self) -> dict[str, object]:
         """Columns as lists and both orders (for JSON)."""
@@ -439,9 +432,7 @@ def elastica_convergence(
     _require_cantilever(params, "the elastica")
     if not (math.isfinite(load) and load > 0):
         raise ValueError(f"load (F (2L)^2 / EI) must be finite and > 0, got {load!r}")
-    n_values = [int(n) for n in n_values]
-    if not n_values or min(n_values) < 1:
-        raise ValueError(f"n_values must hold integers N >= 1, got {n_values!r}")
+    n_values = _half_lengths(n_values)
     rows = []
     for n in n_values:
         chain = params.replace(N=n)

@@ -235,12 +235,27 @@ def discrete_static(params: ChainParams, load: PointLoad) -> np.ndarray:
 RESOLVED = 100.0
 
 
-def _fit_order(n: np.ndarray, error: np.ndarray) -> float | None:
-    """p of |error| ~ N^-p by least squares on log-log axes; None with fewer than two usable rows."""
-    keep = np.isfinite(error) & (error != 0)
+def _fit_order(n: np.ndarray, error: np.ndarray, floor: float = 0.0) -> float | None:
+    """p of |error| ~ N^-p by least squares on log-log axes, over the rows whose |error| is finite and above ``floor``;
+    None with fewer than two distinct N among them. The order of every convergence table of the analysis modules."""
+    keep = np.isfinite(error) & (np.abs(error) > floor)
     if np.unique(n[keep]).size < 2:
         return None
     return float(-np.polyfit(np.log(n[keep]), np.log(np.abs(error[keep])), 1)[0])
+
+
+def _half_lengths(n_values) -> list[int]:
+    """``n_values`` as a list of ints, each N >= 1: the half-lengths of every convergence table.
+
+    Raises
+    ------
+    ValueError
+        For an empty list or an N below 1.
+    """
+    n_values = [int(n) for n in n_values]
+    if not n_values or min(n_values) < 1:
+        raise ValueError(f"n_values must hold integers N >= 1, got {n_values!r}")
+    return n_values
 
 
 @dataclass(frozen=True)
@@ -403,9 +418,7 @@ def convergence(params: ChainParams, n_values: list[int] | np.ndarray, *, at: fl
     """
     if load not in LOADS:
         raise ValueError(f"load must be one of {', '.join(map(repr, LOADS))}, got {load!r}")
-    n_values = [int(n) for n in n_values]
-    if not n_values or min(n_values) < 1:
-        raise ValueError(f"n_values must hold integers N >= 1, got {n_values!r}")
+    n_values = _half_lengths(n_values)
     row = 2 if load == "moment" else 1
     columns: dict[str, list[float]] = {key: [] for key in ("particle", "discrete", "timoshenko", "nodal", "paper", "discrete_error")}
     for n in n_values:
