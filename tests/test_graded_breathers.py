@@ -171,8 +171,9 @@ def test_a_graded_chain_mirrored_end_to_end_gives_the_mirrored_breather(particle
 def test_cli_runs_a_graded_family_with_the_finite_chains_bands(tmp_path):
     config = tmp_path / "graded.toml"
     config.write_text("N = 5\nj_factors = [1, 1, 1, 1, 1, 3, 1, 1, 1, 1, 1]\nE1_factors = [1, 1, 1, 1, 0.5, 1, 1, 1, 1, 1]\n")
-    out = runner.invoke(app, ["breathers", "--config", str(config), "--omega", "5", "--json"])
+    out = runner.invoke(app, ["breathers", "--config", str(config), "--omega", "5", "--lifetimes", "5", "--json"])
     assert out.exit_code == 0, out.output
     summary = json.loads(out.output)
     assert summary["bands_from"] == BAND_SOURCES[True] and summary["complete"]
     assert summary["params"]["j_factors"][5] == 3.0 and summary["closure"][0] < 1e-8
+    assert len(summary["lifetimes"]) == 1  # the direct run from the perturbed orbit, on the graded kernels
