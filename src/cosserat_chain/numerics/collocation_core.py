@@ -60,6 +60,7 @@ import scipy.sparse.linalg as spla
 from numba import njit, types
 
 from ..errors import CosseratChainError
+from ..linalg.eigen import largest_and_nearest
 from ..models.base import END_KERNEL_TYPE, FORCE_KERNEL_TYPE
 from ..state import ROW_INDEX, pack
 from ..state import dof as free_dof
@@ -555,33 +556,14 @@ class _Collocation:
         these products; (M - sigma)^-1 at sigma = :data:`SHIFT` is one solve of the periodic boundary-value
         problem x_{j+1} = P_j x_j, x_NTST - sigma x_0 = b, factored once in the nested-dissection order
         (:class:`_ShiftInvert`), and ARPACK takes the ``count`` multipliers nearest sigma from it. The two sets
-        are merged (a value within 1e-9 of one kept is the same), by decreasing modulus; each multiplier's error
+        are merged (:func:`~cosserat_chain.linalg.eigen.largest_and_nearest`), by decreasing modulus; each multiplier's error
         estimate is |M v - mu v| of its unit eigenvector v. The trivial multiplier is the one nearest 1, as on the
         dense path.
         """
         n = self.n
         maps = self.transfer_maps(a_values, period)
         inverse = _ShiftInvert(self, a_values, period, SHIFT)
-        k = min(count, n - 2)
-        ncv = min(n - 1, max(2 * k + 1, 40))
-        found, vectors = [], []
-        for operator, convert in (
-            (spla.LinearOperator((n, n), matvec=maps.apply, dtype=float), lambda nu: nu),
-            (spla.LinearOperator((n, n), matvec=inverse.apply, dtype=float), lambda nu: SHIFT + 1.0 / nu),
-        ):
-            try:
-                nu, v = spla.eigs(operator, k=k, which="LM", ncv=ncv, tol=ARPACK_TOL, maxiter=ARPACK_RESTARTS)
-            except spla.ArpackNoConvergence as err:
-                nu, v = err.eigenvalues, err.eigenvectors
-            found.append(convert(nu))
-            vectors.append(v)
-        values, v = np.concatenate(found), np.concatenate(vectors, axis=1)
-        order = np.argsort(-np.abs(values), kind="stable")
-        keep: list[int] = []
-        for i in order:
-            if all(abs(values[i] - values[j]) > 1e-9 * max(1.0, abs(values[j])) for j in keep):
-                keep.append(i)
-        values, v = values[keep], v[:, keep] / np.linalg.norm(v[:, keep], axis=0)
+        values, v, _ = largest_and_nearest(maps.apply, inverse.apply, n, SHIFT, count, tol=ARPACK_TOL, restarts=ARPACK_RESTARTS)
         errors = np.linalg.norm(maps.apply(v) - v * values, axis=0)
         with np.errstate(divide="ignore"):
             log_moduli = np.log(np.abs(values))
