@@ -146,29 +146,11 @@ def breather_atlas_figure(atlas: BreatherAtlas) -> Figure:
             ax.text(float(np.mean(0.5 * (bottom + top))), float(values[order][-1]), f"{n + 1}Ω", fontsize=7, ha="center", va="bottom",
                     color=BAND_COLORS[band])  # fmt: skip
         ax.plot([], [], color=BAND_COLORS[band], alpha=0.4, lw=6, label=f"n Ω in {band.replace('_', ' ')}")
-    exists = atlas.grid("exists") > 0
-    stable = atlas.grid("stable") > 0
-    ratio = atlas.grid("participation_ratio")
-    om, va = np.meshgrid(omegas, values)
-    finite = ratio[exists]
-    norm = plt.Normalize(float(finite.min()), float(finite.max()) + 1e-12) if finite.size else None
-    filled = ax.scatter(om[exists & stable], va[exists & stable], c=ratio[exists & stable], cmap="viridis", norm=norm, s=30,
-                        edgecolor="k", label="stable")  # fmt: skip
-    ax.scatter(om[exists & ~stable], va[exists & ~stable], facecolor="none", edgecolor=plt.get_cmap("viridis")(norm(ratio[exists & ~stable]))
-               if norm else "k", s=30, lw=1.5, label="unstable")  # fmt: skip
-    ax.scatter(om[~exists], va[~exists], marker="x", color="0.4", s=20, label="not found")
-    _atlas_changes(ax, atlas)
-    if finite.size:
-        fig.colorbar(filled, ax=ax, label="participation ratio of the energies")
-    ax.set_xlim(low - 0.05 * span, high + 0.05 * span)
-    ax.set_xlabel("Ω (mean angular velocity of the rotor)")
-    ax.set_ylabel(atlas.field)
-    ax.set_title(f"roto-breathers, {atlas.model} model, N = {atlas.params.N}", fontsize=9)
-    ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3)  # below the axes: inside, it hides points
-    if lives is not None:
-        _atlas_lifetimes(fig, below, lives, atlas, ax)
-    fig.tight_layout()
-    return fig
+    title = f"roto-breathers, {atlas.model} model, N = {atlas.params.N}"
+    xlim = (low - 0.05 * span, high + 0.05 * span)
+    return _atlas_map(
+        fig, ax, below, lives, atlas, xlim, "participation ratio of the energies", "Ω (mean angular velocity of the rotor)", title
+    )
 
 
 def system_atlas_figure(atlas: SystemBreatherAtlas) -> Figure:
@@ -199,6 +181,19 @@ def system_atlas_figure(atlas: SystemBreatherAtlas) -> Figure:
             ax.text(float(np.nanmean(0.5 * (bottom + top))), float(values[order][-1]), f"{n}Ω", fontsize=7, ha="center", va="bottom",
                     color=color)  # fmt: skip
         ax.plot([], [], color=color, alpha=0.4, lw=6, label=f"n Ω in band {b}")
+    rotors = ", ".join(f"{atlas.system.coordinates[i]} ({k:+d})" for i, k in atlas.rotors.items())
+    title = f"roto-breathers of {atlas.system.name}: {rotors}"
+    xlim = (low - 0.05 * span, high + 0.05 * span)
+    ratio = "participation ratio of the kinetic energies"
+    return _atlas_map(fig, ax, below, lives, atlas, xlim, ratio, "Ω (mean angular velocity of the first rotor)", title)
+
+
+def _atlas_map(fig: Figure, ax, below, lives, atlas, xlim: tuple[float, float], ratio_label: str, xlabel: str, title: str) -> Figure:
+    """Both atlases' map on its shaded bands: stable orbits filled and coloured by their participation ratio
+    (``ratio_label`` on the colour bar), unstable ones open, points with none found crossed, the located changes of
+    stability; the labels, the legend below the axes (inside, it hides points) and, where measured, the lifetimes
+    panel ``below``."""
+    values, omegas = atlas.values, atlas.omegas
     exists = atlas.grid("exists") > 0
     stable = atlas.grid("stable") > 0
     ratio = atlas.grid("participation_ratio")
@@ -212,12 +207,11 @@ def system_atlas_figure(atlas: SystemBreatherAtlas) -> Figure:
     ax.scatter(om[~exists], va[~exists], marker="x", color="0.4", s=20, label="not found")
     _atlas_changes(ax, atlas)
     if finite.size:
-        fig.colorbar(filled, ax=ax, label="participation ratio of the kinetic energies")
-    rotors = ", ".join(f"{atlas.system.coordinates[i]} ({k:+d})" for i, k in atlas.rotors.items())
-    ax.set_xlim(low - 0.05 * span, high + 0.05 * span)
-    ax.set_xlabel("Ω (mean angular velocity of the first rotor)")
+        fig.colorbar(filled, ax=ax, label=ratio_label)
+    ax.set_xlim(*xlim)
+    ax.set_xlabel(xlabel)
     ax.set_ylabel(atlas.field)
-    ax.set_title(f"roto-breathers of {atlas.system.name}: {rotors}", fontsize=9)
+    ax.set_title(title, fontsize=9)
     ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.14), ncol=3)
     if lives is not None:
         _atlas_lifetimes(fig, below, lives, atlas, ax)
