@@ -194,11 +194,11 @@ def test_a_fold_torus_on_a_fold_curve_is_where_the_circulatory_pair_reaches_the_
 
 
 def test_a_fold_torus_on_a_torus_curve_is_where_the_rest_point_folds():
-    """The torus curve from s = 0.245 to 0.238 passes xi = 0, where the x-mode's multiplier crosses +1: the same
+    """The torus curve from s = 0.241 to 0.239 passes xi = 0, where the x-mode's multiplier crosses +1: the same
     point, from the other augmented system (|mu|^2 = 1 on the pair instead of the bordered shooting Jacobian)."""
-    xi = (0.245 / C) ** 2 - K0
-    start = orbit_at(FoldTorus(a=A_LTR + 0.5 * (0.245 - S_LTR) + xi**2 + 1e-5, s=0.245), 0.5 + xi)
-    curve = continue_cycle_end(start, "torus", "s", [0.245, 0.238], parameter="a")
+    xi = (0.241 / C) ** 2 - K0
+    start = orbit_at(FoldTorus(a=A_LTR + 0.5 * (0.241 - S_LTR) + xi**2 + 1e-5, s=0.241), 0.5 + xi)
+    curve = continue_cycle_end(start, "torus", "s", [0.241, 0.239], parameter="a")
     assert curve.complete
     xis = (curve.values / C) ** 2 - K0
     assert np.allclose(curve.moment, A_LTR + 0.5 * (curve.values - S_LTR) + xis**2, atol=1e-9, rtol=0)
