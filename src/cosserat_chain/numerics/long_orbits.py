@@ -693,8 +693,8 @@ def _leading_core(matrix: np.ndarray, reflect, core_product, count: int, dimensi
             reach = float(np.max(np.abs(values - SHIFT), initial=0.0))
             warnings.warn(
                 f"ARPACK converged on {largest} of the {count} nontrivial Floquet multipliers of largest modulus within "
-                f"{ARPACK_RESTARTS} restarts (they crowd); those reported are the {nearest} nearest {SHIFT!r} by shift-invert and "
-                f"these: a multiplier farther than {reach:.3g} from {SHIFT!r} with a larger modulus than some of them is not excluded",
+                f"{ARPACK_RESTARTS} restarts (they crowd): the {nearest} nearest {SHIFT!r} come by shift-invert, those reported lie "
+                f"within {reach:.3g} of it, and a multiplier farther from it with a larger modulus than some of them is not excluded",
                 stacklevel=4,
             )
         return values, vectors
