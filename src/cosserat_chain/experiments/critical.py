@@ -49,8 +49,11 @@ Contract
   :data:`MAX_CROSSINGS` of them). N = 10, a = 0.4166, b = 0.2224: the trace stalls past the first fold, M = 0.13239;
   the chain snaps onto a stable state near phi_0 = 1.08 and rotates only above that branch's fold, M_c = 0.371938
   (``onset`` "crossing_fold"; ramped runs rest at 0.99 of it and rotate at 1.01:
-  tests/test_critical_past_trace.py). Where such relaxations leave rest just above M_c (``onset_checked``), M_c is
-  decided whatever the trace past it: the command line notes the incomplete branch and exits 0.
+  tests/test_critical_past_trace.py). So past the fold of a whole trace too, except where K is near singular at rest
+  (below): N = 6, pinned-clamped, h = 1.6, a = 0.69, b = 0.83, E1 = 2.3, E2 = 2.5, the moment on particle 3, folds at
+  M = 1.2757 on a branch traced over its whole turn, and the chain snaps onto a branch the trace never meets and rotates
+  only above M_c = 8.898910 (tests/test_audit_fourteenth_chain.py). Where such relaxations leave rest just above M_c
+  (``onset_checked``), M_c is decided whatever the trace past it: the command line notes the incomplete branch and exits 0.
 
 Where K's softest eigenvalue at rest lies within :data:`CONFIRM_MARGIN` times its
 round-off (a long clamped chain: its bending mode's eigenvalue falls like N^-4, within
@@ -650,8 +653,11 @@ def critical_point(
     crossing, unresolved, checked = None, False, False
     # Past a branch point, or past a fold where the trace was cut short (a stalled corrector: N = 10, a = 0.4166,
     # b = 0.2224, whose chain snaps from the fold at M = 0.1324 onto a stable state the trace never reached and rotates
-    # only above 0.3719), where the chain goes is decided by relaxations, not by the traced branch.
-    past_trace = isinstance(onset, Fold) and not branch.complete
+    # only above 0.3719), where the chain goes is decided by relaxations, not by the traced branch. So past a fold of a
+    # whole trace too (N = 6, pinned-clamped, h = 1.6, a = 0.69, b = 0.83, E1 = 2.3, E2 = 2.5, moment on particle 3: the
+    # chain snaps from the fold at M = 1.2757 onto a branch the trace never meets and rotates only above 8.8989), except
+    # where K is near singular at rest (a long chain's relaxations take longer than its trace).
+    past_trace = isinstance(onset, Fold) and not (branch.complete and near_singular)
     if model.conservative and (isinstance(onset, BranchPoint) and onset.index_before == 0 or past_trace):
         crossing, unresolved = onset_past(params, model, onset, particle=particle)
         onset_particle = onset_particle if crossing is None else crossing.mode_particle
