@@ -113,6 +113,13 @@ def orbit(
         help="With --system --oscillation --vary NAME --down-to X: the oscillation born at the first Hopf point of the "
         "equilibrium found from --start, sought along NAME towards X (unstable families too), followed within that range.",
     ),
+    through_folds: bool = typer.Option(
+        False,
+        "--through-folds",
+        help="With --system --vary: follow the orbit through its folds of cycles (each one named in --json's branch events) "
+        "to where it really ends, as AUTO-07p does, and solve a homoclinic end there (a snaking approach to a saddle-focus "
+        "too); without it the branch stops at its first fold.",
+    ),
     start: str | None = start_option("the coordinates the settling run starts from (default 0)"),
     velocity: str | None = velocity_option("default: the drive at the start over the damping, on the angles"),
 ) -> None:
@@ -125,15 +132,20 @@ def orbit(
     if system is not None:
         chain_only_or_exit(
             ctx,
-            ("config", "as_json", "out", "down_to", "period_max", "sets", "vary", "turn", "oscillation", "from_hopf", "start", "velocity"),
-        )
+            (
+                "config", "as_json", "out", "down_to", "period_max", "sets", "vary", "turn", "oscillation", "from_hopf", "start",
+                "velocity", "through_folds",
+            ),
+        )  # fmt: skip
         if oscillation and turn:
             fail(f"--oscillation turns no angle: leave out --turn (got {', '.join(turn)})")
+        if through_folds and vary is None:
+            fail("--through-folds follows a branch: give --vary NAME (and --down-to X)")
         return orbit_on_system(
             system, config=config, sets=sets, vary=vary, turns=turn, down_to=down_to, period_max=period_max, start=start,
-            velocity=velocity, out=out, as_json=as_json, oscillation=oscillation, from_hopf=from_hopf,
+            velocity=velocity, out=out, as_json=as_json, oscillation=oscillation, from_hopf=from_hopf, through_folds=through_folds,
         )  # fmt: skip
-    system_only_or_exit(ctx, ("sets", "vary", "turn", "oscillation", "from_hopf", "start", "velocity"))
+    system_only_or_exit(ctx, ("sets", "vary", "turn", "oscillation", "from_hopf", "start", "velocity", "through_folds"))
     if method not in ORBIT_METHODS:
         fail(f"--method takes {', '.join(ORBIT_METHODS)}, got {method!r}")
     if moment is None:

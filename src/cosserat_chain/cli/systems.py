@@ -353,6 +353,10 @@ def _turns_or_exit(system, turns: list[str] | None) -> dict[str, int]:
     return out
 
 
+#: Most orbits ``orbit --system --vary --through-folds`` follows (a snaking approach takes hundreds between its folds).
+THROUGH_FOLDS_POINTS = 3000
+
+
 def orbit_on_system(
     reference: str,
     *,
@@ -368,6 +372,7 @@ def orbit_on_system(
     as_json: bool,
     oscillation: bool = False,
     from_hopf: bool = False,
+    through_folds: bool = False,
 ) -> None:
     """A rotating orbit of the system (with ``oscillation`` one where no angle turns) from a settled simulation, and with
     ``--vary`` its continuation; with ``from_hopf`` the oscillation born at the first Hopf point of the equilibrium
@@ -412,7 +417,15 @@ def orbit_on_system(
         if vary is not None:
             direction = -1.0 if down_to is None or down_to < value else 1.0
             limits = (-math.inf, math.inf) if down_to is None else (min(down_to, value), max(down_to, value))
-            branch = continue_orbits(orbit, vary, direction=direction, limits=limits, period_max=period_max, progress=bar_callback(bar))
+            stops = () if through_folds else ("fold",)
+            branch = continue_orbits(
+                orbit, vary, direction=direction, limits=limits, period_max=period_max, stop_at=stops, progress=bar_callback(bar),
+                max_points=THROUGH_FOLDS_POINTS if through_folds else 300,
+            )  # fmt: skip
+            if through_folds and branch.end_method == "fitted":
+                from ..numerics.homoclinic import solve_branch_end
+
+                solve_branch_end(branch)
     except ValueError as err:
         bar.close()
         fail(str(err))

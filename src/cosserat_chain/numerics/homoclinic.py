@@ -115,6 +115,9 @@ ORBIT_SAMPLES = 4001
 #: (a rung before the ladder's first where that is too near), and at most FIRST_RUNG_MAX.
 ORBIT_NEAR = 4.0
 FIRST_RUNG_MAX = 0.1
+#: FIRST_RUNG_MAX where the loop returns to a saddle-focus (:func:`_solve_focus_ladder`, T fixed): the orbits of a
+#: snaking approach pass the saddle no nearer than 0.07 at T = 30 (three Josephson junctions).
+FOCUS_FIRST_RUNG_MAX = 0.4
 #: The rungs :func:`homoclinic_from_orbit` adds above the ladder's first are at most this factor apart.
 RUNG_RATIO = 1.5
 #: Rungs inserted (each halfway in log eps to the one that failed) where Newton misses a rung from a tilted start.
@@ -432,10 +435,20 @@ class _Loop:
     """The residual (H1)-(H2) of the loop from ``rests(p)`` with eps0, eps1, as a function of (p, T) and, where the
     saddle has m > 1 unstable directions, of the start's tilt a (m - 1) into the others: (H1) then holds m equations."""
 
-    def __init__(self, rests: Callable[[float], Rest], shift: np.ndarray, eps0: float, eps1: float, direction: np.ndarray | None = None):
+    def __init__(
+        self,
+        rests: Callable[[float], Rest],
+        shift: np.ndarray,
+        eps0: float,
+        eps1: float,
+        direction: np.ndarray | None = None,
+        fixed_time: bool = False,
+    ):
         self.rests, self.shift, self.eps0, self.eps1 = rests, shift, eps0, eps1
         self.direction = np.zeros(0) if direction is None else np.asarray(direction, dtype=float)
         self.step: float | None = None
+        #: Without (H2): T is given, and the unknowns are p and the tilt (:meth:`solve_at_time`, a saddle-focus's return).
+        self.fixed_time = fixed_time
 
     def end(self, p: float, time: float, direction: np.ndarray) -> tuple[Rest, np.ndarray]:
         r = self.rests(p)
@@ -445,6 +458,8 @@ class _Loop:
     def residual(self, p: float, time: float, direction: np.ndarray | None = None) -> tuple[np.ndarray, Rest, np.ndarray]:
         r, y = self.end(p, time, self.direction if direction is None else direction)
         d = y - r.y - self.shift
+        if self.fixed_time:
+            return r.normals.T @ d / self.eps1, r, y
         # (H2) as log(|d| / eps1): near the saddle |d| decays exponentially in T, so the log is nearly linear in T.
         return np.concatenate([r.normals.T @ d / self.eps1, [math.log(np.linalg.norm(d) / self.eps1)]]), r, y
 
@@ -477,7 +492,42 @@ class _Loop:
                     break
                 h *= 0.5 * FD_CHANGE / change
             columns.append((plus - minus) / (2 * h))
-        return np.column_stack(columns) if columns else np.zeros((self.direction.size + 2, 0))
+        return np.column_stack(columns) if columns else np.zeros((self.direction.size + (1 if self.fixed_time else 2), 0))
+
+    def solve_at_time(self, p: float, time: float, what: str) -> tuple[float, float, int, Rest]:
+        """Newton on (p, a) with T fixed: (H1) alone, m equations (the end on the shifted saddle's stable eigenspace),
+        with damped steps as :meth:`solve`; returns (p, last |dp|, iterations, rest). The tilt found is left in
+        ``direction``."""
+        extra = self.rests(p).others.shape[1]
+        if self.direction.size != extra:
+            self.direction = np.zeros(extra)
+        residual, r, _ = self.residual(p, time)
+        for iteration in range(1, MAX_ITERATIONS + 1):
+            plus, minus, h = self.differences(p, time)
+            jac = np.column_stack([(plus - minus) / (2 * h), self.tilt_columns(p, time)])
+            try:
+                step = np.linalg.solve(jac, -residual)
+            except np.linalg.LinAlgError:
+                raise HomoclinicError(f"{what}: singular Newton system at p = {p:.12g}, T = {time:.6g}") from None
+            scale = 1.0
+            for _ in range(20):
+                trial_p, trial_a = p + scale * step[0], self.direction + scale * step[1:]
+                try:
+                    trial, r_trial, _ = self.residual(trial_p, time, trial_a)
+                except _FAILURES:
+                    trial = None
+                if trial is not None and np.max(np.abs(trial)) < max(np.max(np.abs(residual)), 1e-300) * (1 + 1e-9) + 1e-12:
+                    break
+                scale *= 0.5
+            else:
+                raise HomoclinicError(
+                    f"{what}: Newton made no progress at p = {p:.12g}, T = {time:.6g} (max |R| = {np.max(np.abs(residual)):.3g})"
+                )
+            moved = abs(trial_p - p)
+            p, residual, r, self.direction = trial_p, trial, r_trial, trial_a
+            if np.max(np.abs(residual)) < RESIDUAL_TOL or moved < 4 * np.finfo(float).eps * max(1.0, abs(p)):
+                return p, moved, iteration, r
+        raise HomoclinicError(f"{what}: Newton did not converge in {MAX_ITERATIONS} iterations (max |R| = {np.max(np.abs(residual)):.3g})")
 
     def solve(self, p: float, time: float, what: str) -> tuple[float, float, float, int, Rest, float]:
         """Newton on (p, T, a); returns (p, T, last |dp|, iterations, rest, the rate at which |d| falls at T).
@@ -633,6 +683,55 @@ def _solve_ladder(
     spread = abs(values[-1][1] - values[-2][1]) if len(values) > 1 else math.inf
     accuracy = max(spread, _richardson(values), moved, 100.0 * RTOL * max(1.0, abs(p)))
     return p, time, accuracy, values, iterations, r, spread, direction
+
+
+def _focus(r: Rest) -> bool:
+    """Whether the saddle's leading stable eigenvalue is complex (a saddle-focus on the stable side): the loop comes
+    back spiralling, |y(t) - y_s - 2 pi k| oscillates under its envelope, and (H2) has several roots in T."""
+    eig = r.eigenvalues
+    scale = max(1.0, float(np.max(np.abs(eig))))
+    stable = eig[eig.real < -1e-9 * scale]
+    if not stable.size:
+        return False
+    lead = stable[int(np.argmax(stable.real))]
+    return bool(abs(lead.imag) > REAL_TOL * scale)
+
+
+def _solve_focus_ladder(
+    loop_for: Callable[[float], _Loop], p: float, time: float, r: Rest, ladder: Sequence[float], what: str, direction: np.ndarray
+) -> tuple[float, float, float, list[tuple[float, float, float]], int, Rest, np.ndarray]:
+    """Newton on every rung of ``ladder`` with T fixed (:meth:`_Loop.solve_at_time`: (H0), (H1), no (H2)), for a loop
+    that returns to a saddle-focus. Each rung's T is the last one's plus the time the saddle's linear flow takes to
+    bring the start from the last eps0 to this one (:func:`_taken_back`) and log(ratio) / decay for the arrival, so that
+    the end lies about eps from the shifted saddle, where the linear end condition errs by O(eps^2) in p; p starts from
+    the last rungs' extrapolation (:func:`_extrapolated`). A rung that fails after three have converged ends the ladder;
+    the accuracy is as :func:`_solve_ladder`'s."""
+    values: list[tuple[float, float, float]] = []
+    previous_eps, moved, iterations = None, 0.0, 0
+    direction = np.asarray(direction, dtype=float)
+    for eps in ladder:
+        loop = loop_for(eps)
+        if previous_eps is not None:
+            if direction.size:
+                leaving, direction = _taken_back(r, previous_eps, eps, direction)
+            else:
+                leaving = math.log(previous_eps / eps) / r.rate
+            time += leaving + math.log(previous_eps / eps) / r.decay
+            p = _extrapolated(values, eps, p)
+        loop.direction = direction
+        try:
+            p, moved, iterations, r = loop.solve_at_time(p, time, f"{what} (eps = {eps:g})")
+        except HomoclinicError:
+            if len(values) < 3:
+                raise
+            p, time = values[-1][1], values[-1][2]
+            break
+        direction = loop.direction
+        values.append((eps, p, time))
+        previous_eps = eps
+    spread = abs(values[-1][1] - values[-2][1]) if len(values) > 1 else math.inf
+    accuracy = max(spread, _richardson(values), moved, 100.0 * RTOL * max(1.0, abs(p)))
+    return p, time, accuracy, values, iterations, r, direction
 
 
 def _richardson(values: Sequence[tuple[float, float, float]]) -> float:
@@ -883,12 +982,14 @@ def homoclinic_from_orbit(
         leaving = np.linalg.norm(passage - r.y, axis=1)
         arriving = np.linalg.norm(passage - r.y - shift, axis=1)
         nearest = max(leaving[0], arriving[-1])
+        focus = _focus(r)
         if ORBIT_NEAR * nearest > ladder[0]:
             # A first rung the orbit reaches, where the ladder's first one is too near the saddle for it.
-            if ORBIT_NEAR * nearest > FIRST_RUNG_MAX:
+            widest = FOCUS_FIRST_RUNG_MAX if focus else FIRST_RUNG_MAX
+            if ORBIT_NEAR * nearest > widest:
                 raise HomoclinicError(
                     f"the orbit passes the saddle no nearer than {nearest:.3g}: it is not close enough to its homoclinic "
-                    f"loop (at most {FIRST_RUNG_MAX / ORBIT_NEAR:g})"
+                    f"loop (at most {widest / ORBIT_NEAR:g})"
                 )
             # Rungs at most a factor RUNG_RATIO apart from there to the ladder's first: the loop's sensitivity to p
             # grows like 1 / eps, and a solution at the next rung must lie within Newton's reach of the last one.
@@ -907,16 +1008,67 @@ def homoclinic_from_orbit(
         rests = _Equilibria(system, parameter, found.q, winding, toward)
 
         def loop_for(eps: float) -> _Loop:
-            return _Loop(rests, shift, eps, eps)
+            return _Loop(rests, shift, eps, eps, fixed_time=focus)
 
-        p, time, accuracy, values, iterations, r, _, direction = _solve_ladder(
-            loop_for, parameter, start, back - out, r.rate, r.decay, ladder, "homoclinic end from the orbit", components[1:] / components[0]
-        )
+        tilt = components[1:] / components[0]
+        if focus:
+            p, time, accuracy, values, iterations, r, direction = _solve_focus_ladder(
+                loop_for, start, back - out, r, ladder, "homoclinic end (saddle-focus) from the orbit", tilt
+            )
+        else:
+            p, time, accuracy, values, iterations, r, _, direction = _solve_ladder(
+                loop_for, parameter, start, back - out, r.rate, r.decay, ladder, "homoclinic end from the orbit", tilt
+            )
     except (EvaluationFailed, OrbitError) as err:
         raise HomoclinicError(
             f"the homoclinic orbit near the orbit at {parameter} = {system.parameter(parameter):.10g} was not found: {err}"
         ) from err
     return HomoclinicOrbit(parameter, p, accuracy, r, time, values[-1][0], shift, values, iterations, direction)
+
+
+#: The longest-period orbits (a unit of time apart) of a branch :func:`solve_branch_end` starts from in turn.
+BRANCH_END_TRIES = 6
+
+
+def solve_branch_end(branch, *, ladder: Sequence[float] = EPS_LADDER) -> HomoclinicOrbit | None:
+    """The homoclinic end of an orbit branch whose period grew (:func:`~cosserat_chain.numerics.shooting.continue_orbits`),
+    solved: :func:`homoclinic_from_orbit` from its longest orbits in turn (at most :data:`BRANCH_END_TRIES`, longest
+    first, each at its own parameter value: a snaking approach's fit is no start), the turns those of the orbits.
+
+    The first solved sets ``branch.end_value``, ``end_uncertainty`` (its accuracy) and ``end_method`` ``solved`` and
+    says so in the message; where none is, the branch keeps its fit (``end_method`` ``fitted``) and the message says
+    why. A loop that returns to a saddle-focus (a snaking approach: the period grows while the parameter oscillates about
+    the end, the folds of cycles accumulating there) is solved with T fixed (:func:`_solve_focus_ladder`).
+
+    Returns
+    -------
+    HomoclinicOrbit or None
+        The solved end, or None where no orbit led to one.
+    """
+    orbits: list = []
+    for orbit in sorted(branch.orbits, key=lambda o: -o.period):
+        # Orbits at least a unit of time apart: the longest ones next to each other fail alike (their integration over
+        # a period carries ||M|| times the closure's noise).
+        if len(orbits) < BRANCH_END_TRIES and all(abs(orbit.period - o.period) >= 1.0 for o in orbits):
+            orbits.append(orbit)
+    reasons = []
+    for orbit in orbits:
+        if not np.any(orbit.turns):
+            return None
+        try:
+            end = homoclinic_from_orbit(orbit, turns=orbit.turns, parameter=branch.parameter, ladder=ladder)
+        except HomoclinicError as err:
+            reasons.append(f"from T = {orbit.period:.6g}: {err}")
+            continue
+        branch.end_value, branch.end_uncertainty, branch.end_method = end.value, end.accuracy, "solved"
+        branch.message = branch.message.split("; the period grows like a homoclinic end's")[0] + (
+            f"; homoclinic end {branch.parameter} = {end.value:.12g} +- {end.accuracy:.2g}, solved (a loop through the saddle, "
+            f"from the orbit of period {orbit.period:.6g})"
+        )
+        return end
+    if reasons:
+        branch.message += f"; the homoclinic end was not solved ({'; '.join(reasons)})"
+    return None
 
 
 def _crossing(times: np.ndarray, distance: np.ndarray, eps: float, *, rising: bool, after: float = -math.inf) -> float:

@@ -50,6 +50,7 @@ from ..systems.base import System, SystemDefinitionError
 from . import cycle_events, dop853
 from .brent import brentq
 from .equilibria import EquilibriumNotFound, find_equilibrium
+from .floquet import periodic_schur_multipliers
 from .kit import BranchEnd, Continuation, Evaluation, EvaluationFailed, Event, continuation, newton
 
 #: Tolerances of the shooting integrations.
@@ -57,6 +58,21 @@ RTOL = 1e-11
 ATOL = 1e-11
 #: Newton tolerance on max |R| of (O).
 CLOSURE_TOL = 1e-9
+#: Units of round-off in y0 that the closure resolves: y(T) moves by up to ||M|| times a change of y0, so max |R| cannot
+#: be resolved below NOISE_ULPS eps ||M||_inf max(1, |y0|_inf) (:meth:`_Shooting.converged`); a long orbit near a
+#: homoclinic loop (||M|| ~ 1e7 at T = 26 next to a saddle-focus) has its noise floor above CLOSURE_TOL.
+NOISE_ULPS = 8.0
+#: Above this ||M||_inf the eigenvalues of the formed monodromy carry errors up to O(1) (the trivial multiplier 6e-3
+#: off 1 at T = 27 next to a saddle-focus, a fold's second one lost): the multipliers come instead from the periodic
+#: Schur form of the period's segment matrices (:func:`orbit_multipliers`), each segment growing about SEGMENT_GROWTH.
+SEGMENTED_FROM = 1e4
+SEGMENT_GROWTH = 1e2
+#: Two multipliers are a double one at +1 split by errors where their mean lies within this fraction of their half-split
+#: from +1 (a split is symmetric about the block's trace; a real second multiplier at 1 + s beside the trivial one is not).
+SPLIT_SYMMETRY = 0.25
+#: A continuation ends where the multiplier nearest +1 (the trivial one) lies further from it than this: the monodromy
+#: is too inaccurate to follow or test (near a fold its double multiplier may split by 0.7 and still be followed).
+TRIVIAL_LOST = 0.5
 #: Most DOP853 steps over one period, and per unit of time: a Newton trial that runs into a stiff or
 #: blowing-up state fails in seconds instead of grinding through MAX_STEPS (a roto-breather's trial
 #: below the band did).
@@ -332,6 +348,8 @@ class _Shooting:
     def __init__(self, system: System, turns: np.ndarray, reference: np.ndarray, period: float, unknowns: tuple[str, ...], tol, rtol, atol):
         self.system, self.period, self.unknowns, self.tol, self.rtol, self.atol = system, period, unknowns, tol, rtol, atol
         self.last_period: float | None = None  # set by a continuation (set_reference): the scale of PERIOD_JUMP
+        #: ||M||_inf of the last monodromy computed, and the last y0 evaluated (:meth:`converged`'s noise floor).
+        self.growth, self.current = 1.0, np.asarray(reference, dtype=float)
         for name in unknowns:
             if name != PERIOD:
                 system.parameter(name)
@@ -348,6 +366,18 @@ class _Shooting:
         if period is not None:
             self.last_period = period
 
+    def floor(self, y0: np.ndarray, monodromy: np.ndarray | None) -> float:
+        """The smallest max |R| the closure resolves at y0: :data:`NOISE_ULPS` units of round-off of y0 carried by the
+        monodromy (the last one computed where this evaluation has none)."""
+        if monodromy is not None:
+            self.growth = float(np.linalg.norm(monodromy, np.inf))
+        return NOISE_ULPS * np.finfo(float).eps * self.growth * max(1.0, float(np.max(np.abs(y0))))
+
+    def converged(self, evaluation: Evaluation, norm: float) -> bool:
+        """Newton's test: max |R| <= tol, or the closure's noise floor (:meth:`floor`) where that is larger: a long
+        orbit's R cannot fall below it, and Newton would otherwise grind in the noise and the continuation give up."""
+        return norm <= max(self.tol, self.floor(self.current, evaluation.data))
+
     def pack(self, orbit: Orbit) -> np.ndarray:
         extra = [math.log(orbit.period) if u == PERIOD else orbit.system.parameter(u) for u in self.unknowns]
         return np.concatenate([orbit.y0, extra])
@@ -361,7 +391,9 @@ class _Shooting:
                     raise EvaluationFailed(f"log T = {w[size + i]!r} out of range")
                 period = math.exp(w[size + i])
                 if self.last_period is not None and not self.last_period / PERIOD_JUMP <= period <= self.last_period * PERIOD_JUMP:
-                    raise EvaluationFailed(f"T = {period:.6g} is more than {PERIOD_JUMP:g} times off the last orbit's {self.last_period:.6g}")
+                    raise EvaluationFailed(
+                        f"T = {period:.6g} is more than {PERIOD_JUMP:g} times off the last orbit's {self.last_period:.6g}"
+                    )
             else:
                 values[name] = float(w[size + i])
         return w[:size], period, self.system.with_parameters(**values) if values else self.system
@@ -369,6 +401,7 @@ class _Shooting:
     def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
         size = 2 * self.system.size
         y0, period, system = self.split(w)
+        self.current = y0
         names = [u for u in self.unknowns if u != PERIOD]
         first = names[0] if (jacobian and names) else None
         end, mono, d_first = flow(system, y0, period, variations=jacobian, parameter=first, rtol=self.rtol, atol=self.atol)
@@ -392,11 +425,29 @@ class _Shooting:
             y0=y0.copy(),
             period=period,
             turns=self.turns,
-            multipliers=np.linalg.eigvals(ev.data),
+            multipliers=orbit_multipliers(system, y0, period, ev.data, rtol=self.rtol, atol=self.atol),
             closure=float(np.max(np.abs(ev.residual[:-1]))),
             iterations=iterations,
             monodromy=ev.data,
         )
+
+
+def orbit_multipliers(
+    system: System, y0: np.ndarray, period: float, monodromy: np.ndarray, *, rtol: float = RTOL, atol: float = ATOL
+) -> np.ndarray:
+    """The Floquet multipliers of the orbit from y0: the eigenvalues of ``monodromy`` up to ||M||_inf =
+    :data:`SEGMENTED_FROM`, above it those of the periodic Schur form of m segment matrices (the flow's variations over
+    T / m each, m = log ||M|| / log :data:`SEGMENT_GROWTH` rounded up), which keeps the multipliers near the unit circle
+    accurate however large the others are (:func:`~.floquet.periodic_schur_multipliers`)."""
+    growth = float(np.linalg.norm(monodromy, np.inf))
+    if not growth > SEGMENTED_FROM:
+        return np.linalg.eigvals(monodromy)
+    count = math.ceil(math.log(growth) / math.log(SEGMENT_GROWTH))
+    y, segments = np.asarray(y0, dtype=float), []
+    for _ in range(count):
+        y, segment, _ = flow(system, y, period / count, variations=True, rtol=rtol, atol=atol)
+        segments.append(segment)
+    return periodic_schur_multipliers(segments).values
 
 
 @one_blas_thread
@@ -445,7 +496,7 @@ def find_orbit(
     unknowns = (PERIOD,) if unfold is None else (unfold,)
     shooting = _Shooting(system, k, y0, period, unknowns, tol, rtol, atol)
     start = np.append(y0, math.log(period) if unfold is None else system.parameter(unfold))
-    corrected = newton(shooting.evaluate, start, tol=tol, max_iterations=max_iterations)
+    corrected = newton(shooting.evaluate, start, converged=shooting.converged, max_iterations=max_iterations)
     if not corrected.converged:
         raise OrbitNotFound(
             f"Newton on the periodic orbit of {system.name} {corrected.status} after {corrected.iterations} iterations "
@@ -526,6 +577,9 @@ class OrbitBranch:
     message: str
     end_value: float | None = None
     end_uncertainty: float | None = None
+    #: How ``end_value`` was found: ``fitted`` (the period's growth) or ``solved`` (a homoclinic loop's boundary-value
+    #: problem, :func:`~cosserat_chain.numerics.homoclinic.solve_branch_end`); None where there is no end value.
+    end_method: str | None = None
 
     @property
     def values(self) -> np.ndarray:
@@ -546,8 +600,8 @@ class OrbitBranch:
             "message": self.message,
             "end_value": self.end_value,
             "end_uncertainty": self.end_uncertainty,
-            # The end value is a fit of the period's growth, never a computed point (diagram --system solves it).
-            "end_method": None if self.end_value is None else "fitted",
+            # A fit of the period's growth unless a homoclinic solve replaced it (homoclinic.solve_branch_end).
+            "end_method": None if self.end_value is None else (self.end_method or "fitted"),
         }
 
 
@@ -580,6 +634,9 @@ class _OrbitProblem:
 
     def evaluate(self, w, jacobian):
         return self.shooting.evaluate(w, jacobian)
+
+    def converged(self, evaluation: Evaluation, norm: float) -> bool:
+        return self.shooting.converged(evaluation, norm)
 
     def point(self, w, ev, iterations) -> Orbit:
         orbit = self.shooting.orbit(w, ev, iterations)
@@ -627,13 +684,10 @@ class _OrbitProblem:
             # exp(+-i omega T) at +1: no fold of cycles, the end of the family.
             self.collapsed = orbit
             return False
-        mu = orbit.nontrivial_multipliers
-        if kind == "fold":
-            return bool(np.min(np.abs(mu - 1.0), initial=math.inf) < CONFIRM_TOL**0.5)
-        if kind == "branch_point" and orbit.unfold is None:
+        if kind == "fold" or (kind == "branch_point" and orbit.unfold is None):
             # A branch point of cycles has a second multiplier at +1, as a fold (the parameter does not turn there:
             # the kit's test is the sign of det [dR/dw; t], which a fold leaves alone).
-            return bool(np.min(np.abs(mu - 1.0), initial=math.inf) < CONFIRM_TOL**0.5)
+            return second_multiplier_at_one(orbit.multipliers)
         return True
 
     def stop(self, orbit: Orbit):
@@ -654,6 +708,15 @@ class _OrbitProblem:
                 where = "located at" if ending["located"] else "passed before"
                 kind = BranchEnd(ending["kind"])
                 return kind, f"{ending['kind'].replace('_', ' ')} {where} {name} = {ending['moment']:.12g}: {kind.advice}"
+        lost = _trivial_distance(orbit.multipliers)
+        if orbit.unfold is None and lost > TRIVIAL_LOST:
+            # The trivial multiplier is 1 for every orbit: a monodromy that no longer shows it is too inaccurate to
+            # continue on or to test (near a saddle-focus at T ~ 32 single shooting's y0 carries the closure's noise).
+            return (
+                BranchEnd.INFINITE_PERIOD,
+                f"the shooting's accuracy is exhausted at {name} = {value:.12g}, T = {orbit.period:.8g}: the multiplier nearest +1 is "
+                f"{lost:.2g} from it (||M|| = {np.linalg.norm(orbit.monodromy, np.inf):.2g}); the period grows on",
+            )
         if orbit.period > self.period_max:
             return (
                 BranchEnd.INFINITE_PERIOD,
@@ -664,6 +727,43 @@ class _OrbitProblem:
         if self.until_unstable and self.start_stable and not orbit.stable:
             return BranchEnd.UNSTABLE, f"stability lost near {name} = {value:.12g}"
         return None
+
+
+def _split_double(multipliers: np.ndarray) -> float:
+    """The distance from +1 of the mean of the two multipliers nearest it, less the half-split s squared (the mean's own
+    error), where they are a double multiplier at +1 split by the monodromy's errors (a Jordan block at a fold of cycles
+    splits into 1 +- s, real or a complex pair, about its trace): the mean lies within :data:`SPLIT_SYMMETRY` s of +1;
+    infinite otherwise."""
+    mu = np.asarray(multipliers, dtype=complex)
+    if mu.size < 2:
+        return math.inf
+    first, second = mu[np.argsort(np.abs(mu - 1.0))[:2]]
+    mean, half = 0.5 * (first + second), 0.5 * abs(first - second)
+    # An error e splits the block by sqrt(e) and moves its mean by O(e), the half-split squared.
+    return max(0.0, float(abs(mean - 1.0)) - half**2) if abs(mean - 1.0) <= SPLIT_SYMMETRY * half else math.inf
+
+
+def _trivial_distance(multipliers: np.ndarray) -> float:
+    """How far the trivial multiplier lies from +1: the nearest one's distance, or the split double one's
+    (:func:`_split_double`) where smaller."""
+    mu = np.asarray(multipliers, dtype=complex)
+    nearest = float(np.min(np.abs(mu - 1.0), initial=math.inf))
+    return min(nearest, _split_double(mu))
+
+
+def second_multiplier_at_one(multipliers: np.ndarray) -> bool:
+    """Whether a second multiplier lies at +1 beside the trivial one (a fold or branch point of cycles): the second
+    nearest +1 within the square root of :data:`CONFIRM_TOL`, or the two nearest a double multiplier split about +1
+    (:func:`_split_double`) whose mean is.
+
+    The double multiplier is a Jordan block, which an error e of the monodromy splits by about sqrt(e); next to a
+    saddle-focus the long orbit's monodromy carries errors that split it into 1 +- 0.18i (T = 27, ||M|| ~ 2e5) while
+    the mean, the block's trace, stays within 0.02 of 1."""
+    mu = np.asarray(multipliers, dtype=complex)
+    if mu.size < 2:
+        return False
+    second = mu[np.argsort(np.abs(mu - 1.0))[1]]
+    return bool(abs(second - 1.0) < CONFIRM_TOL**0.5 or _split_double(mu) < CONFIRM_TOL**0.5)
 
 
 def _shrunk_onto_equilibrium(orbit: Orbit) -> bool:
@@ -756,6 +856,7 @@ def continue_orbits(
     if traced.end == BranchEnd.INFINITE_PERIOD or (traced.end == BranchEnd.STEP_TOO_SMALL and growing):
         branch.end_value, branch.end_uncertainty = _fitted_end(branch)
         if branch.end_value is not None:
+            branch.end_method = "fitted"
             branch.message += (
                 f"; the period grows like a homoclinic end's: fitted end {parameter} = {branch.end_value:.10g} "
                 + ("" if branch.end_uncertainty is None else f"+- {branch.end_uncertainty:.2g} ")
