@@ -1102,6 +1102,8 @@ def read_dataset(path: str | Path) -> xr.Dataset:
         mode = path.stat().st_mode
     except FileNotFoundError:
         raise ValueError(f"{str(path)!r} does not exist") from None
+    except OSError as err:  # a loop of symbolic links, a folder on the way that may not be searched, a name too long
+        raise ValueError(f"{str(path)!r} cannot be read: {err.strerror}") from None
     if not stat.S_ISREG(mode):
         raise ValueError(f"{str(path)!r} is {_kind(mode)}, not a NetCDF file")
     import xarray as xr

@@ -214,6 +214,11 @@ CROSSING_NUDGE = 1e-3
 #: :data:`CROSSING_TURN` rad beyond its start, to its first maximum of M (located by Brent's method on dM/dphi_0).
 CROSSING_STEP = 0.02
 CROSSING_TURN = 2 * math.pi
+#: A step whose state changes more than this many times faster per radian than the step before it has left the followed
+#: branch (where the branch turns back in phi_0 the held angle's solve lands on another one: the N = 2 graded chain of
+#: tests/test_audit_fourteenth_chain.py, whose followed branch ends at M = 1.730 while a jump gave a fold at 1.766): it
+#: counts as a failed solve, the step is halved.
+CROSSING_JUMP = 10.0
 #: Most stable branches a slowly loaded chain is followed onto, one after another, past the end of the traced branch's
 #: stable part (:func:`onset_past`); still at rest past the last one's fold, M_c is that fold's moment, a lower bound.
 MAX_CROSSINGS = 4
@@ -825,7 +830,8 @@ def crossing_fold(params: ChainParams, model: Model, point: BranchPoint | Fold, 
     is followed with the loaded particle's angle held (:func:`~cosserat_chain.numerics.newton.solve_rotation_controlled`,
     steps of :data:`CROSSING_STEP`) while it stays stable, to its first maximum of M, located by Brent's method on
     dM/dphi_0 (:func:`~cosserat_chain.numerics.continuation.locate_fold`): ``(fold, False)``, the fold of M_c. Where
-    that branch turns unstable before a maximum (a branch point of its own), a solve fails, or no maximum comes within
+    that branch turns unstable before a maximum (a branch point of its own), a solve fails or leaves the branch
+    (:data:`CROSSING_JUMP`; the branch turns back in phi_0 before its maximum of M), or no maximum comes within
     :data:`CROSSING_TURN` rad: ``(None, True)``, M_c unresolved (the branch point's moment is then a lower bound).
     """
     from ..numerics.relaxation import relax  # the dynamics' engine only where a branch point needs it
@@ -842,10 +848,13 @@ def crossing_fold(params: ChainParams, model: Model, point: BranchPoint | Fold, 
     if rest is None:
         return None, False
     x, held = rest, float(rest[ROW_INDEX["phi"], col])
-    start, delta = held, math.copysign(CROSSING_STEP, moment)
+    start, delta, rate = held, math.copysign(CROSSING_STEP, moment), None
     while abs(held - start) < CROSSING_TURN:
         try:
             new_x, new_moment = solve_rotation_controlled(params, model, held + delta, particle=particle, x0=x, moment0=moment)
+            change = float(np.max(np.abs(new_x - x))) / abs(delta)
+            if rate is not None and change > CROSSING_JUMP * rate:
+                raise NewtonError(f"the solve at phi_0 = {held + delta:.10g} left the followed branch", new_x)
         except NewtonError:
             if abs(delta) < CROSSING_STEP / 2**10:
                 return None, True
@@ -856,7 +865,7 @@ def crossing_fold(params: ChainParams, model: Model, point: BranchPoint | Fold, 
             return (fold, False) if fold is not None else (None, True)
         if not static_stability(params, model, new_x).stable:
             return None, True
-        x, moment, held = new_x, new_moment, held + delta
+        x, moment, held, rate = new_x, new_moment, held + delta, change
     return None, True
 
 
