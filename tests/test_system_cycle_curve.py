@@ -81,14 +81,20 @@ def test_a_system_s_curve_refuses_unknown_parameters_and_bad_values(curve):
         continue_cycle_end(start, "hopf", "eps", [0.1], parameter="I")
 
 
-def test_the_system_diagram_follows_each_row_s_period_doubling_to_the_next_value(curve):
+def test_the_system_diagram_follows_each_row_s_period_doubling_to_the_next_value(curve, monkeypatch):
     """``system_diagram(codim2=True)`` on the pen demo: each row's orbit loses stability at a period doubling, whose
     curve from eps = 0.1 reaches eps = 0.12 where that row's own one-parameter continuation locates it, and where
-    the curve followed from the located start (the fixture) lies, to 1e-8; JSON and NetCDF carry the entries."""
+    the curve followed from the located start (the fixture) lies, to 1e-8; JSON and NetCDF carry the entries. The rows'
+    homoclinic ends, which the curve does not read, are left unsolved here (``tests/test_system_diagram.py`` solves them)."""
     import json
 
+    from cosserat_chain.experiments import system_diagram as system_diagram_module
     from cosserat_chain.experiments.system_diagram import SystemDiagram, system_diagram
 
+    def end_not_solved(row, system, drive, k, winding, branch, last):
+        row.stops, row.method = last, "last_orbit"
+
+    monkeypatch.setattr(system_diagram_module, "_homoclinic", end_not_solved)
     diagram = system_diagram(pen(), "eps", [0.1, 0.12], "I", codim2=True)
     assert [row.curve for row in diagram.rows] == ["period_doubling", "period_doubling"]
     (entry,) = diagram.codim2_between
