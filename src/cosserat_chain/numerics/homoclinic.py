@@ -56,6 +56,12 @@ tilted by m - 1 coefficients a into the others, y(0) = y_s + eps0 (v_u + V a) / 
 and (H1) asks the end to lie on the stable eigenspace, W^T (y(T) - y_s - 2 pi k) = 0 with W
 the m left unstable eigenvectors: m + 1 equations in (p, T, a). A saddle with a complex
 unstable pair (the sine chain's unstable branch past a Hopf point) is refused with a message.
+
+A saddle whose leading stable eigenvalues are a complex pair (a saddle-focus: the loop comes back
+spiralling, and a rotation snakes into it through a fold of cycles at every turn) is solved by
+:func:`homoclinic_from_orbit` with T fixed instead of (H2), whose |d| oscillates under its
+envelope and has several roots in T (:func:`_solve_focus_ladder`); :func:`solve_branch_end` does
+so for an orbit branch from its longest orbits.
 """
 
 from __future__ import annotations

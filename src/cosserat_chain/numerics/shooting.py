@@ -19,15 +19,22 @@ backs up during a turn, so a continuation cannot stop at a section's false fold.
   on a compiled system (:class:`~cosserat_chain.systems.base.FlowKernels`), otherwise by
   SciPy's DOP853 on the system's Python forces.
 * :func:`find_orbit` solves (O) by Newton (:func:`cosserat_chain.numerics.kit.newton`)
-  in (y0, T); the Floquet multipliers are the eigenvalues of the monodromy.
+  in (y0, T); the Floquet multipliers are the eigenvalues of the monodromy M, or above
+  ||M|| = :data:`SEGMENTED_FROM` those of the periodic Schur form of its segments
+  (:func:`orbit_multipliers`). Newton stops at max |R| <= tol or at the closure's noise floor,
+  :data:`NOISE_ULPS` eps ||M|| |y0|, where that is larger (a long orbit next to a saddle).
 * :func:`continue_orbits` follows the orbit in any parameter with the one
   pseudo-arclength driver (:func:`cosserat_chain.numerics.kit.continuation`), in
-  (y0, log T, p); it locates folds of cycles (confirmed by a second multiplier at +1)
+  (y0, log T, p); it locates folds of cycles (confirmed by a second multiplier at +1, or a
+  double one split symmetrically about +1 by the monodromy's errors: :func:`second_multiplier_at_one`)
   and branch points, period doublings (a multiplier at -1) and tori (a complex pair on the
   unit circle) by the package's one mechanism for them (:mod:`~.cycle_events`: its test
   functions watched at every step, Brent's method in p, each trial an orbit solved at its
   p), and ends where the period diverges, with the end fitted from the
-  period's growth and the fit's spread given as its uncertainty, or where an oscillation
+  period's growth and the fit's spread given as its uncertainty (``end_method`` ``fitted``;
+  :func:`~cosserat_chain.numerics.homoclinic.solve_branch_end` solves it), where the monodromy
+  no longer shows the trivial multiplier within :data:`TRIVIAL_LOST` of +1 (single shooting's
+  accuracy exhausted, the period growing on), or where an oscillation
   shrinks onto an equilibrium at a Hopf point (there the parameter turns too, with the
   equilibrium's pair at +1, but no fold of cycles is reported).
 * A conservative system's orbits come in families: ``unfold=`` names a damping parameter
