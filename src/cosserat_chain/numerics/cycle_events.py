@@ -17,7 +17,8 @@ every step, so that ``stop_at`` can end the branch there).
 of a branch by Brent's method in the branch's parameter (:func:`~.brent.brentq`; M for the chain,
 ``value`` says which for another branch), each trial the orbit re-solved at its parameter value
 by the branch's own corrector from the orbit interpolated between a and b (a ``solve`` the caller
-passes), to :data:`MOMENT_TOL` in the parameter, and polished by one secant step on the test (the event's own
+passes), to :data:`MOMENT_TOL` in the parameter (a step that holds a located fold, where the parameter turns, in
+its two halves on either side of the fold: :func:`steps`, on every shooting branch), and polished by one secant step on the test (the event's own
 refinement, which puts its critical multiplier on -1 or the circle to the orbits' accuracy). The test functions, not the critical multiplier itself, are the
 functions whose zero is sought: they are symmetric functions of the multipliers near the circle and
 stay continuous where two of them collide (at a period doubling of the paper's chain a complex pair
@@ -45,7 +46,7 @@ multiplier crossing the unit circle lies above either bound on both sides of the
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -210,8 +211,34 @@ def circle_events_between(
     return found
 
 
+def steps(orbits: Sequence[Any], folds: Mapping[int, Any] | None = None) -> list[tuple[int, Any, Any]]:
+    """The steps of a branch in which :func:`circle_events_between` looks, each as (the index of the orbit after it, a, b):
+    the consecutive pairs of ``orbits``, but a step that holds a located fold in its two halves, from the orbit before
+    to the fold's and from the fold's to the orbit after.
+
+    Across a fold the parameter turns: between the step's two orbits the branch passes every value twice or not at
+    all, so Brent's method in the parameter has no bracket, and a trial interpolated between them lies on neither side
+    (a period doubling 1.2e-5 in I before a fold of a driven chain was reported unlocated, at the step's end); on each
+    half the parameter is monotone. ``folds`` maps the index of the orbit after each such step to the fold's orbit (the
+    kit's located ``fold`` events). Every branch of rotating orbits searches its steps so: a user system's
+    (:func:`~.shooting.continue_orbits`) and the chain's (:func:`~.periodic.continue_orbit`).
+    """
+    folds = folds or {}
+    return [
+        (i, a, b)
+        for i in range(1, len(orbits))
+        for a, b in ([(orbits[i - 1], folds[i]), (folds[i], orbits[i])] if i in folds else [(orbits[i - 1], orbits[i])])
+    ]
+
+
 def locate_circle_events(
-    orbits: Sequence[Any], solve: Solve, *, value: Value = moment, tol: float = MOMENT_TOL, splits: int = SPLITS
+    orbits: Sequence[Any],
+    solve: Solve,
+    *,
+    value: Value = moment,
+    tol: float = MOMENT_TOL,
+    splits: int = SPLITS,
+    folds: Mapping[int, Any] | None = None,
 ) -> list[tuple[int, dict]]:
     """The period doublings and tori between consecutive ``orbits`` of a branch, located in its parameter (module docstring).
 
@@ -233,6 +260,9 @@ def locate_circle_events(
         Brent's tolerance in the parameter, each located event's ``"accuracy"``.
     splits : int
         Most halvings of one step.
+    folds : mapping of int to orbit, optional
+        The located folds of the branch, each at the index of the orbit after it: the step that holds one is searched
+        in its halves on either side of it (:func:`steps`).
 
     Returns
     -------
@@ -241,7 +271,6 @@ def locate_circle_events(
         and ``orbits[i]``) and its record (:func:`event_record`, ``"moment"`` the parameter's value; a located one with
         ``"accuracy"`` and its ``"orbit"``).
     """
-    found = []
-    for i in range(1, len(orbits)):
-        found.extend((i, event) for event in circle_events_between(orbits[i - 1], orbits[i], solve, value=value, tol=tol, splits=splits))
-    return found
+    return [
+        (i, event) for i, a, b in steps(orbits, folds) for event in circle_events_between(a, b, solve, value=value, tol=tol, splits=splits)
+    ]

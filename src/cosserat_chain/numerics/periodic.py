@@ -80,7 +80,7 @@ from . import collocation_core, cycle_events, dop853, floquet, long_orbits, newt
 from .addresses import entry
 from .dynamics import TurnWatch, integrate
 from .integrators import default_time_step
-from .kit import BranchEnd, Correction, Evaluation, EvaluationFailed, continuation, newton
+from .kit import BranchEnd, Correction, Evaluation, EvaluationFailed, Event, continuation, newton
 
 #: Step of the fourth-order central differences of the force kernel: dF/dq is then accurate
 #: to ~5e-13 of |K| against the nonlinear model's exact stiffness at displacements of 0.1,
@@ -1329,7 +1329,9 @@ def continue_orbit(
     (to :data:`~.cycle_events.MOMENT_TOL`) on that test, each trial the orbit re-solved at its M by
     :func:`find_periodic_orbit` with this ``method`` (and ``segments``) from the orbit interpolated
     between the two; kept where the critical multiplier lies on -1 or the unit circle
-    (:attr:`OrbitBranch.events`). With ``picard`` the tests see the multipliers above rho only,
+    (:attr:`OrbitBranch.events`). M turns in the step that holds the fold, so where a test also changes sign
+    there the kit locates the fold (then the branch's ``end_moment``) and that step is searched in its two halves on
+    either side of it (:func:`~.cycle_events.steps`, as on a system's branch). With ``picard`` the tests see the multipliers above rho only,
     where every crossing of the unit circle happens.
 
     Parameters
@@ -1431,11 +1433,14 @@ def continue_orbit(
             corrector={"max_iterations": MAX_CORRECTOR_ITERATIONS, "chord": NEWTON_RATE, "forgive": 0},
             easy=EASY_ITERATIONS,
             hard=HARD_ITERATIONS,
-            locate=False,  # the fold's moment is the parabola through the last three orbits (_fold_moment)
+            # The fold's moment is the parabola through the last three orbits (_fold_moment); the kit locates a fold only
+            # in a step where a circle test also changes sign (_OrbitBranchProblem.locate), whose halves are searched.
+            locate=True,
             tangent_method="svd",
             first=first,
         )
         orbits.extend(traced.points[1:] if orbits else traced.points)
+        folds = {offset + e.index: e.point for e in traced.events if e.kind == BranchEnd.FOLD and e.located}
         turned_falsely = traced.end == BranchEnd.FOLD and not _crosses_one(*traced.points[-2:])
         if not ((problem.rechoose or turned_falsely) and phase.normal is None and len(traced.points) >= 2):
             break
@@ -1464,12 +1469,15 @@ def continue_orbit(
     elif traced.end == BranchEnd.STEP_TOO_SMALL:
         message = f"the arclength step fell below min_step={min_step:g} after M={orbits[-1].moment:.10g}"
     end_moment = orbits[-1].moment
-    if end == END_FOLD and len(orbits) >= 3:
+    if end == END_FOLD and folds:
+        end_moment = next(iter(folds.values())).moment
+    elif end == END_FOLD and len(orbits) >= 3:
         end_moment = _fold_moment(orbits[-3:], sign)
     # Period doublings and tori located in M between the orbits where their tests turned, each trial re-solved by this
-    # branch's corrector (cycle_events); branch points of cycles interpolated: in the order of the branch.
+    # branch's corrector (cycle_events; a step that holds a located fold in its halves on either side of it, as on a
+    # system's branch); branch points of cycles interpolated: in the order of the branch.
     between = partial(_orbit_between, method=method, segments=segments, tol=tol, rtol=rtol, atol=atol)
-    found = [*_branch_points(orbits, end == END_FOLD), *cycle_events.locate_circle_events(orbits, between)]
+    found = [*_branch_points(orbits, end == END_FOLD), *cycle_events.locate_circle_events(orbits, between, folds=folds)]
     events = [event for _, event in sorted(found, key=lambda item: item[0])]
     message = "; ".join([message, *notes])
     return OrbitBranch(orbits=orbits, end=end, end_moment=float(end_moment), message=message, settings=settings, events=events)
@@ -1624,6 +1632,16 @@ class _OrbitBranchProblem:
 
     def confirm(self, kind: str, point: PeriodicOrbit) -> bool:
         return True
+
+    def locate(self, kind: str, w, t, h, previous: PeriodicOrbit, candidate: PeriodicOrbit, index: int) -> Event | None:
+        """The kit's event of ``kind`` between ``previous`` and ``candidate`` as the kit reports an unlocated one (at
+        ``candidate``), but a fold in a step where a test of :func:`~.cycle_events.circle_tests` also changes sign: None,
+        so that the kit locates it (its orbit splits the step for :func:`~.cycle_events.locate_circle_events`).
+        Newton-Picard's corrections have no formed Jacobian to locate with: its folds stay unlocated."""
+        before, after = (cycle_events.circle_tests(orbit.nontrivial_multipliers) for orbit in (previous, candidate))
+        if kind == BranchEnd.FOLD and self.method != "picard" and any(before[k] * after[k] < 0 for k in cycle_events.CIRCLE_KINDS):
+            return None
+        return Event(kind, candidate, candidate.moment, index, None, located=False)
 
 
 #: Subspace-iteration sweeps for each orbit's multipliers on a picard branch, from the last point's basis: those near the
