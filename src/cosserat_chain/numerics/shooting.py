@@ -877,15 +877,13 @@ def _with_circle_events(problem: _OrbitProblem, traced: Continuation) -> list[Ev
     (:meth:`_OrbitProblem.circle_events`, those :meth:`~_OrbitProblem.stop` found reused), in the order of the branch
     (within a step the period doublings and tori first: the loss of stability the kit locates at one is listed after it).
 
-    Across a step that holds a located fold the parameter turns: Brent's method in it has no bracket there (a period
-    doubling 1.2e-5 in I before a fold of a driven chain was reported unlocated, at the step's end), so such a step is
-    searched in its two halves, from the orbit before to the fold's and from the fold's to the orbit after."""
-    points = traced.points
+    Across a step that holds a located fold the parameter turns: Brent's method in it has no bracket there, so such a
+    step is searched in its two halves, from the orbit before to the fold's and from the fold's to the orbit after
+    (:func:`~.cycle_events.steps`, as on the chain's branch)."""
     folds = {e.index: e.point for e in traced.events if e.kind == "fold" and e.located}
     found = [
         Event(e["kind"], e["orbit"] if e["located"] else b, e["moment"], i, None, located=e["located"])
-        for i in range(1, len(points))
-        for a, b in ([(points[i - 1], folds[i]), (folds[i], points[i])] if i in folds else [(points[i - 1], points[i])])
+        for i, a, b in cycle_events.steps(traced.points, folds)
         for e in problem.circle_events(a, b)
     ]
     return sorted([*found, *traced.events], key=lambda event: event.index)
