@@ -81,3 +81,13 @@ def test_a_loop_of_symbolic_links_given_as_a_run_is_refused_naming_it(tmp_path):
     assert result.exit_code == 2, result.output
     assert "cannot be read: Too many levels of symbolic links" in result.output and str(tmp_path / "a") in result.output
     assert not (tmp_path / "x.csv").exists()
+
+
+def test_diagram_on_a_chain_too_long_is_refused_by_its_estimate_before_any_array(tmp_path):
+    """``diagram`` indexed the chain's degrees of freedom (the fold curve's moment_dof) before any memory check: N = 10^9
+    failed at a 44.7 GiB allocation (N = 3 x 10^8 would have taken 7 GB); now critical's estimate refuses it first."""
+    config = tmp_path / "huge.toml"
+    config.write_text("N = 1000000000\n")
+    result = CliRunner().invoke(app, ["diagram", "--vary", "E2", "--values", "0.5", "--config", str(config)])
+    assert result.exit_code == 2, result.output
+    assert "not enough memory: diagram on 2000000001 particles (N=1000000000) needs about" in result.output

@@ -86,6 +86,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..linalg.threads import one_blas_thread
+from ..memory import require
 from ..models.base import get_model
 from ..numerics.continuation import continue_in_moment
 from ..numerics.cycle_curve import KINDS, continue_cycle_end, locate_circle_event, locate_cycle_end, torus_angle
@@ -97,6 +98,7 @@ from ..numerics.periodic import OrbitError, PeriodicOrbit, continue_orbit, find_
 from ..numerics.relaxation import relax
 from ..params import ChainParams
 from ..state import column
+from .critical import critical_memory
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -879,6 +881,12 @@ def state_diagram(
         raise ValueError(f"period_max must be a finite number > 0, got {period_max!r}")
     if not isinstance(codim2, bool):
         raise ValueError(f"codim2 must be True or False, got {codim2!r}")
+    # Each value's branch is traced as by critical: its least memory is checked before the fold curve indexes the chain.
+    require(
+        critical_memory(params, model, near_singular=True),
+        f"diagram on {params.n_particles} particles (N={params.N})",
+        "a shorter chain (N)",
+    )
     curve = continue_fold(params, model, field_name, values)
     diagram = StateDiagram(params=params, model=model.name, field=field_name, turns=turns, independent=curve.independent)
     total = len(values)
