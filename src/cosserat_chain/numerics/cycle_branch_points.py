@@ -47,7 +47,7 @@ from ..state import n_free, pack, unpack
 from . import shooting
 from .cycle_curve import locate_cycle_end
 from .cycle_switching import OFFSET, Point, _March, _where, continue_family
-from .kit import branch_directions
+from .kit import branch_directions, illinois
 from .periodic import (
     ATOL,
     CLOSURE_TOL,
@@ -267,16 +267,7 @@ def _refined(branch: shooting.OrbitBranch, event, tol: float, rtol: float, atol:
             best = orbit
         if abs(f) <= REFINE_TOL or abs(p_high - p_low) <= 1e-13 * max(1.0, abs(value)):
             break
-        if f * f_low > 0:
-            low, f_low = orbit, f
-            if side == 1:
-                f_high *= 0.5
-            side = 1
-        else:
-            high, f_high = orbit, f
-            if side == -1:
-                f_low *= 0.5
-            side = -1
+        low, f_low, high, f_high, side = illinois(orbit, f, low, f_low, high, f_high, side)
     return best
 
 

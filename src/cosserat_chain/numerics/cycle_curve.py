@@ -86,7 +86,7 @@ from ..state import n_free
 from . import shooting
 from .cycle_events import CIRCLE_KINDS, circle_events_between
 from .fold_curve import FIELDS, chain_with, field_values
-from .kit import BranchEnd, Correction, Corrector, Evaluation, EvaluationFailed, Event, continuation, newton
+from .kit import BranchEnd, Correction, Corrector, Evaluation, EvaluationFailed, Event, continuation, illinois, newton
 from .periodic import (
     ATOL,
     CLOSURE_TOL,
@@ -1197,16 +1197,7 @@ def _cusp(augmented: _Augmented, found: list[tuple], kind: str) -> Codim2Point |
         f = float(ts[-1])
         if abs(f) < best[0]:
             best = (abs(f), corrected[0], ts, corrected)
-        if f * f_low > 0:
-            low, f_low = s, f
-            if side == 1:
-                f_high *= 0.5
-            side = 1
-        else:
-            high, f_high = s, f
-            if side == -1:
-                f_low *= 0.5
-            side = -1
+        low, f_low, high, f_high, side = illinois(s, f, low, f_low, high, f_high, side)
     _, w, tw, corrected = best
 
     def orbit_of(w: np.ndarray, corrected) -> PeriodicOrbit:

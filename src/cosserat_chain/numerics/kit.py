@@ -757,6 +757,41 @@ def _all_tests(problem: ContinuationProblem, point, jacobian, t: np.ndarray) -> 
     return tests
 
 
+def illinois(x, f: float, low, f_low: float, high, f_high: float, side: int) -> tuple[Any, float, Any, float, int]:
+    """One update of the Illinois (modified regula falsi) bracket [low, high] by a trial ``x`` with value ``f``.
+
+    ``x`` replaces the end whose value has the sign of ``f`` (``low`` where f f_low > 0, else ``high``); when the
+    same end is replaced twice running, the value kept at the other end is halved, so that the secant's next trial
+    moves past it (superlinear convergence, where plain regula falsi keeps one end for ever). The ends may be
+    numbers or anything the caller brackets with (orbits, points).
+
+    Parameters
+    ----------
+    x : object
+        The trial.
+    f : float
+        Its value.
+    low, high : object
+        The bracket's ends.
+    f_low, f_high : float
+        Their values (of opposite signs).
+    side : int
+        Which end the previous update replaced: 1 ``low``, -1 ``high``, 0 none yet.
+
+    Returns
+    -------
+    low, f_low, high, f_high, side
+        The updated bracket and the end this update replaced.
+    """
+    if f * f_low > 0:
+        if side == 1:
+            f_high *= 0.5
+        return x, f, high, f_high, 1
+    if side == -1:
+        f_low *= 0.5
+    return low, f_low, x, f, -1
+
+
 def _locate(
     problem, kind: str, w: np.ndarray, t: np.ndarray, h: float, before: float, after: float, index: int, fallback, options, method: str
 ) -> Event:
@@ -791,16 +826,7 @@ def _locate(
         best = (point, corrected.w[-1], t_s)
         if value == 0 or (high - low) < EVENT_TOL * max(1.0, h):
             break
-        if value * f_low < 0:
-            high, f_high = s, value
-            if side == -1:
-                f_low *= 0.5
-            side = -1
-        else:
-            low, f_low = s, value
-            if side == 1:
-                f_high *= 0.5
-            side = 1
+        low, f_low, high, f_high, side = illinois(s, value, low, f_low, high, f_high, side)
     if best is None:
         return Event(kind, fallback, float(np.nan), index, None, located=False)
     return Event(kind, best[0], float(best[1]), index, best[2])
