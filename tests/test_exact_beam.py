@@ -157,3 +157,29 @@ def test_theory_cli_elastica_matches_the_library_and_refuses_a_bad_load():
     assert data["angle_error"] == pytest.approx(list(library.angle_error), rel=1e-8)
     bad = runner.invoke(app, ["theory", "--elastica", "-1"])
     assert bad.exit_code == 2 and "--elastica" in bad.output
+
+
+def test_a_coarse_chain_whose_branch_folds_below_the_end_force_is_refused_with_where_it_folds(tmp_path):
+    """N = 2 of large particles (a = 0.43 h) folds at 0.766 of F (2L)^2 / EI = 1.3: the elastica table says so
+    (exit 2, the fold's fraction), where it raised Newton's traceback; just below the fold the chain's state is
+    the one its branch from rest reaches, and just above none is."""
+    import re
+
+    from typer.testing import CliRunner
+
+    from cosserat_chain.analysis.exact_beam import elastica_convergence
+    from cosserat_chain.cli import app
+
+    chain = ChainParams(E1=1.37, E2=0.61, a=0.43, b=0.29, m=1.2, j=0.07, left_end="clamped", right_end="free")
+    config = tmp_path / "coarse.toml"
+    config.write_text("E1 = 1.37\nE2 = 0.61\na = 0.43\nb = 0.29\nm = 1.2\nj = 0.07\n")
+    result = CliRunner().invoke(app, ["theory", "--config", str(config), "--n-list", "2,4,8", "--elastica", "1.3"])
+    assert result.exit_code == 2, result.output
+    assert "N = 2 chain" in result.output and "folds at" in result.output
+    fraction = float(re.search(r"folds at ([0-9.]+) of it", result.output).group(1))
+    assert 0.7 < fraction < 0.8
+    below = elastica_convergence(chain, [2], load=1.3 * fraction * (1 - 1e-3))
+    with pytest.raises(ValueError, match="folds at"):
+        elastica_convergence(chain, [2], load=1.3 * fraction * (1 + 1e-3))
+    # Near its fold the coarse chain's tip is off the beam's by more than 0.01 h: its own state, not the beam sampled.
+    assert below.chain_tip[0, 1] > 1.2 and abs(below.chain_tip[0, 1] - below.beam_tip[0, 1]) > 0.01

@@ -423,11 +423,12 @@ def elastica_convergence(
     Raises
     ------
     ValueError
-        For another kind of ends, an empty list or N < 1, or a load that is not finite and > 0.
+        For another kind of ends, an empty list or N < 1, a load that is not finite and > 0, or
+        a chain whose branch from rest folds below the load (no static state to compare).
     """
     from ..loads import Loads, Schedule
     from ..loads import PointLoad as ChainLoad
-    from ..numerics.newton import solve_equilibrium
+    from ..numerics.newton import BranchEndError, NewtonError, solve_equilibrium
 
     _require_cantilever(params, "the elastica")
     if not (math.isfinite(load) and load > 0):
@@ -439,7 +440,17 @@ def elastica_convergence(
         length = 2 * n * chain.h
         force = load * beam_stiffness(chain).EI / length**2
         beam = cantilever(chain, force=(0.0, force), steps=steps)
-        state = solve_equilibrium(chain, "nonlinear", Loads([ChainLoad("v", n, Schedule.constant(force))]), x0=beam.at_particles(chain))
+        loads = Loads([ChainLoad("v", n, Schedule.constant(force))])
+        try:
+            state = solve_equilibrium(chain, "nonlinear", loads, x0=beam.at_particles(chain))
+        except NewtonError:
+            # The beam is a start, not the chain's state: a coarse chain of large particles can sit far
+            # from it. The chain's own branch from rest decides then, and says where it ends if it folds.
+            try:
+                state = solve_equilibrium(chain, "nonlinear", loads)
+            except NewtonError as err:
+                why = f"its branch from rest folds at {err.load_factor:.6g} of it" if isinstance(err, BranchEndError) else str(err)
+                raise ValueError(f"no static state of the N = {n} chain holds the end force F = {force:.6g}: {why}") from err
         rows.append(((n * chain.h + state[0, -1], state[1, -1]), (beam.x[-1], beam.y[-1]), state[2, -1], beam.theta[-1], length))
     tips, beam_tips, angles, beam_angles, lengths = zip(*rows)
     return ElasticaConvergence(
