@@ -296,7 +296,11 @@ def lowest_real_eigenvalue(matrix: sp.spmatrix) -> complex:
 
     # A wide Krylov space: the eigenvalues near the shift are clustered, and 40 vectors
     # converge in fewer restarts than ARPACK's default of 20 (benchmarks/TIMINGS.md).
-    return complex(spla.eigs(matrix.tocsc(), k=1, sigma=shift, which="LM", ncv=min(matrix.shape[0] - 1, 40), return_eigenvectors=False)[0])
+    # The fixed start: ARPACK's own is random, and the eigenvalue's last digits would change from run to run.
+    start = np.array(_start_vector(matrix.shape[0]))
+    return complex(
+        spla.eigs(matrix.tocsc(), k=1, sigma=shift, which="LM", ncv=min(matrix.shape[0] - 1, 40), v0=start, return_eigenvectors=False)[0]
+    )
 
 
 #: Arnoldi vectors at least of :func:`largest_and_nearest`'s ARPACK runs (and 2 count + 1): crowded leading eigenvalues
@@ -348,7 +352,7 @@ def largest_and_nearest(product, inverse, size: int, shift: float, count: int, *
     for apply, convert in ((product, lambda nu: nu), (inverse, lambda nu: shift + 1.0 / nu)):
         operator = spla.LinearOperator((size, size), matvec=apply, matmat=apply, dtype=float)
         try:
-            nu, v = spla.eigs(operator, k=k, which="LM", ncv=krylov, tol=tol, maxiter=restarts)
+            nu, v = spla.eigs(operator, k=k, which="LM", ncv=krylov, tol=tol, maxiter=restarts, v0=np.array(_start_vector(size)))
         except spla.ArpackNoConvergence as err:
             nu, v = err.eigenvalues, err.eigenvectors
         found.append(convert(nu))

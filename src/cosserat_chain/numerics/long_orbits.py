@@ -700,12 +700,13 @@ def _leading_core(matrix: np.ndarray, reflect, core_product, count: int, dimensi
         return values, vectors
     # ARPACK on the products: a deflated copy of M would double the memory of a long chain's multipliers.
     core = spla.LinearOperator((size - 1, size - 1), matvec=core_product, matmat=core_product, dtype=float)
+    start = np.random.default_rng(SEED).standard_normal(size - 1)
     try:
-        return spla.eigs(core, k=min(count, size - 3), which="LM", tol=ARNOLDI_TOL, maxiter=ARPACK_RESTARTS)
+        # The fixed start (ARPACK's own is random): the multipliers' last digits do not change from run to run.
+        return spla.eigs(core, k=min(count, size - 3), which="LM", tol=ARNOLDI_TOL, maxiter=ARPACK_RESTARTS, v0=start.copy())
     except spla.ArpackNoConvergence as err:
         if err.eigenvalues.size >= count:
             return err.eigenvalues, err.eigenvectors
-    start = np.random.default_rng(SEED).standard_normal(size - 1)
     return _arnoldi(core_product, start, count, dimension)
 
 
