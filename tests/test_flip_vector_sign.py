@@ -15,7 +15,7 @@ import scipy.linalg as sla
 
 from cosserat_chain import ChainParams
 from cosserat_chain.numerics import cycle_switching
-from cosserat_chain.numerics.cycle_switching import doubled_orbit, flip_vector, switch_at_period_doubling
+from cosserat_chain.numerics.cycle_switching import doubled_orbit, flip_vector
 from cycle_ends import shooting_crossing
 
 #: LAPACK's eigensolver as scipy gives it, kept before any test replaces it.
@@ -56,14 +56,3 @@ def test_the_doubled_orbit_does_not_depend_on_lapacks_sign(point, monkeypatch):
     # The orbit half a period on (the other sign of the amplitude) is another start of the same doubled orbit, not this one.
     other = doubled_orbit(point, -1e-3)
     assert np.abs(other.x - own.x).max() > 1e-4
-
-
-@pytest.mark.slow  # the whole switch twice: the normal form's probes and the doubled orbit at its amplitude
-def test_the_switch_does_not_depend_on_lapacks_sign(monkeypatch):
-    branch, _ = shooting_crossing(PARAMS)
-    own = switch_at_period_doubling(branch, follow=False)
-    monkeypatch.setattr(cycle_switching.sla, "eig", negated_eig)
-    flipped = switch_at_period_doubling(branch, follow=False)
-    assert np.array_equal(flipped.eigenvector, own.eigenvector)
-    assert flipped.amplitude == own.amplitude and flipped.coefficient == own.coefficient
-    assert flipped.doubled.moment == own.doubled.moment and np.array_equal(flipped.doubled.x, own.doubled.x)
