@@ -179,10 +179,7 @@ def flip_vector(point: Point, *, rtol: float = RTOL, atol: float = ATOL) -> tupl
     """The multiplier of ``point`` nearest -1 among the real negative ones, and its real unit eigenvector.
 
     A chain's monodromy matrix is integrated again (a :class:`~.periodic.PeriodicOrbit` keeps only its
-    multipliers); a system's orbit carries its own. The eigenvector's sign is fixed: its component of
-    largest modulus (the first of equal ones) is positive. LAPACK's sign is arbitrary, and it picks
-    which of the two starts of the doubled orbit (half a period apart) :func:`doubled_orbit` marches
-    to with a positive amplitude, and so which orbits the switch's normal form probes.
+    multipliers); a system's orbit carries its own.
 
     Raises
     ------
@@ -201,8 +198,7 @@ def flip_vector(point: Point, *, rtol: float = RTOL, atol: float = ATOL) -> tupl
         raise OrbitError(f"the orbit at {_where(point)} has no real negative Floquet multiplier: no period doubling")
     i = candidates[np.argmin(np.abs(values[candidates] + 1.0))]
     vector = np.real(vectors[:, i])
-    vector = vector / np.linalg.norm(vector)
-    return complex(values[i]), vector if vector[np.argmax(np.abs(vector))] > 0 else -vector
+    return complex(values[i]), vector / np.linalg.norm(vector)
 
 
 def _where(point: Point, parameter: str | None = None) -> str:
