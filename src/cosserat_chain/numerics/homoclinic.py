@@ -502,66 +502,44 @@ class _Loop:
 
     def solve_at_time(self, p: float, time: float, what: str) -> tuple[float, float, int, Rest]:
         """Newton on (p, a) with T fixed: (H1) alone, m equations (the end on the shifted saddle's stable eigenspace),
-        with damped steps as :meth:`solve`; returns (p, last |dp|, iterations, rest). The tilt found is left in
-        ``direction``."""
-        extra = self.rests(p).others.shape[1]
-        if self.direction.size != extra:
-            self.direction = np.zeros(extra)
-        residual, r, _ = self.residual(p, time)
-        for iteration in range(1, MAX_ITERATIONS + 1):
-            plus, minus, h = self.differences(p, time)
-            jac = np.column_stack([(plus - minus) / (2 * h), self.tilt_columns(p, time)])
-            try:
-                step = np.linalg.solve(jac, -residual)
-            except np.linalg.LinAlgError:
-                raise HomoclinicError(f"{what}: singular Newton system at p = {p:.12g}, T = {time:.6g}") from None
-            scale = 1.0
-            for _ in range(20):
-                trial_p, trial_a = p + scale * step[0], self.direction + scale * step[1:]
-                try:
-                    trial, r_trial, _ = self.residual(trial_p, time, trial_a)
-                except _FAILURES:
-                    trial = None
-                if trial is not None and np.max(np.abs(trial)) < max(np.max(np.abs(residual)), 1e-300) * (1 + 1e-9) + 1e-12:
-                    break
-                scale *= 0.5
-            else:
-                raise HomoclinicError(
-                    f"{what}: Newton made no progress at p = {p:.12g}, T = {time:.6g} (max |R| = {np.max(np.abs(residual)):.3g})"
-                )
-            moved = abs(trial_p - p)
-            p, residual, r, self.direction = trial_p, trial, r_trial, trial_a
-            if np.max(np.abs(residual)) < RESIDUAL_TOL or moved < 4 * np.finfo(float).eps * max(1.0, abs(p)):
-                return p, moved, iteration, r
-        raise HomoclinicError(f"{what}: Newton did not converge in {MAX_ITERATIONS} iterations (max |R| = {np.max(np.abs(residual)):.3g})")
+        damped as :meth:`solve`; returns (p, last |dp|, iterations, rest). The tilt found is left in ``direction``."""
+        p, _, moved, iteration, r, _ = self._newton(p, time, what)
+        return p, moved, iteration, r
 
     def solve(self, p: float, time: float, what: str) -> tuple[float, float, float, int, Rest, float]:
         """Newton on (p, T, a); returns (p, T, last |dp|, iterations, rest, the rate at which |d| falls at T).
         The tilt a found is left in ``direction``."""
+        p, time, moved, iteration, r, y = self._newton(p, time, what)
+        d = y - r.y - self.shift
+        return p, time, moved, iteration, r, float(-(d @ r.system.vector_field(y)) / (d @ d))
+
+    def _newton(self, p: float, time: float, what: str) -> tuple[float, float, float, int, Rest, np.ndarray]:
+        """Damped Newton on (p, T, a), or on (p, a) where ``fixed_time``; returns (p, T, last |dp|, iterations,
+        rest, the loop's end). Each step is halved until max |R| does not grow; the tilt found is left in
+        ``direction``."""
         extra = self.rests(p).others.shape[1]
         if self.direction.size != extra:
             self.direction = np.zeros(extra)
+        first_tilt = 1 if self.fixed_time else 2
         residual, r, y = self.residual(p, time)
         for iteration in range(1, MAX_ITERATIONS + 1):
             plus, minus, h = self.differences(p, time)
-            d = y - r.y - self.shift
-            velocity = r.system.vector_field(y)
-            jac = np.column_stack(
-                [
-                    (plus - minus) / (2 * h),
-                    np.concatenate([r.normals.T @ velocity / self.eps1, [d @ velocity / (d @ d)]]),
-                    self.tilt_columns(p, time),
-                ]
-            )
+            columns = [(plus - minus) / (2 * h)]
+            if not self.fixed_time:
+                d = y - r.y - self.shift
+                velocity = r.system.vector_field(y)
+                columns.append(np.concatenate([r.normals.T @ velocity / self.eps1, [d @ velocity / (d @ d)]]))
+            columns.append(self.tilt_columns(p, time))
             try:
-                step = np.linalg.solve(jac, -residual)
+                step = np.linalg.solve(np.column_stack(columns), -residual)
             except np.linalg.LinAlgError:
                 raise HomoclinicError(f"{what}: singular Newton system at p = {p:.12g}, T = {time:.6g}") from None
             # Keep T positive and the step inside the region where the residual falls.
             scale = 1.0
             for _ in range(20):
-                trial_p, trial_t, trial_a = p + scale * step[0], time + scale * step[1], self.direction + scale * step[2:]
-                if 0 < trial_t <= 2.0 * time:  # T at most doubled: a longer trial runs far from the loop, at a cost
+                trial_p, trial_a = p + scale * step[0], self.direction + scale * step[first_tilt:]
+                trial_t = time if self.fixed_time else time + scale * step[1]
+                if self.fixed_time or 0 < trial_t <= 2.0 * time:  # T at most doubled: a longer trial runs far from the loop, at a cost
                     try:
                         trial, r_trial, y_trial = self.residual(trial_p, trial_t, trial_a)
                     except _FAILURES:
@@ -576,8 +554,7 @@ class _Loop:
             moved = abs(trial_p - p)
             p, time, residual, r, y, self.direction = trial_p, trial_t, trial, r_trial, y_trial, trial_a
             if np.max(np.abs(residual)) < RESIDUAL_TOL or moved < 4 * np.finfo(float).eps * max(1.0, abs(p)):
-                d = y - r.y - self.shift
-                return p, time, moved, iteration, r, float(-(d @ r.system.vector_field(y)) / (d @ d))
+                return p, time, moved, iteration, r, y
         raise HomoclinicError(f"{what}: Newton did not converge in {MAX_ITERATIONS} iterations (max |R| = {np.max(np.abs(residual)):.3g})")
 
 
@@ -976,7 +953,8 @@ def homoclinic_from_orbit(
     times = np.linspace(0.0, float(orbit.period), ORBIT_SAMPLES)
     try:
         path = _states(system, orbit.y0, times, rtol=RTOL, atol=ATOL)
-        slow = path[int(np.argmin([np.linalg.norm(system.vector_field(y)) for y in path]))]
+        i = int(np.argmin([np.linalg.norm(system.vector_field(y)) for y in path]))
+        slow = path[i]
         try:
             found = find_equilibrium(system, slow[:n], tol=1e-13, descent=False)
         except EquilibriumNotFound as err:
@@ -984,7 +962,10 @@ def homoclinic_from_orbit(
         if np.max(np.abs(found.q - slow[:n])) > JUMP:
             raise HomoclinicError("Newton from the orbit's slowest point went to an equilibrium the orbit does not pass")
         r = rest(system, found.q, winding)
-        passage = _states(system, slow, times, rtol=RTOL, atol=ATOL)
+        # The loop from the slowest point, on the same times: the rest of this period, then its start shifted by the
+        # turns (y(t + T) = y(t) + 2 pi k). A whole period integrated from the slowest point would carry its round-off
+        # times ||M|| (1e9 on the unequal pairs' last orbits) and miss the shifted saddle by up to 5.8.
+        passage = np.concatenate([path[i:], path[1 : i + 1] + shift])
         leaving = np.linalg.norm(passage - r.y, axis=1)
         arriving = np.linalg.norm(passage - r.y - shift, axis=1)
         nearest = max(leaving[0], arriving[-1])
