@@ -50,7 +50,7 @@ from ..numerics.breather_arclength import (
     instability_counts,
     off_circle,
 )
-from ..numerics.kit import EvaluationFailed
+from ..numerics.kit import EvaluationFailed, illinois
 from ..numerics.shooting import PERIOD, Orbit, OrbitNotFound, find_orbit, flow
 from ..systems.base import System
 from ..systems.lattice import LatticeSystem
@@ -923,16 +923,7 @@ def _collision(stable: Orbit, unstable: Orbit, kind: str, centre: complex | None
         middle = at(omega)
         if middle is None or abs(middle.value) <= RESOLVED * middle.error:
             break
-        if middle.value * lo.value > 0:
-            lo, f_lo = middle, middle.value
-            if side == 1:
-                f_hi *= 0.5
-            side = 1
-        else:
-            hi, f_hi = middle, middle.value
-            if side == -1:
-                f_lo *= 0.5
-            side = -1
+        lo, f_lo, hi, f_hi, side = illinois(middle, middle.value, lo, f_lo, hi, f_hi, side)
     slope = (hi.value - lo.value) / (hi.omega - lo.omega) if hi.omega != lo.omega else math.nan
     if not (math.isfinite(slope) and slope != 0):
         return None
