@@ -30,8 +30,7 @@ from cosserat_chain.experiments import system_breathers as sb
 from cosserat_chain.experiments.breather_atlas import AtlasChange, check_locate_tol
 from cosserat_chain.experiments.system_breather_atlas import system_breather_atlas
 from cosserat_chain.numerics.breather_arclength import collisions_between, instability_counts, pair_test
-from cosserat_chain.systems.lattice import LatticeSystem
-from mathieu_rotor_system import SYSTEM_FILE
+from mathieu_rotor_system import REFERENCE, rotor_two_mathieu
 
 runner = CliRunner()
 C, W0, W1 = 0.3, 1.0, 1.01
@@ -43,14 +42,6 @@ OMEGAS = [1.03, 0.998, 0.96]
 def _cache(monkeypatch):
     """The compiled systems go to the tests' cache folder (compiled once, not every session), not the user's."""
     monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(SYSTEMS_CACHE))
-
-
-def rotor_two_mathieu() -> LatticeSystem:
-    return LatticeSystem(
-        sites=1, dofs=("phi", "x", "y"), damping="gamma", bond_energy="0",
-        site_energy="(w0**2 + C*cos(phi))*x**2/2 + (w1**2 + C*cos(phi))*y**2/2",
-        parameters={"C": C, "w0": W0, "w1": W1, "gamma": 0.0}, name="rotor_two_mathieu",
-    )  # fmt: skip
 
 
 def edge(w: float, characteristic) -> float:
@@ -160,9 +151,7 @@ def test_the_dataset_and_the_json_carry_the_changes(atlas, tmp_path):
 
 
 def test_the_cli_json_and_plot_carry_the_located_changes(tmp_path):
-    source = tmp_path / "two_mathieu.py"
-    source.write_text(SYSTEM_FILE)
-    args = ["breathers", "--system", f"{source}:build", "--omega", "1.03", "--to", "0.96", "--steps", "3", "--atlas", "C=0.3"]
+    args = ["breathers", "--system", REFERENCE, "--omega", "1.03", "--to", "0.96", "--steps", "3", "--atlas", "C=0.3"]
     # np.linspace(1.03, 0.96, 3) puts the middle member at 0.995, in the overlap too.
     result = runner.invoke(app, [*args, "--json", "--locate-tol", "1e-9", "--plot", str(tmp_path / "map.png")])
     assert result.exit_code == 0, result.output

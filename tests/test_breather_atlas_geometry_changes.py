@@ -35,8 +35,7 @@ from cosserat_chain.experiments.breather_atlas import breather_atlas, check_alon
 from cosserat_chain.experiments.breathers import _Member, _solvers
 from cosserat_chain.experiments.system_breather_atlas import SystemBreatherAtlas, system_breather_atlas
 from cosserat_chain.systems import takeno_peyrard
-from cosserat_chain.systems.lattice import LatticeSystem
-from mathieu_rotor_system import SYSTEM_FILE
+from mathieu_rotor_system import REFERENCE, rotor_two_mathieu
 
 runner = CliRunner()
 W0, W1, OMEGA = 1.0, 1.01, 0.97
@@ -52,14 +51,6 @@ TP_OMEGAS, TP_COUPLINGS = [1.2, 1.15], [0.05, 0.07]
 def _cache(monkeypatch):
     """The compiled systems go to the tests' cache folder (compiled once, not every session), not the user's."""
     monkeypatch.setenv("COSSERAT_CHAIN_CACHE", str(SYSTEMS_CACHE))
-
-
-def rotor_two_mathieu() -> LatticeSystem:
-    return LatticeSystem(
-        sites=1, dofs=("phi", "x", "y"), damping="gamma", bond_energy="0",
-        site_energy="(w0**2 + C*cos(phi))*x**2/2 + (w1**2 + C*cos(phi))*y**2/2",
-        parameters={"C": 0.3, "w0": W0, "w1": W1, "gamma": 0.0}, name="rotor_two_mathieu",
-    )  # fmt: skip
 
 
 def edge_coupling(w: float) -> float:
@@ -247,10 +238,8 @@ def test_check_along_names_the_axes():
 
 
 def test_the_system_cli_locates_along_the_coupling_into_json_and_netcdf(tmp_path):
-    source = tmp_path / "two_mathieu.py"
-    source.write_text(SYSTEM_FILE)
     out = tmp_path / "atlas.nc"
-    args = ["breathers", "--system", f"{source}:build", "--omega", str(OMEGA), "--atlas", "C=0.2,0.4,0.6", "--locate-tol", "1e-9"]
+    args = ["breathers", "--system", REFERENCE, "--omega", str(OMEGA), "--atlas", "C=0.2,0.4,0.6", "--locate-tol", "1e-9"]
     result = runner.invoke(app, [*args, "--locate-along", "C", "--locate-every", "--json", "--out", str(out)])
     assert result.exit_code == 0, result.output
     changes = json.loads(result.stdout)["stability_changes"]
