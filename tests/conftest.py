@@ -58,6 +58,15 @@ def random_geometries(count: int, seed: int = 0) -> list[ChainParams]:
     return out
 
 
+def undamped_energies(orbit, samples: int) -> np.ndarray:
+    """A system's orbit's kinetic plus potential energy with its damping off, at ``samples`` times spread evenly over one
+    period (samples,): constant along an undamped (Hamiltonian) orbit."""
+    system = orbit.system.with_parameters(gamma=0.0)
+    n = system.size
+    states = orbit.trajectory(orbit.period * np.linspace(0.0, 1.0, samples))
+    return np.array([system.energy(y[:n]) + 0.5 * np.sum(system.mass() * y[n:] ** 2) for y in states])
+
+
 def random_state(params: ChainParams, scale: float, seed: int = 0) -> np.ndarray:
     """A random configuration, zero where the ends hold it; ``scale`` sets |u|, |v| (in h) and |phi|."""
     rng = np.random.default_rng(seed)

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import SYSTEMS_CACHE
+from conftest import SYSTEMS_CACHE, undamped_energies
 from cosserat_chain.experiments import system_breather_arclength as sa
 from cosserat_chain.experiments import system_breathers as sb
 from cosserat_chain.numerics.breather_arclength import pair_test
@@ -45,12 +45,6 @@ def branching():
     return sa.continue_family(start, "omega", (0.7, 1.31), direction=-1.0, branches=True, branch_points=10)
 
 
-def energy_spread(orbit, samples: int = 9) -> float:
-    states = orbit.trajectory(orbit.period * np.linspace(0.0, 1.0, samples))
-    system = orbit.system.with_parameters(gamma=0.0)
-    return float(np.ptp([system.energy(y[:SITES]) + 0.5 * np.sum(y[SITES:] ** 2) for y in states]))
-
-
 def test_the_family_passes_its_fold_in_omega_and_reports_it_with_a_singular_fixed_frequency_newton_system(folding):
     omegas = folding.values
     (fold,) = folding.folds
@@ -70,7 +64,7 @@ def test_the_family_passes_its_fold_in_omega_and_reports_it_with_a_singular_fixe
     energies = [sa.energy(o) for o in folding.orbits]
     assert np.all(np.diff(energies) > 0)
     for orbit in (fold.orbit, folding.orbits[0], folding.orbits[-1]):
-        assert energy_spread(orbit) < 1e-9
+        assert np.ptp(undamped_energies(orbit, 9)) < 1e-9
         assert np.max(np.abs(flow(orbit.system, orbit.y0, orbit.period, variations=False)[0] - orbit.y0 - SHIFT)) < 1e-8
 
 
@@ -145,7 +139,7 @@ def test_the_branch_at_the_branch_point_breaks_the_time_reversal_the_family_keep
     mirrored = np.concatenate([-last.q0, last.v0])
     assert np.max(np.abs(flow(system, mirrored, last.period, variations=False)[0] - mirrored - SHIFT)) < 1e-7
     assert distance_to_trajectory(last, mirrored) > 1e-3
-    assert energy_spread(last) < 1e-9
+    assert np.ptp(undamped_energies(last, 9)) < 1e-9
 
 
 def test_bad_input_is_refused_with_the_field_named():

@@ -12,7 +12,7 @@ from scipy.optimize import brentq
 from scipy.special import ellipk
 from typer.testing import CliRunner
 
-from conftest import SYSTEMS_CACHE
+from conftest import SYSTEMS_CACHE, undamped_energies
 from cosserat_chain.cli import app
 from cosserat_chain.experiments import system_breathers as sb
 from cosserat_chain.numerics import shooting
@@ -65,8 +65,7 @@ def test_continued_orbits_close_under_the_undamped_flow_and_conserve_energy(fami
         undamped = orbit.system.with_parameters(gamma=0.0)
         end = shooting.flow(undamped, orbit.y0, orbit.period, variations=False)[0]
         assert np.max(np.abs(end - orbit.y0 - shift)) < 1e-8
-        states = orbit.trajectory(orbit.period * np.linspace(0.0, 1.0, 7))
-        energy = [undamped.energy(y[:SITES]) + 0.5 * np.sum(y[SITES:] ** 2) for y in states]
+        energy = undamped_energies(orbit, 7)
         assert np.ptp(energy) < 1e-9
         assert energy[0] == pytest.approx(sb.orbit_energy(orbit), abs=1e-12)
 
