@@ -28,7 +28,7 @@ class _Family:
     def __init__(self, turn: float, c: float, log: list):
         self.turn, self.c, self.log, self.done = turn, c, log, [(0.0, None)]
 
-    def to(self, amplitude: float):
+    def to(self, amplitude: float, min_step: float = cycle_switching.MIN_STEP):
         self.log.append(amplitude)
         if amplitude > self.turn:
             raise OrbitError("the family turns back")
@@ -39,12 +39,12 @@ class _Family:
 def test_the_normal_form_takes_smaller_probes_where_the_family_turns_before_them():
     log: list[float] = []
     c = -3.0
-    march, probe, coefficient = cycle_switching._normal_form(lambda: _Family(0.0023, c, log), lambda a: c * a * a)
+    march, probe, coefficient, _ = cycle_switching._normal_form(lambda _: _Family(0.0023, c, log), lambda a: c * a * a)
     assert coefficient == pytest.approx(c, rel=1e-12)
     assert probe == pytest.approx(PROBE_SCALES[1] * PROBE_AMPLITUDES[1])
     assert log[:2] == [PROBE_AMPLITUDES[0], PROBE_AMPLITUDES[1]]  # the first scale: the second probe fails
     with pytest.raises(OrbitError, match="turns back"):  # every scale fails: the last failure, not a made-up value
-        cycle_switching._normal_form(lambda: _Family(1e-9, c, []), lambda a: c * a * a)
+        cycle_switching._normal_form(lambda _: _Family(1e-9, c, []), lambda a: c * a * a)
 
 
 @pytest.mark.slow

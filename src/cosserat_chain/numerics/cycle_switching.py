@@ -24,7 +24,10 @@ sqrt(|M - M_PD|) of the double cover). :func:`switch_at_period_doubling` takes t
 amplitude from the normal form (a secant in a^2 through two small amplitudes gives c;
 the amplitude then puts the first doubled orbit a chosen relative distance in M from the
 period doubling), polishes the orbit by :func:`~.periodic.find_periodic_orbit` with 2k
-turns, and continues it with :func:`~.periodic.continue_orbit`.
+turns, and continues it with :func:`~.periodic.continue_orbit`. The doubled orbits at a and
+-a + O(a^2) are the same orbits half their period apart, so both signs of e serve: e's sign is fixed
+(:func:`flip_vector`), and where the family's amplitude along it turns back before the probes (the
+sine chain's at gamma_phi = 0.15, at 0.0023) the probes are marched along -e.
 
 The doubled family lies below M_PD (in |M|) for a supercritical flip of an orbit that loses
 stability as M falls (the doubled orbit inherits its stability), above it for a subcritical
@@ -96,8 +99,13 @@ OFFSET = 1e-4
 #: The two amplitudes (in the unit eigenvector's norm, units of the state) of the normal form's secant.
 PROBE_AMPLITUDES = (2e-3, 4e-3)
 #: The probes scaled by these in turn where the family turns back before them (on the sine chain at gamma_phi = 0.15
-#: the doubled family's amplitude along the flip vector turns at 0.0023).
+#: the doubled family's amplitude along one sign of the flip vector turns at 0.0023).
 PROBE_SCALES = (1.0, 0.25, 0.0625)
+#: Smallest step of the amplitude, relative, while a period doubling's probes are first marched along each sign of the
+#: flip vector in turn: a family that turns back before a probe is given up after a few halved steps and the other
+#: sign taken (the same doubled orbits, half their period on), where marching to :data:`MIN_STEP` at every scale costs
+#: many failed Newton runs (docs/periodic-orbits.md, "After a period doubling").
+SIGN_STEP = 0.25
 #: Largest amplitude the normal form may ask for (beyond it the quadratic law is not trusted).
 MAX_AMPLITUDE = 0.1
 #: Smallest step of the amplitude, relative to the last one reached (or the first probe), after failed steps are
@@ -131,7 +139,9 @@ class PeriodDoubling:
     multiplier : complex
         Its critical multiplier (-1 to the located accuracy).
     eigenvector : ndarray (2n,)
-        Real unit eigenvector of the monodromy matrix for it, in the shooting's state y = (q, q').
+        Real unit eigenvector e of the monodromy matrix for it, in the shooting's state y = (q, q'), along
+        which ``amplitude`` is measured: :func:`flip_vector`'s, or its opposite where the normal form's probes
+        failed along that sign (:func:`switch_at_period_doubling`).
     coefficient : float
         c of p - p_PD = c a^2 on the doubled family (secant through two amplitudes; for the chain
         signed towards larger |M|).
@@ -179,7 +189,9 @@ def flip_vector(point: Point, *, rtol: float = RTOL, atol: float = ATOL) -> tupl
     """The multiplier of ``point`` nearest -1 among the real negative ones, and its real unit eigenvector.
 
     A chain's monodromy matrix is integrated again (a :class:`~.periodic.PeriodicOrbit` keeps only its
-    multipliers); a system's orbit carries its own.
+    multipliers); a system's orbit carries its own. The eigenvector's sign is fixed, its component of largest
+    modulus (the first of equal ones) positive: LAPACK's sign is arbitrary, and with it the sign of e along
+    which :func:`switch_at_period_doubling` first marches.
 
     Raises
     ------
@@ -198,7 +210,8 @@ def flip_vector(point: Point, *, rtol: float = RTOL, atol: float = ATOL) -> tupl
         raise OrbitError(f"the orbit at {_where(point)} has no real negative Floquet multiplier: no period doubling")
     i = candidates[np.argmin(np.abs(values[candidates] + 1.0))]
     vector = np.real(vectors[:, i])
-    return complex(values[i]), vector / np.linalg.norm(vector)
+    vector = vector / np.linalg.norm(vector)
+    return complex(values[i]), vector if vector[np.argmax(np.abs(vector))] > 0 else -vector
 
 
 def _where(point: Point, parameter: str | None = None) -> str:
@@ -319,10 +332,11 @@ class _March:
                 return self.make_point(solved.w, solved.evaluation, solved.iterations)
         return None
 
-    def to(self, amplitude: float, enough: Callable[[Any], bool] | None = None):
+    def to(self, amplitude: float, enough: Callable[[Any], bool] | None = None, min_step: float = MIN_STEP):
         """The doubled orbit at ``amplitude`` > 0, in steps from the largest one solved: each at most doubles the
-        amplitude, a failed one is halved. With ``enough``, the first orbit it accepts on the way is returned, or
-        the largest one reached where the steps beyond it fail down to :data:`ENOUGH_STEP`."""
+        amplitude, a failed one is halved down to ``min_step`` (relative). With ``enough``, the first orbit it
+        accepts on the way is returned, or the largest one reached where the steps beyond it fail down to
+        :data:`ENOUGH_STEP`."""
         last, orbit = self.done[-1][0], None
         a = min(amplitude, max(PROBE_AMPLITUDES[0], 2 * last))
         while True:
@@ -333,7 +347,7 @@ class _March:
                 if last >= (1.0 - MIN_STEP) * amplitude or (enough is not None and enough(orbit)):
                     return orbit
                 a = min(amplitude, 2 * last)
-            elif a - last > (MIN_STEP if enough is None or orbit is None else ENOUGH_STEP) * max(last, PROBE_AMPLITUDES[0]):
+            elif a - last > (min_step if enough is None or orbit is None else ENOUGH_STEP) * max(last, PROBE_AMPLITUDES[0]):
                 a = 0.5 * (a + last)
             elif enough is not None and orbit is not None:
                 return orbit  # the family turns back or Newton fails beyond: the largest amplitude reached
@@ -344,25 +358,32 @@ class _March:
                 )
 
 
-def _normal_form(new_march: Callable[[], _March], distance: Callable[[Any], float]) -> tuple[_March, float, float]:
-    """The march, its larger probe amplitude and c of the normal form p - p_* = c a^2 + O(a^3) on the new family.
+def _normal_form(
+    new_march: Callable[[float], _March], distance: Callable[[Any], float], signs: tuple[float, ...] = (1.0,)
+) -> tuple[_March, float, float, float]:
+    """The march, its larger probe amplitude, c of the normal form p - p_* = c a^2 + O(a^3) on the new family, and the
+    sign of the critical eigenvector it marched along (``new_march(sign)``).
 
     c by a secant in a^2 through the orbits at :data:`PROBE_AMPLITUDES` (a and -a + O(a^2) start one doubled orbit,
-    half a period apart), at their amplitudes reached; where the family turns back before a probe, the probes
-    scaled down by :data:`PROBE_SCALES` on a fresh march.
+    half a period apart), at their amplitudes reached. With two ``signs`` (a period doubling: both start the same
+    doubled orbits), the probes are first marched along each in turn down to steps of :data:`SIGN_STEP`; where
+    that fails, and with one sign, the probes scaled down by :data:`PROBE_SCALES` on a fresh march for each sign,
+    steps down to :data:`MIN_STEP`.
     """
+    tries = [(1.0, sign, SIGN_STEP) for sign in signs] if len(signs) > 1 else []
+    tries += [(scale, sign, MIN_STEP) for scale in PROBE_SCALES for sign in signs]
     failure: OrbitError | None = None
-    for scale in PROBE_SCALES:
-        march, probes = new_march(), []
+    for scale, sign, min_step in tries:
+        march, probes = new_march(sign), []
         try:
             for a in PROBE_AMPLITUDES:
-                orbit = march.to(scale * a)
+                orbit = march.to(scale * a, min_step=min_step)
                 probes.append((march.done[-1][0], distance(orbit)))
         except OrbitError as err:
             failure = err
             continue
         (a1, d1), (a2, d2) = probes
-        return march, a2, (d2 - d1) / (a2 * a2 - a1 * a1)
+        return march, a2, (d2 - d1) / (a2 * a2 - a1 * a1), sign
     raise failure
 
 
@@ -434,7 +455,8 @@ def switch_at_period_doubling(
     parameter : str, optional
         A system's parameter of the period doubling (a branch's own by default); the chain's is M.
     amplitude : float, optional
-        a of the first doubled orbit along the flip eigenvector; by default the normal form's
+        a of the first doubled orbit along the flip eigenvector (signed as the normal form's probes took it,
+        :attr:`PeriodDoubling.eigenvector`); by default the normal form's
         amplitude for |p - p_PD| = ``offset`` |p_PD| (capped at :data:`MAX_AMPLITUDE`; the orbit lies
         about that far from p_PD, or nearer where the family bends away from c a^2 sooner).
     offset : float
@@ -478,9 +500,12 @@ def switch_at_period_doubling(
             f"the orbit at {_where(point, parameter)} has its multiplier nearest -1 at {multiplier:.6g}: not a located period "
             "doubling (take the point of continue_orbits' period_doubling event)"
         )
-    march, probe, coefficient = _normal_form(lambda: _march(point, parameter, vector, tol, rtol, atol), distance)
+    march, probe, coefficient, along = _normal_form(
+        lambda along: _march(point, parameter, along * vector, tol, rtol, atol), distance, signs=(1.0, -1.0)
+    )
     if coefficient == 0:
         raise OrbitError(f"the doubled family at {_where(point, parameter)} does not move with its amplitude (a degenerate flip)")
+    vector = along * vector
     if amplitude is None:
         # The normal form's amplitude, approached in steps: the family bends away from c a^2 within a few times the
         # probes on the sine chain at gamma_phi = 0.3, so the first orbit at the wanted distance from p_PD serves.
@@ -788,7 +813,7 @@ def switch_at_hopf(
     def distance(orbit: PeriodicOrbit) -> float:
         return sign * (orbit.moment - point.moment)
 
-    march, probe, coefficient = _normal_form(lambda: _hopf_march(params, model, point, tol, rtol, atol), distance)
+    march, probe, coefficient, _ = _normal_form(lambda _: _hopf_march(params, model, point, tol, rtol, atol), distance)
     if coefficient == 0:
         raise OrbitError(f"the orbits born at the Hopf point M={point.moment!r} do not move in M with their amplitude (degenerate)")
     if amplitude is None:
