@@ -2,7 +2,7 @@
 
 The families, their Floquet multipliers and lifetimes run on the graded chain as on the uniform one; the
 bands the harmonics are held against are the finite graded chain's linear modes
-(:func:`~cosserat_chain.experiments.breathers.band_edges`), a graded chain having no Bloch bands."""
+(:func:`~cosserat_chain.experiments.breathers.band_edges`, their extended ones), a graded chain having no Bloch bands."""
 
 from __future__ import annotations
 
@@ -16,10 +16,10 @@ from scipy.special import ellipk
 from typer.testing import CliRunner
 
 from cosserat_chain.analysis.dispersion import BRANCHES, finite_modes, wave_summary
+from cosserat_chain.analysis.localized_modes import classify_modes
 from cosserat_chain.cli import app
 from cosserat_chain.experiments.breathers import (
     BAND_SOURCES,
-    _finite_band_edges,
     anti_continuum_state,
     band_edges,
     resonances,
@@ -75,9 +75,9 @@ def test_factors_all_alike_give_the_uniform_family_bitwise():
 )
 def test_the_finite_chains_bands_lie_in_the_infinite_ones_and_split_at_the_gap(ends):
     """The split by the count of free v coordinates puts every acoustic mode below the optical ones,
-    for every kind of end (a pinned chain's end modes lie in the gap, and are optical)."""
+    for every kind of end (a pinned or free chain's end modes lie in the gap: localized, out of the host bands)."""
     params = ChainParams(N=10, **ends)
-    finite, infinite = _finite_band_edges(params), wave_summary(params).bands
+    finite, infinite = classify_modes(params).host_bands, wave_summary(params).bands
     for name in BRANCHES:
         assert finite[name][1] <= infinite[name][1] + 1e-12
     assert finite["transverse_acoustic"][1] < finite["rotational_optical"][0]
@@ -90,7 +90,7 @@ def test_the_finite_chains_band_edges_converge_to_the_infinite_chains():
     infinite = wave_summary(ChainParams(N=10)).bands
     errors = []
     for n in (10, 40):
-        finite = _finite_band_edges(ChainParams(N=n))
+        finite = classify_modes(ChainParams(N=n)).host_bands
         errors.append([abs(finite[name][e] - infinite[name][e]) for name in BRANCHES for e in (0, 1)])
     coarse, fine = np.array(errors)
     assert np.all(fine < coarse / 3.5)
@@ -100,7 +100,7 @@ def test_the_finite_chains_band_edges_converge_to_the_infinite_chains():
 def test_a_graded_chains_resonances_are_its_finite_modes_edges():
     params = undamped(N=10, j_factors=(1.0,) * 10 + (4.0,) + (1.0,) * 10, E1_factors=(1.0,) * 9 + (0.5, 0.5) + (1.0,) * 9)
     edges = band_edges(params)
-    assert edges == _finite_band_edges(params)
+    assert edges == classify_modes(params).host_bands
     top = edges["transverse_acoustic"][1]
     found = [r for r in resonances(params, 0.1, 10.0) if r.band == "transverse_acoustic" and r.edge == "top"]
     assert [r.omega for r in found] == pytest.approx([top / n for n in range(6, 0, -1)], rel=1e-15)

@@ -277,8 +277,14 @@ def breathers(
             f"(a multiplier leaves the circle at {c['kind']}; the moduli's bisection: {c['moduli_omega']:.10g}); nearest resonance: "
             f"{r['harmonic']:g} x Omega = {r['edge_frequency']:.6g} ({r['band']} band {r['edge']}) at Omega = {r['omega']:.6g}"
         )
+    for m in summary["localized_modes"]:
+        typer.echo(
+            f"localized mode: omega = {m['frequency']:.6g} ({m['branch']}) at particle {m['particle']}, "
+            f"share on the rotors' core {m['core_share']:.3g}: {'a resonance' if m['resonant'] else 'no resonance'}"
+        )
     for r in result.resonances:
-        typer.echo(f"resonance: {r.harmonic} x Omega = {r.edge_frequency:.6g} ({r.band} band {r.edge}) at Omega = {r.omega:.6g}")
+        where = f"{r.band} localized mode" if r.edge == "localized" else f"{r.band} band {r.edge}"
+        typer.echo(f"resonance: {r.harmonic} x Omega = {r.edge_frequency:.6g} ({where}) at Omega = {r.omega:.6g}")
     if not family.complete:
         typer.echo(family.message)
 

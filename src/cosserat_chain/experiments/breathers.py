@@ -27,14 +27,17 @@ periodic orbit (:func:`~cosserat_chain.numerics.periodic.find_hamiltonian_orbit`
   that frequency.
 * :func:`resonances` gives the frequencies Omega = edge / n at which the n-th harmonic of
   the rotation meets a band edge (:func:`band_edges`: the infinite linear chain's,
-  :func:`~cosserat_chain.analysis.dispersion.wave_summary`, or a graded chain's finite modes), and
-  :func:`harmonics_in_bands` the harmonics n Omega that fall inside a band: a roto-breather
-  is non-resonant (localised, long-lived) only where none does.
+  :func:`~cosserat_chain.analysis.dispersion.wave_summary`, or a graded chain's host bands,
+  its finite extended modes), and :func:`harmonics_in_bands` the harmonics n Omega that fall
+  inside a band: a roto-breather is non-resonant (localised, long-lived) only where none does.
+  A graded chain's localized modes (:func:`~cosserat_chain.analysis.localized_modes.classify_modes`)
+  are no band: :func:`core_modes` gives each one's energy share on the rotors and their
+  neighbours, and :func:`resonances` lists a localized mode's Omega = frequency / n only where
+  that share is at least :data:`CORE_SHARE` (a mode elsewhere in the chain is barely driven).
 """
 
 from __future__ import annotations
 
-import functools
 import json
 import math
 from collections.abc import Callable, Mapping
@@ -44,7 +47,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..analysis.dispersion import BRANCHES, finite_modes, wave_summary
+from ..analysis.dispersion import BRANCHES, wave_summary
+from ..analysis.localized_modes import LocalizedMode, classify_modes
 from ..loads import moment_load
 from ..models.base import Model, get_model
 from ..numerics.breather_arclength import (
@@ -70,7 +74,7 @@ from ..numerics.periodic import (
 from ..numerics.shooting import OrbitNotFound
 from ..numerics.undamping import UndampingPath, continue_to_undamped
 from ..params import ChainParams
-from ..state import ROW_INDEX, ROWS, column, free_rows, n_free, pack, unpack, zeros
+from ..state import ROW_INDEX, ROWS, column, n_free, pack, unpack, zeros
 from .anti_continuum import potential_from_torque, rotor_energy, sample_angles
 from .lifetimes import Lifetime, check_lifetime_run, lifetime_from_deviation
 from .simulation import run_attributes
@@ -207,8 +211,11 @@ class Resonance:
         return {"omega": self.omega, "harmonic": self.harmonic, "band": self.band, "edge": self.edge, "edge_frequency": self.edge_frequency}
 
 
-#: Where :func:`band_edges` takes a chain's bands from: the infinite uniform chain, or the finite graded chain's modes.
-BAND_SOURCES = {False: "infinite uniform chain, eq. (3)", True: "finite graded chain's linear modes"}
+#: Where :func:`band_edges` takes a chain's bands from: the infinite uniform chain, or the finite graded chain's extended modes.
+BAND_SOURCES = {False: "infinite uniform chain, eq. (3)", True: "finite graded chain's extended linear modes"}
+#: A localized mode is a resonance of a roto-breather only where at least this share of its energy lies on the
+#: rotors and their neighbours (the breather's core): its drive by the rotation scales with its amplitude there.
+CORE_SHARE = 0.01
 
 
 def band_edges(params: ChainParams) -> dict[str, tuple[float, float]]:
@@ -217,43 +224,52 @@ def band_edges(params: ChainParams) -> dict[str, tuple[float, float]]:
     A uniform chain's are those of the infinite linear chain, eq. (3) (:func:`wave_summary`),
     to which every model linearises at rest. A graded chain (per-bond or per-particle factors)
     is not periodic and has no bands; its harmonics meet its own small oscillations instead, the
-    linear modes of the finite chain about rest (:func:`~cosserat_chain.analysis.dispersion.finite_modes`),
-    split into the three branches: the modes with u alone (u decouples from v and phi at rest)
-    are longitudinal; of the others, sorted, as many as the chain has free v coordinates are
-    transverse acoustic and the rest rotational optical (the count that splits a uniform
-    finite chain's spectrum at its gap, for every kind of end and the ring). Each band is
-    the range of its modes: an impurity's localised mode, outside the host's band, widens it.
+    linear modes of the finite chain about rest, and its bands are the host bands of
+    :func:`~cosserat_chain.analysis.localized_modes.classify_modes`: the ranges of its extended
+    modes, split into the three branches (the modes with u alone longitudinal; of the others,
+    sorted, as many as the chain has free v coordinates transverse acoustic and the rest
+    rotational optical). Its localized modes (an impurity's, an end's) are not in them
+    (:func:`core_modes`).
     """
     if not params.graded:
         return wave_summary(params).bands
-    return dict(_finite_band_edges(params))  # a copy: the cached one is shared
+    return dict(classify_modes(params).host_bands)  # a copy: the cached one is shared
 
 
-@functools.lru_cache(maxsize=64)
-def _finite_band_edges(params: ChainParams) -> dict[str, tuple[float, float]]:
-    """:func:`band_edges` of any chain from its finite modes (cached: a family asks at every member)."""
-    modes = finite_modes(params, "linear")
-    frequencies = np.sqrt(np.clip(modes.omega2.real, 0.0, None))
-    shares = np.sum(modes.shapes**2, axis=2)  # (mode, row): each row's share of the mode's shape
-    longitudinal = shares[:, ROW_INDEX["u"]] > shares[:, ROW_INDEX["v"]] + shares[:, ROW_INDEX["phi"]]
-    transverse = np.sort(frequencies[~longitudinal])
-    acoustic = int(np.count_nonzero(free_rows(params) == ROW_INDEX["v"]))
-    groups = {
-        "longitudinal": frequencies[longitudinal],
-        "transverse_acoustic": transverse[:acoustic],
-        "rotational_optical": transverse[acoustic:],
-    }
-    return {name: (float(groups[name].min()), float(groups[name].max())) for name in BRANCHES}
+def core_modes(params: ChainParams, rotors: tuple[int, ...] = (0,)) -> list[tuple[LocalizedMode, float]]:
+    """A graded chain's localized modes, each with its energy share on ``rotors`` (-N..N) and their neighbours.
+
+    A uniform chain has none here: its bands are the infinite chain's. A mode whose share is
+    at least :data:`CORE_SHARE` is a resonance of the rotors' harmonics (:func:`resonances`).
+    """
+    if not params.graded:
+        return []
+    return [(mode, mode.share_near(rotors)) for mode in classify_modes(params).localized]
 
 
 def resonances(
-    params: ChainParams, low: float, high: float, *, bands: tuple[str, ...] = BRANCHES, max_harmonic: int = MAX_HARMONIC
+    params: ChainParams,
+    low: float,
+    high: float,
+    *,
+    bands: tuple[str, ...] = BRANCHES,
+    max_harmonic: int = MAX_HARMONIC,
+    rotors: tuple[int, ...] = (0,),
 ) -> list[Resonance]:
     """The frequencies Omega in [low, high] where n Omega (n = 1..max_harmonic) meets an edge of ``bands``, sorted by Omega.
 
-    The bands are :func:`band_edges`: the infinite linear chain's, or a graded chain's finite modes.
+    The bands are :func:`band_edges`: the infinite linear chain's, or a graded chain's host
+    bands. A graded chain's localized modes of those branches whose share on ``rotors`` (-N..N)
+    and their neighbours is at least :data:`CORE_SHARE` (:func:`core_modes`) are resonances too,
+    with edge ``"localized"`` and their frequency as the edge's.
     """
-    out = []
+    out = [
+        Resonance(mode.frequency / n, n, mode.branch, "localized", mode.frequency)
+        for mode, share in core_modes(params, rotors)
+        if mode.branch in bands and share >= CORE_SHARE
+        for n in range(1, max_harmonic + 1)
+        if low <= mode.frequency / n <= high
+    ]
     for band, (bottom, top) in band_edges(params).items():
         if band not in bands:
             continue
@@ -536,6 +552,25 @@ class BreatherFamily:
         """For every orbit, the phonon pairs of driven bands with w_A + w_B = n Omega (:func:`combination_resonances`)."""
         return [combination_resonances(o.params, o.omega, bands=self.bands) for o in self.family.orbits]
 
+    def mode_picture(self) -> dict:
+        """The bands the harmonics were held against and the chain's localized modes, JSON-ready.
+
+        ``host_bands``: :func:`band_edges` of the first orbit's chain; ``localized_modes``: its
+        :func:`core_modes` on the rotors (the particle and its partners), each with its
+        ``core_share`` and whether it counts as a resonance (``resonant``: share >= :data:`CORE_SHARE`).
+        """
+        orbits = self.family.orbits
+        if not orbits:
+            return {"host_bands": None, "localized_modes": []}
+        rotors = (self.settings.get("particle", orbits[0].particle), *(self.settings.get("partners") or {}))
+        params = orbits[0].params
+        return {
+            "host_bands": {name: list(edge) for name, edge in band_edges(params).items()},
+            "localized_modes": [
+                {**mode.as_dict(), "core_share": share, "resonant": share >= CORE_SHARE} for mode, share in core_modes(params, rotors)
+            ],
+        }
+
     def localization(self) -> np.ndarray:
         """Per orbit, the largest |u|, |v|, |phi| of the particles that do not turn, over the period (the tail's amplitude).
 
@@ -575,6 +610,7 @@ class BreatherFamily:
             "closure": [o.closure for o in orbits],
             "bands": list(self.bands),
             "bands_from": BAND_SOURCES[orbits[0].params.graded] if orbits else None,
+            **self.mode_picture(),
             "resonant_harmonics": [[{"harmonic": n, "band": b} for n, b in h] for h in self.resonant_harmonics()],
             "combination_resonances": [[{"harmonic": n, "bands": [a, b]} for n, a, b in h] for h in self.combination_resonances()],
             "resonances": [r.as_dict() for r in self.resonances],
@@ -689,6 +725,7 @@ class BreatherFamily:
                 units="1", long_name="ln(threshold / perturbation) / ln max|mu| (NaN: a stable orbit); the run's settings in settings_json"
             )
         ds.attrs.update(run_attributes(params, get_model(orbits[0].model), moment_load(0.0, orbits[0].particle)))
+        picture = self.mode_picture()
         ds.attrs.update(
             {
                 "experiment": "roto_breathers",
@@ -698,6 +735,8 @@ class BreatherFamily:
                 "message": self.family.message,
                 "bands": ", ".join(self.bands),
                 "bands_from": BAND_SOURCES[params.graded],
+                "host_bands_json": json.dumps(picture["host_bands"]),
+                "localized_modes_json": json.dumps(picture["localized_modes"]),
                 "resonances_json": json.dumps([r.as_dict() for r in self.resonances]),
                 "stability_changes_json": json.dumps(self._changes()),
                 "settings_json": json.dumps({k: v for k, v in self.settings.items() if k != "params"}),
@@ -831,7 +870,7 @@ def roto_breather_family(
         family=family,
         anti_continuum_energy=energy,
         bands=bands,
-        resonances=resonances(params, float(omegas.min()), float(omegas.max()), bands=bands),
+        resonances=resonances(params, float(omegas.min()), float(omegas.max()), bands=bands, rotors=(particle, *partners)),
         settings=settings,
         changes=changes,
         discriminants=discriminants,
@@ -884,7 +923,7 @@ def _along_field(params, model, omegas, along, turns, particle, partners, progre
     }  # fmt: skip
     bands = coupled_bands(params, model, particle)
     return BreatherFamily(
-        family=family, anti_continuum_energy=energy, bands=bands, resonances=resonances(params, omega, omega, bands=bands),
+        family=family, anti_continuum_energy=energy, bands=bands, resonances=resonances(params, omega, omega, bands=bands, rotors=(particle, *partners)),
         settings=settings,
     )  # fmt: skip
 
