@@ -609,17 +609,10 @@ def continue_hamiltonian_arclength(
     if direction not in (1, -1, 1.0, -1.0):
         raise ValueError(f"direction must be +1 or -1, got {direction!r}")
     problem = HamiltonianFrequencyProblem(orbit, float(omega_min), float(omega_max), tol=tol, rtol=rtol, atol=atol)
-    traced = continuation(
-        problem, problem.start(), step=step, min_step=min_step, max_step=max_step, max_points=max_points,
-        direction=float(direction), progress=progress, first=orbit,
+    return _traced_family(
+        problem, orbit, (omega_min, omega_max), "omega", direction, step=step, min_step=min_step, max_step=max_step,
+        max_points=max_points, progress=progress, branches=branches, branch_points=branch_points,
     )  # fmt: skip
-    family = ArclengthFamily(
-        orbits=list(traced.points), requested=np.array([omega_min, omega_max], dtype=float), message=traced.message,
-        events=list(traced.events), end=traced.end, diagnostics=_diagnostics(problem, traced.points, traced.events),
-    )  # fmt: skip
-    if branches:
-        follow_branches(family, problem, max_points=branch_points)
-    return family
 
 
 def continue_hamiltonian_field(
@@ -684,13 +677,36 @@ def continue_hamiltonian_field(
     problem = HamiltonianFieldProblem(
         orbit, float(low), float(high), tol=tol, rtol=rtol, atol=atol, field_name=field_name, params_at=params_at
     )
+    return _traced_family(
+        problem, orbit, (low, high), field_name, direction, step=step, min_step=min_step, max_step=max_step,
+        max_points=max_points, progress=progress, branches=branches, branch_points=branch_points,
+    )  # fmt: skip
+
+
+def _traced_family(
+    problem: HamiltonianFrequencyProblem,
+    orbit: HamiltonianOrbit,
+    requested: tuple[float, float],
+    parameter: str,
+    direction: float,
+    *,
+    step: float,
+    min_step: float,
+    max_step: float,
+    max_points: int,
+    progress,
+    branches: bool,
+    branch_points: int,
+) -> ArclengthFamily:
+    """The family of ``problem`` traced by the kit's continuation from ``orbit`` (the two public traces' common end),
+    with each event's diagnostics and, with ``branches``, the families crossing it at its branch points."""
     traced = continuation(
         problem, problem.start(), step=step, min_step=min_step, max_step=max_step, max_points=max_points,
         direction=float(direction), progress=progress, first=orbit,
     )  # fmt: skip
     family = ArclengthFamily(
-        orbits=list(traced.points), requested=np.array([low, high], dtype=float), message=traced.message,
-        events=list(traced.events), end=traced.end, parameter=field_name,
+        orbits=list(traced.points), requested=np.array(requested, dtype=float), message=traced.message,
+        events=list(traced.events), end=traced.end, parameter=parameter,
         diagnostics=_diagnostics(problem, traced.points, traced.events),
     )  # fmt: skip
     if branches:
