@@ -15,6 +15,7 @@ from conftest import SYSTEMS_CACHE
 from cosserat_chain.cli import app
 from cosserat_chain.systems import LatticeSystem
 from cosserat_chain.systems.base import SystemDefinitionError
+from three_junctions import REFERENCE
 
 
 @pytest.fixture(autouse=True)
@@ -123,24 +124,8 @@ def test_a_branch_ending_at_a_fold_names_its_parameter_in_the_message():
     assert "fold located at I = 1:" in branch.message, branch.message
 
 
-#: Three Josephson junctions in a row with unequal critical currents, one site of three angles (a researcher's file).
-JUNCTIONS = """
-from cosserat_chain.systems import LatticeSystem
-
-
-def junctions(*, I=0.8, kappa=0.29, alpha=0.21, ica=0.91, icb=1.13, icc=0.78):
-    return LatticeSystem(
-        sites=1,
-        dofs=("phi_a", "phi_b", "phi_c"),
-        site_energy="ica*(1 - cos(phi_a)) + icb*(1 - cos(phi_b)) + icc*(1 - cos(phi_c)) - I*(phi_a + phi_b + phi_c)"
-        " + kappa/2*((phi_b - phi_a)**2 + (phi_c - phi_b)**2)",
-        damping="alpha",
-        parameters={"I": I, "kappa": kappa, "alpha": alpha, "ica": ica, "icb": icb, "icc": icc},
-        name="junctions",
-    )
-"""
-
-#: AUTO-07p on the same equations (NTST = 100 and 200 agree to the digits printed here), the rotation continued
+#: AUTO-07p on three Josephson junctions with unequal critical currents (tests/three_junctions.py at I = 0.8,
+#: alpha = 0.21; NTST = 100 and 200 agree to the digits printed here), the rotation continued
 #: down in I from 0.8: two period doublings, then the fold of cycles where the rotation stops.
 AUTO_PD = (0.47818853487, 0.34441407271)
 AUTO_FOLD = 0.25387275522
@@ -152,11 +137,10 @@ def test_junctions_with_unequal_critical_currents_agree_with_auto07p_and_name_wh
 
     import xarray as xr
 
-    (tmp_path / "junctions.py").write_text(JUNCTIONS)
     out = tmp_path / "orbit.nc"
     result = CliRunner().invoke(
         app,
-        ["orbit", "--system", f"{tmp_path / 'junctions.py'}:junctions", "--vary", "I", "--period-max", "150", "--out", str(out)],
+        ["orbit", "--system", REFERENCE, "--set", "I=0.8", "--set", "alpha=0.21", "--vary", "I", "--period-max", "150", "--out", str(out)],
         terminal_width=200,
     )
     assert result.exit_code == 0, result.output
@@ -169,7 +153,6 @@ def test_junctions_with_unequal_critical_currents_agree_with_auto07p_and_name_wh
     assert "at not located" not in result.output
     with xr.open_dataset(out) as ds:
         assert ds.attrs["branch_message"].startswith("fold located at I = 0.2538727552"), ds.attrs["branch_message"]
-
 
 
 def test_a_harmonic_josephson_ring_holds_no_fluxon():

@@ -24,22 +24,10 @@ from cosserat_chain.numerics.shooting import (
     second_multiplier_at_one,
     settled_guess,
 )
-from cosserat_chain.systems import LatticeSystem
+from three_junctions import REFERENCE, jj3
 
 AUTO_FOLDS = (0.53142260384, 0.53193913189, 0.53175119894)
 AUTO_END = 0.53179413051
-
-
-def jj3(*, I=0.97, kappa=0.29, alpha=0.45, ica=0.91, icb=1.13, icc=0.78):  # noqa: E741
-    return LatticeSystem(
-        sites=1,
-        dofs=("phi_a", "phi_b", "phi_c"),
-        site_energy="ica*(1-cos(phi_a)) + icb*(1-cos(phi_b)) + icc*(1-cos(phi_c)) - I*(phi_a+phi_b+phi_c)"
-        " + kappa/2*((phi_b-phi_a)**2 + (phi_c-phi_b)**2)",
-        damping="alpha",
-        parameters={"I": I, "kappa": kappa, "alpha": alpha, "ica": ica, "icb": icb, "icc": icc},
-        name="jj3",
-    )
 
 
 def rotation(system):
@@ -98,17 +86,8 @@ def test_snake_through_folds_to_a_solved_end():
 
 
 @pytest.mark.slow
-def test_cli_through_folds_names_each_fold_and_the_end(tmp_path):
-    (tmp_path / "jj3_system.py").write_text(
-        "from cosserat_chain.systems import LatticeSystem\n\n"
-        "def jj3(*, I=0.97, kappa=0.29, alpha=0.45, ica=0.91, icb=1.13, icc=0.78):\n"
-        "    return LatticeSystem(sites=1, dofs=('phi_a', 'phi_b', 'phi_c'),\n"
-        "        site_energy='ica*(1-cos(phi_a)) + icb*(1-cos(phi_b)) + icc*(1-cos(phi_c)) - I*(phi_a+phi_b+phi_c)'\n"
-        "        ' + kappa/2*((phi_b-phi_a)**2 + (phi_c-phi_b)**2)', damping='alpha',\n"
-        "        parameters={'I': I, 'kappa': kappa, 'alpha': alpha, 'ica': ica, 'icb': icb, 'icc': icc}, name='jj3')\n"
-    )
-    reference = f"{tmp_path / 'jj3_system.py'}:jj3"
-    base = ["orbit", "--system", reference, "--vary", "I", "--down-to", "0.5", "--period-max", "150", "--json"]
+def test_cli_through_folds_names_each_fold_and_the_end():
+    base = ["orbit", "--system", REFERENCE, "--vary", "I", "--down-to", "0.5", "--period-max", "150", "--json"]
     result = CliRunner().invoke(app, [*base, "--through-folds"])
     assert result.exit_code == 0, result.output
     branch = json.loads(result.stdout)["branch"]
