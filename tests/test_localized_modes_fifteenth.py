@@ -184,3 +184,16 @@ def test_the_command_names_the_localized_mode(tmp_path):
     (line,) = [line for line in out.output.splitlines() if line.startswith("localized mode:")]
     assert line.startswith("localized mode: omega = 2.14") and "(rotational_optical) at particle 0" in line
     assert line.endswith(": a resonance")
+
+
+def test_a_graded_atlas_gives_each_values_localized_modes_with_its_rotors_share():
+    """The heavy rotor's mode moves with the field E2 (its bonds' couple stiffness) and keeps its core share."""
+    from cosserat_chain.experiments.breather_atlas import breather_atlas
+
+    params = centred(3, j_factors=(4.0,)).replace(gamma_u=0.0, gamma_v=0.0, gamma_phi=0.0)
+    atlas = breather_atlas(params, "sine", [5.0], "E2", [params.E2, 1.5 * params.E2])
+    summary = json.loads(json.dumps(atlas.as_dict()))
+    assert json.loads(atlas.to_dataset().attrs["localized_modes_json"]) == summary["localized_modes"]
+    (low,), (high,) = summary["localized_modes"]
+    assert low["frequency"] == pytest.approx(classify_modes(params).localized[0].frequency, rel=1e-15)
+    assert high["frequency"] > low["frequency"] and low["resonant"] and high["resonant"]

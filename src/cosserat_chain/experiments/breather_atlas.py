@@ -91,6 +91,7 @@ from .breathers import (
     coupled_bands,
     harmonics_in_bands,
     lifetime,
+    localized_mode_summary,
     located_changes,
     rotors_start,
 )
@@ -592,6 +593,11 @@ class BreatherAtlas:
                 out[j, b] = edges[band]
         return out
 
+    def localized_modes(self) -> list[list[dict]]:
+        """Per field value, a graded chain's localized modes with their share on the rotors' core (:func:`~.breathers.localized_mode_summary`)."""
+        rotors = (self.settings.get("particle", 0), *(int(k) for k in self.settings.get("partners", {})))
+        return [localized_mode_summary(self.params_at(value), rotors) for value in self.values]
+
     def resonance_omegas(self) -> np.ndarray:
         """(value, band, edge, harmonic): Omega = edge / n, where the n-th harmonic meets the edge."""
         return self.band_edges()[..., None] / np.arange(1, MAX_HARMONIC + 1)
@@ -605,6 +611,7 @@ class BreatherAtlas:
             "bands": list(self.bands),
             "bands_from": BAND_SOURCES[self.params.graded],
             "band_edges": {band: self.band_edges()[:, b].tolist() for b, band in enumerate(self.bands)},
+            "localized_modes": self.localized_modes(),
             "thresholds": THRESHOLDS,
             "points": [[p.as_dict() for p in row] for row in self.points],
             "resonances": atlas_resonances(self),
@@ -704,6 +711,7 @@ class BreatherAtlas:
                 "units": "time: the parameters' units (m = 1, E1 = 1 give the paper's); angles: rad",
                 "bands": ", ".join(self.bands),
                 "bands_from": BAND_SOURCES[self.params.graded],
+                "localized_modes_json": json.dumps(self.localized_modes()),
                 "thresholds_json": json.dumps(THRESHOLDS),
                 "settings_json": json.dumps(self.settings),
             }

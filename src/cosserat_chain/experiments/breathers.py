@@ -247,6 +247,11 @@ def core_modes(params: ChainParams, rotors: tuple[int, ...] = (0,)) -> list[tupl
     return [(mode, mode.share_near(rotors)) for mode in classify_modes(params).localized]
 
 
+def localized_mode_summary(params: ChainParams, rotors: tuple[int, ...] = (0,)) -> list[dict]:
+    """JSON-ready :func:`core_modes`: each mode with its ``core_share`` and whether it is a resonance (``resonant``)."""
+    return [{**mode.as_dict(), "core_share": share, "resonant": share >= CORE_SHARE} for mode, share in core_modes(params, rotors)]
+
+
 def resonances(
     params: ChainParams,
     low: float,
@@ -566,9 +571,7 @@ class BreatherFamily:
         params = orbits[0].params
         return {
             "host_bands": {name: list(edge) for name, edge in band_edges(params).items()},
-            "localized_modes": [
-                {**mode.as_dict(), "core_share": share, "resonant": share >= CORE_SHARE} for mode, share in core_modes(params, rotors)
-            ],
+            "localized_modes": localized_mode_summary(params, rotors),
         }
 
     def localization(self) -> np.ndarray:
