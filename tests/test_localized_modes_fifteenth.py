@@ -12,6 +12,7 @@ import math
 import numpy as np
 import pytest
 import sympy as sp
+from scipy.optimize import brentq
 
 from cosserat_chain.analysis.dispersion import BRANCHES, wave_summary
 from cosserat_chain.analysis.localized_modes import classify_modes, lengthened
@@ -23,7 +24,7 @@ from cosserat_chain.experiments.breathers import (
     resonances,
     roto_breather_family,
 )
-from cosserat_chain.models.linear import cosserat_coefficients
+from cosserat_chain.models.linear import bloch_stiffness, cosserat_coefficients
 from cosserat_chain.params import ChainParams
 
 
@@ -197,3 +198,37 @@ def test_a_graded_atlas_gives_each_values_localized_modes_with_its_rotors_share(
     (low,), (high,) = summary["localized_modes"]
     assert low["frequency"] == pytest.approx(classify_modes(params).localized[0].frequency, rel=1e-15)
     assert high["frequency"] > low["frequency"] and low["resonant"] and high["resonant"]
+
+
+def host_green(host: ChainParams, omega: float, dof: int, n_q: int = 1024) -> float:
+    """G_dd(omega) at one particle of the infinite host: the mean over q of (B(q) - omega^2 M)^-1 (trapezoid, periodic)."""
+    q = 2 * np.pi * np.arange(n_q) / n_q
+    return float(np.mean(np.linalg.inv(bloch_stiffness(host, q) - omega**2 * np.diag(host.inertia))[:, dof, dof]).real)
+
+
+@pytest.mark.parametrize(
+    "field, factor, dof, branch, bracket",
+    [
+        ("j_factors", 4.0, 2, "rotational_optical", ("transverse_acoustic", 1, "rotational_optical", 0)),
+        ("j_factors", 0.25, 2, "rotational_optical", ("rotational_optical", 1, None, 50.0)),
+        ("m_factors", 0.5, 1, "transverse_acoustic", ("transverse_acoustic", 1, "rotational_optical", 0)),
+    ],
+)
+def test_an_inertia_defects_transverse_mode_is_the_lifshitz_root_of_the_hosts_green_function(field, factor, dof, branch, bracket):
+    """A defect dM on one degree of freedom d of particle 0 holds a mode where 1 = omega^2 dM G_dd(omega), G the
+    infinite host's Green's function from its Bloch stiffness (independent of the finite chain's eigen solver):
+    the heavy rotor's in the gap, the light rotor's above the optical band, the light mass's transverse one."""
+    host = ChainParams(N=30)
+    bands = wave_summary(host).bands
+    low = bands[bracket[0]][bracket[1]] + 1e-9
+    high = bands[bracket[2]][bracket[3]] - 1e-9 if bracket[2] else bracket[3]
+    grid = np.linspace(low, high, 200)
+    excess = (factor - 1.0) * host.inertia[dof]
+    residual = np.array([1.0 - w**2 * excess * host_green(host, w, dof) for w in grid])
+    crossings = np.flatnonzero(np.sign(residual[:-1]) != np.sign(residual[1:]))
+    assert crossings.size == 1  # one bound state of this branch
+    i = crossings[0]
+    lifshitz = brentq(lambda w: 1.0 - w**2 * excess * host_green(host, w, dof), grid[i], grid[i + 1], xtol=1e-15)
+    (mode,) = [m for m in classify_modes(centred(30, **{field: (factor,)})).localized if m.branch == branch]
+    assert mode.particle == 0
+    assert mode.frequency == pytest.approx(lifshitz, rel=1e-9)
