@@ -25,7 +25,8 @@ sparse bordered Newton, the adapted mesh and the multipliers by condensation) is
   second multiplier at +1, as issue 40 asks). Period doublings (a real multiplier through -1) and
   tori (a complex pair through the unit circle) are located on the way by the same secant method on
   test functions of the multipliers near the unit circle (:func:`circle_tests`), and the branch goes
-  on through them.
+  on through them. Its loop, :func:`trace_collocation`, also follows a user's system's orbits in any
+  parameter (:mod:`~cosserat_chain.numerics.system_collocation`; its messages then call the parameter's value M).
 """
 
 from __future__ import annotations
@@ -587,6 +588,41 @@ def continue_collocation(
     ValueError
         For a bad range, period_max, direction or remesh_every.
     """
+    system = periodic._System(orbit.params, get_model(orbit.model), orbit.moment, orbit.particle)
+    shift = _shift(system, orbit.particle_turns)
+    return trace_collocation(
+        orbit, lambda mesh, profile: _Collocation(system, mesh, orbit.ncol, shift, profile, free_moment=True),
+        moment_min=moment_min, moment_max=moment_max, period_max=period_max, direction=direction, step=step, min_step=min_step,
+        max_step=max_step, max_points=max_points, remesh_every=remesh_every, ntst=ntst, max_interval=max_interval,
+        ntst_max=ntst_max, progress=progress,
+    )  # fmt: skip
+
+
+def trace_collocation(
+    orbit,
+    build: Callable[[np.ndarray, np.ndarray], _Collocation],
+    *,
+    moment_min: float,
+    moment_max: float,
+    period_max: float,
+    direction: float,
+    step: float,
+    min_step: float,
+    max_step: float,
+    max_points: int,
+    remesh_every: int,
+    ntst: int | None,
+    max_interval: float | None,
+    ntst_max: int,
+    progress: Callable[[int, int], None] | None,
+    stop_at: tuple[str, ...] = ("fold",),
+    fold_message: str = periodic.FOLD_OF_CYCLES,
+) -> CollocationBranch:
+    """:func:`continue_collocation`'s loop for any orbit with its fields (``moment`` the continued parameter's value,
+    ``period``, ``mesh``, ``ncol``, ``profile``, ``multipliers``): ``build(mesh, profile)`` poses (C) with the parameter
+    free on a new mesh (:mod:`~cosserat_chain.numerics.system_collocation` for a user's system). ``stop_at`` = () follows
+    the branch through its folds (each an event); the other arguments and the errors are :func:`continue_collocation`'s.
+    """
     if not moment_min < moment_max or math.isnan(moment_min) or math.isnan(moment_max):
         raise ValueError(f"moment_min must be < moment_max, got {moment_min!r}, {moment_max!r}")
     if not (math.isfinite(period_max) and period_max > orbit.period):
@@ -601,8 +637,6 @@ def continue_collocation(
         raise ValueError(f"max_interval must be a finite number > 0 (time units) or None, got {max_interval!r}")
     ntst = orbit.ntst if ntst is None else ntst
     check_mesh(ntst, orbit.ncol)
-    system = periodic._System(orbit.params, get_model(orbit.model), orbit.moment, orbit.particle)
-    shift = _shift(system, orbit.particle_turns)
     sch = scheme(orbit.ncol)
     orbits, events = [orbit], []
     current, tangent0, adaptations = orbit, None, 0
@@ -618,7 +652,7 @@ def continue_collocation(
             nodes = current.profile.shape[0]
             moved = _interpolate(current.mesh, tangent0[:-2].reshape(nodes, -1) * math.sqrt(nodes), sch, _node_times(mesh, sch))
             adaptations += 1
-        collocation = _Collocation(system, mesh, orbit.ncol, shift, profile, free_moment=True)
+        collocation = build(mesh, profile)
         if tangent0 is not None:
             tangent0 = np.concatenate([collocation.scale * moved.ravel(), tangent0[-2:]])
         growth = REMESH_GROWTH if max_interval is None else 1.25
@@ -626,14 +660,14 @@ def continue_collocation(
         count = min(remesh_every, max_points - len(orbits) + 1)
         traced = continuation(
             problem, collocation.pack(profile, current.period, current.moment), step=step, min_step=min_step, max_step=max_step,
-            max_points=count, direction=direction, tangent0=tangent0, stop_at=("fold",), locate=True,
+            max_points=count, direction=direction, tangent0=tangent0, stop_at=stop_at, locate=True,
         )  # fmt: skip
         orbits.extend(traced.points[1:])
         events.extend(_event_record(e) for e in traced.events)
         if progress is not None:
             progress(len(orbits), max_points)
         if traced.end != BranchEnd.MAX_POINTS or len(traced.points) < 2:
-            end, message = traced.end, (periodic.FOLD_OF_CYCLES if traced.end == BranchEnd.FOLD else traced.message)
+            end, message = traced.end, (fold_message if traced.end == BranchEnd.FOLD else traced.message)
             break
         current = traced.points[-1]
         step = min(max_step, max(min_step, _last_step(traced.points)))

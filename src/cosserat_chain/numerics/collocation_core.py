@@ -44,7 +44,8 @@ This module knows the equations of motion only through the shooting's system obj
 (:class:`~cosserat_chain.numerics._System`: ``parameters``, ``nf``, ``load_dof``,
 ``velocity``, ``params``, ``moment``), so that :mod:`~cosserat_chain.numerics.periodic` can
 use it without an import circle; :mod:`~cosserat_chain.numerics.collocation` builds the
-public orbits, searches and continuation on it.
+public orbits, searches and continuation on it. A user's system enters through its own fields
+object in place of :class:`_Fields` (:mod:`~cosserat_chain.numerics.system_collocation`).
 """
 
 from __future__ import annotations
@@ -281,6 +282,12 @@ class _Fields:
         values[:, 2 * self.nf :] = out[:, self._read]
         return out[:, : self.n], values
 
+    def parameter_derivative(self, points: np.ndarray, moment: float) -> np.ndarray:
+        """df/dM (P, n) at ``points``: the moment's rate on the loaded angle's velocity, the same at every point."""
+        out = np.zeros((points.shape[0], self.n))
+        out[:, self.nf + self.load_dof] = self.moment_rate
+        return out
+
     def dense(self, values: np.ndarray) -> np.ndarray:
         """A (P, n, n) from its pattern values (P, nnz)."""
         out = np.zeros((values.shape[0], self.n, self.n))
@@ -327,15 +334,21 @@ def _node_times(mesh: np.ndarray, sch: Scheme) -> np.ndarray:
 class _Collocation:
     """The discretised system (C) of one chain and moment on one mesh, with one phase reference.
 
+    ``fields`` (default: the chain's :class:`_Fields` of ``system``) gives f, df/dy on a pattern and df/dM at
+    many points (:class:`~cosserat_chain.numerics.system_collocation.SystemFields` for a user's system, whose
+    ``system`` then carries the continued parameter's value as ``moment``).
+
     Unknowns w = (scale * node values (G n), log T[, M]): ``scale`` = 1 / sqrt(G) makes the
     Euclidean norm of the node values the profile's mean square norm, so arclength steps do not
     depend on the mesh; with ``free_moment`` M is the last unknown (a continuation) and the
     Jacobian has its column.
     """
 
-    def __init__(self, system: _System, mesh: np.ndarray, ncol: int, shift: np.ndarray, reference: np.ndarray, *, free_moment: bool):
+    def __init__(
+        self, system: _System, mesh: np.ndarray, ncol: int, shift: np.ndarray, reference: np.ndarray, *, free_moment: bool, fields=None
+    ):
         self.system = system
-        self.fields = _Fields(system)
+        self.fields = _Fields(system) if fields is None else fields
         self.mesh = np.asarray(mesh, dtype=float)
         self.sch = scheme(ncol)
         self.shift = shift
@@ -427,8 +440,7 @@ class _Collocation:
         extra_vals = [logt, [0.0]]
         width = self.size
         if self.free_moment:
-            moment_col = np.zeros((self.ntst * self.ncol, self.n))
-            moment_col[:, fields.nf + fields.load_dof] = -ht * fields.moment_rate
+            moment_col = -ht[:, None] * fields.parameter_derivative(points, moment)
             extra_rows.append(self._col_rows)
             extra_cols.append(np.full(rows, self.size))
             extra_vals.append(moment_col.ravel())
@@ -751,11 +763,15 @@ def solve_profile(
     max_iter: int = 25,
     profile: np.ndarray | None = None,
     mesh: np.ndarray | None = None,
+    shift: np.ndarray | None = None,
+    fields=None,
 ) -> Solution:
     """Solve (C) from a start y0 (2 n_free,) and period (the flow from y0 over T is the first profile).
 
     Given ``profile`` on ``mesh`` (an orbit solved before), that profile is interpolated onto the
     new mesh instead. The mesh is first adapted to the guess, then ``adapt`` times to the solution.
+    A user's system (:mod:`~cosserat_chain.numerics.system_collocation`) gives its boundary condition's
+    ``shift`` (2n,) and its ``fields`` (:class:`_Collocation`) instead of ``particle_turns``, and a ``profile``.
 
     Raises
     ------
@@ -772,7 +788,7 @@ def solve_profile(
     if not (math.isfinite(period) and period > 0):
         raise ValueError(f"the period must be finite and > 0, got {period!r}")
     sch = scheme(ncol)
-    shift = _shift(system, particle_turns)
+    shift = _shift(system, particle_turns) if shift is None else shift
     if profile is None:
         mesh = np.linspace(0.0, 1.0, ntst + 1)
         profile = _trajectory_guess(system, y0, period, mesh, sch, shift)
@@ -784,7 +800,7 @@ def solve_profile(
         profile = _interpolate(mesh, profile, old_sch, _node_times(new, sch))
         mesh = new
     for attempt in range(adapt + 1):
-        problem = _Collocation(system, mesh, ncol, shift, profile, free_moment=False)
+        problem = _Collocation(system, mesh, ncol, shift, profile, free_moment=False, fields=fields)
         solved = _solve(problem, profile, period, tol=tol, max_iter=max_iter)
         profile, period, _ = problem.unpack(solved.w)
         if attempt < adapt:
