@@ -84,13 +84,6 @@ def test_an_orbit_far_from_its_loop_is_refused_with_a_message():
         homoclinic_from_orbit(orbit, turns=TURNS, parameter="I", value=math.nan)
 
 
-#: A known defect (issue 40): the shooting branch now ends where its monodromy loses the trivial multiplier
-#: (shooting._OrbitProblem.stop, ||M|| ~ 1e9), where these pairs' last orbits still pass 0.79 and 5.8 from the saddle,
-#: too far to solve the loop from them: the row's end is fitted (seed1 0.2796829865 +- 9.9e-9, AUTO-07p 1.5e-8 away).
-#: Without that end the branch runs past the pen demo's loop on orbits its noise-floor Newton accepts.
-LOST_TRIVIAL = "the branch ends where the trivial multiplier is lost, before its orbit nears the saddle: the end is fitted"
-
-
 @pytest.mark.parametrize(
     ("parameters", "auto"),
     [
@@ -99,18 +92,21 @@ LOST_TRIVIAL = "the branch ends where the trivial multiplier is lost, before its
             {"k": 0.305, "a": 0.194, "mu": 0.802, "w": 1.459, "r": 0.949, "coupling": "sine"},
             0.27968300176,
             id="seed1",
-            marks=[pytest.mark.slow, pytest.mark.xfail(strict=True, reason=LOST_TRIVIAL)],
+            marks=pytest.mark.slow,
         ),
         pytest.param(
             {"k": 0.205, "a": 0.116, "mu": 1.74, "w": 0.774, "r": 1.18},
             0.13311167554,
             id="seed2",
-            marks=[pytest.mark.slow, pytest.mark.xfail(strict=True, reason=LOST_TRIVIAL)],
+            marks=pytest.mark.slow,
         ),
     ],
 )
 def test_the_diagrams_end_of_an_unequal_pair_is_solved_to_auto07p(parameters, auto):
-    """``diagram --system``'s row: the end solved (not fitted) to the asked accuracy, AUTO-07p's value within it."""
+    """``diagram --system``'s row: the end solved (not fitted) to the asked accuracy, AUTO-07p's value within it. Seeds 1
+    and 2's branches end where the monodromy loses the trivial multiplier (||M|| ~ 1e9), their last orbits 0.004 and
+    0.002 from the saddle; seed 2's loop is solved from an earlier orbit (``branch_end_orbits``: its two longest ones a
+    unit of time apart miss a rung of the ladder)."""
     pair = unequal_pair(**parameters)
     (row,) = system_diagram(pair, "a", [pair.parameter("a")], "I").rows
     assert (row.end, row.method) == ("homoclinic", "solved"), row.message

@@ -20,15 +20,17 @@ a torque):
   found (``message`` says why);
 * ``stops_method`` and ``stops_uncertainty`` (the accuracy): ``solved`` for a homoclinic end
   solved as a boundary-value problem (projection boundary conditions): first from the loop the
-  continuation's last orbit nearly is, through the saddle that orbit lingers at
+  continuation's longest orbits nearly are, in turn (:func:`~cosserat_chain.numerics.homoclinic.branch_end_orbits`),
+  through the saddle the orbit lingers at
   (:func:`~cosserat_chain.numerics.homoclinic.homoclinic_from_orbit`: any saddle with real
   unstable eigenvalues, on whichever static branch), else
-  (:func:`~cosserat_chain.numerics.homoclinic.homoclinic_end`) in the bracket between that orbit
+  (:func:`~cosserat_chain.numerics.homoclinic.homoclinic_end`) in the bracket between the last orbit
   and the fit of its period's growth, the saddle followed along the static branch past the fold;
   its accuracy the one the solve reports; ``fitted`` where both fail (the fit of the period's
   growth, p = p* + c exp(-s T), is kept, ``reason`` says why it was not solved, and its
   uncertainty is the fit's own: the distance between the fits over the last half and the whole
-  span of periods, :func:`~cosserat_chain.numerics.shooting.continue_orbits`); ``located`` for a fold of cycles (the continuation's event, located by the
+  span of periods, or its reach beyond the last orbit where larger,
+  :func:`~cosserat_chain.numerics.shooting.continue_orbits`); ``located`` for a fold of cycles (the continuation's event, located by the
   kit to its corrector's tolerance; no accuracy estimated); ``static_fold`` for a SNIC (the end
   is the equilibrium's fold, ``starts``; every orbit lies above it and the fold's centre
   manifold falls back into the shifted fold, :func:`~cosserat_chain.numerics.homoclinic.fold_turns_over`);
@@ -71,7 +73,14 @@ import numpy as np
 from ..linalg.threads import one_blas_thread
 from ..numerics.cycle_curve import KINDS, continue_cycle_end
 from ..numerics.equilibria import EquilibriumNotFound, continue_equilibria, find_equilibrium
-from ..numerics.homoclinic import HomoclinicError, fold_turns_over, homoclinic_end, homoclinic_from_orbit, locate_snic_point
+from ..numerics.homoclinic import (
+    HomoclinicError,
+    branch_end_orbits,
+    fold_turns_over,
+    homoclinic_end,
+    homoclinic_from_orbit,
+    locate_snic_point,
+)
 from ..numerics.kit import BranchEnd, EvaluationFailed
 from ..numerics.shooting import OrbitNotFound, continue_orbits, find_orbit, flow, settled_guess, states, turns_vector
 from ..systems.base import System
@@ -388,8 +397,8 @@ def _stability_warning(row: SystemDiagramRow, branch, drive: str) -> None:
 
 
 def _homoclinic(row: SystemDiagramRow, system: System, drive: str, k: np.ndarray, winding: int, branch, last: float) -> None:
-    """Solve the homoclinic end: from the loop the last orbit nearly is, else in the bracket between the fit and the last
-    orbit with the static branch's saddle past the fold; keep the fit, saying why and with its own uncertainty, where
+    """Solve the homoclinic end: from the loop the longest orbits nearly are (in turn), else in the bracket between the fit
+    and the last orbit with the static branch's saddle past the fold; keep the fit, saying why and with its own uncertainty, where
     both fail (the last orbit's value, where there is no fit)."""
     spread = branch.end_uncertainty if branch.end_uncertainty is not None and math.isfinite(branch.end_uncertainty) else 0.0
     # A fit is reported only with its own uncertainty; without one the end is bounded by the last orbit alone.
@@ -399,12 +408,14 @@ def _homoclinic(row: SystemDiagramRow, system: System, drive: str, k: np.ndarray
     turns = {system.coordinates[i]: int(n) for i, n in enumerate(k) if n}
     errors: list[str] = []
     orbit = None
-    try:
-        # Through the saddle the last orbit lingers at, which need not be the static branch's past the fold (an
-        # unequal pendulum pair's in-phase rotation ends at the saddle with both pendula up).
-        orbit = homoclinic_from_orbit(branch.orbits[-1], turns=turns, parameter=drive, value=fit)
-    except HomoclinicError as err:
-        errors.append(f"from the last orbit: {err}")
+    for candidate in branch_end_orbits(branch):
+        try:
+            # Through the saddle the orbit lingers at, which need not be the static branch's past the fold (an unequal
+            # pendulum pair's in-phase rotation ends at the saddle with both pendula up).
+            orbit = homoclinic_from_orbit(candidate, turns=turns, parameter=drive, value=fit)
+            break
+        except HomoclinicError as err:
+            errors.append(f"from the orbit of period {candidate.period:.6g}: {err}")
     if orbit is None:
         error: Exception | None = None
         try:

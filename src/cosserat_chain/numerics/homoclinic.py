@@ -652,7 +652,7 @@ def _solve_ladder(
             tilts.append(direction)
         except HomoclinicError:
             p, time, direction, approach = start
-            if direction.size and previous_eps is not None and splits < SPLITS and len(values) < 3:
+            if direction.size and previous_eps is not None and splits < SPLITS:
                 # A tilted start: the rung halfway (in log eps) first, its solution a nearer start for this one.
                 splits += 1
                 pending[:0] = [math.sqrt(previous_eps * eps), eps]
@@ -727,7 +727,8 @@ def _richardson(values: Sequence[tuple[float, float, float]]) -> float:
     before, after = p0 - p1, p1 - p2
     if before * after <= 0 or e0 <= e1 or e1 <= e2:
         return 0.0
-    order = max(math.log(abs(before / after)) / math.log(e0 / e1), 0.5)
+    # At most the boundary conditions' order 2: rungs close together (a factor 1.15) overstate a measured order.
+    order = min(max(math.log(abs(before / after)) / math.log(e0 / e1), 0.5), 2.0)
     return abs(after) / ((e1 / e2) ** order - 1.0)
 
 
@@ -1017,10 +1018,22 @@ def homoclinic_from_orbit(
 BRANCH_END_TRIES = 6
 
 
+def branch_end_orbits(branch) -> list:
+    """The orbits of a branch whose period grew to start :func:`homoclinic_from_orbit` from, in turn: its longest ones,
+    longest first, at least a unit of time apart, at most :data:`BRANCH_END_TRIES`. The longest ones next to each other
+    fail alike (a tilted start's ladder misses the same rung; seed 2's unequal pair from T = 28.6 and 27.6, solved from
+    26.5)."""
+    orbits: list = []
+    for orbit in sorted(branch.orbits, key=lambda o: -o.period):
+        if len(orbits) < BRANCH_END_TRIES and all(abs(orbit.period - o.period) >= 1.0 for o in orbits):
+            orbits.append(orbit)
+    return orbits
+
+
 def solve_branch_end(branch, *, ladder: Sequence[float] = EPS_LADDER) -> HomoclinicOrbit | None:
     """The homoclinic end of an orbit branch whose period grew (:func:`~cosserat_chain.numerics.shooting.continue_orbits`),
-    solved: :func:`homoclinic_from_orbit` from its longest orbits in turn (at most :data:`BRANCH_END_TRIES`, longest
-    first, each at its own parameter value: a snaking approach's fit is no start), the turns those of the orbits.
+    solved: :func:`homoclinic_from_orbit` from its longest orbits in turn (:func:`branch_end_orbits`, each at its own
+    parameter value: a snaking approach's fit is no start), the turns those of the orbits.
 
     The first solved sets ``branch.end_value``, ``end_uncertainty`` (its accuracy) and ``end_method`` ``solved`` and
     says so in the message; where none is, the branch keeps its fit (``end_method`` ``fitted``) and the message says
@@ -1032,14 +1045,8 @@ def solve_branch_end(branch, *, ladder: Sequence[float] = EPS_LADDER) -> Homocli
     HomoclinicOrbit or None
         The solved end, or None where no orbit led to one.
     """
-    orbits: list = []
-    for orbit in sorted(branch.orbits, key=lambda o: -o.period):
-        # Orbits at least a unit of time apart: the longest ones next to each other fail alike (their integration over
-        # a period carries ||M|| times the closure's noise).
-        if len(orbits) < BRANCH_END_TRIES and all(abs(orbit.period - o.period) >= 1.0 for o in orbits):
-            orbits.append(orbit)
     reasons = []
-    for orbit in orbits:
+    for orbit in branch_end_orbits(branch):
         if not np.any(orbit.turns):
             return None
         try:
