@@ -7,7 +7,9 @@ shooting; clear errors. The slow tests: three unequal Josephson junctions agains
 saddle-focus homoclinic loop through AUTO-07p's folds of cycles (benchmarks/auto07p_jj3_snake.py).
 """
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,6 +21,9 @@ from cosserat_chain.systems.base import System, SystemDefinitionError
 
 #: Agreement of two independent methods (collocation, shooting) on the same orbit.
 AGREE = 1e-8
+AUTO_SNAKE = Path(__file__).resolve().parents[1] / "benchmarks" / "results" / "auto07p_jj3_snake.json"
+#: AUTO-07p's printed digits (11) on its folds and period doublings.
+AUTO_DIGITS = 1e-9
 
 
 class _Rotor(System):
@@ -219,3 +224,28 @@ def test_junction_orbit_equals_shooting():
     assert orbit.period == pytest.approx(shooting.period, abs=AGREE)
     assert orbit.trivial_multiplier_error < AGREE
     assert np.max(np.abs(np.sort_complex(orbit.multipliers) - np.sort_complex(shooting.multipliers))) < AGREE
+
+
+@pytest.mark.slow
+def test_junction_snake_through_auto07p_folds_and_period_doublings():
+    # AUTO-07p's folds where its two meshes (NTST = 100, 200) agree to their printed digits: the first eight. Single
+    # shooting reaches three (its monodromy's trivial multiplier is lost at T = 32.4); collocation on 200 intervals
+    # locates and confirms six, to period 43.1, each with its trivial multiplier's error.
+    auto = json.loads(AUTO_SNAKE.read_text())
+    coarse, fine = (auto[f"ntst{n}"]["folds"] for n in (100, 200))
+    agreed = [b["I"] for a, b in zip(coarse, fine, strict=False) if abs(a["I"] - b["I"]) < 1e-10]
+    assert len(agreed) >= 8
+    shooting = junction_rotation(jj3())
+    start = find_collocation_orbit(shooting.system, shooting, ntst=200)
+    branch = continue_collocation_orbits(start, "I", through_folds=True, period_max=45.0, max_points=2000)
+    folds = [e for e in branch.events if e["kind"] == "fold"]
+    assert len(folds) >= 6 and all(e["located"] for e in folds)
+    assert np.allclose([e["moment"] for e in folds], agreed[: len(folds)], rtol=0.0, atol=AUTO_DIGITS)
+    for event in folds:
+        orbit = event["orbit"]
+        # Confirmed by a second multiplier at +1 beside the trivial one, whose error is reported.
+        assert np.sort(np.abs(orbit.multipliers - 1.0))[1] < 1e-2
+        assert orbit.trivial_multiplier_error < 1e-2
+    # AUTO-07p's five period doublings before the first fold (its only PD labels), in the same order.
+    doublings = [e["moment"] for e in branch.events if e["kind"] == "period_doubling"]
+    assert np.allclose(doublings[:5], [0.93171808563, 0.67728400426, 0.54097375857, 0.53370515518, 0.53147837059], atol=AUTO_DIGITS)
