@@ -142,3 +142,16 @@ def test_the_switch_gives_the_same_bits_whatever_sign_lapack_gives(branch, switc
     assert again.doubled.moment == switch.doubled.moment and again.doubled.period == switch.doubled.period
     assert np.array_equal(again.doubled.x, switch.doubled.x) and np.array_equal(again.doubled.v, switch.doubled.v)
     assert np.array_equal(again.doubled.multipliers, switch.doubled.multipliers)
+
+
+#: AUTO-07p 0.9.2's doubled family (ISW = -1 at its PD, NTST = 200 doubled to 400) at its user point M = 0.17287144382642
+#: (benchmarks/auto07p_chain_doubled.py): the period and the flip's square, to their printed digits.
+AUTO_MOMENT, AUTO_PERIOD, AUTO_FLIP_SQUARED = 0.17287144382642, 25.739097371, 0.98456
+
+
+def test_the_doubled_orbit_is_auto07ps_at_its_user_point(switch):
+    orbit = find_periodic_orbit(PARAMS, "sine", AUTO_MOMENT, turns=2, guess=switch.doubled)
+    # dT/dM is about -2000 this near the period doubling: the period to AUTO's 11 printed digits (measured 3e-10 off).
+    assert orbit.period == pytest.approx(AUTO_PERIOD, abs=1e-9)
+    second = sorted(orbit.multipliers, key=lambda mu: abs(mu - 1.0))[1]
+    assert abs(second - AUTO_FLIP_SQUARED) < 1e-6
