@@ -12,6 +12,7 @@ API above every floor.
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
@@ -57,8 +58,20 @@ def _import_nodes(tree: ast.Module, deferred: bool) -> list[ast.Import | ast.Imp
 
 def imported_modules(name: str, source: str, is_package: bool, modules: set[str], deferred: bool) -> set[str]:
     """The package's modules that module ``name`` imports (a package when the name is not a module)."""
+    return set(_imports_at_load_and_deferred(name, source, is_package, frozenset(modules))[deferred])
+
+
+@functools.cache
+def _imports_at_load_and_deferred(name: str, source: str, is_package: bool, modules: frozenset[str]) -> tuple[frozenset[str], ...]:
+    """:func:`imported_modules` both ways from one parse, kept for the session by the source text: the package's graph is
+    read four times (at load and with the deferred imports, here and in test_linalg.py), and parsing is most of it."""
+    tree = ast.parse(source)
+    return tuple(frozenset(_imported_by(tree, name, is_package, modules, deferred)) for deferred in (False, True))
+
+
+def _imported_by(tree: ast.Module, name: str, is_package: bool, modules: frozenset[str], deferred: bool) -> set[str]:
     out = set()
-    for node in _import_nodes(ast.parse(source), deferred):
+    for node in _import_nodes(tree, deferred):
         if isinstance(node, ast.Import):
             targets = [alias.name for alias in node.names]
         else:
