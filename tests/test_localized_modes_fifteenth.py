@@ -110,13 +110,18 @@ def test_pinned_ends_hold_end_modes_in_the_gap_that_a_centre_rotor_does_not_meet
     params = ChainParams(N=10, left_end="pinned", right_end="pinned", j_factors=(1.0,) * 10 + (1.5,) + (1.0,) * 10)
     classes = classify_modes(params)
     ends = [mode for mode in classes.localized if abs(mode.particle) == 10]
-    assert sorted(mode.particle for mode in ends) == [-10, 10]
+    # The mirror-symmetric chain's two end modes are its even and odd pair, split by 5e-7 in omega: each holds
+    # both ends alike (which of the two is its peak is round-off).
+    assert len(ends) == 2
+    for mode in ends:
+        assert mode.shares[0] == pytest.approx(mode.shares[-1], rel=1e-6) and mode.shares[0] > 0.4
     top, bottom = classes.host_bands["transverse_acoustic"][1], classes.host_bands["rotational_optical"][0]
     for mode in ends:
         assert top < mode.frequency < bottom and mode.branch == "rotational_optical"
         assert mode.participation_longer < 1.01 * mode.participation < 2 * mode.participation_longer
-    shares = {mode.particle: share for mode, share in core_modes(params, (0,))}
-    assert shares[-10] < 1e-4 and shares[10] < 1e-4 and shares[0] > 0.5
+    shares = [(mode.particle, share) for mode, share in core_modes(params, (0,))]
+    assert [share < 1e-4 for particle, share in shares if particle != 0] == [True, True]
+    assert [share > 0.5 for particle, share in shares if particle == 0] == [True]
     found = {r.edge_frequency for r in resonances(params, 0.1, 10.0) if r.edge == "localized"}
     assert found == {mode.frequency for mode in classes.localized if mode.particle == 0}
 

@@ -55,8 +55,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse as sp
 from scipy.optimize import minimize_scalar
+from scipy.sparse.csgraph import reverse_cuthill_mckee
 
+from ..linalg import band_eigenpairs, upper_bands
 from ..models.base import Model, get_model
 from ..models.linear import cosserat_coefficients
 from ..params import BOND_FACTORS, PARTICLE_FACTORS, ChainParams
@@ -414,42 +417,45 @@ def finite_modes(params: ChainParams, model: str | Model = "linear", x: np.ndarr
 
     Notes
     -----
-    Dense eigen solvers: cost O((6N)^3), fine up to N of a few hundred. A chain that can
+    A conservative model's modes come from its symmetric band matrix, without a dense one
+    (:func:`~cosserat_chain.linalg.band_eigenpairs`: O((6N)^2) with the eigenvectors; a ring's
+    rows reordered into a band); a non-conservative model's (eq. (2)) from the dense
+    eigen solver, O((6N)^3), fine up to N of a few hundred. A chain that can
     move rigidly (``ChainParams.rigid_modes``: free ends, a ring) has that many zero
     frequencies, its rigid motions (:func:`rigid_motions`), given omega^2 = 0 exactly and
     listed first (``Modes.rigid``) where K annihilates them.
     """
     model = get_model(model)
     x = np.zeros((3, params.n_particles)) if x is None else check_state(params, x)
-    stiffness = model.stiffness(params, x).toarray()
+    stiffness = model.stiffness(params, x).tocsr()
     mass = pack(params, params.particle_inertia)
     root = 1.0 / np.sqrt(mass)
-    scaled = stiffness * root[:, None] * root[None, :]  # M^-1/2 K M^-1/2, similar to M^-1 K
+    scaled = (sp.diags(root) @ stiffness @ sp.diags(root)).tocsr()  # M^-1/2 K M^-1/2, similar to M^-1 K
     motions = rigid_motions(params, x)
-    scale = max(float(np.max(np.abs(stiffness))), np.finfo(float).tiny)
+    scale = max(float(abs(stiffness).max()), np.finfo(float).tiny)
     zero = [r for r in motions if np.max(np.abs(stiffness @ r)) <= RIGID_RTOL * scale * np.max(np.abs(r))]
-    # An orthonormal basis [Q_r, P] of the mass-scaled space, Q_r spanning the rigid modes:
-    # S Q_r = 0, so S = [[0, X], [0, Y]] in it and the elastic modes are Y's.
+    # An orthonormal basis Q_r of the rigid modes in the mass-scaled space: S Q_r = 0, and the
+    # elastic modes are S's on its complement.
     n_rigid = len(zero)
-    if n_rigid:
-        basis, _ = sla.qr((np.array(zero) / root[None, :]).T)
-    else:
-        basis = np.eye(mass.size)
-    rigid_basis, complement = basis[:, :n_rigid], basis[:, n_rigid:]
-    reduced = complement.T @ scaled @ complement
+    rigid = (np.array(zero) / root[None, :]).T if n_rigid else np.zeros((mass.size, 0))
+    rigid_basis = sla.qr(rigid, mode="economic")[0] if n_rigid else rigid
     if model.conservative:
-        elastic, z = sla.eigh(0.5 * (reduced + reduced.T))
+        elastic, elastic_vectors = _banded_modes(0.5 * (scaled + scaled.T), rigid_basis)
         elastic = elastic.astype(complex)
-        mixed = np.zeros((n_rigid, z.shape[1]))
     else:
-        elastic, z = sla.eig(reduced)
+        # A full basis [Q_r, P]: S = [[0, X], [0, Y]] in it, and the elastic modes are Y's.
+        basis = sla.qr(rigid)[0] if n_rigid else np.eye(mass.size)
+        complement = basis[:, n_rigid:]
+        dense = scaled.toarray()
+        elastic, z = sla.eig(complement.T @ dense @ complement)
         order = np.argsort(elastic.real, kind="stable")
         elastic, z = elastic[order], z[:, order]
-        coupling = rigid_basis.T @ scaled @ complement
+        coupling = rigid_basis.T @ dense @ complement
         # The rigid part of an elastic mode: X z / mu (none where mu is zero).
         mixed = np.divide(coupling @ z, elastic, out=np.zeros((n_rigid, z.shape[1]), dtype=complex), where=elastic != 0)
+        elastic_vectors = rigid_basis @ mixed + complement @ z
     eigenvalues = np.concatenate([np.zeros(n_rigid, dtype=complex), elastic])
-    vectors = root[:, None] * np.hstack([rigid_basis, rigid_basis @ mixed + complement @ z])
+    vectors = root[:, None] * np.hstack([rigid_basis, elastic_vectors])
     vectors = vectors / np.sqrt(np.einsum("ij,i,ij->j", vectors.conj(), mass, vectors).real)
     # A deterministic sign (phase): the largest component of each mode real and positive.
     largest = vectors[np.argmax(np.abs(vectors), axis=0), np.arange(vectors.shape[1])]
@@ -461,3 +467,17 @@ def finite_modes(params: ChainParams, model: str | Model = "linear", x: np.ndarr
     flat[:, free_index(params)] = vectors.T
     shapes = np.ascontiguousarray(flat.reshape(-1, params.n_particles, 3).transpose(0, 2, 1))
     return Modes(eigenvalues, shapes, model.name, n_rigid)
+
+
+def _banded_modes(scaled: sp.csr_matrix, rigid_basis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The eigenpairs of the symmetric sparse ``scaled`` off the span of ``rigid_basis``, by :func:`band_eigenpairs`.
+
+    Its rows are first ordered by reverse Cuthill-McKee: an open chain's matrix keeps its band
+    (half-bandwidth 5), a ring's closing bond, which couples the first and the last particle,
+    comes within a band of half-bandwidth 8 (the particles taken alternately from both ends).
+    """
+    order = reverse_cuthill_mckee(scaled, symmetric_mode=True)
+    values, vectors = band_eigenpairs(upper_bands(scaled[order][:, order]), rigid_basis[order])
+    unpermuted = np.empty_like(vectors)
+    unpermuted[order] = vectors
+    return values, unpermuted

@@ -26,8 +26,9 @@ amplitudes sqrt(w_k) away from that particle, fitted over the tail above round-o
 A pinned or free end holds modes of its own (end modes, in the gap below the optical band): they
 are localized modes too, at the end particles.
 
-The eigen solver is dense (that of :func:`finite_modes`): O((6N)^3) for the lengthened chain,
-fine up to N of a few hundred.
+The modes are :func:`finite_modes`'s of the linear model, from its symmetric band matrix
+(:func:`~cosserat_chain.linalg.band_eigenpairs`, a ring's rows reordered into a band):
+O((6N)^2) for the lengthened chain, with no dense matrix (benchmarks/bench_localized_modes.py).
 """
 
 from __future__ import annotations

@@ -17,7 +17,8 @@ NumPy/SciPy references directly (``tests/test_linalg.py``).
 * :mod:`.norms`: :func:`infinity_norm`, :func:`dot`, :func:`euclidean_norm`, compiled and
   on the calling thread.
 * :mod:`.eigen`: the smallest eigenvalue of a symmetric band matrix by inverse iteration
-  certified by inertia, the largest by bisection, the leftmost of any sparse matrix.
+  certified by inertia, the largest by bisection, the leftmost of any sparse matrix, and every
+  eigenpair (:func:`band_eigenpairs`) by inverse iteration with band LU factors.
 * :mod:`.pencil`: the damped pencil K + z R + z^2 I: eigenvalues near the axis by
   shift-invert, the count right of it by the argument principle.
 * :mod:`.refinement`: solves refined with residuals in extended precision.
@@ -31,7 +32,7 @@ operations: the same inputs give the same bits on every run and thread count.
 
 from .band import BANDWIDTH, BandMatrix, band_storage, from_upper_bands, ldlt, negated_lu, negative_count, upper_bands
 from .bordered import BorderedFactor, bordered_jacobian, bordered_solve, rotation_controlled_jacobian, sparse_solve
-from .eigen import eigenvalue_resolution, largest_eigenvalue_bound, lowest_real_eigenvalue, smallest_eigenvalue
+from .eigen import band_eigenpairs, eigenvalue_resolution, largest_eigenvalue_bound, lowest_real_eigenvalue, smallest_eigenvalue
 from .mixed import MixedBorderedFactor, MixedFactor, StiffnessRows
 from .norms import dot, euclidean_norm, infinity_norm
 from .refinement import Refined, refined_solve
@@ -46,6 +47,7 @@ __all__ = [
     "Refined",
     "RootFactor",
     "StiffnessRows",
+    "band_eigenpairs",
     "band_storage",
     "bordered_jacobian",
     "bordered_solve",

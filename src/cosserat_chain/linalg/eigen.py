@@ -13,6 +13,10 @@ round-off of the result.
 
 :func:`largest_eigenvalue_bound` brackets the largest eigenvalue of a symmetric banded
 matrix of any bandwidth by bisection with LAPACK's banded Cholesky.
+:func:`band_eigenpairs` is every eigenpair of a symmetric band matrix of any bandwidth w,
+without a dense matrix: the eigenvalues by LAPACK's band reduction (O(n^2 + n w^2)), each
+eigenvector by inverse iteration with a band LU (O(n w^2) each, O(n^2 w^2) in all), where
+LAPACK's own eigenvectors (the band reduction's rotations accumulated) cost O(n^3).
 :func:`lowest_real_eigenvalue` is the eigenvalue of smallest real part of any sparse matrix,
 through its symmetric similar (:func:`diagonal_similar_symmetric`) where a diagonal
 similarity gives one.
@@ -30,7 +34,8 @@ from functools import lru_cache
 import numpy as np
 import scipy.sparse as sp
 from numba import njit
-from scipy.linalg import LinAlgError, cholesky_banded
+from scipy.linalg import LinAlgError, cholesky_banded, eig_banded
+from scipy.linalg.lapack import dgbtrf, dgbtrs
 
 from .band import BANDWIDTH, BandMatrix, band_storage, ldlt, upper_bands
 from .norms import euclidean_norm, infinity_norm
@@ -224,6 +229,78 @@ def largest_eigenvalue_bound(matrix: sp.spmatrix, rtol: float) -> float:
         else:
             high = middle
     return high
+
+
+#: Inverse-iteration steps of :func:`band_eigenpairs` for each eigenvalue, from a fixed start, with one LU of M - lambda I:
+#: each divides the other eigenvectors' components by |lambda_j - lambda| / (round-off of lambda), >= 1e-9 / 1e-14 outside a cluster.
+PAIR_STEPS = 3
+#: Eigenvalues of :func:`band_eigenpairs` within this times the Gershgorin radius of the last one are a cluster:
+#: each eigenvector is orthogonalised against the cluster's earlier ones (inverse iteration alone cannot split them).
+#: Small: a long chain's flat band edges chain a wider threshold's clusters over hundreds of modes (O(n^3) again).
+CLUSTER_RTOL = 1e-9
+
+
+def band_eigenpairs(bands: np.ndarray, deflate: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Every eigenpair of a symmetric band matrix M, less a null space it is given, without a dense matrix.
+
+    The eigenvalues are LAPACK's (``scipy.linalg.eig_banded``, band reduction to tridiagonal
+    form without its rotations: O(n^2 + n w^2)). Each eigenvector is found by :data:`PAIR_STEPS`
+    steps of inverse iteration with one band LU of M - lambda I (LAPACK's xGBTRF, partial
+    pivoting), O(n w^2); LAPACK's own eigenvectors accumulate the reduction's rotations in a
+    dense n x n matrix, O(n^3). Within a cluster (:data:`CLUSTER_RTOL`) each vector is
+    orthogonalised against the cluster's earlier ones at every step, as LAPACK's xSTEIN does.
+
+    Parameters
+    ----------
+    bands : ndarray, shape (w + 1, n)
+        M in LAPACK's upper band storage (:func:`~.band.upper_bands`).
+    deflate : ndarray, shape (n, r), optional
+        Orthonormal columns spanning part of M's null space (a chain's rigid motions): their r
+        eigenvalues (those nearest zero) are left out, and every eigenvector is kept orthogonal
+        to them.
+
+    Returns
+    -------
+    values : ndarray, shape (n - r,)
+        Ascending.
+    vectors : ndarray, shape (n, n - r)
+        Orthonormal columns, orthogonal to ``deflate``.
+    """
+    width, n = bands.shape[0] - 1, bands.shape[1]
+    deflate = np.zeros((n, 0)) if deflate is None else deflate
+    values = eig_banded(bands, eigvals_only=True, check_finite=False)
+    if deflate.shape[1]:
+        values = np.sort(np.delete(values, np.argsort(np.abs(values), kind="stable")[: deflate.shape[1]]))
+    # LAPACK's general band storage of M for its LU: rows [0, w) for the fill-in, then M[i, j] at 2w + i - j.
+    general = np.zeros((3 * width + 1, n), order="F")
+    general[width : 2 * width + 1] = bands
+    for d in range(1, width + 1):
+        general[2 * width + d, : n - d] = bands[width - d, d:]
+    radius = float(np.max(np.sum(np.abs(general), axis=0), initial=0.0))
+    start = _start_vector(n)
+    vectors = np.empty((n, values.size))
+    first = 0  # of the cluster
+    for i, value in enumerate(values):
+        if i and value - values[i - 1] > CLUSTER_RTOL * radius:
+            first = i
+        shift = value
+        while True:
+            shifted = general.copy(order="F")
+            shifted[2 * width] -= shift
+            factor, pivots, info = dgbtrf(shifted, width, width, overwrite_ab=1)
+            if info == 0:
+                break
+            # An exactly zero pivot: the shift is the eigenvalue to the last bit; a nudge by its round-off.
+            shift += np.finfo(float).eps * max(radius, abs(shift), np.finfo(float).tiny)
+        vector = np.array(start)
+        for _ in range(PAIR_STEPS):
+            vector = dgbtrs(factor, width, width, vector, pivots)[0]
+            vector -= deflate @ (deflate.T @ vector)
+            cluster = vectors[:, first:i]
+            vector -= cluster @ (cluster.T @ vector)
+            vector /= np.linalg.norm(vector)
+        vectors[:, i] = vector
+    return values, vectors
 
 
 #: Size up to which :func:`lowest_real_eigenvalue` computes the whole spectrum densely.
