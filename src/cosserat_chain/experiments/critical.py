@@ -54,6 +54,11 @@ Contract
   M = 1.2757 on a branch traced over its whole turn, and the chain snaps onto a branch the trace never meets and rotates
   only above M_c = 8.898910 (tests/test_audit_fourteenth_chain.py). Where such relaxations leave rest just above M_c
   (``onset_checked``), M_c is decided whatever the trace past it: the command line notes the incomplete branch and exits 0.
+  Past a fold one relaxation suffices, started on the side its ghost runs to (:func:`ghost_passage`, the fold's normal
+  form); where that ghost takes longer to pass than the relaxation may run (N = 1000 on the paper's geometry: 2.8 10^5
+  against 20000; its fold's null vector is the long chain's slow bending), or a relaxation neither rests nor rotates,
+  nothing is decided: past the fold of a whole trace M_c stays the traced fold without ``onset_checked``; past a branch
+  point or a trace cut short it is a lower bound (``crossing_unresolved``).
 
 Where K's softest eigenvalue at rest lies within :data:`CONFIRM_MARGIN` times its
 round-off (a long clamped chain: its bending mode's eigenvalue falls like N^-4, within
@@ -210,6 +215,10 @@ CONFIRM_ITERATIONS = 12
 #: stable crossing branch carries the chain beyond it (:func:`crossing_fold`) ...
 CROSSING_EXCESS = 1.001
 CROSSING_NUDGE = 1e-3
+#: Turns in each of the two windows whose equal mean rates say a relaxation past the point rotates (relax's
+#: ``window_turns``): just above a fold every turn passes the fold's ghost, one slow passage a turn, so the rotation
+#: repeats turn by turn, and relax's 12 (for rotations that repeat only after 2 or 3 turns) cost four times as much.
+CROSSING_WINDOW_TURNS = 3
 #: ... which is followed with the loaded particle's angle held, in steps of this (rad), halved where a solve fails, up to
 #: :data:`CROSSING_TURN` rad beyond its start, to its first maximum of M (located by Brent's method on dM/dphi_0).
 CROSSING_STEP = 0.02
@@ -219,6 +228,9 @@ CROSSING_TURN = 2 * math.pi
 #: tests/test_audit_fourteenth_chain.py, whose followed branch ends at M = 1.730 while a jump gave a fold at 1.766): it
 #: counts as a failed solve, the step is halved.
 CROSSING_JUMP = 10.0
+#: The step along a fold's null vector of the central difference that gives its normal form's quadratic coefficient
+#: (:func:`ghost_passage`): K's third derivative along it is O(1) on the paper's geometry, so its error is ~1e-8 relative.
+GHOST_STEP = 1e-4
 #: Most stable branches a slowly loaded chain is followed onto, one after another, past the end of the traced branch's
 #: stable part (:func:`onset_past`); still at rest past the last one's fold, M_c is that fold's moment, a lower bound.
 MAX_CROSSINGS = 4
@@ -311,7 +323,8 @@ class CriticalResult:
     #: True where such a branch was found but not followed to where the chain leaves rest: M_c is then a lower bound.
     crossing_unresolved: bool = False
     #: True where relaxations just above M_c leave rest (:func:`onset_past`): M_c is decided by the dynamics too, so a
-    #: trace cut short past it leaves the branch incomplete but not M_c.
+    #: trace cut short past it leaves the branch incomplete but not M_c. False where no relaxation ran or they decided
+    #: nothing (:func:`crossing_fold`).
     onset_checked: bool = False
 
     @property
@@ -537,7 +550,9 @@ class CriticalResult:
                 "accurate": int(self.accurate),
                 "dynamics_from": self.dynamics_from,
                 "dynamics_note": self.dynamics_note,
-                "dynamically_stable_to_onset": "unknown" if self.dynamically_stable_to_onset is None else int(self.dynamically_stable_to_onset),
+                "dynamically_stable_to_onset": "unknown"
+                if self.dynamically_stable_to_onset is None
+                else int(self.dynamically_stable_to_onset),
                 "hopf_search": self.hopf_search,
             }
         )
@@ -666,7 +681,11 @@ def critical_point(
     if model.conservative and (isinstance(onset, BranchPoint) and onset.index_before == 0 or past_trace):
         crossing, unresolved = onset_past(params, model, onset, particle=particle)
         onset_particle = onset_particle if crossing is None else crossing.mode_particle
-        checked = not unresolved
+        checked = unresolved is False
+        if unresolved is None:
+            # The relaxations decide nothing (the fold's ghost outlasts them: N = 1000 on the paper's geometry): past the
+            # fold of a whole trace M_c stays the traced one, unchecked; elsewhere the point's moment is a lower bound.
+            unresolved = not (isinstance(onset, Fold) and branch.complete)
     return CriticalResult(
         params, model.name, particle, fold, compliance, branch, first, snap_to, onset if isinstance(onset, BranchPoint) else None,
         confirmation, turns if model.rotates else None, onset_particle, *_dynamics(params, model, branch, dynamics),
@@ -801,14 +820,15 @@ def near_singular_at_rest(params: ChainParams, model: Model) -> bool:
     return value < CONFIRM_MARGIN * resolution
 
 
-def onset_past(params: ChainParams, model: Model, point: BranchPoint | Fold, *, particle: int = 0) -> tuple[Fold | None, bool]:
+def onset_past(params: ChainParams, model: Model, point: BranchPoint | Fold, *, particle: int = 0) -> tuple[Fold | None, bool | None]:
     """The onset of rotation past ``point``, where a stable part of the branch ends, by :func:`crossing_fold` repeated.
 
     Where a relaxation just past ``point`` comes to rest on a stable branch, that branch's first maximum of M is tested the
     same way, up to :data:`MAX_CROSSINGS` branches: the first maximum past which the chain leaves rest is M_c,
     ``(fold, False)``. ``(None, False)`` where the chain leaves rest at ``point`` itself; ``(fold, True)`` or
     ``(None, True)`` where a branch it rests on could not be followed to a maximum, or it still rests past the last one:
-    the moment reached is then a lower bound of M_c.
+    the moment reached is then a lower bound of M_c. ``(None, None)`` where the relaxations past ``point`` itself decide
+    nothing (:func:`crossing_fold`); past a later branch's fold that is ``(fold, True)``, a lower bound.
     """
     crossing, unresolved = crossing_fold(params, model, point, particle=particle)
     for _ in range(MAX_CROSSINGS - 1):
@@ -816,16 +836,20 @@ def onset_past(params: ChainParams, model: Model, point: BranchPoint | Fold, *, 
             return crossing, unresolved
         further, unresolved = crossing_fold(params, model, crossing, particle=particle)
         if further is None:
-            return crossing, unresolved
+            return crossing, True if unresolved is None else unresolved
         crossing = further
     return crossing, True
 
 
-def crossing_fold(params: ChainParams, model: Model, point: BranchPoint | Fold, *, particle: int = 0) -> tuple[Fold | None, bool]:
+def crossing_fold(params: ChainParams, model: Model, point: BranchPoint | Fold, *, particle: int = 0) -> tuple[Fold | None, bool | None]:
     """The onset of rotation past a branch point or fold that ends a stable part of the branch, where a crossing branch is stable.
 
-    A relaxation (:func:`~cosserat_chain.numerics.relaxation.relax`) at :data:`CROSSING_EXCESS` times the point's
-    moment starts from its state nudged by :data:`CROSSING_NUDGE` along K's lowest mode, each way. Where neither comes to
+    A relaxation (:func:`~cosserat_chain.numerics.relaxation.relax`, rotation told by windows of
+    :data:`CROSSING_WINDOW_TURNS` turns) at :data:`CROSSING_EXCESS` times the point's moment starts from its state nudged
+    by :data:`CROSSING_NUDGE` along K's lowest mode: each way past a branch point, and past a fold only the way its
+    ghost's flow runs (:func:`ghost_passage`: the other start passes the same ghost to the same place). Where a
+    relaxation neither comes to rest nor rotates within its ``t_max``, or past a fold whose ghost takes longer to pass
+    than twice that (the relaxation would end inside it), nothing is decided: ``(None, None)``. Where none comes to
     rest at a stable state, the chain leaves the branch there: ``(None, False)``. Where one does, the branch it rests on
     is followed with the loaded particle's angle held (:func:`~cosserat_chain.numerics.newton.solve_rotation_controlled`,
     steps of :data:`CROSSING_STEP`) while it stays stable, to its first maximum of M, located by Brent's method on
@@ -834,19 +858,33 @@ def crossing_fold(params: ChainParams, model: Model, point: BranchPoint | Fold, 
     (:data:`CROSSING_JUMP`; the branch turns back in phi_0 before its maximum of M), or no maximum comes within
     :data:`CROSSING_TURN` rad: ``(None, True)``, M_c unresolved (the branch point's moment is then a lower bound).
     """
-    from ..numerics.relaxation import relax  # the dynamics' engine only where a branch point needs it
+    from ..numerics.relaxation import RelaxSettings, relax  # the dynamics' engine only where a branch point needs it
 
     col = column(params, particle)
     moment = point.moment * CROSSING_EXCESS
-    mode = np.zeros(n_free(params))
-    static_stability(params, model, point.x, start=mode)
-    mode = unpack(params, mode / np.linalg.norm(mode))
-    steps = (relax(params, model, moment, particle=particle, x0=point.x + sign * CROSSING_NUDGE * mode) for sign in (1.0, -1.0))
-    # A state at rest counts only where it is stable: next to a branch point a relaxation can slow to rest on the
-    # unstable side before it leaves (its unstable eigenvalue is small there).
-    rest = next((s.x for s in steps if s.status == Status.STATIC and static_stability(params, model, s.x).stable), None)
+    free = np.zeros(n_free(params))
+    static_stability(params, model, point.x, start=free)
+    free /= np.linalg.norm(free)
+    mode = unpack(params, free)
+    signs = (1.0, -1.0)
+    if isinstance(point, Fold):
+        ghost, flow = ghost_passage(params, model, point, free, moment, particle=particle)
+        if flow and ghost / 2 > RelaxSettings().t_max:
+            return None, None
+        signs = (flow,) if flow else signs
+    rest, undecided = None, False
+    for sign in signs:
+        step = relax(
+            params, model, moment, particle=particle, x0=point.x + sign * CROSSING_NUDGE * mode, window_turns=CROSSING_WINDOW_TURNS
+        )
+        # A state at rest counts only where it is stable: next to a branch point a relaxation can slow to rest on the
+        # unstable side before it leaves (its unstable eigenvalue is small there).
+        if step.status == Status.STATIC and static_stability(params, model, step.x).stable:
+            rest = step.x
+            break
+        undecided = undecided or step.status == Status.NOT_CONVERGED
     if rest is None:
-        return None, False
+        return None, (None if undecided else False)
     x, held = rest, float(rest[ROW_INDEX["phi"], col])
     start, delta, rate = held, math.copysign(CROSSING_STEP, moment), None
     while abs(held - start) < CROSSING_TURN:
@@ -867,6 +905,37 @@ def crossing_fold(params: ChainParams, model: Model, point: BranchPoint | Fold, 
             return None, True
         x, moment, held, rate = new_x, new_moment, held + delta, change
     return None, True
+
+
+def ghost_passage(
+    params: ChainParams, model: Model, fold: Fold, mode: np.ndarray, moment: float, *, particle: int = 0
+) -> tuple[float, float]:
+    """How long the damped chain takes to pass ``fold``'s ghost under ``moment`` just beyond it, and which way it runs.
+
+    Along K's null vector v at the fold (``mode``, unit, free degrees of freedom), the slow dynamics are overdamped
+    and take the saddle-node's normal form gamma s' = mu - beta s^2: gamma = v^T Gamma v (the viscous coefficients),
+    mu = (moment - M_f) v_0 (v_0 the loaded angle's component), beta = (d/ds v^T K(x_f + s v) v) / 2 (a central
+    difference of two stiffness matrices). Past the fold (mu beta < 0: no equilibrium) s runs the way of mu's sign
+    through the fold's ghost in the time pi gamma / sqrt(-mu beta) (N = 100 on the paper's geometry: 128 at 1.001 M_f, where a
+    relaxation's turns take 175 each; N = 1000: 2.8 10^5, where two relaxations of t = 20000 turned the loaded
+    particle by 0.006 turn). O(N).
+
+    Returns
+    -------
+    time : float
+        The passage from s = -inf to +inf (NaN where the normal form has no ghost: mu beta >= 0).
+    flow : float
+        +1 or -1: the sign of s along which the chain runs past the fold; 0.0 where there is no ghost.
+    """
+    v = unpack(params, mode)
+    gamma = float(np.sum(np.asarray(params.damping)[:, None] * v * v))
+    mu = (moment - fold.moment) * float(v[ROW_INDEX["phi"], column(params, particle)])
+    step = GHOST_STEP
+    curvature = [float(mode @ (model.stiffness(params, fold.x + side * step * v) @ mode)) for side in (1.0, -1.0)]
+    beta = (curvature[0] - curvature[1]) / (4 * step)
+    if not mu * beta < 0:
+        return math.nan, 0.0
+    return math.pi * gamma / math.sqrt(-mu * beta), math.copysign(1.0, mu)
 
 
 def confirm_folds(branch: Branch, others: list[Fold]) -> list[Fold]:
