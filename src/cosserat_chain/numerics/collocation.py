@@ -448,6 +448,8 @@ class _BranchProblem:
     #: The segment ends (for a new mesh) once the period exceeds this.
     remesh_above: float = math.inf
     tol: float = TOL
+    #: A fold's or branch point's test of the multipliers (default: the second nearest +1 within :data:`FOLD_MULTIPLIER`).
+    second_at_one: Callable[[np.ndarray], bool] | None = None
 
     def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
         return self.collocation.evaluate(w, jacobian)
@@ -510,6 +512,8 @@ class _BranchProblem:
             return on_circle(point.nontrivial_multipliers, kind)
         if kind not in ("fold", "branch_point"):
             return True
+        if self.second_at_one is not None:
+            return self.second_at_one(point.multipliers)
         return bool(np.sort(np.abs(point.multipliers - 1.0))[1] < FOLD_MULTIPLIER)
 
 
@@ -617,11 +621,13 @@ def trace_collocation(
     progress: Callable[[int, int], None] | None,
     stop_at: tuple[str, ...] = ("fold",),
     fold_message: str = periodic.FOLD_OF_CYCLES,
+    second_at_one: Callable[[np.ndarray], bool] | None = None,
 ) -> CollocationBranch:
     """:func:`continue_collocation`'s loop for any orbit with its fields (``moment`` the continued parameter's value,
     ``period``, ``mesh``, ``ncol``, ``profile``, ``multipliers``): ``build(mesh, profile)`` poses (C) with the parameter
     free on a new mesh (:mod:`~cosserat_chain.numerics.system_collocation` for a user's system). ``stop_at`` = () follows
-    the branch through its folds (each an event); the other arguments and the errors are :func:`continue_collocation`'s.
+    the branch through its folds (each an event); ``second_at_one(multipliers)`` replaces :class:`_BranchProblem`'s test that
+    confirms a fold or branch point; the other arguments and the errors are :func:`continue_collocation`'s.
     """
     if not moment_min < moment_max or math.isnan(moment_min) or math.isnan(moment_max):
         raise ValueError(f"moment_min must be < moment_max, got {moment_min!r}, {moment_max!r}")
@@ -656,7 +662,9 @@ def trace_collocation(
         if tangent0 is not None:
             tangent0 = np.concatenate([collocation.scale * moved.ravel(), tangent0[-2:]])
         growth = REMESH_GROWTH if max_interval is None else 1.25
-        problem = _BranchProblem(collocation, current, (moment_min, moment_max), period_max, growth * current.period)
+        problem = _BranchProblem(
+            collocation, current, (moment_min, moment_max), period_max, growth * current.period, second_at_one=second_at_one
+        )
         count = min(remesh_every, max_points - len(orbits) + 1)
         traced = continuation(
             problem, collocation.pack(profile, current.period, current.moment), step=step, min_step=min_step, max_step=max_step,

@@ -49,7 +49,7 @@ from .collocation_core import (
     scheme,
     solve_profile,
 )
-from .shooting import Orbit, _no_force, require_periodic_turns, states, turns_vector
+from .shooting import Orbit, _no_force, require_periodic_turns, second_multiplier_at_one, states, turns_vector
 
 #: The seed of the random states whose force Jacobians give the sparsity pattern.
 PATTERN_SEED = 0
@@ -405,7 +405,9 @@ def continue_collocation_orbits(
     (``limits`` its ``moment_min``, ``moment_max``); each orbit's ``moment`` is the parameter's value.
     The branch ends at its first fold of cycles, or with ``through_folds`` goes on through each (every
     one an event of the branch, located by the secant method on the tangent's parameter component and
-    kept only with a second multiplier at +1). The message warns where the trivial multiplier's error
+    kept only with a second multiplier at +1, as the shooting's: the second nearest +1, or the two
+    nearest a double multiplier that the discretisation split symmetrically about +1,
+    :func:`~cosserat_chain.numerics.shooting.second_multiplier_at_one`). The message warns where the trivial multiplier's error
     exceeds :data:`~cosserat_chain.numerics.collocation.TRIVIAL_WARNING` (raise ntst or give max_interval).
 
     Raises
@@ -425,4 +427,5 @@ def continue_collocation_orbits(
         max_step=max_step, max_points=max_points, remesh_every=remesh_every, ntst=ntst, max_interval=max_interval,
         ntst_max=ntst_max, progress=progress, stop_at=() if through_folds else ("fold",),
         fold_message=f"fold of cycles: {parameter} turns back with the period finite and a second Floquet multiplier at +1",
+        second_at_one=second_multiplier_at_one,
     )  # fmt: skip
