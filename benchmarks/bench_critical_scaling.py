@@ -14,8 +14,8 @@ is that run's alone, and the compiled kernels come from the on-disk cache after 
 small warm-up call). Reported per row: the CPU time of the call (``time.process_time``: what
 a busy neighbour on the other core does not change), wall time, peak resident memory of the
 process, the branch's points and folds, the states kept (a long chain's branch keeps a
-thinned set: ``critical.STATE_BYTES``), M_c, how the folds were confirmed and whether the
-result is ``accurate``; then, per model, the exponent of CPU time against N fitted by least
+thinned set: ``critical.STATE_BYTES``), M_c, how the folds were confirmed, whether the
+result is ``accurate`` and whether relaxations just above M_c decided that the chain leaves rest there (``onset_checked``); then, per model, the exponent of CPU time against N fitted by least
 squares on log-log axes over N >= 100 (below, start-up costs dominate) with the free
 memory and the load average at the start, which the numbers depend on. Results go to
 ``benchmarks/results/critical_scaling_models.json``.
@@ -71,6 +71,7 @@ print(json.dumps({
     "points": int(branch.moment.size), "folds": len(branch.folds),
     "states_kept": int(branch.x.shape[0]), "approach": branch.approach, "stop": branch.stop, "complete": result.complete,
     "M_c": result.critical_moment, "confirmation": result.confirmation, "accurate": result.accurate,
+    "onset_checked": result.onset_checked,
     "compliance": result.compliance, "first_fold_phi0": None if result.first_fold is None else result.first_fold.phi0,
     "folds_confirmed": [f.confirmed for f in branch.folds][:3], "message": branch.message,
     "estimate_mib": critical_memory(ChainParams(N=n), model) / 2**20, "start_rss_mib": start_rss,
@@ -127,7 +128,9 @@ def main() -> None:
         "free_memory_gib_at_start": psutil.virtual_memory().available / 2**30,
     }
     rows = []
-    print(f"{'model':>9} {'N':>7} {'CPU s':>8} {'wall s':>8} {'peak MiB':>9} {'points':>6} {'folds':>5} {'states':>6} {'M_c':>14}  confirmation")
+    print(
+        f"{'model':>9} {'N':>7} {'CPU s':>8} {'wall s':>8} {'peak MiB':>9} {'points':>6} {'folds':>5} {'states':>6} {'M_c':>14}  confirmation"
+    )
     for model in args.models:
         for n in sizes:
             row = run(model, n, args.timeout)
@@ -143,7 +146,9 @@ def main() -> None:
     if args.merge and args.out.exists():
         measured = {(r["model"], r["N"]) for r in rows}
         old = json.loads(args.out.read_text())
-        rows = sorted([r for r in old["rows"] if (r["model"], r["N"]) not in measured] + rows, key=lambda r: (MODELS.index(r["model"]), r["N"]))
+        rows = sorted(
+            [r for r in old["rows"] if (r["model"], r["N"]) not in measured] + rows, key=lambda r: (MODELS.index(r["model"]), r["N"])
+        )
         env["merged_with"] = {key: old[key] for key in ("machine", "load_average_at_start", "free_memory_gib_at_start") if key in old}
     fits = {model: exponent([r for r in rows if r["model"] == model]) for model in sorted({r["model"] for r in rows}, key=MODELS.index)}
     for model, slope in fits.items():
