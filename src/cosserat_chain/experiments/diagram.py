@@ -8,7 +8,8 @@ For each value of one field of the chain, :func:`state_diagram` gives
   loop: a slowly rising load makes the particle rotate above it), followed through the
   values by continuation of the fold itself (:func:`~cosserat_chain.numerics.fold_curve.continue_fold`),
   or the branch point where the stable branch ends before its fold (a cantilever under the
-  nonlinear model; ``message`` says so; as ``critical``'s M_c);
+  nonlinear model; ``message`` says so; as ``critical``'s M_c), or ``critical``'s M_c where a cusp has put
+  another fold before the followed one on the branch from rest (``message`` says so);
 * ``rotation_stops``: where a slowly falling load stops the rotation (the lower edge):
   the rotating state, found as a periodic orbit just above M_c and continued down in M
   (:func:`~cosserat_chain.numerics.periodic.continue_orbit`), ceases to be stable or
@@ -98,7 +99,7 @@ from ..numerics.periodic import OrbitError, PeriodicOrbit, continue_orbit, find_
 from ..numerics.relaxation import relax
 from ..params import ChainParams
 from ..state import column
-from .critical import critical_memory
+from .critical import critical_memory, critical_point
 
 if TYPE_CHECKING:
     import xarray as xr
@@ -130,6 +131,9 @@ PERIOD_MAX = 100.0
 FIT_SAFETY = 3.0
 #: A fitted homoclinic end's bracket for the solve reaches at least this far (relative) below the fit.
 BRACKET_RTOL = 1e-4
+#: How close (relative to max(|M|, 1)) the branch from rest's first fold must lie to the fold curve's for the row's
+#: fold to be that branch's end: both are Newton-solved folds, equal to round-off when they are the same fold.
+FOLD_MATCH = 1e-8
 #: A fold of cycles is checked by a run this far (relative) below it: close enough to stay near the fold's orbit,
 #: far enough that its ghost does not hold the run for long (the N = 2 sine chain at gamma_phi = 0.2: 116 turns near
 #: its fold's rate at 1e-3 below, 4 turns at 1e-2).
@@ -697,8 +701,25 @@ def _diverging(moment: np.ndarray, period: np.ndarray, moment_c: float) -> tuple
 def _static_onset(chain: ChainParams, model, particle: int, fold: float, phi0: float) -> tuple[float, float, str]:
     """(M_c, phi_0 there, a note): the fold, unless the stable branch from rest ends before it at a branch
     point (K singular while M still rises: the nonlinear cantilever's at M = 0.08198, phi_0 = 4.23, before its
-    fold at 0.08375), where the chain leaves the branch and M_c is the branch point's (as ``critical``'s)."""
-    point = continue_in_moment(chain, model, particle=particle, phi0_stop=phi0 + 0.01).stable_end
+    fold at 0.08375), where the chain leaves the branch and M_c is the branch point's (as ``critical``'s).
+
+    The fold curve follows one fold through the field; where a cusp has created a pair of folds before it (the
+    nonlinear N = 1 chain between E2 = 1.0 and 1.1: folds at M = 0.26472, 0.26027, then the followed one at 0.26289),
+    the branch from rest no longer ends there, and the row's M_c is ``critical``'s, with a note."""
+    branch = continue_in_moment(chain, model, particle=particle, phi0_stop=phi0 + 0.01)
+    first = branch.folds[0] if branch.folds else None
+    if first is None or abs(first.moment - fold) > FOLD_MATCH * max(abs(fold), 1.0):
+        onset = critical_point(chain, model, particle=particle, dynamics=False)
+        moment, angle = onset.critical_moment, onset.phi0_at_onset
+        if moment is None or angle is None:
+            raise ValueError(f"the stable branch from rest of this row has no onset of rotation ({onset.end})")
+        where = "no fold" if first is None else f"its first fold at M = {first.moment:.6g} (phi_0 = {first.phi0:.4g})"
+        note = (
+            f"the fold curve followed the fold at M = {fold:.6g} (phi_0 = {phi0:.4g}), but the branch from rest meets "
+            f"{where} before it: M_c is critical's ({onset.onset}); "
+        )
+        return float(moment), float(angle), note
+    point = branch.stable_end
     if point is None or point.moment >= fold:
         return fold, phi0, ""
     note = (
