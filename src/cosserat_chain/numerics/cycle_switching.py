@@ -43,7 +43,9 @@ At a Hopf point of a static branch (:func:`~cosserat_chain.numerics.hopf.hopf_po
 pair +-i omega of the damped dynamics on the axis) non-rotating orbits are born: :func:`switch_at_hopf`
 and :func:`hopf_orbit` solve them the same way, with the chain's shooting and no turns (every
 ``particle_turns`` 0) on a phase plane, the amplitude along the real part of the eigenvector for
-+i omega, from (y_H + a e, 2 pi / omega, M_H): period 2 pi / omega + O(a^2), M_H + c a^2.
++i omega, from (y_H + a e, 2 pi / omega, M_H): period 2 pi / omega + O(a^2), M_H + c a^2. The
+eigenvector's phase and sign, and with them the point the first orbit starts from, are fixed by
+:func:`turned_hopf_vector`, not left to LAPACK.
 :func:`system_hopf_orbit` does the same at a user system's Hopf point (the located ``hopf`` event of
 :func:`~cosserat_chain.numerics.equilibria.continue_equilibria`), on the system's shooting.
 """
@@ -108,6 +110,13 @@ PROBE_SCALES = (1.0, 0.25, 0.0625)
 SIGN_STEP = 0.25
 #: Largest amplitude the normal form may ask for (beyond it the quadratic law is not trusted).
 MAX_AMPLITUDE = 0.1
+#: Relative |sum(v_k^2)| / |v|^2 of a Hopf eigenvector v below which its ellipse is taken for a circle
+#: (:func:`turned_hopf_vector`): the major axis's direction carries a round-off of about 1e-16 over this.
+CIRCLE_TOL = 1e-6
+#: Components of a Hopf eigenvector whose moduli lie within this (relative) of the largest count as equally large
+#: (:func:`turned_hopf_vector` takes the first of them): a symmetric system's (the follower rotor's two velocities)
+#: differ by round-off only, and which one LAPACK's phase makes the larger must not matter.
+TIE_TOL = 1e-10
 #: Smallest step of the amplitude, relative to the last one reached (or the first probe), after failed steps are
 #: halved: the orbits born at the N = 2 sine chain's second Hopf point have a multiplier exp(2.07 T) = 1.3e6,
 #: and single shooting needs amplitudes near 4e-5 there before the predictor's O(a^2) error is amplified too far.
@@ -548,7 +557,8 @@ class HopfOrbits:
     eigenvalue : complex
         The crossing eigenvalue of the damped dynamics there (+i omega to the located accuracy).
     eigenvector : ndarray (2n,) complex
-        Its eigenvector, turned so that its real and imaginary parts are orthogonal, the real part of unit length.
+        Its eigenvector, turned by :func:`turned_hopf_vector` (real and imaginary parts orthogonal, the real part
+        of unit length and its largest component positive): the same whatever phase LAPACK gave it.
     coefficient : float
         c of M - M_H = c a^2 on the family (secant through two amplitudes; signed towards larger |M|).
     amplitude : float
@@ -585,10 +595,52 @@ class HopfOrbits:
         }
 
 
+def turned_hopf_vector(vector: np.ndarray) -> np.ndarray:
+    """A Hopf eigenvector v (2n,) complex, its phase and sign fixed: the same for v exp(i theta), any theta.
+
+    v exp(i phi) traces the ellipse Re(v exp(i phi)) of the linearised oscillation; the turn puts its real part
+    on the major axis (real and imaginary parts orthogonal, the real part the longer: sum(v_k^2) real and
+    positive) and the real part's component of largest modulus (the first of equal ones, :data:`TIE_TOL`)
+    positive, and scales the real part to unit length. LAPACK returns v with an arbitrary phase and sign, and the real part e is the
+    direction :func:`switch_at_hopf` first marches along, so without the turn its first orbit (the point on
+    the orbit it starts from, at e . (y0 - y_H) = a) would depend on the LAPACK build. Where the ellipse is a
+    circle to :data:`CIRCLE_TOL` (sum(v_k^2) within it of 0 relative to |v|^2: every direction in its plane a
+    major axis) the component of v of largest modulus is made real and positive instead.
+
+    Parameters
+    ----------
+    vector : ndarray (2n,) complex
+        An eigenvector for the crossing eigenvalue near +i omega, any phase and length.
+
+    Returns
+    -------
+    ndarray (2n,) complex
+        v exp(i phi) / |Re(v exp(i phi))|.
+    """
+    vector = np.asarray(vector, dtype=complex)
+    square = np.sum(vector * vector)
+    if abs(square) > CIRCLE_TOL * float(np.vdot(vector, vector).real):
+        # sum(v^2) is unchanged by v -> -v, so LAPACK's sign changes no bit before the sign below is fixed.
+        vector = vector * np.exp(-0.5j * np.angle(square))
+        real = np.real(vector)
+        vector = vector if real[_largest(real)] > 0 else -vector
+    else:
+        k = _largest(vector)
+        vector = vector * (np.conj(vector[k]) / abs(vector[k]))
+    return vector / np.linalg.norm(np.real(vector))
+
+
+def _largest(vector: np.ndarray) -> int:
+    """The index of the first component whose modulus is the largest to :data:`TIE_TOL`."""
+    size = np.abs(vector)
+    return int(np.flatnonzero(size >= (1.0 - TIE_TOL) * size.max())[0])
+
+
 def hopf_vector(params: ChainParams, model: str | Model, point: HopfPoint) -> tuple[ChainSystem, np.ndarray, complex, np.ndarray]:
     """The chain at a Hopf point as a system, its state y_H (2n,), the crossing eigenvalue near +i omega and its eigenvector.
 
-    The eigenvector is turned so that its real and imaginary parts are orthogonal, the real part of unit length.
+    The eigenvector is LAPACK's turned by :func:`turned_hopf_vector`: its phase and sign, and with them the first
+    orbit of :func:`switch_at_hopf`, do not depend on the LAPACK build.
     """
     system = ChainSystem(params, model, M=point.moment, particle=point.particle)
     n = system.size
@@ -598,11 +650,7 @@ def hopf_vector(params: ChainParams, model: str | Model, point: HopfPoint) -> tu
     matrix = np.block([[np.zeros((n, n)), np.eye(n)], [jacobian, -np.diag(rate)]])
     values, vectors = sla.eig(matrix)
     i = int(np.argmin(np.abs(values - 1j * point.frequency)))
-    v = vectors[:, i]
-    re, im = np.real(v), np.imag(v)
-    v = v * np.exp(0.5j * math.atan2(-2.0 * (re @ im), re @ re - im @ im))
-    v = v / np.linalg.norm(np.real(v))
-    return system, np.concatenate([q, np.zeros(n)]), complex(values[i]), v
+    return system, np.concatenate([q, np.zeros(n)]), complex(values[i]), turned_hopf_vector(vectors[:, i])
 
 
 def _hopf_march(params: ChainParams, model: str | Model, point: HopfPoint, tol, rtol, atol) -> _March:
@@ -693,8 +741,8 @@ def system_hopf_orbit(
     parameter : str
         The system's parameter unknown beside the period (the one the equilibria were continued in).
     amplitude : float
-        a > 0 of e . (y0 - y_H) = a, e the real part of the crossing eigenvector (turned so that its real and
-        imaginary parts are orthogonal, the real part of unit length), reached in steps as in :func:`doubled_orbit`.
+        a > 0 of e . (y0 - y_H) = a, e the real part of the crossing eigenvector (:func:`turned_hopf_vector`),
+        reached in steps as in :func:`doubled_orbit`.
     tol, rtol, atol : float
         As for :func:`~.shooting.find_orbit`.
 
@@ -730,10 +778,7 @@ def system_hopf_orbit(
         raise ValueError(
             f"the pair nearest the imaginary axis lies at {values[i]:.6g}: not a located Hopf point (continue_equilibria's hopf event)"
         )
-    v = vectors[:, i]
-    re, im = np.real(v), np.imag(v)
-    v = v * np.exp(0.5j * math.atan2(-2.0 * (re @ im), re @ re - im @ im))
-    e = np.real(v) / np.linalg.norm(np.real(v))
+    e = np.real(turned_hopf_vector(vectors[:, i]))
     state = np.concatenate([q, np.zeros(n)])
     period = 2.0 * math.pi / float(values[i].imag)
     unknowns = (shooting.PERIOD, parameter)
@@ -958,4 +1003,5 @@ __all__ = [
     "switch_at_hopf",
     "switch_at_period_doubling",
     "system_hopf_orbit",
+    "turned_hopf_vector",
 ]
