@@ -89,7 +89,6 @@ import numpy as np
 from ..linalg.threads import one_blas_thread
 from ..memory import require
 from ..models.base import get_model
-from ..numerics.continuation import continue_in_moment
 from ..numerics.cycle_curve import KINDS, continue_cycle_end, locate_circle_event, locate_cycle_end, torus_angle
 from ..numerics.cycle_events import CIRCLE_KINDS
 from ..numerics.dynamics import IntegrationError
@@ -699,34 +698,32 @@ def _diverging(moment: np.ndarray, period: np.ndarray, moment_c: float) -> tuple
 
 
 def _static_onset(chain: ChainParams, model, particle: int, fold: float, phi0: float) -> tuple[float, float, str]:
-    """(M_c, phi_0 there, a note): the fold, unless the stable branch from rest ends before it at a branch
-    point (K singular while M still rises: the nonlinear cantilever's at M = 0.08198, phi_0 = 4.23, before its
-    fold at 0.08375), where the chain leaves the branch and M_c is the branch point's (as ``critical``'s).
+    """(M_c, phi_0 there, a note): ``critical``'s M_c, the one definition of the onset of rotation; the fold curve's
+    fold where it is that M_c, else a note says what M_c is instead.
 
-    The fold curve follows one fold through the field; where a cusp has created a pair of folds before it (the
-    nonlinear N = 1 chain between E2 = 1.0 and 1.1: folds at M = 0.26472, 0.26027, then the followed one at 0.26289),
-    the branch from rest no longer ends there, and the row's M_c is ``critical``'s, with a note."""
-    branch = continue_in_moment(chain, model, particle=particle, phi0_stop=phi0 + 0.01)
-    first = branch.folds[0] if branch.folds else None
-    if first is None or abs(first.moment - fold) > FOLD_MATCH * max(abs(fold), 1.0):
-        onset = critical_point(chain, model, particle=particle, dynamics=False)
-        moment, angle = onset.critical_moment, onset.phi0_at_onset
-        if moment is None or angle is None:
-            raise ValueError(f"the stable branch from rest of this row has no onset of rotation ({onset.end})")
-        where = "no fold" if first is None else f"its first fold at M = {first.moment:.6g} (phi_0 = {first.phi0:.4g})"
-        note = (
-            f"the fold curve followed the fold at M = {fold:.6g} (phi_0 = {phi0:.4g}), but the branch from rest meets "
-            f"{where} before it: M_c is critical's ({onset.onset}); "
-        )
-        return float(moment), float(angle), note
-    point = branch.stable_end
-    if point is None or point.moment >= fold:
+    The stable branch from rest may end before the followed fold at a branch point (K singular while M still rises:
+    the nonlinear cantilever's at M = 0.08198, phi_0 = 4.23, before its fold at 0.08375); a cusp may have put a pair
+    of folds before it (the nonlinear N = 1 chain between E2 = 1.0 and 1.1: folds at M = 0.26472 and 0.26027, then
+    the followed one at 0.26289); or the chain may snap past the followed fold onto a branch the trace does not follow
+    and leave rest only at that branch's fold (tests/test_audit_fourteenth_chain.py: 8.898910 past the first fold
+    1.275699)."""
+    onset = critical_point(chain, model, particle=particle, dynamics=False)
+    moment, angle = onset.critical_moment, onset.phi0_at_onset
+    if moment is None or angle is None:
+        raise ValueError(f"the stable branch from rest of this row has no onset of rotation ({onset.end})")
+    if abs(moment - fold) <= FOLD_MATCH * max(abs(fold), 1.0):
         return fold, phi0, ""
-    note = (
-        f"the stable branch from rest ends at a branch point at M = {point.moment:.6g} (phi_0 = {point.phi0:.4g}), "
-        f"before the fold at {fold:.6g}: M_c is the branch point's; "
-    )
-    return float(point.moment), float(point.phi0), note
+    if onset.onset == "branch_point":
+        why = f"the stable branch from rest ends at a branch point at M = {moment:.6g} (phi_0 = {angle:.4g}), before the fold at {fold:.6g}"
+    elif onset.onset == "crossing_fold":
+        why = (
+            f"the chain snaps past the fold at M = {fold:.6g} onto a branch it rests on until that branch's fold at M = {moment:.6g} "
+            f"(phi_0 = {angle:.4g})"
+        )
+    else:
+        why = f"the fold curve followed the fold at M = {fold:.6g} (phi_0 = {phi0:.4g}), but the branch from rest ends at the fold at M = {moment:.6g} (phi_0 = {angle:.4g})"
+    bound = " (a lower bound: critical did not follow the branch the chain lands on to its end)" if onset.crossing_unresolved else ""
+    return float(moment), float(angle), f"{why}: M_c is critical's ({onset.onset}){bound}; "
 
 
 def _followed(previous: tuple[float, _Edge] | None, field_name: str, value: float) -> _Edge | None:
