@@ -83,7 +83,8 @@ def test_the_branchs_longest_orbit_is_the_shootings_at_its_moment(command_run):
     ("options", "message"),
     [
         (["--method", "shooting"], "--method takes auto, dense, blocks, krylov, picard, collocation, got 'shooting'"),
-        (["--system", "pendulum", "--method", "collocation"], "--method belong(s) to the chain"),
+        # With --system, --method is the system's (auto or collocation: tests/test_system_collocation_fifteenth.py); --moment is not.
+        (["--system", "pen", "--method", "collocation"], "--moment belong(s) to the chain"),
     ],
 )
 def test_a_bad_method_exits_2_naming_what_is_allowed(options, message):

@@ -83,7 +83,8 @@ def orbit(
         help="How the orbit (and --down-to's branch) is solved: auto, dense, blocks or krylov shooting (auto: by the chain's "
         "length; krylov's branch by auto, which forms the monodromy), picard (Newton-Picard: the orbit and its branch on the "
         "multipliers above rho, for long chains near a known orbit), or collocation, whose cost does not grow with the "
-        "period (a branch towards a homoclinic or SNIC end).",
+        "period (a branch towards a homoclinic or SNIC end). With --system: auto (shooting) or collocation (the shooting's "
+        "orbit solved again by collocation, and --vary's branch followed by it).",
     ),
     segments: int | None = whole(
         None,
@@ -134,7 +135,7 @@ def orbit(
             ctx,
             (
                 "config", "as_json", "out", "down_to", "period_max", "sets", "vary", "turn", "oscillation", "from_hopf", "start",
-                "velocity", "through_folds",
+                "velocity", "through_folds", "method",
             ),
         )  # fmt: skip
         if oscillation and turn:
@@ -144,6 +145,7 @@ def orbit(
         return orbit_on_system(
             system, config=config, sets=sets, vary=vary, turns=turn, down_to=down_to, period_max=period_max, start=start,
             velocity=velocity, out=out, as_json=as_json, oscillation=oscillation, from_hopf=from_hopf, through_folds=through_folds,
+            method=method,
         )  # fmt: skip
     system_only_or_exit(ctx, ("sets", "vary", "turn", "oscillation", "from_hopf", "start", "velocity", "through_folds"))
     if method not in ORBIT_METHODS:

@@ -373,10 +373,12 @@ def orbit_on_system(
     oscillation: bool = False,
     from_hopf: bool = False,
     through_folds: bool = False,
+    method: str = "auto",
 ) -> None:
     """A rotating orbit of the system (with ``oscillation`` one where no angle turns) from a settled simulation, and with
     ``--vary`` its continuation; with ``from_hopf`` the oscillation born at the first Hopf point of the equilibrium
-    found from ``--start``, followed in ``--vary`` towards ``--down-to``."""
+    found from ``--start``, followed in ``--vary`` towards ``--down-to``. ``method`` "collocation" solves the shooting's
+    orbit again by collocation and follows the branch by it (:func:`_orbit_by_collocation`)."""
     import numpy as np
 
     from ..numerics.kit import EvaluationFailed
@@ -384,6 +386,10 @@ def orbit_on_system(
 
     if down_to is not None and vary is None:
         fail("--down-to needs --vary NAME: the parameter to continue the orbit in")
+    if method not in SYSTEM_ORBIT_METHODS:
+        fail(f"--method with --system takes {' or '.join(SYSTEM_ORBIT_METHODS)} (auto: shooting), got {method!r}")
+    if method == "collocation" and (from_hopf or out is not None):
+        fail("--method collocation with --system reports by --json or text: leave out " + ("--from-hopf" if from_hopf else "--out"))
     if from_hopf and not (oscillation and down_to is not None):
         fail("--from-hopf starts an --oscillation at a Hopf point sought along --vary NAME up to --down-to X: give all three")
     if from_hopf:
@@ -414,6 +420,11 @@ def orbit_on_system(
         except OrbitNotFound as err:
             raise OrbitNotFound(f"{err}: {hint}") from None
         orbit = find_orbit(system, guess, turns=k or None)
+        if method == "collocation":
+            return _orbit_by_collocation(
+                system, reference, orbit, vary=vary, value=value, down_to=down_to, period_max=period_max,
+                through_folds=through_folds, as_json=as_json, bar=bar,
+            )  # fmt: skip
         if vary is not None:
             direction = -1.0 if down_to is None or down_to < value else 1.0
             limits = (-math.inf, math.inf) if down_to is None else (min(down_to, value), max(down_to, value))
@@ -450,6 +461,71 @@ def orbit_on_system(
             where = f"at {vary} = {e.parameter:.12g}" if e.located else f"not located, passed before {vary} = {e.parameter:.12g}"
             typer.echo(f"  {e.kind} {where}")
         typer.echo(f"continued to {vary} = {branch.values[-1]:.12g} ({len(branch.orbits)} orbits): {branch.end}: {branch.message}")
+
+
+#: The solvers ``orbit --system --method`` takes: auto (single shooting) or collocation.
+SYSTEM_ORBIT_METHODS = ("auto", "collocation")
+
+
+def _orbit_by_collocation(
+    system,
+    reference: str,
+    shot,
+    *,
+    vary: str | None,
+    value: float | None,
+    down_to: float | None,
+    period_max: float,
+    through_folds: bool,
+    as_json: bool,
+    bar,
+) -> None:
+    """``orbit --system --method collocation``: the shooting's orbit ``shot`` solved again by collocation
+    (:func:`~cosserat_chain.numerics.system_collocation.find_collocation_orbit`) and, with ``vary``, followed by it
+    (:func:`~cosserat_chain.numerics.system_collocation.continue_collocation_orbits`); the orbit and every branch point
+    carry the trivial multiplier's error, the one multiplier known exactly. Called inside
+    :func:`orbit_on_system`'s ``try``, whose handlers take its errors."""
+    from ..numerics.collocation_core import CollocationError
+    from ..numerics.system_collocation import continue_collocation_orbits, find_collocation_orbit
+
+    branch = None
+    try:
+        orbit = find_collocation_orbit(system, shot)
+        if vary is not None:
+            direction = -1.0 if down_to is None or down_to < value else 1.0
+            limits = (-math.inf, math.inf) if down_to is None else (min(down_to, value), max(down_to, value))
+            branch = continue_collocation_orbits(
+                orbit, vary, direction=direction, limits=limits, period_max=period_max, through_folds=through_folds,
+                max_points=THROUGH_FOLDS_POINTS if through_folds else 300, progress=bar_callback(bar),
+            )  # fmt: skip
+    except CollocationError as err:
+        bar.close()
+        fail(str(err), code=EXIT_CODES[Status.NOT_CONVERGED])
+    bar.finish(note="" if branch is None else f"the branch ended: {branch.end}")
+    result = {
+        **orbit.as_dict(),
+        "reference": reference,
+        "method": "collocation",
+        "multipliers": [[m.real, m.imag] for m in orbit.multipliers],
+    }
+    if branch is not None:
+        result["branch"] = branch.as_dict(vary)
+    if as_json:
+        _echo_json(result)
+        return
+    typer.echo(
+        f"{system.name} ({_parameters_text(system)}): period T = {orbit.period:.12g} by collocation (NTST = {orbit.ntst}, NCOL = {orbit.ncol})"
+    )
+    typer.echo(f"Floquet multipliers |mu|: {' '.join(f'{abs(m):.6g}' for m in orbit.multipliers)}")
+    typer.echo(
+        f"largest other |mu| = {orbit.max_multiplier:.6g}: {'stable' if orbit.stable else 'unstable'}; "
+        f"trivial multiplier off by {orbit.trivial_multiplier_error:.2g}"
+    )
+    if branch is not None:
+        for e in branch.events:
+            where = f"at {vary} = {e['moment']:.12g}" if e["located"] else f"not located, passed before {vary} = {e['moment']:.12g}"
+            typer.echo(f"  {e['kind']} {where}")
+        typer.echo(f"continued to {vary} = {branch.orbits[-1].moment:.12g} ({len(branch.orbits)} orbits): {branch.end}: {branch.message}")
 
 
 #: Amplitude along the crossing eigenvector of the first orbit ``orbit --from-hopf`` solves at a Hopf point.

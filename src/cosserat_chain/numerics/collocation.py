@@ -372,6 +372,27 @@ class CollocationBranch:
     def max_multiplier(self) -> np.ndarray:
         return np.array([o.max_multiplier for o in self.orbits])
 
+    def as_dict(self, parameter: str = "M") -> dict:
+        """JSON-ready summary, keyed as the shooting's branch (:meth:`~cosserat_chain.numerics.shooting.OrbitBranch.as_dict`),
+        with each orbit's trivial multiplier's error and each event's critical multiplier (period doublings, tori)."""
+        events = []
+        for e in self.events:
+            record = {"kind": e["kind"], "value": e["moment"], "located": e["located"], "period": e["orbit"].period}
+            if e["kind"] in CIRCLE_KINDS:
+                record["multiplier"] = [e["multiplier"].real, e["multiplier"].imag]
+            events.append(record)
+        return {
+            "parameter": parameter,
+            "values": self.moment.tolist(),
+            "periods": self.period.tolist(),
+            "max_multiplier": self.max_multiplier.tolist(),
+            "trivial_multiplier_error": [o.trivial_multiplier_error for o in self.orbits],
+            "events": events,
+            "end": str(self.end),
+            "message": self.message,
+            "adaptations": self.adaptations,
+        }
+
     def orbit_branch(self, settings: dict | None = None) -> periodic.OrbitBranch:
         """The branch as the shooting's :class:`~cosserat_chain.numerics.periodic.OrbitBranch` (what ``orbit --down-to`` reports).
 
@@ -450,6 +471,8 @@ class _BranchProblem:
     tol: float = TOL
     #: A fold's or branch point's test of the multipliers (default: the second nearest +1 within :data:`FOLD_MULTIPLIER`).
     second_at_one: Callable[[np.ndarray], bool] | None = None
+    #: The continued parameter's name in the messages (a user system's, or the chain's M).
+    parameter: str = "M"
 
     def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
         return self.collocation.evaluate(w, jacobian)
@@ -488,12 +511,15 @@ class _BranchProblem:
     def stop(self, point: CollocationOrbit) -> tuple[BranchEnd, str] | None:
         if point.period > self.period_max:
             return BranchEnd.INFINITE_PERIOD, (
-                f"the period reached {point.period:.6g} > period_max={self.period_max:g} at M={point.moment!r}: "
+                f"the period reached {point.period:.6g} > period_max={self.period_max:g} at {self.parameter}={point.moment!r}: "
                 "raise period_max to follow the period further (the end is this last orbit's moment, not a fit)"
             )
         low, high = self.moment_range
         if not low <= point.moment <= high:
-            return BranchEnd.PARAMETER_LIMIT, f"M={point.moment!r} left [{low!r}, {high!r}]: " + BranchEnd.PARAMETER_LIMIT.advice
+            return (
+                BranchEnd.PARAMETER_LIMIT,
+                f"{self.parameter}={point.moment!r} left [{low!r}, {high!r}]: " + BranchEnd.PARAMETER_LIMIT.advice,
+            )
         if point.period > self.remesh_above:
             return BranchEnd.MAX_POINTS, "the period grew: a new mesh"
         return None
@@ -622,12 +648,14 @@ def trace_collocation(
     stop_at: tuple[str, ...] = ("fold",),
     fold_message: str = periodic.FOLD_OF_CYCLES,
     second_at_one: Callable[[np.ndarray], bool] | None = None,
+    parameter: str = "M",
 ) -> CollocationBranch:
     """:func:`continue_collocation`'s loop for any orbit with its fields (``moment`` the continued parameter's value,
     ``period``, ``mesh``, ``ncol``, ``profile``, ``multipliers``): ``build(mesh, profile)`` poses (C) with the parameter
     free on a new mesh (:mod:`~cosserat_chain.numerics.system_collocation` for a user's system). ``stop_at`` = () follows
     the branch through its folds (each an event); ``second_at_one(multipliers)`` replaces :class:`_BranchProblem`'s test that
-    confirms a fold or branch point; the other arguments and the errors are :func:`continue_collocation`'s.
+    confirms a fold or branch point; ``parameter`` names the continued parameter in the messages; the other arguments and
+    the errors are :func:`continue_collocation`'s.
     """
     if not moment_min < moment_max or math.isnan(moment_min) or math.isnan(moment_max):
         raise ValueError(f"moment_min must be < moment_max, got {moment_min!r}, {moment_max!r}")
@@ -663,7 +691,13 @@ def trace_collocation(
             tangent0 = np.concatenate([collocation.scale * moved.ravel(), tangent0[-2:]])
         growth = REMESH_GROWTH if max_interval is None else 1.25
         problem = _BranchProblem(
-            collocation, current, (moment_min, moment_max), period_max, growth * current.period, second_at_one=second_at_one
+            collocation,
+            current,
+            (moment_min, moment_max),
+            period_max,
+            growth * current.period,
+            second_at_one=second_at_one,
+            parameter=parameter,
         )
         count = min(remesh_every, max_points - len(orbits) + 1)
         traced = continuation(
@@ -683,7 +717,7 @@ def trace_collocation(
     worst = max(orbits, key=lambda o: o.trivial_multiplier_error)
     if worst.trivial_multiplier_error > TRIVIAL_WARNING:
         message += (
-            f"; the trivial multiplier is off by {worst.trivial_multiplier_error:.2g} at M={worst.moment!r} (T={worst.period:.6g}): "
+            f"; the trivial multiplier is off by {worst.trivial_multiplier_error:.2g} at {parameter}={worst.moment!r} (T={worst.period:.6g}): "
             "the multipliers there are not resolved: raise ntst or give max_interval"
         )
     return CollocationBranch(orbits, end, message, adaptations, events)

@@ -719,16 +719,17 @@ def _shift(system: _System, particle_turns: np.ndarray) -> np.ndarray:
     return out
 
 
-def _solve(problem: _Collocation, profile: np.ndarray, period: float, *, tol: float, max_iter: int):
-    """Newton on (C) at fixed M from (profile, period): the correction and its multipliers."""
+def _solve(problem: _Collocation, profile: np.ndarray, period: float, *, tol: float, max_iter: int, where: str | None = None):
+    """Newton on (C) at fixed M from (profile, period): the correction and its multipliers; ``where`` names the point in
+    the failure's message (default the chain's M)."""
     solved = newton(
         problem.evaluate, problem.pack(profile, period), tol=tol, max_iterations=max_iter, divergence=None, damping=MAX_HALVINGS,
         chord=CHORD_RATE, newton_step=_SparseStep(order=problem.elimination_order(False)),
     )  # fmt: skip
     if not solved.converged:
         raise CollocationError(
-            f"Newton on the collocation system did not converge at M={problem.system.moment!r} ({solved.status}, "
-            f"{solved.iterations} iterations, max|R| {solved.norm:.3g}); start from an orbit at a nearby moment, "
+            f"Newton on the collocation system did not converge at {where or f'M={problem.system.moment!r}'} ({solved.status}, "
+            f"{solved.iterations} iterations, max|R| {solved.norm:.3g}); start from an orbit at a nearby {'value' if where else 'moment'}, "
             "or raise ntst (the orbit may move too fast for the mesh)"
         )
     return solved
@@ -765,13 +766,15 @@ def solve_profile(
     mesh: np.ndarray | None = None,
     shift: np.ndarray | None = None,
     fields=None,
+    where: str | None = None,
 ) -> Solution:
     """Solve (C) from a start y0 (2 n_free,) and period (the flow from y0 over T is the first profile).
 
     Given ``profile`` on ``mesh`` (an orbit solved before), that profile is interpolated onto the
     new mesh instead. The mesh is first adapted to the guess, then ``adapt`` times to the solution.
     A user's system (:mod:`~cosserat_chain.numerics.system_collocation`) gives its boundary condition's
-    ``shift`` (2n,) and its ``fields`` (:class:`_Collocation`) instead of ``particle_turns``, and a ``profile``.
+    ``shift`` (2n,) and its ``fields`` (:class:`_Collocation`) instead of ``particle_turns``, a ``profile``, and
+    ``where``: its parameters, named in the message where Newton fails (the chain's is M).
 
     Raises
     ------
@@ -801,7 +804,7 @@ def solve_profile(
         mesh = new
     for attempt in range(adapt + 1):
         problem = _Collocation(system, mesh, ncol, shift, profile, free_moment=False, fields=fields)
-        solved = _solve(problem, profile, period, tol=tol, max_iter=max_iter)
+        solved = _solve(problem, profile, period, tol=tol, max_iter=max_iter, where=where)
         profile, period, _ = problem.unpack(solved.w)
         if attempt < adapt:
             new = _adapted_mesh(mesh, profile, sch, ntst)

@@ -373,6 +373,7 @@ def find_collocation_orbit(
     solution = solve_profile(
         _Bound(math.nan), y0, period, None, ntst=ntst, ncol=ncol, adapt=adapt, tol=tol, max_iter=max_iterations,
         profile=profile, mesh=mesh, shift=shift, fields=SystemFields(system, None),
+        where=", ".join(f"{name}={value!r}" for name, value in system.parameters.items()),
     )  # fmt: skip
     return SystemCollocationOrbit(
         system, None, math.nan, np.asarray(k), solution.period, solution.mesh, solution.ncol, solution.profile,
@@ -427,5 +428,5 @@ def continue_collocation_orbits(
         max_step=max_step, max_points=max_points, remesh_every=remesh_every, ntst=ntst, max_interval=max_interval,
         ntst_max=ntst_max, progress=progress, stop_at=() if through_folds else ("fold",),
         fold_message=f"fold of cycles: {parameter} turns back with the period finite and a second Floquet multiplier at +1",
-        second_at_one=second_multiplier_at_one,
+        second_at_one=second_multiplier_at_one, parameter=parameter,
     )  # fmt: skip
