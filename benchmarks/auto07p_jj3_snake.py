@@ -23,11 +23,13 @@ import numpy as np
 from auto07p_common import b_rows, run_auto
 from auto07p_user_systems import EQUATIONS, fortran
 from cosserat_chain.numerics.shooting import find_orbit, settled_guess
-from cosserat_chain.systems import LatticeSystem
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from three_junctions import jj3  # noqa: E402 - the tests' system, one definition
 
 #: AUTO stops where the period reaches this.
 PERIOD_STOP = 150.0
-PARAMETERS = {"I": 0.97, "kappa": 0.29, "alpha": 0.45, "ica": 0.91, "icb": 1.13, "icc": 0.78}
+PARAMETERS = dict(jj3().parameters)
 FORCES = (
     "PAR(1)-PAR(4)*SIN(U(1))-PAR(3)*U(4)+PAR(2)*(U(2)-U(1))",
     "PAR(1)-PAR(5)*SIN(U(2))-PAR(3)*U(5)+PAR(2)*(U(1)-2.0D0*U(2)+U(3))",
@@ -44,18 +46,6 @@ THL =  {{11: 0.0}}, THU =  {{}}
 UZSTOP = {{11: {period_stop}}}
 """
 RESULTS = Path(__file__).resolve().parent / "results" / "auto07p_jj3_snake.json"
-
-
-def jj3(**values: float) -> LatticeSystem:
-    return LatticeSystem(
-        sites=1,
-        dofs=("phi_a", "phi_b", "phi_c"),
-        site_energy="ica*(1-cos(phi_a)) + icb*(1-cos(phi_b)) + icc*(1-cos(phi_c)) - I*(phi_a+phi_b+phi_c)"
-        " + kappa/2*((phi_b-phi_a)**2 + (phi_c-phi_b)**2)",
-        damping="alpha",
-        parameters={**PARAMETERS, **values},
-        name="jj3",
-    )
 
 
 def main(workdir: Path) -> None:

@@ -19,6 +19,7 @@ from cosserat_chain.numerics.collocation_core import CollocationError
 from cosserat_chain.numerics.shooting import second_multiplier_at_one
 from cosserat_chain.numerics.system_collocation import SystemFields, continue_collocation_orbits, find_collocation_orbit
 from cosserat_chain.systems.base import System, SystemDefinitionError
+from three_junctions import jj3
 
 #: Agreement of two independent methods (collocation, shooting) on the same orbit.
 AGREE = 1e-8
@@ -193,21 +194,6 @@ def test_bad_input_is_refused_with_its_name():
         find_collocation_orbit(rotor(), start, ncol=9)
     with pytest.raises(ValueError, match="period"):
         find_collocation_orbit(rotor(), (np.array([0.0, 0.6]), -1.0), turns={"phi_0": 1})
-
-
-def jj3(**values):
-    from cosserat_chain.systems import LatticeSystem
-
-    parameters = {"I": 0.97, "kappa": 0.29, "alpha": 0.45, "ica": 0.91, "icb": 1.13, "icc": 0.78, **values}
-    return LatticeSystem(
-        sites=1,
-        dofs=("phi_a", "phi_b", "phi_c"),
-        site_energy="ica*(1-cos(phi_a)) + icb*(1-cos(phi_b)) + icc*(1-cos(phi_c)) - I*(phi_a+phi_b+phi_c)"
-        " + kappa/2*((phi_b-phi_a)**2 + (phi_c-phi_b)**2)",
-        damping="alpha",
-        parameters=parameters,
-        name="jj3",
-    )
 
 
 def junction_rotation(system):

@@ -54,6 +54,7 @@ from .collocation_core import (
     SHIFT,
     TOL,
     CollocationError,
+    ProfileOrbit,
     Solution,
     _adapted_mesh,
     _Collocation,
@@ -87,7 +88,7 @@ __all__ = [
 
 
 @dataclass
-class CollocationOrbit:
+class CollocationOrbit(ProfileOrbit):
     """A rotating state solved by collocation (module docstring, eq. (C)).
 
     Attributes
@@ -130,49 +131,9 @@ class CollocationOrbit:
     multiplier_log_moduli: np.ndarray | None = None
 
     @property
-    def log_moduli(self) -> np.ndarray:
-        """ln |mu| of :attr:`multipliers` (from the periodic Schur form, so that multipliers below the floating-point
-        range keep their modulus; ln |multipliers| where an orbit was built without them)."""
-        if self.multiplier_log_moduli is not None:
-            return self.multiplier_log_moduli
-        with np.errstate(divide="ignore"):
-            return np.log(np.abs(self.multipliers))
-
-    @property
-    def ntst(self) -> int:
-        return self.mesh.size - 1
-
-    @property
     def mean_angular_velocity(self) -> float:
         """2 pi k / T, signed along the moment."""
         return math.copysign(2.0 * math.pi * self.turns / self.period, self.moment)
-
-    @property
-    def trivial_multiplier(self) -> complex:
-        """The multiplier closest to 1 (along the flow)."""
-        return complex(self.multipliers[np.argmin(np.abs(self.multipliers - 1.0))])
-
-    @property
-    def trivial_multiplier_error(self) -> float:
-        """|mu_trivial - 1|: the discretisation's error on the one multiplier known exactly (on long orbits the
-        strongly damped multipliers can be worse: ``docs/collocation.md``, Limits)."""
-        return float(abs(self.trivial_multiplier - 1.0))
-
-    @property
-    def nontrivial_multipliers(self) -> np.ndarray:
-        return np.delete(self.multipliers, np.argmin(np.abs(self.multipliers - 1.0)))
-
-    @property
-    def max_multiplier(self) -> float:
-        return float(np.max(np.abs(self.nontrivial_multipliers)))
-
-    @property
-    def stable(self) -> bool:
-        return self.max_multiplier < 1.0
-
-    def states(self, tau: np.ndarray) -> np.ndarray:
-        """u at scaled times ``tau`` (k,) in [0, 1] (k, 2 n_free), from the piecewise polynomial."""
-        return _interpolate(self.mesh, self.profile, scheme(self.ncol), np.asarray(tau, dtype=float))
 
     def periodic_orbit(self) -> periodic.PeriodicOrbit:
         """The orbit as a :class:`~cosserat_chain.numerics.periodic.PeriodicOrbit`, started on the loaded angle's section.

@@ -41,9 +41,9 @@ from .collocation_core import (
     NTST,
     TOL,
     CollocationError,
+    ProfileOrbit,
     _batch,
     _Collocation,
-    _interpolate,
     _node_times,
     check_mesh,
     scheme,
@@ -215,7 +215,7 @@ class _Bound:
 
 
 @dataclass
-class SystemCollocationOrbit:
+class SystemCollocationOrbit(ProfileOrbit):
     """A periodic orbit of a system solved by collocation.
 
     Attributes
@@ -260,34 +260,9 @@ class SystemCollocationOrbit:
         return self.base if self.parameter is None else self.base.with_parameters(**{self.parameter: self.moment})
 
     @property
-    def ntst(self) -> int:
-        return self.mesh.size - 1
-
-    @property
     def y0(self) -> np.ndarray:
         """The state at tau = 0 (2n,)."""
         return self.profile[0].copy()
-
-    @property
-    def trivial_multiplier_error(self) -> float:
-        """|mu - 1| of the multiplier nearest +1: the discretisation's error on the one multiplier known exactly."""
-        return float(np.min(np.abs(self.multipliers - 1.0)))
-
-    @property
-    def nontrivial_multipliers(self) -> np.ndarray:
-        return np.delete(self.multipliers, np.argmin(np.abs(self.multipliers - 1.0)))
-
-    @property
-    def max_multiplier(self) -> float:
-        return float(np.max(np.abs(self.nontrivial_multipliers)))
-
-    @property
-    def stable(self) -> bool:
-        return self.max_multiplier < 1.0
-
-    def states(self, tau: np.ndarray) -> np.ndarray:
-        """u at scaled times ``tau`` (k,) in [0, 1] (k, 2n), from the piecewise polynomial."""
-        return _interpolate(self.mesh, self.profile, scheme(self.ncol), np.asarray(tau, dtype=float))
 
     def as_dict(self) -> dict:
         """JSON-ready summary."""
