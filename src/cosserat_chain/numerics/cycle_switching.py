@@ -199,7 +199,7 @@ def flip_vector(point: Point, *, rtol: float = RTOL, atol: float = ATOL) -> tupl
 
     A chain's monodromy matrix is integrated again (a :class:`~.periodic.PeriodicOrbit` keeps only its
     multipliers); a system's orbit carries its own. The eigenvector's sign is fixed, its component of largest
-    modulus (the first of equal ones) positive: LAPACK's sign is arbitrary, and with it the sign of e along
+    modulus (the first of equal ones to :data:`TIE_TOL`) positive: LAPACK's sign is arbitrary, and with it the sign of e along
     which :func:`switch_at_period_doubling` first marches.
 
     Raises
@@ -220,7 +220,7 @@ def flip_vector(point: Point, *, rtol: float = RTOL, atol: float = ATOL) -> tupl
     i = candidates[np.argmin(np.abs(values[candidates] + 1.0))]
     vector = np.real(vectors[:, i])
     vector = vector / np.linalg.norm(vector)
-    return complex(values[i]), vector if vector[np.argmax(np.abs(vector))] > 0 else -vector
+    return complex(values[i]), vector if vector[_largest(vector)] > 0 else -vector
 
 
 def _where(point: Point, parameter: str | None = None) -> str:
