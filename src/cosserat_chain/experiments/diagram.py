@@ -8,8 +8,9 @@ For each value of one field of the chain, :func:`state_diagram` gives
   loop: a slowly rising load makes the particle rotate above it), followed through the
   values by continuation of the fold itself (:func:`~cosserat_chain.numerics.fold_curve.continue_fold`),
   or the branch point where the stable branch ends before its fold (a cantilever under the
-  nonlinear model; ``message`` says so; as ``critical``'s M_c), or ``critical``'s M_c where a cusp has put
-  another fold before the followed one on the branch from rest (``message`` says so);
+  nonlinear model; ``message`` says so): every row's M_c is ``critical``'s, the followed fold where it is that,
+  else ``critical``'s with ``message`` saying why (a branch point or a cusp's pair of folds before the followed
+  fold, or a snap past it onto a branch the chain rests on);
 * ``rotation_stops``: where a slowly falling load stops the rotation (the lower edge):
   the rotating state, found as a periodic orbit just above M_c and continued down in M
   (:func:`~cosserat_chain.numerics.periodic.continue_orbit`), ceases to be stable or
@@ -130,8 +131,8 @@ PERIOD_MAX = 100.0
 FIT_SAFETY = 3.0
 #: A fitted homoclinic end's bracket for the solve reaches at least this far (relative) below the fit.
 BRACKET_RTOL = 1e-4
-#: How close (relative to max(|M|, 1)) the branch from rest's first fold must lie to the fold curve's for the row's
-#: fold to be that branch's end: both are Newton-solved folds, equal to round-off when they are the same fold.
+#: How close (relative to max(|M|, 1)) ``critical``'s M_c must lie to the fold curve's fold for the row to keep the
+#: followed fold: both are Newton-solved folds, equal to round-off when they are the same fold.
 FOLD_MATCH = 1e-8
 #: A fold of cycles is checked by a run this far (relative) below it: close enough to stay near the fold's orbit,
 #: far enough that its ghost does not hold the run for long (the N = 2 sine chain at gamma_phi = 0.2: 116 turns near
