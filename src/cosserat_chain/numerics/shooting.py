@@ -459,6 +459,22 @@ def orbit_multipliers(
 
 
 @one_blas_thread
+def read_guess(system: System, guess, turns, orbits: tuple[type, ...]) -> tuple[np.ndarray, float, np.ndarray]:
+    """(y0, T, turns vector) of a guess: an orbit of one of the types ``orbits`` (its turns unless ``turns`` is given)
+    or a pair (y0, T) with ``turns``; y0 must be 2n finite numbers and T finite and > 0 (ValueError otherwise)."""
+    if isinstance(guess, orbits):
+        y0, period, k = guess.y0, guess.period, guess.turns if turns is None else turns_vector(system, turns)
+    else:
+        y0, period = guess
+        k = turns_vector(system, turns)
+    y0 = np.asarray(y0, dtype=float)
+    if y0.shape != (2 * system.size,) or not np.all(np.isfinite(y0)):
+        raise ValueError(f"the guessed state must be 2n = {2 * system.size} finite numbers, got shape {y0.shape}")
+    if not (math.isfinite(period) and period > 0):
+        raise ValueError(f"the guessed period must be finite and > 0, got {period!r}")
+    return y0, period, k
+
+
 def find_orbit(
     system: System,
     guess: tuple[np.ndarray, float] | Orbit,
@@ -491,16 +507,7 @@ def find_orbit(
     OrbitNotFound
         If Newton does not converge (a guess from a nearby parameter or a settled simulation helps).
     """
-    if isinstance(guess, Orbit):
-        y0, period, k = guess.y0, guess.period, guess.turns if turns is None else turns_vector(system, turns)
-    else:
-        y0, period = guess
-        k = turns_vector(system, turns)
-    y0 = np.asarray(y0, dtype=float)
-    if y0.shape != (2 * system.size,) or not np.all(np.isfinite(y0)):
-        raise ValueError(f"the guessed state must be 2n = {2 * system.size} finite numbers, got shape {y0.shape}")
-    if not (math.isfinite(period) and period > 0):
-        raise ValueError(f"the guessed period must be finite and > 0, got {period!r}")
+    y0, period, k = read_guess(system, guess, turns, (Orbit,))
     unknowns = (PERIOD,) if unfold is None else (unfold,)
     shooting = _Shooting(system, k, y0, period, unknowns, tol, rtol, atol)
     start = np.append(y0, math.log(period) if unfold is None else system.parameter(unfold))

@@ -49,7 +49,7 @@ from .collocation_core import (
     scheme,
     solve_profile,
 )
-from .shooting import Orbit, _no_force, require_periodic_turns, second_multiplier_at_one, states, turns_vector
+from .shooting import Orbit, _no_force, read_guess, require_periodic_turns, second_multiplier_at_one, states
 
 #: The seed of the random states whose force Jacobians give the sparsity pattern.
 PATTERN_SEED = 0
@@ -325,17 +325,7 @@ def find_collocation_orbit(
         If Newton's method does not converge.
     """
     check_mesh(ntst, ncol)
-    if isinstance(guess, Orbit | SystemCollocationOrbit):
-        k = guess.turns if turns is None else turns_vector(system, turns)
-        y0, period = guess.y0, guess.period
-    else:
-        y0, period = guess
-        k = turns_vector(system, turns)
-    y0 = np.asarray(y0, dtype=float)
-    if y0.shape != (2 * system.size,) or not np.all(np.isfinite(y0)):
-        raise ValueError(f"the guessed state must be 2n = {2 * system.size} finite numbers, got shape {y0.shape}")
-    if not (math.isfinite(period) and period > 0):
-        raise ValueError(f"the guessed period must be finite and > 0, got {period!r}")
+    y0, period, k = read_guess(system, guess, turns, (Orbit, SystemCollocationOrbit))
     require_periodic_turns(system, y0[: system.size], k)
     shift = _shift(system, k)
     if isinstance(guess, SystemCollocationOrbit):
