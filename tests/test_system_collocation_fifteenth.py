@@ -61,7 +61,8 @@ def test_cli_collocation_orbit_and_branch_of_the_pen_demo():
     ("args", "words"),
     [
         (["--method", "dense"], ["--method", "auto or collocation", "'dense'"]),
-        (["--method", "collocation", "--out", "orbit.nc"], ["--method collocation", "--out"]),
+        # --out with collocation writes the file (tests/test_orbit_collocation_cli_sixteenth.py); --ntst needs collocation.
+        (["--ntst", "60"], ["--ntst", "--method collocation"]),
     ],
 )
 def test_cli_collocation_bad_options_exit_2_naming_them(args, words, tmp_path, monkeypatch):

@@ -95,6 +95,23 @@ def orbit(
         "loses those below 1e-16); dense or blocks shooting (the blocks integrated piece by piece; above 2 n_free = 2500 "
         "the leading ones only), not krylov (collocation always takes them so).",
     ),
+    ntst: int | None = typer.Option(
+        None,
+        "--ntst",
+        help="With --method collocation: mesh intervals of the orbit (default 40; AUTO-07p's NTST; a branch keeps them "
+        "unless --max-interval asks for more).",
+    ),
+    ncol: int | None = typer.Option(
+        None, "--ncol", help="With --method collocation: Gauss collocation points per interval, 2 to 7 (default 4; AUTO-07p's NCOL)."
+    ),
+    max_interval: float | None = number(
+        None,
+        "With --method collocation and a branch (--down-to, --from-above; with --system --vary): the longest mesh interval "
+        "in time units; each mesh adaptation raises the intervals to 2 T / this (at most 4000), so that a long orbit's damped "
+        "multipliers stay resolved, at a cost that grows with T.",
+        above=0.0,
+        flags=("--max-interval",),
+    ),
     system: str | None = system_option(),
     sets: list[str] | None = set_option(),
     vary: str | None = vary_option("from its value down, or towards --down-to"),
@@ -135,9 +152,10 @@ def orbit(
             ctx,
             (
                 "config", "as_json", "out", "down_to", "period_max", "sets", "vary", "turn", "oscillation", "from_hopf", "start",
-                "velocity", "through_folds", "method",
+                "velocity", "through_folds", "method", "ntst", "ncol", "max_interval",
             ),
         )  # fmt: skip
+        mesh = _mesh_or_exit(method, ntst, ncol, max_interval, vary is not None, "--vary NAME")
         if oscillation and turn:
             fail(f"--oscillation turns no angle: leave out --turn (got {', '.join(turn)})")
         if through_folds and vary is None:
@@ -145,13 +163,14 @@ def orbit(
         return orbit_on_system(
             system, config=config, sets=sets, vary=vary, turns=turn, down_to=down_to, period_max=period_max, start=start,
             velocity=velocity, out=out, as_json=as_json, oscillation=oscillation, from_hopf=from_hopf, through_folds=through_folds,
-            method=method,
+            method=method, mesh=mesh,
         )  # fmt: skip
     system_only_or_exit(ctx, ("sets", "vary", "turn", "oscillation", "from_hopf", "start", "velocity", "through_folds"))
     if method not in ORBIT_METHODS:
         fail(f"--method takes {', '.join(ORBIT_METHODS)}, got {method!r}")
     if moment is None:
         fail("--moment is required: the moment M on the loaded particle (or give --system REF for a system's orbit)")
+    mesh = _mesh_or_exit(method, ntst, ncol, max_interval, down_to is not None or from_above is not None, "--down-to or --from-above")
     from ..experiments.orbits import periodic_orbit
     from ..numerics.dynamics import IntegrationError
     from ..numerics.periodic import OrbitError
@@ -172,7 +191,7 @@ def orbit(
     stored: dict = {} if guess is None else _guess_or_exit(guess, params, particle)
     if turns is None and "turns" in stored:
         turns = stored["turns"]
-    begin = {"from_above": from_above, "method": method, **{key: stored[key] for key in ("guess", "start") if key in stored}}
+    begin = {"from_above": from_above, "method": method, **mesh, **{key: stored[key] for key in ("guess", "start") if key in stored}}
     if segments is not None:
         begin["segments"] = segments
     bar = progress_bar(f"orbit {model}", "orbit")
@@ -240,6 +259,35 @@ def orbit(
 
 #: The solvers --method takes (:func:`~cosserat_chain.numerics.periodic.find_periodic_orbit`'s ``method``).
 ORBIT_METHODS = ("auto", "dense", "blocks", "krylov", "picard", "collocation")
+
+
+def _mesh_or_exit(method: str, ntst: int | None, ncol: int | None, max_interval: float | None, branch: bool, follow: str) -> dict:
+    """The collocation mesh options given ({"ntst": ..., "ncol": ..., "max_interval": ...}, those given only), checked
+    (:func:`~cosserat_chain.numerics.collocation_core.check_mesh`, and at most
+    :data:`~cosserat_chain.numerics.collocation.NTST_MAX` intervals); exit 2 naming the option, the value and what is
+    allowed, for any of them without --method collocation, or --max-interval without a branch (``branch``; ``follow``
+    says how to ask for one)."""
+    given = {"--ntst": ntst, "--ncol": ncol, "--max-interval": max_interval}
+    named = [option for option, value in given.items() if value is not None]
+    if not named:
+        return {}
+    if method != "collocation":
+        fail(f"{', '.join(named)} set(s) the collocation's mesh: give --method collocation as well (got --method {method})")
+    if max_interval is not None and not branch:
+        fail(f"--max-interval bounds the mesh intervals of a branch: give {follow} as well (a lone orbit's mesh is --ntst)")
+    from ..numerics.collocation import NTST_MAX
+    from ..numerics.collocation_core import NCOL, NTST, check_mesh
+
+    for option, value, check in (("--ntst", ntst, lambda v: check_mesh(v, NCOL)), ("--ncol", ncol, lambda v: check_mesh(NTST, v))):
+        if value is None:
+            continue
+        try:
+            check(value)
+        except ValueError as err:
+            fail(f"{option}: {err}")
+    if ntst is not None and ntst > NTST_MAX:
+        fail(f"--ntst: ntst must be at most {NTST_MAX} (the most a branch's --max-interval may ask for), got {ntst}")
+    return {key: value for key, value in (("ntst", ntst), ("ncol", ncol), ("max_interval", max_interval)) if value is not None}
 
 
 #: The points --switch takes.

@@ -374,11 +374,13 @@ def orbit_on_system(
     from_hopf: bool = False,
     through_folds: bool = False,
     method: str = "auto",
+    mesh: dict | None = None,
 ) -> None:
     """A rotating orbit of the system (with ``oscillation`` one where no angle turns) from a settled simulation, and with
     ``--vary`` its continuation; with ``from_hopf`` the oscillation born at the first Hopf point of the equilibrium
     found from ``--start``, followed in ``--vary`` towards ``--down-to``. ``method`` "collocation" solves the shooting's
-    orbit again by collocation and follows the branch by it (:func:`_orbit_by_collocation`)."""
+    orbit again by collocation on ``mesh`` (``ntst``, ``ncol``, ``max_interval``, those given, checked by the caller)
+    and follows the branch by it (:func:`_orbit_by_collocation`)."""
     import numpy as np
 
     from ..numerics.kit import EvaluationFailed
@@ -388,14 +390,14 @@ def orbit_on_system(
         fail("--down-to needs --vary NAME: the parameter to continue the orbit in")
     if method not in SYSTEM_ORBIT_METHODS:
         fail(f"--method with --system takes {' or '.join(SYSTEM_ORBIT_METHODS)} (auto: shooting), got {method!r}")
-    if method == "collocation" and (from_hopf or out is not None):
-        fail("--method collocation with --system reports by --json or text: leave out " + ("--from-hopf" if from_hopf else "--out"))
     if from_hopf and not (oscillation and down_to is not None):
         fail("--from-hopf starts an --oscillation at a Hopf point sought along --vary NAME up to --down-to X: give all three")
+    mesh = mesh or {}
     if from_hopf:
         return _orbit_from_hopf(
-            reference, config=config, sets=sets, vary=vary, down_to=down_to, period_max=period_max, start=start, out=out, as_json=as_json
-        )
+            reference, config=config, sets=sets, vary=vary, down_to=down_to, period_max=period_max, start=start, out=out,
+            as_json=as_json, method=method, mesh=mesh, through_folds=through_folds,
+        )  # fmt: skip
     outputs_or_exit({"--out": out}, {"--config": config})
     system = system_or_exit(reference, config, sets)
     value = _parameter_or_exit(system, vary) if vary is not None else None
@@ -412,6 +414,8 @@ def orbit_on_system(
         if oscillation
         else "start it turning with --velocity (or another --start), or check the drive"
     )
+    direction = -1.0 if down_to is None or down_to < value else 1.0
+    limits = (-math.inf, math.inf) if down_to is None else (min(down_to, value), max(down_to, value))
     bar = progress_bar(f"orbit {system.name}", "orbit")
     branch = None
     try:
@@ -422,12 +426,10 @@ def orbit_on_system(
         orbit = find_orbit(system, guess, turns=k or None)
         if method == "collocation":
             return _orbit_by_collocation(
-                system, reference, orbit, vary=vary, value=value, down_to=down_to, period_max=period_max,
-                through_folds=through_folds, as_json=as_json, bar=bar,
+                reference, orbit, vary=vary, direction=direction, limits=limits, period_max=period_max, through_folds=through_folds,
+                mesh=mesh, out=out, as_json=as_json, bar=bar,
             )  # fmt: skip
         if vary is not None:
-            direction = -1.0 if down_to is None or down_to < value else 1.0
-            limits = (-math.inf, math.inf) if down_to is None else (min(down_to, value), max(down_to, value))
             stops = () if through_folds else ("fold",)
             branch = continue_orbits(
                 orbit, vary, direction=direction, limits=limits, period_max=period_max, stop_at=stops, progress=bar_callback(bar),
@@ -444,11 +446,12 @@ def orbit_on_system(
         bar.close()
         fail(str(err), code=EXIT_CODES[Status.NOT_CONVERGED])
     bar.finish(note="" if branch is None else f"the branch ended: {branch.end}")
+    summary = None if branch is None else branch.as_dict()
     if out is not None:
-        save_dataset(_orbit_dataset(system, reference, orbit, branch), out)
+        save_dataset(_orbit_dataset(system, reference, orbit, summary), out)
     result = {**orbit.as_dict(), "reference": reference, "multipliers": [[m.real, m.imag] for m in orbit.multipliers]}
-    if branch is not None:
-        result["branch"] = branch.as_dict()
+    if summary is not None:
+        result["branch"] = summary
     if as_json:
         _echo_json(result)
         return
@@ -468,51 +471,66 @@ SYSTEM_ORBIT_METHODS = ("auto", "collocation")
 
 
 def _orbit_by_collocation(
-    system,
     reference: str,
     shot,
     *,
     vary: str | None,
-    value: float | None,
-    down_to: float | None,
+    direction: float,
+    limits: tuple[float, float],
     period_max: float,
     through_folds: bool,
+    mesh: dict,
+    out: Path | None,
     as_json: bool,
     bar,
+    hopf: dict | None = None,
 ) -> None:
-    """``orbit --system --method collocation``: the shooting's orbit ``shot`` solved again by collocation
-    (:func:`~cosserat_chain.numerics.system_collocation.find_collocation_orbit`) and, with ``vary``, followed by it
-    (:func:`~cosserat_chain.numerics.system_collocation.continue_collocation_orbits`); the orbit and every branch point
-    carry the trivial multiplier's error, the one multiplier known exactly. Called inside
-    :func:`orbit_on_system`'s ``try``, whose handlers take its errors."""
+    """``orbit --system --method collocation``: the shooting's orbit ``shot`` solved again by collocation on ``mesh``'s
+    ``ntst`` intervals of ``ncol`` points (:func:`~cosserat_chain.numerics.system_collocation.find_collocation_orbit`)
+    and, with ``vary``, followed by it in ``direction`` within ``limits``, no interval longer than ``mesh``'s
+    ``max_interval`` (:func:`~cosserat_chain.numerics.system_collocation.continue_collocation_orbits`); the orbit and
+    every branch point carry the trivial multiplier's error, the one multiplier known exactly. Written to ``out``
+    (:func:`_orbit_dataset`), printed or as JSON, with the Hopf point ``hopf`` the orbit was born at (``--from-hopf``).
+    Called inside :func:`orbit_on_system`'s or :func:`_orbit_from_hopf`'s ``try``, whose handlers take its errors."""
     from ..numerics.collocation_core import CollocationError
     from ..numerics.system_collocation import continue_collocation_orbits, find_collocation_orbit
 
+    system = shot.system
     branch = None
     try:
-        orbit = find_collocation_orbit(system, shot)
+        orbit = find_collocation_orbit(system, shot, **{key: value for key, value in mesh.items() if key in ("ntst", "ncol")})
         if vary is not None:
-            direction = -1.0 if down_to is None or down_to < value else 1.0
-            limits = (-math.inf, math.inf) if down_to is None else (min(down_to, value), max(down_to, value))
             branch = continue_collocation_orbits(
                 orbit, vary, direction=direction, limits=limits, period_max=period_max, through_folds=through_folds,
-                max_points=THROUGH_FOLDS_POINTS if through_folds else 300, progress=bar_callback(bar),
+                max_interval=mesh.get("max_interval"), max_points=THROUGH_FOLDS_POINTS if through_folds else 300,
+                progress=bar_callback(bar),
             )  # fmt: skip
     except CollocationError as err:
         bar.close()
         fail(str(err), code=EXIT_CODES[Status.NOT_CONVERGED])
     bar.finish(note="" if branch is None else f"the branch ended: {branch.end}")
+    summary = None
+    if branch is not None:
+        # The mesh the branch ended on: --max-interval raises the intervals as the period grows.
+        summary = {**branch.as_dict(vary), "end_ntst": branch.orbits[-1].ntst, "max_interval": mesh.get("max_interval")}
+    if out is not None:
+        save_dataset(_orbit_dataset(system, reference, orbit, summary), out)
     result = {
         **orbit.as_dict(),
         "reference": reference,
         "method": "collocation",
         "multipliers": [[m.real, m.imag] for m in orbit.multipliers],
     }
-    if branch is not None:
-        result["branch"] = branch.as_dict(vary)
+    if hopf is not None:
+        result["hopf"] = hopf
+    if summary is not None:
+        result["branch"] = summary
     if as_json:
         _echo_json(result)
         return
+    if hopf is not None:
+        born = system.parameter(vary)
+        typer.echo(f"{system.name}: Hopf point at {vary} = {hopf['value']:.12g}; the oscillation born there at {vary} = {born:.12g}:")
     typer.echo(
         f"{system.name} ({_parameters_text(system)}): period T = {orbit.period:.12g} by collocation (NTST = {orbit.ntst}, NCOL = {orbit.ncol})"
     )
@@ -525,18 +543,26 @@ def _orbit_by_collocation(
         for e in branch.events:
             where = f"at {vary} = {e['moment']:.12g}" if e["located"] else f"not located, passed before {vary} = {e['moment']:.12g}"
             typer.echo(f"  {e['kind']} {where}")
-        typer.echo(f"continued to {vary} = {branch.orbits[-1].moment:.12g} ({len(branch.orbits)} orbits): {branch.end}: {branch.message}")
+        typer.echo(
+            f"continued to {vary} = {branch.orbits[-1].moment:.12g} ({len(branch.orbits)} orbits, NTST = {branch.orbits[-1].ntst} "
+            f"at the end): {branch.end}: {branch.message}"
+        )
 
 
 #: Amplitude along the crossing eigenvector of the first orbit ``orbit --from-hopf`` solves at a Hopf point.
 HOPF_AMPLITUDE = 0.02
 
 
-def _orbit_from_hopf(reference: str, *, config, sets, vary: str, down_to: float, period_max: float, start, out, as_json: bool) -> None:
+def _orbit_from_hopf(
+    reference: str, *, config, sets, vary: str, down_to: float, period_max: float, start, out, as_json: bool, method: str = "auto",
+    mesh: dict | None = None, through_folds: bool = False,
+) -> None:  # fmt: skip
     """``orbit --system --oscillation --from-hopf``: the equilibrium from ``--start`` followed in ``vary`` towards
     ``down_to`` to its first Hopf point, the orbit of amplitude :data:`HOPF_AMPLITUDE` born there
-    (:func:`~cosserat_chain.numerics.cycle_switching.system_hopf_orbit`: unstable families too, which no settling run
-    reaches), and that family followed away from the Hopf point within the same range."""
+    (:func:`~cosserat_chain.numerics.cycle_switching.system_hopf_orbit`, by shooting: unstable families too, which no
+    settling run reaches), and that family followed away from the Hopf point within the same range; with ``method``
+    "collocation" the orbit solved again and followed by collocation on ``mesh`` (:func:`_orbit_by_collocation`,
+    through the folds of cycles with ``through_folds``)."""
     from ..numerics.cycle_switching import system_hopf_orbit
     from ..numerics.equilibria import EquilibriumNotFound, continue_equilibria, find_equilibrium
     from ..numerics.kit import EvaluationFailed
@@ -555,8 +581,14 @@ def _orbit_from_hopf(reference: str, *, config, sets, vary: str, down_to: float,
         hopf = next((e for e in states.events if e.kind == "hopf" and e.located and limits[0] <= e.parameter <= limits[1]), None)
         if hopf is None:
             raise OrbitNotFound(f"the equilibrium from --start has no Hopf point for {vary} between {value:g} and {down_to:g}")
+        hopf_record = {"parameter": vary, "value": hopf.parameter, "q": hopf.point.q, "amplitude": HOPF_AMPLITUDE}
         orbit = system_hopf_orbit(hopf.point, vary, HOPF_AMPLITUDE)
         side = 1.0 if orbit.parameter(vary) > hopf.parameter else -1.0
+        if method == "collocation":
+            return _orbit_by_collocation(
+                reference, orbit, vary=vary, direction=side, limits=limits, period_max=period_max, through_folds=through_folds,
+                mesh=mesh or {}, out=out, as_json=as_json, bar=bar, hopf=hopf_record,
+            )  # fmt: skip
         branch = continue_orbits(orbit, vary, direction=side, limits=limits, period_max=period_max, progress=bar_callback(bar))
     except ValueError as err:
         bar.close()
@@ -565,9 +597,9 @@ def _orbit_from_hopf(reference: str, *, config, sets, vary: str, down_to: float,
         bar.close()
         fail(str(err), code=EXIT_CODES[Status.NOT_CONVERGED])
     bar.finish(note=f"the branch ended: {branch.end}")
+    summary = branch.as_dict()
     if out is not None:
-        save_dataset(_orbit_dataset(system, reference, orbit, branch), out)
-    hopf_record = {"parameter": vary, "value": hopf.parameter, "q": hopf.point.q, "amplitude": HOPF_AMPLITUDE}
+        save_dataset(_orbit_dataset(system, reference, orbit, summary), out)
     if as_json:
         _echo_json(
             {
@@ -575,7 +607,7 @@ def _orbit_from_hopf(reference: str, *, config, sets, vary: str, down_to: float,
                 "reference": reference,
                 "multipliers": [[m.real, m.imag] for m in orbit.multipliers],
                 "hopf": hopf_record,
-                "branch": branch.as_dict(),
+                "branch": summary,
             }
         )
         return
@@ -588,15 +620,19 @@ def _orbit_from_hopf(reference: str, *, config, sets, vary: str, down_to: float,
     typer.echo(f"continued to {vary} = {branch.values[-1]:.12g} ({len(branch.orbits)} orbits): {branch.end}: {branch.message}")
 
 
-def _orbit_dataset(system, reference: str, orbit, branch):
-    """The orbit (and branch) as a Dataset: start state over the system's coordinates, multipliers, the branch's points."""
+def _orbit_dataset(system, reference: str, orbit, branch: dict | None):
+    """The orbit and its ``branch`` (the branch's ``as_dict``, what --json prints) as a Dataset: the start state over the
+    system's coordinates, the multipliers, the branch's points. A collocation orbit (it carries its ``mesh``) also gives
+    its method, mesh (``ntst``, ``ncol``) and trivial multiplier's error, and its branch that error at every point, the
+    mesh it ended on and the ``max_interval`` asked for; a shooting orbit its closure."""
     import numpy as np
     import xarray as xr
 
+    n = system.size
     ds = xr.Dataset(
         {
-            "q0": ("coordinate", orbit.q0),
-            "v0": ("coordinate", orbit.v0),
+            "q0": ("coordinate", orbit.y0[:n]),
+            "v0": ("coordinate", orbit.y0[n:]),
             "turns": ("coordinate", orbit.turns),
             "multiplier_real": ("multiplier", np.real(orbit.multipliers)),
             "multiplier_imag": ("multiplier", np.imag(orbit.multipliers)),
@@ -607,22 +643,30 @@ def _orbit_dataset(system, reference: str, orbit, branch):
     ds["v0"].attrs["long_name"] = "start of the orbit on its phase plane: velocities"
     ds["turns"].attrs["long_name"] = "turns of each coordinate per period"
     if branch is not None:
-        ds["branch_value"] = ("point", branch.values)
-        ds["branch_value"].attrs["long_name"] = f"the continued parameter {branch.parameter}"
-        ds["branch_period"] = ("point", branch.periods)
-        ds["branch_max_multiplier"] = ("point", np.array([o.max_multiplier for o in branch.orbits]))
+        ds["branch_value"] = ("point", np.asarray(branch["values"], dtype=float))
+        ds["branch_value"].attrs["long_name"] = f"the continued parameter {branch['parameter']}"
+        ds["branch_period"] = ("point", np.asarray(branch["periods"], dtype=float))
+        ds["branch_max_multiplier"] = ("point", np.asarray(branch["max_multiplier"], dtype=float))
+        if "trivial_multiplier_error" in branch:
+            ds["branch_trivial_multiplier_error"] = ("point", np.asarray(branch["trivial_multiplier_error"], dtype=float))
         ds.attrs.update(
             {
-                "varied": branch.parameter,
-                "branch_end": str(branch.end),
-                "branch_message": branch.message,
-                "events_json": json.dumps(branch.as_dict()["events"]),
+                "varied": branch["parameter"],
+                "branch_end": branch["end"],
+                "branch_message": branch["message"],
+                "events_json": json.dumps(branch["events"], default=_plain),
             }
         )
-        if branch.end_value is not None:
-            # A homoclinic end fitted from the period's growth, with the fit's own uncertainty (NaN: none).
-            uncertainty = math.nan if branch.end_uncertainty is None else branch.end_uncertainty
-            ds.attrs.update({"branch_end_value": branch.end_value, "branch_end_uncertainty": uncertainty, "branch_end_method": "fitted"})
+        if branch.get("end_value") is not None:
+            # A homoclinic end fitted from the period's growth or solved (homoclinic.solve_branch_end), with its uncertainty (NaN: none).
+            uncertainty = math.nan if branch["end_uncertainty"] is None else branch["end_uncertainty"]
+            ds.attrs.update(
+                {"branch_end_value": branch["end_value"], "branch_end_uncertainty": uncertainty, "branch_end_method": branch["end_method"]}
+            )
+        if "end_ntst" in branch:
+            ds.attrs["branch_end_ntst"] = branch["end_ntst"]
+        if branch.get("max_interval") is not None:
+            ds.attrs["max_interval"] = branch["max_interval"]
     ds.attrs.update(_system_attributes(system, reference))
     ds.attrs.update(
         {
@@ -631,9 +675,20 @@ def _orbit_dataset(system, reference: str, orbit, branch):
             "period": orbit.period,
             "max_multiplier": orbit.max_multiplier,
             "stable": int(orbit.stable),
-            "closure": orbit.closure,
         }
     )
+    if hasattr(orbit, "mesh"):
+        ds.attrs.update(
+            {
+                "method": "collocation",
+                "ntst": orbit.ntst,
+                "ncol": orbit.ncol,
+                "trivial_multiplier_error": orbit.trivial_multiplier_error,
+                "residual": orbit.residual,
+            }
+        )
+    else:
+        ds.attrs.update({"method": "shooting", "closure": orbit.closure})
     return ds
 
 

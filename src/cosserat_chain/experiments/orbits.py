@@ -60,6 +60,12 @@ def _none_if_nan(value: float) -> float | None:
     return None if not math.isfinite(value) else float(value)
 
 
+def _trivial_errors(branch: OrbitBranch) -> np.ndarray:
+    """|mu_trivial - 1| at every orbit of a collocation branch: the multipliers are the collocation's, so this is its
+    :attr:`~cosserat_chain.numerics.collocation_core.ProfileOrbit.trivial_multiplier_error`."""
+    return np.array([abs(o.trivial_multiplier - 1.0) for o in branch.orbits])
+
+
 @dataclass
 class OrbitResult:
     """One periodic orbit and, optionally, its continuation down in M.
@@ -94,6 +100,7 @@ class OrbitResult:
     def as_dict(self) -> dict:
         """JSON-ready summary: the orbit, how it was reached, M_c and, with a continuation, where the orbit ends. Moments in the parameters' units; ``moment_scale`` = E1 h^2 divides them into the paper's dimensionless moment (Fig. 2)."""
         out = {**self.orbit.as_dict(), "static_fold": _none_if_nan(self.static_fold), "start": dict(self.start)}
+        out.update(self._mesh())
         if self.branch is not None:
             out["continuation"] = {
                 "end": self.branch.end,
@@ -110,7 +117,24 @@ class OrbitResult:
                 "events": [{k: v for k, v in event.items() if k != "orbit"} for event in self.branch.events if event["kind"] != "branch_point"],
                 "phase_condition": ["section" if o.phase_normal is None else "plane" for o in self.branch.orbits],
             }
+            if self.branch.settings.get("method") == "collocation":
+                out["continuation"].update(
+                    {
+                        "end_ntst": self.branch.settings["ntst"],
+                        "max_interval": self.settings.get("max_interval"),
+                        "trivial_multiplier_error": _trivial_errors(self.branch).tolist(),
+                    }
+                )
         return out
+
+    def _mesh(self) -> dict:
+        """A collocation orbit's method, mesh (``ntst`` intervals of ``ncol`` Gauss points) and trivial multiplier's
+        error, the distance to 1 of the one multiplier known exactly (the shooting's form of the orbit, :attr:`orbit`,
+        carries none); empty for a shooting's orbit."""
+        c = self.collocation
+        if c is None:
+            return {}
+        return {"method": "collocation", "ntst": c.ntst, "ncol": c.ncol, "trivial_multiplier_error": c.trivial_multiplier_error}
 
     def continued(self, down_to: float, *, period_max: float = 2000.0, progress: ProgressCallback | None = None) -> OrbitResult:
         """This result with its orbit continued down to ``down_to`` (as :func:`periodic_orbit`'s ``down_to``).
@@ -147,6 +171,8 @@ class OrbitResult:
             data["branch_mean_angular_velocity"] = (("point",), b.mean_angular_velocity)
             data["branch_max_multiplier"] = (("point",), b.max_multiplier)
             data["branch_stable"] = (("point",), b.stable.astype(np.int8))
+            if b.settings.get("method") == "collocation":
+                data["branch_trivial_multiplier_error"] = (("point",), _trivial_errors(b))
             coords["point"] = np.arange(len(b.orbits))
         ds = xr.Dataset(data, coords=coords)
         ds.attrs.update(run_attributes(o.params, get_model(o.model), moment_load(o.moment, o.particle)))
@@ -163,9 +189,14 @@ class OrbitResult:
                 "static_fold": self.static_fold,
                 "settings_json": json.dumps(self.settings),
                 "start_json": json.dumps(self.start),
+                **self._mesh(),
             }
         )
+        if "max_interval" in self.settings:
+            ds.attrs["max_interval"] = self.settings["max_interval"]
         if self.branch is not None:
+            if self.branch.settings.get("method") == "collocation":
+                ds.attrs["end_ntst"] = self.branch.settings["ntst"]
             lost = self.branch.stability_lost_at
             ds.attrs.update(
                 {
@@ -222,7 +253,10 @@ def periodic_orbit(
     progress : callable(points, max_points), optional
         Reports the continuations' orbits.
     **options
-        Passed to :func:`~cosserat_chain.numerics.periodic.find_periodic_orbit` (``tol``, ``rtol``, ``atol``, ...).
+        Passed to :func:`~cosserat_chain.numerics.periodic.find_periodic_orbit` (``tol``, ``rtol``, ``atol``, ``method``, ...);
+        with ``method="collocation"`` the mesh :data:`MESH_OPTIONS`: ``ntst`` and ``ncol`` of the orbit's solve
+        (:func:`~cosserat_chain.numerics.collocation.find_collocation_orbit`, whose mesh a continuation starts from) and
+        ``max_interval`` of the continuations (:func:`~cosserat_chain.numerics.collocation.continue_collocation`).
 
     Returns
     -------
@@ -232,7 +266,7 @@ def periodic_orbit(
     ------
     ValueError
         For bad input, e.g. ``down_to`` not between 0 and ``moment``, ``from_above`` not beyond it,
-        or more than one of ``guess``, ``start``, ``from_above``.
+        more than one of ``guess``, ``start``, ``from_above``, or a mesh option without ``method="collocation"``.
     OrbitError
         If no orbit is found at ``moment``, or the branch followed down from ``from_above`` ends before it.
     """
@@ -265,18 +299,28 @@ def periodic_orbit(
     )  # fmt: skip
 
 
+#: The options that set the collocation's mesh: the orbit's intervals and Gauss points, and the continuation's longest interval.
+MESH_OPTIONS = ("ntst", "ncol", "max_interval")
+
+
 def _solve(params, model: Model, moment: float, turns: int, particle: int, guess, options: dict) -> PeriodicOrbit | CollocationOrbit:
     """The orbit at ``moment``: by :func:`~cosserat_chain.numerics.collocation.find_collocation_orbit` where ``options``
-    ask for collocation (``method``; its profile is where a continuation starts, :func:`_continued`), else by
-    :func:`~cosserat_chain.numerics.periodic.find_periodic_orbit` with the options."""
+    ask for collocation (``method``; its profile, on ``ntst`` intervals of ``ncol`` Gauss points, is where a
+    continuation starts, :func:`_continued`), else by :func:`~cosserat_chain.numerics.periodic.find_periodic_orbit`
+    with the options."""
     if options.get("method") != "collocation":
+        mesh = [f"{k}={options[k]!r}" for k in MESH_OPTIONS if k in options]
+        if mesh:
+            raise ValueError(
+                f"{', '.join(mesh)} set(s) the collocation's mesh: give method='collocation' (got method={options.get('method', 'auto')!r})"
+            )
         return find_periodic_orbit(params, model, moment, turns=turns, particle=particle, guess=guess, **options)
     if "segments" in options:
         raise ValueError(
             f"segments applies to the dense and blocks shooting only, got method='collocation' and segments={options['segments']!r} "
             "(collocation takes its multipliers from its intervals' product already)"
         )
-    keep = {k: v for k, v in options.items() if k == "max_iter"}
+    keep = {k: v for k, v in options.items() if k in ("max_iter", "ntst", "ncol")}
     try:
         return find_collocation_orbit(params, model, moment, turns=turns, particle=particle, guess=guess, **keep)
     except CollocationError as err:
@@ -289,12 +333,14 @@ def _orbit_of(solved: PeriodicOrbit | CollocationOrbit) -> PeriodicOrbit:
 
 
 def _continued(orbit: PeriodicOrbit | CollocationOrbit, options: dict, moment_min: float, period_max: float, progress) -> OrbitBranch:
-    """The orbit (as :func:`_solve` returned it) continued down to ``moment_min``: by collocation where ``options`` ask for it (``method``), else by
+    """The orbit (as :func:`_solve` returned it) continued down to ``moment_min``: by collocation where ``options`` ask for it
+    (``method``; ``max_interval`` bounds its intervals in time units, :func:`~cosserat_chain.numerics.collocation.continue_collocation`), else by
     :func:`~cosserat_chain.numerics.periodic.continue_orbit` with the options' tolerances and shooting (``dense``,
     ``blocks`` or ``picard``; a ``krylov`` orbit's branch by ``auto``: a continuation needs the monodromy or its dominant subspace)."""
     method = options.get("method", "auto")
     if method == "collocation":
-        return continue_periodic_orbit(orbit, moment_min=moment_min, period_max=period_max, progress=progress)
+        mesh = {k: v for k, v in options.items() if k == "max_interval"}
+        return continue_periodic_orbit(orbit, moment_min=moment_min, period_max=period_max, progress=progress, **mesh)
     keep = {k: v for k, v in options.items() if k in ("tol", "rtol", "atol")}
     shooting = method if method in ("dense", "blocks", "picard") else "auto"
     return continue_orbit(orbit, moment_min=moment_min, period_max=period_max, progress=progress, method=shooting, **keep)
