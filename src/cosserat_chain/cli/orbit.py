@@ -242,6 +242,9 @@ def orbit(
     typer.echo(
         f"trivial multiplier {o.trivial_multiplier.real:.12g}; largest other |mu| = {o.max_multiplier:.6g}: {'stable' if o.stable else 'unstable'}"
     )
+    if result.collocation is not None:
+        c = result.collocation
+        typer.echo(f"by collocation: NTST = {c.ntst}, NCOL = {c.ncol}; the trivial multiplier off by {c.trivial_multiplier_error:.2g}")
     if result.branch is not None:
         b = result.branch
         typer.echo(f"continued to M = {b.moment[-1]:.10g} ({len(b.orbits)} orbits): {b.message}; the orbit ends at M = {b.end_moment:.10g}")
