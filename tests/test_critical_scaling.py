@@ -24,10 +24,9 @@ from cosserat_chain.experiments.critical import MAX_POINTS, STATE_BYTES, critica
 from cosserat_chain.memory import FLOAT, MemoryEstimateError
 from cosserat_chain.numerics import continuation
 from cosserat_chain.numerics.continuation import branch_memory, continue_in_moment, require_branch_memory
+from static_onsets import TWO_MAXIMA, nonlinear_critical
 
 runner = CliRunner()
-#: The chain whose branch has two maxima and a snap-through (tests/test_statics.py).
-TWO_MAXIMA = ChainParams(N=10, a=0.3, b=0.1, E1=2.0, E2=0.3)
 GIB = 2**30
 
 
@@ -49,7 +48,7 @@ def test_a_thinned_branch_keeps_every_point_and_the_states_of_every_2_jth_point(
 
 
 def test_critical_on_a_thinned_branch_gives_the_same_answer_and_writes_the_kept_states(monkeypatch):
-    full = critical_point(TWO_MAXIMA, "nonlinear")
+    full = nonlinear_critical(TWO_MAXIMA)
     monkeypatch.setattr(critical, "STATE_BYTES", 16 * FLOAT * 3 * TWO_MAXIMA.n_particles)
     thin = critical_point(TWO_MAXIMA, "nonlinear")
     assert thin.branch.state_points is not None and full.branch.state_points is None

@@ -21,6 +21,7 @@ from cosserat_chain.experiments.orbits import periodic_orbit
 from cosserat_chain.models.base import get_model
 from cosserat_chain.numerics.continuation import locate_fold
 from cosserat_chain.numerics.periodic import continue_orbit, find_periodic_orbit
+from static_onsets import nonlinear_critical
 
 runner = CliRunner()
 
@@ -298,14 +299,13 @@ def test_the_pendulums_homoclinic_end_meets_the_static_fold_at_the_known_damping
 def test_each_rows_M_c_is_where_the_stable_branch_from_rest_ends_as_critical_says(ends):
     """The nonlinear cantilever's stable branch ends at a branch point (M = 0.08198) before its fold
     (0.08375): the diagram's M_c is the branch point's, as ``critical``'s; other ends keep the fold."""
-    from cosserat_chain.experiments.critical import critical_point
     from cosserat_chain.experiments.diagram import _static_onset
     from cosserat_chain.numerics.fold_curve import continue_fold
 
     chain = ChainParams(**ends)
     fold = continue_fold(chain, "nonlinear", "E2", [1.0])
     moment, phi0, note = _static_onset(chain, get_model("nonlinear"), 0, float(fold.moment[0]), float(fold.phi0[0]))
-    reference = critical_point(chain, "nonlinear")
+    reference = nonlinear_critical(chain)
     assert moment == pytest.approx(reference.critical_moment, rel=1e-9)
     assert phi0 == pytest.approx(reference.phi0_at_onset, rel=1e-6)
     assert (reference.onset == "branch_point") == bool(note) == (moment < float(fold.moment[0]))

@@ -7,6 +7,7 @@ import pytest
 from cosserat_chain import ChainParams
 from cosserat_chain.experiments import diagram
 from cosserat_chain.experiments.critical import critical_point
+from static_onsets import nonlinear_critical
 
 CANTILEVER = ChainParams(right_end="free")
 
@@ -29,7 +30,7 @@ def counted_onsets(monkeypatch):
 def test_along_the_damping_the_branch_from_rest_is_computed_once_and_every_row_keeps_its_branch_point(counted_onsets):
     """The nonlinear cantilever's stable branch ends at a branch point before its fold: every row's M_c is it."""
     result = diagram.state_diagram(CANTILEVER, "nonlinear", "gamma_phi", [0.1, 0.2, 0.3])
-    reference = critical_point(CANTILEVER, "nonlinear")
+    reference = nonlinear_critical(CANTILEVER)
     assert len(counted_onsets) == 1
     for row in result.rows:
         assert row.static_fold == pytest.approx(reference.critical_moment, rel=1e-9)

@@ -25,6 +25,7 @@ from cosserat_chain.numerics.batch import integrate_batch
 from cosserat_chain.numerics.dynamics import integrate
 from cosserat_chain.numerics.newton import solve_equilibrium
 from cosserat_chain.state import fixed_mask, free_index, n_free, pack
+from static_onsets import nonlinear_critical
 
 ALL = [NONLINEAR, SINE, LINEAR]
 ENDS = {
@@ -216,12 +217,11 @@ def test_the_static_state_balances_the_forces_and_the_damped_run_comes_to_it(kin
 def test_a_cantilevers_stable_branch_ends_at_a_branch_point_where_the_rotation_starts():
     """Paper's geometry, right end free, nonlinear model: K turns singular (three eigenvalues at
     once) at M = 0.08198 while M still rises; the chain rotates just above it, below the fold."""
-    from cosserat_chain.experiments.critical import critical_point
     from cosserat_chain.numerics.relaxation import relax
     from cosserat_chain.numerics.stability import static_stability
 
     params = ChainParams(**ENDS["clamped-free"])
-    result = critical_point(params, "nonlinear")
+    result = nonlinear_critical(params)
     point = result.branch_point
     assert result.onset == "branch_point" and result.critical_moment == point.moment
     assert point.index_before == 0 and point.index_after > 0

@@ -24,14 +24,13 @@ from cosserat_chain.experiments.critical import CONFIRM_MOMENT_RTOL, CONFIRM_PHI
 from cosserat_chain.linalg import smallest_eigenvalue
 from cosserat_chain.models.base import get_model
 from cosserat_chain.status import Status
+from static_onsets import TWO_MAXIMA, nonlinear_critical
 
 runner = CliRunner()
-#: The chain whose branch has two maxima and a minimum between them (tests/test_statics.py).
-TWO_MAXIMA = ChainParams(N=10, a=0.3, b=0.1, E1=2.0, E2=0.3)
 
 
 def test_a_short_chain_is_traced_once_and_its_folds_are_not_marked():
-    result = critical_point(TWO_MAXIMA, "nonlinear")
+    result = nonlinear_critical(TWO_MAXIMA)
     assert result.confirmation == "once" and result.accurate
     assert all(f.confirmed is None for f in result.branch.folds)
     # Each fold carries the change of stability: the index of K changes by one at it.
@@ -73,7 +72,7 @@ def test_the_folds_that_decide_m_c_are_found_again_by_their_re_solve(monkeypatch
 def test_the_re_solve_finds_a_fold_where_m_is_stationary_and_no_fold_elsewhere_on_the_branch():
     # The re-solve's root of dM/dphi_0 is the traced fold's; a point of the branch where M still
     # rises, dressed up as a fold, has no root of dM/dphi_0 within the tolerance: not found.
-    branch = critical_point(TWO_MAXIMA, "nonlinear").branch
+    branch = nonlinear_critical(TWO_MAXIMA).branch
     first = branch.folds[0]
     found = resolve_fold(TWO_MAXIMA, get_model("nonlinear"), first)
     assert found is not None and found.maximum
@@ -86,7 +85,7 @@ def test_the_re_solve_finds_a_fold_where_m_is_stationary_and_no_fold_elsewhere_o
 
 
 def test_confirm_folds_matches_kind_moment_and_angle_within_the_tolerances():
-    branch = critical_point(TWO_MAXIMA, "nonlinear").branch
+    branch = nonlinear_critical(TWO_MAXIMA).branch
     first = branch.folds[0]
     scale = max(abs(branch.moment))
     near = replace(first, moment=first.moment + 0.5 * CONFIRM_MOMENT_RTOL * scale, phi0=first.phi0 - 0.5 * CONFIRM_PHI0_ATOL)
@@ -102,7 +101,7 @@ def test_confirm_folds_matches_kind_moment_and_angle_within_the_tolerances():
 def test_the_re_solve_narrows_its_bracket_where_phi0_turns_back_next_to_the_fold(monkeypatch):
     # phi_0 can turn back within the bracket (two folds of N = 1000, 1e-6 rad beyond them): no state
     # there, the solve fails, and a narrower bracket finds the fold; failing everywhere, none is found.
-    first = critical_point(TWO_MAXIMA, "nonlinear").branch.folds[0]
+    first = nonlinear_critical(TWO_MAXIMA).branch.folds[0]
     original = critical.solve_rotation_controlled
 
     def reachable(params, model, angle, **kwargs):

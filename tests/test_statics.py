@@ -20,6 +20,7 @@ from cosserat_chain.numerics.newton import moment_dof, solve_equilibrium, solve_
 from cosserat_chain.numerics.relaxation import relax
 from cosserat_chain.numerics.stability import static_stability
 from cosserat_chain.state import n_free, unpack
+from static_onsets import TWO_MAXIMA, nonlinear_critical
 
 #: M_c must be located to this relative accuracy (the issue asks for 1e-10).
 FOLD_RTOL = 1e-10
@@ -138,7 +139,7 @@ def test_sine_model_stability_uses_the_damped_dynamics(paper):
 
 
 def test_critical_point_result_round_trips_to_a_dataset(paper, tmp_path):
-    result = critical_point(paper, "nonlinear")
+    result = nonlinear_critical(paper)
     ds = read_dataset(write_dataset(result.to_dataset(), tmp_path / "critical.nc"))
     assert float(ds.M_c) == result.critical_moment
     assert ds.attrs["model"] == "nonlinear" and "params_json" in ds.attrs
@@ -213,8 +214,8 @@ def test_a_branch_with_two_maxima_reports_both_with_the_stability_between():
     # The issue's example: a small maximum of M near phi_0 = 1.0003, a minimum just after
     # it, and the largest maximum near 2.04. The chain snaps through at the first and
     # rotates only above the largest.
-    params = ChainParams(N=10, a=0.3, b=0.1, E1=2.0, E2=0.3)
-    result = critical_point(params, "nonlinear")
+    params = TWO_MAXIMA
+    result = nonlinear_critical(params)
     first, minimum, largest = result.branch.folds[:3]
     assert (first.maximum, minimum.maximum, largest.maximum) == (True, False, True)
     assert first.phi0 == pytest.approx(1.0003, abs=1e-3) and largest.phi0 == pytest.approx(2.04, abs=0.01)
@@ -361,8 +362,8 @@ def test_the_bordered_and_rotation_controlled_jacobians_and_the_bordered_solve_e
 
 
 def test_a_snap_through_names_the_stable_state_that_the_damped_chain_reaches():
-    params = ChainParams(N=10, a=0.3, b=0.1, E1=2.0, E2=0.3)
-    result = critical_point(params, "nonlinear")
+    params = TWO_MAXIMA
+    result = nonlinear_critical(params)
     first, target = result.first_fold, result.snap_to
     assert target is not None and target.moment == first.moment
     minimum = result.branch.folds[1]
@@ -380,7 +381,7 @@ def test_a_snap_through_names_the_stable_state_that_the_damped_chain_reaches():
     assert step.status == "static" and np.max(np.abs(step.x - nearby)) < 1e-6
     assert abs(nearby[2, params.N] - target.phi0) < 0.01 < target.phi0 - first.phi0
     assert result.as_dict()["snap_to"] == {"moment": target.moment, "phi0": target.phi0}
-    assert critical_point(ChainParams(), "nonlinear").snap_to is None  # the paper's chain: no snap-through
+    assert nonlinear_critical(ChainParams()).snap_to is None  # the paper's chain: no snap-through
 
 
 def test_the_first_folds_of_a_thousand_particle_pairs_chain_need_no_tuned_tolerance():
