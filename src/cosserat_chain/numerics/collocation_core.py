@@ -221,53 +221,26 @@ def scheme(ncol: int) -> Scheme:
     return replace(table, values=table.basis(points), slopes=table.slope(points))
 
 
-class ProfileOrbit:
+class ProfileOrbit(floquet.OrbitMultipliers):
     """What an orbit solved by this scheme derives from its mesh, profile and multipliers (the chain's
     :class:`~cosserat_chain.numerics.collocation.CollocationOrbit` and a user system's
     :class:`~cosserat_chain.numerics.system_collocation.SystemCollocationOrbit`, dataclasses with the fields
-    ``mesh``, ``ncol``, ``profile``, ``multipliers`` and ``multiplier_log_moduli``)."""
+    ``mesh``, ``ncol``, ``profile``, ``multipliers`` and ``multiplier_log_moduli``); the multipliers' stability
+    from :class:`~cosserat_chain.numerics.floquet.OrbitMultipliers`."""
 
     mesh: np.ndarray
     ncol: int
     profile: np.ndarray
-    multipliers: np.ndarray
-    multiplier_log_moduli: np.ndarray | None
 
     @property
     def ntst(self) -> int:
         return self.mesh.size - 1
 
     @property
-    def log_moduli(self) -> np.ndarray:
-        """ln |mu| of :attr:`multipliers` (from the periodic Schur form, so that multipliers below the floating-point
-        range keep their modulus; ln |multipliers| where an orbit was built without them)."""
-        if self.multiplier_log_moduli is not None:
-            return self.multiplier_log_moduli
-        with np.errstate(divide="ignore"):
-            return np.log(np.abs(self.multipliers))
-
-    @property
-    def trivial_multiplier(self) -> complex:
-        """The multiplier closest to 1 (along the flow)."""
-        return complex(self.multipliers[np.argmin(np.abs(self.multipliers - 1.0))])
-
-    @property
     def trivial_multiplier_error(self) -> float:
         """|mu_trivial - 1|: the discretisation's error on the one multiplier known exactly (on long orbits the
         strongly damped multipliers can be worse: ``docs/collocation.md``, Limits)."""
         return float(abs(self.trivial_multiplier - 1.0))
-
-    @property
-    def nontrivial_multipliers(self) -> np.ndarray:
-        return np.delete(self.multipliers, np.argmin(np.abs(self.multipliers - 1.0)))
-
-    @property
-    def max_multiplier(self) -> float:
-        return float(np.max(np.abs(self.nontrivial_multipliers)))
-
-    @property
-    def stable(self) -> bool:
-        return self.max_multiplier < 1.0
 
     def states(self, tau: np.ndarray) -> np.ndarray:
         """u at scaled times ``tau`` (k,) in [0, 1] (k, 2n), from the piecewise polynomial."""

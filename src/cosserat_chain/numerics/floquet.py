@@ -57,7 +57,7 @@ from numba import njit
 
 from ..linalg.threads import one_blas_thread
 
-__all__ = ["DEFLATION", "MAX_SWEEPS", "STALL", "Multipliers", "periodic_schur_multipliers"]
+__all__ = ["DEFLATION", "MAX_SWEEPS", "STALL", "Multipliers", "OrbitMultipliers", "periodic_schur_multipliers"]
 
 #: An entry of the iteration's lower part below this (relative to the unit-norm factors) is round-off: it deflates.
 DEFLATION = 1e-13
@@ -100,6 +100,51 @@ class Multipliers:
     def log10_moduli(self) -> np.ndarray:
         """log10 |mu| of each."""
         return self.log_moduli / math.log(10.0)
+
+
+class OrbitMultipliers:
+    """What a periodic orbit derives from its Floquet multipliers, once for the shooting's
+    :class:`~cosserat_chain.numerics.periodic.PeriodicOrbit` and the collocation's orbits
+    (:class:`~cosserat_chain.numerics.collocation_core.ProfileOrbit`): dataclasses with the fields
+    ``multipliers`` and ``multiplier_log_moduli``. Each gives its own ``trivial_multiplier_error``
+    (the shooting's from the integration's error estimates, the collocation's from the distance to 1)."""
+
+    multipliers: np.ndarray
+    multiplier_log_moduli: np.ndarray | None
+
+    @property
+    def log_moduli(self) -> np.ndarray:
+        """ln |mu| of :attr:`multipliers` (``multiplier_log_moduli`` where known, from the periodic Schur form, so that
+        multipliers below the floating-point range keep their modulus; else ln |multipliers|)."""
+        if self.multiplier_log_moduli is not None:
+            return self.multiplier_log_moduli
+        with np.errstate(divide="ignore"):
+            return np.log(np.abs(self.multipliers))
+
+    @property
+    def trivial_index(self) -> int:
+        """The index in :attr:`multipliers` of the multiplier along the flow (the one closest to 1)."""
+        return int(np.argmin(np.abs(self.multipliers - 1.0)))
+
+    @property
+    def trivial_multiplier(self) -> complex:
+        """The multiplier along the flow (closest to 1); it equals 1 up to the discretisation's error."""
+        return complex(self.multipliers[self.trivial_index])
+
+    @property
+    def nontrivial_multipliers(self) -> np.ndarray:
+        """All multipliers but the trivial one."""
+        return np.delete(self.multipliers, self.trivial_index)
+
+    @property
+    def max_multiplier(self) -> float:
+        """Largest modulus of the nontrivial multipliers."""
+        return float(np.max(np.abs(self.nontrivial_multipliers)))
+
+    @property
+    def stable(self) -> bool:
+        """Orbitally stable: every nontrivial multiplier strictly inside the unit circle."""
+        return self.max_multiplier < 1.0
 
 
 def _check_segments(segments) -> np.ndarray:

@@ -529,7 +529,7 @@ def _phase_for(system: _System, y0: np.ndarray, normal: np.ndarray | None = None
 
 
 @dataclass
-class PeriodicOrbit:
+class PeriodicOrbit(floquet.OrbitMultipliers):
     """A rotating state as a limit cycle (see the module docstring, eq. (P)).
 
     Attributes
@@ -597,39 +597,11 @@ class PeriodicOrbit:
         return math.copysign(2.0 * math.pi * self.turns / self.period, self.moment)
 
     @property
-    def log_moduli(self) -> np.ndarray:
-        """ln |mu| of :attr:`multipliers` (:attr:`multiplier_log_moduli` where known, else from the values)."""
-        if self.multiplier_log_moduli is not None:
-            return self.multiplier_log_moduli
-        with np.errstate(divide="ignore"):
-            return np.log(np.abs(self.multipliers))
-
-    @property
-    def trivial_multiplier(self) -> complex:
-        """The multiplier along the flow (closest to 1); it equals 1 up to the integration error."""
-        return complex(self.multipliers[np.argmin(np.abs(self.multipliers - 1.0))])
-
-    @property
     def trivial_multiplier_error(self) -> float | None:
         """The trivial multiplier's error estimate (:attr:`multiplier_errors`); None where not estimated."""
         if self.multiplier_errors is None:
             return None
-        return float(self.multiplier_errors[np.argmin(np.abs(self.multipliers - 1.0))])
-
-    @property
-    def nontrivial_multipliers(self) -> np.ndarray:
-        """All multipliers but the trivial one."""
-        return np.delete(self.multipliers, np.argmin(np.abs(self.multipliers - 1.0)))
-
-    @property
-    def max_multiplier(self) -> float:
-        """Largest modulus of the nontrivial multipliers."""
-        return float(np.max(np.abs(self.nontrivial_multipliers)))
-
-    @property
-    def stable(self) -> bool:
-        """Orbitally stable: every nontrivial multiplier strictly inside the unit circle."""
-        return self.max_multiplier < 1.0
+        return float(self.multiplier_errors[self.trivial_index])
 
     def trajectory(self, times: np.ndarray, *, rtol: float = RTOL, atol: float = ATOL) -> tuple[np.ndarray, np.ndarray]:
         """The states along the orbit at ``times`` (k,) > 0 after its start (x, v), by the shooting's DOP853.
