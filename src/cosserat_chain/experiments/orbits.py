@@ -37,7 +37,18 @@ from ..models.base import Model, get_model
 from ..numerics.collocation import CollocationOrbit, continue_periodic_orbit, find_collocation_orbit
 from ..numerics.collocation_core import CollocationError
 from ..numerics.continuation import locate_fold
-from ..numerics.periodic import END_MOMENT_MIN, OrbitBranch, OrbitError, PeriodicOrbit, continue_orbit, find_periodic_orbit, initial_guess
+from ..numerics.cycle_curve import locate_cycle_end
+from ..numerics.long_orbits import choose_method
+from ..numerics.periodic import (
+    END_FOLD,
+    END_MOMENT_MIN,
+    OrbitBranch,
+    OrbitError,
+    PeriodicOrbit,
+    continue_orbit,
+    find_periodic_orbit,
+    initial_guess,
+)
 from ..params import ChainParams
 from ..state import ROWS
 from .simulation import run_attributes
@@ -114,7 +125,9 @@ class OrbitResult:
                 "stable": self.branch.stable.tolist(),
                 "branch_points": [event["moment"] for event in self.branch.events if event["kind"] == "branch_point"],
                 # Period doublings and tori passed on the way (a collocation branch locates them and goes on).
-                "events": [{k: v for k, v in event.items() if k != "orbit"} for event in self.branch.events if event["kind"] != "branch_point"],
+                "events": [
+                    {k: v for k, v in event.items() if k != "orbit"} for event in self.branch.events if event["kind"] != "branch_point"
+                ],
                 "phase_condition": ["section" if o.phase_normal is None else "plane" for o in self.branch.orbits],
             }
             if self.branch.settings.get("method") == "collocation":
@@ -343,7 +356,29 @@ def _continued(orbit: PeriodicOrbit | CollocationOrbit, options: dict, moment_mi
         return continue_periodic_orbit(orbit, moment_min=moment_min, period_max=period_max, progress=progress, **mesh)
     keep = {k: v for k, v in options.items() if k in ("tol", "rtol", "atol")}
     shooting = method if method in ("dense", "blocks", "picard") else "auto"
-    return continue_orbit(orbit, moment_min=moment_min, period_max=period_max, progress=progress, method=shooting, **keep)
+    branch = continue_orbit(orbit, moment_min=moment_min, period_max=period_max, progress=progress, method=shooting, **keep)
+    if branch.end == END_FOLD and choose_method(orbit.params, shooting) == "dense":
+        return _fold_located(branch)
+    return branch
+
+
+def _fold_located(branch: OrbitBranch) -> OrbitBranch:
+    """``branch`` with its fold of cycles located by the augmented shooting system from the orbits around the turn
+    (:func:`~cosserat_chain.numerics.cycle_curve.locate_cycle_end`, as the diagram's rows take it): the continuation's
+    ``end_moment`` is the parabola through them, 5.0e-7 off on a clamped-pinned N = 3 sine chain whose located fold
+    the collocation's branch gave to 5e-11. Unchanged, saying so, where Newton fails."""
+    around = sorted(branch.orbits[-3:], key=lambda o: abs(o.moment - branch.end_moment))
+    try:
+        fold = locate_cycle_end(around, "fold_of_cycles")
+    except ValueError as err:
+        return replace(
+            branch, message=f"{branch.message}; the fold's moment is the parabola through the last three orbits, not located ({err})"
+        )
+    return replace(
+        branch,
+        end_moment=float(fold.moment),
+        message=f"{branch.message}; located at M = {fold.moment:.12g} by the augmented shooting system",
+    )
 
 
 def _from_above(params, model: Model, moment: float, above: float, turns: int, particle: int, period_max: float, progress, options):
