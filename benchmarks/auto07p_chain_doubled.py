@@ -25,15 +25,12 @@ import time
 from pathlib import Path
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
-from auto07p_chain_fold_step import CONSTANTS
-from auto07p_common import b_rows, multipliers, run_auto
-from auto07p_torus_curve import equations
+from auto07p_chain_fold_step import SETTINGS
+from auto07p_common import b_rows, chain_files, constants_file, multipliers, one_run_script, run_auto
 from cosserat_chain import ChainParams
-from cosserat_chain.models.base import get_model
 from cosserat_chain.numerics import cycle_switching
-from cosserat_chain.numerics.periodic import _System, _to_y, continue_orbit, find_periodic_orbit
+from cosserat_chain.numerics.periodic import continue_orbit, find_periodic_orbit
 from cosserat_chain.state import n_free
 
 
@@ -63,19 +60,11 @@ def main(workdir: Path, ntst: int = 200, dsmax: float = 1e-3) -> None:
     target = switch.doubled.moment
     orbit = [o for o in branch.orbits if o.moment > 0.1735][-1]
     workdir.mkdir(parents=True, exist_ok=True)
-    (workdir / "chain.f90").write_text(equations(params, orbit.moment, orbit.period))
-    system = _System(params, get_model("sine"), orbit.moment, 0)
-    times = np.linspace(0.0, orbit.period, 601)
-    states = solve_ivp(
-        system.rhs(0), (0.0, orbit.period), _to_y(params, orbit.x, orbit.v), method="DOP853", rtol=1e-12, atol=1e-12, t_eval=times
-    ).y.T
-    (workdir / "chain.dat").write_text("".join(" ".join(f"{v:.15E}" for v in (t, *y)) + "\n" for t, y in zip(times / orbit.period, states)))
-    constants = CONSTANTS.format(ndim=2 * n_free(params), ntst=ntst, dsmax=dsmax).replace("STOP = ['LP1']", "STOP = ['PD1']")
-    script = (
-        "r1 = run('chain', c='chain.1', dat='chain')\nsave(r1, 'r1')\n"
+    script = one_run_script("chain", "r1", constants="chain.1", dat="chain") + (
         f"r2 = run(r1('PD1'), c='chain.1', ISW=-1, STOP=[], NMX=1000, UZSTOP={{1: {target!r}}})\nsave(r2, 'r2')\n"
     )
-    run_auto(workdir, "chain.auto", {"c.chain.1": constants, "chain.auto": script})
+    constants = constants_file(NDIM=2 * n_free(params), NTST=ntst, DSMAX=dsmax, **{**SETTINGS, "STOP": ["PD1"]})
+    run_auto(workdir, "chain.auto", {**chain_files(orbit, 601), "c.chain.1": constants, "chain.auto": script})
     for _, kind, values in b_rows(workdir / "b.r1"):
         if kind == 7:
             print(f"AUTO-07p: PD at M = {values[0]:.12g}, period {values[-1]:.11g}; the package's {point.moment:.14g}, {point.period:.11g}")

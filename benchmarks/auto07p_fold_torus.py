@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from auto07p_common import b_rows, multipliers, run_auto, two_parameter_script
+from auto07p_common import EMPTY_ROUTINES, b_rows, constants_file, multipliers, run_auto, two_parameter_script
 from cosserat_chain.numerics.cycle_curve import continue_cycle_end
 
 EQUATIONS = """      SUBROUTINE FUNC(NDIM,U,ICP,PAR,IJAC,F,DFDU,DFDP)
@@ -68,16 +68,8 @@ EQUATIONS = """      SUBROUTINE FUNC(NDIM,U,ICP,PAR,IJAC,F,DFDU,DFDP)
       END
 """
 
-CONSTANTS = """NDIM=  8, IPS =   2, IRS =   0, ILP =   1
-ICP =  [1, 11]
-NTST=  20, NCOL=   4, IAD =   3, ISP =   2, ISW = 1, IPLT= 0, NBC= 0, NINT= 0
-NMX=  200, RL0=  0.0, RL1=  0.5, A0=   0.0, A1= 1000.0
-NPR=  500, MXBF=  10, IID =   2, ITMX=   8, ITNW= 7, NWTN= 3, JAC= 0
-EPSL= 1e-10, EPSU = 1e-10, EPSS =1e-08
-DS  =  -0.001, DSMIN=  1e-6, DSMAX=   0.005, IADS=   1
-THL =  {11: 0.0}, THU =  {}
-STOP = ['LP1']
-"""
+#: The three systems' runs in a down to their fold or torus point (each system's NDIM and STOP are :func:`main`'s).
+SETTINGS = dict(NTST=20, NMX=200, RL0=0.0, RL1=0.5, NPR=500, DS=-0.001, DSMIN=1e-6, DSMAX=0.005)
 
 RESONANT = """      SUBROUTINE FUNC(NDIM,U,ICP,PAR,IJAC,F,DFDU,DFDP)
       IMPLICIT DOUBLE PRECISION (A-H,O-Z)
@@ -166,24 +158,17 @@ def turn(fort7: Path) -> tuple[float, float]:
 
 def solve(workdir: Path, name: str, equations: str, constants: str, script: str) -> None:
     """Run AUTO-07p on one problem: its equations (with empty boundary and integral conditions), constants and script."""
-    empty = "".join(f"      SUBROUTINE {n}\n      RETURN\n      END\n" for n in ("BCND", "ICND", "FOPT", "PVLS"))
-    run_auto(workdir, f"{name}.auto", {f"{name}.f90": equations + empty, f"c.{name}": constants, f"{name}.auto": script})
+    run_auto(workdir, f"{name}.auto", {f"{name}.f90": equations + EMPTY_ROUTINES, f"c.{name}": constants, f"{name}.auto": script})
 
 
 def main(workdir: Path) -> None:
     workdir.mkdir(parents=True, exist_ok=True)
-    solve(
-        workdir,
-        "ft",
-        EQUATIONS,
-        CONSTANTS,
-        two_parameter_script("ft", "LP1", "curve", nmx=(200, 200), DS=0.001, DSMAX=0.002, UZSTOP={2: [0.15, 0.3]}),
-    )
-    resonant = CONSTANTS.replace("NDIM=  8", "NDIM=  4").replace("STOP = ['LP1']", "STOP = ['TR1']")
+    script = two_parameter_script("ft", "LP1", "curve", nmx=(200, 200), DS=0.001, DSMAX=0.002, UZSTOP={2: [0.15, 0.3]})
+    solve(workdir, "ft", EQUATIONS, constants_file(NDIM=8, **SETTINGS, STOP=["LP1"]), script)
     script = two_parameter_script("rs", "TR1", "rcurve", nmx=(2000, 2000), DS=-0.001, DSMAX=0.005, UZSTOP={2: [0.25, 0.45]})
-    solve(workdir, "rs", RESONANT, resonant, script)
+    solve(workdir, "rs", RESONANT, constants_file(NDIM=4, **SETTINGS, STOP=["TR1"]), script)
     script = two_parameter_script("cu", "LP1", "ccurve", nmx=(400, 400), DS=0.001, DSMAX=0.002, UZSTOP={2: [0.31]})
-    solve(workdir, "cu", CUSP, CONSTANTS.replace("NDIM=  8", "NDIM=  4"), script)
+    solve(workdir, "cu", CUSP, constants_file(NDIM=4, **SETTINGS, STOP=["LP1"]), script)
     s, a, angle = crossing(workdir / "b.curve", workdir / "d.curve")
     print(f"AUTO-07p's fold curve: the pair crosses the unit circle at s = {s:.10g}, a = {a:.10g}, angle {angle:.8g}")
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))

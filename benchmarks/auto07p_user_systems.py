@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from auto07p_common import b_rows, multipliers, run_auto
+from auto07p_common import EQUATIONS, b_rows, constants_file, fortran, multipliers, one_run_script, orbit_files, run_auto  # noqa: F401 - auto07p_jj3_snake reads EQUATIONS and fortran from here
 from cosserat_chain.experiments.system_diagram import system_diagram
 from cosserat_chain.numerics.shooting import continue_orbits, find_orbit, settled_guess
 from cosserat_chain.systems.base import System
@@ -67,7 +67,7 @@ class Case:
     start: float
     checkpoints: tuple[float, ...]
     vary: str
-    stop: str
+    stop: list[str]
 
 
 def _jj(p: np.ndarray, v: np.ndarray, c: dict) -> np.ndarray:
@@ -95,7 +95,7 @@ CASES = (
         0.8,
         (0.7, 0.5, 0.4, 0.3),
         "alpha",
-        "STOP = []",
+        [],
     ),
     Case(
         "frenkel_kontorova",
@@ -111,60 +111,16 @@ CASES = (
         0.9,
         (0.8, 0.7, 0.6, 0.55),
         "gamma",
-        "STOP = ['LP1']",
+        ["LP1"],
     ),
 )
 
-EQUATIONS = """      SUBROUTINE FUNC(NDIM,U,ICP,PAR,IJAC,F,DFDU,DFDP)
-      IMPLICIT DOUBLE PRECISION (A-H,O-Z)
-      DIMENSION U(NDIM),PAR(*),F(NDIM)
-      F(1)=U(4)
-      F(2)=U(5)
-      F(3)=U(6)
-      F(4)={0}
-      F(5)={1}
-      F(6)={2}
-      RETURN
-      END
-      SUBROUTINE STPNT(NDIM,U,PAR,T)
-      IMPLICIT DOUBLE PRECISION (A-H,O-Z)
-      DIMENSION U(NDIM),PAR(*)
-{3}
-      RETURN
-      END
-      SUBROUTINE BCND
-      RETURN
-      END
-      SUBROUTINE ICND
-      RETURN
-      END
-      SUBROUTINE FOPT
-      RETURN
-      END
-      SUBROUTINE PVLS
-      RETURN
-      END
-"""
-
-CONSTANTS = """NDIM=  6, IPS =   2, IRS =   0, ILP =   1
-ICP =  [1, 11]
-NTST=  {ntst}, NCOL=   4, IAD =   3, ISP =   2, ISW = 1, IPLT= 0, NBC= 0, NINT= 0
-NMX= 3000, RL0=  0.2, RL1=  1.0, A0=   0.0, A1= 1e6
-NPR= 5000, MXBF=  10, IID =   2, ITMX=   8, ITNW= 7, NWTN= 3, JAC= 0
-EPSL= 1e-10, EPSU = 1e-10, EPSS =1e-08
-DS  =  -0.002, DSMIN=  1e-9, DSMAX=   0.02, IADS=   1
-THL =  {{11: 0.0}}, THU =  {{}}
-UZR = {{1: {checkpoints}}}, UZSTOP = {{11: {period_stop}}}
-{stop}
-"""
+#: AUTO's run down in the drive (NTST, the user points and the stop are each case's).
+SETTINGS = dict(NDIM=6, NMX=3000, RL0=0.2, RL1=1.0, A1=1e6, NPR=5000, DS=-0.002, DSMIN=1e-9, DSMAX=0.02, UZSTOP={11: PERIOD_STOP})
 
 #: AUTO-07p's label types in a b-file, and the package's event kinds they answer.
 LABELS = {-4: "UZ", 4: "UZ", 7: "PD", -7: "PD", 5: "LP", 6: "BP", 8: "TR", -9: "EP", 9: "EP"}
 KINDS = {"period_doubling": "PD", "torus": "TR", "fold": "LP"}
-
-
-def fortran(value: float) -> str:
-    return f"{value:.17E}".replace("E", "D")
 
 
 def package_start(case: Case):
@@ -185,17 +141,10 @@ def check_equations(case: Case, system: System) -> None:
 def run_auto07p(workdir: Path, case: Case, orbit, ntst: int) -> dict:
     """AUTO's continuation at NTST = ``ntst``: its labelled points (drive, period, multipliers), last point, CPU time."""
     workdir.mkdir(parents=True, exist_ok=True)
-    times = np.linspace(0.0, orbit.period, 401)
-    states = orbit.trajectory(times, rtol=1e-12, atol=1e-12)
-    rows = "".join(" ".join(f"{v:.16E}" for v in (t, *y)) + "\n" for t, y in zip(times / orbit.period, states))
-    values = [case.start, *case.others.values(), orbit.period]
-    slots = [*range(1, len(values)), 11]
-    start = "\n".join(f"      PAR({k})={fortran(v)}" for k, v in zip(slots, values))
     files = {
-        "u.f90": EQUATIONS.format(*case.fortran, start),
-        "u.dat": rows,
-        "c.u": CONSTANTS.format(ntst=ntst, checkpoints=list(case.checkpoints), period_stop=PERIOD_STOP, stop=case.stop),
-        "u.auto": "r = run('u', c='u', dat='u')\nsave(r, 'u')\n",
+        **orbit_files(case.fortran, [case.start, *case.others.values()], orbit),
+        "c.u": constants_file(NTST=ntst, UZR={1: list(case.checkpoints)}, **SETTINGS, STOP=case.stop),
+        "u.auto": one_run_script("u", "u", dat="u"),
     }
     before, children = time.process_time(), resource.getrusage(resource.RUSAGE_CHILDREN)
     run_auto(workdir, "u.auto", files)
