@@ -51,6 +51,8 @@ from .checkpoint import CheckpointClock, open_checkpoint, params_settings, seal
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built or read: commands without file output start without it
     import xarray as xr
 
+    from ..systems.base import System
+
 log = logging.getLogger(__name__)
 
 #: Version of the simulation checkpoint's layout; a checkpoint of another version is refused (2: the
@@ -174,6 +176,23 @@ def run_attributes(params: ChainParams, model: Model, loads: Loads) -> dict[str,
             "model": model.name,
             "model_equation": model.equation,
             "loads_json": json.dumps(loads.to_list()),
+            "cosserat_chain_version": __version__,
+        }
+    )
+    return attrs
+
+
+def system_attributes(system: System, reference: str | None = None) -> dict[str, Any]:
+    """Attributes that make a result file of a user's system self-describing: its parameters, name, how it was named
+    (``reference``, e.g. ``takeno_peyrard`` or ``my_lattice.py:build``, where given), definition, angles and the version."""
+    attrs: dict[str, Any] = {f"param_{name}": value for name, value in system.parameters.items()}
+    attrs["system"] = system.name
+    if reference is not None:
+        attrs["system_reference"] = reference
+    attrs.update(
+        {
+            "system_json": json.dumps(system.describe()),
+            "angles": ",".join(name for name, a in zip(system.coordinates, system.angles, strict=True) if a),
             "cosserat_chain_version": __version__,
         }
     )

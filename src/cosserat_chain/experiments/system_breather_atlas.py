@@ -69,6 +69,7 @@ from .breather_atlas import (
 )
 from .breathers import TAIL_SAMPLES
 from .lifetimes import check_lifetime_run, lifetime_variables, measure_point_lifetimes
+from .simulation import system_attributes
 from .system_breathers import (
     BreatherError,
     _at,
@@ -282,8 +283,6 @@ class SystemBreatherAtlas:
         """
         import xarray as xr
 
-        from .._version import __version__
-
         dims = ("value", "omega")
         measures = {
             "energy": "total energy of the orbit (NaN: no orbit, or the system has no energy function)",
@@ -334,21 +333,16 @@ class SystemBreatherAtlas:
             units, field_name = "rad per time unit of the system", f"system parameter {self.field}"
             data.update(change_variables(self.changes, units, "the system's", field_name, self.field))
         ds = xr.Dataset(data, coords=coords)
-        ds.attrs.update({f"param_{name}": value for name, value in self.system.parameters.items()})
+        ds.attrs.update(system_attributes(self.system, reference))
         ds.attrs.update(
             {
                 "experiment": "system_roto_breather_atlas",
                 "title": f"Roto-breather atlas of the system {self.system.name} over Omega and {self.field}",
-                "system": self.system.name,
-                "system_json": json.dumps(self.system.describe()),
                 "field": self.field,
                 "rotors_json": json.dumps({self.system.coordinates[i]: k for i, k in self.rotors.items()}),
                 "settings_json": json.dumps(self.settings),
-                "cosserat_chain_version": __version__,
             }
         )
-        if reference is not None:
-            ds.attrs["system_reference"] = reference
         return ds
 
 

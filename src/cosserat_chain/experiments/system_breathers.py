@@ -56,6 +56,7 @@ from ..systems.base import System
 from ..systems.lattice import LatticeSystem
 from .anti_continuum import POTENTIAL_POINTS, potential_from_torque, rotor_energy, sample_angles
 from .lifetimes import Lifetime, check_lifetime_run, lifetime_from_deviation
+from .simulation import system_attributes
 
 if TYPE_CHECKING:  # xarray is imported where a Dataset is built: commands without file output start without it
     import xarray as xr
@@ -535,8 +536,6 @@ class SystemBreatherFamily:
         """
         import xarray as xr
 
-        from .._version import __version__
-
         if not self.orbits:
             raise ValueError("the family holds no orbit: nothing to write")
         summary = self.as_dict()
@@ -589,15 +588,11 @@ class SystemBreatherFamily:
             )
         for name, long_name in names.items():
             ds[name].attrs["long_name"] = long_name
-        ds.attrs.update({f"param_{name}": value for name, value in self.system.parameters.items()})
+        ds.attrs.update(system_attributes(self.system, reference))
         ds.attrs.update(
             {
                 "experiment": "system_roto_breathers",
                 "title": f"Roto-breather family of the system {self.system.name}",
-                "system": self.system.name,
-                "system_json": json.dumps(self.system.describe()),
-                "angles": ",".join(n for n, a in zip(self.system.coordinates, self.system.angles, strict=True) if a),
-                "cosserat_chain_version": __version__,
                 "coupling": self.coupling,
                 "rotors_json": json.dumps(summary["rotors"]),
                 "anti_continuum_json": json.dumps({"energy": summary["anti_continuum_energy"], "period": self.start.period}),
@@ -610,8 +605,6 @@ class SystemBreatherFamily:
                 "settings_json": json.dumps(self.settings),
             }
         )
-        if reference is not None:
-            ds.attrs["system_reference"] = reference
         return ds
 
     def as_dict(self) -> dict:
