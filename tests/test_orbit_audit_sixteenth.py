@@ -9,13 +9,18 @@ Next to a homoclinic orbit single shooting's monodromy loses its trivial multipl
 chain, ||M|| ~ 1e6): taken with the multiplier nearest +1 for the trivial one, the stable orbit read as unstable, and
 ``diagram --vary gamma_phi --values 0.1`` on N = 1 said branch_point_of_cycles at 0.4290037, below the pendulum's
 homoclinic end 0.4290033951 (an intermediate state of the sixteenth session, never committed).
+
+A branch whose first orbit's period already exceeds ``period_max`` ended at once, ``infinite_period``, "it diverges
+(homoclinic end)": a clamped-free N = 4 sine chain at 1.25 M_c (T = 2612 > 2000) claimed a homoclinic end at its start.
 """
 
 from __future__ import annotations
 
 import pytest
+from typer.testing import CliRunner
 
 from cosserat_chain import ChainParams
+from cosserat_chain.cli import app
 from cosserat_chain.experiments.diagram import state_diagram
 from cosserat_chain.experiments.orbits import periodic_orbit
 from test_diagram import holds_the_pendulums_homoclinic
@@ -47,3 +52,16 @@ def test_the_pendulums_diagram_row_at_gamma_0_1_ends_at_its_homoclinic_orbit():
     row = state_diagram(params, "sine", "gamma_phi", [0.1]).rows[0]
     assert row.end == "homoclinic" and row.method == "solved"
     assert holds_the_pendulums_homoclinic(params.j, 0.1, row.static_fold, row.rotation_stops, row.uncertainty)
+
+
+@pytest.mark.parametrize("method", ["auto", "collocation"])
+def test_a_branch_whose_start_exceeds_period_max_is_refused_not_ended_at_a_homoclinic_end(method, tmp_path):
+    config = tmp_path / "N1.toml"
+    config.write_text("N = 1\n")
+    args = ["orbit", "--moment", "0.5", "--config", str(config), "--down-to", "0.45", "--period-max", "1", "--method", method]
+    result = CliRunner().invoke(app, args)
+    # The orbit at M = 0.5 has T = 1.609: the branch cannot start below period_max = 1.
+    assert result.exit_code == 2, result.output
+    assert "period_max (--period-max)" in result.output and "T = 1.60897" in result.output and "got period_max = 1.0" in result.output
+    with pytest.raises(ValueError, match="must exceed the period of the orbit"):
+        periodic_orbit(ChainParams(N=1), "sine", 0.5, down_to=0.45, period_max=1.0)

@@ -349,7 +349,14 @@ def _continued(orbit: PeriodicOrbit | CollocationOrbit, options: dict, moment_mi
     """The orbit (as :func:`_solve` returned it) continued down to ``moment_min``: by collocation where ``options`` ask for it
     (``method``; ``max_interval`` bounds its intervals in time units, :func:`~cosserat_chain.numerics.collocation.continue_collocation`), else by
     :func:`~cosserat_chain.numerics.periodic.continue_orbit` with the options' tolerances and shooting (``dense``,
-    ``blocks`` or ``picard``; a ``krylov`` orbit's branch by ``auto``: a continuation needs the monodromy or its dominant subspace)."""
+    ``blocks`` or ``picard``; a ``krylov`` orbit's branch by ``auto``: a continuation needs the monodromy or its dominant subspace).
+    A ValueError where the orbit's own period is not below ``period_max``."""
+    if not orbit.period < period_max:
+        # Else the branch ends at once as a diverging period, a homoclinic or SNIC end claimed where none was followed.
+        raise ValueError(
+            f"period_max (--period-max) must exceed the period of the orbit the branch starts from: the orbit at "
+            f"M = {orbit.moment!r} has T = {orbit.period:.6g}, got period_max = {period_max!r}; give a larger one"
+        )
     method = options.get("method", "auto")
     if method == "collocation":
         mesh = {k: v for k, v in options.items() if k == "max_interval"}
