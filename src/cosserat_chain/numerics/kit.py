@@ -587,7 +587,9 @@ def continuation(
     direction : float
         +1 to start towards larger lambda, -1 towards smaller (ignored with ``tangent0``).
     tangent0 : ndarray, optional
-        Starting direction (e.g. from :func:`branch_directions`, to switch branches).
+        Starting direction (e.g. from :func:`branch_directions`, to switch branches, or a
+        restart's interpolated tangent). With it w0 is corrected on the hyperplane through w0
+        normal to it, not at its parameter held fixed.
     stop_at : tuple of str
         Event kinds that end the branch once located: values of :class:`BranchEnd`
         (``"fold"``, ``"branch_point"``, ``"period_doubling"``, ``"torus"``, ``"hopf"``).
@@ -623,11 +625,17 @@ def continuation(
     unknown = [kind for kind in stop_at if kind not in EVENT_KINDS]
     if unknown:
         raise ValueError(f"stop_at: unknown event kinds {unknown}; allowed: {', '.join(EVENT_KINDS)}")
-    keep = np.ones(len(w0), dtype=bool)
-    keep[-1] = False
     own_converged = getattr(problem, "converged", None)
     criterion = {"tol": problem.tol} if own_converged is None else {"converged": own_converged}
-    start = newton(problem.evaluate, w0, keep=keep, **criterion)
+    if tangent0 is None:
+        keep = np.ones(len(w0), dtype=bool)
+        keep[-1] = False
+        start = newton(problem.evaluate, w0, keep=keep, **criterion)
+    else:
+        # A restart on a branch whose parameter hardly moves (towards a homoclinic end the period
+        # grows at an all but fixed M) is ill-posed with the parameter held: Newton on its hyperplane.
+        normal = np.asarray(tangent0, dtype=float) / np.linalg.norm(tangent0)
+        start = newton(problem.evaluate, w0, border=(normal, np.asarray(w0, dtype=float)), **criterion)
     if not start.converged:
         raise StartError(f"the start is not on the branch: the corrector {start.status} with max|R| = {start.norm:.3g}")
     options = dict(corrector or {})

@@ -59,6 +59,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import lru_cache, partial
@@ -76,7 +77,7 @@ from ..params import ChainParams
 from ..state import ROW_INDEX, check_state, column, force_columns, free_index, held, n_free, pack, per_dof, unpack, zeros
 from ..state import dof as free_dof
 from ..status import Status
-from . import collocation_core, cycle_events, dop853, floquet, long_orbits, newton_picard
+from . import collocation_core, cycle_events, dop853, floquet, long_orbits, newton_picard, shooting
 from .addresses import entry
 from .dynamics import TurnWatch, integrate
 from .integrators import default_time_step
@@ -109,6 +110,13 @@ MAX_CORRECTOR_ITERATIONS = 10
 MAX_MULTIPLIER_MOTION = 0.1
 #: Multipliers whose modulus lies in this range at either end of a step count as near the circle.
 MULTIPLIER_WATCH = (0.9, 1.2)
+#: A dense continuation's orbit whose trivial multiplier (1 exactly) comes out farther than shooting.TRIVIAL_LOST from +1,
+#: or whose multiplier nearest +1 has its eigenvector off the flow f(y0) (cosine below ALONG_FLOW: the trivial one has
+#: drifted past another), ends the branch, the shooting's accuracy exhausted: next to a saddle (||M|| ~ 1e6 at T = 10
+#: on the N = 1 sine chain) the monodromy's eigenvalue along the flow drifts to 2.03 (formed or from the segments' periodic
+#: Schur form alike), and once it passes the damped pair 0.25 +- 0.54i it reads as a real multiplier through +1: a false
+#: fold of cycles.
+ALONG_FLOW = 0.9
 #: Newton reuses its Jacobian while each step divides the closure by at least 1 / NEWTON_RATE.
 NEWTON_RATE = 0.1
 #: The continuation's step grows after a correction in at most EASY_ITERATIONS, shrinks after HARD_ITERATIONS or more.
@@ -810,10 +818,14 @@ def _shooting(system: _System, particle_turns: np.ndarray, rtol: float, atol: fl
     shift[: system.nf] = 2 * math.pi * pack(system.params, angles)
 
     def evaluate(y0: np.ndarray, period: float, variations: bool = True):
-        end, mono, d_moment = system.flow(y0, period, rtol=rtol, atol=atol, variations=variations)
+        # The residual always from the state's own integration (as the blocks' shooting takes it): with the
+        # variational columns the steps differ, and near a saddle's passage the two ends differ by more than the
+        # closure asked for, so a Newton iterate passed on one evaluation failed on the other at the same y0.
+        end = system.flow(y0, period, rtol=rtol, atol=atol, variations=False)[0]
         residual = end - y0 - shift
         if not variations:
             return residual, None, None, None, None
+        _, mono, d_moment = system.flow(y0, period, rtol=rtol, atol=atol, variations=True)
         return residual, mono - np.eye(len(y0)), system.velocity(end), d_moment, mono
 
     return evaluate
@@ -875,6 +887,24 @@ def _check_segments(params: ChainParams, segments: int | None, method: str) -> N
         segments * size * size * FLOAT, f"{segments} segment Jacobians of {size} x {size}",
         "fewer segments (--segments: 16 to 64 keep the smallest multipliers to round-off)",
     )  # fmt: skip
+
+
+def _along_flow(mono: np.ndarray, multiplier: complex, flow: np.ndarray) -> float:
+    """|cos| of the angle between the flow f(y0) and the eigenvector of ``mono`` for ``multiplier`` (the one taken for
+    the trivial one), by two steps of inverse iteration from a fixed start (not the flow, which may lack the component
+    sought): 1 for the true trivial multiplier."""
+    shift = complex(multiplier) * (1.0 + 1e-12) + 1e-14  # off the eigenvalue by round-off's order: a regular solve
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", sla.LinAlgWarning)  # exactly singular: the solve's infinities say so below
+        lu = sla.lu_factor(mono - shift * np.eye(len(flow)))
+    vector = np.random.default_rng(0).standard_normal(len(flow)).astype(complex)
+    for _ in range(2):
+        with np.errstate(all="ignore"):
+            vector = sla.lu_solve(lu, vector)
+        if not np.all(np.isfinite(vector)) or not np.any(vector):
+            return 1.0  # exactly singular there
+        vector /= np.linalg.norm(vector)
+    return float(abs(np.vdot(vector, flow)) / np.linalg.norm(flow))
 
 
 def _multipliers(
@@ -1380,6 +1410,7 @@ def continue_orbit(
     first, notes, h = orbit, [], step
     # Newton-Picard's dominant subspace goes on from problem to problem (a restart on a phase plane).
     carried = {"direction": -sign} if method == "picard" else {}
+    orientation = None
     while True:
         problem = (_PicardBranchProblem if method == "picard" else _OrbitBranchProblem)(
             first, model, phase, tol, rtol, atol, moment_min, period_max, until_unstable, orbit.stable, method=method, segments=segments,
@@ -1400,6 +1431,7 @@ def continue_orbit(
             max_step=max_step,
             max_points=max_points - offset,
             direction=-sign,
+            tangent0=orientation,
             stop_at=(BranchEnd.FOLD,),
             progress=None if progress is None else (lambda done, total, offset=offset: progress(offset + done, max_points)),
             corrector={"max_iterations": MAX_CORRECTOR_ITERATIONS, "chord": NEWTON_RATE, "forgive": 0},
@@ -1422,6 +1454,11 @@ def continue_orbit(
         h = min(max_step, max(min_step, float(np.linalg.norm(problem.pack(last) - problem.pack(traced.points[-2])))))
         phase = _plane(_System(params, model, last.moment, last.particle), _to_y(params, last.x, last.v))
         first = dataclasses.replace(last, phase_normal=phase.normal)
+        # On the way the last step went in (log T, M): towards a homoclinic end M hardly moves, and the sign of the new
+        # tangent's dM (the orientation from rest) is round-off; it took the branch back the way it came.
+        previous = traced.points[-2]
+        orientation = np.zeros(phase.head + 2)
+        orientation[phase.head :] = (math.log(last.period / previous.period), last.moment - previous.moment)
         notes.append(
             f"the flow became tangent to the section phi_0 = 0 near M = {last.moment:.10g}"
             + (" (the section's system turned back there with no multiplier at +1: no fold)" if turned_falsely else "")
@@ -1440,6 +1477,11 @@ def continue_orbit(
         message = f"stopped after max_points={max_points} orbits"
     elif traced.end == BranchEnd.STEP_TOO_SMALL:
         message = f"the arclength step fell below min_step={min_step:g} after M={orbits[-1].moment:.10g}"
+        if orbits[-1].period > 2.0 * orbits[0].period:
+            message += (
+                f" with the period grown to T = {orbits[-1].period:.6g}: single shooting's accuracy runs out towards a "
+                "homoclinic end (the flow's growth past the saddle); collocation (method='collocation') follows the period further"
+            )
     end_moment = orbits[-1].moment
     if end == END_FOLD and folds:
         end_moment = next(iter(folds.values())).moment
@@ -1532,6 +1574,8 @@ class _OrbitBranchProblem:
 
     def __post_init__(self) -> None:
         self.crossing0 = self._crossing(self.start)
+        # (orbit, cosine, ||M||) of the dense orbits whose trivial multiplier is not along the flow (ALONG_FLOW).
+        self.lost: list[tuple[PeriodicOrbit, float, float]] = []
 
     def pack(self, orbit: PeriodicOrbit) -> np.ndarray:
         return np.concatenate([_to_y(orbit.params, orbit.x, orbit.v)[self.phase.keep], [math.log(orbit.period), orbit.moment]])
@@ -1565,10 +1609,15 @@ class _OrbitBranchProblem:
         system = _System(self.start.params, self.model, float(w[head + 1]), self.start.particle)
         closure, period = float(np.max(np.abs(evaluation.residual))), math.exp(w[head])
         multipliers, errors, logs = _multipliers(system, y0, period, evaluation.data, self.method, self.segments, self.rtol, self.atol)
-        return _orbit_from(
+        orbit = _orbit_from(
             system, self.start.turns, y0, period, multipliers, closure, iterations, self.start.particle_turns, self.phase.normal,
             errors, logs,
         )  # fmt: skip
+        if self.method == "dense":
+            cosine = _along_flow(evaluation.data, orbit.trivial_multiplier, system.velocity(y0))
+            if cosine < ALONG_FLOW or abs(orbit.trivial_multiplier - 1.0) > shooting.TRIVIAL_LOST:
+                self.lost.append((orbit, cosine, float(np.linalg.norm(evaluation.data, np.inf))))
+        return orbit
 
     def accept(self, previous: PeriodicOrbit, candidate: PeriodicOrbit) -> bool:
         # A step over which a multiplier near the unit circle moves this far can hide a
@@ -1585,6 +1634,14 @@ class _OrbitBranchProblem:
         return {}
 
     def stop(self, point: PeriodicOrbit) -> tuple[BranchEnd, str] | None:
+        lost = next((entry for entry in self.lost if entry[0] is point), None)
+        if lost is not None:
+            return (
+                BranchEnd.INFINITE_PERIOD,
+                f"the shooting's accuracy is exhausted at M = {point.moment:.12g}, T = {point.period:.8g}: the multiplier nearest +1 "
+                f"is {point.trivial_multiplier:.4g}, its eigenvector at cosine {lost[1]:.2g} to the flow (the trivial one: 1 along "
+                f"it; ||M|| = {lost[2]:.2g}); the period grows on: collocation (--method collocation) follows the branch further",
+            )
         if point.period > self.period_max:
             return BranchEnd.INFINITE_PERIOD, f"the period exceeded period_max={self.period_max:g}: it diverges (homoclinic end)"
         if abs(point.moment) < self.moment_min:
