@@ -201,3 +201,14 @@ def test_an_output_that_is_an_input_or_unwritable_is_refused_before_computing(fo
     assert config.read_text() == ("N = 1\n" if form == "chain" else "[system]\nI = 0.4\n")
     nowhere = invoke("orbit", *command, "--config", config, "--out", config / "orbit.nc")
     assert nowhere.exit_code == 2 and "--out" in nowhere.output, nowhere.output
+
+
+def test_the_chains_branch_raises_its_intervals_to_the_max_interval(n1_config):
+    """--max-interval on the chain: the branch's mesh rises from the orbit's 40 intervals to 2 T / 0.05."""
+    result = invoke("orbit", *CHAIN, "--config", n1_config, "--down-to", DOWN_TO, "--max-interval", "0.05", "--json")
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.stdout)
+    continuation = data["continuation"]
+    assert data["ntst"] == 40 and continuation["max_interval"] == 0.05 and continuation["end"] == "moment_min"
+    raised = {max(40, math.ceil(2.0 * t / 0.05)) for t in continuation["period"]}
+    assert continuation["end_ntst"] in raised and continuation["end_ntst"] > 40

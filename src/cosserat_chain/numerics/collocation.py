@@ -388,6 +388,7 @@ def continue_periodic_orbit(
     moment_min: float = 0.0,
     period_max: float = PERIOD_MAX,
     max_points: int = 400,
+    max_interval: float | None = None,
     progress: Callable[[int, int], None] | None = None,
 ) -> periodic.OrbitBranch:
     """:func:`~cosserat_chain.numerics.periodic.continue_orbit` by collocation: the orbit followed towards smaller |M|.
@@ -397,7 +398,7 @@ def continue_periodic_orbit(
     :func:`continue_collocation` down to |M| = ``moment_min`` or a period beyond ``period_max``, and
     returned as :meth:`CollocationBranch.orbit_branch`. Its cost does not grow with the period,
     where the shooting's does (docs/collocation.md), so a branch towards a homoclinic or SNIC end
-    reaches long periods.
+    reaches long periods. ``max_interval`` is :func:`continue_collocation`'s (the longest interval in time units).
 
     Raises
     ------
@@ -414,8 +415,9 @@ def continue_periodic_orbit(
     sign = math.copysign(1.0, orbit.moment)
     bounds = (moment_min, math.inf) if sign > 0 else (-math.inf, -moment_min)
     branch = continue_collocation(
-        start, moment_min=bounds[0], moment_max=bounds[1], period_max=period_max, direction=-sign, max_points=max_points, progress=progress
-    )
+        start, moment_min=bounds[0], moment_max=bounds[1], period_max=period_max, direction=-sign, max_points=max_points,
+        max_interval=max_interval, progress=progress,
+    )  # fmt: skip
     return branch.orbit_branch({"moment_min": moment_min, "period_max": period_max})
 
 
