@@ -73,6 +73,11 @@ def test_collocation_follows_the_orbit_past_its_remeshings_to_the_homoclinic_end
     assert branch.orbits[-1].moment == pytest.approx(M_HOMOCLINIC, abs=1e-10)
     # M falls all the way (to the mesh's noise in M at the longest periods, 2e-10 on 40 intervals).
     assert np.all(np.diff([o.moment for o in branch.orbits]) < 1e-9)
+    # On 40 intervals the multipliers of the longest orbits are not resolved (the trivial one far off 1, some other
+    # above 1): the branch does not claim a loss of stability from them.
+    reported = branch.orbit_branch()
+    assert not all(reported.stable) and max(o.trivial_multiplier_error for o in branch.orbits) > 0.1
+    assert reported.stability_lost_at is None
 
 
 def test_shooting_towards_the_homoclinic_end_keeps_true_multipliers_and_ends_where_its_accuracy_does():
