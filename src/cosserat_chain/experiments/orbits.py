@@ -252,7 +252,7 @@ def periodic_orbit(
     down_to : float, optional
         Continue the orbit towards smaller |M|, stopping at this moment if it still exists there.
     period_max : float
-        The continuations report a diverging period (homoclinic end) beyond this.
+        The continuations report a diverging period (a homoclinic or SNIC end) beyond this.
     guess : PeriodicOrbit or tuple, optional
         Newton's start, as :func:`~cosserat_chain.numerics.periodic.find_periodic_orbit` takes it.
     start : (x (3, 2N+1), v (3, 2N+1)), optional

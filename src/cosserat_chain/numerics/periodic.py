@@ -1351,7 +1351,7 @@ def continue_orbit(
     moment_min : float
         Stop when |M| falls below it.
     period_max : float
-        Stop when T exceeds it: the period diverges (homoclinic end).
+        Stop when T exceeds it: the period diverges (a homoclinic or SNIC end).
     step, min_step, max_step : float
         Initial, smallest and largest arclength steps in (y0, log T, M).
     max_points : int
@@ -1651,7 +1651,7 @@ class _OrbitBranchProblem:
                 f"it; ||M|| = {lost[2]:.2g}); the period grows on: collocation (--method collocation) follows the branch further",
             )
         if point.period > self.period_max:
-            return BranchEnd.INFINITE_PERIOD, f"the period exceeded period_max={self.period_max:g}: it diverges (homoclinic end)"
+            return BranchEnd.INFINITE_PERIOD, f"the period exceeded period_max={self.period_max:g}: it diverges (a homoclinic or SNIC end)"
         if abs(point.moment) < self.moment_min:
             return BranchEnd.PARAMETER_LIMIT, f"|M| fell below moment_min={self.moment_min:g}"
         if self.until_unstable and self.start_stable and not point.stable:
