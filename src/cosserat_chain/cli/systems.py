@@ -628,6 +628,8 @@ def _orbit_dataset(system, reference: str, orbit, branch: dict | None):
     import numpy as np
     import xarray as xr
 
+    from ..experiments.simulation import system_attributes
+
     n = system.size
     ds = xr.Dataset(
         {
@@ -667,7 +669,7 @@ def _orbit_dataset(system, reference: str, orbit, branch: dict | None):
             ds.attrs["branch_end_ntst"] = branch["end_ntst"]
         if branch.get("max_interval") is not None:
             ds.attrs["max_interval"] = branch["max_interval"]
-    ds.attrs.update(_system_attributes(system, reference))
+    ds.attrs.update(system_attributes(system, reference))
     ds.attrs.update(
         {
             "experiment": "system_orbit",
@@ -692,23 +694,6 @@ def _orbit_dataset(system, reference: str, orbit, branch: dict | None):
     return ds
 
 
-def _system_attributes(system, reference: str) -> dict[str, Any]:
-    """Attributes that make a file of a system self-describing: the reference, name, parameters, version."""
-    from .._version import __version__
-
-    attrs: dict[str, Any] = {f"param_{name}": value for name, value in system.parameters.items()}
-    attrs.update(
-        {
-            "system": system.name,
-            "system_reference": reference,
-            "system_json": json.dumps(system.describe()),
-            "angles": ",".join(name for name, a in zip(system.coordinates, system.angles, strict=True) if a),
-            "cosserat_chain_version": __version__,
-        }
-    )
-    return attrs
-
-
 # -- simulate --------------------------------------------------------------------------------
 
 
@@ -728,6 +713,7 @@ def simulate_on_system(
     import numpy as np
     import xarray as xr
 
+    from ..experiments.simulation import system_attributes
     from ..numerics.kit import EvaluationFailed
     from ..numerics.shooting import flow
 
@@ -760,7 +746,7 @@ def simulate_on_system(
         mass = system.mass()
         ds["potential_energy"] = ("time", np.array([system.energy(row[:n]) for row in y]))
         ds["kinetic_energy"] = ("time", 0.5 * np.sum(mass * y[:, n:] ** 2, axis=1))
-    ds.attrs.update(_system_attributes(system, reference))
+    ds.attrs.update(system_attributes(system, reference))
     ds.attrs.update(
         {
             "experiment": "system_simulation",
@@ -809,6 +795,7 @@ def diagram_on_system(
 ) -> None:
     """Both edges of the hysteresis loop in ``drive`` at each value of ``vary``
     (:func:`~cosserat_chain.experiments.system_diagram.system_diagram`): printed, as JSON, or written with ``--out``."""
+    from ..experiments.simulation import system_attributes
     from ..experiments.system_diagram import system_diagram
 
     if drive is None:
@@ -832,7 +819,7 @@ def diagram_on_system(
     bar.finish()
     if out is not None:
         ds = result.to_dataset()
-        ds.attrs.update(_system_attributes(system, reference))
+        ds.attrs.update(system_attributes(system, reference))
         save_dataset(ds, out)
     if as_json:
         _echo_json({**result.as_dict(), "reference": reference})
