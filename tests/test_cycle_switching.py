@@ -296,10 +296,8 @@ def test_orbits_born_at_a_hopf_point_have_its_period_and_grow_like_the_root_of_t
     # a ~ sqrt(|M - M_H|): M - M_H quadruples with a doubled ...
     assert np.all((3.5 < offsets[1:] / offsets[:-1]) & (offsets[1:] / offsets[:-1] < 4.5)), offsets
     # ... and the period tends to 2 pi / omega (T = T0 + p a^2 + q a^3 through the three).
-    # The fit's limit carries the orbits' closures (1e-9 on amplitudes of 1e-3: about 1e-8 of T) and its own truncation
-    # (6e-9 with the closures at 1e-11).
     limit = np.linalg.solve(np.column_stack([np.ones(3), a**2, a**3]), periods)[0]
-    assert limit == pytest.approx(period, rel=2e-8)
+    assert limit == pytest.approx(period, rel=1e-8)
     # Floquet multipliers: exp(lambda T) of the static state's eigenvalues to O(a^2) (independent: the statics'
     # linearisation), the crossing pair's two now the trivial +1 and one 1 - O(a^2).
     expected = linear_multipliers(params, point)

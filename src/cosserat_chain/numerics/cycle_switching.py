@@ -416,7 +416,7 @@ def _march(point: Point, parameter: str | None, eigenvector: np.ndarray, tol: fl
         system = _System(point.params, model, point.moment, point.particle)
         phase = _phase_for(system, _to_y(point.params, point.x, point.v), point.phase_normal)
         start = dataclasses.replace(point, turns=2 * point.turns, period=2 * point.period, particle_turns=2 * point.particle_turns)
-        problem = _OrbitBranchProblem(start, model, phase, tol, rtol, atol, 0.0, math.inf, False, False)
+        problem = _OrbitBranchProblem(start, model, phase, tol, rtol, atol, 0.0, math.inf, False, False, consistent=False)
         single = _OrbitBranchProblem(point, model, phase, tol, rtol, atol, 0.0, math.inf, False, False).evaluate
         tangent = np.zeros(phase.head + 2)
         tangent[: phase.head] = eigenvector[phase.keep]
@@ -671,7 +671,7 @@ def _hopf_march(params: ChainParams, model: str | Model, point: HopfPoint, tol, 
         params, model.name, point.moment, 0, point.particle, 2.0 * math.pi / point.frequency, x, v, np.ones(1, dtype=complex),
         math.inf, 0, particle_turns=np.zeros(params.n_particles, dtype=np.int64), phase_normal=phase.normal,
     )  # fmt: skip
-    problem = _OrbitBranchProblem(start, model, phase, tol, rtol, atol, 0.0, math.inf, False, False)
+    problem = _OrbitBranchProblem(start, model, phase, tol, rtol, atol, 0.0, math.inf, False, False, consistent=False)
     q = state[:n]
     slope = -np.linalg.solve(system.force_jacobian(q).toarray(), system.parameter_forces(q, "M"))
     tau = np.concatenate([slope, np.zeros(n + 1), [1.0]])
