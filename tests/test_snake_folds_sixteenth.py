@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 from scipy.optimize import fsolve
 
-from cosserat_chain.numerics import system_collocation
 from cosserat_chain.numerics.shooting import find_orbit, settled_guess
 from cosserat_chain.numerics.system_collocation import continue_collocation_orbits, find_collocation_orbit
 from three_junctions import jj3
@@ -53,12 +52,12 @@ def test_auto07p_refined_folds_are_mesh_converged_and_snake_at_the_saddle_focus_
 
 
 @pytest.mark.slow
-def test_collocation_locates_folds_9_to_13_at_auto07p_values(monkeypatch):
+def test_collocation_locates_and_confirms_folds_9_to_13_at_auto07p_values():
     # Folds 1-8 on 200 intervals (NCOL = 4), then the orbit solved again with NCOL = 7 and followed to T = 82. The turns
-    # are located (the secant on the tangent's I component) at AUTO's I; the located orbits' multipliers do not show
+    # are located (the secant on the tangent's I component) at AUTO's I. The located orbits' multipliers do not show
     # the double +1 (|M| ~ 1e14 ... 1e20, and the second multiplier runs from ~1e6 through +1 within the location's
-    # error; AUTO's at its LP 9: 1 and 3.87), so the package keeps none of them as an event: the confirmation is
-    # replaced here to see the located turns.
+    # error; AUTO's at its LP 9: 1 and 3.87): each fold is confirmed by a real multiplier through +1 between the two
+    # orbits of its step, whose trivial multipliers are resolved (before, none of the five was kept).
     system = jj3()
     drift = system.parameter("I") / system.parameter("alpha")
     guess = settled_guess(system, np.concatenate([np.zeros(3), np.full(3, drift)]), coordinate=0)
@@ -67,7 +66,6 @@ def test_collocation_locates_folds_9_to_13_at_auto07p_values(monkeypatch):
     assert len([e for e in first.events if e["kind"] == "fold"]) == 8
     last = first.orbits[-1]
     orbit = find_collocation_orbit(last.system, last, ntst=200, ncol=7)
-    monkeypatch.setattr(system_collocation, "second_multiplier_at_one", lambda multipliers: True)
     branch = continue_collocation_orbits(orbit, "I", through_folds=True, period_max=82.0, max_points=400)
     folds = [e for e in branch.events if e["kind"] == "fold"]
     auto = refined_folds()["ntst400_ncol7"][LATE]

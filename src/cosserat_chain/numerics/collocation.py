@@ -421,6 +421,12 @@ def continue_periodic_orbit(
     return branch.orbit_branch({"moment_min": moment_min, "period_max": period_max})
 
 
+#: The most a bracket orbit's trivial multiplier may be off for it to tell on which side of +1 the others lie
+#: (:func:`_crossing_between`; the junctions' thirteenth fold has an orbit of its step 0.017 off, the others 1e4 and
+#: more away from +1).
+BRACKET_TRIVIAL = 0.1
+
+
 @dataclass
 class _BranchProblem:
     """(C) with M free, for :func:`~cosserat_chain.numerics.kit.continuation` (its ContinuationProblem)."""
@@ -436,6 +442,8 @@ class _BranchProblem:
     second_at_one: Callable[[np.ndarray], bool] | None = None
     #: The continued parameter's name in the messages (a user system's, or the chain's M).
     parameter: str = "M"
+    #: The last step's two orbits (:meth:`accept`): a located fold's bracket (:meth:`confirm`).
+    step: tuple[CollocationOrbit, CollocationOrbit] | None = None
 
     def evaluate(self, w: np.ndarray, jacobian: bool) -> Evaluation:
         return self.collocation.evaluate(w, jacobian)
@@ -466,6 +474,7 @@ class _BranchProblem:
         if periodic._multiplier_motion(before, after) > periodic.MAX_MULTIPLIER_MOTION:
             return False
         self.collocation.set_reference(candidate.profile)
+        self.step = (previous, candidate)
         return True
 
     def tests(self, point: CollocationOrbit) -> dict[str, float]:
@@ -496,14 +505,34 @@ class _BranchProblem:
     def confirm(self, kind: str, point: CollocationOrbit) -> bool:
         """A fold or branch point of cycles needs a second multiplier at +1 (issue 40's first item): within
         :data:`FOLD_MULTIPLIER`; a period doubling a multiplier at -1, a torus a complex pair on the circle:
-        within :data:`~.cycle_events.CIRCLE_MULTIPLIER` (a pair outside the circle that turns real also changes the torus test's sign)."""
+        within :data:`~.cycle_events.CIRCLE_MULTIPLIER` (a pair outside the circle that turns real also changes the torus test's sign).
+        A fold whose located orbit does not resolve its multipliers (next to a saddle-focus, ||M|| ~ 1e14 and the trivial
+        one lost) is confirmed by a real multiplier through +1 between the step's two orbits (:func:`_crossing_between`)."""
         if kind in CIRCLE_KINDS:
             return on_circle(point.nontrivial_multipliers, kind)
         if kind not in ("fold", "branch_point"):
             return True
         if self.second_at_one is not None:
-            return self.second_at_one(point.multipliers)
-        return bool(np.sort(np.abs(point.multipliers - 1.0))[1] < FOLD_MULTIPLIER)
+            at_one = self.second_at_one(point.multipliers)
+        else:
+            at_one = bool(np.sort(np.abs(point.multipliers - 1.0))[1] < FOLD_MULTIPLIER)
+        return at_one or (kind == "fold" and self.step is not None and _crossing_between(*self.step))
+
+
+def _crossing_between(before, after) -> bool:
+    """Whether a real nontrivial multiplier crosses +1 between two orbits: the sign of Re prod (mu - 1) over the
+    nontrivial ones changes (a complex pair's factor is positive; a -1's does not change sign). Each orbit must know all
+    its multipliers and decide that sign: its trivial one off 1 by e < :data:`BRACKET_TRIVIAL`, every other farther
+    than 2 e from +1."""
+
+    def sign(orbit) -> float:
+        error = abs(orbit.trivial_multiplier - 1.0)
+        others = orbit.nontrivial_multipliers
+        if orbit.multipliers.size != orbit.profile.shape[1] or not error < BRACKET_TRIVIAL or np.min(np.abs(others - 1.0)) <= 2 * error:
+            return math.nan
+        return float(np.real(np.prod(others - 1.0)))
+
+    return sign(before) * sign(after) < 0
 
 
 def _complete(orbit: CollocationOrbit) -> np.ndarray:
