@@ -120,6 +120,8 @@ APPROACH_POINTS = 12
 #: A homoclinic M_h fitted further below the last orbit's M than this (relative) is an
 #: extrapolation too far to report (the weakly damped pendulum's: 1.2e-4 at gamma_phi = 0.01).
 APPROACH_RTOL = 1e-3
+#: Least relative step in T between the orbits :func:`_approach` takes (the last ones of a crawl are thinned out).
+APPROACH_SPACING = 1e-3
 #: Default period beyond which the period counts as diverging (each orbit near it costs an
 #: integration of that length with its monodromy: benchmarks/TIMINGS.md).
 PERIOD_MAX = 100.0
@@ -634,13 +636,19 @@ def _located(edge: _Edge, around: Sequence[PeriodicOrbit], field_name: str) -> _
 def _approach(moment: np.ndarray, period: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
     """The branch's last orbits if they approach a limit moment with a growing period, else None.
 
-    Taken: the last APPROACH_POINTS orbits of distinct M. An approach: |M| falls and T
+    Taken: the last APPROACH_POINTS orbits of distinct M, each period at least APPROACH_SPACING
+    (relative) below the next one kept (a crawl of the last steps, whose periods differ by 1e-6, is
+    thinned out: its dT/dM is the local slope, not the approach). An approach: |M| falls and T
     rises from each to the next, ever faster against M (|dT/dM| larger over the second
     half of them than over the first), as -log(M - M_h) does; :func:`_diverging` then fits
     M_h, which is kept only within APPROACH_RTOL of the last orbit's M below it.
     """
     distinct = np.flatnonzero(np.abs(np.diff(moment)) > 1e-14 * np.abs(moment[1:])) + 1
-    keep = distinct[-APPROACH_POINTS:]
+    spaced: list[int] = []
+    for index in distinct[::-1]:
+        if not spaced or period[index] <= period[spaced[-1]] * (1.0 - APPROACH_SPACING):
+            spaced.append(int(index))
+    keep = np.array(spaced[:APPROACH_POINTS][::-1], dtype=int)
     if keep.size < APPROACH_POINTS:
         return None
     m, t = np.abs(moment[keep]), period[keep]
