@@ -458,7 +458,6 @@ def orbit_multipliers(
     return periodic_schur_multipliers(segments).values
 
 
-@one_blas_thread
 def read_guess(system: System, guess, turns, orbits: tuple[type, ...]) -> tuple[np.ndarray, float, np.ndarray]:
     """(y0, T, turns vector) of a guess: an orbit of one of the types ``orbits`` (its turns unless ``turns`` is given)
     or a pair (y0, T) with ``turns``; y0 must be 2n finite numbers and T finite and > 0 (ValueError otherwise)."""
@@ -475,6 +474,7 @@ def read_guess(system: System, guess, turns, orbits: tuple[type, ...]) -> tuple[
     return y0, period, k
 
 
+@one_blas_thread
 def find_orbit(
     system: System,
     guess: tuple[np.ndarray, float] | Orbit,
